@@ -1,0 +1,90 @@
+# mlip - one Makefile, output in $(BUILD).
+#   make            library, tools, unit tests
+#   make test       install missing deps, build, run every test (what CI runs)
+#   make bench      Table 1 and Table 2 of the paper, redone
+#   make asan|ubsan the whole test suite under a sanitizer (build-asan/, build-ubsan/)
+
+BUILD   ?= build
+CC      ?= cc
+OPT     ?= -O2
+SAN     ?=
+CFLAGS  := -std=c99 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE $(OPT) -g \
+           -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
+           -Wno-unused-function -Werror -MMD -MP -Iinclude -Itools/lib $(SAN) $(EXTRA_CFLAGS)
+LDFLAGS := $(SAN) $(EXTRA_LDFLAGS)
+LDLIBS  := -lm
+
+LIB_SRC   := $(wildcard src/*.c)
+LIB_OBJ   := $(LIB_SRC:%.c=$(BUILD)/obj/%.o)
+HOST_SRC  := $(wildcard tools/lib/*.c)
+HOST_OBJ  := $(HOST_SRC:%.c=$(BUILD)/obj/%.o)
+RT_SRC    := $(wildcard rt/*.c)
+RT_OBJ    := $(RT_SRC:%.c=$(BUILD)/obj/%.o)
+TOOL_SRC  := $(wildcard tools/mlip-*.c)
+TOOLS     := $(TOOL_SRC:tools/%.c=$(BUILD)/%)
+UNIT_SRC  := $(wildcard tests/unit/test_*.c)
+UNIT_BINS := $(UNIT_SRC:tests/unit/%.c=$(BUILD)/tests/%)
+BENCH_SRC := $(wildcard bench/bench_*.c)
+BENCH_BINS:= $(BENCH_SRC:bench/%.c=$(BUILD)/%)
+
+# rt/ needs libsocketcan and threads; tools that use rt/ link it.
+RT_LIBS   := -lsocketcan -lpthread -lrt
+
+.PHONY: all test unit pytest bench asan ubsan fuzz deps clean demo
+all: $(BUILD)/libmlip.a $(TOOLS) $(UNIT_BINS) $(BENCH_BINS)
+
+$(BUILD)/obj/%.o: %.c
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -c $< -o $@
+
+$(BUILD)/libmlip.a: $(LIB_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^
+
+$(BUILD)/libmlip-host.a: $(HOST_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^ $(if $(HOST_OBJ),,&& true)
+
+$(BUILD)/libmlip-rt.a: $(RT_OBJ)
+	@mkdir -p $(dir $@)
+	rm -f $@ && ar rcs $@ $^
+
+# Tools: host helpers + core; rt-based tools also get librt.
+$(BUILD)/mlip-%: $(BUILD)/obj/tools/mlip-%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a $(if $(RT_OBJ),$(BUILD)/libmlip-rt.a)
+	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(if $(RT_OBJ),$(BUILD)/libmlip-rt.a $(RT_LIBS)) $(BUILD)/libmlip.a $(LDLIBS)
+
+$(BUILD)/tests/test_%: $(BUILD)/obj/tests/unit/test_%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a $(if $(RT_OBJ),$(BUILD)/libmlip-rt.a)
+	@mkdir -p $(dir $@)
+	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(if $(RT_OBJ),$(BUILD)/libmlip-rt.a $(RT_LIBS)) $(BUILD)/libmlip.a -lcmocka $(LDLIBS)
+
+$(BUILD)/bench_%: $(BUILD)/obj/bench/bench_%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a
+	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a $(LDLIBS)
+
+deps:
+	@tools/deps.sh
+
+# Unit tests: each binary is a cmocka group; run them all, fail if any fails.
+unit: $(UNIT_BINS)
+	@fail=0; for t in $(UNIT_BINS); do echo "== $$t"; $$t || fail=1; done; exit $$fail
+
+# System tests (pytest): physics checks on the real toolpaths, CLI behaviour.
+pytest: all
+	@. .venv/bin/activate && MLIP_BUILD=$(BUILD) python -m pytest -q tests/py
+
+test: deps
+	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory unit
+	@$(MAKE) --no-print-directory pytest
+
+bench: all
+	@. .venv/bin/activate 2>/dev/null; python3 bench/run.py --build $(BUILD)
+
+asan:
+	@$(MAKE) --no-print-directory BUILD=build-asan OPT=-O1 SAN="-fsanitize=address -fno-omit-frame-pointer" unit pytest
+ubsan:
+	@$(MAKE) --no-print-directory BUILD=build-ubsan OPT=-O1 SAN="-fsanitize=undefined -fno-sanitize-recover=all" unit pytest
+
+clean:
+	rm -rf build build-asan build-ubsan
+
+-include $(shell find $(BUILD) -name '*.d' 2>/dev/null)

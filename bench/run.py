@@ -1,0 +1,160 @@
+#!/usr/bin/env python3
+"""make bench: the paper's Table 2 and Table 1, redone on real toolpaths.
+
+Table 2: total machining time of mpct (the paper), bisector and stop on
+MB-2.3_test.nc and flower-spiral-2d.ngc at feed 200 mm/s, eps 0.01 mm,
+T 1 ms and the paper's four per-axis acceleration settings. Times are the
+simulator's, i.e. exact periods of the motion the controller would run.
+
+Table 1: look-ahead cost (medians of timed runs; instruction counts from
+callgrind, which do not depend on what else the shared machine is doing).
+"""
+import argparse
+import concurrent.futures as cf
+import json
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SHARED = os.environ.get("MLIP_SHARED", os.path.join(ROOT, "..", "shared"))
+TOOLPATHS = os.path.join(SHARED, "toolpaths")
+
+# (label, --accel): the paper's x/y settings; for 3-axis files Z gets the
+# value of Y (toolpaths/README.md: "the same value on Z").
+SETTINGS = [("1000/1000", "1000,1000,1000"), ("3000/1000", "3000,1000,1000"),
+            ("3000/3000", "3000,3000,3000"), ("6000/6000", "6000,6000,6000")]
+PAPER = {  # the vase, Table 2: minutes
+    "1000/1000": (22.78, 40.52, 57.13), "3000/1000": (18.62, 31.59, 44.16),
+    "3000/3000": (13.15, 21.22, 34.92), "6000/6000": (9.30, 14.33, 26.15)}
+STRATEGIES = ["mpct", "bisector", "stop"]
+
+
+def sim(build, path, accel, strategy):
+    n_axes = 2 if path.endswith("flower-spiral-2d.ngc") else 3
+    accel = ",".join(accel.split(",")[:n_axes])
+    out = subprocess.run(
+        [os.path.join(build, "mlip-sim"), "-q", "--strategy", strategy, "--accel", accel,
+         "--vmax", "200", "--feed", "200", "--eps", "0.01", "--period", "0.001",
+         "--summary", "-", path], check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def table2(build):
+    files = ["MB-2.3_test.nc", "flower-spiral-2d.ngc"]
+    jobs = {}
+    with cf.ThreadPoolExecutor(max_workers=2) as ex:
+        for f in files:
+            for label, accel in SETTINGS:
+                for st in STRATEGIES:
+                    jobs[(f, label, st)] = ex.submit(sim, build, os.path.join(TOOLPATHS, f), accel, st)
+        res = {k: v.result() for k, v in jobs.items()}
+    print("## Table 2, redone: total machining time (feed 200 mm/s, eps 0.01 mm, T 1 ms)\n")
+    for f in files:
+        s0 = res[(f, SETTINGS[0][0], "mpct")]
+        print(f"### {f}: {s0['blocks']} blocks, {s0['path_length_mm'] / 1000:.2f} m\n")
+        print("| accel x/y (mm/s^2) | mpct | bisector | stop | mpct vs bisector | mpct vs stop |"
+              " paper (vase): mpct / bisector / stop, gains |")
+        print("|---|---|---|---|---|---|---|")
+        for label, _ in SETTINGS:
+            t = [res[(f, label, st)]["total_time_s"] for st in STRATEGIES]
+            p = PAPER[label]
+            print(f"| {label} | {t[0] / 60:.2f} min | {t[1] / 60:.2f} min | {t[2] / 60:.2f} min "
+                  f"| +{(t[1] / t[0] - 1) * 100:.1f} % ({t[1] / t[0]:.2f}x) "
+                  f"| +{(t[2] / t[0] - 1) * 100:.1f} % ({t[2] / t[0]:.2f}x) "
+                  f"| {p[0]:.2f} / {p[1]:.2f} / {p[2]:.2f} min, +{(p[1] / p[0] - 1) * 100:.1f} %, "
+                  f"+{(p[2] / p[0] - 1) * 100:.1f} % |")
+        worst = max(max(a / l for a, l in zip(r["max_axis_accel"], r["accel_limit"]))
+                    for k, r in res.items() if k[0] == f)
+        cont = max(r["max_contour_error_mm"] for k, r in res.items() if k[0] == f)
+        print(f"\nAll runs: max axis acceleration / limit = {worst:.12f}, "
+              f"max contour error {cont:.5f} mm (eps 0.01).\n")
+    return res
+
+
+def callgrind(build, args, func):
+    if shutil.which("valgrind") is None:
+        return None
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "cg.out")
+        subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+                        f"--toggle-collect={func}", os.path.join(build, "bench_lookahead")] + args,
+                       check=True, capture_output=True)
+        with open(out) as fh:
+            for line in fh:
+                m = re.match(r"(?:summary|totals):\s+(\d+)", line)
+                if m:
+                    return int(m.group(1))
+    return None
+
+
+def table1(build):
+    mb = os.path.join(TOOLPATHS, "MB-2.3_test.nc")
+    r = json.loads(subprocess.run([os.path.join(build, "bench_lookahead"), mb, "--reps", "41"],
+                                  check=True, capture_output=True, text=True).stdout)
+    print("## Table 1, redone: look-ahead cost on MB-2.3_test.nc (A = 1000 mm/s^2)\n")
+    print("Medians of 41 windows spread over the file. Pre-read = push N blocks from rest "
+          "(corner of each, eqs 1-20, + backward reachability with the termination "
+          "condition); full pass = one backward pass over N blocks without termination; "
+          "corners = eqs 1-20 alone.\n")
+    print("| look-ahead blocks | pre-read (µs) | instructions / block | full backward pass (µs) |"
+          " corners alone (µs) | corners re-visited / block | paper pre-read (ms, 2011) |")
+    print("|---|---|---|---|---|---|---|")
+    paper = {1000: 0.14, 2000: 0.24, 3000: 0.38, 4000: 0.49}
+    for row in r["preread"]:
+        n = row["blocks"]
+        ir = callgrind(build, [mb, "--mode", "preread", str(n), "--reps", "3"], "bench_preread")
+        irs = f"{ir / (3 * n):.0f}" if ir else "n/a"
+        print(f"| {n} | {row['preread_us']:.1f} | {irs} | {row['full_pass_us']:.1f} | "
+              f"{row['corners_us']:.1f} | {row['visits_per_block']:.1f} | {paper[n]} |")
+    a = r["add_one_block"]
+    ir = callgrind(build, [mb, "--mode", "push", "20000"], "bench_push_one")
+    irc = callgrind(build, [mb, "--mode", "corners", "4000", "--reps", "3"], "bench_corners")
+    print(f"\nAdding one block while running (look-ahead full, 4096): median {a['median_ns']} ns,"
+          f" p99 {a['p99_ns']} ns, max {a['max_ns']} ns over {a['pushes']} pushes"
+          f" (timer overhead included); {ir / 20000:.0f} instructions per push;"
+          if ir else f"\nAdding one block: median {a['median_ns']} ns;", end="")
+    print(f" a re-run visits {a['visits_per_block']:.1f} corners on average before the termination"
+          f" condition stops it (paper: about 200 on the vase; 0.025-0.032 ms per block).")
+    if irc:
+        print(f"One corner's parameters (eqs 1-20): {irc / (3 * 3998):.0f} instructions"
+              f" (paper: 0.00558 ms).")
+    print()
+
+
+def sim_speed(build):
+    mb = os.path.join(TOOLPATHS, "MB-2.3_test.nc")
+    times = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        subprocess.run([os.path.join(build, "mlip-sim"), "-q", "--accel", "1000", "--feed", "200", mb],
+                       check=True)
+        times.append(time.perf_counter() - t0)
+    s = sim(build, mb, "1000,1000,1000", "mpct")
+    print(f"## Simulator speed\n\nmlip-sim on MB-2.3_test.nc ({s['total_time_s'] / 60:.1f} min of machining"
+          f" at 1000 mm/s^2), no trace: median {statistics.median(times):.3f} s wall over 5 runs "
+          f"(parse + plan + interpolate + check).\n")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--only", choices=["table1", "table2", "speed"])
+    a = ap.parse_args()
+    if not os.path.isdir(TOOLPATHS):
+        sys.exit(f"bench: {TOOLPATHS} not found (set MLIP_SHARED)")
+    if a.only in (None, "table2"):
+        table2(a.build)
+    if a.only in (None, "table1"):
+        table1(a.build)
+    if a.only in (None, "speed"):
+        sim_speed(a.build)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,120 @@
+/*
+ * mlip/config.h - machine configuration from an INI file in the spirit of
+ * LinuxCNC's ([TRAJ], [AXIS_X], ...), parsed from a buffer.
+ *
+ * Pure: no allocation, no I/O; the caller reads the file. Unknown sections or
+ * keys, missing required values, malformed numbers and non-positive limits are
+ * errors naming line, column and key.
+ *
+ *   [TRAJ]
+ *   COORDINATES = X Y Z        ; axis letters in output order, 2..6 of XYZABC
+ *   MAX_LINEAR_VELOCITY = 200  ; mm/s, v_m
+ *   MAX_ANGULAR_VELOCITY = 360 ; deg/s, rotary-only moves (optional, default 360)
+ *   CONTOUR_TOLERANCE = 0.01   ; mm, eps
+ *   PERIOD = 0.001             ; s, T (optional, default 0.001, 1e-4..0.1)
+ *   LINEAR_UNITS = mm          ; optional, only mm ("inch" is refused)
+ *   ANGULAR_UNITS = degree     ; optional, only degree
+ *   LOOKAHEAD = 4096           ; blocks, power of two 2..MLIP_LOOKAHEAD (optional)
+ *   [AXIS_X]                   ; one per letter of COORDINATES, no other
+ *   TYPE = LINEAR              ; LINEAR or ANGULAR (optional: XYZ linear, ABC angular)
+ *   MAX_VELOCITY = 200         ; mm/s or deg/s
+ *   MAX_ACCELERATION = 1000    ; mm/s^2 or deg/s^2
+ *   MIN_LIMIT = -1000          ; soft limits (optional, default -1e9/1e9)
+ *   MAX_LIMIT = 1000
+ *   HOME = 0                   ; start position (optional, default 0)
+ *   CAN_NODE = 1               ; CANopen node id 1..127 (optional, default index+1)
+ *   COUNTS_PER_UNIT = 1000     ; drive counts per mm or degree (optional, default 1000)
+ *   [CAN]                      ; optional, read by rt/ (see mlip_can_config)
+ *   PROFILE = cia402           ; cia402, packed or fd
+ *   BITRATE = 1000000          ; bit/s, 10000..1000000
+ *   DATA_BITRATE = 5000000     ; bit/s, 10000..12000000, >= BITRATE with fd
+ *   SYNC_ID = 0x080            ; 11-bit ids 0..0x7FF, decimal or 0x hex;
+ *   RPDO_BASE = 0x200          ;   RPDO_BASE + every CAN_NODE <= 0x7FF
+ *   PACKED_BASE = 0x300
+ *   FD_ID = 0x400
+ *   STATUS_ID = 0x180
+ *
+ * Syntax. Section names and keys are upper case and case-sensitive, as in
+ * LinuxCNC; enumerated values are case-sensitive too. A line is blank, a
+ * comment ('#' or ';' first), "[SECTION]" or "KEY = VALUE", with spaces or
+ * tabs anywhere around the tokens. After a value, '#' or ';' starts a comment
+ * only when preceded by a space or tab. Every section and key at most once;
+ * sections in any order. Numbers are plain decimals, [+-]d[.d][e[+-]d]: no
+ * units, no "nan"/"inf", no hex floats; integer keys take decimal digits or
+ * 0x hex (a leading 0 is still decimal). The text must be UTF-8 (an initial
+ * BOM is skipped) without NUL or control characters other than tab; lines end
+ * in LF or CRLF and hold at most MLIP_CONFIG_MAX_LINE bytes. Columns count
+ * bytes from 1; a tab is one column.
+ *
+ * Checks across keys, once the whole text is read: every letter of
+ * COORDINATES has its [AXIS_L] and no other [AXIS_L] exists; MIN_LIMIT <
+ * MAX_LIMIT; MIN_LIMIT <= HOME <= MAX_LIMIT; CAN_NODEs distinct; RPDO_BASE +
+ * CAN_NODE <= 0x7FF; SYNC_ID != STATUS_ID and, with cia402, neither equal to
+ * an RPDO id; with fd, DATA_BITRATE >= BITRATE. Such an error is placed on
+ * whichever of the keys involved comes last in the file.
+ *
+ * Errors. MLIP_E_SYNTAX: bytes, lines, sections, keys, malformed values,
+ * missing sections or keys. MLIP_E_RANGE: a value out of its range or
+ * inconsistent with another. MLIP_E_UNSUPPORTED: units other than mm and
+ * degree. A missing required key is reported at its section's header line
+ * (column 0), a missing section at line 0 or at the COORDINATES letter that
+ * needs it. Only the first error is reported.
+ */
+#ifndef MLIP_CONFIG_H
+#define MLIP_CONFIG_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mlip/types.h"
+
+#define MLIP_CONFIG_MSG 160
+#define MLIP_CONFIG_MAX_LINE 512      /* bytes per line, line ending excluded */
+#define MLIP_CONFIG_PERIOD_MIN_S 1e-4 /* PERIOD range, inclusive */
+#define MLIP_CONFIG_PERIOD_MAX_S 0.1
+
+struct mlip_config_error {
+	uint32_t line;  /* 1-based; 0 for a whole-file error (e.g. missing key) */
+	uint32_t col;   /* 1-based; 0 when not applicable */
+	char msg[MLIP_CONFIG_MSG];
+};
+
+/* [CAN] section: output settings for the real-time controller. */
+struct mlip_can_config {
+	char profile[8];        /* "cia402" (default), "packed", "fd" */
+	uint32_t bitrate;       /* bit/s, default 1000000 */
+	uint32_t data_bitrate;  /* CAN FD data phase bit/s, default 5000000 */
+	uint32_t sync_id;       /* default 0x080 */
+	uint32_t rpdo_base;     /* default 0x200 (+ node id) */
+	uint32_t packed_base;   /* default 0x300 (+ frame index) */
+	uint32_t fd_id;         /* default 0x400 */
+	uint32_t status_id;     /* default 0x180: controller status frame */
+};
+
+struct mlip_config {
+	struct mlip_machine machine;
+	struct mlip_can_config can;
+	uint32_t lookahead;     /* [TRAJ] LOOKAHEAD blocks, default MLIP_LOOKAHEAD */
+};
+
+/* Fill *c with defaults (no axes): MAX_ANGULAR_VELOCITY 360, PERIOD 0.001,
+ * LOOKAHEAD MLIP_LOOKAHEAD, the [CAN] defaults above; v_m and eps 0 (they are
+ * required). */
+void mlip_config_defaults(struct mlip_config *c);
+
+/* Parse an INI text of len bytes (need not be NUL-terminated) into *c, which
+ * must hold defaults first: an optional [TRAJ] or [CAN] key absent from the
+ * text keeps the value *c holds; axes come from the text alone. Returns MLIP_OK with *c filled
+ * and passing mlip_machine_check, or an error with *err filled (err may be
+ * NULL) and *c unchanged. */
+mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t len,
+                              struct mlip_config_error *err);
+
+/* Check a machine for consistency (2..6 distinct axes, positive limits,
+ * min_limit < max_limit, home within limits, ...). Used after command-line
+ * overrides too. Messages name the field with its INI name, e.g.
+ * "AXIS_Z MAX_ACCELERATION must be > 0, got -5"; err->line = err->col = 0.
+ * MLIP_E_INVALID for the axis set (count, letters, kind), else MLIP_E_RANGE. */
+mlip_status mlip_machine_check(const struct mlip_machine *m, struct mlip_config_error *err);
+
+#endif

@@ -1,0 +1,322 @@
+/*
+ * mlip/ring.h - the block ring between mlip-feed and mlip-rt, and the status
+ * and command areas that mlip-ctl reads and writes, all in one memory segment
+ * (a POSIX shared-memory object mapped by every process).
+ *
+ * Pure: the segment is passed in by the caller (rt/ does shm_open + mmap);
+ * nothing here allocates, prints or makes a system call.
+ *
+ * Segment layout (version MLIP_RING_VERSION, offsets in bytes, each area on
+ * its own 64-byte cache line so that no two writers share a line):
+ *
+ *     0  identity   magic "MLIPRING", version, capacity, record size, n_axes
+ *    64  producer   head (free-running), feeder's cached copy of tail
+ *   128  consumer   tail (free-running), controller's cached copy of head
+ *   192  status     seqlock generation, command reply, struct mlip_ring_status
+ *   320  feeder     seqlock generation, struct mlip_ring_feeder
+ *   384  mailbox    command sequence, op, argument (written by mlip-ctl)
+ *   448  records    capacity x struct mlip_ring_rec (80 bytes each)
+ *
+ * The magic (offset 0) and the version (offset 8) keep their places in every
+ * layout version, so any version can tell any other that they differ.
+ *
+ * Who writes what (everything else only reads):
+ *   mlip_ring_format() (controller, before anyone attaches): all of it, once.
+ *   feeder (the single producer):  head, tail_cache, feeder area, records.
+ *   controller (the single consumer, the RT thread): tail, head_cache,
+ *                                  status area and command reply.
+ *   mlip-ctl: the command mailbox (several mlip-ctl may race: a CAS decides).
+ *
+ * The ring is single-producer single-consumer and lock-free (Linux kfifo,
+ * DPDK rte_ring): head and tail are free-running uint32_t indices, a slot is
+ * index & mask, count = head - tail in modular arithmetic (capacity is a power
+ * of two <= 2^24, so head - tail never exceeds it). The producer writes a
+ * record, then stores head with release; the consumer loads head with acquire
+ * before reading records, and stores tail with release after copying them out
+ * (GCC __atomic builtins, which compile under -std=c99). Records are POD.
+ *
+ * The status and feeder areas are seqlocks: the writer makes the generation
+ * odd, stores every field (atomically, release), and makes it even again; a
+ * reader retries until it sees the same even generation before and after.
+ * Every field in shared memory is only ever accessed with __atomic builtins,
+ * so 64-bit counters are never torn and readers are data-race free.
+ *
+ * Command mailbox (one slot, acknowledged): mlip-ctl may post only when the
+ * previous command has been completed (cmd_seq == cmd_done), so a command is
+ * never lost; the controller takes a command only when cmd_seq differs from
+ * the last one it took, so it is never applied twice. Sequence numbers step by
+ * 2: odd means "being written", even means "posted".
+ *
+ *     ctl: post(op,arg) --CAS seq s->s+1, write op,arg, seq=s+2--> mailbox
+ *     rt:  take() sees seq != taken -> applies -> done(seq, result)
+ *     ctl: result(seq) -> MLIP_OK once done == seq, with the result code
+ */
+#ifndef MLIP_RING_H
+#define MLIP_RING_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mlip/types.h"
+
+#define MLIP_RING_MAGIC "MLIPRING" /* first 8 bytes of the segment */
+#define MLIP_RING_VERSION 1u       /* bump on any change to the layout below */
+#define MLIP_RING_LINE 64          /* bytes: cache line of every area */
+#define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
+#ifndef MLIP_RING_CAPACITY
+#define MLIP_RING_CAPACITY 8192u   /* default records in the ring: 8 s of 1 ms blocks */
+#endif
+#define MLIP_RING_READ_TRIES 1000  /* seqlock retries before a reader gives up */
+
+/* For constant expressions only (it evaluates x three times): power of two.
+ * The checks below get a negative array size when false (C99 has no
+ * _Static_assert; Linux kfifo.h). */
+#define MLIP_RING_IS_POW2(x) ((x) != 0 && ((x) & ((x) - 1)) == 0)
+typedef char mlip_ring_capacity_pow2_check[MLIP_RING_IS_POW2(MLIP_RING_CAPACITY) ? 1 : -1];
+typedef char mlip_ring_capacity_max_check[MLIP_RING_CAPACITY <= MLIP_RING_MAX_CAPACITY ? 1 : -1];
+
+/* ---- records -------------------------------------------------------- */
+
+#define MLIP_REC_RAPID 0x1u /* G0: runs at the machine's maximum feed */
+#define MLIP_REC_END 0x2u   /* end-of-program marker: no motion, target ignored */
+
+/* One block in the ring (POD, 80 bytes, no padding). Written by the feeder. */
+struct mlip_ring_rec {
+	uint64_t seq;                 /* 1, 2, 3, ... in program order (END included) */
+	uint32_t line;                /* source line, 1-based (0: none) */
+	uint32_t flags;               /* MLIP_REC_* */
+	double target[MLIP_MAX_AXES]; /* absolute, mm or deg, config axis order */
+	double feed_mm_s;             /* programmed feed (ignored when RAPID) */
+	double tol_mm;                /* contour budget at the end of the block */
+};
+
+/* ---- status published by the controller ---------------------------- */
+
+typedef enum {
+	MLIP_STATE_IDLE = 0, /* no program running, ring may be empty */
+	MLIP_STATE_RUNNING,
+	MLIP_STATE_HELD,     /* feed hold: decelerated to rest, resumable */
+	MLIP_STATE_STOPPING, /* stop requested: decelerating, ring being flushed */
+	MLIP_STATE_FAULT     /* stopped on an error (CAN, limits, overrun budget) */
+} mlip_ring_state;
+
+/* Controller status (a plain value; the segment holds the same fields, each
+ * accessed atomically). All written by mlip-rt, every period. */
+struct mlip_ring_status {
+	/* liveness */
+	uint64_t heartbeat;       /* periods since start: +1 every period */
+	uint64_t heartbeat_ns;    /* CLOCK_MONOTONIC ns of the last heartbeat (rt/ fills) */
+	/* progress */
+	uint64_t exec_seq;        /* seq of the record being executed (0: none yet) */
+	uint32_t exec_line;       /* its source line */
+	uint32_t state;           /* mlip_ring_state */
+	uint32_t override_pct;    /* feed override in effect, percent */
+	uint32_t reserved;        /* 0 */
+	/* counters since start */
+	uint64_t overruns;        /* periods that started late or ran over */
+	uint64_t underruns;       /* periods that needed a block and found the ring empty */
+	uint64_t can_tx_errors;   /* sends refused (ENOBUFS / EAGAIN) */
+	uint64_t can_bus_errors;  /* error frames, error-passive or bus-off seen */
+	uint64_t frames_sent;     /* CAN frames accepted by the socket */
+	uint64_t blocks_consumed; /* records popped from the ring */
+};
+
+/* Feeder status (plain value). All written by mlip-feed. */
+struct mlip_ring_feeder {
+	uint64_t heartbeat;    /* +1 every feeder loop */
+	uint64_t heartbeat_ns; /* CLOCK_MONOTONIC ns of the last heartbeat */
+	uint64_t total_blocks; /* records in the whole program (END included); 0: not known yet */
+	uint32_t program_end;  /* 1 once the END record has been pushed */
+	int32_t pid;           /* feeder process id (0: no feeder) */
+};
+
+/* ---- commands ------------------------------------------------------- */
+
+typedef enum {
+	MLIP_CMD_NONE = 0,
+	MLIP_CMD_OVERRIDE, /* arg: feed override, percent */
+	MLIP_CMD_HOLD,     /* feed hold: decelerate to rest, keep the program */
+	MLIP_CMD_RESUME,   /* leave a hold */
+	MLIP_CMD_STOP,     /* decelerate to rest and drop the rest of the program */
+	MLIP_CMD_COUNT
+} mlip_ring_cmd_op;
+
+struct mlip_ring_cmd {
+	uint32_t seq; /* mailbox sequence number of this command (even, > 0) */
+	uint32_t op;  /* mlip_ring_cmd_op */
+	int32_t arg;  /* MLIP_CMD_OVERRIDE: percent; else 0 */
+};
+
+/* ---- the segment header --------------------------------------------- */
+
+#define MLIP_RING_ALIGNED __attribute__((aligned(MLIP_RING_LINE)))
+
+/* The first bytes of the segment; records follow at hdr_bytes. Public so the
+ * layout is the documented contract; use the functions below to access it. */
+struct mlip_ring {
+	/* identity: written once by mlip_ring_format, read-only afterwards */
+	uint64_t magic;     /* MLIP_RING_MAGIC bytes; stored last (release) */
+	uint32_t version;   /* MLIP_RING_VERSION */
+	uint32_t capacity;  /* records, power of two */
+	uint32_t mask;      /* capacity - 1 */
+	uint32_t rec_bytes; /* sizeof(struct mlip_ring_rec) */
+	uint32_t hdr_bytes; /* sizeof(struct mlip_ring): offset of record 0 */
+	uint32_t n_axes;    /* coordinates used in each record, 1..MLIP_MAX_AXES */
+
+	/* producer line: the feeder */
+	uint32_t head MLIP_RING_ALIGNED; /* next slot to write, free-running */
+	uint32_t tail_cache;             /* feeder's last view of tail (private) */
+
+	/* consumer line: the controller */
+	uint32_t tail MLIP_RING_ALIGNED; /* next slot to read, free-running */
+	uint32_t head_cache;             /* controller's last view of head (private) */
+
+	/* status: the controller */
+	uint32_t status_gen MLIP_RING_ALIGNED; /* seqlock over status: odd while writing */
+	uint32_t cmd_taken;                    /* seq of the last command taken */
+	uint32_t cmd_done;                     /* seq of the last command completed */
+	int32_t cmd_result;                    /* its result: an mlip_status value */
+	struct mlip_ring_status status;
+
+	/* feeder area: the feeder */
+	uint32_t feeder_gen MLIP_RING_ALIGNED; /* seqlock over feeder */
+	uint32_t feeder_reserved;
+	struct mlip_ring_feeder feeder;
+
+	/* command mailbox: mlip-ctl */
+	uint32_t cmd_seq MLIP_RING_ALIGNED; /* even: posted; odd: being written */
+	uint32_t cmd_op;                    /* mlip_ring_cmd_op */
+	int32_t cmd_arg;
+};
+
+/* Why an attach (or a format) was refused. */
+typedef enum {
+	MLIP_RING_MATCH = 0,
+	MLIP_RING_BAD_ARG,      /* NULL pointer */
+	MLIP_RING_BAD_ALIGN,    /* segment not aligned to MLIP_RING_LINE bytes */
+	MLIP_RING_SHORT,        /* segment smaller than the header */
+	MLIP_RING_BAD_MAGIC,    /* not an mlip ring, or not formatted yet */
+	MLIP_RING_BAD_VERSION,  /* layout version differs */
+	MLIP_RING_BAD_RECORD,   /* record size differs */
+	MLIP_RING_BAD_HEADER,   /* header size differs */
+	MLIP_RING_BAD_CAPACITY, /* 0, not a power of two, or above MLIP_RING_MAX_CAPACITY */
+	MLIP_RING_BAD_AXES,     /* n_axes outside 1..MLIP_MAX_AXES or not the expected one */
+	MLIP_RING_TRUNCATED     /* segment smaller than header + capacity records */
+} mlip_ring_reason;
+
+/* A refusal, with the two values a tool needs to say e.g. "segment layout
+ * version 2, this program speaks 3": found in the segment, expected here. For
+ * BAD_ALIGN found is the address modulo MLIP_RING_LINE; for SHORT and
+ * TRUNCATED found is the segment size and expected the size needed. */
+struct mlip_ring_mismatch {
+	mlip_ring_reason reason;
+	uint64_t found;
+	uint64_t expected;
+};
+
+/* Short noun phrase for a reason ("layout version", "record size", ...),
+ * never NULL. */
+const char *mlip_ring_reason_str(mlip_ring_reason reason);
+
+/* Bytes of a segment holding capacity records (header included); 0 when
+ * capacity is not a power of two in 1..MLIP_RING_MAX_CAPACITY. */
+size_t mlip_ring_bytes(uint32_t capacity);
+
+/* Controller side: write a fresh header (empty ring, zeroed status, feeder and
+ * mailbox areas, override 100 %) into mem, which must be MLIP_RING_LINE-aligned
+ * and hold mlip_ring_bytes(capacity) bytes. The magic is stored last, with
+ * release, so an attacher never sees a half-written header. Not safe while
+ * other processes use the segment. MLIP_E_INVALID on bad arguments. */
+mlip_status mlip_ring_format(void *mem, size_t bytes, uint32_t capacity, int n_axes);
+
+/* Any side: check that mem (bytes long) holds a ring this program can use and
+ * return it in *out. n_axes: the coordinates the caller will read or write,
+ * or 0 to accept any. MLIP_E_INVALID with *why filled (why may be NULL) on a
+ * mismatch; *out is then NULL. */
+mlip_status mlip_ring_attach(void *mem, size_t bytes, int n_axes, struct mlip_ring **out,
+                             struct mlip_ring_mismatch *why);
+
+/* ---- ring operations (producer: feeder; consumer: controller) -------- */
+
+/* Producer: append one record. MLIP_E_FULL when there is no room. */
+mlip_status mlip_ring_push(struct mlip_ring *r, const struct mlip_ring_rec *rec);
+
+/* Producer: append up to n records in order, as many as fit; returns how
+ * many were appended (0..n), published together with one store. */
+uint32_t mlip_ring_push_n(struct mlip_ring *r, const struct mlip_ring_rec *recs, uint32_t n);
+
+/* Consumer: copy the oldest record to *out without removing it.
+ * MLIP_E_EMPTY when the ring is empty. */
+mlip_status mlip_ring_peek(struct mlip_ring *r, struct mlip_ring_rec *out);
+
+/* Consumer: remove the oldest record, copying it to *out (out may be NULL).
+ * MLIP_E_EMPTY when the ring is empty. */
+mlip_status mlip_ring_pop(struct mlip_ring *r, struct mlip_ring_rec *out);
+
+/* Consumer: remove up to max records (a bounded budget per period), copying
+ * them to out[0..] in order (out NULL: discard them, e.g. on stop); returns
+ * how many were removed. */
+uint32_t mlip_ring_pop_n(struct mlip_ring *r, struct mlip_ring_rec *out, uint32_t max);
+
+/* Any side: records in the ring, 0..capacity (a snapshot: the other side may
+ * change it at once). */
+uint32_t mlip_ring_count(const struct mlip_ring *r);
+
+/* Any side: free slots, capacity - count. */
+uint32_t mlip_ring_space(const struct mlip_ring *r);
+
+/* Empty the ring and restart both free-running indices at index (tests use
+ * values near UINT32_MAX to exercise the wrap). Only while no producer or
+ * consumer is active. */
+void mlip_ring_reset(struct mlip_ring *r, uint32_t index);
+
+/* Record <-> block. A record with MLIP_REC_END has no block:
+ * mlip_ring_rec_to_block returns MLIP_E_EMPTY for it. */
+void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b,
+                              uint64_t seq);
+void mlip_ring_rec_end(struct mlip_ring_rec *rec, uint64_t seq, uint32_t line);
+mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_block *b);
+
+/* ---- status and feeder areas (seqlocks) ------------------------------ */
+
+/* Controller: publish *s (every period). Wait-free. */
+void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *s);
+
+/* Any side: a consistent copy of the controller status. MLIP_E_EMPTY when no
+ * consistent copy was seen in MLIP_RING_READ_TRIES attempts (the writer died
+ * mid-update, or keeps preempting the reader); try again later. */
+mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_status *s);
+
+/* Feeder: publish *f. Wait-free. */
+void mlip_ring_feeder_write(struct mlip_ring *r, const struct mlip_ring_feeder *f);
+
+/* Any side: a consistent copy of the feeder area; MLIP_E_EMPTY as above. */
+mlip_status mlip_ring_feeder_read(const struct mlip_ring *r, struct mlip_ring_feeder *f);
+
+/* ---- command mailbox -------------------------------------------------- */
+
+/* mlip-ctl: post a command. MLIP_E_FULL while the previous command is not
+ * completed yet (or another mlip-ctl is posting): retry later; MLIP_E_INVALID
+ * for an unknown op. On MLIP_OK *seq (may be NULL) is the command's sequence
+ * number, to pass to mlip_ring_cmd_result. */
+mlip_status mlip_ring_cmd_post(struct mlip_ring *r, mlip_ring_cmd_op op, int32_t arg,
+                               uint32_t *seq);
+
+/* mlip-ctl: MLIP_OK with *result (an mlip_status the controller returned for
+ * the command) once command seq is completed; MLIP_E_EMPTY while pending. */
+mlip_status mlip_ring_cmd_result(const struct mlip_ring *r, uint32_t seq, int32_t *result);
+
+/* Controller: take a newly posted command (each exactly once). MLIP_E_EMPTY
+ * when there is none. Then apply it and call mlip_ring_cmd_done. */
+mlip_status mlip_ring_cmd_take(struct mlip_ring *r, struct mlip_ring_cmd *out);
+
+/* Controller: report command seq completed with result (MLIP_OK, or e.g.
+ * MLIP_E_RANGE for an override out of range). Lets mlip-ctl post again. */
+void mlip_ring_cmd_done(struct mlip_ring *r, uint32_t seq, int32_t result);
+
+/* Names for tools: "idle", "running", ...; "override", "hold", ...;
+ * "?" for values out of range. Never NULL. */
+const char *mlip_ring_state_name(uint32_t state);
+const char *mlip_ring_cmd_name(uint32_t op);
+
+#endif

@@ -1,0 +1,66 @@
+/*
+ * mlip/types.h - types shared by every module of mlip: the machine model, the
+ * motion block, and the status codes.
+ *
+ * Units: lengths in mm, angles in degrees, time in seconds, unless a name says
+ * otherwise (_ns, _pct). Positions are in joint space: one coordinate per
+ * configured axis, in config order (Sec. 1.4 of the paper plans rotary axes
+ * as if they were linear, degrees standing in for mm).
+ */
+#ifndef MLIP_TYPES_H
+#define MLIP_TYPES_H
+
+#include <stdint.h>
+
+#define MLIP_MAX_AXES 6
+
+typedef enum {
+	MLIP_OK = 0,
+	MLIP_E_FULL,      /* fixed-capacity buffer has no room */
+	MLIP_E_EMPTY,     /* nothing to take */
+	MLIP_E_INVALID,   /* argument outside its documented domain */
+	MLIP_E_SYNTAX,    /* input text does not parse */
+	MLIP_E_RANGE,     /* value parses but is out of range (limits, NaN, inf) */
+	MLIP_E_UNSUPPORTED /* well-formed but not something mlip can execute */
+} mlip_status;
+
+typedef enum { MLIP_AXIS_LINEAR = 0, MLIP_AXIS_ROTARY = 1 } mlip_axis_kind;
+
+/* One machine axis. Field units follow the axis kind: mm or degrees. */
+struct mlip_axis {
+	char letter;          /* 'X','Y','Z','A','B','C' */
+	mlip_axis_kind kind;
+	/* dynamics */
+	double max_accel;     /* A_k, mm/s^2 or deg/s^2, same in + and - */
+	double max_vel;       /* mm/s or deg/s */
+	/* travel */
+	double min_limit;     /* soft limits, mm or deg; checked on every target */
+	double max_limit;
+	double home;          /* position at start-up, mm or deg */
+	/* CAN output (used by rt/, ignored by the planner) */
+	int can_node;         /* CANopen node id 1..127 */
+	double counts_per_unit; /* drive counts per mm or per degree */
+};
+
+struct mlip_machine {
+	int n_axes;                           /* 2..6 */
+	struct mlip_axis axis[MLIP_MAX_AXES]; /* in config order */
+	double max_feed_mm_s;    /* v_m: tool speed cap (linear path, G94 sense) */
+	double max_rot_feed_deg_s; /* cap for moves of rotary axes only */
+	double tolerance_mm;     /* eps: contour tolerance at corners */
+	double period_s;         /* T: interpolation period */
+};
+
+/* One G01-style block: an absolute target in joint space. Produced by the
+ * G-code front end (arcs arrive as several chord blocks). */
+struct mlip_block {
+	double target[MLIP_MAX_AXES]; /* absolute, in config axis order */
+	double feed_mm_s;  /* programmed feed: linear path speed, or deg/s for
+	                      rotary-only moves (G94); ignored when rapid */
+	double tol_mm;     /* contour budget of the corner at the END of this
+	                      block: eps, or less inside a chorded arc */
+	uint32_t line;     /* source line, 1-based */
+	uint8_t rapid;     /* G0: runs at the machine's maximum feed */
+};
+
+#endif

@@ -1,0 +1,1349 @@
+/*
+ * gcode.c - G-code front end: one line of RS274NGC text in, joint-space
+ * G01-style blocks out (see mlip/gcode.h for what is supported).
+ *
+ * A line goes through four steps, so that a line with an error changes
+ * nothing but what it validly said:
+ *   1. lex:      bytes -> words (letter, number, column); comments skipped,
+ *                malformed numbers, stray bytes and bad UTF-8 rejected;
+ *   2. classify: words -> one block description (G/M codes by modal group,
+ *                axis and arc words, F, notices), every word checked alone;
+ *   3. check:    words against the machine and the modal state;
+ *   4. execute:  modal state committed, then the motion (if any) turned into
+ *                targets, checked against the soft limits, and emitted.
+ *
+ * Arcs (G2/G3) become chords of equal angle. For a chord of angle d on a
+ * circle of radius r the sagitta is  s = r (1 - cos(d/2)) = 2 r sin^2(d/4),
+ * so the largest step with s <= S is  d = 4 asin(sqrt(S / (2 r))),  with
+ * S = MLIP_GCODE_ARC_FRACTION * eps. The corner between two chords of one
+ * arc then gets eps - s, so chord error plus corner error stays within eps.
+ * Plane conventions follow RS274NGC/LinuxCNC: G17 (u,v) = (X,Y) with I,J;
+ * G18 (u,v) = (Z,X) with K,I; G19 (u,v) = (Y,Z) with J,K; G3 turns from u
+ * toward v (counter-clockwise seen from the positive normal axis).
+ *
+ * Pure: libm, <string.h> and <stdarg.h> only; messages formatted by hand.
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <string.h>
+
+#include "mlip/gcode.h"
+
+#define MAX_WORDS (MLIP_GCODE_MAX_LINE / 2 + 1) /* a word takes two bytes at least */
+#define MAX_CHORDS 1000000u
+#define PI 3.14159265358979323846
+#define MM_PER_INCH 25.4
+
+static const char axis_letters[] = "XYZABC";
+
+/* ---- messages: a tiny formatter, since the core has no stdio ---- */
+
+struct msg {
+	char *s;
+	size_t n;
+};
+
+static void put_c(struct msg *m, char c)
+{
+	if (m->n + 1 < MLIP_GCODE_MSG) {
+		m->s[m->n++] = c;
+		m->s[m->n] = '\0';
+	}
+}
+
+static void put_u(struct msg *m, uint64_t v)
+{
+	char d[24];
+	int k = 0;
+
+	do {
+		d[k++] = (char)('0' + v % 10);
+		v /= 10;
+	} while (v);
+	while (k) {
+		put_c(m, d[--k]);
+	}
+}
+
+/* v with three decimals, like "%.3f" (for |v| < 1e15) */
+static void put_f(struct msg *m, double v)
+{
+	double r = floor(fabs(v) * 1000.0 + 0.5);
+	const char *p;
+	uint64_t q;
+
+	if (v < 0 && r > 0) {
+		put_c(m, '-');
+	}
+	if (!(r < 1e18)) {
+		for (p = isnan(v) ? "nan" : isinf(v) ? "inf" : "huge"; *p; p++) {
+			put_c(m, *p);
+		}
+		return;
+	}
+	q = (uint64_t)r;
+	put_u(m, q / 1000);
+	put_c(m, '.');
+	put_c(m, (char)('0' + q / 100 % 10));
+	put_c(m, (char)('0' + q / 10 % 10));
+	put_c(m, (char)('0' + q % 10));
+}
+
+/* Fill *e and return st. fmt knows %s (string), %c (char), %u (unsigned),
+ * %f (double, three decimals), %G and %M (a G or M code from its value*10:
+ * 641 -> "G64.1"), %b (a byte: 'c' when printable, else 0xNN) and %t (a
+ * span: pointer and size_t length, at most 24 bytes shown). */
+static mlip_status failf(struct mlip_gcode_error *e, uint32_t line, uint32_t col,
+                         mlip_status st, const char *fmt, ...)
+{
+	static const char hex[] = "0123456789ABCDEF";
+	struct msg m;
+	va_list ap;
+	const char *p;
+	size_t n, k;
+	int v;
+
+	e->line = line;
+	e->col = col;
+	e->msg[0] = '\0';
+	m.s = e->msg;
+	m.n = 0;
+	va_start(ap, fmt);
+	for (; *fmt; fmt++) {
+		if (*fmt != '%' || !fmt[1]) {
+			put_c(&m, *fmt);
+			continue;
+		}
+		switch (*++fmt) {
+		case 's':
+			for (p = va_arg(ap, const char *); *p; p++) {
+				put_c(&m, *p);
+			}
+			break;
+		case 'c':
+			put_c(&m, (char)va_arg(ap, int));
+			break;
+		case 'u':
+			put_u(&m, va_arg(ap, unsigned));
+			break;
+		case 'f':
+			put_f(&m, va_arg(ap, double));
+			break;
+		case 'G':
+		case 'M':
+			v = va_arg(ap, int);
+			put_c(&m, *fmt);
+			put_u(&m, (uint64_t)(v / 10));
+			if (v % 10) {
+				put_c(&m, '.');
+				put_c(&m, (char)('0' + v % 10));
+			}
+			break;
+		case 'b':
+			v = va_arg(ap, int) & 0xFF;
+			if (v >= 0x20 && v < 0x7f) {
+				put_c(&m, '\'');
+				put_c(&m, (char)v);
+				put_c(&m, '\'');
+			} else {
+				put_c(&m, '0');
+				put_c(&m, 'x');
+				put_c(&m, hex[v >> 4]);
+				put_c(&m, hex[v & 15]);
+			}
+			break;
+		case 't':
+			p = va_arg(ap, const char *);
+			n = va_arg(ap, size_t);
+			for (k = 0; k < n && k < 24; k++) {
+				put_c(&m, p[k]);
+			}
+			break;
+		default:
+			put_c(&m, *fmt);
+			break;
+		}
+	}
+	va_end(ap);
+	return st;
+}
+
+/* ---- characters ---- */
+
+static int is_digit(int c)
+{
+	return c >= '0' && c <= '9';
+}
+
+static int is_alpha(int c)
+{
+	return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z');
+}
+
+static int is_blank(int c)
+{
+	return c == ' ' || c == '\t';
+}
+
+static int starts_number(int c)
+{
+	return is_digit(c) || c == '.' || c == '+' || c == '-';
+}
+
+static char upper(char c)
+{
+	return (c >= 'a' && c <= 'z') ? (char)(c - 'a' + 'A') : c;
+}
+
+/* Index of an axis letter in axis_letters, or -1. */
+static int axis_slot(char c)
+{
+	int k;
+
+	for (k = 0; k < 6; k++) {
+		if (axis_letters[k] == c) {
+			return k;
+		}
+	}
+	return -1;
+}
+
+/* Length of the well-formed UTF-8 sequence at p (RFC 3629: no overlongs,
+ * no surrogates, nothing above U+10FFFF), or 0. */
+static size_t utf8_len(const unsigned char *p, size_t n)
+{
+	unsigned lo = 0x80, hi = 0xBF;
+	size_t len, k;
+
+	if (p[0] < 0x80) {
+		return 1;
+	}
+	if (p[0] >= 0xC2 && p[0] <= 0xDF) {
+		len = 2;
+	} else if (p[0] >= 0xE0 && p[0] <= 0xEF) {
+		len = 3;
+		lo = p[0] == 0xE0 ? 0xA0 : 0x80;
+		hi = p[0] == 0xED ? 0x9F : 0xBF;
+	} else if (p[0] >= 0xF0 && p[0] <= 0xF4) {
+		len = 4;
+		lo = p[0] == 0xF0 ? 0x90 : 0x80;
+		hi = p[0] == 0xF4 ? 0x8F : 0xBF;
+	} else {
+		return 0;
+	}
+	if (n < len || p[1] < lo || p[1] > hi) {
+		return 0;
+	}
+	for (k = 2; k < len; k++) {
+		if (p[k] < 0x80 || p[k] > 0xBF) {
+			return 0;
+		}
+	}
+	return len;
+}
+
+/* Comment bytes t[i..end) must be well-formed UTF-8 without NUL: returns the
+ * offset of the first bad byte, or end. */
+static size_t comment_check(const unsigned char *t, size_t i, size_t end)
+{
+	while (i < end) {
+		size_t l = t[i] ? utf8_len(t + i, end - i) : 0;
+
+		if (!l) {
+			return i;
+		}
+		i += l;
+	}
+	return end;
+}
+
+/* ---- lexing ---- */
+
+struct word {
+	char letter;  /* upper case */
+	uint32_t col; /* 1-based column of the letter */
+	double value;
+};
+
+struct lexed {
+	struct word w[MAX_WORDS];
+	int n;
+	uint32_t first_col; /* first non-blank column, 0 for a blank line */
+};
+
+/* Scan [+-]digits[.digits] at t[i..n): returns its end, the number of digits
+ * in *ndig and the value in *val. Up to 15 significant digits the value is an
+ * exact integer over an exact power of ten, hence correctly rounded (Clinger's
+ * fast path) and independent of the locale, unlike strtod. */
+static size_t scan_number(const char *t, size_t n, size_t i, double *val, int *ndig)
+{
+	static const double p10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
+	                             1e8,  1e9,  1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+	                             1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+	uint64_t mant = 0;
+	int neg = 0, sig = 0, frac = 0, exp10 = 0, dot = 0;
+
+	*ndig = 0;
+	if (i < n && (t[i] == '+' || t[i] == '-')) {
+		neg = t[i] == '-';
+		i++;
+	}
+	for (; i < n; i++) {
+		if (t[i] == '.' && !dot) {
+			dot = 1;
+			continue;
+		}
+		if (!is_digit(t[i])) {
+			break;
+		}
+		(*ndig)++;
+		if (sig < 19) {
+			mant = mant * 10 + (uint64_t)(t[i] - '0');
+			sig += mant != 0;
+			frac += dot;
+		} else if (!dot) {
+			exp10++;
+		}
+	}
+	if (sig <= 15 && frac <= 22 && exp10 == 0) {
+		*val = (double)mant / p10[frac];
+	} else {
+		*val = (double)mant * pow(10.0, exp10 - frac); /* approximate: no CAM writes this */
+	}
+	if (neg) {
+		*val = -*val;
+	}
+	return i;
+}
+
+/* "nan", "inf", "infinity" (any case) as the letters at t[i..): strtod would
+ * take them, so name them as malformed numbers. */
+static int is_nan_inf(const char *t, size_t n, size_t i, size_t *end)
+{
+	static const char *const names[] = {"INFINITY", "INF", "NAN"};
+	size_t k, e = i;
+	int j;
+
+	while (e < n && is_alpha(t[e])) {
+		e++;
+	}
+	for (j = 0; j < 3; j++) {
+		for (k = 0; names[j][k] && i + k < e && upper(t[i + k]) == names[j][k]; k++) {
+		}
+		if (!names[j][k] && i + k == e) {
+			*end = e;
+			return 1;
+		}
+	}
+	return 0;
+}
+
+/* One word at t[*pi] (a letter); blanks may separate letter and number. */
+static mlip_status lex_word(const char *t, size_t n, size_t *pi, uint32_t line, struct word *w,
+                            struct mlip_gcode_error *e)
+{
+	size_t i = *pi, j, k;
+	int ndig;
+
+	w->letter = upper(t[i]);
+	w->col = (uint32_t)i + 1;
+	for (j = i + 1; j < n && is_blank(t[j]); j++) {
+	}
+	if (j < n && starts_number(t[j])) {
+		k = scan_number(t, n, j, &w->value, &ndig);
+		/* "1.2.3", "1e5", "--1", ".": the number runs on in number-like bytes */
+		if (ndig == 0 || (k < n && (t[k] == '.' || t[k] == '+' || t[k] == '-')) ||
+		    (k + 1 < n && (t[k] == 'e' || t[k] == 'E') &&
+		     (is_digit(t[k + 1]) || t[k + 1] == '+' || t[k + 1] == '-'))) {
+			while (k < n && (starts_number(t[k]) || t[k] == 'e' || t[k] == 'E')) {
+				k++;
+			}
+			return failf(e, line, (uint32_t)j + 1, MLIP_E_SYNTAX,
+			             "malformed number '%t'", t + j, k - j);
+		}
+		*pi = k;
+		return MLIP_OK;
+	}
+	if (j < n && is_nan_inf(t, n, j, &k)) {
+		return failf(e, line, (uint32_t)j + 1, MLIP_E_SYNTAX, "malformed number '%t'",
+		             t + j, k - j);
+	}
+	return failf(e, line, w->col, MLIP_E_SYNTAX, "word %c has no number", w->letter);
+}
+
+static mlip_status lex_line(const char *text, size_t len, uint32_t line, struct lexed *lx,
+                            struct mlip_gcode_error *e)
+{
+	const unsigned char *t = (const unsigned char *)text;
+	size_t i = 0, end, k;
+	int percent = 0;
+	mlip_status st;
+
+	lx->n = 0;
+	lx->first_col = 0;
+	if (line == 1 && len >= 3 && t[0] == 0xEF && t[1] == 0xBB && t[2] == 0xBF) {
+		i = 3; /* UTF-8 byte order mark */
+	}
+	while (i < len) {
+		unsigned char c = t[i];
+		uint32_t col = (uint32_t)i + 1;
+
+		if (is_blank(c)) {
+			i++;
+			continue;
+		}
+		if (c == '(' || c == ';') {
+			for (end = i + 1; c == '(' && end < len && t[end] != ')'; end++) {
+			}
+			end = c == ';' ? len : end;
+			k = comment_check(t, i + 1, end);
+			if (k < end) {
+				return failf(e, line, (uint32_t)k + 1, MLIP_E_SYNTAX, t[k]
+				             ? "invalid UTF-8 in comment" : "NUL byte in line");
+			}
+			if (c == '(' && end == len) {
+				return failf(e, line, col, MLIP_E_SYNTAX,
+				             "unterminated comment: '(' without ')'");
+			}
+			i = end + 1;
+			continue;
+		}
+		if (percent) {
+			return failf(e, line, col, MLIP_E_SYNTAX, "'%%' must be alone on its line");
+		}
+		if (!lx->first_col) {
+			lx->first_col = col;
+			if (c == '%') { /* program delimiter */
+				percent = 1;
+				i++;
+				continue;
+			}
+			if (c == '/') {
+				return failf(e, line, col, MLIP_E_UNSUPPORTED,
+				             "block delete '/' not supported");
+			}
+		}
+		if (c == 0) {
+			return failf(e, line, col, MLIP_E_SYNTAX, "NUL byte in line");
+		}
+		if (c >= 0x80) {
+			return failf(e, line, col, MLIP_E_SYNTAX,
+			             "non-ASCII byte %b outside a comment", c);
+		}
+		if (is_alpha(c)) {
+			st = lex_word(text, len, &i, line, &lx->w[lx->n], e);
+			if (st != MLIP_OK) {
+				return st;
+			}
+			lx->n++;
+			continue;
+		}
+		if (starts_number(c)) {
+			for (k = i; k < len && starts_number(t[k]); k++) {
+			}
+			return failf(e, line, col, MLIP_E_SYNTAX,
+			             "number '%t' without a word letter", text + i, k - i);
+		}
+		return failf(e, line, col, MLIP_E_SYNTAX, "unexpected character %b", c);
+	}
+	return MLIP_OK;
+}
+
+/* ---- classification ---- */
+
+enum gkind {
+	GK_MOTION, /* G0..G3 */
+	GK_PLANE,  /* G17..G19 */
+	GK_UNITS,  /* G20/G21 */
+	GK_DIST,   /* G90/G91 */
+	GK_HOME,   /* G28/G30 */
+	GK_G53,    /* machine coordinates: the same frame here */
+	GK_NOTICE, /* accepted, no effect on motion */
+	GK_SILENT, /* accepted, it is what mlip does anyway (G91.1) */
+	GK_UNSUP
+};
+
+/* modal groups, to refuse two codes of one group on a line */
+enum { GR_NONE, GR_MOTION, GR_PLANE, GR_UNITS, GR_DIST, GR_NONMODAL, GR_FEEDMODE, GR_CUTTER,
+       GR_TOOLLEN, GR_COORD, GR_PATH, GR_ARCDIST, GR_N };
+
+/* G codes by value*10, as ranges [lo, hi] */
+struct gdef {
+	short lo, hi;
+	unsigned char kind, group;
+	const char *why; /* GK_UNSUP: what it is, for the message */
+};
+
+static const struct gdef gtab[] = {
+	{0, 30, GK_MOTION, GR_MOTION, 0},     {170, 190, GK_PLANE, GR_PLANE, 0},
+	{200, 210, GK_UNITS, GR_UNITS, 0},    {280, 280, GK_HOME, GR_NONMODAL, 0},
+	{300, 300, GK_HOME, GR_NONMODAL, 0},  {400, 400, GK_NOTICE, GR_CUTTER, 0},
+	{490, 490, GK_NOTICE, GR_TOOLLEN, 0}, {530, 530, GK_G53, GR_NONMODAL, 0},
+	{540, 540, GK_NOTICE, GR_COORD, 0},   {610, 611, GK_NOTICE, GR_PATH, 0},
+	{640, 640, GK_NOTICE, GR_PATH, 0},    {800, 800, GK_NOTICE, GR_MOTION, 0},
+	{900, 900, GK_DIST, GR_DIST, 0},      {910, 910, GK_DIST, GR_DIST, 0},
+	{911, 911, GK_SILENT, GR_ARCDIST, 0}, {940, 940, GK_NOTICE, GR_FEEDMODE, 0},
+	{50, 53, GK_UNSUP, 0, "splines"},
+	{70, 80, GK_UNSUP, 0, "lathe diameter/radius mode"},
+	{100, 100, GK_UNSUP, 0, "setting offsets"},
+	{281, 281, GK_UNSUP, 0, "setting reference points"},
+	{301, 301, GK_UNSUP, 0, "setting reference points"},
+	{330, 331, GK_UNSUP, 0, "spindle-synchronized motion"},
+	{760, 760, GK_UNSUP, 0, "threading cycle"},
+	{382, 385, GK_UNSUP, 0, "probing"},
+	{410, 421, GK_UNSUP, 0, "cutter radius compensation"},
+	{430, 432, GK_UNSUP, 0, "tool length offset"},
+	{520, 520, GK_UNSUP, 0, "coordinate offsets"},
+	{920, 923, GK_UNSUP, 0, "coordinate offsets"},
+	{550, 593, GK_UNSUP, 0, "work offsets (only G54 is accepted)"},
+	{730, 730, GK_UNSUP, 0, "canned cycles"},
+	{810, 890, GK_UNSUP, 0, "canned cycles"},
+	{980, 990, GK_UNSUP, 0, "canned cycles"},
+	{901, 901, GK_UNSUP, 0, "absolute arc centers"},
+	{930, 930, GK_UNSUP, 0, "inverse time feed"},
+	{950, 950, GK_UNSUP, 0, "feed per revolution"},
+	{960, 970, GK_UNSUP, 0, "constant surface speed"},
+};
+
+static const struct gdef *gfind(int code10)
+{
+	size_t k;
+
+	for (k = 0; k < sizeof gtab / sizeof gtab[0]; k++) {
+		/* motion and plane ranges hold whole codes only */
+		if (code10 >= gtab[k].lo && code10 <= gtab[k].hi &&
+		    !(gtab[k].kind <= GK_UNITS && code10 % 10)) {
+			return &gtab[k];
+		}
+	}
+	return 0;
+}
+
+/* M codes accepted as notices: program stops, spindle, tool change, coolant */
+static int m_accepted(int code10)
+{
+	return code10 % 10 == 0 && (code10 <= 90 || code10 == 300);
+}
+
+/* value*10 as an int when value is a non-negative multiple of 0.1, else -1 */
+static int code_of(double v)
+{
+	double t = floor(v * 10.0 + 0.5);
+
+	if (v < 0 || t > 10000 || fabs(v * 10.0 - t) > 1e-6) {
+		return -1;
+	}
+	return (int)t;
+}
+
+/* Everything one line says, each word checked alone. */
+struct blk {
+	int motion; /* G0..G3 on this line, -1 none */
+	int plane, units, dist; /* 0 when not on this line, else 17..19, 20/21, 90/91 */
+	int home;               /* 28 or 30, 0 none */
+	int g53, g64;
+	uint32_t motion_col, home_col, g53_col;
+	int has_ax[6];
+	double ax[6]; /* as written, indexed like axis_letters */
+	uint32_t ax_col[6];
+	int has_ijk[3];
+	double ijk[3];
+	uint32_t ijk_col[3];
+	int has_r, has_f, has_p, has_q;
+	double r, f;
+	uint32_t r_col, p_col, q_col;
+	char notes[MAX_WORDS][8]; /* notices to record once the line is accepted */
+	int n_notes;
+};
+
+static void note_word(struct blk *b, char letter, int code10)
+{
+	char *w = b->notes[b->n_notes++];
+	int k = 0;
+
+	w[k++] = letter;
+	if (code10 >= 0) { /* at most "G61.1": fits */
+		if (code10 >= 100) {
+			w[k++] = (char)('0' + code10 / 100);
+		}
+		w[k++] = (char)('0' + code10 / 10 % 10);
+		if (code10 % 10) {
+			w[k++] = '.';
+			w[k++] = (char)('0' + code10 % 10);
+		}
+	}
+	w[k] = '\0';
+}
+
+/* One G word: a supported code, and the only one of its modal group. */
+static mlip_status classify_g(const struct word *w, uint32_t line, struct blk *b, int *group_code,
+                              struct mlip_gcode_error *e)
+{
+	int c = code_of(w->value);
+	const struct gdef *d = c >= 0 ? gfind(c) : 0;
+
+	if (c == 40) {
+		return failf(e, line, w->col, MLIP_E_UNSUPPORTED, "G4 dwell not supported");
+	}
+	if (c < 0) {
+		return failf(e, line, w->col, MLIP_E_UNSUPPORTED, "unsupported G code G%f",
+		             w->value);
+	}
+	if (!d || d->kind == GK_UNSUP) {
+		return failf(e, line, w->col, MLIP_E_UNSUPPORTED, "unsupported G code %G%s%s", c,
+		             d ? ": " : "", d ? d->why : "");
+	}
+	if (d->group != GR_NONE && group_code[d->group] >= 0 && group_code[d->group] != c) {
+		return failf(e, line, w->col, MLIP_E_SYNTAX,
+		             d->group == GR_MOTION ? "two motion codes on one line: %G and %G"
+		                                   : "%G and %G on one line: same modal group",
+		             group_code[d->group], c);
+	}
+	group_code[d->group] = c;
+	switch (d->kind) {
+	case GK_MOTION:
+		b->motion = c / 10;
+		b->motion_col = w->col;
+		break;
+	case GK_PLANE:
+		b->plane = c / 10;
+		break;
+	case GK_UNITS:
+		b->units = c / 10;
+		break;
+	case GK_DIST:
+		b->dist = c / 10;
+		break;
+	case GK_HOME:
+		b->home = c / 10;
+		b->home_col = w->col;
+		break;
+	case GK_G53:
+		b->g53 = 1;
+		b->g53_col = w->col;
+		note_word(b, 'G', c);
+		break;
+	case GK_NOTICE:
+		b->g64 |= c == 640;
+		note_word(b, 'G', c);
+		break;
+	default:
+		break;
+	}
+	return MLIP_OK;
+}
+
+static mlip_status classify(const struct lexed *lx, uint32_t line, struct blk *b,
+                            struct mlip_gcode_error *e)
+{
+	int group_code[GR_N], k, a, c;
+	uint32_t seen[26] = {0}; /* column of the first word of each letter */
+	mlip_status st;
+
+	memset(b, 0, sizeof *b);
+	b->motion = -1;
+	for (k = 0; k < GR_N; k++) {
+		group_code[k] = -1;
+	}
+	for (k = 0; k < lx->n; k++) {
+		const struct word *w = &lx->w[k];
+		char L = w->letter;
+
+		if (!seen[L - 'A']) {
+			seen[L - 'A'] = w->col;
+		} else if (L != 'G' && L != 'M' && L != 'N') {
+			return failf(e, line, w->col, MLIP_E_SYNTAX,
+			             "duplicate %c word (first at column %u)", L, seen[L - 'A']);
+		}
+		switch (L) {
+		case 'G':
+			st = classify_g(w, line, b, group_code, e);
+			if (st != MLIP_OK) {
+				return st;
+			}
+			break;
+		case 'M':
+			c = code_of(w->value);
+			if (c < 0) {
+				return failf(e, line, w->col, MLIP_E_UNSUPPORTED,
+				             "unsupported M code M%f", w->value);
+			}
+			if (!m_accepted(c)) {
+				return failf(e, line, w->col, MLIP_E_UNSUPPORTED,
+				             "unsupported M code %M", c);
+			}
+			note_word(b, 'M', c);
+			break;
+		case 'X': case 'Y': case 'Z': case 'A': case 'B': case 'C':
+			a = axis_slot(L);
+			b->has_ax[a] = 1;
+			b->ax[a] = w->value;
+			b->ax_col[a] = w->col;
+			break;
+		case 'I': case 'J': case 'K':
+			b->has_ijk[L - 'I'] = 1;
+			b->ijk[L - 'I'] = w->value;
+			b->ijk_col[L - 'I'] = w->col;
+			break;
+		case 'R':
+			b->has_r = 1;
+			b->r = w->value;
+			b->r_col = w->col;
+			break;
+		case 'F':
+			if (!(w->value > 0)) {
+				return failf(e, line, w->col, MLIP_E_RANGE,
+				             "feed F must be positive");
+			}
+			b->has_f = 1;
+			b->f = w->value;
+			break;
+		case 'P':
+			b->has_p = 1;
+			b->p_col = w->col;
+			break;
+		case 'Q':
+			b->has_q = 1;
+			b->q_col = w->col;
+			break;
+		case 'S': case 'T':
+			note_word(b, L, -1);
+			break;
+		case 'N':
+			break; /* line numbers: ignored */
+		case 'U': case 'V': case 'W':
+			return failf(e, line, w->col, MLIP_E_UNSUPPORTED,
+			             "axis %c not supported: mlip axes are X Y Z A B C", L);
+		default:
+			return failf(e, line, w->col, MLIP_E_SYNTAX, "unknown word letter %c", L);
+		}
+	}
+	/* P and Q only as G64's blending tolerances, which the planner replaces */
+	if ((b->has_p || b->has_q) && !b->g64) {
+		return failf(e, line, b->has_p ? b->p_col : b->q_col, MLIP_E_SYNTAX,
+		             "%c word without G64", b->has_p ? 'P' : 'Q');
+	}
+	if (b->g53 && b->dist == 91) {
+		return failf(e, line, b->g53_col, MLIP_E_SYNTAX,
+		             "G53 with G91: machine coordinates must be absolute");
+	}
+	return MLIP_OK;
+}
+
+/* ---- state, notices ---- */
+
+void mlip_gcode_init(struct mlip_gcode *g, const struct mlip_machine *m)
+{
+	int i;
+
+	memset(g, 0, sizeof *g);
+	g->m = m;
+	g->motion = -1;
+	g->plane = 17;
+	g->absolute = 1;
+	for (i = 0; i < m->n_axes && i < MLIP_MAX_AXES; i++) {
+		g->pos[i] = m->axis[i].home;
+		g->cur[i] = m->axis[i].home;
+	}
+}
+
+void mlip_gcode_set_initial_feed(struct mlip_gcode *g, double f_word)
+{
+	g->initial_feed_word = f_word > 0 && isfinite(f_word) ? f_word : 0.0;
+}
+
+static void notice(struct mlip_gcode *g, const char *word, uint32_t line)
+{
+	struct mlip_gcode_notice *n;
+	uint32_t k;
+
+	for (k = 0; k < g->n_notices; k++) {
+		if (strcmp(g->notices[k].word, word) == 0) {
+			g->notices[k].count++;
+			return;
+		}
+	}
+	if (g->n_notices < MLIP_GCODE_MAX_NOTICES) {
+		n = &g->notices[g->n_notices++];
+		memset(n->word, 0, sizeof n->word);
+		strncpy(n->word, word, sizeof n->word - 1);
+		n->first_line = line;
+		n->count = 1;
+	}
+}
+
+const char *mlip_gcode_notice_text(const struct mlip_gcode_notice *n)
+{
+	if (strcmp(n->word, "G53") == 0) {
+		return "treated as G54: mlip has no work offsets";
+	}
+	if (strcmp(n->word, "G28") == 0 || strcmp(n->word, "G30") == 0) {
+		return "ignored: no move to the reference point (mlip does not home)";
+	}
+	if (strcmp(n->word, "F") == 0) {
+		return "missing before a feed move: the initial feed was used";
+	}
+	return "ignored (no effect on motion)";
+}
+
+static int axis_index(const struct mlip_machine *m, char letter)
+{
+	int i;
+
+	for (i = 0; i < m->n_axes; i++) {
+		if (upper(m->axis[i].letter) == letter) {
+			return i;
+		}
+	}
+	return -1;
+}
+
+/* ---- emission ---- */
+
+/* What a line's blocks share, besides target and tolerance. */
+struct emit_ctx {
+	mlip_block_sink sink;
+	void *ctx;
+	uint32_t line;
+	uint8_t rapid;
+	double feed_mm_s;
+};
+
+/* Emit t unless it is within MLIP_GCODE_MERGE_MM of the last emitted point
+ * (no zero-length segment for the planner). Returns 0, or -1 when the sink
+ * refused the block. */
+static int emit(struct mlip_gcode *g, const struct emit_ctx *c, const double *t, double tol_mm)
+{
+	struct mlip_block b;
+	double d2 = 0;
+	int i, n = g->m->n_axes;
+
+	for (i = 0; i < n; i++) {
+		d2 += (t[i] - g->pos[i]) * (t[i] - g->pos[i]);
+	}
+	if (d2 < MLIP_GCODE_MERGE_MM * MLIP_GCODE_MERGE_MM) {
+		return 0;
+	}
+	memset(&b, 0, sizeof b);
+	for (i = 0; i < n; i++) {
+		b.target[i] = t[i];
+	}
+	b.feed_mm_s = c->feed_mm_s;
+	b.tol_mm = tol_mm;
+	b.line = c->line;
+	b.rapid = c->rapid;
+	if (c->sink(c->ctx, &b) != 0) {
+		return -1;
+	}
+	for (i = 0; i < n; i++) {
+		g->pos[i] = t[i];
+	}
+	g->blocks++;
+	return 0;
+}
+
+/* Soft limits (and finiteness) of a target; col_of[i] is the column to blame
+ * for axis i. */
+static mlip_status check_limits(const struct mlip_gcode *g, const double *t,
+                                const uint32_t *col_of, uint32_t line, int on_arc,
+                                struct mlip_gcode_error *e)
+{
+	const struct mlip_machine *m = g->m;
+	int i;
+
+	for (i = 0; i < m->n_axes; i++) {
+		const struct mlip_axis *ax = &m->axis[i];
+
+		if (!isfinite(t[i])) {
+			return failf(e, line, col_of[i], MLIP_E_RANGE, "%c value is not finite",
+			             upper(ax->letter));
+		}
+		if (!(t[i] >= ax->min_limit && t[i] <= ax->max_limit)) {
+			return failf(e, line, col_of[i], MLIP_E_RANGE,
+			             "%c %f beyond soft limit %f%s", upper(ax->letter), t[i],
+			             t[i] < ax->min_limit ? ax->min_limit : ax->max_limit,
+			             on_arc ? " on the arc" : "");
+		}
+	}
+	return MLIP_OK;
+}
+
+/* ---- arcs ---- */
+
+struct arc {
+	int iu, iv;       /* config indices of the plane axes */
+	double cu, cv;    /* center */
+	double r0, r1;    /* radius at start and at end: a slight spiral, as LinuxCNC */
+	double a0, sweep; /* start angle and signed sweep, rad; G3 > 0 */
+	uint32_t n;       /* chords */
+	double sag_mm;    /* sagitta of each chord */
+};
+
+/* Plane tables for G17, G18, G19: the (u, v) axes, their offset words (I=0,
+ * J=1, K=2) and the offset word of the normal axis, which is not allowed. */
+static const char plane_u[3] = {'X', 'Z', 'Y'}, plane_v[3] = {'Y', 'X', 'Z'};
+static const int plane_ou[3] = {0, 2, 1}, plane_ov[3] = {1, 0, 2}, plane_off[3] = {2, 1, 0};
+
+/* Point k of n along the arc; the last one is the programmed end exactly.
+ * Axes other than the plane's move linearly with the angle (helix). */
+static void arc_point(const struct arc *a, const double *s, const double *t, int n_axes,
+                      uint32_t k, double *p)
+{
+	double f = (double)k / a->n, ang, r;
+	int i;
+
+	for (i = 0; i < n_axes; i++) {
+		p[i] = k == a->n ? t[i] : s[i] + (t[i] - s[i]) * f;
+	}
+	if (k == a->n) {
+		return;
+	}
+	ang = a->a0 + a->sweep * f;
+	r = a->r0 + (a->r1 - a->r0) * f;
+	p[a->iu] = a->cu + r * cos(ang);
+	p[a->iv] = a->cv + r * sin(ang);
+}
+
+/* Center and radius of an R arc: on the left of start->end for a short G3,
+ * mirrored for G2 and for the long arc (R < 0). */
+static mlip_status arc_center_r(const struct blk *b, int cw, double scale, double su, double sv,
+                                double eu, double ev, uint32_t line, struct arc *a,
+                                struct mlip_gcode_error *e)
+{
+	double r = fabs(b->r) * scale, du = eu - su, dv = ev - sv;
+	double d = sqrt(du * du + dv * dv), h, side;
+
+	if (!(r > 0)) {
+		return failf(e, line, b->r_col, MLIP_E_RANGE, "R arc with zero radius");
+	}
+	if (d < 1e-9) {
+		return failf(e, line, b->r_col, MLIP_E_RANGE,
+		             "R arc with end equal to start: use I/J/K for a full circle");
+	}
+	if (d > 2 * r * (1 + 1e-9) + 1e-9) {
+		return failf(e, line, b->r_col, MLIP_E_RANGE,
+		             "R arc: endpoints %f mm apart, more than 2R = %f mm", d, 2 * r);
+	}
+	h = d >= 2 * r ? 0 : sqrt(r * r - d * d / 4);
+	side = (cw ? -1.0 : 1.0) * (b->r > 0 ? 1.0 : -1.0);
+	a->cu = (su + eu) / 2 - side * h * dv / d;
+	a->cv = (sv + ev) / 2 + side * h * du / d;
+	return MLIP_OK;
+}
+
+static mlip_status arc_setup(const struct mlip_gcode *g, const struct blk *b, int motion,
+                             double scale, const double *s, const double *t, uint32_t line,
+                             uint32_t col, struct arc *a, struct mlip_gcode_error *e)
+{
+	int p = g->plane - 17, cw = motion == 2;
+	int has_uv = b->has_ijk[plane_ou[p]] || b->has_ijk[plane_ov[p]];
+	double su, sv, eu, ev, sweep, rmax, smax, step;
+	mlip_status st;
+
+	memset(a, 0, sizeof *a);
+	a->iu = axis_index(g->m, plane_u[p]);
+	a->iv = axis_index(g->m, plane_v[p]);
+	if (a->iu < 0 || a->iv < 0) {
+		return failf(e, line, col, MLIP_E_UNSUPPORTED,
+		             "%G in G%u needs axes %c and %c configured", motion * 10,
+		             (unsigned)g->plane, plane_u[p], plane_v[p]);
+	}
+	if (b->has_ijk[plane_off[p]]) {
+		return failf(e, line, b->ijk_col[plane_off[p]], MLIP_E_SYNTAX,
+		             "%c word not used by an arc in the G%u plane", 'I' + plane_off[p],
+		             (unsigned)g->plane);
+	}
+	su = s[a->iu];
+	sv = s[a->iv];
+	eu = t[a->iu];
+	ev = t[a->iv];
+	if (b->has_r && has_uv) {
+		return failf(e, line, b->r_col, MLIP_E_SYNTAX, "arc with both R and I/J/K");
+	}
+	if (b->has_r) {
+		st = arc_center_r(b, cw, scale, su, sv, eu, ev, line, a, e);
+		if (st != MLIP_OK) {
+			return st;
+		}
+	} else if (!has_uv) {
+		return failf(e, line, col, MLIP_E_SYNTAX, "arc with no I/J/K or R");
+	} else {
+		/* I J K: offsets from the start (G91.1) */
+		a->cu = su + b->ijk[plane_ou[p]] * scale;
+		a->cv = sv + b->ijk[plane_ov[p]] * scale;
+	}
+	a->r0 = hypot(su - a->cu, sv - a->cv);
+	a->r1 = hypot(eu - a->cu, ev - a->cv);
+	if (a->r0 < 1e-9) {
+		return failf(e, line, col, MLIP_E_RANGE, "arc with zero radius");
+	}
+	if (fabs(a->r0 - a->r1) > fmax(0.002, 0.001 * a->r0)) { /* LinuxCNC's test */
+		return failf(e, line, col, MLIP_E_RANGE,
+		             "arc radius to start %f differs from radius to end %f mm", a->r0,
+		             a->r1);
+	}
+	a->a0 = atan2(sv - a->cv, su - a->cu);
+	if (hypot(eu - su, ev - sv) < 1e-9) {
+		sweep = 2 * PI; /* end = start with I/J/K: a full circle */
+	} else {
+		sweep = atan2(ev - a->cv, eu - a->cu) - a->a0;
+		sweep = cw ? -sweep : sweep;
+		while (sweep <= 0) {
+			sweep += 2 * PI;
+		}
+		while (sweep > 2 * PI) {
+			sweep -= 2 * PI;
+		}
+	}
+	a->sweep = cw ? -sweep : sweep;
+	/* equal steps, each within the sagitta budget (header comment) */
+	rmax = fmax(a->r0, a->r1);
+	smax = MLIP_GCODE_ARC_FRACTION * g->m->tolerance_mm;
+	step = smax >= 2 * rmax ? PI : 4 * asin(sqrt(smax / (2 * rmax)));
+	step = fmin(step, PI / 2); /* some shape even on arcs smaller than the tolerance */
+	if (!(step > 0) || sweep / step > MAX_CHORDS) {
+		return failf(e, line, col, MLIP_E_RANGE, "arc too long: more than %u chords",
+		             MAX_CHORDS);
+	}
+	a->n = (uint32_t)ceil(sweep / step - 1e-9);
+	a->n = a->n < 1 ? 1 : a->n;
+	step = sweep / a->n;
+	a->sag_mm = 2 * rmax * sin(step / 4) * sin(step / 4);
+	return MLIP_OK;
+}
+
+/* Chords of an arc: every point checked against the limits before any is
+ * emitted (an arc may bulge past a limit its ends respect), so a rejected line
+ * emits nothing. Inner corners get eps minus the chord's sagitta. */
+static mlip_status emit_arc(struct mlip_gcode *g, const struct emit_ctx *ec,
+                            const struct arc *arc, const double *s, const double *t,
+                            const uint32_t *col_of, struct mlip_gcode_error *e)
+{
+	const struct mlip_machine *m = g->m;
+	double p[MLIP_MAX_AXES];
+	mlip_status st;
+	uint32_t k;
+
+	for (k = 1; k < arc->n; k++) {
+		arc_point(arc, s, t, m->n_axes, k, p);
+		st = check_limits(g, p, col_of, ec->line, 1, e);
+		if (st != MLIP_OK) {
+			return st;
+		}
+	}
+	for (k = 1; k <= arc->n; k++) {
+		arc_point(arc, s, t, m->n_axes, k, p);
+		if (emit(g, ec, p, k < arc->n ? m->tolerance_mm - arc->sag_mm : m->tolerance_mm)) {
+			return MLIP_E_FULL;
+		}
+	}
+	return MLIP_OK;
+}
+
+/* ---- one line ---- */
+
+/* What the checks found out about a line, for its motion. */
+struct plan {
+	int motion;    /* in effect for this line, -1 none */
+	int moves;     /* the line moves: axis words, or a center-only arc */
+	uint32_t mcol; /* column to blame for the motion: its G word, else the line */
+};
+
+/* Words against the machine and the modal state. */
+static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
+                              const struct lexed *lx, uint32_t line, struct plan *pl,
+                              struct mlip_gcode_error *e)
+{
+	uint32_t first_ax = 0, c;
+	int a, i, has_axes = 0, arc_words;
+	char L = 'R';
+
+	for (a = 0; a < 6; a++) {
+		if (!b->has_ax[a]) {
+			continue;
+		}
+		if (axis_index(g->m, axis_letters[a]) < 0) {
+			return failf(e, line, b->ax_col[a], MLIP_E_UNSUPPORTED,
+			             "axis %c not configured", axis_letters[a]);
+		}
+		has_axes = 1;
+		first_ax = !first_ax || b->ax_col[a] < first_ax ? b->ax_col[a] : first_ax;
+	}
+	if (b->home && b->motion >= 0 && has_axes) {
+		return failf(e, line, b->motion_col, MLIP_E_SYNTAX,
+		             "%G and %G on one line: both use axis words", b->home * 10,
+		             b->motion * 10);
+	}
+	pl->motion = b->motion >= 0 ? b->motion : g->motion;
+	pl->mcol = b->motion >= 0 ? b->motion_col : lx->first_col;
+	arc_words = b->has_ijk[0] || b->has_ijk[1] || b->has_ijk[2] || b->has_r;
+	if (arc_words && (pl->motion < 2 || b->home)) {
+		c = b->has_r ? b->r_col : 0;
+		for (i = 0; i < 3; i++) {
+			if (b->has_ijk[i] && (!c || b->ijk_col[i] < c)) {
+				c = b->ijk_col[i];
+				L = (char)('I' + i);
+			}
+		}
+		return failf(e, line, c, MLIP_E_SYNTAX, "%c word without an arc (G2/G3)", L);
+	}
+	if (has_axes && !b->home && pl->motion < 0) {
+		return failf(e, line, first_ax, MLIP_E_SYNTAX,
+		             "axis words with no motion mode: program G0, G1, G2 or G3 first");
+	}
+	if (b->g53 && pl->motion >= 2 && (has_axes || arc_words)) {
+		return failf(e, line, b->g53_col, MLIP_E_SYNTAX, "G53 needs G0 or G1");
+	}
+	pl->moves = !b->home && (has_axes || arc_words);
+	return MLIP_OK;
+}
+
+/* Modal state, committed before the motion so that an error in the motion
+ * does not cascade into every following line. F is kept both as written (for
+ * rotary-only moves) and in mm/s, converted with the units of its own line. */
+static void commit_modal(struct mlip_gcode *g, const struct blk *b, uint32_t line)
+{
+	int i;
+
+	if (b->units) {
+		g->inches = b->units == 20;
+	}
+	if (b->dist) {
+		g->absolute = b->dist == 90;
+	}
+	if (b->plane) {
+		g->plane = b->plane;
+	}
+	if (b->motion >= 0) {
+		g->motion = b->motion;
+	}
+	if (b->has_f) {
+		g->feed_word = b->f;
+		g->feed_mm_s = b->f * (g->inches ? MM_PER_INCH : 1.0) / 60.0;
+	}
+	for (i = 0; i < b->n_notes; i++) {
+		notice(g, b->notes[i], line);
+	}
+}
+
+/* The block feed: F as a path speed when a linear axis moves, else in deg/min
+ * (G94). Before any F: the initial feed if one was set, else an error. */
+static mlip_status block_feed(struct mlip_gcode *g, const struct plan *pl, const double *s,
+                              const double *t, uint32_t line, double *feed_mm_s,
+                              struct mlip_gcode_error *e)
+{
+	const struct mlip_machine *m = g->m;
+	double fmm = g->feed_mm_s, fword = g->feed_word;
+	int i, linear = 0;
+
+	if (!(fmm > 0)) {
+		if (!(g->initial_feed_word > 0)) {
+			return failf(e, line, pl->mcol, MLIP_E_SYNTAX,
+			             "missing feed: no F before the first feed move");
+		}
+		fword = g->initial_feed_word;
+		fmm = fword * (g->inches ? MM_PER_INCH : 1.0) / 60.0;
+		notice(g, "F", line);
+	}
+	for (i = 0; i < m->n_axes; i++) {
+		if (m->axis[i].kind != MLIP_AXIS_ROTARY &&
+		    (pl->motion >= 2 || fabs(t[i] - s[i]) >= MLIP_GCODE_MERGE_MM)) {
+			linear = 1;
+		}
+	}
+	*feed_mm_s = linear ? fmm : fword / 60.0;
+	return MLIP_OK;
+}
+
+mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
+                            uint32_t lineno, mlip_block_sink sink, void *ctx,
+                            struct mlip_gcode_error *err)
+{
+	const struct mlip_machine *m = g->m;
+	struct mlip_gcode_error dummy;
+	struct lexed lx;
+	struct blk b;
+	struct plan pl = {-1, 0, 0};
+	struct emit_ctx ec;
+	struct arc arc;
+	double start[MLIP_MAX_AXES], t[MLIP_MAX_AXES], scale, k;
+	uint32_t col_of[MLIP_MAX_AXES];
+	int i, a;
+	mlip_status st;
+
+	if (!err) {
+		err = &dummy;
+	}
+	if (m->n_axes < 1 || m->n_axes > MLIP_MAX_AXES) {
+		return failf(err, lineno, 0, MLIP_E_INVALID, "machine has no valid axis count");
+	}
+	if (len > 0 && text[len - 1] == '\r') {
+		len--; /* CRLF line ends */
+	}
+	if (len > MLIP_GCODE_MAX_LINE) {
+		return failf(err, lineno, MLIP_GCODE_MAX_LINE + 1, MLIP_E_SYNTAX,
+		             "line too long: %u bytes, at most %u",
+		             (unsigned)(len > 999999 ? 999999 : len), MLIP_GCODE_MAX_LINE);
+	}
+	st = lex_line(text, len, lineno, &lx, err);
+	if (st == MLIP_OK) {
+		st = classify(&lx, lineno, &b, err);
+	}
+	if (st == MLIP_OK) {
+		st = check_line(g, &b, &lx, lineno, &pl, err);
+	}
+	if (st != MLIP_OK) {
+		return st;
+	}
+	commit_modal(g, &b, lineno);
+
+	/* target: absolute, config order, machine units (rotary axes: degrees) */
+	scale = g->inches ? MM_PER_INCH : 1.0;
+	for (i = 0; i < m->n_axes; i++) {
+		a = axis_slot(upper(m->axis[i].letter));
+		start[i] = t[i] = g->cur[i];
+		col_of[i] = pl.motion >= 2 ? pl.mcol : lx.first_col; /* arcs move wordless axes */
+		if (a >= 0 && b.has_ax[a]) {
+			k = m->axis[i].kind == MLIP_AXIS_ROTARY ? 1.0 : scale;
+			t[i] = g->absolute ? b.ax[a] * k : g->cur[i] + b.ax[a] * k;
+			col_of[i] = b.ax_col[a];
+		}
+	}
+	if (b.home) {
+		/* only "go home through where you are" is accepted, e.g. G28 G91 Z0 */
+		for (i = 0; i < m->n_axes; i++) {
+			if (fabs(t[i] - start[i]) >= MLIP_GCODE_MERGE_MM) {
+				return failf(err, lineno, b.home_col, MLIP_E_UNSUPPORTED,
+				             "%G with motion is not supported", b.home * 10);
+			}
+		}
+		notice(g, b.home == 28 ? "G28" : "G30", lineno);
+		return MLIP_OK;
+	}
+	if (!pl.moves) {
+		return MLIP_OK;
+	}
+
+	ec.sink = sink;
+	ec.ctx = ctx;
+	ec.line = lineno;
+	ec.rapid = pl.motion == 0;
+	ec.feed_mm_s = m->max_feed_mm_s; /* rapids: informative, the planner ignores it */
+	st = pl.motion > 0 ? block_feed(g, &pl, start, t, lineno, &ec.feed_mm_s, err) : MLIP_OK;
+	if (st == MLIP_OK) {
+		st = check_limits(g, t, col_of, lineno, 0, err);
+	}
+	if (st == MLIP_OK && pl.motion >= 2) {
+		st = arc_setup(g, &b, pl.motion, scale, start, t, lineno, pl.mcol, &arc, err);
+		if (st == MLIP_OK) {
+			st = emit_arc(g, &ec, &arc, start, t, col_of, err);
+		}
+	} else if (st == MLIP_OK && emit(g, &ec, t, m->tolerance_mm) != 0) {
+		st = MLIP_E_FULL;
+	}
+	if (st == MLIP_E_FULL) {
+		for (i = 0; i < m->n_axes; i++) {
+			g->cur[i] = g->pos[i]; /* resume from what the sink holds */
+		}
+		return failf(err, lineno, 0, MLIP_E_FULL, "block sink full: parsing stopped");
+	}
+	if (st == MLIP_OK) {
+		for (i = 0; i < m->n_axes; i++) {
+			g->cur[i] = t[i];
+		}
+	}
+	return st;
+}
+
+mlip_status mlip_gcode_finish(struct mlip_gcode *g, uint32_t last_line,
+                              struct mlip_gcode_error *err)
+{
+	struct mlip_gcode_error dummy;
+
+	if (g->blocks == 0) {
+		return failf(err ? err : &dummy, last_line ? last_line : 1, 0, MLIP_E_SYNTAX,
+		             "empty program: no motion");
+	}
+	return MLIP_OK;
+}
+
+/* ---- whole-program scans (no machine needed) ---- */
+
+/* Next word outside comments from *pi on: its letter (upper case), where its
+ * number starts, and its line. A letter counts only when a number follows it
+ * (after blanks), as for the lexer. */
+static int next_word(const char *t, size_t n, size_t *pi, uint32_t *line, char *letter,
+                     size_t *num)
+{
+	size_t i = *pi, j;
+
+	while (i < n) {
+		char c = t[i];
+
+		if (c == '\n') {
+			(*line)++;
+			i++;
+		} else if (c == '(' || c == ';') {
+			while (i < n && t[i] != '\n' && !(c == '(' && t[i] == ')')) {
+				i++;
+			}
+			i += i < n && t[i] == ')';
+		} else if (is_alpha(c)) {
+			for (j = i + 1; j < n && is_blank(t[j]); j++) {
+			}
+			i++;
+			if (j < n && starts_number(t[j])) {
+				*letter = upper(c);
+				*num = j;
+				*pi = i;
+				return 1;
+			}
+		} else {
+			i++;
+		}
+	}
+	*pi = i;
+	return 0;
+}
+
+int mlip_gcode_scan_axes(const char *text, size_t len, char *letters)
+{
+	int used[6] = {0}, k, n = 0;
+	size_t i = 0, num;
+	uint32_t line = 1;
+	char L;
+
+	while (next_word(text, len, &i, &line, &L, &num)) {
+		k = axis_slot(L);
+		if (k >= 0) {
+			used[k] = 1;
+		}
+	}
+	for (k = 0; k < 6; k++) {
+		if (used[k]) {
+			letters[n++] = axis_letters[k];
+		}
+	}
+	letters[n] = '\0';
+	return n;
+}
+
+uint32_t mlip_gcode_scan_feed(const char *text, size_t len, double *f_word)
+{
+	size_t i = 0, num;
+	uint32_t line = 1;
+	char L;
+	int ndig;
+	double v;
+
+	while (next_word(text, len, &i, &line, &L, &num)) {
+		if (L == 'F') {
+			scan_number(text, len, num, &v, &ndig);
+			if (ndig > 0 && v > 0) {
+				*f_word = v;
+				return line;
+			}
+		}
+	}
+	return 0;
+}

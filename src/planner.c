@@ -1,0 +1,575 @@
+/*
+ * planner.c - adaptive look-ahead (Sec. 2), feed override (Sec. 3) and
+ * interpolation (Sec. 4) of Zhang, Sun, Gao, Li (2011).
+ *
+ * The state of corner j is one number q_j = (t_m / t_g)^2 in [0, 1], where
+ * t_g is the corner's largest admissible t_m from (18)-(20): with a fixed,
+ * v_s^2, v_e^2, l_s and l_e are all proportional to q. Segment i runs from
+ * corner i-1 to corner i; its straight part (21) is
+ *
+ *     L_i = d_i - q_{i-1} l_e(i-1) - q_i l_s(i)
+ *
+ * and it can brake from the start speed to the end speed at its line
+ * acceleration a = a_{i,m} when v0^2 <= v1^2 + 2 a L_i, i.e.
+ *
+ *     q_{i-1} (v_e^2 + 2a l_e)(i-1) <= q_i (v_s^2 - 2a l_s)(i) + 2 a d_i  (22)-(25)
+ *
+ * which is the paper's (25)/(26) written in q: linear, so no square roots in
+ * the look-ahead. Backward reachability sets each q from its successor, from
+ * the newest block (which plans to rest) back to the executing one, and stops
+ * when a value equals the one the previous pass left (termination condition).
+ * Forward reachability (34) and the cases of Sec. 3.2 are applied by the
+ * executor to the segment it is on, from the actual state, every period.
+ *
+ * Interpolation samples one continuous C1 motion made of parabolic corners
+ * (14) and trapezoidal lines (35)(36) at t = kT: any number of pieces may
+ * fall in one period, and since each piece's acceleration is within the
+ * per-axis limits, so is every second difference of the samples (a weighted
+ * mean of the acceleration over two periods). That replaces the re-timing of
+ * (37) exactly.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "mlip/planner.h"
+
+#define MERGE_MM 1e-6 /* same as MLIP_GCODE_MERGE_MM */
+
+static double sq(double x)
+{
+	return x * x;
+}
+
+/* fmin/fmax are out-of-line libm calls under strict IEEE flags; every
+ * value here is finite, so plain comparisons do. */
+static double dmin(double a, double b)
+{
+	return a < b ? a : b;
+}
+
+static double dmax(double a, double b)
+{
+	return a > b ? a : b;
+}
+
+static struct mlip_seg *seg_at(struct mlip_planner *p, uint32_t i)
+{
+	return &p->seg[i & (p->cap - 1)];
+}
+
+static const struct mlip_seg *cseg_at(const struct mlip_planner *p, uint32_t i)
+{
+	return &p->seg[i & (p->cap - 1)];
+}
+
+/* ---- initialisation ----------------------------------------------------- */
+
+mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine *m,
+                              mlip_strategy st, uint32_t cap, const double *start)
+{
+	if (cap == 0) {
+		cap = MLIP_LOOKAHEAD;
+	}
+	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES || cap < 2 || cap > MLIP_LOOKAHEAD ||
+	    (cap & (cap - 1)) != 0 || !(m->period_s > 0.0) || !(m->tolerance_mm > 0.0) ||
+	    !(m->max_feed_mm_s > 0.0) || st > MLIP_STRATEGY_STOP) {
+		return MLIP_E_INVALID;
+	}
+	/* the struct is large (the ring); clear only the header part */
+	memset(p, 0, offsetof(struct mlip_planner, seg));
+	p->n = m->n_axes;
+	p->strategy = st;
+	for (int k = 0; k < p->n; k++) {
+		const struct mlip_axis *ax = &m->axis[k];
+		if (!(ax->max_accel > 0.0) || !(ax->max_vel > 0.0) || !isfinite(start[k])) {
+			return MLIP_E_INVALID;
+		}
+		p->accel[k] = ax->max_accel * (1.0 - MLIP_ACCEL_MARGIN);
+		p->vaxis[k] = ax->max_vel;
+		p->rotary[k] = ax->kind == MLIP_AXIS_ROTARY;
+		p->last_point[k] = start[k];
+		p->pos[k] = start[k];
+	}
+	p->vmax_mm_s = m->max_feed_mm_s;
+	p->vmax_rot_deg_s = m->max_rot_feed_deg_s > 0.0 ? m->max_rot_feed_deg_s : m->max_feed_mm_s;
+	p->eps_mm = m->tolerance_mm;
+	p->period_s = m->period_s;
+	p->cap = cap;
+	p->override = 1.0;
+	return MLIP_OK;
+}
+
+uint32_t mlip_planner_space(const struct mlip_planner *p)
+{
+	return p->cap - (p->head - p->tail);
+}
+
+uint32_t mlip_planner_queued(const struct mlip_planner *p)
+{
+	return p->head - p->tail;
+}
+
+/* ---- look-ahead --------------------------------------------------------- */
+
+static double effective_override(const struct mlip_planner *p)
+{
+	return p->hold ? 0.0 : p->override;
+}
+
+/* Speed the line of s aims at: programmed feed times override, never above
+ * the hard caps. */
+static double line_target(const struct mlip_planner *p, const struct mlip_seg *s)
+{
+	return dmin(s->vfeed_mm_s * effective_override(p), s->vhard_mm_s);
+}
+
+/* Largest q corner pr (between pr and nx) may have under the override: v_s
+ * within pr's target, v_e within nx's (Sec. 3). */
+static double corner_soft_cap(const struct mlip_planner *p, const struct mlip_seg *pr,
+                              const struct mlip_seg *nx)
+{
+	double q = 1.0;
+	q = dmin(q, sq(line_target(p, pr)) * pr->inv_vs2);
+	q = dmin(q, sq(line_target(p, nx)) * pr->inv_ve2);
+	return q;
+}
+
+/* Oldest corner the look-ahead may still change: the executing segment's end
+ * corner, unless it is being executed. */
+static uint32_t first_mutable(const struct mlip_planner *p)
+{
+	return p->tail + (p->in_corner ? 1u : 0u);
+}
+
+/*
+ * Backward reachability (Sec. 2.1 step 2, eqs 25-26 in q form). full = 0:
+ * stop at the termination condition (a value equal to last pass's); full = 1:
+ * recompute everything (after an override change, when caps moved).
+ */
+static void backward_pass(struct mlip_planner *p, int full)
+{
+	uint32_t first = first_mutable(p);
+	if ((uint32_t)(p->head - first) < 2u) {
+		return; /* no mutable corner before the newest segment's end */
+	}
+	uint32_t i = p->head - 1; /* newest: ends at rest, q = 0 */
+	uint32_t visits = 0;
+	double q_next = 0.0;
+	while (i != first) {
+		const struct mlip_seg *s = seg_at(p, i);
+		struct mlip_seg *pr = seg_at(p, i - 1);
+		if (full) {
+			pr->qcap = corner_soft_cap(p, pr, s);
+		}
+		/* (25)(26): q_{i-1} C <= q_i B + 2 a d */
+		double q = pr->qcap;
+		if (pr->inv_brake_c > 0.0) {
+			q = dmin(q, (q_next * s->brake_b + s->two_a_d) * pr->inv_brake_c);
+		}
+		q = dmax(q, 0.0);
+		visits++;
+		if (!full && q == pr->q) {
+			break; /* termination condition: nothing older can change */
+		}
+		pr->q = q;
+		q_next = q;
+		i--;
+	}
+	p->stats.backward_visits += visits;
+}
+
+/* Precompute the corner between pr and nx and its look-ahead coefficients. */
+static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx)
+{
+	mlip_corner_plan(p->n, p->strategy, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel, pr->tol_mm,
+	                 pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
+	const struct mlip_corner *c = &pr->c;
+	pr->inv_vs2 = c->vs_mm_s > 0.0 ? 1.0 / sq(c->vs_mm_s) : 0.0;
+	pr->inv_ve2 = c->ve_mm_s > 0.0 ? 1.0 / sq(c->ve_mm_s) : 0.0;
+	pr->brake_b = sq(c->vs_mm_s) - 2.0 * pr->a_mm_s2 * c->ls_mm;
+	double brake_c = sq(c->ve_mm_s) + 2.0 * nx->a_mm_s2 * c->le_mm;
+	/* C = 0 (the next line starts at rest whatever q is): no constraint */
+	pr->inv_brake_c = brake_c > 0.0 ? 1.0 / brake_c : 0.0;
+	pr->qcap = corner_soft_cap(p, pr, nx);
+	pr->q = 0.0;
+}
+
+static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
+{
+	if (mlip_planner_space(p) == 0) {
+		return MLIP_E_FULL;
+	}
+	if (p->stopping) {
+		return MLIP_E_INVALID;
+	}
+	struct mlip_seg *s = seg_at(p, p->head);
+	double d2 = 0.0, lin2 = 0.0;
+	for (int k = 0; k < p->n; k++) {
+		if (!isfinite(b->target[k])) {
+			return MLIP_E_RANGE;
+		}
+		double dk = b->target[k] - p->last_point[k];
+		d2 += dk * dk;
+		if (!p->rotary[k]) {
+			lin2 += dk * dk;
+		}
+	}
+	double d = sqrt(d2);
+	if (d < MERGE_MM) {
+		return MLIP_OK; /* no zero-length segment reaches the corners */
+	}
+	if (!b->rapid && !(b->feed_mm_s > 0.0)) {
+		return MLIP_E_RANGE;
+	}
+
+	double a = INFINITY, vaxis = INFINITY;
+	for (int k = 0; k < p->n; k++) {
+		s->end[k] = b->target[k];
+		s->e[k] = (b->target[k] - p->last_point[k]) / d;
+		double ek = fabs(s->e[k]);
+		if (ek > 0.0) {
+			a = dmin(a, p->accel[k] / ek); /* a_{i,m}, Sec. 2.1 */
+			vaxis = dmin(vaxis, p->vaxis[k] / ek);
+		}
+	}
+	/* F is the linear path speed when a linear axis moves, else the rotary
+	 * speed (G94); the planner works in joint units, so scale by d / d_lin */
+	double lin = sqrt(lin2);
+	double joint_per_tool = lin > MERGE_MM ? d / lin : 1.0;
+	double vmax_tool = lin > MERGE_MM ? p->vmax_mm_s : p->vmax_rot_deg_s;
+	s->d_mm = d;
+	s->a_mm_s2 = a;
+	s->two_a_d = 2.0 * a * d;
+	s->vhard_mm_s = dmin(vmax_tool * joint_per_tool, vaxis);
+	s->vfeed_mm_s = b->rapid ? s->vhard_mm_s : b->feed_mm_s * joint_per_tool;
+	s->tol_mm = b->tol_mm > 0.0 ? dmin(b->tol_mm, p->eps_mm) : p->eps_mm;
+	s->line = b->line;
+	s->seq = ++p->seq;
+	s->q = 0.0; /* the newest block always plans to rest */
+	s->qcap = 0.0;
+	s->inv_brake_c = 0.0;
+	s->brake_b = 0.0;
+	s->c = (struct mlip_corner){0};
+
+	if (p->head != p->tail) {
+		link_corner(p, seg_at(p, p->head - 1), s);
+	}
+	p->head++;
+	memcpy(p->last_point, b->target, sizeof(double) * (size_t)p->n);
+	p->stats.pushes++;
+	return MLIP_OK;
+}
+
+mlip_status mlip_planner_push(struct mlip_planner *p, const struct mlip_block *b)
+{
+	mlip_status st = append(p, b);
+	if (st == MLIP_OK) {
+		backward_pass(p, 0);
+	}
+	return st;
+}
+
+/* Several blocks, one backward pass: the pass from the newest block stops
+ * at the termination condition exactly as n single pushes would, so the
+ * plan is the same, for a fraction of the visits (the pre-read, and each
+ * period's ingest). */
+size_t mlip_planner_push_n(struct mlip_planner *p, const struct mlip_block *b, size_t n,
+                           mlip_status *err)
+{
+	size_t done = 0;
+	mlip_status st = MLIP_OK;
+	while (done < n && mlip_planner_space(p) > 0) {
+		st = append(p, &b[done]);
+		if (st != MLIP_OK) {
+			break;
+		}
+		done++;
+	}
+	if (done > 0) {
+		backward_pass(p, 0);
+	}
+	if (err != NULL) {
+		*err = st;
+	}
+	return done;
+}
+
+
+mlip_status mlip_planner_set_override(struct mlip_planner *p, double pct)
+{
+	if (!(pct >= 0.0 && pct <= 200.0)) {
+		return MLIP_E_RANGE;
+	}
+	p->override = pct / 100.0;
+	p->stats.full_passes++;
+	backward_pass(p, 1); /* caps moved both ways (Sec. 3.1, 3.2) */
+	return MLIP_OK;
+}
+
+void mlip_planner_hold(struct mlip_planner *p, int on)
+{
+	p->hold = on != 0;
+	p->stats.full_passes++;
+	backward_pass(p, 1);
+}
+
+void mlip_planner_stop(struct mlip_planner *p)
+{
+	p->stopping = 1;
+	mlip_planner_hold(p, 1);
+}
+
+/* ---- execution ---------------------------------------------------------- */
+
+/*
+ * Where the executing line must end: the planned q of its end corner,
+ * clamped to what the actual state allows (s along the line, speed v):
+ *   the corner cannot start behind us      q l_s <= rem
+ *   forward reachability (34)              q v_s^2 <= v^2 + 2a (rem - q l_s)
+ *   the line can brake (Sec. 3.2 case b)   v^2 <= q v_s^2 + 2a (rem - q l_s)
+ * with rem = distance from here to the corner point. When an override cut
+ * leaves the line unable to brake to the plan, the corner keeps the speed it
+ * can reach and the following segments brake instead: acceleration limits
+ * are never exceeded to respond faster.
+ */
+static double end_corner_q(const struct mlip_seg *s, double rem, double v)
+{
+	const struct mlip_corner *c = &s->c;
+	double a = s->a_mm_s2;
+	double vs2 = sq(c->vs_mm_s), ls = c->ls_mm;
+	double geom = ls > 0.0 ? dmin(1.0, rem / ls) : 1.0;
+	double lo = 0.0, hi = geom;
+
+	double grow = vs2 + 2.0 * a * ls;
+	if (grow > 0.0) {
+		hi = dmin(hi, (v * v + 2.0 * a * rem) / grow);
+	}
+	/* k = 0 (beta equal to the line's a) is common and makes the brake
+	 * condition independent of q: do not let rounding turn it into a bound */
+	double k = vs2 - 2.0 * a * ls, need = v * v - 2.0 * a * rem;
+	if (k > 1e-12 * grow) {
+		lo = need / k;
+	} else if (k < -1e-12 * grow) {
+		hi = dmin(hi, need / k); /* bigger corners brake worse here */
+	}
+	double q = dmin(dmax(s->q, lo), hi);
+	if (lo > hi) {
+		q = dmin(lo, geom); /* only by rounding: keep the state brakeable */
+	}
+	return dmax(q, 0.0);
+}
+
+/* A line profile from (speed v) over distance rem to speed v1: change to vc,
+ * cruise, change to v1, each change at +-a (35)(36), generalised to any
+ * start speed so that it can be re-planned from the actual state.
+ *
+ *   v ^      ____vc____
+ *     |     /          \
+ *     | v0 /            \ v1
+ *     +---------------------> t
+ */
+static void profile_make(struct mlip_profile *f, double v, double rem, double v1, double a,
+                         double vtarget)
+{
+	/* Plans make braking exactly tight, so rounding can leave v -> v1 short
+	 * of room by ~1e-11: take the exact rate then (far inside the margin
+	 * kept below the limits) rather than overshoot the corner and jump. */
+	double need = fabs(v * v - v1 * v1);
+	if (rem > 0.0 && need > 2.0 * a * rem && need <= 2.0 * a * rem * (1.0 + 1e-9)) {
+		a = need / (2.0 * rem);
+	}
+	double vc;
+	if (vtarget >= dmax(v, v1)) {
+		double vtri2 = 0.5 * (2.0 * a * rem + v * v + v1 * v1); /* (36) */
+		/* never below max(v, v1): only rounding could put vtri there */
+		vc = dmin(vtarget, dmax(sqrt(dmax(vtri2, 0.0)), dmax(v, v1))); /* (35) */
+	} else {
+		/* above the target (override cut): come down as far as rem allows */
+		double vlo2 = 0.5 * (v * v + v1 * v1 - 2.0 * a * rem);
+		vc = dmax(vtarget, sqrt(dmax(vlo2, 0.0)));
+	}
+	f->v0 = v;
+	f->vc = vc;
+	f->v1 = v1;
+	f->a1 = vc >= v ? a : -a;
+	f->a3 = v1 >= vc ? a : -a;
+	f->t1 = fabs(vc - v) / a;
+	f->t3 = fabs(v1 - vc) / a;
+	f->d1 = fabs(vc * vc - v * v) / (2.0 * a);
+	double d3 = fabs(vc * vc - v1 * v1) / (2.0 * a);
+	f->d2 = dmax(rem - f->d1 - d3, 0.0);
+	if (vc > 0.0) {
+		f->t2 = f->d2 / vc;
+	} else {
+		f->t2 = f->d2 > 0.0 ? INFINITY : 0.0; /* feed hold: stopped on the line */
+	}
+}
+
+/* Advance a profile by t < total: distance covered and speed reached. */
+static void profile_eval(const struct mlip_profile *f, double t, double *dist, double *v)
+{
+	if (t <= f->t1) {
+		*dist = f->v0 * t + 0.5 * f->a1 * t * t;
+		*v = f->v0 + f->a1 * t;
+	} else if (t <= f->t1 + f->t2) {
+		*dist = f->d1 + f->vc * (t - f->t1);
+		*v = f->vc;
+	} else {
+		double u = t - f->t1 - f->t2;
+		*dist = f->d1 + f->d2 + f->vc * u + 0.5 * f->a3 * u * u;
+		*v = f->vc + f->a3 * u;
+	}
+}
+
+/* Segment tail is finished: account for it and free its slot. */
+static void retire(struct mlip_planner *p)
+{
+	struct mlip_seg *s = seg_at(p, p->tail);
+	p->done_seq = s->seq;
+	p->done_line = s->line;
+	p->tail++;
+}
+
+static void line_position(const struct mlip_planner *p, const struct mlip_seg *s, double *out)
+{
+	/* anchored at the segment's end point so that arriving there is exact */
+	double back = s->d_mm - p->l_start_mm - p->s_mm;
+	for (int k = 0; k < p->n; k++) {
+		out[k] = s->end[k] - s->e[k] * back;
+	}
+}
+
+static void corner_position(const struct mlip_planner *p, const struct mlip_seg *s,
+                            const struct mlip_seg *nx, double *out)
+{
+	/* (14) rewritten: P - beta (t_m - t)^2 / 2 e_s + alpha t^2 / 2 e_e, which
+	 * is exact at both ends and free of cancellation */
+	double tm = sqrt(p->q_exec) * s->c.t_s, t = p->tc_s;
+	double ws = 0.5 * s->c.beta_mm_s2 * sq(tm - t);
+	double we = 0.5 * s->c.alpha_mm_s2 * t * t;
+	for (int k = 0; k < p->n; k++) {
+		out[k] = s->end[k] - ws * s->e[k] + we * nx->e[k];
+	}
+}
+
+mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
+{
+	double tau = p->period_s;
+	p->stats.periods++;
+
+	while (tau > 0.0 && p->head != p->tail) {
+		struct mlip_seg *s = seg_at(p, p->tail);
+		int has_next = p->head - p->tail > 1;
+
+		if (p->in_corner) {
+			double tm = sqrt(p->q_exec) * s->c.t_s;
+			double left = tm - p->tc_s;
+			if (left > tau) {
+				p->tc_s += tau;
+				tau = 0.0;
+				break;
+			}
+			tau -= dmax(left, 0.0);
+			/* onto the next line at E with speed v_e */
+			p->l_start_mm = p->q_exec * s->c.le_mm;
+			p->v_mm_s = sqrt(p->q_exec) * s->c.ve_mm_s;
+			p->s_mm = 0.0;
+			p->in_corner = 0;
+			retire(p);
+			continue;
+		}
+
+		double rem = s->d_mm - p->l_start_mm - p->s_mm; /* to the corner point */
+		double q = has_next ? end_corner_q(s, rem, p->v_mm_s) : 0.0;
+		double vt = line_target(p, s);
+		struct mlip_profile *f = &p->prof;
+		if (!p->prof_valid || q != p->prof_q || vt != p->prof_vt) {
+			/* re-plan from the actual state only when an input changed;
+			 * otherwise keep evaluating one profile in closed form, so
+			 * no rounding accumulates along a long line */
+			double left = dmax(rem - q * s->c.ls_mm, 0.0);
+			profile_make(f, p->v_mm_s, left, sqrt(q) * s->c.vs_mm_s, s->a_mm_s2, vt);
+			p->prof_valid = 1;
+			p->prof_q = q;
+			p->prof_vt = vt;
+			p->prof_t = 0.0;
+			p->prof_s0 = p->s_mm;
+			p->prof_len = left;
+		}
+		double total = f->t1 + f->t2 + f->t3;
+		if (total - p->prof_t > tau) {
+			double dist, v;
+			p->prof_t += tau;
+			profile_eval(f, p->prof_t, &dist, &v);
+			p->s_mm = p->prof_s0 + dist;
+			p->v_mm_s = v;
+			tau = 0.0;
+			break;
+		}
+		tau -= total - p->prof_t;
+		p->s_mm = p->prof_s0 + p->prof_len;
+		p->v_mm_s = f->v1;
+		p->prof_valid = 0;
+		if (!has_next) {
+			/* at rest on the newest point: nothing was queued behind it */
+			retire(p);
+			p->l_start_mm = 0.0;
+			p->s_mm = 0.0;
+			p->v_mm_s = 0.0;
+			continue;
+		}
+		p->in_corner = 1;
+		p->q_exec = q;
+		p->tc_s = 0.0;
+	}
+
+	/* controlled stop: once at rest on the path, drop what is queued */
+	if (p->stopping && p->v_mm_s == 0.0 && !p->in_corner) {
+		if (p->head != p->tail) {
+			line_position(p, seg_at(p, p->tail), p->pos);
+			p->head = p->tail;
+			memcpy(p->last_point, p->pos, sizeof(double) * (size_t)p->n);
+			p->l_start_mm = 0.0;
+			p->s_mm = 0.0;
+		}
+		p->stopping = 0;
+		p->hold = 0;
+	}
+
+	if (p->head == p->tail) {
+		memcpy(p->pos, p->last_point, sizeof(double) * (size_t)p->n);
+	} else if (p->in_corner) {
+		corner_position(p, seg_at(p, p->tail), seg_at(p, p->tail + 1), p->pos);
+	} else {
+		line_position(p, seg_at(p, p->tail), p->pos);
+	}
+	memcpy(pos_out, p->pos, sizeof(double) * (size_t)p->n);
+
+	if (p->head == p->tail) {
+		return MLIP_RUN_IDLE;
+	}
+	if (effective_override(p) == 0.0 && p->v_mm_s == 0.0 && !p->in_corner) {
+		return MLIP_RUN_HELD;
+	}
+	return MLIP_RUN_MOVING;
+}
+
+double mlip_planner_speed(const struct mlip_planner *p)
+{
+	if (p->head == p->tail) {
+		return 0.0;
+	}
+	if (!p->in_corner) {
+		return p->v_mm_s;
+	}
+	/* |v_s e_s + a t| in the corner */
+	const struct mlip_seg *s = cseg_at(p, p->tail);
+	const struct mlip_seg *nx = cseg_at(p, p->tail + 1);
+	double u = sqrt(p->q_exec), t = p->tc_s, v2 = 0.0;
+	for (int k = 0; k < p->n; k++) {
+		double vk = u * s->c.vs_mm_s * s->e[k] +
+		            (s->c.alpha_mm_s2 * nx->e[k] - s->c.beta_mm_s2 * s->e[k]) * t;
+		v2 += vk * vk;
+	}
+	return sqrt(v2);
+}

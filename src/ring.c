@@ -1,0 +1,530 @@
+/*
+ * ring.c - SPSC block ring, status seqlocks and command mailbox in a
+ * caller-provided (shared) memory segment. See mlip/ring.h for the layout and
+ * the protocol; this file only adds the memory-ordering arguments.
+ *
+ * Ring (kfifo / DPDK rte_ring, one producer and one consumer):
+ *
+ *     tail          head                       free-running uint32_t
+ *      |             |                         slot = index & mask
+ *   ...[ r r r r r r ][ . . . . . . . . ]...   count = head - tail (mod 2^32)
+ *      consumer reads  producer writes          space = capacity - count
+ *
+ *   producer: write records [head, head+n)      then store head+n  (release)
+ *   consumer: load head (acquire), copy records then store tail+n  (release)
+ *   producer: load tail (acquire) before reusing a slot the consumer freed.
+ *
+ * Each side keeps a private cached copy of the other side's index on its own
+ * cache line (tail_cache, head_cache) and reloads the shared one only when the
+ * cache says there is not enough, as in Rigtorp's SPSCQueue: the cached value
+ * never runs ahead of the real one, so the check is conservative.
+ *
+ * Seqlock (status, feeder areas), all accesses atomic:
+ *   writer: gen = g+1 (relaxed); fields (release); gen = g+2 (release)
+ *   reader: g1 = gen (acquire), even; fields (acquire); g2 = gen; g1 == g2
+ * The release stores of the fields order the odd generation before them, and
+ * the acquire loads of the fields order the second generation load after them,
+ * so no standalone fence is needed (TSan does not model fences).
+ */
+#include "mlip/ring.h"
+
+#include <stddef.h>
+#include <string.h>
+
+/* ---- compile-time layout checks (Linux kfifo's negative array size) ---- */
+#define MLIP_RING_CHECK(name, cond) typedef char mlip_ring_check_##name[(cond) ? 1 : -1]
+
+MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 80);
+MLIP_RING_CHECK(rec_align, sizeof(struct mlip_ring_rec) % 8 == 0);
+MLIP_RING_CHECK(rec_target, offsetof(struct mlip_ring_rec, target) == 16);
+MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 448);
+MLIP_RING_CHECK(hdr_lines, sizeof(struct mlip_ring) % MLIP_RING_LINE == 0);
+MLIP_RING_CHECK(line_pow2, MLIP_RING_IS_POW2(MLIP_RING_LINE));
+MLIP_RING_CHECK(max_pow2, MLIP_RING_IS_POW2(MLIP_RING_MAX_CAPACITY));
+MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
+MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
+MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
+MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 88);
+MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 320);
+MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 328);
+MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 32);
+MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 384);
+/* shared-memory atomics must not fall back to a process-local lock */
+#if !defined(__GCC_ATOMIC_LLONG_LOCK_FREE) || __GCC_ATOMIC_LLONG_LOCK_FREE != 2 || \
+    !defined(__GCC_ATOMIC_INT_LOCK_FREE) || __GCC_ATOMIC_INT_LOCK_FREE != 2
+#error "mlip ring needs always lock-free 32- and 64-bit atomics"
+#endif
+
+#define LD(p, mo) __atomic_load_n((p), (mo))
+#define ST(p, v, mo) __atomic_store_n((p), (v), (mo))
+#define ACQ __ATOMIC_ACQUIRE
+#define REL __ATOMIC_RELEASE
+#define RLX __ATOMIC_RELAXED
+
+static uint64_t ring_magic(void)
+{
+	uint64_t m;
+
+	memcpy(&m, MLIP_RING_MAGIC, sizeof(m));
+	return m;
+}
+
+const char *mlip_ring_reason_str(mlip_ring_reason reason)
+{
+	switch (reason) {
+	case MLIP_RING_MATCH:
+		return "match";
+	case MLIP_RING_BAD_ARG:
+		return "null argument";
+	case MLIP_RING_BAD_ALIGN:
+		return "segment alignment";
+	case MLIP_RING_SHORT:
+		return "segment size (header)";
+	case MLIP_RING_BAD_MAGIC:
+		return "magic";
+	case MLIP_RING_BAD_VERSION:
+		return "layout version";
+	case MLIP_RING_BAD_RECORD:
+		return "record size";
+	case MLIP_RING_BAD_HEADER:
+		return "header size";
+	case MLIP_RING_BAD_CAPACITY:
+		return "capacity";
+	case MLIP_RING_BAD_AXES:
+		return "axis count";
+	case MLIP_RING_TRUNCATED:
+		return "segment size (records)";
+	}
+	return "?";
+}
+
+static int capacity_ok(uint32_t capacity)
+{
+	return capacity != 0 && (capacity & (capacity - 1u)) == 0 &&
+	       capacity <= MLIP_RING_MAX_CAPACITY;
+}
+
+size_t mlip_ring_bytes(uint32_t capacity)
+{
+	if (!capacity_ok(capacity)) {
+		return 0;
+	}
+	return sizeof(struct mlip_ring) + (size_t)capacity * sizeof(struct mlip_ring_rec);
+}
+
+static struct mlip_ring_rec *slot(struct mlip_ring *r, uint32_t index)
+{
+	return (struct mlip_ring_rec *)(void *)(r + 1) + (index & r->mask);
+}
+
+mlip_status mlip_ring_format(void *mem, size_t bytes, uint32_t capacity, int n_axes)
+{
+	struct mlip_ring *r = mem;
+
+	if (mem == NULL || ((uintptr_t)mem & (MLIP_RING_LINE - 1)) != 0 ||
+	    !capacity_ok(capacity) || n_axes < 1 || n_axes > MLIP_MAX_AXES ||
+	    bytes < mlip_ring_bytes(capacity)) {
+		return MLIP_E_INVALID;
+	}
+	ST(&r->magic, 0, REL); /* unformatted while we write */
+	memset((char *)mem + sizeof(r->magic), 0, sizeof(*r) - sizeof(r->magic));
+	r->version = MLIP_RING_VERSION;
+	r->capacity = capacity;
+	r->mask = capacity - 1;
+	r->rec_bytes = (uint32_t)sizeof(struct mlip_ring_rec);
+	r->hdr_bytes = (uint32_t)sizeof(struct mlip_ring);
+	r->n_axes = (uint32_t)n_axes;
+	r->status.override_pct = 100;
+	ST(&r->magic, ring_magic(), REL);
+	return MLIP_OK;
+}
+
+static mlip_status refuse(struct mlip_ring_mismatch *why, mlip_ring_reason reason,
+                          uint64_t found, uint64_t expected)
+{
+	if (why != NULL) {
+		why->reason = reason;
+		why->found = found;
+		why->expected = expected;
+	}
+	return MLIP_E_INVALID;
+}
+
+mlip_status mlip_ring_attach(void *mem, size_t bytes, int n_axes, struct mlip_ring **out,
+                             struct mlip_ring_mismatch *why)
+{
+	struct mlip_ring *r = mem;
+	uint64_t magic;
+
+	if (out == NULL) {
+		return refuse(why, MLIP_RING_BAD_ARG, 0, 0);
+	}
+	*out = NULL;
+	if (mem == NULL) {
+		return refuse(why, MLIP_RING_BAD_ARG, 0, 0);
+	}
+	if (((uintptr_t)mem & (MLIP_RING_LINE - 1)) != 0) {
+		return refuse(why, MLIP_RING_BAD_ALIGN, (uintptr_t)mem & (MLIP_RING_LINE - 1), 0);
+	}
+	if (bytes < sizeof(struct mlip_ring)) {
+		return refuse(why, MLIP_RING_SHORT, bytes, sizeof(struct mlip_ring));
+	}
+	magic = LD(&r->magic, ACQ); /* pairs with the release in format */
+	if (magic != ring_magic()) {
+		return refuse(why, MLIP_RING_BAD_MAGIC, magic, ring_magic());
+	}
+	if (r->version != MLIP_RING_VERSION) {
+		return refuse(why, MLIP_RING_BAD_VERSION, r->version, MLIP_RING_VERSION);
+	}
+	if (r->rec_bytes != sizeof(struct mlip_ring_rec)) {
+		return refuse(why, MLIP_RING_BAD_RECORD, r->rec_bytes,
+		              sizeof(struct mlip_ring_rec));
+	}
+	if (r->hdr_bytes != sizeof(struct mlip_ring)) {
+		return refuse(why, MLIP_RING_BAD_HEADER, r->hdr_bytes, sizeof(struct mlip_ring));
+	}
+	if (!capacity_ok(r->capacity) || r->mask != r->capacity - 1) {
+		return refuse(why, MLIP_RING_BAD_CAPACITY, r->capacity, MLIP_RING_MAX_CAPACITY);
+	}
+	if (r->n_axes < 1 || r->n_axes > MLIP_MAX_AXES ||
+	    (n_axes != 0 && r->n_axes != (uint32_t)n_axes)) {
+		return refuse(why, MLIP_RING_BAD_AXES, r->n_axes,
+		              n_axes != 0 ? (uint64_t)n_axes : MLIP_MAX_AXES);
+	}
+	if (bytes < mlip_ring_bytes(r->capacity)) {
+		return refuse(why, MLIP_RING_TRUNCATED, bytes, mlip_ring_bytes(r->capacity));
+	}
+	if (why != NULL) {
+		why->reason = MLIP_RING_MATCH;
+		why->found = 0;
+		why->expected = 0;
+	}
+	*out = r;
+	return MLIP_OK;
+}
+
+/* ---- ring ------------------------------------------------------------ */
+
+uint32_t mlip_ring_push_n(struct mlip_ring *r, const struct mlip_ring_rec *recs, uint32_t n)
+{
+	uint32_t head = LD(&r->head, RLX); /* ours */
+	uint32_t space = r->capacity - (head - r->tail_cache);
+	uint32_t first;
+
+	if (space < n) {
+		r->tail_cache = LD(&r->tail, ACQ); /* slots before tail are free */
+		space = r->capacity - (head - r->tail_cache);
+	}
+	if (n > space) {
+		n = space;
+	}
+	if (n == 0) {
+		return 0;
+	}
+	/* copy in at most two runs: up to the end of the array, then from 0 */
+	first = r->capacity - (head & r->mask);
+	if (first > n) {
+		first = n;
+	}
+	memcpy(slot(r, head), recs, first * sizeof(*recs));
+	if (n > first) {
+		memcpy(slot(r, head + first), recs + first, (n - first) * sizeof(*recs));
+	}
+	ST(&r->head, head + n, REL); /* publishes the records */
+	return n;
+}
+
+mlip_status mlip_ring_push(struct mlip_ring *r, const struct mlip_ring_rec *rec)
+{
+	return mlip_ring_push_n(r, rec, 1) == 1 ? MLIP_OK : MLIP_E_FULL;
+}
+
+/* Consumer: records available, reloading head only when the cache is short. */
+static uint32_t avail(struct mlip_ring *r, uint32_t tail, uint32_t want)
+{
+	uint32_t n = r->head_cache - tail;
+
+	if (n < want) {
+		r->head_cache = LD(&r->head, ACQ); /* records before head are written */
+		n = r->head_cache - tail;
+	}
+	if (n > r->capacity) { /* a broken producer: never read past a lap */
+		n = r->capacity;
+	}
+	return n;
+}
+
+uint32_t mlip_ring_pop_n(struct mlip_ring *r, struct mlip_ring_rec *out, uint32_t max)
+{
+	uint32_t tail = LD(&r->tail, RLX); /* ours */
+	uint32_t n = avail(r, tail, max);
+	uint32_t first;
+
+	if (n > max) {
+		n = max;
+	}
+	if (n == 0) {
+		return 0;
+	}
+	if (out != NULL) {
+		first = r->capacity - (tail & r->mask);
+		if (first > n) {
+			first = n;
+		}
+		memcpy(out, slot(r, tail), first * sizeof(*out));
+		if (n > first) {
+			memcpy(out + first, slot(r, tail + first), (n - first) * sizeof(*out));
+		}
+	}
+	ST(&r->tail, tail + n, REL); /* hands the slots back to the producer */
+	return n;
+}
+
+mlip_status mlip_ring_pop(struct mlip_ring *r, struct mlip_ring_rec *out)
+{
+	return mlip_ring_pop_n(r, out, 1) == 1 ? MLIP_OK : MLIP_E_EMPTY;
+}
+
+mlip_status mlip_ring_peek(struct mlip_ring *r, struct mlip_ring_rec *out)
+{
+	uint32_t tail = LD(&r->tail, RLX);
+
+	if (avail(r, tail, 1) == 0) {
+		return MLIP_E_EMPTY;
+	}
+	*out = *slot(r, tail);
+	return MLIP_OK;
+}
+
+uint32_t mlip_ring_count(const struct mlip_ring *r)
+{
+	/* tail first: head read later is >= the head of that moment, so the
+	 * difference is never negative; it may exceed a lap, hence the clamp */
+	uint32_t tail = LD(&r->tail, ACQ);
+	uint32_t head = LD(&r->head, ACQ);
+	uint32_t n = head - tail;
+
+	return n > r->capacity ? r->capacity : n;
+}
+
+uint32_t mlip_ring_space(const struct mlip_ring *r)
+{
+	return r->capacity - mlip_ring_count(r);
+}
+
+void mlip_ring_reset(struct mlip_ring *r, uint32_t index)
+{
+	ST(&r->head, index, REL);
+	ST(&r->tail, index, REL);
+	r->tail_cache = index;
+	r->head_cache = index;
+}
+
+void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b,
+                              uint64_t seq)
+{
+	int i;
+
+	memset(rec, 0, sizeof(*rec));
+	rec->seq = seq;
+	rec->line = b->line;
+	rec->flags = b->rapid ? MLIP_REC_RAPID : 0u;
+	for (i = 0; i < MLIP_MAX_AXES; i++) {
+		rec->target[i] = b->target[i];
+	}
+	rec->feed_mm_s = b->feed_mm_s;
+	rec->tol_mm = b->tol_mm;
+}
+
+void mlip_ring_rec_end(struct mlip_ring_rec *rec, uint64_t seq, uint32_t line)
+{
+	memset(rec, 0, sizeof(*rec));
+	rec->seq = seq;
+	rec->line = line;
+	rec->flags = MLIP_REC_END;
+}
+
+mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_block *b)
+{
+	int i;
+
+	if (rec->flags & MLIP_REC_END) {
+		return MLIP_E_EMPTY;
+	}
+	memset(b, 0, sizeof(*b));
+	for (i = 0; i < MLIP_MAX_AXES; i++) {
+		b->target[i] = rec->target[i];
+	}
+	b->feed_mm_s = rec->feed_mm_s;
+	b->tol_mm = rec->tol_mm;
+	b->line = rec->line;
+	b->rapid = (rec->flags & MLIP_REC_RAPID) ? 1 : 0;
+	return MLIP_OK;
+}
+
+/* ---- status and feeder seqlocks -------------------------------------- */
+
+void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *s)
+{
+	struct mlip_ring_status *d = &r->status;
+	uint32_t g = LD(&r->status_gen, RLX); /* only we write it */
+
+	ST(&r->status_gen, g + 1, RLX);
+	ST(&d->heartbeat, s->heartbeat, REL);
+	ST(&d->heartbeat_ns, s->heartbeat_ns, REL);
+	ST(&d->exec_seq, s->exec_seq, REL);
+	ST(&d->exec_line, s->exec_line, REL);
+	ST(&d->state, s->state, REL);
+	ST(&d->override_pct, s->override_pct, REL);
+	ST(&d->reserved, s->reserved, REL);
+	ST(&d->overruns, s->overruns, REL);
+	ST(&d->underruns, s->underruns, REL);
+	ST(&d->can_tx_errors, s->can_tx_errors, REL);
+	ST(&d->can_bus_errors, s->can_bus_errors, REL);
+	ST(&d->frames_sent, s->frames_sent, REL);
+	ST(&d->blocks_consumed, s->blocks_consumed, REL);
+	ST(&r->status_gen, g + 2, REL);
+}
+
+mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_status *s)
+{
+	const struct mlip_ring_status *d = &r->status;
+	uint32_t g1, g2;
+	int tries;
+
+	for (tries = 0; tries < MLIP_RING_READ_TRIES; tries++) {
+		g1 = LD(&r->status_gen, ACQ);
+		if (g1 & 1u) {
+			continue;
+		}
+		s->heartbeat = LD(&d->heartbeat, ACQ);
+		s->heartbeat_ns = LD(&d->heartbeat_ns, ACQ);
+		s->exec_seq = LD(&d->exec_seq, ACQ);
+		s->exec_line = LD(&d->exec_line, ACQ);
+		s->state = LD(&d->state, ACQ);
+		s->override_pct = LD(&d->override_pct, ACQ);
+		s->reserved = LD(&d->reserved, ACQ);
+		s->overruns = LD(&d->overruns, ACQ);
+		s->underruns = LD(&d->underruns, ACQ);
+		s->can_tx_errors = LD(&d->can_tx_errors, ACQ);
+		s->can_bus_errors = LD(&d->can_bus_errors, ACQ);
+		s->frames_sent = LD(&d->frames_sent, ACQ);
+		s->blocks_consumed = LD(&d->blocks_consumed, ACQ);
+		g2 = LD(&r->status_gen, RLX);
+		if (g1 == g2) {
+			return MLIP_OK;
+		}
+	}
+	return MLIP_E_EMPTY;
+}
+
+void mlip_ring_feeder_write(struct mlip_ring *r, const struct mlip_ring_feeder *f)
+{
+	struct mlip_ring_feeder *d = &r->feeder;
+	uint32_t g = LD(&r->feeder_gen, RLX);
+
+	ST(&r->feeder_gen, g + 1, RLX);
+	ST(&d->heartbeat, f->heartbeat, REL);
+	ST(&d->heartbeat_ns, f->heartbeat_ns, REL);
+	ST(&d->total_blocks, f->total_blocks, REL);
+	ST(&d->program_end, f->program_end, REL);
+	ST(&d->pid, f->pid, REL);
+	ST(&r->feeder_gen, g + 2, REL);
+}
+
+mlip_status mlip_ring_feeder_read(const struct mlip_ring *r, struct mlip_ring_feeder *f)
+{
+	const struct mlip_ring_feeder *d = &r->feeder;
+	uint32_t g1, g2;
+	int tries;
+
+	for (tries = 0; tries < MLIP_RING_READ_TRIES; tries++) {
+		g1 = LD(&r->feeder_gen, ACQ);
+		if (g1 & 1u) {
+			continue;
+		}
+		f->heartbeat = LD(&d->heartbeat, ACQ);
+		f->heartbeat_ns = LD(&d->heartbeat_ns, ACQ);
+		f->total_blocks = LD(&d->total_blocks, ACQ);
+		f->program_end = LD(&d->program_end, ACQ);
+		f->pid = LD(&d->pid, ACQ);
+		g2 = LD(&r->feeder_gen, RLX);
+		if (g1 == g2) {
+			return MLIP_OK;
+		}
+	}
+	return MLIP_E_EMPTY;
+}
+
+/* ---- command mailbox --------------------------------------------------- */
+
+mlip_status mlip_ring_cmd_post(struct mlip_ring *r, mlip_ring_cmd_op op, int32_t arg,
+                               uint32_t *seq)
+{
+	uint32_t s, done;
+
+	if ((int)op <= (int)MLIP_CMD_NONE || (int)op >= (int)MLIP_CMD_COUNT) {
+		return MLIP_E_INVALID;
+	}
+	s = LD(&r->cmd_seq, ACQ);
+	done = LD(&r->cmd_done, ACQ); /* the controller is finished with op/arg */
+	if ((s & 1u) || s != done) {
+		return MLIP_E_FULL;
+	}
+	/* claim the slot against another mlip-ctl: s (even) -> s+1 (odd) */
+	if (!__atomic_compare_exchange_n(&r->cmd_seq, &s, s + 1, 0, __ATOMIC_ACQ_REL, ACQ)) {
+		return MLIP_E_FULL;
+	}
+	ST(&r->cmd_op, (uint32_t)op, RLX);
+	ST(&r->cmd_arg, arg, RLX);
+	ST(&r->cmd_seq, s + 2, REL); /* publishes op and arg */
+	if (seq != NULL) {
+		*seq = s + 2;
+	}
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_cmd_result(const struct mlip_ring *r, uint32_t seq, int32_t *result)
+{
+	if (LD(&r->cmd_done, ACQ) != seq) {
+		return MLIP_E_EMPTY;
+	}
+	*result = LD(&r->cmd_result, RLX); /* stored before done (release) */
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_cmd_take(struct mlip_ring *r, struct mlip_ring_cmd *out)
+{
+	uint32_t s = LD(&r->cmd_seq, ACQ); /* pairs with the publishing store */
+
+	if ((s & 1u) || s == LD(&r->cmd_taken, RLX)) {
+		return MLIP_E_EMPTY; /* nothing new, or a post in progress */
+	}
+	/* no poster can write op/arg now: they wait for cmd_done == cmd_seq */
+	out->seq = s;
+	out->op = LD(&r->cmd_op, RLX);
+	out->arg = LD(&r->cmd_arg, RLX);
+	ST(&r->cmd_taken, s, RLX);
+	return MLIP_OK;
+}
+
+void mlip_ring_cmd_done(struct mlip_ring *r, uint32_t seq, int32_t result)
+{
+	ST(&r->cmd_result, result, RLX);
+	ST(&r->cmd_done, seq, REL); /* our reads of op/arg happen before the next post */
+}
+
+const char *mlip_ring_state_name(uint32_t state)
+{
+	static const char *const names[] = {"idle", "running", "held", "stopping", "fault"};
+
+	return state < sizeof(names) / sizeof(names[0]) ? names[state] : "?";
+}
+
+const char *mlip_ring_cmd_name(uint32_t op)
+{
+	static const char *const names[] = {"none", "override", "hold", "resume", "stop"};
+
+	return op < sizeof(names) / sizeof(names[0]) ? names[op] : "?";
+}

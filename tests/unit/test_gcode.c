@@ -1,0 +1,1287 @@
+/*
+ * test_gcode.c - the G-code front end: lexing, every error class with its
+ * line and column, modal state, units, arcs in the three planes, merging,
+ * notices, the axis scan, and the real toolpaths of /work/shared.
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <errno.h>
+
+#include <cmocka.h>
+
+#include "mlip/gcode.h"
+#include "../../tools/lib/program.h"
+
+#define EPS 0.01                          /* machine contour tolerance in these tests */
+#define SAG (MLIP_GCODE_ARC_FRACTION * EPS) /* chord sagitta allowed */
+
+/* cmocka 1.1.5 has no double comparison: keep our own */
+#define assert_near(a, b, tol) near_impl((a), (b), (tol), #a, __FILE__, __LINE__)
+static void near_impl(double a, double b, double tol, const char *what, const char *file,
+                      int line)
+{
+	if (!(fabs(a - b) <= tol)) {
+		print_error("%s = %.12g, expected %.12g +- %g\n", what, a, b, tol);
+		_fail(file, line);
+	}
+}
+
+static struct mlip_machine machine(const char *axes)
+{
+	struct mlip_machine m;
+	int i;
+
+	memset(&m, 0, sizeof m);
+	m.n_axes = (int)strlen(axes);
+	for (i = 0; i < m.n_axes; i++) {
+		m.axis[i].letter = axes[i];
+		m.axis[i].kind = strchr("ABC", axes[i]) ? MLIP_AXIS_ROTARY : MLIP_AXIS_LINEAR;
+		m.axis[i].max_accel = 1000;
+		m.axis[i].max_vel = 200;
+		m.axis[i].min_limit = -1000;
+		m.axis[i].max_limit = 1000;
+	}
+	m.max_feed_mm_s = 200;
+	m.max_rot_feed_deg_s = 360;
+	m.tolerance_mm = EPS;
+	m.period_s = 0.001;
+	return m;
+}
+
+/* Parse text that must be valid. */
+static void parse_ok(const char *text, const struct mlip_machine *m, struct mlip_program *p)
+{
+	int rc = mlip_program_parse(text, strlen(text), m, p);
+
+	if (rc != 0) {
+		mlip_program_print_errors(p, "<test>", stderr);
+	}
+	assert_int_equal(rc, 0);
+}
+
+/* The first error of text is at line:col and its message contains part. */
+static void check_err_m(const char *text, const struct mlip_machine *m, uint32_t line,
+                        uint32_t col, const char *part)
+{
+	struct mlip_program p;
+	int rc = mlip_program_parse(text, strlen(text), m, &p);
+
+	assert_int_equal(rc, 1);
+	assert_true(p.n_errors >= 1);
+	if (!strstr(p.errors[0].msg, part) || p.errors[0].line != line ||
+	    p.errors[0].col != col) {
+		print_error("for \"%s\": got %u:%u \"%s\", expected %u:%u \"%s\"\n", text,
+		            (unsigned)p.errors[0].line, (unsigned)p.errors[0].col, p.errors[0].msg,
+		            (unsigned)line, (unsigned)col, part);
+		mlip_program_free(&p);
+		fail();
+	}
+	mlip_program_free(&p);
+}
+
+static void check_err(const char *text, uint32_t line, uint32_t col, const char *part)
+{
+	struct mlip_machine m = machine("XYZ");
+
+	check_err_m(text, &m, line, col, part);
+}
+
+static struct mlip_machine big_machine(const char *axes)
+{
+	struct mlip_machine m = machine(axes);
+	int i;
+
+	for (i = 0; i < m.n_axes; i++) {
+		m.axis[i].min_limit = -1e6;
+		m.axis[i].max_limit = 1e6;
+	}
+	return m;
+}
+
+/* ---- sink for direct calls ---- */
+
+struct cap {
+	struct mlip_block b[64];
+	size_t n;
+	size_t limit; /* refuse blocks beyond this many */
+};
+
+static int cap_sink(void *ctx, const struct mlip_block *b)
+{
+	struct cap *c = ctx;
+
+	if (c->n >= c->limit || c->n >= 64) {
+		return 1;
+	}
+	c->b[c->n++] = *b;
+	return 0;
+}
+
+static mlip_status line(struct mlip_gcode *g, const char *s, uint32_t no, struct cap *c,
+                        struct mlip_gcode_error *e)
+{
+	return mlip_gcode_line(g, s, strlen(s), no, cap_sink, c, e);
+}
+
+/* ---- lexing ---- */
+
+static void test_numbers(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+
+	(void)state;
+	parse_ok("G1 X-.5 Y5. Z+3 F100\n"
+	         "g1x40.0781y-0.0001 z 2\n"        /* lower case, no spaces, space in word */
+	         "G1 X 1.5 Y -2 Z -1\n"           /* blanks between letter and number */
+	         "G0x10\n",                        /* "0x10" is G0 X10, not hex */
+	         &m, &p);
+	assert_int_equal(p.n, 4);
+	assert_near(p.blocks[0].target[0], -0.5, 0);
+	assert_near(p.blocks[0].target[1], 5.0, 0);
+	assert_near(p.blocks[0].target[2], 3.0, 0);
+	assert_true(p.blocks[1].target[0] == strtod("40.0781", NULL)); /* correctly rounded */
+	assert_true(p.blocks[1].target[1] == -0.0001);
+	assert_near(p.blocks[1].target[2], 2.0, 0);
+	assert_near(p.blocks[2].target[0], 1.5, 0);
+	assert_near(p.blocks[2].target[1], -2.0, 0);
+	assert_near(p.blocks[2].target[2], -1.0, 0);
+	assert_near(p.blocks[3].target[0], 10.0, 0);
+	assert_int_equal(p.blocks[3].rapid, 1);
+	mlip_program_free(&p);
+}
+
+static void test_malformed_numbers(void **state)
+{
+	(void)state;
+	check_err("G1 X1.2.3 F100", 1, 5, "malformed number '1.2.3'");
+	check_err("G1 X1e5 F100", 1, 5, "malformed number '1e5'");
+	check_err("G1 X1E-5 F100", 1, 5, "malformed number '1E-5'");
+	check_err("G1 Xnan F100", 1, 5, "malformed number 'nan'");
+	check_err("G1 X INF F100", 1, 6, "malformed number 'INF'");
+	check_err("G1 X--1 F100", 1, 5, "malformed number '--1'");
+	check_err("G1 X. F100", 1, 5, "malformed number '.'");
+	check_err("G1 X- F100", 1, 5, "malformed number '-'");
+	check_err("G1 X1-2 F100", 1, 5, "malformed number '1-2'");
+	check_err("G1 F100\nX1 .5", 2, 4, "number '.5' without a word letter");
+	check_err("G1 X F100", 1, 4, "word X has no number");
+	check_err("G1 F100 X", 1, 9, "word X has no number");
+	check_err("G F100", 1, 1, "word G has no number");
+	check_err("G1 X1 E5 F100", 1, 7, "unknown word letter E");
+	check_err("G1 U1 F100", 1, 4, "axis U not supported");
+	check_err("G1 X1 #1=2 F100", 1, 7, "unexpected character '#'");
+	check_err("G1 X1 \x01 F100", 1, 7, "unexpected character 0x01");
+}
+
+static void test_bytes_and_comments(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	static const char nul[] = "G1 X1 F100\nG1 X2\0 Y1\n";
+
+	(void)state;
+	parse_ok("\xEF\xBB\xBF%\n"                    /* a byte order mark is skipped */
+	         "(T1 \xC3\x98 6mm flat end mill)\n" /* well-formed UTF-8 in a comment */
+	         "G1 X1 F100 ; caf\xC3\xA9 \xE2\x82\xAC\n"
+	         "G1 X2 (mid-line comment) Y1\r\n"  /* CRLF */
+	         "  \t\n"
+	         "N10 G1 X3\n"
+	         "%\n",
+	         &m, &p);
+	assert_int_equal(p.n, 3);
+	assert_near(p.blocks[1].target[1], 1.0, 0);
+	assert_int_equal(p.blocks[2].line, 6);
+	assert_int_equal(p.lines, 7);
+	mlip_program_free(&p);
+
+	check_err("G1 X1 F100 \xC3\x98", 1, 12, "non-ASCII byte 0xC3 outside a comment");
+	check_err("G1 X1 F100 (bad \xC3\x28 utf8)", 1, 17, "invalid UTF-8 in comment");
+	check_err("G1 X1 F100 ; \xE0\x80\x80 overlong", 1, 14, "invalid UTF-8 in comment");
+	check_err("G1 X1 F100 (\xED\xA0\x80 surrogate)", 1, 13, "invalid UTF-8 in comment");
+	check_err("G1 X1 F100 (no end", 1, 12, "unterminated comment");
+	check_err("G1 F100\n/G1 X1", 2, 1, "block delete '/' not supported");
+	check_err("G1 F100\n% X1", 2, 3, "'%' must be alone on its line");
+	check_err("G1 F100\n X1 G1 X2", 2, 8, "duplicate X word (first at column 2)");
+	check_err("G1 F100 F200 X1", 1, 9, "duplicate F word");
+
+	/* NUL bytes, in and out of comments */
+	{
+		struct mlip_program q;
+		int rc = mlip_program_parse(nul, sizeof nul - 1, &m, &q);
+
+		assert_int_equal(rc, 1);
+		assert_int_equal(q.errors[0].line, 2);
+		assert_int_equal(q.errors[0].col, 6);
+		assert_string_equal(q.errors[0].msg, "NUL byte in line");
+		mlip_program_free(&q);
+	}
+	{
+		static const char c[] = "G1 X1 F100 (a\0b)";
+		struct mlip_program q;
+
+		assert_int_equal(mlip_program_parse(c, sizeof c - 1, &m, &q), 1);
+		assert_int_equal(q.errors[0].col, 14);
+		assert_string_equal(q.errors[0].msg, "NUL byte in line");
+		mlip_program_free(&q);
+	}
+}
+
+static void test_line_too_long(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	char text[600];
+
+	(void)state;
+	/* exactly MLIP_GCODE_MAX_LINE is fine (trailing comment pads it) */
+	memset(text, 0, sizeof text);
+	strcpy(text, "G1 X1 F100 (");
+	memset(text + strlen(text), 'a', MLIP_GCODE_MAX_LINE - strlen(text) - 1);
+	strcat(text, ")");
+	assert_int_equal(strlen(text), MLIP_GCODE_MAX_LINE);
+	parse_ok(text, &m, &p);
+	mlip_program_free(&p);
+
+	strcpy(text + MLIP_GCODE_MAX_LINE - 1, "a)\nG1 X2");
+	check_err(text, 1, MLIP_GCODE_MAX_LINE + 1, "line too long: 257 bytes, at most 256");
+}
+
+/* ---- codes ---- */
+
+static void test_unsupported_codes(void **state)
+{
+	(void)state;
+	check_err("G1 X1 F100\nG41 D1 X2", 2, 1,
+	          "unsupported G code G41: cutter radius compensation");
+	check_err("G43 H1", 1, 1, "unsupported G code G43: tool length offset");
+	check_err("G38.2 Z-10 F10", 1, 1, "unsupported G code G38.2: probing");
+	check_err("G81 X1 Y1 Z-1 R1 F10", 1, 1, "unsupported G code G81: canned cycles");
+	check_err("G93 G1 X1 F10", 1, 1, "unsupported G code G93: inverse time feed");
+	check_err("G55", 1, 1, "unsupported G code G55: work offsets (only G54 is accepted)");
+	check_err("G59.3", 1, 1, "unsupported G code G59.3: work offsets");
+	check_err("G92 X0", 1, 1, "unsupported G code G92: coordinate offsets");
+	check_err("G90.1", 1, 1, "unsupported G code G90.1: absolute arc centers");
+	check_err("G4 P1", 1, 1, "G4 dwell not supported");
+	check_err("G1 X1 F10\nG12 X1", 2, 1, "unsupported G code G12");
+	check_err("G1.5 X1 F10", 1, 1, "unsupported G code G1.5");
+	check_err("G1 X1 F10 M98 P100", 1, 11, "unsupported M code M98");
+	check_err("G1 X1 F10 M62.1", 1, 11, "unsupported M code M62.1");
+	check_err("G1 G2 X1 F10", 1, 4, "two motion codes on one line: G1 and G2");
+	check_err("G1 X1 F10 G0", 1, 11, "two motion codes on one line: G1 and G0");
+	check_err("G90 G91 G1 X1 F10", 1, 5, "G90 and G91 on one line: same modal group");
+	check_err("G1 X1 F10 P2", 1, 11, "P word without G64");
+	check_err("G53 G91 G0 X1", 1, 1, "G53 with G91");
+	check_err("G1 X1 F10\nG53 G2 X0 I-1", 2, 1, "G53 needs G0 or G1");
+}
+
+static void test_notices(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	uint32_t k;
+	int seen = 0;
+
+	(void)state;
+	parse_ok("G90 G94 G17 G21 G40 G49 G80 G91.1\n"
+	         "T1 M6 G61.1\n"
+	         "S5000 M3\n"
+	         "G54 G64 P0.01 Q0.01\n"
+	         "M8 G61\n"
+	         "G53 G0 Z-3\n"
+	         "S6000 M4\n"
+	         "G1 X1 F100\n"
+	         "M5 M9 M7 M0 M1\n"
+	         "G53 G0 Z-2\n"
+	         "M2 M30\n",
+	         &m, &p);
+	assert_int_equal(p.n, 3);
+	for (k = 0; k < p.n_notices; k++) {
+		const struct mlip_gcode_notice *n = &p.notices[k];
+
+		/* plane, units, distance modes act on motion: never notices */
+		assert_true(strcmp(n->word, "G17") && strcmp(n->word, "G21") &&
+		            strcmp(n->word, "G90") && strcmp(n->word, "G91.1"));
+		if (strcmp(n->word, "S") == 0) {
+			assert_int_equal(n->first_line, 3);
+			assert_int_equal(n->count, 2);
+			seen++;
+		} else if (strcmp(n->word, "G53") == 0) {
+			assert_int_equal(n->first_line, 6);
+			assert_int_equal(n->count, 2);
+			assert_string_equal(mlip_gcode_notice_text(n),
+			                    "treated as G54: mlip has no work offsets");
+			seen++;
+		} else if (strcmp(n->word, "M3") == 0 || strcmp(n->word, "G61.1") == 0 ||
+		           strcmp(n->word, "M30") == 0 || strcmp(n->word, "G94") == 0) {
+			assert_int_equal(n->count, 1);
+			assert_string_equal(mlip_gcode_notice_text(n),
+			                    "ignored (no effect on motion)");
+			seen++;
+		}
+	}
+	assert_int_equal(seen, 6);
+	/* G94 G40 G49 G80 T M6 S M3 G54 G64 M8 G61 G61.1 G53 M4 M5 M9 M7 M0 M1 M2 M30 */
+	assert_int_equal(p.n_notices, 22);
+	mlip_program_free(&p);
+}
+
+static void test_notice_overflow(void **state)
+{
+	struct mlip_gcode g;
+	struct mlip_machine m = machine("XY");
+	struct mlip_gcode_error e;
+	struct cap c = {.n = 0, .limit = 64};
+	static const char *const words[] = {"M0", "M1", "M2", "M30", "M3", "M4", "M5", "M6",
+	                                    "M7", "M8", "M9", "S1", "T1", "G40", "G49", "G54",
+	                                    "G61", "G61.1", "G64", "G80", "G94"};
+	size_t k;
+
+	(void)state;
+	mlip_gcode_init(&g, &m);
+	for (k = 0; k < sizeof words / sizeof words[0]; k++) {
+		assert_int_equal(line(&g, words[k], (uint32_t)k + 1, &c, &e), MLIP_OK);
+		assert_int_equal(line(&g, words[k], (uint32_t)k + 100, &c, &e), MLIP_OK);
+	}
+	assert_int_equal(g.n_notices, sizeof words / sizeof words[0]);
+	for (k = 0; k < g.n_notices; k++) {
+		assert_int_equal(g.notices[k].count, 2);
+		assert_int_equal(g.notices[k].first_line, k + 1);
+	}
+	assert_int_equal(line(&g, "G53", 200, &c, &e), MLIP_OK);
+	assert_int_equal(line(&g, "G28", 201, &c, &e), MLIP_OK);
+	assert_int_equal(line(&g, "G30", 202, &c, &e), MLIP_OK);
+	assert_int_equal(g.n_notices, MLIP_GCODE_MAX_NOTICES);
+	/* one more distinct word ("F": initial feed used) is dropped, not overflowed */
+	mlip_gcode_set_initial_feed(&g, 100);
+	assert_int_equal(line(&g, "G1 X1", 203, &c, &e), MLIP_OK);
+	assert_int_equal(g.n_notices, MLIP_GCODE_MAX_NOTICES);
+	assert_int_equal(c.n, 1);
+}
+
+/* ---- modal state, units, frames ---- */
+
+static void test_modal(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+
+	(void)state;
+	parse_ok("G0 X1 Y1\n"
+	         "X2\n"            /* still G0 */
+	         "G1 Z-1 F600\n"
+	         "X3\n"            /* still G1, F600 */
+	         "Y3 F1200\n"
+	         "G0 Z5 F30\n"     /* F on a rapid: set, not used */
+	         "X4\n"
+	         "G1 X5\n",
+	         &m, &p);
+	assert_int_equal(p.n, 8);
+	assert_int_equal(p.blocks[0].rapid, 1);
+	assert_near(p.blocks[0].feed_mm_s, 200, 0); /* rapids: the machine's maximum */
+	assert_int_equal(p.blocks[1].rapid, 1);
+	assert_near(p.blocks[1].target[0], 2, 0);
+	assert_near(p.blocks[1].target[1], 1, 0); /* unmentioned axes keep their value */
+	assert_int_equal(p.blocks[2].rapid, 0);
+	assert_near(p.blocks[2].feed_mm_s, 10.0, 1e-12);
+	assert_int_equal(p.blocks[3].rapid, 0);
+	assert_near(p.blocks[3].feed_mm_s, 10.0, 1e-12);
+	assert_near(p.blocks[4].feed_mm_s, 20.0, 1e-12);
+	assert_int_equal(p.blocks[5].rapid, 1);
+	assert_int_equal(p.blocks[6].rapid, 1);
+	assert_int_equal(p.blocks[7].rapid, 0);
+	assert_near(p.blocks[7].feed_mm_s, 0.5, 1e-12);
+	for (size_t k = 0; k < p.n; k++) {
+		assert_near(p.blocks[k].tol_mm, EPS, 0);
+		assert_int_equal(p.blocks[k].line, k + 1);
+	}
+	mlip_program_free(&p);
+
+	check_err("X1 Y1\nG1 X2 F100", 1, 1, "axis words with no motion mode");
+	check_err("G1 F100\nG1 X1 F0", 2, 7, "feed F must be positive");
+	check_err("G1 X1 F-5", 1, 7, "feed F must be positive");
+}
+
+static void test_missing_feed(void **state)
+{
+	struct mlip_gcode g;
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_gcode_error e;
+	struct cap c = {.n = 0, .limit = 64};
+
+	(void)state;
+	/* the core, strict by default */
+	mlip_gcode_init(&g, &m);
+	assert_int_equal(line(&g, "G0 X1", 1, &c, &e), MLIP_OK);
+	assert_int_equal(line(&g, "G1", 2, &c, &e), MLIP_OK); /* mode only: no move */
+	assert_int_equal(line(&g, "  Y1", 3, &c, &e), MLIP_E_SYNTAX);
+	assert_string_equal(e.msg, "missing feed: no F before the first feed move");
+	assert_int_equal(e.line, 3);
+	assert_int_equal(e.col, 3);
+	assert_int_equal(line(&g, "X2 G2 I1 J0", 4, &c, &e), MLIP_E_SYNTAX);
+	assert_int_equal(e.col, 4); /* the motion word */
+	assert_int_equal(c.n, 1);
+
+	/* with an initial feed (what the tools pass: the program's first F) */
+	mlip_gcode_init(&g, &m);
+	mlip_gcode_set_initial_feed(&g, 120);
+	c.n = 0;
+	assert_int_equal(line(&g, "G1 X1", 1, &c, &e), MLIP_OK);
+	assert_int_equal(line(&g, "G20 X1", 2, &c, &e), MLIP_OK);
+	assert_int_equal(line(&g, "G21 F60 X2", 3, &c, &e), MLIP_OK);
+	assert_int_equal(c.n, 3);
+	assert_near(c.b[0].feed_mm_s, 2.0, 1e-12);
+	assert_near(c.b[1].feed_mm_s, 2.0 * 25.4, 1e-12); /* F120 read in inches */
+	assert_near(c.b[2].feed_mm_s, 1.0, 1e-12);
+	assert_string_equal(g.notices[0].word, "F");
+	assert_int_equal(g.notices[0].count, 2);
+	assert_int_equal(g.notices[0].first_line, 1);
+
+	/* the program helpers: no F anywhere is an error, a late F is used */
+	check_err("G21\nG1 X1\nG0 Z1", 2, 1, "missing feed");
+	{
+		struct mlip_program p;
+
+		parse_ok("G1 X1 Y2\nZ3\nG1 Z2 F333.3\n", &m, &p);
+		assert_int_equal(p.n, 3);
+		assert_near(p.blocks[0].feed_mm_s, 333.3 / 60, 1e-12);
+		assert_near(p.initial_feed_word, 333.3, 0);
+		assert_int_equal(p.initial_feed_line, 3);
+		mlip_program_free(&p);
+	}
+	{
+		double f = -1;
+
+		assert_int_equal(mlip_gcode_scan_feed("(F10)\n;F20\nG1 F0\nX1 f 5.5\n", 26, &f), 4);
+		assert_near(f, 5.5, 0);
+		assert_int_equal(mlip_gcode_scan_feed("G1 X1 (F10)", 11, &f), 0);
+	}
+}
+
+static void test_incremental_and_home(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+
+	(void)state;
+	m.axis[0].home = 5;
+	m.axis[2].home = 100;
+	parse_ok("G91 G1 X1 F60\n"
+	         "X1 Y-2\n"
+	         "G90 X1\n"
+	         "G91 Z-10\n",
+	         &m, &p);
+	assert_int_equal(p.n, 4);
+	assert_near(p.blocks[0].target[0], 6, 0);
+	assert_near(p.blocks[0].target[2], 100, 0); /* start is home */
+	assert_near(p.blocks[1].target[0], 7, 0);
+	assert_near(p.blocks[1].target[1], -2, 0);
+	assert_near(p.blocks[2].target[0], 1, 0);
+	assert_near(p.blocks[3].target[2], 90, 0);
+	mlip_program_free(&p);
+}
+
+static void test_inches_and_rotary(void **state)
+{
+	struct mlip_machine m = machine("XYZA");
+	struct mlip_program p;
+
+	(void)state;
+	parse_ok("G20 G1 X1 A10 F10\n" /* mixed move: F is a path speed, in/min */
+	         "A20\n"               /* rotary only: F is deg/min, not scaled */
+	         "G91 Y0.5 A-5\n"
+	         "G21 G90 X1\n"
+	         "G20 G91 G1 X1 F1\n",
+	         &m, &p);
+	assert_int_equal(p.n, 5);
+	assert_near(p.blocks[0].target[0], 25.4, 1e-12);
+	assert_near(p.blocks[0].target[3], 10, 0);
+	assert_near(p.blocks[0].feed_mm_s, 10 * 25.4 / 60, 1e-12);
+	assert_near(p.blocks[1].target[3], 20, 0);
+	assert_near(p.blocks[1].feed_mm_s, 10.0 / 60, 1e-12);
+	assert_near(p.blocks[2].target[1], 12.7, 1e-12);
+	assert_near(p.blocks[2].target[3], 15, 0);
+	assert_near(p.blocks[3].target[0], 1, 0);
+	assert_near(p.blocks[3].feed_mm_s, 10 * 25.4 / 60, 1e-12); /* speed kept across G21 */
+	assert_near(p.blocks[4].target[0], 26.4, 1e-12);
+	mlip_program_free(&p);
+}
+
+static void test_config_order_and_axes(void **state)
+{
+	struct mlip_machine m = machine("ZYX");
+	struct mlip_machine xy = machine("XY");
+	struct mlip_program p;
+
+	(void)state;
+	parse_ok("G1 X1 Y2 Z3 F100\n", &m, &p);
+	assert_int_equal(p.n, 1);
+	assert_near(p.blocks[0].target[0], 3, 0);
+	assert_near(p.blocks[0].target[1], 2, 0);
+	assert_near(p.blocks[0].target[2], 1, 0);
+	assert_near(p.blocks[0].target[3], 0, 0); /* unused slots zeroed */
+	mlip_program_free(&p);
+
+	check_err_m("G1 X1 F100\nG1 X2 Z1 Y1", &xy, 2, 7, "axis Z not configured");
+	check_err_m("G1 X1 F100\nG1 B1", &xy, 2, 4, "axis B not configured");
+	check_err_m("G1 X1 F100\nG19 G2 Y1 J1", &xy, 2, 5,
+	            "G2 in G19 needs axes Y and Z configured");
+	check_err_m("G1 X1 F100\nG18 G3 X0 I-1", &xy, 2, 5,
+	            "G3 in G18 needs axes Z and X configured");
+}
+
+static void test_soft_limits(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	int rc;
+
+	(void)state;
+	check_err("G1 Y2 F100\nX1200 Y3", 2, 1, "X 1200.000 beyond soft limit 1000.000");
+	check_err("G1 F100\nG1 Y3 Z-1000.5", 2, 7, "Z -1000.500 beyond soft limit -1000.000");
+	check_err("G91 G0 X600\nX600", 2, 1, "X 1200.000 beyond soft limit 1000.000");
+	check_err("G20 G0 Y40", 1, 8, "Y 1016.000 beyond soft limit 1000.000");
+	/* exactly on the limit is inside */
+	parse_ok("G0 X1000 Y-1000\n", &m, &p);
+	mlip_program_free(&p);
+	/* an arc whose ends are inside but whose bulge is not: blamed on the motion
+	 * word when the bulging axis has no word, and the line emits nothing */
+	check_err("G0 X998 Y5\nG2 Y-5 I0 J-5 F100", 2, 1, "beyond soft limit 1000.000 on the arc");
+	check_err("G0 X998 Y5\nG2 X998 Y-5 I0 J-5 F100", 2, 4,
+	          "beyond soft limit 1000.000 on the arc");
+	{
+		static const char t[] = "G0 X998 Y5\nG2 Y-5 J-5 F100\nG1 X1\n";
+
+		rc = mlip_program_parse(t, sizeof t - 1, &m, &p);
+	}
+	assert_int_equal(rc, 1);
+	assert_int_equal(p.n_errors, 1);
+	assert_int_equal(p.errors[0].col, 1);
+	assert_int_equal(p.n, 2); /* the G0 and the G1 only */
+	assert_near(p.blocks[1].feed_mm_s, 100.0 / 60, 1e-12); /* F of the bad line kept */
+	mlip_program_free(&p);
+	/* the small arc stays inside */
+	parse_ok("G0 X998 Y5\nG3 Y-5 J-5 F100\n", &m, &p);
+	mlip_program_free(&p);
+
+	/* guard against non-finite values (a NaN home here) */
+	m.axis[0].home = NAN;
+	check_err_m("G1 Y1 F100", &m, 1, 1, "X value is not finite");
+}
+
+static void test_home_codes(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	uint32_t k;
+	int found = 0;
+
+	(void)state;
+	parse_ok("G28 G91 Z0\n"  /* SheepTile: intermediate point = here */
+	         "G90\n"
+	         "G1 X5 F100\n"
+	         "G28 G91 X0 Y0\n"
+	         "G90 G30 X5\n"  /* absolute, where we are */
+	         "G28\n"         /* no intermediate point at all */
+	         "G1 Y1\n",
+	         &m, &p);
+	assert_int_equal(p.n, 2);
+	for (k = 0; k < p.n_notices; k++) {
+		if (strcmp(p.notices[k].word, "G28") == 0) {
+			assert_int_equal(p.notices[k].count, 3);
+			assert_int_equal(p.notices[k].first_line, 1);
+			found++;
+		}
+		if (strcmp(p.notices[k].word, "G30") == 0) {
+			assert_int_equal(p.notices[k].count, 1);
+			found++;
+		}
+	}
+	assert_int_equal(found, 2);
+	mlip_program_free(&p);
+
+	check_err("G1 X5 F100\nG28 X10", 2, 1, "G28 with motion is not supported");
+	check_err("G1 X5 F100\nG91 G30 Z1", 2, 5, "G30 with motion is not supported");
+	check_err("G1 X5 F100\nG28 G1 X5", 2, 5, "G28 and G1 on one line: both use axis words");
+}
+
+static void test_merge(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+
+	(void)state;
+	parse_ok("G1 X1 F100\n"
+	         "X1.0000005\n"        /* < MERGE from the last emitted point: dropped */
+	         "X1\n"
+	         "G91 X0.0000004\n"    /* tiny steps accumulate from the last emitted point */
+	         "X0.0000004\n"
+	         "X0.0000004\n"
+	         "X0.0000004\n"
+	         "G90 X1.0000012\n",
+	         &m, &p);
+	assert_int_equal(p.n, 2);
+	assert_near(p.blocks[1].target[0], 1.0000012, 1e-12);
+	assert_int_equal(p.blocks[1].line, 6);
+	mlip_program_free(&p);
+
+	/* just above the threshold is kept */
+	parse_ok("G1 X1 F100\nX1.0000011\n", &m, &p);
+	assert_int_equal(p.n, 2);
+	mlip_program_free(&p);
+}
+
+static void test_sink_full_and_empty(void **state)
+{
+	struct mlip_gcode g;
+	struct mlip_machine m = machine("XY");
+	struct mlip_gcode_error e;
+	struct cap c = {.n = 0, .limit = 3};
+
+	(void)state;
+	mlip_gcode_init(&g, &m);
+	assert_int_equal(mlip_gcode_finish(&g, 7, &e), MLIP_E_SYNTAX);
+	assert_string_equal(e.msg, "empty program: no motion");
+	assert_int_equal(e.line, 7);
+	assert_int_equal(e.col, 0);
+	assert_int_equal(line(&g, "G1 X1 F100", 1, &c, &e), MLIP_OK);
+	assert_int_equal(line(&g, "G2 X-1 I-1", 2, &c, &e), MLIP_E_FULL); /* a half circle */
+	assert_int_equal(c.n, 3);
+	assert_int_equal(e.line, 2);
+	assert_int_equal(mlip_gcode_finish(&g, 2, &e), MLIP_OK);
+	/* the parser resumes from the last emitted point */
+	c.limit = 64;
+	assert_int_equal(line(&g, "G1 X1 Y0", 3, &c, &e), MLIP_OK);
+	assert_near(c.b[3].target[0], 1, 0);
+
+	check_err("G21 (nothing)\n\n", 2, 0, "empty program: no motion");
+	check_err("", 1, 0, "empty program: no motion");
+}
+
+/* ---- arcs ---- */
+
+/* Every block of p from index `from` on: a chord of the circle (cu, cv, r) in
+ * axes (iu, iv), turning in direction dir (+1 CCW); the sagitta of each chord
+ * within SAG and the corner tolerances as promised. Returns the swept angle. */
+static double check_arc_tol(const struct mlip_program *p, size_t from, const double *start,
+                            int iu, int iv, double cu, double cv, double r, int dir, double rtol)
+{
+	double pu = start[iu], pv = start[iv], swept = 0, sag_max = 0;
+	size_t k, n;
+	int inner;
+
+	for (k = from; k < p->n; k++) {
+		double u = p->blocks[k].target[iu], v = p->blocks[k].target[iv];
+		double mu = (pu + u) / 2, mv = (pv + v) / 2;
+		double sag = r - hypot(mu - cu, mv - cv);
+		double da = atan2(v - cv, u - cu) - atan2(pv - cv, pu - cu);
+
+		while (da > M_PI) {
+			da -= 2 * M_PI;
+		}
+		while (da < -M_PI) {
+			da += 2 * M_PI;
+		}
+		assert_near(hypot(u - cu, v - cv), r, rtol);
+		assert_true(sag <= SAG + 1e-12 + rtol);
+		assert_true(da * dir > 0);
+		if (sag > sag_max) {
+			sag_max = sag;
+		}
+		/* the corner inside the arc gets what the chord left; the last gets eps */
+		inner = k + 1 < p->n && p->blocks[k + 1].line == p->blocks[k].line;
+		assert_near(p->blocks[k].tol_mm, inner ? EPS - sag : EPS, 1e-9 + rtol);
+		swept += da;
+		pu = u;
+		pv = v;
+	}
+	/* both sides of the bound: one chord fewer would exceed it (unless the
+	 * quarter-turn cap on small arcs set the count) */
+	n = p->n - from;
+	if (n >= 2 && p->blocks[from].line == p->blocks[p->n - 1].line &&
+	    fabs(swept) / (double)(n - 1) <= M_PI / 2) {
+		assert_true(r * (1 - cos(fabs(swept) / (double)(n - 1) / 2)) > SAG * (1 - 1e-6));
+	}
+	assert_true(sag_max <= SAG + 1e-12 + rtol);
+	return swept;
+}
+
+static double check_arc(const struct mlip_program *p, size_t from, const double *start, int iu,
+                        int iv, double cu, double cv, double r, int dir)
+{
+	return check_arc_tol(p, from, start, iu, iv, cu, cv, r, dir, 1e-9);
+}
+
+static void test_arc_g17(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	double s[3] = {10, 0, 0}, sw;
+	size_t n;
+
+	(void)state;
+	/* CCW quarter: (10,0) -> (0,10) about the origin */
+	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10 I-10 J0\n", &m, &p);
+	sw = check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1);
+	assert_near(sw, M_PI / 2, 1e-9);
+	n = p.n - 1;
+	/* chords of equal angle, as few as the sagitta bound allows */
+	assert_int_equal(n, (size_t)ceil((M_PI / 2) / (4 * asin(sqrt(SAG / 20)))));
+	assert_near(p.blocks[p.n - 1].target[0], 0, 0);
+	assert_near(p.blocks[p.n - 1].target[1], 10, 0);
+	assert_near(p.blocks[1].feed_mm_s, 10, 1e-12);
+	assert_int_equal(p.blocks[1].rapid, 0);
+	mlip_program_free(&p);
+
+	/* CW, same ends: the long way round (270 degrees) */
+	parse_ok("G1 X10 Y0 F600\nG2 X0 Y10 I-10 J0\n", &m, &p);
+	sw = check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1);
+	assert_near(sw, -1.5 * M_PI, 1e-9);
+	assert_true(p.blocks[1].target[1] < 0); /* leaves downwards */
+	mlip_program_free(&p);
+
+	/* CW quarter with the center given by J only; modal G2 on the next line */
+	parse_ok("G1 X10 Y0 F600\nG2 X0 Y-10 I-10\nX-10 Y0 J10\n", &m, &p);
+	for (n = 1; n < p.n && p.blocks[n].line == 2; n++) {
+	}
+	sw = check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1);
+	assert_near(sw, -M_PI, 1e-9);
+	assert_near(p.blocks[n - 1].target[1], -10, 0);
+	mlip_program_free(&p);
+
+	/* tiny arc (radius below the sagitta bound): still a few chords */
+	parse_ok("G1 X0.0005 Y0 F600\nG3 X-0.0005 Y0 I-0.0005\n", &m, &p);
+	assert_int_equal(p.n, 3);
+	mlip_program_free(&p);
+}
+
+static void test_arc_g18_g19(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	double s18[3] = {10, 0, 0}, s19[3] = {0, 10, 0};
+
+	(void)state;
+	/* G18 is the ZX plane (u = Z, v = X): G3 turns from Z toward X, so from
+	 * X10 Z0 about the origin the CCW quarter ends at Z-10 */
+	parse_ok("G1 X10 F600\nG18 G3 X0 Z-10 I-10 K0\n", &m, &p);
+	assert_near(check_arc(&p, 1, s18, 2, 0, 0, 0, 10, 1), M_PI / 2, 1e-9);
+	assert_true(p.blocks[p.n / 2].target[2] < 0 && p.blocks[p.n / 2].target[0] > 0);
+	mlip_program_free(&p);
+	parse_ok("G1 X10 F600\nG18 G2 X0 Z-10 I-10\n", &m, &p);
+	assert_near(check_arc(&p, 1, s18, 2, 0, 0, 0, 10, -1), -1.5 * M_PI, 1e-9);
+	assert_true(p.blocks[1].target[2] > 0); /* the long way, through Z > 0 */
+	mlip_program_free(&p);
+
+	/* G19 is the YZ plane (u = Y, v = Z) with J K */
+	parse_ok("G1 Y10 F600\nG19 G3 Y0 Z10 J-10 K0\n", &m, &p);
+	assert_near(check_arc(&p, 1, s19, 1, 2, 0, 0, 10, 1), M_PI / 2, 1e-9);
+	assert_true(p.blocks[p.n / 2].target[1] > 0 && p.blocks[p.n / 2].target[2] > 0);
+	mlip_program_free(&p);
+	parse_ok("G1 Y10 F600\nG19 G2 Y0 Z-10 K0 J-10\n", &m, &p);
+	assert_near(check_arc(&p, 1, s19, 1, 2, 0, 0, 10, -1), -M_PI / 2, 1e-9);
+	mlip_program_free(&p);
+
+	/* the offset word of the normal axis is an error; so are missing centers */
+	check_err("G1 X10 F600\nG3 X0 Y10 I-10 K1", 2, 16,
+	          "K word not used by an arc in the G17 plane");
+	check_err("G1 X10 F600\nG18 G3 X0 Z10 J1 I-10", 2, 15,
+	          "J word not used by an arc in the G18 plane");
+	check_err("G1 X10 F600\nG19 G3 Y1 I1", 2, 11, "I word not used by an arc in the G19 plane");
+	check_err("G1 X10 F600\nG3 X0 Y10", 2, 1, "arc with no I/J/K or R");
+	check_err("G1 X10 F600\nG3\nX0 Y10", 3, 1, "arc with no I/J/K or R");
+	check_err("G1 X10 F600\nG1 X0 Y10 I-10", 2, 11, "I word without an arc (G2/G3)");
+	check_err("G1 X10 F600\nG0 X0 R5", 2, 7, "R word without an arc (G2/G3)");
+	check_err("G1 X10 F600\nG3 X0 Y10 I-10 R10", 2, 16, "arc with both R and I/J/K");
+	check_err("G1 X10 F600\nG3 X0 Y10 I-10 J-10", 2, 1,
+	          "arc radius to start 14.142 differs from radius to end 20.000 mm");
+	check_err("G1 X10 F600\nG3 X0 Y10 I0 J0", 2, 1, "arc with zero radius");
+	{
+		struct mlip_machine fine = machine("XYZ");
+
+		fine.tolerance_mm = 1e-11; /* a full circle of r 10 would need ~7e6 chords */
+		check_err_m("G1 X10 Y0 F600\nG3 I-10", &fine, 2, 1,
+		            "arc too long: more than 1000000 chords");
+	}
+}
+
+static void test_arc_radius_tolerance(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+
+	(void)state;
+	/* r = 10: allowed difference max(0.002, 0.01) = 0.01 */
+	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10.009 I-10\n", &m, &p);
+	assert_near(p.blocks[p.n - 1].target[1], 10.009, 0); /* the end is exact */
+	mlip_program_free(&p);
+	check_err("G1 X10 Y0 F600\nG3 X0 Y10.011 I-10", 2, 1, "differs from radius to end 10.011");
+	/* small radius: the absolute 0.002 applies */
+	parse_ok("G1 X1 Y0 F600\nG3 X0 Y1.0019 I-1\n", &m, &p);
+	mlip_program_free(&p);
+	check_err("G1 X1 Y0 F600\nG3 X0 Y1.0021 I-1", 2, 1, "arc radius to start 1.000");
+}
+
+static void test_full_circle_and_helix(void **state)
+{
+	struct mlip_machine m = machine("XYZA");
+	struct mlip_program p;
+	double s[4] = {10, 0, 0, 0};
+	size_t k;
+
+	(void)state;
+	parse_ok("G1 X10 Y0 F600\nG2 X10 Y0 I-10 J0\n", &m, &p);
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -2 * M_PI, 1e-9);
+	assert_true(p.blocks[1].target[1] < 0); /* CW: first goes down */
+	assert_near(p.blocks[p.n - 1].target[0], 10, 0);
+	assert_near(p.blocks[p.n - 1].target[1], 0, 0);
+	mlip_program_free(&p);
+
+	/* full circle from I J only, no axis words, modal G3 */
+	parse_ok("G1 X10 Y0 F600\nG3 I-10\n", &m, &p);
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), 2 * M_PI, 1e-9);
+	mlip_program_free(&p);
+
+	/* helix: Z and A move linearly with the angle */
+	parse_ok("G1 X10 Y0 F600\nG3 X-10 Y0 Z5 A90 I-10 J0\n", &m, &p);
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), M_PI, 1e-9);
+	for (k = 1; k < p.n; k++) {
+		double ang = atan2(p.blocks[k].target[1], p.blocks[k].target[0]);
+
+		if (ang < 0) {
+			ang += 2 * M_PI;
+		}
+		if (k == p.n - 1) {
+			ang = M_PI;
+		}
+		assert_near(p.blocks[k].target[2], 5 * ang / M_PI, 1e-9);
+		assert_near(p.blocks[k].target[3], 90 * ang / M_PI, 1e-9);
+	}
+	assert_near(p.blocks[p.n - 1].target[2], 5, 0);
+	mlip_program_free(&p);
+
+	/* helical full circle in G91 (a thread-milling pass) */
+	parse_ok("G1 X10 Y0 F600\nG91 G2 Z-1 I-10\n", &m, &p);
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -2 * M_PI, 1e-9);
+	assert_near(p.blocks[p.n - 1].target[2], -1, 0);
+	mlip_program_free(&p);
+}
+
+static void test_r_arcs(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	double s[3] = {10, 0, 0};
+
+	(void)state;
+	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10 R10\n", &m, &p); /* short CCW: center origin */
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), M_PI / 2, 1e-9);
+	mlip_program_free(&p);
+	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10 R-10\n", &m, &p); /* long CCW: center (10,10) */
+	assert_near(check_arc(&p, 1, s, 0, 1, 10, 10, 10, 1), 1.5 * M_PI, 1e-9);
+	mlip_program_free(&p);
+	parse_ok("G1 X10 Y0 F600\nG2 X0 Y10 R10\n", &m, &p); /* short CW: center (10,10) */
+	assert_near(check_arc(&p, 1, s, 0, 1, 10, 10, 10, -1), -M_PI / 2, 1e-9);
+	mlip_program_free(&p);
+	parse_ok("G1 X10 Y0 F600\nG2 X0 Y10 R-10\n", &m, &p); /* long CW: center origin */
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -1.5 * M_PI, 1e-9);
+	mlip_program_free(&p);
+	/* half circle: endpoints exactly 2R apart */
+	parse_ok("G1 X10 Y0 F600\nG3 X-10 Y0 R10\n", &m, &p);
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), M_PI, 1e-9);
+	mlip_program_free(&p);
+	/* R in inches */
+	{
+		double si[3] = {25.4, 0, 0};
+
+		parse_ok("G20 G1 X1 Y0 F10\nG3 X0 Y1 R1\n", &m, &p);
+		assert_near(check_arc(&p, 1, si, 0, 1, 0, 0, 25.4, 1), M_PI / 2, 1e-9);
+		mlip_program_free(&p);
+	}
+
+	check_err("G1 X10 Y0 F600\nG3 X30 Y0 R5", 2, 11,
+	          "R arc: endpoints 20.000 mm apart, more than 2R = 10.000 mm");
+	check_err("G1 X10 Y0 F600\nG3 X10 Y0 R5", 2, 11, "R arc with end equal to start");
+	check_err("G1 X10 Y0 F600\nG3 X0 Y10 R0", 2, 11, "R arc with zero radius");
+}
+
+/* Seeded random arcs in every plane and direction, center and R format, some
+ * helical: chords on the circle, sagitta within the bound, the right sweep. */
+static uint64_t rng = 0x9E3779B97F4A7C15u;
+static double urand(double lo, double hi)
+{
+	rng ^= rng << 13;
+	rng ^= rng >> 7;
+	rng ^= rng << 17;
+	return lo + (hi - lo) * (double)(rng >> 11) / 9007199254740992.0;
+}
+
+static void test_arc_random(void **state)
+{
+	static const char U[3] = {'X', 'Z', 'Y'}, V[3] = {'Y', 'X', 'Z'}, N[3] = {'Z', 'Y', 'X'};
+	static const char OU[3] = {'I', 'K', 'J'}, OV[3] = {'J', 'I', 'K'};
+	static const int iu_of[3] = {0, 2, 1}, iv_of[3] = {1, 0, 2}, in_of[3] = {2, 1, 0};
+	struct mlip_machine m = big_machine("XYZ");
+	int it, checked = 0;
+
+	(void)state;
+	for (it = 0; it < 600; it++) {
+		int p = it % 3, cw = (it / 3) % 2, use_r = it % 5 == 0, helix = it % 4 == 0;
+		int iu = iu_of[p], iv = iv_of[p], in = in_of[p];
+		double r = exp(urand(log(0.005), log(500))), a0 = urand(-M_PI, M_PI);
+		double sweep = it % 7 == 0 ? 2 * M_PI : urand(0.01, 2 * M_PI - 0.01);
+		double cu = urand(-100, 100), cv = urand(-100, 100), s[3], e[3], sw;
+		struct mlip_program prog;
+		char text[512];
+		size_t n;
+
+		if (use_r) {
+			sweep = fmin(sweep, 2 * M_PI - 0.05); /* R can't do a full circle */
+			if (fabs(sweep - M_PI) < 0.05) {
+				continue; /* near a half circle the R center is ill-conditioned */
+			}
+		}
+		s[iu] = cu + r * cos(a0);
+		s[iv] = cv + r * sin(a0);
+		s[in] = urand(-10, 10);
+		e[iu] = sweep == 2 * M_PI ? s[iu] : cu + r * cos(a0 + (cw ? -sweep : sweep));
+		e[iv] = sweep == 2 * M_PI ? s[iv] : cv + r * sin(a0 + (cw ? -sweep : sweep));
+		e[in] = helix ? s[in] + urand(-5, 5) : s[in];
+		n = (size_t)snprintf(text, sizeof text, "G1 X%.9f Y%.9f Z%.9f F600\n", s[0], s[1],
+		                     s[2]);
+		n += (size_t)snprintf(text + n, sizeof text - n, "G%d G%d %c%.9f %c%.9f %c%.9f ",
+		                      17 + p, cw ? 2 : 3, U[p], e[iu], V[p], e[iv], N[p], e[in]);
+		if (use_r) {
+			snprintf(text + n, sizeof text - n, "R%.9f\n", sweep > M_PI ? -r : r);
+		} else {
+			snprintf(text + n, sizeof text - n, "%c%.9f %c%.9f\n", OU[p],
+			         cu - s[iu], OV[p], cv - s[iv]);
+		}
+		parse_ok(text, &m, &prog);
+		/* the text rounds to 1e-9: hence the looser radius tolerance */
+		sw = check_arc_tol(&prog, 1, s, iu, iv, cu, cv, r, cw ? -1 : 1, 1e-7);
+		assert_near(fabs(sw), sweep, 1e-6);
+		assert_near(prog.blocks[prog.n - 1].target[in], e[in], 1e-8);
+		mlip_program_free(&prog);
+		checked++;
+	}
+	assert_true(checked > 500);
+}
+
+/* ---- program helpers ---- */
+
+static void test_program_errors_and_print(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	char *out = NULL;
+	size_t len = 0;
+	FILE *f;
+	int rc;
+	static const char text[] = "G1 X1 F100\n"
+	                           "G1 X1.2.3\n"
+	                           "X2\n"
+	                           "G41\n"
+	                           "M3 S100\n"
+	                           "M3\n"
+	                           "X2000 (too far)\n";
+
+	(void)state;
+	rc = mlip_program_parse(text, sizeof text - 1, &m, &p);
+	assert_int_equal(rc, 1);
+	assert_int_equal(p.n_errors, 3);
+	assert_int_equal(p.n_errors_total, 3);
+	assert_int_equal(p.lines, 7);
+	assert_int_equal(p.n, 2);
+	f = open_memstream(&out, &len);
+	assert_non_null(f);
+	mlip_program_print_errors(&p, "a.nc", f);
+	mlip_program_print_notices(&p, "a.nc", f);
+	fclose(f);
+	assert_string_equal(out,
+	                    "a.nc:2:5: error: malformed number '1.2.3'\n"
+	                    "a.nc:4:1: error: unsupported G code G41: cutter radius compensation\n"
+	                    "a.nc:7:1: error: X 2000.000 beyond soft limit 1000.000\n"
+	                    "a.nc: 3 errors, program rejected\n"
+	                    "a.nc:5: note: M3 ignored (no effect on motion), 2 times\n"
+	                    "a.nc:5: note: S ignored (no effect on motion), 1 times\n");
+	free(out);
+	mlip_program_free(&p);
+
+	/* a valid program prints no errors; whole-file errors have no column */
+	parse_ok("G0 X1\n", &m, &p);
+	f = open_memstream(&out, &len);
+	mlip_program_print_errors(&p, "b.nc", f);
+	fclose(f);
+	assert_string_equal(out, "");
+	free(out);
+	mlip_program_free(&p);
+	rc = mlip_program_parse("G21\n", 4, &m, &p);
+	assert_int_equal(rc, 1);
+	f = open_memstream(&out, &len);
+	mlip_program_print_errors(&p, "c.nc", f);
+	fclose(f);
+	assert_string_equal(out, "c.nc:1: error: empty program: no motion\n"
+	                         "c.nc: 1 errors, program rejected\n");
+	free(out);
+	mlip_program_free(&p);
+}
+
+static void test_program_error_cap(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	size_t n = 1500, k;
+	char *text = malloc(n * 6 + 16);
+	int rc;
+
+	(void)state;
+	assert_non_null(text);
+	strcpy(text, "G0 X1\n");
+	for (k = 0; k < n; k++) {
+		strcat(text + k * 5, "X1 E\n");
+	}
+	rc = mlip_program_parse(text, strlen(text), &m, &p);
+	assert_int_equal(rc, 1);
+	assert_int_equal(p.n_errors, MLIP_PROGRAM_MAX_ERRORS);
+	assert_int_equal(p.n_errors_total, n);
+	assert_int_equal(p.errors[999].line, 1001);
+	mlip_program_free(&p);
+	free(text);
+}
+
+static void test_read_file_errors(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program p;
+	char *buf;
+	size_t len;
+
+	(void)state;
+	assert_int_equal(mlip_read_file("/nonexistent/x.nc", &buf, &len), -ENOENT);
+	assert_int_equal(mlip_program_load("/nonexistent/x.nc", &m, &p), -ENOENT);
+	assert_int_equal(p.n, 0);
+	mlip_program_free(&p);
+}
+
+static void test_scan_axes(void **state)
+{
+	char L[8];
+	static const char a[] = "G0 x1 y2 (Z3 ; C1)\n; A4\nG1 b 5 F100 (unterminated C1\nM3 S100";
+
+	(void)state;
+	assert_int_equal(mlip_gcode_scan_axes(a, sizeof a - 1, L), 3);
+	assert_string_equal(L, "XYB");
+	assert_int_equal(mlip_gcode_scan_axes("C1 A2 Z3 Y4 X5 B6", 17, L), 6);
+	assert_string_equal(L, "XYZABC");
+	assert_int_equal(mlip_gcode_scan_axes("G1 Z-1 F100 ; X1", 16, L), 1);
+	assert_string_equal(L, "Z");
+	assert_int_equal(mlip_gcode_scan_axes("(X1)\n%\n", 7, L), 0);
+	assert_string_equal(L, "");
+	/* letters only count with a number: "Xnan" is no axis A */
+	assert_int_equal(mlip_gcode_scan_axes("Xnan Y.5", 8, L), 1);
+	assert_string_equal(L, "Y");
+}
+
+/* ---- the real toolpaths ---- */
+
+static char *shared_path(const char *file)
+{
+	static char buf[4096];
+	const char *dir = getenv("MLIP_SHARED");
+
+	snprintf(buf, sizeof buf, "%s/toolpaths/%s", dir && *dir ? dir : "../shared", file);
+	return buf;
+}
+
+static void load_file(const char *file, const char *axes, size_t min_blocks,
+                      struct mlip_program *p)
+{
+	struct mlip_machine m = big_machine(axes);
+	char L[8], *buf;
+	size_t len;
+	const char *path = shared_path(file);
+	int rc;
+
+	rc = mlip_read_file(path, &buf, &len);
+	if (rc) {
+		print_error("%s: %s (set MLIP_SHARED)\n", path, strerror(-rc));
+	}
+	assert_int_equal(rc, 0);
+	assert_int_equal(mlip_gcode_scan_axes(buf, len, L), (int)strlen(axes));
+	assert_string_equal(L, axes);
+	free(buf);
+	rc = mlip_program_load(path, &m, p);
+	if (rc) {
+		mlip_program_print_errors(p, path, stderr);
+	}
+	assert_int_equal(rc, 0);
+	assert_true(p->n >= min_blocks);
+}
+
+static void test_toolpaths(void **state)
+{
+	struct mlip_program p;
+	size_t k;
+
+	(void)state;
+	load_file("MB-2.3_test.nc", "XYZ", 112000, &p);
+	mlip_program_free(&p);
+	load_file("tball-pocket.gcode", "XYZ", 40000, &p);
+	mlip_program_free(&p);
+	load_file("4006.nc", "XYZA", 16000, &p);
+	for (k = 0; k < p.n; k++) {
+		assert_true(isfinite(p.blocks[k].target[3]));
+	}
+	mlip_program_free(&p);
+	load_file("flower-spiral-2d.ngc", "XY", 87000, &p);
+	assert_near(p.blocks[0].feed_mm_s, 200, 1e-9); /* F12000 mm/min */
+	mlip_program_free(&p);
+	load_file("SheepTile-v2.nc", "XYZ", 10000, &p);
+	mlip_program_free(&p);
+}
+
+/* SheepTile through the core line by line: the chords of every arc lie on
+ * their circle, with each chord's sagitta within the bound. */
+struct per_line {
+	struct mlip_block *b;
+	size_t n, cap;
+};
+
+static int grow_sink(void *ctx, const struct mlip_block *b)
+{
+	struct per_line *pl = ctx;
+
+	if (pl->n == pl->cap) {
+		pl->cap = pl->cap ? 2 * pl->cap : 256;
+		pl->b = realloc(pl->b, pl->cap * sizeof *pl->b);
+		if (!pl->b) {
+			return 1;
+		}
+	}
+	pl->b[pl->n++] = *b;
+	return 0;
+}
+
+/* the value of word L in s (comments are whole lines in this file), or 0 */
+static int word_value(const char *s, size_t n, char L, double *v)
+{
+	size_t k;
+
+	for (k = 0; k < n; k++) {
+		if (s[k] == '(') {
+			return 0;
+		}
+		if (s[k] == L) {
+			*v = strtod(s + k + 1, NULL);
+			return 1;
+		}
+	}
+	return 0;
+}
+
+static void test_sheeptile_arcs(void **state)
+{
+	struct mlip_machine m = big_machine("XYZ");
+	struct mlip_gcode g;
+	struct mlip_gcode_error e;
+	struct per_line pl = {NULL, 0, 0};
+	char *buf;
+	size_t len, i = 0, k;
+	uint32_t no = 0;
+	int arcs = 0, g18 = 0;
+
+	(void)state;
+	assert_int_equal(mlip_read_file(shared_path("SheepTile-v2.nc"), &buf, &len), 0);
+	mlip_gcode_init(&g, &m);
+	mlip_gcode_set_initial_feed(&g, 333.3);
+	while (i < len) {
+		const char *s = buf + i, *nl = memchr(s, '\n', len - i);
+		size_t n = nl ? (size_t)(nl - s) : len - i;
+		double start[MLIP_MAX_AXES], off[3] = {0, 0, 0}, c[3], r0, r1;
+		int has = 0, iu, iv, p;
+
+		memcpy(start, g.cur, sizeof start);
+		pl.n = 0;
+		no++;
+		assert_int_equal(mlip_gcode_line(&g, s, n, no, grow_sink, &pl, &e), MLIP_OK);
+		i += n + 1;
+		for (k = 0; k < 3; k++) {
+			has |= word_value(s, n, (char)('I' + k), &off[k]);
+		}
+		if (!has || g.motion < 2) {
+			continue;
+		}
+		/* (u, v) of the plane, as in G17 / G18 (Z, X) / G19 */
+		p = g.plane - 17;
+		iu = p == 0 ? 0 : p == 1 ? 2 : 1;
+		iv = p == 0 ? 1 : p == 1 ? 0 : 2;
+		for (k = 0; k < 3; k++) {
+			c[k] = start[k] + off[k];
+		}
+		assert_true(pl.n >= 1);
+		r0 = hypot(start[iu] - c[iu], start[iv] - c[iv]);
+		r1 = hypot(pl.b[pl.n - 1].target[iu] - c[iu], pl.b[pl.n - 1].target[iv] - c[iv]);
+		for (k = 0; k < pl.n; k++) {
+			const double *t = pl.b[k].target, *q = k ? pl.b[k - 1].target : start;
+			double r = hypot(t[iu] - c[iu], t[iv] - c[iv]);
+			double mu = (t[iu] + q[iu]) / 2, mv = (t[iv] + q[iv]) / 2;
+			double mid = hypot(mu - c[iu], mv - c[iv]);
+
+			/* on the circle (a slight spiral from r0 to r1, as programmed) */
+			assert_true(r >= fmin(r0, r1) - 1e-9 && r <= fmax(r0, r1) + 1e-9);
+			/* chord sagitta within the bound */
+			assert_true(fmin(r0, r1) - mid <= SAG + 1e-9);
+			assert_true(pl.b[k].tol_mm >= EPS - SAG - 1e-12 && pl.b[k].tol_mm <= EPS);
+		}
+		assert_near(pl.b[pl.n - 1].tol_mm, EPS, 0);
+		arcs++;
+		g18 += g.plane == 18;
+	}
+	assert_int_equal(mlip_gcode_finish(&g, no, &e), MLIP_OK);
+	assert_true(arcs > 600);
+	assert_true(g18 >= 19);
+	free(pl.b);
+	free(buf);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_numbers),
+		cmocka_unit_test(test_malformed_numbers),
+		cmocka_unit_test(test_bytes_and_comments),
+		cmocka_unit_test(test_line_too_long),
+		cmocka_unit_test(test_unsupported_codes),
+		cmocka_unit_test(test_notices),
+		cmocka_unit_test(test_notice_overflow),
+		cmocka_unit_test(test_modal),
+		cmocka_unit_test(test_missing_feed),
+		cmocka_unit_test(test_incremental_and_home),
+		cmocka_unit_test(test_inches_and_rotary),
+		cmocka_unit_test(test_config_order_and_axes),
+		cmocka_unit_test(test_soft_limits),
+		cmocka_unit_test(test_home_codes),
+		cmocka_unit_test(test_merge),
+		cmocka_unit_test(test_sink_full_and_empty),
+		cmocka_unit_test(test_arc_g17),
+		cmocka_unit_test(test_arc_g18_g19),
+		cmocka_unit_test(test_arc_radius_tolerance),
+		cmocka_unit_test(test_full_circle_and_helix),
+		cmocka_unit_test(test_r_arcs),
+		cmocka_unit_test(test_arc_random),
+		cmocka_unit_test(test_program_errors_and_print),
+		cmocka_unit_test(test_program_error_cap),
+		cmocka_unit_test(test_read_file_errors),
+		cmocka_unit_test(test_scan_axes),
+		cmocka_unit_test(test_toolpaths),
+		cmocka_unit_test(test_sheeptile_arcs),
+	};
+
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}

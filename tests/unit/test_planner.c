@@ -1,0 +1,698 @@
+/*
+ * test_planner.c - the interpolation core against the paper's theorems and
+ * against physics measured from the setpoints alone (tools/lib/check.c).
+ * Every physical bound is asserted on both sides, with its tolerance.
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "../../tools/lib/check.h"
+#include "mlip/planner.h"
+
+#define REL 1e-9 /* stated tolerance on every physical limit */
+
+#define assert_near(a, b, tol)                                                                     \
+	do {                                                                                       \
+		double a_ = (a), b_ = (b), t_ = (tol);                                             \
+		if (!(fabs(a_ - b_) <= t_)) {                                                      \
+			fail_msg("%s = %.17g, expected %.17g within %.3g", #a, a_, b_, t_);          \
+		}                                                                                  \
+	} while (0)
+#define assert_le(a, b)                                                                            \
+	do {                                                                                       \
+		double a_ = (a), b_ = (b);                                                         \
+		if (!(a_ <= b_)) {                                                                 \
+			fail_msg("%s = %.17g is not <= %s = %.17g", #a, a_, #b, b_);                  \
+		}                                                                                  \
+	} while (0)
+
+static struct mlip_planner P;
+
+static uint64_t rng = 88172645463325252ULL;
+static double urand(void)
+{
+	rng ^= rng << 13;
+	rng ^= rng >> 7;
+	rng ^= rng << 17;
+	return (double)(rng >> 11) / 9007199254740992.0;
+}
+
+static void random_unit(int n, double *e)
+{
+	double s;
+	do {
+		s = 0.0;
+		for (int k = 0; k < n; k++) {
+			e[k] = 2.0 * urand() - 1.0;
+			s += e[k] * e[k];
+		}
+	} while (s < 1e-6 || s > 1.0);
+	s = sqrt(s);
+	for (int k = 0; k < n; k++) {
+		e[k] /= s;
+	}
+}
+
+/* ---- Theorems 1 and 2: the LP optimum ------------------------------------ */
+
+/* Largest feasible radius along (alpha, beta) = (cos th, sin th). */
+static double boundary_radius(int n, const double *es, const double *ee, const double *A,
+                              double th)
+{
+	double r = INFINITY;
+	for (int k = 0; k < n; k++) {
+		double g = fabs(cos(th) * ee[k] - sin(th) * es[k]);
+		if (g > 0.0) {
+			r = fmin(r, A[k] / g);
+		}
+	}
+	return r;
+}
+
+static void lp_check(int n)
+{
+	for (int trial = 0; trial < 400; trial++) {
+		double es[MLIP_MAX_AXES], ee[MLIP_MAX_AXES], A[MLIP_MAX_AXES];
+		random_unit(n, es);
+		random_unit(n, ee);
+		int same = 1;
+		for (int k = 0; k < n; k++) {
+			A[k] = 300.0 + 6000.0 * urand();
+			same &= es[k] * ee[k] >= 0.0;
+		}
+		double al, be;
+		assert_int_equal(mlip_corner_lp(n, es, ee, A, &al, &be), 0);
+		assert_true(al >= 0.0 && be >= 0.0);
+		/* feasible, and on the polygon's boundary */
+		double worst = 0.0;
+		for (int k = 0; k < n; k++) {
+			double u = fabs(al * ee[k] - be * es[k]) / A[k];
+			assert_le(u, 1.0 + 1e-12);
+			worst = fmax(worst, u);
+		}
+		assert_near(worst, 1.0, 1e-9);
+		/* beats or equals a dense sample of the feasible polygon: its
+		 * boundary (where a linear objective peaks) and its interior */
+		double max_a = 0.0, max_b = 0.0;
+		for (int i = 0; i <= 4000; i++) {
+			double th = (M_PI / 2.0) * i / 4000.0;
+			double r = boundary_radius(n, es, ee, A, th);
+			if (!isfinite(r)) {
+				continue;
+			}
+			double a = r * cos(th), b = r * sin(th);
+			assert_le(a + b, (al + be) * (1.0 + 1e-12));
+			double f = urand();
+			assert_le(f * (a + b), al + be);
+			max_a = fmax(max_a, a);
+			max_b = fmax(max_b, b);
+		}
+		if (same) {
+			/* Theorem 1: a same-direction corner's optimum maximises
+			 * v_s and v_e at once (the feasible set is closed under
+			 * component-wise max, in any number of axes) */
+			assert_le(max_a, al * (1.0 + 1e-6));
+			assert_le(max_b, be * (1.0 + 1e-6));
+		}
+	}
+}
+
+static void test_lp_optimal_2axes(void **state)
+{
+	(void)state;
+	lp_check(2);
+}
+static void test_lp_optimal_3axes(void **state)
+{
+	(void)state;
+	lp_check(3);
+}
+static void test_lp_optimal_5axes(void **state)
+{
+	(void)state;
+	lp_check(5);
+}
+
+static void test_lp_paper_example(void **state)
+{
+	/* Sec. 1.2's 2-axis example: A_x = 2.9, A_y = 1 m/s^2, incoming
+	 * segment at -pi/6. For a same-direction corner the optimum is a
+	 * half-diagonal of the rectangle: |a_x| = A_x and |a_y| = A_y. */
+	(void)state;
+	double A[2] = {2900.0, 1000.0};
+	double es[2] = {cos(-M_PI / 6), sin(-M_PI / 6)};
+	double th = -M_PI / 18; /* outgoing direction inside (-pi/6, 0) */
+	double ee[2] = {cos(th), sin(th)};
+	double al, be;
+	assert_int_equal(mlip_corner_lp(2, es, ee, A, &al, &be), 0);
+	assert_near(fabs(al * ee[0] - be * es[0]), A[0], 1e-9);
+	assert_near(fabs(al * ee[1] - be * es[1]), A[1], 1e-9);
+}
+
+/* ---- degenerate corners --------------------------------------------------- */
+
+static void test_corner_collinear_and_reversal(void **state)
+{
+	(void)state;
+	double A[3] = {1000, 2000, 3000};
+	double e[3] = {0.6, 0.8, 0.0}, r[3] = {-0.6, -0.8, 0.0};
+	struct mlip_corner c;
+	for (int st = 0; st < 3; st++) {
+		mlip_corner_plan(3, (mlip_strategy)st, e, e, 0.2, 0.3, A, 0.01, 150, 120, 0.001, &c);
+		assert_true(isfinite(c.vs_mm_s) && isfinite(c.t_s) && isfinite(c.alpha_mm_s2));
+		assert_near(c.t_s, 0.0, 0.0);
+		assert_near(c.vs_mm_s, st == MLIP_STRATEGY_STOP ? 0.0 : 120.0, 0.0);
+		assert_near(c.vs_mm_s, c.ve_mm_s, 0.0);
+
+		mlip_corner_plan(3, (mlip_strategy)st, e, r, 0.2, 0.3, A, 0.01, 150, 120, 0.001, &c);
+		assert_true(isfinite(c.vs_mm_s) && isfinite(c.t_s));
+		assert_near(c.vs_mm_s, c.ve_mm_s, 1e-9 * c.vs_mm_s); /* tie broken to alpha = beta */
+		/* a reversal turns back before P, by at most eps (17) */
+		if (c.t_s > 0.0) {
+			double turn = c.ls_mm - c.vs_mm_s * c.vs_mm_s /
+			                             (2.0 * (c.alpha_mm_s2 + c.beta_mm_s2));
+			assert_le(turn, 0.01 * (1.0 + REL));
+		}
+	}
+	double al, be;
+	assert_int_equal(mlip_corner_lp(3, e, e, A, &al, &be), -1);
+}
+
+/* ---- Eq 17 and Prop. 4 on the corner parabola ----------------------------- */
+
+static double dist_to_segment(int n, const double *x, const double *a, const double *b)
+{
+	double ab2 = 0, t = 0;
+	for (int k = 0; k < n; k++) {
+		ab2 += (b[k] - a[k]) * (b[k] - a[k]);
+		t += (x[k] - a[k]) * (b[k] - a[k]);
+	}
+	t = fmin(fmax(t / ab2, 0.0), 1.0);
+	double s = 0;
+	for (int k = 0; k < n; k++) {
+		double d = x[k] - a[k] - t * (b[k] - a[k]);
+		s += d * d;
+	}
+	return sqrt(s);
+}
+
+static void test_corner_contour_and_peak_speed(void **state)
+{
+	(void)state;
+	for (int trial = 0; trial < 300; trial++) {
+		int n = 2 + trial % 4;
+		double es[MLIP_MAX_AXES], ee[MLIP_MAX_AXES], A[MLIP_MAX_AXES];
+		random_unit(n, es);
+		/* turning angle from 0.5 to 170 degrees */
+		double turn = (0.5 + 169.5 * urand()) * M_PI / 180.0, w[MLIP_MAX_AXES];
+		random_unit(n, w);
+		double dot = 0;
+		for (int k = 0; k < n; k++) {
+			dot += w[k] * es[k];
+		}
+		double nw = 0;
+		for (int k = 0; k < n; k++) {
+			w[k] -= dot * es[k];
+			nw += w[k] * w[k];
+		}
+		nw = sqrt(nw);
+		for (int k = 0; k < n; k++) {
+			ee[k] = cos(turn) * es[k] + sin(turn) * w[k] / nw;
+			A[k] = 500.0 + 5000.0 * urand();
+		}
+		double eps = 0.01;
+		struct mlip_corner c;
+		/* long segments, no speed cap: eps (18) is what binds */
+		mlip_corner_plan(n, MLIP_STRATEGY_MPCT, es, ee, 1e3, 1e3, A, eps, 1e9, 1e9, 0.001, &c);
+		double C0[MLIP_MAX_AXES] = {0}, S[MLIP_MAX_AXES], E[MLIP_MAX_AXES];
+		for (int k = 0; k < n; k++) {
+			S[k] = -1e3 * es[k];
+			E[k] = 1e3 * ee[k];
+		}
+		double worst = 0.0, vpeak = 0.0, pm = 0.0;
+		for (int i = 0; i <= 2000; i++) {
+			double t = c.t_s * i / 2000.0, x[MLIP_MAX_AXES], v2 = 0, r2 = 0;
+			for (int k = 0; k < n; k++) {
+				double a = c.alpha_mm_s2 * ee[k] - c.beta_mm_s2 * es[k];
+				x[k] = C0[k] - c.ls_mm * es[k] + c.vs_mm_s * es[k] * t + 0.5 * a * t * t; /* (14) */
+				double v = c.vs_mm_s * es[k] + a * t;
+				v2 += v * v;
+				r2 += (x[k] - C0[k]) * (x[k] - C0[k]);
+			}
+			double d = fmin(dist_to_segment(n, x, S, C0), dist_to_segment(n, x, C0, E));
+			worst = fmax(worst, d);
+			vpeak = fmax(vpeak, sqrt(v2));
+			if (i == 1000) {
+				pm = sqrt(r2); /* |PM|, M the parabola's middle (16) */
+			}
+		}
+		/* (17)(18): the paper's error |PM| is eps when eps binds, and bounds
+		 * the real deviation from the polyline, which never exceeds eps */
+		assert_near(pm, eps, 1e-9 * eps);
+		assert_le(worst, eps * (1.0 + REL));
+		/* Prop. 4: the corner's peak speed is max(v_s, v_e) */
+		double vmax = fmax(c.vs_mm_s, c.ve_mm_s);
+		assert_le(vpeak, vmax * (1.0 + 1e-12));
+		assert_true(vpeak >= vmax * (1.0 - 1e-12));
+	}
+}
+
+static void test_corner_caps_19_20(void **state)
+{
+	(void)state;
+	double A[2] = {1000, 1000}, es[2] = {1, 0}, ee[2] = {0, 1};
+	struct mlip_corner c;
+	/* short segments: (19) l_s <= d/2 */
+	mlip_corner_plan(2, MLIP_STRATEGY_MPCT, es, ee, 0.01, 0.02, A, 0.01, 1e9, 1e9, 0.001, &c);
+	assert_le(c.ls_mm, 0.005 * (1 + 1e-12));
+	assert_le(c.le_mm, 0.01 * (1 + 1e-12));
+	assert_true(c.ls_mm >= 0.005 * (1 - 1e-12) || c.le_mm >= 0.01 * (1 - 1e-12));
+	/* speed caps: (20) per neighbour */
+	double es2[2] = {1, 0}, ee2[2] = {cos(0.05), sin(0.05)};
+	mlip_corner_plan(2, MLIP_STRATEGY_MPCT, es2, ee2, 10, 10, A, 0.01, 50, 40, 0.001, &c);
+	assert_le(c.vs_mm_s, 50 * (1 + 1e-12));
+	assert_le(c.ve_mm_s, 40 * (1 + 1e-12));
+	assert_true(c.vs_mm_s >= 50 * (1 - 1e-12) || c.ve_mm_s >= 40 * (1 - 1e-12));
+}
+
+/* ---- whole runs, measured from the setpoints ------------------------------ */
+
+struct path {
+	int n;
+	size_t np;
+	double *pts; /* np points, start first */
+};
+
+static struct mlip_machine machine(int n, double A, double vmax, double eps)
+{
+	struct mlip_machine m;
+	memset(&m, 0, sizeof(m));
+	m.n_axes = n;
+	m.max_feed_mm_s = vmax;
+	m.max_rot_feed_deg_s = 360;
+	m.tolerance_mm = eps;
+	m.period_s = 0.001;
+	for (int k = 0; k < n; k++) {
+		m.axis[k].letter = "XYZABC"[k];
+		m.axis[k].max_accel = A * (1.0 + 0.5 * k); /* unequal on purpose */
+		m.axis[k].max_vel = 10 * vmax;
+		m.axis[k].min_limit = -1e9;
+		m.axis[k].max_limit = 1e9;
+	}
+	return m;
+}
+
+enum { EV_NONE, EV_STORM, EV_HOLD_RESUME, EV_STOP, EV_DRIP };
+
+struct run {
+	struct mlip_check chk;
+	uint64_t periods;
+	size_t pushed;
+	int stopped_idle;
+	double hold_drift; /* largest movement while held and at rest */
+};
+
+static void run_path(const struct mlip_machine *m, mlip_strategy st, const struct path *p,
+                     int events, struct run *r)
+{
+	struct mlip_check_limits lim = {.n = m->n_axes,
+	                                .vmax_mm_s = m->max_feed_mm_s,
+	                                .vmax_rot_deg_s = m->max_rot_feed_deg_s,
+	                                .eps_mm = m->tolerance_mm,
+	                                .period_s = m->period_s};
+	for (int k = 0; k < m->n_axes; k++) {
+		lim.accel[k] = m->axis[k].max_accel;
+		lim.vel[k] = m->axis[k].max_vel;
+	}
+	memset(r, 0, sizeof(*r));
+	mlip_check_init(&r->chk, &lim, p->pts, p->np);
+	assert_int_equal(mlip_planner_init(&P, m, st, 0, p->pts), MLIP_OK);
+	mlip_check_sample(&r->chk, p->pts);
+	size_t next = 1;
+	int n = m->n_axes;
+	double x[MLIP_MAX_AXES], held_at[MLIP_MAX_AXES];
+	int held = 0;
+	uint64_t next_event = 20;
+	for (;;) {
+		int budget = events == EV_DRIP ? (r->periods % 7 == 0) : MLIP_INGEST_PER_PERIOD;
+		if (r->periods == 0 && events != EV_DRIP) {
+			budget = MLIP_LOOKAHEAD;
+		}
+		for (int i = 0; i < budget && next < p->np && mlip_planner_space(&P) > 0; i++) {
+			struct mlip_block b = {.feed_mm_s = m->max_feed_mm_s,
+			                       .tol_mm = m->tolerance_mm,
+			                       .line = (uint32_t)next};
+			memcpy(b.target, p->pts + next * (size_t)n, sizeof(double) * (size_t)n);
+			if (mlip_planner_push(&P, &b) == MLIP_E_INVALID) {
+				break; /* stopping */
+			}
+			next++;
+		}
+		if (r->periods == next_event) {
+			next_event += 3 + (uint64_t)(urand() * 120);
+			if (events == EV_STORM) {
+				double u = urand();
+				if (P.hold || P.override == 0.0) {
+					mlip_planner_hold(&P, 0);
+					mlip_planner_set_override(&P, 20 + 180 * urand());
+				} else if (u < 0.15) {
+					mlip_planner_hold(&P, 1);
+				} else if (u < 0.25) {
+					mlip_planner_set_override(&P, 0.0);
+				} else {
+					mlip_planner_set_override(&P, 200.0 * urand());
+				}
+			} else if (events == EV_HOLD_RESUME && r->periods < 20000) {
+				mlip_planner_hold(&P, !P.hold);
+			} else if (events == EV_STOP && r->periods >= 1500 && !P.stopping) {
+				mlip_planner_stop(&P);
+				next = p->np; /* the operator's stop ends the program */
+			}
+		}
+		mlip_run_state rs = mlip_planner_step(&P, x);
+		r->periods++;
+		mlip_check_sample(&r->chk, x);
+		if (rs == MLIP_RUN_HELD) {
+			if (!held) {
+				memcpy(held_at, x, sizeof(held_at));
+				held = 1;
+			}
+			for (int k = 0; k < n; k++) {
+				r->hold_drift = fmax(r->hold_drift, fabs(x[k] - held_at[k]));
+			}
+		} else {
+			held = 0;
+		}
+		if (rs == MLIP_RUN_IDLE && next >= p->np) {
+			break;
+		}
+		assert_true(r->periods < 50000000);
+	}
+	r->pushed = next;
+	r->stopped_idle = mlip_planner_queued(&P) == 0;
+}
+
+/* Assert the physics: every limit within REL above, and used (>= lower) below. */
+static void assert_physics(const struct mlip_machine *m, const struct run *r, double used_min,
+                           int ends_on_last)
+{
+	char msg[1024];
+	int bad = mlip_check_verdict(&r->chk, REL, mlip_check_rounding_floor(&r->chk), 0.0,
+	                             ends_on_last ? 1e-9 : INFINITY, msg, sizeof(msg));
+	if (bad) {
+		fail_msg("%s", msg);
+	}
+	double best = 0.0;
+	for (int k = 0; k < m->n_axes; k++) {
+		best = fmax(best, r->chk.max_acc[k] / m->axis[k].max_accel);
+	}
+	assert_true(best >= used_min);
+	/* the trace ends at rest: the last period decelerates at most A T */
+	double amax = 0;
+	for (int k = 0; k < m->n_axes; k++) {
+		amax = fmax(amax, m->axis[k].max_accel);
+	}
+	assert_le(mlip_check_end_speed(&r->chk), amax * m->period_s);
+}
+
+static struct path make_path(int n, int kind, size_t segs)
+{
+	struct path p = {.n = n, .np = segs + 1};
+	p.pts = calloc(p.np * (size_t)n, sizeof(double));
+	double dir[MLIP_MAX_AXES];
+	random_unit(n, dir);
+	for (size_t i = 1; i < p.np; i++) {
+		double *x = p.pts + i * (size_t)n, *prev = x - n;
+		if (kind == 0) { /* spiral in the first two axes, ramps on the others */
+			double t = 0.004 * (double)i, r = 10 + t;
+			x[0] = r * cos(t) - 10;
+			x[1] = r * sin(t);
+			for (int k = 2; k < n; k++) {
+				x[k] = 0.01 * (double)i * (k % 2 ? 1 : -1);
+			}
+		} else if (kind == 1) { /* random walk with 0.05-0.5 mm steps */
+			double step[MLIP_MAX_AXES], len = 0.05 + 0.45 * urand();
+			random_unit(n, step);
+			for (int k = 0; k < n; k++) {
+				dir[k] = 0.8 * dir[k] + 0.6 * step[k];
+			}
+			double s = 0;
+			for (int k = 0; k < n; k++) {
+				s += dir[k] * dir[k];
+			}
+			for (int k = 0; k < n; k++) {
+				dir[k] /= sqrt(s);
+				x[k] = prev[k] + len * dir[k];
+			}
+		} else { /* raster: back and forth with exact reversals and collinear runs */
+			size_t row = (i - 1) / 40, col = (i - 1) % 40;
+			x[0] = (row % 2 ? 40.0 - (double)col : (double)col + 1.0) * 0.25;
+			x[1] = (double)(row / 3) * 0.2;
+			for (int k = 2; k < n; k++) {
+				x[k] = 0.1 * sin(0.3 * (double)i);
+			}
+		}
+	}
+	return p;
+}
+
+static void test_run_all_strategies(void **state)
+{
+	(void)state;
+	static const int axes[] = {2, 3, 5};
+	for (int ai = 0; ai < 3; ai++) {
+		for (int kind = 0; kind < 3; kind++) {
+			struct path p = make_path(axes[ai], kind, 3000);
+			struct mlip_machine m = machine(axes[ai], 1000, 200, 0.01);
+			for (int st = 0; st < 3; st++) {
+				struct run r;
+				run_path(&m, (mlip_strategy)st, &p, EV_NONE, &r);
+				print_message("%d axes, path %d, strategy %d: %.3f s\n", axes[ai], kind,
+				              st, (double)r.periods * m.period_s);
+				assert_physics(&m, &r, 0.5, 1);
+			}
+			free(p.pts);
+		}
+	}
+}
+
+static void test_mpct_faster_than_baselines(void **state)
+{
+	(void)state;
+	struct path p = make_path(2, 0, 6000);
+	struct mlip_machine m = machine(2, 1000, 400, 0.01);
+	uint64_t t[3];
+	for (int st = 0; st < 3; st++) {
+		struct run r;
+		run_path(&m, (mlip_strategy)st, &p, EV_NONE, &r);
+		t[st] = r.periods;
+	}
+	assert_true(t[MLIP_STRATEGY_MPCT] < t[MLIP_STRATEGY_BISECTOR]);
+	assert_true(t[MLIP_STRATEGY_BISECTOR] < t[MLIP_STRATEGY_STOP]);
+	free(p.pts);
+}
+
+static void test_eps_binds_end_to_end(void **state)
+{
+	/* two long segments with a shallow turn, a fine period so the samples
+	 * resolve the corner: the measured contour error reaches eps within
+	 * 1 % and never exceeds it */
+	(void)state;
+	struct mlip_machine m = machine(2, 1000, 2000, 0.01);
+	m.period_s = 1e-5;
+	m.axis[1].max_accel = m.axis[0].max_accel;
+	/* symmetric about the X axis with equal limits, so alpha = beta and
+	 * the deviation from the polyline is eps cos(turn / 2) (17): 0.1 rad */
+	double pts[6] = {0, 0, 100 * cos(0.05), -100 * sin(0.05), 200 * cos(0.05), 0};
+	struct path p = {.n = 2, .np = 3, .pts = pts};
+	struct run r;
+	run_path(&m, MLIP_STRATEGY_MPCT, &p, EV_NONE, &r);
+	assert_le(r.chk.max_contour_mm, 0.01 * (1 + REL));
+	assert_true(r.chk.max_contour_mm >= 0.99 * 0.01 * cos(0.05));
+	assert_physics(&m, &r, 0.99, 1);
+}
+
+static void test_termination_condition_is_exact(void **state)
+{
+	/* the early-terminated backward pass leaves exactly what a full pass
+	 * computes (Sec. 2.1's termination condition loses nothing) */
+	(void)state;
+	struct path p = make_path(3, 1, 3000);
+	struct mlip_machine m = machine(3, 1000, 200, 0.01);
+	static double q[MLIP_LOOKAHEAD];
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 1024, p.pts), MLIP_OK);
+	double x[3];
+	for (size_t i = 1; i < p.np; i++) {
+		struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
+		memcpy(b.target, p.pts + i * 3, sizeof(double) * 3);
+		while (mlip_planner_space(&P) == 0) {
+			mlip_planner_step(&P, x);
+		}
+		assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+		if (i % 97 == 0) {
+			for (uint32_t j = P.tail; j != P.head; j++) {
+				q[j & (P.cap - 1)] = P.seg[j & (P.cap - 1)].q;
+			}
+			mlip_planner_set_override(&P, 100.0); /* full pass */
+			for (uint32_t j = P.tail; j != P.head; j++) {
+				assert_true(q[j & (P.cap - 1)] == P.seg[j & (P.cap - 1)].q);
+			}
+		}
+	}
+	free(p.pts);
+}
+
+static void test_push_n_same_plan(void **state)
+{
+	/* one backward pass per batch leaves the plan n single pushes leave */
+	(void)state;
+	struct path p = make_path(3, 1, 3000);
+	struct mlip_machine m = machine(3, 1000, 200, 0.01);
+	static struct mlip_block b[3000];
+	static double q1[MLIP_LOOKAHEAD];
+	for (size_t i = 0; i < 3000; i++) {
+		b[i] = (struct mlip_block){.feed_mm_s = 150, .tol_mm = 0.01, .line = (uint32_t)i};
+		memcpy(b[i].target, p.pts + (i + 1) * 3, sizeof(double) * 3);
+	}
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts), MLIP_OK);
+	for (size_t i = 0; i < 3000; i++) {
+		assert_int_equal(mlip_planner_push(&P, &b[i]), MLIP_OK);
+	}
+	for (uint32_t j = 0; j < 3000; j++) {
+		q1[j] = P.seg[j].q;
+	}
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts), MLIP_OK);
+	size_t done = 0;
+	while (done < 3000) {
+		size_t k = 1 + (done * 7) % 23;
+		k = k < 3000 - done ? k : 3000 - done;
+		assert_int_equal(mlip_planner_push_n(&P, b + done, k, NULL), k);
+		done += k;
+	}
+	for (uint32_t j = 0; j < 3000; j++) {
+		assert_true(q1[j] == P.seg[j].q);
+	}
+	free(p.pts);
+}
+
+static void test_override_storm(void **state)
+{
+	(void)state;
+	for (int kind = 0; kind < 3; kind++) {
+		struct path p = make_path(3, kind, 4000);
+		struct mlip_machine m = machine(3, 1500, 250, 0.01);
+		for (int st = 0; st < 3; st++) {
+			struct run r;
+			run_path(&m, (mlip_strategy)st, &p, EV_STORM, &r);
+			assert_physics(&m, &r, 0.5, 1);
+			assert_le(r.hold_drift, 1e-12); /* the same vertex seen from two segments */
+		}
+		free(p.pts);
+	}
+}
+
+static void test_hold_resume_on_path(void **state)
+{
+	(void)state;
+	struct path p = make_path(2, 1, 3000);
+	struct mlip_machine m = machine(2, 800, 200, 0.01);
+	struct run r;
+	run_path(&m, MLIP_STRATEGY_MPCT, &p, EV_HOLD_RESUME, &r);
+	assert_physics(&m, &r, 0.5, 1);
+	assert_le(r.hold_drift, 1e-12); /* held means not moving (1e-12: rounding) */
+	free(p.pts);
+}
+
+static void test_stop_is_controlled(void **state)
+{
+	(void)state;
+	struct path p = make_path(3, 0, 5000);
+	struct mlip_machine m = machine(3, 1000, 200, 0.01);
+	struct run r;
+	run_path(&m, MLIP_STRATEGY_MPCT, &p, EV_STOP, &r);
+	/* stops on the path, inside the limits, then idle with nothing queued */
+	assert_physics(&m, &r, 0.5, 0);
+	assert_true(r.stopped_idle);
+	assert_true(mlip_check_end_error(&r.chk) > 1.0); /* well before the end */
+	/* and stays where it stopped */
+	double x[3];
+	assert_int_equal(mlip_planner_step(&P, x), MLIP_RUN_IDLE);
+	for (int k = 0; k < 3; k++) {
+		assert_near(x[k], r.chk.x1[k], 0.0);
+	}
+	free(p.pts);
+}
+
+static void test_running_dry_is_safe(void **state)
+{
+	/* blocks arrive slower than they are consumed: the newest block always
+	 * plans to rest, so the machine slows, stops if it must, and resumes */
+	(void)state;
+	struct path p = make_path(2, 0, 1500);
+	struct mlip_machine m = machine(2, 2000, 300, 0.01);
+	struct run r;
+	run_path(&m, MLIP_STRATEGY_MPCT, &p, EV_DRIP, &r);
+	assert_physics(&m, &r, 0.5, 1);
+	free(p.pts);
+}
+
+static void test_push_full_and_bad_input(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine(2, 1000, 200, 0.01);
+	double start[2] = {0, 0};
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 12, start), MLIP_E_INVALID);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start), MLIP_OK);
+	for (int i = 1; i <= 8; i++) {
+		struct mlip_block b = {.target = {i * 0.1, 0}, .feed_mm_s = 100, .tol_mm = 0.01};
+		assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+	}
+	struct mlip_block b = {.target = {1, 1}, .feed_mm_s = 100, .tol_mm = 0.01};
+	assert_int_equal(mlip_planner_push(&P, &b), MLIP_E_FULL);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start), MLIP_OK);
+	b.target[0] = NAN;
+	assert_int_equal(mlip_planner_push(&P, &b), MLIP_E_RANGE);
+	b.target[0] = 1;
+	b.feed_mm_s = 0;
+	assert_int_equal(mlip_planner_push(&P, &b), MLIP_E_RANGE);
+	assert_int_equal(mlip_planner_set_override(&P, 201), MLIP_E_RANGE);
+	assert_int_equal(mlip_planner_set_override(&P, -1), MLIP_E_RANGE);
+	/* a zero-length block is merged away, not planned */
+	b.target[0] = 0;
+	b.target[1] = 0;
+	b.feed_mm_s = 100;
+	assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+	assert_int_equal(mlip_planner_queued(&P), 0);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_lp_optimal_2axes),
+		cmocka_unit_test(test_lp_optimal_3axes),
+		cmocka_unit_test(test_lp_optimal_5axes),
+		cmocka_unit_test(test_lp_paper_example),
+		cmocka_unit_test(test_corner_collinear_and_reversal),
+		cmocka_unit_test(test_corner_contour_and_peak_speed),
+		cmocka_unit_test(test_corner_caps_19_20),
+		cmocka_unit_test(test_run_all_strategies),
+		cmocka_unit_test(test_mpct_faster_than_baselines),
+		cmocka_unit_test(test_eps_binds_end_to_end),
+		cmocka_unit_test(test_termination_condition_is_exact),
+		cmocka_unit_test(test_push_n_same_plan),
+		cmocka_unit_test(test_override_storm),
+		cmocka_unit_test(test_hold_resume_on_path),
+		cmocka_unit_test(test_stop_is_controlled),
+		cmocka_unit_test(test_running_dry_is_safe),
+		cmocka_unit_test(test_push_full_and_bad_input),
+	};
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}

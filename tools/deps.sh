@@ -1,0 +1,26 @@
+#!/bin/sh
+# Install what the build and the tests need, only when it is missing:
+# Debian packages with apt-get, Python packages into .venv.
+set -e
+cd "$(dirname "$0")/.."
+
+need=""
+[ -f /usr/include/cmocka.h ] || need="$need libcmocka-dev"
+[ -f /usr/include/libsocketcan.h ] || need="$need libsocketcan-dev"
+command -v valgrind >/dev/null 2>&1 || need="$need valgrind"
+python3 -c 'import venv, ensurepip' >/dev/null 2>&1 || need="$need python3-venv"
+if [ -n "$need" ]; then
+	echo "deps: apt-get install$need"
+	SUDO=""; [ "$(id -u)" = 0 ] || SUDO=sudo
+	$SUDO apt-get update -qq
+	DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq $need >/dev/null
+fi
+
+if [ ! -x .venv/bin/python ]; then
+	echo "deps: creating .venv"
+	python3 -m venv .venv
+fi
+if ! .venv/bin/python -c 'import pytest, numpy' >/dev/null 2>&1; then
+	echo "deps: pip install -r tests/requirements.txt"
+	.venv/bin/pip install -q -r tests/requirements.txt
+fi

@@ -1,0 +1,189 @@
+/*
+ * mlip-check - judge a setpoint trace by its physics alone: per-axis
+ * acceleration (second differences), per-axis velocity and tool speed (first
+ * differences), contour error against the program's polyline, and whether it
+ * ends on the program's last point. Reads the CSV that mlip-sim --trace
+ * writes (t,x,y,...), or positions decoded from the CAN bus.
+ */
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "cli.h"
+#include "program.h"
+
+#define PROG "mlip-check"
+
+static void usage(FILE *f)
+{
+	fprintf(f, "usage: " PROG " [machine options] [--quantum MM] [--json OUT] PROGRAM.ngc TRACE.csv\n"
+	           "Check a trace (t,x,y,... one row per period) against the machine's limits.\n\n"
+	           "  --config FILE / --accel A[,A..] / --vmax MM_S / --eps MM / --period S\n"
+	           "                      the machine, as for mlip-sim\n"
+	           "  --quantum MM        position resolution of the trace (e.g. 0.001 for\n"
+	           "                      1000 counts/mm): adds 4 quantum / T^2 to the acceleration\n"
+	           "                      bound and quantum to the contour and end bounds\n"
+	           "  --rel R             relative tolerance on every limit (default 1e-9)\n"
+	           "  --json OUT          measured values as JSON ('-' for stdout)\n"
+	           "exit status: 0 within limits, 1 violation, 2 usage or input error\n");
+}
+
+int main(int argc, char **argv)
+{
+	struct mlip_cli_machine mo = {0};
+	const char *json = NULL;
+	double quantum = 0.0, rel = 1e-9;
+	static const struct option opts[] = {
+		{"config", required_argument, 0, 'c'}, {"accel", required_argument, 0, 'a'},
+		{"vmax", required_argument, 0, 'v'},   {"eps", required_argument, 0, 'e'},
+		{"period", required_argument, 0, 'p'}, {"quantum", required_argument, 0, 'Q'},
+		{"rel", required_argument, 0, 'r'},    {"json", required_argument, 0, 'j'},
+		{"help", no_argument, 0, 'h'},         {0, 0, 0, 0}};
+	int c;
+	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
+		double v = 0.0;
+		if (strchr("vepQr", c) && (mlip_cli_number(optarg, &v) != 0 || v < 0.0)) {
+			fprintf(stderr, PROG ": '%s' is not a non-negative number\n", optarg);
+			return 2;
+		}
+		switch (c) {
+		case 'c':
+			mo.config = optarg;
+			break;
+		case 'a':
+			mo.accel = optarg;
+			break;
+		case 'v':
+			mo.vmax_mm_s = v;
+			break;
+		case 'e':
+			mo.eps_mm = v;
+			break;
+		case 'p':
+			mo.period_s = v;
+			break;
+		case 'Q':
+			quantum = v;
+			break;
+		case 'r':
+			rel = v;
+			break;
+		case 'j':
+			json = optarg;
+			break;
+		case 'h':
+			usage(stdout);
+			return 0;
+		default:
+			usage(stderr);
+			return 2;
+		}
+	}
+	if (optind != argc - 2) {
+		usage(stderr);
+		return 2;
+	}
+	const char *ppath = argv[optind], *tpath = argv[optind + 1];
+	char *text;
+	size_t len;
+	int rc = mlip_read_file(ppath, &text, &len);
+	if (rc != 0) {
+		fprintf(stderr, PROG ": %s: %s\n", ppath, strerror(-rc));
+		return 2;
+	}
+	struct mlip_config cfg;
+	if (mlip_cli_build_machine(&mo, text, len, &cfg, PROG, stderr) != 0) {
+		return 2;
+	}
+	const struct mlip_machine *m = &cfg.machine;
+	int n = m->n_axes;
+	struct mlip_program prog;
+	if (mlip_program_parse(text, len, m, &prog) != 0) {
+		mlip_program_print_errors(&prog, ppath, stderr);
+		return 2;
+	}
+	free(text);
+	size_t npts;
+	double *pts = mlip_cli_polyline(m, prog.blocks, prog.n, &npts);
+
+	struct mlip_check_limits lim = {.n = n,
+	                                .vmax_mm_s = m->max_feed_mm_s,
+	                                .vmax_rot_deg_s = m->max_rot_feed_deg_s,
+	                                .eps_mm = m->tolerance_mm,
+	                                .period_s = m->period_s};
+	for (int k = 0; k < n; k++) {
+		lim.accel[k] = m->axis[k].max_accel;
+		lim.vel[k] = m->axis[k].max_vel;
+		lim.rotary[k] = m->axis[k].kind == MLIP_AXIS_ROTARY;
+	}
+	static struct mlip_check chk;
+	mlip_check_init(&chk, &lim, pts, npts);
+
+	FILE *tf = strcmp(tpath, "-") == 0 ? stdin : fopen(tpath, "r");
+	if (tf == NULL) {
+		perror(tpath);
+		return 2;
+	}
+	char line[1024];
+	size_t lineno = 0;
+	while (fgets(line, sizeof(line), tf) != NULL) {
+		lineno++;
+		if (lineno == 1 && line[0] == 't') {
+			continue; /* header */
+		}
+		double x[MLIP_MAX_AXES + 1];
+		char *p = line;
+		int cols = 0;
+		while (cols <= n) {
+			char *end;
+			x[cols++] = strtod(p, &end);
+			if (end == p) {
+				fprintf(stderr, PROG ": %s:%zu: expected %d numbers\n", tpath, lineno, n + 1);
+				return 2;
+			}
+			p = end;
+			if (*p == ',') {
+				p++;
+			}
+		}
+		mlip_check_sample(&chk, x + 1); /* column 0 is t */
+	}
+	if (tf != stdin) {
+		fclose(tf);
+	}
+	double T = m->period_s;
+	double abs_acc = mlip_check_rounding_floor(&chk) + 4.0 * quantum / (T * T);
+	char msg[4096];
+	int bad = mlip_check_verdict(&chk, rel, abs_acc, quantum, 1e-9 + quantum, msg, sizeof(msg));
+
+	FILE *jf = json == NULL ? NULL : strcmp(json, "-") == 0 ? stdout : fopen(json, "w");
+	if (jf != NULL) {
+		fprintf(jf, "{\n  \"samples\": %zu,\n  \"max_axis_accel\": [", chk.count);
+		for (int k = 0; k < n; k++) {
+			fprintf(jf, "%s%.12g", k ? ", " : "", chk.max_acc[k]);
+		}
+		fprintf(jf, "],\n  \"max_axis_vel\": [");
+		for (int k = 0; k < n; k++) {
+			fprintf(jf, "%s%.12g", k ? ", " : "", chk.max_vel[k]);
+		}
+		fprintf(jf, "],\n  \"max_speed_mm_s\": %.12g,\n", chk.max_speed_mm_s);
+		fprintf(jf, "  \"max_contour_error_mm\": %.12g,\n", chk.max_contour_mm);
+		fprintf(jf, "  \"end_error_mm\": %.3g,\n", mlip_check_end_error(&chk));
+		fprintf(jf, "  \"violations\": %d\n}\n", bad);
+		if (jf != stdout) {
+			fclose(jf);
+		}
+	}
+	if (bad) {
+		fprintf(stderr, PROG ": %s: %d violation(s):\n%s", tpath, bad, msg);
+	} else {
+		fprintf(stderr, PROG ": %s: %zu samples within limits (max contour %.6f mm)\n", tpath,
+		        chk.count, chk.max_contour_mm);
+	}
+	free(pts);
+	mlip_program_free(&prog);
+	return bad ? 1 : 0;
+}
