@@ -1,5 +1,6 @@
 # mlip - one Makefile, output in $(BUILD).
 #   make            library, tools, unit tests
+#   make run        the simulator on the bundled demo, all three strategies
 #   make test       install missing deps, build, run every test (what CI runs)
 #   make bench      Table 1 and Table 2 of the paper, redone
 #   make asan|ubsan the whole test suite under a sanitizer (build-asan/, build-ubsan/)
@@ -30,7 +31,7 @@ BENCH_BINS:= $(BENCH_SRC:bench/%.c=$(BUILD)/%)
 # rt/ needs libsocketcan and threads; tools that use rt/ link it.
 RT_LIBS   := -lsocketcan -lpthread -lrt
 
-.PHONY: all test unit pytest bench asan ubsan fuzz deps clean demo
+.PHONY: all test unit pytest bench asan ubsan fuzz deps clean demo run
 all: $(BUILD)/libmlip.a $(TOOLS) $(UNIT_BINS) $(BENCH_BINS)
 
 $(BUILD)/obj/%.o: %.c
@@ -62,6 +63,15 @@ $(BUILD)/bench_%: $(BUILD)/obj/bench/bench_%.o $(BUILD)/libmlip-host.a $(BUILD)/
 
 deps:
 	@tools/deps.sh
+
+# The main job on its bundled default: examples/demo.ngc on the 3-axis mill.
+run: all
+	@$(BUILD)/mlip-sim --config config/mill-3axis.ini --trace $(BUILD)/demo-trace.csv \
+		--summary $(BUILD)/demo-summary.json examples/demo.ngc
+	@$(BUILD)/mlip-sim --config config/mill-3axis.ini --no-notes --strategy bisector examples/demo.ngc
+	@$(BUILD)/mlip-sim --config config/mill-3axis.ini --no-notes --strategy stop examples/demo.ngc
+	@echo "setpoints: $(BUILD)/demo-trace.csv  summary: $(BUILD)/demo-summary.json"
+	@$(BUILD)/mlip-check --config config/mill-3axis.ini examples/demo.ngc $(BUILD)/demo-trace.csv
 
 # Unit tests: each binary is a cmocka group; run them all, fail if any fails.
 unit: $(UNIT_BINS)

@@ -129,8 +129,14 @@ static double corner_soft_cap(const struct mlip_planner *p, const struct mlip_se
                               const struct mlip_seg *nx)
 {
 	double q = 1.0;
-	q = dmin(q, sq(line_target(p, pr)) * pr->inv_vs2);
-	q = dmin(q, sq(line_target(p, nx)) * pr->inv_ve2);
+	/* a side whose speed is 0 at q = 1 (v_s or v_e of a sharp corner's
+	 * optimum, Theorem 2) is 0 for every q: it bounds nothing */
+	if (pr->inv_vs2 > 0.0) {
+		q = dmin(q, sq(line_target(p, pr)) * pr->inv_vs2);
+	}
+	if (pr->inv_ve2 > 0.0) {
+		q = dmin(q, sq(line_target(p, nx)) * pr->inv_ve2);
+	}
 	return q;
 }
 
@@ -144,9 +150,14 @@ static uint32_t first_mutable(const struct mlip_planner *p)
 /*
  * Backward reachability (Sec. 2.1 step 2, eqs 25-26 in q form). full = 0:
  * stop at the termination condition (a value equal to last pass's); full = 1:
- * recompute everything (after an override change, when caps moved).
+ * recompute everything (after an override change, when caps moved). The
+ * condition is only meaningful for corners a previous pass computed: the
+ * `fresh` newest corners (linked since the last pass, holding a placeholder
+ * 0) are always visited. (A fresh corner computes to exactly 0 only under a
+ * hold, which a full pass follows; the guard keeps batches exact without
+ * relying on that.)
  */
-static void backward_pass(struct mlip_planner *p, int full)
+static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 {
 	uint32_t first = first_mutable(p);
 	if ((uint32_t)(p->head - first) < 2u) {
@@ -168,7 +179,7 @@ static void backward_pass(struct mlip_planner *p, int full)
 		}
 		q = dmax(q, 0.0);
 		visits++;
-		if (!full && q == pr->q) {
+		if (!full && visits > fresh && q == pr->q) {
 			break; /* termination condition: nothing older can change */
 		}
 		pr->q = q;
@@ -262,9 +273,10 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 
 mlip_status mlip_planner_push(struct mlip_planner *p, const struct mlip_block *b)
 {
+	uint32_t before = p->head;
 	mlip_status st = append(p, b);
-	if (st == MLIP_OK) {
-		backward_pass(p, 0);
+	if (st == MLIP_OK && p->head != before) {
+		backward_pass(p, 0, 1);
 	}
 	return st;
 }
@@ -286,7 +298,7 @@ size_t mlip_planner_push_n(struct mlip_planner *p, const struct mlip_block *b, s
 		done++;
 	}
 	if (done > 0) {
-		backward_pass(p, 0);
+		backward_pass(p, 0, (uint32_t)done); /* merged blocks only add fewer */
 	}
 	if (err != NULL) {
 		*err = st;
@@ -302,7 +314,7 @@ mlip_status mlip_planner_set_override(struct mlip_planner *p, double pct)
 	}
 	p->override = pct / 100.0;
 	p->stats.full_passes++;
-	backward_pass(p, 1); /* caps moved both ways (Sec. 3.1, 3.2) */
+	backward_pass(p, 1, 0); /* caps moved both ways (Sec. 3.1, 3.2) */
 	return MLIP_OK;
 }
 
@@ -310,7 +322,7 @@ void mlip_planner_hold(struct mlip_planner *p, int on)
 {
 	p->hold = on != 0;
 	p->stats.full_passes++;
-	backward_pass(p, 1);
+	backward_pass(p, 1, 0);
 }
 
 void mlip_planner_stop(struct mlip_planner *p)

@@ -109,16 +109,8 @@ int main(int argc, char **argv)
 	size_t npts;
 	double *pts = mlip_cli_polyline(m, prog.blocks, prog.n, &npts);
 
-	struct mlip_check_limits lim = {.n = n,
-	                                .vmax_mm_s = m->max_feed_mm_s,
-	                                .vmax_rot_deg_s = m->max_rot_feed_deg_s,
-	                                .eps_mm = m->tolerance_mm,
-	                                .period_s = m->period_s};
-	for (int k = 0; k < n; k++) {
-		lim.accel[k] = m->axis[k].max_accel;
-		lim.vel[k] = m->axis[k].max_vel;
-		lim.rotary[k] = m->axis[k].kind == MLIP_AXIS_ROTARY;
-	}
+	struct mlip_check_limits lim;
+	mlip_cli_check_limits(m, &lim);
 	static struct mlip_check chk;
 	mlip_check_init(&chk, &lim, pts, npts);
 

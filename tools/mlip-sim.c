@@ -43,7 +43,8 @@ static void usage(FILE *f)
 	        "  --lookahead N         look-ahead capacity in blocks, power of two (default %d)\n"
 	        "  --trace OUT.csv       setpoints: t,x,y,... one row per period, t = 0 to rest\n"
 	        "  --summary OUT.json    totals and measured physics (JSON)\n"
-	        "  -q, --quiet           no summary line on stderr\n"
+	        "  --no-notes            do not list the words accepted without effect\n"
+	        "  -q, --quiet           neither notes nor the summary line on stderr\n"
 	        "  -h, --help            this help\n",
 	        MLIP_LOOKAHEAD);
 }
@@ -108,7 +109,7 @@ int main(int argc, char **argv)
 	double feed = -1.0, override = 100.0;
 	long long storm_seed = -1;
 	unsigned long lookahead = 0;
-	int quiet = 0;
+	int quiet = 0, notes = 1;
 
 	static const struct option opts[] = {
 		{"config", required_argument, 0, 'c'},   {"strategy", required_argument, 0, 's'},
@@ -118,6 +119,7 @@ int main(int argc, char **argv)
 		{"storm", required_argument, 0, 'S'},    {"lookahead", required_argument, 0, 'L'},
 		{"trace", required_argument, 0, 't'},    {"summary", required_argument, 0, 'j'},
 		{"quiet", no_argument, 0, 'q'},          {"help", no_argument, 0, 'h'},
+		{"no-notes", no_argument, 0, 'N'},
 		{0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "qh", opts, NULL)) != -1) {
@@ -169,6 +171,10 @@ int main(int argc, char **argv)
 			break;
 		case 'q':
 			quiet = 1;
+			notes = 0;
+			break;
+		case 'N':
+			notes = 0;
 			break;
 		case 'h':
 			usage(stdout);
@@ -219,7 +225,7 @@ int main(int argc, char **argv)
 		mlip_program_free(&prog);
 		return 1;
 	}
-	if (!quiet) {
+	if (notes) {
 		mlip_program_print_notices(&prog, path, stderr);
 	}
 	if (feed > 0.0) {
@@ -242,16 +248,8 @@ int main(int argc, char **argv)
 
 	size_t npts;
 	double *pts = mlip_cli_polyline(m, prog.blocks, prog.n, &npts);
-	struct mlip_check_limits lim = {.n = n,
-	                                .vmax_mm_s = m->max_feed_mm_s,
-	                                .vmax_rot_deg_s = m->max_rot_feed_deg_s,
-	                                .eps_mm = m->tolerance_mm,
-	                                .period_s = m->period_s};
-	for (int k = 0; k < n; k++) {
-		lim.accel[k] = m->axis[k].max_accel;
-		lim.vel[k] = m->axis[k].max_vel;
-		lim.rotary[k] = m->axis[k].kind == MLIP_AXIS_ROTARY;
-	}
+	struct mlip_check_limits lim;
+	mlip_cli_check_limits(m, &lim);
 	static struct mlip_check chk;
 	mlip_check_init(&chk, &lim, pts, npts);
 
@@ -353,6 +351,10 @@ int main(int argc, char **argv)
 		fprintf(sf, "],\n  \"accel_limit\": [");
 		for (int a = 0; a < n; a++) {
 			fprintf(sf, "%s%.12g", a ? ", " : "", m->axis[a].max_accel);
+		}
+		fprintf(sf, "],\n  \"vel_limit\": [");
+		for (int a = 0; a < n; a++) {
+			fprintf(sf, "%s%.12g", a ? ", " : "", m->axis[a].max_vel);
 		}
 		fprintf(sf, "],\n  \"max_contour_error_mm\": %.9g,\n", chk.max_contour_mm);
 		fprintf(sf, "  \"end_error_mm\": %.3g,\n", mlip_check_end_error(&chk));

@@ -3,13 +3,13 @@
 The expected bytes below are written by hand from the documented layout; the
 very same vectors are asserted byte for byte against the C encoder in
 tests/unit/test_canenc.c (test_golden_*), so DBC and encoder are tied together
-through them. Needs cantools (skipped when it is not installed).
+through them.
 """
 from pathlib import Path
 
 import pytest
 
-cantools = pytest.importorskip("cantools")
+import cantools  # installed by tools/deps.sh (tests/requirements.txt)
 
 DBC = Path(__file__).resolve().parents[2] / "tools" / "mlip.dbc"
 

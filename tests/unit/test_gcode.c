@@ -1007,9 +1007,9 @@ static void test_program_errors_and_print(void **state)
 	                    "a.nc:2:5: error: malformed number '1.2.3'\n"
 	                    "a.nc:4:1: error: unsupported G code G41: cutter radius compensation\n"
 	                    "a.nc:7:1: error: X 2000.000 beyond soft limit 1000.000\n"
-	                    "a.nc: 3 errors, program rejected\n"
-	                    "a.nc:5: note: M3 ignored (no effect on motion), 2 times\n"
-	                    "a.nc:5: note: S ignored (no effect on motion), 1 times\n");
+	                    "a.nc: 3 errors, program rejected: nothing was run\n"
+	                    "a.nc:5: note: M3 ignored (no effect on motion) (2 times)\n"
+	                    "a.nc:5: note: S ignored (no effect on motion)\n");
 	free(out);
 	mlip_program_free(&p);
 
@@ -1027,7 +1027,7 @@ static void test_program_errors_and_print(void **state)
 	mlip_program_print_errors(&p, "c.nc", f);
 	fclose(f);
 	assert_string_equal(out, "c.nc:1: error: empty program: no motion\n"
-	                         "c.nc: 1 errors, program rejected\n");
+	                         "c.nc: 1 error, program rejected: nothing was run\n");
 	free(out);
 	mlip_program_free(&p);
 }

@@ -549,24 +549,34 @@ static void test_termination_condition_is_exact(void **state)
 	free(p.pts);
 }
 
-static void test_push_n_same_plan(void **state)
+static void push_n_same_plan(int n, int kind, int zigzag)
 {
-	/* one backward pass per batch leaves the plan n single pushes leave */
-	(void)state;
-	struct path p = make_path(3, 1, 3000);
-	struct mlip_machine m = machine(3, 1000, 200, 0.01);
+	struct path p = make_path(n, kind, 3000);
+	if (zigzag) {
+		/* sharp zigzag: corners whose optimum has v_e = 0 (alpha = 0) */
+		for (size_t i = 1; i < p.np; i++) {
+			p.pts[i * (size_t)n] = 0.15 * (double)i;
+			p.pts[i * (size_t)n + 1] = (i / 50 % 2) ? 5.0 * sin(0.3 * (double)i) : 0.0;
+		}
+	}
+	struct mlip_machine m = machine(n, 1000, 200, 0.01);
 	static struct mlip_block b[3000];
 	static double q1[MLIP_LOOKAHEAD];
 	for (size_t i = 0; i < 3000; i++) {
 		b[i] = (struct mlip_block){.feed_mm_s = 150, .tol_mm = 0.01, .line = (uint32_t)i};
-		memcpy(b[i].target, p.pts + (i + 1) * 3, sizeof(double) * 3);
+		memcpy(b[i].target, p.pts + (i + 1) * (size_t)n, sizeof(double) * (size_t)n);
 	}
 	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts), MLIP_OK);
 	for (size_t i = 0; i < 3000; i++) {
 		assert_int_equal(mlip_planner_push(&P, &b[i]), MLIP_OK);
 	}
-	for (uint32_t j = 0; j < 3000; j++) {
+	for (uint32_t j = 0; j < P.head; j++) {
 		q1[j] = P.seg[j].q;
+	}
+	/* and single pushes equal a full pass */
+	mlip_planner_set_override(&P, 100.0);
+	for (uint32_t j = 0; j < P.head; j++) {
+		assert_true(q1[j] == P.seg[j].q);
 	}
 	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts), MLIP_OK);
 	size_t done = 0;
@@ -576,10 +586,45 @@ static void test_push_n_same_plan(void **state)
 		assert_int_equal(mlip_planner_push_n(&P, b + done, k, NULL), k);
 		done += k;
 	}
-	for (uint32_t j = 0; j < 3000; j++) {
+	for (uint32_t j = 0; j < P.head; j++) {
 		assert_true(q1[j] == P.seg[j].q);
 	}
 	free(p.pts);
+}
+
+static void test_push_n_same_plan(void **state)
+{
+	/* one backward pass per batch leaves the plan n single pushes leave,
+	 * which is the plan a full pass computes */
+	(void)state;
+	push_n_same_plan(3, 1, 0);
+	push_n_same_plan(2, 2, 0);
+	push_n_same_plan(2, 0, 1);
+}
+
+static void test_sharp_corner_zero_side_does_not_stop(void **state)
+{
+	/* a corner whose optimum has v_e = 0 still passes at v_s > 0 */
+	(void)state;
+	double A[2] = {1000, 1000}, es[2] = {0.573708, -0.81906}, ee[2] = {0.542164, 0.840273};
+	double ne = hypot(es[0], es[1]), nn = hypot(ee[0], ee[1]);
+	es[0] /= ne;
+	es[1] /= ne;
+	ee[0] /= nn;
+	ee[1] /= nn;
+	struct mlip_corner c;
+	mlip_corner_plan(2, MLIP_STRATEGY_MPCT, es, ee, 1, 1, A, 0.01, 200, 200, 0.001, &c);
+	assert_true(c.ve_mm_s == 0.0 && c.vs_mm_s > 1.0);
+	struct mlip_machine m = machine(2, 1000, 200, 0.01);
+	m.axis[1].max_accel = 1000;
+	double start[2] = {0, 0};
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, start), MLIP_OK);
+	struct mlip_block b1 = {.target = {es[0] * 20, es[1] * 20}, .feed_mm_s = 200, .tol_mm = 0.01};
+	struct mlip_block b2 = {.target = {es[0] * 20 + ee[0] * 20, es[1] * 20 + ee[1] * 20},
+	                        .feed_mm_s = 200, .tol_mm = 0.01};
+	mlip_planner_push(&P, &b1);
+	mlip_planner_push(&P, &b2);
+	assert_true(P.seg[0].q > 0.99); /* limited by nothing but its geometry */
 }
 
 static void test_override_storm(void **state)
@@ -688,6 +733,7 @@ int main(void)
 		cmocka_unit_test(test_eps_binds_end_to_end),
 		cmocka_unit_test(test_termination_condition_is_exact),
 		cmocka_unit_test(test_push_n_same_plan),
+		cmocka_unit_test(test_sharp_corner_zero_side_does_not_stop),
 		cmocka_unit_test(test_override_storm),
 		cmocka_unit_test(test_hold_resume_on_path),
 		cmocka_unit_test(test_stop_is_controlled),

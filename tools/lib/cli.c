@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "check.h"
 #include "confload.h"
 #include "mlip/gcode.h"
 
@@ -176,4 +177,19 @@ double *mlip_cli_polyline(const struct mlip_machine *m, const struct mlip_block 
 	}
 	*npts = np;
 	return pts;
+}
+
+void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limits *lim)
+{
+	memset(lim, 0, sizeof(*lim));
+	lim->n = m->n_axes;
+	lim->vmax_mm_s = m->max_feed_mm_s;
+	lim->vmax_rot_deg_s = m->max_rot_feed_deg_s;
+	lim->eps_mm = m->tolerance_mm;
+	lim->period_s = m->period_s;
+	for (int k = 0; k < m->n_axes; k++) {
+		lim->accel[k] = m->axis[k].max_accel;
+		lim->vel[k] = m->axis[k].max_vel;
+		lim->rotary[k] = m->axis[k].kind == MLIP_AXIS_ROTARY;
+	}
 }

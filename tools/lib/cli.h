@@ -30,6 +30,10 @@ const char *mlip_cli_strategy_name(mlip_strategy st);
 /* Strict number parsing for options: whole string, finite. 0 or -1. */
 int mlip_cli_number(const char *s, double *out);
 
+/* The limits a trace of machine m is judged against. */
+struct mlip_check_limits;
+void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limits *lim);
+
 /* Polyline the planner will follow: home + every block target, with points
  * closer than MLIP_GCODE_MERGE_MM to the previous one dropped like the
  * planner does. Returns a malloc'ed array of *npts points of n coordinates. */

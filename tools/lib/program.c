@@ -128,7 +128,9 @@ int mlip_program_parse(const char *text, size_t len, const struct mlip_machine *
 		i = end + 1;
 	}
 	prog->lines = line;
-	if (mlip_gcode_finish(&g, line, &err) != MLIP_OK && add_error(prog, &err) != 0) {
+	/* "empty program" only when nothing else explains the lack of motion */
+	if (prog->n_errors_total == 0 && mlip_gcode_finish(&g, line, &err) != MLIP_OK &&
+	    add_error(prog, &err) != 0) {
 		return -ENOMEM;
 	}
 	memcpy(prog->notices, g.notices, sizeof prog->notices);
@@ -171,7 +173,8 @@ void mlip_program_print_errors(const struct mlip_program *prog, const char *path
 		        prog->n_errors_total - prog->n_errors);
 	}
 	if (prog->n_errors_total) {
-		fprintf(f, "%s: %zu errors, program rejected\n", path, prog->n_errors_total);
+		fprintf(f, "%s: %zu error%s, program rejected: nothing was run\n", path,
+		        prog->n_errors_total, prog->n_errors_total == 1 ? "" : "s");
 	}
 }
 
@@ -185,13 +188,18 @@ void mlip_program_print_notices(const struct mlip_program *prog, const char *pat
 		if (strcmp(n->word, "F") == 0) {
 			fprintf(f,
 			        "%s:%u: note: F missing before a feed move: the program's first F"
-			        " (%g, line %u) was used, %u times\n",
+			        " (F%g, line %u) is used for %u move%s before it\n",
 			        path, (unsigned)n->first_line, prog->initial_feed_word,
-			        (unsigned)prog->initial_feed_line, (unsigned)n->count);
+			        (unsigned)prog->initial_feed_line, (unsigned)n->count,
+			        n->count == 1 ? "" : "s");
 			continue;
 		}
-		fprintf(f, "%s:%u: note: %s %s, %u times\n", path, (unsigned)n->first_line, n->word,
-		        mlip_gcode_notice_text(n), (unsigned)n->count);
+		fprintf(f, "%s:%u: note: %s %s", path, (unsigned)n->first_line, n->word,
+		        mlip_gcode_notice_text(n));
+		if (n->count > 1) {
+			fprintf(f, " (%u times)", (unsigned)n->count);
+		}
+		fputc('\n', f);
 	}
 }
 

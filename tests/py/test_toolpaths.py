@@ -1,0 +1,91 @@
+"""Every shared toolpath, the paper's four acceleration settings, every
+strategy: the physics of the setpoints, measured from the samples alone by
+tools/lib/check.c (cross-checked against numpy in test_trace_crosscheck).
+
+  per-axis acceleration (second differences) <= A_k (1 + 1e-9), and reached
+  per-axis velocity <= V_k (1 + 1e-9), tool speed <= v_m (1 + 1e-9)
+  contour error <= eps (1 + 1e-9), and mpct uses the tolerance
+  the trace ends on the last point (1e-9 mm), at rest
+"""
+import pytest
+
+from conftest import CONFIG, REL, TOOLPATHS, sim_summary
+
+# file -> (config or None, number of axes)
+FILES = {
+    "MB-2.3_test.nc": (None, 3),
+    "tball-pocket.gcode": (None, 3),
+    "SheepTile-v2.nc": (None, 3),
+    "flower-spiral-2d.ngc": (None, 2),
+    "4006.nc": (CONFIG / "rotary-4axis.ini", 4),
+}
+# the paper's x/y settings; Z (and A) get the value of Y
+SETTINGS = {"1000/1000": (1000, 1000), "3000/1000": (3000, 1000),
+            "3000/3000": (3000, 3000), "6000/6000": (6000, 6000)}
+STRATEGIES = ["mpct", "bisector", "stop"]
+
+
+def accel_arg(n, xy):
+    return ",".join(str(v) for v in ([xy[0], xy[1]] + [xy[1]] * (n - 2)))
+
+
+def opts_for(name, xy, strategy, *extra):
+    cfg, n = FILES[name]
+    o = ["--strategy", strategy, "--accel", accel_arg(n, xy), "--vmax", "200", "--feed", "200",
+         "--eps", "0.01", "--period", "0.001", *extra]
+    if cfg is not None:
+        o = ["--config", cfg] + o
+    return o
+
+
+def assert_physics(s, strategy, used=True):
+    for k, (a, lim) in enumerate(zip(s["max_axis_accel"], s["accel_limit"])):
+        assert a <= lim * (1 + REL), f"axis {s['axes'][k]}: {a} > {lim}"
+    # the acceleration is used: some axis brakes or corners at its limit
+    assert max(a / lim for a, lim in zip(s["max_axis_accel"], s["accel_limit"])) >= 0.99
+    for k, (v, lim) in enumerate(zip(s["max_axis_vel"], s["vel_limit"])):
+        assert v <= lim * (1 + REL), f"axis {s['axes'][k]} velocity {v} > {lim}"
+    assert s["max_speed_mm_s"] <= s["vmax_mm_s"] * (1 + REL)
+    assert s["max_contour_error_mm"] <= s["eps_mm"] * (1 + REL)
+    if strategy == "mpct" and used:
+        # corners are sized by eps (18): the tolerance is really used
+        assert s["max_contour_error_mm"] >= 0.5 * s["eps_mm"]
+    assert s["end_error_mm"] <= 1e-9
+
+
+@pytest.mark.parametrize("strategy", STRATEGIES)
+@pytest.mark.parametrize("setting", list(SETTINGS))
+@pytest.mark.parametrize("name", list(FILES))
+def test_physics(name, setting, strategy):
+    s = sim_summary(TOOLPATHS / name, *opts_for(name, SETTINGS[setting], strategy))
+    assert_physics(s, strategy)
+    assert s["max_speed_mm_s"] >= 0.5 * 200  # and it does move at speed
+
+
+@pytest.mark.parametrize("name", list(FILES))
+def test_strategies_rank(name):
+    """The paper's claim, on every file: mpct < bisector < stop in time."""
+    t = {st: sim_summary(TOOLPATHS / name, *opts_for(name, (1000, 1000), st))["total_time_s"]
+         for st in STRATEGIES}
+    assert t["mpct"] < t["bisector"] < t["stop"]
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("strategy", STRATEGIES)
+@pytest.mark.parametrize("name", list(FILES))
+def test_override_storm(name, strategy, seed):
+    """Random override changes (0-200 %), holds and resumes every 5-200
+    periods over a whole file: every bound still holds, and it finishes."""
+    s = sim_summary(TOOLPATHS / name, *opts_for(name, (3000, 1000), strategy, "--storm", seed))
+    assert s["override_events"] > 100
+    assert_physics(s, strategy, used=False)
+
+
+def test_override_constant_scales_time():
+    """At 50 % the feed-bound parts take twice as long; never faster."""
+    f = TOOLPATHS / "flower-spiral-2d.ngc"
+    base = sim_summary(f, *opts_for("flower-spiral-2d.ngc", (6000, 6000), "mpct"))
+    half = sim_summary(f, *opts_for("flower-spiral-2d.ngc", (6000, 6000), "mpct", "--override", "50"))
+    assert half["max_speed_mm_s"] <= 100 * (1 + REL)
+    assert 1.2 * base["total_time_s"] < half["total_time_s"] <= 2.0 * base["total_time_s"] * (1 + 1e-3)
+    assert_physics(half, "mpct", used=False)
