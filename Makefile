@@ -11,7 +11,7 @@ OPT     ?= -O2
 SAN     ?=
 CFLAGS  := -std=c99 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE $(OPT) -g \
            -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
-           -Wno-unused-function -Werror -MMD -MP -Iinclude -Itools/lib $(SAN) $(EXTRA_CFLAGS)
+           -Wno-unused-function -Werror -MMD -MP -Iinclude -Itools/lib -Irt $(SAN) $(EXTRA_CFLAGS)
 LDFLAGS := $(SAN) $(EXTRA_LDFLAGS)
 LDLIBS  := -lm
 
@@ -96,5 +96,7 @@ ubsan:
 
 clean:
 	rm -rf build build-asan build-ubsan
+
+.SECONDARY:
 
 -include $(shell find $(BUILD) -name '*.d' 2>/dev/null)

@@ -42,15 +42,6 @@ static double dmax(double a, double b)
 	return a > b ? a : b;
 }
 
-static double vec_norm(int n, const double *v)
-{
-	double s = 0.0;
-	for (int k = 0; k < n; k++) {
-		s += v[k] * v[k];
-	}
-	return sqrt(s);
-}
-
 /*
  * With s = alpha + beta and w = alpha / s, the constraints read
  *     s |c_k w - d_k| <= 1,   c_k = (e_e[k] + e_s[k]) / A_k,  d_k = e_s[k] / A_k,
@@ -149,13 +140,16 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 	for (int k = 0; k < n; k++) {
 		de[k] = e_e[k] - e_s[k];
 	}
-	double turn = vec_norm(n, de);
+	double turn2 = 0.0;
+	for (int k = 0; k < n; k++) {
+		turn2 += de[k] * de[k];
+	}
 
 	if (st == MLIP_STRATEGY_STOP) {
 		*c = (struct mlip_corner){0};
 		return;
 	}
-	if (turn < COLLINEAR_EPS) {
+	if (turn2 < COLLINEAR_EPS * COLLINEAR_EPS) {
 		corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
 		return;
 	}
@@ -170,7 +164,7 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 			}
 		}
 		double v = T * amax;
-		v = dmin(v, 8.0 * eps_mm / (turn * T)); /* (17) with |a| = v |e_e - e_s| / T */
+		v = dmin(v, 8.0 * eps_mm / (sqrt(turn2) * T)); /* (17), |a| = v |e_e - e_s| / T */
 		v = dmin(v, dmin(ds_mm, de_mm) / T);    /* l = v T / 2 <= d / 2 */
 		v = dmin(v, dmin(vcap_s_mm_s, vcap_e_mm_s));
 		corner_from_t(v / T, v / T, T, c);
@@ -182,34 +176,24 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 		corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
 		return;
 	}
-	double a_vec[MLIP_MAX_AXES];
+	double a2 = 0.0;
 	for (int k = 0; k < n; k++) {
-		a_vec[k] = alpha * e_e[k] - beta * e_s[k];
+		double ak = alpha * e_e[k] - beta * e_s[k];
+		a2 += ak * ak;
 	}
-	double a_abs = vec_norm(n, a_vec);
-
-	double t = sqrt(8.0 * eps_mm / a_abs); /* (18) */
-
-	/* (19): l_s <= d_s / 2 and l_e <= d_e / 2, l proportional to t^2 */
-	double ls = 0.5 * beta * t * t, le = 0.5 * alpha * t * t;
-	double f = 1.0;
-	if (ls > 0.5 * ds_mm) {
-		f = dmin(f, sqrt(0.5 * ds_mm / ls));
+	/* In t^2, with l = beta t^2 / 2 (5)(6) and v = beta t (2)(3), the three
+	 * bounds are minima and one square root remains:
+	 *   (18) t^2 <= 8 eps / |a|
+	 *   (19) l_s <= d_s / 2  <=>  t^2 <= d_s / beta   (and d_e / alpha)
+	 *   (20) v_s <= vcap_s   <=>  t^2 <= (vcap_s / beta)^2 (and e)   */
+	double t2 = 8.0 * eps_mm / sqrt(a2);
+	if (beta > 0.0) {
+		t2 = dmin(t2, dmin(ds_mm / beta, (vcap_s_mm_s / beta) * (vcap_s_mm_s / beta)));
 	}
-	if (le > 0.5 * de_mm) {
-		f = dmin(f, sqrt(0.5 * de_mm / le));
+	if (alpha > 0.0) {
+		t2 = dmin(t2, dmin(de_mm / alpha, (vcap_e_mm_s / alpha) * (vcap_e_mm_s / alpha)));
 	}
-	t *= f;
-
-	/* (20), per neighbour: the corner's peak speed is v_s or v_e (Prop. 4) */
-	double g = 1.0;
-	if (beta * t > vcap_s_mm_s) {
-		g = dmin(g, vcap_s_mm_s / (beta * t));
-	}
-	if (alpha * t > vcap_e_mm_s) {
-		g = dmin(g, vcap_e_mm_s / (alpha * t));
-	}
-	t *= g;
+	double t = sqrt(t2);
 
 	corner_from_t(alpha, beta, t, c);
 }

@@ -255,7 +255,8 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 	s->vfeed_mm_s = b->rapid ? s->vhard_mm_s : b->feed_mm_s * joint_per_tool;
 	s->tol_mm = b->tol_mm > 0.0 ? dmin(b->tol_mm, p->eps_mm) : p->eps_mm;
 	s->line = b->line;
-	s->seq = ++p->seq;
+	s->seq = b->seq ? b->seq : p->seq + 1; /* the caller's number, if any */
+	p->seq = s->seq;
 	s->q = 0.0; /* the newest block always plans to rest */
 	s->qcap = 0.0;
 	s->inv_brake_c = 0.0;

@@ -37,7 +37,7 @@
 MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 80);
 MLIP_RING_CHECK(rec_align, sizeof(struct mlip_ring_rec) % 8 == 0);
 MLIP_RING_CHECK(rec_target, offsetof(struct mlip_ring_rec, target) == 16);
-MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 448);
+MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 896);
 MLIP_RING_CHECK(hdr_lines, sizeof(struct mlip_ring) % MLIP_RING_LINE == 0);
 MLIP_RING_CHECK(line_pow2, MLIP_RING_IS_POW2(MLIP_RING_LINE));
 MLIP_RING_CHECK(max_pow2, MLIP_RING_IS_POW2(MLIP_RING_MAX_CAPACITY));
@@ -50,6 +50,8 @@ MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 320);
 MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 328);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 32);
 MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 384);
+MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 448);
+
 /* shared-memory atomics must not fall back to a process-local lock */
 #if !defined(__GCC_ATOMIC_LLONG_LOCK_FREE) || __GCC_ATOMIC_LLONG_LOCK_FREE != 2 || \
     !defined(__GCC_ATOMIC_INT_LOCK_FREE) || __GCC_ATOMIC_INT_LOCK_FREE != 2
@@ -118,7 +120,8 @@ static struct mlip_ring_rec *slot(struct mlip_ring *r, uint32_t index)
 	return (struct mlip_ring_rec *)(void *)(r + 1) + (index & r->mask);
 }
 
-mlip_status mlip_ring_format(void *mem, size_t bytes, uint32_t capacity, int n_axes)
+static mlip_status format(void *mem, size_t bytes, uint32_t capacity, int n_axes,
+                          const struct mlip_machine *m)
 {
 	struct mlip_ring *r = mem;
 
@@ -136,8 +139,30 @@ mlip_status mlip_ring_format(void *mem, size_t bytes, uint32_t capacity, int n_a
 	r->hdr_bytes = (uint32_t)sizeof(struct mlip_ring);
 	r->n_axes = (uint32_t)n_axes;
 	r->status.override_pct = 100;
+	if (m != NULL) {
+		r->machine = *m;
+	}
 	ST(&r->magic, ring_magic(), REL);
 	return MLIP_OK;
+}
+
+mlip_status mlip_ring_format(void *mem, size_t bytes, uint32_t capacity, int n_axes)
+{
+	return format(mem, bytes, capacity, n_axes, NULL);
+}
+
+mlip_status mlip_ring_format_machine(void *mem, size_t bytes, uint32_t capacity,
+                                     const struct mlip_machine *m)
+{
+	if (m == NULL) {
+		return MLIP_E_INVALID;
+	}
+	return format(mem, bytes, capacity, m->n_axes, m);
+}
+
+void mlip_ring_machine(const struct mlip_ring *r, struct mlip_machine *out)
+{
+	*out = r->machine; /* immutable once the magic is published */
 }
 
 static mlip_status refuse(struct mlip_ring_mismatch *why, mlip_ring_reason reason,
@@ -358,6 +383,7 @@ mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_
 	}
 	b->feed_mm_s = rec->feed_mm_s;
 	b->tol_mm = rec->tol_mm;
+	b->seq = rec->seq;
 	b->line = rec->line;
 	b->rapid = (rec->flags & MLIP_REC_RAPID) ? 1 : 0;
 	return MLIP_OK;

@@ -228,6 +228,9 @@ int main(int argc, char **argv)
 	if (notes) {
 		mlip_program_print_notices(&prog, path, stderr);
 	}
+	for (size_t i = 0; i < prog.n; i++) {
+		prog.blocks[i].seq = i + 1; /* as mlip-feed numbers ring records */
+	}
 	if (feed > 0.0) {
 		for (size_t i = 0; i < prog.n; i++) {
 			prog.blocks[i].feed_mm_s = feed;

@@ -88,7 +88,7 @@ struct mlip_seg {
 	double vfeed_mm_s;           /* programmed feed in joint units (100 %) */
 	double tol_mm;               /* eps budget of the corner at end[] */
 	uint32_t line;               /* source line */
-	uint32_t seq;                /* push sequence number, from 1 */
+	uint64_t seq;                /* the block's seq (or a push count, from 1) */
 	/* corner at end[], valid once the next segment exists */
 	struct mlip_corner c;
 	double inv_vs2, inv_ve2;     /* 1/v_s^2, 1/v_e^2 at q=1 (0 when v is 0) */
@@ -132,7 +132,7 @@ struct mlip_planner {
 	 * one being executed (its line or its end corner) */
 	uint32_t head, tail;             /* free-running; index & (cap-1) */
 	uint32_t cap;                    /* <= MLIP_LOOKAHEAD, power of two */
-	uint32_t seq;                    /* last pushed sequence number */
+	uint64_t seq;                    /* seq of the newest segment */
 	double override;                 /* feed override, 0..2 */
 	int hold;                        /* feed hold: plan as if override were 0 */
 	int stopping;                    /* stop: hold, then drop the queue at rest */
@@ -150,7 +150,8 @@ struct mlip_planner {
 	double prof_t, prof_s0, prof_len;/* time in it, s at its start, its length */
 	double q_exec;                   /* corner: frozen q of seg[tail]'s end corner */
 	double pos[MLIP_MAX_AXES];       /* last setpoint */
-	uint32_t done_seq, done_line;    /* last completed block */
+	uint64_t done_seq;               /* last completed block */
+	uint32_t done_line;
 	struct mlip_planner_stats stats;
 	struct mlip_seg seg[MLIP_LOOKAHEAD];
 };

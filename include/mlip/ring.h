@@ -15,13 +15,16 @@
  *   192  status     seqlock generation, command reply, struct mlip_ring_status
  *   320  feeder     seqlock generation, struct mlip_ring_feeder
  *   384  mailbox    command sequence, op, argument (written by mlip-ctl)
- *   448  records    capacity x struct mlip_ring_rec (80 bytes each)
+ *   448  machine    the controller's struct mlip_machine, so that a feeder
+ *                   checks programs against exactly the limits in force
+ *   896  records    capacity x struct mlip_ring_rec (80 bytes each)
  *
  * The magic (offset 0) and the version (offset 8) keep their places in every
  * layout version, so any version can tell any other that they differ.
  *
  * Who writes what (everything else only reads):
- *   mlip_ring_format() (controller, before anyone attaches): all of it, once.
+ *   mlip_ring_format() (controller, before anyone attaches): all of it, once,
+ *                                  the machine area included (read-only after).
  *   feeder (the single producer):  head, tail_cache, feeder area, records.
  *   controller (the single consumer, the RT thread): tail, head_cache,
  *                                  status area and command reply.
@@ -60,7 +63,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION 1u       /* bump on any change to the layout below */
+#define MLIP_RING_VERSION 2u       /* bump on any change to the layout below */
 #define MLIP_RING_LINE 64          /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -187,6 +190,9 @@ struct mlip_ring {
 	uint32_t cmd_seq MLIP_RING_ALIGNED; /* even: posted; odd: being written */
 	uint32_t cmd_op;                    /* mlip_ring_cmd_op */
 	int32_t cmd_arg;
+
+	/* machine: written by mlip_ring_format_machine before the magic */
+	struct mlip_machine machine MLIP_RING_ALIGNED;
 };
 
 /* Why an attach (or a format) was refused. */
@@ -233,6 +239,12 @@ mlip_status mlip_ring_format(void *mem, size_t bytes, uint32_t capacity, int n_a
  * return it in *out. n_axes: the coordinates the caller will read or write,
  * or 0 to accept any. MLIP_E_INVALID with *why filled (why may be NULL) on a
  * mismatch; *out is then NULL. */
+/* Format for machine m (n_axes = m->n_axes) and publish m in the segment. */
+mlip_status mlip_ring_format_machine(void *mem, size_t bytes, uint32_t capacity,
+                                     const struct mlip_machine *m);
+/* The machine the controller published (zeroed if plain format was used). */
+void mlip_ring_machine(const struct mlip_ring *r, struct mlip_machine *out);
+
 mlip_status mlip_ring_attach(void *mem, size_t bytes, int n_axes, struct mlip_ring **out,
                              struct mlip_ring_mismatch *why);
 

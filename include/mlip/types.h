@@ -61,6 +61,8 @@ struct mlip_block {
 	                      block: eps, or less inside a chorded arc */
 	uint32_t line;     /* source line, 1-based */
 	uint8_t rapid;     /* G0: runs at the machine's maximum feed */
+	uint64_t seq;      /* caller's sequence number in program order (0: none);
+	                      the planner reports the block it executes by it */
 };
 
 #endif

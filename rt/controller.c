@@ -1,0 +1,240 @@
+/*
+ * controller.c - one period of the real-time controller: commands in, blocks
+ * in, one interpolation step, frames out, status published.
+ *
+ * It drives the planner exactly as mlip-sim does (the ingest rule of
+ * planner.h): a program's records are taken without moving until the
+ * look-ahead is full or the program's END is in (the pre-read, a bounded
+ * number per period), then at most MLIP_INGEST_PER_PERIOD per period before
+ * each step. So the setpoints sent equal the simulator's for the same program
+ * and machine, whatever the timing, as long as the feeder keeps ahead.
+ * Nothing here allocates, prints, locks or blocks.
+ */
+#include <errno.h>
+#include <string.h>
+
+#include "rt.h"
+
+static struct mlip_ring_rec recs[MLIP_PREREAD_PER_PERIOD];
+static struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];
+static struct mlip_can_frame frames[2 * MLIP_MAX_AXES + 2];
+
+int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
+                         const struct mlip_machine *m, const struct mlip_can_config *can,
+                         mlip_strategy st, uint32_t lookahead, struct mlip_ring *ring,
+                         struct mlip_canio *io)
+{
+	memset(c, 0, sizeof(*c));
+	c->planner = p;
+	c->ring = ring;
+	c->can = io;
+	c->m = m;
+	for (int k = 0; k < m->n_axes; k++) {
+		c->pos[k] = m->axis[k].home;
+	}
+	if (mlip_planner_init(p, m, st, lookahead, c->pos) != MLIP_OK) {
+		return -EINVAL;
+	}
+	if (can != NULL && mlip_canenc_init(&c->enc, can, m) != MLIP_OK) {
+		return -EINVAL;
+	}
+	c->state = MLIP_STATE_IDLE;
+	return 0;
+}
+
+static int32_t apply_command(struct mlip_controller *c, const struct mlip_ring_cmd *cmd)
+{
+	struct mlip_planner *p = c->planner;
+	switch (cmd->op) {
+	case MLIP_CMD_OVERRIDE:
+		return mlip_planner_set_override(p, (double)cmd->arg);
+	case MLIP_CMD_HOLD:
+		mlip_planner_hold(p, 1);
+		return MLIP_OK;
+	case MLIP_CMD_RESUME:
+		mlip_planner_hold(p, 0);
+		return MLIP_OK;
+	case MLIP_CMD_STOP:
+		c->stop_request = 1;
+		return MLIP_OK;
+	default:
+		return MLIP_E_INVALID;
+	}
+}
+
+/* Stop: decelerate on the path (the planner's controlled stop) and drop the
+ * rest of the program, up to its END record. */
+static void begin_stop(struct mlip_controller *c)
+{
+	if (c->state == MLIP_STATE_IDLE && mlip_planner_queued(c->planner) == 0 && !c->preread) {
+		return;
+	}
+	mlip_planner_stop(c->planner);
+	c->preread = 0;
+	c->discard = !c->end_seen;
+	c->end_seen = 0;
+	c->state = MLIP_STATE_STOPPING;
+}
+
+/* Take up to max records of the current program: END ends the taking. */
+static void ingest(struct mlip_controller *c, uint32_t max)
+{
+	struct mlip_planner *p = c->planner;
+	uint32_t n = 0;
+	while (n < max && !c->end_seen && mlip_ring_peek(c->ring, &recs[n]) == MLIP_OK) {
+		mlip_ring_pop(c->ring, &recs[n]);
+		c->blocks_consumed++;
+		if (recs[n].flags & MLIP_REC_END) {
+			c->end_seen = 1;
+			c->end_seq = recs[n].seq;
+			c->end_line = recs[n].line;
+			break;
+		}
+		mlip_ring_rec_to_block(&recs[n], &blocks[n]);
+		n++;
+	}
+	if (n > 0) {
+		mlip_planner_push_n(p, blocks, n, NULL);
+	}
+}
+
+/* A stopped program's remaining records: drop them, up to its END. A feeder
+ * that was stopped may never send that END; every program numbers its
+ * records from 1, so a record with seq 1 is the next program: keep it. */
+static void discard(struct mlip_controller *c)
+{
+	struct mlip_ring_rec rec;
+	for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && mlip_ring_peek(c->ring, &rec) == MLIP_OK; i++) {
+		if (rec.seq == 1) {
+			c->discard = 0;
+			break;
+		}
+		mlip_ring_pop(c->ring, &rec);
+		c->blocks_consumed++;
+		if (rec.flags & MLIP_REC_END) {
+			c->discard = 0;
+			break;
+		}
+	}
+}
+
+static void send_frames(struct mlip_controller *c, uint32_t cycle)
+{
+	int n = 0;
+	uint32_t sat = 0;
+	if (mlip_canenc_encode(&c->enc, cycle, c->pos, frames, (int)(sizeof(frames) / sizeof(frames[0])),
+	                       &n, &sat) != MLIP_OK) {
+		/* a position beyond the drive's int32 range: never send it */
+		if (!c->fault) {
+			c->fault = 1;
+			begin_stop(c);
+		}
+		return;
+	}
+	for (int i = 0; i < n; i++) {
+		if (mlip_canio_send(c->can, &frames[i]) == 0) {
+			c->frames_sent++;
+		}
+	}
+}
+
+static void publish(struct mlip_controller *c, const struct mlip_rt_tick *t)
+{
+	const struct mlip_planner *p = c->planner;
+	struct mlip_ring_status s;
+	memset(&s, 0, sizeof(s));
+	s.heartbeat = t->cycle + 1;
+	s.heartbeat_ns = mlip_now_ns();
+	if (mlip_planner_queued(p) > 0 && !c->preread) {
+		const struct mlip_seg *g = &p->seg[p->tail & (p->cap - 1)];
+		s.exec_seq = g->seq;
+		s.exec_line = g->line;
+	} else {
+		s.exec_seq = c->exec_seq;
+		s.exec_line = c->exec_line;
+	}
+	s.state = c->fault ? MLIP_STATE_FAULT : c->state;
+	s.override_pct = (uint32_t)(p->override * 100.0 + 0.5);
+	s.overruns = t->overruns;
+	s.underruns = c->underruns;
+	if (c->can != NULL) {
+		s.can_tx_errors = c->can->tx_dropped;
+		s.can_bus_errors = c->can->bus_errors;
+	}
+	s.frames_sent = c->frames_sent;
+	s.blocks_consumed = c->blocks_consumed;
+	mlip_ring_status_write(c->ring, &s);
+}
+
+int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
+{
+	struct mlip_controller *c = ctx;
+	struct mlip_planner *p = c->planner;
+	struct mlip_ring_cmd cmd;
+
+	c->cycles = t->cycle + 1;
+	if (mlip_ring_cmd_take(c->ring, &cmd) == MLIP_OK) {
+		mlip_ring_cmd_done(c->ring, cmd.seq, apply_command(c, &cmd));
+	}
+	if (c->exit_request && !c->exiting) {
+		c->exiting = 1; /* SIGINT/SIGTERM: a controlled stop, then exit */
+		c->stop_request = 1;
+	}
+	if (c->stop_request) {
+		c->stop_request = 0;
+		begin_stop(c);
+	}
+	if (c->can != NULL) {
+		mlip_canio_poll(c->can);
+	}
+
+	/* blocks in */
+	if (c->discard) {
+		discard(c);
+	} else if (c->state == MLIP_STATE_IDLE && mlip_ring_count(c->ring) > 0) {
+		c->state = MLIP_STATE_RUNNING; /* a new program: pre-read it */
+		c->preread = 1;
+		c->end_seen = 0;
+	}
+	if (c->preread) {
+		uint32_t room = mlip_planner_space(p);
+		ingest(c, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
+		if (mlip_planner_space(p) == 0 || c->end_seen) {
+			c->preread = 0; /* full, or the whole program is in: move */
+		}
+	} else if (c->state == MLIP_STATE_RUNNING || c->state == MLIP_STATE_HELD) {
+		uint32_t room = mlip_planner_space(p);
+		if (!c->end_seen && room > 0 && mlip_ring_count(c->ring) == 0) {
+			c->underruns++; /* the feeder is behind: the plan runs to rest */
+		}
+		ingest(c, room < MLIP_INGEST_PER_PERIOD ? room : MLIP_INGEST_PER_PERIOD);
+	}
+
+	/* one step; the pre-read does not move */
+	if (!c->preread) {
+		mlip_run_state rs = mlip_planner_step(p, c->pos);
+		if (c->state != MLIP_STATE_IDLE && rs == MLIP_RUN_IDLE &&
+		    (c->end_seen || c->state == MLIP_STATE_STOPPING)) {
+			if (c->end_seen) {
+				c->exec_seq = c->end_seq; /* the program is done, at rest */
+				c->exec_line = (uint32_t)c->end_line;
+			} else {
+				c->exec_seq = p->done_seq;
+				c->exec_line = p->done_line;
+			}
+			c->end_seen = 0;
+			c->state = MLIP_STATE_IDLE;
+		} else if (c->state == MLIP_STATE_RUNNING && rs == MLIP_RUN_HELD) {
+			c->state = MLIP_STATE_HELD;
+		} else if (c->state == MLIP_STATE_HELD && rs == MLIP_RUN_MOVING) {
+			c->state = MLIP_STATE_RUNNING;
+		}
+	}
+
+	if (c->can != NULL) {
+		send_frames(c, (uint32_t)t->cycle);
+	}
+	publish(c, t);
+	/* an exit request ends the loop once the machine is at rest */
+	return c->exiting && c->state == MLIP_STATE_IDLE && !c->discard;
+}

@@ -1,0 +1,169 @@
+/*
+ * rt/rt.h - the real-time runtime around the pure core: the POSIX shared
+ * memory segment (ring, status, commands, machine), SocketCAN output, the
+ * periodic SCHED_FIFO loop and the controller that runs in it.
+ *
+ * Functions return 0 or -errno and never print; a `why` buffer, when given,
+ * receives one line a tool can show. Nothing called from the periodic loop
+ * allocates, prints, locks or blocks.
+ */
+#ifndef MLIP_RT_H
+#define MLIP_RT_H
+
+#include <signal.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mlip/canenc.h"
+#include "mlip/config.h"
+#include "mlip/planner.h"
+#include "mlip/ring.h"
+
+#define MLIP_SHM_DEFAULT "/mlip"
+/* A peer whose heartbeat is older than this is dead (feeder <-> controller). */
+#define MLIP_PEER_TIMEOUT_NS 100000000LL
+
+uint64_t mlip_now_ns(void); /* CLOCK_MONOTONIC */
+
+/* ---- shared memory (rt/shm.c) ------------------------------------------ */
+
+struct mlip_shm {
+	struct mlip_ring *ring;
+	void *mem;
+	size_t bytes;
+	int fd;
+	int owner; /* created by us: unlinked on close */
+	char name[64];
+};
+
+/* Controller side: create (or take over a stale) segment `name` for machine m
+ * with `capacity` records, formatted, locked in memory. Refuses (-EBUSY)
+ * when a live controller already runs on it. */
+int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
+                    const struct mlip_machine *m, char *why, size_t why_len);
+/* Feeder/ctl side: attach to an existing segment, checking magic, layout
+ * version and sizes (-ENOENT: no segment; -EPROTO: layout mismatch). */
+int mlip_shm_attach(struct mlip_shm *s, const char *name, char *why, size_t why_len);
+void mlip_shm_close(struct mlip_shm *s);
+/* 1 when the controller's heartbeat is younger than max_age_ns. */
+int mlip_shm_controller_alive(const struct mlip_ring *r, int64_t max_age_ns);
+
+/* ---- CAN (rt/canio.c) ---------------------------------------------------- */
+
+struct mlip_canio {
+	int fd;
+	int fd_frames;   /* CAN FD enabled on the socket */
+	char ifname[16];
+	/* counters, updated by send/poll */
+	uint64_t tx_ok, tx_dropped;  /* dropped: ENOBUFS / EAGAIN, never waited on */
+	uint64_t bus_errors;         /* error frames received */
+	int bus_off;                 /* an error frame reported bus-off */
+};
+
+/* Check the interface with libsocketcan outside the loop: exists, is up, its
+ * state when the driver reports one (vcan does not). *info gets a line. */
+int mlip_canio_check(const char *ifname, char *info, size_t info_len);
+/* Raw socket bound to ifname, non-blocking, receiving error frames only. */
+int mlip_canio_open(struct mlip_canio *io, const char *ifname, int fd_frames, char *why,
+                    size_t why_len);
+/* Send one frame without waiting: 0, -EAGAIN/-ENOBUFS (counted in
+ * tx_dropped), or another -errno. */
+int mlip_canio_send(struct mlip_canio *io, const struct mlip_can_frame *f);
+/* Read pending error frames without waiting; returns how many. */
+int mlip_canio_poll(struct mlip_canio *io);
+/* Restart after bus-off where the driver supports it (-EOPNOTSUPP on vcan). */
+int mlip_canio_restart(const char *ifname);
+void mlip_canio_close(struct mlip_canio *io);
+
+/* ---- the periodic loop (rt/rtloop.c) ------------------------------------- */
+
+struct mlip_rt_opts {
+	int64_t period_ns;
+	int priority;    /* SCHED_FIFO priority 1..99; 0: SCHED_OTHER */
+	int cpu;         /* pin the thread to this CPU; -1: no pinning */
+	int lock_memory; /* mlockall + prefault */
+};
+
+/* What one wake-up looked like; passed to the period's work. */
+struct mlip_rt_tick {
+	uint64_t cycle;          /* 0, 1, 2, ... one per wake-up */
+	uint64_t deadline_ns;    /* the scheduled wake-up (absolute, monotonic) */
+	int64_t latency_ns;      /* actual wake - scheduled, >= 0 */
+	int64_t interval_ns;     /* actual wake - previous actual wake (0 first) */
+	uint64_t overruns;       /* periods missed or overrun so far */
+};
+
+/* The period's work: return 0 to go on, non-zero to end the loop. */
+typedef int (*mlip_rt_fn)(void *ctx, const struct mlip_rt_tick *t);
+/* Called after each period's work with its compute time (for statistics). */
+typedef void (*mlip_rt_after_fn)(void *ctx, const struct mlip_rt_tick *t, int64_t compute_ns);
+
+struct mlip_rt_report {
+	int fifo;          /* the thread really runs SCHED_FIFO */
+	int locked;        /* mlockall succeeded */
+	int pinned;        /* CPU affinity set */
+	char warnings[512];/* what is not real-time and what to change, one per line */
+};
+
+/* Lock memory and prefault (call before creating the loop). */
+int mlip_rt_prepare(const struct mlip_rt_opts *o, struct mlip_rt_report *rep);
+/* Run fn every period in a new thread (SCHED_FIFO when permitted, else a
+ * warning and SCHED_OTHER) on an absolute CLOCK_MONOTONIC schedule, until fn
+ * returns non-zero or mlip_rt_request_stop(); then join. A wake-up after the
+ * next deadline counts as an overrun and the schedule skips ahead: one call
+ * of fn per wake-up, never a burst. */
+int mlip_rt_run(const struct mlip_rt_opts *o, mlip_rt_fn fn, mlip_rt_after_fn after, void *ctx,
+                struct mlip_rt_report *rep);
+/* Async-signal-safe: ask the loop to end after the current period. */
+void mlip_rt_request_stop(void);
+int mlip_rt_stop_requested(void);
+
+/* ---- the controller (rt/controller.c) ------------------------------------ */
+
+/* Program life on the controller:
+ *   IDLE      ring empty; the machine at rest where the last program left it
+ *   (pre-read) records arrive: take them (up to MLIP_PREREAD_PER_PERIOD a
+ *             period) without moving until the look-ahead is full or the END
+ *             record is in, as mlip-sim does; status says RUNNING
+ *   RUNNING   each period: at most MLIP_INGEST_PER_PERIOD records, one step,
+ *             frames out; END taken and planner idle -> IDLE, exec_seq = END
+ *   HELD      feed hold (command or override 0) and at rest on the path
+ *   STOPPING  stop (command or signal): decelerate on the path, drop the rest
+ *             of the program (records up to its END), then IDLE
+ */
+#define MLIP_PREREAD_PER_PERIOD 512
+
+struct mlip_controller {
+	/* wiring */
+	struct mlip_planner *planner;      /* static storage, prefaulted */
+	struct mlip_ring *ring;
+	struct mlip_canio *can;            /* NULL: compute only (latency --plan) */
+	struct mlip_canenc enc;
+	const struct mlip_machine *m;
+	/* program state */
+	uint32_t state;                    /* mlip_ring_state */
+	int preread;                       /* taking records before moving */
+	int end_seen;                      /* END record of the program taken */
+	uint64_t end_seq, end_line;
+	int discard;                       /* dropping a stopped program's records */
+	int stop_request;                  /* STOP command taken: stop the program */
+	volatile sig_atomic_t exit_request;/* SIGINT/SIGTERM: stop, then end the loop */
+	int exiting;
+	uint64_t exec_seq;                 /* last record whose motion is done */
+	uint32_t exec_line;
+	/* counters (published in the status area) */
+	uint64_t overruns, underruns, frames_sent, blocks_consumed;
+	uint64_t cycles;
+	double pos[MLIP_MAX_AXES];
+	int fault;                         /* encode refused a position: stopped */
+};
+
+int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
+                         const struct mlip_machine *m, const struct mlip_can_config *can,
+                         mlip_strategy st, uint32_t lookahead, struct mlip_ring *ring,
+                         struct mlip_canio *io);
+/* The period's work (an mlip_rt_fn): commands, ingest, one step, frames,
+ * status. Returns non-zero when a requested stop has completed. */
+int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t);
+
+#endif

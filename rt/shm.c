@@ -1,0 +1,398 @@
+/*
+ * shm.c - the POSIX shared-memory segment that carries the ring, the status,
+ * feeder and command areas and the machine (mlip/ring.h), and the monotonic
+ * clock every process stamps its heartbeat with.
+ *
+ * Who may own the segment: one controller per name. Two guards, both needed:
+ *   - flock(LOCK_EX) on the segment, held by the controller for its lifetime
+ *     and dropped by the kernel when it dies: it covers the start-up window
+ *     (segment formatted, no heartbeat yet) and a controller that is alive
+ *     but stalled (SIGSTOP, debugger), which must not be reformatted under.
+ *   - the status heartbeat: a controller that beats is alive even if it were
+ *     built without the lock.
+ * A segment that passes both (no lock, heartbeat older than
+ * MLIP_PEER_TIMEOUT_NS or never set) belongs to a dead controller and is
+ * taken over: same object, truncated to the new size and reformatted.
+ *
+ * The owner unlinks the name before closing its descriptor, so the name is
+ * never removed from under a successor that took the lock in between.
+ *
+ * Returns 0 or -errno; messages go to the caller's `why` buffer, never to
+ * stdio (STYLE rule 5).
+ */
+#include "rt.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <inttypes.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/file.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+uint64_t mlip_now_ns(void)
+{
+	struct timespec ts;
+
+	clock_gettime(CLOCK_MONOTONIC, &ts); /* cannot fail for this clock */
+	return (uint64_t)ts.tv_sec * 1000000000ull + (uint64_t)ts.tv_nsec;
+}
+
+static int say(char *why, size_t len, int rc, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+
+/* Fill why (may be NULL) and return rc, so error paths are one line. */
+static int say(char *why, size_t len, int rc, const char *fmt, ...)
+{
+	va_list ap;
+
+	if (why != NULL && len > 0) {
+		va_start(ap, fmt);
+		vsnprintf(why, len, fmt, ap);
+		va_end(ap);
+	}
+	return rc;
+}
+
+static void shm_reset(struct mlip_shm *s)
+{
+	memset(s, 0, sizeof(*s));
+	s->fd = -1;
+}
+
+/* POSIX leaves names without a leading '/' or with a second '/'
+ * implementation-defined; accept only the portable form "/name". */
+static int name_ok(const char *name)
+{
+	size_t n;
+
+	if (name == NULL || name[0] != '/' || strchr(name + 1, '/') != NULL) {
+		return 0;
+	}
+	n = strlen(name);
+	return n > 1 && n < sizeof(((struct mlip_shm *)0)->name);
+}
+
+/* Age of a heartbeat in ns; -1 when there has never been one. */
+static int64_t heartbeat_age_ns(uint64_t hb_ns)
+{
+	uint64_t now = mlip_now_ns();
+
+	if (hb_ns == 0) {
+		return -1;
+	}
+	return now > hb_ns ? (int64_t)(now - hb_ns) : 0;
+}
+
+int mlip_shm_controller_alive(const struct mlip_ring *r, int64_t max_age_ns)
+{
+	struct mlip_ring_status st;
+	int64_t age;
+
+	if (r == NULL || mlip_ring_status_read(r, &st) != MLIP_OK) {
+		return 0; /* no consistent status: died mid-update */
+	}
+	age = heartbeat_age_ns(st.heartbeat_ns); /* clock read after the status */
+	return age >= 0 && age < max_age_ns;
+}
+
+/* What an existing object under our name holds, before we take it. */
+enum existing { EX_EMPTY, EX_OURS_DEAD, EX_OURS_ALIVE, EX_FOREIGN };
+
+static enum existing inspect(int fd, int64_t *age_ns, uint64_t *magic)
+{
+	struct stat sb;
+	struct mlip_ring *r;
+	struct mlip_ring_mismatch mm;
+	struct mlip_ring_status st;
+	enum existing ex = EX_OURS_DEAD;
+	void *mem;
+	size_t bytes;
+
+	*age_ns = -1;
+	*magic = 0;
+	if (fstat(fd, &sb) != 0 || sb.st_size <= 0) {
+		return EX_EMPTY; /* just created, or a creator died before ftruncate */
+	}
+	bytes = (size_t)sb.st_size;
+	mem = mmap(NULL, bytes, PROT_READ, MAP_SHARED, fd, 0);
+	if (mem == MAP_FAILED) {
+		return EX_OURS_DEAD;
+	}
+	if (mlip_ring_attach(mem, bytes, 0, &r, &mm) == MLIP_OK) {
+		if (mlip_ring_status_read(r, &st) == MLIP_OK) {
+			*age_ns = heartbeat_age_ns(st.heartbeat_ns);
+			if (*age_ns >= 0 && *age_ns < MLIP_PEER_TIMEOUT_NS) {
+				ex = EX_OURS_ALIVE;
+			}
+		}
+	} else if (mm.reason == MLIP_RING_BAD_MAGIC && mm.found != 0) {
+		/* not zero (a format in progress or never done) and not ours:
+		 * some other program's object, never overwrite it */
+		*magic = mm.found;
+		ex = EX_FOREIGN;
+	}
+	/* another mlip version, a short or half-formatted segment: a dead
+	 * controller's (whoever held it would hold the lock) */
+	munmap(mem, bytes);
+	return ex;
+}
+
+/* Touch every page so the RT thread never takes a first-touch fault. Reads
+ * would map shared zero pages on some kernels; write back what is there. */
+static void prefault(void *mem, size_t bytes)
+{
+	volatile unsigned char *p = mem;
+	long page = sysconf(_SC_PAGESIZE);
+	size_t step = page > 0 ? (size_t)page : 4096u;
+	size_t i;
+
+	for (i = 0; i < bytes; i += step) {
+		p[i] = p[i];
+	}
+}
+
+int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
+                    const struct mlip_machine *m, char *why, size_t why_len)
+{
+	size_t bytes = mlip_ring_bytes(capacity);
+	struct mlip_ring_mismatch mm;
+	enum existing ex;
+	int64_t age;
+	uint64_t magic;
+	void *mem;
+	int rc, flags = MAP_SHARED;
+
+	if (s == NULL) {
+		return say(why, why_len, -EINVAL, "no shm handle");
+	}
+	shm_reset(s);
+	if (!name_ok(name)) {
+		return say(why, why_len, -EINVAL,
+		           "shm name '%s' must be '/' followed by 1..62 characters without '/'",
+		           name ? name : "(null)");
+	}
+	if (bytes == 0) {
+		return say(why, why_len, -EINVAL,
+		           "ring capacity %" PRIu32 " must be a power of two in 1..%u", capacity,
+		           MLIP_RING_MAX_CAPACITY);
+	}
+	if (m == NULL || m->n_axes < 1 || m->n_axes > MLIP_MAX_AXES) {
+		return say(why, why_len, -EINVAL, "no machine, or %d axes (1..%d)",
+		           m ? m->n_axes : 0, MLIP_MAX_AXES);
+	}
+	strcpy(s->name, name);
+
+	s->fd = shm_open(name, O_CREAT | O_RDWR, 0660);
+	if (s->fd < 0) {
+		rc = -errno;
+		shm_reset(s);
+		if (rc == -EACCES) {
+			return say(why, why_len, rc,
+			           "%s: permission denied: it belongs to another user (see ls -l "
+			           "/dev/shm%s; remove it if no mlip-rt runs)",
+			           name, name);
+		}
+		return say(why, why_len, rc, "shm_open %s: %s", name, strerror(-rc));
+	}
+	if (flock(s->fd, LOCK_EX | LOCK_NB) != 0) {
+		rc = errno == EWOULDBLOCK ? -EBUSY : -errno;
+		inspect(s->fd, &age, &magic);
+		close(s->fd);
+		shm_reset(s);
+		if (rc != -EBUSY) {
+			return say(why, why_len, rc, "flock %s: %s", name, strerror(-rc));
+		}
+		if (age < 0) {
+			return say(why, why_len, rc,
+			           "a controller process holds %s (starting, no heartbeat yet): "
+			           "stop that mlip-rt first",
+			           name);
+		}
+		return say(why, why_len, rc,
+		           "a controller process holds %s (last heartbeat %.1f ms ago): "
+		           "stop that mlip-rt first",
+		           name, (double)age / 1e6);
+	}
+	ex = inspect(s->fd, &age, &magic);
+	if (ex == EX_OURS_ALIVE) {
+		close(s->fd);
+		shm_reset(s);
+		return say(why, why_len, -EBUSY,
+		           "a controller is already running on %s (heartbeat %.1f ms ago): "
+		           "stop it first (its pid is not in the segment: see pgrep mlip-rt)",
+		           name, (double)age / 1e6);
+	}
+	if (ex == EX_FOREIGN) {
+		close(s->fd);
+		shm_reset(s);
+		return say(why, why_len, -EEXIST,
+		           "%s exists and is not an mlip segment (magic 0x%016" PRIx64
+		           "): choose another --shm name, or remove /dev/shm%s if it is stale",
+		           name, magic, name);
+	}
+	/* the group may feed and control: umask must not take that away */
+	(void)fchmod(s->fd, 0660);
+	if (ftruncate(s->fd, (off_t)bytes) != 0) {
+		rc = -errno;
+		goto fail;
+	}
+#ifdef MAP_POPULATE
+	flags |= MAP_POPULATE; /* prefault in the kernel; the loop below is the portable way */
+#endif
+	mem = mmap(NULL, bytes, PROT_READ | PROT_WRITE, flags, s->fd, 0);
+	if (mem == MAP_FAILED) {
+		rc = -errno;
+		goto fail;
+	}
+	s->mem = mem;
+	s->bytes = bytes;
+	prefault(mem, bytes);
+	/* mmap returns page-aligned memory, so MLIP_RING_LINE alignment holds */
+	if (mlip_ring_format_machine(mem, bytes, capacity, m) != MLIP_OK ||
+	    mlip_ring_attach(mem, bytes, m->n_axes, &s->ring, &mm) != MLIP_OK) {
+		rc = -EINVAL;
+		munmap(mem, bytes);
+		shm_unlink(name);
+		close(s->fd);
+		shm_reset(s);
+		return say(why, why_len, rc, "cannot format %s for %d axes", name, m->n_axes);
+	}
+	s->owner = 1;
+	return 0;
+fail:
+	if (s->mem != NULL) {
+		munmap(s->mem, s->bytes);
+	}
+	shm_unlink(name); /* ours now (we hold the lock); leave nothing half-made */
+	close(s->fd);
+	shm_reset(s);
+	return say(why, why_len, rc, "%s: %s%s", name, strerror(-rc),
+	           rc == -ENOSPC || rc == -ENOMEM ? " (is /dev/shm full?)" : "");
+}
+
+/* One line for a refused attach (mismatch from mlip_ring_attach). */
+static int attach_refused(const char *name, const struct mlip_ring_mismatch *mm, char *why,
+                          size_t len)
+{
+	const char *what = mlip_ring_reason_str(mm->reason);
+	unsigned long long found = mm->found, expected = mm->expected;
+
+	switch (mm->reason) {
+	case MLIP_RING_BAD_MAGIC:
+		if (found == 0) {
+			return say(why, len, -EAGAIN,
+			           "segment %s is not formatted yet: mlip-rt is starting (or died "
+			           "while starting); try again",
+			           name);
+		}
+		return say(why, len, -EPROTO,
+		           "%s is not an mlip segment (magic 0x%016llx): wrong --shm name?", name,
+		           found);
+	case MLIP_RING_SHORT:
+		return say(why, len, -EAGAIN,
+		           "segment %s is %llu bytes, not even a header (%llu): mlip-rt is "
+		           "starting (or died while starting); try again",
+		           name, found, expected);
+	case MLIP_RING_BAD_VERSION:
+		return say(why, len, -EPROTO,
+		           "segment %s has layout version %llu, this program speaks %llu: "
+		           "restart mlip-rt from the same build",
+		           name, found, expected);
+	case MLIP_RING_TRUNCATED:
+		return say(why, len, -EPROTO,
+		           "segment %s is %llu bytes, its header needs %llu: damaged segment; "
+		           "restart mlip-rt",
+		           name, found, expected);
+	default:
+		return say(why, len, -EPROTO,
+		           "segment %s has %s %llu, this program expects %llu: restart mlip-rt "
+		           "from the same build",
+		           name, what, found, expected);
+	}
+}
+
+int mlip_shm_attach(struct mlip_shm *s, const char *name, char *why, size_t why_len)
+{
+	struct mlip_ring_mismatch mm;
+	struct stat sb;
+	void *mem;
+	size_t bytes;
+	int rc;
+
+	if (s == NULL) {
+		return say(why, why_len, -EINVAL, "no shm handle");
+	}
+	shm_reset(s);
+	if (!name_ok(name)) {
+		return say(why, why_len, -EINVAL,
+		           "shm name '%s' must be '/' followed by 1..62 characters without '/'",
+		           name ? name : "(null)");
+	}
+	strcpy(s->name, name);
+	s->fd = shm_open(name, O_RDWR, 0);
+	if (s->fd < 0) {
+		rc = -errno;
+		shm_reset(s);
+		if (rc == -ENOENT) {
+			return say(why, why_len, rc, "no controller segment %s: is mlip-rt running?",
+			           name);
+		}
+		if (rc == -EACCES) {
+			return say(why, why_len, rc,
+			           "%s: permission denied: run as mlip-rt's user or group "
+			           "(see ls -l /dev/shm%s)",
+			           name, name);
+		}
+		return say(why, why_len, rc, "shm_open %s: %s", name, strerror(-rc));
+	}
+	if (fstat(s->fd, &sb) != 0) {
+		rc = -errno;
+		goto fail;
+	}
+	if ((uint64_t)sb.st_size < sizeof(struct mlip_ring)) {
+		mm.reason = MLIP_RING_SHORT;
+		mm.found = (uint64_t)sb.st_size;
+		mm.expected = sizeof(struct mlip_ring);
+		close(s->fd);
+		shm_reset(s);
+		return attach_refused(name, &mm, why, why_len);
+	}
+	bytes = (size_t)sb.st_size;
+	mem = mmap(NULL, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, s->fd, 0);
+	if (mem == MAP_FAILED) {
+		rc = -errno;
+		goto fail;
+	}
+	if (mlip_ring_attach(mem, bytes, 0, &s->ring, &mm) != MLIP_OK) {
+		munmap(mem, bytes);
+		close(s->fd);
+		shm_reset(s);
+		return attach_refused(name, &mm, why, why_len);
+	}
+	s->mem = mem;
+	s->bytes = bytes;
+	return 0;
+fail:
+	close(s->fd);
+	shm_reset(s);
+	return say(why, why_len, rc, "%s: %s", name, strerror(-rc));
+}
+
+void mlip_shm_close(struct mlip_shm *s)
+{
+	/* only a handle that create/attach filled: a zeroed struct has fd 0 */
+	if (s == NULL || s->mem == NULL) {
+		return;
+	}
+	if (s->owner) {
+		shm_unlink(s->name); /* while we still hold the lock, see the header */
+	}
+	munmap(s->mem, s->bytes);
+	close(s->fd);
+	shm_reset(s);
+}

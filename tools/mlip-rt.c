@@ -1,0 +1,239 @@
+/*
+ * mlip-rt - the controller: G-code blocks come in through a shared-memory
+ * ring (mlip-feed), axis setpoints go out as CAN frames, every period, from
+ * one SCHED_FIFO thread. Start-up does everything that may fail or block:
+ * config, bus-load budget, CAN interface, shared memory, memory locking.
+ */
+#include <errno.h>
+#include <getopt.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "confload.h"
+#include "mlip/canenc.h"
+#include "rt.h"
+
+#define PROG "mlip-rt"
+#define MAX_BUS_LOAD 0.70
+
+static struct mlip_planner planner; /* static: locked and prefaulted with the rest */
+static struct mlip_controller ctl;
+
+static void on_signal(int sig)
+{
+	(void)sig;
+	ctl.exit_request = 1; /* a controlled stop on the path, then exit 0 */
+}
+
+static void usage(FILE *f)
+{
+	fprintf(f,
+	        "usage: " PROG " --config FILE --can IFACE [options]\n"
+	        "Run the controller: blocks from the shared-memory ring, setpoints to CAN.\n\n"
+	        "  --config FILE       machine INI (axes, limits, [CAN] section)\n"
+	        "  --can IFACE         SocketCAN interface, e.g. can0 or vcan0; 'none': no CAN\n"
+	        "                      output (the ring, planner and commands only: for trials)\n"
+	        "  --profile P         cia402 (default), packed or fd (overrides [CAN] PROFILE)\n"
+	        "  --bitrate BPS       bus bit rate for the load budget (default [CAN] BITRATE;\n"
+	        "                      vcan has none, so the configured one is used)\n"
+	        "  --shm NAME          shared-memory segment (default %s)\n"
+	        "  --priority N        SCHED_FIFO priority 1..99 (default 80; 0: SCHED_OTHER)\n"
+	        "  --cpu N             pin the loop to CPU N (default: no pinning)\n"
+	        "  --strategy S        mpct (default), bisector or stop\n"
+	        "  --capacity N        ring records, power of two (default %u)\n"
+	        "  -h, --help\n",
+	        MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY);
+}
+
+static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
+{
+	struct mlip_can_load l;
+	if (mlip_can_load_breakdown(prof, cfg->machine.n_axes, cfg->can.bitrate, cfg->can.data_bitrate,
+	                            cfg->machine.period_s, &l) != MLIP_OK) {
+		fprintf(stderr, PROG ": cannot compute the bus load for this profile\n");
+		return -1;
+	}
+	fprintf(stderr,
+	        PROG ": bus load %.1f %% (%s, %d frames per %.3f ms period, %.0f us of %u bit/s)\n",
+	        l.load * 100.0, mlip_can_profile_name(prof), l.frames, cfg->machine.period_s * 1e3,
+	        l.busy_s * 1e6, cfg->can.bitrate);
+	if (l.load > MAX_BUS_LOAD) {
+		fprintf(stderr,
+		        PROG ": refusing: %.1f %% is above the %.0f %% budget; use a faster bit rate, "
+		        "the packed or fd profile, or a longer period\n",
+		        l.load * 100.0, MAX_BUS_LOAD * 100.0);
+		return -1;
+	}
+	return 0;
+}
+
+int main(int argc, char **argv)
+{
+	const char *config = NULL, *iface = NULL, *shm_name = MLIP_SHM_DEFAULT;
+	const char *profile = NULL, *strategy = "mpct";
+	double bitrate = 0.0, v;
+	struct mlip_rt_opts ro = {.priority = 80, .cpu = -1, .lock_memory = 1};
+	unsigned long capacity = MLIP_RING_CAPACITY;
+
+	static const struct option opts[] = {
+		{"config", required_argument, 0, 'c'},   {"can", required_argument, 0, 'i'},
+		{"profile", required_argument, 0, 'P'},  {"bitrate", required_argument, 0, 'b'},
+		{"shm", required_argument, 0, 's'},      {"priority", required_argument, 0, 'p'},
+		{"cpu", required_argument, 0, 'C'},      {"strategy", required_argument, 0, 'S'},
+		{"capacity", required_argument, 0, 'n'}, {"help", no_argument, 0, 'h'},
+		{0, 0, 0, 0}};
+	int c;
+	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
+		switch (c) {
+		case 'c':
+			config = optarg;
+			break;
+		case 'i':
+			iface = optarg;
+			break;
+		case 'P':
+			profile = optarg;
+			break;
+		case 'b':
+			if (mlip_cli_number(optarg, &bitrate) != 0 || bitrate < 10000 || bitrate > 1e6) {
+				fprintf(stderr, PROG ": --bitrate: '%s' is not 10000..1000000 bit/s\n", optarg);
+				return 2;
+			}
+			break;
+		case 's':
+			shm_name = optarg;
+			break;
+		case 'p':
+			if (mlip_cli_number(optarg, &v) != 0 || v < 0 || v > 99) {
+				fprintf(stderr, PROG ": --priority: '%s' is not 0..99\n", optarg);
+				return 2;
+			}
+			ro.priority = (int)v;
+			break;
+		case 'C':
+			if (mlip_cli_number(optarg, &v) != 0 || v < 0) {
+				fprintf(stderr, PROG ": --cpu: '%s' is not a CPU number\n", optarg);
+				return 2;
+			}
+			ro.cpu = (int)v;
+			break;
+		case 'S':
+			strategy = optarg;
+			break;
+		case 'n':
+			capacity = strtoul(optarg, NULL, 0);
+			break;
+		case 'h':
+			usage(stdout);
+			return 0;
+		default:
+			usage(stderr);
+			return 2;
+		}
+	}
+	if (config == NULL || iface == NULL || optind != argc) {
+		usage(stderr);
+		return 2;
+	}
+	int st = mlip_cli_strategy(strategy);
+	if (st < 0) {
+		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop\n", strategy);
+		return 2;
+	}
+	if (mlip_ring_bytes((uint32_t)capacity) == 0) {
+		fprintf(stderr, PROG ": --capacity: %lu is not a power of two\n", capacity);
+		return 2;
+	}
+
+	static struct mlip_config cfg;
+	if (mlip_config_load(config, &cfg, stderr) != 0) {
+		return 1;
+	}
+	mlip_can_profile prof;
+	if (profile != NULL) {
+		if (mlip_can_profile_parse(profile, &prof) != MLIP_OK) {
+			fprintf(stderr, PROG ": --profile: '%s' is not cia402, packed or fd\n", profile);
+			return 2;
+		}
+		snprintf(cfg.can.profile, sizeof(cfg.can.profile), "%s", profile);
+	} else if (mlip_can_profile_parse(cfg.can.profile, &prof) != MLIP_OK) {
+		prof = MLIP_CAN_CIA402;
+	}
+	if (bitrate > 0) {
+		cfg.can.bitrate = (uint32_t)bitrate;
+	}
+	int use_can = strcmp(iface, "none") != 0;
+	if (use_can && bus_budget(&cfg, prof) != 0) {
+		return 1;
+	}
+
+	char info[256];
+	static struct mlip_canio io = {.fd = -1};
+	if (use_can) {
+		if (mlip_canio_check(iface, info, sizeof(info)) != 0) {
+			fprintf(stderr, PROG ": %s\n", info);
+			return 1;
+		}
+		fprintf(stderr, PROG ": %s\n", info);
+		if (mlip_canio_open(&io, iface, prof == MLIP_CAN_FD, info, sizeof(info)) != 0) {
+			fprintf(stderr, PROG ": %s\n", info);
+			return 1;
+		}
+	} else {
+		fprintf(stderr, PROG ": no CAN output (--can none): setpoints are computed, not sent\n");
+	}
+
+	ro.period_ns = (int64_t)(cfg.machine.period_s * 1e9 + 0.5);
+	struct mlip_rt_report rep;
+	mlip_rt_prepare(&ro, &rep);
+	if (rep.warnings[0]) {
+		fprintf(stderr, "%s", rep.warnings);
+	}
+
+	static struct mlip_shm shm;
+	if (mlip_shm_create(&shm, shm_name, (uint32_t)capacity, &cfg.machine, info, sizeof(info)) != 0) {
+		fprintf(stderr, PROG ": %s\n", info);
+		mlip_canio_close(&io);
+		return 1;
+	}
+	if (mlip_controller_init(&ctl, &planner, &cfg.machine, &cfg.can, (mlip_strategy)st,
+	                         cfg.lookahead, shm.ring, use_can ? &io : NULL) != 0) {
+		fprintf(stderr, PROG ": the [CAN] settings do not fit this machine (node ids, ids)\n");
+		mlip_shm_close(&shm);
+		return 1;
+	}
+	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead */
+
+	struct sigaction sa;
+	memset(&sa, 0, sizeof(sa));
+	sa.sa_handler = on_signal;
+	sigemptyset(&sa.sa_mask);
+	sigaction(SIGINT, &sa, NULL);
+	sigaction(SIGTERM, &sa, NULL);
+
+	fprintf(stderr, PROG ": ready on %s, segment %s, period %.3f ms, %s, priority %d%s\n", iface,
+	        shm_name, cfg.machine.period_s * 1e3, mlip_can_profile_name(prof), ro.priority,
+	        rep.locked ? ", memory locked" : "");
+	struct mlip_rt_report run;
+	memset(&run, 0, sizeof(run));
+	int rc = mlip_rt_run(&ro, mlip_controller_tick, NULL, &ctl, &run);
+	if (rc < 0) {
+		fprintf(stderr, PROG ": cannot start the loop: %s\n", strerror(-rc));
+	}
+
+	struct mlip_ring_status s;
+	mlip_ring_status_read(shm.ring, &s);
+	fprintf(stderr,
+	        PROG ": stopped after %llu periods: %llu frames sent, %llu dropped (tx queue), "
+	        "%llu bus errors, %llu overruns, %llu underruns, %llu records taken; last line %u\n",
+	        (unsigned long long)ctl.cycles, (unsigned long long)ctl.frames_sent,
+	        (unsigned long long)io.tx_dropped, (unsigned long long)io.bus_errors,
+	        (unsigned long long)s.overruns, (unsigned long long)ctl.underruns,
+	        (unsigned long long)ctl.blocks_consumed, (unsigned)s.exec_line);
+	mlip_shm_close(&shm);
+	mlip_canio_close(&io);
+	return rc < 0 ? 1 : 0;
+}
