@@ -12,6 +12,7 @@
  */
 #include <errno.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "rt.h"
 
@@ -39,6 +40,7 @@ int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
 		return -EINVAL;
 	}
 	c->state = MLIP_STATE_IDLE;
+	c->pid = (uint32_t)getpid();
 	return 0;
 }
 
@@ -67,6 +69,8 @@ static int32_t apply_command(struct mlip_controller *c, const struct mlip_ring_c
 static void begin_stop(struct mlip_controller *c)
 {
 	if (c->state == MLIP_STATE_IDLE && mlip_planner_queued(c->planner) == 0 && !c->preread) {
+		/* nothing moving; a program already waiting in the ring is dropped */
+		c->discard = mlip_ring_count(c->ring) > 0;
 		return;
 	}
 	mlip_planner_stop(c->planner);
@@ -104,6 +108,12 @@ static void ingest(struct mlip_controller *c, uint32_t max)
 static void discard(struct mlip_controller *c)
 {
 	struct mlip_ring_rec rec;
+	struct mlip_ring_feeder f;
+	if (mlip_ring_count(c->ring) == 0 && mlip_ring_feeder_read(c->ring, &f) == MLIP_OK &&
+	    (f.pid == 0 || (int64_t)(mlip_now_ns() - f.heartbeat_ns) > MLIP_PEER_TIMEOUT_NS)) {
+		c->discard = 0; /* the stopped program's feeder is gone: nothing more will come */
+		return;
+	}
 	for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && mlip_ring_peek(c->ring, &rec) == MLIP_OK; i++) {
 		if (rec.seq == 1) {
 			c->discard = 0;
@@ -154,6 +164,7 @@ static void publish(struct mlip_controller *c, const struct mlip_rt_tick *t)
 		s.exec_line = c->exec_line;
 	}
 	s.state = c->fault ? MLIP_STATE_FAULT : c->state;
+	s.reserved = c->pid; /* who the controller is, for refusals and status */
 	s.override_pct = (uint32_t)(p->override * 100.0 + 0.5);
 	s.overruns = t->overruns;
 	s.underruns = c->underruns;
@@ -195,6 +206,8 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 		c->state = MLIP_STATE_RUNNING; /* a new program: pre-read it */
 		c->preread = 1;
 		c->end_seen = 0;
+		c->exec_seq = 0;
+		c->exec_line = 0;
 	}
 	if (c->preread) {
 		uint32_t room = mlip_planner_space(p);

@@ -156,6 +156,7 @@ struct mlip_controller {
 	uint64_t cycles;
 	double pos[MLIP_MAX_AXES];
 	int fault;                         /* encode refused a position: stopped */
+	uint32_t pid;                      /* published as status.reserved */
 };
 
 int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,

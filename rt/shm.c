@@ -142,8 +142,9 @@ static enum existing inspect(int fd, int64_t *age_ns, uint64_t *magic)
 	return ex;
 }
 
-/* Touch every page so the RT thread never takes a first-touch fault. Reads
- * would map shared zero pages on some kernels; write back what is there. */
+/* Write every page (with what is there) so each one is allocated and mapped
+ * writable now: the RT thread must never take a page fault on its first
+ * status write or record read. */
 static void prefault(void *mem, size_t bytes)
 {
 	volatile unsigned char *p = mem;
@@ -213,10 +214,12 @@ int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
 			           "stop that mlip-rt first",
 			           name);
 		}
+		/* alive but not beating: stopped (SIGSTOP, debugger) or stuck */
 		return say(why, why_len, rc,
-		           "a controller process holds %s (last heartbeat %.1f ms ago): "
+		           "a controller process holds %s (last heartbeat %.1f %s ago): "
 		           "stop that mlip-rt first",
-		           name, (double)age / 1e6);
+		           name, age < 10000000000LL ? (double)age / 1e6 : (double)age / 1e9,
+		           age < 10000000000LL ? "ms" : "s");
 	}
 	ex = inspect(s->fd, &age, &magic);
 	if (ex == EX_OURS_ALIVE) {
@@ -339,8 +342,8 @@ int mlip_shm_attach(struct mlip_shm *s, const char *name, char *why, size_t why_
 		rc = -errno;
 		shm_reset(s);
 		if (rc == -ENOENT) {
-			return say(why, why_len, rc, "no controller segment %s: is mlip-rt running?",
-			           name);
+			return say(why, why_len, rc,
+			           "no controller segment %s: is mlip-rt running?", name);
 		}
 		if (rc == -EACCES) {
 			return say(why, why_len, rc,

@@ -114,7 +114,7 @@ struct mlip_ring_status {
 	uint32_t exec_line;       /* its source line */
 	uint32_t state;           /* mlip_ring_state */
 	uint32_t override_pct;    /* feed override in effect, percent */
-	uint32_t reserved;        /* 0 */
+	uint32_t reserved;        /* the controller's pid (mlip-rt fills it) */
 	/* counters since start */
 	uint64_t overruns;        /* periods that started late or ran over */
 	uint64_t underruns;       /* periods that needed a block and found the ring empty */

@@ -1,0 +1,159 @@
+"""The controller's processes on this host, without a CAN bus (--can none):
+a real SCHED_FIFO mlip-rt, a real shared-memory segment, the real mlip-feed
+and mlip-ctl. The CAN side is tested on a real vcan0 in tests/can."""
+import json
+import os
+import re
+import signal
+import subprocess
+import time
+
+import pytest
+
+from conftest import CONFIG, ROOT, TOOLPATHS, tool
+
+DEMO = ROOT / "examples" / "demo.ngc"
+_n = [0]
+
+
+def shm_name():
+    _n[0] += 1
+    return f"/mlip-pytest-{os.getpid()}-{_n[0]}"
+
+
+def status(shm):
+    p = subprocess.run([tool("mlip-ctl"), "--shm", shm, "status", "--json"], capture_output=True,
+                       text=True)
+    return json.loads(p.stdout) if p.stdout.strip() else None
+
+
+def wait_for(pred, timeout=10.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        v = pred()
+        if v:
+            return v
+        time.sleep(0.02)
+    return None
+
+
+@pytest.fixture
+def controller():
+    """Start mlip-rt --can none on a fresh segment; stop it (SIGTERM) after."""
+    procs = []
+
+    def start(config=CONFIG / "mill-3axis.ini", *extra):
+        shm = shm_name()
+        p = subprocess.Popen([tool("mlip-rt"), "--config", str(config), "--can", "none", "--shm", shm,
+                              *extra], stderr=subprocess.PIPE, text=True)
+        procs.append(p)
+        assert wait_for(lambda: (status(shm) or {}).get("alive")), "controller did not come up"
+        return shm, p
+
+    yield start
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGTERM)
+            try:
+                p.wait(10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+def feed(shm, program, *extra, **kw):
+    return subprocess.run([tool("mlip-feed"), "--shm", shm, *extra, str(program)],
+                          capture_output=True, text=True, **kw)
+
+
+def test_program_runs_to_completion(controller):
+    shm, rt = controller()
+    t0 = time.monotonic()
+    p = feed(shm, DEMO, timeout=60)
+    elapsed = time.monotonic() - t0
+    assert p.returncode == 0, p.stderr
+    assert "program complete" in p.stderr
+    s = status(shm)
+    assert s["state"] == "idle" and s["exec_seq"] == 1820 and s["blocks_consumed"] == 1820
+    sim = json.loads(subprocess.run([tool("mlip-sim"), "-q", "--config", CONFIG / "mill-3axis.ini",
+                                     "--summary", "-", DEMO], capture_output=True, text=True).stdout)
+    # the controller runs the simulated motion in real time (plus start-up)
+    assert sim["total_time_s"] <= elapsed < sim["total_time_s"] + 5.0
+    # a second program on the same controller, same result
+    assert feed(shm, DEMO, timeout=60).returncode == 0
+    assert status(shm)["blocks_consumed"] == 2 * 1820
+    rt.send_signal(signal.SIGTERM)
+    _, err = rt.communicate(timeout=10)
+    assert rt.returncode == 0
+    assert "stopped after" in err and "3640 records taken" in err
+
+
+def test_bad_program_sends_nothing(controller, tmp_path):
+    shm, _ = controller()
+    bad = tmp_path / "bad.ngc"
+    bad.write_text("G1 X1 F600\nG1 X1.2.3\nG41\nG1 X5000\n")
+    p = feed(shm, bad)
+    assert p.returncode == 1
+    errors = [l for l in p.stderr.splitlines() if ": error: " in l]
+    assert [e.split(":")[1] for e in errors] == ["2", "3", "4"]
+    assert status(shm)["blocks_consumed"] == 0  # a rejected program never starts moving
+
+
+def test_override_hold_resume_stop(controller, tmp_path):
+    shm, _ = controller()
+    prog = tmp_path / "flower.ngc"
+    prog.write_text("".join((TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:6000]))
+    cfg = CONFIG / "paper-2axis.ini"
+    shm, _ = controller(cfg)
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50)
+    ctl = lambda *a: subprocess.run([tool("mlip-ctl"), "--shm", shm, *a], capture_output=True,
+                                    text=True)
+    r = ctl("override", "50")
+    assert r.returncode == 0 and "done" in r.stdout + r.stderr
+    assert status(shm)["override_pct"] == 50
+    assert ctl("override", "250").returncode != 0  # beyond 0..200
+    assert ctl("hold").returncode == 0
+    assert wait_for(lambda: status(shm)["state"] == "held", 5)
+    held_at = status(shm)["exec_seq"]
+    time.sleep(0.3)
+    assert status(shm)["exec_seq"] == held_at  # nothing moves while held
+    assert ctl("resume").returncode == 0
+    assert wait_for(lambda: status(shm)["exec_seq"] > held_at, 5)
+    assert ctl("stop").returncode == 0
+    f.wait(10)
+    assert f.returncode == 4, f.stderr.read()
+    assert wait_for(lambda: status(shm)["state"] == "idle", 5)
+    assert status(shm)["exec_seq"] < 6000  # stopped before the end of the program
+
+
+def test_second_controller_refused(controller):
+    shm, _ = controller()
+    p = subprocess.run([tool("mlip-rt"), "--config", CONFIG / "mill-3axis.ini", "--can", "none",
+                        "--shm", shm], capture_output=True, text=True, timeout=10)
+    assert p.returncode == 1 and "stop that mlip-rt first" in p.stderr
+
+
+def test_bus_load_budget_refused(tmp_path):
+    cfg = tmp_path / "slow.ini"
+    text = (CONFIG / "mill-3axis.ini").read_text()
+    # 3 axes, cia402, 1 ms at 125 kbit/s: 340 bits = 2.7 ms per 1 ms period
+    cfg.write_text(re.sub(r"(?m)^BITRATE\s*=.*$", "BITRATE = 125000", text, count=1))
+    p = subprocess.run([tool("mlip-rt"), "--config", cfg, "--can", "vcan0", "--shm", shm_name()],
+                       capture_output=True, text=True, timeout=10)
+    assert p.returncode == 1
+    assert "bus load 272.0 %" in p.stderr and "refusing" in p.stderr
+
+
+def test_sigterm_is_a_controlled_stop(controller, tmp_path):
+    prog = tmp_path / "flower.ngc"
+    prog.write_text("".join((TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:6000]))
+    shm, rt = controller(CONFIG / "paper-2axis.ini")
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50)
+    rt.send_signal(signal.SIGTERM)
+    _, err = rt.communicate(timeout=10)
+    assert rt.returncode == 0, err  # stopped on the path, then exit 0
+    f.wait(10)
+    assert f.returncode != 0  # the feeder is told: its program did not finish

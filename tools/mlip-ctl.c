@@ -1,0 +1,425 @@
+/*
+ * mlip-ctl - talk to a running mlip-rt through its shared-memory segment:
+ * feed override, hold, resume, stop (the command mailbox of mlip/ring.h), and
+ * a status report (the controller's and the feeder's seqlocked areas).
+ *
+ * A command is posted only once the previous one is completed (the mailbox
+ * has one slot), then acknowledged by the controller with a result code; both
+ * waits are bounded (1 s) so a dead controller never hangs the tool.
+ */
+#include <errno.h>
+#include <getopt.h>
+#include <signal.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/types.h>
+#include <time.h>
+
+#include "mlip/ring.h"
+#include "rt.h"
+
+#define PROG "mlip-ctl"
+#define WAIT_NS 1000000000LL /* post retries and answer wait: 1 s each */
+#define POLL_NS 1000000L     /* poll the mailbox every 1 ms */
+
+enum { EXIT_DONE = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
+
+static void usage(FILE *f)
+{
+	fprintf(
+	    f,
+	    "usage: " PROG " [--shm NAME] COMMAND\n"
+	    "Send a command to the mlip-rt controller, or show its status.\n\n"
+	    "commands:\n"
+	    "  override PCT     feed override, percent, integer 0..200 (0 stops the feed)\n"
+	    "  hold             feed hold: decelerate to rest on the path, keep the program\n"
+	    "  resume           leave a feed hold\n"
+	    "  stop             decelerate to rest on the path, drop the rest of the program\n"
+	    "  status [--json]  controller and feeder state (--json: one object on stdout)\n\n"
+	    "options:\n"
+	    "  --shm NAME       shared-memory segment of the controller (default " MLIP_SHM_DEFAULT
+	    ")\n"
+	    "  --json           status as JSON\n"
+	    "  -h, --help       this help\n\n"
+	    "exit status: 0 done (status: controller alive); 1 refused, no answer within 1 s,\n"
+	    "or controller not running; 2 usage error or no usable segment\n");
+}
+
+static void sleep_ns(long ns)
+{
+	struct timespec ts = {0, ns};
+
+	clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, NULL);
+}
+
+/* Strict percentage: decimal digits only, 0..200 (no sign, no spaces, no '%'). */
+static int parse_pct(const char *s, int32_t *out)
+{
+	long v = 0;
+	size_t i;
+
+	if (s == NULL || s[0] == '\0' || strlen(s) > 3) {
+		return -1;
+	}
+	for (i = 0; s[i] != '\0'; i++) {
+		if (s[i] < '0' || s[i] > '9') {
+			return -1;
+		}
+		v = v * 10 + (s[i] - '0');
+	}
+	if (v > 200) {
+		return -1;
+	}
+	*out = (int32_t)v;
+	return 0;
+}
+
+/* What a controller's refusal means, for the message. */
+static const char *result_text(int32_t result)
+{
+	switch (result) {
+	case MLIP_OK:
+		return "done";
+	case MLIP_E_FULL:
+		return "busy";
+	case MLIP_E_EMPTY:
+		return "nothing to do";
+	case MLIP_E_INVALID:
+		return "not possible in this state";
+	case MLIP_E_SYNTAX:
+		return "malformed";
+	case MLIP_E_RANGE:
+		return "value out of range";
+	case MLIP_E_UNSUPPORTED:
+		return "not supported by this controller";
+	}
+	return "unknown result";
+}
+
+/* Age in ns of a CLOCK_MONOTONIC stamp; -1 when never stamped. */
+static int64_t age_ns(uint64_t stamp_ns)
+{
+	uint64_t now = mlip_now_ns();
+
+	if (stamp_ns == 0) {
+		return -1;
+	}
+	return now > stamp_ns ? (int64_t)(now - stamp_ns) : 0;
+}
+
+static int pid_alive(int32_t pid)
+{
+	/* EPERM: the process exists but belongs to another user */
+	return pid > 0 && (kill((pid_t)pid, 0) == 0 || errno == EPERM);
+}
+
+static int feeder_alive(const struct mlip_ring_feeder *f)
+{
+	int64_t a = age_ns(f->heartbeat_ns);
+
+	return pid_alive(f->pid) && a >= 0 && a < MLIP_PEER_TIMEOUT_NS;
+}
+
+/* Seqlock reads fail only while a writer is mid-update for 1000 tries in a
+ * row (or died there): retry for 10 ms before giving up. */
+static int read_status(const struct mlip_ring *r, struct mlip_ring_status *st)
+{
+	int i;
+
+	for (i = 0; i < 10; i++) {
+		if (mlip_ring_status_read(r, st) == MLIP_OK) {
+			return 0;
+		}
+		sleep_ns(POLL_NS);
+	}
+	return -1;
+}
+
+static int read_feeder(const struct mlip_ring *r, struct mlip_ring_feeder *f)
+{
+	int i;
+
+	for (i = 0; i < 10; i++) {
+		if (mlip_ring_feeder_read(r, f) == MLIP_OK) {
+			return 0;
+		}
+		sleep_ns(POLL_NS);
+	}
+	return -1;
+}
+
+static void print_age(FILE *f, int64_t a)
+{
+	if (a < 0) {
+		fprintf(f, "never");
+	} else if (a < 1000000000LL) {
+		fprintf(f, "%.1f ms ago", (double)a / 1e6);
+	} else {
+		fprintf(f, "%.1f s ago", (double)a / 1e9);
+	}
+}
+
+/* A JSON string: a shm name may hold any byte but '/' and NUL. */
+static void json_str(FILE *f, const char *s)
+{
+	fputc('"', f);
+	for (; *s != '\0'; s++) {
+		unsigned char ch = (unsigned char)*s;
+
+		if (ch == '"' || ch == '\\') {
+			fprintf(f, "\\%c", ch);
+		} else if (ch < 0x20) {
+			fprintf(f, "\\u%04x", ch);
+		} else {
+			fputc(ch, f);
+		}
+	}
+	fputc('"', f);
+}
+
+static int cmd_status(struct mlip_shm *s, int json)
+{
+	struct mlip_ring_status st;
+	struct mlip_ring_feeder fd;
+	int alive, falive;
+	int64_t a, fa;
+
+	if (read_status(s->ring, &st) != 0) {
+		fprintf(stderr,
+		        PROG ": %s: status area stays mid-update (controller died while "
+		             "writing it?): restart mlip-rt\n",
+		        s->name);
+		return EXIT_FAIL;
+	}
+	if (read_feeder(s->ring, &fd) != 0) {
+		memset(&fd, 0, sizeof(fd)); /* a feeder died mid-update: report none */
+	}
+	a = age_ns(st.heartbeat_ns);
+	alive = a >= 0 && a < MLIP_PEER_TIMEOUT_NS;
+	fa = age_ns(fd.heartbeat_ns);
+	falive = feeder_alive(&fd);
+
+	if (json) {
+		printf("{\n  \"shm\": ");
+		json_str(stdout, s->name);
+		printf(",\n");
+		printf("  \"state\": \"%s\",\n  \"alive\": %s,\n", mlip_ring_state_name(st.state),
+		       alive ? "true" : "false");
+		printf("  \"heartbeat\": %llu,\n", (unsigned long long)st.heartbeat);
+		if (a < 0) {
+			printf("  \"heartbeat_age_ms\": null,\n");
+		} else {
+			printf("  \"heartbeat_age_ms\": %.3f,\n", (double)a / 1e6);
+		}
+		printf("  \"exec_seq\": %llu,\n  \"exec_line\": %u,\n",
+		       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
+		printf("  \"override_pct\": %u,\n", (unsigned)st.override_pct);
+		printf("  \"overruns\": %llu,\n  \"underruns\": %llu,\n",
+		       (unsigned long long)st.overruns, (unsigned long long)st.underruns);
+		printf("  \"can_tx_errors\": %llu,\n  \"can_bus_errors\": %llu,\n",
+		       (unsigned long long)st.can_tx_errors, (unsigned long long)st.can_bus_errors);
+		printf("  \"frames_sent\": %llu,\n  \"blocks_consumed\": %llu,\n",
+		       (unsigned long long)st.frames_sent, (unsigned long long)st.blocks_consumed);
+		printf("  \"queued\": %u,\n  \"capacity\": %u,\n",
+		       (unsigned)mlip_ring_count(s->ring), (unsigned)s->ring->capacity);
+		printf("  \"feeder_pid\": %d,\n  \"feeder_alive\": %s,\n", (int)fd.pid,
+		       falive ? "true" : "false");
+		printf("  \"total_blocks\": %llu,\n  \"program_end\": %s\n}\n",
+		       (unsigned long long)fd.total_blocks, fd.program_end ? "true" : "false");
+		return alive ? EXIT_DONE : EXIT_FAIL;
+	}
+
+	printf("controller  %s: %s, %s (heartbeat ", s->name, mlip_ring_state_name(st.state),
+	       alive ? "alive" : "NOT RESPONDING");
+	print_age(stdout, a);
+	printf(", period %llu)\n", (unsigned long long)st.heartbeat);
+	printf("executing   block %llu, line %u\n", (unsigned long long)st.exec_seq,
+	       (unsigned)st.exec_line);
+	printf("override    %u %%\n", (unsigned)st.override_pct);
+	printf("periods     %llu overruns, %llu underruns\n", (unsigned long long)st.overruns,
+	       (unsigned long long)st.underruns);
+	printf("CAN         %llu frames sent, %llu tx errors, %llu bus errors\n",
+	       (unsigned long long)st.frames_sent, (unsigned long long)st.can_tx_errors,
+	       (unsigned long long)st.can_bus_errors);
+	printf("ring        %llu blocks consumed, %u queued of %u\n",
+	       (unsigned long long)st.blocks_consumed, (unsigned)mlip_ring_count(s->ring),
+	       (unsigned)s->ring->capacity);
+	if (fd.pid == 0) {
+		printf("feeder      none\n");
+	} else {
+		printf("feeder      pid %d, %s (heartbeat ", (int)fd.pid,
+		       falive ? "alive" : "gone");
+		print_age(stdout, fa);
+		printf("), ");
+		if (fd.total_blocks == 0) {
+			printf("program size not known yet\n");
+		} else {
+			printf("%llu blocks, %s\n", (unsigned long long)fd.total_blocks,
+			       fd.program_end ? "all queued" : "queueing");
+		}
+	}
+	if (!alive) {
+		fprintf(stderr, PROG ": controller on %s is not running: start mlip-rt\n", s->name);
+	}
+	return alive ? EXIT_DONE : EXIT_FAIL;
+}
+
+static void describe(char *buf, size_t len, mlip_ring_cmd_op op, int32_t arg)
+{
+	if (op == MLIP_CMD_OVERRIDE) {
+		snprintf(buf, len, "override %d %%", (int)arg);
+	} else {
+		snprintf(buf, len, "%s", mlip_ring_cmd_name(op));
+	}
+}
+
+static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
+{
+	struct mlip_ring_status st;
+	char what[32];
+	uint32_t seq = 0;
+	int32_t result;
+	uint64_t t0;
+	mlip_status rc;
+
+	describe(what, sizeof(what), op, arg);
+	if (!mlip_shm_controller_alive(s->ring, MLIP_PEER_TIMEOUT_NS)) {
+		fprintf(stderr, PROG ": %s: controller on %s is not running: start mlip-rt\n", what,
+		        s->name);
+		return EXIT_FAIL;
+	}
+	t0 = mlip_now_ns();
+	while ((rc = mlip_ring_cmd_post(s->ring, op, arg, &seq)) == MLIP_E_FULL &&
+	       mlip_now_ns() - t0 < (uint64_t)WAIT_NS) {
+		sleep_ns(POLL_NS); /* a previous command is still being applied */
+	}
+	if (rc != MLIP_OK) {
+		fprintf(stderr,
+		        PROG ": %s: the command mailbox stayed busy for 1 s (a previous command "
+		             "was not completed): check mlip-rt with " PROG " status\n",
+		        what);
+		return EXIT_FAIL;
+	}
+	t0 = mlip_now_ns();
+	while (mlip_ring_cmd_result(s->ring, seq, &result) != MLIP_OK) {
+		if (mlip_now_ns() - t0 >= (uint64_t)WAIT_NS) {
+			fprintf(stderr,
+			        PROG
+			        ": %s: no answer from the controller within 1 s (posted; it may "
+			        "still be applied): check " PROG " status\n",
+			        what);
+			return EXIT_FAIL;
+		}
+		sleep_ns(POLL_NS);
+	}
+	if (result != MLIP_OK) {
+		fprintf(stderr, PROG ": %s: refused by the controller: %s", what,
+		        result_text(result));
+		if (read_status(s->ring, &st) == 0) {
+			fprintf(stderr, " (state %s)", mlip_ring_state_name(st.state));
+		}
+		fputc('\n', stderr);
+		return EXIT_FAIL;
+	}
+	printf("%s: done\n", what);
+	return EXIT_DONE;
+}
+
+int main(int argc, char **argv)
+{
+	static const struct option opts[] = {{"shm", required_argument, 0, 's'},
+	                                     {"json", no_argument, 0, 'j'},
+	                                     {"help", no_argument, 0, 'h'},
+	                                     {0, 0, 0, 0}};
+	const char *shm = MLIP_SHM_DEFAULT, *cmd;
+	mlip_ring_cmd_op op = MLIP_CMD_NONE;
+	int32_t arg = 0;
+	int json = 0, c, i, rc;
+	struct mlip_shm s;
+	char why[256];
+
+	/* '+': stop at the command, so "override -5" reaches the PCT check */
+	while ((c = getopt_long(argc, argv, "+h", opts, NULL)) != -1) {
+		switch (c) {
+		case 's':
+			shm = optarg;
+			break;
+		case 'j':
+			json = 1;
+			break;
+		case 'h':
+			usage(stdout);
+			return EXIT_DONE;
+		default:
+			usage(stderr);
+			return EXIT_USAGE;
+		}
+	}
+	if (optind >= argc) {
+		usage(stderr);
+		return EXIT_USAGE;
+	}
+	cmd = argv[optind++];
+	if (strcmp(cmd, "status") == 0) {
+		for (i = optind; i < argc; i++) {
+			if (strcmp(argv[i], "--json") != 0) {
+				fprintf(stderr, PROG ": status: unexpected '%s' (only --json)\n",
+				        argv[i]);
+				return EXIT_USAGE;
+			}
+			json = 1;
+		}
+	} else {
+		if (strcmp(cmd, "override") == 0) {
+			op = MLIP_CMD_OVERRIDE;
+			if (optind >= argc) {
+				fprintf(stderr, PROG ": override: missing PCT (percent, 0..200)\n");
+				return EXIT_USAGE;
+			}
+			if (parse_pct(argv[optind], &arg) != 0) {
+				fprintf(stderr,
+				        PROG
+				        ": override: '%s' is not a whole percentage in 0..200\n",
+				        argv[optind]);
+				return EXIT_USAGE;
+			}
+			optind++;
+		} else if (strcmp(cmd, "hold") == 0) {
+			op = MLIP_CMD_HOLD;
+		} else if (strcmp(cmd, "resume") == 0) {
+			op = MLIP_CMD_RESUME;
+		} else if (strcmp(cmd, "stop") == 0) {
+			op = MLIP_CMD_STOP;
+		} else {
+			fprintf(stderr,
+			        PROG
+			        ": unknown command '%s' (override, hold, resume, stop, status)\n",
+			        cmd);
+			return EXIT_USAGE;
+		}
+		if (optind < argc) {
+			fprintf(stderr, PROG ": %s: unexpected '%s'\n", cmd, argv[optind]);
+			return EXIT_USAGE;
+		}
+		if (json) {
+			fprintf(stderr, PROG ": --json goes with status only\n");
+			return EXIT_USAGE;
+		}
+	}
+
+	rc = mlip_shm_attach(&s, shm, why, sizeof(why));
+	if (rc != 0) {
+		fprintf(stderr, PROG ": %s\n", why);
+		if (rc == -ENOENT) {
+			fprintf(stderr,
+			        PROG ": hint: start the controller (mlip-rt) first, or pass "
+			             "its --shm NAME\n");
+		}
+		return EXIT_USAGE;
+	}
+	rc = op == MLIP_CMD_NONE ? cmd_status(&s, json) : cmd_send(&s, op, arg);
+	mlip_shm_close(&s);
+	return rc;
+}

@@ -1,0 +1,761 @@
+/*
+ * mlip-feed - send a G-code program to a running mlip-rt through the ring of
+ * its shared-memory segment (mlip/ring.h) and follow it to the end.
+ *
+ * The whole program is parsed and checked against the machine the controller
+ * publishes in the segment before anything is sent: a program with any error
+ * never starts. Records are numbered as mlip-sim numbers blocks (seq 1..n,
+ * then the END record n + 1), so the controller's exec_seq maps to a block.
+ *
+ * The feeder is the ring's single producer. Two feeders would corrupt it, so
+ * the producer line is guarded by a POSIX record lock on the segment (the
+ * kernel drops it when a feeder dies), on top of the pid/heartbeat check.
+ *
+ * Life of a run; every loop polls the controller, and from the first push on
+ * refreshes the feeder heartbeat (pid 0 in the feeder area: no feeder):
+ *
+ *   checks -> wait IDLE -> push (ring full: sleep 1 ms) -> END -> wait done: 0
+ *                 |               |                               |
+ *                 +-- controller stale: 3 ----------------+-------+   FAULT: 5
+ *                                 +-- STOPPING/IDLE early: END alone, wait rest, 4
+ *                                 +-- SIGINT/SIGTERM: STOP, END alone, wait rest, 130/143
+ */
+#include <errno.h>
+#include <fcntl.h>
+#include <getopt.h>
+#include <signal.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "mlip/config.h"
+#include "mlip/ring.h"
+#include "program.h"
+#include "rt.h"
+
+#define PROG "mlip-feed"
+#define BATCH 256u                 /* records per mlip_ring_push_n */
+#define FULL_SLEEP_NS 1000000L     /* ring full: retry after 1 ms */
+#define WAIT_SLEEP_NS 5000000L     /* only waiting: poll every 5 ms (heartbeat < 10 ms) */
+#define TTY_EVERY_NS 100000000ull  /* progress line on a terminal: 10 per second */
+#define LOG_EVERY_NS 2000000000ull /* progress line otherwise: every 2 s */
+#define IDLE_NOTE_NS 1000000000ull /* say why we wait after 1 s */
+#define STOP_WAIT_NS 5000000000ull /* after a stop: wait at most 5 s for rest */
+#define CMD_WAIT_NS 1000000000ull  /* mailbox busy: retry for 1 s */
+
+enum {
+	EXIT_DONE = 0,
+	EXIT_FAIL = 1, /* nothing sent: bad program, no controller, another feeder */
+	EXIT_USAGE = 2,
+	EXIT_CTRL_DEAD = 3, /* controller stopped responding (or restarted) mid-program */
+	EXIT_OPERATOR = 4,  /* stopped by mlip-ctl stop */
+	EXIT_FAULT = 5      /* controller went to FAULT */
+};
+
+static volatile sig_atomic_t got_signal; /* the last one: SIGINT or SIGTERM */
+static volatile sig_atomic_t n_signals;  /* a second one cuts the stop wait short */
+
+static void on_signal(int sig)
+{
+	got_signal = sig;
+	n_signals++;
+}
+
+static void usage(FILE *f)
+{
+	fprintf(f,
+	        "usage: " PROG " [options] FILE.ngc\n"
+	        "Check a G-code program against the machine of the running mlip-rt, send it\n"
+	        "through the shared-memory ring and follow it until the machine is at rest.\n\n"
+	        "  --shm NAME        controller's shared-memory segment (default " MLIP_SHM_DEFAULT
+	        ")\n"
+	        "  --start-seq N     skip blocks before block N (1-based, as reported by\n"
+	        "                    mlip-ctl status), to continue after a feeder crash\n"
+	        "                    (default 1)\n"
+	        "  -q, --quiet       no notes, no progress, no summary: errors only\n"
+	        "  -h, --help        this help\n\n"
+	        "exit status: 0 program complete, machine at rest; 1 nothing sent (program\n"
+	        "errors, no controller, another feeder); 2 usage; 3 controller stopped\n"
+	        "responding; 4 stopped by the operator (mlip-ctl stop); 5 controller fault;\n"
+	        "130/143 interrupted (SIGINT/SIGTERM): the machine was stopped on the path\n");
+}
+
+/* Relative sleep; a signal ends it early (no SA_RESTART), the caller looks at
+ * got_signal. clock_nanosleep returns its error, it does not set errno. */
+static void sleep_ns(long ns)
+{
+	struct timespec ts = {0, ns};
+
+	(void)clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, NULL);
+}
+
+static int pid_alive(int32_t pid)
+{
+	return pid > 0 && (kill((pid_t)pid, 0) == 0 || errno == EPERM);
+}
+
+/* Age in ns of a CLOCK_MONOTONIC stamp; -1 when never stamped. */
+static int64_t age_ns(uint64_t stamp_ns)
+{
+	uint64_t now = mlip_now_ns();
+
+	if (stamp_ns == 0) {
+		return -1;
+	}
+	return now > stamp_ns ? (int64_t)(now - stamp_ns) : 0;
+}
+
+/* Claim the producer side: a write lock on the producer cache line. -EBUSY
+ * with *holder (0 if unknown) when another process has it. */
+static int producer_lock(int fd, int32_t *holder)
+{
+	struct flock fl;
+
+	memset(&fl, 0, sizeof(fl));
+	fl.l_type = F_WRLCK;
+	fl.l_whence = SEEK_SET;
+	fl.l_start = (off_t)offsetof(struct mlip_ring, head);
+	fl.l_len = MLIP_RING_LINE;
+	if (fcntl(fd, F_SETLK, &fl) == 0) {
+		return 0;
+	}
+	if (errno != EACCES && errno != EAGAIN) {
+		return -errno;
+	}
+	*holder = 0;
+	fl.l_type = F_WRLCK;
+	if (fcntl(fd, F_GETLK, &fl) == 0 && fl.l_type != F_UNLCK) {
+		*holder = (int32_t)fl.l_pid;
+	}
+	return -EBUSY;
+}
+
+struct feed {
+	/* wiring */
+	struct mlip_shm shm;
+	struct mlip_ring *r;
+	const char *path;
+	int quiet, tty;
+	/* program */
+	struct mlip_program prog;
+	uint64_t n; /* blocks; the END record is n + 1 */
+	uint32_t end_line;
+	/* progress */
+	struct mlip_ring_feeder fa; /* what we publish */
+	struct mlip_ring_status st; /* last consistent controller status */
+	uint64_t last_hb;           /* controller period counter: must not go back */
+	uint64_t consumed0;         /* controller's blocks_consumed before our first push */
+	uint64_t next_seq;          /* next record to push, 1..n + 1 */
+	uint64_t first_seq;         /* --start-seq */
+	uint64_t exec0;             /* exec_seq before our program: not ours */
+	uint64_t exec;              /* our block being executed (0: none yet) */
+	uint32_t exec_line;         /* its source line */
+	int end_pushed;
+	int line_open; /* a "\r" progress line is on the terminal */
+	uint64_t t_start, t_report;
+};
+
+/* Publish the feeder area with a fresh heartbeat (every loop). */
+static void beat(struct feed *f)
+{
+	f->fa.heartbeat++;
+	f->fa.heartbeat_ns = mlip_now_ns();
+	f->fa.program_end = (uint32_t)f->end_pushed;
+	mlip_ring_feeder_write(f->r, &f->fa);
+}
+
+/* Say "no more records from a feeder" (pid 0), keeping the totals: a
+ * controller dropping a stopped program's records stops waiting for its END.
+ * We keep the producer lock until we exit, so no other feeder slips in. */
+static void leave(struct feed *f)
+{
+	f->fa.pid = 0;
+	beat(f);
+}
+
+/* End a progress line before any other message. */
+static void close_line(struct feed *f)
+{
+	if (f->line_open) {
+		fputc('\n', stderr);
+		f->line_open = 0;
+	}
+}
+
+/* Our records the controller has taken (our program has started when > 0). */
+static uint64_t taken(const struct feed *f)
+{
+	return f->st.blocks_consumed - f->consumed0;
+}
+
+/* Follow exec_seq for the resume hint. Until a block of ours moves, the
+ * controller reports the value the previous program left (exec0): during the
+ * pre-read, and whenever its planner is empty; and on becoming idle after a
+ * stop it reports the last block its planner finished, which is the previous
+ * program's if none of ours was. A stale value in our range would send a
+ * --start-seq past blocks never run, so only values other than exec0, within
+ * the records we sent, seen while the controller is on a program, count.
+ * Execution is in order: keep the furthest. */
+static void track_exec(struct feed *f)
+{
+	uint64_t e = f->st.exec_seq;
+
+	if (f->t_start == 0 || taken(f) == 0 || e == f->exec0 || e < f->first_seq ||
+	    e >= f->next_seq || e < f->exec ||
+	    (f->st.state != MLIP_STATE_RUNNING && f->st.state != MLIP_STATE_HELD &&
+	     f->st.state != MLIP_STATE_STOPPING)) {
+		return;
+	}
+	f->exec = e;
+	f->exec_line = f->st.exec_line;
+}
+
+/* Read the controller status; 0 when it is alive, -1 when its heartbeat is
+ * stale (or it restarted: the period counter went back). */
+static int poll_controller(struct feed *f)
+{
+	struct mlip_ring_status st;
+	int64_t a;
+
+	if (mlip_ring_status_read(f->r, &st) == MLIP_OK) {
+		if (st.heartbeat < f->last_hb) {
+			return -1; /* a new controller formatted the segment */
+		}
+		f->last_hb = st.heartbeat;
+		f->st = st;
+		track_exec(f);
+	}
+	a = age_ns(f->st.heartbeat_ns); /* a failed read keeps the old stamp */
+	return a >= 0 && a < MLIP_PEER_TIMEOUT_NS ? 0 : -1;
+}
+
+/* Counts shown to the user are program blocks (END excluded), as mlip-sim's. */
+static void progress(struct feed *f, int force)
+{
+	uint64_t now = mlip_now_ns(), total = f->n;
+	uint64_t done = f->exec > f->n ? f->n : f->exec; /* END counts as the last */
+	uint64_t queued = f->next_seq > f->n ? f->n : f->next_seq - 1;
+	int pct, bar, i;
+	char b[21];
+
+	if (f->quiet || (!force && now - f->t_report < (f->tty ? TTY_EVERY_NS : LOG_EVERY_NS))) {
+		return;
+	}
+	f->t_report = now;
+	pct = (int)(done * 100 / total);
+	if (f->tty) {
+		bar = (int)(done * 20 / total);
+		for (i = 0; i < 20; i++) {
+			b[i] = i < bar ? '#' : '.';
+		}
+		b[20] = '\0';
+		fprintf(
+		    stderr,
+		    "\r[%s] %3d%%  block %llu/%llu  queued %llu  line %u  override %u %%  %s\033[K",
+		    b, pct, (unsigned long long)done, (unsigned long long)total,
+		    (unsigned long long)queued, (unsigned)(done ? f->exec_line : 0),
+		    (unsigned)f->st.override_pct, mlip_ring_state_name(f->st.state));
+		f->line_open = 1;
+	} else {
+		fprintf(stderr,
+		        PROG
+		        ": %llu/%llu blocks executed (%d %%), %llu queued, line %u, override %u "
+		        "%%, %s\n",
+		        (unsigned long long)done, (unsigned long long)total, pct,
+		        (unsigned long long)queued, (unsigned)(done ? f->exec_line : 0),
+		        (unsigned)f->st.override_pct, mlip_ring_state_name(f->st.state));
+	}
+	fflush(stderr);
+}
+
+/* Where the machine is in the program: the block being executed, or the
+ * first one sent when none has moved yet (the place to resume from). */
+static uint64_t resume_seq(const struct feed *f)
+{
+	return f->exec ? f->exec : f->first_seq;
+}
+
+static unsigned resume_line(const struct feed *f)
+{
+	return f->exec ? f->exec_line : f->prog.blocks[f->first_seq - 1].line;
+}
+
+static int controller_dead(struct feed *f)
+{
+	close_line(f);
+	if (f->exec) {
+		fprintf(stderr,
+		        PROG
+		        ": controller stopped responding; last executed line %u (block %llu)\n",
+		        resume_line(f), (unsigned long long)resume_seq(f));
+	} else {
+		fprintf(stderr,
+		        PROG ": controller stopped responding before block %llu (line %u) moved\n",
+		        (unsigned long long)resume_seq(f), resume_line(f));
+	}
+	if (f->next_seq > f->first_seq) {
+		fprintf(stderr,
+		        PROG ": hint: once mlip-rt runs again, continue with " PROG
+		             " --start-seq %llu %s\n",
+		        (unsigned long long)resume_seq(f), f->path);
+	}
+	return EXIT_CTRL_DEAD;
+}
+
+static int controller_fault(struct feed *f)
+{
+	close_line(f);
+	fprintf(stderr,
+	        PROG ": controller fault at line %u (block %llu): see mlip-rt's messages and "
+	             "mlip-ctl status\n",
+	        resume_line(f), (unsigned long long)resume_seq(f));
+	return EXIT_FAULT;
+}
+
+/* After a stop, the END record alone: the controller drops a stopped
+ * program's records up to its END (rt.h), and without it would also drop the
+ * records of a continuation (--start-seq) sent later. It never moves: the
+ * controller is discarding when it arrives. */
+static void push_end(struct feed *f)
+{
+	struct mlip_ring_rec rec;
+
+	if (f->end_pushed) {
+		return;
+	}
+	mlip_ring_rec_end(&rec, f->n + 1, f->end_line);
+	if (mlip_ring_push(f->r, &rec) == MLIP_OK) { /* full: the discard frees room */
+		f->end_pushed = 1;
+		f->next_seq = f->n + 2;
+	}
+}
+
+/* After a stop: keep beating until the controller is idle and our END is in
+ * (or t_max passes, or another signal arrives). 0 at rest, -1 dead, 1 time-out.
+ *
+ * ack_hb (0: none) is the controller's period count when it acknowledged a
+ * stop of ours. A controller that took that stop while idle with our first
+ * records not yet taken ignores it, then starts the program: seen running in
+ * a status written two periods later, it gets the stop once more. Never while
+ * STOPPING: a second stop there would also drop the next program's records. */
+static int wait_rest(struct feed *f, uint64_t t_max, uint64_t ack_hb)
+{
+	uint64_t t0 = mlip_now_ns();
+	sig_atomic_t sig_seen = n_signals;
+
+	for (;;) {
+		push_end(f);
+		beat(f);
+		if (poll_controller(f) != 0) {
+			return -1;
+		}
+		if ((f->st.state == MLIP_STATE_IDLE || f->st.state == MLIP_STATE_FAULT) &&
+		    f->end_pushed) {
+			return 0;
+		}
+		if (ack_hb != 0 && f->st.heartbeat > ack_hb + 1 &&
+		    (f->st.state == MLIP_STATE_RUNNING || f->st.state == MLIP_STATE_HELD) &&
+		    mlip_ring_cmd_post(f->r, MLIP_CMD_STOP, 0, NULL) == MLIP_OK) {
+			ack_hb = 0; /* once: that race exists only before the first record */
+		}
+		if (mlip_now_ns() - t0 > t_max || n_signals != sig_seen) {
+			return 1;
+		}
+		progress(f, 0);
+		sleep_ns(WAIT_SLEEP_NS);
+	}
+}
+
+/* SIGINT/SIGTERM: stop pushing, stop the machine on its path, report. */
+static int interrupted(struct feed *f)
+{
+	int sig = got_signal, w;
+	int code = 128 + sig;
+	uint64_t t0;
+	uint32_t seq = 0;
+	int32_t result;
+	mlip_status rc;
+
+	close_line(f);
+	if (f->next_seq == f->first_seq) {
+		fprintf(stderr, PROG ": interrupted by %s: nothing was sent\n",
+		        sig == SIGINT ? "SIGINT" : "SIGTERM");
+		return code;
+	}
+	t0 = mlip_now_ns();
+	while ((rc = mlip_ring_cmd_post(f->r, MLIP_CMD_STOP, 0, &seq)) == MLIP_E_FULL &&
+	       mlip_now_ns() - t0 < CMD_WAIT_NS) {
+		beat(f); /* a previous mlip-ctl command is being applied */
+		sleep_ns(FULL_SLEEP_NS);
+	}
+	if (rc != MLIP_OK) {
+		fprintf(stderr, PROG
+		        ": interrupted: could not post stop (command mailbox busy for 1 s): run "
+		        "mlip-ctl stop\n");
+		return code;
+	}
+	leave(f); /* nothing more will come: the rest of the program is dropped */
+	/* once the controller has applied the stop, "idle" means at rest */
+	t0 = mlip_now_ns();
+	while (mlip_ring_cmd_result(f->r, seq, &result) != MLIP_OK &&
+	       mlip_now_ns() - t0 < CMD_WAIT_NS) {
+		beat(f);
+		sleep_ns(FULL_SLEEP_NS);
+	}
+	poll_controller(f); /* a status no older than the acknowledgement */
+	w = wait_rest(f, STOP_WAIT_NS, f->st.heartbeat > 0 ? f->st.heartbeat : 1);
+	if (w < 0) {
+		fprintf(stderr, PROG ": interrupted: stop posted, but the controller stopped "
+		                     "responding\n");
+	} else if (w > 0) {
+		fprintf(stderr,
+		        PROG ": interrupted: stop posted; controller still %s at line %u: check "
+		             "mlip-ctl status\n",
+		        mlip_ring_state_name(f->st.state), resume_line(f));
+	} else {
+		fprintf(stderr,
+		        PROG ": interrupted: machine stopped on the path at line %u (block %llu of "
+		             "%llu); resume with --start-seq %llu\n",
+		        resume_line(f), (unsigned long long)resume_seq(f), (unsigned long long)f->n,
+		        (unsigned long long)resume_seq(f));
+	}
+	return code;
+}
+
+static int operator_stop(struct feed *f)
+{
+	int w;
+
+	leave(f); /* no more records: pid 0 says so */
+	/* wait for rest so the line reported is where the machine is */
+	w = wait_rest(f, STOP_WAIT_NS, 0);
+
+	close_line(f);
+	if (w < 0) {
+		return controller_dead(f);
+	}
+	fprintf(stderr, PROG ": program stopped by the operator at line %u (block %llu of %llu)\n",
+	        resume_line(f), (unsigned long long)resume_seq(f), (unsigned long long)f->n);
+	return EXIT_OPERATOR;
+}
+
+/* Fill up to max records from f->next_seq on. */
+static uint32_t fill(struct feed *f, struct mlip_ring_rec *recs, uint32_t max)
+{
+	uint32_t k = 0;
+	uint64_t seq = f->next_seq;
+
+	for (; k < max && seq <= f->n + 1; k++, seq++) {
+		if (seq <= f->n) {
+			mlip_ring_rec_from_block(&recs[k], &f->prog.blocks[seq - 1], seq);
+		} else {
+			mlip_ring_rec_end(&recs[k], seq, f->end_line);
+		}
+	}
+	return k;
+}
+
+/* Wait for an idle controller with an empty ring before the first record:
+ * our records must never be appended to another program's. The ring count
+ * is live but the status is published once a period, so "idle and empty" must
+ * hold again in a status written after the empty ring was seen: then its
+ * blocks_consumed counts every earlier record and taken() counts only ours. */
+static int wait_start(struct feed *f)
+{
+	uint64_t t0 = mlip_now_ns(), empty_at = 0;
+	uint32_t count;
+	int noted = 0, empty = 0;
+
+	/* no feeder heartbeat yet: the area still describes the previous feeder
+	 * (gone), which a controller finishing its program may be waiting on;
+	 * the producer lock already keeps other feeders out */
+	for (;;) {
+		if (got_signal) {
+			return interrupted(f);
+		}
+		count = mlip_ring_count(f->r); /* before the status: see above */
+		if (poll_controller(f) != 0) {
+			fprintf(stderr,
+			        PROG ": controller stopped responding while we waited for it "
+			             "to be idle: nothing was sent\n");
+			return EXIT_CTRL_DEAD;
+		}
+		if (f->st.state == MLIP_STATE_FAULT) {
+			fprintf(stderr,
+			        PROG
+			        ": controller on %s is in fault: nothing was sent; see mlip-rt's "
+			        "messages (restart it to clear the fault)\n",
+			        f->shm.name);
+			return EXIT_FAIL;
+		}
+		if (f->st.state == MLIP_STATE_IDLE && count == 0) {
+			if (empty && f->st.heartbeat > empty_at) {
+				return -1; /* go */
+			}
+			if (!empty) {
+				empty = 1;
+				empty_at = f->st.heartbeat;
+			}
+		} else {
+			empty = 0;
+		}
+		if (!noted && mlip_now_ns() - t0 > IDLE_NOTE_NS) {
+			noted = 1;
+			if (!f->quiet) {
+				fprintf(
+				    stderr,
+				    PROG
+				    ": waiting for the controller to be idle (state %s, line %u, "
+				    "%u records queued): a previous program is still running; "
+				    "mlip-ctl stop ends it\n",
+				    mlip_ring_state_name(f->st.state), (unsigned)f->st.exec_line,
+				    (unsigned)count);
+			}
+		}
+		sleep_ns(WAIT_SLEEP_NS);
+	}
+}
+
+static int run(struct feed *f)
+{
+	static struct mlip_ring_rec recs[BATCH];
+	uint64_t total = f->n + 1;
+	uint32_t k, got;
+	int rc;
+
+	rc = wait_start(f);
+	if (rc >= 0) {
+		return rc;
+	}
+	f->consumed0 = f->st.blocks_consumed;
+	f->exec0 = f->st.exec_seq;
+	f->fa.pid = (int32_t)getpid();
+	f->fa.total_blocks = total;
+	f->t_start = mlip_now_ns();
+	f->t_report = f->t_start; /* first line after one interval */
+	for (;;) {
+		beat(f);
+		if (got_signal) {
+			return interrupted(f);
+		}
+		if (poll_controller(f) != 0) {
+			return controller_dead(f);
+		}
+		if (f->st.state == MLIP_STATE_FAULT) {
+			return controller_fault(f);
+		}
+		/* done: END executed (exec_seq = its seq) and at rest; taken() >= our
+		 * blocks rules out an exec_seq left by an equally long previous program */
+		if (f->end_pushed && f->st.state == MLIP_STATE_IDLE && f->st.exec_seq == total &&
+		    taken(f) >= f->n + 1 - f->first_seq) {
+			break;
+		}
+		/* stopped by someone else: STOPPING, or IDLE once ours had started
+		 * (the controller reports RUNNING from its first record on) */
+		if (f->st.state == MLIP_STATE_STOPPING ||
+		    (f->st.state == MLIP_STATE_IDLE && taken(f) > 0)) {
+			return operator_stop(f);
+		}
+		got = 0;
+		k = mlip_ring_space(f->r);
+		if (!f->end_pushed && k > 0) {
+			k = fill(f, recs, k < BATCH ? k : BATCH);
+			got = mlip_ring_push_n(f->r, recs, k); /* all k: only we add */
+			f->next_seq += got;
+			if (f->next_seq > total) {
+				f->end_pushed = 1;
+				beat(f); /* publish program_end at once */
+			}
+		}
+		progress(f, 0);
+		if (f->end_pushed) {
+			sleep_ns(WAIT_SLEEP_NS);
+		} else if (got < BATCH) {
+			sleep_ns(FULL_SLEEP_NS); /* ring full: back-pressure */
+		}
+	}
+	if (f->tty) {
+		progress(f, 1); /* leave the bar at 100 % */
+	}
+	close_line(f);
+	if (!f->quiet) {
+		fprintf(stderr, PROG ": %s: %llu blocks, %.3f s, program complete\n", f->path,
+		        (unsigned long long)(f->n - f->first_seq + 1),
+		        (double)(mlip_now_ns() - f->t_start) / 1e9);
+	}
+	return EXIT_DONE;
+}
+
+/* Strict positive integer. */
+static int parse_seq(const char *s, uint64_t *out)
+{
+	char *end;
+	unsigned long long v;
+
+	if (s == NULL || s[0] < '0' || s[0] > '9') {
+		return -1;
+	}
+	errno = 0;
+	v = strtoull(s, &end, 10);
+	if (*end != '\0' || errno != 0 || v == 0) {
+		return -1;
+	}
+	*out = v;
+	return 0;
+}
+
+int main(int argc, char **argv)
+{
+	static const struct option opts[] = {{"shm", required_argument, 0, 's'},
+	                                     {"start-seq", required_argument, 0, 'S'},
+	                                     {"quiet", no_argument, 0, 'q'},
+	                                     {"help", no_argument, 0, 'h'},
+	                                     {0, 0, 0, 0}};
+	static struct feed f;
+	const char *shm = MLIP_SHM_DEFAULT;
+	struct mlip_machine m;
+	struct mlip_config_error cerr;
+	struct mlip_ring_feeder other;
+	struct sigaction sa;
+	char why[256], *text = NULL;
+	size_t len;
+	int32_t holder;
+	int c, rc, code = EXIT_FAIL;
+
+	f.first_seq = 1;
+	while ((c = getopt_long(argc, argv, "qh", opts, NULL)) != -1) {
+		switch (c) {
+		case 's':
+			shm = optarg;
+			break;
+		case 'S':
+			if (parse_seq(optarg, &f.first_seq) != 0) {
+				fprintf(stderr,
+				        PROG ": --start-seq: '%s' is not a block number >= 1\n",
+				        optarg);
+				return EXIT_USAGE;
+			}
+			break;
+		case 'q':
+			f.quiet = 1;
+			break;
+		case 'h':
+			usage(stdout);
+			return EXIT_DONE;
+		default:
+			usage(stderr);
+			return EXIT_USAGE;
+		}
+	}
+	if (optind != argc - 1) {
+		usage(stderr);
+		return EXIT_USAGE;
+	}
+	f.path = argv[optind];
+	f.tty = isatty(STDERR_FILENO);
+
+	rc = mlip_read_file(f.path, &text, &len);
+	if (rc != 0) {
+		fprintf(stderr, PROG ": %s: %s\n", f.path, strerror(-rc));
+		return EXIT_FAIL;
+	}
+	rc = mlip_shm_attach(&f.shm, shm, why, sizeof(why));
+	if (rc != 0) {
+		fprintf(stderr, PROG ": %s\n", why);
+		free(text);
+		return EXIT_FAIL;
+	}
+	f.r = f.shm.ring;
+
+	/* the limits in force are the controller's, not a config file's */
+	mlip_ring_machine(f.r, &m);
+	if (mlip_machine_check(&m, &cerr) != MLIP_OK) {
+		fprintf(stderr, PROG ": %s publishes no usable machine (%s): restart mlip-rt\n",
+		        shm, cerr.msg);
+		goto out;
+	}
+	rc = mlip_program_parse(text, len, &m, &f.prog);
+	if (rc < 0) {
+		fprintf(stderr, PROG ": %s: %s\n", f.path, strerror(-rc));
+		goto out;
+	}
+	if (rc > 0) {
+		mlip_program_print_errors(&f.prog, f.path, stderr);
+		goto out;
+	}
+	if (!f.quiet) {
+		mlip_program_print_notices(&f.prog, f.path, stderr);
+	}
+	f.n = f.prog.n;
+	f.end_line = f.prog.lines ? f.prog.lines : f.prog.blocks[f.n - 1].line;
+	if (f.first_seq > f.n) {
+		fprintf(stderr, PROG ": --start-seq %llu: %s has %llu blocks\n",
+		        (unsigned long long)f.first_seq, f.path, (unsigned long long)f.n);
+		code = EXIT_USAGE;
+		goto out;
+	}
+	f.next_seq = f.first_seq;
+
+	/* one producer only */
+	rc = producer_lock(f.shm.fd, &holder);
+	if (rc != 0) {
+		if (rc == -EBUSY) {
+			fprintf(stderr,
+			        PROG ": another mlip-feed (pid %d) is feeding %s: wait for it to "
+			             "finish, or stop it (mlip-ctl stop)\n",
+			        (int)holder, shm);
+		} else {
+			fprintf(stderr, PROG ": %s: locking the producer side: %s\n", shm,
+			        strerror(-rc));
+		}
+		goto out;
+	}
+	if (mlip_ring_feeder_read(f.r, &other) == MLIP_OK && other.pid != (int32_t)getpid() &&
+	    pid_alive(other.pid) && age_ns(other.heartbeat_ns) >= 0 &&
+	    age_ns(other.heartbeat_ns) < MLIP_PEER_TIMEOUT_NS) {
+		fprintf(stderr,
+		        PROG ": another feeder (pid %d) is feeding %s: wait for it to finish, or "
+		             "stop it (mlip-ctl stop)\n",
+		        (int)other.pid, shm);
+		goto out;
+	}
+	if (poll_controller(&f) != 0) {
+		int64_t a = age_ns(f.st.heartbeat_ns);
+
+		if (a < 0) {
+			fprintf(stderr,
+			        PROG ": controller not running on %s (it never beat): start "
+			             "mlip-rt\n",
+			        shm);
+		} else {
+			fprintf(stderr,
+			        PROG ": controller not running on %s (last heartbeat %.*f %s ago): "
+			             "start mlip-rt\n",
+			        shm, a < 1000000000LL ? 0 : 1,
+			        a < 1000000000LL ? (double)a / 1e6 : (double)a / 1e9,
+			        a < 1000000000LL ? "ms" : "s");
+		}
+		goto out;
+	}
+
+	/* no SA_RESTART: a signal ends the current sleep at once */
+	memset(&sa, 0, sizeof(sa));
+	sa.sa_handler = on_signal;
+	sigemptyset(&sa.sa_mask);
+	sigaction(SIGINT, &sa, NULL);
+	sigaction(SIGTERM, &sa, NULL);
+
+	code = run(&f);
+	if (f.fa.heartbeat != 0) {
+		leave(&f); /* we published: now say we are gone */
+	}
+out:
+	free(text);
+	mlip_program_free(&f.prog);
+	mlip_shm_close(&f.shm); /* closing the fd drops the producer lock */
+	return code;
+}
