@@ -36,8 +36,11 @@ int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
 	if (mlip_planner_init(p, m, st, lookahead, c->pos) != MLIP_OK) {
 		return -EINVAL;
 	}
-	if (can != NULL && mlip_canenc_init(&c->enc, can, m) != MLIP_OK) {
-		return -EINVAL;
+	if (can != NULL) {
+		if (mlip_canenc_init(&c->enc, can, m) != MLIP_OK) {
+			return -EINVAL;
+		}
+		c->encode = 1;
 	}
 	c->state = MLIP_STATE_IDLE;
 	c->pid = (uint32_t)getpid();
@@ -128,10 +131,13 @@ static void discard(struct mlip_controller *c)
 	}
 }
 
+/* Encode the period's frames (always: it is part of the period's work) and
+ * send them when there is a bus; the send is timed for the latency tool. */
 static void send_frames(struct mlip_controller *c, uint32_t cycle)
 {
 	int n = 0;
 	uint32_t sat = 0;
+	c->send_ns = 0;
 	if (mlip_canenc_encode(&c->enc, cycle, c->pos, frames, (int)(sizeof(frames) / sizeof(frames[0])),
 	                       &n, &sat) != MLIP_OK) {
 		/* a position beyond the drive's int32 range: never send it */
@@ -141,11 +147,18 @@ static void send_frames(struct mlip_controller *c, uint32_t cycle)
 		}
 		return;
 	}
+	c->frames_encoded += (uint64_t)n;
+	if (c->can == NULL) {
+		return;
+	}
+	uint64_t t0 = mlip_now_ns();
+	mlip_canio_poll(c->can);
 	for (int i = 0; i < n; i++) {
 		if (mlip_canio_send(c->can, &frames[i]) == 0) {
 			c->frames_sent++;
 		}
 	}
+	c->send_ns = (int64_t)(mlip_now_ns() - t0);
 }
 
 static void publish(struct mlip_controller *c, const struct mlip_rt_tick *t)
@@ -195,10 +208,6 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 		c->stop_request = 0;
 		begin_stop(c);
 	}
-	if (c->can != NULL) {
-		mlip_canio_poll(c->can);
-	}
-
 	/* blocks in */
 	if (c->discard) {
 		discard(c);
@@ -244,7 +253,7 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 		}
 	}
 
-	if (c->can != NULL) {
+	if (c->encode) {
 		send_frames(c, (uint32_t)t->cycle);
 	}
 	publish(c, t);

@@ -137,8 +137,9 @@ struct mlip_controller {
 	/* wiring */
 	struct mlip_planner *planner;      /* static storage, prefaulted */
 	struct mlip_ring *ring;
-	struct mlip_canio *can;            /* NULL: compute only (latency --plan) */
+	struct mlip_canio *can;            /* NULL: frames encoded, not sent */
 	struct mlip_canenc enc;
+	int encode;                        /* [CAN] settings given: encode frames */
 	const struct mlip_machine *m;
 	/* program state */
 	uint32_t state;                    /* mlip_ring_state */
@@ -152,7 +153,8 @@ struct mlip_controller {
 	uint64_t exec_seq;                 /* last record whose motion is done */
 	uint32_t exec_line;
 	/* counters (published in the status area) */
-	uint64_t overruns, underruns, frames_sent, blocks_consumed;
+	uint64_t overruns, underruns, frames_sent, frames_encoded, blocks_consumed;
+	int64_t send_ns;                   /* this period's sends (latency tool) */
 	uint64_t cycles;
 	double pos[MLIP_MAX_AXES];
 	int fault;                         /* encode refused a position: stopped */

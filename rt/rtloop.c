@@ -10,6 +10,7 @@
 #define _GNU_SOURCE /* pthread_attr_setaffinity_np, CPU_SET */
 
 #include <errno.h>
+#include <fcntl.h>
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
@@ -26,6 +27,7 @@
 #define STACK_PREFAULT (256 * 1024)
 
 static volatile sig_atomic_t stop_flag;
+static int dma_latency_fd = -1; /* held open: the request lasts while it is */
 
 void mlip_rt_request_stop(void)
 {
@@ -74,6 +76,20 @@ int mlip_rt_prepare(const struct mlip_rt_opts *o, struct mlip_rt_report *rep)
 		} else {
 			warn(rep, "no SCHED_FIFO (not permitted): the loop runs SCHED_OTHER and will miss "
 			          "deadlines under load; run as root, or grant CAP_SYS_NICE / an rtprio limit");
+		}
+	}
+	/* keep the CPUs out of deep C-states, as cyclictest does: waking from
+	 * them costs tens to hundreds of microseconds */
+	if (dma_latency_fd < 0) {
+		int32_t zero = 0;
+		dma_latency_fd = open("/dev/cpu_dma_latency", O_RDWR | O_CLOEXEC);
+		if (dma_latency_fd >= 0 && write(dma_latency_fd, &zero, sizeof(zero)) != sizeof(zero)) {
+			close(dma_latency_fd);
+			dma_latency_fd = -1;
+		}
+		if (dma_latency_fd < 0 && errno == EACCES) {
+			warn(rep, "cannot hold /dev/cpu_dma_latency at 0 (not permitted): deep CPU sleep "
+			          "states add wake-up latency; run as root");
 		}
 	}
 	/* the kernel: PREEMPT_RT bounds scheduling latency, a stock kernel does not */

@@ -8,6 +8,8 @@ need=""
 [ -f /usr/include/cmocka.h ] || need="$need libcmocka-dev"
 [ -f /usr/include/libsocketcan.h ] || need="$need libsocketcan-dev"
 command -v valgrind >/dev/null 2>&1 || need="$need valgrind"
+command -v cyclictest >/dev/null 2>&1 || need="$need rt-tests"
+command -v candump >/dev/null 2>&1 || need="$need can-utils"
 python3 -c 'import venv, ensurepip' >/dev/null 2>&1 || need="$need python3-venv"
 if [ -n "$need" ]; then
 	echo "deps: apt-get install$need"
@@ -20,7 +22,7 @@ if [ ! -x .venv/bin/python ]; then
 	echo "deps: creating .venv"
 	python3 -m venv .venv
 fi
-if ! .venv/bin/python -c 'import pytest, numpy' >/dev/null 2>&1; then
+if ! .venv/bin/python -c 'import pytest, numpy, cantools, matplotlib' >/dev/null 2>&1; then
 	echo "deps: pip install -r tests/requirements.txt"
 	.venv/bin/pip install -q -r tests/requirements.txt
 fi

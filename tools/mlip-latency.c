@@ -1,0 +1,1316 @@
+/*
+ * mlip-latency - the latency test of the controller's own periodic loop.
+ *
+ * It runs the loop that mlip-rt runs (mlip_rt_prepare + mlip_rt_run: the same
+ * thread, priority, memory locking and absolute CLOCK_MONOTONIC schedule) with
+ * one of three loads:
+ *
+ *   --idle        wake and sleep only (cyclictest's measurement)
+ *   --plan FILE   the real controller tick (mlip_controller_tick, as
+ *                 `mlip-rt --can none` runs it) on the program, fed into a
+ *                 private ring by a feeder thread in this process (what
+ *                 mlip-feed does through shared memory), plus the CAN
+ *                 encoding of every period's setpoints, frames discarded
+ *   --can IFACE   the same, and the frames really sent on IFACE; the send is
+ *                 timed on its own
+ *
+ * The program restarts when it ends, so the load lasts the whole run.
+ *
+ * Per period (samples in preallocated histograms, nothing printed, allocated,
+ * locked or blocked on the periodic path):
+ *
+ *   wake-up latency  actual wake - scheduled wake            (>= 0, cyclictest)
+ *   period jitter    |interval between wakes - scheduled interval|
+ *                    (two-sided, LinuxCNC latency-test; the scheduled
+ *                    interval is the period unless deadlines were skipped)
+ *   compute          the period's work, from wake to done (the loop's own
+ *                    `after` figure; includes the send)
+ *   send             --can only: the socket sends of the period
+ *   overruns         deadlines missed: floor((latency + compute) / period)
+ *                    per period, the rule by which the loop skips them
+ *
+ * Statistics: tools/lib/latstats.h (1 us bins, nearest-rank percentiles).
+ * Command line after cyclictest's where they overlap (-p -i -D -l -a -m -h -q
+ * --json); the JSON is a superset of cyclictest's --json file.
+ */
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/utsname.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "confload.h"
+#include "latstats.h"
+#include "mlip/canenc.h"
+#include "mlip/ring.h"
+#include "program.h"
+#include "rt.h"
+
+#define PROG "mlip-latency"
+#define VERSION "1"
+#define DEFAULT_CONFIG "config/mill-3axis.ini"
+#define DEFAULT_CAN_PROGRAM "examples/demo.ngc" /* --can without --plan */
+#define DEFAULT_PRIORITY 80        /* mlip-rt's */
+#define DEFAULT_INTERVAL_US 1000   /* --idle without -i */
+#define DEFAULT_HIST_US 10000      /* histogram shown: 0..10 ms */
+#define KEEP_HIST_US 100000        /* histogram kept for percentiles: 0..100 ms at least */
+#define MAX_HIST_US 10000000       /* -h at most 10 s */
+#define BIN_NS 1000                /* 1 us bins */
+#define FEED_BATCH 256u            /* records per push */
+#define FEED_SLEEP_NS 1000000L     /* feeder: ring full, look again in 1 ms */
+#define LIVE_NS 1000000000L        /* live line refresh */
+#define MAX_BUS_LOAD 0.70          /* mlip-rt's budget */
+
+enum { MODE_IDLE, MODE_PLAN, MODE_CAN };
+static const char *const mode_name[] = {"idle", "plan", "can"};
+
+enum { S_LAT, S_JIT, S_COMP, S_SEND, S_N };
+static const char *const series_key[S_N] = {"wakeup_latency", "period_jitter", "compute", "send"};
+static const char *const series_label[S_N] = {"wake-up latency", "period jitter", "compute",
+                                              "CAN send"};
+
+/* ---- what the periodic path touches: all allocated and touched before ---- */
+
+struct run {
+	/* settings */
+	int mode;
+	int64_t period_ns;
+	int64_t duration_ns; /* 0: no limit */
+	uint64_t loops;      /* 0: no limit */
+	/* schedule bookkeeping */
+	uint64_t first_deadline_ns, prev_deadline_ns;
+	uint64_t periods;
+	/* statistics */
+	struct mlip_latstats s[S_N];
+	uint64_t max_at[S_N]; /* period (cycle) of each series' max */
+	uint64_t overruns, overrun_periods;
+	int64_t send_ns; /* this period's send time, for `after` */
+	/* the load */
+	struct mlip_controller *ctl;
+	struct mlip_canio *io; /* MODE_CAN */
+	int encode;            /* encode frames each period */
+	uint64_t frames_encoded, encode_faults;
+	uint64_t passes, moving_periods;
+	uint32_t last_state;
+	/* live view for the display thread: relaxed atomics */
+	uint64_t live_cycles, live_act_ns, live_max_ns, live_overruns;
+};
+
+static struct run R;
+static struct mlip_planner planner; /* static, as in mlip-rt: locked and prefaulted */
+static struct mlip_controller ctl;
+static struct mlip_canio io = {.fd = -1};
+
+/* The period's work. */
+static int lat_tick(void *ctx, const struct mlip_rt_tick *t)
+{
+	struct run *r = ctx;
+	if (t->cycle == 0) {
+		r->first_deadline_ns = t->deadline_ns;
+	}
+	r->send_ns = 0;
+	if (r->mode != MODE_IDLE) {
+		struct mlip_controller *c = r->ctl;
+		(void)mlip_controller_tick(c, t); /* never asked to exit: no exit_request */
+		if (c->state == MLIP_STATE_RUNNING && !c->preread) {
+			r->moving_periods++;
+		}
+		if (c->state == MLIP_STATE_IDLE && r->last_state != MLIP_STATE_IDLE) {
+			r->passes++; /* a program run ended: the next one is in the ring */
+		}
+		r->last_state = c->state;
+		/* the controller encodes (and with --can sends) its own frames */
+		r->send_ns = c->send_ns;
+		r->frames_encoded = c->frames_encoded;
+		r->encode_faults = (uint64_t)c->fault;
+	}
+	if (r->loops != 0 && t->cycle + 1 >= r->loops) {
+		return 1;
+	}
+	if (r->duration_ns != 0 &&
+	    (int64_t)(t->deadline_ns - r->first_deadline_ns) + r->period_ns >= r->duration_ns) {
+		return 1;
+	}
+	return 0;
+}
+
+static void sample(struct run *r, int k, int64_t ns, uint64_t cycle)
+{
+	int64_t before = r->s[k].max_ns;
+	mlip_latstats_add(&r->s[k], ns);
+	if (r->s[k].max_ns != before || r->s[k].count == 1) {
+		r->max_at[k] = cycle;
+	}
+}
+
+/* After each period: the samples. */
+static void lat_after(void *ctx, const struct mlip_rt_tick *t, int64_t compute_ns)
+{
+	struct run *r = ctx;
+	sample(r, S_LAT, t->latency_ns, t->cycle);
+	if (t->cycle > 0) {
+		int64_t expected = (int64_t)(t->deadline_ns - r->prev_deadline_ns);
+		int64_t d = t->interval_ns - expected;
+		sample(r, S_JIT, d < 0 ? -d : d, t->cycle);
+	}
+	r->prev_deadline_ns = t->deadline_ns;
+	sample(r, S_COMP, compute_ns, t->cycle);
+	if (r->mode == MODE_CAN) {
+		sample(r, S_SEND, r->send_ns, t->cycle);
+	}
+	uint64_t missed = (uint64_t)((t->latency_ns + compute_ns) / r->period_ns);
+	if (missed > 0) {
+		r->overruns += missed;
+		r->overrun_periods++;
+	}
+	r->periods = t->cycle + 1;
+	__atomic_store_n(&r->live_cycles, t->cycle + 1, __ATOMIC_RELAXED);
+	__atomic_store_n(&r->live_act_ns, (uint64_t)t->latency_ns, __ATOMIC_RELAXED);
+	__atomic_store_n(&r->live_max_ns, (uint64_t)r->s[S_LAT].max_ns, __ATOMIC_RELAXED);
+	__atomic_store_n(&r->live_overruns, r->overruns, __ATOMIC_RELAXED);
+}
+
+/* ---- the feeder thread: keeps the private ring full, program after program */
+
+struct feeder {
+	struct mlip_ring *ring;
+	const struct mlip_program *prog;
+	uint32_t end_line;
+	size_t next; /* 0..n-1: block next, n: the END record */
+	int stop;    /* atomic */
+	struct mlip_ring_rec recs[FEED_BATCH];
+};
+
+/* Push as many records as fit (at most FEED_BATCH); returns how many. */
+static uint32_t feed_some(struct feeder *f)
+{
+	uint32_t space = mlip_ring_space(f->ring), k = 0;
+	size_t n = f->prog->n, idx = f->next;
+	for (; k < space && k < FEED_BATCH; k++) {
+		if (idx < n) {
+			mlip_ring_rec_from_block(&f->recs[k], &f->prog->blocks[idx], idx + 1);
+		} else {
+			mlip_ring_rec_end(&f->recs[k], n + 1, f->end_line);
+		}
+		idx = idx < n ? idx + 1 : 0;
+	}
+	uint32_t got = k > 0 ? mlip_ring_push_n(f->ring, f->recs, k) : 0;
+	f->next = (f->next + got) % (n + 1);
+	return got;
+}
+
+static void *feeder_main(void *arg)
+{
+	struct feeder *f = arg;
+	while (!__atomic_load_n(&f->stop, __ATOMIC_ACQUIRE)) {
+		if (feed_some(f) < FEED_BATCH) {
+			struct timespec ts = {0, FEED_SLEEP_NS};
+			(void)clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, NULL);
+		}
+	}
+	return NULL;
+}
+
+/* ---- the live line (a terminal, not -q) ------------------------------------ */
+
+static int live_stop;
+
+static void *live_main(void *arg)
+{
+	(void)arg;
+	while (!__atomic_load_n(&live_stop, __ATOMIC_ACQUIRE)) {
+		struct timespec ts = {LIVE_NS / 1000000000L, LIVE_NS % 1000000000L};
+		(void)clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, NULL);
+		uint64_t c = __atomic_load_n(&R.live_cycles, __ATOMIC_RELAXED);
+		uint64_t act = __atomic_load_n(&R.live_act_ns, __ATOMIC_RELAXED);
+		uint64_t max = __atomic_load_n(&R.live_max_ns, __ATOMIC_RELAXED);
+		uint64_t ovr = __atomic_load_n(&R.live_overruns, __ATOMIC_RELAXED);
+		fprintf(stderr,
+		        "\r" PROG ": C:%10llu Act:%8.1f Max:%8.1f us (wake-up latency), %llu overruns",
+		        (unsigned long long)c, act / 1e3, max / 1e3, (unsigned long long)ovr);
+		fflush(stderr);
+	}
+	fputs("\r\033[K", stderr);
+	return NULL;
+}
+
+/* ---- signals ------------------------------------------------------------- */
+
+static void on_signal(int sig)
+{
+	(void)sig;
+	mlip_rt_request_stop(); /* async-signal-safe: the loop ends after this period */
+}
+
+/* ---- options ------------------------------------------------------------- */
+
+struct opts {
+	int mode;
+	const char *program, *iface, *config, *json;
+	int config_given;
+	int priority, cpu, lock_memory, quiet, compare;
+	int64_t interval_us; /* 0: the config's PERIOD (plan, can) or 1000 */
+	double duration_s;   /* 0: none */
+	const char *duration_arg;
+	uint64_t loops;
+	uint32_t hist_us;
+	int hist_given;
+};
+
+static void usage(FILE *f)
+{
+	fprintf(f,
+	        "usage: " PROG " [--idle | --plan FILE.ngc | --can IFACE] [options]\n"
+	        "Latency test of the controller's own periodic loop (mlip_rt_run: same thread,\n"
+	        "priority and memory set-up as mlip-rt), idle or under the real per-period work.\n\n"
+	        "Load (one; default --idle):\n"
+	        "  --idle              wake up and sleep only, like cyclictest\n"
+	        "  --plan FILE         the real controller tick on this program (as mlip-rt\n"
+	        "                      --can none), frames encoded and discarded; restarts\n"
+	        "                      the program whenever it ends\n"
+	        "  --can IFACE         the same and the frames sent on IFACE, the send timed\n"
+	        "                      apart; the program is --plan's (default " DEFAULT_CAN_PROGRAM ")\n"
+	        "  --config FILE       machine INI for --plan/--can (default " DEFAULT_CONFIG ")\n\n"
+	        "Loop (cyclictest's letters):\n"
+	        "  -p, --priority N    SCHED_FIFO priority 1..99 (default %d, mlip-rt's;\n"
+	        "                      0: SCHED_OTHER)\n"
+	        "  -i, --interval US   period in microseconds (default: the config's PERIOD\n"
+	        "                      for --plan/--can, which it then replaces; %d for --idle)\n"
+	        "  -D, --duration T    run time: 10 or 10s (seconds), 1m, 2h, 1d (default: until\n"
+	        "                      Ctrl-C or -l)\n"
+	        "  -l, --loops N       stop after N periods (default: no limit)\n"
+	        "  -a, --affinity CPU  pin the loop to this CPU (also --cpu; default: no pinning)\n"
+	        "  -m, --mlockall      lock memory (the default, as mlip-rt does)\n"
+	        "      --no-mlockall   do not lock memory\n"
+	        "  -h, --histogram US  print 1 us histograms up to US (overflow above) on stdout,\n"
+	        "                      and keep that range in the JSON (default %d)\n"
+	        "  -q, --quiet         no live line, only the results\n"
+	        "      --json FILE     results as JSON (a superset of cyclictest's --json)\n"
+	        "      --compare-cyclictest\n"
+	        "                      then run rt-tests' cyclictest with the same interval,\n"
+	        "                      priority, affinity, memory locking and duration, and\n"
+	        "                      print both in one table\n"
+	        "      --help\n\n"
+	        "Per period: wake-up latency (wake - scheduled, us), period jitter (|interval -\n"
+	        "period|, us), compute time of the period's work (us), the send time (--can),\n"
+	        "overruns (deadlines missed). Exit 0 when the test ran, 1 when it could not, 2 on\n"
+	        "usage errors.\n",
+	        DEFAULT_PRIORITY, DEFAULT_INTERVAL_US, DEFAULT_HIST_US);
+}
+
+/* cyclictest's -D forms: N (seconds), Ns, Nm, Nh, Nd. 0 or -1. */
+static int parse_duration(const char *s, double *out)
+{
+	char *end;
+	errno = 0;
+	double v = strtod(s, &end);
+	if (end == s || errno != 0 || !isfinite(v) || v <= 0) {
+		return -1;
+	}
+	double mul = 1;
+	if (*end != '\0') {
+		switch (*end) {
+		case 's':
+			mul = 1;
+			break;
+		case 'm':
+			mul = 60;
+			break;
+		case 'h':
+			mul = 3600;
+			break;
+		case 'd':
+			mul = 86400;
+			break;
+		default:
+			return -1;
+		}
+		if (end[1] != '\0') {
+			return -1;
+		}
+	}
+	*out = v * mul;
+	return *out < 1e9 ? 0 : -1;
+}
+
+static int parse_uint(const char *s, uint64_t max, uint64_t *out)
+{
+	char *end;
+	if (*s == '\0' || *s == '-' || *s == '+') {
+		return -1;
+	}
+	errno = 0;
+	unsigned long long v = strtoull(s, &end, 10);
+	if (*end != '\0' || errno != 0 || v > max) {
+		return -1;
+	}
+	*out = v;
+	return 0;
+}
+
+static int parse_opts(int argc, char **argv, struct opts *o)
+{
+	enum { O_IDLE = 256, O_PLAN, O_CAN, O_CONFIG, O_JSON, O_COMPARE, O_NOLOCK, O_HELP };
+	static const struct option lo[] = {
+		{"idle", no_argument, 0, O_IDLE},
+		{"plan", required_argument, 0, O_PLAN},
+		{"can", required_argument, 0, O_CAN},
+		{"config", required_argument, 0, O_CONFIG},
+		{"priority", required_argument, 0, 'p'},
+		{"interval", required_argument, 0, 'i'},
+		{"duration", required_argument, 0, 'D'},
+		{"loops", required_argument, 0, 'l'},
+		{"affinity", required_argument, 0, 'a'},
+		{"cpu", required_argument, 0, 'a'}, /* mlip-rt's name, which its warnings use */
+		{"mlockall", no_argument, 0, 'm'},
+		{"no-mlockall", no_argument, 0, O_NOLOCK},
+		{"histogram", required_argument, 0, 'h'},
+		{"quiet", no_argument, 0, 'q'},
+		{"json", required_argument, 0, O_JSON},
+		{"compare-cyclictest", no_argument, 0, O_COMPARE},
+		{"help", no_argument, 0, O_HELP},
+		{0, 0, 0, 0}};
+	int c, idle = 0;
+	uint64_t u;
+
+	memset(o, 0, sizeof(*o));
+	o->config = DEFAULT_CONFIG;
+	o->priority = DEFAULT_PRIORITY;
+	o->cpu = -1;
+	o->lock_memory = 1;
+	o->hist_us = DEFAULT_HIST_US;
+	while ((c = getopt_long(argc, argv, "p:i:D:l:a:mh:q", lo, NULL)) != -1) {
+		switch (c) {
+		case O_IDLE:
+			idle = 1;
+			break;
+		case O_PLAN:
+			o->program = optarg;
+			break;
+		case O_CAN:
+			o->iface = optarg;
+			break;
+		case O_CONFIG:
+			o->config = optarg;
+			o->config_given = 1;
+			break;
+		case 'p':
+			if (parse_uint(optarg, 99, &u) != 0) {
+				fprintf(stderr, PROG ": -p/--priority: '%s' is not 0..99\n", optarg);
+				return 2;
+			}
+			o->priority = (int)u;
+			break;
+		case 'i':
+			if (parse_uint(optarg, 100000, &u) != 0 || u < 100) {
+				fprintf(stderr, PROG ": -i/--interval: '%s' is not 100..100000 us\n", optarg);
+				return 2;
+			}
+			o->interval_us = (int64_t)u;
+			break;
+		case 'D':
+			if (parse_duration(optarg, &o->duration_s) != 0) {
+				fprintf(stderr,
+				        PROG ": -D/--duration: '%s' is not a duration such as 10, 10s, 1m, "
+				             "2h or 1d\n",
+				        optarg);
+				return 2;
+			}
+			o->duration_arg = optarg;
+			break;
+		case 'l':
+			if (parse_uint(optarg, UINT64_MAX / 2, &u) != 0 || u == 0) {
+				fprintf(stderr, PROG ": -l/--loops: '%s' is not a positive count\n", optarg);
+				return 2;
+			}
+			o->loops = u;
+			break;
+		case 'a':
+			if (parse_uint(optarg, 4095, &u) != 0) {
+				fprintf(stderr,
+				        PROG ": -a/--affinity: '%s' is not one CPU number (e.g. -a 1)\n",
+				        optarg);
+				return 2;
+			}
+			o->cpu = (int)u;
+			break;
+		case 'm':
+			o->lock_memory = 1;
+			break;
+		case O_NOLOCK:
+			o->lock_memory = 0;
+			break;
+		case 'h':
+			if (parse_uint(optarg, MAX_HIST_US, &u) != 0 || u == 0) {
+				fprintf(stderr, PROG ": -h/--histogram: '%s' is not 1..%d us\n", optarg,
+				        MAX_HIST_US);
+				return 2;
+			}
+			o->hist_us = (uint32_t)u;
+			o->hist_given = 1;
+			break;
+		case 'q':
+			o->quiet = 1;
+			break;
+		case O_JSON:
+			o->json = optarg;
+			break;
+		case O_COMPARE:
+			o->compare = 1;
+			break;
+		case O_HELP:
+			usage(stdout);
+			exit(0);
+		default:
+			usage(stderr);
+			return 2;
+		}
+	}
+	if (optind != argc) {
+		fprintf(stderr, PROG ": unexpected argument '%s' (a program goes after --plan)\n",
+		        argv[optind]);
+		return 2;
+	}
+	if (idle && (o->program != NULL || o->iface != NULL)) {
+		fprintf(stderr, PROG ": --idle is a load of its own: not with --plan or --can\n");
+		return 2;
+	}
+	o->mode = o->iface != NULL ? MODE_CAN : o->program != NULL ? MODE_PLAN : MODE_IDLE;
+	if (o->mode == MODE_CAN && o->program == NULL) {
+		o->program = DEFAULT_CAN_PROGRAM;
+	}
+	if (o->mode == MODE_IDLE && o->config_given) {
+		fprintf(stderr, PROG ": note: --config is not used with --idle\n");
+	}
+	return 0;
+}
+
+/* ---- the system ------------------------------------------------------------ */
+
+struct sysinfo_rt {
+	struct utsname u;
+	int preempt_rt;       /* uname says PREEMPT_RT, or /sys/kernel/realtime is 1 */
+	int sys_realtime;     /* /sys/kernel/realtime (cyclictest's sysinfo.realtime) */
+	char isolated[128];   /* /sys/devices/system/cpu/isolated, "" when none */
+	long ncpu;
+};
+
+static void read_line(const char *path, char *buf, size_t len)
+{
+	buf[0] = '\0';
+	FILE *f = fopen(path, "r");
+	if (f == NULL) {
+		return;
+	}
+	if (fgets(buf, (int)len, f) == NULL) {
+		buf[0] = '\0';
+	}
+	fclose(f);
+	buf[strcspn(buf, "\r\n")] = '\0';
+}
+
+static void sys_probe(struct sysinfo_rt *s)
+{
+	char buf[16];
+	memset(s, 0, sizeof(*s));
+	if (uname(&s->u) != 0) {
+		memset(&s->u, 0, sizeof(s->u));
+	}
+	read_line("/sys/kernel/realtime", buf, sizeof(buf));
+	s->sys_realtime = buf[0] == '1';
+	s->preempt_rt = s->sys_realtime || strstr(s->u.version, "PREEMPT_RT") != NULL;
+	read_line("/sys/devices/system/cpu/isolated", s->isolated, sizeof(s->isolated));
+	s->ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+}
+
+/* ---- JSON -------------------------------------------------------------------- */
+
+static void json_str(FILE *f, const char *s)
+{
+	fputc('"', f);
+	for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+		if (*p == '"' || *p == '\\') {
+			fprintf(f, "\\%c", *p);
+		} else if (*p == '\n') {
+			fputs("\\n", f);
+		} else if (*p < 0x20) {
+			fprintf(f, "\\u%04x", *p);
+		} else {
+			fputc(*p, f);
+		}
+	}
+	fputc('"', f);
+}
+
+static const double pcts[] = {50.0, 99.0, 99.9, 99.99};
+static const char *const pct_key[] = {"p50", "p99", "p99_9", "p99_99"};
+#define NPCT 4
+
+static double us(int64_t ns)
+{
+	return (double)ns / 1e3;
+}
+
+/* Sparse histogram of bins [0, hist_us): {"us": count, ...}, like cyclictest. */
+static void json_hist(FILE *f, const struct mlip_latstats *s, uint32_t hist_us)
+{
+	int first = 1;
+	uint32_t end = hist_us < s->nbins ? hist_us : s->nbins;
+	fputc('{', f);
+	for (uint32_t b = 0; b < end; b++) {
+		if (s->bins[b] != 0) {
+			fprintf(f, "%s\"%u\": %llu", first ? "" : ", ", b, (unsigned long long)s->bins[b]);
+			first = 0;
+		}
+	}
+	fputc('}', f);
+}
+
+/* max_at: the period of the max (-1: not known) */
+static void json_series(FILE *f, const struct mlip_latstats *s, long long max_at, uint32_t hist_us,
+                        const char *ind)
+{
+	int capped = 0;
+	fprintf(f, "{\n%s  \"unit\": \"us\",\n%s  \"samples\": %llu,\n", ind, ind,
+	        (unsigned long long)s->count);
+	fprintf(f, "%s  \"min\": %.3f,\n%s  \"avg\": %.3f,\n%s  \"max\": %.3f,\n", ind,
+	        us(mlip_latstats_min_ns(s)), ind, mlip_latstats_mean_ns(s) / 1e3, ind, us(s->max_ns));
+	for (int k = 0; k < NPCT; k++) {
+		int ov;
+		fprintf(f, "%s  \"%s\": %.3f,\n", ind, pct_key[k],
+		        us(mlip_latstats_percentile_ns(s, pcts[k], &ov)));
+		capped |= ov;
+	}
+	fprintf(f, "%s  \"percentiles_in_overflow\": %s,\n", ind, capped ? "true" : "false");
+	if (max_at >= 0) {
+		fprintf(f, "%s  \"max_at_period\": %lld,\n", ind, max_at);
+	}
+	fprintf(f, "%s  \"histogram_us\": %u,\n%s  \"histogram\": ", ind, hist_us, ind);
+	json_hist(f, s, hist_us);
+	fprintf(f, ",\n%s  \"overflow\": %llu\n%s}", ind,
+	        (unsigned long long)(s->count - mlip_latstats_count_below(s, hist_us)), ind);
+}
+
+static void json_warnings(FILE *f, const char *w)
+{
+	int first = 1;
+	fputc('[', f);
+	while (*w) {
+		size_t n = strcspn(w, "\n");
+		char line[512];
+		snprintf(line, sizeof(line), "%.*s", (int)n, w);
+		if (n > 0) {
+			fputs(first ? "\n      " : ",\n      ", f);
+			json_str(f, line);
+			first = 0;
+		}
+		w += n + (w[n] == '\n');
+	}
+	fputs(first ? "]" : "\n    ]", f);
+}
+
+/* ---- cyclictest, side by side ---------------------------------------------- */
+
+struct ct_result {
+	int ran;
+	char cmd[512];
+	struct mlip_latstats s;
+	uint64_t *bins;
+	double avg_us; /* cyclictest's own average (its JSON), -1: not read */
+	char *json;    /* its --json file, verbatim (NULL: none) */
+};
+
+static char *slurp(const char *path)
+{
+	FILE *f = fopen(path, "r");
+	if (f == NULL) {
+		return NULL;
+	}
+	size_t cap = 4096, n = 0;
+	char *buf = malloc(cap);
+	while (buf != NULL) {
+		size_t got = fread(buf + n, 1, cap - n - 1, f);
+		n += got;
+		if (got == 0) {
+			break;
+		}
+		if (cap - n - 1 == 0) {
+			char *nb = realloc(buf, cap * 2);
+			if (nb == NULL) {
+				free(buf);
+				buf = NULL;
+				break;
+			}
+			buf = nb;
+			cap *= 2;
+		}
+	}
+	fclose(f);
+	if (buf != NULL) {
+		buf[n] = '\0';
+	}
+	return buf;
+}
+
+/* Run cyclictest with our settings; its -h histogram (stdout) becomes a
+ * latstats series like ours, overflow samples at its max. 0 or -1. */
+static int run_cyclictest(const struct opts *o, int64_t period_ns, double elapsed_s, uint32_t hist_us,
+                          struct ct_result *ct)
+{
+	char a_i[32], a_p[32], a_a[32], a_h[32], a_d[32], a_l[32], json_path[] = "/tmp/mlip-latency-ctXXXXXX";
+	const char *argv[32];
+	int n = 0;
+	memset(ct, 0, sizeof(*ct));
+	ct->avg_us = -1;
+	int jfd = mkstemp(json_path);
+	if (jfd >= 0) {
+		close(jfd);
+	}
+	argv[n++] = "cyclictest";
+	argv[n++] = "-q";
+	snprintf(a_i, sizeof(a_i), "-i%lld", (long long)(period_ns / 1000));
+	argv[n++] = a_i;
+	if (o->priority > 0) {
+		snprintf(a_p, sizeof(a_p), "-p%d", o->priority);
+		argv[n++] = a_p;
+	}
+	if (o->lock_memory) {
+		argv[n++] = "-m";
+	}
+	if (o->cpu >= 0) {
+		snprintf(a_a, sizeof(a_a), "-a%d", o->cpu);
+		argv[n++] = a_a;
+	}
+	snprintf(a_h, sizeof(a_h), "-h%u", hist_us);
+	argv[n++] = a_h;
+	if (o->loops != 0) {
+		snprintf(a_l, sizeof(a_l), "-l%llu", (unsigned long long)o->loops);
+		argv[n++] = a_l;
+	}
+	if (o->duration_s > 0 || o->loops == 0) {
+		/* cyclictest takes whole seconds; an open-ended run of ours lasted elapsed_s */
+		double d = o->duration_s > 0 ? o->duration_s : elapsed_s;
+		snprintf(a_d, sizeof(a_d), "-D%.0f", ceil(d) < 1 ? 1 : ceil(d));
+		argv[n++] = a_d;
+	}
+	size_t used = 0; /* the command as shown: without the temporary --json file */
+	for (int k = 0; k < n && used < sizeof(ct->cmd); k++) {
+		used += (size_t)snprintf(ct->cmd + used, sizeof(ct->cmd) - used, "%s%s", k ? " " : "",
+		                         argv[k]);
+	}
+	if (jfd >= 0) {
+		argv[n++] = "--json";
+		argv[n++] = json_path;
+	}
+	argv[n] = NULL;
+
+	int pfd[2];
+	if (pipe(pfd) != 0) {
+		perror(PROG ": pipe");
+		unlink(json_path);
+		return -1;
+	}
+	fflush(NULL);
+	pid_t pid = fork();
+	if (pid < 0) {
+		perror(PROG ": fork");
+		close(pfd[0]);
+		close(pfd[1]);
+		unlink(json_path);
+		return -1;
+	}
+	if (pid == 0) {
+		dup2(pfd[1], STDOUT_FILENO);
+		close(pfd[0]);
+		close(pfd[1]);
+		execvp("cyclictest", (char *const *)argv);
+		fprintf(stderr, PROG ": cannot run cyclictest: %s (Debian: apt-get install rt-tests)\n",
+		        strerror(errno));
+		_exit(127);
+	}
+	close(pfd[1]);
+	ct->bins = calloc(hist_us, sizeof(uint64_t));
+	if (ct->bins == NULL) {
+		fprintf(stderr, PROG ": out of memory\n");
+		close(pfd[0]);
+		waitpid(pid, NULL, 0);
+		unlink(json_path);
+		return -1;
+	}
+	mlip_latstats_init(&ct->s, ct->bins, hist_us, BIN_NS);
+	FILE *f = fdopen(pfd[0], "r");
+	char line[256];
+	unsigned long long overflow = 0, maxv = 0, minv = 0, b, cnt;
+	int have_max = 0, have_min = 0;
+	while (f != NULL && fgets(line, sizeof(line), f) != NULL) {
+		if (sscanf(line, "%llu %llu", &b, &cnt) == 2 && line[0] != '#') {
+			if (cnt > 0) {
+				mlip_latstats_add_n(&ct->s, (int64_t)b * BIN_NS, cnt);
+			}
+		} else if (sscanf(line, "# Histogram Overflows: %llu", &overflow) == 1) {
+		} else if (sscanf(line, "# Max Latencies: %llu", &maxv) == 1) {
+			have_max = 1;
+		} else if (sscanf(line, "# Min Latencies: %llu", &minv) == 1) {
+			have_min = 1;
+		}
+	}
+	if (f != NULL) {
+		fclose(f);
+	} else {
+		close(pfd[0]);
+	}
+	int status = 0;
+	waitpid(pid, &status, 0);
+	if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || !have_max) {
+		fprintf(stderr, PROG ": cyclictest did not complete (%s)\n",
+		        WIFEXITED(status) ? "exit status" : "killed");
+		unlink(json_path);
+		return -1;
+	}
+	/* the overflow samples lie above the histogram: at most its max */
+	mlip_latstats_add_n(&ct->s, (int64_t)maxv * BIN_NS, overflow);
+	if (have_min && ct->s.count > 0) {
+		ct->s.min_ns = (int64_t)minv * BIN_NS;
+	}
+	if (jfd >= 0) {
+		ct->json = slurp(json_path);
+		unlink(json_path);
+		const char *a = ct->json ? strstr(ct->json, "\"avg\":") : NULL;
+		if (a != NULL) {
+			ct->avg_us = strtod(a + 6, NULL);
+		}
+	}
+	ct->ran = 1;
+	return 0;
+}
+
+/* ---- report ---------------------------------------------------------------- */
+
+static void fmt_time(char *buf, size_t len, time_t t)
+{
+	struct tm tm;
+	localtime_r(&t, &tm);
+	strftime(buf, len, "%a, %d %b %Y %H:%M:%S %z", &tm);
+}
+
+static const char *jitter_grade(double max_us)
+{
+	/* LinuxCNC's reading of latency-test's max jitter */
+	if (max_us < 20) {
+		return "very good";
+	}
+	if (max_us <= 50) {
+		return "good";
+	}
+	if (max_us <= 100) {
+		return "fair";
+	}
+	return "poor";
+}
+
+static void print_table(FILE *f, const char *name, const struct mlip_latstats *s, long long max_at)
+{
+	char at[24] = "";
+	if (max_at >= 0) {
+		snprintf(at, sizeof(at), " %10lld", max_at);
+	}
+	fprintf(f, "  %-20s %10llu %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f%s\n", name,
+	        (unsigned long long)s->count, us(mlip_latstats_min_ns(s)),
+	        mlip_latstats_mean_ns(s) / 1e3, us(mlip_latstats_percentile_ns(s, 50, NULL)),
+	        us(mlip_latstats_percentile_ns(s, 99, NULL)),
+	        us(mlip_latstats_percentile_ns(s, 99.9, NULL)),
+	        us(mlip_latstats_percentile_ns(s, 99.99, NULL)), us(s->max_ns), at);
+}
+
+static void print_table_head(FILE *f, const char *what, int with_at)
+{
+	fprintf(f, "  %-20s %10s %8s %8s %8s %8s %8s %8s %8s%s\n", what, "samples", "min", "avg", "p50",
+	        "p99", "p99.9", "p99.99", "max", with_at ? "     max at" : "");
+}
+
+/* cyclictest's -h output, one column per series. */
+static void print_histogram(FILE *f, int nseries, uint32_t hist_us)
+{
+	fprintf(f, "# Histogram (us; columns:");
+	for (int k = 0; k < nseries; k++) {
+		fprintf(f, " %s", series_key[k]);
+	}
+	fprintf(f, ")\n");
+	for (uint32_t b = 0; b < hist_us; b++) {
+		fprintf(f, "%06u", b);
+		for (int k = 0; k < nseries; k++) {
+			fprintf(f, " %06llu", (unsigned long long)(b < R.s[k].nbins ? R.s[k].bins[b] : 0));
+		}
+		fputc('\n', f);
+	}
+	const char *rows[] = {"Total", "Min", "Avg", "Max", "Histogram Overflows"};
+	for (int r = 0; r < 5; r++) {
+		fprintf(f, "# %s%s:", rows[r], r >= 1 && r <= 3 ? " Latencies" : "");
+		for (int k = 0; k < nseries; k++) {
+			const struct mlip_latstats *s = &R.s[k];
+			uint64_t below = mlip_latstats_count_below(s, hist_us);
+			unsigned long long v = r == 0   ? below
+			                       : r == 1 ? (unsigned long long)(mlip_latstats_min_ns(s) / 1000)
+			                       : r == 2 ? (unsigned long long)(mlip_latstats_mean_ns(s) / 1e3)
+			                       : r == 3 ? (unsigned long long)(s->max_ns / 1000)
+			                                : s->count - below;
+			fprintf(f, " %05llu", v);
+		}
+		fputc('\n', f);
+	}
+}
+
+int main(int argc, char **argv)
+{
+	struct opts o;
+	int rc = parse_opts(argc, argv, &o);
+	if (rc != 0) {
+		return rc;
+	}
+	time_t t_start = time(NULL);
+
+	/* ---- the load: config, program, controller, ring, CAN ---- */
+	static struct mlip_config cfg;
+	static struct mlip_program prog;
+	static struct feeder feed;
+	void *ring_mem = NULL;
+	int64_t period_ns = (o.interval_us ? o.interval_us : DEFAULT_INTERVAL_US) * 1000;
+	mlip_can_profile prof = MLIP_CAN_CIA402;
+	char info[256] = "";
+
+	memset(&R, 0, sizeof(R));
+	R.mode = o.mode;
+	if (o.mode != MODE_IDLE) {
+		if (mlip_config_load(o.config, &cfg, stderr) != 0) {
+			if (!o.config_given) {
+				fprintf(stderr, PROG ": hint: run from the repository root, or pass --config\n");
+			}
+			return 1;
+		}
+		if (o.interval_us) {
+			cfg.machine.period_s = (double)o.interval_us * 1e-6;
+			struct mlip_config_error e;
+			if (mlip_machine_check(&cfg.machine, &e) != MLIP_OK) {
+				mlip_config_perror(stderr, PROG, &e);
+				return 2;
+			}
+		}
+		period_ns = (int64_t)(cfg.machine.period_s * 1e9 + 0.5);
+		rc = mlip_program_load(o.program, &cfg.machine, &prog);
+		if (rc < 0) {
+			fprintf(stderr, PROG ": %s: %s\n", o.program, strerror(-rc));
+			return 1;
+		}
+		if (rc > 0) {
+			mlip_program_print_errors(&prog, o.program, stderr);
+			return 1;
+		}
+		if (prog.n == 0) {
+			fprintf(stderr, PROG ": %s: no motion to run\n", o.program);
+			return 1;
+		}
+		if (mlip_can_profile_parse(cfg.can.profile, &prof) != MLIP_OK) {
+			prof = MLIP_CAN_CIA402;
+		}
+	}
+	if (o.mode == MODE_CAN) {
+		struct mlip_can_load l;
+		if (mlip_can_load_breakdown(prof, cfg.machine.n_axes, cfg.can.bitrate,
+		                            cfg.can.data_bitrate, cfg.machine.period_s, &l) == MLIP_OK &&
+		    l.load > MAX_BUS_LOAD) {
+			fprintf(stderr,
+			        PROG ": warning: bus load %.1f %% is above mlip-rt's %.0f %% budget (mlip-rt "
+			             "would refuse this configuration)\n",
+			        l.load * 100.0, MAX_BUS_LOAD * 100.0);
+		}
+		if (mlip_canio_check(o.iface, info, sizeof(info)) != 0) {
+			fprintf(stderr, PROG ": %s\n", info);
+			return 1;
+		}
+		if (!o.quiet) {
+			fprintf(stderr, PROG ": %s\n", info);
+		}
+		if (mlip_canio_open(&io, o.iface, prof == MLIP_CAN_FD, info, sizeof(info)) != 0) {
+			fprintf(stderr, PROG ": %s\n", info);
+			return 1;
+		}
+	}
+
+	/* ---- real-time set-up, as mlip-rt ---- */
+	struct mlip_rt_opts ro = {.period_ns = period_ns, .priority = o.priority, .cpu = o.cpu,
+	                          .lock_memory = o.lock_memory};
+	struct mlip_rt_report rep;
+	mlip_rt_prepare(&ro, &rep);
+	/* what was chosen away: mlip_rt_prepare warns only about what failed */
+	char chosen[256] = "";
+	if (o.priority == 0) {
+		snprintf(chosen, sizeof(chosen), "%s",
+		         "priority 0: the loop runs SCHED_OTHER, not real-time; mlip-rt runs -p 80\n");
+	}
+	if (!o.lock_memory) {
+		size_t used = strlen(chosen);
+		snprintf(chosen + used, sizeof(chosen) - used, "%s",
+		         "memory not locked (--no-mlockall): page faults can stall the loop; mlip-rt "
+		         "locks it\n");
+	}
+
+	/* histograms: allocated and touched now (mlockall covers them) */
+	uint32_t keep = o.hist_us > KEEP_HIST_US ? o.hist_us : KEEP_HIST_US;
+	keep = keep < (uint32_t)(4 * (period_ns / BIN_NS)) ? (uint32_t)(4 * (period_ns / BIN_NS)) : keep;
+	for (int k = 0; k < S_N; k++) {
+		uint64_t *b = malloc((size_t)keep * sizeof(uint64_t));
+		if (b == NULL) {
+			fprintf(stderr, PROG ": out of memory for the histograms\n");
+			return 1;
+		}
+		mlip_latstats_init(&R.s[k], b, keep, BIN_NS); /* zeroes: every page touched */
+	}
+	R.period_ns = period_ns;
+	R.duration_ns = (int64_t)(o.duration_s * 1e9 + 0.5);
+	R.loops = o.loops;
+
+	pthread_t feeder_th, live_th;
+	int feeder_started = 0, live_started = 0;
+	if (o.mode != MODE_IDLE) {
+		uint32_t cap = MLIP_RING_CAPACITY;
+		size_t bytes = mlip_ring_bytes(cap);
+		if (posix_memalign(&ring_mem, MLIP_RING_LINE, bytes) != 0) {
+			fprintf(stderr, PROG ": out of memory for the ring\n");
+			return 1;
+		}
+		memset(ring_mem, 0, bytes);
+		if (mlip_ring_format_machine(ring_mem, bytes, cap, &cfg.machine) != MLIP_OK) {
+			fprintf(stderr, PROG ": cannot format the ring\n");
+			return 1;
+		}
+		struct mlip_ring *ring = ring_mem;
+		if (mlip_controller_init(&ctl, &planner, &cfg.machine, &cfg.can, MLIP_STRATEGY_MPCT,
+		                         cfg.lookahead, ring, o.mode == MODE_CAN ? &io : NULL) != 0) {
+			if (o.mode == MODE_CAN ||
+			    mlip_controller_init(&ctl, &planner, &cfg.machine, NULL, MLIP_STRATEGY_MPCT,
+			                         cfg.lookahead, ring, NULL) != 0) {
+				fprintf(stderr, PROG ": the [CAN] settings of %s do not fit this machine\n",
+				        o.config);
+				return 1;
+			}
+			fprintf(stderr, PROG ": note: [CAN] settings do not fit: frames not encoded\n");
+		} else {
+			R.encode = 1;
+		}
+		memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead, as mlip-rt */
+		R.ctl = &ctl;
+		R.io = o.mode == MODE_CAN ? &io : NULL;
+		R.last_state = MLIP_STATE_IDLE;
+		feed.ring = ring;
+		feed.prog = &prog;
+		feed.end_line = prog.lines;
+		while (feed_some(&feed) > 0) { /* the ring full before the first period */
+		}
+		if (pthread_create(&feeder_th, NULL, feeder_main, &feed) != 0) {
+			fprintf(stderr, PROG ": cannot start the feeder thread\n");
+			return 1;
+		}
+		feeder_started = 1;
+	}
+
+	struct sigaction sa;
+	memset(&sa, 0, sizeof(sa));
+	sa.sa_handler = on_signal;
+	sigemptyset(&sa.sa_mask);
+	sigaction(SIGINT, &sa, NULL);
+	sigaction(SIGTERM, &sa, NULL);
+
+	/* what is being measured, and what is not real-time about it */
+	if (!o.quiet) {
+		char lim[64] = "until Ctrl-C";
+		if (o.duration_s > 0) {
+			snprintf(lim, sizeof(lim), "for %g s", o.duration_s);
+		} else if (o.loops) {
+			snprintf(lim, sizeof(lim), "for %llu periods", (unsigned long long)o.loops);
+		}
+		fprintf(stderr, PROG ": %s load%s%s%s%s, period %lld us, %s\n", mode_name[o.mode],
+		        o.mode == MODE_IDLE ? "" : " ", o.mode == MODE_IDLE ? "" : o.program,
+		        o.mode == MODE_CAN ? " on " : "", o.mode == MODE_CAN ? o.iface : "",
+		        (long long)(period_ns / 1000), lim);
+	}
+	fprintf(stderr, "%s%s", chosen, rep.warnings);
+	if (!o.quiet && isatty(STDERR_FILENO)) {
+		live_started = pthread_create(&live_th, NULL, live_main, NULL) == 0;
+	}
+
+	struct mlip_rt_report run;
+	memset(&run, 0, sizeof(run));
+	uint64_t t0 = mlip_now_ns();
+	rc = mlip_rt_run(&ro, lat_tick, lat_after, &R, &run);
+	uint64_t t1 = mlip_now_ns();
+	time_t t_end = time(NULL);
+
+	if (live_started) {
+		__atomic_store_n(&live_stop, 1, __ATOMIC_RELEASE);
+		pthread_join(live_th, NULL);
+	}
+	if (feeder_started) {
+		__atomic_store_n(&feed.stop, 1, __ATOMIC_RELEASE);
+		pthread_join(feeder_th, NULL);
+	}
+	if (rc < 0) {
+		fprintf(stderr, PROG ": cannot start the loop: %s\n", strerror(-rc));
+		return 1;
+	}
+	if (run.warnings[0]) {
+		fprintf(stderr, "%s", run.warnings);
+	}
+	/* every warning, for the JSON */
+	char warnings[sizeof(chosen) + 2 * sizeof(rep.warnings)];
+	snprintf(warnings, sizeof(warnings), "%s%s%s", chosen, rep.warnings, run.warnings);
+
+	struct sysinfo_rt sys;
+	sys_probe(&sys);
+	int nseries = o.mode == MODE_CAN ? S_N : S_SEND;
+	double elapsed_s = R.periods ? (double)(t1 - t0) / 1e9 : 0.0;
+	int fifo = run.fifo, locked = rep.locked;
+
+	/* ---- results ---- */
+	/* results on stdout, unless the JSON goes there */
+	FILE *out = o.json != NULL && strcmp(o.json, "-") == 0 ? stderr : stdout;
+	if (o.hist_given) {
+		print_histogram(out, nseries, o.hist_us);
+	}
+	char where[32] = "";
+	if (run.pinned) {
+		snprintf(where, sizeof(where), " on CPU %d", o.cpu);
+	}
+	fprintf(out, PROG ": %s%s%s, %llu periods of %lld us (%.1f s)\n", mode_name[o.mode],
+	        o.mode == MODE_IDLE ? "" : " ", o.mode == MODE_IDLE ? "" : o.program,
+	        (unsigned long long)R.periods, (long long)(period_ns / 1000), elapsed_s);
+	if (fifo) {
+		snprintf(info, sizeof(info), "SCHED_FIFO priority %d", o.priority);
+	} else {
+		snprintf(info, sizeof(info), "SCHED_OTHER (not real-time)");
+	}
+	fprintf(out, "  %s%s, memory %s, kernel %s %s, isolated CPUs: %s\n", info, where,
+	        locked ? "locked" : "not locked", sys.u.release,
+	        sys.preempt_rt ? "PREEMPT_RT" : "(not PREEMPT_RT)",
+	        sys.isolated[0] ? sys.isolated : "none");
+	print_table_head(out, "us", 1);
+	for (int k = 0; k < nseries; k++) {
+		print_table(out, series_label[k], &R.s[k], (long long)R.max_at[k]);
+	}
+	if (o.mode != MODE_IDLE) {
+		fprintf(out,
+		        "  load: %s, %llu runs of the program finished, %llu blocks taken, %.1f %% of "
+		        "periods moving, %llu underruns, %llu frames %s",
+		        o.program, (unsigned long long)R.passes, (unsigned long long)ctl.blocks_consumed,
+		        R.periods ? 100.0 * (double)R.moving_periods / (double)R.periods : 0.0,
+		        (unsigned long long)ctl.underruns, (unsigned long long)R.frames_encoded,
+		        o.mode == MODE_CAN ? "encoded" : "encoded and discarded");
+		if (o.mode == MODE_CAN) {
+			fprintf(out, ", %llu sent, %llu dropped (tx queue full), %llu bus errors on %s",
+			        (unsigned long long)io.tx_ok, (unsigned long long)io.tx_dropped,
+			        (unsigned long long)io.bus_errors, o.iface);
+		}
+		if (R.encode_faults) {
+			fprintf(out, ", %llu periods not encodable", (unsigned long long)R.encode_faults);
+		}
+		fputc('\n', out);
+	}
+
+	/* the summary line: the figures a person looks at */
+	const struct mlip_latstats *L = &R.s[S_LAT], *J = &R.s[S_JIT], *C = &R.s[S_COMP];
+	double worst_us = us(L->max_ns) + us(C->max_ns);
+	char summary[768];
+	int sl = snprintf(summary, sizeof(summary),
+	                  PROG " %s: wake-up p99 %.0f us, p99.99 %.0f us, max %.0f us | jitter max "
+	                       "%.0f us (%s) | compute p99 %.0f us, max %.0f us",
+	                  mode_name[o.mode], us(mlip_latstats_percentile_ns(L, 99, NULL)),
+	                  us(mlip_latstats_percentile_ns(L, 99.99, NULL)), us(L->max_ns), us(J->max_ns),
+	                  jitter_grade(us(J->max_ns)), us(mlip_latstats_percentile_ns(C, 99, NULL)),
+	                  us(C->max_ns));
+	if (o.mode == MODE_CAN && sl > 0 && (size_t)sl < sizeof(summary)) {
+		sl += snprintf(summary + sl, sizeof(summary) - (size_t)sl, " | send max %.0f us",
+		               us(R.s[S_SEND].max_ns));
+	}
+	if (sl > 0 && (size_t)sl < sizeof(summary)) {
+		int nw = 0;
+		for (const char *w = warnings; *w; w++) {
+			nw += *w == '\n';
+		}
+		sl += snprintf(summary + sl, sizeof(summary) - (size_t)sl,
+		               " | %llu overruns | worst wake-up + compute %.0f of %lld us%s", 
+		               (unsigned long long)R.overruns, worst_us, (long long)(period_ns / 1000),
+		               nw ? " | NOT REAL-TIME, see the warnings" : "");
+	}
+	fprintf(out, "%s\n", summary);
+	fflush(out);
+
+	/* ---- cyclictest, same settings, after us ---- */
+	struct ct_result ct;
+	memset(&ct, 0, sizeof(ct));
+	if (o.compare) {
+		uint32_t ct_hist = o.hist_us > DEFAULT_HIST_US ? o.hist_us : DEFAULT_HIST_US;
+		if (!o.quiet) {
+			fprintf(stderr, PROG ": now cyclictest with the same settings...\n");
+		}
+		if (run_cyclictest(&o, period_ns, elapsed_s, ct_hist, &ct) == 0) {
+			fprintf(out, "\nwake-up latency, us (the same loop settings, one run after the other)\n");
+			print_table_head(out, "", 0);
+			char name[40];
+			snprintf(name, sizeof(name), "mlip-latency %s", mode_name[o.mode]);
+			print_table(out, name, L, -1);
+			print_table(out, "cyclictest", &ct.s, -1);
+			fprintf(out, "  cyclictest: %s\n", ct.cmd);
+			fprintf(out, "  (cyclictest whole us, its avg %.2f; percentiles from its histogram, "
+			             "same rule as ours)\n",
+			        ct.avg_us);
+		}
+	}
+
+	/* ---- JSON ---- */
+	if (o.json != NULL) {
+		FILE *f = strcmp(o.json, "-") == 0 ? stdout : fopen(o.json, "w");
+		if (f == NULL) {
+			perror(o.json);
+			return 1;
+		}
+		char ts0[64], ts1[64], cmdline[2048];
+		size_t used = 0;
+		for (int k = 0; k < argc && used < sizeof(cmdline); k++) {
+			used += (size_t)snprintf(cmdline + used, sizeof(cmdline) - used, "%s%s", k ? " " : "",
+			                         argv[k]);
+		}
+		fmt_time(ts0, sizeof(ts0), t_start);
+		fmt_time(ts1, sizeof(ts1), t_end);
+		struct timespec res;
+		clock_getres(CLOCK_MONOTONIC, &res);
+		/* cyclictest's keys first (its "cmdline:" and "rt_test_version:" keep their colon) */
+		fprintf(f, "{\n  \"file_version\": 1,\n  \"cmdline:\": ");
+		json_str(f, cmdline);
+		fprintf(f, ",\n  \"rt_test_version:\": \"mlip-latency " VERSION "\",\n");
+		fprintf(f, "  \"start_time\": \"%s\",\n  \"end_time\": \"%s\",\n", ts0, ts1);
+		fprintf(f, "  \"return_code\": 0,\n  \"sysinfo\": {\n    \"sysname\": ");
+		json_str(f, sys.u.sysname);
+		fprintf(f, ",\n    \"nodename\": ");
+		json_str(f, sys.u.nodename);
+		fprintf(f, ",\n    \"release\": ");
+		json_str(f, sys.u.release);
+		fprintf(f, ",\n    \"version\": ");
+		json_str(f, sys.u.version);
+		fprintf(f, ",\n    \"machine\": ");
+		json_str(f, sys.u.machine);
+		fprintf(f, ",\n    \"realtime\": %d\n  },\n", sys.sys_realtime);
+		fprintf(f, "  \"num_threads\": 1,\n  \"resolution_in_ns\": %ld,\n",
+		        (long)(res.tv_sec * 1000000000L + res.tv_nsec));
+		fprintf(f, "  \"thread\": {\n    \"0\": {\n      \"histogram\": ");
+		json_hist(f, L, o.hist_us);
+		fprintf(f,
+		        ",\n      \"cycles\": %llu,\n      \"min\": %lld,\n      \"max\": %lld,\n"
+		        "      \"avg\": %.2f,\n      \"cpu\": %d,\n      \"node\": 0,\n",
+		        (unsigned long long)L->count, (long long)(mlip_latstats_min_ns(L) / 1000),
+		        (long long)(L->max_ns / 1000), mlip_latstats_mean_ns(L) / 1e3,
+		        run.pinned ? o.cpu : -1);
+		fprintf(f, "      \"overflow\": %llu",
+		        (unsigned long long)(L->count - mlip_latstats_count_below(L, o.hist_us)));
+		for (int k = 0; k < NPCT; k++) {
+			fprintf(f, ",\n      \"%s\": %.3f", pct_key[k],
+			        us(mlip_latstats_percentile_ns(L, pcts[k], NULL)));
+		}
+		fprintf(f, "\n    }\n  },\n");
+		/* ours */
+		fprintf(f, "  \"mlip\": {\n    \"tool\": \"" PROG "\",\n    \"version\": \"" VERSION "\",\n");
+		fprintf(f, "    \"mode\": \"%s\",\n", mode_name[o.mode]);
+		if (o.mode != MODE_IDLE) {
+			fprintf(f, "    \"program\": ");
+			json_str(f, o.program);
+			fprintf(f, ",\n    \"config\": ");
+			json_str(f, o.config);
+			fprintf(f, ",\n");
+		}
+		if (o.mode == MODE_CAN) {
+			fprintf(f, "    \"interface\": ");
+			json_str(f, o.iface);
+			fprintf(f, ",\n    \"can_profile\": \"%s\",\n", mlip_can_profile_name(prof));
+		}
+		fprintf(f,
+		        "    \"period_us\": %.3f,\n    \"duration_s\": %.3f,\n    \"loops\": %llu,\n"
+		        "    \"elapsed_s\": %.3f,\n    \"periods\": %llu,\n",
+		        (double)period_ns / 1e3, o.duration_s, (unsigned long long)o.loops, elapsed_s,
+		        (unsigned long long)R.periods);
+		fprintf(f, "    \"overruns\": %llu,\n    \"overrun_periods\": %llu,\n",
+		        (unsigned long long)R.overruns, (unsigned long long)R.overrun_periods);
+		fprintf(f,
+		        "    \"realtime\": {\n      \"priority\": %d,\n      \"sched_fifo\": %s,\n"
+		        "      \"mlockall\": %s,\n      \"cpu\": %d,\n      \"pinned\": %s,\n"
+		        "      \"kernel\": ",
+		        o.priority, fifo ? "true" : "false", locked ? "true" : "false", o.cpu,
+		        run.pinned ? "true" : "false");
+		json_str(f, sys.u.release);
+		fprintf(f, ",\n      \"kernel_version\": ");
+		json_str(f, sys.u.version);
+		fprintf(f, ",\n      \"preempt_rt\": %s,\n      \"isolated_cpus\": ",
+		        sys.preempt_rt ? "true" : "false");
+		json_str(f, sys.isolated);
+		fprintf(f, ",\n      \"cpus\": %ld,\n      \"warnings\": ", sys.ncpu);
+		json_warnings(f, warnings);
+		fprintf(f, "\n    },\n");
+		for (int k = 0; k < nseries; k++) {
+			fprintf(f, "    \"%s\": ", series_key[k]);
+			json_series(f, &R.s[k], (long long)R.max_at[k], o.hist_us, "    ");
+			fprintf(f, ",\n");
+		}
+		if (o.mode != MODE_IDLE) {
+			fprintf(f,
+			        "    \"load\": {\n      \"program_blocks\": %llu,\n      \"runs_finished\": "
+			        "%llu,\n      \"blocks_taken\": %llu,\n      \"moving_periods\": %llu,\n"
+			        "      \"underruns\": %llu,\n      \"frames_encoded\": %llu,\n"
+			        "      \"encode_faults\": %llu",
+			        (unsigned long long)prog.n, (unsigned long long)R.passes,
+			        (unsigned long long)ctl.blocks_consumed, (unsigned long long)R.moving_periods,
+			        (unsigned long long)ctl.underruns, (unsigned long long)R.frames_encoded,
+			        (unsigned long long)R.encode_faults);
+			if (o.mode == MODE_CAN) {
+				fprintf(f,
+				        ",\n      \"frames_sent\": %llu,\n      \"frames_dropped\": %llu,\n"
+				        "      \"bus_errors\": %llu",
+				        (unsigned long long)io.tx_ok, (unsigned long long)io.tx_dropped,
+				        (unsigned long long)io.bus_errors);
+			}
+			fprintf(f, "\n    },\n");
+		}
+		fprintf(f, "    \"summary\": ");
+		json_str(f, summary);
+		fprintf(f, "\n  }");
+		if (ct.ran) {
+			fprintf(f, ",\n  \"cyclictest\": {\n    \"cmdline\": ");
+			json_str(f, ct.cmd);
+			fprintf(f, ",\n    \"wakeup_latency\": ");
+			json_series(f, &ct.s, -1, ct.s.nbins, "    ");
+			fprintf(f, ",\n    \"json\": %s\n  }", ct.json != NULL ? ct.json : "null");
+		}
+		fprintf(f, "\n}\n");
+		if (f != stdout && fclose(f) != 0) {
+			perror(o.json);
+			return 1;
+		}
+	}
+
+	mlip_canio_close(&io);
+	if (o.mode != MODE_IDLE) {
+		mlip_program_free(&prog);
+		free(ring_mem);
+	}
+	for (int k = 0; k < S_N; k++) {
+		free(R.s[k].bins);
+	}
+	free(ct.bins);
+	free(ct.json);
+	return 0;
+}
