@@ -2,6 +2,7 @@
 #   make            library, tools, unit tests
 #   make run        the simulator on the bundled demo, all three strategies
 #   make test       install missing deps, build, run every test (what CI runs)
+#   make can        the CAN tests alone (vcan0 on the host, or in a VM)
 #   make bench      Table 1 and Table 2 of the paper, redone
 #   make asan|ubsan the whole test suite under a sanitizer (build-asan/, build-ubsan/)
 
@@ -31,7 +32,7 @@ BENCH_BINS:= $(BENCH_SRC:bench/%.c=$(BUILD)/%)
 # rt/ needs libsocketcan and threads; tools that use rt/ link it.
 RT_LIBS   := -lsocketcan -lpthread -lrt
 
-.PHONY: all test unit pytest bench asan ubsan fuzz deps clean demo run
+.PHONY: all test unit pytest can bench asan ubsan fuzz deps clean demo run
 all: $(BUILD)/libmlip.a $(TOOLS) $(UNIT_BINS) $(BENCH_BINS)
 
 $(BUILD)/obj/%.o: %.c
@@ -85,6 +86,11 @@ test: deps
 	@$(MAKE) --no-print-directory all
 	@$(MAKE) --no-print-directory unit
 	@$(MAKE) --no-print-directory pytest
+
+# CAN tests on a real vcan0: on this host when it can make one, else in a
+# QEMU VM (tools/vcan/README.md). One call, one boot.
+can: all
+	@tools/vcan/run.sh '.venv/bin/python -m pytest -q tests/can'
 
 bench: all
 	@. .venv/bin/activate 2>/dev/null; python3 bench/run.py --build $(BUILD)

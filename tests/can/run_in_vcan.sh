@@ -9,31 +9,34 @@
 # line) and OUTDIR/env (exports from the host), brings up vcan0, runs the command
 # and writes its output to OUTDIR/log (the host streams it) and its exit code to
 # OUTDIR/rc.  Not meant to be run by hand.
+# (Few external commands on purpose: each exec costs ~0.3 s under emulation.)
 out=${1:?usage: run_in_vcan.sh OUTDIR}
 exec >>"$out/log" 2>&1 </dev/null
 
-ROOT=$(cd "$(dirname "$0")/../.." && pwd)
-cd "$ROOT" || exit 1
-
 finish() {
-	echo "$1" >"$out/rc.tmp" && mv -f "$out/rc.tmp" "$out/rc"
-	sync
+	echo "$1" >"$out/rc"   # the host reads it once the VM is gone
 	exit "$1"
 }
 
+ROOT=${BASH_SOURCE[0]%/*}/../..
+cd "$ROOT" || finish 125
+ROOT=$PWD
+
 read -r up _ </proc/uptime
-echo "[vm] $(uname -r) up after ${up}s (guest clock)"
+read -r kver </proc/sys/kernel/osrelease
+echo "[vm] $kver up after ${up}s (guest clock)"
 
 # vcan0, CAN FD capable.  modprobe finds the modules of the unpacked Debian kernel
 # (vng links them at /lib/modules/$(uname -r)).
-modprobe vcan 2>/dev/null
-modprobe can-raw 2>/dev/null
-if ! ip link show dev vcan0 >/dev/null 2>&1; then
+modprobe -a vcan can-raw 2>/dev/null
+if [ ! -e /sys/class/net/vcan0 ]; then
 	ip link add dev vcan0 type vcan || { echo "[vm] cannot create vcan0"; finish 125; }
 fi
-ip link set dev vcan0 down
-ip link set dev vcan0 mtu 72 || echo "[vm] warning: vcan0 mtu 72 (CAN FD) failed"
-ip link set dev vcan0 up || { echo "[vm] cannot bring vcan0 up"; finish 125; }
+ip -batch - <<'IP' || { echo "[vm] cannot bring vcan0 up with mtu 72"; finish 125; }
+link set dev vcan0 down
+link set dev vcan0 mtu 72
+link set dev vcan0 up
+IP
 
 # Environment for CMD: host's MLIP_*/CI/PYTEST_* variables, the venv first on PATH.
 [ -f "$out/env" ] && . "$out/env"
@@ -42,8 +45,7 @@ export MLIP_VM_OUTDIR="$out"          # files written here come back to the host
 export VIRTUAL_ENV="$ROOT/.venv"
 export PATH="$ROOT/.venv/bin:/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"
 export PYTHONDONTWRITEBYTECODE=1
-export HOME=/tmp/mlip-home TMPDIR=/tmp
-mkdir -p "$HOME"
+export HOME=/tmp TMPDIR=/tmp
 
-bash -c "$(cat "$out/cmd")"
+bash -c "$(<"$out/cmd")"
 finish $?

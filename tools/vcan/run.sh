@@ -51,14 +51,20 @@ if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null 2>&1; then SUDO="sudo -n"; 
 IP=$(command -v ip || { [ -x /sbin/ip ] && echo /sbin/ip; } || true)
 MODPROBE=$(command -v modprobe || { [ -x /sbin/modprobe ] && echo /sbin/modprobe; } || true)
 
+# vcan0 exists, is a CAN device (ARPHRD_CAN = 280) and is up.
 vcan0_up() {
 	[ -r /sys/class/net/vcan0/flags ] || return 1
+	[ "$(cat /sys/class/net/vcan0/type)" = 280 ] || return 1
 	[ $(( $(cat /sys/class/net/vcan0/flags) & 1 )) = 1 ]
 }
 
 # Make vcan0 exist, with mtu 72 (CAN FD), and up.  Fails harmlessly.
 host_vcan() {
 	[ -n "$IP" ] || return 1
+	if [ -e /sys/class/net/vcan0 ] && [ "$(cat /sys/class/net/vcan0/type)" != 280 ]; then
+		say "vcan0 exists but is not a CAN device: ignoring it"
+		return 1
+	fi
 	if [ ! -e /sys/class/net/vcan0 ]; then
 		[ -n "$MODPROBE" ] && $SUDO "$MODPROBE" vcan >/dev/null 2>&1
 		$SUDO "$IP" link add dev vcan0 type vcan >/dev/null 2>&1 || return 1
@@ -101,14 +107,18 @@ kvm_usable() {
 }
 
 run_vm() {
-	local t0 kimg outdir vng_pid vng_rc rc
+	local t0 kimg bootimg outdir vng_pid tail_pid vng_rc rc
 	t0=$(date +%s%N)
 	"$ROOT/tools/vcan/setup.sh" || { say "setup failed"; exit 125; }
 	export PATH="$ROOT/.venv/bin:$PATH"   # vng calls virtme-run by name
 	kimg=$(ls "$VM_DIR"/kernel/boot/vmlinuz-* 2>/dev/null | head -n 1)
 	[ -n "$kimg" ] || { say "no kernel in $VM_DIR/kernel"; exit 125; }
+	# The uncompressed ELF boots ~5 s faster under TCG; vng reads its version
+	# with strings(1), so use it only when that is there.
+	local elf=${kimg/\/vmlinuz-//vmlinux-}
+	if [ -f "$elf" ] && command -v strings >/dev/null 2>&1; then bootimg=$elf; else bootimg=$kimg; fi
 
-	local -a vng=(vng --run "$kimg" --user root --force-9p --cwd "$ROOT"
+	local -a vng=(vng --run "$bootimg" --user root --force-9p --cwd "$ROOT"
 		--overlay-rwdir "$ROOT" --memory "${MLIP_VM_MEMORY:-1G}" --cpus "${MLIP_VM_CPUS:-2}")
 	if kvm_usable "$kimg"; then accel=KVM; else accel=TCG; vng+=(--disable-kvm); fi
 	[ "${MLIP_VM_VERBOSE:-0}" = 1 ] && vng+=(--verbose)
@@ -128,13 +138,19 @@ run_vm() {
 	: >"$outdir/log"
 	vng+=(--rwdir "$outdir" --exec "bash tests/can/run_in_vcan.sh $(printf %q "$outdir")")
 
-	say "no vcan on this kernel: booting $(basename "$kimg") under QEMU ($accel) to run it"
+	say "no vcan on this kernel: booting $(basename "$bootimg") under QEMU ($accel) to run it"
 	# timeout runs vng in its own process group and kills all of it (QEMU too).
 	timeout -k 15 "$TIMEOUT" "${vng[@]}" </dev/null >"$outdir/vng.out" 2>&1 &
 	vng_pid=$!
-	trap 'kill -TERM $vng_pid 2>/dev/null; wait $vng_pid 2>/dev/null; rm -rf "$outdir"; exit 130' INT TERM HUP
-	tail -n +1 -s 0.2 --pid="$vng_pid" -f "$outdir/log"
+	# Stream the log; tail ends by itself once vng has gone and the rest is out.
+	tail -n +1 -s 0.2 --pid="$vng_pid" -f "$outdir/log" &
+	tail_pid=$!
+	# Stopped ourselves (Ctrl-C, kill): take the VM down too.  `wait` is
+	# interruptible where a foreground command is not.
+	trap 'trap - INT TERM HUP; say "interrupted: stopping the VM"; kill -TERM $vng_pid 2>/dev/null;
+		wait $vng_pid 2>/dev/null; kill $tail_pid 2>/dev/null; rm -rf "$outdir"; exit 130' INT TERM HUP
 	wait "$vng_pid"; vng_rc=$?
+	wait "$tail_pid"
 	trap - INT TERM HUP
 
 	if [ -f "$outdir/rc" ]; then
@@ -145,6 +161,7 @@ run_vm() {
 	else
 		say "the VM stopped before the command finished (vng exit $vng_rc); its output:"
 		tail -n 40 "$outdir/vng.out" >&2
+		[ "${MLIP_VM_VERBOSE:-0}" = 1 ] || say "(MLIP_VM_VERBOSE=1 shows the guest's boot console)"
 		rc=125
 	fi
 	local ms=$(( ($(date +%s%N) - t0) / 1000000 ))

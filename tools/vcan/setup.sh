@@ -75,13 +75,17 @@ if [ ! -x "$VENV/bin/python" ]; then
 	log "creating .venv"
 	python3 -m venv "$VENV"
 fi
-if ! "$VENV/bin/python" -c 'import can, cantools, pytest' >/dev/null 2>&1; then
+have_py() {   # find_spec, not import: a no-op run stays fast
+	"$VENV/bin/python" -c 'import sys, importlib.util as u
+sys.exit(any(u.find_spec(m) is None for m in sys.argv[1:]))' "$@" >/dev/null 2>&1
+}
+if ! have_py can cantools pytest; then
 	log "pip install -r tests/can/requirements.txt"
 	"$VENV/bin/pip" install -q --disable-pip-version-check -r "$REQ" >&2
 fi
 [ "$mode" = python ] && exit 0
 
-if [ ! -x "$VENV/bin/vng" ] || [ ! -x "$VENV/bin/virtme-run" ]; then
+if [ ! -x "$VENV/bin/vng" ] || [ ! -x "$VENV/bin/virtme-run" ] || ! have_py virtme; then
 	log "pip install $VNG_REQ"
 	"$VENV/bin/pip" install -q --disable-pip-version-check "$VNG_REQ" >&2
 fi
@@ -90,7 +94,18 @@ fi
 # The unpacked tree is kept; its stamp names the package.  A new Debian kernel
 # is not fetched while a verified one is cached (remove $KDIR to refresh, or set
 # MLIP_VM_KERNEL_PKG=linux-image-...-amd64 to pick one).
+# QEMU boots an uncompressed kernel ELF directly (PVH entry), skipping the xz
+# decompression that takes ~5 s under software emulation.  Optional: run.sh
+# falls back to vmlinuz when boot/vmlinux-* is missing.
+extract_vmlinux() {
+	"$VENV/bin/python" "$ROOT/tools/vcan/extract_vmlinux.py" "$1" "$2" ||
+		log "note: could not uncompress $1 (boots will be ~5 s slower)"
+}
+
 if [ -f "$KDIR/.ok" ] && { [ -z "${MLIP_VM_KERNEL_PKG:-}" ] || [ "$(cat "$KDIR/.ok")" = "$MLIP_VM_KERNEL_PKG" ]; }; then
+	if ! ls "$KDIR"/boot/vmlinux-* >/dev/null 2>&1; then   # a cache made before vmlinux was kept
+		for z in "$KDIR"/boot/vmlinuz-*; do extract_vmlinux "$z" "$KDIR/boot/vmlinux-${z##*/vmlinuz-}"; done
+	fi
 	exit 0
 fi
 
@@ -137,6 +152,9 @@ for m in vcan can can-raw; do
 	fi
 done
 grep -q 'vcan\.ko' "$moddir/modules.dep" || { log "depmod did not index vcan"; exit 1; }
+
+# Also keep the kernel uncompressed (boot/vmlinux-*), see extract_vmlinux.
+extract_vmlinux "$vmlinuz" "$tmp/tree/boot/vmlinux-$kver"
 
 echo "$pkg" > "$tmp/tree/.ok"
 rm -rf "$KDIR.old"
