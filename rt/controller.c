@@ -57,6 +57,13 @@ static int32_t apply_command(struct mlip_controller *c, const struct mlip_ring_c
 		mlip_planner_hold(p, 1);
 		return MLIP_OK;
 	case MLIP_CMD_RESUME:
+		if (c->bus_hold) {
+			/* held by the bus: only once it has been clean for a while */
+			if (c->can->bus_off || c->cycles - c->bus_bad_cycle < MLIP_BUS_CLEAN_PERIODS) {
+				return MLIP_E_INVALID;
+			}
+			c->bus_hold = 0;
+		}
 		mlip_planner_hold(p, 0);
 		return MLIP_OK;
 	case MLIP_CMD_STOP:
@@ -159,6 +166,17 @@ static void send_frames(struct mlip_controller *c, uint32_t cycle)
 		}
 	}
 	c->send_ns = (int64_t)(mlip_now_ns() - t0);
+	/* frames the drives did not get, or a bus that is off: do not go on
+	 * blind; hold (decelerate on the path) until the operator resumes on a
+	 * recovered bus */
+	if (c->can->tx_dropped != c->bus_drops_seen || c->can->bus_off) {
+		c->bus_drops_seen = c->can->tx_dropped;
+		c->bus_bad_cycle = c->cycles;
+		if (!c->bus_hold) {
+			c->bus_hold = 1;
+			mlip_planner_hold(c->planner, 1);
+		}
+	}
 }
 
 static void publish(struct mlip_controller *c, const struct mlip_rt_tick *t)
@@ -211,18 +229,26 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 	/* blocks in */
 	if (c->discard) {
 		discard(c);
-	} else if (c->state == MLIP_STATE_IDLE && mlip_ring_count(c->ring) > 0) {
-		c->state = MLIP_STATE_RUNNING; /* a new program: pre-read it */
+	} else if ((c->state == MLIP_STATE_IDLE || c->state == MLIP_STATE_STARVED) &&
+	           mlip_ring_peek(c->ring, &recs[0]) == MLIP_OK) {
+		c->refill = c->state == MLIP_STATE_STARVED && recs[0].seq != 1;
+		if (!c->refill) {
+			c->exec_seq = 0; /* a new program (a starved one is given up) */
+			c->exec_line = 0;
+		}
+		c->state = MLIP_STATE_RUNNING; /* pre-read before moving (again) */
 		c->preread = 1;
 		c->end_seen = 0;
-		c->exec_seq = 0;
-		c->exec_line = 0;
 	}
 	if (c->preread) {
 		uint32_t room = mlip_planner_space(p);
 		ingest(c, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
-		if (mlip_planner_space(p) == 0 || c->end_seen) {
-			c->preread = 0; /* full, or the whole program is in: move */
+		/* a program starts when the look-ahead is full or its END is in, as
+		 * mlip-sim does; after an underrun, with whatever has come, so that
+		 * a slow feeder is not made to wait for a full look-ahead */
+		if (mlip_planner_space(p) == 0 || c->end_seen ||
+		    (c->refill && mlip_ring_count(c->ring) == 0)) {
+			c->preread = 0;
 		}
 	} else if (c->state == MLIP_STATE_RUNNING || c->state == MLIP_STATE_HELD) {
 		uint32_t room = mlip_planner_space(p);
@@ -246,6 +272,10 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 			}
 			c->end_seen = 0;
 			c->state = MLIP_STATE_IDLE;
+		} else if (c->state == MLIP_STATE_RUNNING && rs == MLIP_RUN_IDLE && !c->end_seen) {
+			c->state = MLIP_STATE_STARVED; /* underrun: at rest, program unfinished */
+			c->exec_seq = p->done_seq;
+			c->exec_line = p->done_line;
 		} else if (c->state == MLIP_STATE_RUNNING && rs == MLIP_RUN_HELD) {
 			c->state = MLIP_STATE_HELD;
 		} else if (c->state == MLIP_STATE_HELD && rs == MLIP_RUN_MOVING) {

@@ -127,11 +127,18 @@ int mlip_rt_stop_requested(void);
  *             record is in, as mlip-sim does; status says RUNNING
  *   RUNNING   each period: at most MLIP_INGEST_PER_PERIOD records, one step,
  *             frames out; END taken and planner idle -> IDLE, exec_seq = END
- *   HELD      feed hold (command or override 0) and at rest on the path
+ *   HELD      feed hold (command, override 0, or a CAN fault: frames dropped
+ *             or bus-off) and at rest on the path; after a CAN fault, resume
+ *             is refused until the bus has been clean MLIP_BUS_CLEAN_PERIODS
+ *   STARVED   the ring ran dry before the program's END: at rest at the end of
+ *             the last block received; the next records continue the program
+ *             after a new pre-read (a record with seq 1 starts a new one)
  *   STOPPING  stop (command or signal): decelerate on the path, drop the rest
  *             of the program (records up to its END), then IDLE
  */
 #define MLIP_PREREAD_PER_PERIOD 512
+/* After a CAN fault, resume is refused until the bus has been clean this long. */
+#define MLIP_BUS_CLEAN_PERIODS 100
 
 struct mlip_controller {
 	/* wiring */
@@ -144,6 +151,7 @@ struct mlip_controller {
 	/* program state */
 	uint32_t state;                    /* mlip_ring_state */
 	int preread;                       /* taking records before moving */
+	int refill;                        /* that pre-read follows an underrun */
 	int end_seen;                      /* END record of the program taken */
 	uint64_t end_seq, end_line;
 	int discard;                       /* dropping a stopped program's records */
@@ -159,6 +167,8 @@ struct mlip_controller {
 	double pos[MLIP_MAX_AXES];
 	int fault;                         /* encode refused a position: stopped */
 	uint32_t pid;                      /* published as status.reserved */
+	int bus_hold;                      /* held because of the bus */
+	uint64_t bus_drops_seen, bus_bad_cycle;
 };
 
 int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,

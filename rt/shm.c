@@ -101,9 +101,9 @@ int mlip_shm_controller_alive(const struct mlip_ring *r, int64_t max_age_ns)
 }
 
 /* What an existing object under our name holds, before we take it. */
-enum existing { EX_EMPTY, EX_OURS_DEAD, EX_OURS_ALIVE, EX_FOREIGN };
+enum existing { EX_EMPTY, EX_OURS_DEAD, EX_OURS_ALIVE, EX_FOREIGN, EX_OTHER_VERSION };
 
-static enum existing inspect(int fd, int64_t *age_ns, uint64_t *magic)
+static enum existing inspect(int fd, int64_t *age_ns, uint64_t *magic, uint64_t *version)
 {
 	struct stat sb;
 	struct mlip_ring *r;
@@ -135,9 +135,14 @@ static enum existing inspect(int fd, int64_t *age_ns, uint64_t *magic)
 		 * some other program's object, never overwrite it */
 		*magic = mm.found;
 		ex = EX_FOREIGN;
+	} else if (mm.reason == MLIP_RING_BAD_VERSION) {
+		/* another build's segment: its feeders may still be attached and
+		 * would read our layout as theirs; refuse rather than reformat */
+		*version = mm.found;
+		ex = EX_OTHER_VERSION;
 	}
-	/* another mlip version, a short or half-formatted segment: a dead
-	 * controller's (whoever held it would hold the lock) */
+	/* a short or half-formatted segment: a dead controller's (whoever held
+	 * it would hold the lock) */
 	munmap(mem, bytes);
 	return ex;
 }
@@ -164,7 +169,7 @@ int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
 	struct mlip_ring_mismatch mm;
 	enum existing ex;
 	int64_t age;
-	uint64_t magic;
+	uint64_t magic, version = 0;
 	void *mem;
 	int rc, flags = MAP_SHARED;
 
@@ -202,7 +207,7 @@ int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
 	}
 	if (flock(s->fd, LOCK_EX | LOCK_NB) != 0) {
 		rc = errno == EWOULDBLOCK ? -EBUSY : -errno;
-		inspect(s->fd, &age, &magic);
+		inspect(s->fd, &age, &magic, &version);
 		close(s->fd);
 		shm_reset(s);
 		if (rc != -EBUSY) {
@@ -221,7 +226,7 @@ int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
 		           name, age < 10000000000LL ? (double)age / 1e6 : (double)age / 1e9,
 		           age < 10000000000LL ? "ms" : "s");
 	}
-	ex = inspect(s->fd, &age, &magic);
+	ex = inspect(s->fd, &age, &magic, &version);
 	if (ex == EX_OURS_ALIVE) {
 		close(s->fd);
 		shm_reset(s);
@@ -229,6 +234,15 @@ int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
 		           "a controller is already running on %s (heartbeat %.1f ms ago): "
 		           "stop it first (its pid is not in the segment: see pgrep mlip-rt)",
 		           name, (double)age / 1e6);
+	}
+	if (ex == EX_OTHER_VERSION) {
+		close(s->fd);
+		shm_reset(s);
+		return say(why, why_len, -EPROTO,
+		           "%s has layout version %" PRIu64 ", this mlip-rt speaks %u: a controller of "
+		           "another build left it, and its feeders may still use it; stop them and "
+		           "remove /dev/shm%s, or choose another --shm name",
+		           name, version, MLIP_RING_VERSION, name);
 	}
 	if (ex == EX_FOREIGN) {
 		close(s->fd);

@@ -543,7 +543,7 @@ void mlip_ring_cmd_done(struct mlip_ring *r, uint32_t seq, int32_t result)
 
 const char *mlip_ring_state_name(uint32_t state)
 {
-	static const char *const names[] = {"idle", "running", "held", "stopping", "fault"};
+	static const char *const names[] = {"idle", "running", "held", "stopping", "fault", "starved"};
 
 	return state < sizeof(names) / sizeof(names[0]) ? names[state] : "?";
 }

@@ -73,6 +73,7 @@ static void usage(FILE *f)
 	        "through the shared-memory ring and follow it until the machine is at rest.\n\n"
 	        "  --shm NAME        controller's shared-memory segment (default " MLIP_SHM_DEFAULT
 	        ")\n"
+	        "  --rate N          send at most N blocks per second (to try underruns)\n"
 	        "  --start-seq N     skip blocks before block N (1-based, as reported by\n"
 	        "                    mlip-ctl status), to continue after a feeder crash\n"
 	        "                    (default 1)\n"
@@ -151,6 +152,8 @@ struct feed {
 	uint64_t consumed0;         /* controller's blocks_consumed before our first push */
 	uint64_t next_seq;          /* next record to push, 1..n + 1 */
 	uint64_t first_seq;         /* --start-seq */
+	double rate;                /* --rate: blocks per second at most (0: no limit) */
+	uint64_t pushed;            /* records pushed by this run */
 	uint64_t exec0;             /* exec_seq before our program: not ours */
 	uint64_t exec;              /* our block being executed (0: none yet) */
 	uint32_t exec_line;         /* its source line */
@@ -207,7 +210,7 @@ static void track_exec(struct feed *f)
 	if (f->t_start == 0 || taken(f) == 0 || e == f->exec0 || e < f->first_seq ||
 	    e >= f->next_seq || e < f->exec ||
 	    (f->st.state != MLIP_STATE_RUNNING && f->st.state != MLIP_STATE_HELD &&
-	     f->st.state != MLIP_STATE_STOPPING)) {
+	     f->st.state != MLIP_STATE_STOPPING && f->st.state != MLIP_STATE_STARVED)) {
 		return;
 	}
 	f->exec = e;
@@ -492,7 +495,10 @@ static int wait_start(struct feed *f)
 			        f->shm.name);
 			return EXIT_FAIL;
 		}
-		if (f->st.state == MLIP_STATE_IDLE && count == 0) {
+		/* idle, or starved (a feeder died): our records continue or replace
+		 * that program */
+		if ((f->st.state == MLIP_STATE_IDLE || f->st.state == MLIP_STATE_STARVED) &&
+		    count == 0) {
 			if (empty && f->st.heartbeat > empty_at) {
 				return -1; /* go */
 			}
@@ -562,10 +568,18 @@ static int run(struct feed *f)
 		}
 		got = 0;
 		k = mlip_ring_space(f->r);
+		if (f->rate > 0.0) {
+			/* a throttled feeder (tests of underruns): no more than rate x
+			 * elapsed records so far */
+			double allowed = f->rate * (double)(mlip_now_ns() - f->t_start) * 1e-9 -
+			                 (double)f->pushed;
+			k = allowed < 1.0 ? 0 : (allowed < (double)k ? (uint32_t)allowed : k);
+		}
 		if (!f->end_pushed && k > 0) {
 			k = fill(f, recs, k < BATCH ? k : BATCH);
 			got = mlip_ring_push_n(f->r, recs, k); /* all k: only we add */
 			f->next_seq += got;
+			f->pushed += got;
 			if (f->next_seq > total) {
 				f->end_pushed = 1;
 				beat(f); /* publish program_end at once */
@@ -612,6 +626,7 @@ int main(int argc, char **argv)
 {
 	static const struct option opts[] = {{"shm", required_argument, 0, 's'},
 	                                     {"start-seq", required_argument, 0, 'S'},
+	                                     {"rate", required_argument, 0, 'r'},
 	                                     {"quiet", no_argument, 0, 'q'},
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
@@ -640,6 +655,16 @@ int main(int argc, char **argv)
 				return EXIT_USAGE;
 			}
 			break;
+		case 'r': {
+			char *end;
+			f.rate = strtod(optarg, &end);
+			if (*end != '\0' || !(f.rate > 0.0)) {
+				fprintf(stderr, PROG ": --rate: '%s' is not a positive number of blocks/s\n",
+				        optarg);
+				return EXIT_USAGE;
+			}
+			break;
+		}
 		case 'q':
 			f.quiet = 1;
 			break;

@@ -100,7 +100,11 @@ typedef enum {
 	MLIP_STATE_RUNNING,
 	MLIP_STATE_HELD,     /* feed hold: decelerated to rest, resumable */
 	MLIP_STATE_STOPPING, /* stop requested: decelerating, ring being flushed */
-	MLIP_STATE_FAULT     /* stopped on an error (CAN, limits, overrun budget) */
+	MLIP_STATE_FAULT,    /* stopped on an error that needs a restart (a position
+	                        the drives cannot represent) */
+	MLIP_STATE_STARVED   /* the program's blocks ran out before its END: at rest
+	                        at the end of the last block received (underrun);
+	                        continues when blocks come (mlip-feed --start-seq) */
 } mlip_ring_state;
 
 /* Controller status (a plain value; the segment holds the same fields, each

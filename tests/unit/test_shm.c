@@ -307,6 +307,38 @@ static void test_attach_version_mismatch(void **state)
 	mlip_shm_close(&s);
 }
 
+static void test_create_refuses_other_version(void **state)
+{
+	/* a dead controller of another build left its segment: a new
+	 * controller refuses it instead of reformatting under its feeders */
+	struct mlip_shm s;
+	struct mlip_machine m;
+	char why[256] = "", want[160];
+
+	(void)state;
+	machine(&m, 3);
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), 0);
+	s.ring->version = MLIP_RING_VERSION + 1;
+	crash(&s);
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), -EPROTO);
+	snprintf(want, sizeof(want), "%s has layout version %u, this mlip-rt speaks %u", name,
+	         MLIP_RING_VERSION + 1, MLIP_RING_VERSION);
+	assert_contains(why, want);
+	assert_true(exists()); /* left alone */
+	/* the same build's stale segment is taken over */
+	struct mlip_shm a;
+	assert_int_equal(mlip_shm_attach(&a, name, NULL, 0), -EPROTO);
+	int fd = shm_open(name, O_RDWR, 0);
+	assert_true(fd >= 0);
+	struct mlip_ring *r = mmap(NULL, mlip_ring_bytes(CAP), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+	assert_true(r != MAP_FAILED);
+	r->version = MLIP_RING_VERSION;
+	munmap(r, mlip_ring_bytes(CAP));
+	close(fd);
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), 0);
+	mlip_shm_close(&s);
+}
+
 static void test_attach_other_mismatches(void **state)
 {
 	struct mlip_shm s, a;
@@ -443,6 +475,7 @@ int main(void)
 	    T(test_create_takes_over_never_started),
 	    T(test_create_refuses_foreign),
 	    T(test_attach_version_mismatch),
+	    T(test_create_refuses_other_version),
 	    T(test_attach_other_mismatches),
 	    T(test_attach_missing),
 	    T(test_bad_arguments),

@@ -1,0 +1,99 @@
+"""Faults during a run, on this host (mlip-rt --can none): what the
+controller and the feeder do and report. The same faults are checked on the
+decoded positions of a real vcan0 in tests/can."""
+import signal
+import subprocess
+import time
+
+from conftest import CONFIG, TOOLPATHS, tool
+from test_rt_host import controller, shm_name, status, wait_for  # noqa: F401 (fixture)
+
+PAPER = CONFIG / "paper-2axis.ini"
+
+
+def flower(tmp_path, lines=6000):
+    prog = tmp_path / "flower.ngc"
+    prog.write_text("".join((TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:lines]))
+    return prog, lines - 2  # two header lines, one block per line after
+
+
+def test_feeder_killed_then_continued(controller, tmp_path):
+    prog, n = flower(tmp_path)
+    shm, _ = controller(PAPER)
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", "--rate", "1500", str(prog)])
+    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 500)
+    f.kill()  # SIGKILL: no goodbye
+    f.wait()
+    # the controller runs what it has to rest, then reports the underrun
+    s = wait_for(lambda: (lambda s: s if s["state"] == "starved" else None)(status(shm)), 10)
+    assert s, status(shm)
+    assert s["underruns"] > 0 and s["exec_line"] > 0
+    executed = s["exec_seq"]
+    time.sleep(0.2)
+    assert status(shm)["exec_seq"] == executed  # at rest
+    # a new feeder continues from the next block and finishes the program
+    p = subprocess.run([tool("mlip-feed"), "--shm", shm, "--quiet", "--start-seq",
+                        str(executed + 1), str(prog)], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    s = status(shm)
+    assert s["state"] == "idle" and s["exec_seq"] == n + 1
+
+
+def test_slow_feeder_underruns_and_finishes(controller, tmp_path):
+    # a short look-ahead, fed at a quarter of the rate it is cut at: it runs
+    # dry, stops at rest, and picks up again, over and over
+    prog, n = flower(tmp_path, 4000)
+    cfg = tmp_path / "short.ini"
+    cfg.write_text(PAPER.read_text().replace("[TRAJ]", "[TRAJ]\nLOOKAHEAD = 256", 1))
+    shm, _ = controller(cfg)
+    states = set()
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", "--rate", "300", str(prog)])
+    while f.poll() is None:
+        st = status(shm)
+        if st:
+            states.add(st["state"])
+        time.sleep(0.01)
+    assert f.returncode == 0
+    s = status(shm)
+    assert s["underruns"] > 0 and s["exec_seq"] == n + 1  # slowed by it, and finished
+
+
+def test_stalled_feeder_stops_and_picks_up(controller, tmp_path):
+    prog, n = flower(tmp_path, 6000)
+    shm, _ = controller(PAPER)
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", "--rate", "1500", str(prog)])
+    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50, 30)
+    f.send_signal(signal.SIGSTOP)  # the feeder stalls (swapped out, stopped...)
+    s = wait_for(lambda: (lambda s: s if s["state"] == "starved" else None)(status(shm)), 20)
+    assert s, status(shm)
+    at = s["exec_seq"]
+    time.sleep(0.3)
+    assert status(shm)["exec_seq"] == at  # at rest at the end of what it had
+    f.send_signal(signal.SIGCONT)
+    assert f.wait(60) == 0  # picked up again and finished
+    assert status(shm)["exec_seq"] == n + 1
+
+
+def test_controller_killed(controller, tmp_path):
+    prog, _ = flower(tmp_path)
+    shm, rt = controller(PAPER)
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 200)
+    t0 = time.monotonic()
+    rt.kill()
+    rt.wait()
+    _, err = f.communicate(timeout=10)
+    noticed = time.monotonic() - t0
+    assert f.returncode == 3, err
+    assert "controller stopped responding; last executed line" in err
+    assert noticed < 1.0  # heartbeat timeout 100 ms, plus process start-up slack
+    # a new controller takes the dead one's segment over (same build)
+    p = subprocess.Popen([tool("mlip-rt"), "--config", str(PAPER), "--can", "none", "--shm", shm],
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_for(lambda: (status(shm) or {}).get("alive"), 10)
+        assert status(shm)["state"] == "idle"
+    finally:
+        p.send_signal(signal.SIGTERM)
+        p.wait(10)
