@@ -5,6 +5,7 @@
 #   make can        the CAN tests alone (vcan0 on the host, or in a VM)
 #   make bench      Table 1 and Table 2 of the paper, redone
 #   make asan|ubsan the whole test suite under a sanitizer (build-asan/, build-ubsan/)
+#   make fuzz       the fuzz targets, FUZZ_SECONDS each (default 60)
 
 BUILD   ?= build
 CC      ?= cc
@@ -94,6 +95,11 @@ can: all
 
 bench: all
 	@. .venv/bin/activate 2>/dev/null; python3 bench/run.py --build $(BUILD)
+
+# libFuzzer targets for the G-code and config readers (ASan + UBSan),
+# FUZZ_SECONDS each (default 60); seeds from the shared toolpaths and config/.
+fuzz:
+	@fuzz/run.sh $(or $(FUZZ_SECONDS),60)
 
 asan:
 	@$(MAKE) --no-print-directory BUILD=build-asan OPT=-O1 SAN="-fsanitize=address -fno-omit-frame-pointer" unit pytest
