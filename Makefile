@@ -1,5 +1,6 @@
 # mlip - one Makefile, output in $(BUILD).
 #   make            library, tools, unit tests
+#   make demo       the controller on vcan0 (or a VM) with the bundled program
 #   make run        the simulator on the bundled demo, all three strategies
 #   make test       install missing deps, build, run every test (what CI runs)
 #   make can        the CAN tests alone (vcan0 on the host, or in a VM)
@@ -87,11 +88,17 @@ test: deps
 	@$(MAKE) --no-print-directory all
 	@$(MAKE) --no-print-directory unit
 	@$(MAKE) --no-print-directory pytest
+	@$(MAKE) --no-print-directory can
+
+# The main job: mlip-rt + mlip-feed + the python-can listener on vcan0 (or
+# in the VM) with the bundled program; prints what happened, plots speed.
+demo: all
+	@tools/demo.sh
 
 # CAN tests on a real vcan0: on this host when it can make one, else in a
 # QEMU VM (tools/vcan/README.md). One call, one boot.
 can: all
-	@tools/vcan/run.sh '.venv/bin/python -m pytest -q tests/can'
+	@tests/can/run-tests.sh
 
 bench: all
 	@. .venv/bin/activate 2>/dev/null; python3 bench/run.py --build $(BUILD)

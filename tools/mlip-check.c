@@ -27,6 +27,8 @@ static void usage(FILE *f)
 	           "                      1000 counts/mm): adds 4 quantum / T^2 to the acceleration\n"
 	           "                      bound and quantum to the contour and end bounds\n"
 	           "  --rel R             relative tolerance on every limit (default 1e-9)\n"
+	           "  --no-end            the trace need not end on the program's last point\n"
+	           "                      (a run stopped by the operator)\n"
 	           "  --json OUT          measured values as JSON ('-' for stdout)\n"
 	           "exit status: 0 within limits, 1 violation, 2 usage or input error\n");
 }
@@ -36,11 +38,13 @@ int main(int argc, char **argv)
 	struct mlip_cli_machine mo = {0};
 	const char *json = NULL;
 	double quantum = 0.0, rel = 1e-9;
+	int no_end = 0;
 	static const struct option opts[] = {
 		{"config", required_argument, 0, 'c'}, {"accel", required_argument, 0, 'a'},
 		{"vmax", required_argument, 0, 'v'},   {"eps", required_argument, 0, 'e'},
 		{"period", required_argument, 0, 'p'}, {"quantum", required_argument, 0, 'Q'},
 		{"rel", required_argument, 0, 'r'},    {"json", required_argument, 0, 'j'},
+		{"no-end", no_argument, 0, 'E'},
 		{"help", no_argument, 0, 'h'},         {0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
@@ -73,6 +77,9 @@ int main(int argc, char **argv)
 			break;
 		case 'j':
 			json = optarg;
+			break;
+		case 'E':
+			no_end = 1;
 			break;
 		case 'h':
 			usage(stdout);
@@ -149,7 +156,8 @@ int main(int argc, char **argv)
 	double T = m->period_s;
 	double abs_acc = mlip_check_rounding_floor(&chk) + 4.0 * quantum / (T * T);
 	char msg[4096];
-	int bad = mlip_check_verdict(&chk, rel, abs_acc, quantum, 1e-9 + quantum, msg, sizeof(msg));
+	int bad = mlip_check_verdict(&chk, rel, abs_acc, quantum, no_end ? INFINITY : 1e-9 + quantum,
+	                             msg, sizeof(msg));
 
 	FILE *jf = json == NULL ? NULL : strcmp(json, "-") == 0 ? stdout : fopen(json, "w");
 	if (jf != NULL) {
@@ -162,6 +170,7 @@ int main(int argc, char **argv)
 			fprintf(jf, "%s%.12g", k ? ", " : "", chk.max_vel[k]);
 		}
 		fprintf(jf, "],\n  \"max_speed_mm_s\": %.12g,\n", chk.max_speed_mm_s);
+		fprintf(jf, "  \"max_rot_speed_deg_s\": %.12g,\n", chk.max_rot_speed_deg_s);
 		fprintf(jf, "  \"max_contour_error_mm\": %.12g,\n", chk.max_contour_mm);
 		fprintf(jf, "  \"end_error_mm\": %.3g,\n", mlip_check_end_error(&chk));
 		fprintf(jf, "  \"violations\": %d\n}\n", bad);

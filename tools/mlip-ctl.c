@@ -198,6 +198,18 @@ static int cmd_status(struct mlip_shm *s, int json)
 	}
 	a = age_ns(st.heartbeat_ns);
 	alive = a >= 0 && a < MLIP_PEER_TIMEOUT_NS;
+	if (!alive) {
+		/* an old stamp may be ours to blame (we were paused): alive if the
+		 * heartbeat moves within the timeout */
+		struct mlip_ring_status again;
+		struct timespec ts = {0, (long)MLIP_PEER_TIMEOUT_NS};
+		nanosleep(&ts, NULL);
+		if (read_status(s->ring, &again) == 0 && again.heartbeat != st.heartbeat) {
+			st = again;
+			a = age_ns(st.heartbeat_ns);
+			alive = 1;
+		}
+	}
 	fa = age_ns(fd.heartbeat_ns);
 	falive = feeder_alive(&fd);
 

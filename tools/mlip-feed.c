@@ -149,6 +149,8 @@ struct feed {
 	struct mlip_ring_feeder fa; /* what we publish */
 	struct mlip_ring_status st; /* last consistent controller status */
 	uint64_t last_hb;           /* controller period counter: must not go back */
+	uint64_t stale_since;       /* our clock when the heartbeat was first seen unmoved */
+	uint64_t last_read;         /* our clock at the previous read */
 	uint64_t consumed0;         /* controller's blocks_consumed before our first push */
 	uint64_t next_seq;          /* next record to push, 1..n + 1 */
 	uint64_t first_seq;         /* --start-seq */
@@ -219,21 +221,29 @@ static void track_exec(struct feed *f)
 
 /* Read the controller status; 0 when it is alive, -1 when its heartbeat is
  * stale (or it restarted: the period counter went back). */
+/* The controller is dead when its heartbeat has not moved across our own
+ * reads for MLIP_PEER_TIMEOUT_NS: a stale stamp alone is not enough, since a
+ * pause that stopped both processes (and us first) would look the same. */
 static int poll_controller(struct feed *f)
 {
 	struct mlip_ring_status st;
-	int64_t a;
+	uint64_t now = mlip_now_ns();
+	int moved = 0;
 
 	if (mlip_ring_status_read(f->r, &st) == MLIP_OK) {
 		if (st.heartbeat < f->last_hb) {
 			return -1; /* a new controller formatted the segment */
 		}
+		moved = st.heartbeat != f->last_hb;
 		f->last_hb = st.heartbeat;
 		f->st = st;
 		track_exec(f);
 	}
-	a = age_ns(f->st.heartbeat_ns); /* a failed read keeps the old stamp */
-	return a >= 0 && a < MLIP_PEER_TIMEOUT_NS ? 0 : -1;
+	if (moved || f->stale_since == 0 || now - f->last_read > MLIP_PEER_TIMEOUT_NS / 2) {
+		f->stale_since = now; /* moving, or we were away: start watching again */
+	}
+	f->last_read = now;
+	return now - f->stale_since < (uint64_t)MLIP_PEER_TIMEOUT_NS ? 0 : -1;
 }
 
 /* Counts shown to the user are program blocks (END excluded), as mlip-sim's. */

@@ -22,9 +22,12 @@
 static struct mlip_planner planner; /* static: locked and prefaulted with the rest */
 static struct mlip_controller ctl;
 
+static volatile sig_atomic_t got_exit;
+
 static void on_signal(int sig)
 {
 	(void)sig;
+	got_exit = 1;
 	ctl.exit_request = 1; /* a controlled stop on the path, then exit 0 */
 }
 
@@ -138,6 +141,14 @@ int main(int argc, char **argv)
 		usage(stderr);
 		return 2;
 	}
+	/* first: a stop asked for while starting up must not kill us blind */
+	struct sigaction sa;
+	memset(&sa, 0, sizeof(sa));
+	sa.sa_handler = on_signal;
+	sigemptyset(&sa.sa_mask);
+	sigaction(SIGINT, &sa, NULL);
+	sigaction(SIGTERM, &sa, NULL);
+
 	int st = mlip_cli_strategy(strategy);
 	if (st < 0) {
 		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop\n", strategy);
@@ -206,13 +217,7 @@ int main(int argc, char **argv)
 		return 1;
 	}
 	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead */
-
-	struct sigaction sa;
-	memset(&sa, 0, sizeof(sa));
-	sa.sa_handler = on_signal;
-	sigemptyset(&sa.sa_mask);
-	sigaction(SIGINT, &sa, NULL);
-	sigaction(SIGTERM, &sa, NULL);
+	ctl.exit_request = got_exit; /* init cleared it: keep a stop asked during start-up */
 
 	fprintf(stderr, PROG ": ready on %s, segment %s, period %.3f ms, %s, priority %d%s\n", iface,
 	        shm_name, cfg.machine.period_s * 1e3, mlip_can_profile_name(prof), ro.priority,

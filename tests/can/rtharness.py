@@ -1,0 +1,732 @@
+"""Glue for the end-to-end CAN runs: mlip-rt on a real (v)CAN interface, the
+listener (tools/mlip-listen.py) recording the bus, mlip-feed streaming a
+program, mlip-ctl commands while it runs, and the comparisons against the
+offline simulator (mlip-sim) and the checker (mlip-check).
+
+Used by tests/can/test_rt_vcan.py and tools/demo.sh. Standard library only:
+every Python import costs seconds in the software-emulated test VM.
+"""
+import importlib.util
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+BUILD = ROOT / os.environ.get("MLIP_BUILD", "build")
+SHARED = Path(os.environ.get("MLIP_SHARED", ROOT.parent / "shared"))
+TOOLPATHS = SHARED / "toolpaths"
+CONFIG = ROOT / "config"
+LISTEN = ROOT / "tools" / "mlip-listen.py"
+PY = sys.executable
+IFACE = os.environ.get("MLIP_VCAN_IFACE", "vcan0")
+IN_VM = os.environ.get("MLIP_IN_VM") == "1"
+# Generous waits: in the emulated VM a process start takes seconds.
+START_TIMEOUT = float(os.environ.get("MLIP_CAN_START_TIMEOUT", "240"))
+# The listener: a fork of this process running its main() (default), or a
+# fresh `python tools/mlip-listen.py` (MLIP_CAN_LISTEN_EXEC=1: the real CLI,
+# but a Python start costs 20-35 s in the emulated VM).
+EXEC_LISTENER = os.environ.get("MLIP_CAN_LISTEN_EXEC") == "1"
+# Also write the listener's candump log (can.log) in each run's directory.
+KEEP_LOG = os.environ.get("MLIP_CAN_LOG") == "1"
+
+
+def tool(name):
+    return str(BUILD / name)
+
+
+def load_listener():
+    """tools/mlip-listen.py as a module (its config reader and decoders)."""
+    spec = importlib.util.spec_from_file_location("mlip_listen", LISTEN)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["mlip_listen"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+listen = load_listener()
+
+
+def setup_of(config):
+    """Axes, nodes, counts per unit, ids of a machine INI (the listener's reader)."""
+    return listen.Setup.from_ini(config)
+
+
+def prime_dbc_cache():
+    """Read the DBC with cantools once, so listener processes find its layout
+    in the cache and skip the (slow in the VM) cantools import."""
+    return listen.load_dbc(listen.DEFAULT_DBC, ROOT / "build")[1]
+
+
+# ------------------------------------------------------------------ numbers
+
+def to_counts(pos, cpu):
+    """round(pos * cpu), ties away from zero: mlip_can_counts of canenc.h (the
+    product is the same IEEE double multiplication as in C)."""
+    x = pos * cpu
+    a = abs(x)
+    r = math.floor(a)
+    if a - r >= 0.5:  # exact for |x| < 2^52
+        r += 1
+    return int(-r if x < 0 else r)
+
+
+def read_trace(path):
+    """mlip-sim --trace CSV -> (header, rows of floats)."""
+    with open(path) as fh:
+        header = fh.readline().strip().split(",")
+        rows = [tuple(float(v) for v in line.split(",")) for line in fh if line.strip()]
+    return header, rows
+
+
+def trace_counts(rows, cpu):
+    return [tuple(to_counts(r[1 + i], c) for i, c in enumerate(cpu)) for r in rows]
+
+
+def read_can_csv(path, n):
+    """The listener's --csv -> (cycles, t seconds, counts tuples)."""
+    cyc, ts, cnt = [], [], []
+    with open(path) as fh:
+        header = fh.readline().strip().split(",")
+        assert header[:2] == ["cycle", "t"] and len(header) == 2 + 2 * n, header
+        for line in fh:
+            f = line.rstrip("\n").split(",")
+            cyc.append(int(f[0]))
+            ts.append(float(f[1]))
+            cnt.append(tuple(int(v) for v in f[2 + n:]))
+    return cyc, ts, cnt
+
+
+def write_positions_csv(path, counts, cpu, period_s):
+    """A trace for mlip-check: t,x,y,... from decoded counts, t = k T."""
+    n = len(cpu)
+    names = "xyzabc"[:n]  # header only; mlip-check reads the columns by position
+    with open(path, "w") as fh:
+        fh.write("t," + ",".join(names) + "\n")
+        for k, c in enumerate(counts):
+            fh.write(repr(k * period_s) + "," + ",".join(repr(c[i] / cpu[i]) for i in range(n)) + "\n")
+
+
+def cut_program(src, n_lines, dst):
+    """The first n_lines lines of a program (its header sets units and modes)."""
+    with open(src) as fh, open(dst, "w") as out:
+        for i, line in enumerate(fh):
+            if i >= n_lines:
+                break
+            out.write(line)
+    return dst
+
+
+def run(args, check=True, timeout=600, **kw):
+    p = subprocess.run([str(a) for a in args], capture_output=True, text=True, timeout=timeout, **kw)
+    if check and p.returncode != 0:
+        raise AssertionError(f"{' '.join(map(str, args))} exited {p.returncode}:\n{p.stderr}")
+    return p
+
+
+def simulate(config, ngc, workdir):
+    """mlip-sim on the same machine and program: (rows, summary)."""
+    trace = Path(workdir) / "sim.csv"
+    summ = Path(workdir) / "sim.json"
+    run([tool("mlip-sim"), "-q", "--config", config, "--trace", trace, "--summary", summ, ngc])
+    return read_trace(trace)[1], json.loads(summ.read_text())
+
+
+def mlip_check(config, ngc, trace_csv, quantum, json_out=None):
+    args = [tool("mlip-check"), "--config", config, "--quantum", repr(quantum)]
+    if json_out:
+        args += ["--json", json_out]
+    p = run(args + [ngc, trace_csv], check=False)
+    js = json.loads(Path(json_out).read_text()) if json_out and Path(json_out).exists() else None
+    return p, js
+
+
+def check_bounds(config, js, quantum, max_abs, rel=1e-9):
+    """mlip-check's verdict redone from its --json measurements, without the
+    end-on-the-last-point condition (after a stop the machine rests elsewhere
+    on the path): the bounds of tools/mlip-check.c and check.c exactly, with
+    abs_acc = rounding floor (8 max|x| DBL_EPSILON / T^2) + 4 quantum / T^2:
+    acceleration <= A (1 + rel) + abs_acc, axis velocity and tool speed
+    <= limit (1 + rel) + abs_acc T, contour <= eps (1 + rel) + quantum.
+    Returns the violations (strings)."""
+    m = MachineLimits(config)
+    T = m.period_s
+    abs_acc = 8 * max_abs * sys.float_info.epsilon / T**2 + 4 * quantum / T**2
+    bad = []
+    for k, a in enumerate(js["max_axis_accel"]):
+        lim = m.accel[k] * (1 + rel) + abs_acc
+        if a > lim:
+            bad.append(f"axis {m.axes[k]} acceleration {a:.12g} > {lim:.12g}")
+    for k, v in enumerate(js["max_axis_vel"]):
+        lim = m.vel[k] * (1 + rel) + abs_acc * T
+        if v > lim:
+            bad.append(f"axis {m.axes[k]} velocity {v:.12g} > {lim:.12g}")
+    lim = m.vmax * (1 + rel) + abs_acc * T
+    if js["max_speed_mm_s"] > lim:
+        bad.append(f"tool speed {js['max_speed_mm_s']:.12g} > {lim:.12g}")
+    lim = m.eps * (1 + rel) + quantum
+    if js["max_contour_error_mm"] > lim:
+        bad.append(f"contour error {js['max_contour_error_mm']:.12g} > {lim:.12g}")
+    return bad
+
+
+class MachineLimits:
+    """The few [TRAJ]/[AXIS_*] numbers the checks need."""
+
+    def __init__(self, config):
+        import configparser
+
+        cp = configparser.ConfigParser(inline_comment_prefixes=("#", ";"), interpolation=None)
+        cp.optionxform = str
+        cp.read(config)
+        self.axes = cp.get("TRAJ", "COORDINATES").split()
+        self.vmax = float(cp.get("TRAJ", "MAX_LINEAR_VELOCITY"))
+        self.eps = float(cp.get("TRAJ", "CONTOUR_TOLERANCE"))
+        self.period_s = float(cp.get("TRAJ", "PERIOD", fallback="0.001"))
+        self.accel = [float(cp.get("AXIS_" + a, "MAX_ACCELERATION")) for a in self.axes]
+        self.vel = [float(cp.get("AXIS_" + a, "MAX_VELOCITY")) for a in self.axes]
+        self.home = [float(cp.get("AXIS_" + a, "HOME", fallback="0")) for a in self.axes]
+
+
+# ------------------------------------------------------------------ alignment
+
+def align(can_counts, trc):
+    """Offset o such that CAN cycle o + i carries trace row i. The controller
+    sends the home position while idle and pre-reading; the first row of the
+    trace that differs from its start is matched with the first cycle on the
+    bus that differs from home. Returns (offset, explanation)."""
+    home = trc[0]
+    k0 = next((i for i, c in enumerate(trc) if c != home), None)
+    c0 = next((i for i, c in enumerate(can_counts) if c != home), None)
+    if k0 is None:
+        raise AssertionError("the simulated trace never leaves its start point (in counts)")
+    if c0 is None:
+        raise AssertionError(f"the bus never leaves the home position {home} (counts): "
+                             f"{len(can_counts)} cycles seen")
+    return c0 - k0, f"trace row {k0} (first to move) is bus cycle index {c0}"
+
+
+def first_mismatch(can_counts, trc, offset):
+    """None when can_counts[offset + i] == trc[i] for every row, else a message."""
+    if offset < 0:
+        return f"negative offset {offset}: the bus moved before the trace did"
+    if offset + len(trc) > len(can_counts):
+        return (f"the bus has {len(can_counts)} cycles, the trace needs {offset + len(trc)} "
+                f"(offset {offset} + {len(trc)} rows)")
+    for i, want in enumerate(trc):
+        got = can_counts[offset + i]
+        if got != want:
+            return f"trace row {i} (bus cycle index {offset + i}): bus {got}, sim {want}"
+    return None
+
+
+# ------------------------------------------------------------------ processes
+
+class Forked:
+    """The Popen calls Proc uses, for a forked child running fn()."""
+
+    def __init__(self, fn, out, err):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:  # child: never returns
+            rc = 1
+            try:
+                os.dup2(out.fileno(), 1)
+                os.dup2(err.fileno(), 2)
+                nul = os.open(os.devnull, os.O_RDONLY)
+                os.dup2(nul, 0)
+                sys.stdout = open(1, "w", buffering=1, closefd=False)
+                sys.stderr = open(2, "w", buffering=1, closefd=False)
+                signal.signal(signal.SIGTERM, signal.SIG_DFL)
+                signal.signal(signal.SIGINT, signal.SIG_DFL)
+                rc = fn()
+            except SystemExit as e:
+                rc = e.code if isinstance(e.code, int) else 1
+            except BaseException:
+                import traceback
+
+                traceback.print_exc()
+            finally:
+                try:
+                    sys.stdout.flush()
+                    sys.stderr.flush()
+                finally:
+                    os._exit(rc if isinstance(rc, int) else 1)
+        self.pid = pid
+        self.returncode = None
+
+    def poll(self):
+        if self.returncode is None:
+            pid, st = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(st)
+        return self.returncode
+
+    def wait(self, timeout=None):
+        t_end = None if timeout is None else time.monotonic() + timeout
+        while self.poll() is None:
+            if t_end is not None and time.monotonic() > t_end:
+                raise subprocess.TimeoutExpired(f"pid {self.pid}", timeout)
+            time.sleep(0.02)
+        return self.returncode
+
+    def send_signal(self, sig):
+        if self.poll() is None:
+            os.kill(self.pid, sig)
+
+    def kill(self):
+        self.send_signal(signal.SIGKILL)
+
+
+class Proc:
+    """A child process with its stderr in a file, waited for a ready line.
+    fn instead of args: a forked copy of this process runs fn() (the listener:
+    no interpreter start, no imports; that takes tens of seconds in the VM)."""
+
+    def __init__(self, name, args, workdir, env=None, fn=None):
+        self.name = name
+        self.args = [str(a) for a in args]
+        self.err_path = Path(workdir) / f"{name}.err"
+        self.out_path = Path(workdir) / f"{name}.out"
+        self._err = open(self.err_path, "w")
+        self._out = open(self.out_path, "w")
+        if fn is not None:
+            self.p = Forked(fn, self._out, self._err)
+        else:
+            self.p = subprocess.Popen(self.args, stdout=self._out, stderr=self._err, env=env,
+                                      stdin=subprocess.DEVNULL)
+        self.rc = None
+
+    def stderr(self):
+        return self.err_path.read_text(errors="replace")
+
+    def stdout(self):
+        return self.out_path.read_text(errors="replace")
+
+    def wait_for(self, text, timeout=START_TIMEOUT):
+        t_end = time.monotonic() + timeout
+        while time.monotonic() < t_end:
+            if text in self.stderr():
+                return
+            if self.p.poll() is not None:
+                raise AssertionError(f"{self.name} exited {self.p.returncode} before '{text}':\n"
+                                     f"{self.stderr()}")
+            time.sleep(0.05)
+        raise AssertionError(f"{self.name}: no '{text}' within {timeout} s:\n{self.stderr()}")
+
+    def terminate(self, timeout=120):
+        if self.p.poll() is None:
+            self.p.send_signal(signal.SIGTERM)
+        try:
+            self.rc = self.p.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.p.kill()
+            self.rc = self.p.wait()
+            raise AssertionError(f"{self.name} ignored SIGTERM for {timeout} s:\n{self.stderr()}")
+        finally:
+            self._err.close()
+            self._out.close()
+        return self.rc
+
+    def kill(self):
+        if self.p.poll() is None:
+            self.p.kill()
+            self.p.wait()
+        self._err.close()
+        self._out.close()
+
+
+def parse_rt_exit(stderr):
+    """mlip-rt's last line: 'stopped after N periods: F frames sent, D dropped
+    (tx queue), B bus errors, O overruns, U underruns, R records taken; ...'."""
+    import re
+
+    line = [l for l in stderr.splitlines() if "stopped after" in l]
+    if not line:
+        raise AssertionError(f"mlip-rt printed no 'stopped after' line:\n{stderr}")
+    line = line[-1]
+    m = re.search(r"stopped after (\d+) periods: (\d+) frames sent, (\d+) dropped", line)
+    if not m:
+        raise AssertionError(f"cannot read mlip-rt's exit line: {line}")
+    out = {"periods": int(m.group(1)), "frames_sent": int(m.group(2)),
+           "tx_dropped": int(m.group(3)), "line": line}
+    for key in ("overruns", "underruns", "bus errors", "records taken"):
+        mm = re.search(r"(\d+) " + key, line)
+        if mm:
+            out[key.replace(" ", "_")] = int(mm.group(1))
+    return out
+
+
+class Rig:
+    """One controller + listener on IFACE with its own shm segment.
+
+        with Rig(config, profile, tmp) as rig:
+            res = rig.feed(ngc, actions=...)
+        rig.result  # after the with: exit line, listener report, decoded cycles
+    """
+
+    seq = 0
+
+    def __init__(self, config, profile, workdir, iface=IFACE, priority=None,
+                 exec_listener=EXEC_LISTENER):
+        Rig.seq += 1
+        self.exec_listener = exec_listener
+        self.config = Path(config)
+        self.profile = profile
+        self.workdir = Path(workdir)
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.iface = iface
+        self.shm = f"/mlip-can-{os.getpid()}-{Rig.seq}"
+        self.setup = setup_of(config)
+        self.priority = priority
+        self.listener = self.rt = None
+        self.events = []  # (time.time(), what)
+        self.status_log = []
+
+    # -- start / stop
+    def __enter__(self):
+        try:
+            self.start()
+        except BaseException:
+            self.abort()
+            raise
+        return self
+
+    def __exit__(self, et, ev, tb):
+        if et is not None:
+            self.abort()
+            return False
+        self.finish()
+        return False
+
+    def start(self):
+        w = self.workdir
+        largs = ["--can", self.iface, "--config", self.config, "--profile", self.profile,
+                 "--csv", w / "can.csv", "--json", w / "can.json"]
+        if KEEP_LOG:
+            largs += ["--log", w / "can.log"]
+        largs = [str(a) for a in largs]
+        if self.exec_listener:
+            self.listener = Proc("listen", [PY, LISTEN] + largs, w)
+        else:
+            def fn():
+                listen._stop = False
+                return listen.main(largs)
+            self.listener = Proc("listen", [PY, LISTEN] + largs, w, fn=fn)
+        self.listener.wait_for("listening on")
+        args = [tool("mlip-rt"), "--config", self.config, "--can", self.iface,
+                "--profile", self.profile, "--shm", self.shm]
+        if self.priority is not None:
+            args += ["--priority", self.priority]
+        self.rt = Proc("rt", args, w)
+        self.rt.wait_for("ready on")
+        self.t_ready = time.time()
+
+    def abort(self):
+        for p in (self.rt, self.listener):
+            if p is not None:
+                try:
+                    p.terminate(timeout=30)
+                except Exception:
+                    p.kill()
+
+    def finish(self, settle_s=0.3):
+        """SIGTERM mlip-rt (a controlled stop), then the listener; collect."""
+        time.sleep(settle_s)  # the stream stays at the last point meanwhile
+        self.final_status = self.status()
+        rc = self.rt.terminate()
+        rt_err = self.rt.stderr()
+        time.sleep(0.2)
+        lrc = self.listener.terminate()
+        r = {"rt_rc": rc, "rt_stderr": rt_err, "listen_rc": lrc,
+             "listen_stderr": self.listener.stderr(), "listen_stdout": self.listener.stdout()}
+        if rc == 0:
+            r["rt"] = parse_rt_exit(rt_err)
+        js = self.workdir / "can.json"
+        r["report"] = json.loads(js.read_text()) if js.exists() else None
+        csv = self.workdir / "can.csv"
+        if csv.exists():
+            r["cycles"], r["t"], r["counts"] = read_can_csv(csv, len(self.setup.axes))
+        self.result = r
+        return r
+
+    # -- talking to the controller
+    def ctl(self, *args, check=True):
+        p = run([tool("mlip-ctl"), "--shm", self.shm, *args], check=False, timeout=60)
+        self.events.append((time.time(), " ".join(map(str, args)), p.returncode))
+        if check and p.returncode != 0:
+            raise AssertionError(f"mlip-ctl {' '.join(map(str, args))} exited {p.returncode}:\n"
+                                 f"{p.stdout}{p.stderr}")
+        return p
+
+    def status(self):
+        p = run([tool("mlip-ctl"), "--shm", self.shm, "status", "--json"], check=False, timeout=60)
+        try:
+            s = json.loads(p.stdout)
+        except ValueError:
+            raise AssertionError(f"mlip-ctl status --json exited {p.returncode}: {p.stdout}{p.stderr}")
+        s["_t"] = time.time()
+        self.status_log.append(s)
+        return s
+
+    def feed(self, ngc, actions=None, timeout=600):
+        """Run mlip-feed on ngc to its end; actions(rig) runs in a thread
+        meanwhile (mlip-ctl commands). Returns (rc, stdout, stderr)."""
+        f = Proc("feed", [tool("mlip-feed"), "--shm", self.shm, ngc], self.workdir)
+        self.t_feed = time.time()
+        th = err = None
+        if actions is not None:
+            box = {}
+
+            def body():
+                try:
+                    actions(self)
+                except BaseException as e:  # reported after the feed ends
+                    box["e"] = e
+
+            th = threading.Thread(target=body, daemon=True)
+            th.start()
+        try:
+            rc = f.p.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            f.kill()
+            raise AssertionError(f"mlip-feed did not finish within {timeout} s:\n{f.stderr()}")
+        self.t_feed_end = time.time()
+        out, errtext = f.stdout(), f.stderr()
+        f._err.close()
+        f._out.close()
+        if th is not None:
+            th.join(timeout=120)
+            err = box.get("e")
+            if err is not None:
+                raise AssertionError(f"the mlip-ctl actions failed: {err}") from err
+        return rc, out, errtext
+
+    def wait_state(self, state, timeout=60, pred=None):
+        """Poll mlip-ctl status until state (and pred(status)) holds."""
+        t_end = time.monotonic() + timeout
+        while time.monotonic() < t_end:
+            s = self.status()
+            if s["state"] == state and (pred is None or pred(s)):
+                return s
+            time.sleep(0.05)
+        raise AssertionError(f"controller not {state} within {timeout} s: {self.status_log[-1]}")
+
+
+def longest_still_run(counts, start, end):
+    """Longest run of identical consecutive positions in counts[start:end]:
+    (length, index of its first cycle)."""
+    best, best_at, run_len, run_at = 0, start, 1, start
+    for i in range(start + 1, end):
+        if counts[i] == counts[i - 1]:
+            run_len += 1
+        else:
+            run_len, run_at = 1, i
+        if run_len > best:
+            best, best_at = run_len, run_at
+    return best, best_at
+
+
+def speeds(counts, cpu, period_s, linear):
+    """Tool speed (linear axes, mm/s) between consecutive cycles."""
+    out = []
+    for a, b in zip(counts, counts[1:]):
+        s = 0.0
+        for i, c in enumerate(cpu):
+            if linear[i]:
+                d = (b[i] - a[i]) / c
+                s += d * d
+        out.append(math.sqrt(s) / period_s)
+    return out
+
+
+# ------------------------------------------------------------------ the demo
+
+def demo(outdir, config=CONFIG / "mill-3axis.ini", ngc=ROOT / "examples" / "demo.ngc",
+         profile="cia402"):
+    """mlip-rt + mlip-feed + the listener on one program; what happened, checked.
+    Writes outdir/decoded.csv (t,x,y,... from the first period on the bus),
+    outdir/demo.json and the processes' logs. Returns the number of failed checks."""
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    work = out / "run"
+    work.mkdir(exist_ok=True)
+    setup = setup_of(config)
+    lim = MachineLimits(config)
+    T = setup.period_s
+    print(f"demo: {ngc.name} on {config.name} ({' '.join(setup.axes)}), CAN profile {profile} "
+          f"on {IFACE}{' (inside the test VM)' if IN_VM else ''}", flush=True)
+    rows, summ = simulate(config, ngc, work)
+    trc = trace_counts(rows, setup.cpu)
+    print(f"demo: mlip-sim says {summ['total_time_s']:.3f} s of machining, {summ['blocks']} blocks, "
+          f"{summ['path_length_mm']:.1f} mm", flush=True)
+    t0 = time.monotonic()
+    with Rig(config, profile, work) as rig:
+        print(f"demo: listener and mlip-rt up ({time.monotonic() - t0:.1f} s); mlip-feed "
+              f"{ngc.name} ...", flush=True)
+        rc, fout, ferr = rig.feed(ngc)
+        done = rig.wait_state("idle", timeout=60)
+    r = rig.result
+    rep, rt = r["report"], r.get("rt", {})
+    checks = []
+
+    def check(ok, what):
+        checks.append((bool(ok), what))
+        print(f"  [{'ok' if ok else 'FAILED'}] {what}", flush=True)
+
+    can = r.get("counts", [])
+    print(f"demo: mlip-feed exit {rc}; {ferr.strip().splitlines()[-1] if ferr.strip() else ''}")
+    print(f"demo: mlip-rt: {rt.get('line', r['rt_stderr'].strip().splitlines()[-1:])}")
+    print(f"demo: listener: {r['listen_stdout'].strip()}", flush=True)
+    per = {"cia402": 1 + len(setup.axes), "packed": (len(setup.axes) + 1) // 2 + 1, "fd": 1}[profile]
+    check(rc == 0, f"mlip-feed exited {rc} (0: every block executed, machine at rest)")
+    check(done["exec_seq"] == summ["blocks"] + 1,
+          f"exec_seq {done['exec_seq']} = {summ['blocks']} blocks + END")
+    check(r["rt_rc"] == 0 and rt.get("tx_dropped") == 0,
+          f"mlip-rt stopped cleanly on SIGTERM, {rt.get('tx_dropped')} frames dropped at send")
+    check(rep["frames_ours"] == rt.get("frames_sent") == rt.get("periods", -1) * per,
+          f"frames: {rt.get('frames_sent')} sent in {rt.get('periods')} periods, "
+          f"{rep['frames_ours']} received")
+    clean = not any(rep.get(k) for k in ("gaps", "incomplete", "duplicates", "stray", "malformed",
+                                         "socket_drops"))
+    check(clean and rep["cycles"] == rt.get("periods") and r["cycles"] == list(range(rep["cycles"])),
+          f"cycles: {rep['cycles']} complete, numbered 0..{rep['cycles'] - 1}, {rep['gaps']} lost, "
+          f"{rep['incomplete']} incomplete, {rep['stray']} stray, {rep.get('socket_drops')} dropped")
+    try:
+        off, how = align(can, trc)
+        bad = first_mismatch(can, trc, off)
+    except AssertionError as e:
+        off, bad = 0, str(e)
+    check(bad is None, f"the bus carries mlip-sim's trace to the last count: {len(trc)} rows "
+                       f"= cycles {off}..{off + len(trc) - 1}" + (f" -- {bad}" if bad else ""))
+    tail = can[off + len(trc):]
+    check(tail and all(c == trc[-1] for c in tail),
+          f"then at rest on the program's last point for {len(tail)} cycles")
+    moving = can[max(off, 0):]
+    quantum = max(1.0 / c for c in setup.cpu)
+    write_positions_csv(out / "decoded.csv", moving, setup.cpu, T)
+    p, js = mlip_check(config, ngc, out / "decoded.csv", quantum, out / "check.json")
+    msg = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else ""
+    check(p.returncode == 0, f"mlip-check --quantum {quantum:g} on the decoded positions: {msg}")
+    machining = (len(trc) - 1) * T
+    tm = rep["timing"]
+    info = {
+        "program": str(ngc), "config": str(config), "profile": profile, "in_vm": IN_VM,
+        "machining_s": machining, "sim_s": summ["total_time_s"], "blocks": summ["blocks"],
+        "path_mm": summ["path_length_mm"], "frames": rep["frames_ours"], "cycles": rep["cycles"],
+        "periods": rt.get("periods"), "overruns": rt.get("overruns"), "offset": off,
+        "period_s": T, "vmax_mm_s": lim.vmax, "axes": setup.axes,
+        "linear": [a in "XYZ" for a in setup.axes],
+        "max_speed_mm_s": js and js.get("max_speed_mm_s"),
+        "max_contour_mm": js and js.get("max_contour_error_mm"),
+        "bus_period_us": {k: tm.get(k) for k in ("min_us", "p50_us", "p99_us", "p99_9_us", "max_us")},
+        "feeds_mm_s": program_feeds(ngc),
+        "checks": [{"ok": ok, "what": w} for ok, w in checks],
+    }
+    (out / "demo.json").write_text(json.dumps(info, indent=1) + "\n")
+    for name in ("can.json", "rt.err", "feed.err", "listen.err"):
+        if (work / name).exists():
+            (out / name).write_text((work / name).read_text())
+    failed = sum(1 for ok, _ in checks if not ok)
+    print(f"demo: machining {machining:.3f} s ({summ['blocks']} blocks, {summ['path_length_mm']:.1f} mm), "
+          f"{rep['frames_ours']} frames, {rep['cycles']} cycles; bus period p50 {tm.get('p50_us')} us, "
+          f"p99 {tm.get('p99_us')} us, max {tm.get('max_us')} us"
+          + (" (emulated VM: timing says nothing about real time)" if IN_VM else ""))
+    print(f"demo: {len(checks) - failed} of {len(checks)} checks passed", flush=True)
+    return failed
+
+
+def program_feeds(ngc):
+    """The distinct F words of a program, in mm/s (F is in units per minute)."""
+    import re
+
+    feeds = set()
+    with open(ngc) as fh:
+        for line in fh:
+            code = re.sub(r"\(.*?\)|;.*", "", line)
+            for m in re.finditer(r"[Ff]\s*([0-9.]+)", code):
+                feeds.add(float(m.group(1)) / 60.0)
+    return sorted(feeds)
+
+
+def plot(outdir, png):
+    """Speed vs time from the decoded positions, the feed limits marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(outdir)
+    info = json.loads((out / "demo.json").read_text())
+    T = info["period_s"]
+    n = len(info["axes"])
+    t, pos = [], []
+    with open(out / "decoded.csv") as fh:
+        fh.readline()
+        for line in fh:
+            f = [float(v) for v in line.split(",")]
+            t.append(f[0])
+            pos.append(f[1:1 + n])
+    lin = info["linear"]
+    sp, ts = [], []
+    for k in range(1, len(pos)):
+        d = sum((pos[k][i] - pos[k - 1][i]) ** 2 for i in range(n) if lin[i])
+        sp.append(math.sqrt(d) / T)
+        ts.append((t[k] + t[k - 1]) / 2)
+    w = 9  # a centred moving average over 9 periods, to see through the 1-count steps
+    avg = [sum(sp[max(0, i - w // 2):i + w // 2 + 1]) / len(sp[max(0, i - w // 2):i + w // 2 + 1])
+           for i in range(len(sp))]
+    fig, ax = plt.subplots(figsize=(11, 5.6), dpi=110)
+    ax.plot(ts, sp, lw=0.5, color="#9ecae1", label="tool speed from the decoded CAN positions, per period")
+    ax.plot(ts, avg, lw=1.2, color="#08519c", label=f"the same, {w}-period moving average")
+    vmax = info["vmax_mm_s"]
+    ax.axhline(vmax, color="#d62728", ls="--", lw=1.4,
+               label=f"feed limit v_m (MAX_LINEAR_VELOCITY) = {vmax:g} mm/s: G0 moves run at it")
+    feeds = [f for f in info["feeds_mm_s"] if f < vmax]
+    for j, fmm in enumerate(feeds):
+        ax.axhline(fmm, color="#ff7f0e", ls=":", lw=1.3,
+                   label=("programmed feeds: " + ", ".join(f"F{f * 60:g} = {f:g} mm/s" for f in feeds))
+                   if j == 0 else None)
+    ax.set_xlim(0, t[-1] if t else 1)
+    ax.set_ylim(0, vmax * 1.1)
+    ax.set_xlabel("time since the program's first period on the bus (s)")
+    ax.set_ylabel("tool speed, X Y Z (mm/s)")
+    ok = sum(1 for c in info["checks"] if c["ok"])
+    ax.set_title(f"{Path(info['program']).name}: mlip-rt -> CAN ({info['profile']}) -> mlip-listen\n"
+                 f"{info['machining_s']:.3f} s of machining, {info['blocks']} blocks, "
+                 f"{info['cycles']} cycles on the bus, {ok} of {len(info['checks'])} checks passed "
+                 f"(bus == mlip-sim to the count, mlip-check)", fontsize=10)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=8.5, frameon=False)
+    fig.tight_layout()
+    fig.savefig(png)
+    print(f"demo: velocity profile written to {png}")
+
+
+if __name__ == "__main__":
+    import argparse
+
+    ap = argparse.ArgumentParser(description="the CAN demo: run it, or plot its result")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    d = sub.add_parser("demo")
+    d.add_argument("outdir")
+    d.add_argument("--config", default=str(CONFIG / "mill-3axis.ini"))
+    d.add_argument("--profile", default="cia402", choices=["cia402", "packed", "fd"])
+    d.add_argument("program", nargs="?", default=str(ROOT / "examples" / "demo.ngc"))
+    p = sub.add_parser("plot")
+    p.add_argument("outdir")
+    p.add_argument("png")
+    sub.add_parser("prime")
+    a = ap.parse_args()
+    if a.cmd == "demo":
+        sys.exit(1 if demo(a.outdir, Path(a.config), Path(a.program), a.profile) else 0)
+    elif a.cmd == "plot":
+        plot(a.outdir, a.png)
+    else:
+        print(prime_dbc_cache())

@@ -1,0 +1,527 @@
+"""End to end on a real vcan0: mlip-rt puts setpoints on the bus, the listener
+(tools/mlip-listen.py) rebuilds them, and they must equal mlip-sim's trace for
+the same program and machine to the last drive count.
+
+Run it where vcan0 exists (on the host if its kernel has CAN, else in a VM):
+
+    tools/vcan/run.sh '.venv/bin/python -m pytest -s -q tests/can/test_rt_vcan.py'
+
+Without an UP vcan0 the bus tests FAIL (they never skip: a green run means the
+SocketCAN path really was exercised). The listener's decoding is also tested
+offline, from candump logs made here (test_listener_*: no bus needed).
+
+Each bus run: the listener first, then mlip-rt with its own --shm segment,
+then mlip-feed with the program (mlip-ctl commands in a thread meanwhile),
+then SIGTERM to mlip-rt (a controlled stop) and to the listener. Checked:
+  - every frame mlip-rt says it sent (its exit line) reached the listener, as
+    complete cycles numbered 0..N-1 (no gap, no incomplete cycle, no stray,
+    no socket drop);
+  - without commands: the decoded counts equal round(trace * COUNTS_PER_UNIT)
+    row for row (home position while idle and pre-reading, then trace rows
+    1.. one per cycle, then the last point until the end);
+  - mlip-check --quantum passes on the decoded positions;
+  - mlip-feed exits 0, exec_seq = blocks + 1, the machine ends idle at rest
+    on the program's last point;
+  - override / hold / resume / stop while running: physics within bounds,
+    the hold stops on the path and resumes, the stop rests on the path
+    (mlip-feed exits 4, controller IDLE).
+"""
+import json
+import os
+import struct
+import time
+from pathlib import Path
+
+import pytest
+
+import rtharness as h
+
+IFACE = h.IFACE
+SYS = Path("/sys/class/net") / IFACE
+ARPHRD_CAN = 280
+CANFD_MTU = 72
+
+FLOWER = h.TOOLPATHS / "flower-spiral-2d.ngc"
+MB23 = h.TOOLPATHS / "MB-2.3_test.nc"
+DEMO = h.ROOT / "examples" / "demo.ngc"
+PAPER = h.CONFIG / "paper-2axis.ini"
+MILL = h.CONFIG / "mill-3axis.ini"
+# Cuts: the first lines of each file (its header sets units and modes), a few
+# seconds of machining at the machine's limits.
+FLOWER_LINES = 2000   # 1998 blocks, 2.95 s
+MB23_LINES = 400      # 398 blocks, ~3.6 s
+
+
+# ------------------------------------------------------------------ fixtures
+
+@pytest.fixture(scope="session")
+def vcan():
+    """vcan0 must exist, be a CAN interface and be up: fail, never skip."""
+    if not SYS.is_dir():
+        pytest.fail(f"no {IFACE}: run through tools/vcan/run.sh (these tests never skip)")
+    assert int((SYS / "type").read_text()) == ARPHRD_CAN, f"{IFACE} is not a CAN interface"
+    assert int((SYS / "flags").read_text(), 16) & 0x1, f"{IFACE} is down"
+    for t in ("mlip-rt", "mlip-feed", "mlip-ctl", "mlip-sim", "mlip-check"):
+        if not Path(h.tool(t)).exists():
+            pytest.fail(f"{h.tool(t)} missing: run make first")
+    if not h.TOOLPATHS.is_dir():
+        pytest.fail(f"{h.TOOLPATHS} missing: set MLIP_SHARED")
+    h.prime_dbc_cache()  # listener processes then skip the cantools import
+    return IFACE
+
+
+@pytest.fixture(scope="session")
+def fd_mtu(vcan):
+    mtu = int((SYS / "mtu").read_text())
+    if mtu != CANFD_MTU:
+        # tools/vcan/run.sh sets mtu 72; a host vcan0 made by hand may not have it
+        os.system(f"ip link set {IFACE} down && ip link set {IFACE} mtu 72 && "
+                  f"ip link set {IFACE} up")
+        mtu = int((SYS / "mtu").read_text())
+    assert mtu == CANFD_MTU, f"{IFACE} mtu {mtu}: the fd profile needs 'ip link set {IFACE} mtu 72'"
+    return mtu
+
+
+def cut(src, n, tmp_path):
+    return h.cut_program(src, n, tmp_path / f"{src.stem}-{n}.ngc")
+
+
+# ------------------------------------------------------------------ checks
+
+def bus_complete(r, setup, profile):
+    """Every frame sent arrived, as complete cycles 0..N-1. Returns N."""
+    assert r["rt_rc"] == 0, f"mlip-rt exited {r['rt_rc']}:\n{r['rt_stderr']}"
+    assert r["listen_rc"] == 0, f"listener exited {r['listen_rc']}:\n{r['listen_stderr']}"
+    rt, rep = r["rt"], r["report"]
+    n = len(setup.axes)
+    per = {"cia402": 1 + n, "packed": (n + 1) // 2 + 1, "fd": 1}[profile]
+    N = rt["periods"]
+    assert rt["tx_dropped"] == 0, rt["line"]
+    assert rt["frames_sent"] == N * per, \
+        f"mlip-rt: {rt['frames_sent']} frames in {N} periods, {per} expected per period"
+    bad = {k: rep[k] for k in ("gaps", "incomplete", "duplicates", "stray", "malformed",
+                               "backwards", "socket_drops") if rep.get(k)}
+    assert not bad, f"listener saw {bad}; events {rep['events'][:10]}"
+    assert rep["frames_ours"] == rt["frames_sent"], \
+        f"mlip-rt sent {rt['frames_sent']} frames, the listener saw {rep['frames_ours']}"
+    assert rep["cycles"] == N, f"{N} periods sent, {rep['cycles']} cycles decoded"
+    assert r["cycles"] == list(range(N)), "cycle numbers are not 0..N-1"
+    if profile == "cia402":
+        assert rep["syncs"] == N
+    return N
+
+
+def physics(rig, ngc, counts, quantum, tmp, end_on_last=True):
+    """mlip-check --quantum on decoded positions (t = k T)."""
+    setup = rig.setup
+    csv = tmp / "decoded.csv"
+    h.write_positions_csv(csv, counts, setup.cpu, setup.period_s)
+    p, js = h.mlip_check(rig.config, ngc, csv, quantum, tmp / "check.json")
+    if end_on_last:
+        assert p.returncode == 0, f"mlip-check on the decoded positions:\n{p.stderr}"
+    else:
+        # mlip-check insists on ending at the program's last point; after a
+        # stop we judge its measurements with the same bounds, minus that.
+        assert js is not None, p.stderr
+        max_abs = max(abs(c[i] / setup.cpu[i]) for c in counts for i in range(len(setup.cpu)))
+        bad = h.check_bounds(rig.config, js, quantum, max_abs)
+        assert not bad, f"decoded positions out of bounds: {bad}\n{p.stderr}"
+    return js
+
+
+def summary_line(name, rig, r, extra=""):
+    rep = r["report"]
+    tm = rep["timing"]
+    print(f"\n[{name}] {rig.profile}: {r['rt']['periods']} periods, {rep['frames_ours']} frames, "
+          f"{rep['cycles']} cycles, bus period p50 {tm.get('p50_us')} us p99 {tm.get('p99_us')} "
+          f"us max {tm.get('max_us')} us, listener cpu {rep['cpu_s']} s for {rep['wall_s']} s, "
+          f"overruns {r['rt'].get('overruns')}{extra}")
+
+
+def exact_run(tmp_path, config, ngc, profile, exec_listener=h.EXEC_LISTENER):
+    """A whole program, no commands: the bus must carry the simulator's trace."""
+    rows, summ = h.simulate(config, ngc, tmp_path)
+    setup = h.setup_of(config)
+    trc = h.trace_counts(rows, setup.cpu)
+    with h.Rig(config, profile, tmp_path, exec_listener=exec_listener) as rig:
+        rc, out, err = rig.feed(ngc)
+        assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
+        done = rig.wait_state("idle", timeout=60)
+    r = rig.result
+    N = bus_complete(r, setup, profile)
+    can = r["counts"]
+    off, how = h.align(can, trc)
+    home = trc[0]
+    assert off > 0, f"no idle cycle before the motion ({how})"
+    assert all(c == home for c in can[:off]), "the bus moved before the trace's first row"
+    bad = h.first_mismatch(can, trc, off)
+    assert bad is None, f"bus != mlip-sim trace ({how}): {bad}"
+    tail = can[off + len(trc):]
+    assert len(tail) > 0 and all(c == trc[-1] for c in tail), \
+        "the bus does not stay on the last point after the program"
+    quantum = max(1.0 / c for c in setup.cpu)
+    js = physics(rig, ngc, can[off:], quantum, tmp_path)
+    # every block executed, in order; at rest on the last point
+    blocks = summ["blocks"]
+    st = rig.final_status
+    assert st["state"] == "idle", st
+    assert st["exec_seq"] == blocks + 1 == done["exec_seq"], (st, blocks)
+    assert st["total_blocks"] == blocks + 1 and st["program_end"], st
+    assert r["report"]["last"]["counts"] == dict(zip(setup.axes, trc[-1]))
+    summary_line(ngc.name, rig, r, f", trace {len(trc)} rows = bus cycles {off}..{off + len(trc) - 1}"
+                 f" exactly, {blocks} blocks, max contour {js['max_contour_error_mm']:.6f} mm")
+    return rig, r, off, trc
+
+
+# ------------------------------------------------------------------ bus tests
+
+@pytest.mark.parametrize("profile", ["cia402", "packed", "fd"])
+def test_flower_2d_exact(vcan, fd_mtu, tmp_path, profile):
+    """2-D micro-segments (flower-spiral-2d.ngc, cut) on the paper's machine."""
+    exact_run(tmp_path, PAPER, cut(FLOWER, FLOWER_LINES, tmp_path), profile)
+
+
+@pytest.mark.parametrize("profile", ["cia402", "packed", "fd"])
+def test_mb23_3axis_exact(vcan, fd_mtu, tmp_path, profile):
+    """3-D raster micro-segments (MB-2.3_test.nc, cut) on the 3-axis mill."""
+    exact_run(tmp_path, MILL, cut(MB23, MB23_LINES, tmp_path), profile)
+
+
+def test_demo_whole_exact(vcan, tmp_path):
+    """One whole program: examples/demo.ngc (1819 blocks, 6.5 s, arcs and a
+    helix). No shared toolpath runs in under a minute: the shortest, 4006.nc
+    on config/rotary-4axis.ini, takes 228 s of machining.
+    The listener runs here as its own process (`python tools/mlip-listen.py`,
+    the command line a user types, SIGTERM to end it); the other runs fork it
+    from pytest to save the interpreter's start, 10-35 s in the emulated VM."""
+    exact_run(tmp_path, MILL, DEMO, "cia402", exec_listener=True)
+
+
+# -- commands while running (physics only: the timing of a command decides
+#    the motion, so there is no trace to compare with)
+
+def moving_span(counts):
+    """First and last cycle index where the position changes."""
+    first = next(i for i in range(1, len(counts)) if counts[i] != counts[i - 1])
+    last = next(i for i in range(len(counts) - 1, 0, -1) if counts[i] != counts[i - 1])
+    return first - 1, last
+
+
+def wait_periods(rig, n, since):
+    """Wait until the controller has run n periods after status `since`
+    (heartbeat = periods run): a window measured in periods, whatever the
+    speed of the (emulated) machine. Returns the status at its end."""
+    target = since["heartbeat"] + n
+    while True:
+        s = rig.status()
+        if s["heartbeat"] >= target:
+            return s
+        time.sleep(0.05)
+
+
+# The heartbeat of a status read is the number of periods run so far: the
+# frames of period p (cycle p on the bus, counted from 0) went out before a
+# status showing heartbeat p + 1. A command acknowledged before a status read
+# with heartbeat H acted at a cycle < H.
+
+
+def test_override_changes(vcan, tmp_path):
+    """Override 40 %, then 150 %, then 100 % during demo.ngc: the limits hold,
+    the 40 % phase stays under 40 % of the feed cap, the program completes."""
+    config, ngc = MILL, DEMO
+    rows, summ = h.simulate(config, ngc, tmp_path)
+    lim = h.MachineLimits(config)
+    m = {}
+
+    def actions(rig):
+        rig.wait_state("running", pred=lambda s: s["exec_seq"] > 50)
+        rig.ctl("override", "40")
+        m["slow_from"] = rig.status()
+        m["slow_to"] = wait_periods(rig, 1200, m["slow_from"])
+        rig.ctl("override", "150")
+        wait_periods(rig, 600, rig.status())
+        rig.ctl("override", "100")
+        m["last"] = rig.status()
+
+    with h.Rig(config, "cia402", tmp_path) as rig:
+        rc, out, err = rig.feed(ngc, actions)
+        assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
+        rig.wait_state("idle", timeout=60)
+    r = rig.result
+    setup = rig.setup
+    bus_complete(r, setup, "cia402")
+    can = r["counts"]
+    start, end = moving_span(can)
+    quantum = max(1.0 / c for c in setup.cpu)
+    physics(rig, ngc, can[start:], quantum, tmp_path)
+    assert m["last"]["override_pct"] == 100, m["last"]
+    st = rig.final_status
+    assert st["state"] == "idle" and st["exec_seq"] == summ["blocks"] + 1, st
+    assert can[-1] == h.trace_counts(rows[-1:], setup.cpu)[0], "not at rest on the last point"
+    # the 40 % phase: from the command plus the time to brake from v_m on
+    brake = int(lim.vmax / min(lim.accel) / lim.period_s) + 20
+    i0, i1 = m["slow_from"]["heartbeat"] + brake, m["slow_to"]["heartbeat"] - 1
+    assert i1 - i0 >= 900 and start < i0 and i1 < end, (start, i0, i1, end)
+    sp = h.speeds(can[i0:i1], setup.cpu, setup.period_s, [True] * 3)
+    cap = 0.40 * lim.vmax + 4 * quantum * 3 ** 0.5 / lim.period_s
+    assert max(sp) <= cap, f"speed {max(sp):.3f} mm/s at 40 % override (cap {cap:.3f})"
+    moving = end - start
+    assert moving > len(rows) - 1 + 300, \
+        f"{moving} periods of motion with a 40 % phase, {len(rows) - 1} at 100 %"
+    summary_line("override", rig, r, f", motion {moving} periods vs {len(rows) - 1} simulated at "
+                 f"100 %, max speed in the 40 % phase {max(sp):.2f} mm/s")
+
+
+def test_hold_resume(vcan, tmp_path):
+    """Feed hold mid-program: the machine brakes to rest on the path (the
+    same setpoint on consecutive cycles while held), resumes, completes."""
+    config, ngc = MILL, DEMO
+    rows, summ = h.simulate(config, ngc, tmp_path)
+    m = {}
+
+    def actions(rig):
+        rig.wait_state("running", pred=lambda s: s["exec_seq"] > 400)
+        m["hold"] = rig.status()
+        rig.ctl("hold")
+        m["held"] = rig.wait_state("held", timeout=60)
+        m["resume"] = wait_periods(rig, 800, m["held"])
+        rig.ctl("resume")
+        m["after"] = rig.wait_state("running", timeout=60)
+
+    with h.Rig(config, "cia402", tmp_path) as rig:
+        rc, out, err = rig.feed(ngc, actions)
+        assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
+        rig.wait_state("idle", timeout=60)
+    r = rig.result
+    setup = rig.setup
+    bus_complete(r, setup, "cia402")
+    can = r["counts"]
+    start, end = moving_span(can)
+    quantum = max(1.0 / c for c in setup.cpu)
+    # on the path, within every limit, braking and restarting included
+    physics(rig, ngc, can[start:], quantum, tmp_path)
+    # still from when HELD was reported until the resume
+    h0, h1 = m["held"]["heartbeat"] - 1, m["resume"]["heartbeat"] - 1
+    assert all(c == can[h0] for c in can[h0:h1 + 1]), "the setpoint moved while HELD"
+    run_len, at = h.longest_still_run(can, start + 1, end)
+    assert at <= h0 and h1 < at + run_len, (at, run_len, h0, h1)
+    assert start < at and at + run_len < end, "the still run is not inside the motion"
+    # moving when the hold was sent (the rest began after it)
+    assert at >= m["hold"]["heartbeat"] - 1, (at, m["hold"])
+    assert 0 < m["held"]["exec_seq"] < summ["blocks"] + 1, m["held"]
+    st = rig.final_status
+    assert st["state"] == "idle" and st["exec_seq"] == summ["blocks"] + 1, st
+    assert can[-1] == h.trace_counts(rows[-1:], setup.cpu)[0], "not at rest on the last point"
+    summary_line("hold", rig, r, f", still for {run_len} cycles from cycle {at} "
+                 f"(block {m['held']['exec_seq']}), then resumed to the end")
+
+
+def test_stop(vcan, tmp_path):
+    """Stop mid-program: mlip-feed exits 4, the machine decelerates on the path
+    to rest (contour and acceleration within bounds; no end-point condition),
+    the controller is IDLE and the rest of the program is dropped."""
+    config, ngc = MILL, DEMO
+    rows, summ = h.simulate(config, ngc, tmp_path)
+    lim = h.MachineLimits(config)
+    m = {}
+
+    def actions(rig):
+        rig.wait_state("running", pred=lambda s: s["exec_seq"] > 400)
+        m["before"] = rig.status()
+        rig.ctl("stop")
+        m["after"] = rig.status()
+
+    with h.Rig(config, "cia402", tmp_path) as rig:
+        rc, out, err = rig.feed(ngc, actions)
+        assert rc == 4, f"mlip-feed exited {rc} after a stop (4 expected):\n{err}"
+        idle = rig.wait_state("idle", timeout=60)
+    r = rig.result
+    setup = rig.setup
+    bus_complete(r, setup, "cia402")
+    can = r["counts"]
+    start, end = moving_span(can)
+    quantum = max(1.0 / c for c in setup.cpu)
+    physics(rig, ngc, can[start:], quantum, tmp_path, end_on_last=False)
+    last = h.trace_counts(rows[-1:], setup.cpu)[0]
+    assert can[-1] != last, "the program ran to its end despite the stop"
+    assert all(c == can[end] for c in can[end:]), "not at rest after the stop"
+    # moving when the stop was sent, at rest within the braking time after
+    brake = int(lim.vmax / min(lim.accel) / lim.period_s) + 20
+    assert end >= m["before"]["heartbeat"] - 1, "the motion ended before the stop was sent"
+    assert end <= m["after"]["heartbeat"] + brake, \
+        f"rest at cycle {end}, stop acknowledged by cycle {m['after']['heartbeat']}"
+    fs = rig.final_status
+    assert fs["state"] == "idle" and idle["state"] == "idle", fs
+    assert 0 < fs["exec_seq"] < summ["blocks"] + 1, fs
+    summary_line("stop", rig, r, f", stopped in block {fs['exec_seq']} of {summ['blocks']}, at rest "
+                 f"{end - m['before']['heartbeat']} cycles after the last status before the stop")
+
+
+# ------------------------------------------------------------------ offline
+
+def _frames(setup, profile, cycle, counts):
+    """Reference encoder (canenc.h layouts) for the offline tests."""
+    n = len(setup.axes)
+    if profile == "cia402":
+        return [(setup.sync_id, b"", False)] + \
+            [(setup.rpdo_base + setup.nodes[i], struct.pack("<i", counts[i]), False) for i in range(n)]
+    if profile == "packed":
+        out = []
+        for k in range((n + 1) // 2):
+            vals = counts[2 * k:2 * k + 2]
+            out.append((setup.packed_base + k, struct.pack("<" + "i" * len(vals), *vals), False))
+        out.append((setup.packed_base + (n + 1) // 2, struct.pack("<I", cycle), False))
+        return out
+    ln = h.listen.fd_len(4 + 4 * n)
+    data = struct.pack("<I" + "i" * n, cycle, *counts)
+    return [(setup.fd_id, data + bytes(ln - len(data)), True)]
+
+
+def _write_log(path, frames):
+    with open(path, "w") as fh:
+        for t, (cid, data, fd) in frames:
+            ts = f"({t // 10**9}.{t % 10**9 // 1000:06d})"
+            if fd:
+                fh.write(f"{ts} vcan0 {cid:03X}##1{data.hex().upper()}\n")
+            else:
+                fh.write(f"{ts} vcan0 {cid:03X}#{data.hex().upper()}\n")
+
+
+def _listen_offline(tmp_path, config, profile, frames):
+    log = tmp_path / f"{profile}.log"
+    _write_log(log, frames)
+    rc = h.listen.main(["--from-log", str(log), "--config", str(config), "--profile", profile,
+                        "--csv", str(tmp_path / "o.csv"), "--json", str(tmp_path / "o.json"),
+                        "--log", str(tmp_path / "o.log"), "-q"])
+    assert rc == 0
+    rep = json.loads((tmp_path / "o.json").read_text())
+    assert (tmp_path / "o.log").read_text() == log.read_text(), "--log is not the same candump text"
+    return rep, h.read_can_csv(tmp_path / "o.csv", len(h.setup_of(config).axes))
+
+
+@pytest.mark.parametrize("profile", ["cia402", "packed", "fd"])
+@pytest.mark.parametrize("config", [PAPER, MILL, h.CONFIG / "rotary-4axis.ini"],
+                         ids=["2axis", "3axis", "4axis"])
+def test_listener_decodes_and_reports_loss(tmp_path, config, profile):
+    """Frames of 20 periods with one period lost, one frame lost and one frame
+    duplicated: the listener rebuilds the rest and names each anomaly."""
+    setup = h.setup_of(config)
+    n = len(setup.axes)
+    npos = (n + 1) // 2
+    t0 = 1_700_000_000_000_000_000
+    seq, want = [], {}
+    for c in range(20):
+        counts = [(-1) ** i * (1000 * c + i) - (i == 1) * 2**30 for i in range(n)]
+        want[c] = tuple(counts)
+        fr = _frames(setup, profile, c, counts)
+        if c == 5:
+            continue                                  # a whole period lost
+        if c == 9 and profile == "cia402":
+            fr = fr[:1] + fr[2:]                      # the first RPDO lost
+        if c == 9 and profile == "packed":
+            fr = fr[:npos - 1] + fr[npos:]            # the last POS frame lost
+        if c == 12:
+            # cia402: an RPDO repeated after its cycle completed (stray);
+            # packed: POS0 twice before the COMMIT (reads as a lost COMMIT);
+            # fd: the frame twice (duplicate counter)
+            fr = fr + fr[1:2] if profile == "cia402" else fr[:1] + fr
+        seq += [(t0 + c * 1_000_000 + j * 1000, f) for j, f in enumerate(fr)]
+    rep, (cyc, ts, cnt) = _listen_offline(tmp_path, config, profile, seq)
+    if profile == "cia402":
+        # no counter on the wire: the cycle number is the SYNC count, so
+        # period 5 (SYNC lost too) cannot be seen; the rest can
+        periods = [c for c in range(20) if c != 5]
+        decoded = [periods[k] for k in cyc]
+        assert decoded == [c for c in periods if c != 9]
+        assert rep["syncs"] == 19 and rep["cycles"] == 18
+        assert rep["incomplete"] == 1 and rep["missing_rpdo"] == 1      # period 9
+        assert rep["stray"] == 1 and rep["missing_sync"] == 0           # period 12
+    elif profile == "packed":
+        decoded = cyc
+        assert decoded == [c for c in range(20) if c not in (5, 9)]
+        assert rep["gaps"] == 1 and rep["gap_events"] == 1              # period 5
+        assert rep["incomplete"] == 2 and rep["commit_lost"] == 1       # 9, 12
+    else:
+        decoded = cyc
+        assert decoded == [c for c in range(20) if c != 5]
+        assert rep["gaps"] == 1 and rep["duplicates"] == 1              # 5, 12
+    assert cnt == [want[c] for c in decoded]
+    # t = the cycle's first frame (packed 12: the repeated POS0 restarted it)
+    first = {c: 1 if profile == "packed" and c == 12 else 0 for c in decoded}
+    assert [round(t * 1e6) for t in ts] == [(t0 + c * 1_000_000) // 1000 + first[c] for c in decoded]
+    assert rep["timing"]["p50_us"] == 1000.0
+    assert not rep["clean"]
+
+
+def test_listener_missing_sync(tmp_path):
+    """cia402: a whole set of RPDOs with no SYNC before it is a missing SYNC."""
+    setup = h.setup_of(MILL)
+    seq = []
+    for c in range(6):
+        fr = _frames(setup, "cia402", c, [c, c, c])
+        if c == 3:
+            fr = fr[1:]
+        seq += [(1_700_000_000_000_000_000 + c * 1_000_000 + j, f) for j, f in enumerate(fr)]
+    rep, (cyc, ts, cnt) = _listen_offline(tmp_path, MILL, "cia402", seq)
+    assert rep["missing_sync"] == 1 and rep["stray"] == 3 and rep["cycles"] == 5
+    assert cnt == [(c, c, c) for c in (0, 1, 2, 4, 5)]
+
+
+def test_listener_counts_to_positions(tmp_path):
+    """CSV positions are counts / COUNTS_PER_UNIT (100 counts/deg on A)."""
+    config = h.CONFIG / "rotary-4axis.ini"
+    setup = h.setup_of(config)
+    assert setup.cpu == [1000.0, 1000.0, 1000.0, 100.0] and setup.nodes == [1, 2, 3, 4]
+    counts = [12345, -1, 2**31 - 1, -2**31]
+    frames = [(1_700_000_000_000_000_000, f) for f in _frames(setup, "cia402", 0, counts)]
+    rep, (cyc, ts, cnt) = _listen_offline(tmp_path, config, "cia402", frames)
+    assert cnt == [tuple(counts)]
+    line = (tmp_path / "o.csv").read_text().splitlines()[1].split(",")
+    assert [float(v) for v in line[2:6]] == [12.345, -0.001, 2147483.647, -21474836.48]
+    assert rep["clean"] and rep["last"]["pos"]["A"] == -21474836.48
+    assert any("COUNTS_PER_UNIT 100" in n for n in rep["dbc_notes"])
+
+
+@pytest.mark.parametrize("profile,message,change,error", [
+    ("cia402", "RPDO_NODE2", {"length": 16}, "Y_target is 16 bits"),
+    ("cia402", "RPDO_NODE1", {"is_signed": False}, "unsigned"),
+    ("packed", "PACKED_POS0", {"byte_order": "big_endian"}, "big_endian"),
+    ("fd", "FD_SETPOINT", {"start": 40}, "at bit 40"),
+    ("packed", "PACKED_COMMIT", {"is_signed": True}, "cycle"),
+])
+def test_listener_refuses_a_dbc_that_disagrees(monkeypatch, profile, message, change, error):
+    """The layout read from the DBC is checked field by field against what
+    canenc.h sends for this config; a disagreement is an error (exit 2)."""
+    msgs, _ = h.listen.load_dbc(h.listen.DEFAULT_DBC, h.ROOT / "build")
+    bad = []
+    for m in msgs:
+        sigs = list(m.signals)
+        if m.name == message:
+            # the first axis field, or the counter when the error names it
+            target = [s for s in sigs if (s.name == "cycle") == ("cycle" in error)][:1]
+            sigs = [h.listen._ns(dict(vars(s), **change)) if s in target else s for s in sigs]
+        bad.append(h.listen._ns(dict(vars(m), signals=sigs)))
+    monkeypatch.setattr(h.listen, "load_dbc", lambda path, cache=None: (bad, "test"))
+    with pytest.raises(h.listen.UsageError, match=error):
+        h.listen.Layout(h.setup_of(MILL), profile, h.listen.DEFAULT_DBC)
+    assert h.listen.main(["--check-layout", "--config", str(MILL), "--profile", profile]) == 2
+
+
+def test_listener_layout_matches_config():
+    """The DBC's default 6-axis setup against the shipped configs: ids and
+    layouts agree; what differs (lengths, the COMMIT id for fewer axes,
+    counts per unit) is noted, not refused."""
+    for cfg in (PAPER, MILL, h.CONFIG / "rotary-4axis.ini"):
+        for profile in ("cia402", "packed", "fd"):
+            lay = h.listen.Layout(h.setup_of(cfg), profile, h.listen.DEFAULT_DBC, h.ROOT / "build")
+            assert lay.frames_per_cycle == {"cia402": 1 + lay.n, "packed": (lay.n + 1) // 2 + 1,
+                                            "fd": 1}[profile]
+            assert not any("0x" in n and "by the config" in n for n in lay.notes), lay.notes
+
+
+def test_counts_rounding_matches_canenc():
+    """round half away from zero, as mlip_can_counts (canenc.h)."""
+    assert [h.to_counts(v, 1000) for v in (0.0005, -0.0005, 0.0015, -0.0025, 1.2344999)] == \
+        [1, -1, 2, -3, 1234]
+    assert h.to_counts(0.49999999999999994, 1) == 0
+    assert h.to_counts(2.5, 1) == 3 and h.to_counts(-2.5, 1) == -3

@@ -1,0 +1,83 @@
+#!/bin/bash
+# The main job, end to end, for a newcomer:
+#
+#   tools/demo.sh [--profile cia402|packed|fd] [--force-vm] [PROGRAM.ngc]
+#
+#   1. builds everything (make);
+#   2. brings up vcan0: on this machine when its kernel has CAN, else in a QEMU
+#      VM (tools/vcan/run.sh: 12-25 s to boot, software emulation);
+#   3. there: the listener (tools/mlip-listen.py) on vcan0, then the controller
+#      (build/mlip-rt, config/mill-3axis.ini), then build/mlip-feed with
+#      examples/demo.ngc (our own: a rose engraved in micro-segments on a wavy
+#      surface, and a helix; 1819 blocks, 6.5 s), then a controlled stop;
+#   4. prints what happened: machining time, blocks, frames and cycles on the
+#      bus, and the checks: every frame sent was received, the decoded
+#      positions equal the simulator's (mlip-sim) to the last drive count,
+#      mlip-check's physics (acceleration, speed, contour) on them;
+#   5. plots the tool speed decoded from the bus against time, the feed limit
+#      marked: build/demo-velocity.png.
+#
+# Everything it wrote is in build/demo/ (decoded.csv, demo.json, the listener's
+# report can.json, the logs of mlip-rt, mlip-feed and the listener).
+# Exit status: 0 when every check passed.
+set -u
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+cd "$ROOT" || exit 1
+
+profile=cia402
+runargs=()
+program=examples/demo.ngc
+while [ $# -gt 0 ]; do
+	case "$1" in
+		--profile) profile=${2:?--profile needs cia402, packed or fd}; shift 2 ;;
+		--force-vm) runargs+=(--force-vm); shift ;;
+		-h|--help) sed -n '2,/^set -u/p' "$0" | sed -e '$d' -e 's/^# \{0,1\}//'; exit 0 ;;
+		-*) echo "usage: $0 [--profile cia402|packed|fd] [--force-vm] [PROGRAM.ngc]" >&2; exit 2 ;;
+		*) program=$1; shift ;;
+	esac
+done
+case "$profile" in cia402|packed|fd) ;; *) echo "$0: unknown profile $profile" >&2; exit 2 ;; esac
+# the VM sees the repository at the same path: keep the program inside it
+program=$(realpath --relative-to="$ROOT" "$program") || exit 2
+case "$program" in ../*) echo "$0: $program: put the program inside the repository" >&2; exit 2 ;; esac
+
+say() { printf '\n== %s\n' "$*"; }
+
+say "build (make)"
+make -s || exit 1
+
+say "Python packages (.venv: python-can, cantools; matplotlib for the plot)"
+tools/vcan/setup.sh --python || exit 1
+if ! .venv/bin/python -c 'import matplotlib' >/dev/null 2>&1; then
+	.venv/bin/pip install -q --disable-pip-version-check -r tests/can/requirements.txt || exit 1
+fi
+# The frame layout, read from tools/mlip.dbc with cantools and checked against
+# the config, cached in build/: the listener in the VM then skips the import.
+.venv/bin/python tools/mlip-listen.py --check-layout --config config/mill-3axis.ini \
+	--profile "$profile" >/dev/null || exit 1
+
+say "run on vcan0: listener, mlip-rt, mlip-feed $program"
+rm -rf build/demo
+err=$(mktemp "${TMPDIR:-/tmp}/mlip-demo.XXXXXX")
+# Inside the VM the repository is a throw-away overlay: results go through the
+# shared folder $MLIP_VM_OUTDIR, kept (MLIP_VM_KEEP) and copied back below.
+MLIP_VM_KEEP=1 tools/vcan/run.sh "${runargs[@]}" \
+	".venv/bin/python tests/can/rtharness.py demo --profile $profile \"\${MLIP_VM_OUTDIR:-build}/demo\" $program" \
+	2> >(tee "$err" >&2)
+rc=$?
+sleep 0.2 # let tee finish
+kept=$(sed -n 's/^\[vcan\] kept //p' "$err" | tail -n 1)
+rm -f "$err"
+if [ -n "$kept" ] && [ -d "$kept" ]; then
+	[ -d "$kept/demo" ] && cp -r "$kept/demo" build/demo
+	rm -rf "$kept"
+fi
+if [ ! -f build/demo/demo.json ]; then
+	echo "demo: no results (exit code $rc)" >&2
+	exit 1
+fi
+
+say "plot"
+.venv/bin/python tests/can/rtharness.py plot build/demo build/demo-velocity.png || exit 1
+echo "results: build/demo/ (decoded.csv, demo.json, can.json, logs), plot: build/demo-velocity.png"
+exit "$rc"
