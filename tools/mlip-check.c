@@ -96,13 +96,8 @@ int main(int argc, char **argv)
 	const char *ppath = argv[optind], *tpath = argv[optind + 1];
 	char *text;
 	size_t len;
-	int rc = mlip_read_file(ppath, &text, &len);
-	if (rc != 0) {
-		fprintf(stderr, PROG ": %s: %s\n", ppath, strerror(-rc));
-		return 2;
-	}
 	struct mlip_config cfg;
-	if (mlip_cli_build_machine(&mo, text, len, &cfg, PROG, stderr) != 0) {
+	if (mlip_cli_open_program(ppath, &mo, &cfg, &text, &len, PROG, stderr) != 0) {
 		return 2;
 	}
 	const struct mlip_machine *m = &cfg.machine;

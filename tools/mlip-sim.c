@@ -201,15 +201,11 @@ int main(int argc, char **argv)
 
 	char *text;
 	size_t len;
-	int rc = mlip_read_file(path, &text, &len);
-	if (rc != 0) {
-		fprintf(stderr, PROG ": %s: %s\n", path, strerror(-rc));
-		return 1;
-	}
 	struct mlip_config cfg;
-	if (mlip_cli_build_machine(&mo, text, len, &cfg, PROG, stderr) != 0) {
+	if (mlip_cli_open_program(path, &mo, &cfg, &text, &len, PROG, stderr) != 0) {
 		return 1;
 	}
+	int rc;
 	const struct mlip_machine *m = &cfg.machine;
 	int n = m->n_axes;
 	if (lookahead == 0) {

@@ -9,6 +9,7 @@
 #include "check.h"
 #include "confload.h"
 #include "mlip/gcode.h"
+#include "program.h"
 
 int mlip_cli_number(const char *s, double *out)
 {
@@ -192,4 +193,21 @@ void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limit
 		lim->vel[k] = m->axis[k].max_vel;
 		lim->rotary[k] = m->axis[k].kind == MLIP_AXIS_ROTARY;
 	}
+}
+
+int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
+                          struct mlip_config *cfg, char **text, size_t *len, const char *prog,
+                          FILE *err)
+{
+	int rc = mlip_read_file(path, text, len);
+	if (rc != 0) {
+		fprintf(err, "%s: %s: %s\n", prog, path, strerror(-rc));
+		return -1;
+	}
+	if (mlip_cli_build_machine(o, *text, *len, cfg, prog, err) != 0) {
+		free(*text);
+		*text = NULL;
+		return -1;
+	}
+	return 0;
 }

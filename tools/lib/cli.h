@@ -23,6 +23,12 @@ struct mlip_cli_machine {
 int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program_text,
                            size_t len, struct mlip_config *cfg, const char *prog, FILE *err);
 
+/* Read the program at path and build its machine (cli_build_machine); on
+ * failure print why and return -1. *text (NUL-terminated) is the caller's. */
+int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
+                          struct mlip_config *cfg, char **text, size_t *len, const char *prog,
+                          FILE *err);
+
 /* "mpct" | "bisector" | "stop" -> strategy; -1 when unknown. */
 int mlip_cli_strategy(const char *name);
 const char *mlip_cli_strategy_name(mlip_strategy st);
