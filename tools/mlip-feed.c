@@ -221,9 +221,30 @@ static void track_exec(struct feed *f)
 
 /* Read the controller status; 0 when it is alive, -1 when its heartbeat is
  * stale (or it restarted: the period counter went back). */
+/* Does process pid exist and is it not a zombie (killed, not yet reaped)? */
+static int process_running(uint32_t pid)
+{
+	char path[64], buf[256];
+	if (pid == 0 || kill((pid_t)pid, 0) != 0) {
+		return 0;
+	}
+	snprintf(path, sizeof(path), "/proc/%u/stat", pid);
+	FILE *fp = fopen(path, "r");
+	if (fp == NULL) {
+		return 1; /* no /proc: kill() said it exists */
+	}
+	size_t n = fread(buf, 1, sizeof(buf) - 1, fp);
+	fclose(fp);
+	buf[n] = '\0';
+	const char *rp = strrchr(buf, ')'); /* "pid (comm) S ..." */
+	return !(rp != NULL && rp[1] == ' ' && rp[2] == 'Z');
+}
+
 /* The controller is dead when its heartbeat has not moved across our own
- * reads for MLIP_PEER_TIMEOUT_NS: a stale stamp alone is not enough, since a
- * pause that stopped both processes (and us first) would look the same. */
+ * reads for MLIP_PEER_TIMEOUT_NS and its process is gone; a process that is
+ * there but late (its CPU taken away for a while) is given ten times that
+ * before we give up on it. A stale stamp alone is not enough: a pause that
+ * stopped both processes, us first, would look the same. */
 static int poll_controller(struct feed *f)
 {
 	struct mlip_ring_status st;
@@ -243,7 +264,14 @@ static int poll_controller(struct feed *f)
 		f->stale_since = now; /* moving, or we were away: start watching again */
 	}
 	f->last_read = now;
-	return now - f->stale_since < (uint64_t)MLIP_PEER_TIMEOUT_NS ? 0 : -1;
+	uint64_t stale = now - f->stale_since;
+	if (stale < (uint64_t)MLIP_PEER_TIMEOUT_NS) {
+		return 0;
+	}
+	if (stale < 10 * (uint64_t)MLIP_PEER_TIMEOUT_NS && process_running(f->st.reserved)) {
+		return 0; /* alive but late */
+	}
+	return -1;
 }
 
 /* Counts shown to the user are program blocks (END excluded), as mlip-sim's. */
