@@ -166,11 +166,12 @@ int mlip_canio_poll(struct mlip_canio *io)
 		}
 		if (cf.can_id & CAN_ERR_FLAG) {
 			io->bus_errors++;
+			/* atomic: mlip-rt's monitor thread reads it to restart */
 			if (cf.can_id & CAN_ERR_BUSOFF) {
-				io->bus_off = 1;
+				__atomic_store_n(&io->bus_off, 1, __ATOMIC_RELAXED);
 			}
 			if ((cf.can_id & CAN_ERR_RESTARTED)) {
-				io->bus_off = 0;
+				__atomic_store_n(&io->bus_off, 0, __ATOMIC_RELAXED);
 			}
 		}
 		count++;

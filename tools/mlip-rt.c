@@ -6,6 +6,8 @@
  */
 #include <errno.h>
 #include <getopt.h>
+#include <pthread.h>
+#include <time.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -29,6 +31,42 @@ static void on_signal(int sig)
 	(void)sig;
 	got_exit = 1;
 	ctl.exit_request = 1; /* a controlled stop on the path, then exit 0 */
+}
+
+/* Outside the loop (an ordinary thread): after a bus-off, ask the driver to
+ * restart the controller (libsocketcan can_do_restart; with restart-ms set
+ * the kernel does it by itself, and vcan has no controller to restart). The
+ * loop meanwhile holds the machine; the operator resumes once it is clean. */
+struct monitor {
+	const char *iface;
+	struct mlip_canio *io;
+	volatile int done;
+};
+
+static void *bus_monitor(void *arg)
+{
+	struct monitor *mo = arg;
+	int told = 0;
+	while (!mo->done) {
+		struct timespec ts = {0, 100000000L};
+		nanosleep(&ts, NULL);
+		if (__atomic_load_n(&mo->io->bus_off, __ATOMIC_RELAXED)) {
+			int rc = mlip_canio_restart(mo->iface);
+			if (rc == 0) {
+				fprintf(stderr, PROG ": %s was bus-off: controller restarted\n", mo->iface);
+			} else if (!told) {
+				fprintf(stderr, PROG ": %s is bus-off and cannot be restarted here (%s): "
+				                "check the wiring and termination, then ip link set %s "
+				                "type can restart\n",
+				        mo->iface, strerror(-rc), mo->iface);
+				told = 1;
+			}
+			if (rc == 0) {
+				told = 0;
+			}
+		}
+	}
+	return NULL;
 }
 
 static void usage(FILE *f)
@@ -224,7 +262,23 @@ int main(int argc, char **argv)
 	        rep.locked ? ", memory locked" : "");
 	struct mlip_rt_report run;
 	memset(&run, 0, sizeof(run));
+	static struct monitor mon;
+	pthread_t mon_th;
+	int mon_ok = 0;
+	if (use_can) {
+		mon.iface = iface;
+		mon.io = &io;
+		pthread_attr_t attr;
+		pthread_attr_init(&attr);
+		pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
+		mon_ok = pthread_create(&mon_th, &attr, bus_monitor, &mon) == 0;
+		pthread_attr_destroy(&attr);
+	}
 	int rc = mlip_rt_run(&ro, mlip_controller_tick, NULL, &ctl, &run);
+	if (mon_ok) {
+		mon.done = 1;
+		pthread_join(mon_th, NULL);
+	}
 	if (rc < 0) {
 		fprintf(stderr, PROG ": cannot start the loop: %s\n", strerror(-rc));
 	}
