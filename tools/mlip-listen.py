@@ -1054,15 +1054,12 @@ def run_live(sock, dec, frames_out, deadline_mono, iface):
     keep = frames_out.append if frames_out is not None else None
     drops = 0
     mono = time.monotonic
-    while True:
-        try:
-            data, anc, _flags, _addr = recvmsg(CANFD_MTU, anc_size)
-        except BlockingIOError:  # SO_RCVTIMEO: nothing for 100 ms
-            if _stop or (deadline_mono is not None and mono() >= deadline_mono):
-                break
-            continue
+
+    def handle(data, anc):
+        """One received frame: its time, then decode (or count it as foreign)."""
+        nonlocal drops
         t = 0
-        for lvl, typ, cd in anc:
+        for _lvl, typ, cd in anc:
             if typ == SO_TIMESTAMPNS:
                 s, ns = ts_unpack(cd)
                 t = s * 1000000000 + ns
@@ -1079,6 +1076,15 @@ def run_live(sock, dec, frames_out, deadline_mono, iface):
             dec.foreign[raw_id] += 1
         else:
             feed(t, raw_id, data[8:8 + ln], ln, fd)
+
+    while True:
+        try:
+            data, anc, _flags, _addr = recvmsg(CANFD_MTU, anc_size)
+        except BlockingIOError:  # SO_RCVTIMEO: nothing for 100 ms
+            if _stop or (deadline_mono is not None and mono() >= deadline_mono):
+                break
+            continue
+        handle(data, anc)
         if _stop:
             break
         if deadline_mono is not None and (dec.frames & 255) == 0 and mono() >= deadline_mono:
@@ -1090,22 +1096,7 @@ def run_live(sock, dec, frames_out, deadline_mono, iface):
             data, anc, _f, _a = recvmsg(CANFD_MTU, anc_size)
         except (BlockingIOError, InterruptedError):
             break
-        t = 0
-        for lvl, typ, cd in anc:
-            if typ == SO_TIMESTAMPNS:
-                s, ns = ts_unpack(cd)
-                t = s * 1000000000 + ns
-            elif typ == SO_RXQ_OVFL:
-                drops = u32(cd)[0]
-        raw_id, ln, fl = hdr_unpack(data)
-        fd = len(data) == CANFD_MTU
-        if keep is not None:
-            keep((t, raw_id, fl if fd else None, bytes(data[8:8 + ln])))
-        if raw_id & (CAN_ERR_FLAG | CAN_RTR_FLAG | CAN_EFF_FLAG):
-            dec.frames += 1
-            dec.foreign[raw_id] += 1
-        else:
-            feed(t, raw_id, data[8:8 + ln], ln, fd)
+        handle(data, anc)
     return drops
 
 
