@@ -162,6 +162,21 @@ static void prefault(void *mem, size_t bytes)
 	}
 }
 
+/* Common start of create and attach: a handle, reset, and a valid name. */
+static int begin(struct mlip_shm *s, const char *name, char *why, size_t why_len)
+{
+	if (s == NULL) {
+		return say(why, why_len, -EINVAL, "no shm handle");
+	}
+	shm_reset(s);
+	if (!name_ok(name)) {
+		return say(why, why_len, -EINVAL,
+		           "shm name '%s' must be '/' followed by 1..62 characters without '/'",
+		           name ? name : "(null)");
+	}
+	return 0;
+}
+
 int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
                     const struct mlip_machine *m, char *why, size_t why_len)
 {
@@ -173,14 +188,8 @@ int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
 	void *mem;
 	int rc, flags = MAP_SHARED;
 
-	if (s == NULL) {
-		return say(why, why_len, -EINVAL, "no shm handle");
-	}
-	shm_reset(s);
-	if (!name_ok(name)) {
-		return say(why, why_len, -EINVAL,
-		           "shm name '%s' must be '/' followed by 1..62 characters without '/'",
-		           name ? name : "(null)");
+	if ((rc = begin(s, name, why, why_len)) != 0) {
+		return rc;
 	}
 	if (bytes == 0) {
 		return say(why, why_len, -EINVAL,
@@ -341,14 +350,8 @@ int mlip_shm_attach(struct mlip_shm *s, const char *name, char *why, size_t why_
 	size_t bytes;
 	int rc;
 
-	if (s == NULL) {
-		return say(why, why_len, -EINVAL, "no shm handle");
-	}
-	shm_reset(s);
-	if (!name_ok(name)) {
-		return say(why, why_len, -EINVAL,
-		           "shm name '%s' must be '/' followed by 1..62 characters without '/'",
-		           name ? name : "(null)");
+	if ((rc = begin(s, name, why, why_len)) != 0) {
+		return rc;
 	}
 	strcpy(s->name, name);
 	s->fd = shm_open(name, O_RDWR, 0);
