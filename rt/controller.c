@@ -11,6 +11,7 @@
  * Nothing here allocates, prints, locks or blocks.
  */
 #include <errno.h>
+#include <math.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -47,6 +48,37 @@ int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
 	return 0;
 }
 
+/* A stop or hold was asked for: measure the path to rest (published as the
+ * status' stop_*). A stop asked while one is being measured is the same. */
+static void brake_begin(struct mlip_controller *c)
+{
+	if (!c->braking) {
+		c->braking = 1;
+		c->brake_mm = 0.0;
+		c->brake_periods = 0;
+	}
+}
+
+/* The period's step from prev to c->pos, while a stop is measured; rs says
+ * whether the machine came to rest. */
+static void brake_step(struct mlip_controller *c, const double *prev, mlip_run_state rs)
+{
+	double d2 = 0.0;
+	for (int k = 0; k < c->m->n_axes; k++) {
+		if (c->m->axis[k].kind == MLIP_AXIS_LINEAR) {
+			d2 += (c->pos[k] - prev[k]) * (c->pos[k] - prev[k]);
+		}
+	}
+	c->brake_mm += sqrt(d2);
+	c->brake_periods++;
+	if (rs != MLIP_RUN_MOVING) {
+		c->braking = 0;
+		c->stop_nm = (uint64_t)(c->brake_mm * 1e6 + 0.5);
+		c->stop_periods = c->brake_periods;
+		c->stops++;
+	}
+}
+
 static int32_t apply_command(struct mlip_controller *c, const struct mlip_ring_cmd *cmd)
 {
 	struct mlip_planner *p = c->planner;
@@ -55,6 +87,7 @@ static int32_t apply_command(struct mlip_controller *c, const struct mlip_ring_c
 		return mlip_planner_set_override(p, (double)cmd->arg);
 	case MLIP_CMD_HOLD:
 		mlip_planner_hold(p, 1);
+		brake_begin(c);
 		return MLIP_OK;
 	case MLIP_CMD_RESUME:
 		if (c->bus_hold) {
@@ -65,6 +98,7 @@ static int32_t apply_command(struct mlip_controller *c, const struct mlip_ring_c
 			c->bus_hold = 0;
 		}
 		mlip_planner_hold(p, 0);
+		c->braking = 0; /* resumed before rest: no stop to measure */
 		return MLIP_OK;
 	case MLIP_CMD_STOP:
 		c->stop_request = 1;
@@ -84,6 +118,7 @@ static void begin_stop(struct mlip_controller *c)
 		return;
 	}
 	mlip_planner_stop(c->planner);
+	brake_begin(c);
 	c->preread = 0;
 	c->discard = !c->end_seen;
 	c->end_seen = 0;
@@ -112,15 +147,22 @@ static void ingest(struct mlip_controller *c, uint32_t max)
 	}
 }
 
+/* The ring is empty and no feeder will fill it: none attached, or its
+ * heartbeat is older than MLIP_PEER_TIMEOUT_NS. */
+static int ring_dry(struct mlip_controller *c)
+{
+	struct mlip_ring_feeder f;
+	return mlip_ring_count(c->ring) == 0 && mlip_ring_feeder_read(c->ring, &f) == MLIP_OK &&
+	       (f.pid == 0 || (int64_t)(mlip_now_ns() - f.heartbeat_ns) > MLIP_PEER_TIMEOUT_NS);
+}
+
 /* A stopped program's remaining records: drop them, up to its END. A feeder
  * that was stopped may never send that END; every program numbers its
  * records from 1, so a record with seq 1 is the next program: keep it. */
 static void discard(struct mlip_controller *c)
 {
 	struct mlip_ring_rec rec;
-	struct mlip_ring_feeder f;
-	if (mlip_ring_count(c->ring) == 0 && mlip_ring_feeder_read(c->ring, &f) == MLIP_OK &&
-	    (f.pid == 0 || (int64_t)(mlip_now_ns() - f.heartbeat_ns) > MLIP_PEER_TIMEOUT_NS)) {
+	if (ring_dry(c)) {
 		c->discard = 0; /* the stopped program's feeder is gone: nothing more will come */
 		return;
 	}
@@ -175,6 +217,7 @@ static void send_frames(struct mlip_controller *c, uint32_t cycle)
 		if (!c->bus_hold) {
 			c->bus_hold = 1;
 			mlip_planner_hold(c->planner, 1);
+			brake_begin(c);
 		}
 	}
 }
@@ -205,6 +248,9 @@ static void publish(struct mlip_controller *c, const struct mlip_rt_tick *t)
 	}
 	s.frames_sent = c->frames_sent;
 	s.blocks_consumed = c->blocks_consumed;
+	s.stop_nm = c->stop_nm;
+	s.stop_periods = c->stop_periods;
+	s.stops = c->stops;
 	mlip_ring_status_write(c->ring, &s);
 }
 
@@ -231,23 +277,34 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 		discard(c);
 	} else if ((c->state == MLIP_STATE_IDLE || c->state == MLIP_STATE_STARVED) &&
 	           mlip_ring_peek(c->ring, &recs[0]) == MLIP_OK) {
-		c->refill = c->state == MLIP_STATE_STARVED && recs[0].seq != 1;
-		if (!c->refill) {
-			c->exec_seq = 0; /* a new program (a starved one is given up) */
-			c->exec_line = 0;
+		if (recs[0].seq != 1 && recs[0].seq != c->exec_seq + 1) {
+			/* neither a program's start nor the block after the last one
+			 * completed here: running it would cut a straight line from
+			 * where the machine is to that block's end. Drop that program
+			 * (mlip-feed refuses such a --start-seq before sending). */
+			c->discard = 1;
+			c->refused++;
+		} else {
+			c->refill = c->state == MLIP_STATE_STARVED && recs[0].seq != 1;
+			if (!c->refill) {
+				c->exec_seq = 0; /* a new program (a starved one is given up) */
+				c->exec_line = 0;
+			}
+			c->state = MLIP_STATE_RUNNING; /* pre-read before moving (again) */
+			c->preread = 1;
+			c->end_seen = 0;
 		}
-		c->state = MLIP_STATE_RUNNING; /* pre-read before moving (again) */
-		c->preread = 1;
-		c->end_seen = 0;
 	}
 	if (c->preread) {
 		uint32_t room = mlip_planner_space(p);
 		ingest(c, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
 		/* a program starts when the look-ahead is full or its END is in, as
 		 * mlip-sim does; after an underrun, with whatever has come, so that
-		 * a slow feeder is not made to wait for a full look-ahead */
+		 * a slow feeder is not made to wait for a full look-ahead; and when
+		 * its feeder died, with what it has (planned to rest, like any
+		 * look-ahead): what a killed feeder sent is run, whenever it died */
 		if (mlip_planner_space(p) == 0 || c->end_seen ||
-		    (c->refill && mlip_ring_count(c->ring) == 0)) {
+		    (c->refill && mlip_ring_count(c->ring) == 0) || ring_dry(c)) {
 			c->preread = 0;
 		}
 	} else if (c->state == MLIP_STATE_RUNNING || c->state == MLIP_STATE_HELD) {
@@ -260,7 +317,12 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 
 	/* one step; the pre-read does not move */
 	if (!c->preread) {
+		double prev[MLIP_MAX_AXES];
+		memcpy(prev, c->pos, sizeof(prev));
 		mlip_run_state rs = mlip_planner_step(p, c->pos);
+		if (c->braking) {
+			brake_step(c, prev, rs);
+		}
 		if (c->state != MLIP_STATE_IDLE && rs == MLIP_RUN_IDLE &&
 		    (c->end_seen || c->state == MLIP_STATE_STOPPING)) {
 			if (c->end_seen) {

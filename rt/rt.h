@@ -162,12 +162,19 @@ struct mlip_controller {
 	uint32_t exec_line;
 	/* counters (published in the status area) */
 	uint64_t overruns, underruns, frames_sent, frames_encoded, blocks_consumed;
+	uint64_t refused;                  /* programs dropped: they did not continue ours */
 	int64_t send_ns;                   /* this period's sends (latency tool) */
 	uint64_t cycles;
 	double pos[MLIP_MAX_AXES];
 	int fault;                         /* encode refused a position: stopped */
 	uint32_t pid;                      /* published as status.reserved */
 	int bus_hold;                      /* held because of the bus */
+	/* a stop being measured: from its request to rest (status stop_*) */
+	int braking;
+	double brake_mm;
+	uint32_t brake_periods;
+	uint64_t stop_nm;
+	uint32_t stop_periods, stops;
 	uint64_t bus_drops_seen, bus_bad_cycle;
 };
 

@@ -45,7 +45,9 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 88);
+/* 88 bytes up to blocks_consumed, then stop_* (16) in what was the line's
+ * zeroed padding: older builds' segments read as "no stop yet" */
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 104);
 MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 320);
 MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 328);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 32);
@@ -410,6 +412,9 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	ST(&d->can_bus_errors, s->can_bus_errors, REL);
 	ST(&d->frames_sent, s->frames_sent, REL);
 	ST(&d->blocks_consumed, s->blocks_consumed, REL);
+	ST(&d->stop_nm, s->stop_nm, REL);
+	ST(&d->stop_periods, s->stop_periods, REL);
+	ST(&d->stops, s->stops, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -437,6 +442,9 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		s->can_bus_errors = LD(&d->can_bus_errors, ACQ);
 		s->frames_sent = LD(&d->frames_sent, ACQ);
 		s->blocks_consumed = LD(&d->blocks_consumed, ACQ);
+		s->stop_nm = LD(&d->stop_nm, ACQ);
+		s->stop_periods = LD(&d->stop_periods, ACQ);
+		s->stops = LD(&d->stops, ACQ);
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;

@@ -3,7 +3,8 @@
  * acceleration (second differences), per-axis velocity and tool speed (first
  * differences), contour error against the program's polyline, and whether it
  * ends on the program's last point. Reads the CSV that mlip-sim --trace
- * writes (t,x,y,...), or positions decoded from the CAN bus.
+ * writes (t,x,y,...), or positions decoded from the CAN bus; t steps by one
+ * period, or by several where setpoints were lost (see mlip_check_gap).
  */
 #include <getopt.h>
 #include <math.h>
@@ -20,7 +21,9 @@
 static void usage(FILE *f)
 {
 	fprintf(f, "usage: " PROG " [machine options] [--quantum MM] [--json OUT] PROGRAM.ngc TRACE.csv\n"
-	           "Check a trace (t,x,y,... one row per period) against the machine's limits.\n\n"
+	           "Check a trace (t,x,y,... one row per period) against the machine's limits.\n"
+	           "Rows further apart in t than one period follow a hole (lost setpoints): no\n"
+	           "acceleration is taken across it, velocities are its mean.\n\n"
 	           "  --config FILE / --accel A[,A..] / --vmax MM_S / --eps MM / --period S\n"
 	           "                      the machine, as for mlip-sim\n"
 	           "  --quantum MM        position resolution of the trace (e.g. 0.001 for\n"
@@ -123,6 +126,8 @@ int main(int argc, char **argv)
 	}
 	char line[1024];
 	size_t lineno = 0;
+	double t_prev = 0.0;
+	size_t rows = 0;
 	while (fgets(line, sizeof(line), tf) != NULL) {
 		lineno++;
 		if (lineno == 1 && line[0] == 't') {
@@ -143,7 +148,20 @@ int main(int argc, char **argv)
 				p++;
 			}
 		}
-		mlip_check_sample(&chk, x + 1); /* column 0 is t */
+		/* column 0 is t: a row more than one period after the last one
+		 * follows a hole (setpoints lost on the bus) */
+		if (rows > 0) {
+			double k = nearbyint((x[0] - t_prev) / m->period_s);
+			if (!(k >= 1.0)) {
+				fprintf(stderr, PROG ": %s:%zu: t %.9g is not at least one period after %.9g\n",
+				        tpath, lineno, x[0], t_prev);
+				return 2;
+			}
+			mlip_check_gap(&chk, (size_t)k);
+		}
+		t_prev = x[0];
+		rows++;
+		mlip_check_sample(&chk, x + 1);
 	}
 	if (tf != stdin) {
 		fclose(tf);

@@ -37,7 +37,9 @@ static void usage(FILE *f)
 	    "  hold             feed hold: decelerate to rest on the path, keep the program\n"
 	    "  resume           leave a feed hold\n"
 	    "  stop             decelerate to rest on the path, drop the rest of the program\n"
-	    "  status [--json]  controller and feeder state (--json: one object on stdout)\n\n"
+	    "  status [--json]  controller and feeder state (--json: one object on stdout)\n"
+	    "  -                commands from standard input, one per line, each answered\n"
+	    "                   (on stdout, or stderr when refused) before the next is read\n\n"
 	    "options:\n"
 	    "  --shm NAME       shared-memory segment of the controller (default " MLIP_SHM_DEFAULT
 	    ")\n"
@@ -234,6 +236,8 @@ static int cmd_status(struct mlip_shm *s, int json)
 		       (unsigned long long)st.can_tx_errors, (unsigned long long)st.can_bus_errors);
 		printf("  \"frames_sent\": %llu,\n  \"blocks_consumed\": %llu,\n",
 		       (unsigned long long)st.frames_sent, (unsigned long long)st.blocks_consumed);
+		printf("  \"stops\": %u,\n  \"stop_mm\": %.6f,\n  \"stop_periods\": %u,\n",
+		       (unsigned)st.stops, (double)st.stop_nm * 1e-6, (unsigned)st.stop_periods);
 		printf("  \"queued\": %u,\n  \"capacity\": %u,\n",
 		       (unsigned)mlip_ring_count(s->ring), (unsigned)s->ring->capacity);
 		printf("  \"feeder_pid\": %d,\n  \"feeder_alive\": %s,\n", (int)fd.pid,
@@ -247,9 +251,16 @@ static int cmd_status(struct mlip_shm *s, int json)
 	       alive ? "alive" : "NOT RESPONDING");
 	print_age(stdout, a);
 	printf(", period %llu)\n", (unsigned long long)st.heartbeat);
-	printf("executing   block %llu, line %u\n", (unsigned long long)st.exec_seq,
-	       (unsigned)st.exec_line);
+	/* at rest (idle, starved): the last block completed, where a program
+	 * continues from (mlip-feed --start-seq exec_seq + 1) */
+	int rest = st.state == MLIP_STATE_IDLE || st.state == MLIP_STATE_STARVED;
+	printf("%s block %llu, line %u\n", rest ? "completed  " : "executing  ",
+	       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
 	printf("override    %u %%\n", (unsigned)st.override_pct);
+	if (st.stops > 0) {
+		printf("last stop   %.3f mm on the path in %u periods, request to rest (%u so far)\n",
+		       (double)st.stop_nm * 1e-6, (unsigned)st.stop_periods, (unsigned)st.stops);
+	}
 	printf("periods     %llu overruns, %llu underruns\n", (unsigned long long)st.overruns,
 	       (unsigned long long)st.underruns);
 	printf("CAN         %llu frames sent, %llu tx errors, %llu bus errors\n",
@@ -339,6 +350,70 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 	return EXIT_DONE;
 }
 
+/* One command word (and PCT for override) -> op, arg; EXIT_USAGE with a
+ * message when it is not one. */
+static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op, int32_t *arg)
+{
+	*arg = 0;
+	if (strcmp(cmd, "override") == 0) {
+		*op = MLIP_CMD_OVERRIDE;
+		if (pct == NULL) {
+			fprintf(stderr, PROG ": override: missing PCT (percent, 0..200)\n");
+			return EXIT_USAGE;
+		}
+		if (parse_pct(pct, arg) != 0) {
+			fprintf(stderr, PROG ": override: '%s' is not a whole percentage in 0..200\n", pct);
+			return EXIT_USAGE;
+		}
+	} else if (strcmp(cmd, "hold") == 0) {
+		*op = MLIP_CMD_HOLD;
+	} else if (strcmp(cmd, "resume") == 0) {
+		*op = MLIP_CMD_RESUME;
+	} else if (strcmp(cmd, "stop") == 0) {
+		*op = MLIP_CMD_STOP;
+	} else {
+		fprintf(stderr, PROG ": unknown command '%s' (override, hold, resume, stop, status, -)\n",
+		        cmd);
+		return EXIT_USAGE;
+	}
+	return 0;
+}
+
+/* '-': commands from standard input, one per line, each applied (or refused)
+ * before the next line is read: for a pendant or a script driving one
+ * long-lived mlip-ctl. Exit 0 when every command was done, else 1 (2: a line
+ * that is not a command; the lines before it were applied). */
+static int cmd_stdin(struct mlip_shm *s)
+{
+	char line[128];
+	int rc = EXIT_DONE;
+	unsigned long lineno = 0;
+	while (fgets(line, sizeof(line), stdin) != NULL) {
+		char *w[3] = {NULL, NULL, NULL}, *save = NULL;
+		int n = 0;
+		mlip_ring_cmd_op op;
+		int32_t arg;
+		lineno++;
+		for (char *t = strtok_r(line, " \t\r\n", &save); t != NULL && n < 3;
+		     t = strtok_r(NULL, " \t\r\n", &save)) {
+			w[n++] = t;
+		}
+		if (n == 0 || w[0][0] == '#') {
+			continue;
+		}
+		if (parse_command(w[0], w[1], &op, &arg) != 0 || n > 1 + (op == MLIP_CMD_OVERRIDE)) {
+			fprintf(stderr, PROG ": stdin:%lu: expected one of override PCT, hold, resume, "
+			                "stop\n", lineno);
+			return EXIT_USAGE;
+		}
+		if (cmd_send(s, op, arg) != EXIT_DONE) {
+			rc = EXIT_FAIL;
+		}
+		fflush(stdout);
+	}
+	return rc;
+}
+
 int main(int argc, char **argv)
 {
 	static const struct option opts[] = {{"shm", required_argument, 0, 's'},
@@ -384,32 +459,12 @@ int main(int argc, char **argv)
 			json = 1;
 		}
 	} else {
-		if (strcmp(cmd, "override") == 0) {
-			op = MLIP_CMD_OVERRIDE;
-			if (optind >= argc) {
-				fprintf(stderr, PROG ": override: missing PCT (percent, 0..200)\n");
-				return EXIT_USAGE;
+		if (strcmp(cmd, "-") != 0) {
+			const char *pct = optind < argc ? argv[optind] : NULL;
+			if ((rc = parse_command(cmd, pct, &op, &arg)) != 0) {
+				return rc;
 			}
-			if (parse_pct(argv[optind], &arg) != 0) {
-				fprintf(stderr,
-				        PROG
-				        ": override: '%s' is not a whole percentage in 0..200\n",
-				        argv[optind]);
-				return EXIT_USAGE;
-			}
-			optind++;
-		} else if (strcmp(cmd, "hold") == 0) {
-			op = MLIP_CMD_HOLD;
-		} else if (strcmp(cmd, "resume") == 0) {
-			op = MLIP_CMD_RESUME;
-		} else if (strcmp(cmd, "stop") == 0) {
-			op = MLIP_CMD_STOP;
-		} else {
-			fprintf(stderr,
-			        PROG
-			        ": unknown command '%s' (override, hold, resume, stop, status)\n",
-			        cmd);
-			return EXIT_USAGE;
+			optind += op == MLIP_CMD_OVERRIDE;
 		}
 		if (optind < argc) {
 			fprintf(stderr, PROG ": %s: unexpected '%s'\n", cmd, argv[optind]);
@@ -431,7 +486,11 @@ int main(int argc, char **argv)
 		}
 		return EXIT_USAGE;
 	}
-	rc = op == MLIP_CMD_NONE ? cmd_status(&s, json) : cmd_send(&s, op, arg);
+	if (strcmp(cmd, "-") == 0) {
+		rc = cmd_stdin(&s);
+	} else {
+		rc = op == MLIP_CMD_NONE ? cmd_status(&s, json) : cmd_send(&s, op, arg);
+	}
 	mlip_shm_close(&s);
 	return rc;
 }

@@ -81,7 +81,8 @@ static void usage(FILE *f)
 	        "  -h, --help        this help\n\n"
 	        "exit status: 0 program complete, machine at rest; 1 nothing sent (program\n"
 	        "errors, no controller, another feeder); 2 usage; 3 controller stopped\n"
-	        "responding; 4 stopped by the operator (mlip-ctl stop); 5 controller fault;\n"
+	        "responding; 4 stopped on the path (mlip-ctl stop, or mlip-rt told to exit by\n"
+	        "SIGTERM/SIGINT); 5 controller fault;\n"
 	        "130/143 interrupted (SIGINT/SIGTERM): the machine was stopped on the path\n");
 }
 
@@ -338,12 +339,12 @@ static int controller_dead(struct feed *f)
 		        PROG ": controller stopped responding before block %llu (line %u) moved\n",
 		        (unsigned long long)resume_seq(f), resume_line(f));
 	}
-	if (f->next_seq > f->first_seq) {
-		fprintf(stderr,
-		        PROG ": hint: once mlip-rt runs again, continue with " PROG
-		             " --start-seq %llu %s\n",
-		        (unsigned long long)resume_seq(f), f->path);
-	}
+	/* a new mlip-rt starts at HOME and has run none of this program: it
+	 * cannot continue it (check_continues) */
+	fprintf(stderr,
+	        PROG ": the machine stands where the controller left it, not at a known "
+	             "point: bring it to a safe position, restart mlip-rt and send the program "
+	             "from its start\n");
 	return EXIT_CTRL_DEAD;
 }
 
@@ -479,7 +480,8 @@ static int operator_stop(struct feed *f)
 	if (w < 0) {
 		return controller_dead(f);
 	}
-	fprintf(stderr, PROG ": program stopped by the operator at line %u (block %llu of %llu)\n",
+	fprintf(stderr, PROG ": program stopped on the path at line %u (block %llu of %llu): mlip-ctl stop, "
+	                     "or mlip-rt was told to exit\n",
 	        resume_line(f), (unsigned long long)resume_seq(f), (unsigned long long)f->n);
 	return EXIT_OPERATOR;
 }
@@ -505,6 +507,31 @@ static uint32_t fill(struct feed *f, struct mlip_ring_rec *recs, uint32_t max)
  * is live but the status is published once a period, so "idle and empty" must
  * hold again in a status written after the empty ring was seen: then its
  * blocks_consumed counts every earlier record and taken() counts only ours. */
+/* --start-seq N continues only the block after the last one the controller
+ * completed: from anywhere else the first move would cut a straight line
+ * across the part to block N's end (the controller drops it too). */
+static int check_continues(struct feed *f)
+{
+	uint64_t done = f->st.exec_seq;
+	if (f->first_seq == done + 1 && done > 0) {
+		return -1;
+	}
+	if (done == 0) {
+		fprintf(stderr,
+		        PROG ": --start-seq %llu: the controller on %s has run no block of a program "
+		             "(state %s): it cannot continue one; nothing was sent (send the program "
+		             "from its start)\n",
+		        (unsigned long long)f->first_seq, f->shm.name, mlip_ring_state_name(f->st.state));
+	} else {
+		fprintf(stderr,
+		        PROG ": --start-seq %llu: the controller on %s completed block %llu (line %u) "
+		             "last, so only --start-seq %llu continues it; nothing was sent\n",
+		        (unsigned long long)f->first_seq, f->shm.name, (unsigned long long)done,
+		        (unsigned)f->st.exec_line, (unsigned long long)done + 1);
+	}
+	return EXIT_FAIL;
+}
+
 static int wait_start(struct feed *f)
 {
 	uint64_t t0 = mlip_now_ns(), empty_at = 0;
@@ -538,7 +565,7 @@ static int wait_start(struct feed *f)
 		if ((f->st.state == MLIP_STATE_IDLE || f->st.state == MLIP_STATE_STARVED) &&
 		    count == 0) {
 			if (empty && f->st.heartbeat > empty_at) {
-				return -1; /* go */
+				return f->first_seq == 1 ? -1 : check_continues(f); /* go */
 			}
 			if (!empty) {
 				empty = 1;

@@ -33,38 +33,112 @@ static void on_signal(int sig)
 	ctl.exit_request = 1; /* a controlled stop on the path, then exit 0 */
 }
 
-/* Outside the loop (an ordinary thread): after a bus-off, ask the driver to
- * restart the controller (libsocketcan can_do_restart; with restart-ms set
- * the kernel does it by itself, and vcan has no controller to restart). The
- * loop meanwhile holds the machine; the operator resumes once it is clean. */
+/* Outside the loop (an ordinary thread, every 50 ms): tell the operator what
+ * the loop did, from the status it publishes (state changes with the line,
+ * underruns, frames the CAN queue refused, error frames), and after a bus-off
+ * ask the driver to restart the controller (libsocketcan can_do_restart; with
+ * restart-ms set the kernel does it by itself, and vcan has no controller to
+ * restart). The loop meanwhile holds the machine; the operator resumes once
+ * the bus is clean. */
 struct monitor {
 	const char *iface;
-	struct mlip_canio *io;
+	struct mlip_canio *io; /* NULL: --can none */
+	struct mlip_ring *ring;
 	volatile int done;
 };
 
-static void *bus_monitor(void *arg)
+/* One line per event: a counter that starts rising again after a quiet
+ * second (20 monitor ticks), or a state change. */
+static int rising(uint64_t was, uint64_t is, unsigned *quiet)
+{
+	int start = is > was && *quiet >= 20;
+	*quiet = is > was ? 0 : *quiet + 1;
+	return start;
+}
+
+static void report(const struct mlip_ring_status *a, const struct mlip_ring_status *b)
+{
+	static unsigned quiet_tx = 20, quiet_err = 20, quiet_under = 20;
+	unsigned long long seq = (unsigned long long)b->exec_seq;
+	if (rising(a->can_tx_errors, b->can_tx_errors, &quiet_tx)) {
+		fprintf(stderr, PROG ": CAN: the tx queue refuses frames (%llu so far) in block %llu "
+		                "(line %u): holding the machine on the path\n",
+		        (unsigned long long)b->can_tx_errors, seq, b->exec_line);
+	}
+	if (rising(a->can_bus_errors, b->can_bus_errors, &quiet_err)) {
+		fprintf(stderr, PROG ": CAN: error frames (%llu so far) in block %llu (line %u): "
+		                "holding the machine on the path\n",
+		        (unsigned long long)b->can_bus_errors, seq, b->exec_line);
+	}
+	if (rising(a->underruns, b->underruns, &quiet_under)) {
+		fprintf(stderr, PROG ": underrun: the ring ran dry in block %llu (line %u); the "
+		                "look-ahead runs to rest at the end of what came\n",
+		        seq, b->exec_line);
+	}
+	if (b->stops > a->stops) {
+		fprintf(stderr, PROG ": stopped on the path: %.3f mm in %u periods from the request to "
+		                "rest\n",
+		        (double)b->stop_nm * 1e-6, (unsigned)b->stop_periods);
+	}
+	if (b->state == a->state) {
+		return;
+	}
+	const char *was = mlip_ring_state_name(a->state), *is = mlip_ring_state_name(b->state);
+	switch (b->state) {
+	case MLIP_STATE_STARVED:
+		fprintf(stderr,
+		        PROG ": underrun: no block came after block %llu (line %u); at rest at its end "
+		             "(%llu periods without a block so far); to continue: mlip-feed --start-seq "
+		             "%llu\n",
+		        seq, b->exec_line, (unsigned long long)b->underruns, seq + 1);
+		break;
+	case MLIP_STATE_HELD:
+		fprintf(stderr, PROG ": held: at rest in block %llu (line %u); %llu CAN frames refused, "
+		                "%llu error frames so far\n",
+		        seq, b->exec_line, (unsigned long long)b->can_tx_errors,
+		        (unsigned long long)b->can_bus_errors);
+		break;
+	case MLIP_STATE_IDLE:
+		fprintf(stderr, PROG ": %s -> idle: at rest, block %llu (line %u) the last completed\n",
+		        was, seq, b->exec_line);
+		break;
+	default:
+		fprintf(stderr, PROG ": %s -> %s, block %llu (line %u)\n", was, is, seq, b->exec_line);
+	}
+}
+
+static void *monitor(void *arg)
 {
 	struct monitor *mo = arg;
-	int told = 0;
-	while (!mo->done) {
-		struct timespec ts = {0, 100000000L};
+	struct mlip_ring_status a, b;
+	int have = 0, told = 0;
+	for (unsigned tick = 1; !mo->done; tick++) {
+		struct timespec ts = {0, 50000000L};
 		nanosleep(&ts, NULL);
-		if (__atomic_load_n(&mo->io->bus_off, __ATOMIC_RELAXED)) {
-			int rc = mlip_canio_restart(mo->iface);
-			if (rc == 0) {
-				fprintf(stderr, PROG ": %s was bus-off: controller restarted\n", mo->iface);
-			} else if (!told) {
-				fprintf(stderr, PROG ": %s is bus-off and cannot be restarted here (%s): "
-				                "check the wiring and termination, then ip link set %s "
-				                "type can restart\n",
-				        mo->iface, strerror(-rc), mo->iface);
-				told = 1;
+		if (mlip_ring_status_read(mo->ring, &b) == MLIP_OK) {
+			if (have) {
+				report(&a, &b);
 			}
-			if (rc == 0) {
-				told = 0;
-			}
+			a = b;
+			have = 1;
 		}
+		if (mo->io == NULL || tick % 2 || !__atomic_load_n(&mo->io->bus_off, __ATOMIC_RELAXED)) {
+			continue;
+		}
+		int rc = mlip_canio_restart(mo->iface);
+		if (rc == 0) {
+			fprintf(stderr, PROG ": %s was bus-off: controller restarted\n", mo->iface);
+			told = 0;
+		} else if (!told) {
+			fprintf(stderr, PROG ": %s is bus-off and cannot be restarted here (%s): "
+			                "check the wiring and termination, then ip link set %s "
+			                "type can restart\n",
+			        mo->iface, strerror(-rc), mo->iface);
+			told = 1;
+		}
+	}
+	if (have && mlip_ring_status_read(mo->ring, &b) == MLIP_OK) {
+		report(&a, &b);
 	}
 	return NULL;
 }
@@ -264,16 +338,14 @@ int main(int argc, char **argv)
 	memset(&run, 0, sizeof(run));
 	static struct monitor mon;
 	pthread_t mon_th;
-	int mon_ok = 0;
-	if (use_can) {
-		mon.iface = iface;
-		mon.io = &io;
-		pthread_attr_t attr;
-		pthread_attr_init(&attr);
-		pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
-		mon_ok = pthread_create(&mon_th, &attr, bus_monitor, &mon) == 0;
-		pthread_attr_destroy(&attr);
-	}
+	mon.iface = iface;
+	mon.io = use_can ? &io : NULL;
+	mon.ring = shm.ring;
+	pthread_attr_t attr;
+	pthread_attr_init(&attr);
+	pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
+	int mon_ok = pthread_create(&mon_th, &attr, monitor, &mon) == 0;
+	pthread_attr_destroy(&attr);
 	int rc = mlip_rt_run(&ro, mlip_controller_tick, NULL, &ctl, &run);
 	if (mon_ok) {
 		mon.done = 1;
@@ -287,11 +359,13 @@ int main(int argc, char **argv)
 	mlip_ring_status_read(shm.ring, &s);
 	fprintf(stderr,
 	        PROG ": stopped after %llu periods: %llu frames sent, %llu dropped (tx queue), "
-	        "%llu bus errors, %llu overruns, %llu underruns, %llu records taken; last line %u\n",
+	        "%llu bus errors, %llu overruns, %llu underruns, %llu records taken, %llu programs "
+	        "refused; last line %u\n",
 	        (unsigned long long)ctl.cycles, (unsigned long long)ctl.frames_sent,
 	        (unsigned long long)io.tx_dropped, (unsigned long long)io.bus_errors,
 	        (unsigned long long)s.overruns, (unsigned long long)ctl.underruns,
-	        (unsigned long long)ctl.blocks_consumed, (unsigned)s.exec_line);
+	        (unsigned long long)ctl.blocks_consumed, (unsigned long long)ctl.refused,
+	        (unsigned)s.exec_line);
 	mlip_shm_close(&shm);
 	mlip_canio_close(&io);
 	return rc < 0 ? 1 : 0;

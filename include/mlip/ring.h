@@ -126,6 +126,11 @@ struct mlip_ring_status {
 	uint64_t can_bus_errors;  /* error frames, error-passive or bus-off seen */
 	uint64_t frames_sent;     /* CAN frames accepted by the socket */
 	uint64_t blocks_consumed; /* records popped from the ring */
+	/* the last stop (hold, stop, signal, bus fault) from its request to rest:
+	 * in the status area's spare bytes, zero in segments of older builds */
+	uint64_t stop_nm;         /* path travelled by the linear axes, nanometres */
+	uint32_t stop_periods;    /* periods it took */
+	uint32_t stops;           /* stops completed since start */
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */

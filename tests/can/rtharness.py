@@ -102,13 +102,16 @@ def read_can_csv(path, n):
     return cyc, ts, cnt
 
 
-def write_positions_csv(path, counts, cpu, period_s):
-    """A trace for mlip-check: t,x,y,... from decoded counts, t = k T."""
+def write_positions_csv(path, counts, cpu, period_s, cycles=None):
+    """A trace for mlip-check: t,x,y,... from decoded counts, t = k T, k the
+    row's index or, given cycles, its bus cycle number (holes where cycles
+    were lost: mlip-check takes no difference across them)."""
     n = len(cpu)
     names = "xyzabc"[:n]  # header only; mlip-check reads the columns by position
+    ks = range(len(counts)) if cycles is None else [c - cycles[0] for c in cycles]
     with open(path, "w") as fh:
         fh.write("t," + ",".join(names) + "\n")
-        for k, c in enumerate(counts):
+        for k, c in zip(ks, counts):
             fh.write(repr(k * period_s) + "," + ",".join(repr(c[i] / cpu[i]) for i in range(n)) + "\n")
 
 
@@ -374,7 +377,7 @@ class Rig:
     seq = 0
 
     def __init__(self, config, profile, workdir, iface=IFACE, priority=None,
-                 exec_listener=EXEC_LISTENER):
+                 exec_listener=EXEC_LISTENER, rt_args=()):
         Rig.seq += 1
         self.exec_listener = exec_listener
         self.config = Path(config)
@@ -385,6 +388,7 @@ class Rig:
         self.shm = f"/mlip-can-{os.getpid()}-{Rig.seq}"
         self.setup = setup_of(config)
         self.priority = priority
+        self.rt_args = [str(a) for a in rt_args]
         self.listener = self.rt = None
         self.events = []  # (time.time(), what)
         self.status_log = []
@@ -424,7 +428,7 @@ class Rig:
                 "--profile", self.profile, "--shm", self.shm]
         if self.priority is not None:
             args += ["--priority", self.priority]
-        self.rt = Proc("rt", args, w)
+        self.rt = Proc("rt", args + self.rt_args, w)
         self.rt.wait_for("ready on")
         self.t_ready = time.time()
 
@@ -436,10 +440,13 @@ class Rig:
                 except Exception:
                     p.kill()
 
-    def finish(self, settle_s=0.3):
-        """SIGTERM mlip-rt (a controlled stop), then the listener; collect."""
+    def finish(self, settle_s=0.3, rt_gone=False):
+        """SIGTERM mlip-rt (a controlled stop), then the listener; collect.
+        rt_gone: mlip-rt has ended already (killed, or stopped by a signal
+        the test sent): only wait for it."""
         time.sleep(settle_s)  # the stream stays at the last point meanwhile
-        self.final_status = self.status()
+        rt_gone = rt_gone or self.rt.p.poll() is not None
+        self.final_status = None if rt_gone else self.status()
         rc = self.rt.terminate()
         rt_err = self.rt.stderr()
         time.sleep(0.2)
@@ -475,10 +482,14 @@ class Rig:
         self.status_log.append(s)
         return s
 
-    def feed(self, ngc, actions=None, timeout=600):
+    def feeder(self, ngc, *args, name="feed"):
+        """mlip-feed on ngc, started, not waited for (a Proc)."""
+        return Proc(name, [tool("mlip-feed"), "--shm", self.shm, *args, ngc], self.workdir)
+
+    def feed(self, ngc, actions=None, timeout=600, args=(), name="feed"):
         """Run mlip-feed on ngc to its end; actions(rig) runs in a thread
         meanwhile (mlip-ctl commands). Returns (rc, stdout, stderr)."""
-        f = Proc("feed", [tool("mlip-feed"), "--shm", self.shm, ngc], self.workdir)
+        f = self.feeder(ngc, *args, name=name)
         self.t_feed = time.time()
         th = err = None
         if actions is not None:

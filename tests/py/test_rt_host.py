@@ -157,3 +157,54 @@ def test_sigterm_is_a_controlled_stop(controller, tmp_path):
     assert rt.returncode == 0, err  # stopped on the path, then exit 0
     f.wait(10)
     assert f.returncode != 0  # the feeder is told: its program did not finish
+
+
+def test_ctl_commands_from_stdin(controller):
+    """mlip-ctl -: one process, a command per line, each answered in turn;
+    a refused one is reported and the rest still applied (exit 1); a line
+    that is no command ends it (exit 2)."""
+    shm, _ = controller()
+    p = subprocess.run([tool("mlip-ctl"), "--shm", shm, "-"], capture_output=True, text=True,
+                       input="override 40\n# a comment\n\nhold\nresume\noverride 120\n", timeout=20)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.splitlines() == ["override 40 %: done", "hold: done", "resume: done",
+                                     "override 120 %: done"]
+    assert status(shm)["override_pct"] == 120
+    p = subprocess.run([tool("mlip-ctl"), "--shm", shm, "-"], capture_output=True, text=True,
+                       input="override 70\noverride 300\n", timeout=20)
+    assert p.returncode == 2 and "stdin:2: expected one of" in p.stderr, p.stderr
+    assert p.stdout.splitlines() == ["override 70 %: done"]
+    assert status(shm)["override_pct"] == 70
+
+
+def test_start_seq_must_continue_the_last_block(controller, tmp_path):
+    """--start-seq N continues only after the last block the controller
+    completed: any other N would move in a straight line from where the
+    machine rests to block N's end. Refused before anything is sent."""
+    prog = tmp_path / "flower.ngc"
+    prog.write_text("".join((TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:3000]))
+    shm, _ = controller(CONFIG / "paper-2axis.ini")
+    # a controller that has run nothing continues nothing
+    p = feed(shm, prog, "--start-seq", "100", timeout=30)
+    assert p.returncode == 1 and "has run no block of a program" in p.stderr, p.stderr
+    assert status(shm)["blocks_consumed"] == 0
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 300)
+    f.send_signal(signal.SIGTERM)  # the controller stops on the path
+    err = f.communicate(timeout=30)[1]
+    assert f.returncode == 143, err
+    s = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 10)
+    done = s["exec_seq"]
+    hint = int(err.split("resume with --start-seq ")[1].split()[0])
+    assert hint == done + 1, err
+    consumed = s["blocks_consumed"]
+    for wrong in (done, done + 2, 1 + done // 2):
+        p = feed(shm, prog, "--start-seq", str(wrong), timeout=30)
+        assert p.returncode == 1, p.stderr
+        assert f"completed block {done} (line {s['exec_line']}) last, so only --start-seq " \
+               f"{done + 1} continues it" in p.stderr
+    assert status(shm)["blocks_consumed"] == consumed  # nothing was sent
+    p = feed(shm, prog, "--quiet", "--start-seq", str(hint), timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert status(shm)["exec_seq"] == 2999 and status(shm)["state"] == "idle"

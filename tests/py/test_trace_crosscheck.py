@@ -68,3 +68,42 @@ def test_rotary_config_trace_header(tmp_path):
     assert header == ["t", "x", "y", "z", "a"]
     assert s["axes"] == "XYZA"
     assert d.shape[1] == 5 and len(d) == s["periods"] + 1
+
+
+def test_mlip_check_across_holes(tmp_path):
+    """Rows missing from a trace (setpoints lost on a bus): the rows left are
+    judged by their own differences, the hole by its mean speed; a hole
+    passed over as if it were one period, or a jump the tool could not make
+    in the hole's time, fails."""
+    f = TOOLPATHS / "tball-pocket.gcode"
+    trace = tmp_path / "t.csv"
+    opts = ["--accel", "1000", "--vmax", "200", "--feed", "200"]
+    sim_summary(f, *opts, "--trace", trace)
+    lines = open(trace).read().splitlines()
+    head, rows = lines[0], lines[1:]
+    n = len(rows)
+    # three holes of 40 periods where the tool moves fast
+    holes = [range(n // 4, n // 4 + 40), range(n // 2, n // 2 + 40), range(3 * n // 4, 3 * n // 4 + 40)]
+    drop = set(i for h in holes for i in h)
+    kept = [r for i, r in enumerate(rows) if i not in drop]
+    (tmp_path / "h.csv").write_text("\n".join([head] + kept) + "\n")
+    ok = run(["mlip-check", *opts[:4], f, tmp_path / "h.csv"], check=False)
+    assert ok.returncode == 0, ok.stderr
+    # the same rows renumbered one period apart: the holes now read as jumps
+    T = 0.001
+    renum = [repr(k * T) + r[r.index(","):] for k, r in enumerate(kept)]
+    (tmp_path / "r.csv").write_text("\n".join([head] + renum) + "\n")
+    bad = run(["mlip-check", *opts[:4], f, tmp_path / "r.csv"], check=False)
+    assert bad.returncode == 1 and "acceleration" in bad.stderr
+    # a hole one period long that moves the tool 40 periods' worth: too fast
+    two = [r for i, r in enumerate(rows) if i not in holes[0] or i == holes[0][-1]]
+    k0 = holes[0][0]
+    two[k0] = repr(float(rows[k0 - 1].split(",")[0]) + T) + two[k0][two[k0].index(","):]
+    (tmp_path / "s.csv").write_text("\n".join([head] + two[:k0 + 1]) + "\n")
+    bad = run(["mlip-check", *opts[:4], "--no-end", f, tmp_path / "s.csv"], check=False)
+    assert bad.returncode == 1 and "speed" in bad.stderr, bad.stderr
+    # time that does not go forward is an input error
+    back = [head, rows[0], rows[2], rows[1]]
+    (tmp_path / "b.csv").write_text("\n".join(back) + "\n")
+    bad = run(["mlip-check", *opts[:4], "--no-end", f, tmp_path / "b.csv"], check=False)
+    assert bad.returncode == 2 and "b.csv:4: t" in bad.stderr, bad.stderr

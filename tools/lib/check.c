@@ -37,6 +37,15 @@ void mlip_check_init(struct mlip_check *c, const struct mlip_check_limits *lim,
 	c->lim = *lim;
 	c->pts = pts;
 	c->npts = npts;
+	c->gap = 1;
+}
+
+void mlip_check_gap(struct mlip_check *c, size_t periods)
+{
+	if (periods > 1 && c->count > 0) {
+		c->gap = periods;
+		c->run = 0;
+	}
 }
 
 static void contour(struct mlip_check *c, const double *x, double step)
@@ -75,6 +84,7 @@ static void contour(struct mlip_check *c, const double *x, double step)
 void mlip_check_sample(struct mlip_check *c, const double *x)
 {
 	int n = c->lim.n;
+	double dt = c->lim.period_s * (double)c->gap; /* the time since the last sample */
 	double T = c->lim.period_s;
 	double step = 0.0, lin2 = 0.0, rot2 = 0.0;
 
@@ -87,19 +97,19 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 			} else {
 				lin2 += d * d;
 			}
-			double v = fabs(d) / T;
+			double v = fabs(d) / dt;
 			if (v > c->max_vel[k]) {
 				c->max_vel[k] = v;
 			}
 		}
 		step = sqrt(step);
 		c->path_mm += sqrt(lin2);
-		c->max_speed_mm_s = fmax(c->max_speed_mm_s, sqrt(lin2) / T);
+		c->max_speed_mm_s = fmax(c->max_speed_mm_s, sqrt(lin2) / dt);
 		if (lin2 == 0.0) {
-			c->max_rot_speed_deg_s = fmax(c->max_rot_speed_deg_s, sqrt(rot2) / T);
+			c->max_rot_speed_deg_s = fmax(c->max_rot_speed_deg_s, sqrt(rot2) / dt);
 		}
 	}
-	if (c->count >= 2) {
+	if (c->run >= 2) {
 		for (int k = 0; k < n; k++) {
 			double acc = fabs(x[k] - 2.0 * c->x1[k] + c->x2[k]) / (T * T);
 			if (acc > c->max_acc[k]) {
@@ -111,7 +121,11 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 	for (int k = 0; k < n; k++) {
 		c->max_abs_coord = fmax(c->max_abs_coord, fabs(x[k]));
 	}
-	contour(c, x, step);
+	/* across a hole the tool went at most v_max dt along the path, which
+	 * may be longer than the chord between the two samples */
+	contour(c, x, c->gap > 1 ? fmax(step, (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * dt) : step);
+	c->gap = 1;
+	c->run++;
 	memcpy(c->x2, c->x1, sizeof(c->x1));
 	memcpy(c->x1, x, sizeof(double) * (size_t)n);
 	c->count++;

@@ -31,6 +31,8 @@ struct mlip_check {
 	size_t cursor;          /* segment nearest to the last sample */
 	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES]; /* last two samples */
 	size_t count;           /* samples seen */
+	size_t run;             /* samples since the last gap (differences need 2, 3) */
+	size_t gap;             /* periods between the last sample and the next (1: none) */
 	/* results */
 	double max_acc[MLIP_MAX_AXES];   /* max |second difference| / T^2 */
 	size_t max_acc_at[MLIP_MAX_AXES];
@@ -46,6 +48,11 @@ struct mlip_check {
 void mlip_check_init(struct mlip_check *c, const struct mlip_check_limits *lim,
                      const double *pts, size_t npts);
 void mlip_check_sample(struct mlip_check *c, const double *x);
+/* The next sample comes `periods` periods after the last one (samples lost,
+ * e.g. CAN frames the bus never carried): velocities across the hole are its
+ * mean (which cannot exceed the limit either), no acceleration is taken
+ * across it, and the contour search reaches as far as v_max allows. */
+void mlip_check_gap(struct mlip_check *c, size_t periods);
 /* Distance of the last sample to the last point of the polyline. */
 double mlip_check_end_error(const struct mlip_check *c);
 /* Speed implied by the last two samples (joint units / s). */
