@@ -122,12 +122,15 @@ int main(int argc, char **argv)
 	FILE *tf = strcmp(tpath, "-") == 0 ? stdin : fopen(tpath, "r");
 	if (tf == NULL) {
 		perror(tpath);
+		free(pts);
+		mlip_program_free(&prog);
 		return 2;
 	}
 	char line[1024];
 	size_t lineno = 0;
 	double t_prev = 0.0;
 	size_t rows = 0;
+	int input_error = 0;
 	while (fgets(line, sizeof(line), tf) != NULL) {
 		lineno++;
 		if (lineno == 1 && line[0] == 't') {
@@ -141,12 +144,16 @@ int main(int argc, char **argv)
 			x[cols++] = strtod(p, &end);
 			if (end == p) {
 				fprintf(stderr, PROG ": %s:%zu: expected %d numbers\n", tpath, lineno, n + 1);
-				return 2;
+				input_error = 1;
+				break;
 			}
 			p = end;
 			if (*p == ',') {
 				p++;
 			}
+		}
+		if (input_error) {
+			break;
 		}
 		/* column 0 is t: a row more than one period after the last one
 		 * follows a hole (setpoints lost on the bus) */
@@ -155,7 +162,8 @@ int main(int argc, char **argv)
 			if (!(k >= 1.0)) {
 				fprintf(stderr, PROG ": %s:%zu: t %.9g is not at least one period after %.9g\n",
 				        tpath, lineno, x[0], t_prev);
-				return 2;
+				input_error = 1;
+				break;
 			}
 			mlip_check_gap(&chk, (size_t)k);
 		}
@@ -165,6 +173,11 @@ int main(int argc, char **argv)
 	}
 	if (tf != stdin) {
 		fclose(tf);
+	}
+	if (input_error) {
+		free(pts);
+		mlip_program_free(&prog);
+		return 2;
 	}
 	double T = m->period_s;
 	double abs_acc = mlip_check_rounding_floor(&chk) + 4.0 * quantum / (T * T);

@@ -480,8 +480,9 @@ static int operator_stop(struct feed *f)
 	if (w < 0) {
 		return controller_dead(f);
 	}
-	fprintf(stderr, PROG ": program stopped on the path at line %u (block %llu of %llu): mlip-ctl stop, "
-	                     "or mlip-rt was told to exit\n",
+	fprintf(stderr,
+	        PROG ": program stopped on the path at line %u (block %llu of %llu): mlip-ctl "
+	             "stop, or mlip-rt was told to exit\n",
 	        resume_line(f), (unsigned long long)resume_seq(f), (unsigned long long)f->n);
 	return EXIT_OPERATOR;
 }
@@ -502,11 +503,6 @@ static uint32_t fill(struct feed *f, struct mlip_ring_rec *recs, uint32_t max)
 	return k;
 }
 
-/* Wait for an idle controller with an empty ring before the first record:
- * our records must never be appended to another program's. The ring count
- * is live but the status is published once a period, so "idle and empty" must
- * hold again in a status written after the empty ring was seen: then its
- * blocks_consumed counts every earlier record and taken() counts only ours. */
 /* --start-seq N continues only the block after the last one the controller
  * completed: from anywhere else the first move would cut a straight line
  * across the part to block N's end (the controller drops it too). */
@@ -532,6 +528,11 @@ static int check_continues(struct feed *f)
 	return EXIT_FAIL;
 }
 
+/* Wait for an idle controller with an empty ring before the first record:
+ * our records must never be appended to another program's. The ring count
+ * is live but the status is published once a period, so "idle and empty" must
+ * hold again in a status written after the empty ring was seen: then its
+ * blocks_consumed counts every earlier record and taken() counts only ours. */
 static int wait_start(struct feed *f)
 {
 	uint64_t t0 = mlip_now_ns(), empty_at = 0;

@@ -194,24 +194,31 @@ def test_feeder_killed_then_continued(vcan, tmp_path):
 
 
 def test_feeder_too_slow(vcan, tmp_path):
-    """mlip-feed --rate far below what the machine consumes, look-ahead 64:
-    the motion runs dry, stops at rest, picks up again, again and again,
-    within every limit, and completes."""
+    """mlip-feed --rate far below what the machine consumes, look-ahead 64,
+    and twice stalled outright (SIGSTOP until the controller is starved,
+    then SIGCONT): the motion slows, runs dry, stops at rest at the end of
+    the last block received, picks up again, within every limit, and
+    completes. (How often --rate alone brings it to rest depends on the
+    VM's speed; the stalls make two rests certain.)"""
     cfg = short_lookahead(tmp_path, 64)
     prog = cut(FLOWER, 600, tmp_path)  # 598 blocks
     n = 598
-    states = set()
-
-    def watch(rig):
-        while True:
-            s = rig.status()
-            states.add(s["state"])
-            if s["state"] == "idle" and s["exec_seq"] == n + 1:
-                return
-            time.sleep(0.05)
-
+    rests = []
     with h.Rig(cfg, "cia402", tmp_path) as rig:
-        rc, _, err = rig.feed(prog, watch, args=["--quiet", "--rate", "60"])
+        f = rig.feeder(prog, "--quiet", "--rate", "60")
+        for k in (1, 2):
+            rig.wait_state("running", timeout=120, pred=lambda s: s["exec_seq"] > 150 * k)
+            f.p.send_signal(signal.SIGSTOP)
+            try:
+                starved = rig.wait_state("starved", timeout=60)
+                later = wait_periods(rig, 100, starved)
+            finally:
+                f.p.send_signal(signal.SIGCONT)
+            assert later["state"] == "starved" and later["exec_seq"] == starved["exec_seq"], later
+            rests.append((starved, later))
+        rc = f.p.wait(timeout=300)
+        err = f.stderr()
+        f.kill()
         assert rc == 0, err
         final = rig.wait_state("idle", timeout=60)
     r = rig.result
@@ -219,12 +226,16 @@ def test_feeder_too_slow(vcan, tmp_path):
     bus_complete(r, setup, "cia402")
     can = r["counts"]
     assert final["exec_seq"] == n + 1 and final["underruns"] > 0, final
-    # (a starved state lasts about one block's time here, less than a status
-    # read takes in the VM: the counter and the bus tell, not the samples)
-    assert "underrun: the ring ran dry in block" in r["rt_stderr"], r["rt_stderr"]
+    assert "underrun: no block came after block" in r["rt_stderr"], r["rt_stderr"]
+    for starved, later in rests:
+        i0, i1 = starved["heartbeat"] - 1, later["heartbeat"] - 1
+        want = [h.to_counts(v, c)
+                for v, c in zip(line_end(prog, starved["exec_line"], setup.axes), setup.cpu)]
+        assert all(abs(a - b) <= 1 for a, b in zip(can[i0], want)), (can[i0], want)
+        assert all(c == can[i0] for c in can[i0:i1 + 1]), "moved while starved"
     js = check_physics(rig, prog, r, tmp_path)
-    # stops inside the motion: runs of equal positions between its first
-    # and last moving cycle
+    # every stop inside the motion: runs of equal positions between its
+    # first and last moving cycle
     first = next(i for i in range(1, len(can)) if can[i] != can[i - 1])
     last = max(i for i in range(1, len(can)) if can[i] != can[i - 1])
     stops, i = 0, first
@@ -235,12 +246,12 @@ def test_feeder_too_slow(vcan, tmp_path):
         else:
             i += 1
     assert stops >= 2, f"{stops} stops inside the motion"
-    report("feeder too slow (--rate 60 blocks/s, look-ahead 64)", blocks_executed=f"{n} of {n}",
-           last_line=final["exec_line"], stops_on_the_path=stops,
-           states_sampled="/".join(sorted(states)),
-           underrun_periods=final["underruns"],
-           motion_periods=last - first,
-           max_contour_mm=f"{js['max_contour_error_mm']:.5f}")
+    report("feeder too slow (--rate 60 blocks/s, look-ahead 64) and stalled twice",
+           blocks_executed=f"{n} of {n}", last_line=final["exec_line"],
+           rests_at_block_ends=", ".join(f"block {s['exec_seq']} line {s['exec_line']}"
+                                         for s, _ in rests),
+           stops_on_the_path=stops, underrun_periods=final["underruns"],
+           motion_periods=last - first, max_contour_mm=f"{js['max_contour_error_mm']:.5f}")
 
 
 def test_feeder_sigterm_stops_on_the_path(vcan, tmp_path):
@@ -297,9 +308,9 @@ def test_controller_killed(vcan, tmp_path):
     line = int(err.split("last executed line ")[1].split()[0])
     assert line >= before["exec_line"]
     # the feeder's rule is 100 ms without a heartbeat from a process that is
-    # gone; under the VM's emulation its own polling and start of the check
-    # add to it, so the bound here is 1 s (this host: tests/py)
-    assert noticed < 1.0, f"mlip-feed exited {noticed:.3f} s after the kill"
+    # gone; the emulated VM adds its own slowness to the feeder's polling and
+    # exit and to ours (seen: 0.12-0.14 s), hence 0.5 s here
+    assert 0.1 <= noticed < 0.5, f"mlip-feed exited {noticed:.3f} s after the kill"
     r = rig.result
     setup = rig.setup
     assert r["rt_rc"] == -signal.SIGKILL
