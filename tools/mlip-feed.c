@@ -326,6 +326,19 @@ static unsigned resume_line(const struct feed *f)
 	return f->exec ? f->exec_line : f->prog.blocks[f->first_seq - 1].line;
 }
 
+/* Once the controller is at rest after a stop: the block to continue from,
+ * the one after the last it completed (its status says so when idle), within
+ * what we sent; else where we were. */
+static uint64_t rest_seq(const struct feed *f)
+{
+	uint64_t next = f->st.exec_seq + 1;
+	if ((f->st.state == MLIP_STATE_IDLE || f->st.state == MLIP_STATE_STARVED) &&
+	    next >= f->first_seq && next < f->next_seq && next <= f->n) {
+		return next;
+	}
+	return resume_seq(f) > f->n ? f->n : resume_seq(f); /* END: its last block */
+}
+
 static int controller_dead(struct feed *f)
 {
 	close_line(f);
@@ -459,11 +472,12 @@ static int interrupted(struct feed *f)
 		             "mlip-ctl status\n",
 		        mlip_ring_state_name(f->st.state), resume_line(f));
 	} else {
+		uint64_t next = rest_seq(f);
 		fprintf(stderr,
 		        PROG ": interrupted: machine stopped on the path at line %u (block %llu of "
 		             "%llu); resume with --start-seq %llu\n",
-		        resume_line(f), (unsigned long long)resume_seq(f), (unsigned long long)f->n,
-		        (unsigned long long)resume_seq(f));
+		        f->prog.blocks[next - 1].line, (unsigned long long)next,
+		        (unsigned long long)f->n, (unsigned long long)next);
 	}
 	return code;
 }
@@ -480,10 +494,11 @@ static int operator_stop(struct feed *f)
 	if (w < 0) {
 		return controller_dead(f);
 	}
+	uint64_t next = rest_seq(f);
 	fprintf(stderr,
 	        PROG ": program stopped on the path at line %u (block %llu of %llu): mlip-ctl "
 	             "stop, or mlip-rt was told to exit\n",
-	        resume_line(f), (unsigned long long)resume_seq(f), (unsigned long long)f->n);
+	        f->prog.blocks[next - 1].line, (unsigned long long)next, (unsigned long long)f->n);
 	return EXIT_OPERATOR;
 }
 

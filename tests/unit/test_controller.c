@@ -199,12 +199,43 @@ static void test_stop_distance_published(void **st)
 	assert_true(ctl.pos[0] < 100.0);
 }
 
+/* A program stopped before its first block ends has completed nothing: the
+ * status must not show the previous program's last block (a --start-seq
+ * after it would continue the wrong program). */
+static void test_stop_before_first_block_completes(void **st)
+{
+	(void)st;
+	feeder(1);
+	push(1, 5);
+	struct mlip_ring_rec end;
+	mlip_ring_rec_end(&end, 6, 7);
+	assert_int_equal(mlip_ring_push(ring, &end), MLIP_OK);
+	tick(3000);
+	assert_int_equal(state(), MLIP_STATE_IDLE);
+	assert_int_equal(ctl.exec_seq, 6);
+	/* the next program: back to X = 0, 5 mm, stopped at once */
+	struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = 2};
+	struct mlip_ring_rec rec;
+	mlip_ring_rec_from_block(&rec, &b, 1);
+	assert_int_equal(mlip_ring_push(ring, &rec), MLIP_OK);
+	mlip_ring_rec_end(&end, 2, 3);
+	assert_int_equal(mlip_ring_push(ring, &end), MLIP_OK);
+	tick(20);
+	uint32_t seq;
+	assert_int_equal(mlip_ring_cmd_post(ring, MLIP_CMD_STOP, 0, &seq), MLIP_OK);
+	tick(300);
+	assert_int_equal(state(), MLIP_STATE_IDLE);
+	assert_true(ctl.pos[0] > 0.0 && ctl.pos[0] < 5.0); /* stopped inside block 1 */
+	assert_int_equal(ctl.exec_seq, 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test_setup_teardown(test_feeder_dead_in_preread_runs_what_came, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_starved_takes_only_the_next_block, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_stop_distance_published, setup, teardown),
+	    cmocka_unit_test_setup_teardown(test_stop_before_first_block_completes, setup, teardown),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
