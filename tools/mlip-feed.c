@@ -74,9 +74,10 @@ static void usage(FILE *f)
 	        "  --shm NAME        controller's shared-memory segment (default " MLIP_SHM_DEFAULT
 	        ")\n"
 	        "  --rate N          send at most N blocks per second (to try underruns)\n"
-	        "  --start-seq N     skip blocks before block N (1-based, as reported by\n"
-	        "                    mlip-ctl status), to continue after a feeder crash\n"
-	        "                    (default 1)\n"
+	        "  --start-seq N     continue the program from block N (1-based): the block\n"
+	        "                    after the last one the controller completed (mlip-ctl\n"
+	        "                    status: 'completed block B', N = B + 1), after a feeder\n"
+	        "                    crash or a stop (default 1: the whole program)\n"
 	        "  -q, --quiet       no notes, no progress, no summary: errors only\n"
 	        "  -h, --help        this help\n\n"
 	        "exit status: 0 program complete, machine at rest; 1 nothing sent (program\n"
