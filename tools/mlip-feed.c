@@ -32,6 +32,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "cli.h"
 #include "mlip/config.h"
 #include "mlip/ring.h"
 #include "program.h"
@@ -717,7 +718,6 @@ int main(int argc, char **argv)
 	struct mlip_machine m;
 	struct mlip_config_error cerr;
 	struct mlip_ring_feeder other;
-	struct sigaction sa;
 	char why[256], *text = NULL;
 	size_t len;
 	int32_t holder;
@@ -849,12 +849,7 @@ int main(int argc, char **argv)
 		goto out;
 	}
 
-	/* no SA_RESTART: a signal ends the current sleep at once */
-	memset(&sa, 0, sizeof(sa));
-	sa.sa_handler = on_signal;
-	sigemptyset(&sa.sa_mask);
-	sigaction(SIGINT, &sa, NULL);
-	sigaction(SIGTERM, &sa, NULL);
+	mlip_cli_on_stop_signals(on_signal); /* a signal ends the current sleep at once */
 
 	code = run(&f);
 	if (f.fa.heartbeat != 0) {

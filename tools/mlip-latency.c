@@ -1022,12 +1022,7 @@ int main(int argc, char **argv)
 		feeder_started = 1;
 	}
 
-	struct sigaction sa;
-	memset(&sa, 0, sizeof(sa));
-	sa.sa_handler = on_signal;
-	sigemptyset(&sa.sa_mask);
-	sigaction(SIGINT, &sa, NULL);
-	sigaction(SIGTERM, &sa, NULL);
+	mlip_cli_on_stop_signals(on_signal);
 
 	/* what is being measured, and what is not real-time about it */
 	if (!o.quiet) {

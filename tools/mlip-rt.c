@@ -254,12 +254,7 @@ int main(int argc, char **argv)
 		return 2;
 	}
 	/* first: a stop asked for while starting up must not kill us blind */
-	struct sigaction sa;
-	memset(&sa, 0, sizeof(sa));
-	sa.sa_handler = on_signal;
-	sigemptyset(&sa.sa_mask);
-	sigaction(SIGINT, &sa, NULL);
-	sigaction(SIGTERM, &sa, NULL);
+	mlip_cli_on_stop_signals(on_signal);
 
 	int st = mlip_cli_strategy(strategy);
 	if (st < 0) {

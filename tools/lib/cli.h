@@ -36,6 +36,10 @@ const char *mlip_cli_strategy_name(mlip_strategy st);
 /* Strict number parsing for options: whole string, finite. 0 or -1. */
 int mlip_cli_number(const char *s, double *out);
 
+/* SIGINT and SIGTERM call handler; no SA_RESTART, so a signal ends a sleep
+ * or a blocking call at once (the tools turn it into a controlled stop). */
+void mlip_cli_on_stop_signals(void (*handler)(int));
+
 /* The limits a trace of machine m is judged against. */
 struct mlip_check_limits;
 void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limits *lim);
