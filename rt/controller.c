@@ -289,10 +289,6 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 			if (!c->refill) {
 				c->exec_seq = 0; /* a new program (a starved one is given up) */
 				c->exec_line = 0;
-				/* none of it completed yet: a stop before its first block
-				 * ends must not report the previous program's last */
-				p->done_seq = recs[0].seq - 1;
-				p->done_line = 0;
 			}
 			c->state = MLIP_STATE_RUNNING; /* pre-read before moving (again) */
 			c->preread = 1;

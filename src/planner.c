@@ -213,6 +213,12 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 	if (p->stopping) {
 		return MLIP_E_INVALID;
 	}
+	if (p->head == p->tail && b->seq > 0 && p->done_seq != b->seq - 1) {
+		/* at rest with nothing queued: every block before this one is done
+		 * (a new program has completed none; a continuation, up to it) */
+		p->done_seq = b->seq - 1;
+		p->done_line = 0;
+	}
 	struct mlip_seg *s = seg_at(p, p->head);
 	double d2 = 0.0, lin2 = 0.0;
 	for (int k = 0; k < p->n; k++) {

@@ -150,7 +150,8 @@ struct mlip_planner {
 	double prof_t, prof_s0, prof_len;/* time in it, s at its start, its length */
 	double q_exec;                   /* corner: frozen q of seg[tail]'s end corner */
 	double pos[MLIP_MAX_AXES];       /* last setpoint */
-	uint64_t done_seq;               /* last completed block */
+	uint64_t done_seq;               /* last completed block (a block pushed at
+	                                    rest sets it to that block's seq - 1) */
 	uint32_t done_line;
 	struct mlip_planner_stats stats;
 	struct mlip_seg seg[MLIP_LOOKAHEAD];
