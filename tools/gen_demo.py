@@ -13,7 +13,6 @@ def main(out):
              "G1 Z0.000 F600"]
     # rose r = 40 cos(3 t) + wave in z, segment length varying 0.05-0.5 mm
     t, k = 0.0, 0
-    x0, y0 = 40.0, 0.0
     lines.append("F6000")
     while t < 2 * math.pi:
         r = 25.0 + 15.0 * math.cos(3 * t)

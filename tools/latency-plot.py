@@ -20,7 +20,6 @@ at the max), so both kinds of file are read the same way.
 """
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 

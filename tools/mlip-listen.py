@@ -342,8 +342,7 @@ class Layout:
                 check_id(m, setup.packed_base + k, "PACKED_BASE + k")
                 self.pos[setup.packed_base + k] = (k, tuple(fields), length)
             commit = msg("PACKED_COMMIT")
-            csig = field(commit, "cycle", 0, False, "packed commit counter")
-            del csig
+            field(commit, "cycle", 0, False, "packed commit counter")  # checks it
             if commit.length != 4:
                 raise UsageError(f"{dbc_path}: PACKED_COMMIT has length {commit.length}, canenc.h says 4")
             # the DBC describes 6 axes: its COMMIT follows its 3 POS frames

@@ -23,8 +23,7 @@ import time
 from pathlib import Path
 
 import rtharness as h
-from test_rt_vcan import (DEMO, FLOWER, MILL, PAPER, bus_complete, cut, fd_mtu,  # noqa: F401
-                          vcan, wait_periods)
+from test_rt_vcan import DEMO, FLOWER, MILL, PAPER, bus_complete, cut, wait_periods
 
 # <linux/can/error.h>
 CAN_ERR_FLAG = 0x20000000

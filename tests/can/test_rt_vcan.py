@@ -27,19 +27,14 @@ then SIGTERM to mlip-rt (a controlled stop) and to the listener. Checked:
     (mlip-feed exits 4, controller IDLE).
 """
 import json
-import os
 import struct
 import time
-from pathlib import Path
 
 import pytest
 
 import rtharness as h
 
 IFACE = h.IFACE
-SYS = Path("/sys/class/net") / IFACE
-ARPHRD_CAN = 280
-CANFD_MTU = 72
 
 FLOWER = h.TOOLPATHS / "flower-spiral-2d.ngc"
 MB23 = h.TOOLPATHS / "MB-2.3_test.nc"
@@ -50,36 +45,6 @@ MILL = h.CONFIG / "mill-3axis.ini"
 # seconds of machining at the machine's limits.
 FLOWER_LINES = 2000   # 1998 blocks, 2.95 s
 MB23_LINES = 400      # 398 blocks, ~3.6 s
-
-
-# ------------------------------------------------------------------ fixtures
-
-@pytest.fixture(scope="session")
-def vcan():
-    """vcan0 must exist, be a CAN interface and be up: fail, never skip."""
-    if not SYS.is_dir():
-        pytest.fail(f"no {IFACE}: run through tools/vcan/run.sh (these tests never skip)")
-    assert int((SYS / "type").read_text()) == ARPHRD_CAN, f"{IFACE} is not a CAN interface"
-    assert int((SYS / "flags").read_text(), 16) & 0x1, f"{IFACE} is down"
-    for t in ("mlip-rt", "mlip-feed", "mlip-ctl", "mlip-sim", "mlip-check"):
-        if not Path(h.tool(t)).exists():
-            pytest.fail(f"{h.tool(t)} missing: run make first")
-    if not h.TOOLPATHS.is_dir():
-        pytest.fail(f"{h.TOOLPATHS} missing: set MLIP_SHARED")
-    h.prime_dbc_cache()  # listener processes then skip the cantools import
-    return IFACE
-
-
-@pytest.fixture(scope="session")
-def fd_mtu(vcan):
-    mtu = int((SYS / "mtu").read_text())
-    if mtu != CANFD_MTU:
-        # tools/vcan/run.sh sets mtu 72; a host vcan0 made by hand may not have it
-        os.system(f"ip link set {IFACE} down && ip link set {IFACE} mtu 72 && "
-                  f"ip link set {IFACE} up")
-        mtu = int((SYS / "mtu").read_text())
-    assert mtu == CANFD_MTU, f"{IFACE} mtu {mtu}: the fd profile needs 'ip link set {IFACE} mtu 72'"
-    return mtu
 
 
 def cut(src, n, tmp_path):
@@ -148,7 +113,7 @@ def exact_run(tmp_path, config, ngc, profile, exec_listener=h.EXEC_LISTENER):
         assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
         done = rig.wait_state("idle", timeout=60)
     r = rig.result
-    N = bus_complete(r, setup, profile)
+    bus_complete(r, setup, profile)
     can = r["counts"]
     off, how = h.align(can, trc)
     home = trc[0]

@@ -5,8 +5,7 @@ import signal
 import subprocess
 import time
 
-from conftest import CONFIG, TOOLPATHS, tool
-from test_rt_host import controller, shm_name, status, wait_for  # noqa: F401 (fixture)
+from conftest import CONFIG, TOOLPATHS, status, tool, wait_for
 
 PAPER = CONFIG / "paper-2axis.ini"
 

@@ -2,64 +2,14 @@
 a real SCHED_FIFO mlip-rt, a real shared-memory segment, the real mlip-feed
 and mlip-ctl. The CAN side is tested on a real vcan0 in tests/can."""
 import json
-import os
 import re
 import signal
 import subprocess
 import time
 
-import pytest
-
-from conftest import CONFIG, ROOT, TOOLPATHS, tool
+from conftest import CONFIG, ROOT, TOOLPATHS, shm_name, status, tool, wait_for
 
 DEMO = ROOT / "examples" / "demo.ngc"
-_n = [0]
-
-
-def shm_name():
-    _n[0] += 1
-    return f"/mlip-pytest-{os.getpid()}-{_n[0]}"
-
-
-def status(shm):
-    p = subprocess.run([tool("mlip-ctl"), "--shm", shm, "status", "--json"], capture_output=True,
-                       text=True)
-    return json.loads(p.stdout) if p.stdout.strip() else None
-
-
-def wait_for(pred, timeout=10.0):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        v = pred()
-        if v:
-            return v
-        time.sleep(0.02)
-    return None
-
-
-@pytest.fixture
-def controller():
-    """Start mlip-rt --can none on a fresh segment; stop it (SIGTERM) after."""
-    procs = []
-
-    def start(config=CONFIG / "mill-3axis.ini", *extra):
-        shm = shm_name()
-        p = subprocess.Popen([tool("mlip-rt"), "--config", str(config), "--can", "none", "--shm", shm,
-                              *extra], stderr=subprocess.PIPE, text=True)
-        procs.append(p)
-        assert wait_for(lambda: (status(shm) or {}).get("alive")), "controller did not come up"
-        return shm, p
-
-    yield start
-    for p in procs:
-        if p.poll() is None:
-            p.send_signal(signal.SIGTERM)
-            try:
-                p.wait(10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-
-
 def feed(shm, program, *extra, **kw):
     return subprocess.run([tool("mlip-feed"), "--shm", shm, *extra, str(program)],
                           capture_output=True, text=True, **kw)
