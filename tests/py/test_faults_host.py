@@ -16,13 +16,23 @@ def flower(tmp_path, lines=6000):
     return prog, lines - 2  # two header lines, one block per line after
 
 
+def short_lookahead(tmp_path, lookahead):
+    cfg = tmp_path / f"la{lookahead}.ini"
+    cfg.write_text(PAPER.read_text().replace("[TRAJ]", f"[TRAJ]\nLOOKAHEAD = {lookahead}", 1))
+    return cfg
+
+
 def test_feeder_killed_then_continued(controller, tmp_path):
+    # look-ahead 256: motion starts after 256 blocks, so at block 500 the
+    # throttled feeder is thousands of blocks from the END (a full 4096
+    # look-ahead left it a second from it, which a slow run could use up)
     prog, n = flower(tmp_path)
-    shm, _ = controller(PAPER)
+    shm, _ = controller(short_lookahead(tmp_path, 256))
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", "--rate", "1500", str(prog)])
     assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 500)
     f.kill()  # SIGKILL: no goodbye
     f.wait()
+    assert not status(shm)["program_end"], "the feeder had sent the whole program: kill sooner"
     # the controller runs what it has to rest, then reports the underrun
     s = wait_for(lambda: (lambda s: s if s["state"] == "starved" else None)(status(shm)), 10)
     assert s, status(shm)
@@ -42,9 +52,7 @@ def test_slow_feeder_underruns_and_finishes(controller, tmp_path):
     # a short look-ahead, fed at a quarter of the rate it is cut at: it runs
     # dry, stops at rest, and picks up again, over and over
     prog, n = flower(tmp_path, 4000)
-    cfg = tmp_path / "short.ini"
-    cfg.write_text(PAPER.read_text().replace("[TRAJ]", "[TRAJ]\nLOOKAHEAD = 256", 1))
-    shm, _ = controller(cfg)
+    shm, _ = controller(short_lookahead(tmp_path, 256))
     states = set()
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", "--rate", "300", str(prog)])
     while f.poll() is None:
