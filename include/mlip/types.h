@@ -51,8 +51,19 @@ struct mlip_machine {
 	double period_s;         /* T: interpolation period */
 };
 
+/* What a block asks for. Only MOVE blocks reach the planner; the others are
+ * program events that the controller executes between moves, with the
+ * machine at rest at the end of the move before them (target ignored). */
+typedef enum {
+	MLIP_BLOCK_MOVE = 0,       /* G0/G1 (arcs arrive as chords) */
+	MLIP_BLOCK_DWELL,          /* G4 P: wait dwell_s, to the period */
+	MLIP_BLOCK_PAUSE,          /* M0/M60: wait for the operator's resume */
+	MLIP_BLOCK_OPTIONAL_PAUSE  /* M1: as M0 when the optional-stop switch is on */
+} mlip_block_kind;
+
 /* One G01-style block: an absolute target in joint space. Produced by the
- * G-code front end (arcs arrive as several chord blocks). */
+ * G-code front end (arcs arrive as several chord blocks). A zeroed block is
+ * a MOVE with no exact stop. */
 struct mlip_block {
 	double target[MLIP_MAX_AXES]; /* absolute, in config axis order */
 	double feed_mm_s;  /* programmed feed: linear path speed, or deg/s for
@@ -63,6 +74,9 @@ struct mlip_block {
 	uint8_t rapid;     /* G0: runs at the machine's maximum feed */
 	uint64_t seq;      /* caller's sequence number in program order (0: none);
 	                      the planner reports the block it executes by it */
+	uint8_t kind;      /* mlip_block_kind */
+	uint8_t exact_stop;/* G61: come to rest at the end of this move */
+	double dwell_s;    /* DWELL: seconds (>= 0) */
 };
 
 #endif
