@@ -61,6 +61,9 @@ $(BUILD)/tests/test_%: $(BUILD)/obj/tests/unit/test_%.o $(BUILD)/libmlip-host.a 
 	@mkdir -p $(dir $@)
 	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(if $(RT_OBJ),$(BUILD)/libmlip-rt.a $(RT_LIBS)) $(BUILD)/libmlip.a -lcmocka $(LDLIBS)
 
+# test_shm fails posix_fallocate on demand (a full /dev/shm) through --wrap.
+$(BUILD)/tests/test_shm: LDFLAGS += -Wl,--wrap=posix_fallocate
+
 $(BUILD)/bench_%: $(BUILD)/obj/bench/bench_%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a
 	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a $(LDLIBS)
 

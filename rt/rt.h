@@ -36,13 +36,21 @@ struct mlip_shm {
 	char name[64];
 };
 
-/* Controller side: create (or take over a stale) segment `name` for machine m
- * with `capacity` records, formatted, locked in memory. Refuses (-EBUSY)
- * when a live controller already runs on it. */
+/* Controller side: create (O_EXCL, mode 0600) or take over a stale segment
+ * `name` of our own user for machine m with `capacity` records, space
+ * reserved (posix_fallocate: -ENOSPC when /dev/shm is full), formatted,
+ * prefaulted. Refuses -EBUSY when a live controller already runs on it,
+ * -EPERM when the name belongs to another user or is open to every user. */
 int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
                     const struct mlip_machine *m, char *why, size_t why_len);
+/* The same with gid >= 0: mode 0660 and that group (mlip-rt --shm-group),
+ * so its members may feed and command; gid < 0 is mlip_shm_create. */
+int mlip_shm_create_group(struct mlip_shm *s, const char *name, uint32_t capacity,
+                          const struct mlip_machine *m, long gid, char *why, size_t why_len);
 /* Feeder/ctl side: attach to an existing segment, checking magic, layout
- * version and sizes (-ENOENT: no segment; -EPROTO: layout mismatch). */
+ * version and sizes (-ENOENT: no segment; -EPROTO: layout mismatch) and its
+ * owner: ourselves, root, or the user the MLIP_SHM_OWNER environment
+ * variable names, never an object every user may write (-EPERM). */
 int mlip_shm_attach(struct mlip_shm *s, const char *name, char *why, size_t why_len);
 void mlip_shm_close(struct mlip_shm *s);
 /* 1 when the controller's heartbeat is younger than max_age_ns. */

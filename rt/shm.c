@@ -17,6 +17,21 @@
  * The owner unlinks the name before closing its descriptor, so the name is
  * never removed from under a successor that took the lock in between.
  *
+ * Who may touch it: the name is created with O_EXCL, mode 0600 (0660 and a
+ * chosen group with mlip_shm_create_group), fchmod'ed so the umask cannot
+ * widen or narrow it. A name that already exists is taken over only when it
+ * is a regular file of this controller's own user, open to no other user
+ * (no "other" permission bits): /dev/shm is writable by everyone, and an
+ * object pre-created by another local user would stay theirs after we
+ * formatted it (they could then feed blocks and change the override of a
+ * root controller). Attaching tools accept only a segment owned by
+ * themselves, by root, or by the user MLIP_SHM_OWNER names (a controller run
+ * as a service user with --shm-group), and never one open to every user.
+ *
+ * The segment's pages are reserved with posix_fallocate before it is
+ * mapped: a full /dev/shm is a message at start-up, never SIGBUS at the
+ * first touch of a page.
+ *
  * Returns 0 or -errno; messages go to the caller's `why` buffer, never to
  * stdio (STYLE rule 5).
  */
@@ -24,9 +39,12 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <grp.h>
 #include <inttypes.h>
+#include <pwd.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/file.h>
 #include <sys/mman.h>
@@ -98,6 +116,81 @@ int mlip_shm_controller_alive(const struct mlip_ring *r, int64_t max_age_ns)
 	}
 	age = heartbeat_age_ns(st.heartbeat_ns); /* clock read after the status */
 	return age >= 0 && age < max_age_ns;
+}
+
+/* "name" of uid (or "uid N" when it has none), for messages. */
+static const char *user_name(uid_t uid, char *buf, size_t len)
+{
+	struct passwd *pw = getpwuid(uid); /* start-up only: not reentrant, fine here */
+
+	if (pw != NULL && pw->pw_name != NULL) {
+		snprintf(buf, len, "%s", pw->pw_name);
+	} else {
+		snprintf(buf, len, "uid %u", (unsigned)uid);
+	}
+	return buf;
+}
+
+/* The user MLIP_SHM_OWNER names (a name or a number); (uid_t)-1 when unset
+ * or unknown. */
+static uid_t trusted_owner(void)
+{
+	const char *v = getenv("MLIP_SHM_OWNER");
+	struct passwd *pw;
+	char *end;
+	unsigned long n;
+
+	if (v == NULL || *v == '\0') {
+		return (uid_t)-1;
+	}
+	if ((pw = getpwnam(v)) != NULL) {
+		return pw->pw_uid;
+	}
+	n = strtoul(v, &end, 10);
+	return *end == '\0' && v[0] >= '0' && v[0] <= '9' ? (uid_t)n : (uid_t)-1;
+}
+
+/* May this process trust the object behind fd as a controller's segment?
+ * 0, or -EPERM with a message. The controller (create) accepts only its own
+ * user's; an attaching tool also root's and MLIP_SHM_OWNER's. Never a
+ * non-regular file, never one every user may write. */
+static int check_owner(int fd, const char *name, int creating, char *why, size_t len)
+{
+	struct stat sb;
+	uid_t me = geteuid(), extra = creating ? (uid_t)-1 : trusted_owner();
+	char who[64], self[64];
+
+	if (fstat(fd, &sb) != 0) {
+		int rc = -errno;
+		return say(why, len, rc, "fstat %s: %s", name, strerror(-rc));
+	}
+	if (!S_ISREG(sb.st_mode)) {
+		return say(why, len, -EPERM, "%s is not a regular shared-memory object: refused", name);
+	}
+	if (sb.st_uid != me && (creating || (sb.st_uid != 0 && sb.st_uid != extra))) {
+		user_name(sb.st_uid, who, sizeof(who));
+		user_name(me, self, sizeof(self));
+		if (creating) {
+			return say(why, len, -EPERM,
+			           "%s exists and belongs to %s, not to this controller's user %s: "
+			           "another user made it and could feed and command the machine "
+			           "through it; remove /dev/shm%s (if no mlip-rt of theirs runs) or "
+			           "choose another --shm name",
+			           name, who, self, name);
+		}
+		return say(why, len, -EPERM,
+		           "segment %s belongs to %s, neither you (%s) nor root: it may not be "
+		           "your controller's; if mlip-rt really runs as %s, set "
+		           "MLIP_SHM_OWNER=%s",
+		           name, who, self, who, who);
+	}
+	if (sb.st_mode & 0007) {
+		return say(why, len, -EPERM,
+		           "%s has mode %04o: every user may open it, and mlip never makes it so; "
+		           "remove /dev/shm%s (if no mlip-rt runs) and start mlip-rt again",
+		           name, (unsigned)(sb.st_mode & 07777), name);
+	}
+	return 0;
 }
 
 /* What an existing object under our name holds, before we take it. */
@@ -177,16 +270,63 @@ static int begin(struct mlip_shm *s, const char *name, char *why, size_t why_len
 	return 0;
 }
 
+/* Open name for the controller: a new object (O_EXCL, mode), or an existing
+ * one of ours (check_owner). *created says which. */
+static int open_exclusive(struct mlip_shm *s, const char *name, mode_t mode, int *created,
+                          char *why, size_t why_len)
+{
+	int rc, tries;
+
+	for (tries = 0; tries < 3; tries++) {
+		s->fd = shm_open(name, O_CREAT | O_EXCL | O_RDWR, mode);
+		if (s->fd >= 0) {
+			*created = 1;
+			return 0;
+		}
+		if (errno != EEXIST) {
+			break;
+		}
+		s->fd = shm_open(name, O_RDWR, 0);
+		if (s->fd >= 0) {
+			*created = 0;
+			rc = check_owner(s->fd, name, 1, why, why_len);
+			if (rc != 0) {
+				close(s->fd);
+				s->fd = -1;
+			}
+			return rc;
+		}
+		if (errno != ENOENT) {
+			break; /* else removed between the two opens: create it again */
+		}
+	}
+	rc = -errno;
+	if (rc == -EACCES) {
+		return say(why, why_len, rc,
+		           "%s exists and belongs to another user (see ls -l /dev/shm%s): remove it "
+		           "if no mlip-rt runs, or choose another --shm name",
+		           name, name);
+	}
+	return say(why, why_len, rc, "shm_open %s: %s", name, strerror(-rc));
+}
+
 int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
                     const struct mlip_machine *m, char *why, size_t why_len)
+{
+	return mlip_shm_create_group(s, name, capacity, m, -1, why, why_len);
+}
+
+int mlip_shm_create_group(struct mlip_shm *s, const char *name, uint32_t capacity,
+                          const struct mlip_machine *m, long gid, char *why, size_t why_len)
 {
 	size_t bytes = mlip_ring_bytes(capacity);
 	struct mlip_ring_mismatch mm;
 	enum existing ex;
 	int64_t age;
 	uint64_t magic, version = 0;
+	mode_t mode = gid < 0 ? 0600 : 0660;
 	void *mem;
-	int rc, flags = MAP_SHARED;
+	int rc, flags = MAP_SHARED, created = 0;
 
 	if ((rc = begin(s, name, why, why_len)) != 0) {
 		return rc;
@@ -202,17 +342,9 @@ int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
 	}
 	strcpy(s->name, name);
 
-	s->fd = shm_open(name, O_CREAT | O_RDWR, 0660);
-	if (s->fd < 0) {
-		rc = -errno;
+	if ((rc = open_exclusive(s, name, mode, &created, why, why_len)) != 0) {
 		shm_reset(s);
-		if (rc == -EACCES) {
-			return say(why, why_len, rc,
-			           "%s: permission denied: it belongs to another user (see ls -l "
-			           "/dev/shm%s; remove it if no mlip-rt runs)",
-			           name, name);
-		}
-		return say(why, why_len, rc, "shm_open %s: %s", name, strerror(-rc));
+		return rc;
 	}
 	if (flock(s->fd, LOCK_EX | LOCK_NB) != 0) {
 		rc = errno == EWOULDBLOCK ? -EBUSY : -errno;
@@ -235,7 +367,7 @@ int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
 		           name, age < 10000000000LL ? (double)age / 1e6 : (double)age / 1e9,
 		           age < 10000000000LL ? "ms" : "s");
 	}
-	ex = inspect(s->fd, &age, &magic, &version);
+	ex = created ? EX_EMPTY : inspect(s->fd, &age, &magic, &version);
 	if (ex == EX_OURS_ALIVE) {
 		close(s->fd);
 		shm_reset(s);
@@ -261,10 +393,29 @@ int mlip_shm_create(struct mlip_shm *s, const char *name, uint32_t capacity,
 		           "): choose another --shm name, or remove /dev/shm%s if it is stale",
 		           name, magic, name);
 	}
-	/* the group may feed and control: umask must not take that away */
-	(void)fchmod(s->fd, 0660);
+	/* explicit owner and mode, whatever the umask or a dead controller left */
+	if (gid >= 0 && fchown(s->fd, (uid_t)-1, (gid_t)gid) != 0) {
+		rc = -errno;
+		shm_unlink(name);
+		close(s->fd);
+		shm_reset(s);
+		return say(why, why_len, rc,
+		           "%s: cannot give it to group %ld: %s (the controller's user must be a "
+		           "member of the --shm-group)",
+		           name, gid, strerror(-rc));
+	}
+	if (fchmod(s->fd, mode) != 0) {
+		rc = -errno;
+		goto fail;
+	}
 	if (ftruncate(s->fd, (off_t)bytes) != 0) {
 		rc = -errno;
+		goto fail;
+	}
+	/* reserve every page now (returns the error, does not set errno) */
+	rc = posix_fallocate(s->fd, 0, (off_t)bytes);
+	if (rc != 0) {
+		rc = -rc;
 		goto fail;
 	}
 #ifdef MAP_POPULATE
@@ -297,8 +448,13 @@ fail:
 	shm_unlink(name); /* ours now (we hold the lock); leave nothing half-made */
 	close(s->fd);
 	shm_reset(s);
-	return say(why, why_len, rc, "%s: %s%s", name, strerror(-rc),
-	           rc == -ENOSPC || rc == -ENOMEM ? " (is /dev/shm full?)" : "");
+	if (rc == -ENOSPC || rc == -ENOMEM || rc == -EFBIG) {
+		return say(why, why_len, rc,
+		           "%s: no room for the segment's %zu bytes in /dev/shm (%s): free space "
+		           "there (df -h /dev/shm), or use a smaller --capacity",
+		           name, bytes, strerror(-rc));
+	}
+	return say(why, why_len, rc, "%s: %s", name, strerror(-rc));
 }
 
 /* One line for a refused attach (mismatch from mlip_ring_attach). */
@@ -369,6 +525,11 @@ int mlip_shm_attach(struct mlip_shm *s, const char *name, char *why, size_t why_
 			           name, name);
 		}
 		return say(why, why_len, rc, "shm_open %s: %s", name, strerror(-rc));
+	}
+	if ((rc = check_owner(s->fd, name, 0, why, why_len)) != 0) {
+		close(s->fd);
+		shm_reset(s);
+		return rc;
 	}
 	if (fstat(s->fd, &sb) != 0) {
 		rc = -errno;

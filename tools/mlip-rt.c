@@ -6,6 +6,7 @@
  */
 #include <errno.h>
 #include <getopt.h>
+#include <grp.h>
 #include <pthread.h>
 #include <time.h>
 #include <signal.h>
@@ -154,7 +155,10 @@ static void usage(FILE *f)
 	        "  --profile P         cia402 (default), packed or fd (overrides [CAN] PROFILE)\n"
 	        "  --bitrate BPS       bus bit rate for the load budget (default [CAN] BITRATE;\n"
 	        "                      vcan has none, so the configured one is used)\n"
-	        "  --shm NAME          shared-memory segment (default %s)\n"
+	        "  --shm NAME          shared-memory segment (default %s); mode 0600: only\n"
+	        "                      this user (and root) may feed and command\n"
+	        "  --shm-group GROUP   mode 0660 and this group: its members may feed and\n"
+	        "                      command too (they set MLIP_SHM_OWNER=<this user>)\n"
 	        "  --priority N        SCHED_FIFO priority 1..99 (default 80; 0: SCHED_OTHER)\n"
 	        "  --cpu N             pin the loop to CPU N (default: no pinning)\n"
 	        "  --strategy S        mpct (default), bisector or stop\n"
@@ -192,6 +196,7 @@ int main(int argc, char **argv)
 	double bitrate = 0.0, v;
 	struct mlip_rt_opts ro = {.priority = 80, .cpu = -1, .lock_memory = 1};
 	unsigned long capacity = MLIP_RING_CAPACITY;
+	long shm_gid = -1;
 
 	static const struct option opts[] = {
 		{"config", required_argument, 0, 'c'},   {"can", required_argument, 0, 'i'},
@@ -199,6 +204,7 @@ int main(int argc, char **argv)
 		{"shm", required_argument, 0, 's'},      {"priority", required_argument, 0, 'p'},
 		{"cpu", required_argument, 0, 'C'},      {"strategy", required_argument, 0, 'S'},
 		{"capacity", required_argument, 0, 'n'}, {"help", no_argument, 0, 'h'},
+		{"shm-group", required_argument, 0, 'G'},
 		{0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
@@ -241,6 +247,15 @@ int main(int argc, char **argv)
 		case 'n':
 			capacity = strtoul(optarg, NULL, 0);
 			break;
+		case 'G': {
+			struct group *g = getgrnam(optarg);
+			if (g == NULL) {
+				fprintf(stderr, PROG ": --shm-group: no group '%s'\n", optarg);
+				return 2;
+			}
+			shm_gid = (long)g->gr_gid;
+			break;
+		}
 		case 'h':
 			usage(stdout);
 			return 0;
@@ -312,7 +327,8 @@ int main(int argc, char **argv)
 	}
 
 	static struct mlip_shm shm;
-	if (mlip_shm_create(&shm, shm_name, (uint32_t)capacity, &cfg.machine, info, sizeof(info)) != 0) {
+	if (mlip_shm_create_group(&shm, shm_name, (uint32_t)capacity, &cfg.machine, shm_gid, info,
+	                          sizeof(info)) != 0) {
 		fprintf(stderr, PROG ": %s\n", info);
 		mlip_canio_close(&io);
 		return 1;

@@ -2,7 +2,10 @@
  * test_shm.c - rt/shm.c on real POSIX shared-memory objects: create, attach
  * and close; one controller per name (the lock, the heartbeat on both sides
  * of MLIP_PEER_TIMEOUT_NS); take-over of a dead controller's segment; attach
- * refusals with messages naming what differs.
+ * refusals with messages naming what differs; ownership (a name another
+ * user made is refused, attachers check the owner); a full /dev/shm
+ * (posix_fallocate wrapped at link time to fail with ENOSPC; the real one is
+ * in tests/py/test_rt_host.py, on a 64 KiB tmpfs).
  *
  * Each test uses its own name, /mlip-test-<pid>-<n>, and the teardown unlinks
  * it, so parallel runs and failed asserts leave nothing behind.
@@ -14,6 +17,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
@@ -26,6 +30,20 @@
 #include "rt.h"
 
 #define CAP 64u
+#define NOBODY 65534 /* a uid and gid that is not ours (the tests chown to it as root) */
+
+/* posix_fallocate as rt/shm.c sees it (-Wl,--wrap=posix_fallocate, Makefile):
+ * the real one unless a test asks for an error. */
+int __real_posix_fallocate(int fd, off_t off, off_t len);
+int __wrap_posix_fallocate(int fd, off_t off, off_t len);
+static int fallocate_error;
+static int fallocate_calls;
+
+int __wrap_posix_fallocate(int fd, off_t off, off_t len)
+{
+	fallocate_calls++;
+	return fallocate_error != 0 ? fallocate_error : __real_posix_fallocate(fd, off, len);
+}
 
 static char name[64];
 static int serial;
@@ -139,7 +157,8 @@ static void test_create_attach_close(void **state)
 	assert_int_equal(s.bytes, mlip_ring_bytes(CAP));
 	assert_string_equal(s.name, name);
 	assert_int_equal(fstat(s.fd, &sb), 0);
-	assert_int_equal(sb.st_mode & 0777, 0660); /* the group may feed, whatever the umask */
+	assert_int_equal(sb.st_mode & 0777, 0600); /* only our user, whatever the umask */
+	assert_int_equal(sb.st_uid, geteuid());
 	assert_int_equal((size_t)sb.st_size, mlip_ring_bytes(CAP));
 
 	assert_int_equal(mlip_shm_attach(&a, name, why, sizeof(why)), 0);
@@ -465,6 +484,154 @@ static void test_now_ns(void **state)
 	assert_true(t1 - t0 < 1000000000u);
 }
 
+/* A full /dev/shm: a message at start-up, the name removed, no SIGBUS. */
+static void test_create_no_room(void **state)
+{
+	struct mlip_shm s;
+	struct mlip_machine m;
+	char why[256] = "";
+
+	(void)state;
+	machine(&m, 3);
+	fallocate_calls = 0;
+	fallocate_error = ENOSPC;
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), -ENOSPC);
+	fallocate_error = 0;
+	assert_int_equal(fallocate_calls, 1);
+	assert_contains(why, "no room for the segment's");
+	assert_contains(why, "df -h /dev/shm");
+	assert_null(s.mem);
+	assert_int_equal(s.fd, -1);
+	assert_false(exists());
+	/* the real call reserves the pages: st_blocks covers the size */
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), 0);
+	assert_int_equal(fallocate_calls, 2);
+	struct stat sb;
+	assert_int_equal(fstat(s.fd, &sb), 0);
+	assert_true((size_t)sb.st_blocks * 512u >= s.bytes);
+	mlip_shm_close(&s);
+}
+
+/* A name another user made (an empty object, as anyone can make in
+ * /dev/shm, or a valid-looking segment) is refused and left as it is. */
+static void test_create_refuses_other_users_object(void **state)
+{
+	struct mlip_shm s;
+	struct mlip_machine m;
+	struct stat sb;
+	char why[256] = "";
+	int fd;
+
+	(void)state;
+	if (geteuid() != 0) {
+		skip(); /* chown to another user needs root */
+	}
+	machine(&m, 3);
+	fd = shm_open(name, O_CREAT | O_EXCL | O_RDWR, 0644);
+	assert_true(fd >= 0);
+	assert_int_equal(fchown(fd, NOBODY, NOBODY), 0);
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), -EPERM);
+	assert_contains(why, "exists and belongs to ");
+	assert_contains(why, "not to this controller's user");
+	assert_contains(why, "remove /dev/shm");
+	assert_int_equal(fstat(fd, &sb), 0); /* untouched: still theirs, still empty */
+	assert_int_equal(sb.st_uid, NOBODY);
+	assert_int_equal(sb.st_size, 0);
+	assert_int_equal(sb.st_mode & 0777, 0644);
+	/* a formatted segment of theirs, dead: not ours to take over either */
+	close(fd);
+	shm_unlink(name);
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), 0);
+	crash(&s);
+	fd = shm_open(name, O_RDWR, 0);
+	assert_true(fd >= 0);
+	assert_int_equal(fchown(fd, NOBODY, NOBODY), 0);
+	close(fd);
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), -EPERM);
+	assert_contains(why, "another user made it");
+}
+
+/* Our own stale object, but open to every user: someone may hold it open
+ * already; refused. A stale 0660 one of ours (older builds) is taken over and
+ * narrowed to 0600. */
+static void test_create_refuses_world_open(void **state)
+{
+	struct mlip_shm s;
+	struct mlip_machine m;
+	struct stat sb;
+	char why[256] = "";
+	int fd;
+
+	(void)state;
+	machine(&m, 3);
+	fd = shm_open(name, O_CREAT | O_EXCL | O_RDWR, 0600);
+	assert_true(fd >= 0);
+	assert_int_equal(fchmod(fd, 0666), 0);
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), -EPERM);
+	assert_contains(why, "has mode 0666: every user may open it");
+	assert_int_equal(fchmod(fd, 0660), 0);
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), 0);
+	assert_int_equal(fstat(s.fd, &sb), 0);
+	assert_int_equal(sb.st_mode & 0777, 0600);
+	close(fd);
+	mlip_shm_close(&s);
+}
+
+/* --shm-group: mode 0660 and that group, so its members may feed. */
+static void test_create_group(void **state)
+{
+	struct mlip_shm s;
+	struct mlip_machine m;
+	struct stat sb;
+	char why[256] = "";
+	long gid = geteuid() == 0 ? NOBODY : (long)getegid();
+
+	(void)state;
+	machine(&m, 3);
+	assert_int_equal(mlip_shm_create_group(&s, name, CAP, &m, gid, why, sizeof(why)), 0);
+	assert_int_equal(fstat(s.fd, &sb), 0);
+	assert_int_equal(sb.st_mode & 0777, 0660);
+	assert_int_equal((long)sb.st_gid, gid);
+	mlip_shm_close(&s);
+}
+
+/* Attaching tools trust their own user's segment, root's, and the user
+ * MLIP_SHM_OWNER names; never one every user may write. */
+static void test_attach_checks_owner(void **state)
+{
+	struct mlip_shm s, a;
+	struct mlip_machine m;
+	char why[256] = "";
+
+	(void)state;
+	if (geteuid() != 0) {
+		skip();
+	}
+	machine(&m, 3);
+	unsetenv("MLIP_SHM_OWNER");
+	assert_int_equal(mlip_shm_create(&s, name, CAP, &m, why, sizeof(why)), 0);
+	assert_int_equal(mlip_shm_attach(&a, name, why, sizeof(why)), 0); /* ours */
+	mlip_shm_close(&a);
+	assert_int_equal(fchown(s.fd, NOBODY, NOBODY), 0);
+	assert_int_equal(mlip_shm_attach(&a, name, why, sizeof(why)), -EPERM);
+	assert_contains(why, "neither you (root) nor root");
+	assert_contains(why, "set MLIP_SHM_OWNER=");
+	assert_null(a.mem);
+	assert_int_equal(a.fd, -1);
+	setenv("MLIP_SHM_OWNER", "65534", 1);
+	assert_int_equal(mlip_shm_attach(&a, name, why, sizeof(why)), 0);
+	mlip_shm_close(&a);
+	setenv("MLIP_SHM_OWNER", "65533", 1);
+	assert_int_equal(mlip_shm_attach(&a, name, why, sizeof(why)), -EPERM);
+	/* a segment every user may write is refused even from a trusted owner */
+	setenv("MLIP_SHM_OWNER", "65534", 1);
+	assert_int_equal(fchmod(s.fd, 0662), 0);
+	assert_int_equal(mlip_shm_attach(&a, name, why, sizeof(why)), -EPERM);
+	assert_contains(why, "has mode 0662");
+	unsetenv("MLIP_SHM_OWNER");
+	mlip_shm_close(&s);
+}
+
 int main(void)
 {
 #define T(f) cmocka_unit_test_setup_teardown(f, setup, teardown)
@@ -481,6 +648,11 @@ int main(void)
 	    T(test_bad_arguments),
 	    T(test_controller_alive),
 	    T(test_now_ns),
+	    T(test_create_no_room),
+	    T(test_create_refuses_other_users_object),
+	    T(test_create_refuses_world_open),
+	    T(test_create_group),
+	    T(test_attach_checks_owner),
 	};
 #undef T
 
