@@ -57,7 +57,7 @@ enum {
 	EXIT_FAULT = 5      /* controller went to FAULT */
 };
 
-static volatile sig_atomic_t got_signal; /* the last one: SIGINT or SIGTERM */
+static volatile sig_atomic_t got_signal; /* the last one: SIGINT/TERM/HUP/QUIT */
 static volatile sig_atomic_t n_signals;  /* a second one cuts the stop wait short */
 
 static void on_signal(int sig)
@@ -84,8 +84,9 @@ static void usage(FILE *f)
 	        "exit status: 0 program complete, machine at rest; 1 nothing sent (program\n"
 	        "errors, no controller, another feeder); 2 usage; 3 controller stopped\n"
 	        "responding; 4 stopped on the path (mlip-ctl stop, or mlip-rt told to exit by\n"
-	        "SIGTERM/SIGINT); 5 controller fault;\n"
-	        "130/143 interrupted (SIGINT/SIGTERM): the machine was stopped on the path\n");
+	        "a signal); 5 controller fault;\n"
+	        "128+N interrupted by signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP, 131\n"
+	        "SIGQUIT): the machine was stopped on the path\n");
 }
 
 /* Relative sleep; a signal ends it early (no SA_RESTART), the caller looks at
@@ -427,7 +428,8 @@ static int wait_rest(struct feed *f, uint64_t t_max, uint64_t ack_hb)
 	}
 }
 
-/* SIGINT/SIGTERM: stop pushing, stop the machine on its path, report. */
+/* SIGINT/SIGTERM/SIGHUP/SIGQUIT: stop pushing, stop the machine on its path,
+ * report. */
 static int interrupted(struct feed *f)
 {
 	int sig = got_signal, w;
@@ -440,9 +442,10 @@ static int interrupted(struct feed *f)
 	close_line(f);
 	if (f->next_seq == f->first_seq) {
 		fprintf(stderr, PROG ": interrupted by %s: nothing was sent\n",
-		        sig == SIGINT ? "SIGINT" : "SIGTERM");
+		        mlip_cli_signal_name(sig));
 		return code;
 	}
+	fprintf(stderr, PROG ": %s: stopping the machine on the path\n", mlip_cli_signal_name(sig));
 	t0 = mlip_now_ns();
 	while ((rc = mlip_ring_cmd_post(f->r, MLIP_CMD_STOP, 0, &seq)) == MLIP_E_FULL &&
 	       mlip_now_ns() - t0 < CMD_WAIT_NS) {

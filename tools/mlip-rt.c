@@ -29,8 +29,7 @@ static volatile sig_atomic_t got_exit;
 
 static void on_signal(int sig)
 {
-	(void)sig;
-	got_exit = 1;
+	got_exit = sig; /* SIGINT, SIGTERM, SIGHUP or SIGQUIT */
 	ctl.exit_request = 1; /* a controlled stop on the path, then exit 0 */
 }
 
@@ -364,6 +363,10 @@ int main(int argc, char **argv)
 	}
 	if (rc < 0) {
 		fprintf(stderr, PROG ": cannot start the loop: %s\n", strerror(-rc));
+	}
+	if (got_exit) {
+		fprintf(stderr, PROG ": %s: stopped on the path, exiting\n",
+		        mlip_cli_signal_name(got_exit));
 	}
 
 	struct mlip_ring_status s;

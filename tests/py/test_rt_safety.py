@@ -57,3 +57,118 @@ def test_full_dev_shm_is_a_message_not_sigbus():
     assert p.returncode == 1, (p.returncode, p.stderr)
     assert "/mlip-full: no room for the segment's 656256 bytes in /dev/shm" in p.stderr
     assert "df -h /dev/shm" in p.stderr
+
+
+FLOWER_LINES = 6000
+
+
+@pytest.fixture
+def flower(tmp_path):
+    from conftest import TOOLPATHS
+    prog = tmp_path / "flower.ngc"
+    lines = (TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:FLOWER_LINES]
+    prog.write_text("".join(lines))
+    return prog
+
+
+def start_moving(controller, flower):
+    shm, rt = controller(CONFIG / "paper-2axis.ini")
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(flower)],
+                         stderr=subprocess.PIPE, text=True)
+    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50), "did not start"
+    s = status(shm)
+    assert s["state"] == "running", s
+    return shm, rt, f
+
+
+STOP_LINE = r"mlip-rt: stopped on the path: ([0-9.]+) mm in ([0-9]+) periods"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGHUP, signal.SIGTERM, signal.SIGINT, signal.SIGQUIT])
+def test_every_stop_signal_to_the_controller_stops_on_the_path(controller, flower, sig):
+    """Observed on main: SIGHUP (a closed terminal, a dropped ssh session)
+    killed mlip-rt mid-cut with no stop. Now each of the four: a controlled
+    stop on the path (a braking distance > 0 over more than one period: it
+    decelerates, it does not drop), exit 0, and the feeder says the program
+    stopped on the path (exit 4), not complete."""
+    import re
+    shm, rt, f = start_moving(controller, flower)
+    rt.send_signal(sig)
+    _, err = rt.communicate(timeout=15)
+    assert rt.returncode == 0, err
+    m = re.search(STOP_LINE, err)
+    assert m, err
+    mm, periods = float(m.group(1)), int(m.group(2))
+    # at the flower's speeds (well above 1 mm/s) braking at <= 1000 mm/s^2
+    # takes more than a period and more than a micrometre; a dropped machine
+    # would report neither
+    assert mm > 0.001 and periods > 1, err
+    assert f"mlip-rt: {signal.Signals(sig).name}: stopped on the path, exiting" in err
+    ferr = f.communicate(timeout=15)[1]
+    assert f.returncode == 4, ferr
+    assert "program stopped on the path at line" in ferr
+    assert "program complete" not in ferr
+
+
+@pytest.mark.parametrize("sig", [signal.SIGHUP, signal.SIGTERM])
+def test_sighup_to_the_feeder_is_sigterm(controller, flower, sig):
+    """Observed on main: SIGHUP killed mlip-feed silently (and the machine ran
+    on to the end of what it had). Now SIGHUP does what SIGTERM does: the
+    controller stops on the path, the feeder reports the line and the block
+    to resume from, exit 128 + signal."""
+    shm, rt, f = start_moving(controller, flower)
+    f.send_signal(sig)
+    ferr = f.communicate(timeout=15)[1]
+    assert f.returncode == 128 + sig, ferr
+    name = signal.Signals(sig).name
+    assert f"mlip-feed: {name}: stopping the machine on the path" in ferr
+    assert "interrupted: machine stopped on the path at line" in ferr, ferr
+    s = wait_for(lambda: (lambda s: s if s and s["state"] == "idle" else None)(status(shm)), 10)
+    assert s, status(shm)
+    assert s["stops"] >= 1 and s["stop_mm"] > 0.001 and s["stop_periods"] > 1, s
+    assert s["exec_seq"] < FLOWER_LINES  # stopped before the end of the program
+    assert rt.poll() is None  # the controller itself goes on
+
+
+UNIT = CONFIG.parent / "tools" / "systemd" / "mlip-rt.service"
+
+
+def unit_keys():
+    keys, section = {}, None
+    for line in UNIT.read_text().splitlines():
+        line = line.strip()
+        if not line or line[0] in "#;":
+            continue
+        if line.startswith("["):
+            section = line.strip("[]")
+            continue
+        k, v = line.split("=", 1)
+        keys[(section, k)] = v
+    return keys
+
+
+def test_systemd_unit_parses_and_brakes_before_the_kill(tmp_path):
+    """The shipped unit: systemd's own parser accepts every line (no unknown
+    key, no bad value: systemd-analyze only warns about those, so its
+    output must be empty), and the keys that make a stop safe are there."""
+    k = unit_keys()
+    s = lambda key: k[("Service", key)]
+    assert s("KillSignal") == "SIGTERM" and s("SendSIGHUP") == "no" and s("Restart") == "no"
+    assert s("KillMode") == "mixed"  # SIGTERM to mlip-rt alone; SIGKILL only after the timeout
+    assert int(s("TimeoutStopSec")) >= 10
+    assert s("LimitMEMLOCK") == "infinity"
+    argv = s("ExecStart").split()
+    prio = int(argv[argv.index("--priority") + 1])
+    assert 1 <= prio <= int(s("LimitRTPRIO"))
+    assert s("CPUAffinity") == argv[argv.index("--cpu") + 1]
+    # every option the unit passes is one mlip-rt knows
+    usage = subprocess.run([tool("mlip-rt"), "--help"], capture_output=True, text=True).stdout
+    for opt in (a for a in argv if a.startswith("--")):
+        assert f"  {opt} " in usage, opt
+    if shutil.which("systemd-analyze") is None:
+        pytest.skip("no systemd-analyze: the keys were checked above")
+    unit = tmp_path / "mlip-rt.service"
+    unit.write_text(UNIT.read_text().replace("/usr/local/bin/mlip-rt", tool("mlip-rt")))
+    p = subprocess.run(["systemd-analyze", "verify", "--man=no", str(unit)],
+                       capture_output=True, text=True)
+    assert p.returncode == 0 and p.stderr.strip() == "" and p.stdout.strip() == "", p.stderr

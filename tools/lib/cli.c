@@ -213,12 +213,41 @@ int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
 	return 0;
 }
 
+/* SIGHUP too: a lost terminal or ssh session must never drop a moving
+ * machine; SIGQUIT (Ctrl-\\) too: its default kills without a stop. The
+ * handler runs with the others blocked, so two at once cannot interleave. */
+static const int stop_signals[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT};
+
 void mlip_cli_on_stop_signals(void (*handler)(int))
 {
 	struct sigaction sa;
+	size_t i;
+
 	memset(&sa, 0, sizeof(sa));
 	sa.sa_handler = handler;
 	sigemptyset(&sa.sa_mask);
-	sigaction(SIGINT, &sa, NULL);
-	sigaction(SIGTERM, &sa, NULL);
+	for (i = 0; i < sizeof(stop_signals) / sizeof(stop_signals[0]); i++) {
+		sigaddset(&sa.sa_mask, stop_signals[i]);
+	}
+	for (i = 0; i < sizeof(stop_signals) / sizeof(stop_signals[0]); i++) {
+		sigaction(stop_signals[i], &sa, NULL);
+	}
+	/* a log reader that went away (mlip-rt | tee, the terminal closed) makes
+	 * a write fail with EPIPE instead of killing the process mid-stop */
+	signal(SIGPIPE, SIG_IGN);
+}
+
+const char *mlip_cli_signal_name(int sig)
+{
+	switch (sig) {
+	case SIGINT:
+		return "SIGINT";
+	case SIGTERM:
+		return "SIGTERM";
+	case SIGHUP:
+		return "SIGHUP";
+	case SIGQUIT:
+		return "SIGQUIT";
+	}
+	return "a signal";
 }

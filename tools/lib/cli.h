@@ -36,9 +36,12 @@ const char *mlip_cli_strategy_name(mlip_strategy st);
 /* Strict number parsing for options: whole string, finite. 0 or -1. */
 int mlip_cli_number(const char *s, double *out);
 
-/* SIGINT and SIGTERM call handler; no SA_RESTART, so a signal ends a sleep
- * or a blocking call at once (the tools turn it into a controlled stop). */
+/* SIGINT, SIGTERM, SIGHUP and SIGQUIT call handler; no SA_RESTART, so a
+ * signal ends a sleep or a blocking call at once (the tools turn it into a
+ * controlled stop). SIGPIPE is ignored. */
 void mlip_cli_on_stop_signals(void (*handler)(int));
+/* "SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT" (else "a signal"). */
+const char *mlip_cli_signal_name(int sig);
 
 /* The limits a trace of machine m is judged against. */
 struct mlip_check_limits;
