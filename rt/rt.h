@@ -110,7 +110,7 @@ struct mlip_rt_report {
 	int fifo;          /* the thread really runs SCHED_FIFO */
 	int locked;        /* mlockall succeeded */
 	int pinned;        /* CPU affinity set */
-	char warnings[512];/* what is not real-time and what to change, one per line */
+	char warnings[1024];/* what is not real-time and what to change, one per line */
 };
 
 /* Lock memory and prefault (call before creating the loop). */

@@ -17,6 +17,7 @@
 #include <stdio.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <sys/utsname.h>
 #include <time.h>
 #include <unistd.h>
@@ -24,7 +25,15 @@
 #include "rt.h"
 
 #define NS 1000000000LL
+/* The loop thread's stack, sized explicitly: the default (RLIMIT_STACK, often
+ * 8 MiB) under mlockall(MCL_FUTURE) is locked whole and alone exhausts a
+ * typical 8 MiB RLIMIT_MEMLOCK of an unprivileged user (pthread_create then
+ * fails with EAGAIN). The loop needs a few KiB; half of it is prefaulted. */
+#define LOOP_STACK (512 * 1024)
 #define STACK_PREFAULT (256 * 1024)
+/* Locked memory that must still fit after mlockall: the loop's stack, the
+ * tools' other small threads, stdio and libc's first allocations. */
+#define LOCK_HEADROOM (LOOP_STACK + 1024 * 1024)
 
 static volatile sig_atomic_t stop_flag;
 static int dma_latency_fd = -1; /* held open: the request lasts while it is */
@@ -57,16 +66,58 @@ static int read_flag_file(const char *path, char *buf, size_t len)
 	return (int)n;
 }
 
+/* RLIMIT_MEMLOCK in KiB for messages; -1 when unlimited. */
+static long memlock_kib(void)
+{
+	struct rlimit rl;
+
+	if (getrlimit(RLIMIT_MEMLOCK, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY) {
+		return -1;
+	}
+	return (long)(rl.rlim_cur / 1024);
+}
+
+/* mlockall, then check that what the loop still has to map fits the limit
+ * (a trial mapping of LOCK_HEADROOM under MCL_FUTURE fails with EAGAIN when it
+ * would not). When it does not fit, unlock and say which limit to raise:
+ * better a loop that runs unlocked with a warning than one that cannot
+ * start. Root (CAP_IPC_LOCK) is not bound by the limit. */
+static void lock_memory(struct mlip_rt_report *rep)
+{
+	char line[320];
+	long lim = memlock_kib();
+	void *probe;
+
+	if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
+		snprintf(line, sizeof(line),
+		         "memory not locked (mlockall: %s; RLIMIT_MEMLOCK %ld KiB): page faults can "
+		         "stall the loop; run as root, or raise the limit (ulimit -l unlimited, "
+		         "LimitMEMLOCK=infinity, memlock in /etc/security/limits.conf)",
+		         strerror(errno), lim);
+		warn(rep, line);
+		return;
+	}
+	probe = mmap(NULL, LOCK_HEADROOM, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+	if (probe != MAP_FAILED) {
+		munmap(probe, LOCK_HEADROOM);
+		rep->locked = 1;
+		return;
+	}
+	munlockall();
+	snprintf(line, sizeof(line),
+	         "memory not locked: RLIMIT_MEMLOCK (%ld KiB) leaves less than the %d KiB the "
+	         "loop still needs locked; page faults can stall the loop; run as root, or raise "
+	         "the limit (ulimit -l unlimited, LimitMEMLOCK=infinity, memlock in "
+	         "/etc/security/limits.conf)",
+	         lim, LOCK_HEADROOM / 1024);
+	warn(rep, line);
+}
+
 int mlip_rt_prepare(const struct mlip_rt_opts *o, struct mlip_rt_report *rep)
 {
 	memset(rep, 0, sizeof(*rep));
 	if (o->lock_memory) {
-		if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
-			rep->locked = 1;
-		} else {
-			warn(rep, "memory not locked (mlockall failed): page faults can stall the loop; "
-			          "run as root or raise RLIMIT_MEMLOCK (ulimit -l unlimited)");
-		}
+		lock_memory(rep);
 	}
 	if (o->priority > 0) {
 		/* ask now, so the warning comes before the loop starts */
@@ -180,6 +231,7 @@ int mlip_rt_run(const struct mlip_rt_opts *o, mlip_rt_fn fn, mlip_rt_after_fn af
 		return -EINVAL;
 	}
 	pthread_attr_init(&attr);
+	pthread_attr_setstacksize(&attr, LOOP_STACK);
 	if (o->priority > 0) {
 		struct sched_param sp = {.sched_priority = o->priority};
 		pthread_attr_setinheritsched(&attr, PTHREAD_EXPLICIT_SCHED);
@@ -209,6 +261,7 @@ int mlip_rt_run(const struct mlip_rt_opts *o, mlip_rt_fn fn, mlip_rt_after_fn af
 		warn(rep, "CPU pinning refused: that CPU does not exist or is not allowed");
 		pthread_attr_destroy(&attr);
 		pthread_attr_init(&attr);
+		pthread_attr_setstacksize(&attr, LOOP_STACK);
 		r = pthread_create(&th, &attr, loop_thread, &l);
 	}
 	pthread_attr_destroy(&attr);

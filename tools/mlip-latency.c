@@ -945,25 +945,8 @@ int main(int argc, char **argv)
 		}
 	}
 
-	/* ---- real-time set-up, as mlip-rt ---- */
-	struct mlip_rt_opts ro = {.period_ns = period_ns, .priority = o.priority, .cpu = o.cpu,
-	                          .lock_memory = o.lock_memory};
-	struct mlip_rt_report rep;
-	mlip_rt_prepare(&ro, &rep);
-	/* what was chosen away: mlip_rt_prepare warns only about what failed */
-	char chosen[256] = "";
-	if (o.priority == 0) {
-		snprintf(chosen, sizeof(chosen), "%s",
-		         "priority 0: the loop runs SCHED_OTHER, not real-time; mlip-rt runs -p 80\n");
-	}
-	if (!o.lock_memory) {
-		size_t used = strlen(chosen);
-		snprintf(chosen + used, sizeof(chosen) - used, "%s",
-		         "memory not locked (--no-mlockall): page faults can stall the loop; mlip-rt "
-		         "locks it\n");
-	}
-
-	/* histograms: allocated and touched now (mlockall covers them) */
+	/* histograms: allocated and touched now, before mlockall (MCL_CURRENT covers
+	 * them, and its RLIMIT_MEMLOCK check counts them) */
 	uint32_t keep = o.hist_us > KEEP_HIST_US ? o.hist_us : KEEP_HIST_US;
 	keep = keep < (uint32_t)(4 * (period_ns / BIN_NS)) ? (uint32_t)(4 * (period_ns / BIN_NS)) : keep;
 	for (int k = 0; k < S_N; k++) {
@@ -980,6 +963,11 @@ int main(int argc, char **argv)
 
 	pthread_t feeder_th, live_th;
 	int feeder_started = 0, live_started = 0;
+	/* helper threads: small stacks (the default, often 8 MiB, would be locked
+	 * whole and exhaust an unprivileged RLIMIT_MEMLOCK) */
+	pthread_attr_t small;
+	pthread_attr_init(&small);
+	pthread_attr_setstacksize(&small, 256 * 1024);
 	if (o.mode != MODE_IDLE) {
 		uint32_t cap = MLIP_RING_CAPACITY;
 		size_t bytes = mlip_ring_bytes(cap);
@@ -1015,11 +1003,30 @@ int main(int argc, char **argv)
 		feed.end_line = prog.lines;
 		while (feed_some(&feed) > 0) { /* the ring full before the first period */
 		}
-		if (pthread_create(&feeder_th, NULL, feeder_main, &feed) != 0) {
+		if (pthread_create(&feeder_th, &small, feeder_main, &feed) != 0) {
 			fprintf(stderr, PROG ": cannot start the feeder thread\n");
 			return 1;
 		}
 		feeder_started = 1;
+	}
+
+	/* ---- real-time set-up, as mlip-rt: after every allocation, so that
+	 * mlip_rt_prepare's memlock check sees what is really locked ---- */
+	struct mlip_rt_opts ro = {.period_ns = period_ns, .priority = o.priority, .cpu = o.cpu,
+	                          .lock_memory = o.lock_memory};
+	struct mlip_rt_report rep;
+	mlip_rt_prepare(&ro, &rep);
+	/* what was chosen away: mlip_rt_prepare warns only about what failed */
+	char chosen[256] = "";
+	if (o.priority == 0) {
+		snprintf(chosen, sizeof(chosen), "%s",
+		         "priority 0: the loop runs SCHED_OTHER, not real-time; mlip-rt runs -p 80\n");
+	}
+	if (!o.lock_memory) {
+		size_t used = strlen(chosen);
+		snprintf(chosen + used, sizeof(chosen) - used, "%s",
+		         "memory not locked (--no-mlockall): page faults can stall the loop; mlip-rt "
+		         "locks it\n");
 	}
 
 	mlip_cli_on_stop_signals(on_signal);
@@ -1039,7 +1046,7 @@ int main(int argc, char **argv)
 	}
 	fprintf(stderr, "%s%s", chosen, rep.warnings);
 	if (!o.quiet && isatty(STDERR_FILENO)) {
-		live_started = pthread_create(&live_th, NULL, live_main, NULL) == 0;
+		live_started = pthread_create(&live_th, &small, live_main, NULL) == 0;
 	}
 
 	struct mlip_rt_report run;

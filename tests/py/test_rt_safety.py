@@ -172,3 +172,72 @@ def test_systemd_unit_parses_and_brakes_before_the_kill(tmp_path):
     p = subprocess.run(["systemd-analyze", "verify", "--man=no", str(unit)],
                        capture_output=True, text=True)
     assert p.returncode == 0 and p.stderr.strip() == "" and p.stdout.strip() == "", p.stderr
+
+
+@ROOT_ONLY
+def test_unprivileged_controller_runs_a_program():
+    """Observed on main: mlip-rt as an ordinary user did not start ("cannot
+    start the loop: Resource temporarily unavailable": an 8 MiB default
+    thread stack under mlockall against the 8 MiB RLIMIT_MEMLOCK). Now: it
+    starts on SCHED_OTHER with the warnings, and runs a whole program fed by
+    the same user. A root feeder refuses that user's segment unless told
+    the controller's user (MLIP_SHM_OWNER)."""
+    from conftest import ROOT
+    shm = shm_name()
+    rt = subprocess.Popen(NOBODY + rt_cmd(shm), stderr=subprocess.PIPE, text=True)
+    env = dict(os.environ, MLIP_SHM_OWNER="nobody")
+    ctl = lambda: subprocess.run([tool("mlip-ctl"), "--shm", shm, "status", "--json"], env=env,
+                                 capture_output=True, text=True)
+    try:
+        assert wait_for(lambda: ctl().returncode == 0), "controller did not come up"
+        assert os.stat("/dev/shm" + shm).st_uid == 65534
+        demo = ROOT / "examples" / "demo.ngc"
+        p = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", str(demo)],
+                           capture_output=True, text=True, timeout=30)
+        assert p.returncode == 1 and f"segment {shm} belongs to nobody, neither you (root) " \
+            "nor root" in p.stderr and "MLIP_SHM_OWNER=nobody" in p.stderr, p.stderr
+        p = subprocess.run(NOBODY + [tool("mlip-feed"), "--shm", shm, str(demo)],
+                           capture_output=True, text=True, timeout=60)
+        assert p.returncode == 0 and "program complete" in p.stderr, p.stderr
+        assert status(shm) is None  # root's mlip-ctl refuses nobody's segment too
+        s = ctl()
+        assert '"exec_seq": 1820' in s.stdout and '"state": "idle"' in s.stdout, s.stdout
+    finally:
+        rt.send_signal(signal.SIGTERM)
+        err = rt.communicate(timeout=10)[1]
+    assert rt.returncode == 0, err
+    assert "no SCHED_FIFO (not permitted): the loop runs SCHED_OTHER" in err
+    assert "cannot start the loop" not in err and "1820 records taken" in err, err
+
+
+@ROOT_ONLY
+def test_memlock_too_small_runs_unlocked_and_names_the_limit():
+    """A memlock limit that mlockall fits but the loop's stack would not:
+    unlocked, with the exact limit to raise, still running."""
+    if shutil.which("prlimit") is None:
+        pytest.skip("no prlimit")
+    shm = shm_name()
+    rt = subprocess.Popen(NOBODY + ["prlimit", "--memlock=6500000"] + rt_cmd(shm),
+                          stderr=subprocess.PIPE, text=True)
+    try:
+        env = dict(os.environ, MLIP_SHM_OWNER="nobody")
+        up = lambda: subprocess.run([tool("mlip-ctl"), "--shm", shm, "status", "--json"],
+                                    env=env, capture_output=True, text=True).returncode == 0
+        assert wait_for(up), "controller did not come up"
+    finally:
+        rt.send_signal(signal.SIGHUP)
+        err = rt.communicate(timeout=10)[1]
+    assert rt.returncode == 0, err
+    assert "memory not locked: RLIMIT_MEMLOCK (6347 KiB) leaves less than the 1536 KiB" in err
+    assert "LimitMEMLOCK=infinity" in err and "memory locked" not in err
+
+
+@ROOT_ONLY
+def test_unprivileged_latency_tool_runs():
+    from conftest import ROOT
+    p = subprocess.run(NOBODY + [tool("mlip-latency"), "--plan", str(ROOT / "examples" / "demo.ngc"),
+                                 "-D", "1", "-q"], capture_output=True, text=True, timeout=30)
+    assert p.returncode == 0, p.stderr
+    out = p.stdout + p.stderr
+    assert "mlip-latency plan:" in out and "cannot start" not in out, out
+    assert "no SCHED_FIFO (not permitted)" in p.stderr and "memory not locked" in p.stderr
