@@ -1143,6 +1143,81 @@ static int bad_finite(struct sb *b, const struct mlip_machine *m, int axis, int 
 	return 1;
 }
 
+/* A limit at most max ("must be at most 1e6, got 2e6"). */
+static int bad_max(struct sb *b, const struct mlip_machine *m, int axis, int key, double v,
+                   double max)
+{
+	if (v <= max) {
+		return 0;
+	}
+	sb_field(b, m, axis, key);
+	sb_puts(b, " must be at most ");
+	sb_double(b, max);
+	sb_puts(b, ", got ");
+	sb_double(b, v);
+	return 1;
+}
+
+/* |x| at most MLIP_CONFIG_LIMIT_MAX. */
+static int bad_abs(struct sb *b, const struct mlip_machine *m, int axis, int key, double v)
+{
+	if (fabs(v) <= MLIP_CONFIG_LIMIT_MAX) {
+		return 0;
+	}
+	sb_field(b, m, axis, key);
+	sb_puts(b, " must be within -1e9..1e9, got ");
+	sb_double(b, v);
+	return 1;
+}
+
+/*
+ * The period against the contour tolerance. Each setpoint lies on the planned
+ * curve, which stays within eps of the polyline ((17)(18): a corner of
+ * acceleration a lasting t_m deviates by |a| t_m^2 / 8). Between two
+ * setpoints, though, a drive in cyclic synchronous position mode moves in a
+ * straight line, and a motion with |acceleration| <= a departs from the chord
+ * of one period by up to a T^2 / 8: the same bound (17) gives for a corner
+ * passed in one period, the bisector method's case (10). At the machine's
+ * full acceleration, |A| = sqrt(sum A_k^2) (the polygon's farthest vertex,
+ * Theorem 2), that must not exceed eps:
+ *     |A| T^2 / 8 <= eps   <=>   T <= sqrt(8 eps / |A|)
+ * (1 ms, 0.01 mm: |A| up to 80000 mm/s^2). A longer period is refused: the
+ * machine could cut corners by more than the whole tolerance between
+ * setpoints (at T = 0.1 s and 1000 mm/s^2 per axis, by 2 mm).
+ */
+static mlip_status check_period(const struct mlip_machine *m, struct sb *b, struct issue *is)
+{
+	double a2 = 0.0, amax = 0.0, dev, tmax;
+	int i;
+
+	for (i = 0; i < m->n_axes; i++) {
+		a2 += m->axis[i].max_accel * m->axis[i].max_accel;
+		if (m->axis[i].max_accel > amax) {
+			amax = m->axis[i].max_accel;
+			is->axis2 = i;
+		}
+	}
+	dev = sqrt(a2) * m->period_s * m->period_s / 8.0;
+	if (dev <= m->tolerance_mm) {
+		is->axis2 = -1;
+		return MLIP_OK;
+	}
+	tmax = sqrt(8.0 * m->tolerance_mm / sqrt(a2));
+	is->key = TK_PERIOD;
+	sb_puts(b, "TRAJ PERIOD ");
+	sb_double(b, m->period_s);
+	sb_puts(b, " s is too long for CONTOUR_TOLERANCE ");
+	sb_double(b, m->tolerance_mm);
+	sb_puts(b, " mm: between two setpoints the path may leave the curve by |A| T^2/8 = ");
+	sb_double(b, floor(dev * 1e6 + 0.5) / 1e6);
+	sb_puts(b, " mm (|A| = ");
+	sb_double(b, floor(sqrt(a2) + 0.5));
+	sb_puts(b, " mm/s^2, eq. 17); PERIOD must be at most ");
+	sb_double(b, floor(tmax * 1e6) / 1e6);
+	sb_puts(b, " s");
+	return MLIP_E_RANGE;
+}
+
 static mlip_status check_machine(const struct mlip_machine *m, struct mlip_config_error *err,
                                  struct issue *is)
 {
@@ -1163,15 +1238,22 @@ static mlip_status check_machine(const struct mlip_machine *m, struct mlip_confi
 		return MLIP_E_INVALID;
 	}
 	is->key = TK_VLIN;
-	if (bad_pos(&b, m, -1, TK_VLIN, m->max_feed_mm_s)) {
+	if (bad_pos(&b, m, -1, TK_VLIN, m->max_feed_mm_s) ||
+	    bad_max(&b, m, -1, TK_VLIN, m->max_feed_mm_s, MLIP_CONFIG_VEL_MAX)) {
 		return MLIP_E_RANGE;
 	}
 	is->key = TK_VANG;
-	if (bad_pos(&b, m, -1, TK_VANG, m->max_rot_feed_deg_s)) {
+	if (bad_pos(&b, m, -1, TK_VANG, m->max_rot_feed_deg_s) ||
+	    bad_max(&b, m, -1, TK_VANG, m->max_rot_feed_deg_s, MLIP_CONFIG_VEL_MAX)) {
 		return MLIP_E_RANGE;
 	}
 	is->key = TK_TOL;
 	if (bad_pos(&b, m, -1, TK_TOL, m->tolerance_mm)) {
+		return MLIP_E_RANGE;
+	}
+	if (m->tolerance_mm < MLIP_CONFIG_TOL_MIN) {
+		sb_puts(&b, "TRAJ CONTOUR_TOLERANCE must be at least 1e-6 mm, got ");
+		sb_double(&b, m->tolerance_mm);
 		return MLIP_E_RANGE;
 	}
 	is->key = TK_PERIOD;
@@ -1208,19 +1290,21 @@ static mlip_status check_machine(const struct mlip_machine *m, struct mlip_confi
 			return MLIP_E_INVALID;
 		}
 		is->key = AK_VEL;
-		if (bad_pos(&b, m, i, AK_VEL, a->max_vel)) {
+		if (bad_pos(&b, m, i, AK_VEL, a->max_vel) ||
+		    bad_max(&b, m, i, AK_VEL, a->max_vel, MLIP_CONFIG_VEL_MAX)) {
 			return MLIP_E_RANGE;
 		}
 		is->key = AK_ACC;
-		if (bad_pos(&b, m, i, AK_ACC, a->max_accel)) {
+		if (bad_pos(&b, m, i, AK_ACC, a->max_accel) ||
+		    bad_max(&b, m, i, AK_ACC, a->max_accel, MLIP_CONFIG_ACCEL_MAX)) {
 			return MLIP_E_RANGE;
 		}
 		is->key = AK_MIN;
-		if (bad_finite(&b, m, i, AK_MIN, a->min_limit)) {
+		if (bad_finite(&b, m, i, AK_MIN, a->min_limit) || bad_abs(&b, m, i, AK_MIN, a->min_limit)) {
 			return MLIP_E_RANGE;
 		}
 		is->key = AK_MAX;
-		if (bad_finite(&b, m, i, AK_MAX, a->max_limit)) {
+		if (bad_finite(&b, m, i, AK_MAX, a->max_limit) || bad_abs(&b, m, i, AK_MAX, a->max_limit)) {
 			return MLIP_E_RANGE;
 		}
 		is->key = AK_MIN; /* the pair: the parser points at the later key */
@@ -1269,13 +1353,14 @@ static mlip_status check_machine(const struct mlip_machine *m, struct mlip_confi
 			}
 		}
 		is->key = AK_CPU;
-		if (bad_pos(&b, m, i, AK_CPU, a->counts_per_unit)) {
+		if (bad_pos(&b, m, i, AK_CPU, a->counts_per_unit) ||
+		    bad_max(&b, m, i, AK_CPU, a->counts_per_unit, MLIP_CONFIG_COUNTS_MAX)) {
 			return MLIP_E_RANGE;
 		}
 	}
 	is->axis = -1;
 	is->key = -1;
-	return MLIP_OK;
+	return check_period(m, &b, is);
 }
 
 mlip_status mlip_machine_check(const struct mlip_machine *m, struct mlip_config_error *err)
@@ -1584,7 +1669,17 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
 	fill_can(&ps, &out.can);
 	st = check_machine(&out.machine, err, &is);
 	if (st != MLIP_OK) {
-		if (is.axis < 0) {
+		if (is.key == TK_PERIOD && is.axis2 >= 0) {
+			/* the period against eps and the largest acceleration: on
+			 * PERIOD when the file sets it, else on the later of the
+			 * tolerance and that acceleration */
+			int sec = SEC_AXIS0 + letter_index(out.machine.axis[is.axis2].letter);
+			if (has(&ps, SEC_TRAJ, TK_PERIOD)) {
+				place(&ps, err, SEC_TRAJ, TK_PERIOD, -1, 0, -1, 0);
+			} else {
+				place(&ps, err, SEC_TRAJ, TK_TOL, sec, AK_ACC, -1, 0);
+			}
+		} else if (is.axis < 0) {
 			place(&ps, err, SEC_TRAJ, is.key, -1, 0, -1, 0);
 		} else {
 			int sec = SEC_AXIS0 + letter_index(out.machine.axis[is.axis].letter);

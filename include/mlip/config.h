@@ -68,10 +68,18 @@
 
 #include "mlip/types.h"
 
-#define MLIP_CONFIG_MSG 160
+#define MLIP_CONFIG_MSG 256
 #define MLIP_CONFIG_MAX_LINE 512      /* bytes per line, line ending excluded */
 #define MLIP_CONFIG_PERIOD_MIN_S 1e-4 /* PERIOD range, inclusive */
 #define MLIP_CONFIG_PERIOD_MAX_S 0.1
+/* Largest values a machine may have (mlip_machine_check): beyond any real
+ * machine, small enough that positions, speeds and drive counts computed
+ * from them stay far from overflow and keep their precision in a double. */
+#define MLIP_CONFIG_ACCEL_MAX 1e6  /* MAX_ACCELERATION, mm/s^2 or deg/s^2 (100 g) */
+#define MLIP_CONFIG_VEL_MAX 1e5    /* MAX_VELOCITY, MAX_*_VELOCITY: mm/s or deg/s */
+#define MLIP_CONFIG_LIMIT_MAX 1e9  /* |MIN_LIMIT|, |MAX_LIMIT|, |HOME|, mm or deg */
+#define MLIP_CONFIG_COUNTS_MAX 1e7 /* COUNTS_PER_UNIT (0.1 nm per count) */
+#define MLIP_CONFIG_TOL_MIN 1e-6   /* CONTOUR_TOLERANCE, mm: 1 nm */
 
 struct mlip_config_error {
 	uint32_t line;  /* 1-based; 0 for a whole-file error (e.g. missing key) */
@@ -111,7 +119,10 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
                               struct mlip_config_error *err);
 
 /* Check a machine for consistency (2..6 distinct axes, positive limits,
- * min_limit < max_limit, home within limits, ...). Used after command-line
+ * min_limit < max_limit, home within limits, ...) and for the ranges that
+ * keep the guarantees: the MLIP_CONFIG_*_MAX bounds above, and the period
+ * against the tolerance: |A| T^2 / 8 <= eps, with |A| the norm of the
+ * per-axis MAX_ACCELERATION vector (see check_period in config.c). Used after command-line
  * overrides too. Messages name the field with its INI name, e.g.
  * "AXIS_Z MAX_ACCELERATION must be > 0, got -5"; err->line = err->col = 0.
  * MLIP_E_INVALID for the axis set (count, letters, kind), else MLIP_E_RANGE. */

@@ -49,16 +49,21 @@ def test_mlip_check_agrees_and_fails_on_violation(tmp_path):
     # the same trace judged against a lower acceleration limit must fail
     bad = run(["mlip-check", "--accel", "900", "--vmax", "200", f, trace], check=False)
     assert bad.returncode == 1 and "acceleration" in bad.stderr
-    # and a trace nudged 0.5 mm off the path somewhere must fail on contour
+    # and a trace nudged 0.02 mm off the path somewhere must fail on contour
+    # alone: limits high enough for the nudge's own acceleration (2 x 0.02 mm
+    # / T^2 = 4e4 mm/s^2), yet a machine the config check accepts
+    # (|A| T^2 / 8 <= eps: 45000 sqrt(3) 1e-6 / 8 = 0.0097 mm)
     lines = open(trace).read().splitlines()
     i = len(lines) // 2
     cols = lines[i].split(",")
-    cols[1] = repr(float(cols[1]) + 0.5)
-    cols[2] = repr(float(cols[2]) + 0.5)
+    cols[1] = repr(float(cols[1]) + 0.02)
+    cols[2] = repr(float(cols[2]) + 0.02)
     lines[i] = ",".join(cols)
     (tmp_path / "n.csv").write_text("\n".join(lines) + "\n")
-    bad = run(["mlip-check", "--accel", "1e9", "--vmax", "1e9", f, tmp_path / "n.csv"], check=False)
+    bad = run(["mlip-check", "--accel", "45000", "--vmax", "1e5", f, tmp_path / "n.csv"],
+              check=False)
     assert bad.returncode == 1 and "contour" in bad.stderr
+    assert "acceleration" not in bad.stderr and "velocity" not in bad.stderr, bad.stderr
 
 
 def test_rotary_config_trace_header(tmp_path):

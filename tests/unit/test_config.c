@@ -516,11 +516,22 @@ static void test_numbers(void **state)
 		         bad[i]);
 		EXPECT(CFG(.x = line), MLIP_E_SYNTAX, 9, 8, msg);
 	}
-	/* values through an axis with the widest limits there are */
+	/* values through an axis with the widest limits there are (1e9); larger
+	 * ones through the message that refuses them, which shows them %.9g */
 	for (i = 0; i < sizeof good / sizeof good[0]; i++) {
-		char x[200];
-		snprintf(x, sizeof x, "MIN_LIMIT = -1.79e308\nMAX_LIMIT = 1.79e308\nHOME = %s",
-		         good[i].text);
+		char x[200], msg[160], shown[40], *e;
+		if (fabs(good[i].v) > MLIP_CONFIG_LIMIT_MAX) {
+			snprintf(shown, sizeof shown, "%.9g", good[i].v);
+			if ((e = strstr(shown, "e+")) != NULL) { /* 1.7e+308 -> 1.7e308 */
+				memmove(e + 1, e + 2, strlen(e + 2) + 1);
+			}
+			snprintf(x, sizeof x, "MAX_LIMIT = %s", good[i].text);
+			snprintf(msg, sizeof msg, "AXIS_X MAX_LIMIT must be within -1e9..1e9, got %s",
+			         shown);
+			EXPECT(CFG(.x = x), MLIP_E_RANGE, 9, 1, msg);
+			continue;
+		}
+		snprintf(x, sizeof x, "MIN_LIMIT = -1e9\nMAX_LIMIT = 1e9\nHOME = %s", good[i].text);
 		EXPECT_OK(CFG(.x = x));
 		assert_near(cfg.machine.axis[0].home, good[i].v, fabs(good[i].v) * 1e-15);
 		if (strlen(good[i].text) < 12) { /* the fast path: exact, as the literal */
@@ -583,7 +594,11 @@ static void test_positive(void **state)
 	(void)state;
 	for (i = 0; i < sizeof keys / sizeof keys[0]; i++) {
 		for (j = 0; j <= sizeof vals / sizeof vals[0]; j++) {
-			const char *v = j < sizeof vals / sizeof vals[0] ? vals[j] : "1e-300";
+			/* the smallest positive accepted; a tolerance must also hold
+			 * |A| T^2 / 8 (1.8e-4 mm here, check_period) */
+			const char *v = j < sizeof vals / sizeof vals[0] ? vals[j]
+			                : keys[i].field == 1             ? "1.8e-4"
+			                                                 : "1e-300";
 			struct tpl t;
 			memset(&t, 0, sizeof t);
 			snprintf(line, sizeof line, "%s = %s", keys[i].key, v);
@@ -616,7 +631,8 @@ static void test_traj_ranges(void **state)
 	EXPECT_OK(CFG(.traj = "PERIOD = 1e-4"));
 	EXPECT(CFG(.traj = "PERIOD = 0.0000999"), MLIP_E_RANGE, 5, 10,
 	       "PERIOD must be within 0.0001..0.1 s, got 0.0000999");
-	EXPECT_OK(CFG(.traj = "PERIOD = 0.1"));
+	/* 0.1 s needs eps >= |A| T^2 / 8 = 1.77 mm at 1000 mm/s^2 on X and Y */
+	EXPECT_OK(CFG(.tol = "CONTOUR_TOLERANCE = 2", .traj = "PERIOD = 0.1"));
 	assert_true(cfg.machine.period_s == 0.1);
 	EXPECT(CFG(.traj = "PERIOD = 0.1000001"), MLIP_E_RANGE, 5, 10,
 	       "PERIOD must be within 0.0001..0.1 s, got 0.1000001");
@@ -977,7 +993,8 @@ static void test_check_limits(void **state)
 	for (i = 0; i < 6; i++) {
 		for (j = 0; j <= sizeof bad / sizeof bad[0]; j++) {
 			struct mlip_machine m = good_machine();
-			double v = j < sizeof bad / sizeof bad[0] ? bad[j].v : 1e-300;
+			/* the smallest accepted: a tolerance must hold |A| T^2 / 8 */
+			double v = j < sizeof bad / sizeof bad[0] ? bad[j].v : i == 5 ? 2.2e-4 : 1e-300;
 			double *f[6] = {&m.axis[1].max_vel,     &m.axis[2].max_accel,
 			                &m.axis[0].counts_per_unit, &m.max_feed_mm_s,
 			                &m.max_rot_feed_deg_s,  &m.tolerance_mm};
@@ -1001,6 +1018,7 @@ static void test_check_ranges(void **state)
 	m.period_s = 1e-4;
 	CHECK_OK(m);
 	m.period_s = 0.1;
+	m.tolerance_mm = 3; /* |A| T^2 / 8 = 2.17 mm at 1000 mm/s^2 on X, Y, Z */
 	CHECK_OK(m);
 	m.period_s = nextafter(1e-4, 0);
 	CHECK(m, MLIP_E_RANGE, "TRAJ PERIOD must be within 0.0001..0.1 s, got 0.0001");
@@ -1183,7 +1201,8 @@ static void test_random_period(void **state)
 		seed = seed * 1103515245u + 12345u;
 		p = ((seed >> 8) % 2000001) * 1e-7; /* 0 .. 0.2 in steps of 1e-7 */
 		snprintf(line, sizeof line, "PERIOD = %.7f", p);
-		st = parse(CFG(.traj = line));
+		/* a tolerance that any period up to 0.1 s fits (check_period) */
+		st = parse(CFG(.tol = "CONTOUR_TOLERANCE = 2", .traj = line));
 		if (p >= 1e-4 - 1e-12 && p <= 0.1 + 1e-12) {
 			assert_int_equal(st, MLIP_OK);
 			assert_near(cfg.machine.period_s, p, 1e-15);
@@ -1379,6 +1398,104 @@ static void test_shipped_rotary(void **state)
 	assert_near(m->max_rot_feed_deg_s, 720, 0);
 }
 
+/* The period against the tolerance (check_period): |A| T^2 / 8 <= eps, on
+ * both sides of the bound, with the reason and the largest period allowed. */
+static void test_period_against_tolerance(void **state)
+{
+	(void)state;
+	/* the observation of issue 9: 0.07 s with eps 0.01 mm was accepted */
+	EXPECT(CFG(.traj = "PERIOD = 0.07"), MLIP_E_RANGE, 5, 1,
+	       "TRAJ PERIOD 0.07 s is too long for CONTOUR_TOLERANCE 0.01 mm: between two "
+	       "setpoints the path may leave the curve by |A| T^2/8 = 0.866206 mm (|A| = 1414 "
+	       "mm/s^2, eq. 17); PERIOD must be at most 0.007521 s");
+	/* T_max = sqrt(8 * 0.01 / (1000 sqrt 2)) = 7.5212e-3 s */
+	EXPECT_OK(CFG(.traj = "PERIOD = 0.0075"));
+	EXPECT(CFG(.traj = "PERIOD = 0.00753"), MLIP_E_RANGE, 5, 1,
+	       "TRAJ PERIOD 0.00753 s is too long for CONTOUR_TOLERANCE 0.01 mm: between two "
+	       "setpoints the path may leave the curve by |A| T^2/8 = 0.010023 mm (|A| = 1414 "
+	       "mm/s^2, eq. 17); PERIOD must be at most 0.007521 s");
+	/* eps scales the bound linearly: 4x eps, 2x the period */
+	EXPECT_OK(CFG(.tol = "CONTOUR_TOLERANCE = 0.04", .traj = "PERIOD = 0.015"));
+	EXPECT(CFG(.tol = "CONTOUR_TOLERANCE = 0.04", .traj = "PERIOD = 0.0151"), MLIP_E_RANGE, 5,
+	       1,
+	       "TRAJ PERIOD 0.0151 s is too long for CONTOUR_TOLERANCE 0.04 mm: between two "
+	       "setpoints the path may leave the curve by |A| T^2/8 = 0.040307 mm (|A| = 1414 "
+	       "mm/s^2, eq. 17); PERIOD must be at most 0.015042 s");
+	/* PERIOD not given (1 ms): the acceleration makes it too long; placed on
+	 * the later of CONTOUR_TOLERANCE (line 4) and that MAX_ACCELERATION */
+	EXPECT(CFG(.yacc = "MAX_ACCELERATION = 90000"), MLIP_E_RANGE, 12, 1,
+	       "TRAJ PERIOD 0.001 s is too long for CONTOUR_TOLERANCE 0.01 mm: between two "
+	       "setpoints the path may leave the curve by |A| T^2/8 = 0.011251 mm (|A| = 90006 "
+	       "mm/s^2, eq. 17); PERIOD must be at most 0.000942 s");
+	EXPECT_OK(CFG(.yacc = "MAX_ACCELERATION = 79000"));
+	/* every shipped machine keeps it at its own period */
+}
+
+/* Upper bounds: values beyond any machine, refused with the bound. */
+static void test_upper_bounds(void **state)
+{
+	(void)state;
+	EXPECT_OK(CFG(.traj = "PERIOD = 0.0001", .xacc = "MAX_ACCELERATION = 1e6"));
+	EXPECT(CFG(.traj = "PERIOD = 0.0001", .xacc = "MAX_ACCELERATION = 1000001"), MLIP_E_RANGE, 8,
+	       1, "AXIS_X MAX_ACCELERATION must be at most 1000000, got 1000001");
+	EXPECT_OK(CFG(.xvel = "MAX_VELOCITY = 1e5"));
+	EXPECT(CFG(.yvel = "MAX_VELOCITY = 100001"), MLIP_E_RANGE, 11, 1,
+	       "AXIS_Y MAX_VELOCITY must be at most 100000, got 100001");
+	EXPECT(CFG(.vlin = "MAX_LINEAR_VELOCITY = 2e5"), MLIP_E_RANGE, 3, 1,
+	       "TRAJ MAX_LINEAR_VELOCITY must be at most 100000, got 200000");
+	EXPECT(CFG(.traj = "MAX_ANGULAR_VELOCITY = 1e6"), MLIP_E_RANGE, 5, 1,
+	       "TRAJ MAX_ANGULAR_VELOCITY must be at most 100000, got 1000000");
+	EXPECT_OK(CFG(.x = "COUNTS_PER_UNIT = 1e7"));
+	EXPECT(CFG(.x = "COUNTS_PER_UNIT = 1.5e7"), MLIP_E_RANGE, 9, 1,
+	       "AXIS_X COUNTS_PER_UNIT must be at most 10000000, got 15000000");
+	EXPECT_OK(CFG(.x = "MIN_LIMIT = -1e9"));
+	EXPECT(CFG(.x = "MIN_LIMIT = -1.5e9"), MLIP_E_RANGE, 9, 1,
+	       "AXIS_X MIN_LIMIT must be within -1e9..1e9, got -1.5e9");
+	EXPECT(CFG(.tol = "CONTOUR_TOLERANCE = 9e-7", .traj = "PERIOD = 0.0001"), MLIP_E_RANGE, 4, 1,
+	       "TRAJ CONTOUR_TOLERANCE must be at least 1e-6 mm, got 9e-7");
+}
+
+/* Random machines: accepted exactly when |A| T^2 / 8 <= eps (away from ties). */
+static void test_random_period_against_tolerance(void **state)
+{
+	unsigned seed = 11;
+	char tol[64], traj[64], xacc[64], yacc[64];
+	int i, ok = 0, refused = 0;
+
+	(void)state;
+	for (i = 0; i < 3000; i++) {
+		double t, e, ax, ay, dev;
+		mlip_status st;
+		seed = seed * 1103515245u + 12345u;
+		t = 1e-4 + ((seed >> 8) % 99901) * 1e-6;           /* 0.1 .. 100 ms */
+		seed = seed * 1103515245u + 12345u;
+		e = 1e-3 * (1 + (seed >> 8) % 1000);                /* 0.001 .. 1 mm */
+		seed = seed * 1103515245u + 12345u;
+		ax = 10.0 * (1 + (seed >> 8) % 10000);              /* 10 .. 1e5 */
+		seed = seed * 1103515245u + 12345u;
+		ay = 10.0 * (1 + (seed >> 8) % 10000);
+		dev = sqrt(ax * ax + ay * ay) * t * t / 8;
+		if (fabs(dev - e) < 1e-9 * e) {
+			continue;
+		}
+		snprintf(tol, sizeof tol, "CONTOUR_TOLERANCE = %.3f", e);
+		snprintf(traj, sizeof traj, "PERIOD = %.6f", t);
+		snprintf(xacc, sizeof xacc, "MAX_ACCELERATION = %.0f", ax);
+		snprintf(yacc, sizeof yacc, "MAX_ACCELERATION = %.0f", ay);
+		st = parse(CFG(.tol = tol, .traj = traj, .xacc = xacc, .yacc = yacc));
+		assert_int_equal(st, dev <= e ? MLIP_OK : MLIP_E_RANGE);
+		if (st == MLIP_OK) {
+			ok++;
+		} else {
+			refused++;
+			if (strstr(err.msg, "is too long for CONTOUR_TOLERANCE") == NULL) {
+				fail_msg("%s", err.msg);
+			}
+		}
+	}
+	assert_true(ok > 100 && refused > 100); /* both sides were exercised */
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1408,6 +1525,9 @@ int main(void)
 	    cmocka_unit_test(test_check_number_format),
 	    cmocka_unit_test(test_random_edits),
 	    cmocka_unit_test(test_random_period),
+	    cmocka_unit_test(test_period_against_tolerance),
+	    cmocka_unit_test(test_upper_bounds),
+	    cmocka_unit_test(test_random_period_against_tolerance),
 	    cmocka_unit_test(test_load),
 	    cmocka_unit_test(test_perror),
 	    cmocka_unit_test(test_shipped_mill),

@@ -99,9 +99,10 @@ static const struct expect table[] = {
 	/* [[[[[[TRAJ]]]]]]: the name ends at the first ']', the rest is junk */
 	{"config-deep-brackets.ini", 0, 2, 1, 1, "unexpected character '['",
 	 SYN, 1, 12, "unexpected ']' after section header"},
-	/* -1e308, DBL_MAX typed out, 1e-320 (subnormal), 4.9e-324: all accepted */
+	/* -1e308, DBL_MAX typed out, 1e-320 (subnormal), 4.9e-324: all read as
+	 * numbers, then refused by the machine's bounds (MLIP_CONFIG_*_MAX) */
 	{"config-e308.ini", 0, 15, 1, 1, "unexpected character '['",
-	 OK, 0, 0, NULL},
+	 RNG, 3, 1, "TRAJ MAX_LINEAR_VELOCITY must be at most 100000, got 1e308"},
 	{"config-exponent-bad.ini", 0, 5, 1, 1, "unexpected character '['",
 	 SYN, 4, 21, "malformed number '1e' for CONTOUR_TOLERANCE"},
 	/* +2E+2, 1.e-3, .1e4, 000001e3, -0e0, 0x0080, 0X7fF, 0010 (decimal) */
