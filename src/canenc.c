@@ -10,8 +10,6 @@
 #include <math.h>
 #include <string.h>
 
-#define CANOPEN_NODE_MAX 127
-
 /* ---- little-endian fields ------------------------------------------------ */
 
 static void put_u32(uint8_t *p, uint32_t v)
@@ -150,29 +148,11 @@ static uint8_t fd_flags_for(uint32_t bitrate, uint32_t data_bitrate)
 
 /* ---- encoder ---------------------------------------------------------------- */
 
-static int ids_ok(const uint32_t *ids, int n, uint32_t status_id)
-{
-	int i, j;
-
-	for (i = 0; i < n; i++) {
-		if (ids[i] > MLIP_CAN_SFF_MAX || ids[i] == status_id) {
-			return 0;
-		}
-		for (j = 0; j < i; j++) {
-			if (ids[i] == ids[j]) {
-				return 0;
-			}
-		}
-	}
-	return 1;
-}
-
 mlip_status mlip_canenc_init(struct mlip_canenc *e, const struct mlip_can_config *can,
                              const struct mlip_machine *m)
 {
 	char name[sizeof(can->profile) + 1];
-	uint32_t ids[MLIP_CAN_MAX_FRAMES];
-	int i, n, nid = 0;
+	int i, n;
 
 	memset(e, 0, sizeof(*e));
 	memcpy(name, can->profile, sizeof(can->profile));
@@ -182,6 +162,10 @@ mlip_status mlip_canenc_init(struct mlip_canenc *e, const struct mlip_can_config
 	}
 	n = m->n_axes;
 	if (n < 1 || n > MLIP_MAX_AXES) {
+		return MLIP_E_INVALID;
+	}
+	/* the identifiers: one set of rules, the INI reader's (mlip/config.h) */
+	if (mlip_can_config_check(can, m, NULL) != MLIP_OK) {
 		return MLIP_E_INVALID;
 	}
 	e->n_axes = n;
@@ -197,33 +181,7 @@ mlip_status mlip_canenc_init(struct mlip_canenc *e, const struct mlip_can_config
 			return MLIP_E_INVALID;
 		}
 		e->counts_per_unit[i] = a->counts_per_unit;
-		if (e->profile == MLIP_CAN_CIA402 &&
-		    (a->can_node < 1 || a->can_node > CANOPEN_NODE_MAX)) {
-			return MLIP_E_INVALID;
-		}
 		e->node[i] = (uint8_t)(a->can_node >= 0 && a->can_node <= 255 ? a->can_node : 0);
-	}
-	switch (e->profile) {
-	case MLIP_CAN_CIA402:
-		ids[nid++] = e->sync_id;
-		for (i = 0; i < n; i++) {
-			ids[nid++] = e->rpdo_base + e->node[i]; /* twice: a node used twice */
-		}
-		break;
-	case MLIP_CAN_PACKED:
-		for (i = 0; i <= pos_frames(n); i++) {
-			ids[nid++] = e->packed_base + (uint32_t)i;
-		}
-		break;
-	case MLIP_CAN_FD:
-		ids[nid++] = e->fd_id;
-		break;
-	}
-	/* a base above 0x7FF could wrap back into range when a node is added */
-	if ((e->profile == MLIP_CAN_CIA402 && e->rpdo_base > MLIP_CAN_SFF_MAX) ||
-	    (e->profile == MLIP_CAN_PACKED && e->packed_base > MLIP_CAN_SFF_MAX) ||
-	    !ids_ok(ids, nid, can->status_id)) {
-		return MLIP_E_INVALID;
 	}
 	return MLIP_OK;
 }

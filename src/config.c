@@ -1533,73 +1533,201 @@ static void fill_can(const struct pstate *ps, struct mlip_can_config *can)
 	}
 }
 
-/* The CAN ids that need the axes: every RPDO_BASE + node an 11-bit id; with
- * cia402, SYNC_ID and STATUS_ID clear of those RPDOs; SYNC_ID != STATUS_ID;
- * with fd, a data phase no slower than the arbitration phase. */
-static mlip_status check_can(const struct pstate *ps, const struct mlip_config *c,
-                             struct mlip_config_error *err)
+/* ---- CAN ids: the one home of their rules ---------------------------------
+ *
+ * Used by the INI reader (placed on the keys involved), by mlip_canenc_init
+ * and by mlip-rt after --profile (mlip_can_config_check), so that what the
+ * reader accepts the encoder accepts, and the reverse. For the profile in
+ * force, every identifier sent each period (cia402: SYNC_ID and RPDO_BASE +
+ * CAN_NODE of each axis; packed: PACKED_BASE + k for the ceil(n/2) position
+ * frames and the commit frame; fd: FD_ID) is an 11-bit id, distinct from the
+ * others and from STATUS_ID; SYNC_ID != STATUS_ID; cia402 node ids 1..127;
+ * with fd, DATA_BITRATE >= BITRATE. */
+
+/* The keys an issue involves: up to three (sec, key), sec < 0 unused; an
+ * axis's key as SEC_AXIS0 + its index in the machine (mapped by the reader). */
+struct can_where {
+	int sec[3], key[3];
+};
+
+static void where(struct can_where *w, int s1, int k1, int s2, int k2, int s3, int k3)
 {
-	const struct mlip_machine *m = &c->machine;
-	const struct mlip_can_config *can = &c->can;
+	w->sec[0] = s1;
+	w->key[0] = k1;
+	w->sec[1] = s2;
+	w->key[1] = k2;
+	w->sec[2] = s3;
+	w->key[2] = k3;
+}
+
+/* "RPDO_BASE 0x200 + CAN_NODE 3 of AXIS_Z" (the id's sum follows) */
+static void sb_rpdo(struct sb *b, const struct mlip_can_config *can, const struct mlip_axis *a)
+{
+	sb_puts(b, "RPDO_BASE ");
+	sb_hex(b, can->rpdo_base, 3);
+	sb_puts(b, " + CAN_NODE ");
+	sb_uint(b, (uint64_t)a->can_node);
+	sb_puts(b, " of AXIS_");
+	sb_putc(b, a->letter);
+}
+
+static mlip_status can_rules(const struct mlip_can_config *can, const struct mlip_machine *m,
+                             struct mlip_config_error *err, struct can_where *w)
+{
 	const uint32_t other[2] = {can->sync_id, can->status_id};
 	static const char *const other_name[2] = {"SYNC_ID", "STATUS_ID"};
 	const int other_key[2] = {CK_SYNC, CK_STATUS};
+	char name[sizeof can->profile + 1];
 	struct sb b;
-	int i, j;
+	int i, j, prof = -1;
 
-	for (i = 0; i < m->n_axes; i++) {
-		int sec = SEC_AXIS0 + letter_index(m->axis[i].letter);
-		uint32_t id = can->rpdo_base + (uint32_t)m->axis[i].can_node;
-		if (id > ID_MAX) {
-			err_at(err, &b, 0, 0);
-			sb_puts(&b, "RPDO_BASE ");
-			sb_hex(&b, can->rpdo_base, 3);
-			sb_puts(&b, " + CAN_NODE ");
-			sb_uint(&b, (uint64_t)m->axis[i].can_node);
-			sb_puts(&b, " of AXIS_");
-			sb_putc(&b, m->axis[i].letter);
-			sb_puts(&b, " = ");
-			sb_hex(&b, id, 3);
-			sb_puts(&b, " is not an 11-bit id (at most 0x7FF)");
-			place(ps, err, SEC_CAN, CK_RPDO, sec, AK_NODE, -1, 0);
+	err_at(err, &b, 0, 0);
+	where(w, -1, 0, -1, 0, -1, 0);
+	memcpy(name, can->profile, sizeof can->profile);
+	name[sizeof can->profile] = '\0';
+	for (i = 0; i < 3; i++) {
+		if (strcmp(name, profiles[i]) == 0) {
+			prof = i;
+		}
+	}
+	if (prof < 0) {
+		sb_puts(&b, "PROFILE '");
+		sb_tok(&b, name, strlen(name));
+		sb_puts(&b, "' must be cia402, packed or fd");
+		where(w, SEC_CAN, CK_PROFILE, -1, 0, -1, 0);
+		return MLIP_E_INVALID;
+	}
+	if (m->n_axes < 1 || m->n_axes > MLIP_MAX_AXES) {
+		sb_puts(&b, "CAN output needs 1 to 6 axes");
+		return MLIP_E_INVALID;
+	}
+	for (i = 0; prof == 0 && i < m->n_axes; i++) {
+		const struct mlip_axis *a = &m->axis[i];
+		uint64_t id = (uint64_t)can->rpdo_base + (uint64_t)a->can_node;
+		if (a->can_node < 1 || a->can_node > NODE_MAX) {
+			sb_puts(&b, "AXIS_");
+			sb_putc(&b, a->letter);
+			sb_puts(&b, " CAN_NODE must be within 1..127 with PROFILE cia402");
+			where(w, SEC_AXIS0 + i, AK_NODE, SEC_CAN, CK_PROFILE, -1, 0);
 			return MLIP_E_RANGE;
 		}
-		for (j = 0; j < 2 && strcmp(can->profile, "cia402") == 0; j++) {
+		if (id > ID_MAX) {
+			sb_rpdo(&b, can, a);
+			sb_puts(&b, " = ");
+			sb_hex(&b, (uint32_t)(id > 0xFFFFFFFFu ? 0xFFFFFFFFu : id), 3);
+			sb_puts(&b, " is not an 11-bit id (at most 0x7FF)");
+			where(w, SEC_CAN, CK_RPDO, SEC_AXIS0 + i, AK_NODE, -1, 0);
+			return MLIP_E_RANGE;
+		}
+		for (j = 0; j < 2; j++) {
 			if (other[j] == id) {
-				err_at(err, &b, 0, 0);
 				sb_puts(&b, other_name[j]);
 				sb_putc(&b, ' ');
 				sb_hex(&b, other[j], 3);
 				sb_puts(&b, " is also the RPDO of AXIS_");
-				sb_putc(&b, m->axis[i].letter);
+				sb_putc(&b, a->letter);
 				sb_puts(&b, " (RPDO_BASE + CAN_NODE ");
-				sb_uint(&b, (uint64_t)m->axis[i].can_node);
+				sb_uint(&b, (uint64_t)a->can_node);
 				sb_putc(&b, ')');
-				place(ps, err, SEC_CAN, other_key[j], SEC_CAN, CK_RPDO, sec,
-				      AK_NODE);
+				where(w, SEC_CAN, other_key[j], SEC_CAN, CK_RPDO, SEC_AXIS0 + i, AK_NODE);
+				return MLIP_E_RANGE;
+			}
+		}
+		for (j = 0; j < i; j++) {
+			if (m->axis[j].can_node == a->can_node) {
+				sb_rpdo(&b, can, a);
+				sb_puts(&b, " is also the RPDO of AXIS_");
+				sb_putc(&b, m->axis[j].letter);
+				where(w, SEC_AXIS0 + i, AK_NODE, SEC_AXIS0 + j, AK_NODE, -1, 0);
 				return MLIP_E_RANGE;
 			}
 		}
 	}
 	if (can->sync_id == can->status_id) {
-		err_at(err, &b, 0, 0);
 		sb_puts(&b, "STATUS_ID ");
 		sb_hex(&b, can->status_id, 3);
 		sb_puts(&b, " is also the SYNC_ID");
-		place(ps, err, SEC_CAN, CK_STATUS, SEC_CAN, CK_SYNC, -1, 0);
+		where(w, SEC_CAN, CK_STATUS, SEC_CAN, CK_SYNC, -1, 0);
 		return MLIP_E_RANGE;
 	}
-	if (strcmp(can->profile, "fd") == 0 && can->data_bitrate < can->bitrate) {
-		err_at(err, &b, 0, 0);
+	if (prof == 1) {
+		/* ceil(n/2) position frames, then the commit frame */
+		int nf = (m->n_axes + 1) / 2;
+		for (i = 0; i <= nf; i++) {
+			uint64_t id = (uint64_t)can->packed_base + (uint64_t)i;
+			int over = id > ID_MAX;
+			if (!over && id != can->status_id) {
+				continue;
+			}
+			sb_puts(&b, "PACKED_BASE ");
+			sb_hex(&b, can->packed_base, 3);
+			sb_puts(&b, " + ");
+			sb_uint(&b, (uint64_t)i);
+			sb_puts(&b, " = ");
+			sb_hex(&b, (uint32_t)(id > 0xFFFFFFFFu ? 0xFFFFFFFFu : id), 3);
+			sb_puts(&b, i < nf ? " (position frame " : " (the commit frame");
+			if (i < nf) {
+				sb_uint(&b, (uint64_t)i);
+			}
+			sb_puts(&b, " of ");
+			sb_uint(&b, (uint64_t)m->n_axes);
+			sb_puts(&b, over ? " axes) is not an 11-bit id (at most 0x7FF)"
+			                 : " axes) is also the STATUS_ID");
+			where(w, SEC_CAN, CK_PACKED, SEC_CAN, over ? CK_PROFILE : CK_STATUS, SEC_CAN,
+			      CK_PROFILE);
+			return MLIP_E_RANGE;
+		}
+	}
+	if (prof == 2 && (can->fd_id > ID_MAX || can->fd_id == can->status_id)) {
+		sb_puts(&b, "FD_ID ");
+		sb_hex(&b, can->fd_id, 3);
+		sb_puts(&b, can->fd_id > ID_MAX ? " is not an 11-bit id (at most 0x7FF)"
+		                                : " is also the STATUS_ID");
+		where(w, SEC_CAN, CK_FD, SEC_CAN, CK_STATUS, SEC_CAN, CK_PROFILE);
+		return MLIP_E_RANGE;
+	}
+	if (prof == 2 && can->data_bitrate < can->bitrate) {
 		sb_puts(&b, "DATA_BITRATE ");
 		sb_uint(&b, can->data_bitrate);
 		sb_puts(&b, " must be >= BITRATE ");
 		sb_uint(&b, can->bitrate);
 		sb_puts(&b, " with PROFILE fd");
-		place(ps, err, SEC_CAN, CK_DBITRATE, SEC_CAN, CK_BITRATE, SEC_CAN, CK_PROFILE);
+		where(w, SEC_CAN, CK_DBITRATE, SEC_CAN, CK_BITRATE, SEC_CAN, CK_PROFILE);
 		return MLIP_E_RANGE;
 	}
 	return MLIP_OK;
+}
+
+mlip_status mlip_can_config_check(const struct mlip_can_config *can,
+                                  const struct mlip_machine *m, struct mlip_config_error *err)
+{
+	struct mlip_config_error dummy;
+	struct can_where w;
+
+	if (can == NULL || m == NULL) {
+		return MLIP_E_INVALID;
+	}
+	return can_rules(can, m, err != NULL ? err : &dummy, &w);
+}
+
+/* The [CAN] rules on a parsed file: the error on the latest of its keys. */
+static mlip_status check_can(const struct pstate *ps, const struct mlip_config *c,
+                             struct mlip_config_error *err)
+{
+	struct can_where w;
+	mlip_status st = can_rules(&c->can, &c->machine, err, &w);
+	int i;
+
+	if (st == MLIP_OK) {
+		return st;
+	}
+	for (i = 0; i < 3; i++) {
+		if (w.sec[i] >= SEC_AXIS0 && w.sec[i] < SEC_CAN) { /* machine index -> section */
+			w.sec[i] = SEC_AXIS0 + letter_index(c->machine.axis[w.sec[i] - SEC_AXIS0].letter);
+		}
+	}
+	place(ps, err, w.sec[0], w.key[0], w.sec[1], w.key[1], w.sec[2], w.key[2]);
+	return st;
 }
 
 /* ---- entry points -------------------------------------------------------- */

@@ -297,6 +297,14 @@ int main(int argc, char **argv)
 	if (bitrate > 0) {
 		cfg.can.bitrate = (uint32_t)bitrate;
 	}
+	/* the INI reader checked the ids for the file's profile; --profile and
+	 * --bitrate may change that: the same rules again, with the reason */
+	struct mlip_config_error cerr;
+	if (mlip_can_config_check(&cfg.can, &cfg.machine, &cerr) != MLIP_OK) {
+		fprintf(stderr, PROG ": %s: [CAN] with --profile %s: %s\n", config,
+		        mlip_can_profile_name(prof), cerr.msg);
+		return 1;
+	}
 	int use_can = strcmp(iface, "none") != 0;
 	if (use_can && bus_budget(&cfg, prof) != 0) {
 		return 1;

@@ -138,9 +138,8 @@ mlip_status mlip_can_counts(double pos, double counts_per_unit, int32_t *counts)
 
 /* Build an encoder from the [CAN] section and the machine. MLIP_E_INVALID
  * when: the profile name is unknown; n_axes is outside 1..MLIP_MAX_AXES;
- * counts_per_unit is not finite and > 0; (cia402) a node id is outside
- * 1..127 or used twice; any identifier the profile sends is above 0x7FF,
- * used twice, or equal to status_id. */
+ * counts_per_unit is not finite and > 0; the identifiers break the rules of
+ * mlip_can_config_check (mlip/config.h: its message says which and why). */
 mlip_status mlip_canenc_init(struct mlip_canenc *e, const struct mlip_can_config *can,
                              const struct mlip_machine *m);
 

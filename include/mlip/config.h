@@ -128,4 +128,16 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
  * MLIP_E_INVALID for the axis set (count, letters, kind), else MLIP_E_RANGE. */
 mlip_status mlip_machine_check(const struct mlip_machine *m, struct mlip_config_error *err);
 
+/* The CAN id rules, the one home of them (the INI reader, mlip_canenc_init
+ * and mlip-rt after --profile all use it): for the profile can->profile
+ * names, every identifier sent each period (cia402: SYNC_ID and RPDO_BASE +
+ * CAN_NODE, nodes 1..127, distinct; packed: PACKED_BASE + 0..ceil(n/2), the
+ * last the commit frame; fd: FD_ID) is an 11-bit id and not STATUS_ID;
+ * SYNC_ID != STATUS_ID; with fd, DATA_BITRATE >= BITRATE. MLIP_OK, or an
+ * error with the reason in err (may be NULL; line = col = 0), e.g.
+ * "PACKED_BASE 0x17F + 1 = 0x180 (position frame 1 of 3 axes) is also the
+ * STATUS_ID". */
+mlip_status mlip_can_config_check(const struct mlip_can_config *can,
+                                  const struct mlip_machine *m, struct mlip_config_error *err);
+
 #endif

@@ -18,6 +18,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "mlip/canenc.h"
 #include "mlip/config.h"
 #include "mlip/planner.h"
 
@@ -1496,6 +1497,88 @@ static void test_random_period_against_tolerance(void **state)
 	assert_true(ok > 100 && refused > 100); /* both sides were exercised */
 }
 
+/* The CAN id rules of issue 9: PROFILE packed with PACKED_BASE 0x17F passed
+ * the reader and was then refused by the encoder with no reason. One set of
+ * rules now, placed on the keys involved. */
+static void test_can_packed_and_fd_ids(void **state)
+{
+	(void)state;
+	EXPECT(CFG(.tail = "[CAN]\nPROFILE = packed\nPACKED_BASE = 0x17F"), MLIP_E_RANGE, 16, 1,
+	       "PACKED_BASE 0x17F + 1 = 0x180 (the commit frame of 2 axes) is also the STATUS_ID");
+	/* 2 axes: one position frame and the commit: 0x17E, 0x17F */
+	EXPECT_OK(CFG(.tail = "[CAN]\nPROFILE = packed\nPACKED_BASE = 0x17E"));
+	EXPECT(CFG(.tail = "[CAN]\nPACKED_BASE = 0x180\nPROFILE = packed"), MLIP_E_RANGE, 16, 1,
+	       "PACKED_BASE 0x180 + 0 = 0x180 (position frame 0 of 2 axes) is also the STATUS_ID");
+	EXPECT_OK(CFG(.tail = "[CAN]\nPROFILE = packed\nPACKED_BASE = 0x7FE"));
+	EXPECT(CFG(.tail = "[CAN]\nPROFILE = packed\nPACKED_BASE = 0x7FF"), MLIP_E_RANGE, 16, 1,
+	       "PACKED_BASE 0x7FF + 1 = 0x800 (the commit frame of 2 axes) is not an 11-bit id "
+	       "(at most 0x7FF)");
+	/* a base that is not the profile's is not sent: no rule */
+	EXPECT_OK(CFG(.tail = "[CAN]\nPACKED_BASE = 0x17F"));
+	EXPECT(CFG(.tail = "[CAN]\nPROFILE = fd\nFD_ID = 0x180"), MLIP_E_RANGE, 16, 1,
+	       "FD_ID 0x180 is also the STATUS_ID");
+	EXPECT(CFG(.tail = "[CAN]\nFD_ID = 0x180\nPROFILE = fd"), MLIP_E_RANGE, 16, 1,
+	       "FD_ID 0x180 is also the STATUS_ID");
+	EXPECT_OK(CFG(.tail = "[CAN]\nFD_ID = 0x180"));
+	/* cia402: nodes through the machine's own check; the RPDOs of 1..127 */
+	EXPECT_OK(CFG(.tail = "[CAN]\nRPDO_BASE = 0x7FC\nSTATUS_ID = 0x7FF"));
+	EXPECT(CFG(.tail = "[CAN]\nRPDO_BASE = 0x7FC\nSTATUS_ID = 0x7FE"), MLIP_E_RANGE, 16, 1,
+	       "STATUS_ID 0x7FE is also the RPDO of AXIS_Y (RPDO_BASE + CAN_NODE 2)");
+}
+
+/* The same rules through the public check and the encoder, on structs the
+ * reader never saw: accepted by one exactly when accepted by the other, and
+ * by the reader for the same values. */
+static void test_can_rules_one_home(void **state)
+{
+	unsigned seed = 5;
+	char tail[160];
+	int i, ok = 0, bad = 0;
+
+	(void)state;
+	for (i = 0; i < 2000; i++) {
+		static const char *const prof[3] = {"cia402", "packed", "fd"};
+		struct mlip_config_error e;
+		struct mlip_canenc enc;
+		uint32_t base, status, fd;
+		int p;
+		mlip_status a, b, c;
+		seed = seed * 1103515245u + 12345u;
+		p = (int)((seed >> 8) % 3);
+		seed = seed * 1103515245u + 12345u;
+		base = 0x7E0u + (seed >> 8) % 0x20u;
+		seed = seed * 1103515245u + 12345u;
+		status = 0x7E0u + (seed >> 8) % 0x20u;
+		seed = seed * 1103515245u + 12345u;
+		fd = 0x7E0u + (seed >> 8) % 0x20u;
+		snprintf(tail, sizeof tail,
+		         "[CAN]\nPROFILE = %s\nRPDO_BASE = 0x%X\nPACKED_BASE = 0x%X\nFD_ID = 0x%X\n"
+		         "STATUS_ID = 0x%X",
+		         prof[p], base, base, fd, status);
+		a = parse(CFG(.tail = tail));
+		mlip_config_defaults(&cfg);
+		assert_int_equal(parse(CFG(0)), MLIP_OK); /* the machine alone */
+		memcpy(cfg.can.profile, prof[p], strlen(prof[p]) + 1);
+		cfg.can.rpdo_base = base;
+		cfg.can.packed_base = base;
+		cfg.can.fd_id = fd;
+		cfg.can.status_id = status;
+		b = mlip_can_config_check(&cfg.can, &cfg.machine, &e);
+		c = mlip_canenc_init(&enc, &cfg.can, &cfg.machine);
+		assert_int_equal(a == MLIP_OK, b == MLIP_OK);
+		assert_int_equal(b == MLIP_OK, c == MLIP_OK);
+		if (b == MLIP_OK) {
+			ok++;
+		} else {
+			bad++;
+			assert_true(strlen(e.msg) > 20);
+		}
+	}
+	if (!(ok > 100 && bad > 100)) {
+		fail_msg("both sides: %d accepted, %d refused", ok, bad);
+	}
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1528,6 +1611,8 @@ int main(void)
 	    cmocka_unit_test(test_period_against_tolerance),
 	    cmocka_unit_test(test_upper_bounds),
 	    cmocka_unit_test(test_random_period_against_tolerance),
+	    cmocka_unit_test(test_can_packed_and_fd_ids),
+	    cmocka_unit_test(test_can_rules_one_home),
 	    cmocka_unit_test(test_load),
 	    cmocka_unit_test(test_perror),
 	    cmocka_unit_test(test_shipped_mill),
