@@ -43,7 +43,7 @@ def test_absurd_acceleration_refused(tmp_path):
     p = run(["mlip-sim", "--config", cfg, DEMO], check=False)
     assert p.returncode == 1
     assert re.search(r":\d+:1: error: AXIS_X MAX_ACCELERATION must be at most 1000000, got "
-                     r"1e9$", p.stderr, re.M), p.stderr, p.stderr
+                     r"1e9$", p.stderr, re.M), p.stderr
 
 
 def test_packed_base_refused_by_the_reader_with_the_reason(tmp_path):
