@@ -178,22 +178,25 @@ def check_bounds(config, js, quantum, max_abs, rel=1e-9):
     return bad
 
 
+def machine_of(config):
+    """The configuration as the C reader parsed it (mlip-config --json): one
+    INI reader for every tool, never a second one here."""
+    return json.loads(run([tool("mlip-config"), "--json", config]).stdout)
+
+
 class MachineLimits:
-    """The few [TRAJ]/[AXIS_*] numbers the checks need."""
+    """The few [TRAJ]/[AXIS_*] numbers the checks need (from machine_of)."""
 
     def __init__(self, config):
-        import configparser
-
-        cp = configparser.ConfigParser(inline_comment_prefixes=("#", ";"), interpolation=None)
-        cp.optionxform = str
-        cp.read(config)
-        self.axes = cp.get("TRAJ", "COORDINATES").split()
-        self.vmax = float(cp.get("TRAJ", "MAX_LINEAR_VELOCITY"))
-        self.eps = float(cp.get("TRAJ", "CONTOUR_TOLERANCE"))
-        self.period_s = float(cp.get("TRAJ", "PERIOD", fallback="0.001"))
-        self.accel = [float(cp.get("AXIS_" + a, "MAX_ACCELERATION")) for a in self.axes]
-        self.vel = [float(cp.get("AXIS_" + a, "MAX_VELOCITY")) for a in self.axes]
-        self.home = [float(cp.get("AXIS_" + a, "HOME", fallback="0")) for a in self.axes]
+        m = machine_of(config)["machine"]
+        axes = m["axes"]
+        self.axes = [a["letter"] for a in axes]
+        self.vmax = float(m["max_linear_velocity"])
+        self.eps = float(m["contour_tolerance"])
+        self.period_s = float(m["period"])
+        self.accel = [float(a["max_acceleration"]) for a in axes]
+        self.vel = [float(a["max_velocity"]) for a in axes]
+        self.home = [float(a["home"]) for a in axes]
 
 
 # ------------------------------------------------------------------ alignment

@@ -69,3 +69,45 @@ def test_packed_base_refused_by_the_reader_with_the_reason(tmp_path):
     assert p.returncode == 1
     assert f"mlip-rt: {cfg}: [CAN] with --profile packed: PACKED_BASE 0x17F + 1 = 0x180 " \
            "(position frame 1 of 3 axes) is also the STATUS_ID" in p.stderr, p.stderr
+
+
+def test_mlip_config_json_is_the_one_reader(tmp_path):
+    """mlip-config --json prints the machine as the C reader parsed it: the
+    Python tools ask it instead of reading the INI a second way."""
+    import json
+    for ini in sorted(CONFIG.glob("*.ini")):
+        d = json.loads(run(["mlip-config", "--json", ini]).stdout)
+        m, can = d["machine"], d["can"]
+        text = ini.read_text()
+        coords = re.search(r"(?m)^COORDINATES\s*=\s*([A-Z ]+?)\s*(#.*)?$", text).group(1)
+        assert m["coordinates"] == coords.replace(" ", "")
+        assert [a["letter"] for a in m["axes"]] == list(m["coordinates"])
+        # the frames of the profile, in send order, from the same id rules
+        if can["profile"] == "cia402":
+            assert [f["id"] for f in can["frames"]] == \
+                [can["sync_id"]] + [can["rpdo_base"] + a["can_node"] for a in m["axes"]]
+        if ini.name == "rotary-4axis.ini":
+            a = m["axes"][3]
+            assert a["type"] == "ANGULAR" and a["max_acceleration"] == 3600.0
+    # packed: ceil(n/2) position frames, then the commit
+    cfg = tmp_path / "p.ini"
+    cfg.write_text((CONFIG / "mill-3axis.ini").read_text())
+    d = json.loads(run(["mlip-config", "--json", "--profile", "packed", cfg]).stdout)
+    base = d["can"]["packed_base"]
+    assert d["can"]["frames"] == [{"id": base, "name": "POS 0"}, {"id": base + 1, "name": "POS 1"},
+                                  {"id": base + 2, "name": "COMMIT"}]
+    # an error is the reader's own, with file:line:col; nothing on stdout
+    cfg.write_text((CONFIG / "mill-3axis.ini").read_text().replace(
+        "MAX_ACCELERATION", "MAX_ACCEL", 1))
+    p = run(["mlip-config", "--json", cfg], check=False)
+    assert p.returncode == 1 and p.stdout == ""
+    assert re.search(r":\d+:1: error: unknown key MAX_ACCEL in \[AXIS_X\]", p.stderr), p.stderr
+
+
+def test_can_harness_reads_the_config_through_mlip_config():
+    import sys
+    sys.path.insert(0, str(ROOT / "tests" / "can"))
+    import rtharness
+    lim = rtharness.MachineLimits(CONFIG / "rotary-4axis.ini")
+    assert lim.axes == ["X", "Y", "Z", "A"] and lim.accel == [1000.0, 1000.0, 1000.0, 3600.0]
+    assert lim.period_s == 0.001 and lim.eps == 0.01 and lim.vel[3] == 720.0
