@@ -3,6 +3,8 @@
 #   make demo       the controller on vcan0 (or a VM) with the bundled program
 #   make run        the simulator on the bundled demo, all three strategies
 #   make test       install missing deps, build, run every test (what CI runs)
+#   make purity     the core (libmlip.a) uses libm and pure string functions only
+#   make tsan       ThreadSanitizer: the ring's thread tests, controller + feeder threads
 #   make can        the CAN tests alone (vcan0 on the host, or in a VM)
 #   make bench      Table 1 and Table 2 of the paper, redone
 #   make asan|ubsan the whole test suite under a sanitizer (build-asan/, build-ubsan/)
@@ -14,7 +16,7 @@ OPT     ?= -O2
 SAN     ?=
 CFLAGS  := -std=c99 -D_POSIX_C_SOURCE=200809L -D_DEFAULT_SOURCE $(OPT) -g \
            -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes -Wmissing-prototypes \
-           -Wno-unused-function -Werror -MMD -MP -Iinclude -Itools/lib -Irt $(SAN) $(EXTRA_CFLAGS)
+           -Wno-unused-function -Werror -MMD -MP $(SAN) $(EXTRA_CFLAGS)
 LDFLAGS := $(SAN) $(EXTRA_LDFLAGS)
 LDLIBS  := -lm
 
@@ -31,15 +33,26 @@ UNIT_BINS := $(UNIT_SRC:tests/unit/%.c=$(BUILD)/tests/%)
 BENCH_SRC := $(wildcard bench/bench_*.c)
 BENCH_BINS:= $(BENCH_SRC:bench/%.c=$(BUILD)/%)
 
-# rt/ needs libsocketcan and threads; tools that use rt/ link it.
+# rt/ needs libsocketcan and threads; only the tools and tests that use rt/
+# (those including rt.h) link it: mlip-sim, mlip-check, the benchmarks and
+# the pure unit tests build and run without rt/ and libsocketcan.
 RT_LIBS   := -lsocketcan -lpthread -lrt
+RT_TOOLS  := $(patsubst tools/%.c,$(BUILD)/%,$(shell grep -l '"rt.h"' $(TOOL_SRC) /dev/null))
+RT_TESTS  := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(shell grep -l '"rt.h"' $(UNIT_SRC) /dev/null))
 
-.PHONY: all test unit pytest can bench asan ubsan fuzz deps clean demo run
+# Layers: src/ sees include/ only (the pure core), rt/ include/ and itself,
+# tools/lib/ include/ and itself; tools and tests see everything.
+INC       := -Iinclude -Itools/lib -Irt
+$(LIB_OBJ): INC := -Iinclude
+$(RT_OBJ): INC := -Iinclude -Irt
+$(HOST_OBJ): INC := -Iinclude -Itools/lib
+
+.PHONY: all test unit pytest can bench asan ubsan fuzz deps clean demo run purity tsan
 all: $(BUILD)/libmlip.a $(TOOLS) $(UNIT_BINS) $(BENCH_BINS)
 
 $(BUILD)/obj/%.o: %.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) -c $< -o $@
+	$(CC) $(CFLAGS) $(INC) -c $< -o $@
 
 $(BUILD)/libmlip.a: $(LIB_OBJ)
 	@mkdir -p $(dir $@)
@@ -53,13 +66,17 @@ $(BUILD)/libmlip-rt.a: $(RT_OBJ)
 	@mkdir -p $(dir $@)
 	rm -f $@ && ar rcs $@ $^
 
-# Tools: host helpers + core; rt-based tools also get librt.
-$(BUILD)/mlip-%: $(BUILD)/obj/tools/mlip-%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a $(if $(RT_OBJ),$(BUILD)/libmlip-rt.a)
-	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(if $(RT_OBJ),$(BUILD)/libmlip-rt.a $(RT_LIBS)) $(BUILD)/libmlip.a $(LDLIBS)
+# Tools: host helpers + core; those using rt/ also get libmlip-rt.a and its
+# libraries (RT_TOOLS, RT_TESTS: target-specific, so the others never see them).
+$(RT_TOOLS) $(RT_TESTS): RT_LINK := $(BUILD)/libmlip-rt.a $(RT_LIBS)
+$(RT_TOOLS) $(RT_TESTS): $(BUILD)/libmlip-rt.a
 
-$(BUILD)/tests/test_%: $(BUILD)/obj/tests/unit/test_%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a $(if $(RT_OBJ),$(BUILD)/libmlip-rt.a)
+$(BUILD)/mlip-%: $(BUILD)/obj/tools/mlip-%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a
+	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(RT_LINK) $(BUILD)/libmlip.a $(LDLIBS)
+
+$(BUILD)/tests/test_%: $(BUILD)/obj/tests/unit/test_%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(if $(RT_OBJ),$(BUILD)/libmlip-rt.a $(RT_LIBS)) $(BUILD)/libmlip.a -lcmocka $(LDLIBS)
+	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(RT_LINK) $(BUILD)/libmlip.a -lcmocka -pthread $(LDLIBS)
 
 # test_shm fails posix_fallocate on demand (a full /dev/shm) through --wrap.
 $(BUILD)/tests/test_shm: LDFLAGS += -Wl,--wrap=posix_fallocate
@@ -70,8 +87,34 @@ $(BUILD)/bench_%: $(BUILD)/obj/bench/bench_%.o $(BUILD)/libmlip-host.a $(BUILD)/
 deps:
 	@tools/deps.sh
 
+# The core is pure: undefined symbols of libmlip.a against an allow-list;
+# and what must run without rt/ (mlip-sim, mlip-check, the benchmarks, the
+# pure unit tests) holds none of it.
+PURE_BINS := $(filter-out $(RT_TOOLS),$(TOOLS)) $(BENCH_BINS) $(filter-out $(RT_TESTS),$(UNIT_BINS))
+purity: $(BUILD)/libmlip.a $(PURE_BINS)
+	@tools/purity.sh $(BUILD)/libmlip.a
+	@for b in $(PURE_BINS); do \
+		if nm $$b | grep -q ' [TU] \(mlip_shm_\|mlip_rt_\|mlip_canio_\|can_do_\|can_get_\)'; then \
+			echo "purity: $$b links rt/ or libsocketcan"; exit 1; fi; done
+	@echo "purity: $(words $(PURE_BINS)) tools, benchmarks and tests without rt/ or libsocketcan"
+
+# ThreadSanitizer (build-tsan/): the ring's two-thread stress tests, then the
+# controller's loop thread and a feeder thread on one ring in one process
+# (mlip-latency --plan: the real tick, SCHED_OTHER, memory not locked, since
+# TSan's shadow memory must not be locked).
+tsan:
+	@$(MAKE) --no-print-directory BUILD=build-tsan OPT=-O1 SAN="-fsanitize=thread" \
+		build-tsan/tests/test_ring build-tsan/mlip-latency
+	TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/tests/test_ring
+	@TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/mlip-latency --plan examples/demo.ngc \
+		-D 3 -p 0 --no-mlockall -q >/dev/null 2>build-tsan/latency.err || \
+		{ cat build-tsan/latency.err; exit 1; }
+	@echo "tsan: no data race in the ring tests or the controller/feeder threads"
+
 # The main job on its bundled default: examples/demo.ngc on the 3-axis mill.
-run: all
+# demo, run and bench install what they need first, as test does.
+run: deps
+	@$(MAKE) --no-print-directory all
 	@$(BUILD)/mlip-sim --config config/mill-3axis.ini --trace $(BUILD)/demo-trace.csv \
 		--summary $(BUILD)/demo-summary.json examples/demo.ngc
 	@$(BUILD)/mlip-sim --config config/mill-3axis.ini --no-notes --strategy bisector examples/demo.ngc
@@ -89,13 +132,16 @@ pytest: all
 
 test: deps
 	@$(MAKE) --no-print-directory all
+	@$(MAKE) --no-print-directory purity
 	@$(MAKE) --no-print-directory unit
+	@$(MAKE) --no-print-directory tsan
 	@$(MAKE) --no-print-directory pytest
 	@$(MAKE) --no-print-directory can
 
 # The main job: mlip-rt + mlip-feed + the python-can listener on vcan0 (or
 # in the VM) with the bundled program; prints what happened, plots speed.
-demo: all
+demo: deps
+	@$(MAKE) --no-print-directory all
 	@tools/demo.sh
 
 # CAN tests on a real vcan0: on this host when it can make one, else in a
@@ -103,7 +149,8 @@ demo: all
 can: all
 	@tests/can/run-tests.sh
 
-bench: all
+bench: deps
+	@$(MAKE) --no-print-directory all
 	@. .venv/bin/activate 2>/dev/null; python3 bench/run.py --build $(BUILD)
 
 # libFuzzer targets for the G-code and config readers (ASan + UBSan),
@@ -117,7 +164,7 @@ ubsan:
 	@$(MAKE) --no-print-directory BUILD=build-ubsan OPT=-O1 SAN="-fsanitize=undefined -fno-sanitize-recover=all" unit pytest
 
 clean:
-	rm -rf build build-asan build-ubsan
+	rm -rf build build-asan build-ubsan build-tsan
 
 .SECONDARY:
 

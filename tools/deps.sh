@@ -1,10 +1,15 @@
 #!/bin/sh
 # Install what the build and the tests need, only when it is missing:
-# Debian packages with apt-get, Python packages into .venv.
+# Debian packages with apt-get, Python packages into .venv. The first step of
+# make test, demo, run and bench (their `deps` prerequisite).
 set -e
 cd "$(dirname "$0")/.."
 
 need=""
+# the build itself (make demo, run, bench and test all start here): a C
+# compiler with its ThreadSanitizer runtime (make tsan), nm (make purity)
+command -v cc >/dev/null 2>&1 || need="$need build-essential"
+command -v nm >/dev/null 2>&1 || need="$need binutils"
 [ -f /usr/include/cmocka.h ] || need="$need libcmocka-dev"
 [ -f /usr/include/libsocketcan.h ] || need="$need libsocketcan-dev"
 command -v valgrind >/dev/null 2>&1 || need="$need valgrind"
