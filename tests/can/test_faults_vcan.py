@@ -1,6 +1,6 @@
 """Faults during a run, on a real vcan0: the feeder killed, a feeder too
-slow, the controller killed, the CAN transmit queue full, a bus-off, SIGTERM
-and SIGINT, override storms with holds. Every run is judged on the positions
+slow, the controller killed, the CAN transmit queue full, a bus-off, SIGTERM,
+SIGINT, SIGHUP and SIGQUIT, override storms with holds. Every run is judged on the positions
 the listener decoded from the bus, with the physics checks of mlip-check
 (acceleration, axis velocity, tool speed, contour, and order: a sample is
 looked for on the program's polyline only from where the last one was, so
@@ -21,6 +21,8 @@ import struct
 import subprocess
 import time
 from pathlib import Path
+
+import pytest
 
 import rtharness as h
 from test_rt_vcan import DEMO, FLOWER, MILL, PAPER, bus_complete, cut, wait_periods
@@ -253,18 +255,20 @@ def test_feeder_too_slow(vcan, tmp_path):
            motion_periods=last - first, max_contour_mm=f"{js['max_contour_error_mm']:.5f}")
 
 
-def test_feeder_sigterm_stops_on_the_path(vcan, tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_feeder_sigterm_stops_on_the_path(vcan, tmp_path, sig):
     """SIGTERM to mlip-feed: it asks the controller to stop on the path and
-    exits 143 naming the line and the --start-seq to resume with."""
+    exits 143 naming the line and the --start-seq to resume with. SIGHUP (its
+    terminal or ssh session gone) does the same, exit 129."""
     with h.Rig(MILL, "cia402", tmp_path) as rig:
         f = rig.feeder(DEMO)
         before = rig.wait_state("running", timeout=120, pred=lambda s: s["exec_seq"] > 400)
-        f.p.send_signal(signal.SIGTERM)
+        f.p.send_signal(sig)
         rc = f.p.wait(timeout=120)
         err = f.stderr()
         f.kill()
         idle = rig.wait_state("idle", timeout=60)
-    assert rc == 143, err
+    assert rc == 128 + sig, err
     assert "interrupted: machine stopped on the path at line" in err, err
     r = rig.result
     setup = rig.setup
@@ -278,7 +282,7 @@ def test_feeder_sigterm_stops_on_the_path(vcan, tmp_path):
     assert resume == idle["exec_seq"] + 1, (err, idle)
     assert idle["stops"] == 1, idle
     check_stop(can, setup.cpu, i0, i_rest, idle["stop_mm"], idle["stop_periods"])
-    report("SIGTERM to mlip-feed", blocks_executed=f"{idle['exec_seq']} of 1819",
+    report(f"{signal.Signals(sig).name} to mlip-feed", blocks_executed=f"{idle['exec_seq']} of 1819",
            last_line=idle["exec_line"],
            stop_distance_mm=f"{idle['stop_mm']:.3f} in {idle['stop_periods']} periods")
 
@@ -387,6 +391,18 @@ def test_controller_sigterm_stops_then_exits(vcan, tmp_path):
 def test_controller_sigint_stops_then_exits(vcan, tmp_path):
     """SIGINT (Ctrl-C) to mlip-rt: the same controlled stop."""
     signal_rt(tmp_path, signal.SIGINT)
+
+
+def test_controller_sighup_stops_then_exits(vcan, tmp_path):
+    """SIGHUP to mlip-rt (its terminal closed, an ssh session dropped): the
+    same controlled stop, never a machine dropped mid-cut."""
+    r = signal_rt(tmp_path, signal.SIGHUP)
+    assert "mlip-rt: SIGHUP: stopped on the path, exiting" in r["rt_stderr"]
+
+
+def test_controller_sigquit_stops_then_exits(vcan, tmp_path):
+    """SIGQUIT (Ctrl-\\) to mlip-rt: the same controlled stop, no core dump."""
+    signal_rt(tmp_path, signal.SIGQUIT)
 
 
 # ------------------------------------------------------------------ the bus
