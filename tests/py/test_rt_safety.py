@@ -241,3 +241,35 @@ def test_unprivileged_latency_tool_runs():
     out = p.stdout + p.stderr
     assert "mlip-latency plan:" in out and "cannot start" not in out, out
     assert "no SCHED_FIFO (not permitted)" in p.stderr and "memory not locked" in p.stderr
+
+
+@ROOT_ONLY
+def test_shm_group_lets_its_members_feed():
+    """--shm-group: mode 0660 and that group; a member of it (another user)
+    feeds a whole program, naming the controller's user in MLIP_SHM_OWNER; a
+    user outside the group is refused by the kernel."""
+    from conftest import ROOT
+    shm = shm_name()
+    rt = subprocess.Popen(NOBODY + rt_cmd(shm, "--shm-group", "nogroup"), stderr=subprocess.PIPE,
+                          text=True)
+    env = dict(os.environ, MLIP_SHM_OWNER="nobody")
+    daemon = ["setpriv", "--reuid=daemon", "--regid=daemon"]
+    ctl = lambda: subprocess.run(daemon + ["--groups=nogroup", tool("mlip-ctl"), "--shm", shm,
+                                           "status", "--json"], env=env, capture_output=True,
+                                 text=True)
+    try:
+        assert wait_for(lambda: ctl().returncode == 0), "controller did not come up"
+        st = os.stat("/dev/shm" + shm)
+        assert st.st_mode & 0o777 == 0o660 and st.st_uid == 65534 and st.st_gid == 65534
+        demo = str(ROOT / "examples" / "demo.ngc")
+        p = subprocess.run(daemon + ["--groups=nogroup", tool("mlip-feed"), "--shm", shm, demo],
+                           env=env, capture_output=True, text=True, timeout=60)
+        assert p.returncode == 0 and "program complete" in p.stderr, p.stderr
+        p = subprocess.run(daemon + ["--clear-groups", tool("mlip-feed"), "--shm", shm, demo],
+                           env=env, capture_output=True, text=True, timeout=60)
+        assert p.returncode == 1 and "permission denied: run as mlip-rt's user or group" \
+            in p.stderr, p.stderr
+    finally:
+        rt.send_signal(signal.SIGTERM)
+        err = rt.communicate(timeout=10)[1]
+    assert rt.returncode == 0 and "1820 records taken" in err, err
