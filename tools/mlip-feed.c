@@ -229,7 +229,8 @@ static void track_exec(struct feed *f)
 static int process_running(uint32_t pid)
 {
 	char path[64], buf[256];
-	if (pid == 0 || kill((pid_t)pid, 0) != 0) {
+	/* EPERM: it exists, run by another user (a --shm-group feeder) */
+	if (pid == 0 || (kill((pid_t)pid, 0) != 0 && errno != EPERM)) {
 		return 0;
 	}
 	snprintf(path, sizeof(path), "/proc/%u/stat", pid);
