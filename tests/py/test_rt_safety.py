@@ -228,7 +228,9 @@ def test_memlock_too_small_runs_unlocked_and_names_the_limit():
         rt.send_signal(signal.SIGHUP)
         err = rt.communicate(timeout=10)[1]
     assert rt.returncode == 0, err
-    assert "memory not locked: RLIMIT_MEMLOCK (6347 KiB) leaves less than the 1536 KiB" in err
+    # either the check after mlockall (this build) or mlockall itself (a
+    # sanitizer build maps more than the limit): both name the limit
+    assert "memory not locked" in err and "RLIMIT_MEMLOCK" in err and "6347 KiB" in err, err
     assert "LimitMEMLOCK=infinity" in err and "memory locked" not in err
 
 
