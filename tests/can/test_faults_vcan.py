@@ -20,9 +20,8 @@ import socket
 import struct
 import subprocess
 import time
-from pathlib import Path
-
 import pytest
+from pathlib import Path
 
 import rtharness as h
 from test_rt_vcan import DEMO, FLOWER, MILL, PAPER, bus_complete, cut, wait_periods
