@@ -1476,63 +1476,6 @@ static mlip_status check_presence(const struct pstate *ps, struct mlip_config_er
 	return MLIP_OK;
 }
 
-static void fill_machine(const struct pstate *ps, struct mlip_config *c)
-{
-	struct mlip_machine *m = &c->machine;
-	const struct sec *tr = &ps->sec[SEC_TRAJ];
-	int i;
-
-	memset(m->axis, 0, sizeof m->axis);
-	m->n_axes = ps->n_coords;
-	for (i = 0; i < ps->n_coords; i++) {
-		int li = letter_index(ps->coords[i]), sec = SEC_AXIS0 + li;
-		const struct sec *st = &ps->sec[sec];
-		struct mlip_axis *a = &m->axis[i];
-		a->letter = ps->coords[i];
-		a->kind = has(ps, sec, AK_TYPE) ? (mlip_axis_kind)st->ival[AK_TYPE]
-		          : li < 3             ? MLIP_AXIS_LINEAR
-		                               : MLIP_AXIS_ROTARY;
-		a->max_vel = st->num[AK_VEL];
-		a->max_accel = st->num[AK_ACC];
-		a->min_limit = has(ps, sec, AK_MIN) ? st->num[AK_MIN] : -LIMIT_DEFAULT;
-		a->max_limit = has(ps, sec, AK_MAX) ? st->num[AK_MAX] : LIMIT_DEFAULT;
-		a->home = has(ps, sec, AK_HOME) ? st->num[AK_HOME] : 0.0;
-		a->can_node = has(ps, sec, AK_NODE) ? (int)st->ival[AK_NODE] : i + 1;
-		a->counts_per_unit = has(ps, sec, AK_CPU) ? st->num[AK_CPU] : 1000.0;
-	}
-	m->max_feed_mm_s = tr->num[TK_VLIN];
-	m->tolerance_mm = tr->num[TK_TOL];
-	if (has(ps, SEC_TRAJ, TK_VANG)) {
-		m->max_rot_feed_deg_s = tr->num[TK_VANG];
-	}
-	if (has(ps, SEC_TRAJ, TK_PERIOD)) {
-		m->period_s = tr->num[TK_PERIOD];
-	}
-	if (has(ps, SEC_TRAJ, TK_LOOKAHEAD)) {
-		c->lookahead = (uint32_t)tr->ival[TK_LOOKAHEAD];
-	}
-}
-
-static void fill_can(const struct pstate *ps, struct mlip_can_config *can)
-{
-	const struct sec *st = &ps->sec[SEC_CAN];
-	uint32_t *const dst[NKEYS] = {NULL,          &can->bitrate, &can->data_bitrate,
-	                              &can->sync_id, &can->rpdo_base, &can->packed_base,
-	                              &can->fd_id,   &can->status_id};
-	int k;
-
-	if (has(ps, SEC_CAN, CK_PROFILE)) {
-		memset(can->profile, 0, sizeof can->profile);
-		memcpy(can->profile, profiles[st->ival[CK_PROFILE]],
-		       strlen(profiles[st->ival[CK_PROFILE]]));
-	}
-	for (k = CK_BITRATE; k < NKEYS; k++) {
-		if (has(ps, SEC_CAN, k)) {
-			*dst[k] = (uint32_t)st->ival[k];
-		}
-	}
-}
-
 /* ---- CAN ids: the one home of their rules ---------------------------------
  *
  * Used by the INI reader (placed on the keys involved), by mlip_canenc_init
@@ -1710,10 +1653,71 @@ mlip_status mlip_can_config_check(const struct mlip_can_config *can,
 	return can_rules(can, m, err != NULL ? err : &dummy, &w);
 }
 
-/* The [CAN] rules on a parsed file: the error on the latest of its keys. */
+static void fill_machine(const struct pstate *ps, struct mlip_config *c)
+{
+	struct mlip_machine *m = &c->machine;
+	const struct sec *tr = &ps->sec[SEC_TRAJ];
+	int i;
+
+	memset(m->axis, 0, sizeof m->axis);
+	m->n_axes = ps->n_coords;
+	for (i = 0; i < ps->n_coords; i++) {
+		int li = letter_index(ps->coords[i]), sec = SEC_AXIS0 + li;
+		const struct sec *st = &ps->sec[sec];
+		struct mlip_axis *a = &m->axis[i];
+		a->letter = ps->coords[i];
+		a->kind = has(ps, sec, AK_TYPE) ? (mlip_axis_kind)st->ival[AK_TYPE]
+		          : li < 3             ? MLIP_AXIS_LINEAR
+		                               : MLIP_AXIS_ROTARY;
+		a->max_vel = st->num[AK_VEL];
+		a->max_accel = st->num[AK_ACC];
+		a->min_limit = has(ps, sec, AK_MIN) ? st->num[AK_MIN] : -LIMIT_DEFAULT;
+		a->max_limit = has(ps, sec, AK_MAX) ? st->num[AK_MAX] : LIMIT_DEFAULT;
+		a->home = has(ps, sec, AK_HOME) ? st->num[AK_HOME] : 0.0;
+		a->can_node = has(ps, sec, AK_NODE) ? (int)st->ival[AK_NODE] : i + 1;
+		a->counts_per_unit = has(ps, sec, AK_CPU) ? st->num[AK_CPU] : 1000.0;
+	}
+	m->max_feed_mm_s = tr->num[TK_VLIN];
+	m->tolerance_mm = tr->num[TK_TOL];
+	if (has(ps, SEC_TRAJ, TK_VANG)) {
+		m->max_rot_feed_deg_s = tr->num[TK_VANG];
+	}
+	if (has(ps, SEC_TRAJ, TK_PERIOD)) {
+		m->period_s = tr->num[TK_PERIOD];
+	}
+	if (has(ps, SEC_TRAJ, TK_LOOKAHEAD)) {
+		c->lookahead = (uint32_t)tr->ival[TK_LOOKAHEAD];
+	}
+}
+
+static void fill_can(const struct pstate *ps, struct mlip_can_config *can)
+{
+	const struct sec *st = &ps->sec[SEC_CAN];
+	uint32_t *const dst[NKEYS] = {NULL,          &can->bitrate, &can->data_bitrate,
+	                              &can->sync_id, &can->rpdo_base, &can->packed_base,
+	                              &can->fd_id,   &can->status_id};
+	int k;
+
+	if (has(ps, SEC_CAN, CK_PROFILE)) {
+		memset(can->profile, 0, sizeof can->profile);
+		memcpy(can->profile, profiles[st->ival[CK_PROFILE]],
+		       strlen(profiles[st->ival[CK_PROFILE]]));
+	}
+	for (k = CK_BITRATE; k < NKEYS; k++) {
+		if (has(ps, SEC_CAN, k)) {
+			*dst[k] = (uint32_t)st->ival[k];
+		}
+	}
+}
+
+/* The CAN ids that need the axes: every RPDO_BASE + node an 11-bit id; with
+ * cia402, SYNC_ID and STATUS_ID clear of those RPDOs; SYNC_ID != STATUS_ID;
+ * with fd, a data phase no slower than the arbitration phase. */
 static mlip_status check_can(const struct pstate *ps, const struct mlip_config *c,
                              struct mlip_config_error *err)
 {
+	/* all of can_rules (above) for the file's profile, the error on the
+	 * latest of the keys involved */
 	struct can_where w;
 	mlip_status st = can_rules(&c->can, &c->machine, err, &w);
 	int i;

@@ -198,16 +198,25 @@ int main(int argc, char **argv)
 	long shm_gid = -1;
 
 	static const struct option opts[] = {
+		{"shm-group", required_argument, 0, 'G'},
 		{"config", required_argument, 0, 'c'},   {"can", required_argument, 0, 'i'},
 		{"profile", required_argument, 0, 'P'},  {"bitrate", required_argument, 0, 'b'},
 		{"shm", required_argument, 0, 's'},      {"priority", required_argument, 0, 'p'},
 		{"cpu", required_argument, 0, 'C'},      {"strategy", required_argument, 0, 'S'},
 		{"capacity", required_argument, 0, 'n'}, {"help", no_argument, 0, 'h'},
-		{"shm-group", required_argument, 0, 'G'},
 		{0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
 		switch (c) {
+		case 'G': {
+			struct group *g = getgrnam(optarg);
+			if (g == NULL) {
+				fprintf(stderr, PROG ": --shm-group: no group '%s'\n", optarg);
+				return 2;
+			}
+			shm_gid = (long)g->gr_gid;
+			break;
+		}
 		case 'c':
 			config = optarg;
 			break;
@@ -246,15 +255,6 @@ int main(int argc, char **argv)
 		case 'n':
 			capacity = strtoul(optarg, NULL, 0);
 			break;
-		case 'G': {
-			struct group *g = getgrnam(optarg);
-			if (g == NULL) {
-				fprintf(stderr, PROG ": --shm-group: no group '%s'\n", optarg);
-				return 2;
-			}
-			shm_gid = (long)g->gr_gid;
-			break;
-		}
 		case 'h':
 			usage(stdout);
 			return 0;
