@@ -32,7 +32,8 @@
 #define LOOP_STACK (512 * 1024)
 #define STACK_PREFAULT (256 * 1024)
 /* Locked memory that must still fit after mlockall: the loop's stack, the
- * tools' other small threads, stdio and libc's first allocations. */
+ * tools' other small threads, stdio and libc's first allocations, and
+ * mlip-rt's segment (656 KiB at the default capacity), mapped afterwards. */
 #define LOCK_HEADROOM (LOOP_STACK + 1024 * 1024)
 
 static volatile sig_atomic_t stop_flag;

@@ -454,6 +454,14 @@ fail:
 		           "there (df -h /dev/shm), or use a smaller --capacity",
 		           name, bytes, strerror(-rc));
 	}
+	if (rc == -EAGAIN) {
+		/* mmap of a segment under mlockall(MCL_FUTURE) beyond RLIMIT_MEMLOCK */
+		return say(why, why_len, rc,
+		           "%s: the segment's %zu bytes do not fit the locked-memory limit "
+		           "(RLIMIT_MEMLOCK): raise it (ulimit -l, LimitMEMLOCK=infinity) or use a "
+		           "smaller --capacity",
+		           name, bytes);
+	}
 	return say(why, why_len, rc, "%s: %s", name, strerror(-rc));
 }
 

@@ -191,11 +191,11 @@ static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 int main(int argc, char **argv)
 {
 	const char *config = NULL, *iface = NULL, *shm_name = MLIP_SHM_DEFAULT;
+	long shm_gid = -1; /* --shm-group */
 	const char *profile = NULL, *strategy = "mpct";
 	double bitrate = 0.0, v;
 	struct mlip_rt_opts ro = {.priority = 80, .cpu = -1, .lock_memory = 1};
 	unsigned long capacity = MLIP_RING_CAPACITY;
-	long shm_gid = -1;
 
 	static const struct option opts[] = {
 		{"shm-group", required_argument, 0, 'G'},
@@ -326,21 +326,19 @@ int main(int argc, char **argv)
 		fprintf(stderr, PROG ": no CAN output (--can none): setpoints are computed, not sent\n");
 	}
 
-	/* the segment before mlockall: locked with the rest, and counted in the
-	 * RLIMIT_MEMLOCK check of mlip_rt_prepare */
+	ro.period_ns = (int64_t)(cfg.machine.period_s * 1e9 + 0.5);
+	struct mlip_rt_report rep;
+	mlip_rt_prepare(&ro, &rep);
+	if (rep.warnings[0]) {
+		fprintf(stderr, "%s", rep.warnings);
+	}
+
 	static struct mlip_shm shm;
 	if (mlip_shm_create_group(&shm, shm_name, (uint32_t)capacity, &cfg.machine, shm_gid, info,
 	                          sizeof(info)) != 0) {
 		fprintf(stderr, PROG ": %s\n", info);
 		mlip_canio_close(&io);
 		return 1;
-	}
-
-	ro.period_ns = (int64_t)(cfg.machine.period_s * 1e9 + 0.5);
-	struct mlip_rt_report rep;
-	mlip_rt_prepare(&ro, &rep);
-	if (rep.warnings[0]) {
-		fprintf(stderr, "%s", rep.warnings);
 	}
 	if (mlip_controller_init(&ctl, &planner, &cfg.machine, &cfg.can, (mlip_strategy)st,
 	                         cfg.lookahead, shm.ring, use_can ? &io : NULL) != 0) {
