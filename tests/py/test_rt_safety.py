@@ -21,6 +21,16 @@ def rt_cmd(shm, *extra, config=CONFIG / "mill-3axis.ini"):
     return [tool("mlip-rt"), "--config", str(config), "--can", "none", "--shm", shm, *extra]
 
 
+def rt_cmd_sched_other(shm, *extra):
+    """An unprivileged controller runs SCHED_OTHER on a shared machine and
+    misses periods: where mlip-rt treats a few missed periods as a stall
+    (hold until an operator resumes), allow many, since these tests are
+    about starting and running, not about timing."""
+    usage = subprocess.run([tool("mlip-rt"), "--help"], capture_output=True, text=True).stdout
+    more = ["--stall-periods", "100000"] if "--stall-periods" in usage else []
+    return rt_cmd(shm, *more, *extra)
+
+
 @ROOT_ONLY
 def test_segment_name_made_by_another_user_is_refused():
     """Observed on main: nobody pre-creates /dev/shm/<name> as an empty file,
@@ -186,7 +196,7 @@ def test_unprivileged_controller_runs_a_program():
     the controller's user (MLIP_SHM_OWNER)."""
     from conftest import ROOT
     shm = shm_name()
-    rt = subprocess.Popen(NOBODY + rt_cmd(shm), stderr=subprocess.PIPE, text=True)
+    rt = subprocess.Popen(NOBODY + rt_cmd_sched_other(shm), stderr=subprocess.PIPE, text=True)
     env = dict(os.environ, MLIP_SHM_OWNER="nobody")
     ctl = lambda: subprocess.run([tool("mlip-ctl"), "--shm", shm, "status", "--json"], env=env,
                                  capture_output=True, text=True)
@@ -260,8 +270,8 @@ def test_shm_group_lets_its_members_feed():
     user outside the group is refused by the kernel."""
     from conftest import ROOT
     shm = shm_name()
-    rt = subprocess.Popen(NOBODY + rt_cmd(shm, "--shm-group", "nogroup"), stderr=subprocess.PIPE,
-                          text=True)
+    rt = subprocess.Popen(NOBODY + rt_cmd_sched_other(shm, "--shm-group", "nogroup"),
+                          stderr=subprocess.PIPE, text=True)
     env = dict(os.environ, MLIP_SHM_OWNER="nobody")
     daemon = ["setpriv", "--reuid=daemon", "--regid=daemon"]
     ctl = lambda: subprocess.run(daemon + ["--groups=nogroup", tool("mlip-ctl"), "--shm", shm,
