@@ -41,7 +41,7 @@
 #include "mlip/gcode.h"
 #include "mlip/planner.h" /* MLIP_LOOKAHEAD */
 #include "mlip/types.h"
-#include "program.h" /* tools/lib: mlip_program_parse, the second opinion */
+#include "program.h" /* tools/lib: mlip_program_list_parse, the second opinion */
 
 #define INV_WHY 320
 
@@ -536,15 +536,15 @@ struct inv_gcode_result {
 	char why[INV_WHY]; /* the violation, with numbers */
 };
 
-/* The program text[0..len) on machine m, cut into lines at LF as
- * mlip_program_parse does, every line in a buffer of its own exact size (so
+/* The program text[0..len) on machine m, cut into lines at LF, CRLF or a
+ * lone CR as mlip_program_open does, every line in a buffer of its own exact size (so
  * that ASan sees a read past the length given); every check of this file.
  * With INV_INITIAL_FEED and without INV_REFUSE the blocks and errors must be
- * those of mlip_program_parse. NULL, or the violation. */
+ * those of mlip_program_list_parse. NULL, or the violation. */
 static const char *inv_gcode_program(const struct mlip_machine *m, const char *text, size_t len,
                                      int flags, struct inv_gcode_result *r)
 {
-	struct mlip_program prog;
+	static struct mlip_program_list prog;
 	struct inv_block_list list;
 	struct mlip_gcode g;
 	struct mlip_gcode_error err;
@@ -565,9 +565,9 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 		return w;
 	}
 	if (compare) {
-		rc = mlip_program_parse(text, len, m, &prog);
+		rc = mlip_program_list_parse(text, len, m, &prog);
 		if (rc < 0) {
-			return "mlip_program_parse ran out of memory";
+			return "mlip_program_list_parse ran out of memory";
 		}
 		list.b = prog.blocks;
 		list.n = prog.n;
@@ -583,8 +583,12 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 		mlip_gcode_set_initial_feed(&g, f_word);
 	}
 	while (i < len && !w) {
-		const char *nl = memchr(text + i, '\n', len - i);
-		size_t end = nl ? (size_t)(nl - text) : len, n_line = end - i;
+		size_t end = i, n_line;
+
+		while (end < len && text[end] != '\n' && text[end] != '\r') {
+			end++;
+		}
+		n_line = end - i;
 		char *copy = malloc(n_line ? n_line : 1);
 
 		if (!copy) {
@@ -603,13 +607,13 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 			    (prog.errors[r->errors].line != err.line ||
 			     prog.errors[r->errors].col != err.col ||
 			     strcmp(prog.errors[r->errors].msg, err.msg) != 0)) {
-				w = "error differs from mlip_program_parse's";
+				w = "error differs from mlip_program_list_parse's";
 			}
 			if (r->errors++ == 0) {
 				r->first = err;
 			}
 		}
-		i = end + 1;
+		i = end + 1 + (end + 1 < len && text[end] == '\r' && text[end + 1] == '\n');
 	}
 	if (!w) {
 		memset(&err, 0x55, sizeof err);
@@ -625,11 +629,11 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 		size_t total = r->errors - (r->errors > 1 && r->blocks == 0);
 		if (prog.n != c.accepted || prog.n_errors_total != total || prog.lines != line ||
 		    rc != (total ? 1 : 0) || prog.n_notices != g.n_notices) {
-			w = "mlip_program_parse disagrees with the line-by-line run";
+			w = "mlip_program_list_parse disagrees with the line-by-line run";
 		}
 	}
 	if (compare) {
-		mlip_program_free(&prog);
+		mlip_program_list_free(&prog);
 	}
 	snprintf(r->why, sizeof r->why, "%s", c.bad ? c.why : w ? w : "");
 	return w;

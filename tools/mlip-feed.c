@@ -35,6 +35,7 @@
 #include "cli.h"
 #include "mlip/config.h"
 #include "mlip/ring.h"
+#include "offsets.h"
 #include "program.h"
 #include "rt.h"
 
@@ -79,6 +80,10 @@ static void usage(FILE *f)
 	        "                    after the last one the controller completed (mlip-ctl\n"
 	        "                    status: 'completed block B', N = B + 1), after a feeder\n"
 	        "                    crash or a stop (default 1: the whole program)\n"
+	        "  --offsets FILE    work offsets, G92, G28/G30 positions: read before the\n"
+	        "                    program, written back when it completes (README: offsets)\n"
+	        "  --default-feed F  feed (units/min) for a program that sets no F at all\n"
+	        "  --strict          refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
 	        "  -q, --quiet       no notes, no progress, no summary: errors only\n"
 	        "  -h, --help        this help\n\n"
 	        "exit status: 0 program complete, machine at rest; 1 nothing sent (program\n"
@@ -138,16 +143,26 @@ static int producer_lock(int fd, int32_t *holder)
 	return -EBUSY;
 }
 
+/* Source lines of the last blocks sent, for messages about the block being
+ * executed or resumed from: those are within the controller's look-ahead and
+ * the ring's capacity of the last one sent. */
+#define LINE_WINDOW (1u << 16)
+
 struct feed {
 	/* wiring */
 	struct mlip_shm shm;
 	struct mlip_ring *r;
 	const char *path;
 	int quiet, tty;
-	/* program */
+	/* program: checked whole, then streamed (never held) */
 	struct mlip_program prog;
 	uint64_t n; /* blocks; the END record is n + 1 */
 	uint32_t end_line;
+	uint64_t read_seq;          /* blocks taken from the stream so far */
+	uint32_t lines[LINE_WINDOW]; /* source line of seq, for seq % LINE_WINDOW */
+	const char *offsets;        /* --offsets FILE, or NULL */
+	int strict;
+	double default_feed;        /* --default-feed */
 	/* progress */
 	struct mlip_ring_feeder fa; /* what we publish */
 	struct mlip_ring_status st; /* last consistent controller status */
@@ -323,9 +338,32 @@ static uint64_t resume_seq(const struct feed *f)
 	return f->exec ? f->exec : f->first_seq;
 }
 
+/* Source line of block seq (sent, or the next to send), 0 when unknown. */
+static unsigned line_of(const struct feed *f, uint64_t seq)
+{
+	if (seq == f->exec && f->exec) {
+		return f->exec_line;
+	}
+	if (seq >= 1 && seq <= f->read_seq && f->read_seq - seq < LINE_WINDOW) {
+		return f->lines[seq % LINE_WINDOW];
+	}
+	return 0;
+}
+
 static unsigned resume_line(const struct feed *f)
 {
-	return f->exec ? f->exec_line : f->prog.blocks[f->first_seq - 1].line;
+	return f->exec ? f->exec_line : line_of(f, f->first_seq);
+}
+
+/* The next block from the stream into *b: 1, or < 0 (the file changed). */
+static int next_block(struct feed *f, struct mlip_block *b)
+{
+	int rc = mlip_program_next(&f->prog, b);
+	if (rc > 0) {
+		f->read_seq++;
+		f->lines[f->read_seq % LINE_WINDOW] = b->line;
+	}
+	return rc > 0 ? 1 : rc == 0 ? -EIO : rc;
 }
 
 /* Once the controller is at rest after a stop: the block to continue from,
@@ -478,7 +516,7 @@ static int interrupted(struct feed *f)
 		fprintf(stderr,
 		        PROG ": interrupted: machine stopped on the path at line %u (block %llu of "
 		             "%llu); resume with --start-seq %llu\n",
-		        f->prog.blocks[next - 1].line, (unsigned long long)next,
+		        line_of(f, next), (unsigned long long)next,
 		        (unsigned long long)f->n, (unsigned long long)next);
 	}
 	return code;
@@ -500,7 +538,7 @@ static int operator_stop(struct feed *f)
 	fprintf(stderr,
 	        PROG ": program stopped on the path at line %u (block %llu of %llu): mlip-ctl "
 	             "stop, or mlip-rt was told to exit\n",
-	        f->prog.blocks[next - 1].line, (unsigned long long)next, (unsigned long long)f->n);
+	        line_of(f, next), (unsigned long long)next, (unsigned long long)f->n);
 	return EXIT_OPERATOR;
 }
 
@@ -512,7 +550,11 @@ static uint32_t fill(struct feed *f, struct mlip_ring_rec *recs, uint32_t max)
 
 	for (; k < max && seq <= f->n + 1; k++, seq++) {
 		if (seq <= f->n) {
-			mlip_ring_rec_from_block(&recs[k], &f->prog.blocks[seq - 1], seq);
+			struct mlip_block b;
+			if (next_block(f, &b) < 0) {
+				break; /* the caller sees fewer records, then the stream's error */
+			}
+			mlip_ring_rec_from_block(&recs[k], &b, seq);
 		} else {
 			mlip_ring_rec_end(&recs[k], seq, f->end_line);
 		}
@@ -660,6 +702,18 @@ static int run(struct feed *f)
 		}
 		if (!f->end_pushed && k > 0) {
 			k = fill(f, recs, k < BATCH ? k : BATCH);
+			if (f->prog.done == 1) {
+				mlip_ring_push_n(f->r, recs, k);
+				f->next_seq += k;
+				leave(f); /* no END: the controller stops at rest after the last */
+				close_line(f);
+				fprintf(stderr,
+				        PROG ": %s: %s; the machine stops at rest after block %llu: "
+				             "continue with --start-seq %llu once the file is right\n",
+				        f->path, f->prog.msg, (unsigned long long)(f->next_seq - 1),
+				        (unsigned long long)f->next_seq);
+				return EXIT_FAIL;
+			}
 			got = mlip_ring_push_n(f->r, recs, k); /* all k: only we add */
 			f->next_seq += got;
 			f->pushed += got;
@@ -711,6 +765,9 @@ int main(int argc, char **argv)
 	                                     {"start-seq", required_argument, 0, 'S'},
 	                                     {"rate", required_argument, 0, 'r'},
 	                                     {"quiet", no_argument, 0, 'q'},
+	                                     {"offsets", required_argument, 0, 'O'},
+	                                     {"strict", no_argument, 0, 'X'},
+	                                     {"default-feed", required_argument, 0, 'D'},
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
 	static struct feed f;
@@ -718,8 +775,9 @@ int main(int argc, char **argv)
 	struct mlip_machine m;
 	struct mlip_config_error cerr;
 	struct mlip_ring_feeder other;
-	char why[256], *text = NULL;
-	size_t len;
+	char why[256];
+	struct mlip_gcode_offsets offsets;
+	struct mlip_program_options popt;
 	int32_t holder;
 	int c, rc, code = EXIT_FAIL;
 
@@ -750,6 +808,22 @@ int main(int argc, char **argv)
 		case 'q':
 			f.quiet = 1;
 			break;
+		case 'O':
+			f.offsets = optarg;
+			break;
+		case 'X':
+			f.strict = 1;
+			break;
+		case 'D': {
+			char *end;
+			f.default_feed = strtod(optarg, &end);
+			if (*end != '\0' || !(f.default_feed > 0.0) || f.default_feed > 1e9) {
+				fprintf(stderr, PROG ": --default-feed: '%s' is not a positive number\n",
+				        optarg);
+				return EXIT_USAGE;
+			}
+			break;
+		}
 		case 'h':
 			usage(stdout);
 			return EXIT_DONE;
@@ -765,15 +839,9 @@ int main(int argc, char **argv)
 	f.path = argv[optind];
 	f.tty = isatty(STDERR_FILENO);
 
-	rc = mlip_read_file(f.path, &text, &len);
-	if (rc != 0) {
-		fprintf(stderr, PROG ": %s: %s\n", f.path, strerror(-rc));
-		return EXIT_FAIL;
-	}
 	rc = mlip_shm_attach(&f.shm, shm, why, sizeof(why));
 	if (rc != 0) {
 		fprintf(stderr, PROG ": %s\n", why);
-		free(text);
 		return EXIT_FAIL;
 	}
 	f.r = f.shm.ring;
@@ -785,9 +853,17 @@ int main(int argc, char **argv)
 		        shm, cerr.msg);
 		goto out;
 	}
-	rc = mlip_program_parse(text, len, &m, &f.prog);
+	/* the whole program is checked before anything is sent, then streamed */
+	mlip_gcode_offsets_init(&offsets, &m);
+	if (f.offsets != NULL && mlip_offsets_load(f.offsets, &m, &offsets, PROG, stderr) != 0) {
+		goto out;
+	}
+	popt.strict = f.strict;
+	popt.default_feed = f.default_feed;
+	popt.offsets = &offsets;
+	rc = mlip_program_open(&f.prog, f.path, &m, &popt);
 	if (rc < 0) {
-		fprintf(stderr, PROG ": %s: %s\n", f.path, strerror(-rc));
+		fprintf(stderr, PROG ": %s: %s\n", f.path, f.prog.msg);
 		goto out;
 	}
 	if (rc > 0) {
@@ -795,10 +871,14 @@ int main(int argc, char **argv)
 		goto out;
 	}
 	if (!f.quiet) {
+		char offs[512];
 		mlip_program_print_notices(&f.prog, f.path, stderr);
+		mlip_offsets_describe(&m, &f.prog.offsets_start, offs, sizeof(offs));
+		fprintf(stderr, PROG ": offsets: %s (%s)\n", offs,
+		        f.offsets ? f.offsets : "no --offsets: defaults");
 	}
 	f.n = f.prog.n;
-	f.end_line = f.prog.lines ? f.prog.lines : f.prog.blocks[f.n - 1].line;
+	f.end_line = f.prog.lines;
 	if (f.first_seq > f.n) {
 		fprintf(stderr, PROG ": --start-seq %llu: %s has %llu blocks\n",
 		        (unsigned long long)f.first_seq, f.path, (unsigned long long)f.n);
@@ -806,6 +886,16 @@ int main(int argc, char **argv)
 		goto out;
 	}
 	f.next_seq = f.first_seq;
+	for (uint64_t k = 1; k < f.first_seq; k++) {
+		struct mlip_block b;
+		if (next_block(&f, &b) < 0) {
+			fprintf(stderr, PROG ": %s: %s\n", f.path, f.prog.msg);
+			goto out;
+		}
+	}
+	if (f.first_seq > 1) {
+		f.lines[f.first_seq % LINE_WINDOW] = 0; /* not read yet */
+	}
 
 	/* one producer only */
 	rc = producer_lock(f.shm.fd, &holder);
@@ -855,9 +945,12 @@ int main(int argc, char **argv)
 	if (f.fa.heartbeat != 0) {
 		leave(&f); /* we published: now say we are gone */
 	}
+	if (code == EXIT_DONE && f.offsets != NULL &&
+	    mlip_offsets_save(f.offsets, &m, &f.prog.offsets_end, PROG, stderr) != 0) {
+		code = EXIT_FAIL;
+	}
 out:
-	free(text);
-	mlip_program_free(&f.prog);
+	mlip_program_close(&f.prog);
 	mlip_shm_close(&f.shm); /* closing the fd drops the producer lock */
 	return code;
 }

@@ -183,7 +183,7 @@ static void lat_after(void *ctx, const struct mlip_rt_tick *t, int64_t compute_n
 
 struct feeder {
 	struct mlip_ring *ring;
-	const struct mlip_program *prog;
+	const struct mlip_program_list *prog;
 	uint32_t end_line;
 	size_t next; /* 0..n-1: block next, n: the END record */
 	int stop;    /* atomic */
@@ -880,7 +880,7 @@ int main(int argc, char **argv)
 
 	/* ---- the load: config, program, controller, ring, CAN ---- */
 	static struct mlip_config cfg;
-	static struct mlip_program prog;
+	static struct mlip_program_list prog;
 	static struct feeder feed;
 	void *ring_mem = NULL;
 	int64_t period_ns = (o.interval_us ? o.interval_us : DEFAULT_INTERVAL_US) * 1000;
@@ -905,13 +905,13 @@ int main(int argc, char **argv)
 			}
 		}
 		period_ns = (int64_t)(cfg.machine.period_s * 1e9 + 0.5);
-		rc = mlip_program_load(o.program, &cfg.machine, &prog);
+		rc = mlip_program_list_load(o.program, &cfg.machine, &prog);
 		if (rc < 0) {
-			fprintf(stderr, PROG ": %s: %s\n", o.program, strerror(-rc));
+			fprintf(stderr, PROG ": %s: %s\n", o.program, prog.r.msg);
 			return 1;
 		}
 		if (rc > 0) {
-			mlip_program_print_errors(&prog, o.program, stderr);
+			mlip_program_print_errors(&prog.r, o.program, stderr);
 			return 1;
 		}
 		if (prog.n == 0) {
@@ -1299,7 +1299,7 @@ int main(int argc, char **argv)
 
 	mlip_canio_close(&io);
 	if (o.mode != MODE_IDLE) {
-		mlip_program_free(&prog);
+		mlip_program_list_free(&prog);
 		free(ring_mem);
 	}
 	for (int k = 0; k < S_N; k++) {

@@ -18,6 +18,7 @@
 #include "cli.h"
 #include "mlip/gcode.h"
 #include "mlip/planner.h"
+#include "offsets.h"
 #include "program.h"
 
 #define PROG "mlip-sim"
@@ -43,6 +44,10 @@ static void usage(FILE *f)
 	        "  --lookahead N         look-ahead capacity in blocks, power of two (default %d)\n"
 	        "  --trace OUT.csv       setpoints: t,x,y,... one row per period, t = 0 to rest\n"
 	        "  --summary OUT.json    totals and measured physics (JSON)\n"
+	        "  --offsets FILE        work offsets, G92 and G28/G30 positions (README: offsets)\n"
+	        "  --save-offsets        write the offsets the program leaves back to that FILE\n"
+	        "  --default-feed F      feed (units/min) for a program that sets no F at all\n"
+	        "  --strict              refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
 	        "  --no-notes            do not list the words accepted without effect\n"
 	        "  -q, --quiet           neither notes nor the summary line on stderr\n"
 	        "  -h, --help            this help\n",
@@ -93,6 +98,46 @@ static void storm_tick(struct storm *st, uint64_t period)
 	}
 }
 
+/* Blocks streamed from the checked program into the planner: the one the
+ * planner had no room for waits in pend. Program events (dwell, pause) are
+ * counted and not executed: the controller that runs them is another
+ * branch's (issue 11); until it lands mlip-sim runs the moves only. */
+struct source {
+	struct mlip_program *p;
+	double feed;          /* --feed, or <= 0 */
+	struct mlip_block pend;
+	int has_pend, end, rc;
+	uint64_t seq, events;
+};
+
+static void source_push(struct source *s, size_t max)
+{
+	for (size_t k = 0; k < max && !s->end; k++) {
+		if (!s->has_pend) {
+			s->rc = mlip_program_next(s->p, &s->pend);
+			if (s->rc <= 0) {
+				s->end = 1;
+				return;
+			}
+			s->pend.seq = ++s->seq; /* as mlip-feed numbers ring records */
+			if (s->feed > 0.0) {
+				s->pend.feed_mm_s = s->feed;
+				s->pend.rapid = 0;
+			}
+			s->has_pend = 1;
+		}
+		if (s->pend.kind != MLIP_BLOCK_MOVE) {
+			s->events++;
+			s->has_pend = 0;
+			continue;
+		}
+		if (mlip_planner_push(&planner, &s->pend) != MLIP_OK) {
+			return;
+		}
+		s->has_pend = 0;
+	}
+}
+
 static void write_row(FILE *f, uint64_t k, double T, int n, const double *x)
 {
 	fprintf(f, "%.17g", (double)k * T);
@@ -109,7 +154,7 @@ int main(int argc, char **argv)
 	double feed = -1.0, override = 100.0;
 	long long storm_seed = -1;
 	unsigned long lookahead = 0;
-	int quiet = 0, notes = 1;
+	int quiet = 0, notes = 1, save_offsets = 0;
 
 	static const struct option opts[] = {
 		{"config", required_argument, 0, 'c'},   {"strategy", required_argument, 0, 's'},
@@ -120,6 +165,8 @@ int main(int argc, char **argv)
 		{"trace", required_argument, 0, 't'},    {"summary", required_argument, 0, 'j'},
 		{"quiet", no_argument, 0, 'q'},          {"help", no_argument, 0, 'h'},
 		{"no-notes", no_argument, 0, 'N'},
+		{"offsets", required_argument, 0, 'O'},  {"save-offsets", no_argument, 0, 'W'},
+		{"strict", no_argument, 0, 'X'},         {"default-feed", required_argument, 0, 'D'},
 		{0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "qh", opts, NULL)) != -1) {
@@ -176,6 +223,21 @@ int main(int argc, char **argv)
 		case 'N':
 			notes = 0;
 			break;
+		case 'O':
+			mo.offsets = optarg;
+			break;
+		case 'W':
+			save_offsets = 1;
+			break;
+		case 'X':
+			mo.strict = 1;
+			break;
+		case 'D':
+			if (mlip_cli_number(optarg, &mo.default_feed) != 0 || !(mo.default_feed > 0.0)) {
+				fprintf(stderr, PROG ": --default-feed: '%s' is not a positive number\n", optarg);
+				return 2;
+			}
+			break;
 		case 'h':
 			usage(stdout);
 			return 0;
@@ -199,40 +261,32 @@ int main(int argc, char **argv)
 		return 2;
 	}
 
-	char *text;
-	size_t len;
-	struct mlip_config cfg;
-	if (mlip_cli_open_program(path, &mo, &cfg, &text, &len, PROG, stderr) != 0) {
+	if (save_offsets && mo.offsets == NULL) {
+		fprintf(stderr, PROG ": --save-offsets needs --offsets FILE\n");
+		return 2;
+	}
+	/* the whole program is checked before anything moves, then streamed */
+	static struct mlip_config cfg;
+	static struct mlip_program prog;
+	if (mlip_cli_open_program(path, &mo, &cfg, &prog, PROG, stderr) != 0) {
 		return 1;
 	}
-	int rc;
 	const struct mlip_machine *m = &cfg.machine;
 	int n = m->n_axes;
 	if (lookahead == 0) {
 		lookahead = cfg.lookahead ? cfg.lookahead : MLIP_LOOKAHEAD;
 	}
 
-	/* the whole program is checked before anything moves */
-	struct mlip_program prog;
-	rc = mlip_program_parse(text, len, m, &prog);
-	free(text);
-	if (rc != 0) {
-		mlip_program_print_errors(&prog, path, stderr);
-		mlip_program_free(&prog);
-		return 1;
-	}
 	if (notes) {
 		mlip_program_print_notices(&prog, path, stderr);
 	}
-	for (size_t i = 0; i < prog.n; i++) {
-		prog.blocks[i].seq = i + 1; /* as mlip-feed numbers ring records */
+	char offs[512];
+	mlip_offsets_describe(m, &prog.offsets_start, offs, sizeof(offs));
+	if (!quiet) {
+		fprintf(stderr, PROG ": offsets: %s (%s)\n", offs,
+		        mo.offsets ? mo.offsets : "no --offsets: defaults");
 	}
-	if (feed > 0.0) {
-		for (size_t i = 0; i < prog.n; i++) {
-			prog.blocks[i].feed_mm_s = feed;
-			prog.blocks[i].rapid = 0;
-		}
-	}
+	struct source src = {.p = &prog, .feed = feed};
 
 	double start[MLIP_MAX_AXES];
 	for (int k = 0; k < n; k++) {
@@ -246,7 +300,11 @@ int main(int argc, char **argv)
 	mlip_planner_set_override(&planner, override);
 
 	size_t npts;
-	double *pts = mlip_cli_polyline(m, prog.blocks, prog.n, &npts);
+	double *pts = mlip_cli_polyline(m, &prog, &npts, path, PROG, stderr);
+	if (pts == NULL) {
+		mlip_program_close(&prog);
+		return 1;
+	}
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
 	static struct mlip_check chk;
@@ -273,15 +331,15 @@ int main(int argc, char **argv)
 	struct storm storm = {.state = (uint64_t)storm_seed * 0x9E3779B97F4A7C15ULL + 1,
 	                      .next_at = 1,
 	                      .active = storm_seed >= 0};
-	size_t next = 0;
 	/* pre-read (Sec. 2.1 step 1): fill the look-ahead before moving */
-	next += mlip_planner_push_n(&planner, prog.blocks, prog.n, NULL);
+	source_push(&src, (size_t)-1);
 	uint64_t k = 0;
 	double x[MLIP_MAX_AXES];
 	for (;;) {
-		size_t take = prog.n - next < MLIP_INGEST_PER_PERIOD ? prog.n - next : MLIP_INGEST_PER_PERIOD;
-		if (take > 0) {
-			next += mlip_planner_push_n(&planner, prog.blocks + next, take, NULL);
+		source_push(&src, MLIP_INGEST_PER_PERIOD);
+		if (src.rc < 0) {
+			fprintf(stderr, PROG ": %s: %s\n", path, prog.msg);
+			return 1;
 		}
 		storm_tick(&storm, k);
 		mlip_run_state rs = mlip_planner_step(&planner, x);
@@ -290,7 +348,7 @@ int main(int argc, char **argv)
 		if (tf != NULL) {
 			write_row(tf, k, m->period_s, n, x);
 		}
-		if (rs == MLIP_RUN_IDLE && next == prog.n) {
+		if (rs == MLIP_RUN_IDLE && src.end) {
 			break;
 		}
 		if (k > MAX_PERIODS) {
@@ -361,6 +419,8 @@ int main(int argc, char **argv)
 		        m->max_feed_mm_s, m->tolerance_mm, m->period_s);
 		fprintf(sf, "  \"lookahead\": %lu,\n  \"backward_visits_per_block\": %.3f,\n",
 		        lookahead, visits);
+		fprintf(sf, "  \"offsets\": \"%s\",\n", offs);
+		fprintf(sf, "  \"events_skipped\": %llu,\n", (unsigned long long)src.events);
 		fprintf(sf, "  \"override_events\": %llu\n}\n", (unsigned long long)storm.events);
 		if (sf != stdout) {
 			fclose(sf);
@@ -374,6 +434,10 @@ int main(int argc, char **argv)
 		        chk.max_speed_mm_s, chk.max_contour_mm);
 	}
 	free(pts);
-	mlip_program_free(&prog);
+	if (save_offsets && mlip_offsets_save(mo.offsets, m, &prog.offsets_end, PROG, stderr) != 0) {
+		mlip_program_close(&prog);
+		return 1;
+	}
+	mlip_program_close(&prog);
 	return 0;
 }

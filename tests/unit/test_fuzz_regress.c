@@ -54,9 +54,9 @@ static const struct expect table[] = {
 	/* ((((...)))): comments do not nest, the first ')' ends one; "(a (b) c)" too */
 	{"gcode-comment-nesting.ngc", 0, 3, 2, 128, "unexpected character ')'",
 	 SYN, 1, 5, "expected '=' after key G21"},
-	/* BOM and CRLF accepted on line 1; a lone CR inside a line and a BOM on
-	 * line 4 are not */
-	{"gcode-crlf-bom.ngc", 1, 2, 3, 6, "unexpected character 0x0D",
+	/* BOM and CRLF accepted on line 1; a lone CR ends a line (old Mac files)
+	 * so "G1 X2\rY2" is two lines; a BOM on line 5 is not accepted */
+	{"gcode-crlf-bom.ngc", 3, 1, 5, 1, "non-ASCII byte 0xEF outside a comment",
 	 SYN, 1, 5, "expected '=' after key G21"},
 	/* no exponents in G-code: 1e308, 1E5, .5e-3 malformed; "X1e" is X1 and a
 	 * word E without number; 250 nines read as a finite, out-of-limit value */

@@ -55,12 +55,12 @@ static struct mlip_machine machine(const char *axes)
 }
 
 /* Parse text that must be valid. */
-static void parse_ok(const char *text, const struct mlip_machine *m, struct mlip_program *p)
+static void parse_ok(const char *text, const struct mlip_machine *m, struct mlip_program_list *p)
 {
-	int rc = mlip_program_parse(text, strlen(text), m, p);
+	int rc = mlip_program_list_parse(text, strlen(text), m, p);
 
 	if (rc != 0) {
-		mlip_program_print_errors(p, "<test>", stderr);
+		mlip_program_print_errors(&p->r, "<test>", stderr);
 	}
 	assert_int_equal(rc, 0);
 }
@@ -69,8 +69,8 @@ static void parse_ok(const char *text, const struct mlip_machine *m, struct mlip
 static void check_err_m(const char *text, const struct mlip_machine *m, uint32_t line,
                         uint32_t col, const char *part)
 {
-	struct mlip_program p;
-	int rc = mlip_program_parse(text, strlen(text), m, &p);
+	struct mlip_program_list p;
+	int rc = mlip_program_list_parse(text, strlen(text), m, &p);
 
 	assert_int_equal(rc, 1);
 	assert_true(p.n_errors >= 1);
@@ -79,10 +79,10 @@ static void check_err_m(const char *text, const struct mlip_machine *m, uint32_t
 		print_error("for \"%s\": got %u:%u \"%s\", expected %u:%u \"%s\"\n", text,
 		            (unsigned)p.errors[0].line, (unsigned)p.errors[0].col, p.errors[0].msg,
 		            (unsigned)line, (unsigned)col, part);
-		mlip_program_free(&p);
+		mlip_program_list_free(&p);
 		fail();
 	}
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void check_err(const char *text, uint32_t line, uint32_t col, const char *part)
@@ -134,7 +134,7 @@ static mlip_status line(struct mlip_gcode *g, const char *s, uint32_t no, struct
 static void test_numbers(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G1 X-.5 Y5. Z+3 F100\n"
@@ -154,7 +154,7 @@ static void test_numbers(void **state)
 	assert_near(p.blocks[2].target[2], -1.0, 0);
 	assert_near(p.blocks[3].target[0], 10.0, 0);
 	assert_int_equal(p.blocks[3].rapid, 1);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_malformed_numbers(void **state)
@@ -182,7 +182,7 @@ static void test_malformed_numbers(void **state)
 static void test_bytes_and_comments(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	static const char nul[] = "G1 X1 F100\nG1 X2\0 Y1\n";
 
 	(void)state;
@@ -198,44 +198,43 @@ static void test_bytes_and_comments(void **state)
 	assert_near(p.blocks[1].target[1], 1.0, 0);
 	assert_int_equal(p.blocks[2].line, 6);
 	assert_int_equal(p.lines, 7);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	check_err("G1 X1 F100 \xC3\x98", 1, 12, "non-ASCII byte 0xC3 outside a comment");
 	check_err("G1 X1 F100 (bad \xC3\x28 utf8)", 1, 17, "invalid UTF-8 in comment");
 	check_err("G1 X1 F100 ; \xE0\x80\x80 overlong", 1, 14, "invalid UTF-8 in comment");
 	check_err("G1 X1 F100 (\xED\xA0\x80 surrogate)", 1, 13, "invalid UTF-8 in comment");
 	check_err("G1 X1 F100 (no end", 1, 12, "unterminated comment");
-	check_err("G1 F100\n/G1 X1", 2, 1, "block delete '/' not supported");
 	check_err("G1 F100\n% X1", 2, 3, "'%' must be alone on its line");
 	check_err("G1 F100\n X1 G1 X2", 2, 8, "duplicate X word (first at column 2)");
 	check_err("G1 F100 F200 X1", 1, 9, "duplicate F word");
 
 	/* NUL bytes, in and out of comments */
 	{
-		struct mlip_program q;
-		int rc = mlip_program_parse(nul, sizeof nul - 1, &m, &q);
+		struct mlip_program_list q;
+		int rc = mlip_program_list_parse(nul, sizeof nul - 1, &m, &q);
 
 		assert_int_equal(rc, 1);
 		assert_int_equal(q.errors[0].line, 2);
 		assert_int_equal(q.errors[0].col, 6);
 		assert_string_equal(q.errors[0].msg, "NUL byte in line");
-		mlip_program_free(&q);
+		mlip_program_list_free(&q);
 	}
 	{
 		static const char c[] = "G1 X1 F100 (a\0b)";
-		struct mlip_program q;
+		struct mlip_program_list q;
 
-		assert_int_equal(mlip_program_parse(c, sizeof c - 1, &m, &q), 1);
+		assert_int_equal(mlip_program_list_parse(c, sizeof c - 1, &m, &q), 1);
 		assert_int_equal(q.errors[0].col, 14);
 		assert_string_equal(q.errors[0].msg, "NUL byte in line");
-		mlip_program_free(&q);
+		mlip_program_list_free(&q);
 	}
 }
 
 static void test_line_too_long(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	char text[600];
 
 	(void)state;
@@ -246,7 +245,7 @@ static void test_line_too_long(void **state)
 	strcat(text, ")");
 	assert_int_equal(strlen(text), MLIP_GCODE_MAX_LINE);
 	parse_ok(text, &m, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	strcpy(text + MLIP_GCODE_MAX_LINE - 1, "a)\nG1 X2");
 	check_err(text, 1, MLIP_GCODE_MAX_LINE + 1, "line too long: 257 bytes, at most 256");
@@ -262,12 +261,28 @@ static void test_unsupported_codes(void **state)
 	check_err("G43 H1", 1, 1, "unsupported G code G43: tool length offset");
 	check_err("G38.2 Z-10 F10", 1, 1, "unsupported G code G38.2: probing");
 	check_err("G81 X1 Y1 Z-1 R1 F10", 1, 1, "unsupported G code G81: canned cycles");
-	check_err("G93 G1 X1 F10", 1, 1, "unsupported G code G93: inverse time feed");
-	check_err("G55", 1, 1, "unsupported G code G55: work offsets (only G54 is accepted)");
-	check_err("G59.3", 1, 1, "unsupported G code G59.3: work offsets");
-	check_err("G92 X0", 1, 1, "unsupported G code G92: coordinate offsets");
+	check_err("G52 X1", 1, 1, "unsupported G code G52: local offsets (use G92 or G10 L2)");
+	check_err("G59.4", 1, 1, "unsupported G code G59.4");
+	check_err("G54.1 P2", 1, 1, "unsupported G code G54.1");
+	check_err("G93.1", 1, 1, "unsupported G code G93.1");
 	check_err("G90.1", 1, 1, "unsupported G code G90.1: absolute arc centers");
-	check_err("G4 P1", 1, 1, "G4 dwell not supported");
+	check_err("G10 L1 P1 Z5", 1, 5, "G10 without L2 or L20: only work offsets");
+	check_err("G10 P1 X5", 1, 1, "G10 without L2 or L20");
+	check_err("G10 L2 P10 X5", 1, 8, "G10 L2 needs P0..P9");
+	check_err("G10 L20 P1.5 X5", 1, 9, "G10 L20 needs P0..P9");
+	check_err("G10 L2 X5", 1, 1, "G10 L2 needs P0..P9");
+	check_err("G10 L2 P1 R30 X5", 1, 11, "G10 R (rotated coordinate system) not supported");
+	check_err("G10 L2 P1 G1 X5 F10", 1, 11, "G10 and G1 on one line: both use axis words");
+	check_err("G92 G0 X5", 1, 5, "G92 and G0 on one line: both use axis words");
+	check_err("G92", 1, 1, "G92 without axis words");
+	check_err("G92.1 X0", 1, 7, "G92.1 takes no axis words");
+	check_err("G28.1 X0", 1, 7, "G28.1 takes no axis words");
+	check_err("G4", 1, 1, "G4 without P: write the dwell in seconds");
+	check_err("G4 P-1", 1, 4, "G4 P must be >= 0 seconds");
+	check_err("G4 G10 L2 P1 X0", 1, 4, "G4 and G10 on one line: same modal group");
+	check_err("G4 G64 P1", 1, 8, "P word with two of G4, G10, G64");
+	check_err("G1 X1 F10 L2", 1, 11, "L word without G10");
+	check_err("G1 X1 F10 Q2", 1, 11, "Q word without G64");
 	check_err("G1 X1 F10\nG12 X1", 2, 1, "unsupported G code G12");
 	check_err("G1.5 X1 F10", 1, 1, "unsupported G code G1.5");
 	check_err("G1 X1 F10 M98 P100", 1, 11, "unsupported M code M98");
@@ -275,7 +290,7 @@ static void test_unsupported_codes(void **state)
 	check_err("G1 G2 X1 F10", 1, 4, "two motion codes on one line: G1 and G2");
 	check_err("G1 X1 F10 G0", 1, 11, "two motion codes on one line: G1 and G0");
 	check_err("G90 G91 G1 X1 F10", 1, 5, "G90 and G91 on one line: same modal group");
-	check_err("G1 X1 F10 P2", 1, 11, "P word without G64");
+	check_err("G1 X1 F10 P2", 1, 11, "P word without G4, G10 or G64");
 	check_err("G53 G91 G0 X1", 1, 1, "G53 with G91");
 	check_err("G1 X1 F10\nG53 G2 X0 I-1", 2, 1, "G53 needs G0 or G1");
 }
@@ -283,7 +298,7 @@ static void test_unsupported_codes(void **state)
 static void test_notices(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	uint32_t k;
 	int seen = 0;
 
@@ -291,12 +306,12 @@ static void test_notices(void **state)
 	parse_ok("G90 G94 G17 G21 G40 G49 G80 G91.1\n"
 	         "T1 M6 G61.1\n"
 	         "S5000 M3\n"
-	         "G54 G64 P0.01 Q0.01\n"
+	         "G54 G64 P0.01\n"
 	         "M8 G61\n"
 	         "G53 G0 Z-3\n"
 	         "S6000 M4\n"
 	         "G1 X1 F100\n"
-	         "M5 M9 M7 M0 M1\n"
+	         "M5 M9 M7\n"
 	         "G53 G0 Z-2\n"
 	         "M2 M30\n",
 	         &m, &p);
@@ -304,31 +319,31 @@ static void test_notices(void **state)
 	for (k = 0; k < p.n_notices; k++) {
 		const struct mlip_gcode_notice *n = &p.notices[k];
 
-		/* plane, units, distance modes act on motion: never notices */
+		/* modes that act on motion or offsets: never notices */
 		assert_true(strcmp(n->word, "G17") && strcmp(n->word, "G21") &&
-		            strcmp(n->word, "G90") && strcmp(n->word, "G91.1"));
+		            strcmp(n->word, "G90") && strcmp(n->word, "G91.1") &&
+		            strcmp(n->word, "G53") && strcmp(n->word, "G54") &&
+		            strcmp(n->word, "G61") && strcmp(n->word, "G64") &&
+		            strcmp(n->word, "G94"));
 		if (strcmp(n->word, "S") == 0) {
 			assert_int_equal(n->first_line, 3);
 			assert_int_equal(n->count, 2);
 			seen++;
-		} else if (strcmp(n->word, "G53") == 0) {
-			assert_int_equal(n->first_line, 6);
-			assert_int_equal(n->count, 2);
-			assert_string_equal(mlip_gcode_notice_text(n),
-			                    "treated as G54: mlip has no work offsets");
-			seen++;
-		} else if (strcmp(n->word, "M3") == 0 || strcmp(n->word, "G61.1") == 0 ||
-		           strcmp(n->word, "M30") == 0 || strcmp(n->word, "G94") == 0) {
+		} else if (strcmp(n->word, "M3") == 0 || strcmp(n->word, "G40") == 0) {
 			assert_int_equal(n->count, 1);
 			assert_string_equal(mlip_gcode_notice_text(n),
 			                    "ignored (no effect on motion)");
 			seen++;
+		} else if (strcmp(n->word, "M2") == 0 || strcmp(n->word, "M30") == 0) {
+			assert_int_equal(n->first_line, 11);
+			assert_non_null(strstr(mlip_gcode_notice_text(n), "program end"));
+			seen++;
 		}
 	}
-	assert_int_equal(seen, 6);
-	/* G94 G40 G49 G80 T M6 S M3 G54 G64 M8 G61 G61.1 G53 M4 M5 M9 M7 M0 M1 M2 M30 */
-	assert_int_equal(p.n_notices, 22);
-	mlip_program_free(&p);
+	assert_int_equal(seen, 5);
+	/* G40 G49 G80 T M6 S M3 M8 M4 M5 M9 M7 M2 M30 */
+	assert_int_equal(p.n_notices, 14);
+	mlip_program_list_free(&p);
 }
 
 static void test_notice_overflow(void **state)
@@ -337,26 +352,26 @@ static void test_notice_overflow(void **state)
 	struct mlip_machine m = machine("XY");
 	struct mlip_gcode_error e;
 	struct cap c = {.n = 0, .limit = 64};
-	static const char *const words[] = {"M0", "M1", "M2", "M30", "M3", "M4", "M5", "M6",
-	                                    "M7", "M8", "M9", "S1", "T1", "G40", "G49", "G54",
-	                                    "G61", "G61.1", "G64", "G80", "G94"};
-	size_t k;
+	char w[8];
+	uint32_t k;
 
 	(void)state;
 	mlip_gcode_init(&g, &m);
-	for (k = 0; k < sizeof words / sizeof words[0]; k++) {
-		assert_int_equal(line(&g, words[k], (uint32_t)k + 1, &c, &e), MLIP_OK);
-		assert_int_equal(line(&g, words[k], (uint32_t)k + 100, &c, &e), MLIP_OK);
+	for (k = 0; k < MLIP_GCODE_MAX_NOTICES; k++) {
+		/* M3 .. M9, then Grbl settings lines $10=1, $11=1, ...: all notices */
+		if (k < 7) {
+			snprintf(w, sizeof w, "M%u", (unsigned)(k + 3));
+		} else {
+			snprintf(w, sizeof w, "$%u=1", (unsigned)(k + 3));
+		}
+		assert_int_equal(line(&g, w, k + 1, &c, &e), MLIP_OK);
+		assert_int_equal(line(&g, w, k + 100, &c, &e), MLIP_OK);
 	}
-	assert_int_equal(g.n_notices, sizeof words / sizeof words[0]);
+	assert_int_equal(g.n_notices, MLIP_GCODE_MAX_NOTICES);
 	for (k = 0; k < g.n_notices; k++) {
 		assert_int_equal(g.notices[k].count, 2);
 		assert_int_equal(g.notices[k].first_line, k + 1);
 	}
-	assert_int_equal(line(&g, "G53", 200, &c, &e), MLIP_OK);
-	assert_int_equal(line(&g, "G28", 201, &c, &e), MLIP_OK);
-	assert_int_equal(line(&g, "G30", 202, &c, &e), MLIP_OK);
-	assert_int_equal(g.n_notices, MLIP_GCODE_MAX_NOTICES);
 	/* one more distinct word ("F": initial feed used) is dropped, not overflowed */
 	mlip_gcode_set_initial_feed(&g, 100);
 	assert_int_equal(line(&g, "G1 X1", 203, &c, &e), MLIP_OK);
@@ -369,7 +384,7 @@ static void test_notice_overflow(void **state)
 static void test_modal(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G0 X1 Y1\n"
@@ -400,9 +415,31 @@ static void test_modal(void **state)
 		assert_near(p.blocks[k].tol_mm, EPS, 0);
 		assert_int_equal(p.blocks[k].line, k + 1);
 	}
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
-	check_err("X1 Y1\nG1 X2 F100", 1, 1, "axis words with no motion mode");
+	/* Grbl starts in G0: axis words before any motion mode are a rapid, with
+	 * a note; strict mode refuses them */
+	parse_ok("X1 Y1\nY2\nG1 X2 F100\n", &m, &p);
+	assert_int_equal(p.n, 3);
+	assert_int_equal(p.blocks[0].rapid, 1);
+	assert_int_equal(p.blocks[1].rapid, 1);
+	assert_int_equal(p.blocks[2].rapid, 0);
+	assert_int_equal(p.n_notices, 1);
+	assert_string_equal(p.notices[0].word, "G0");
+	assert_int_equal(p.notices[0].count, 1);
+	mlip_program_list_free(&p);
+	{
+		struct mlip_gcode g;
+		struct mlip_gcode_error e;
+		struct cap c = {.n = 0, .limit = 64};
+
+		mlip_gcode_init(&g, &m);
+		mlip_gcode_set_strict(&g, 1);
+		assert_int_equal(line(&g, "X1 Y1", 1, &c, &e), MLIP_E_SYNTAX);
+		assert_int_equal(e.col, 1);
+		assert_non_null(strstr(e.msg, "axis words with no motion mode"));
+		assert_int_equal(c.n, 0);
+	}
 	check_err("G1 F100\nG1 X1 F0", 2, 7, "feed F must be positive");
 	check_err("G1 X1 F-5", 1, 7, "feed F must be positive");
 }
@@ -420,7 +457,8 @@ static void test_missing_feed(void **state)
 	assert_int_equal(line(&g, "G0 X1", 1, &c, &e), MLIP_OK);
 	assert_int_equal(line(&g, "G1", 2, &c, &e), MLIP_OK); /* mode only: no move */
 	assert_int_equal(line(&g, "  Y1", 3, &c, &e), MLIP_E_SYNTAX);
-	assert_string_equal(e.msg, "missing feed: no F before the first feed move");
+	assert_string_equal(e.msg, "missing feed: no F before the first feed move (a program with "
+	                           "none runs with --default-feed F)");
 	assert_int_equal(e.line, 3);
 	assert_int_equal(e.col, 3);
 	assert_int_equal(line(&g, "X2 G2 I1 J0", 4, &c, &e), MLIP_E_SYNTAX);
@@ -445,14 +483,14 @@ static void test_missing_feed(void **state)
 	/* the program helpers: no F anywhere is an error, a late F is used */
 	check_err("G21\nG1 X1\nG0 Z1", 2, 1, "missing feed");
 	{
-		struct mlip_program p;
+		struct mlip_program_list p;
 
 		parse_ok("G1 X1 Y2\nZ3\nG1 Z2 F333.3\n", &m, &p);
 		assert_int_equal(p.n, 3);
 		assert_near(p.blocks[0].feed_mm_s, 333.3 / 60, 1e-12);
-		assert_near(p.initial_feed_word, 333.3, 0);
-		assert_int_equal(p.initial_feed_line, 3);
-		mlip_program_free(&p);
+		assert_near(p.r.initial_feed_word, 333.3, 0);
+		assert_int_equal(p.r.initial_feed_line, 3);
+		mlip_program_list_free(&p);
 	}
 	{
 		double f = -1;
@@ -466,7 +504,7 @@ static void test_missing_feed(void **state)
 static void test_incremental_and_home(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	m.axis[0].home = 5;
@@ -483,13 +521,13 @@ static void test_incremental_and_home(void **state)
 	assert_near(p.blocks[1].target[1], -2, 0);
 	assert_near(p.blocks[2].target[0], 1, 0);
 	assert_near(p.blocks[3].target[2], 90, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_inches_and_rotary(void **state)
 {
 	struct mlip_machine m = machine("XYZA");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G20 G1 X1 A10 F10\n" /* mixed move: F is a path speed, in/min */
@@ -509,14 +547,14 @@ static void test_inches_and_rotary(void **state)
 	assert_near(p.blocks[3].target[0], 1, 0);
 	assert_near(p.blocks[3].feed_mm_s, 10 * 25.4 / 60, 1e-12); /* speed kept across G21 */
 	assert_near(p.blocks[4].target[0], 26.4, 1e-12);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_config_order_and_axes(void **state)
 {
 	struct mlip_machine m = machine("ZYX");
 	struct mlip_machine xy = machine("XY");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G1 X1 Y2 Z3 F100\n", &m, &p);
@@ -525,7 +563,7 @@ static void test_config_order_and_axes(void **state)
 	assert_near(p.blocks[0].target[1], 2, 0);
 	assert_near(p.blocks[0].target[2], 1, 0);
 	assert_near(p.blocks[0].target[3], 0, 0); /* unused slots zeroed */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	check_err_m("G1 X1 F100\nG1 X2 Z1 Y1", &xy, 2, 7, "axis Z not configured");
 	check_err_m("G1 X1 F100\nG1 B1", &xy, 2, 4, "axis B not configured");
@@ -538,7 +576,7 @@ static void test_config_order_and_axes(void **state)
 static void test_soft_limits(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	int rc;
 
 	(void)state;
@@ -548,7 +586,7 @@ static void test_soft_limits(void **state)
 	check_err("G20 G0 Y40", 1, 8, "Y 1016.000 beyond soft limit 1000.000");
 	/* exactly on the limit is inside */
 	parse_ok("G0 X1000 Y-1000\n", &m, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	/* an arc whose ends are inside but whose bulge is not: blamed on the motion
 	 * word when the bulging axis has no word, and the line emits nothing */
 	check_err("G0 X998 Y5\nG2 Y-5 I0 J-5 F100", 2, 1, "beyond soft limit 1000.000 on the arc");
@@ -557,17 +595,17 @@ static void test_soft_limits(void **state)
 	{
 		static const char t[] = "G0 X998 Y5\nG2 Y-5 J-5 F100\nG1 X1\n";
 
-		rc = mlip_program_parse(t, sizeof t - 1, &m, &p);
+		rc = mlip_program_list_parse(t, sizeof t - 1, &m, &p);
 	}
 	assert_int_equal(rc, 1);
 	assert_int_equal(p.n_errors, 1);
 	assert_int_equal(p.errors[0].col, 1);
 	assert_int_equal(p.n, 2); /* the G0 and the G1 only */
 	assert_near(p.blocks[1].feed_mm_s, 100.0 / 60, 1e-12); /* F of the bad line kept */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	/* the small arc stays inside */
 	parse_ok("G0 X998 Y5\nG3 Y-5 J-5 F100\n", &m, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* guard against non-finite values (a NaN home here) */
 	m.axis[0].home = NAN;
@@ -577,43 +615,60 @@ static void test_soft_limits(void **state)
 static void test_home_codes(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
-	uint32_t k;
-	int found = 0;
+	struct mlip_program_list p;
 
 	(void)state;
-	parse_ok("G28 G91 Z0\n"  /* SheepTile: intermediate point = here */
-	         "G90\n"
-	         "G1 X5 F100\n"
-	         "G28 G91 X0 Y0\n"
-	         "G90 G30 X5\n"  /* absolute, where we are */
-	         "G28\n"         /* no intermediate point at all */
-	         "G1 Y1\n",
+	m.axis[2].home = 50; /* G28/G30 positions default to HOME */
+	/* G28 G91 Z0 (SheepTile): intermediate point here, then Z to its G28
+	 * position; the other axes stay */
+	parse_ok("G1 X5 Y2 Z10 F100\n"
+	         "G28 G91 Z0\n"
+	         "G90 G28 X1\n"   /* rapid to X1, then X to 0 */
+	         "G28\n"          /* every axis to the G28 position */
+	         "G1 X3 Y3 Z3\n"
+	         "G30.1\n"        /* store (3,3,3) */
+	         "G0 X9\n"
+	         "G30\n",
 	         &m, &p);
-	assert_int_equal(p.n, 2);
-	for (k = 0; k < p.n_notices; k++) {
-		if (strcmp(p.notices[k].word, "G28") == 0) {
-			assert_int_equal(p.notices[k].count, 3);
-			assert_int_equal(p.notices[k].first_line, 1);
-			found++;
-		}
-		if (strcmp(p.notices[k].word, "G30") == 0) {
-			assert_int_equal(p.notices[k].count, 1);
-			found++;
-		}
-	}
-	assert_int_equal(found, 2);
-	mlip_program_free(&p);
+	assert_int_equal(p.n, 8);
+	assert_near(p.blocks[1].target[0], 5, 0);
+	assert_near(p.blocks[1].target[2], 50, 0);
+	assert_int_equal(p.blocks[1].rapid, 1);
+	assert_near(p.blocks[2].target[0], 1, 0); /* intermediate */
+	assert_near(p.blocks[3].target[0], 0, 0);
+	assert_near(p.blocks[3].target[1], 2, 0);
+	assert_near(p.blocks[4].target[1], 0, 0); /* G28 alone: Y too */
+	assert_near(p.blocks[4].target[2], 50, 0);
+	assert_near(p.blocks[7].target[0], 3, 0);
+	assert_near(p.blocks[7].target[1], 3, 0);
+	assert_near(p.blocks[7].target[2], 3, 0);
+	assert_near(p.r.offsets_end.g30[0], 3, 0);
+	mlip_program_list_free(&p);
 
-	check_err("G1 X5 F100\nG28 X10", 2, 1, "G28 with motion is not supported");
-	check_err("G1 X5 F100\nG91 G30 Z1", 2, 5, "G30 with motion is not supported");
+	/* G28.1 stores, G28 goes there; the stored position is checked against
+	 * the soft limits before anything moves */
+	{
+		struct mlip_program r;
+		struct mlip_gcode_offsets o;
+		struct mlip_program_options opt = {0, &o, 0};
+		static const char t[] = "G0 X1\nG28 Y5\n";
+
+		mlip_gcode_offsets_init(&o, &m);
+		o.g28[1] = 2000;
+		assert_int_equal(mlip_program_open_mem(&r, t, sizeof t - 1, &m, &opt), 1);
+		assert_int_equal(r.errors[0].line, 2);
+		assert_int_equal(r.errors[0].col, 1);
+		assert_non_null(strstr(r.errors[0].msg, "Y 2000.000 beyond soft limit 1000.000"));
+		mlip_program_close(&r);
+	}
 	check_err("G1 X5 F100\nG28 G1 X5", 2, 5, "G28 and G1 on one line: both use axis words");
+	check_err("G1 X5 F100\nG28 X2000", 2, 5, "X 2000.000 beyond soft limit 1000.000");
 }
 
 static void test_merge(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G1 X1 F100\n"
@@ -628,12 +683,12 @@ static void test_merge(void **state)
 	assert_int_equal(p.n, 2);
 	assert_near(p.blocks[1].target[0], 1.0000012, 1e-12);
 	assert_int_equal(p.blocks[1].line, 6);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* just above the threshold is kept */
 	parse_ok("G1 X1 F100\nX1.0000011\n", &m, &p);
 	assert_int_equal(p.n, 2);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_sink_full_and_empty(void **state)
@@ -668,7 +723,7 @@ static void test_sink_full_and_empty(void **state)
 /* Every block of p from index `from` on: a chord of the circle (cu, cv, r) in
  * axes (iu, iv), turning in direction dir (+1 CCW); the sagitta of each chord
  * within SAG and the corner tolerances as promised. Returns the swept angle. */
-static double check_arc_tol(const struct mlip_program *p, size_t from, const double *start,
+static double check_arc_tol(const struct mlip_program_list *p, size_t from, const double *start,
                             int iu, int iv, double cu, double cv, double r, int dir, double rtol)
 {
 	double pu = start[iu], pv = start[iv], swept = 0, sag_max = 0;
@@ -711,7 +766,7 @@ static double check_arc_tol(const struct mlip_program *p, size_t from, const dou
 	return swept;
 }
 
-static double check_arc(const struct mlip_program *p, size_t from, const double *start, int iu,
+static double check_arc(const struct mlip_program_list *p, size_t from, const double *start, int iu,
                         int iv, double cu, double cv, double r, int dir)
 {
 	return check_arc_tol(p, from, start, iu, iv, cu, cv, r, dir, 1e-9);
@@ -720,7 +775,7 @@ static double check_arc(const struct mlip_program *p, size_t from, const double 
 static void test_arc_g17(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	double s[3] = {10, 0, 0}, sw;
 	size_t n;
 
@@ -736,14 +791,14 @@ static void test_arc_g17(void **state)
 	assert_near(p.blocks[p.n - 1].target[1], 10, 0);
 	assert_near(p.blocks[1].feed_mm_s, 10, 1e-12);
 	assert_int_equal(p.blocks[1].rapid, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* CW, same ends: the long way round (270 degrees) */
 	parse_ok("G1 X10 Y0 F600\nG2 X0 Y10 I-10 J0\n", &m, &p);
 	sw = check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1);
 	assert_near(sw, -1.5 * M_PI, 1e-9);
 	assert_true(p.blocks[1].target[1] < 0); /* leaves downwards */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* CW quarter with the center given by J only; modal G2 on the next line */
 	parse_ok("G1 X10 Y0 F600\nG2 X0 Y-10 I-10\nX-10 Y0 J10\n", &m, &p);
@@ -752,18 +807,18 @@ static void test_arc_g17(void **state)
 	sw = check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1);
 	assert_near(sw, -M_PI, 1e-9);
 	assert_near(p.blocks[n - 1].target[1], -10, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* tiny arc (radius below the sagitta bound): still a few chords */
 	parse_ok("G1 X0.0005 Y0 F600\nG3 X-0.0005 Y0 I-0.0005\n", &m, &p);
 	assert_int_equal(p.n, 3);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_arc_g18_g19(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	double s18[3] = {10, 0, 0}, s19[3] = {0, 10, 0};
 
 	(void)state;
@@ -772,20 +827,20 @@ static void test_arc_g18_g19(void **state)
 	parse_ok("G1 X10 F600\nG18 G3 X0 Z-10 I-10 K0\n", &m, &p);
 	assert_near(check_arc(&p, 1, s18, 2, 0, 0, 0, 10, 1), M_PI / 2, 1e-9);
 	assert_true(p.blocks[p.n / 2].target[2] < 0 && p.blocks[p.n / 2].target[0] > 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 X10 F600\nG18 G2 X0 Z-10 I-10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s18, 2, 0, 0, 0, 10, -1), -1.5 * M_PI, 1e-9);
 	assert_true(p.blocks[1].target[2] > 0); /* the long way, through Z > 0 */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* G19 is the YZ plane (u = Y, v = Z) with J K */
 	parse_ok("G1 Y10 F600\nG19 G3 Y0 Z10 J-10 K0\n", &m, &p);
 	assert_near(check_arc(&p, 1, s19, 1, 2, 0, 0, 10, 1), M_PI / 2, 1e-9);
 	assert_true(p.blocks[p.n / 2].target[1] > 0 && p.blocks[p.n / 2].target[2] > 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 Y10 F600\nG19 G2 Y0 Z-10 K0 J-10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s19, 1, 2, 0, 0, 10, -1), -M_PI / 2, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* the offset word of the normal axis is an error; so are missing centers */
 	check_err("G1 X10 F600\nG3 X0 Y10 I-10 K1", 2, 16,
@@ -813,24 +868,24 @@ static void test_arc_g18_g19(void **state)
 static void test_arc_radius_tolerance(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	/* r = 10: allowed difference max(0.002, 0.01) = 0.01 */
 	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10.009 I-10\n", &m, &p);
 	assert_near(p.blocks[p.n - 1].target[1], 10.009, 0); /* the end is exact */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	check_err("G1 X10 Y0 F600\nG3 X0 Y10.011 I-10", 2, 1, "differs from radius to end 10.011");
 	/* small radius: the absolute 0.002 applies */
 	parse_ok("G1 X1 Y0 F600\nG3 X0 Y1.0019 I-1\n", &m, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	check_err("G1 X1 Y0 F600\nG3 X0 Y1.0021 I-1", 2, 1, "arc radius to start 1.000");
 }
 
 static void test_full_circle_and_helix(void **state)
 {
 	struct mlip_machine m = machine("XYZA");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	double s[4] = {10, 0, 0, 0};
 	size_t k;
 
@@ -840,12 +895,12 @@ static void test_full_circle_and_helix(void **state)
 	assert_true(p.blocks[1].target[1] < 0); /* CW: first goes down */
 	assert_near(p.blocks[p.n - 1].target[0], 10, 0);
 	assert_near(p.blocks[p.n - 1].target[1], 0, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* full circle from I J only, no axis words, modal G3 */
 	parse_ok("G1 X10 Y0 F600\nG3 I-10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), 2 * M_PI, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* helix: Z and A move linearly with the angle */
 	parse_ok("G1 X10 Y0 F600\nG3 X-10 Y0 Z5 A90 I-10 J0\n", &m, &p);
@@ -863,45 +918,45 @@ static void test_full_circle_and_helix(void **state)
 		assert_near(p.blocks[k].target[3], 90 * ang / M_PI, 1e-9);
 	}
 	assert_near(p.blocks[p.n - 1].target[2], 5, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* helical full circle in G91 (a thread-milling pass) */
 	parse_ok("G1 X10 Y0 F600\nG91 G2 Z-1 I-10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -2 * M_PI, 1e-9);
 	assert_near(p.blocks[p.n - 1].target[2], -1, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_r_arcs(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	double s[3] = {10, 0, 0};
 
 	(void)state;
 	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10 R10\n", &m, &p); /* short CCW: center origin */
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), M_PI / 2, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10 R-10\n", &m, &p); /* long CCW: center (10,10) */
 	assert_near(check_arc(&p, 1, s, 0, 1, 10, 10, 10, 1), 1.5 * M_PI, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 X10 Y0 F600\nG2 X0 Y10 R10\n", &m, &p); /* short CW: center (10,10) */
 	assert_near(check_arc(&p, 1, s, 0, 1, 10, 10, 10, -1), -M_PI / 2, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 X10 Y0 F600\nG2 X0 Y10 R-10\n", &m, &p); /* long CW: center origin */
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -1.5 * M_PI, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	/* half circle: endpoints exactly 2R apart */
 	parse_ok("G1 X10 Y0 F600\nG3 X-10 Y0 R10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), M_PI, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	/* R in inches */
 	{
 		double si[3] = {25.4, 0, 0};
 
 		parse_ok("G20 G1 X1 Y0 F10\nG3 X0 Y1 R1\n", &m, &p);
 		assert_near(check_arc(&p, 1, si, 0, 1, 0, 0, 25.4, 1), M_PI / 2, 1e-9);
-		mlip_program_free(&p);
+		mlip_program_list_free(&p);
 	}
 
 	check_err("G1 X10 Y0 F600\nG3 X30 Y0 R5", 2, 11,
@@ -936,7 +991,7 @@ static void test_arc_random(void **state)
 		double r = exp(urand(log(0.005), log(500))), a0 = urand(-M_PI, M_PI);
 		double sweep = it % 7 == 0 ? 2 * M_PI : urand(0.01, 2 * M_PI - 0.01);
 		double cu = urand(-100, 100), cv = urand(-100, 100), s[3], e[3], sw;
-		struct mlip_program prog;
+		struct mlip_program_list prog;
 		char text[512];
 		size_t n;
 
@@ -967,7 +1022,7 @@ static void test_arc_random(void **state)
 		sw = check_arc_tol(&prog, 1, s, iu, iv, cu, cv, r, cw ? -1 : 1, 1e-7);
 		assert_near(fabs(sw), sweep, 1e-6);
 		assert_near(prog.blocks[prog.n - 1].target[in], e[in], 1e-8);
-		mlip_program_free(&prog);
+		mlip_program_list_free(&prog);
 		checked++;
 	}
 	assert_true(checked > 500);
@@ -978,7 +1033,7 @@ static void test_arc_random(void **state)
 static void test_program_errors_and_print(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	char *out = NULL;
 	size_t len = 0;
 	FILE *f;
@@ -992,7 +1047,7 @@ static void test_program_errors_and_print(void **state)
 	                           "X2000 (too far)\n";
 
 	(void)state;
-	rc = mlip_program_parse(text, sizeof text - 1, &m, &p);
+	rc = mlip_program_list_parse(text, sizeof text - 1, &m, &p);
 	assert_int_equal(rc, 1);
 	assert_int_equal(p.n_errors, 3);
 	assert_int_equal(p.n_errors_total, 3);
@@ -1000,8 +1055,8 @@ static void test_program_errors_and_print(void **state)
 	assert_int_equal(p.n, 2);
 	f = open_memstream(&out, &len);
 	assert_non_null(f);
-	mlip_program_print_errors(&p, "a.nc", f);
-	mlip_program_print_notices(&p, "a.nc", f);
+	mlip_program_print_errors(&p.r, "a.nc", f);
+	mlip_program_print_notices(&p.r, "a.nc", f);
 	fclose(f);
 	assert_string_equal(out,
 	                    "a.nc:2:5: error: malformed number '1.2.3'\n"
@@ -1011,31 +1066,31 @@ static void test_program_errors_and_print(void **state)
 	                    "a.nc:5: note: M3 ignored (no effect on motion) (2 times)\n"
 	                    "a.nc:5: note: S ignored (no effect on motion)\n");
 	free(out);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* a valid program prints no errors; whole-file errors have no column */
 	parse_ok("G0 X1\n", &m, &p);
 	f = open_memstream(&out, &len);
-	mlip_program_print_errors(&p, "b.nc", f);
+	mlip_program_print_errors(&p.r, "b.nc", f);
 	fclose(f);
 	assert_string_equal(out, "");
 	free(out);
-	mlip_program_free(&p);
-	rc = mlip_program_parse("G21\n", 4, &m, &p);
+	mlip_program_list_free(&p);
+	rc = mlip_program_list_parse("G21\n", 4, &m, &p);
 	assert_int_equal(rc, 1);
 	f = open_memstream(&out, &len);
-	mlip_program_print_errors(&p, "c.nc", f);
+	mlip_program_print_errors(&p.r, "c.nc", f);
 	fclose(f);
 	assert_string_equal(out, "c.nc:1: error: empty program: no motion\n"
 	                         "c.nc: 1 error, program rejected: nothing was run\n");
 	free(out);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_program_error_cap(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	size_t n = 1500, k;
 	char *text = malloc(n * 6 + 16);
 	int rc;
@@ -1046,27 +1101,29 @@ static void test_program_error_cap(void **state)
 	for (k = 0; k < n; k++) {
 		strcat(text + k * 5, "X1 E\n");
 	}
-	rc = mlip_program_parse(text, strlen(text), &m, &p);
+	rc = mlip_program_list_parse(text, strlen(text), &m, &p);
 	assert_int_equal(rc, 1);
 	assert_int_equal(p.n_errors, MLIP_PROGRAM_MAX_ERRORS);
 	assert_int_equal(p.n_errors_total, n);
 	assert_int_equal(p.errors[999].line, 1001);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	free(text);
 }
 
 static void test_read_file_errors(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	char *buf;
 	size_t len;
 
 	(void)state;
 	assert_int_equal(mlip_read_file("/nonexistent/x.nc", &buf, &len), -ENOENT);
-	assert_int_equal(mlip_program_load("/nonexistent/x.nc", &m, &p), -ENOENT);
+	assert_true(mlip_program_list_load("/nonexistent/x.nc", &m, &p) < 0);
+	assert_non_null(strstr(p.r.msg, "No such file"));
+	mlip_program_list_free(&p);
 	assert_int_equal(p.n, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_scan_axes(void **state)
@@ -1100,7 +1157,7 @@ static char *shared_path(const char *file)
 }
 
 static void load_file(const char *file, const char *axes, size_t min_blocks,
-                      struct mlip_program *p)
+                      struct mlip_program_list *p)
 {
 	struct mlip_machine m = big_machine(axes);
 	char L[8], *buf;
@@ -1116,9 +1173,9 @@ static void load_file(const char *file, const char *axes, size_t min_blocks,
 	assert_int_equal(mlip_gcode_scan_axes(buf, len, L), (int)strlen(axes));
 	assert_string_equal(L, axes);
 	free(buf);
-	rc = mlip_program_load(path, &m, p);
+	rc = mlip_program_list_load(path, &m, p);
 	if (rc) {
-		mlip_program_print_errors(p, path, stderr);
+		mlip_program_print_errors(&p->r, path, stderr);
 	}
 	assert_int_equal(rc, 0);
 	assert_true(p->n >= min_blocks);
@@ -1126,24 +1183,24 @@ static void load_file(const char *file, const char *axes, size_t min_blocks,
 
 static void test_toolpaths(void **state)
 {
-	struct mlip_program p;
+	struct mlip_program_list p;
 	size_t k;
 
 	(void)state;
 	load_file("MB-2.3_test.nc", "XYZ", 112000, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	load_file("tball-pocket.gcode", "XYZ", 40000, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	load_file("4006.nc", "XYZA", 16000, &p);
 	for (k = 0; k < p.n; k++) {
 		assert_true(isfinite(p.blocks[k].target[3]));
 	}
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	load_file("flower-spiral-2d.ngc", "XY", 87000, &p);
 	assert_near(p.blocks[0].feed_mm_s, 200, 1e-9); /* F12000 mm/min */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	load_file("SheepTile-v2.nc", "XYZ", 10000, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 /* SheepTile through the core line by line: the chords of every arc lie on

@@ -10,6 +10,7 @@
 #include "check.h"
 #include "confload.h"
 #include "mlip/gcode.h"
+#include "offsets.h"
 #include "program.h"
 
 int mlip_cli_number(const char *s, double *out)
@@ -82,8 +83,8 @@ static int apply_accel(struct mlip_machine *m, const char *list, const char *pro
 	return 0;
 }
 
-int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program_text,
-                           size_t len, struct mlip_config *cfg, const char *prog, FILE *err)
+int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program_path,
+                           struct mlip_config *cfg, const char *prog, FILE *err)
 {
 	mlip_config_defaults(cfg);
 	struct mlip_machine *m = &cfg->machine;
@@ -93,7 +94,12 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
 		}
 	} else {
 		char letters[MLIP_MAX_AXES + 1] = "";
-		int n = program_text ? mlip_gcode_scan_axes(program_text, len, letters) : 0;
+		char why[256];
+		int n = program_path ? mlip_program_scan_axes(program_path, letters, why, sizeof(why)) : 0;
+		if (n < 0) {
+			fprintf(err, "%s: %s: %s\n", prog, program_path, why);
+			return -1;
+		}
 		if (n < 2) {
 			/* a program using one axis still runs on a 2-axis machine */
 			const char *fill = "XYZ";
@@ -153,29 +159,50 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
 	return 0;
 }
 
-double *mlip_cli_polyline(const struct mlip_machine *m, const struct mlip_block *blocks,
-                          size_t nblocks, size_t *npts)
+double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *program,
+                          size_t *npts, const char *path, const char *prog, FILE *err)
 {
-	int n = m->n_axes;
-	double *pts = malloc(sizeof(double) * (size_t)n * (nblocks + 1));
+	int n = m->n_axes, rc;
+	size_t np = 1, cap = 4096;
+	double *pts = malloc(sizeof(double) * (size_t)n * cap);
+	struct mlip_block b;
 	if (pts == NULL) {
+		fprintf(err, "%s: out of memory\n", prog);
 		return NULL;
 	}
 	for (int k = 0; k < n; k++) {
 		pts[k] = m->axis[k].home;
 	}
-	size_t np = 1;
-	for (size_t i = 0; i < nblocks; i++) {
+	while ((rc = mlip_program_next(program, &b)) > 0) {
 		const double *last = pts + (np - 1) * (size_t)n;
 		double d2 = 0.0;
+		if (b.kind != MLIP_BLOCK_MOVE) {
+			continue;
+		}
 		for (int k = 0; k < n; k++) {
-			d2 += (blocks[i].target[k] - last[k]) * (blocks[i].target[k] - last[k]);
+			d2 += (b.target[k] - last[k]) * (b.target[k] - last[k]);
 		}
 		if (sqrt(d2) < MLIP_GCODE_MERGE_MM) {
 			continue;
 		}
-		memcpy(pts + np * (size_t)n, blocks[i].target, sizeof(double) * (size_t)n);
+		if (np == cap) {
+			double *q = realloc(pts, sizeof(double) * (size_t)n * cap * 2);
+			if (q == NULL) {
+				free(pts);
+				fprintf(err, "%s: out of memory\n", prog);
+				return NULL;
+			}
+			pts = q;
+			cap *= 2;
+		}
+		memcpy(pts + np * (size_t)n, b.target, sizeof(double) * (size_t)n);
 		np++;
+	}
+	mlip_program_rewind(program);
+	if (rc < 0) {
+		fprintf(err, "%s: %s: %s\n", prog, path, program->msg);
+		free(pts);
+		return NULL;
 	}
 	*npts = np;
 	return pts;
@@ -197,17 +224,29 @@ void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limit
 }
 
 int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
-                          struct mlip_config *cfg, char **text, size_t *len, const char *prog,
-                          FILE *err)
+                          struct mlip_config *cfg, struct mlip_program *program,
+                          const char *prog, FILE *err)
 {
-	int rc = mlip_read_file(path, text, len);
-	if (rc != 0) {
-		fprintf(err, "%s: %s: %s\n", prog, path, strerror(-rc));
+	struct mlip_gcode_offsets off;
+	struct mlip_program_options opt = {o->strict, &off, o->default_feed};
+	if (mlip_cli_build_machine(o, path, cfg, prog, err) != 0) {
 		return -1;
 	}
-	if (mlip_cli_build_machine(o, *text, *len, cfg, prog, err) != 0) {
-		free(*text);
-		*text = NULL;
+	if (o->offsets != NULL) {
+		if (mlip_offsets_load(o->offsets, &cfg->machine, &off, prog, err) != 0) {
+			return -1;
+		}
+	} else {
+		mlip_gcode_offsets_init(&off, &cfg->machine);
+	}
+	int rc = mlip_program_open(program, path, &cfg->machine, &opt);
+	if (rc < 0) {
+		fprintf(err, "%s: %s: %s\n", prog, path, program->msg);
+	} else if (rc > 0) {
+		mlip_program_print_errors(program, path, err);
+	}
+	if (rc != 0) {
+		mlip_program_close(program);
 		return -1;
 	}
 	return 0;

@@ -9,25 +9,32 @@
 
 #include "mlip/config.h"
 #include "mlip/planner.h"
+#include "program.h"
 
 struct mlip_cli_machine {
 	const char *config;  /* INI path, or NULL: axes are those the program uses */
+	const char *offsets; /* offsets file (offsets.h), or NULL: all zero, G54 */
+	int strict;          /* mlip_gcode_set_strict */
+	double default_feed; /* --default-feed: F for a program without any, or 0 */
 	const char *accel;   /* "A" or "A1,A2,..." in config order, or NULL */
 	double vmax_mm_s;    /* <= 0: unset */
 	double eps_mm;
 	double period_s;
 };
 
-/* Build cfg from the options; program_text (may be NULL) names the axes when
- * there is no config. Prints "mlip-xxx: ..." errors to err. 0 or -1. */
-int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program_text,
-                           size_t len, struct mlip_config *cfg, const char *prog, FILE *err);
+/* Build cfg from the options; the program at program_path (may be NULL)
+ * names the axes when there is no config. Prints "mlip-xxx: ..." errors to
+ * err. 0 or -1. */
+int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program_path,
+                           struct mlip_config *cfg, const char *prog, FILE *err);
 
-/* Read the program at path and build its machine (cli_build_machine); on
- * failure print why and return -1. *text (NUL-terminated) is the caller's. */
+/* Build the machine (cli_build_machine), read the offsets file (o->offsets)
+ * and check the program at path (mlip_program_open); on failure print why
+ * (every error of the program) and return -1, with *program closed. cfg
+ * must outlive *program. */
 int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
-                          struct mlip_config *cfg, char **text, size_t *len, const char *prog,
-                          FILE *err);
+                          struct mlip_config *cfg, struct mlip_program *program,
+                          const char *prog, FILE *err);
 
 /* "mpct" | "bisector" | "stop" -> strategy; -1 when unknown. */
 int mlip_cli_strategy(const char *name);
@@ -44,10 +51,12 @@ void mlip_cli_on_stop_signals(void (*handler)(int));
 struct mlip_check_limits;
 void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limits *lim);
 
-/* Polyline the planner will follow: home + every block target, with points
+/* Polyline the planner will follow: home + every move's target, with points
  * closer than MLIP_GCODE_MERGE_MM to the previous one dropped like the
- * planner does. Returns a malloc'ed array of *npts points of n coordinates. */
-double *mlip_cli_polyline(const struct mlip_machine *m, const struct mlip_block *blocks,
-                          size_t nblocks, size_t *npts);
+ * planner does, streamed from the program (which is rewound after). Returns
+ * a malloc'ed array of *npts points of n coordinates, or NULL (message
+ * printed). */
+double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *program,
+                          size_t *npts, const char *path, const char *prog, FILE *err);
 
 #endif
