@@ -529,7 +529,7 @@ static const struct gdef *gfind(int code10)
 /* M codes accepted as notices: program stops, spindle, tool change, coolant */
 static int m_accepted(int code10)
 {
-	return code10 % 10 == 0 && (code10 <= 90 || code10 == 300);
+	return code10 % 10 == 0 && (code10 <= 90 || code10 == 300 || code10 == 600);
 }
 
 /* value*10 as an int when value is a non-negative multiple of 0.1, else -1 */
@@ -1481,6 +1481,9 @@ static mlip_status system_line(struct mlip_gcode *g, const char *t, size_t len, 
 	} else {
 		while (i < len && is_alpha(t[i]) && k < 5) {
 			word[k++] = upper(t[i++]);
+		}
+		while (k == 2 && word[1] == 'N' && i < len && is_digit(t[i])) {
+			i++; /* $N0=..., $N1=...: startup blocks */
 		}
 		if (i < len && t[i] == '=') {
 			i = len; /* $N0=..., $RST=..., $I=...: the value is Grbl's */

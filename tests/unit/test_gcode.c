@@ -16,8 +16,14 @@
 #include <cmocka.h>
 
 #include "mlip/gcode.h"
+#include "../../tools/lib/offsets.h"
 #include "../../tools/lib/program.h"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#define M_PI_VALUE 3.14159265358979323846
+#define PI_2 (M_PI_VALUE / 2)
 #define EPS 0.01                          /* machine contour tolerance in these tests */
 #define SAG (MLIP_GCODE_ARC_FRACTION * EPS) /* chord sagitta allowed */
 
@@ -1307,6 +1313,423 @@ static void test_sheeptile_arcs(void **state)
 	free(buf);
 }
 
+/* ---- program events, offsets, path modes, feed modes, Grbl (issue 11) ---- */
+
+/* Parse text with the given start offsets (NULL: defaults), must be valid. */
+static void parse_off(const char *text, const struct mlip_machine *m,
+                      const struct mlip_gcode_offsets *o, struct mlip_program_list *p)
+{
+	struct mlip_program_options opt = {0, o, 0};
+	struct mlip_block b;
+	int rc;
+
+	memset(p, 0, sizeof *p);
+	rc = mlip_program_open_mem(&p->r, text, strlen(text), m, &opt);
+	if (rc != 0) {
+		mlip_program_print_errors(&p->r, "<test>", stderr);
+	}
+	assert_int_equal(rc, 0);
+	p->blocks = malloc(sizeof *p->blocks * (p->r.n + 1));
+	assert_non_null(p->blocks);
+	while (mlip_program_next(&p->r, &b) > 0) {
+		p->blocks[p->n++] = b;
+	}
+	assert_int_equal(p->n, p->r.n);
+	p->notices = p->r.notices;
+	p->n_notices = p->r.n_notices;
+}
+
+static const struct mlip_gcode_notice *find_notice(const struct mlip_program_list *p,
+                                                   const char *word)
+{
+	uint32_t k;
+
+	for (k = 0; k < p->n_notices; k++) {
+		if (strcmp(p->notices[k].word, word) == 0) {
+			return &p->notices[k];
+		}
+	}
+	return NULL;
+}
+
+static void test_dwell(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+
+	(void)state;
+	/* G4 P is seconds (LinuxCNC, Grbl 1.1); it comes before the motion of
+	 * its line (LinuxCNC's order of execution) */
+	parse_ok("G1 X1 F60\nG4 P0.5\nG4 P1 G1 X2\nG04P3\nG4 P0\n", &m, &p);
+	assert_int_equal(p.n, 6);
+	assert_int_equal(p.blocks[0].kind, MLIP_BLOCK_MOVE);
+	assert_int_equal(p.blocks[1].kind, MLIP_BLOCK_DWELL);
+	assert_near(p.blocks[1].dwell_s, 0.5, 0);
+	assert_int_equal(p.blocks[1].line, 2);
+	assert_near(p.blocks[1].target[0], 1, 0); /* where the machine rests */
+	assert_int_equal(p.blocks[2].kind, MLIP_BLOCK_DWELL);
+	assert_near(p.blocks[2].dwell_s, 1, 0);
+	assert_near(p.blocks[2].target[0], 1, 0);
+	assert_int_equal(p.blocks[3].kind, MLIP_BLOCK_MOVE);
+	assert_near(p.blocks[3].target[0], 2, 0);
+	assert_near(p.blocks[4].dwell_s, 3, 0);
+	assert_near(p.blocks[5].dwell_s, 0, 0);
+	mlip_program_list_free(&p);
+	/* a dwell alone is no motion */
+	check_err("G4 P1\n", 1, 0, "empty program: no motion");
+}
+
+static void test_pauses_and_end(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+	struct mlip_gcode_offsets o;
+
+	(void)state;
+	mlip_gcode_offsets_init(&o, &m);
+	o.select = 2;
+	o.g92_on = 1;
+	o.g92[0] = 1;
+	/* M0/M60 pause, M1 optional pause, after the motion of their line;
+	 * after M2 nothing is read, not even a bad line (LinuxCNC) */
+	parse_off("G1 X1 F60 M0\nM1\nG1 X2 M60\nM2\nG1 X3\nthis is not G-code\n", &m, &o, &p);
+	assert_int_equal(p.n, 5);
+	assert_int_equal(p.blocks[0].kind, MLIP_BLOCK_MOVE);
+	assert_int_equal(p.blocks[1].kind, MLIP_BLOCK_PAUSE);
+	assert_int_equal(p.blocks[1].line, 1);
+	assert_int_equal(p.blocks[2].kind, MLIP_BLOCK_OPTIONAL_PAUSE);
+	assert_int_equal(p.blocks[3].kind, MLIP_BLOCK_MOVE);
+	assert_near(p.blocks[3].target[0], 3, 0); /* X2 + G92 offset 1 */
+	assert_int_equal(p.blocks[4].kind, MLIP_BLOCK_PAUSE);
+	assert_non_null(find_notice(&p, "M60"));
+	assert_non_null(find_notice(&p, "M2"));
+	/* M2: G54 and G92 off for the next program, the G92 values kept */
+	assert_int_equal(p.r.offsets_end.select, 0);
+	assert_int_equal(p.r.offsets_end.g92_on, 0);
+	assert_near(p.r.offsets_end.g92[0], 1, 0);
+	mlip_program_list_free(&p);
+	/* without M2 the state stays as the program left it */
+	parse_off("G56 G1 X1 F60\n", &m, NULL, &p);
+	assert_int_equal(p.r.offsets_end.select, 2);
+	mlip_program_list_free(&p);
+}
+
+static void test_work_offsets(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+	struct mlip_gcode_offsets o;
+
+	(void)state;
+	mlip_gcode_offsets_init(&o, &m);
+	o.coord[1][0] = 10; /* G55 */
+	o.coord[1][1] = 20;
+	o.coord[8][2] = -5; /* G59.3 */
+	parse_off("G0 X1 Y1\n"         /* G54: machine = program */
+	          "G55 X1 Y1\n"        /* (11, 21) */
+	          "G91 X1\n"           /* incremental: offsets do not apply (12) */
+	          "G90 G53 X1\n"       /* machine coordinates, this line only */
+	          "X2\n"               /* G55 again: 12 */
+	          "G59.3 Z1\n"         /* -4 */
+	          "G10 L2 P2 X100\n"   /* G55's X origin := 100 (machine) */
+	          "G55 X0\n"           /* 100 */
+	          "G10 L20 P0 X5\n"    /* current X (100) reads 5 in G55 */
+	          "X5\n"               /* stays: 100 */
+	          "X6\n"               /* 101 */
+	          "G92 X0\n"           /* current X reads 0: G92 offset 6 */
+	          "X1\n"               /* 102 */
+	          "G92.2\n"            /* G92 off (kept) */
+	          "X1\n"               /* 96 */
+	          "G92.3\n"            /* on again */
+	          "X0\n"               /* 101 */
+	          "G92.1\n"            /* zero and off */
+	          "X0\n",              /* 95 */
+	          &m, &o, &p);
+	{
+		static const double x[] = {1, 11, 12, 1, 12, 12, 100, 101, 102, 96, 101, 95};
+		size_t k;
+
+		/* merged points emit nothing: compare the X of the moves given */
+		assert_int_equal(p.n, 12);
+		for (k = 0; k < 12; k++) {
+			assert_near(p.blocks[k].target[0], x[k], 1e-12);
+		}
+		assert_near(p.blocks[1].target[1], 21, 0);
+		assert_near(p.blocks[5].target[2], -4, 0);
+	}
+	assert_int_equal(p.r.offsets_end.select, 1);
+	assert_near(p.r.offsets_end.coord[1][0], 95, 1e-12);
+	assert_int_equal(p.r.offsets_end.g92_on, 0);
+	assert_near(p.r.offsets_end.g92[0], 0, 0);
+	mlip_program_list_free(&p);
+
+	/* G10 values are in the line's units, G91 does not apply to them */
+	parse_off("G20 G91 G10 L2 P1 X1\nG90 G0 X0\n", &m, NULL, &p);
+	assert_near(p.blocks[0].target[0], 25.4, 1e-12);
+	mlip_program_list_free(&p);
+
+	/* soft limits are in machine coordinates */
+	{
+		struct mlip_program r;
+		struct mlip_program_options opt = {0, &o, 0};
+		static const char t[] = "G55 G0 X995\n";
+
+		assert_int_equal(mlip_program_open_mem(&r, t, sizeof t - 1, &m, &opt), 1);
+		assert_int_equal(r.errors[0].col, 8);
+		assert_string_equal(r.errors[0].msg, "X 1005.000 beyond soft limit 1000.000");
+		mlip_program_close(&r);
+	}
+	check_err("G92 X-1000\nG0 X1\n", 2, 4, "X 1001.000 beyond soft limit 1000.000");
+	check_err("G55 G56 X1", 1, 5, "G55 and G56 on one line: same modal group");
+}
+
+static void test_path_modes(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+
+	(void)state;
+	parse_ok("G1 X1 F60\n"
+	         "G61 X2\n"          /* exact stop from here */
+	         "G61.1 X3\n"
+	         "G64 X4\n"          /* blending within eps */
+	         "G64 P0.005 X5\n"   /* tighter */
+	         "G64 P0.5 X6\n"     /* looser than the machine: capped */
+	         "G64 P0 Q0.1 X7\n"  /* P0: as G64; Q: noted */
+	         "G20 G64 P0.0001 X1\n",
+	         &m, &p);
+	assert_int_equal(p.n, 8);
+	assert_int_equal(p.blocks[0].exact_stop, 0);
+	assert_int_equal(p.blocks[1].exact_stop, 1);
+	assert_int_equal(p.blocks[2].exact_stop, 1);
+	assert_int_equal(p.blocks[3].exact_stop, 0);
+	assert_near(p.blocks[3].tol_mm, EPS, 0);
+	assert_near(p.blocks[4].tol_mm, 0.005, 1e-15);
+	assert_near(p.blocks[5].tol_mm, EPS, 0);
+	assert_near(p.blocks[6].tol_mm, EPS, 0);
+	assert_near(p.blocks[7].tol_mm, 0.00254, 1e-15);
+	assert_int_equal(find_notice(&p, "G64P")->first_line, 6);
+	assert_int_equal(find_notice(&p, "G64Q")->first_line, 7);
+	mlip_program_list_free(&p);
+
+	/* an arc in a G64 P region: chords within a tenth of P, corners in the rest */
+	parse_ok("G64 P0.002\nG0 X10\nG3 X-10 I-10 F600\n", &m, &p);
+	assert_true(p.n > 10);
+	for (size_t k = 1; k + 1 < p.n; k++) {
+		assert_true(p.blocks[k].tol_mm <= 0.002 && p.blocks[k].tol_mm >= 0.0018);
+	}
+	assert_near(p.blocks[p.n - 1].tol_mm, 0.002, 0);
+	mlip_program_list_free(&p);
+}
+
+static void test_inverse_time(void **state)
+{
+	struct mlip_machine m = machine("XYZA");
+	struct mlip_program_list p;
+
+	(void)state;
+	/* G93: the move takes 1/F minutes (LinuxCNC) */
+	parse_ok("G0 X10\n"
+	         "G93 G1 X20 F6\n"      /* 10 mm in 10 s */
+	         "A90 F60\n"            /* rotary only: 90 deg in 1 s */
+	         "G0 X0\n"              /* rapids need no F */
+	         "G3 X-10 Y10 I-10 F60\n" /* quarter circle, 15.7 mm in 1 s */
+	         "G94 G1 X0 F600\n",
+	         &m, &p);
+	assert_near(p.blocks[1].feed_mm_s, 1.0, 1e-12);
+	assert_near(p.blocks[2].feed_mm_s, 90.0, 1e-12);
+	assert_int_equal(p.blocks[3].rapid, 1);
+	assert_near(p.blocks[4].feed_mm_s, 10 * PI_2, 1e-9);
+	assert_near(p.blocks[p.n - 1].feed_mm_s, 10, 1e-12);
+	mlip_program_list_free(&p);
+	check_err("G93 G1 X1 F10\nX2\n", 2, 1, "G93 inverse time: every feed move needs its own F");
+	check_err("G1 X1 F100\nG93\nG94 G1 X2\n", 3, 5,
+	          "missing feed: a change between G93 and G94 needs a new F");
+}
+
+static void test_grbl_lines(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+	static const char *const words[] = {"$H", "$X", "$$", "$#", "$32=", "$N", "$RST",
+	                                    "$SLP", "$C", "$G", "$I", "$"};
+	size_t k;
+
+	(void)state;
+	parse_ok("$H\n$X\n$$\n$#\n$32=1\n$N0=G20\n$RST=*\n$SLP\n$C\n$G\n$I\n$\n  $h  \n"
+	         "G1 X1 F60\n/G1 X50\n",
+	         &m, &p);
+	assert_int_equal(p.n, 1);
+	for (k = 0; k < sizeof words / sizeof words[0]; k++) {
+		const struct mlip_gcode_notice *n = find_notice(&p, words[k]);
+
+		assert_non_null(n);
+		assert_int_equal(n->first_line, k + 1);
+		assert_non_null(strstr(mlip_gcode_notice_text(n), "skipped"));
+	}
+	assert_int_equal(find_notice(&p, "$H")->count, 2);
+	assert_non_null(strstr(mlip_gcode_notice_text(find_notice(&p, "$H")), "does not home"));
+	assert_int_equal(find_notice(&p, "/")->first_line, 15); /* block delete */
+	mlip_program_list_free(&p);
+
+	check_err("G1 X1 F60\n$J=G91 X10 F100\n", 2, 1, "Grbl jog '$J=G91 X10 F100'");
+	check_err("$FOO\nG1 X1 F60\n", 1, 1, "unknown Grbl system command '$FOO'");
+	check_err("$H (home)\nG1 X1 F60\n", 1, 1, "unknown Grbl system command");
+	check_err("$N0=G20 \xE9\nG1 X1 F60\n", 1, 9, "unexpected character 0xE9");
+	{
+		struct mlip_gcode g;
+		struct mlip_gcode_error e;
+		struct cap c = {.n = 0, .limit = 64};
+
+		mlip_gcode_init(&g, &m);
+		mlip_gcode_set_strict(&g, 1);
+		assert_int_equal(line(&g, "$H", 1, &c, &e), MLIP_E_UNSUPPORTED);
+		assert_non_null(strstr(e.msg, "Grbl system line '$H' is not G-code (strict mode)"));
+	}
+}
+
+static void test_line_ends_and_stream(void **state)
+{
+	struct mlip_machine m = big_machine("XYZ");
+	struct mlip_program_list p;
+	double r = 5000, ang, prev = -1;
+	size_t k;
+
+	(void)state;
+	/* LF, CRLF and lone CR end lines; CR CR LF is two */
+	parse_ok("G1 X1 F60\rX2\r\nX3\nX4\r\r\nX5", &m, &p);
+	assert_int_equal(p.n, 5);
+	assert_int_equal(p.blocks[3].line, 4);
+	assert_int_equal(p.blocks[4].line, 6);
+	mlip_program_list_free(&p);
+
+	/* an arc of more chords than a batch comes out whole, in order */
+	parse_ok("G0 X5000\nG3 I-5000 F6000\n", &m, &p);
+	assert_true(p.n > 1 + 2 * MLIP_PROGRAM_BATCH / 2);
+	assert_true(p.n - 1 > MLIP_PROGRAM_BATCH);
+	for (k = 1; k < p.n; k++) {
+		assert_near(hypot(p.blocks[k].target[0], p.blocks[k].target[1]), r, 1e-6);
+		ang = atan2(p.blocks[k].target[1], p.blocks[k].target[0]);
+		ang = ang < 0 ? ang + 2 * M_PI_VALUE : ang;
+		if (k + 1 < p.n) {
+			assert_true(ang > prev); /* counter-clockwise, no repeat, no gap */
+		}
+		prev = ang;
+	}
+	assert_near(p.blocks[p.n - 1].target[0], 5000, 0);
+	mlip_program_list_free(&p);
+}
+
+static void test_files(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program r;
+	struct mlip_block b;
+	char dir[] = "/tmp/mlip-test-XXXXXX", path[64], fifo[64];
+	FILE *f;
+	int rc;
+
+	(void)state;
+	/* not regular files: refused at once, never read (nor blocked on) */
+	assert_true(mlip_program_open(&r, "/dev/zero", &m, NULL) < 0);
+	assert_non_null(strstr(r.msg, "a character device"));
+	mlip_program_close(&r);
+	assert_non_null(mkdtemp(dir));
+	assert_true(mlip_program_open(&r, dir, &m, NULL) < 0);
+	assert_non_null(strstr(r.msg, "a directory"));
+	mlip_program_close(&r);
+	snprintf(fifo, sizeof fifo, "%s/fifo", dir);
+	assert_int_equal(mkfifo(fifo, 0600), 0);
+	assert_true(mlip_program_open(&r, fifo, &m, NULL) < 0);
+	assert_non_null(strstr(r.msg, "a FIFO"));
+	mlip_program_close(&r);
+	remove(fifo);
+
+	/* a file changed between the check and the run stops the stream */
+	snprintf(path, sizeof path, "%s/p.ngc", dir);
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("G1 X1 F60\nX2\nX3\n", f);
+	fclose(f);
+	assert_int_equal(mlip_program_open(&r, path, &m, NULL), 0);
+	assert_int_equal(r.n, 3);
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("G1 X1 F60\nX2 X7\nX3\n", f);
+	fclose(f);
+	while ((rc = mlip_program_next(&r, &b)) > 0) {
+	}
+	assert_true(rc < 0);
+	assert_non_null(strstr(r.msg, "the file changed after it was checked (line 2: duplicate X"));
+	mlip_program_close(&r);
+
+	/* a very long line: an error with its length, only a line's worth kept */
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("G1 X1 F60\n(", f);
+	for (rc = 0; rc < 100000; rc++) {
+		fputc('x', f);
+	}
+	fputs(")\n", f);
+	fclose(f);
+	assert_int_equal(mlip_program_open(&r, path, &m, NULL), 1);
+	assert_string_equal(r.errors[0].msg, "line too long: 100002 bytes, at most 256");
+	mlip_program_close(&r);
+	remove(path);
+	rmdir(dir);
+}
+
+static void test_offsets_file(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_gcode_offsets o, back;
+	char dir[] = "/tmp/mlip-test-XXXXXX", path[64], buf[256];
+	FILE *f, *err;
+	char *out = NULL;
+	size_t len = 0;
+
+	(void)state;
+	assert_non_null(mkdtemp(dir));
+	snprintf(path, sizeof path, "%s/offsets", dir);
+	/* missing: the defaults (G28/G30 at HOME) */
+	m.axis[2].home = 50;
+	assert_int_equal(mlip_offsets_load(path, &m, &o, "t", stderr), 0);
+	assert_int_equal(o.select, 0);
+	assert_near(o.g28[2], 50, 0);
+	o.select = 7;
+	o.coord[7][1] = -12.5;
+	o.g92_on = 1;
+	o.g92[0] = 0.1;
+	o.g30[0] = 1.0 / 3;
+	assert_int_equal(mlip_offsets_save(path, &m, &o, "t", stderr), 0);
+	assert_int_equal(mlip_offsets_load(path, &m, &back, "t", stderr), 0);
+	assert_memory_equal(&o, &back, sizeof o); /* exact: 17 digits */
+	mlip_offsets_describe(&m, &o, buf, sizeof buf);
+	assert_string_equal(buf, "G59.2 X0 Y-12.5 Z0, G92 on X0.1 Y0 Z0");
+
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("# hand-edited\nSELECT = G55\nG55 = 1 2\n", f);
+	fclose(f);
+	err = open_memstream(&out, &len);
+	assert_int_equal(mlip_offsets_load(path, &m, &o, "t", err), -1);
+	fclose(err);
+	assert_non_null(strstr(out, ":3: error: G55 needs 3 numbers (one per axis, config order), got 2"));
+	free(out);
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("G53 = 1 2 3\n", f);
+	fclose(f);
+	out = NULL;
+	err = open_memstream(&out, &len);
+	assert_int_equal(mlip_offsets_load(path, &m, &o, "t", err), -1);
+	fclose(err);
+	assert_non_null(strstr(out, ":1: error: unknown key 'G53'"));
+	free(out);
+	remove(path);
+	rmdir(dir);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1338,6 +1761,15 @@ int main(void)
 		cmocka_unit_test(test_scan_axes),
 		cmocka_unit_test(test_toolpaths),
 		cmocka_unit_test(test_sheeptile_arcs),
+		cmocka_unit_test(test_dwell),
+		cmocka_unit_test(test_pauses_and_end),
+		cmocka_unit_test(test_work_offsets),
+		cmocka_unit_test(test_path_modes),
+		cmocka_unit_test(test_inverse_time),
+		cmocka_unit_test(test_grbl_lines),
+		cmocka_unit_test(test_line_ends_and_stream),
+		cmocka_unit_test(test_files),
+		cmocka_unit_test(test_offsets_file),
 	};
 
 	return cmocka_run_group_tests(tests, NULL, NULL);
