@@ -178,6 +178,8 @@ struct feed {
 	uint64_t exec;              /* our block being executed (0: none yet) */
 	uint32_t exec_line;         /* its source line */
 	int end_pushed;
+	int late_told;              /* "the controller has not run" said */
+	uint32_t told_state, told_why; /* the last state explained to the operator */
 	int line_open; /* a "\r" progress line is on the terminal */
 	uint64_t t_start, t_report;
 };
@@ -230,7 +232,8 @@ static void track_exec(struct feed *f)
 	if (f->t_start == 0 || taken(f) == 0 || e == f->exec0 || e < f->first_seq ||
 	    e >= f->next_seq || e < f->exec ||
 	    (f->st.state != MLIP_STATE_RUNNING && f->st.state != MLIP_STATE_HELD &&
-	     f->st.state != MLIP_STATE_STOPPING && f->st.state != MLIP_STATE_STARVED)) {
+	     f->st.state != MLIP_STATE_STOPPING && f->st.state != MLIP_STATE_STARVED &&
+	     f->st.state != MLIP_STATE_PAUSED && f->st.state != MLIP_STATE_DWELLING)) {
 		return;
 	}
 	f->exec = e;
@@ -286,8 +289,19 @@ static int poll_controller(struct feed *f)
 	if (stale < (uint64_t)MLIP_PEER_TIMEOUT_NS) {
 		return 0;
 	}
-	if (stale < 10 * (uint64_t)MLIP_PEER_TIMEOUT_NS && process_running(f->st.reserved)) {
-		return 0; /* alive but late */
+	if (process_running(f->st.reserved)) {
+		/* alive but not running (stopped, or starved of CPU): it is not
+		 * dead, and when it runs again it holds at rest (a stall) */
+		if (stale >= 10 * (uint64_t)MLIP_PEER_TIMEOUT_NS && !f->late_told) {
+			f->late_told = 1;
+			close_line(f);
+			fprintf(stderr,
+			        PROG ": the controller (pid %u) has not run for %.1f s (stopped or "
+			             "starved of CPU); waiting: when it runs again it holds the machine "
+			             "at rest (stall) and mlip-ctl resume continues\n",
+			        (unsigned)f->st.reserved, (double)stale / 1e9);
+		}
+		return 0;
 	}
 	return -1;
 }
@@ -404,11 +418,47 @@ static int controller_dead(struct feed *f)
 static int controller_fault(struct feed *f)
 {
 	close_line(f);
-	fprintf(stderr,
-	        PROG ": controller fault at line %u (block %llu): see mlip-rt's messages and "
-	             "mlip-ctl status\n",
-	        resume_line(f), (unsigned long long)resume_seq(f));
+	if (f->st.reason == MLIP_WHY_BAD_RECORD) {
+		fprintf(stderr,
+		        PROG ": controller fault: bad record %llu (line %u): %s = %.17g; the machine "
+		             "stops at the end of the last good block; the program is NOT complete "
+		             "(restart mlip-rt to clear)\n",
+		        (unsigned long long)f->st.reason_seq, (unsigned)f->st.reason_line,
+		        mlip_rec_field_name(f->st.reason_field), f->st.reason_value);
+	} else {
+		fprintf(stderr,
+		        PROG ": controller fault (%s) at line %u (block %llu): the program is NOT "
+		             "complete; see mlip-rt's messages and mlip-ctl status\n",
+		        mlip_state_why_name(f->st.reason), resume_line(f),
+		        (unsigned long long)resume_seq(f));
+	}
 	return EXIT_FAULT;
+}
+
+/* Tell the operator once per state what the machine waits for and how to
+ * continue: the same words as mlip-rt's log and mlip-ctl status. */
+static void explain(struct feed *f)
+{
+	const struct mlip_ring_status *st = &f->st;
+	if (st->state == f->told_state && st->reason == f->told_why) {
+		return;
+	}
+	f->told_state = st->state;
+	f->told_why = st->reason;
+	if (f->quiet) {
+		return;
+	}
+	if (st->state == MLIP_STATE_PAUSED) {
+		close_line(f);
+		fprintf(stderr, PROG ": paused (%s) at line %u: mlip-ctl resume continues\n",
+		        mlip_state_why_name(st->reason), (unsigned)st->reason_line);
+	} else if (st->state == MLIP_STATE_HELD && st->reason == MLIP_WHY_STALL) {
+		close_line(f);
+		fprintf(stderr,
+		        PROG ": stall: the controller missed %.0f periods; held at rest at the last "
+		             "setpoint sent, line %u; to continue: mlip-ctl resume\n",
+		        st->reason_value, (unsigned)st->exec_line);
+	}
 }
 
 /* After a stop, the END record alone: the controller drops a stopped
@@ -453,7 +503,9 @@ static int wait_rest(struct feed *f, uint64_t t_max, uint64_t ack_hb)
 			return 0;
 		}
 		if (ack_hb != 0 && f->st.heartbeat > ack_hb + 1 &&
-		    (f->st.state == MLIP_STATE_RUNNING || f->st.state == MLIP_STATE_HELD) &&
+		    (f->st.state == MLIP_STATE_RUNNING || f->st.state == MLIP_STATE_HELD ||
+		     f->st.state == MLIP_STATE_PREREAD || f->st.state == MLIP_STATE_PAUSED ||
+		     f->st.state == MLIP_STATE_DWELLING) &&
 		    mlip_ring_cmd_post(f->r, MLIP_CMD_STOP, 0, NULL) == MLIP_OK) {
 			ack_hb = 0; /* once: that race exists only before the first record */
 		}
@@ -679,6 +731,7 @@ static int run(struct feed *f)
 		if (f->st.state == MLIP_STATE_FAULT) {
 			return controller_fault(f);
 		}
+		explain(f);
 		/* done: END executed (exec_seq = its seq) and at rest; taken() >= our
 		 * blocks rules out an exec_seq left by an equally long previous program */
 		if (f->end_pushed && f->st.state == MLIP_STATE_IDLE && f->st.exec_seq == total &&

@@ -121,17 +121,17 @@ static int lat_tick(void *ctx, const struct mlip_rt_tick *t)
 	if (r->mode != MODE_IDLE) {
 		struct mlip_controller *c = r->ctl;
 		(void)mlip_controller_tick(c, t); /* never asked to exit: no exit_request */
-		if (c->state == MLIP_STATE_RUNNING && !c->preread) {
+		if (c->core.state == MLIP_STATE_RUNNING) {
 			r->moving_periods++;
 		}
-		if (c->state == MLIP_STATE_IDLE && r->last_state != MLIP_STATE_IDLE) {
+		if (c->core.state == MLIP_STATE_IDLE && r->last_state != MLIP_STATE_IDLE) {
 			r->passes++; /* a program run ended: the next one is in the ring */
 		}
-		r->last_state = c->state;
+		r->last_state = c->core.state;
 		/* the controller encodes (and with --can sends) its own frames */
 		r->send_ns = c->send_ns;
-		r->frames_encoded = c->frames_encoded;
-		r->encode_faults = (uint64_t)c->fault;
+		r->frames_encoded = c->core.frames_encoded;
+		r->encode_faults = c->core.why.why == MLIP_WHY_POSITION_RANGE;
 	}
 	if (r->loops != 0 && t->cycle + 1 >= r->loops) {
 		return 1;
@@ -993,11 +993,14 @@ int main(int argc, char **argv)
 			return 1;
 		}
 		struct mlip_ring *ring = ring_mem;
-		if (mlip_controller_init(&ctl, &planner, &cfg.machine, &cfg.can, MLIP_STRATEGY_MPCT,
-		                         cfg.lookahead, ring, o.mode == MODE_CAN ? &io : NULL) != 0) {
+		/* the latency test counts missed periods; it does not hold on them */
+		struct mlip_ctl_opts co = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = cfg.lookahead,
+		                           .stall_periods = UINT32_MAX, .can = &cfg.can};
+		if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, ring,
+		                         o.mode == MODE_CAN ? &io : NULL) != 0) {
+			co.can = NULL;
 			if (o.mode == MODE_CAN ||
-			    mlip_controller_init(&ctl, &planner, &cfg.machine, NULL, MLIP_STRATEGY_MPCT,
-			                         cfg.lookahead, ring, NULL) != 0) {
+			    mlip_controller_init(&ctl, &planner, &cfg.machine, &co, ring, NULL) != 0) {
 				fprintf(stderr, PROG ": the [CAN] settings of %s do not fit this machine\n",
 				        o.config);
 				return 1;
@@ -1104,9 +1107,9 @@ int main(int argc, char **argv)
 		fprintf(out,
 		        "  load: %s, %llu runs of the program finished, %llu blocks taken, %.1f %% of "
 		        "periods moving, %llu underruns, %llu frames %s",
-		        o.program, (unsigned long long)R.passes, (unsigned long long)ctl.blocks_consumed,
+		        o.program, (unsigned long long)R.passes, (unsigned long long)ctl.core.blocks_consumed,
 		        R.periods ? 100.0 * (double)R.moving_periods / (double)R.periods : 0.0,
-		        (unsigned long long)ctl.underruns, (unsigned long long)R.frames_encoded,
+		        (unsigned long long)ctl.core.underruns, (unsigned long long)R.frames_encoded,
 		        o.mode == MODE_CAN ? "encoded" : "encoded and discarded");
 		if (o.mode == MODE_CAN) {
 			fprintf(out, ", %llu sent, %llu dropped (tx queue full), %llu bus errors on %s",
@@ -1268,8 +1271,8 @@ int main(int argc, char **argv)
 			        "      \"underruns\": %llu,\n      \"frames_encoded\": %llu,\n"
 			        "      \"encode_faults\": %llu",
 			        (unsigned long long)prog.n, (unsigned long long)R.passes,
-			        (unsigned long long)ctl.blocks_consumed, (unsigned long long)R.moving_periods,
-			        (unsigned long long)ctl.underruns, (unsigned long long)R.frames_encoded,
+			        (unsigned long long)ctl.core.blocks_consumed, (unsigned long long)R.moving_periods,
+			        (unsigned long long)ctl.core.underruns, (unsigned long long)R.frames_encoded,
 			        (unsigned long long)R.encode_faults);
 			if (o.mode == MODE_CAN) {
 				fprintf(f,
