@@ -368,6 +368,11 @@ static mlip_status lex_word(const char *t, size_t n, size_t *pi, uint32_t line, 
 		return failf(e, line, (uint32_t)j + 1, MLIP_E_SYNTAX, "malformed number '%t'",
 		             t + j, k - j);
 	}
+	if (j < n && (t[j] == '#' || t[j] == '[')) {
+		return failf(e, line, (uint32_t)j + 1, MLIP_E_UNSUPPORTED,
+		             "parameters and expressions (# [ ]) not supported: have the CAM "
+		             "write plain numbers");
+	}
 	return failf(e, line, w->col, MLIP_E_SYNTAX, "word %c has no number", w->letter);
 }
 
@@ -443,6 +448,11 @@ static mlip_status lex_line(const char *text, size_t len, uint32_t line, struct 
 			}
 			return failf(e, line, col, MLIP_E_SYNTAX,
 			             "number '%t' without a word letter", text + i, k - i);
+		}
+		if (c == '#') {
+			return failf(e, line, col, MLIP_E_UNSUPPORTED,
+			             "parameters and expressions (# [ ]) not supported: have the CAM "
+			             "write plain numbers");
 		}
 		return failf(e, line, col, MLIP_E_SYNTAX, "unexpected character %b", c);
 	}
@@ -1636,6 +1646,12 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
 	i0 = first_byte(text, len, lineno);
 	if (i0 < len && text[i0] == '$') {
 		return system_line(g, text, len, i0, lineno, err);
+	}
+	if (i0 < len && upper(text[i0]) == 'O' && i0 + 1 < len &&
+	    (is_digit(text[i0 + 1]) || text[i0 + 1] == '<')) {
+		return failf(err, lineno, (uint32_t)i0 + 1, MLIP_E_UNSUPPORTED,
+		             "O-words (subroutines, loops, conditions) not supported: have the CAM "
+		             "expand them");
 	}
 	if (i0 < len && text[i0] == '/') {
 		notice(g, "/", lineno);
