@@ -892,6 +892,11 @@ int main(int argc, char **argv)
 	f.path = argv[optind];
 	f.tty = isatty(STDERR_FILENO);
 
+	/* the file first: a typo is reported as such, controller or not */
+	if (mlip_program_check_file(f.path, why, sizeof(why)) != 0) {
+		fprintf(stderr, PROG ": %s: %s\n", f.path, why);
+		return EXIT_FAIL;
+	}
 	rc = mlip_shm_attach(&f.shm, shm, why, sizeof(why));
 	if (rc != 0) {
 		fprintf(stderr, PROG ": %s\n", why);

@@ -363,6 +363,17 @@ void mlip_program_close(struct mlip_program *p)
 	memset(p, 0, sizeof *p);
 }
 
+int mlip_program_check_file(const char *path, char *msg, size_t msg_len)
+{
+	FILE *f = open_regular(path, msg, msg_len);
+
+	if (!f) {
+		return -EINVAL;
+	}
+	fclose(f);
+	return 0;
+}
+
 int mlip_program_scan_axes(const char *path, char *letters, char *msg, size_t msg_len)
 {
 	static const char all[] = "XYZABC";

@@ -88,6 +88,10 @@ void mlip_program_rewind(struct mlip_program *prog);
 
 void mlip_program_close(struct mlip_program *prog);
 
+/* 0 when path is a regular file that can be opened, else < 0 with msg (the
+ * reason, as mlip_program_open gives it). */
+int mlip_program_check_file(const char *path, char *msg, size_t msg_len);
+
 /* Axis letters among XYZABC the file at path uses, NUL-terminated in that
  * order into letters (room for 7); returns how many, or < 0 with msg. */
 int mlip_program_scan_axes(const char *path, char *letters, char *msg, size_t msg_len);
