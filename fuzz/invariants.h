@@ -12,14 +12,15 @@
  *   targets finite and within the soft limits, unused axes 0;
  *   feed finite and > 0 (rapids carry v_m, which is > 0 too);
  *   tol_mm in (0, eps];
- *   line = the line being parsed, rapid 0 or 1, seq 0;
- *   consecutive points (home first) at least MLIP_GCODE_MERGE_MM apart.
+ *   line = the line being parsed, rapid 0 or 1, seq 0, exact_stop 0 or 1;
+ *   consecutive move points (home first) at least MLIP_GCODE_MERGE_MM apart;
+ *   an event (dwell, pause) at the last point, dwell finite and >= 0.
  * Per line: an error names that line, a column within the line (or the
  *   "too long" column), a non-empty, NUL-terminated, printable-ASCII message;
  *   a line with an error other than MLIP_E_FULL emits nothing; MLIP_E_FULL
  *   exactly when the sink refused a block of that line.
  * Per program: mlip_gcode_finish fails ("empty program") exactly when no
- *   block was accepted, at line max(last, 1), column 0; notices well formed.
+ *   move was accepted, at line max(last, 1), column 0; notices well formed.
  *
  * Config: on success mlip_machine_check passes, every number is finite, the
  * axes, CAN ids, bitrates, profile and LOOKAHEAD are within their ranges; on
@@ -137,6 +138,7 @@ struct inv_gcode {
 	double prev[MLIP_MAX_AXES]; /* last accepted point, home first */
 	uint32_t line;              /* line being parsed */
 	size_t accepted;            /* blocks taken by the sink */
+	size_t moves;               /* of which moves (events are no motion) */
 	size_t line_blocks;         /* blocks taken during the current line */
 	int line_refused;           /* the sink refused a block of this line */
 	unsigned refuse_every;      /* 0: never; else refuse attempt k when k % n == n - 1 */
@@ -190,7 +192,26 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 		}
 		d2 += (t - c->prev[i]) * (t - c->prev[i]);
 	}
-	if (!(d2 >= MLIP_GCODE_MERGE_MM * MLIP_GCODE_MERGE_MM * (1 - 1e-9))) {
+	if (b->kind > MLIP_BLOCK_OPTIONAL_PAUSE) {
+		return inv_gcode_fail(c, "unknown block kind", -1, b->kind);
+	}
+	if (b->kind != MLIP_BLOCK_MOVE) {
+		/* an event: at the last point, a finite dwell >= 0 (DWELL only) */
+		if (d2 != 0.0) {
+			return inv_gcode_fail(c, "event not at the last point", -1, sqrt(d2));
+		}
+		if (!(b->dwell_s >= 0 && isfinite(b->dwell_s)) ||
+		    (b->kind != MLIP_BLOCK_DWELL && b->dwell_s != 0)) {
+			return inv_gcode_fail(c, "dwell not finite and >= 0", -1, b->dwell_s);
+		}
+	} else if (b->dwell_s != 0) {
+		return inv_gcode_fail(c, "dwell on a move", -1, b->dwell_s);
+	}
+	if (b->exact_stop > 1) {
+		return inv_gcode_fail(c, "exact_stop not 0 or 1", -1, b->exact_stop);
+	}
+	if (b->kind == MLIP_BLOCK_MOVE &&
+	    !(d2 >= MLIP_GCODE_MERGE_MM * MLIP_GCODE_MERGE_MM * (1 - 1e-9))) {
 		return inv_gcode_fail(c, "block shorter than MLIP_GCODE_MERGE_MM", -1, sqrt(d2));
 	}
 	if (!isfinite(b->feed_mm_s) || !(b->feed_mm_s > 0)) {
@@ -217,7 +238,8 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 		e = &c->expect->b[c->accepted];
 		if (memcmp(e->target, b->target, sizeof b->target) != 0 ||
 		    e->feed_mm_s != b->feed_mm_s || e->tol_mm != b->tol_mm || e->line != b->line ||
-		    e->rapid != b->rapid) {
+		    e->rapid != b->rapid || e->kind != b->kind || e->dwell_s != b->dwell_s ||
+		    e->exact_stop != b->exact_stop) {
 			return inv_gcode_fail(c, "block differs from the other run", -1, 0);
 		}
 	}
@@ -241,6 +263,7 @@ static int inv_gcode_sink(void *ctx, const struct mlip_block *b)
 		c->prev[i] = b->target[i];
 	}
 	c->accepted++;
+	c->moves += b->kind == MLIP_BLOCK_MOVE;
 	c->line_blocks++;
 	return 0;
 }
@@ -304,7 +327,7 @@ static const char *inv_gcode_finish(struct inv_gcode *c, const struct mlip_gcode
 		return c->bad;
 	}
 	c->line = last;
-	if ((st == MLIP_OK) != (c->accepted > 0)) {
+	if ((st == MLIP_OK) != (c->moves > 0)) {
 		return inv_gcode_fail(c, "finish disagrees with the blocks taken", -1,
 		                      (double)c->accepted);
 	}
@@ -626,7 +649,7 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 	r->blocks = c.accepted;
 	if (!w && compare) {
 		/* the tools leave out "empty program" after other errors */
-		size_t total = r->errors - (r->errors > 1 && r->blocks == 0);
+		size_t total = r->errors - (r->errors > 1 && c.moves == 0);
 		if (prog.n != c.accepted || prog.n_errors_total != total || prog.lines != line ||
 		    rc != (total ? 1 : 0) || prog.n_notices != g.n_notices) {
 			w = "mlip_program_list_parse disagrees with the line-by-line run";

@@ -973,17 +973,37 @@ struct emit_ctx {
 	uint32_t line;
 	uint8_t rapid;
 	double feed_mm_s;
+	int dwell_pending; /* G4: its DWELL goes first, once the line is known good */
+	double dwell_s;
 };
+
+static int emit_event(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, uint32_t line,
+                      mlip_block_kind kind, double dwell_s);
+
+/* The line's dwell, before its first move (LinuxCNC: dwell, then motion). */
+static int flush_dwell(struct mlip_gcode *g, struct emit_ctx *c)
+{
+	if (c->dwell_pending) {
+		if (emit_event(g, c->sink, c->ctx, c->line, MLIP_BLOCK_DWELL, c->dwell_s) != 0) {
+			return -1;
+		}
+		c->dwell_pending = 0;
+	}
+	return 0;
+}
 
 /* Emit t unless it is within MLIP_GCODE_MERGE_MM of the last emitted point
  * (no zero-length segment for the planner). Returns 0, or -1 when the sink
  * refused the block. */
-static int emit(struct mlip_gcode *g, const struct emit_ctx *c, const double *t, double tol_mm)
+static int emit(struct mlip_gcode *g, struct emit_ctx *c, const double *t, double tol_mm)
 {
 	struct mlip_block b;
 	double d2 = 0;
 	int i, n = g->m->n_axes;
 
+	if (flush_dwell(g, c) != 0) {
+		return -1;
+	}
 	for (i = 0; i < n; i++) {
 		d2 += (t[i] - g->pos[i]) * (t[i] - g->pos[i]);
 	}
@@ -1204,7 +1224,7 @@ static mlip_status arc_setup(const struct mlip_gcode *g, const struct blk *b, in
 /* Chords of an arc: every point checked against the limits before any is
  * emitted (an arc may bulge past a limit its ends respect), so a rejected line
  * emits nothing. Inner corners get eps minus the chord's sagitta. */
-static mlip_status emit_arc(struct mlip_gcode *g, const struct emit_ctx *ec,
+static mlip_status emit_arc(struct mlip_gcode *g, struct emit_ctx *ec,
                             const struct arc *arc, const double *s, const double *t,
                             const uint32_t *col_of, struct mlip_gcode_error *e)
 {
@@ -1667,10 +1687,8 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
 	if (st != MLIP_OK) {
 		return st;
 	}
-	/* LinuxCNC's order of execution: dwell, modes, offsets, motion, stop */
-	if (b.g4 && emit_event(g, sink, ctx, lineno, MLIP_BLOCK_DWELL, b.p) != 0) {
-		return failf(err, lineno, 0, MLIP_E_FULL, "block sink full: parsing stopped");
-	}
+	/* LinuxCNC's order of execution: dwell, modes, offsets, motion, stop;
+	 * the dwell is emitted with the motion, once that is known good */
 	commit_modal(g, &b, &pl, lineno);
 	scale = g->inches ? MM_PER_INCH : 1.0;
 	set_offsets(g, &b, scale);
@@ -1693,6 +1711,8 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
 	ec.line = lineno;
 	ec.rapid = pl.motion == 0;
 	ec.feed_mm_s = m->max_feed_mm_s; /* rapids: informative, the planner ignores it */
+	ec.dwell_pending = b.g4;
+	ec.dwell_s = b.p;
 	st = MLIP_OK;
 	if (b.home) {
 		st = go_home(g, &b, &pl, &ec, t, col_of, lineno, err);
@@ -1722,6 +1742,9 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
 		if (st == MLIP_OK) {
 			memcpy(g->cur, t, sizeof g->cur);
 		}
+	}
+	if (st == MLIP_OK && flush_dwell(g, &ec) != 0) {
+		st = MLIP_E_FULL;
 	}
 	if (st == MLIP_OK && b.pause &&
 	    emit_event(g, sink, ctx, lineno,

@@ -1382,6 +1382,15 @@ static void test_dwell(void **state)
 	mlip_program_list_free(&p);
 	/* a dwell alone is no motion */
 	check_err("G4 P1\n", 1, 0, "empty program: no motion");
+	/* a line with an error emits nothing, its dwell neither */
+	{
+		static const char t[] = "G1 X1 F60\nG4 P1 G1 X2000\n";
+
+		assert_int_equal(mlip_program_list_parse(t, sizeof t - 1, &m, &p), 1);
+		assert_int_equal(p.errors[0].line, 2);
+		assert_int_equal(p.n, 1);
+		mlip_program_list_free(&p);
+	}
 }
 
 static void test_pauses_and_end(void **state)
