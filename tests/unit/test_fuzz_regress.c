@@ -62,6 +62,13 @@ static const struct expect table[] = {
 	 * word E without number; 250 nines read as a finite, out-of-limit value */
 	{"gcode-e308.ngc", 0, 6, 1, 5, "malformed number '1e308'",
 	 SYN, 1, 4, "expected '=' after key G1"},
+	/* issue 11's words in one file, lone CRs among LFs: Grbl lines skipped,
+	 * G10/G55/G92 offsets, a dwell before its move, M0 after it, a deleted
+	 * block, G28 through Y2, G64 P Q, G61, G93; G94 forgets F (the error);
+	 * nothing after M2 is read */
+	{"gcode-events-offsets.ngc", 9, 1, 15, 1,
+	 "missing feed: a change between G93 and G94 needs a new F",
+	 SYN, 1, 8, "control character 0x0D (a CR not followed by LF)"},
 	{"gcode-exponent-forms.ngc", 0, 11, 1, 5, "malformed number '1.5e+2'",
 	 SYN, 1, 4, "expected '=' after key G1"},
 	/* R 1e200, R 1e20 and I 1e200: rejected, nothing emitted. (The message
