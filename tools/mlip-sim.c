@@ -426,6 +426,12 @@ int main(int argc, char **argv)
 			fclose(sf);
 		}
 	}
+	if (!quiet && src.events > 0) {
+		fprintf(stderr,
+		        PROG ": %s: %llu dwell/pause blocks not run: this mlip-sim runs the moves "
+		        "only (the controller runs them)\n",
+		        path, (unsigned long long)src.events);
+	}
 	if (!quiet) {
 		fprintf(stderr,
 		        PROG ": %s: %s %.3f s, %zu blocks, %.1f mm, max speed %.2f mm/s, "
