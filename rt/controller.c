@@ -29,6 +29,7 @@ int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
 	}
 	c->ring = ring;
 	c->can = io;
+	c->period_ns = (int64_t)(m->period_s * 1e9 + 0.5);
 	c->pid = (uint32_t)getpid();
 	return 0;
 }
@@ -66,7 +67,9 @@ int mlip_controller_log_pop(struct mlip_controller *c, struct mlip_ctl_event *ev
 	return 1;
 }
 
-static void rec_push(struct mlip_controller *c, const struct mlip_ctl_out *o)
+/* The period's setpoint with the deadline it went out at: a late period
+ * (missed deadlines) leaves a hole in the indices, as on the bus. */
+static void rec_push(struct mlip_controller *c, const struct mlip_ctl_out *o, uint64_t index)
 {
 	uint32_t h = c->rec_head;
 	if (h - LD(&c->rec_tail) >= c->rec_cap) {
@@ -74,7 +77,7 @@ static void rec_push(struct mlip_controller *c, const struct mlip_ctl_out *o)
 		return;
 	}
 	struct mlip_rt_sample *s = &c->rec[h & (c->rec_cap - 1)];
-	s->period = c->cycles - 1;
+	s->period = index;
 	s->state = o->status.state;
 	memcpy(s->pos, o->pos, sizeof(s->pos));
 	ST(&c->rec_head, h + 1);
@@ -101,8 +104,10 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 	memset(&in, 0, sizeof(in));
 	c->cycles = t->cycle + 1;
 	in.period = t->cycle;
-	in.missed = (uint32_t)(t->overruns - c->overruns_seen);
-	c->overruns_seen = t->overruns;
+	/* deadlines passed before this wake-up (the loop counts them in
+	 * t->overruns only after this period's work) */
+	int64_t late = t->latency_ns / c->period_ns;
+	in.missed = late > (int64_t)UINT32_MAX ? UINT32_MAX : (uint32_t)late;
 	int have_cmd = mlip_ring_cmd_take(c->ring, &cmd) == MLIP_OK;
 	in.cmd = have_cmd ? &cmd : NULL;
 	in.feeder_alive = feeder_alive(c->ring);
@@ -129,6 +134,7 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 		}
 		c->send_ns = (int64_t)(mlip_now_ns() - t0);
 	}
+	o->status.overruns = t->overruns; /* the loop's count, which also has overruns */
 	o->status.heartbeat_ns = mlip_now_ns();
 	o->status.reserved = c->pid; /* who the controller is, for refusals and status */
 	o->status.frames_sent = c->frames_sent;
@@ -141,7 +147,10 @@ int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 		log_push(c, &o->events[i]);
 	}
 	if (c->rec != NULL) {
-		rec_push(c, o);
+		if (t->cycle == 0) {
+			c->first_deadline_ns = t->deadline_ns;
+		}
+		rec_push(c, o, (t->deadline_ns - c->first_deadline_ns) / (uint64_t)c->period_ns + in.missed);
 	}
 	return o->done;
 }

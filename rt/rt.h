@@ -80,6 +80,7 @@ void mlip_canio_close(struct mlip_canio *io);
 
 struct mlip_rt_opts {
 	int64_t period_ns;
+	uint64_t first_deadline_ns;
 	int priority;    /* SCHED_FIFO priority 1..99; 0: SCHED_OTHER */
 	int cpu;         /* pin the thread to this CPU; -1: no pinning */
 	int lock_memory; /* mlockall + prefault */
@@ -128,7 +129,7 @@ int mlip_rt_stop_requested(void);
 #define MLIP_LOG_QUEUE 256 /* events; more in one burst are counted as lost */
 
 struct mlip_rt_sample {
-	uint64_t period;
+	uint64_t period;           /* deadlines since the first (holes where missed) */
 	uint32_t state;
 	double pos[MLIP_MAX_AXES];
 };
@@ -139,7 +140,8 @@ struct mlip_controller {
 	struct mlip_canio *can;            /* NULL: frames encoded, not sent */
 	uint32_t pid;                      /* published as status.reserved */
 	volatile sig_atomic_t exit_request;/* SIGINT/SIGTERM/SIGHUP: stop, then end the loop */
-	uint64_t overruns_seen;
+	int64_t period_ns;
+	uint64_t first_deadline_ns;
 	uint64_t cycles, frames_sent;
 	int64_t send_ns;                   /* this period's sends (latency tool) */
 	struct mlip_ctl_out out;

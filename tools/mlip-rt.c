@@ -184,7 +184,7 @@ static void drain(struct monitor *mo)
 		log_event(mo, &e);
 	}
 	while (mlip_controller_rec_pop(&ctl, &smp)) {
-		mlip_trace_sample(&mo->trace, smp.state, smp.pos, NULL);
+		mlip_trace_sample_at(&mo->trace, smp.period, smp.state, smp.pos, NULL);
 	}
 }
 

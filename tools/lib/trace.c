@@ -34,6 +34,12 @@ void mlip_trace_open(struct mlip_trace *tr, FILE *f, const struct mlip_machine *
 
 int mlip_trace_sample(struct mlip_trace *tr, uint32_t state, const double *pos, const double **start)
 {
+	return mlip_trace_sample_at(tr, tr->started ? tr->last + 1 : tr->t0 + 1, state, pos, start);
+}
+
+int mlip_trace_sample_at(struct mlip_trace *tr, uint64_t period, uint32_t state, const double *pos,
+                         const double **start)
+{
 	if (start != NULL) {
 		*start = NULL;
 	}
@@ -44,18 +50,22 @@ int mlip_trace_sample(struct mlip_trace *tr, uint32_t state, const double *pos, 
 		if (state == MLIP_STATE_IDLE || state == MLIP_STATE_PREREAD) {
 			memcpy(tr->pending, pos, sizeof(double) * (size_t)tr->n);
 			tr->have_pending = 1;
+			tr->t0 = period;
 			return 0;
 		}
 		tr->started = 1;
 		if (!tr->have_pending) {
 			memcpy(tr->pending, pos, sizeof(double) * (size_t)tr->n);
+			tr->t0 = period - 1;
 		}
 		row(tr, 0, tr->pending);
 		if (start != NULL) {
 			*start = tr->pending;
 		}
 	}
-	row(tr, ++tr->rows, pos);
+	tr->rows++;
+	tr->last = period;
+	row(tr, period - tr->t0, pos);
 	tr->ended = state == MLIP_STATE_IDLE;
 	return 1;
 }
