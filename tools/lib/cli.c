@@ -159,33 +159,65 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
 	return 0;
 }
 
-double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *program,
-                          size_t *npts, const char *path, const char *prog, FILE *err)
+void mlip_cli_path_start(struct mlip_cli_path *p, struct mlip_program *program,
+                         const struct mlip_machine *m)
 {
-	int n = m->n_axes, rc;
-	size_t np = 1, cap = 4096;
-	double *pts = malloc(sizeof(double) * (size_t)n * cap);
+	memset(p, 0, sizeof(*p));
+	p->program = program;
+	p->m = m;
+}
+
+int mlip_cli_path_next(void *ctx, double *pt, uint32_t *line)
+{
+	struct mlip_cli_path *p = ctx;
+	int n = p->m->n_axes;
 	struct mlip_block b;
-	if (pts == NULL) {
-		fprintf(err, "%s: out of memory\n", prog);
-		return NULL;
+	if (!p->started) {
+		for (int k = 0; k < n; k++) {
+			p->last[k] = p->m->axis[k].home;
+		}
+		p->started = 1;
+		memcpy(pt, p->last, sizeof(double) * (size_t)n);
+		*line = 0;
+		return 1;
 	}
-	for (int k = 0; k < n; k++) {
-		pts[k] = m->axis[k].home;
-	}
-	while ((rc = mlip_program_next(program, &b)) > 0) {
-		const double *last = pts + (np - 1) * (size_t)n;
-		double d2 = 0.0;
+	while ((p->rc = mlip_program_next(p->program, &b)) > 0) {
+		double d2 = 0.0, lin = 0.0;
 		if (b.kind != MLIP_BLOCK_MOVE) {
 			continue;
 		}
 		for (int k = 0; k < n; k++) {
-			d2 += (b.target[k] - last[k]) * (b.target[k] - last[k]);
+			double d = b.target[k] - p->last[k];
+			d2 += d * d;
+			lin += p->m->axis[k].kind == MLIP_AXIS_LINEAR ? d * d : 0.0;
 		}
 		if (sqrt(d2) < MLIP_GCODE_MERGE_MM) {
 			continue;
 		}
-		if (np == cap) {
+		p->length_mm += sqrt(lin);
+		memcpy(p->last, b.target, sizeof(double) * (size_t)n);
+		memcpy(pt, b.target, sizeof(double) * (size_t)n);
+		*line = b.line;
+		return 1;
+	}
+	return 0;
+}
+
+double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *program,
+                          size_t *npts, const char *path, const char *prog, FILE *err)
+{
+	int n = m->n_axes;
+	size_t np = 0, cap = 4096;
+	double *pts = malloc(sizeof(double) * (size_t)n * cap);
+	struct mlip_cli_path src;
+	uint32_t line;
+	if (pts == NULL) {
+		fprintf(err, "%s: out of memory\n", prog);
+		return NULL;
+	}
+	mlip_cli_path_start(&src, program, m);
+	while (mlip_cli_path_next(&src, pts + np * (size_t)n, &line) > 0) {
+		if (++np == cap) {
 			double *q = realloc(pts, sizeof(double) * (size_t)n * cap * 2);
 			if (q == NULL) {
 				free(pts);
@@ -195,11 +227,9 @@ double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *pro
 			pts = q;
 			cap *= 2;
 		}
-		memcpy(pts + np * (size_t)n, b.target, sizeof(double) * (size_t)n);
-		np++;
 	}
 	mlip_program_rewind(program);
-	if (rc < 0) {
+	if (src.rc < 0) {
 		fprintf(err, "%s: %s: %s\n", prog, path, program->msg);
 		free(pts);
 		return NULL;

@@ -51,6 +51,23 @@ void mlip_cli_on_stop_signals(void (*handler)(int));
 struct mlip_check_limits;
 void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limits *lim);
 
+/* The polyline the planner will follow, one point at a time from a program
+ * being streamed: home first, then every move's target, points closer than
+ * MLIP_GCODE_MERGE_MM to the previous one dropped as the planner does. The
+ * signature of a streaming check's point source (ctx = struct
+ * mlip_cli_path). length_mm sums the linear axes' lengths given so far;
+ * rc < 0 after the end when the stream failed (program->msg). */
+struct mlip_cli_path {
+	struct mlip_program *program;
+	const struct mlip_machine *m;
+	double last[MLIP_MAX_AXES];
+	int started, rc;
+	double length_mm;
+};
+void mlip_cli_path_start(struct mlip_cli_path *p, struct mlip_program *program,
+                         const struct mlip_machine *m);
+int mlip_cli_path_next(void *ctx, double *pt, uint32_t *line);
+
 /* Polyline the planner will follow: home + every move's target, with points
  * closer than MLIP_GCODE_MERGE_MM to the previous one dropped like the
  * planner does, streamed from the program (which is rewound after). Returns
