@@ -48,29 +48,24 @@ int main(int argc, char **argv)
 		{"vmax", required_argument, 0, 'v'},   {"eps", required_argument, 0, 'e'},
 		{"period", required_argument, 0, 'p'}, {"quantum", required_argument, 0, 'Q'},
 		{"rel", required_argument, 0, 'r'},    {"json", required_argument, 0, 'j'},
-		{"no-end", no_argument, 0, 'E'},       {"offsets", required_argument, 0, 'O'},
-		{"strict", no_argument, 0, 'X'},       {"default-feed", required_argument, 0, 'D'},
+		{"no-end", no_argument, 0, 'E'},       MLIP_CLI_GCODE_OPTIONS,
 		{"help", no_argument, 0, 'h'},         {0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
 		double v = 0.0;
-		if (strchr("vepQr", c) && (mlip_cli_number(optarg, &v) != 0 || v < 0.0)) {
+		int g = mlip_cli_gcode_option(c, optarg, &mo, PROG, stderr);
+		if (g != 0) {
+			if (g < 0) {
+				return 2;
+			}
+			continue;
+		}
+		if (c > 0 && c < 128 && strchr("vepQr", c) &&
+		    (mlip_cli_number(optarg, &v) != 0 || v < 0.0)) {
 			fprintf(stderr, PROG ": '%s' is not a non-negative number\n", optarg);
 			return 2;
 		}
 		switch (c) {
-		case 'O':
-			mo.offsets = optarg;
-			break;
-		case 'X':
-			mo.strict = 1;
-			break;
-		case 'D':
-			if (mlip_cli_number(optarg, &mo.default_feed) != 0 || !(mo.default_feed > 0.0)) {
-				fprintf(stderr, PROG ": --default-feed: '%s' is not a positive number\n", optarg);
-				return 2;
-			}
-			break;
 		case 'c':
 			mo.config = optarg;
 			break;

@@ -191,12 +191,18 @@ int main(int argc, char **argv)
 		{"quiet", no_argument, 0, 'q'},          {"help", no_argument, 0, 'h'},
 		{"no-notes", no_argument, 0, 'N'},
 		{"resume-after", required_argument, 0, 'r'}, {"optional-stop", no_argument, 0, 'O'},
-		{"offsets", required_argument, 0, 'F'},  {"save-offsets", no_argument, 0, 'W'},
-		{"strict", no_argument, 0, 'X'},         {"default-feed", required_argument, 0, 'D'},
+		{"save-offsets", no_argument, 0, 'W'},   MLIP_CLI_GCODE_OPTIONS,
 		{0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "qh", opts, NULL)) != -1) {
 		double v;
+		int g = mlip_cli_gcode_option(c, optarg, &mo, PROG, stderr);
+		if (g != 0) {
+			if (g < 0) {
+				return 2;
+			}
+			continue;
+		}
 		switch (c) {
 		case 'c':
 			mo.config = optarg;
@@ -259,20 +265,8 @@ int main(int argc, char **argv)
 		case 'O':
 			optional_stop = 1;
 			break;
-		case 'F':
-			mo.offsets = optarg;
-			break;
 		case 'W':
 			save_offsets = 1;
-			break;
-		case 'X':
-			mo.strict = 1;
-			break;
-		case 'D':
-			if (mlip_cli_number(optarg, &mo.default_feed) != 0 || !(mo.default_feed > 0.0)) {
-				fprintf(stderr, PROG ": --default-feed: '%s' is not a positive number\n", optarg);
-				return 2;
-			}
 			break;
 		case 'h':
 			usage(stdout);

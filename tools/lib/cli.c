@@ -28,6 +28,27 @@ int mlip_cli_number(const char *s, double *out)
 	return 0;
 }
 
+int mlip_cli_gcode_option(int c, const char *arg, struct mlip_cli_machine *o, const char *prog,
+                          FILE *err)
+{
+	switch (c) {
+	case MLIP_CLI_OPT_OFFSETS:
+		o->offsets = arg;
+		return 1;
+	case MLIP_CLI_OPT_STRICT:
+		o->strict = 1;
+		return 1;
+	case MLIP_CLI_OPT_DEFAULT_FEED:
+		if (mlip_cli_number(arg, &o->default_feed) != 0 || !(o->default_feed > 0.0)) {
+			fprintf(err, "%s: --default-feed: '%s' is not a positive number\n", prog, arg);
+			return -1;
+		}
+		return 1;
+	default:
+		return 0;
+	}
+}
+
 int mlip_cli_strategy(const char *name)
 {
 	if (strcmp(name, "mpct") == 0) {

@@ -36,6 +36,23 @@ int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
                           struct mlip_config *cfg, struct mlip_program *program,
                           const char *prog, FILE *err);
 
+/* The G-code options every tool that reads programs takes (struct option
+ * entries for getopt_long; their values are above any letter). */
+#define MLIP_CLI_OPT_OFFSETS 0x100
+#define MLIP_CLI_OPT_STRICT 0x101
+#define MLIP_CLI_OPT_DEFAULT_FEED 0x102
+#define MLIP_CLI_GCODE_OPTIONS                                                                   \
+	{"offsets", required_argument, 0, MLIP_CLI_OPT_OFFSETS},                                 \
+	        {"strict", no_argument, 0, MLIP_CLI_OPT_STRICT},                                 \
+	{                                                                                        \
+		"default-feed", required_argument, 0, MLIP_CLI_OPT_DEFAULT_FEED                   \
+	}
+
+/* Take getopt_long's c (with arg) when it is one of those: 1 taken, 0 not
+ * one of them, -1 a bad value (message printed). */
+int mlip_cli_gcode_option(int c, const char *arg, struct mlip_cli_machine *o, const char *prog,
+                          FILE *err);
+
 /* "mpct" | "bisector" | "stop" -> strategy; -1 when unknown. */
 int mlip_cli_strategy(const char *name);
 const char *mlip_cli_strategy_name(mlip_strategy st);
