@@ -55,9 +55,9 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 {
 	memset(c, 0, offsetof(struct mlip_ctl, recs));
 	c->planner = p;
-	c->ring = ring;
 	c->m = *m;
-	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES) {
+	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES ||
+	    mlip_ring_port_open(&c->rx, ring, 0) != MLIP_OK) {
 		return MLIP_E_INVALID;
 	}
 	for (int k = 0; k < m->n_axes; k++) {
@@ -75,6 +75,47 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
 	c->state = MLIP_STATE_IDLE;
 	return MLIP_OK;
+}
+
+/* ---- the ring, through the consumer's private port --------------------- */
+
+/* A corrupted segment (head more than a capacity from our tail): take
+ * nothing more from it; the period turns it into a fault. */
+static void ring_corrupt(struct mlip_ctl *c, uint32_t apart)
+{
+	if (!c->ring_bad) {
+		c->ring_bad = 1;
+		c->ring_apart = apart;
+	}
+}
+
+static int rx_peek(struct mlip_ctl *c, struct mlip_ring_rec *rec)
+{
+	if (c->ring_bad) {
+		return 0;
+	}
+	mlip_status st = mlip_ring_port_peek(&c->rx, rec);
+	if (st == MLIP_E_RANGE) {
+		uint32_t n;
+		mlip_ring_port_count(&c->rx, &n, &c->ring_apart);
+		ring_corrupt(c, c->ring_apart);
+	}
+	return st == MLIP_OK;
+}
+
+static void rx_pop(struct mlip_ctl *c)
+{
+	mlip_ring_port_pop(&c->rx);
+	c->blocks_consumed++;
+}
+
+static uint32_t rx_count(struct mlip_ctl *c)
+{
+	uint32_t n = 0, apart = 0;
+	if (!c->ring_bad && mlip_ring_port_count(&c->rx, &n, &apart) != MLIP_OK) {
+		ring_corrupt(c, apart);
+	}
+	return n;
 }
 
 /* ---- records ------------------------------------------------------------ */
@@ -140,9 +181,9 @@ static int is_event(const struct mlip_ring_rec *rec)
 }
 
 /* The ring is empty and nothing will fill it. */
-static int ring_dry(const struct mlip_ctl *c, const struct mlip_ctl_in *in)
+static int ring_dry(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 {
-	return !in->feeder_alive && mlip_ring_count(c->ring) == 0;
+	return !in->feeder_alive && rx_count(c) == 0;
 }
 
 /* A bad record: take nothing more. The look-ahead already plans the last
@@ -166,7 +207,7 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 	uint32_t n = 0;
 	int event_next = 0;
 	struct mlip_ring_rec *rec = c->recs;
-	while (n < max && !c->end_seen && !c->bad && mlip_ring_peek(c->ring, &rec[n]) == MLIP_OK) {
+	while (n < max && !c->end_seen && !c->bad && rx_peek(c, &rec[n])) {
 		struct mlip_ctl_reason r;
 		if (mlip_ctl_check_record(&c->m, &rec[n], c->next_seq, &r) != MLIP_OK) {
 			fault(c, out, r);
@@ -174,8 +215,7 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 		}
 		if (is_event(&rec[n])) {
 			if (rec[n].type == MLIP_REC_OPTIONAL_PAUSE && !c->optional_stop) {
-				mlip_ring_pop(c->ring, NULL); /* M1 with the switch off: no stop */
-				c->blocks_consumed++;
+				rx_pop(c); /* M1 with the switch off: no stop */
 				c->next_seq++;
 				continue;
 			}
@@ -183,8 +223,7 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 			c->event = rec[n];
 			break;
 		}
-		mlip_ring_pop(c->ring, NULL);
-		c->blocks_consumed++;
+		rx_pop(c);
 		c->next_seq++;
 		if (rec[n].type == MLIP_REC_END) {
 			c->end_seen = 1;
@@ -210,10 +249,10 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 }
 
 /* The pre-read of a program (or a refill) is complete: move. */
-static int preread_done(const struct mlip_ctl *c, const struct mlip_ctl_in *in, int event_next)
+static int preread_done(struct mlip_ctl *c, const struct mlip_ctl_in *in, int event_next)
 {
 	return mlip_planner_space(c->planner) == 0 || c->end_seen || event_next || c->bad ||
-	       (c->refill && mlip_ring_count(c->ring) == 0) || ring_dry(c, in);
+	       (c->refill && rx_count(c) == 0) || ring_dry(c, in);
 }
 
 /* A stopped program's remaining records: drop them, up to its END. A feeder
@@ -226,13 +265,12 @@ static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 		c->discard = 0; /* the stopped program's feeder is gone */
 		return;
 	}
-	for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && mlip_ring_peek(c->ring, &rec) == MLIP_OK; i++) {
+	for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && rx_peek(c, &rec); i++) {
 		if (rec.seq == 1 && !c->bad) {
 			c->discard = 0;
 			break;
 		}
-		mlip_ring_pop(c->ring, NULL);
-		c->blocks_consumed++;
+		rx_pop(c);
 		if (rec.type == MLIP_REC_END) {
 			c->discard = 0;
 			break;
@@ -275,7 +313,7 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 {
 	if (c->state == MLIP_STATE_IDLE && mlip_planner_queued(c->planner) == 0) {
 		/* nothing moving; a program already waiting in the ring is dropped */
-		c->discard = mlip_ring_count(c->ring) > 0;
+		c->discard = rx_count(c) > 0;
 		return;
 	}
 	mlip_planner_stop(c->planner);
@@ -342,8 +380,7 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 /* At rest with an event record next: take it. */
 static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ring_rec *rec)
 {
-	mlip_ring_pop(c->ring, NULL);
-	c->blocks_consumed++;
+	rx_pop(c);
 	c->next_seq++;
 	c->wait_seq = rec->seq;
 	c->wait_line = rec->line;
@@ -390,7 +427,7 @@ static void start_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
 static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
 {
 	struct mlip_ring_rec *head = &c->recs[0];
-	int have = mlip_ring_peek(c->ring, head) == MLIP_OK;
+	int have = rx_peek(c, head);
 
 	if (c->discard) {
 		discard(c, in);
@@ -442,7 +479,7 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 			return;
 		}
 		uint32_t room = mlip_planner_space(c->planner);
-		int dry = !c->end_seen && room > 0 && mlip_ring_count(c->ring) == 0;
+		int dry = !c->end_seen && room > 0 && rx_count(c) == 0;
 		if (dry) {
 			c->underruns++; /* the feeder is behind: the plan runs to rest */
 		}
@@ -485,7 +522,7 @@ static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
 /* After the step: the transitions the motion decides. */
 static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, mlip_run_state rs)
 {
-	const struct mlip_planner *p = c->planner;
+	struct mlip_planner *p = c->planner;
 	struct mlip_ring_rec next;
 	switch (c->state) {
 	case MLIP_STATE_RUNNING:
@@ -498,7 +535,7 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, mlip_run_st
 		} else if (rs == MLIP_RUN_IDLE) {
 			c->exec_seq = p->done_seq;
 			c->exec_line = p->done_line;
-			if (mlip_ring_peek(c->ring, &next) == MLIP_OK && is_event(&next)) {
+			if (rx_peek(c, &next) && is_event(&next)) {
 				if (c->state == MLIP_STATE_HELD) {
 					go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
 				}
@@ -616,6 +653,13 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	c->bus_err_seen = in->can_error_frames;
 
 	blocks_in(c, in, out);
+	if (c->ring_bad && !c->bad) {
+		struct mlip_ctl_reason r = reason(MLIP_WHY_RING_CORRUPT, c->next_seq, 0);
+		r.field = MLIP_FIELD_HEAD;
+		r.value = (double)c->ring_apart;
+		fault(c, out, r);
+		c->discard = 0; /* nothing is read from that ring again */
+	}
 
 	/* one step; a pre-read or a wait does not move, nor the stall's period */
 	if (c->state == MLIP_STATE_DWELLING) {

@@ -349,6 +349,99 @@ void mlip_ring_reset(struct mlip_ring *r, uint32_t index)
 	r->head_cache = index;
 }
 
+/* ---- ports ------------------------------------------------------------ */
+
+mlip_status mlip_ring_port_open(struct mlip_ring_port *p, struct mlip_ring *r, int producer)
+{
+	uint32_t cap = r->capacity;
+
+	memset(p, 0, sizeof(*p));
+	if (!capacity_ok(cap) || r->n_axes < 1 || r->n_axes > MLIP_MAX_AXES) {
+		return MLIP_E_INVALID;
+	}
+	p->r = r;
+	p->capacity = cap;
+	p->mask = cap - 1u;
+	p->n_axes = r->n_axes;
+	p->producer = producer != 0;
+	p->own = LD(producer ? &r->head : &r->tail, ACQ);
+	p->other = LD(producer ? &r->tail : &r->head, ACQ);
+	return MLIP_OK;
+}
+
+/* Reload the other side's index; the distance between the two must be a
+ * count in 0..capacity. */
+static mlip_status port_reload(struct mlip_ring_port *p, uint32_t *apart)
+{
+	uint32_t other = LD(p->producer ? &p->r->tail : &p->r->head, ACQ);
+	uint32_t n = p->producer ? p->own - other : other - p->own;
+
+	if (n > p->capacity) {
+		if (apart != NULL) {
+			*apart = n;
+		}
+		return MLIP_E_RANGE;
+	}
+	p->other = other;
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t *apart)
+{
+	*n = 0;
+	if (port_reload(p, apart) != MLIP_OK) {
+		return MLIP_E_RANGE;
+	}
+	*n = p->producer ? p->capacity - (p->own - p->other) : p->other - p->own;
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out)
+{
+	const struct mlip_ring_rec *recs = (const struct mlip_ring_rec *)(const void *)(p->r + 1);
+
+	if (p->other == p->own && port_reload(p, NULL) != MLIP_OK) {
+		return MLIP_E_RANGE;
+	}
+	if (p->other == p->own) {
+		return MLIP_E_EMPTY;
+	}
+	*out = recs[p->own & p->mask];
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_port_pop(struct mlip_ring_port *p)
+{
+	if (p->other == p->own) {
+		return MLIP_E_EMPTY; /* peek first */
+	}
+	p->own++;
+	ST(&p->r->tail, p->own, REL); /* hands the slot back to the producer */
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ring_rec *recs,
+                                  uint32_t n, uint32_t *pushed)
+{
+	struct mlip_ring_rec *slots = (struct mlip_ring_rec *)(void *)(p->r + 1);
+	uint32_t space;
+
+	*pushed = 0;
+	if (mlip_ring_port_count(p, &space, NULL) != MLIP_OK) {
+		return MLIP_E_RANGE;
+	}
+	if (n > space) {
+		n = space;
+	}
+	for (uint32_t i = 0; i < n; i++) {
+		slots[(p->own + i) & p->mask] = recs[i];
+	}
+	p->own += n;
+	ST(&p->r->head, p->own, REL); /* publishes the records */
+	*pushed = n;
+	return MLIP_OK;
+}
+
 /* block kind <-> record type: the same four events in both (types.h) */
 static const uint16_t kind_type[] = {MLIP_REC_MOVE, MLIP_REC_DWELL, MLIP_REC_PAUSE,
                                      MLIP_REC_OPTIONAL_PAUSE};

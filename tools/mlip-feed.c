@@ -152,6 +152,7 @@ struct feed {
 	/* wiring */
 	struct mlip_shm shm;
 	struct mlip_ring *r;
+	struct mlip_ring_port tx; /* producer: capacity, mask and head kept private */
 	const char *path;
 	int quiet, tty;
 	/* program: checked whole, then streamed (never held) */
@@ -469,11 +470,13 @@ static void push_end(struct feed *f)
 {
 	struct mlip_ring_rec rec;
 
-	if (f->end_pushed) {
-		return;
+	if (f->end_pushed || f->tx.r == NULL) {
+		return; /* nothing sent yet: no port */
 	}
 	mlip_ring_rec_end(&rec, f->n + 1, f->end_line);
-	if (mlip_ring_push(f->r, &rec) == MLIP_OK) { /* full: the discard frees room */
+	uint32_t got = 0;
+	mlip_ring_port_push_n(&f->tx, &rec, 1, &got);
+	if (got == 1) { /* full: the discard frees room */
 		f->end_pushed = 1;
 		f->next_seq = f->n + 2;
 	}
@@ -714,6 +717,12 @@ static int run(struct feed *f)
 	if (rc >= 0) {
 		return rc;
 	}
+	/* the producer's view, taken now that we hold the producer lock */
+	if (mlip_ring_port_open(&f->tx, f->r, 1) != MLIP_OK) {
+		fprintf(stderr, PROG ": %s: the ring's header is not valid any more: restart mlip-rt\n",
+		        f->shm.name);
+		return EXIT_FAIL;
+	}
 	f->consumed0 = f->st.blocks_consumed;
 	f->exec0 = f->st.exec_seq;
 	f->fa.pid = (int32_t)getpid();
@@ -745,7 +754,16 @@ static int run(struct feed *f)
 			return operator_stop(f);
 		}
 		got = 0;
-		k = mlip_ring_space(f->r);
+		uint32_t apart = 0;
+		if (mlip_ring_port_count(&f->tx, &k, &apart) != MLIP_OK) {
+			close_line(f);
+			fprintf(stderr,
+			        PROG ": %s is corrupted: its tail is %u records from our head, beyond "
+			             "the capacity %u (another process writes into it?); stopping the "
+			             "feed: mlip-ctl stop, then restart mlip-rt\n",
+			        f->shm.name, (unsigned)apart, (unsigned)f->tx.capacity);
+			return EXIT_FAULT;
+		}
 		if (f->rate > 0.0) {
 			/* a throttled feeder (tests of underruns): no more than rate x
 			 * elapsed records so far */
@@ -756,8 +774,8 @@ static int run(struct feed *f)
 		if (!f->end_pushed && k > 0) {
 			k = fill(f, recs, k < BATCH ? k : BATCH);
 			if (f->prog.done == 1) {
-				mlip_ring_push_n(f->r, recs, k);
-				f->next_seq += k;
+				mlip_ring_port_push_n(&f->tx, recs, k, &got);
+				f->next_seq += got;
 				leave(f); /* no END: the controller stops at rest after the last */
 				close_line(f);
 				fprintf(stderr,
@@ -767,7 +785,7 @@ static int run(struct feed *f)
 				        (unsigned long long)f->next_seq);
 				return EXIT_FAIL;
 			}
-			got = mlip_ring_push_n(f->r, recs, k); /* all k: only we add */
+			mlip_ring_port_push_n(&f->tx, recs, k, &got); /* all k: only we add */
 			f->next_seq += got;
 			f->pushed += got;
 			if (f->next_seq > total) {

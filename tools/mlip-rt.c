@@ -429,9 +429,9 @@ int main(int argc, char **argv)
 			mlip_shm_close(&shm);
 			return 1;
 		}
-		mlip_trace_open(&mon.trace, mon.rec, &cfg.machine);
+		mlip_trace_open(&mon.trace, mon.rec, &cfg.machine, NULL);
 	} else {
-		mlip_trace_open(&mon.trace, NULL, &cfg.machine);
+		mlip_trace_open(&mon.trace, NULL, &cfg.machine, NULL);
 	}
 	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st, .lookahead = cfg.lookahead,
 	                           .stall_periods = (uint32_t)stall_periods, .can = &cfg.can};

@@ -357,7 +357,7 @@ int main(int argc, char **argv)
 		setvbuf(tf, tbuf, _IOFBF, sizeof(tbuf));
 	}
 	struct mlip_trace trace;
-	mlip_trace_open(&trace, tf, m);
+	mlip_trace_open(&trace, tf, m, ctl.pos);
 
 	struct storm storm = {.state = (uint64_t)storm_seed * 0x9E3779B97F4A7C15ULL + 1,
 	                      .next_at = 1,

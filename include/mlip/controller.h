@@ -110,7 +110,9 @@ struct mlip_ctl_opts {
 struct mlip_ctl {
 	/* wiring and private copies made at init */
 	struct mlip_planner *planner;
-	struct mlip_ring *ring;
+	struct mlip_ring_port rx;   /* capacity, mask, tail: private copies */
+	int ring_bad;               /* head - tail beyond the capacity: read no more */
+	uint32_t ring_apart;        /* that distance */
 	struct mlip_machine m;
 	struct mlip_canenc enc;
 	int encode;

@@ -371,6 +371,37 @@ uint32_t mlip_ring_space(const struct mlip_ring *r);
  * consumer is active. */
 void mlip_ring_reset(struct mlip_ring *r, uint32_t index);
 
+/* ---- ports: one side's private view of the ring ------------------------ */
+
+/* Made once, after mlip_ring_attach (or format) checked the header: the
+ * capacity, mask and axes are copied and the side's own index is kept here,
+ * so nothing read from the segment later steers an index or a size. The
+ * other side's index is read from the segment and range-checked: head - tail
+ * beyond the capacity is MLIP_E_RANGE (a corrupted or hostile segment), never
+ * a read or write outside the records. */
+struct mlip_ring_port {
+	struct mlip_ring *r;
+	uint32_t capacity, mask, n_axes;
+	uint32_t own;    /* consumer: tail; producer: head (private master copy) */
+	uint32_t other;  /* the other side's index, last seen */
+	int producer;
+};
+
+/* MLIP_E_INVALID when the header does not describe a ring (it was checked at
+ * attach; a port is opened right after). */
+mlip_status mlip_ring_port_open(struct mlip_ring_port *p, struct mlip_ring *r, int producer);
+/* Records queued (consumer) or free slots (producer) in *n; MLIP_E_RANGE,
+ * *n = 0, when the indices are more than a capacity apart (*n gets that
+ * distance through `apart` when not NULL). */
+mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t *apart);
+/* Consumer: copy the oldest record (MLIP_E_EMPTY, MLIP_E_RANGE). */
+mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out);
+/* Consumer: remove the oldest record (after a peek). */
+mlip_status mlip_ring_port_pop(struct mlip_ring_port *p);
+/* Producer: append up to n records; how many in *pushed (MLIP_E_RANGE: none). */
+mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ring_rec *recs,
+                                  uint32_t n, uint32_t *pushed);
+
 /* Record <-> block: kind <-> type, exact_stop <-> MLIP_REC_EXACT, dwell_s.
  * An END record has no block: mlip_ring_rec_to_block returns MLIP_E_EMPTY for
  * it, and MLIP_E_INVALID for an unknown type. */

@@ -13,6 +13,8 @@ import struct
 import subprocess
 import time
 
+import pytest
+
 from conftest import CONFIG, ROOT, TOOLPATHS, status, tool, wait_for
 
 DEMO = ROOT / "examples" / "demo.ngc"
@@ -211,3 +213,52 @@ def test_status_json_position_and_reason(controller, tmp_path):
     s = status(shm)
     assert s["state"] == "idle" and s["reason"] == "program end"
     assert math.isclose(s["position"]["Y"], 2.0, abs_tol=1e-12)
+
+
+# ---- program events through mlip-sim (the controller's own) --------------
+
+EVENTS = "G21 G90\nG1 X10 F6000\nG4 P0.25\nG1 X20\nM0\nG1 X30\nM1\nG1 X40\nM2\n"
+
+
+def _front_end_has_events():
+    import tempfile
+    with tempfile.NamedTemporaryFile("w", suffix=".ngc") as f:
+        f.write(EVENTS)
+        f.flush()
+        return subprocess.run([tool("mlip-sim"), "-q", f.name], capture_output=True).returncode == 0
+
+
+def rests(rows):
+    """{x: periods at rest there} for every point the trace stands still at."""
+    out, run = {}, 0
+    for prev, cur in zip(rows, rows[1:]):
+        if cur == prev:
+            run += 1
+        elif run:
+            out[float(prev.split(",")[0])] = run
+            run = 0
+    return out
+
+
+@pytest.mark.skipif(not _front_end_has_events(),
+                    reason="this build's G-code front end has no G4/M0/M1 yet (branch prog)")
+@pytest.mark.parametrize("optional", [False, True])
+def test_sim_dwell_and_pauses_to_the_period(tmp_path, optional):
+    """G4 P0.25: 250 periods at rest at X10; M0 with --resume-after 0.5: 500
+    at X20; M1: 500 at X30 only with --optional-stop, else not even a stop."""
+    prog = tmp_path / "events.ngc"
+    prog.write_text(EVENTS)
+    trace = tmp_path / "t.csv"
+    opts = ["--resume-after", "0.5"] + (["--optional-stop"] if optional else [])
+    p = subprocess.run([tool("mlip-sim"), "-q", "--config", MILL, "--trace", trace,
+                        "--summary", "-", *opts, prog], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    s = json.loads(p.stdout)
+    assert s["dwells"] == 1 and s["pauses"] == (2 if optional else 1)
+    rows = [",".join(r.split(",")[1:]) for r in trace.read_text().splitlines()[1:]]
+    r = rests(rows)
+    assert r.get(10.0) == 250 and r.get(20.0) == 500, r
+    assert r.get(30.0) == (500 if optional else None), r
+    chk = subprocess.run([tool("mlip-check"), "--config", MILL, prog, trace], capture_output=True,
+                         text=True)
+    assert chk.returncode == 0, chk.stdout + chk.stderr

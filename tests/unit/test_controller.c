@@ -564,6 +564,44 @@ static void test_bad_record_in_preread_never_moves(void **st)
 	assert_true(out.pos[0] == 0.0);
 }
 
+/* ---- a corrupted segment header ------------------------------------------ */
+
+/* Capacity, mask and the consumer's tail as the segment says them after
+ * start-up are not used: the program runs as if nothing happened. */
+static void test_corrupt_sizes_ignored(void **st)
+{
+	(void)st;
+	push(1, 40);
+	end(41);
+	ring->capacity = 1u << 30;
+	ring->mask = 0xFFFFFFFFu;
+	ring->n_axes = 77;
+	until(MLIP_STATE_IDLE, 5000);
+	assert_true(out.pos[0] == 40.0);
+	assert_int_equal(status().exec_seq, 41);
+}
+
+/* head - tail beyond the capacity: a fault with the distance, at rest at the
+ * end of what was taken, nothing read past it, no crash. */
+static void test_corrupt_head_is_a_fault(void **st)
+{
+	(void)st;
+	push(1, 40);
+	end(41);
+	tick(200); /* moving, look-ahead of 16 taken */
+	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	uint32_t tail = __atomic_load_n(&ring->tail, __ATOMIC_ACQUIRE);
+	__atomic_store_n(&ring->head, tail + 3 * CAP + 5, __ATOMIC_RELEASE);
+	tick(5000);
+	struct mlip_ring_status s = status();
+	assert_int_equal(s.state, MLIP_STATE_FAULT);
+	assert_int_equal(s.reason, MLIP_WHY_RING_CORRUPT);
+	assert_int_equal(s.reason_field, MLIP_FIELD_HEAD);
+	assert_true(s.reason_value == 3.0 * CAP + 5.0);
+	assert_true(s.speed_mm_s == 0.0 && out.pos[0] < 40.0 && out.pos[0] == floor(out.pos[0]));
+	assert_int_equal(s.exec_seq, (uint64_t)out.pos[0]); /* at the end of the last block taken */
+}
+
 /* ---- stalls ------------------------------------------------------------- */
 
 /* Missed periods beyond the limit: the next setpoints repeat the last one
@@ -689,6 +727,8 @@ int main(void)
 	    T(test_stall_holds_at_last_setpoint),
 	    T(test_stall_in_corner),
 	    T(test_record_roundtrip),
+	    T(test_corrupt_sizes_ignored),
+	    T(test_corrupt_head_is_a_fault),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -49,7 +49,7 @@ static void make_rec(struct mlip_ring_rec *rec, uint64_t k)
 	memset(rec, 0, sizeof(*rec));
 	rec->seq = k;
 	rec->line = (uint32_t)(k * 7u + 1u);
-	rec->flags = (uint32_t)(k & 1u);
+	rec->flags = (uint16_t)(k & 1u);
 	for (i = 0; i < MLIP_MAX_AXES; i++) {
 		rec->target[i] = (double)k + 0.25 * i;
 	}
@@ -683,9 +683,55 @@ static void test_stress_mailbox(void **state)
 	assert_true(reads > 0);
 }
 
+/* Ports keep the sizes and their own index; the other side's index is
+ * range-checked, never trusted. */
+static void test_port_corrupt_header(void **state)
+{
+	(void)state;
+	struct mlip_ring *r = fresh(CAP, 3);
+	struct mlip_ring_port tx, rx;
+	struct mlip_ring_rec in[4], out;
+	uint32_t n, apart = 0;
+
+	for (uint32_t k = 0; k < 4; k++) {
+		make_rec(&in[k], k);
+	}
+	assert_int_equal(mlip_ring_port_open(&tx, r, 1), MLIP_OK);
+	assert_int_equal(mlip_ring_port_open(&rx, r, 0), MLIP_OK);
+	assert_int_equal(mlip_ring_port_push_n(&tx, in, 4, &n), MLIP_OK);
+	assert_int_equal(n, 4);
+	r->mask = 0xFFFFFFFFu; /* not used after open */
+	r->capacity = 0;
+	assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_OK);
+	assert_true(rec_ok(&out, 0));
+	assert_int_equal(mlip_ring_port_pop(&rx), MLIP_OK);
+	assert_int_equal(mlip_ring_port_count(&rx, &n, NULL), MLIP_OK);
+	assert_int_equal(n, 3);
+	/* a head a lap and more ahead of the consumer */
+	__atomic_store_n(&r->head, rx.own + CAP + 1, __ATOMIC_RELEASE);
+	assert_int_equal(mlip_ring_port_count(&rx, &n, &apart), MLIP_E_RANGE);
+	assert_int_equal(n, 0);
+	assert_int_equal(apart, CAP + 1);
+	/* the peek still serves what it had seen, then refuses */
+	for (int i = 0; i < 3; i++) {
+		assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_OK);
+		assert_int_equal(mlip_ring_port_pop(&rx), MLIP_OK);
+	}
+	__atomic_store_n(&r->head, rx.own - 1, __ATOMIC_RELEASE); /* behind the consumer */
+	assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_E_RANGE);
+	/* a tail behind the producer by more than a lap (or ahead of it) */
+	__atomic_store_n(&r->tail, tx.own + 7, __ATOMIC_RELEASE);
+	assert_int_equal(mlip_ring_port_push_n(&tx, in, 1, &n), MLIP_E_RANGE);
+	assert_int_equal(n, 0);
+	/* a ring whose header is not one: no port */
+	r->capacity = 12;
+	assert_int_equal(mlip_ring_port_open(&rx, r, 0), MLIP_E_INVALID);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test(test_port_corrupt_header),
 	    cmocka_unit_test(test_layout),
 	    cmocka_unit_test(test_format_rejects),
 	    cmocka_unit_test(test_format_fresh_state),

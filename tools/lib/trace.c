@@ -17,12 +17,17 @@ static void row(struct mlip_trace *tr, uint64_t k, const double *x)
 	fputc('\n', tr->f);
 }
 
-void mlip_trace_open(struct mlip_trace *tr, FILE *f, const struct mlip_machine *m)
+void mlip_trace_open(struct mlip_trace *tr, FILE *f, const struct mlip_machine *m,
+                     const double *start)
 {
 	memset(tr, 0, sizeof(*tr));
 	tr->f = f;
 	tr->n = m->n_axes;
 	tr->period_s = m->period_s;
+	if (start != NULL) {
+		memcpy(tr->pending, start, sizeof(double) * (size_t)m->n_axes);
+		tr->have_pending = 1;
+	}
 	if (f != NULL) {
 		fputc('t', f);
 		for (int k = 0; k < m->n_axes; k++) {

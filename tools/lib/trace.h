@@ -25,8 +25,10 @@ struct mlip_trace {
 	int have_pending;
 };
 
-/* Writes the header when f is not NULL. */
-void mlip_trace_open(struct mlip_trace *tr, FILE *f, const struct mlip_machine *m);
+/* Writes the header when f is not NULL. start (may be NULL): the setpoint
+ * before the first sample (the controller's first period may already move). */
+void mlip_trace_open(struct mlip_trace *tr, FILE *f, const struct mlip_machine *m,
+                     const double *start);
 /* One period's setpoint and the state after it. Returns 1 for a row written
  * (the t = 0 row and this one, at the start), 0 when none, and *start (may be
  * NULL) gets the t = 0 point when this is the first. Stops after the end. */
