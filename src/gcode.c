@@ -536,10 +536,26 @@ static const struct gdef *gfind(int code10)
 	return 0;
 }
 
-/* M codes accepted as notices: program stops, spindle, tool change, coolant */
-static int m_accepted(int code10)
+/* M codes that cannot be ignored, and why (LinuxCNC's meanings); every
+ * other whole M code up to M199 is a notice: no effect on motion (spindle,
+ * coolant, tool change, overrides, user M codes, printer fans, ...). */
+static const char *m_refused(int code10)
 {
-	return code10 % 10 == 0 && (code10 <= 90 || code10 == 300 || code10 == 600);
+	int m = code10 / 10;
+
+	if (code10 % 10 || m > 199) {
+		return "";
+	}
+	if (m == 98 || m == 99) {
+		return ": subprogram calls (have the CAM expand them)";
+	}
+	if (m >= 62 && m <= 68) {
+		return ": digital/analog I/O synchronized with motion or a wait for an input";
+	}
+	if (m >= 70 && m <= 73) {
+		return ": saving and restoring the modal state";
+	}
+	return 0;
 }
 
 /* value*10 as an int when value is a non-negative multiple of 0.1, else -1 */
@@ -585,9 +601,12 @@ static void note_word(struct blk *b, char letter, int code10)
 	int k = 0;
 
 	w[k++] = letter;
-	if (code10 >= 0) { /* at most "G61.1": fits */
+	if (code10 >= 0) { /* at most "G61.1" or "M199" (code10 < 10000): fits */
+		if (code10 >= 1000) {
+			w[k++] = (char)('0' + code10 / 1000 % 10);
+		}
 		if (code10 >= 100) {
-			w[k++] = (char)('0' + code10 / 100);
+			w[k++] = (char)('0' + code10 / 100 % 10);
 		}
 		w[k++] = (char)('0' + code10 / 10 % 10);
 		if (code10 % 10) {
@@ -715,9 +734,9 @@ static mlip_status classify(const struct lexed *lx, uint32_t line, struct blk *b
 				return failf(e, line, w->col, MLIP_E_UNSUPPORTED,
 				             "unsupported M code M%f", w->value);
 			}
-			if (!m_accepted(c)) {
+			if (m_refused(c)) {
 				return failf(e, line, w->col, MLIP_E_UNSUPPORTED,
-				             "unsupported M code %M", c);
+				             "unsupported M code %M%s", c, m_refused(c));
 			}
 			if (c == 0 || c == 10 || c == 600) {
 				b->pause = c == 10 ? 2 : 1;

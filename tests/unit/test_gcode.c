@@ -298,6 +298,10 @@ static void test_unsupported_codes(void **state)
 	check_err("G1.5 X1 F10", 1, 1, "unsupported G code G1.5");
 	check_err("G1 X1 F10 M98 P100", 1, 11, "unsupported M code M98");
 	check_err("G1 X1 F10 M62.1", 1, 11, "unsupported M code M62.1");
+	check_err("G1 X1 F10 M66 P1", 1, 11, "unsupported M code M66: digital/analog I/O");
+	check_err("M70\nG1 X1 F10", 1, 1, "unsupported M code M70: saving and restoring");
+	check_err("M200\nG1 X1 F10", 1, 1, "unsupported M code M200");
+	check_err("M99\nG1 X1 F10", 1, 1, "unsupported M code M99: subprogram calls");
 	check_err("G1 G2 X1 F10", 1, 4, "two motion codes on one line: G1 and G2");
 	check_err("G1 X1 F10 G0", 1, 11, "two motion codes on one line: G1 and G0");
 	check_err("G90 G91 G1 X1 F10", 1, 5, "G90 and G91 on one line: same modal group");
@@ -1584,6 +1588,16 @@ static void test_grbl_lines(void **state)
 	assert_int_equal(find_notice(&p, "$H")->count, 2);
 	assert_non_null(strstr(mlip_gcode_notice_text(find_notice(&p, "$H")), "does not home"));
 	assert_int_equal(find_notice(&p, "/")->first_line, 15); /* block delete */
+	mlip_program_list_free(&p);
+
+	/* M codes that do not move the tool: notes (M29, a printer fan, overrides) */
+	parse_ok("M29\nM106 S255\nM48\nG1 X1 F60 M107\nM29\n", &m, &p);
+	assert_int_equal(p.n, 1);
+	assert_int_equal(find_notice(&p, "M29")->count, 2);
+	assert_string_equal(mlip_gcode_notice_text(find_notice(&p, "M106")),
+	                    "ignored (no effect on motion)");
+	assert_non_null(find_notice(&p, "M48"));
+	assert_non_null(find_notice(&p, "M107"));
 	mlip_program_list_free(&p);
 
 	check_err("G1 X1 F60\n$J=G91 X10 F100\n", 2, 1, "Grbl jog '$J=G91 X10 F100'");
