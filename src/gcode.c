@@ -948,6 +948,8 @@ static const struct {
 	{"M30", "program end (LinuxCNC: G54 selected, G92 offsets off); later lines are not run"},
 	{"/", "block delete: the line was skipped (the block-delete switch is on, as LinuxCNC "
 	      "starts)"},
+	{"$J", "(Grbl jog) run as a G1 move at its own F; the modal state is left as it was "
+	       "(Grbl 1.1)"},
 	{"$H", "(Grbl homing cycle) skipped: mlip does not home; home the machine with the "
 	       "drives before starting mlip-rt and check HOME in the config"},
 	{"$X", "(Grbl alarm unlock) skipped: mlip has no alarm lock (mlip-rt restarts a "
@@ -1485,11 +1487,67 @@ static double inverse_time_feed(const struct mlip_gcode *g, double f, const doub
 	return len * f / 60.0;
 }
 
+/* Grbl's jog "$J=" + words at t[j..len): a G1 move at its own F, with G20/
+ * G21, G90/G91 and G53 for that move only; the modal state stays as it was
+ * (Grbl 1.1). Errors name columns of the original line. */
+static mlip_status jog_line(struct mlip_gcode *g, const char *t, size_t len, size_t j,
+                            uint32_t line, mlip_block_sink sink, void *ctx,
+                            struct mlip_gcode_error *e)
+{
+	struct lexed lx;
+	struct mlip_gcode saved;
+	char buf[MLIP_GCODE_MAX_LINE + 4];
+	mlip_status st;
+	int k, c, has_f = 0;
+
+	st = lex_line(t + j, len - j, 0, &lx, e);
+	if (st != MLIP_OK) {
+		e->col += e->col ? (uint32_t)j : 0;
+		e->line = line;
+		return st;
+	}
+	for (k = 0; k < lx.n; k++) {
+		c = code_of(lx.w[k].value);
+		has_f |= lx.w[k].letter == 'F';
+		if (!(axis_slot(lx.w[k].letter) >= 0 || lx.w[k].letter == 'F' ||
+		      (lx.w[k].letter == 'G' &&
+		       (c == 200 || c == 210 || c == 900 || c == 910 || c == 530)))) {
+			return failf(e, line, lx.w[k].col + (uint32_t)j, MLIP_E_UNSUPPORTED,
+			             "Grbl jog: only G20, G21, G90, G91, G53, axis words and F");
+		}
+	}
+	if (!has_f) {
+		return failf(e, line, (uint32_t)j - 2, MLIP_E_SYNTAX,
+		             "Grbl jog without F: a jog gives its own feed, e.g. $J=G91 X10 F600");
+	}
+	memcpy(buf, "G1 ", 3);
+	memcpy(buf + 3, t + j, len - j);
+	saved = *g;
+	g->motion = 1;
+	g->inverse_time = 0;
+	st = mlip_gcode_line(g, buf, len - j + 3, line, sink, ctx, e);
+	if (st != MLIP_OK && e->col) {
+		e->col = e->col > 3 ? e->col - 3 + (uint32_t)j : (uint32_t)j - 2;
+	}
+	g->motion = saved.motion;
+	g->absolute = saved.absolute;
+	g->inches = saved.inches;
+	g->inverse_time = saved.inverse_time;
+	g->feed_mm_s = saved.feed_mm_s;
+	g->feed_word = saved.feed_word;
+	g->feed_reset = saved.feed_reset;
+	if (st == MLIP_OK) {
+		notice(g, "$J", line);
+	}
+	return st;
+}
+
 /* Grbl system lines ('$' first): not G-code. Each kind is a notice naming
- * what mlip does instead, or an error in strict mode; a jog is always an
- * error (skipping it would change the path). */
+ * what mlip does instead, or an error in strict mode; a jog runs as a G1
+ * move (skipping it would change the path). */
 static mlip_status system_line(struct mlip_gcode *g, const char *t, size_t len, size_t i0,
-                               uint32_t line, struct mlip_gcode_error *e)
+                               uint32_t line, mlip_block_sink sink, void *ctx,
+                               struct mlip_gcode_error *e)
 {
 	static const char *const cmds[] = {"$H", "$X", "$C", "$G", "$I", "$N", "$$", "$#", "$SLP",
 	                                   "$RST", "$"};
@@ -1509,9 +1567,12 @@ static mlip_status system_line(struct mlip_gcode *g, const char *t, size_t len, 
 	}
 	n = len - i0;
 	if (n >= 3 && upper(t[i0 + 1]) == 'J' && t[i0 + 2] == '=') {
-		return failf(e, line, (uint32_t)i0 + 1, MLIP_E_UNSUPPORTED,
-		             "Grbl jog '%t' is not part of a program: write the move as G0/G1, or "
-		             "delete the line", t + i0, n);
+		if (g->strict) {
+			return failf(e, line, (uint32_t)i0 + 1, MLIP_E_UNSUPPORTED,
+			             "Grbl jog '%t' is not G-code (strict mode): write it as G1", t + i0,
+			             n);
+		}
+		return jog_line(g, t, len, i0 + 3, line, sink, ctx, e);
 	}
 	/* the command: '$', then digits up to '=' (a setting), or letters/$/# */
 	word[0] = '$';
@@ -1684,7 +1745,7 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
 	}
 	i0 = first_byte(text, len, lineno);
 	if (i0 < len && text[i0] == '$') {
-		return system_line(g, text, len, i0, lineno, err);
+		return system_line(g, text, len, i0, lineno, sink, ctx, err);
 	}
 	if (i0 < len && upper(text[i0]) == 'O' && i0 + 1 < len &&
 	    (is_digit(text[i0 + 1]) || text[i0 + 1] == '<')) {

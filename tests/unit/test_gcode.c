@@ -1600,7 +1600,22 @@ static void test_grbl_lines(void **state)
 	assert_non_null(find_notice(&p, "M107"));
 	mlip_program_list_free(&p);
 
-	check_err("G1 X1 F60\n$J=G91 X10 F100\n", 2, 1, "Grbl jog '$J=G91 X10 F100'");
+	/* a jog runs as G1 at its own F, its G91/G20 for itself only (Grbl) */
+	parse_ok("G0 X5\n$J=G91 G20 X1 F60\nX1\n$J=G53 Y2 F600\nY1\n", &m, &p);
+	assert_int_equal(p.n, 5);
+	assert_near(p.blocks[1].target[0], 5 + 25.4, 1e-12);
+	assert_int_equal(p.blocks[1].rapid, 0);
+	assert_near(p.blocks[1].feed_mm_s, 25.4, 1e-12); /* 60 in/min */
+	assert_near(p.blocks[2].target[0], 1, 0);        /* G0 G90 G21 again */
+	assert_int_equal(p.blocks[2].rapid, 1);
+	assert_near(p.blocks[3].target[1], 2, 0);
+	assert_int_equal(p.blocks[3].line, 4);
+	assert_int_equal(find_notice(&p, "$J")->count, 2);
+	mlip_program_list_free(&p);
+	check_err("G1 X1 F60\n$J=G91 X10\n", 2, 1, "Grbl jog without F");
+	check_err("G1 X1 F60\n$J=G2 X10 I1 F60\n", 2, 4, "Grbl jog: only G20, G21, G90, G91, G53");
+	check_err("G1 X1 F60\n$J=X2000 F60\n", 2, 4, "X 2000.000 beyond soft limit");
+	check_err("G1 X1 F60\n$J=X1.2.3 F60\n", 2, 5, "malformed number '1.2.3'");
 	check_err("$FOO\nG1 X1 F60\n", 1, 1, "unknown Grbl system command '$FOO'");
 	check_err("$H (home)\nG1 X1 F60\n", 1, 1, "unknown Grbl system command");
 	check_err("$N0=G20 \xE9\nG1 X1 F60\n", 1, 9, "unexpected character 0xE9");
