@@ -14,7 +14,11 @@
  * G10 L2/L20, G20/G21, G28/G30 (+ .1), G53, G54-G59.3, G61/G61.1/G64 P Q,
  * G90/G91, G92/G92.1/G92.2/G92.3, G93/G94, M0/M1/M60 pauses, M2/M30 end,
  * F, comments in ( ) and after ';', '%' lines, N numbers, '/' block delete,
- * Grbl '$' system lines (skipped with a note, or errors: set_strict).
+ * Grbl '$' system lines (skipped with a note, or errors: set_strict; a
+ * "$J=" jog runs as a G1 move), Grbl's start-up G0 for axis words before
+ * any motion mode. Lines after M2/M30 are not read. G4, M0, M1 and M60
+ * emit event blocks (kind DWELL, PAUSE, OPTIONAL_PAUSE) at the last point:
+ * a line's dwell before its motion, its pause after.
  * Accepted without motion and reported once (see notices): S, M3/M4/M5,
  * M7/M8/M9, T, M6, G17-G19, G40, G49, G80 and other M codes that do not move.
  * Everything else is an error.
@@ -139,7 +143,8 @@ void mlip_gcode_set_strict(struct mlip_gcode *g, int on);
 void mlip_gcode_set_offsets(struct mlip_gcode *g, const struct mlip_gcode_offsets *o);
 
 /* What a notice means, for printing after its word: "ignored (no effect on
- * motion)", or a specific text for G53, G28/G30 and F. Static string. */
+ * motion)", or what mlip did instead (G28/G30, F, G0, G64 P/Q, M2, M30, M60,
+ * '/', the Grbl '$' lines). Static string. */
 const char *mlip_gcode_notice_text(const struct mlip_gcode_notice *n);
 
 /* Axis letters among X Y Z A B C used as words outside comments in a whole
