@@ -519,8 +519,11 @@ static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
 	}
 }
 
-/* After the step: the transitions the motion decides. */
-static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, mlip_run_state rs)
+/* After the step: the transitions the motion decides. still: this period's
+ * setpoint is the last one's (the planner reached the point a period before
+ * it reported idle, by a rounding-size remainder). */
+static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
+                       mlip_run_state rs, int still)
 {
 	struct mlip_planner *p = c->planner;
 	struct mlip_ring_rec next;
@@ -539,7 +542,15 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, mlip_run_st
 				if (c->state == MLIP_STATE_HELD) {
 					go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
 				}
-				return; /* at rest in front of an event: taken next period */
+				if (still && mlip_ctl_check_record(&c->m, &next, c->next_seq, NULL) == MLIP_OK) {
+					/* at rest since the last period: this one is the
+					 * wait's first, so the wait counts from the arrival */
+					start_event(c, out, in, &next);
+					if (c->state == MLIP_STATE_DWELLING) {
+						c->dwell_left--;
+					}
+				}
+				return; /* else at rest in front of an event: taken next period */
 			}
 			go(c, out, MLIP_STATE_STARVED, reason(MLIP_WHY_UNDERRUN, p->done_seq, p->done_line));
 		} else if (rs == MLIP_RUN_HELD && c->state == MLIP_STATE_RUNNING) {
@@ -671,7 +682,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		if (c->braking) {
 			brake_step(c, prev, rs);
 		}
-		after_step(c, out, rs);
+		after_step(c, out, in, rs, memcmp(prev, c->pos, sizeof(prev)) == 0);
 	}
 
 	memcpy(out->pos, c->pos, sizeof(out->pos));
