@@ -50,4 +50,8 @@ void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limit
 double *mlip_cli_polyline(const struct mlip_machine *m, const struct mlip_block *blocks,
                           size_t nblocks, size_t *npts);
 
+/* What a record field of a controller fault is called: "target X" for the
+ * target of axis X of machine m, else mlip_rec_field_name(). */
+void mlip_cli_field_name(const struct mlip_machine *m, uint32_t field, char *buf, size_t len);
+
 #endif
