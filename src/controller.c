@@ -513,14 +513,15 @@ static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
 		*seq = c->wait_seq;
 		*line = c->wait_line;
 	} else if (c->state != MLIP_STATE_PREREAD && mlip_planner_queued(p) > 0) {
-		const struct mlip_seg *g = &p->seg[p->tail & (p->cap - 1)];
-		*seq = g->seq;
-		*line = g->line;
+		mlip_planner_executing(p, seq, line);
 	}
 }
 
-/* After the step: the transitions the motion decides. */
-static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, mlip_run_state rs)
+/* After the step: the transitions the motion decides. still: this period's
+ * setpoint is the last one's (the planner reached the point a period before
+ * it reported idle, by a rounding-size remainder). */
+static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
+                       mlip_run_state rs, int still)
 {
 	struct mlip_planner *p = c->planner;
 	struct mlip_ring_rec next;
@@ -533,15 +534,22 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, mlip_run_st
 			c->end_seen = 0;
 			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_END, c->end_seq, c->end_line));
 		} else if (rs == MLIP_RUN_IDLE) {
-			c->exec_seq = p->done_seq;
-			c->exec_line = p->done_line;
+			mlip_planner_done(p, &c->exec_seq, &c->exec_line);
 			if (rx_peek(c, &next) && is_event(&next)) {
 				if (c->state == MLIP_STATE_HELD) {
 					go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
 				}
-				return; /* at rest in front of an event: taken next period */
+				if (still && mlip_ctl_check_record(&c->m, &next, c->next_seq, NULL) == MLIP_OK) {
+					/* at rest since the last period: this one is the
+					 * wait's first, so the wait counts from the arrival */
+					start_event(c, out, in, &next);
+					if (c->state == MLIP_STATE_DWELLING) {
+						c->dwell_left--;
+					}
+				}
+				return; /* else at rest in front of an event: taken next period */
 			}
-			go(c, out, MLIP_STATE_STARVED, reason(MLIP_WHY_UNDERRUN, p->done_seq, p->done_line));
+			go(c, out, MLIP_STATE_STARVED, reason(MLIP_WHY_UNDERRUN, c->exec_seq, c->exec_line));
 		} else if (rs == MLIP_RUN_HELD && c->state == MLIP_STATE_RUNNING) {
 			go(c, out, MLIP_STATE_HELD, reason(c->hold_why ? c->hold_why : MLIP_WHY_HOLD, 0, 0));
 		} else if (rs == MLIP_RUN_MOVING && c->state == MLIP_STATE_HELD) {
@@ -550,15 +558,13 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, mlip_run_st
 		return;
 	case MLIP_STATE_STOPPING:
 		if (rs == MLIP_RUN_IDLE) {
-			c->exec_seq = p->done_seq;
-			c->exec_line = p->done_line;
+			mlip_planner_done(p, &c->exec_seq, &c->exec_line);
 			go(c, out, MLIP_STATE_IDLE, c->why); /* the stop stays the reason */
 		}
 		return;
 	case MLIP_STATE_FAULT:
 		if (rs == MLIP_RUN_IDLE) {
-			c->exec_seq = p->done_seq; /* the last good block, done */
-			c->exec_line = p->done_line;
+			mlip_planner_done(p, &c->exec_seq, &c->exec_line); /* the last good block */
 		}
 		return;
 	default:
@@ -574,7 +580,7 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	s->heartbeat = c->period + 1;
 	progress(c, &s->exec_seq, &s->exec_line);
 	s->state = c->state;
-	s->override_pct = (uint32_t)(p->override * 100.0 + 0.5);
+	s->override_pct = (uint32_t)(mlip_planner_override_pct(p) + 0.5);
 	s->overruns = c->overruns;
 	s->underruns = c->underruns;
 	s->blocks_consumed = c->blocks_consumed;
@@ -595,9 +601,7 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 /* Still moving: a stall must freeze it. */
 static int moving(const struct mlip_ctl *c)
 {
-	const struct mlip_planner *p = c->planner;
-	return mlip_planner_queued(p) > 0 && (p->v_mm_s > 0.0 || p->in_corner) &&
-	       c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_DWELLING &&
+	return mlip_planner_moving(c->planner) && c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_DWELLING &&
 	       c->state != MLIP_STATE_PAUSED;
 }
 
@@ -671,7 +675,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		if (c->braking) {
 			brake_step(c, prev, rs);
 		}
-		after_step(c, out, rs);
+		after_step(c, out, in, rs, memcmp(prev, c->pos, sizeof(prev)) == 0);
 	}
 
 	memcpy(out->pos, c->pos, sizeof(out->pos));

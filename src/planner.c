@@ -678,3 +678,31 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 	}
 	mlip_planner_hold(p, 1); /* full backward pass from the new geometry */
 }
+
+int mlip_planner_moving(const struct mlip_planner *p)
+{
+	return p->head != p->tail && (p->v_mm_s > 0.0 || p->in_corner);
+}
+
+void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)
+{
+	const struct mlip_seg *s = cseg_at(p, p->tail);
+	*seq = p->head != p->tail ? s->seq : 0;
+	*line = p->head != p->tail ? s->line : 0;
+}
+
+void mlip_planner_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)
+{
+	*seq = p->done_seq;
+	*line = p->done_line;
+}
+
+double mlip_planner_override_pct(const struct mlip_planner *p)
+{
+	return p->override * 100.0;
+}
+
+const struct mlip_planner_stats *mlip_planner_get_stats(const struct mlip_planner *p)
+{
+	return &p->stats;
+}

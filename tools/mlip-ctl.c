@@ -18,6 +18,7 @@
 #include <sys/types.h>
 #include <time.h>
 
+#include "cli.h"
 #include "mlip/ring.h"
 #include "rt.h"
 
@@ -47,8 +48,9 @@ static void usage(FILE *f)
 	    ")\n"
 	    "  --json           status as JSON\n"
 	    "  -h, --help       this help\n\n"
-	    "exit status: 0 done (status: controller alive); 1 refused, no answer within 1 s,\n"
-	    "or controller not running; 2 usage error or no usable segment\n");
+	    "exit status: 0 done (status: controller alive, not in fault); 1 refused, no\n"
+	    "answer within 1 s, controller not running (or, for status, in fault); 2 usage\n"
+	    "error or no usable segment\n");
 }
 
 static void sleep_ns(long ns)
@@ -193,16 +195,6 @@ static void json_num(double v)
 	}
 }
 
-/* What a field is called: the axis letter for targets. */
-static void field_name(const struct mlip_machine *m, uint32_t field, char *buf, size_t len)
-{
-	if (field >= MLIP_FIELD_TARGET && field < MLIP_FIELD_TARGET + (uint32_t)m->n_axes) {
-		snprintf(buf, len, "target %c", m->axis[field - MLIP_FIELD_TARGET].letter);
-	} else {
-		snprintf(buf, len, "%s", mlip_rec_field_name(field));
-	}
-}
-
 static int cmd_status(struct mlip_shm *s, int json)
 {
 	struct mlip_ring_status st;
@@ -262,7 +254,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 		if (st.reason_field == MLIP_FIELD_NONE) {
 			printf("null,\n");
 		} else {
-			field_name(&m, st.reason_field, fname, sizeof(fname));
+			mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
 			json_str(stdout, fname);
 			printf(",\n");
 		}
@@ -294,7 +286,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 		       falive ? "true" : "false");
 		printf("  \"total_blocks\": %llu,\n  \"program_end\": %s\n}\n",
 		       (unsigned long long)fd.total_blocks, fd.program_end ? "true" : "false");
-		return alive ? EXIT_DONE : EXIT_FAIL;
+		return alive && st.state != MLIP_STATE_FAULT ? EXIT_DONE : EXIT_FAIL;
 	}
 
 	printf("controller  %s: %s, %s (heartbeat ", s->name, mlip_ring_state_name(st.state),
@@ -308,7 +300,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 	       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
 	printf("why         %s", mlip_state_why_name(st.reason));
 	if (st.reason_field != MLIP_FIELD_NONE) {
-		field_name(&m, st.reason_field, fname, sizeof(fname));
+		mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
 		printf(": record %llu (line %u), %s = %.17g", (unsigned long long)st.reason_seq,
 		       (unsigned)st.reason_line, fname, st.reason_value);
 	} else if (st.reason_seq != 0) {
@@ -362,8 +354,12 @@ static int cmd_status(struct mlip_shm *s, int json)
 	}
 	if (!alive) {
 		fprintf(stderr, PROG ": controller on %s is not running: start mlip-rt\n", s->name);
+	} else if (st.state == MLIP_STATE_FAULT) {
+		fprintf(stderr, PROG ": controller on %s is in fault (%s): the program did not "
+		                "complete; restart mlip-rt to clear it\n",
+		        s->name, mlip_state_why_name(st.reason));
 	}
-	return alive ? EXIT_DONE : EXIT_FAIL;
+	return alive && st.state != MLIP_STATE_FAULT ? EXIT_DONE : EXIT_FAIL;
 }
 
 static void describe(char *buf, size_t len, mlip_ring_cmd_op op, int32_t arg)

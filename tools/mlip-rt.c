@@ -87,16 +87,6 @@ static void report(const struct mlip_ring_status *a, const struct mlip_ring_stat
 	}
 }
 
-/* What a field of a bad record is called here: the axis letter for targets. */
-static void field_name(const struct mlip_machine *m, uint32_t field, char *buf, size_t len)
-{
-	if (field >= MLIP_FIELD_TARGET && field < MLIP_FIELD_TARGET + (uint32_t)m->n_axes) {
-		snprintf(buf, len, "target %c", m->axis[field - MLIP_FIELD_TARGET].letter);
-	} else {
-		snprintf(buf, len, "%s", mlip_rec_field_name(field));
-	}
-}
-
 /* One line per event of the loop (its log queue), with the reason. */
 static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 {
@@ -142,7 +132,7 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		return;
 	case MLIP_STATE_FAULT:
 		if (r->why == MLIP_WHY_BAD_RECORD) {
-			field_name(mo->m, r->field, fld, sizeof(fld));
+			mlip_cli_field_name(mo->m, r->field, fld, sizeof(fld));
 			fprintf(stderr,
 			        PROG ": fault: bad record %llu (line %u): %s = %.17g; nothing after it is "
 			             "taken, the machine stops at rest at the end of block %llu; restart "

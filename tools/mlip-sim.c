@@ -433,7 +433,8 @@ int main(int argc, char **argv)
 		}
 		path_mm += sqrt(s);
 	}
-	double visits = planner.stats.pushes ? (double)planner.stats.backward_visits / (double)planner.stats.pushes : 0.0;
+	const struct mlip_planner_stats *ps = mlip_planner_get_stats(&planner);
+	double visits = ps->pushes ? (double)ps->backward_visits / (double)ps->pushes : 0.0;
 
 	if (summary_path != NULL) {
 		FILE *sf = strcmp(summary_path, "-") == 0 ? stdout : fopen(summary_path, "w");
@@ -446,7 +447,7 @@ int main(int argc, char **argv)
 		fprintf(sf, "  \"total_time_s\": %.6f,\n  \"periods\": %llu,\n", total,
 		        (unsigned long long)k);
 		fprintf(sf, "  \"blocks\": %zu,\n  \"segments\": %llu,\n", prog.n,
-		        (unsigned long long)planner.stats.pushes);
+		        (unsigned long long)ps->pushes);
 		fprintf(sf, "  \"path_length_mm\": %.6f,\n", path_mm);
 		fprintf(sf, "  \"max_speed_mm_s\": %.9g,\n", chk.max_speed_mm_s);
 		fprintf(sf, "  \"axes\": \"");

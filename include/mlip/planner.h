@@ -209,4 +209,15 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out);
 /* Current speed along the path (joint units/s), for status displays. */
 double mlip_planner_speed(const struct mlip_planner *p);
 
+/* What others read; the struct's fields are the planner's own. */
+/* Not at rest: a block queued and a speed, or inside a corner. */
+int mlip_planner_moving(const struct mlip_planner *p);
+/* The block being executed (seq 0, line 0: none queued). */
+void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
+/* The last block completed (or, pushed at rest, the block before it). */
+void mlip_planner_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
+/* Feed override in effect, percent. */
+double mlip_planner_override_pct(const struct mlip_planner *p);
+const struct mlip_planner_stats *mlip_planner_get_stats(const struct mlip_planner *p);
+
 #endif

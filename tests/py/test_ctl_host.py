@@ -55,28 +55,19 @@ def same_rows(a, b):
         assert x.split(",", 1)[1] == y.split(",", 1)[1], f"row {i}: mlip-rt {x} != mlip-sim {y}"
 
 
-def test_record_equals_sim_demo(controller, tmp_path):
-    """END within the look-ahead: the pre-read ends on END."""
+@pytest.mark.parametrize("case", ["demo", "flower"])
+def test_record_equals_sim(controller, tmp_path, case):
+    """demo: END within the look-ahead, the pre-read ends on END; flower: 6000
+    blocks, the pre-read fills the look-ahead (4096), then 16 a period."""
+    config, prog = (MILL, DEMO) if case == "demo" else (PAPER, flower(tmp_path))
     rec = tmp_path / "rt.csv"
-    shm, rt = controller(MILL, "--record", rec)
-    p = subprocess.run([tool("mlip-feed"), "--shm", shm, "--quiet", DEMO], capture_output=True,
-                       text=True, timeout=60)
-    assert p.returncode == 0, p.stderr
-    stop(rt)
-    same_rows(rec.read_text().splitlines(), sim_trace(MILL, DEMO, tmp_path / "sim.csv"))
-
-
-def test_record_equals_sim_full_lookahead(controller, tmp_path):
-    """6000 blocks: the pre-read fills the look-ahead (4096), then 16 a period."""
-    prog = flower(tmp_path)
-    rec = tmp_path / "rt.csv"
-    shm, rt = controller(PAPER, "--record", rec)
+    shm, rt = controller(config, "--record", rec)
     p = subprocess.run([tool("mlip-feed"), "--shm", shm, "--quiet", prog], capture_output=True,
                        text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     stop(rt)
     rows = rec.read_text().splitlines()
-    same_rows(rows, sim_trace(PAPER, prog, tmp_path / "sim.csv"))
+    same_rows(rows, sim_trace(config, prog, tmp_path / "sim.csv"))
     assert len(rows) > 1000
 
 
@@ -191,6 +182,9 @@ def test_corrupt_record_is_a_fault_never_complete(controller, tmp_path):
     time.sleep(0.2)
     assert status(shm)["position"] == s["position"]  # at rest, nothing after it taken
     assert ctl(shm, "resume").returncode == 1  # a fault is not resumed
+    st = ctl(shm, "status")
+    assert st.returncode == 1 and "in fault (bad record)" in st.stderr  # failure, not done
+    assert f"record {seq} (line {line}), target X = nan" in st.stdout
     err = stop(rt)
     assert f"fault: bad record {seq} (line {line}): target X = nan" in err, err
 

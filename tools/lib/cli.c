@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "mlip/ring.h"
 #include "confload.h"
 #include "mlip/gcode.h"
 #include "offsets.h"
@@ -311,4 +312,13 @@ void mlip_cli_on_stop_signals(void (*handler)(int))
 	sigemptyset(&sa.sa_mask);
 	sigaction(SIGINT, &sa, NULL);
 	sigaction(SIGTERM, &sa, NULL);
+}
+
+void mlip_cli_field_name(const struct mlip_machine *m, uint32_t field, char *buf, size_t len)
+{
+	if (field >= MLIP_FIELD_TARGET && field < MLIP_FIELD_TARGET + (uint32_t)m->n_axes) {
+		snprintf(buf, len, "target %c", m->axis[field - MLIP_FIELD_TARGET].letter);
+	} else {
+		snprintf(buf, len, "%s", mlip_rec_field_name(field));
+	}
 }

@@ -93,4 +93,8 @@ int mlip_cli_path_next(void *ctx, double *pt, uint32_t *line);
 double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *program,
                           size_t *npts, const char *path, const char *prog, FILE *err);
 
+/* What a record field of a controller fault is called: "target X" for the
+ * target of axis X of machine m, else mlip_rec_field_name(). */
+void mlip_cli_field_name(const struct mlip_machine *m, uint32_t field, char *buf, size_t len);
+
 #endif
