@@ -7,7 +7,9 @@ the program."""
 import json
 import math
 import os
+import signal
 import subprocess
+import time
 
 import pytest
 
@@ -259,3 +261,49 @@ def test_mlip_feed_offsets_file(tmp_path, controller):
     saved = off.read_text()
     assert "SELECT = G55" in saved and "\nG55 = 0 20 0\n" in saved
     assert "G92_ON = 1" in saved and "\nG92 = 11 0 0\n" in saved
+
+
+def test_feed_dwell_pause_offsets_end_to_end(tmp_path, controller):
+    """Through the real ring and controller (mlip-rt --can none): a program in
+    G55 from the offsets file with a dwell and an M0. The controller pauses
+    at the M0 point in machine coordinates until mlip-ctl resume; mlip-rt's
+    record equals mlip-sim's trace row for row up to the pause, dwell
+    included, and passes mlip-check with the same offsets."""
+    off = tmp_path / "offsets"
+    off.write_text("SELECT = G55\nG55 = 10 20 0\n")
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G1 X10 F6000\nG4 P0.25\nG1 X20 M0\nG1 X30\n")
+    rec = tmp_path / "rt.csv"
+    shm, rt = controller(MILL, "--record", rec)
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--offsets", str(off), str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    paused = None
+    for _ in range(600):
+        st = subprocess.run([tool("mlip-ctl"), "--shm", shm, "status", "--json"],
+                            capture_output=True, text=True).stdout
+        st = json.loads(st) if st.strip() else {}
+        if st.get("state") == "paused":
+            paused = st
+            break
+        time.sleep(0.02)
+    assert paused, "the controller never paused at the M0"
+    # X20 in G55 is machine X30; Y, never programmed, stays where it was (LinuxCNC)
+    assert paused["position"] == {"X": 30.0, "Y": 0.0, "Z": 0.0}
+    time.sleep(0.2)
+    assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "resume"]).returncode == 0
+    _, ferr = f.communicate(timeout=60)
+    assert f.returncode == 0, ferr
+    assert f"mlip-feed: offsets: G55 X10 Y20 Z0, G92 off ({off})" in ferr
+    rt.send_signal(signal.SIGTERM)
+    rt.communicate(timeout=20)
+    rows = rec.read_text().splitlines()
+    sim = tmp_path / "sim.csv"
+    run(["mlip-sim", "-q", "--config", MILL, "--offsets", off, "--trace", sim, prog])
+    srows = sim.read_text().splitlines()
+    k = next(i for i, r in enumerate(srows[1:], 1) if r.split(",")[1:] == ["30", "0", "0"])
+    assert [r.split(",", 1)[1] for r in rows[:k + 1]] == [r.split(",", 1)[1] for r in srows[:k + 1]]
+    dwell = [r for r in rows[1:] if r.split(",")[1:] == ["20", "0", "0"]]
+    assert len(dwell) == 251  # arrival at rest, then 250 periods of G4 P0.25
+    assert rows[-1].split(",")[1:] == ["40", "0", "0"]
+    c = run(["mlip-check", "--config", MILL, "--offsets", off, prog, rec], check=False)
+    assert c.returncode == 0, c.stdout + c.stderr
