@@ -957,6 +957,9 @@ static const struct {
 	{"$C", "(Grbl check mode) skipped: mlip checks every program before it moves"},
 	{"$SLP", "(Grbl sleep) skipped: stop mlip-rt instead"},
 	{"$", "(Grbl settings or report) skipped: mlip's settings are in its config file"},
+	{"?", "(Grbl status request) skipped: mlip-ctl status reports the machine"},
+	{"~", "(Grbl cycle start) skipped: mlip-ctl resume continues a held or paused machine"},
+	{"!", "(Grbl feed hold) skipped: a pause in a program is M0; mlip-ctl hold holds"},
 };
 
 const char *mlip_gcode_notice_text(const struct mlip_gcode_notice *n)
@@ -1746,6 +1749,18 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
 	i0 = first_byte(text, len, lineno);
 	if (i0 < len && text[i0] == '$') {
 		return system_line(g, text, len, i0, lineno, sink, ctx, err);
+	}
+	if (i0 < len && (text[i0] == '?' || text[i0] == '~' || text[i0] == '!') &&
+	    first_byte(text + i0 + 1, len - i0 - 1, 0) == len - i0 - 1) {
+		/* Grbl's real-time commands, alone on a line: status, cycle
+		 * start, feed hold (a sender's, never a program's) */
+		if (g->strict) {
+			return failf(err, lineno, (uint32_t)i0 + 1, MLIP_E_UNSUPPORTED,
+			             "Grbl real-time command '%c' is not G-code (strict mode): delete "
+			             "it", text[i0]);
+		}
+		notice(g, text[i0] == '?' ? "?" : text[i0] == '~' ? "~" : "!", lineno);
+		return MLIP_OK;
 	}
 	if (i0 < len && upper(text[i0]) == 'O' && i0 + 1 < len &&
 	    (is_digit(text[i0 + 1]) || text[i0 + 1] == '<')) {

@@ -1617,6 +1617,14 @@ static void test_grbl_lines(void **state)
 	check_err("G1 X1 F60\n$J=X2000 F60\n", 2, 4, "X 2000.000 beyond soft limit");
 	check_err("G1 X1 F60\n$J=X1.2.3 F60\n", 2, 5, "malformed number '1.2.3'");
 	check_err("$FOO\nG1 X1 F60\n", 1, 1, "unknown Grbl system command '$FOO'");
+	/* Grbl's real-time characters alone on a line: noted */
+	parse_ok("?\n ~ \nG1 X1 F60\n!\n", &m, &p);
+	assert_int_equal(p.n, 1);
+	assert_int_equal(find_notice(&p, "?")->first_line, 1);
+	assert_int_equal(find_notice(&p, "~")->first_line, 2);
+	assert_non_null(strstr(mlip_gcode_notice_text(find_notice(&p, "!")), "M0"));
+	mlip_program_list_free(&p);
+	check_err("G1 X1 F60 ~\n", 1, 11, "unexpected character '~'");
 	check_err("$H (home)\nG1 X1 F60\n", 1, 1, "unknown Grbl system command");
 	check_err("$N0=G20 \xE9\nG1 X1 F60\n", 1, 9, "unexpected character 0xE9");
 	{
