@@ -393,6 +393,7 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 		go(c, out, MLIP_STATE_PAUSED, r);
 	} else {
 		c->dwell_left = 0; /* M1, switched off since it was reached: no wait */
+		r.why = MLIP_WHY_OPTIONAL_PAUSE;
 		go(c, out, MLIP_STATE_DWELLING, r);
 	}
 }

@@ -146,6 +146,11 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		}
 		return;
 	case MLIP_STATE_DWELLING:
+		if (r->why == MLIP_WHY_OPTIONAL_PAUSE) {
+			fprintf(stderr, PROG ": M1 at line %u (block %llu) passed: optional stop off\n",
+			        r->line, (unsigned long long)r->seq);
+			return;
+		}
 		fprintf(stderr, PROG ": dwell %.3f s at line %u (block %llu)\n", r->value, r->line,
 		        (unsigned long long)r->seq);
 		return;

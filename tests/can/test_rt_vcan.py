@@ -361,8 +361,12 @@ def test_dwell_and_pause(vcan, tmp_path):
     off, how = h.align(can, trc)
     bad = h.first_mismatch(can[:off + j + 1], trc[:j + 1], off)
     assert bad is None, f"bus != mlip-sim trace up to the pause ({how}): {bad}"
-    still = [i for i in range(off, off + j) if can[i] == dwell_pt]
-    assert len(still) == 301 and still[-1] - still[0] == 300, len(still)  # 300 periods at rest
+    # the dwell in the setpoints the bus carried (equal to the trace there):
+    # exactly at (20, 20) for 301 samples, 300 periods (counts round a few
+    # more samples of the approach and the departure onto that point)
+    still = [i for i, r in enumerate(rows[:j]) if tuple(r[1:]) == (20.0, 20.0, 0.0)]
+    assert len(still) == 301 and still[-1] - still[0] == 300, len(still)
+    assert all(can[off + i] == dwell_pt for i in still)
     p0, p1 = m["paused"]["heartbeat"] - 1, m["resume"]["heartbeat"] - 1
     assert p1 - p0 >= 500 and all(c == pause_pt for c in can[p0:p1 + 1]), "moved while paused"
     quantum = max(1.0 / c for c in setup.cpu)
