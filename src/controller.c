@@ -346,10 +346,6 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		if (c->state == MLIP_STATE_FAULT) {
 			return MLIP_E_INVALID;
 		}
-		if (c->state == MLIP_STATE_PAUSED) {
-			c->resume_wait = 1;
-			return MLIP_OK;
-		}
 		if (c->bus_hold) {
 			/* held by the bus: only once it has been clean for a while */
 			if (c->period - c->bus_bad_period < MLIP_BUS_CLEAN_PERIODS) {
@@ -360,6 +356,7 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		c->stall_hold = 0;
 		mlip_planner_hold(p, 0);
 		c->braking = 0; /* resumed before rest: no stop to measure */
+		c->resume_wait = c->state == MLIP_STATE_PAUSED; /* and a pause ends */
 		return MLIP_OK;
 	case MLIP_CMD_STOP:
 		begin_stop(c, out, MLIP_WHY_STOP);
@@ -396,6 +393,7 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 		go(c, out, MLIP_STATE_PAUSED, r);
 	} else {
 		c->dwell_left = 0; /* M1, switched off since it was reached: no wait */
+		r.why = MLIP_WHY_OPTIONAL_PAUSE;
 		go(c, out, MLIP_STATE_DWELLING, r);
 	}
 }

@@ -146,6 +146,11 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		}
 		return;
 	case MLIP_STATE_DWELLING:
+		if (r->why == MLIP_WHY_OPTIONAL_PAUSE) {
+			fprintf(stderr, PROG ": M1 at line %u (block %llu) passed: optional stop off\n",
+			        r->line, (unsigned long long)r->seq);
+			return;
+		}
 		fprintf(stderr, PROG ": dwell %.3f s at line %u (block %llu)\n", r->value, r->line,
 		        (unsigned long long)r->seq);
 		return;
@@ -159,6 +164,10 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		        mlip_ring_state_name(e->from), mlip_state_why_name(r->why), seq, line);
 		return;
 	default:
+		if (r->why == MLIP_WHY_PREREAD_DONE || r->why == MLIP_WHY_CONTINUE ||
+		    r->why == MLIP_WHY_DWELL_DONE) {
+			return; /* implied by the line before (start, underrun, dwell) */
+		}
 		fprintf(stderr, PROG ": %s -> %s (%s), block %llu (line %u)\n",
 		        mlip_ring_state_name(e->from), mlip_ring_state_name(e->state),
 		        mlip_state_why_name(r->why), seq, line);

@@ -393,7 +393,10 @@ static void test_pause_and_optional_pause(void **st)
 	tick(1000);
 	assert_int_equal(ctl.state, MLIP_STATE_PAUSED);
 	assert_true(out.pos[0] == 5.0);
-	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK); /* a hold meanwhile */
+	tick(10);
+	assert_int_equal(ctl.state, MLIP_STATE_PAUSED);
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK); /* one resume: both */
 	tick(1);
 	assert_true(out.pos[0] > 5.0); /* pre-read during the pause: moves at once */
 	until(MLIP_STATE_IDLE, 3000);
