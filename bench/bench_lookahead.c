@@ -21,7 +21,7 @@
 #include "program.h"
 
 static struct mlip_planner P;
-static struct mlip_program prog;
+static struct mlip_program_list prog;
 static struct mlip_machine machine;
 
 static uint64_t now_ns(void)
@@ -122,16 +122,10 @@ int main(int argc, char **argv)
 			reps = atoi(argv[++a]);
 		}
 	}
-	char *text;
-	size_t len;
-	if (mlip_read_file(path, &text, &len) != 0) {
-		perror(path);
-		return 1;
-	}
 	struct mlip_cli_machine mo = {.accel = accel, .vmax_mm_s = 200, .eps_mm = 0.01, .period_s = 0.001};
-	struct mlip_config cfg;
-	if (mlip_cli_build_machine(&mo, text, len, &cfg, "bench", stderr) != 0 ||
-	    mlip_program_parse(text, len, &cfg.machine, &prog) != 0) {
+	static struct mlip_config cfg;
+	if (mlip_cli_build_machine(&mo, path, &cfg, "bench", stderr) != 0 ||
+	    mlip_program_list_load(path, &cfg.machine, &prog) != 0) {
 		return 1;
 	}
 	machine = cfg.machine;

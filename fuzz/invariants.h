@@ -12,14 +12,15 @@
  *   targets finite and within the soft limits, unused axes 0;
  *   feed finite and > 0 (rapids carry v_m, which is > 0 too);
  *   tol_mm in (0, eps];
- *   line = the line being parsed, rapid 0 or 1, seq 0;
- *   consecutive points (home first) at least MLIP_GCODE_MERGE_MM apart.
+ *   line = the line being parsed, rapid 0 or 1, seq 0, exact_stop 0 or 1;
+ *   consecutive move points (home first) at least MLIP_GCODE_MERGE_MM apart;
+ *   an event (dwell, pause) at the last point, dwell finite and >= 0.
  * Per line: an error names that line, a column within the line (or the
  *   "too long" column), a non-empty, NUL-terminated, printable-ASCII message;
  *   a line with an error other than MLIP_E_FULL emits nothing; MLIP_E_FULL
  *   exactly when the sink refused a block of that line.
  * Per program: mlip_gcode_finish fails ("empty program") exactly when no
- *   block was accepted, at line max(last, 1), column 0; notices well formed.
+ *   move was accepted, at line max(last, 1), column 0; notices well formed.
  *
  * Config: on success mlip_machine_check passes, every number is finite, the
  * axes, CAN ids, bitrates, profile and LOOKAHEAD are within their ranges; on
@@ -41,7 +42,7 @@
 #include "mlip/gcode.h"
 #include "mlip/planner.h" /* MLIP_LOOKAHEAD */
 #include "mlip/types.h"
-#include "program.h" /* tools/lib: mlip_program_parse, the second opinion */
+#include "program.h" /* tools/lib: mlip_program_list_parse, the second opinion */
 
 #define INV_WHY 320
 
@@ -137,6 +138,7 @@ struct inv_gcode {
 	double prev[MLIP_MAX_AXES]; /* last accepted point, home first */
 	uint32_t line;              /* line being parsed */
 	size_t accepted;            /* blocks taken by the sink */
+	size_t moves;               /* of which moves (events are no motion) */
 	size_t line_blocks;         /* blocks taken during the current line */
 	int line_refused;           /* the sink refused a block of this line */
 	unsigned refuse_every;      /* 0: never; else refuse attempt k when k % n == n - 1 */
@@ -190,7 +192,26 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 		}
 		d2 += (t - c->prev[i]) * (t - c->prev[i]);
 	}
-	if (!(d2 >= MLIP_GCODE_MERGE_MM * MLIP_GCODE_MERGE_MM * (1 - 1e-9))) {
+	if (b->kind > MLIP_BLOCK_OPTIONAL_PAUSE) {
+		return inv_gcode_fail(c, "unknown block kind", -1, b->kind);
+	}
+	if (b->kind != MLIP_BLOCK_MOVE) {
+		/* an event: at the last point, a finite dwell >= 0 (DWELL only) */
+		if (d2 != 0.0) {
+			return inv_gcode_fail(c, "event not at the last point", -1, sqrt(d2));
+		}
+		if (!(b->dwell_s >= 0 && isfinite(b->dwell_s)) ||
+		    (b->kind != MLIP_BLOCK_DWELL && b->dwell_s != 0)) {
+			return inv_gcode_fail(c, "dwell not finite and >= 0", -1, b->dwell_s);
+		}
+	} else if (b->dwell_s != 0) {
+		return inv_gcode_fail(c, "dwell on a move", -1, b->dwell_s);
+	}
+	if (b->exact_stop > 1) {
+		return inv_gcode_fail(c, "exact_stop not 0 or 1", -1, b->exact_stop);
+	}
+	if (b->kind == MLIP_BLOCK_MOVE &&
+	    !(d2 >= MLIP_GCODE_MERGE_MM * MLIP_GCODE_MERGE_MM * (1 - 1e-9))) {
 		return inv_gcode_fail(c, "block shorter than MLIP_GCODE_MERGE_MM", -1, sqrt(d2));
 	}
 	if (!isfinite(b->feed_mm_s) || !(b->feed_mm_s > 0)) {
@@ -217,7 +238,8 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 		e = &c->expect->b[c->accepted];
 		if (memcmp(e->target, b->target, sizeof b->target) != 0 ||
 		    e->feed_mm_s != b->feed_mm_s || e->tol_mm != b->tol_mm || e->line != b->line ||
-		    e->rapid != b->rapid) {
+		    e->rapid != b->rapid || e->kind != b->kind || e->dwell_s != b->dwell_s ||
+		    e->exact_stop != b->exact_stop) {
 			return inv_gcode_fail(c, "block differs from the other run", -1, 0);
 		}
 	}
@@ -241,6 +263,7 @@ static int inv_gcode_sink(void *ctx, const struct mlip_block *b)
 		c->prev[i] = b->target[i];
 	}
 	c->accepted++;
+	c->moves += b->kind == MLIP_BLOCK_MOVE;
 	c->line_blocks++;
 	return 0;
 }
@@ -304,7 +327,7 @@ static const char *inv_gcode_finish(struct inv_gcode *c, const struct mlip_gcode
 		return c->bad;
 	}
 	c->line = last;
-	if ((st == MLIP_OK) != (c->accepted > 0)) {
+	if ((st == MLIP_OK) != (c->moves > 0)) {
 		return inv_gcode_fail(c, "finish disagrees with the blocks taken", -1,
 		                      (double)c->accepted);
 	}
@@ -536,15 +559,15 @@ struct inv_gcode_result {
 	char why[INV_WHY]; /* the violation, with numbers */
 };
 
-/* The program text[0..len) on machine m, cut into lines at LF as
- * mlip_program_parse does, every line in a buffer of its own exact size (so
+/* The program text[0..len) on machine m, cut into lines at LF, CRLF or a
+ * lone CR as mlip_program_open does, every line in a buffer of its own exact size (so
  * that ASan sees a read past the length given); every check of this file.
  * With INV_INITIAL_FEED and without INV_REFUSE the blocks and errors must be
- * those of mlip_program_parse. NULL, or the violation. */
+ * those of mlip_program_list_parse. NULL, or the violation. */
 static const char *inv_gcode_program(const struct mlip_machine *m, const char *text, size_t len,
                                      int flags, struct inv_gcode_result *r)
 {
-	struct mlip_program prog;
+	static struct mlip_program_list prog;
 	struct inv_block_list list;
 	struct mlip_gcode g;
 	struct mlip_gcode_error err;
@@ -565,9 +588,9 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 		return w;
 	}
 	if (compare) {
-		rc = mlip_program_parse(text, len, m, &prog);
+		rc = mlip_program_list_parse(text, len, m, &prog);
 		if (rc < 0) {
-			return "mlip_program_parse ran out of memory";
+			return "mlip_program_list_parse ran out of memory";
 		}
 		list.b = prog.blocks;
 		list.n = prog.n;
@@ -583,8 +606,12 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 		mlip_gcode_set_initial_feed(&g, f_word);
 	}
 	while (i < len && !w) {
-		const char *nl = memchr(text + i, '\n', len - i);
-		size_t end = nl ? (size_t)(nl - text) : len, n_line = end - i;
+		size_t end = i, n_line;
+
+		while (end < len && text[end] != '\n' && text[end] != '\r') {
+			end++;
+		}
+		n_line = end - i;
 		char *copy = malloc(n_line ? n_line : 1);
 
 		if (!copy) {
@@ -603,13 +630,13 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 			    (prog.errors[r->errors].line != err.line ||
 			     prog.errors[r->errors].col != err.col ||
 			     strcmp(prog.errors[r->errors].msg, err.msg) != 0)) {
-				w = "error differs from mlip_program_parse's";
+				w = "error differs from mlip_program_list_parse's";
 			}
 			if (r->errors++ == 0) {
 				r->first = err;
 			}
 		}
-		i = end + 1;
+		i = end + 1 + (end + 1 < len && text[end] == '\r' && text[end + 1] == '\n');
 	}
 	if (!w) {
 		memset(&err, 0x55, sizeof err);
@@ -622,14 +649,14 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 	r->blocks = c.accepted;
 	if (!w && compare) {
 		/* the tools leave out "empty program" after other errors */
-		size_t total = r->errors - (r->errors > 1 && r->blocks == 0);
+		size_t total = r->errors - (r->errors > 1 && c.moves == 0);
 		if (prog.n != c.accepted || prog.n_errors_total != total || prog.lines != line ||
 		    rc != (total ? 1 : 0) || prog.n_notices != g.n_notices) {
-			w = "mlip_program_parse disagrees with the line-by-line run";
+			w = "mlip_program_list_parse disagrees with the line-by-line run";
 		}
 	}
 	if (compare) {
-		mlip_program_free(&prog);
+		mlip_program_list_free(&prog);
 	}
 	snprintf(r->why, sizeof r->why, "%s", c.bad ? c.why : w ? w : "");
 	return w;

@@ -16,6 +16,7 @@
 
 #include "mlip/canenc.h"
 #include "mlip/config.h"
+#include "mlip/controller.h"
 #include "mlip/planner.h"
 #include "mlip/ring.h"
 
@@ -87,6 +88,7 @@ void mlip_canio_close(struct mlip_canio *io);
 
 struct mlip_rt_opts {
 	int64_t period_ns;
+	uint64_t first_deadline_ns;
 	int priority;    /* SCHED_FIFO priority 1..99; 0: SCHED_OTHER */
 	int cpu;         /* pin the thread to this CPU; -1: no pinning */
 	int lock_memory; /* mlockall + prefault */
@@ -128,70 +130,49 @@ int mlip_rt_stop_requested(void);
 
 /* ---- the controller (rt/controller.c) ------------------------------------ */
 
-/* Program life on the controller:
- *   IDLE      ring empty; the machine at rest where the last program left it
- *   (pre-read) records arrive: take them (up to MLIP_PREREAD_PER_PERIOD a
- *             period) without moving until the look-ahead is full or the END
- *             record is in, as mlip-sim does; status says RUNNING
- *   RUNNING   each period: at most MLIP_INGEST_PER_PERIOD records, one step,
- *             frames out; END taken and planner idle -> IDLE, exec_seq = END
- *   HELD      feed hold (command, override 0, or a CAN fault: frames dropped
- *             or bus-off) and at rest on the path; after a CAN fault, resume
- *             is refused until the bus has been clean MLIP_BUS_CLEAN_PERIODS
- *   STARVED   the ring ran dry before the program's END: at rest at the end of
- *             the last block received; the next records continue the program
- *             after a new pre-read (a record with seq 1 starts a new one)
- *   STOPPING  stop (command or signal): decelerate on the path, drop the rest
- *             of the program (records up to its END), then IDLE
- */
-#define MLIP_PREREAD_PER_PERIOD 512
-/* After a CAN fault, resume is refused until the bus has been clean this long. */
-#define MLIP_BUS_CLEAN_PERIODS 100
+/* The thin part around the pure controller (mlip/controller.h): the clock,
+ * the feeder's liveness, the command mailbox, CAN send and poll, the status
+ * write, and two queues read by an ordinary thread, never by the loop: the
+ * events to log and (with a record buffer) the setpoints of every period. */
+#define MLIP_LOG_QUEUE 256 /* events; more in one burst are counted as lost */
 
-struct mlip_controller {
-	/* wiring */
-	struct mlip_planner *planner;      /* static storage, prefaulted */
-	struct mlip_ring *ring;
-	struct mlip_canio *can;            /* NULL: frames encoded, not sent */
-	struct mlip_canenc enc;
-	int encode;                        /* [CAN] settings given: encode frames */
-	const struct mlip_machine *m;
-	/* program state */
-	uint32_t state;                    /* mlip_ring_state */
-	int preread;                       /* taking records before moving */
-	int refill;                        /* that pre-read follows an underrun */
-	int end_seen;                      /* END record of the program taken */
-	uint64_t end_seq, end_line;
-	int discard;                       /* dropping a stopped program's records */
-	int stop_request;                  /* STOP command taken: stop the program */
-	volatile sig_atomic_t exit_request;/* SIGINT/SIGTERM: stop, then end the loop */
-	int exiting;
-	uint64_t exec_seq;                 /* last record whose motion is done */
-	uint32_t exec_line;
-	/* counters (published in the status area) */
-	uint64_t overruns, underruns, frames_sent, frames_encoded, blocks_consumed;
-	uint64_t refused;                  /* programs dropped: they did not continue ours */
-	int64_t send_ns;                   /* this period's sends (latency tool) */
-	uint64_t cycles;
+struct mlip_rt_sample {
+	uint64_t period;           /* deadlines since the first (holes where missed) */
+	uint32_t state;
 	double pos[MLIP_MAX_AXES];
-	int fault;                         /* encode refused a position: stopped */
-	uint32_t pid;                      /* published as status.reserved */
-	int bus_hold;                      /* held because of the bus */
-	/* a stop being measured: from its request to rest (status stop_*) */
-	int braking;
-	double brake_mm;
-	uint32_t brake_periods;
-	uint64_t stop_nm;
-	uint32_t stop_periods, stops;
-	uint64_t bus_drops_seen, bus_bad_cycle;
 };
 
+struct mlip_controller {
+	struct mlip_ctl core;
+	struct mlip_ring *ring;
+	struct mlip_canio *can;            /* NULL: frames encoded, not sent */
+	uint32_t pid;                      /* published as status.reserved */
+	volatile sig_atomic_t exit_request;/* SIGINT/SIGTERM/SIGHUP: stop, then end the loop */
+	int64_t period_ns;
+	uint64_t first_deadline_ns;
+	uint64_t cycles, frames_sent;
+	int64_t send_ns;                   /* this period's sends (latency tool) */
+	struct mlip_ctl_out out;
+	/* event queue (SPSC: the loop produces, the monitor thread consumes) */
+	struct mlip_ctl_event log[MLIP_LOG_QUEUE];
+	uint32_t log_head, log_tail;
+	uint64_t log_lost;
+	/* setpoint queue (SPSC), when rec != NULL; rec_cap a power of two */
+	struct mlip_rt_sample *rec;
+	uint32_t rec_cap, rec_head, rec_tail;
+	uint64_t rec_lost;
+};
+
+/* o: strategy, look-ahead, stall periods, [CAN] settings (NULL: none). */
 int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
-                         const struct mlip_machine *m, const struct mlip_can_config *can,
-                         mlip_strategy st, uint32_t lookahead, struct mlip_ring *ring,
-                         struct mlip_canio *io);
-/* The period's work (an mlip_rt_fn): commands, ingest, one step, frames,
- * status. Returns non-zero when a requested stop has completed. */
+                         const struct mlip_machine *m, const struct mlip_ctl_opts *o,
+                         struct mlip_ring *ring, struct mlip_canio *io);
+/* The period's work (an mlip_rt_fn). Returns non-zero when a requested stop
+ * has completed. */
 int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t);
+/* Monitor thread: the next event (1) or none (0). */
+int mlip_controller_log_pop(struct mlip_controller *c, struct mlip_ctl_event *ev);
+/* Monitor thread: the next recorded setpoint (1) or none (0). */
+int mlip_controller_rec_pop(struct mlip_controller *c, struct mlip_rt_sample *s);
 
 #endif

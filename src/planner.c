@@ -192,8 +192,12 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 /* Precompute the corner between pr and nx and its look-ahead coefficients. */
 static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx)
 {
-	mlip_corner_plan(p->n, p->strategy, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel, pr->tol_mm,
-	                 pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
+	if (pr->exact) {
+		pr->c = (struct mlip_corner){0}; /* as the stop strategy: at rest */
+	} else {
+		mlip_corner_plan(p->n, p->strategy, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
+		                 pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
+	}
 	const struct mlip_corner *c = &pr->c;
 	pr->inv_vs2 = c->vs_mm_s > 0.0 ? 1.0 / sq(c->vs_mm_s) : 0.0;
 	pr->inv_ve2 = c->ve_mm_s > 0.0 ? 1.0 / sq(c->ve_mm_s) : 0.0;
@@ -260,6 +264,7 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 	s->vhard_mm_s = dmin(vmax_tool * joint_per_tool, vaxis);
 	s->vfeed_mm_s = b->rapid ? s->vhard_mm_s : b->feed_mm_s * joint_per_tool;
 	s->tol_mm = b->tol_mm > 0.0 ? dmin(b->tol_mm, p->eps_mm) : p->eps_mm;
+	s->exact = b->exact_stop != 0;
 	s->line = b->line;
 	s->seq = b->seq ? b->seq : p->seq + 1; /* the caller's number, if any */
 	p->seq = s->seq;
@@ -591,4 +596,113 @@ double mlip_planner_speed(const struct mlip_planner *p)
 		v2 += vk * vk;
 	}
 	return sqrt(v2);
+}
+
+/* 1 / |linear part of e|: joint length per tool length (G94 feed, append) */
+static double joint_per_tool(const struct mlip_planner *p, const double *e)
+{
+	double lin2 = 0.0;
+	for (int k = 0; k < p->n; k++) {
+		lin2 += p->rotary[k] ? 0.0 : e[k] * e[k];
+	}
+	return lin2 > 0.0 ? 1.0 / sqrt(lin2) : 1.0;
+}
+
+/* Distance from x to the line through P with unit direction e. */
+static double line_dist(int n, const double *x, const double *P, const double *e)
+{
+	double along = 0.0, d2 = 0.0;
+	for (int k = 0; k < n; k++) {
+		along += (x[k] - P[k]) * e[k];
+	}
+	for (int k = 0; k < n; k++) {
+		d2 += sq(x[k] - P[k] - along * e[k]);
+	}
+	return sqrt(d2);
+}
+
+void mlip_planner_rest_here(struct mlip_planner *p)
+{
+	if (p->in_corner) {
+		/* in a corner: on to whichever of its two segments is nearer (the
+		 * distance to one segment is convex along a straight line); to the
+		 * corner point first, at rest there, when that is the one before */
+		struct mlip_seg *s = seg_at(p, p->tail);
+		const struct mlip_seg *nx = seg_at(p, p->tail + 1);
+		if (line_dist(p->n, p->pos, s->end, nx->e) <= line_dist(p->n, p->pos, s->end, s->e)) {
+			retire(p);
+		} else {
+			s->exact = 1;
+		}
+		p->in_corner = 0;
+	}
+	while (p->head != p->tail) {
+		struct mlip_seg *s = seg_at(p, p->tail);
+		double d2 = 0.0, e[MLIP_MAX_AXES];
+		for (int k = 0; k < p->n; k++) {
+			e[k] = s->end[k] - p->pos[k];
+			d2 += e[k] * e[k];
+		}
+		double d = sqrt(d2);
+		if (d < MERGE_MM) {
+			retire(p); /* at its end already */
+			continue;
+		}
+		double a = INFINITY, vaxis = INFINITY, jpt0 = joint_per_tool(p, s->e);
+		for (int k = 0; k < p->n; k++) {
+			e[k] /= d;
+			if (e[k] != 0.0) {
+				a = dmin(a, p->accel[k] / fabs(e[k]));
+				vaxis = dmin(vaxis, p->vaxis[k] / fabs(e[k]));
+			}
+		}
+		double jpt = joint_per_tool(p, e);
+		int rapid = s->vfeed_mm_s == s->vhard_mm_s;
+		memcpy(s->e, e, sizeof(e));
+		s->d_mm = d;
+		s->a_mm_s2 = a;
+		s->two_a_d = 2.0 * a * d;
+		s->vhard_mm_s = dmin(s->vhard_mm_s / jpt0 * jpt, vaxis);
+		s->vfeed_mm_s = rapid ? s->vhard_mm_s : s->vfeed_mm_s / jpt0 * jpt;
+		if (p->head - p->tail > 1) {
+			link_corner(p, s, seg_at(p, p->tail + 1));
+		}
+		break;
+	}
+	p->l_start_mm = 0.0;
+	p->s_mm = 0.0;
+	p->v_mm_s = 0.0;
+	p->prof_valid = 0;
+	if (p->head == p->tail) {
+		memcpy(p->last_point, p->pos, sizeof(double) * (size_t)p->n);
+	}
+	mlip_planner_hold(p, 1); /* full backward pass from the new geometry */
+}
+
+int mlip_planner_moving(const struct mlip_planner *p)
+{
+	return p->head != p->tail && (p->v_mm_s > 0.0 || p->in_corner);
+}
+
+void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)
+{
+	const struct mlip_seg *s = cseg_at(p, p->tail);
+	*seq = p->head != p->tail ? s->seq : 0;
+	*line = p->head != p->tail ? s->line : 0;
+}
+
+void mlip_planner_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)
+{
+	*seq = p->done_seq;
+	*line = p->done_line;
+}
+
+double mlip_planner_override_pct(const struct mlip_planner *p)
+{
+	return p->override * 100.0;
+}
+
+const struct mlip_planner_stats *mlip_planner_get_stats(const struct mlip_planner *p)
+{
+	return &p->stats;
 }

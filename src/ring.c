@@ -34,10 +34,10 @@
 /* ---- compile-time layout checks (Linux kfifo's negative array size) ---- */
 #define MLIP_RING_CHECK(name, cond) typedef char mlip_ring_check_##name[(cond) ? 1 : -1]
 
-MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 80);
+MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 88);
 MLIP_RING_CHECK(rec_align, sizeof(struct mlip_ring_rec) % 8 == 0);
 MLIP_RING_CHECK(rec_target, offsetof(struct mlip_ring_rec, target) == 16);
-MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 896);
+MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1024);
 MLIP_RING_CHECK(hdr_lines, sizeof(struct mlip_ring) % MLIP_RING_LINE == 0);
 MLIP_RING_CHECK(line_pow2, MLIP_RING_IS_POW2(MLIP_RING_LINE));
 MLIP_RING_CHECK(max_pow2, MLIP_RING_IS_POW2(MLIP_RING_MAX_CAPACITY));
@@ -45,14 +45,12 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-/* 88 bytes up to blocks_consumed, then stop_* (16) in what was the line's
- * zeroed padding: older builds' segments read as "no stop yet" */
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 104);
-MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 320);
-MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 328);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 200);
+MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 448);
+MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 456);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 32);
-MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 384);
-MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 448);
+MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 512);
+MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 576);
 
 /* shared-memory atomics must not fall back to a process-local lock */
 #if !defined(__GCC_ATOMIC_LLONG_LOCK_FREE) || __GCC_ATOMIC_LLONG_LOCK_FREE != 2 || \
@@ -62,6 +60,9 @@ MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 448);
 
 #define LD(p, mo) __atomic_load_n((p), (mo))
 #define ST(p, v, mo) __atomic_store_n((p), (v), (mo))
+/* doubles: the generic builtins (8 bytes, lock-free like the integers) */
+#define STD(p, v) __atomic_store((p), (v), __ATOMIC_RELEASE)
+#define LDD(p, v) __atomic_load((p), (v), __ATOMIC_ACQUIRE)
 #define ACQ __ATOMIC_ACQUIRE
 #define REL __ATOMIC_RELEASE
 #define RLX __ATOMIC_RELAXED
@@ -348,6 +349,103 @@ void mlip_ring_reset(struct mlip_ring *r, uint32_t index)
 	r->head_cache = index;
 }
 
+/* ---- ports ------------------------------------------------------------ */
+
+mlip_status mlip_ring_port_open(struct mlip_ring_port *p, struct mlip_ring *r, int producer)
+{
+	uint32_t cap = r->capacity;
+
+	memset(p, 0, sizeof(*p));
+	if (!capacity_ok(cap) || r->n_axes < 1 || r->n_axes > MLIP_MAX_AXES) {
+		return MLIP_E_INVALID;
+	}
+	p->r = r;
+	p->capacity = cap;
+	p->mask = cap - 1u;
+	p->n_axes = r->n_axes;
+	p->producer = producer != 0;
+	p->own = LD(producer ? &r->head : &r->tail, ACQ);
+	p->other = LD(producer ? &r->tail : &r->head, ACQ);
+	return MLIP_OK;
+}
+
+/* Reload the other side's index; the distance between the two must be a
+ * count in 0..capacity. */
+static mlip_status port_reload(struct mlip_ring_port *p, uint32_t *apart)
+{
+	uint32_t other = LD(p->producer ? &p->r->tail : &p->r->head, ACQ);
+	uint32_t n = p->producer ? p->own - other : other - p->own;
+
+	if (n > p->capacity) {
+		if (apart != NULL) {
+			*apart = n;
+		}
+		return MLIP_E_RANGE;
+	}
+	p->other = other;
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t *apart)
+{
+	*n = 0;
+	if (port_reload(p, apart) != MLIP_OK) {
+		return MLIP_E_RANGE;
+	}
+	*n = p->producer ? p->capacity - (p->own - p->other) : p->other - p->own;
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out)
+{
+	const struct mlip_ring_rec *recs = (const struct mlip_ring_rec *)(const void *)(p->r + 1);
+
+	if (p->other == p->own && port_reload(p, NULL) != MLIP_OK) {
+		return MLIP_E_RANGE;
+	}
+	if (p->other == p->own) {
+		return MLIP_E_EMPTY;
+	}
+	*out = recs[p->own & p->mask];
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_port_pop(struct mlip_ring_port *p)
+{
+	if (p->other == p->own) {
+		return MLIP_E_EMPTY; /* peek first */
+	}
+	p->own++;
+	ST(&p->r->tail, p->own, REL); /* hands the slot back to the producer */
+	return MLIP_OK;
+}
+
+mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ring_rec *recs,
+                                  uint32_t n, uint32_t *pushed)
+{
+	struct mlip_ring_rec *slots = (struct mlip_ring_rec *)(void *)(p->r + 1);
+	uint32_t space;
+
+	*pushed = 0;
+	if (mlip_ring_port_count(p, &space, NULL) != MLIP_OK) {
+		return MLIP_E_RANGE;
+	}
+	if (n > space) {
+		n = space;
+	}
+	for (uint32_t i = 0; i < n; i++) {
+		slots[(p->own + i) & p->mask] = recs[i];
+	}
+	p->own += n;
+	ST(&p->r->head, p->own, REL); /* publishes the records */
+	*pushed = n;
+	return MLIP_OK;
+}
+
+/* block kind <-> record type: the same four events in both (types.h) */
+static const uint16_t kind_type[] = {MLIP_REC_MOVE, MLIP_REC_DWELL, MLIP_REC_PAUSE,
+                                     MLIP_REC_OPTIONAL_PAUSE};
+
 void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b,
                               uint64_t seq)
 {
@@ -356,12 +454,16 @@ void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block
 	memset(rec, 0, sizeof(*rec));
 	rec->seq = seq;
 	rec->line = b->line;
-	rec->flags = b->rapid ? MLIP_REC_RAPID : 0u;
+	/* an unknown kind stays unknown: the controller refuses it */
+	rec->type = b->kind < sizeof(kind_type) / sizeof(kind_type[0]) ? kind_type[b->kind]
+	                                                                 : (uint16_t)MLIP_REC_TYPES;
+	rec->flags = (uint16_t)((b->rapid ? MLIP_REC_RAPID : 0u) | (b->exact_stop ? MLIP_REC_EXACT : 0u));
 	for (i = 0; i < MLIP_MAX_AXES; i++) {
 		rec->target[i] = b->target[i];
 	}
 	rec->feed_mm_s = b->feed_mm_s;
 	rec->tol_mm = b->tol_mm;
+	rec->dwell_s = b->dwell_s;
 }
 
 void mlip_ring_rec_end(struct mlip_ring_rec *rec, uint64_t seq, uint32_t line)
@@ -369,15 +471,31 @@ void mlip_ring_rec_end(struct mlip_ring_rec *rec, uint64_t seq, uint32_t line)
 	memset(rec, 0, sizeof(*rec));
 	rec->seq = seq;
 	rec->line = line;
-	rec->flags = MLIP_REC_END;
+	rec->type = MLIP_REC_END;
 }
 
 mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_block *b)
 {
 	int i;
+	uint8_t kind;
 
-	if (rec->flags & MLIP_REC_END) {
+	switch (rec->type) {
+	case MLIP_REC_END:
 		return MLIP_E_EMPTY;
+	case MLIP_REC_MOVE:
+		kind = MLIP_BLOCK_MOVE;
+		break;
+	case MLIP_REC_DWELL:
+		kind = MLIP_BLOCK_DWELL;
+		break;
+	case MLIP_REC_PAUSE:
+		kind = MLIP_BLOCK_PAUSE;
+		break;
+	case MLIP_REC_OPTIONAL_PAUSE:
+		kind = MLIP_BLOCK_OPTIONAL_PAUSE;
+		break;
+	default:
+		return MLIP_E_INVALID;
 	}
 	memset(b, 0, sizeof(*b));
 	for (i = 0; i < MLIP_MAX_AXES; i++) {
@@ -388,6 +506,9 @@ mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_
 	b->seq = rec->seq;
 	b->line = rec->line;
 	b->rapid = (rec->flags & MLIP_REC_RAPID) ? 1 : 0;
+	b->kind = kind;
+	b->exact_stop = (rec->flags & MLIP_REC_EXACT) ? 1 : 0;
+	b->dwell_s = rec->dwell_s;
 	return MLIP_OK;
 }
 
@@ -415,6 +536,17 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	ST(&d->stop_nm, s->stop_nm, REL);
 	ST(&d->stop_periods, s->stop_periods, REL);
 	ST(&d->stops, s->stops, REL);
+	ST(&d->reason, s->reason, REL);
+	ST(&d->reason_field, s->reason_field, REL);
+	ST(&d->reason_seq, s->reason_seq, REL);
+	ST(&d->reason_line, s->reason_line, REL);
+	ST(&d->optional_stop, s->optional_stop, REL);
+	STD(&d->reason_value, &s->reason_value);
+	for (int k = 0; k < MLIP_MAX_AXES; k++) {
+		STD(&d->pos[k], &s->pos[k]);
+	}
+	STD(&d->speed_mm_s, &s->speed_mm_s);
+	ST(&d->dwell_left, s->dwell_left, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -445,6 +577,17 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		s->stop_nm = LD(&d->stop_nm, ACQ);
 		s->stop_periods = LD(&d->stop_periods, ACQ);
 		s->stops = LD(&d->stops, ACQ);
+		s->reason = LD(&d->reason, ACQ);
+		s->reason_field = LD(&d->reason_field, ACQ);
+		s->reason_seq = LD(&d->reason_seq, ACQ);
+		s->reason_line = LD(&d->reason_line, ACQ);
+		s->optional_stop = LD(&d->optional_stop, ACQ);
+		LDD(&d->reason_value, &s->reason_value);
+		for (int k = 0; k < MLIP_MAX_AXES; k++) {
+			LDD(&d->pos[k], &s->pos[k]);
+		}
+		LDD(&d->speed_mm_s, &s->speed_mm_s);
+		s->dwell_left = LD(&d->dwell_left, ACQ);
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -549,16 +692,49 @@ void mlip_ring_cmd_done(struct mlip_ring *r, uint32_t seq, int32_t result)
 	ST(&r->cmd_done, seq, REL); /* our reads of op/arg happen before the next post */
 }
 
+#define NAME_OF(names, v) ((v) < sizeof(names) / sizeof((names)[0]) ? (names)[v] : "?")
+
 const char *mlip_ring_state_name(uint32_t state)
 {
-	static const char *const names[] = {"idle", "running", "held", "stopping", "fault", "starved"};
+	static const char *const names[] = {"idle",    "running",  "held",     "stopping", "fault",
+	                                    "starved", "paused",   "dwelling", "pre-read"};
 
-	return state < sizeof(names) / sizeof(names[0]) ? names[state] : "?";
+	return NAME_OF(names, state);
 }
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
-	static const char *const names[] = {"none", "override", "hold", "resume", "stop"};
+	static const char *const names[] = {"none", "override", "hold", "resume", "stop",
+	                                    "optional-stop"};
 
-	return op < sizeof(names) / sizeof(names[0]) ? names[op] : "?";
+	return NAME_OF(names, op);
+}
+
+const char *mlip_state_why_name(uint32_t why)
+{
+	static const char *const names[] = {
+	    "none",          "program start",     "continuation",  "pre-read done",
+	    "program end",   "underrun",          "feeder gone",   "hold",
+	    "override 0",    "resume",            "CAN tx refused", "CAN error frames",
+	    "stall",         "dwell",             "dwell done",    "pause (M0)",
+	    "optional pause (M1)", "stop",        "exit signal",   "bad record",
+	    "ring corrupt",  "position beyond the drives' range"};
+
+	return NAME_OF(names, why);
+}
+
+const char *mlip_rec_field_name(uint32_t field)
+{
+	static const char *const names[] = {"none",  "seq", "type",  "flags", "feed",
+	                                    "tol",   "dwell", "head", "target[0]", "target[1]",
+	                                    "target[2]", "target[3]", "target[4]", "target[5]"};
+
+	return NAME_OF(names, field);
+}
+
+const char *mlip_rec_type_name(uint32_t type)
+{
+	static const char *const names[] = {"move", "end", "dwell", "pause", "optional pause"};
+
+	return NAME_OF(names, type);
 }

@@ -26,6 +26,7 @@ static void usage(FILE *f)
 	           "acceleration is taken across it, velocities are its mean.\n\n"
 	           "  --config FILE / --accel A[,A..] / --vmax MM_S / --eps MM / --period S\n"
 	           "                      the machine, as for mlip-sim\n"
+	           "  --offsets FILE / --strict / --default-feed F   as for mlip-sim\n"
 	           "  --quantum MM        position resolution of the trace (e.g. 0.001 for\n"
 	           "                      1000 counts/mm): adds 4 quantum / T^2 to the acceleration\n"
 	           "                      bound and quantum to the contour and end bounds\n"
@@ -47,12 +48,20 @@ int main(int argc, char **argv)
 		{"vmax", required_argument, 0, 'v'},   {"eps", required_argument, 0, 'e'},
 		{"period", required_argument, 0, 'p'}, {"quantum", required_argument, 0, 'Q'},
 		{"rel", required_argument, 0, 'r'},    {"json", required_argument, 0, 'j'},
-		{"no-end", no_argument, 0, 'E'},
+		{"no-end", no_argument, 0, 'E'},       MLIP_CLI_GCODE_OPTIONS,
 		{"help", no_argument, 0, 'h'},         {0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
 		double v = 0.0;
-		if (strchr("vepQr", c) && (mlip_cli_number(optarg, &v) != 0 || v < 0.0)) {
+		int g = mlip_cli_gcode_option(c, optarg, &mo, PROG, stderr);
+		if (g != 0) {
+			if (g < 0) {
+				return 2;
+			}
+			continue;
+		}
+		if (c > 0 && c < 128 && strchr("vepQr", c) &&
+		    (mlip_cli_number(optarg, &v) != 0 || v < 0.0)) {
 			fprintf(stderr, PROG ": '%s' is not a non-negative number\n", optarg);
 			return 2;
 		}
@@ -97,22 +106,19 @@ int main(int argc, char **argv)
 		return 2;
 	}
 	const char *ppath = argv[optind], *tpath = argv[optind + 1];
-	char *text;
-	size_t len;
-	struct mlip_config cfg;
-	if (mlip_cli_open_program(ppath, &mo, &cfg, &text, &len, PROG, stderr) != 0) {
+	static struct mlip_config cfg;
+	static struct mlip_program prog;
+	if (mlip_cli_open_program(ppath, &mo, &cfg, &prog, PROG, stderr) != 0) {
 		return 2;
 	}
 	const struct mlip_machine *m = &cfg.machine;
 	int n = m->n_axes;
-	struct mlip_program prog;
-	if (mlip_program_parse(text, len, m, &prog) != 0) {
-		mlip_program_print_errors(&prog, ppath, stderr);
+	size_t npts;
+	double *pts = mlip_cli_polyline(m, &prog, &npts, ppath, PROG, stderr);
+	mlip_program_close(&prog);
+	if (pts == NULL) {
 		return 2;
 	}
-	free(text);
-	size_t npts;
-	double *pts = mlip_cli_polyline(m, prog.blocks, prog.n, &npts);
 
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
@@ -123,7 +129,6 @@ int main(int argc, char **argv)
 	if (tf == NULL) {
 		perror(tpath);
 		free(pts);
-		mlip_program_free(&prog);
 		return 2;
 	}
 	char line[1024];
@@ -176,7 +181,6 @@ int main(int argc, char **argv)
 	}
 	if (input_error) {
 		free(pts);
-		mlip_program_free(&prog);
 		return 2;
 	}
 	double T = m->period_s;
@@ -211,6 +215,5 @@ int main(int argc, char **argv)
 		        chk.count, chk.max_contour_mm);
 	}
 	free(pts);
-	mlip_program_free(&prog);
 	return bad ? 1 : 0;
 }

@@ -9,6 +9,7 @@
  */
 #include <errno.h>
 #include <getopt.h>
+#include <math.h>
 #include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -17,6 +18,7 @@
 #include <sys/types.h>
 #include <time.h>
 
+#include "cli.h"
 #include "mlip/ring.h"
 #include "rt.h"
 
@@ -35,8 +37,9 @@ static void usage(FILE *f)
 	    "commands:\n"
 	    "  override PCT     feed override, percent, integer 0..200 (0 stops the feed)\n"
 	    "  hold             feed hold: decelerate to rest on the path, keep the program\n"
-	    "  resume           leave a feed hold\n"
+	    "  resume           leave a feed hold, a stall hold or a pause (M0, M1, M60)\n"
 	    "  stop             decelerate to rest on the path, drop the rest of the program\n"
+	    "  optional-stop on|off  M1 pauses the program (on) or is passed (off)\n"
 	    "  status [--json]  controller and feeder state (--json: one object on stdout)\n"
 	    "  -                commands from standard input, one per line, each answered\n"
 	    "                   (on stdout, or stderr when refused) before the next is read\n\n"
@@ -45,8 +48,9 @@ static void usage(FILE *f)
 	    ")\n"
 	    "  --json           status as JSON\n"
 	    "  -h, --help       this help\n\n"
-	    "exit status: 0 done (status: controller alive); 1 refused, no answer within 1 s,\n"
-	    "or controller not running; 2 usage error or no usable segment\n");
+	    "exit status: 0 done (status: controller alive, not in fault); 1 refused, no\n"
+	    "answer within 1 s, controller not running (or, for status, in fault); 2 usage\n"
+	    "error or no usable segment\n");
 }
 
 static void sleep_ns(long ns)
@@ -181,10 +185,22 @@ static void json_str(FILE *f, const char *s)
 	fputc('"', f);
 }
 
+/* A number, or null when it is not finite (JSON has no NaN). */
+static void json_num(double v)
+{
+	if (isfinite(v)) {
+		printf("%.17g", v);
+	} else {
+		printf("null");
+	}
+}
+
 static int cmd_status(struct mlip_shm *s, int json)
 {
 	struct mlip_ring_status st;
 	struct mlip_ring_feeder fd;
+	struct mlip_machine m;
+	char fname[32];
 	int alive, falive;
 	int64_t a, fa;
 
@@ -214,6 +230,10 @@ static int cmd_status(struct mlip_shm *s, int json)
 	}
 	fa = age_ns(fd.heartbeat_ns);
 	falive = feeder_alive(&fd);
+	mlip_ring_machine(s->ring, &m);
+	if (m.n_axes < 1 || m.n_axes > MLIP_MAX_AXES) {
+		m.n_axes = 0; /* no machine published: no axes to show */
+	}
 
 	if (json) {
 		printf("{\n  \"shm\": ");
@@ -227,6 +247,28 @@ static int cmd_status(struct mlip_shm *s, int json)
 		} else {
 			printf("  \"heartbeat_age_ms\": %.3f,\n", (double)a / 1e6);
 		}
+		printf("  \"reason\": \"%s\",\n  \"reason_seq\": %llu,\n  \"reason_line\": %u,\n",
+		       mlip_state_why_name(st.reason), (unsigned long long)st.reason_seq,
+		       (unsigned)st.reason_line);
+		printf("  \"reason_field\": ");
+		if (st.reason_field == MLIP_FIELD_NONE) {
+			printf("null,\n");
+		} else {
+			mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
+			json_str(stdout, fname);
+			printf(",\n");
+		}
+		printf("  \"reason_value\": ");
+		json_num(st.reason_value);
+		printf(",\n  \"position\": {");
+		for (int k = 0; k < m.n_axes; k++) {
+			printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
+			json_num(st.pos[k]);
+		}
+		printf("},\n  \"speed_mm_s\": ");
+		json_num(st.speed_mm_s);
+		printf(",\n  \"dwell_left_s\": %.6f,\n  \"optional_stop\": %s,\n",
+		       (double)st.dwell_left * m.period_s, st.optional_stop ? "true" : "false");
 		printf("  \"exec_seq\": %llu,\n  \"exec_line\": %u,\n",
 		       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
 		printf("  \"override_pct\": %u,\n", (unsigned)st.override_pct);
@@ -244,7 +286,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 		       falive ? "true" : "false");
 		printf("  \"total_blocks\": %llu,\n  \"program_end\": %s\n}\n",
 		       (unsigned long long)fd.total_blocks, fd.program_end ? "true" : "false");
-		return alive ? EXIT_DONE : EXIT_FAIL;
+		return alive && st.state != MLIP_STATE_FAULT ? EXIT_DONE : EXIT_FAIL;
 	}
 
 	printf("controller  %s: %s, %s (heartbeat ", s->name, mlip_ring_state_name(st.state),
@@ -256,7 +298,34 @@ static int cmd_status(struct mlip_shm *s, int json)
 	int rest = st.state == MLIP_STATE_IDLE || st.state == MLIP_STATE_STARVED;
 	printf("%s block %llu, line %u\n", rest ? "completed  " : "executing  ",
 	       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
-	printf("override    %u %%\n", (unsigned)st.override_pct);
+	printf("why         %s", mlip_state_why_name(st.reason));
+	if (st.reason_field != MLIP_FIELD_NONE) {
+		mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
+		printf(": record %llu (line %u), %s = %.17g", (unsigned long long)st.reason_seq,
+		       (unsigned)st.reason_line, fname, st.reason_value);
+	} else if (st.reason_seq != 0) {
+		printf(", block %llu (line %u)", (unsigned long long)st.reason_seq,
+		       (unsigned)st.reason_line);
+	}
+	if (st.reason == MLIP_WHY_STALL) {
+		printf(", %.0f periods missed", st.reason_value);
+	}
+	printf("\n");
+	if (st.state == MLIP_STATE_PAUSED || (st.state == MLIP_STATE_HELD && st.reason != MLIP_WHY_OVERRIDE_ZERO)) {
+		printf("to continue mlip-ctl resume\n");
+	} else if (st.state == MLIP_STATE_FAULT) {
+		printf("to continue restart mlip-rt (the fault stays until then)\n");
+	}
+	printf("position   ");
+	for (int k = 0; k < m.n_axes; k++) {
+		printf(" %c %.4f", m.axis[k].letter, st.pos[k]);
+	}
+	printf("  (%.3f mm/s)\n", st.speed_mm_s);
+	if (st.state == MLIP_STATE_DWELLING) {
+		printf("dwell       %.3f s left\n", (double)st.dwell_left * m.period_s);
+	}
+	printf("override    %u %%, optional stop %s\n", (unsigned)st.override_pct,
+	       st.optional_stop ? "on" : "off");
 	if (st.stops > 0) {
 		printf("last stop   %.3f mm on the path in %u periods, request to rest (%u so far)\n",
 		       (double)st.stop_nm * 1e-6, (unsigned)st.stop_periods, (unsigned)st.stops);
@@ -285,14 +354,20 @@ static int cmd_status(struct mlip_shm *s, int json)
 	}
 	if (!alive) {
 		fprintf(stderr, PROG ": controller on %s is not running: start mlip-rt\n", s->name);
+	} else if (st.state == MLIP_STATE_FAULT) {
+		fprintf(stderr, PROG ": controller on %s is in fault (%s): the program did not "
+		                "complete; restart mlip-rt to clear it\n",
+		        s->name, mlip_state_why_name(st.reason));
 	}
-	return alive ? EXIT_DONE : EXIT_FAIL;
+	return alive && st.state != MLIP_STATE_FAULT ? EXIT_DONE : EXIT_FAIL;
 }
 
 static void describe(char *buf, size_t len, mlip_ring_cmd_op op, int32_t arg)
 {
 	if (op == MLIP_CMD_OVERRIDE) {
 		snprintf(buf, len, "override %d %%", (int)arg);
+	} else if (op == MLIP_CMD_OPTIONAL_STOP) {
+		snprintf(buf, len, "optional-stop %s", arg ? "on" : "off");
 	} else {
 		snprintf(buf, len, "%s", mlip_ring_cmd_name(op));
 	}
@@ -350,6 +425,12 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 	return EXIT_DONE;
 }
 
+/* Commands with an argument word after them. */
+static int op_takes_arg(const char *cmd)
+{
+	return strcmp(cmd, "override") == 0 || strcmp(cmd, "optional-stop") == 0;
+}
+
 /* One command word (and PCT for override) -> op, arg; EXIT_USAGE with a
  * message when it is not one. */
 static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op, int32_t *arg)
@@ -371,8 +452,17 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 		*op = MLIP_CMD_RESUME;
 	} else if (strcmp(cmd, "stop") == 0) {
 		*op = MLIP_CMD_STOP;
+	} else if (strcmp(cmd, "optional-stop") == 0) {
+		*op = MLIP_CMD_OPTIONAL_STOP;
+		if (pct == NULL || (strcmp(pct, "on") != 0 && strcmp(pct, "off") != 0)) {
+			fprintf(stderr, PROG ": optional-stop: expected on or off\n");
+			return EXIT_USAGE;
+		}
+		*arg = strcmp(pct, "on") == 0;
 	} else {
-		fprintf(stderr, PROG ": unknown command '%s' (override, hold, resume, stop, status, -)\n",
+		fprintf(stderr,
+		        PROG ": unknown command '%s' (override, hold, resume, stop, optional-stop, "
+		             "status, -)\n",
 		        cmd);
 		return EXIT_USAGE;
 	}
@@ -401,9 +491,10 @@ static int cmd_stdin(struct mlip_shm *s)
 		if (n == 0 || w[0][0] == '#') {
 			continue;
 		}
-		if (parse_command(w[0], w[1], &op, &arg) != 0 || n > 1 + (op == MLIP_CMD_OVERRIDE)) {
+		int takes_arg = op_takes_arg(w[0]);
+		if (parse_command(w[0], w[1], &op, &arg) != 0 || n > 1 + takes_arg) {
 			fprintf(stderr, PROG ": stdin:%lu: expected one of override PCT, hold, resume, "
-			                "stop\n", lineno);
+			                "stop, optional-stop on|off\n", lineno);
 			return EXIT_USAGE;
 		}
 		if (cmd_send(s, op, arg) != EXIT_DONE) {
@@ -464,7 +555,7 @@ int main(int argc, char **argv)
 			if ((rc = parse_command(cmd, pct, &op, &arg)) != 0) {
 				return rc;
 			}
-			optind += op == MLIP_CMD_OVERRIDE;
+			optind += op_takes_arg(cmd);
 		}
 		if (optind < argc) {
 			fprintf(stderr, PROG ": %s: unexpected '%s'\n", cmd, argv[optind]);

@@ -35,6 +35,7 @@
 #include "cli.h"
 #include "mlip/config.h"
 #include "mlip/ring.h"
+#include "offsets.h"
 #include "program.h"
 #include "rt.h"
 
@@ -79,6 +80,10 @@ static void usage(FILE *f)
 	        "                    after the last one the controller completed (mlip-ctl\n"
 	        "                    status: 'completed block B', N = B + 1), after a feeder\n"
 	        "                    crash or a stop (default 1: the whole program)\n"
+	        "  --offsets FILE    work offsets, G92, G28/G30 positions: read before the\n"
+	        "                    program, written back when it completes (README: offsets)\n"
+	        "  --default-feed F  feed (units/min) for a program that sets no F at all\n"
+	        "  --strict          refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
 	        "  -q, --quiet       no notes, no progress, no summary: errors only\n"
 	        "  -h, --help        this help\n\n"
 	        "exit status: 0 program complete, machine at rest; 1 nothing sent (program\n"
@@ -139,16 +144,27 @@ static int producer_lock(int fd, int32_t *holder)
 	return -EBUSY;
 }
 
+/* Source lines of the last blocks sent, for messages about the block being
+ * executed or resumed from: those are within the controller's look-ahead and
+ * the ring's capacity of the last one sent. */
+#define LINE_WINDOW (1u << 16)
+
 struct feed {
 	/* wiring */
 	struct mlip_shm shm;
 	struct mlip_ring *r;
+	struct mlip_ring_port tx; /* producer: capacity, mask and head kept private */
 	const char *path;
 	int quiet, tty;
-	/* program */
+	/* program: checked whole, then streamed (never held) */
 	struct mlip_program prog;
 	uint64_t n; /* blocks; the END record is n + 1 */
 	uint32_t end_line;
+	uint64_t read_seq;          /* blocks taken from the stream so far */
+	uint32_t lines[LINE_WINDOW]; /* source line of seq, for seq % LINE_WINDOW */
+	const char *offsets;        /* --offsets FILE, or NULL */
+	int strict;
+	double default_feed;        /* --default-feed */
 	/* progress */
 	struct mlip_ring_feeder fa; /* what we publish */
 	struct mlip_ring_status st; /* last consistent controller status */
@@ -164,6 +180,8 @@ struct feed {
 	uint64_t exec;              /* our block being executed (0: none yet) */
 	uint32_t exec_line;         /* its source line */
 	int end_pushed;
+	int late_told;              /* "the controller has not run" said */
+	uint32_t told_state, told_why; /* the last state explained to the operator */
 	int line_open; /* a "\r" progress line is on the terminal */
 	uint64_t t_start, t_report;
 };
@@ -216,7 +234,8 @@ static void track_exec(struct feed *f)
 	if (f->t_start == 0 || taken(f) == 0 || e == f->exec0 || e < f->first_seq ||
 	    e >= f->next_seq || e < f->exec ||
 	    (f->st.state != MLIP_STATE_RUNNING && f->st.state != MLIP_STATE_HELD &&
-	     f->st.state != MLIP_STATE_STOPPING && f->st.state != MLIP_STATE_STARVED)) {
+	     f->st.state != MLIP_STATE_STOPPING && f->st.state != MLIP_STATE_STARVED &&
+	     f->st.state != MLIP_STATE_PAUSED && f->st.state != MLIP_STATE_DWELLING)) {
 		return;
 	}
 	f->exec = e;
@@ -273,8 +292,19 @@ static int poll_controller(struct feed *f)
 	if (stale < (uint64_t)MLIP_PEER_TIMEOUT_NS) {
 		return 0;
 	}
-	if (stale < 10 * (uint64_t)MLIP_PEER_TIMEOUT_NS && process_running(f->st.reserved)) {
-		return 0; /* alive but late */
+	if (process_running(f->st.reserved)) {
+		/* alive but not running (stopped, or starved of CPU): it is not
+		 * dead, and when it runs again it holds at rest (a stall) */
+		if (stale >= 10 * (uint64_t)MLIP_PEER_TIMEOUT_NS && !f->late_told) {
+			f->late_told = 1;
+			close_line(f);
+			fprintf(stderr,
+			        PROG ": the controller (pid %u) has not run for %.1f s (stopped or "
+			             "starved of CPU); waiting: when it runs again it holds the machine "
+			             "at rest (stall) and mlip-ctl resume continues\n",
+			        (unsigned)f->st.reserved, (double)stale / 1e9);
+		}
+		return 0;
 	}
 	return -1;
 }
@@ -325,9 +355,32 @@ static uint64_t resume_seq(const struct feed *f)
 	return f->exec ? f->exec : f->first_seq;
 }
 
+/* Source line of block seq (sent, or the next to send), 0 when unknown. */
+static unsigned line_of(const struct feed *f, uint64_t seq)
+{
+	if (seq == f->exec && f->exec) {
+		return f->exec_line;
+	}
+	if (seq >= 1 && seq <= f->read_seq && f->read_seq - seq < LINE_WINDOW) {
+		return f->lines[seq % LINE_WINDOW];
+	}
+	return 0;
+}
+
 static unsigned resume_line(const struct feed *f)
 {
-	return f->exec ? f->exec_line : f->prog.blocks[f->first_seq - 1].line;
+	return f->exec ? f->exec_line : line_of(f, f->first_seq);
+}
+
+/* The next block from the stream into *b: 1, or < 0 (the file changed). */
+static int next_block(struct feed *f, struct mlip_block *b)
+{
+	int rc = mlip_program_next(&f->prog, b);
+	if (rc > 0) {
+		f->read_seq++;
+		f->lines[f->read_seq % LINE_WINDOW] = b->line;
+	}
+	return rc > 0 ? 1 : rc == 0 ? -EIO : rc;
 }
 
 /* Once the controller is at rest after a stop: the block to continue from,
@@ -368,11 +421,47 @@ static int controller_dead(struct feed *f)
 static int controller_fault(struct feed *f)
 {
 	close_line(f);
-	fprintf(stderr,
-	        PROG ": controller fault at line %u (block %llu): see mlip-rt's messages and "
-	             "mlip-ctl status\n",
-	        resume_line(f), (unsigned long long)resume_seq(f));
+	if (f->st.reason == MLIP_WHY_BAD_RECORD) {
+		fprintf(stderr,
+		        PROG ": controller fault: bad record %llu (line %u): %s = %.17g; the machine "
+		             "stops at the end of the last good block; the program is NOT complete "
+		             "(restart mlip-rt to clear)\n",
+		        (unsigned long long)f->st.reason_seq, (unsigned)f->st.reason_line,
+		        mlip_rec_field_name(f->st.reason_field), f->st.reason_value);
+	} else {
+		fprintf(stderr,
+		        PROG ": controller fault (%s) at line %u (block %llu): the program is NOT "
+		             "complete; see mlip-rt's messages and mlip-ctl status\n",
+		        mlip_state_why_name(f->st.reason), resume_line(f),
+		        (unsigned long long)resume_seq(f));
+	}
 	return EXIT_FAULT;
+}
+
+/* Tell the operator once per state what the machine waits for and how to
+ * continue: the same words as mlip-rt's log and mlip-ctl status. */
+static void explain(struct feed *f)
+{
+	const struct mlip_ring_status *st = &f->st;
+	if (st->state == f->told_state && st->reason == f->told_why) {
+		return;
+	}
+	f->told_state = st->state;
+	f->told_why = st->reason;
+	if (f->quiet) {
+		return;
+	}
+	if (st->state == MLIP_STATE_PAUSED) {
+		close_line(f);
+		fprintf(stderr, PROG ": paused (%s) at line %u: mlip-ctl resume continues\n",
+		        mlip_state_why_name(st->reason), (unsigned)st->reason_line);
+	} else if (st->state == MLIP_STATE_HELD && st->reason == MLIP_WHY_STALL) {
+		close_line(f);
+		fprintf(stderr,
+		        PROG ": stall: the controller missed %.0f periods; held at rest at the last "
+		             "setpoint sent, line %u; to continue: mlip-ctl resume\n",
+		        st->reason_value, (unsigned)st->exec_line);
+	}
 }
 
 /* After a stop, the END record alone: the controller drops a stopped
@@ -383,11 +472,13 @@ static void push_end(struct feed *f)
 {
 	struct mlip_ring_rec rec;
 
-	if (f->end_pushed) {
-		return;
+	if (f->end_pushed || f->tx.r == NULL) {
+		return; /* nothing sent yet: no port */
 	}
 	mlip_ring_rec_end(&rec, f->n + 1, f->end_line);
-	if (mlip_ring_push(f->r, &rec) == MLIP_OK) { /* full: the discard frees room */
+	uint32_t got = 0;
+	mlip_ring_port_push_n(&f->tx, &rec, 1, &got);
+	if (got == 1) { /* full: the discard frees room */
 		f->end_pushed = 1;
 		f->next_seq = f->n + 2;
 	}
@@ -417,7 +508,9 @@ static int wait_rest(struct feed *f, uint64_t t_max, uint64_t ack_hb)
 			return 0;
 		}
 		if (ack_hb != 0 && f->st.heartbeat > ack_hb + 1 &&
-		    (f->st.state == MLIP_STATE_RUNNING || f->st.state == MLIP_STATE_HELD) &&
+		    (f->st.state == MLIP_STATE_RUNNING || f->st.state == MLIP_STATE_HELD ||
+		     f->st.state == MLIP_STATE_PREREAD || f->st.state == MLIP_STATE_PAUSED ||
+		     f->st.state == MLIP_STATE_DWELLING) &&
 		    mlip_ring_cmd_post(f->r, MLIP_CMD_STOP, 0, NULL) == MLIP_OK) {
 			ack_hb = 0; /* once: that race exists only before the first record */
 		}
@@ -482,7 +575,7 @@ static int interrupted(struct feed *f)
 		fprintf(stderr,
 		        PROG ": interrupted: machine stopped on the path at line %u (block %llu of "
 		             "%llu); resume with --start-seq %llu\n",
-		        f->prog.blocks[next - 1].line, (unsigned long long)next,
+		        line_of(f, next), (unsigned long long)next,
 		        (unsigned long long)f->n, (unsigned long long)next);
 	}
 	return code;
@@ -504,7 +597,7 @@ static int operator_stop(struct feed *f)
 	fprintf(stderr,
 	        PROG ": program stopped on the path at line %u (block %llu of %llu): mlip-ctl "
 	             "stop, or mlip-rt was told to exit\n",
-	        f->prog.blocks[next - 1].line, (unsigned long long)next, (unsigned long long)f->n);
+	        line_of(f, next), (unsigned long long)next, (unsigned long long)f->n);
 	return EXIT_OPERATOR;
 }
 
@@ -516,7 +609,11 @@ static uint32_t fill(struct feed *f, struct mlip_ring_rec *recs, uint32_t max)
 
 	for (; k < max && seq <= f->n + 1; k++, seq++) {
 		if (seq <= f->n) {
-			mlip_ring_rec_from_block(&recs[k], &f->prog.blocks[seq - 1], seq);
+			struct mlip_block b;
+			if (next_block(f, &b) < 0) {
+				break; /* the caller sees fewer records, then the stream's error */
+			}
+			mlip_ring_rec_from_block(&recs[k], &b, seq);
 		} else {
 			mlip_ring_rec_end(&recs[k], seq, f->end_line);
 		}
@@ -624,6 +721,12 @@ static int run(struct feed *f)
 	if (rc >= 0) {
 		return rc;
 	}
+	/* the producer's view, taken now that we hold the producer lock */
+	if (mlip_ring_port_open(&f->tx, f->r, 1) != MLIP_OK) {
+		fprintf(stderr, PROG ": %s: the ring's header is not valid any more: restart mlip-rt\n",
+		        f->shm.name);
+		return EXIT_FAIL;
+	}
 	f->consumed0 = f->st.blocks_consumed;
 	f->exec0 = f->st.exec_seq;
 	f->fa.pid = (int32_t)getpid();
@@ -641,6 +744,7 @@ static int run(struct feed *f)
 		if (f->st.state == MLIP_STATE_FAULT) {
 			return controller_fault(f);
 		}
+		explain(f);
 		/* done: END executed (exec_seq = its seq) and at rest; taken() >= our
 		 * blocks rules out an exec_seq left by an equally long previous program */
 		if (f->end_pushed && f->st.state == MLIP_STATE_IDLE && f->st.exec_seq == total &&
@@ -654,7 +758,16 @@ static int run(struct feed *f)
 			return operator_stop(f);
 		}
 		got = 0;
-		k = mlip_ring_space(f->r);
+		uint32_t apart = 0;
+		if (mlip_ring_port_count(&f->tx, &k, &apart) != MLIP_OK) {
+			close_line(f);
+			fprintf(stderr,
+			        PROG ": %s is corrupted: its tail is %u records from our head, beyond "
+			             "the capacity %u (another process writes into it?); stopping the "
+			             "feed: mlip-ctl stop, then restart mlip-rt\n",
+			        f->shm.name, (unsigned)apart, (unsigned)f->tx.capacity);
+			return EXIT_FAULT;
+		}
 		if (f->rate > 0.0) {
 			/* a throttled feeder (tests of underruns): no more than rate x
 			 * elapsed records so far */
@@ -664,7 +777,19 @@ static int run(struct feed *f)
 		}
 		if (!f->end_pushed && k > 0) {
 			k = fill(f, recs, k < BATCH ? k : BATCH);
-			got = mlip_ring_push_n(f->r, recs, k); /* all k: only we add */
+			if (f->prog.done == 1) {
+				mlip_ring_port_push_n(&f->tx, recs, k, &got);
+				f->next_seq += got;
+				leave(f); /* no END: the controller stops at rest after the last */
+				close_line(f);
+				fprintf(stderr,
+				        PROG ": %s: %s; the machine stops at rest after block %llu: "
+				             "continue with --start-seq %llu once the file is right\n",
+				        f->path, f->prog.msg, (unsigned long long)(f->next_seq - 1),
+				        (unsigned long long)f->next_seq);
+				return EXIT_FAIL;
+			}
+			mlip_ring_port_push_n(&f->tx, recs, k, &got); /* all k: only we add */
 			f->next_seq += got;
 			f->pushed += got;
 			if (f->next_seq > total) {
@@ -715,6 +840,9 @@ int main(int argc, char **argv)
 	                                     {"start-seq", required_argument, 0, 'S'},
 	                                     {"rate", required_argument, 0, 'r'},
 	                                     {"quiet", no_argument, 0, 'q'},
+	                                     {"offsets", required_argument, 0, 'O'},
+	                                     {"strict", no_argument, 0, 'X'},
+	                                     {"default-feed", required_argument, 0, 'D'},
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
 	static struct feed f;
@@ -722,8 +850,9 @@ int main(int argc, char **argv)
 	struct mlip_machine m;
 	struct mlip_config_error cerr;
 	struct mlip_ring_feeder other;
-	char why[256], *text = NULL;
-	size_t len;
+	char why[256];
+	struct mlip_gcode_offsets offsets;
+	struct mlip_program_options popt;
 	int32_t holder;
 	int c, rc, code = EXIT_FAIL;
 
@@ -754,6 +883,22 @@ int main(int argc, char **argv)
 		case 'q':
 			f.quiet = 1;
 			break;
+		case 'O':
+			f.offsets = optarg;
+			break;
+		case 'X':
+			f.strict = 1;
+			break;
+		case 'D': {
+			char *end;
+			f.default_feed = strtod(optarg, &end);
+			if (*end != '\0' || !(f.default_feed > 0.0) || f.default_feed > 1e9) {
+				fprintf(stderr, PROG ": --default-feed: '%s' is not a positive number\n",
+				        optarg);
+				return EXIT_USAGE;
+			}
+			break;
+		}
 		case 'h':
 			usage(stdout);
 			return EXIT_DONE;
@@ -769,15 +914,14 @@ int main(int argc, char **argv)
 	f.path = argv[optind];
 	f.tty = isatty(STDERR_FILENO);
 
-	rc = mlip_read_file(f.path, &text, &len);
-	if (rc != 0) {
-		fprintf(stderr, PROG ": %s: %s\n", f.path, strerror(-rc));
+	/* the file first: a typo is reported as such, controller or not */
+	if (mlip_program_check_file(f.path, why, sizeof(why)) != 0) {
+		fprintf(stderr, PROG ": %s: %s\n", f.path, why);
 		return EXIT_FAIL;
 	}
 	rc = mlip_shm_attach(&f.shm, shm, why, sizeof(why));
 	if (rc != 0) {
 		fprintf(stderr, PROG ": %s\n", why);
-		free(text);
 		return EXIT_FAIL;
 	}
 	f.r = f.shm.ring;
@@ -789,9 +933,17 @@ int main(int argc, char **argv)
 		        shm, cerr.msg);
 		goto out;
 	}
-	rc = mlip_program_parse(text, len, &m, &f.prog);
+	/* the whole program is checked before anything is sent, then streamed */
+	mlip_gcode_offsets_init(&offsets, &m);
+	if (f.offsets != NULL && mlip_offsets_load(f.offsets, &m, &offsets, PROG, stderr) != 0) {
+		goto out;
+	}
+	popt.strict = f.strict;
+	popt.default_feed = f.default_feed;
+	popt.offsets = &offsets;
+	rc = mlip_program_open(&f.prog, f.path, &m, &popt);
 	if (rc < 0) {
-		fprintf(stderr, PROG ": %s: %s\n", f.path, strerror(-rc));
+		fprintf(stderr, PROG ": %s: %s\n", f.path, f.prog.msg);
 		goto out;
 	}
 	if (rc > 0) {
@@ -799,10 +951,14 @@ int main(int argc, char **argv)
 		goto out;
 	}
 	if (!f.quiet) {
+		char offs[512];
 		mlip_program_print_notices(&f.prog, f.path, stderr);
+		mlip_offsets_describe(&m, &f.prog.offsets_start, offs, sizeof(offs));
+		fprintf(stderr, PROG ": offsets: %s (%s)\n", offs,
+		        f.offsets ? f.offsets : "no --offsets: defaults");
 	}
 	f.n = f.prog.n;
-	f.end_line = f.prog.lines ? f.prog.lines : f.prog.blocks[f.n - 1].line;
+	f.end_line = f.prog.lines;
 	if (f.first_seq > f.n) {
 		fprintf(stderr, PROG ": --start-seq %llu: %s has %llu blocks\n",
 		        (unsigned long long)f.first_seq, f.path, (unsigned long long)f.n);
@@ -810,6 +966,16 @@ int main(int argc, char **argv)
 		goto out;
 	}
 	f.next_seq = f.first_seq;
+	for (uint64_t k = 1; k < f.first_seq; k++) {
+		struct mlip_block b;
+		if (next_block(&f, &b) < 0) {
+			fprintf(stderr, PROG ": %s: %s\n", f.path, f.prog.msg);
+			goto out;
+		}
+	}
+	if (f.first_seq > 1) {
+		f.lines[f.first_seq % LINE_WINDOW] = 0; /* not read yet */
+	}
 
 	/* one producer only */
 	rc = producer_lock(f.shm.fd, &holder);
@@ -859,9 +1025,12 @@ int main(int argc, char **argv)
 	if (f.fa.heartbeat != 0) {
 		leave(&f); /* we published: now say we are gone */
 	}
+	if (code == EXIT_DONE && f.offsets != NULL &&
+	    mlip_offsets_save(f.offsets, &m, &f.prog.offsets_end, PROG, stderr) != 0) {
+		code = EXIT_FAIL;
+	}
 out:
-	free(text);
-	mlip_program_free(&f.prog);
+	mlip_program_close(&f.prog);
 	mlip_shm_close(&f.shm); /* closing the fd drops the producer lock */
 	return code;
 }

@@ -121,17 +121,17 @@ static int lat_tick(void *ctx, const struct mlip_rt_tick *t)
 	if (r->mode != MODE_IDLE) {
 		struct mlip_controller *c = r->ctl;
 		(void)mlip_controller_tick(c, t); /* never asked to exit: no exit_request */
-		if (c->state == MLIP_STATE_RUNNING && !c->preread) {
+		if (c->core.state == MLIP_STATE_RUNNING) {
 			r->moving_periods++;
 		}
-		if (c->state == MLIP_STATE_IDLE && r->last_state != MLIP_STATE_IDLE) {
+		if (c->core.state == MLIP_STATE_IDLE && r->last_state != MLIP_STATE_IDLE) {
 			r->passes++; /* a program run ended: the next one is in the ring */
 		}
-		r->last_state = c->state;
+		r->last_state = c->core.state;
 		/* the controller encodes (and with --can sends) its own frames */
 		r->send_ns = c->send_ns;
-		r->frames_encoded = c->frames_encoded;
-		r->encode_faults = (uint64_t)c->fault;
+		r->frames_encoded = c->core.frames_encoded;
+		r->encode_faults = c->core.why.why == MLIP_WHY_POSITION_RANGE;
 	}
 	if (r->loops != 0 && t->cycle + 1 >= r->loops) {
 		return 1;
@@ -183,7 +183,7 @@ static void lat_after(void *ctx, const struct mlip_rt_tick *t, int64_t compute_n
 
 struct feeder {
 	struct mlip_ring *ring;
-	const struct mlip_program *prog;
+	const struct mlip_program_list *prog;
 	uint32_t end_line;
 	size_t next; /* 0..n-1: block next, n: the END record */
 	int stop;    /* atomic */
@@ -880,7 +880,7 @@ int main(int argc, char **argv)
 
 	/* ---- the load: config, program, controller, ring, CAN ---- */
 	static struct mlip_config cfg;
-	static struct mlip_program prog;
+	static struct mlip_program_list prog;
 	static struct feeder feed;
 	void *ring_mem = NULL;
 	int64_t period_ns = (o.interval_us ? o.interval_us : DEFAULT_INTERVAL_US) * 1000;
@@ -905,13 +905,13 @@ int main(int argc, char **argv)
 			}
 		}
 		period_ns = (int64_t)(cfg.machine.period_s * 1e9 + 0.5);
-		rc = mlip_program_load(o.program, &cfg.machine, &prog);
+		rc = mlip_program_list_load(o.program, &cfg.machine, &prog);
 		if (rc < 0) {
-			fprintf(stderr, PROG ": %s: %s\n", o.program, strerror(-rc));
+			fprintf(stderr, PROG ": %s: %s\n", o.program, prog.r.msg);
 			return 1;
 		}
 		if (rc > 0) {
-			mlip_program_print_errors(&prog, o.program, stderr);
+			mlip_program_print_errors(&prog.r, o.program, stderr);
 			return 1;
 		}
 		if (prog.n == 0) {
@@ -981,11 +981,14 @@ int main(int argc, char **argv)
 			return 1;
 		}
 		struct mlip_ring *ring = ring_mem;
-		if (mlip_controller_init(&ctl, &planner, &cfg.machine, &cfg.can, MLIP_STRATEGY_MPCT,
-		                         cfg.lookahead, ring, o.mode == MODE_CAN ? &io : NULL) != 0) {
+		/* the latency test counts missed periods; it does not hold on them */
+		struct mlip_ctl_opts co = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = cfg.lookahead,
+		                           .stall_periods = UINT32_MAX, .can = &cfg.can};
+		if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, ring,
+		                         o.mode == MODE_CAN ? &io : NULL) != 0) {
+			co.can = NULL;
 			if (o.mode == MODE_CAN ||
-			    mlip_controller_init(&ctl, &planner, &cfg.machine, NULL, MLIP_STRATEGY_MPCT,
-			                         cfg.lookahead, ring, NULL) != 0) {
+			    mlip_controller_init(&ctl, &planner, &cfg.machine, &co, ring, NULL) != 0) {
 				fprintf(stderr, PROG ": the [CAN] settings of %s do not fit this machine\n",
 				        o.config);
 				return 1;
@@ -1111,9 +1114,9 @@ int main(int argc, char **argv)
 		fprintf(out,
 		        "  load: %s, %llu runs of the program finished, %llu blocks taken, %.1f %% of "
 		        "periods moving, %llu underruns, %llu frames %s",
-		        o.program, (unsigned long long)R.passes, (unsigned long long)ctl.blocks_consumed,
+		        o.program, (unsigned long long)R.passes, (unsigned long long)ctl.core.blocks_consumed,
 		        R.periods ? 100.0 * (double)R.moving_periods / (double)R.periods : 0.0,
-		        (unsigned long long)ctl.underruns, (unsigned long long)R.frames_encoded,
+		        (unsigned long long)ctl.core.underruns, (unsigned long long)R.frames_encoded,
 		        o.mode == MODE_CAN ? "encoded" : "encoded and discarded");
 		if (o.mode == MODE_CAN) {
 			fprintf(out, ", %llu sent, %llu dropped (tx queue full), %llu bus errors on %s",
@@ -1275,8 +1278,8 @@ int main(int argc, char **argv)
 			        "      \"underruns\": %llu,\n      \"frames_encoded\": %llu,\n"
 			        "      \"encode_faults\": %llu",
 			        (unsigned long long)prog.n, (unsigned long long)R.passes,
-			        (unsigned long long)ctl.blocks_consumed, (unsigned long long)R.moving_periods,
-			        (unsigned long long)ctl.underruns, (unsigned long long)R.frames_encoded,
+			        (unsigned long long)ctl.core.blocks_consumed, (unsigned long long)R.moving_periods,
+			        (unsigned long long)ctl.core.underruns, (unsigned long long)R.frames_encoded,
 			        (unsigned long long)R.encode_faults);
 			if (o.mode == MODE_CAN) {
 				fprintf(f,
@@ -1306,7 +1309,7 @@ int main(int argc, char **argv)
 
 	mlip_canio_close(&io);
 	if (o.mode != MODE_IDLE) {
-		mlip_program_free(&prog);
+		mlip_program_list_free(&prog);
 		free(ring_mem);
 	}
 	for (int k = 0; k < S_N; k++) {

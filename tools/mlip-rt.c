@@ -18,6 +18,7 @@
 #include "confload.h"
 #include "mlip/canenc.h"
 #include "rt.h"
+#include "trace.h"
 
 #define PROG "mlip-rt"
 #define MAX_BUS_LOAD 0.70
@@ -44,6 +45,10 @@ struct monitor {
 	const char *iface;
 	struct mlip_canio *io; /* NULL: --can none */
 	struct mlip_ring *ring;
+	const struct mlip_machine *m;
+	uint32_t stall_periods;
+	struct mlip_trace trace; /* --record */
+	FILE *rec;
 	volatile int done;
 };
 
@@ -80,30 +85,105 @@ static void report(const struct mlip_ring_status *a, const struct mlip_ring_stat
 		                "rest\n",
 		        (double)b->stop_nm * 1e-6, (unsigned)b->stop_periods);
 	}
-	if (b->state == a->state) {
+}
+
+/* One line per event of the loop (its log queue), with the reason. */
+static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
+{
+	unsigned long long seq = (unsigned long long)e->exec_seq;
+	unsigned line = e->exec_line;
+	const struct mlip_ctl_reason *r = &e->r;
+	char fld[32];
+	if (e->kind == MLIP_EV_REFUSED) {
+		fprintf(stderr, PROG ": refused records from block %llu (line %u): they do not continue "
+		                "the program (block %.0f expected); dropped\n",
+		        (unsigned long long)r->seq, r->line, r->value);
 		return;
 	}
-	const char *was = mlip_ring_state_name(a->state), *is = mlip_ring_state_name(b->state);
-	switch (b->state) {
+	switch (e->state) {
 	case MLIP_STATE_STARVED:
 		fprintf(stderr,
-		        PROG ": underrun: no block came after block %llu (line %u); at rest at its end "
-		             "(%llu periods without a block so far); to continue: mlip-feed --start-seq "
-		             "%llu\n",
-		        seq, b->exec_line, (unsigned long long)b->underruns, seq + 1);
-		break;
+		        PROG ": underrun: no block came after block %llu (line %u); at rest at its end; "
+		             "to continue: mlip-feed --start-seq %llu\n",
+		        seq, line, seq + 1);
+		return;
 	case MLIP_STATE_HELD:
-		fprintf(stderr, PROG ": held: at rest in block %llu (line %u); %llu CAN frames refused, "
-		                "%llu error frames so far\n",
-		        seq, b->exec_line, (unsigned long long)b->can_tx_errors,
-		        (unsigned long long)b->can_bus_errors);
-		break;
+		if (r->why == MLIP_WHY_STALL) {
+			fprintf(stderr,
+			        PROG ": stall: the loop missed %.0f periods (more than %u) in block %llu "
+			             "(line %u): held at rest at the last setpoint sent, no jump; to "
+			             "continue: mlip-ctl resume\n",
+			        r->value, mo->stall_periods, seq, line);
+		} else if (r->why == MLIP_WHY_BUS_TX || r->why == MLIP_WHY_BUS_ERROR) {
+			struct mlip_ring_status st;
+			if (mlip_ring_status_read(mo->ring, &st) != MLIP_OK) {
+				memset(&st, 0, sizeof(st));
+			}
+			fprintf(stderr,
+			        PROG ": held: at rest in block %llu (line %u); %llu CAN frames refused, "
+			             "%llu error frames so far; mlip-ctl resume once the bus is clean\n",
+			        seq, line, (unsigned long long)st.can_tx_errors,
+			        (unsigned long long)st.can_bus_errors);
+		} else {
+			fprintf(stderr, PROG ": held (%s): at rest in block %llu (line %u); mlip-ctl resume "
+			                "continues\n",
+			        mlip_state_why_name(r->why), seq, line);
+		}
+		return;
+	case MLIP_STATE_FAULT:
+		if (r->why == MLIP_WHY_BAD_RECORD) {
+			mlip_cli_field_name(mo->m, r->field, fld, sizeof(fld));
+			fprintf(stderr,
+			        PROG ": fault: bad record %llu (line %u): %s = %.17g; nothing after it is "
+			             "taken, the machine stops at rest at the end of block %llu; restart "
+			             "mlip-rt to clear\n",
+			        (unsigned long long)r->seq, r->line, fld, r->value,
+			        (unsigned long long)(r->seq ? r->seq - 1 : 0));
+		} else {
+			fprintf(stderr, PROG ": fault: %s in block %llu (line %u); stopping on the path; "
+			                "restart mlip-rt to clear\n",
+			        mlip_state_why_name(r->why), seq, line);
+		}
+		return;
+	case MLIP_STATE_DWELLING:
+		if (r->why == MLIP_WHY_OPTIONAL_PAUSE) {
+			fprintf(stderr, PROG ": M1 at line %u (block %llu) passed: optional stop off\n",
+			        r->line, (unsigned long long)r->seq);
+			return;
+		}
+		fprintf(stderr, PROG ": dwell %.3f s at line %u (block %llu)\n", r->value, r->line,
+		        (unsigned long long)r->seq);
+		return;
+	case MLIP_STATE_PAUSED:
+		fprintf(stderr, PROG ": paused (%s) at line %u (block %llu): mlip-ctl resume continues\n",
+		        mlip_state_why_name(r->why), r->line, (unsigned long long)r->seq);
+		return;
 	case MLIP_STATE_IDLE:
-		fprintf(stderr, PROG ": %s -> idle: at rest, block %llu (line %u) the last completed\n",
-		        was, seq, b->exec_line);
-		break;
+		fprintf(stderr, PROG ": %s -> idle (%s): at rest, block %llu (line %u) the last "
+		                "completed\n",
+		        mlip_ring_state_name(e->from), mlip_state_why_name(r->why), seq, line);
+		return;
 	default:
-		fprintf(stderr, PROG ": %s -> %s, block %llu (line %u)\n", was, is, seq, b->exec_line);
+		if (r->why == MLIP_WHY_PREREAD_DONE || r->why == MLIP_WHY_CONTINUE ||
+		    r->why == MLIP_WHY_DWELL_DONE) {
+			return; /* implied by the line before (start, underrun, dwell) */
+		}
+		fprintf(stderr, PROG ": %s -> %s (%s), block %llu (line %u)\n",
+		        mlip_ring_state_name(e->from), mlip_ring_state_name(e->state),
+		        mlip_state_why_name(r->why), seq, line);
+	}
+}
+
+/* The loop's queues: events to the log, setpoints to --record. */
+static void drain(struct monitor *mo)
+{
+	struct mlip_ctl_event e;
+	struct mlip_rt_sample smp;
+	while (mlip_controller_log_pop(&ctl, &e)) {
+		log_event(mo, &e);
+	}
+	while (mlip_controller_rec_pop(&ctl, &smp)) {
+		mlip_trace_sample_at(&mo->trace, smp.period, smp.state, smp.pos, NULL);
 	}
 }
 
@@ -115,6 +195,7 @@ static void *monitor(void *arg)
 	for (unsigned tick = 1; !mo->done; tick++) {
 		struct timespec ts = {0, 50000000L};
 		nanosleep(&ts, NULL);
+		drain(mo);
 		if (mlip_ring_status_read(mo->ring, &b) == MLIP_OK) {
 			if (have) {
 				report(&a, &b);
@@ -137,6 +218,7 @@ static void *monitor(void *arg)
 			told = 1;
 		}
 	}
+	drain(mo);
 	if (have && mlip_ring_status_read(mo->ring, &b) == MLIP_OK) {
 		report(&a, &b);
 	}
@@ -162,8 +244,12 @@ static void usage(FILE *f)
 	        "  --cpu N             pin the loop to CPU N (default: no pinning)\n"
 	        "  --strategy S        mpct (default), bisector or stop\n"
 	        "  --capacity N        ring records, power of two (default %u)\n"
+	        "  --stall-periods N   more missed periods than N is a stall: hold at rest at\n"
+	        "                      the last setpoint until mlip-ctl resume (default %d)\n"
+	        "  --record FILE       write the setpoints of the first program, as mlip-sim\n"
+	        "                      --trace does (from the monitor thread, not the loop)\n"
 	        "  -h, --help\n",
-	        MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY);
+	        MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY, MLIP_STALL_PERIODS_DEFAULT);
 }
 
 static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
@@ -196,6 +282,8 @@ int main(int argc, char **argv)
 	double bitrate = 0.0, v;
 	struct mlip_rt_opts ro = {.priority = 80, .cpu = -1, .lock_memory = 1};
 	unsigned long capacity = MLIP_RING_CAPACITY;
+	const char *record = NULL;
+	double stall_periods = MLIP_STALL_PERIODS_DEFAULT;
 
 	static const struct option opts[] = {
 		{"shm-group", required_argument, 0, 'G'},
@@ -204,6 +292,7 @@ int main(int argc, char **argv)
 		{"shm", required_argument, 0, 's'},      {"priority", required_argument, 0, 'p'},
 		{"cpu", required_argument, 0, 'C'},      {"strategy", required_argument, 0, 'S'},
 		{"capacity", required_argument, 0, 'n'}, {"help", no_argument, 0, 'h'},
+		{"stall-periods", required_argument, 0, 'T'}, {"record", required_argument, 0, 'R'},
 		{0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
@@ -254,6 +343,17 @@ int main(int argc, char **argv)
 			break;
 		case 'n':
 			capacity = strtoul(optarg, NULL, 0);
+			break;
+		case 'T':
+			if (mlip_cli_number(optarg, &stall_periods) != 0 || stall_periods < 1 ||
+			    stall_periods > 100000 || stall_periods != (double)(uint32_t)stall_periods) {
+				fprintf(stderr, PROG ": --stall-periods: '%s' is not a whole number 1..100000\n",
+				        optarg);
+				return 2;
+			}
+			break;
+		case 'R':
+			record = optarg;
 			break;
 		case 'h':
 			usage(stdout);
@@ -340,8 +440,25 @@ int main(int argc, char **argv)
 		mlip_canio_close(&io);
 		return 1;
 	}
-	if (mlip_controller_init(&ctl, &planner, &cfg.machine, &cfg.can, (mlip_strategy)st,
-	                         cfg.lookahead, shm.ring, use_can ? &io : NULL) != 0) {
+	static struct monitor mon;
+	if (record != NULL) {
+		/* 2^17 periods (131 s at 1 ms) of slack for the monitor thread */
+		ctl.rec_cap = 1u << 17;
+		ctl.rec = calloc(ctl.rec_cap, sizeof(*ctl.rec));
+		mon.rec = fopen(record, "w");
+		if (ctl.rec == NULL || mon.rec == NULL) {
+			fprintf(stderr, PROG ": --record %s: %s\n", record, strerror(errno));
+			mlip_shm_close(&shm);
+			return 1;
+		}
+		mlip_trace_open(&mon.trace, mon.rec, &cfg.machine, NULL);
+	} else {
+		mlip_trace_open(&mon.trace, NULL, &cfg.machine, NULL);
+	}
+	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st, .lookahead = cfg.lookahead,
+	                           .stall_periods = (uint32_t)stall_periods, .can = &cfg.can};
+	if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, shm.ring,
+	                         use_can ? &io : NULL) != 0) {
 		fprintf(stderr, PROG ": the [CAN] settings do not fit this machine (node ids, ids)\n");
 		mlip_shm_close(&shm);
 		return 1;
@@ -354,8 +471,9 @@ int main(int argc, char **argv)
 	        rep.locked ? ", memory locked" : "");
 	struct mlip_rt_report run;
 	memset(&run, 0, sizeof(run));
-	static struct monitor mon;
 	pthread_t mon_th;
+	mon.m = &cfg.machine;
+	mon.stall_periods = co.stall_periods;
 	mon.iface = iface;
 	mon.io = use_can ? &io : NULL;
 	mon.ring = shm.ring;
@@ -368,6 +486,10 @@ int main(int argc, char **argv)
 	if (mon_ok) {
 		mon.done = 1;
 		pthread_join(mon_th, NULL);
+	}
+	if (mon.rec != NULL && (fclose(mon.rec) != 0 || ctl.rec_lost > 0)) {
+		fprintf(stderr, PROG ": --record %s: incomplete (%llu setpoints lost)\n", record,
+		        (unsigned long long)ctl.rec_lost);
 	}
 	if (rc < 0) {
 		fprintf(stderr, PROG ": cannot start the loop: %s\n", strerror(-rc));
@@ -385,8 +507,8 @@ int main(int argc, char **argv)
 	        "refused; last line %u\n",
 	        (unsigned long long)ctl.cycles, (unsigned long long)ctl.frames_sent,
 	        (unsigned long long)io.tx_dropped, (unsigned long long)io.bus_errors,
-	        (unsigned long long)s.overruns, (unsigned long long)ctl.underruns,
-	        (unsigned long long)ctl.blocks_consumed, (unsigned long long)ctl.refused,
+	        (unsigned long long)s.overruns, (unsigned long long)ctl.core.underruns,
+	        (unsigned long long)ctl.core.blocks_consumed, (unsigned long long)ctl.core.refused,
 	        (unsigned)s.exec_line);
 	mlip_shm_close(&shm);
 	mlip_canio_close(&io);

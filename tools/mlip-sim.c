@@ -1,11 +1,13 @@
 /*
  * mlip-sim - the offline simulator: runs a G-code program through the very
- * same planner calls the real-time controller makes, on a virtual clock, and
- * writes the setpoints it would send (--trace) and a summary (--summary).
+ * controller mlip-rt runs (mlip_ctl_period, src/controller.c) on a virtual
+ * clock, and writes the setpoints it would send (--trace) and a summary
+ * (--summary).
  *
- * Ingest follows the controller's rule (planner.h): fill the look-ahead
- * before the first period, then at most MLIP_INGEST_PER_PERIOD blocks per
- * period, so that both produce the same motion for the same program.
+ * The records reach the controller as in mlip-rt: through a ring (in this
+ * process' memory), filled by a feeder step before every period, so the
+ * ingest rule, the program events (dwell, pauses) and the states are the
+ * controller's own, by construction.
  */
 #include <getopt.h>
 #include <math.h>
@@ -16,14 +18,19 @@
 
 #include "check.h"
 #include "cli.h"
+#include "mlip/controller.h"
 #include "mlip/gcode.h"
 #include "mlip/planner.h"
+#include "mlip/ring.h"
+#include "offsets.h"
 #include "program.h"
+#include "trace.h"
 
 #define PROG "mlip-sim"
 #define MAX_PERIODS 200000000ULL /* 55 h of machining at 1 ms: a runaway */
 
 static struct mlip_planner planner; /* ~1.5 MB: static, like on the controller */
+static struct mlip_ctl ctl;
 
 static void usage(FILE *f)
 {
@@ -41,8 +48,15 @@ static void usage(FILE *f)
 	        "  --storm SEED          random override changes, holds and resumes every 5-200\n"
 	        "                        periods (a test of online override)\n"
 	        "  --lookahead N         look-ahead capacity in blocks, power of two (default %d)\n"
+	        "  --resume-after S      a pause (M0, M60, M1 with --optional-stop) resumes after\n"
+	        "                        S seconds at rest (default 0)\n"
+	        "  --optional-stop       M1 pauses (the optional-stop switch on)\n"
 	        "  --trace OUT.csv       setpoints: t,x,y,... one row per period, t = 0 to rest\n"
 	        "  --summary OUT.json    totals and measured physics (JSON)\n"
+	        "  --offsets FILE        work offsets, G92 and G28/G30 positions (README: offsets)\n"
+	        "  --save-offsets        write the offsets the program leaves back to that FILE\n"
+	        "  --default-feed F      feed (units/min) for a program that sets no F at all\n"
+	        "  --strict              refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
 	        "  --no-notes            do not list the words accepted without effect\n"
 	        "  -q, --quiet           neither notes nor the summary line on stderr\n"
 	        "  -h, --help            this help\n",
@@ -67,39 +81,94 @@ struct storm {
 	uint64_t state;
 	uint64_t next_at;
 	int active;
+	int held, zero; /* what the storm has done */
 	uint64_t events;
 };
 
-/* Change the override or hold state at random periods; never leaves the
- * machine stopped for more than one event, so every program finishes. */
-static void storm_tick(struct storm *st, uint64_t period)
+/* Change the override or hold state at random periods, through the
+ * controller's commands; never leaves the machine stopped for more than one
+ * event, so every program finishes. Returns 1 with *cmd set, or 0. */
+static int storm_tick(struct storm *st, uint64_t period, struct mlip_ring_cmd *cmd)
 {
 	if (!st->active || period < st->next_at) {
-		return;
+		return 0;
 	}
 	st->next_at = period + 5 + rng_next(&st->state) % 196;
 	st->events++;
 	double r = rng_unit(&st->state);
-	if (planner.hold) {
-		mlip_planner_hold(&planner, 0);
-	} else if (planner.override == 0.0) {
-		mlip_planner_set_override(&planner, 10.0 + 190.0 * rng_unit(&st->state));
+	cmd->arg = 0;
+	if (st->held) {
+		cmd->op = MLIP_CMD_RESUME;
+		st->held = 0;
+	} else if (st->zero) {
+		cmd->op = MLIP_CMD_OVERRIDE;
+		cmd->arg = (int32_t)(10.0 + 190.0 * rng_unit(&st->state));
+		st->zero = 0;
 	} else if (r < 0.1) {
-		mlip_planner_hold(&planner, 1);
+		cmd->op = MLIP_CMD_HOLD;
+		st->held = 1;
 	} else if (r < 0.2) {
-		mlip_planner_set_override(&planner, 0.0);
+		cmd->op = MLIP_CMD_OVERRIDE;
+		st->zero = 1;
 	} else {
-		mlip_planner_set_override(&planner, 10.0 + 190.0 * rng_unit(&st->state));
+		cmd->op = MLIP_CMD_OVERRIDE;
+		cmd->arg = (int32_t)(10.0 + 190.0 * rng_unit(&st->state));
 	}
+	return 1;
 }
 
-static void write_row(FILE *f, uint64_t k, double T, int n, const double *x)
+/* Where the blocks come from: the checked program, streamed (never held,
+ * program.h). 1 with the next block in *b, 0 at the end or on an error of
+ * the stream (rc < 0, the program's msg says why). */
+struct source {
+	struct mlip_program *p;
+	int rc;
+	double feed; /* --feed: > 0 replaces every F and G0 */
+};
+
+static int source_next(struct source *src, struct mlip_block *b)
 {
-	fprintf(f, "%.17g", (double)k * T);
-	for (int i = 0; i < n; i++) {
-		fprintf(f, ",%.17g", x[i]);
+	if (src->rc < 0 || (src->rc = mlip_program_next(src->p, b)) <= 0) {
+		return 0;
 	}
-	fputc('\n', f);
+	if (src->feed > 0.0 && b->kind == MLIP_BLOCK_MOVE) {
+		b->feed_mm_s = src->feed;
+		b->rapid = 0;
+	}
+	return 1;
+}
+
+/* The feeder's step before each period: the ring filled as far as it goes,
+ * records numbered as mlip-feed numbers them (blocks 1..n, then END). */
+struct feeder {
+	struct source src;
+	uint64_t seq;      /* last record pushed */
+	uint32_t end_line;
+	int end_pushed;
+};
+
+static void feed_step(struct feeder *f, struct mlip_ring *r)
+{
+	static struct mlip_ring_rec recs[256];
+	struct mlip_block b;
+	uint32_t space = mlip_ring_space(r);
+	while (!f->end_pushed && space > 0) {
+		uint32_t k = 0;
+		for (; k < space && k < 256 && !f->end_pushed; k++) {
+			if (source_next(&f->src, &b)) {
+				mlip_ring_rec_from_block(&recs[k], &b, ++f->seq);
+			} else if (f->src.rc < 0) {
+				break; /* no END: the run stops, the caller says why */
+			} else {
+				mlip_ring_rec_end(&recs[k], ++f->seq, f->end_line);
+				f->end_pushed = 1;
+			}
+		}
+		space -= mlip_ring_push_n(r, recs, k); /* all k: only we add */
+		if (f->src.rc < 0) {
+			return;
+		}
+	}
 }
 
 int main(int argc, char **argv)
@@ -109,7 +178,8 @@ int main(int argc, char **argv)
 	double feed = -1.0, override = 100.0;
 	long long storm_seed = -1;
 	unsigned long lookahead = 0;
-	int quiet = 0, notes = 1;
+	int quiet = 0, notes = 1, optional_stop = 0, save_offsets = 0;
+	double resume_after = 0.0;
 
 	static const struct option opts[] = {
 		{"config", required_argument, 0, 'c'},   {"strategy", required_argument, 0, 's'},
@@ -120,10 +190,19 @@ int main(int argc, char **argv)
 		{"trace", required_argument, 0, 't'},    {"summary", required_argument, 0, 'j'},
 		{"quiet", no_argument, 0, 'q'},          {"help", no_argument, 0, 'h'},
 		{"no-notes", no_argument, 0, 'N'},
+		{"resume-after", required_argument, 0, 'r'}, {"optional-stop", no_argument, 0, 'O'},
+		{"save-offsets", no_argument, 0, 'W'},   MLIP_CLI_GCODE_OPTIONS,
 		{0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "qh", opts, NULL)) != -1) {
 		double v;
+		int g = mlip_cli_gcode_option(c, optarg, &mo, PROG, stderr);
+		if (g != 0) {
+			if (g < 0) {
+				return 2;
+			}
+			continue;
+		}
 		switch (c) {
 		case 'c':
 			mo.config = optarg;
@@ -176,6 +255,19 @@ int main(int argc, char **argv)
 		case 'N':
 			notes = 0;
 			break;
+		case 'r':
+			if (mlip_cli_number(optarg, &resume_after) != 0 || !(resume_after >= 0.0) ||
+			    resume_after > 86400.0) {
+				fprintf(stderr, PROG ": --resume-after: '%s' is not 0..86400 seconds\n", optarg);
+				return 2;
+			}
+			break;
+		case 'O':
+			optional_stop = 1;
+			break;
+		case 'W':
+			save_offsets = 1;
+			break;
 		case 'h':
 			usage(stdout);
 			return 0;
@@ -199,54 +291,56 @@ int main(int argc, char **argv)
 		return 2;
 	}
 
-	char *text;
-	size_t len;
-	struct mlip_config cfg;
-	if (mlip_cli_open_program(path, &mo, &cfg, &text, &len, PROG, stderr) != 0) {
+	if (save_offsets && mo.offsets == NULL) {
+		fprintf(stderr, PROG ": --save-offsets needs --offsets FILE\n");
+		return 2;
+	}
+	/* the whole program is checked before anything moves, then streamed */
+	static struct mlip_config cfg;
+	static struct mlip_program prog;
+	if (mlip_cli_open_program(path, &mo, &cfg, &prog, PROG, stderr) != 0) {
 		return 1;
 	}
-	int rc;
 	const struct mlip_machine *m = &cfg.machine;
 	int n = m->n_axes;
 	if (lookahead == 0) {
 		lookahead = cfg.lookahead ? cfg.lookahead : MLIP_LOOKAHEAD;
 	}
 
-	/* the whole program is checked before anything moves */
-	struct mlip_program prog;
-	rc = mlip_program_parse(text, len, m, &prog);
-	free(text);
-	if (rc != 0) {
-		mlip_program_print_errors(&prog, path, stderr);
-		mlip_program_free(&prog);
-		return 1;
-	}
 	if (notes) {
 		mlip_program_print_notices(&prog, path, stderr);
 	}
-	for (size_t i = 0; i < prog.n; i++) {
-		prog.blocks[i].seq = i + 1; /* as mlip-feed numbers ring records */
+	char offs[512];
+	mlip_offsets_describe(m, &prog.offsets_start, offs, sizeof(offs));
+	if (!quiet) {
+		fprintf(stderr, PROG ": offsets: %s (%s)\n", offs,
+		        mo.offsets ? mo.offsets : "no --offsets: defaults");
 	}
-	if (feed > 0.0) {
-		for (size_t i = 0; i < prog.n; i++) {
-			prog.blocks[i].feed_mm_s = feed;
-			prog.blocks[i].rapid = 0;
-		}
+	/* the controller, its ring and feeder, in this process */
+	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st, .lookahead = (uint32_t)lookahead};
+	size_t ring_bytes = mlip_ring_bytes(MLIP_RING_CAPACITY);
+	void *ring_mem = NULL;
+	struct mlip_ring *ring = NULL;
+	if (posix_memalign(&ring_mem, MLIP_RING_LINE, ring_bytes) != 0 ||
+	    mlip_ring_format_machine(ring_mem, ring_bytes, MLIP_RING_CAPACITY, m) != MLIP_OK ||
+	    mlip_ring_attach(ring_mem, ring_bytes, n, &ring, NULL) != MLIP_OK) {
+		fprintf(stderr, PROG ": cannot make the ring\n");
+		return 1;
 	}
-
-	double start[MLIP_MAX_AXES];
-	for (int k = 0; k < n; k++) {
-		start[k] = m->axis[k].home;
-	}
-	if (mlip_planner_init(&planner, m, (mlip_strategy)st, (uint32_t)lookahead, start) != MLIP_OK) {
+	if (mlip_ctl_init(&ctl, &planner, m, &co, ring) != MLIP_OK) {
 		fprintf(stderr, PROG ": look-ahead %lu must be a power of two in 2..%d\n", lookahead,
 		        MLIP_LOOKAHEAD);
 		return 1;
 	}
 	mlip_planner_set_override(&planner, override);
+	struct feeder fdr = {.src = {.p = &prog, .feed = feed}, .end_line = prog.lines};
 
 	size_t npts;
-	double *pts = mlip_cli_polyline(m, prog.blocks, prog.n, &npts);
+	double *pts = mlip_cli_polyline(m, &prog, &npts, path, PROG, stderr);
+	if (pts == NULL) {
+		mlip_program_close(&prog);
+		return 1;
+	}
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
 	static struct mlip_check chk;
@@ -261,44 +355,64 @@ int main(int argc, char **argv)
 			return 1;
 		}
 		setvbuf(tf, tbuf, _IOFBF, sizeof(tbuf));
-		fputc('t', tf);
-		for (int k = 0; k < n; k++) {
-			fprintf(tf, ",%c", m->axis[k].letter + ('a' - 'A'));
-		}
-		fputc('\n', tf);
-		write_row(tf, 0, m->period_s, n, start);
 	}
-	mlip_check_sample(&chk, start);
+	struct mlip_trace trace;
+	mlip_trace_open(&trace, tf, m, ctl.pos);
 
 	struct storm storm = {.state = (uint64_t)storm_seed * 0x9E3779B97F4A7C15ULL + 1,
 	                      .next_at = 1,
 	                      .active = storm_seed >= 0};
-	size_t next = 0;
-	/* pre-read (Sec. 2.1 step 1): fill the look-ahead before moving */
-	next += mlip_planner_push_n(&planner, prog.blocks, prog.n, NULL);
-	uint64_t k = 0;
-	double x[MLIP_MAX_AXES];
-	for (;;) {
-		size_t take = prog.n - next < MLIP_INGEST_PER_PERIOD ? prog.n - next : MLIP_INGEST_PER_PERIOD;
-		if (take > 0) {
-			next += mlip_planner_push_n(&planner, prog.blocks + next, take, NULL);
+	uint64_t resume_periods = (uint64_t)floor(resume_after / m->period_s + 0.5);
+	uint64_t paused = 0, pauses = 0, dwells = 0, period = 0, k = 0;
+	struct mlip_ctl_out out;
+	for (;; period++) {
+		struct mlip_ring_cmd cmd = {.seq = 2};
+		struct mlip_ctl_in in = {.period = period, .feeder_alive = 1};
+		feed_step(&fdr, ring);
+		if (fdr.src.rc < 0) {
+			fprintf(stderr, PROG ": %s: %s\n", path, prog.msg);
+			return 1;
 		}
-		storm_tick(&storm, k);
-		mlip_run_state rs = mlip_planner_step(&planner, x);
-		k++;
-		mlip_check_sample(&chk, x);
-		if (tf != NULL) {
-			write_row(tf, k, m->period_s, n, x);
+		if (period == 0 && optional_stop) {
+			cmd.op = MLIP_CMD_OPTIONAL_STOP;
+			cmd.arg = 1;
+			in.cmd = &cmd;
+		} else if (ctl.state == MLIP_STATE_PAUSED && paused >= resume_periods) {
+			cmd.op = MLIP_CMD_RESUME; /* --resume-after: the operator's resume */
+			in.cmd = &cmd;
+		} else if (k > 0 && storm_tick(&storm, k, &cmd)) {
+			in.cmd = &cmd;
 		}
-		if (rs == MLIP_RUN_IDLE && next == prog.n) {
+		mlip_ctl_period(&ctl, &in, &out);
+		paused = out.status.state == MLIP_STATE_PAUSED ? paused + 1 : 0;
+		for (uint32_t i = 0; i < out.n_events; i++) {
+			pauses += out.events[i].kind == MLIP_EV_STATE && out.events[i].state == MLIP_STATE_PAUSED;
+			dwells += out.events[i].kind == MLIP_EV_STATE && out.events[i].state == MLIP_STATE_DWELLING;
+		}
+		const double *start;
+		if (mlip_trace_sample(&trace, out.status.state, out.pos, &start)) {
+			if (start != NULL) {
+				mlip_check_sample(&chk, start);
+			}
+			mlip_check_sample(&chk, out.pos);
+			k = trace.rows;
+		}
+		if (trace.ended) {
 			break;
 		}
-		if (k > MAX_PERIODS) {
+		if (out.status.state == MLIP_STATE_FAULT) {
+			fprintf(stderr, PROG ": controller fault (%s) at record %llu (line %u)\n",
+			        mlip_state_why_name(out.status.reason),
+			        (unsigned long long)out.status.reason_seq, (unsigned)out.status.reason_line);
+			return 1;
+		}
+		if (period > MAX_PERIODS) {
 			fprintf(stderr, PROG ": no end after %llu periods: aborting\n",
-			        (unsigned long long)k);
+			        (unsigned long long)period);
 			return 3;
 		}
 	}
+	free(ring_mem);
 	if (tf != NULL && tf != stdout && fclose(tf) != 0) {
 		perror(trace_path);
 		return 1;
@@ -319,7 +433,8 @@ int main(int argc, char **argv)
 		}
 		path_mm += sqrt(s);
 	}
-	double visits = planner.stats.pushes ? (double)planner.stats.backward_visits / (double)planner.stats.pushes : 0.0;
+	const struct mlip_planner_stats *ps = mlip_planner_get_stats(&planner);
+	double visits = ps->pushes ? (double)ps->backward_visits / (double)ps->pushes : 0.0;
 
 	if (summary_path != NULL) {
 		FILE *sf = strcmp(summary_path, "-") == 0 ? stdout : fopen(summary_path, "w");
@@ -332,7 +447,7 @@ int main(int argc, char **argv)
 		fprintf(sf, "  \"total_time_s\": %.6f,\n  \"periods\": %llu,\n", total,
 		        (unsigned long long)k);
 		fprintf(sf, "  \"blocks\": %zu,\n  \"segments\": %llu,\n", prog.n,
-		        (unsigned long long)planner.stats.pushes);
+		        (unsigned long long)ps->pushes);
 		fprintf(sf, "  \"path_length_mm\": %.6f,\n", path_mm);
 		fprintf(sf, "  \"max_speed_mm_s\": %.9g,\n", chk.max_speed_mm_s);
 		fprintf(sf, "  \"axes\": \"");
@@ -361,7 +476,10 @@ int main(int argc, char **argv)
 		        m->max_feed_mm_s, m->tolerance_mm, m->period_s);
 		fprintf(sf, "  \"lookahead\": %lu,\n  \"backward_visits_per_block\": %.3f,\n",
 		        lookahead, visits);
-		fprintf(sf, "  \"override_events\": %llu\n}\n", (unsigned long long)storm.events);
+		fprintf(sf, "  \"offsets\": \"%s\",\n", offs);
+		fprintf(sf, "  \"override_events\": %llu,\n", (unsigned long long)storm.events);
+		fprintf(sf, "  \"dwells\": %llu,\n  \"pauses\": %llu\n}\n", (unsigned long long)dwells,
+		        (unsigned long long)pauses);
 		if (sf != stdout) {
 			fclose(sf);
 		}
@@ -374,6 +492,10 @@ int main(int argc, char **argv)
 		        chk.max_speed_mm_s, chk.max_contour_mm);
 	}
 	free(pts);
-	mlip_program_free(&prog);
+	if (save_offsets && mlip_offsets_save(mo.offsets, m, &prog.offsets_end, PROG, stderr) != 0) {
+		mlip_program_close(&prog);
+		return 1;
+	}
+	mlip_program_close(&prog);
 	return 0;
 }

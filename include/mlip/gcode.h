@@ -8,15 +8,27 @@
  * with the next line, so a caller can list every error of a file; a program
  * with any error must be rejected as a whole (the tools do that).
  *
- * Supported: G0/G1 (modal, bare axis words continue the motion mode), G2/G3
- * in G17/G18/G19 with I J K or R (turned into chords within a fraction of the
- * contour tolerance), G90/G91, G20/G21, F (units per minute), comments in ( )
- * and after ';', '%' lines, N line numbers, block delete is not supported.
+ * Supported (README "G-code" has the table, with the LinuxCNC or Grbl rule
+ * each follows): G0/G1/G2/G3 (arcs in G17/G18/G19 with I J K or R, turned
+ * into chords within a fraction of the contour tolerance), G4 P dwell,
+ * G10 L2/L20, G20/G21, G28/G30 (+ .1), G53, G54-G59.3, G61/G61.1/G64 P Q,
+ * G90/G91, G92/G92.1/G92.2/G92.3, G93/G94, M0/M1/M60 pauses, M2/M30 end,
+ * F, comments in ( ) and after ';', '%' lines, N numbers, '/' block delete,
+ * Grbl '$' system lines (skipped with a note, or errors: set_strict; a
+ * "$J=" jog runs as a G1 move), Grbl's start-up G0 for axis words before
+ * any motion mode. Lines after M2/M30 are not read. G4, M0, M1 and M60
+ * emit event blocks (kind DWELL, PAUSE, OPTIONAL_PAUSE) at the last point:
+ * a line's dwell before its motion, its pause after.
  * Accepted without motion and reported once (see notices): S, M3/M4/M5,
- * M7/M8/M9, T, M6, G17-G19, G40, G49, G54, G61/G64, G80, G94, M0/M1/M2/M30,
- * G53 (machine coordinates: mlip has no work offsets, so the same frame),
- * G28/G30 whose intermediate point is the current position (no homing).
+ * M7/M8/M9, T, M6, G17-G19, G40, G49, G80 and other M codes that do not move.
  * Everything else is an error.
+ *
+ * Coordinates: a program's X Y Z ... are in the selected work coordinate
+ * system; targets are converted to machine coordinates (machine = program +
+ * work offset + G92 offset, per axis, in config order) and the soft limits
+ * are checked there. The offsets that outlive a program are in struct
+ * mlip_gcode_offsets: the caller loads them before the first line and reads
+ * them back after the last (the tools keep them in a file).
  */
 #ifndef MLIP_GCODE_H
 #define MLIP_GCODE_H
@@ -28,7 +40,8 @@
 
 #define MLIP_GCODE_MAX_LINE 256   /* longer lines are an error */
 #define MLIP_GCODE_MSG 160
-#define MLIP_GCODE_MAX_NOTICES 24
+#define MLIP_GCODE_MAX_NOTICES 32
+#define MLIP_GCODE_N_COORD 9      /* G54..G59, G59.1..G59.3 */
 /* points closer than this (joint-space distance) to the previous one are
  * merged so no zero-length segment reaches the planner */
 #define MLIP_GCODE_MERGE_MM 1e-6
@@ -53,6 +66,23 @@ struct mlip_gcode_notice {
  * line then fails with MLIP_E_FULL). */
 typedef int (*mlip_block_sink)(void *ctx, const struct mlip_block *b);
 
+/* State that outlives a program (LinuxCNC keeps it in its parameter file,
+ * #5161-#5386); all in machine units (mm, degrees), config axis order. */
+struct mlip_gcode_offsets {
+	double coord[MLIP_GCODE_N_COORD][MLIP_MAX_AXES]; /* G54..G59.3 origins */
+	double g92[MLIP_MAX_AXES];   /* G92 offset values (#5211-) */
+	int g92_on;                  /* G92 offset applied (#5210) */
+	int select;                  /* selected system, 0 = G54 .. 8 = G59.3 (#5220) */
+	double g28[MLIP_MAX_AXES];   /* G28 / G30 positions, machine coordinates */
+	double g30[MLIP_MAX_AXES];
+};
+
+/* Defaults: every offset zero, G54, G92 off, G28/G30 at each axis' HOME. */
+void mlip_gcode_offsets_init(struct mlip_gcode_offsets *o, const struct mlip_machine *m);
+
+/* "G54" .. "G59.3" for select 0..8 (static string). */
+const char *mlip_gcode_coord_name(int select);
+
 /* Modal state: fixed size, owned by the caller. Fields are private. */
 struct mlip_gcode {
 	const struct mlip_machine *m;
@@ -67,7 +97,16 @@ struct mlip_gcode {
 	int plane;                   /* 17, 18, 19 */
 	int absolute;                /* G90 = 1, G91 = 0 */
 	int inches;                  /* G20 = 1 */
-	uint32_t blocks;             /* blocks emitted so far */
+	uint32_t blocks;             /* blocks emitted so far (events included) */
+	uint32_t moves;              /* of which moves */
+	struct mlip_gcode_offsets off;
+	int g53;                     /* this line is in machine coordinates */
+	int exact_stop;              /* G61/G61.1 in effect */
+	double tol_mm;               /* corner tolerance of G64 [P] in effect */
+	int inverse_time;            /* G93 */
+	int feed_reset;              /* F forgotten by a G93/G94 change */
+	int ended;                   /* M2/M30 seen: later lines are not run */
+	int strict;                  /* refuse Grbl conveniences ($ lines, G0 default) */
 	uint32_t n_notices;
 	struct mlip_gcode_notice notices[MLIP_GCODE_MAX_NOTICES];
 };
@@ -95,14 +134,28 @@ mlip_status mlip_gcode_finish(struct mlip_gcode *g, uint32_t last_line,
  * f_word <= 0 restores the default: such a move is an error. */
 void mlip_gcode_set_initial_feed(struct mlip_gcode *g, double f_word);
 
+/* Strict mode (on != 0): Grbl '$' system lines and axis words before any
+ * motion mode are errors, instead of a note ('$' line skipped; the axis words
+ * move as G0, Grbl's start-up motion mode). */
+void mlip_gcode_set_strict(struct mlip_gcode *g, int on);
+
+/* Offsets in force from the next line on (normally before the first). */
+void mlip_gcode_set_offsets(struct mlip_gcode *g, const struct mlip_gcode_offsets *o);
+
 /* What a notice means, for printing after its word: "ignored (no effect on
- * motion)", or a specific text for G53, G28/G30 and F. Static string. */
+ * motion)", or what mlip did instead (G28/G30, F, G0, G64 P/Q, M2, M30, M60,
+ * '/', the Grbl '$' lines). Static string. */
 const char *mlip_gcode_notice_text(const struct mlip_gcode_notice *n);
 
 /* Axis letters among X Y Z A B C used as words outside comments in a whole
  * program (len bytes), written NUL-terminated in the order XYZABC to letters
  * (room for 7). Returns how many; the caller decides whether 0 or 1 is enough. */
 int mlip_gcode_scan_axes(const char *text, size_t len, char *letters);
+
+/* The same per line (no comment spans lines): axis letters used are or'ed into
+ * *axes (bit k for "XYZABC"[k]); returns the first positive F word's value of
+ * the line, or 0. */
+double mlip_gcode_scan_line(const char *text, size_t len, unsigned *axes);
 
 /* The first positive F word outside comments in a whole program: its value
  * (as written) in *f_word; returns its 1-based line, or 0 when there is none. */

@@ -87,6 +87,7 @@ struct mlip_seg {
 	double vhard_mm_s;           /* hard speed cap of the line: v_m, axis limits */
 	double vfeed_mm_s;           /* programmed feed in joint units (100 %) */
 	double tol_mm;               /* eps budget of the corner at end[] */
+	int exact;                   /* exact stop (G61): the corner at end[] at rest */
 	uint32_t line;               /* source line */
 	uint64_t seq;                /* the block's seq (or a push count, from 1) */
 	/* corner at end[], valid once the next segment exists */
@@ -191,11 +192,32 @@ void mlip_planner_hold(struct mlip_planner *p, int on);
  * refused until it is. */
 void mlip_planner_stop(struct mlip_planner *p);
 
+/* After a stall (the setpoints stood still while the plan went on): make the
+ * last setpoint a point of rest. The rest of the executing segment becomes a
+ * straight line from there to its end (from inside a corner: to the end of
+ * the nearer of the corner's two segments, at rest at the corner point when
+ * that is the one before; the distance to a segment being convex along a
+ * line, the path stays within the corner's tolerance), planned again from
+ * rest. Hold is set: motion resumes with
+ * mlip_planner_hold(p, 0). */
+void mlip_planner_rest_here(struct mlip_planner *p);
+
 /* Advance one period; writes the setpoint of every axis to pos_out[n].
  * Returns the run state after the period. */
 mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out);
 
 /* Current speed along the path (joint units/s), for status displays. */
 double mlip_planner_speed(const struct mlip_planner *p);
+
+/* What others read; the struct's fields are the planner's own. */
+/* Not at rest: a block queued and a speed, or inside a corner. */
+int mlip_planner_moving(const struct mlip_planner *p);
+/* The block being executed (seq 0, line 0: none queued). */
+void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
+/* The last block completed (or, pushed at rest, the block before it). */
+void mlip_planner_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
+/* Feed override in effect, percent. */
+double mlip_planner_override_pct(const struct mlip_planner *p);
+const struct mlip_planner_stats *mlip_planner_get_stats(const struct mlip_planner *p);
 
 #endif

@@ -13,11 +13,12 @@
  *    64  producer   head (free-running), feeder's cached copy of tail
  *   128  consumer   tail (free-running), controller's cached copy of head
  *   192  status     seqlock generation, command reply, struct mlip_ring_status
- *   320  feeder     seqlock generation, struct mlip_ring_feeder
- *   384  mailbox    command sequence, op, argument (written by mlip-ctl)
- *   448  machine    the controller's struct mlip_machine, so that a feeder
+ *                   (four lines: state, reason, position of every axis)
+ *   448  feeder     seqlock generation, struct mlip_ring_feeder
+ *   512  mailbox    command sequence, op, argument (written by mlip-ctl)
+ *   576  machine    the controller's struct mlip_machine, so that a feeder
  *                   checks programs against exactly the limits in force
- *   896  records    capacity x struct mlip_ring_rec (80 bytes each)
+ *  1024  records    capacity x struct mlip_ring_rec (88 bytes each)
  *
  * The magic (offset 0) and the version (offset 8) keep their places in every
  * layout version, so any version can tell any other that they differ.
@@ -63,7 +64,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION 2u       /* bump on any change to the layout below */
+#define MLIP_RING_VERSION 3u       /* bump on any change to the layout below */
 #define MLIP_RING_LINE 64          /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -80,32 +81,99 @@ typedef char mlip_ring_capacity_max_check[MLIP_RING_CAPACITY <= MLIP_RING_MAX_CA
 
 /* ---- records -------------------------------------------------------- */
 
-#define MLIP_REC_RAPID 0x1u /* G0: runs at the machine's maximum feed */
-#define MLIP_REC_END 0x2u   /* end-of-program marker: no motion, target ignored */
+/* What a record asks for (struct mlip_ring_rec.type). Only MOVE records
+ * reach the planner; the others are program events (mlip_block_kind) that the
+ * controller executes with the machine at rest, or the program's end. */
+typedef enum {
+	MLIP_REC_MOVE = 0,          /* G0/G1 (arcs as chords): target, feed, tol */
+	MLIP_REC_END,               /* end-of-program marker: no motion, target ignored */
+	MLIP_REC_DWELL,             /* G4 P: at rest, dwell_s seconds, to the period */
+	MLIP_REC_PAUSE,             /* M0/M60: at rest until mlip-ctl resume */
+	MLIP_REC_OPTIONAL_PAUSE,    /* M1: as PAUSE when the optional-stop switch is on */
+	MLIP_REC_TYPES
+} mlip_rec_type;
 
-/* One block in the ring (POD, 80 bytes, no padding). Written by the feeder. */
+#define MLIP_REC_RAPID 0x1u /* MOVE, G0: runs at the machine's maximum feed */
+#define MLIP_REC_EXACT 0x2u /* MOVE, G61: the corner at its end is taken at rest */
+#define MLIP_REC_FLAGS (MLIP_REC_RAPID | MLIP_REC_EXACT) /* any other bit: a bad record */
+
+/* One block in the ring (POD, 88 bytes, no padding). Written by the feeder. */
 struct mlip_ring_rec {
 	uint64_t seq;                 /* 1, 2, 3, ... in program order (END included) */
 	uint32_t line;                /* source line, 1-based (0: none) */
-	uint32_t flags;               /* MLIP_REC_* */
-	double target[MLIP_MAX_AXES]; /* absolute, mm or deg, config axis order */
-	double feed_mm_s;             /* programmed feed (ignored when RAPID) */
-	double tol_mm;                /* contour budget at the end of the block */
+	uint16_t type;                /* mlip_rec_type */
+	uint16_t flags;               /* MLIP_REC_RAPID, MLIP_REC_EXACT */
+	double target[MLIP_MAX_AXES]; /* MOVE: absolute, mm or deg, config axis order */
+	double feed_mm_s;             /* MOVE: programmed feed (ignored when RAPID) */
+	double tol_mm;                /* MOVE: contour budget at the end of the block */
+	double dwell_s;               /* DWELL: seconds, >= 0 */
 };
 
 /* ---- status published by the controller ---------------------------- */
 
+/* The controller's one state (published as status.state). Values 0..5 keep
+ * their numbers of layout version 2. */
 typedef enum {
 	MLIP_STATE_IDLE = 0, /* no program running, ring may be empty */
-	MLIP_STATE_RUNNING,
-	MLIP_STATE_HELD,     /* feed hold: decelerated to rest, resumable */
+	MLIP_STATE_RUNNING,  /* moving (or about to), taking records as it goes */
+	MLIP_STATE_HELD,     /* feed hold, override 0, a CAN fault or a stall:
+	                        decelerated (or frozen) to rest on the path; resume */
 	MLIP_STATE_STOPPING, /* stop requested: decelerating, ring being flushed */
-	MLIP_STATE_FAULT,    /* stopped on an error that needs a restart (a position
-	                        the drives cannot represent) */
-	MLIP_STATE_STARVED   /* the program's blocks ran out before its END: at rest
+	MLIP_STATE_FAULT,    /* stopped on an error that needs a restart of mlip-rt:
+	                        a bad record (at rest at the end of the last good
+	                        block), a corrupt segment, a position the drives
+	                        cannot represent; status.reason says which */
+	MLIP_STATE_STARVED,  /* the program's blocks ran out before its END: at rest
 	                        at the end of the last block received (underrun);
 	                        continues when blocks come (mlip-feed --start-seq) */
+	MLIP_STATE_PAUSED,   /* M0/M60 (or M1 with optional stop on): at rest;
+	                        mlip-ctl resume continues */
+	MLIP_STATE_DWELLING, /* G4: at rest for the dwell's periods */
+	MLIP_STATE_PREREAD,  /* taking a program's records before moving */
+	MLIP_STATE_COUNT
 } mlip_ring_state;
+
+/* Why the controller is in its state (status.reason): the cause of the last
+ * transition. */
+typedef enum {
+	MLIP_WHY_NONE = 0,
+	MLIP_WHY_START,          /* a program's first record (seq 1) */
+	MLIP_WHY_CONTINUE,       /* the record after the last completed (--start-seq) */
+	MLIP_WHY_PREREAD_DONE,   /* look-ahead full, END in, or an event next */
+	MLIP_WHY_END,            /* the program's END executed, at rest */
+	MLIP_WHY_UNDERRUN,       /* the ring ran dry before END */
+	MLIP_WHY_FEEDER_GONE,    /* the feeder's heartbeat stopped (or none attached) */
+	MLIP_WHY_HOLD,           /* mlip-ctl hold */
+	MLIP_WHY_OVERRIDE_ZERO,  /* feed override 0 */
+	MLIP_WHY_RESUME,         /* mlip-ctl resume */
+	MLIP_WHY_BUS_TX,         /* CAN frames refused by the tx queue */
+	MLIP_WHY_BUS_ERROR,      /* CAN error frames or bus-off */
+	MLIP_WHY_STALL,          /* the loop missed more periods than allowed (value) */
+	MLIP_WHY_DWELL,          /* G4 record (value: seconds) */
+	MLIP_WHY_DWELL_DONE,
+	MLIP_WHY_PAUSE,          /* M0/M60 record */
+	MLIP_WHY_OPTIONAL_PAUSE, /* M1 record with optional stop on */
+	MLIP_WHY_STOP,           /* mlip-ctl stop */
+	MLIP_WHY_EXIT,           /* SIGINT/SIGTERM/SIGHUP to mlip-rt */
+	MLIP_WHY_BAD_RECORD,     /* reason_seq, reason_field, reason_value */
+	MLIP_WHY_RING_CORRUPT,   /* head - tail beyond the capacity (value: count) */
+	MLIP_WHY_POSITION_RANGE, /* a setpoint beyond the drives' int32 counts */
+	MLIP_WHY_COUNT
+} mlip_state_why;
+
+/* Which field of a record (or of the segment) a fault names. */
+typedef enum {
+	MLIP_FIELD_NONE = 0,
+	MLIP_FIELD_SEQ,
+	MLIP_FIELD_TYPE,
+	MLIP_FIELD_FLAGS,
+	MLIP_FIELD_FEED,
+	MLIP_FIELD_TOL,
+	MLIP_FIELD_DWELL,
+	MLIP_FIELD_HEAD,         /* the ring's head index */
+	MLIP_FIELD_TARGET,       /* + axis index: target of axis k */
+	MLIP_FIELD_COUNT = MLIP_FIELD_TARGET + MLIP_MAX_AXES
+} mlip_rec_field;
 
 /* Controller status (a plain value; the segment holds the same fields, each
  * accessed atomically). All written by mlip-rt, every period. */
@@ -131,6 +199,17 @@ struct mlip_ring_status {
 	uint64_t stop_nm;         /* path travelled by the linear axes, nanometres */
 	uint32_t stop_periods;    /* periods it took */
 	uint32_t stops;           /* stops completed since start */
+	/* why the state is what it is (layout version 3) */
+	uint32_t reason;          /* mlip_state_why */
+	uint32_t reason_field;    /* mlip_rec_field (BAD_RECORD, RING_CORRUPT) */
+	uint64_t reason_seq;      /* the record concerned (0: none) */
+	uint32_t reason_line;     /* its source line */
+	uint32_t optional_stop;   /* the M1 switch: 1 on */
+	double reason_value;      /* the offending value, the dwell, periods missed */
+	/* where the machine is */
+	double pos[MLIP_MAX_AXES];/* commanded position of every axis (the setpoint) */
+	double speed_mm_s;        /* path speed (joint units per second) */
+	uint64_t dwell_left;      /* periods of the current dwell still to wait */
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */
@@ -150,13 +229,14 @@ typedef enum {
 	MLIP_CMD_HOLD,     /* feed hold: decelerate to rest, keep the program */
 	MLIP_CMD_RESUME,   /* leave a hold */
 	MLIP_CMD_STOP,     /* decelerate to rest and drop the rest of the program */
+	MLIP_CMD_OPTIONAL_STOP, /* arg 1: M1 pauses; arg 0: M1 is ignored */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
 
 struct mlip_ring_cmd {
 	uint32_t seq; /* mailbox sequence number of this command (even, > 0) */
 	uint32_t op;  /* mlip_ring_cmd_op */
-	int32_t arg;  /* MLIP_CMD_OVERRIDE: percent; else 0 */
+	int32_t arg;  /* MLIP_CMD_OVERRIDE: percent; OPTIONAL_STOP: 0/1; else 0 */
 };
 
 /* ---- the segment header --------------------------------------------- */
@@ -291,8 +371,40 @@ uint32_t mlip_ring_space(const struct mlip_ring *r);
  * consumer is active. */
 void mlip_ring_reset(struct mlip_ring *r, uint32_t index);
 
-/* Record <-> block. A record with MLIP_REC_END has no block:
- * mlip_ring_rec_to_block returns MLIP_E_EMPTY for it. */
+/* ---- ports: one side's private view of the ring ------------------------ */
+
+/* Made once, after mlip_ring_attach (or format) checked the header: the
+ * capacity, mask and axes are copied and the side's own index is kept here,
+ * so nothing read from the segment later steers an index or a size. The
+ * other side's index is read from the segment and range-checked: head - tail
+ * beyond the capacity is MLIP_E_RANGE (a corrupted or hostile segment), never
+ * a read or write outside the records. */
+struct mlip_ring_port {
+	struct mlip_ring *r;
+	uint32_t capacity, mask, n_axes;
+	uint32_t own;    /* consumer: tail; producer: head (private master copy) */
+	uint32_t other;  /* the other side's index, last seen */
+	int producer;
+};
+
+/* MLIP_E_INVALID when the header does not describe a ring (it was checked at
+ * attach; a port is opened right after). */
+mlip_status mlip_ring_port_open(struct mlip_ring_port *p, struct mlip_ring *r, int producer);
+/* Records queued (consumer) or free slots (producer) in *n; MLIP_E_RANGE,
+ * *n = 0, when the indices are more than a capacity apart (*n gets that
+ * distance through `apart` when not NULL). */
+mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t *apart);
+/* Consumer: copy the oldest record (MLIP_E_EMPTY, MLIP_E_RANGE). */
+mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out);
+/* Consumer: remove the oldest record (after a peek). */
+mlip_status mlip_ring_port_pop(struct mlip_ring_port *p);
+/* Producer: append up to n records; how many in *pushed (MLIP_E_RANGE: none). */
+mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ring_rec *recs,
+                                  uint32_t n, uint32_t *pushed);
+
+/* Record <-> block: kind <-> type, exact_stop <-> MLIP_REC_EXACT, dwell_s.
+ * An END record has no block: mlip_ring_rec_to_block returns MLIP_E_EMPTY for
+ * it, and MLIP_E_INVALID for an unknown type. */
 void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b,
                               uint64_t seq);
 void mlip_ring_rec_end(struct mlip_ring_rec *rec, uint64_t seq, uint32_t line);
@@ -339,5 +451,10 @@ void mlip_ring_cmd_done(struct mlip_ring *r, uint32_t seq, int32_t result);
  * "?" for values out of range. Never NULL. */
 const char *mlip_ring_state_name(uint32_t state);
 const char *mlip_ring_cmd_name(uint32_t op);
+/* "program end", "stall", ... for mlip_state_why; "x", "feed", ... for a
+ * field (target fields by axis letter need the machine: see tools). */
+const char *mlip_state_why_name(uint32_t why);
+const char *mlip_rec_field_name(uint32_t field);
+const char *mlip_rec_type_name(uint32_t type);
 
 #endif

@@ -431,6 +431,9 @@ class Rig:
                 "--profile", self.profile, "--shm", self.shm]
         if self.priority is not None:
             args += ["--priority", self.priority]
+        if "--stall-periods" not in self.rt_args:
+            # a QEMU guest is not real-time: no stall holds unless a test asks
+            args += ["--stall-periods", "100000"]
         self.rt = Proc("rt", args + self.rt_args, w)
         self.rt.wait_for("ready on")
         self.t_ready = time.time()

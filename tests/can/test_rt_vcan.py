@@ -322,6 +322,61 @@ def test_stop(vcan, tmp_path):
                  f"{end - m['before']['heartbeat']} cycles after the last status before the stop")
 
 
+EVENTS_NGC = ("G21 G90 G94\nG1 X20 F3000\nG1 X20 Y20\nG4 P0.3\nG1 X40 Y20\nM0\n"
+              "G1 X40 Y40\nG1 X0 Y0\nM2\n")
+
+
+def test_dwell_and_pause(vcan, tmp_path):
+    """G4 P0.3 and M0 end to end: up to the M0 point the bus carries
+    mlip-sim's trace to the count, the dwell included (the machine still at
+    (20, 20) for exactly 300 periods); at the M0 point still from "paused"
+    to the resume; mlip-check passes on all of it; the program completes."""
+    config = MILL
+    ngc = tmp_path / "events.ngc"
+    ngc.write_text(EVENTS_NGC)
+    probe = h.run([h.tool("mlip-sim"), "-q", "--config", config, ngc], check=False)
+    if probe.returncode != 0:
+        pytest.skip(f"this build's G-code front end has no G4/M0: {probe.stderr.strip()}")
+    rows, summ = h.simulate(config, ngc, tmp_path)
+    setup = h.setup_of(config)
+    trc = h.trace_counts(rows, setup.cpu)
+    dwell_pt = tuple(h.to_counts(x, c) for x, c in zip((20.0, 20.0, 0.0), setup.cpu))
+    pause_pt = tuple(h.to_counts(x, c) for x, c in zip((40.0, 20.0, 0.0), setup.cpu))
+    j = trc.index(pause_pt)  # the trace reaches the M0 point
+    m = {}
+
+    def actions(rig):
+        m["paused"] = rig.wait_state("paused", timeout=60)
+        m["resume"] = wait_periods(rig, 500, m["paused"])
+        rig.ctl("resume")
+
+    with h.Rig(config, "cia402", tmp_path) as rig:
+        rc, out, err = rig.feed(ngc, actions)
+        assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
+        assert "paused (pause (M0)) at line 6: mlip-ctl resume continues" in err, err
+        rig.wait_state("idle", timeout=60)
+    r = rig.result
+    bus_complete(r, setup, "cia402")
+    can = r["counts"]
+    off, how = h.align(can, trc)
+    bad = h.first_mismatch(can[:off + j + 1], trc[:j + 1], off)
+    assert bad is None, f"bus != mlip-sim trace up to the pause ({how}): {bad}"
+    # the dwell in the setpoints the bus carried (equal to the trace there):
+    # exactly at (20, 20) for 301 samples, 300 periods (counts round a few
+    # more samples of the approach and the departure onto that point)
+    still = [i for i, r in enumerate(rows[:j]) if tuple(r[1:]) == (20.0, 20.0, 0.0)]
+    assert len(still) == 301 and still[-1] - still[0] == 300, len(still)
+    assert all(can[off + i] == dwell_pt for i in still)
+    p0, p1 = m["paused"]["heartbeat"] - 1, m["resume"]["heartbeat"] - 1
+    assert p1 - p0 >= 500 and all(c == pause_pt for c in can[p0:p1 + 1]), "moved while paused"
+    quantum = max(1.0 / c for c in setup.cpu)
+    physics(rig, ngc, can[off:], quantum, tmp_path)
+    st = rig.final_status
+    assert st["state"] == "idle" and st["exec_seq"] == summ["blocks"] + 1, st
+    summary_line("events", rig, r, f", dwell 300 periods at (20, 20), paused {p1 - p0} "
+                 f"periods at (40, 20)")
+
+
 # ------------------------------------------------------------------ offline
 
 def _frames(setup, profile, cycle, counts):

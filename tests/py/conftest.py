@@ -79,6 +79,11 @@ def controller():
 
     def start(config=CONFIG / "mill-3axis.ini", *extra):
         shm = shm_name()
+        # this shared 2-core VM is not real-time (wake-ups late by tens of ms):
+        # a stall hold (default 3 missed periods) would stop any long run here;
+        # the stall tests give their own limit
+        if "--stall-periods" not in extra:
+            extra = ("--stall-periods", "100000", *extra)
         p = subprocess.Popen([tool("mlip-rt"), "--config", str(config), "--can", "none", "--shm", shm,
                               *extra], stderr=subprocess.PIPE, text=True)
         procs.append(p)

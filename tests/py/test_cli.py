@@ -22,7 +22,11 @@ BAD = {
     "missing feed": ("G1 X1 Y1\n", ":1:1: error: missing feed"),
     "non-UTF-8": ("G1 X1 F600 \xe9\n", ":1:12: error: non-ASCII byte 0xE9"),
     "empty program": ("(nothing)\n%\n", ":2: error: empty program"),
-    "G28 with motion": ("G1 X1 F600\nG28 X5\n", ":2:1: error: G28 with motion"),
+    "Grbl jog without F": ("$J=G91 X10\nG1 X1 F600\n", ":1:1: error: Grbl jog without F"),
+    "G4 without P": ("G1 X1 F600\nG4\n", ":2:1: error: G4 without P"),
+    "G10 without L2/L20": ("G10 L1 P1 Z5\nG1 X1 F600\n",
+                           ":1:5: error: G10 without L2 or L20"),
+    "G93 move without F": ("G1 X1 F600\nG93 G1 X2\n", ":2:5: error: G93 inverse time"),
 }
 
 

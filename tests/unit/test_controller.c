@@ -1,7 +1,8 @@
 /*
- * test_controller.c - the controller's period (rt/controller.c) on a ring in
- * ordinary memory, driven tick by tick without CAN: what it takes from the
- * ring when a feeder dies or a continuation does not continue.
+ * test_controller.c - the pure controller (src/controller.c) period by
+ * period on a ring in ordinary memory, no clock, no CAN: the ingest rule,
+ * every state transition and its reason, program events (dwell, pause,
+ * optional pause, exact stop), record validation and stalls.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <setjmp.h>
@@ -14,20 +15,24 @@
 
 #include <cmocka.h>
 
-#include "rt.h"
+#include "mlip/controller.h"
 
 #define CAP 64u
 
 static struct mlip_machine mach;
 static struct mlip_planner planner;
-static struct mlip_controller ctl;
+static struct mlip_ctl ctl;
+static struct mlip_ctl_out out;
 static struct mlip_ring *ring;
 static void *mem;
-static uint64_t cycle;
+static uint64_t period;
+static int feeder_alive;
+/* every transition seen since setup: state entered and why */
+static uint32_t seen_state[256], seen_why[256];
+static int n_seen;
 
-static int setup(void **state)
+static void machine(void)
 {
-	(void)state;
 	memset(&mach, 0, sizeof(mach));
 	mach.n_axes = 2;
 	mach.max_feed_mm_s = 200.0;
@@ -44,16 +49,23 @@ static int setup(void **state)
 		mach.axis[k].can_node = k + 1;
 		mach.axis[k].counts_per_unit = 1000.0;
 	}
+}
+
+static int setup(void **state)
+{
+	(void)state;
+	machine();
 	size_t bytes = mlip_ring_bytes(CAP);
 	assert_int_equal(posix_memalign(&mem, MLIP_RING_LINE, bytes), 0);
 	assert_int_equal(mlip_ring_format_machine(mem, bytes, CAP, &mach), MLIP_OK);
 	assert_int_equal(mlip_ring_attach(mem, bytes, 2, &ring, NULL), MLIP_OK);
 	/* look-ahead 16: smaller than the programs below, so the pre-read ends
 	 * on a full look-ahead unless a feeder dies first */
-	assert_int_equal(mlip_controller_init(&ctl, &planner, &mach, NULL, MLIP_STRATEGY_MPCT, 16,
-	                                      ring, NULL),
-	                 0);
-	cycle = 0;
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o, ring), MLIP_OK);
+	period = 0;
+	feeder_alive = 1;
+	n_seen = 0;
 	return 0;
 }
 
@@ -64,57 +76,115 @@ static int teardown(void **state)
 	return 0;
 }
 
+/* One period with a command (op 0: none) after `missed` missed periods. */
+static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
+{
+	struct mlip_ring_cmd cmd = {.seq = 2, .op = op, .arg = arg};
+	struct mlip_ctl_in in = {.period = period++, .missed = missed, .feeder_alive = feeder_alive};
+	in.cmd = op ? &cmd : NULL;
+	mlip_ctl_period(&ctl, &in, &out);
+	for (uint32_t i = 0; i < out.n_events; i++) {
+		if (out.events[i].kind == MLIP_EV_STATE && n_seen < 256) {
+			seen_state[n_seen] = out.events[i].state;
+			seen_why[n_seen++] = out.events[i].r.why;
+		}
+	}
+	return out.cmd_result;
+}
+
 static void tick(int n)
 {
 	for (int i = 0; i < n; i++) {
-		struct mlip_rt_tick t = {.cycle = cycle++};
-		mlip_controller_tick(&ctl, &t);
+		period_cmd(0, 0, 0);
 	}
 }
 
-/* Blocks from..to of a program of 1 mm steps along X (seq k ends at X = k). */
+/* Ticks (at least one) until the state is s (at most n); returns the periods
+ * it took. */
+static int until(uint32_t s, int n)
+{
+	for (int i = 1; i <= n; i++) {
+		tick(1);
+		if (ctl.state == s) {
+			return i;
+		}
+	}
+	fail_msg("state %s not reached in %d periods (now %s)", mlip_ring_state_name(s), n,
+	         mlip_ring_state_name(ctl.state));
+	return -1;
+}
+
+static int saw(uint32_t state, uint32_t why)
+{
+	for (int i = 0; i < n_seen; i++) {
+		if (seen_state[i] == state && seen_why[i] == why) {
+			return 1;
+		}
+	}
+	return 0;
+}
+
+static void push_rec(const struct mlip_ring_rec *rec)
+{
+	assert_int_equal(mlip_ring_push(ring, rec), MLIP_OK);
+}
+
+/* Block k of a program of 1 mm steps along X (ends at X = x). */
+static void move(uint64_t seq, double x, double y)
+{
+	struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)seq + 1};
+	b.target[0] = x;
+	b.target[1] = y;
+	struct mlip_ring_rec rec;
+	mlip_ring_rec_from_block(&rec, &b, seq);
+	push_rec(&rec);
+}
+
 static void push(uint64_t from, uint64_t to)
 {
 	for (uint64_t k = from; k <= to; k++) {
-		struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)k + 1};
-		b.target[0] = (double)k;
-		struct mlip_ring_rec rec;
-		mlip_ring_rec_from_block(&rec, &b, k);
-		assert_int_equal(mlip_ring_push(ring, &rec), MLIP_OK);
+		move(k, (double)k, 0.0);
 	}
 }
 
-/* The feeder area as a live feeder (age 0) or one gone for 1 s. */
-static void feeder(int alive)
+static void end(uint64_t seq)
 {
-	struct mlip_ring_feeder f = {.pid = 4242, .heartbeat = 1};
-	f.heartbeat_ns = mlip_now_ns() - (alive ? 0 : 1000000000ull);
-	mlip_ring_feeder_write(ring, &f);
+	struct mlip_ring_rec rec;
+	mlip_ring_rec_end(&rec, seq, (uint32_t)seq + 1);
+	push_rec(&rec);
 }
 
-static uint32_t state(void)
+static void event(uint64_t seq, uint8_t kind, double dwell_s)
 {
-	struct mlip_ring_status s;
-	assert_int_equal(mlip_ring_status_read(ring, &s), MLIP_OK);
-	return s.state;
+	struct mlip_block b = {.kind = kind, .dwell_s = dwell_s, .line = (uint32_t)seq + 1};
+	struct mlip_ring_rec rec;
+	mlip_ring_rec_from_block(&rec, &b, seq);
+	push_rec(&rec);
 }
+
+static struct mlip_ring_status status(void)
+{
+	return out.status;
+}
+
+/* ---- the ingest rule and its states ------------------------------------ */
 
 /* A feeder that dies during the pre-read: what it sent runs, to rest at the
  * end of the last block, and the controller reports the underrun. */
 static void test_feeder_dead_in_preread_runs_what_came(void **st)
 {
 	(void)st;
-	feeder(1);
 	push(1, 10); /* 10 < look-ahead 16, no END */
 	tick(50);
-	assert_int_equal(state(), MLIP_STATE_RUNNING);
-	assert_true(ctl.preread); /* a live feeder may still send: wait */
-	assert_true(ctl.pos[0] == 0.0);
-	feeder(0);
-	tick(3000);
-	assert_int_equal(state(), MLIP_STATE_STARVED);
-	assert_true(ctl.pos[0] == 10.0 && ctl.pos[1] == 0.0);
-	assert_int_equal(ctl.exec_seq, 10);
+	assert_int_equal(ctl.state, MLIP_STATE_PREREAD); /* a live feeder may still send */
+	assert_true(out.pos[0] == 0.0);
+	feeder_alive = 0;
+	until(MLIP_STATE_STARVED, 3000);
+	assert_true(out.pos[0] == 10.0 && out.pos[1] == 0.0);
+	assert_int_equal(status().exec_seq, 10);
+	assert_int_equal(status().reason, MLIP_WHY_UNDERRUN);
+	assert_true(saw(MLIP_STATE_PREREAD, MLIP_WHY_START));
+	assert_true(saw(MLIP_STATE_RUNNING, MLIP_WHY_PREREAD_DONE));
 }
 
 /* After an underrun only seq 1 (a new program) or the block after the last
@@ -122,39 +192,36 @@ static void test_feeder_dead_in_preread_runs_what_came(void **st)
 static void test_starved_takes_only_the_next_block(void **st)
 {
 	(void)st;
-	feeder(1);
 	push(1, 20);
 	tick(20);
-	feeder(0);
-	tick(3000);
-	assert_int_equal(state(), MLIP_STATE_STARVED);
+	feeder_alive = 0;
+	until(MLIP_STATE_STARVED, 3000);
 	assert_int_equal(ctl.exec_seq, 20);
-	feeder(1);
+	feeder_alive = 1;
 	push(25, 30); /* skips 21..24 */
 	tick(100);
 	assert_int_equal(ctl.refused, 1);
 	assert_int_equal(mlip_ring_count(ring), 0); /* dropped */
-	assert_true(ctl.pos[0] == 20.0);
-	assert_int_equal(state(), MLIP_STATE_STARVED);
-	feeder(0); /* that feeder gone: the dropping ends */
+	assert_true(out.pos[0] == 20.0);
+	assert_int_equal(ctl.state, MLIP_STATE_STARVED);
+	feeder_alive = 0; /* that feeder gone: the dropping ends */
 	tick(2);
-	feeder(1);
+	feeder_alive = 1;
 	push(20, 22); /* repeats 20 */
 	tick(100);
 	assert_int_equal(ctl.refused, 2);
-	assert_true(ctl.pos[0] == 20.0);
-	feeder(0);
+	assert_true(out.pos[0] == 20.0);
+	feeder_alive = 0;
 	tick(2);
-	feeder(1);
+	feeder_alive = 1;
 	push(21, 24); /* continues */
-	struct mlip_ring_rec end;
-	mlip_ring_rec_end(&end, 25, 26);
-	assert_int_equal(mlip_ring_push(ring, &end), MLIP_OK);
-	tick(3000);
-	assert_int_equal(state(), MLIP_STATE_IDLE);
-	assert_true(ctl.pos[0] == 24.0);
+	end(25);
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 24.0);
 	assert_int_equal(ctl.exec_seq, 25);
 	assert_int_equal(ctl.refused, 2);
+	assert_true(saw(MLIP_STATE_PREREAD, MLIP_WHY_CONTINUE));
+	assert_true(saw(MLIP_STATE_IDLE, MLIP_WHY_END));
 }
 
 /* A hold at full speed on a straight line: the controller measures the path
@@ -164,78 +231,519 @@ static void test_starved_takes_only_the_next_block(void **st)
 static void test_stop_distance_published(void **st)
 {
 	(void)st;
-	feeder(1);
-	struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = 2};
-	b.target[0] = 100.0;
-	struct mlip_ring_rec rec, end;
-	mlip_ring_rec_from_block(&rec, &b, 1);
-	mlip_ring_rec_end(&end, 2, 3);
-	assert_int_equal(mlip_ring_push(ring, &rec), MLIP_OK);
-	assert_int_equal(mlip_ring_push(ring, &end), MLIP_OK);
+	move(1, 100.0, 0.0);
+	end(2);
 	tick(400); /* at 100 mm/s after 100 ms of acceleration */
-	double x0 = ctl.pos[0];
+	double x0 = out.pos[0];
 	assert_true(x0 > 20.0 && x0 < 50.0);
-	uint32_t seq;
-	assert_int_equal(mlip_ring_cmd_post(ring, MLIP_CMD_HOLD, 0, &seq), MLIP_OK);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
 	tick(300);
-	struct mlip_ring_status s;
-	assert_int_equal(mlip_ring_status_read(ring, &s), MLIP_OK);
+	struct mlip_ring_status s = status();
 	assert_int_equal(s.state, MLIP_STATE_HELD);
+	assert_int_equal(s.reason, MLIP_WHY_HOLD);
 	assert_int_equal(s.stops, 1);
 	double d = (double)s.stop_nm * 1e-6;
-	assert_true(fabs(d - (ctl.pos[0] - x0)) <= 1e-6); /* the path it measured is the move */
+	assert_true(fabs(d - (out.pos[0] - x0)) <= 1e-6); /* the path it measured is the move */
 	assert_true(d >= 5.0 - 1e-6 && d <= 5.0 + 0.1 + 1e-6);
 	assert_true(s.stop_periods >= 100 && s.stop_periods <= 102);
 	/* resumed, then stopped: a second stop, to rest on the line */
-	assert_int_equal(mlip_ring_cmd_post(ring, MLIP_CMD_RESUME, 0, &seq), MLIP_OK);
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
 	tick(200);
-	assert_int_equal(mlip_ring_cmd_post(ring, MLIP_CMD_STOP, 0, &seq), MLIP_OK);
+	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_true(saw(MLIP_STATE_RUNNING, MLIP_WHY_RESUME));
+	assert_int_equal(period_cmd(MLIP_CMD_STOP, 0, 0), MLIP_OK);
+	assert_int_equal(ctl.state, MLIP_STATE_STOPPING);
 	tick(300);
-	assert_int_equal(mlip_ring_status_read(ring, &s), MLIP_OK);
+	s = status();
 	assert_int_equal(s.state, MLIP_STATE_IDLE);
+	assert_int_equal(s.reason, MLIP_WHY_STOP);
 	assert_int_equal(s.stops, 2);
 	d = (double)s.stop_nm * 1e-6;
 	assert_true(d >= 5.0 - 1e-6 && d <= 5.0 + 0.1 + 1e-6);
-	assert_true(ctl.pos[0] < 100.0);
+	assert_true(out.pos[0] < 100.0);
 }
 
 /* A program stopped before its first block ends has completed nothing: the
- * status must not show the previous program's last block (a --start-seq
- * after it would continue the wrong program). */
+ * status must not show the previous program's last block. */
 static void test_stop_before_first_block_completes(void **st)
 {
 	(void)st;
-	feeder(1);
 	push(1, 5);
-	struct mlip_ring_rec end;
-	mlip_ring_rec_end(&end, 6, 7);
-	assert_int_equal(mlip_ring_push(ring, &end), MLIP_OK);
-	tick(3000);
-	assert_int_equal(state(), MLIP_STATE_IDLE);
-	assert_int_equal(ctl.exec_seq, 6);
-	/* the next program: back to X = 0, 5 mm, stopped at once */
-	struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = 2};
-	struct mlip_ring_rec rec;
-	mlip_ring_rec_from_block(&rec, &b, 1);
-	assert_int_equal(mlip_ring_push(ring, &rec), MLIP_OK);
-	mlip_ring_rec_end(&end, 2, 3);
-	assert_int_equal(mlip_ring_push(ring, &end), MLIP_OK);
+	end(6);
+	until(MLIP_STATE_IDLE, 3000);
+	assert_int_equal(status().exec_seq, 6);
+	move(1, 0.0, 0.0); /* the next program: back to X = 0, 5 mm, stopped at once */
+	end(2);
 	tick(20);
-	uint32_t seq;
-	assert_int_equal(mlip_ring_cmd_post(ring, MLIP_CMD_STOP, 0, &seq), MLIP_OK);
+	period_cmd(MLIP_CMD_STOP, 0, 0);
 	tick(300);
-	assert_int_equal(state(), MLIP_STATE_IDLE);
-	assert_true(ctl.pos[0] > 0.0 && ctl.pos[0] < 5.0); /* stopped inside block 1 */
-	assert_int_equal(ctl.exec_seq, 0);
+	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_true(out.pos[0] > 0.0 && out.pos[0] < 5.0); /* stopped inside block 1 */
+	assert_int_equal(status().exec_seq, 0);
 }
+
+/* Override 0 holds with its own reason; an exit request stops and reports
+ * done at rest. */
+static void test_override_zero_and_exit(void **st)
+{
+	(void)st;
+	move(1, 100.0, 0.0);
+	end(2);
+	tick(200);
+	period_cmd(MLIP_CMD_OVERRIDE, 0, 0);
+	until(MLIP_STATE_HELD, 500);
+	assert_int_equal(status().reason, MLIP_WHY_OVERRIDE_ZERO);
+	assert_int_equal(period_cmd(MLIP_CMD_OVERRIDE, 300, 0), MLIP_E_RANGE);
+	period_cmd(MLIP_CMD_OVERRIDE, 100, 0);
+	until(MLIP_STATE_RUNNING, 10);
+	struct mlip_ctl_in in = {.period = period++, .feeder_alive = 1, .exit_request = 1};
+	mlip_ctl_period(&ctl, &in, &out);
+	assert_int_equal(ctl.state, MLIP_STATE_STOPPING);
+	assert_int_equal(ctl.why.why, MLIP_WHY_EXIT);
+	int done = 0;
+	for (int i = 0; i < 500 && !done; i++) {
+		in.period = period++;
+		mlip_ctl_period(&ctl, &in, &out);
+		done = out.done;
+	}
+	assert_true(done);
+	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_true(out.pos[0] < 100.0);
+}
+
+/* ---- program events ------------------------------------------------------ */
+
+/* A dwell: at rest at the end of the move before it, exactly
+ * round(dwell / T) periods, then on (the next block pre-read meanwhile).
+ * The move to x: 5 mm ends on a period; 10 mm a rounding-size remainder
+ * after one (the planner reports rest a period after the point is reached):
+ * the wait counts from the arrival either way. */
+static void dwell_at(double x)
+{
+	move(1, x, 0.0);
+	event(2, MLIP_BLOCK_DWELL, 0.2504); /* 250.4 periods: 250 */
+	move(3, 2.0 * x, 0.0);
+	end(4);
+	double last = NAN;
+	int run = 0, longest = 0, dwelling = 0;
+	for (int i = 0; i < 5000 && !(ctl.state == MLIP_STATE_IDLE && i > 0); i++) {
+		tick(1);
+		dwelling += ctl.state == MLIP_STATE_DWELLING;
+		if (ctl.state == MLIP_STATE_DWELLING) {
+			assert_int_equal(status().exec_seq, 2);
+			assert_true(out.pos[0] == x);
+		}
+		run = out.pos[0] == last ? run + 1 : 0;
+		if (out.pos[0] == x && run > longest) {
+			longest = run;
+		}
+		last = out.pos[0];
+	}
+	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_true(out.pos[0] == 2.0 * x);
+	assert_true(dwelling == 249 || dwelling == 250);
+	/* the arrival at x and 250 periods more at it: 250 periods of rest */
+	assert_int_equal(longest, 250);
+	assert_true(saw(MLIP_STATE_DWELLING, MLIP_WHY_DWELL));
+	assert_true(saw(MLIP_STATE_RUNNING, MLIP_WHY_DWELL_DONE));
+}
+
+static void test_dwell_exact_periods(void **st)
+{
+	(void)st;
+	dwell_at(5.0);
+	teardown(NULL);
+	setup(NULL);
+	dwell_at(10.0);
+}
+
+/* A dwell at the program's start and a dwell of 0: nothing to move first. */
+static void test_dwell_first_and_zero(void **st)
+{
+	(void)st;
+	event(1, MLIP_BLOCK_DWELL, 0.01);
+	event(2, MLIP_BLOCK_DWELL, 0.0);
+	move(3, 1.0, 0.0);
+	end(4);
+	int dwelling = 0;
+	for (int i = 0; i < 2000 && !(ctl.state == MLIP_STATE_IDLE && i > 0); i++) {
+		tick(1);
+		dwelling += ctl.state == MLIP_STATE_DWELLING;
+	}
+	assert_int_equal(dwelling, 10);
+	assert_true(out.pos[0] == 1.0);
+	assert_int_equal(status().exec_seq, 4);
+}
+
+/* M0: at rest, paused, on at resume; a resume is refused in no state but
+ * fault. M1: a pause only with the optional-stop switch on. */
+static void test_pause_and_optional_pause(void **st)
+{
+	(void)st;
+	move(1, 5.0, 0.0);
+	event(2, MLIP_BLOCK_PAUSE, 0.0);
+	move(3, 10.0, 0.0);
+	event(4, MLIP_BLOCK_OPTIONAL_PAUSE, 0.0); /* switch off: no stop */
+	move(5, 15.0, 0.0);
+	end(6);
+	until(MLIP_STATE_PAUSED, 3000);
+	assert_true(out.pos[0] == 5.0);
+	assert_int_equal(status().reason, MLIP_WHY_PAUSE);
+	assert_int_equal(status().exec_seq, 2);
+	tick(1000);
+	assert_int_equal(ctl.state, MLIP_STATE_PAUSED);
+	assert_true(out.pos[0] == 5.0);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK); /* a hold meanwhile */
+	tick(10);
+	assert_int_equal(ctl.state, MLIP_STATE_PAUSED);
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK); /* one resume: both */
+	tick(1);
+	assert_true(out.pos[0] > 5.0); /* pre-read during the pause: moves at once */
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 15.0);
+	assert_false(saw(MLIP_STATE_PAUSED, MLIP_WHY_OPTIONAL_PAUSE));
+
+	/* the same program with the switch on: M1 pauses */
+	assert_int_equal(period_cmd(MLIP_CMD_OPTIONAL_STOP, 2, 0), MLIP_E_RANGE);
+	assert_int_equal(period_cmd(MLIP_CMD_OPTIONAL_STOP, 1, 0), MLIP_OK);
+	assert_int_equal(status().optional_stop, 1);
+	move(1, 5.0, 0.0);
+	event(2, MLIP_BLOCK_PAUSE, 0.0);
+	move(3, 10.0, 0.0);
+	event(4, MLIP_BLOCK_OPTIONAL_PAUSE, 0.0);
+	move(5, 15.0, 0.0);
+	end(6);
+	until(MLIP_STATE_PAUSED, 3000);
+	period_cmd(MLIP_CMD_RESUME, 0, 0);
+	tick(2);
+	until(MLIP_STATE_PAUSED, 3000);
+	assert_true(out.pos[0] == 10.0);
+	assert_int_equal(status().reason, MLIP_WHY_OPTIONAL_PAUSE);
+	/* a stop in a pause: the pre-read blocks are dropped, nothing moves */
+	period_cmd(MLIP_CMD_STOP, 0, 0);
+	until(MLIP_STATE_IDLE, 10);
+	tick(10);
+	assert_true(out.pos[0] == 10.0);
+}
+
+/* Exact stop: the corner at the end of that move is taken at rest (Y moves
+ * only once X is done); without it the same corner is rounded. Returns the
+ * samples inside the corner (x short of 10 and y past 0). */
+static int corner_samples(int exact)
+{
+	struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = 2, .exact_stop = (uint8_t)exact};
+	struct mlip_ring_rec rec;
+	b.target[0] = 10.0;
+	mlip_ring_rec_from_block(&rec, &b, 1);
+	push_rec(&rec);
+	move(2, 10.0, 10.0);
+	end(3);
+	int inside = 0;
+	for (int i = 0; i < 3000 && !(ctl.state == MLIP_STATE_IDLE && i > 0); i++) {
+		tick(1);
+		inside += out.pos[0] < 10.0 - 1e-12 && out.pos[1] > 1e-12;
+	}
+	assert_true(out.pos[0] == 10.0 && out.pos[1] == 10.0);
+	return inside;
+}
+
+static void test_exact_stop_corner_at_rest(void **st)
+{
+	(void)st;
+	assert_int_equal(corner_samples(1), 0);
+	teardown(NULL);
+	setup(NULL);
+	/* a 90 degree corner at eps 0.01, A 1000: t_m = sqrt(8 eps / |a|) ~ 7.5 ms (18) */
+	int n = corner_samples(0);
+	assert_true(n >= 5 && n <= 10);
+}
+
+/* ---- records are validated where they are taken ------------------------- */
+
+/* A NaN target in the middle of a program: the blocks before it run to rest
+ * at the end of the last good one, nothing after it is taken (nor reported
+ * complete), the state is fault with the record, field and value. */
+static void check_bad(void (*corrupt)(struct mlip_ring_rec *), uint32_t field, int value_nan)
+{
+	push(1, 30); /* more than the look-ahead: the bad one is taken while moving */
+	struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = 32};
+	b.target[0] = 31.0;
+	struct mlip_ring_rec rec;
+	mlip_ring_rec_from_block(&rec, &b, 31);
+	corrupt(&rec);
+	push_rec(&rec);
+	push(32, 34);
+	end(35);
+	tick(3000);
+	struct mlip_ring_status s = status();
+	assert_int_equal(s.state, MLIP_STATE_FAULT);
+	assert_int_equal(s.reason, MLIP_WHY_BAD_RECORD);
+	assert_int_equal(s.reason_seq, 31);
+	assert_int_equal(s.reason_line, 32);
+	assert_int_equal(s.reason_field, field);
+	assert_true(value_nan ? isnan(s.reason_value) : !isnan(s.reason_value));
+	assert_true(out.pos[0] == 30.0 && out.pos[1] == 0.0); /* at the end of block 30 */
+	assert_true(mlip_planner_queued(&planner) == 0);
+	assert_int_equal(mlip_ring_count(ring), 0);         /* the rest dropped */
+	assert_int_equal(s.exec_seq, 30);                    /* never "complete" (35) */
+	int faults = 0;
+	for (int i = 0; i < n_seen; i++) {
+		faults += seen_state[i] == MLIP_STATE_FAULT;
+	}
+	assert_int_equal(faults, 1); /* logged once */
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_E_INVALID);
+}
+
+static void nan_target(struct mlip_ring_rec *r)
+{
+	r->target[1] = NAN;
+}
+static void beyond_limit(struct mlip_ring_rec *r)
+{
+	r->target[0] = 1500.0;
+}
+static void nan_feed(struct mlip_ring_rec *r)
+{
+	r->feed_mm_s = NAN;
+}
+static void negative_feed(struct mlip_ring_rec *r)
+{
+	r->feed_mm_s = -5.0;
+}
+static void unknown_type(struct mlip_ring_rec *r)
+{
+	r->type = 77;
+}
+static void wrong_seq(struct mlip_ring_rec *r)
+{
+	r->seq = 33;
+}
+static void bad_dwell(struct mlip_ring_rec *r)
+{
+	r->type = MLIP_REC_DWELL;
+	r->dwell_s = -1.0;
+}
+static void bad_flags(struct mlip_ring_rec *r)
+{
+	r->flags = 0x80;
+}
+
+static void test_bad_nan_target(void **st)
+{
+	(void)st;
+	check_bad(nan_target, MLIP_FIELD_TARGET + 1, 1);
+}
+static void test_bad_beyond_soft_limit(void **st)
+{
+	(void)st;
+	check_bad(beyond_limit, MLIP_FIELD_TARGET, 0);
+	assert_true(status().reason_value == 1500.0);
+}
+static void test_bad_feed(void **st)
+{
+	(void)st;
+	check_bad(nan_feed, MLIP_FIELD_FEED, 1);
+	teardown(NULL);
+	setup(NULL);
+	check_bad(negative_feed, MLIP_FIELD_FEED, 0);
+}
+static void test_bad_type_seq_dwell_flags(void **st)
+{
+	(void)st;
+	check_bad(unknown_type, MLIP_FIELD_TYPE, 0);
+	teardown(NULL);
+	setup(NULL);
+	check_bad(wrong_seq, MLIP_FIELD_SEQ, 0);
+	assert_true(status().reason_value == 33.0);
+	teardown(NULL);
+	setup(NULL);
+	check_bad(bad_dwell, MLIP_FIELD_DWELL, 0);
+	teardown(NULL);
+	setup(NULL);
+	check_bad(bad_flags, MLIP_FIELD_FLAGS, 0);
+}
+
+/* A bad record found while nothing moves (the pre-read): nothing moves. */
+static void test_bad_record_in_preread_never_moves(void **st)
+{
+	(void)st;
+	push(1, 3);
+	struct mlip_block b = {.feed_mm_s = 100.0, .line = 5};
+	b.target[0] = INFINITY;
+	struct mlip_ring_rec rec;
+	mlip_ring_rec_from_block(&rec, &b, 4);
+	push_rec(&rec);
+	tick(500);
+	assert_int_equal(ctl.state, MLIP_STATE_FAULT);
+	assert_true(out.pos[0] == 0.0);
+}
+
+/* ---- a corrupted segment header ------------------------------------------ */
+
+/* Capacity, mask and the consumer's tail as the segment says them after
+ * start-up are not used: the program runs as if nothing happened. */
+static void test_corrupt_sizes_ignored(void **st)
+{
+	(void)st;
+	push(1, 40);
+	end(41);
+	ring->capacity = 1u << 30;
+	ring->mask = 0xFFFFFFFFu;
+	ring->n_axes = 77;
+	until(MLIP_STATE_IDLE, 5000);
+	assert_true(out.pos[0] == 40.0);
+	assert_int_equal(status().exec_seq, 41);
+}
+
+/* head - tail beyond the capacity: a fault with the distance, at rest at the
+ * end of what was taken, nothing read past it, no crash. */
+static void test_corrupt_head_is_a_fault(void **st)
+{
+	(void)st;
+	push(1, 40);
+	end(41);
+	tick(200); /* moving, look-ahead of 16 taken */
+	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	uint32_t tail = __atomic_load_n(&ring->tail, __ATOMIC_ACQUIRE);
+	__atomic_store_n(&ring->head, tail + 3 * CAP + 5, __ATOMIC_RELEASE);
+	tick(5000);
+	struct mlip_ring_status s = status();
+	assert_int_equal(s.state, MLIP_STATE_FAULT);
+	assert_int_equal(s.reason, MLIP_WHY_RING_CORRUPT);
+	assert_int_equal(s.reason_field, MLIP_FIELD_HEAD);
+	assert_true(s.reason_value == 3.0 * CAP + 5.0);
+	assert_true(s.speed_mm_s == 0.0 && out.pos[0] < 40.0 && out.pos[0] == floor(out.pos[0]));
+	assert_int_equal(s.exec_seq, (uint64_t)out.pos[0]); /* at the end of the last block taken */
+}
+
+/* ---- stalls ------------------------------------------------------------- */
+
+/* Missed periods beyond the limit: the next setpoints repeat the last one
+ * sent (no jump), state held with reason stall; resume moves from rest
+ * within the acceleration limit. */
+static void test_stall_holds_at_last_setpoint(void **st)
+{
+	(void)st;
+	move(1, 100.0, 0.0);
+	move(2, 100.0, 50.0);
+	end(3);
+	tick(150);
+	double before = out.pos[0];
+	assert_true(status().speed_mm_s > 50.0);
+	period_cmd(0, 0, 3); /* at the limit: not a stall */
+	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_true(out.pos[0] > before);
+	before = out.pos[0];
+	period_cmd(0, 0, 2000); /* 2 s */
+	assert_int_equal(ctl.state, MLIP_STATE_HELD);
+	assert_int_equal(status().reason, MLIP_WHY_STALL);
+	assert_true(status().reason_value == 2000.0);
+	assert_true(out.pos[0] == before);
+	for (int i = 0; i < 500; i++) {
+		tick(1);
+		assert_true(fabs(out.pos[0] - before) <= 1e-9 && fabs(out.pos[1]) <= 1e-9);
+	}
+	assert_int_equal(ctl.state, MLIP_STATE_HELD);
+	assert_true(status().speed_mm_s == 0.0);
+	/* resume: from rest, the first steps within A T^2 (a margin of 1e-9) */
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	double x1 = out.pos[0];
+	tick(1);
+	double x2 = out.pos[0];
+	assert_true(x1 - before <= 1000.0 * 1e-6 * (1.0 + 1e-9));
+	assert_true(x2 - 2.0 * x1 + before <= 1000.0 * 1e-6 * (1.0 + 1e-9));
+	assert_true(x2 > x1);
+	until(MLIP_STATE_IDLE, 5000);
+	assert_true(out.pos[0] == 100.0 && out.pos[1] == 50.0);
+}
+
+/* A stall inside a corner: rest there, then a straight line to the next
+ * segment's end, within the corner's tolerance of the path. */
+static void test_stall_in_corner(void **st)
+{
+	(void)st;
+	move(1, 10.0, 0.0);
+	move(2, 10.0, 10.0);
+	end(3);
+	int k;
+	/* inside the corner: x short of 10 and y past 0 (the rounded corner) */
+	for (k = 0; k < 3000 && !(out.pos[0] < 10.0 - 1e-12 && out.pos[1] > 1e-12); k++) {
+		tick(1);
+	}
+	assert_true(out.pos[0] < 10.0 - 1e-12 && out.pos[1] > 1e-12);
+	double p0[2] = {out.pos[0], out.pos[1]};
+	period_cmd(0, 0, 50);
+	assert_int_equal(ctl.state, MLIP_STATE_HELD);
+	tick(10);
+	assert_true(fabs(out.pos[0] - p0[0]) <= 1e-9 && fabs(out.pos[1] - p0[1]) <= 1e-9);
+	period_cmd(MLIP_CMD_RESUME, 0, 0);
+	double worst = 0.0;
+	for (k = 0; k < 3000 && ctl.state != MLIP_STATE_IDLE; k++) {
+		tick(1);
+		/* distance to the polyline (0,0)-(10,0)-(10,10) */
+		double dx = out.pos[0] <= 10.0 ? fabs(out.pos[1]) : INFINITY;
+		double dy = out.pos[1] >= 0.0 ? fabs(out.pos[0] - 10.0) : INFINITY;
+		double d = dx < dy ? dx : dy;
+		worst = d > worst ? d : worst;
+	}
+	assert_true(worst <= 0.01 + 1e-9);
+	assert_true(out.pos[0] == 10.0 && out.pos[1] == 10.0);
+}
+
+/* ---- records <-> blocks ------------------------------------------------- */
+
+static void test_record_roundtrip(void **st)
+{
+	(void)st;
+	struct mlip_block b = {.feed_mm_s = 10.0, .tol_mm = 0.005, .line = 9, .rapid = 1,
+	                       .exact_stop = 1, .kind = MLIP_BLOCK_MOVE}, c;
+	struct mlip_ring_rec rec;
+	mlip_ring_rec_from_block(&rec, &b, 4);
+	assert_int_equal(rec.type, MLIP_REC_MOVE);
+	assert_int_equal(rec.flags, MLIP_REC_RAPID | MLIP_REC_EXACT);
+	assert_int_equal(mlip_ring_rec_to_block(&rec, &c), MLIP_OK);
+	assert_int_equal(c.exact_stop, 1);
+	assert_int_equal(c.rapid, 1);
+	b = (struct mlip_block){.kind = MLIP_BLOCK_DWELL, .dwell_s = 1.5};
+	mlip_ring_rec_from_block(&rec, &b, 5);
+	assert_int_equal(rec.type, MLIP_REC_DWELL);
+	assert_int_equal(mlip_ring_rec_to_block(&rec, &c), MLIP_OK);
+	assert_int_equal(c.kind, MLIP_BLOCK_DWELL);
+	assert_true(c.dwell_s == 1.5);
+	b.kind = MLIP_BLOCK_OPTIONAL_PAUSE;
+	mlip_ring_rec_from_block(&rec, &b, 6);
+	assert_int_equal(rec.type, MLIP_REC_OPTIONAL_PAUSE);
+	b.kind = 9; /* unknown: stays unknown, refused by the controller */
+	mlip_ring_rec_from_block(&rec, &b, 6);
+	assert_int_equal(mlip_ring_rec_to_block(&rec, &c), MLIP_E_INVALID);
+	mlip_ring_rec_end(&rec, 7, 8);
+	assert_int_equal(mlip_ring_rec_to_block(&rec, &c), MLIP_E_EMPTY);
+}
+
+#define T(f) cmocka_unit_test_setup_teardown(f, setup, teardown)
 
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test_setup_teardown(test_feeder_dead_in_preread_runs_what_came, setup, teardown),
-	    cmocka_unit_test_setup_teardown(test_starved_takes_only_the_next_block, setup, teardown),
-	    cmocka_unit_test_setup_teardown(test_stop_distance_published, setup, teardown),
-	    cmocka_unit_test_setup_teardown(test_stop_before_first_block_completes, setup, teardown),
+	    T(test_feeder_dead_in_preread_runs_what_came),
+	    T(test_starved_takes_only_the_next_block),
+	    T(test_stop_distance_published),
+	    T(test_stop_before_first_block_completes),
+	    T(test_override_zero_and_exit),
+	    T(test_dwell_exact_periods),
+	    T(test_dwell_first_and_zero),
+	    T(test_pause_and_optional_pause),
+	    T(test_exact_stop_corner_at_rest),
+	    T(test_bad_nan_target),
+	    T(test_bad_beyond_soft_limit),
+	    T(test_bad_feed),
+	    T(test_bad_type_seq_dwell_flags),
+	    T(test_bad_record_in_preread_never_moves),
+	    T(test_stall_holds_at_last_setpoint),
+	    T(test_stall_in_corner),
+	    T(test_record_roundtrip),
+	    T(test_corrupt_sizes_ignored),
+	    T(test_corrupt_head_is_a_fault),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

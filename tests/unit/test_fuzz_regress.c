@@ -54,14 +54,21 @@ static const struct expect table[] = {
 	/* ((((...)))): comments do not nest, the first ')' ends one; "(a (b) c)" too */
 	{"gcode-comment-nesting.ngc", 0, 3, 2, 128, "unexpected character ')'",
 	 SYN, 1, 5, "expected '=' after key G21"},
-	/* BOM and CRLF accepted on line 1; a lone CR inside a line and a BOM on
-	 * line 4 are not */
-	{"gcode-crlf-bom.ngc", 1, 2, 3, 6, "unexpected character 0x0D",
+	/* BOM and CRLF accepted on line 1; a lone CR ends a line (old Mac files)
+	 * so "G1 X2\rY2" is two lines; a BOM on line 5 is not accepted */
+	{"gcode-crlf-bom.ngc", 3, 1, 5, 1, "non-ASCII byte 0xEF outside a comment",
 	 SYN, 1, 5, "expected '=' after key G21"},
 	/* no exponents in G-code: 1e308, 1E5, .5e-3 malformed; "X1e" is X1 and a
 	 * word E without number; 250 nines read as a finite, out-of-limit value */
 	{"gcode-e308.ngc", 0, 6, 1, 5, "malformed number '1e308'",
 	 SYN, 1, 4, "expected '=' after key G1"},
+	/* issue 11's words in one file, lone CRs among LFs: Grbl lines skipped,
+	 * G10/G55/G92 offsets, a dwell before its move, M0 after it, a deleted
+	 * block, G28 through Y2, G64 P Q, G61, G93; G94 forgets F (the error);
+	 * nothing after M2 is read */
+	{"gcode-events-offsets.ngc", 9, 1, 15, 1,
+	 "missing feed: a change between G93 and G94 needs a new F",
+	 SYN, 1, 8, "control character 0x0D (a CR not followed by LF)"},
 	{"gcode-exponent-forms.ngc", 0, 11, 1, 5, "malformed number '1.5e+2'",
 	 SYN, 1, 4, "expected '=' after key G1"},
 	/* R 1e200, R 1e20 and I 1e200: rejected, nothing emitted. (The message

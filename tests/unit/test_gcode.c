@@ -16,8 +16,14 @@
 #include <cmocka.h>
 
 #include "mlip/gcode.h"
+#include "../../tools/lib/offsets.h"
 #include "../../tools/lib/program.h"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#define M_PI_VALUE 3.14159265358979323846
+#define PI_2 (M_PI_VALUE / 2)
 #define EPS 0.01                          /* machine contour tolerance in these tests */
 #define SAG (MLIP_GCODE_ARC_FRACTION * EPS) /* chord sagitta allowed */
 
@@ -55,12 +61,12 @@ static struct mlip_machine machine(const char *axes)
 }
 
 /* Parse text that must be valid. */
-static void parse_ok(const char *text, const struct mlip_machine *m, struct mlip_program *p)
+static void parse_ok(const char *text, const struct mlip_machine *m, struct mlip_program_list *p)
 {
-	int rc = mlip_program_parse(text, strlen(text), m, p);
+	int rc = mlip_program_list_parse(text, strlen(text), m, p);
 
 	if (rc != 0) {
-		mlip_program_print_errors(p, "<test>", stderr);
+		mlip_program_print_errors(&p->r, "<test>", stderr);
 	}
 	assert_int_equal(rc, 0);
 }
@@ -69,8 +75,8 @@ static void parse_ok(const char *text, const struct mlip_machine *m, struct mlip
 static void check_err_m(const char *text, const struct mlip_machine *m, uint32_t line,
                         uint32_t col, const char *part)
 {
-	struct mlip_program p;
-	int rc = mlip_program_parse(text, strlen(text), m, &p);
+	struct mlip_program_list p;
+	int rc = mlip_program_list_parse(text, strlen(text), m, &p);
 
 	assert_int_equal(rc, 1);
 	assert_true(p.n_errors >= 1);
@@ -79,10 +85,10 @@ static void check_err_m(const char *text, const struct mlip_machine *m, uint32_t
 		print_error("for \"%s\": got %u:%u \"%s\", expected %u:%u \"%s\"\n", text,
 		            (unsigned)p.errors[0].line, (unsigned)p.errors[0].col, p.errors[0].msg,
 		            (unsigned)line, (unsigned)col, part);
-		mlip_program_free(&p);
+		mlip_program_list_free(&p);
 		fail();
 	}
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void check_err(const char *text, uint32_t line, uint32_t col, const char *part)
@@ -134,7 +140,7 @@ static mlip_status line(struct mlip_gcode *g, const char *s, uint32_t no, struct
 static void test_numbers(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G1 X-.5 Y5. Z+3 F100\n"
@@ -154,7 +160,7 @@ static void test_numbers(void **state)
 	assert_near(p.blocks[2].target[2], -1.0, 0);
 	assert_near(p.blocks[3].target[0], 10.0, 0);
 	assert_int_equal(p.blocks[3].rapid, 1);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_malformed_numbers(void **state)
@@ -175,14 +181,19 @@ static void test_malformed_numbers(void **state)
 	check_err("G F100", 1, 1, "word G has no number");
 	check_err("G1 X1 E5 F100", 1, 7, "unknown word letter E");
 	check_err("G1 U1 F100", 1, 4, "axis U not supported");
-	check_err("G1 X1 #1=2 F100", 1, 7, "unexpected character '#'");
+	check_err("G1 X1 #1=2 F100", 1, 7, "parameters and expressions (# [ ]) not supported");
+	check_err("G1 X[1+2] F100", 1, 5, "parameters and expressions (# [ ]) not supported");
+	check_err("G1 X#1 F100", 1, 5, "parameters and expressions (# [ ]) not supported");
+	check_err("O100 sub\nG1 X1 F100", 1, 1, "O-words (subroutines, loops, conditions) not "
+	          "supported: have the CAM expand them");
+	check_err("G1 X1 F100\n  o<x> call", 2, 3, "O-words");
 	check_err("G1 X1 \x01 F100", 1, 7, "unexpected character 0x01");
 }
 
 static void test_bytes_and_comments(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	static const char nul[] = "G1 X1 F100\nG1 X2\0 Y1\n";
 
 	(void)state;
@@ -198,44 +209,43 @@ static void test_bytes_and_comments(void **state)
 	assert_near(p.blocks[1].target[1], 1.0, 0);
 	assert_int_equal(p.blocks[2].line, 6);
 	assert_int_equal(p.lines, 7);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	check_err("G1 X1 F100 \xC3\x98", 1, 12, "non-ASCII byte 0xC3 outside a comment");
 	check_err("G1 X1 F100 (bad \xC3\x28 utf8)", 1, 17, "invalid UTF-8 in comment");
 	check_err("G1 X1 F100 ; \xE0\x80\x80 overlong", 1, 14, "invalid UTF-8 in comment");
 	check_err("G1 X1 F100 (\xED\xA0\x80 surrogate)", 1, 13, "invalid UTF-8 in comment");
 	check_err("G1 X1 F100 (no end", 1, 12, "unterminated comment");
-	check_err("G1 F100\n/G1 X1", 2, 1, "block delete '/' not supported");
 	check_err("G1 F100\n% X1", 2, 3, "'%' must be alone on its line");
 	check_err("G1 F100\n X1 G1 X2", 2, 8, "duplicate X word (first at column 2)");
 	check_err("G1 F100 F200 X1", 1, 9, "duplicate F word");
 
 	/* NUL bytes, in and out of comments */
 	{
-		struct mlip_program q;
-		int rc = mlip_program_parse(nul, sizeof nul - 1, &m, &q);
+		struct mlip_program_list q;
+		int rc = mlip_program_list_parse(nul, sizeof nul - 1, &m, &q);
 
 		assert_int_equal(rc, 1);
 		assert_int_equal(q.errors[0].line, 2);
 		assert_int_equal(q.errors[0].col, 6);
 		assert_string_equal(q.errors[0].msg, "NUL byte in line");
-		mlip_program_free(&q);
+		mlip_program_list_free(&q);
 	}
 	{
 		static const char c[] = "G1 X1 F100 (a\0b)";
-		struct mlip_program q;
+		struct mlip_program_list q;
 
-		assert_int_equal(mlip_program_parse(c, sizeof c - 1, &m, &q), 1);
+		assert_int_equal(mlip_program_list_parse(c, sizeof c - 1, &m, &q), 1);
 		assert_int_equal(q.errors[0].col, 14);
 		assert_string_equal(q.errors[0].msg, "NUL byte in line");
-		mlip_program_free(&q);
+		mlip_program_list_free(&q);
 	}
 }
 
 static void test_line_too_long(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	char text[600];
 
 	(void)state;
@@ -246,7 +256,7 @@ static void test_line_too_long(void **state)
 	strcat(text, ")");
 	assert_int_equal(strlen(text), MLIP_GCODE_MAX_LINE);
 	parse_ok(text, &m, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	strcpy(text + MLIP_GCODE_MAX_LINE - 1, "a)\nG1 X2");
 	check_err(text, 1, MLIP_GCODE_MAX_LINE + 1, "line too long: 257 bytes, at most 256");
@@ -262,20 +272,40 @@ static void test_unsupported_codes(void **state)
 	check_err("G43 H1", 1, 1, "unsupported G code G43: tool length offset");
 	check_err("G38.2 Z-10 F10", 1, 1, "unsupported G code G38.2: probing");
 	check_err("G81 X1 Y1 Z-1 R1 F10", 1, 1, "unsupported G code G81: canned cycles");
-	check_err("G93 G1 X1 F10", 1, 1, "unsupported G code G93: inverse time feed");
-	check_err("G55", 1, 1, "unsupported G code G55: work offsets (only G54 is accepted)");
-	check_err("G59.3", 1, 1, "unsupported G code G59.3: work offsets");
-	check_err("G92 X0", 1, 1, "unsupported G code G92: coordinate offsets");
+	check_err("G52 X1", 1, 1, "unsupported G code G52: local offsets (use G92 or G10 L2)");
+	check_err("G59.4", 1, 1, "unsupported G code G59.4");
+	check_err("G54.1 P2", 1, 1, "unsupported G code G54.1");
+	check_err("G93.1", 1, 1, "unsupported G code G93.1");
 	check_err("G90.1", 1, 1, "unsupported G code G90.1: absolute arc centers");
-	check_err("G4 P1", 1, 1, "G4 dwell not supported");
+	check_err("G10 L1 P1 Z5", 1, 5, "G10 without L2 or L20: only work offsets");
+	check_err("G10 P1 X5", 1, 1, "G10 without L2 or L20");
+	check_err("G10 L2 P10 X5", 1, 8, "G10 L2 needs P0..P9");
+	check_err("G10 L20 P1.5 X5", 1, 9, "G10 L20 needs P0..P9");
+	check_err("G10 L2 X5", 1, 1, "G10 L2 needs P0..P9");
+	check_err("G10 L2 P1 R30 X5", 1, 11, "G10 R (rotated coordinate system) not supported");
+	check_err("G10 L2 P1 G1 X5 F10", 1, 11, "G10 and G1 on one line: both use axis words");
+	check_err("G92 G0 X5", 1, 5, "G92 and G0 on one line: both use axis words");
+	check_err("G92", 1, 1, "G92 without axis words");
+	check_err("G92.1 X0", 1, 7, "G92.1 takes no axis words");
+	check_err("G28.1 X0", 1, 7, "G28.1 takes no axis words");
+	check_err("G4", 1, 1, "G4 without P: write the dwell in seconds");
+	check_err("G4 P-1", 1, 4, "G4 P must be >= 0 seconds");
+	check_err("G4 G10 L2 P1 X0", 1, 4, "G4 and G10 on one line: same modal group");
+	check_err("G4 G64 P1", 1, 8, "P word with two of G4, G10, G64");
+	check_err("G1 X1 F10 L2", 1, 11, "L word without G10");
+	check_err("G1 X1 F10 Q2", 1, 11, "Q word without G64");
 	check_err("G1 X1 F10\nG12 X1", 2, 1, "unsupported G code G12");
 	check_err("G1.5 X1 F10", 1, 1, "unsupported G code G1.5");
 	check_err("G1 X1 F10 M98 P100", 1, 11, "unsupported M code M98");
 	check_err("G1 X1 F10 M62.1", 1, 11, "unsupported M code M62.1");
+	check_err("G1 X1 F10 M66 P1", 1, 11, "unsupported M code M66: digital/analog I/O");
+	check_err("M70\nG1 X1 F10", 1, 1, "unsupported M code M70: saving and restoring");
+	check_err("M200\nG1 X1 F10", 1, 1, "unsupported M code M200");
+	check_err("M99\nG1 X1 F10", 1, 1, "unsupported M code M99: subprogram calls");
 	check_err("G1 G2 X1 F10", 1, 4, "two motion codes on one line: G1 and G2");
 	check_err("G1 X1 F10 G0", 1, 11, "two motion codes on one line: G1 and G0");
 	check_err("G90 G91 G1 X1 F10", 1, 5, "G90 and G91 on one line: same modal group");
-	check_err("G1 X1 F10 P2", 1, 11, "P word without G64");
+	check_err("G1 X1 F10 P2", 1, 11, "P word without G4, G10 or G64");
 	check_err("G53 G91 G0 X1", 1, 1, "G53 with G91");
 	check_err("G1 X1 F10\nG53 G2 X0 I-1", 2, 1, "G53 needs G0 or G1");
 }
@@ -283,7 +313,7 @@ static void test_unsupported_codes(void **state)
 static void test_notices(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	uint32_t k;
 	int seen = 0;
 
@@ -291,12 +321,12 @@ static void test_notices(void **state)
 	parse_ok("G90 G94 G17 G21 G40 G49 G80 G91.1\n"
 	         "T1 M6 G61.1\n"
 	         "S5000 M3\n"
-	         "G54 G64 P0.01 Q0.01\n"
+	         "G54 G64 P0.01\n"
 	         "M8 G61\n"
 	         "G53 G0 Z-3\n"
 	         "S6000 M4\n"
 	         "G1 X1 F100\n"
-	         "M5 M9 M7 M0 M1\n"
+	         "M5 M9 M7\n"
 	         "G53 G0 Z-2\n"
 	         "M2 M30\n",
 	         &m, &p);
@@ -304,31 +334,31 @@ static void test_notices(void **state)
 	for (k = 0; k < p.n_notices; k++) {
 		const struct mlip_gcode_notice *n = &p.notices[k];
 
-		/* plane, units, distance modes act on motion: never notices */
+		/* modes that act on motion or offsets: never notices */
 		assert_true(strcmp(n->word, "G17") && strcmp(n->word, "G21") &&
-		            strcmp(n->word, "G90") && strcmp(n->word, "G91.1"));
+		            strcmp(n->word, "G90") && strcmp(n->word, "G91.1") &&
+		            strcmp(n->word, "G53") && strcmp(n->word, "G54") &&
+		            strcmp(n->word, "G61") && strcmp(n->word, "G64") &&
+		            strcmp(n->word, "G94"));
 		if (strcmp(n->word, "S") == 0) {
 			assert_int_equal(n->first_line, 3);
 			assert_int_equal(n->count, 2);
 			seen++;
-		} else if (strcmp(n->word, "G53") == 0) {
-			assert_int_equal(n->first_line, 6);
-			assert_int_equal(n->count, 2);
-			assert_string_equal(mlip_gcode_notice_text(n),
-			                    "treated as G54: mlip has no work offsets");
-			seen++;
-		} else if (strcmp(n->word, "M3") == 0 || strcmp(n->word, "G61.1") == 0 ||
-		           strcmp(n->word, "M30") == 0 || strcmp(n->word, "G94") == 0) {
+		} else if (strcmp(n->word, "M3") == 0 || strcmp(n->word, "G40") == 0) {
 			assert_int_equal(n->count, 1);
 			assert_string_equal(mlip_gcode_notice_text(n),
 			                    "ignored (no effect on motion)");
 			seen++;
+		} else if (strcmp(n->word, "M2") == 0 || strcmp(n->word, "M30") == 0) {
+			assert_int_equal(n->first_line, 11);
+			assert_non_null(strstr(mlip_gcode_notice_text(n), "program end"));
+			seen++;
 		}
 	}
-	assert_int_equal(seen, 6);
-	/* G94 G40 G49 G80 T M6 S M3 G54 G64 M8 G61 G61.1 G53 M4 M5 M9 M7 M0 M1 M2 M30 */
-	assert_int_equal(p.n_notices, 22);
-	mlip_program_free(&p);
+	assert_int_equal(seen, 5);
+	/* G40 G49 G80 T M6 S M3 M8 M4 M5 M9 M7 M2 M30 */
+	assert_int_equal(p.n_notices, 14);
+	mlip_program_list_free(&p);
 }
 
 static void test_notice_overflow(void **state)
@@ -337,26 +367,26 @@ static void test_notice_overflow(void **state)
 	struct mlip_machine m = machine("XY");
 	struct mlip_gcode_error e;
 	struct cap c = {.n = 0, .limit = 64};
-	static const char *const words[] = {"M0", "M1", "M2", "M30", "M3", "M4", "M5", "M6",
-	                                    "M7", "M8", "M9", "S1", "T1", "G40", "G49", "G54",
-	                                    "G61", "G61.1", "G64", "G80", "G94"};
-	size_t k;
+	char w[8];
+	uint32_t k;
 
 	(void)state;
 	mlip_gcode_init(&g, &m);
-	for (k = 0; k < sizeof words / sizeof words[0]; k++) {
-		assert_int_equal(line(&g, words[k], (uint32_t)k + 1, &c, &e), MLIP_OK);
-		assert_int_equal(line(&g, words[k], (uint32_t)k + 100, &c, &e), MLIP_OK);
+	for (k = 0; k < MLIP_GCODE_MAX_NOTICES; k++) {
+		/* M3 .. M9, then Grbl settings lines $10=1, $11=1, ...: all notices */
+		if (k < 7) {
+			snprintf(w, sizeof w, "M%u", (unsigned)(k + 3));
+		} else {
+			snprintf(w, sizeof w, "$%u=1", (unsigned)(k + 3));
+		}
+		assert_int_equal(line(&g, w, k + 1, &c, &e), MLIP_OK);
+		assert_int_equal(line(&g, w, k + 100, &c, &e), MLIP_OK);
 	}
-	assert_int_equal(g.n_notices, sizeof words / sizeof words[0]);
+	assert_int_equal(g.n_notices, MLIP_GCODE_MAX_NOTICES);
 	for (k = 0; k < g.n_notices; k++) {
 		assert_int_equal(g.notices[k].count, 2);
 		assert_int_equal(g.notices[k].first_line, k + 1);
 	}
-	assert_int_equal(line(&g, "G53", 200, &c, &e), MLIP_OK);
-	assert_int_equal(line(&g, "G28", 201, &c, &e), MLIP_OK);
-	assert_int_equal(line(&g, "G30", 202, &c, &e), MLIP_OK);
-	assert_int_equal(g.n_notices, MLIP_GCODE_MAX_NOTICES);
 	/* one more distinct word ("F": initial feed used) is dropped, not overflowed */
 	mlip_gcode_set_initial_feed(&g, 100);
 	assert_int_equal(line(&g, "G1 X1", 203, &c, &e), MLIP_OK);
@@ -369,7 +399,7 @@ static void test_notice_overflow(void **state)
 static void test_modal(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G0 X1 Y1\n"
@@ -400,9 +430,31 @@ static void test_modal(void **state)
 		assert_near(p.blocks[k].tol_mm, EPS, 0);
 		assert_int_equal(p.blocks[k].line, k + 1);
 	}
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
-	check_err("X1 Y1\nG1 X2 F100", 1, 1, "axis words with no motion mode");
+	/* Grbl starts in G0: axis words before any motion mode are a rapid, with
+	 * a note; strict mode refuses them */
+	parse_ok("X1 Y1\nY2\nG1 X2 F100\n", &m, &p);
+	assert_int_equal(p.n, 3);
+	assert_int_equal(p.blocks[0].rapid, 1);
+	assert_int_equal(p.blocks[1].rapid, 1);
+	assert_int_equal(p.blocks[2].rapid, 0);
+	assert_int_equal(p.n_notices, 1);
+	assert_string_equal(p.notices[0].word, "G0");
+	assert_int_equal(p.notices[0].count, 1);
+	mlip_program_list_free(&p);
+	{
+		struct mlip_gcode g;
+		struct mlip_gcode_error e;
+		struct cap c = {.n = 0, .limit = 64};
+
+		mlip_gcode_init(&g, &m);
+		mlip_gcode_set_strict(&g, 1);
+		assert_int_equal(line(&g, "X1 Y1", 1, &c, &e), MLIP_E_SYNTAX);
+		assert_int_equal(e.col, 1);
+		assert_non_null(strstr(e.msg, "axis words with no motion mode"));
+		assert_int_equal(c.n, 0);
+	}
 	check_err("G1 F100\nG1 X1 F0", 2, 7, "feed F must be positive");
 	check_err("G1 X1 F-5", 1, 7, "feed F must be positive");
 }
@@ -420,7 +472,8 @@ static void test_missing_feed(void **state)
 	assert_int_equal(line(&g, "G0 X1", 1, &c, &e), MLIP_OK);
 	assert_int_equal(line(&g, "G1", 2, &c, &e), MLIP_OK); /* mode only: no move */
 	assert_int_equal(line(&g, "  Y1", 3, &c, &e), MLIP_E_SYNTAX);
-	assert_string_equal(e.msg, "missing feed: no F before the first feed move");
+	assert_string_equal(e.msg, "missing feed: no F before the first feed move (a program with "
+	                           "none runs with --default-feed F)");
 	assert_int_equal(e.line, 3);
 	assert_int_equal(e.col, 3);
 	assert_int_equal(line(&g, "X2 G2 I1 J0", 4, &c, &e), MLIP_E_SYNTAX);
@@ -445,14 +498,14 @@ static void test_missing_feed(void **state)
 	/* the program helpers: no F anywhere is an error, a late F is used */
 	check_err("G21\nG1 X1\nG0 Z1", 2, 1, "missing feed");
 	{
-		struct mlip_program p;
+		struct mlip_program_list p;
 
 		parse_ok("G1 X1 Y2\nZ3\nG1 Z2 F333.3\n", &m, &p);
 		assert_int_equal(p.n, 3);
 		assert_near(p.blocks[0].feed_mm_s, 333.3 / 60, 1e-12);
-		assert_near(p.initial_feed_word, 333.3, 0);
-		assert_int_equal(p.initial_feed_line, 3);
-		mlip_program_free(&p);
+		assert_near(p.r.initial_feed_word, 333.3, 0);
+		assert_int_equal(p.r.initial_feed_line, 3);
+		mlip_program_list_free(&p);
 	}
 	{
 		double f = -1;
@@ -466,7 +519,7 @@ static void test_missing_feed(void **state)
 static void test_incremental_and_home(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	m.axis[0].home = 5;
@@ -483,13 +536,13 @@ static void test_incremental_and_home(void **state)
 	assert_near(p.blocks[1].target[1], -2, 0);
 	assert_near(p.blocks[2].target[0], 1, 0);
 	assert_near(p.blocks[3].target[2], 90, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_inches_and_rotary(void **state)
 {
 	struct mlip_machine m = machine("XYZA");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G20 G1 X1 A10 F10\n" /* mixed move: F is a path speed, in/min */
@@ -509,14 +562,14 @@ static void test_inches_and_rotary(void **state)
 	assert_near(p.blocks[3].target[0], 1, 0);
 	assert_near(p.blocks[3].feed_mm_s, 10 * 25.4 / 60, 1e-12); /* speed kept across G21 */
 	assert_near(p.blocks[4].target[0], 26.4, 1e-12);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_config_order_and_axes(void **state)
 {
 	struct mlip_machine m = machine("ZYX");
 	struct mlip_machine xy = machine("XY");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G1 X1 Y2 Z3 F100\n", &m, &p);
@@ -525,7 +578,7 @@ static void test_config_order_and_axes(void **state)
 	assert_near(p.blocks[0].target[1], 2, 0);
 	assert_near(p.blocks[0].target[2], 1, 0);
 	assert_near(p.blocks[0].target[3], 0, 0); /* unused slots zeroed */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	check_err_m("G1 X1 F100\nG1 X2 Z1 Y1", &xy, 2, 7, "axis Z not configured");
 	check_err_m("G1 X1 F100\nG1 B1", &xy, 2, 4, "axis B not configured");
@@ -538,7 +591,7 @@ static void test_config_order_and_axes(void **state)
 static void test_soft_limits(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	int rc;
 
 	(void)state;
@@ -548,7 +601,7 @@ static void test_soft_limits(void **state)
 	check_err("G20 G0 Y40", 1, 8, "Y 1016.000 beyond soft limit 1000.000");
 	/* exactly on the limit is inside */
 	parse_ok("G0 X1000 Y-1000\n", &m, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	/* an arc whose ends are inside but whose bulge is not: blamed on the motion
 	 * word when the bulging axis has no word, and the line emits nothing */
 	check_err("G0 X998 Y5\nG2 Y-5 I0 J-5 F100", 2, 1, "beyond soft limit 1000.000 on the arc");
@@ -557,17 +610,17 @@ static void test_soft_limits(void **state)
 	{
 		static const char t[] = "G0 X998 Y5\nG2 Y-5 J-5 F100\nG1 X1\n";
 
-		rc = mlip_program_parse(t, sizeof t - 1, &m, &p);
+		rc = mlip_program_list_parse(t, sizeof t - 1, &m, &p);
 	}
 	assert_int_equal(rc, 1);
 	assert_int_equal(p.n_errors, 1);
 	assert_int_equal(p.errors[0].col, 1);
 	assert_int_equal(p.n, 2); /* the G0 and the G1 only */
 	assert_near(p.blocks[1].feed_mm_s, 100.0 / 60, 1e-12); /* F of the bad line kept */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	/* the small arc stays inside */
 	parse_ok("G0 X998 Y5\nG3 Y-5 J-5 F100\n", &m, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* guard against non-finite values (a NaN home here) */
 	m.axis[0].home = NAN;
@@ -577,43 +630,60 @@ static void test_soft_limits(void **state)
 static void test_home_codes(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
-	uint32_t k;
-	int found = 0;
+	struct mlip_program_list p;
 
 	(void)state;
-	parse_ok("G28 G91 Z0\n"  /* SheepTile: intermediate point = here */
-	         "G90\n"
-	         "G1 X5 F100\n"
-	         "G28 G91 X0 Y0\n"
-	         "G90 G30 X5\n"  /* absolute, where we are */
-	         "G28\n"         /* no intermediate point at all */
-	         "G1 Y1\n",
+	m.axis[2].home = 50; /* G28/G30 positions default to HOME */
+	/* G28 G91 Z0 (SheepTile): intermediate point here, then Z to its G28
+	 * position; the other axes stay */
+	parse_ok("G1 X5 Y2 Z10 F100\n"
+	         "G28 G91 Z0\n"
+	         "G90 G28 X1\n"   /* rapid to X1, then X to 0 */
+	         "G28\n"          /* every axis to the G28 position */
+	         "G1 X3 Y3 Z3\n"
+	         "G30.1\n"        /* store (3,3,3) */
+	         "G0 X9\n"
+	         "G30\n",
 	         &m, &p);
-	assert_int_equal(p.n, 2);
-	for (k = 0; k < p.n_notices; k++) {
-		if (strcmp(p.notices[k].word, "G28") == 0) {
-			assert_int_equal(p.notices[k].count, 3);
-			assert_int_equal(p.notices[k].first_line, 1);
-			found++;
-		}
-		if (strcmp(p.notices[k].word, "G30") == 0) {
-			assert_int_equal(p.notices[k].count, 1);
-			found++;
-		}
-	}
-	assert_int_equal(found, 2);
-	mlip_program_free(&p);
+	assert_int_equal(p.n, 8);
+	assert_near(p.blocks[1].target[0], 5, 0);
+	assert_near(p.blocks[1].target[2], 50, 0);
+	assert_int_equal(p.blocks[1].rapid, 1);
+	assert_near(p.blocks[2].target[0], 1, 0); /* intermediate */
+	assert_near(p.blocks[3].target[0], 0, 0);
+	assert_near(p.blocks[3].target[1], 2, 0);
+	assert_near(p.blocks[4].target[1], 0, 0); /* G28 alone: Y too */
+	assert_near(p.blocks[4].target[2], 50, 0);
+	assert_near(p.blocks[7].target[0], 3, 0);
+	assert_near(p.blocks[7].target[1], 3, 0);
+	assert_near(p.blocks[7].target[2], 3, 0);
+	assert_near(p.r.offsets_end.g30[0], 3, 0);
+	mlip_program_list_free(&p);
 
-	check_err("G1 X5 F100\nG28 X10", 2, 1, "G28 with motion is not supported");
-	check_err("G1 X5 F100\nG91 G30 Z1", 2, 5, "G30 with motion is not supported");
+	/* G28.1 stores, G28 goes there; the stored position is checked against
+	 * the soft limits before anything moves */
+	{
+		struct mlip_program r;
+		struct mlip_gcode_offsets o;
+		struct mlip_program_options opt = {0, &o, 0};
+		static const char t[] = "G0 X1\nG28 Y5\n";
+
+		mlip_gcode_offsets_init(&o, &m);
+		o.g28[1] = 2000;
+		assert_int_equal(mlip_program_open_mem(&r, t, sizeof t - 1, &m, &opt), 1);
+		assert_int_equal(r.errors[0].line, 2);
+		assert_int_equal(r.errors[0].col, 1);
+		assert_non_null(strstr(r.errors[0].msg, "Y 2000.000 beyond soft limit 1000.000"));
+		mlip_program_close(&r);
+	}
 	check_err("G1 X5 F100\nG28 G1 X5", 2, 5, "G28 and G1 on one line: both use axis words");
+	check_err("G1 X5 F100\nG28 X2000", 2, 5, "X 2000.000 beyond soft limit 1000.000");
 }
 
 static void test_merge(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	parse_ok("G1 X1 F100\n"
@@ -628,12 +698,12 @@ static void test_merge(void **state)
 	assert_int_equal(p.n, 2);
 	assert_near(p.blocks[1].target[0], 1.0000012, 1e-12);
 	assert_int_equal(p.blocks[1].line, 6);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* just above the threshold is kept */
 	parse_ok("G1 X1 F100\nX1.0000011\n", &m, &p);
 	assert_int_equal(p.n, 2);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_sink_full_and_empty(void **state)
@@ -668,7 +738,7 @@ static void test_sink_full_and_empty(void **state)
 /* Every block of p from index `from` on: a chord of the circle (cu, cv, r) in
  * axes (iu, iv), turning in direction dir (+1 CCW); the sagitta of each chord
  * within SAG and the corner tolerances as promised. Returns the swept angle. */
-static double check_arc_tol(const struct mlip_program *p, size_t from, const double *start,
+static double check_arc_tol(const struct mlip_program_list *p, size_t from, const double *start,
                             int iu, int iv, double cu, double cv, double r, int dir, double rtol)
 {
 	double pu = start[iu], pv = start[iv], swept = 0, sag_max = 0;
@@ -711,7 +781,7 @@ static double check_arc_tol(const struct mlip_program *p, size_t from, const dou
 	return swept;
 }
 
-static double check_arc(const struct mlip_program *p, size_t from, const double *start, int iu,
+static double check_arc(const struct mlip_program_list *p, size_t from, const double *start, int iu,
                         int iv, double cu, double cv, double r, int dir)
 {
 	return check_arc_tol(p, from, start, iu, iv, cu, cv, r, dir, 1e-9);
@@ -720,7 +790,7 @@ static double check_arc(const struct mlip_program *p, size_t from, const double 
 static void test_arc_g17(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	double s[3] = {10, 0, 0}, sw;
 	size_t n;
 
@@ -736,14 +806,14 @@ static void test_arc_g17(void **state)
 	assert_near(p.blocks[p.n - 1].target[1], 10, 0);
 	assert_near(p.blocks[1].feed_mm_s, 10, 1e-12);
 	assert_int_equal(p.blocks[1].rapid, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* CW, same ends: the long way round (270 degrees) */
 	parse_ok("G1 X10 Y0 F600\nG2 X0 Y10 I-10 J0\n", &m, &p);
 	sw = check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1);
 	assert_near(sw, -1.5 * M_PI, 1e-9);
 	assert_true(p.blocks[1].target[1] < 0); /* leaves downwards */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* CW quarter with the center given by J only; modal G2 on the next line */
 	parse_ok("G1 X10 Y0 F600\nG2 X0 Y-10 I-10\nX-10 Y0 J10\n", &m, &p);
@@ -752,18 +822,18 @@ static void test_arc_g17(void **state)
 	sw = check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1);
 	assert_near(sw, -M_PI, 1e-9);
 	assert_near(p.blocks[n - 1].target[1], -10, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* tiny arc (radius below the sagitta bound): still a few chords */
 	parse_ok("G1 X0.0005 Y0 F600\nG3 X-0.0005 Y0 I-0.0005\n", &m, &p);
 	assert_int_equal(p.n, 3);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_arc_g18_g19(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	double s18[3] = {10, 0, 0}, s19[3] = {0, 10, 0};
 
 	(void)state;
@@ -772,20 +842,20 @@ static void test_arc_g18_g19(void **state)
 	parse_ok("G1 X10 F600\nG18 G3 X0 Z-10 I-10 K0\n", &m, &p);
 	assert_near(check_arc(&p, 1, s18, 2, 0, 0, 0, 10, 1), M_PI / 2, 1e-9);
 	assert_true(p.blocks[p.n / 2].target[2] < 0 && p.blocks[p.n / 2].target[0] > 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 X10 F600\nG18 G2 X0 Z-10 I-10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s18, 2, 0, 0, 0, 10, -1), -1.5 * M_PI, 1e-9);
 	assert_true(p.blocks[1].target[2] > 0); /* the long way, through Z > 0 */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* G19 is the YZ plane (u = Y, v = Z) with J K */
 	parse_ok("G1 Y10 F600\nG19 G3 Y0 Z10 J-10 K0\n", &m, &p);
 	assert_near(check_arc(&p, 1, s19, 1, 2, 0, 0, 10, 1), M_PI / 2, 1e-9);
 	assert_true(p.blocks[p.n / 2].target[1] > 0 && p.blocks[p.n / 2].target[2] > 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 Y10 F600\nG19 G2 Y0 Z-10 K0 J-10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s19, 1, 2, 0, 0, 10, -1), -M_PI / 2, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* the offset word of the normal axis is an error; so are missing centers */
 	check_err("G1 X10 F600\nG3 X0 Y10 I-10 K1", 2, 16,
@@ -813,24 +883,24 @@ static void test_arc_g18_g19(void **state)
 static void test_arc_radius_tolerance(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 
 	(void)state;
 	/* r = 10: allowed difference max(0.002, 0.01) = 0.01 */
 	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10.009 I-10\n", &m, &p);
 	assert_near(p.blocks[p.n - 1].target[1], 10.009, 0); /* the end is exact */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	check_err("G1 X10 Y0 F600\nG3 X0 Y10.011 I-10", 2, 1, "differs from radius to end 10.011");
 	/* small radius: the absolute 0.002 applies */
 	parse_ok("G1 X1 Y0 F600\nG3 X0 Y1.0019 I-1\n", &m, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	check_err("G1 X1 Y0 F600\nG3 X0 Y1.0021 I-1", 2, 1, "arc radius to start 1.000");
 }
 
 static void test_full_circle_and_helix(void **state)
 {
 	struct mlip_machine m = machine("XYZA");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	double s[4] = {10, 0, 0, 0};
 	size_t k;
 
@@ -840,12 +910,12 @@ static void test_full_circle_and_helix(void **state)
 	assert_true(p.blocks[1].target[1] < 0); /* CW: first goes down */
 	assert_near(p.blocks[p.n - 1].target[0], 10, 0);
 	assert_near(p.blocks[p.n - 1].target[1], 0, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* full circle from I J only, no axis words, modal G3 */
 	parse_ok("G1 X10 Y0 F600\nG3 I-10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), 2 * M_PI, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* helix: Z and A move linearly with the angle */
 	parse_ok("G1 X10 Y0 F600\nG3 X-10 Y0 Z5 A90 I-10 J0\n", &m, &p);
@@ -863,45 +933,45 @@ static void test_full_circle_and_helix(void **state)
 		assert_near(p.blocks[k].target[3], 90 * ang / M_PI, 1e-9);
 	}
 	assert_near(p.blocks[p.n - 1].target[2], 5, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* helical full circle in G91 (a thread-milling pass) */
 	parse_ok("G1 X10 Y0 F600\nG91 G2 Z-1 I-10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -2 * M_PI, 1e-9);
 	assert_near(p.blocks[p.n - 1].target[2], -1, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_r_arcs(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	double s[3] = {10, 0, 0};
 
 	(void)state;
 	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10 R10\n", &m, &p); /* short CCW: center origin */
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), M_PI / 2, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10 R-10\n", &m, &p); /* long CCW: center (10,10) */
 	assert_near(check_arc(&p, 1, s, 0, 1, 10, 10, 10, 1), 1.5 * M_PI, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 X10 Y0 F600\nG2 X0 Y10 R10\n", &m, &p); /* short CW: center (10,10) */
 	assert_near(check_arc(&p, 1, s, 0, 1, 10, 10, 10, -1), -M_PI / 2, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	parse_ok("G1 X10 Y0 F600\nG2 X0 Y10 R-10\n", &m, &p); /* long CW: center origin */
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -1.5 * M_PI, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	/* half circle: endpoints exactly 2R apart */
 	parse_ok("G1 X10 Y0 F600\nG3 X-10 Y0 R10\n", &m, &p);
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), M_PI, 1e-9);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	/* R in inches */
 	{
 		double si[3] = {25.4, 0, 0};
 
 		parse_ok("G20 G1 X1 Y0 F10\nG3 X0 Y1 R1\n", &m, &p);
 		assert_near(check_arc(&p, 1, si, 0, 1, 0, 0, 25.4, 1), M_PI / 2, 1e-9);
-		mlip_program_free(&p);
+		mlip_program_list_free(&p);
 	}
 
 	check_err("G1 X10 Y0 F600\nG3 X30 Y0 R5", 2, 11,
@@ -936,7 +1006,7 @@ static void test_arc_random(void **state)
 		double r = exp(urand(log(0.005), log(500))), a0 = urand(-M_PI, M_PI);
 		double sweep = it % 7 == 0 ? 2 * M_PI : urand(0.01, 2 * M_PI - 0.01);
 		double cu = urand(-100, 100), cv = urand(-100, 100), s[3], e[3], sw;
-		struct mlip_program prog;
+		struct mlip_program_list prog;
 		char text[512];
 		size_t n;
 
@@ -967,7 +1037,7 @@ static void test_arc_random(void **state)
 		sw = check_arc_tol(&prog, 1, s, iu, iv, cu, cv, r, cw ? -1 : 1, 1e-7);
 		assert_near(fabs(sw), sweep, 1e-6);
 		assert_near(prog.blocks[prog.n - 1].target[in], e[in], 1e-8);
-		mlip_program_free(&prog);
+		mlip_program_list_free(&prog);
 		checked++;
 	}
 	assert_true(checked > 500);
@@ -978,7 +1048,7 @@ static void test_arc_random(void **state)
 static void test_program_errors_and_print(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	char *out = NULL;
 	size_t len = 0;
 	FILE *f;
@@ -992,7 +1062,7 @@ static void test_program_errors_and_print(void **state)
 	                           "X2000 (too far)\n";
 
 	(void)state;
-	rc = mlip_program_parse(text, sizeof text - 1, &m, &p);
+	rc = mlip_program_list_parse(text, sizeof text - 1, &m, &p);
 	assert_int_equal(rc, 1);
 	assert_int_equal(p.n_errors, 3);
 	assert_int_equal(p.n_errors_total, 3);
@@ -1000,8 +1070,8 @@ static void test_program_errors_and_print(void **state)
 	assert_int_equal(p.n, 2);
 	f = open_memstream(&out, &len);
 	assert_non_null(f);
-	mlip_program_print_errors(&p, "a.nc", f);
-	mlip_program_print_notices(&p, "a.nc", f);
+	mlip_program_print_errors(&p.r, "a.nc", f);
+	mlip_program_print_notices(&p.r, "a.nc", f);
 	fclose(f);
 	assert_string_equal(out,
 	                    "a.nc:2:5: error: malformed number '1.2.3'\n"
@@ -1011,31 +1081,31 @@ static void test_program_errors_and_print(void **state)
 	                    "a.nc:5: note: M3 ignored (no effect on motion) (2 times)\n"
 	                    "a.nc:5: note: S ignored (no effect on motion)\n");
 	free(out);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 
 	/* a valid program prints no errors; whole-file errors have no column */
 	parse_ok("G0 X1\n", &m, &p);
 	f = open_memstream(&out, &len);
-	mlip_program_print_errors(&p, "b.nc", f);
+	mlip_program_print_errors(&p.r, "b.nc", f);
 	fclose(f);
 	assert_string_equal(out, "");
 	free(out);
-	mlip_program_free(&p);
-	rc = mlip_program_parse("G21\n", 4, &m, &p);
+	mlip_program_list_free(&p);
+	rc = mlip_program_list_parse("G21\n", 4, &m, &p);
 	assert_int_equal(rc, 1);
 	f = open_memstream(&out, &len);
-	mlip_program_print_errors(&p, "c.nc", f);
+	mlip_program_print_errors(&p.r, "c.nc", f);
 	fclose(f);
 	assert_string_equal(out, "c.nc:1: error: empty program: no motion\n"
 	                         "c.nc: 1 error, program rejected: nothing was run\n");
 	free(out);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_program_error_cap(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	size_t n = 1500, k;
 	char *text = malloc(n * 6 + 16);
 	int rc;
@@ -1046,27 +1116,29 @@ static void test_program_error_cap(void **state)
 	for (k = 0; k < n; k++) {
 		strcat(text + k * 5, "X1 E\n");
 	}
-	rc = mlip_program_parse(text, strlen(text), &m, &p);
+	rc = mlip_program_list_parse(text, strlen(text), &m, &p);
 	assert_int_equal(rc, 1);
 	assert_int_equal(p.n_errors, MLIP_PROGRAM_MAX_ERRORS);
 	assert_int_equal(p.n_errors_total, n);
 	assert_int_equal(p.errors[999].line, 1001);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	free(text);
 }
 
 static void test_read_file_errors(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
-	struct mlip_program p;
+	struct mlip_program_list p;
 	char *buf;
 	size_t len;
 
 	(void)state;
 	assert_int_equal(mlip_read_file("/nonexistent/x.nc", &buf, &len), -ENOENT);
-	assert_int_equal(mlip_program_load("/nonexistent/x.nc", &m, &p), -ENOENT);
+	assert_true(mlip_program_list_load("/nonexistent/x.nc", &m, &p) < 0);
+	assert_non_null(strstr(p.r.msg, "No such file"));
+	mlip_program_list_free(&p);
 	assert_int_equal(p.n, 0);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 static void test_scan_axes(void **state)
@@ -1100,7 +1172,7 @@ static char *shared_path(const char *file)
 }
 
 static void load_file(const char *file, const char *axes, size_t min_blocks,
-                      struct mlip_program *p)
+                      struct mlip_program_list *p)
 {
 	struct mlip_machine m = big_machine(axes);
 	char L[8], *buf;
@@ -1116,9 +1188,9 @@ static void load_file(const char *file, const char *axes, size_t min_blocks,
 	assert_int_equal(mlip_gcode_scan_axes(buf, len, L), (int)strlen(axes));
 	assert_string_equal(L, axes);
 	free(buf);
-	rc = mlip_program_load(path, &m, p);
+	rc = mlip_program_list_load(path, &m, p);
 	if (rc) {
-		mlip_program_print_errors(p, path, stderr);
+		mlip_program_print_errors(&p->r, path, stderr);
 	}
 	assert_int_equal(rc, 0);
 	assert_true(p->n >= min_blocks);
@@ -1126,24 +1198,24 @@ static void load_file(const char *file, const char *axes, size_t min_blocks,
 
 static void test_toolpaths(void **state)
 {
-	struct mlip_program p;
+	struct mlip_program_list p;
 	size_t k;
 
 	(void)state;
 	load_file("MB-2.3_test.nc", "XYZ", 112000, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	load_file("tball-pocket.gcode", "XYZ", 40000, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	load_file("4006.nc", "XYZA", 16000, &p);
 	for (k = 0; k < p.n; k++) {
 		assert_true(isfinite(p.blocks[k].target[3]));
 	}
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	load_file("flower-spiral-2d.ngc", "XY", 87000, &p);
 	assert_near(p.blocks[0].feed_mm_s, 200, 1e-9); /* F12000 mm/min */
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 	load_file("SheepTile-v2.nc", "XYZ", 10000, &p);
-	mlip_program_free(&p);
+	mlip_program_list_free(&p);
 }
 
 /* SheepTile through the core line by line: the chords of every arc lie on
@@ -1250,6 +1322,465 @@ static void test_sheeptile_arcs(void **state)
 	free(buf);
 }
 
+/* ---- program events, offsets, path modes, feed modes, Grbl (issue 11) ---- */
+
+/* Parse text with the given start offsets (NULL: defaults), must be valid. */
+static void parse_off(const char *text, const struct mlip_machine *m,
+                      const struct mlip_gcode_offsets *o, struct mlip_program_list *p)
+{
+	struct mlip_program_options opt = {0, o, 0};
+	struct mlip_block b;
+	int rc;
+
+	memset(p, 0, sizeof *p);
+	rc = mlip_program_open_mem(&p->r, text, strlen(text), m, &opt);
+	if (rc != 0) {
+		mlip_program_print_errors(&p->r, "<test>", stderr);
+	}
+	assert_int_equal(rc, 0);
+	p->blocks = malloc(sizeof *p->blocks * (p->r.n + 1));
+	assert_non_null(p->blocks);
+	while (mlip_program_next(&p->r, &b) > 0) {
+		p->blocks[p->n++] = b;
+	}
+	assert_int_equal(p->n, p->r.n);
+	p->notices = p->r.notices;
+	p->n_notices = p->r.n_notices;
+}
+
+static const struct mlip_gcode_notice *find_notice(const struct mlip_program_list *p,
+                                                   const char *word)
+{
+	uint32_t k;
+
+	for (k = 0; k < p->n_notices; k++) {
+		if (strcmp(p->notices[k].word, word) == 0) {
+			return &p->notices[k];
+		}
+	}
+	return NULL;
+}
+
+static void test_dwell(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+
+	(void)state;
+	/* G4 P is seconds (LinuxCNC, Grbl 1.1); it comes before the motion of
+	 * its line (LinuxCNC's order of execution) */
+	parse_ok("G1 X1 F60\nG4 P0.5\nG4 P1 G1 X2\nG04P3\nG4 P0\n", &m, &p);
+	assert_int_equal(p.n, 6);
+	assert_int_equal(p.blocks[0].kind, MLIP_BLOCK_MOVE);
+	assert_int_equal(p.blocks[1].kind, MLIP_BLOCK_DWELL);
+	assert_near(p.blocks[1].dwell_s, 0.5, 0);
+	assert_int_equal(p.blocks[1].line, 2);
+	assert_near(p.blocks[1].target[0], 1, 0); /* where the machine rests */
+	assert_int_equal(p.blocks[2].kind, MLIP_BLOCK_DWELL);
+	assert_near(p.blocks[2].dwell_s, 1, 0);
+	assert_near(p.blocks[2].target[0], 1, 0);
+	assert_int_equal(p.blocks[3].kind, MLIP_BLOCK_MOVE);
+	assert_near(p.blocks[3].target[0], 2, 0);
+	assert_near(p.blocks[4].dwell_s, 3, 0);
+	assert_near(p.blocks[5].dwell_s, 0, 0);
+	mlip_program_list_free(&p);
+	/* a dwell alone is no motion */
+	check_err("G4 P1\n", 1, 0, "empty program: no motion");
+	/* a line with an error emits nothing, its dwell neither */
+	{
+		static const char t[] = "G1 X1 F60\nG4 P1 G1 X2000\n";
+
+		assert_int_equal(mlip_program_list_parse(t, sizeof t - 1, &m, &p), 1);
+		assert_int_equal(p.errors[0].line, 2);
+		assert_int_equal(p.n, 1);
+		mlip_program_list_free(&p);
+	}
+}
+
+static void test_pauses_and_end(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+	struct mlip_gcode_offsets o;
+
+	(void)state;
+	mlip_gcode_offsets_init(&o, &m);
+	o.select = 2;
+	o.g92_on = 1;
+	o.g92[0] = 1;
+	/* M0/M60 pause, M1 optional pause, after the motion of their line;
+	 * after M2 nothing is read, not even a bad line (LinuxCNC) */
+	parse_off("G1 X1 F60 M0\nM1\nG1 X2 M60\nM2\nG1 X3\nthis is not G-code\n", &m, &o, &p);
+	assert_int_equal(p.n, 5);
+	assert_int_equal(p.blocks[0].kind, MLIP_BLOCK_MOVE);
+	assert_int_equal(p.blocks[1].kind, MLIP_BLOCK_PAUSE);
+	assert_int_equal(p.blocks[1].line, 1);
+	assert_int_equal(p.blocks[2].kind, MLIP_BLOCK_OPTIONAL_PAUSE);
+	assert_int_equal(p.blocks[3].kind, MLIP_BLOCK_MOVE);
+	assert_near(p.blocks[3].target[0], 3, 0); /* X2 + G92 offset 1 */
+	assert_int_equal(p.blocks[4].kind, MLIP_BLOCK_PAUSE);
+	assert_non_null(find_notice(&p, "M60"));
+	assert_non_null(find_notice(&p, "M2"));
+	/* M2: G54 and G92 off for the next program, the G92 values kept */
+	assert_int_equal(p.r.offsets_end.select, 0);
+	assert_int_equal(p.r.offsets_end.g92_on, 0);
+	assert_near(p.r.offsets_end.g92[0], 1, 0);
+	mlip_program_list_free(&p);
+	/* without M2 the state stays as the program left it */
+	parse_off("G56 G1 X1 F60\n", &m, NULL, &p);
+	assert_int_equal(p.r.offsets_end.select, 2);
+	mlip_program_list_free(&p);
+}
+
+static void test_work_offsets(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+	struct mlip_gcode_offsets o;
+
+	(void)state;
+	mlip_gcode_offsets_init(&o, &m);
+	o.coord[1][0] = 10; /* G55 */
+	o.coord[1][1] = 20;
+	o.coord[8][2] = -5; /* G59.3 */
+	parse_off("G0 X1 Y1\n"         /* G54: machine = program */
+	          "G55 X1 Y1\n"        /* (11, 21) */
+	          "G91 X1\n"           /* incremental: offsets do not apply (12) */
+	          "G90 G53 X1\n"       /* machine coordinates, this line only */
+	          "X2\n"               /* G55 again: 12 */
+	          "G59.3 Z1\n"         /* -4 */
+	          "G10 L2 P2 X100\n"   /* G55's X origin := 100 (machine) */
+	          "G55 X0\n"           /* 100 */
+	          "G10 L20 P0 X5\n"    /* current X (100) reads 5 in G55 */
+	          "X5\n"               /* stays: 100 */
+	          "X6\n"               /* 101 */
+	          "G92 X0\n"           /* current X reads 0: G92 offset 6 */
+	          "X1\n"               /* 102 */
+	          "G92.2\n"            /* G92 off (kept) */
+	          "X1\n"               /* 96 */
+	          "G92.3\n"            /* on again */
+	          "X0\n"               /* 101 */
+	          "G92.1\n"            /* zero and off */
+	          "X0\n",              /* 95 */
+	          &m, &o, &p);
+	{
+		static const double x[] = {1, 11, 12, 1, 12, 12, 100, 101, 102, 96, 101, 95};
+		size_t k;
+
+		/* merged points emit nothing: compare the X of the moves given */
+		assert_int_equal(p.n, 12);
+		for (k = 0; k < 12; k++) {
+			assert_near(p.blocks[k].target[0], x[k], 1e-12);
+		}
+		assert_near(p.blocks[1].target[1], 21, 0);
+		assert_near(p.blocks[5].target[2], -4, 0);
+	}
+	assert_int_equal(p.r.offsets_end.select, 1);
+	assert_near(p.r.offsets_end.coord[1][0], 95, 1e-12);
+	assert_int_equal(p.r.offsets_end.g92_on, 0);
+	assert_near(p.r.offsets_end.g92[0], 0, 0);
+	mlip_program_list_free(&p);
+
+	/* G10 values are in the line's units, G91 does not apply to them */
+	parse_off("G20 G91 G10 L2 P1 X1\nG90 G0 X0\n", &m, NULL, &p);
+	assert_near(p.blocks[0].target[0], 25.4, 1e-12);
+	mlip_program_list_free(&p);
+
+	/* soft limits are in machine coordinates */
+	{
+		struct mlip_program r;
+		struct mlip_program_options opt = {0, &o, 0};
+		static const char t[] = "G55 G0 X995\n";
+
+		assert_int_equal(mlip_program_open_mem(&r, t, sizeof t - 1, &m, &opt), 1);
+		assert_int_equal(r.errors[0].col, 8);
+		assert_string_equal(r.errors[0].msg, "X 1005.000 beyond soft limit 1000.000");
+		mlip_program_close(&r);
+	}
+	check_err("G92 X-1000\nG0 X1\n", 2, 4, "X 1001.000 beyond soft limit 1000.000");
+	check_err("G55 G56 X1", 1, 5, "G55 and G56 on one line: same modal group");
+}
+
+static void test_path_modes(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+
+	(void)state;
+	parse_ok("G1 X1 F60\n"
+	         "G61 X2\n"          /* exact stop from here */
+	         "G61.1 X3\n"
+	         "G64 X4\n"          /* blending within eps */
+	         "G64 P0.005 X5\n"   /* tighter */
+	         "G64 P0.5 X6\n"     /* looser than the machine: capped */
+	         "G64 P0 Q0.1 X7\n"  /* P0: as G64; Q: noted */
+	         "G20 G64 P0.0001 X1\n",
+	         &m, &p);
+	assert_int_equal(p.n, 8);
+	assert_int_equal(p.blocks[0].exact_stop, 0);
+	assert_int_equal(p.blocks[1].exact_stop, 1);
+	assert_int_equal(p.blocks[2].exact_stop, 1);
+	assert_int_equal(p.blocks[3].exact_stop, 0);
+	assert_near(p.blocks[3].tol_mm, EPS, 0);
+	assert_near(p.blocks[4].tol_mm, 0.005, 1e-15);
+	assert_near(p.blocks[5].tol_mm, EPS, 0);
+	assert_near(p.blocks[6].tol_mm, EPS, 0);
+	assert_near(p.blocks[7].tol_mm, 0.00254, 1e-15);
+	assert_int_equal(find_notice(&p, "G64P")->first_line, 6);
+	assert_int_equal(find_notice(&p, "G64Q")->first_line, 7);
+	mlip_program_list_free(&p);
+
+	/* an arc in a G64 P region: chords within a tenth of P, corners in the rest */
+	parse_ok("G64 P0.002\nG0 X10\nG3 X-10 I-10 F600\n", &m, &p);
+	assert_true(p.n > 10);
+	for (size_t k = 1; k + 1 < p.n; k++) {
+		assert_true(p.blocks[k].tol_mm <= 0.002 && p.blocks[k].tol_mm >= 0.0018);
+	}
+	assert_near(p.blocks[p.n - 1].tol_mm, 0.002, 0);
+	mlip_program_list_free(&p);
+}
+
+static void test_inverse_time(void **state)
+{
+	struct mlip_machine m = machine("XYZA");
+	struct mlip_program_list p;
+
+	(void)state;
+	/* G93: the move takes 1/F minutes (LinuxCNC) */
+	parse_ok("G0 X10\n"
+	         "G93 G1 X20 F6\n"      /* 10 mm in 10 s */
+	         "A90 F60\n"            /* rotary only: 90 deg in 1 s */
+	         "G0 X0\n"              /* rapids need no F */
+	         "G3 X-10 Y10 I-10 F60\n" /* quarter circle, 15.7 mm in 1 s */
+	         "G94 G1 X0 F600\n",
+	         &m, &p);
+	assert_near(p.blocks[1].feed_mm_s, 1.0, 1e-12);
+	assert_near(p.blocks[2].feed_mm_s, 90.0, 1e-12);
+	assert_int_equal(p.blocks[3].rapid, 1);
+	assert_near(p.blocks[4].feed_mm_s, 10 * PI_2, 1e-9);
+	assert_near(p.blocks[p.n - 1].feed_mm_s, 10, 1e-12);
+	mlip_program_list_free(&p);
+	check_err("G93 G1 X1 F10\nX2\n", 2, 1, "G93 inverse time: every feed move needs its own F");
+	check_err("G1 X1 F100\nG93\nG94 G1 X2\n", 3, 5,
+	          "missing feed: a change between G93 and G94 needs a new F");
+}
+
+static void test_grbl_lines(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+	static const char *const words[] = {"$H", "$X", "$$", "$#", "$32=", "$N", "$RST",
+	                                    "$SLP", "$C", "$G", "$I", "$"};
+	size_t k;
+
+	(void)state;
+	parse_ok("$H\n$X\n$$\n$#\n$32=1\n$N0=G20\n$RST=*\n$SLP\n$C\n$G\n$I\n$\n  $h  \n"
+	         "G1 X1 F60\n/G1 X50\n",
+	         &m, &p);
+	assert_int_equal(p.n, 1);
+	for (k = 0; k < sizeof words / sizeof words[0]; k++) {
+		const struct mlip_gcode_notice *n = find_notice(&p, words[k]);
+
+		assert_non_null(n);
+		assert_int_equal(n->first_line, k + 1);
+		assert_non_null(strstr(mlip_gcode_notice_text(n), "skipped"));
+	}
+	assert_int_equal(find_notice(&p, "$H")->count, 2);
+	assert_non_null(strstr(mlip_gcode_notice_text(find_notice(&p, "$H")), "does not home"));
+	assert_int_equal(find_notice(&p, "/")->first_line, 15); /* block delete */
+	mlip_program_list_free(&p);
+
+	/* M codes that do not move the tool: notes (M29, a printer fan, overrides) */
+	parse_ok("M29\nM106 S255\nM48\nG1 X1 F60 M107\nM29\n", &m, &p);
+	assert_int_equal(p.n, 1);
+	assert_int_equal(find_notice(&p, "M29")->count, 2);
+	assert_string_equal(mlip_gcode_notice_text(find_notice(&p, "M106")),
+	                    "ignored (no effect on motion)");
+	assert_non_null(find_notice(&p, "M48"));
+	assert_non_null(find_notice(&p, "M107"));
+	mlip_program_list_free(&p);
+
+	/* a jog runs as G1 at its own F, its G91/G20 for itself only (Grbl) */
+	parse_ok("G0 X5\n$J=G91 G20 X1 F60\nX1\n$J=G53 Y2 F600\nY1\n", &m, &p);
+	assert_int_equal(p.n, 5);
+	assert_near(p.blocks[1].target[0], 5 + 25.4, 1e-12);
+	assert_int_equal(p.blocks[1].rapid, 0);
+	assert_near(p.blocks[1].feed_mm_s, 25.4, 1e-12); /* 60 in/min */
+	assert_near(p.blocks[2].target[0], 1, 0);        /* G0 G90 G21 again */
+	assert_int_equal(p.blocks[2].rapid, 1);
+	assert_near(p.blocks[3].target[1], 2, 0);
+	assert_int_equal(p.blocks[3].line, 4);
+	assert_int_equal(find_notice(&p, "$J")->count, 2);
+	mlip_program_list_free(&p);
+	check_err("G1 X1 F60\n$J=G91 X10\n", 2, 1, "Grbl jog without F");
+	check_err("G1 X1 F60\n$J=G2 X10 I1 F60\n", 2, 4, "Grbl jog: only G20, G21, G90, G91, G53");
+	check_err("G1 X1 F60\n$J=X2000 F60\n", 2, 4, "X 2000.000 beyond soft limit");
+	check_err("G1 X1 F60\n$J=X1.2.3 F60\n", 2, 5, "malformed number '1.2.3'");
+	check_err("$FOO\nG1 X1 F60\n", 1, 1, "unknown Grbl system command '$FOO'");
+	/* Grbl's real-time characters alone on a line: noted */
+	parse_ok("?\n ~ \nG1 X1 F60\n!\n", &m, &p);
+	assert_int_equal(p.n, 1);
+	assert_int_equal(find_notice(&p, "?")->first_line, 1);
+	assert_int_equal(find_notice(&p, "~")->first_line, 2);
+	assert_non_null(strstr(mlip_gcode_notice_text(find_notice(&p, "!")), "M0"));
+	mlip_program_list_free(&p);
+	check_err("G1 X1 F60 ~\n", 1, 11, "unexpected character '~'");
+	check_err("$H (home)\nG1 X1 F60\n", 1, 1, "unknown Grbl system command");
+	check_err("$N0=G20 \xE9\nG1 X1 F60\n", 1, 9, "unexpected character 0xE9");
+	{
+		struct mlip_gcode g;
+		struct mlip_gcode_error e;
+		struct cap c = {.n = 0, .limit = 64};
+
+		mlip_gcode_init(&g, &m);
+		mlip_gcode_set_strict(&g, 1);
+		assert_int_equal(line(&g, "$H", 1, &c, &e), MLIP_E_UNSUPPORTED);
+		assert_non_null(strstr(e.msg, "Grbl system line '$H' is not G-code (strict mode)"));
+	}
+}
+
+static void test_line_ends_and_stream(void **state)
+{
+	struct mlip_machine m = big_machine("XYZ");
+	struct mlip_program_list p;
+	double r = 5000, ang, prev = -1;
+	size_t k;
+
+	(void)state;
+	/* LF, CRLF and lone CR end lines; CR CR LF is two */
+	parse_ok("G1 X1 F60\rX2\r\nX3\nX4\r\r\nX5", &m, &p);
+	assert_int_equal(p.n, 5);
+	assert_int_equal(p.blocks[3].line, 4);
+	assert_int_equal(p.blocks[4].line, 6);
+	mlip_program_list_free(&p);
+
+	/* an arc of more chords than a batch comes out whole, in order */
+	parse_ok("G0 X5000\nG3 I-5000 F6000\n", &m, &p);
+	assert_true(p.n > 1 + 2 * MLIP_PROGRAM_BATCH / 2);
+	assert_true(p.n - 1 > MLIP_PROGRAM_BATCH);
+	for (k = 1; k < p.n; k++) {
+		assert_near(hypot(p.blocks[k].target[0], p.blocks[k].target[1]), r, 1e-6);
+		ang = atan2(p.blocks[k].target[1], p.blocks[k].target[0]);
+		ang = ang < 0 ? ang + 2 * M_PI_VALUE : ang;
+		if (k + 1 < p.n) {
+			assert_true(ang > prev); /* counter-clockwise, no repeat, no gap */
+		}
+		prev = ang;
+	}
+	assert_near(p.blocks[p.n - 1].target[0], 5000, 0);
+	mlip_program_list_free(&p);
+}
+
+static void test_files(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program r;
+	struct mlip_block b;
+	char dir[] = "/tmp/mlip-test-XXXXXX", path[64], fifo[64];
+	FILE *f;
+	int rc;
+
+	(void)state;
+	/* not regular files: refused at once, never read (nor blocked on) */
+	assert_true(mlip_program_open(&r, "/dev/zero", &m, NULL) < 0);
+	assert_non_null(strstr(r.msg, "a character device"));
+	mlip_program_close(&r);
+	assert_non_null(mkdtemp(dir));
+	assert_true(mlip_program_open(&r, dir, &m, NULL) < 0);
+	assert_non_null(strstr(r.msg, "a directory"));
+	mlip_program_close(&r);
+	snprintf(fifo, sizeof fifo, "%s/fifo", dir);
+	assert_int_equal(mkfifo(fifo, 0600), 0);
+	assert_true(mlip_program_open(&r, fifo, &m, NULL) < 0);
+	assert_non_null(strstr(r.msg, "a FIFO"));
+	mlip_program_close(&r);
+	remove(fifo);
+
+	/* a file changed between the check and the run stops the stream */
+	snprintf(path, sizeof path, "%s/p.ngc", dir);
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("G1 X1 F60\nX2\nX3\n", f);
+	fclose(f);
+	assert_int_equal(mlip_program_open(&r, path, &m, NULL), 0);
+	assert_int_equal(r.n, 3);
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("G1 X1 F60\nX2 X7\nX3\n", f);
+	fclose(f);
+	while ((rc = mlip_program_next(&r, &b)) > 0) {
+	}
+	assert_true(rc < 0);
+	assert_non_null(strstr(r.msg, "the file changed after it was checked (line 2: duplicate X"));
+	mlip_program_close(&r);
+
+	/* a very long line: an error with its length, only a line's worth kept */
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("G1 X1 F60\n(", f);
+	for (rc = 0; rc < 100000; rc++) {
+		fputc('x', f);
+	}
+	fputs(")\n", f);
+	fclose(f);
+	assert_int_equal(mlip_program_open(&r, path, &m, NULL), 1);
+	assert_string_equal(r.errors[0].msg, "line too long: 100002 bytes, at most 256");
+	mlip_program_close(&r);
+	remove(path);
+	rmdir(dir);
+}
+
+static void test_offsets_file(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_gcode_offsets o, back;
+	char dir[] = "/tmp/mlip-test-XXXXXX", path[64], buf[256];
+	FILE *f, *err;
+	char *out = NULL;
+	size_t len = 0;
+
+	(void)state;
+	assert_non_null(mkdtemp(dir));
+	snprintf(path, sizeof path, "%s/offsets", dir);
+	/* missing: the defaults (G28/G30 at HOME) */
+	m.axis[2].home = 50;
+	assert_int_equal(mlip_offsets_load(path, &m, &o, "t", stderr), 0);
+	assert_int_equal(o.select, 0);
+	assert_near(o.g28[2], 50, 0);
+	o.select = 7;
+	o.coord[7][1] = -12.5;
+	o.g92_on = 1;
+	o.g92[0] = 0.1;
+	o.g30[0] = 1.0 / 3;
+	assert_int_equal(mlip_offsets_save(path, &m, &o, "t", stderr), 0);
+	assert_int_equal(mlip_offsets_load(path, &m, &back, "t", stderr), 0);
+	assert_memory_equal(&o, &back, sizeof o); /* exact: 17 digits */
+	mlip_offsets_describe(&m, &o, buf, sizeof buf);
+	assert_string_equal(buf, "G59.2 X0 Y-12.5 Z0, G92 on X0.1 Y0 Z0");
+
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("# hand-edited\nSELECT = G55\nG55 = 1 2\n", f);
+	fclose(f);
+	err = open_memstream(&out, &len);
+	assert_int_equal(mlip_offsets_load(path, &m, &o, "t", err), -1);
+	fclose(err);
+	assert_non_null(strstr(out, ":3: error: G55 needs 3 numbers (one per axis, config order), got 2"));
+	free(out);
+	f = fopen(path, "w");
+	assert_non_null(f);
+	fputs("G53 = 1 2 3\n", f);
+	fclose(f);
+	out = NULL;
+	err = open_memstream(&out, &len);
+	assert_int_equal(mlip_offsets_load(path, &m, &o, "t", err), -1);
+	fclose(err);
+	assert_non_null(strstr(out, ":1: error: unknown key 'G53'"));
+	free(out);
+	remove(path);
+	rmdir(dir);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1281,6 +1812,15 @@ int main(void)
 		cmocka_unit_test(test_scan_axes),
 		cmocka_unit_test(test_toolpaths),
 		cmocka_unit_test(test_sheeptile_arcs),
+		cmocka_unit_test(test_dwell),
+		cmocka_unit_test(test_pauses_and_end),
+		cmocka_unit_test(test_work_offsets),
+		cmocka_unit_test(test_path_modes),
+		cmocka_unit_test(test_inverse_time),
+		cmocka_unit_test(test_grbl_lines),
+		cmocka_unit_test(test_line_ends_and_stream),
+		cmocka_unit_test(test_files),
+		cmocka_unit_test(test_offsets_file),
 	};
 
 	return cmocka_run_group_tests(tests, NULL, NULL);

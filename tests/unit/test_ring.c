@@ -49,7 +49,7 @@ static void make_rec(struct mlip_ring_rec *rec, uint64_t k)
 	memset(rec, 0, sizeof(*rec));
 	rec->seq = k;
 	rec->line = (uint32_t)(k * 7u + 1u);
-	rec->flags = (uint32_t)(k & 1u);
+	rec->flags = (uint16_t)(k & 1u);
 	for (i = 0; i < MLIP_MAX_AXES; i++) {
 		rec->target[i] = (double)k + 0.25 * i;
 	}
@@ -70,10 +70,10 @@ static int rec_ok(const struct mlip_ring_rec *rec, uint64_t k)
 static void test_layout(void **state)
 {
 	(void)state;
-	assert_int_equal(sizeof(struct mlip_ring_rec), 80);
-	assert_int_equal(sizeof(struct mlip_ring), 896);
-	assert_int_equal(mlip_ring_bytes(1), 896 + 80);
-	assert_int_equal(mlip_ring_bytes(8), 896 + 8 * 80);
+	assert_int_equal(sizeof(struct mlip_ring_rec), 88);
+	assert_int_equal(sizeof(struct mlip_ring), 1024);
+	assert_int_equal(mlip_ring_bytes(1), 1024 + 88);
+	assert_int_equal(mlip_ring_bytes(8), 1024 + 8 * 88);
 	assert_int_equal(mlip_ring_bytes(0), 0);
 	assert_int_equal(mlip_ring_bytes(12), 0);
 	assert_int_equal(mlip_ring_bytes(MLIP_RING_MAX_CAPACITY * 2u), 0);
@@ -274,7 +274,7 @@ static void test_rec_block(void **state)
 	mlip_ring_rec_from_block(&rec, &b, 8);
 	assert_int_equal(rec.flags, 0);
 	mlip_ring_rec_end(&rec, 9, 100);
-	assert_int_equal(rec.flags, MLIP_REC_END);
+	assert_int_equal(rec.type, MLIP_REC_END);
 	assert_int_equal(rec.seq, 9);
 	assert_int_equal(rec.line, 100);
 	assert_int_equal(mlip_ring_rec_to_block(&rec, &back), MLIP_E_EMPTY);
@@ -348,10 +348,10 @@ static void test_attach_bad_record(void **state)
 
 	(void)state;
 	r->rec_bytes = 72;
-	expect_refused(sizeof(seg), 3, MLIP_RING_BAD_RECORD, 72, 80);
-	r->rec_bytes = 80;
+	expect_refused(sizeof(seg), 3, MLIP_RING_BAD_RECORD, 72, 88);
+	r->rec_bytes = 88;
 	r->hdr_bytes = 512;
-	expect_refused(sizeof(seg), 3, MLIP_RING_BAD_HEADER, 512, 896);
+	expect_refused(sizeof(seg), 3, MLIP_RING_BAD_HEADER, 512, 1024);
 }
 
 static void test_attach_bad_capacity(void **state)
@@ -386,12 +386,12 @@ static void test_attach_too_small(void **state)
 {
 	(void)state;
 	fresh(CAP, 3);
-	expect_refused(100, 3, MLIP_RING_SHORT, 100, 896);
-	expect_refused(895, 3, MLIP_RING_SHORT, 895, 896);
+	expect_refused(100, 3, MLIP_RING_SHORT, 100, 1024);
+	expect_refused(1023, 3, MLIP_RING_SHORT, 1023, 1024);
 	/* header fits, records do not: one byte short, then exactly enough */
 	expect_refused(mlip_ring_bytes(CAP) - 1, 3, MLIP_RING_TRUNCATED, mlip_ring_bytes(CAP) - 1,
 	               mlip_ring_bytes(CAP));
-	expect_refused(896, 3, MLIP_RING_TRUNCATED, 896, mlip_ring_bytes(CAP));
+	expect_refused(1024, 3, MLIP_RING_TRUNCATED, 1024, mlip_ring_bytes(CAP));
 	assert_int_equal(
 	    mlip_ring_attach(seg, mlip_ring_bytes(CAP), 3, &(struct mlip_ring *){NULL}, NULL),
 	    MLIP_OK);
@@ -683,9 +683,55 @@ static void test_stress_mailbox(void **state)
 	assert_true(reads > 0);
 }
 
+/* Ports keep the sizes and their own index; the other side's index is
+ * range-checked, never trusted. */
+static void test_port_corrupt_header(void **state)
+{
+	(void)state;
+	struct mlip_ring *r = fresh(CAP, 3);
+	struct mlip_ring_port tx, rx;
+	struct mlip_ring_rec in[4], out;
+	uint32_t n, apart = 0;
+
+	for (uint32_t k = 0; k < 4; k++) {
+		make_rec(&in[k], k);
+	}
+	assert_int_equal(mlip_ring_port_open(&tx, r, 1), MLIP_OK);
+	assert_int_equal(mlip_ring_port_open(&rx, r, 0), MLIP_OK);
+	assert_int_equal(mlip_ring_port_push_n(&tx, in, 4, &n), MLIP_OK);
+	assert_int_equal(n, 4);
+	r->mask = 0xFFFFFFFFu; /* not used after open */
+	r->capacity = 0;
+	assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_OK);
+	assert_true(rec_ok(&out, 0));
+	assert_int_equal(mlip_ring_port_pop(&rx), MLIP_OK);
+	assert_int_equal(mlip_ring_port_count(&rx, &n, NULL), MLIP_OK);
+	assert_int_equal(n, 3);
+	/* a head a lap and more ahead of the consumer */
+	__atomic_store_n(&r->head, rx.own + CAP + 1, __ATOMIC_RELEASE);
+	assert_int_equal(mlip_ring_port_count(&rx, &n, &apart), MLIP_E_RANGE);
+	assert_int_equal(n, 0);
+	assert_int_equal(apart, CAP + 1);
+	/* the peek still serves what it had seen, then refuses */
+	for (int i = 0; i < 3; i++) {
+		assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_OK);
+		assert_int_equal(mlip_ring_port_pop(&rx), MLIP_OK);
+	}
+	__atomic_store_n(&r->head, rx.own - 1, __ATOMIC_RELEASE); /* behind the consumer */
+	assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_E_RANGE);
+	/* a tail behind the producer by more than a lap (or ahead of it) */
+	__atomic_store_n(&r->tail, tx.own + 7, __ATOMIC_RELEASE);
+	assert_int_equal(mlip_ring_port_push_n(&tx, in, 1, &n), MLIP_E_RANGE);
+	assert_int_equal(n, 0);
+	/* a ring whose header is not one: no port */
+	r->capacity = 12;
+	assert_int_equal(mlip_ring_port_open(&rx, r, 0), MLIP_E_INVALID);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test(test_port_corrupt_header),
 	    cmocka_unit_test(test_layout),
 	    cmocka_unit_test(test_format_rejects),
 	    cmocka_unit_test(test_format_fresh_state),

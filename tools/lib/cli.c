@@ -8,8 +8,10 @@
 #include <string.h>
 
 #include "check.h"
+#include "mlip/ring.h"
 #include "confload.h"
 #include "mlip/gcode.h"
+#include "offsets.h"
 #include "program.h"
 
 int mlip_cli_number(const char *s, double *out)
@@ -25,6 +27,27 @@ int mlip_cli_number(const char *s, double *out)
 	}
 	*out = v;
 	return 0;
+}
+
+int mlip_cli_gcode_option(int c, const char *arg, struct mlip_cli_machine *o, const char *prog,
+                          FILE *err)
+{
+	switch (c) {
+	case MLIP_CLI_OPT_OFFSETS:
+		o->offsets = arg;
+		return 1;
+	case MLIP_CLI_OPT_STRICT:
+		o->strict = 1;
+		return 1;
+	case MLIP_CLI_OPT_DEFAULT_FEED:
+		if (mlip_cli_number(arg, &o->default_feed) != 0 || !(o->default_feed > 0.0)) {
+			fprintf(err, "%s: --default-feed: '%s' is not a positive number\n", prog, arg);
+			return -1;
+		}
+		return 1;
+	default:
+		return 0;
+	}
 }
 
 int mlip_cli_strategy(const char *name)
@@ -82,8 +105,8 @@ static int apply_accel(struct mlip_machine *m, const char *list, const char *pro
 	return 0;
 }
 
-int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program_text,
-                           size_t len, struct mlip_config *cfg, const char *prog, FILE *err)
+int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program_path,
+                           struct mlip_config *cfg, const char *prog, FILE *err)
 {
 	mlip_config_defaults(cfg);
 	struct mlip_machine *m = &cfg->machine;
@@ -93,7 +116,12 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
 		}
 	} else {
 		char letters[MLIP_MAX_AXES + 1] = "";
-		int n = program_text ? mlip_gcode_scan_axes(program_text, len, letters) : 0;
+		char why[256];
+		int n = program_path ? mlip_program_scan_axes(program_path, letters, why, sizeof(why)) : 0;
+		if (n < 0) {
+			fprintf(err, "%s: %s: %s\n", prog, program_path, why);
+			return -1;
+		}
 		if (n < 2) {
 			/* a program using one axis still runs on a 2-axis machine */
 			const char *fill = "XYZ";
@@ -153,29 +181,80 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
 	return 0;
 }
 
-double *mlip_cli_polyline(const struct mlip_machine *m, const struct mlip_block *blocks,
-                          size_t nblocks, size_t *npts)
+void mlip_cli_path_start(struct mlip_cli_path *p, struct mlip_program *program,
+                         const struct mlip_machine *m)
 {
-	int n = m->n_axes;
-	double *pts = malloc(sizeof(double) * (size_t)n * (nblocks + 1));
-	if (pts == NULL) {
-		return NULL;
-	}
-	for (int k = 0; k < n; k++) {
-		pts[k] = m->axis[k].home;
-	}
-	size_t np = 1;
-	for (size_t i = 0; i < nblocks; i++) {
-		const double *last = pts + (np - 1) * (size_t)n;
-		double d2 = 0.0;
+	memset(p, 0, sizeof(*p));
+	p->program = program;
+	p->m = m;
+}
+
+int mlip_cli_path_next(void *ctx, double *pt, uint32_t *line)
+{
+	struct mlip_cli_path *p = ctx;
+	int n = p->m->n_axes;
+	struct mlip_block b;
+	if (!p->started) {
 		for (int k = 0; k < n; k++) {
-			d2 += (blocks[i].target[k] - last[k]) * (blocks[i].target[k] - last[k]);
+			p->last[k] = p->m->axis[k].home;
+		}
+		p->started = 1;
+		memcpy(pt, p->last, sizeof(double) * (size_t)n);
+		*line = 0;
+		return 1;
+	}
+	while ((p->rc = mlip_program_next(p->program, &b)) > 0) {
+		double d2 = 0.0, lin = 0.0;
+		if (b.kind != MLIP_BLOCK_MOVE) {
+			continue;
+		}
+		for (int k = 0; k < n; k++) {
+			double d = b.target[k] - p->last[k];
+			d2 += d * d;
+			lin += p->m->axis[k].kind == MLIP_AXIS_LINEAR ? d * d : 0.0;
 		}
 		if (sqrt(d2) < MLIP_GCODE_MERGE_MM) {
 			continue;
 		}
-		memcpy(pts + np * (size_t)n, blocks[i].target, sizeof(double) * (size_t)n);
-		np++;
+		p->length_mm += sqrt(lin);
+		memcpy(p->last, b.target, sizeof(double) * (size_t)n);
+		memcpy(pt, b.target, sizeof(double) * (size_t)n);
+		*line = b.line;
+		return 1;
+	}
+	return 0;
+}
+
+double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *program,
+                          size_t *npts, const char *path, const char *prog, FILE *err)
+{
+	int n = m->n_axes;
+	size_t np = 0, cap = 4096;
+	double *pts = malloc(sizeof(double) * (size_t)n * cap);
+	struct mlip_cli_path src;
+	uint32_t line;
+	if (pts == NULL) {
+		fprintf(err, "%s: out of memory\n", prog);
+		return NULL;
+	}
+	mlip_cli_path_start(&src, program, m);
+	while (mlip_cli_path_next(&src, pts + np * (size_t)n, &line) > 0) {
+		if (++np == cap) {
+			double *q = realloc(pts, sizeof(double) * (size_t)n * cap * 2);
+			if (q == NULL) {
+				free(pts);
+				fprintf(err, "%s: out of memory\n", prog);
+				return NULL;
+			}
+			pts = q;
+			cap *= 2;
+		}
+	}
+	mlip_program_rewind(program);
+	if (src.rc < 0) {
+		fprintf(err, "%s: %s: %s\n", prog, path, program->msg);
+		free(pts);
+		return NULL;
 	}
 	*npts = np;
 	return pts;
@@ -197,17 +276,29 @@ void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limit
 }
 
 int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
-                          struct mlip_config *cfg, char **text, size_t *len, const char *prog,
-                          FILE *err)
+                          struct mlip_config *cfg, struct mlip_program *program,
+                          const char *prog, FILE *err)
 {
-	int rc = mlip_read_file(path, text, len);
-	if (rc != 0) {
-		fprintf(err, "%s: %s: %s\n", prog, path, strerror(-rc));
+	struct mlip_gcode_offsets off;
+	struct mlip_program_options opt = {o->strict, &off, o->default_feed};
+	if (mlip_cli_build_machine(o, path, cfg, prog, err) != 0) {
 		return -1;
 	}
-	if (mlip_cli_build_machine(o, *text, *len, cfg, prog, err) != 0) {
-		free(*text);
-		*text = NULL;
+	if (o->offsets != NULL) {
+		if (mlip_offsets_load(o->offsets, &cfg->machine, &off, prog, err) != 0) {
+			return -1;
+		}
+	} else {
+		mlip_gcode_offsets_init(&off, &cfg->machine);
+	}
+	int rc = mlip_program_open(program, path, &cfg->machine, &opt);
+	if (rc < 0) {
+		fprintf(err, "%s: %s: %s\n", prog, path, program->msg);
+	} else if (rc > 0) {
+		mlip_program_print_errors(program, path, err);
+	}
+	if (rc != 0) {
+		mlip_program_close(program);
 		return -1;
 	}
 	return 0;
@@ -250,4 +341,13 @@ const char *mlip_cli_signal_name(int sig)
 		return "SIGQUIT";
 	}
 	return "a signal";
+}
+
+void mlip_cli_field_name(const struct mlip_machine *m, uint32_t field, char *buf, size_t len)
+{
+	if (field >= MLIP_FIELD_TARGET && field < MLIP_FIELD_TARGET + (uint32_t)m->n_axes) {
+		snprintf(buf, len, "target %c", m->axis[field - MLIP_FIELD_TARGET].letter);
+	} else {
+		snprintf(buf, len, "%s", mlip_rec_field_name(field));
+	}
 }

@@ -9,24 +9,48 @@
 
 #include "mlip/config.h"
 #include "mlip/planner.h"
+#include "program.h"
 
 struct mlip_cli_machine {
 	const char *config;  /* INI path, or NULL: axes are those the program uses */
+	const char *offsets; /* offsets file (offsets.h), or NULL: all zero, G54 */
+	int strict;          /* mlip_gcode_set_strict */
+	double default_feed; /* --default-feed: F for a program without any, or 0 */
 	const char *accel;   /* "A" or "A1,A2,..." in config order, or NULL */
 	double vmax_mm_s;    /* <= 0: unset */
 	double eps_mm;
 	double period_s;
 };
 
-/* Build cfg from the options; program_text (may be NULL) names the axes when
- * there is no config. Prints "mlip-xxx: ..." errors to err. 0 or -1. */
-int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program_text,
-                           size_t len, struct mlip_config *cfg, const char *prog, FILE *err);
+/* Build cfg from the options; the program at program_path (may be NULL)
+ * names the axes when there is no config. Prints "mlip-xxx: ..." errors to
+ * err. 0 or -1. */
+int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program_path,
+                           struct mlip_config *cfg, const char *prog, FILE *err);
 
-/* Read the program at path and build its machine (cli_build_machine); on
- * failure print why and return -1. *text (NUL-terminated) is the caller's. */
+/* Build the machine (cli_build_machine), read the offsets file (o->offsets)
+ * and check the program at path (mlip_program_open); on failure print why
+ * (every error of the program) and return -1, with *program closed. cfg
+ * must outlive *program. */
 int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
-                          struct mlip_config *cfg, char **text, size_t *len, const char *prog,
+                          struct mlip_config *cfg, struct mlip_program *program,
+                          const char *prog, FILE *err);
+
+/* The G-code options every tool that reads programs takes (struct option
+ * entries for getopt_long; their values are above any letter). */
+#define MLIP_CLI_OPT_OFFSETS 0x100
+#define MLIP_CLI_OPT_STRICT 0x101
+#define MLIP_CLI_OPT_DEFAULT_FEED 0x102
+#define MLIP_CLI_GCODE_OPTIONS                                                                   \
+	{"offsets", required_argument, 0, MLIP_CLI_OPT_OFFSETS},                                 \
+	        {"strict", no_argument, 0, MLIP_CLI_OPT_STRICT},                                 \
+	{                                                                                        \
+		"default-feed", required_argument, 0, MLIP_CLI_OPT_DEFAULT_FEED                   \
+	}
+
+/* Take getopt_long's c (with arg) when it is one of those: 1 taken, 0 not
+ * one of them, -1 a bad value (message printed). */
+int mlip_cli_gcode_option(int c, const char *arg, struct mlip_cli_machine *o, const char *prog,
                           FILE *err);
 
 /* "mpct" | "bisector" | "stop" -> strategy; -1 when unknown. */
@@ -47,10 +71,33 @@ const char *mlip_cli_signal_name(int sig);
 struct mlip_check_limits;
 void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limits *lim);
 
-/* Polyline the planner will follow: home + every block target, with points
+/* The polyline the planner will follow, one point at a time from a program
+ * being streamed: home first, then every move's target, points closer than
+ * MLIP_GCODE_MERGE_MM to the previous one dropped as the planner does. The
+ * signature of a streaming check's point source (ctx = struct
+ * mlip_cli_path). length_mm sums the linear axes' lengths given so far;
+ * rc < 0 after the end when the stream failed (program->msg). */
+struct mlip_cli_path {
+	struct mlip_program *program;
+	const struct mlip_machine *m;
+	double last[MLIP_MAX_AXES];
+	int started, rc;
+	double length_mm;
+};
+void mlip_cli_path_start(struct mlip_cli_path *p, struct mlip_program *program,
+                         const struct mlip_machine *m);
+int mlip_cli_path_next(void *ctx, double *pt, uint32_t *line);
+
+/* Polyline the planner will follow: home + every move's target, with points
  * closer than MLIP_GCODE_MERGE_MM to the previous one dropped like the
- * planner does. Returns a malloc'ed array of *npts points of n coordinates. */
-double *mlip_cli_polyline(const struct mlip_machine *m, const struct mlip_block *blocks,
-                          size_t nblocks, size_t *npts);
+ * planner does, streamed from the program (which is rewound after). Returns
+ * a malloc'ed array of *npts points of n coordinates, or NULL (message
+ * printed). */
+double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *program,
+                          size_t *npts, const char *path, const char *prog, FILE *err);
+
+/* What a record field of a controller fault is called: "target X" for the
+ * target of axis X of machine m, else mlip_rec_field_name(). */
+void mlip_cli_field_name(const struct mlip_machine *m, uint32_t field, char *buf, size_t len);
 
 #endif

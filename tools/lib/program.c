@@ -1,12 +1,477 @@
 /*
- * program.c - whole-program parsing for the host tools: file in, block array
- * and error list out. See program.h.
+ * program.c - program reading in two passes and bounded memory: check the
+ * whole file, then stream its blocks. See program.h.
  */
 #include "program.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#define LINE_CAP (MLIP_GCODE_MAX_LINE + 2) /* one byte more than a valid line */
+
+/* ---- lines: LF, CRLF or a lone CR end one ---- */
+
+static int get_byte(struct mlip_program *p)
+{
+	if (p->f) {
+		return getc_unlocked(p->f);
+	}
+	return p->mem_pos < p->mem_len ? (unsigned char)p->mem[p->mem_pos++] : EOF;
+}
+
+static void unget_byte(struct mlip_program *p, int c)
+{
+	if (p->f) {
+		ungetc(c, p->f);
+	} else {
+		p->mem_pos--;
+	}
+}
+
+/* The next line into p->line (at most LINE_CAP bytes kept, p->line_len
+ * counts them all): 1, 0 at the end of the input, -errno. */
+static int read_line(struct mlip_program *p)
+{
+	size_t n = 0;
+	int c, any = 0;
+
+	for (;;) {
+		c = get_byte(p);
+		if (c == EOF) {
+			if (p->f && ferror(p->f)) {
+				return errno ? -errno : -EIO;
+			}
+			break;
+		}
+		any = 1;
+		if (c == '\n') {
+			break;
+		}
+		if (c == '\r') {
+			c = get_byte(p);
+			if (c != '\n' && c != EOF) {
+				unget_byte(p, c);
+			}
+			break;
+		}
+		if (n < LINE_CAP) {
+			p->line[n] = (char)c;
+		}
+		n += n < (size_t)-1;
+	}
+	p->line_len = n;
+	return any ? 1 : 0;
+}
+
+static int rewind_input(struct mlip_program *p)
+{
+	if (p->f) {
+		if (fseek(p->f, 0, SEEK_SET) != 0) {
+			return -errno;
+		}
+		clearerr(p->f);
+	} else {
+		p->mem_pos = 0;
+	}
+	p->lineno = 0;
+	return 0;
+}
+
+/* The parser gets the length as read: it reads no byte of a line longer
+ * than a valid one (that is an error), so the bytes not kept are not needed. */
+static size_t line_arg(const struct mlip_program *p)
+{
+	return p->line_len;
+}
+
+/* The bytes of the line that are kept. */
+static size_t line_kept(const struct mlip_program *p)
+{
+	return p->line_len > LINE_CAP ? LINE_CAP : p->line_len;
+}
+
+/* ---- opening ---- */
+
+static const char *file_kind(mode_t mode)
+{
+	return S_ISDIR(mode)   ? "a directory"
+	       : S_ISFIFO(mode) ? "a FIFO (pipe)"
+	       : S_ISCHR(mode)  ? "a character device"
+	       : S_ISBLK(mode)  ? "a block device"
+	       : S_ISSOCK(mode) ? "a socket"
+	                        : "not a regular file";
+}
+
+/* A regular file, opened without blocking on a FIFO; -errno with msg. */
+static FILE *open_regular(const char *path, char *msg, size_t len)
+{
+	struct stat st;
+	int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+	FILE *f;
+
+	if (fd < 0) {
+		snprintf(msg, len, "%s", strerror(errno));
+		return NULL;
+	}
+	if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+		snprintf(msg, len,
+		         "%s: mlip reads a program from a regular file only (it checks the whole "
+		         "file before anything moves, then reads it again to run it): save it to "
+		         "a file first",
+		         file_kind(st.st_mode));
+		close(fd);
+		return NULL;
+	}
+	if (fcntl(fd, F_SETFL, 0) != 0 || (f = fdopen(fd, "rb")) == NULL) {
+		snprintf(msg, len, "%s", strerror(errno));
+		close(fd);
+		return NULL;
+	}
+	return f;
+}
+
+static int add_error(struct mlip_program *p, const struct mlip_gcode_error *e)
+{
+	p->n_errors_total++;
+	if (p->n_errors < MLIP_PROGRAM_MAX_ERRORS) {
+		p->errors[p->n_errors++] = *e;
+	}
+	return 0;
+}
+
+static int count_sink(void *ctx, const struct mlip_block *b)
+{
+	(void)b;
+	((struct mlip_program *)ctx)->n++;
+	return 0;
+}
+
+static void start_parser(struct mlip_program *p, struct mlip_gcode *g)
+{
+	mlip_gcode_init(g, p->m);
+	mlip_gcode_set_initial_feed(g, p->initial_feed_word);
+	mlip_gcode_set_strict(g, p->opt.strict);
+	mlip_gcode_set_offsets(g, &p->offsets_start);
+}
+
+/* First pass after the feed scan: every line through the parser, blocks
+ * counted only. */
+static int check_all(struct mlip_program *p)
+{
+	struct mlip_gcode_error err;
+	unsigned axes = 0;
+	double f;
+	int rc;
+
+	/* the program's first F, for feed moves before it (scan pass) */
+	while ((rc = read_line(p)) > 0) {
+		p->lineno++;
+		f = mlip_gcode_scan_line(p->line, line_kept(p),
+		                         &axes);
+		if (f > 0 && !p->initial_feed_line) {
+			p->initial_feed_word = f;
+			p->initial_feed_line = p->lineno;
+		}
+	}
+	if (!p->initial_feed_line && p->opt.default_feed > 0) {
+		p->initial_feed_word = p->opt.default_feed; /* line 0: from the option */
+	}
+	if (rc < 0 || (rc = rewind_input(p)) < 0) {
+		snprintf(p->msg, sizeof p->msg, "%s", strerror(-rc));
+		return rc;
+	}
+	start_parser(p, &p->g);
+	while ((rc = read_line(p)) > 0) {
+		p->lineno++;
+		if (mlip_gcode_line(&p->g, p->line, line_arg(p), p->lineno, count_sink, p, &err) !=
+		    MLIP_OK) {
+			add_error(p, &err);
+		}
+	}
+	if (rc < 0) {
+		snprintf(p->msg, sizeof p->msg, "%s", strerror(-rc));
+		return rc;
+	}
+	p->lines = p->lineno;
+	/* "empty program" only when nothing else explains the lack of motion */
+	if (p->n_errors_total == 0 && mlip_gcode_finish(&p->g, p->lineno, &err) != MLIP_OK) {
+		add_error(p, &err);
+	}
+	memcpy(p->notices, p->g.notices, sizeof p->notices);
+	p->n_notices = p->g.n_notices;
+	p->offsets_end = p->g.off;
+	return p->n_errors_total ? 1 : 0;
+}
+
+static int open_common(struct mlip_program *p, const struct mlip_machine *m,
+                       const struct mlip_program_options *opt)
+{
+	p->m = m;
+	if (opt) {
+		p->opt = *opt;
+	}
+	if (p->opt.offsets) {
+		p->offsets_start = *p->opt.offsets;
+	} else {
+		mlip_gcode_offsets_init(&p->offsets_start, m);
+	}
+	p->opt.offsets = NULL;
+	p->errors = malloc(MLIP_PROGRAM_MAX_ERRORS * sizeof *p->errors);
+	p->line = malloc(LINE_CAP);
+	p->batch = malloc(MLIP_PROGRAM_BATCH * sizeof *p->batch);
+	if (!p->errors || !p->line || !p->batch) {
+		snprintf(p->msg, sizeof p->msg, "%s", strerror(ENOMEM));
+		return -ENOMEM;
+	}
+	return check_all(p);
+}
+
+int mlip_program_open(struct mlip_program *p, const char *path, const struct mlip_machine *m,
+                      const struct mlip_program_options *opt)
+{
+	memset(p, 0, sizeof *p);
+	p->f = open_regular(path, p->msg, sizeof p->msg);
+	if (!p->f) {
+		return -EINVAL;
+	}
+	return open_common(p, m, opt);
+}
+
+int mlip_program_open_mem(struct mlip_program *p, const char *text, size_t len,
+                          const struct mlip_machine *m, const struct mlip_program_options *opt)
+{
+	memset(p, 0, sizeof *p);
+	p->mem = text;
+	p->mem_len = len;
+	return open_common(p, m, opt);
+}
+
+/* ---- streaming ---- */
+
+static int stream_sink(void *ctx, const struct mlip_block *b)
+{
+	struct mlip_program *p = ctx;
+
+	if (p->skip) {
+		p->skip--; /* given out by the previous parse of this line */
+		return 0;
+	}
+	if (p->batch_n == MLIP_PROGRAM_BATCH) {
+		return 1;
+	}
+	p->batch[p->batch_n++] = *b;
+	return 0;
+}
+
+static int changed(struct mlip_program *p, const char *what)
+{
+	size_t n = strlen(what) > 180 ? 180 : strlen(what);
+
+	snprintf(p->msg, sizeof p->msg,
+	         "the file changed after it was checked (%.*s): the rest is not run", (int)n, what);
+	p->done = 1;
+	return -EIO;
+}
+
+int mlip_program_next(struct mlip_program *p, struct mlip_block *b)
+{
+	struct mlip_gcode_error err;
+	mlip_status st;
+	size_t given;
+	int rc;
+
+	if (p->n_errors_total && !p->keep_going) {
+		snprintf(p->msg, sizeof p->msg, "the program has errors: it does not run");
+		return -EINVAL;
+	}
+	if (p->done) {
+		return p->done == 2 ? 0 : -EIO;
+	}
+	if (!p->streaming) {
+		rc = rewind_input(p);
+		if (rc < 0) {
+			snprintf(p->msg, sizeof p->msg, "%s", strerror(-rc));
+			return rc;
+		}
+		start_parser(p, &p->g);
+		p->streaming = 1;
+	}
+	for (;;) {
+		if (p->batch_pos < p->batch_n) {
+			*b = p->batch[p->batch_pos++];
+			p->delivered++;
+			return 1;
+		}
+		if (p->more) {
+			/* the line gave more blocks than a batch: parse it again from
+			 * its start, skipping those already given */
+			given = p->skip_base + p->batch_n;
+			p->g = p->saved;
+		} else {
+			rc = read_line(p);
+			if (rc < 0) {
+				snprintf(p->msg, sizeof p->msg, "%s", strerror(-rc));
+				p->done = 1;
+				return rc;
+			}
+			if (rc == 0) {
+				p->done = 2;
+				return p->delivered == p->n ? 0 : changed(p, "fewer blocks");
+			}
+			p->lineno++;
+			given = 0;
+			p->saved = p->g;
+		}
+		p->skip_base = given;
+		p->skip = given;
+		p->batch_n = p->batch_pos = 0;
+		st = mlip_gcode_line(&p->g, p->line, line_arg(p), p->lineno, stream_sink, p, &err);
+		p->more = st == MLIP_E_FULL && p->batch_n == MLIP_PROGRAM_BATCH;
+		if (st != MLIP_OK && !p->more && !p->keep_going) {
+			char what[200];
+
+			snprintf(what, sizeof what, "line %u: %s", (unsigned)err.line, err.msg);
+			return changed(p, what);
+		}
+		if (p->delivered + p->batch_n > p->n) {
+			return changed(p, "more blocks");
+		}
+	}
+}
+
+void mlip_program_rewind(struct mlip_program *p)
+{
+	p->streaming = 0;
+	p->done = 0;
+	p->more = 0;
+	p->delivered = 0;
+	p->batch_n = p->batch_pos = p->skip = p->skip_base = 0;
+}
+
+void mlip_program_close(struct mlip_program *p)
+{
+	if (p->f) {
+		fclose(p->f);
+	}
+	free(p->errors);
+	free(p->line);
+	free(p->batch);
+	memset(p, 0, sizeof *p);
+}
+
+int mlip_program_check_file(const char *path, char *msg, size_t msg_len)
+{
+	FILE *f = open_regular(path, msg, msg_len);
+
+	if (!f) {
+		return -EINVAL;
+	}
+	fclose(f);
+	return 0;
+}
+
+int mlip_program_scan_axes(const char *path, char *letters, char *msg, size_t msg_len)
+{
+	static const char all[] = "XYZABC";
+	struct mlip_program p;
+	unsigned axes = 0;
+	int rc, k, n = 0;
+
+	memset(&p, 0, sizeof p);
+	p.f = open_regular(path, msg, msg_len);
+	p.line = malloc(LINE_CAP);
+	if (!p.f || !p.line) {
+		if (p.f) {
+			snprintf(msg, msg_len, "%s", strerror(ENOMEM));
+		}
+		mlip_program_close(&p);
+		return -EINVAL;
+	}
+	while ((rc = read_line(&p)) > 0) {
+		mlip_gcode_scan_line(p.line, line_kept(&p),
+		                     &axes);
+	}
+	mlip_program_close(&p);
+	if (rc < 0) {
+		snprintf(msg, msg_len, "%s", strerror(-rc));
+		return rc;
+	}
+	for (k = 0; k < 6; k++) {
+		if (axes & (1u << k)) {
+			letters[n++] = all[k];
+		}
+	}
+	letters[n] = '\0';
+	return n;
+}
+
+/* ---- messages ---- */
+
+void mlip_program_print_errors(const struct mlip_program *prog, const char *path, FILE *f)
+{
+	size_t k;
+
+	for (k = 0; k < prog->n_errors; k++) {
+		const struct mlip_gcode_error *e = &prog->errors[k];
+
+		if (e->col) {
+			fprintf(f, "%s:%u:%u: error: %s\n", path, (unsigned)e->line,
+			        (unsigned)e->col, e->msg);
+		} else {
+			fprintf(f, "%s:%u: error: %s\n", path, (unsigned)e->line, e->msg);
+		}
+	}
+	if (prog->n_errors_total > prog->n_errors) {
+		fprintf(f, "%s: %zu more errors not listed\n", path,
+		        prog->n_errors_total - prog->n_errors);
+	}
+	if (prog->n_errors_total) {
+		fprintf(f, "%s: %zu error%s, program rejected: nothing was run\n", path,
+		        prog->n_errors_total, prog->n_errors_total == 1 ? "" : "s");
+	}
+}
+
+void mlip_program_print_notices(const struct mlip_program *prog, const char *path, FILE *f)
+{
+	uint32_t k;
+
+	for (k = 0; k < prog->n_notices; k++) {
+		const struct mlip_gcode_notice *n = &prog->notices[k];
+
+		if (strcmp(n->word, "F") == 0 && prog->initial_feed_line == 0) {
+			fprintf(f,
+			        "%s:%u: note: F: the program sets no feed: --default-feed F%g is used "
+			        "for its %u feed move%s\n",
+			        path, (unsigned)n->first_line, prog->initial_feed_word,
+			        (unsigned)n->count, n->count == 1 ? "" : "s");
+			continue;
+		}
+		if (strcmp(n->word, "F") == 0) {
+			fprintf(f,
+			        "%s:%u: note: F missing before a feed move: the program's first F"
+			        " (F%g, line %u) is used for %u move%s before it\n",
+			        path, (unsigned)n->first_line, prog->initial_feed_word,
+			        (unsigned)prog->initial_feed_line, (unsigned)n->count,
+			        n->count == 1 ? "" : "s");
+			continue;
+		}
+		fprintf(f, "%s:%u: note: %s %s", path, (unsigned)n->first_line,
+		        strcmp(n->word, "G64P") == 0   ? "G64 P"
+		        : strcmp(n->word, "G64Q") == 0 ? "G64 Q"
+		                                       : n->word,
+		        mlip_gcode_notice_text(n));
+		if (n->count > 1) {
+			fprintf(f, " (%u times)", (unsigned)n->count);
+		}
+		fputc('\n', f);
+	}
+}
+
+/* ---- whole programs in an array ---- */
 
 int mlip_read_file(const char *path, char **buf, size_t *len)
 {
@@ -53,159 +518,56 @@ out:
 	return 0;
 }
 
-struct sink_ctx {
-	struct mlip_program *prog;
-	int oom;
-};
 
-static int program_sink(void *ctx, const struct mlip_block *b)
+static int list_fill(struct mlip_program_list *l, int rc)
 {
-	struct sink_ctx *c = ctx;
-	struct mlip_program *p = c->prog;
+	struct mlip_block b;
+	int got;
 
-	if (p->n == p->cap) {
-		size_t cap = p->cap ? p->cap * 2 : 4096;
-		struct mlip_block *nb = realloc(p->blocks, cap * sizeof *nb);
-
-		if (!nb) {
-			c->oom = 1;
-			return -1;
-		}
-		p->blocks = nb;
-		p->cap = cap;
-	}
-	p->blocks[p->n++] = *b;
-	return 0;
-}
-
-static int add_error(struct mlip_program *p, const struct mlip_gcode_error *e)
-{
-	p->n_errors_total++;
-	if (p->n_errors >= MLIP_PROGRAM_MAX_ERRORS) {
-		return 0;
-	}
-	if (!p->errors) {
-		p->errors = malloc(MLIP_PROGRAM_MAX_ERRORS * sizeof *p->errors);
-		if (!p->errors) {
-			return -ENOMEM;
-		}
-	}
-	p->errors[p->n_errors++] = *e;
-	return 0;
-}
-
-int mlip_program_parse(const char *text, size_t len, const struct mlip_machine *m,
-                       struct mlip_program *prog)
-{
-	struct mlip_gcode g;
-	struct mlip_gcode_error err;
-	struct sink_ctx sc;
-	size_t i = 0;
-	uint32_t line = 0;
-	mlip_status st;
-
-	memset(prog, 0, sizeof *prog);
-	sc.prog = prog;
-	sc.oom = 0;
-	mlip_gcode_init(&g, m);
-	prog->initial_feed_line = mlip_gcode_scan_feed(text, len, &prog->initial_feed_word);
-	if (!prog->initial_feed_line) {
-		prog->initial_feed_word = 0;
-	}
-	mlip_gcode_set_initial_feed(&g, prog->initial_feed_word);
-	while (i < len) {
-		const char *nl = memchr(text + i, '\n', len - i);
-		size_t end = nl ? (size_t)(nl - text) : len;
-
-		line++;
-		st = mlip_gcode_line(&g, text + i, end - i, line, program_sink, &sc, &err);
-		if (sc.oom) {
-			return -ENOMEM;
-		}
-		if (st != MLIP_OK && add_error(prog, &err) != 0) {
-			return -ENOMEM;
-		}
-		i = end + 1;
-	}
-	prog->lines = line;
-	/* "empty program" only when nothing else explains the lack of motion */
-	if (prog->n_errors_total == 0 && mlip_gcode_finish(&g, line, &err) != MLIP_OK &&
-	    add_error(prog, &err) != 0) {
-		return -ENOMEM;
-	}
-	memcpy(prog->notices, g.notices, sizeof prog->notices);
-	prog->n_notices = g.n_notices;
-	return prog->n_errors_total ? 1 : 0;
-}
-
-int mlip_program_load(const char *path, const struct mlip_machine *m, struct mlip_program *prog)
-{
-	char *buf;
-	size_t len;
-	int rc;
-
-	memset(prog, 0, sizeof *prog);
-	rc = mlip_read_file(path, &buf, &len);
-	if (rc) {
+	l->errors = l->r.errors;
+	l->n_errors = l->r.n_errors;
+	l->n_errors_total = l->r.n_errors_total;
+	l->notices = l->r.notices;
+	l->n_notices = l->r.n_notices;
+	l->lines = l->r.lines;
+	if (rc < 0) {
 		return rc;
 	}
-	rc = mlip_program_parse(buf, len, m, prog);
-	free(buf);
-	return rc;
+	l->r.keep_going = 1; /* the blocks of the valid lines, for tests */
+	while ((got = mlip_program_next(&l->r, &b)) > 0) {
+		if (l->n == l->cap) {
+			size_t cap = l->cap ? l->cap * 2 : 4096;
+			struct mlip_block *nb = realloc(l->blocks, cap * sizeof *nb);
+
+			if (!nb) {
+				snprintf(l->r.msg, sizeof l->r.msg, "%s", strerror(ENOMEM));
+				return -ENOMEM;
+			}
+			l->blocks = nb;
+			l->cap = cap;
+		}
+		l->blocks[l->n++] = b;
+	}
+	return got < 0 ? got : rc;
 }
 
-void mlip_program_print_errors(const struct mlip_program *prog, const char *path, FILE *f)
+int mlip_program_list_load(const char *path, const struct mlip_machine *m,
+                           struct mlip_program_list *list)
 {
-	size_t k;
-
-	for (k = 0; k < prog->n_errors; k++) {
-		const struct mlip_gcode_error *e = &prog->errors[k];
-
-		if (e->col) {
-			fprintf(f, "%s:%u:%u: error: %s\n", path, (unsigned)e->line,
-			        (unsigned)e->col, e->msg);
-		} else {
-			fprintf(f, "%s:%u: error: %s\n", path, (unsigned)e->line, e->msg);
-		}
-	}
-	if (prog->n_errors_total > prog->n_errors) {
-		fprintf(f, "%s: %zu more errors not listed\n", path,
-		        prog->n_errors_total - prog->n_errors);
-	}
-	if (prog->n_errors_total) {
-		fprintf(f, "%s: %zu error%s, program rejected: nothing was run\n", path,
-		        prog->n_errors_total, prog->n_errors_total == 1 ? "" : "s");
-	}
+	memset(list, 0, sizeof *list);
+	return list_fill(list, mlip_program_open(&list->r, path, m, NULL));
 }
 
-void mlip_program_print_notices(const struct mlip_program *prog, const char *path, FILE *f)
+int mlip_program_list_parse(const char *text, size_t len, const struct mlip_machine *m,
+                            struct mlip_program_list *list)
 {
-	uint32_t k;
-
-	for (k = 0; k < prog->n_notices; k++) {
-		const struct mlip_gcode_notice *n = &prog->notices[k];
-
-		if (strcmp(n->word, "F") == 0) {
-			fprintf(f,
-			        "%s:%u: note: F missing before a feed move: the program's first F"
-			        " (F%g, line %u) is used for %u move%s before it\n",
-			        path, (unsigned)n->first_line, prog->initial_feed_word,
-			        (unsigned)prog->initial_feed_line, (unsigned)n->count,
-			        n->count == 1 ? "" : "s");
-			continue;
-		}
-		fprintf(f, "%s:%u: note: %s %s", path, (unsigned)n->first_line, n->word,
-		        mlip_gcode_notice_text(n));
-		if (n->count > 1) {
-			fprintf(f, " (%u times)", (unsigned)n->count);
-		}
-		fputc('\n', f);
-	}
+	memset(list, 0, sizeof *list);
+	return list_fill(list, mlip_program_open_mem(&list->r, text, len, m, NULL));
 }
 
-void mlip_program_free(struct mlip_program *prog)
+void mlip_program_list_free(struct mlip_program_list *list)
 {
-	free(prog->blocks);
-	free(prog->errors);
-	memset(prog, 0, sizeof *prog);
+	free(list->blocks);
+	mlip_program_close(&list->r);
+	memset(list, 0, sizeof *list);
 }

@@ -1,7 +1,22 @@
 /*
- * program.h - host-side helpers around the G-code front end: read a file,
- * parse a whole program into a growable array of blocks, print errors and
- * notices GCC-style. Uses stdio and malloc; not for the real-time path.
+ * program.h - host-side program reading around the G-code front end, in
+ * memory bounded by a constant whatever the program's length:
+ *
+ *   mlip_program_open()   checks the whole file (first pass): every error
+ *                         listed, the notices, the block count; nothing kept
+ *                         of the blocks;
+ *   mlip_program_next()   streams the blocks (second pass), the same ones;
+ *   mlip_program_close().
+ *
+ * So "a program with any error never starts" holds without holding the
+ * program. Only regular files are read (twice): a FIFO, a device such as
+ * /dev/zero or a directory is refused with a message. Lines end in LF, CRLF
+ * or a lone CR; a line longer than MLIP_GCODE_MAX_LINE is an error, and only
+ * that many bytes of it are kept.
+ *
+ * mlip_program_list_*() collect a whole program into an array, for the
+ * benchmarks and tests that need every block at once (never the tools that
+ * run programs). Uses stdio and malloc; not for the real-time path.
  */
 #ifndef MLIP_TOOLS_PROGRAM_H
 #define MLIP_TOOLS_PROGRAM_H
@@ -14,14 +29,18 @@
 #include "mlip/types.h"
 
 #define MLIP_PROGRAM_MAX_ERRORS 1000 /* errors kept; all are counted */
+#define MLIP_PROGRAM_BATCH 4096      /* blocks of one line held at once (longer
+                                        arcs are parsed again from the line) */
 
-/* Read a whole file. Returns 0 or -errno; *buf is NUL-terminated (len does
- * not count the NUL; the text may hold NULs of its own), caller frees. */
-int mlip_read_file(const char *path, char **buf, size_t *len);
+struct mlip_program_options {
+	int strict;                               /* mlip_gcode_set_strict */
+	const struct mlip_gcode_offsets *offsets; /* in force at the start; NULL: defaults */
+	double default_feed;  /* F (units/min) for a program that sets none; 0: none */
+};
 
 struct mlip_program {
-	struct mlip_block *blocks;
-	size_t n, cap;                   /* growable */
+	/* what the check found (valid after open) */
+	size_t n;                        /* blocks (moves and events) */
 	struct mlip_gcode_error *errors; /* in order, at most MLIP_PROGRAM_MAX_ERRORS */
 	size_t n_errors;
 	size_t n_errors_total;           /* including those not kept */
@@ -30,28 +49,83 @@ struct mlip_program {
 	uint32_t lines;
 	double initial_feed_word;        /* F used before the first F (0: none) */
 	uint32_t initial_feed_line;      /* line of that first F */
+	struct mlip_gcode_offsets offsets_start; /* in force at the first line */
+	struct mlip_gcode_offsets offsets_end;   /* left by the last line */
+	char msg[256];                   /* why open or next failed (return < 0) */
+	/* private */
+	const struct mlip_machine *m;
+	struct mlip_program_options opt;
+	FILE *f;
+	const char *mem;
+	size_t mem_len, mem_pos;
+	char *line;                      /* MLIP_GCODE_MAX_LINE + 2 bytes */
+	size_t line_len;                 /* as read, may exceed what line holds */
+	uint32_t lineno;
+	struct mlip_gcode g, saved;      /* streaming state, and at the line's start */
+	struct mlip_block *batch;
+	size_t batch_n, batch_pos, skip, skip_base, delivered;
+	int streaming, more, done;
+	int keep_going;                  /* lists: stream the valid lines of a bad program */
 };
 
-/* Parse a whole file with the front end. *prog is overwritten (free it first
- * when reusing it). Feed moves before the program's first F run at that
- * first F (notice "F"); a program with no F at all and a feed move gets
- * "missing feed". Returns 0 when the program is valid, 1 when it has errors
- * (in prog->errors; the blocks are then not to be run), -errno when the file
- * can't be read or memory runs out. */
-int mlip_program_load(const char *path, const struct mlip_machine *m, struct mlip_program *prog);
+/* Check the program at path on machine m (m must outlive prog). Returns 0
+ * when it is valid, 1 when it has errors (prog->errors), < 0 when it can't
+ * be read (prog->msg says why: missing, not a regular file, I/O). Close it
+ * in every case. */
+int mlip_program_open(struct mlip_program *prog, const char *path, const struct mlip_machine *m,
+                      const struct mlip_program_options *opt);
 
-/* The same from a buffer of len bytes (lines end in \n or \r\n). */
-int mlip_program_parse(const char *text, size_t len, const struct mlip_machine *m,
-                       struct mlip_program *prog);
+/* The same from a buffer of len bytes (kept by the caller until close). */
+int mlip_program_open_mem(struct mlip_program *prog, const char *text, size_t len,
+                          const struct mlip_machine *m, const struct mlip_program_options *opt);
+
+/* The next block of a valid program: 1, 0 at the end, < 0 when the file no
+ * longer gives what was checked (changed on disk, I/O error: prog->msg). */
+int mlip_program_next(struct mlip_program *prog, struct mlip_block *b);
+
+/* Stream the blocks again from the first (a third pass over the file). */
+void mlip_program_rewind(struct mlip_program *prog);
+
+void mlip_program_close(struct mlip_program *prog);
+
+/* 0 when path is a regular file that can be opened, else < 0 with msg (the
+ * reason, as mlip_program_open gives it). */
+int mlip_program_check_file(const char *path, char *msg, size_t msg_len);
+
+/* Axis letters among XYZABC the file at path uses, NUL-terminated in that
+ * order into letters (room for 7); returns how many, or < 0 with msg. */
+int mlip_program_scan_axes(const char *path, char *letters, char *msg, size_t msg_len);
 
 /* "path:LINE:COL: error: MSG" per error ("path:LINE: error: MSG" when the
  * column is 0), then "path: N errors, program rejected". Nothing when valid. */
 void mlip_program_print_errors(const struct mlip_program *prog, const char *path, FILE *f);
 
-/* "path:LINE: note: WORD ignored (no effect on motion), N times" per notice
- * (LINE is the first line it appears on; G53, G28/G30, F get their own text). */
+/* "path:LINE: note: WORD what mlip did, N times" per notice (LINE is the
+ * first line it appears on). */
 void mlip_program_print_notices(const struct mlip_program *prog, const char *path, FILE *f);
 
-void mlip_program_free(struct mlip_program *prog);
+/* Read a whole file (tests). Returns 0 or -errno; *buf is NUL-terminated
+ * (len does not count the NUL; the text may hold NULs of its own), caller
+ * frees. */
+int mlip_read_file(const char *path, char **buf, size_t *len);
+
+/* A whole program in an array (benchmarks, tests). */
+struct mlip_program_list {
+	struct mlip_block *blocks;
+	size_t n, cap;
+	struct mlip_program r;           /* errors, notices, counts */
+	/* copies of r's, for brevity */
+	const struct mlip_gcode_error *errors;
+	size_t n_errors, n_errors_total;
+	const struct mlip_gcode_notice *notices;
+	uint32_t n_notices, lines;
+};
+
+/* 0 valid, 1 errors, < 0 unreadable or out of memory (list->r.msg). */
+int mlip_program_list_load(const char *path, const struct mlip_machine *m,
+                           struct mlip_program_list *list);
+int mlip_program_list_parse(const char *text, size_t len, const struct mlip_machine *m,
+                            struct mlip_program_list *list);
+void mlip_program_list_free(struct mlip_program_list *list);
 
 #endif

@@ -1,0 +1,171 @@
+/*
+ * mlip/controller.h - the controller's period as a pure function, in the
+ * shape of Ruckig's update(input, output): mlip_ctl_period(c, in, out).
+ *
+ * Inputs: the period's command, the records in the ring (pure ring
+ * operations: memory, no system call), the period index and how many
+ * periods the loop missed before it, the feeder's liveness (a boolean the
+ * caller computes from its clock) and the bus counters of the last send.
+ * Outputs: the setpoint, the CAN frames to send (encoded, not sent), the
+ * status to publish, and the events to log. No allocation, no I/O, no clock:
+ * rt/controller.c runs it on the SCHED_FIFO loop, mlip-sim on a virtual
+ * clock, so both produce the same setpoints by construction.
+ *
+ * One state (mlip_ring_state), every transition named with its reason
+ * (mlip_state_why + record seq, line, field, value), kept in the status:
+ *
+ *   IDLE --record seq 1 (or the one after the last completed)--> PREREAD
+ *   PREREAD --look-ahead full | END in | event next | refill and ring empty
+ *             | feeder gone--> RUNNING            (up to 512 records a period)
+ *   RUNNING --at rest, END executed--> IDLE       (up to 16 records a period)
+ *   RUNNING --at rest, nothing came--> STARVED --next record--> PREREAD
+ *   RUNNING --hold | override 0 | CAN fault, at rest--> HELD --resume--> RUNNING
+ *   RUNNING|HELD|STOPPING --missed > stall periods--> HELD (stall: frozen at
+ *             the last setpoint sent, planned again from rest there; resume)
+ *   RUNNING --at rest, DWELL next--> DWELLING --round(dwell/T) periods--> RUNNING
+ *   RUNNING --at rest, PAUSE (or M1, switch on) next--> PAUSED --resume--> RUNNING
+ *             (a wait pre-reads what follows; if that is not done at its
+ *             end: PREREAD first)
+ *   any --stop | exit signal--> STOPPING --at rest--> IDLE
+ *   any --bad record--> FAULT (at rest at the end of the last good block:
+ *             ingest stops, the look-ahead already plans it to rest)
+ *   any --position beyond the drives' range--> FAULT (stop on the path)
+ *
+ * Records are validated where they are taken, at bounded cost: the next
+ * sequence number, a known type and flags, finite targets inside the soft
+ * limits, a finite feed in (0, MLIP_CTL_FEED_MAX_MM_S], a finite non-negative
+ * tolerance and dwell (at most MLIP_CTL_DWELL_MAX_S).
+ */
+#ifndef MLIP_CONTROLLER_H
+#define MLIP_CONTROLLER_H
+
+#include <stdint.h>
+
+#include "mlip/canenc.h"
+#include "mlip/planner.h"
+#include "mlip/ring.h"
+#include "mlip/types.h"
+
+#define MLIP_PREREAD_PER_PERIOD 512   /* records a period while not moving */
+#define MLIP_BUS_CLEAN_PERIODS 100    /* after a CAN fault, resume needs a clean bus this long */
+#define MLIP_STALL_PERIODS_DEFAULT 3  /* more missed periods than this: a stall */
+#define MLIP_CTL_MAX_EVENTS 8         /* events one period can report */
+#define MLIP_CTL_FEED_MAX_MM_S 1e6    /* a larger feed is not a feed: a bad record */
+#define MLIP_CTL_DWELL_MAX_S 86400.0  /* a day */
+
+typedef enum {
+	MLIP_EV_STATE = 1, /* a transition: from -> state, with its reason */
+	MLIP_EV_REFUSED    /* records that do not continue the program dropped
+	                      (seq: the first one; value: the block expected) */
+} mlip_ctl_event_kind;
+
+/* Why a state is what it is (kept in the status, carried by events). */
+struct mlip_ctl_reason {
+	uint32_t why;   /* mlip_state_why */
+	uint32_t field; /* mlip_rec_field */
+	uint64_t seq;   /* record concerned (0: none) */
+	uint32_t line;
+	double value;
+};
+
+struct mlip_ctl_event {
+	uint32_t kind;  /* mlip_ctl_event_kind */
+	uint32_t from;  /* state left (STATE) */
+	uint32_t state; /* state entered, or the current one */
+	struct mlip_ctl_reason r;
+	uint64_t period;
+	uint64_t exec_seq;  /* the record executing (or last completed) then */
+	uint32_t exec_line;
+};
+
+struct mlip_ctl_in {
+	uint64_t period;                 /* 0, 1, 2, ... one per call */
+	uint32_t missed;                 /* deadlines the loop missed before this period */
+	const struct mlip_ring_cmd *cmd; /* this period's command; NULL: none */
+	int feeder_alive;                /* a feeder is attached and beating */
+	int exit_request;                /* stop on the path, then report done */
+	/* the bus as of the last send (cumulative) */
+	uint64_t can_tx_refused, can_error_frames;
+	int bus_off;
+};
+
+struct mlip_ctl_out {
+	double pos[MLIP_MAX_AXES]; /* the setpoint of this period */
+	struct mlip_can_frame frames[MLIP_CAN_MAX_FRAMES];
+	int n_frames;              /* 0: nothing to send (no encoder, or a fault) */
+	int32_t cmd_result;        /* mlip_status for in->cmd */
+	struct mlip_ring_status status; /* all but heartbeat_ns, pid, CAN counters */
+	struct mlip_ctl_event events[MLIP_CTL_MAX_EVENTS];
+	uint32_t n_events;
+	int done;                  /* an exit request has completed: at rest */
+};
+
+struct mlip_ctl_opts {
+	mlip_strategy strategy;
+	uint32_t lookahead;        /* 0: MLIP_LOOKAHEAD */
+	uint32_t stall_periods;    /* 0: MLIP_STALL_PERIODS_DEFAULT */
+	const struct mlip_can_config *can; /* NULL: no frames */
+};
+
+struct mlip_ctl {
+	/* wiring and private copies made at init */
+	struct mlip_planner *planner;
+	struct mlip_ring_port rx;   /* capacity, mask, tail: private copies */
+	int ring_bad;               /* head - tail beyond the capacity: read no more */
+	uint32_t ring_apart;        /* that distance */
+	struct mlip_machine m;
+	struct mlip_canenc enc;
+	int encode;
+	uint32_t stall_periods;
+	/* the state and why */
+	uint32_t state;             /* mlip_ring_state */
+	struct mlip_ctl_reason why;
+	uint32_t hold_why;          /* the cause of the planner's hold */
+	int bus_hold, stall_hold;
+	/* program */
+	int refill;                 /* the pre-read continues a program */
+	int end_seen;
+	uint64_t end_seq;
+	uint32_t end_line;
+	int discard;                /* dropping a stopped (or faulted) program's records */
+	int bad;                    /* a bad record: nothing more is taken */
+	int exiting;
+	int optional_stop;          /* the M1 switch */
+	uint64_t next_seq;          /* the record expected next */
+	uint64_t exec_seq;          /* last record whose motion (or wait) is done */
+	uint32_t exec_line;
+	struct mlip_ring_rec event; /* the event record ingest stopped in front of */
+	uint64_t wait_seq;          /* the dwell or pause being executed */
+	uint32_t wait_line;
+	uint64_t dwell_left;        /* periods */
+	int resume_wait;            /* resume came during a pause */
+	/* counters */
+	uint64_t period, overruns, underruns, blocks_consumed, refused, frames_encoded;
+	uint64_t bus_tx_seen, bus_err_seen, bus_bad_period;
+	/* a stop being measured: from its request to rest (status stop_*) */
+	int braking;
+	double brake_mm;
+	uint32_t brake_periods;
+	uint64_t stop_nm;
+	uint32_t stop_periods, stops;
+	double pos[MLIP_MAX_AXES];
+	/* scratch for one period's records (no stack arrays of this size on RT) */
+	struct mlip_ring_rec recs[MLIP_PREREAD_PER_PERIOD];
+	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];
+};
+
+/* At rest at the machine's HOME, state IDLE. The machine is copied;
+ * MLIP_E_INVALID for a machine, look-ahead or [CAN] settings that do not fit. */
+mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const struct mlip_machine *m,
+                          const struct mlip_ctl_opts *o, struct mlip_ring *ring);
+
+/* One period. */
+void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out);
+
+/* Check one record as the controller does before taking it: MLIP_OK, or
+ * MLIP_E_RANGE with *why (BAD_RECORD, field, seq, line, value). expect_seq 0:
+ * the sequence number is not checked. */
+mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mlip_ring_rec *rec,
+                                  uint64_t expect_seq, struct mlip_ctl_reason *why);
+
+#endif

@@ -1,0 +1,700 @@
+/*
+ * controller.c - the controller's period, pure (mlip/controller.h): commands
+ * in, records in (validated), one interpolation step, frames encoded, status
+ * and events out. The ingest rule of planner.h lives here once: records are
+ * taken without moving until the look-ahead is full, the program's END is in
+ * or an event (dwell, pause) is next (the pre-read, MLIP_PREREAD_PER_PERIOD a
+ * period), then at most MLIP_INGEST_PER_PERIOD a period before each step.
+ * An event is taken only when the planner is at rest at the end of the move
+ * before it: the planner always plans its newest block to rest, so stopping
+ * the ingest in front of an event is all it takes.
+ */
+#include "mlip/controller.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line);
+
+static void emit(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t kind, uint32_t from,
+                 const struct mlip_ctl_reason *r)
+{
+	if (out->n_events < MLIP_CTL_MAX_EVENTS) {
+		struct mlip_ctl_event *e = &out->events[out->n_events++];
+		e->kind = kind;
+		e->from = from;
+		e->state = c->state;
+		e->r = *r;
+		e->period = c->period;
+		progress(c, &e->exec_seq, &e->exec_line);
+	}
+}
+
+static struct mlip_ctl_reason reason(uint32_t why, uint64_t seq, uint32_t line)
+{
+	struct mlip_ctl_reason r = {.why = why, .seq = seq, .line = line};
+	return r;
+}
+
+/* Every change of state goes through here: named, with its reason. */
+static void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t state,
+               struct mlip_ctl_reason r)
+{
+	uint32_t from = c->state;
+	if (from == state && c->why.why == r.why) {
+		return;
+	}
+	c->state = state;
+	c->why = r;
+	emit(c, out, MLIP_EV_STATE, from, &r);
+}
+
+mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const struct mlip_machine *m,
+                          const struct mlip_ctl_opts *o, struct mlip_ring *ring)
+{
+	memset(c, 0, offsetof(struct mlip_ctl, recs));
+	c->planner = p;
+	c->m = *m;
+	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES ||
+	    mlip_ring_port_open(&c->rx, ring, 0) != MLIP_OK) {
+		return MLIP_E_INVALID;
+	}
+	for (int k = 0; k < m->n_axes; k++) {
+		c->pos[k] = m->axis[k].home;
+	}
+	if (mlip_planner_init(p, &c->m, o->strategy, o->lookahead, c->pos) != MLIP_OK) {
+		return MLIP_E_INVALID;
+	}
+	if (o->can != NULL) {
+		if (mlip_canenc_init(&c->enc, o->can, &c->m) != MLIP_OK) {
+			return MLIP_E_INVALID;
+		}
+		c->encode = 1;
+	}
+	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
+	c->state = MLIP_STATE_IDLE;
+	return MLIP_OK;
+}
+
+/* ---- the ring, through the consumer's private port --------------------- */
+
+/* A corrupted segment (head more than a capacity from our tail): take
+ * nothing more from it; the period turns it into a fault. */
+static void ring_corrupt(struct mlip_ctl *c, uint32_t apart)
+{
+	if (!c->ring_bad) {
+		c->ring_bad = 1;
+		c->ring_apart = apart;
+	}
+}
+
+static int rx_peek(struct mlip_ctl *c, struct mlip_ring_rec *rec)
+{
+	if (c->ring_bad) {
+		return 0;
+	}
+	mlip_status st = mlip_ring_port_peek(&c->rx, rec);
+	if (st == MLIP_E_RANGE) {
+		uint32_t n;
+		mlip_ring_port_count(&c->rx, &n, &c->ring_apart);
+		ring_corrupt(c, c->ring_apart);
+	}
+	return st == MLIP_OK;
+}
+
+static void rx_pop(struct mlip_ctl *c)
+{
+	mlip_ring_port_pop(&c->rx);
+	c->blocks_consumed++;
+}
+
+static uint32_t rx_count(struct mlip_ctl *c)
+{
+	uint32_t n = 0, apart = 0;
+	if (!c->ring_bad && mlip_ring_port_count(&c->rx, &n, &apart) != MLIP_OK) {
+		ring_corrupt(c, apart);
+	}
+	return n;
+}
+
+/* ---- records ------------------------------------------------------------ */
+
+static mlip_status bad(struct mlip_ctl_reason *why, const struct mlip_ring_rec *rec, uint32_t field,
+                       double value)
+{
+	if (why != NULL) {
+		why->why = MLIP_WHY_BAD_RECORD;
+		why->field = field;
+		why->seq = rec->seq;
+		why->line = rec->line;
+		why->value = value;
+	}
+	return MLIP_E_RANGE;
+}
+
+/* Bounded: a few comparisons per axis. NaN fails every comparison, so each
+ * test is written to pass only on a good value. */
+mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mlip_ring_rec *rec,
+                                  uint64_t expect_seq, struct mlip_ctl_reason *why)
+{
+	if (expect_seq != 0 && rec->seq != expect_seq) {
+		mlip_status st = bad(why, rec, MLIP_FIELD_SEQ, (double)rec->seq);
+		if (why != NULL) {
+			why->seq = expect_seq; /* the record in that place; value: its seq */
+		}
+		return st;
+	}
+	if (rec->type >= MLIP_REC_TYPES) {
+		return bad(why, rec, MLIP_FIELD_TYPE, (double)rec->type);
+	}
+	if ((rec->flags & ~MLIP_REC_FLAGS) != 0) {
+		return bad(why, rec, MLIP_FIELD_FLAGS, (double)rec->flags);
+	}
+	if (rec->type == MLIP_REC_DWELL &&
+	    !(rec->dwell_s >= 0.0 && rec->dwell_s <= MLIP_CTL_DWELL_MAX_S)) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
+	if (rec->type != MLIP_REC_MOVE) {
+		return MLIP_OK;
+	}
+	for (int k = 0; k < m->n_axes; k++) {
+		double x = rec->target[k];
+		if (!(x >= m->axis[k].min_limit && x <= m->axis[k].max_limit)) {
+			return bad(why, rec, MLIP_FIELD_TARGET + (uint32_t)k, x);
+		}
+	}
+	if ((rec->flags & MLIP_REC_RAPID) ? !(rec->feed_mm_s >= 0.0 && rec->feed_mm_s <= MLIP_CTL_FEED_MAX_MM_S)
+	                                   : !(rec->feed_mm_s > 0.0 && rec->feed_mm_s <= MLIP_CTL_FEED_MAX_MM_S)) {
+		return bad(why, rec, MLIP_FIELD_FEED, rec->feed_mm_s);
+	}
+	if (!(rec->tol_mm >= 0.0 && rec->tol_mm <= 1e6)) {
+		return bad(why, rec, MLIP_FIELD_TOL, rec->tol_mm);
+	}
+	return MLIP_OK;
+}
+
+static int is_event(const struct mlip_ring_rec *rec)
+{
+	return rec->type == MLIP_REC_DWELL || rec->type == MLIP_REC_PAUSE ||
+	       rec->type == MLIP_REC_OPTIONAL_PAUSE;
+}
+
+/* The ring is empty and nothing will fill it. */
+static int ring_dry(struct mlip_ctl *c, const struct mlip_ctl_in *in)
+{
+	return !in->feeder_alive && rx_count(c) == 0;
+}
+
+/* A bad record: take nothing more. The look-ahead already plans the last
+ * good block to rest; the rest of the program is dropped. */
+static void fault(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl_reason r)
+{
+	c->bad = 1;
+	c->discard = 1;
+	if (c->state != MLIP_STATE_RUNNING && c->state != MLIP_STATE_HELD) {
+		/* not moving (pre-read, a wait): what was pre-read never starts */
+		mlip_planner_stop(c->planner);
+		c->dwell_left = 0;
+	}
+	go(c, out, MLIP_STATE_FAULT, r);
+}
+
+/* Take up to max records of the current program, stopping in front of an
+ * event (it is taken at rest) and after END. Returns 1 when an event is next. */
+static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
+{
+	uint32_t n = 0;
+	int event_next = 0;
+	struct mlip_ring_rec *rec = c->recs;
+	while (n < max && !c->end_seen && !c->bad && rx_peek(c, &rec[n])) {
+		struct mlip_ctl_reason r;
+		if (mlip_ctl_check_record(&c->m, &rec[n], c->next_seq, &r) != MLIP_OK) {
+			fault(c, out, r);
+			break;
+		}
+		if (is_event(&rec[n])) {
+			if (rec[n].type == MLIP_REC_OPTIONAL_PAUSE && !c->optional_stop) {
+				rx_pop(c); /* M1 with the switch off: no stop */
+				c->next_seq++;
+				continue;
+			}
+			event_next = 1;
+			c->event = rec[n];
+			break;
+		}
+		rx_pop(c);
+		c->next_seq++;
+		if (rec[n].type == MLIP_REC_END) {
+			c->end_seen = 1;
+			c->end_seq = rec[n].seq;
+			c->end_line = rec[n].line;
+			break;
+		}
+		mlip_ring_rec_to_block(&rec[n], &c->blocks[n]);
+		n++;
+	}
+	if (n > 0) {
+		mlip_status err = MLIP_OK;
+		size_t got = mlip_planner_push_n(c->planner, c->blocks, n, &err);
+		if (got < n) {
+			/* validated, so only a planner refusal (a stop raced it) */
+			struct mlip_ctl_reason r = reason(MLIP_WHY_BAD_RECORD, c->blocks[got].seq,
+			                                  c->blocks[got].line);
+			r.value = (double)err;
+			fault(c, out, r);
+		}
+	}
+	return event_next;
+}
+
+/* The pre-read of a program (or a refill) is complete: move. */
+static int preread_done(struct mlip_ctl *c, const struct mlip_ctl_in *in, int event_next)
+{
+	return mlip_planner_space(c->planner) == 0 || c->end_seen || event_next || c->bad ||
+	       (c->refill && rx_count(c) == 0) || ring_dry(c, in);
+}
+
+/* A stopped program's remaining records: drop them, up to its END. A feeder
+ * that was stopped may never send that END; every program numbers its
+ * records from 1, so a record with seq 1 is the next program: keep it. */
+static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
+{
+	struct mlip_ring_rec rec;
+	if (ring_dry(c, in)) {
+		c->discard = 0; /* the stopped program's feeder is gone */
+		return;
+	}
+	for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && rx_peek(c, &rec); i++) {
+		if (rec.seq == 1 && !c->bad) {
+			c->discard = 0;
+			break;
+		}
+		rx_pop(c);
+		if (rec.type == MLIP_REC_END) {
+			c->discard = 0;
+			break;
+		}
+	}
+}
+
+/* ---- stops -------------------------------------------------------------- */
+
+/* A stop or hold was asked for: measure the path to rest (status stop_*). */
+static void brake_begin(struct mlip_ctl *c)
+{
+	if (!c->braking) {
+		c->braking = 1;
+		c->brake_mm = 0.0;
+		c->brake_periods = 0;
+	}
+}
+
+static void brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state rs)
+{
+	double d2 = 0.0;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if (c->m.axis[k].kind == MLIP_AXIS_LINEAR) {
+			d2 += (c->pos[k] - prev[k]) * (c->pos[k] - prev[k]);
+		}
+	}
+	c->brake_mm += sqrt(d2);
+	c->brake_periods++;
+	if (rs != MLIP_RUN_MOVING) {
+		c->braking = 0;
+		c->stop_nm = (uint64_t)(c->brake_mm * 1e6 + 0.5);
+		c->stop_periods = c->brake_periods;
+		c->stops++;
+	}
+}
+
+/* Stop: decelerate on the path and drop the rest of the program. */
+static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why)
+{
+	if (c->state == MLIP_STATE_IDLE && mlip_planner_queued(c->planner) == 0) {
+		/* nothing moving; a program already waiting in the ring is dropped */
+		c->discard = rx_count(c) > 0;
+		return;
+	}
+	mlip_planner_stop(c->planner);
+	c->dwell_left = 0;
+	if (c->state == MLIP_STATE_FAULT) {
+		return; /* the fault stays the reason */
+	}
+	brake_begin(c);
+	c->discard = !c->end_seen;
+	c->end_seen = 0;
+	go(c, out, MLIP_STATE_STOPPING, reason(why, 0, 0));
+}
+
+static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
+                             const struct mlip_ring_cmd *cmd)
+{
+	struct mlip_planner *p = c->planner;
+	switch (cmd->op) {
+	case MLIP_CMD_OVERRIDE:
+		if (cmd->arg == 0) {
+			c->hold_why = MLIP_WHY_OVERRIDE_ZERO;
+		}
+		return mlip_planner_set_override(p, (double)cmd->arg);
+	case MLIP_CMD_HOLD:
+		mlip_planner_hold(p, 1);
+		c->hold_why = MLIP_WHY_HOLD;
+		brake_begin(c);
+		return MLIP_OK;
+	case MLIP_CMD_RESUME:
+		if (c->state == MLIP_STATE_FAULT) {
+			return MLIP_E_INVALID;
+		}
+		if (c->bus_hold) {
+			/* held by the bus: only once it has been clean for a while */
+			if (c->period - c->bus_bad_period < MLIP_BUS_CLEAN_PERIODS) {
+				return MLIP_E_INVALID;
+			}
+			c->bus_hold = 0;
+		}
+		c->stall_hold = 0;
+		mlip_planner_hold(p, 0);
+		c->braking = 0; /* resumed before rest: no stop to measure */
+		c->resume_wait = c->state == MLIP_STATE_PAUSED; /* and a pause ends */
+		return MLIP_OK;
+	case MLIP_CMD_STOP:
+		begin_stop(c, out, MLIP_WHY_STOP);
+		return MLIP_OK;
+	case MLIP_CMD_OPTIONAL_STOP:
+		if (cmd->arg != 0 && cmd->arg != 1) {
+			return MLIP_E_RANGE;
+		}
+		c->optional_stop = cmd->arg;
+		return MLIP_OK;
+	default:
+		return MLIP_E_INVALID;
+	}
+}
+
+/* ---- waits: dwell, pause ------------------------------------------------- */
+
+/* At rest with an event record next: take it. */
+static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ring_rec *rec)
+{
+	rx_pop(c);
+	c->next_seq++;
+	c->wait_seq = rec->seq;
+	c->wait_line = rec->line;
+	c->resume_wait = 0;
+	struct mlip_ctl_reason r = reason(MLIP_WHY_DWELL, rec->seq, rec->line);
+	if (rec->type == MLIP_REC_DWELL) {
+		/* to the period: round(dwell / T) periods at rest */
+		c->dwell_left = (uint64_t)floor(rec->dwell_s / c->m.period_s + 0.5);
+		r.value = rec->dwell_s;
+		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_PAUSE || c->optional_stop) {
+		r.why = rec->type == MLIP_REC_PAUSE ? MLIP_WHY_PAUSE : MLIP_WHY_OPTIONAL_PAUSE;
+		go(c, out, MLIP_STATE_PAUSED, r);
+	} else {
+		c->dwell_left = 0; /* M1, switched off since it was reached: no wait */
+		r.why = MLIP_WHY_OPTIONAL_PAUSE;
+		go(c, out, MLIP_STATE_DWELLING, r);
+	}
+}
+
+/* The wait is over: the event is done; move on once the pre-read is. */
+static void end_wait(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
+                     int event_next, uint32_t why)
+{
+	c->exec_seq = c->wait_seq;
+	c->exec_line = c->wait_line;
+	c->refill = 1;
+	go(c, out, preread_done(c, in, event_next) ? MLIP_STATE_RUNNING : MLIP_STATE_PREREAD,
+	   reason(why, c->wait_seq, c->wait_line));
+}
+
+/* Take the event and end a wait of 0 periods at once. */
+static void start_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
+                        const struct mlip_ring_rec *rec)
+{
+	take_event(c, out, rec);
+	if (c->state == MLIP_STATE_DWELLING && c->dwell_left == 0) {
+		end_wait(c, out, in, 0, MLIP_WHY_DWELL_DONE);
+	}
+}
+
+/* ---- the period ----------------------------------------------------------- */
+
+/* Blocks in, by state. */
+static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
+{
+	struct mlip_ring_rec *head = &c->recs[0];
+	int have = rx_peek(c, head);
+
+	if (c->discard) {
+		discard(c, in);
+		return;
+	}
+	switch (c->state) {
+	case MLIP_STATE_IDLE:
+	case MLIP_STATE_STARVED:
+		if (!have) {
+			return;
+		}
+		if (head->seq != 1 && head->seq != c->exec_seq + 1) {
+			/* neither a program's start nor the block after the last one
+			 * completed here: running it would cut a straight line from
+			 * where the machine is to that block's end. Drop that program
+			 * (mlip-feed refuses such a --start-seq before sending). */
+			struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, head->seq, head->line);
+			r.value = (double)(c->exec_seq + 1);
+			emit(c, out, MLIP_EV_REFUSED, c->state, &r);
+			c->discard = 1;
+			c->refused++;
+			return;
+		}
+		c->refill = c->state == MLIP_STATE_STARVED && head->seq != 1;
+		if (!c->refill) {
+			c->exec_seq = 0; /* a new program (a starved one is given up) */
+			c->exec_line = 0;
+		}
+		c->next_seq = head->seq;
+		c->end_seen = 0;
+		go(c, out, MLIP_STATE_PREREAD,
+		   reason(c->refill ? MLIP_WHY_CONTINUE : MLIP_WHY_START, head->seq, head->line));
+		/* fall through - the pre-read starts in this period */
+	case MLIP_STATE_PREREAD: {
+		uint32_t room = mlip_planner_space(c->planner);
+		int ev = ingest(c, out, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
+		if (ev && mlip_planner_queued(c->planner) == 0) {
+			start_event(c, out, in, &c->event); /* nothing to move first */
+		} else if (c->state == MLIP_STATE_PREREAD && preread_done(c, in, ev)) {
+			go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_PREREAD_DONE, 0, 0));
+		}
+		return;
+	}
+	case MLIP_STATE_RUNNING:
+	case MLIP_STATE_HELD: {
+		if (mlip_planner_queued(c->planner) == 0 && have && is_event(head) &&
+		    mlip_ctl_check_record(&c->m, head, c->next_seq, NULL) == MLIP_OK) {
+			start_event(c, out, in, head);
+			return;
+		}
+		uint32_t room = mlip_planner_space(c->planner);
+		int dry = !c->end_seen && room > 0 && rx_count(c) == 0;
+		if (dry) {
+			c->underruns++; /* the feeder is behind: the plan runs to rest */
+		}
+		ingest(c, out, room < MLIP_INGEST_PER_PERIOD ? room : MLIP_INGEST_PER_PERIOD);
+		return;
+	}
+	case MLIP_STATE_DWELLING:
+	case MLIP_STATE_PAUSED: {
+		/* at rest: pre-read what follows, so motion starts at the end */
+		uint32_t room = mlip_planner_space(c->planner);
+		int ev = ingest(c, out, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
+		if (c->state == MLIP_STATE_DWELLING && c->dwell_left == 0) {
+			end_wait(c, out, in, ev, MLIP_WHY_DWELL_DONE);
+		} else if (c->state == MLIP_STATE_PAUSED && c->resume_wait) {
+			end_wait(c, out, in, ev, MLIP_WHY_RESUME);
+		}
+		return;
+	}
+	default:
+		return; /* STOPPING, FAULT: nothing more is taken */
+	}
+}
+
+/* The executing record, for the status. */
+static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
+{
+	const struct mlip_planner *p = c->planner;
+	*seq = c->exec_seq;
+	*line = c->exec_line;
+	if (c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED) {
+		*seq = c->wait_seq;
+		*line = c->wait_line;
+	} else if (c->state != MLIP_STATE_PREREAD && mlip_planner_queued(p) > 0) {
+		mlip_planner_executing(p, seq, line);
+	}
+}
+
+/* After the step: the transitions the motion decides. still: this period's
+ * setpoint is the last one's (the planner reached the point a period before
+ * it reported idle, by a rounding-size remainder). */
+static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
+                       mlip_run_state rs, int still)
+{
+	struct mlip_planner *p = c->planner;
+	struct mlip_ring_rec next;
+	switch (c->state) {
+	case MLIP_STATE_RUNNING:
+	case MLIP_STATE_HELD:
+		if (rs == MLIP_RUN_IDLE && c->end_seen) {
+			c->exec_seq = c->end_seq; /* the program is done, at rest */
+			c->exec_line = c->end_line;
+			c->end_seen = 0;
+			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_END, c->end_seq, c->end_line));
+		} else if (rs == MLIP_RUN_IDLE) {
+			mlip_planner_done(p, &c->exec_seq, &c->exec_line);
+			if (rx_peek(c, &next) && is_event(&next)) {
+				if (c->state == MLIP_STATE_HELD) {
+					go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
+				}
+				if (still && mlip_ctl_check_record(&c->m, &next, c->next_seq, NULL) == MLIP_OK) {
+					/* at rest since the last period: this one is the
+					 * wait's first, so the wait counts from the arrival */
+					start_event(c, out, in, &next);
+					if (c->state == MLIP_STATE_DWELLING) {
+						c->dwell_left--;
+					}
+				}
+				return; /* else at rest in front of an event: taken next period */
+			}
+			go(c, out, MLIP_STATE_STARVED, reason(MLIP_WHY_UNDERRUN, c->exec_seq, c->exec_line));
+		} else if (rs == MLIP_RUN_HELD && c->state == MLIP_STATE_RUNNING) {
+			go(c, out, MLIP_STATE_HELD, reason(c->hold_why ? c->hold_why : MLIP_WHY_HOLD, 0, 0));
+		} else if (rs == MLIP_RUN_MOVING && c->state == MLIP_STATE_HELD) {
+			go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
+		}
+		return;
+	case MLIP_STATE_STOPPING:
+		if (rs == MLIP_RUN_IDLE) {
+			mlip_planner_done(p, &c->exec_seq, &c->exec_line);
+			go(c, out, MLIP_STATE_IDLE, c->why); /* the stop stays the reason */
+		}
+		return;
+	case MLIP_STATE_FAULT:
+		if (rs == MLIP_RUN_IDLE) {
+			mlip_planner_done(p, &c->exec_seq, &c->exec_line); /* the last good block */
+		}
+		return;
+	default:
+		return;
+	}
+}
+
+static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
+{
+	struct mlip_ring_status *s = &out->status;
+	const struct mlip_planner *p = c->planner;
+	memset(s, 0, sizeof(*s));
+	s->heartbeat = c->period + 1;
+	progress(c, &s->exec_seq, &s->exec_line);
+	s->state = c->state;
+	s->override_pct = (uint32_t)(mlip_planner_override_pct(p) + 0.5);
+	s->overruns = c->overruns;
+	s->underruns = c->underruns;
+	s->blocks_consumed = c->blocks_consumed;
+	s->stop_nm = c->stop_nm;
+	s->stop_periods = c->stop_periods;
+	s->stops = c->stops;
+	s->reason = c->why.why;
+	s->reason_field = c->why.field;
+	s->reason_seq = c->why.seq;
+	s->reason_line = c->why.line;
+	s->reason_value = c->why.value;
+	s->optional_stop = (uint32_t)c->optional_stop;
+	memcpy(s->pos, c->pos, sizeof(s->pos));
+	s->speed_mm_s = mlip_planner_speed(p);
+	s->dwell_left = c->state == MLIP_STATE_DWELLING ? c->dwell_left : 0;
+}
+
+/* Still moving: a stall must freeze it. */
+static int moving(const struct mlip_ctl *c)
+{
+	return mlip_planner_moving(c->planner) && c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_DWELLING &&
+	       c->state != MLIP_STATE_PAUSED;
+}
+
+void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
+{
+	struct mlip_planner *p = c->planner;
+	int stalled = 0;
+
+	out->n_events = 0;
+	out->n_frames = 0;
+	out->cmd_result = MLIP_OK;
+	out->done = 0;
+	c->period = in->period;
+	c->overruns += in->missed;
+
+	/* a stall: the drives stood at the last setpoint while the plan's clock
+	 * ran on. Never jump: that setpoint becomes a point of rest, and motion
+	 * continues from it only on the operator's resume. */
+	if (in->missed > c->stall_periods && moving(c)) {
+		mlip_planner_rest_here(p);
+		if (c->state == MLIP_STATE_FAULT || c->state == MLIP_STATE_STOPPING) {
+			mlip_planner_stop(p); /* a stop in progress ends here */
+		} else {
+			c->stall_hold = 1;
+			c->hold_why = MLIP_WHY_STALL;
+			c->braking = 0;
+			struct mlip_ctl_reason r = reason(MLIP_WHY_STALL, 0, 0);
+			progress(c, &r.seq, &r.line);
+			r.value = (double)in->missed;
+			go(c, out, MLIP_STATE_HELD, r);
+		}
+		stalled = 1;
+	}
+	if (in->cmd != NULL) {
+		out->cmd_result = apply_command(c, out, in->cmd);
+	}
+	if (in->exit_request && !c->exiting) {
+		c->exiting = 1; /* a controlled stop on the path, then done */
+		begin_stop(c, out, MLIP_WHY_EXIT);
+	}
+	/* frames the drives did not get, or a bus that is off: do not go on
+	 * blind; hold on the path until the operator resumes on a clean bus */
+	if (in->can_tx_refused != c->bus_tx_seen || in->bus_off) {
+		c->bus_bad_period = c->period;
+		if (!c->bus_hold) {
+			c->bus_hold = 1;
+			c->hold_why = in->bus_off ? MLIP_WHY_BUS_ERROR : MLIP_WHY_BUS_TX;
+			mlip_planner_hold(p, 1);
+			brake_begin(c);
+		}
+	}
+	c->bus_tx_seen = in->can_tx_refused;
+	c->bus_err_seen = in->can_error_frames;
+
+	blocks_in(c, in, out);
+	if (c->ring_bad && !c->bad) {
+		struct mlip_ctl_reason r = reason(MLIP_WHY_RING_CORRUPT, c->next_seq, 0);
+		r.field = MLIP_FIELD_HEAD;
+		r.value = (double)c->ring_apart;
+		fault(c, out, r);
+		c->discard = 0; /* nothing is read from that ring again */
+	}
+
+	/* one step; a pre-read or a wait does not move, nor the stall's period */
+	if (c->state == MLIP_STATE_DWELLING) {
+		c->dwell_left--; /* >= 1 here: a wait of 0 ended in blocks_in */
+	} else if (c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_PAUSED && !stalled) {
+		double prev[MLIP_MAX_AXES];
+		memcpy(prev, c->pos, sizeof(prev));
+		mlip_run_state rs = mlip_planner_step(p, c->pos);
+		if (c->braking) {
+			brake_step(c, prev, rs);
+		}
+		after_step(c, out, in, rs, memcmp(prev, c->pos, sizeof(prev)) == 0);
+	}
+
+	memcpy(out->pos, c->pos, sizeof(out->pos));
+	if (c->encode) {
+		uint32_t sat = 0;
+		if (mlip_canenc_encode(&c->enc, (uint32_t)c->period, c->pos, out->frames,
+		                       MLIP_CAN_MAX_FRAMES, &out->n_frames, &sat) != MLIP_OK) {
+			/* a position beyond the drive's int32 range: never send it */
+			out->n_frames = 0;
+			if (c->state != MLIP_STATE_FAULT) {
+				begin_stop(c, out, MLIP_WHY_POSITION_RANGE);
+				struct mlip_ctl_reason r = reason(MLIP_WHY_POSITION_RANGE, 0, 0);
+				progress(c, &r.seq, &r.line);
+				go(c, out, MLIP_STATE_FAULT, r);
+			}
+		}
+		c->frames_encoded += (uint64_t)out->n_frames;
+	}
+	publish(c, out);
+	/* an exit request ends once the machine is at rest */
+	out->done = c->exiting && !c->discard &&
+	            (c->state == MLIP_STATE_IDLE ||
+	             (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0));
+}
