@@ -633,10 +633,6 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		}
 		stalled = 1;
 	}
-	if (c->state == MLIP_STATE_DWELLING) {
-		/* the drives stood still through missed periods too: dwell time */
-		c->dwell_left -= in->missed < c->dwell_left ? in->missed : c->dwell_left;
-	}
 	if (in->cmd != NULL) {
 		out->cmd_result = apply_command(c, out, in->cmd);
 	}
@@ -669,7 +665,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 
 	/* one step; a pre-read or a wait does not move, nor the stall's period */
 	if (c->state == MLIP_STATE_DWELLING) {
-		c->dwell_left -= c->dwell_left > 0; /* 0 only after missed periods */
+		c->dwell_left--; /* >= 1 here: a wait of 0 ended in blocks_in */
 	} else if (c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_PAUSED && !stalled) {
 		double prev[MLIP_MAX_AXES];
 		memcpy(prev, c->pos, sizeof(prev));

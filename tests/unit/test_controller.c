@@ -357,22 +357,6 @@ static void test_dwell_exact_periods(void **st)
 	dwell_at(10.0);
 }
 
-/* Periods the loop missed during a dwell were spent at rest: they count. */
-static void test_dwell_counts_missed_periods(void **st)
-{
-	(void)st;
-	move(1, 5.0, 0.0);
-	event(2, MLIP_BLOCK_DWELL, 0.1);
-	move(3, 10.0, 0.0);
-	end(4);
-	until(MLIP_STATE_DWELLING, 3000);
-	tick(10);
-	period_cmd(0, 0, 60); /* 60 missed: 100 - 1 - 10 - 60 - 1 = 28 left */
-	int more = until(MLIP_STATE_RUNNING, 100);
-	assert_int_equal(more, 29); /* 28, then the one that ends it */
-	assert_int_equal(ctl.exec_seq, 2);
-}
-
 /* A dwell at the program's start and a dwell of 0: nothing to move first. */
 static void test_dwell_first_and_zero(void **st)
 {
@@ -748,7 +732,6 @@ int main(void)
 	    T(test_override_zero_and_exit),
 	    T(test_dwell_exact_periods),
 	    T(test_dwell_first_and_zero),
-	    T(test_dwell_counts_missed_periods),
 	    T(test_pause_and_optional_pause),
 	    T(test_exact_stop_corner_at_rest),
 	    T(test_bad_nan_target),
