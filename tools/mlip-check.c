@@ -111,18 +111,20 @@ int main(int argc, char **argv)
 		return 2;
 	}
 	free(text);
-	size_t npts;
-	double *pts = mlip_cli_polyline(m, prog.blocks, prog.n, &npts);
-
+	/* the polyline is taken block by block as the trace needs it, the
+	 * trace row by row: the check's memory is fixed */
+	struct mlip_cli_block_array barr = {.blocks = prog.blocks, .n = prog.n};
+	struct mlip_cli_points pit;
+	mlip_cli_points_init(&pit, m, mlip_cli_block_array_next, &barr);
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
+	lim.tol_mm = m->tolerance_mm * (1.0 + rel) + quantum; /* the contour bound, for order */
 	static struct mlip_check chk;
-	mlip_check_init(&chk, &lim, pts, npts);
+	mlip_check_init_source(&chk, &lim, mlip_cli_points_next, &pit);
 
 	FILE *tf = strcmp(tpath, "-") == 0 ? stdin : fopen(tpath, "r");
 	if (tf == NULL) {
 		perror(tpath);
-		free(pts);
 		mlip_program_free(&prog);
 		return 2;
 	}
@@ -175,10 +177,10 @@ int main(int argc, char **argv)
 		fclose(tf);
 	}
 	if (input_error) {
-		free(pts);
 		mlip_program_free(&prog);
 		return 2;
 	}
+	mlip_check_finish(&chk);
 	double T = m->period_s;
 	double abs_acc = mlip_check_rounding_floor(&chk) + 4.0 * quantum / (T * T);
 	char msg[4096];
@@ -198,6 +200,7 @@ int main(int argc, char **argv)
 		fprintf(jf, "],\n  \"max_speed_mm_s\": %.12g,\n", chk.max_speed_mm_s);
 		fprintf(jf, "  \"max_rot_speed_deg_s\": %.12g,\n", chk.max_rot_speed_deg_s);
 		fprintf(jf, "  \"max_contour_error_mm\": %.12g,\n", chk.max_contour_mm);
+		fprintf(jf, "  \"order_errors\": %zu,\n", chk.order_errors);
 		fprintf(jf, "  \"end_error_mm\": %.3g,\n", mlip_check_end_error(&chk));
 		fprintf(jf, "  \"violations\": %d\n}\n", bad);
 		if (jf != stdout) {
@@ -210,7 +213,6 @@ int main(int argc, char **argv)
 		fprintf(stderr, PROG ": %s: %zu samples within limits (max contour %.6f mm)\n", tpath,
 		        chk.count, chk.max_contour_mm);
 	}
-	free(pts);
 	mlip_program_free(&prog);
 	return bad ? 1 : 0;
 }

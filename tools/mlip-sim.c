@@ -45,7 +45,9 @@ static void usage(FILE *f)
 	        "  --summary OUT.json    totals and measured physics (JSON)\n"
 	        "  --no-notes            do not list the words accepted without effect\n"
 	        "  -q, --quiet           neither notes nor the summary line on stderr\n"
-	        "  -h, --help            this help\n",
+	        "  -h, --help            this help\n"
+	        "exit status: 0 done within every limit, 1 input error, 2 usage, 3 no end,\n"
+	        "4 the trace breaks a limit (its own check, as mlip-check's: which, where)\n",
 	        MLIP_LOOKAHEAD);
 }
 
@@ -245,12 +247,14 @@ int main(int argc, char **argv)
 	}
 	mlip_planner_set_override(&planner, override);
 
-	size_t npts;
-	double *pts = mlip_cli_polyline(m, prog.blocks, prog.n, &npts);
+	/* the check takes the program's polyline block by block (fixed memory) */
+	struct mlip_cli_block_array barr = {.blocks = prog.blocks, .n = prog.n};
+	struct mlip_cli_points pit;
+	mlip_cli_points_init(&pit, m, mlip_cli_block_array_next, &barr);
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
 	static struct mlip_check chk;
-	mlip_check_init(&chk, &lim, pts, npts);
+	mlip_check_init_source(&chk, &lim, mlip_cli_points_next, &pit);
 
 	FILE *tf = NULL;
 	static char tbuf[1 << 20];
@@ -308,17 +312,13 @@ int main(int argc, char **argv)
 	}
 
 	double total = (double)k * m->period_s;
-	double path_mm = 0.0;
-	for (size_t i = 1; i < npts; i++) {
-		double s = 0.0;
-		for (int a = 0; a < n; a++) {
-			if (m->axis[a].kind == MLIP_AXIS_LINEAR) {
-				double d = pts[i * (size_t)n + a] - pts[(i - 1) * (size_t)n + a];
-				s += d * d;
-			}
-		}
-		path_mm += sqrt(s);
-	}
+	mlip_check_finish(&chk);
+	double path_mm = chk.prog_mm;
+	/* the same verdict as mlip-check on this trace: limits within 1e-9, the
+	 * rounding floor of the second differences, the end on the last point */
+	char vmsg[4096];
+	int bad = mlip_check_verdict(&chk, 1e-9, mlip_check_rounding_floor(&chk), 0.0, 1e-9, vmsg,
+	                             sizeof(vmsg));
 	double visits = planner.stats.pushes ? (double)planner.stats.backward_visits / (double)planner.stats.pushes : 0.0;
 
 	if (summary_path != NULL) {
@@ -361,7 +361,8 @@ int main(int argc, char **argv)
 		        m->max_feed_mm_s, m->tolerance_mm, m->period_s);
 		fprintf(sf, "  \"lookahead\": %lu,\n  \"backward_visits_per_block\": %.3f,\n",
 		        lookahead, visits);
-		fprintf(sf, "  \"override_events\": %llu\n}\n", (unsigned long long)storm.events);
+		fprintf(sf, "  \"override_events\": %llu,\n", (unsigned long long)storm.events);
+		fprintf(sf, "  \"order_errors\": %zu,\n  \"violations\": %d\n}\n", chk.order_errors, bad);
 		if (sf != stdout) {
 			fclose(sf);
 		}
@@ -373,7 +374,11 @@ int main(int argc, char **argv)
 		        path, mlip_cli_strategy_name((mlip_strategy)st), total, prog.n, path_mm,
 		        chk.max_speed_mm_s, chk.max_contour_mm);
 	}
-	free(pts);
 	mlip_program_free(&prog);
+	if (bad) {
+		fprintf(stderr, PROG ": %s: the trace breaks the machine's limits (%d check(s)):\n%s", path,
+		        bad, vmsg);
+		return 4;
+	}
 	return 0;
 }

@@ -1,9 +1,11 @@
 /*
- * check.c - see check.h. The contour search walks the polyline with the
- * samples: a sample's nearest segment is looked for from one segment behind
- * the previous one up to as far as the tool could have travelled (the
- * step plus a few eps, since corners cut inside). The distance found is to a
- * real segment of the polyline, so it can only over-state the true error.
+ * check.c - see check.h for what is measured. The polyline's points live in
+ * a ring; every MLIP_CHECK_CHUNK consecutive segments share an axis-aligned
+ * bounding box (a one-level bounding-volume hierarchy that slides with the
+ * ring). A sample's query visits the chunks whose path span meets its
+ * window, skips those whose box is farther than max(best so far, tol), and
+ * measures every segment of the others: the minimum over the window is exact
+ * (a segment lies inside its box, so its distance is at least the box's).
  */
 #include "check.h"
 
@@ -12,32 +14,286 @@
 #include <stdio.h>
 #include <string.h>
 
-static double seg_dist(int n, const double *x, const double *a, const double *b, double *len)
+#define RING_MASK ((uint64_t)MLIP_CHECK_RING - 1)
+#define NCHUNK (MLIP_CHECK_RING / MLIP_CHECK_CHUNK)
+#define BOX_MARGIN_MM 1e-9 /* a box is skipped only when this much farther */
+
+/* sizes must be powers of two (C99 has no _Static_assert) */
+typedef char mlip_check_ring_pow2[(MLIP_CHECK_RING & (MLIP_CHECK_RING - 1)) == 0 ? 1 : -1];
+typedef char mlip_check_chunk_pow2[(MLIP_CHECK_CHUNK & (MLIP_CHECK_CHUNK - 1)) == 0 &&
+                                           MLIP_CHECK_CHUNK < MLIP_CHECK_RING
+                                       ? 1
+                                       : -1];
+
+static double tol_of(const struct mlip_check *c)
 {
-	double ab2 = 0.0, t = 0.0;
-	for (int k = 0; k < n; k++) {
-		double d = b[k] - a[k];
-		ab2 += d * d;
-		t += (x[k] - a[k]) * d;
+	return c->lim.tol_mm > 0.0 ? c->lim.tol_mm : c->lim.eps_mm * (1.0 + 1e-9);
+}
+
+static const double *pt_at(const struct mlip_check *c, uint64_t p)
+{
+	return c->pt[p & RING_MASK];
+}
+
+static double arc_at(const struct mlip_check *c, uint64_t p)
+{
+	return c->arc_mm[p & RING_MASK];
+}
+
+static void init_common(struct mlip_check *c, const struct mlip_check_limits *lim)
+{
+	memset(c, 0, sizeof(*c));
+	c->lim = *lim;
+	c->gap = 1;
+	c->nset = 1; /* R_0: the start */
+	for (int k = 0; k < lim->n; k++) {
+		c->last_pt[k] = NAN; /* no point yet: no end */
 	}
-	*len = sqrt(ab2);
-	t = ab2 > 0.0 ? fmin(fmax(t / ab2, 0.0), 1.0) : 0.0;
-	double s = 0.0;
-	for (int k = 0; k < n; k++) {
-		double d = x[k] - (a[k] + t * (b[k] - a[k]));
-		s += d * d;
-	}
-	return sqrt(s);
 }
 
 void mlip_check_init(struct mlip_check *c, const struct mlip_check_limits *lim,
                      const double *pts, size_t npts)
 {
-	memset(c, 0, sizeof(*c));
-	c->lim = *lim;
-	c->pts = pts;
-	c->npts = npts;
-	c->gap = 1;
+	init_common(c, lim);
+	c->arr = pts;
+	c->arr_n = npts;
+	if (npts > 0) {
+		memcpy(c->last_pt, pts + (npts - 1) * (size_t)lim->n, sizeof(double) * (size_t)lim->n);
+	}
+}
+
+void mlip_check_init_source(struct mlip_check *c, const struct mlip_check_limits *lim,
+                            mlip_check_source_fn src, void *ctx)
+{
+	init_common(c, lim);
+	c->src = src;
+	c->src_ctx = ctx;
+}
+
+static void box_add(struct mlip_check *c, uint64_t chunk, const double *p, int fresh)
+{
+	size_t b = (size_t)(chunk % NCHUNK);
+	for (int k = 0; k < c->lim.n; k++) {
+		if (fresh) {
+			c->box_lo[b][k] = p[k];
+			c->box_hi[b][k] = p[k];
+		} else {
+			c->box_lo[b][k] = fmin(c->box_lo[b][k], p[k]);
+			c->box_hi[b][k] = fmax(c->box_hi[b][k], p[k]);
+		}
+	}
+}
+
+/* Point hi of the polyline; the caller made room (hi - lo < RING). */
+static void push_point(struct mlip_check *c, const double *p, uint32_t line)
+{
+	int n = c->lim.n;
+	uint64_t k = c->hi;
+	double arc = 0.0;
+	if (k > 0) {
+		const double *q = pt_at(c, k - 1);
+		double d2 = 0.0, lin2 = 0.0;
+		for (int a = 0; a < n; a++) {
+			double d = p[a] - q[a];
+			d2 += d * d;
+			lin2 += c->lim.rotary[a] ? 0.0 : d * d;
+		}
+		arc = arc_at(c, k - 1) + sqrt(d2);
+		c->prog_mm += sqrt(lin2);
+		box_add(c, (k - 1) / MLIP_CHECK_CHUNK, p, 0); /* end of segment k - 1 */
+	}
+	box_add(c, k / MLIP_CHECK_CHUNK, p, k % MLIP_CHECK_CHUNK == 0); /* start of segment k */
+	memcpy(c->pt[k & RING_MASK], p, sizeof(double) * (size_t)n);
+	c->arc_mm[k & RING_MASK] = arc;
+	c->line[k & RING_MASK] = line;
+	if (c->src != NULL) {
+		memcpy(c->last_pt, p, sizeof(double) * (size_t)n);
+	}
+	c->hi++;
+}
+
+/* Take the next point from the source: 1, or 0 when there is none. */
+static int pull(struct mlip_check *c)
+{
+	double p[MLIP_MAX_AXES] = {0};
+	uint32_t line = 0;
+	int r = 0;
+	if (c->src_done) {
+		return 0;
+	}
+	if (c->src != NULL) {
+		r = c->src(c->src_ctx, p, &line);
+	} else if (c->arr_i < c->arr_n) {
+		memcpy(p, c->arr + c->arr_i * (size_t)c->lim.n, sizeof(double) * (size_t)c->lim.n);
+		line = (uint32_t)c->arr_i;
+		c->arr_i++;
+		r = 1;
+	}
+	if (r <= 0) {
+		c->src_done = 1;
+		c->src_error = r < 0;
+		return 0;
+	}
+	push_point(c, p, line);
+	return 1;
+}
+
+/* The ring is full: drop its oldest chunk if no window reaches it, else drop
+ * the positions of R furthest behind (the samples' earliest possibilities)
+ * so that it can go. 0 when R cannot give way (its whole hull is there). */
+static int make_room(struct mlip_check *c, double *wa)
+{
+	double cut = arc_at(c, c->lo + MLIP_CHECK_CHUNK);
+	if (cut > *wa) {
+		double keep = cut + MLIP_CHECK_WINDOW_MM;
+		if (c->set[c->nset - 1].hi_mm < keep) {
+			return 0;
+		}
+		int i = 0;
+		while (c->set[i].hi_mm < keep) {
+			i++;
+		}
+		memmove(c->set, c->set + i, sizeof(c->set[0]) * (size_t)(c->nset - i));
+		c->nset -= i;
+		c->set[0].lo_mm = fmax(c->set[0].lo_mm, keep);
+		c->window_drops++;
+		*wa = c->set[0].lo_mm - MLIP_CHECK_WINDOW_MM;
+	}
+	c->lo += MLIP_CHECK_CHUNK;
+	return 1;
+}
+
+static void set_add(struct mlip_check_iv *s, int *ns, double lo, double hi)
+{
+	if (*ns > 0 && lo <= s[*ns - 1].hi_mm) {
+		s[*ns - 1].hi_mm = fmax(s[*ns - 1].hi_mm, hi);
+	} else if (*ns == MLIP_CHECK_MAX_SET) {
+		s[*ns - 1].hi_mm = fmax(s[*ns - 1].hi_mm, hi); /* hull: R only grows */
+	} else {
+		s[*ns].lo_mm = lo;
+		s[*ns].hi_mm = hi;
+		(*ns)++;
+	}
+}
+
+/* Contour error of x and R_i (see check.h); reach: how far along the path
+ * the sample may be ahead of R_{i-1}. */
+static void contour(struct mlip_check *c, const double *x, double reach)
+{
+	const int n = c->lim.n;
+	const double tol = tol_of(c), tol2 = tol * tol;
+	double wa = c->set[0].lo_mm - MLIP_CHECK_WINDOW_MM;
+	double wb = c->set[c->nset - 1].hi_mm + reach + MLIP_CHECK_WINDOW_MM;
+
+	while (c->hi == 0 || (!c->src_done && arc_at(c, c->hi - 1) < wb)) {
+		if (c->hi - c->lo == MLIP_CHECK_RING && !make_room(c, &wa)) {
+			c->window_drops++;
+			break;
+		}
+		if (!pull(c)) {
+			break;
+		}
+	}
+	if (c->hi - c->lo < 2) {
+		return;
+	}
+
+	struct mlip_check_iv f[MLIP_CHECK_MAX_SET]; /* positions within tol of x */
+	int nf = 0;
+	double best2 = INFINITY, best_s = c->near_mm;
+	uint64_t best_j = c->lo;
+	const uint64_t j1 = c->hi - 2; /* last whole segment */
+	for (uint64_t ch = c->lo / MLIP_CHECK_CHUNK; ch <= j1 / MLIP_CHECK_CHUNK; ch++) {
+		uint64_t a = ch * MLIP_CHECK_CHUNK;
+		uint64_t b = a + MLIP_CHECK_CHUNK - 1 < j1 ? a + MLIP_CHECK_CHUNK - 1 : j1;
+		if (arc_at(c, b + 1) < wa || arc_at(c, a) > wb) {
+			continue;
+		}
+		const double *lo = c->box_lo[ch % NCHUNK], *hi = c->box_hi[ch % NCHUNK];
+		double r = fmax(sqrt(best2), tol) + BOX_MARGIN_MM, box2 = 0.0;
+		for (int k = 0; k < n; k++) {
+			double d = x[k] < lo[k] ? lo[k] - x[k] : x[k] > hi[k] ? x[k] - hi[k] : 0.0;
+			box2 += d * d;
+		}
+		if (box2 > r * r) {
+			continue;
+		}
+		for (uint64_t j = a; j <= b; j++) {
+			double s0 = arc_at(c, j), s1 = arc_at(c, j + 1);
+			if (s1 < wa || s0 > wb) {
+				continue;
+			}
+			const double *p = pt_at(c, j), *q = pt_at(c, j + 1);
+			double len2 = 0.0, dot = 0.0, ax2 = 0.0;
+			for (int k = 0; k < n; k++) {
+				double d = q[k] - p[k], e = x[k] - p[k];
+				len2 += d * d;
+				dot += e * d;
+				ax2 += e * e;
+			}
+			double t = len2 > 0.0 ? fmin(fmax(dot / len2, 0.0), 1.0) : 0.0;
+			double d2 = 0.0;
+			for (int k = 0; k < n; k++) {
+				double d = x[k] - (p[k] + t * (q[k] - p[k]));
+				d2 += d * d;
+			}
+			double s = s0 + t * (s1 - s0);
+			/* ties go to the position nearest the last one */
+			if (d2 < best2 || (d2 == best2 && fabs(s - c->near_mm) < fabs(best_s - c->near_mm))) {
+				best2 = d2;
+				best_s = s;
+				best_j = j;
+			}
+			if (d2 <= tol2) {
+				/* |p - x + u (q - p)|^2 <= tol^2 for u in [u0, u1] */
+				double u0 = t, u1 = t;
+				if (len2 > 0.0) {
+					double sq = sqrt(fmax(dot * dot - len2 * (ax2 - tol2), 0.0));
+					u0 = fmin(fmax((dot - sq) / len2, 0.0), t);
+					u1 = fmax(fmin((dot + sq) / len2, 1.0), t);
+				}
+				set_add(f, &nf, s0 + u0 * (s1 - s0), s0 + u1 * (s1 - s0));
+			}
+		}
+	}
+	if (best2 == INFINITY) {
+		return; /* no segment in the window: cannot happen while R is on the path */
+	}
+
+	/* R_i = F ∩ (R_{i-1} + [0, reach]) */
+	struct mlip_check_iv r[MLIP_CHECK_MAX_SET];
+	int nr = 0;
+	for (int i = 0; i < nf; i++) {
+		for (int k = 0; k < c->nset; k++) {
+			double lo = fmax(f[i].lo_mm, c->set[k].lo_mm);
+			double hi = fmin(f[i].hi_mm, c->set[k].hi_mm + reach);
+			if (lo <= hi) {
+				set_add(r, &nr, lo, hi);
+			}
+		}
+	}
+	double err = sqrt(best2);
+	c->cur_line = c->line[(best_j + 1) & RING_MASK];
+	if (nr == 0) {
+		if (err <= tol && c->order_errors++ == 0) {
+			c->order_at = c->count;
+			c->order_period = c->periods;
+			c->order_line = c->cur_line;
+		}
+		r[0].lo_mm = best_s; /* start again from where the sample is */
+		r[0].hi_mm = best_s;
+		nr = 1;
+	}
+	memcpy(c->set, r, sizeof(r[0]) * (size_t)nr);
+	c->nset = nr;
+	c->near_mm = best_s;
+	c->last_contour_mm = err;
+	if (err > c->max_contour_mm) {
+		c->max_contour_mm = err;
+		c->max_contour_at = c->count;
+		c->max_contour_period = c->periods;
+		c->max_contour_line = c->cur_line;
+	}
 }
 
 void mlip_check_gap(struct mlip_check *c, size_t periods)
@@ -45,39 +301,6 @@ void mlip_check_gap(struct mlip_check *c, size_t periods)
 	if (periods > 1 && c->count > 0) {
 		c->gap = periods;
 		c->run = 0;
-	}
-}
-
-static void contour(struct mlip_check *c, const double *x, double step)
-{
-	int n = c->lim.n;
-	if (c->npts < 2) {
-		return;
-	}
-	double reach = step + 8.0 * c->lim.eps_mm + 1e-6;
-	size_t j = c->cursor >= 1 ? c->cursor - 1 : 0;
-	size_t best_j = c->cursor;
-	double best = INFINITY, ahead = 0.0;
-	for (; j + 1 < c->npts; j++) {
-		double len;
-		double dist = seg_dist(n, x, c->pts + j * (size_t)n, c->pts + (j + 1) * (size_t)n, &len);
-		/* ties go forward: a path that retraces itself must not pull the
-		 * search back onto an earlier pass over the same line */
-		if (dist <= best + 1e-9) {
-			best = fmin(best, dist);
-			best_j = j;
-		}
-		if (j > c->cursor) {
-			ahead += len;
-			if (ahead > reach) {
-				break;
-			}
-		}
-	}
-	c->cursor = best_j;
-	if (best > c->max_contour_mm) {
-		c->max_contour_mm = best;
-		c->max_contour_at = c->count;
 	}
 }
 
@@ -89,6 +312,7 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 	double step = 0.0, lin2 = 0.0, rot2 = 0.0;
 
 	if (c->count >= 1) {
+		c->periods += c->gap;
 		for (int k = 0; k < n; k++) {
 			double d = x[k] - c->x1[k];
 			step += d * d;
@@ -97,14 +321,26 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 			} else {
 				lin2 += d * d;
 			}
-			double v = fabs(d) / dt;
-			if (v > c->max_vel[k]) {
-				c->max_vel[k] = v;
-			}
 		}
 		step = sqrt(step);
+	}
+	/* across a hole the tool went at most v_max dt along the path, which
+	 * may be longer than the chord between the two samples */
+	double travel = c->gap > 1 ? fmax(step, (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * dt) : step;
+	contour(c, x, travel + 8.0 * tol_of(c));
+	if (c->count >= 1) {
+		for (int k = 0; k < n; k++) {
+			double v = fabs(x[k] - c->x1[k]) / dt;
+			if (v > c->max_vel[k]) {
+				c->max_vel[k] = v;
+				c->max_vel_at[k] = c->count;
+			}
+		}
 		c->path_mm += sqrt(lin2);
-		c->max_speed_mm_s = fmax(c->max_speed_mm_s, sqrt(lin2) / dt);
+		if (sqrt(lin2) / dt > c->max_speed_mm_s) {
+			c->max_speed_mm_s = sqrt(lin2) / dt;
+			c->max_speed_at = c->count;
+		}
 		if (lin2 == 0.0) {
 			c->max_rot_speed_deg_s = fmax(c->max_rot_speed_deg_s, sqrt(rot2) / dt);
 		}
@@ -115,15 +351,14 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 			if (acc > c->max_acc[k]) {
 				c->max_acc[k] = acc;
 				c->max_acc_at[k] = c->count;
+				c->max_acc_period[k] = c->periods;
+				c->max_acc_line[k] = c->cur_line;
 			}
 		}
 	}
 	for (int k = 0; k < n; k++) {
 		c->max_abs_coord = fmax(c->max_abs_coord, fabs(x[k]));
 	}
-	/* across a hole the tool went at most v_max dt along the path, which
-	 * may be longer than the chord between the two samples */
-	contour(c, x, c->gap > 1 ? fmax(step, (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * dt) : step);
 	c->gap = 1;
 	c->run++;
 	memcpy(c->x2, c->x1, sizeof(c->x1));
@@ -131,15 +366,26 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 	c->count++;
 }
 
+void mlip_check_finish(struct mlip_check *c)
+{
+	while (!c->src_done) {
+		if (c->hi - c->lo == MLIP_CHECK_RING) {
+			c->lo += MLIP_CHECK_CHUNK; /* no sample will look here again */
+		}
+		if (!pull(c)) {
+			break;
+		}
+	}
+}
+
 double mlip_check_end_error(const struct mlip_check *c)
 {
-	if (c->npts == 0 || c->count == 0) {
+	if ((c->src != NULL && c->hi == 0) || (c->src == NULL && c->arr_n == 0) || c->count == 0) {
 		return INFINITY;
 	}
-	const double *last = c->pts + (c->npts - 1) * (size_t)c->lim.n;
 	double s = 0.0;
 	for (int k = 0; k < c->lim.n; k++) {
-		s += (c->x1[k] - last[k]) * (c->x1[k] - last[k]);
+		s += (c->x1[k] - c->last_pt[k]) * (c->x1[k] - c->last_pt[k]);
 	}
 	return sqrt(s);
 }
@@ -177,7 +423,8 @@ int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_ac
                        double abs_mm, double end_mm, char *msg, size_t len)
 {
 	const struct mlip_check_limits *l = &c->lim;
-	char line[200];
+	const double T = l->period_s;
+	char line[256];
 	size_t used = 0;
 	int bad = 0;
 	if (len > 0) {
@@ -186,30 +433,46 @@ int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_ac
 	for (int k = 0; k < l->n; k++) {
 		if (c->max_acc[k] > l->accel[k] * (1.0 + rel_tol) + abs_acc) {
 			snprintf(line, sizeof(line),
-			         "axis %d: acceleration %.12g exceeds %.12g at sample %zu", k,
-			         c->max_acc[k], l->accel[k], c->max_acc_at[k]);
+			         "axis %d: acceleration %.12g exceeds %.12g at sample %zu (t = %.6f s), "
+			         "block of line %u",
+			         k, c->max_acc[k], l->accel[k], c->max_acc_at[k],
+			         (double)c->max_acc_period[k] * T, (unsigned)c->max_acc_line[k]);
 			add_msg(msg, len, &used, &bad, line);
 		}
-		if (c->max_vel[k] > l->vel[k] * (1.0 + rel_tol) + abs_acc * l->period_s) {
-			snprintf(line, sizeof(line), "axis %d: velocity %.12g exceeds %.12g", k,
-			         c->max_vel[k], l->vel[k]);
+		if (c->max_vel[k] > l->vel[k] * (1.0 + rel_tol) + abs_acc * T) {
+			snprintf(line, sizeof(line), "axis %d: velocity %.12g exceeds %.12g at sample %zu", k,
+			         c->max_vel[k], l->vel[k], c->max_vel_at[k]);
 			add_msg(msg, len, &used, &bad, line);
 		}
 	}
-	if (c->max_speed_mm_s > l->vmax_mm_s * (1.0 + rel_tol) + abs_acc * l->period_s) {
-		snprintf(line, sizeof(line), "tool speed %.12g exceeds %.12g", c->max_speed_mm_s,
-		         l->vmax_mm_s);
+	if (c->max_speed_mm_s > l->vmax_mm_s * (1.0 + rel_tol) + abs_acc * T) {
+		snprintf(line, sizeof(line), "tool speed %.12g exceeds %.12g at sample %zu",
+		         c->max_speed_mm_s, l->vmax_mm_s, c->max_speed_at);
 		add_msg(msg, len, &used, &bad, line);
 	}
-	if (c->max_rot_speed_deg_s > l->vmax_rot_deg_s * (1.0 + rel_tol) + abs_acc * l->period_s) {
+	if (c->max_rot_speed_deg_s > l->vmax_rot_deg_s * (1.0 + rel_tol) + abs_acc * T) {
 		snprintf(line, sizeof(line), "rotary speed %.12g exceeds %.12g",
 		         c->max_rot_speed_deg_s, l->vmax_rot_deg_s);
 		add_msg(msg, len, &used, &bad, line);
 	}
 	if (c->max_contour_mm > l->eps_mm * (1.0 + rel_tol) + abs_mm) {
-		snprintf(line, sizeof(line), "contour error %.12g exceeds %.12g at sample %zu",
-		         c->max_contour_mm, l->eps_mm, c->max_contour_at);
+		snprintf(line, sizeof(line),
+		         "contour error %.12g exceeds %.12g at sample %zu (t = %.6f s), "
+		         "nearest block: line %u",
+		         c->max_contour_mm, l->eps_mm, c->max_contour_at,
+		         (double)c->max_contour_period * T, (unsigned)c->max_contour_line);
 		add_msg(msg, len, &used, &bad, line);
+	}
+	if (c->order_errors > 0) {
+		snprintf(line, sizeof(line),
+		         "order: %zu sample(s) not reachable forwards along the path from the last, "
+		         "the first at sample %zu (t = %.6f s), near the block of line %u",
+		         c->order_errors, c->order_at, (double)c->order_period * T,
+		         (unsigned)c->order_line);
+		add_msg(msg, len, &used, &bad, line);
+	}
+	if (c->src_error) {
+		add_msg(msg, len, &used, &bad, "the program's polyline could not be read to its end");
 	}
 	double end = mlip_check_end_error(c);
 	if (!(end <= end_mm)) {

@@ -2,8 +2,36 @@
  * check.h - physics of a setpoint stream, measured from the samples alone:
  * per-axis acceleration from second differences, per-axis velocity and tool
  * speed from first differences, contour error as the distance of each sample
- * to the programmed polyline. It trusts nothing of the planner's internals;
- * the tests, the simulator's summary and mlip-check all use it.
+ * to the programmed polyline, and order (the samples visit the polyline
+ * forwards). It trusts nothing of the planner's internals; the tests, the
+ * simulator's summary and mlip-check all use it.
+ *
+ * Streaming, fixed memory: the polyline's points arrive in program order
+ * from a source (a callback, pulled as the samples need them) and the check
+ * keeps a window of at most MLIP_CHECK_RING of them, whatever the program's
+ * length; the samples arrive one by one.
+ *
+ * What is measured, exactly (in the n coordinates of the machine):
+ * - R_i, the path positions (arc length along the polyline) sample i can be
+ *   at: the positions within tol of x_i that are at most reach_i ahead of a
+ *   position of R_{i-1} (R_0 = the start), reach_i = the step from the last
+ *   sample (v_max dt across a hole) + 8 tol. R_i is a set of intervals; a
+ *   trace that follows the path in order within tol has its true position
+ *   in every R_i, however often the path comes back near itself.
+ * - the contour error of sample i: its exact distance to the polyline
+ *   restricted to the segments within path distance MLIP_CHECK_WINDOW_MM
+ *   before hull(R_{i-1}) and after hull(R_{i-1}) + reach_i (both
+ *   directions), found through bounding boxes of MLIP_CHECK_CHUNK segments
+ *   (a box is skipped only when it is farther than both the best distance
+ *   so far and tol, so the minimum is exact). It is never below the
+ *   distance to the whole polyline, and equals it wherever the polyline's
+ *   nearest point lies in that window.
+ * - order: R_i empty although the sample is within tol of the window: the
+ *   sample stepped back or skipped ahead along the path. R_i then restarts
+ *   at the sample's nearest point.
+ * Limits of the window: when R's hull and the windows need more than
+ *   MLIP_CHECK_RING points, the positions of R furthest behind are dropped
+ *   first (counted in window_drops).
  */
 #ifndef MLIP_CHECK_H
 #define MLIP_CHECK_H
@@ -13,6 +41,16 @@
 
 #include "mlip/types.h"
 
+#define MLIP_CHECK_RING 4096      /* polyline points kept, power of two */
+#define MLIP_CHECK_CHUNK 32       /* segments under one bounding box, power of two */
+#define MLIP_CHECK_WINDOW_MM 20.0 /* path distance searched beyond R, both ways */
+#define MLIP_CHECK_MAX_SET 32     /* intervals of R kept (more: merged, R only grows) */
+
+/* Next point of the programmed polyline, in order, the start first: returns
+ * 1 (pt and line filled: the source line of the block ending there), 0 at
+ * the end, < 0 on error (the check then treats the polyline as ended). */
+typedef int (*mlip_check_source_fn)(void *ctx, double *pt, uint32_t *line);
+
 struct mlip_check_limits {
 	int n;
 	double accel[MLIP_MAX_AXES];   /* A_k */
@@ -20,40 +58,85 @@ struct mlip_check_limits {
 	uint8_t rotary[MLIP_MAX_AXES];
 	double vmax_mm_s;              /* tool speed (linear axes) */
 	double vmax_rot_deg_s;         /* speed of moves of rotary axes only */
-	double eps_mm;                 /* contour tolerance, sets the search reach */
+	double eps_mm;                 /* contour tolerance */
 	double period_s;
+	double tol_mm;                 /* order tolerance; 0: eps_mm (1 + 1e-9) */
+};
+
+struct mlip_check_iv {
+	double lo_mm, hi_mm; /* path positions */
 };
 
 struct mlip_check {
 	struct mlip_check_limits lim;
-	const double *pts;      /* polyline: npts points of n coordinates, start first */
-	size_t npts;
-	size_t cursor;          /* segment nearest to the last sample */
+	/* the polyline's source */
+	mlip_check_source_fn src;
+	void *src_ctx;
+	const double *arr;      /* array source of mlip_check_init */
+	size_t arr_n, arr_i;
+	int src_done;           /* no more points */
+	int src_error;          /* the source failed */
+	/* the window: points [lo, hi) of the polyline at slot p % MLIP_CHECK_RING */
+	double pt[MLIP_CHECK_RING][MLIP_MAX_AXES];
+	double arc_mm[MLIP_CHECK_RING];  /* path position of each point */
+	uint32_t line[MLIP_CHECK_RING];
+	double box_lo[MLIP_CHECK_RING / MLIP_CHECK_CHUNK][MLIP_MAX_AXES];
+	double box_hi[MLIP_CHECK_RING / MLIP_CHECK_CHUNK][MLIP_MAX_AXES];
+	uint64_t lo, hi;
+	double last_pt[MLIP_MAX_AXES];   /* the last point pulled */
+	double prog_mm;                  /* polyline length pulled, linear axes */
+	/* where the samples are on it */
+	struct mlip_check_iv set[MLIP_CHECK_MAX_SET]; /* R, sorted, disjoint */
+	int nset;
+	double near_mm;                  /* path position of the last nearest point */
+	/* the samples */
 	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES]; /* last two samples */
 	size_t count;           /* samples seen */
 	size_t run;             /* samples since the last gap (differences need 2, 3) */
 	size_t gap;             /* periods between the last sample and the next (1: none) */
+	uint64_t periods;       /* periods from the first sample to the last */
 	/* results */
+	uint32_t cur_line;               /* line of the block nearest to the last sample */
 	double max_acc[MLIP_MAX_AXES];   /* max |second difference| / T^2 */
 	size_t max_acc_at[MLIP_MAX_AXES];
+	uint64_t max_acc_period[MLIP_MAX_AXES];
+	uint32_t max_acc_line[MLIP_MAX_AXES];
 	double max_vel[MLIP_MAX_AXES];   /* max |first difference| / T */
+	size_t max_vel_at[MLIP_MAX_AXES];
 	double max_speed_mm_s;           /* linear part of the path speed */
+	size_t max_speed_at;
 	double max_rot_speed_deg_s;      /* on samples where no linear axis moved */
+	double last_contour_mm;          /* contour error of the last sample */
 	double max_contour_mm;
-	size_t max_contour_at;
+	size_t max_contour_at;           /* sample */
+	uint64_t max_contour_period;     /* its time, in periods from the first sample */
+	uint32_t max_contour_line;       /* line of the block of its nearest segment */
+	size_t order_errors;             /* samples out of order */
+	size_t order_at;                 /* the first of them */
+	uint64_t order_period;
+	uint32_t order_line;             /* line of the block nearest to it */
+	size_t window_drops;             /* positions of R dropped for room */
 	double path_mm;                  /* length of the sampled path, linear axes */
 	double max_abs_coord;            /* largest |coordinate| seen */
 };
 
+/* A check of a polyline held in an array of npts points (must outlive c);
+ * the points' lines are their indices. */
 void mlip_check_init(struct mlip_check *c, const struct mlip_check_limits *lim,
                      const double *pts, size_t npts);
+/* A check pulling the polyline from src as the samples need it. */
+void mlip_check_init_source(struct mlip_check *c, const struct mlip_check_limits *lim,
+                            mlip_check_source_fn src, void *ctx);
 void mlip_check_sample(struct mlip_check *c, const double *x);
 /* The next sample comes `periods` periods after the last one (samples lost,
  * e.g. CAN frames the bus never carried): velocities across the hole are its
  * mean (which cannot exceed the limit either), no acceleration is taken
- * across it, and the contour search reaches as far as v_max allows. */
+ * across it, and the reach along the path is v_max times the hole. */
 void mlip_check_gap(struct mlip_check *c, size_t periods);
-/* Distance of the last sample to the last point of the polyline. */
+/* After the last sample: pull the rest of the polyline (for its last point
+ * and length). */
+void mlip_check_finish(struct mlip_check *c);
+/* Distance of the last sample to the last point of the polyline pulled. */
 double mlip_check_end_error(const struct mlip_check *c);
 /* Speed implied by the last two samples (joint units / s). */
 double mlip_check_end_speed(const struct mlip_check *c);
@@ -65,9 +148,10 @@ double mlip_check_rounding_floor(const struct mlip_check *c);
 
 /* Verdict with stated tolerances: acceleration and velocity within the limit
  * times (1 + rel_tol) + abs_acc (quantisation floor, 0 for double traces),
- * contour within eps (1 + rel_tol) + abs_mm, end within end_mm of the last
- * point. Writes one line per violation into msg (NUL-terminated, truncated
- * to len) and returns the number of violations. */
+ * contour within eps (1 + rel_tol) + abs_mm, no sample out of order, end
+ * within end_mm of the last point. Writes one line per violation (with its
+ * sample, time and source line) into msg (NUL-terminated, truncated to len)
+ * and returns the number of violations. */
 int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_acc,
                        double abs_mm, double end_mm, char *msg, size_t len);
 

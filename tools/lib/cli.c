@@ -153,6 +153,56 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
 	return 0;
 }
 
+int mlip_cli_block_array_next(void *ctx, struct mlip_block *b)
+{
+	struct mlip_cli_block_array *a = ctx;
+	if (a->i >= a->n) {
+		return 0;
+	}
+	*b = a->blocks[a->i++];
+	return 1;
+}
+
+void mlip_cli_points_init(struct mlip_cli_points *it, const struct mlip_machine *m,
+                          mlip_cli_block_fn next, void *ctx)
+{
+	memset(it, 0, sizeof(*it));
+	it->m = m;
+	it->next = next;
+	it->ctx = ctx;
+}
+
+int mlip_cli_points_next(void *ctx, double *pt, uint32_t *line)
+{
+	struct mlip_cli_points *it = ctx;
+	int n = it->m->n_axes;
+	if (!it->started) {
+		it->started = 1;
+		for (int k = 0; k < n; k++) {
+			it->last[k] = it->m->axis[k].home;
+		}
+		memcpy(pt, it->last, sizeof(double) * (size_t)n);
+		*line = 0;
+		return 1;
+	}
+	struct mlip_block b;
+	int r;
+	while ((r = it->next(it->ctx, &b)) > 0) {
+		double d2 = 0.0;
+		for (int k = 0; k < n; k++) {
+			d2 += (b.target[k] - it->last[k]) * (b.target[k] - it->last[k]);
+		}
+		if (sqrt(d2) < MLIP_GCODE_MERGE_MM) {
+			continue; /* the planner drops it too */
+		}
+		memcpy(it->last, b.target, sizeof(double) * (size_t)n);
+		memcpy(pt, b.target, sizeof(double) * (size_t)n);
+		*line = b.line;
+		return 1;
+	}
+	return r;
+}
+
 double *mlip_cli_polyline(const struct mlip_machine *m, const struct mlip_block *blocks,
                           size_t nblocks, size_t *npts)
 {
@@ -161,20 +211,12 @@ double *mlip_cli_polyline(const struct mlip_machine *m, const struct mlip_block 
 	if (pts == NULL) {
 		return NULL;
 	}
-	for (int k = 0; k < n; k++) {
-		pts[k] = m->axis[k].home;
-	}
-	size_t np = 1;
-	for (size_t i = 0; i < nblocks; i++) {
-		const double *last = pts + (np - 1) * (size_t)n;
-		double d2 = 0.0;
-		for (int k = 0; k < n; k++) {
-			d2 += (blocks[i].target[k] - last[k]) * (blocks[i].target[k] - last[k]);
-		}
-		if (sqrt(d2) < MLIP_GCODE_MERGE_MM) {
-			continue;
-		}
-		memcpy(pts + np * (size_t)n, blocks[i].target, sizeof(double) * (size_t)n);
+	struct mlip_cli_block_array arr = {.blocks = blocks, .n = nblocks};
+	struct mlip_cli_points it;
+	mlip_cli_points_init(&it, m, mlip_cli_block_array_next, &arr);
+	size_t np = 0;
+	uint32_t line;
+	while (mlip_cli_points_next(&it, pts + np * (size_t)n, &line) > 0) {
 		np++;
 	}
 	*npts = np;

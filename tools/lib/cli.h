@@ -50,4 +50,29 @@ void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limit
 double *mlip_cli_polyline(const struct mlip_machine *m, const struct mlip_block *blocks,
                           size_t nblocks, size_t *npts);
 
+/* A program's blocks in order: 1 (*b filled), 0 at the end, < 0 on error. A
+ * streaming reader of the program plugs in here. */
+typedef int (*mlip_cli_block_fn)(void *ctx, struct mlip_block *b);
+
+/* The blocks of an array, as an mlip_cli_block_fn (ctx: this struct). */
+struct mlip_cli_block_array {
+	const struct mlip_block *blocks;
+	size_t n, i;
+};
+int mlip_cli_block_array_next(void *ctx, struct mlip_block *b);
+
+/* The same polyline point by point, from blocks taken one at a time (fixed
+ * memory): an mlip_check_source_fn (ctx: this struct). The home point comes
+ * first, with line 0. */
+struct mlip_cli_points {
+	const struct mlip_machine *m;
+	mlip_cli_block_fn next;
+	void *ctx;
+	int started;
+	double last[MLIP_MAX_AXES];
+};
+void mlip_cli_points_init(struct mlip_cli_points *it, const struct mlip_machine *m,
+                          mlip_cli_block_fn next, void *ctx);
+int mlip_cli_points_next(void *ctx, double *pt, uint32_t *line);
+
 #endif
