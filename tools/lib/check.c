@@ -30,6 +30,11 @@ static double tol_of(const struct mlip_check *c)
 	return c->lim.tol_mm > 0.0 ? c->lim.tol_mm : c->lim.eps_mm * (1.0 + 1e-9);
 }
 
+static double win_of(const struct mlip_check *c)
+{
+	return c->lim.window_mm > 0.0 ? c->lim.window_mm : MLIP_CHECK_WINDOW_MM;
+}
+
 static const double *pt_at(const struct mlip_check *c, uint64_t p)
 {
 	return c->pt[p & RING_MASK];
@@ -145,7 +150,7 @@ static int make_room(struct mlip_check *c, double *wa)
 {
 	double cut = arc_at(c, c->lo + MLIP_CHECK_CHUNK);
 	if (cut > *wa) {
-		double keep = cut + MLIP_CHECK_WINDOW_MM;
+		double keep = cut + win_of(c);
 		if (c->set[c->nset - 1].hi_mm < keep) {
 			return 0;
 		}
@@ -157,7 +162,7 @@ static int make_room(struct mlip_check *c, double *wa)
 		c->nset -= i;
 		c->set[0].lo_mm = fmax(c->set[0].lo_mm, keep);
 		c->window_drops++;
-		*wa = c->set[0].lo_mm - MLIP_CHECK_WINDOW_MM;
+		*wa = c->set[0].lo_mm - win_of(c);
 	}
 	c->lo += MLIP_CHECK_CHUNK;
 	return 1;
@@ -176,14 +181,105 @@ static void set_add(struct mlip_check_iv *s, int *ns, double lo, double hi)
 	}
 }
 
+/* One search of the window for a sample. */
+struct query {
+	const double *x;
+	double tol2;
+	uint64_t ja, jb;  /* segments of the window */
+	double best2, best_s, near_mm;
+	uint64_t best_j;
+	struct mlip_check_iv f[MLIP_CHECK_MAX_SET]; /* positions within tol of x */
+	int nf;
+};
+
+/* The first point at path position >= s in [lo, hi) (hi when none). */
+static uint64_t point_at_or_after(const struct mlip_check *c, double s)
+{
+	uint64_t a = c->lo, b = c->hi;
+	while (a < b) {
+		uint64_t m = a + (b - a) / 2;
+		if (arc_at(c, m) < s) {
+			a = m + 1;
+		} else {
+			b = m;
+		}
+	}
+	return a;
+}
+
+/* Measure every segment of the window in a chunk whose box is within
+ * radius of x (radius < 0: within the best distance so far); keep the
+ * nearest and, when collect, the positions within tol. */
+static void scan(const struct mlip_check *c, struct query *q, double radius, int collect)
+{
+	const int n = c->lim.n;
+	const double *x = q->x;
+	for (uint64_t ch = q->ja / MLIP_CHECK_CHUNK; ch <= q->jb / MLIP_CHECK_CHUNK; ch++) {
+		uint64_t a = ch * MLIP_CHECK_CHUNK, b = a + MLIP_CHECK_CHUNK - 1;
+		a = a < q->ja ? q->ja : a;
+		b = b > q->jb ? q->jb : b;
+		const double *lo = c->box_lo[ch % NCHUNK], *hi = c->box_hi[ch % NCHUNK];
+		double r = (radius < 0.0 ? sqrt(q->best2) : radius) + BOX_MARGIN_MM, box2 = 0.0;
+		for (int k = 0; k < n; k++) {
+			double d = x[k] < lo[k] ? lo[k] - x[k] : x[k] > hi[k] ? x[k] - hi[k] : 0.0;
+			box2 += d * d;
+		}
+		if (box2 > r * r) {
+			continue;
+		}
+		for (uint64_t j = a; j <= b; j++) {
+			const double *p = pt_at(c, j), *e = pt_at(c, j + 1);
+			int far = 0; /* farther than r along one axis: farther than r */
+			for (int k = 0; k < n && !far; k++) {
+				double a0 = p[k] < e[k] ? p[k] : e[k], a1 = p[k] < e[k] ? e[k] : p[k];
+				far = x[k] < a0 - r || x[k] > a1 + r;
+			}
+			if (far) {
+				continue;
+			}
+			double s0 = arc_at(c, j), s1 = arc_at(c, j + 1);
+			double len2 = 0.0, dot = 0.0, ax2 = 0.0;
+			for (int k = 0; k < n; k++) {
+				double d = e[k] - p[k], w = x[k] - p[k];
+				len2 += d * d;
+				dot += w * d;
+				ax2 += w * w;
+			}
+			double t = len2 > 0.0 ? fmin(fmax(dot / len2, 0.0), 1.0) : 0.0;
+			double d2 = 0.0;
+			for (int k = 0; k < n; k++) {
+				double d = x[k] - (p[k] + t * (e[k] - p[k]));
+				d2 += d * d;
+			}
+			double s = s0 + t * (s1 - s0);
+			/* ties go to the position nearest the last one */
+			if (d2 < q->best2 ||
+			    (d2 == q->best2 && fabs(s - q->near_mm) < fabs(q->best_s - q->near_mm))) {
+				q->best2 = d2;
+				q->best_s = s;
+				q->best_j = j;
+			}
+			if (collect && d2 <= q->tol2) {
+				/* |p - x + u (e - p)|^2 <= tol^2 for u in [u0, u1] */
+				double u0 = t, u1 = t;
+				if (len2 > 0.0) {
+					double sq = sqrt(fmax(dot * dot - len2 * (ax2 - q->tol2), 0.0));
+					u0 = fmin(fmax((dot - sq) / len2, 0.0), t);
+					u1 = fmax(fmin((dot + sq) / len2, 1.0), t);
+				}
+				set_add(q->f, &q->nf, s0 + u0 * (s1 - s0), s0 + u1 * (s1 - s0));
+			}
+		}
+	}
+}
+
 /* Contour error of x and R_i (see check.h); reach: how far along the path
  * the sample may be ahead of R_{i-1}. */
 static void contour(struct mlip_check *c, const double *x, double reach)
 {
-	const int n = c->lim.n;
-	const double tol = tol_of(c), tol2 = tol * tol;
-	double wa = c->set[0].lo_mm - MLIP_CHECK_WINDOW_MM;
-	double wb = c->set[c->nset - 1].hi_mm + reach + MLIP_CHECK_WINDOW_MM;
+	const double tol = tol_of(c);
+	double wa = c->set[0].lo_mm - win_of(c);
+	double wb = c->set[c->nset - 1].hi_mm + reach + win_of(c);
 
 	while (c->hi == 0 || (!c->src_done && arc_at(c, c->hi - 1) < wb)) {
 		if (c->hi - c->lo == MLIP_CHECK_RING && !make_room(c, &wa)) {
@@ -197,68 +293,41 @@ static void contour(struct mlip_check *c, const double *x, double reach)
 	if (c->hi - c->lo < 2) {
 		return;
 	}
-
-	struct mlip_check_iv f[MLIP_CHECK_MAX_SET]; /* positions within tol of x */
-	int nf = 0;
-	double best2 = INFINITY, best_s = c->near_mm;
-	uint64_t best_j = c->lo;
-	const uint64_t j1 = c->hi - 2; /* last whole segment */
-	for (uint64_t ch = c->lo / MLIP_CHECK_CHUNK; ch <= j1 / MLIP_CHECK_CHUNK; ch++) {
-		uint64_t a = ch * MLIP_CHECK_CHUNK;
-		uint64_t b = a + MLIP_CHECK_CHUNK - 1 < j1 ? a + MLIP_CHECK_CHUNK - 1 : j1;
-		if (arc_at(c, b + 1) < wa || arc_at(c, a) > wb) {
-			continue;
-		}
-		const double *lo = c->box_lo[ch % NCHUNK], *hi = c->box_hi[ch % NCHUNK];
-		double r = fmax(sqrt(best2), tol) + BOX_MARGIN_MM, box2 = 0.0;
-		for (int k = 0; k < n; k++) {
-			double d = x[k] < lo[k] ? lo[k] - x[k] : x[k] > hi[k] ? x[k] - hi[k] : 0.0;
-			box2 += d * d;
-		}
-		if (box2 > r * r) {
-			continue;
-		}
-		for (uint64_t j = a; j <= b; j++) {
-			double s0 = arc_at(c, j), s1 = arc_at(c, j + 1);
-			if (s1 < wa || s0 > wb) {
-				continue;
-			}
-			const double *p = pt_at(c, j), *q = pt_at(c, j + 1);
-			double len2 = 0.0, dot = 0.0, ax2 = 0.0;
-			for (int k = 0; k < n; k++) {
-				double d = q[k] - p[k], e = x[k] - p[k];
-				len2 += d * d;
-				dot += e * d;
-				ax2 += e * e;
-			}
-			double t = len2 > 0.0 ? fmin(fmax(dot / len2, 0.0), 1.0) : 0.0;
-			double d2 = 0.0;
-			for (int k = 0; k < n; k++) {
-				double d = x[k] - (p[k] + t * (q[k] - p[k]));
-				d2 += d * d;
-			}
-			double s = s0 + t * (s1 - s0);
-			/* ties go to the position nearest the last one */
-			if (d2 < best2 || (d2 == best2 && fabs(s - c->near_mm) < fabs(best_s - c->near_mm))) {
-				best2 = d2;
-				best_s = s;
-				best_j = j;
-			}
-			if (d2 <= tol2) {
-				/* |p - x + u (q - p)|^2 <= tol^2 for u in [u0, u1] */
-				double u0 = t, u1 = t;
-				if (len2 > 0.0) {
-					double sq = sqrt(fmax(dot * dot - len2 * (ax2 - tol2), 0.0));
-					u0 = fmin(fmax((dot - sq) / len2, 0.0), t);
-					u1 = fmax(fmin((dot + sq) / len2, 1.0), t);
-				}
-				set_add(f, &nf, s0 + u0 * (s1 - s0), s0 + u1 * (s1 - s0));
-			}
-		}
-	}
-	if (best2 == INFINITY) {
+	/* segments [ja, jb] meet [wa, wb]: j from the one ending at or after
+	 * wa, to the last starting at or before wb */
+	uint64_t ja = point_at_or_after(c, wa), pb = point_at_or_after(c, wb), jb;
+	ja = ja > c->lo ? ja - 1 : c->lo;
+	if (pb < c->hi && arc_at(c, pb) == wb) {
+		jb = pb;
+	} else if (pb > c->lo) {
+		jb = pb - 1;
+	} else {
 		return; /* no segment in the window: cannot happen while R is on the path */
 	}
+	jb = jb > c->hi - 2 ? c->hi - 2 : jb;
+	if (ja > jb) {
+		return;
+	}
+	struct query q;
+	q.x = x;
+	q.tol2 = tol * tol;
+	q.ja = ja;
+	q.jb = jb;
+	q.best2 = INFINITY;
+	q.best_s = c->near_mm;
+	q.near_mm = c->near_mm;
+	q.best_j = ja;
+	q.nf = 0;
+	/* within tol first: every position of F, and the nearest when it is
+	 * within tol; else the whole window, pruned by the best so far */
+	scan(c, &q, tol, 1);
+	if (!(q.best2 <= q.tol2)) {
+		scan(c, &q, -1.0, 0);
+	}
+	const struct mlip_check_iv *f = q.f;
+	const int nf = q.nf;
+	const double best2 = q.best2, best_s = q.best_s;
+	const uint64_t best_j = q.best_j;
 
 	/* R_i = F ∩ (R_{i-1} + [0, reach]) */
 	struct mlip_check_iv r[MLIP_CHECK_MAX_SET];

@@ -19,8 +19,8 @@
  *   trace that follows the path in order within tol has its true position
  *   in every R_i, however often the path comes back near itself.
  * - the contour error of sample i: its exact distance to the polyline
- *   restricted to the segments within path distance MLIP_CHECK_WINDOW_MM
- *   before hull(R_{i-1}) and after hull(R_{i-1}) + reach_i (both
+ *   restricted to the segments within path distance W (window_mm, default
+ *   MLIP_CHECK_WINDOW_MM) before hull(R_{i-1}) and after hull(R_{i-1}) + reach_i (both
  *   directions), found through bounding boxes of MLIP_CHECK_CHUNK segments
  *   (a box is skipped only when it is farther than both the best distance
  *   so far and tol, so the minimum is exact). It is never below the
@@ -42,7 +42,7 @@
 #include "mlip/types.h"
 
 #define MLIP_CHECK_RING 4096      /* polyline points kept, power of two */
-#define MLIP_CHECK_CHUNK 32       /* segments under one bounding box, power of two */
+#define MLIP_CHECK_CHUNK 16       /* segments under one bounding box, power of two */
 #define MLIP_CHECK_WINDOW_MM 20.0 /* path distance searched beyond R, both ways */
 #define MLIP_CHECK_MAX_SET 32     /* intervals of R kept (more: merged, R only grows) */
 
@@ -61,6 +61,7 @@ struct mlip_check_limits {
 	double eps_mm;                 /* contour tolerance */
 	double period_s;
 	double tol_mm;                 /* order tolerance; 0: eps_mm (1 + 1e-9) */
+	double window_mm;              /* path distance searched beyond R; 0: MLIP_CHECK_WINDOW_MM */
 };
 
 struct mlip_check_iv {
