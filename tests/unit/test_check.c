@@ -230,10 +230,11 @@ static struct mlip_check chk; /* ~0.3 MB */
 
 /* Walk the path forwards by random steps of at most step_mm (a hold now and
  * then), each sample off the path by up to off_mm in a random direction;
- * every `far` samples (0: never) one sample off by up to 3 eps. Asserts each
- * sample's contour error against brute force; returns the samples made. */
+ * every `far` samples (0: never) one sample off by up to 3 eps. With
+ * exact, asserts each sample's contour error against brute force. Returns
+ * the samples made. */
 static size_t walk(const struct path *p, double window_mm, double step_mm, double off_mm,
-                   size_t far)
+                   size_t far, int exact)
 {
 	int n = p->n;
 	struct mlip_check_limits lim = limits(n, window_mm);
@@ -256,7 +257,7 @@ static size_t walk(const struct path *p, double window_mm, double step_mm, doubl
 			x[k] += off * e[k] / sqrt(r2);
 		}
 		mlip_check_sample(&chk, x);
-		double want = brute(p, x);
+		double want = exact ? brute(p, x) : chk.last_contour_mm;
 		if (!(fabs(chk.last_contour_mm - want) <= EXACT_MM)) {
 			fail_msg("sample %zu at path position %.6f: contour %.17g, brute force %.17g", i,
 			         pos, chk.last_contour_mm, want);
@@ -271,29 +272,42 @@ static size_t walk(const struct path *p, double window_mm, double step_mm, doubl
 	return i + 1;
 }
 
-/* Contour within eps, order, end: the walks' random offsets make no sense
- * as accelerations. */
-static void assert_clean(size_t samples)
+/* Contour within eps (both sides: the offsets reach into the band) and the
+ * end on the last point. (The walks' random offsets make no sense as
+ * accelerations.) */
+static void assert_contour(size_t samples, double used)
 {
 	if (!(chk.max_contour_mm <= EPS)) {
 		fail_msg("%zu samples: contour %.17g at sample %zu", samples, chk.max_contour_mm,
 		         chk.max_contour_at);
 	}
-	assert_int_equal(chk.order_errors, 0);
+	assert_true(chk.max_contour_mm > used * EPS);
 	assert_true(mlip_check_end_error(&chk) <= 1e-12);
-	/* both sides: the offsets do reach into the band */
-	assert_true(chk.max_contour_mm > 0.5 * EPS);
+}
+
+/* Exact on every sample (steps of up to 0.05 mm, off by up to 0.9 eps);
+ * then a walk a machine could make (steps of up to 8 um, so that a chord
+ * cuts a corner by at most 4 um, off by up to 0.5 eps): in order. */
+static void exact_and_in_order(const struct path *p, double window_mm)
+{
+	size_t n = walk(p, window_mm, 0.05, 0.9 * EPS, 0, 1);
+	assert_contour(n, 0.5);
+	n = walk(p, window_mm, 0.008, 0.5 * EPS, 0, 0);
+	assert_contour(n, 0.3);
+	if (chk.order_errors != 0) {
+		fail_msg("%zu samples, %zu out of order, the first at %zu", n, chk.order_errors,
+		         chk.order_at);
+	}
 }
 
 static void test_zigzag_teeth_nearly_touch(void **state)
 {
 	(void)state;
-	/* 0.3 mm segments, sharp corners, rows 8 mm long whose teeth come within
+	/* 0.3 mm segments, sharp corners, rows 6 mm long whose teeth come within
 	 * 0.004 mm of the next row's; 5000+ points: more than the ring holds */
 	struct path p = zigzag(128, 6.0, 0.3, 0.004);
 	assert_true(p.np > MLIP_CHECK_RING + 1000);
-	size_t n = walk(&p, 0.0, 0.05, 0.9 * EPS, 0);
-	assert_clean(n);
+	exact_and_in_order(&p, 0.0);
 	path_free(&p);
 }
 
@@ -303,8 +317,7 @@ static void test_spiral_turns_closer_than_eps(void **state)
 	/* turns 0.004 mm apart: every sample is within eps of 5 turns */
 	struct path p = spiral(1.0, 0.004, 24.0, 0.02);
 	assert_true(p.np > MLIP_CHECK_RING);
-	size_t n = walk(&p, 0.0, 0.05, 0.9 * EPS, 0);
-	assert_clean(n);
+	exact_and_in_order(&p, 0.0);
 	path_free(&p);
 }
 
@@ -312,10 +325,9 @@ static void test_path_back_over_itself(void **state)
 {
 	(void)state;
 	struct path p = retrace();
-	size_t n = walk(&p, 0.0, 0.03, 0.9 * EPS, 0);
-	assert_clean(n);
+	exact_and_in_order(&p, 0.0);
 	/* with samples off by up to 3 eps now and then: still exact */
-	walk(&p, 0.0, 0.03, 0.9 * EPS, 97);
+	walk(&p, 0.0, 0.03, 0.9 * EPS, 97, 1);
 	assert_true(chk.max_contour_mm > EPS);
 	path_free(&p);
 }
@@ -328,9 +340,8 @@ static void test_random_walks_whole_polyline(void **state)
 	for (int n = 2; n <= 4; n++) {
 		struct path p = random_walk(n, 1500, 1.0);
 		assert_true(p.np <= MLIP_CHECK_RING);
-		size_t s = walk(&p, 1e9, 0.04, 0.9 * EPS, 0);
-		assert_clean(s);
-		walk(&p, 1e9, 0.04, 0.9 * EPS, 53);
+		exact_and_in_order(&p, 1e9);
+		walk(&p, 1e9, 0.04, 0.9 * EPS, 53, 1);
 		assert_true(chk.max_contour_mm > EPS);
 		path_free(&p);
 	}
@@ -465,18 +476,81 @@ static void test_order_step_back_and_skip(void **state)
 	path_free(&p);
 }
 
-/* The window keeps the memory fixed: a path of 64000 points streams
+/* Order follows the chords between samples, not a reach: a trace that
+ * runs straight through a zigzag narrower than eps (as a smoothing strategy
+ * may: 5 um segments, +-9 um, the polyline 3.7 times longer than the
+ * trace) is in order at 200 mm/s; the same straight trace cutting from one
+ * row of a raster to the next (no hole, 0.2 mm in one period) skips the
+ * row's end, and is out of order. */
+static void test_order_follows_chords(void **state)
+{
+	(void)state;
+	struct path p = {.n = 2};
+	for (int i = 0; i <= 4000; i++) {
+		double x[2] = {0.005 * i, i % 2 ? 0.009 : -0.009};
+		path_add(&p, x);
+	}
+	p.pts[1] = 0.0; /* start and end on the centre line */
+	p.pts[2 * 4000 + 1] = 0.0;
+	assert_true(p.arc[p.np - 1] > 3.5 * 20.0);
+	struct mlip_check_limits lim = limits(2, 0.0);
+	struct src s = {.p = &p};
+	mlip_check_init_source(&chk, &lim, src_next, &s);
+	for (int i = 0; i <= 100; i++) {
+		double x[2] = {0.2 * i, 0.0};
+		mlip_check_sample(&chk, x);
+	}
+	mlip_check_finish(&chk);
+	char msg[1024];
+	int bad = mlip_check_verdict(&chk, 1e-9, 0.0, 0.0, 1e-9, msg, sizeof(msg));
+	if (bad) {
+		fail_msg("%s", msg);
+	}
+	/* (the zigzag crosses the trace: each sample is within 2.5 um of it;
+	 * a reach of step + 8 tol = 0.28 mm per sample, the old rule, would
+	 * have lost it: 0.76 mm of polyline go by per sample) */
+	assert_true(chk.max_contour_mm <= 0.0025 + 1e-12);
+	path_free(&p);
+
+	/* two rows 0.15 mm apart joined at x = 10: along row 0, then straight
+	 * across to row 1 at x = 9.6 */
+	struct path q = {.n = 2};
+	double a[2] = {0, 0}, b[2] = {10, 0}, e[2] = {10, 0.15}, f[2] = {0, 0.15};
+	path_add(&q, a);
+	path_add(&q, b);
+	path_add(&q, e);
+	path_add(&q, f);
+	s.p = &q;
+	s.i = 0;
+	mlip_check_init_source(&chk, &lim, src_next, &s);
+	double x[2] = {0, 0};
+	for (; x[0] < 9.5; x[0] += 0.1) {
+		mlip_check_sample(&chk, x);
+	}
+	assert_int_equal(chk.order_errors, 0);
+	x[1] = 0.15; /* 0.15 mm in 1 ms: 150 mm/s */
+	mlip_check_sample(&chk, x);
+	assert_true(chk.last_contour_mm <= 1e-12);
+	assert_int_equal(chk.order_errors, 1);
+	for (x[0] -= 0.1; x[0] > 0.0; x[0] -= 0.1) {
+		mlip_check_sample(&chk, x);
+	}
+	assert_int_equal(chk.order_errors, 1); /* and on from there */
+	path_free(&q);
+}
+
+/* The window keeps the memory fixed: a path of 27000 points streams
  * through a 4096-point ring, and the end is its last point. */
 static void test_long_path_streams(void **state)
 {
 	(void)state;
-	struct path p = zigzag(1200, 8.0, 0.3, 0.004);
-	assert_true(p.np > 15 * MLIP_CHECK_RING);
+	struct path p = zigzag(500, 8.0, 0.3, 0.004);
+	assert_true(p.np > 6 * MLIP_CHECK_RING);
 	struct mlip_check_limits lim = limits(2, 0.0);
 	struct src s = {.p = &p};
 	mlip_check_init_source(&chk, &lim, src_next, &s);
 	double end = p.arc[p.np - 1];
-	for (double pos = 0.0;; pos = fmin(end, pos + 0.05)) {
+	for (double pos = 0.0;; pos = fmin(end, pos + 0.008)) {
 		sample_at(&p, pos);
 		assert_true(chk.last_contour_mm <= 1e-12);
 		if (pos >= end) {
@@ -500,6 +574,7 @@ int main(void)
 		cmocka_unit_test(test_random_walks_whole_polyline),
 		cmocka_unit_test(test_planner_trace_on_zigzag),
 		cmocka_unit_test(test_order_step_back_and_skip),
+		cmocka_unit_test(test_order_follows_chords),
 		cmocka_unit_test(test_long_path_streams),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

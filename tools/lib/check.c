@@ -51,6 +51,13 @@ static void init_common(struct mlip_check *c, const struct mlip_check_limits *li
 	c->lim = *lim;
 	c->gap = 1;
 	c->nset = 1; /* R_0: the start */
+	/* a motion with |x''| <= A_k per axis is within A_k T^2 / 8 of the chord
+	 * between its samples T apart */
+	double a2 = 0.0;
+	for (int k = 0; k < lim->n; k++) {
+		a2 += lim->accel[k] * lim->accel[k];
+	}
+	c->chord_mm = sqrt(a2) * lim->period_s * lim->period_s / 8.0;
 	for (int k = 0; k < lim->n; k++) {
 		c->last_pt[k] = NAN; /* no point yet: no end */
 	}
@@ -184,12 +191,9 @@ static void set_add(struct mlip_check_iv *s, int *ns, double lo, double hi)
 /* One search of the window for a sample. */
 struct query {
 	const double *x;
-	double tol2;
 	uint64_t ja, jb;  /* segments of the window */
 	double best2, best_s, near_mm;
 	uint64_t best_j;
-	struct mlip_check_iv f[MLIP_CHECK_MAX_SET]; /* positions within tol of x */
-	int nf;
 };
 
 /* The first point at path position >= s in [lo, hi) (hi when none). */
@@ -207,10 +211,17 @@ static uint64_t point_at_or_after(const struct mlip_check *c, double s)
 	return a;
 }
 
+/* The segment holding path position s (the first or last one beyond). */
+static uint64_t segment_at(const struct mlip_check *c, double s)
+{
+	uint64_t p = point_at_or_after(c, s);
+	return p > c->lo ? p - 1 : c->lo;
+}
+
 /* Measure every segment of the window in a chunk whose box is within
  * radius of x (radius < 0: within the best distance so far); keep the
- * nearest and, when collect, the positions within tol. */
-static void scan(const struct mlip_check *c, struct query *q, double radius, int collect)
+ * nearest. */
+static void scan(const struct mlip_check *c, struct query *q, double radius)
 {
 	const int n = c->lim.n;
 	const double *x = q->x;
@@ -237,13 +248,11 @@ static void scan(const struct mlip_check *c, struct query *q, double radius, int
 			if (far) {
 				continue;
 			}
-			double s0 = arc_at(c, j), s1 = arc_at(c, j + 1);
-			double len2 = 0.0, dot = 0.0, ax2 = 0.0;
+			double len2 = 0.0, dot = 0.0;
 			for (int k = 0; k < n; k++) {
-				double d = e[k] - p[k], w = x[k] - p[k];
+				double d = e[k] - p[k];
 				len2 += d * d;
-				dot += w * d;
-				ax2 += w * w;
+				dot += (x[k] - p[k]) * d;
 			}
 			double t = len2 > 0.0 ? fmin(fmax(dot / len2, 0.0), 1.0) : 0.0;
 			double d2 = 0.0;
@@ -251,7 +260,7 @@ static void scan(const struct mlip_check *c, struct query *q, double radius, int
 				double d = x[k] - (p[k] + t * (e[k] - p[k]));
 				d2 += d * d;
 			}
-			double s = s0 + t * (s1 - s0);
+			double s0 = arc_at(c, j), s = s0 + t * (arc_at(c, j + 1) - s0);
 			/* ties go to the position nearest the last one */
 			if (d2 < q->best2 ||
 			    (d2 == q->best2 && fabs(s - q->near_mm) < fabs(q->best_s - q->near_mm))) {
@@ -259,29 +268,147 @@ static void scan(const struct mlip_check *c, struct query *q, double radius, int
 				q->best_s = s;
 				q->best_j = j;
 			}
-			if (collect && d2 <= q->tol2) {
-				/* |p - x + u (e - p)|^2 <= tol^2 for u in [u0, u1] */
-				double u0 = t, u1 = t;
-				if (len2 > 0.0) {
-					double sq = sqrt(fmax(dot * dot - len2 * (ax2 - q->tol2), 0.0));
-					u0 = fmin(fmax((dot - sq) / len2, 0.0), t);
-					u1 = fmax(fmin((dot + sq) / len2, 1.0), t);
-				}
-				set_add(q->f, &q->nf, s0 + u0 * (s1 - s0), s0 + u1 * (s1 - s0));
-			}
 		}
 	}
 }
 
-/* Contour error of x and R_i (see check.h); reach: how far along the path
- * the sample may be ahead of R_{i-1}. */
-static void contour(struct mlip_check *c, const double *x, double reach)
+/* The u in [0, 1] with |a + u (b - a) - x| <= tol (a convex set): 1 and
+ * [*u0, *u1], or 0 when there is none. */
+static int within(int n, const double *a, const double *b, const double *x, double tol2,
+                  double *u0, double *u1)
+{
+	double len2 = 0.0, dot = 0.0, ax2 = 0.0;
+	for (int k = 0; k < n; k++) {
+		double d = b[k] - a[k], w = x[k] - a[k];
+		len2 += d * d;
+		dot += w * d;
+		ax2 += w * w;
+	}
+	if (len2 == 0.0) {
+		*u0 = 0.0;
+		*u1 = 1.0;
+		return ax2 <= tol2;
+	}
+	/* |a - x|^2 - 2 u dot + u^2 len2 <= tol^2 */
+	double disc = dot * dot - len2 * (ax2 - tol2);
+	if (disc < 0.0) {
+		return 0;
+	}
+	double sq = sqrt(disc);
+	*u0 = fmax((dot - sq) / len2, 0.0);
+	*u1 = fmin((dot + sq) / len2, 1.0);
+	return *u0 <= *u1;
+}
+
+/* Room for one more point without dropping anything from path position wa
+ * on: 1, or 0 when the ring is full up to there. */
+static int room_from(struct mlip_check *c, double wa)
+{
+	if (c->hi - c->lo < MLIP_CHECK_RING) {
+		return 1;
+	}
+	if (arc_at(c, c->lo + MLIP_CHECK_CHUNK) <= wa) {
+		c->lo += MLIP_CHECK_CHUNK;
+		return 1;
+	}
+	return 0;
+}
+
+/* Pull points until point p is in the ring (keeping wa on): 1 when it is. */
+static int reach_point(struct mlip_check *c, uint64_t p, double wa)
+{
+	while (c->hi <= p && !c->src_done && room_from(c, wa) && pull(c)) {
+	}
+	return p < c->hi;
+}
+
+/* R_i from R_{i-1} (c->set) as the trace goes from x0 to x1 in a straight
+ * line (see check.h): the free space of a segment of the polyline against
+ * the chord, {(u, tau): |P(u) - x(tau)| <= tol}, is convex, so a position u'
+ * at tau = 1 is reachable from a reachable (u, 0) with u' >= u, or from any
+ * reachable point of the segment's start (its left side), and the start of
+ * the next segment from either (Alt and Godau's free-space propagation).
+ * Returns the positions reached (*frontier: how far the sweep went). */
+static int propagate(struct mlip_check *c, const double *x0, const double *x1, double tol2,
+                     double wa, struct mlip_check_iv *out, double *frontier)
+{
+	const int n = c->lim.n;
+	const struct mlip_check_iv *r = c->set;
+	int nout = 0, k = 0, have_l = 0;
+	double l = 0.0;
+	uint64_t j = segment_at(c, r[0].lo_mm);
+	*frontier = r[c->nset - 1].hi_mm;
+	while (reach_point(c, j + 1, wa)) {
+		double s0 = arc_at(c, j), s1 = arc_at(c, j + 1);
+		while (k < c->nset && r[k].hi_mm < s0) {
+			k++;
+		}
+		int have_b = k < c->nset && r[k].lo_mm <= s1; /* R_{i-1} on this segment */
+		double b = have_b ? fmax(r[k].lo_mm, s0) : 0.0;
+		if (!have_b && !have_l) {
+			if (k >= c->nset) {
+				break;
+			}
+			j = segment_at(c, r[k].lo_mm); /* on to the next part of R_{i-1} */
+			continue;
+		}
+		const double *p = pt_at(c, j), *e = pt_at(c, j + 1);
+		double u0, u1;
+		if (within(n, p, e, x1, tol2, &u0, &u1)) {
+			double lo = s0 + u0 * (s1 - s0), hi = s0 + u1 * (s1 - s0);
+			lo = have_l ? lo : fmax(lo, b);
+			if (lo <= hi) {
+				set_add(out, &nout, lo, hi);
+			}
+		}
+		double t0, t1, right = INFINITY;
+		if (within(n, x0, x1, e, tol2, &t0, &t1)) {
+			right = have_b ? t0 : right;
+			if (have_l && fmax(t0, l) <= t1) {
+				right = fmin(right, fmax(t0, l));
+			}
+		}
+		*frontier = fmax(*frontier, s1);
+		have_l = right < INFINITY;
+		l = right;
+		j++;
+	}
+	return nout;
+}
+
+/* Across a hole the way between the samples is unknown: R_i is what is
+ * within tol of x1 at most reach ahead of R_{i-1}. */
+static int jump(struct mlip_check *c, const double *x1, double tol2, double reach, double wa,
+                struct mlip_check_iv *out, double *frontier)
+{
+	const double lo_mm = c->set[0].lo_mm, hi_mm = c->set[c->nset - 1].hi_mm + reach;
+	int nout = 0;
+	*frontier = hi_mm;
+	for (uint64_t j = segment_at(c, lo_mm); reach_point(c, j + 1, wa); j++) {
+		double s0 = arc_at(c, j), s1 = arc_at(c, j + 1), u0, u1;
+		if (s0 > hi_mm) {
+			break;
+		}
+		if (within(c->lim.n, pt_at(c, j), pt_at(c, j + 1), x1, tol2, &u0, &u1)) {
+			double a = fmax(s0 + u0 * (s1 - s0), lo_mm), b = fmin(s0 + u1 * (s1 - s0), hi_mm);
+			if (a <= b) {
+				set_add(out, &nout, a, b);
+			}
+		}
+	}
+	return nout;
+}
+
+/* Contour error of x and R_i (see check.h); hole_reach > 0: x follows a
+ * hole in which the tool could go that far along the path. */
+static void contour(struct mlip_check *c, const double *x, double hole_reach)
 {
 	const double tol = tol_of(c);
-	double wa = c->set[0].lo_mm - win_of(c);
-	double wb = c->set[c->nset - 1].hi_mm + reach + win_of(c);
+	const double win = win_of(c);
+	double wa = c->set[0].lo_mm - win;
 
-	while (c->hi == 0 || (!c->src_done && arc_at(c, c->hi - 1) < wb)) {
+	/* the polyline as far as the window goes, before the sweep */
+	while (c->hi < 2 || (!c->src_done && arc_at(c, c->hi - 1) < c->set[c->nset - 1].hi_mm + win)) {
 		if (c->hi - c->lo == MLIP_CHECK_RING && !make_room(c, &wa)) {
 			c->window_drops++;
 			break;
@@ -293,69 +420,46 @@ static void contour(struct mlip_check *c, const double *x, double reach)
 	if (c->hi - c->lo < 2) {
 		return;
 	}
-	/* segments [ja, jb] meet [wa, wb]: j from the one ending at or after
-	 * wa, to the last starting at or before wb */
-	uint64_t ja = point_at_or_after(c, wa), pb = point_at_or_after(c, wb), jb;
-	ja = ja > c->lo ? ja - 1 : c->lo;
-	if (pb < c->hi && arc_at(c, pb) == wb) {
-		jb = pb;
-	} else if (pb > c->lo) {
-		jb = pb - 1;
-	} else {
-		return; /* no segment in the window: cannot happen while R is on the path */
-	}
-	jb = jb > c->hi - 2 ? c->hi - 2 : jb;
-	if (ja > jb) {
-		return;
-	}
-	struct query q;
-	q.x = x;
-	q.tol2 = tol * tol;
-	q.ja = ja;
-	q.jb = jb;
-	q.best2 = INFINITY;
-	q.best_s = c->near_mm;
-	q.near_mm = c->near_mm;
-	q.best_j = ja;
-	q.nf = 0;
-	/* within tol first: every position of F, and the nearest when it is
-	 * within tol; else the whole window, pruned by the best so far */
-	scan(c, &q, tol, 1);
-	if (!(q.best2 <= q.tol2)) {
-		scan(c, &q, -1.0, 0);
-	}
-	const struct mlip_check_iv *f = q.f;
-	const int nf = q.nf;
-	const double best2 = q.best2, best_s = q.best_s;
-	const uint64_t best_j = q.best_j;
-
-	/* R_i = F ∩ (R_{i-1} + [0, reach]) */
 	struct mlip_check_iv r[MLIP_CHECK_MAX_SET];
-	int nr = 0;
-	for (int i = 0; i < nf; i++) {
-		for (int k = 0; k < c->nset; k++) {
-			double lo = fmax(f[i].lo_mm, c->set[k].lo_mm);
-			double hi = fmin(f[i].hi_mm, c->set[k].hi_mm + reach);
-			if (lo <= hi) {
-				set_add(r, &nr, lo, hi);
-			}
-		}
+	int nr;
+	double frontier;
+	if (c->count == 0) {
+		nr = jump(c, x, tol * tol, 0.0, wa, r, &frontier);
+	} else if (hole_reach > 0.0) {
+		nr = jump(c, x, tol * tol, hole_reach, wa, r, &frontier);
+	} else {
+		double tf = tol + c->chord_mm;
+		nr = propagate(c, c->x1, x, tf * tf, wa, r, &frontier);
 	}
-	double err = sqrt(best2);
-	c->cur_line = c->line[(best_j + 1) & RING_MASK];
+	/* the window: W before R_{i-1} to W beyond the sweep */
+	double wb = frontier + win;
+	reach_point(c, point_at_or_after(c, wb), wa);
+	uint64_t ja = segment_at(c, wa), pb = point_at_or_after(c, wb);
+	uint64_t jb = pb < c->hi && arc_at(c, pb) == wb ? pb : pb > c->lo ? pb - 1 : c->lo;
+	jb = jb > c->hi - 2 ? c->hi - 2 : jb;
+	jb = jb < ja ? ja : jb;
+	struct query q = {.x = x, .ja = ja, .jb = jb, .best2 = INFINITY, .best_s = c->near_mm,
+	                  .near_mm = c->near_mm, .best_j = ja};
+	/* within tol first; beyond it, the whole window pruned by the best */
+	scan(c, &q, tol);
+	if (!(q.best2 <= tol * tol)) {
+		scan(c, &q, -1.0);
+	}
+	double err = sqrt(q.best2);
+	c->cur_line = c->line[(q.best_j + 1) & RING_MASK];
 	if (nr == 0) {
 		if (err <= tol && c->order_errors++ == 0) {
 			c->order_at = c->count;
 			c->order_period = c->periods;
 			c->order_line = c->cur_line;
 		}
-		r[0].lo_mm = best_s; /* start again from where the sample is */
-		r[0].hi_mm = best_s;
+		r[0].lo_mm = q.best_s; /* start again from where the sample is */
+		r[0].hi_mm = q.best_s;
 		nr = 1;
 	}
 	memcpy(c->set, r, sizeof(r[0]) * (size_t)nr);
 	c->nset = nr;
-	c->near_mm = best_s;
+	c->near_mm = q.best_s;
 	c->last_contour_mm = err;
 	if (err > c->max_contour_mm) {
 		c->max_contour_mm = err;
@@ -393,10 +497,13 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 		}
 		step = sqrt(step);
 	}
-	/* across a hole the tool went at most v_max dt along the path, which
-	 * may be longer than the chord between the two samples */
-	double travel = c->gap > 1 ? fmax(step, (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * dt) : step;
-	contour(c, x, travel + 8.0 * tol_of(c));
+	/* across a hole the tool went at most v_max dt, which may be longer
+	 * than the chord between the two samples; corners cut add to the way
+	 * along the path (twice the travel, and 8 tol) */
+	double hole = c->gap > 1 ? 2.0 * fmax(step, (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * dt) +
+	                               8.0 * tol_of(c)
+	                         : 0.0;
+	contour(c, x, hole);
 	if (c->count >= 1) {
 		for (int k = 0; k < n; k++) {
 			double v = fabs(x[k] - c->x1[k]) / dt;

@@ -12,26 +12,33 @@
  * length; the samples arrive one by one.
  *
  * What is measured, exactly (in the n coordinates of the machine):
- * - R_i, the path positions (arc length along the polyline) sample i can be
- *   at: the positions within tol of x_i that are at most reach_i ahead of a
- *   position of R_{i-1} (R_0 = the start), reach_i = the step from the last
- *   sample (v_max dt across a hole) + 8 tol. R_i is a set of intervals; a
- *   trace that follows the path in order within tol has its true position
- *   in every R_i, however often the path comes back near itself.
  * - the contour error of sample i: its exact distance to the polyline
- *   restricted to the segments within path distance W (window_mm, default
- *   MLIP_CHECK_WINDOW_MM) before hull(R_{i-1}) and after hull(R_{i-1}) + reach_i (both
- *   directions), found through bounding boxes of MLIP_CHECK_CHUNK segments
- *   (a box is skipped only when it is farther than both the best distance
- *   so far and tol, so the minimum is exact). It is never below the
- *   distance to the whole polyline, and equals it wherever the polyline's
- *   nearest point lies in that window.
- * - order: R_i empty although the sample is within tol of the window: the
- *   sample stepped back or skipped ahead along the path. R_i then restarts
- *   at the sample's nearest point.
- * Limits of the window: when R's hull and the windows need more than
+ *   restricted to the segments from path distance W (window_mm, default
+ *   MLIP_CHECK_WINDOW_MM) before R_{i-1} (below) to W beyond the furthest
+ *   position the order sweep for sample i reached: both directions along
+ *   the path, found through bounding boxes of MLIP_CHECK_CHUNK segments and
+ *   per-segment axis bounds (a segment is skipped only when it is farther
+ *   than both the best distance so far and tol, so the minimum is exact).
+ *   Never below the distance to the whole polyline, and equal to it
+ *   wherever the polyline's nearest point lies in that window (tested
+ *   against brute force in tests/unit/test_check.c).
+ * - order: R_i, the path positions sample i can be at, such that the trace,
+ *   its samples joined by straight lines, follows the polyline forwards
+ *   within tol + chord_mm from the start (the free-space propagation of
+ *   Alt and Godau's Frechet-distance decision, one trace segment at a
+ *   time). chord_mm = |A| T^2 / 8 is how far a motion within the
+ *   acceleration limits strays from the chord between samples T apart, so
+ *   a trace within the limits whose motion stays within tol of the path,
+ *   in order, always has its position in R_i, however close the path comes
+ *   back to itself and however many segments go by in one period. Across
+ *   a hole (mlip_check_gap) the way is unknown: R_i is then the positions
+ *   within tol of the sample at most 2 v_max dt + 8 tol ahead of R_{i-1}.
+ *   R_i empty: the sample stepped back, skipped part of the path, or cut
+ *   across it (counted in order_errors); R_i then restarts at the sample's
+ *   nearest point.
+ * Limits of the window: when R and the windows need more than
  *   MLIP_CHECK_RING points, the positions of R furthest behind are dropped
- *   first (counted in window_drops).
+ *   first, then the sweep stops short (counted in window_drops).
  */
 #ifndef MLIP_CHECK_H
 #define MLIP_CHECK_H
@@ -89,6 +96,7 @@ struct mlip_check {
 	/* where the samples are on it */
 	struct mlip_check_iv set[MLIP_CHECK_MAX_SET]; /* R, sorted, disjoint */
 	int nset;
+	double chord_mm;                 /* how far a motion within the limits strays from a chord */
 	double near_mm;                  /* path position of the last nearest point */
 	/* the samples */
 	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES]; /* last two samples */
