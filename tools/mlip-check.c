@@ -33,13 +33,14 @@ static void usage(FILE *f)
 	           "  --no-end            the trace need not end on the program's last point\n"
 	           "                      (a run stopped by the operator)\n"
 	           "  --json OUT          measured values as JSON ('-' for stdout)\n"
+	           "  --errors OUT.csv    each sample's contour error: t,contour_mm\n"
 	           "exit status: 0 within limits, 1 violation, 2 usage or input error\n");
 }
 
 int main(int argc, char **argv)
 {
 	struct mlip_cli_machine mo = {0};
-	const char *json = NULL;
+	const char *json = NULL, *errors = NULL;
 	double quantum = 0.0, rel = 1e-9;
 	int no_end = 0;
 	static const struct option opts[] = {
@@ -47,7 +48,7 @@ int main(int argc, char **argv)
 		{"vmax", required_argument, 0, 'v'},   {"eps", required_argument, 0, 'e'},
 		{"period", required_argument, 0, 'p'}, {"quantum", required_argument, 0, 'Q'},
 		{"rel", required_argument, 0, 'r'},    {"json", required_argument, 0, 'j'},
-		{"no-end", no_argument, 0, 'E'},
+		{"no-end", no_argument, 0, 'E'},      {"errors", required_argument, 0, 'O'},
 		{"help", no_argument, 0, 'h'},         {0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
@@ -83,6 +84,9 @@ int main(int argc, char **argv)
 			break;
 		case 'E':
 			no_end = 1;
+			break;
+		case 'O':
+			errors = optarg;
 			break;
 		case 'h':
 			usage(stdout);
@@ -125,6 +129,15 @@ int main(int argc, char **argv)
 	FILE *tf = strcmp(tpath, "-") == 0 ? stdin : fopen(tpath, "r");
 	if (tf == NULL) {
 		perror(tpath);
+		mlip_program_free(&prog);
+		return 2;
+	}
+	FILE *ef = NULL;
+	if (errors != NULL && (ef = fopen(errors, "w")) == NULL) {
+		perror(errors);
+		if (tf != stdin) {
+			fclose(tf);
+		}
 		mlip_program_free(&prog);
 		return 2;
 	}
@@ -172,9 +185,16 @@ int main(int argc, char **argv)
 		t_prev = x[0];
 		rows++;
 		mlip_check_sample(&chk, x + 1);
+		if (ef != NULL) {
+			fprintf(ef, "%.17g,%.17g\n", x[0], chk.last_contour_mm);
+		}
 	}
 	if (tf != stdin) {
 		fclose(tf);
+	}
+	if (ef != NULL && fclose(ef) != 0) {
+		perror(errors);
+		input_error = 1;
 	}
 	if (input_error) {
 		mlip_program_free(&prog);

@@ -290,6 +290,13 @@ int main(int argc, char **argv)
 		storm_tick(&storm, k);
 		mlip_run_state rs = mlip_planner_step(&planner, x);
 		k++;
+#ifdef MLIP_SIM_TEST_FAULT_AT /* test builds only (tests/py): one setpoint off the path */
+		if (k == MLIP_SIM_TEST_FAULT_AT) {
+			for (int a = 0; a < n; a++) {
+				x[a] += 0.05;
+			}
+		}
+#endif
 		mlip_check_sample(&chk, x);
 		if (tf != NULL) {
 			write_row(tf, k, m->period_s, n, x);

@@ -425,8 +425,12 @@ static void contour(struct mlip_check *c, const double *x, double hole_reach)
 	double frontier;
 	if (c->count == 0) {
 		nr = jump(c, x, tol * tol, 0.0, wa, r, &frontier);
-	} else if (hole_reach > 0.0) {
-		nr = jump(c, x, tol * tol, hole_reach, wa, r, &frontier);
+	} else if (hole_reach > 0.0 || c->restart) {
+		/* after samples beyond tol, from where the last good one left R,
+		 * as across a hole (the chords from them are not judged again) */
+		double since = (double)(c->periods - c->good_period) * c->lim.period_s;
+		double travel = 2.0 * (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * since + 8.0 * tol;
+		nr = jump(c, x, tol * tol, fmax(hole_reach, travel), wa, r, &frontier);
 	} else {
 		double tf = tol + c->chord_mm;
 		nr = propagate(c, c->x1, x, tf * tf, wa, r, &frontier);
@@ -447,8 +451,11 @@ static void contour(struct mlip_check *c, const double *x, double hole_reach)
 	}
 	double err = sqrt(q.best2);
 	c->cur_line = c->line[(q.best_j + 1) & RING_MASK];
-	if (nr == 0) {
-		if (err <= tol && c->order_errors++ == 0) {
+	c->restart = !(err <= tol);
+	if (c->restart) {
+		nr = 0; /* a contour error: R stays where the last good sample left it */
+	} else if (nr == 0) {
+		if (c->order_errors++ == 0) {
 			c->order_at = c->count;
 			c->order_period = c->periods;
 			c->order_line = c->cur_line;
@@ -457,8 +464,11 @@ static void contour(struct mlip_check *c, const double *x, double hole_reach)
 		r[0].hi_mm = q.best_s;
 		nr = 1;
 	}
-	memcpy(c->set, r, sizeof(r[0]) * (size_t)nr);
-	c->nset = nr;
+	if (nr > 0) {
+		memcpy(c->set, r, sizeof(r[0]) * (size_t)nr);
+		c->nset = nr;
+		c->good_period = c->periods;
+	}
 	c->near_mm = q.best_s;
 	c->last_contour_mm = err;
 	if (err > c->max_contour_mm) {

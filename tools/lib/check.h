@@ -35,7 +35,8 @@
  *   within tol of the sample at most 2 v_max dt + 8 tol ahead of R_{i-1}.
  *   R_i empty: the sample stepped back, skipped part of the path, or cut
  *   across it (counted in order_errors); R_i then restarts at the sample's
- *   nearest point.
+ *   nearest point. A sample beyond tol is a contour error and leaves R as
+ *   it was; the next one is judged as after a hole from the last good one.
  * Limits of the window: when R and the windows need more than
  *   MLIP_CHECK_RING points, the positions of R furthest behind are dropped
  *   first, then the sweep stops short (counted in window_drops).
@@ -97,6 +98,8 @@ struct mlip_check {
 	struct mlip_check_iv set[MLIP_CHECK_MAX_SET]; /* R, sorted, disjoint */
 	int nset;
 	double chord_mm;                 /* how far a motion within the limits strays from a chord */
+	int restart;                     /* the last sample was beyond tol */
+	uint64_t good_period;            /* time of the last sample within tol */
 	double near_mm;                  /* path position of the last nearest point */
 	/* the samples */
 	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES]; /* last two samples */
