@@ -196,10 +196,30 @@ struct query {
 	uint64_t best_j;
 };
 
-/* The first point at path position >= s in [lo, hi) (hi when none). */
-static uint64_t point_at_or_after(const struct mlip_check *c, double s)
+/* The first point at path position >= s in [lo, hi) (hi when none). The
+ * searches of one sample land close to those of the last: gallop from the
+ * last answer, then bisect. */
+static uint64_t point_at_or_after(struct mlip_check *c, double s)
 {
-	uint64_t a = c->lo, b = c->hi;
+	uint64_t a = c->lo, b = c->hi, h = c->hint;
+	if (h > a && h < b) {
+		uint64_t step = 1;
+		if (arc_at(c, h) < s) {
+			while (h + step < b && arc_at(c, h + step) < s) {
+				h += step;
+				step *= 2;
+			}
+			a = h + 1;
+			b = h + step < b ? h + step + 1 : b;
+		} else {
+			while (step < h - a && arc_at(c, h - step) >= s) {
+				h -= step;
+				step *= 2;
+			}
+			b = h;
+			a = step < h - a ? h - step : a;
+		}
+	}
 	while (a < b) {
 		uint64_t m = a + (b - a) / 2;
 		if (arc_at(c, m) < s) {
@@ -208,11 +228,12 @@ static uint64_t point_at_or_after(const struct mlip_check *c, double s)
 			b = m;
 		}
 	}
+	c->hint = a;
 	return a;
 }
 
 /* The segment holding path position s (the first or last one beyond). */
-static uint64_t segment_at(const struct mlip_check *c, double s)
+static uint64_t segment_at(struct mlip_check *c, double s)
 {
 	uint64_t p = point_at_or_after(c, s);
 	return p > c->lo ? p - 1 : c->lo;
@@ -231,7 +252,7 @@ static void scan(const struct mlip_check *c, struct query *q, double radius)
 		b = b > q->jb ? q->jb : b;
 		const double *lo = c->box_lo[ch % NCHUNK], *hi = c->box_hi[ch % NCHUNK];
 		double r = (radius < 0.0 ? sqrt(q->best2) : radius) + BOX_MARGIN_MM, box2 = 0.0;
-		for (int k = 0; k < n; k++) {
+		for (int k = 0; k < n && box2 <= r * r; k++) {
 			double d = x[k] < lo[k] ? lo[k] - x[k] : x[k] > hi[k] ? x[k] - hi[k] : 0.0;
 			box2 += d * d;
 		}
