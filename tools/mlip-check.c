@@ -221,6 +221,7 @@ int main(int argc, char **argv)
 		fprintf(jf, "  \"max_rot_speed_deg_s\": %.12g,\n", chk.max_rot_speed_deg_s);
 		fprintf(jf, "  \"max_contour_error_mm\": %.12g,\n", chk.max_contour_mm);
 		fprintf(jf, "  \"order_errors\": %zu,\n", chk.order_errors);
+		fprintf(jf, "  \"window_drops\": %zu,\n", chk.window_drops);
 		fprintf(jf, "  \"end_error_mm\": %.3g,\n", mlip_check_end_error(&chk));
 		fprintf(jf, "  \"violations\": %d\n}\n", bad);
 		if (jf != stdout) {

@@ -17,6 +17,7 @@
 #define RING_MASK ((uint64_t)MLIP_CHECK_RING - 1)
 #define NCHUNK (MLIP_CHECK_RING / MLIP_CHECK_CHUNK)
 #define BOX_MARGIN_MM 1e-9 /* a box is skipped only when this much farther */
+enum { HINT_A, HINT_R, HINT_B }; /* searches: window start, R, window end */
 
 /* sizes must be powers of two (C99 has no _Static_assert) */
 typedef char mlip_check_ring_pow2[(MLIP_CHECK_RING & (MLIP_CHECK_RING - 1)) == 0 ? 1 : -1];
@@ -198,10 +199,10 @@ struct query {
 
 /* The first point at path position >= s in [lo, hi) (hi when none). The
  * searches of one sample land close to those of the last: gallop from the
- * last answer, then bisect. */
-static uint64_t point_at_or_after(struct mlip_check *c, double s)
+ * last answer of the same kind (which: HINT_*), then bisect. */
+static uint64_t point_at_or_after(struct mlip_check *c, double s, int which)
 {
-	uint64_t a = c->lo, b = c->hi, h = c->hint;
+	uint64_t a = c->lo, b = c->hi, h = c->hint[which];
 	if (h > a && h < b) {
 		uint64_t step = 1;
 		if (arc_at(c, h) < s) {
@@ -228,14 +229,14 @@ static uint64_t point_at_or_after(struct mlip_check *c, double s)
 			b = m;
 		}
 	}
-	c->hint = a;
+	c->hint[which] = a;
 	return a;
 }
 
 /* The segment holding path position s (the first or last one beyond). */
-static uint64_t segment_at(struct mlip_check *c, double s)
+static uint64_t segment_at(struct mlip_check *c, double s, int which)
 {
-	uint64_t p = point_at_or_after(c, s);
+	uint64_t p = point_at_or_after(c, s, which);
 	return p > c->lo ? p - 1 : c->lo;
 }
 
@@ -357,7 +358,7 @@ static int propagate(struct mlip_check *c, const double *x0, const double *x1, d
 	const struct mlip_check_iv *r = c->set;
 	int nout = 0, k = 0, have_l = 0;
 	double l = 0.0;
-	uint64_t j = segment_at(c, r[0].lo_mm);
+	uint64_t j = segment_at(c, r[0].lo_mm, HINT_R);
 	*frontier = r[c->nset - 1].hi_mm;
 	while (reach_point(c, j + 1, wa)) {
 		double s0 = arc_at(c, j), s1 = arc_at(c, j + 1);
@@ -370,7 +371,7 @@ static int propagate(struct mlip_check *c, const double *x0, const double *x1, d
 			if (k >= c->nset) {
 				break;
 			}
-			j = segment_at(c, r[k].lo_mm); /* on to the next part of R_{i-1} */
+			j = segment_at(c, r[k].lo_mm, HINT_R); /* on to the next part of R_{i-1} */
 			continue;
 		}
 		const double *p = pt_at(c, j), *e = pt_at(c, j + 1);
@@ -405,7 +406,7 @@ static int jump(struct mlip_check *c, const double *x1, double tol2, double reac
 	const double lo_mm = c->set[0].lo_mm, hi_mm = c->set[c->nset - 1].hi_mm + reach;
 	int nout = 0;
 	*frontier = hi_mm;
-	for (uint64_t j = segment_at(c, lo_mm); reach_point(c, j + 1, wa); j++) {
+	for (uint64_t j = segment_at(c, lo_mm, HINT_R); reach_point(c, j + 1, wa); j++) {
 		double s0 = arc_at(c, j), s1 = arc_at(c, j + 1), u0, u1;
 		if (s0 > hi_mm) {
 			break;
@@ -458,8 +459,9 @@ static void contour(struct mlip_check *c, const double *x, double hole_reach)
 	}
 	/* the window: W before R_{i-1} to W beyond the sweep */
 	double wb = frontier + win;
-	reach_point(c, point_at_or_after(c, wb), wa);
-	uint64_t ja = segment_at(c, wa), pb = point_at_or_after(c, wb);
+	while (!c->src_done && arc_at(c, c->hi - 1) < wb && room_from(c, wa) && pull(c)) {
+	}
+	uint64_t ja = segment_at(c, wa, HINT_A), pb = point_at_or_after(c, wb, HINT_B);
 	uint64_t jb = pb < c->hi && arc_at(c, pb) == wb ? pb : pb > c->lo ? pb - 1 : c->lo;
 	jb = jb > c->hi - 2 ? c->hi - 2 : jb;
 	jb = jb < ja ? ja : jb;

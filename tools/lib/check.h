@@ -92,7 +92,7 @@ struct mlip_check {
 	double box_lo[MLIP_CHECK_RING / MLIP_CHECK_CHUNK][MLIP_MAX_AXES];
 	double box_hi[MLIP_CHECK_RING / MLIP_CHECK_CHUNK][MLIP_MAX_AXES];
 	uint64_t lo, hi;
-	uint64_t hint;                   /* the last point searched for */
+	uint64_t hint[3];                /* the last points searched for, by kind */
 	double last_pt[MLIP_MAX_AXES];   /* the last point pulled */
 	double prog_mm;                  /* polyline length pulled, linear axes */
 	/* where the samples are on it */
