@@ -442,8 +442,9 @@ int main(int argc, char **argv)
 	}
 	static struct monitor mon;
 	if (record != NULL) {
-		/* 2^17 periods (131 s at 1 ms) of slack for the monitor thread */
-		ctl.rec_cap = 1u << 17;
+		/* 2^15 periods (32 s at 1 ms) of slack for the monitor thread,
+		 * which drains it every 50 ms; 2 MB, locked with the rest */
+		ctl.rec_cap = 1u << 15;
 		ctl.rec = calloc(ctl.rec_cap, sizeof(*ctl.rec));
 		mon.rec = fopen(record, "w");
 		if (ctl.rec == NULL || mon.rec == NULL) {

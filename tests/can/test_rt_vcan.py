@@ -27,6 +27,7 @@ then SIGTERM to mlip-rt (a controlled stop) and to the listener. Checked:
     (mlip-feed exits 4, controller IDLE).
 """
 import json
+import signal
 import struct
 import time
 
@@ -375,6 +376,62 @@ def test_dwell_and_pause(vcan, tmp_path):
     assert st["state"] == "idle" and st["exec_seq"] == summ["blocks"] + 1, st
     summary_line("events", rig, r, f", dwell 300 periods at (20, 20), paused {p1 - p0} "
                  f"periods at (40, 20)")
+
+
+def test_stall_holds_without_jump(vcan, tmp_path):
+    """SIGSTOP/SIGCONT to mlip-rt at speed (1 s): on the bus the positions
+    after the gap repeat the last one sent, then the motion restarts from
+    rest on mlip-ctl resume; mlip-check passes on the decoded positions with
+    the gaps as holes (this guest adds stalls of its own: each is resumed)."""
+    config, ngc = MILL, DEMO
+    setup = h.setup_of(config)
+    m = {}
+
+    def actions(rig):
+        rig.wait_state("running", pred=lambda s: s["exec_seq"] > 400)
+        rig.rt.p.send_signal(signal.SIGSTOP)
+        time.sleep(1.0)
+        rig.rt.p.send_signal(signal.SIGCONT)
+        m["held"] = rig.wait_state("held", timeout=30)
+        time.sleep(0.3)
+        while rig.status()["state"] != "idle":
+            s = rig.status()
+            if s["state"] == "held" and s["reason"] == "stall":
+                rig.ctl("resume")
+            time.sleep(0.05)
+
+    # 200 periods: above the spikes of an emulated guest (~0.3 s at worst)
+    with h.Rig(config, "cia402", tmp_path, rt_args=["--stall-periods", "200"]) as rig:
+        rc, out, err = rig.feed(ngc, actions)
+        assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
+        assert "stall: the controller missed" in err and "mlip-ctl resume" in err, err
+    r = rig.result
+    assert m["held"]["reason"] == "stall", m["held"]
+    assert "stall: the loop missed" in r["rt_stderr"], r["rt_stderr"]
+    bus_complete(r, setup, "cia402")
+    can, t = r["counts"], r["t"]
+    T = setup.period_s
+    # the SIGSTOP: the longest gap between two cycles on the bus
+    gap, k = max((t[i] - t[i - 1], i) for i in range(1, len(t)))
+    assert gap > 0.8, gap
+    assert can[k - 1] != can[k - 2], "not moving when stopped"
+    assert can[k] == can[k - 1] and can[k + 1] == can[k], "a jump after the stall"
+    j = next(i for i in range(k, len(can)) if can[i] != can[k])
+    quantum = max(1.0 / c for c in setup.cpu)
+    step = max(abs(a - b) / c for a, b, c in zip(can[j], can[j - 1], setup.cpu))
+    amax = max(h.MachineLimits(config).accel)
+    assert step <= amax * T * T + 2 * quantum, f"restarted with {step} mm in one period"
+    # physics across the whole run, gaps of more than 10 periods as holes
+    cycles = [0]
+    for i in range(1, len(t)):
+        d = t[i] - t[i - 1]
+        cycles.append(cycles[-1] + (round(d / T) if d > 10 * T else 1))
+    csv = tmp_path / "decoded.csv"
+    h.write_positions_csv(csv, can, setup.cpu, T, cycles)
+    p, _ = h.mlip_check(config, ngc, csv, quantum, tmp_path / "check.json")
+    assert p.returncode == 0, f"mlip-check on the decoded positions:\n{p.stderr}"
+    summary_line("stall", rig, r, f", gap {gap:.3f} s at cycle {k}, held {j - k} cycles, "
+                 f"restart step {step * 1e3:.2f} um")
 
 
 # ------------------------------------------------------------------ offline

@@ -720,6 +720,30 @@ static void test_record_roundtrip(void **st)
 	assert_int_equal(mlip_ring_rec_to_block(&rec, &c), MLIP_E_EMPTY);
 }
 
+/* Every state, reason, field and record type has a name for the log and
+ * the status (a new enum value without one shows as "?"). */
+static void test_every_name(void **st)
+{
+	(void)st;
+	for (uint32_t v = 0; v < MLIP_STATE_COUNT; v++) {
+		assert_string_not_equal(mlip_ring_state_name(v), "?");
+	}
+	for (uint32_t v = 0; v < MLIP_WHY_COUNT; v++) {
+		assert_string_not_equal(mlip_state_why_name(v), "?");
+	}
+	for (uint32_t v = 0; v < MLIP_FIELD_COUNT; v++) {
+		assert_string_not_equal(mlip_rec_field_name(v), "?");
+	}
+	for (uint32_t v = 0; v < MLIP_REC_TYPES; v++) {
+		assert_string_not_equal(mlip_rec_type_name(v), "?");
+	}
+	for (uint32_t v = 0; v < MLIP_CMD_COUNT; v++) {
+		assert_string_not_equal(mlip_ring_cmd_name(v), "?");
+	}
+	assert_string_equal(mlip_ring_state_name(MLIP_STATE_COUNT), "?");
+	assert_string_equal(mlip_state_why_name(MLIP_WHY_COUNT), "?");
+}
+
 #define T(f) cmocka_unit_test_setup_teardown(f, setup, teardown)
 
 int main(void)
@@ -742,6 +766,7 @@ int main(void)
 	    T(test_stall_holds_at_last_setpoint),
 	    T(test_stall_in_corner),
 	    T(test_record_roundtrip),
+	    T(test_every_name),
 	    T(test_corrupt_sizes_ignored),
 	    T(test_corrupt_head_is_a_fault),
 	};
