@@ -18,6 +18,7 @@
 #include "cli.h"
 #include "mlip/gcode.h"
 #include "mlip/planner.h"
+#include "blockiter.h"
 #include "program.h"
 
 #define PROG "mlip-sim"
@@ -31,7 +32,8 @@ static void usage(FILE *f)
 	        "usage: " PROG " [options] FILE.ngc\n"
 	        "Simulate a G-code program on the mlip interpolator and report its motion.\n\n"
 	        "  --config FILE         machine INI (default: the axes the program uses, linear)\n"
-	        "  --strategy NAME       mpct (default, the paper), bisector, stop\n"
+	        "  --strategy NAME       mpct (default, the paper), bisector, stop, smooth (mpct on\n"
+	        "                        the path smoothed within the tolerance, mlip/smooth.h)\n"
 	        "  --accel A[,A...]      per-axis acceleration, mm/s^2 (one for all, or per axis)\n"
 	        "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	        "  --eps MM              contour tolerance (default 0.01 without --config)\n"
@@ -191,7 +193,7 @@ int main(int argc, char **argv)
 	const char *path = argv[optind];
 	int st = mlip_cli_strategy(strategy);
 	if (st < 0) {
-		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop\n", strategy);
+		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n", strategy);
 		return 2;
 	}
 	if (override > 200.0) {
@@ -246,7 +248,21 @@ int main(int argc, char **argv)
 	mlip_planner_set_override(&planner, override);
 
 	size_t npts;
+	/* judged against the ORIGINAL program's polyline, whatever runs */
 	double *pts = mlip_cli_polyline(m, prog.blocks, prog.n, &npts);
+	const struct mlip_block *run_blocks = prog.blocks;
+	size_t run_n = prog.n;
+	struct mlip_block *smoothed = NULL;
+	if (st == MLIP_STRATEGY_SMOOTH) {
+		if (mlip_smooth_program(m, start, prog.blocks, prog.n, &smoothed, &run_n) != 0) {
+			fprintf(stderr, PROG ": out of memory smoothing the program\n");
+			return 1;
+		}
+		for (size_t i = 0; i < run_n; i++) {
+			smoothed[i].seq = i + 1;
+		}
+		run_blocks = smoothed;
+	}
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
 	static struct mlip_check chk;
@@ -275,13 +291,13 @@ int main(int argc, char **argv)
 	                      .active = storm_seed >= 0};
 	size_t next = 0;
 	/* pre-read (Sec. 2.1 step 1): fill the look-ahead before moving */
-	next += mlip_planner_push_n(&planner, prog.blocks, prog.n, NULL);
+	next += mlip_planner_push_n(&planner, run_blocks, run_n, NULL);
 	uint64_t k = 0;
 	double x[MLIP_MAX_AXES];
 	for (;;) {
-		size_t take = prog.n - next < MLIP_INGEST_PER_PERIOD ? prog.n - next : MLIP_INGEST_PER_PERIOD;
+		size_t take = run_n - next < MLIP_INGEST_PER_PERIOD ? run_n - next : MLIP_INGEST_PER_PERIOD;
 		if (take > 0) {
-			next += mlip_planner_push_n(&planner, prog.blocks + next, take, NULL);
+			next += mlip_planner_push_n(&planner, run_blocks + next, take, NULL);
 		}
 		storm_tick(&storm, k);
 		mlip_run_state rs = mlip_planner_step(&planner, x);
@@ -290,7 +306,7 @@ int main(int argc, char **argv)
 		if (tf != NULL) {
 			write_row(tf, k, m->period_s, n, x);
 		}
-		if (rs == MLIP_RUN_IDLE && next == prog.n) {
+		if (rs == MLIP_RUN_IDLE && next == run_n) {
 			break;
 		}
 		if (k > MAX_PERIODS) {
@@ -374,6 +390,7 @@ int main(int argc, char **argv)
 		        chk.max_speed_mm_s, chk.max_contour_mm);
 	}
 	free(pts);
+	free(smoothed);
 	mlip_program_free(&prog);
 	return 0;
 }

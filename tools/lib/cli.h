@@ -29,7 +29,7 @@ int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
                           struct mlip_config *cfg, char **text, size_t *len, const char *prog,
                           FILE *err);
 
-/* "mpct" | "bisector" | "stop" -> strategy; -1 when unknown. */
+/* "mpct" | "bisector" | "stop" | "smooth" -> strategy; -1 when unknown. */
 int mlip_cli_strategy(const char *name);
 const char *mlip_cli_strategy_name(mlip_strategy st);
 
