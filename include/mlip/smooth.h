@@ -35,8 +35,8 @@
 #define MLIP_SMOOTH_KEEP 512      /* samples left unsolved after a solve: the
                                      right-hand context of the frozen ones */
 #define MLIP_SMOOTH_MAX_PIECES 16 /* samples one input block adds, at most */
-#define MLIP_SMOOTH_ITER 40
-#define MLIP_SMOOTH_RHO 0.85      /* share of the budget the smoothing may take */
+#define MLIP_SMOOTH_ITER 20        /* reweighting iterations per solve */
+#define MLIP_SMOOTH_RHO 0.95      /* share of the budget the smoothing may take */
 
 struct mlip_smooth_sample {
 	double p[MLIP_MAX_AXES]; /* point of the original polyline at this sample */
@@ -44,6 +44,7 @@ struct mlip_smooth_sample {
 	double h;                /* original arc length from the previous sample */
 	double b;                /* budget: min(eps, tol_mm) of the nearby corners */
 	double r;                /* radius allowed: |x - p| <= r */
+	double bmin;             /* smallest budget within two samples */
 	double w;                /* data weight of the spline (reweighted) */
 	double w0;               /* its floor */
 	double dev;              /* |x - p| once frozen */
@@ -61,6 +62,7 @@ struct mlip_smooth {
 	double gap_mm;         /* sub-samples this close to a sharp vertex are dropped */
 	double l0_mm;          /* the spline's initial smoothing length */
 	double rho;            /* MLIP_SMOOTH_RHO */
+	double corner_need;    /* share of h^2 k the corners keep (0: none) */
 	double last[MLIP_MAX_AXES]; /* last original point */
 	double last_dir[MLIP_MAX_AXES];
 	double last_b;         /* budget of the corner at last[] */

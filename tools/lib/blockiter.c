@@ -3,8 +3,6 @@
  */
 #include "blockiter.h"
 
-#include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 
 static int array_next(void *ctx, struct mlip_block *out)
@@ -84,14 +82,6 @@ int mlip_smooth_program(const struct mlip_machine *m, const double *start,
 	if (o == NULL || mlip_smooth_init(&sm, m, start) != MLIP_OK) {
 		free(o);
 		return -1;
-	}
-	const char *tune = getenv("MLIP_SMOOTH_TUNE"); /* DEV ONLY */
-	if (tune) {
-		double st, l0, sh, gap, rho;
-		if (sscanf(tune, "%lf,%lf,%lf,%lf,%lf", &st, &l0, &sh, &gap, &rho) == 5) {
-			sm.step_mm = st; sm.l0_mm = l0; sm.sharp_cos = cos(sh * 3.141592653589793 / 180.0);
-			sm.gap_mm = gap * st; sm.rho = rho;
-		}
 	}
 	struct mlip_block_iter it = mlip_smooth_iter(&si, &sm, mlip_array_iter(&a, b, n));
 	for (;;) {
