@@ -32,6 +32,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "blockiter.h"
 #include "cli.h"
 #include "mlip/config.h"
 #include "mlip/ring.h"
@@ -796,6 +797,24 @@ int main(int argc, char **argv)
 	}
 	if (!f.quiet) {
 		mlip_program_print_notices(&f.prog, f.path, stderr);
+	}
+	if (m.smooth) {
+		/* the controller runs `smooth`: send the path smoothed within the
+		 * tolerance from HOME, as mlip-sim does, so that the setpoints are
+		 * the simulator's; records are then the smoothed blocks */
+		double home[MLIP_MAX_AXES];
+		struct mlip_block *sb;
+		size_t sn;
+		for (int k = 0; k < m.n_axes; k++) {
+			home[k] = m.axis[k].home;
+		}
+		if (mlip_smooth_program(&m, home, f.prog.blocks, f.prog.n, &sb, &sn) != 0) {
+			fprintf(stderr, PROG ": %s: out of memory smoothing the program\n", f.path);
+			goto out;
+		}
+		free(f.prog.blocks);
+		f.prog.blocks = sb;
+		f.prog.n = f.prog.cap = sn;
 	}
 	f.n = f.prog.n;
 	f.end_line = f.prog.lines ? f.prog.lines : f.prog.blocks[f.n - 1].line;

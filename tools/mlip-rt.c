@@ -157,7 +157,8 @@ static void usage(FILE *f)
 	        "  --shm NAME          shared-memory segment (default %s)\n"
 	        "  --priority N        SCHED_FIFO priority 1..99 (default 80; 0: SCHED_OTHER)\n"
 	        "  --cpu N             pin the loop to CPU N (default: no pinning)\n"
-	        "  --strategy S        mpct (default), bisector or stop\n"
+	        "  --strategy S        mpct (default), bisector, stop or smooth (mpct on the path\n"
+	        "                      mlip-feed smooths within the tolerance: mlip/smooth.h)\n"
 	        "  --capacity N        ring records, power of two (default %u)\n"
 	        "  -h, --help\n",
 	        MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY);
@@ -258,7 +259,8 @@ int main(int argc, char **argv)
 
 	int st = mlip_cli_strategy(strategy);
 	if (st < 0) {
-		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop\n", strategy);
+		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
+		        strategy);
 		return 2;
 	}
 	if (mlip_ring_bytes((uint32_t)capacity) == 0) {
@@ -312,6 +314,8 @@ int main(int argc, char **argv)
 	}
 
 	static struct mlip_shm shm;
+	/* published with the machine: feeders then send the smoothed path */
+	cfg.machine.smooth = st == MLIP_STRATEGY_SMOOTH;
 	if (mlip_shm_create(&shm, shm_name, (uint32_t)capacity, &cfg.machine, info, sizeof(info)) != 0) {
 		fprintf(stderr, PROG ": %s\n", info);
 		mlip_canio_close(&io);

@@ -37,6 +37,24 @@ def test_program_runs_to_completion(controller):
     assert "stopped after" in err and "3640 records taken" in err
 
 
+def test_smooth_program_runs_to_completion(controller):
+    """mlip-rt --strategy smooth publishes it in the machine area; mlip-feed
+    then sends the smoothed path and the controller runs it in the
+    simulator's time."""
+    shm, rt = controller(CONFIG / "mill-3axis.ini", "--strategy", "smooth")
+    sim = {st: json.loads(subprocess.run(
+        [tool("mlip-sim"), "-q", "--config", CONFIG / "mill-3axis.ini", "--strategy", st,
+         "--summary", "-", DEMO], capture_output=True, text=True).stdout) for st in ("smooth",)}
+    t0 = time.monotonic()
+    p = feed(shm, DEMO, timeout=60)
+    elapsed = time.monotonic() - t0
+    assert p.returncode == 0, p.stderr
+    s = status(shm)
+    assert s["state"] == "idle" and s["exec_seq"] == s["blocks_consumed"]
+    assert sim["smooth"]["total_time_s"] <= elapsed < sim["smooth"]["total_time_s"] + 5.0
+    assert sim["smooth"]["max_contour_error_mm"] <= 0.01 * (1 + 1e-9)
+
+
 def test_bad_program_sends_nothing(controller, tmp_path):
     shm, _ = controller()
     bad = tmp_path / "bad.ngc"
