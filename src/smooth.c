@@ -76,6 +76,8 @@ enum { ROLE_START = 0, ROLE_SUB, ROLE_VERTEX, ROLE_PASS };
 #define SHARP_DEG 20.0
 #define GAP_STEPS 4.0
 #define CORNER_NEED 0.25
+#define JITTER_KEEP 0.9
+#define JITTER_MIN 0.5
 
 static double dmin(double a, double b)
 {
@@ -107,6 +109,8 @@ mlip_status mlip_smooth_init(struct mlip_smooth *sm, const struct mlip_machine *
 	sm->l0_mm = L0_MM;
 	sm->rho = MLIP_SMOOTH_RHO;
 	sm->corner_need = CORNER_NEED;
+	sm->jitter_min = JITTER_MIN;
+	sm->pin_clean = 1;
 	for (int k = 0; k < sm->n; k++) {
 		if (!isfinite(start[k])) {
 			return MLIP_E_INVALID;
@@ -333,6 +337,36 @@ static struct mlip_smooth_sample *append(struct mlip_smooth *sm)
 	return s;
 }
 
+/* Keep the corner at the newest vertex sharp: pin it and its neighbours,
+ * drop the sub-samples within gap_mm before it. */
+static void pin_corner(struct mlip_smooth *sm, int neighbours)
+{
+	uint32_t v = sm->count - 1;
+	if (v < sm->frozen) {
+		return; /* already final: its corner gets what its devs leave */
+	}
+	sm->s[v].pinned = 1;
+	/* the segment into v: its length, to drop the sub-samples of its half */
+	double seg = 0.0;
+	for (uint32_t i = v; i > sm->run0; i--) {
+		seg += sm->s[i].h;
+		if (sm->s[i - 1].role != ROLE_SUB) {
+			break;
+		}
+	}
+	double gap = dmax(sm->gap_mm, 0.5 * seg), u = 0.0;
+	for (uint32_t i = v; i > sm->run0 && i - 1 >= sm->frozen;) {
+		u += sm->s[i].h;
+		i--;
+		if (sm->s[i].role != ROLE_SUB || u >= gap) {
+			sm->s[i].pinned = (uint8_t)(sm->s[i].pinned | neighbours);
+			break;
+		}
+		sm->s[i].pinned = 1;
+		sm->s[i].drop = 1;
+	}
+}
+
 static void close_run(struct mlip_smooth *sm)
 {
 	if (!sm->run_open) {
@@ -343,7 +377,7 @@ static void close_run(struct mlip_smooth *sm)
 		sm->count--; /* a run without a segment */
 		return;
 	}
-	sm->s[sm->count - 1].pinned = 1; /* exact point */
+	pin_corner(sm, 0); /* an exact point, and its segment's last half whole */
 	solve(sm, sm->count);
 }
 
@@ -360,27 +394,43 @@ static void open_run(struct mlip_smooth *sm, double feed)
 	sm->run_open = 1;
 	sm->run_feed = feed;
 	sm->have_dir = 0;
+	sm->pend = 0;
 }
 
-/* Keep the corner at the newest vertex sharp: pin it and its neighbours,
- * drop the sub-samples within gap_mm before it. */
-static void pin_sharp(struct mlip_smooth *sm)
+
+/* Cut the newest segment (one vertex sample, not final) into pieces of at
+ * most step_mm: sub-samples on the original segment before its vertex. */
+static void subdivide_last(struct mlip_smooth *sm)
 {
 	uint32_t v = sm->count - 1;
-	if (v < sm->frozen) {
-		return; /* already final: its corner gets what its devs leave */
+	struct mlip_smooth_sample *s = &sm->s[v];
+	double d = s->h;
+	int k = (int)ceil(d / sm->step_mm);
+	if (v < sm->frozen || k < 2 || k > UNIFORM_STEPS) {
+		return;
 	}
-	sm->s[v].pinned = 1;
-	double u = 0.0;
-	for (uint32_t i = v; i > sm->run0 && i - 1 >= sm->frozen;) {
-		u += sm->s[i].h;
-		i--;
-		sm->s[i].pinned = 1;
-		if (sm->s[i].role != ROLE_SUB || u >= sm->gap_mm) {
-			break;
+	sm->s[v + (uint32_t)k - 1] = *s;
+	double l4 = sm->l0_mm * sm->l0_mm * sm->l0_mm * sm->l0_mm;
+	for (int i = 1; i < k; i++) {
+		struct mlip_smooth_sample *u = &sm->s[v + (uint32_t)i - 1];
+		*u = sm->s[v + (uint32_t)k - 1];
+		double back = d * (double)(k - i) / (double)k; /* from the vertex */
+		for (int j = 0; j < sm->n; j++) {
+			u->p[j] = u->p[j] - sm->last_dir[j] * back;
+			u->x[j] = u->p[j];
 		}
-		sm->s[i].drop = 1;
+		u->role = ROLE_SUB;
+		u->b = dmin(u->b, sm->s[v - 1].b);
+		u->pinned = 0;
+		u->drop = 0;
 	}
+	for (int i = 0; i < k; i++) {
+		struct mlip_smooth_sample *u = &sm->s[v + (uint32_t)i];
+		u->h = d / (double)k;
+		u->w0 = u->h / l4;
+		u->w = u->w0;
+	}
+	sm->count += (uint32_t)k - 1;
 }
 
 static mlip_status room(struct mlip_smooth *sm, uint32_t need)
@@ -422,15 +472,41 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 	for (int k = 0; k < n; k++) {
 		dir[k] = (b->target[k] - sm->last[k]) / d;
 	}
-	int pin_ahead = 0;
+	int pin_ahead = !sm->have_dir, sharp = 0, clean = 0; /* a run starts exact */
+	double kv[MLIP_MAX_AXES];
 	if (sm->have_dir) {
 		double c = 0.0;
 		for (int k = 0; k < n; k++) {
 			c += dir[k] * sm->last_dir[k];
+			kv[k] = dir[k] - sm->last_dir[k];
 		}
-		if (c < sm->sharp_cos) {
-			pin_sharp(sm);
-			pin_ahead = 1;
+		sharp = c < sm->sharp_cos;
+		/* How erratically the turns change from vertex to vertex (a
+		 * running mean): CAM noise makes them jump, a clean curve turns
+		 * steadily. Where it is noisy the spline gets room to bend inside
+		 * each segment (sub-samples); where it is clean the vertices stay
+		 * exact, as mpct runs them: smoothing would only take the corners'
+		 * eps there, and sub-samples would halve their legs (19). */
+		if (sm->pend_kv_ok) {
+			double dj = 0.0, a1 = 0.0, a2 = 0.0;
+			for (int k = 0; k < n; k++) {
+				dj += (kv[k] - sm->pend_kv[k]) * (kv[k] - sm->pend_kv[k]);
+				a1 += kv[k] * kv[k];
+				a2 += sm->pend_kv[k] * sm->pend_kv[k];
+			}
+			double j = sqrt(dj) / (sqrt(a1) + sqrt(a2) + 1e-12);
+			sm->jitter = JITTER_KEEP * sm->jitter + (1.0 - JITTER_KEEP) * j;
+		}
+		if (!sharp && sm->jitter > sm->jitter_min) {
+			if (sm->pend) {
+				subdivide_last(sm);
+			}
+		} else if (!sharp && sm->pin_clean) {
+			clean = 1;
+		}
+		if (sharp || clean) {
+			pin_corner(sm, sharp);
+			pin_ahead = 1 + sharp;
 		}
 	}
 
@@ -438,12 +514,9 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 	double t[MLIP_SMOOTH_MAX_PIECES];
 	int np = 0;
 	double step = sm->step_mm;
-	if (d <= UNIFORM_STEPS * step) {
-		int k = (int)ceil(d / step);
-		k = k < 1 ? 1 : k;
-		for (int i = 1; i <= k; i++) {
-			t[np++] = d * (double)i / (double)k;
-		}
+	int pend = d <= UNIFORM_STEPS * step;
+	if (pend) {
+		t[np++] = d; /* one sample; subdivided when the next block shows a zigzag */
 	} else {
 		double g[GEOM_LEVELS];
 		int ng = 0;
@@ -474,16 +547,25 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 		s->w = s->w0;
 		s->blk = *b;
 		if (pin_ahead) {
-			s->pinned = 1;
-			if (t[i] >= sm->gap_mm || s->role == ROLE_VERTEX) {
+			/* sub-samples in the first half of the segment after a pinned
+			 * vertex are dropped; the first kept one is pinned too after a
+			 * sharp one, so its corner has the whole budget */
+			if (t[i] >= dmax(sm->gap_mm, 0.5 * d) || s->role == ROLE_VERTEX) {
+				s->pinned = (uint8_t)(pin_ahead == 2);
 				pin_ahead = 0;
 			} else {
+				s->pinned = 1;
 				s->drop = 1;
 			}
 		}
 	}
 	memcpy(sm->last, b->target, sizeof(double) * (size_t)n);
 	memcpy(sm->last_dir, dir, sizeof(double) * (size_t)n);
+	sm->pend = pend && !sharp && !sm->s[sm->count - 1].pinned;
+	sm->pend_kv_ok = sm->have_dir;
+	if (sm->have_dir) {
+		memcpy(sm->pend_kv, kv, sizeof(double) * (size_t)n);
+	}
 	sm->last_b = bb;
 	sm->have_dir = 1;
 	if (b->exact_stop) {
@@ -504,7 +586,7 @@ mlip_status mlip_smooth_push(struct mlip_smooth *sm, const struct mlip_block *b)
 			}
 		}
 	}
-	mlip_status st = room(sm, MLIP_SMOOTH_MAX_PIECES + 2);
+	mlip_status st = room(sm, MLIP_SMOOTH_MAX_PIECES + UNIFORM_STEPS + 2);
 	if (st != MLIP_OK) {
 		return st;
 	}

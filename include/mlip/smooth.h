@@ -69,6 +69,12 @@ struct mlip_smooth {
 	double run_feed;       /* feed of the open run */
 	int run_open;          /* a run of feed moves is open */
 	int have_dir;          /* last_dir valid (the run has a segment) */
+	int pend;              /* the newest segment is one sample, not yet subdivided */
+	int pend_kv_ok;        /* pend_kv is valid */
+	double pend_kv[MLIP_MAX_AXES]; /* turn at the pending segment's first vertex */
+	double jitter;         /* running mean of how erratically the turns change */
+	double jitter_min;     /* subdivide where jitter is above this */
+	int pin_clean;         /* and keep vertices exact where it is below */
 	uint32_t run0;         /* index of the open run's start sample */
 	uint32_t frozen;       /* samples [0, frozen) are final */
 	uint32_t emit;         /* next sample to emit */
