@@ -78,6 +78,9 @@ enum { ROLE_START = 0, ROLE_SUB, ROLE_VERTEX, ROLE_PASS };
 #define CORNER_NEED 0.25
 #define JITTER_KEEP 0.9
 #define JITTER_MIN 0.5
+#define JITTER_PIN 0.5
+#define SHORT_FRAC 0.5
+
 
 static double dmin(double a, double b)
 {
@@ -111,6 +114,7 @@ mlip_status mlip_smooth_init(struct mlip_smooth *sm, const struct mlip_machine *
 	sm->corner_need = CORNER_NEED;
 	sm->jitter_min = JITTER_MIN;
 	sm->pin_clean = 1;
+	sm->jitter_pin = JITTER_PIN;
 	for (int k = 0; k < sm->n; k++) {
 		if (!isfinite(start[k])) {
 			return MLIP_E_INVALID;
@@ -501,7 +505,8 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 			if (sm->pend) {
 				subdivide_last(sm);
 			}
-		} else if (!sharp && sm->pin_clean) {
+		} else if (!sharp && sm->pin_clean && sm->jitter <= sm->jitter_pin &&
+		           dmin(d, sm->s[sm->count - 1].h) >= SHORT_FRAC * sm->step_mm) {
 			clean = 1;
 		}
 		if (sharp || clean) {

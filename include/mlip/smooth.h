@@ -74,7 +74,8 @@ struct mlip_smooth {
 	double pend_kv[MLIP_MAX_AXES]; /* turn at the pending segment's first vertex */
 	double jitter;         /* running mean of how erratically the turns change */
 	double jitter_min;     /* subdivide where jitter is above this */
-	int pin_clean;         /* and keep vertices exact where it is below */
+	int pin_clean;         /* keep vertices exact where it is below jitter_pin */
+	double jitter_pin;
 	uint32_t run0;         /* index of the open run's start sample */
 	uint32_t frozen;       /* samples [0, frozen) are final */
 	uint32_t emit;         /* next sample to emit */
