@@ -12,22 +12,31 @@
  * lets the same corners run at sqrt(A R) of the smoothed curve.
  *
  * How, per run of feed moves between exact points:
- *  1. Samples: every original vertex, plus sub-samples on each segment every
- *     step_mm (uniform up to 8 steps; longer segments get them at 1, 2, 4,
- *     ... steps from each end, where a turn can spread).
+ *  1. Samples: every original vertex. Where the turns change erratically from
+ *     vertex to vertex (a running mean of |k_i - k_{i-1}| / (|k_i| +
+ *     |k_{i-1}|) above JITTER_MIN: CAM noise), each segment also gets
+ *     sub-samples every step_mm so the spline can bend inside it; segments
+ *     longer than 8 steps get them at 1, 2, 4, ... steps from each end,
+ *     where a turn can spread. Where the path is clean and the segments are
+ *     not short, vertices stay exact (x = p): smoothing would only take the
+ *     corners' eps there (their (18) bound), and sub-samples would halve
+ *     their legs (19). So a clean program runs exactly as mpct.
  *  2. A smoothing spline over the window: minimise
  *         sum_i w_i |x_i - p_i|^2 + sum_i g_i |x''_i|^2
  *     (x'' the second divided difference in the original arc length u), a
  *     pentadiagonal system per axis, solved by LDL^T. The weights w_i grow
- *     where |x_i - p_i| exceeds the radius r_i (iteratively reweighted), so
- *     the spline bends only where the band forces it; then x_i is clamped
- *     into the ball |x_i - p_i| <= r_i.
+ *     where |x_i - p_i| exceeds the radius r_i and relax inside it (never
+ *     below w0: iteratively reweighted), so the spline bends only where the
+ *     band forces it; then x_i is clamped into the ball |x_i - p_i| <= r_i.
+ *     r_i = min(rho b, b - h^2 k / 4): each corner keeps what it needs on the
+ *     smoothed curve (a corner using half of segments of h at curvature k
+ *     deviates about h^2 k / 8, (17)(19)).
  *  3. A vertex turning by more than sharp_deg is pinned (x = p) with its
- *     neighbours, and the sub-samples within gap_mm of it are dropped: an
- *     isolated corner is passed fastest by the paper's own corner with the
- *     whole budget (its parabola is as fast as an arc using the whole band,
- *     sqrt(8 eps |a|) / theta either way), and noise next to it is smoothed
- *     into the straight legs.
+ *     neighbours, and the sub-samples in the halves of its segments next to
+ *     it are dropped: an isolated corner is passed fastest by the paper's
+ *     own corner with the whole budget (its parabola is as fast as an arc
+ *     using the whole band, sqrt(8 eps |a|) / theta either way), and noise
+ *     next to it is smoothed into the straight legs.
  *  4. Windows: solve when 1024 samples wait beyond the frozen ones; freeze
  *     all but the last MLIP_SMOOTH_KEEP (they lack right-hand context); the
  *     next solve takes the last two frozen samples as fixed boundary values.
@@ -341,8 +350,9 @@ static struct mlip_smooth_sample *append(struct mlip_smooth *sm)
 	return s;
 }
 
-/* Keep the corner at the newest vertex sharp: pin it and its neighbours,
- * drop the sub-samples within gap_mm before it. */
+/* Keep the newest vertex exact: pin it, drop the sub-samples in the half of
+ * its segment next to it (at least gap_mm), and pin the nearest sample kept
+ * too when `neighbours` (a sharp corner then has its whole budget). */
 static void pin_corner(struct mlip_smooth *sm, int neighbours)
 {
 	uint32_t v = sm->count - 1;

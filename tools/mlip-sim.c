@@ -349,6 +349,7 @@ int main(int argc, char **argv)
 		        (unsigned long long)k);
 		fprintf(sf, "  \"blocks\": %zu,\n  \"segments\": %llu,\n", prog.n,
 		        (unsigned long long)planner.stats.pushes);
+		fprintf(sf, "  \"blocks_run\": %zu,\n", run_n); /* smooth: the filter's output */
 		fprintf(sf, "  \"path_length_mm\": %.6f,\n", path_mm);
 		fprintf(sf, "  \"max_speed_mm_s\": %.9g,\n", chk.max_speed_mm_s);
 		fprintf(sf, "  \"axes\": \"");
