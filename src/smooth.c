@@ -313,6 +313,18 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 			}
 			dev = sqrt(d2);
 		}
+		/* the planner skips a block closer than MERGE_MM to the previous
+		 * point, which would change the polyline the bound speaks of: a
+		 * sample pulled that close to its predecessor goes back to p */
+		double g2 = 0.0;
+		for (int k = 0; i > 0 && k < n; k++) {
+			double g = s[i].x[k] - s[i - 1].x[k];
+			g2 += g * g;
+		}
+		if (i > 0 && dev > 0.0 && g2 < (4.0 * MERGE_MM) * (4.0 * MERGE_MM)) {
+			memcpy(s[i].x, s[i].p, sizeof(double) * (size_t)n);
+			dev = 0.0;
+		}
 		s[i].dev = dev;
 	}
 	if (upto > sm->frozen) {
