@@ -1,10 +1,13 @@
 #!/usr/bin/env python3
 """make bench: the paper's Table 2 and Table 1, redone on real toolpaths.
 
-Table 2: total machining time of mpct (the paper), bisector and stop on
-MB-2.3_test.nc and flower-spiral-2d.ngc at feed 200 mm/s, eps 0.01 mm,
-T 1 ms and the paper's four per-axis acceleration settings. Times are the
-simulator's, i.e. exact periods of the motion the controller would run.
+Table 2: total machining time of mpct (the paper), bisector, stop and smooth
+(mpct on the path smoothed within the tolerance, beyond the paper) on
+MB-2.3_test.nc, flower-spiral-2d.ngc and two generated smooth curves in
+0.02 mm segments rounded to 4 decimals (tools/gen_curves.py) at feed
+200 mm/s, eps 0.01 mm, T 1 ms and the paper's four per-axis acceleration
+settings. Times are the simulator's, i.e. exact periods of the motion the
+controller would run.
 
 Table 1: look-ahead cost (medians of timed runs; instruction counts from
 callgrind, which do not depend on what else the shared machine is doing).
