@@ -264,6 +264,62 @@ static void test_noise_filtered(void **state)
 	free(out);
 }
 
+/* Random programs, for the general case: segments from 0.0001 to 5 mm,
+ * turns from noise to reversals, rapids, arcs' smaller budgets; the bound
+ * checked by brute force on every output segment. */
+static void test_random_programs(void **state)
+{
+	(void)state;
+	uint64_t s = 777;
+	for (int seed = 0; seed < 2; seed++) {
+		n_in = 0;
+		double x[3] = {3.0, 0.0, 0.0}, e[3] = {1.0, 0.0, 0.0};
+		for (int i = 0; i < 2000; i++) {
+			double r[4];
+			for (int k = 0; k < 4; k++) {
+				s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+				r[k] = (double)(s >> 11) / 9007199254740992.0;
+			}
+			double len = 1e-4 * pow(5e4, r[0]);        /* 0.0001 .. 5 mm */
+			double turn = r[1] < 0.7 ? 0.01 : r[1] < 0.95 ? 0.3 : 3.0; /* rad, scale */
+			for (int k = 0; k < 3; k++) {
+				e[k] += turn * (r[(k + 2) % 4] - 0.5);
+			}
+			double n2 = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+			for (int k = 0; k < 3; k++) {
+				e[k] /= n2;
+				x[k] += len * e[k];
+			}
+			double tol = r[3] < 0.2 ? 0.9 * EPS : r[3] < 0.25 ? TIGHT : 0.0;
+			add(round4(x[0]), round4(x[1]), round4(x[2]), 100.0, tol, i % 700 == 699);
+		}
+		size_t n;
+		struct mlip_block *out = smooth_all(&n);
+		double *dev = calloc(n, sizeof(double));
+		double prev[3] = {3.0, 0.0, 0.0}, worst = 0.0;
+		for (size_t j = 0; j < n; j++) {
+			for (int q = 0; q <= 8; q++) {
+				double y[3];
+				for (int k = 0; k < 3; k++) {
+					y[k] = prev[k] + (out[j].target[k] - prev[k]) * q / 8.0;
+				}
+				dev[j] = fmax(dev[j], dist_to_original(y));
+			}
+			memcpy(prev, out[j].target, sizeof(prev));
+			assert_true(dev[j] <= MLIP_SMOOTH_RHO * EPS * (1 + 1e-9));
+			worst = fmax(worst, dev[j]);
+		}
+		assert_true(worst >= 0.3 * MLIP_SMOOTH_RHO * EPS); /* it did smooth */
+		for (size_t j = 0; j + 1 < n; j++) {
+			assert_true(out[j].tol_mm > 0.0);
+			assert_true(out[j].tol_mm + fmax(dev[j], dev[j + 1]) <= EPS * (1 + 1e-9));
+		}
+		assert_memory_equal(out[n - 1].target, in[n_in - 1].target, sizeof(double) * 3);
+		free(dev);
+		free(out);
+	}
+}
+
 static void test_full_and_bad_input(void **state)
 {
 	(void)state;
@@ -302,6 +358,7 @@ int main(void)
 		cmocka_unit_test(test_within_band_brute_force),
 		cmocka_unit_test(test_exact_points_and_events),
 		cmocka_unit_test(test_noise_filtered),
+		cmocka_unit_test(test_random_programs),
 		cmocka_unit_test(test_full_and_bad_input),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
