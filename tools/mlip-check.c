@@ -34,13 +34,14 @@ static void usage(FILE *f)
 	           "  --no-end            the trace need not end on the program's last point\n"
 	           "                      (a run stopped by the operator)\n"
 	           "  --json OUT          measured values as JSON ('-' for stdout)\n"
+	           "  --errors OUT.csv    each sample's contour error: t,contour_mm\n"
 	           "exit status: 0 within limits, 1 violation, 2 usage or input error\n");
 }
 
 int main(int argc, char **argv)
 {
 	struct mlip_cli_machine mo = {0};
-	const char *json = NULL;
+	const char *json = NULL, *errors = NULL;
 	double quantum = 0.0, rel = 1e-9;
 	int no_end = 0;
 	static const struct option opts[] = {
@@ -49,6 +50,7 @@ int main(int argc, char **argv)
 		{"period", required_argument, 0, 'p'}, {"quantum", required_argument, 0, 'Q'},
 		{"rel", required_argument, 0, 'r'},    {"json", required_argument, 0, 'j'},
 		{"no-end", no_argument, 0, 'E'},       MLIP_CLI_GCODE_OPTIONS,
+		{"errors", required_argument, 0, 'O'},
 		{"help", no_argument, 0, 'h'},         {0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
@@ -93,6 +95,9 @@ int main(int argc, char **argv)
 		case 'E':
 			no_end = 1;
 			break;
+		case 'O':
+			errors = optarg;
+			break;
 		case 'h':
 			usage(stdout);
 			return 0;
@@ -113,22 +118,29 @@ int main(int argc, char **argv)
 	}
 	const struct mlip_machine *m = &cfg.machine;
 	int n = m->n_axes;
-	size_t npts;
-	double *pts = mlip_cli_polyline(m, &prog, &npts, ppath, PROG, stderr);
-	mlip_program_close(&prog);
-	if (pts == NULL) {
-		return 2;
-	}
-
+	/* the polyline is streamed from the program as the trace needs it, the
+	 * trace row by row: the check's memory is fixed */
+	struct mlip_cli_path src;
+	mlip_cli_path_start(&src, &prog, m);
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
+	lim.tol_mm = m->tolerance_mm * (1.0 + rel) + quantum; /* the contour bound, for order */
 	static struct mlip_check chk;
-	mlip_check_init(&chk, &lim, pts, npts);
+	mlip_check_init_source(&chk, &lim, mlip_cli_path_next, &src);
 
 	FILE *tf = strcmp(tpath, "-") == 0 ? stdin : fopen(tpath, "r");
 	if (tf == NULL) {
 		perror(tpath);
-		free(pts);
+		mlip_program_close(&prog);
+		return 2;
+	}
+	FILE *ef = NULL;
+	if (errors != NULL && (ef = fopen(errors, "w")) == NULL) {
+		perror(errors);
+		if (tf != stdin) {
+			fclose(tf);
+		}
+		mlip_program_close(&prog);
 		return 2;
 	}
 	char line[1024];
@@ -175,12 +187,25 @@ int main(int argc, char **argv)
 		t_prev = x[0];
 		rows++;
 		mlip_check_sample(&chk, x + 1);
+		if (ef != NULL) {
+			fprintf(ef, "%.17g,%.17g\n", x[0], chk.last_contour_mm);
+		}
 	}
 	if (tf != stdin) {
 		fclose(tf);
 	}
+	if (ef != NULL && fclose(ef) != 0) {
+		perror(errors);
+		input_error = 1;
+	}
 	if (input_error) {
-		free(pts);
+		mlip_program_close(&prog);
+		return 2;
+	}
+	mlip_check_finish(&chk);
+	if (src.rc < 0) { /* the file changed since it was checked, or I/O */
+		fprintf(stderr, PROG ": %s: %s\n", ppath, prog.msg);
+		mlip_program_close(&prog);
 		return 2;
 	}
 	double T = m->period_s;
@@ -202,6 +227,8 @@ int main(int argc, char **argv)
 		fprintf(jf, "],\n  \"max_speed_mm_s\": %.12g,\n", chk.max_speed_mm_s);
 		fprintf(jf, "  \"max_rot_speed_deg_s\": %.12g,\n", chk.max_rot_speed_deg_s);
 		fprintf(jf, "  \"max_contour_error_mm\": %.12g,\n", chk.max_contour_mm);
+		fprintf(jf, "  \"order_errors\": %zu,\n", chk.order_errors);
+		fprintf(jf, "  \"window_drops\": %zu,\n", chk.window_drops);
 		fprintf(jf, "  \"end_error_mm\": %.3g,\n", mlip_check_end_error(&chk));
 		fprintf(jf, "  \"violations\": %d\n}\n", bad);
 		if (jf != stdout) {
@@ -214,6 +241,6 @@ int main(int argc, char **argv)
 		fprintf(stderr, PROG ": %s: %zu samples within limits (max contour %.6f mm)\n", tpath,
 		        chk.count, chk.max_contour_mm);
 	}
-	free(pts);
+	mlip_program_close(&prog);
 	return bad ? 1 : 0;
 }

@@ -61,7 +61,9 @@ static void usage(FILE *f)
 	        "  --strict              refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
 	        "  --no-notes            do not list the words accepted without effect\n"
 	        "  -q, --quiet           neither notes nor the summary line on stderr\n"
-	        "  -h, --help            this help\n",
+	        "  -h, --help            this help\n"
+	        "exit status: 0 done within every limit, 1 input error, 2 usage, 3 no end,\n"
+	        "4 the trace breaks a limit (its own check, as mlip-check's: which, where)\n",
 	        MLIP_LOOKAHEAD);
 }
 
@@ -362,19 +364,24 @@ int main(int argc, char **argv)
 	mlip_planner_set_override(&planner, override);
 	struct feeder fdr = {.src = {.p = &prog, .feed = feed}, .end_line = prog.lines};
 
-	/* judged against the ORIGINAL program's polyline, whatever runs (the
-	 * program is rewound after) */
-	size_t npts;
-	double *pts = mlip_cli_polyline(m, &prog, &npts, path, PROG, stderr);
-	if (pts == NULL) {
+	/* the check streams the ORIGINAL program's polyline (whatever runs:
+	 * smooth's output too) from a second reader of the file, behind the
+	 * feeder's, as the samples need it: with the check's window, the ring
+	 * and smooth's window, mlip-sim's memory is fixed whatever the length */
+	static struct mlip_program cprog;
+	if (mlip_program_open_reader(&cprog, &prog, path) != 0) {
+		fprintf(stderr, PROG ": %s: %s\n", path, cprog.msg);
+		mlip_program_close(&cprog);
 		mlip_program_close(&prog);
 		return 1;
 	}
+	struct mlip_cli_path csrc;
+	mlip_cli_path_start(&csrc, &cprog, m);
 	source_init(&fdr.src, m, st == MLIP_STRATEGY_SMOOTH);
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
 	static struct mlip_check chk;
-	mlip_check_init(&chk, &lim, pts, npts);
+	mlip_check_init_source(&chk, &lim, mlip_cli_path_next, &csrc);
 
 	FILE *tf = NULL;
 	static char tbuf[1 << 20];
@@ -420,6 +427,13 @@ int main(int argc, char **argv)
 			dwells += out.events[i].kind == MLIP_EV_STATE && out.events[i].state == MLIP_STATE_DWELLING;
 		}
 		const double *start;
+#ifdef MLIP_SIM_TEST_FAULT_AT /* test builds only (tests/py): one setpoint off the path */
+		if (trace.started && !trace.ended && trace.rows + 1 == MLIP_SIM_TEST_FAULT_AT) {
+			for (int a = 0; a < n; a++) {
+				out.pos[a] += 0.05;
+			}
+		}
+#endif
 		if (mlip_trace_sample(&trace, out.status.state, out.pos, &start)) {
 			if (start != NULL) {
 				mlip_check_sample(&chk, start);
@@ -452,17 +466,17 @@ int main(int argc, char **argv)
 	}
 
 	double total = (double)k * m->period_s;
-	double path_mm = 0.0;
-	for (size_t i = 1; i < npts; i++) {
-		double s = 0.0;
-		for (int a = 0; a < n; a++) {
-			if (m->axis[a].kind == MLIP_AXIS_LINEAR) {
-				double d = pts[i * (size_t)n + a] - pts[(i - 1) * (size_t)n + a];
-				s += d * d;
-			}
-		}
-		path_mm += sqrt(s);
+	mlip_check_finish(&chk);
+	if (csrc.rc < 0) {
+		fprintf(stderr, PROG ": %s: %s\n", path, cprog.msg);
+		return 1;
 	}
+	double path_mm = chk.prog_mm;
+	/* the same verdict as mlip-check on this trace: limits within 1e-9, the
+	 * rounding floor of the second differences, the end on the last point */
+	char vmsg[4096];
+	int bad = mlip_check_verdict(&chk, 1e-9, mlip_check_rounding_floor(&chk), 0.0, 1e-9, vmsg,
+	                             sizeof(vmsg));
 	const struct mlip_planner_stats *ps = mlip_planner_get_stats(&planner);
 	double visits = ps->pushes ? (double)ps->backward_visits / (double)ps->pushes : 0.0;
 
@@ -510,8 +524,9 @@ int main(int argc, char **argv)
 		        lookahead, visits);
 		fprintf(sf, "  \"offsets\": \"%s\",\n", offs);
 		fprintf(sf, "  \"override_events\": %llu,\n", (unsigned long long)storm.events);
-		fprintf(sf, "  \"dwells\": %llu,\n  \"pauses\": %llu\n}\n", (unsigned long long)dwells,
+		fprintf(sf, "  \"dwells\": %llu,\n  \"pauses\": %llu,\n", (unsigned long long)dwells,
 		        (unsigned long long)pauses);
+		fprintf(sf, "  \"order_errors\": %zu,\n  \"violations\": %d\n}\n", chk.order_errors, bad);
 		if (sf != stdout) {
 			fclose(sf);
 		}
@@ -523,11 +538,16 @@ int main(int argc, char **argv)
 		        path, mlip_cli_strategy_name((mlip_strategy)st), total, prog.n, path_mm,
 		        chk.max_speed_mm_s, chk.max_contour_mm);
 	}
-	free(pts);
+	mlip_program_close(&cprog);
 	if (save_offsets && mlip_offsets_save(mo.offsets, m, &prog.offsets_end, PROG, stderr) != 0) {
 		mlip_program_close(&prog);
 		return 1;
 	}
 	mlip_program_close(&prog);
+	if (bad) {
+		fprintf(stderr, PROG ": %s: the trace breaks the machine's limits (%d check(s)):\n%s", path,
+		        bad, vmsg);
+		return 4;
+	}
 	return 0;
 }

@@ -156,7 +156,8 @@ def check_bounds(config, js, quantum, max_abs, rel=1e-9):
     on the path): the bounds of tools/mlip-check.c and check.c exactly, with
     abs_acc = rounding floor (8 max|x| DBL_EPSILON / T^2) + 4 quantum / T^2:
     acceleration <= A (1 + rel) + abs_acc, axis velocity and tool speed
-    <= limit (1 + rel) + abs_acc T, contour <= eps (1 + rel) + quantum.
+    <= limit (1 + rel) + abs_acc T, contour <= eps (1 + rel) + quantum, no
+    sample out of order.
     Returns the violations (strings)."""
     m = MachineLimits(config)
     T = m.period_s
@@ -176,6 +177,8 @@ def check_bounds(config, js, quantum, max_abs, rel=1e-9):
     lim = m.eps * (1 + rel) + quantum
     if js["max_contour_error_mm"] > lim:
         bad.append(f"contour error {js['max_contour_error_mm']:.12g} > {lim:.12g}")
+    if js.get("order_errors"):
+        bad.append(f"{js['order_errors']} sample(s) out of order along the path")
     return bad
 
 

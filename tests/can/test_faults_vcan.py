@@ -2,9 +2,9 @@
 slow, the controller killed, the CAN transmit queue full, a bus-off, SIGTERM,
 SIGINT, SIGHUP and SIGQUIT, override storms with holds. Every run is judged on the positions
 the listener decoded from the bus, with the physics checks of mlip-check
-(acceleration, axis velocity, tool speed, contour, and order: a sample is
-looked for on the program's polyline only from where the last one was, so
-a step back or a skip shows as a contour error), across holes where frames
+(acceleration, axis velocity, tool speed, contour, and order: the samples
+joined by chords must follow the program's polyline forwards, so a step
+back or a skip is an order error), across holes where frames
 were refused (mlip-check takes no difference across a hole, and bounds the
 hole's mean speed).
 

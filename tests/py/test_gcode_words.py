@@ -230,6 +230,26 @@ def test_loading_memory_flat(tmp_path):
     assert rb <= 1.10 * rs, f"peak RSS {rs} kB for {ns} blocks, {rb} kB for {nb}"
 
 
+
+def test_sim_memory_flat(tmp_path):
+    """mlip-sim (its feeder and its own check each stream the program, the
+    check keeps a fixed window of the polyline): peak RSS of a 10 MB
+    program within 10 % of a 1 MB one's, as above. It grew ~3.5x from 2 to
+    20 MB while the check held the whole polyline in an array."""
+    if not os.access("/usr/bin/time", os.X_OK):
+        pytest.fail("/usr/bin/time (GNU time) missing: tools/deps.sh installs it")
+    small, big = tmp_path / "s.ngc", tmp_path / "b.ngc"
+    _spiral(small, 1_000_000)
+    _spiral(big, 10_000_000)
+    cmd = [tool("mlip-sim"), "-q", "--summary", "-"]
+    rs, ps = min(_rss_kb([*cmd, small]) for _ in range(3))
+    rb, pb = min(_rss_kb([*cmd, big]) for _ in range(3))
+    ss, sb = json.loads(ps), json.loads(pb)
+    assert sb["blocks"] > 9 * ss["blocks"]  # the big one really is ten times longer
+    assert rb <= 1.10 * rs, f"peak RSS {rs} kB for {ss['blocks']} blocks, {rb} kB for {sb['blocks']}"
+    assert ss["violations"] == 0 and sb["violations"] == 0  # the check did see the whole path
+
+
 def test_dwell_and_pause_through_mlip_sim(tmp_path):
     """G4 P0.25: at rest on (10, 0) for round(0.25 / T) periods; M0 with
     --resume-after 0.5: at rest for 0.5 s; the trace still passes mlip-check."""

@@ -227,42 +227,7 @@ int mlip_cli_path_next(void *ctx, double *pt, uint32_t *line)
 		*line = b.line;
 		return 1;
 	}
-	return 0;
-}
-
-double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *program,
-                          size_t *npts, const char *path, const char *prog, FILE *err)
-{
-	int n = m->n_axes;
-	size_t np = 0, cap = 4096;
-	double *pts = malloc(sizeof(double) * (size_t)n * cap);
-	struct mlip_cli_path src;
-	uint32_t line;
-	if (pts == NULL) {
-		fprintf(err, "%s: out of memory\n", prog);
-		return NULL;
-	}
-	mlip_cli_path_start(&src, program, m);
-	while (mlip_cli_path_next(&src, pts + np * (size_t)n, &line) > 0) {
-		if (++np == cap) {
-			double *q = realloc(pts, sizeof(double) * (size_t)n * cap * 2);
-			if (q == NULL) {
-				free(pts);
-				fprintf(err, "%s: out of memory\n", prog);
-				return NULL;
-			}
-			pts = q;
-			cap *= 2;
-		}
-	}
-	mlip_program_rewind(program);
-	if (src.rc < 0) {
-		fprintf(err, "%s: %s: %s\n", prog, path, program->msg);
-		free(pts);
-		return NULL;
-	}
-	*npts = np;
-	return pts;
+	return p->rc; /* 0 at the end, < 0 when the stream failed */
 }
 
 void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limits *lim)

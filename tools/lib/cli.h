@@ -75,8 +75,9 @@ void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limit
  * being streamed: home first, then every move's target, points closer than
  * MLIP_GCODE_MERGE_MM to the previous one dropped as the planner does. The
  * signature of a streaming check's point source (ctx = struct
- * mlip_cli_path). length_mm sums the linear axes' lengths given so far;
- * rc < 0 after the end when the stream failed (program->msg). */
+ * mlip_cli_path): 1, 0 at the end, < 0 when the stream failed
+ * (program->msg; also kept in rc). length_mm sums the linear axes' lengths
+ * given so far. Fixed memory, whatever the program's length. */
 struct mlip_cli_path {
 	struct mlip_program *program;
 	const struct mlip_machine *m;
@@ -87,14 +88,6 @@ struct mlip_cli_path {
 void mlip_cli_path_start(struct mlip_cli_path *p, struct mlip_program *program,
                          const struct mlip_machine *m);
 int mlip_cli_path_next(void *ctx, double *pt, uint32_t *line);
-
-/* Polyline the planner will follow: home + every move's target, with points
- * closer than MLIP_GCODE_MERGE_MM to the previous one dropped like the
- * planner does, streamed from the program (which is rewound after). Returns
- * a malloc'ed array of *npts points of n coordinates, or NULL (message
- * printed). */
-double *mlip_cli_polyline(const struct mlip_machine *m, struct mlip_program *program,
-                          size_t *npts, const char *path, const char *prog, FILE *err);
 
 /* What a record field of a controller fault is called: "target X" for the
  * target of axis X of machine m, else mlip_rec_field_name(). */

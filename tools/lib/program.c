@@ -352,6 +352,31 @@ void mlip_program_rewind(struct mlip_program *p)
 	p->batch_n = p->batch_pos = p->skip = p->skip_base = 0;
 }
 
+int mlip_program_open_reader(struct mlip_program *p, const struct mlip_program *checked,
+                             const char *path)
+{
+	*p = *checked; /* counts, first F, offsets at the start: what next() needs */
+	p->f = NULL;
+	p->errors = NULL;
+	p->n_errors = 0; /* kept by checked; n_errors_total still refuses a bad one */
+	p->line = NULL;
+	p->batch = NULL;
+	mlip_program_rewind(p);
+	if (checked->f) {
+		p->f = open_regular(path, p->msg, sizeof p->msg);
+		if (!p->f) {
+			return -EINVAL;
+		}
+	}
+	p->line = malloc(LINE_CAP);
+	p->batch = malloc(MLIP_PROGRAM_BATCH * sizeof *p->batch);
+	if (!p->line || !p->batch) {
+		snprintf(p->msg, sizeof p->msg, "%s", strerror(ENOMEM));
+		return -ENOMEM;
+	}
+	return 0;
+}
+
 void mlip_program_close(struct mlip_program *p)
 {
 	if (p->f) {

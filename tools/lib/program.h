@@ -88,6 +88,14 @@ void mlip_program_rewind(struct mlip_program *prog);
 
 void mlip_program_close(struct mlip_program *prog);
 
+/* A second, independent reader of the blocks of checked (open, valid),
+ * opened on the same file (path) or buffer without checking it again:
+ * mlip_program_next on it gives the same blocks, at its own pace (the
+ * simulator's check follows the program behind its feeder). Errors and
+ * notices stay with checked. 0, or < 0 with reader->msg; close it too. */
+int mlip_program_open_reader(struct mlip_program *reader, const struct mlip_program *checked,
+                             const char *path);
+
 /* 0 when path is a regular file that can be opened, else < 0 with msg (the
  * reason, as mlip_program_open gives it). */
 int mlip_program_check_file(const char *path, char *msg, size_t msg_len);
