@@ -1,10 +1,13 @@
 #!/usr/bin/env python3
 """make bench: the paper's Table 2 and Table 1, redone on real toolpaths.
 
-Table 2: total machining time of mpct (the paper), bisector and stop on
-MB-2.3_test.nc and flower-spiral-2d.ngc at feed 200 mm/s, eps 0.01 mm,
-T 1 ms and the paper's four per-axis acceleration settings. Times are the
-simulator's, i.e. exact periods of the motion the controller would run.
+Table 2: total machining time of mpct (the paper), bisector, stop and smooth
+(mpct on the path smoothed within the tolerance, beyond the paper) on
+MB-2.3_test.nc, flower-spiral-2d.ngc and two generated smooth curves in
+0.02 mm segments rounded to 4 decimals (tools/gen_curves.py) at feed
+200 mm/s, eps 0.01 mm, T 1 ms and the paper's four per-axis acceleration
+settings. Times are the simulator's, i.e. exact periods of the motion the
+controller would run.
 
 Table 1: look-ahead cost (medians of timed runs; instruction counts from
 callgrind, which do not depend on what else the shared machine is doing).
@@ -32,11 +35,11 @@ SETTINGS = [("1000/1000", "1000,1000,1000"), ("3000/1000", "3000,1000,1000"),
 PAPER = {  # the vase, Table 2: minutes
     "1000/1000": (22.78, 40.52, 57.13), "3000/1000": (18.62, 31.59, 44.16),
     "3000/3000": (13.15, 21.22, 34.92), "6000/6000": (9.30, 14.33, 26.15)}
-STRATEGIES = ["mpct", "bisector", "stop"]
+STRATEGIES = ["mpct", "bisector", "stop", "smooth"]
 
 
 def sim(build, path, accel, strategy):
-    n_axes = 2 if path.endswith("flower-spiral-2d.ngc") else 3
+    n_axes = 2 if path.endswith(("flower-spiral-2d.ngc", "lissajous.ngc")) else 3
     accel = ",".join(accel.split(",")[:n_axes])
     out = subprocess.run(
         [os.path.join(build, "mlip-sim"), "-q", "--strategy", strategy, "--accel", accel,
@@ -46,27 +49,36 @@ def sim(build, path, accel, strategy):
 
 
 def table2(build):
-    files = ["MB-2.3_test.nc", "flower-spiral-2d.ngc"]
+    # plus smooth curves in 0.02 mm segments, coordinates rounded to 4 decimals
+    gen = os.path.join(build, "curves")
+    os.makedirs(gen, exist_ok=True)
+    for c in ("lissajous", "spiral"):
+        subprocess.run([sys.executable, os.path.join(ROOT, "tools", "gen_curves.py"), c,
+                        os.path.join(gen, c + ".ngc")], check=True)
+    files = ["MB-2.3_test.nc", "flower-spiral-2d.ngc",
+             os.path.join(gen, "lissajous.ngc"), os.path.join(gen, "spiral.ngc")]
     jobs = {}
     with cf.ThreadPoolExecutor(max_workers=2) as ex:
         for f in files:
             for label, accel in SETTINGS:
                 for st in STRATEGIES:
                     jobs[(f, label, st)] = ex.submit(sim, build, os.path.join(TOOLPATHS, f), accel, st)
+    # os.path.join keeps an absolute path (the generated curves) as it is
         res = {k: v.result() for k, v in jobs.items()}
     print("## Table 2, redone: total machining time (feed 200 mm/s, eps 0.01 mm, T 1 ms)\n")
     for f in files:
         s0 = res[(f, SETTINGS[0][0], "mpct")]
-        print(f"### {f}: {s0['blocks']} blocks, {s0['path_length_mm'] / 1000:.2f} m\n")
-        print("| accel x/y (mm/s^2) | mpct | bisector | stop | mpct vs bisector | mpct vs stop |"
-              " paper (vase): mpct / bisector / stop, gains |")
-        print("|---|---|---|---|---|---|---|")
+        print(f"### {os.path.basename(f)}: {s0['blocks']} blocks, {s0['path_length_mm'] / 1000:.2f} m\n")
+        print("| accel x/y (mm/s^2) | mpct | bisector | stop | smooth | mpct vs bisector | mpct vs stop |"
+              " smooth vs mpct | paper (vase): mpct / bisector / stop, gains |")
+        print("|---|---|---|---|---|---|---|---|---|")
         for label, _ in SETTINGS:
             t = [res[(f, label, st)]["total_time_s"] for st in STRATEGIES]
             p = PAPER[label]
-            print(f"| {label} | {t[0] / 60:.2f} min | {t[1] / 60:.2f} min | {t[2] / 60:.2f} min "
+            print(f"| {label} | {t[0]:.1f} s | {t[1]:.1f} s | {t[2]:.1f} s | {t[3]:.1f} s "
                   f"| +{(t[1] / t[0] - 1) * 100:.1f} % ({t[1] / t[0]:.2f}x) "
                   f"| +{(t[2] / t[0] - 1) * 100:.1f} % ({t[2] / t[0]:.2f}x) "
+                  f"| {t[0] / t[3]:.2f}x faster "
                   f"| {p[0]:.2f} / {p[1]:.2f} / {p[2]:.2f} min, +{(p[1] / p[0] - 1) * 100:.1f} %, "
                   f"+{(p[2] / p[0] - 1) * 100:.1f} % |")
         worst = max(max(a / l for a, l in zip(r["max_axis_accel"], r["accel_limit"]))

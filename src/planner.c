@@ -72,7 +72,7 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 	}
 	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES || cap < 2 || cap > MLIP_LOOKAHEAD ||
 	    (cap & (cap - 1)) != 0 || !(m->period_s > 0.0) || !(m->tolerance_mm > 0.0) ||
-	    !(m->max_feed_mm_s > 0.0) || st > MLIP_STRATEGY_STOP) {
+	    !(m->max_feed_mm_s > 0.0) || st > MLIP_STRATEGY_SMOOTH) {
 		return MLIP_E_INVALID;
 	}
 	/* the struct is large (the ring); clear only the header part */

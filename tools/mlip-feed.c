@@ -6,6 +6,12 @@
  * publishes in the segment before anything is sent: a program with any error
  * never starts. Records are numbered as mlip-sim numbers blocks (seq 1..n,
  * then the END record n + 1), so the controller's exec_seq maps to a block.
+ * A controller running `smooth` (struct mlip_machine.smooth) gets the
+ * program through the smoothing filter (blockiter.h, fixed memory): records
+ * 1..n are then the filter's output blocks, each with its source line, and
+ * n is counted by one filtering pass before the first is sent. The output
+ * depends on the program alone, so --start-seq means the same record in
+ * every run.
  *
  * The feeder is the ring's single producer. Two feeders would corrupt it, so
  * the producer line is guarded by a POSIX record lock on the segment (the
@@ -32,6 +38,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "blockiter.h"
 #include "cli.h"
 #include "mlip/config.h"
 #include "mlip/ring.h"
@@ -79,7 +86,8 @@ static void usage(FILE *f)
 	        "  --start-seq N     continue the program from block N (1-based): the block\n"
 	        "                    after the last one the controller completed (mlip-ctl\n"
 	        "                    status: 'completed block B', N = B + 1), after a feeder\n"
-	        "                    crash or a stop (default 1: the whole program)\n"
+	        "                    crash or a stop (default 1: the whole program); with a\n"
+	        "                    `smooth` controller, blocks are the smoothed records\n"
 	        "  --offsets FILE    work offsets, G92, G28/G30 positions: read before the\n"
 	        "                    program, written back when it completes (README: offsets)\n"
 	        "  --default-feed F  feed (units/min) for a program that sets no F at all\n"
@@ -162,6 +170,8 @@ struct feed {
 	uint32_t end_line;
 	uint64_t read_seq;          /* blocks taken from the stream so far */
 	uint32_t lines[LINE_WINDOW]; /* source line of seq, for seq % LINE_WINDOW */
+	struct mlip_block_iter it;   /* the program's blocks, or smooth's over them */
+	struct mlip_smooth_iter si;
 	const char *offsets;        /* --offsets FILE, or NULL */
 	int strict;
 	double default_feed;        /* --default-feed */
@@ -372,10 +382,30 @@ static unsigned resume_line(const struct feed *f)
 	return f->exec ? f->exec_line : line_of(f, f->first_seq);
 }
 
+static int program_next(void *ctx, struct mlip_block *b)
+{
+	struct feed *f = ctx;
+	return mlip_program_next(&f->prog, b);
+}
+
+/* Blocks from the stream's start: the program's, or smooth's over them. */
+static void stream_start(struct feed *f, const struct mlip_machine *m)
+{
+	static struct mlip_smooth sm; /* ~1 MB */
+	f->it = (struct mlip_block_iter){program_next, f};
+	if (m->smooth) {
+		f->it = mlip_smooth_iter(&f->si, &sm, m, f->it);
+	}
+}
+
 /* The next block from the stream into *b: 1, or < 0 (the file changed). */
 static int next_block(struct feed *f, struct mlip_block *b)
 {
-	int rc = mlip_program_next(&f->prog, b);
+	f->prog.msg[0] = '\0';
+	int rc = f->it.next(f->it.ctx, b);
+	if (rc < 0 && f->prog.msg[0] == '\0') {
+		snprintf(f->prog.msg, sizeof(f->prog.msg), "the smoothing filter refused a block");
+	}
 	if (rc > 0) {
 		f->read_seq++;
 		f->lines[f->read_seq % LINE_WINDOW] = b->line;
@@ -958,6 +988,23 @@ int main(int argc, char **argv)
 		        f.offsets ? f.offsets : "no --offsets: defaults");
 	}
 	f.n = f.prog.n;
+	stream_start(&f, &m);
+	if (m.smooth) {
+		/* the controller runs `smooth`: send the path smoothed within the
+		 * tolerance, as mlip-sim does, so that the setpoints are the
+		 * simulator's. One pass counts the records (END is n + 1). */
+		struct mlip_block b;
+		for (f.n = 0; (rc = f.it.next(f.it.ctx, &b)) > 0;) {
+			f.n++;
+		}
+		if (rc < 0) {
+			fprintf(stderr, PROG ": %s: %s\n", f.path,
+			        f.prog.msg[0] ? f.prog.msg : "the smoothing filter refused a block");
+			goto out;
+		}
+		mlip_program_rewind(&f.prog);
+		stream_start(&f, &m);
+	}
 	f.end_line = f.prog.lines;
 	if (f.first_seq > f.n) {
 		fprintf(stderr, PROG ": --start-seq %llu: %s has %llu blocks\n",

@@ -47,6 +47,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "blockiter.h"
 #include "cli.h"
 #include "confload.h"
 #include "latstats.h"
@@ -264,6 +265,7 @@ struct opts {
 	uint64_t loops;
 	uint32_t hist_us;
 	int hist_given;
+	int strategy; /* mlip_strategy for --plan/--can */
 };
 
 static void usage(FILE *f)
@@ -279,7 +281,9 @@ static void usage(FILE *f)
 	        "                      the program whenever it ends\n"
 	        "  --can IFACE         the same and the frames sent on IFACE, the send timed\n"
 	        "                      apart; the program is --plan's (default " DEFAULT_CAN_PROGRAM ")\n"
-	        "  --config FILE       machine INI for --plan/--can (default " DEFAULT_CONFIG ")\n\n"
+	        "  --config FILE       machine INI for --plan/--can (default " DEFAULT_CONFIG ")\n"
+	        "  --strategy NAME     mpct (default), bisector, stop or smooth (the program\n"
+	        "                      smoothed first, as mlip-feed sends it)\n\n"
 	        "Loop (cyclictest's letters):\n"
 	        "  -p, --priority N    SCHED_FIFO priority 1..99 (default %d, mlip-rt's;\n"
 	        "                      0: SCHED_OTHER)\n"
@@ -359,12 +363,13 @@ static int parse_uint(const char *s, uint64_t max, uint64_t *out)
 
 static int parse_opts(int argc, char **argv, struct opts *o)
 {
-	enum { O_IDLE = 256, O_PLAN, O_CAN, O_CONFIG, O_JSON, O_COMPARE, O_NOLOCK, O_HELP };
+	enum { O_IDLE = 256, O_PLAN, O_CAN, O_CONFIG, O_JSON, O_COMPARE, O_NOLOCK, O_HELP, O_STRATEGY };
 	static const struct option lo[] = {
 		{"idle", no_argument, 0, O_IDLE},
 		{"plan", required_argument, 0, O_PLAN},
 		{"can", required_argument, 0, O_CAN},
 		{"config", required_argument, 0, O_CONFIG},
+		{"strategy", required_argument, 0, O_STRATEGY},
 		{"priority", required_argument, 0, 'p'},
 		{"interval", required_argument, 0, 'i'},
 		{"duration", required_argument, 0, 'D'},
@@ -395,6 +400,14 @@ static int parse_opts(int argc, char **argv, struct opts *o)
 			break;
 		case O_PLAN:
 			o->program = optarg;
+			break;
+		case O_STRATEGY:
+			o->strategy = mlip_cli_strategy(optarg);
+			if (o->strategy < 0) {
+				fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
+				        optarg);
+				return 2;
+			}
 			break;
 		case O_CAN:
 			o->iface = optarg;
@@ -918,6 +931,18 @@ int main(int argc, char **argv)
 			fprintf(stderr, PROG ": %s: no motion to run\n", o.program);
 			return 1;
 		}
+		if (o.strategy == MLIP_STRATEGY_SMOOTH) {
+			/* the ring carries the smoothed blocks, as from mlip-feed */
+			struct mlip_block *sb;
+			size_t sn;
+			if (mlip_smooth_program(&cfg.machine, prog.blocks, prog.n, &sb, &sn) != 0) {
+				fprintf(stderr, PROG ": %s: out of memory smoothing the program\n", o.program);
+				return 1;
+			}
+			free(prog.blocks);
+			prog.blocks = sb;
+			prog.n = prog.cap = sn;
+		}
 		if (mlip_can_profile_parse(cfg.can.profile, &prof) != MLIP_OK) {
 			prof = MLIP_CAN_CIA402;
 		}
@@ -982,7 +1007,8 @@ int main(int argc, char **argv)
 		}
 		struct mlip_ring *ring = ring_mem;
 		/* the latency test counts missed periods; it does not hold on them */
-		struct mlip_ctl_opts co = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = cfg.lookahead,
+		struct mlip_ctl_opts co = {.strategy = (mlip_strategy)o.strategy,
+		                           .lookahead = cfg.lookahead,
 		                           .stall_periods = UINT32_MAX, .can = &cfg.can};
 		if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, ring,
 		                         o.mode == MODE_CAN ? &io : NULL) != 0) {

@@ -242,7 +242,8 @@ static void usage(FILE *f)
 	        "                      command too (they set MLIP_SHM_OWNER=<this user>)\n"
 	        "  --priority N        SCHED_FIFO priority 1..99 (default 80; 0: SCHED_OTHER)\n"
 	        "  --cpu N             pin the loop to CPU N (default: no pinning)\n"
-	        "  --strategy S        mpct (default), bisector or stop\n"
+	        "  --strategy S        mpct (default), bisector, stop or smooth (mpct on the path\n"
+	        "                      mlip-feed smooths within the tolerance: mlip/smooth.h)\n"
 	        "  --capacity N        ring records, power of two (default %u)\n"
 	        "  --stall-periods N   more missed periods than N is a stall: hold at rest at\n"
 	        "                      the last setpoint until mlip-ctl resume (default %d)\n"
@@ -372,7 +373,8 @@ int main(int argc, char **argv)
 
 	int st = mlip_cli_strategy(strategy);
 	if (st < 0) {
-		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop\n", strategy);
+		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
+		        strategy);
 		return 2;
 	}
 	if (mlip_ring_bytes((uint32_t)capacity) == 0) {
@@ -434,6 +436,8 @@ int main(int argc, char **argv)
 	}
 
 	static struct mlip_shm shm;
+	/* published with the machine: feeders then send the smoothed path */
+	cfg.machine.smooth = st == MLIP_STRATEGY_SMOOTH;
 	if (mlip_shm_create_group(&shm, shm_name, (uint32_t)capacity, &cfg.machine, shm_gid, info,
 	                          sizeof(info)) != 0) {
 		fprintf(stderr, PROG ": %s\n", info);

@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "blockiter.h"
 #include "check.h"
 #include "cli.h"
 #include "mlip/controller.h"
@@ -38,7 +39,8 @@ static void usage(FILE *f)
 	        "usage: " PROG " [options] FILE.ngc\n"
 	        "Simulate a G-code program on the mlip interpolator and report its motion.\n\n"
 	        "  --config FILE         machine INI (default: the axes the program uses, linear)\n"
-	        "  --strategy NAME       mpct (default, the paper), bisector, stop\n"
+	        "  --strategy NAME       mpct (default, the paper), bisector, stop, smooth (mpct on\n"
+	        "                        the path smoothed within the tolerance, mlip/smooth.h)\n"
 	        "  --accel A[,A...]      per-axis acceleration, mm/s^2 (one for all, or per axis)\n"
 	        "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	        "  --eps MM              contour tolerance (default 0.01 without --config)\n"
@@ -120,18 +122,22 @@ static int storm_tick(struct storm *st, uint64_t period, struct mlip_ring_cmd *c
 }
 
 /* Where the blocks come from: the checked program, streamed (never held,
- * program.h). 1 with the next block in *b, 0 at the end or on an error of
- * the stream (rc < 0, the program's msg says why). */
+ * program.h), through the smoothing filter with --strategy smooth (fixed
+ * memory, blockiter.h). 1 with the next block in *b, 0 at the end or on an
+ * error of the stream (rc < 0, the program's msg says why). */
 struct source {
 	struct mlip_program *p;
 	int rc;
 	double feed; /* --feed: > 0 replaces every F and G0 */
+	struct mlip_block_iter it; /* the program's blocks, or smooth's over them */
+	struct mlip_smooth_iter si;
 };
 
-static int source_next(struct source *src, struct mlip_block *b)
+static int program_next(void *ctx, struct mlip_block *b)
 {
+	struct source *src = ctx;
 	if (src->rc < 0 || (src->rc = mlip_program_next(src->p, b)) <= 0) {
-		return 0;
+		return src->rc;
 	}
 	if (src->feed > 0.0 && b->kind == MLIP_BLOCK_MOVE) {
 		b->feed_mm_s = src->feed;
@@ -140,8 +146,28 @@ static int source_next(struct source *src, struct mlip_block *b)
 	return 1;
 }
 
+static void source_init(struct source *src, const struct mlip_machine *m, int smooth)
+{
+	static struct mlip_smooth sm; /* ~1 MB */
+	src->it = (struct mlip_block_iter){program_next, src};
+	if (smooth) {
+		src->it = mlip_smooth_iter(&src->si, &sm, m, src->it);
+	}
+}
+
+static int source_next(struct source *src, struct mlip_block *b)
+{
+	int r = src->it.next(src->it.ctx, b);
+	if (r < 0 && src->rc >= 0) {
+		src->rc = -1; /* the filter refused a block (a non-finite target) */
+		snprintf(src->p->msg, sizeof(src->p->msg), "the smoothing filter refused a block");
+	}
+	return r > 0;
+}
+
 /* The feeder's step before each period: the ring filled as far as it goes,
- * records numbered as mlip-feed numbers them (blocks 1..n, then END). */
+ * records numbered as mlip-feed numbers them (blocks 1..n, then END; with
+ * smooth, the filter's output blocks 1..n, each with its source line). */
 struct feeder {
 	struct source src;
 	uint64_t seq;      /* last record pushed */
@@ -285,7 +311,8 @@ int main(int argc, char **argv)
 	const char *path = argv[optind];
 	int st = mlip_cli_strategy(strategy);
 	if (st < 0) {
-		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop\n", strategy);
+		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
+		        strategy);
 		return 2;
 	}
 	if (override > 200.0) {
@@ -337,9 +364,10 @@ int main(int argc, char **argv)
 	mlip_planner_set_override(&planner, override);
 	struct feeder fdr = {.src = {.p = &prog, .feed = feed}, .end_line = prog.lines};
 
-	/* the check streams the program's polyline from a second reader of the
-	 * file, behind the feeder's, as the samples need it: with the check's
-	 * window and the ring, mlip-sim's memory is fixed whatever the length */
+	/* the check streams the ORIGINAL program's polyline (whatever runs:
+	 * smooth's output too) from a second reader of the file, behind the
+	 * feeder's, as the samples need it: with the check's window, the ring
+	 * and smooth's window, mlip-sim's memory is fixed whatever the length */
 	static struct mlip_program cprog;
 	if (mlip_program_open_reader(&cprog, &prog, path) != 0) {
 		fprintf(stderr, PROG ": %s: %s\n", path, cprog.msg);
@@ -349,6 +377,7 @@ int main(int argc, char **argv)
 	}
 	struct mlip_cli_path csrc;
 	mlip_cli_path_start(&csrc, &cprog, m);
+	source_init(&fdr.src, m, st == MLIP_STRATEGY_SMOOTH);
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
 	static struct mlip_check chk;
@@ -463,6 +492,8 @@ int main(int argc, char **argv)
 		        (unsigned long long)k);
 		fprintf(sf, "  \"blocks\": %zu,\n  \"segments\": %llu,\n", prog.n,
 		        (unsigned long long)ps->pushes);
+		fprintf(sf, "  \"blocks_run\": %llu,\n", /* smooth: the filter's output */
+		        (unsigned long long)(fdr.seq > 0 ? fdr.seq - 1 : 0));
 		fprintf(sf, "  \"path_length_mm\": %.6f,\n", path_mm);
 		fprintf(sf, "  \"max_speed_mm_s\": %.9g,\n", chk.max_speed_mm_s);
 		fprintf(sf, "  \"axes\": \"");

@@ -40,7 +40,9 @@ typedef char mlip_lookahead_pow2_check[(MLIP_LOOKAHEAD & (MLIP_LOOKAHEAD - 1)) =
 typedef enum {
 	MLIP_STRATEGY_MPCT = 0, /* the paper: multi-period constant-acceleration corners */
 	MLIP_STRATEGY_BISECTOR, /* equal speeds, one period, a along e_e - e_s (eq 10) */
-	MLIP_STRATEGY_STOP      /* speed 0 at every corner */
+	MLIP_STRATEGY_STOP,     /* speed 0 at every corner */
+	MLIP_STRATEGY_SMOOTH    /* mpct's corners on the host's smoothed path (mlip/smooth.h):
+	                           the planner treats it as MPCT */
 } mlip_strategy;
 
 /* ---- corner planning, exposed for tests and benchmarks ---------------- */

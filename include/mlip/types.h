@@ -49,6 +49,9 @@ struct mlip_machine {
 	double max_rot_feed_deg_s; /* cap for moves of rotary axes only */
 	double tolerance_mm;     /* eps: contour tolerance at corners */
 	double period_s;         /* T: interpolation period */
+	uint8_t smooth;          /* the controller runs strategy `smooth`: a feeder sends
+	                            the program through the path filter (mlip/smooth.h)
+	                            first; 0 in segments of older builds */
 };
 
 /* What a block asks for. Only MOVE blocks reach the planner; the others are

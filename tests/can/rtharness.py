@@ -132,11 +132,12 @@ def run(args, check=True, timeout=600, **kw):
     return p
 
 
-def simulate(config, ngc, workdir):
+def simulate(config, ngc, workdir, *sim_args):
     """mlip-sim on the same machine and program: (rows, summary)."""
     trace = Path(workdir) / "sim.csv"
     summ = Path(workdir) / "sim.json"
-    run([tool("mlip-sim"), "-q", "--config", config, "--trace", trace, "--summary", summ, ngc])
+    run([tool("mlip-sim"), "-q", "--config", config, "--trace", trace, "--summary", summ,
+         *sim_args, ngc])
     return read_trace(trace)[1], json.loads(summ.read_text())
 
 

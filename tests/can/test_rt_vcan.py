@@ -104,12 +104,13 @@ def summary_line(name, rig, r, extra=""):
           f"overruns {r['rt'].get('overruns')}{extra}")
 
 
-def exact_run(tmp_path, config, ngc, profile, exec_listener=h.EXEC_LISTENER):
+def exact_run(tmp_path, config, ngc, profile, exec_listener=h.EXEC_LISTENER, strategy="mpct"):
     """A whole program, no commands: the bus must carry the simulator's trace."""
-    rows, summ = h.simulate(config, ngc, tmp_path)
+    rows, summ = h.simulate(config, ngc, tmp_path, "--strategy", strategy)
     setup = h.setup_of(config)
     trc = h.trace_counts(rows, setup.cpu)
-    with h.Rig(config, profile, tmp_path, exec_listener=exec_listener) as rig:
+    with h.Rig(config, profile, tmp_path, exec_listener=exec_listener,
+               rt_args=("--strategy", strategy)) as rig:
         rc, out, err = rig.feed(ngc)
         assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
         done = rig.wait_state("idle", timeout=60)
@@ -127,8 +128,9 @@ def exact_run(tmp_path, config, ngc, profile, exec_listener=h.EXEC_LISTENER):
         "the bus does not stay on the last point after the program"
     quantum = max(1.0 / c for c in setup.cpu)
     js = physics(rig, ngc, can[off:], quantum, tmp_path)
-    # every block executed, in order; at rest on the last point
-    blocks = summ["blocks"]
+    # every block executed, in order; at rest on the last point (the records
+    # are the smoothed blocks with --strategy smooth)
+    blocks = summ["blocks_run"]
     st = rig.final_status
     assert st["state"] == "idle", st
     assert st["exec_seq"] == blocks + 1 == done["exec_seq"], (st, blocks)
@@ -151,6 +153,13 @@ def test_flower_2d_exact(vcan, fd_mtu, tmp_path, profile):
 def test_mb23_3axis_exact(vcan, fd_mtu, tmp_path, profile):
     """3-D raster micro-segments (MB-2.3_test.nc, cut) on the 3-axis mill."""
     exact_run(tmp_path, MILL, cut(MB23, MB23_LINES, tmp_path), profile)
+
+
+def test_mb23_smooth_exact(vcan, tmp_path):
+    """--strategy smooth end to end: mlip-rt publishes it, mlip-feed sends the
+    smoothed path, the bus carries mlip-sim's smooth trace to the count, and
+    mlip-check judges it against the ORIGINAL program's polyline."""
+    exact_run(tmp_path, MILL, cut(MB23, MB23_LINES, tmp_path), "cia402", strategy="smooth")
 
 
 def test_demo_whole_exact(vcan, tmp_path):

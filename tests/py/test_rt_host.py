@@ -37,6 +37,24 @@ def test_program_runs_to_completion(controller):
     assert "stopped after" in err and "3640 records taken" in err
 
 
+def test_smooth_program_runs_to_completion(controller):
+    """mlip-rt --strategy smooth publishes it in the machine area; mlip-feed
+    then sends the smoothed path and the controller runs it in the
+    simulator's time."""
+    shm, rt = controller(CONFIG / "mill-3axis.ini", "--strategy", "smooth")
+    sim = {st: json.loads(subprocess.run(
+        [tool("mlip-sim"), "-q", "--config", CONFIG / "mill-3axis.ini", "--strategy", st,
+         "--summary", "-", DEMO], capture_output=True, text=True).stdout) for st in ("smooth",)}
+    t0 = time.monotonic()
+    p = feed(shm, DEMO, timeout=60)
+    elapsed = time.monotonic() - t0
+    assert p.returncode == 0, p.stderr
+    s = status(shm)
+    assert s["state"] == "idle" and s["exec_seq"] == s["blocks_consumed"]
+    assert sim["smooth"]["total_time_s"] <= elapsed < sim["smooth"]["total_time_s"] + 5.0
+    assert sim["smooth"]["max_contour_error_mm"] <= 0.01 * (1 + 1e-9)
+
+
 def test_bad_program_sends_nothing(controller, tmp_path):
     shm, _ = controller()
     bad = tmp_path / "bad.ngc"
@@ -158,3 +176,41 @@ def test_start_seq_must_continue_the_last_block(controller, tmp_path):
     p = feed(shm, prog, "--quiet", "--start-seq", str(hint), timeout=60)
     assert p.returncode == 0, p.stderr
     assert status(shm)["exec_seq"] == 2999 and status(shm)["state"] == "idle"
+
+
+def test_smooth_start_seq_continues_the_smoothed_records(controller, tmp_path):
+    """With a `smooth` controller the records are the filter's output, numbered
+    1..n (each piece its own seq, with its source line): the status reports
+    them, mlip-feed's resume hint names one, and --start-seq continues there
+    with the same records, since the output depends on the program alone."""
+    prog = tmp_path / "flower.ngc"
+    prog.write_text("".join((TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:3000]))
+    sim = json.loads(subprocess.run(
+        [tool("mlip-sim"), "-q", "--config", CONFIG / "paper-2axis.ini", "--strategy", "smooth",
+         "--summary", "-", prog], capture_output=True, text=True).stdout)
+    n = sim["blocks_run"]
+    assert n > sim["blocks"]  # pieces: more records than the program's blocks
+    shm, _ = controller(CONFIG / "paper-2axis.ini", "--strategy", "smooth")
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > n // 3)
+    mid = status(shm)
+    assert 1 <= mid["exec_line"] <= 3000 and mid["total_blocks"] <= n + 1
+    f.send_signal(signal.SIGTERM)
+    err = f.communicate(timeout=30)[1]
+    assert f.returncode == 143, err
+    s = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 10)
+    done = s["exec_seq"]
+    assert n // 3 < done < n
+    hint = int(err.split("resume with --start-seq ")[1].split()[0])
+    assert hint == done + 1, err
+    assert f"of {n})" in err, err  # the records counted before sending
+    consumed = s["blocks_consumed"]
+    p = feed(shm, prog, "--quiet", "--start-seq", str(done + 2), timeout=30)
+    assert p.returncode == 1 and f"only --start-seq {done + 1} continues it" in p.stderr, p.stderr
+    p = feed(shm, prog, "--start-seq", str(hint), timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert f"{n - hint + 1} blocks" in p.stderr, p.stderr
+    e = status(shm)
+    assert e["state"] == "idle" and e["exec_seq"] == n + 1
+    assert e["blocks_consumed"] == consumed + n + 2 - hint  # the rest and END, once

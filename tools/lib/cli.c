@@ -61,6 +61,9 @@ int mlip_cli_strategy(const char *name)
 	if (strcmp(name, "stop") == 0) {
 		return MLIP_STRATEGY_STOP;
 	}
+	if (strcmp(name, "smooth") == 0) {
+		return MLIP_STRATEGY_SMOOTH;
+	}
 	return -1;
 }
 
@@ -73,6 +76,8 @@ const char *mlip_cli_strategy_name(mlip_strategy st)
 		return "bisector";
 	case MLIP_STRATEGY_STOP:
 		return "stop";
+	case MLIP_STRATEGY_SMOOTH:
+		return "smooth";
 	}
 	return "?";
 }

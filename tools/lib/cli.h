@@ -53,7 +53,7 @@ int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
 int mlip_cli_gcode_option(int c, const char *arg, struct mlip_cli_machine *o, const char *prog,
                           FILE *err);
 
-/* "mpct" | "bisector" | "stop" -> strategy; -1 when unknown. */
+/* "mpct" | "bisector" | "stop" | "smooth" -> strategy; -1 when unknown. */
 int mlip_cli_strategy(const char *name);
 const char *mlip_cli_strategy_name(mlip_strategy st);
 

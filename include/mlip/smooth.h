@@ -1,0 +1,110 @@
+/*
+ * mlip/smooth.h - the `smooth` strategy's path filter: a stream filter with a
+ * fixed-size sliding window that replaces CAM micro-segments by a smoothed,
+ * finely resampled polyline inside the contour tolerance, and gives each
+ * output block the part of the tolerance its corner may still use. The
+ * planner then runs the paper's corners (mpct) on the output.
+ *
+ * Contract: every point of every output segment lies within
+ *     dev <= rho * budget        (rho = MLIP_SMOOTH_RHO)
+ * of the ORIGINAL polyline, and each output block's tol_mm is
+ *     tol = budget - (largest dev of the two segments its end corner touches),
+ * so a corner's deviation (17)(18) plus the smoothing's stays within the budget:
+ * min(eps, the block's own tol_mm) of the original blocks around it.
+ *
+ * Fixed memory (the struct, owned by the caller) and bounded work per block:
+ * a block adds at most MLIP_SMOOTH_MAX_PIECES samples, and each sample is
+ * solved over at most MLIP_SMOOTH_ITER iterations in at most two windows.
+ * Pure C, no allocation, no I/O: the same code runs in every host tool.
+ *
+ * Use: push input blocks in program order; after each push, pop until
+ * MLIP_E_EMPTY; at the program's end call finish, then pop the rest. Exact
+ * points (a run of feed moves ends there and the next one starts there):
+ * the start, a rapid, a feed change, a non-move block, an exact stop, the
+ * end. Non-move blocks and rapids pass through unchanged, in order.
+ */
+#ifndef MLIP_SMOOTH_H
+#define MLIP_SMOOTH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mlip/types.h"
+
+#define MLIP_SMOOTH_CAP 4096      /* samples in the window */
+#define MLIP_SMOOTH_KEEP 512      /* samples left unsolved after a solve: the
+                                     right-hand context of the frozen ones */
+#define MLIP_SMOOTH_MAX_PIECES 16 /* samples a block adds, at most (and up to 7 more
+                                     sub-samples of the segment before it) */
+#define MLIP_SMOOTH_ITER 20       /* reweighting iterations per solve */
+#define MLIP_SMOOTH_RHO 0.95      /* share of the budget the smoothing may take */
+
+struct mlip_smooth_sample {
+	double p[MLIP_MAX_AXES]; /* point of the original polyline at this sample */
+	double x[MLIP_MAX_AXES]; /* smoothed point */
+	double h;                /* original arc length from the previous sample */
+	double b;                /* budget: min(eps, tol_mm) of the nearby corners */
+	double r;                /* radius allowed: |x - p| <= r */
+	double bmin;             /* smallest budget within two samples */
+	double w;                /* data weight of the spline (reweighted) */
+	double w0;               /* its floor */
+	double dev;              /* |x - p| once frozen */
+	struct mlip_block blk;   /* block to emit (target = x), or a pass-through */
+	uint8_t role;            /* SMOOTH_* in smooth.c */
+	uint8_t pinned;          /* x = p exactly */
+	uint8_t drop;            /* not emitted (a sub-sample next to a sharp corner) */
+};
+
+struct mlip_smooth {
+	int n;                 /* axes */
+	double eps_mm;         /* machine tolerance */
+	double step_mm;        /* resampling step */
+	double sharp_cos;      /* cos of the turn above which a vertex stays sharp */
+	double gap_mm;         /* sub-samples this close to a sharp vertex are dropped */
+	double l0_mm;          /* the spline's initial smoothing length */
+	double rho;            /* MLIP_SMOOTH_RHO */
+	double corner_need;    /* share of h^2 k the corners keep (0: none) */
+	double last[MLIP_MAX_AXES]; /* last original point */
+	double last_dir[MLIP_MAX_AXES];
+	double last_b;         /* budget of the corner at last[] */
+	double run_feed;       /* feed of the open run */
+	int run_open;          /* a run of feed moves is open */
+	int have_dir;          /* last_dir valid (the run has a segment) */
+	int pend;              /* the newest segment is one sample, not yet subdivided */
+	int pend_kv_ok;        /* pend_kv is valid */
+	double pend_kv[MLIP_MAX_AXES]; /* turn at the pending segment's first vertex */
+	double jitter;         /* running mean of how erratically the turns change */
+	double jitter_min;     /* subdivide where jitter is above this */
+	int pin_clean;         /* keep vertices exact where it is below jitter_pin */
+	double jitter_pin;
+	uint32_t run0;         /* index of the open run's start sample */
+	uint32_t frozen;       /* samples [0, frozen) are final */
+	uint32_t emit;         /* next sample to emit */
+	uint32_t count;        /* samples in the window */
+	double prev_dev, prev_b; /* last emitted sample of the run */
+	/* statistics */
+	uint64_t in_blocks, out_blocks, solves;
+	double max_dev;
+	struct mlip_smooth_sample s[MLIP_SMOOTH_CAP];
+	/* banded solver scratch: pentadiagonal LDL^T */
+	double a0[MLIP_SMOOTH_CAP], a1[MLIP_SMOOTH_CAP], a2[MLIP_SMOOTH_CAP];
+	double l1[MLIP_SMOOTH_CAP], l2[MLIP_SMOOTH_CAP];
+	double rhs[MLIP_SMOOTH_CAP * MLIP_MAX_AXES];
+};
+
+/* Start at rest at start[] on machine m (its tolerance is eps). */
+mlip_status mlip_smooth_init(struct mlip_smooth *sm, const struct mlip_machine *m,
+                             const double *start);
+
+/* Take one input block. MLIP_E_FULL when the output must be popped first
+ * (never after popping until MLIP_E_EMPTY). MLIP_E_RANGE on a non-finite
+ * target. */
+mlip_status mlip_smooth_push(struct mlip_smooth *sm, const struct mlip_block *b);
+
+/* The program ended: everything pushed becomes poppable. */
+void mlip_smooth_finish(struct mlip_smooth *sm);
+
+/* Next output block, or MLIP_E_EMPTY. */
+mlip_status mlip_smooth_pop(struct mlip_smooth *sm, struct mlip_block *out);
+
+#endif

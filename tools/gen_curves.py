@@ -1,0 +1,60 @@
+#!/usr/bin/env python3
+"""Smooth curves cut into very short G01 segments, coordinates rounded as CAM
+does: the case where the paper's corners are limited by the rounding noise
+(0.0001 mm on a 0.02 mm segment is a 0.3 degree kink), not by eps.
+
+  tools/gen_curves.py lissajous OUT.ngc [--seg 0.02] [--decimals 4]
+  tools/gen_curves.py spiral OUT.ngc
+
+lissajous: x = 40 sin(3 t + pi/2), y = 30 sin(4 t), one period (about 0.9 m);
+spiral: an Archimedean spiral r = 2 + 0.5 theta over 12 turns (XY), with
+Z = 0.5 sin(3 theta) (3-D). Points are placed every --seg mm of arc length.
+"""
+import argparse
+import math
+
+
+def lissajous(t):
+    return (40.0 * math.sin(3.0 * t + math.pi / 2), 30.0 * math.sin(4.0 * t), 0.0)
+
+
+def spiral(t):
+    r = 2.0 + 0.5 * t
+    return (r * math.cos(t), r * math.sin(t), 0.5 * math.sin(3.0 * t))
+
+
+CURVES = {"lissajous": (lissajous, 2 * math.pi, 2), "spiral": (spiral, 24 * math.pi, 3)}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("curve", choices=sorted(CURVES))
+    ap.add_argument("out")
+    ap.add_argument("--seg", type=float, default=0.02, help="segment length, mm")
+    ap.add_argument("--decimals", type=int, default=4)
+    a = ap.parse_args()
+    f, t_end, axes = CURVES[a.curve]
+    # arc-length steps by a fine parameter walk
+    dt = 1e-5
+    pts, t, acc = [f(0.0)], 0.0, 0.0
+    prev = pts[0]
+    while t < t_end:
+        t = min(t + dt, t_end)
+        p = f(t)
+        acc += math.dist(p, prev)
+        prev = p
+        if acc >= a.seg or t == t_end:
+            pts.append(p)
+            acc = 0.0
+    fmt = f"{{:.{a.decimals}f}}"
+    with open(a.out, "w") as o:
+        o.write(f"(gen_curves.py {a.curve}: {len(pts) - 1} segments of {a.seg} mm, "
+                f"{a.decimals} decimals)\nG21 G90\n")
+        x = pts[0]
+        o.write("G0 " + " ".join(f"{c}{fmt.format(v)}" for c, v in zip("XYZ", x[:axes])) + "\nG1 F12000\n")
+        for p in pts[1:]:
+            o.write("G1 " + " ".join(f"{c}{fmt.format(v)}" for c, v in zip("XYZ", p[:axes])) + "\n")
+
+
+if __name__ == "__main__":
+    main()
