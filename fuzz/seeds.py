@@ -48,8 +48,11 @@ def write(d, name, data):
 def gcode_seeds(toolpaths, out):
     files = []
     if toolpaths and os.path.isdir(toolpaths):
-        files += [os.path.join(toolpaths, n) for n in sorted(os.listdir(toolpaths))
-                  if not n.endswith((".md", ".txt"))]
+        # every program below the folder (senders/ holds the senders' jobs)
+        for d, subdirs, names in sorted(os.walk(toolpaths)):
+            subdirs.sort()
+            files += [os.path.join(d, n) for n in sorted(names)
+                      if not n.endswith((".md", ".txt"))]
     files.append(os.path.join(ROOT, "examples", "demo.ngc"))
     n = 0
     for path in files:
