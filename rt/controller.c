@@ -34,15 +34,17 @@ int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
 	return 0;
 }
 
-/* The ring is fed: a feeder is attached and its heartbeat is recent. A
- * feeder area mid-update counts as alive (it is being written). */
+/* The ring is fed: a feeder is attached and alive (mlip/peer.h, on its
+ * stamp: late or dead, it feeds nothing). A feeder area mid-update counts as
+ * alive (it is being written). */
 static int feeder_alive(const struct mlip_ring *r)
 {
 	struct mlip_ring_feeder f;
 	if (mlip_ring_feeder_read(r, &f) != MLIP_OK) {
 		return 1;
 	}
-	return f.pid != 0 && (int64_t)(mlip_now_ns() - f.heartbeat_ns) <= MLIP_PEER_TIMEOUT_NS;
+	struct mlip_peer_seen s = {f.heartbeat, f.heartbeat_ns, f.pid == 0, -1}; /* pid 0: it left */
+	return mlip_peer_judge(&s, NULL, mlip_now_ns(), NULL) == MLIP_PEER_ALIVE;
 }
 
 static void log_push(struct mlip_controller *c, const struct mlip_ctl_event *ev)

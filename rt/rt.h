@@ -17,13 +17,11 @@
 #include "mlip/canenc.h"
 #include "mlip/config.h"
 #include "mlip/controller.h"
+#include "mlip/peer.h"
 #include "mlip/planner.h"
 #include "mlip/ring.h"
 
 #define MLIP_SHM_DEFAULT "/mlip"
-/* A peer whose heartbeat is older than this is dead (feeder <-> controller). */
-#define MLIP_PEER_TIMEOUT_NS 100000000LL
-
 uint64_t mlip_now_ns(void); /* CLOCK_MONOTONIC */
 
 /* ---- shared memory (rt/shm.c) ------------------------------------------ */
@@ -54,8 +52,22 @@ int mlip_shm_create_group(struct mlip_shm *s, const char *name, uint32_t capacit
  * variable names, never an object every user may write (-EPERM). */
 int mlip_shm_attach(struct mlip_shm *s, const char *name, char *why, size_t why_len);
 void mlip_shm_close(struct mlip_shm *s);
-/* 1 when the controller's heartbeat is younger than max_age_ns. */
-int mlip_shm_controller_alive(const struct mlip_ring *r, int64_t max_age_ns);
+/* 1 when the controller is alive by mlip_peer_judge on its status stamp
+ * alone (beat within MLIP_PEER_TIMEOUT_NS); 0 also for no consistent status. */
+int mlip_shm_controller_alive(const struct mlip_ring *r);
+
+/* ---- peers (rt/peer.c; the rule is mlip/peer.h) ------------------------ */
+
+/* 1 when process pid exists and is not a zombie (EPERM counts: another
+ * user's); 0 for pid 0 or a process gone. Reads /proc: not for the loop. */
+int mlip_peer_process(uint32_t pid);
+/* Judge s (read just now) at the current time, asking whether process pid
+ * is there only when the verdict depends on it (s->process is set), and
+ * record the read in w (may be NULL: the stamp alone). */
+mlip_peer_verdict mlip_peer_check(struct mlip_peer_seen *s, uint32_t pid, struct mlip_peer_watch *w,
+                                  int64_t *quiet_ns);
+/* A feeder area judged on its stamp and its process (pid 0: it left). */
+mlip_peer_verdict mlip_peer_feeder(const struct mlip_ring_feeder *f);
 
 /* ---- CAN (rt/canio.c) ---------------------------------------------------- */
 

@@ -10,8 +10,8 @@
  *     but stalled (SIGSTOP, debugger), which must not be reformatted under.
  *   - the status heartbeat: a controller that beats is alive even if it were
  *     built without the lock.
- * A segment that passes both (no lock, heartbeat older than
- * MLIP_PEER_TIMEOUT_NS or never set) belongs to a dead controller and is
+ * A segment that passes both (no lock, and not alive by mlip_peer_judge:
+ * heartbeat older than MLIP_PEER_TIMEOUT_NS or never set) belongs to a dead controller and is
  * taken over: same object, truncated to the new size and reformatted.
  *
  * The owner unlinks the name before closing its descriptor, so the name is
@@ -98,24 +98,25 @@ static int name_ok(const char *name)
 /* Age of a heartbeat in ns; -1 when there has never been one. */
 static int64_t heartbeat_age_ns(uint64_t hb_ns)
 {
-	uint64_t now = mlip_now_ns();
-
-	if (hb_ns == 0) {
-		return -1;
-	}
-	return now > hb_ns ? (int64_t)(now - hb_ns) : 0;
+	return mlip_peer_age_ns(hb_ns, mlip_now_ns());
 }
 
-int mlip_shm_controller_alive(const struct mlip_ring *r, int64_t max_age_ns)
+/* The one liveness rule (mlip/peer.h) on the status stamp alone. */
+static mlip_peer_verdict status_verdict(const struct mlip_ring_status *st)
+{
+	struct mlip_peer_seen seen = {st->heartbeat, st->heartbeat_ns, 0, -1};
+
+	return mlip_peer_judge(&seen, NULL, mlip_now_ns(), NULL); /* clock after the read */
+}
+
+int mlip_shm_controller_alive(const struct mlip_ring *r)
 {
 	struct mlip_ring_status st;
-	int64_t age;
 
 	if (r == NULL || mlip_ring_status_read(r, &st) != MLIP_OK) {
 		return 0; /* no consistent status: died mid-update */
 	}
-	age = heartbeat_age_ns(st.heartbeat_ns); /* clock read after the status */
-	return age >= 0 && age < max_age_ns;
+	return status_verdict(&st) == MLIP_PEER_ALIVE;
 }
 
 /* "name" of uid (or "uid N" when it has none), for messages. */
@@ -219,7 +220,7 @@ static enum existing inspect(int fd, int64_t *age_ns, uint64_t *magic, uint64_t 
 	if (mlip_ring_attach(mem, bytes, 0, &r, &mm) == MLIP_OK) {
 		if (mlip_ring_status_read(r, &st) == MLIP_OK) {
 			*age_ns = heartbeat_age_ns(st.heartbeat_ns);
-			if (*age_ns >= 0 && *age_ns < MLIP_PEER_TIMEOUT_NS) {
+			if (status_verdict(&st) == MLIP_PEER_ALIVE) {
 				ex = EX_OURS_ALIVE;
 			}
 		}

@@ -33,8 +33,6 @@
 
 #include "mlip/planner.h"
 
-#define MERGE_MM 1e-6 /* same as MLIP_GCODE_MERGE_MM */
-
 static double sq(double x)
 {
 	return x * x;
@@ -236,7 +234,7 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 		}
 	}
 	double d = sqrt(d2);
-	if (d < MERGE_MM) {
+	if (d < MLIP_MERGE_MM) {
 		return MLIP_OK; /* no zero-length segment reaches the corners */
 	}
 	if (!b->rapid && !(b->feed_mm_s > 0.0)) {
@@ -256,8 +254,8 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 	/* F is the linear path speed when a linear axis moves, else the rotary
 	 * speed (G94); the planner works in joint units, so scale by d / d_lin */
 	double lin = sqrt(lin2);
-	double joint_per_tool = lin > MERGE_MM ? d / lin : 1.0;
-	double vmax_tool = lin > MERGE_MM ? p->vmax_mm_s : p->vmax_rot_deg_s;
+	double joint_per_tool = lin > MLIP_MERGE_MM ? d / lin : 1.0;
+	double vmax_tool = lin > MLIP_MERGE_MM ? p->vmax_mm_s : p->vmax_rot_deg_s;
 	s->d_mm = d;
 	s->a_mm_s2 = a;
 	s->two_a_d = 2.0 * a * d;
@@ -644,7 +642,7 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 			d2 += e[k] * e[k];
 		}
 		double d = sqrt(d2);
-		if (d < MERGE_MM) {
+		if (d < MLIP_MERGE_MM) {
 			retire(p); /* at its end already */
 			continue;
 		}

@@ -67,7 +67,6 @@
 
 #include "mlip/smooth.h"
 
-#define MERGE_MM 1e-6   /* the planner ignores shorter blocks */
 #define SOLVE_BATCH 1024 /* samples frozen per solve */
 #define UNIFORM_STEPS 8 /* segments up to this many steps are sampled uniformly */
 #define GEOM_LEVELS 7   /* else at 1, 2, ... 64 steps from each end */
@@ -313,7 +312,7 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 			}
 			dev = sqrt(d2);
 		}
-		/* the planner skips a block closer than MERGE_MM to the previous
+		/* the planner skips a block closer than MLIP_MERGE_MM to the previous
 		 * point, which would change the polyline the bound speaks of: a
 		 * sample pulled that close to its predecessor goes back to p */
 		double g2 = 0.0;
@@ -321,7 +320,7 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 			double g = s[i].x[k] - s[i - 1].x[k];
 			g2 += g * g;
 		}
-		if (i > 0 && dev > 0.0 && g2 < (4.0 * MERGE_MM) * (4.0 * MERGE_MM)) {
+		if (i > 0 && dev > 0.0 && g2 < (4.0 * MLIP_MERGE_MM) * (4.0 * MLIP_MERGE_MM)) {
 			memcpy(s[i].x, s[i].p, sizeof(double) * (size_t)n);
 			dev = 0.0;
 		}
@@ -483,7 +482,7 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 		d2 += dk * dk;
 	}
 	double d = sqrt(d2);
-	if (d < MERGE_MM) {
+	if (d < MLIP_MERGE_MM) {
 		if (b->exact_stop) {
 			close_run(sm);
 		}

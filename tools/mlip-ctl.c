@@ -10,7 +10,6 @@
 #include <errno.h>
 #include <getopt.h>
 #include <math.h>
-#include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -107,25 +106,7 @@ static const char *result_text(int32_t result)
 /* Age in ns of a CLOCK_MONOTONIC stamp; -1 when never stamped. */
 static int64_t age_ns(uint64_t stamp_ns)
 {
-	uint64_t now = mlip_now_ns();
-
-	if (stamp_ns == 0) {
-		return -1;
-	}
-	return now > stamp_ns ? (int64_t)(now - stamp_ns) : 0;
-}
-
-static int pid_alive(int32_t pid)
-{
-	/* EPERM: the process exists but belongs to another user */
-	return pid > 0 && (kill((pid_t)pid, 0) == 0 || errno == EPERM);
-}
-
-static int feeder_alive(const struct mlip_ring_feeder *f)
-{
-	int64_t a = age_ns(f->heartbeat_ns);
-
-	return pid_alive(f->pid) && a >= 0 && a < MLIP_PEER_TIMEOUT_NS;
+	return mlip_peer_age_ns(stamp_ns, mlip_now_ns());
 }
 
 /* Seqlock reads fail only while a writer is mid-update for 1000 tries in a
@@ -201,6 +182,9 @@ static int cmd_status(struct mlip_shm *s, int json)
 	struct mlip_ring_feeder fd;
 	struct mlip_machine m;
 	char fname[32];
+	struct mlip_peer_watch watch = {0, 0, 0};
+	struct mlip_peer_seen seen;
+	mlip_peer_verdict v;
 	int alive, falive;
 	int64_t a, fa;
 
@@ -214,22 +198,24 @@ static int cmd_status(struct mlip_shm *s, int json)
 	if (read_feeder(s->ring, &fd) != 0) {
 		memset(&fd, 0, sizeof(fd)); /* a feeder died mid-update: report none */
 	}
-	a = age_ns(st.heartbeat_ns);
-	alive = a >= 0 && a < MLIP_PEER_TIMEOUT_NS;
-	if (!alive) {
-		/* an old stamp may be ours to blame (we were paused): alive if the
-		 * heartbeat moves within the timeout */
+	seen = (struct mlip_peer_seen){st.heartbeat, st.heartbeat_ns, 0, -1};
+	v = mlip_peer_check(&seen, st.reserved, &watch, NULL);
+	if (v != MLIP_PEER_ALIVE) {
+		/* an old stamp may be ours to blame (we were paused): look again
+		 * after the timeout; a heartbeat that moved is alive */
 		struct mlip_ring_status again;
 		struct timespec ts = {0, (long)MLIP_PEER_TIMEOUT_NS};
 		nanosleep(&ts, NULL);
-		if (read_status(s->ring, &again) == 0 && again.heartbeat != st.heartbeat) {
+		if (read_status(s->ring, &again) == 0) {
 			st = again;
-			a = age_ns(st.heartbeat_ns);
-			alive = 1;
+			seen = (struct mlip_peer_seen){st.heartbeat, st.heartbeat_ns, 0, -1};
+			v = mlip_peer_check(&seen, st.reserved, &watch, NULL);
 		}
 	}
+	a = age_ns(st.heartbeat_ns);
+	alive = v == MLIP_PEER_ALIVE;
 	fa = age_ns(fd.heartbeat_ns);
-	falive = feeder_alive(&fd);
+	falive = mlip_peer_feeder(&fd) == MLIP_PEER_ALIVE;
 	mlip_ring_machine(s->ring, &m);
 	if (m.n_axes < 1 || m.n_axes > MLIP_MAX_AXES) {
 		m.n_axes = 0; /* no machine published: no axes to show */
@@ -241,6 +227,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 		printf(",\n");
 		printf("  \"state\": \"%s\",\n  \"alive\": %s,\n", mlip_ring_state_name(st.state),
 		       alive ? "true" : "false");
+		printf("  \"liveness\": \"%s\",\n", mlip_peer_verdict_name(v));
 		printf("  \"heartbeat\": %llu,\n", (unsigned long long)st.heartbeat);
 		if (a < 0) {
 			printf("  \"heartbeat_age_ms\": null,\n");
@@ -352,7 +339,12 @@ static int cmd_status(struct mlip_shm *s, int json)
 			       fd.program_end ? "all queued" : "queueing");
 		}
 	}
-	if (!alive) {
+	if (v == MLIP_PEER_LATE) {
+		fprintf(stderr,
+		        PROG ": controller on %s is not responding, but its process (pid %u) is "
+		             "there: stopped or starved of CPU\n",
+		        s->name, (unsigned)st.reserved);
+	} else if (!alive) {
 		fprintf(stderr, PROG ": controller on %s is not running: start mlip-rt\n", s->name);
 	} else if (st.state == MLIP_STATE_FAULT) {
 		fprintf(stderr, PROG ": controller on %s is in fault (%s): the program did not "
@@ -383,7 +375,7 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 	mlip_status rc;
 
 	describe(what, sizeof(what), op, arg);
-	if (!mlip_shm_controller_alive(s->ring, MLIP_PEER_TIMEOUT_NS)) {
+	if (!mlip_shm_controller_alive(s->ring)) {
 		fprintf(stderr, PROG ": %s: controller on %s is not running: start mlip-rt\n", what,
 		        s->name);
 		return EXIT_FAIL;

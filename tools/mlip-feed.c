@@ -111,20 +111,10 @@ static void sleep_ns(long ns)
 	(void)clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, NULL);
 }
 
-static int pid_alive(int32_t pid)
-{
-	return pid > 0 && (kill((pid_t)pid, 0) == 0 || errno == EPERM);
-}
-
 /* Age in ns of a CLOCK_MONOTONIC stamp; -1 when never stamped. */
 static int64_t age_ns(uint64_t stamp_ns)
 {
-	uint64_t now = mlip_now_ns();
-
-	if (stamp_ns == 0) {
-		return -1;
-	}
-	return now > stamp_ns ? (int64_t)(now - stamp_ns) : 0;
+	return mlip_peer_age_ns(stamp_ns, mlip_now_ns());
 }
 
 /* Claim the producer side: a write lock on the producer cache line. -EBUSY
@@ -179,8 +169,7 @@ struct feed {
 	struct mlip_ring_feeder fa; /* what we publish */
 	struct mlip_ring_status st; /* last consistent controller status */
 	uint64_t last_hb;           /* controller period counter: must not go back */
-	uint64_t stale_since;       /* our clock when the heartbeat was first seen unmoved */
-	uint64_t last_read;         /* our clock at the previous read */
+	struct mlip_peer_watch watch; /* our reads of the controller's heartbeat */
 	uint64_t consumed0;         /* controller's blocks_consumed before our first push */
 	uint64_t next_seq;          /* next record to push, 1..n + 1 */
 	uint64_t first_seq;         /* --start-seq */
@@ -252,69 +241,43 @@ static void track_exec(struct feed *f)
 	f->exec_line = f->st.exec_line;
 }
 
-/* Read the controller status; 0 when it is alive, -1 when its heartbeat is
- * stale (or it restarted: the period counter went back). */
-/* Does process pid exist and is it not a zombie (killed, not yet reaped)? */
-static int process_running(uint32_t pid)
-{
-	char path[64], buf[256];
-	/* EPERM: it exists, run by another user (a --shm-group feeder) */
-	if (pid == 0 || (kill((pid_t)pid, 0) != 0 && errno != EPERM)) {
-		return 0;
-	}
-	snprintf(path, sizeof(path), "/proc/%u/stat", pid);
-	FILE *fp = fopen(path, "r");
-	if (fp == NULL) {
-		return 1; /* no /proc: kill() said it exists */
-	}
-	size_t n = fread(buf, 1, sizeof(buf) - 1, fp);
-	fclose(fp);
-	buf[n] = '\0';
-	const char *rp = strrchr(buf, ')'); /* "pid (comm) S ..." */
-	return !(rp != NULL && rp[1] == ' ' && rp[2] == 'Z');
-}
-
-/* The controller is dead when its heartbeat has not moved across our own
- * reads for MLIP_PEER_TIMEOUT_NS and its process is gone; a process that is
- * there but late (its CPU taken away for a while) is given ten times that
- * before we give up on it. A stale stamp alone is not enough: a pause that
- * stopped both processes, us first, would look the same. */
+/* Read the controller status; 0 while it is alive or late, -1 when it is
+ * dead (mlip/peer.h: no beat for MLIP_PEER_TIMEOUT_NS across our own reads
+ * and its process gone) or restarted (the period counter went back). Late,
+ * its process there but not running (stopped, or starved of CPU), it is not
+ * dead, and when it runs again it holds at rest (a stall): we wait, and say
+ * so once it has been quiet MLIP_PEER_LATE_NS while we watched. */
 static int poll_controller(struct feed *f)
 {
 	struct mlip_ring_status st;
-	uint64_t now = mlip_now_ns();
-	int moved = 0;
+	struct mlip_peer_seen seen;
+	int64_t quiet;
 
 	if (mlip_ring_status_read(f->r, &st) == MLIP_OK) {
 		if (st.heartbeat < f->last_hb) {
 			return -1; /* a new controller formatted the segment */
 		}
-		moved = st.heartbeat != f->last_hb;
 		f->last_hb = st.heartbeat;
 		f->st = st;
 		track_exec(f);
 	}
-	if (moved || f->stale_since == 0 || now - f->last_read > MLIP_PEER_TIMEOUT_NS / 2) {
-		f->stale_since = now; /* moving, or we were away: start watching again */
-	}
-	f->last_read = now;
-	uint64_t stale = now - f->stale_since;
-	if (stale < (uint64_t)MLIP_PEER_TIMEOUT_NS) {
+	seen = (struct mlip_peer_seen){f->st.heartbeat, f->st.heartbeat_ns, 0, -1};
+	switch (mlip_peer_check(&seen, f->st.reserved, &f->watch, &quiet)) {
+	case MLIP_PEER_ALIVE:
 		return 0;
-	}
-	if (process_running(f->st.reserved)) {
-		/* alive but not running (stopped, or starved of CPU): it is not
-		 * dead, and when it runs again it holds at rest (a stall) */
-		if (stale >= 10 * (uint64_t)MLIP_PEER_TIMEOUT_NS && !f->late_told) {
+	case MLIP_PEER_LATE:
+		if (quiet >= MLIP_PEER_LATE_NS && !f->late_told) {
 			f->late_told = 1;
 			close_line(f);
 			fprintf(stderr,
 			        PROG ": the controller (pid %u) has not run for %.1f s (stopped or "
 			             "starved of CPU); waiting: when it runs again it holds the machine "
 			             "at rest (stall) and mlip-ctl resume continues\n",
-			        (unsigned)f->st.reserved, (double)stale / 1e9);
+			        (unsigned)f->st.reserved, (double)quiet / 1e9);
 		}
 		return 0;
+	case MLIP_PEER_DEAD:
+		break;
 	}
 	return -1;
 }
@@ -1039,8 +1002,7 @@ int main(int argc, char **argv)
 		goto out;
 	}
 	if (mlip_ring_feeder_read(f.r, &other) == MLIP_OK && other.pid != (int32_t)getpid() &&
-	    pid_alive(other.pid) && age_ns(other.heartbeat_ns) >= 0 &&
-	    age_ns(other.heartbeat_ns) < MLIP_PEER_TIMEOUT_NS) {
+	    mlip_peer_feeder(&other) == MLIP_PEER_ALIVE) {
 		fprintf(stderr,
 		        PROG ": another feeder (pid %d) is feeding %s: wait for it to finish, or "
 		             "stop it (mlip-ctl stop)\n",

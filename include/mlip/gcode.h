@@ -42,9 +42,8 @@
 #define MLIP_GCODE_MSG 160
 #define MLIP_GCODE_MAX_NOTICES 32
 #define MLIP_GCODE_N_COORD 9      /* G54..G59, G59.1..G59.3 */
-/* points closer than this (joint-space distance) to the previous one are
- * merged so no zero-length segment reaches the planner */
-#define MLIP_GCODE_MERGE_MM 1e-6
+/* points closer than this to the previous one are merged (mlip/types.h) */
+#define MLIP_GCODE_MERGE_MM MLIP_MERGE_MM
 /* chord sagitta allowed when turning an arc into chords, as a fraction of
  * the contour tolerance; the corner between chords gets the rest */
 #define MLIP_GCODE_ARC_FRACTION 0.1

@@ -172,7 +172,7 @@ uint32_t mlip_planner_space(const struct mlip_planner *p);
 uint32_t mlip_planner_queued(const struct mlip_planner *p);
 
 /* Append one block. MLIP_E_FULL when no slot is free. A block closer than
- * MLIP_GCODE_MERGE_MM to the previous point is ignored (MLIP_OK). */
+ * MLIP_MERGE_MM to the previous point is ignored (MLIP_OK). */
 mlip_status mlip_planner_push(struct mlip_planner *p, const struct mlip_block *b);
 
 /* Push up to n blocks (as many as there is room for) with one backward

@@ -13,6 +13,10 @@
 #include <stdint.h>
 
 #define MLIP_MAX_AXES 6
+/* Two points closer than this (joint-space distance) are one: the G-code
+ * reader merges them, smooth and the planner skip such a block, so no
+ * zero-length segment is ever planned. */
+#define MLIP_MERGE_MM 1e-6
 
 typedef enum {
 	MLIP_OK = 0,

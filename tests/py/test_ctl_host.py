@@ -256,3 +256,38 @@ def test_sim_dwell_and_pauses_to_the_period(tmp_path, optional):
     chk = subprocess.run([tool("mlip-check"), "--config", MILL, prog, trace], capture_output=True,
                          text=True)
     assert chk.returncode == 0, chk.stdout + chk.stderr
+
+
+def test_status_liveness_alive_late_dead(controller):
+    """mlip-ctl judges the controller by the one rule (mlip/peer.h): alive
+    while it beats; stopped (SIGSTOP), its process is there: late, exit 1,
+    "not responding"; killed: dead, "not running"."""
+    shm, rt = controller(MILL)
+    s = status(shm)
+    assert s["alive"] is True and s["liveness"] == "alive"
+    rt.send_signal(signal.SIGSTOP)
+    try:
+        time.sleep(0.3)  # > MLIP_PEER_TIMEOUT_NS (100 ms), and mlip-ctl's second look
+        p = ctl(shm, "status", "--json")
+        s = json.loads(p.stdout)
+        assert p.returncode == 1 and s["alive"] is False and s["liveness"] == "late", p.stdout
+        assert s["heartbeat_age_ms"] >= 300.0, s
+        p = ctl(shm, "status")
+        assert p.returncode == 1 and "NOT RESPONDING" in p.stdout
+        assert f"its process (pid {rt.pid}) is there: stopped or starved of CPU" in p.stderr
+    finally:
+        rt.send_signal(signal.SIGCONT)
+    assert wait_for(lambda: (status(shm) or {}).get("liveness") == "alive", 5)
+    rt.kill()
+    rt.wait(10)
+    try:
+        time.sleep(0.2)
+        p = ctl(shm, "status", "--json")
+        s = json.loads(p.stdout)
+        assert p.returncode == 1 and s["alive"] is False and s["liveness"] == "dead", p.stdout
+        assert "is not running: start mlip-rt" in ctl(shm, "status").stderr
+    finally:
+        try:
+            os.unlink("/dev/shm" + shm)  # a killed controller leaves its segment
+        except FileNotFoundError:
+            pass
