@@ -131,6 +131,73 @@ static void corner_from_t(double alpha, double beta, double t, struct mlip_corne
 	c->le_mm = 0.5 * alpha * t * t;
 }
 
+/* t^2 of a corner with acceleration alpha e_e - beta e_s, from (18)(19)(20). */
+static double corner_t2(int n, const double *e_s, const double *e_e, double alpha, double beta,
+                        double ds_mm, double de_mm, double eps_mm, double vcap_s_mm_s,
+                        double vcap_e_mm_s)
+{
+	double a2 = 0.0;
+	for (int k = 0; k < n; k++) {
+		double ak = alpha * e_e[k] - beta * e_s[k];
+		a2 += ak * ak;
+	}
+	double t2 = 8.0 * eps_mm / sqrt(a2);
+	if (beta > 0.0) {
+		t2 = dmin(t2, dmin(ds_mm / beta, (vcap_s_mm_s / beta) * (vcap_s_mm_s / beta)));
+	}
+	if (alpha > 0.0) {
+		t2 = dmin(t2, dmin(de_mm / alpha, (vcap_e_mm_s / alpha) * (vcap_e_mm_s / alpha)));
+	}
+	return t2;
+}
+
+/*
+ * The smooth strategy's corner (beyond the paper): any a = alpha e_e - beta
+ * e_s inside the acceleration polygon keeps every guarantee, (18)-(20) then
+ * fix t. The LP vertex (Theorem 2) maximises alpha + beta, but on a finely
+ * sampled curve every segment is taken whole by its two corners (19), so
+ * the speed can only change inside corners, and v_e / v_s = alpha / beta != 1
+ * makes it saw-tooth down a run of them. Choose instead, on the polygon's
+ * boundary (w = alpha / (alpha + beta) over the LP's candidates, 1/2 and a
+ * few between), the corner whose slower end is fastest: min(v_s, v_e).
+ */
+#define SMOOTH_W_GRID 8
+static int corner_smooth(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
+                         const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
+                         struct mlip_corner *c)
+{
+	double alpha, beta;
+	if (mlip_corner_lp(n, e_s, e_e, accel, &alpha, &beta) != 0) {
+		return -1;
+	}
+	double w_lp = alpha / (alpha + beta);
+	double best_v = -1.0, best_a = alpha, best_b = beta, best_t = 0.0;
+	for (int i = 0; i <= SMOOTH_W_GRID; i++) {
+		/* from the LP vertex (i = 0) to the symmetric corner (i = grid) */
+		double w = w_lp + (0.5 - w_lp) * (double)i / (double)SMOOTH_W_GRID;
+		double g = 0.0;
+		for (int k = 0; k < n; k++) {
+			double ak = w * e_e[k] - (1.0 - w) * e_s[k];
+			g = dmax(g, fabs(ak) / accel[k]);
+		}
+		if (!(g > 0.0)) {
+			continue;
+		}
+		double al = w / g, be = (1.0 - w) / g;
+		double t2 = corner_t2(n, e_s, e_e, al, be, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s);
+		double t = sqrt(t2);
+		double v = dmin(al, be) * t;
+		if (v > best_v * (1.0 + 1e-9)) {
+			best_v = v;
+			best_a = al;
+			best_b = be;
+			best_t = t;
+		}
+	}
+	corner_from_t(best_a, best_b, best_t, c);
+	return 0;
+}
+
 void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *e_e,
                       double ds_mm, double de_mm, const double *accel, double eps_mm,
                       double vcap_s_mm_s, double vcap_e_mm_s, double period_s,
@@ -172,6 +239,12 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 	}
 
 	double alpha, beta;
+	if (st == MLIP_STRATEGY_SMOOTH) {
+		if (corner_smooth(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s, vcap_e_mm_s, c) != 0) {
+			corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
+		}
+		return;
+	}
 	if (mlip_corner_lp(n, e_s, e_e, accel, &alpha, &beta) != 0) {
 		corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
 		return;
