@@ -27,6 +27,7 @@
 #include <math.h>
 
 #include "mlip/planner.h"
+#include "mlip/smooth.h"
 
 /* Turning angles below this (in |e_e - e_s|) need no acceleration at all. */
 #define COLLINEAR_EPS 1e-12
@@ -161,6 +162,22 @@ static double corner_t2(int n, const double *e_s, const double *e_e, double alph
  * boundary (w = alpha / (alpha + beta) over the LP's candidates, 1/2 and a
  * few between), the corner whose slower end is fastest: min(v_s, v_e).
  */
+int mlip_corner_smooth_w(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
+                         const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
+                         double w, struct mlip_corner *c)
+{
+	double g = 0.0;
+	for (int k = 0; k < n; k++) {
+		g = dmax(g, fabs(w * e_e[k] - (1.0 - w) * e_s[k]) / accel[k]);
+	}
+	if (!(g > 0.0)) {
+		return -1;
+	}
+	double al = w / g, be = (1.0 - w) / g;
+	corner_from_t(al, be, sqrt(corner_t2(n, e_s, e_e, al, be, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s)), c);
+	return 0;
+}
+
 #define SMOOTH_W_GRID 8
 static int corner_smooth(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
                          const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
