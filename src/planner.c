@@ -399,7 +399,7 @@ static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struc
  * symmetric corner, and on finely sampled curves corners take nearly whole
  * segments (19), so the speed can only grow inside corners: where forward
  * reachability (34) caps the corner below its plan, a corner with v_e > v_s
- * leaves faster. Each candidate keeps every bound the plan keeps: its q is
+ * leaves faster (elsewhere the plan stays, and costs nothing). Each candidate keeps every bound the plan keeps: its q is
  * within the override's caps, its exit can still brake to the next corner's
  * planned q (25)(26), and the line can reach or brake to its entry; the one
  * leaving fastest (then entering fastest) is taken.
@@ -415,6 +415,9 @@ static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double re
 	double lim = q_next * nx->brake_b + nx->two_a_d;
 	int ok;
 	double q0 = corner_q_at(&s->c, s->a_mm_s2, s->q, rem, v, &ok);
+	if (q0 >= s->q) {
+		return; /* the plan is reached: keep it */
+	}
 	double best_ve = sqrt(q0) * s->c.ve_mm_s, best_vs = sqrt(q0) * s->c.vs_mm_s;
 	struct mlip_corner best = s->c;
 	double best_plan = s->q;
