@@ -188,6 +188,15 @@ static int corner_smooth(int n, const double *e_s, const double *e_e, double ds_
 		return -1;
 	}
 	double w_lp = alpha / (alpha + beta);
+	/* the line's own acceleration limit a_{i,m} (Sec. 2.1): a corner with
+	 * beta <= it has B = v_s^2 - 2 a l_s <= 0 and could not take the speed a
+	 * line fails to shed after an override cut; keep such ones LP-only */
+	double a_line = INFINITY;
+	for (int k = 0; k < n; k++) {
+		if (e_s[k] != 0.0) {
+			a_line = dmin(a_line, accel[k] / fabs(e_s[k]));
+		}
+	}
 	double best_v = -1.0, best_a = alpha, best_b = beta, best_t = 0.0;
 	for (int i = 0; i <= SMOOTH_W_GRID; i++) {
 		/* from the LP vertex (i = 0) to the symmetric corner (i = grid) */
@@ -201,6 +210,9 @@ static int corner_smooth(int n, const double *e_s, const double *e_e, double ds_
 			continue;
 		}
 		double al = w / g, be = (1.0 - w) / g;
+		if (i > 0 && !(be > a_line)) {
+			continue;
+		}
 		double t2 = corner_t2(n, e_s, e_e, al, be, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s);
 		double t = sqrt(t2);
 		double v = dmin(al, be) * t;

@@ -429,6 +429,11 @@ static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double re
 		                         s->vhard_mm_s, nx->vhard_mm_s, w, &c) != 0) {
 			continue;
 		}
+		if (!(c.beta_mm_s2 > s->a_mm_s2)) {
+			continue; /* B = v_s^2 - 2 a l_s > 0: after an override cut the
+			           * corner can still take the speed the line cannot shed
+			           * (end_corner_q), as the LP vertex's usually can */
+		}
 		double plan = 1.0;
 		if (c.vs_mm_s > 0.0) {
 			plan = dmin(plan, sq(line_target(p, s)) / sq(c.vs_mm_s));

@@ -325,8 +325,9 @@ static void test_random_programs(void **state)
 /* The smooth strategy's corner (corner.c): any acceleration in the polygon
  * keeps the paper's guarantees, so check them on random corners: |a_k| <=
  * A_k, deviation |a| t^2 / 8 <= eps (17)(18), l <= d / 2 (19), v <= caps
- * (20), a on the polygon's boundary, and its slower end never slower than
- * the LP vertex's (mpct's corner is one of the candidates). Relative
+ * (20), a on the polygon's boundary, its slower end never slower than
+ * the LP vertex's (mpct's corner is one of the candidates), and beta above
+ * the line's limit unless it is the LP vertex. Relative
  * tolerance 1e-12 on each bound. */
 static void test_corner_choice(void **state)
 {
@@ -384,6 +385,15 @@ static void test_corner_choice(void **state)
 		/* 1e-9: the LP vertex recomputed in another order, and the choice's own margin */
 		assert_true(fmin(c.vs_mm_s, c.ve_mm_s) >= fmin(m.vs_mm_s, m.ve_mm_s) * (1.0 - 1e-9));
 		sym += fabs(c.alpha_mm_s2 - c.beta_mm_s2) <= 1e-9 * c.alpha_mm_s2;
+		/* B = v_s^2 - 2 a l_s > 0 (beta above the line's own limit), or the
+		 * LP vertex itself: the corner can take what a line fails to shed */
+		double a_line = INFINITY;
+		for (int k = 0; k < n; k++) {
+			a_line = es[k] != 0.0 ? fmin(a_line, A[k] / fabs(es[k])) : a_line;
+		}
+		assert_true(c.beta_mm_s2 > a_line ||
+		            (fabs(c.beta_mm_s2 - m.beta_mm_s2) <= 1e-9 * m.beta_mm_s2 &&
+		             fabs(c.alpha_mm_s2 - m.alpha_mm_s2) <= 1e-9 * m.alpha_mm_s2));
 	}
 	assert_true(tested > 15000);
 	assert_true(sym > 100); /* it does pick the symmetric corner */
