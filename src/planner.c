@@ -357,7 +357,7 @@ void mlip_planner_stop(struct mlip_planner *p)
  * can reach and the following segments brake instead: acceleration limits
  * are never exceeded to respond faster.
  */
-static double corner_q_at(const struct mlip_corner *c, double a, double q_plan, double rem,
+static inline double corner_q_at(const struct mlip_corner *c, double a, double q_plan, double rem,
                           double v, int *brakeable)
 {
 	double vs2 = sq(c->vs_mm_s), ls = c->ls_mm;
