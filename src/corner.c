@@ -132,7 +132,11 @@ static void corner_from_t(double alpha, double beta, double t, struct mlip_corne
 	c->le_mm = 0.5 * alpha * t * t;
 }
 
-/* t^2 of a corner with acceleration alpha e_e - beta e_s, from (18)(19)(20). */
+/* t^2 of a corner with acceleration alpha e_e - beta e_s. With l = beta t^2 / 2
+ * (5)(6) and v = beta t (2)(3), the three bounds are minima in t^2:
+ *   (18) t^2 <= 8 eps / |a|
+ *   (19) l_s <= d_s / 2  <=>  t^2 <= d_s / beta   (and d_e / alpha)
+ *   (20) v_s <= vcap_s   <=>  t^2 <= (vcap_s / beta)^2 (and e)   */
 static double corner_t2(int n, const double *e_s, const double *e_e, double alpha, double beta,
                         double ds_mm, double de_mm, double eps_mm, double vcap_s_mm_s,
                         double vcap_e_mm_s)
@@ -197,33 +201,23 @@ static int corner_smooth(int n, const double *e_s, const double *e_e, double ds_
 			a_line = dmin(a_line, accel[k] / fabs(e_s[k]));
 		}
 	}
-	double best_v = -1.0, best_a = alpha, best_b = beta, best_t = 0.0;
-	for (int i = 0; i <= SMOOTH_W_GRID; i++) {
-		/* from the LP vertex (i = 0) to the symmetric corner (i = grid) */
+	/* the LP vertex itself first (the paper's corner), then towards 1/2 */
+	corner_from_t(alpha, beta,
+	              sqrt(corner_t2(n, e_s, e_e, alpha, beta, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s)), c);
+	double best_v = dmin(c->vs_mm_s, c->ve_mm_s);
+	for (int i = 1; i <= SMOOTH_W_GRID; i++) {
 		double w = w_lp + (0.5 - w_lp) * (double)i / (double)SMOOTH_W_GRID;
-		double g = 0.0;
-		for (int k = 0; k < n; k++) {
-			double ak = w * e_e[k] - (1.0 - w) * e_s[k];
-			g = dmax(g, fabs(ak) / accel[k]);
-		}
-		if (!(g > 0.0)) {
+		struct mlip_corner cw;
+		if (mlip_corner_smooth_w(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s, vcap_e_mm_s, w,
+		                         &cw) != 0 ||
+		    !(cw.beta_mm_s2 > a_line)) {
 			continue;
 		}
-		double al = w / g, be = (1.0 - w) / g;
-		if (i > 0 && !(be > a_line)) {
-			continue;
-		}
-		double t2 = corner_t2(n, e_s, e_e, al, be, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s);
-		double t = sqrt(t2);
-		double v = dmin(al, be) * t;
-		if (v > best_v * (1.0 + 1e-9)) {
-			best_v = v;
-			best_a = al;
-			best_b = be;
-			best_t = t;
+		if (dmin(cw.vs_mm_s, cw.ve_mm_s) > best_v * (1.0 + 1e-9)) {
+			best_v = dmin(cw.vs_mm_s, cw.ve_mm_s);
+			*c = cw;
 		}
 	}
-	corner_from_t(best_a, best_b, best_t, c);
 	return 0;
 }
 
@@ -278,23 +272,7 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 		corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
 		return;
 	}
-	double a2 = 0.0;
-	for (int k = 0; k < n; k++) {
-		double ak = alpha * e_e[k] - beta * e_s[k];
-		a2 += ak * ak;
-	}
-	/* In t^2, with l = beta t^2 / 2 (5)(6) and v = beta t (2)(3), the three
-	 * bounds are minima and one square root remains:
-	 *   (18) t^2 <= 8 eps / |a|
-	 *   (19) l_s <= d_s / 2  <=>  t^2 <= d_s / beta   (and d_e / alpha)
-	 *   (20) v_s <= vcap_s   <=>  t^2 <= (vcap_s / beta)^2 (and e)   */
-	double t2 = 8.0 * eps_mm / sqrt(a2);
-	if (beta > 0.0) {
-		t2 = dmin(t2, dmin(ds_mm / beta, (vcap_s_mm_s / beta) * (vcap_s_mm_s / beta)));
-	}
-	if (alpha > 0.0) {
-		t2 = dmin(t2, dmin(de_mm / alpha, (vcap_e_mm_s / alpha) * (vcap_e_mm_s / alpha)));
-	}
+	double t2 = corner_t2(n, e_s, e_e, alpha, beta, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s);
 	double t = sqrt(t2);
 
 	corner_from_t(alpha, beta, t, c);
