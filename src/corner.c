@@ -27,6 +27,7 @@
 #include <math.h>
 
 #include "mlip/planner.h"
+#include "mlip/smooth.h"
 
 /* Turning angles below this (in |e_e - e_s|) need no acceleration at all. */
 #define COLLINEAR_EPS 1e-12
@@ -131,6 +132,95 @@ static void corner_from_t(double alpha, double beta, double t, struct mlip_corne
 	c->le_mm = 0.5 * alpha * t * t;
 }
 
+/* t^2 of a corner with acceleration alpha e_e - beta e_s. With l = beta t^2 / 2
+ * (5)(6) and v = beta t (2)(3), the three bounds are minima in t^2:
+ *   (18) t^2 <= 8 eps / |a|
+ *   (19) l_s <= d_s / 2  <=>  t^2 <= d_s / beta   (and d_e / alpha)
+ *   (20) v_s <= vcap_s   <=>  t^2 <= (vcap_s / beta)^2 (and e)   */
+static double corner_t2(int n, const double *e_s, const double *e_e, double alpha, double beta,
+                        double ds_mm, double de_mm, double eps_mm, double vcap_s_mm_s,
+                        double vcap_e_mm_s)
+{
+	double a2 = 0.0;
+	for (int k = 0; k < n; k++) {
+		double ak = alpha * e_e[k] - beta * e_s[k];
+		a2 += ak * ak;
+	}
+	double t2 = 8.0 * eps_mm / sqrt(a2);
+	if (beta > 0.0) {
+		t2 = dmin(t2, dmin(ds_mm / beta, (vcap_s_mm_s / beta) * (vcap_s_mm_s / beta)));
+	}
+	if (alpha > 0.0) {
+		t2 = dmin(t2, dmin(de_mm / alpha, (vcap_e_mm_s / alpha) * (vcap_e_mm_s / alpha)));
+	}
+	return t2;
+}
+
+/*
+ * The smooth strategy's corner (beyond the paper): any a = alpha e_e - beta
+ * e_s inside the acceleration polygon keeps every guarantee, (18)-(20) then
+ * fix t. The LP vertex (Theorem 2) maximises alpha + beta, but on a finely
+ * sampled curve every segment is taken whole by its two corners (19), so
+ * the speed can only change inside corners, and v_e / v_s = alpha / beta != 1
+ * makes it saw-tooth down a run of them. Choose instead, on the polygon's
+ * boundary (w = alpha / (alpha + beta) over the LP's candidates, 1/2 and a
+ * few between), the corner whose slower end is fastest: min(v_s, v_e).
+ */
+int mlip_corner_smooth_w(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
+                         const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
+                         double w, struct mlip_corner *c)
+{
+	double g = 0.0;
+	for (int k = 0; k < n; k++) {
+		g = dmax(g, fabs(w * e_e[k] - (1.0 - w) * e_s[k]) / accel[k]);
+	}
+	if (!(g > 0.0)) {
+		return -1;
+	}
+	double al = w / g, be = (1.0 - w) / g;
+	corner_from_t(al, be, sqrt(corner_t2(n, e_s, e_e, al, be, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s)), c);
+	return 0;
+}
+
+#define SMOOTH_W_GRID 8
+static int corner_smooth(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
+                         const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
+                         struct mlip_corner *c)
+{
+	double alpha, beta;
+	if (mlip_corner_lp(n, e_s, e_e, accel, &alpha, &beta) != 0) {
+		return -1;
+	}
+	double w_lp = alpha / (alpha + beta);
+	/* the line's own acceleration limit a_{i,m} (Sec. 2.1): a corner with
+	 * beta <= it has B = v_s^2 - 2 a l_s <= 0 and could not take the speed a
+	 * line fails to shed after an override cut; keep such ones LP-only */
+	double a_line = INFINITY;
+	for (int k = 0; k < n; k++) {
+		if (e_s[k] != 0.0) {
+			a_line = dmin(a_line, accel[k] / fabs(e_s[k]));
+		}
+	}
+	/* the LP vertex itself first (the paper's corner), then towards 1/2 */
+	corner_from_t(alpha, beta,
+	              sqrt(corner_t2(n, e_s, e_e, alpha, beta, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s)), c);
+	double best_v = dmin(c->vs_mm_s, c->ve_mm_s);
+	for (int i = 1; i <= SMOOTH_W_GRID; i++) {
+		double w = w_lp + (0.5 - w_lp) * (double)i / (double)SMOOTH_W_GRID;
+		struct mlip_corner cw;
+		if (mlip_corner_smooth_w(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s, vcap_e_mm_s, w,
+		                         &cw) != 0 ||
+		    !(cw.beta_mm_s2 > a_line)) {
+			continue;
+		}
+		if (dmin(cw.vs_mm_s, cw.ve_mm_s) > best_v * (1.0 + 1e-9)) {
+			best_v = dmin(cw.vs_mm_s, cw.ve_mm_s);
+			*c = cw;
+		}
+	}
+	return 0;
+}
+
 void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *e_e,
                       double ds_mm, double de_mm, const double *accel, double eps_mm,
                       double vcap_s_mm_s, double vcap_e_mm_s, double period_s,
@@ -172,27 +262,17 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 	}
 
 	double alpha, beta;
+	if (st == MLIP_STRATEGY_SMOOTH) {
+		if (corner_smooth(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s, vcap_e_mm_s, c) != 0) {
+			corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
+		}
+		return;
+	}
 	if (mlip_corner_lp(n, e_s, e_e, accel, &alpha, &beta) != 0) {
 		corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
 		return;
 	}
-	double a2 = 0.0;
-	for (int k = 0; k < n; k++) {
-		double ak = alpha * e_e[k] - beta * e_s[k];
-		a2 += ak * ak;
-	}
-	/* In t^2, with l = beta t^2 / 2 (5)(6) and v = beta t (2)(3), the three
-	 * bounds are minima and one square root remains:
-	 *   (18) t^2 <= 8 eps / |a|
-	 *   (19) l_s <= d_s / 2  <=>  t^2 <= d_s / beta   (and d_e / alpha)
-	 *   (20) v_s <= vcap_s   <=>  t^2 <= (vcap_s / beta)^2 (and e)   */
-	double t2 = 8.0 * eps_mm / sqrt(a2);
-	if (beta > 0.0) {
-		t2 = dmin(t2, dmin(ds_mm / beta, (vcap_s_mm_s / beta) * (vcap_s_mm_s / beta)));
-	}
-	if (alpha > 0.0) {
-		t2 = dmin(t2, dmin(de_mm / alpha, (vcap_e_mm_s / alpha) * (vcap_e_mm_s / alpha)));
-	}
+	double t2 = corner_t2(n, e_s, e_e, alpha, beta, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s);
 	double t = sqrt(t2);
 
 	corner_from_t(alpha, beta, t, c);

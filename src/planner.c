@@ -32,6 +32,7 @@
 #include <string.h>
 
 #include "mlip/planner.h"
+#include "mlip/smooth.h"
 
 static double sq(double x)
 {
@@ -188,14 +189,8 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 }
 
 /* Precompute the corner between pr and nx and its look-ahead coefficients. */
-static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx)
+static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx)
 {
-	if (pr->exact) {
-		pr->c = (struct mlip_corner){0}; /* as the stop strategy: at rest */
-	} else {
-		mlip_corner_plan(p->n, p->strategy, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
-		                 pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
-	}
 	const struct mlip_corner *c = &pr->c;
 	pr->inv_vs2 = c->vs_mm_s > 0.0 ? 1.0 / sq(c->vs_mm_s) : 0.0;
 	pr->inv_ve2 = c->ve_mm_s > 0.0 ? 1.0 / sq(c->ve_mm_s) : 0.0;
@@ -204,6 +199,17 @@ static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struc
 	/* C = 0 (the next line starts at rest whatever q is): no constraint */
 	pr->inv_brake_c = brake_c > 0.0 ? 1.0 / brake_c : 0.0;
 	pr->qcap = corner_soft_cap(p, pr, nx);
+}
+
+static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx)
+{
+	if (pr->exact) {
+		pr->c = (struct mlip_corner){0}; /* G61: as the stop strategy, at rest */
+	} else {
+		mlip_corner_plan(p->n, p->strategy, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
+		                 pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
+	}
+	link_coeffs(p, pr, nx);
 	pr->q = 0.0;
 }
 
@@ -354,10 +360,9 @@ void mlip_planner_stop(struct mlip_planner *p)
  * can reach and the following segments brake instead: acceleration limits
  * are never exceeded to respond faster.
  */
-static double end_corner_q(const struct mlip_seg *s, double rem, double v)
+static inline double corner_q_at(const struct mlip_corner *c, double a, double q_plan, double rem,
+                          double v, int *brakeable)
 {
-	const struct mlip_corner *c = &s->c;
-	double a = s->a_mm_s2;
 	double vs2 = sq(c->vs_mm_s), ls = c->ls_mm;
 	double geom = ls > 0.0 ? dmin(1.0, rem / ls) : 1.0;
 	double lo = 0.0, hi = geom;
@@ -374,11 +379,94 @@ static double end_corner_q(const struct mlip_seg *s, double rem, double v)
 	} else if (k < -1e-12 * grow) {
 		hi = dmin(hi, need / k); /* bigger corners brake worse here */
 	}
-	double q = dmin(dmax(s->q, lo), hi);
+	double q = dmin(dmax(q_plan, lo), hi);
+	*brakeable = !(lo > hi);
 	if (lo > hi) {
 		q = dmin(lo, geom); /* only by rounding: keep the state brakeable */
 	}
 	return dmax(q, 0.0);
+}
+
+static double end_corner_q(const struct mlip_seg *s, double rem, double v)
+{
+	int ok;
+	return corner_q_at(&s->c, s->a_mm_s2, s->q, rem, v, &ok);
+}
+
+static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx);
+
+/*
+ * The smooth strategy (beyond the paper): when a line starts, choose its end
+ * corner's acceleration again on the polygon's boundary, now knowing the
+ * actual speed. The corner model has no tangential acceleration inside a
+ * symmetric corner, and on finely sampled curves corners take nearly whole
+ * segments (19), so the speed can only grow inside corners: where forward
+ * reachability (34) caps the corner below its plan, a corner with v_e > v_s
+ * leaves faster (elsewhere the plan stays, and costs nothing). Each candidate keeps every bound the plan keeps: its q is
+ * within the override's caps, its exit can still brake to the next corner's
+ * planned q (25)(26), and the line can reach or brake to its entry; the one
+ * leaving fastest (then entering fastest) is taken.
+ */
+#define SMOOTH_EXEC_W 16
+static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double rem, double v)
+{
+	struct mlip_seg *nx = seg_at(p, p->tail + 1);
+	if (s->c.t_s == 0.0) {
+		return; /* straight: nothing to shape */
+	}
+	double q_next = p->head - p->tail > 2 ? nx->q : 0.0;
+	double lim = q_next * nx->brake_b + nx->two_a_d;
+	int ok;
+	double q0 = corner_q_at(&s->c, s->a_mm_s2, s->q, rem, v, &ok);
+	if (q0 >= s->q) {
+		return; /* the plan is reached: keep it */
+	}
+	double best_ve = sqrt(q0) * s->c.ve_mm_s, best_vs = sqrt(q0) * s->c.vs_mm_s;
+	struct mlip_corner best = s->c;
+	double best_plan = s->q;
+	int found = 0;
+	for (int i = 1; i < SMOOTH_EXEC_W; i++) {
+		struct mlip_corner c;
+		double w = (double)i / (double)SMOOTH_EXEC_W;
+		if (mlip_corner_smooth_w(p->n, s->e, nx->e, s->d_mm, nx->d_mm, p->accel, s->tol_mm,
+		                         s->vhard_mm_s, nx->vhard_mm_s, w, &c) != 0) {
+			continue;
+		}
+		if (!(c.beta_mm_s2 > s->a_mm_s2)) {
+			continue; /* B = v_s^2 - 2 a l_s > 0: after an override cut the
+			           * corner can still take the speed the line cannot shed
+			           * (end_corner_q), as the LP vertex's usually can */
+		}
+		double plan = 1.0;
+		if (c.vs_mm_s > 0.0) {
+			plan = dmin(plan, sq(line_target(p, s)) / sq(c.vs_mm_s));
+		}
+		if (c.ve_mm_s > 0.0) {
+			plan = dmin(plan, sq(line_target(p, nx)) / sq(c.ve_mm_s));
+		}
+		double cc = sq(c.ve_mm_s) + 2.0 * nx->a_mm_s2 * c.le_mm;
+		if (cc > 0.0) {
+			plan = dmin(plan, lim / cc);
+		}
+		plan = dmax(plan, 0.0);
+		double q = corner_q_at(&c, s->a_mm_s2, plan, rem, v, &ok);
+		if (!ok || q > plan) {
+			continue;
+		}
+		double ve = sqrt(q) * c.ve_mm_s, vs = sqrt(q) * c.vs_mm_s;
+		if (ve > best_ve * (1.0 + 1e-9) || (ve >= best_ve * (1.0 - 1e-12) && vs > best_vs * (1.0 + 1e-9))) {
+			best_ve = ve;
+			best_vs = vs;
+			best = c;
+			best_plan = plan;
+			found = 1;
+		}
+	}
+	if (found) {
+		s->c = best;
+		link_coeffs(p, s, nx);
+		s->q = best_plan;
+	}
 }
 
 /* A line profile from (speed v) over distance rem to speed v1: change to vc,
@@ -502,6 +590,9 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 		}
 
 		double rem = s->d_mm - p->l_start_mm - p->s_mm; /* to the corner point */
+		if (p->strategy == MLIP_STRATEGY_SMOOTH && has_next && !p->prof_valid) {
+			smooth_reshape(p, s, rem, p->v_mm_s);
+		}
 		double q = has_next ? end_corner_q(s, rem, p->v_mm_s) : 0.0;
 		double vt = line_target(p, s);
 		struct mlip_profile *f = &p->prof;

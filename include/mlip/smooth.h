@@ -29,6 +29,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "mlip/planner.h"
 #include "mlip/types.h"
 
 #define MLIP_SMOOTH_CAP 4096      /* samples in the window */
@@ -106,5 +107,12 @@ void mlip_smooth_finish(struct mlip_smooth *sm);
 
 /* Next output block, or MLIP_E_EMPTY. */
 mlip_status mlip_smooth_pop(struct mlip_smooth *sm, struct mlip_block *out);
+
+/* The smooth strategy's corner with a = (w e_e - (1 - w) e_s) / g on the
+ * acceleration polygon's boundary (g the largest |a_k| / A_k of the
+ * unscaled vector), t from (18)(19)(20) (corner.c). -1 when a is 0. */
+int mlip_corner_smooth_w(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
+                         const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
+                         double w, struct mlip_corner *c);
 
 #endif

@@ -6,6 +6,7 @@
  * exact, pass-through blocks pass unchanged and in order, and the noise is
  * really filtered.
  */
+#include <float.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -17,6 +18,7 @@
 #include <cmocka.h>
 
 #include "../../tools/lib/blockiter.h"
+#include "mlip/planner.h"
 #include "mlip/smooth.h"
 
 #define EPS 0.01
@@ -319,6 +321,83 @@ static void test_random_programs(void **state)
 	}
 }
 
+/* The smooth strategy's corner (corner.c): any acceleration in the polygon
+ * keeps the paper's guarantees, so check them on random corners: |a_k| <=
+ * A_k, deviation |a| t^2 / 8 <= eps (17)(18), l <= d / 2 (19), v <= caps
+ * (20), a on the polygon's boundary, its slower end never slower than
+ * the LP vertex's (mpct's corner is one of the candidates), and beta above
+ * the line's limit unless it is the LP vertex. Relative
+ * tolerance 1e-12 on each bound. */
+static void test_corner_choice(void **state)
+{
+	(void)state;
+	uint64_t s = 12345;
+	int sym = 0, tested = 0;
+	for (int it = 0; it < 20000; it++) {
+		double r[16];
+		for (int k = 0; k < 16; k++) {
+			s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+			r[k] = (double)(s >> 11) / 9007199254740992.0;
+		}
+		int n = 2 + (int)(r[0] * 2.0);
+		double es[3] = {0}, ee[3] = {0}, A[3], ns = 0.0, ne = 0.0;
+		double turn = r[1] < 0.5 ? 0.02 : r[1] < 0.8 ? 0.5 : 4.0;
+		for (int k = 0; k < n; k++) {
+			es[k] = r[2 + k] - 0.5;
+			ee[k] = es[k] + turn * (r[5 + k] - 0.5);
+			ns += es[k] * es[k];
+			A[k] = 500.0 + 5500.0 * r[8 + k];
+		}
+		ns = sqrt(ns);
+		for (int k = 0; k < n; k++) {
+			es[k] /= ns;
+		}
+		for (int k = 0; k < n; k++) {
+			ne += ee[k] * ee[k];
+		}
+		ne = sqrt(ne);
+		for (int k = 0; k < n; k++) {
+			ee[k] /= ne;
+		}
+		double ds = 1e-3 * pow(1e4, r[11]), de = 1e-3 * pow(1e4, r[12]);
+		double eps = 0.001 + 0.01 * r[13], vs = 10.0 + 200.0 * r[14], ve = 10.0 + 200.0 * r[15];
+		struct mlip_corner c, m;
+		mlip_corner_plan(n, MLIP_STRATEGY_SMOOTH, es, ee, ds, de, A, eps, vs, ve, 0.001, &c);
+		mlip_corner_plan(n, MLIP_STRATEGY_MPCT, es, ee, ds, de, A, eps, vs, ve, 0.001, &m);
+		if (m.t_s == 0.0) {
+			continue; /* collinear: both pass straight */
+		}
+		tested++;
+		double a2 = 0.0, amax = 0.0;
+		for (int k = 0; k < n; k++) {
+			double ak = c.alpha_mm_s2 * ee[k] - c.beta_mm_s2 * es[k];
+			/* plus the rounding of a difference of two terms of size alpha */
+			double round_off = 8.0 * DBL_EPSILON * (c.alpha_mm_s2 + c.beta_mm_s2);
+			assert_true(fabs(ak) <= A[k] * (1.0 + 1e-12) + round_off);
+			amax = fmax(amax, fabs(ak) / A[k]);
+			a2 += ak * ak;
+		}
+		assert_true(amax >= 1.0 - 1e-9);
+		assert_true(sqrt(a2) * c.t_s * c.t_s / 8.0 <= eps * (1.0 + 1e-12));
+		assert_true(c.ls_mm <= 0.5 * ds * (1.0 + 1e-12) && c.le_mm <= 0.5 * de * (1.0 + 1e-12));
+		assert_true(c.vs_mm_s <= vs * (1.0 + 1e-12) && c.ve_mm_s <= ve * (1.0 + 1e-12));
+		/* 1e-9: the LP vertex recomputed in another order, and the choice's own margin */
+		assert_true(fmin(c.vs_mm_s, c.ve_mm_s) >= fmin(m.vs_mm_s, m.ve_mm_s) * (1.0 - 1e-9));
+		sym += fabs(c.alpha_mm_s2 - c.beta_mm_s2) <= 1e-9 * c.alpha_mm_s2;
+		/* B = v_s^2 - 2 a l_s > 0 (beta above the line's own limit), or the
+		 * LP vertex itself: the corner can take what a line fails to shed */
+		double a_line = INFINITY;
+		for (int k = 0; k < n; k++) {
+			a_line = es[k] != 0.0 ? fmin(a_line, A[k] / fabs(es[k])) : a_line;
+		}
+		assert_true(c.beta_mm_s2 > a_line ||
+		            (fabs(c.beta_mm_s2 - m.beta_mm_s2) <= 1e-9 * m.beta_mm_s2 &&
+		             fabs(c.alpha_mm_s2 - m.alpha_mm_s2) <= 1e-9 * m.alpha_mm_s2));
+	}
+	assert_true(tested > 15000);
+	assert_true(sym > 100); /* it does pick the symmetric corner */
+}
+
 static void test_full_and_bad_input(void **state)
 {
 	(void)state;
@@ -358,6 +437,7 @@ int main(void)
 		cmocka_unit_test(test_exact_points_and_events),
 		cmocka_unit_test(test_noise_filtered),
 		cmocka_unit_test(test_random_programs),
+		cmocka_unit_test(test_corner_choice),
 		cmocka_unit_test(test_full_and_bad_input),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
