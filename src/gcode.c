@@ -156,7 +156,8 @@ static mlip_status failf(struct mlip_gcode_error *e, uint32_t line, uint32_t col
 			p = va_arg(ap, const char *);
 			n = va_arg(ap, size_t);
 			for (k = 0; k < n && k < 24; k++) {
-				put_c(&m, p[k]);
+				/* a quoted excerpt stays one printable line */
+				put_c(&m, p[k] >= 0x20 && p[k] < 0x7f ? p[k] : '?');
 			}
 			break;
 		default:
@@ -1936,20 +1937,25 @@ int mlip_gcode_scan_axes(const char *text, size_t len, char *letters)
 
 uint32_t mlip_gcode_scan_feed(const char *text, size_t len, double *f_word)
 {
-	size_t i = 0, num;
+	size_t s = 0, e;
 	uint32_t line = 1;
-	char L;
-	int ndig;
-	double v;
+	unsigned axes = 0;
+	double f;
 
-	while (next_word(text, len, &i, &line, &L, &num)) {
-		if (L == 'F') {
-			scan_number(text, len, num, &v, &ndig);
-			if (ndig > 0 && v > 0) {
-				*f_word = v;
+	/* line by line (LF, CRLF or a lone CR), as the tools' bounded reader sees
+	 * it: a line too long to parse is an error, and its F is not taken */
+	while (s < len) {
+		for (e = s; e < len && text[e] != '\n' && text[e] != '\r'; e++) {
+		}
+		if (e - s <= MLIP_GCODE_MAX_LINE) {
+			f = mlip_gcode_scan_line(text + s, e - s, &axes);
+			if (f > 0) {
+				*f_word = f;
 				return line;
 			}
 		}
+		line++;
+		s = e + 1 + (e + 1 < len && text[e] == '\r' && text[e + 1] == '\n');
 	}
 	return 0;
 }

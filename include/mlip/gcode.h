@@ -157,7 +157,9 @@ int mlip_gcode_scan_axes(const char *text, size_t len, char *letters);
 double mlip_gcode_scan_line(const char *text, size_t len, unsigned *axes);
 
 /* The first positive F word outside comments in a whole program: its value
- * (as written) in *f_word; returns its 1-based line, or 0 when there is none. */
+ * (as written) in *f_word; returns its 1-based line, or 0 when there is none.
+ * Lines longer than MLIP_GCODE_MAX_LINE (errors) are passed over, as the
+ * tools' bounded reader does. */
 uint32_t mlip_gcode_scan_feed(const char *text, size_t len, double *f_word);
 
 #endif

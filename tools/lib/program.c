@@ -172,7 +172,8 @@ static int check_all(struct mlip_program *p)
 		p->lineno++;
 		f = mlip_gcode_scan_line(p->line, line_kept(p),
 		                         &axes);
-		if (f > 0 && !p->initial_feed_line) {
+		/* an over-long line is an error: its F (maybe cut off) is not taken */
+		if (f > 0 && !p->initial_feed_line && p->line_len <= MLIP_GCODE_MAX_LINE) {
 			p->initial_feed_word = f;
 			p->initial_feed_line = p->lineno;
 		}
