@@ -296,6 +296,14 @@ mlip_status mlip_canenc_encode(const struct mlip_canenc *e, uint32_t cycle, cons
 		}
 		break;
 	}
+	if (e->profile == MLIP_CAN_CIA402 && e->rpdo_mute != 0) {
+		for (i = 0, k = 1; i < e->n_axes; i++) {
+			if (!(e->rpdo_mute & (1u << i))) {
+				out[k++] = out[1 + i];
+			}
+		}
+		nf = k;
+	}
 	*n_out = nf;
 	if (saturated != NULL) {
 		*saturated = sat;

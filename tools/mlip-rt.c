@@ -23,6 +23,7 @@
 
 static struct mlip_planner planner; /* static: locked and prefaulted with the rest */
 static struct mlip_controller ctl;
+static struct mlip_drives drives;    /* --drives: the CiA 402 master (rt/drives.c) */
 
 static volatile sig_atomic_t got_exit;
 
@@ -44,8 +45,57 @@ struct monitor {
 	const char *iface;
 	struct mlip_canio *io; /* NULL: --can none */
 	struct mlip_ring *ring;
+	struct mlip_drives *ds; /* NULL: no drives brought up */
 	volatile int done;
 };
+
+static void drive_log(void *ctx, const char *line)
+{
+	(void)ctx;
+	fprintf(stderr, PROG ": %s\n", line);
+}
+
+/* The loop found a drive fault (once): which node, which event, where. */
+static void report_drive_fault(const struct mlip_drives *ds)
+{
+	const struct mlip_drive *d = &ds->d[ds->fault_drive];
+	long long v = (long long)ds->fault_detail;
+	char what[160];
+	switch (ds->fault_reason) {
+	case MLIP_DRIVE_FAULT_BIT:
+	case MLIP_DRIVE_LEFT_ENABLED:
+		snprintf(what, sizeof(what), "statusword 0x%04llX (%s)", v,
+		         mlip_402_state_name(mlip_402_state_of((uint16_t)v)));
+		break;
+	case MLIP_DRIVE_EMCY:
+		snprintf(what, sizeof(what), "EMCY 0x%04llX (%s), error register 0x%02X", v,
+		         mlip_emcy_text((uint16_t)v), d->obs.emcy.reg);
+		break;
+	case MLIP_DRIVE_HEARTBEAT_LOST:
+		snprintf(what, sizeof(what), "no heartbeat for %lld ms (timeout %u ms)", v,
+		         (unsigned)ds->cfg.heartbeat_timeout_ms);
+		break;
+	case MLIP_DRIVE_NOT_OPERATIONAL:
+		snprintf(what, sizeof(what), "its heartbeat says NMT %s", mlip_nmt_state_name((uint8_t)v));
+		break;
+	case MLIP_DRIVE_FOLLOWING_ERROR:
+		snprintf(what, sizeof(what), "%lld counts between target sent and position actual "
+		                             "(window 0x6065 %u)",
+		         v, d->setup.following_window_counts);
+		break;
+	case MLIP_DRIVE_TPDO_LOST:
+		snprintf(what, sizeof(what), "no TPDO for %lld periods", v);
+		break;
+	default:
+		snprintf(what, sizeof(what), "?");
+	}
+	fprintf(stderr,
+	        PROG ": drive fault: node %u (axis %c): %s: %s, period %llu, block %llu (line %u): "
+	             "every axis stops on the path; state fault until mlip-rt restarts\n",
+	        d->node, d->letter, mlip_drive_fault_name(ds->fault_reason), what,
+	        (unsigned long long)ds->fault_cycle, (unsigned long long)ds->fault_seq,
+	        (unsigned)ds->fault_line);
+}
 
 /* One line per event: a counter that starts rising again after a quiet
  * second (20 monitor ticks), or a state change. */
@@ -111,10 +161,14 @@ static void *monitor(void *arg)
 {
 	struct monitor *mo = arg;
 	struct mlip_ring_status a, b;
-	int have = 0, told = 0;
+	int have = 0, told = 0, told_drive = 0;
 	for (unsigned tick = 1; !mo->done; tick++) {
 		struct timespec ts = {0, 50000000L};
 		nanosleep(&ts, NULL);
+		if (mo->ds != NULL && !told_drive && __atomic_load_n(&mo->ds->fault, __ATOMIC_ACQUIRE)) {
+			report_drive_fault(mo->ds);
+			told_drive = 1;
+		}
 		if (mlip_ring_status_read(mo->ring, &b) == MLIP_OK) {
 			if (have) {
 				report(&a, &b);
@@ -159,6 +213,9 @@ static void usage(FILE *f)
 	        "  --cpu N             pin the loop to CPU N (default: no pinning)\n"
 	        "  --strategy S        mpct (default), bisector or stop\n"
 	        "  --capacity N        ring records, power of two (default %u)\n"
+	        "  --drives            bring up CiA 402 drives first (NMT, SDO set-up, power state\n"
+	        "                      machine), start where they are, supervise and shut them\n"
+	        "                      down (also [DRIVES] ENABLE = 1; README: Deploying)\n"
 	        "  -h, --help\n",
 	        MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY);
 }
@@ -170,6 +227,18 @@ static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 	                            cfg->machine.period_s, &l) != MLIP_OK) {
 		fprintf(stderr, PROG ": cannot compute the bus load for this profile\n");
 		return -1;
+	}
+	if (cfg->drives.enable) {
+		/* RPDOs of 6 bytes (controlword), a 6-byte TPDO back from each drive,
+		 * heartbeats of the drives and the master (1 byte each) */
+		int n = cfg->machine.n_axes;
+		double hb = cfg->machine.period_s / (cfg->drives.heartbeat_ms * 1e-3);
+		double bits = n * ((double)mlip_can_frame_bits(0, 6).nominal -
+		                   mlip_can_frame_bits(0, 4).nominal + mlip_can_frame_bits(0, 6).nominal) +
+		              (n + 1) * hb * mlip_can_frame_bits(0, 1).nominal;
+		l.busy_s += bits / cfg->can.bitrate;
+		l.load = l.busy_s / cfg->machine.period_s;
+		l.frames += n;
 	}
 	fprintf(stderr,
 	        PROG ": bus load %.1f %% (%s, %d frames per %.3f ms period, %.0f us of %u bit/s)\n",
@@ -199,7 +268,8 @@ int main(int argc, char **argv)
 		{"shm", required_argument, 0, 's'},      {"priority", required_argument, 0, 'p'},
 		{"cpu", required_argument, 0, 'C'},      {"strategy", required_argument, 0, 'S'},
 		{"capacity", required_argument, 0, 'n'}, {"help", no_argument, 0, 'h'},
-		{0, 0, 0, 0}};
+		{"drives", no_argument, 0, 'D'},         {0, 0, 0, 0}};
+	int want_drives = 0;
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
 		switch (c) {
@@ -240,6 +310,9 @@ int main(int argc, char **argv)
 			break;
 		case 'n':
 			capacity = strtoul(optarg, NULL, 0);
+			break;
+		case 'D':
+			want_drives = 1;
 			break;
 		case 'h':
 			usage(stdout);
@@ -284,6 +357,13 @@ int main(int argc, char **argv)
 		cfg.can.bitrate = (uint32_t)bitrate;
 	}
 	int use_can = strcmp(iface, "none") != 0;
+	if (want_drives) {
+		cfg.drives.enable = 1;
+	}
+	if (cfg.drives.enable && (!use_can || prof != MLIP_CAN_CIA402)) {
+		fprintf(stderr, PROG ": CiA 402 drives need a CAN interface and the cia402 profile\n");
+		return 2;
+	}
 	if (use_can && bus_budget(&cfg, prof) != 0) {
 		return 1;
 	}
@@ -323,6 +403,35 @@ int main(int argc, char **argv)
 		mlip_shm_close(&shm);
 		return 1;
 	}
+	mlip_rt_fn tick_fn = mlip_controller_tick;
+	void *tick_ctx = &ctl;
+	static struct mlip_co_port port;
+	if (cfg.drives.enable) {
+		/* bring-up, before the first period: nothing moves on any error */
+		double start[MLIP_MAX_AXES];
+		char why[320];
+		if (mlip_co_socket_open(&port, iface, &cfg.machine, why, sizeof(why)) != 0 ||
+		    mlip_drives_init(&drives, &cfg, &port, drive_log, NULL, why, sizeof(why)) != 0 ||
+		    mlip_drives_bringup(&drives, start, why, sizeof(why)) != 0) {
+			fprintf(stderr, PROG ": drives not brought up: %s; nothing moves\n", why);
+			mlip_co_socket_close(&port);
+			mlip_shm_close(&shm);
+			mlip_canio_close(&io);
+			return 1;
+		}
+		/* start where the machine is: the first setpoint is the position actual */
+		memcpy(ctl.pos, start, sizeof(start[0]) * (size_t)cfg.machine.n_axes);
+		mlip_planner_init(&planner, &cfg.machine, (mlip_strategy)st, cfg.lookahead, start);
+		ctl.enc.rpdo_controlword = 1;
+		drives.ctl = &ctl;
+		tick_fn = mlip_drives_tick;
+		tick_ctx = &drives;
+		fprintf(stderr, PROG ": start position");
+		for (int k = 0; k < cfg.machine.n_axes; k++) {
+			fprintf(stderr, " %c %.4f", cfg.machine.axis[k].letter, start[k]);
+		}
+		fprintf(stderr, " (position actual of the drives; HOME is not used)\n");
+	}
 	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead */
 	ctl.exit_request = got_exit; /* init cleared it: keep a stop asked during start-up */
 
@@ -336,15 +445,29 @@ int main(int argc, char **argv)
 	mon.iface = iface;
 	mon.io = use_can ? &io : NULL;
 	mon.ring = shm.ring;
+	mon.ds = cfg.drives.enable ? &drives : NULL;
 	pthread_attr_t attr;
 	pthread_attr_init(&attr);
 	pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
 	int mon_ok = pthread_create(&mon_th, &attr, monitor, &mon) == 0;
 	pthread_attr_destroy(&attr);
-	int rc = mlip_rt_run(&ro, mlip_controller_tick, NULL, &ctl, &run);
+	int rc = mlip_rt_run(&ro, tick_fn, NULL, tick_ctx, &run);
 	if (mon_ok) {
 		mon.done = 1;
 		pthread_join(mon_th, NULL);
+	}
+	if (cfg.drives.enable) {
+		if (drives.shutdown_ok) {
+			fprintf(stderr, PROG ": drives disabled in order (disable operation, shutdown) "
+			                "with the SYNC running, then the SYNC stopped\n");
+		} else {
+			fprintf(stderr, PROG ": drives: in-loop shut-down incomplete (%s): shutting "
+			                "down by SDO\n",
+			        drives.shutdown_note[0] ? drives.shutdown_note : "the loop ended early");
+			mlip_drives_disable(&drives);
+		}
+		mlip_drives_release(&drives);
+		mlip_co_socket_close(&port);
 	}
 	if (rc < 0) {
 		fprintf(stderr, PROG ": cannot start the loop: %s\n", strerror(-rc));

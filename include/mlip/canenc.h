@@ -116,6 +116,8 @@ struct mlip_canenc {
 	 * period), [2..5] target position 0x607A. 0: the 4-byte RPDO above. */
 	uint8_t rpdo_controlword;
 	uint16_t controlword[MLIP_MAX_AXES];
+	uint32_t rpdo_mute; /* cia402: bit i set, no RPDO for axis i (a drive not
+	                       in "operation enabled" is sent no target) */
 };
 
 /* A decoded period. */
