@@ -207,6 +207,7 @@ static void observe(struct mlip_drives *ds, const struct mlip_can_frame *f, uint
 		o->statusword = m->statusword;
 		o->position_counts = m->position_counts;
 		o->tpdo_cycle = cycle;
+		o->tpdo_count++;
 		break;
 	default:
 		break;
@@ -689,7 +690,10 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		start_pos[i] = (int32_t)v / ds->d[i].counts_per_unit;
 		ds->d[i].obs.nmt_state = MLIP_NMT_OPERATIONAL;
 		ds->d[i].obs.hb_ns = ds->port.now_ns(ds->port.ctx);
-		ds->d[i].n_targets = 0;
+		for (int k = 0; k < MLIP_DRIVE_HIST; k++) {
+			ds->d[i].targets[k] = (int32_t)v; /* before the first period: here */
+		}
+		ds->d[i].obs.tpdo_count = 0;
 		say(ds, "%s: operation enabled at %.4f %s (%d counts): the planner starts there",
 		     axis_of(ds, i, who, sizeof(who)), start_pos[i],
 		     a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", (int32_t)v);
@@ -767,10 +771,17 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now)
 			continue;
 		}
 		x.window_counts = d->setup.following_window_counts;
-		x.following_counts =
-		    d->obs.tpdo_cycle == cycle && d->n_targets > 0
-		        ? mlip_drive_following_error(d->targets, d->n_targets, d->obs.position_counts)
-		        : -1;
+		/* the newest TPDO answers SYNC j = tpdo_count, sent in period j */
+		uint64_t j = d->obs.tpdo_count;
+		x.following_counts = -1;
+		if (d->obs.tpdo_cycle == cycle && j >= 1 && cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
+			int32_t t[MLIP_DRIVE_LAG];
+			for (int k = 0; k < MLIP_DRIVE_LAG; k++) {
+				t[k] = d->targets[(j - 1 - (uint64_t)k + MLIP_DRIVE_HIST) % MLIP_DRIVE_HIST];
+			}
+			x.following_counts =
+			    mlip_drive_following_error(t, MLIP_DRIVE_LAG, d->obs.position_counts);
+		}
 		mlip_drive_fault f = mlip_drive_supervise(&d->obs, &x, &detail);
 		if (f == MLIP_DRIVE_OK) {
 			continue;
@@ -852,11 +863,7 @@ int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t)
 		struct mlip_drive *d = &ds->d[i];
 		int32_t counts;
 		mlip_can_counts(c->pos[i], d->counts_per_unit, &counts);
-		memmove(d->targets + 1, d->targets, (MLIP_DRIVE_HIST - 1) * sizeof(d->targets[0]));
-		d->targets[0] = counts;
-		if (d->n_targets < MLIP_DRIVE_HIST) {
-			d->n_targets++;
-		}
+		d->targets[cycle % MLIP_DRIVE_HIST] = counts;
 	}
 	serve_heartbeat(ds, now);
 	/* the controller is at rest and asked to end: never while it moves */

@@ -206,7 +206,11 @@ int mlip_co_socket_open(struct mlip_co_port *p, const char *ifname, const struct
                         char *why, size_t why_len);
 void mlip_co_socket_close(struct mlip_co_port *p);
 
-#define MLIP_DRIVE_HIST 8 /* targets kept for the following error */
+/* Targets kept per drive, by period: a TPDO is judged against the targets
+ * sent before the SYNC it answers, so a drive that answers late (the
+ * emulated VM) is judged as exactly as a prompt one, up to this lag. */
+#define MLIP_DRIVE_HIST 64
+#define MLIP_DRIVE_LAG 4 /* targets before that SYNC a position may follow */
 
 struct mlip_drive {
 	uint8_t node;
@@ -216,8 +220,7 @@ struct mlip_drive {
 	struct mlip_drive_obs obs;
 	mlip_402_state state;       /* as last confirmed */
 	int32_t start_counts;       /* position actual at bring-up */
-	int32_t targets[MLIP_DRIVE_HIST]; /* sent, newest first */
-	int n_targets;
+	int32_t targets[MLIP_DRIVE_HIST]; /* target sent in period c at c % MLIP_DRIVE_HIST */
 };
 
 enum { MLIP_DRIVES_RUN = 0, MLIP_DRIVES_DISABLING, MLIP_DRIVES_SHUTTING_DOWN, MLIP_DRIVES_OFF };

@@ -236,6 +236,7 @@ struct mlip_drive_obs {
 	uint16_t statusword;
 	int32_t position_counts;
 	uint64_t tpdo_cycle;     /* period of the last TPDO; 0: none yet */
+	uint64_t tpdo_count;     /* TPDOs since the first SYNC: the n-th answers SYNC n */
 	uint8_t nmt_state;
 	uint64_t hb_ns;          /* time of the last heartbeat */
 	struct mlip_emcy emcy;
@@ -258,11 +259,11 @@ mlip_drive_fault mlip_drive_supervise(const struct mlip_drive_obs *o,
                                       const struct mlip_drive_expect *x, int64_t *detail);
 const char *mlip_drive_fault_name(mlip_drive_fault f);
 
-/* The following error of a position actual against the targets sent in the
- * last n periods (targets[0] the newest): the smallest distance, since the
- * drive applies a target one period after it is sent (at the next SYNC) and
- * reports the position it sampled at a SYNC, and a real drive lags its
- * target by a few periods more while it moves. */
+/* The following error of a position actual against the n targets sent
+ * before the SYNC its TPDO answers (targets[0] the last one): the smallest
+ * distance, since a drive applies a target at the SYNC after it is sent,
+ * reports the position it sampled at a SYNC, and lags by a few periods more
+ * while it moves. */
 int64_t mlip_drive_following_error(const int32_t *targets, int n, int32_t actual);
 
 #endif

@@ -648,6 +648,88 @@ static void test_loop_heartbeat_and_emcy(void **state)
 	free(mem);
 }
 
+/* A drive that answers every SYNC 20 periods late (as the canopen drives do
+ * in the emulated VM) while the machine moves, its position two periods
+ * behind the target (as they follow): its TPDOs are judged against the
+ * targets sent before the SYNC they answer, so no false following error;
+ * the same drive falling 1001 counts beyond is caught at once. */
+static int32_t sent[NP][2048];
+
+static void period_late(int delay, int32_t behind_x)
+{
+	uint64_t c = cycle + 1;
+	struct mlip_can_frame f;
+	for (int i = 0; i < NP; i++) {
+		struct peer *p = &peers[i];
+		if (c > (uint64_t)delay) {
+			uint64_t sy = c - (uint64_t)delay; /* the SYNC answered now */
+			int32_t actual = sy > 2 ? sent[i][sy - 2] : p->pos;
+			mlip_co_pdo_encode(0x180u + p->node, p_sw[p->state],
+			                   actual - (i == 0 ? behind_x : 0), &f);
+			push(&f);
+		}
+		if (cycle % 100 == 0) {
+			peer_hb(p);
+		}
+	}
+	struct mlip_rt_tick t = {.cycle = cycle++};
+	now_ns += 1000000;
+	mlip_drives_tick(&ds, &t);
+	q_head = q_tail;
+	for (int i = 0; i < NP; i++) {
+		mlip_can_counts(ctl.pos[i], 1000.0, &sent[i][c]);
+	}
+}
+
+static void test_loop_late_drive(void **state)
+{
+	double start[NP];
+	(void)state;
+	loop_setup(start);
+	/* 40 mm along X at 100 mm/s from where X is */
+	for (uint64_t k = 1; k <= 4; k++) {
+		struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)k};
+		memcpy(b.target, start, sizeof(start));
+		b.target[0] = start[0] + 10.0 * (double)k;
+		struct mlip_ring_rec rec;
+		mlip_ring_rec_from_block(&rec, &b, k);
+		assert_int_equal(mlip_ring_push(ctl.ring, &rec), MLIP_OK);
+	}
+	int k;
+	for (k = 0; k < 1000; k++) {
+		period_late(20, 0);
+	}
+	/* it moved at full speed (100 counts a period) and ended there */
+	assert_true(sent[0][1000] - sent[0][1] == 40000);
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
+	free(mem);
+
+	/* again, X falling behind from period 300 (moving at 100 counts a period):
+	 * 1001 counts beyond the target MLIP_DRIVE_LAG periods before the SYNC */
+	setup(NULL);
+	loop_setup(start);
+	for (uint64_t n = 1; n <= 4; n++) {
+		struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)n};
+		memcpy(b.target, start, sizeof(start));
+		b.target[0] = start[0] + 10.0 * (double)n;
+		struct mlip_ring_rec rec;
+		mlip_ring_rec_from_block(&rec, &b, n);
+		assert_int_equal(mlip_ring_push(ctl.ring, &rec), MLIP_OK);
+	}
+	for (k = 0; k < 300; k++) {
+		period_late(20, 0);
+	}
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
+	for (k = 0; k < 100 && !__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE); k++) {
+		period_late(20, 1001 + (MLIP_DRIVE_LAG - 2) * 100);
+	}
+	assert_int_equal(ds.fault_reason, MLIP_DRIVE_FOLLOWING_ERROR);
+	assert_int_equal(ds.fault_drive, 0);
+	assert_int_equal(ds.fault_detail, 1001);
+	assert_int_equal(k, 1); /* the first late TPDO showing it */
+	free(mem);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -660,6 +742,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_loop_fault_bit, setup),
 	    cmocka_unit_test_setup(test_loop_following_error, setup),
 	    cmocka_unit_test_setup(test_loop_heartbeat_and_emcy, setup),
+	    cmocka_unit_test_setup(test_loop_late_drive, setup),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
