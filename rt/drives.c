@@ -419,6 +419,25 @@ static int read_state(struct mlip_drives *ds, int i, uint16_t *sw, char *why, si
 	return rc;
 }
 
+static int read_position(struct mlip_drives *ds, int i, int32_t *counts, char *why,
+                         size_t why_len)
+{
+	uint32_t v = 0;
+	int rc = sdo(ds, i, 1, 0x6064, 0, 0, 0, "position actual value", &v, why, why_len);
+	*counts = (int32_t)v;
+	return rc;
+}
+
+/* Let the drive work for a while (frames read, the heartbeat served). */
+static void pause_poll(struct mlip_drives *ds)
+{
+	struct mlip_can_frame f;
+	struct mlip_co_msg m;
+	uint64_t until = ds->port.now_ns(ds->port.ctx) + STATE_POLL_NS;
+	while (wait_frame(ds, until, &f, &m) > 0) {
+	}
+}
+
 static int write_cw(struct mlip_drives *ds, int i, uint16_t cw, char *why, size_t why_len)
 {
 	return sdo(ds, i, 0, 0x6040, 0, cw, 2, "controlword", NULL, why, why_len);
@@ -462,11 +481,7 @@ static int transition(struct mlip_drives *ds, int i, uint16_t cw, mlip_402_state
 			         mlip_402_state_name(want), emcy);
 			return -ETIMEDOUT;
 		}
-		struct mlip_can_frame f;
-		struct mlip_co_msg m;
-		uint64_t pause = ds->port.now_ns(ds->port.ctx) + STATE_POLL_NS;
-		while (wait_frame(ds, pause, &f, &m) > 0) {
-		}
+		pause_poll(ds);
 	}
 }
 
@@ -504,11 +519,7 @@ static int up_to_switched_on(struct mlip_drives *ds, int i, char *why, size_t wh
 				         axis_of(ds, i, who, sizeof(who)), mlip_402_state_name(s), sw);
 				return -ETIMEDOUT;
 			}
-			struct mlip_can_frame f;
-			struct mlip_co_msg m;
-			uint64_t pause = ds->port.now_ns(ds->port.ctx) + STATE_POLL_NS;
-			while (wait_frame(ds, pause, &f, &m) > 0) {
-			}
+			pause_poll(ds);
 			rc = read_state(ds, i, &sw, why, why_len);
 			if (rc != 0) {
 				return rc;
@@ -638,26 +649,26 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 	/* where the machine is, before anything is enabled */
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_axis *a = &ds->m->axis[i];
-		uint32_t v = 0;
-		rc = sdo(ds, i, 1, 0x6064, 0, 0, 0, "position actual value", &v, why, why_len);
+		int32_t v = 0;
+		rc = read_position(ds, i, &v, why, why_len);
 		if (rc != 0) {
 			goto fail;
 		}
-		ds->d[i].start_counts = (int32_t)v;
-		double pos = (int32_t)v / ds->d[i].counts_per_unit;
+		ds->d[i].start_counts = v;
+		double pos = v / ds->d[i].counts_per_unit;
 		const char *unit = a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm";
 		if (pos < a->min_limit || pos > a->max_limit) {
 			snprintf(why, why_len,
 			         "%s is at %.4f %s (%d counts), beyond its soft limit %s %g: bring it "
 			         "back within %g..%g by hand before starting",
-			         axis_of(ds, i, who, sizeof(who)), pos, unit, (int32_t)v,
+			         axis_of(ds, i, who, sizeof(who)), pos, unit, v,
 			         pos < a->min_limit ? "MIN_LIMIT" : "MAX_LIMIT",
 			         pos < a->min_limit ? a->min_limit : a->max_limit, a->min_limit,
 			         a->max_limit);
 			rc = -ERANGE;
 			goto fail;
 		}
-		rc = sdo(ds, i, 0, 0x607A, 0, v, 4, "target position", NULL, why, why_len);
+		rc = sdo(ds, i, 0, 0x607A, 0, (uint32_t)v, 4, "target position", NULL, why, why_len);
 		if (rc != 0) {
 			goto fail;
 		}
@@ -671,12 +682,12 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 	}
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_axis *a = &ds->m->axis[i];
-		uint32_t v = 0;
-		rc = sdo(ds, i, 1, 0x6064, 0, 0, 0, "position actual value", &v, why, why_len);
+		int32_t v = 0;
+		rc = read_position(ds, i, &v, why, why_len);
 		if (rc != 0) {
 			goto fail;
 		}
-		int64_t moved = (int64_t)(int32_t)v - ds->d[i].start_counts;
+		int64_t moved = (int64_t)v - ds->d[i].start_counts;
 		if (moved > (int64_t)ds->d[i].setup.following_window_counts ||
 		    -moved > (int64_t)ds->d[i].setup.following_window_counts) {
 			snprintf(why, why_len,
@@ -686,17 +697,17 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 			rc = -ERANGE;
 			goto fail;
 		}
-		ds->d[i].start_counts = (int32_t)v;
-		start_pos[i] = (int32_t)v / ds->d[i].counts_per_unit;
+		ds->d[i].start_counts = v;
+		start_pos[i] = v / ds->d[i].counts_per_unit;
 		ds->d[i].obs.nmt_state = MLIP_NMT_OPERATIONAL;
 		ds->d[i].obs.hb_ns = ds->port.now_ns(ds->port.ctx);
 		for (int k = 0; k < MLIP_DRIVE_HIST; k++) {
-			ds->d[i].targets[k] = (int32_t)v; /* before the first period: here */
+			ds->d[i].targets[k] = v; /* before the first period: here */
 		}
 		ds->d[i].obs.tpdo_count = 0;
 		say(ds, "%s: operation enabled at %.4f %s (%d counts): the planner starts there",
 		     axis_of(ds, i, who, sizeof(who)), start_pos[i],
-		     a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", (int32_t)v);
+		     a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", v);
 	}
 	ds->phase = MLIP_DRIVES_RUN;
 	return 0;
