@@ -457,6 +457,19 @@ int main(int argc, char **argv)
 		pthread_join(mon_th, NULL);
 	}
 	if (cfg.drives.enable) {
+		char faulted[64] = "";
+		size_t k = 0;
+		for (int i = 0; i < drives.n && k < sizeof(faulted); i++) {
+			if (drives.mute & (1u << i)) {
+				k += (size_t)snprintf(faulted + k, sizeof(faulted) - k, " %u",
+				                      drives.d[i].node);
+			}
+		}
+		if (faulted[0]) {
+			fprintf(stderr, PROG ": drives: node%s faulted: left in the drive's own fault "
+			                "reaction\n",
+			        faulted);
+		}
 		if (drives.shutdown_ok) {
 			fprintf(stderr, PROG ": drives disabled in order (disable operation, shutdown) "
 			                "with the SYNC running, then the SYNC stopped\n");
