@@ -32,7 +32,7 @@ import time
 
 import pytest
 
-import rtharness as h
+import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
 
 IFACE = h.IFACE
 
@@ -447,6 +447,57 @@ def test_listener_counts_to_positions(tmp_path):
     assert any("COUNTS_PER_UNIT 100" in n for n in rep["dbc_notes"])
 
 
+def test_listener_records_a_cia402_deployment(tmp_path):
+    """[DRIVES] ENABLE = 1 (--drives): 6-byte RPDOs (controlword, target),
+    the drives' TPDOs (statusword, position actual value), an EMCY, heartbeats
+    and NMT commands on the same bus: the cycles decode as before, the TPDOs
+    go to --tpdo-csv and the report's "drives", the rest is named; the same
+    frames through an .asc log (python-can's can.Logger / can.LogReader)
+    decode the same."""
+    setup = h.setup_of(MILL)
+    t0 = 1_700_000_000_000_000_000
+    seq = [(t0, (0x000, bytes([0x01, 0]), False))]
+    for c in range(10):
+        t = t0 + (c + 1) * 1_000_000
+        fr = [(setup.sync_id, b"", False)]
+        fr += [(0x180 + nd, struct.pack("<Hi", 0x1237, 500 * i + c - 1), False)
+               for i, nd in enumerate(setup.nodes)]
+        fr += [(setup.rpdo_base + nd, struct.pack("<Hi", 0x0F, 500 * i + c), False)
+               for i, nd in enumerate(setup.nodes)]
+        if c == 4:
+            fr.append((0x082, bytes.fromhex("1086010000000000"), False))
+        if c % 5 == 0:
+            fr += [(0x700 + nd, b"\x05", False) for nd in setup.nodes]
+        seq += [(t + j * 1000, f) for j, f in enumerate(fr)]
+    log = tmp_path / "d.log"
+    _write_log(log, seq)
+    out = {}
+    for name, src in (("log", log), ("asc", tmp_path / "d.asc")):
+        if name == "asc":  # candump -> .asc through the listener's own --log
+            assert h.listen.main(["--from-log", str(log), "--config", str(MILL), "--drives",
+                                  "--log", str(src), "-q"]) == 0
+        js = tmp_path / f"{name}.json"
+        tp = tmp_path / f"{name}-tpdo.csv"
+        assert h.listen.main(["--from-log", str(src), "--config", str(MILL), "--drives",
+                              "--json", str(js), "--tpdo-csv", str(tp), "-q"]) == 0
+        out[name] = (json.loads(js.read_text()), tp.read_text().splitlines())
+    for rep, rows in out.values():
+        assert rep["cycles"] == 10 and rep["incomplete"] == 0 and rep["malformed"] == 0
+        assert rep["last"]["counts"] == {"X": 9, "Y": 509, "Z": 1009}
+        assert rep["layout"]["rpdo_len"] == 6
+        d = rep["drives"]
+        assert [d[str(n)]["tpdos"] for n in setup.nodes] == [10, 10, 10]
+        assert d["2"]["last"]["actual"] == 508 and d["2"]["last"]["state"] == "operation enabled"
+        assert d["2"]["emcy"][0]["code"] == "0x8610" and d["2"]["emcy"][0]["error_register"] == 1
+        assert d["1"]["heartbeats"] == 2 and d["1"]["heartbeat_state"] == "operational"
+        assert rep["nmt"] == [{"t": rep["nmt"][0]["t"], "command": "0x01", "node": 0}]
+        assert rows[0] == "t,node,axis,statusword,state,actual,pos" and len(rows) == 31
+        assert rows[-1].split(",")[1:] == ["3", "Z", str(0x1237), "operation enabled", "1008",
+                                           "1.008"]
+    assert out["log"][1] == out["asc"][1] or \
+        [r.split(",")[1:] for r in out["log"][1]] == [r.split(",")[1:] for r in out["asc"][1]]
+
+
 @pytest.mark.parametrize("profile,message,change,error", [
     ("cia402", "RPDO_NODE2", {"length": 16}, "Y_target is 16 bits"),
     ("cia402", "RPDO_NODE1", {"is_signed": False}, "unsigned"),
@@ -463,10 +514,11 @@ def test_listener_refuses_a_dbc_that_disagrees(monkeypatch, profile, message, ch
         sigs = list(m.signals)
         if m.name == message:
             # the first axis field, or the counter when the error names it
-            target = [s for s in sigs if (s.name == "cycle") == ("cycle" in error)][:1]
+            target = [s for s in sigs if (s.name == "cycle") == ("cycle" in error)
+                      and s.name != "controlword"][:1]
             sigs = [h.listen._ns(dict(vars(s), **change)) if s in target else s for s in sigs]
         bad.append(h.listen._ns(dict(vars(m), signals=sigs)))
-    monkeypatch.setattr(h.listen, "load_dbc", lambda path, cache=None: (bad, "test"))
+    monkeypatch.setattr(h.layout, "load_dbc", lambda path, cache=None: (bad, "test"))
     with pytest.raises(h.listen.UsageError, match=error):
         h.listen.Layout(h.setup_of(MILL), profile, h.listen.DEFAULT_DBC)
     assert h.listen.main(["--check-layout", "--config", str(MILL), "--profile", profile]) == 2

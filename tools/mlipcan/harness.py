@@ -1,12 +1,12 @@
 """Glue for the end-to-end CAN runs: mlip-rt on a real (v)CAN interface, the
-listener (tools/mlip-listen.py) recording the bus, mlip-feed streaming a
-program, mlip-ctl commands while it runs, and the comparisons against the
-offline simulator (mlip-sim) and the checker (mlip-check).
+listener (mlipcan.listen, tools/mlip-listen.py) recording the bus, mlip-feed
+streaming a program, mlip-ctl commands while it runs, and the comparisons
+against the offline simulator (mlip-sim) and the checker (mlip-check).
 
-Used by tests/can/test_rt_vcan.py and tools/demo.sh. Standard library only:
-every Python import costs seconds in the software-emulated test VM.
+Used by tools/demo.sh (through tools/mlip-demo.py) and the CAN tests
+(tests/can). Standard library only: every Python import costs seconds in the
+software-emulated test VM.
 """
-import importlib.util
 import json
 import math
 import os
@@ -16,6 +16,8 @@ import sys
 import threading
 import time
 from pathlib import Path
+
+from . import layout, listen, sources
 
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / os.environ.get("MLIP_BUILD", "build")
@@ -40,18 +42,6 @@ def tool(name):
     return str(BUILD / name)
 
 
-def load_listener():
-    """tools/mlip-listen.py as a module (its config reader and decoders)."""
-    spec = importlib.util.spec_from_file_location("mlip_listen", LISTEN)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["mlip_listen"] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-listen = load_listener()
-
-
 def setup_of(config):
     """Axes, nodes, counts per unit, ids of a machine INI (the listener's reader)."""
     return listen.Setup.from_ini(config)
@@ -60,7 +50,7 @@ def setup_of(config):
 def prime_dbc_cache():
     """Read the DBC with cantools once, so listener processes find its layout
     in the cache and skip the (slow in the VM) cantools import."""
-    return listen.load_dbc(listen.DEFAULT_DBC, ROOT / "build")[1]
+    return layout.load_dbc(layout.DEFAULT_DBC, ROOT / "build")[1]
 
 
 # ------------------------------------------------------------------ numbers
@@ -420,7 +410,7 @@ class Rig:
             self.listener = Proc("listen", [PY, LISTEN] + largs, w)
         else:
             def fn():
-                listen._stop = False
+                sources._stop = False
                 return listen.main(largs)
             self.listener = Proc("listen", [PY, LISTEN] + largs, w, fn=fn)
         self.listener.wait_for("listening on")
@@ -720,7 +710,8 @@ def plot(outdir, png):
     print(f"demo: velocity profile written to {png}")
 
 
-if __name__ == "__main__":
+def cli(argv=None):
+    """tools/mlip-demo.py: run the demo, or plot its result."""
     import argparse
 
     ap = argparse.ArgumentParser(description="the CAN demo: run it, or plot its result")
@@ -734,7 +725,7 @@ if __name__ == "__main__":
     p.add_argument("outdir")
     p.add_argument("png")
     sub.add_parser("prime")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     if a.cmd == "demo":
         sys.exit(1 if demo(a.outdir, Path(a.config), Path(a.program), a.profile) else 0)
     elif a.cmd == "plot":
