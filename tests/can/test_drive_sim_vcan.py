@@ -84,59 +84,28 @@ class Frames:
 
 class Bench:
     def __init__(self, tmp):
-        import canopen
+        import canopen  # slow in the emulated VM: only when these tests run
+
+        from mlipcan import drive as D
 
         self.canopen = canopen
         self.tmp = tmp
-        self.rec = tmp / "rec"
-        self.ctl = tmp / "control"
-        self.ctl.write_text("")
         self.frames = Frames()
         self.net = canopen.Network()
         self.net.listeners.append(self.frames)
         self.net.connect(interface="socketcan", channel=h.IFACE)
         self.nodes = {}
         for n in NODES:
-            r = self.net.add_node(n, self._od(n))
+            r = self.net.add_node(n, D.build_od(n))  # the master's view of the OD
             r.sdo.RESPONSE_TIMEOUT = T_WAIT / 4
             self.nodes[n] = r
         self.mark0 = self.frames.mark()
-        args = [sys.executable, SIM, "--can", h.IFACE, "--nodes", ",".join(map(str, NODES)),
-                "--record", self.rec, "--control", self.ctl, "--state", "5=fault",
-                "--inject", "4:refuse=0x6060,0x06090030", "--inject", "5:never-enable",
-                "--inject", "6:absent"]
-        for n, c in START.items():
-            args += ["--start", f"{n}={c}"]
-        self.proc = h.Proc("drivesim", args, tmp)
-        self.proc.wait_for(": ready")
+        self.sim = h.DriveSim(tmp, nodes=NODES, starts=START, states={5: "fault"},
+                              inject=["4:refuse=0x6060,0x06090030", "5:never-enable", "6:absent"])
+        self.proc = self.sim.proc
+        self.inject, self.events, self.wait_event = \
+            self.sim.inject, self.sim.events, self.sim.wait_event
         self.targets = {n: [] for n in HEALTHY}  # every target sent, in order
-
-    @staticmethod
-    def _od(n):
-        from mlipcan import drive as D
-
-        return D.build_od(n)  # the master's view of the object dictionary
-
-    def inject(self, line):
-        with open(self.ctl, "a") as fh:
-            fh.write(line + "\n")
-
-    def events(self, kind=None, node=None):
-        out = []
-        for line in (self.rec / "events.jsonl").read_text().splitlines():
-            e = json.loads(line)
-            if (kind is None or e["kind"] == kind) and (node is None or e["node"] == node):
-                out.append(e)
-        return out
-
-    def wait_event(self, pred, what, timeout=T_WAIT):
-        t_end = time.monotonic() + timeout
-        while time.monotonic() < t_end:
-            ev = [e for e in self.events() if pred(e)]
-            if ev:
-                return ev
-            time.sleep(0.02)
-        raise AssertionError(f"drive simulator recorded no {what} within {timeout} s")
 
     def cycle(self, targets, cw=0x0F, expect=HEALTHY):
         """SYNC; the TPDO of each node in expect; then one RPDO per node of
@@ -155,7 +124,7 @@ class Bench:
 
     def close(self):
         try:
-            self.proc.terminate(timeout=60)
+            self.sim.stop(timeout=60)
         finally:
             self.net.disconnect()
 
@@ -322,7 +291,7 @@ def test_csp_follows_targets_on_sync(bench):
             assert P.state_of(sw) == P.OPERATION_ENABLED and sw & P.SW_CSP_FOLLOWING
             assert not sw & P.SW_FOLLOWING_ERROR
     # the drive's record: the targets applied, in order, all of them but the last
-    rows = wait_sync_rows(b, lambda rows: all(
+    rows = b.sim.wait_sync_rows(lambda rows: all(
         len([r for r in rows if r["node"] == n and r["fresh"]]) >= n_cyc - 1 for n in HEALTHY))
     for n in HEALTHY:
         applied = [r["target"] for r in rows if r["node"] == n and r["fresh"]]
@@ -343,29 +312,6 @@ def test_csp_follows_targets_on_sync(bench):
                           "--json", str(w / "blf.json"), "-q"]) == 0
     rep2 = json.loads((w / "blf.json").read_text())
     assert rep2["cycles"] == n_cyc and rep2["last"]["counts"] == rep["last"]["counts"]
-
-
-def read_sync(b):
-    rows = []
-    with open(b.rec / "sync.csv") as fh:
-        fh.readline()
-        for line in fh:
-            f = line.rstrip("\n").split(",")
-            if len(f) != 9:
-                continue  # being written
-            rows.append({"sync": int(f[0]), "node": int(f[1]), "state": f[3], "cw": int(f[4]),
-                         "target": int(f[5]) if f[5] else None, "fresh": f[6] == "1",
-                         "actual": int(f[7]), "sw": int(f[8])})
-    return rows
-
-
-def wait_sync_rows(b, pred, timeout=T_WAIT):
-    t_end = time.monotonic() + timeout
-    while True:
-        rows = read_sync(b)
-        if pred(rows) or time.monotonic() > t_end:
-            return rows
-        time.sleep(0.05)
 
 
 def hold(b, n_cyc, expect=HEALTHY, targets=None):
@@ -461,6 +407,33 @@ def test_inject_refuse_sdo_at_run_time(bench):
         b.nodes[1].sdo[0x6065].raw = 1
     assert e.value.code == 0x08000022
     assert b.nodes[1].sdo[0x6065].raw == FE_WINDOW
+
+
+def test_consumer_heartbeat_lost(bench):
+    """Node 1 consumes the master's heartbeat (0x1016 sub 1 = node 127, 300 ms):
+    while it comes nothing happens; once it stops, within the consumer time
+    (plus the simulator's 5 ms poll), EMCY 0x8130 and fault."""
+    b = bench
+    r = b.nodes[1]
+    r.sdo[0x1016][1].raw = (127 << 16) | 300
+    assert r.sdo[0x1016][1].raw == (127 << 16) | 300
+    task = b.net.send_periodic(0x77F, b"\x05", 0.05)
+    try:
+        time.sleep(1.0)
+        assert not b.events("heartbeat_lost", 1) and sdo_state(r) == P.SWITCH_ON_DISABLED
+        m = b.frames.mark()
+    finally:
+        task.stop()
+    t_stop = time.monotonic()
+    t, _, d = b.frames.wait_for(m, 0x81)
+    assert struct.unpack_from("<H", d)[0] == 0x8130
+    assert t - t_stop > 0.2, "EMCY before the consumer time ran out"
+    if not h.IN_VM:
+        assert t - t_stop < 0.3 + 0.1
+    assert b.events("heartbeat_lost", 1)[0]["producer"] == 127
+    assert sdo_state(r) == P.FAULT
+    r.sdo[0x6040].raw = 0x80
+    assert sdo_state(r) == P.SWITCH_ON_DISABLED
 
 
 def test_nmt_reset_communication_and_absent(bench):

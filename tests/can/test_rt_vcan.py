@@ -498,6 +498,59 @@ def test_listener_records_a_cia402_deployment(tmp_path):
         [r.split(",")[1:] for r in out["log"][1]] == [r.split(",")[1:] for r in out["asc"][1]]
 
 
+def _batch(frames):
+    """(t ns, id, data) frames as one recvmmsg would leave them in the fast
+    path's buffers (frame, msg_len, the SO_TIMESTAMPNS control message)."""
+    src = h.sources
+
+    class NoSocket:
+        def fileno(self):
+            return -1
+
+    mm = src.MMsg(NoSocket(), n=len(frames))
+    for j, (t, cid, data) in enumerate(frames):
+        o = j * src.CANFD_MTU
+        struct.pack_into("=IB", mm.frames, o, cid, len(data))
+        mm.frames[o + 8:o + 8 + len(data)] = data
+        struct.pack_into("=Q", mm.hdr, mm.HDR * j + 40, 32)        # msg_controllen
+        struct.pack_into("=I", mm.hdr, mm.HDR * j + 56, 16)        # msg_len: CAN_MTU
+        struct.pack_into("=QiiQQ", mm.ctl, mm.CTL * j, 32, 1, src.SO_TIMESTAMPNS,
+                         t // 10**9, t % 10**9)
+    return src.Batch(mm, len(frames), 1)
+
+
+def test_listener_fast_path_with_drives_frames():
+    """The fast path (recvmmsg batches, the emulated VM's) on a deployment
+    stream: 6-byte RPDOs, the drives' TPDOs between them in any order. It
+    decodes what the frame-by-frame path decodes (cycles, times, counts,
+    TPDOs), and most stream frames by slicing."""
+    import random
+
+    setup = h.setup_of(MILL)
+    setup.drives = True
+    lay = h.listen.Layout(setup, "cia402", h.listen.DEFAULT_DBC, h.ROOT / "build")
+    fr, t = [], 1_700_000_000_000_000_000
+    for c in range(60):
+        t += 1_000_000
+        tp = [(t + 10, 0x180 + n, struct.pack("<Hi", 0x1237, c * n - 1)) for n in (1, 2, 3)]
+        rp = [(t + 20, 0x200 + n, struct.pack("<Hi", 15, c * n * 1000 - 7)) for n in (1, 2, 3)]
+        mix = tp + rp
+        random.Random(c).shuffle(mix)
+        rpdos = iter(rp)  # the RPDOs stay in axis order (mlip-rt sends them so)
+        fr += [(t, 0x80, b"")] + [x if x[1] < 0x200 else next(rpdos) for x in mix]
+    fast = h.decoders.DECODERS["cia402"](lay)
+    for i in range(0, len(fr), 97):
+        fast.feed_batch(_batch(fr[i:i + 97]))
+    slow = h.decoders.DECODERS["cia402"](lay)
+    for t, cid, d in fr:
+        slow.feed(t, cid, d, len(d), False)
+    assert len(slow.cyc) == 60 and slow.counts[-1] == (58993, 117993, 176993)
+    assert (fast.cyc, fast.tns, fast.counts) == (slow.cyc, slow.tns, slow.counts)
+    assert sorted(fast.drives.tpdo) == sorted(slow.drives.tpdo) and len(fast.drives.tpdo) == 180
+    assert fast.frames == slow.frames == len(fr) and fast.incomplete == fast.stray == 0
+    assert fast.fast_frames > 0.9 * 60 * 4
+
+
 @pytest.mark.parametrize("profile,message,change,error", [
     ("cia402", "RPDO_NODE2", {"length": 16}, "Y_target is 16 bits"),
     ("cia402", "RPDO_NODE1", {"is_signed": False}, "unsigned"),

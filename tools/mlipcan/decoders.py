@@ -90,6 +90,32 @@ class Decoder:
             i += 1
 
 
+class SubBatch:
+    """The frames keep of a Batch, as the batch path reads them; w[0] the
+    target words (data byte 0 or 2)."""
+
+    def __init__(self, B, keep, words):
+        self.B, self.keep, self.k = B, keep, len(keep)
+        self.ids = [B.ids[j] for j in keep]
+        self.lens = [B.lens[j] for j in keep]
+        self.msglen = [B.msglen[j] for j in keep]
+        self.w = [[words[j] for j in keep]]
+        self.sec = [B.sec[j] for j in keep]
+        self.nsec = [B.nsec[j] for j in keep]
+        self.raw_bad = [0] * self.k  # the stream's ids carry no flag bits
+        isfd = B.isfd
+        self.isfd = [isfd[j] for j in keep]
+
+    def t(self, j):
+        return self.sec[j] * 1000000000 + self.nsec[j]
+
+    def ts(self, i, end, step):
+        return [s * 1000000000 + n for s, n in zip(self.sec[i:end:step], self.nsec[i:end:step])]
+
+    def data(self, j):
+        return self.B.data(self.keep[j])
+
+
 class DriveFrames:
     """What CiA 402 drives say on the bus, for the report and --tpdo-csv:
     each node's TPDO1 (statusword u16 at byte 0, position actual value i32 at
@@ -174,15 +200,15 @@ class Cia402Decoder(Decoder):
         self.unpack = struct.Struct("<i").unpack_from
         # what one period looks like: SYNC, then the RPDOs in axis order
         order = sorted(self.rpdo, key=lambda cid: self.rpdo[cid][0])
-        # the fast path reads the target as the frame's first aligned int32:
-        # the 4-byte target-only RPDO; the 6-byte one (controlword first) goes
-        # frame by frame
+        # the fast path reads the target as one int32 word per frame: at data
+        # byte 0 (4-byte target-only RPDO) or 2 (6-byte RPDO, controlword
+        # first: Batch.w2, and the drives' frames set aside, feed_batch)
         self.rpdo_len = layout.rpdo_len
-        self.fast_ok = all(self.rpdo[cid][1] == 0 for cid in order)
+        self.stream_ids = frozenset([self.sync_id] + order)
         self.slot = list(range(self.n))  # RPDO of axis a is frame 1 + a
         reps = BATCH // (self.n + 1) + 2
         self.pat_ids = ([self.sync_id] + order) * reps
-        self.pat_lens = ([0] + [4] * self.n) * reps
+        self.pat_lens = ([0] + [self.rpdo_len] * self.n) * reps
         self.pat_mlen = [CAN_MTU] * ((self.n + 1) * reps)
 
     def feed(self, t, cid, data, ln, fd):
@@ -242,14 +268,37 @@ class Cia402Decoder(Decoder):
             self.tns.append(self.t_open)
             self.counts.append(tuple(self.cur))
 
+    def feed_batch(self, B):
+        """With drives the bus also carries their TPDOs, EMCYs, heartbeats
+        (and the RPDO's target sits at byte 2): those go frame by frame to
+        other(), the setpoint stream through the batch path on the rest."""
+        if self.rpdo_len == 4 and not self.drives_seen(B):
+            return Decoder.feed_batch(self, B)
+        ids, ours = B.ids, self.stream_ids
+        keep = [j for j, cid in enumerate(ids) if cid in ours]
+        if len(keep) != B.k:
+            bad = B.raw_bad
+            for j, cid in enumerate(ids):
+                if cid not in ours:
+                    self.frames += 1
+                    if bad[j]:
+                        self.foreign[cid] += 1
+                    else:
+                        self.other(B.t(j), cid, B.data(j))
+        Decoder.feed_batch(self, SubBatch(B, keep, B.w2 if self.rpdo_len == 6 else B.w[0]))
+
+    def drives_seen(self, B):
+        """Any frame of another id in this batch (C speed: set difference)."""
+        return not self.stream_ids.issuperset(B.ids)
+
     def at_boundary(self):
         return not self.open and not self.stray_seen
 
     def fast(self, B, i, m):
         P = self.L.frames_per_cycle
         end = i + m * P
-        if not self.fast_ok or B.ids[i:end] != self.pat_ids[:m * P] \
-                or B.lens[i:end] != self.pat_lens[:m * P] or B.msglen[i:end] != self.pat_mlen[:m * P]:
+        if B.ids[i:end] != self.pat_ids[:m * P] or B.lens[i:end] != self.pat_lens[:m * P] \
+                or B.msglen[i:end] != self.pat_mlen[:m * P]:
             return 0
         n = self.n
         w0 = B.w[0]

@@ -76,22 +76,19 @@ def build_od(node_id, heartbeat_ms=0, start_position=0, fe_window=10000, fe_time
                                        ("Product code", U32, "ro", PRODUCT_CODE),
                                        ("Revision number", U32, "ro", 0x00010000),
                                        ("Serial number", U32, "ro", node_id)])
-    record("RPDO1 communication parameter", 0x1400,
-           [("COB-ID used by RPDO", U32, "rw", 0x200 + node_id),
-            ("Transmission type", U8, "rw", 1)])
-    r = ODRecord("RPDO1 mapping parameter", 0x1600)
-    r.add_member(_var("Number of mapped objects", 0x1600, 0, U8, "rw", 2))
-    for i, val in enumerate((0x60400010, 0x607A0020, 0, 0), 1):
-        r.add_member(_var(f"Mapped object {i}", 0x1600, i, U32, "rw", val))
-    od.add_object(r)
-    record("TPDO1 communication parameter", 0x1800,
-           [("COB-ID used by TPDO", U32, "rw", 0x180 + node_id),
-            ("Transmission type", U8, "rw", 1)])
-    r = ODRecord("TPDO1 mapping parameter", 0x1A00)
-    r.add_member(_var("Number of mapped objects", 0x1A00, 0, U8, "rw", 2))
-    for i, val in enumerate((0x60410010, 0x60640020, 0, 0), 1):
-        r.add_member(_var(f"Mapped object {i}", 0x1A00, i, U32, "rw", val))
-    od.add_object(r)
+    def pdo(kind, com, cob, entries):
+        """PDO1: communication record (COB-ID, transmission type 1: synchronous)
+        and mapping record (sub 0 = number of entries, 4 entries)."""
+        record(f"{kind}1 communication parameter", com,
+               [(f"COB-ID used by {kind}", U32, "rw", cob), ("Transmission type", U8, "rw", 1)])
+        r = ODRecord(f"{kind}1 mapping parameter", com + 0x200)
+        r.add_member(_var("Number of mapped objects", com + 0x200, 0, U8, "rw", len(entries)))
+        for i, val in enumerate(entries + (0,) * (4 - len(entries)), 1):
+            r.add_member(_var(f"Mapped object {i}", com + 0x200, i, U32, "rw", val))
+        od.add_object(r)
+
+    pdo("RPDO", 0x1400, 0x200 + node_id, (0x60400010, 0x607A0020))
+    pdo("TPDO", 0x1800, 0x180 + node_id, (0x60410010, 0x60640020))
 
     add(_var("Controlword", 0x6040, 0, U16, "rw", 0, True))
     add(_var("Statusword", 0x6041, 0, U16, "ro", 0x0250, True))

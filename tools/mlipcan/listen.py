@@ -115,7 +115,8 @@ def main(argv=None):
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group()
     src.add_argument("--can", metavar="IFACE", help="SocketCAN interface to listen on, e.g. vcan0")
-    src.add_argument("--from-log", metavar="FILE", help="candump -l/-L log to decode instead")
+    src.add_argument("--from-log", metavar="FILE",
+                     help="a log to decode instead: candump -l/-L text, or .asc/.blf/... (can.LogReader)")
     ap.add_argument("--config", metavar="FILE", help="machine INI (axes, CAN_NODE, COUNTS_PER_UNIT, [CAN])")
     ap.add_argument("--profile", choices=sorted(DECODERS), help="output profile (default: [CAN] PROFILE)")
     ap.add_argument("--dbc", metavar="FILE", default=str(DEFAULT_DBC), help="frame layouts (default tools/mlip.dbc)")

@@ -195,6 +195,8 @@ class MMsg:
         self.pristine_buf = ctypes.create_string_buffer(self.pristine, len(self.pristine))
         self.fv = memoryview(self.frames)
         self.fw = self.fv.cast("i")   # signed 32-bit words of the frames
+        # the words 2 bytes further on: a 6-byte RPDO's target (data byte 2)
+        self.fw2 = self.fv[2:n * CANFD_MTU - 2].cast("i")
         self.fu = self.fv.cast("I")
         self.hv = memoryview(self.hdr).cast("I")
         self.cv = memoryview(self.ctl).cast("q")
@@ -243,6 +245,11 @@ class Batch:
                     self.drops = mm.cu[j * 16 + 12]
         self.fv = mm.fv
         self._isfd = self._bad = None
+
+    @property
+    def w2(self):
+        """The int32 at data byte 2 of each frame (a 6-byte RPDO's target)."""
+        return self.mm.fw2[2:self.k * 18:18].tolist()
 
     @property
     def isfd(self):
