@@ -22,7 +22,7 @@ import subprocess
 import time
 from pathlib import Path
 
-import rtharness as h
+import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
 from test_rt_vcan import DEMO, FLOWER, MILL, PAPER, bus_complete, cut, wait_periods
 
 # <linux/can/error.h>
