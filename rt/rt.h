@@ -209,7 +209,7 @@ void mlip_co_socket_close(struct mlip_co_port *p);
 /* Targets kept per drive, by period: a TPDO is judged against the targets
  * sent before the SYNC it answers, so a drive that answers late (the
  * emulated VM) is judged as exactly as a prompt one, up to this lag. */
-#define MLIP_DRIVE_HIST 64
+#define MLIP_DRIVE_HIST 1024 /* periods; a later TPDO is not judged */
 #define MLIP_DRIVE_LAG 4 /* targets before that SYNC a position may follow */
 
 struct mlip_drive {

@@ -552,6 +552,11 @@ mlip_drive_fault mlip_drive_supervise(const struct mlip_drive_obs *o,
 		*detail = (int64_t)(x->cycle - o->tpdo_cycle);
 		return MLIP_DRIVE_TPDO_LOST;
 	}
+	/* TPDOs that come, but answer a SYNC that old: the drive is that far behind */
+	if (x->tpdo_timeout > 0 && o->tpdo_count > 0 && x->cycle > o->tpdo_count + x->tpdo_timeout) {
+		*detail = (int64_t)(x->cycle - o->tpdo_count);
+		return MLIP_DRIVE_TPDO_LOST;
+	}
 	return MLIP_DRIVE_OK;
 }
 
@@ -560,7 +565,7 @@ const char *mlip_drive_fault_name(mlip_drive_fault f)
 	static const char *const names[] = {
 	    "ok",           "statusword fault bit",   "emergency",
 	    "heartbeat lost", "left NMT operational", "left operation enabled",
-	    "following error", "TPDO lost"};
+	    "following error", "TPDOs lost or late"};
 	return (int)f >= 0 && f <= MLIP_DRIVE_TPDO_LOST ? names[f] : "?";
 }
 

@@ -228,7 +228,8 @@ typedef enum {
 	MLIP_DRIVE_NOT_OPERATIONAL, /* its heartbeat says it left NMT operational */
 	MLIP_DRIVE_LEFT_ENABLED,    /* statusword no longer "operation enabled" */
 	MLIP_DRIVE_FOLLOWING_ERROR, /* |target sent - position actual| beyond the window */
-	MLIP_DRIVE_TPDO_LOST        /* no TPDO for too many periods */
+	MLIP_DRIVE_TPDO_LOST        /* no TPDO for tpdo_timeout periods, or the last one
+	                               answers a SYNC that many periods old */
 } mlip_drive_fault;
 
 /* What the bus last said about one drive (filled from mlip_co_classify). */

@@ -355,6 +355,14 @@ static void test_supervise(void **state)
 	x.cycle = 111;
 	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_TPDO_LOST);
 	assert_int_equal(det, 11);
+	/* TPDOs arriving, but answering SYNCs 10 and then 11 periods old */
+	x.cycle = 100;
+	o.tpdo_count = 90;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_OK);
+	o.tpdo_count = 89;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_TPDO_LOST);
+	assert_int_equal(det, 11);
+	o.tpdo_count = 0;
 	x.cycle = 100;
 	o.statusword = 0x0233; /* switched on: left operation enabled */
 	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_LEFT_ENABLED);
