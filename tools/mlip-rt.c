@@ -392,21 +392,21 @@ int main(int argc, char **argv)
 	}
 
 	static struct mlip_shm shm;
-	if (mlip_shm_create(&shm, shm_name, (uint32_t)capacity, &cfg.machine, info, sizeof(info)) != 0) {
-		fprintf(stderr, PROG ": %s\n", info);
-		mlip_canio_close(&io);
-		return 1;
-	}
-	if (mlip_controller_init(&ctl, &planner, &cfg.machine, &cfg.can, (mlip_strategy)st,
-	                         cfg.lookahead, shm.ring, use_can ? &io : NULL) != 0) {
-		fprintf(stderr, PROG ": the [CAN] settings do not fit this machine (node ids, ids)\n");
-		mlip_shm_close(&shm);
-		return 1;
-	}
-	mlip_rt_fn tick_fn = mlip_controller_tick;
-	void *tick_ctx = &ctl;
 	static struct mlip_co_port port;
 	if (cfg.drives.enable) {
+		/* never reset the drives of a controller that runs */
+		static struct mlip_shm peek;
+		if (mlip_shm_attach(&peek, shm_name, info, sizeof(info)) == 0) {
+			int alive = mlip_shm_controller_alive(peek.ring, MLIP_PEER_TIMEOUT_NS);
+			mlip_shm_close(&peek);
+			if (alive) {
+				fprintf(stderr, PROG ": a live controller runs on %s: its drives are left "
+				                "alone\n",
+				        shm_name);
+				mlip_canio_close(&io);
+				return 1;
+			}
+		}
 		/* bring-up, before the first period: nothing moves on any error */
 		double start[MLIP_MAX_AXES];
 		char why[320];
@@ -415,22 +415,41 @@ int main(int argc, char **argv)
 		    mlip_drives_bringup(&drives, start, why, sizeof(why)) != 0) {
 			fprintf(stderr, PROG ": drives not brought up: %s; nothing moves\n", why);
 			mlip_co_socket_close(&port);
-			mlip_shm_close(&shm);
 			mlip_canio_close(&io);
 			return 1;
 		}
-		/* start where the machine is: the first setpoint is the position actual */
-		memcpy(ctl.pos, start, sizeof(start[0]) * (size_t)cfg.machine.n_axes);
-		mlip_planner_init(&planner, &cfg.machine, (mlip_strategy)st, cfg.lookahead, start);
+		/* start where the machine is: the planner, and the machine published
+		 * in the segment (so mlip-feed parses programs from there), take the
+		 * positions actual as HOME; the first setpoint is the position actual */
+		fprintf(stderr, PROG ": start position");
+		for (int k = 0; k < cfg.machine.n_axes; k++) {
+			cfg.machine.axis[k].home = start[k];
+			fprintf(stderr, " %c %.4f", cfg.machine.axis[k].letter, start[k]);
+		}
+		fprintf(stderr, " (position actual of the drives, published as HOME)\n");
+	}
+	if (mlip_shm_create(&shm, shm_name, (uint32_t)capacity, &cfg.machine, info, sizeof(info)) != 0 ||
+	    mlip_controller_init(&ctl, &planner, &cfg.machine, &cfg.can, (mlip_strategy)st,
+	                         cfg.lookahead, shm.ring, use_can ? &io : NULL) != 0) {
+		fprintf(stderr, PROG ": %s\n", shm.ring != NULL ? "the [CAN] settings do not fit this "
+		                                                  "machine (node ids, ids)"
+		                                                : info);
+		if (cfg.drives.enable) {
+			mlip_drives_disable(&drives);
+			mlip_drives_release(&drives);
+			mlip_co_socket_close(&port);
+		}
+		mlip_shm_close(&shm);
+		mlip_canio_close(&io);
+		return 1;
+	}
+	mlip_rt_fn tick_fn = mlip_controller_tick;
+	void *tick_ctx = &ctl;
+	if (cfg.drives.enable) {
 		ctl.enc.rpdo_controlword = 1;
 		drives.ctl = &ctl;
 		tick_fn = mlip_drives_tick;
 		tick_ctx = &drives;
-		fprintf(stderr, PROG ": start position");
-		for (int k = 0; k < cfg.machine.n_axes; k++) {
-			fprintf(stderr, " %c %.4f", cfg.machine.axis[k].letter, start[k]);
-		}
-		fprintf(stderr, " (position actual of the drives; HOME is not used)\n");
 	}
 	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead */
 	ctl.exit_request = got_exit; /* init cleared it: keep a stop asked during start-up */

@@ -32,6 +32,8 @@ G1 X0 Y15 Z245
 G1 X25 Y0 Z255
 G1 X1.234 Y-5 Z250.5
 """
+# for the injections: long enough that a heartbeat timeout falls inside it
+PROGRAM_LONG = PROGRAM + "".join(PROGRAM.splitlines(True)[1:]) * 3
 DRIVES = """
 [DRIVES]
 ENABLE = 1
@@ -165,7 +167,7 @@ def test_bringup_program_shutdown(sim, tmp_path):
     t0 = time.time()
     with h.Rig(cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         rc, out, err = rig.feed(ngc, timeout=600)
-        assert rc == 0, err
+        assert rc == 0, err + rig.rt.stderr()
     r = rig.result
     assert r["rt_rc"] == 0, r["rt_stderr"]
     log = r["rt_stderr"]
@@ -175,7 +177,7 @@ def test_bringup_program_shutdown(sim, tmp_path):
         assert f"node {n} (axis {a}): CiA 402 drive (0x1000 = 0x00020192), 22 objects" in log
         assert f"node {n} (axis {a}): operational after NMT start" in log
         assert f"node {n} (axis {a}): enable operation (0x000F): operation enabled" in log
-    assert "start position X 1.2340 Y -5.0000 Z 250.5000" in log, log
+    assert "start position X 1.2340 Y -5.0000 Z 250.5000 (position actual" in log, log
     # the drive side: each object written as mlip says, read back
     for n in (1, 2, 3):
         w = {(e["index"], e["sub"]): e.get("value") for e in sim.events("sdo_write", n)
@@ -230,30 +232,40 @@ def test_supervision(sim, tmp_path, inject, node, axis, reasons):
     axis at rest within the limits (judged on what the drives applied)."""
     cfg = machine(tmp_path, [1, 2, 3])
     ngc = tmp_path / "p.ngc"
-    ngc.write_text(PROGRAM)
+    ngc.write_text(PROGRAM_LONG)
     t0 = time.time()
     with h.Rig(cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         f = rig.feeder(ngc)
-        # moving: a target away from the start
-        sim.wait_sync_rows(lambda rs: any(r["t"] >= t0 and r["target"] is not None and
-                                          r["target"] != START.get(r["node"]) for r in rs))
+        # moving: a target of this run away from this run's first one
+        def moving(rs):
+            first = {}
+            for r in rs:
+                if r["t"] >= t0 and r["target"] is not None:
+                    if first.setdefault(r["node"], r["target"]) != r["target"]:
+                        return True
+            return False
+
+        sim.wait_sync_rows(moving)
         sim.inject(inject)
         t_inj = time.time()
         rc = f.p.wait(timeout=300)
+        ferr = f.stderr()
         f.kill()
     if inject.endswith("heartbeat=off"):
         sim.inject(f"{node}:heartbeat=on")
     r = rig.result
     log = r["rt_stderr"]
-    assert rc == 5, f"mlip-feed exited {rc}"  # the controller's fault
+    assert rc == 5, f"mlip-feed exited {rc}: {ferr}\n{log}"  # the controller's fault
     m = re.search(rf"drive fault: node {node} \(axis {axis}\): (.*), period (\d+)", log)
     assert m and any(m.group(1).startswith(x) for x in reasons), log
     # detection, in periods: mlip's period (= SYNC number) against the
     # drives' SYNC at the injection
     rows = [x for x in sim.sync_rows() if x["t"] >= t0]
-    s_inj = min((x["sync"] for x in rows if x["t"] >= t_inj), default=None)
-    print(f"\n{inject}: {m.group(0)[:160]}; injected near SYNC {s_inj}, "
-          f"detected in period {m.group(2)}")
+    # the drives count SYNCs since they started; mlip's periods count its own
+    s0 = min(x["sync"] for x in rows) - 1
+    s_inj = min((x["sync"] - s0 for x in rows if x["t"] >= t_inj), default=None)
+    print(f"\n{inject}: {m.group(0)[:160]}; injected at the drives' SYNC {s_inj} of this "
+          f"run, detected in period {m.group(2)}")
     # every other axis at rest at the end, within the limits on the way
     others = [n for n in (1, 2, 3) if n != node]
     seq = targets_by_sync(rows, others)
