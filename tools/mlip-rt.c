@@ -414,6 +414,9 @@ int main(int argc, char **argv)
 		    mlip_drives_init(&drives, &cfg, &port, drive_log, NULL, why, sizeof(why)) != 0 ||
 		    mlip_drives_bringup(&drives, start, why, sizeof(why)) != 0) {
 			fprintf(stderr, PROG ": drives not brought up: %s; nothing moves\n", why);
+			if (drives.n > 0) {
+				mlip_drives_release(&drives); /* they stop watching our heartbeat */
+			}
 			mlip_co_socket_close(&port);
 			mlip_canio_close(&io);
 			return 1;

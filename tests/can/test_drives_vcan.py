@@ -191,7 +191,7 @@ def test_bringup_program_shutdown(sim, tmp_path):
         assert w[("0x607A", 0)] == START[n]
     # the drives' recorded commands equal mlip-sim's trace, in counts, and
     # the first target each applied is its start position
-    rows = [r for r in sim.sync_rows() if r["t"] >= t0]
+    rows = [r for r in sim.sync_rows() if r["t"] >= t0 and r["node"] in START]
     first = {}
     for row in rows:
         if row["target"] is not None:
