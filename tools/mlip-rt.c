@@ -64,8 +64,9 @@ static void report_drive_fault(const struct mlip_drives *ds)
 	switch (ds->fault_reason) {
 	case MLIP_DRIVE_FAULT_BIT:
 	case MLIP_DRIVE_LEFT_ENABLED:
-		snprintf(what, sizeof(what), "statusword 0x%04llX (%s)", v,
-		         mlip_402_state_name(mlip_402_state_of((uint16_t)v)));
+		snprintf(what, sizeof(what), "statusword 0x%04llX (%s%s)", v,
+		         mlip_402_state_name(mlip_402_state_of((uint16_t)v)),
+		         (v & MLIP_402_SW_FOLLOWING_ERROR) ? ", following error" : "");
 		break;
 	case MLIP_DRIVE_EMCY:
 		snprintf(what, sizeof(what), "EMCY 0x%04llX (%s), error register 0x%02X", v,
