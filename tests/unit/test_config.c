@@ -751,29 +751,28 @@ static void test_axis_values(void **state)
 
 /* [DRIVES]: defaults, values, ranges, and the checks across keys, each error
  * placed on the key a user changed last. Line 15 is the section's first key. */
+static void drives_are(const struct mlip_drives_config *want)
+{
+	const struct mlip_drives_config *d = &cfg.drives;
+	assert_int_equal(d->enable, want->enable);
+	assert_int_equal(d->master_node, want->master_node);
+	assert_int_equal(d->heartbeat_ms, want->heartbeat_ms);
+	assert_int_equal(d->heartbeat_timeout_ms, want->heartbeat_timeout_ms);
+	assert_near(d->following_error, want->following_error, 0);
+	assert_int_equal(d->sdo_timeout_ms, want->sdo_timeout_ms);
+	assert_int_equal(d->boot_timeout_ms, want->boot_timeout_ms);
+	assert_int_equal(d->state_timeout_ms, want->state_timeout_ms);
+}
+
 static void test_drives(void **state)
 {
 	(void)state;
 	EXPECT_OK(CFG(.tail = ""));
-	assert_int_equal(cfg.drives.enable, 0);
-	assert_int_equal(cfg.drives.master_node, 127);
-	assert_int_equal(cfg.drives.heartbeat_ms, 100);
-	assert_int_equal(cfg.drives.heartbeat_timeout_ms, 300);
-	assert_near(cfg.drives.following_error, 1.0, 0);
-	assert_int_equal(cfg.drives.sdo_timeout_ms, 200);
-	assert_int_equal(cfg.drives.boot_timeout_ms, 3000);
-	assert_int_equal(cfg.drives.state_timeout_ms, 1000);
+	drives_are(&(struct mlip_drives_config){0, 127, 100, 300, 1.0, 200, 3000, 1000});
 	EXPECT_OK(CFG(.tail = "[DRIVES]\nENABLE = 1\nMASTER_NODE = 100\nHEARTBEAT_MS = 50\n"
 	                      "HEARTBEAT_TIMEOUT_MS = 51\nFOLLOWING_ERROR = 0.25\nSDO_TIMEOUT_MS = 1\n"
 	                      "BOOT_TIMEOUT_MS = 65535\nSTATE_TIMEOUT_MS = 2000"));
-	assert_int_equal(cfg.drives.enable, 1);
-	assert_int_equal(cfg.drives.master_node, 100);
-	assert_int_equal(cfg.drives.heartbeat_ms, 50);
-	assert_int_equal(cfg.drives.heartbeat_timeout_ms, 51);
-	assert_near(cfg.drives.following_error, 0.25, 0);
-	assert_int_equal(cfg.drives.sdo_timeout_ms, 1);
-	assert_int_equal(cfg.drives.boot_timeout_ms, 65535);
-	assert_int_equal(cfg.drives.state_timeout_ms, 2000);
+	drives_are(&(struct mlip_drives_config){1, 100, 50, 51, 0.25, 1, 65535, 2000});
 	EXPECT(CFG(.tail = "[DRIVES]\nENABLE = 2"), MLIP_E_RANGE, 15, 10,
 	       "ENABLE must be 0 or 1, got 2");
 	EXPECT(CFG(.tail = "[DRIVES]\nSDO_TIMEOUT_MS = 0"), MLIP_E_RANGE, 15, 18,
