@@ -257,8 +257,11 @@ def test_supervision(sim, tmp_path, inject, node, axis, reasons):
         rc = f.p.wait(timeout=300)
         ferr = f.stderr()
         f.kill()
+    # the drives as they were for the next test (a fault reset clears the lag)
     if inject.endswith("heartbeat=off"):
         sim.inject(f"{node}:heartbeat=on")
+    if "follow-error" in inject:
+        sim.inject(f"{node}:follow-error=0")
     r = rig.result
     log = r["rt_stderr"]
     assert rc == 5, f"mlip-feed exited {rc}: {ferr}\n{log}"  # the controller's fault
@@ -281,3 +284,22 @@ def test_supervision(sim, tmp_path, inject, node, axis, reasons):
                          "accel": [lim.accel[n - 1] for n in others]})
     within_limits(seq, sub)
     assert r["rt_rc"] == 0, log
+
+
+def test_second_controller_leaves_drives_alone(sim, tmp_path):
+    """A second mlip-rt --drives on a segment a live controller runs on is
+    refused before it sends anything: the running drives are not reset."""
+    cfg = machine(tmp_path, [1, 2, 3])
+    with h.Rig(cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        t1 = time.time()
+        p = h.Proc("rt2", [h.tool("mlip-rt"), "--config", cfg, "--can", h.IFACE, "--priority",
+                           "0", "--shm", rig.shm, "--drives"], tmp_path)
+        rc = p.p.wait(timeout=120)
+        err = p.stderr()
+        p.kill()
+        assert rc == 1, err
+        assert f"a live controller runs on {rig.shm}: its drives are left alone" in err, err
+        assert not [e for e in sim.events("nmt") if e["t"] >= t1], sim.events("nmt")[-3:]
+        assert rig.status()["state"] == "idle"
+    assert rig.result["rt_rc"] == 0
+    assert "drives disabled in order" in rig.result["rt_stderr"]
