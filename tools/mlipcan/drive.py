@@ -106,6 +106,8 @@ def build_od(node_id, heartbeat_ms=0, start_position=0, fe_window=10000, fe_time
     return od
 
 
+# objects the cycle reads, cached in Drive.load_params() after each write
+PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A)
 MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0)}
 MAPPABLE_TX = {(0x6041, 0), (0x6064, 0), (0x6061, 0), (0x60F4, 0)}
 
@@ -178,6 +180,8 @@ class DriveNode(canopen.LocalNode):
                         data=bytes(data).hex(), abort=f"0x{e.code:08X}",
                         meaning=P.ABORT.get(e.code, "?"))
             raise
+        if index in PARAM_OBJECTS:
+            d.load_params()
         d.rec.event(self.id, "sdo_write", index=f"0x{index:04X}", sub=subindex,
                     data=bytes(data).hex(), value=d.value_of(index, subindex))
 
@@ -223,6 +227,17 @@ class Drive:
         self.node = DriveNode(self, self.id, od)
         self.node.add_write_callback(self._on_write)
         self.node.add_read_callback(self._on_read)
+        self.load_params()
+
+    def load_params(self):
+        """What the cycle needs of the OD, read once per change, not per SYNC."""
+        od = self.sim.od_int
+        n = self.node
+        self.p_mode = od(n, 0x6060, "<b")
+        self.p_window = od(n, 0x6065, "<I")
+        self.p_fe_ms = od(n, 0x6066, "<H")
+        self.p_period_ms = self.sim.period_ms(n)
+        self.p_quick_stop = od(n, 0x605A, "<h")
 
     def attach(self, network):
         """Power up on the bus: boot-up message, pre-operational, heartbeat."""
@@ -294,7 +309,7 @@ class Drive:
         return None  # then the stored data
 
     def mode(self):
-        return self.sim.od_int(self.node, 0x6060, "<b")
+        return self.p_mode
 
     def mode_display(self):
         return self.mode()  # the drive runs the mode it was told (validated on write)
@@ -430,6 +445,7 @@ class Drive:
         ds = self.node.data_store
         for k in [k for k in ds if lo <= k <= hi]:
             del ds[k]
+        self.load_params()
         if lo <= 0x1016 <= hi:
             for cob in self._hb_subs():
                 self.node.network.unsubscribe(cob, self._on_heartbeat)
@@ -457,7 +473,8 @@ class Drive:
         self.tpdo.read()
         self.tpdo.pdo_node.network.unsubscribe(self.tpdo.cob_id)  # read() subscribes TPDOs too
         self.rpdo.add_callback(self._on_rpdo)
-        self._rpdo_vars = [(v.index, v.subindex, v) for v in self.rpdo.map]
+        self._rx = self._codec(self.rpdo)
+        self._tx = self._codec(self.tpdo)
         self.tpdo_every = self.tpdo.trans_type if 1 <= (self.tpdo.trans_type or 0) <= 240 else 1
         self.rec.event(self.id, "pdo_maps",
                        rpdo={"cob_id": f"0x{self.rpdo.cob_id:03X}", "valid": self.rpdo.enabled,
@@ -467,6 +484,20 @@ class Drive:
                              "type": self.tpdo.trans_type,
                              "map": [f"0x{v.index:04X}:{v.subindex}/{v.length}" for v in self.tpdo.map]})
         self._pdo_live = True
+
+    @staticmethod
+    def _codec(pdo):
+        """(index, byte offset, struct) of each object a PDO map carries (whole
+        bytes: what CiA 402 maps), from canopen's PdoMap: the cycle then packs
+        and unpacks with struct instead of canopen's per-variable codec."""
+        out = []
+        for v in pdo.map:
+            st = v.od.STRUCT_TYPES.get(v.od.data_type)
+            if st is None or v.offset % 8 or v.length != 8 * st.size:
+                raise ValueError(f"PDO 0x{pdo.cob_id:03X}: 0x{v.index:04X} is not byte-aligned "
+                                 f"whole (offset {v.offset}, {v.length} bits)")
+            out.append((v.index, v.offset // 8, st))
+        return out
 
     def _pdo_off(self):
         if getattr(self, "_pdo_live", False):
@@ -483,13 +514,18 @@ class Drive:
             self._rpdo_latch()
 
     def _rpdo_latch(self):
-        for index, sub, v in self._rpdo_vars:
+        data = self.rpdo.data
+        if len(data) < self.rpdo.length // 8:
+            return  # shorter than its map: ignored (CiA 301 would EMCY 0x8210)
+        for index, off, st in self._rx:
+            val = st.unpack_from(data, off)[0]
             if index == 0x607A:
-                self.pending_target = v.raw
+                self.pending_target = val
             elif index == 0x6040:
-                self.pending_cw = v.raw
+                self.pending_cw = val
             elif index == 0x6060:
-                self._store(0x6060, 0, "<b", v.raw)
+                self._store(0x6060, 0, "<b", val)
+                self.load_params()
         if self.rpdo.trans_type is not None and self.rpdo.trans_type >= 254:
             self._apply_rpdo()  # event driven: at once
 
@@ -556,7 +592,7 @@ class Drive:
                 self._set_state(P.SWITCH_ON_DISABLED, why)                  # 7, 10
             elif s == P.OPERATION_ENABLED:
                 self._set_state(P.QUICK_STOP, why)                          # 11
-                if self.sim.od_int(self.node, 0x605A, "<h") in (1, 2, 3, 4):
+                if self.p_quick_stop in (1, 2, 3, 4):
                     self._set_state(P.SWITCH_ON_DISABLED, "quick stop done")  # 12
         elif cmd == "shutdown":
             if s in (P.SWITCH_ON_DISABLED, P.SWITCHED_ON, P.OPERATION_ENABLED):
@@ -602,14 +638,13 @@ class Drive:
         reached at the next one (a one-period lag)."""
         if not self._pdo_live:
             return
-        self._publish()
+        sw, sent = self.statusword(), self.actual
         if self.tpdo.enabled and sync_no % self.tpdo_every == 0:
             tp = self.tpdo
-            for v in tp.map:
-                v.set_data(self.node.data_store.get(v.index, {}).get(v.subindex)
-                           or v.od.encode_raw(v.od.default or 0))
+            now = {0x6041: sw, 0x6064: sent, 0x6061: self.p_mode, 0x60F4: self.target - sent}
+            for index, off, st in self._tx:
+                st.pack_into(tp.data, off, now[index])
             tp.transmit()
-        sw, sent = self.statusword(), self.actual
         fresh = self.pending_target is not None
         if self.rpdo.trans_type is None or self.rpdo.trans_type <= 240:
             tgt = self._apply_rpdo()
@@ -627,13 +662,12 @@ class Drive:
     def _following(self, fe):
         """CiA 402: statusword bit 13 while |following error| > 0x6065 for
         longer than 0x6066 ms; the drive then faults (EMCY 0x8611)."""
-        win = self.sim.od_u32(self.node, 0x6065)
+        win = self.p_window
         if win == FE_WINDOW_OFF or abs(fe) <= win:
             self.fe_cycles = 0
             return
         self.fe_cycles += 1
-        period_ms = self.sim.period_ms(self.node)
-        if self.fe_cycles * period_ms > self.sim.od_int(self.node, 0x6066, "<H"):
+        if self.fe_cycles * self.p_period_ms > self.p_fe_ms:
             self.fault(0x8611, f"following error {fe} counts > window {win} for "
                                f"{self.fe_cycles} periods")
 

@@ -312,15 +312,20 @@ def run_live_batch(sock, dec, kept, deadline_mono, nwords, gather_s=0.01):
     drops = 0
     mono = time.monotonic
     sleep = time.sleep
+
+    def take(k):
+        nonlocal drops
+        B = Batch(mm, k, nwords)
+        if B.drops is not None:
+            drops = B.drops
+        if kept is not None:
+            kept.append(B.keep())
+        dec.feed_batch(B)
+
     while True:
         k = mm.recv()
         if k:
-            B = Batch(mm, k, nwords)
-            if B.drops is not None:
-                drops = B.drops
-            if kept is not None:
-                kept.append(B.keep())
-            dec.feed_batch(B)
+            take(k)
         if _stop or (deadline_mono is not None and mono() >= deadline_mono):
             break
         if 0 < k < mm.n:
@@ -329,12 +334,7 @@ def run_live_batch(sock, dec, kept, deadline_mono, nwords, gather_s=0.01):
         k = mm.recv(block=False)
         if not k:
             break
-        B = Batch(mm, k, nwords)
-        if B.drops is not None:
-            drops = B.drops
-        if kept is not None:
-            kept.append(B.keep())
-        dec.feed_batch(B)
+        take(k)
     return drops
 
 
