@@ -206,7 +206,8 @@ def main(argv=None):
     sim.stop()
     per = sim.cycle_cpu_s / sim.cycles * 1e6 if sim.cycles else 0.0
     print(f"{PROG}: {sim.sync_no} SYNCs, {sim.cycles} drive cycles, "
-          f"{per:.0f} us CPU per drive cycle (handler only), process CPU "
+          f"{per:.0f} us CPU per drive cycle (handler only), socket drops "
+          f"{'n/a' if sim.socket_drops is None else sim.socket_drops}, process CPU "
           f"{cpu1.user + cpu1.system - cpu0.user - cpu0.system:.2f} s", file=sys.stderr, flush=True)
     return 0
 

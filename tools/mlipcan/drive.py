@@ -725,6 +725,7 @@ class DriveSim:
         self._stopping = False
         self._pump = None
         self.pump_errors = 0
+        self.socket_drops = None  # fast receive: the kernel's count of frames dropped
         for spec in drives:
             d = Drive(self, **spec)
             self.drives[d.id] = d
@@ -758,6 +759,15 @@ class DriveSim:
             from .bus import open_bus
 
             self.network.bus = open_bus(self.channel)
+        if not fast:  # python-can reads it; a simulator behind the bus must not lose frames
+            import socket
+
+            from .layout import SO_RCVBUFFORCE
+
+            try:
+                self.network.bus.socket.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, 16 << 20)
+            except (OSError, AttributeError):
+                pass  # not root, or not SocketCAN (python-can's virtual bus in the host test)
         if fast:
             self._pump = threading.Thread(target=self._pump_frames, name="drive-sim rx",
                                           daemon=True)
@@ -782,10 +792,13 @@ class DriveSim:
         import socket
         import sys
 
-        from .sources import Batch, MMsg
+        from .sources import Batch, MMsg, tune_socket
 
         sock = self.network.bus.socket
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, struct.pack("ll", 0, 100000))
+        # a simulator running behind the bus must not lose frames: a large
+        # buffer, and the kernel's drop counter (reported at exit)
+        tune_socket(sock, self.channel, 16 << 20, False, {})
         mm = MMsg(sock)
         notify = self.network.notify
         while not self._stopping:
@@ -793,6 +806,8 @@ class DriveSim:
             if not k:
                 continue
             B = Batch(mm, k, 1)
+            if B.drops is not None:
+                self.socket_drops = B.drops
             ids, bad = B.ids, B.raw_bad
             for j in range(k):
                 if bad[j]:
