@@ -769,6 +769,7 @@ class DriveSim:
             except (OSError, AttributeError):
                 pass  # not root, or not SocketCAN (python-can's virtual bus in the host test)
         if fast:
+            self.socket_drops = 0
             self._pump = threading.Thread(target=self._pump_frames, name="drive-sim rx",
                                           daemon=True)
             self._pump.start()
