@@ -106,6 +106,8 @@ def build_od(node_id, heartbeat_ms=0, start_position=0, fe_window=10000, fe_time
     return od
 
 
+# objects the cycle reads, cached in Drive.load_params() after each write
+PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A)
 MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0)}
 MAPPABLE_TX = {(0x6041, 0), (0x6064, 0), (0x6061, 0), (0x60F4, 0)}
 
@@ -178,6 +180,8 @@ class DriveNode(canopen.LocalNode):
                         data=bytes(data).hex(), abort=f"0x{e.code:08X}",
                         meaning=P.ABORT.get(e.code, "?"))
             raise
+        if index in PARAM_OBJECTS:
+            d.load_params()
         d.rec.event(self.id, "sdo_write", index=f"0x{index:04X}", sub=subindex,
                     data=bytes(data).hex(), value=d.value_of(index, subindex))
 
@@ -223,6 +227,17 @@ class Drive:
         self.node = DriveNode(self, self.id, od)
         self.node.add_write_callback(self._on_write)
         self.node.add_read_callback(self._on_read)
+        self.load_params()
+
+    def load_params(self):
+        """What the cycle needs of the OD, read once per change, not per SYNC."""
+        od = self.sim.od_int
+        n = self.node
+        self.p_mode = od(n, 0x6060, "<b")
+        self.p_window = od(n, 0x6065, "<I")
+        self.p_fe_ms = od(n, 0x6066, "<H")
+        self.p_period_ms = self.sim.period_ms(n)
+        self.p_quick_stop = od(n, 0x605A, "<h")
 
     def attach(self, network):
         """Power up on the bus: boot-up message, pre-operational, heartbeat."""
@@ -294,7 +309,7 @@ class Drive:
         return None  # then the stored data
 
     def mode(self):
-        return self.sim.od_int(self.node, 0x6060, "<b")
+        return self.p_mode
 
     def mode_display(self):
         return self.mode()  # the drive runs the mode it was told (validated on write)
@@ -368,19 +383,21 @@ class Drive:
         p = can_id - 0x700
         e = self.hb_consumed.get(p)
         if e is not None:
-            e[1] = time.monotonic()
+            e[1] = timestamp  # the frame's receive time (kernel), seconds
             self.hb_lost.discard(p)
 
     def check_heartbeats(self, now):
-        """Main thread, every few ms: a consumed heartbeat overdue is a
-        heartbeat event (CiA 301): EMCY 0x8130, and a drive in operation
-        enabled faults (its communication error reaction)."""
+        """A consumed heartbeat overdue at bus time `now` (the receive time of
+        a later frame, so a simulator running behind the bus judges by frame
+        order, not by its own lateness) is a heartbeat event (CiA 301): EMCY
+        0x8130, and the drive faults (its communication error reaction)."""
         for p, (ms, seen) in list(self.hb_consumed.items()):
             if seen is None or p in self.hb_lost:
                 continue  # CiA 301: monitoring starts with the first heartbeat
             if now - seen > ms / 1000.0:
                 self.hb_lost.add(p)
-                self.rec.event(self.id, "heartbeat_lost", producer=p, ms=ms)
+                self.rec.event(self.id, "heartbeat_lost", producer=p, ms=ms,
+                               late_s=round(now - seen, 4))
                 self.fault(0x8130, f"heartbeat of node {p} lost")
 
     # ------------------------------------------------------------ NMT
@@ -428,6 +445,7 @@ class Drive:
         ds = self.node.data_store
         for k in [k for k in ds if lo <= k <= hi]:
             del ds[k]
+        self.load_params()
         if lo <= 0x1016 <= hi:
             for cob in self._hb_subs():
                 self.node.network.unsubscribe(cob, self._on_heartbeat)
@@ -455,7 +473,8 @@ class Drive:
         self.tpdo.read()
         self.tpdo.pdo_node.network.unsubscribe(self.tpdo.cob_id)  # read() subscribes TPDOs too
         self.rpdo.add_callback(self._on_rpdo)
-        self._rpdo_vars = [(v.index, v.subindex, v) for v in self.rpdo.map]
+        self._rx = self._codec(self.rpdo)
+        self._tx = self._codec(self.tpdo)
         self.tpdo_every = self.tpdo.trans_type if 1 <= (self.tpdo.trans_type or 0) <= 240 else 1
         self.rec.event(self.id, "pdo_maps",
                        rpdo={"cob_id": f"0x{self.rpdo.cob_id:03X}", "valid": self.rpdo.enabled,
@@ -465,6 +484,20 @@ class Drive:
                              "type": self.tpdo.trans_type,
                              "map": [f"0x{v.index:04X}:{v.subindex}/{v.length}" for v in self.tpdo.map]})
         self._pdo_live = True
+
+    @staticmethod
+    def _codec(pdo):
+        """(index, byte offset, struct) of each object a PDO map carries (whole
+        bytes: what CiA 402 maps), from canopen's PdoMap: the cycle then packs
+        and unpacks with struct instead of canopen's per-variable codec."""
+        out = []
+        for v in pdo.map:
+            st = v.od.STRUCT_TYPES.get(v.od.data_type)
+            if st is None or v.offset % 8 or v.length != 8 * st.size:
+                raise ValueError(f"PDO 0x{pdo.cob_id:03X}: 0x{v.index:04X} is not byte-aligned "
+                                 f"whole (offset {v.offset}, {v.length} bits)")
+            out.append((v.index, v.offset // 8, st))
+        return out
 
     def _pdo_off(self):
         if getattr(self, "_pdo_live", False):
@@ -481,13 +514,18 @@ class Drive:
             self._rpdo_latch()
 
     def _rpdo_latch(self):
-        for index, sub, v in self._rpdo_vars:
+        data = self.rpdo.data
+        if len(data) < self.rpdo.length // 8:
+            return  # shorter than its map: ignored (CiA 301 would EMCY 0x8210)
+        for index, off, st in self._rx:
+            val = st.unpack_from(data, off)[0]
             if index == 0x607A:
-                self.pending_target = v.raw
+                self.pending_target = val
             elif index == 0x6040:
-                self.pending_cw = v.raw
+                self.pending_cw = val
             elif index == 0x6060:
-                self._store(0x6060, 0, "<b", v.raw)
+                self._store(0x6060, 0, "<b", val)
+                self.load_params()
         if self.rpdo.trans_type is not None and self.rpdo.trans_type >= 254:
             self._apply_rpdo()  # event driven: at once
 
@@ -554,7 +592,7 @@ class Drive:
                 self._set_state(P.SWITCH_ON_DISABLED, why)                  # 7, 10
             elif s == P.OPERATION_ENABLED:
                 self._set_state(P.QUICK_STOP, why)                          # 11
-                if self.sim.od_int(self.node, 0x605A, "<h") in (1, 2, 3, 4):
+                if self.p_quick_stop in (1, 2, 3, 4):
                     self._set_state(P.SWITCH_ON_DISABLED, "quick stop done")  # 12
         elif cmd == "shutdown":
             if s in (P.SWITCH_ON_DISABLED, P.SWITCHED_ON, P.OPERATION_ENABLED):
@@ -600,14 +638,13 @@ class Drive:
         reached at the next one (a one-period lag)."""
         if not self._pdo_live:
             return
-        self._publish()
+        sw, sent = self.statusword(), self.actual
         if self.tpdo.enabled and sync_no % self.tpdo_every == 0:
             tp = self.tpdo
-            for v in tp.map:
-                v.set_data(self.node.data_store.get(v.index, {}).get(v.subindex)
-                           or v.od.encode_raw(v.od.default or 0))
+            now = {0x6041: sw, 0x6064: sent, 0x6061: self.p_mode, 0x60F4: self.target - sent}
+            for index, off, st in self._tx:
+                st.pack_into(tp.data, off, now[index])
             tp.transmit()
-        sw, sent = self.statusword(), self.actual
         fresh = self.pending_target is not None
         if self.rpdo.trans_type is None or self.rpdo.trans_type <= 240:
             tgt = self._apply_rpdo()
@@ -625,13 +662,12 @@ class Drive:
     def _following(self, fe):
         """CiA 402: statusword bit 13 while |following error| > 0x6065 for
         longer than 0x6066 ms; the drive then faults (EMCY 0x8611)."""
-        win = self.sim.od_u32(self.node, 0x6065)
+        win = self.p_window
         if win == FE_WINDOW_OFF or abs(fe) <= win:
             self.fe_cycles = 0
             return
         self.fe_cycles += 1
-        period_ms = self.sim.period_ms(self.node)
-        if self.fe_cycles * period_ms > self.sim.od_int(self.node, 0x6066, "<H"):
+        if self.fe_cycles * self.p_period_ms > self.p_fe_ms:
             self.fault(0x8611, f"following error {fe} counts > window {win} for "
                                f"{self.fe_cycles} periods")
 
@@ -685,6 +721,11 @@ class DriveSim:
         self.t_last_sync = None
         self.cycle_cpu_s = 0.0
         self.cycles = 0
+        self.last_rx_mono = time.monotonic()  # when the last frame was taken off the bus
+        self._stopping = False
+        self._pump = None
+        self.pump_errors = 0
+        self.socket_drops = None  # fast receive: the kernel's count of frames dropped
         for spec in drives:
             d = Drive(self, **spec)
             self.drives[d.id] = d
@@ -708,12 +749,33 @@ class DriveSim:
         e = self.od_int(node, 0x60C2, "<b", 2)
         return v * 10.0 ** (e + 3)
 
-    def start(self, absent=()):
+    def start(self, absent=(), fast=False):
+        """Open the bus, then power the drives up. fast: frames are read with
+        the listener's recvmmsg batches (mlipcan.sources) from the bus's own
+        socket and handed to canopen's Network.notify, instead of python-can's
+        Notifier (Bus.recv costs ~1-2.6 ms a frame in the emulated VM: three
+        drives at a 4 ms SYNC fall behind the bus there)."""
         if self.network.bus is None:
             from .bus import open_bus
 
             self.network.bus = open_bus(self.channel)
-        self.network.connect()
+        if not fast:  # python-can reads it; a simulator behind the bus must not lose frames
+            import socket
+
+            from .layout import SO_RCVBUFFORCE
+
+            try:
+                self.network.bus.socket.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, 16 << 20)
+            except (OSError, AttributeError):
+                pass  # not root, or not SocketCAN (python-can's virtual bus in the host test)
+        if fast:
+            self.socket_drops = 0
+            self._pump = threading.Thread(target=self._pump_frames, name="drive-sim rx",
+                                          daemon=True)
+            self._pump.start()
+        else:
+            self.network.listeners.append(self._seen)
+            self.network.connect()
         # the SYNC count, before any drive's handler sees the SYNC
         self.network.subscribe(self.sync_id, self._count_sync)
         with self.lock:
@@ -724,6 +786,51 @@ class DriveSim:
                     continue
                 d.attach(self.network)
 
+    def _seen(self, msg):
+        self.last_rx_mono = time.monotonic()
+
+    def _pump_frames(self):
+        import socket
+        import sys
+
+        from .sources import Batch, MMsg, tune_socket
+
+        sock = self.network.bus.socket
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, struct.pack("ll", 0, 100000))
+        # a simulator running behind the bus must not lose frames: a large
+        # buffer, and the kernel's drop counter (reported at exit)
+        tune_socket(sock, self.channel, 16 << 20, False, {})
+        mm = MMsg(sock)
+        notify = self.network.notify
+        while not self._stopping:
+            k = mm.recv()
+            if not k:
+                continue
+            B = Batch(mm, k, 1)
+            if B.drops is not None:
+                self.socket_drops = B.drops
+            ids, bad = B.ids, B.raw_bad
+            for j in range(k):
+                if bad[j]:
+                    continue
+                self.last_rx_mono = time.monotonic()
+                try:
+                    notify(ids[j], B.data(j), B.t(j) / 1e9)
+                except Exception as e:  # as canopen's own listener: log, go on
+                    self.pump_errors += 1
+                    if self.pump_errors <= 5:
+                        print(f"mlip-drive-sim: frame 0x{ids[j]:03X}: {e!r}", file=sys.stderr,
+                              flush=True)
+
+    def _count_sync(self, can_id, data, timestamp):
+        with self.lock:
+            self.sync_no += 1
+            self.t_last_sync = timestamp
+            self.last_rx_mono = time.monotonic()
+            for d in self.drives.values():
+                if d.present:
+                    d.check_heartbeats(timestamp)
+
     def on_sync(self, drive, t):
         """Called once per drive per SYNC (canopen calls each subscriber)."""
         with self.lock:
@@ -732,11 +839,6 @@ class DriveSim:
             self.cycle_cpu_s += time.thread_time() - c0
             self.cycles += 1
 
-    def _count_sync(self, can_id, data, timestamp):
-        with self.lock:
-            self.sync_no += 1
-            self.t_last_sync = timestamp
-
     def inject(self, node, what, arg=None):
         with self.lock:
             if node not in self.drives:
@@ -744,12 +846,16 @@ class DriveSim:
             self.drives[node].inject(what, arg)
 
     def tick(self):
-        """Main thread, every few ms: heartbeat consumers, records to disk."""
-        now = time.monotonic()
-        with self.lock:
-            for d in self.drives.values():
-                if d.present:
-                    d.check_heartbeats(now)
+        """Main thread, every few ms: records to disk; heartbeat consumers by
+        the wall clock, but only while no frame is waiting (nothing taken off
+        the bus for 50 ms): a silent bus. While frames flow, each SYNC judges
+        them by its receive time (_count_sync)."""
+        if time.monotonic() - self.last_rx_mono > 0.05:
+            now = time.time()
+            with self.lock:
+                for d in self.drives.values():
+                    if d.present:
+                        d.check_heartbeats(now)
         self.rec.flush()
 
     def stop(self):
@@ -757,5 +863,8 @@ class DriveSim:
             for d in self.drives.values():
                 if d.present and d.node is not None:
                     d.node.nmt.stop_heartbeat()
+        self._stopping = True
+        if self._pump is not None:
+            self._pump.join(timeout=5)
         self.network.disconnect()
         self.rec.close()

@@ -118,8 +118,11 @@ class DecodeListener:
 
     def __init__(self, dec):
         self.dec = dec
+        self.last_ts = 0.0                 # the last frame's receive time (s)
+        self.last_mono = time.monotonic()  # when it was handled
 
     def on_message_received(self, m):
+        self.last_ts, self.last_mono = m.timestamp, time.monotonic()
         t, raw_id, fl, data = msg_frame(m)
         feed_frame(self.dec, t, raw_id, data, fl is not None)
 
@@ -150,6 +153,13 @@ def run_python_can(bus, dec, log_path, deadline_mono):
         while not _stop and (deadline_mono is None or mono() < deadline_mono):
             time.sleep(0.05)
     finally:
+        # what is already queued in the socket is still read (a stop loses
+        # nothing already here): until a frame received after the stop, or
+        # 0.3 s without any (at most 60 s)
+        t_stop, t_end = time.time(), mono() + 60
+        dl = listeners[0]
+        while dl.last_ts < t_stop and mono() - dl.last_mono < 0.3 and mono() < t_end:
+            time.sleep(0.02)
         notifier.stop(timeout=5)  # stops the listeners too: the logger is closed
     if notifier.exception is not None:
         raise RuntimeError(f"python-can notifier: {notifier.exception}")
@@ -302,15 +312,20 @@ def run_live_batch(sock, dec, kept, deadline_mono, nwords, gather_s=0.01):
     drops = 0
     mono = time.monotonic
     sleep = time.sleep
+
+    def take(k):
+        nonlocal drops
+        B = Batch(mm, k, nwords)
+        if B.drops is not None:
+            drops = B.drops
+        if kept is not None:
+            kept.append(B.keep())
+        dec.feed_batch(B)
+
     while True:
         k = mm.recv()
         if k:
-            B = Batch(mm, k, nwords)
-            if B.drops is not None:
-                drops = B.drops
-            if kept is not None:
-                kept.append(B.keep())
-            dec.feed_batch(B)
+            take(k)
         if _stop or (deadline_mono is not None and mono() >= deadline_mono):
             break
         if 0 < k < mm.n:
@@ -319,12 +334,7 @@ def run_live_batch(sock, dec, kept, deadline_mono, nwords, gather_s=0.01):
         k = mm.recv(block=False)
         if not k:
             break
-        B = Batch(mm, k, nwords)
-        if B.drops is not None:
-            drops = B.drops
-        if kept is not None:
-            kept.append(B.keep())
-        dec.feed_batch(B)
+        take(k)
     return drops
 
 
