@@ -1,4 +1,4 @@
-"""mlip-rt --drives against the canopen package's drives (tools/mlip-drive-sim.py)
+"""mlip-rt --drives (the master, rt/drives.c) against the canopen package's drives
 on a real vcan0: the master in rt/drives.c judged by an independent CANopen
 implementation, on what the drives recorded (events.jsonl: every SDO write
 and state transition; sync.csv: the target each drive applied at each SYNC).
