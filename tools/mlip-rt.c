@@ -80,12 +80,24 @@ static void report_drive_fault(const struct monitor *mo, const struct mlip_ctl_e
 	char what[160];
 	char axis = '?';
 	const struct mlip_drives *ds = mo->ds;
+	const struct mlip_drive *d = NULL;
 	for (int i = 0; ds != NULL && i < ds->n; i++) {
 		if (ds->d[i].node == r->node) {
-			axis = ds->d[i].letter;
+			d = &ds->d[i];
+			axis = d->letter;
 		}
 	}
 	mlip_cli_drive_fault_text(r->field, (int64_t)r->value, what, sizeof(what));
+	size_t n = strlen(what);
+	/* what the master knows besides: the timeout, the window, the register */
+	if (r->field == MLIP_DRIVE_HEARTBEAT_LOST && ds != NULL) {
+		snprintf(what + n, sizeof(what) - n, " (timeout %u ms)",
+		         (unsigned)ds->cfg.heartbeat_timeout_ms);
+	} else if (r->field == MLIP_DRIVE_FOLLOWING_ERROR && d != NULL) {
+		snprintf(what + n, sizeof(what) - n, " (window %u)", d->setup.following_window_counts);
+	} else if (r->field == MLIP_DRIVE_EMCY && d != NULL) {
+		snprintf(what + n, sizeof(what) - n, ", error register 0x%02X", d->obs.emcy.reg);
+	}
 	fprintf(stderr,
 	        PROG ": drive fault: node %u (axis %c): %s: %s, period %llu, block %llu (line %u): "
 	             "every axis stops on the path; state fault until mlip-rt restarts\n",
