@@ -49,6 +49,10 @@ STATE_TIMEOUT_MS = 10000
 def machine(tmp, nodes, home=None, name="m.ini"):
     """mill-3axis with PERIOD 20 ms, the axes on `nodes`, [DRIVES]."""
     text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
+    # a period this long keeps the contour guarantee only with a tolerance of
+    # at least |A| T^2 / 8 (eq. 17; mlip refuses less): 0.35 mm at 40 ms
+    text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
+    assert "CONTOUR_TOLERANCE = 0.5" in text
     for axis, node in zip("XYZ", nodes):
         # from the section's header line to its key (comments may name other sections)
         sec = rf"(^\[AXIS_{axis}\]$(?:\n(?!\[).*)*?\n"

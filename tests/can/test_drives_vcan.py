@@ -57,6 +57,13 @@ def test_bringup_program_shutdown(vcan, tmp_path):
                 rig.wait_state("idle", timeout=120)
             except AssertionError as e:
                 raise AssertionError(f"{e}\n{story()}")
+            # the status: where the drives stood at bring-up, and, at rest
+            # after the program, their positions actual equal the commanded
+            # ones to a count (1000 counts/mm)
+            st = rig.wait_state("idle", timeout=30, pred=lambda s: all(
+                abs(s["position_actual"][a] - s["position"][a]) <= 1e-3 + 1e-9 for a in "XYZ"))
+            for a, n in zip("XYZ", (1, 2, 3)):
+                assert abs(st["start_position"][a] - START[n] / 1000.0) < 1e-9, st
         r = rig.result
     finally:
         sim_rc = sim.stop()

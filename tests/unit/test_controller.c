@@ -830,10 +830,10 @@ static void test_drive_fault_stops_on_the_path(void **st)
 	assert_true(status().exec_seq >= executing && status().exec_seq <= executing + 6);
 	assert_true(fabs(out.pos[0] - (double)status().exec_seq) < 1.0);
 	assert_true(!saw(MLIP_STATE_IDLE, MLIP_WHY_END)); /* never "complete" */
-	/* an exit request ends at once: already at rest */
-	ctl.discard = 0; /* the feeder (none here) would have gone */
-	feeder_alive = 0;
-	struct mlip_ctl_in in = {.period = period++, .exit_request = 1};
+	/* an exit request ends at once: at rest, the program's records up to
+	 * its END dropped */
+	assert_int_equal(mlip_ring_count(ring), 0);
+	struct mlip_ctl_in in = {.period = period++, .exit_request = 1, .feeder_alive = 1};
 	mlip_ctl_period(&ctl, &in, &out);
 	assert_int_equal(out.done, 1);
 }
