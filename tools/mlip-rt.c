@@ -94,7 +94,8 @@ static void report_drive_fault(const struct monitor *mo, const struct mlip_ctl_e
 		snprintf(what + n, sizeof(what) - n, " (timeout %u ms)",
 		         (unsigned)ds->cfg.heartbeat_timeout_ms);
 	} else if (r->field == MLIP_DRIVE_FOLLOWING_ERROR && d != NULL) {
-		snprintf(what + n, sizeof(what) - n, " (window %u)", d->setup.following_window_counts);
+		snprintf(what + n, sizeof(what) - n, " (window 0x6065 %u)",
+		         d->setup.following_window_counts);
 	} else if (r->field == MLIP_DRIVE_EMCY && d != NULL) {
 		snprintf(what + n, sizeof(what) - n, ", error register 0x%02X", d->obs.emcy.reg);
 	}

@@ -343,7 +343,7 @@ void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
 		snprintf(buf, len, "its heartbeat says NMT %s", mlip_nmt_state_name((uint8_t)v));
 		break;
 	case MLIP_DRIVE_FOLLOWING_ERROR:
-		snprintf(buf, len, "%lld counts between target sent and position actual (beyond 0x6065)",
+		snprintf(buf, len, "%lld counts between target sent and position actual",
 		         (long long)v);
 		break;
 	case MLIP_DRIVE_TPDO_LOST:
