@@ -98,12 +98,24 @@ int mlip_controller_rec_pop(struct mlip_controller *c, struct mlip_rt_sample *s)
 
 int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t)
 {
-	struct mlip_controller *c = ctx;
+	return mlip_controller_period(ctx, t, NULL);
+}
+
+int mlip_controller_period(struct mlip_controller *c, const struct mlip_rt_tick *t,
+                           const struct mlip_ctl_in *drv)
+{
 	struct mlip_ctl_out *o = &c->out;
 	struct mlip_ring_cmd cmd;
 	struct mlip_ctl_in in;
 
 	memset(&in, 0, sizeof(in));
+	if (drv != NULL) {
+		in.drive_cw = drv->drive_cw;
+		in.drive_mute = drv->drive_mute;
+		in.drive_fault = drv->drive_fault;
+		in.actual_mask = drv->actual_mask;
+		memcpy(in.pos_actual, drv->pos_actual, sizeof(in.pos_actual));
+	}
 	c->cycles = t->cycle + 1;
 	in.period = t->cycle;
 	/* deadlines passed before this wake-up (the loop counts them in

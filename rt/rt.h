@@ -182,9 +182,109 @@ int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
 /* The period's work (an mlip_rt_fn). Returns non-zero when a requested stop
  * has completed. */
 int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t);
+/* The same with the drives' inputs of this period (rt/drives.c: controlword,
+ * muted drives, a drive fault, positions actual; the other fields of drv are
+ * ignored). */
+int mlip_controller_period(struct mlip_controller *c, const struct mlip_rt_tick *t,
+                           const struct mlip_ctl_in *drv);
 /* Monitor thread: the next event (1) or none (0). */
 int mlip_controller_log_pop(struct mlip_controller *c, struct mlip_ctl_event *ev);
 /* Monitor thread: the next recorded setpoint (1) or none (0). */
 int mlip_controller_rec_pop(struct mlip_controller *c, struct mlip_rt_sample *s);
+
+/* ---- CiA 402 drives (rt/drives.c) ------------------------------------------ */
+
+#include "mlip/canopen.h"
+
+/* How the master reaches the bus: SocketCAN (mlip_co_socket_open) or, in the
+ * unit tests, a scripted peer. */
+struct mlip_co_port {
+	void *ctx;
+	int (*send)(void *ctx, const struct mlip_can_frame *f); /* 0 or -errno, never waits */
+	/* one frame: 1; none within timeout_ns (0: do not wait): 0; or -errno */
+	int (*recv)(void *ctx, struct mlip_can_frame *f, int64_t timeout_ns);
+	uint64_t (*now_ns)(void *ctx);
+};
+
+/* A raw socket on ifname receiving only what the master reads from the
+ * drives of m (SDO answers, heartbeats, EMCY, TPDO1), non-blocking. */
+int mlip_co_socket_open(struct mlip_co_port *p, const char *ifname, const struct mlip_machine *m,
+                        char *why, size_t why_len);
+void mlip_co_socket_close(struct mlip_co_port *p);
+
+/* Targets kept per drive, by period: a TPDO is judged against the targets
+ * sent before the SYNC it answers, so a drive that answers late (the
+ * emulated VM) is judged as exactly as a prompt one, up to this lag. */
+#define MLIP_DRIVE_HIST 1024 /* periods; a later TPDO is not judged */
+#define MLIP_DRIVE_LAG 4 /* targets before that SYNC a position may follow */
+
+struct mlip_drive {
+	uint8_t node;
+	char letter;
+	double counts_per_unit;
+	struct mlip_drive_setup setup;
+	struct mlip_drive_obs obs;
+	mlip_402_state state;       /* as last confirmed */
+	int32_t start_counts;       /* position actual at bring-up */
+	int32_t targets[MLIP_DRIVE_HIST]; /* target sent in period c at c % MLIP_DRIVE_HIST */
+};
+
+enum { MLIP_DRIVES_RUN = 0, MLIP_DRIVES_DISABLING, MLIP_DRIVES_SHUTTING_DOWN, MLIP_DRIVES_OFF };
+
+struct mlip_drives {
+	struct mlip_co_port port;
+	struct mlip_drives_config cfg;
+	const struct mlip_machine *m;
+	int n;
+	struct mlip_drive d[MLIP_MAX_AXES];
+	uint64_t hb_next_ns;             /* the master's next heartbeat */
+	void (*log)(void *ctx, const char *line); /* bring-up and shut-down (outside the loop) */
+	void *log_ctx;
+	/* the loop */
+	struct mlip_controller *ctl;
+	int phase;                       /* MLIP_DRIVES_* */
+	uint64_t phase_cycle;
+	uint32_t mute;                   /* drives sent no RPDO: not operation enabled */
+	uint64_t rx_frames, rx_malformed;
+	/* this period's inputs of the controller (controlword, mute, the new
+	 * fault, positions actual), built here, never poked into it */
+	struct mlip_ctl_in in;
+	/* the first fault (the controller's state and log carry it; kept here
+	 * for the exit summary and the tests): `fault` set once, release */
+	int fault;
+	int fault_drive;
+	mlip_drive_fault fault_reason;
+	int64_t fault_detail;
+	uint64_t fault_cycle;
+	int shutdown_ok;                 /* disabled in order within the timeouts */
+	char shutdown_note[160];         /* what went wrong in the in-loop shut-down */
+};
+
+/* Check the [DRIVES] settings against the machine (master node, following
+ * window in counts, period) and fill ds; log gets one line per step. */
+int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
+                     const struct mlip_co_port *port, void (*log)(void *, const char *),
+                     void *log_ctx, char *why, size_t why_len);
+/* Outside the loop: NMT reset communication and boot-up of every drive, the
+ * SDO set-up (each write read back), NMT start, CiA 402 up to "operation
+ * enabled" with 0x607A = position actual; start_pos[] gets the positions in
+ * mm (deg), checked against the soft limits. On any error: why names node,
+ * object, abort code; the drives are shut down again; -errno. */
+int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, size_t why_len);
+/* The loop's function (an mlip_rt_fn, ctx = ds, after ds->ctl is set, its
+ * controller initialised with opts.drives): reads the drives' frames without
+ * waiting (bounded), supervises them, runs the controller's period with the
+ * drives as inputs (controlword 0x000F, muted drives, a drive fault: the
+ * controller stops every axis on the path, state fault, reason drive), sends the master's
+ * heartbeat; on exit at rest, disables operation then shuts down through
+ * the RPDO's controlword with the SYNC still running, and ends the loop. */
+int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t);
+/* Outside the loop, by SDO: shutdown (0x0006) to every drive still enabled
+ * (after a failed bring-up, or a loop that ended without its shut-down). */
+void mlip_drives_disable(struct mlip_drives *ds);
+/* On exit: the drives stop watching the master's heartbeat (0x1016:01 = 0)
+ * and go to NMT pre-operational (no more PDOs), so that they do not fault
+ * when the master's heartbeat stops. */
+void mlip_drives_release(struct mlip_drives *ds);
 
 #endif

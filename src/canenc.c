@@ -228,7 +228,14 @@ mlip_status mlip_canenc_encode(const struct mlip_canenc *e, uint32_t cycle, cons
 		out[0].id = e->sync_id;
 		for (i = 0; i < e->n_axes; i++) {
 			out[1 + i].id = e->rpdo_base + e->node[i];
-			put_i32(out[1 + i].data, counts[i]);
+			if (e->rpdo_controlword) {
+				out[1 + i].len = 6;
+				out[1 + i].data[0] = (uint8_t)(e->controlword[i] & 0xFFu);
+				out[1 + i].data[1] = (uint8_t)(e->controlword[i] >> 8);
+				put_i32(out[1 + i].data + 2, counts[i]);
+			} else {
+				put_i32(out[1 + i].data, counts[i]);
+			}
 		}
 		break;
 	case MLIP_CAN_PACKED:
@@ -246,6 +253,14 @@ mlip_status mlip_canenc_encode(const struct mlip_canenc *e, uint32_t cycle, cons
 			put_i32(out[0].data + 4 + 4 * i, counts[i]);
 		}
 		break;
+	}
+	if (e->profile == MLIP_CAN_CIA402 && e->rpdo_mute != 0) {
+		for (i = 0, k = 1; i < e->n_axes; i++) {
+			if (!(e->rpdo_mute & (1u << i))) {
+				out[k++] = out[1 + i];
+			}
+		}
+		nf = k;
 	}
 	*n_out = nf;
 	if (saturated != NULL) {
@@ -320,7 +335,7 @@ static mlip_status feed_cia402(struct mlip_candec *d, const struct mlip_can_fram
 		d->foreign++;
 		return MLIP_E_EMPTY;
 	}
-	if (f->len != 4 || f->flags != 0) {
+	if (f->len != (e->rpdo_controlword ? 6 : 4) || f->flags != 0) {
 		d->malformed++;
 		return MLIP_E_SYNTAX;
 	}
@@ -335,7 +350,7 @@ static mlip_status feed_cia402(struct mlip_candec *d, const struct mlip_can_fram
 		return MLIP_E_EMPTY;
 	}
 	d->seen |= 1u << i;
-	d->counts[i] = get_i32(f->data);
+	d->counts[i] = get_i32(f->data + (e->rpdo_controlword ? 2 : 0));
 	if (d->seen == all_bits(e->n_axes)) {
 		deliver(d, d->syncs - 1u, out);
 		return MLIP_OK;

@@ -382,12 +382,13 @@ static int parse_int(const char *s, size_t n, int64_t *out)
 static const char axis_letters[] = "XYZABC";
 
 /* Sections by index: TRAJ, one per axis letter (XYZABC order), CAN. */
-enum { SEC_TRAJ = 0, SEC_AXIS0 = 1, SEC_CAN = SEC_AXIS0 + MLIP_MAX_AXES, N_SEC };
-enum { K_TRAJ, K_AXIS, K_CAN };
+enum { SEC_TRAJ = 0, SEC_AXIS0 = 1, SEC_CAN = SEC_AXIS0 + MLIP_MAX_AXES, SEC_DRIVES, N_SEC };
+enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, N_KINDS };
 
 enum { TK_COORDS, TK_VLIN, TK_VANG, TK_TOL, TK_PERIOD, TK_LUNITS, TK_AUNITS, TK_LOOKAHEAD };
 enum { AK_TYPE, AK_VEL, AK_ACC, AK_MIN, AK_MAX, AK_HOME, AK_NODE, AK_CPU };
 enum { CK_PROFILE, CK_BITRATE, CK_DBITRATE, CK_SYNC, CK_RPDO, CK_PACKED, CK_FD, CK_STATUS };
+enum { DK_ENABLE, DK_MASTER, DK_HB, DK_HB_TIMEOUT, DK_FERR, DK_SDO, DK_BOOT, DK_STATE };
 
 /* How a value is read and which single-value range it must meet. */
 enum vtype {
@@ -403,7 +404,9 @@ enum vtype {
 	V_PROFILE,   /* cia402 | packed | fd */
 	V_BITRATE,   /* integer BITRATE_MIN..BITRATE_MAX */
 	V_DBITRATE,  /* integer BITRATE_MIN..DATA_BITRATE_MAX */
-	V_ID         /* integer 0..0x7FF */
+	V_ID,        /* integer 0..0x7FF */
+	V_BOOL,      /* 0 | 1 */
+	V_MS         /* integer 1..65535 (CiA 301 heartbeat times are 16-bit ms) */
 };
 
 struct keydef {
@@ -412,7 +415,7 @@ struct keydef {
 	unsigned char required;
 };
 
-static const struct keydef keytab[3][NKEYS] = {
+static const struct keydef keytab[N_KINDS][NKEYS] = {
 	[K_TRAJ] = {{"COORDINATES", V_COORDS, 1},
 	            {"MAX_LINEAR_VELOCITY", V_POS, 1},
 	            {"MAX_ANGULAR_VELOCITY", V_POS, 0},
@@ -437,13 +440,21 @@ static const struct keydef keytab[3][NKEYS] = {
 	           {"PACKED_BASE", V_ID, 0},
 	           {"FD_ID", V_ID, 0},
 	           {"STATUS_ID", V_ID, 0}},
+	[K_DRIVES] = {{"ENABLE", V_BOOL, 0},
+	              {"MASTER_NODE", V_NODE, 0},
+	              {"HEARTBEAT_MS", V_MS, 0},
+	              {"HEARTBEAT_TIMEOUT_MS", V_MS, 0},
+	              {"FOLLOWING_ERROR", V_POS, 0},
+	              {"SDO_TIMEOUT_MS", V_MS, 0},
+	              {"BOOT_TIMEOUT_MS", V_MS, 0},
+	              {"STATE_TIMEOUT_MS", V_MS, 0}},
 };
 
 static const char *const profiles[] = {"cia402", "packed", "fd"};
 
 static int sec_kind(int sec)
 {
-	return sec == SEC_TRAJ ? K_TRAJ : sec == SEC_CAN ? K_CAN : K_AXIS;
+	return sec == SEC_TRAJ ? K_TRAJ : sec == SEC_CAN ? K_CAN : sec == SEC_DRIVES ? K_DRIVES : K_AXIS;
 }
 
 static int letter_index(char l)
@@ -465,6 +476,8 @@ static void sb_secname(struct sb *b, int sec)
 		sb_puts(b, "TRAJ");
 	} else if (sec == SEC_CAN) {
 		sb_puts(b, "CAN");
+	} else if (sec == SEC_DRIVES) {
+		sb_puts(b, "DRIVES");
 	} else {
 		sb_puts(b, "AXIS_");
 		sb_putc(b, axis_letters[sec - SEC_AXIS0]);
@@ -711,7 +724,7 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
                                 uint32_t line, struct mlip_config_error *err)
 {
 	static const char *const names[] = {"TRAJ",   "AXIS_X", "AXIS_Y", "AXIS_Z",
-	                                    "AXIS_A", "AXIS_B", "AXIS_C", "CAN"};
+	                                    "AXIS_A", "AXIS_B", "AXIS_C", "CAN",   "DRIVES"};
 	size_t q = p + 1, r, a, z;
 	struct sb b;
 	int sec;
@@ -760,7 +773,7 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
 			sb_puts(&b, hint);
 			sb_puts(&b, "]?)");
 		} else {
-			sb_puts(&b, " (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN])");
+			sb_puts(&b, " (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
 		}
 		return MLIP_E_SYNTAX;
 	}
@@ -783,10 +796,11 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
  * belongs anywhere: "[TRAJ]", "an [AXIS_*] section", "[CAN]". */
 static const char *home_of(const char *s, size_t n, int except_kind)
 {
-	static const char *const where[3] = {"[TRAJ]", "an [AXIS_*] section", "[CAN]"};
+	static const char *const where[N_KINDS] = {"[TRAJ]", "an [AXIS_*] section", "[CAN]",
+	                                           "[DRIVES]"};
 	int kd, k;
 
-	for (kd = 0; kd < 3; kd++) {
+	for (kd = 0; kd < N_KINDS; kd++) {
 		for (k = 0; kd != except_kind && k < NKEYS; k++) {
 			if (tok_is(s, n, keytab[kd][k].name)) {
 				return where[kd];
@@ -977,6 +991,12 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		if (kd->type == V_DBITRATE && (i < BITRATE_MIN || i > DATA_BITRATE_MAX)) {
 			return range_err(err, line, col, kd->name,
 			                 " must be within 10000..12000000 bit/s", v, nv);
+		}
+		if (kd->type == V_BOOL && i != 0 && i != 1) {
+			return range_err(err, line, col, kd->name, " must be 0 or 1", v, nv);
+		}
+		if (kd->type == V_MS && (i < 1 || i > 65535)) {
+			return range_err(err, line, col, kd->name, " must be within 1..65535 ms", v, nv);
 		}
 		if (kd->type == V_ID && (i < 0 || i > (int64_t)ID_MAX)) {
 			return range_err(err, line, col, kd->name,
@@ -1710,6 +1730,72 @@ static void fill_can(const struct pstate *ps, struct mlip_can_config *can)
 	}
 }
 
+static void fill_drives(const struct pstate *ps, struct mlip_drives_config *d)
+{
+	const struct sec *st = &ps->sec[SEC_DRIVES];
+	uint32_t *const dst[NKEYS] = {NULL,
+	                              NULL,
+	                              &d->heartbeat_ms,
+	                              &d->heartbeat_timeout_ms,
+	                              NULL,
+	                              &d->sdo_timeout_ms,
+	                              &d->boot_timeout_ms,
+	                              &d->state_timeout_ms};
+	int k;
+
+	for (k = 0; k < NKEYS; k++) {
+		if (has(ps, SEC_DRIVES, k) && dst[k] != NULL) {
+			*dst[k] = (uint32_t)st->ival[k];
+		}
+	}
+	if (has(ps, SEC_DRIVES, DK_ENABLE)) {
+		d->enable = (int)st->ival[DK_ENABLE];
+	}
+	if (has(ps, SEC_DRIVES, DK_MASTER)) {
+		d->master_node = (uint8_t)st->ival[DK_MASTER];
+	}
+	if (has(ps, SEC_DRIVES, DK_FERR)) {
+		d->following_error = st->num[DK_FERR];
+	}
+}
+
+/* [DRIVES] against the rest: the drives' heartbeat is lost only after it is
+ * due; the master's node is none of the drives'. */
+static mlip_status check_drives(const struct pstate *ps, const struct mlip_config *c,
+                                struct mlip_config_error *err)
+{
+	const struct mlip_drives_config *d = &c->drives;
+	struct sb b;
+	int i;
+
+	if (ps->sec[SEC_DRIVES].at.line == 0) {
+		return MLIP_OK; /* mlip-rt --drives checks the defaults against the nodes */
+	}
+	if (d->heartbeat_timeout_ms <= d->heartbeat_ms) {
+		err_at(err, &b, 0, 0);
+		sb_puts(&b, "HEARTBEAT_TIMEOUT_MS ");
+		sb_uint(&b, d->heartbeat_timeout_ms);
+		sb_puts(&b, " must be > HEARTBEAT_MS ");
+		sb_uint(&b, d->heartbeat_ms);
+		sb_puts(&b, " (a heartbeat is lost only after it is due)");
+		place(ps, err, SEC_DRIVES, DK_HB_TIMEOUT, SEC_DRIVES, DK_HB, -1, 0);
+		return MLIP_E_RANGE;
+	}
+	for (i = 0; i < c->machine.n_axes; i++) {
+		if (c->machine.axis[i].can_node == d->master_node) {
+			int sec = SEC_AXIS0 + letter_index(c->machine.axis[i].letter);
+			err_at(err, &b, 0, 0);
+			sb_puts(&b, "MASTER_NODE ");
+			sb_uint(&b, d->master_node);
+			sb_puts(&b, " is also the CAN_NODE of AXIS_");
+			sb_putc(&b, c->machine.axis[i].letter);
+			place(ps, err, SEC_DRIVES, DK_MASTER, sec, AK_NODE, -1, 0);
+			return MLIP_E_RANGE;
+		}
+	}
+	return MLIP_OK;
+}
+
 /* The CAN ids that need the axes: every RPDO_BASE + node an 11-bit id; with
  * cia402, SYNC_ID and STATUS_ID clear of those RPDOs; SYNC_ID != STATUS_ID;
  * with fd, a data phase no slower than the arbitration phase. */
@@ -1753,6 +1839,14 @@ void mlip_config_defaults(struct mlip_config *c)
 	c->can.packed_base = 0x300;
 	c->can.fd_id = 0x400;
 	c->can.status_id = 0x180;
+	c->drives.enable = 0;
+	c->drives.master_node = 127;
+	c->drives.heartbeat_ms = 100;
+	c->drives.heartbeat_timeout_ms = 300;
+	c->drives.following_error = 1.0;
+	c->drives.sdo_timeout_ms = 200;
+	c->drives.boot_timeout_ms = 3000;
+	c->drives.state_timeout_ms = 1000;
 }
 
 mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t len,
@@ -1799,6 +1893,7 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
 	out = *c;
 	fill_machine(&ps, &out);
 	fill_can(&ps, &out.can);
+	fill_drives(&ps, &out.drives);
 	st = check_machine(&out.machine, err, &is);
 	if (st != MLIP_OK) {
 		if (is.key == TK_PERIOD && is.axis2 >= 0) {
@@ -1830,6 +1925,9 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
 		return st;
 	}
 	st = check_can(&ps, &out, err);
+	if (st == MLIP_OK) {
+		st = check_drives(&ps, &out, err);
+	}
 	if (st != MLIP_OK) {
 		return st;
 	}

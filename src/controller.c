@@ -71,6 +71,9 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 			return MLIP_E_INVALID;
 		}
 		c->encode = 1;
+		c->enc.rpdo_controlword = o->drives ? 1 : 0;
+	} else if (o->drives) {
+		return MLIP_E_INVALID; /* drives without frames to send them */
 	}
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
 	c->state = MLIP_STATE_IDLE;
@@ -279,6 +282,32 @@ static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 }
 
 /* ---- stops -------------------------------------------------------------- */
+
+static void brake_begin(struct mlip_ctl *c);
+
+/* A CiA 402 drive faulted (rt/drives.c's supervision): never go on blind.
+ * Every axis stops on the path (the planner's stop: the other drives follow
+ * it to rest; the faulted drive, muted by rt/, is in its own fault reaction),
+ * nothing more of the program is taken, and the state says which node, which
+ * event, in which block and line. The first drive fault stays the reason. */
+static void drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
+                        const struct mlip_ctl_drive_fault *f)
+{
+	struct mlip_ctl_reason r = reason(MLIP_WHY_DRIVE, 0, 0);
+	progress(c, &r.seq, &r.line);
+	r.field = f->event;
+	r.node = f->node;
+	r.value = f->value;
+	c->drive_faulted = 1;
+	if (mlip_planner_queued(c->planner) > 0) {
+		mlip_planner_stop(c->planner);
+		brake_begin(c);
+	}
+	c->dwell_left = 0;
+	c->bad = 1;     /* nothing more is taken */
+	c->discard = 1; /* the rest of the program is dropped */
+	go(c, out, MLIP_STATE_FAULT, r);
+}
 
 /* A stop or hold was asked for: measure the path to rest (status stop_*). */
 static void brake_begin(struct mlip_ctl *c)
@@ -590,6 +619,7 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	s->reason_seq = c->why.seq;
 	s->reason_line = c->why.line;
 	s->reason_value = c->why.value;
+	s->reason_node = c->why.node;
 	s->optional_stop = (uint32_t)c->optional_stop;
 	memcpy(s->pos, c->pos, sizeof(s->pos));
 	s->speed_mm_s = mlip_planner_speed(p);
@@ -653,6 +683,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	}
 	c->bus_tx_seen = in->can_tx_refused;
 	c->bus_err_seen = in->can_error_frames;
+	if (in->drive_fault.event != 0 && !c->drive_faulted) {
+		drive_fault(c, out, &in->drive_fault);
+	}
 
 	blocks_in(c, in, out);
 	if (c->ring_bad && !c->bad) {
@@ -679,6 +712,11 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	memcpy(out->pos, c->pos, sizeof(out->pos));
 	if (c->encode) {
 		uint32_t sat = 0;
+		/* the drives' controlword, and no target to a drive not enabled */
+		for (int k = 0; k < MLIP_MAX_AXES; k++) {
+			c->enc.controlword[k] = in->drive_cw;
+		}
+		c->enc.rpdo_mute = in->drive_mute;
 		if (mlip_canenc_encode(&c->enc, (uint32_t)c->period, c->pos, out->frames,
 		                       MLIP_CAN_MAX_FRAMES, &out->n_frames, &sat) != MLIP_OK) {
 			/* a position beyond the drive's int32 range: never send it */
@@ -693,6 +731,8 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		c->frames_encoded += (uint64_t)out->n_frames;
 	}
 	publish(c, out);
+	out->status.actual_mask = in->actual_mask;
+	memcpy(out->status.pos_actual, in->pos_actual, sizeof(out->status.pos_actual));
 	/* an exit request ends once the machine is at rest */
 	out->done = c->exiting && !c->discard &&
 	            (c->state == MLIP_STATE_IDLE ||

@@ -37,7 +37,7 @@
 MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 88);
 MLIP_RING_CHECK(rec_align, sizeof(struct mlip_ring_rec) % 8 == 0);
 MLIP_RING_CHECK(rec_target, offsetof(struct mlip_ring_rec, target) == 16);
-MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1024);
+MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1088);
 MLIP_RING_CHECK(hdr_lines, sizeof(struct mlip_ring) % MLIP_RING_LINE == 0);
 MLIP_RING_CHECK(line_pow2, MLIP_RING_IS_POW2(MLIP_RING_LINE));
 MLIP_RING_CHECK(max_pow2, MLIP_RING_IS_POW2(MLIP_RING_MAX_CAPACITY));
@@ -45,12 +45,12 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 200);
-MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 448);
-MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 456);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 256);
+MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 512);
+MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 520);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 32);
-MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 512);
-MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 576);
+MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 576);
+MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 640);
 
 /* shared-memory atomics must not fall back to a process-local lock */
 #if !defined(__GCC_ATOMIC_LLONG_LOCK_FREE) || __GCC_ATOMIC_LLONG_LOCK_FREE != 2 || \
@@ -547,6 +547,11 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	}
 	STD(&d->speed_mm_s, &s->speed_mm_s);
 	ST(&d->dwell_left, s->dwell_left, REL);
+	ST(&d->reason_node, s->reason_node, REL);
+	ST(&d->actual_mask, s->actual_mask, REL);
+	for (int k = 0; k < MLIP_MAX_AXES; k++) {
+		STD(&d->pos_actual[k], &s->pos_actual[k]);
+	}
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -588,6 +593,11 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		}
 		LDD(&d->speed_mm_s, &s->speed_mm_s);
 		s->dwell_left = LD(&d->dwell_left, ACQ);
+		s->reason_node = LD(&d->reason_node, ACQ);
+		s->actual_mask = LD(&d->actual_mask, ACQ);
+		for (int k = 0; k < MLIP_MAX_AXES; k++) {
+			LDD(&d->pos_actual[k], &s->pos_actual[k]);
+		}
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -718,7 +728,7 @@ const char *mlip_state_why_name(uint32_t why)
 	    "override 0",    "resume",            "CAN tx refused", "CAN error frames",
 	    "stall",         "dwell",             "dwell done",    "pause (M0)",
 	    "optional pause (M1)", "stop",        "exit signal",   "bad record",
-	    "ring corrupt",  "position beyond the drives' range"};
+	    "ring corrupt",  "position beyond the drives' range", "drive fault"};
 
 	return NAME_OF(names, why);
 }

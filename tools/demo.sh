@@ -62,7 +62,7 @@ err=$(mktemp "${TMPDIR:-/tmp}/mlip-demo.XXXXXX")
 # Inside the VM the repository is a throw-away overlay: results go through the
 # shared folder $MLIP_VM_OUTDIR, kept (MLIP_VM_KEEP) and copied back below.
 MLIP_VM_KEEP=1 tools/vcan/run.sh "${runargs[@]}" \
-	".venv/bin/python tests/can/rtharness.py demo --profile $profile \"\${MLIP_VM_OUTDIR:-build}/demo\" $program" \
+	".venv/bin/python tools/mlip-demo.py demo --profile $profile \"\${MLIP_VM_OUTDIR:-build}/demo\" $program" \
 	2> >(tee "$err" >&2)
 rc=$?
 sleep 0.2 # let tee finish
@@ -78,6 +78,6 @@ if [ ! -f build/demo/demo.json ]; then
 fi
 
 say "plot"
-.venv/bin/python tests/can/rtharness.py plot build/demo build/demo-velocity.png || exit 1
+.venv/bin/python tools/mlip-demo.py plot build/demo build/demo-velocity.png || exit 1
 echo "results: build/demo/ (decoded.csv, demo.json, can.json, logs), plot: build/demo-velocity.png"
 exit "$rc"

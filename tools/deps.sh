@@ -28,7 +28,7 @@ if [ ! -x .venv/bin/python ]; then
 	echo "deps: creating .venv"
 	python3 -m venv .venv
 fi
-if ! .venv/bin/python -c 'import pytest, numpy, cantools, matplotlib' >/dev/null 2>&1; then
+if ! .venv/bin/python -c 'import pytest, numpy, cantools, matplotlib, canopen, can' >/dev/null 2>&1; then
 	echo "deps: pip install -r tests/requirements.txt"
 	.venv/bin/pip install -q -r tests/requirements.txt
 fi

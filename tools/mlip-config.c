@@ -20,7 +20,7 @@ static void usage(FILE *f)
 	        "usage: " PROG " [--json] [--profile P] FILE.ini\n"
 	        "Check a machine configuration and print it as the mlip tools read it.\n\n"
 	        "  --json        one JSON object on stdout (machine, axes, [CAN], the CAN\n"
-	        "                frames of the profile)\n"
+	        "                frames of the profile, [DRIVES])\n"
 	        "  --profile P   the [CAN] profile mlip-rt --profile P would use (checked\n"
 	        "                with the same id rules)\n"
 	        "  -h, --help\n\n"

@@ -18,6 +18,7 @@
 #include <time.h>
 
 #include "cli.h"
+#include "mlip/canopen.h"
 #include "mlip/ring.h"
 #include "rt.h"
 
@@ -181,7 +182,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 	struct mlip_ring_status st;
 	struct mlip_ring_feeder fd;
 	struct mlip_machine m;
-	char fname[32];
+	char fname[160];
 	struct mlip_peer_watch watch = {0, 0, 0};
 	struct mlip_peer_seen seen;
 	mlip_peer_verdict v;
@@ -238,7 +239,15 @@ static int cmd_status(struct mlip_shm *s, int json)
 		       mlip_state_why_name(st.reason), (unsigned long long)st.reason_seq,
 		       (unsigned)st.reason_line);
 		printf("  \"reason_field\": ");
-		if (st.reason_field == MLIP_FIELD_NONE) {
+		if (st.reason == MLIP_WHY_DRIVE) {
+			/* a drive fault: the field is the event, with the drive's node */
+			mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
+			                          sizeof(fname));
+			json_str(stdout, mlip_drive_fault_name((mlip_drive_fault)st.reason_field));
+			printf(",\n  \"reason_node\": %u,\n  \"reason_text\": ", (unsigned)st.reason_node);
+			json_str(stdout, fname);
+			printf(",\n");
+		} else if (st.reason_field == MLIP_FIELD_NONE) {
 			printf("null,\n");
 		} else {
 			mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
@@ -252,7 +261,33 @@ static int cmd_status(struct mlip_shm *s, int json)
 			printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
 			json_num(st.pos[k]);
 		}
-		printf("},\n  \"speed_mm_s\": ");
+		printf("},\n  \"position_actual\": ");
+		/* the drives' position actual (mlip-rt --drives); null without drives */
+		if (st.actual_mask == 0) {
+			printf("null");
+		} else {
+			printf("{");
+			for (int k = 0, n = 0; k < m.n_axes; k++) {
+				if (st.actual_mask & (1u << k)) {
+					printf("%s\"%c\": ", n++ ? ", " : "", m.axis[k].letter);
+					json_num(st.pos_actual[k]);
+				}
+			}
+			printf("}");
+		}
+		printf(",\n  \"start_position\": ");
+		/* with drives, the machine's HOME is where they were at bring-up */
+		if (st.actual_mask == 0) {
+			printf("null");
+		} else {
+			printf("{");
+			for (int k = 0; k < m.n_axes; k++) {
+				printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
+				json_num(m.axis[k].home);
+			}
+			printf("}");
+		}
+		printf(",\n  \"speed_mm_s\": ");
 		json_num(st.speed_mm_s);
 		printf(",\n  \"dwell_left_s\": %.6f,\n  \"optional_stop\": %s,\n",
 		       (double)st.dwell_left * m.period_s, st.optional_stop ? "true" : "false");
@@ -286,7 +321,12 @@ static int cmd_status(struct mlip_shm *s, int json)
 	printf("%s block %llu, line %u\n", rest ? "completed  " : "executing  ",
 	       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
 	printf("why         %s", mlip_state_why_name(st.reason));
-	if (st.reason_field != MLIP_FIELD_NONE) {
+	if (st.reason == MLIP_WHY_DRIVE) {
+		mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname, sizeof(fname));
+		printf(": node %u, %s: %s, block %llu (line %u)", (unsigned)st.reason_node,
+		       mlip_drive_fault_name((mlip_drive_fault)st.reason_field), fname,
+		       (unsigned long long)st.reason_seq, (unsigned)st.reason_line);
+	} else if (st.reason_field != MLIP_FIELD_NONE) {
 		mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
 		printf(": record %llu (line %u), %s = %.17g", (unsigned long long)st.reason_seq,
 		       (unsigned)st.reason_line, fname, st.reason_value);
@@ -308,6 +348,19 @@ static int cmd_status(struct mlip_shm *s, int json)
 		printf(" %c %.4f", m.axis[k].letter, st.pos[k]);
 	}
 	printf("  (%.3f mm/s)\n", st.speed_mm_s);
+	if (st.actual_mask != 0) {
+		printf("actual     ");
+		for (int k = 0; k < m.n_axes; k++) {
+			if (st.actual_mask & (1u << k)) {
+				printf(" %c %.4f", m.axis[k].letter, st.pos_actual[k]);
+			}
+		}
+		printf("  (the drives' position actual 0x6064)\nstart      ");
+		for (int k = 0; k < m.n_axes; k++) {
+			printf(" %c %.4f", m.axis[k].letter, m.axis[k].home);
+		}
+		printf("  (the drives' position at bring-up)\n");
+	}
 	if (st.state == MLIP_STATE_DWELLING) {
 		printf("dwell       %.3f s left\n", (double)st.dwell_left * m.period_s);
 	}

@@ -41,6 +41,7 @@
 #include "blockiter.h"
 #include "cli.h"
 #include "mlip/config.h"
+#include "mlip/canopen.h"
 #include "mlip/ring.h"
 #include "offsets.h"
 #include "program.h"
@@ -421,6 +422,17 @@ static int controller_fault(struct feed *f)
 		             "(restart mlip-rt to clear)\n",
 		        (unsigned long long)f->st.reason_seq, (unsigned)f->st.reason_line,
 		        mlip_rec_field_name(f->st.reason_field), f->st.reason_value);
+	} else if (f->st.reason == MLIP_WHY_DRIVE) {
+		char what[160];
+		mlip_cli_drive_fault_text(f->st.reason_field, (int64_t)f->st.reason_value, what,
+		                          sizeof(what));
+		fprintf(stderr,
+		        PROG ": controller fault: drive node %u, %s: %s, in block %llu (line %u): "
+		             "every axis stopped on the path; the program is NOT complete (restart "
+		             "mlip-rt to clear)\n",
+		        (unsigned)f->st.reason_node,
+		        mlip_drive_fault_name((mlip_drive_fault)f->st.reason_field), what,
+		        (unsigned long long)f->st.reason_seq, (unsigned)f->st.reason_line);
 	} else {
 		fprintf(stderr,
 		        PROG ": controller fault (%s) at line %u (block %llu): the program is NOT "

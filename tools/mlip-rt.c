@@ -25,6 +25,19 @@
 
 static struct mlip_planner planner; /* static: locked and prefaulted with the rest */
 static struct mlip_controller ctl;
+static struct mlip_drives drives;    /* --drives: the CiA 402 master (rt/drives.c) */
+static struct mlip_co_port port;     /* its socket */
+
+/* A start-up that fails after the bring-up: the drives disabled by SDO and
+ * released (they stop watching our heartbeat); ds NULL: no drives. */
+static void drives_down(struct mlip_drives *ds, struct mlip_co_port *p)
+{
+	if (ds != NULL) {
+		mlip_drives_disable(ds);
+		mlip_drives_release(ds);
+		mlip_co_socket_close(p);
+	}
+}
 
 static volatile sig_atomic_t got_exit;
 
@@ -49,8 +62,49 @@ struct monitor {
 	uint32_t stall_periods;
 	struct mlip_trace trace; /* --record */
 	FILE *rec;
+	struct mlip_drives *ds; /* NULL: no drives brought up */
 	volatile int done;
 };
+
+static void drive_log(void *ctx, const char *line)
+{
+	(void)ctx;
+	fprintf(stderr, PROG ": %s\n", line);
+}
+
+/* The controller's state says a drive faulted (reason DRIVE: node, event,
+ * value): which axis, what the bus showed, where in the program. */
+static void report_drive_fault(const struct monitor *mo, const struct mlip_ctl_event *e)
+{
+	const struct mlip_ctl_reason *r = &e->r;
+	char what[160];
+	char axis = '?';
+	const struct mlip_drives *ds = mo->ds;
+	const struct mlip_drive *d = NULL;
+	for (int i = 0; ds != NULL && i < ds->n; i++) {
+		if (ds->d[i].node == r->node) {
+			d = &ds->d[i];
+			axis = d->letter;
+		}
+	}
+	mlip_cli_drive_fault_text(r->field, (int64_t)r->value, what, sizeof(what));
+	size_t n = strlen(what);
+	/* what the master knows besides: the timeout, the window, the register */
+	if (r->field == MLIP_DRIVE_HEARTBEAT_LOST && ds != NULL) {
+		snprintf(what + n, sizeof(what) - n, " (timeout %u ms)",
+		         (unsigned)ds->cfg.heartbeat_timeout_ms);
+	} else if (r->field == MLIP_DRIVE_FOLLOWING_ERROR && d != NULL) {
+		snprintf(what + n, sizeof(what) - n, " (window 0x6065 %u)",
+		         d->setup.following_window_counts);
+	} else if (r->field == MLIP_DRIVE_EMCY && d != NULL) {
+		snprintf(what + n, sizeof(what) - n, ", error register 0x%02X", d->obs.emcy.reg);
+	}
+	fprintf(stderr,
+	        PROG ": drive fault: node %u (axis %c): %s: %s, period %llu, block %llu (line %u): "
+	             "every axis stops on the path; state fault until mlip-rt restarts\n",
+	        (unsigned)r->node, axis, mlip_drive_fault_name((mlip_drive_fault)r->field), what,
+	        (unsigned long long)e->period, (unsigned long long)r->seq, (unsigned)r->line);
+}
 
 /* One line per event: a counter that starts rising again after a quiet
  * second (20 monitor ticks), or a state change. */
@@ -131,7 +185,9 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		}
 		return;
 	case MLIP_STATE_FAULT:
-		if (r->why == MLIP_WHY_BAD_RECORD) {
+		if (r->why == MLIP_WHY_DRIVE) {
+			report_drive_fault(mo, e);
+		} else if (r->why == MLIP_WHY_BAD_RECORD) {
 			mlip_cli_field_name(mo->m, r->field, fld, sizeof(fld));
 			fprintf(stderr,
 			        PROG ": fault: bad record %llu (line %u): %s = %.17g; nothing after it is "
@@ -249,6 +305,9 @@ static void usage(FILE *f)
 	        "                      the last setpoint until mlip-ctl resume (default %d)\n"
 	        "  --record FILE       write the setpoints of the first program, as mlip-sim\n"
 	        "                      --trace does (from the monitor thread, not the loop)\n"
+	        "  --drives            bring up CiA 402 drives first (NMT, SDO set-up, power state\n"
+	        "                      machine), start where they are, supervise and shut them\n"
+	        "                      down (also [DRIVES] ENABLE = 1; README: Deploying)\n"
 	        "  -h, --help\n",
 	        MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY, MLIP_STALL_PERIODS_DEFAULT);
 }
@@ -260,6 +319,18 @@ static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 	                            cfg->machine.period_s, &l) != MLIP_OK) {
 		fprintf(stderr, PROG ": cannot compute the bus load for this profile\n");
 		return -1;
+	}
+	if (cfg->drives.enable) {
+		/* RPDOs of 6 bytes (controlword), a 6-byte TPDO back from each drive,
+		 * heartbeats of the drives and the master (1 byte each) */
+		int n = cfg->machine.n_axes;
+		double hb = cfg->machine.period_s / (cfg->drives.heartbeat_ms * 1e-3);
+		double bits = n * ((double)mlip_can_frame_bits(0, 6).nominal -
+		                   mlip_can_frame_bits(0, 4).nominal + mlip_can_frame_bits(0, 6).nominal) +
+		              (n + 1) * hb * mlip_can_frame_bits(0, 1).nominal;
+		l.busy_s += bits / cfg->can.bitrate;
+		l.load = l.busy_s / cfg->machine.period_s;
+		l.frames += n;
 	}
 	fprintf(stderr,
 	        PROG ": bus load %.1f %% (%s, %d frames per %.3f ms period, %.0f us of %u bit/s)\n",
@@ -294,7 +365,8 @@ int main(int argc, char **argv)
 		{"cpu", required_argument, 0, 'C'},      {"strategy", required_argument, 0, 'S'},
 		{"capacity", required_argument, 0, 'n'}, {"help", no_argument, 0, 'h'},
 		{"stall-periods", required_argument, 0, 'T'}, {"record", required_argument, 0, 'R'},
-		{0, 0, 0, 0}};
+		{"drives", no_argument, 0, 'D'},         {0, 0, 0, 0}};
+	int want_drives = 0;
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
 		switch (c) {
@@ -356,6 +428,9 @@ int main(int argc, char **argv)
 		case 'R':
 			record = optarg;
 			break;
+		case 'D':
+			want_drives = 1;
+			break;
 		case 'h':
 			usage(stdout);
 			return 0;
@@ -408,6 +483,13 @@ int main(int argc, char **argv)
 		return 1;
 	}
 	int use_can = strcmp(iface, "none") != 0;
+	if (want_drives) {
+		cfg.drives.enable = 1;
+	}
+	if (cfg.drives.enable && (!use_can || prof != MLIP_CAN_CIA402)) {
+		fprintf(stderr, PROG ": CiA 402 drives need a CAN interface and the cia402 profile\n");
+		return 2;
+	}
 	if (use_can && bus_budget(&cfg, prof) != 0) {
 		return 1;
 	}
@@ -436,11 +518,50 @@ int main(int argc, char **argv)
 	}
 
 	static struct mlip_shm shm;
+	if (cfg.drives.enable) {
+		/* never reset the drives of a controller that runs */
+		static struct mlip_shm peek;
+		if (mlip_shm_attach(&peek, shm_name, info, sizeof(info)) == 0) {
+			int alive = mlip_shm_controller_alive(peek.ring);
+			mlip_shm_close(&peek);
+			if (alive) {
+				fprintf(stderr, PROG ": a live controller runs on %s: its drives are left "
+				                "alone\n",
+				        shm_name);
+				mlip_canio_close(&io);
+				return 1;
+			}
+		}
+		/* bring-up, before the first period: nothing moves on any error */
+		double start[MLIP_MAX_AXES];
+		char why[320];
+		if (mlip_co_socket_open(&port, iface, &cfg.machine, why, sizeof(why)) != 0 ||
+		    mlip_drives_init(&drives, &cfg, &port, drive_log, NULL, why, sizeof(why)) != 0 ||
+		    mlip_drives_bringup(&drives, start, why, sizeof(why)) != 0) {
+			fprintf(stderr, PROG ": drives not brought up: %s; nothing moves\n", why);
+			if (drives.n > 0) {
+				mlip_drives_release(&drives); /* they stop watching our heartbeat */
+			}
+			mlip_co_socket_close(&port);
+			mlip_canio_close(&io);
+			return 1;
+		}
+		/* start where the machine is: the planner, and the machine published
+		 * in the segment (so mlip-feed parses programs from there), take the
+		 * positions actual as HOME; the first setpoint is the position actual */
+		fprintf(stderr, PROG ": start position");
+		for (int k = 0; k < cfg.machine.n_axes; k++) {
+			cfg.machine.axis[k].home = start[k];
+			fprintf(stderr, " %c %.4f", cfg.machine.axis[k].letter, start[k]);
+		}
+		fprintf(stderr, " (position actual of the drives, published as HOME)\n");
+	}
 	/* published with the machine: feeders then send the smoothed path */
 	cfg.machine.smooth = st == MLIP_STRATEGY_SMOOTH;
 	if (mlip_shm_create_group(&shm, shm_name, (uint32_t)capacity, &cfg.machine, shm_gid, info,
 	                          sizeof(info)) != 0) {
 		fprintf(stderr, PROG ": %s\n", info);
+		drives_down(cfg.drives.enable ? &drives : NULL, &port);
 		mlip_canio_close(&io);
 		return 1;
 	}
@@ -453,7 +574,9 @@ int main(int argc, char **argv)
 		mon.rec = fopen(record, "w");
 		if (ctl.rec == NULL || mon.rec == NULL) {
 			fprintf(stderr, PROG ": --record %s: %s\n", record, strerror(errno));
+			drives_down(cfg.drives.enable ? &drives : NULL, &port);
 			mlip_shm_close(&shm);
+			mlip_canio_close(&io);
 			return 1;
 		}
 		mlip_trace_open(&mon.trace, mon.rec, &cfg.machine, NULL);
@@ -462,11 +585,21 @@ int main(int argc, char **argv)
 	}
 	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st, .lookahead = cfg.lookahead,
 	                           .stall_periods = (uint32_t)stall_periods, .can = &cfg.can};
+	co.drives = cfg.drives.enable;
 	if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, shm.ring,
 	                         use_can ? &io : NULL) != 0) {
 		fprintf(stderr, PROG ": the [CAN] settings do not fit this machine (node ids, ids)\n");
+		drives_down(cfg.drives.enable ? &drives : NULL, &port);
 		mlip_shm_close(&shm);
+		mlip_canio_close(&io);
 		return 1;
+	}
+	mlip_rt_fn tick_fn = mlip_controller_tick;
+	void *tick_ctx = &ctl;
+	if (cfg.drives.enable) {
+		drives.ctl = &ctl;
+		tick_fn = mlip_drives_tick;
+		tick_ctx = &drives;
 	}
 	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead */
 	ctl.exit_request = got_exit; /* init cleared it: keep a stop asked during start-up */
@@ -482,12 +615,13 @@ int main(int argc, char **argv)
 	mon.iface = iface;
 	mon.io = use_can ? &io : NULL;
 	mon.ring = shm.ring;
+	mon.ds = cfg.drives.enable ? &drives : NULL;
 	pthread_attr_t attr;
 	pthread_attr_init(&attr);
 	pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
 	int mon_ok = pthread_create(&mon_th, &attr, monitor, &mon) == 0;
 	pthread_attr_destroy(&attr);
-	int rc = mlip_rt_run(&ro, mlip_controller_tick, NULL, &ctl, &run);
+	int rc = mlip_rt_run(&ro, tick_fn, NULL, tick_ctx, &run);
 	if (mon_ok) {
 		mon.done = 1;
 		pthread_join(mon_th, NULL);
@@ -495,6 +629,32 @@ int main(int argc, char **argv)
 	if (mon.rec != NULL && (fclose(mon.rec) != 0 || ctl.rec_lost > 0)) {
 		fprintf(stderr, PROG ": --record %s: incomplete (%llu setpoints lost)\n", record,
 		        (unsigned long long)ctl.rec_lost);
+	}
+	if (cfg.drives.enable) {
+		char faulted[64] = "";
+		size_t k = 0;
+		for (int i = 0; i < drives.n && k < sizeof(faulted); i++) {
+			if (drives.mute & (1u << i)) {
+				k += (size_t)snprintf(faulted + k, sizeof(faulted) - k, " %u",
+				                      drives.d[i].node);
+			}
+		}
+		if (faulted[0]) {
+			fprintf(stderr, PROG ": drives: node%s faulted: left in the drive's own fault "
+			                "reaction\n",
+			        faulted);
+		}
+		if (drives.shutdown_ok) {
+			fprintf(stderr, PROG ": drives disabled in order (disable operation, shutdown) "
+			                "with the SYNC running, then the SYNC stopped\n");
+		} else {
+			fprintf(stderr, PROG ": drives: in-loop shut-down incomplete (%s): shutting "
+			                "down by SDO\n",
+			        drives.shutdown_note[0] ? drives.shutdown_note : "the loop ended early");
+			mlip_drives_disable(&drives);
+		}
+		mlip_drives_release(&drives);
+		mlip_co_socket_close(&port);
 	}
 	if (rc < 0) {
 		fprintf(stderr, PROG ": cannot start the loop: %s\n", strerror(-rc));

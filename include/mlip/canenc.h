@@ -111,6 +111,13 @@ struct mlip_canenc {
 	uint32_t sync_id, rpdo_base, packed_base, fd_id;
 	uint8_t node[MLIP_MAX_AXES];          /* CANopen node id per axis (cia402) */
 	double counts_per_unit[MLIP_MAX_AXES]; /* counts per mm or per degree */
+	/* cia402 with drives brought up by mlip (mlip-rt --drives): each RPDO is
+	 * 6 bytes, [0..1] controlword 0x6040 (below, set by the caller every
+	 * period), [2..5] target position 0x607A. 0: the 4-byte RPDO above. */
+	uint8_t rpdo_controlword;
+	uint16_t controlword[MLIP_MAX_AXES];
+	uint32_t rpdo_mute; /* cia402: bit i set, no RPDO for axis i (a drive not
+	                       in "operation enabled" is sent no target) */
 };
 
 /* A decoded period. */

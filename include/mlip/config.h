@@ -33,6 +33,15 @@
  *   PACKED_BASE = 0x300
  *   FD_ID = 0x400
  *   STATUS_ID = 0x180
+ *   [DRIVES]                   ; optional: CiA 402 drives (mlip_drives_config)
+ *   ENABLE = 1                 ; 0 or 1: bring the drives up (also mlip-rt --drives)
+ *   MASTER_NODE = 127          ; mlip's node id for its heartbeat, none of the CAN_NODEs
+ *   HEARTBEAT_MS = 100         ; 1..65535 ms: producer time of drives and master
+ *   HEARTBEAT_TIMEOUT_MS = 300 ; > HEARTBEAT_MS: a heartbeat older is lost (both ways)
+ *   FOLLOWING_ERROR = 1        ; mm (deg): following error window 0x6065, per axis
+ *   SDO_TIMEOUT_MS = 200       ; one SDO answer
+ *   BOOT_TIMEOUT_MS = 3000     ; boot-up after NMT reset communication
+ *   STATE_TIMEOUT_MS = 1000    ; one CiA 402 transition confirmed by the statusword
  *
  * Syntax. Section names and keys are upper case and case-sensitive, as in
  * LinuxCNC; enumerated values are case-sensitive too. A line is blank, a
@@ -99,9 +108,23 @@ struct mlip_can_config {
 	uint32_t status_id;     /* default 0x180: controller status frame */
 };
 
+/* [DRIVES] section: CiA 402 drives brought up, watched and shut down by
+ * mlip-rt (rt/drives.c; README "Deploying on CiA 402 drives"). */
+struct mlip_drives_config {
+	int enable;                    /* ENABLE = 1 (or mlip-rt --drives); default 0 */
+	uint8_t master_node;           /* MASTER_NODE: mlip's own node id, default 127 */
+	uint32_t heartbeat_ms;         /* HEARTBEAT_MS: producer time, drives and master, 100 */
+	uint32_t heartbeat_timeout_ms; /* HEARTBEAT_TIMEOUT_MS: consumer time both ways, 300 */
+	double following_error;        /* FOLLOWING_ERROR: window 0x6065, mm or deg, 1.0 */
+	uint32_t sdo_timeout_ms;       /* SDO_TIMEOUT_MS: one SDO answer, 200 */
+	uint32_t boot_timeout_ms;      /* BOOT_TIMEOUT_MS: boot-up after reset, 3000 */
+	uint32_t state_timeout_ms;     /* STATE_TIMEOUT_MS: one CiA 402 transition, 1000 */
+};
+
 struct mlip_config {
 	struct mlip_machine machine;
 	struct mlip_can_config can;
+	struct mlip_drives_config drives;
 	uint32_t lookahead;     /* [TRAJ] LOOKAHEAD blocks, default MLIP_LOOKAHEAD */
 };
 

@@ -30,6 +30,9 @@
  *   any --bad record--> FAULT (at rest at the end of the last good block:
  *             ingest stops, the look-ahead already plans it to rest)
  *   any --position beyond the drives' range--> FAULT (stop on the path)
+ *   any --a drive fault (in->drive_fault)--> FAULT (reason DRIVE: node, event,
+ *             value; every axis stops on the path, nothing more is taken;
+ *             the faulted drive's own fault reaction applies to it)
  *
  * Records are validated where they are taken, at bounded cost: the next
  * sequence number, a known type and flags, finite targets inside the soft
@@ -62,7 +65,8 @@ typedef enum {
 /* Why a state is what it is (kept in the status, carried by events). */
 struct mlip_ctl_reason {
 	uint32_t why;   /* mlip_state_why */
-	uint32_t field; /* mlip_rec_field */
+	uint32_t field; /* mlip_rec_field; DRIVE: the event (mlip_drive_fault) */
+	uint32_t node;  /* DRIVE: the drive's CANopen node id */
 	uint64_t seq;   /* record concerned (0: none) */
 	uint32_t line;
 	double value;
@@ -78,6 +82,16 @@ struct mlip_ctl_event {
 	uint32_t exec_line;
 };
 
+/* A CiA 402 drive's fault, as rt/drives.c's supervision (mlip/canopen.h,
+ * mlip_drive_supervise) found it this period. */
+struct mlip_ctl_drive_fault {
+	uint32_t event; /* mlip_drive_fault: statusword fault bit, EMCY, heartbeat lost,
+	                   left NMT operational, left operation enabled, following
+	                   error, TPDOs lost or late; 0 (MLIP_DRIVE_OK): none */
+	uint32_t node;  /* CANopen node id */
+	double value;   /* statusword, EMCY code, ms without heartbeat, counts, periods */
+};
+
 struct mlip_ctl_in {
 	uint64_t period;                 /* 0, 1, 2, ... one per call */
 	uint32_t missed;                 /* deadlines the loop missed before this period */
@@ -87,6 +101,12 @@ struct mlip_ctl_in {
 	/* the bus as of the last send (cumulative) */
 	uint64_t can_tx_refused, can_error_frames;
 	int bus_off;
+	/* CiA 402 drives (opts.drives): what rt/drives.c saw this period */
+	uint16_t drive_cw;   /* controlword 0x6040 of every RPDO (enable, disable, shutdown) */
+	uint32_t drive_mute; /* bit k: no RPDO for axis k (its drive is not operation enabled) */
+	struct mlip_ctl_drive_fault drive_fault; /* the first new fault, if any */
+	uint32_t actual_mask;               /* bit k: pos_actual[k] is from drive k's TPDO */
+	double pos_actual[MLIP_MAX_AXES];   /* position actual 0x6064, joint units */
 };
 
 struct mlip_ctl_out {
@@ -105,6 +125,8 @@ struct mlip_ctl_opts {
 	uint32_t lookahead;        /* 0: MLIP_LOOKAHEAD */
 	uint32_t stall_periods;    /* 0: MLIP_STALL_PERIODS_DEFAULT */
 	const struct mlip_can_config *can; /* NULL: no frames */
+	int drives;                /* CiA 402 drives brought up: 6-byte RPDOs with the
+	                              controlword in->drive_cw, none to in->drive_mute */
 };
 
 struct mlip_ctl {
@@ -122,6 +144,7 @@ struct mlip_ctl {
 	struct mlip_ctl_reason why;
 	uint32_t hold_why;          /* the cause of the planner's hold */
 	int bus_hold, stall_hold;
+	int drive_faulted;          /* a drive fault came: it stays the reason */
 	/* program */
 	int refill;                 /* the pre-read continues a program */
 	int end_seen;

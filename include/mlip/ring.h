@@ -13,12 +13,13 @@
  *    64  producer   head (free-running), feeder's cached copy of tail
  *   128  consumer   tail (free-running), controller's cached copy of head
  *   192  status     seqlock generation, command reply, struct mlip_ring_status
- *                   (four lines: state, reason, position of every axis)
- *   448  feeder     seqlock generation, struct mlip_ring_feeder
- *   512  mailbox    command sequence, op, argument (written by mlip-ctl)
- *   576  machine    the controller's struct mlip_machine, so that a feeder
+ *                   (five lines: state, reason, position of every axis,
+ *                   the drives' positions actual)
+ *   512  feeder     seqlock generation, struct mlip_ring_feeder
+ *   576  mailbox    command sequence, op, argument (written by mlip-ctl)
+ *   640  machine    the controller's struct mlip_machine, so that a feeder
  *                   checks programs against exactly the limits in force
- *  1024  records    capacity x struct mlip_ring_rec (88 bytes each)
+ *  1088  records    capacity x struct mlip_ring_rec (88 bytes each)
  *
  * The magic (offset 0) and the version (offset 8) keep their places in every
  * layout version, so any version can tell any other that they differ.
@@ -64,7 +65,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION 3u       /* bump on any change to the layout below */
+#define MLIP_RING_VERSION 4u       /* bump on any change to the layout below */
 #define MLIP_RING_LINE 64          /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -158,6 +159,9 @@ typedef enum {
 	MLIP_WHY_BAD_RECORD,     /* reason_seq, reason_field, reason_value */
 	MLIP_WHY_RING_CORRUPT,   /* head - tail beyond the capacity (value: count) */
 	MLIP_WHY_POSITION_RANGE, /* a setpoint beyond the drives' int32 counts */
+	MLIP_WHY_DRIVE,          /* a CiA 402 drive faulted (mlip-rt --drives): reason_node,
+	                            reason_field the event (mlip_drive_fault, mlip/canopen.h),
+	                            reason_value its detail (statusword, EMCY code, ...) */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 
@@ -210,6 +214,10 @@ struct mlip_ring_status {
 	double pos[MLIP_MAX_AXES];/* commanded position of every axis (the setpoint) */
 	double speed_mm_s;        /* path speed (joint units per second) */
 	uint64_t dwell_left;      /* periods of the current dwell still to wait */
+	/* CiA 402 drives (layout version 4; mlip-rt --drives) */
+	uint32_t reason_node;     /* MLIP_WHY_DRIVE: the drive's CANopen node id */
+	uint32_t actual_mask;     /* bit k: pos_actual[k] came from drive k's TPDO */
+	double pos_actual[MLIP_MAX_AXES]; /* position actual 0x6064 (what the machine did) */
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */

@@ -2,11 +2,15 @@
 CAN FD capable for the fd profile. They fail, never skip: a green run means
 the SocketCAN path really was exercised."""
 import os
+import sys
 from pathlib import Path
 
 import pytest
 
-import rtharness as h
+# the tool-side harness and CAN code (tools/mlipcan): tests import tools, not
+# the other way round
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+import mlipcan.harness as h  # noqa: E402
 
 IFACE = h.IFACE
 SYS = Path("/sys/class/net") / IFACE

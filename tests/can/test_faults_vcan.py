@@ -23,7 +23,7 @@ import time
 import pytest
 from pathlib import Path
 
-import rtharness as h
+import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
 from test_rt_vcan import DEMO, FLOWER, MILL, PAPER, bus_complete, cut, wait_periods
 
 # <linux/can/error.h>

@@ -33,7 +33,7 @@ import time
 
 import pytest
 
-import rtharness as h
+import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
 
 IFACE = h.IFACE
 
@@ -568,6 +568,110 @@ def test_listener_counts_to_positions(tmp_path):
     assert any("COUNTS_PER_UNIT 100" in n for n in rep["dbc_notes"])
 
 
+def test_listener_records_a_cia402_deployment(tmp_path):
+    """[DRIVES] ENABLE = 1 (--drives): 6-byte RPDOs (controlword, target),
+    the drives' TPDOs (statusword, position actual value), an EMCY, heartbeats
+    and NMT commands on the same bus: the cycles decode as before, the TPDOs
+    go to --tpdo-csv and the report's "drives", the rest is named; the same
+    frames through an .asc log (python-can's can.Logger / can.LogReader)
+    decode the same."""
+    setup = h.setup_of(MILL)
+    t0 = 1_700_000_000_000_000_000
+    seq = [(t0, (0x000, bytes([0x01, 0]), False))]
+    for c in range(10):
+        t = t0 + (c + 1) * 1_000_000
+        fr = [(setup.sync_id, b"", False)]
+        fr += [(0x180 + nd, struct.pack("<Hi", 0x1237, 500 * i + c - 1), False)
+               for i, nd in enumerate(setup.nodes)]
+        fr += [(setup.rpdo_base + nd, struct.pack("<Hi", 0x0F, 500 * i + c), False)
+               for i, nd in enumerate(setup.nodes)]
+        if c == 4:
+            fr.append((0x082, bytes.fromhex("1086010000000000"), False))
+        if c % 5 == 0:
+            fr += [(0x700 + nd, b"\x05", False) for nd in setup.nodes]
+        seq += [(t + j * 1000, f) for j, f in enumerate(fr)]
+    log = tmp_path / "d.log"
+    _write_log(log, seq)
+    out = {}
+    for name, src in (("log", log), ("asc", tmp_path / "d.asc")):
+        if name == "asc":  # candump -> .asc through the listener's own --log
+            assert h.listen.main(["--from-log", str(log), "--config", str(MILL), "--drives",
+                                  "--log", str(src), "-q"]) == 0
+        js = tmp_path / f"{name}.json"
+        tp = tmp_path / f"{name}-tpdo.csv"
+        assert h.listen.main(["--from-log", str(src), "--config", str(MILL), "--drives",
+                              "--json", str(js), "--tpdo-csv", str(tp), "-q"]) == 0
+        out[name] = (json.loads(js.read_text()), tp.read_text().splitlines())
+    for rep, rows in out.values():
+        assert rep["cycles"] == 10 and rep["incomplete"] == 0 and rep["malformed"] == 0
+        assert rep["last"]["counts"] == {"X": 9, "Y": 509, "Z": 1009}
+        assert rep["layout"]["rpdo_len"] == 6
+        d = rep["drives"]
+        assert [d[str(n)]["tpdos"] for n in setup.nodes] == [10, 10, 10]
+        assert d["2"]["last"]["actual"] == 508 and d["2"]["last"]["state"] == "operation enabled"
+        assert d["2"]["emcy"][0]["code"] == "0x8610" and d["2"]["emcy"][0]["error_register"] == 1
+        assert d["1"]["heartbeats"] == 2 and d["1"]["heartbeat_state"] == "operational"
+        assert rep["nmt"] == [{"t": rep["nmt"][0]["t"], "command": "0x01", "node": 0}]
+        assert rows[0] == "t,node,axis,statusword,state,actual,pos" and len(rows) == 31
+        assert rows[-1].split(",")[1:] == ["3", "Z", str(0x1237), "operation enabled", "1008",
+                                           "1.008"]
+    assert out["log"][1] == out["asc"][1] or \
+        [r.split(",")[1:] for r in out["log"][1]] == [r.split(",")[1:] for r in out["asc"][1]]
+
+
+def _batch(frames):
+    """(t ns, id, data) frames as one recvmmsg would leave them in the fast
+    path's buffers (frame, msg_len, the SO_TIMESTAMPNS control message)."""
+    src = h.sources
+
+    class NoSocket:
+        def fileno(self):
+            return -1
+
+    mm = src.MMsg(NoSocket(), n=len(frames))
+    for j, (t, cid, data) in enumerate(frames):
+        o = j * src.CANFD_MTU
+        struct.pack_into("=IB", mm.frames, o, cid, len(data))
+        mm.frames[o + 8:o + 8 + len(data)] = data
+        struct.pack_into("=Q", mm.hdr, mm.HDR * j + 40, 32)        # msg_controllen
+        struct.pack_into("=I", mm.hdr, mm.HDR * j + 56, 16)        # msg_len: CAN_MTU
+        struct.pack_into("=QiiQQ", mm.ctl, mm.CTL * j, 32, 1, src.SO_TIMESTAMPNS,
+                         t // 10**9, t % 10**9)
+    return src.Batch(mm, len(frames), 1)
+
+
+def test_listener_fast_path_with_drives_frames():
+    """The fast path (recvmmsg batches, the emulated VM's) on a deployment
+    stream: 6-byte RPDOs, the drives' TPDOs between them in any order. It
+    decodes what the frame-by-frame path decodes (cycles, times, counts,
+    TPDOs), and most stream frames by slicing."""
+    import random
+
+    setup = h.setup_of(MILL)
+    setup.drives = True
+    lay = h.listen.Layout(setup, "cia402", h.listen.DEFAULT_DBC, h.ROOT / "build")
+    fr, t = [], 1_700_000_000_000_000_000
+    for c in range(60):
+        t += 1_000_000
+        tp = [(t + 10, 0x180 + n, struct.pack("<Hi", 0x1237, c * n - 1)) for n in (1, 2, 3)]
+        rp = [(t + 20, 0x200 + n, struct.pack("<Hi", 15, c * n * 1000 - 7)) for n in (1, 2, 3)]
+        mix = tp + rp
+        random.Random(c).shuffle(mix)
+        rpdos = iter(rp)  # the RPDOs stay in axis order (mlip-rt sends them so)
+        fr += [(t, 0x80, b"")] + [x if x[1] < 0x200 else next(rpdos) for x in mix]
+    fast = h.decoders.DECODERS["cia402"](lay)
+    for i in range(0, len(fr), 97):
+        fast.feed_batch(_batch(fr[i:i + 97]))
+    slow = h.decoders.DECODERS["cia402"](lay)
+    for t, cid, d in fr:
+        slow.feed(t, cid, d, len(d), False)
+    assert len(slow.cyc) == 60 and slow.counts[-1] == (58993, 117993, 176993)
+    assert (fast.cyc, fast.tns, fast.counts) == (slow.cyc, slow.tns, slow.counts)
+    assert sorted(fast.drives.tpdo) == sorted(slow.drives.tpdo) and len(fast.drives.tpdo) == 180
+    assert fast.frames == slow.frames == len(fr) and fast.incomplete == fast.stray == 0
+    assert fast.fast_frames > 0.9 * 60 * 4
+
+
 @pytest.mark.parametrize("profile,message,change,error", [
     ("cia402", "RPDO_NODE2", {"length": 16}, "Y_target is 16 bits"),
     ("cia402", "RPDO_NODE1", {"is_signed": False}, "unsigned"),
@@ -584,10 +688,11 @@ def test_listener_refuses_a_dbc_that_disagrees(monkeypatch, profile, message, ch
         sigs = list(m.signals)
         if m.name == message:
             # the first axis field, or the counter when the error names it
-            target = [s for s in sigs if (s.name == "cycle") == ("cycle" in error)][:1]
+            target = [s for s in sigs if (s.name == "cycle") == ("cycle" in error)
+                      and s.name != "controlword"][:1]
             sigs = [h.listen._ns(dict(vars(s), **change)) if s in target else s for s in sigs]
         bad.append(h.listen._ns(dict(vars(m), signals=sigs)))
-    monkeypatch.setattr(h.listen, "load_dbc", lambda path, cache=None: (bad, "test"))
+    monkeypatch.setattr(h.layout, "load_dbc", lambda path, cache=None: (bad, "test"))
     with pytest.raises(h.listen.UsageError, match=error):
         h.listen.Layout(h.setup_of(MILL), profile, h.listen.DEFAULT_DBC)
     assert h.listen.main(["--check-layout", "--config", str(MILL), "--profile", profile]) == 2

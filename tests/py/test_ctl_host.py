@@ -125,8 +125,8 @@ def test_stall_holds_at_rest_without_jump(controller, tmp_path):
 
 # ---- records the controller did not expect --------------------------------
 
-REC = struct.Struct("<QIHH6dddd")  # include/mlip/ring.h, layout version 3
-HEAD, TAIL, CAPACITY, RECORDS = 64, 128, 12, 1024
+REC = struct.Struct("<QIHH6dddd")  # include/mlip/ring.h, layout version 4
+HEAD, TAIL, CAPACITY, HDR_BYTES = 64, 128, 12, 24  # HDR_BYTES: where the records start
 
 
 def zigzag(tmp_path, rows=40, per_row=300):
@@ -160,7 +160,7 @@ def test_corrupt_record_is_a_fault_never_complete(controller, tmp_path):
         assert wait_for(lambda: count() > 4000, 30)
         # half way between what the controller took and what the feeder sent
         slot = (struct.unpack_from("<I", mem, TAIL)[0] + count() // 2) % cap
-        off = RECORDS + slot * REC.size
+        off = struct.unpack_from("<I", mem, HDR_BYTES)[0] + slot * REC.size
         rec = list(REC.unpack_from(mem, off))
         seq, line = rec[0], rec[1]
         assert rec[2] == 0  # a MOVE record

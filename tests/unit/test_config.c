@@ -366,7 +366,7 @@ static void test_sections(void **state)
 {
 	(void)state;
 	EXPECT(CFG(.tail = "[FOO]"), MLIP_E_SYNTAX, 14, 2,
-	       "unknown section [FOO] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN])");
+	       "unknown section [FOO] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
 	EXPECT(CFG(.tail = "[traj]"), MLIP_E_SYNTAX, 14, 2,
 	       "unknown section [traj] (did you mean [TRAJ]?)");
 	EXPECT(CFG(.tail = "[AXIS_x]"), MLIP_E_SYNTAX, 14, 2,
@@ -376,7 +376,7 @@ static void test_sections(void **state)
 	EXPECT(CFG(.tail = "[AXIS_W]"), MLIP_E_SYNTAX, 14, 2,
 	       "unknown section [AXIS_W] (axis letters are X Y Z A B C)");
 	EXPECT(CFG(.tail = "[JOINT_0]"), MLIP_E_SYNTAX, 14, 2,
-	       "unknown section [JOINT_0] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN])");
+	       "unknown section [JOINT_0] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
 	EXPECT(CFG(.tail = "  [ TRAJ ]"), MLIP_E_SYNTAX, 14, 5,
 	       "duplicate section [TRAJ] (first at line 1)");
 	EXPECT(CFG(.tail = "[AXIS_X]"), MLIP_E_SYNTAX, 14, 2,
@@ -764,6 +764,61 @@ static void test_axis_values(void **state)
 	       "AXIS_X HOME 0 is outside MIN_LIMIT..MAX_LIMIT 0.5..2");
 	EXPECT(CFG(.y = "HOME = 1e10"), MLIP_E_RANGE, 13, 1,
 	       "AXIS_Y HOME 1e10 is outside MIN_LIMIT..MAX_LIMIT -1e9..1e9");
+}
+
+/* [DRIVES]: defaults, values, ranges, and the checks across keys, each error
+ * placed on the key a user changed last. Line 15 is the section's first key. */
+static void drives_are(const struct mlip_drives_config *want)
+{
+	const struct mlip_drives_config *d = &cfg.drives;
+	assert_int_equal(d->enable, want->enable);
+	assert_int_equal(d->master_node, want->master_node);
+	assert_int_equal(d->heartbeat_ms, want->heartbeat_ms);
+	assert_int_equal(d->heartbeat_timeout_ms, want->heartbeat_timeout_ms);
+	assert_near(d->following_error, want->following_error, 0);
+	assert_int_equal(d->sdo_timeout_ms, want->sdo_timeout_ms);
+	assert_int_equal(d->boot_timeout_ms, want->boot_timeout_ms);
+	assert_int_equal(d->state_timeout_ms, want->state_timeout_ms);
+}
+
+static void test_drives(void **state)
+{
+	(void)state;
+	EXPECT_OK(CFG(.tail = ""));
+	drives_are(&(struct mlip_drives_config){0, 127, 100, 300, 1.0, 200, 3000, 1000});
+	EXPECT_OK(CFG(.tail = "[DRIVES]\nENABLE = 1\nMASTER_NODE = 100\nHEARTBEAT_MS = 50\n"
+	                      "HEARTBEAT_TIMEOUT_MS = 51\nFOLLOWING_ERROR = 0.25\nSDO_TIMEOUT_MS = 1\n"
+	                      "BOOT_TIMEOUT_MS = 65535\nSTATE_TIMEOUT_MS = 2000"));
+	drives_are(&(struct mlip_drives_config){1, 100, 50, 51, 0.25, 1, 65535, 2000});
+	EXPECT(CFG(.tail = "[DRIVES]\nENABLE = 2"), MLIP_E_RANGE, 15, 10,
+	       "ENABLE must be 0 or 1, got 2");
+	EXPECT(CFG(.tail = "[DRIVES]\nSDO_TIMEOUT_MS = 0"), MLIP_E_RANGE, 15, 18,
+	       "SDO_TIMEOUT_MS must be within 1..65535 ms, got 0");
+	EXPECT(CFG(.tail = "[DRIVES]\nBOOT_TIMEOUT_MS = 65536"), MLIP_E_RANGE, 15, 19,
+	       "BOOT_TIMEOUT_MS must be within 1..65535 ms, got 65536");
+	EXPECT(CFG(.tail = "[DRIVES]\nMASTER_NODE = 128"), MLIP_E_RANGE, 15, 15,
+	       "MASTER_NODE must be within 1..127, got 128");
+	EXPECT(CFG(.tail = "[DRIVES]\nFOLLOWING_ERROR = 0"), MLIP_E_RANGE, 15, 19,
+	       "FOLLOWING_ERROR must be > 0, got 0");
+	EXPECT(CFG(.tail = "[DRIVES]\nHEARTBEAT_TIMEOUT = 300"), MLIP_E_SYNTAX, 15, 1,
+	       "unknown key HEARTBEAT_TIMEOUT in [DRIVES] (did you mean HEARTBEAT_TIMEOUT_MS?)");
+	/* the timeout must be longer than the heartbeat period: on the later key */
+	EXPECT(CFG(.tail = "[DRIVES]\nHEARTBEAT_MS = 300"), MLIP_E_RANGE, 15, 1,
+	       "HEARTBEAT_TIMEOUT_MS 300 must be > HEARTBEAT_MS 300 (a heartbeat is lost only "
+	       "after it is due)");
+	EXPECT(CFG(.tail = "[DRIVES]\nHEARTBEAT_MS = 100\nHEARTBEAT_TIMEOUT_MS = 100"),
+	       MLIP_E_RANGE, 16, 1,
+	       "HEARTBEAT_TIMEOUT_MS 100 must be > HEARTBEAT_MS 100 (a heartbeat is lost only "
+	       "after it is due)");
+	/* mlip's own node id is none of the drives' (X is node 1 by default) */
+	EXPECT(CFG(.tail = "[DRIVES]\nMASTER_NODE = 1"), MLIP_E_RANGE, 15, 1,
+	       "MASTER_NODE 1 is also the CAN_NODE of AXIS_X");
+	/* the default master node against a node set in the file: on that key */
+	EXPECT(CFG(.x = "CAN_NODE = 127", .tail = "[DRIVES]\nENABLE = 1"), MLIP_E_RANGE, 9, 1,
+	       "MASTER_NODE 127 is also the CAN_NODE of AXIS_X");
+	/* without the section, the defaults are not checked against the nodes
+	 * (mlip-rt --drives does that) */
+	EXPECT_OK(CFG(.x = "CAN_NODE = 127"));
 }
 
 static void test_can(void **state)
@@ -1600,6 +1655,7 @@ int main(void)
 	    cmocka_unit_test(test_coordinates),
 	    cmocka_unit_test(test_axis_values),
 	    cmocka_unit_test(test_can),
+	    cmocka_unit_test(test_drives),
 	    cmocka_unit_test(test_bad_caller_defaults),
 	    cmocka_unit_test(test_unchanged_on_error),
 	    cmocka_unit_test(test_check_axes),

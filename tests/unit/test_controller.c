@@ -27,6 +27,11 @@ static struct mlip_ring *ring;
 static void *mem;
 static uint64_t period;
 static int feeder_alive;
+/* the drives' inputs of the next period (rt/drives.c's part): a fault is
+ * given for one period, as the supervision reports it once */
+static struct mlip_ctl_drive_fault drv_fault;
+static uint32_t drv_actual_mask;
+static double drv_actual[MLIP_MAX_AXES];
 /* every transition seen since setup: state entered and why */
 static uint32_t seen_state[256], seen_why[256];
 static int n_seen;
@@ -66,6 +71,8 @@ static int setup(void **state)
 	period = 0;
 	feeder_alive = 1;
 	n_seen = 0;
+	memset(&drv_fault, 0, sizeof(drv_fault));
+	drv_actual_mask = 0;
 	return 0;
 }
 
@@ -82,6 +89,10 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	struct mlip_ring_cmd cmd = {.seq = 2, .op = op, .arg = arg};
 	struct mlip_ctl_in in = {.period = period++, .missed = missed, .feeder_alive = feeder_alive};
 	in.cmd = op ? &cmd : NULL;
+	in.drive_fault = drv_fault;
+	in.actual_mask = drv_actual_mask;
+	memcpy(in.pos_actual, drv_actual, sizeof(in.pos_actual));
+	memset(&drv_fault, 0, sizeof(drv_fault));
 	mlip_ctl_period(&ctl, &in, &out);
 	for (uint32_t i = 0; i < out.n_events; i++) {
 		if (out.events[i].kind == MLIP_EV_STATE && n_seen < 256) {
@@ -744,6 +755,118 @@ static void test_every_name(void **st)
 	assert_string_equal(mlip_state_why_name(MLIP_WHY_COUNT), "?");
 }
 
+/* ---- CiA 402 drive faults (an input of the period) ---------------------- */
+
+static int saw_event(uint32_t state, uint32_t why, const struct mlip_ctl_out *o)
+{
+	for (uint32_t i = 0; i < o->n_events; i++) {
+		if (o->events[i].kind == MLIP_EV_STATE && o->events[i].state == state &&
+		    o->events[i].r.why == why) {
+			return 1;
+		}
+	}
+	return 0;
+}
+
+/* A drive faults at speed in the middle of a program: state fault with the
+ * node, the event, its value and the block and line; every axis stops on
+ * the path (Y stays 0, X never goes back) within the braking distance
+ * v^2 / 2a = 100^2 / 2000 = 5 mm; nothing more is taken, the program never
+ * completes, a later fault does not replace the first. */
+static void test_drive_fault_stops_on_the_path(void **st)
+{
+	(void)st;
+	push(1, 50); /* 1 mm blocks along X at 100 mm/s */
+	end(51);
+	tick(300);   /* 0.3 s: past the 0.1 s ramp to 100 mm/s, about X = 25 */
+	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	double v0 = status().speed_mm_s, x0 = out.pos[0];
+	assert_true(v0 > 99.0 && v0 < 100.0 + 1e-6);
+	uint64_t executing = status().exec_seq;
+	assert_true(executing > 10 && executing < 40);
+
+	drv_fault.event = 1; /* MLIP_DRIVE_FAULT_BIT (mlip/canopen.h) */
+	drv_fault.node = 2;
+	drv_fault.value = 0x0218;
+	tick(1);
+	assert_true(saw_event(MLIP_STATE_FAULT, MLIP_WHY_DRIVE, &out));
+	struct mlip_ring_status s = status();
+	assert_int_equal(s.state, MLIP_STATE_FAULT);
+	assert_int_equal(s.reason, MLIP_WHY_DRIVE);
+	assert_int_equal(s.reason_node, 2);
+	assert_int_equal(s.reason_field, 1);
+	assert_true(s.reason_value == 0x0218);
+	assert_true(s.reason_seq == executing || s.reason_seq == executing + 1);
+	assert_int_equal(s.reason_line, s.reason_seq + 1); /* line = seq + 1 in move() */
+
+	/* a second drive's fault later: the first stays the reason */
+	drv_fault.event = 3; /* heartbeat lost */
+	drv_fault.node = 1;
+	drv_fault.value = 120.0;
+	double prev = out.pos[0];
+	int k;
+	for (k = 0; k < 2000 && (k == 0 || status().speed_mm_s > 0.0); k++) {
+		tick(1);
+		assert_true(out.pos[1] == 0.0);
+		assert_true(out.pos[0] >= prev);
+		assert_true(out.pos[0] - prev <= 100.0 * 0.001 + 1e-9); /* never faster */
+		prev = out.pos[0];
+	}
+	assert_true(k < 2000);
+	/* at rest on the path, short of the program's end, within the braking
+	 * distance (5 mm, plus one period at speed for the reaction) */
+	double travelled = out.pos[0] - x0;
+	assert_true(travelled > 0.0);
+	assert_true(travelled <= 5.0 + 0.1 + 1e-6);
+	assert_true(out.pos[0] < 50.0);
+	tick(500);
+	s = status();
+	assert_int_equal(s.state, MLIP_STATE_FAULT);
+	assert_int_equal(s.reason, MLIP_WHY_DRIVE);
+	assert_int_equal(s.reason_node, 2);
+	assert_true(out.pos[0] == prev); /* still at rest: nothing more runs */
+	/* the rest of the program was dropped, not run: the last block done is
+	 * the one the stop ended in */
+	assert_true(status().exec_seq >= executing && status().exec_seq <= executing + 6);
+	assert_true(fabs(out.pos[0] - (double)status().exec_seq) < 1.0);
+	assert_true(!saw(MLIP_STATE_IDLE, MLIP_WHY_END)); /* never "complete" */
+	/* an exit request ends at once: at rest, the program's records up to
+	 * its END dropped */
+	assert_int_equal(mlip_ring_count(ring), 0);
+	struct mlip_ctl_in in = {.period = period++, .exit_request = 1, .feeder_alive = 1};
+	mlip_ctl_period(&ctl, &in, &out);
+	assert_int_equal(out.done, 1);
+}
+
+/* A drive fault with the machine idle: state fault at once, nothing moves;
+ * the drives' positions actual are published as given. */
+static void test_drive_fault_idle_and_actual_positions(void **st)
+{
+	(void)st;
+	drv_actual_mask = 3u;
+	drv_actual[0] = 0.001;
+	drv_actual[1] = -0.002;
+	tick(5);
+	assert_int_equal(status().actual_mask, 3u);
+	assert_true(status().pos_actual[0] == 0.001 && status().pos_actual[1] == -0.002);
+	assert_int_equal(status().reason_node, 0);
+	drv_fault.event = 2; /* EMCY */
+	drv_fault.node = 3;
+	drv_fault.value = 0x2310;
+	tick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
+	assert_int_equal(status().reason_node, 3);
+	assert_int_equal(status().reason_field, 2);
+	assert_true(status().reason_value == 0x2310);
+	/* a program sent now never starts */
+	push(1, 5);
+	end(6);
+	tick(200);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_true(out.pos[0] == 0.0 && out.pos[1] == 0.0);
+}
+
 #define T(f) cmocka_unit_test_setup_teardown(f, setup, teardown)
 
 int main(void)
@@ -769,6 +892,8 @@ int main(void)
 	    T(test_every_name),
 	    T(test_corrupt_sizes_ignored),
 	    T(test_corrupt_head_is_a_fault),
+	    T(test_drive_fault_stops_on_the_path),
+	    T(test_drive_fault_idle_and_actual_positions),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "mlip/canopen.h"
 #include "mlip/ring.h"
 #include "confload.h"
 #include "mlip/gcode.h"
@@ -319,5 +320,36 @@ void mlip_cli_field_name(const struct mlip_machine *m, uint32_t field, char *buf
 		snprintf(buf, len, "target %c", m->axis[field - MLIP_FIELD_TARGET].letter);
 	} else {
 		snprintf(buf, len, "%s", mlip_rec_field_name(field));
+	}
+}
+
+void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
+{
+	switch (event) {
+	case MLIP_DRIVE_FAULT_BIT:
+	case MLIP_DRIVE_LEFT_ENABLED:
+		snprintf(buf, len, "statusword 0x%04llX (%s%s)", (unsigned long long)(v & 0xFFFF),
+		         mlip_402_state_name(mlip_402_state_of((uint16_t)v)),
+		         (v & MLIP_402_SW_FOLLOWING_ERROR) ? ", following error" : "");
+		break;
+	case MLIP_DRIVE_EMCY:
+		snprintf(buf, len, "EMCY 0x%04llX (%s)", (unsigned long long)(v & 0xFFFF),
+		         mlip_emcy_text((uint16_t)v));
+		break;
+	case MLIP_DRIVE_HEARTBEAT_LOST:
+		snprintf(buf, len, "no heartbeat for %lld ms", (long long)v);
+		break;
+	case MLIP_DRIVE_NOT_OPERATIONAL:
+		snprintf(buf, len, "its heartbeat says NMT %s", mlip_nmt_state_name((uint8_t)v));
+		break;
+	case MLIP_DRIVE_FOLLOWING_ERROR:
+		snprintf(buf, len, "%lld counts between target sent and position actual",
+		         (long long)v);
+		break;
+	case MLIP_DRIVE_TPDO_LOST:
+		snprintf(buf, len, "no TPDO for %lld periods", (long long)v);
+		break;
+	default:
+		snprintf(buf, len, "event %u, value %lld", (unsigned)event, (long long)v);
 	}
 }

@@ -92,5 +92,9 @@ int mlip_cli_path_next(void *ctx, double *pt, uint32_t *line);
 /* What a record field of a controller fault is called: "target X" for the
  * target of axis X of machine m, else mlip_rec_field_name(). */
 void mlip_cli_field_name(const struct mlip_machine *m, uint32_t field, char *buf, size_t len);
+/* A drive fault's event (mlip_drive_fault, status reason_field with reason
+ * DRIVE) and value as the bus showed it: "statusword 0x0218 (fault)",
+ * "EMCY 0x2310 (...)", "no heartbeat for 120 ms", ... */
+void mlip_cli_drive_fault_text(uint32_t event, int64_t value, char *buf, size_t len);
 
 #endif

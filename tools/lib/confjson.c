@@ -62,6 +62,7 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 {
 	const struct mlip_machine *m = &c->machine;
 	const struct mlip_can_config *can = &c->can;
+	const struct mlip_drives_config *d = &c->drives;
 	int i;
 
 	fprintf(f, "{\n  \"file\": ");
@@ -95,5 +96,12 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 	        (unsigned)can->rpdo_base, (unsigned)can->packed_base, (unsigned)can->fd_id,
 	        (unsigned)can->status_id);
 	frames(f, c);
-	fprintf(f, "\n  }\n}\n");
+	fprintf(f,
+	        "\n  },\n  \"drives\": {\n    \"enable\": %s,\n    \"master_node\": %u,\n"
+	        "    \"heartbeat_ms\": %u,\n    \"heartbeat_timeout_ms\": %u,\n"
+	        "    \"following_error\": %.17g,\n    \"sdo_timeout_ms\": %u,\n"
+	        "    \"boot_timeout_ms\": %u,\n    \"state_timeout_ms\": %u\n  }\n}\n",
+	        d->enable ? "true" : "false", (unsigned)d->master_node, (unsigned)d->heartbeat_ms,
+	        (unsigned)d->heartbeat_timeout_ms, d->following_error, (unsigned)d->sdo_timeout_ms,
+	        (unsigned)d->boot_timeout_ms, (unsigned)d->state_timeout_ms);
 }

@@ -79,7 +79,7 @@ have_py() {   # find_spec, not import: a no-op run stays fast
 	"$VENV/bin/python" -c 'import sys, importlib.util as u
 sys.exit(any(u.find_spec(m) is None for m in sys.argv[1:]))' "$@" >/dev/null 2>&1
 }
-if ! have_py can cantools pytest; then
+if ! have_py can cantools pytest canopen; then
 	log "pip install -r tests/can/requirements.txt"
 	"$VENV/bin/pip" install -q --disable-pip-version-check -r "$REQ" >&2
 fi

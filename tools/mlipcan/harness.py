@@ -1,12 +1,12 @@
 """Glue for the end-to-end CAN runs: mlip-rt on a real (v)CAN interface, the
-listener (tools/mlip-listen.py) recording the bus, mlip-feed streaming a
-program, mlip-ctl commands while it runs, and the comparisons against the
-offline simulator (mlip-sim) and the checker (mlip-check).
+listener (mlipcan.listen, tools/mlip-listen.py) recording the bus, mlip-feed
+streaming a program, mlip-ctl commands while it runs, and the comparisons
+against the offline simulator (mlip-sim) and the checker (mlip-check).
 
-Used by tests/can/test_rt_vcan.py and tools/demo.sh. Standard library only:
-every Python import costs seconds in the software-emulated test VM.
+Used by tools/demo.sh (through tools/mlip-demo.py) and the CAN tests
+(tests/can). Standard library only: every Python import costs seconds in the
+software-emulated test VM.
 """
-import importlib.util
 import json
 import math
 import os
@@ -17,12 +17,15 @@ import threading
 import time
 from pathlib import Path
 
+from . import decoders, layout, listen, sources  # noqa: F401 (the tests' API)
+
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / os.environ.get("MLIP_BUILD", "build")
 SHARED = Path(os.environ.get("MLIP_SHARED", ROOT.parent / "shared"))
 TOOLPATHS = SHARED / "toolpaths"
 CONFIG = ROOT / "config"
 LISTEN = ROOT / "tools" / "mlip-listen.py"
+DRIVE_SIM = ROOT / "tools" / "mlip-drive-sim.py"
 PY = sys.executable
 IFACE = os.environ.get("MLIP_VCAN_IFACE", "vcan0")
 IN_VM = os.environ.get("MLIP_IN_VM") == "1"
@@ -40,18 +43,6 @@ def tool(name):
     return str(BUILD / name)
 
 
-def load_listener():
-    """tools/mlip-listen.py as a module (its config reader and decoders)."""
-    spec = importlib.util.spec_from_file_location("mlip_listen", LISTEN)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["mlip_listen"] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-listen = load_listener()
-
-
 def setup_of(config):
     """Axes, nodes, counts per unit, ids of a machine INI (the listener's reader)."""
     return listen.Setup.from_ini(config)
@@ -60,7 +51,7 @@ def setup_of(config):
 def prime_dbc_cache():
     """Read the DBC with cantools once, so listener processes find its layout
     in the cache and skip the (slow in the VM) cantools import."""
-    return listen.load_dbc(listen.DEFAULT_DBC, ROOT / "build")[1]
+    return layout.load_dbc(layout.DEFAULT_DBC, ROOT / "build")[1]
 
 
 # ------------------------------------------------------------------ numbers
@@ -373,6 +364,93 @@ def parse_rt_exit(stderr):
     return out
 
 
+class DriveSim:
+    """tools/mlip-drive-sim.py as a child process: simulated CiA 402 drives on
+    iface, their records in workdir/drives/ (events.jsonl, sync.csv), fault
+    injection at run time through workdir/drives.ctl.
+
+        sim = DriveSim(tmp, nodes=[1, 2, 3], starts={1: 1234}, inject=["2:never-enable"])
+        sim.inject("1:fault=0x2310"); sim.events("state", 1); sim.sync_rows()
+        sim.stop()
+    """
+
+    def __init__(self, workdir, nodes=None, config=None, starts=None, states=None, inject=(),
+                 iface=IFACE, args=(), name="drivesim"):
+        w = Path(workdir)
+        self.rec = w / "drives"
+        self.ctl = w / "drives.ctl"
+        self.ctl.write_text("")
+        a = [PY, DRIVE_SIM, "--can", iface, "--record", self.rec, "--control", self.ctl]
+        if config is not None:
+            a += ["--config", config]
+        if nodes is not None:
+            a += ["--nodes", ",".join(map(str, nodes))]
+        for n, c in (starts or {}).items():
+            a += ["--start", f"{n}={c}"]
+        for n, st in (states or {}).items():
+            a += ["--state", f"{n}={st}"]
+        for i in inject:
+            a += ["--inject", i]
+        self.proc = Proc(name, a + list(args), w)
+        self.proc.wait_for(": ready")
+
+    def inject(self, line):
+        """'N:WHAT[=ARG]', taken within 20 ms (see mlip-drive-sim.py)."""
+        with open(self.ctl, "a") as fh:
+            fh.write(line + "\n")
+
+    def events(self, kind=None, node=None):
+        out = []
+        path = self.rec / "events.jsonl"
+        for line in path.read_text().splitlines() if path.exists() else ():
+            if not line.endswith("}"):
+                continue  # being written
+            e = json.loads(line)
+            if (kind is None or e["kind"] == kind) and (node is None or e["node"] == node):
+                out.append(e)
+        return out
+
+    def wait_event(self, pred, what, timeout=START_TIMEOUT):
+        t_end = time.monotonic() + timeout
+        while time.monotonic() < t_end:
+            ev = [e for e in self.events() if pred(e)]
+            if ev:
+                return ev
+            if self.proc.p.poll() is not None:
+                raise AssertionError(f"drive simulator exited {self.proc.p.returncode}:\n"
+                                     f"{self.proc.stderr()}")
+            time.sleep(0.02)
+        raise AssertionError(f"drive simulator recorded no {what} within {timeout} s")
+
+    def sync_rows(self):
+        """sync.csv as dicts (written every few ms: a last partial line is skipped)."""
+        rows = []
+        path = self.rec / "sync.csv"
+        with open(path) as fh:
+            fh.readline()
+            for line in fh:
+                if not line.endswith("\n"):
+                    break
+                f = line.rstrip("\n").split(",")
+                rows.append({"sync": int(f[0]), "node": int(f[1]), "t": float(f[2]),
+                             "state": f[3], "cw": int(f[4]),
+                             "target": int(f[5]) if f[5] else None, "fresh": f[6] == "1",
+                             "actual": int(f[7]), "sw": int(f[8])})
+        return rows
+
+    def wait_sync_rows(self, pred, timeout=START_TIMEOUT):
+        t_end = time.monotonic() + timeout
+        while True:
+            rows = self.sync_rows()
+            if pred(rows) or time.monotonic() > t_end:
+                return rows
+            time.sleep(0.05)
+
+    def stop(self, timeout=120):
+        """SIGTERM: the records are written, the summary line printed. Returns the exit code."""
+        return self.proc.terminate(timeout=timeout)
+
+
 class Rig:
     """One controller + listener on IFACE with its own shm segment.
 
@@ -427,7 +505,7 @@ class Rig:
             self.listener = Proc("listen", [PY, LISTEN] + largs, w)
         else:
             def fn():
-                listen._stop = False
+                sources._stop = False
                 return listen.main(largs)
             self.listener = Proc("listen", [PY, LISTEN] + largs, w, fn=fn)
         self.listener.wait_for("listening on")
@@ -730,7 +808,8 @@ def plot(outdir, png):
     print(f"demo: velocity profile written to {png}")
 
 
-if __name__ == "__main__":
+def cli(argv=None):
+    """tools/mlip-demo.py: run the demo, or plot its result."""
     import argparse
 
     ap = argparse.ArgumentParser(description="the CAN demo: run it, or plot its result")
@@ -744,7 +823,7 @@ if __name__ == "__main__":
     p.add_argument("outdir")
     p.add_argument("png")
     sub.add_parser("prime")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     if a.cmd == "demo":
         sys.exit(1 if demo(a.outdir, Path(a.config), Path(a.program), a.profile) else 0)
     elif a.cmd == "plot":

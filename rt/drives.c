@@ -1,0 +1,896 @@
+/*
+ * drives.c - the CANopen master of mlip-rt for CiA 402 drives in cyclic
+ * synchronous position mode: bring-up before the first period, supervision
+ * and shut-down in the loop. The frames and decisions are the pure ones of
+ * mlip/canopen.h; this file sequences them on a port (SocketCAN, or a
+ * scripted peer in tests/unit/test_drives.c).
+ *
+ * Bring-up (outside the loop; may wait, print through ds->log):
+ *   1. NMT reset communication to each node; wait for every boot-up
+ *   2. per drive, by SDO, each write read back: the list of
+ *      mlip_drive_setup_entries (PDO mapping, SYNC, CSP, 0x60C2, 0x6065,
+ *      heartbeats)
+ *   3. NMT start; wait for each heartbeat to say operational
+ *   4. CiA 402 by SDO (0x6040 written, 0x6041 polled): fault reset,
+ *      shutdown, switch on, each confirmed within STATE_TIMEOUT_MS
+ *   5. position actual 0x6064 of every drive, checked against the soft
+ *      limits; 0x607A = that position; enable operation, confirmed; the
+ *      position read again: the planner starts there
+ * The master's heartbeat is produced from step 1 on (every wait serves it),
+ * then by the loop.
+ *
+ * In the loop (mlip_drives_tick): no wait, no print: the socket is read
+ * with MSG_DONTWAIT, at most RX_PER_PERIOD frames a period.
+ */
+#define _GNU_SOURCE
+
+#include <errno.h>
+#include <fcntl.h>
+#include <net/if.h>
+#include <poll.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <linux/can.h>
+#include <linux/can/raw.h>
+
+#include "rt.h"
+
+#define RX_PER_PERIOD(n) (4 * (n) + 16) /* TPDO + heartbeat + EMCY per drive, and margin */
+#define STATE_POLL_NS 5000000LL         /* 0x6041 read every 5 ms while waiting */
+
+/* ---- SocketCAN port --------------------------------------------------------- */
+
+struct co_sock {
+	int fd;
+};
+static struct co_sock sock_ctx = {-1};
+
+static int sock_send(void *ctx, const struct mlip_can_frame *f)
+{
+	struct co_sock *s = ctx;
+	struct can_frame cf;
+	memset(&cf, 0, sizeof(cf));
+	cf.can_id = f->id;
+	cf.can_dlc = f->len;
+	memcpy(cf.data, f->data, f->len > 8 ? 8 : f->len);
+	return send(s->fd, &cf, sizeof(cf), MSG_DONTWAIT) == (ssize_t)sizeof(cf) ? 0 : -errno;
+}
+
+static int sock_recv(void *ctx, struct mlip_can_frame *f, int64_t timeout_ns)
+{
+	struct co_sock *s = ctx;
+	struct can_frame cf;
+	if (timeout_ns > 0) {
+		struct pollfd pf = {s->fd, POLLIN, 0};
+		int r = poll(&pf, 1, (int)((timeout_ns + 999999) / 1000000));
+		if (r <= 0) {
+			return r < 0 && errno != EINTR ? -errno : 0;
+		}
+	}
+	ssize_t n = recv(s->fd, &cf, sizeof(cf), MSG_DONTWAIT);
+	if (n < 0) {
+		return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR ? 0 : -errno;
+	}
+	if (n != (ssize_t)sizeof(cf) || (cf.can_id & (CAN_ERR_FLAG | CAN_RTR_FLAG))) {
+		return 0;
+	}
+	memset(f, 0, sizeof(*f));
+	f->id = cf.can_id & (cf.can_id & CAN_EFF_FLAG ? CAN_EFF_MASK : CAN_SFF_MASK);
+	f->flags = (cf.can_id & CAN_EFF_FLAG) ? MLIP_CAN_FLAG_EFF : 0;
+	f->len = cf.can_dlc > 8 ? 8 : cf.can_dlc;
+	memcpy(f->data, cf.data, f->len);
+	return 1;
+}
+
+static uint64_t sock_now(void *ctx)
+{
+	(void)ctx;
+	return mlip_now_ns();
+}
+
+int mlip_co_socket_open(struct mlip_co_port *p, const char *ifname, const struct mlip_machine *m,
+                        char *why, size_t why_len)
+{
+	struct can_filter flt[4 * MLIP_MAX_AXES];
+	static const uint32_t bases[4] = {MLIP_CO_SDO_TX_BASE, MLIP_CO_HB_BASE, MLIP_CO_EMCY_BASE,
+	                                  MLIP_CO_TPDO1_BASE};
+	int nf = 0;
+	int fd = socket(PF_CAN, SOCK_RAW, CAN_RAW);
+	if (fd < 0) {
+		int e = errno;
+		snprintf(why, why_len, "socket(PF_CAN): %s", strerror(e));
+		return -e;
+	}
+	for (int i = 0; i < m->n_axes; i++) {
+		for (int b = 0; b < 4; b++) {
+			flt[nf].can_id = bases[b] + (uint32_t)m->axis[i].can_node;
+			flt[nf].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG;
+			nf++;
+		}
+	}
+	setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, flt, (socklen_t)(nf * sizeof(flt[0])));
+	struct sockaddr_can addr;
+	memset(&addr, 0, sizeof(addr));
+	addr.can_family = AF_CAN;
+	addr.can_ifindex = (int)if_nametoindex(ifname);
+	if (addr.can_ifindex == 0 || bind(fd, (struct sockaddr *)&addr, sizeof(addr)) != 0 ||
+	    fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK) != 0) {
+		int e = addr.can_ifindex == 0 ? ENODEV : errno;
+		snprintf(why, why_len, "CANopen socket on %s: %s", ifname, strerror(e));
+		close(fd);
+		return -e;
+	}
+	sock_ctx.fd = fd;
+	p->ctx = &sock_ctx;
+	p->send = sock_send;
+	p->recv = sock_recv;
+	p->now_ns = sock_now;
+	return 0;
+}
+
+void mlip_co_socket_close(struct mlip_co_port *p)
+{
+	if (p->ctx == &sock_ctx && sock_ctx.fd >= 0) {
+		close(sock_ctx.fd);
+		sock_ctx.fd = -1;
+	}
+}
+
+/* ---- helpers ------------------------------------------------------------------ */
+
+static void say(struct mlip_drives *ds, const char *fmt, ...)
+{
+	char line[256];
+	va_list ap;
+	if (ds->log == NULL) {
+		return;
+	}
+	va_start(ap, fmt);
+	vsnprintf(line, sizeof(line), fmt, ap);
+	va_end(ap);
+	ds->log(ds->log_ctx, line);
+}
+
+static int find_node(const struct mlip_drives *ds, uint8_t node)
+{
+	for (int i = 0; i < ds->n; i++) {
+		if (ds->d[i].node == node) {
+			return i;
+		}
+	}
+	return -1;
+}
+
+/* The master's heartbeat when it is due (both outside and in the loop). */
+static void serve_heartbeat(struct mlip_drives *ds, uint64_t now)
+{
+	if (now >= ds->hb_next_ns) {
+		struct mlip_can_frame f;
+		mlip_co_heartbeat_encode(ds->cfg.master_node, MLIP_NMT_OPERATIONAL, &f);
+		ds->port.send(ds->port.ctx, &f);
+		ds->hb_next_ns = now + (uint64_t)ds->cfg.heartbeat_ms * 1000000u;
+	}
+}
+
+/* Note what a heartbeat, EMCY or TPDO says about a drive (in and out of the
+ * loop); returns the classified message. `cycle`: the period (0 outside). */
+static void observe(struct mlip_drives *ds, const struct mlip_can_frame *f, uint64_t now,
+                    uint64_t cycle, struct mlip_co_msg *m)
+{
+	if (mlip_co_classify(f, m) != MLIP_OK) {
+		ds->rx_malformed++;
+		m->kind = MLIP_CO_OTHER;
+		return;
+	}
+	int i = find_node(ds, m->node);
+	if (i < 0) {
+		m->kind = MLIP_CO_OTHER;
+		return;
+	}
+	struct mlip_drive_obs *o = &ds->d[i].obs;
+	switch (m->kind) {
+	case MLIP_CO_HEARTBEAT:
+		o->nmt_state = m->nmt_state;
+		o->hb_ns = now;
+		break;
+	case MLIP_CO_EMCY:
+		if (m->emcy.code != 0) {
+			o->emcy = m->emcy;
+			o->emcy_count++;
+		}
+		break;
+	case MLIP_CO_TPDO:
+		o->statusword = m->statusword;
+		o->position_counts = m->position_counts;
+		o->tpdo_cycle = cycle;
+		o->tpdo_count++;
+		break;
+	default:
+		break;
+	}
+}
+
+/* Wait up to timeout for a frame, serving the master's heartbeat. 1, 0
+ * (timeout) or -errno. EMCYs are logged as they come. */
+static int wait_frame(struct mlip_drives *ds, uint64_t deadline, struct mlip_can_frame *f,
+                      struct mlip_co_msg *m)
+{
+	for (;;) {
+		uint64_t now = ds->port.now_ns(ds->port.ctx);
+		serve_heartbeat(ds, now);
+		if (now >= deadline) {
+			return 0;
+		}
+		uint64_t until = deadline < ds->hb_next_ns ? deadline : ds->hb_next_ns;
+		int r = ds->port.recv(ds->port.ctx, f, (int64_t)(until - now));
+		if (r < 0) {
+			return r;
+		}
+		if (r == 0) {
+			continue;
+		}
+		observe(ds, f, ds->port.now_ns(ds->port.ctx), 0, m);
+		if (m->kind == MLIP_CO_EMCY) {
+			say(ds, "node %u: EMCY 0x%04X (%s), error register 0x%02X", m->node, m->emcy.code,
+			     mlip_emcy_text(m->emcy.code), m->emcy.reg);
+		}
+		return 1;
+	}
+}
+
+static const char *axis_of(const struct mlip_drives *ds, int i, char *buf, size_t n)
+{
+	snprintf(buf, n, "node %u (axis %c)", ds->d[i].node, ds->d[i].letter);
+	return buf;
+}
+
+/* One SDO transfer to drive i: 0, or -errno with why naming node, object,
+ * abort code and its meaning. */
+static int sdo(struct mlip_drives *ds, int i, int upload, uint16_t index, uint8_t sub,
+               uint32_t value, uint8_t size, const char *what, uint32_t *out, char *why,
+               size_t why_len)
+{
+	struct mlip_sdo s;
+	struct mlip_can_frame req, f;
+	struct mlip_co_msg m;
+	char who[32];
+	const char *verb = upload ? "reading" : "writing";
+	uint8_t node = ds->d[i].node;
+
+	if (upload) {
+		mlip_sdo_upload_begin(&s, node, index, sub, &req);
+	} else {
+		mlip_sdo_download_begin(&s, node, index, sub, value, size, &req);
+	}
+	axis_of(ds, i, who, sizeof(who));
+	uint64_t timeout = (uint64_t)ds->cfg.sdo_timeout_ms * 1000000u;
+	uint64_t deadline = ds->port.now_ns(ds->port.ctx) + timeout;
+	if (ds->port.send(ds->port.ctx, &req) != 0) {
+		snprintf(why, why_len, "%s: cannot send the SDO request %s 0x%04X:%02X", who, verb,
+		         index, sub);
+		return -EIO;
+	}
+	for (;;) {
+		int r = wait_frame(ds, deadline, &f, &m);
+		if (r < 0) {
+			snprintf(why, why_len, "%s: bus read failed: %s", who, strerror(-r));
+			return r;
+		}
+		if (r == 0) {
+			mlip_sdo_abort_encode(node, index, sub, MLIP_SDO_ABORT_TIMEOUT, &req);
+			ds->port.send(ds->port.ctx, &req);
+			snprintf(why, why_len,
+			         "%s: no SDO answer %s 0x%04X:%02X (%s) within %u ms: is the drive on "
+			         "the bus with this node id?",
+			         who, verb, index, sub, what, (unsigned)ds->cfg.sdo_timeout_ms);
+			return -ETIMEDOUT;
+		}
+		if (m.kind != MLIP_CO_SDO || m.node != node) {
+			continue;
+		}
+		switch (mlip_sdo_feed(&s, &f, &req)) {
+		case MLIP_SDO_IGNORED:
+			continue;
+		case MLIP_SDO_SEND:
+			ds->port.send(ds->port.ctx, &req);
+			deadline = ds->port.now_ns(ds->port.ctx) + timeout;
+			continue;
+		case MLIP_SDO_DONE:
+			if (out != NULL) {
+				*out = s.value;
+			}
+			return 0;
+		case MLIP_SDO_ABORTED:
+			snprintf(why, why_len, "%s: SDO abort 0x%08X %s 0x%04X:%02X (%s) - %s", who,
+			         s.abort_code, verb, index, sub, mlip_sdo_abort_text(s.abort_code), what);
+			return -EPROTO;
+		case MLIP_SDO_PROTOCOL:
+			ds->port.send(ds->port.ctx, &req);
+			snprintf(why, why_len,
+			         "%s: wrong SDO answer %s 0x%04X:%02X (%s): aborted with 0x%08X (%s)",
+			         who, verb, index, sub, what, s.abort_code,
+			         mlip_sdo_abort_text(s.abort_code));
+			return -EPROTO;
+		}
+	}
+}
+
+static uint32_t mask_of(uint8_t size)
+{
+	return size >= 4 ? 0xFFFFFFFFu : (1u << (8 * size)) - 1u;
+}
+
+/* Write and read back (or only read and compare). */
+static int sdo_entry(struct mlip_drives *ds, int i, const struct mlip_sdo_entry *e, char *why,
+                     size_t why_len)
+{
+	uint32_t got = 0;
+	int rc;
+	if (!e->read_only) {
+		rc = sdo(ds, i, 0, e->index, e->sub, e->value, e->size, e->what, NULL, why, why_len);
+		if (rc != 0) {
+			return rc;
+		}
+	}
+	rc = sdo(ds, i, 1, e->index, e->sub, 0, 0, e->what, &got, why, why_len);
+	if (rc != 0) {
+		return rc;
+	}
+	if ((got & mask_of(e->size)) != (e->value & mask_of(e->size))) {
+		char who[32];
+		snprintf(why, why_len, "%s: 0x%04X:%02X (%s) reads back 0x%X, written 0x%X",
+		         axis_of(ds, i, who, sizeof(who)), e->index, e->sub, e->what,
+		         (unsigned)(got & mask_of(e->size)), (unsigned)e->value);
+		return -EPROTO;
+	}
+	return 0;
+}
+
+/* ---- bring-up ------------------------------------------------------------------- */
+
+int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
+                     const struct mlip_co_port *port, void (*log)(void *, const char *),
+                     void *log_ctx, char *why, size_t why_len)
+{
+	const struct mlip_machine *m = &cfg->machine;
+	memset(ds, 0, sizeof(*ds));
+	ds->port = *port;
+	ds->cfg = cfg->drives;
+	ds->m = m;
+	ds->log = log;
+	ds->log_ctx = log_ctx;
+	ds->n = m->n_axes;
+	if (strcmp(cfg->can.profile, "cia402") != 0) {
+		snprintf(why, why_len, "CiA 402 drives need [CAN] PROFILE = cia402, not %s",
+		         cfg->can.profile);
+		return -EINVAL;
+	}
+	for (int i = 0; i < m->n_axes; i++) {
+		const struct mlip_axis *a = &m->axis[i];
+		struct mlip_drive *d = &ds->d[i];
+		if (a->can_node == ds->cfg.master_node) {
+			snprintf(why, why_len, "[DRIVES] MASTER_NODE %u is also the CAN_NODE of AXIS_%c",
+			         ds->cfg.master_node, a->letter);
+			return -EINVAL;
+		}
+		d->node = (uint8_t)a->can_node;
+		d->letter = a->letter;
+		d->counts_per_unit = a->counts_per_unit;
+		double w = ds->cfg.following_error * a->counts_per_unit;
+		if (!(w >= 1.0 && w <= 2147483647.0)) {
+			snprintf(why, why_len,
+			         "[DRIVES] FOLLOWING_ERROR %g is %g counts on AXIS_%c: not 1..2^31-1",
+			         ds->cfg.following_error, w, a->letter);
+			return -EINVAL;
+		}
+		d->setup.node = d->node;
+		d->setup.sync_id = cfg->can.sync_id;
+		d->setup.rpdo_cob = cfg->can.rpdo_base + d->node;
+		d->setup.tpdo_cob = MLIP_CO_TPDO1_BASE + d->node;
+		d->setup.period_s = m->period_s;
+		d->setup.following_window_counts = (uint32_t)(w + 0.5);
+		d->setup.heartbeat_ms = (uint16_t)ds->cfg.heartbeat_ms;
+		d->setup.master_node = ds->cfg.master_node;
+		d->setup.master_timeout_ms = (uint16_t)ds->cfg.heartbeat_timeout_ms;
+		struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
+		if (mlip_drive_setup_entries(&d->setup, e, MLIP_DRIVE_SETUP_MAX) < 0) {
+			snprintf(why, why_len,
+			         "[TRAJ] PERIOD %g s cannot be written to 0x60C2 (value 1..255 times "
+			         "10^-6..10^0 s)",
+			         m->period_s);
+			return -EINVAL;
+		}
+	}
+	return 0;
+}
+
+static int read_state(struct mlip_drives *ds, int i, uint16_t *sw, char *why, size_t why_len)
+{
+	uint32_t v = 0;
+	int rc = sdo(ds, i, 1, 0x6041, 0, 0, 0, "statusword", &v, why, why_len);
+	if (rc == 0) {
+		*sw = (uint16_t)v;
+		ds->d[i].state = mlip_402_state_of(*sw);
+	}
+	return rc;
+}
+
+static int read_position(struct mlip_drives *ds, int i, int32_t *counts, char *why,
+                         size_t why_len)
+{
+	uint32_t v = 0;
+	int rc = sdo(ds, i, 1, 0x6064, 0, 0, 0, "position actual value", &v, why, why_len);
+	*counts = (int32_t)v;
+	return rc;
+}
+
+/* Let the drive work for a while (frames read, the heartbeat served). */
+static void pause_poll(struct mlip_drives *ds)
+{
+	struct mlip_can_frame f;
+	struct mlip_co_msg m;
+	uint64_t until = ds->port.now_ns(ds->port.ctx) + STATE_POLL_NS;
+	while (wait_frame(ds, until, &f, &m) > 0) {
+	}
+}
+
+static int write_cw(struct mlip_drives *ds, int i, uint16_t cw, char *why, size_t why_len)
+{
+	return sdo(ds, i, 0, 0x6040, 0, cw, 2, "controlword", NULL, why, why_len);
+}
+
+/* Write controlword cw and wait until the statusword shows `want`. */
+static int transition(struct mlip_drives *ds, int i, uint16_t cw, mlip_402_state want,
+                      const char *name, char *why, size_t why_len)
+{
+	uint16_t sw = 0;
+	char who[32];
+	int rc = write_cw(ds, i, cw, why, why_len);
+	if (rc != 0) {
+		return rc;
+	}
+	uint64_t t0 = ds->port.now_ns(ds->port.ctx);
+	uint64_t deadline = t0 + (uint64_t)ds->cfg.state_timeout_ms * 1000000u;
+	for (;;) {
+		rc = read_state(ds, i, &sw, why, why_len);
+		if (rc != 0) {
+			return rc;
+		}
+		if (ds->d[i].state == want) {
+			say(ds, "%s: %s (0x%04X): %s, statusword 0x%04X after %.1f ms",
+			     axis_of(ds, i, who, sizeof(who)), name, cw, mlip_402_state_name(want), sw,
+			     (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
+			return 0;
+		}
+		if (ds->port.now_ns(ds->port.ctx) >= deadline) {
+			const struct mlip_drive_obs *o = &ds->d[i].obs;
+			char emcy[64] = "";
+			if (o->emcy_count > 0) {
+				snprintf(emcy, sizeof(emcy), "; last EMCY 0x%04X (%s)", o->emcy.code,
+				         mlip_emcy_text(o->emcy.code));
+			}
+			snprintf(why, why_len,
+			         "%s: still \"%s\" (statusword 0x%04X) %u ms after %s (controlword "
+			         "0x%04X), expected \"%s\"%s",
+			         axis_of(ds, i, who, sizeof(who)), mlip_402_state_name(ds->d[i].state),
+			         sw, (unsigned)ds->cfg.state_timeout_ms, name, cw,
+			         mlip_402_state_name(want), emcy);
+			return -ETIMEDOUT;
+		}
+		pause_poll(ds);
+	}
+}
+
+/* From whatever state the drive is in up to "switched on". */
+static int up_to_switched_on(struct mlip_drives *ds, int i, char *why, size_t why_len)
+{
+	uint16_t sw = 0;
+	char who[32];
+	int rc = read_state(ds, i, &sw, why, why_len);
+	uint64_t deadline =
+	    ds->port.now_ns(ds->port.ctx) + (uint64_t)ds->cfg.state_timeout_ms * 1000000u;
+	if (rc != 0) {
+		return rc;
+	}
+	say(ds, "%s: power-up state \"%s\", statusword 0x%04X", axis_of(ds, i, who, sizeof(who)),
+	     mlip_402_state_name(ds->d[i].state), sw);
+	for (int steps = 0; steps < 8; steps++) {
+		mlip_402_state s = ds->d[i].state;
+		if (s == MLIP_402_SWITCHED_ON) {
+			return 0;
+		}
+		if (s == MLIP_402_OPERATION_ENABLED) {
+			/* enabled before we came: disable operation first, nothing moves */
+			rc = transition(ds, i, MLIP_402_CW_SWITCH_ON, MLIP_402_SWITCHED_ON,
+			                "disable operation", why, why_len);
+			if (rc != 0) {
+				return rc;
+			}
+			continue;
+		}
+		int cw = mlip_402_step_up(s);
+		if (cw < 0) { /* not ready, fault reaction: the drive goes on by itself */
+			if (ds->port.now_ns(ds->port.ctx) >= deadline) {
+				snprintf(why, why_len, "%s: stays \"%s\" (statusword 0x%04X)",
+				         axis_of(ds, i, who, sizeof(who)), mlip_402_state_name(s), sw);
+				return -ETIMEDOUT;
+			}
+			pause_poll(ds);
+			rc = read_state(ds, i, &sw, why, why_len);
+			if (rc != 0) {
+				return rc;
+			}
+			continue;
+		}
+		if (cw == MLIP_402_CW_FAULT_RESET) {
+			/* the reset acts on a rising edge of bit 7 */
+			rc = write_cw(ds, i, MLIP_402_CW_DISABLE_VOLTAGE, why, why_len);
+			if (rc == 0) {
+				rc = transition(ds, i, MLIP_402_CW_FAULT_RESET,
+				                MLIP_402_SWITCH_ON_DISABLED, "fault reset", why, why_len);
+			}
+		} else {
+			static const char *const names[] = {"shutdown", "switch on", "disable voltage"};
+			const char *name = cw == MLIP_402_CW_SHUTDOWN    ? names[0]
+			                   : cw == MLIP_402_CW_SWITCH_ON ? names[1]
+			                                                 : names[2];
+			rc = transition(ds, i, (uint16_t)cw, mlip_402_after(s, (uint16_t)cw), name, why,
+			                why_len);
+		}
+		if (rc != 0) {
+			return rc;
+		}
+	}
+	snprintf(why, why_len, "%s: does not reach \"switched on\"", axis_of(ds, i, who, sizeof(who)));
+	return -ETIMEDOUT;
+}
+
+static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, const char *what,
+                        char *why, size_t why_len)
+{
+	uint32_t seen = 0, all = (1u << ds->n) - 1u;
+	struct mlip_can_frame f;
+	struct mlip_co_msg m;
+	uint64_t t0 = ds->port.now_ns(ds->port.ctx);
+	uint64_t deadline = t0 + (uint64_t)ds->cfg.boot_timeout_ms * 1000000u;
+	for (int i = 0; i < ds->n; i++) {
+		mlip_nmt_encode(cmd, ds->d[i].node, &f);
+		if (ds->port.send(ds->port.ctx, &f) != 0) {
+			snprintf(why, why_len, "cannot send the NMT command 0x%02X", cmd);
+			return -EIO;
+		}
+	}
+	while (seen != all) {
+		int r = wait_frame(ds, deadline, &f, &m);
+		if (r < 0) {
+			snprintf(why, why_len, "bus read failed: %s", strerror(-r));
+			return r;
+		}
+		if (r == 0) {
+			char list[96] = "";
+			size_t k = 0;
+			for (int i = 0; i < ds->n; i++) {
+				if (!(seen & (1u << i)) && k < sizeof(list)) {
+					k += (size_t)snprintf(list + k, sizeof(list) - k, "%s%u (axis %c)",
+					                      k ? ", " : "", ds->d[i].node, ds->d[i].letter);
+				}
+			}
+			snprintf(why, why_len,
+			         "node %s: no %s within %u ms (powered? node id? bit rate? "
+			         "wiring and termination?)",
+			         list, what, (unsigned)ds->cfg.boot_timeout_ms);
+			return -ETIMEDOUT;
+		}
+		if (m.kind == MLIP_CO_HEARTBEAT && m.nmt_state == state) {
+			int i = find_node(ds, m.node);
+			if (i >= 0 && !(seen & (1u << i))) {
+				seen |= 1u << i;
+				say(ds, "node %u (axis %c): %s after %.1f ms", m.node, ds->d[i].letter, what,
+				     (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
+			}
+		}
+	}
+	return 0;
+}
+
+int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, size_t why_len)
+{
+	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
+	char who[32];
+	int rc;
+
+	ds->hb_next_ns = 0;
+	rc = nmt_wait_all(ds, MLIP_NMT_RESET_COMM, MLIP_NMT_BOOTUP,
+	                  "boot-up after NMT reset communication", why, why_len);
+	if (rc != 0) {
+		return rc;
+	}
+	for (int i = 0; i < ds->n; i++) {
+		uint32_t type = 0;
+		rc = sdo(ds, i, 1, 0x1000, 0, 0, 0, "device type", &type, why, why_len);
+		if (rc != 0) {
+			goto fail;
+		}
+		if ((type & 0xFFFFu) != 402) {
+			snprintf(why, why_len,
+			         "%s: device type 0x%08X is not a CiA 402 drive (0x1000 low word 402)",
+			         axis_of(ds, i, who, sizeof(who)), type);
+			rc = -EPROTO;
+			goto fail;
+		}
+		int n = mlip_drive_setup_entries(&ds->d[i].setup, e, MLIP_DRIVE_SETUP_MAX);
+		for (int k = 0; k < n; k++) {
+			rc = sdo_entry(ds, i, &e[k], why, why_len);
+			if (rc != 0) {
+				goto fail;
+			}
+		}
+		say(ds, "%s: CiA 402 drive (0x1000 = 0x%08X), %d objects written and read back: "
+		         "CSP, RPDO 0x%03X, TPDO 0x%03X, 0x60C2 %g s, 0x6065 %u counts, heartbeat %u ms",
+		     axis_of(ds, i, who, sizeof(who)), type, n, ds->d[i].setup.rpdo_cob,
+		     ds->d[i].setup.tpdo_cob, ds->d[i].setup.period_s,
+		     ds->d[i].setup.following_window_counts, ds->d[i].setup.heartbeat_ms);
+	}
+	rc = nmt_wait_all(ds, MLIP_NMT_START, MLIP_NMT_OPERATIONAL, "operational after NMT start",
+	                  why, why_len);
+	if (rc != 0) {
+		goto fail;
+	}
+	for (int i = 0; i < ds->n; i++) {
+		rc = up_to_switched_on(ds, i, why, why_len);
+		if (rc != 0) {
+			goto fail;
+		}
+	}
+	/* where the machine is, before anything is enabled */
+	for (int i = 0; i < ds->n; i++) {
+		const struct mlip_axis *a = &ds->m->axis[i];
+		int32_t v = 0;
+		rc = read_position(ds, i, &v, why, why_len);
+		if (rc != 0) {
+			goto fail;
+		}
+		ds->d[i].start_counts = v;
+		double pos = v / ds->d[i].counts_per_unit;
+		const char *unit = a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm";
+		if (pos < a->min_limit || pos > a->max_limit) {
+			snprintf(why, why_len,
+			         "%s is at %.4f %s (%d counts), beyond its soft limit %s %g: bring it "
+			         "back within %g..%g by hand before starting",
+			         axis_of(ds, i, who, sizeof(who)), pos, unit, v,
+			         pos < a->min_limit ? "MIN_LIMIT" : "MAX_LIMIT",
+			         pos < a->min_limit ? a->min_limit : a->max_limit, a->min_limit,
+			         a->max_limit);
+			rc = -ERANGE;
+			goto fail;
+		}
+		rc = sdo(ds, i, 0, 0x607A, 0, (uint32_t)v, 4, "target position", NULL, why, why_len);
+		if (rc != 0) {
+			goto fail;
+		}
+	}
+	for (int i = 0; i < ds->n; i++) {
+		rc = transition(ds, i, MLIP_402_CW_ENABLE_OPERATION, MLIP_402_OPERATION_ENABLED,
+		                "enable operation", why, why_len);
+		if (rc != 0) {
+			goto fail;
+		}
+	}
+	for (int i = 0; i < ds->n; i++) {
+		const struct mlip_axis *a = &ds->m->axis[i];
+		int32_t v = 0;
+		rc = read_position(ds, i, &v, why, why_len);
+		if (rc != 0) {
+			goto fail;
+		}
+		int64_t moved = (int64_t)v - ds->d[i].start_counts;
+		if (moved > (int64_t)ds->d[i].setup.following_window_counts ||
+		    -moved > (int64_t)ds->d[i].setup.following_window_counts) {
+			snprintf(why, why_len,
+			         "%s moved %lld counts while being enabled (window 0x6065 %u)",
+			         axis_of(ds, i, who, sizeof(who)), (long long)moved,
+			         ds->d[i].setup.following_window_counts);
+			rc = -ERANGE;
+			goto fail;
+		}
+		ds->d[i].start_counts = v;
+		start_pos[i] = v / ds->d[i].counts_per_unit;
+		ds->d[i].obs.nmt_state = MLIP_NMT_OPERATIONAL;
+		ds->d[i].obs.hb_ns = ds->port.now_ns(ds->port.ctx);
+		for (int k = 0; k < MLIP_DRIVE_HIST; k++) {
+			ds->d[i].targets[k] = v; /* before the first period: here */
+		}
+		ds->d[i].obs.tpdo_count = 0;
+		say(ds, "%s: operation enabled at %.4f %s (%d counts): the planner starts there",
+		     axis_of(ds, i, who, sizeof(who)), start_pos[i],
+		     a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", v);
+	}
+	ds->phase = MLIP_DRIVES_RUN;
+	return 0;
+fail:
+	mlip_drives_disable(ds);
+	return rc;
+}
+
+void mlip_drives_disable(struct mlip_drives *ds)
+{
+	char why[256];
+	for (int i = 0; i < ds->n; i++) {
+		uint16_t sw = 0;
+		if (read_state(ds, i, &sw, why, sizeof(why)) != 0) {
+			continue; /* gone or never there: nothing to disable */
+		}
+		mlip_402_state s = ds->d[i].state;
+		if (s == MLIP_402_OPERATION_ENABLED) {
+			transition(ds, i, MLIP_402_CW_SWITCH_ON, MLIP_402_SWITCHED_ON,
+			           "disable operation", why, sizeof(why));
+			s = ds->d[i].state;
+		}
+		if (s == MLIP_402_SWITCHED_ON) {
+			transition(ds, i, MLIP_402_CW_SHUTDOWN, MLIP_402_READY_TO_SWITCH_ON, "shutdown",
+			           why, sizeof(why));
+		}
+	}
+}
+
+/* ---- the loop -------------------------------------------------------------------- */
+
+static void read_frames(struct mlip_drives *ds, uint64_t cycle, uint64_t now)
+{
+	struct mlip_can_frame f;
+	struct mlip_co_msg m;
+	for (int k = 0; k < RX_PER_PERIOD(ds->n); k++) {
+		if (ds->port.recv(ds->port.ctx, &f, 0) != 1) {
+			break;
+		}
+		ds->rx_frames++;
+		observe(ds, &f, now, cycle, &m);
+	}
+}
+
+static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now)
+{
+	struct mlip_drive_expect x;
+	uint64_t period_ns = (uint64_t)(ds->m->period_s * 1e9 + 0.5);
+	memset(&x, 0, sizeof(x));
+	x.now_ns = now;
+	x.cycle = cycle;
+	x.hb_timeout_ns = (uint64_t)ds->cfg.heartbeat_timeout_ms * 1000000u;
+	x.tpdo_timeout = (uint32_t)(x.hb_timeout_ns / period_ns); /* as long as a heartbeat */
+	for (int i = 0; i < ds->n; i++) {
+		struct mlip_drive *d = &ds->d[i];
+		int64_t detail;
+		if (ds->mute & (1u << i)) {
+			continue;
+		}
+		x.window_counts = d->setup.following_window_counts;
+		/* the newest TPDO answers SYNC j = tpdo_count, sent in period j */
+		uint64_t j = d->obs.tpdo_count;
+		x.following_counts = -1;
+		if (d->obs.tpdo_cycle == cycle && j >= 1 && cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
+			int32_t t[MLIP_DRIVE_LAG];
+			for (int k = 0; k < MLIP_DRIVE_LAG; k++) {
+				t[k] = d->targets[(j - 1 - (uint64_t)k + MLIP_DRIVE_HIST) % MLIP_DRIVE_HIST];
+			}
+			x.following_counts =
+			    mlip_drive_following_error(t, MLIP_DRIVE_LAG, d->obs.position_counts);
+		}
+		mlip_drive_fault f = mlip_drive_supervise(&d->obs, &x, &detail);
+		if (f == MLIP_DRIVE_OK) {
+			continue;
+		}
+		/* the drive no longer follows: no more targets for it */
+		if (f != MLIP_DRIVE_FOLLOWING_ERROR && f != MLIP_DRIVE_TPDO_LOST) {
+			ds->mute |= 1u << i;
+		}
+		if (!__atomic_load_n(&ds->fault, __ATOMIC_ACQUIRE)) {
+			ds->fault_drive = i;
+			ds->fault_reason = f;
+			ds->fault_detail = detail;
+			ds->fault_cycle = cycle;
+			__atomic_store_n(&ds->fault, 1, __ATOMIC_RELEASE);
+			/* an input of the controller's period: it stops every axis on
+			 * the path, state fault, reason drive (node, event, value) */
+			ds->in.drive_fault.event = (uint32_t)f;
+			ds->in.drive_fault.node = d->node;
+			ds->in.drive_fault.value = (double)detail;
+		}
+	}
+}
+
+/* Shut-down with the SYNC running: every drive that is still ours gets cw
+ * until its TPDO shows `want` (or STATE_TIMEOUT_MS passes). 1: all there. */
+static int all_in(struct mlip_drives *ds, mlip_402_state want)
+{
+	for (int i = 0; i < ds->n; i++) {
+		if (!(ds->mute & (1u << i)) && mlip_402_state_of(ds->d[i].obs.statusword) != want) {
+			return 0;
+		}
+	}
+	return 1;
+}
+
+int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t)
+{
+	struct mlip_drives *ds = ctx;
+	struct mlip_controller *c = ds->ctl;
+	uint64_t cycle = t->cycle + 1, now = ds->port.now_ns(ds->port.ctx);
+	uint16_t cw = MLIP_402_CW_ENABLE_OPERATION;
+
+	memset(&ds->in.drive_fault, 0, sizeof(ds->in.drive_fault));
+	read_frames(ds, cycle, now);
+	if (ds->phase == MLIP_DRIVES_RUN) {
+		supervise(ds, cycle, now);
+	}
+	uint64_t limit = (uint64_t)ds->cfg.state_timeout_ms * 1000000u /
+	                 (uint64_t)(ds->m->period_s * 1e9 + 0.5);
+	if (ds->phase == MLIP_DRIVES_DISABLING) {
+		cw = MLIP_402_CW_SWITCH_ON; /* disable operation */
+		if (all_in(ds, MLIP_402_SWITCHED_ON) || cycle - ds->phase_cycle > limit) {
+			if (!all_in(ds, MLIP_402_SWITCHED_ON)) {
+				snprintf(ds->shutdown_note, sizeof(ds->shutdown_note),
+				         "not every drive confirmed \"switched on\" within %u ms",
+				         (unsigned)ds->cfg.state_timeout_ms);
+			}
+			ds->phase = MLIP_DRIVES_SHUTTING_DOWN;
+			ds->phase_cycle = cycle;
+			cw = MLIP_402_CW_SHUTDOWN;
+		}
+	} else if (ds->phase == MLIP_DRIVES_SHUTTING_DOWN) {
+		cw = MLIP_402_CW_SHUTDOWN;
+		if (all_in(ds, MLIP_402_READY_TO_SWITCH_ON) || cycle - ds->phase_cycle > limit) {
+			ds->shutdown_ok = all_in(ds, MLIP_402_READY_TO_SWITCH_ON) && !ds->shutdown_note[0];
+			if (!all_in(ds, MLIP_402_READY_TO_SWITCH_ON) && !ds->shutdown_note[0]) {
+				snprintf(ds->shutdown_note, sizeof(ds->shutdown_note),
+				         "not every drive confirmed \"ready to switch on\" within %u ms",
+				         (unsigned)ds->cfg.state_timeout_ms);
+			}
+			ds->phase = MLIP_DRIVES_OFF;
+		}
+	}
+	/* the controller's inputs from the drives: the controlword of the
+	 * RPDOs, no target to a drive not enabled, positions actual */
+	ds->in.drive_cw = cw;
+	ds->in.drive_mute = ds->mute;
+	ds->in.actual_mask = 0;
+	for (int i = 0; i < ds->n; i++) {
+		const struct mlip_drive *d = &ds->d[i];
+		int32_t v = d->obs.tpdo_count > 0 ? d->obs.position_counts : d->start_counts;
+		ds->in.pos_actual[i] = v / d->counts_per_unit;
+		ds->in.actual_mask |= 1u << i;
+	}
+	int done = mlip_controller_period(c, t, &ds->in);
+	/* the targets just sent, for the following error */
+	for (int i = 0; i < ds->n; i++) {
+		struct mlip_drive *d = &ds->d[i];
+		int32_t counts;
+		mlip_can_counts(c->out.pos[i], d->counts_per_unit, &counts);
+		d->targets[cycle % MLIP_DRIVE_HIST] = counts;
+	}
+	serve_heartbeat(ds, now);
+	/* the controller is at rest and asked to end: never while it moves */
+	if (done && ds->phase == MLIP_DRIVES_RUN) {
+		ds->phase = MLIP_DRIVES_DISABLING;
+		ds->phase_cycle = cycle;
+	}
+	return ds->phase == MLIP_DRIVES_OFF;
+}
+
+void mlip_drives_release(struct mlip_drives *ds)
+{
+	char why[256];
+	struct mlip_can_frame f;
+	for (int i = 0; i < ds->n; i++) {
+		if (sdo(ds, i, 0, 0x1016, 1, 0, 4, "consumer heartbeat time (off)", NULL, why,
+		        sizeof(why)) != 0) {
+			say(ds, "%s", why);
+		}
+		mlip_nmt_encode(MLIP_NMT_PREOP, ds->d[i].node, &f);
+		ds->port.send(ds->port.ctx, &f);
+	}
+	say(ds, "drives released: heartbeat consumers off, NMT pre-operational");
+}

@@ -1,0 +1,409 @@
+/*
+ * test_canopen.c - the pure CANopen master (mlip/canopen.h): NMT and
+ * heartbeat bytes, frame classification, the SDO client against answers
+ * written from CiA 301's tables (expedited both ways, segmented upload with
+ * its toggle, aborts, wrong answers), abort texts, CiA 402 statusword
+ * decoding from the standard's bit patterns, the transitions toward
+ * "operation enabled", 0x60C2, the set-up list, and the supervision.
+ */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "mlip/canopen.h"
+
+static void answer(struct mlip_can_frame *f, uint8_t node, const uint8_t b[8])
+{
+	memset(f, 0, sizeof(*f));
+	f->id = 0x580u + node;
+	f->len = 8;
+	memcpy(f->data, b, 8);
+}
+
+static void test_nmt_heartbeat(void **state)
+{
+	struct mlip_can_frame f;
+	struct mlip_co_msg m;
+	(void)state;
+	mlip_nmt_encode(MLIP_NMT_RESET_COMM, 3, &f);
+	assert_int_equal(f.id, 0x000);
+	assert_int_equal(f.len, 2);
+	assert_int_equal(f.data[0], 0x82);
+	assert_int_equal(f.data[1], 3);
+	mlip_nmt_encode(MLIP_NMT_START, 0, &f);
+	assert_int_equal(f.data[0], 0x01);
+	assert_int_equal(f.data[1], 0);
+	mlip_co_heartbeat_encode(127, MLIP_NMT_OPERATIONAL, &f);
+	assert_int_equal(f.id, 0x77F);
+	assert_int_equal(f.len, 1);
+	assert_int_equal(f.data[0], 5);
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_OK);
+	assert_int_equal(m.kind, MLIP_CO_HEARTBEAT);
+	assert_int_equal(m.node, 127);
+	assert_int_equal(m.nmt_state, 5);
+	assert_string_equal(mlip_nmt_state_name(127), "pre-operational");
+	assert_string_equal(mlip_nmt_state_name(0), "boot-up");
+	/* a heartbeat of 2 bytes is malformed, not a heartbeat */
+	f.len = 2;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_E_SYNTAX);
+	assert_int_equal(m.kind, MLIP_CO_OTHER);
+}
+
+static void test_classify(void **state)
+{
+	struct mlip_can_frame f;
+	struct mlip_co_msg m;
+	(void)state;
+	/* TPDO1 of node 2: statusword 0x1237, position -5 counts */
+	mlip_co_pdo_encode(0x182, 0x1237, -5, &f);
+	assert_int_equal(f.len, 6);
+	assert_memory_equal(f.data, ((uint8_t[]){0x37, 0x12, 0xFB, 0xFF, 0xFF, 0xFF}), 6);
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_OK);
+	assert_int_equal(m.kind, MLIP_CO_TPDO);
+	assert_int_equal(m.node, 2);
+	assert_int_equal(m.statusword, 0x1237);
+	assert_int_equal(m.position_counts, -5);
+	/* EMCY of node 3: 0x8611 following error, register 0x81 */
+	memset(&f, 0, sizeof(f));
+	f.id = 0x083;
+	f.len = 8;
+	f.data[0] = 0x11;
+	f.data[1] = 0x86;
+	f.data[2] = 0x81;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_OK);
+	assert_int_equal(m.kind, MLIP_CO_EMCY);
+	assert_int_equal(m.node, 3);
+	assert_int_equal(m.emcy.code, 0x8611);
+	assert_int_equal(m.emcy.reg, 0x81);
+	assert_string_equal(mlip_emcy_text(0x8611), "following error");
+	assert_string_equal(mlip_emcy_text(0x2310), "current");
+	assert_string_equal(mlip_emcy_text(0x0000), "error reset or no error");
+	/* SYNC (0x080, node 0) and an RPDO are not for the master */
+	f.id = 0x080;
+	f.len = 0;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_OK);
+	assert_int_equal(m.kind, MLIP_CO_OTHER);
+	mlip_co_pdo_encode(0x201, 0x000F, 0, &f);
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_OK);
+	assert_int_equal(m.kind, MLIP_CO_OTHER);
+	/* a 4-byte TPDO is not the mapping mlip wrote */
+	mlip_co_pdo_encode(0x181, 0x0027, 0, &f);
+	f.len = 4;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_E_SYNTAX);
+}
+
+static void test_sdo_download(void **state)
+{
+	struct mlip_sdo s;
+	struct mlip_can_frame req, ans;
+	(void)state;
+	/* 0x6060:00 = 8, one byte: command 0x2F (CiA 301 expedited, n = 3) */
+	mlip_sdo_download_begin(&s, 2, 0x6060, 0, 8, 1, &req);
+	assert_int_equal(req.id, 0x602);
+	assert_int_equal(req.len, 8);
+	assert_memory_equal(req.data, ((uint8_t[]){0x2F, 0x60, 0x60, 0x00, 8, 0, 0, 0}), 8);
+	/* 2 and 4 bytes: 0x2B, 0x23 */
+	mlip_sdo_download_begin(&s, 2, 0x6040, 0, 0x000F, 2, &req);
+	assert_int_equal(req.data[0], 0x2B);
+	mlip_sdo_download_begin(&s, 2, 0x1600, 1, 0x60400010u, 4, &req);
+	assert_memory_equal(req.data, ((uint8_t[]){0x23, 0x00, 0x16, 0x01, 0x10, 0x00, 0x40, 0x60}),
+	                    8);
+	/* another node's answer is ignored; the right one completes */
+	answer(&ans, 3, (uint8_t[]){0x60, 0x00, 0x16, 0x01, 0, 0, 0, 0});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_IGNORED);
+	answer(&ans, 2, (uint8_t[]){0x60, 0x00, 0x16, 0x01, 0, 0, 0, 0});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_DONE);
+	/* an abort: code 0x06090011 */
+	mlip_sdo_download_begin(&s, 2, 0x6060, 0, 8, 1, &req);
+	answer(&ans, 2, (uint8_t[]){0x80, 0x60, 0x60, 0x00, 0x11, 0x00, 0x09, 0x06});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_ABORTED);
+	assert_int_equal(s.abort_code, 0x06090011u);
+	assert_string_equal(mlip_sdo_abort_text(s.abort_code), "sub-index does not exist");
+	assert_string_equal(mlip_sdo_abort_text(0x06020000u),
+	                    "object does not exist in the object dictionary");
+	assert_string_equal(mlip_sdo_abort_text(0x12345678u), "unknown abort code");
+	/* an answer about another object: our abort, general error */
+	mlip_sdo_download_begin(&s, 2, 0x6060, 0, 8, 1, &req);
+	answer(&ans, 2, (uint8_t[]){0x60, 0x61, 0x60, 0x00, 0, 0, 0, 0});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_PROTOCOL);
+	assert_int_equal(req.id, 0x602);
+	assert_int_equal(req.data[0], 0x80);
+	assert_int_equal(s.abort_code, MLIP_SDO_ABORT_GENERAL);
+	/* an upload answer to a download: wrong command specifier */
+	mlip_sdo_download_begin(&s, 2, 0x6060, 0, 8, 1, &req);
+	answer(&ans, 2, (uint8_t[]){0x4F, 0x60, 0x60, 0x00, 8, 0, 0, 0});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_PROTOCOL);
+	assert_int_equal(s.abort_code, MLIP_SDO_ABORT_COMMAND);
+}
+
+static void test_sdo_upload(void **state)
+{
+	struct mlip_sdo s;
+	struct mlip_can_frame req, ans;
+	(void)state;
+	mlip_sdo_upload_begin(&s, 1, 0x6064, 0, &req);
+	assert_memory_equal(req.data, ((uint8_t[]){0x40, 0x64, 0x60, 0x00, 0, 0, 0, 0}), 8);
+	/* expedited 4 bytes, size indicated (0x43): -1000 */
+	answer(&ans, 1, (uint8_t[]){0x43, 0x64, 0x60, 0x00, 0x18, 0xFC, 0xFF, 0xFF});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_DONE);
+	assert_int_equal((int32_t)s.value, -1000);
+	assert_int_equal(s.len, 4);
+	/* expedited 2 bytes (0x4B): statusword; the bytes beyond are not data */
+	mlip_sdo_upload_begin(&s, 1, 0x6041, 0, &req);
+	answer(&ans, 1, (uint8_t[]){0x4B, 0x41, 0x60, 0x00, 0x37, 0x02, 0xAA, 0xBB});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_DONE);
+	assert_int_equal(s.value, 0x0237);
+	assert_int_equal(s.len, 2);
+	/* segmented: 0x1008 device name "mlip drive 1" (12 bytes) */
+	mlip_sdo_upload_begin(&s, 1, 0x1008, 0, &req);
+	answer(&ans, 1, (uint8_t[]){0x41, 0x08, 0x10, 0x00, 12, 0, 0, 0});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_SEND);
+	assert_int_equal(req.data[0], 0x60); /* toggle 0 */
+	answer(&ans, 1, (uint8_t[]){0x00, 'm', 'l', 'i', 'p', ' ', 'd', 'r'});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_SEND);
+	assert_int_equal(req.data[0], 0x70); /* toggle 1 */
+	/* last segment, toggle 1, 5 bytes (n = 2 unused), c = 1: 0x10|0x04|0x01 */
+	answer(&ans, 1, (uint8_t[]){0x15, 'i', 'v', 'e', ' ', '1', 0, 0});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_DONE);
+	assert_int_equal(s.len, 12);
+	assert_memory_equal(s.data, "mlip drive 1", 12);
+	/* a segment with the toggle not alternated: our abort 0x05030000 */
+	mlip_sdo_upload_begin(&s, 1, 0x1008, 0, &req);
+	answer(&ans, 1, (uint8_t[]){0x41, 0x08, 0x10, 0x00, 12, 0, 0, 0});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_SEND);
+	answer(&ans, 1, (uint8_t[]){0x10, 'm', 'l', 'i', 'p', ' ', 'd', 'r'});
+	assert_int_equal(mlip_sdo_feed(&s, &ans, &req), MLIP_SDO_PROTOCOL);
+	assert_int_equal(s.abort_code, MLIP_SDO_ABORT_TOGGLE);
+	assert_memory_equal(req.data, ((uint8_t[]){0x80, 0x08, 0x10, 0x00, 0x00, 0x00, 0x03, 0x05}),
+	                    8);
+	assert_string_equal(mlip_sdo_abort_text(MLIP_SDO_ABORT_TOGGLE), "toggle bit not alternated");
+}
+
+static void test_402_states(void **state)
+{
+	(void)state;
+	/* the statusword patterns of CiA 402-2, with other bits set around them */
+	assert_int_equal(mlip_402_state_of(0x0000), MLIP_402_NOT_READY);
+	assert_int_equal(mlip_402_state_of(0x0250), MLIP_402_SWITCH_ON_DISABLED);
+	assert_int_equal(mlip_402_state_of(0x0231), MLIP_402_READY_TO_SWITCH_ON);
+	assert_int_equal(mlip_402_state_of(0x0233), MLIP_402_SWITCHED_ON);
+	assert_int_equal(mlip_402_state_of(0x1237), MLIP_402_OPERATION_ENABLED);
+	assert_int_equal(mlip_402_state_of(0x0217), MLIP_402_QUICK_STOP_ACTIVE);
+	assert_int_equal(mlip_402_state_of(0x021F), MLIP_402_FAULT_REACTION_ACTIVE);
+	assert_int_equal(mlip_402_state_of(0x0218), MLIP_402_FAULT);
+	/* fault bit with "operation enabled" bits: fault reaction active, not enabled */
+	assert_int_equal(mlip_402_state_of(0x003F), MLIP_402_FAULT_REACTION_ACTIVE);
+	assert_string_equal(mlip_402_state_name(MLIP_402_OPERATION_ENABLED), "operation enabled");
+	/* one step at a time toward operation enabled */
+	assert_int_equal(mlip_402_step_up(MLIP_402_FAULT), 0x0080);
+	assert_int_equal(mlip_402_step_up(MLIP_402_SWITCH_ON_DISABLED), 0x0006);
+	assert_int_equal(mlip_402_step_up(MLIP_402_READY_TO_SWITCH_ON), 0x0007);
+	assert_int_equal(mlip_402_step_up(MLIP_402_SWITCHED_ON), 0x000F);
+	assert_int_equal(mlip_402_step_up(MLIP_402_QUICK_STOP_ACTIVE), 0x0000);
+	assert_int_equal(mlip_402_step_up(MLIP_402_FAULT_REACTION_ACTIVE), -1);
+	assert_int_equal(mlip_402_step_up(MLIP_402_NOT_READY), -1);
+	/* what each command leads to */
+	assert_int_equal(mlip_402_after(MLIP_402_FAULT, 0x0080), MLIP_402_SWITCH_ON_DISABLED);
+	assert_int_equal(mlip_402_after(MLIP_402_FAULT, 0x0006), MLIP_402_FAULT);
+	assert_int_equal(mlip_402_after(MLIP_402_SWITCH_ON_DISABLED, 0x0006),
+	                 MLIP_402_READY_TO_SWITCH_ON);
+	assert_int_equal(mlip_402_after(MLIP_402_READY_TO_SWITCH_ON, 0x0007), MLIP_402_SWITCHED_ON);
+	assert_int_equal(mlip_402_after(MLIP_402_SWITCHED_ON, 0x000F), MLIP_402_OPERATION_ENABLED);
+	assert_int_equal(mlip_402_after(MLIP_402_OPERATION_ENABLED, 0x0007), MLIP_402_SWITCHED_ON);
+	assert_int_equal(mlip_402_after(MLIP_402_OPERATION_ENABLED, 0x0002),
+	                 MLIP_402_QUICK_STOP_ACTIVE);
+	assert_int_equal(mlip_402_after(MLIP_402_SWITCHED_ON, 0x0006), MLIP_402_READY_TO_SWITCH_ON);
+	assert_int_equal(mlip_402_after(MLIP_402_SWITCH_ON_DISABLED, 0x0007),
+	                 MLIP_402_SWITCH_ON_DISABLED);
+}
+
+static void test_interp_period(void **state)
+{
+	uint8_t v;
+	int8_t ix;
+	(void)state;
+	assert_int_equal(mlip_co_interp_period(0.001, &v, &ix), MLIP_OK);
+	assert_int_equal(v, 1);
+	assert_int_equal(ix, -3);
+	assert_int_equal(mlip_co_interp_period(0.0025, &v, &ix), MLIP_OK);
+	assert_int_equal(v, 25);
+	assert_int_equal(ix, -4);
+	assert_int_equal(mlip_co_interp_period(0.1, &v, &ix), MLIP_OK);
+	assert_int_equal(v, 1);
+	assert_int_equal(ix, -1);
+	assert_int_equal(mlip_co_interp_period(0.000125, &v, &ix), MLIP_OK);
+	assert_int_equal(v, 125);
+	assert_int_equal(ix, -6);
+	/* 1/3 ms has no exact value * 10^index */
+	assert_int_equal(mlip_co_interp_period(1.0 / 3000.0, &v, &ix), MLIP_E_RANGE);
+	assert_int_equal(mlip_co_interp_period(0.0, &v, &ix), MLIP_E_RANGE);
+}
+
+static void test_setup_entries(void **state)
+{
+	struct mlip_drive_setup d = {.node = 2,
+	                             .sync_id = 0x080,
+	                             .rpdo_cob = 0x202,
+	                             .tpdo_cob = 0x182,
+	                             .period_s = 0.001,
+	                             .following_window_counts = 1000,
+	                             .heartbeat_ms = 100,
+	                             .master_node = 127,
+	                             .master_timeout_ms = 300};
+	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
+	int n, i, found = 0;
+	(void)state;
+	n = mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX);
+	assert_true(n > 0 && n <= MLIP_DRIVE_SETUP_MAX);
+	assert_int_equal(mlip_drive_setup_entries(&d, e, n - 1), -1);
+	/* the mapping is written while the PDO is invalid (bit 31), then enabled */
+	assert_int_equal(e[0].index, 0x1400);
+	assert_int_equal(e[0].value, 0x80000202u);
+	for (i = 0; i < n; i++) {
+		uint32_t key = (uint32_t)e[i].index << 8 | e[i].sub;
+		switch (key) {
+		case 0x160001:
+			assert_int_equal(e[i].value, 0x60400010u);
+			found |= 1;
+			break;
+		case 0x160002:
+			assert_int_equal(e[i].value, 0x607A0020u);
+			found |= 2;
+			break;
+		case 0x1A0001:
+			assert_int_equal(e[i].value, 0x60410010u);
+			found |= 4;
+			break;
+		case 0x1A0002:
+			assert_int_equal(e[i].value, 0x60640020u);
+			found |= 8;
+			break;
+		case 0x606000:
+			assert_int_equal(e[i].value, 8);
+			assert_int_equal(e[i].size, 1);
+			assert_int_equal(e[i].read_only, 0);
+			found |= 16;
+			break;
+		case 0x606100:
+			assert_int_equal(e[i].read_only, 1);
+			found |= 32;
+			break;
+		case 0x60C202:
+			assert_int_equal(e[i].value, 0xFD); /* -3 */
+			found |= 64;
+			break;
+		case 0x606500:
+			assert_int_equal(e[i].value, 1000);
+			found |= 128;
+			break;
+		case 0x101601:
+			assert_int_equal(e[i].value, (127u << 16) | 300u);
+			found |= 256;
+			break;
+		case 0x180002:
+			assert_int_equal(e[i].value, 1); /* synchronous, every SYNC */
+			found |= 512;
+			break;
+		case 0x100500:
+			assert_int_equal(e[i].value, 0x080);
+			found |= 1024;
+			break;
+		}
+	}
+	assert_int_equal(found, 2047);
+	/* the last COB-ID writes enable the PDOs: bit 31 clear */
+	for (i = n - 1; i >= 0 && !(e[i].index == 0x1800 && e[i].sub == 1); i--) {
+	}
+	assert_int_equal(e[i].value, 0x40000182u);
+	d.period_s = 1.0 / 3000.0;
+	assert_int_equal(mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX), -1);
+}
+
+static void test_supervise(void **state)
+{
+	struct mlip_drive_obs o;
+	struct mlip_drive_expect x;
+	int64_t det;
+	(void)state;
+	memset(&o, 0, sizeof(o));
+	memset(&x, 0, sizeof(x));
+	o.statusword = 0x1237;
+	o.tpdo_cycle = 100;
+	o.nmt_state = MLIP_NMT_OPERATIONAL;
+	o.hb_ns = 1000000000u;
+	x.now_ns = 1000000000u + 300000000u; /* exactly the timeout: not yet lost */
+	x.cycle = 100;
+	x.hb_timeout_ns = 300000000u;
+	x.tpdo_timeout = 10;
+	x.window_counts = 1000;
+	x.following_counts = 1000; /* at the window: fine */
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_OK);
+	x.following_counts = 1001;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_FOLLOWING_ERROR);
+	assert_int_equal(det, 1001);
+	x.following_counts = -1;
+	x.now_ns++;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_HEARTBEAT_LOST);
+	assert_int_equal(det, 300);
+	x.now_ns--;
+	x.cycle = 110;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_OK);
+	x.cycle = 111;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_TPDO_LOST);
+	assert_int_equal(det, 11);
+	/* TPDOs arriving, but answering SYNCs 10 and then 11 periods old */
+	x.cycle = 100;
+	o.tpdo_count = 90;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_OK);
+	o.tpdo_count = 89;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_TPDO_LOST);
+	assert_int_equal(det, 11);
+	o.tpdo_count = 0;
+	x.cycle = 100;
+	o.statusword = 0x0233; /* switched on: left operation enabled */
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_LEFT_ENABLED);
+	assert_int_equal(det, 0x0233);
+	o.statusword = 0x0218; /* fault: the fault bit comes first */
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_FAULT_BIT);
+	o.statusword = 0x1237;
+	o.nmt_state = MLIP_NMT_PREOPERATIONAL;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_NOT_OPERATIONAL);
+	assert_int_equal(det, 127);
+	o.nmt_state = MLIP_NMT_OPERATIONAL;
+	o.emcy.code = 0x2310;
+	o.emcy_count = 1;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_EMCY);
+	assert_int_equal(det, 0x2310);
+	assert_string_equal(mlip_drive_fault_name(MLIP_DRIVE_EMCY), "emergency");
+}
+
+static void test_following_error(void **state)
+{
+	/* newest first: the drive lags by about two periods at 10 counts/period */
+	int32_t t[5] = {100, 90, 80, 70, 60};
+	(void)state;
+	assert_int_equal(mlip_drive_following_error(t, 5, 80), 0);
+	assert_int_equal(mlip_drive_following_error(t, 5, 77), 3);
+	assert_int_equal(mlip_drive_following_error(t, 5, 10), 50);
+	assert_int_equal(mlip_drive_following_error(t, 5, 150), 50);
+	assert_int_equal(mlip_drive_following_error(t, 0, 150), -1);
+	/* no overflow across the int32 range */
+	int32_t w[1] = {INT32_MIN};
+	assert_true(mlip_drive_following_error(w, 1, INT32_MAX) == 4294967295LL);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test(test_nmt_heartbeat),  cmocka_unit_test(test_classify),
+	    cmocka_unit_test(test_sdo_download),   cmocka_unit_test(test_sdo_upload),
+	    cmocka_unit_test(test_402_states),     cmocka_unit_test(test_interp_period),
+	    cmocka_unit_test(test_setup_entries),  cmocka_unit_test(test_supervise),
+	    cmocka_unit_test(test_following_error),
+	};
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,785 @@
+/*
+ * test_drives.c - the CANopen master of rt/drives.c against a scripted peer:
+ * three CiA 402 drives written here from the standard's tables (their own
+ * object dictionary, SDO server and power state machine, not mlip's), on a
+ * virtual clock, so that timeouts take no time. Bring-up from power-up
+ * states (switch on disabled, fault, operation enabled), a refused SDO, a
+ * missing drive, a drive that never enables, an axis beyond its soft limit;
+ * then the loop: supervision (fault bit, following error, lost heartbeat,
+ * EMCY) and the shut-down in order with the SYNC running.
+ * The same cases run against the canopen package's drives on vcan
+ * (tests/can/).
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "rt.h"
+
+/* ---- the peer: one CiA 402 drive -------------------------------------------- */
+
+enum { P_SOD, P_RTSO, P_SO, P_OE, P_FAULT }; /* switch on disabled .. fault */
+static const uint16_t p_sw[] = {0x0250, 0x0231, 0x0233, 0x1237, 0x0218};
+
+struct od {
+	uint16_t index;
+	uint8_t sub, size;
+	uint32_t value;
+};
+
+struct wr {
+	uint16_t index;
+	uint8_t sub;
+	uint32_t value;
+};
+
+struct peer {
+	uint8_t node;
+	int present, nmt, state, ever_enabled, no_enable;
+	uint16_t cw;
+	int32_t pos;
+	struct od od[32];
+	int n_od;
+	uint16_t refuse_index;
+	uint32_t refuse_code;
+	struct wr wr[64];
+	int n_wr;
+};
+
+#define NP 3
+static struct peer peers[NP];
+static struct mlip_can_frame q[256];
+static unsigned q_head, q_tail;
+static uint64_t now_ns;
+
+static void push(const struct mlip_can_frame *f)
+{
+	q[q_tail++ % 256] = *f;
+}
+
+static struct od *od_find(struct peer *p, uint16_t index, uint8_t sub)
+{
+	for (int i = 0; i < p->n_od; i++) {
+		if (p->od[i].index == index && p->od[i].sub == sub) {
+			return &p->od[i];
+		}
+	}
+	return NULL;
+}
+
+static void od_add(struct peer *p, uint16_t index, uint8_t sub, uint8_t size, uint32_t v)
+{
+	p->od[p->n_od++] = (struct od){index, sub, size, v};
+}
+
+static void peer_init(struct peer *p, uint8_t node, int state, int32_t pos)
+{
+	static const struct {
+		uint16_t i;
+		uint8_t s, n;
+	} objs[] = {{0x1400, 1, 4}, {0x1400, 2, 1}, {0x1600, 0, 1}, {0x1600, 1, 4}, {0x1600, 2, 4},
+	            {0x1800, 1, 4}, {0x1800, 2, 1}, {0x1A00, 0, 1}, {0x1A00, 1, 4}, {0x1A00, 2, 4},
+	            {0x1005, 0, 4}, {0x6060, 0, 1}, {0x6061, 0, 1}, {0x60C2, 1, 1}, {0x60C2, 2, 1},
+	            {0x6065, 0, 4}, {0x1017, 0, 2}, {0x1016, 1, 4}, {0x6040, 0, 2}, {0x6041, 0, 2},
+	            {0x6064, 0, 4}, {0x607A, 0, 4}};
+	memset(p, 0, sizeof(*p));
+	p->node = node;
+	p->present = 1;
+	p->nmt = MLIP_NMT_PREOPERATIONAL;
+	p->state = state;
+	p->pos = pos;
+	od_add(p, 0x1000, 0, 4, 0x00020192u); /* CiA 402 servo */
+	for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
+		od_add(p, objs[k].i, objs[k].s, objs[k].n, 0);
+	}
+	od_add(p, 0x6061, 1, 1, 0); /* placeholder, never read */
+	od_find(p, 0x6060, 0)->value = 1; /* powered up in profile position mode */
+}
+
+/* CiA 402-2 transitions, from the controlword bits (not mlip's code) */
+static void peer_cw(struct peer *p, uint16_t cw)
+{
+	int rising7 = (cw & 0x80) && !(p->cw & 0x80);
+	p->cw = cw;
+	switch (p->state) {
+	case P_FAULT:
+		if (rising7) {
+			p->state = P_SOD;
+		}
+		break;
+	case P_SOD:
+		if ((cw & 0x87) == 0x06) {
+			p->state = P_RTSO;
+		}
+		break;
+	case P_RTSO:
+		if ((cw & 0x02) == 0) {
+			p->state = P_SOD;
+		} else if ((cw & 0x8F) == 0x07) {
+			p->state = P_SO;
+		}
+		break;
+	case P_SO:
+		if ((cw & 0x8F) == 0x0F && !p->no_enable) {
+			p->state = P_OE;
+		} else if ((cw & 0x87) == 0x06) {
+			p->state = P_RTSO;
+		} else if ((cw & 0x02) == 0) {
+			p->state = P_SOD;
+		}
+		break;
+	case P_OE:
+		if ((cw & 0x8F) == 0x07) {
+			p->state = P_SO;
+		} else if ((cw & 0x87) == 0x06) {
+			p->state = P_RTSO;
+		} else if ((cw & 0x02) == 0) {
+			p->state = P_SOD;
+		}
+		break;
+	}
+	if (p->state == P_OE) {
+		p->ever_enabled = 1;
+	}
+}
+
+static void sdo_answer(struct peer *p, const uint8_t *rq, uint8_t cs, uint32_t v)
+{
+	struct mlip_can_frame f;
+	memset(&f, 0, sizeof(f));
+	f.id = 0x580u + p->node;
+	f.len = 8;
+	f.data[0] = cs;
+	memcpy(f.data + 1, rq + 1, 3);
+	f.data[4] = (uint8_t)v;
+	f.data[5] = (uint8_t)(v >> 8);
+	f.data[6] = (uint8_t)(v >> 16);
+	f.data[7] = (uint8_t)(v >> 24);
+	push(&f);
+}
+
+static void peer_sdo(struct peer *p, const uint8_t *rq)
+{
+	uint16_t index = (uint16_t)(rq[1] | rq[2] << 8);
+	uint8_t sub = rq[3];
+	uint32_t v = (uint32_t)rq[4] | (uint32_t)rq[5] << 8 | (uint32_t)rq[6] << 16 |
+	             (uint32_t)rq[7] << 24;
+	struct od *o = od_find(p, index, sub);
+	if (rq[0] == 0x80) {
+		return; /* the client's abort */
+	}
+	if (o == NULL) {
+		sdo_answer(p, rq, 0x80, od_find(p, index, 0) ? 0x06090011u : 0x06020000u);
+		return;
+	}
+	if (rq[0] == 0x40) {
+		uint32_t val = o->value;
+		if (index == 0x6041) {
+			val = p_sw[p->state];
+		} else if (index == 0x6064) {
+			val = (uint32_t)p->pos;
+		} else if (index == 0x6061) {
+			val = od_find(p, 0x6060, 0)->value;
+		}
+		sdo_answer(p, rq, (uint8_t)(0x43 | ((4 - o->size) << 2)), val);
+		return;
+	}
+	if ((rq[0] & 0xE3) == 0x23) {
+		if (index == p->refuse_index && p->refuse_code) {
+			sdo_answer(p, rq, 0x80, p->refuse_code);
+			return;
+		}
+		uint8_t n = (uint8_t)(4 - ((rq[0] >> 2) & 3));
+		if (n != o->size) {
+			sdo_answer(p, rq, 0x80, 0x06070010u);
+			return;
+		}
+		o->value = v;
+		if (p->n_wr < 64) {
+			p->wr[p->n_wr++] = (struct wr){index, sub, v};
+		}
+		if (index == 0x6040) {
+			peer_cw(p, (uint16_t)v);
+		}
+		sdo_answer(p, rq, 0x60, 0);
+		return;
+	}
+	sdo_answer(p, rq, 0x80, 0x05040001u);
+}
+
+static void peer_hb(struct peer *p)
+{
+	struct mlip_can_frame f;
+	mlip_co_heartbeat_encode(p->node, (uint8_t)p->nmt, &f);
+	push(&f);
+}
+
+/* ---- the port --------------------------------------------------------------- */
+
+static int port_send(void *ctx, const struct mlip_can_frame *f)
+{
+	(void)ctx;
+	for (int i = 0; i < NP; i++) {
+		struct peer *p = &peers[i];
+		if (!p->present) {
+			continue;
+		}
+		if (f->id == 0 && (f->data[1] == 0 || f->data[1] == p->node)) {
+			switch (f->data[0]) {
+			case MLIP_NMT_RESET_COMM:
+				p->nmt = MLIP_NMT_BOOTUP;
+				peer_hb(p);
+				p->nmt = MLIP_NMT_PREOPERATIONAL;
+				break;
+			case MLIP_NMT_START:
+				p->nmt = MLIP_NMT_OPERATIONAL;
+				peer_hb(p);
+				break;
+			case MLIP_NMT_PREOP:
+				p->nmt = MLIP_NMT_PREOPERATIONAL;
+				break;
+			}
+		} else if (f->id == 0x600u + p->node && f->len == 8) {
+			peer_sdo(p, f->data);
+		}
+	}
+	return 0;
+}
+
+static int port_recv(void *ctx, struct mlip_can_frame *f, int64_t timeout_ns)
+{
+	(void)ctx;
+	if (q_head != q_tail) {
+		*f = q[q_head++ % 256];
+		now_ns += 100000; /* 0.1 ms per answer */
+		return 1;
+	}
+	if (timeout_ns > 0) {
+		now_ns += (uint64_t)timeout_ns;
+	}
+	return 0;
+}
+
+static uint64_t port_now(void *ctx)
+{
+	(void)ctx;
+	return now_ns;
+}
+
+static const struct mlip_co_port port = {NULL, port_send, port_recv, port_now};
+
+/* ---- fixtures ------------------------------------------------------------------- */
+
+static struct mlip_config cfg;
+static struct mlip_drives ds;
+static char why[320];
+static char logbuf[8192];
+
+static void log_line(void *ctx, const char *line)
+{
+	(void)ctx;
+	strncat(logbuf, line, sizeof(logbuf) - strlen(logbuf) - 2);
+	strcat(logbuf, "\n");
+}
+
+static int setup(void **state)
+{
+	(void)state;
+	mlip_config_defaults(&cfg);
+	struct mlip_machine *m = &cfg.machine;
+	m->n_axes = NP;
+	m->max_feed_mm_s = 200.0;
+	m->tolerance_mm = 0.01;
+	for (int k = 0; k < NP; k++) {
+		m->axis[k].letter = "XYZ"[k];
+		m->axis[k].kind = MLIP_AXIS_LINEAR;
+		m->axis[k].max_accel = 1000.0;
+		m->axis[k].max_vel = 200.0;
+		m->axis[k].min_limit = -1000.0;
+		m->axis[k].max_limit = 1000.0;
+		m->axis[k].can_node = k + 1;
+		m->axis[k].counts_per_unit = 1000.0;
+	}
+	cfg.drives.enable = 1;
+	/* power-up states: switch on disabled, fault, already enabled */
+	peer_init(&peers[0], 1, P_SOD, 1234);
+	peer_init(&peers[1], 2, P_FAULT, -500);
+	peer_init(&peers[2], 3, P_OE, 0);
+	peers[2].ever_enabled = 0;
+	q_head = q_tail = 0;
+	now_ns = 1000000000u;
+	logbuf[0] = '\0';
+	why[0] = '\0';
+	return 0;
+}
+
+static int writes_of(const struct peer *p, uint16_t index, uint8_t sub, uint32_t *last)
+{
+	int n = 0;
+	for (int i = 0; i < p->n_wr; i++) {
+		if (p->wr[i].index == index && p->wr[i].sub == sub) {
+			n++;
+			*last = p->wr[i].value;
+		}
+	}
+	return n;
+}
+
+static int bringup(double *start)
+{
+	assert_int_equal(mlip_drives_init(&ds, &cfg, &port, log_line, NULL, why, sizeof(why)), 0);
+	return mlip_drives_bringup(&ds, start, why, sizeof(why));
+}
+
+/* ---- bring-up ---------------------------------------------------------------------- */
+
+static void test_bringup_three(void **state)
+{
+	double start[NP];
+	uint32_t v = 0;
+	(void)state;
+	int rc = bringup(start);
+	if (rc != 0) {
+		print_error("%s\n%s", why, logbuf);
+	}
+	assert_int_equal(rc, 0);
+	/* the start is where each drive is, to the count */
+	assert_true(start[0] * 1000.0 == 1234.0);
+	assert_true(start[1] * 1000.0 == -500.0);
+	assert_true(start[2] == 0.0);
+	for (int i = 0; i < NP; i++) {
+		struct peer *p = &peers[i];
+		assert_int_equal(p->state, P_OE);
+		assert_int_equal(p->nmt, MLIP_NMT_OPERATIONAL);
+		/* written and read back */
+		assert_int_equal(od_find(p, 0x6060, 0)->value, 8);
+		assert_int_equal(od_find(p, 0x1600, 1)->value, 0x60400010u);
+		assert_int_equal(od_find(p, 0x1600, 2)->value, 0x607A0020u);
+		assert_int_equal(od_find(p, 0x1600, 0)->value, 2);
+		assert_int_equal(od_find(p, 0x1A00, 1)->value, 0x60410010u);
+		assert_int_equal(od_find(p, 0x1A00, 2)->value, 0x60640020u);
+		assert_int_equal(od_find(p, 0x1800, 2)->value, 1);
+		assert_int_equal(od_find(p, 0x1400, 1)->value, 0x200u + p->node);
+		assert_int_equal(od_find(p, 0x1800, 1)->value, 0x40000180u + p->node);
+		assert_int_equal(od_find(p, 0x60C2, 1)->value, 1);
+		assert_int_equal(od_find(p, 0x60C2, 2)->value, 0xFD);
+		assert_int_equal(od_find(p, 0x6065, 0)->value, 1000);
+		assert_int_equal(od_find(p, 0x1017, 0)->value, 100);
+		assert_int_equal(od_find(p, 0x1016, 1)->value, (127u << 16) | 300u);
+		/* the target was set to the position before operation was enabled */
+		int i607a = -1, ienable = -1;
+		for (int k = 0; k < p->n_wr; k++) {
+			if (p->wr[k].index == 0x607A) {
+				i607a = k;
+				assert_int_equal((int32_t)p->wr[k].value, p->pos);
+			}
+			if (p->wr[k].index == 0x6040 && p->wr[k].value == 0x000F) {
+				ienable = k;
+			}
+		}
+		assert_true(i607a >= 0 && ienable > i607a);
+	}
+	/* the fault was reset on a rising edge; the enabled drive disabled first */
+	assert_true(writes_of(&peers[1], 0x6040, 0, &v) >= 4);
+	assert_non_null(strstr(logbuf, "node 2 (axis Y): fault reset (0x0080): switch on disabled"));
+	assert_non_null(
+	    strstr(logbuf, "node 3 (axis Z): disable operation (0x0007): switched on"));
+	assert_non_null(strstr(logbuf, "node 1 (axis X): operation enabled at 1.2340 mm"));
+}
+
+static void assert_nothing_enabled(void)
+{
+	for (int i = 0; i < NP; i++) {
+		assert_true(!peers[i].present || peers[i].state != P_OE);
+	}
+}
+
+static void test_refused_sdo(void **state)
+{
+	double start[NP];
+	(void)state;
+	peers[1].refuse_index = 0x6060;
+	peers[1].refuse_code = 0x06090030u;
+	assert_int_equal(bringup(start), -EPROTO);
+	assert_string_equal(why, "node 2 (axis Y): SDO abort 0x06090030 writing 0x6060:00 (invalid "
+	                         "value for parameter (download only)) - modes of operation (8: "
+	                         "cyclic synchronous position)");
+	assert_nothing_enabled();
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].ever_enabled, 0);
+	}
+}
+
+static void test_missing_drive(void **state)
+{
+	double start[NP];
+	uint32_t v;
+	(void)state;
+	peers[2].present = 0;
+	uint64_t t0 = now_ns;
+	assert_int_equal(bringup(start), -ETIMEDOUT);
+	assert_non_null(strstr(why, "node 3 (axis Z): no boot-up after NMT reset communication "
+	                            "within 3000 ms"));
+	/* waited the whole boot timeout, and not much more (virtual clock) */
+	assert_true(now_ns - t0 >= 3000000000u && now_ns - t0 < 3100000000u);
+	assert_nothing_enabled();
+	for (int i = 0; i < 2; i++) {
+		assert_int_equal(peers[i].ever_enabled, 0);
+		assert_int_equal(writes_of(&peers[i], 0x6040, 0, &v), 0);
+	}
+}
+
+static void test_never_enabled(void **state)
+{
+	double start[NP];
+	(void)state;
+	peers[2].no_enable = 1;
+	assert_int_equal(bringup(start), -ETIMEDOUT);
+	assert_non_null(strstr(why, "node 3 (axis Z): still \"switched on\" (statusword 0x0233) "
+	                            "1000 ms after enable operation (controlword 0x000F)"));
+	/* the two that were enabled are shut down again */
+	assert_nothing_enabled();
+	assert_int_equal(peers[0].state, P_RTSO);
+	assert_int_equal(peers[1].state, P_RTSO);
+}
+
+static void test_beyond_limit(void **state)
+{
+	double start[NP];
+	(void)state;
+	peers[1].pos = 1000001; /* 1000.001 mm, MAX_LIMIT 1000 */
+	assert_int_equal(bringup(start), -ERANGE);
+	assert_string_equal(why, "node 2 (axis Y) is at 1000.0010 mm (1000001 counts), beyond its "
+	                         "soft limit MAX_LIMIT 1000: bring it back within -1000..1000 by "
+	                         "hand before starting");
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].ever_enabled, 0);
+	}
+	/* at the limit itself it starts */
+	setup(NULL);
+	peers[1].pos = 1000000;
+	assert_int_equal(bringup(start), 0);
+	assert_true(start[1] == 1000.0);
+}
+
+/* ---- the loop ------------------------------------------------------------------------ */
+
+#define CAP 64u
+static struct mlip_planner planner;
+static struct mlip_controller ctl;
+static void *mem;
+static uint64_t cycle;
+
+static void loop_setup(double *start)
+{
+	struct mlip_ring *ring;
+	assert_int_equal(bringup(start), 0);
+	size_t bytes = mlip_ring_bytes(CAP);
+	assert_int_equal(posix_memalign(&mem, MLIP_RING_LINE, bytes), 0);
+	assert_int_equal(mlip_ring_format_machine(mem, bytes, CAP, &cfg.machine), MLIP_OK);
+	assert_int_equal(mlip_ring_attach(mem, bytes, NP, &ring, NULL), MLIP_OK);
+	/* as mlip-rt does: the drives' positions actual are the machine's HOME */
+	struct mlip_machine m = cfg.machine;
+	for (int k = 0; k < NP; k++) {
+		m.axis[k].home = start[k];
+	}
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .can = &cfg.can,
+	                          .drives = 1};
+	assert_int_equal(mlip_controller_init(&ctl, &planner, &m, &o, ring, NULL), 0);
+	ds.ctl = &ctl;
+	cycle = 0;
+}
+
+/* One period: the drives take the RPDO's controlword of the period before
+ * (a drive applies it at the SYNC) and answer the SYNC with their TPDO;
+ * heartbeats every 100 ms unless silenced. */
+static uint32_t silent;
+static int32_t offset[NP];
+
+/* The RPDO the controller's last period sent to drive i (6 bytes:
+ * controlword, target): 1, or 0 when it sent none (muted). */
+static int rpdo_of(int i, uint16_t *cw, int32_t *target)
+{
+	for (int k = 0; k < ctl.out.n_frames; k++) {
+		const struct mlip_can_frame *f = &ctl.out.frames[k];
+		if (f->id == 0x200u + peers[i].node) {
+			assert_int_equal(f->len, 6);
+			*cw = (uint16_t)(f->data[0] | f->data[1] << 8);
+			*target = (int32_t)((uint32_t)f->data[2] | (uint32_t)f->data[3] << 8 |
+			                    (uint32_t)f->data[4] << 16 | (uint32_t)f->data[5] << 24);
+			return 1;
+		}
+	}
+	return 0;
+}
+
+/* The controlword the last period sent to drive 0. */
+static uint16_t cw0(void)
+{
+	uint16_t cw = 0;
+	int32_t t;
+	assert_int_equal(rpdo_of(0, &cw, &t), 1);
+	return cw;
+}
+
+static int period(void)
+{
+	struct mlip_can_frame f;
+	for (int i = 0; i < NP; i++) {
+		struct peer *p = &peers[i];
+		uint16_t cw;
+		int32_t c;
+		if (cycle > 0 && rpdo_of(i, &cw, &c)) {
+			peer_cw(p, cw);
+			p->pos = c + offset[i];
+		}
+		mlip_co_pdo_encode(0x180u + p->node, p_sw[p->state], p->pos, &f);
+		push(&f);
+		if (cycle % 100 == 0 && !(silent & (1u << i))) {
+			peer_hb(p);
+		}
+	}
+	struct mlip_rt_tick t = {.cycle = cycle++};
+	now_ns += 1000000;
+	int r = mlip_drives_tick(&ds, &t);
+	q_head = q_tail; /* what the master did not read is gone */
+	return r;
+}
+
+static void test_loop_shutdown(void **state)
+{
+	double start[NP];
+	uint16_t seen[4] = {0};
+	int ns = 0;
+	(void)state;
+	loop_setup(start);
+	for (int k = 0; k < 200; k++) {
+		assert_int_equal(period(), 0);
+		assert_int_equal(cw0(), 0x000F);
+	}
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
+	ctl.exit_request = 1;
+	int k;
+	for (k = 0; k < 3000 && period() == 0; k++) {
+		if (ns == 0 || seen[ns - 1] != cw0()) {
+			assert_true(ns < 4);
+			seen[ns++] = cw0();
+		}
+	}
+	assert_true(k < 3000);
+	/* enable, then disable operation, then shutdown: in that order */
+	assert_int_equal(ns, 3);
+	assert_int_equal(seen[0], 0x000F);
+	assert_int_equal(seen[1], 0x0007);
+	assert_int_equal(seen[2], 0x0006);
+	assert_int_equal(ds.shutdown_ok, 1);
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].state, P_RTSO);
+	}
+	free(mem);
+}
+
+static void test_loop_fault_bit(void **state)
+{
+	double start[NP];
+	(void)state;
+	loop_setup(start);
+	for (int k = 0; k < 50; k++) {
+		period();
+	}
+	peers[1].state = P_FAULT; /* the drive faults between two SYNCs */
+	period();
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 1);
+	assert_int_equal(ds.fault_drive, 1);
+	assert_int_equal(ds.fault_reason, MLIP_DRIVE_FAULT_BIT);
+	assert_int_equal(ds.fault_detail, 0x0218);
+	assert_int_equal(ds.fault_cycle, 51);
+	/* an input of the controller: state fault, reason drive, node, event, value */
+	assert_int_equal(ctl.out.status.state, MLIP_STATE_FAULT);
+	assert_int_equal(ctl.out.status.reason, MLIP_WHY_DRIVE);
+	assert_int_equal(ctl.out.status.reason_node, peers[1].node);
+	assert_int_equal(ctl.out.status.reason_field, MLIP_DRIVE_FAULT_BIT);
+	assert_true(ctl.out.status.reason_value == 0x0218);
+	/* no more targets for it; the others keep theirs */
+	uint16_t cw;
+	int32_t t;
+	assert_int_equal(rpdo_of(1, &cw, &t), 0);
+	assert_int_equal(rpdo_of(0, &cw, &t), 1);
+	assert_int_equal(rpdo_of(2, &cw, &t), 1);
+	/* and the shut-down still ends, without waiting for the faulted drive */
+	ctl.exit_request = 1;
+	int k;
+	for (k = 0; k < 3000 && period() == 0; k++) {
+	}
+	assert_true(k < 3000);
+	assert_int_equal(peers[0].state, P_RTSO);
+	assert_int_equal(peers[1].state, P_FAULT);
+	free(mem);
+}
+
+static void test_loop_following_error(void **state)
+{
+	double start[NP];
+	(void)state;
+	loop_setup(start);
+	for (int k = 0; k < 20; k++) {
+		period();
+	}
+	offset[2] = 1000; /* at the window: fine */
+	for (int k = 0; k < 20; k++) {
+		period();
+	}
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
+	offset[2] = -1001; /* one count beyond: found in the period it is reported */
+	period();
+	offset[2] = 0;
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 1);
+	assert_int_equal(ds.fault_drive, 2);
+	assert_int_equal(ds.fault_reason, MLIP_DRIVE_FOLLOWING_ERROR);
+	assert_int_equal(ds.fault_detail, 1001);
+	assert_int_equal(ds.fault_cycle, 41);
+	free(mem);
+}
+
+static void test_loop_heartbeat_and_emcy(void **state)
+{
+	double start[NP];
+	(void)state;
+	loop_setup(start);
+	silent = 1u; /* node 1 stops its heartbeat from period 1 on */
+	uint64_t last_hb = now_ns;
+	int k;
+	for (k = 0; k < 1000 && !__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE); k++) {
+		period();
+	}
+	silent = 0;
+	assert_int_equal(ds.fault_reason, MLIP_DRIVE_HEARTBEAT_LOST);
+	assert_int_equal(ds.fault_drive, 0);
+	/* lost after the 300 ms consumer time, within a period of it (virtual clock) */
+	assert_true(now_ns - last_hb > 300000000u && now_ns - last_hb <= 302000000u);
+	free(mem);
+
+	setup(NULL);
+	loop_setup(start);
+	period();
+	struct mlip_can_frame f;
+	memset(&f, 0, sizeof(f));
+	f.id = 0x083;
+	f.len = 8;
+	f.data[0] = 0x10; /* 0x2310: current */
+	f.data[1] = 0x23;
+	f.data[2] = 0x03;
+	push(&f);
+	period();
+	assert_int_equal(ds.fault_reason, MLIP_DRIVE_EMCY);
+	assert_int_equal(ds.fault_drive, 2);
+	assert_int_equal(ds.fault_detail, 0x2310);
+	free(mem);
+}
+
+/* A drive that answers every SYNC 20 periods late (as the canopen drives do
+ * in the emulated VM) while the machine moves, its position two periods
+ * behind the target (as they follow): its TPDOs are judged against the
+ * targets sent before the SYNC they answer, so no false following error;
+ * the same drive falling 1001 counts beyond is caught at once. */
+static int32_t sent[NP][2048];
+
+static void period_late(int delay, int32_t behind_x)
+{
+	uint64_t c = cycle + 1;
+	struct mlip_can_frame f;
+	for (int i = 0; i < NP; i++) {
+		struct peer *p = &peers[i];
+		if (c > (uint64_t)delay) {
+			uint64_t sy = c - (uint64_t)delay; /* the SYNC answered now */
+			int32_t actual = sy > 2 ? sent[i][sy - 2] : p->pos;
+			mlip_co_pdo_encode(0x180u + p->node, p_sw[p->state],
+			                   actual - (i == 0 ? behind_x : 0), &f);
+			push(&f);
+		}
+		if (cycle % 100 == 0) {
+			peer_hb(p);
+		}
+	}
+	struct mlip_rt_tick t = {.cycle = cycle++};
+	now_ns += 1000000;
+	mlip_drives_tick(&ds, &t);
+	q_head = q_tail;
+	for (int i = 0; i < NP; i++) {
+		mlip_can_counts(ctl.out.pos[i], 1000.0, &sent[i][c]);
+	}
+}
+
+static void test_loop_late_drive(void **state)
+{
+	double start[NP];
+	(void)state;
+	loop_setup(start);
+	/* 40 mm along X at 100 mm/s from where X is */
+	for (uint64_t k = 1; k <= 4; k++) {
+		struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)k};
+		memcpy(b.target, start, sizeof(start));
+		b.target[0] = start[0] + 10.0 * (double)k;
+		struct mlip_ring_rec rec;
+		mlip_ring_rec_from_block(&rec, &b, k);
+		assert_int_equal(mlip_ring_push(ctl.ring, &rec), MLIP_OK);
+	}
+	int k;
+	for (k = 0; k < 1000; k++) {
+		period_late(20, 0);
+	}
+	/* it moved at full speed (100 counts a period) and ended there */
+	assert_true(sent[0][1000] - sent[0][1] == 40000);
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
+	free(mem);
+
+	/* again, X falling behind from period 300 (moving at 100 counts a period):
+	 * 1001 counts beyond the target MLIP_DRIVE_LAG periods before the SYNC */
+	setup(NULL);
+	loop_setup(start);
+	for (uint64_t n = 1; n <= 4; n++) {
+		struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)n};
+		memcpy(b.target, start, sizeof(start));
+		b.target[0] = start[0] + 10.0 * (double)n;
+		struct mlip_ring_rec rec;
+		mlip_ring_rec_from_block(&rec, &b, n);
+		assert_int_equal(mlip_ring_push(ctl.ring, &rec), MLIP_OK);
+	}
+	for (k = 0; k < 300; k++) {
+		period_late(20, 0);
+	}
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
+	for (k = 0; k < 100 && !__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE); k++) {
+		period_late(20, 1001 + (MLIP_DRIVE_LAG - 2) * 100);
+	}
+	assert_int_equal(ds.fault_reason, MLIP_DRIVE_FOLLOWING_ERROR);
+	assert_int_equal(ds.fault_drive, 0);
+	assert_int_equal(ds.fault_detail, 1001);
+	assert_int_equal(k, 1); /* the first late TPDO showing it */
+	free(mem);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test_setup(test_bringup_three, setup),
+	    cmocka_unit_test_setup(test_refused_sdo, setup),
+	    cmocka_unit_test_setup(test_missing_drive, setup),
+	    cmocka_unit_test_setup(test_never_enabled, setup),
+	    cmocka_unit_test_setup(test_beyond_limit, setup),
+	    cmocka_unit_test_setup(test_loop_shutdown, setup),
+	    cmocka_unit_test_setup(test_loop_fault_bit, setup),
+	    cmocka_unit_test_setup(test_loop_following_error, setup),
+	    cmocka_unit_test_setup(test_loop_heartbeat_and_emcy, setup),
+	    cmocka_unit_test_setup(test_loop_late_drive, setup),
+	};
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}
