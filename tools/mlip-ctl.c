@@ -18,6 +18,7 @@
 #include <time.h>
 
 #include "cli.h"
+#include "confjson.h"
 #include "mlip/canopen.h"
 #include "mlip/ring.h"
 #include "rt.h"
@@ -149,24 +150,6 @@ static void print_age(FILE *f, int64_t a)
 	}
 }
 
-/* A JSON string: a shm name may hold any byte but '/' and NUL. */
-static void json_str(FILE *f, const char *s)
-{
-	fputc('"', f);
-	for (; *s != '\0'; s++) {
-		unsigned char ch = (unsigned char)*s;
-
-		if (ch == '"' || ch == '\\') {
-			fprintf(f, "\\%c", ch);
-		} else if (ch < 0x20) {
-			fprintf(f, "\\u%04x", ch);
-		} else {
-			fputc(ch, f);
-		}
-	}
-	fputc('"', f);
-}
-
 /* A number, or null when it is not finite (JSON has no NaN). */
 static void json_num(double v)
 {
@@ -224,7 +207,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 
 	if (json) {
 		printf("{\n  \"shm\": ");
-		json_str(stdout, s->name);
+		mlip_json_str(stdout, s->name);
 		printf(",\n");
 		printf("  \"state\": \"%s\",\n  \"alive\": %s,\n", mlip_ring_state_name(st.state),
 		       alive ? "true" : "false");
@@ -243,15 +226,15 @@ static int cmd_status(struct mlip_shm *s, int json)
 			/* a drive fault: the field is the event, with the drive's node */
 			mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
 			                          sizeof(fname));
-			json_str(stdout, mlip_drive_fault_name((mlip_drive_fault)st.reason_field));
+			mlip_json_str(stdout, mlip_drive_fault_name((mlip_drive_fault)st.reason_field));
 			printf(",\n  \"reason_node\": %u,\n  \"reason_text\": ", (unsigned)st.reason_node);
-			json_str(stdout, fname);
+			mlip_json_str(stdout, fname);
 			printf(",\n");
 		} else if (st.reason_field == MLIP_FIELD_NONE) {
 			printf("null,\n");
 		} else {
 			mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
-			json_str(stdout, fname);
+			mlip_json_str(stdout, fname);
 			printf(",\n");
 		}
 		printf("  \"reason_value\": ");

@@ -3,8 +3,7 @@
 
 #include "mlip/canenc.h"
 
-/* A JSON string of plain ASCII (paths: escape what JSON needs). */
-static void put_str(FILE *f, const char *s)
+void mlip_json_str(FILE *f, const char *s)
 {
 	fputc('"', f);
 	for (; *s != '\0'; s++) {
@@ -66,7 +65,7 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 	int i;
 
 	fprintf(f, "{\n  \"file\": ");
-	put_str(f, path);
+	mlip_json_str(f, path);
 	fprintf(f, ",\n  \"machine\": {\n    \"coordinates\": \"");
 	for (i = 0; i < m->n_axes; i++) {
 		fputc(m->axis[i].letter, f);
@@ -87,7 +86,7 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 	}
 	fprintf(f, "\n    ]\n  },\n  \"lookahead\": %u,\n  \"can\": {\n    \"profile\": ",
 	        (unsigned)c->lookahead);
-	put_str(f, can->profile);
+	mlip_json_str(f, can->profile);
 	fprintf(f,
 	        ",\n    \"bitrate\": %u,\n    \"data_bitrate\": %u,\n    \"sync_id\": %u,\n"
 	        "    \"rpdo_base\": %u,\n    \"packed_base\": %u,\n    \"fd_id\": %u,\n"

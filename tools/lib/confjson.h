@@ -17,4 +17,8 @@
  * back to the same value); ids as numbers. */
 void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config *c);
 
+/* s as a JSON string: quotes, backslashes and control characters escaped
+ * (paths and shm names may hold any byte but NUL). */
+void mlip_json_str(FILE *f, const char *s);
+
 #endif
