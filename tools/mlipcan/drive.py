@@ -722,6 +722,7 @@ class DriveSim:
         self.cycle_cpu_s = 0.0
         self.cycles = 0
         self.last_rx_mono = time.monotonic()  # when the last frame was taken off the bus
+        self.last_rx_t = 0.0  # its receive time (kernel clock, s): the bus time reached
         self._stopping = False
         self._pump = None
         self.pump_errors = 0
@@ -787,6 +788,7 @@ class DriveSim:
                 d.attach(self.network)
 
     def _seen(self, msg):
+        self.last_rx_t = msg.timestamp
         self.last_rx_mono = time.monotonic()
 
     def _pump_frames(self):
@@ -813,6 +815,7 @@ class DriveSim:
             for j in range(k):
                 if bad[j]:
                     continue
+                self.last_rx_t = B.t(j) / 1e9
                 self.last_rx_mono = time.monotonic()
                 try:
                     notify(ids[j], B.data(j), B.t(j) / 1e9)
@@ -846,12 +849,17 @@ class DriveSim:
             self.drives[node].inject(what, arg)
 
     def tick(self):
-        """Main thread, every few ms: records to disk; heartbeat consumers by
-        the wall clock, but only while no frame is waiting (nothing taken off
-        the bus for 50 ms): a silent bus. While frames flow, each SYNC judges
-        them by its receive time (_count_sync)."""
+        """Main thread, every few ms: records to disk; heartbeat consumers
+        judged at the receive time of the newest frame taken off the bus (frame
+        order: a simulator running behind the bus does not blame the producer
+        for its own lateness), or by the wall clock once nothing has been taken
+        off the bus for 50 ms (a silent bus). Without SYNCs other frames (the
+        drives' own heartbeats, sent by the kernel's timer) still flow, so the
+        bus time must come from them too."""
+        now = self.last_rx_t
         if time.monotonic() - self.last_rx_mono > 0.05:
-            now = time.time()
+            now = max(now, time.time())
+        if now > 0.0:
             with self.lock:
                 for d in self.drives.values():
                     if d.present:
