@@ -1257,6 +1257,12 @@ static mlip_status check_machine(const struct mlip_machine *m, struct mlip_confi
 		is->key = TK_COORDS;
 		return MLIP_E_INVALID;
 	}
+	if (m->smooth > 1) {
+		/* not from an INI: a published segment's flag (mlip-rt --strategy) */
+		sb_puts(&b, "the smooth flag must be 0 or 1, got ");
+		sb_uint(&b, m->smooth);
+		return MLIP_E_INVALID;
+	}
 	is->key = TK_VLIN;
 	if (bad_pos(&b, m, -1, TK_VLIN, m->max_feed_mm_s) ||
 	    bad_max(&b, m, -1, TK_VLIN, m->max_feed_mm_s, MLIP_CONFIG_VEL_MAX)) {

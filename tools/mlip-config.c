@@ -10,6 +10,7 @@
 
 #include "confjson.h"
 #include "confload.h"
+#include "cli.h"
 #include "mlip/canenc.h"
 
 #define PROG "mlip-config"
@@ -65,16 +66,9 @@ int main(int argc, char **argv)
 	}
 	if (profile != NULL) {
 		mlip_can_profile p;
-		struct mlip_config_error e;
-		if (mlip_can_profile_parse(profile, &p) != MLIP_OK) {
-			fprintf(stderr, PROG ": --profile: '%s' is not cia402, packed or fd\n", profile);
-			return 2;
-		}
-		snprintf(cfg.can.profile, sizeof(cfg.can.profile), "%s", profile);
-		if (mlip_can_config_check(&cfg.can, &cfg.machine, &e) != MLIP_OK) {
-			fprintf(stderr, "%s: error: [CAN] with --profile %s: %s\n", argv[optind], profile,
-			        e.msg);
-			return 1;
+		int rc = mlip_cli_can_override(&cfg, argv[optind], profile, 0.0, &p, PROG, stderr);
+		if (rc != 0) {
+			return rc;
 		}
 	}
 	if (json) {

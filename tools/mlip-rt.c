@@ -462,25 +462,9 @@ int main(int argc, char **argv)
 		return 1;
 	}
 	mlip_can_profile prof;
-	if (profile != NULL) {
-		if (mlip_can_profile_parse(profile, &prof) != MLIP_OK) {
-			fprintf(stderr, PROG ": --profile: '%s' is not cia402, packed or fd\n", profile);
-			return 2;
-		}
-		snprintf(cfg.can.profile, sizeof(cfg.can.profile), "%s", profile);
-	} else if (mlip_can_profile_parse(cfg.can.profile, &prof) != MLIP_OK) {
-		prof = MLIP_CAN_CIA402;
-	}
-	if (bitrate > 0) {
-		cfg.can.bitrate = (uint32_t)bitrate;
-	}
-	/* the INI reader checked the ids for the file's profile; --profile and
-	 * --bitrate may change that: the same rules again, with the reason */
-	struct mlip_config_error cerr;
-	if (mlip_can_config_check(&cfg.can, &cfg.machine, &cerr) != MLIP_OK) {
-		fprintf(stderr, PROG ": %s: [CAN] with --profile %s: %s\n", config,
-		        mlip_can_profile_name(prof), cerr.msg);
-		return 1;
+	int rc = mlip_cli_can_override(&cfg, config, profile, bitrate, &prof, PROG, stderr);
+	if (rc != 0) {
+		return rc;
 	}
 	int use_can = strcmp(iface, "none") != 0;
 	if (want_drives) {
@@ -621,7 +605,7 @@ int main(int argc, char **argv)
 	pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
 	int mon_ok = pthread_create(&mon_th, &attr, monitor, &mon) == 0;
 	pthread_attr_destroy(&attr);
-	int rc = mlip_rt_run(&ro, tick_fn, NULL, tick_ctx, &run);
+	rc = mlip_rt_run(&ro, tick_fn, NULL, tick_ctx, &run);
 	if (mon_ok) {
 		mon.done = 1;
 		pthread_join(mon_th, NULL);

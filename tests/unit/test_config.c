@@ -999,6 +999,12 @@ static void test_check_axes(void **state)
 	m.n_axes = -1;
 	CHECK(m, MLIP_E_INVALID, "TRAJ COORDINATES must have 2 to 6 axes, got -1");
 	assert_int_equal(mlip_machine_check(&m, NULL), MLIP_E_INVALID);
+	/* the segment's smooth flag: 0 and 1 only (a feeder reads it) */
+	m = good_machine();
+	m.smooth = 1;
+	CHECK_OK(m);
+	m.smooth = 2;
+	CHECK(m, MLIP_E_INVALID, "the smooth flag must be 0 or 1, got 2");
 	m = good_machine();
 	m.n_axes = 6;
 	m.axis[3] = m.axis[4] = m.axis[5] = m.axis[0];

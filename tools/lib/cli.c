@@ -353,3 +353,27 @@ void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
 		snprintf(buf, len, "event %u, value %lld", (unsigned)event, (long long)v);
 	}
 }
+
+int mlip_cli_can_override(struct mlip_config *cfg, const char *path, const char *profile,
+                          double bitrate, mlip_can_profile *prof, const char *prog, FILE *err)
+{
+	struct mlip_config_error e;
+	if (profile != NULL) {
+		if (mlip_can_profile_parse(profile, prof) != MLIP_OK) {
+			fprintf(err, "%s: --profile: '%s' is not cia402, packed or fd\n", prog, profile);
+			return 2;
+		}
+		snprintf(cfg->can.profile, sizeof(cfg->can.profile), "%s", profile);
+	} else if (mlip_can_profile_parse(cfg->can.profile, prof) != MLIP_OK) {
+		*prof = MLIP_CAN_CIA402;
+	}
+	if (bitrate > 0) {
+		cfg->can.bitrate = (uint32_t)bitrate;
+	}
+	if (mlip_can_config_check(&cfg->can, &cfg->machine, &e) != MLIP_OK) {
+		fprintf(err, "%s: %s: [CAN] with --profile %s: %s\n", prog, path,
+		        mlip_can_profile_name(*prof), e.msg);
+		return 1;
+	}
+	return 0;
+}

@@ -7,6 +7,7 @@
 
 #include <stdio.h>
 
+#include "mlip/canenc.h"
 #include "mlip/config.h"
 #include "mlip/planner.h"
 #include "program.h"
@@ -96,5 +97,13 @@ void mlip_cli_field_name(const struct mlip_machine *m, uint32_t field, char *buf
  * DRIVE) and value as the bus showed it: "statusword 0x0218 (fault)",
  * "EMCY 0x2310 (...)", "no heartbeat for 120 ms", ... */
 void mlip_cli_drive_fault_text(uint32_t event, int64_t value, char *buf, size_t len);
+
+/* --profile P (NULL: the file's) and --bitrate (<= 0: the file's) over the
+ * [CAN] section the INI reader checked, then the same rule set
+ * (mlip_can_config_check) again: they may break it. *prof is the profile in
+ * force. 0, 2 for an unknown profile name, 1 when [CAN] breaks a rule;
+ * "PROG: ..." messages on err. */
+int mlip_cli_can_override(struct mlip_config *cfg, const char *path, const char *profile,
+                          double bitrate, mlip_can_profile *prof, const char *prog, FILE *err);
 
 #endif
