@@ -130,26 +130,6 @@ def test_never_enabled(sim, tmp_path):
     assert last[1] != "operation enabled" and last[2] != "operation enabled", last
 
 
-def targets_by_sync(rows, nodes):
-    """Per SYNC with a fresh target for every node: the tuple of targets."""
-    by = {}
-    for r in rows:
-        if r["node"] in nodes and r["target"] is not None and r["fresh"]:
-            by.setdefault(r["sync"], {})[r["node"]] = r["target"]
-    return [tuple(d[n] for n in nodes) for s, d in sorted(by.items()) if len(d) == len(nodes)]
-
-
-def trim(seq):
-    """Without the leading and trailing repeats (the machine at rest)."""
-    i = 0
-    while i + 1 < len(seq) and seq[i + 1] == seq[i]:
-        i += 1
-    j = len(seq)
-    while j - 1 > i and seq[j - 2] == seq[j - 1]:
-        j -= 1
-    return seq[i:j]
-
-
 def within_limits(seq, lim):
     """Per-axis speed and acceleration of target tuples (counts) within the
     machine's limits, plus one count of quantization on each side."""
@@ -201,10 +181,10 @@ def test_bringup_program_shutdown(sim, tmp_path):
         if row["target"] is not None:
             first.setdefault(row["node"], row["target"])
     assert first == START, first
-    got = trim(targets_by_sync(rows, [1, 2, 3]))
+    got = h.trim(h.targets_by_sync(rows, [1, 2, 3]))
     home = {"X": 1.234, "Y": -5.0, "Z": 250.5}
     trc, _ = h.simulate(machine(tmp_path, [1, 2, 3], home, "sim.ini"), ngc, tmp_path)
-    want = trim(h.trace_counts(trc, [CPU] * 3))
+    want = h.trim(h.trace_counts(trc, [CPU] * 3))
     assert len(got) == len(want) and got == want, (len(got), len(want))
     within_limits(got, h.MachineLimits(cfg))
     # shut-down: disable operation, then shutdown, each drive, with the SYNC
@@ -281,7 +261,7 @@ def test_supervision(sim, tmp_path, inject, node, axis, reasons):
           f"run, detected in period {m.group(2)}")
     # every other axis at rest at the end, within the limits on the way
     others = [n for n in (1, 2, 3) if n != node]
-    seq = targets_by_sync(rows, others)
+    seq = h.targets_by_sync(rows, others)
     assert len(seq) > 10 and len(set(seq[-5:])) == 1, seq[-5:]
     lim = h.MachineLimits(cfg)
     sub = type("L", (), {"vel": [lim.vel[n - 1] for n in others],
