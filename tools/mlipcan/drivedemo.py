@@ -23,9 +23,11 @@ from . import cia402 as P
 from . import harness as h
 
 CONFIG = h.CONFIG / "mill-3axis-drives.ini"
-# counts at power-up: none at HOME (0), where a machine stands after a day's work
-STARTS = {1: 12345, 2: -5000, 3: 2500}
-STATES = {2: "fault"}  # the others power up in "switch on disabled"
+# counts at power-up of the 1st, 2nd, 3rd axis' drive: none at HOME (0), as a
+# machine stands after a day's work; the 2nd powers up in "fault", the others
+# in "switch on disabled"
+STARTS = (12345, -5000, 2500)
+FAULTED = 1
 # The Python drives keep up with a 40 ms SYNC in the emulated VM (3-4 ms of
 # CPU per drive and SYNC there), not with the config's 2 ms.
 PERIOD_S = 0.04
@@ -107,7 +109,8 @@ def run(outdir, config=CONFIG, ngc=None, period_s=PERIOD_S):
     setup = h.setup_of(config)
     nodes, axes, cpu = setup.nodes, setup.axes, setup.cpu
     ax_of = dict(zip(nodes, axes))
-    starts = {n: STARTS.get(n, 0) for n in nodes}
+    starts = {n: STARTS[i % len(STARTS)] for i, n in enumerate(nodes)}
+    states = {nodes[FAULTED]: "fault"} if len(nodes) > FAULTED else {}
     base = h.MachineLimits(config)
     text, a_new, dev = demo_machine(config, period_s)
     cfg = out / "machine.ini"
@@ -133,16 +136,16 @@ def run(outdir, config=CONFIG, ngc=None, period_s=PERIOD_S):
     home = {ax_of[n]: starts[n] / c for n, c in zip(nodes, cpu)}
     sim_cfg = out / "machine-sim.ini"
     sim_cfg.write_text(demo_machine(config, period_s, home)[0])
-    rows, summ = h.simulate(sim_cfg, ngc, work)
-    want = h.trim(h.trace_counts(rows, cpu))
+    trc, summ = h.simulate(sim_cfg, ngc, work)
+    want = h.trim(h.trace_counts(trc, cpu))
     print(f"drives: program {shown_path(ngc)} ({summ['blocks']} blocks, {summ['path_length_mm']:.1f} mm, "
           f"{summ['total_time_s']:.2f} s in mlip-sim from the drives' start positions)")
 
-    print("drives: powering up 3 simulated drives: " + "; ".join(
-        f"node {n} (axis {ax_of[n]}) in \"{STATES.get(n, 'switch on disabled').replace('-', ' ')}\" "
+    print(f"drives: powering up {len(nodes)} simulated drives: " + "; ".join(
+        f"node {n} (axis {ax_of[n]}) in \"{states.get(n, 'switch on disabled')}\" "
         f"at {starts[n]} counts = {starts[n] / c:g} mm" for n, c in zip(nodes, cpu)), flush=True)
     t_boot = time.monotonic()
-    sim = h.DriveSim(work, nodes=nodes, starts=starts, states=STATES, name="drivesim")
+    sim = h.DriveSim(work, nodes=nodes, starts=starts, states=states, name="drivesim")
     print(f"drives: drives up after {time.monotonic() - t_boot:.1f} s; mlip-rt --drives, then "
           f"mlip-feed {ngc.name}, then SIGTERM (a controlled stop) ...", flush=True)
     t0 = time.time()
@@ -180,7 +183,8 @@ def run(outdir, config=CONFIG, ngc=None, period_s=PERIOD_S):
             by_sync.setdefault(x["sync"], {})[x["node"]] = x
         syncs = sorted(by_sync)
         step = max(1, round(1.0 / period_s))
-        print(f"    {'t':>10}" + "".join(f"  {'node ' + str(n) + ' (' + ax_of[n] + ')':<38}" for n in nodes))
+        print((f"    {'t':>10}" + "".join(f"  {'node ' + str(n) + ' (' + ax_of[n] + ')':<38}"
+                                         for n in nodes)).rstrip())
         for i, s in enumerate(syncs):
             if i % step and i != len(syncs) - 1:
                 continue
@@ -193,7 +197,8 @@ def run(outdir, config=CONFIG, ngc=None, period_s=PERIOD_S):
                 tg = "-" if x["target"] is None else x["target"]
                 cells.append(f"{SHORT.get(x['state'], x['state']):<8} sw 0x{x['sw']:04X} "
                              f"{x['actual']:>7} / {tg!s:<7}")
-            print(f"    {at(by_sync[s][min(by_sync[s])]['t'])}" + "".join(f"  {c:<38}" for c in cells))
+            print((f"    {at(by_sync[s][min(by_sync[s])]['t'])}"
+                   + "".join(f"  {c:<38}" for c in cells)).rstrip())
         print("    (per node: state, statusword, position actual / target, counts)")
         fe = {}
         for n, c in zip(nodes, cpu):
@@ -314,13 +319,16 @@ def run(outdir, config=CONFIG, ngc=None, period_s=PERIOD_S):
     check(not faults and "drive fault" not in log,
           f"no drive fault after the bring-up (fault state, EMCY, statusword bit 3, mlip-rt's "
           f"'drive fault'): {len(faults)} seen")
+    cpu_line = [x for x in sim.proc.stderr().splitlines() if "CPU per drive cycle" in x]
+    if cpu_line:
+        print(f"\n{cpu_line[-1]} (why the long period)")
     print("\ndrives: checks")
     for ok, what in checks:
         print(f"  [{'ok' if ok else 'FAILED'}] {what}")
     failed = sum(1 for ok, _ in checks if not ok)
     print(f"drives: {len(checks) - failed} of {len(checks)} checks passed", flush=True)
     info = {"config": str(config), "machine": str(cfg), "program": str(ngc), "period_s": period_s,
-            "acceleration_mm_s2": a_new, "starts": starts, "states": STATES, "first_target": first,
+            "acceleration_mm_s2": a_new, "starts": starts, "states": states, "first_target": first,
             "following_error_max_counts": fe, "syncs": len(syncs), "motion_syncs": len(got),
             "checks": [{"ok": ok, "what": w} for ok, w in checks]}
     (out / "drives.json").write_text(json.dumps(info, indent=1) + "\n")
