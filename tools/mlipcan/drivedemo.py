@@ -28,8 +28,9 @@ CONFIG = h.CONFIG / "mill-3axis-drives.ini"
 # in "switch on disabled"
 STARTS = (12345, -5000, 2500)
 FAULTED = 1
-# The Python drives keep up with a 40 ms SYNC in the emulated VM (3-4 ms of
-# CPU per drive and SYNC there), not with the config's 2 ms.
+# The Python drives keep up with a 40 ms SYNC in the emulated VM, not with the
+# config's 2 ms: 1.2-1.4 ms of CPU per drive and SYNC there (measured, printed
+# at the end), 3-4 ms when other VMs share the host; three drives.
 PERIOD_S = 0.04
 # Answers that late need longer timeouts than a real drive's; a following
 # error window of 2 mm (one period of travel at 15 mm/s is 0.6 mm, and mlip's
