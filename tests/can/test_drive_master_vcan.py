@@ -21,6 +21,7 @@ import time
 import pytest
 
 import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
+from mlipcan.harness import targets_by_sync, trim  # shared with the demo (drivedemo.py)
 
 MILL = h.CONFIG / "mill-3axis.ini"
 START = {1: 1234, 2: -5000, 3: 250500}
@@ -181,10 +182,10 @@ def test_bringup_program_shutdown(sim, tmp_path):
         if row["target"] is not None:
             first.setdefault(row["node"], row["target"])
     assert first == START, first
-    got = h.trim(h.targets_by_sync(rows, [1, 2, 3]))
+    got = trim(targets_by_sync(rows, [1, 2, 3]))
     home = {"X": 1.234, "Y": -5.0, "Z": 250.5}
     trc, _ = h.simulate(machine(tmp_path, [1, 2, 3], home, "sim.ini"), ngc, tmp_path)
-    want = h.trim(h.trace_counts(trc, [CPU] * 3))
+    want = trim(h.trace_counts(trc, [CPU] * 3))
     assert len(got) == len(want) and got == want, (len(got), len(want))
     within_limits(got, h.MachineLimits(cfg))
     # shut-down: disable operation, then shutdown, each drive, with the SYNC
@@ -261,7 +262,7 @@ def test_supervision(sim, tmp_path, inject, node, axis, reasons):
           f"run, detected in period {m.group(2)}")
     # every other axis at rest at the end, within the limits on the way
     others = [n for n in (1, 2, 3) if n != node]
-    seq = h.targets_by_sync(rows, others)
+    seq = targets_by_sync(rows, others)
     assert len(seq) > 10 and len(set(seq[-5:])) == 1, seq[-5:]
     lim = h.MachineLimits(cfg)
     sub = type("L", (), {"vel": [lim.vel[n - 1] for n in others],

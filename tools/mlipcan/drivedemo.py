@@ -217,7 +217,8 @@ def run(outdir, config=CONFIG, ngc=None, period_s=PERIOD_S):
         return fe, syncs
 
     titles = ["bring-up, as the drives saw it (t from the first frame mlip sent them):",
-              "the program (mlip-feed), as the drives reported it:", "shut-down (after the program; mlip-rt got SIGTERM):"]
+              "the program (mlip-feed), as the drives reported it:",
+              "shut-down (after the program, then SIGTERM to mlip-rt):"]
     sdo = {}
     for k, title in enumerate(titles):
         print(f"\n{title}")
