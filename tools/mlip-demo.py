@@ -3,6 +3,9 @@
 mlip-feed on vcan0 and check what happened, or plot it.
 
     mlip-demo.py demo OUTDIR [--config INI] [--profile P] [PROGRAM]
+    mlip-demo.py drives OUTDIR [--config INI] [--period S] [PROGRAM]
+                                (mlip-rt --drives with simulated CiA 402 drives:
+                                 tools/mlipcan/drivedemo.py)
     mlip-demo.py plot OUTDIR PNG
     mlip-demo.py prime          (fill the DBC layout cache)
 

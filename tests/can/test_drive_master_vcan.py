@@ -21,6 +21,7 @@ import time
 import pytest
 
 import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
+from mlipcan.harness import targets_by_sync, trim  # shared with the demo (drivedemo.py)
 
 MILL = h.CONFIG / "mill-3axis.ini"
 START = {1: 1234, 2: -5000, 3: 250500}
@@ -128,26 +129,6 @@ def test_never_enabled(sim, tmp_path):
     assert "node 5 (axis Z): fault reset (0x0080): switch on disabled" in err
     last = last_states(sim, t0)
     assert last[1] != "operation enabled" and last[2] != "operation enabled", last
-
-
-def targets_by_sync(rows, nodes):
-    """Per SYNC with a fresh target for every node: the tuple of targets."""
-    by = {}
-    for r in rows:
-        if r["node"] in nodes and r["target"] is not None and r["fresh"]:
-            by.setdefault(r["sync"], {})[r["node"]] = r["target"]
-    return [tuple(d[n] for n in nodes) for s, d in sorted(by.items()) if len(d) == len(nodes)]
-
-
-def trim(seq):
-    """Without the leading and trailing repeats (the machine at rest)."""
-    i = 0
-    while i + 1 < len(seq) and seq[i + 1] == seq[i]:
-        i += 1
-    j = len(seq)
-    while j - 1 > i and seq[j - 2] == seq[j - 1]:
-        j -= 1
-    return seq[i:j]
 
 
 def within_limits(seq, lim):

@@ -93,3 +93,29 @@ def test_invalid_config_gives_the_c_readers_error(tmp_path):
 def test_no_python_ini_parser_in_the_tools():
     for p in list((ROOT / "tools").rglob("*.py")):
         assert "configparser" not in p.read_text(), p
+
+
+def test_drive_machine_and_the_demos_copy(tmp_path):
+    """config/mill-3axis-drives.ini (the README's starting point for a real
+    machine) has [DRIVES] on and a 2 ms period; the drives stage of make demo
+    (tools/mlipcan/drivedemo.py) runs it at 40 ms, where mlip-config refuses
+    the full accelerations (eq. 17: |A| T^2 / 8 > eps) and accepts the
+    lowered ones, which keep |A| T^2 / 8 within eps but not far below it."""
+    from mlipcan import drivedemo
+
+    js = c_reader(CONFIG / "mill-3axis-drives.ini")
+    assert js["drives"]["enable"] is True and js["machine"]["period"] == 0.002
+    assert [a["can_node"] for a in js["machine"]["axes"]] == [1, 2, 3]
+    full = re.sub(r"(?m)^PERIOD = .*$", "PERIOD = 0.04",
+                  (CONFIG / "mill-3axis-drives.ini").read_text())
+    (tmp_path / "full.ini").write_text(full)
+    p = run(["mlip-config", "--json", tmp_path / "full.ini"], check=False)
+    assert p.returncode != 0 and "is too long for CONTOUR_TOLERANCE" in p.stderr, p.stderr
+    text, accel, dev = drivedemo.demo_machine(CONFIG / "mill-3axis-drives.ini", 0.04)
+    (tmp_path / "demo.ini").write_text(text)
+    m = c_reader(tmp_path / "demo.ini")["machine"]
+    assert m["period"] == 0.04
+    assert [a["max_acceleration"] for a in m["axes"]] == [accel] * 3
+    eps = m["contour_tolerance"]
+    assert 0.5 * eps < dev <= eps, dev
+    assert abs(dev - (3 ** 0.5) * accel * 0.04 ** 2 / 8) < 1e-12

@@ -108,3 +108,11 @@ EMCY = {
 # NMT (CiA 301): command specifiers and the states a heartbeat reports
 NMT_START, NMT_STOP, NMT_PREOP, NMT_RESET_NODE, NMT_RESET_COMM = 0x01, 0x02, 0x80, 0x81, 0x82
 HB_STATE = {0x00: "boot-up", 0x04: "stopped", 0x05: "operational", 0x7F: "pre-operational"}
+
+# short names of the objects a master writes at bring-up (for reports)
+OBJECT = {
+    0x1005: "COB-ID SYNC", 0x1016: "consumer heartbeat", 0x1017: "producer heartbeat",
+    0x1400: "RPDO1 comm", 0x1600: "RPDO1 map", 0x1800: "TPDO1 comm", 0x1A00: "TPDO1 map",
+    0x6040: "controlword (hex)", 0x6060: "modes of operation", 0x6065: "following error window",
+    0x607A: "target position", 0x60C2: "interpolation period",
+}

@@ -451,6 +451,39 @@ class DriveSim:
         return self.proc.terminate(timeout=timeout)
 
 
+def targets_by_sync(rows, nodes):
+    """DriveSim.sync_rows() -> per SYNC with a fresh target for every node:
+    the tuple of targets (counts), in SYNC order."""
+    by = {}
+    for r in rows:
+        if r["node"] in nodes and r["target"] is not None and r["fresh"]:
+            by.setdefault(r["sync"], {})[r["node"]] = r["target"]
+    return [tuple(d[n] for n in nodes) for s, d in sorted(by.items()) if len(d) == len(nodes)]
+
+
+def trim(seq):
+    """Without the leading and trailing repeats (the machine at rest)."""
+    i = 0
+    while i + 1 < len(seq) and seq[i + 1] == seq[i]:
+        i += 1
+    j = len(seq)
+    while j - 1 > i and seq[j - 2] == seq[j - 1]:
+        j -= 1
+    return seq[i:j]
+
+
+def ini_set(text, section, key, value):
+    """A machine INI's text with KEY's value in [SECTION] replaced (the key
+    must be there: the change is asserted, never silently lost)."""
+    import re
+
+    pat = rf"(^\[{section}\][ \t]*$(?:\n(?!\[).*)*?\n{key}[ \t]*=[ \t]*)[^\s#;]+"
+    out, n = re.subn(pat, lambda m: m.group(1) + str(value), text, count=1, flags=re.M)
+    if n != 1:
+        raise AssertionError(f"no {key} in [{section}]")
+    return out
+
+
 class Rig:
     """One controller + listener on IFACE with its own shm segment.
 
@@ -819,6 +852,11 @@ def cli(argv=None):
     d.add_argument("--config", default=str(CONFIG / "mill-3axis.ini"))
     d.add_argument("--profile", default="cia402", choices=["cia402", "packed", "fd"])
     d.add_argument("program", nargs="?", default=str(ROOT / "examples" / "demo.ngc"))
+    dr = sub.add_parser("drives", help="the drives stage: mlip-rt --drives with simulated drives")
+    dr.add_argument("outdir")
+    dr.add_argument("--config", default=str(CONFIG / "mill-3axis-drives.ini"))
+    dr.add_argument("--period", type=float, default=None, help="s (default 0.04)")
+    dr.add_argument("program", nargs="?", help="default: a small program of its own")
     p = sub.add_parser("plot")
     p.add_argument("outdir")
     p.add_argument("png")
@@ -826,6 +864,12 @@ def cli(argv=None):
     a = ap.parse_args(argv)
     if a.cmd == "demo":
         sys.exit(1 if demo(a.outdir, Path(a.config), Path(a.program), a.profile) else 0)
+    elif a.cmd == "drives":
+        from . import drivedemo
+
+        kw = {} if a.period is None else {"period_s": a.period}
+        sys.exit(1 if drivedemo.run(a.outdir, Path(a.config), a.program and Path(a.program), **kw)
+                 else 0)
     elif a.cmd == "plot":
         plot(a.outdir, a.png)
     else:
