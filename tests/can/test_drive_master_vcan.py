@@ -307,3 +307,119 @@ def test_second_controller_leaves_drives_alone(sim, tmp_path):
         assert rig.status()["state"] == "idle"
     assert rig.result["rt_rc"] == 0
     assert "drives disabled in order" in rig.result["rt_stderr"]
+
+
+def power_steps(rows, node, since_sync=0):
+    """For one drive, from SYNC since_sync on: the SYNC of its last target
+    change and the first SYNC it was in each state (as it recorded them)."""
+    last_move, prev, first = None, None, {}
+    for r in rows:
+        if r["node"] != node or r["sync"] < since_sync:
+            continue
+        if r["target"] is not None:
+            if prev is not None and r["target"] != prev:
+                last_move = r["sync"]
+            prev = r["target"]
+        first.setdefault(r["state"], r["sync"])
+    return last_move, first
+
+
+def wait_all_in(sim, state, t0, nodes=(1, 2, 3)):
+    for n in nodes:
+        sim.wait_event(lambda e, n=n: e["kind"] == "state" and e["node"] == n and e["t"] >= t0
+                       and e["to"] == state, f"node {n} {state}", timeout=300)
+
+
+def test_programs_disable_enable_stop(sim, tmp_path):
+    """Three programs on one mlip-rt --drives. After the first, at rest: each
+    drive records disable operation then shutdown, after its last target.
+    Disabled, node 2 is moved by hand (+777 counts); the commanded position
+    follows, and the second program enables the drives again (switch on,
+    enable operation) with node 2's target equal to its new position to the
+    count, then runs as mlip-sim from there. The third is stopped mid-way:
+    at rest, the drives are disabled in order."""
+    cfg = machine(tmp_path, [1, 2, 3])
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text(PROGRAM)
+    long_ngc = tmp_path / "long.ngc"
+    long_ngc.write_text(PROGRAM_LONG)
+    with h.Rig(cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        assert rig.status()["drives"] == "enabled"  # by the bring-up, until a program ends
+        # 1: a whole program, then disable operation, shutdown, per drive
+        t_a = time.time()
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err + rig.rt.stderr()
+        wait_all_in(sim, "ready to switch on", t_a)
+        s = rig.wait_state("idle", pred=lambda s: s["drives"] == "off")
+        text = rig.ctl("status").stdout
+        assert re.search(r"^drives      off \(ready to switch on: no torque; enabled again for "
+                         r"the next program\), last change in \d+ periods$", text, re.M), text
+        rows = sim.sync_rows()
+        s_a = min(r["sync"] for r in rows if r["t"] >= t_a)
+        off_syncs = []
+        for n in (1, 2, 3):
+            st = [(e["frm"], e["to"]) for e in sim.events("state", n) if e["t"] >= t_a]
+            assert st == [("operation enabled", "switched on"),
+                          ("switched on", "ready to switch on")], st
+            last_move, first = power_steps(rows, n, s_a)
+            assert last_move is not None
+            assert last_move < first["switched on"] < first["ready to switch on"], (n, first)
+            off_syncs.append(first["ready to switch on"] - last_move)
+        # 2: node 2 (Y) pushed by hand while disabled; the controller follows it
+        moved = START[2] + 777
+        t_m = time.time()
+        sim.inject("2:move=777")
+        sim.wait_event(lambda e: e["kind"] == "moved" and e["t"] >= t_m, "the move")
+        rig.wait_state("idle", pred=lambda s: round(s["position"]["Y"] * CPU) == moved)
+        t_b = time.time()
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err + rig.rt.stderr()
+        wait_all_in(sim, "ready to switch on", t_b)
+        rows = [r for r in sim.sync_rows() if r["t"] >= t_b]
+        # the drives enabled again: switch on, then enable operation, and
+        # node 2's targets up to its first move are where it was pushed
+        on_syncs = []
+        for n in (1, 2, 3):
+            st = [(e["frm"], e["to"]) for e in sim.events("state", n) if e["t"] >= t_b]
+            assert st[:2] == [("ready to switch on", "switched on"),
+                              ("switched on", "operation enabled")], st
+            mine = [r for r in rows if r["node"] == n and r["target"] is not None]
+            first_on = next(r for r in mine if r["cw"] == 0x07)
+            first_en = next(r for r in mine if r["state"] == "operation enabled")
+            on_syncs.append(first_en["sync"] - first_on["sync"])
+            want = moved if n == 2 else START[n]
+            before = [r["target"] for r in mine if r["sync"] <= first_en["sync"]]
+            assert before and set(before) == {want}, (n, set(before))
+        # the second program ran as mlip-sim runs it from there, count for count
+        home = {"X": START[1] / CPU, "Y": moved / CPU, "Z": START[3] / CPU}
+        got = trim(targets_by_sync(rows, [1, 2, 3]))
+        trc, _ = h.simulate(machine(tmp_path, [1, 2, 3], home, "sim2.ini"), ngc, tmp_path)
+        want_trace = trim(h.trace_counts(trc, [CPU] * 3))
+        assert got[0] == (START[1], moved, START[3]), got[0]
+        assert len(got) == len(want_trace) and got == want_trace, (len(got), len(want_trace))
+        # 3: a stop mid-program: at rest on the path, then disabled in order
+        t_c = time.time()
+        f = rig.feeder(long_ngc)
+        sim.wait_sync_rows(lambda rs: any(r["t"] >= t_c and r["node"] == 1 and r["target"]
+                                          not in (None, START[1]) for r in rs))
+        rig.ctl("stop")
+        assert f.p.wait(timeout=300) == 4, f.stderr()
+        f.kill()
+        wait_all_in(sim, "ready to switch on", t_c)
+        rows = sim.sync_rows()
+        s_c = min(r["sync"] for r in rows if r["t"] >= t_c)
+        for n in (1, 2, 3):
+            last_move, first = power_steps(rows, n, s_c)
+            assert last_move < first["switched on"] < first["ready to switch on"], (n, first)
+        s = rig.wait_state("idle", pred=lambda s: s["drives"] == "off")
+        assert s["reason"] == "stop"
+    r = rig.result
+    assert r["rt_rc"] == 0, r["rt_stderr"]
+    log = r["rt_stderr"]
+    assert "drives disabled in order" in log, log
+    dis = [int(x) for x in re.findall(r"disabled in (\d+) periods", log)]
+    ena = [int(x) for x in re.findall(r"enabled in (\d+) periods", log)]
+    assert len(dis) == 3 and len(ena) == 2, log
+    print(f"\ndisable after a program (drives' SYNCs from the last target to 'ready to switch "
+          f"on'): {off_syncs}; mlip's periods from rest to all confirmed: disable {dis}, "
+          f"enable {ena}; drives' SYNCs from switch on to 'operation enabled': {on_syncs}")
