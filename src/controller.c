@@ -528,6 +528,19 @@ static void power_fault(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct
 	power_go(c, in, out, MLIP_POWER_DISABLING, event == MLIP_DRIVE_BEYOND_LIMIT ? -1 : k);
 }
 
+/* A step toward ENABLED: every drive shows `want`: on to `next`; one does
+ * not in time: the fault `event` naming it. */
+static void enable_step(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
+                        mlip_402_state want, uint32_t next, uint32_t event, int timeout)
+{
+	int late = power_late(c, in, want);
+	if (late < 0) {
+		power_go(c, in, out, next, -1);
+	} else if (timeout) {
+		power_fault(c, in, out, event, late, in->drive_sw[late]);
+	}
+}
+
 /* The first axis beyond a soft limit, or -1. */
 static int beyond_limit(const struct mlip_ctl *c)
 {
@@ -610,25 +623,17 @@ static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 			power_go(c, in, out, MLIP_POWER_SWITCHING_ON, -1);
 			return;
 		}
-		late = power_late(c, in, MLIP_402_SWITCHED_ON);
-		if (late < 0) {
-			/* from here the position is held: 0x0F goes with it */
-			power_go(c, in, out, MLIP_POWER_ENABLING, -1);
-		} else if (timeout) {
-			power_fault(c, in, out, MLIP_DRIVE_NOT_SWITCHED_ON, late, in->drive_sw[late]);
-		}
+		/* from ENABLING on the position is held: 0x0F goes with it */
+		enable_step(c, in, out, MLIP_402_SWITCHED_ON, MLIP_POWER_ENABLING,
+		            MLIP_DRIVE_NOT_SWITCHED_ON, timeout);
 		return;
 	case MLIP_POWER_ENABLING:
 		if (!c->power_want) {
 			power_go(c, in, out, MLIP_POWER_DISABLING, -1);
 			return;
 		}
-		late = power_late(c, in, MLIP_402_OPERATION_ENABLED);
-		if (late < 0) {
-			power_go(c, in, out, MLIP_POWER_ENABLED, -1);
-		} else if (timeout) {
-			power_fault(c, in, out, MLIP_DRIVE_NOT_ENABLED, late, in->drive_sw[late]);
-		}
+		enable_step(c, in, out, MLIP_402_OPERATION_ENABLED, MLIP_POWER_ENABLED,
+		            MLIP_DRIVE_NOT_ENABLED, timeout);
 		return;
 	default:
 		return;
