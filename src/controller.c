@@ -274,10 +274,11 @@ static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 		return;
 	}
 	for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && rx_peek(c, &rec); i++) {
-		if (rec.seq == 1 && !c->bad) {
+		if (rec.seq == 1 && !c->bad && !c->discard_waiting) {
 			c->discard = 0;
 			break;
 		}
+		c->discard_waiting = 0; /* its first record: the rest is its own */
 		rx_pop(c);
 		if (rec.type == MLIP_REC_END) {
 			c->discard = 0;
@@ -346,8 +347,10 @@ static void brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state rs
 static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why)
 {
 	if (c->state == MLIP_STATE_IDLE && mlip_planner_queued(c->planner) == 0) {
-		/* nothing moving; a program already waiting in the ring is dropped */
+		/* nothing moving; a program already waiting in the ring (for the
+		 * drives to be enabled) is dropped, its first record too */
 		c->discard = rx_count(c) > 0;
+		c->discard_waiting = c->discard;
 		return;
 	}
 	mlip_planner_stop(c->planner);
@@ -525,7 +528,9 @@ static void power_fault(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct
 {
 	struct mlip_ctl_drive_fault f = {event, (uint32_t)c->m.axis[k].can_node, value};
 	drive_fault(c, out, &f);
-	power_go(c, in, out, MLIP_POWER_DISABLING, event == MLIP_DRIVE_BEYOND_LIMIT ? -1 : k);
+	if (c->power != MLIP_POWER_OFF) {
+		power_go(c, in, out, MLIP_POWER_DISABLING, event == MLIP_DRIVE_BEYOND_LIMIT ? -1 : k);
+	}
 }
 
 /* A step toward ENABLED: every drive shows `want`: on to `next`; one does

@@ -191,6 +191,7 @@ struct mlip_ctl {
 	uint64_t end_seq;
 	uint32_t end_line;
 	int discard;                /* dropping a stopped (or faulted) program's records */
+	int discard_waiting;        /* ... a waiting one's, its first record (seq 1) too */
 	int bad;                    /* a bad record: nothing more is taken */
 	int exiting;
 	int optional_stop;          /* the M1 switch */

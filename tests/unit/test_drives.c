@@ -894,6 +894,14 @@ static void test_loop_between_programs(void **state)
 	for (int i = 0; i < NP; i++) {
 		assert_int_equal(peers[i].state, P_OE);
 	}
+	/* X moves back; Y and Z, not programmed to move, stay put */
+	for (int k = 0; k < 3000 && ctl.out.status.drive_power == MLIP_POWER_ENABLED; k++) {
+		period();
+		assert_int_equal(rpdo_of(1, &cw, &t), 1);
+		assert_int_equal(t, -500 + 777);
+		assert_int_equal(rpdo_of(2, &cw, &t), 1);
+		assert_int_equal(t, 0);
+	}
 	run_until(0, MLIP_POWER_OFF, 3000, &r);
 	assert_true(peers[0].pos == 1234);      /* X went back */
 	assert_true(peers[1].pos == -500 + 777); /* Y stayed where it was pushed */
