@@ -419,15 +419,6 @@ static int read_state(struct mlip_drives *ds, int i, uint16_t *sw, char *why, si
 	return rc;
 }
 
-static int read_position(struct mlip_drives *ds, int i, int32_t *counts, char *why,
-                         size_t why_len)
-{
-	uint32_t v = 0;
-	int rc = sdo(ds, i, 1, 0x6064, 0, 0, 0, "position actual value", &v, why, why_len);
-	*counts = (int32_t)v;
-	return rc;
-}
-
 /* Let the drive work for a while (frames read, the heartbeat served). */
 static void pause_poll(struct mlip_drives *ds)
 {
@@ -597,9 +588,36 @@ static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, cons
 	return 0;
 }
 
+/* Every drive up to "switched on" (from whatever state) or on to
+ * "operation enabled", then every position actual 0x6064, by SDO. */
+static int all_drives_to(struct mlip_drives *ds, mlip_402_state want, int32_t *counts,
+                         char *why, size_t why_len)
+{
+	int rc;
+	for (int i = 0; i < ds->n; i++) {
+		rc = want == MLIP_402_OPERATION_ENABLED
+		         ? transition(ds, i, MLIP_402_CW_ENABLE_OPERATION, MLIP_402_OPERATION_ENABLED,
+		                      "enable operation", why, why_len)
+		         : up_to_switched_on(ds, i, why, why_len);
+		if (rc != 0) {
+			return rc;
+		}
+	}
+	for (int i = 0; i < ds->n; i++) {
+		uint32_t v = 0;
+		rc = sdo(ds, i, 1, 0x6064, 0, 0, 0, "position actual value", &v, why, why_len);
+		if (rc != 0) {
+			return rc;
+		}
+		counts[i] = (int32_t)v;
+	}
+	return 0;
+}
+
 int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, size_t why_len)
 {
 	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
+	int32_t pos_counts[MLIP_MAX_AXES];
 	char who[32];
 	int rc;
 
@@ -640,20 +658,14 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 	if (rc != 0) {
 		goto fail;
 	}
-	for (int i = 0; i < ds->n; i++) {
-		rc = up_to_switched_on(ds, i, why, why_len);
-		if (rc != 0) {
-			goto fail;
-		}
-	}
 	/* where the machine is, before anything is enabled */
+	rc = all_drives_to(ds, MLIP_402_SWITCHED_ON, pos_counts, why, why_len);
+	if (rc != 0) {
+		goto fail;
+	}
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_axis *a = &ds->m->axis[i];
-		int32_t v = 0;
-		rc = read_position(ds, i, &v, why, why_len);
-		if (rc != 0) {
-			goto fail;
-		}
+		int32_t v = pos_counts[i];
 		ds->d[i].start_counts = v;
 		double pos = v / ds->d[i].counts_per_unit;
 		const char *unit = a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm";
@@ -673,20 +685,13 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 			goto fail;
 		}
 	}
-	for (int i = 0; i < ds->n; i++) {
-		rc = transition(ds, i, MLIP_402_CW_ENABLE_OPERATION, MLIP_402_OPERATION_ENABLED,
-		                "enable operation", why, why_len);
-		if (rc != 0) {
-			goto fail;
-		}
+	rc = all_drives_to(ds, MLIP_402_OPERATION_ENABLED, pos_counts, why, why_len);
+	if (rc != 0) {
+		goto fail;
 	}
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_axis *a = &ds->m->axis[i];
-		int32_t v = 0;
-		rc = read_position(ds, i, &v, why, why_len);
-		if (rc != 0) {
-			goto fail;
-		}
+		int32_t v = pos_counts[i];
 		int64_t moved = (int64_t)v - ds->d[i].start_counts;
 		if (moved > (int64_t)ds->d[i].setup.following_window_counts ||
 		    -moved > (int64_t)ds->d[i].setup.following_window_counts) {
