@@ -336,14 +336,16 @@ def wait_all_in(sim, state, t0, nodes=(1, 2, 3)):
                        and e["to"] == state, f"node {n} {state}", timeout=300)
 
 
-def test_programs_disable_enable_stop(sim, tmp_path):
-    """Three programs on one mlip-rt --drives. After the first, at rest: each
+def test_programs_disable_enable_stop_fail(sim, tmp_path):
+    """Four programs on one mlip-rt --drives. After the first, at rest: each
     drive records disable operation then shutdown, after its last target.
     Disabled, node 2 is moved by hand (+777 counts); the commanded position
     follows, and the second program enables the drives again (switch on,
     enable operation) with node 2's target equal to its new position to the
-    count, then runs as mlip-sim from there. The third is stopped mid-way:
-    at rest, the drives are disabled in order."""
+    count, and runs from there within the limits. The third is stopped
+    mid-way: at rest, the drives are disabled in order. For the fourth node 3
+    never confirms "operation enabled": a fault naming it, nothing moves,
+    the drives shut down again."""
     cfg = machine(tmp_path, [1, 2, 3])
     ngc = tmp_path / "p.ngc"
     ngc.write_text(PROGRAM)
@@ -422,13 +424,37 @@ def test_programs_disable_enable_stop(sim, tmp_path):
             assert (last_move or 0) < first["switched on"] < first["ready to switch on"], (n, first)
         s = rig.wait_state("idle", pred=lambda s: s["drives"] == "off")
         assert s["reason"] == "stop"
+        # 4: node 3 no longer enables: the next program is a fault naming
+        # node and step, nothing moves, the drives are shut down again
+        sim.inject("3:never-enable")
+        t_d = time.time()
+        try:
+            rc, out, err = rig.feed(ngc, timeout=600)
+        finally:
+            sim.inject("3:never-enable=off")
+        assert rc == 5, err
+        assert "node 3" in err and "not enabled" in err, err
+        wait_all_in(sim, "ready to switch on", t_d)
+        s = rig.wait_state("fault", pred=lambda s: s["drives"] == "off")
+        assert s["reason_node"] == 3 and s["reason_field"] == "not enabled", s
+        rows = [r for r in sim.sync_rows() if r["t"] >= t_d and r["target"] is not None]
+        for n in (1, 2, 3):
+            assert {r["target"] for r in rows if r["node"] == n} == \
+                {moved if n == 2 else START[n]}, n
+            st = [e["to"] for e in sim.events("state", n) if e["t"] >= t_d]
+            assert st == (["switched on", "ready to switch on"] if n == 3 else
+                          ["switched on", "operation enabled", "switched on",
+                           "ready to switch on"]), (n, st)
     r = rig.result
     assert r["rt_rc"] == 0, r["rt_stderr"]
     log = r["rt_stderr"]
+    assert re.search(r"drive fault: node 3 \(axis Z\): not enabled: enable operation "
+                     r"\(controlword 0x000F\) not confirmed within STATE_TIMEOUT_MS: "
+                     r"statusword 0x.233 \(switched on\); nothing moves", log), log
     assert "drives disabled in order" in log, log
     dis = [int(x) for x in re.findall(r"disabled in (\d+) periods", log)]
     ena = [int(x) for x in re.findall(r"enabled in (\d+) periods", log)]
-    assert len(dis) == 3 and len(ena) == 2, log
+    assert len(dis) == 4 and len(ena) == 2, log
     print(f"\ndisable after a program (drives' SYNCs from the last target to 'ready to switch "
           f"on'): {off_syncs}; mlip's periods from rest to all confirmed: disable {dis}, "
           f"enable {ena}; drives' SYNCs from switch on to 'operation enabled': {on_syncs}")
