@@ -456,6 +456,8 @@ def test_programs_disable_enable_stop_fail(sim, tmp_path):
     dis = [int(x) for x in re.findall(r"disabled in (\d+) periods", log)]
     ena = [int(x) for x in re.findall(r"enabled in (\d+) periods", log)]
     assert len(dis) == 4 and len(ena) == 2, log
+    print("\n" + "\n".join(ln for ln in log.splitlines() if "mlip-rt: drives:" in ln
+                           or "not enabled" in ln))
     print(f"\ndisable after a program (drives' SYNCs from the last target to 'ready to switch "
           f"on'): {off_syncs}; mlip's periods from rest to all confirmed: disable {dis}, "
           f"enable {ena}; drives' SYNCs from switch on to 'operation enabled': {on_syncs}")
