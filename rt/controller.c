@@ -110,8 +110,8 @@ int mlip_controller_period(struct mlip_controller *c, const struct mlip_rt_tick 
 
 	memset(&in, 0, sizeof(in));
 	if (drv != NULL) {
-		in.drive_cw = drv->drive_cw;
 		in.drive_mute = drv->drive_mute;
+		memcpy(in.drive_sw, drv->drive_sw, sizeof(in.drive_sw));
 		in.drive_fault = drv->drive_fault;
 		in.actual_mask = drv->actual_mask;
 		memcpy(in.pos_actual, drv->pos_actual, sizeof(in.pos_actual));

@@ -419,15 +419,6 @@ static int read_state(struct mlip_drives *ds, int i, uint16_t *sw, char *why, si
 	return rc;
 }
 
-static int read_position(struct mlip_drives *ds, int i, int32_t *counts, char *why,
-                         size_t why_len)
-{
-	uint32_t v = 0;
-	int rc = sdo(ds, i, 1, 0x6064, 0, 0, 0, "position actual value", &v, why, why_len);
-	*counts = (int32_t)v;
-	return rc;
-}
-
 /* Let the drive work for a while (frames read, the heartbeat served). */
 static void pause_poll(struct mlip_drives *ds)
 {
@@ -597,9 +588,36 @@ static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, cons
 	return 0;
 }
 
+/* Every drive up to "switched on" (from whatever state) or on to
+ * "operation enabled", then every position actual 0x6064, by SDO. */
+static int all_drives_to(struct mlip_drives *ds, mlip_402_state want, int32_t *counts,
+                         char *why, size_t why_len)
+{
+	int rc;
+	for (int i = 0; i < ds->n; i++) {
+		rc = want == MLIP_402_OPERATION_ENABLED
+		         ? transition(ds, i, MLIP_402_CW_ENABLE_OPERATION, MLIP_402_OPERATION_ENABLED,
+		                      "enable operation", why, why_len)
+		         : up_to_switched_on(ds, i, why, why_len);
+		if (rc != 0) {
+			return rc;
+		}
+	}
+	for (int i = 0; i < ds->n; i++) {
+		uint32_t v = 0;
+		rc = sdo(ds, i, 1, 0x6064, 0, 0, 0, "position actual value", &v, why, why_len);
+		if (rc != 0) {
+			return rc;
+		}
+		counts[i] = (int32_t)v;
+	}
+	return 0;
+}
+
 int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, size_t why_len)
 {
 	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
+	int32_t pos_counts[MLIP_MAX_AXES];
 	char who[32];
 	int rc;
 
@@ -640,20 +658,14 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 	if (rc != 0) {
 		goto fail;
 	}
-	for (int i = 0; i < ds->n; i++) {
-		rc = up_to_switched_on(ds, i, why, why_len);
-		if (rc != 0) {
-			goto fail;
-		}
-	}
 	/* where the machine is, before anything is enabled */
+	rc = all_drives_to(ds, MLIP_402_SWITCHED_ON, pos_counts, why, why_len);
+	if (rc != 0) {
+		goto fail;
+	}
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_axis *a = &ds->m->axis[i];
-		int32_t v = 0;
-		rc = read_position(ds, i, &v, why, why_len);
-		if (rc != 0) {
-			goto fail;
-		}
+		int32_t v = pos_counts[i];
 		ds->d[i].start_counts = v;
 		double pos = v / ds->d[i].counts_per_unit;
 		const char *unit = a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm";
@@ -673,20 +685,13 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 			goto fail;
 		}
 	}
-	for (int i = 0; i < ds->n; i++) {
-		rc = transition(ds, i, MLIP_402_CW_ENABLE_OPERATION, MLIP_402_OPERATION_ENABLED,
-		                "enable operation", why, why_len);
-		if (rc != 0) {
-			goto fail;
-		}
+	rc = all_drives_to(ds, MLIP_402_OPERATION_ENABLED, pos_counts, why, why_len);
+	if (rc != 0) {
+		goto fail;
 	}
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_axis *a = &ds->m->axis[i];
-		int32_t v = 0;
-		rc = read_position(ds, i, &v, why, why_len);
-		if (rc != 0) {
-			goto fail;
-		}
+		int32_t v = pos_counts[i];
 		int64_t moved = (int64_t)v - ds->d[i].start_counts;
 		if (moved > (int64_t)ds->d[i].setup.following_window_counts ||
 		    -moved > (int64_t)ds->d[i].setup.following_window_counts) {
@@ -752,7 +757,10 @@ static void read_frames(struct mlip_drives *ds, uint64_t cycle, uint64_t now)
 	}
 }
 
-static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now)
+/* any_state: the controller is disabling, has disabled or is enabling the
+ * drives (its power is not ENABLED): no state but fault is wrong, and they
+ * follow no target. */
+static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int any_state)
 {
 	struct mlip_drive_expect x;
 	uint64_t period_ns = (uint64_t)(ds->m->period_s * 1e9 + 0.5);
@@ -761,6 +769,7 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now)
 	x.cycle = cycle;
 	x.hb_timeout_ns = (uint64_t)ds->cfg.heartbeat_timeout_ms * 1000000u;
 	x.tpdo_timeout = (uint32_t)(x.hb_timeout_ns / period_ns); /* as long as a heartbeat */
+	x.any_state = any_state;
 	for (int i = 0; i < ds->n; i++) {
 		struct mlip_drive *d = &ds->d[i];
 		int64_t detail;
@@ -771,7 +780,8 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now)
 		/* the newest TPDO answers SYNC j = tpdo_count, sent in period j */
 		uint64_t j = d->obs.tpdo_count;
 		x.following_counts = -1;
-		if (d->obs.tpdo_cycle == cycle && j >= 1 && cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
+		if (!any_state && d->obs.tpdo_cycle == cycle && j >= 1 &&
+		    cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
 			int32_t t[MLIP_DRIVE_LAG];
 			for (int k = 0; k < MLIP_DRIVE_LAG; k++) {
 				t[k] = d->targets[(j - 1 - (uint64_t)k + MLIP_DRIVE_HIST) % MLIP_DRIVE_HIST];
@@ -802,64 +812,24 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now)
 	}
 }
 
-/* Shut-down with the SYNC running: every drive that is still ours gets cw
- * until its TPDO shows `want` (or STATE_TIMEOUT_MS passes). 1: all there. */
-static int all_in(struct mlip_drives *ds, mlip_402_state want)
-{
-	for (int i = 0; i < ds->n; i++) {
-		if (!(ds->mute & (1u << i)) && mlip_402_state_of(ds->d[i].obs.statusword) != want) {
-			return 0;
-		}
-	}
-	return 1;
-}
-
 int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t)
 {
 	struct mlip_drives *ds = ctx;
 	struct mlip_controller *c = ds->ctl;
 	uint64_t cycle = t->cycle + 1, now = ds->port.now_ns(ds->port.ctx);
-	uint16_t cw = MLIP_402_CW_ENABLE_OPERATION;
 
 	memset(&ds->in.drive_fault, 0, sizeof(ds->in.drive_fault));
 	read_frames(ds, cycle, now);
-	if (ds->phase == MLIP_DRIVES_RUN) {
-		supervise(ds, cycle, now);
-	}
-	uint64_t limit = (uint64_t)ds->cfg.state_timeout_ms * 1000000u /
-	                 (uint64_t)(ds->m->period_s * 1e9 + 0.5);
-	if (ds->phase == MLIP_DRIVES_DISABLING) {
-		cw = MLIP_402_CW_SWITCH_ON; /* disable operation */
-		if (all_in(ds, MLIP_402_SWITCHED_ON) || cycle - ds->phase_cycle > limit) {
-			if (!all_in(ds, MLIP_402_SWITCHED_ON)) {
-				snprintf(ds->shutdown_note, sizeof(ds->shutdown_note),
-				         "not every drive confirmed \"switched on\" within %u ms",
-				         (unsigned)ds->cfg.state_timeout_ms);
-			}
-			ds->phase = MLIP_DRIVES_SHUTTING_DOWN;
-			ds->phase_cycle = cycle;
-			cw = MLIP_402_CW_SHUTDOWN;
-		}
-	} else if (ds->phase == MLIP_DRIVES_SHUTTING_DOWN) {
-		cw = MLIP_402_CW_SHUTDOWN;
-		if (all_in(ds, MLIP_402_READY_TO_SWITCH_ON) || cycle - ds->phase_cycle > limit) {
-			ds->shutdown_ok = all_in(ds, MLIP_402_READY_TO_SWITCH_ON) && !ds->shutdown_note[0];
-			if (!all_in(ds, MLIP_402_READY_TO_SWITCH_ON) && !ds->shutdown_note[0]) {
-				snprintf(ds->shutdown_note, sizeof(ds->shutdown_note),
-				         "not every drive confirmed \"ready to switch on\" within %u ms",
-				         (unsigned)ds->cfg.state_timeout_ms);
-			}
-			ds->phase = MLIP_DRIVES_OFF;
-		}
-	}
-	/* the controller's inputs from the drives: the controlword of the
-	 * RPDOs, no target to a drive not enabled, positions actual */
-	ds->in.drive_cw = cw;
+	/* the power as the controller's last period left it (the RPDOs sent) */
+	supervise(ds, cycle, now, c->core.power != MLIP_POWER_ENABLED);
+	/* the controller's inputs from the drives: the faulted ones (no RPDO),
+	 * statuswords (its power steps are confirmed by them), positions actual */
 	ds->in.drive_mute = ds->mute;
 	ds->in.actual_mask = 0;
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_drive *d = &ds->d[i];
 		int32_t v = d->obs.tpdo_count > 0 ? d->obs.position_counts : d->start_counts;
+		ds->in.drive_sw[i] = d->obs.tpdo_cycle != 0 ? d->obs.statusword : 0;
 		ds->in.pos_actual[i] = v / d->counts_per_unit;
 		ds->in.actual_mask |= 1u << i;
 	}
@@ -872,12 +842,69 @@ int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t)
 		d->targets[cycle % MLIP_DRIVE_HIST] = counts;
 	}
 	serve_heartbeat(ds, now);
-	/* the controller is at rest and asked to end: never while it moves */
+	/* the controller ends only at rest with the drives disabled (or faulted) */
 	if (done && ds->phase == MLIP_DRIVES_RUN) {
-		ds->phase = MLIP_DRIVES_DISABLING;
-		ds->phase_cycle = cycle;
+		const struct mlip_ctl *k = &c->core;
+		ds->phase = MLIP_DRIVES_OFF;
+		ds->shutdown_ok = k->power_ok;
+		if (!k->power_ok) {
+			/* once, as the loop ends */
+			snprintf(ds->shutdown_note, sizeof(ds->shutdown_note),
+			         "node %u did not confirm \"%s\" within %u ms after %s: statusword 0x%04X",
+			         (unsigned)k->power_late_node,
+			         k->power_late_step == MLIP_POWER_DISABLING ? "switched on"
+			                                                     : "ready to switch on",
+			         (unsigned)ds->cfg.state_timeout_ms,
+			         k->power_late_step == MLIP_POWER_DISABLING ? "disable operation"
+			                                                     : "shutdown",
+			         (unsigned)k->power_late_sw);
+		}
 	}
-	return ds->phase == MLIP_DRIVES_OFF;
+	return done;
+}
+
+/* The text of a power event (MLIP_EV_POWER) for the log, outside the loop. */
+void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_event *e,
+                            char *buf, size_t len)
+{
+	static const char *const cw[MLIP_POWER_COUNT] = {
+	    "", "", "disable operation (0x0007)", "shutdown (0x0006)", "",
+	    "switch on (0x0007)", "enable operation (0x000F)"};
+	static const char *const want[MLIP_POWER_COUNT] = {
+	    "", "operation enabled", "switched on", "ready to switch on", "", "switched on",
+	    "operation enabled"};
+	double ms = ds->m->period_s * 1e3;
+	uint32_t from = e->from < MLIP_POWER_COUNT ? e->from : 0;
+	if (e->r.node != 0) {
+		int i = find_node(ds, (uint8_t)e->r.node);
+		snprintf(buf, len,
+		         "drives: node %u (axis %c) still \"%s\" (statusword 0x%04X) %.0f periods after "
+		         "%s, expected \"%s\"",
+		         (unsigned)e->r.node, i >= 0 ? ds->d[i].letter : '?',
+		         mlip_402_state_name(mlip_402_state_of((uint16_t)e->r.field)),
+		         (unsigned)e->r.field, e->r.value, cw[from], want[from]);
+		return;
+	}
+	switch (e->state) {
+	case MLIP_POWER_DISABLING:
+	case MLIP_POWER_SWITCHING_ON:
+		snprintf(buf, len, "drives: %s, period %llu, block %llu (line %u): %s",
+		         e->state == MLIP_POWER_DISABLING ? "at rest: disabling"
+		                                          : "a program waits: enabling",
+		         (unsigned long long)e->period, (unsigned long long)e->exec_seq,
+		         (unsigned)e->exec_line, cw[e->state]);
+		return;
+	case MLIP_POWER_OFF:
+	case MLIP_POWER_ENABLED:
+		snprintf(buf, len, "drives: %s: \"%s\" after %.0f periods, %s in %llu periods (%.1f ms)",
+		         cw[from], want[from], e->r.value,
+		         e->state == MLIP_POWER_OFF ? "disabled" : "enabled",
+		         (unsigned long long)e->r.seq, (double)e->r.seq * ms);
+		return;
+	default:
+		snprintf(buf, len, "drives: %s: \"%s\" after %.0f periods", cw[from], want[from],
+		         e->r.value);
+	}
 }
 
 void mlip_drives_release(struct mlip_drives *ds)

@@ -229,7 +229,7 @@ struct mlip_drive {
 	int32_t targets[MLIP_DRIVE_HIST]; /* target sent in period c at c % MLIP_DRIVE_HIST */
 };
 
-enum { MLIP_DRIVES_RUN = 0, MLIP_DRIVES_DISABLING, MLIP_DRIVES_SHUTTING_DOWN, MLIP_DRIVES_OFF };
+enum { MLIP_DRIVES_RUN = 0, MLIP_DRIVES_OFF }; /* the loop runs; it ended, drives disabled */
 
 struct mlip_drives {
 	struct mlip_co_port port;
@@ -246,8 +246,8 @@ struct mlip_drives {
 	uint64_t phase_cycle;
 	uint32_t mute;                   /* drives sent no RPDO: not operation enabled */
 	uint64_t rx_frames, rx_malformed;
-	/* this period's inputs of the controller (controlword, mute, the new
-	 * fault, positions actual), built here, never poked into it */
+	/* this period's inputs of the controller (mute, the new fault,
+	 * statuswords, positions actual), built here, never poked into it */
 	struct mlip_ctl_in in;
 	/* the first fault (the controller's state and log carry it; kept here
 	 * for the exit summary and the tests): `fault` set once, release */
@@ -256,8 +256,8 @@ struct mlip_drives {
 	mlip_drive_fault fault_reason;
 	int64_t fault_detail;
 	uint64_t fault_cycle;
-	int shutdown_ok;                 /* disabled in order within the timeouts */
-	char shutdown_note[160];         /* what went wrong in the in-loop shut-down */
+	int shutdown_ok;                 /* the last disable in order within the timeouts */
+	char shutdown_note[160];         /* what went wrong in it */
 };
 
 /* Check the [DRIVES] settings against the machine (master node, following
@@ -272,13 +272,21 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
  * object, abort code; the drives are shut down again; -errno. */
 int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, size_t why_len);
 /* The loop's function (an mlip_rt_fn, ctx = ds, after ds->ctl is set, its
- * controller initialised with opts.drives): reads the drives' frames without
- * waiting (bounded), supervises them, runs the controller's period with the
- * drives as inputs (controlword 0x000F, muted drives, a drive fault: the
- * controller stops every axis on the path, state fault, reason drive), sends the master's
- * heartbeat; on exit at rest, disables operation then shuts down through
- * the RPDO's controlword with the SYNC still running, and ends the loop. */
+ * controller initialised with opts.drives and drive_state_periods): reads the
+ * drives' frames without waiting (bounded), supervises them (any state but
+ * fault is right while the controller's power is not ENABLED), runs the
+ * controller's period with the drives as inputs (muted drives, a drive
+ * fault: the controller stops every axis on the path, state fault, reason
+ * drive; statuswords and positions actual: the controller disables the
+ * drives at rest after a program, a stop or a fault, and enables them again
+ * for the next, through the RPDOs' controlword), sends the master's
+ * heartbeat. It ends the loop on exit once the controller is at rest with
+ * the drives disabled (the SYNC still running until then). */
 int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t);
+/* Outside the loop (the monitor): one line for a power event (MLIP_EV_POWER)
+ * with node, axis, controlwords, periods. */
+void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_event *e,
+                            char *buf, size_t len);
 /* Outside the loop, by SDO: shutdown (0x0006) to every drive still enabled
  * (after a failed bring-up, or a loop that ended without its shut-down). */
 void mlip_drives_disable(struct mlip_drives *ds);

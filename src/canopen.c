@@ -539,7 +539,7 @@ mlip_drive_fault mlip_drive_supervise(const struct mlip_drive_obs *o,
 		*detail = o->nmt_state;
 		return MLIP_DRIVE_NOT_OPERATIONAL;
 	}
-	if (o->tpdo_cycle != 0 &&
+	if (o->tpdo_cycle != 0 && !x->any_state &&
 	    mlip_402_state_of(o->statusword) != MLIP_402_OPERATION_ENABLED) {
 		*detail = o->statusword;
 		return MLIP_DRIVE_LEFT_ENABLED;
@@ -565,8 +565,9 @@ const char *mlip_drive_fault_name(mlip_drive_fault f)
 	static const char *const names[] = {
 	    "ok",           "statusword fault bit",   "emergency",
 	    "heartbeat lost", "left NMT operational", "left operation enabled",
-	    "following error", "TPDOs lost or late"};
-	return (int)f >= 0 && f <= MLIP_DRIVE_TPDO_LOST ? names[f] : "?";
+	    "following error", "TPDOs lost or late", "not switched on",
+	    "not enabled",     "beyond a soft limit"};
+	return (int)f >= 0 && f <= MLIP_DRIVE_BEYOND_LIMIT ? names[f] : "?";
 }
 
 int64_t mlip_drive_following_error(const int32_t *targets, int n, int32_t actual)

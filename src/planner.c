@@ -710,6 +710,22 @@ static double line_dist(int n, const double *x, const double *P, const double *e
 	return sqrt(d2);
 }
 
+mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
+{
+	if (p->head != p->tail || p->stopping || p->in_corner) {
+		return MLIP_E_INVALID;
+	}
+	for (int k = 0; k < p->n; k++) {
+		if (!isfinite(pos[k])) {
+			return MLIP_E_INVALID;
+		}
+	}
+	memcpy(p->last_point, pos, sizeof(double) * (size_t)p->n);
+	memcpy(p->pos, pos, sizeof(double) * (size_t)p->n);
+	p->v_mm_s = 0.0;
+	return MLIP_OK;
+}
+
 void mlip_planner_rest_here(struct mlip_planner *p)
 {
 	if (p->in_corner) {

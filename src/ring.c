@@ -45,7 +45,7 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 256);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 264);
 MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 512);
 MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 520);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 32);
@@ -552,6 +552,8 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	for (int k = 0; k < MLIP_MAX_AXES; k++) {
 		STD(&d->pos_actual[k], &s->pos_actual[k]);
 	}
+	ST(&d->drive_power, s->drive_power, REL);
+	ST(&d->drive_power_periods, s->drive_power_periods, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -598,6 +600,8 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		for (int k = 0; k < MLIP_MAX_AXES; k++) {
 			LDD(&d->pos_actual[k], &s->pos_actual[k]);
 		}
+		s->drive_power = LD(&d->drive_power, ACQ);
+		s->drive_power_periods = LD(&d->drive_power_periods, ACQ);
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -740,6 +744,14 @@ const char *mlip_rec_field_name(uint32_t field)
 	                                    "target[2]", "target[3]", "target[4]", "target[5]"};
 
 	return NAME_OF(names, field);
+}
+
+const char *mlip_drive_power_name(uint32_t power)
+{
+	static const char *const names[] = {"none",         "enabled",      "disabling", "shutting down",
+	                                    "off",          "switching on", "enabling"};
+
+	return NAME_OF(names, power);
 }
 
 const char *mlip_rec_type_name(uint32_t type)

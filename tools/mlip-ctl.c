@@ -270,6 +270,14 @@ static int cmd_status(struct mlip_shm *s, int json)
 			}
 			printf("}");
 		}
+		/* the drives' power (mlip-rt --drives): null without drives */
+		printf(",\n  \"drives\": ");
+		if (st.drive_power == MLIP_POWER_NONE) {
+			printf("null");
+		} else {
+			printf("\"%s\"", mlip_drive_power_name(st.drive_power));
+		}
+		printf(",\n  \"drives_last_change_periods\": %u", (unsigned)st.drive_power_periods);
 		printf(",\n  \"speed_mm_s\": ");
 		json_num(st.speed_mm_s);
 		printf(",\n  \"dwell_left_s\": %.6f,\n  \"optional_stop\": %s,\n",
@@ -343,6 +351,20 @@ static int cmd_status(struct mlip_shm *s, int json)
 			printf(" %c %.4f", m.axis[k].letter, m.axis[k].home);
 		}
 		printf("  (the drives' position at bring-up)\n");
+	}
+	if (st.drive_power != MLIP_POWER_NONE) {
+		static const char *const how[MLIP_POWER_COUNT] = {
+		    "", "operation enabled: they hold or follow the setpoints",
+		    "disable operation 0x0007, at rest", "shutdown 0x0006",
+		    "ready to switch on: no torque; enabled again for the next program",
+		    "switch on 0x0007 for the next program", "enable operation 0x000F"};
+		printf("drives      %s (%s)", mlip_drive_power_name(st.drive_power),
+		       st.drive_power < MLIP_POWER_COUNT ? how[st.drive_power] : "?");
+		if (st.drive_power_periods > 0 &&
+		    (st.drive_power == MLIP_POWER_OFF || st.drive_power == MLIP_POWER_ENABLED)) {
+			printf(", last change in %u periods", (unsigned)st.drive_power_periods);
+		}
+		printf("\n");
 	}
 	if (st.state == MLIP_STATE_DWELLING) {
 		printf("dwell       %.3f s left\n", (double)st.dwell_left * m.period_s);

@@ -36,6 +36,8 @@ Fault injection (--inject at start, or a line "N:WHAT[=ARG]" appended to the
   N:refuse=IDX[:SUB][,ABORT]  refuse SDO writes to IDX (hex) with ABORT
                           (default 0x08000022)
   N:never-enable[=off]    "enable operation" is ignored: stays "switched on"
+  N:move=COUNTS           a disabled drive's axis moved by hand: position
+                          actual + COUNTS (refused in "operation enabled")
   N:absent / N:present    gone from the bus (no boot-up, SDO, heartbeat) / back
 
 Records (--record DIR): events.jsonl (every SDO write with its value or abort

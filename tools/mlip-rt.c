@@ -148,6 +148,14 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 	unsigned line = e->exec_line;
 	const struct mlip_ctl_reason *r = &e->r;
 	char fld[32];
+	if (e->kind == MLIP_EV_POWER) {
+		char text[256];
+		if (mo->ds != NULL) {
+			mlip_drives_power_text(mo->ds, e, text, sizeof(text));
+			fprintf(stderr, PROG ": %s\n", text);
+		}
+		return;
+	}
 	if (e->kind == MLIP_EV_REFUSED) {
 		fprintf(stderr, PROG ": refused records from block %llu (line %u): they do not continue "
 		                "the program (block %.0f expected); dropped\n",
@@ -570,6 +578,9 @@ int main(int argc, char **argv)
 	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st, .lookahead = cfg.lookahead,
 	                           .stall_periods = (uint32_t)stall_periods, .can = &cfg.can};
 	co.drives = cfg.drives.enable;
+	/* each power step in the loop is given STATE_TIMEOUT_MS, in periods */
+	co.drive_state_periods =
+	    (uint32_t)(cfg.drives.state_timeout_ms * 1e-3 / cfg.machine.period_s + 0.999);
 	if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, shm.ring,
 	                         use_can ? &io : NULL) != 0) {
 		fprintf(stderr, PROG ": the [CAN] settings do not fit this machine (node ids, ids)\n");

@@ -228,8 +228,12 @@ typedef enum {
 	MLIP_DRIVE_NOT_OPERATIONAL, /* its heartbeat says it left NMT operational */
 	MLIP_DRIVE_LEFT_ENABLED,    /* statusword no longer "operation enabled" */
 	MLIP_DRIVE_FOLLOWING_ERROR, /* |target sent - position actual| beyond the window */
-	MLIP_DRIVE_TPDO_LOST        /* no TPDO for tpdo_timeout periods, or the last one
+	MLIP_DRIVE_TPDO_LOST,       /* no TPDO for tpdo_timeout periods, or the last one
 	                               answers a SYNC that many periods old */
+	/* re-enabling for the next program (the controller, src/controller.c) */
+	MLIP_DRIVE_NOT_SWITCHED_ON, /* switch on (0x0007) not confirmed in time (statusword) */
+	MLIP_DRIVE_NOT_ENABLED,     /* enable operation (0x000F) not confirmed in time */
+	MLIP_DRIVE_BEYOND_LIMIT     /* its position actual is beyond a soft limit (mm, deg) */
 } mlip_drive_fault;
 
 /* What the bus last said about one drive (filled from mlip_co_classify). */
@@ -252,6 +256,8 @@ struct mlip_drive_expect {
 	uint32_t tpdo_timeout;    /* periods without a TPDO that make it lost */
 	uint32_t window_counts;   /* 0x6065 */
 	int64_t following_counts; /* mlip_drive_following_error, or -1: unknown */
+	int any_state;            /* 1: the master is disabling, has disabled or is enabling
+	                             the drive: any state without the fault bit is right */
 };
 
 /* The first fault found, in the order of the enum (the drive's own word

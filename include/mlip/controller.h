@@ -34,6 +34,25 @@
  *             value; every axis stops on the path, nothing more is taken;
  *             the faulted drive's own fault reaction applies to it)
  *
+ * With CiA 402 drives (opts.drives) the controller also decides their power
+ * (mlip_drive_power, mlip/ring.h), sent as the RPDOs' controlword and
+ * confirmed by each drive's TPDO statusword (in->drive_sw), each step within
+ * opts.drive_state_periods:
+ *   ENABLED --at rest, IDLE after a program or a stop, FAULT, or exiting-->
+ *     DISABLING (0x07) --all "switched on"--> SHUTTING_DOWN (0x06) --all
+ *     "ready to switch on"--> OFF            (a timeout: reported, goes on)
+ *   OFF --a program's records in the ring--> SWITCHING_ON (0x07) --all
+ *     "switched on"--> ENABLING (0x0F) --all "operation enabled"--> ENABLED
+ *     (a timeout: FAULT, reason DRIVE: not switched on / not enabled, node,
+ *     statusword; the drives are shut down again and nothing moves)
+ * Records are taken (IDLE -> PREREAD) only with the drives ENABLED, so the
+ * planner never moves otherwise; pause, dwell, hold and starved keep them
+ * enabled, holding position. From OFF to ENABLING the commanded position
+ * follows in->pos_actual (a disabled axis may be moved by hand or gravity)
+ * and must be inside the soft limits (else FAULT, BEYOND_LIMIT); ENABLING
+ * sends it unchanged, so the target equals the position actual to the count
+ * and the program starts there.
+ *
  * Records are validated where they are taken, at bounded cost: the next
  * sequence number, a known type and flags, finite targets inside the soft
  * limits, a finite feed in (0, MLIP_CTL_FEED_MAX_MM_S], a finite non-negative
@@ -58,8 +77,13 @@
 
 typedef enum {
 	MLIP_EV_STATE = 1, /* a transition: from -> state, with its reason */
-	MLIP_EV_REFUSED    /* records that do not continue the program dropped
+	MLIP_EV_REFUSED,   /* records that do not continue the program dropped
 	                      (seq: the first one; value: the block expected) */
+	MLIP_EV_POWER      /* the drives' power: from -> state (mlip_drive_power);
+	                      r.value: periods the step left took, r.seq: periods
+	                      since its sequence (disable or enable) began; r.node:
+	                      0, or the first drive that did not confirm the step
+	                      in time, r.field: its statusword */
 } mlip_ctl_event_kind;
 
 /* Why a state is what it is (kept in the status, carried by events). */
@@ -102,8 +126,8 @@ struct mlip_ctl_in {
 	uint64_t can_tx_refused, can_error_frames;
 	int bus_off;
 	/* CiA 402 drives (opts.drives): what rt/drives.c saw this period */
-	uint16_t drive_cw;   /* controlword 0x6040 of every RPDO (enable, disable, shutdown) */
-	uint32_t drive_mute; /* bit k: no RPDO for axis k (its drive is not operation enabled) */
+	uint32_t drive_mute; /* bit k: no RPDO for axis k (its drive faulted: not followed) */
+	uint16_t drive_sw[MLIP_MAX_AXES]; /* statusword 0x6041 of drive k's last TPDO (0: none) */
 	struct mlip_ctl_drive_fault drive_fault; /* the first new fault, if any */
 	uint32_t actual_mask;               /* bit k: pos_actual[k] is from drive k's TPDO */
 	double pos_actual[MLIP_MAX_AXES];   /* position actual 0x6064, joint units */
@@ -125,8 +149,11 @@ struct mlip_ctl_opts {
 	uint32_t lookahead;        /* 0: MLIP_LOOKAHEAD */
 	uint32_t stall_periods;    /* 0: MLIP_STALL_PERIODS_DEFAULT */
 	const struct mlip_can_config *can; /* NULL: no frames */
-	int drives;                /* CiA 402 drives brought up: 6-byte RPDOs with the
-	                              controlword in->drive_cw, none to in->drive_mute */
+	int drives;                /* CiA 402 drives brought up (and enabled): 6-byte RPDOs
+	                              with the controlword of the drives' power, none to
+	                              in->drive_mute */
+	uint32_t drive_state_periods; /* a power step not confirmed this long: a timeout
+	                                 (0: 1000) */
 };
 
 struct mlip_ctl {
@@ -145,12 +172,26 @@ struct mlip_ctl {
 	uint32_t hold_why;          /* the cause of the planner's hold */
 	int bus_hold, stall_hold;
 	int drive_faulted;          /* a drive fault came: it stays the reason */
+	/* the drives' power (opts.drives) */
+	int drives;
+	uint32_t power;             /* mlip_drive_power */
+	uint32_t drive_state_periods;
+	uint64_t power_since;       /* period the current step began */
+	uint64_t power_t0;          /* period the current sequence began */
+	uint32_t power_periods;     /* the last complete sequence took this long */
+	int power_want;             /* this period: a program waits for the drives */
+	uint32_t still_periods;     /* periods the setpoint has not changed */
+	int power_ok;               /* the last disable was confirmed in order in time */
+	uint32_t power_late_node;   /* the last step not confirmed in time: drive, */
+	uint16_t power_late_sw;     /* its statusword, */
+	uint32_t power_late_step;   /* the step (mlip_drive_power) */
 	/* program */
 	int refill;                 /* the pre-read continues a program */
 	int end_seen;
 	uint64_t end_seq;
 	uint32_t end_line;
 	int discard;                /* dropping a stopped (or faulted) program's records */
+	int discard_waiting;        /* ... a waiting one's, its first record (seq 1) too */
 	int bad;                    /* a bad record: nothing more is taken */
 	int exiting;
 	int optional_stop;          /* the M1 switch */

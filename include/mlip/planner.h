@@ -204,6 +204,11 @@ void mlip_planner_stop(struct mlip_planner *p);
  * mlip_planner_hold(p, 0). */
 void mlip_planner_rest_here(struct mlip_planner *p);
 
+/* Idle (nothing queued, not stopping): rest at pos[] instead, e.g. where
+ * disabled drives were moved by hand; the next block starts there.
+ * MLIP_E_INVALID when not idle or a coordinate is not finite. */
+mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos);
+
 /* Advance one period; writes the setpoint of every axis to pos_out[n].
  * Returns the run state after the period. */
 mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out);

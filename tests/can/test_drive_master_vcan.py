@@ -288,3 +288,157 @@ def test_second_controller_leaves_drives_alone(sim, tmp_path):
         assert rig.status()["state"] == "idle"
     assert rig.result["rt_rc"] == 0
     assert "drives disabled in order" in rig.result["rt_stderr"]
+
+
+def power_steps(rows, node, since_sync=0):
+    """For one drive, from SYNC since_sync on, as it recorded them: the SYNC
+    of its last target change (every change in "operation enabled"), and
+    after its last SYNC in "operation enabled" the first SYNC it was in each
+    state."""
+    mine = [r for r in rows if r["node"] == node and r["sync"] >= since_sync]
+    last_move, prev = None, None
+    for r in mine:
+        if r["target"] is not None:
+            if prev is not None and r["target"] != prev:
+                assert r["state"] == "operation enabled", r
+                last_move = r["sync"]
+            prev = r["target"]
+    last_on = max(r["sync"] for r in mine if r["state"] == "operation enabled")
+    first = {}
+    for r in mine:
+        if r["sync"] > last_on:
+            first.setdefault(r["state"], r["sync"])
+    return last_move, first
+
+
+def wait_all_in(sim, state, t0, nodes=(1, 2, 3)):
+    for n in nodes:
+        sim.wait_event(lambda e, n=n: e["kind"] == "state" and e["node"] == n and e["t"] >= t0
+                       and e["to"] == state, f"node {n} {state}", timeout=300)
+
+
+def test_programs_disable_enable_stop_fail(sim, tmp_path):
+    """Four programs on one mlip-rt --drives. After the first, at rest: each
+    drive records disable operation then shutdown, after its last target.
+    Disabled, node 2 is moved by hand (+777 counts); the commanded position
+    follows, and the second program enables the drives again (switch on,
+    enable operation) with node 2's target equal to its new position to the
+    count, and runs from there within the limits. The third is stopped
+    mid-way: at rest, the drives are disabled in order. For the fourth node 3
+    never confirms "operation enabled": a fault naming it, nothing moves,
+    the drives shut down again."""
+    cfg = machine(tmp_path, [1, 2, 3])
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text(PROGRAM)
+    long_ngc = tmp_path / "long.ngc"
+    long_ngc.write_text(PROGRAM_LONG)
+    with h.Rig(cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        assert rig.status()["drives"] == "enabled"  # by the bring-up, until a program ends
+        # 1: a whole program, then disable operation, shutdown, per drive
+        t_a = time.time()
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err + rig.rt.stderr()
+        wait_all_in(sim, "ready to switch on", t_a)
+        s = rig.wait_state("idle", pred=lambda s: s["drives"] == "off")
+        text = rig.ctl("status").stdout
+        assert re.search(r"^drives      off \(ready to switch on: no torque; enabled again for "
+                         r"the next program\), last change in \d+ periods$", text, re.M), text
+        rows = sim.sync_rows()
+        s_a = min(r["sync"] for r in rows if r["t"] >= t_a)
+        off_syncs = []
+        for n in (1, 2, 3):
+            st = [(e["frm"], e["to"]) for e in sim.events("state", n) if e["t"] >= t_a]
+            assert st == [("operation enabled", "switched on"),
+                          ("switched on", "ready to switch on")], st
+            last_move, first = power_steps(rows, n, s_a)
+            assert last_move is not None
+            assert last_move < first["switched on"] < first["ready to switch on"], (n, first)
+            off_syncs.append(first["ready to switch on"] - last_move)
+        # 2: node 2 (Y) pushed by hand while disabled; the controller follows it
+        moved = START[2] + 777
+        t_m = time.time()
+        sim.inject("2:move=777")
+        sim.wait_event(lambda e: e["kind"] == "moved" and e["t"] >= t_m, "the move")
+        rig.wait_state("idle", pred=lambda s: round(s["position"]["Y"] * CPU) == moved)
+        t_b = time.time()
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err + rig.rt.stderr()
+        wait_all_in(sim, "ready to switch on", t_b)
+        rows = [r for r in sim.sync_rows() if r["t"] >= t_b]
+        # the drives enabled again: switch on, then enable operation, and
+        # node 2's targets up to its first move are where it was pushed
+        on_syncs = []
+        for n in (1, 2, 3):
+            st = [(e["frm"], e["to"]) for e in sim.events("state", n) if e["t"] >= t_b]
+            assert st[:2] == [("ready to switch on", "switched on"),
+                              ("switched on", "operation enabled")], st
+            mine = [r for r in rows if r["node"] == n and r["target"] is not None]
+            first_on = next(r for r in mine if r["cw"] == 0x07)
+            first_en = next(r for r in mine if r["state"] == "operation enabled")
+            on_syncs.append(first_en["sync"] - first_on["sync"])
+            want = moved if n == 2 else START[n]
+            before = [r["target"] for r in mine if r["sync"] <= first_en["sync"]]
+            assert before and set(before) == {want}, (n, set(before))
+        # the second program moved from there, within the machine's limits
+        # (no jump from where the first ended), to its end (mlip-feed parses
+        # it from the bring-up's HOME, and the smoothing filter shapes the
+        # first blocks from that start: no count-for-count trace here)
+        got = trim(targets_by_sync(rows, [1, 2, 3]))
+        assert got[0] == (START[1], moved, START[3]), got[0]
+        assert got[-1] == (START[1], START[2], START[3]), got[-1]
+        assert len(got) > 50
+        within_limits(got, h.MachineLimits(cfg))
+        # 3: a stop mid-program: at rest on the path, then disabled in order
+        t_c = time.time()
+        f = rig.feeder(long_ngc)
+        sim.wait_sync_rows(lambda rs: any(r["t"] >= t_c and r["node"] == 1 and r["target"]
+                                          not in (None, START[1]) for r in rs))
+        rig.ctl("stop")
+        assert f.p.wait(timeout=300) == 4, f.stderr()
+        f.kill()
+        wait_all_in(sim, "ready to switch on", t_c)
+        rows = sim.sync_rows()
+        s_c = min(r["sync"] for r in rows if r["t"] >= t_c)
+        for n in (1, 2, 3):
+            last_move, first = power_steps(rows, n, s_c)
+            assert n != 1 or last_move is not None  # X had moved (Z may not have yet)
+            assert (last_move or 0) < first["switched on"] < first["ready to switch on"], (n, first)
+        s = rig.wait_state("idle", pred=lambda s: s["drives"] == "off")
+        assert s["reason"] == "stop"
+        # 4: node 3 no longer enables: the next program is a fault naming
+        # node and step, nothing moves, the drives are shut down again
+        sim.inject("3:never-enable")
+        t_d = time.time()
+        try:
+            rc, out, err = rig.feed(ngc, timeout=600)
+        finally:
+            sim.inject("3:never-enable=off")
+        assert rc == 5, err
+        assert "node 3" in err and "not enabled" in err, err
+        wait_all_in(sim, "ready to switch on", t_d)
+        s = rig.wait_state("fault", pred=lambda s: s["drives"] == "off")
+        assert s["reason_node"] == 3 and s["reason_field"] == "not enabled", s
+        rows = [r for r in sim.sync_rows() if r["t"] >= t_d and r["target"] is not None]
+        for n in (1, 2, 3):
+            # where the stop left it: one target, the position it reports
+            tgt = {r["target"] for r in rows if r["node"] == n}
+            assert len(tgt) == 1 and tgt == {r["actual"] for r in rows if r["node"] == n}, n
+            st = [e["to"] for e in sim.events("state", n) if e["t"] >= t_d]
+            assert st == (["switched on", "ready to switch on"] if n == 3 else
+                          ["switched on", "operation enabled", "switched on",
+                           "ready to switch on"]), (n, st)
+    r = rig.result
+    assert r["rt_rc"] == 0, r["rt_stderr"]
+    log = r["rt_stderr"]
+    assert re.search(r"drive fault: node 3 \(axis Z\): not enabled: enable operation "
+                     r"\(controlword 0x000F\) not confirmed within STATE_TIMEOUT_MS: "
+                     r"statusword 0x.233 \(switched on\); nothing moves", log), log
+    assert "drives disabled in order" in log, log
+    dis = [int(x) for x in re.findall(r"disabled in (\d+) periods", log)]
+    ena = [int(x) for x in re.findall(r"enabled in (\d+) periods", log)]
+    assert len(dis) == 4 and len(ena) == 2, log
+    print("\n" + "\n".join(ln for ln in log.splitlines() if "mlip-rt: drives:" in ln
+                           or "not enabled" in ln))
+    print(f"\ndisable after a program (drives' SYNCs from the last target to 'ready to switch "
+          f"on'): {off_syncs}; mlip's periods from rest to all confirmed: disable {dis}, "
+          f"enable {ena}; drives' SYNCs from switch on to 'operation enabled': {on_syncs}")

@@ -89,3 +89,23 @@ def test_power_state_machine_walk(pair):
     sim.tick()
     kinds = [ln for ln in (rec / "events.jsonl").read_text().splitlines() if '"state"' in ln]
     assert len(kinds) >= len(WALK)
+
+
+def test_move_by_hand_only_while_disabled(pair):
+    """N:move=COUNTS: a disabled axis pushed by hand changes its position
+    actual; an enabled drive holds its position against it."""
+    sim, node, rec = pair
+    sim.inject(5, "move", "250")
+    assert node.sdo[0x6064].raw == -777 + 250
+    for cw in (0x06, 0x07):
+        node.sdo[0x6040].raw = cw
+    sim.inject(5, "move", "-50")  # switched on: no torque yet
+    assert node.sdo[0x6064].raw == -777 + 200
+    node.sdo[0x6040].raw = 0x0F
+    assert state(node) == P.OPERATION_ENABLED
+    sim.inject(5, "move", "1000")
+    assert node.sdo[0x6064].raw == -777 + 200
+    sim.tick()
+    ev = [ln for ln in (rec / "events.jsonl").read_text().splitlines()
+          if '"moved"' in ln or '"move_refused"' in ln]
+    assert len(ev) == 3 and '"move_refused"' in ev[-1], ev

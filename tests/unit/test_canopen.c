@@ -369,6 +369,16 @@ static void test_supervise(void **state)
 	assert_int_equal(det, 0x0233);
 	o.statusword = 0x0218; /* fault: the fault bit comes first */
 	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_FAULT_BIT);
+	/* the master disabling, off or enabling: any state is right but fault */
+	x.any_state = 1;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_FAULT_BIT);
+	o.statusword = 0x0231; /* ready to switch on */
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_OK);
+	o.statusword = 0x0233;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_OK);
+	x.any_state = 0;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_LEFT_ENABLED);
+	o.statusword = 0x0218;
 	o.statusword = 0x1237;
 	o.nmt_state = MLIP_NMT_PREOPERATIONAL;
 	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_NOT_OPERATIONAL);

@@ -15,6 +15,8 @@
 
 #include <cmocka.h>
 
+#include "mlip/canopen.h"
+#include "mlip/config.h"
 #include "mlip/controller.h"
 
 #define CAP 64u
@@ -32,6 +34,7 @@ static int feeder_alive;
 static struct mlip_ctl_drive_fault drv_fault;
 static uint32_t drv_actual_mask;
 static double drv_actual[MLIP_MAX_AXES];
+static uint16_t drv_sw[MLIP_MAX_AXES]; /* the statusword of each drive's TPDO */
 /* every transition seen since setup: state entered and why */
 static uint32_t seen_state[256], seen_why[256];
 static int n_seen;
@@ -92,6 +95,7 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	in.drive_fault = drv_fault;
 	in.actual_mask = drv_actual_mask;
 	memcpy(in.pos_actual, drv_actual, sizeof(in.pos_actual));
+	memcpy(in.drive_sw, drv_sw, sizeof(in.drive_sw));
 	memset(&drv_fault, 0, sizeof(drv_fault));
 	mlip_ctl_period(&ctl, &in, &out);
 	for (uint32_t i = 0; i < out.n_events; i++) {
@@ -867,7 +871,178 @@ static void test_drive_fault_idle_and_actual_positions(void **st)
 	assert_true(out.pos[0] == 0.0 && out.pos[1] == 0.0);
 }
 
+/* ---- CiA 402 drives: their power, decided here (opts.drives) ------------- */
+
+static struct mlip_can_config can_cia402 = {"cia402", 1000000, 5000000, 0x080,
+                                            0x200,    0x300,   0x400,   0x180};
+static int drv_deaf; /* bit k: drive k ignores enable operation (stays "switched on") */
+
+static int setup_drives(void **state)
+{
+	setup(state);
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16,
+	                          .can = &can_cia402, .drives = 1, .drive_state_periods = 50};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o, ring), MLIP_OK);
+	drv_actual_mask = 3u;
+	drv_actual[0] = drv_actual[1] = 0.0;
+	drv_sw[0] = drv_sw[1] = 0x0237; /* enabled by the bring-up */
+	drv_deaf = 0;
+	return 0;
+}
+
+/* The controlword of this period's RPDO to axis k's drive. */
+static uint16_t cw_of(int k)
+{
+	for (int i = 0; i < out.n_frames; i++) {
+		if (out.frames[i].id == 0x200u + (uint32_t)mach.axis[k].can_node) {
+			return (uint16_t)(out.frames[i].data[0] | out.frames[i].data[1] << 8);
+		}
+	}
+	fail_msg("no RPDO to axis %d", k);
+	return 0;
+}
+
+/* n periods; after each, every drive takes its RPDO at once (its TPDO of
+ * the next period shows it): the controlword's state, and the target when
+ * enabled. */
+static void dtick(int n)
+{
+	for (int i = 0; i < n; i++) {
+		tick(1);
+		for (int k = 0; k < 2; k++) {
+			uint16_t cw = cw_of(k);
+			int enabled = drv_sw[k] == 0x0237;
+			if (cw == 0x0F && (drv_sw[k] == 0x0233 || enabled) && !(drv_deaf & (1 << k))) {
+				drv_sw[k] = 0x0237;
+				drv_actual[k] = out.pos[k];
+			} else if (cw == 0x07 && drv_sw[k] != 0x0250) {
+				drv_sw[k] = 0x0233;
+			} else if (cw == 0x06) {
+				drv_sw[k] = 0x0231;
+			}
+		}
+	}
+}
+
+/* Periods until the drives' power is p (at most n). */
+static int until_power(uint32_t p, int n)
+{
+	for (int i = 1; i <= n; i++) {
+		dtick(1);
+		if (status().drive_power == p) {
+			return i;
+		}
+	}
+	fail_msg("power %s not reached in %d periods (now %s)", mlip_drive_power_name(p), n,
+	         mlip_drive_power_name(status().drive_power));
+	return -1;
+}
+
+/* Pause (M0) and feed hold keep the drives enabled, holding position; the
+ * program's end disables them at rest: 0x07, then 0x06. */
+static void test_drives_pause_hold_then_disabled(void **st)
+{
+	(void)st;
+	dtick(10);
+	assert_int_equal(status().drive_power, MLIP_POWER_ENABLED); /* idle after bring-up */
+	push(1, 3);
+	event(4, MLIP_BLOCK_PAUSE, 0.0);
+	for (uint64_t k = 5; k <= 40; k++) {
+		move(k, 10.0 * (double)k, 0.0); /* 370 mm at 100 mm/s */
+	}
+	end(41);
+	until(MLIP_STATE_PAUSED, 5000);
+	dtick(200);
+	assert_int_equal(status().state, MLIP_STATE_PAUSED);
+	assert_int_equal(status().drive_power, MLIP_POWER_ENABLED);
+	assert_int_equal(cw_of(0), 0x000F);
+	period_cmd(MLIP_CMD_RESUME, 0, 0);
+	dtick(300);
+	assert_int_equal(status().state, MLIP_STATE_RUNNING);
+	period_cmd(MLIP_CMD_HOLD, 0, 0);
+	until(MLIP_STATE_HELD, 2000);
+	dtick(200);
+	assert_int_equal(status().drive_power, MLIP_POWER_ENABLED);
+	assert_int_equal(cw_of(1), 0x000F);
+	period_cmd(MLIP_CMD_RESUME, 0, 0);
+	until(MLIP_STATE_IDLE, 20000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	double end_x = out.pos[0];
+	/* at rest: the last setpoint twice, then disable operation, shutdown */
+	int k = until_power(MLIP_POWER_DISABLING, 10);
+	assert_true(k >= 1 && k <= 3);
+	assert_int_equal(cw_of(0), 0x0007);
+	assert_int_equal(until_power(MLIP_POWER_SHUTTING_DOWN, 10), 1);
+	assert_int_equal(cw_of(0), 0x0006);
+	assert_int_equal(until_power(MLIP_POWER_OFF, 10), 1);
+	assert_int_equal(status().drive_power_periods, 2);
+	assert_true(out.pos[0] == end_x && end_x == 400.0);
+}
+
+/* Off, the commanded position follows the drives (moved by hand); the next
+ * program finds Y beyond its soft limit: a fault naming node and counts, the
+ * drives never switched on, nothing moves. */
+static void test_drives_beyond_limit_when_enabling(void **st)
+{
+	(void)st;
+	push(1, 2);
+	end(3);
+	until(MLIP_STATE_IDLE, 5000);
+	until_power(MLIP_POWER_OFF, 20);
+	drv_actual[0] = 2.5; /* X pushed back by hand */
+	dtick(1);
+	assert_true(status().pos[0] == 2.5 && out.pos[0] == 2.5);
+	drv_actual[1] = 1000.25; /* Y beyond MAX_LIMIT 1000 */
+	push(1, 5);
+	end(6);
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
+	assert_int_equal(status().reason_node, 2);
+	assert_int_equal(status().reason_field, MLIP_DRIVE_BEYOND_LIMIT);
+	assert_true(status().reason_value == 1000250.0);
+	assert_int_equal(cw_of(0), 0x0006);
+	dtick(300);
+	assert_int_equal(status().drive_power, MLIP_POWER_OFF);
+	assert_int_equal(drv_sw[0], 0x0231);
+	assert_true(out.pos[0] == 2.5);
+}
+
+/* A stop while the drives are being enabled (one never confirms): the
+ * program is dropped, the drives go back off, no fault, nothing moves. */
+static void test_drives_stop_while_enabling(void **st)
+{
+	(void)st;
+	push(1, 2);
+	end(3);
+	until(MLIP_STATE_IDLE, 5000);
+	until_power(MLIP_POWER_OFF, 20);
+	drv_deaf = 2;
+	push(1, 5);
+	end(6);
+	until_power(MLIP_POWER_ENABLING, 10);
+	dtick(20);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	period_cmd(MLIP_CMD_STOP, 0, 0);
+	until_power(MLIP_POWER_OFF, 20);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(mlip_ring_count(ring), 0);
+	assert_true(out.pos[0] == 2.0);
+	/* the deaf drive, at once: the next program's enable times out, a fault */
+	push(1, 5);
+	end(6);
+	until_power(MLIP_POWER_ENABLING, 10);
+	int k = until(MLIP_STATE_FAULT, 100);
+	assert_true(k >= 49 && k <= 51); /* drive_state_periods 50 */
+	assert_int_equal(status().reason_field, MLIP_DRIVE_NOT_ENABLED);
+	assert_int_equal(status().reason_node, 2);
+	assert_true(status().reason_value == 0x0233);
+	until_power(MLIP_POWER_OFF, 20);
+	assert_true(out.pos[0] == 2.0);
+}
+
 #define T(f) cmocka_unit_test_setup_teardown(f, setup, teardown)
+#define TD(f) cmocka_unit_test_setup_teardown(f, setup_drives, teardown)
 
 int main(void)
 {
@@ -894,6 +1069,9 @@ int main(void)
 	    T(test_corrupt_head_is_a_fault),
 	    T(test_drive_fault_stops_on_the_path),
 	    T(test_drive_fault_idle_and_actual_positions),
+	    TD(test_drives_pause_hold_then_disabled),
+	    TD(test_drives_beyond_limit_when_enabling),
+	    TD(test_drives_stop_while_enabling),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

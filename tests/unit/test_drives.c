@@ -492,7 +492,7 @@ static void loop_setup(double *start)
 		m.axis[k].home = start[k];
 	}
 	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .can = &cfg.can,
-	                          .drives = 1};
+	                          .drives = 1, .drive_state_periods = 1000};
 	assert_int_equal(mlip_controller_init(&ctl, &planner, &m, &o, ring, NULL), 0);
 	ds.ctl = &ctl;
 	cycle = 0;
@@ -539,7 +539,9 @@ static int period(void)
 		int32_t c;
 		if (cycle > 0 && rpdo_of(i, &cw, &c)) {
 			peer_cw(p, cw);
-			p->pos = c + offset[i];
+			if (p->state == P_OE) { /* a disabled drive follows no target */
+				p->pos = c + offset[i];
+			}
 		}
 		mlip_co_pdo_encode(0x180u + p->node, p_sw[p->state], p->pos, &f);
 		push(&f);
@@ -575,11 +577,10 @@ static void test_loop_shutdown(void **state)
 		}
 	}
 	assert_true(k < 3000);
-	/* enable, then disable operation, then shutdown: in that order */
-	assert_int_equal(ns, 3);
-	assert_int_equal(seen[0], 0x000F);
-	assert_int_equal(seen[1], 0x0007);
-	assert_int_equal(seen[2], 0x0006);
+	/* from the exit's period (at rest) disable operation, then shutdown */
+	assert_int_equal(ns, 2);
+	assert_int_equal(seen[0], 0x0007);
+	assert_int_equal(seen[1], 0x0006);
 	assert_int_equal(ds.shutdown_ok, 1);
 	for (int i = 0; i < NP; i++) {
 		assert_int_equal(peers[i].state, P_RTSO);
@@ -767,6 +768,223 @@ static void test_loop_late_drive(void **state)
 	free(mem);
 }
 
+/* ---- between programs ------------------------------------------------------------ */
+
+/* A program of n moves along X from where it is, 5 mm each at 100 mm/s,
+ * and its END (records seq 1..n+1). */
+static void program(int n, double dir)
+{
+	double at[NP];
+	for (int k = 0; k < NP; k++) {
+		at[k] = ctl.core.pos[k];
+	}
+	for (int i = 1; i <= n + 1; i++) {
+		struct mlip_ring_rec rec;
+		struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)i};
+		memcpy(b.target, at, sizeof(at));
+		b.target[0] = at[0] + dir * 5.0 * i;
+		mlip_ring_rec_from_block(&rec, &b, (uint64_t)i);
+		if (i == n + 1) {
+			memset(&rec, 0, sizeof(rec));
+			rec.seq = (uint64_t)i;
+			rec.type = MLIP_REC_END;
+		}
+		assert_int_equal(mlip_ring_push(ctl.ring, &rec), MLIP_OK);
+	}
+}
+
+/* What the RPDOs of one drive did over a run of periods. */
+struct run {
+	int periods;
+	int first_cw_period[16]; /* period of each change of controlword, in order */
+	uint16_t cws[16];
+	int n_cw;
+	int last_move;           /* last period the target changed (-1: never) */
+	int32_t first_target_of[16]; /* the target sent with each controlword's first RPDO */
+};
+
+/* Up to max periods (until the drives' power is `until` for the first time
+ * after at least one other), recording drive i's RPDOs. */
+static void run_until(int i, uint32_t until, int max, struct run *r)
+{
+	int32_t last = 0;
+	memset(r, 0, sizeof(*r));
+	r->last_move = -1;
+	for (int k = 0; k < max; k++) {
+		uint16_t cw = 0;
+		int32_t t = 0;
+		assert_int_equal(period(), 0);
+		r->periods = k + 1;
+		assert_int_equal(rpdo_of(i, &cw, &t), 1);
+		if (k > 0 && t != last) {
+			r->last_move = k;
+		}
+		last = t;
+		if (r->n_cw == 0 || r->cws[r->n_cw - 1] != cw) {
+			assert_true(r->n_cw < 16);
+			r->first_cw_period[r->n_cw] = k;
+			r->first_target_of[r->n_cw] = t;
+			r->cws[r->n_cw++] = cw;
+		}
+		if (ctl.out.status.drive_power == until && k > 0) {
+			return;
+		}
+	}
+	fail_msg("drives' power %s not reached in %d periods (now %s)",
+	         mlip_drive_power_name(until), max,
+	         mlip_drive_power_name(ctl.out.status.drive_power));
+}
+
+/* Two programs on one controller: after the first, at rest, disable
+ * operation then shutdown (each confirmed by the TPDOs); a disabled drive
+ * is moved by hand and the commanded position follows it; the second
+ * program enables them again (switch on, enable operation) with the target
+ * equal to the moved position to the count, and starts there. */
+static void test_loop_between_programs(void **state)
+{
+	double start[NP];
+	struct run r;
+	(void)state;
+	loop_setup(start);
+	program(2, 1.0);
+	run_until(0, MLIP_POWER_OFF, 3000, &r);
+	/* moved, came to rest, then 0x07, then 0x06: never disabled while moving */
+	assert_int_equal(r.n_cw, 3);
+	assert_int_equal(r.cws[0], 0x000F);
+	assert_int_equal(r.cws[1], 0x0007);
+	assert_int_equal(r.cws[2], 0x0006);
+	assert_true(r.last_move > 0 && r.last_move < r.first_cw_period[1]);
+	assert_int_equal(ctl.out.status.state, MLIP_STATE_IDLE);
+	assert_int_equal(ctl.out.status.reason, MLIP_WHY_END);
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].state, P_RTSO);
+	}
+	assert_true(peers[0].pos == 1234 + 10000);
+	/* each step confirmed by the next TPDO (the peer answers at once): a
+	 * period for disable operation, one for shutdown */
+	assert_int_equal(ctl.out.status.drive_power_periods, 2);
+	assert_int_equal(ds.shutdown_ok, 0); /* not the loop's end yet */
+	assert_int_equal(ctl.core.power_ok, 1);
+
+	/* disabled: Y is pushed by hand 0.777 mm; the commanded position follows */
+	peers[1].pos += 777;
+	for (int k = 0; k < 10; k++) {
+		period();
+	}
+	uint16_t cw;
+	int32_t t;
+	assert_int_equal(rpdo_of(1, &cw, &t), 1);
+	assert_int_equal(cw, 0x0006);
+	assert_int_equal(t, -500 + 777);
+	assert_true(ctl.out.status.pos[1] * 1000.0 == -500.0 + 777.0);
+	assert_int_equal(ctl.out.status.drive_power, MLIP_POWER_OFF);
+
+	/* the next program: switch on, enable operation, then it moves from there */
+	program(2, -1.0);
+	struct run y;
+	run_until(1, MLIP_POWER_ENABLED, 3000, &y);
+	/* switch on from the period the records came, then enable operation */
+	assert_int_equal(y.n_cw, 2);
+	assert_int_equal(y.cws[0], 0x0007);
+	assert_int_equal(y.cws[1], 0x000F);
+	assert_int_equal(y.first_target_of[0], -500 + 777);
+	assert_int_equal(y.first_target_of[1], -500 + 777); /* to the count */
+	assert_int_equal(y.last_move, -1);                  /* nothing moved meanwhile */
+	assert_int_equal(ctl.out.status.drive_power_periods, 2);
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].state, P_OE);
+	}
+	/* X moves back; Y and Z, not programmed to move, stay put */
+	for (int k = 0; k < 3000 && ctl.out.status.drive_power == MLIP_POWER_ENABLED; k++) {
+		period();
+		assert_int_equal(rpdo_of(1, &cw, &t), 1);
+		assert_int_equal(t, -500 + 777);
+		assert_int_equal(rpdo_of(2, &cw, &t), 1);
+		assert_int_equal(t, 0);
+	}
+	run_until(0, MLIP_POWER_OFF, 3000, &r);
+	assert_true(peers[0].pos == 1234);      /* X went back */
+	assert_true(peers[1].pos == -500 + 777); /* Y stayed where it was pushed */
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
+	/* and the exit ends at once: already disabled in order */
+	ctl.exit_request = 1;
+	assert_int_equal(period(), 1);
+	assert_int_equal(ds.shutdown_ok, 1);
+	free(mem);
+}
+
+/* A stop mid-program: on the path to rest with the drives enabled, then
+ * disabled in order. */
+static void test_loop_stop_disables(void **state)
+{
+	double start[NP];
+	struct run r;
+	(void)state;
+	loop_setup(start);
+	program(20, 1.0);
+	for (int k = 0; k < 200; k++) {
+		period();
+	}
+	assert_int_equal(ctl.out.status.state, MLIP_STATE_RUNNING);
+	assert_int_equal(mlip_ring_cmd_post(ctl.ring, MLIP_CMD_STOP, 0, NULL), MLIP_OK);
+	run_until(0, MLIP_POWER_OFF, 3000, &r);
+	assert_int_equal(r.n_cw, 3);
+	assert_true(r.last_move > 10 && r.last_move < r.first_cw_period[1]);
+	assert_int_equal(ctl.out.status.reason, MLIP_WHY_STOP);
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].state, P_RTSO);
+	}
+	free(mem);
+}
+
+/* The second program's enable fails (a drive stays "switched on"): a fault
+ * naming the node and the step after STATE_TIMEOUT_MS, nothing moved, the
+ * drives shut down again, the program dropped. */
+static void test_loop_enable_fails(void **state)
+{
+	double start[NP];
+	struct run r;
+	(void)state;
+	loop_setup(start);
+	program(1, 1.0);
+	run_until(0, MLIP_POWER_OFF, 3000, &r);
+	int32_t at[NP];
+	for (int i = 0; i < NP; i++) {
+		at[i] = peers[i].pos;
+	}
+	peers[2].no_enable = 1;
+	program(3, -1.0);
+	run_until(0, MLIP_POWER_ENABLING, 100, &r);
+	int k0 = r.periods;
+	run_until(0, MLIP_POWER_OFF, 3000, &r);
+	/* 0x0F for the state timeout (1000 periods), then 0x07, 0x06 */
+	assert_int_equal(r.n_cw, 3);
+	assert_int_equal(r.cws[0], 0x000F);
+	assert_true(r.first_cw_period[1] >= 999 && r.first_cw_period[1] <= 1001);
+	assert_int_equal(r.last_move, -1);
+	(void)k0;
+	const struct mlip_ring_status *s = &ctl.out.status;
+	assert_int_equal(s->state, MLIP_STATE_FAULT);
+	assert_int_equal(s->reason, MLIP_WHY_DRIVE);
+	assert_int_equal(s->reason_node, 3);
+	assert_int_equal(s->reason_field, MLIP_DRIVE_NOT_ENABLED);
+	assert_true(s->reason_value == 0x0233); /* "switched on" */
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].pos, at[i]); /* nothing moved */
+		assert_int_equal(peers[i].state, P_RTSO);
+	}
+	/* the program is dropped, never run */
+	for (int k = 0; k < 200; k++) {
+		period();
+	}
+	assert_int_equal(mlip_ring_count(ctl.ring), 0);
+	assert_int_equal(s->state, MLIP_STATE_FAULT);
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].pos, at[i]);
+	}
+	free(mem);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -780,6 +998,9 @@ int main(void)
 	    cmocka_unit_test_setup(test_loop_following_error, setup),
 	    cmocka_unit_test_setup(test_loop_heartbeat_and_emcy, setup),
 	    cmocka_unit_test_setup(test_loop_late_drive, setup),
+	    cmocka_unit_test_setup(test_loop_between_programs, setup),
+	    cmocka_unit_test_setup(test_loop_stop_disables, setup),
+	    cmocka_unit_test_setup(test_loop_enable_fails, setup),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

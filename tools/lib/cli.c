@@ -326,6 +326,23 @@ void mlip_cli_field_name(const struct mlip_machine *m, uint32_t field, char *buf
 void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
 {
 	switch (event) {
+	case MLIP_DRIVE_NOT_SWITCHED_ON:
+	case MLIP_DRIVE_NOT_ENABLED:
+		snprintf(buf, len,
+		         "%s (controlword 0x%04X) not confirmed within STATE_TIMEOUT_MS: statusword "
+		         "0x%04llX (%s); nothing moves",
+		         event == MLIP_DRIVE_NOT_ENABLED ? "enable operation" : "switch on",
+		         event == MLIP_DRIVE_NOT_ENABLED ? MLIP_402_CW_ENABLE_OPERATION
+		                                         : MLIP_402_CW_SWITCH_ON,
+		         (unsigned long long)(v & 0xFFFF),
+		         mlip_402_state_name(mlip_402_state_of((uint16_t)v)));
+		break;
+	case MLIP_DRIVE_BEYOND_LIMIT:
+		snprintf(buf, len,
+		         "position actual %lld counts is beyond a soft limit (moved while disabled?): "
+		         "bring it back within the limits by hand; nothing moves",
+		         (long long)v);
+		break;
 	case MLIP_DRIVE_FAULT_BIT:
 	case MLIP_DRIVE_LEFT_ENABLED:
 		snprintf(buf, len, "statusword 0x%04llX (%s%s)", (unsigned long long)(v & 0xFFFF),

@@ -695,6 +695,18 @@ class Drive:
             idx, _, sub = obj.partition(":")
             key = (int(idx, 16), int(sub, 0) if sub else None)
             self.refuse[key] = int(code, 0) if code else 0x08000022
+        elif what == "move":
+            # a disabled axis pushed by hand (or by gravity): ARG counts more;
+            # an enabled drive holds its position against it
+            if self.state == P.OPERATION_ENABLED:
+                self.rec.event(self.id, "move_refused", why="operation enabled: holding")
+            else:
+                self.actual += int(arg or "0", 0)
+                self.actual_f = float(self.actual)
+                self.target = self.actual
+                if self.node is not None:
+                    self._publish()
+                self.rec.event(self.id, "moved", to=self.actual, state=self.state)
         elif what == "never-enable":
             self.never_enable = arg != "off"
         elif what == "absent":
