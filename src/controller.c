@@ -63,7 +63,7 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 		return MLIP_E_INVALID;
 	}
 	for (int k = 0; k < m->n_axes; k++) {
-		c->pos[k] = m->axis[k].home;
+		c->pos[k] = c->prog_start[k] = m->axis[k].home;
 	}
 	if (mlip_planner_init(p, &c->m, o->strategy, o->lookahead, c->pos) != MLIP_OK) {
 		return MLIP_E_INVALID;
@@ -685,6 +685,7 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 		if (!c->refill) {
 			c->exec_seq = 0; /* a new program (a starved one is given up) */
 			c->exec_line = 0;
+			memcpy(c->prog_start, c->pos, sizeof(c->prog_start));
 		}
 		c->next_seq = head->seq;
 		c->end_seen = 0;
@@ -829,6 +830,7 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	s->dwell_left = c->state == MLIP_STATE_DWELLING ? c->dwell_left : 0;
 	s->drive_power = c->power;
 	s->drive_power_periods = c->power_periods;
+	memcpy(s->prog_start, c->prog_start, sizeof(s->prog_start));
 }
 
 /* Still moving: a stall must freeze it. */

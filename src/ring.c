@@ -37,7 +37,7 @@
 MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 88);
 MLIP_RING_CHECK(rec_align, sizeof(struct mlip_ring_rec) % 8 == 0);
 MLIP_RING_CHECK(rec_target, offsetof(struct mlip_ring_rec, target) == 16);
-MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1088);
+MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1152);
 MLIP_RING_CHECK(hdr_lines, sizeof(struct mlip_ring) % MLIP_RING_LINE == 0);
 MLIP_RING_CHECK(line_pow2, MLIP_RING_IS_POW2(MLIP_RING_LINE));
 MLIP_RING_CHECK(max_pow2, MLIP_RING_IS_POW2(MLIP_RING_MAX_CAPACITY));
@@ -45,12 +45,12 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 264);
-MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 512);
-MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 520);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 312);
+MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 576);
+MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 584);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 32);
-MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 576);
-MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 640);
+MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 640);
+MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 704);
 
 /* shared-memory atomics must not fall back to a process-local lock */
 #if !defined(__GCC_ATOMIC_LLONG_LOCK_FREE) || __GCC_ATOMIC_LLONG_LOCK_FREE != 2 || \
@@ -554,6 +554,9 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	}
 	ST(&d->drive_power, s->drive_power, REL);
 	ST(&d->drive_power_periods, s->drive_power_periods, REL);
+	for (int k = 0; k < MLIP_MAX_AXES; k++) {
+		STD(&d->prog_start[k], &s->prog_start[k]);
+	}
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -602,6 +605,9 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		}
 		s->drive_power = LD(&d->drive_power, ACQ);
 		s->drive_power_periods = LD(&d->drive_power_periods, ACQ);
+		for (int k = 0; k < MLIP_MAX_AXES; k++) {
+			LDD(&d->prog_start[k], &s->prog_start[k]);
+		}
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;

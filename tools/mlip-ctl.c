@@ -244,6 +244,12 @@ static int cmd_status(struct mlip_shm *s, int json)
 			printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
 			json_num(st.pos[k]);
 		}
+		printf("},\n  \"program_start\": {");
+		/* where the current (or last) program began: a continuation's origin */
+		for (int k = 0; k < m.n_axes; k++) {
+			printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
+			json_num(st.prog_start[k]);
+		}
 		printf("},\n  \"position_actual\": ");
 		/* the drives' position actual (mlip-rt --drives); null without drives */
 		if (st.actual_mask == 0) {

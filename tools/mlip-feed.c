@@ -29,6 +29,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <getopt.h>
+#include <math.h>
 #include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -166,6 +167,9 @@ struct feed {
 	const char *offsets;        /* --offsets FILE, or NULL */
 	int strict;
 	double default_feed;        /* --default-feed */
+	struct mlip_machine mp;     /* the controller's machine, HOME = where the program starts */
+	struct mlip_program_options popt;
+	int from_controller;        /* mp's HOME is the idle controller's position */
 	/* progress */
 	struct mlip_ring_feeder fa; /* what we publish */
 	struct mlip_ring_status st; /* last consistent controller status */
@@ -375,6 +379,120 @@ static int next_block(struct feed *f, struct mlip_block *b)
 		f->lines[f->read_seq % LINE_WINDOW] = b->line;
 	}
 	return rc > 0 ? 1 : rc == 0 ? -EIO : rc;
+}
+
+/*
+ * Check the whole program (first pass) from the machine f->mp, whose HOME is
+ * where the program starts: the controller's commanded position when it is
+ * idle (a G90 move that leaves an axis out keeps it where it stands, not at
+ * the configured HOME: after another program, or with drives whose axes were
+ * moved while disabled), then position the stream at --start-seq. 0, or an
+ * exit code (nothing sent).
+ */
+/* " X1.0000 Y2.0000 ..." of the machine's HOME (where a program starts) */
+static const char *position_text(const struct mlip_machine *m, char *buf, size_t len)
+{
+	size_t k = 0;
+	buf[0] = '\0';
+	for (int i = 0; i < m->n_axes && k < len; i++) {
+		k += (size_t)snprintf(buf + k, len - k, " %c%.4f", m->axis[i].letter, m->axis[i].home);
+	}
+	return buf;
+}
+
+static int load(struct feed *f, int notes)
+{
+	const struct mlip_machine *m = &f->mp;
+	int rc = mlip_program_open(&f->prog, f->path, m, &f->popt);
+	if (rc < 0) {
+		fprintf(stderr, PROG ": %s: %s\n", f->path, f->prog.msg);
+		return EXIT_FAIL;
+	}
+	if (rc > 0) {
+		mlip_program_print_errors(&f->prog, f->path, stderr);
+		return EXIT_FAIL;
+	}
+	if (notes && !f->quiet) {
+		char offs[512];
+		mlip_program_print_notices(&f->prog, f->path, stderr);
+		if (f->from_controller) {
+			fprintf(stderr, PROG ": checked from where the %s:%s\n",
+			        f->first_seq > 1 ? "program began" : "machine stands",
+			        position_text(m, offs, sizeof(offs)));
+		}
+		mlip_offsets_describe(m, &f->prog.offsets_start, offs, sizeof(offs));
+		fprintf(stderr, PROG ": offsets: %s (%s)\n", offs,
+		        f->offsets ? f->offsets : "no --offsets: defaults");
+	}
+	f->n = f->prog.n;
+	f->read_seq = 0;
+	stream_start(f, m);
+	if (m->smooth) {
+		/* the controller runs `smooth`: send the path smoothed within the
+		 * tolerance, as mlip-sim does, so that the setpoints are the
+		 * simulator's. One pass counts the records (END is n + 1). */
+		struct mlip_block b;
+		for (f->n = 0; (rc = f->it.next(f->it.ctx, &b)) > 0;) {
+			f->n++;
+		}
+		if (rc < 0) {
+			fprintf(stderr, PROG ": %s: %s\n", f->path,
+			        f->prog.msg[0] ? f->prog.msg : "the smoothing filter refused a block");
+			return EXIT_FAIL;
+		}
+		mlip_program_rewind(&f->prog);
+		stream_start(f, m);
+	}
+	f->end_line = f->prog.lines;
+	if (f->first_seq > f->n) {
+		fprintf(stderr, PROG ": --start-seq %llu: %s has %llu blocks\n",
+		        (unsigned long long)f->first_seq, f->path, (unsigned long long)f->n);
+		return EXIT_USAGE;
+	}
+	f->next_seq = f->first_seq;
+	for (uint64_t k = 1; k < f->first_seq; k++) {
+		struct mlip_block b;
+		if (next_block(f, &b) < 0) {
+			fprintf(stderr, PROG ": %s: %s\n", f->path, f->prog.msg);
+			return EXIT_FAIL;
+		}
+	}
+	if (f->first_seq > 1) {
+		f->lines[f->first_seq % LINE_WINDOW] = 0; /* not read yet */
+	}
+	return 0;
+}
+
+/* Once the controller is idle: checked from where it stands? Else check the
+ * program again from there (nothing is sent yet). 0, or an exit code. */
+static int start_moved(struct feed *f)
+{
+	char at[256];
+	int moved = 0;
+	/* a continuation is read from where its program began (the same
+	 * records: the merge of a first block that moves nothing and the
+	 * smoothing depend on the start), a new program from where we stand */
+	const double *from = f->first_seq > 1 ? f->st.prog_start : f->st.pos;
+	for (int k = 0; k < f->mp.n_axes; k++) {
+		double p = from[k];
+		if (!isfinite(p)) {
+			fprintf(stderr, PROG ": the controller publishes no position for axis %c: "
+			                     "nothing was sent\n", f->mp.axis[k].letter);
+			return EXIT_FAIL;
+		}
+		moved |= fabs(p - f->mp.axis[k].home) > 1e-9;
+		f->mp.axis[k].home = p;
+	}
+	if (!moved) {
+		return 0;
+	}
+	if (!f->quiet) {
+		fprintf(stderr, PROG ": %s at%s: checking %s again from there\n",
+		        f->first_seq > 1 ? "the program began" : "the machine now stands",
+		        position_text(&f->mp, at, sizeof(at)), f->path);
+	}
+	mlip_program_close(&f->prog);
+	return load(f, 0);
 }
 
 /* Once the controller is at rest after a stop: the block to continue from,
@@ -726,6 +844,10 @@ static int run(struct feed *f)
 	if (rc >= 0) {
 		return rc;
 	}
+	rc = start_moved(f);
+	if (rc != 0) {
+		return rc;
+	}
 	/* the producer's view, taken now that we hold the producer lock */
 	if (mlip_ring_port_open(&f->tx, f->r, 1) != MLIP_OK) {
 		fprintf(stderr, PROG ": %s: the ring's header is not valid any more: restart mlip-rt\n",
@@ -946,58 +1068,25 @@ int main(int argc, char **argv)
 	popt.strict = f.strict;
 	popt.default_feed = f.default_feed;
 	popt.offsets = &offsets;
-	rc = mlip_program_open(&f.prog, f.path, &m, &popt);
-	if (rc < 0) {
-		fprintf(stderr, PROG ": %s: %s\n", f.path, f.prog.msg);
-		goto out;
-	}
-	if (rc > 0) {
-		mlip_program_print_errors(&f.prog, f.path, stderr);
-		goto out;
-	}
-	if (!f.quiet) {
-		char offs[512];
-		mlip_program_print_notices(&f.prog, f.path, stderr);
-		mlip_offsets_describe(&m, &f.prog.offsets_start, offs, sizeof(offs));
-		fprintf(stderr, PROG ": offsets: %s (%s)\n", offs,
-		        f.offsets ? f.offsets : "no --offsets: defaults");
-	}
-	f.n = f.prog.n;
-	stream_start(&f, &m);
-	if (m.smooth) {
-		/* the controller runs `smooth`: send the path smoothed within the
-		 * tolerance, as mlip-sim does, so that the setpoints are the
-		 * simulator's. One pass counts the records (END is n + 1). */
-		struct mlip_block b;
-		for (f.n = 0; (rc = f.it.next(f.it.ctx, &b)) > 0;) {
-			f.n++;
-		}
-		if (rc < 0) {
-			fprintf(stderr, PROG ": %s: %s\n", f.path,
-			        f.prog.msg[0] ? f.prog.msg : "the smoothing filter refused a block");
-			goto out;
-		}
-		mlip_program_rewind(&f.prog);
-		stream_start(&f, &m);
-	}
-	f.end_line = f.prog.lines;
-	if (f.first_seq > f.n) {
-		fprintf(stderr, PROG ": --start-seq %llu: %s has %llu blocks\n",
-		        (unsigned long long)f.first_seq, f.path, (unsigned long long)f.n);
-		code = EXIT_USAGE;
-		goto out;
-	}
-	f.next_seq = f.first_seq;
-	for (uint64_t k = 1; k < f.first_seq; k++) {
-		struct mlip_block b;
-		if (next_block(&f, &b) < 0) {
-			fprintf(stderr, PROG ": %s: %s\n", f.path, f.prog.msg);
-			goto out;
+	/* from where the controller stands when it is idle now (else from
+	 * HOME; run() checks again once it is idle: start_moved) */
+	f.popt = popt;
+	f.mp = m;
+	if (mlip_ring_status_read(f.r, &f.st) == MLIP_OK && f.st.heartbeat > 0 &&
+	    (f.st.state == MLIP_STATE_IDLE || f.first_seq > 1)) {
+		const double *from = f.first_seq > 1 ? f.st.prog_start : f.st.pos;
+		for (int k = 0; k < m.n_axes; k++) {
+			if (isfinite(from[k])) {
+				f.mp.axis[k].home = from[k];
+				f.from_controller |= fabs(from[k] - m.axis[k].home) > 1e-9;
+			}
 		}
 	}
-	if (f.first_seq > 1) {
-		f.lines[f.first_seq % LINE_WINDOW] = 0; /* not read yet */
+	code = load(&f, 1);
+	if (code != 0) {
+		goto out;
 	}
+	code = EXIT_FAIL;
 
 	/* one producer only */
 	rc = producer_lock(f.shm.fd, &holder);

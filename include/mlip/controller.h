@@ -213,6 +213,7 @@ struct mlip_ctl {
 	uint64_t stop_nm;
 	uint32_t stop_periods, stops;
 	double pos[MLIP_MAX_AXES];
+	double prog_start[MLIP_MAX_AXES]; /* pos when the program's first record was taken */
 	/* scratch for one period's records (no stack arrays of this size on RT) */
 	struct mlip_ring_rec recs[MLIP_PREREAD_PER_PERIOD];
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];

@@ -13,13 +13,13 @@
  *    64  producer   head (free-running), feeder's cached copy of tail
  *   128  consumer   tail (free-running), controller's cached copy of head
  *   192  status     seqlock generation, command reply, struct mlip_ring_status
- *                   (five lines: state, reason, position of every axis,
- *                   the drives' positions actual)
- *   512  feeder     seqlock generation, struct mlip_ring_feeder
- *   576  mailbox    command sequence, op, argument (written by mlip-ctl)
- *   640  machine    the controller's struct mlip_machine, so that a feeder
+ *                   (six lines: state, reason, position of every axis,
+ *                   the drives' positions actual, the program's start)
+ *   576  feeder     seqlock generation, struct mlip_ring_feeder
+ *   640  mailbox    command sequence, op, argument (written by mlip-ctl)
+ *   704  machine    the controller's struct mlip_machine, so that a feeder
  *                   checks programs against exactly the limits in force
- *  1088  records    capacity x struct mlip_ring_rec (88 bytes each)
+ *  1152  records    capacity x struct mlip_ring_rec (88 bytes each)
  *
  * The magic (offset 0) and the version (offset 8) keep their places in every
  * layout version, so any version can tell any other that they differ.
@@ -65,7 +65,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION 4u       /* bump on any change to the layout below */
+#define MLIP_RING_VERSION 5u       /* bump on any change to the layout below */
 #define MLIP_RING_LINE 64          /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -240,6 +240,10 @@ struct mlip_ring_status {
 	/* in the status area's spare bytes, zero (none) in segments of older builds */
 	uint32_t drive_power;     /* mlip_drive_power: the drives' power, as one */
 	uint32_t drive_power_periods; /* periods the last disable or enable took */
+	/* layout version 5 */
+	double prog_start[MLIP_MAX_AXES]; /* where the current (or last) program's first
+	                                     record was taken: a continuation (mlip-feed
+	                                     --start-seq) is read from there */
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */

@@ -48,6 +48,34 @@ def test_feeder_killed_then_continued(controller, tmp_path):
     assert s["state"] == "idle" and s["exec_seq"] == n + 1
 
 
+def test_continuation_read_from_where_the_program_began(controller, tmp_path):
+    # the program starts away from HOME (after another one); killed, then
+    # continued: the continuation is checked from where the program began,
+    # not from where the machine stands now nor from HOME, so its records
+    # are the first run's and it finishes the program
+    prog, n = flower(tmp_path)
+    shm, _ = controller(short_lookahead(tmp_path, 256))
+    pre = tmp_path / "pre.ngc"
+    pre.write_text("G21 G90\nG0 X5 Y-3\nM30\n")
+    assert subprocess.run([tool("mlip-feed"), "--shm", shm, "--quiet", str(pre)],
+                          timeout=60).returncode == 0
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", "--rate", "1500", str(prog)])
+    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 500)
+    f.kill()
+    f.wait()
+    s = wait_for(lambda: (lambda s: s if s["state"] == "starved" else None)(status(shm)), 10)
+    assert s, status(shm)
+    assert s["program_start"] == {"X": 5.0, "Y": -3.0}
+    assert s["position"] != s["program_start"]
+    executed = s["exec_seq"]
+    p = subprocess.run([tool("mlip-feed"), "--shm", shm, "--start-seq", str(executed + 1),
+                        str(prog)], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert "checked from where the program began: X5.0000 Y-3.0000" in p.stderr
+    s = status(shm)
+    assert s["state"] == "idle" and s["exec_seq"] == n + 1
+
+
 def test_slow_feeder_underruns_and_finishes(controller, tmp_path):
     # a short look-ahead, fed at a quarter of the rate it is cut at: it runs
     # dry, stops at rest, and picks up again, over and over

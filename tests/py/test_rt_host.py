@@ -15,7 +15,7 @@ def feed(shm, program, *extra, **kw):
                           capture_output=True, text=True, **kw)
 
 
-def test_program_runs_to_completion(controller):
+def test_program_runs_to_completion(controller, tmp_path):
     shm, rt = controller()
     t0 = time.monotonic()
     p = feed(shm, DEMO, timeout=60)
@@ -28,13 +28,27 @@ def test_program_runs_to_completion(controller):
                                      "--summary", "-", DEMO], capture_output=True, text=True).stdout)
     # the controller runs the simulated motion in real time (plus start-up)
     assert sim["total_time_s"] <= elapsed < sim["total_time_s"] + 5.0
-    # a second program on the same controller, same result
-    assert feed(shm, DEMO, timeout=60).returncode == 0
-    assert status(shm)["blocks_consumed"] == 2 * 1820
+    # a second program on the same controller starts where the first ended
+    # (X40 Y0 Z5 after the demo's last G0 Z5), not at HOME: its first block
+    # G0 Z5 moves nothing and is merged away, 1819 records
+    end1 = [status(shm)["position"][a] for a in "XYZ"]
+    assert [status(shm)["program_start"][a] for a in "XYZ"] == [0.0, 0.0, 0.0]  # HOME
+    p = feed(shm, DEMO, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert "checked from where the machine stands: X%.4f Y%.4f Z%.4f" % tuple(end1) in p.stderr
+    assert status(shm)["blocks_consumed"] == 1820 + 1819
+    # an axis a G90 move leaves out stays where it stands: Y here
+    assert [status(shm)["program_start"][a] for a in "XYZ"] == end1
+    end2 = [status(shm)["position"][a] for a in "XYZ"]
+    prog = tmp_path / "z.ngc"
+    prog.write_text("G21 G90\nG0 Z10\nG1 X5 F600\nM30\n")
+    assert feed(shm, prog, timeout=60).returncode == 0
+    end3 = [status(shm)["position"][a] for a in "XYZ"]
+    assert abs(end3[0] - 5) < 1e-9 and abs(end3[1] - end2[1]) < 1e-9 and abs(end3[2] - 10) < 1e-9
     rt.send_signal(signal.SIGTERM)
     _, err = rt.communicate(timeout=10)
     assert rt.returncode == 0
-    assert "stopped after" in err and "3640 records taken" in err
+    assert "stopped after" in err and "3642 records taken" in err
 
 
 def test_smooth_program_runs_to_completion(controller):
