@@ -31,6 +31,10 @@
  *     r_i = min(rho b, b - h^2 k / 4): each corner keeps what it needs on the
  *     smoothed curve (a corner using half of segments of h at curvature k
  *     deviates about h^2 k / 8, (17)(19)).
+ *     Then MLIP_SMOOTH_POLISH more solves hold each sample still beyond
+ *     its radius on the band's edge (a fixed value), so the spline passes
+ *     there smoothly; the clamp then only trims what is left (alone, a
+ *     clamped sample is a kink the corners must slow down for).
  *  3. A vertex turning by more than sharp_deg is pinned (x = p) with its
  *     neighbours, and the sub-samples in the halves of its segments next to
  *     it are dropped: an isolated corner is passed fastest by the paper's
@@ -137,7 +141,7 @@ mlip_status mlip_smooth_init(struct mlip_smooth *sm, const struct mlip_machine *
 
 static int is_fixed(const struct mlip_smooth *sm, uint32_t i)
 {
-	return i < sm->frozen || sm->s[i].pinned;
+	return i < sm->frozen || sm->s[i].pinned || sm->s[i].hold;
 }
 
 /* Solve the window [a, count) and freeze up to `upto`. */
@@ -171,8 +175,29 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 		s[i].r = sm->rho * b;
 	}
 
-	int iters = m >= 3 ? MLIP_SMOOTH_ITER : 0;
-	for (int it = 0; it < iters; it++) {
+	int iters = m >= 3 ? MLIP_SMOOTH_ITER : 0, polish = m >= 3 ? MLIP_SMOOTH_POLISH : 0;
+	for (int it = 0; it < iters + polish; it++) {
+		/* polish: a sample still beyond its radius is held on the band's
+		 * edge and the spline solved again around it, so the curve passes
+		 * there smoothly; clamped alone it would be a kink, a spike of
+		 * curvature the corners must slow down for */
+		for (uint32_t i = 0; it >= iters && i < m; i++) {
+			if (is_fixed(sm, a + i)) {
+				continue;
+			}
+			double d2 = 0.0;
+			for (int k = 0; k < n; k++) {
+				double d = s[i].x[k] - s[i].p[k];
+				d2 += d * d;
+			}
+			if (d2 > s[i].r * s[i].r) {
+				double f = s[i].r > 0.0 ? s[i].r / sqrt(d2) : 0.0;
+				for (int k = 0; k < n; k++) {
+					s[i].x[k] = s[i].p[k] + (s[i].x[k] - s[i].p[k]) * f;
+				}
+				s[i].hold = 1;
+			}
+		}
 		for (uint32_t i = 0; i < m; i++) {
 			a0[i] = is_fixed(sm, a + i) ? 0.0 : s[i].w;
 			a1[i] = 0.0;
@@ -289,6 +314,9 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 	}
 
 	/* clamp into the band and freeze */
+	for (uint32_t i = 0; i < m; i++) {
+		s[i].hold = 0;
+	}
 	for (uint32_t i = 0; i < m; i++) {
 		if (a + i < sm->frozen) {
 			continue;

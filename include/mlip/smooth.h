@@ -14,7 +14,8 @@
  *
  * Fixed memory (the struct, owned by the caller) and bounded work per block:
  * a block adds at most MLIP_SMOOTH_MAX_PIECES samples, and each sample is
- * solved over at most MLIP_SMOOTH_ITER iterations in at most two windows.
+ * solved over at most MLIP_SMOOTH_ITER + MLIP_SMOOTH_POLISH banded solves in at
+ * most two windows.
  * Pure C, no allocation, no I/O: the same code runs in every host tool.
  *
  * Use: push input blocks in program order; after each push, pop until
@@ -38,6 +39,7 @@
 #define MLIP_SMOOTH_MAX_PIECES 16 /* samples a block adds, at most (and up to 7 more
                                      sub-samples of the segment before it) */
 #define MLIP_SMOOTH_ITER 20       /* reweighting iterations per solve */
+#define MLIP_SMOOTH_POLISH 3      /* then solves holding the samples beyond their radius */
 #define MLIP_SMOOTH_RHO 0.95      /* share of the budget the smoothing may take */
 
 struct mlip_smooth_sample {
@@ -54,6 +56,7 @@ struct mlip_smooth_sample {
 	uint8_t role;            /* SMOOTH_* in smooth.c */
 	uint8_t pinned;          /* x = p exactly */
 	uint8_t drop;            /* not emitted (a sub-sample next to a sharp corner) */
+	uint8_t hold;            /* held on the band's edge while a solve polishes */
 };
 
 struct mlip_smooth {
