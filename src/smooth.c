@@ -56,15 +56,23 @@
  * convex in u and at most max(|x_i - p_i|, |x_j - p_j|) = max(dev_i, dev_j).
  * Hence dist(x(u), original polyline) <= max(dev_i, dev_j).
  *
- * The tolerance split: the planner's corner at output vertex j stays within
- * tol_j of the output segments j and j+1 (17)(18), which are within
- * max(dev_{j-1}, dev_j, dev_{j+1}) of the original. So with
- *     tol_j = min(b_{j-1}, b_j, b_{j+1}) - max(dev_{j-1}, dev_j, dev_{j+1})
+ * The tolerance split: the planner's corner at output vertex j is the
+ * parabola (14) from S on segment j to E on segment j+1, a quadratic Bezier
+ * with control points S, x_j, E (x_j is where its tangents meet, (5)). Its
+ * point at t, B(t) = (1-t)^2 S + 2t(1-t) x_j + t^2 E, is t^2 (S + E - 2 x_j)
+ * away from the leg point S + 2t (x_j - S) for t <= 1/2 (and (1-t)^2 (...)
+ * from x_j + (2t - 1)(E - x_j) after), and |S + E - 2 x_j| / 4 = eps_c <=
+ * tol_j (17)(18): the corner stays within tol_j of its legs [S, x_j] and
+ * [x_j, E]. The legs lie in the halves of segments j and j+1 next to x_j
+ * (19), where by the convexity above the smoothing deviates at most
+ * max(dev_j, (dev_{j-1} + dev_j) / 2, (dev_j + dev_{j+1}) / 2). So with
+ *     tol_j = min(b_{j-1}, b_j, b_{j+1}) - that
  * the motion stays within the budget b (min(eps, the blocks' own tol_mm)).
  * tol_j > 0 because r_i = rho min(b_{i-2..i+2}) <= rho min(b_{j-1..j+1}).
- * At an exact point (a run's end) whatever follows is within rho b of the
- * original (the next run's first sample) or exact (a rapid): tol = b - max(
- * dev_{j-1}, rho b). A rapid that ends where a run starts gets (1 - rho) b.
+ * At an exact point (a run's end) whatever follows is exact (a rapid) or
+ * starts at the exact point and ends within rho b of the original (the next
+ * run's first segment): dev_{j+1} counts as rho b. A rapid that ends where
+ * a run starts gets (1 - rho / 2) b.
  */
 #include <math.h>
 #include <stddef.h>
@@ -657,7 +665,7 @@ mlip_status mlip_smooth_push(struct mlip_smooth *sm, const struct mlip_block *b)
 	if (is_move) {
 		double bb = budget(sm, b);
 		/* the run that may start at its end is within rho bb of it */
-		s->blk.tol_mm = (1.0 - sm->rho) * bb;
+		s->blk.tol_mm = (1.0 - 0.5 * sm->rho) * bb;
 		memcpy(sm->last, b->target, sizeof(double) * (size_t)sm->n);
 		sm->last_b = bb;
 	}
@@ -713,7 +721,10 @@ mlip_status mlip_smooth_pop(struct mlip_smooth *sm, struct mlip_block *out)
 			run_end = 1;
 		}
 		double b = dmin(dmin(sm->prev_b, s->b), next_b);
-		double tol = b - dmax(dmax(sm->prev_dev, s->dev), next_dev);
+		/* the corner's legs lie in the halves of its segments next to it
+		 * (19), where the smoothing deviates at most the mean of the two
+		 * ends' (see top) */
+		double tol = b - dmax(s->dev, 0.5 * (s->dev + dmax(sm->prev_dev, next_dev)));
 		*out = s->blk;
 		memcpy(out->target, s->x, sizeof(double) * (size_t)sm->n);
 		out->tol_mm = dmax(tol, 1e-12);
