@@ -94,7 +94,7 @@ enum { ROLE_START = 0, ROLE_SUB, ROLE_VERTEX, ROLE_PASS };
  * are flattened unless the band forbids it. */
 #define STEP_MM 0.1
 #define L0_MM 1.0
-#define SHARP_DEG 30.0
+#define SHARP_DEG 40.0
 #define GAP_STEPS 4.0
 #define CORNER_NEED 0.15
 #define JITTER_KEEP 0.9
