@@ -12,12 +12,13 @@
  * lets the same corners run at sqrt(A R) of the smoothed curve.
  *
  * How, per run of feed moves between exact points:
- *  1. Samples: every original vertex. Where the turns change erratically from
- *     vertex to vertex (a running mean of |k_i - k_{i-1}| / (|k_i| +
- *     |k_{i-1}|) above JITTER_MIN: CAM noise), each segment also gets
- *     sub-samples every step_mm so the spline can bend inside it; segments
- *     longer than 8 steps get them at 1, 2, 4, ... steps from each end,
- *     where a turn can spread. Where the path is clean and the segments are
+ *  1. Samples: every original vertex. Where the curvature changes
+ *     erratically from vertex to vertex (a running mean of |k_i - k_{i-1}| /
+ *     (|k_i| + |k_{i-1}|) above JITTER_MIN, k_i the turn vector at vertex i
+ *     over the mean length of its two segments: CAM noise), each segment
+ *     also gets sub-samples every step_mm so the spline can bend inside it;
+ *     segments longer than 8 steps get them at 1, 2, 4, ... steps from each
+ *     end, where a turn can spread. Where the path is clean and the segments are
  *     not short, vertices stay exact (x = p): smoothing would only take the
  *     corners' eps there (their (18) bound), and sub-samples would halve
  *     their legs (19). So a clean program runs exactly as mpct.
@@ -540,7 +541,10 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 		double c = 0.0;
 		for (int k = 0; k < n; k++) {
 			c += dir[k] * sm->last_dir[k];
-			kv[k] = dir[k] - sm->last_dir[k];
+			/* curvature vector at the vertex: the turn over the mean length
+			 * of its segments (a clean curve in uneven segments turns by
+			 * uneven angles, but its curvature changes steadily) */
+			kv[k] = (dir[k] - sm->last_dir[k]) / (0.5 * (sm->last_d_mm + d));
 		}
 		sharp = c < sm->sharp_cos;
 		/* How erratically the turns change from vertex to vertex (a
@@ -624,6 +628,7 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 	}
 	memcpy(sm->last, b->target, sizeof(double) * (size_t)n);
 	memcpy(sm->last_dir, dir, sizeof(double) * (size_t)n);
+	sm->last_d_mm = d;
 	sm->pend = pend && !sharp && !sm->s[sm->count - 1].pinned;
 	sm->pend_kv_ok = sm->have_dir;
 	if (sm->have_dir) {

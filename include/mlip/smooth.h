@@ -70,14 +70,15 @@ struct mlip_smooth {
 	double corner_need;    /* share of h^2 k the corners keep (0: none) */
 	double last[MLIP_MAX_AXES]; /* last original point */
 	double last_dir[MLIP_MAX_AXES];
+	double last_d_mm;      /* length of the last original segment */
 	double last_b;         /* budget of the corner at last[] */
 	double run_feed;       /* feed of the open run */
 	int run_open;          /* a run of feed moves is open */
 	int have_dir;          /* last_dir valid (the run has a segment) */
 	int pend;              /* the newest segment is one sample, not yet subdivided */
 	int pend_kv_ok;        /* pend_kv is valid */
-	double pend_kv[MLIP_MAX_AXES]; /* turn at the pending segment's first vertex */
-	double jitter;         /* running mean of how erratically the turns change */
+	double pend_kv[MLIP_MAX_AXES]; /* curvature at the pending segment's first vertex */
+	double jitter;         /* running mean of how erratically the curvature changes */
 	double jitter_min;     /* subdivide where jitter is above this */
 	int pin_clean;         /* keep vertices exact where it is below jitter_pin */
 	double jitter_pin;
