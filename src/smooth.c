@@ -18,10 +18,13 @@
  *     over the mean length of its two segments: CAM noise), each segment
  *     also gets sub-samples every step_mm so the spline can bend inside it;
  *     segments longer than 8 steps get them at 1, 2, 4, ... steps from each
- *     end, where a turn can spread. Where the path is clean and the segments are
- *     not short, vertices stay exact (x = p): smoothing would only take the
- *     corners' eps there (their (18) bound), and sub-samples would halve
- *     their legs (19). So a clean program runs exactly as mpct.
+ *     end, where a turn can spread. Where the path is clean (the running
+ *     mean, kept over about 30 vertices, below JITTER_PIN) and both segments
+ *     of a vertex are at least 3 steps long, it stays exact (x = p):
+ *     smoothing would only take the corners' eps there (their (18) bound),
+ *     and sub-samples would halve their legs (19). So a clean program in
+ *     long segments runs exactly as mpct; shorter clean segments are
+ *     smoothed without sub-samples (the spline spreads their turns a little).
  *  2. A smoothing spline over the window: minimise
  *         sum_i w_i |x_i - p_i|^2 + sum_i g_i |x''_i|^2
  *     (x'' the second divided difference in the original arc length u), a
@@ -98,10 +101,10 @@ enum { ROLE_START = 0, ROLE_SUB, ROLE_VERTEX, ROLE_PASS };
 #define SHARP_DEG 40.0
 #define GAP_STEPS 4.0
 #define CORNER_NEED 0.15
-#define JITTER_KEEP 0.9
+#define JITTER_KEEP 0.97
 #define JITTER_MIN 0.5
 #define JITTER_PIN 0.5
-#define SHORT_FRAC 0.5
+#define SHORT_FRAC 3.0
 
 
 static double dmin(double a, double b)
@@ -568,7 +571,7 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 				subdivide_last(sm);
 			}
 		} else if (!sharp && sm->pin_clean && sm->jitter <= sm->jitter_pin &&
-		           dmin(d, sm->s[sm->count - 1].h) >= SHORT_FRAC * sm->step_mm) {
+		           dmin(d, sm->last_d_mm) >= SHORT_FRAC * sm->step_mm) {
 			clean = 1;
 		}
 		if (sharp || clean) {
