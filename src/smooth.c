@@ -102,8 +102,8 @@ enum { ROLE_START = 0, ROLE_SUB, ROLE_VERTEX, ROLE_PASS };
 #define GAP_STEPS 4.0
 #define CORNER_NEED 0.15
 #define JITTER_KEEP 0.97
-#define JITTER_MIN 0.5
-#define JITTER_PIN 0.5
+#define JITTER_MIN 0.4
+#define JITTER_PIN 0.4
 #define SHORT_FRAC 3.0
 
 
