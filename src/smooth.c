@@ -17,7 +17,7 @@
  *     (|k_i| + |k_{i-1}|) above JITTER_MIN, k_i the turn vector at vertex i
  *     over the mean length of its two segments: CAM noise), each segment
  *     also gets sub-samples every step_mm so the spline can bend inside it;
- *     segments longer than 8 steps get them at 1, 2, 4, ... steps from each
+ *     segments longer than 5 steps get them at 1, 2, 4, ... steps from each
  *     end, where a turn can spread. Where the path is clean (the running
  *     mean, kept over about 30 vertices, below JITTER_PIN) and both segments
  *     of a vertex are at least 3 steps long, it stays exact (x = p):
@@ -85,7 +85,7 @@
 #include "mlip/smooth.h"
 
 #define SOLVE_BATCH 1024 /* samples frozen per solve */
-#define UNIFORM_STEPS 8 /* segments up to this many steps are sampled uniformly */
+#define UNIFORM_STEPS 5 /* segments up to this many steps are sampled uniformly */
 #define GEOM_LEVELS 7   /* else at 1, 2, ... 64 steps from each end */
 #define WEIGHT_UP_MAX 16.0
 #define WEIGHT_DOWN_MAX 0.25

@@ -36,7 +36,7 @@
 #define MLIP_SMOOTH_CAP 4096      /* samples in the window */
 #define MLIP_SMOOTH_KEEP 512      /* samples left unsolved after a solve: the
                                      right-hand context of the frozen ones */
-#define MLIP_SMOOTH_MAX_PIECES 16 /* samples a block adds, at most (and up to 7 more
+#define MLIP_SMOOTH_MAX_PIECES 16 /* samples a block adds, at most (and up to 4 more
                                      sub-samples of the segment before it) */
 #define MLIP_SMOOTH_ITER 20       /* reweighting iterations per solve */
 #define MLIP_SMOOTH_POLISH 3      /* then solves holding the samples beyond their radius */
