@@ -11,6 +11,17 @@
  * delta of the polyline but bends as little as delta allows, sampled finely,
  * lets the same corners run at sqrt(A R) of the smoothed curve.
  *
+ * Where the time goes (MB-2.3, 1000 mm/s^2, measured against the original
+ * polyline): the smoothed stretches run 1.4-1.5x faster than mpct and the
+ * time left there is set by the REAL curvature of the part (a time-optimal
+ * follow of the filter's output under the per-axis limits, tangential plus
+ * normal acceleration, takes 319 s where the simulator took 321 s); a
+ * quarter of the time is next to turns over 20 degrees, mostly the raster's
+ * reversals, that no band of 0.01 mm can round. Giving the spline more
+ * freedom (a longer L0, an Lp bending norm, the whole band at sub-samples)
+ * made the time-optimal follow of its output slower, not faster: bending
+ * energy gathers the curvature where the curve touches the band.
+ *
  * How, per run of feed moves between exact points:
  *  1. Samples: every original vertex. Where the curvature changes
  *     erratically from vertex to vertex (a running mean of |k_i - k_{i-1}| /
