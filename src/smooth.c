@@ -11,16 +11,31 @@
  * delta of the polyline but bends as little as delta allows, sampled finely,
  * lets the same corners run at sqrt(A R) of the smoothed curve.
  *
+ * Where the time goes (MB-2.3, 1000 mm/s^2, measured against the original
+ * polyline): the smoothed stretches run 1.4-1.5x faster than mpct and the
+ * time left there is set by the REAL curvature of the part (a time-optimal
+ * follow of the filter's output under the per-axis limits, tangential plus
+ * normal acceleration, takes 319 s where the simulator took 321 s); a
+ * quarter of the time is next to turns over 20 degrees, mostly the raster's
+ * reversals, that no band of 0.01 mm can round. Giving the spline more
+ * freedom (a longer L0, an Lp bending norm, the whole band at sub-samples)
+ * made the time-optimal follow of its output slower, not faster: bending
+ * energy gathers the curvature where the curve touches the band.
+ *
  * How, per run of feed moves between exact points:
- *  1. Samples: every original vertex. Where the turns change erratically from
- *     vertex to vertex (a running mean of |k_i - k_{i-1}| / (|k_i| +
- *     |k_{i-1}|) above JITTER_MIN: CAM noise), each segment also gets
- *     sub-samples every step_mm so the spline can bend inside it; segments
- *     longer than 8 steps get them at 1, 2, 4, ... steps from each end,
- *     where a turn can spread. Where the path is clean and the segments are
- *     not short, vertices stay exact (x = p): smoothing would only take the
- *     corners' eps there (their (18) bound), and sub-samples would halve
- *     their legs (19). So a clean program runs exactly as mpct.
+ *  1. Samples: every original vertex. Where the curvature changes
+ *     erratically from vertex to vertex (a running mean of |k_i - k_{i-1}| /
+ *     (|k_i| + |k_{i-1}|) above JITTER_MIN, k_i the turn vector at vertex i
+ *     over the mean length of its two segments: CAM noise), each segment
+ *     also gets sub-samples every step_mm so the spline can bend inside it;
+ *     segments longer than 5 steps get them at 1, 2, 4, ... steps from each
+ *     end, where a turn can spread. Where the path is clean (the running
+ *     mean, kept over about 30 vertices, below JITTER_PIN) and both segments
+ *     of a vertex are at least 3 steps long, it stays exact (x = p):
+ *     smoothing would only take the corners' eps there (their (18) bound),
+ *     and sub-samples would halve their legs (19). So a clean program in
+ *     long segments runs exactly as mpct; shorter clean segments are
+ *     smoothed without sub-samples (the spline spreads their turns a little).
  *  2. A smoothing spline over the window: minimise
  *         sum_i w_i |x_i - p_i|^2 + sum_i g_i |x''_i|^2
  *     (x'' the second divided difference in the original arc length u), a
@@ -28,9 +43,14 @@
  *     where |x_i - p_i| exceeds the radius r_i and relax inside it (never
  *     below w0: iteratively reweighted), so the spline bends only where the
  *     band forces it; then x_i is clamped into the ball |x_i - p_i| <= r_i.
- *     r_i = min(rho b, b - h^2 k / 4): each corner keeps what it needs on the
- *     smoothed curve (a corner using half of segments of h at curvature k
- *     deviates about h^2 k / 8, (17)(19)).
+ *     r_i = min(rho b, b - 0.15 h^2 k): each corner keeps what it needs on
+ *     the smoothed curve (a corner using half of segments of h at curvature
+ *     k deviates about h^2 k / 8, (17)(19); more reserve costs the spline
+ *     band: 0.25 and 0.1 are both slower on MB-2.3).
+ *     Then MLIP_SMOOTH_POLISH more solves hold each sample still beyond
+ *     its radius on the band's edge (a fixed value), so the spline passes
+ *     there smoothly; the clamp then only trims what is left (alone, a
+ *     clamped sample is a kink the corners must slow down for).
  *  3. A vertex turning by more than sharp_deg is pinned (x = p) with its
  *     neighbours, and the sub-samples in the halves of its segments next to
  *     it are dropped: an isolated corner is passed fastest by the paper's
@@ -51,15 +71,23 @@
  * convex in u and at most max(|x_i - p_i|, |x_j - p_j|) = max(dev_i, dev_j).
  * Hence dist(x(u), original polyline) <= max(dev_i, dev_j).
  *
- * The tolerance split: the planner's corner at output vertex j stays within
- * tol_j of the output segments j and j+1 (17)(18), which are within
- * max(dev_{j-1}, dev_j, dev_{j+1}) of the original. So with
- *     tol_j = min(b_{j-1}, b_j, b_{j+1}) - max(dev_{j-1}, dev_j, dev_{j+1})
+ * The tolerance split: the planner's corner at output vertex j is the
+ * parabola (14) from S on segment j to E on segment j+1, a quadratic Bezier
+ * with control points S, x_j, E (x_j is where its tangents meet, (5)). Its
+ * point at t, B(t) = (1-t)^2 S + 2t(1-t) x_j + t^2 E, is t^2 (S + E - 2 x_j)
+ * away from the leg point S + 2t (x_j - S) for t <= 1/2 (and (1-t)^2 (...)
+ * from x_j + (2t - 1)(E - x_j) after), and |S + E - 2 x_j| / 4 = eps_c <=
+ * tol_j (17)(18): the corner stays within tol_j of its legs [S, x_j] and
+ * [x_j, E]. The legs lie in the halves of segments j and j+1 next to x_j
+ * (19), where by the convexity above the smoothing deviates at most
+ * max(dev_j, (dev_{j-1} + dev_j) / 2, (dev_j + dev_{j+1}) / 2). So with
+ *     tol_j = min(b_{j-1}, b_j, b_{j+1}) - that
  * the motion stays within the budget b (min(eps, the blocks' own tol_mm)).
  * tol_j > 0 because r_i = rho min(b_{i-2..i+2}) <= rho min(b_{j-1..j+1}).
- * At an exact point (a run's end) whatever follows is within rho b of the
- * original (the next run's first sample) or exact (a rapid): tol = b - max(
- * dev_{j-1}, rho b). A rapid that ends where a run starts gets (1 - rho) b.
+ * At an exact point (a run's end) whatever follows is exact (a rapid) or
+ * starts at the exact point and ends within rho b of the original (the next
+ * run's first segment): dev_{j+1} counts as rho b. A rapid that ends where
+ * a run starts gets (1 - rho / 2) b.
  */
 #include <math.h>
 #include <stddef.h>
@@ -68,7 +96,7 @@
 #include "mlip/smooth.h"
 
 #define SOLVE_BATCH 1024 /* samples frozen per solve */
-#define UNIFORM_STEPS 8 /* segments up to this many steps are sampled uniformly */
+#define UNIFORM_STEPS 5 /* segments up to this many steps are sampled uniformly */
 #define GEOM_LEVELS 7   /* else at 1, 2, ... 64 steps from each end */
 #define WEIGHT_UP_MAX 16.0
 #define WEIGHT_DOWN_MAX 0.25
@@ -81,13 +109,13 @@ enum { ROLE_START = 0, ROLE_SUB, ROLE_VERTEX, ROLE_PASS };
  * are flattened unless the band forbids it. */
 #define STEP_MM 0.1
 #define L0_MM 1.0
-#define SHARP_DEG 20.0
+#define SHARP_DEG 40.0
 #define GAP_STEPS 4.0
-#define CORNER_NEED 0.25
-#define JITTER_KEEP 0.9
-#define JITTER_MIN 0.5
-#define JITTER_PIN 0.5
-#define SHORT_FRAC 0.5
+#define CORNER_NEED 0.15
+#define JITTER_KEEP 0.97
+#define JITTER_MIN 0.4
+#define JITTER_PIN 0.4
+#define SHORT_FRAC 3.0
 
 
 static double dmin(double a, double b)
@@ -137,7 +165,7 @@ mlip_status mlip_smooth_init(struct mlip_smooth *sm, const struct mlip_machine *
 
 static int is_fixed(const struct mlip_smooth *sm, uint32_t i)
 {
-	return i < sm->frozen || sm->s[i].pinned;
+	return i < sm->frozen || sm->s[i].pinned || sm->s[i].hold;
 }
 
 /* Solve the window [a, count) and freeze up to `upto`. */
@@ -171,8 +199,29 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 		s[i].r = sm->rho * b;
 	}
 
-	int iters = m >= 3 ? MLIP_SMOOTH_ITER : 0;
-	for (int it = 0; it < iters; it++) {
+	int iters = m >= 3 ? MLIP_SMOOTH_ITER : 0, polish = m >= 3 ? MLIP_SMOOTH_POLISH : 0;
+	for (int it = 0; it < iters + polish; it++) {
+		/* polish: a sample still beyond its radius is held on the band's
+		 * edge and the spline solved again around it, so the curve passes
+		 * there smoothly; clamped alone it would be a kink, a spike of
+		 * curvature the corners must slow down for */
+		for (uint32_t i = 0; it >= iters && i < m; i++) {
+			if (is_fixed(sm, a + i)) {
+				continue;
+			}
+			double d2 = 0.0;
+			for (int k = 0; k < n; k++) {
+				double d = s[i].x[k] - s[i].p[k];
+				d2 += d * d;
+			}
+			if (d2 > s[i].r * s[i].r) {
+				double f = s[i].r > 0.0 ? s[i].r / sqrt(d2) : 0.0;
+				for (int k = 0; k < n; k++) {
+					s[i].x[k] = s[i].p[k] + (s[i].x[k] - s[i].p[k]) * f;
+				}
+				s[i].hold = 1;
+			}
+		}
 		for (uint32_t i = 0; i < m; i++) {
 			a0[i] = is_fixed(sm, a + i) ? 0.0 : s[i].w;
 			a1[i] = 0.0;
@@ -289,6 +338,9 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 	}
 
 	/* clamp into the band and freeze */
+	for (uint32_t i = 0; i < m; i++) {
+		s[i].hold = 0;
+	}
 	for (uint32_t i = 0; i < m; i++) {
 		if (a + i < sm->frozen) {
 			continue;
@@ -503,7 +555,10 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 		double c = 0.0;
 		for (int k = 0; k < n; k++) {
 			c += dir[k] * sm->last_dir[k];
-			kv[k] = dir[k] - sm->last_dir[k];
+			/* curvature vector at the vertex: the turn over the mean length
+			 * of its segments (a clean curve in uneven segments turns by
+			 * uneven angles, but its curvature changes steadily) */
+			kv[k] = (dir[k] - sm->last_dir[k]) / (0.5 * (sm->last_d_mm + d));
 		}
 		sharp = c < sm->sharp_cos;
 		/* How erratically the turns change from vertex to vertex (a
@@ -527,7 +582,7 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 				subdivide_last(sm);
 			}
 		} else if (!sharp && sm->pin_clean && sm->jitter <= sm->jitter_pin &&
-		           dmin(d, sm->s[sm->count - 1].h) >= SHORT_FRAC * sm->step_mm) {
+		           dmin(d, sm->last_d_mm) >= SHORT_FRAC * sm->step_mm) {
 			clean = 1;
 		}
 		if (sharp || clean) {
@@ -587,6 +642,7 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 	}
 	memcpy(sm->last, b->target, sizeof(double) * (size_t)n);
 	memcpy(sm->last_dir, dir, sizeof(double) * (size_t)n);
+	sm->last_d_mm = d;
 	sm->pend = pend && !sharp && !sm->s[sm->count - 1].pinned;
 	sm->pend_kv_ok = sm->have_dir;
 	if (sm->have_dir) {
@@ -628,7 +684,7 @@ mlip_status mlip_smooth_push(struct mlip_smooth *sm, const struct mlip_block *b)
 	if (is_move) {
 		double bb = budget(sm, b);
 		/* the run that may start at its end is within rho bb of it */
-		s->blk.tol_mm = (1.0 - sm->rho) * bb;
+		s->blk.tol_mm = (1.0 - 0.5 * sm->rho) * bb;
 		memcpy(sm->last, b->target, sizeof(double) * (size_t)sm->n);
 		sm->last_b = bb;
 	}
@@ -684,7 +740,10 @@ mlip_status mlip_smooth_pop(struct mlip_smooth *sm, struct mlip_block *out)
 			run_end = 1;
 		}
 		double b = dmin(dmin(sm->prev_b, s->b), next_b);
-		double tol = b - dmax(dmax(sm->prev_dev, s->dev), next_dev);
+		/* the corner's legs lie in the halves of its segments next to it
+		 * (19), where the smoothing deviates at most the mean of the two
+		 * ends' (see top) */
+		double tol = b - dmax(s->dev, 0.5 * (s->dev + dmax(sm->prev_dev, next_dev)));
 		*out = s->blk;
 		memcpy(out->target, s->x, sizeof(double) * (size_t)sm->n);
 		out->tol_mm = dmax(tol, 1e-12);

@@ -14,7 +14,8 @@
  *
  * Fixed memory (the struct, owned by the caller) and bounded work per block:
  * a block adds at most MLIP_SMOOTH_MAX_PIECES samples, and each sample is
- * solved over at most MLIP_SMOOTH_ITER iterations in at most two windows.
+ * solved over at most MLIP_SMOOTH_ITER + MLIP_SMOOTH_POLISH banded solves in at
+ * most two windows.
  * Pure C, no allocation, no I/O: the same code runs in every host tool.
  *
  * Use: push input blocks in program order; after each push, pop until
@@ -35,9 +36,10 @@
 #define MLIP_SMOOTH_CAP 4096      /* samples in the window */
 #define MLIP_SMOOTH_KEEP 512      /* samples left unsolved after a solve: the
                                      right-hand context of the frozen ones */
-#define MLIP_SMOOTH_MAX_PIECES 16 /* samples a block adds, at most (and up to 7 more
+#define MLIP_SMOOTH_MAX_PIECES 16 /* samples a block adds, at most (and up to 4 more
                                      sub-samples of the segment before it) */
 #define MLIP_SMOOTH_ITER 20       /* reweighting iterations per solve */
+#define MLIP_SMOOTH_POLISH 3      /* then solves holding the samples beyond their radius */
 #define MLIP_SMOOTH_RHO 0.95      /* share of the budget the smoothing may take */
 
 struct mlip_smooth_sample {
@@ -54,6 +56,7 @@ struct mlip_smooth_sample {
 	uint8_t role;            /* SMOOTH_* in smooth.c */
 	uint8_t pinned;          /* x = p exactly */
 	uint8_t drop;            /* not emitted (a sub-sample next to a sharp corner) */
+	uint8_t hold;            /* held on the band's edge while a solve polishes */
 };
 
 struct mlip_smooth {
@@ -67,14 +70,15 @@ struct mlip_smooth {
 	double corner_need;    /* share of h^2 k the corners keep (0: none) */
 	double last[MLIP_MAX_AXES]; /* last original point */
 	double last_dir[MLIP_MAX_AXES];
+	double last_d_mm;      /* length of the last original segment */
 	double last_b;         /* budget of the corner at last[] */
 	double run_feed;       /* feed of the open run */
 	int run_open;          /* a run of feed moves is open */
 	int have_dir;          /* last_dir valid (the run has a segment) */
 	int pend;              /* the newest segment is one sample, not yet subdivided */
 	int pend_kv_ok;        /* pend_kv is valid */
-	double pend_kv[MLIP_MAX_AXES]; /* turn at the pending segment's first vertex */
-	double jitter;         /* running mean of how erratically the turns change */
+	double pend_kv[MLIP_MAX_AXES]; /* curvature at the pending segment's first vertex */
+	double jitter;         /* running mean of how erratically the curvature changes */
 	double jitter_min;     /* subdivide where jitter is above this */
 	int pin_clean;         /* keep vertices exact where it is below jitter_pin */
 	double jitter_pin;

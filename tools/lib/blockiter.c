@@ -38,12 +38,13 @@ static int smooth_next(void *ctx, struct mlip_block *out)
 				return -1;
 			}
 			/* as the filter passes a rapid: the run that starts at its end
-			 * stays within rho b of it, so its corner keeps (1 - rho) b */
+			 * deviates at most rho b / 2 on the half of its first segment
+			 * next to it (smooth.c), so its corner keeps (1 - rho / 2) b */
 			double b = si->sm->eps_mm;
 			if (out->tol_mm > 0.0 && out->tol_mm < b) {
 				b = out->tol_mm;
 			}
-			out->tol_mm = (1.0 - si->sm->rho) * b;
+			out->tol_mm = (1.0 - 0.5 * si->sm->rho) * b;
 			si->sm->last_b = b;
 			si->started = 1;
 		}
