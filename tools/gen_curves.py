@@ -14,13 +14,14 @@ import argparse
 import math
 
 
-def lissajous(t):
-    return (40.0 * math.sin(3.0 * t + math.pi / 2), 30.0 * math.sin(4.0 * t), 0.0)
+# m: the module whose sin/cos to use (math here; numpy arrays in bench/topp.py)
+def lissajous(t, m=math):
+    return (40.0 * m.sin(3.0 * t + math.pi / 2), 30.0 * m.sin(4.0 * t), 0.0 * t)
 
 
-def spiral(t):
+def spiral(t, m=math):
     r = 2.0 + 0.5 * t
-    return (r * math.cos(t), r * math.sin(t), 0.5 * math.sin(3.0 * t))
+    return (r * m.cos(t), r * m.sin(t), 0.5 * m.sin(3.0 * t))
 
 
 CURVES = {"lissajous": (lissajous, 2 * math.pi, 2), "spiral": (spiral, 24 * math.pi, 3)}
