@@ -19,8 +19,9 @@ Paths:
   poly FILE.csv    a polyline (bench_smoothdump's output: the path `smooth`
                    hands the planner) read as a curve: the tangent at a vertex
                    is the mean of its two segments' directions, its curvature
-                   vector (e_i - e_{i-1}) / min(h_{i-1}, h_i), straight in
-                   between (long segments get grid points every --ds mm).
+                   vector (e_i - e_{i-1}) / min(h_{i-1}, h_i), both
+                   interpolated linearly at grid points every <= --ds mm
+                   between vertices.
 
 The rapid: every generated file starts with a G0 from the machine's start
 (the origin) to the curve's first point, which the bench runs as a feed move
@@ -157,24 +158,24 @@ def poly_grid(pts, ds):
     seg, hs = seg[keep], hs[keep]
     e = seg / hs[:, None]
     n_ax = pts.shape[1]
-    d1, d2, h = [], [], []
-    for i in range(len(hs)):
-        if i == 0:
-            d1.append(e[0])
-            d2.append(np.zeros(n_ax))
-        else:
-            t = e[i - 1] + e[i]
-            nt = np.linalg.norm(t)
-            d1.append(t / nt if nt > 1e-12 else e[i])
-            d2.append((e[i] - e[i - 1]) / min(hs[i - 1], hs[i]))
-        m = max(1, int(math.ceil(hs[i] / ds - 1e-9)))
-        for j in range(1, m):
-            d1.append(e[i])
-            d2.append(np.zeros(n_ax))
-        h.extend([hs[i] / m] * m)
-    d1.append(e[-1])
-    d2.append(np.zeros(n_ax))
-    return np.array(h), np.array(d1), np.array(d2), float(hs.sum())
+    # at the vertices: tangent the mean of the two directions, curvature
+    # vector the turn over the shorter leg; the ends straight
+    t_v = np.concatenate([e[:1], e[:-1] + e[1:], e[-1:]])
+    t_v /= np.linalg.norm(t_v, axis=1)[:, None]
+    k_v = np.zeros((len(pts), n_ax))
+    k_v[1:-1] = (e[1:] - e[:-1]) / np.minimum(hs[1:], hs[:-1])[:, None]
+    # grid: every vertex, and points every <= ds between, where tangent and
+    # curvature are interpolated linearly (a curvature concentrated at the
+    # vertices would let the grid brake at them and speed up between)
+    m = np.maximum(1, np.ceil(hs / ds - 1e-9).astype(int))
+    f = np.concatenate([np.arange(mi) / mi for mi in m] + [np.zeros(1)])
+    i = np.concatenate([np.full(mi, j) for j, mi in enumerate(m)] + [np.array([len(hs) - 1])])
+    f[-1] = 1.0
+    d1 = (1 - f)[:, None] * t_v[i] + f[:, None] * t_v[i + 1]
+    d1 /= np.linalg.norm(d1, axis=1)[:, None]
+    d2 = (1 - f)[:, None] * k_v[i] + f[:, None] * k_v[i + 1]
+    h = np.repeat(hs / m, m)
+    return h, d1, d2, float(hs.sum())
 
 
 def ceiling_curve(name, accel, vmax, ds):
