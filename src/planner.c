@@ -139,6 +139,62 @@ static double corner_soft_cap(const struct mlip_planner *p, const struct mlip_se
 	return q;
 }
 
+static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx);
+
+/*
+ * The smooth strategy's shape choice (beyond the paper), inside backward
+ * reachability: on a finely sampled curve corners abut and the speed can
+ * only change inside them, where the constant acceleration a = alpha e_e -
+ * beta e_s fixes v_e / v_s = alpha / beta. The plan's shape (shapes[0])
+ * turns fastest at a steady speed; where braking to the next corner limits
+ * it, a shape with v_e < v_s on the polygon's boundary brakes inside the
+ * turn too (normal and tangential parts together, as a time-optimal
+ * profile does). Take the shape that leaves the line before it the most:
+ * q B, the largest v^2 - 2 a l_s the line may arrive with (25), with q as
+ * the pass computes it (within the override's caps and (25)(26)). Every
+ * shape keeps the corner's guarantees (18)-(20) and B > 0, and the choice
+ * depends only on rhs and the caps: a full pass makes the same one, so the
+ * termination condition stays exact (it compares the shape too).
+ */
+static void choose_shape(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx,
+                         double rhs)
+{
+	double ts2 = sq(line_target(p, pr)), te2 = sq(line_target(p, nx));
+	int best = 0;
+	double best_val = 0.0;
+	for (int j = 0; j < pr->n_shapes; j++) {
+		const struct mlip_corner *c = &pr->shapes[j];
+		double vs2 = sq(c->vs_mm_s), ve2 = sq(c->ve_mm_s);
+		double q = 1.0;
+		if (vs2 > 0.0) {
+			q = dmin(q, ts2 / vs2);
+		}
+		if (ve2 > 0.0) {
+			q = dmin(q, te2 / ve2);
+		}
+		double cc = ve2 + 2.0 * nx->a_mm_s2 * c->le_mm;
+		int limited = cc > 0.0 && rhs < q * cc;
+		if (limited) {
+			q = dmax(rhs / cc, 0.0);
+		}
+		double val = q * (vs2 - 2.0 * pr->a_mm_s2 * c->ls_mm);
+		if (j == 0) {
+			if (!limited) {
+				break; /* braking does not limit the plan's shape: keep it */
+			}
+			best_val = val;
+		} else if (limited && val > best_val * (1.0 + 1e-12)) {
+			best = j;
+			best_val = val;
+		}
+	}
+	if (best != pr->shape) {
+		pr->shape = (uint8_t)best;
+		pr->c = pr->shapes[best];
+		link_coeffs(p, pr, nx);
+	}
+}
+
 /* Oldest corner the look-ahead may still change: the executing segment's end
  * corner, unless it is being executed. */
 static uint32_t first_mutable(const struct mlip_planner *p)
@@ -172,13 +228,18 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 			pr->qcap = corner_soft_cap(p, pr, s);
 		}
 		/* (25)(26): q_{i-1} C <= q_i B + 2 a d */
+		double rhs = q_next * s->brake_b + s->two_a_d;
+		uint8_t shape = pr->shape;
+		if (pr->n_shapes > 1 && pr->shape != MLIP_SHAPE_FIXED && i - 1 != p->tail) {
+			choose_shape(p, pr, s, rhs);
+		}
 		double q = pr->qcap;
 		if (pr->inv_brake_c > 0.0) {
-			q = dmin(q, (q_next * s->brake_b + s->two_a_d) * pr->inv_brake_c);
+			q = dmin(q, rhs * pr->inv_brake_c);
 		}
 		q = dmax(q, 0.0);
 		visits++;
-		if (!full && visits > fresh && q == pr->q) {
+		if (!full && visits > fresh && q == pr->q && shape == pr->shape) {
 			break; /* termination condition: nothing older can change */
 		}
 		pr->q = q;
@@ -203,8 +264,15 @@ static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struc
 
 static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx)
 {
+	pr->n_shapes = 0;
+	pr->shape = 0;
 	if (pr->exact) {
 		pr->c = (struct mlip_corner){0}; /* G61: as the stop strategy, at rest */
+	} else if (p->strategy == MLIP_STRATEGY_SMOOTH) {
+		pr->n_shapes = (uint8_t)mlip_corner_smooth_shapes(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm,
+		                                                  p->accel, pr->tol_mm, pr->vhard_mm_s,
+		                                                  nx->vhard_mm_s, pr->shapes);
+		pr->c = pr->shapes[0];
 	} else {
 		mlip_corner_plan(p->n, p->strategy, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
 		                 pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
@@ -408,6 +476,7 @@ static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struc
  * leaving fastest (then entering fastest) is taken.
  */
 #define SMOOTH_EXEC_W 16
+#define SMOOTH_EXEC_TILTS 9
 static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double rem, double v)
 {
 	struct mlip_seg *nx = seg_at(p, p->tail + 1);
@@ -425,9 +494,24 @@ static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double re
 	struct mlip_corner best = s->c;
 	double best_plan = s->q;
 	int found = 0;
-	for (int i = 1; i < SMOOTH_EXEC_W; i++) {
+	/* the w grid, then tilts from the plan's shape toward acceleration as
+	 * the braking shapes tilt the other way (mlip_corner_smooth_shapes) */
+	const struct mlip_corner *c0 = s->n_shapes > 0 ? &s->shapes[0] : &s->c;
+	double w0 = c0->alpha_mm_s2 / (c0->alpha_mm_s2 + c0->beta_mm_s2), th = 0.0;
+	for (int k = 0; k < p->n; k++) {
+		th += sq(nx->e[k] - s->e[k]);
+	}
+	double dw = sqrt(th) / 64.0;
+	for (int i = 1; i < SMOOTH_EXEC_W + SMOOTH_EXEC_TILTS; i++) {
 		struct mlip_corner c;
 		double w = (double)i / (double)SMOOTH_EXEC_W;
+		if (i >= SMOOTH_EXEC_W) {
+			w = w0 + dw;
+			dw *= 2.0;
+			if (!(w <= 1.0)) {
+				continue;
+			}
+		}
 		if (mlip_corner_smooth_w(p->n, s->e, nx->e, s->d_mm, nx->d_mm, p->accel, s->tol_mm,
 		                         s->vhard_mm_s, nx->vhard_mm_s, w, &c) != 0) {
 			continue;
@@ -466,6 +550,7 @@ static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double re
 		s->c = best;
 		link_coeffs(p, s, nx);
 		s->q = best_plan;
+		s->shape = MLIP_SHAPE_FIXED;
 	}
 }
 

@@ -74,6 +74,14 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
                       double vcap_s_mm_s, double vcap_e_mm_s, double period_s,
                       struct mlip_corner *c);
 
+/* The smooth strategy's corner shapes (beyond the paper, corner.c): out[0]
+ * is mlip_corner_plan's, then up to MLIP_SMOOTH_SHAPES - 1 braking shapes on
+ * the acceleration polygon's boundary (v_e < v_s) that the backward pass
+ * chooses where braking limits the corner. Returns how many. */
+#define MLIP_SMOOTH_SHAPES 6
+int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, double ds_mm,
+                              double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
+                              double vcap_e_mm_s, struct mlip_corner *out);
 /* ---- the planner ------------------------------------------------------- */
 
 /* One segment of the look-ahead: the line from the previous point to end[],
@@ -100,7 +108,12 @@ struct mlip_seg {
 	double qcap;                 /* largest q under the override (Sec. 3) */
 	/* look-ahead state */
 	double q;                    /* planned (t_m / t_g)^2 of the corner, in [0,1] */
+	/* smooth: the shapes c is chosen among (mlip_corner_smooth_shapes),
+	 * which one it is, or MLIP_SHAPE_FIXED once the executor chose c */
+	uint8_t n_shapes, shape;
+	struct mlip_corner shapes[MLIP_SMOOTH_SHAPES];
 };
+#define MLIP_SHAPE_FIXED 255
 
 /* A line's speed profile (35)(36): from v0 to vc at a1, cruise, to v1 at a3. */
 struct mlip_profile {
