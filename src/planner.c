@@ -149,19 +149,26 @@ static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struc
  * turns fastest at a steady speed; where braking to the next corner limits
  * it, a shape with v_e < v_s on the polygon's boundary brakes inside the
  * turn too (normal and tangential parts together, as a time-optimal
- * profile does). Take the shape that leaves the line before it the most:
- * q B, the largest v^2 - 2 a l_s the line may arrive with (25), with q as
- * the pass computes it (within the override's caps and (25)(26)). Every
- * shape keeps the corner's guarantees (18)-(20) and B > 0, and the choice
- * depends only on rhs and the caps: a full pass makes the same one, so the
- * termination condition stays exact (it compares the shape too).
+ * profile does). The measure is q B, the largest v^2 - 2 a l_s the line
+ * before may arrive with (25), q as the pass computes it; a braking shape
+ * only where its exit is at its bound (else it would leave slower than
+ * allowed).
+ *
+ * What the machine may still carry into a corner is bounded by the plans
+ * it followed, not only by this one (after an override cut or a hold it
+ * brakes as it can, Sec. 3.2 case b, and relies on each corner taking the
+ * speed the line cannot shed). So a corner changes shape only to a better
+ * one (q B larger: sticky, so passes that change nothing keep it), that
+ * takes every entry any plan promised it (B at q = 1 >= commit_in) and
+ * then leaves no faster than promised or allowed now (commit_in / B C <=
+ * max(commit_out, rhs)). Full passes (override, hold) only recompute q.
  */
 static void choose_shape(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx,
                          double rhs)
 {
 	double ts2 = sq(line_target(p, pr)), te2 = sq(line_target(p, nx));
-	int best = 0;
-	double best_val = 0.0;
+	double val[MLIP_SMOOTH_SHAPES], bb[MLIP_SMOOTH_SHAPES], cc[MLIP_SMOOTH_SHAPES];
+	int lim[MLIP_SMOOTH_SHAPES];
 	for (int j = 0; j < pr->n_shapes; j++) {
 		const struct mlip_corner *c = &pr->shapes[j];
 		double vs2 = sq(c->vs_mm_s), ve2 = sq(c->ve_mm_s);
@@ -172,21 +179,23 @@ static void choose_shape(struct mlip_planner *p, struct mlip_seg *pr, const stru
 		if (ve2 > 0.0) {
 			q = dmin(q, te2 / ve2);
 		}
-		double cc = ve2 + 2.0 * nx->a_mm_s2 * c->le_mm;
-		int limited = cc > 0.0 && rhs < q * cc;
-		if (limited) {
-			q = dmax(rhs / cc, 0.0);
+		cc[j] = ve2 + 2.0 * nx->a_mm_s2 * c->le_mm;
+		lim[j] = cc[j] > 0.0 && rhs < q * cc[j];
+		if (lim[j]) {
+			q = dmax(rhs / cc[j], 0.0);
 		}
-		double val = q * (vs2 - 2.0 * pr->a_mm_s2 * c->ls_mm);
-		if (j == 0) {
-			if (!limited) {
-				break; /* braking does not limit the plan's shape: keep it */
-			}
-			best_val = val;
-		} else if (limited && val > best_val * (1.0 + 1e-12)) {
-			best = j;
-			best_val = val;
+		bb[j] = vs2 - 2.0 * pr->a_mm_s2 * c->ls_mm;
+		val[j] = q * bb[j];
+	}
+	int best = pr->shape;
+	double best_val = val[best];
+	for (int j = 0; j < pr->n_shapes; j++) {
+		if (j == best || !(j == 0 || lim[j]) || !(val[j] > best_val * (1.0 + 1e-12)) ||
+		    !(bb[j] >= pr->commit_in) || !(pr->commit_in / bb[j] * cc[j] <= dmax(pr->commit_out, rhs))) {
+			continue;
 		}
+		best = j;
+		best_val = val[j];
 	}
 	if (best != pr->shape) {
 		pr->shape = (uint8_t)best;
@@ -230,7 +239,7 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 		/* (25)(26): q_{i-1} C <= q_i B + 2 a d */
 		double rhs = q_next * s->brake_b + s->two_a_d;
 		uint8_t shape = pr->shape;
-		if (pr->n_shapes > 1 && pr->shape != MLIP_SHAPE_FIXED && i - 1 != p->tail) {
+		if (!full && pr->n_shapes > 1 && pr->shape != MLIP_SHAPE_FIXED && i - 1 != p->tail) {
 			choose_shape(p, pr, s, rhs);
 		}
 		double q = pr->qcap;
@@ -243,6 +252,12 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 			break; /* termination condition: nothing older can change */
 		}
 		pr->q = q;
+		if (pr->n_shapes > 1) {
+			pr->commit_in = dmax(pr->commit_in, q * pr->brake_b);
+			if (pr->inv_brake_c > 0.0) {
+				pr->commit_out = dmax(pr->commit_out, q / pr->inv_brake_c);
+			}
+		}
 		q_next = q;
 		i--;
 	}
@@ -266,6 +281,8 @@ static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struc
 {
 	pr->n_shapes = 0;
 	pr->shape = 0;
+	pr->commit_in = 0.0;
+	pr->commit_out = 0.0;
 	if (pr->exact) {
 		pr->c = (struct mlip_corner){0}; /* G61: as the stop strategy, at rest */
 	} else if (p->strategy == MLIP_STRATEGY_SMOOTH) {

@@ -111,6 +111,7 @@ struct mlip_seg {
 	/* smooth: the shapes c is chosen among (mlip_corner_smooth_shapes),
 	 * which one it is, or MLIP_SHAPE_FIXED once the executor chose c */
 	uint8_t n_shapes, shape;
+	double commit_in, commit_out; /* the largest q B and q C any plan gave it */
 	struct mlip_corner shapes[MLIP_SMOOTH_SHAPES];
 };
 #define MLIP_SHAPE_FIXED 255
