@@ -247,14 +247,16 @@ static double line_accel(int n, const double *e, const double *accel)
  */
 int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, double ds_mm,
                               double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
-                              double vcap_e_mm_s, struct mlip_corner *out)
+                              double vcap_e_mm_s, struct mlip_corner *out, double *w_out)
 {
 	mlip_corner_plan(n, MLIP_STRATEGY_SMOOTH, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s,
 	                 vcap_e_mm_s, 0.0, &out[0]);
 	if (out[0].t_s == 0.0 || !(out[0].alpha_mm_s2 + out[0].beta_mm_s2 > 0.0)) {
+		w_out[0] = 0.5;
 		return 1;
 	}
 	double w0 = out[0].alpha_mm_s2 / (out[0].alpha_mm_s2 + out[0].beta_mm_s2);
+	w_out[0] = w0;
 	double th = 0.0;
 	for (int k = 0; k < n; k++) {
 		th += (e_e[k] - e_s[k]) * (e_e[k] - e_s[k]);
@@ -272,7 +274,7 @@ int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, doubl
 		    !(out[m].beta_mm_s2 > a_line)) {
 			continue;
 		}
-		m++;
+		w_out[m++] = w;
 	}
 	return m;
 }

@@ -145,7 +145,7 @@ static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struc
  * The smooth strategy's shape choice (beyond the paper), inside backward
  * reachability: on a finely sampled curve corners abut and the speed can
  * only change inside them, where the constant acceleration a = alpha e_e -
- * beta e_s fixes v_e / v_s = alpha / beta. The plan's shape (shapes[0])
+ * beta e_s fixes v_e / v_s = alpha / beta. The plan's shape (shape0)
  * turns fastest at a steady speed; where braking to the next corner limits
  * it, a shape with v_e < v_s on the polygon's boundary brakes inside the
  * turn too (normal and tangential parts together, as a time-optimal
@@ -166,32 +166,35 @@ static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struc
 static void choose_shape(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx,
                          double rhs)
 {
+	/* the plan's shape where braking does not limit it: nothing to gain
+	 * (and nothing to compute, the common case) */
+	if (pr->shape == 0 && !(pr->inv_brake_c > 0.0 && rhs * pr->inv_brake_c < pr->qcap)) {
+		return;
+	}
 	double ts2 = sq(line_target(p, pr)), te2 = sq(line_target(p, nx));
-	double val[MLIP_SMOOTH_SHAPES], bb[MLIP_SMOOTH_SHAPES], cc[MLIP_SMOOTH_SHAPES];
+	double val[MLIP_SMOOTH_SHAPES];
 	int lim[MLIP_SMOOTH_SHAPES];
 	for (int j = 0; j < pr->n_shapes; j++) {
-		const struct mlip_corner *c = &pr->shapes[j];
-		double vs2 = sq(c->vs_mm_s), ve2 = sq(c->ve_mm_s);
+		const struct mlip_shape *h = &pr->shapes[j];
 		double q = 1.0;
-		if (vs2 > 0.0) {
-			q = dmin(q, ts2 / vs2);
+		if (h->inv_vs2 > 0.0) {
+			q = dmin(q, ts2 * h->inv_vs2);
 		}
-		if (ve2 > 0.0) {
-			q = dmin(q, te2 / ve2);
+		if (h->inv_ve2 > 0.0) {
+			q = dmin(q, te2 * h->inv_ve2);
 		}
-		cc[j] = ve2 + 2.0 * nx->a_mm_s2 * c->le_mm;
-		lim[j] = cc[j] > 0.0 && rhs < q * cc[j];
+		lim[j] = h->inv_c > 0.0 && rhs < q * h->c;
 		if (lim[j]) {
-			q = dmax(rhs / cc[j], 0.0);
+			q = dmax(rhs * h->inv_c, 0.0);
 		}
-		bb[j] = vs2 - 2.0 * pr->a_mm_s2 * c->ls_mm;
-		val[j] = q * bb[j];
+		val[j] = q * h->b;
 	}
 	int best = pr->shape;
 	double best_val = val[best];
 	for (int j = 0; j < pr->n_shapes; j++) {
+		const struct mlip_shape *h = &pr->shapes[j];
 		if (j == best || !(j == 0 || lim[j]) || !(val[j] > best_val * (1.0 + 1e-12)) ||
-		    !(bb[j] >= pr->commit_in) || !(pr->commit_in / bb[j] * cc[j] <= dmax(pr->commit_out, rhs))) {
+		    !(h->b >= pr->commit_in) || !(pr->commit_in / h->b * h->c <= dmax(pr->commit_out, rhs))) {
 			continue;
 		}
 		best = j;
@@ -199,7 +202,12 @@ static void choose_shape(struct mlip_planner *p, struct mlip_seg *pr, const stru
 	}
 	if (best != pr->shape) {
 		pr->shape = (uint8_t)best;
-		pr->c = pr->shapes[best];
+		if (best == 0) {
+			pr->c = pr->shape0;
+		} else {
+			mlip_corner_smooth_w(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel, pr->tol_mm,
+			                     pr->vhard_mm_s, nx->vhard_mm_s, pr->shapes[best].w, &pr->c);
+		}
 		link_coeffs(p, pr, nx);
 	}
 }
@@ -286,10 +294,23 @@ static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struc
 	if (pr->exact) {
 		pr->c = (struct mlip_corner){0}; /* G61: as the stop strategy, at rest */
 	} else if (p->strategy == MLIP_STRATEGY_SMOOTH) {
-		pr->n_shapes = (uint8_t)mlip_corner_smooth_shapes(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm,
-		                                                  p->accel, pr->tol_mm, pr->vhard_mm_s,
-		                                                  nx->vhard_mm_s, pr->shapes);
-		pr->c = pr->shapes[0];
+		struct mlip_corner c[MLIP_SMOOTH_SHAPES];
+		double w[MLIP_SMOOTH_SHAPES];
+		int m = mlip_corner_smooth_shapes(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
+		                                  pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, c, w);
+		for (int j = 0; j < m; j++) {
+			/* what link_coeffs computes, for each */
+			struct mlip_shape *h = &pr->shapes[j];
+			h->w = w[j];
+			h->inv_vs2 = c[j].vs_mm_s > 0.0 ? 1.0 / sq(c[j].vs_mm_s) : 0.0;
+			h->inv_ve2 = c[j].ve_mm_s > 0.0 ? 1.0 / sq(c[j].ve_mm_s) : 0.0;
+			h->b = sq(c[j].vs_mm_s) - 2.0 * pr->a_mm_s2 * c[j].ls_mm;
+			h->c = sq(c[j].ve_mm_s) + 2.0 * nx->a_mm_s2 * c[j].le_mm;
+			h->inv_c = h->c > 0.0 ? 1.0 / h->c : 0.0;
+		}
+		pr->n_shapes = (uint8_t)m;
+		pr->shape0 = c[0];
+		pr->c = c[0];
 	} else {
 		mlip_corner_plan(p->n, p->strategy, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
 		                 pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
@@ -513,8 +534,7 @@ static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double re
 	int found = 0;
 	/* the w grid, then tilts from the plan's shape toward acceleration as
 	 * the braking shapes tilt the other way (mlip_corner_smooth_shapes) */
-	const struct mlip_corner *c0 = s->n_shapes > 0 ? &s->shapes[0] : &s->c;
-	double w0 = c0->alpha_mm_s2 / (c0->alpha_mm_s2 + c0->beta_mm_s2), th = 0.0;
+	double w0 = s->n_shapes > 0 ? s->shapes[0].w : 0.5, th = 0.0;
 	for (int k = 0; k < p->n; k++) {
 		th += sq(nx->e[k] - s->e[k]);
 	}

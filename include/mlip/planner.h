@@ -77,12 +77,20 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 /* The smooth strategy's corner shapes (beyond the paper, corner.c): out[0]
  * is mlip_corner_plan's, then up to MLIP_SMOOTH_SHAPES - 1 braking shapes on
  * the acceleration polygon's boundary (v_e < v_s) that the backward pass
- * chooses where braking limits the corner. Returns how many. */
+ * chooses where braking limits the corner, with their w (shapes 1..: the
+ * corner is mlip_corner_smooth_w's at that w). Returns how many. */
 #define MLIP_SMOOTH_SHAPES 6
 int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, double ds_mm,
                               double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
-                              double vcap_e_mm_s, struct mlip_corner *out);
+                              double vcap_e_mm_s, struct mlip_corner *out, double *w_out);
 /* ---- the planner ------------------------------------------------------- */
+
+/* A corner shape as the backward pass weighs it (smooth): its w (for
+ * mlip_corner_smooth_w) and, at q = 1, 1/v_s^2, 1/v_e^2, B = v_s^2 - 2 a l_s,
+ * C = v_e^2 + 2 a' l_e and 1/C (0 when C is 0), as link_coeffs has them. */
+struct mlip_shape {
+	double w, inv_vs2, inv_ve2, b, c, inv_c;
+};
 
 /* One segment of the look-ahead: the line from the previous point to end[],
  * and the corner at end[] towards the next segment. Private to the planner;
@@ -112,7 +120,8 @@ struct mlip_seg {
 	 * which one it is, or MLIP_SHAPE_FIXED once the executor chose c */
 	uint8_t n_shapes, shape;
 	double commit_in, commit_out; /* the largest q B and q C any plan gave it */
-	struct mlip_corner shapes[MLIP_SMOOTH_SHAPES];
+	struct mlip_corner shape0;    /* shapes[0]'s corner; the others from w */
+	struct mlip_shape shapes[MLIP_SMOOTH_SHAPES];
 };
 #define MLIP_SHAPE_FIXED 255
 

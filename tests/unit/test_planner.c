@@ -16,6 +16,7 @@
 
 #include "../../tools/lib/check.h"
 #include "mlip/planner.h"
+#include "mlip/smooth.h"
 
 #define REL 1e-9 /* stated tolerance on every physical limit */
 
@@ -718,7 +719,8 @@ static void test_smooth_shapes_keep_guarantees(void **state)
 		double ds = 0.005 + 0.5 * urand(), de = 0.005 + 0.5 * urand();
 		double eps = 0.001 + 0.01 * urand(), vs = 10.0 + 200.0 * urand(), ve = 10.0 + 200.0 * urand();
 		struct mlip_corner sh[MLIP_SMOOTH_SHAPES];
-		int m = mlip_corner_smooth_shapes(n, es, ee, ds, de, A, eps, vs, ve, sh);
+		double w[MLIP_SMOOTH_SHAPES];
+		int m = mlip_corner_smooth_shapes(n, es, ee, ds, de, A, eps, vs, ve, sh, w);
 		assert_true(m >= 1 && m <= MLIP_SMOOTH_SHAPES);
 		if (sh[0].t_s == 0.0) {
 			assert_int_equal(m, 1);
@@ -749,6 +751,10 @@ static void test_smooth_shapes_keep_guarantees(void **state)
 			assert_near(c->vs_mm_s, c->beta_mm_s2 * c->t_s, 1e-9 * c->vs_mm_s);
 			assert_near(c->ls_mm, 0.5 * c->vs_mm_s * c->t_s, 1e-9 * c->ls_mm); /* (5) */
 			if (j > 0) {
+				/* the planner rebuilds it from w: the very same corner */
+				struct mlip_corner r;
+				assert_int_equal(mlip_corner_smooth_w(n, es, ee, ds, de, A, eps, vs, ve, w[j], &r), 0);
+				assert_true(memcmp(&r, c, sizeof(r)) == 0);
 				assert_true(c->beta_mm_s2 > a_line);
 				assert_true(c->alpha_mm_s2 * sh[0].beta_mm_s2 <
 				            sh[0].alpha_mm_s2 * c->beta_mm_s2);
