@@ -9,6 +9,10 @@ MB-2.3_test.nc, flower-spiral-2d.ngc and two generated smooth curves in
 settings. Times are the simulator's, i.e. exact periods of the motion the
 controller would run.
 
+For the generated curves, the time-optimal ceiling too (bench/topp.py): the
+shortest time any planner could take along the exact curve under the same
+limits, so the ratios say how much of the possible the strategies reach.
+
 Table 1: look-ahead cost (medians of timed runs; instruction counts from
 callgrind, which do not depend on what else the shared machine is doing).
 """
@@ -23,6 +27,9 @@ import subprocess
 import sys
 import tempfile
 import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import topp  # noqa: E402  (bench/topp.py: the time-optimal ceiling)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SHARED = os.environ.get("MLIP_SHARED", os.path.join(ROOT, "..", "shared"))
@@ -81,6 +88,22 @@ def table2(build):
                   f"| {t[0] / t[3]:.2f}x faster "
                   f"| {p[0]:.2f} / {p[1]:.2f} / {p[2]:.2f} min, +{(p[1] / p[0] - 1) * 100:.1f} %, "
                   f"+{(p[2] / p[0] - 1) * 100:.1f} % |")
+        curve = os.path.basename(f)[:-4] if f.startswith(gen) else None
+        if curve is not None:
+            # the ceiling: no planner can be faster under the same limits
+            print(f"\n{curve}: the time-optimal traversal of the exact curve (bench/topp.py: per-axis"
+                  " |a_k| <= A_k, tangential and normal together, speed <= 200 mm/s; the rapid from the"
+                  " origin counted as a rest-to-rest straight move in all three; a path elsewhere in the"
+                  " tolerance band may be a little faster still):\n")
+            print("| accel x/y (mm/s^2) | mpct | smooth | time-optimal | smooth vs mpct |"
+                  " time-optimal vs mpct (the most possible) | smooth reaches |")
+            print("|---|---|---|---|---|---|---|")
+            for label, accel in SETTINGS:
+                t0, t3 = (res[(f, label, st)]["total_time_s"] for st in ("mpct", "smooth"))
+                c = topp.ceiling_curve(curve, [float(a) for a in accel.split(",")] * 2, 200.0, 0.02)
+                tc = c["total_s"]
+                print(f"| {label} | {t0:.2f} s | {t3:.2f} s | {tc:.2f} s | {t0 / t3:.2f}x | {t0 / tc:.2f}x"
+                      f" | {tc / t3 * 100:.1f} % of the ceiling |")
         worst = max(max(a / l for a, l in zip(r["max_axis_accel"], r["accel_limit"]))
                     for k, r in res.items() if k[0] == f)
         cont = max(r["max_contour_error_mm"] for k, r in res.items() if k[0] == f)
