@@ -521,6 +521,41 @@ static void test_eps_binds_end_to_end(void **state)
 	assert_physics(&m, &r, 0.99, 1);
 }
 
+/* Push a path block by block (running when full); every `every` blocks a
+ * full pass must leave every q (and shape) as the early-terminated passes
+ * left them. Returns how many braking shapes (smooth) it saw. */
+static int plan_equals_full_pass(const struct path *p, const struct mlip_machine *m,
+                                 mlip_strategy st, uint32_t cap, size_t every)
+{
+	static double q[MLIP_LOOKAHEAD];
+	static uint8_t sh[MLIP_LOOKAHEAD];
+	int n = p->n, braking = 0;
+	assert_int_equal(mlip_planner_init(&P, m, st, cap, p->pts), MLIP_OK);
+	double x[MLIP_MAX_AXES];
+	for (size_t i = 1; i < p->np; i++) {
+		struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
+		memcpy(b.target, p->pts + i * (size_t)n, sizeof(double) * (size_t)n);
+		while (mlip_planner_space(&P) == 0) {
+			mlip_planner_step(&P, x);
+		}
+		assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+		if (i % every == 0) {
+			for (uint32_t j = P.tail; j != P.head; j++) {
+				const struct mlip_seg *g = &P.seg[j & (P.cap - 1)];
+				q[j & (P.cap - 1)] = g->q;
+				sh[j & (P.cap - 1)] = g->shape;
+				braking += g->shape > 0 && g->shape != MLIP_SHAPE_FIXED;
+			}
+			mlip_planner_set_override(&P, 100.0); /* full pass */
+			for (uint32_t j = P.tail; j != P.head; j++) {
+				assert_true(q[j & (P.cap - 1)] == P.seg[j & (P.cap - 1)].q);
+				assert_int_equal(sh[j & (P.cap - 1)], P.seg[j & (P.cap - 1)].shape);
+			}
+		}
+	}
+	return braking;
+}
+
 static void test_termination_condition_is_exact(void **state)
 {
 	/* the early-terminated backward pass leaves exactly what a full pass
@@ -528,26 +563,7 @@ static void test_termination_condition_is_exact(void **state)
 	(void)state;
 	struct path p = make_path(3, 1, 3000);
 	struct mlip_machine m = machine(3, 1000, 200, 0.01);
-	static double q[MLIP_LOOKAHEAD];
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 1024, p.pts), MLIP_OK);
-	double x[3];
-	for (size_t i = 1; i < p.np; i++) {
-		struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
-		memcpy(b.target, p.pts + i * 3, sizeof(double) * 3);
-		while (mlip_planner_space(&P) == 0) {
-			mlip_planner_step(&P, x);
-		}
-		assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
-		if (i % 97 == 0) {
-			for (uint32_t j = P.tail; j != P.head; j++) {
-				q[j & (P.cap - 1)] = P.seg[j & (P.cap - 1)].q;
-			}
-			mlip_planner_set_override(&P, 100.0); /* full pass */
-			for (uint32_t j = P.tail; j != P.head; j++) {
-				assert_true(q[j & (P.cap - 1)] == P.seg[j & (P.cap - 1)].q);
-			}
-		}
-	}
+	plan_equals_full_pass(&p, &m, MLIP_STRATEGY_MPCT, 1024, 97);
 	free(p.pts);
 }
 
@@ -794,32 +810,7 @@ static void test_smooth_shapes_plan(void **state)
 	(void)state;
 	struct path p = make_fine_curve(30000);
 	struct mlip_machine m = machine(2, 1000, 200, 0.01);
-	static double q[MLIP_LOOKAHEAD];
-	static uint8_t sh[MLIP_LOOKAHEAD];
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_SMOOTH, 0, p.pts), MLIP_OK);
-	double x[2];
-	int braking = 0;
-	for (size_t i = 1; i < p.np; i++) {
-		struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
-		memcpy(b.target, p.pts + i * 2, sizeof(double) * 2);
-		while (mlip_planner_space(&P) == 0) {
-			mlip_planner_step(&P, x);
-		}
-		assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
-		if (i % 997 == 0) {
-			for (uint32_t j = P.tail; j != P.head; j++) {
-				q[j & (P.cap - 1)] = P.seg[j & (P.cap - 1)].q;
-				sh[j & (P.cap - 1)] = P.seg[j & (P.cap - 1)].shape;
-				braking += P.seg[j & (P.cap - 1)].shape > 0 &&
-				           P.seg[j & (P.cap - 1)].shape != MLIP_SHAPE_FIXED;
-			}
-			mlip_planner_set_override(&P, 100.0); /* full pass */
-			for (uint32_t j = P.tail; j != P.head; j++) {
-				assert_true(q[j & (P.cap - 1)] == P.seg[j & (P.cap - 1)].q);
-				assert_int_equal(sh[j & (P.cap - 1)], P.seg[j & (P.cap - 1)].shape);
-			}
-		}
-	}
+	int braking = plan_equals_full_pass(&p, &m, MLIP_STRATEGY_SMOOTH, 0, 997);
 	assert_true(braking > 1000);
 	static const int events[] = {EV_NONE, EV_STORM, EV_STORM, EV_STORM, EV_STORM, EV_STORM,
 	                             EV_STORM, EV_HOLD_RESUME, EV_STOP, EV_DRIP};
