@@ -57,7 +57,7 @@ def sim(build, path, accel, strategy):
 
 def table2(build):
     # plus smooth curves in 0.02 mm segments, coordinates rounded to 4 decimals
-    gen = os.path.join(build, "curves")
+    gen = os.path.abspath(os.path.join(build, "curves"))  # make bench gives a relative build
     os.makedirs(gen, exist_ok=True)
     for c in ("lissajous", "spiral"):
         subprocess.run([sys.executable, os.path.join(ROOT, "tools", "gen_curves.py"), c,
