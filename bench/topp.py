@@ -21,7 +21,10 @@ Paths:
                    is the mean of its two segments' directions, its curvature
                    vector (e_i - e_{i-1}) / min(h_{i-1}, h_i), both
                    interpolated linearly at grid points every <= --ds mm
-                   between vertices.
+                   between vertices. A model for finely sampled smooth
+                   paths: a sharp vertex becomes an arc of radius ~h /
+                   theta, tighter than a corner within eps may be, so on
+                   CAM output with sharp corners (MB-2.3) it is no ceiling.
 
 The rapid: every generated file starts with a G0 from the machine's start
 (the origin) to the curve's first point, which the bench runs as a feed move
@@ -161,7 +164,10 @@ def poly_grid(pts, ds):
     # at the vertices: tangent the mean of the two directions, curvature
     # vector the turn over the shorter leg; the ends straight
     t_v = np.concatenate([e[:1], e[:-1] + e[1:], e[-1:]])
-    t_v /= np.linalg.norm(t_v, axis=1)[:, None]
+    nt = np.linalg.norm(t_v, axis=1)
+    rev = nt < 1e-12  # a reversal: the direction it leaves in
+    t_v[rev] = np.concatenate([e, e[-1:]])[rev]
+    t_v /= np.where(rev, 1.0, nt)[:, None]
     k_v = np.zeros((len(pts), n_ax))
     k_v[1:-1] = (e[1:] - e[:-1]) / np.minimum(hs[1:], hs[:-1])[:, None]
     # grid: every vertex, and points every <= ds between, where tangent and
