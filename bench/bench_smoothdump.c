@@ -34,7 +34,8 @@ int main(int argc, char **argv)
 			raw = 1;
 		}
 	}
-	struct mlip_cli_machine mo = {.accel = accel, .vmax_mm_s = 200, .eps_mm = 0.01, .period_s = 0.001};
+	struct mlip_cli_machine mo = {
+	        .accel = accel, .vmax_mm_s = 200, .eps_mm = 0.01, .period_s = 0.001};
 	static struct mlip_config cfg;
 	static struct mlip_program_list prog;
 	if (mlip_cli_build_machine(&mo, path, &cfg, "bench_smoothdump", stderr) != 0 ||

@@ -249,8 +249,8 @@ int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, doubl
                               double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
                               double vcap_e_mm_s, struct mlip_corner *out, double *w_out)
 {
-	mlip_corner_plan(n, MLIP_STRATEGY_SMOOTH, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s,
-	                 vcap_e_mm_s, 0.0, &out[0]);
+	mlip_corner_plan(n, MLIP_STRATEGY_SMOOTH, e_s, e_e, ds_mm, de_mm, accel, eps_mm,
+	                 vcap_s_mm_s, vcap_e_mm_s, 0.0, &out[0]);
 	if (out[0].t_s == 0.0 || !(out[0].alpha_mm_s2 + out[0].beta_mm_s2 > 0.0)) {
 		w_out[0] = 0.5;
 		return 1;
@@ -269,8 +269,9 @@ int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, doubl
 	double dw = th / 32.0;
 	for (int i = 1; i < MLIP_SMOOTH_SHAPES; i++, dw *= 2.0) {
 		double w = w0 - dw;
-		if (!(w >= 0.0) || mlip_corner_smooth_w(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s,
-		                                      vcap_e_mm_s, w, &out[m]) != 0 ||
+		if (!(w >= 0.0) ||
+		    mlip_corner_smooth_w(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s,
+		                         vcap_e_mm_s, w, &out[m]) != 0 ||
 		    !(out[m].beta_mm_s2 > a_line)) {
 			continue;
 		}

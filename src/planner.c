@@ -194,7 +194,8 @@ static void choose_shape(struct mlip_planner *p, struct mlip_seg *pr, const stru
 	for (int j = 0; j < pr->n_shapes; j++) {
 		const struct mlip_shape *h = &pr->shapes[j];
 		if (j == best || !(j == 0 || lim[j]) || !(val[j] > best_val * (1.0 + 1e-12)) ||
-		    !(h->b >= pr->commit_in) || !(pr->commit_in / h->b * h->c <= dmax(pr->commit_out, rhs))) {
+		    !(h->b >= pr->commit_in) ||
+		    !(pr->commit_in / h->b * h->c <= dmax(pr->commit_out, rhs))) {
 			continue;
 		}
 		best = j;
@@ -205,8 +206,9 @@ static void choose_shape(struct mlip_planner *p, struct mlip_seg *pr, const stru
 		if (best == 0) {
 			pr->c = pr->shape0;
 		} else {
-			mlip_corner_smooth_w(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel, pr->tol_mm,
-			                     pr->vhard_mm_s, nx->vhard_mm_s, pr->shapes[best].w, &pr->c);
+			mlip_corner_smooth_w(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
+			                     pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s,
+			                     pr->shapes[best].w, &pr->c);
 		}
 		link_coeffs(p, pr, nx);
 	}
@@ -247,7 +249,8 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 		/* (25)(26): q_{i-1} C <= q_i B + 2 a d */
 		double rhs = q_next * s->brake_b + s->two_a_d;
 		uint8_t shape = pr->shape;
-		if (!full && pr->n_shapes > 1 && pr->shape != MLIP_SHAPE_FIXED && i - 1 != p->tail) {
+		if (!full && pr->n_shapes > 1 && pr->shape != MLIP_SHAPE_FIXED &&
+		    i - 1 != p->tail) {
 			choose_shape(p, pr, s, rhs);
 		}
 		double q = pr->qcap;

@@ -733,7 +733,8 @@ static void test_smooth_shapes_keep_guarantees(void **state)
 			ee[k] /= sqrt(ne);
 		}
 		double ds = 0.005 + 0.5 * urand(), de = 0.005 + 0.5 * urand();
-		double eps = 0.001 + 0.01 * urand(), vs = 10.0 + 200.0 * urand(), ve = 10.0 + 200.0 * urand();
+		double eps = 0.001 + 0.01 * urand();
+		double vs = 10.0 + 200.0 * urand(), ve = 10.0 + 200.0 * urand();
 		struct mlip_corner sh[MLIP_SMOOTH_SHAPES];
 		double w[MLIP_SMOOTH_SHAPES];
 		int m = mlip_corner_smooth_shapes(n, es, ee, ds, de, A, eps, vs, ve, sh, w);
@@ -753,7 +754,8 @@ static void test_smooth_shapes_keep_guarantees(void **state)
 			double a2 = 0.0, amax = 0.0;
 			for (int k = 0; k < n; k++) {
 				double ak = c->alpha_mm_s2 * ee[k] - c->beta_mm_s2 * es[k];
-				double round_off = 8.0 * DBL_EPSILON * (c->alpha_mm_s2 + c->beta_mm_s2);
+				double round_off =
+				        8.0 * DBL_EPSILON * (c->alpha_mm_s2 + c->beta_mm_s2);
 				assert_le(fabs(ak), A[k] * (1.0 + 1e-12) + round_off);
 				amax = fmax(amax, fabs(ak) / A[k]);
 				a2 += ak * ak;
@@ -769,7 +771,8 @@ static void test_smooth_shapes_keep_guarantees(void **state)
 			if (j > 0) {
 				/* the planner rebuilds it from w: the very same corner */
 				struct mlip_corner r;
-				assert_int_equal(mlip_corner_smooth_w(n, es, ee, ds, de, A, eps, vs, ve, w[j], &r), 0);
+				int rc = mlip_corner_smooth_w(n, es, ee, ds, de, A, eps, vs, ve, w[j], &r);
+				assert_int_equal(rc, 0);
 				assert_true(memcmp(&r, c, sizeof(r)) == 0);
 				assert_true(c->beta_mm_s2 > a_line);
 				assert_true(c->alpha_mm_s2 * sh[0].beta_mm_s2 <
@@ -817,7 +820,8 @@ static void test_smooth_shapes_plan(void **state)
 	for (int e = 0; e < 10; e++) {
 		struct run r;
 		run_path(&m, MLIP_STRATEGY_SMOOTH, &p, events[e], &r);
-		print_message("smooth, events %d: %.3f s\n", events[e], (double)r.periods * m.period_s);
+		print_message("smooth, events %d: %.3f s\n", events[e],
+		              (double)r.periods * m.period_s);
 		assert_physics(&m, &r, 0.5, events[e] != EV_STOP);
 		assert_le(r.hold_drift, 1e-12);
 		if (events[e] == EV_STOP) {
