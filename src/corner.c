@@ -221,6 +221,65 @@ static int corner_smooth(int n, const double *e_s, const double *e_e, double ds_
 	return 0;
 }
 
+/* The line's own acceleration limit a_{i,m} along e (Sec. 2.1). */
+static double line_accel(int n, const double *e, const double *accel)
+{
+	double a = INFINITY;
+	for (int k = 0; k < n; k++) {
+		if (e[k] != 0.0) {
+			a = dmin(a, accel[k] / fabs(e[k]));
+		}
+	}
+	return a;
+}
+
+/*
+ * The smooth strategy's corner shapes (beyond the paper): out[0] is
+ * mlip_corner_plan's (the one whose slower end is fastest), then braking
+ * shapes on the polygon's boundary with w = alpha / (alpha + beta) below
+ * its w0, so v_e / v_s = w / (1 - w) is smaller. For a turn by theta,
+ * e_e,s = e +- (theta / 2) n, so a = (alpha + beta) ((2w - 1) e + (theta /
+ * 2) n): w = 1/2 is the normal direction and w0 - w = theta / 4 tilts a by
+ * about 45 degrees toward braking. The backward pass chooses among them
+ * where braking limits the corner (planner.c). Each keeps (18)-(20) and
+ * beta above the line's own limit (B > 0, see corner_smooth). Returns how
+ * many (1 when the corner is straight or no braking shape qualifies).
+ */
+int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, double ds_mm,
+                              double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
+                              double vcap_e_mm_s, struct mlip_corner *out, double *w_out)
+{
+	mlip_corner_plan(n, MLIP_STRATEGY_SMOOTH, e_s, e_e, ds_mm, de_mm, accel, eps_mm,
+	                 vcap_s_mm_s, vcap_e_mm_s, 0.0, &out[0]);
+	if (out[0].t_s == 0.0 || !(out[0].alpha_mm_s2 + out[0].beta_mm_s2 > 0.0)) {
+		w_out[0] = 0.5;
+		return 1;
+	}
+	double w0 = out[0].alpha_mm_s2 / (out[0].alpha_mm_s2 + out[0].beta_mm_s2);
+	w_out[0] = w0;
+	double th = 0.0;
+	for (int k = 0; k < n; k++) {
+		th += (e_e[k] - e_s[k]) * (e_e[k] - e_s[k]);
+	}
+	th = sqrt(th);
+	double a_line = line_accel(n, e_s, accel);
+	int m = 1;
+	/* w0 - w = theta / 32 ... theta / 2, doubling (finer or more steps
+	 * gain < 0.1 % on the bench's curves) */
+	double dw = th / 32.0;
+	for (int i = 1; i < MLIP_SMOOTH_SHAPES; i++, dw *= 2.0) {
+		double w = w0 - dw;
+		if (!(w >= 0.0) ||
+		    mlip_corner_smooth_w(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s,
+		                         vcap_e_mm_s, w, &out[m]) != 0 ||
+		    !(out[m].beta_mm_s2 > a_line)) {
+			continue;
+		}
+		w_out[m++] = w;
+	}
+	return m;
+}
+
 void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *e_e,
                       double ds_mm, double de_mm, const double *accel, double eps_mm,
                       double vcap_s_mm_s, double vcap_e_mm_s, double period_s,

@@ -139,6 +139,81 @@ static double corner_soft_cap(const struct mlip_planner *p, const struct mlip_se
 	return q;
 }
 
+static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx);
+
+/*
+ * The smooth strategy's shape choice (beyond the paper), inside backward
+ * reachability: on a finely sampled curve corners abut and the speed can
+ * only change inside them, where the constant acceleration a = alpha e_e -
+ * beta e_s fixes v_e / v_s = alpha / beta. The plan's shape (shape0)
+ * turns fastest at a steady speed; where braking to the next corner limits
+ * it, a shape with v_e < v_s on the polygon's boundary brakes inside the
+ * turn too (normal and tangential parts together, as a time-optimal
+ * profile does). The measure is q B, the largest v^2 - 2 a l_s the line
+ * before may arrive with (25), q as the pass computes it; a braking shape
+ * only where its exit is at its bound (else it would leave slower than
+ * allowed).
+ *
+ * What the machine may still carry into a corner is bounded by the plans
+ * it followed, not only by this one (after an override cut or a hold it
+ * brakes as it can, Sec. 3.2 case b, and relies on each corner taking the
+ * speed the line cannot shed). So a corner changes shape only to a better
+ * one (q B larger: sticky, so passes that change nothing keep it), that
+ * takes every entry any plan promised it (B at q = 1 >= commit_in) and
+ * then leaves no faster than promised or allowed now (commit_in / B C <=
+ * max(commit_out, rhs)). Full passes (override, hold) only recompute q.
+ */
+static void choose_shape(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx,
+                         double rhs)
+{
+	/* the plan's shape where braking does not limit it: nothing to gain
+	 * (and nothing to compute, the common case) */
+	if (pr->shape == 0 && !(pr->inv_brake_c > 0.0 && rhs * pr->inv_brake_c < pr->qcap)) {
+		return;
+	}
+	double ts2 = sq(line_target(p, pr)), te2 = sq(line_target(p, nx));
+	double val[MLIP_SMOOTH_SHAPES];
+	int lim[MLIP_SMOOTH_SHAPES];
+	for (int j = 0; j < pr->n_shapes; j++) {
+		const struct mlip_shape *h = &pr->shapes[j];
+		double q = 1.0;
+		if (h->inv_vs2 > 0.0) {
+			q = dmin(q, ts2 * h->inv_vs2);
+		}
+		if (h->inv_ve2 > 0.0) {
+			q = dmin(q, te2 * h->inv_ve2);
+		}
+		lim[j] = h->inv_c > 0.0 && rhs < q * h->c;
+		if (lim[j]) {
+			q = dmax(rhs * h->inv_c, 0.0);
+		}
+		val[j] = q * h->b;
+	}
+	int best = pr->shape;
+	double best_val = val[best];
+	for (int j = 0; j < pr->n_shapes; j++) {
+		const struct mlip_shape *h = &pr->shapes[j];
+		if (j == best || !(j == 0 || lim[j]) || !(val[j] > best_val * (1.0 + 1e-12)) ||
+		    !(h->b >= pr->commit_in) ||
+		    !(pr->commit_in / h->b * h->c <= dmax(pr->commit_out, rhs))) {
+			continue;
+		}
+		best = j;
+		best_val = val[j];
+	}
+	if (best != pr->shape) {
+		pr->shape = (uint8_t)best;
+		if (best == 0) {
+			pr->c = pr->shape0;
+		} else {
+			mlip_corner_smooth_w(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
+			                     pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s,
+			                     pr->shapes[best].w, &pr->c);
+		}
+		link_coeffs(p, pr, nx);
+	}
+}
+
 /* Oldest corner the look-ahead may still change: the executing segment's end
  * corner, unless it is being executed. */
 static uint32_t first_mutable(const struct mlip_planner *p)
@@ -172,16 +247,28 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 			pr->qcap = corner_soft_cap(p, pr, s);
 		}
 		/* (25)(26): q_{i-1} C <= q_i B + 2 a d */
+		double rhs = q_next * s->brake_b + s->two_a_d;
+		uint8_t shape = pr->shape;
+		if (!full && pr->n_shapes > 1 && pr->shape != MLIP_SHAPE_FIXED &&
+		    i - 1 != p->tail) {
+			choose_shape(p, pr, s, rhs);
+		}
 		double q = pr->qcap;
 		if (pr->inv_brake_c > 0.0) {
-			q = dmin(q, (q_next * s->brake_b + s->two_a_d) * pr->inv_brake_c);
+			q = dmin(q, rhs * pr->inv_brake_c);
 		}
 		q = dmax(q, 0.0);
 		visits++;
-		if (!full && visits > fresh && q == pr->q) {
+		if (!full && visits > fresh && q == pr->q && shape == pr->shape) {
 			break; /* termination condition: nothing older can change */
 		}
 		pr->q = q;
+		if (pr->n_shapes > 1) {
+			pr->commit_in = dmax(pr->commit_in, q * pr->brake_b);
+			if (pr->inv_brake_c > 0.0) {
+				pr->commit_out = dmax(pr->commit_out, q / pr->inv_brake_c);
+			}
+		}
 		q_next = q;
 		i--;
 	}
@@ -203,8 +290,30 @@ static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struc
 
 static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx)
 {
+	pr->n_shapes = 0;
+	pr->shape = 0;
+	pr->commit_in = 0.0;
+	pr->commit_out = 0.0;
 	if (pr->exact) {
 		pr->c = (struct mlip_corner){0}; /* G61: as the stop strategy, at rest */
+	} else if (p->strategy == MLIP_STRATEGY_SMOOTH) {
+		struct mlip_corner c[MLIP_SMOOTH_SHAPES];
+		double w[MLIP_SMOOTH_SHAPES];
+		int m = mlip_corner_smooth_shapes(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
+		                                  pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, c, w);
+		for (int j = 0; j < m; j++) {
+			/* what link_coeffs computes, for each */
+			struct mlip_shape *h = &pr->shapes[j];
+			h->w = w[j];
+			h->inv_vs2 = c[j].vs_mm_s > 0.0 ? 1.0 / sq(c[j].vs_mm_s) : 0.0;
+			h->inv_ve2 = c[j].ve_mm_s > 0.0 ? 1.0 / sq(c[j].ve_mm_s) : 0.0;
+			h->b = sq(c[j].vs_mm_s) - 2.0 * pr->a_mm_s2 * c[j].ls_mm;
+			h->c = sq(c[j].ve_mm_s) + 2.0 * nx->a_mm_s2 * c[j].le_mm;
+			h->inv_c = h->c > 0.0 ? 1.0 / h->c : 0.0;
+		}
+		pr->n_shapes = (uint8_t)m;
+		pr->shape0 = c[0];
+		pr->c = c[0];
 	} else {
 		mlip_corner_plan(p->n, p->strategy, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
 		                 pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
@@ -408,6 +517,7 @@ static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struc
  * leaving fastest (then entering fastest) is taken.
  */
 #define SMOOTH_EXEC_W 16
+#define SMOOTH_EXEC_TILTS 9
 static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double rem, double v)
 {
 	struct mlip_seg *nx = seg_at(p, p->tail + 1);
@@ -425,9 +535,23 @@ static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double re
 	struct mlip_corner best = s->c;
 	double best_plan = s->q;
 	int found = 0;
-	for (int i = 1; i < SMOOTH_EXEC_W; i++) {
+	/* the w grid, then tilts from the plan's shape toward acceleration as
+	 * the braking shapes tilt the other way (mlip_corner_smooth_shapes) */
+	double w0 = s->n_shapes > 0 ? s->shapes[0].w : 0.5, th = 0.0;
+	for (int k = 0; k < p->n; k++) {
+		th += sq(nx->e[k] - s->e[k]);
+	}
+	double dw = sqrt(th) / 64.0;
+	for (int i = 1; i < SMOOTH_EXEC_W + SMOOTH_EXEC_TILTS; i++) {
 		struct mlip_corner c;
 		double w = (double)i / (double)SMOOTH_EXEC_W;
+		if (i >= SMOOTH_EXEC_W) {
+			w = w0 + dw;
+			dw *= 2.0;
+			if (!(w <= 1.0)) {
+				continue;
+			}
+		}
 		if (mlip_corner_smooth_w(p->n, s->e, nx->e, s->d_mm, nx->d_mm, p->accel, s->tol_mm,
 		                         s->vhard_mm_s, nx->vhard_mm_s, w, &c) != 0) {
 			continue;
@@ -466,6 +590,7 @@ static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double re
 		s->c = best;
 		link_coeffs(p, s, nx);
 		s->q = best_plan;
+		s->shape = MLIP_SHAPE_FIXED;
 	}
 }
 

@@ -5,25 +5,34 @@ does: the case where the paper's corners are limited by the rounding noise
 
   tools/gen_curves.py lissajous OUT.ngc [--seg 0.02] [--decimals 4]
   tools/gen_curves.py spiral OUT.ngc
+  tools/gen_curves.py trochoid OUT.ngc
 
 lissajous: x = 40 sin(3 t + pi/2), y = 30 sin(4 t), one period (about 0.9 m);
 spiral: an Archimedean spiral r = 2 + 0.5 theta over 12 turns (XY), with
-Z = 0.5 sin(3 theta) (3-D). Points are placed every --seg mm of arc length.
+Z = 0.5 sin(3 theta) (3-D); trochoid: the loops of trochoidal (adaptive)
+clearing, x = 3 cos t + 0.5 t / (2 pi), y = 3 sin t, 40 loops of radius 3 mm
+advancing 0.5 mm each. Points are placed every --seg mm of arc length.
 """
 import argparse
 import math
 
 
-def lissajous(t):
-    return (40.0 * math.sin(3.0 * t + math.pi / 2), 30.0 * math.sin(4.0 * t), 0.0)
+# m: the module whose sin/cos to use (math here; numpy arrays in bench/topp.py)
+def lissajous(t, m=math):
+    return (40.0 * m.sin(3.0 * t + math.pi / 2), 30.0 * m.sin(4.0 * t), 0.0 * t)
 
 
-def spiral(t):
+def spiral(t, m=math):
     r = 2.0 + 0.5 * t
-    return (r * math.cos(t), r * math.sin(t), 0.5 * math.sin(3.0 * t))
+    return (r * m.cos(t), r * m.sin(t), 0.5 * m.sin(3.0 * t))
 
 
-CURVES = {"lissajous": (lissajous, 2 * math.pi, 2), "spiral": (spiral, 24 * math.pi, 3)}
+def trochoid(t, m=math):
+    return (3.0 * m.cos(t) + 0.5 * t / (2 * math.pi), 3.0 * m.sin(t), 0.0 * t)
+
+
+CURVES = {"lissajous": (lissajous, 2 * math.pi, 2), "spiral": (spiral, 24 * math.pi, 3),
+          "trochoid": (trochoid, 80 * math.pi, 2)}
 
 
 def main():

@@ -74,7 +74,23 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
                       double vcap_s_mm_s, double vcap_e_mm_s, double period_s,
                       struct mlip_corner *c);
 
+/* The smooth strategy's corner shapes (beyond the paper, corner.c): out[0]
+ * is mlip_corner_plan's, then up to MLIP_SMOOTH_SHAPES - 1 braking shapes on
+ * the acceleration polygon's boundary (v_e < v_s) that the backward pass
+ * chooses where braking limits the corner, with their w (shapes 1..: the
+ * corner is mlip_corner_smooth_w's at that w). Returns how many. */
+#define MLIP_SMOOTH_SHAPES 6
+int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, double ds_mm,
+                              double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
+                              double vcap_e_mm_s, struct mlip_corner *out, double *w_out);
 /* ---- the planner ------------------------------------------------------- */
+
+/* A corner shape as the backward pass weighs it (smooth): its w (for
+ * mlip_corner_smooth_w) and, at q = 1, 1/v_s^2, 1/v_e^2, B = v_s^2 - 2 a l_s,
+ * C = v_e^2 + 2 a' l_e and 1/C (0 when C is 0), as link_coeffs has them. */
+struct mlip_shape {
+	double w, inv_vs2, inv_ve2, b, c, inv_c;
+};
 
 /* One segment of the look-ahead: the line from the previous point to end[],
  * and the corner at end[] towards the next segment. Private to the planner;
@@ -100,7 +116,14 @@ struct mlip_seg {
 	double qcap;                 /* largest q under the override (Sec. 3) */
 	/* look-ahead state */
 	double q;                    /* planned (t_m / t_g)^2 of the corner, in [0,1] */
+	/* smooth: the shapes c is chosen among (mlip_corner_smooth_shapes),
+	 * which one it is, or MLIP_SHAPE_FIXED once the executor chose c */
+	uint8_t n_shapes, shape;
+	double commit_in, commit_out; /* the largest q B and q C any plan gave it */
+	struct mlip_corner shape0;    /* shapes[0]'s corner; the others from w */
+	struct mlip_shape shapes[MLIP_SMOOTH_SHAPES];
 };
+#define MLIP_SHAPE_FIXED 255
 
 /* A line's speed profile (35)(36): from v0 to vc at a1, cruise, to v1 at a3. */
 struct mlip_profile {

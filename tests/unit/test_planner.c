@@ -3,6 +3,7 @@
  * against physics measured from the setpoints alone (tools/lib/check.c).
  * Every physical bound is asserted on both sides, with its tolerance.
  */
+#include <float.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -15,6 +16,7 @@
 
 #include "../../tools/lib/check.h"
 #include "mlip/planner.h"
+#include "mlip/smooth.h"
 
 #define REL 1e-9 /* stated tolerance on every physical limit */
 
@@ -519,6 +521,41 @@ static void test_eps_binds_end_to_end(void **state)
 	assert_physics(&m, &r, 0.99, 1);
 }
 
+/* Push a path block by block (running when full); every `every` blocks a
+ * full pass must leave every q (and shape) as the early-terminated passes
+ * left them. Returns how many braking shapes (smooth) it saw. */
+static int plan_equals_full_pass(const struct path *p, const struct mlip_machine *m,
+                                 mlip_strategy st, uint32_t cap, size_t every)
+{
+	static double q[MLIP_LOOKAHEAD];
+	static uint8_t sh[MLIP_LOOKAHEAD];
+	int n = p->n, braking = 0;
+	assert_int_equal(mlip_planner_init(&P, m, st, cap, p->pts), MLIP_OK);
+	double x[MLIP_MAX_AXES];
+	for (size_t i = 1; i < p->np; i++) {
+		struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
+		memcpy(b.target, p->pts + i * (size_t)n, sizeof(double) * (size_t)n);
+		while (mlip_planner_space(&P) == 0) {
+			mlip_planner_step(&P, x);
+		}
+		assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+		if (i % every == 0) {
+			for (uint32_t j = P.tail; j != P.head; j++) {
+				const struct mlip_seg *g = &P.seg[j & (P.cap - 1)];
+				q[j & (P.cap - 1)] = g->q;
+				sh[j & (P.cap - 1)] = g->shape;
+				braking += g->shape > 0 && g->shape != MLIP_SHAPE_FIXED;
+			}
+			mlip_planner_set_override(&P, 100.0); /* full pass */
+			for (uint32_t j = P.tail; j != P.head; j++) {
+				assert_true(q[j & (P.cap - 1)] == P.seg[j & (P.cap - 1)].q);
+				assert_int_equal(sh[j & (P.cap - 1)], P.seg[j & (P.cap - 1)].shape);
+			}
+		}
+	}
+	return braking;
+}
+
 static void test_termination_condition_is_exact(void **state)
 {
 	/* the early-terminated backward pass leaves exactly what a full pass
@@ -526,26 +563,7 @@ static void test_termination_condition_is_exact(void **state)
 	(void)state;
 	struct path p = make_path(3, 1, 3000);
 	struct mlip_machine m = machine(3, 1000, 200, 0.01);
-	static double q[MLIP_LOOKAHEAD];
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 1024, p.pts), MLIP_OK);
-	double x[3];
-	for (size_t i = 1; i < p.np; i++) {
-		struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
-		memcpy(b.target, p.pts + i * 3, sizeof(double) * 3);
-		while (mlip_planner_space(&P) == 0) {
-			mlip_planner_step(&P, x);
-		}
-		assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
-		if (i % 97 == 0) {
-			for (uint32_t j = P.tail; j != P.head; j++) {
-				q[j & (P.cap - 1)] = P.seg[j & (P.cap - 1)].q;
-			}
-			mlip_planner_set_override(&P, 100.0); /* full pass */
-			for (uint32_t j = P.tail; j != P.head; j++) {
-				assert_true(q[j & (P.cap - 1)] == P.seg[j & (P.cap - 1)].q);
-			}
-		}
-	}
+	plan_equals_full_pass(&p, &m, MLIP_STRATEGY_MPCT, 1024, 97);
 	free(p.pts);
 }
 
@@ -688,6 +706,131 @@ static void test_running_dry_is_safe(void **state)
 	free(p.pts);
 }
 
+/* ---- smooth: braking shapes (beyond the paper) ---------------------------- */
+
+/* Every shape mlip_corner_smooth_shapes offers keeps the corner's
+ * guarantees on random corners, gentle to sharp: |a_k| <= A_k, a on the
+ * polygon's boundary, (18) deviation <= eps, (19) l <= d / 2, (20) v <=
+ * caps, beta above the line's limit (B > 0); shapes 1.. brake harder than
+ * shape 0 (v_e / v_s smaller, so a tilts toward -e). Relative 1e-12. */
+static void test_smooth_shapes_keep_guarantees(void **state)
+{
+	(void)state;
+	int offered = 0, corners = 0;
+	for (int it = 0; it < 4000; it++) {
+		int n = 2 + it % 3;
+		double es[MLIP_MAX_AXES], ee[MLIP_MAX_AXES], A[MLIP_MAX_AXES], turn[MLIP_MAX_AXES];
+		random_unit(n, es);
+		random_unit(n, turn);
+		double th = it % 4 == 0 ? 1.0 : 1e-3 * pow(100.0, urand()); /* gentle: CAM curves */
+		double ne = 0.0;
+		for (int k = 0; k < n; k++) {
+			ee[k] = es[k] + th * turn[k];
+			ne += ee[k] * ee[k];
+			A[k] = 500.0 + 5500.0 * urand();
+		}
+		for (int k = 0; k < n; k++) {
+			ee[k] /= sqrt(ne);
+		}
+		double ds = 0.005 + 0.5 * urand(), de = 0.005 + 0.5 * urand();
+		double eps = 0.001 + 0.01 * urand();
+		double vs = 10.0 + 200.0 * urand(), ve = 10.0 + 200.0 * urand();
+		struct mlip_corner sh[MLIP_SMOOTH_SHAPES];
+		double w[MLIP_SMOOTH_SHAPES];
+		int m = mlip_corner_smooth_shapes(n, es, ee, ds, de, A, eps, vs, ve, sh, w);
+		assert_true(m >= 1 && m <= MLIP_SMOOTH_SHAPES);
+		if (sh[0].t_s == 0.0) {
+			assert_int_equal(m, 1);
+			continue;
+		}
+		corners++;
+		offered += m > 1;
+		double a_line = INFINITY;
+		for (int k = 0; k < n; k++) {
+			a_line = fmin(a_line, A[k] / fabs(es[k]));
+		}
+		for (int j = 0; j < m; j++) {
+			const struct mlip_corner *c = &sh[j];
+			double a2 = 0.0, amax = 0.0;
+			for (int k = 0; k < n; k++) {
+				double ak = c->alpha_mm_s2 * ee[k] - c->beta_mm_s2 * es[k];
+				double round_off =
+				        8.0 * DBL_EPSILON * (c->alpha_mm_s2 + c->beta_mm_s2);
+				assert_le(fabs(ak), A[k] * (1.0 + 1e-12) + round_off);
+				amax = fmax(amax, fabs(ak) / A[k]);
+				a2 += ak * ak;
+			}
+			assert_true(amax >= 1.0 - 1e-9);
+			assert_le(sqrt(a2) * c->t_s * c->t_s / 8.0, eps * (1.0 + 1e-12));
+			assert_le(c->ls_mm, 0.5 * ds * (1.0 + 1e-12));
+			assert_le(c->le_mm, 0.5 * de * (1.0 + 1e-12));
+			assert_le(c->vs_mm_s, vs * (1.0 + 1e-12));
+			assert_le(c->ve_mm_s, ve * (1.0 + 1e-12));
+			assert_near(c->vs_mm_s, c->beta_mm_s2 * c->t_s, 1e-9 * c->vs_mm_s);
+			assert_near(c->ls_mm, 0.5 * c->vs_mm_s * c->t_s, 1e-9 * c->ls_mm); /* (5) */
+			if (j > 0) {
+				/* the planner rebuilds it from w: the very same corner */
+				struct mlip_corner r;
+				int rc = mlip_corner_smooth_w(n, es, ee, ds, de, A, eps, vs, ve, w[j], &r);
+				assert_int_equal(rc, 0);
+				assert_true(memcmp(&r, c, sizeof(r)) == 0);
+				assert_true(c->beta_mm_s2 > a_line);
+				assert_true(c->alpha_mm_s2 * sh[0].beta_mm_s2 <
+				            sh[0].alpha_mm_s2 * c->beta_mm_s2);
+			}
+		}
+	}
+	assert_true(corners > 3000);
+	assert_true(offered > corners / 2); /* the gentle corners do get braking shapes */
+}
+
+/* A smooth curve in 0.02 mm segments rounded to 4 decimals (where the
+ * braking shapes matter): positions of a Lissajous figure. */
+static struct path make_fine_curve(size_t segs)
+{
+	struct path p = {.n = 2, .np = segs + 1};
+	p.pts = calloc(p.np * 2, sizeof(double));
+	double t = 0.0;
+	for (size_t i = 0; i < p.np; i++) {
+		/* |x'(t)| <= 180: steps of 0.02 / 180 ... in t, refined by arc length */
+		double x = 40.0 * cos(3.0 * t), y = 30.0 * sin(4.0 * t);
+		p.pts[2 * i] = round(x * 1e4) / 1e4;
+		p.pts[2 * i + 1] = round(y * 1e4) / 1e4;
+		double sp = hypot(120.0 * sin(3.0 * t), 120.0 * cos(4.0 * t));
+		t += 0.02 / fmax(sp, 1.0);
+	}
+	return p;
+}
+
+/* With shape choices the early-terminated passes leave the q a full pass
+ * computes (a full pass keeps the shapes), braking shapes are chosen, and
+ * the motion keeps every limit with override storms (several: a shape
+ * changed after a cut once left a corner unable to take the speed the
+ * machine still carried, 24x the limit), hold/resume, a stop, and blocks
+ * arriving too slowly. */
+static void test_smooth_shapes_plan(void **state)
+{
+	(void)state;
+	struct path p = make_fine_curve(30000);
+	struct mlip_machine m = machine(2, 1000, 200, 0.01);
+	int braking = plan_equals_full_pass(&p, &m, MLIP_STRATEGY_SMOOTH, 0, 997);
+	assert_true(braking > 1000);
+	static const int events[] = {EV_NONE, EV_STORM, EV_STORM, EV_STORM, EV_STORM, EV_STORM,
+	                             EV_STORM, EV_HOLD_RESUME, EV_STOP, EV_DRIP};
+	for (int e = 0; e < 10; e++) {
+		struct run r;
+		run_path(&m, MLIP_STRATEGY_SMOOTH, &p, events[e], &r);
+		print_message("smooth, events %d: %.3f s\n", events[e],
+		              (double)r.periods * m.period_s);
+		assert_physics(&m, &r, 0.5, events[e] != EV_STOP);
+		assert_le(r.hold_drift, 1e-12);
+		if (events[e] == EV_STOP) {
+			assert_true(r.stopped_idle);
+		}
+	}
+	free(p.pts);
+}
+
 static void test_push_full_and_bad_input(void **state)
 {
 	(void)state;
@@ -738,6 +881,8 @@ int main(void)
 		cmocka_unit_test(test_hold_resume_on_path),
 		cmocka_unit_test(test_stop_is_controlled),
 		cmocka_unit_test(test_running_dry_is_safe),
+		cmocka_unit_test(test_smooth_shapes_keep_guarantees),
+		cmocka_unit_test(test_smooth_shapes_plan),
 		cmocka_unit_test(test_push_full_and_bad_input),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

@@ -1,0 +1,227 @@
+#!/usr/bin/env python3
+"""The time-optimal ceiling: the shortest time any planner could take along a
+path under the bench's limits (per-axis |a_k| <= A_k, speed <= vmax), from
+rest to rest. Classic TOPP on a fine arc-length grid, in the discretisation
+of TOPP-RA (Pham & Pham 2018): state x = v^2, control u = s'' constant on
+each step (x_{i+1} = x_i + 2 h_i u_i), the per-axis constraint at grid point i
+
+    |x'_k(s_i) u_i + x''_k(s_i) x_i| <= A_k          (tangential + normal)
+
+so the limit curve, the backward pass (largest x from which the end can still
+be reached: the controllable sets) and the forward pass (largest u) are 1-D
+problems solved exactly. Time = sum 2 h_i / (v_i + v_{i+1}) (exact for a
+constant u). The result converges from below in h (a constraint is only
+enforced at the grid points); `--check` shows the convergence.
+
+Paths:
+  curve NAME       the EXACT parametric curve of tools/gen_curves.py (not the
+                   rounded polyline it writes), by its arc length;
+  poly FILE.csv    a polyline (bench_smoothdump's output: the path `smooth`
+                   hands the planner) read as a curve: the tangent at a vertex
+                   is the mean of its two segments' directions, its curvature
+                   vector (e_i - e_{i-1}) / min(h_{i-1}, h_i), both
+                   interpolated linearly at grid points every <= --ds mm
+                   between vertices. A model for finely sampled smooth
+                   paths: a sharp vertex becomes an arc of radius ~h /
+                   theta, tighter than a corner within eps may be, so on
+                   CAM output with sharp corners (MB-2.3) it is no ceiling.
+
+The rapid: every generated file starts with a G0 from the machine's start
+(the origin) to the curve's first point, which the bench runs as a feed move
+(mlip-sim --feed). It is counted here as a straight move from rest to rest
+(bang-bang under the line's limit min_k A_k / |e_k| and vmax) plus the curve
+from rest to rest: the same for every path, and within ~10 ms of what a
+planner blending the corner at the curve's start (within eps) could gain.
+
+  bench/topp.py curve lissajous [--accel 1000,1000] [--vmax 200] [--ds 0.01]
+  bench/topp.py poly smoothed.csv [--accel ...]
+  bench/topp.py curve spiral --check      # ds 0.04, 0.02, 0.01, 0.005
+"""
+import argparse
+import importlib.util
+import math
+import os
+import sys
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def gen_curves():
+    spec = importlib.util.spec_from_file_location("gen_curves", os.path.join(ROOT, "tools", "gen_curves.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def topp(h, d1, d2, accel, vmax):
+    """Time-optimal rest-to-rest time along a grid: h[i] the step from point
+    i to i+1 (N-1 steps), d1[i], d2[i] the path's first and second
+    derivatives by arc length at point i (N x n). Returns (time, v)."""
+    n_pts, n_ax = d1.shape
+    A = np.asarray(accel, float)[:n_ax]
+    a = np.abs(d1)
+    small = a < 1e-12
+    # axis k: u in [-g_k + q_k x, g_k + q_k x], g_k = A_k / |x'_k|, q_k = -x''_k / x'_k
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.where(small, np.inf, A / a)
+        q = np.where(small, 0.0, -d2 / np.where(small, 1.0, d1))
+    # limit curve: the largest x with max_k lower_k(x) <= min_j upper_j(x)
+    mvc = np.full(n_pts, vmax * vmax)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k in range(n_ax):
+            # an axis the path does not move along at this point: |x''_k| x <= A_k
+            cap = np.where(small[:, k] & (np.abs(d2[:, k]) > 0), A[k] / np.abs(d2[:, k]), np.inf)
+            mvc = np.minimum(mvc, cap)
+            for j in range(n_ax):
+                dq = q[:, k] - q[:, j]
+                ok = ~small[:, k] & ~small[:, j] & (dq > 0)
+                mvc = np.minimum(mvc, np.where(ok, (g[:, j] + g[:, k]) / np.where(ok, dq, 1.0), np.inf))
+    # backward: K_i, the largest x at i from which the end (rest) is reachable
+    gl, ql, hl, mv = g.tolist(), q.tolist(), h.tolist(), mvc.tolist()
+    K = [0.0] * n_pts
+    nxt = 0.0
+    for i in range(n_pts - 2, -1, -1):
+        inv = 0.5 / hl[i]
+        x = mv[i]
+        gi, qi = gl[i], ql[i]
+        for k in range(n_ax):
+            c = qi[k] + inv
+            if c > 0.0:  # max_k lower_k(x) <= (K - x) / (2h)
+                b = (nxt * inv + gi[k]) / c
+            elif c < 0.0:  # min_k upper_k(x) >= -x / (2h): never below rest
+                b = gi[k] / -c
+            else:
+                continue
+            if b < x:
+                x = b
+        K[i] = x if x > 0.0 else 0.0
+        nxt = K[i]
+    K[0] = 0.0
+    # forward: the largest u allowed, capped by what can still stop
+    x = [0.0] * n_pts
+    cur = 0.0
+    for i in range(n_pts - 1):
+        gi, qi = gl[i], ql[i]
+        u = math.inf
+        for k in range(n_ax):
+            u = min(u, gi[k] + qi[k] * cur)
+        cur = min(K[i + 1], cur + 2.0 * hl[i] * u)
+        cur = cur if cur > 0.0 else 0.0
+        x[i + 1] = cur
+    v = np.sqrt(np.array(x))
+    t = float(np.sum(2.0 * h / np.maximum(v[:-1] + v[1:], 1e-300)))
+    return t, v
+
+
+def rapid_time(p0, p1, accel, vmax):
+    """Straight move from rest to rest: bang-bang at the line's limit."""
+    e = np.asarray(p1, float) - np.asarray(p0, float)
+    d = float(np.linalg.norm(e))
+    if d == 0.0:
+        return 0.0
+    e /= d
+    a = min(A / abs(ek) for A, ek in zip(accel, e) if ek != 0.0)
+    if d >= vmax * vmax / a:
+        return d / vmax + vmax / a
+    return 2.0 * math.sqrt(d / a)
+
+
+def curve_grid(name, ds):
+    """The exact curve of gen_curves.py by arc length: steps h, x'(s), x''(s)."""
+    gc = gen_curves()
+    f, t_end, n_ax = gc.CURVES[name]
+    # |f'(t)| on a fine parameter grid: arc length by the trapezoid rule,
+    # then a parameter grid whose steps are ~ds of arc length
+    tt = np.linspace(0.0, t_end, 2_000_001)
+    dt = 1e-6
+    fp = (np.array(f(tt + dt, np)) - np.array(f(tt - dt, np))) / (2 * dt)
+    speed = np.linalg.norm(fp[:n_ax], axis=0)
+    s = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(tt))])
+    n = int(math.ceil(s[-1] / ds)) + 1
+    t = np.interp(np.linspace(0.0, s[-1], n), s, tt)
+    e = 1e-4
+    f0 = np.array(f(t, np))[:n_ax].T
+    fp = ((np.array(f(t + e, np)) - np.array(f(t - e, np))) / (2 * e))[:n_ax].T
+    fpp = ((np.array(f(t + e, np)) - 2 * np.array(f(t, np)) + np.array(f(t - e, np))) / (e * e))[:n_ax].T
+    sp = np.linalg.norm(fp, axis=1)[:, None]
+    T = fp / sp
+    N = (fpp - np.sum(fpp * T, axis=1)[:, None] * T) / (sp * sp)  # x''(s)
+    h = np.linalg.norm(np.diff(f0, axis=0), axis=1)
+    return h, T, N, f0[0], float(s[-1])
+
+
+def poly_grid(pts, ds):
+    """A polyline read as a curve (see the module's doc)."""
+    seg = np.diff(pts, axis=0)
+    hs = np.linalg.norm(seg, axis=1)
+    keep = hs > 1e-9
+    pts = np.concatenate([pts[:1], pts[1:][keep]])
+    seg, hs = seg[keep], hs[keep]
+    e = seg / hs[:, None]
+    n_ax = pts.shape[1]
+    # at the vertices: tangent the mean of the two directions, curvature
+    # vector the turn over the shorter leg; the ends straight
+    t_v = np.concatenate([e[:1], e[:-1] + e[1:], e[-1:]])
+    nt = np.linalg.norm(t_v, axis=1)
+    rev = nt < 1e-12  # a reversal: the direction it leaves in
+    t_v[rev] = np.concatenate([e, e[-1:]])[rev]
+    t_v /= np.where(rev, 1.0, nt)[:, None]
+    k_v = np.zeros((len(pts), n_ax))
+    k_v[1:-1] = (e[1:] - e[:-1]) / np.minimum(hs[1:], hs[:-1])[:, None]
+    # grid: every vertex, and points every <= ds between, where tangent and
+    # curvature are interpolated linearly (a curvature concentrated at the
+    # vertices would let the grid brake at them and speed up between)
+    m = np.maximum(1, np.ceil(hs / ds - 1e-9).astype(int))
+    f = np.concatenate([np.arange(mi) / mi for mi in m] + [np.zeros(1)])
+    i = np.concatenate([np.full(mi, j) for j, mi in enumerate(m)] + [np.array([len(hs) - 1])])
+    f[-1] = 1.0
+    d1 = (1 - f)[:, None] * t_v[i] + f[:, None] * t_v[i + 1]
+    d1 /= np.linalg.norm(d1, axis=1)[:, None]
+    d2 = (1 - f)[:, None] * k_v[i] + f[:, None] * k_v[i + 1]
+    h = np.repeat(hs / m, m)
+    return h, d1, d2, float(hs.sum())
+
+
+def ceiling_curve(name, accel, vmax, ds):
+    h, d1, d2, p0, length = curve_grid(name, ds)
+    n_ax = d1.shape[1]
+    t, v = topp(h, d1, d2, accel, vmax)
+    tr = rapid_time(np.zeros(n_ax), p0, accel[:n_ax], vmax)
+    return {"path": f"{name} (exact)", "length_mm": length, "curve_s": t, "rapid_s": tr,
+            "total_s": t + tr, "ds_mm": ds, "vmean": length / t}
+
+
+def ceiling_poly(path, accel, vmax, ds):
+    data = np.loadtxt(path, delimiter=",", ndmin=2)
+    pts = data[:, :-1]
+    n_ax = pts.shape[1]
+    # the first move (the G0 the filter passes unchanged) as a rapid
+    tr = rapid_time(pts[0], pts[1], accel[:n_ax], vmax)
+    h, d1, d2, length = poly_grid(pts[1:], ds)
+    t, v = topp(h, d1, d2, accel, vmax)
+    return {"path": os.path.basename(path), "length_mm": length, "curve_s": t, "rapid_s": tr,
+            "total_s": t + tr, "ds_mm": ds, "vmean": length / t}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("kind", choices=["curve", "poly"])
+    ap.add_argument("what", help="curve name (gen_curves.py) or CSV file (bench_smoothdump)")
+    ap.add_argument("--accel", default="1000,1000,1000")
+    ap.add_argument("--vmax", type=float, default=200.0)
+    ap.add_argument("--ds", type=float, default=0.01, help="grid step, mm")
+    ap.add_argument("--check", action="store_true", help="the same at ds 0.04, 0.02, 0.01, 0.005")
+    a = ap.parse_args()
+    accel = [float(x) for x in a.accel.split(",")]
+    accel += [accel[-1]] * (6 - len(accel))
+    for ds in ([0.04, 0.02, 0.01, 0.005] if a.check else [a.ds]):
+        r = (ceiling_curve if a.kind == "curve" else ceiling_poly)(a.what, accel, a.vmax, ds)
+        print(f"{r['path']}: {r['total_s']:.4f} s (curve {r['curve_s']:.4f} s + rapid {r['rapid_s']:.4f} s),"
+              f" {r['length_mm']:.2f} mm, ds {ds} mm")
+        sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
