@@ -3,7 +3,7 @@
 
 Table 2: total machining time of mpct (the paper), bisector, stop and smooth
 (mpct on the path smoothed within the tolerance, beyond the paper) on
-MB-2.3_test.nc, flower-spiral-2d.ngc and three generated smooth curves in
+MB-2.3_test.nc, flower-spiral-2d.ngc and four generated smooth curves in
 0.02 mm segments rounded to 4 decimals (tools/gen_curves.py) at feed
 200 mm/s, eps 0.01 mm, T 1 ms and the paper's four per-axis acceleration
 settings. Times are the simulator's, i.e. exact periods of the motion the
@@ -43,11 +43,11 @@ PAPER = {  # the vase, Table 2: minutes
     "1000/1000": (22.78, 40.52, 57.13), "3000/1000": (18.62, 31.59, 44.16),
     "3000/3000": (13.15, 21.22, 34.92), "6000/6000": (9.30, 14.33, 26.15)}
 STRATEGIES = ["mpct", "bisector", "stop", "smooth"]
-CURVES = ["lissajous", "spiral", "trochoid"]  # tools/gen_curves.py
+CURVES = ["lissajous", "spiral", "trochoid", "lissajous-large"]  # tools/gen_curves.py
 
 
 def sim(build, path, accel, strategy):
-    n_axes = 2 if path.endswith(("flower-spiral-2d.ngc", "lissajous.ngc", "trochoid.ngc")) else 3
+    n_axes = 2 if path.endswith(("flower-spiral-2d.ngc", "lissajous.ngc", "trochoid.ngc", "lissajous-large.ngc")) else 3
     accel = ",".join(accel.split(",")[:n_axes])
     out = subprocess.run(
         [os.path.join(build, "mlip-sim"), "-q", "--strategy", strategy, "--accel", accel,

@@ -6,12 +6,17 @@ does: the case where the paper's corners are limited by the rounding noise
   tools/gen_curves.py lissajous OUT.ngc [--seg 0.02] [--decimals 4]
   tools/gen_curves.py spiral OUT.ngc
   tools/gen_curves.py trochoid OUT.ngc
+  tools/gen_curves.py lissajous-large OUT.ngc
 
 lissajous: x = 40 sin(3 t + pi/2), y = 30 sin(4 t), one period (about 0.9 m);
 spiral: an Archimedean spiral r = 2 + 0.5 theta over 12 turns (XY), with
 Z = 0.5 sin(3 theta) (3-D); trochoid: the loops of trochoidal (adaptive)
 clearing, x = 3 cos t + 0.5 t / (2 pi), y = 3 sin t, 40 loops of radius 3 mm
-advancing 0.5 mm each. Points are placed every --seg mm of arc length.
+advancing 0.5 mm each; lissajous-large: the same figure 2.5 times the
+size, x = 100 sin(3 t + pi/2), y = 75 sin(4 t) (added after the first one's
+ceiling turned out 2.41x mpct: on the larger figure the rounding noise, not
+the curvature, limits mpct over most of the path). Points are placed every
+--seg mm of arc length.
 """
 import argparse
 import math
@@ -20,6 +25,10 @@ import math
 # m: the module whose sin/cos to use (math here; numpy arrays in bench/topp.py)
 def lissajous(t, m=math):
     return (40.0 * m.sin(3.0 * t + math.pi / 2), 30.0 * m.sin(4.0 * t), 0.0 * t)
+
+
+def lissajous_large(t, m=math):
+    return (100.0 * m.sin(3.0 * t + math.pi / 2), 75.0 * m.sin(4.0 * t), 0.0 * t)
 
 
 def spiral(t, m=math):
@@ -32,7 +41,8 @@ def trochoid(t, m=math):
 
 
 CURVES = {"lissajous": (lissajous, 2 * math.pi, 2), "spiral": (spiral, 24 * math.pi, 3),
-          "trochoid": (trochoid, 80 * math.pi, 2)}
+          "trochoid": (trochoid, 80 * math.pi, 2),
+          "lissajous-large": (lissajous_large, 2 * math.pi, 2)}
 
 
 def main():
