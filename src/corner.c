@@ -182,6 +182,19 @@ int mlip_corner_smooth_w(int n, const double *e_s, const double *e_e, double ds_
 	return 0;
 }
 
+/* Turns beyond this are the filter's pinned corners (smooth.c pins turns
+ * over 40 degrees): there the paper's own LP-vertex corner, whose
+ * neighbours the filter left exact, is kept (the boundary family was slower
+ * by a few ms on programs of sharp corners only). |e_e - e_s|^2 = (2 sin 20 deg)^2. */
+int mlip_corner_smooth_sharp(int n, const double *e_s, const double *e_e)
+{
+	double s = 2.0 * sin(20.0 * 3.14159265358979323846 / 180.0), d2 = 0.0;
+	for (int k = 0; k < n; k++) {
+		d2 += (e_e[k] - e_s[k]) * (e_e[k] - e_s[k]);
+	}
+	return d2 > s * s;
+}
+
 #define SMOOTH_W_GRID 8
 static int corner_smooth(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
                          const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
@@ -257,6 +270,9 @@ int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, doubl
 	}
 	double w0 = out[0].alpha_mm_s2 / (out[0].alpha_mm_s2 + out[0].beta_mm_s2);
 	w_out[0] = w0;
+	if (mlip_corner_smooth_sharp(n, e_s, e_e)) {
+		return 1;
+	}
 	double th = 0.0;
 	for (int k = 0; k < n; k++) {
 		th += (e_e[k] - e_s[k]) * (e_e[k] - e_s[k]);
@@ -321,7 +337,7 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 	}
 
 	double alpha, beta;
-	if (st == MLIP_STRATEGY_SMOOTH) {
+	if (st == MLIP_STRATEGY_SMOOTH && !mlip_corner_smooth_sharp(n, e_s, e_e)) {
 		if (corner_smooth(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s, vcap_e_mm_s, c) != 0) {
 			corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
 		}

@@ -528,8 +528,8 @@ static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double re
 	double lim = q_next * nx->brake_b + nx->two_a_d;
 	int ok;
 	double q0 = corner_q_at(&s->c, s->a_mm_s2, s->q, rem, v, &ok);
-	if (q0 >= s->q) {
-		return; /* the plan is reached: keep it */
+	if (q0 >= s->q || mlip_corner_smooth_sharp(p->n, s->e, nx->e)) {
+		return; /* the plan is reached, or a pinned corner: keep it */
 	}
 	double best_ve = sqrt(q0) * s->c.ve_mm_s, best_vs = sqrt(q0) * s->c.vs_mm_s;
 	struct mlip_corner best = s->c;

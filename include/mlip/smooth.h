@@ -115,6 +115,9 @@ mlip_status mlip_smooth_pop(struct mlip_smooth *sm, struct mlip_block *out);
 /* The smooth strategy's corner with a = (w e_e - (1 - w) e_s) / g on the
  * acceleration polygon's boundary (g the largest |a_k| / A_k of the
  * unscaled vector), t from (18)(19)(20) (corner.c). -1 when a is 0. */
+/* 1 when the turn from e_s to e_e is over 40 degrees (corner.c): the smooth
+ * strategy takes the paper's corner there. */
+int mlip_corner_smooth_sharp(int n, const double *e_s, const double *e_e);
 int mlip_corner_smooth_w(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
                          const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
                          double w, struct mlip_corner *c);

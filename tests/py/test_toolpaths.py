@@ -89,3 +89,25 @@ def test_override_constant_scales_time():
     assert half["max_speed_mm_s"] <= 100 * (1 + REL)
     assert 1.2 * base["total_time_s"] < half["total_time_s"] <= 2.0 * base["total_time_s"] * (1 + 1e-3)
     assert_physics(half, "mpct", used=False)
+
+
+SENDERS = sorted(p.name for p in (TOOLPATHS / "senders").iterdir() if p.is_file())
+
+
+@pytest.mark.parametrize("xy", [(1000, 1000), (6000, 6000)])
+@pytest.mark.parametrize("name", list(FILES) + ["senders/" + n for n in SENDERS])
+def test_smooth_never_slower(name, xy):
+    """Issue 12: smooth is never slower than mpct on a shared toolpath (the
+    times are whole periods: no tolerance), and stays inside every limit."""
+    if name in FILES:
+        opts = {st: opts_for(name, xy, st) for st in ("mpct", "smooth")}
+    else:  # the axes the program uses, all at xy[0]; F-less programs at 600/min
+        opts = {st: ["--strategy", st, "--accel", str(xy[0]), "--vmax", "200", "--feed", "200",
+                     "--eps", "0.01", "--period", "0.001", "--default-feed", "600"]
+                for st in ("mpct", "smooth")}
+    t = {}
+    for st, o in opts.items():
+        s = sim_summary(TOOLPATHS / name, *o)
+        assert_physics(s, st, used=False)
+        t[st] = s["total_time_s"]
+    assert t["smooth"] <= t["mpct"], t
