@@ -38,7 +38,7 @@
                                      right-hand context of the frozen ones */
 #define MLIP_SMOOTH_MAX_PIECES 16 /* samples a block adds, at most (and up to 4 more
                                      sub-samples of the segment before it) */
-#define MLIP_SMOOTH_ITER 20       /* reweighting iterations per solve */
+#define MLIP_SMOOTH_ITER 24       /* reweighting iterations per solve */
 #define MLIP_SMOOTH_POLISH 3      /* then solves holding the samples beyond their radius */
 #define MLIP_SMOOTH_RHO 0.95      /* share of the budget the smoothing may take */
 
