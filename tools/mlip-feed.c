@@ -381,14 +381,6 @@ static int next_block(struct feed *f, struct mlip_block *b)
 	return rc > 0 ? 1 : rc == 0 ? -EIO : rc;
 }
 
-/*
- * Check the whole program (first pass) from the machine f->mp, whose HOME is
- * where the program starts: the controller's commanded position when it is
- * idle (a G90 move that leaves an axis out keeps it where it stands, not at
- * the configured HOME: after another program, or with drives whose axes were
- * moved while disabled), then position the stream at --start-seq. 0, or an
- * exit code (nothing sent).
- */
 /* " X1.0000 Y2.0000 ..." of the machine's HOME (where a program starts) */
 static const char *position_text(const struct mlip_machine *m, char *buf, size_t len)
 {
@@ -400,6 +392,14 @@ static const char *position_text(const struct mlip_machine *m, char *buf, size_t
 	return buf;
 }
 
+/*
+ * Check the whole program (first pass) from the machine f->mp, whose HOME is
+ * where the program starts: the controller's commanded position when it is
+ * idle (a G90 move that leaves an axis out keeps it where it stands, not at
+ * the configured HOME: after another program, or with drives whose axes were
+ * moved while disabled), then position the stream at --start-seq. 0, or an
+ * exit code (nothing sent).
+ */
 static int load(struct feed *f, int notes)
 {
 	const struct mlip_machine *m = &f->mp;
