@@ -30,7 +30,7 @@
 #define PROG "mlip-sim"
 #define MAX_PERIODS 200000000ULL /* 55 h of machining at 1 ms: a runaway */
 
-static struct mlip_planner planner; /* ~1.5 MB: static, like on the controller */
+static struct mlip_planner planner; /* ~2.6 MB: static, like on the controller */
 static struct mlip_ctl ctl;
 
 static void usage(FILE *f)
