@@ -182,17 +182,17 @@ int mlip_corner_smooth_w(int n, const double *e_s, const double *e_e, double ds_
 	return 0;
 }
 
-/* Turns beyond this are the filter's pinned corners (smooth.c pins turns
- * over 40 degrees): there the paper's own LP-vertex corner, whose
- * neighbours the filter left exact, is kept (the boundary family was slower
- * by a few ms on programs of sharp corners only). |e_e - e_s|^2 = (2 sin 20 deg)^2. */
+/* Turns beyond MLIP_SMOOTH_SHARP_COS are the filter's pinned corners:
+ * there the paper's own LP-vertex corner, whose neighbours the filter left
+ * exact, is kept (the boundary family was slower by a few ms on programs of
+ * sharp corners only). Unit e_s, e_e: |e_e - e_s|^2 = 2 - 2 cos(turn). */
 int mlip_corner_smooth_sharp(int n, const double *e_s, const double *e_e)
 {
-	double s = 2.0 * sin(20.0 * 3.14159265358979323846 / 180.0), d2 = 0.0;
+	double d2 = 0.0;
 	for (int k = 0; k < n; k++) {
 		d2 += (e_e[k] - e_s[k]) * (e_e[k] - e_s[k]);
 	}
-	return d2 > s * s;
+	return d2 > 2.0 - 2.0 * MLIP_SMOOTH_SHARP_COS;
 }
 
 #define SMOOTH_W_GRID 8

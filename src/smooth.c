@@ -109,7 +109,6 @@ enum { ROLE_START = 0, ROLE_SUB, ROLE_VERTEX, ROLE_PASS };
  * are flattened unless the band forbids it. */
 #define STEP_MM 0.1
 #define L0_MM 1.0
-#define SHARP_DEG 40.0
 #define GAP_STEPS 4.0
 #define CORNER_NEED 0.15
 #define JITTER_KEEP 0.97
@@ -143,7 +142,7 @@ mlip_status mlip_smooth_init(struct mlip_smooth *sm, const struct mlip_machine *
 	sm->n = m->n_axes;
 	sm->eps_mm = m->tolerance_mm;
 	sm->step_mm = STEP_MM;
-	sm->sharp_cos = cos(SHARP_DEG * 3.14159265358979323846 / 180.0);
+	sm->sharp_cos = MLIP_SMOOTH_SHARP_COS;
 	sm->gap_mm = GAP_STEPS * STEP_MM;
 	sm->l0_mm = L0_MM;
 	sm->rho = MLIP_SMOOTH_RHO;

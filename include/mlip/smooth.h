@@ -41,6 +41,9 @@
 #define MLIP_SMOOTH_ITER 24       /* reweighting iterations per solve */
 #define MLIP_SMOOTH_POLISH 3      /* then solves holding the samples beyond their radius */
 #define MLIP_SMOOTH_RHO 0.95      /* share of the budget the smoothing may take */
+#define MLIP_SMOOTH_SHARP_COS 0.76604444311897804 /* cos 40 deg: a vertex turning more
+                                     stays sharp (the filter pins it, the planner
+                                     takes the paper's corner there) */
 
 struct mlip_smooth_sample {
 	double p[MLIP_MAX_AXES]; /* point of the original polyline at this sample */
@@ -115,8 +118,8 @@ mlip_status mlip_smooth_pop(struct mlip_smooth *sm, struct mlip_block *out);
 /* The smooth strategy's corner with a = (w e_e - (1 - w) e_s) / g on the
  * acceleration polygon's boundary (g the largest |a_k| / A_k of the
  * unscaled vector), t from (18)(19)(20) (corner.c). -1 when a is 0. */
-/* 1 when the turn from e_s to e_e is over 40 degrees (corner.c): the smooth
- * strategy takes the paper's corner there. */
+/* 1 when the turn from e_s to e_e is sharper than MLIP_SMOOTH_SHARP_COS
+ * (corner.c): the smooth strategy takes the paper's corner there. */
 int mlip_corner_smooth_sharp(int n, const double *e_s, const double *e_e);
 int mlip_corner_smooth_w(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
                          const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
