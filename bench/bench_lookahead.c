@@ -17,7 +17,7 @@
 #include <time.h>
 
 #include "cli.h"
-#include "mlip/planner.h"
+#include "mlip/motion/planner.h"
 #include "program.h"
 
 static struct mlip_planner P;
@@ -106,7 +106,8 @@ void bench_push_one(const struct mlip_block *b)
 int main(int argc, char **argv)
 {
 	if (argc < 2) {
-		fprintf(stderr, "usage: bench_lookahead FILE.ngc [--accel A] [--mode preread|corners|push N] [--reps R]\n");
+		fprintf(stderr, "usage: bench_lookahead FILE.ngc [--accel A] [--mode "
+		                "preread|corners|push N] [--reps R]\n");
 		return 2;
 	}
 	const char *path = argv[1], *mode = NULL, *accel = "1000";
@@ -122,7 +123,8 @@ int main(int argc, char **argv)
 			reps = atoi(argv[++a]);
 		}
 	}
-	struct mlip_cli_machine mo = {.accel = accel, .vmax_mm_s = 200, .eps_mm = 0.01, .period_s = 0.001};
+	struct mlip_cli_machine mo = {
+	    .accel = accel, .vmax_mm_s = 200, .eps_mm = 0.01, .period_s = 0.001};
 	static struct mlip_config cfg;
 	if (mlip_cli_build_machine(&mo, path, &cfg, "bench", stderr) != 0 ||
 	    mlip_program_list_load(path, &cfg.machine, &prog) != 0) {
@@ -160,7 +162,8 @@ int main(int argc, char **argv)
 			size_t next = 4000;
 			uint64_t pushes = 0;
 			while (pushes < mode_n && next < prog.n) {
-				while (mlip_planner_space(&P) > 0 && next < prog.n && pushes < mode_n) {
+				while (mlip_planner_space(&P) > 0 && next < prog.n &&
+				       pushes < mode_n) {
 					bench_push_one(&prog.blocks[next++]);
 					pushes++;
 				}
@@ -226,10 +229,11 @@ int main(int argc, char **argv)
 	}
 	double vis = (double)(P.stats.backward_visits - v0) / (double)(P.stats.pushes - p0);
 	qsort(tp, np, sizeof(*tp), cmp_u64);
-	printf("  ],\n  \"add_one_block\": {\"pushes\": %zu, \"median_ns\": %llu, \"p99_ns\": %llu, "
-	       "\"max_ns\": %llu, \"visits_per_block\": %.1f}\n}\n",
-	       np, (unsigned long long)tp[np / 2], (unsigned long long)tp[np * 99 / 100],
-	       (unsigned long long)tp[np - 1], vis);
+	printf(
+	    "  ],\n  \"add_one_block\": {\"pushes\": %zu, \"median_ns\": %llu, \"p99_ns\": %llu, "
+	    "\"max_ns\": %llu, \"visits_per_block\": %.1f}\n}\n",
+	    np, (unsigned long long)tp[np / 2], (unsigned long long)tp[np * 99 / 100],
+	    (unsigned long long)tp[np - 1], vis);
 	free(tp);
 	return 0;
 }

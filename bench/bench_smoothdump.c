@@ -1,6 +1,6 @@
 /*
  * bench_smoothdump - the polyline the `smooth` strategy hands the planner
- * (src/smooth.c through blockiter's mlip_smooth_program, as mlip-sim runs
+ * (src/motion/smooth.c through blockiter's mlip_smooth_program, as mlip-sim runs
  * it), for bench/topp.py's time-optimal ceiling of that path.
  *
  *   bench_smoothdump FILE.ngc [--accel A[,A...]] [--raw]
@@ -35,7 +35,7 @@ int main(int argc, char **argv)
 		}
 	}
 	struct mlip_cli_machine mo = {
-	        .accel = accel, .vmax_mm_s = 200, .eps_mm = 0.01, .period_s = 0.001};
+	    .accel = accel, .vmax_mm_s = 200, .eps_mm = 0.01, .period_s = 0.001};
 	static struct mlip_config cfg;
 	static struct mlip_program_list prog;
 	if (mlip_cli_build_machine(&mo, path, &cfg, "bench_smoothdump", stderr) != 0 ||

@@ -10,14 +10,14 @@
 #include <stdlib.h>
 #include <time.h>
 
-#include "mlip/controller.h"
+#include "mlip/ctl/controller.h"
 
 int main(int argc, char **argv)
 {
 	long n = argc > 1 ? atol(argv[1]) : 10000000L;
 	struct mlip_machine m = {.n_axes = MLIP_MAX_AXES};
-	struct mlip_ring_rec rec = {.seq = 1, .type = MLIP_REC_MOVE, .feed_mm_s = 100.0,
-	                            .tol_mm = 0.01};
+	struct mlip_ring_rec rec = {
+	    .seq = 1, .type = MLIP_REC_MOVE, .feed_mm_s = 100.0, .tol_mm = 0.01};
 	for (int k = 0; k < MLIP_MAX_AXES; k++) {
 		m.axis[k].min_limit = -1000.0;
 		m.axis[k].max_limit = 1000.0;

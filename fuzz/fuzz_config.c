@@ -1,6 +1,6 @@
 /*
  * fuzz_config.c - libFuzzer target for the machine configuration reader
- * (src/config.c). The checks: fuzz/invariants.h (inv_config_text,
+ * (src/machine/config.c). The checks: fuzz/invariants.h (inv_config_text,
  * inv_machine_raw). Built and run by fuzz/run.sh.
  *
  * Input: the INI text, parsed into defaults, again with err == NULL, and into
@@ -25,8 +25,7 @@ static struct mlip_config mill;
 
 static void violation(const char *what, const char *detail)
 {
-	fprintf(stderr, "fuzz_config: invariant violated: %s\n  %s\n", what,
-	        detail ? detail : "");
+	fprintf(stderr, "fuzz_config: invariant violated: %s\n  %s\n", what, detail ? detail : "");
 	abort();
 }
 

@@ -1,6 +1,6 @@
 /*
  * fuzz/invariants.h - what must hold for any input to the two text front ends
- * (src/gcode.c, src/config.c), checked by the fuzz targets (fuzz_gcode.c,
+ * (src/gcode/gcode.c, src/machine/config.c), checked by the fuzz targets (fuzz_gcode.c,
  * fuzz_config.c, which abort on a violation) and by the regression test
  * (tests/unit/test_fuzz_regress.c, which fails with the same text).
  *
@@ -38,9 +38,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "mlip/config.h"
-#include "mlip/gcode.h"
-#include "mlip/planner.h" /* MLIP_LOOKAHEAD */
+#include "mlip/machine/config.h"
+#include "mlip/gcode/gcode.h"
+#include "mlip/motion/planner.h" /* MLIP_LOOKAHEAD */
 #include "mlip/types.h"
 #include "program.h" /* tools/lib: mlip_program_list_parse, the second opinion */
 
@@ -144,7 +144,7 @@ struct inv_gcode {
 	unsigned refuse_every;      /* 0: never; else refuse attempt k when k % n == n - 1 */
 	size_t attempts;
 	const struct inv_block_list *expect; /* NULL, or blocks another run gave */
-	const char *bad;            /* first violation */
+	const char *bad;                     /* first violation */
 	char why[INV_WHY];
 };
 
@@ -215,8 +215,9 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 		return inv_gcode_fail(c, "block shorter than MLIP_GCODE_MERGE_MM", -1, sqrt(d2));
 	}
 	if (!isfinite(b->feed_mm_s) || !(b->feed_mm_s > 0)) {
-		return inv_gcode_fail(c, b->rapid ? "rapid feed not finite and > 0"
-		                                  : "feed not finite and > 0", -1, b->feed_mm_s);
+		return inv_gcode_fail(
+		    c, b->rapid ? "rapid feed not finite and > 0" : "feed not finite and > 0", -1,
+		    b->feed_mm_s);
 	}
 	if (!(b->tol_mm > 0 && b->tol_mm <= eps)) {
 		return inv_gcode_fail(c, "tol_mm outside (0, eps]", -1, b->tol_mm);
@@ -286,8 +287,9 @@ static const char *inv_gcode_line_end(struct inv_gcode *c, size_t len, mlip_stat
 		return c->bad;
 	}
 	if ((st == MLIP_E_FULL) != (c->line_refused != 0)) {
-		return inv_gcode_fail(c, c->line_refused ? "sink refused but no MLIP_E_FULL"
-		                                         : "MLIP_E_FULL but the sink took all",
+		return inv_gcode_fail(c,
+		                      c->line_refused ? "sink refused but no MLIP_E_FULL"
+		                                      : "MLIP_E_FULL but the sink took all",
 		                      -1, st);
 	}
 	if (st == MLIP_OK) {
@@ -316,9 +318,8 @@ static const char *inv_gcode_line_end(struct inv_gcode *c, size_t len, mlip_stat
 }
 
 /* After mlip_gcode_finish(g, last) returned st with *e. */
-static const char *inv_gcode_finish(struct inv_gcode *c, const struct mlip_gcode *g,
-                                    uint32_t last, mlip_status st,
-                                    const struct mlip_gcode_error *e)
+static const char *inv_gcode_finish(struct inv_gcode *c, const struct mlip_gcode *g, uint32_t last,
+                                    mlip_status st, const struct mlip_gcode_error *e)
 {
 	const char *w;
 	uint32_t k;
@@ -444,10 +445,9 @@ static const char *inv_config_ok(const struct mlip_config *c, int parsed)
 		}
 		if (!isfinite(a->max_accel) || !isfinite(a->max_vel) || !isfinite(a->min_limit) ||
 		    !isfinite(a->max_limit) || !isfinite(a->home) ||
-		    !isfinite(a->counts_per_unit) ||
-		    !(a->max_accel > 0) || !(a->max_vel > 0) || !(a->counts_per_unit > 0) ||
-		    !(a->min_limit < a->max_limit) || !(a->home >= a->min_limit) ||
-		    !(a->home <= a->max_limit)) {
+		    !isfinite(a->counts_per_unit) || !(a->max_accel > 0) || !(a->max_vel > 0) ||
+		    !(a->counts_per_unit > 0) || !(a->min_limit < a->max_limit) ||
+		    !(a->home >= a->min_limit) || !(a->home <= a->max_limit)) {
 			return "config: axis number not finite or out of range";
 		}
 		if (a->kind != MLIP_AXIS_LINEAR && a->kind != MLIP_AXIS_ROTARY) {
@@ -513,26 +513,26 @@ static int inv_config_equal(const struct mlip_config *a, const struct mlip_confi
 /* config/mill-3axis.ini and config/rotary-4axis.ini without their comments
  * (the fuzzers must not depend on the working directory). */
 static const char inv_mill_ini[] =
-	"[TRAJ]\nCOORDINATES = X Y Z\nMAX_LINEAR_VELOCITY = 200\nMAX_ANGULAR_VELOCITY = 360\n"
-	"CONTOUR_TOLERANCE = 0.01\nPERIOD = 0.001\nLOOKAHEAD = 4096\n"
-	"[AXIS_X]\nTYPE = LINEAR\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
-	"MIN_LIMIT = -1000\nMAX_LIMIT = 1000\nHOME = 0\nCAN_NODE = 1\n"
-	"[AXIS_Y]\nTYPE = LINEAR\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
-	"MIN_LIMIT = -1000\nMAX_LIMIT = 1000\nHOME = 0\nCAN_NODE = 2\n"
-	"[AXIS_Z]\nTYPE = LINEAR\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
-	"MIN_LIMIT = -500\nMAX_LIMIT = 500\nHOME = 0\nCAN_NODE = 3\n";
+    "[TRAJ]\nCOORDINATES = X Y Z\nMAX_LINEAR_VELOCITY = 200\nMAX_ANGULAR_VELOCITY = 360\n"
+    "CONTOUR_TOLERANCE = 0.01\nPERIOD = 0.001\nLOOKAHEAD = 4096\n"
+    "[AXIS_X]\nTYPE = LINEAR\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
+    "MIN_LIMIT = -1000\nMAX_LIMIT = 1000\nHOME = 0\nCAN_NODE = 1\n"
+    "[AXIS_Y]\nTYPE = LINEAR\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
+    "MIN_LIMIT = -1000\nMAX_LIMIT = 1000\nHOME = 0\nCAN_NODE = 2\n"
+    "[AXIS_Z]\nTYPE = LINEAR\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
+    "MIN_LIMIT = -500\nMAX_LIMIT = 500\nHOME = 0\nCAN_NODE = 3\n";
 
 static const char inv_rotary_ini[] =
-	"[TRAJ]\nCOORDINATES = X Y Z A\nMAX_LINEAR_VELOCITY = 200\nMAX_ANGULAR_VELOCITY = 720\n"
-	"CONTOUR_TOLERANCE = 0.01\nPERIOD = 0.001\n"
-	"[AXIS_X]\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
-	"MIN_LIMIT = -1000\nMAX_LIMIT = 1000\nCAN_NODE = 1\n"
-	"[AXIS_Y]\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
-	"MIN_LIMIT = -1000\nMAX_LIMIT = 1000\nCAN_NODE = 2\n"
-	"[AXIS_Z]\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
-	"MIN_LIMIT = -500\nMAX_LIMIT = 500\nCAN_NODE = 3\n"
-	"[AXIS_A]\nTYPE = ANGULAR\nMAX_VELOCITY = 720\nMAX_ACCELERATION = 3600\n"
-	"MIN_LIMIT = -1e7\nMAX_LIMIT = 1e7\nCAN_NODE = 4\nCOUNTS_PER_UNIT = 100\n";
+    "[TRAJ]\nCOORDINATES = X Y Z A\nMAX_LINEAR_VELOCITY = 200\nMAX_ANGULAR_VELOCITY = 720\n"
+    "CONTOUR_TOLERANCE = 0.01\nPERIOD = 0.001\n"
+    "[AXIS_X]\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
+    "MIN_LIMIT = -1000\nMAX_LIMIT = 1000\nCAN_NODE = 1\n"
+    "[AXIS_Y]\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
+    "MIN_LIMIT = -1000\nMAX_LIMIT = 1000\nCAN_NODE = 2\n"
+    "[AXIS_Z]\nMAX_VELOCITY = 200\nMAX_ACCELERATION = 1000\n"
+    "MIN_LIMIT = -500\nMAX_LIMIT = 500\nCAN_NODE = 3\n"
+    "[AXIS_A]\nTYPE = ANGULAR\nMAX_VELOCITY = 720\nMAX_ACCELERATION = 3600\n"
+    "MIN_LIMIT = -1e7\nMAX_LIMIT = 1e7\nCAN_NODE = 4\nCOUNTS_PER_UNIT = 100\n";
 
 /* Parse one of the two above into *m; 0 or -1. */
 static int inv_machine(const char *ini, struct mlip_machine *m)
@@ -550,7 +550,7 @@ static int inv_machine(const char *ini, struct mlip_machine *m)
 /* ---- whole inputs, as the fuzz targets and the regression test run them ---- */
 
 #define INV_INITIAL_FEED 2 /* use the program's first F before it, as the tools do */
-#define INV_REFUSE 4       /* the sink refuses every n-th block, n = 2 + (flags >> 3) */
+#define INV_REFUSE       4 /* the sink refuses every n-th block, n = 2 + (flags >> 3) */
 
 /* What a program gave: blocks taken, errors (finish's included), the first. */
 struct inv_gcode_result {

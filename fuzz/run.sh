@@ -2,8 +2,8 @@
 # fuzz/run.sh [SECONDS] - build and run the two libFuzzer targets under ASan
 # and UBSan, SECONDS each (default 60; 0 only replays the corpus once).
 #
-#   fuzz_gcode   the G-code front end (src/gcode.c) and tools/lib/program.c
-#   fuzz_config  the machine configuration reader (src/config.c)
+#   fuzz_gcode   the G-code front end (src/gcode/gcode.c) and tools/lib/program.c
+#   fuzz_config  the machine configuration reader (src/machine/config.c)
 #
 # Installs clang and its runtimes (libclang-rt-14-dev) with apt-get when
 # missing. Output in build/fuzz/ (override with FUZZ_OUT): the binaries, the
@@ -64,10 +64,10 @@ fi
 # ---- the targets ------------------------------------------------------------
 echo "fuzz: building with $($CC --version | head -n 1)"
 # shellcheck disable=SC2086 # word splitting of the flag lists is intended
-$CC $CFLAGS $SAN -o "$OUT/fuzz_gcode" fuzz/fuzz_gcode.c src/gcode.c src/config.c \
+$CC $CFLAGS $SAN -o "$OUT/fuzz_gcode" fuzz/fuzz_gcode.c src/gcode/gcode.c src/machine/config.c \
 	tools/lib/program.c -lm
 # shellcheck disable=SC2086
-$CC $CFLAGS $SAN -o "$OUT/fuzz_config" fuzz/fuzz_config.c src/config.c -lm
+$CC $CFLAGS $SAN -o "$OUT/fuzz_config" fuzz/fuzz_config.c src/machine/config.c -lm
 
 # ---- seeds --------------------------------------------------------------------
 if [ ! -d "$SHARED/toolpaths" ]; then

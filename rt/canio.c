@@ -38,7 +38,8 @@ static const char *state_name(int st)
 int mlip_canio_check(const char *ifname, char *info, size_t info_len)
 {
 	if (if_nametoindex(ifname) == 0) {
-		snprintf(info, info_len, "CAN interface %s does not exist (ip link add/set up?)", ifname);
+		snprintf(info, info_len, "CAN interface %s does not exist (ip link add/set up?)",
+		         ifname);
 		return -ENODEV;
 	}
 	int s = socket(AF_INET, SOCK_DGRAM, 0), up = 0;
@@ -52,7 +53,8 @@ int mlip_canio_check(const char *ifname, char *info, size_t info_len)
 		close(s);
 	}
 	if (!up) {
-		snprintf(info, info_len, "CAN interface %s is down (ip link set %s up)", ifname, ifname);
+		snprintf(info, info_len, "CAN interface %s is down (ip link set %s up)", ifname,
+		         ifname);
 		return -ENETDOWN;
 	}
 	int st;
@@ -77,7 +79,8 @@ int mlip_canio_open(struct mlip_canio *io, const char *ifname, int fd_frames, ch
 	if (fd < 0) {
 		int e = errno;
 		snprintf(why, why_len, "socket(PF_CAN): %s%s", strerror(e),
-		         e == EAFNOSUPPORT ? " (this kernel has no CAN: see tools/vcan/README.md)" : "");
+		         e == EAFNOSUPPORT ? " (this kernel has no CAN: see tools/vcan/README.md)"
+		                           : "");
 		return -e;
 	}
 	/* no data frames in: the controller only talks; error frames yes */
@@ -114,8 +117,8 @@ int mlip_canio_open(struct mlip_canio *io, const char *ifname, int fd_frames, ch
 		memset(&ifr, 0, sizeof(ifr));
 		snprintf(ifr.ifr_name, sizeof(ifr.ifr_name), "%s", ifname);
 		if (ioctl(fd, SIOCGIFMTU, &ifr) == 0 && ifr.ifr_mtu != CANFD_MTU) {
-			snprintf(why, why_len, "%s has MTU %d: not CAN FD (ip link set %s mtu 72)", ifname,
-			         ifr.ifr_mtu, ifname);
+			snprintf(why, why_len, "%s has MTU %d: not CAN FD (ip link set %s mtu 72)",
+			         ifname, ifr.ifr_mtu, ifname);
 			close(fd);
 			return -EPROTONOSUPPORT;
 		}

@@ -2,7 +2,7 @@
  * controller.c - the thin, system-call side of the controller's period: the
  * clock, the feeder's liveness, the command mailbox, the CAN send and poll,
  * the status write, and the queues to the monitor thread. Every decision is
- * the pure mlip_ctl_period (src/controller.c), which mlip-sim runs too.
+ * the pure mlip_ctl_period (src/ctl/controller.c), which mlip-sim runs too.
  * Nothing here allocates, prints, locks or blocks.
  */
 #include <errno.h>
@@ -11,7 +11,7 @@
 
 #include "rt.h"
 
-#define LD(p) __atomic_load_n((p), __ATOMIC_ACQUIRE)
+#define LD(p)    __atomic_load_n((p), __ATOMIC_ACQUIRE)
 #define ST(p, v) __atomic_store_n((p), (v), __ATOMIC_RELEASE)
 
 int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
@@ -34,7 +34,7 @@ int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
 	return 0;
 }
 
-/* The ring is fed: a feeder is attached and alive (mlip/peer.h, on its
+/* The ring is fed: a feeder is attached and alive (mlip/ipc/peer.h, on its
  * stamp: late or dead, it feeds nothing). A feeder area mid-update counts as
  * alive (it is being written). */
 static int feeder_alive(const struct mlip_ring *r)
@@ -43,7 +43,8 @@ static int feeder_alive(const struct mlip_ring *r)
 	if (mlip_ring_feeder_read(r, &f) != MLIP_OK) {
 		return 1;
 	}
-	struct mlip_peer_seen s = {f.heartbeat, f.heartbeat_ns, f.pid == 0, -1}; /* pid 0: it left */
+	struct mlip_peer_seen s = {f.heartbeat, f.heartbeat_ns, f.pid == 0,
+	                           -1}; /* pid 0: it left */
 	return mlip_peer_judge(&s, NULL, mlip_now_ns(), NULL) == MLIP_PEER_ALIVE;
 }
 
@@ -164,7 +165,9 @@ int mlip_controller_period(struct mlip_controller *c, const struct mlip_rt_tick 
 		if (t->cycle == 0) {
 			c->first_deadline_ns = t->deadline_ns;
 		}
-		rec_push(c, o, (t->deadline_ns - c->first_deadline_ns) / (uint64_t)c->period_ns + in.missed);
+		rec_push(c, o,
+		         (t->deadline_ns - c->first_deadline_ns) / (uint64_t)c->period_ns +
+		             in.missed);
 	}
 	return o->done;
 }

@@ -2,7 +2,7 @@
  * drives.c - the CANopen master of mlip-rt for CiA 402 drives in cyclic
  * synchronous position mode: bring-up before the first period, supervision
  * and shut-down in the loop. The frames and decisions are the pure ones of
- * mlip/canopen.h; this file sequences them on a port (SocketCAN, or a
+ * mlip/canopen/canopen.h; this file sequences them on a port (SocketCAN, or a
  * scripted peer in tests/unit/test_drives.c).
  *
  * Bring-up (outside the loop; may wait, print through ds->log):
@@ -40,7 +40,7 @@
 #include "rt.h"
 
 #define RX_PER_PERIOD(n) (4 * (n) + 16) /* TPDO + heartbeat + EMCY per drive, and margin */
-#define STATE_POLL_NS 5000000LL         /* 0x6041 read every 5 ms while waiting */
+#define STATE_POLL_NS    5000000LL      /* 0x6041 read every 5 ms while waiting */
 
 /* ---- SocketCAN port --------------------------------------------------------- */
 
@@ -235,8 +235,8 @@ static int wait_frame(struct mlip_drives *ds, uint64_t deadline, struct mlip_can
 		}
 		observe(ds, f, ds->port.now_ns(ds->port.ctx), 0, m);
 		if (m->kind == MLIP_CO_EMCY) {
-			say(ds, "node %u: EMCY 0x%04X (%s), error register 0x%02X", m->node, m->emcy.code,
-			     mlip_emcy_text(m->emcy.code), m->emcy.reg);
+			say(ds, "node %u: EMCY 0x%04X (%s), error register 0x%02X", m->node,
+			    m->emcy.code, mlip_emcy_text(m->emcy.code), m->emcy.reg);
 		}
 		return 1;
 	}
@@ -283,10 +283,11 @@ static int sdo(struct mlip_drives *ds, int i, int upload, uint16_t index, uint8_
 		if (r == 0) {
 			mlip_sdo_abort_encode(node, index, sub, MLIP_SDO_ABORT_TIMEOUT, &req);
 			ds->port.send(ds->port.ctx, &req);
-			snprintf(why, why_len,
-			         "%s: no SDO answer %s 0x%04X:%02X (%s) within %u ms: is the drive on "
-			         "the bus with this node id?",
-			         who, verb, index, sub, what, (unsigned)ds->cfg.sdo_timeout_ms);
+			snprintf(
+			    why, why_len,
+			    "%s: no SDO answer %s 0x%04X:%02X (%s) within %u ms: is the drive on "
+			    "the bus with this node id?",
+			    who, verb, index, sub, what, (unsigned)ds->cfg.sdo_timeout_ms);
 			return -ETIMEDOUT;
 		}
 		if (m.kind != MLIP_CO_SDO || m.node != node) {
@@ -306,14 +307,16 @@ static int sdo(struct mlip_drives *ds, int i, int upload, uint16_t index, uint8_
 			return 0;
 		case MLIP_SDO_ABORTED:
 			snprintf(why, why_len, "%s: SDO abort 0x%08X %s 0x%04X:%02X (%s) - %s", who,
-			         s.abort_code, verb, index, sub, mlip_sdo_abort_text(s.abort_code), what);
+			         s.abort_code, verb, index, sub, mlip_sdo_abort_text(s.abort_code),
+			         what);
 			return -EPROTO;
 		case MLIP_SDO_PROTOCOL:
 			ds->port.send(ds->port.ctx, &req);
-			snprintf(why, why_len,
-			         "%s: wrong SDO answer %s 0x%04X:%02X (%s): aborted with 0x%08X (%s)",
-			         who, verb, index, sub, what, s.abort_code,
-			         mlip_sdo_abort_text(s.abort_code));
+			snprintf(
+			    why, why_len,
+			    "%s: wrong SDO answer %s 0x%04X:%02X (%s): aborted with 0x%08X (%s)",
+			    who, verb, index, sub, what, s.abort_code,
+			    mlip_sdo_abort_text(s.abort_code));
 			return -EPROTO;
 		}
 	}
@@ -331,7 +334,8 @@ static int sdo_entry(struct mlip_drives *ds, int i, const struct mlip_sdo_entry 
 	uint32_t got = 0;
 	int rc;
 	if (!e->read_only) {
-		rc = sdo(ds, i, 0, e->index, e->sub, e->value, e->size, e->what, NULL, why, why_len);
+		rc =
+		    sdo(ds, i, 0, e->index, e->sub, e->value, e->size, e->what, NULL, why, why_len);
 		if (rc != 0) {
 			return rc;
 		}
@@ -373,7 +377,8 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 		const struct mlip_axis *a = &m->axis[i];
 		struct mlip_drive *d = &ds->d[i];
 		if (a->can_node == ds->cfg.master_node) {
-			snprintf(why, why_len, "[DRIVES] MASTER_NODE %u is also the CAN_NODE of AXIS_%c",
+			snprintf(why, why_len,
+			         "[DRIVES] MASTER_NODE %u is also the CAN_NODE of AXIS_%c",
 			         ds->cfg.master_node, a->letter);
 			return -EINVAL;
 		}
@@ -382,9 +387,10 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 		d->counts_per_unit = a->counts_per_unit;
 		double w = ds->cfg.following_error * a->counts_per_unit;
 		if (!(w >= 1.0 && w <= 2147483647.0)) {
-			snprintf(why, why_len,
-			         "[DRIVES] FOLLOWING_ERROR %g is %g counts on AXIS_%c: not 1..2^31-1",
-			         ds->cfg.following_error, w, a->letter);
+			snprintf(
+			    why, why_len,
+			    "[DRIVES] FOLLOWING_ERROR %g is %g counts on AXIS_%c: not 1..2^31-1",
+			    ds->cfg.following_error, w, a->letter);
 			return -EINVAL;
 		}
 		d->setup.node = d->node;
@@ -398,10 +404,11 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 		d->setup.master_timeout_ms = (uint16_t)ds->cfg.heartbeat_timeout_ms;
 		struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
 		if (mlip_drive_setup_entries(&d->setup, e, MLIP_DRIVE_SETUP_MAX) < 0) {
-			snprintf(why, why_len,
-			         "[TRAJ] PERIOD %g s cannot be written to 0x60C2 (value 1..255 times "
-			         "10^-6..10^0 s)",
-			         m->period_s);
+			snprintf(
+			    why, why_len,
+			    "[TRAJ] PERIOD %g s cannot be written to 0x60C2 (value 1..255 times "
+			    "10^-6..10^0 s)",
+			    m->period_s);
 			return -EINVAL;
 		}
 	}
@@ -453,22 +460,23 @@ static int transition(struct mlip_drives *ds, int i, uint16_t cw, mlip_402_state
 		}
 		if (ds->d[i].state == want) {
 			say(ds, "%s: %s (0x%04X): %s, statusword 0x%04X after %.1f ms",
-			     axis_of(ds, i, who, sizeof(who)), name, cw, mlip_402_state_name(want), sw,
-			     (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
+			    axis_of(ds, i, who, sizeof(who)), name, cw, mlip_402_state_name(want),
+			    sw, (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
 			return 0;
 		}
 		if (ds->port.now_ns(ds->port.ctx) >= deadline) {
 			const struct mlip_drive_obs *o = &ds->d[i].obs;
 			char emcy[64] = "";
 			if (o->emcy_count > 0) {
-				snprintf(emcy, sizeof(emcy), "; last EMCY 0x%04X (%s)", o->emcy.code,
-				         mlip_emcy_text(o->emcy.code));
+				snprintf(emcy, sizeof(emcy), "; last EMCY 0x%04X (%s)",
+				         o->emcy.code, mlip_emcy_text(o->emcy.code));
 			}
 			snprintf(why, why_len,
 			         "%s: still \"%s\" (statusword 0x%04X) %u ms after %s (controlword "
 			         "0x%04X), expected \"%s\"%s",
-			         axis_of(ds, i, who, sizeof(who)), mlip_402_state_name(ds->d[i].state),
-			         sw, (unsigned)ds->cfg.state_timeout_ms, name, cw,
+			         axis_of(ds, i, who, sizeof(who)),
+			         mlip_402_state_name(ds->d[i].state), sw,
+			         (unsigned)ds->cfg.state_timeout_ms, name, cw,
 			         mlip_402_state_name(want), emcy);
 			return -ETIMEDOUT;
 		}
@@ -488,7 +496,7 @@ static int up_to_switched_on(struct mlip_drives *ds, int i, char *why, size_t wh
 		return rc;
 	}
 	say(ds, "%s: power-up state \"%s\", statusword 0x%04X", axis_of(ds, i, who, sizeof(who)),
-	     mlip_402_state_name(ds->d[i].state), sw);
+	    mlip_402_state_name(ds->d[i].state), sw);
 	for (int steps = 0; steps < 8; steps++) {
 		mlip_402_state s = ds->d[i].state;
 		if (s == MLIP_402_SWITCHED_ON) {
@@ -507,7 +515,8 @@ static int up_to_switched_on(struct mlip_drives *ds, int i, char *why, size_t wh
 		if (cw < 0) { /* not ready, fault reaction: the drive goes on by itself */
 			if (ds->port.now_ns(ds->port.ctx) >= deadline) {
 				snprintf(why, why_len, "%s: stays \"%s\" (statusword 0x%04X)",
-				         axis_of(ds, i, who, sizeof(who)), mlip_402_state_name(s), sw);
+				         axis_of(ds, i, who, sizeof(who)), mlip_402_state_name(s),
+				         sw);
 				return -ETIMEDOUT;
 			}
 			pause_poll(ds);
@@ -522,21 +531,24 @@ static int up_to_switched_on(struct mlip_drives *ds, int i, char *why, size_t wh
 			rc = write_cw(ds, i, MLIP_402_CW_DISABLE_VOLTAGE, why, why_len);
 			if (rc == 0) {
 				rc = transition(ds, i, MLIP_402_CW_FAULT_RESET,
-				                MLIP_402_SWITCH_ON_DISABLED, "fault reset", why, why_len);
+				                MLIP_402_SWITCH_ON_DISABLED, "fault reset", why,
+				                why_len);
 			}
 		} else {
-			static const char *const names[] = {"shutdown", "switch on", "disable voltage"};
+			static const char *const names[] = {"shutdown", "switch on",
+			                                    "disable voltage"};
 			const char *name = cw == MLIP_402_CW_SHUTDOWN    ? names[0]
 			                   : cw == MLIP_402_CW_SWITCH_ON ? names[1]
 			                                                 : names[2];
-			rc = transition(ds, i, (uint16_t)cw, mlip_402_after(s, (uint16_t)cw), name, why,
-			                why_len);
+			rc = transition(ds, i, (uint16_t)cw, mlip_402_after(s, (uint16_t)cw), name,
+			                why, why_len);
 		}
 		if (rc != 0) {
 			return rc;
 		}
 	}
-	snprintf(why, why_len, "%s: does not reach \"switched on\"", axis_of(ds, i, who, sizeof(who)));
+	snprintf(why, why_len, "%s: does not reach \"switched on\"",
+	         axis_of(ds, i, who, sizeof(who)));
 	return -ETIMEDOUT;
 }
 
@@ -566,8 +578,9 @@ static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, cons
 			size_t k = 0;
 			for (int i = 0; i < ds->n; i++) {
 				if (!(seen & (1u << i)) && k < sizeof(list)) {
-					k += (size_t)snprintf(list + k, sizeof(list) - k, "%s%u (axis %c)",
-					                      k ? ", " : "", ds->d[i].node, ds->d[i].letter);
+					k += (size_t)snprintf(list + k, sizeof(list) - k,
+					                      "%s%u (axis %c)", k ? ", " : "",
+					                      ds->d[i].node, ds->d[i].letter);
 				}
 			}
 			snprintf(why, why_len,
@@ -580,8 +593,9 @@ static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, cons
 			int i = find_node(ds, m.node);
 			if (i >= 0 && !(seen & (1u << i))) {
 				seen |= 1u << i;
-				say(ds, "node %u (axis %c): %s after %.1f ms", m.node, ds->d[i].letter, what,
-				     (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
+				say(ds, "node %u (axis %c): %s after %.1f ms", m.node,
+				    ds->d[i].letter, what,
+				    (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
 			}
 		}
 	}
@@ -590,14 +604,14 @@ static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, cons
 
 /* Every drive up to "switched on" (from whatever state) or on to
  * "operation enabled", then every position actual 0x6064, by SDO. */
-static int all_drives_to(struct mlip_drives *ds, mlip_402_state want, int32_t *counts,
-                         char *why, size_t why_len)
+static int all_drives_to(struct mlip_drives *ds, mlip_402_state want, int32_t *counts, char *why,
+                         size_t why_len)
 {
 	int rc;
 	for (int i = 0; i < ds->n; i++) {
 		rc = want == MLIP_402_OPERATION_ENABLED
-		         ? transition(ds, i, MLIP_402_CW_ENABLE_OPERATION, MLIP_402_OPERATION_ENABLED,
-		                      "enable operation", why, why_len)
+		         ? transition(ds, i, MLIP_402_CW_ENABLE_OPERATION,
+		                      MLIP_402_OPERATION_ENABLED, "enable operation", why, why_len)
 		         : up_to_switched_on(ds, i, why, why_len);
 		if (rc != 0) {
 			return rc;
@@ -634,9 +648,10 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 			goto fail;
 		}
 		if ((type & 0xFFFFu) != 402) {
-			snprintf(why, why_len,
-			         "%s: device type 0x%08X is not a CiA 402 drive (0x1000 low word 402)",
-			         axis_of(ds, i, who, sizeof(who)), type);
+			snprintf(
+			    why, why_len,
+			    "%s: device type 0x%08X is not a CiA 402 drive (0x1000 low word 402)",
+			    axis_of(ds, i, who, sizeof(who)), type);
 			rc = -EPROTO;
 			goto fail;
 		}
@@ -647,11 +662,12 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 				goto fail;
 			}
 		}
-		say(ds, "%s: CiA 402 drive (0x1000 = 0x%08X), %d objects written and read back: "
-		         "CSP, RPDO 0x%03X, TPDO 0x%03X, 0x60C2 %g s, 0x6065 %u counts, heartbeat %u ms",
-		     axis_of(ds, i, who, sizeof(who)), type, n, ds->d[i].setup.rpdo_cob,
-		     ds->d[i].setup.tpdo_cob, ds->d[i].setup.period_s,
-		     ds->d[i].setup.following_window_counts, ds->d[i].setup.heartbeat_ms);
+		say(ds,
+		    "%s: CiA 402 drive (0x1000 = 0x%08X), %d objects written and read back: "
+		    "CSP, RPDO 0x%03X, TPDO 0x%03X, 0x60C2 %g s, 0x6065 %u counts, heartbeat %u ms",
+		    axis_of(ds, i, who, sizeof(who)), type, n, ds->d[i].setup.rpdo_cob,
+		    ds->d[i].setup.tpdo_cob, ds->d[i].setup.period_s,
+		    ds->d[i].setup.following_window_counts, ds->d[i].setup.heartbeat_ms);
 	}
 	rc = nmt_wait_all(ds, MLIP_NMT_START, MLIP_NMT_OPERATIONAL, "operational after NMT start",
 	                  why, why_len);
@@ -670,17 +686,19 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		double pos = v / ds->d[i].counts_per_unit;
 		const char *unit = a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm";
 		if (pos < a->min_limit || pos > a->max_limit) {
-			snprintf(why, why_len,
-			         "%s is at %.4f %s (%d counts), beyond its soft limit %s %g: bring it "
-			         "back within %g..%g by hand before starting",
-			         axis_of(ds, i, who, sizeof(who)), pos, unit, v,
-			         pos < a->min_limit ? "MIN_LIMIT" : "MAX_LIMIT",
-			         pos < a->min_limit ? a->min_limit : a->max_limit, a->min_limit,
-			         a->max_limit);
+			snprintf(
+			    why, why_len,
+			    "%s is at %.4f %s (%d counts), beyond its soft limit %s %g: bring it "
+			    "back within %g..%g by hand before starting",
+			    axis_of(ds, i, who, sizeof(who)), pos, unit, v,
+			    pos < a->min_limit ? "MIN_LIMIT" : "MAX_LIMIT",
+			    pos < a->min_limit ? a->min_limit : a->max_limit, a->min_limit,
+			    a->max_limit);
 			rc = -ERANGE;
 			goto fail;
 		}
-		rc = sdo(ds, i, 0, 0x607A, 0, (uint32_t)v, 4, "target position", NULL, why, why_len);
+		rc =
+		    sdo(ds, i, 0, 0x607A, 0, (uint32_t)v, 4, "target position", NULL, why, why_len);
 		if (rc != 0) {
 			goto fail;
 		}
@@ -711,8 +729,8 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		}
 		ds->d[i].obs.tpdo_count = 0;
 		say(ds, "%s: operation enabled at %.4f %s (%d counts): the planner starts there",
-		     axis_of(ds, i, who, sizeof(who)), start_pos[i],
-		     a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", v);
+		    axis_of(ds, i, who, sizeof(who)), start_pos[i],
+		    a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", v);
 	}
 	ds->phase = MLIP_DRIVES_RUN;
 	return 0;
@@ -736,8 +754,8 @@ void mlip_drives_disable(struct mlip_drives *ds)
 			s = ds->d[i].state;
 		}
 		if (s == MLIP_402_SWITCHED_ON) {
-			transition(ds, i, MLIP_402_CW_SHUTDOWN, MLIP_402_READY_TO_SWITCH_ON, "shutdown",
-			           why, sizeof(why));
+			transition(ds, i, MLIP_402_CW_SHUTDOWN, MLIP_402_READY_TO_SWITCH_ON,
+			           "shutdown", why, sizeof(why));
 		}
 	}
 }
@@ -784,7 +802,8 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 		    cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
 			int32_t t[MLIP_DRIVE_LAG];
 			for (int k = 0; k < MLIP_DRIVE_LAG; k++) {
-				t[k] = d->targets[(j - 1 - (uint64_t)k + MLIP_DRIVE_HIST) % MLIP_DRIVE_HIST];
+				t[k] = d->targets[(j - 1 - (uint64_t)k + MLIP_DRIVE_HIST) %
+				                  MLIP_DRIVE_HIST];
 			}
 			x.following_counts =
 			    mlip_drive_following_error(t, MLIP_DRIVE_LAG, d->obs.position_counts);
@@ -850,13 +869,14 @@ int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t)
 		if (!k->power_ok) {
 			/* once, as the loop ends */
 			snprintf(ds->shutdown_note, sizeof(ds->shutdown_note),
-			         "node %u did not confirm \"%s\" within %u ms after %s: statusword 0x%04X",
+			         "node %u did not confirm \"%s\" within %u ms after %s: statusword "
+			         "0x%04X",
 			         (unsigned)k->power_late_node,
 			         k->power_late_step == MLIP_POWER_DISABLING ? "switched on"
-			                                                     : "ready to switch on",
+			                                                    : "ready to switch on",
 			         (unsigned)ds->cfg.state_timeout_ms,
 			         k->power_late_step == MLIP_POWER_DISABLING ? "disable operation"
-			                                                     : "shutdown",
+			                                                    : "shutdown",
 			         (unsigned)k->power_late_sw);
 		}
 	}
@@ -864,25 +884,30 @@ int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t)
 }
 
 /* The text of a power event (MLIP_EV_POWER) for the log, outside the loop. */
-void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_event *e,
-                            char *buf, size_t len)
+void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_event *e, char *buf,
+                            size_t len)
 {
-	static const char *const cw[MLIP_POWER_COUNT] = {
-	    "", "", "disable operation (0x0007)", "shutdown (0x0006)", "",
-	    "switch on (0x0007)", "enable operation (0x000F)"};
+	static const char *const cw[MLIP_POWER_COUNT] = {"",
+	                                                 "",
+	                                                 "disable operation (0x0007)",
+	                                                 "shutdown (0x0006)",
+	                                                 "",
+	                                                 "switch on (0x0007)",
+	                                                 "enable operation (0x000F)"};
 	static const char *const want[MLIP_POWER_COUNT] = {
-	    "", "operation enabled", "switched on", "ready to switch on", "", "switched on",
-	    "operation enabled"};
+	    "", "operation enabled", "switched on",      "ready to switch on",
+	    "", "switched on",       "operation enabled"};
 	double ms = ds->m->period_s * 1e3;
 	uint32_t from = e->from < MLIP_POWER_COUNT ? e->from : 0;
 	if (e->r.node != 0) {
 		int i = find_node(ds, (uint8_t)e->r.node);
-		snprintf(buf, len,
-		         "drives: node %u (axis %c) still \"%s\" (statusword 0x%04X) %.0f periods after "
-		         "%s, expected \"%s\"",
-		         (unsigned)e->r.node, i >= 0 ? ds->d[i].letter : '?',
-		         mlip_402_state_name(mlip_402_state_of((uint16_t)e->r.field)),
-		         (unsigned)e->r.field, e->r.value, cw[from], want[from]);
+		snprintf(
+		    buf, len,
+		    "drives: node %u (axis %c) still \"%s\" (statusword 0x%04X) %.0f periods after "
+		    "%s, expected \"%s\"",
+		    (unsigned)e->r.node, i >= 0 ? ds->d[i].letter : '?',
+		    mlip_402_state_name(mlip_402_state_of((uint16_t)e->r.field)),
+		    (unsigned)e->r.field, e->r.value, cw[from], want[from]);
 		return;
 	}
 	switch (e->state) {
@@ -896,7 +921,8 @@ void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_
 		return;
 	case MLIP_POWER_OFF:
 	case MLIP_POWER_ENABLED:
-		snprintf(buf, len, "drives: %s: \"%s\" after %.0f periods, %s in %llu periods (%.1f ms)",
+		snprintf(buf, len,
+		         "drives: %s: \"%s\" after %.0f periods, %s in %llu periods (%.1f ms)",
 		         cw[from], want[from], e->r.value,
 		         e->state == MLIP_POWER_OFF ? "disabled" : "enabled",
 		         (unsigned long long)e->r.seq, (double)e->r.seq * ms);

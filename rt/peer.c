@@ -1,5 +1,5 @@
 /*
- * peer.c - the system side of the liveness rule (mlip/peer.h): the clock,
+ * peer.c - the system side of the liveness rule (mlip/ipc/peer.h): the clock,
  * and whether the peer's process is there, asked only when the stamp alone
  * does not decide. Not for the periodic loop (it may read /proc).
  */
@@ -19,7 +19,8 @@ int mlip_peer_process(uint32_t pid)
 	FILE *fp;
 
 	/* EPERM: it exists, run by another user (a --shm-group peer) */
-	if (pid == 0 || pid > (uint32_t)0x7fffffff || (kill((pid_t)pid, 0) != 0 && errno != EPERM)) {
+	if (pid == 0 || pid > (uint32_t)0x7fffffff ||
+	    (kill((pid_t)pid, 0) != 0 && errno != EPERM)) {
 		return 0;
 	}
 	snprintf(path, sizeof(path), "/proc/%u/stat", (unsigned)pid);

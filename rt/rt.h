@@ -14,12 +14,12 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "mlip/canenc.h"
-#include "mlip/config.h"
-#include "mlip/controller.h"
-#include "mlip/peer.h"
-#include "mlip/planner.h"
-#include "mlip/ring.h"
+#include "mlip/can/canenc.h"
+#include "mlip/machine/config.h"
+#include "mlip/ctl/controller.h"
+#include "mlip/ipc/peer.h"
+#include "mlip/motion/planner.h"
+#include "mlip/ipc/ring.h"
 
 #define MLIP_SHM_DEFAULT "/mlip"
 uint64_t mlip_now_ns(void); /* CLOCK_MONOTONIC */
@@ -56,7 +56,7 @@ void mlip_shm_close(struct mlip_shm *s);
  * alone (beat within MLIP_PEER_TIMEOUT_NS); 0 also for no consistent status. */
 int mlip_shm_controller_alive(const struct mlip_ring *r);
 
-/* ---- peers (rt/peer.c; the rule is mlip/peer.h) ------------------------ */
+/* ---- peers (rt/peer.c; the rule is mlip/ipc/peer.h) ------------------------ */
 
 /* 1 when process pid exists and is not a zombie (EPERM counts: another
  * user's); 0 for pid 0 or a process gone. Reads /proc: not for the loop. */
@@ -73,12 +73,12 @@ mlip_peer_verdict mlip_peer_feeder(const struct mlip_ring_feeder *f);
 
 struct mlip_canio {
 	int fd;
-	int fd_frames;   /* CAN FD enabled on the socket */
+	int fd_frames; /* CAN FD enabled on the socket */
 	char ifname[16];
 	/* counters, updated by send/poll */
-	uint64_t tx_ok, tx_dropped;  /* dropped: ENOBUFS / EAGAIN, never waited on */
-	uint64_t bus_errors;         /* error frames received */
-	int bus_off;                 /* an error frame reported bus-off */
+	uint64_t tx_ok, tx_dropped; /* dropped: ENOBUFS / EAGAIN, never waited on */
+	uint64_t bus_errors;        /* error frames received */
+	int bus_off;                /* an error frame reported bus-off */
 };
 
 /* Check the interface with libsocketcan outside the loop: exists, is up, its
@@ -108,11 +108,11 @@ struct mlip_rt_opts {
 
 /* What one wake-up looked like; passed to the period's work. */
 struct mlip_rt_tick {
-	uint64_t cycle;          /* 0, 1, 2, ... one per wake-up */
-	uint64_t deadline_ns;    /* the scheduled wake-up (absolute, monotonic) */
-	int64_t latency_ns;      /* actual wake - scheduled, >= 0 */
-	int64_t interval_ns;     /* actual wake - previous actual wake (0 first) */
-	uint64_t overruns;       /* periods missed or overrun so far */
+	uint64_t cycle;       /* 0, 1, 2, ... one per wake-up */
+	uint64_t deadline_ns; /* the scheduled wake-up (absolute, monotonic) */
+	int64_t latency_ns;   /* actual wake - scheduled, >= 0 */
+	int64_t interval_ns;  /* actual wake - previous actual wake (0 first) */
+	uint64_t overruns;    /* periods missed or overrun so far */
 };
 
 /* The period's work: return 0 to go on, non-zero to end the loop. */
@@ -121,10 +121,10 @@ typedef int (*mlip_rt_fn)(void *ctx, const struct mlip_rt_tick *t);
 typedef void (*mlip_rt_after_fn)(void *ctx, const struct mlip_rt_tick *t, int64_t compute_ns);
 
 struct mlip_rt_report {
-	int fifo;          /* the thread really runs SCHED_FIFO */
-	int locked;        /* mlockall succeeded */
-	int pinned;        /* CPU affinity set */
-	char warnings[1024];/* what is not real-time and what to change, one per line */
+	int fifo;            /* the thread really runs SCHED_FIFO */
+	int locked;          /* mlockall succeeded */
+	int pinned;          /* CPU affinity set */
+	char warnings[1024]; /* what is not real-time and what to change, one per line */
 };
 
 /* Lock memory and prefault (call before creating the loop). */
@@ -142,14 +142,14 @@ int mlip_rt_stop_requested(void);
 
 /* ---- the controller (rt/controller.c) ------------------------------------ */
 
-/* The thin part around the pure controller (mlip/controller.h): the clock,
+/* The thin part around the pure controller (mlip/ctl/controller.h): the clock,
  * the feeder's liveness, the command mailbox, CAN send and poll, the status
  * write, and two queues read by an ordinary thread, never by the loop: the
  * events to log and (with a record buffer) the setpoints of every period. */
 #define MLIP_LOG_QUEUE 256 /* events; more in one burst are counted as lost */
 
 struct mlip_rt_sample {
-	uint64_t period;           /* deadlines since the first (holes where missed) */
+	uint64_t period; /* deadlines since the first (holes where missed) */
 	uint32_t state;
 	double pos[MLIP_MAX_AXES];
 };
@@ -157,13 +157,13 @@ struct mlip_rt_sample {
 struct mlip_controller {
 	struct mlip_ctl core;
 	struct mlip_ring *ring;
-	struct mlip_canio *can;            /* NULL: frames encoded, not sent */
-	uint32_t pid;                      /* published as status.reserved */
-	volatile sig_atomic_t exit_request;/* SIGINT/SIGTERM/SIGHUP: stop, then end the loop */
+	struct mlip_canio *can;             /* NULL: frames encoded, not sent */
+	uint32_t pid;                       /* published as status.reserved */
+	volatile sig_atomic_t exit_request; /* SIGINT/SIGTERM/SIGHUP: stop, then end the loop */
 	int64_t period_ns;
 	uint64_t first_deadline_ns;
 	uint64_t cycles, frames_sent;
-	int64_t send_ns;                   /* this period's sends (latency tool) */
+	int64_t send_ns; /* this period's sends (latency tool) */
 	struct mlip_ctl_out out;
 	/* event queue (SPSC: the loop produces, the monitor thread consumes) */
 	struct mlip_ctl_event log[MLIP_LOG_QUEUE];
@@ -194,7 +194,7 @@ int mlip_controller_rec_pop(struct mlip_controller *c, struct mlip_rt_sample *s)
 
 /* ---- CiA 402 drives (rt/drives.c) ------------------------------------------ */
 
-#include "mlip/canopen.h"
+#include "mlip/canopen/canopen.h"
 
 /* How the master reaches the bus: SocketCAN (mlip_co_socket_open) or, in the
  * unit tests, a scripted peer. */
@@ -216,7 +216,7 @@ void mlip_co_socket_close(struct mlip_co_port *p);
  * sent before the SYNC it answers, so a drive that answers late (the
  * emulated VM) is judged as exactly as a prompt one, up to this lag. */
 #define MLIP_DRIVE_HIST 1024 /* periods; a later TPDO is not judged */
-#define MLIP_DRIVE_LAG 4 /* targets before that SYNC a position may follow */
+#define MLIP_DRIVE_LAG  4    /* targets before that SYNC a position may follow */
 
 struct mlip_drive {
 	uint8_t node;
@@ -224,8 +224,8 @@ struct mlip_drive {
 	double counts_per_unit;
 	struct mlip_drive_setup setup;
 	struct mlip_drive_obs obs;
-	mlip_402_state state;       /* as last confirmed */
-	int32_t start_counts;       /* position actual at bring-up */
+	mlip_402_state state;             /* as last confirmed */
+	int32_t start_counts;             /* position actual at bring-up */
 	int32_t targets[MLIP_DRIVE_HIST]; /* target sent in period c at c % MLIP_DRIVE_HIST */
 };
 
@@ -237,14 +237,14 @@ struct mlip_drives {
 	const struct mlip_machine *m;
 	int n;
 	struct mlip_drive d[MLIP_MAX_AXES];
-	uint64_t hb_next_ns;             /* the master's next heartbeat */
+	uint64_t hb_next_ns;                      /* the master's next heartbeat */
 	void (*log)(void *ctx, const char *line); /* bring-up and shut-down (outside the loop) */
 	void *log_ctx;
 	/* the loop */
 	struct mlip_controller *ctl;
-	int phase;                       /* MLIP_DRIVES_* */
+	int phase; /* MLIP_DRIVES_* */
 	uint64_t phase_cycle;
-	uint32_t mute;                   /* drives sent no RPDO: not operation enabled */
+	uint32_t mute; /* drives sent no RPDO: not operation enabled */
 	uint64_t rx_frames, rx_malformed;
 	/* this period's inputs of the controller (mute, the new fault,
 	 * statuswords, positions actual), built here, never poked into it */
@@ -256,8 +256,8 @@ struct mlip_drives {
 	mlip_drive_fault fault_reason;
 	int64_t fault_detail;
 	uint64_t fault_cycle;
-	int shutdown_ok;                 /* the last disable in order within the timeouts */
-	char shutdown_note[160];         /* what went wrong in it */
+	int shutdown_ok;         /* the last disable in order within the timeouts */
+	char shutdown_note[160]; /* what went wrong in it */
 };
 
 /* Check the [DRIVES] settings against the machine (master node, following
@@ -285,8 +285,8 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t);
 /* Outside the loop (the monitor): one line for a power event (MLIP_EV_POWER)
  * with node, axis, controlwords, periods. */
-void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_event *e,
-                            char *buf, size_t len);
+void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_event *e, char *buf,
+                            size_t len);
 /* Outside the loop, by SDO: shutdown (0x0006) to every drive still enabled
  * (after a failed bring-up, or a loop that ended without its shut-down). */
 void mlip_drives_disable(struct mlip_drives *ds);

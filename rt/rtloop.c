@@ -24,17 +24,17 @@
 
 #include "rt.h"
 
-#define NS 1000000000LL
+#define NS             1000000000LL
 /* The loop thread's stack, sized explicitly: the default (RLIMIT_STACK, often
  * 8 MiB) under mlockall(MCL_FUTURE) is locked whole and alone exhausts a
  * typical 8 MiB RLIMIT_MEMLOCK of an unprivileged user (pthread_create then
  * fails with EAGAIN). The loop needs a few KiB; half of it is prefaulted. */
-#define LOOP_STACK (512 * 1024)
+#define LOOP_STACK     (512 * 1024)
 #define STACK_PREFAULT (256 * 1024)
 /* Locked memory that must still fit after mlockall: the loop's stack, the
  * tools' other small threads, stdio and libc's first allocations, and
  * mlip-rt's segment (656 KiB at the default capacity), mapped afterwards. */
-#define LOCK_HEADROOM (LOOP_STACK + 1024 * 1024)
+#define LOCK_HEADROOM  (LOOP_STACK + 1024 * 1024)
 
 static volatile sig_atomic_t stop_flag;
 static int dma_latency_fd = -1; /* held open: the request lasts while it is */
@@ -90,15 +90,17 @@ static void lock_memory(struct mlip_rt_report *rep)
 	void *probe;
 
 	if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
-		snprintf(line, sizeof(line),
-		         "memory not locked (mlockall: %s; RLIMIT_MEMLOCK %ld KiB): page faults can "
-		         "stall the loop; run as root, or raise the limit (ulimit -l unlimited, "
-		         "LimitMEMLOCK=infinity, memlock in /etc/security/limits.conf)",
-		         strerror(errno), lim);
+		snprintf(
+		    line, sizeof(line),
+		    "memory not locked (mlockall: %s; RLIMIT_MEMLOCK %ld KiB): page faults can "
+		    "stall the loop; run as root, or raise the limit (ulimit -l unlimited, "
+		    "LimitMEMLOCK=infinity, memlock in /etc/security/limits.conf)",
+		    strerror(errno), lim);
 		warn(rep, line);
 		return;
 	}
-	probe = mmap(NULL, LOCK_HEADROOM, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+	probe =
+	    mmap(NULL, LOCK_HEADROOM, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
 	if (probe != MAP_FAILED) {
 		munmap(probe, LOCK_HEADROOM);
 		rep->locked = 1;
@@ -122,12 +124,15 @@ int mlip_rt_prepare(const struct mlip_rt_opts *o, struct mlip_rt_report *rep)
 	}
 	if (o->priority > 0) {
 		/* ask now, so the warning comes before the loop starts */
-		struct sched_param sp = {.sched_priority = o->priority}, zero = {.sched_priority = 0};
+		struct sched_param sp = {.sched_priority = o->priority},
+		                   zero = {.sched_priority = 0};
 		if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {
 			sched_setscheduler(0, SCHED_OTHER, &zero);
 		} else {
-			warn(rep, "no SCHED_FIFO (not permitted): the loop runs SCHED_OTHER and will miss "
-			          "deadlines under load; run as root, or grant CAP_SYS_NICE / an rtprio limit");
+			warn(rep, "no SCHED_FIFO (not permitted): the loop runs SCHED_OTHER and "
+			          "will miss "
+			          "deadlines under load; run as root, or grant CAP_SYS_NICE / an "
+			          "rtprio limit");
 		}
 	}
 	/* keep the CPUs out of deep C-states, as cyclictest does: waking from
@@ -135,13 +140,16 @@ int mlip_rt_prepare(const struct mlip_rt_opts *o, struct mlip_rt_report *rep)
 	if (dma_latency_fd < 0) {
 		int32_t zero = 0;
 		dma_latency_fd = open("/dev/cpu_dma_latency", O_RDWR | O_CLOEXEC);
-		if (dma_latency_fd >= 0 && write(dma_latency_fd, &zero, sizeof(zero)) != sizeof(zero)) {
+		if (dma_latency_fd >= 0 &&
+		    write(dma_latency_fd, &zero, sizeof(zero)) != sizeof(zero)) {
 			close(dma_latency_fd);
 			dma_latency_fd = -1;
 		}
 		if (dma_latency_fd < 0 && errno == EACCES) {
-			warn(rep, "cannot hold /dev/cpu_dma_latency at 0 (not permitted): deep CPU sleep "
-			          "states add wake-up latency; run as root");
+			warn(
+			    rep,
+			    "cannot hold /dev/cpu_dma_latency at 0 (not permitted): deep CPU sleep "
+			    "states add wake-up latency; run as root");
 		}
 	}
 	/* the kernel: PREEMPT_RT bounds scheduling latency, a stock kernel does not */
@@ -150,8 +158,9 @@ int mlip_rt_prepare(const struct mlip_rt_opts *o, struct mlip_rt_report *rep)
 	int rt = (uname(&u) == 0 && strstr(u.version, "PREEMPT_RT") != NULL) ||
 	         (read_flag_file("/sys/kernel/realtime", buf, sizeof(buf)) > 0 && buf[0] == '1');
 	if (!rt) {
-		warn(rep, "kernel is not PREEMPT_RT: expect latency spikes; on a controller install a "
-		          "PREEMPT_RT kernel (Debian: linux-image-rt-amd64)");
+		warn(rep,
+		     "kernel is not PREEMPT_RT: expect latency spikes; on a controller install a "
+		     "PREEMPT_RT kernel (Debian: linux-image-rt-amd64)");
 	}
 	if (read_flag_file("/sys/devices/system/cpu/isolated", buf, sizeof(buf)) <= 1) {
 		warn(rep, "no isolated CPU: other tasks share the loop's CPU; boot with isolcpus=N "
@@ -170,7 +179,8 @@ struct loop {
 
 static struct timespec ns_ts(uint64_t ns)
 {
-	struct timespec t = {.tv_sec = (time_t)(ns / (uint64_t)NS), .tv_nsec = (long)(ns % (uint64_t)NS)};
+	struct timespec t = {.tv_sec = (time_t)(ns / (uint64_t)NS),
+	                     .tv_nsec = (long)(ns % (uint64_t)NS)};
 	return t;
 }
 

@@ -1,6 +1,6 @@
 /*
  * shm.c - the POSIX shared-memory segment that carries the ring, the status,
- * feeder and command areas and the machine (mlip/ring.h), and the monotonic
+ * feeder and command areas and the machine (mlip/ipc/ring.h), and the monotonic
  * clock every process stamps its heartbeat with.
  *
  * Who may own the segment: one controller per name. Two guards, both needed:
@@ -101,7 +101,7 @@ static int64_t heartbeat_age_ns(uint64_t hb_ns)
 	return mlip_peer_age_ns(hb_ns, mlip_now_ns());
 }
 
-/* The one liveness rule (mlip/peer.h) on the status stamp alone. */
+/* The one liveness rule (mlip/ipc/peer.h) on the status stamp alone. */
 static mlip_peer_verdict status_verdict(const struct mlip_ring_status *st)
 {
 	struct mlip_peer_seen seen = {st->heartbeat, st->heartbeat_ns, 0, -1};
@@ -166,18 +166,20 @@ static int check_owner(int fd, const char *name, int creating, char *why, size_t
 		return say(why, len, rc, "fstat %s: %s", name, strerror(-rc));
 	}
 	if (!S_ISREG(sb.st_mode)) {
-		return say(why, len, -EPERM, "%s is not a regular shared-memory object: refused", name);
+		return say(why, len, -EPERM, "%s is not a regular shared-memory object: refused",
+		           name);
 	}
 	if (sb.st_uid != me && (creating || (sb.st_uid != 0 && sb.st_uid != extra))) {
 		user_name(sb.st_uid, who, sizeof(who));
 		user_name(me, self, sizeof(self));
 		if (creating) {
-			return say(why, len, -EPERM,
-			           "%s exists and belongs to %s, not to this controller's user %s: "
-			           "another user made it and could feed and command the machine "
-			           "through it; remove /dev/shm%s (if no mlip-rt of theirs runs) or "
-			           "choose another --shm name",
-			           name, who, self, name);
+			return say(
+			    why, len, -EPERM,
+			    "%s exists and belongs to %s, not to this controller's user %s: "
+			    "another user made it and could feed and command the machine "
+			    "through it; remove /dev/shm%s (if no mlip-rt of theirs runs) or "
+			    "choose another --shm name",
+			    name, who, self, name);
 		}
 		return say(why, len, -EPERM,
 		           "segment %s belongs to %s, neither you (%s) nor root: it may not be "
@@ -303,10 +305,11 @@ static int open_exclusive(struct mlip_shm *s, const char *name, mode_t mode, int
 	}
 	rc = -errno;
 	if (rc == -EACCES) {
-		return say(why, why_len, rc,
-		           "%s exists and belongs to another user (see ls -l /dev/shm%s): remove it "
-		           "if no mlip-rt runs, or choose another --shm name",
-		           name, name);
+		return say(
+		    why, why_len, rc,
+		    "%s exists and belongs to another user (see ls -l /dev/shm%s): remove it "
+		    "if no mlip-rt runs, or choose another --shm name",
+		    name, name);
 	}
 	return say(why, why_len, rc, "shm_open %s: %s", name, strerror(-rc));
 }
@@ -381,7 +384,8 @@ int mlip_shm_create_group(struct mlip_shm *s, const char *name, uint32_t capacit
 		close(s->fd);
 		shm_reset(s);
 		return say(why, why_len, -EPROTO,
-		           "%s has layout version %" PRIu64 ", this mlip-rt speaks %u: a controller of "
+		           "%s has layout version %" PRIu64
+		           ", this mlip-rt speaks %u: a controller of "
 		           "another build left it, and its feeders may still use it; stop them and "
 		           "remove /dev/shm%s, or choose another --shm name",
 		           name, version, MLIP_RING_VERSION, name);

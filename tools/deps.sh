@@ -10,6 +10,7 @@ need=""
 # compiler with its ThreadSanitizer runtime (make tsan), nm (make purity)
 command -v cc >/dev/null 2>&1 || need="$need build-essential"
 command -v nm >/dev/null 2>&1 || need="$need binutils"
+command -v clang-format >/dev/null 2>&1 || need="$need clang-format" # make format-check
 [ -f /usr/include/cmocka.h ] || need="$need libcmocka-dev"
 [ -f /usr/include/libsocketcan.h ] || need="$need libsocketcan-dev"
 command -v valgrind >/dev/null 2>&1 || need="$need valgrind"

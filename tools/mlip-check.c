@@ -20,22 +20,24 @@
 
 static void usage(FILE *f)
 {
-	fprintf(f, "usage: " PROG " [machine options] [--quantum MM] [--json OUT] PROGRAM.ngc TRACE.csv\n"
-	           "Check a trace (t,x,y,... one row per period) against the machine's limits.\n"
-	           "Rows further apart in t than one period follow a hole (lost setpoints): no\n"
-	           "acceleration is taken across it, velocities are its mean.\n\n"
-	           "  --config FILE / --accel A[,A..] / --vmax MM_S / --eps MM / --period S\n"
-	           "                      the machine, as for mlip-sim\n"
-	           "  --offsets FILE / --strict / --default-feed F   as for mlip-sim\n"
-	           "  --quantum MM        position resolution of the trace (e.g. 0.001 for\n"
-	           "                      1000 counts/mm): adds 4 quantum / T^2 to the acceleration\n"
-	           "                      bound and quantum to the contour and end bounds\n"
-	           "  --rel R             relative tolerance on every limit (default 1e-9)\n"
-	           "  --no-end            the trace need not end on the program's last point\n"
-	           "                      (a run stopped by the operator)\n"
-	           "  --json OUT          measured values as JSON ('-' for stdout)\n"
-	           "  --errors OUT.csv    each sample's contour error: t,contour_mm\n"
-	           "exit status: 0 within limits, 1 violation, 2 usage or input error\n");
+	fprintf(f,
+	        "usage: " PROG
+	        " [machine options] [--quantum MM] [--json OUT] PROGRAM.ngc TRACE.csv\n"
+	        "Check a trace (t,x,y,... one row per period) against the machine's limits.\n"
+	        "Rows further apart in t than one period follow a hole (lost setpoints): no\n"
+	        "acceleration is taken across it, velocities are its mean.\n\n"
+	        "  --config FILE / --accel A[,A..] / --vmax MM_S / --eps MM / --period S\n"
+	        "                      the machine, as for mlip-sim\n"
+	        "  --offsets FILE / --strict / --default-feed F   as for mlip-sim\n"
+	        "  --quantum MM        position resolution of the trace (e.g. 0.001 for\n"
+	        "                      1000 counts/mm): adds 4 quantum / T^2 to the acceleration\n"
+	        "                      bound and quantum to the contour and end bounds\n"
+	        "  --rel R             relative tolerance on every limit (default 1e-9)\n"
+	        "  --no-end            the trace need not end on the program's last point\n"
+	        "                      (a run stopped by the operator)\n"
+	        "  --json OUT          measured values as JSON ('-' for stdout)\n"
+	        "  --errors OUT.csv    each sample's contour error: t,contour_mm\n"
+	        "exit status: 0 within limits, 1 violation, 2 usage or input error\n");
 }
 
 int main(int argc, char **argv)
@@ -44,14 +46,19 @@ int main(int argc, char **argv)
 	const char *json = NULL, *errors = NULL;
 	double quantum = 0.0, rel = 1e-9;
 	int no_end = 0;
-	static const struct option opts[] = {
-		{"config", required_argument, 0, 'c'}, {"accel", required_argument, 0, 'a'},
-		{"vmax", required_argument, 0, 'v'},   {"eps", required_argument, 0, 'e'},
-		{"period", required_argument, 0, 'p'}, {"quantum", required_argument, 0, 'Q'},
-		{"rel", required_argument, 0, 'r'},    {"json", required_argument, 0, 'j'},
-		{"no-end", no_argument, 0, 'E'},       MLIP_CLI_GCODE_OPTIONS,
-		{"errors", required_argument, 0, 'O'},
-		{"help", no_argument, 0, 'h'},         {0, 0, 0, 0}};
+	static const struct option opts[] = {{"config", required_argument, 0, 'c'},
+	                                     {"accel", required_argument, 0, 'a'},
+	                                     {"vmax", required_argument, 0, 'v'},
+	                                     {"eps", required_argument, 0, 'e'},
+	                                     {"period", required_argument, 0, 'p'},
+	                                     {"quantum", required_argument, 0, 'Q'},
+	                                     {"rel", required_argument, 0, 'r'},
+	                                     {"json", required_argument, 0, 'j'},
+	                                     {"no-end", no_argument, 0, 'E'},
+	                                     MLIP_CLI_GCODE_OPTIONS,
+	                                     {"errors", required_argument, 0, 'O'},
+	                                     {"help", no_argument, 0, 'h'},
+	                                     {0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
 		double v = 0.0;
@@ -160,7 +167,8 @@ int main(int argc, char **argv)
 			char *end;
 			x[cols++] = strtod(p, &end);
 			if (end == p) {
-				fprintf(stderr, PROG ": %s:%zu: expected %d numbers\n", tpath, lineno, n + 1);
+				fprintf(stderr, PROG ": %s:%zu: expected %d numbers\n", tpath,
+				        lineno, n + 1);
 				input_error = 1;
 				break;
 			}
@@ -177,7 +185,9 @@ int main(int argc, char **argv)
 		if (rows > 0) {
 			double k = nearbyint((x[0] - t_prev) / m->period_s);
 			if (!(k >= 1.0)) {
-				fprintf(stderr, PROG ": %s:%zu: t %.9g is not at least one period after %.9g\n",
+				fprintf(stderr,
+				        PROG
+				        ": %s:%zu: t %.9g is not at least one period after %.9g\n",
 				        tpath, lineno, x[0], t_prev);
 				input_error = 1;
 				break;
@@ -211,8 +221,8 @@ int main(int argc, char **argv)
 	double T = m->period_s;
 	double abs_acc = mlip_check_rounding_floor(&chk) + 4.0 * quantum / (T * T);
 	char msg[4096];
-	int bad = mlip_check_verdict(&chk, rel, abs_acc, quantum, no_end ? INFINITY : 1e-9 + quantum,
-	                             msg, sizeof(msg));
+	int bad = mlip_check_verdict(&chk, rel, abs_acc, quantum,
+	                             no_end ? INFINITY : 1e-9 + quantum, msg, sizeof(msg));
 
 	FILE *jf = json == NULL ? NULL : strcmp(json, "-") == 0 ? stdout : fopen(json, "w");
 	if (jf != NULL) {
@@ -238,8 +248,8 @@ int main(int argc, char **argv)
 	if (bad) {
 		fprintf(stderr, PROG ": %s: %d violation(s):\n%s", tpath, bad, msg);
 	} else {
-		fprintf(stderr, PROG ": %s: %zu samples within limits (max contour %.6f mm)\n", tpath,
-		        chk.count, chk.max_contour_mm);
+		fprintf(stderr, PROG ": %s: %zu samples within limits (max contour %.6f mm)\n",
+		        tpath, chk.count, chk.max_contour_mm);
 	}
 	mlip_program_close(&prog);
 	return bad ? 1 : 0;

@@ -1,6 +1,6 @@
 /*
  * mlip-config - read a machine configuration the way every mlip tool does
- * (src/config.c) and print it as parsed: the check of a file before a run,
+ * (src/machine/config.c) and print it as parsed: the check of a file before a run,
  * and the one INI reader for tools in other languages (--json), so the
  * listener and the tests never parse the file a second way.
  */
@@ -11,21 +11,20 @@
 #include "confjson.h"
 #include "confload.h"
 #include "cli.h"
-#include "mlip/canenc.h"
+#include "mlip/can/canenc.h"
 
 #define PROG "mlip-config"
 
 static void usage(FILE *f)
 {
-	fprintf(f,
-	        "usage: " PROG " [--json] [--profile P] FILE.ini\n"
-	        "Check a machine configuration and print it as the mlip tools read it.\n\n"
-	        "  --json        one JSON object on stdout (machine, axes, [CAN], the CAN\n"
-	        "                frames of the profile, [DRIVES])\n"
-	        "  --profile P   the [CAN] profile mlip-rt --profile P would use (checked\n"
-	        "                with the same id rules)\n"
-	        "  -h, --help\n\n"
-	        "exit status: 0 valid; 1 an error (file:line:col: error: ...); 2 usage\n");
+	fprintf(f, "usage: " PROG " [--json] [--profile P] FILE.ini\n"
+	           "Check a machine configuration and print it as the mlip tools read it.\n\n"
+	           "  --json        one JSON object on stdout (machine, axes, [CAN], the CAN\n"
+	           "                frames of the profile, [DRIVES])\n"
+	           "  --profile P   the [CAN] profile mlip-rt --profile P would use (checked\n"
+	           "                with the same id rules)\n"
+	           "  -h, --help\n\n"
+	           "exit status: 0 valid; 1 an error (file:line:col: error: ...); 2 usage\n");
 }
 
 int main(int argc, char **argv)

@@ -1,6 +1,6 @@
 /*
  * mlip-ctl - talk to a running mlip-rt through its shared-memory segment:
- * feed override, hold, resume, stop (the command mailbox of mlip/ring.h), and
+ * feed override, hold, resume, stop (the command mailbox of mlip/ipc/ring.h), and
  * a status report (the controller's and the feeder's seqlocked areas).
  *
  * A command is posted only once the previous one is completed (the mailbox
@@ -19,11 +19,11 @@
 
 #include "cli.h"
 #include "confjson.h"
-#include "mlip/canopen.h"
-#include "mlip/ring.h"
+#include "mlip/canopen/canopen.h"
+#include "mlip/ipc/ring.h"
 #include "rt.h"
 
-#define PROG "mlip-ctl"
+#define PROG    "mlip-ctl"
 #define WAIT_NS 1000000000LL /* post retries and answer wait: 1 s each */
 #define POLL_NS 1000000L     /* poll the mailbox every 1 ms */
 
@@ -226,8 +226,10 @@ static int cmd_status(struct mlip_shm *s, int json)
 			/* a drive fault: the field is the event, with the drive's node */
 			mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
 			                          sizeof(fname));
-			mlip_json_str(stdout, mlip_drive_fault_name((mlip_drive_fault)st.reason_field));
-			printf(",\n  \"reason_node\": %u,\n  \"reason_text\": ", (unsigned)st.reason_node);
+			mlip_json_str(stdout,
+			              mlip_drive_fault_name((mlip_drive_fault)st.reason_field));
+			printf(",\n  \"reason_node\": %u,\n  \"reason_text\": ",
+			       (unsigned)st.reason_node);
 			mlip_json_str(stdout, fname);
 			printf(",\n");
 		} else if (st.reason_field == MLIP_FIELD_NONE) {
@@ -319,7 +321,8 @@ static int cmd_status(struct mlip_shm *s, int json)
 	       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
 	printf("why         %s", mlip_state_why_name(st.reason));
 	if (st.reason == MLIP_WHY_DRIVE) {
-		mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname, sizeof(fname));
+		mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
+		                          sizeof(fname));
 		printf(": node %u, %s: %s, block %llu (line %u)", (unsigned)st.reason_node,
 		       mlip_drive_fault_name((mlip_drive_fault)st.reason_field), fname,
 		       (unsigned long long)st.reason_seq, (unsigned)st.reason_line);
@@ -335,7 +338,8 @@ static int cmd_status(struct mlip_shm *s, int json)
 		printf(", %.0f periods missed", st.reason_value);
 	}
 	printf("\n");
-	if (st.state == MLIP_STATE_PAUSED || (st.state == MLIP_STATE_HELD && st.reason != MLIP_WHY_OVERRIDE_ZERO)) {
+	if (st.state == MLIP_STATE_PAUSED ||
+	    (st.state == MLIP_STATE_HELD && st.reason != MLIP_WHY_OVERRIDE_ZERO)) {
 		printf("to continue mlip-ctl resume\n");
 	} else if (st.state == MLIP_STATE_FAULT) {
 		printf("to continue restart mlip-rt (the fault stays until then)\n");
@@ -360,10 +364,13 @@ static int cmd_status(struct mlip_shm *s, int json)
 	}
 	if (st.drive_power != MLIP_POWER_NONE) {
 		static const char *const how[MLIP_POWER_COUNT] = {
-		    "", "operation enabled: they hold or follow the setpoints",
-		    "disable operation 0x0007, at rest", "shutdown 0x0006",
+		    "",
+		    "operation enabled: they hold or follow the setpoints",
+		    "disable operation 0x0007, at rest",
+		    "shutdown 0x0006",
 		    "ready to switch on: no torque; enabled again for the next program",
-		    "switch on 0x0007 for the next program", "enable operation 0x000F"};
+		    "switch on 0x0007 for the next program",
+		    "enable operation 0x000F"};
 		printf("drives      %s (%s)", mlip_drive_power_name(st.drive_power),
 		       st.drive_power < MLIP_POWER_COUNT ? how[st.drive_power] : "?");
 		if (st.drive_power_periods > 0 &&
@@ -378,8 +385,9 @@ static int cmd_status(struct mlip_shm *s, int json)
 	printf("override    %u %%, optional stop %s\n", (unsigned)st.override_pct,
 	       st.optional_stop ? "on" : "off");
 	if (st.stops > 0) {
-		printf("last stop   %.3f mm on the path in %u periods, request to rest (%u so far)\n",
-		       (double)st.stop_nm * 1e-6, (unsigned)st.stop_periods, (unsigned)st.stops);
+		printf(
+		    "last stop   %.3f mm on the path in %u periods, request to rest (%u so far)\n",
+		    (double)st.stop_nm * 1e-6, (unsigned)st.stop_periods, (unsigned)st.stops);
 	}
 	printf("periods     %llu overruns, %llu underruns\n", (unsigned long long)st.overruns,
 	       (unsigned long long)st.underruns);
@@ -411,8 +419,9 @@ static int cmd_status(struct mlip_shm *s, int json)
 	} else if (!alive) {
 		fprintf(stderr, PROG ": controller on %s is not running: start mlip-rt\n", s->name);
 	} else if (st.state == MLIP_STATE_FAULT) {
-		fprintf(stderr, PROG ": controller on %s is in fault (%s): the program did not "
-		                "complete; restart mlip-rt to clear it\n",
+		fprintf(stderr,
+		        PROG ": controller on %s is in fault (%s): the program did not "
+		             "complete; restart mlip-rt to clear it\n",
 		        s->name, mlip_state_why_name(st.reason));
 	}
 	return alive && st.state != MLIP_STATE_FAULT ? EXIT_DONE : EXIT_FAIL;
@@ -499,7 +508,8 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 			return EXIT_USAGE;
 		}
 		if (parse_pct(pct, arg) != 0) {
-			fprintf(stderr, PROG ": override: '%s' is not a whole percentage in 0..200\n", pct);
+			fprintf(stderr,
+			        PROG ": override: '%s' is not a whole percentage in 0..200\n", pct);
 			return EXIT_USAGE;
 		}
 	} else if (strcmp(cmd, "hold") == 0) {
@@ -549,8 +559,10 @@ static int cmd_stdin(struct mlip_shm *s)
 		}
 		int takes_arg = op_takes_arg(w[0]);
 		if (parse_command(w[0], w[1], &op, &arg) != 0 || n > 1 + takes_arg) {
-			fprintf(stderr, PROG ": stdin:%lu: expected one of override PCT, hold, resume, "
-			                "stop, optional-stop on|off\n", lineno);
+			fprintf(stderr,
+			        PROG ": stdin:%lu: expected one of override PCT, hold, resume, "
+			             "stop, optional-stop on|off\n",
+			        lineno);
 			return EXIT_USAGE;
 		}
 		if (cmd_send(s, op, arg) != EXIT_DONE) {

@@ -1,6 +1,6 @@
 /*
  * mlip-feed - send a G-code program to a running mlip-rt through the ring of
- * its shared-memory segment (mlip/ring.h) and follow it to the end.
+ * its shared-memory segment (mlip/ipc/ring.h) and follow it to the end.
  *
  * The whole program is parsed and checked against the machine the controller
  * publishes in the segment before anything is sent: a program with any error
@@ -41,22 +41,22 @@
 
 #include "blockiter.h"
 #include "cli.h"
-#include "mlip/config.h"
-#include "mlip/canopen.h"
-#include "mlip/ring.h"
+#include "mlip/machine/config.h"
+#include "mlip/canopen/canopen.h"
+#include "mlip/ipc/ring.h"
 #include "offsets.h"
 #include "program.h"
 #include "rt.h"
 
-#define PROG "mlip-feed"
-#define BATCH 256u                 /* records per mlip_ring_push_n */
-#define FULL_SLEEP_NS 1000000L     /* ring full: retry after 1 ms */
-#define WAIT_SLEEP_NS 5000000L     /* only waiting: poll every 5 ms (heartbeat < 10 ms) */
-#define TTY_EVERY_NS 100000000ull  /* progress line on a terminal: 10 per second */
-#define LOG_EVERY_NS 2000000000ull /* progress line otherwise: every 2 s */
-#define IDLE_NOTE_NS 1000000000ull /* say why we wait after 1 s */
-#define STOP_WAIT_NS 5000000000ull /* after a stop: wait at most 5 s for rest */
-#define CMD_WAIT_NS 1000000000ull  /* mailbox busy: retry for 1 s */
+#define PROG          "mlip-feed"
+#define BATCH         256u          /* records per mlip_ring_push_n */
+#define FULL_SLEEP_NS 1000000L      /* ring full: retry after 1 ms */
+#define WAIT_SLEEP_NS 5000000L      /* only waiting: poll every 5 ms (heartbeat < 10 ms) */
+#define TTY_EVERY_NS  100000000ull  /* progress line on a terminal: 10 per second */
+#define LOG_EVERY_NS  2000000000ull /* progress line otherwise: every 2 s */
+#define IDLE_NOTE_NS  1000000000ull /* say why we wait after 1 s */
+#define STOP_WAIT_NS  5000000000ull /* after a stop: wait at most 5 s for rest */
+#define CMD_WAIT_NS   1000000000ull /* mailbox busy: retry for 1 s */
 
 enum {
 	EXIT_DONE = 0,
@@ -160,33 +160,33 @@ struct feed {
 	struct mlip_program prog;
 	uint64_t n; /* blocks; the END record is n + 1 */
 	uint32_t end_line;
-	uint64_t read_seq;          /* blocks taken from the stream so far */
+	uint64_t read_seq;           /* blocks taken from the stream so far */
 	uint32_t lines[LINE_WINDOW]; /* source line of seq, for seq % LINE_WINDOW */
 	struct mlip_block_iter it;   /* the program's blocks, or smooth's over them */
 	struct mlip_smooth_iter si;
-	const char *offsets;        /* --offsets FILE, or NULL */
+	const char *offsets; /* --offsets FILE, or NULL */
 	int strict;
-	double default_feed;        /* --default-feed */
-	struct mlip_machine mp;     /* the controller's machine, HOME = where the program starts */
+	double default_feed;    /* --default-feed */
+	struct mlip_machine mp; /* the controller's machine, HOME = where the program starts */
 	struct mlip_program_options popt;
-	int from_controller;        /* mp's HOME is the idle controller's position */
+	int from_controller; /* mp's HOME is the idle controller's position */
 	/* progress */
-	struct mlip_ring_feeder fa; /* what we publish */
-	struct mlip_ring_status st; /* last consistent controller status */
-	uint64_t last_hb;           /* controller period counter: must not go back */
+	struct mlip_ring_feeder fa;   /* what we publish */
+	struct mlip_ring_status st;   /* last consistent controller status */
+	uint64_t last_hb;             /* controller period counter: must not go back */
 	struct mlip_peer_watch watch; /* our reads of the controller's heartbeat */
-	uint64_t consumed0;         /* controller's blocks_consumed before our first push */
-	uint64_t next_seq;          /* next record to push, 1..n + 1 */
-	uint64_t first_seq;         /* --start-seq */
-	double rate;                /* --rate: blocks per second at most (0: no limit) */
-	uint64_t pushed;            /* records pushed by this run */
-	uint64_t exec0;             /* exec_seq before our program: not ours */
-	uint64_t exec;              /* our block being executed (0: none yet) */
-	uint32_t exec_line;         /* its source line */
+	uint64_t consumed0;           /* controller's blocks_consumed before our first push */
+	uint64_t next_seq;            /* next record to push, 1..n + 1 */
+	uint64_t first_seq;           /* --start-seq */
+	double rate;                  /* --rate: blocks per second at most (0: no limit) */
+	uint64_t pushed;              /* records pushed by this run */
+	uint64_t exec0;               /* exec_seq before our program: not ours */
+	uint64_t exec;                /* our block being executed (0: none yet) */
+	uint32_t exec_line;           /* its source line */
 	int end_pushed;
-	int late_told;              /* "the controller has not run" said */
+	int late_told;                 /* "the controller has not run" said */
 	uint32_t told_state, told_why; /* the last state explained to the operator */
-	int line_open; /* a "\r" progress line is on the terminal */
+	int line_open;                 /* a "\r" progress line is on the terminal */
 	uint64_t t_start, t_report;
 };
 
@@ -247,7 +247,7 @@ static void track_exec(struct feed *f)
 }
 
 /* Read the controller status; 0 while it is alive or late, -1 when it is
- * dead (mlip/peer.h: no beat for MLIP_PEER_TIMEOUT_NS across our own reads
+ * dead (mlip/ipc/peer.h: no beat for MLIP_PEER_TIMEOUT_NS across our own reads
  * and its process gone) or restarted (the period counter went back). Late,
  * its process there but not running (stopped, or starved of CPU), it is not
  * dead, and when it runs again it holds at rest (a stall): we wait, and say
@@ -275,9 +275,10 @@ static int poll_controller(struct feed *f)
 			f->late_told = 1;
 			close_line(f);
 			fprintf(stderr,
-			        PROG ": the controller (pid %u) has not run for %.1f s (stopped or "
-			             "starved of CPU); waiting: when it runs again it holds the machine "
-			             "at rest (stall) and mlip-ctl resume continues\n",
+			        PROG
+			        ": the controller (pid %u) has not run for %.1f s (stopped or "
+			        "starved of CPU); waiting: when it runs again it holds the machine "
+			        "at rest (stall) and mlip-ctl resume continues\n",
 			        (unsigned)f->st.reserved, (double)quiet / 1e9);
 		}
 		return 0;
@@ -387,7 +388,8 @@ static const char *position_text(const struct mlip_machine *m, char *buf, size_t
 	size_t k = 0;
 	buf[0] = '\0';
 	for (int i = 0; i < m->n_axes && k < len; i++) {
-		k += (size_t)snprintf(buf + k, len - k, " %c%.4f", m->axis[i].letter, m->axis[i].home);
+		k += (size_t)snprintf(buf + k, len - k, " %c%.4f", m->axis[i].letter,
+		                      m->axis[i].home);
 	}
 	return buf;
 }
@@ -437,7 +439,8 @@ static int load(struct feed *f, int notes)
 		}
 		if (rc < 0) {
 			fprintf(stderr, PROG ": %s: %s\n", f->path,
-			        f->prog.msg[0] ? f->prog.msg : "the smoothing filter refused a block");
+			        f->prog.msg[0] ? f->prog.msg
+			                       : "the smoothing filter refused a block");
 			return EXIT_FAIL;
 		}
 		mlip_program_rewind(&f->prog);
@@ -476,8 +479,10 @@ static int start_moved(struct feed *f)
 	for (int k = 0; k < f->mp.n_axes; k++) {
 		double p = from[k];
 		if (!isfinite(p)) {
-			fprintf(stderr, PROG ": the controller publishes no position for axis %c: "
-			                     "nothing was sent\n", f->mp.axis[k].letter);
+			fprintf(stderr,
+			        PROG ": the controller publishes no position for axis %c: "
+			             "nothing was sent\n",
+			        f->mp.axis[k].letter);
 			return EXIT_FAIL;
 		}
 		moved |= fabs(p - f->mp.axis[k].home) > 1e-9;
@@ -535,9 +540,10 @@ static int controller_fault(struct feed *f)
 	close_line(f);
 	if (f->st.reason == MLIP_WHY_BAD_RECORD) {
 		fprintf(stderr,
-		        PROG ": controller fault: bad record %llu (line %u): %s = %.17g; the machine "
-		             "stops at the end of the last good block; the program is NOT complete "
-		             "(restart mlip-rt to clear)\n",
+		        PROG
+		        ": controller fault: bad record %llu (line %u): %s = %.17g; the machine "
+		        "stops at the end of the last good block; the program is NOT complete "
+		        "(restart mlip-rt to clear)\n",
 		        (unsigned long long)f->st.reason_seq, (unsigned)f->st.reason_line,
 		        mlip_rec_field_name(f->st.reason_field), f->st.reason_value);
 	} else if (f->st.reason == MLIP_WHY_DRIVE) {
@@ -581,8 +587,9 @@ static void explain(struct feed *f)
 	} else if (st->state == MLIP_STATE_HELD && st->reason == MLIP_WHY_STALL) {
 		close_line(f);
 		fprintf(stderr,
-		        PROG ": stall: the controller missed %.0f periods; held at rest at the last "
-		             "setpoint sent, line %u; to continue: mlip-ctl resume\n",
+		        PROG
+		        ": stall: the controller missed %.0f periods; held at rest at the last "
+		        "setpoint sent, line %u; to continue: mlip-ctl resume\n",
 		        st->reason_value, (unsigned)st->exec_line);
 	}
 }
@@ -698,8 +705,8 @@ static int interrupted(struct feed *f)
 		fprintf(stderr,
 		        PROG ": interrupted: machine stopped on the path at line %u (block %llu of "
 		             "%llu); resume with --start-seq %llu\n",
-		        line_of(f, next), (unsigned long long)next,
-		        (unsigned long long)f->n, (unsigned long long)next);
+		        line_of(f, next), (unsigned long long)next, (unsigned long long)f->n,
+		        (unsigned long long)next);
 	}
 	return code;
 }
@@ -755,14 +762,17 @@ static int check_continues(struct feed *f)
 	}
 	if (done == 0) {
 		fprintf(stderr,
-		        PROG ": --start-seq %llu: the controller on %s has run no block of a program "
-		             "(state %s): it cannot continue one; nothing was sent (send the program "
-		             "from its start)\n",
-		        (unsigned long long)f->first_seq, f->shm.name, mlip_ring_state_name(f->st.state));
+		        PROG
+		        ": --start-seq %llu: the controller on %s has run no block of a program "
+		        "(state %s): it cannot continue one; nothing was sent (send the program "
+		        "from its start)\n",
+		        (unsigned long long)f->first_seq, f->shm.name,
+		        mlip_ring_state_name(f->st.state));
 	} else {
 		fprintf(stderr,
-		        PROG ": --start-seq %llu: the controller on %s completed block %llu (line %u) "
-		             "last, so only --start-seq %llu continues it; nothing was sent\n",
+		        PROG
+		        ": --start-seq %llu: the controller on %s completed block %llu (line %u) "
+		        "last, so only --start-seq %llu continues it; nothing was sent\n",
 		        (unsigned long long)f->first_seq, f->shm.name, (unsigned long long)done,
 		        (unsigned)f->st.exec_line, (unsigned long long)done + 1);
 	}
@@ -850,7 +860,8 @@ static int run(struct feed *f)
 	}
 	/* the producer's view, taken now that we hold the producer lock */
 	if (mlip_ring_port_open(&f->tx, f->r, 1) != MLIP_OK) {
-		fprintf(stderr, PROG ": %s: the ring's header is not valid any more: restart mlip-rt\n",
+		fprintf(stderr,
+		        PROG ": %s: the ring's header is not valid any more: restart mlip-rt\n",
 		        f->shm.name);
 		return EXIT_FAIL;
 	}
@@ -889,9 +900,10 @@ static int run(struct feed *f)
 		if (mlip_ring_port_count(&f->tx, &k, &apart) != MLIP_OK) {
 			close_line(f);
 			fprintf(stderr,
-			        PROG ": %s is corrupted: its tail is %u records from our head, beyond "
-			             "the capacity %u (another process writes into it?); stopping the "
-			             "feed: mlip-ctl stop, then restart mlip-rt\n",
+			        PROG
+			        ": %s is corrupted: its tail is %u records from our head, beyond "
+			        "the capacity %u (another process writes into it?); stopping the "
+			        "feed: mlip-ctl stop, then restart mlip-rt\n",
 			        f->shm.name, (unsigned)apart, (unsigned)f->tx.capacity);
 			return EXIT_FAULT;
 		}
@@ -910,8 +922,9 @@ static int run(struct feed *f)
 				leave(f); /* no END: the controller stops at rest after the last */
 				close_line(f);
 				fprintf(stderr,
-				        PROG ": %s: %s; the machine stops at rest after block %llu: "
-				             "continue with --start-seq %llu once the file is right\n",
+				        PROG
+				        ": %s: %s; the machine stops at rest after block %llu: "
+				        "continue with --start-seq %llu once the file is right\n",
 				        f->path, f->prog.msg, (unsigned long long)(f->next_seq - 1),
 				        (unsigned long long)f->next_seq);
 				return EXIT_FAIL;
@@ -1001,7 +1014,9 @@ int main(int argc, char **argv)
 			char *end;
 			f.rate = strtod(optarg, &end);
 			if (*end != '\0' || !(f.rate > 0.0)) {
-				fprintf(stderr, PROG ": --rate: '%s' is not a positive number of blocks/s\n",
+				fprintf(stderr,
+				        PROG
+				        ": --rate: '%s' is not a positive number of blocks/s\n",
 				        optarg);
 				return EXIT_USAGE;
 			}
@@ -1020,7 +1035,8 @@ int main(int argc, char **argv)
 			char *end;
 			f.default_feed = strtod(optarg, &end);
 			if (*end != '\0' || !(f.default_feed > 0.0) || f.default_feed > 1e9) {
-				fprintf(stderr, PROG ": --default-feed: '%s' is not a positive number\n",
+				fprintf(stderr,
+				        PROG ": --default-feed: '%s' is not a positive number\n",
 				        optarg);
 				return EXIT_USAGE;
 			}

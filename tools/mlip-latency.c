@@ -51,25 +51,25 @@
 #include "cli.h"
 #include "confload.h"
 #include "latstats.h"
-#include "mlip/canenc.h"
-#include "mlip/ring.h"
+#include "mlip/can/canenc.h"
+#include "mlip/ipc/ring.h"
 #include "program.h"
 #include "rt.h"
 
-#define PROG "mlip-latency"
-#define VERSION "1"
-#define DEFAULT_CONFIG "config/mill-3axis.ini"
+#define PROG                "mlip-latency"
+#define VERSION             "1"
+#define DEFAULT_CONFIG      "config/mill-3axis.ini"
 #define DEFAULT_CAN_PROGRAM "examples/demo.ngc" /* --can without --plan */
-#define DEFAULT_PRIORITY 80        /* mlip-rt's */
-#define DEFAULT_INTERVAL_US 1000   /* --idle without -i */
-#define DEFAULT_HIST_US 10000      /* histogram shown: 0..10 ms */
-#define KEEP_HIST_US 100000        /* histogram kept for percentiles: 0..100 ms at least */
-#define MAX_HIST_US 10000000       /* -h at most 10 s */
-#define BIN_NS 1000                /* 1 us bins */
-#define FEED_BATCH 256u            /* records per push */
-#define FEED_SLEEP_NS 1000000L     /* feeder: ring full, look again in 1 ms */
-#define LIVE_NS 1000000000L        /* live line refresh */
-#define MAX_BUS_LOAD 0.70          /* mlip-rt's budget */
+#define DEFAULT_PRIORITY    80                  /* mlip-rt's */
+#define DEFAULT_INTERVAL_US 1000                /* --idle without -i */
+#define DEFAULT_HIST_US     10000               /* histogram shown: 0..10 ms */
+#define KEEP_HIST_US        100000      /* histogram kept for percentiles: 0..100 ms at least */
+#define MAX_HIST_US         10000000    /* -h at most 10 s */
+#define BIN_NS              1000        /* 1 us bins */
+#define FEED_BATCH          256u        /* records per push */
+#define FEED_SLEEP_NS       1000000L    /* feeder: ring full, look again in 1 ms */
+#define LIVE_NS             1000000000L /* live line refresh */
+#define MAX_BUS_LOAD        0.70        /* mlip-rt's budget */
 
 enum { MODE_IDLE, MODE_PLAN, MODE_CAN };
 static const char *const mode_name[] = {"idle", "plan", "can"};
@@ -236,7 +236,8 @@ static void *live_main(void *arg)
 		uint64_t max = __atomic_load_n(&R.live_max_ns, __ATOMIC_RELAXED);
 		uint64_t ovr = __atomic_load_n(&R.live_overruns, __ATOMIC_RELAXED);
 		fprintf(stderr,
-		        "\r" PROG ": C:%10llu Act:%8.1f Max:%8.1f us (wake-up latency), %llu overruns",
+		        "\r" PROG
+		        ": C:%10llu Act:%8.1f Max:%8.1f us (wake-up latency), %llu overruns",
 		        (unsigned long long)c, act / 1e3, max / 1e3, (unsigned long long)ovr);
 		fflush(stderr);
 	}
@@ -270,45 +271,47 @@ struct opts {
 
 static void usage(FILE *f)
 {
-	fprintf(f,
-	        "usage: " PROG " [--idle | --plan FILE.ngc | --can IFACE] [options]\n"
-	        "Latency test of the controller's own periodic loop (mlip_rt_run: same thread,\n"
-	        "priority and memory set-up as mlip-rt), idle or under the real per-period work.\n\n"
-	        "Load (one; default --idle):\n"
-	        "  --idle              wake up and sleep only, like cyclictest\n"
-	        "  --plan FILE         the real controller tick on this program (as mlip-rt\n"
-	        "                      --can none), frames encoded and discarded; restarts\n"
-	        "                      the program whenever it ends\n"
-	        "  --can IFACE         the same and the frames sent on IFACE, the send timed\n"
-	        "                      apart; the program is --plan's (default " DEFAULT_CAN_PROGRAM ")\n"
-	        "  --config FILE       machine INI for --plan/--can (default " DEFAULT_CONFIG ")\n"
-	        "  --strategy NAME     mpct (default), bisector, stop or smooth (the program\n"
-	        "                      smoothed first, as mlip-feed sends it)\n\n"
-	        "Loop (cyclictest's letters):\n"
-	        "  -p, --priority N    SCHED_FIFO priority 1..99 (default %d, mlip-rt's;\n"
-	        "                      0: SCHED_OTHER)\n"
-	        "  -i, --interval US   period in microseconds (default: the config's PERIOD\n"
-	        "                      for --plan/--can, which it then replaces; %d for --idle)\n"
-	        "  -D, --duration T    run time: 10 or 10s (seconds), 1m, 2h, 1d (default: until\n"
-	        "                      Ctrl-C or -l)\n"
-	        "  -l, --loops N       stop after N periods (default: no limit)\n"
-	        "  -a, --affinity CPU  pin the loop to this CPU (also --cpu; default: no pinning)\n"
-	        "  -m, --mlockall      lock memory (the default, as mlip-rt does)\n"
-	        "      --no-mlockall   do not lock memory\n"
-	        "  -h, --histogram US  print 1 us histograms up to US (overflow above) on stdout,\n"
-	        "                      and keep that range in the JSON (default %d)\n"
-	        "  -q, --quiet         no live line, only the results\n"
-	        "      --json FILE     results as JSON (a superset of cyclictest's --json)\n"
-	        "      --compare-cyclictest\n"
-	        "                      then run rt-tests' cyclictest with the same interval,\n"
-	        "                      priority, affinity, memory locking and duration, and\n"
-	        "                      print both in one table\n"
-	        "      --help\n\n"
-	        "Per period: wake-up latency (wake - scheduled, us), period jitter (|interval -\n"
-	        "period|, us), compute time of the period's work (us), the send time (--can),\n"
-	        "overruns (deadlines missed). Exit 0 when the test ran, 1 when it could not, 2 on\n"
-	        "usage errors.\n",
-	        DEFAULT_PRIORITY, DEFAULT_INTERVAL_US, DEFAULT_HIST_US);
+	fprintf(
+	    f,
+	    "usage: " PROG " [--idle | --plan FILE.ngc | --can IFACE] [options]\n"
+	    "Latency test of the controller's own periodic loop (mlip_rt_run: same thread,\n"
+	    "priority and memory set-up as mlip-rt), idle or under the real per-period work.\n\n"
+	    "Load (one; default --idle):\n"
+	    "  --idle              wake up and sleep only, like cyclictest\n"
+	    "  --plan FILE         the real controller tick on this program (as mlip-rt\n"
+	    "                      --can none), frames encoded and discarded; restarts\n"
+	    "                      the program whenever it ends\n"
+	    "  --can IFACE         the same and the frames sent on IFACE, the send timed\n"
+	    "                      apart; the program is --plan's (default " DEFAULT_CAN_PROGRAM
+	    ")\n"
+	    "  --config FILE       machine INI for --plan/--can (default " DEFAULT_CONFIG ")\n"
+	    "  --strategy NAME     mpct (default), bisector, stop or smooth (the program\n"
+	    "                      smoothed first, as mlip-feed sends it)\n\n"
+	    "Loop (cyclictest's letters):\n"
+	    "  -p, --priority N    SCHED_FIFO priority 1..99 (default %d, mlip-rt's;\n"
+	    "                      0: SCHED_OTHER)\n"
+	    "  -i, --interval US   period in microseconds (default: the config's PERIOD\n"
+	    "                      for --plan/--can, which it then replaces; %d for --idle)\n"
+	    "  -D, --duration T    run time: 10 or 10s (seconds), 1m, 2h, 1d (default: until\n"
+	    "                      Ctrl-C or -l)\n"
+	    "  -l, --loops N       stop after N periods (default: no limit)\n"
+	    "  -a, --affinity CPU  pin the loop to this CPU (also --cpu; default: no pinning)\n"
+	    "  -m, --mlockall      lock memory (the default, as mlip-rt does)\n"
+	    "      --no-mlockall   do not lock memory\n"
+	    "  -h, --histogram US  print 1 us histograms up to US (overflow above) on stdout,\n"
+	    "                      and keep that range in the JSON (default %d)\n"
+	    "  -q, --quiet         no live line, only the results\n"
+	    "      --json FILE     results as JSON (a superset of cyclictest's --json)\n"
+	    "      --compare-cyclictest\n"
+	    "                      then run rt-tests' cyclictest with the same interval,\n"
+	    "                      priority, affinity, memory locking and duration, and\n"
+	    "                      print both in one table\n"
+	    "      --help\n\n"
+	    "Per period: wake-up latency (wake - scheduled, us), period jitter (|interval -\n"
+	    "period|, us), compute time of the period's work (us), the send time (--can),\n"
+	    "overruns (deadlines missed). Exit 0 when the test ran, 1 when it could not, 2 on\n"
+	    "usage errors.\n",
+	    DEFAULT_PRIORITY, DEFAULT_INTERVAL_US, DEFAULT_HIST_US);
 }
 
 /* cyclictest's -D forms: N (seconds), Ns, Nm, Nh, Nd. 0 or -1. */
@@ -363,27 +366,37 @@ static int parse_uint(const char *s, uint64_t max, uint64_t *out)
 
 static int parse_opts(int argc, char **argv, struct opts *o)
 {
-	enum { O_IDLE = 256, O_PLAN, O_CAN, O_CONFIG, O_JSON, O_COMPARE, O_NOLOCK, O_HELP, O_STRATEGY };
+	enum {
+		O_IDLE = 256,
+		O_PLAN,
+		O_CAN,
+		O_CONFIG,
+		O_JSON,
+		O_COMPARE,
+		O_NOLOCK,
+		O_HELP,
+		O_STRATEGY
+	};
 	static const struct option lo[] = {
-		{"idle", no_argument, 0, O_IDLE},
-		{"plan", required_argument, 0, O_PLAN},
-		{"can", required_argument, 0, O_CAN},
-		{"config", required_argument, 0, O_CONFIG},
-		{"strategy", required_argument, 0, O_STRATEGY},
-		{"priority", required_argument, 0, 'p'},
-		{"interval", required_argument, 0, 'i'},
-		{"duration", required_argument, 0, 'D'},
-		{"loops", required_argument, 0, 'l'},
-		{"affinity", required_argument, 0, 'a'},
-		{"cpu", required_argument, 0, 'a'}, /* mlip-rt's name, which its warnings use */
-		{"mlockall", no_argument, 0, 'm'},
-		{"no-mlockall", no_argument, 0, O_NOLOCK},
-		{"histogram", required_argument, 0, 'h'},
-		{"quiet", no_argument, 0, 'q'},
-		{"json", required_argument, 0, O_JSON},
-		{"compare-cyclictest", no_argument, 0, O_COMPARE},
-		{"help", no_argument, 0, O_HELP},
-		{0, 0, 0, 0}};
+	    {"idle", no_argument, 0, O_IDLE},
+	    {"plan", required_argument, 0, O_PLAN},
+	    {"can", required_argument, 0, O_CAN},
+	    {"config", required_argument, 0, O_CONFIG},
+	    {"strategy", required_argument, 0, O_STRATEGY},
+	    {"priority", required_argument, 0, 'p'},
+	    {"interval", required_argument, 0, 'i'},
+	    {"duration", required_argument, 0, 'D'},
+	    {"loops", required_argument, 0, 'l'},
+	    {"affinity", required_argument, 0, 'a'},
+	    {"cpu", required_argument, 0, 'a'}, /* mlip-rt's name, which its warnings use */
+	    {"mlockall", no_argument, 0, 'm'},
+	    {"no-mlockall", no_argument, 0, O_NOLOCK},
+	    {"histogram", required_argument, 0, 'h'},
+	    {"quiet", no_argument, 0, 'q'},
+	    {"json", required_argument, 0, O_JSON},
+	    {"compare-cyclictest", no_argument, 0, O_COMPARE},
+	    {"help", no_argument, 0, O_HELP},
+	    {0, 0, 0, 0}};
 	int c, idle = 0;
 	uint64_t u;
 
@@ -404,7 +417,9 @@ static int parse_opts(int argc, char **argv, struct opts *o)
 		case O_STRATEGY:
 			o->strategy = mlip_cli_strategy(optarg);
 			if (o->strategy < 0) {
-				fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
+				fprintf(stderr,
+				        PROG ": --strategy: '%s' is not one of mpct, bisector, "
+				             "stop, smooth\n",
 				        optarg);
 				return 2;
 			}
@@ -418,31 +433,37 @@ static int parse_opts(int argc, char **argv, struct opts *o)
 			break;
 		case 'p':
 			if (parse_uint(optarg, 99, &u) != 0) {
-				fprintf(stderr, PROG ": -p/--priority: '%s' is not 0..99\n", optarg);
+				fprintf(stderr, PROG ": -p/--priority: '%s' is not 0..99\n",
+				        optarg);
 				return 2;
 			}
 			o->priority = (int)u;
 			break;
 		case 'i':
 			if (parse_uint(optarg, 100000, &u) != 0 || u < 100) {
-				fprintf(stderr, PROG ": -i/--interval: '%s' is not 100..100000 us\n", optarg);
+				fprintf(stderr,
+				        PROG ": -i/--interval: '%s' is not 100..100000 us\n",
+				        optarg);
 				return 2;
 			}
 			o->interval_us = (int64_t)u;
 			break;
 		case 'D':
 			if (parse_duration(optarg, &o->duration_s) != 0) {
-				fprintf(stderr,
-				        PROG ": -D/--duration: '%s' is not a duration such as 10, 10s, 1m, "
-				             "2h or 1d\n",
-				        optarg);
+				fprintf(
+				    stderr,
+				    PROG
+				    ": -D/--duration: '%s' is not a duration such as 10, 10s, 1m, "
+				    "2h or 1d\n",
+				    optarg);
 				return 2;
 			}
 			o->duration_arg = optarg;
 			break;
 		case 'l':
 			if (parse_uint(optarg, UINT64_MAX / 2, &u) != 0 || u == 0) {
-				fprintf(stderr, PROG ": -l/--loops: '%s' is not a positive count\n", optarg);
+				fprintf(stderr, PROG ": -l/--loops: '%s' is not a positive count\n",
+				        optarg);
 				return 2;
 			}
 			o->loops = u;
@@ -450,7 +471,8 @@ static int parse_opts(int argc, char **argv, struct opts *o)
 		case 'a':
 			if (parse_uint(optarg, 4095, &u) != 0) {
 				fprintf(stderr,
-				        PROG ": -a/--affinity: '%s' is not one CPU number (e.g. -a 1)\n",
+				        PROG
+				        ": -a/--affinity: '%s' is not one CPU number (e.g. -a 1)\n",
 				        optarg);
 				return 2;
 			}
@@ -464,8 +486,8 @@ static int parse_opts(int argc, char **argv, struct opts *o)
 			break;
 		case 'h':
 			if (parse_uint(optarg, MAX_HIST_US, &u) != 0 || u == 0) {
-				fprintf(stderr, PROG ": -h/--histogram: '%s' is not 1..%d us\n", optarg,
-				        MAX_HIST_US);
+				fprintf(stderr, PROG ": -h/--histogram: '%s' is not 1..%d us\n",
+				        optarg, MAX_HIST_US);
 				return 2;
 			}
 			o->hist_us = (uint32_t)u;
@@ -511,9 +533,9 @@ static int parse_opts(int argc, char **argv, struct opts *o)
 
 struct sysinfo_rt {
 	struct utsname u;
-	int preempt_rt;       /* uname says PREEMPT_RT, or /sys/kernel/realtime is 1 */
-	int sys_realtime;     /* /sys/kernel/realtime (cyclictest's sysinfo.realtime) */
-	char isolated[128];   /* /sys/devices/system/cpu/isolated, "" when none */
+	int preempt_rt;     /* uname says PREEMPT_RT, or /sys/kernel/realtime is 1 */
+	int sys_realtime;   /* /sys/kernel/realtime (cyclictest's sysinfo.realtime) */
+	char isolated[128]; /* /sys/devices/system/cpu/isolated, "" when none */
 	long ncpu;
 };
 
@@ -581,7 +603,8 @@ static void json_hist(FILE *f, const struct mlip_latstats *s, uint32_t hist_us)
 	fputc('{', f);
 	for (uint32_t b = 0; b < end; b++) {
 		if (s->bins[b] != 0) {
-			fprintf(f, "%s\"%u\": %llu", first ? "" : ", ", b, (unsigned long long)s->bins[b]);
+			fprintf(f, "%s\"%u\": %llu", first ? "" : ", ", b,
+			        (unsigned long long)s->bins[b]);
 			first = 0;
 		}
 	}
@@ -596,7 +619,8 @@ static void json_series(FILE *f, const struct mlip_latstats *s, long long max_at
 	fprintf(f, "{\n%s  \"unit\": \"us\",\n%s  \"samples\": %llu,\n", ind, ind,
 	        (unsigned long long)s->count);
 	fprintf(f, "%s  \"min\": %.3f,\n%s  \"avg\": %.3f,\n%s  \"max\": %.3f,\n", ind,
-	        us(mlip_latstats_min_ns(s)), ind, mlip_latstats_mean_ns(s) / 1e3, ind, us(s->max_ns));
+	        us(mlip_latstats_min_ns(s)), ind, mlip_latstats_mean_ns(s) / 1e3, ind,
+	        us(s->max_ns));
 	for (int k = 0; k < NPCT; k++) {
 		int ov;
 		fprintf(f, "%s  \"%s\": %.3f,\n", ind, pct_key[k],
@@ -676,10 +700,11 @@ static char *slurp(const char *path)
 
 /* Run cyclictest with our settings; its -h histogram (stdout) becomes a
  * latstats series like ours, overflow samples at its max. 0 or -1. */
-static int run_cyclictest(const struct opts *o, int64_t period_ns, double elapsed_s, uint32_t hist_us,
-                          struct ct_result *ct)
+static int run_cyclictest(const struct opts *o, int64_t period_ns, double elapsed_s,
+                          uint32_t hist_us, struct ct_result *ct)
 {
-	char a_i[32], a_p[32], a_a[32], a_h[32], a_d[32], a_l[32], json_path[] = "/tmp/mlip-latency-ctXXXXXX";
+	char a_i[32], a_p[32], a_a[32], a_h[32], a_d[32], a_l[32],
+	    json_path[] = "/tmp/mlip-latency-ctXXXXXX";
 	const char *argv[32];
 	int n = 0;
 	memset(ct, 0, sizeof(*ct));
@@ -717,8 +742,8 @@ static int run_cyclictest(const struct opts *o, int64_t period_ns, double elapse
 	}
 	size_t used = 0; /* the command as shown: without the temporary --json file */
 	for (int k = 0; k < n && used < sizeof(ct->cmd); k++) {
-		used += (size_t)snprintf(ct->cmd + used, sizeof(ct->cmd) - used, "%s%s", k ? " " : "",
-		                         argv[k]);
+		used += (size_t)snprintf(ct->cmd + used, sizeof(ct->cmd) - used, "%s%s",
+		                         k ? " " : "", argv[k]);
 	}
 	if (jfd >= 0) {
 		argv[n++] = "--json";
@@ -746,7 +771,8 @@ static int run_cyclictest(const struct opts *o, int64_t period_ns, double elapse
 		close(pfd[0]);
 		close(pfd[1]);
 		execvp("cyclictest", (char *const *)argv);
-		fprintf(stderr, PROG ": cannot run cyclictest: %s (Debian: apt-get install rt-tests)\n",
+		fprintf(stderr,
+		        PROG ": cannot run cyclictest: %s (Debian: apt-get install rt-tests)\n",
 		        strerror(errno));
 		_exit(127);
 	}
@@ -846,8 +872,8 @@ static void print_table(FILE *f, const char *name, const struct mlip_latstats *s
 
 static void print_table_head(FILE *f, const char *what, int with_at)
 {
-	fprintf(f, "  %-20s %10s %8s %8s %8s %8s %8s %8s %8s%s\n", what, "samples", "min", "avg", "p50",
-	        "p99", "p99.9", "p99.99", "max", with_at ? "     max at" : "");
+	fprintf(f, "  %-20s %10s %8s %8s %8s %8s %8s %8s %8s%s\n", what, "samples", "min", "avg",
+	        "p50", "p99", "p99.9", "p99.99", "max", with_at ? "     max at" : "");
 }
 
 /* cyclictest's -h output, one column per series. */
@@ -861,7 +887,8 @@ static void print_histogram(FILE *f, int nseries, uint32_t hist_us)
 	for (uint32_t b = 0; b < hist_us; b++) {
 		fprintf(f, "%06u", b);
 		for (int k = 0; k < nseries; k++) {
-			fprintf(f, " %06llu", (unsigned long long)(b < R.s[k].nbins ? R.s[k].bins[b] : 0));
+			fprintf(f, " %06llu",
+			        (unsigned long long)(b < R.s[k].nbins ? R.s[k].bins[b] : 0));
 		}
 		fputc('\n', f);
 	}
@@ -871,11 +898,12 @@ static void print_histogram(FILE *f, int nseries, uint32_t hist_us)
 		for (int k = 0; k < nseries; k++) {
 			const struct mlip_latstats *s = &R.s[k];
 			uint64_t below = mlip_latstats_count_below(s, hist_us);
-			unsigned long long v = r == 0   ? below
-			                       : r == 1 ? (unsigned long long)(mlip_latstats_min_ns(s) / 1000)
-			                       : r == 2 ? (unsigned long long)(mlip_latstats_mean_ns(s) / 1e3)
-			                       : r == 3 ? (unsigned long long)(s->max_ns / 1000)
-			                                : s->count - below;
+			unsigned long long v =
+			    r == 0   ? below
+			    : r == 1 ? (unsigned long long)(mlip_latstats_min_ns(s) / 1000)
+			    : r == 2 ? (unsigned long long)(mlip_latstats_mean_ns(s) / 1e3)
+			    : r == 3 ? (unsigned long long)(s->max_ns / 1000)
+			             : s->count - below;
 			fprintf(f, " %05llu", v);
 		}
 		fputc('\n', f);
@@ -905,7 +933,8 @@ int main(int argc, char **argv)
 	if (o.mode != MODE_IDLE) {
 		if (mlip_config_load(o.config, &cfg, stderr) != 0) {
 			if (!o.config_given) {
-				fprintf(stderr, PROG ": hint: run from the repository root, or pass --config\n");
+				fprintf(stderr, PROG
+				        ": hint: run from the repository root, or pass --config\n");
 			}
 			return 1;
 		}
@@ -936,7 +965,8 @@ int main(int argc, char **argv)
 			struct mlip_block *sb;
 			size_t sn;
 			if (mlip_smooth_program(&cfg.machine, prog.blocks, prog.n, &sb, &sn) != 0) {
-				fprintf(stderr, PROG ": %s: out of memory smoothing the program\n", o.program);
+				fprintf(stderr, PROG ": %s: out of memory smoothing the program\n",
+				        o.program);
 				return 1;
 			}
 			free(prog.blocks);
@@ -950,10 +980,12 @@ int main(int argc, char **argv)
 	if (o.mode == MODE_CAN) {
 		struct mlip_can_load l;
 		if (mlip_can_load_breakdown(prof, cfg.machine.n_axes, cfg.can.bitrate,
-		                            cfg.can.data_bitrate, cfg.machine.period_s, &l) == MLIP_OK &&
+		                            cfg.can.data_bitrate, cfg.machine.period_s,
+		                            &l) == MLIP_OK &&
 		    l.load > MAX_BUS_LOAD) {
 			fprintf(stderr,
-			        PROG ": warning: bus load %.1f %% is above mlip-rt's %.0f %% budget (mlip-rt "
+			        PROG ": warning: bus load %.1f %% is above mlip-rt's %.0f %% "
+			             "budget (mlip-rt "
 			             "would refuse this configuration)\n",
 			        l.load * 100.0, MAX_BUS_LOAD * 100.0);
 		}
@@ -973,7 +1005,8 @@ int main(int argc, char **argv)
 	/* histograms: allocated and touched now, before mlockall (MCL_CURRENT covers
 	 * them, and its RLIMIT_MEMLOCK check counts them) */
 	uint32_t keep = o.hist_us > KEEP_HIST_US ? o.hist_us : KEEP_HIST_US;
-	keep = keep < (uint32_t)(4 * (period_ns / BIN_NS)) ? (uint32_t)(4 * (period_ns / BIN_NS)) : keep;
+	keep = keep < (uint32_t)(4 * (period_ns / BIN_NS)) ? (uint32_t)(4 * (period_ns / BIN_NS))
+	                                                   : keep;
 	for (int k = 0; k < S_N; k++) {
 		uint64_t *b = malloc((size_t)keep * sizeof(uint64_t));
 		if (b == NULL) {
@@ -1009,21 +1042,25 @@ int main(int argc, char **argv)
 		/* the latency test counts missed periods; it does not hold on them */
 		struct mlip_ctl_opts co = {.strategy = (mlip_strategy)o.strategy,
 		                           .lookahead = cfg.lookahead,
-		                           .stall_periods = UINT32_MAX, .can = &cfg.can};
+		                           .stall_periods = UINT32_MAX,
+		                           .can = &cfg.can};
 		if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, ring,
 		                         o.mode == MODE_CAN ? &io : NULL) != 0) {
 			co.can = NULL;
-			if (o.mode == MODE_CAN ||
-			    mlip_controller_init(&ctl, &planner, &cfg.machine, &co, ring, NULL) != 0) {
-				fprintf(stderr, PROG ": the [CAN] settings of %s do not fit this machine\n",
+			if (o.mode == MODE_CAN || mlip_controller_init(&ctl, &planner, &cfg.machine,
+			                                               &co, ring, NULL) != 0) {
+				fprintf(stderr,
+				        PROG ": the [CAN] settings of %s do not fit this machine\n",
 				        o.config);
 				return 1;
 			}
-			fprintf(stderr, PROG ": note: [CAN] settings do not fit: frames not encoded\n");
+			fprintf(stderr,
+			        PROG ": note: [CAN] settings do not fit: frames not encoded\n");
 		} else {
 			R.encode = 1;
 		}
-		memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead, as mlip-rt */
+		memset(&planner.seg, 0,
+		       sizeof(planner.seg)); /* prefault the look-ahead, as mlip-rt */
 		R.ctl = &ctl;
 		R.io = o.mode == MODE_CAN ? &io : NULL;
 		R.last_state = MLIP_STATE_IDLE;
@@ -1041,21 +1078,25 @@ int main(int argc, char **argv)
 
 	/* ---- real-time set-up, as mlip-rt: after every allocation, so that
 	 * mlip_rt_prepare's memlock check sees what is really locked ---- */
-	struct mlip_rt_opts ro = {.period_ns = period_ns, .priority = o.priority, .cpu = o.cpu,
+	struct mlip_rt_opts ro = {.period_ns = period_ns,
+	                          .priority = o.priority,
+	                          .cpu = o.cpu,
 	                          .lock_memory = o.lock_memory};
 	struct mlip_rt_report rep;
 	mlip_rt_prepare(&ro, &rep);
 	/* what was chosen away: mlip_rt_prepare warns only about what failed */
 	char chosen[256] = "";
 	if (o.priority == 0) {
-		snprintf(chosen, sizeof(chosen), "%s",
-		         "priority 0: the loop runs SCHED_OTHER, not real-time; mlip-rt runs -p 80\n");
+		snprintf(
+		    chosen, sizeof(chosen), "%s",
+		    "priority 0: the loop runs SCHED_OTHER, not real-time; mlip-rt runs -p 80\n");
 	}
 	if (!o.lock_memory) {
 		size_t used = strlen(chosen);
-		snprintf(chosen + used, sizeof(chosen) - used, "%s",
-		         "memory not locked (--no-mlockall): page faults can stall the loop; mlip-rt "
-		         "locks it\n");
+		snprintf(
+		    chosen + used, sizeof(chosen) - used, "%s",
+		    "memory not locked (--no-mlockall): page faults can stall the loop; mlip-rt "
+		    "locks it\n");
 	}
 
 	mlip_cli_on_stop_signals(on_signal);
@@ -1137,20 +1178,24 @@ int main(int argc, char **argv)
 		print_table(out, series_label[k], &R.s[k], (long long)R.max_at[k]);
 	}
 	if (o.mode != MODE_IDLE) {
-		fprintf(out,
-		        "  load: %s, %llu runs of the program finished, %llu blocks taken, %.1f %% of "
-		        "periods moving, %llu underruns, %llu frames %s",
-		        o.program, (unsigned long long)R.passes, (unsigned long long)ctl.core.blocks_consumed,
-		        R.periods ? 100.0 * (double)R.moving_periods / (double)R.periods : 0.0,
-		        (unsigned long long)ctl.core.underruns, (unsigned long long)R.frames_encoded,
-		        o.mode == MODE_CAN ? "encoded" : "encoded and discarded");
+		fprintf(
+		    out,
+		    "  load: %s, %llu runs of the program finished, %llu blocks taken, %.1f %% of "
+		    "periods moving, %llu underruns, %llu frames %s",
+		    o.program, (unsigned long long)R.passes,
+		    (unsigned long long)ctl.core.blocks_consumed,
+		    R.periods ? 100.0 * (double)R.moving_periods / (double)R.periods : 0.0,
+		    (unsigned long long)ctl.core.underruns, (unsigned long long)R.frames_encoded,
+		    o.mode == MODE_CAN ? "encoded" : "encoded and discarded");
 		if (o.mode == MODE_CAN) {
-			fprintf(out, ", %llu sent, %llu dropped (tx queue full), %llu bus errors on %s",
+			fprintf(out,
+			        ", %llu sent, %llu dropped (tx queue full), %llu bus errors on %s",
 			        (unsigned long long)io.tx_ok, (unsigned long long)io.tx_dropped,
 			        (unsigned long long)io.bus_errors, o.iface);
 		}
 		if (R.encode_faults) {
-			fprintf(out, ", %llu periods not encodable", (unsigned long long)R.encode_faults);
+			fprintf(out, ", %llu periods not encodable",
+			        (unsigned long long)R.encode_faults);
 		}
 		fputc('\n', out);
 	}
@@ -1163,9 +1208,9 @@ int main(int argc, char **argv)
 	                  PROG " %s: wake-up p99 %.0f us, p99.99 %.0f us, max %.0f us | jitter max "
 	                       "%.0f us (%s) | compute p99 %.0f us, max %.0f us",
 	                  mode_name[o.mode], us(mlip_latstats_percentile_ns(L, 99, NULL)),
-	                  us(mlip_latstats_percentile_ns(L, 99.99, NULL)), us(L->max_ns), us(J->max_ns),
-	                  jitter_grade(us(J->max_ns)), us(mlip_latstats_percentile_ns(C, 99, NULL)),
-	                  us(C->max_ns));
+	                  us(mlip_latstats_percentile_ns(L, 99.99, NULL)), us(L->max_ns),
+	                  us(J->max_ns), jitter_grade(us(J->max_ns)),
+	                  us(mlip_latstats_percentile_ns(C, 99, NULL)), us(C->max_ns));
 	if (o.mode == MODE_CAN && sl > 0 && (size_t)sl < sizeof(summary)) {
 		sl += snprintf(summary + sl, sizeof(summary) - (size_t)sl, " | send max %.0f us",
 		               us(R.s[S_SEND].max_ns));
@@ -1176,8 +1221,9 @@ int main(int argc, char **argv)
 			nw += *w == '\n';
 		}
 		sl += snprintf(summary + sl, sizeof(summary) - (size_t)sl,
-		               " | %llu overruns | worst wake-up + compute %.0f of %lld us%s", 
-		               (unsigned long long)R.overruns, worst_us, (long long)(period_ns / 1000),
+		               " | %llu overruns | worst wake-up + compute %.0f of %lld us%s",
+		               (unsigned long long)R.overruns, worst_us,
+		               (long long)(period_ns / 1000),
 		               nw ? " | NOT REAL-TIME, see the warnings" : "");
 	}
 	fprintf(out, "%s\n", summary);
@@ -1192,16 +1238,19 @@ int main(int argc, char **argv)
 			fprintf(stderr, PROG ": now cyclictest with the same settings...\n");
 		}
 		if (run_cyclictest(&o, period_ns, elapsed_s, ct_hist, &ct) == 0) {
-			fprintf(out, "\nwake-up latency, us (the same loop settings, one run after the other)\n");
+			fprintf(out, "\nwake-up latency, us (the same loop settings, one run after "
+			             "the other)\n");
 			print_table_head(out, "", 0);
 			char name[40];
 			snprintf(name, sizeof(name), "mlip-latency %s", mode_name[o.mode]);
 			print_table(out, name, L, -1);
 			print_table(out, "cyclictest", &ct.s, -1);
 			fprintf(out, "  cyclictest: %s\n", ct.cmd);
-			fprintf(out, "  (cyclictest whole us, its avg %.2f; percentiles from its histogram, "
-			             "same rule as ours)\n",
-			        ct.avg_us);
+			fprintf(
+			    out,
+			    "  (cyclictest whole us, its avg %.2f; percentiles from its histogram, "
+			    "same rule as ours)\n",
+			    ct.avg_us);
 		}
 	}
 
@@ -1215,14 +1264,15 @@ int main(int argc, char **argv)
 		char ts0[64], ts1[64], cmdline[2048];
 		size_t used = 0;
 		for (int k = 0; k < argc && used < sizeof(cmdline); k++) {
-			used += (size_t)snprintf(cmdline + used, sizeof(cmdline) - used, "%s%s", k ? " " : "",
-			                         argv[k]);
+			used += (size_t)snprintf(cmdline + used, sizeof(cmdline) - used, "%s%s",
+			                         k ? " " : "", argv[k]);
 		}
 		fmt_time(ts0, sizeof(ts0), t_start);
 		fmt_time(ts1, sizeof(ts1), t_end);
 		struct timespec res;
 		clock_getres(CLOCK_MONOTONIC, &res);
-		/* cyclictest's keys first (its "cmdline:" and "rt_test_version:" keep their colon) */
+		/* cyclictest's keys first (its "cmdline:" and "rt_test_version:" keep their colon)
+		 */
 		fprintf(f, "{\n  \"file_version\": 1,\n  \"cmdline:\": ");
 		json_str(f, cmdline);
 		fprintf(f, ",\n  \"rt_test_version:\": \"mlip-latency " VERSION "\",\n");
@@ -1256,7 +1306,8 @@ int main(int argc, char **argv)
 		}
 		fprintf(f, "\n    }\n  },\n");
 		/* ours */
-		fprintf(f, "  \"mlip\": {\n    \"tool\": \"" PROG "\",\n    \"version\": \"" VERSION "\",\n");
+		fprintf(f, "  \"mlip\": {\n    \"tool\": \"" PROG "\",\n    \"version\": \"" VERSION
+		           "\",\n");
 		fprintf(f, "    \"mode\": \"%s\",\n", mode_name[o.mode]);
 		if (o.mode != MODE_IDLE) {
 			fprintf(f, "    \"program\": ");
@@ -1268,13 +1319,15 @@ int main(int argc, char **argv)
 		if (o.mode == MODE_CAN) {
 			fprintf(f, "    \"interface\": ");
 			json_str(f, o.iface);
-			fprintf(f, ",\n    \"can_profile\": \"%s\",\n", mlip_can_profile_name(prof));
+			fprintf(f, ",\n    \"can_profile\": \"%s\",\n",
+			        mlip_can_profile_name(prof));
 		}
-		fprintf(f,
-		        "    \"period_us\": %.3f,\n    \"duration_s\": %.3f,\n    \"loops\": %llu,\n"
-		        "    \"elapsed_s\": %.3f,\n    \"periods\": %llu,\n",
-		        (double)period_ns / 1e3, o.duration_s, (unsigned long long)o.loops, elapsed_s,
-		        (unsigned long long)R.periods);
+		fprintf(
+		    f,
+		    "    \"period_us\": %.3f,\n    \"duration_s\": %.3f,\n    \"loops\": %llu,\n"
+		    "    \"elapsed_s\": %.3f,\n    \"periods\": %llu,\n",
+		    (double)period_ns / 1e3, o.duration_s, (unsigned long long)o.loops, elapsed_s,
+		    (unsigned long long)R.periods);
 		fprintf(f, "    \"overruns\": %llu,\n    \"overrun_periods\": %llu,\n",
 		        (unsigned long long)R.overruns, (unsigned long long)R.overrun_periods);
 		fprintf(f,
@@ -1299,19 +1352,25 @@ int main(int argc, char **argv)
 		}
 		if (o.mode != MODE_IDLE) {
 			fprintf(f,
-			        "    \"load\": {\n      \"program_blocks\": %llu,\n      \"runs_finished\": "
-			        "%llu,\n      \"blocks_taken\": %llu,\n      \"moving_periods\": %llu,\n"
+			        "    \"load\": {\n      \"program_blocks\": %llu,\n      "
+			        "\"runs_finished\": "
+			        "%llu,\n      \"blocks_taken\": %llu,\n      \"moving_periods\": "
+			        "%llu,\n"
 			        "      \"underruns\": %llu,\n      \"frames_encoded\": %llu,\n"
 			        "      \"encode_faults\": %llu",
 			        (unsigned long long)prog.n, (unsigned long long)R.passes,
-			        (unsigned long long)ctl.core.blocks_consumed, (unsigned long long)R.moving_periods,
-			        (unsigned long long)ctl.core.underruns, (unsigned long long)R.frames_encoded,
+			        (unsigned long long)ctl.core.blocks_consumed,
+			        (unsigned long long)R.moving_periods,
+			        (unsigned long long)ctl.core.underruns,
+			        (unsigned long long)R.frames_encoded,
 			        (unsigned long long)R.encode_faults);
 			if (o.mode == MODE_CAN) {
 				fprintf(f,
-				        ",\n      \"frames_sent\": %llu,\n      \"frames_dropped\": %llu,\n"
+				        ",\n      \"frames_sent\": %llu,\n      "
+				        "\"frames_dropped\": %llu,\n"
 				        "      \"bus_errors\": %llu",
-				        (unsigned long long)io.tx_ok, (unsigned long long)io.tx_dropped,
+				        (unsigned long long)io.tx_ok,
+				        (unsigned long long)io.tx_dropped,
 				        (unsigned long long)io.bus_errors);
 			}
 			fprintf(f, "\n    },\n");

@@ -16,17 +16,17 @@
 
 #include "cli.h"
 #include "confload.h"
-#include "mlip/canenc.h"
+#include "mlip/can/canenc.h"
 #include "rt.h"
 #include "trace.h"
 
-#define PROG "mlip-rt"
+#define PROG         "mlip-rt"
 #define MAX_BUS_LOAD 0.70
 
 static struct mlip_planner planner; /* static: locked and prefaulted with the rest */
 static struct mlip_controller ctl;
-static struct mlip_drives drives;    /* --drives: the CiA 402 master (rt/drives.c) */
-static struct mlip_co_port port;     /* its socket */
+static struct mlip_drives drives; /* --drives: the CiA 402 master (rt/drives.c) */
+static struct mlip_co_port port;  /* its socket */
 
 /* A start-up that fails after the bring-up: the drives disabled by SDO and
  * released (they stop watching our heartbeat); ds NULL: no drives. */
@@ -43,7 +43,7 @@ static volatile sig_atomic_t got_exit;
 
 static void on_signal(int sig)
 {
-	got_exit = sig; /* SIGINT, SIGTERM, SIGHUP or SIGQUIT */
+	got_exit = sig;       /* SIGINT, SIGTERM, SIGHUP or SIGQUIT */
 	ctl.exit_request = 1; /* a controlled stop on the path, then exit 0 */
 }
 
@@ -120,23 +120,27 @@ static void report(const struct mlip_ring_status *a, const struct mlip_ring_stat
 	static unsigned quiet_tx = 20, quiet_err = 20, quiet_under = 20;
 	unsigned long long seq = (unsigned long long)b->exec_seq;
 	if (rising(a->can_tx_errors, b->can_tx_errors, &quiet_tx)) {
-		fprintf(stderr, PROG ": CAN: the tx queue refuses frames (%llu so far) in block %llu "
-		                "(line %u): holding the machine on the path\n",
+		fprintf(stderr,
+		        PROG ": CAN: the tx queue refuses frames (%llu so far) in block %llu "
+		             "(line %u): holding the machine on the path\n",
 		        (unsigned long long)b->can_tx_errors, seq, b->exec_line);
 	}
 	if (rising(a->can_bus_errors, b->can_bus_errors, &quiet_err)) {
-		fprintf(stderr, PROG ": CAN: error frames (%llu so far) in block %llu (line %u): "
-		                "holding the machine on the path\n",
+		fprintf(stderr,
+		        PROG ": CAN: error frames (%llu so far) in block %llu (line %u): "
+		             "holding the machine on the path\n",
 		        (unsigned long long)b->can_bus_errors, seq, b->exec_line);
 	}
 	if (rising(a->underruns, b->underruns, &quiet_under)) {
-		fprintf(stderr, PROG ": underrun: the ring ran dry in block %llu (line %u); the "
-		                "look-ahead runs to rest at the end of what came\n",
+		fprintf(stderr,
+		        PROG ": underrun: the ring ran dry in block %llu (line %u); the "
+		             "look-ahead runs to rest at the end of what came\n",
 		        seq, b->exec_line);
 	}
 	if (b->stops > a->stops) {
-		fprintf(stderr, PROG ": stopped on the path: %.3f mm in %u periods from the request to "
-		                "rest\n",
+		fprintf(stderr,
+		        PROG ": stopped on the path: %.3f mm in %u periods from the request to "
+		             "rest\n",
 		        (double)b->stop_nm * 1e-6, (unsigned)b->stop_periods);
 	}
 }
@@ -157,38 +161,45 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		return;
 	}
 	if (e->kind == MLIP_EV_REFUSED) {
-		fprintf(stderr, PROG ": refused records from block %llu (line %u): they do not continue "
-		                "the program (block %.0f expected); dropped\n",
+		fprintf(stderr,
+		        PROG ": refused records from block %llu (line %u): they do not continue "
+		             "the program (block %.0f expected); dropped\n",
 		        (unsigned long long)r->seq, r->line, r->value);
 		return;
 	}
 	switch (e->state) {
 	case MLIP_STATE_STARVED:
 		fprintf(stderr,
-		        PROG ": underrun: no block came after block %llu (line %u); at rest at its end; "
-		             "to continue: mlip-feed --start-seq %llu\n",
+		        PROG
+		        ": underrun: no block came after block %llu (line %u); at rest at its end; "
+		        "to continue: mlip-feed --start-seq %llu\n",
 		        seq, line, seq + 1);
 		return;
 	case MLIP_STATE_HELD:
 		if (r->why == MLIP_WHY_STALL) {
-			fprintf(stderr,
-			        PROG ": stall: the loop missed %.0f periods (more than %u) in block %llu "
-			             "(line %u): held at rest at the last setpoint sent, no jump; to "
-			             "continue: mlip-ctl resume\n",
-			        r->value, mo->stall_periods, seq, line);
+			fprintf(
+			    stderr,
+			    PROG
+			    ": stall: the loop missed %.0f periods (more than %u) in block %llu "
+			    "(line %u): held at rest at the last setpoint sent, no jump; to "
+			    "continue: mlip-ctl resume\n",
+			    r->value, mo->stall_periods, seq, line);
 		} else if (r->why == MLIP_WHY_BUS_TX || r->why == MLIP_WHY_BUS_ERROR) {
 			struct mlip_ring_status st;
 			if (mlip_ring_status_read(mo->ring, &st) != MLIP_OK) {
 				memset(&st, 0, sizeof(st));
 			}
 			fprintf(stderr,
-			        PROG ": held: at rest in block %llu (line %u); %llu CAN frames refused, "
-			             "%llu error frames so far; mlip-ctl resume once the bus is clean\n",
+			        PROG
+			        ": held: at rest in block %llu (line %u); %llu CAN frames refused, "
+			        "%llu error frames so far; mlip-ctl resume once the bus is clean\n",
 			        seq, line, (unsigned long long)st.can_tx_errors,
 			        (unsigned long long)st.can_bus_errors);
 		} else {
-			fprintf(stderr, PROG ": held (%s): at rest in block %llu (line %u); mlip-ctl resume "
-			                "continues\n",
+			fprintf(stderr,
+			        PROG
+			        ": held (%s): at rest in block %llu (line %u); mlip-ctl resume "
+			        "continues\n",
 			        mlip_state_why_name(r->why), seq, line);
 		}
 		return;
@@ -197,21 +208,25 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			report_drive_fault(mo, e);
 		} else if (r->why == MLIP_WHY_BAD_RECORD) {
 			mlip_cli_field_name(mo->m, r->field, fld, sizeof(fld));
-			fprintf(stderr,
-			        PROG ": fault: bad record %llu (line %u): %s = %.17g; nothing after it is "
-			             "taken, the machine stops at rest at the end of block %llu; restart "
-			             "mlip-rt to clear\n",
-			        (unsigned long long)r->seq, r->line, fld, r->value,
-			        (unsigned long long)(r->seq ? r->seq - 1 : 0));
+			fprintf(
+			    stderr,
+			    PROG
+			    ": fault: bad record %llu (line %u): %s = %.17g; nothing after it is "
+			    "taken, the machine stops at rest at the end of block %llu; restart "
+			    "mlip-rt to clear\n",
+			    (unsigned long long)r->seq, r->line, fld, r->value,
+			    (unsigned long long)(r->seq ? r->seq - 1 : 0));
 		} else {
-			fprintf(stderr, PROG ": fault: %s in block %llu (line %u); stopping on the path; "
-			                "restart mlip-rt to clear\n",
+			fprintf(stderr,
+			        PROG ": fault: %s in block %llu (line %u); stopping on the path; "
+			             "restart mlip-rt to clear\n",
 			        mlip_state_why_name(r->why), seq, line);
 		}
 		return;
 	case MLIP_STATE_DWELLING:
 		if (r->why == MLIP_WHY_OPTIONAL_PAUSE) {
-			fprintf(stderr, PROG ": M1 at line %u (block %llu) passed: optional stop off\n",
+			fprintf(stderr,
+			        PROG ": M1 at line %u (block %llu) passed: optional stop off\n",
 			        r->line, (unsigned long long)r->seq);
 			return;
 		}
@@ -219,12 +234,14 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		        (unsigned long long)r->seq);
 		return;
 	case MLIP_STATE_PAUSED:
-		fprintf(stderr, PROG ": paused (%s) at line %u (block %llu): mlip-ctl resume continues\n",
+		fprintf(stderr,
+		        PROG ": paused (%s) at line %u (block %llu): mlip-ctl resume continues\n",
 		        mlip_state_why_name(r->why), r->line, (unsigned long long)r->seq);
 		return;
 	case MLIP_STATE_IDLE:
-		fprintf(stderr, PROG ": %s -> idle (%s): at rest, block %llu (line %u) the last "
-		                "completed\n",
+		fprintf(stderr,
+		        PROG ": %s -> idle (%s): at rest, block %llu (line %u) the last "
+		             "completed\n",
 		        mlip_ring_state_name(e->from), mlip_state_why_name(r->why), seq, line);
 		return;
 	default:
@@ -267,7 +284,8 @@ static void *monitor(void *arg)
 			a = b;
 			have = 1;
 		}
-		if (mo->io == NULL || tick % 2 || !__atomic_load_n(&mo->io->bus_off, __ATOMIC_RELAXED)) {
+		if (mo->io == NULL || tick % 2 ||
+		    !__atomic_load_n(&mo->io->bus_off, __ATOMIC_RELAXED)) {
 			continue;
 		}
 		int rc = mlip_canio_restart(mo->iface);
@@ -275,9 +293,10 @@ static void *monitor(void *arg)
 			fprintf(stderr, PROG ": %s was bus-off: controller restarted\n", mo->iface);
 			told = 0;
 		} else if (!told) {
-			fprintf(stderr, PROG ": %s is bus-off and cannot be restarted here (%s): "
-			                "check the wiring and termination, then ip link set %s "
-			                "type can restart\n",
+			fprintf(stderr,
+			        PROG ": %s is bus-off and cannot be restarted here (%s): "
+			             "check the wiring and termination, then ip link set %s "
+			             "type can restart\n",
 			        mo->iface, strerror(-rc), mo->iface);
 			told = 1;
 		}
@@ -291,40 +310,41 @@ static void *monitor(void *arg)
 
 static void usage(FILE *f)
 {
-	fprintf(f,
-	        "usage: " PROG " --config FILE --can IFACE [options]\n"
-	        "Run the controller: blocks from the shared-memory ring, setpoints to CAN.\n\n"
-	        "  --config FILE       machine INI (axes, limits, [CAN] section)\n"
-	        "  --can IFACE         SocketCAN interface, e.g. can0 or vcan0; 'none': no CAN\n"
-	        "                      output (the ring, planner and commands only: for trials)\n"
-	        "  --profile P         cia402 (default), packed or fd (overrides [CAN] PROFILE)\n"
-	        "  --bitrate BPS       bus bit rate for the load budget (default [CAN] BITRATE;\n"
-	        "                      vcan has none, so the configured one is used)\n"
-	        "  --shm NAME          shared-memory segment (default %s); mode 0600: only\n"
-	        "                      this user (and root) may feed and command\n"
-	        "  --shm-group GROUP   mode 0660 and this group: its members may feed and\n"
-	        "                      command too (they set MLIP_SHM_OWNER=<this user>)\n"
-	        "  --priority N        SCHED_FIFO priority 1..99 (default 80; 0: SCHED_OTHER)\n"
-	        "  --cpu N             pin the loop to CPU N (default: no pinning)\n"
-	        "  --strategy S        mpct (default), bisector, stop or smooth (mpct on the path\n"
-	        "                      mlip-feed smooths within the tolerance: mlip/smooth.h)\n"
-	        "  --capacity N        ring records, power of two (default %u)\n"
-	        "  --stall-periods N   more missed periods than N is a stall: hold at rest at\n"
-	        "                      the last setpoint until mlip-ctl resume (default %d)\n"
-	        "  --record FILE       write the setpoints of the first program, as mlip-sim\n"
-	        "                      --trace does (from the monitor thread, not the loop)\n"
-	        "  --drives            bring up CiA 402 drives first (NMT, SDO set-up, power state\n"
-	        "                      machine), start where they are, supervise and shut them\n"
-	        "                      down (also [DRIVES] ENABLE = 1; README: Deploying)\n"
-	        "  -h, --help\n",
-	        MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY, MLIP_STALL_PERIODS_DEFAULT);
+	fprintf(
+	    f,
+	    "usage: " PROG " --config FILE --can IFACE [options]\n"
+	    "Run the controller: blocks from the shared-memory ring, setpoints to CAN.\n\n"
+	    "  --config FILE       machine INI (axes, limits, [CAN] section)\n"
+	    "  --can IFACE         SocketCAN interface, e.g. can0 or vcan0; 'none': no CAN\n"
+	    "                      output (the ring, planner and commands only: for trials)\n"
+	    "  --profile P         cia402 (default), packed or fd (overrides [CAN] PROFILE)\n"
+	    "  --bitrate BPS       bus bit rate for the load budget (default [CAN] BITRATE;\n"
+	    "                      vcan has none, so the configured one is used)\n"
+	    "  --shm NAME          shared-memory segment (default %s); mode 0600: only\n"
+	    "                      this user (and root) may feed and command\n"
+	    "  --shm-group GROUP   mode 0660 and this group: its members may feed and\n"
+	    "                      command too (they set MLIP_SHM_OWNER=<this user>)\n"
+	    "  --priority N        SCHED_FIFO priority 1..99 (default 80; 0: SCHED_OTHER)\n"
+	    "  --cpu N             pin the loop to CPU N (default: no pinning)\n"
+	    "  --strategy S        mpct (default), bisector, stop or smooth (mpct on the path\n"
+	    "                      mlip-feed smooths within the tolerance: mlip/motion/smooth.h)\n"
+	    "  --capacity N        ring records, power of two (default %u)\n"
+	    "  --stall-periods N   more missed periods than N is a stall: hold at rest at\n"
+	    "                      the last setpoint until mlip-ctl resume (default %d)\n"
+	    "  --record FILE       write the setpoints of the first program, as mlip-sim\n"
+	    "                      --trace does (from the monitor thread, not the loop)\n"
+	    "  --drives            bring up CiA 402 drives first (NMT, SDO set-up, power state\n"
+	    "                      machine), start where they are, supervise and shut them\n"
+	    "                      down (also [DRIVES] ENABLE = 1; README: Deploying)\n"
+	    "  -h, --help\n",
+	    MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY, MLIP_STALL_PERIODS_DEFAULT);
 }
 
 static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 {
 	struct mlip_can_load l;
-	if (mlip_can_load_breakdown(prof, cfg->machine.n_axes, cfg->can.bitrate, cfg->can.data_bitrate,
-	                            cfg->machine.period_s, &l) != MLIP_OK) {
+	if (mlip_can_load_breakdown(prof, cfg->machine.n_axes, cfg->can.bitrate,
+	                            cfg->can.data_bitrate, cfg->machine.period_s, &l) != MLIP_OK) {
 		fprintf(stderr, PROG ": cannot compute the bus load for this profile\n");
 		return -1;
 	}
@@ -333,9 +353,10 @@ static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 		 * heartbeats of the drives and the master (1 byte each) */
 		int n = cfg->machine.n_axes;
 		double hb = cfg->machine.period_s / (cfg->drives.heartbeat_ms * 1e-3);
-		double bits = n * ((double)mlip_can_frame_bits(0, 6).nominal -
-		                   mlip_can_frame_bits(0, 4).nominal + mlip_can_frame_bits(0, 6).nominal) +
-		              (n + 1) * hb * mlip_can_frame_bits(0, 1).nominal;
+		double bits =
+		    n * ((double)mlip_can_frame_bits(0, 6).nominal -
+		         mlip_can_frame_bits(0, 4).nominal + mlip_can_frame_bits(0, 6).nominal) +
+		    (n + 1) * hb * mlip_can_frame_bits(0, 1).nominal;
 		l.busy_s += bits / cfg->can.bitrate;
 		l.load = l.busy_s / cfg->machine.period_s;
 		l.frames += n;
@@ -346,7 +367,8 @@ static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 	        l.busy_s * 1e6, cfg->can.bitrate);
 	if (l.load > MAX_BUS_LOAD) {
 		fprintf(stderr,
-		        PROG ": refusing: %.1f %% is above the %.0f %% budget; use a faster bit rate, "
+		        PROG
+		        ": refusing: %.1f %% is above the %.0f %% budget; use a faster bit rate, "
 		        "the packed or fd profile, or a longer period\n",
 		        l.load * 100.0, MAX_BUS_LOAD * 100.0);
 		return -1;
@@ -365,15 +387,21 @@ int main(int argc, char **argv)
 	const char *record = NULL;
 	double stall_periods = MLIP_STALL_PERIODS_DEFAULT;
 
-	static const struct option opts[] = {
-		{"shm-group", required_argument, 0, 'G'},
-		{"config", required_argument, 0, 'c'},   {"can", required_argument, 0, 'i'},
-		{"profile", required_argument, 0, 'P'},  {"bitrate", required_argument, 0, 'b'},
-		{"shm", required_argument, 0, 's'},      {"priority", required_argument, 0, 'p'},
-		{"cpu", required_argument, 0, 'C'},      {"strategy", required_argument, 0, 'S'},
-		{"capacity", required_argument, 0, 'n'}, {"help", no_argument, 0, 'h'},
-		{"stall-periods", required_argument, 0, 'T'}, {"record", required_argument, 0, 'R'},
-		{"drives", no_argument, 0, 'D'},         {0, 0, 0, 0}};
+	static const struct option opts[] = {{"shm-group", required_argument, 0, 'G'},
+	                                     {"config", required_argument, 0, 'c'},
+	                                     {"can", required_argument, 0, 'i'},
+	                                     {"profile", required_argument, 0, 'P'},
+	                                     {"bitrate", required_argument, 0, 'b'},
+	                                     {"shm", required_argument, 0, 's'},
+	                                     {"priority", required_argument, 0, 'p'},
+	                                     {"cpu", required_argument, 0, 'C'},
+	                                     {"strategy", required_argument, 0, 'S'},
+	                                     {"capacity", required_argument, 0, 'n'},
+	                                     {"help", no_argument, 0, 'h'},
+	                                     {"stall-periods", required_argument, 0, 'T'},
+	                                     {"record", required_argument, 0, 'R'},
+	                                     {"drives", no_argument, 0, 'D'},
+	                                     {0, 0, 0, 0}};
 	int want_drives = 0;
 	int c;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
@@ -397,8 +425,11 @@ int main(int argc, char **argv)
 			profile = optarg;
 			break;
 		case 'b':
-			if (mlip_cli_number(optarg, &bitrate) != 0 || bitrate < 10000 || bitrate > 1e6) {
-				fprintf(stderr, PROG ": --bitrate: '%s' is not 10000..1000000 bit/s\n", optarg);
+			if (mlip_cli_number(optarg, &bitrate) != 0 || bitrate < 10000 ||
+			    bitrate > 1e6) {
+				fprintf(stderr,
+				        PROG ": --bitrate: '%s' is not 10000..1000000 bit/s\n",
+				        optarg);
 				return 2;
 			}
 			break;
@@ -427,8 +458,11 @@ int main(int argc, char **argv)
 			break;
 		case 'T':
 			if (mlip_cli_number(optarg, &stall_periods) != 0 || stall_periods < 1 ||
-			    stall_periods > 100000 || stall_periods != (double)(uint32_t)stall_periods) {
-				fprintf(stderr, PROG ": --stall-periods: '%s' is not a whole number 1..100000\n",
+			    stall_periods > 100000 ||
+			    stall_periods != (double)(uint32_t)stall_periods) {
+				fprintf(stderr,
+				        PROG
+				        ": --stall-periods: '%s' is not a whole number 1..100000\n",
 				        optarg);
 				return 2;
 			}
@@ -456,7 +490,8 @@ int main(int argc, char **argv)
 
 	int st = mlip_cli_strategy(strategy);
 	if (st < 0) {
-		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
+		fprintf(stderr,
+		        PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
 		        strategy);
 		return 2;
 	}
@@ -479,7 +514,8 @@ int main(int argc, char **argv)
 		cfg.drives.enable = 1;
 	}
 	if (cfg.drives.enable && (!use_can || prof != MLIP_CAN_CIA402)) {
-		fprintf(stderr, PROG ": CiA 402 drives need a CAN interface and the cia402 profile\n");
+		fprintf(stderr,
+		        PROG ": CiA 402 drives need a CAN interface and the cia402 profile\n");
 		return 2;
 	}
 	if (use_can && bus_budget(&cfg, prof) != 0) {
@@ -499,7 +535,8 @@ int main(int argc, char **argv)
 			return 1;
 		}
 	} else {
-		fprintf(stderr, PROG ": no CAN output (--can none): setpoints are computed, not sent\n");
+		fprintf(stderr,
+		        PROG ": no CAN output (--can none): setpoints are computed, not sent\n");
 	}
 
 	ro.period_ns = (int64_t)(cfg.machine.period_s * 1e9 + 0.5);
@@ -517,8 +554,9 @@ int main(int argc, char **argv)
 			int alive = mlip_shm_controller_alive(peek.ring);
 			mlip_shm_close(&peek);
 			if (alive) {
-				fprintf(stderr, PROG ": a live controller runs on %s: its drives are left "
-				                "alone\n",
+				fprintf(stderr,
+				        PROG ": a live controller runs on %s: its drives are left "
+				             "alone\n",
 				        shm_name);
 				mlip_canio_close(&io);
 				return 1;
@@ -528,7 +566,8 @@ int main(int argc, char **argv)
 		double start[MLIP_MAX_AXES];
 		char why[320];
 		if (mlip_co_socket_open(&port, iface, &cfg.machine, why, sizeof(why)) != 0 ||
-		    mlip_drives_init(&drives, &cfg, &port, drive_log, NULL, why, sizeof(why)) != 0 ||
+		    mlip_drives_init(&drives, &cfg, &port, drive_log, NULL, why, sizeof(why)) !=
+		        0 ||
 		    mlip_drives_bringup(&drives, start, why, sizeof(why)) != 0) {
 			fprintf(stderr, PROG ": drives not brought up: %s; nothing moves\n", why);
 			if (drives.n > 0) {
@@ -575,15 +614,18 @@ int main(int argc, char **argv)
 	} else {
 		mlip_trace_open(&mon.trace, NULL, &cfg.machine, NULL);
 	}
-	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st, .lookahead = cfg.lookahead,
-	                           .stall_periods = (uint32_t)stall_periods, .can = &cfg.can};
+	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st,
+	                           .lookahead = cfg.lookahead,
+	                           .stall_periods = (uint32_t)stall_periods,
+	                           .can = &cfg.can};
 	co.drives = cfg.drives.enable;
 	/* each power step in the loop is given STATE_TIMEOUT_MS, in periods */
 	co.drive_state_periods =
 	    (uint32_t)(cfg.drives.state_timeout_ms * 1e-3 / cfg.machine.period_s + 0.999);
 	if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, shm.ring,
 	                         use_can ? &io : NULL) != 0) {
-		fprintf(stderr, PROG ": the [CAN] settings do not fit this machine (node ids, ids)\n");
+		fprintf(stderr,
+		        PROG ": the [CAN] settings do not fit this machine (node ids, ids)\n");
 		drives_down(cfg.drives.enable ? &drives : NULL, &port);
 		mlip_shm_close(&shm);
 		mlip_canio_close(&io);
@@ -599,9 +641,9 @@ int main(int argc, char **argv)
 	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead */
 	ctl.exit_request = got_exit; /* init cleared it: keep a stop asked during start-up */
 
-	fprintf(stderr, PROG ": ready on %s, segment %s, period %.3f ms, %s, priority %d%s\n", iface,
-	        shm_name, cfg.machine.period_s * 1e3, mlip_can_profile_name(prof), ro.priority,
-	        rep.locked ? ", memory locked" : "");
+	fprintf(stderr, PROG ": ready on %s, segment %s, period %.3f ms, %s, priority %d%s\n",
+	        iface, shm_name, cfg.machine.period_s * 1e3, mlip_can_profile_name(prof),
+	        ro.priority, rep.locked ? ", memory locked" : "");
 	struct mlip_rt_report run;
 	memset(&run, 0, sizeof(run));
 	pthread_t mon_th;
@@ -635,17 +677,21 @@ int main(int argc, char **argv)
 			}
 		}
 		if (faulted[0]) {
-			fprintf(stderr, PROG ": drives: node%s faulted: left in the drive's own fault "
-			                "reaction\n",
+			fprintf(stderr,
+			        PROG ": drives: node%s faulted: left in the drive's own fault "
+			             "reaction\n",
 			        faulted);
 		}
 		if (drives.shutdown_ok) {
-			fprintf(stderr, PROG ": drives disabled in order (disable operation, shutdown) "
-			                "with the SYNC running, then the SYNC stopped\n");
+			fprintf(stderr,
+			        PROG ": drives disabled in order (disable operation, shutdown) "
+			             "with the SYNC running, then the SYNC stopped\n");
 		} else {
-			fprintf(stderr, PROG ": drives: in-loop shut-down incomplete (%s): shutting "
-			                "down by SDO\n",
-			        drives.shutdown_note[0] ? drives.shutdown_note : "the loop ended early");
+			fprintf(stderr,
+			        PROG ": drives: in-loop shut-down incomplete (%s): shutting "
+			             "down by SDO\n",
+			        drives.shutdown_note[0] ? drives.shutdown_note
+			                                : "the loop ended early");
 			mlip_drives_disable(&drives);
 		}
 		mlip_drives_release(&drives);
@@ -662,7 +708,8 @@ int main(int argc, char **argv)
 	struct mlip_ring_status s;
 	mlip_ring_status_read(shm.ring, &s);
 	fprintf(stderr,
-	        PROG ": stopped after %llu periods: %llu frames sent, %llu dropped (tx queue), "
+	        PROG
+	        ": stopped after %llu periods: %llu frames sent, %llu dropped (tx queue), "
 	        "%llu bus errors, %llu overruns, %llu underruns, %llu records taken, %llu programs "
 	        "refused; last line %u\n",
 	        (unsigned long long)ctl.cycles, (unsigned long long)ctl.frames_sent,

@@ -1,6 +1,6 @@
 /*
  * mlip-sim - the offline simulator: runs a G-code program through the very
- * controller mlip-rt runs (mlip_ctl_period, src/controller.c) on a virtual
+ * controller mlip-rt runs (mlip_ctl_period, src/ctl/controller.c) on a virtual
  * clock, and writes the setpoints it would send (--trace) and a summary
  * (--summary).
  *
@@ -19,15 +19,15 @@
 #include "blockiter.h"
 #include "check.h"
 #include "cli.h"
-#include "mlip/controller.h"
-#include "mlip/gcode.h"
-#include "mlip/planner.h"
-#include "mlip/ring.h"
+#include "mlip/ctl/controller.h"
+#include "mlip/gcode/gcode.h"
+#include "mlip/motion/planner.h"
+#include "mlip/ipc/ring.h"
 #include "offsets.h"
 #include "program.h"
 #include "trace.h"
 
-#define PROG "mlip-sim"
+#define PROG        "mlip-sim"
 #define MAX_PERIODS 200000000ULL /* 55 h of machining at 1 ms: a runaway */
 
 static struct mlip_planner planner; /* ~2.6 MB: static, like on the controller */
@@ -35,36 +35,38 @@ static struct mlip_ctl ctl;
 
 static void usage(FILE *f)
 {
-	fprintf(f,
-	        "usage: " PROG " [options] FILE.ngc\n"
-	        "Simulate a G-code program on the mlip interpolator and report its motion.\n\n"
-	        "  --config FILE         machine INI (default: the axes the program uses, linear)\n"
-	        "  --strategy NAME       mpct (default, the paper), bisector, stop, smooth (mpct on\n"
-	        "                        the path smoothed within the tolerance, mlip/smooth.h)\n"
-	        "  --accel A[,A...]      per-axis acceleration, mm/s^2 (one for all, or per axis)\n"
-	        "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
-	        "  --eps MM              contour tolerance (default 0.01 without --config)\n"
-	        "  --period S            interpolation period T (default 0.001)\n"
-	        "  --feed MM_S           ignore the program's F words, run every block at this feed\n"
-	        "  --override PCT        feed override from the start, 0..200 (default 100)\n"
-	        "  --storm SEED          random override changes, holds and resumes every 5-200\n"
-	        "                        periods (a test of online override)\n"
-	        "  --lookahead N         look-ahead capacity in blocks, power of two (default %d)\n"
-	        "  --resume-after S      a pause (M0, M60, M1 with --optional-stop) resumes after\n"
-	        "                        S seconds at rest (default 0)\n"
-	        "  --optional-stop       M1 pauses (the optional-stop switch on)\n"
-	        "  --trace OUT.csv       setpoints: t,x,y,... one row per period, t = 0 to rest\n"
-	        "  --summary OUT.json    totals and measured physics (JSON)\n"
-	        "  --offsets FILE        work offsets, G92 and G28/G30 positions (README: offsets)\n"
-	        "  --save-offsets        write the offsets the program leaves back to that FILE\n"
-	        "  --default-feed F      feed (units/min) for a program that sets no F at all\n"
-	        "  --strict              refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
-	        "  --no-notes            do not list the words accepted without effect\n"
-	        "  -q, --quiet           neither notes nor the summary line on stderr\n"
-	        "  -h, --help            this help\n"
-	        "exit status: 0 done within every limit, 1 input error, 2 usage, 3 no end,\n"
-	        "4 the trace breaks a limit (its own check, as mlip-check's: which, where)\n",
-	        MLIP_LOOKAHEAD);
+	fprintf(
+	    f,
+	    "usage: " PROG " [options] FILE.ngc\n"
+	    "Simulate a G-code program on the mlip interpolator and report its motion.\n\n"
+	    "  --config FILE         machine INI (default: the axes the program uses, linear)\n"
+	    "  --strategy NAME       mpct (default, the paper), bisector, stop, smooth (mpct on\n"
+	    "                        the path smoothed within the tolerance, "
+	    "mlip/motion/smooth.h)\n"
+	    "  --accel A[,A...]      per-axis acceleration, mm/s^2 (one for all, or per axis)\n"
+	    "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
+	    "  --eps MM              contour tolerance (default 0.01 without --config)\n"
+	    "  --period S            interpolation period T (default 0.001)\n"
+	    "  --feed MM_S           ignore the program's F words, run every block at this feed\n"
+	    "  --override PCT        feed override from the start, 0..200 (default 100)\n"
+	    "  --storm SEED          random override changes, holds and resumes every 5-200\n"
+	    "                        periods (a test of online override)\n"
+	    "  --lookahead N         look-ahead capacity in blocks, power of two (default %d)\n"
+	    "  --resume-after S      a pause (M0, M60, M1 with --optional-stop) resumes after\n"
+	    "                        S seconds at rest (default 0)\n"
+	    "  --optional-stop       M1 pauses (the optional-stop switch on)\n"
+	    "  --trace OUT.csv       setpoints: t,x,y,... one row per period, t = 0 to rest\n"
+	    "  --summary OUT.json    totals and measured physics (JSON)\n"
+	    "  --offsets FILE        work offsets, G92 and G28/G30 positions (README: offsets)\n"
+	    "  --save-offsets        write the offsets the program leaves back to that FILE\n"
+	    "  --default-feed F      feed (units/min) for a program that sets no F at all\n"
+	    "  --strict              refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
+	    "  --no-notes            do not list the words accepted without effect\n"
+	    "  -q, --quiet           neither notes nor the summary line on stderr\n"
+	    "  -h, --help            this help\n"
+	    "exit status: 0 done within every limit, 1 input error, 2 usage, 3 no end,\n"
+	    "4 the trace breaks a limit (its own check, as mlip-check's: which, where)\n",
+	    MLIP_LOOKAHEAD);
 }
 
 /* xorshift64*: a seeded, portable stream for --storm */
@@ -128,7 +130,7 @@ static int storm_tick(struct storm *st, uint64_t period, struct mlip_ring_cmd *c
 struct source {
 	struct mlip_program *p;
 	int rc;
-	double feed; /* --feed: > 0 replaces every F and G0 */
+	double feed;               /* --feed: > 0 replaces every F and G0 */
 	struct mlip_block_iter it; /* the program's blocks, or smooth's over them */
 	struct mlip_smooth_iter si;
 };
@@ -170,7 +172,7 @@ static int source_next(struct source *src, struct mlip_block *b)
  * smooth, the filter's output blocks 1..n, each with its source line). */
 struct feeder {
 	struct source src;
-	uint64_t seq;      /* last record pushed */
+	uint64_t seq; /* last record pushed */
 	uint32_t end_line;
 	int end_pushed;
 };
@@ -209,18 +211,26 @@ int main(int argc, char **argv)
 	int quiet = 0, notes = 1, optional_stop = 0, save_offsets = 0;
 	double resume_after = 0.0;
 
-	static const struct option opts[] = {
-		{"config", required_argument, 0, 'c'},   {"strategy", required_argument, 0, 's'},
-		{"accel", required_argument, 0, 'a'},    {"vmax", required_argument, 0, 'v'},
-		{"eps", required_argument, 0, 'e'},      {"period", required_argument, 0, 'p'},
-		{"feed", required_argument, 0, 'f'},     {"override", required_argument, 0, 'o'},
-		{"storm", required_argument, 0, 'S'},    {"lookahead", required_argument, 0, 'L'},
-		{"trace", required_argument, 0, 't'},    {"summary", required_argument, 0, 'j'},
-		{"quiet", no_argument, 0, 'q'},          {"help", no_argument, 0, 'h'},
-		{"no-notes", no_argument, 0, 'N'},
-		{"resume-after", required_argument, 0, 'r'}, {"optional-stop", no_argument, 0, 'O'},
-		{"save-offsets", no_argument, 0, 'W'},   MLIP_CLI_GCODE_OPTIONS,
-		{0, 0, 0, 0}};
+	static const struct option opts[] = {{"config", required_argument, 0, 'c'},
+	                                     {"strategy", required_argument, 0, 's'},
+	                                     {"accel", required_argument, 0, 'a'},
+	                                     {"vmax", required_argument, 0, 'v'},
+	                                     {"eps", required_argument, 0, 'e'},
+	                                     {"period", required_argument, 0, 'p'},
+	                                     {"feed", required_argument, 0, 'f'},
+	                                     {"override", required_argument, 0, 'o'},
+	                                     {"storm", required_argument, 0, 'S'},
+	                                     {"lookahead", required_argument, 0, 'L'},
+	                                     {"trace", required_argument, 0, 't'},
+	                                     {"summary", required_argument, 0, 'j'},
+	                                     {"quiet", no_argument, 0, 'q'},
+	                                     {"help", no_argument, 0, 'h'},
+	                                     {"no-notes", no_argument, 0, 'N'},
+	                                     {"resume-after", required_argument, 0, 'r'},
+	                                     {"optional-stop", no_argument, 0, 'O'},
+	                                     {"save-offsets", no_argument, 0, 'W'},
+	                                     MLIP_CLI_GCODE_OPTIONS,
+	                                     {0, 0, 0, 0}};
 	int c;
 	while ((c = getopt_long(argc, argv, "qh", opts, NULL)) != -1) {
 		double v;
@@ -246,9 +256,14 @@ int main(int argc, char **argv)
 		case 'p':
 		case 'f':
 		case 'o':
-			if (mlip_cli_number(optarg, &v) != 0 || !(v > 0.0 || (c == 'o' && v == 0.0))) {
+			if (mlip_cli_number(optarg, &v) != 0 ||
+			    !(v > 0.0 || (c == 'o' && v == 0.0))) {
 				fprintf(stderr, PROG ": --%s: '%s' is not a positive number\n",
-				        c == 'v' ? "vmax" : c == 'e' ? "eps" : c == 'p' ? "period" : c == 'f' ? "feed" : "override",
+				        c == 'v'   ? "vmax"
+				        : c == 'e' ? "eps"
+				        : c == 'p' ? "period"
+				        : c == 'f' ? "feed"
+				                   : "override",
 				        optarg);
 				return 2;
 			}
@@ -286,7 +301,9 @@ int main(int argc, char **argv)
 		case 'r':
 			if (mlip_cli_number(optarg, &resume_after) != 0 || !(resume_after >= 0.0) ||
 			    resume_after > 86400.0) {
-				fprintf(stderr, PROG ": --resume-after: '%s' is not 0..86400 seconds\n", optarg);
+				fprintf(stderr,
+				        PROG ": --resume-after: '%s' is not 0..86400 seconds\n",
+				        optarg);
 				return 2;
 			}
 			break;
@@ -311,7 +328,8 @@ int main(int argc, char **argv)
 	const char *path = argv[optind];
 	int st = mlip_cli_strategy(strategy);
 	if (st < 0) {
-		fprintf(stderr, PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
+		fprintf(stderr,
+		        PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
 		        strategy);
 		return 2;
 	}
@@ -357,8 +375,8 @@ int main(int argc, char **argv)
 		return 1;
 	}
 	if (mlip_ctl_init(&ctl, &planner, m, &co, ring) != MLIP_OK) {
-		fprintf(stderr, PROG ": look-ahead %lu must be a power of two in 2..%d\n", lookahead,
-		        MLIP_LOOKAHEAD);
+		fprintf(stderr, PROG ": look-ahead %lu must be a power of two in 2..%d\n",
+		        lookahead, MLIP_LOOKAHEAD);
 		return 1;
 	}
 	mlip_planner_set_override(&planner, override);
@@ -423,8 +441,10 @@ int main(int argc, char **argv)
 		mlip_ctl_period(&ctl, &in, &out);
 		paused = out.status.state == MLIP_STATE_PAUSED ? paused + 1 : 0;
 		for (uint32_t i = 0; i < out.n_events; i++) {
-			pauses += out.events[i].kind == MLIP_EV_STATE && out.events[i].state == MLIP_STATE_PAUSED;
-			dwells += out.events[i].kind == MLIP_EV_STATE && out.events[i].state == MLIP_STATE_DWELLING;
+			pauses += out.events[i].kind == MLIP_EV_STATE &&
+			          out.events[i].state == MLIP_STATE_PAUSED;
+			dwells += out.events[i].kind == MLIP_EV_STATE &&
+			          out.events[i].state == MLIP_STATE_DWELLING;
 		}
 		const double *start;
 #ifdef MLIP_SIM_TEST_FAULT_AT /* test builds only (tests/py): one setpoint off the path */
@@ -447,7 +467,8 @@ int main(int argc, char **argv)
 		if (out.status.state == MLIP_STATE_FAULT) {
 			fprintf(stderr, PROG ": controller fault (%s) at record %llu (line %u)\n",
 			        mlip_state_why_name(out.status.reason),
-			        (unsigned long long)out.status.reason_seq, (unsigned)out.status.reason_line);
+			        (unsigned long long)out.status.reason_seq,
+			        (unsigned)out.status.reason_line);
 			return 1;
 		}
 		if (period > MAX_PERIODS) {
@@ -524,9 +545,10 @@ int main(int argc, char **argv)
 		        lookahead, visits);
 		fprintf(sf, "  \"offsets\": \"%s\",\n", offs);
 		fprintf(sf, "  \"override_events\": %llu,\n", (unsigned long long)storm.events);
-		fprintf(sf, "  \"dwells\": %llu,\n  \"pauses\": %llu,\n", (unsigned long long)dwells,
-		        (unsigned long long)pauses);
-		fprintf(sf, "  \"order_errors\": %zu,\n  \"violations\": %d\n}\n", chk.order_errors, bad);
+		fprintf(sf, "  \"dwells\": %llu,\n  \"pauses\": %llu,\n",
+		        (unsigned long long)dwells, (unsigned long long)pauses);
+		fprintf(sf, "  \"order_errors\": %zu,\n  \"violations\": %d\n}\n", chk.order_errors,
+		        bad);
 		if (sf != stdout) {
 			fclose(sf);
 		}
@@ -534,18 +556,20 @@ int main(int argc, char **argv)
 	if (!quiet) {
 		fprintf(stderr,
 		        PROG ": %s: %s %.3f s, %zu blocks, %.1f mm, max speed %.2f mm/s, "
-		        "max contour error %.6f mm\n",
+		             "max contour error %.6f mm\n",
 		        path, mlip_cli_strategy_name((mlip_strategy)st), total, prog.n, path_mm,
 		        chk.max_speed_mm_s, chk.max_contour_mm);
 	}
 	mlip_program_close(&cprog);
-	if (save_offsets && mlip_offsets_save(mo.offsets, m, &prog.offsets_end, PROG, stderr) != 0) {
+	if (save_offsets &&
+	    mlip_offsets_save(mo.offsets, m, &prog.offsets_end, PROG, stderr) != 0) {
 		mlip_program_close(&prog);
 		return 1;
 	}
 	mlip_program_close(&prog);
 	if (bad) {
-		fprintf(stderr, PROG ": %s: the trace breaks the machine's limits (%d check(s)):\n%s", path,
+		fprintf(stderr,
+		        PROG ": %s: the trace breaks the machine's limits (%d check(s)):\n%s", path,
 		        bad, vmsg);
 		return 4;
 	}

@@ -20,11 +20,11 @@
 
 typedef enum {
 	MLIP_OK = 0,
-	MLIP_E_FULL,      /* fixed-capacity buffer has no room */
-	MLIP_E_EMPTY,     /* nothing to take */
-	MLIP_E_INVALID,   /* argument outside its documented domain */
-	MLIP_E_SYNTAX,    /* input text does not parse */
-	MLIP_E_RANGE,     /* value parses but is out of range (limits, NaN, inf) */
+	MLIP_E_FULL,       /* fixed-capacity buffer has no room */
+	MLIP_E_EMPTY,      /* nothing to take */
+	MLIP_E_INVALID,    /* argument outside its documented domain */
+	MLIP_E_SYNTAX,     /* input text does not parse */
+	MLIP_E_RANGE,      /* value parses but is out of range (limits, NaN, inf) */
 	MLIP_E_UNSUPPORTED /* well-formed but not something mlip can execute */
 } mlip_status;
 
@@ -32,40 +32,40 @@ typedef enum { MLIP_AXIS_LINEAR = 0, MLIP_AXIS_ROTARY = 1 } mlip_axis_kind;
 
 /* One machine axis. Field units follow the axis kind: mm or degrees. */
 struct mlip_axis {
-	char letter;          /* 'X','Y','Z','A','B','C' */
+	char letter; /* 'X','Y','Z','A','B','C' */
 	mlip_axis_kind kind;
 	/* dynamics */
-	double max_accel;     /* A_k, mm/s^2 or deg/s^2, same in + and - */
-	double max_vel;       /* mm/s or deg/s */
+	double max_accel; /* A_k, mm/s^2 or deg/s^2, same in + and - */
+	double max_vel;   /* mm/s or deg/s */
 	/* travel */
-	double min_limit;     /* soft limits, mm or deg; checked on every target */
+	double min_limit; /* soft limits, mm or deg; checked on every target */
 	double max_limit;
-	double home;          /* position at start-up, mm or deg */
+	double home; /* position at start-up, mm or deg */
 	/* CAN output (used by rt/, ignored by the planner) */
-	int can_node;         /* CANopen node id 1..127 */
+	int can_node;           /* CANopen node id 1..127 */
 	double counts_per_unit; /* drive counts per mm or per degree */
 };
 
 struct mlip_machine {
 	int n_axes;                           /* 2..6 */
 	struct mlip_axis axis[MLIP_MAX_AXES]; /* in config order */
-	double max_feed_mm_s;    /* v_m: tool speed cap (linear path, G94 sense) */
-	double max_rot_feed_deg_s; /* cap for moves of rotary axes only */
-	double tolerance_mm;     /* eps: contour tolerance at corners */
-	double period_s;         /* T: interpolation period */
-	uint8_t smooth;          /* the controller runs strategy `smooth`: a feeder sends
-	                            the program through the path filter (mlip/smooth.h)
-	                            first; 0 in segments of older builds */
+	double max_feed_mm_s;                 /* v_m: tool speed cap (linear path, G94 sense) */
+	double max_rot_feed_deg_s;            /* cap for moves of rotary axes only */
+	double tolerance_mm;                  /* eps: contour tolerance at corners */
+	double period_s;                      /* T: interpolation period */
+	uint8_t smooth; /* the controller runs strategy `smooth`: a feeder sends
+	                   the program through the path filter (mlip/motion/smooth.h)
+	                   first; 0 in segments of older builds */
 };
 
 /* What a block asks for. Only MOVE blocks reach the planner; the others are
  * program events that the controller executes between moves, with the
  * machine at rest at the end of the move before them (target ignored). */
 typedef enum {
-	MLIP_BLOCK_MOVE = 0,       /* G0/G1 (arcs arrive as chords) */
-	MLIP_BLOCK_DWELL,          /* G4 P: wait dwell_s, to the period */
-	MLIP_BLOCK_PAUSE,          /* M0/M60: wait for the operator's resume */
-	MLIP_BLOCK_OPTIONAL_PAUSE  /* M1: as M0 when the optional-stop switch is on */
+	MLIP_BLOCK_MOVE = 0,      /* G0/G1 (arcs arrive as chords) */
+	MLIP_BLOCK_DWELL,         /* G4 P: wait dwell_s, to the period */
+	MLIP_BLOCK_PAUSE,         /* M0/M60: wait for the operator's resume */
+	MLIP_BLOCK_OPTIONAL_PAUSE /* M1: as M0 when the optional-stop switch is on */
 } mlip_block_kind;
 
 /* One G01-style block: an absolute target in joint space. Produced by the
@@ -73,17 +73,17 @@ typedef enum {
  * a MOVE with no exact stop. */
 struct mlip_block {
 	double target[MLIP_MAX_AXES]; /* absolute, in config axis order */
-	double feed_mm_s;  /* programmed feed: linear path speed, or deg/s for
-	                      rotary-only moves (G94); ignored when rapid */
-	double tol_mm;     /* contour budget of the corner at the END of this
-	                      block: eps, or less inside a chorded arc */
-	uint32_t line;     /* source line, 1-based */
-	uint8_t rapid;     /* G0: runs at the machine's maximum feed */
-	uint64_t seq;      /* caller's sequence number in program order (0: none);
-	                      the planner reports the block it executes by it */
-	uint8_t kind;      /* mlip_block_kind */
-	uint8_t exact_stop;/* G61: come to rest at the end of this move */
-	double dwell_s;    /* DWELL: seconds (>= 0) */
+	double feed_mm_s;             /* programmed feed: linear path speed, or deg/s for
+	                                 rotary-only moves (G94); ignored when rapid */
+	double tol_mm;                /* contour budget of the corner at the END of this
+	                                 block: eps, or less inside a chorded arc */
+	uint32_t line;                /* source line, 1-based */
+	uint8_t rapid;                /* G0: runs at the machine's maximum feed */
+	uint64_t seq;                 /* caller's sequence number in program order (0: none);
+	                                 the planner reports the block it executes by it */
+	uint8_t kind;                 /* mlip_block_kind */
+	uint8_t exact_stop;           /* G61: come to rest at the end of this move */
+	double dwell_s;               /* DWELL: seconds (>= 0) */
 };
 
 #endif

@@ -47,8 +47,45 @@ def test_src_sees_include_only(tmp_path):
     or a tools/lib header would not build (the Makefile gives src/ -Iinclude
     alone)."""
     p = subprocess.run(["make", "-n", "--no-print-directory", "-B", f"BUILD={tmp_path}",
-                        f"{tmp_path}/obj/src/planner.o"], cwd=ROOT, capture_output=True,
+                        f"{tmp_path}/obj/src/motion/planner.o"], cwd=ROOT, capture_output=True,
                        text=True, timeout=60)
     assert p.returncode == 0, p.stderr
-    cc = [l for l in p.stdout.splitlines() if "src/planner.c" in l]
+    cc = [l for l in p.stdout.splitlines() if "src/motion/planner.c" in l]
     assert cc and "-Iinclude" in cc[0] and "-Irt" not in cc[0] and "-Itools/lib" not in cc[0]
+
+
+def _scratch_copy(tmp_path):
+    """The tracked tree, copied: a mutation there cannot touch the real one."""
+    files = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True,
+                           check=True).stdout.decode().split("\0")
+    dst = tmp_path / "tree"
+    for f in filter(None, files):
+        if (ROOT / f).is_file():
+            (dst / f).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / f, dst / f)
+    return dst
+
+
+@pytest.mark.parametrize("path, include, rule", [
+    # a lower folder reaching up the data path
+    ("src/gcode/gcode.c", "mlip/ctl/controller.h", "folder 'gcode' may include only"),
+    ("include/mlip/motion/planner.h", "mlip/ipc/ring.h", "folder 'motion' may include only"),
+    # rt/ and tools/lib headers are outside the core
+    ("src/ipc/ring.c", "rt.h", "as mlip/FOLDER/NAME.h only"),
+])
+def test_folder_include_rules_fail_the_build(tmp_path, path, include, rule):
+    """make builds libmlip.a only when every core file keeps the folder
+    rules (Makefile LAYERS, tools/layers.sh): a scratch copy of the tree with
+    one forbidden include fails the build, naming file, line and rule; the
+    same copy without it builds."""
+    tree = _scratch_copy(tmp_path)
+    ok = subprocess.run(["make", "-s", "BUILD=b", "b/layers.ok"], cwd=tree, capture_output=True,
+                        text=True, timeout=300)
+    assert ok.returncode == 0, ok.stderr
+    f = tree / path
+    f.write_text(f'#include "{include}"\n' + f.read_text())
+    bad = subprocess.run(["make", "-s", "BUILD=b", "b/libmlip.a"], cwd=tree, capture_output=True,
+                         text=True, timeout=300)
+    assert bad.returncode != 0
+    assert f"{path}:1: includes" in bad.stderr and rule in bad.stderr, bad.stderr
+    assert not (tree / "b" / "libmlip.a").exists()

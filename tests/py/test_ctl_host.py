@@ -125,7 +125,7 @@ def test_stall_holds_at_rest_without_jump(controller, tmp_path):
 
 # ---- records the controller did not expect --------------------------------
 
-REC = struct.Struct("<QIHH6dddd")  # include/mlip/ring.h, layout version 4
+REC = struct.Struct("<QIHH6dddd")  # include/mlip/ipc/ring.h, layout version 4
 HEAD, TAIL, CAPACITY, HDR_BYTES = 64, 128, 12, 24  # HDR_BYTES: where the records start
 
 
@@ -259,7 +259,7 @@ def test_sim_dwell_and_pauses_to_the_period(tmp_path, optional):
 
 
 def test_status_liveness_alive_late_dead(controller):
-    """mlip-ctl judges the controller by the one rule (mlip/peer.h): alive
+    """mlip-ctl judges the controller by the one rule (mlip/ipc/peer.h): alive
     while it beats; stopped (SIGSTOP), its process is there: late, exit 1,
     "not responding"; killed: dead, "not running"."""
     shm, rt = controller(MILL)

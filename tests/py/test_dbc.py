@@ -1,4 +1,4 @@
-"""tools/mlip.dbc against the frame layouts of include/mlip/canenc.h and the
+"""tools/mlip.dbc against the frame layouts of include/mlip/can/canenc.h and the
 CiA 301 / CiA 402 frames of a deployment with drives.
 
 The expected bytes below are written by hand from the documented layout; the

@@ -13,7 +13,7 @@
 
 #include <cmocka.h>
 
-#include "mlip/canenc.h"
+#include "mlip/can/canenc.h"
 
 /* cmocka 1.1.5 has no assert_double_equal (its float one casts to float) */
 #define assert_near(a, b, tol) assert_near_at((a), (b), (tol), __FILE__, __LINE__)
@@ -87,9 +87,9 @@ static void test_golden_cia402(void **state)
 
 	(void)state;
 	encoder(&e, "cia402", 6);
-	assert_int_equal(mlip_canenc_encode(&e, GOLDEN_CYCLE, golden_pos, f, MLIP_CAN_MAX_FRAMES,
-	                                    &n, NULL),
-	                 MLIP_OK);
+	assert_int_equal(
+	    mlip_canenc_encode(&e, GOLDEN_CYCLE, golden_pos, f, MLIP_CAN_MAX_FRAMES, &n, NULL),
+	    MLIP_OK);
 	assert_int_equal(n, 7);
 	assert_int_equal(f[0].id, 0x080);
 	assert_int_equal(f[0].len, 0);
@@ -110,9 +110,9 @@ static void test_golden_packed(void **state)
 
 	(void)state;
 	encoder(&e, "packed", 6);
-	assert_int_equal(mlip_canenc_encode(&e, GOLDEN_CYCLE, golden_pos, f, MLIP_CAN_MAX_FRAMES,
-	                                    &n, NULL),
-	                 MLIP_OK);
+	assert_int_equal(
+	    mlip_canenc_encode(&e, GOLDEN_CYCLE, golden_pos, f, MLIP_CAN_MAX_FRAMES, &n, NULL),
+	    MLIP_OK);
 	assert_int_equal(n, 4);
 	for (k = 0; k < 3; k++) {
 		assert_int_equal(f[k].id, 0x300 + k);
@@ -135,9 +135,9 @@ static void test_golden_fd(void **state)
 
 	(void)state;
 	encoder(&e, "fd", 6);
-	assert_int_equal(mlip_canenc_encode(&e, GOLDEN_CYCLE, golden_pos, f, MLIP_CAN_MAX_FRAMES,
-	                                    &n, NULL),
-	                 MLIP_OK);
+	assert_int_equal(
+	    mlip_canenc_encode(&e, GOLDEN_CYCLE, golden_pos, f, MLIP_CAN_MAX_FRAMES, &n, NULL),
+	    MLIP_OK);
 	assert_int_equal(n, 1);
 	assert_int_equal(f[0].id, 0x400);
 	assert_int_equal(f[0].flags, MLIP_CAN_FLAG_FD | MLIP_CAN_FLAG_BRS);
@@ -180,9 +180,9 @@ static void roundtrip(const char *profile)
 				pos[i] = uniform(-span, span);
 			}
 			cycle = (uint32_t)(0xFFFFFFF0u + (uint32_t)trial); /* wraps too */
-			assert_int_equal(mlip_canenc_encode(&e, cycle, pos, f, MLIP_CAN_MAX_FRAMES,
-			                                    &n, NULL),
-			                 MLIP_OK);
+			assert_int_equal(
+			    mlip_canenc_encode(&e, cycle, pos, f, MLIP_CAN_MAX_FRAMES, &n, NULL),
+			    MLIP_OK);
 			assert_int_equal(n, mlip_canenc_frames(&e));
 			assert_int_equal(mlip_canenc_decode(&e, f, n, &sp), MLIP_OK);
 			assert_int_equal(sp.n_axes, n_axes);
@@ -337,10 +337,9 @@ static void test_encode_saturation_reported(void **state)
 static void test_fd_len(void **state)
 {
 	static const int want[65] = {
-	    0,  1,  2,  3,  4,  5,  6,  7,  8,  12, 12, 12, 12, 16, 16, 16, 16,
-	    20, 20, 20, 20, 24, 24, 24, 24, 32, 32, 32, 32, 32, 32, 32, 32,
-	    48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48,
-	    64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64};
+	    0,  1,  2,  3,  4,  5,  6,  7,  8,  12, 12, 12, 12, 16, 16, 16, 16, 20, 20, 20, 20, 24,
+	    24, 24, 24, 32, 32, 32, 32, 32, 32, 32, 32, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48,
+	    48, 48, 48, 48, 48, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64};
 	struct mlip_canenc e;
 	size_t n;
 	int axes;
@@ -545,7 +544,7 @@ static void test_decoder_fd_gaps(void **state)
 	assert_int_equal(mlip_candec_feed(&d, &f[0], &sp), MLIP_E_SYNTAX);
 	f[0].len = 12;
 	assert_int_equal(mlip_candec_feed(&d, &f[0], &sp), MLIP_OK); /* BRS optional */
-	f[0].flags = MLIP_CAN_FLAG_FD | MLIP_CAN_FLAG_EFF; /* 29-bit: not ours */
+	f[0].flags = MLIP_CAN_FLAG_FD | MLIP_CAN_FLAG_EFF;           /* 29-bit: not ours */
 	assert_int_equal(mlip_candec_feed(&d, &f[0], &sp), MLIP_E_EMPTY);
 	assert_int_equal(d.foreign, 1);
 }
@@ -611,9 +610,9 @@ static void test_frame_bits(void **state)
 	b = mlip_can_frame_bits(0, 0);
 	assert_int_equal(b.nominal, 55); /* 47 + 8 */
 	assert_int_equal(b.data, 0);
-	assert_int_equal(mlip_can_frame_bits(0, 4).nominal, 95);  /* 32 + 47 + 16 */
-	assert_int_equal(mlip_can_frame_bits(0, 8).nominal, 135); /* 64 + 47 + 24 */
-	assert_int_equal(mlip_can_frame_bits(0, 1).nominal, 65);  /* 8 + 47 + 10 */
+	assert_int_equal(mlip_can_frame_bits(0, 4).nominal, 95);   /* 32 + 47 + 16 */
+	assert_int_equal(mlip_can_frame_bits(0, 8).nominal, 135);  /* 64 + 47 + 24 */
+	assert_int_equal(mlip_can_frame_bits(0, 1).nominal, 65);   /* 8 + 47 + 10 */
 	assert_int_equal(mlip_can_frame_bits(0, 15).nominal, 135); /* classic: at most 8 */
 	/* classic extended: 8n + 67 + floor((53 + 8n) / 4); 160 is Davis' 8-byte figure */
 	assert_int_equal(mlip_can_frame_bits(MLIP_CAN_FLAG_EFF, 8).nominal, 160);
@@ -721,9 +720,9 @@ static void test_load_matches_encoder(void **state)
 			encoder(&e, names[p], axes);
 			st = mlip_canenc_encode(&e, 0, pos, f, MLIP_CAN_MAX_FRAMES, &n, NULL);
 			assert_int_equal(st, MLIP_OK);
-			assert_int_equal(mlip_can_load_breakdown(e.profile, axes, 1000000, 5000000,
-			                                         0.001, &l),
-			                 MLIP_OK);
+			assert_int_equal(
+			    mlip_can_load_breakdown(e.profile, axes, 1000000, 5000000, 0.001, &l),
+			    MLIP_OK);
 			assert_int_equal(l.frames, n);
 			for (k = 0; k < n; k++) {
 				assert_int_equal(l.frame[k].len, f[k].len);

@@ -1,5 +1,5 @@
 /*
- * test_canopen.c - the pure CANopen master (mlip/canopen.h): NMT and
+ * test_canopen.c - the pure CANopen master (mlip/canopen/canopen.h): NMT and
  * heartbeat bytes, frame classification, the SDO client against answers
  * written from CiA 301's tables (expedited both ways, segmented upload with
  * its toggle, aborts, wrong answers), abort texts, CiA 402 statusword
@@ -14,7 +14,7 @@
 
 #include <cmocka.h>
 
-#include "mlip/canopen.h"
+#include "mlip/canopen/canopen.h"
 
 static void answer(struct mlip_can_frame *f, uint8_t node, const uint8_t b[8])
 {
@@ -180,7 +180,8 @@ static void test_sdo_upload(void **state)
 	assert_int_equal(s.abort_code, MLIP_SDO_ABORT_TOGGLE);
 	assert_memory_equal(req.data, ((uint8_t[]){0x80, 0x08, 0x10, 0x00, 0x00, 0x00, 0x03, 0x05}),
 	                    8);
-	assert_string_equal(mlip_sdo_abort_text(MLIP_SDO_ABORT_TOGGLE), "toggle bit not alternated");
+	assert_string_equal(mlip_sdo_abort_text(MLIP_SDO_ABORT_TOGGLE),
+	                    "toggle bit not alternated");
 }
 
 static void test_402_states(void **state)
@@ -409,10 +410,10 @@ static void test_following_error(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_nmt_heartbeat),  cmocka_unit_test(test_classify),
-	    cmocka_unit_test(test_sdo_download),   cmocka_unit_test(test_sdo_upload),
-	    cmocka_unit_test(test_402_states),     cmocka_unit_test(test_interp_period),
-	    cmocka_unit_test(test_setup_entries),  cmocka_unit_test(test_supervise),
+	    cmocka_unit_test(test_nmt_heartbeat),   cmocka_unit_test(test_classify),
+	    cmocka_unit_test(test_sdo_download),    cmocka_unit_test(test_sdo_upload),
+	    cmocka_unit_test(test_402_states),      cmocka_unit_test(test_interp_period),
+	    cmocka_unit_test(test_setup_entries),   cmocka_unit_test(test_supervise),
 	    cmocka_unit_test(test_following_error),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

@@ -18,9 +18,9 @@
 #include <cmocka.h>
 
 #include "../../tools/lib/check.h"
-#include "mlip/planner.h"
+#include "mlip/motion/planner.h"
 
-#define EPS 0.01
+#define EPS      0.01
 #define EXACT_MM 1e-12
 
 static uint64_t rng = 0x9E3779B97F4A7C15ULL;
@@ -166,7 +166,8 @@ static void path_at(const struct path *p, double s, double *x)
 	double len = p->arc[hi] - p->arc[lo];
 	double t = len > 0.0 ? fmin(fmax((s - p->arc[lo]) / len, 0.0), 1.0) : 0.0;
 	for (int k = 0; k < p->n; k++) {
-		x[k] = p->pts[lo * (size_t)p->n + k] + t * (p->pts[hi * (size_t)p->n + k] - p->pts[lo * (size_t)p->n + k]);
+		x[k] = p->pts[lo * (size_t)p->n + k] +
+		       t * (p->pts[hi * (size_t)p->n + k] - p->pts[lo * (size_t)p->n + k]);
 	}
 }
 
@@ -199,8 +200,12 @@ static double brute(const struct path *p, const double *x)
 
 static struct mlip_check_limits limits(int n, double window_mm)
 {
-	struct mlip_check_limits lim = {.n = n, .vmax_mm_s = 200.0, .vmax_rot_deg_s = 0.0,
-	                                .eps_mm = EPS, .period_s = 0.001, .window_mm = window_mm};
+	struct mlip_check_limits lim = {.n = n,
+	                                .vmax_mm_s = 200.0,
+	                                .vmax_rot_deg_s = 0.0,
+	                                .eps_mm = EPS,
+	                                .period_s = 0.001,
+	                                .window_mm = window_mm};
 	for (int k = 0; k < n; k++) {
 		lim.accel[k] = 1000.0;
 		lim.vel[k] = 200.0;
@@ -259,8 +264,9 @@ static size_t walk(const struct path *p, double window_mm, double step_mm, doubl
 		mlip_check_sample(&chk, x);
 		double want = exact ? brute(p, x) : chk.last_contour_mm;
 		if (!(fabs(chk.last_contour_mm - want) <= EXACT_MM)) {
-			fail_msg("sample %zu at path position %.6f: contour %.17g, brute force %.17g", i,
-			         pos, chk.last_contour_mm, want);
+			fail_msg(
+			    "sample %zu at path position %.6f: contour %.17g, brute force %.17g", i,
+			    pos, chk.last_contour_mm, want);
 		}
 		if (pos >= end) {
 			break;
@@ -377,7 +383,8 @@ static void test_planner_trace_on_zigzag(void **state)
 	double x[MLIP_MAX_AXES];
 	for (;;) {
 		while (next < p.np && mlip_planner_space(&planner) > 0) {
-			struct mlip_block b = {.feed_mm_s = 200.0, .tol_mm = EPS, .line = (uint32_t)next};
+			struct mlip_block b = {
+			    .feed_mm_s = 200.0, .tol_mm = EPS, .line = (uint32_t)next};
 			memcpy(b.target, p.pts + next * 2, sizeof(double) * 2);
 			assert_int_equal(mlip_planner_push(&planner, &b), MLIP_OK);
 			next++;
@@ -568,14 +575,14 @@ static void test_long_path_streams(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-		cmocka_unit_test(test_zigzag_teeth_nearly_touch),
-		cmocka_unit_test(test_spiral_turns_closer_than_eps),
-		cmocka_unit_test(test_path_back_over_itself),
-		cmocka_unit_test(test_random_walks_whole_polyline),
-		cmocka_unit_test(test_planner_trace_on_zigzag),
-		cmocka_unit_test(test_order_step_back_and_skip),
-		cmocka_unit_test(test_order_follows_chords),
-		cmocka_unit_test(test_long_path_streams),
+	    cmocka_unit_test(test_zigzag_teeth_nearly_touch),
+	    cmocka_unit_test(test_spiral_turns_closer_than_eps),
+	    cmocka_unit_test(test_path_back_over_itself),
+	    cmocka_unit_test(test_random_walks_whole_polyline),
+	    cmocka_unit_test(test_planner_trace_on_zigzag),
+	    cmocka_unit_test(test_order_step_back_and_skip),
+	    cmocka_unit_test(test_order_follows_chords),
+	    cmocka_unit_test(test_long_path_streams),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

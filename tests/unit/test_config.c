@@ -1,5 +1,5 @@
 /*
- * test_config.c - the machine configuration reader (src/config.c) and its
+ * test_config.c - the machine configuration reader (src/machine/config.c) and its
  * host loader (tools/lib/confload.c): every error class with its message,
  * line and column, both sides of every range check, the machine check
  * after command-line style overrides, seeded random invariants, and the
@@ -18,9 +18,9 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "mlip/canenc.h"
-#include "mlip/config.h"
-#include "mlip/planner.h"
+#include "mlip/can/canenc.h"
+#include "mlip/machine/config.h"
+#include "mlip/motion/planner.h"
 
 #include "../../tools/lib/confload.h"
 
@@ -92,8 +92,8 @@ static void expect_at(const char *text, size_t len, mlip_status st, uint32_t lin
 {
 	mlip_status got = parse_n(text, len);
 
-	if (got != st || (st != MLIP_OK && (err.line != line || err.col != col ||
-	                                   strcmp(err.msg, msg) != 0))) {
+	if (got != st ||
+	    (st != MLIP_OK && (err.line != line || err.col != col || strcmp(err.msg, msg) != 0))) {
 		fail_msg("%s:%d: got status %d at %u:%u \"%s\"\n"
 		         "  expected %d at %u:%u \"%s\"",
 		         file, at, (int)got, (unsigned)err.line, (unsigned)err.col,
@@ -102,9 +102,9 @@ static void expect_at(const char *text, size_t len, mlip_status st, uint32_t lin
 	}
 }
 
-#define EXPECT(text, st, line, col, msg) \
+#define EXPECT(text, st, line, col, msg)                                                           \
 	expect_at((text), strlen(text), (st), (line), (col), (msg), __FILE__, __LINE__)
-#define EXPECT_N(text, len, st, line, col, msg) \
+#define EXPECT_N(text, len, st, line, col, msg)                                                    \
 	expect_at((text), (len), (st), (line), (col), (msg), __FILE__, __LINE__)
 #define EXPECT_OK(text) expect_at((text), strlen(text), MLIP_OK, 0, 0, NULL, __FILE__, __LINE__)
 
@@ -160,38 +160,37 @@ static void test_minimal(void **state)
 
 static void test_every_key(void **state)
 {
-	static const char text[] =
-	    "; every key once, sections in an unusual order\n"
-	    "[CAN]\n"
-	    "PROFILE = fd\n"
-	    "BITRATE = 500000\n"
-	    "DATA_BITRATE = 2000000\n"
-	    "SYNC_ID = 0x81\n"
-	    "RPDO_BASE = 0x210\n"
-	    "PACKED_BASE = 0x310\n"
-	    "FD_ID = 1025\n"
-	    "STATUS_ID = 0X18f\n"
-	    "[AXIS_C]\n"
-	    "MAX_VELOCITY = 90\n"
-	    "MAX_ACCELERATION = 900\n"
-	    "[AXIS_Z]\n"
-	    "TYPE = LINEAR\n"
-	    "MAX_VELOCITY = 50.5\n"
-	    "MAX_ACCELERATION = 2e3\n"
-	    "MIN_LIMIT = -100\n"
-	    "MAX_LIMIT = 25\n"
-	    "HOME = 20\n"
-	    "CAN_NODE = 9\n"
-	    "COUNTS_PER_UNIT = 2000\n"
-	    "[TRAJ]\n"
-	    "COORDINATES = ZC\n"
-	    "MAX_LINEAR_VELOCITY = 100\n"
-	    "MAX_ANGULAR_VELOCITY = 180\n"
-	    "CONTOUR_TOLERANCE = 0.005\n"
-	    "PERIOD = 0.0005\n"
-	    "LINEAR_UNITS = mm\n"
-	    "ANGULAR_UNITS = degree\n"
-	    "LOOKAHEAD = 256\n";
+	static const char text[] = "; every key once, sections in an unusual order\n"
+	                           "[CAN]\n"
+	                           "PROFILE = fd\n"
+	                           "BITRATE = 500000\n"
+	                           "DATA_BITRATE = 2000000\n"
+	                           "SYNC_ID = 0x81\n"
+	                           "RPDO_BASE = 0x210\n"
+	                           "PACKED_BASE = 0x310\n"
+	                           "FD_ID = 1025\n"
+	                           "STATUS_ID = 0X18f\n"
+	                           "[AXIS_C]\n"
+	                           "MAX_VELOCITY = 90\n"
+	                           "MAX_ACCELERATION = 900\n"
+	                           "[AXIS_Z]\n"
+	                           "TYPE = LINEAR\n"
+	                           "MAX_VELOCITY = 50.5\n"
+	                           "MAX_ACCELERATION = 2e3\n"
+	                           "MIN_LIMIT = -100\n"
+	                           "MAX_LIMIT = 25\n"
+	                           "HOME = 20\n"
+	                           "CAN_NODE = 9\n"
+	                           "COUNTS_PER_UNIT = 2000\n"
+	                           "[TRAJ]\n"
+	                           "COORDINATES = ZC\n"
+	                           "MAX_LINEAR_VELOCITY = 100\n"
+	                           "MAX_ANGULAR_VELOCITY = 180\n"
+	                           "CONTOUR_TOLERANCE = 0.005\n"
+	                           "PERIOD = 0.0005\n"
+	                           "LINEAR_UNITS = mm\n"
+	                           "ANGULAR_UNITS = degree\n"
+	                           "LOOKAHEAD = 256\n";
 	const struct mlip_machine *m = &cfg.machine;
 
 	(void)state;
@@ -208,7 +207,7 @@ static void test_every_key(void **state)
 	assert_near(m->axis[0].counts_per_unit, 2000, 0);
 	assert_int_equal(m->axis[1].letter, 'C');
 	assert_int_equal(m->axis[1].kind, MLIP_AXIS_ROTARY); /* default of C */
-	assert_int_equal(m->axis[1].can_node, 2);           /* index + 1 */
+	assert_int_equal(m->axis[1].can_node, 2);            /* index + 1 */
 	assert_near(m->max_feed_mm_s, 100, 0);
 	assert_near(m->max_rot_feed_deg_s, 180, 0);
 	assert_true(m->tolerance_mm == 0.005);
@@ -287,7 +286,9 @@ static void test_line_endings_and_bom(void **state)
 	          "[AXIS_X]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1\n"
 	          "[AXIS_Y]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1");
 	/* a BOM is skipped and columns count after it */
-	EXPECT("\xEF\xBB\xBF" "FOO", MLIP_E_SYNTAX, 1, 4, "missing '=' after key FOO");
+	EXPECT("\xEF\xBB\xBF"
+	       "FOO",
+	       MLIP_E_SYNTAX, 1, 4, "missing '=' after key FOO");
 	memcpy(crlf, "\xEF\xBB\xBF", 3);
 	strcpy(crlf + 3, CFG(0));
 	EXPECT_OK(crlf);
@@ -375,8 +376,9 @@ static void test_sections(void **state)
 	       "unknown section [CNA] (did you mean [CAN]?)");
 	EXPECT(CFG(.tail = "[AXIS_W]"), MLIP_E_SYNTAX, 14, 2,
 	       "unknown section [AXIS_W] (axis letters are X Y Z A B C)");
-	EXPECT(CFG(.tail = "[JOINT_0]"), MLIP_E_SYNTAX, 14, 2,
-	       "unknown section [JOINT_0] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
+	EXPECT(
+	    CFG(.tail = "[JOINT_0]"), MLIP_E_SYNTAX, 14, 2,
+	    "unknown section [JOINT_0] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
 	EXPECT(CFG(.tail = "  [ TRAJ ]"), MLIP_E_SYNTAX, 14, 5,
 	       "duplicate section [TRAJ] (first at line 1)");
 	EXPECT(CFG(.tail = "[AXIS_X]"), MLIP_E_SYNTAX, 14, 2,
@@ -485,18 +487,30 @@ static void test_missing_keys(void **state)
 
 static void test_numbers(void **state)
 {
-	static const char *const bad[] = {
-	    "200mm", "nan",  "NaN", "inf", "-inf", "infinity", "0x10", "0x1p3", "1e",  "1e+",
-	    ".",     "+",    "-",   "--1", "1..2", "1.2.3",    "1,5",  "1 2",   "e5",  "1e5.0",
-	    "+-1",   "1_000", "\xC2\xB5", "5#c", "5;c", "1e 5", "0b11", "'5'", "\"5\"", "1e--5"};
+	static const char *const bad[] = {"200mm", "nan",   "NaN",  "inf",   "-inf",     "infinity",
+	                                  "0x10",  "0x1p3", "1e",   "1e+",   ".",        "+",
+	                                  "-",     "--1",   "1..2", "1.2.3", "1,5",      "1 2",
+	                                  "e5",    "1e5.0", "+-1",  "1_000", "\xC2\xB5", "5#c",
+	                                  "5;c",   "1e 5",  "0b11", "'5'",   "\"5\"",    "1e--5"};
 	static const struct {
 		const char *text;
 		double v;
 	} good[] = {
-	    {"5", 5},           {"1.", 1},          {".5", 0.5},        {"+5", 5},
-	    {"-0", 0},          {"-7.25", -7.25},   {"1E3", 1000},      {"1e+3", 1000},
-	    {"1e-3", 1e-3},     {"007", 7},         {"0.1", 0.1},       {"123.456", 123.456},
-	    {"1e22", 1e22},     {"1e-22", 1e-22},   {"1e-999", 0},
+	    {"5", 5},
+	    {"1.", 1},
+	    {".5", 0.5},
+	    {"+5", 5},
+	    {"-0", 0},
+	    {"-7.25", -7.25},
+	    {"1E3", 1000},
+	    {"1e+3", 1000},
+	    {"1e-3", 1e-3},
+	    {"007", 7},
+	    {"0.1", 0.1},
+	    {"123.456", 123.456},
+	    {"1e22", 1e22},
+	    {"1e-22", 1e-22},
+	    {"1e-999", 0},
 	    {"00000000000000000000000001", 1},
 	    {"0.000000000000000000000000001", 1e-27},
 	    {"12345678901234567890123", 12345678901234567890123.0},
@@ -527,8 +541,8 @@ static void test_numbers(void **state)
 				memmove(e + 1, e + 2, strlen(e + 2) + 1);
 			}
 			snprintf(x, sizeof x, "MAX_LIMIT = %s", good[i].text);
-			snprintf(msg, sizeof msg, "AXIS_X MAX_LIMIT must be within -1e9..1e9, got %s",
-			         shown);
+			snprintf(msg, sizeof msg,
+			         "AXIS_X MAX_LIMIT must be within -1e9..1e9, got %s", shown);
 			EXPECT(CFG(.x = x), MLIP_E_RANGE, 9, 1, msg);
 			continue;
 		}
@@ -584,9 +598,9 @@ static void test_positive(void **state)
 	static const struct {
 		const char *key;
 		int field; /* which template line */
-	} keys[] = {{"MAX_LINEAR_VELOCITY", 0}, {"CONTOUR_TOLERANCE", 1},
+	} keys[] = {{"MAX_LINEAR_VELOCITY", 0},  {"CONTOUR_TOLERANCE", 1},
 	            {"MAX_ANGULAR_VELOCITY", 2}, {"MAX_VELOCITY", 3},
-	            {"MAX_ACCELERATION", 4}, {"COUNTS_PER_UNIT", 5}};
+	            {"MAX_ACCELERATION", 4},     {"COUNTS_PER_UNIT", 5}};
 	static const uint32_t lines[] = {3, 4, 5, 7, 8, 9};
 	static const char *const vals[] = {"0", "-0", "-5", "-1e-300", "0e5"};
 	char line[96], msg[160];
@@ -604,12 +618,24 @@ static void test_positive(void **state)
 			memset(&t, 0, sizeof t);
 			snprintf(line, sizeof line, "%s = %s", keys[i].key, v);
 			switch (keys[i].field) {
-			case 0: t.vlin = line; break;
-			case 1: t.tol = line; break;
-			case 2: t.traj = line; break;
-			case 3: t.xvel = line; break;
-			case 4: t.xacc = line; break;
-			default: t.x = line; break;
+			case 0:
+				t.vlin = line;
+				break;
+			case 1:
+				t.tol = line;
+				break;
+			case 2:
+				t.traj = line;
+				break;
+			case 3:
+				t.xvel = line;
+				break;
+			case 4:
+				t.xacc = line;
+				break;
+			default:
+				t.x = line;
+				break;
 			}
 			if (j == sizeof vals / sizeof vals[0]) {
 				EXPECT_OK(build(&t));
@@ -680,11 +706,10 @@ static void test_traj_ranges(void **state)
 
 static void test_coordinates(void **state)
 {
-	static const char six[] =
-	    "[AXIS_Z]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1\n"
-	    "[AXIS_A]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1\n"
-	    "[AXIS_B]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1\n"
-	    "[AXIS_C]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1\n";
+	static const char six[] = "[AXIS_Z]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1\n"
+	                          "[AXIS_A]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1\n"
+	                          "[AXIS_B]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1\n"
+	                          "[AXIS_C]\nMAX_VELOCITY = 1\nMAX_ACCELERATION = 1\n";
 	int i;
 
 	(void)state;
@@ -786,9 +811,10 @@ static void test_drives(void **state)
 	(void)state;
 	EXPECT_OK(CFG(.tail = ""));
 	drives_are(&(struct mlip_drives_config){0, 127, 100, 300, 1.0, 200, 3000, 1000});
-	EXPECT_OK(CFG(.tail = "[DRIVES]\nENABLE = 1\nMASTER_NODE = 100\nHEARTBEAT_MS = 50\n"
-	                      "HEARTBEAT_TIMEOUT_MS = 51\nFOLLOWING_ERROR = 0.25\nSDO_TIMEOUT_MS = 1\n"
-	                      "BOOT_TIMEOUT_MS = 65535\nSTATE_TIMEOUT_MS = 2000"));
+	EXPECT_OK(CFG(.tail =
+	                  "[DRIVES]\nENABLE = 1\nMASTER_NODE = 100\nHEARTBEAT_MS = 50\n"
+	                  "HEARTBEAT_TIMEOUT_MS = 51\nFOLLOWING_ERROR = 0.25\nSDO_TIMEOUT_MS = 1\n"
+	                  "BOOT_TIMEOUT_MS = 65535\nSTATE_TIMEOUT_MS = 2000"));
 	drives_are(&(struct mlip_drives_config){1, 100, 50, 51, 0.25, 1, 65535, 2000});
 	EXPECT(CFG(.tail = "[DRIVES]\nENABLE = 2"), MLIP_E_RANGE, 15, 10,
 	       "ENABLE must be 0 or 1, got 2");
@@ -968,7 +994,7 @@ static struct mlip_machine good_machine(void)
 }
 
 static void check_machine_at(const struct mlip_machine *m, mlip_status st, const char *msg,
-                         const char *file, int at)
+                             const char *file, int at)
 {
 	mlip_status got;
 
@@ -983,7 +1009,7 @@ static void check_machine_at(const struct mlip_machine *m, mlip_status st, const
 }
 
 #define CHECK(m, st, msg) check_machine_at(&(m), (st), (msg), __FILE__, __LINE__)
-#define CHECK_OK(m) check_machine_at(&(m), MLIP_OK, NULL, __FILE__, __LINE__)
+#define CHECK_OK(m)       check_machine_at(&(m), MLIP_OK, NULL, __FILE__, __LINE__)
 
 static void test_check_axes(void **state)
 {
@@ -1020,14 +1046,12 @@ static void test_check_axes(void **state)
 
 	m = good_machine();
 	m.axis[1].letter = 'W';
-	CHECK(m, MLIP_E_INVALID,
-	      "TRAJ COORDINATES: axis 1 has letter 'W', not one of X Y Z A B C");
+	CHECK(m, MLIP_E_INVALID, "TRAJ COORDINATES: axis 1 has letter 'W', not one of X Y Z A B C");
 	m.axis[1].letter = '\0';
 	CHECK(m, MLIP_E_INVALID,
 	      "TRAJ COORDINATES: axis 1 has letter 0x00, not one of X Y Z A B C");
 	m.axis[1].letter = 'x';
-	CHECK(m, MLIP_E_INVALID,
-	      "TRAJ COORDINATES: axis 1 has letter 'x', not one of X Y Z A B C");
+	CHECK(m, MLIP_E_INVALID, "TRAJ COORDINATES: axis 1 has letter 'x', not one of X Y Z A B C");
 	m.axis[1].letter = 'X';
 	CHECK(m, MLIP_E_INVALID, "TRAJ COORDINATES: duplicate axis letter X");
 	m = good_machine();
@@ -1043,11 +1067,11 @@ static void test_check_limits(void **state)
 	static const struct {
 		double v;
 		const char *shown;
-	} bad[] = {{0, "0"}, {-5, "-5"}, {-1e-300, "-1e-300"}, {NAN, "nan"}, {INFINITY, "inf"},
-	           {-INFINITY, "-inf"}};
-	static const char *const names[] = {
-	    "AXIS_Y MAX_VELOCITY",   "AXIS_Z MAX_ACCELERATION",   "AXIS_X COUNTS_PER_UNIT",
-	    "TRAJ MAX_LINEAR_VELOCITY", "TRAJ MAX_ANGULAR_VELOCITY", "TRAJ CONTOUR_TOLERANCE"};
+	} bad[] = {{0, "0"},     {-5, "-5"},        {-1e-300, "-1e-300"},
+	           {NAN, "nan"}, {INFINITY, "inf"}, {-INFINITY, "-inf"}};
+	static const char *const names[] = {"AXIS_Y MAX_VELOCITY",       "AXIS_Z MAX_ACCELERATION",
+	                                    "AXIS_X COUNTS_PER_UNIT",    "TRAJ MAX_LINEAR_VELOCITY",
+	                                    "TRAJ MAX_ANGULAR_VELOCITY", "TRAJ CONTOUR_TOLERANCE"};
 	char msg[160];
 	size_t i, j;
 
@@ -1056,10 +1080,12 @@ static void test_check_limits(void **state)
 		for (j = 0; j <= sizeof bad / sizeof bad[0]; j++) {
 			struct mlip_machine m = good_machine();
 			/* the smallest accepted: a tolerance must hold |A| T^2 / 8 */
-			double v = j < sizeof bad / sizeof bad[0] ? bad[j].v : i == 5 ? 2.2e-4 : 1e-300;
-			double *f[6] = {&m.axis[1].max_vel,     &m.axis[2].max_accel,
+			double v = j < sizeof bad / sizeof bad[0] ? bad[j].v
+			           : i == 5                       ? 2.2e-4
+			                                          : 1e-300;
+			double *f[6] = {&m.axis[1].max_vel,         &m.axis[2].max_accel,
 			                &m.axis[0].counts_per_unit, &m.max_feed_mm_s,
-			                &m.max_rot_feed_deg_s,  &m.tolerance_mm};
+			                &m.max_rot_feed_deg_s,      &m.tolerance_mm};
 			*f[i] = v;
 			if (j == sizeof bad / sizeof bad[0]) {
 				CHECK_OK(m);
@@ -1498,8 +1524,8 @@ static void test_upper_bounds(void **state)
 {
 	(void)state;
 	EXPECT_OK(CFG(.traj = "PERIOD = 0.0001", .xacc = "MAX_ACCELERATION = 1e6"));
-	EXPECT(CFG(.traj = "PERIOD = 0.0001", .xacc = "MAX_ACCELERATION = 1000001"), MLIP_E_RANGE, 8,
-	       1, "AXIS_X MAX_ACCELERATION must be at most 1000000, got 1000001");
+	EXPECT(CFG(.traj = "PERIOD = 0.0001", .xacc = "MAX_ACCELERATION = 1000001"), MLIP_E_RANGE,
+	       8, 1, "AXIS_X MAX_ACCELERATION must be at most 1000000, got 1000001");
 	EXPECT_OK(CFG(.xvel = "MAX_VELOCITY = 1e5"));
 	EXPECT(CFG(.yvel = "MAX_VELOCITY = 100001"), MLIP_E_RANGE, 11, 1,
 	       "AXIS_Y MAX_VELOCITY must be at most 100000, got 100001");
@@ -1513,8 +1539,8 @@ static void test_upper_bounds(void **state)
 	EXPECT_OK(CFG(.x = "MIN_LIMIT = -1e9"));
 	EXPECT(CFG(.x = "MIN_LIMIT = -1.5e9"), MLIP_E_RANGE, 9, 1,
 	       "AXIS_X MIN_LIMIT must be within -1e9..1e9, got -1.5e9");
-	EXPECT(CFG(.tol = "CONTOUR_TOLERANCE = 9e-7", .traj = "PERIOD = 0.0001"), MLIP_E_RANGE, 4, 1,
-	       "TRAJ CONTOUR_TOLERANCE must be at least 1e-6 mm, got 9e-7");
+	EXPECT(CFG(.tol = "CONTOUR_TOLERANCE = 9e-7", .traj = "PERIOD = 0.0001"), MLIP_E_RANGE, 4,
+	       1, "TRAJ CONTOUR_TOLERANCE must be at least 1e-6 mm, got 9e-7");
 }
 
 /* Random machines: accepted exactly when |A| T^2 / 8 <= eps (away from ties). */
@@ -1529,11 +1555,11 @@ static void test_random_period_against_tolerance(void **state)
 		double t, e, ax, ay, dev;
 		mlip_status st;
 		seed = seed * 1103515245u + 12345u;
-		t = 1e-4 + ((seed >> 8) % 99901) * 1e-6;           /* 0.1 .. 100 ms */
+		t = 1e-4 + ((seed >> 8) % 99901) * 1e-6; /* 0.1 .. 100 ms */
 		seed = seed * 1103515245u + 12345u;
-		e = 1e-3 * (1 + (seed >> 8) % 1000);                /* 0.001 .. 1 mm */
+		e = 1e-3 * (1 + (seed >> 8) % 1000); /* 0.001 .. 1 mm */
 		seed = seed * 1103515245u + 12345u;
-		ax = 10.0 * (1 + (seed >> 8) % 10000);              /* 10 .. 1e5 */
+		ax = 10.0 * (1 + (seed >> 8) % 10000); /* 10 .. 1e5 */
 		seed = seed * 1103515245u + 12345u;
 		ay = 10.0 * (1 + (seed >> 8) % 10000);
 		dev = sqrt(ax * ax + ay * ay) * t * t / 8;

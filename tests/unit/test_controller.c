@@ -1,5 +1,5 @@
 /*
- * test_controller.c - the pure controller (src/controller.c) period by
+ * test_controller.c - the pure controller (src/ctl/controller.c) period by
  * period on a ring in ordinary memory, no clock, no CAN: the ingest rule,
  * every state transition and its reason, program events (dwell, pause,
  * optional pause, exact stop), record validation and stalls.
@@ -15,9 +15,9 @@
 
 #include <cmocka.h>
 
-#include "mlip/canopen.h"
-#include "mlip/config.h"
-#include "mlip/controller.h"
+#include "mlip/canopen/canopen.h"
+#include "mlip/machine/config.h"
+#include "mlip/ctl/controller.h"
 
 #define CAP 64u
 
@@ -90,7 +90,8 @@ static int teardown(void **state)
 static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 {
 	struct mlip_ring_cmd cmd = {.seq = 2, .op = op, .arg = arg};
-	struct mlip_ctl_in in = {.period = period++, .missed = missed, .feeder_alive = feeder_alive};
+	struct mlip_ctl_in in = {
+	    .period = period++, .missed = missed, .feeder_alive = feeder_alive};
 	in.cmd = op ? &cmd : NULL;
 	in.drive_fault = drv_fault;
 	in.actual_mask = drv_actual_mask;
@@ -446,7 +447,8 @@ static void test_pause_and_optional_pause(void **st)
  * samples inside the corner (x short of 10 and y past 0). */
 static int corner_samples(int exact)
 {
-	struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = 2, .exact_stop = (uint8_t)exact};
+	struct mlip_block b = {
+	    .feed_mm_s = 100.0, .tol_mm = 0.01, .line = 2, .exact_stop = (uint8_t)exact};
 	struct mlip_ring_rec rec;
 	b.target[0] = 10.0;
 	mlip_ring_rec_from_block(&rec, &b, 1);
@@ -499,8 +501,8 @@ static void check_bad(void (*corrupt)(struct mlip_ring_rec *), uint32_t field, i
 	assert_true(value_nan ? isnan(s.reason_value) : !isnan(s.reason_value));
 	assert_true(out.pos[0] == 30.0 && out.pos[1] == 0.0); /* at the end of block 30 */
 	assert_true(mlip_planner_queued(&planner) == 0);
-	assert_int_equal(mlip_ring_count(ring), 0);         /* the rest dropped */
-	assert_int_equal(s.exec_seq, 30);                    /* never "complete" (35) */
+	assert_int_equal(mlip_ring_count(ring), 0); /* the rest dropped */
+	assert_int_equal(s.exec_seq, 30);           /* never "complete" (35) */
 	int faults = 0;
 	for (int i = 0; i < n_seen; i++) {
 		faults += seen_state[i] == MLIP_STATE_FAULT;
@@ -710,8 +712,13 @@ static void test_stall_in_corner(void **st)
 static void test_record_roundtrip(void **st)
 {
 	(void)st;
-	struct mlip_block b = {.feed_mm_s = 10.0, .tol_mm = 0.005, .line = 9, .rapid = 1,
-	                       .exact_stop = 1, .kind = MLIP_BLOCK_MOVE}, c;
+	struct mlip_block b = {.feed_mm_s = 10.0,
+	                       .tol_mm = 0.005,
+	                       .line = 9,
+	                       .rapid = 1,
+	                       .exact_stop = 1,
+	                       .kind = MLIP_BLOCK_MOVE},
+	                  c;
 	struct mlip_ring_rec rec;
 	mlip_ring_rec_from_block(&rec, &b, 4);
 	assert_int_equal(rec.type, MLIP_REC_MOVE);
@@ -782,14 +789,14 @@ static void test_drive_fault_stops_on_the_path(void **st)
 	(void)st;
 	push(1, 50); /* 1 mm blocks along X at 100 mm/s */
 	end(51);
-	tick(300);   /* 0.3 s: past the 0.1 s ramp to 100 mm/s, about X = 25 */
+	tick(300); /* 0.3 s: past the 0.1 s ramp to 100 mm/s, about X = 25 */
 	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
 	double v0 = status().speed_mm_s, x0 = out.pos[0];
 	assert_true(v0 > 99.0 && v0 < 100.0 + 1e-6);
 	uint64_t executing = status().exec_seq;
 	assert_true(executing > 10 && executing < 40);
 
-	drv_fault.event = 1; /* MLIP_DRIVE_FAULT_BIT (mlip/canopen.h) */
+	drv_fault.event = 1; /* MLIP_DRIVE_FAULT_BIT (mlip/canopen/canopen.h) */
 	drv_fault.node = 2;
 	drv_fault.value = 0x0218;
 	tick(1);
@@ -880,8 +887,11 @@ static int drv_deaf; /* bit k: drive k ignores enable operation (stays "switched
 static int setup_drives(void **state)
 {
 	setup(state);
-	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16,
-	                          .can = &can_cia402, .drives = 1, .drive_state_periods = 50};
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50};
 	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o, ring), MLIP_OK);
 	drv_actual_mask = 3u;
 	drv_actual[0] = drv_actual[1] = 0.0;
@@ -912,7 +922,8 @@ static void dtick(int n)
 		for (int k = 0; k < 2; k++) {
 			uint16_t cw = cw_of(k);
 			int enabled = drv_sw[k] == 0x0237;
-			if (cw == 0x0F && (drv_sw[k] == 0x0233 || enabled) && !(drv_deaf & (1 << k))) {
+			if (cw == 0x0F && (drv_sw[k] == 0x0233 || enabled) &&
+			    !(drv_deaf & (1 << k))) {
 				drv_sw[k] = 0x0237;
 				drv_actual[k] = out.pos[k];
 			} else if (cw == 0x07 && drv_sw[k] != 0x0250) {
@@ -1041,7 +1052,7 @@ static void test_drives_stop_while_enabling(void **st)
 	assert_true(out.pos[0] == 2.0);
 }
 
-#define T(f) cmocka_unit_test_setup_teardown(f, setup, teardown)
+#define T(f)  cmocka_unit_test_setup_teardown(f, setup, teardown)
 #define TD(f) cmocka_unit_test_setup_teardown(f, setup_drives, teardown)
 
 int main(void)

@@ -100,7 +100,7 @@ static void peer_init(struct peer *p, uint8_t node, int state, int32_t pos)
 	for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
 		od_add(p, objs[k].i, objs[k].s, objs[k].n, 0);
 	}
-	od_add(p, 0x6061, 1, 1, 0); /* placeholder, never read */
+	od_add(p, 0x6061, 1, 1, 0);       /* placeholder, never read */
 	od_find(p, 0x6060, 0)->value = 1; /* powered up in profile position mode */
 }
 
@@ -170,8 +170,8 @@ static void peer_sdo(struct peer *p, const uint8_t *rq)
 {
 	uint16_t index = (uint16_t)(rq[1] | rq[2] << 8);
 	uint8_t sub = rq[3];
-	uint32_t v = (uint32_t)rq[4] | (uint32_t)rq[5] << 8 | (uint32_t)rq[6] << 16 |
-	             (uint32_t)rq[7] << 24;
+	uint32_t v =
+	    (uint32_t)rq[4] | (uint32_t)rq[5] << 8 | (uint32_t)rq[6] << 16 | (uint32_t)rq[7] << 24;
 	struct od *o = od_find(p, index, sub);
 	if (rq[0] == 0x80) {
 		return; /* the client's abort */
@@ -389,9 +389,9 @@ static void test_bringup_three(void **state)
 	}
 	/* the fault was reset on a rising edge; the enabled drive disabled first */
 	assert_true(writes_of(&peers[1], 0x6040, 0, &v) >= 4);
-	assert_non_null(strstr(logbuf, "node 2 (axis Y): fault reset (0x0080): switch on disabled"));
 	assert_non_null(
-	    strstr(logbuf, "node 3 (axis Z): disable operation (0x0007): switched on"));
+	    strstr(logbuf, "node 2 (axis Y): fault reset (0x0080): switch on disabled"));
+	assert_non_null(strstr(logbuf, "node 3 (axis Z): disable operation (0x0007): switched on"));
 	assert_non_null(strstr(logbuf, "node 1 (axis X): operation enabled at 1.2340 mm"));
 }
 
@@ -491,8 +491,11 @@ static void loop_setup(double *start)
 	for (int k = 0; k < NP; k++) {
 		m.axis[k].home = start[k];
 	}
-	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .can = &cfg.can,
-	                          .drives = 1, .drive_state_periods = 1000};
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &cfg.can,
+	                          .drives = 1,
+	                          .drive_state_periods = 1000};
 	assert_int_equal(mlip_controller_init(&ctl, &planner, &m, &o, ring, NULL), 0);
 	ds.ctl = &ctl;
 	cycle = 0;
@@ -513,8 +516,9 @@ static int rpdo_of(int i, uint16_t *cw, int32_t *target)
 		if (f->id == 0x200u + peers[i].node) {
 			assert_int_equal(f->len, 6);
 			*cw = (uint16_t)(f->data[0] | f->data[1] << 8);
-			*target = (int32_t)((uint32_t)f->data[2] | (uint32_t)f->data[3] << 8 |
-			                    (uint32_t)f->data[4] << 16 | (uint32_t)f->data[5] << 24);
+			*target =
+			    (int32_t)((uint32_t)f->data[2] | (uint32_t)f->data[3] << 8 |
+			              (uint32_t)f->data[4] << 16 | (uint32_t)f->data[5] << 24);
 			return 1;
 		}
 	}
@@ -799,7 +803,7 @@ struct run {
 	int first_cw_period[16]; /* period of each change of controlword, in order */
 	uint16_t cws[16];
 	int n_cw;
-	int last_move;           /* last period the target changed (-1: never) */
+	int last_move;               /* last period the target changed (-1: never) */
 	int32_t first_target_of[16]; /* the target sent with each controlword's first RPDO */
 };
 
@@ -903,7 +907,7 @@ static void test_loop_between_programs(void **state)
 		assert_int_equal(t, 0);
 	}
 	run_until(0, MLIP_POWER_OFF, 3000, &r);
-	assert_true(peers[0].pos == 1234);      /* X went back */
+	assert_true(peers[0].pos == 1234);       /* X went back */
 	assert_true(peers[1].pos == -500 + 777); /* Y stayed where it was pushed */
 	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
 	/* and the exit ends at once: already disabled in order */

@@ -25,8 +25,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "mlip/config.h"
-#include "mlip/gcode.h"
+#include "mlip/machine/config.h"
+#include "mlip/gcode/gcode.h"
 
 #include "../../fuzz/invariants.h"
 
@@ -42,103 +42,99 @@ struct expect {
 	const char *g_frag;
 	mlip_status c_st;
 	uint32_t c_line, c_col;
-	const char *c_frag;     /* NULL when c_st is MLIP_OK */
+	const char *c_frag; /* NULL when c_st is MLIP_OK */
 };
 
-#define OK MLIP_OK
+#define OK  MLIP_OK
 #define SYN MLIP_E_SYNTAX
 #define RNG MLIP_E_RANGE
 
 static const struct expect table[] = {
-	/* ---- G-code inputs (through the config reader: line 1 is no KEY = VALUE) */
-	/* ((((...)))): comments do not nest, the first ')' ends one; "(a (b) c)" too */
-	{"gcode-comment-nesting.ngc", 0, 3, 2, 128, "unexpected character ')'",
-	 SYN, 1, 5, "expected '=' after key G21"},
-	/* BOM and CRLF accepted on line 1; a lone CR ends a line (old Mac files)
-	 * so "G1 X2\rY2" is two lines; a BOM on line 5 is not accepted */
-	{"gcode-crlf-bom.ngc", 3, 1, 5, 1, "non-ASCII byte 0xEF outside a comment",
-	 SYN, 1, 5, "expected '=' after key G21"},
-	/* no exponents in G-code: 1e308, 1E5, .5e-3 malformed; "X1e" is X1 and a
-	 * word E without number; 250 nines read as a finite, out-of-limit value */
-	{"gcode-e308.ngc", 0, 6, 1, 5, "malformed number '1e308'",
-	 SYN, 1, 4, "expected '=' after key G1"},
-	/* issue 11's words in one file, lone CRs among LFs: Grbl lines skipped,
-	 * G10/G55/G92 offsets, a dwell before its move, M0 after it, a deleted
-	 * block, G28 through Y2, G64 P Q, G61, G93; G94 forgets F (the error);
-	 * nothing after M2 is read */
-	{"gcode-events-offsets.ngc", 9, 1, 15, 1,
-	 "missing feed: a change between G93 and G94 needs a new F",
-	 SYN, 1, 8, "control character 0x0D (a CR not followed by LF)"},
-	{"gcode-exponent-forms.ngc", 0, 11, 1, 5, "malformed number '1.5e+2'",
-	 SYN, 1, 4, "expected '=' after key G1"},
-	/* R 1e200, R 1e20 and I 1e200: rejected, nothing emitted. (The message
-	 * is misleading: the start and end angles round to the same value, the
-	 * zero sweep becomes a full turn of a huge circle. Safe, but worth a
-	 * better message; see the fuzzing report.) R 1e6 is a near-straight arc,
-	 * one chord. */
-	{"gcode-huge-radius.ngc", 1, 4, 3, 1, "arc too long: more than 1000000 chords",
-	 SYN, 1, 5, "expected '=' after key G21"},
-	/* 240 zeros then 1: a value of 1e-241, merged with home; 40 digits read */
-	{"gcode-long-fraction.ngc", 2, 0, 0, 0, NULL,
-	 SYN, 1, 4, "expected '=' after key G1"},
-	/* 256 bytes after the CR is stripped: fine; 257 and 5005: too long */
-	/* control characters quoted from the line are shown as '?' (fuzz_gcode) */
-	{"gcode-grbl-tab.ngc", 1, 1, 1, 1, "unknown Grbl system command '$32Y???5 I5 J0 F2/0 Y0 Z'",
-	 4, 1, 1, "expected KEY = VALUE, a [SECTION] or a comment, got '$'"},
-	/* a long line's F (cut off by the tools' bounded reader) is never the
-	 * program's first F: the F of line 3 feeds line 2 (fuzz_gcode found the
-	 * two front ends disagreeing) */
-	{"gcode-long-line-feed.ngc", 3, 1, 1, 257, "line too long: 272 bytes, at most 256",
-	 4, 1, 4, "expected '=' after key G1, got 'X'"},
-	{"gcode-long-line.ngc", 1, 2, 3, 257, "line too long: 257 bytes, at most 256",
-	 SYN, 1, 5, "expected '=' after key G21"},
-	/* 250 digits: finite, beyond the soft limit ("huge" in the message) */
-	{"gcode-long-number.ngc", 1, 2, 3, 4, "X huge beyond soft limit 1000.000",
-	 SYN, 1, 5, "expected '=' after key G21"},
-	/* nan, INF, -inf, infinity, "F nan": malformed numbers, as strtod would
-	 * have taken them */
-	{"gcode-nan-inf.ngc", 1, 5, 2, 5, "malformed number 'nan'",
-	 SYN, 1, 4, "expected '=' after key G1"},
-	/* X-0, Y-0.0, Z-.0 are home (no block); F-0 and F0 are not positive */
-	{"gcode-negative-zero.ngc", 2, 2, 5, 1, "feed F must be positive",
-	 SYN, 1, 5, "expected '=' after key G21"},
-	/* NUL after a word, inside a comment, alone */
-	{"gcode-nul.ngc", 1, 3, 2, 6, "NUL byte in line",
-	 SYN, 1, 4, "expected '=' after key G1"},
-	/* a truncated 2-byte and 3-byte sequence, a surrogate, an overlong NUL in
-	 * comments; a byte >= 0x80 outside one; a valid comment with an emoji */
-	{"gcode-utf8-truncated.ngc", 1, 5, 1, 16, "invalid UTF-8 in comment",
-	 SYN, 1, 16, "invalid UTF-8 byte 0xC3"},
+    /* ---- G-code inputs (through the config reader: line 1 is no KEY = VALUE) */
+    /* ((((...)))): comments do not nest, the first ')' ends one; "(a (b) c)" too */
+    {"gcode-comment-nesting.ngc", 0, 3, 2, 128, "unexpected character ')'", SYN, 1, 5,
+     "expected '=' after key G21"},
+    /* BOM and CRLF accepted on line 1; a lone CR ends a line (old Mac files)
+     * so "G1 X2\rY2" is two lines; a BOM on line 5 is not accepted */
+    {"gcode-crlf-bom.ngc", 3, 1, 5, 1, "non-ASCII byte 0xEF outside a comment", SYN, 1, 5,
+     "expected '=' after key G21"},
+    /* no exponents in G-code: 1e308, 1E5, .5e-3 malformed; "X1e" is X1 and a
+     * word E without number; 250 nines read as a finite, out-of-limit value */
+    {"gcode-e308.ngc", 0, 6, 1, 5, "malformed number '1e308'", SYN, 1, 4,
+     "expected '=' after key G1"},
+    /* issue 11's words in one file, lone CRs among LFs: Grbl lines skipped,
+     * G10/G55/G92 offsets, a dwell before its move, M0 after it, a deleted
+     * block, G28 through Y2, G64 P Q, G61, G93; G94 forgets F (the error);
+     * nothing after M2 is read */
+    {"gcode-events-offsets.ngc", 9, 1, 15, 1,
+     "missing feed: a change between G93 and G94 needs a new F", SYN, 1, 8,
+     "control character 0x0D (a CR not followed by LF)"},
+    {"gcode-exponent-forms.ngc", 0, 11, 1, 5, "malformed number '1.5e+2'", SYN, 1, 4,
+     "expected '=' after key G1"},
+    /* R 1e200, R 1e20 and I 1e200: rejected, nothing emitted. (The message
+     * is misleading: the start and end angles round to the same value, the
+     * zero sweep becomes a full turn of a huge circle. Safe, but worth a
+     * better message; see the fuzzing report.) R 1e6 is a near-straight arc,
+     * one chord. */
+    {"gcode-huge-radius.ngc", 1, 4, 3, 1, "arc too long: more than 1000000 chords", SYN, 1, 5,
+     "expected '=' after key G21"},
+    /* 240 zeros then 1: a value of 1e-241, merged with home; 40 digits read */
+    {"gcode-long-fraction.ngc", 2, 0, 0, 0, NULL, SYN, 1, 4, "expected '=' after key G1"},
+    /* 256 bytes after the CR is stripped: fine; 257 and 5005: too long */
+    /* control characters quoted from the line are shown as '?' (fuzz_gcode) */
+    {"gcode-grbl-tab.ngc", 1, 1, 1, 1, "unknown Grbl system command '$32Y???5 I5 J0 F2/0 Y0 Z'", 4,
+     1, 1, "expected KEY = VALUE, a [SECTION] or a comment, got '$'"},
+    /* a long line's F (cut off by the tools' bounded reader) is never the
+     * program's first F: the F of line 3 feeds line 2 (fuzz_gcode found the
+     * two front ends disagreeing) */
+    {"gcode-long-line-feed.ngc", 3, 1, 1, 257, "line too long: 272 bytes, at most 256", 4, 1, 4,
+     "expected '=' after key G1, got 'X'"},
+    {"gcode-long-line.ngc", 1, 2, 3, 257, "line too long: 257 bytes, at most 256", SYN, 1, 5,
+     "expected '=' after key G21"},
+    /* 250 digits: finite, beyond the soft limit ("huge" in the message) */
+    {"gcode-long-number.ngc", 1, 2, 3, 4, "X huge beyond soft limit 1000.000", SYN, 1, 5,
+     "expected '=' after key G21"},
+    /* nan, INF, -inf, infinity, "F nan": malformed numbers, as strtod would
+     * have taken them */
+    {"gcode-nan-inf.ngc", 1, 5, 2, 5, "malformed number 'nan'", SYN, 1, 4,
+     "expected '=' after key G1"},
+    /* X-0, Y-0.0, Z-.0 are home (no block); F-0 and F0 are not positive */
+    {"gcode-negative-zero.ngc", 2, 2, 5, 1, "feed F must be positive", SYN, 1, 5,
+     "expected '=' after key G21"},
+    /* NUL after a word, inside a comment, alone */
+    {"gcode-nul.ngc", 1, 3, 2, 6, "NUL byte in line", SYN, 1, 4, "expected '=' after key G1"},
+    /* a truncated 2-byte and 3-byte sequence, a surrogate, an overlong NUL in
+     * comments; a byte >= 0x80 outside one; a valid comment with an emoji */
+    {"gcode-utf8-truncated.ngc", 1, 5, 1, 16, "invalid UTF-8 in comment", SYN, 1, 16,
+     "invalid UTF-8 byte 0xC3"},
 
-	/* ---- config inputs (through the G-code front end: '[' is no word) ---- */
-	/* [[[[[[TRAJ]]]]]]: the name ends at the first ']', the rest is junk */
-	{"config-deep-brackets.ini", 0, 2, 1, 1, "unexpected character '['",
-	 SYN, 1, 12, "unexpected ']' after section header"},
-	/* -1e308, DBL_MAX typed out, 1e-320 (subnormal), 4.9e-324: all read as
-	 * numbers, then refused by the machine's bounds (MLIP_CONFIG_*_MAX) */
-	{"config-e308.ini", 0, 15, 1, 1, "unexpected character '['",
-	 RNG, 3, 1, "TRAJ MAX_LINEAR_VELOCITY must be at most 100000, got 1e308"},
-	{"config-exponent-bad.ini", 0, 5, 1, 1, "unexpected character '['",
-	 SYN, 4, 21, "malformed number '1e' for CONTOUR_TOLERANCE"},
-	/* +2E+2, 1.e-3, .1e4, 000001e3, -0e0, 0x0080, 0X7fF, 0010 (decimal) */
-	{"config-exponent-forms.ini", 0, 19, 1, 1, "unexpected character '['",
-	 OK, 0, 0, NULL},
-	/* 0.(300 zeros)2 is fine; 1 and 400 zeros overflows a double */
-	{"config-long-number.ini", 0, 8, 1, 1, "unexpected character '['",
-	 RNG, 7, 20, "number out of range '10000000000000000000000000000000...'"},
-	/* MIN_LIMIT -0 is not below MAX_LIMIT 0 */
-	{"config-negative-zero.ini", 0, 14, 1, 1, "unexpected character '['",
-	 RNG, 10, 1, "AXIS_X MIN_LIMIT must be < MAX_LIMIT, got 0 >= 0"},
-	{"config-nul.ini", 0, 3, 1, 1, "unexpected character '['",
-	 SYN, 2, 16, "NUL byte"},
-	/* 1.8e308 is beyond DBL_MAX */
-	{"config-overflow.ini", 0, 12, 1, 1, "unexpected character '['",
-	 RNG, 8, 13, "number out of range '1.8e308' for MAX_LIMIT"},
-	/* a section name of 4-byte characters, quoted cut on a character boundary */
-	{"config-utf8-section.ini", 0, 3, 1, 1, "unexpected character '['",
-	 SYN, 2, 2, "unknown section [AXIS_\xF0\x9F\x98\x80\xF0\x9F\x98\x80"},
-	{"config-utf8-truncated.ini", 0, 2, 1, 1, "unexpected character '['",
-	 SYN, 1, 13, "invalid UTF-8 byte 0xC3"},
+    /* ---- config inputs (through the G-code front end: '[' is no word) ---- */
+    /* [[[[[[TRAJ]]]]]]: the name ends at the first ']', the rest is junk */
+    {"config-deep-brackets.ini", 0, 2, 1, 1, "unexpected character '['", SYN, 1, 12,
+     "unexpected ']' after section header"},
+    /* -1e308, DBL_MAX typed out, 1e-320 (subnormal), 4.9e-324: all read as
+     * numbers, then refused by the machine's bounds (MLIP_CONFIG_*_MAX) */
+    {"config-e308.ini", 0, 15, 1, 1, "unexpected character '['", RNG, 3, 1,
+     "TRAJ MAX_LINEAR_VELOCITY must be at most 100000, got 1e308"},
+    {"config-exponent-bad.ini", 0, 5, 1, 1, "unexpected character '['", SYN, 4, 21,
+     "malformed number '1e' for CONTOUR_TOLERANCE"},
+    /* +2E+2, 1.e-3, .1e4, 000001e3, -0e0, 0x0080, 0X7fF, 0010 (decimal) */
+    {"config-exponent-forms.ini", 0, 19, 1, 1, "unexpected character '['", OK, 0, 0, NULL},
+    /* 0.(300 zeros)2 is fine; 1 and 400 zeros overflows a double */
+    {"config-long-number.ini", 0, 8, 1, 1, "unexpected character '['", RNG, 7, 20,
+     "number out of range '10000000000000000000000000000000...'"},
+    /* MIN_LIMIT -0 is not below MAX_LIMIT 0 */
+    {"config-negative-zero.ini", 0, 14, 1, 1, "unexpected character '['", RNG, 10, 1,
+     "AXIS_X MIN_LIMIT must be < MAX_LIMIT, got 0 >= 0"},
+    {"config-nul.ini", 0, 3, 1, 1, "unexpected character '['", SYN, 2, 16, "NUL byte"},
+    /* 1.8e308 is beyond DBL_MAX */
+    {"config-overflow.ini", 0, 12, 1, 1, "unexpected character '['", RNG, 8, 13,
+     "number out of range '1.8e308' for MAX_LIMIT"},
+    /* a section name of 4-byte characters, quoted cut on a character boundary */
+    {"config-utf8-section.ini", 0, 3, 1, 1, "unexpected character '['", SYN, 2, 2,
+     "unknown section [AXIS_\xF0\x9F\x98\x80\xF0\x9F\x98\x80"},
+    {"config-utf8-truncated.ini", 0, 2, 1, 1, "unexpected character '['", SYN, 1, 13,
+     "invalid UTF-8 byte 0xC3"},
 };
 
 static int print_mode;
@@ -327,8 +323,8 @@ static void test_replay(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-		cmocka_unit_test(test_table_matches_directory),
-		cmocka_unit_test(test_replay),
+	    cmocka_unit_test(test_table_matches_directory),
+	    cmocka_unit_test(test_replay),
 	};
 
 	return cmocka_run_group_tests(tests, setup, NULL);

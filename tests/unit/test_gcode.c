@@ -15,7 +15,7 @@
 
 #include <cmocka.h>
 
-#include "mlip/gcode.h"
+#include "mlip/gcode/gcode.h"
 #include "../../tools/lib/offsets.h"
 #include "../../tools/lib/program.h"
 
@@ -23,14 +23,13 @@
 #include <unistd.h>
 
 #define M_PI_VALUE 3.14159265358979323846
-#define PI_2 (M_PI_VALUE / 2)
-#define EPS 0.01                          /* machine contour tolerance in these tests */
-#define SAG (MLIP_GCODE_ARC_FRACTION * EPS) /* chord sagitta allowed */
+#define PI_2       (M_PI_VALUE / 2)
+#define EPS        0.01                            /* machine contour tolerance in these tests */
+#define SAG        (MLIP_GCODE_ARC_FRACTION * EPS) /* chord sagitta allowed */
 
 /* cmocka 1.1.5 has no double comparison: keep our own */
 #define assert_near(a, b, tol) near_impl((a), (b), (tol), #a, __FILE__, __LINE__)
-static void near_impl(double a, double b, double tol, const char *what, const char *file,
-                      int line)
+static void near_impl(double a, double b, double tol, const char *what, const char *file, int line)
 {
 	if (!(fabs(a - b) <= tol)) {
 		print_error("%s = %.12g, expected %.12g +- %g\n", what, a, b, tol);
@@ -72,16 +71,15 @@ static void parse_ok(const char *text, const struct mlip_machine *m, struct mlip
 }
 
 /* The first error of text is at line:col and its message contains part. */
-static void check_err_m(const char *text, const struct mlip_machine *m, uint32_t line,
-                        uint32_t col, const char *part)
+static void check_err_m(const char *text, const struct mlip_machine *m, uint32_t line, uint32_t col,
+                        const char *part)
 {
 	struct mlip_program_list p;
 	int rc = mlip_program_list_parse(text, strlen(text), m, &p);
 
 	assert_int_equal(rc, 1);
 	assert_true(p.n_errors >= 1);
-	if (!strstr(p.errors[0].msg, part) || p.errors[0].line != line ||
-	    p.errors[0].col != col) {
+	if (!strstr(p.errors[0].msg, part) || p.errors[0].line != line || p.errors[0].col != col) {
 		print_error("for \"%s\": got %u:%u \"%s\", expected %u:%u \"%s\"\n", text,
 		            (unsigned)p.errors[0].line, (unsigned)p.errors[0].col, p.errors[0].msg,
 		            (unsigned)line, (unsigned)col, part);
@@ -144,9 +142,9 @@ static void test_numbers(void **state)
 
 	(void)state;
 	parse_ok("G1 X-.5 Y5. Z+3 F100\n"
-	         "g1x40.0781y-0.0001 z 2\n"        /* lower case, no spaces, space in word */
-	         "G1 X 1.5 Y -2 Z -1\n"           /* blanks between letter and number */
-	         "G0x10\n",                        /* "0x10" is G0 X10, not hex */
+	         "g1x40.0781y-0.0001 z 2\n" /* lower case, no spaces, space in word */
+	         "G1 X 1.5 Y -2 Z -1\n"     /* blanks between letter and number */
+	         "G0x10\n",                 /* "0x10" is G0 X10, not hex */
 	         &m, &p);
 	assert_int_equal(p.n, 4);
 	assert_near(p.blocks[0].target[0], -0.5, 0);
@@ -184,7 +182,8 @@ static void test_malformed_numbers(void **state)
 	check_err("G1 X1 #1=2 F100", 1, 7, "parameters and expressions (# [ ]) not supported");
 	check_err("G1 X[1+2] F100", 1, 5, "parameters and expressions (# [ ]) not supported");
 	check_err("G1 X#1 F100", 1, 5, "parameters and expressions (# [ ]) not supported");
-	check_err("O100 sub\nG1 X1 F100", 1, 1, "O-words (subroutines, loops, conditions) not "
+	check_err("O100 sub\nG1 X1 F100", 1, 1,
+	          "O-words (subroutines, loops, conditions) not "
 	          "supported: have the CAM expand them");
 	check_err("G1 X1 F100\n  o<x> call", 2, 3, "O-words");
 	check_err("G1 X1 \x01 F100", 1, 7, "unexpected character 0x01");
@@ -197,10 +196,10 @@ static void test_bytes_and_comments(void **state)
 	static const char nul[] = "G1 X1 F100\nG1 X2\0 Y1\n";
 
 	(void)state;
-	parse_ok("\xEF\xBB\xBF%\n"                    /* a byte order mark is skipped */
+	parse_ok("\xEF\xBB\xBF%\n"                   /* a byte order mark is skipped */
 	         "(T1 \xC3\x98 6mm flat end mill)\n" /* well-formed UTF-8 in a comment */
 	         "G1 X1 F100 ; caf\xC3\xA9 \xE2\x82\xAC\n"
-	         "G1 X2 (mid-line comment) Y1\r\n"  /* CRLF */
+	         "G1 X2 (mid-line comment) Y1\r\n" /* CRLF */
 	         "  \t\n"
 	         "N10 G1 X3\n"
 	         "%\n",
@@ -335,11 +334,10 @@ static void test_notices(void **state)
 		const struct mlip_gcode_notice *n = &p.notices[k];
 
 		/* modes that act on motion or offsets: never notices */
-		assert_true(strcmp(n->word, "G17") && strcmp(n->word, "G21") &&
-		            strcmp(n->word, "G90") && strcmp(n->word, "G91.1") &&
-		            strcmp(n->word, "G53") && strcmp(n->word, "G54") &&
-		            strcmp(n->word, "G61") && strcmp(n->word, "G64") &&
-		            strcmp(n->word, "G94"));
+		assert_true(
+		    strcmp(n->word, "G17") && strcmp(n->word, "G21") && strcmp(n->word, "G90") &&
+		    strcmp(n->word, "G91.1") && strcmp(n->word, "G53") && strcmp(n->word, "G54") &&
+		    strcmp(n->word, "G61") && strcmp(n->word, "G64") && strcmp(n->word, "G94"));
 		if (strcmp(n->word, "S") == 0) {
 			assert_int_equal(n->first_line, 3);
 			assert_int_equal(n->count, 2);
@@ -403,11 +401,11 @@ static void test_modal(void **state)
 
 	(void)state;
 	parse_ok("G0 X1 Y1\n"
-	         "X2\n"            /* still G0 */
+	         "X2\n" /* still G0 */
 	         "G1 Z-1 F600\n"
-	         "X3\n"            /* still G1, F600 */
+	         "X3\n" /* still G1, F600 */
 	         "Y3 F1200\n"
-	         "G0 Z5 F30\n"     /* F on a rapid: set, not used */
+	         "G0 Z5 F30\n" /* F on a rapid: set, not used */
 	         "X4\n"
 	         "G1 X5\n",
 	         &m, &p);
@@ -615,7 +613,7 @@ static void test_soft_limits(void **state)
 	assert_int_equal(rc, 1);
 	assert_int_equal(p.n_errors, 1);
 	assert_int_equal(p.errors[0].col, 1);
-	assert_int_equal(p.n, 2); /* the G0 and the G1 only */
+	assert_int_equal(p.n, 2);                              /* the G0 and the G1 only */
 	assert_near(p.blocks[1].feed_mm_s, 100.0 / 60, 1e-12); /* F of the bad line kept */
 	mlip_program_list_free(&p);
 	/* the small arc stays inside */
@@ -638,10 +636,10 @@ static void test_home_codes(void **state)
 	 * position; the other axes stay */
 	parse_ok("G1 X5 Y2 Z10 F100\n"
 	         "G28 G91 Z0\n"
-	         "G90 G28 X1\n"   /* rapid to X1, then X to 0 */
-	         "G28\n"          /* every axis to the G28 position */
+	         "G90 G28 X1\n" /* rapid to X1, then X to 0 */
+	         "G28\n"        /* every axis to the G28 position */
 	         "G1 X3 Y3 Z3\n"
-	         "G30.1\n"        /* store (3,3,3) */
+	         "G30.1\n" /* store (3,3,3) */
 	         "G0 X9\n"
 	         "G30\n",
 	         &m, &p);
@@ -687,9 +685,9 @@ static void test_merge(void **state)
 
 	(void)state;
 	parse_ok("G1 X1 F100\n"
-	         "X1.0000005\n"        /* < MERGE from the last emitted point: dropped */
+	         "X1.0000005\n" /* < MERGE from the last emitted point: dropped */
 	         "X1\n"
-	         "G91 X0.0000004\n"    /* tiny steps accumulate from the last emitted point */
+	         "G91 X0.0000004\n" /* tiny steps accumulate from the last emitted point */
 	         "X0.0000004\n"
 	         "X0.0000004\n"
 	         "X0.0000004\n"
@@ -1029,8 +1027,8 @@ static void test_arc_random(void **state)
 		if (use_r) {
 			snprintf(text + n, sizeof text - n, "R%.9f\n", sweep > M_PI ? -r : r);
 		} else {
-			snprintf(text + n, sizeof text - n, "%c%.9f %c%.9f\n", OU[p],
-			         cu - s[iu], OV[p], cv - s[iv]);
+			snprintf(text + n, sizeof text - n, "%c%.9f %c%.9f\n", OU[p], cu - s[iu],
+			         OV[p], cv - s[iv]);
 		}
 		parse_ok(text, &m, &prog);
 		/* the text rounds to 1e-9: hence the looser radius tolerance */
@@ -1442,26 +1440,26 @@ static void test_work_offsets(void **state)
 	mlip_gcode_offsets_init(&o, &m);
 	o.coord[1][0] = 10; /* G55 */
 	o.coord[1][1] = 20;
-	o.coord[8][2] = -5; /* G59.3 */
-	parse_off("G0 X1 Y1\n"         /* G54: machine = program */
-	          "G55 X1 Y1\n"        /* (11, 21) */
-	          "G91 X1\n"           /* incremental: offsets do not apply (12) */
-	          "G90 G53 X1\n"       /* machine coordinates, this line only */
-	          "X2\n"               /* G55 again: 12 */
-	          "G59.3 Z1\n"         /* -4 */
-	          "G10 L2 P2 X100\n"   /* G55's X origin := 100 (machine) */
-	          "G55 X0\n"           /* 100 */
-	          "G10 L20 P0 X5\n"    /* current X (100) reads 5 in G55 */
-	          "X5\n"               /* stays: 100 */
-	          "X6\n"               /* 101 */
-	          "G92 X0\n"           /* current X reads 0: G92 offset 6 */
-	          "X1\n"               /* 102 */
-	          "G92.2\n"            /* G92 off (kept) */
-	          "X1\n"               /* 96 */
-	          "G92.3\n"            /* on again */
-	          "X0\n"               /* 101 */
-	          "G92.1\n"            /* zero and off */
-	          "X0\n",              /* 95 */
+	o.coord[8][2] = -5;          /* G59.3 */
+	parse_off("G0 X1 Y1\n"       /* G54: machine = program */
+	          "G55 X1 Y1\n"      /* (11, 21) */
+	          "G91 X1\n"         /* incremental: offsets do not apply (12) */
+	          "G90 G53 X1\n"     /* machine coordinates, this line only */
+	          "X2\n"             /* G55 again: 12 */
+	          "G59.3 Z1\n"       /* -4 */
+	          "G10 L2 P2 X100\n" /* G55's X origin := 100 (machine) */
+	          "G55 X0\n"         /* 100 */
+	          "G10 L20 P0 X5\n"  /* current X (100) reads 5 in G55 */
+	          "X5\n"             /* stays: 100 */
+	          "X6\n"             /* 101 */
+	          "G92 X0\n"         /* current X reads 0: G92 offset 6 */
+	          "X1\n"             /* 102 */
+	          "G92.2\n"          /* G92 off (kept) */
+	          "X1\n"             /* 96 */
+	          "G92.3\n"          /* on again */
+	          "X0\n"             /* 101 */
+	          "G92.1\n"          /* zero and off */
+	          "X0\n",            /* 95 */
 	          &m, &o, &p);
 	{
 		static const double x[] = {1, 11, 12, 1, 12, 12, 100, 101, 102, 96, 101, 95};
@@ -1508,12 +1506,12 @@ static void test_path_modes(void **state)
 
 	(void)state;
 	parse_ok("G1 X1 F60\n"
-	         "G61 X2\n"          /* exact stop from here */
+	         "G61 X2\n" /* exact stop from here */
 	         "G61.1 X3\n"
-	         "G64 X4\n"          /* blending within eps */
-	         "G64 P0.005 X5\n"   /* tighter */
-	         "G64 P0.5 X6\n"     /* looser than the machine: capped */
-	         "G64 P0 Q0.1 X7\n"  /* P0: as G64; Q: noted */
+	         "G64 X4\n"         /* blending within eps */
+	         "G64 P0.005 X5\n"  /* tighter */
+	         "G64 P0.5 X6\n"    /* looser than the machine: capped */
+	         "G64 P0 Q0.1 X7\n" /* P0: as G64; Q: noted */
 	         "G20 G64 P0.0001 X1\n",
 	         &m, &p);
 	assert_int_equal(p.n, 8);
@@ -1548,9 +1546,9 @@ static void test_inverse_time(void **state)
 	(void)state;
 	/* G93: the move takes 1/F minutes (LinuxCNC) */
 	parse_ok("G0 X10\n"
-	         "G93 G1 X20 F6\n"      /* 10 mm in 10 s */
-	         "A90 F60\n"            /* rotary only: 90 deg in 1 s */
-	         "G0 X0\n"              /* rapids need no F */
+	         "G93 G1 X20 F6\n"        /* 10 mm in 10 s */
+	         "A90 F60\n"              /* rotary only: 90 deg in 1 s */
+	         "G0 X0\n"                /* rapids need no F */
 	         "G3 X-10 Y10 I-10 F60\n" /* quarter circle, 15.7 mm in 1 s */
 	         "G94 G1 X0 F600\n",
 	         &m, &p);
@@ -1569,8 +1567,8 @@ static void test_grbl_lines(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
 	struct mlip_program_list p;
-	static const char *const words[] = {"$H", "$X", "$$", "$#", "$32=", "$N", "$RST",
-	                                    "$SLP", "$C", "$G", "$I", "$"};
+	static const char *const words[] = {"$H",   "$X",   "$$", "$#", "$32=", "$N",
+	                                    "$RST", "$SLP", "$C", "$G", "$I",   "$"};
 	size_t k;
 
 	(void)state;
@@ -1711,7 +1709,8 @@ static void test_files(void **state)
 	while ((rc = mlip_program_next(&r, &b)) > 0) {
 	}
 	assert_true(rc < 0);
-	assert_non_null(strstr(r.msg, "the file changed after it was checked (line 2: duplicate X"));
+	assert_non_null(
+	    strstr(r.msg, "the file changed after it was checked (line 2: duplicate X"));
 	mlip_program_close(&r);
 
 	/* a very long line: an error with its length, only a line's worth kept */
@@ -1765,7 +1764,8 @@ static void test_offsets_file(void **state)
 	err = open_memstream(&out, &len);
 	assert_int_equal(mlip_offsets_load(path, &m, &o, "t", err), -1);
 	fclose(err);
-	assert_non_null(strstr(out, ":3: error: G55 needs 3 numbers (one per axis, config order), got 2"));
+	assert_non_null(
+	    strstr(out, ":3: error: G55 needs 3 numbers (one per axis, config order), got 2"));
 	free(out);
 	f = fopen(path, "w");
 	assert_non_null(f);
@@ -1784,43 +1784,43 @@ static void test_offsets_file(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-		cmocka_unit_test(test_numbers),
-		cmocka_unit_test(test_malformed_numbers),
-		cmocka_unit_test(test_bytes_and_comments),
-		cmocka_unit_test(test_line_too_long),
-		cmocka_unit_test(test_unsupported_codes),
-		cmocka_unit_test(test_notices),
-		cmocka_unit_test(test_notice_overflow),
-		cmocka_unit_test(test_modal),
-		cmocka_unit_test(test_missing_feed),
-		cmocka_unit_test(test_incremental_and_home),
-		cmocka_unit_test(test_inches_and_rotary),
-		cmocka_unit_test(test_config_order_and_axes),
-		cmocka_unit_test(test_soft_limits),
-		cmocka_unit_test(test_home_codes),
-		cmocka_unit_test(test_merge),
-		cmocka_unit_test(test_sink_full_and_empty),
-		cmocka_unit_test(test_arc_g17),
-		cmocka_unit_test(test_arc_g18_g19),
-		cmocka_unit_test(test_arc_radius_tolerance),
-		cmocka_unit_test(test_full_circle_and_helix),
-		cmocka_unit_test(test_r_arcs),
-		cmocka_unit_test(test_arc_random),
-		cmocka_unit_test(test_program_errors_and_print),
-		cmocka_unit_test(test_program_error_cap),
-		cmocka_unit_test(test_read_file_errors),
-		cmocka_unit_test(test_scan_axes),
-		cmocka_unit_test(test_toolpaths),
-		cmocka_unit_test(test_sheeptile_arcs),
-		cmocka_unit_test(test_dwell),
-		cmocka_unit_test(test_pauses_and_end),
-		cmocka_unit_test(test_work_offsets),
-		cmocka_unit_test(test_path_modes),
-		cmocka_unit_test(test_inverse_time),
-		cmocka_unit_test(test_grbl_lines),
-		cmocka_unit_test(test_line_ends_and_stream),
-		cmocka_unit_test(test_files),
-		cmocka_unit_test(test_offsets_file),
+	    cmocka_unit_test(test_numbers),
+	    cmocka_unit_test(test_malformed_numbers),
+	    cmocka_unit_test(test_bytes_and_comments),
+	    cmocka_unit_test(test_line_too_long),
+	    cmocka_unit_test(test_unsupported_codes),
+	    cmocka_unit_test(test_notices),
+	    cmocka_unit_test(test_notice_overflow),
+	    cmocka_unit_test(test_modal),
+	    cmocka_unit_test(test_missing_feed),
+	    cmocka_unit_test(test_incremental_and_home),
+	    cmocka_unit_test(test_inches_and_rotary),
+	    cmocka_unit_test(test_config_order_and_axes),
+	    cmocka_unit_test(test_soft_limits),
+	    cmocka_unit_test(test_home_codes),
+	    cmocka_unit_test(test_merge),
+	    cmocka_unit_test(test_sink_full_and_empty),
+	    cmocka_unit_test(test_arc_g17),
+	    cmocka_unit_test(test_arc_g18_g19),
+	    cmocka_unit_test(test_arc_radius_tolerance),
+	    cmocka_unit_test(test_full_circle_and_helix),
+	    cmocka_unit_test(test_r_arcs),
+	    cmocka_unit_test(test_arc_random),
+	    cmocka_unit_test(test_program_errors_and_print),
+	    cmocka_unit_test(test_program_error_cap),
+	    cmocka_unit_test(test_read_file_errors),
+	    cmocka_unit_test(test_scan_axes),
+	    cmocka_unit_test(test_toolpaths),
+	    cmocka_unit_test(test_sheeptile_arcs),
+	    cmocka_unit_test(test_dwell),
+	    cmocka_unit_test(test_pauses_and_end),
+	    cmocka_unit_test(test_work_offsets),
+	    cmocka_unit_test(test_path_modes),
+	    cmocka_unit_test(test_inverse_time),
+	    cmocka_unit_test(test_grbl_lines),
+	    cmocka_unit_test(test_line_ends_and_stream),
+	    cmocka_unit_test(test_files),
+	    cmocka_unit_test(test_offsets_file),
 	};
 
 	return cmocka_run_group_tests(tests, NULL, NULL);

@@ -254,9 +254,11 @@ static void test_random_against_sort(void **state)
 			x ^= x << 13;
 			x ^= x >> 7;
 			x ^= x << 17;
-			/* long-tailed, like latency: mostly small, some large, some past the bins */
+			/* long-tailed, like latency: mostly small, some large, some past the bins
+			 */
 			uint64_t u = x % 1000000;
-			int64_t ns = u < 900000 ? (int64_t)(u % 20000) : (int64_t)(u * (uint64_t)(trial + 1) / 4);
+			int64_t ns = u < 900000 ? (int64_t)(u % 20000)
+			                        : (int64_t)(u * (uint64_t)(trial + 1) / 4);
 			v[i] = ns;
 			sum += (double)ns;
 			mlip_latstats_add(&s, ns);

@@ -1,5 +1,5 @@
 /*
- * test_peer.c - the liveness rule (src/peer.c, mlip/peer.h) on a virtual
+ * test_peer.c - the liveness rule (src/ipc/peer.c, mlip/ipc/peer.h) on a virtual
  * clock: alive while the stamp is younger than MLIP_PEER_TIMEOUT_NS or the
  * counter moved between our reads; dead when it is not and the process is
  * gone (or the peer said goodbye); late when the process is there (or was not
@@ -13,7 +13,7 @@
 
 #include <cmocka.h>
 
-#include "mlip/peer.h"
+#include "mlip/ipc/peer.h"
 
 #define MS 1000000ull
 #define T0 (1000 * MS) /* the virtual clock starts here: 0 means "never" */
@@ -78,7 +78,7 @@ static void test_killed(void **state)
 		s.process = now < T0 + 30 * MS;
 		mlip_peer_verdict v = mlip_peer_judge(&s, &w, now, NULL);
 		assert_int_equal(v, now < T0 + (uint64_t)MLIP_PEER_TIMEOUT_NS ? MLIP_PEER_ALIVE
-		                                                               : MLIP_PEER_DEAD);
+		                                                              : MLIP_PEER_DEAD);
 		mlip_peer_note(&w, &s, now);
 	}
 }
@@ -97,7 +97,7 @@ static void test_stopped(void **state)
 	for (now = T0; now < T0 + 1500 * MS; now += MS) {
 		mlip_peer_verdict v = mlip_peer_judge(&s, &w, now, &q);
 		assert_int_equal(v, now < T0 + (uint64_t)MLIP_PEER_TIMEOUT_NS ? MLIP_PEER_ALIVE
-		                                                               : MLIP_PEER_LATE);
+		                                                              : MLIP_PEER_LATE);
 		assert_true(q >= 0 && (uint64_t)q <= now - T0);
 		if (told == 0 && q >= MLIP_PEER_LATE_NS) {
 			told = now;
@@ -180,10 +180,10 @@ static void test_names(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_never_beat),    cmocka_unit_test(test_stamp_age),
-	    cmocka_unit_test(test_left),          cmocka_unit_test(test_killed),
-	    cmocka_unit_test(test_stopped),       cmocka_unit_test(test_our_pause_not_blamed),
-	    cmocka_unit_test(test_second_look),   cmocka_unit_test(test_names),
+	    cmocka_unit_test(test_never_beat),  cmocka_unit_test(test_stamp_age),
+	    cmocka_unit_test(test_left),        cmocka_unit_test(test_killed),
+	    cmocka_unit_test(test_stopped),     cmocka_unit_test(test_our_pause_not_blamed),
+	    cmocka_unit_test(test_second_look), cmocka_unit_test(test_names),
 	};
 
 	return cmocka_run_group_tests_name("peer", tests, NULL, NULL);

@@ -15,8 +15,8 @@
 #include <cmocka.h>
 
 #include "../../tools/lib/check.h"
-#include "mlip/planner.h"
-#include "mlip/smooth.h"
+#include "mlip/motion/planner.h"
+#include "mlip/motion/smooth.h"
 
 #define REL 1e-9 /* stated tolerance on every physical limit */
 
@@ -24,14 +24,14 @@
 	do {                                                                                       \
 		double a_ = (a), b_ = (b), t_ = (tol);                                             \
 		if (!(fabs(a_ - b_) <= t_)) {                                                      \
-			fail_msg("%s = %.17g, expected %.17g within %.3g", #a, a_, b_, t_);          \
+			fail_msg("%s = %.17g, expected %.17g within %.3g", #a, a_, b_, t_);        \
 		}                                                                                  \
 	} while (0)
 #define assert_le(a, b)                                                                            \
 	do {                                                                                       \
 		double a_ = (a), b_ = (b);                                                         \
 		if (!(a_ <= b_)) {                                                                 \
-			fail_msg("%s = %.17g is not <= %s = %.17g", #a, a_, #b, b_);                  \
+			fail_msg("%s = %.17g is not <= %s = %.17g", #a, a_, #b, b_);               \
 		}                                                                                  \
 	} while (0)
 
@@ -65,8 +65,7 @@ static void random_unit(int n, double *e)
 /* ---- Theorems 1 and 2: the LP optimum ------------------------------------ */
 
 /* Largest feasible radius along (alpha, beta) = (cos th, sin th). */
-static double boundary_radius(int n, const double *es, const double *ee, const double *A,
-                              double th)
+static double boundary_radius(int n, const double *es, const double *ee, const double *A, double th)
 {
 	double r = INFINITY;
 	for (int k = 0; k < n; k++) {
@@ -167,19 +166,22 @@ static void test_corner_collinear_and_reversal(void **state)
 	double e[3] = {0.6, 0.8, 0.0}, r[3] = {-0.6, -0.8, 0.0};
 	struct mlip_corner c;
 	for (int st = 0; st < 3; st++) {
-		mlip_corner_plan(3, (mlip_strategy)st, e, e, 0.2, 0.3, A, 0.01, 150, 120, 0.001, &c);
+		mlip_corner_plan(3, (mlip_strategy)st, e, e, 0.2, 0.3, A, 0.01, 150, 120, 0.001,
+		                 &c);
 		assert_true(isfinite(c.vs_mm_s) && isfinite(c.t_s) && isfinite(c.alpha_mm_s2));
 		assert_near(c.t_s, 0.0, 0.0);
 		assert_near(c.vs_mm_s, st == MLIP_STRATEGY_STOP ? 0.0 : 120.0, 0.0);
 		assert_near(c.vs_mm_s, c.ve_mm_s, 0.0);
 
-		mlip_corner_plan(3, (mlip_strategy)st, e, r, 0.2, 0.3, A, 0.01, 150, 120, 0.001, &c);
+		mlip_corner_plan(3, (mlip_strategy)st, e, r, 0.2, 0.3, A, 0.01, 150, 120, 0.001,
+		                 &c);
 		assert_true(isfinite(c.vs_mm_s) && isfinite(c.t_s));
-		assert_near(c.vs_mm_s, c.ve_mm_s, 1e-9 * c.vs_mm_s); /* tie broken to alpha = beta */
+		assert_near(c.vs_mm_s, c.ve_mm_s,
+		            1e-9 * c.vs_mm_s); /* tie broken to alpha = beta */
 		/* a reversal turns back before P, by at most eps (17) */
 		if (c.t_s > 0.0) {
 			double turn = c.ls_mm - c.vs_mm_s * c.vs_mm_s /
-			                             (2.0 * (c.alpha_mm_s2 + c.beta_mm_s2));
+			                            (2.0 * (c.alpha_mm_s2 + c.beta_mm_s2));
 			assert_le(turn, 0.01 * (1.0 + REL));
 		}
 	}
@@ -232,7 +234,8 @@ static void test_corner_contour_and_peak_speed(void **state)
 		double eps = 0.01;
 		struct mlip_corner c;
 		/* long segments, no speed cap: eps (18) is what binds */
-		mlip_corner_plan(n, MLIP_STRATEGY_MPCT, es, ee, 1e3, 1e3, A, eps, 1e9, 1e9, 0.001, &c);
+		mlip_corner_plan(n, MLIP_STRATEGY_MPCT, es, ee, 1e3, 1e3, A, eps, 1e9, 1e9, 0.001,
+		                 &c);
 		double C0[MLIP_MAX_AXES] = {0}, S[MLIP_MAX_AXES], E[MLIP_MAX_AXES];
 		for (int k = 0; k < n; k++) {
 			S[k] = -1e3 * es[k];
@@ -243,7 +246,8 @@ static void test_corner_contour_and_peak_speed(void **state)
 			double t = c.t_s * i / 2000.0, x[MLIP_MAX_AXES], v2 = 0, r2 = 0;
 			for (int k = 0; k < n; k++) {
 				double a = c.alpha_mm_s2 * ee[k] - c.beta_mm_s2 * es[k];
-				x[k] = C0[k] - c.ls_mm * es[k] + c.vs_mm_s * es[k] * t + 0.5 * a * t * t; /* (14) */
+				x[k] = C0[k] - c.ls_mm * es[k] + c.vs_mm_s * es[k] * t +
+				       0.5 * a * t * t; /* (14) */
 				double v = c.vs_mm_s * es[k] + a * t;
 				v2 += v * v;
 				r2 += (x[k] - C0[k]) * (x[k] - C0[k]);
@@ -476,8 +480,8 @@ static void test_run_all_strategies(void **state)
 			for (int st = 0; st < 3; st++) {
 				struct run r;
 				run_path(&m, (mlip_strategy)st, &p, EV_NONE, &r);
-				print_message("%d axes, path %d, strategy %d: %.3f s\n", axes[ai], kind,
-				              st, (double)r.periods * m.period_s);
+				print_message("%d axes, path %d, strategy %d: %.3f s\n", axes[ai],
+				              kind, st, (double)r.periods * m.period_s);
 				assert_physics(&m, &r, 0.5, 1);
 			}
 			free(p.pts);
@@ -637,9 +641,11 @@ static void test_sharp_corner_zero_side_does_not_stop(void **state)
 	m.axis[1].max_accel = 1000;
 	double start[2] = {0, 0};
 	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, start), MLIP_OK);
-	struct mlip_block b1 = {.target = {es[0] * 20, es[1] * 20}, .feed_mm_s = 200, .tol_mm = 0.01};
+	struct mlip_block b1 = {
+	    .target = {es[0] * 20, es[1] * 20}, .feed_mm_s = 200, .tol_mm = 0.01};
 	struct mlip_block b2 = {.target = {es[0] * 20 + ee[0] * 20, es[1] * 20 + ee[1] * 20},
-	                        .feed_mm_s = 200, .tol_mm = 0.01};
+	                        .feed_mm_s = 200,
+	                        .tol_mm = 0.01};
 	mlip_planner_push(&P, &b1);
 	mlip_planner_push(&P, &b2);
 	assert_true(P.seg[0].q > 0.99); /* limited by nothing but its geometry */
@@ -755,7 +761,7 @@ static void test_smooth_shapes_keep_guarantees(void **state)
 			for (int k = 0; k < n; k++) {
 				double ak = c->alpha_mm_s2 * ee[k] - c->beta_mm_s2 * es[k];
 				double round_off =
-				        8.0 * DBL_EPSILON * (c->alpha_mm_s2 + c->beta_mm_s2);
+				    8.0 * DBL_EPSILON * (c->alpha_mm_s2 + c->beta_mm_s2);
 				assert_le(fabs(ak), A[k] * (1.0 + 1e-12) + round_off);
 				amax = fmax(amax, fabs(ak) / A[k]);
 				a2 += ak * ak;
@@ -771,7 +777,8 @@ static void test_smooth_shapes_keep_guarantees(void **state)
 			if (j > 0) {
 				/* the planner rebuilds it from w: the very same corner */
 				struct mlip_corner r;
-				int rc = mlip_corner_smooth_w(n, es, ee, ds, de, A, eps, vs, ve, w[j], &r);
+				int rc = mlip_corner_smooth_w(n, es, ee, ds, de, A, eps, vs, ve,
+				                              w[j], &r);
 				assert_int_equal(rc, 0);
 				assert_true(memcmp(&r, c, sizeof(r)) == 0);
 				assert_true(c->beta_mm_s2 > a_line);
@@ -815,8 +822,8 @@ static void test_smooth_shapes_plan(void **state)
 	struct mlip_machine m = machine(2, 1000, 200, 0.01);
 	int braking = plan_equals_full_pass(&p, &m, MLIP_STRATEGY_SMOOTH, 0, 997);
 	assert_true(braking > 1000);
-	static const int events[] = {EV_NONE, EV_STORM, EV_STORM, EV_STORM, EV_STORM, EV_STORM,
-	                             EV_STORM, EV_HOLD_RESUME, EV_STOP, EV_DRIP};
+	static const int events[] = {EV_NONE,  EV_STORM, EV_STORM,       EV_STORM, EV_STORM,
+	                             EV_STORM, EV_STORM, EV_HOLD_RESUME, EV_STOP,  EV_DRIP};
 	for (int e = 0; e < 10; e++) {
 		struct run r;
 		run_path(&m, MLIP_STRATEGY_SMOOTH, &p, events[e], &r);
@@ -864,26 +871,26 @@ static void test_push_full_and_bad_input(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-		cmocka_unit_test(test_lp_optimal_2axes),
-		cmocka_unit_test(test_lp_optimal_3axes),
-		cmocka_unit_test(test_lp_optimal_5axes),
-		cmocka_unit_test(test_lp_paper_example),
-		cmocka_unit_test(test_corner_collinear_and_reversal),
-		cmocka_unit_test(test_corner_contour_and_peak_speed),
-		cmocka_unit_test(test_corner_caps_19_20),
-		cmocka_unit_test(test_run_all_strategies),
-		cmocka_unit_test(test_mpct_faster_than_baselines),
-		cmocka_unit_test(test_eps_binds_end_to_end),
-		cmocka_unit_test(test_termination_condition_is_exact),
-		cmocka_unit_test(test_push_n_same_plan),
-		cmocka_unit_test(test_sharp_corner_zero_side_does_not_stop),
-		cmocka_unit_test(test_override_storm),
-		cmocka_unit_test(test_hold_resume_on_path),
-		cmocka_unit_test(test_stop_is_controlled),
-		cmocka_unit_test(test_running_dry_is_safe),
-		cmocka_unit_test(test_smooth_shapes_keep_guarantees),
-		cmocka_unit_test(test_smooth_shapes_plan),
-		cmocka_unit_test(test_push_full_and_bad_input),
+	    cmocka_unit_test(test_lp_optimal_2axes),
+	    cmocka_unit_test(test_lp_optimal_3axes),
+	    cmocka_unit_test(test_lp_optimal_5axes),
+	    cmocka_unit_test(test_lp_paper_example),
+	    cmocka_unit_test(test_corner_collinear_and_reversal),
+	    cmocka_unit_test(test_corner_contour_and_peak_speed),
+	    cmocka_unit_test(test_corner_caps_19_20),
+	    cmocka_unit_test(test_run_all_strategies),
+	    cmocka_unit_test(test_mpct_faster_than_baselines),
+	    cmocka_unit_test(test_eps_binds_end_to_end),
+	    cmocka_unit_test(test_termination_condition_is_exact),
+	    cmocka_unit_test(test_push_n_same_plan),
+	    cmocka_unit_test(test_sharp_corner_zero_side_does_not_stop),
+	    cmocka_unit_test(test_override_storm),
+	    cmocka_unit_test(test_hold_resume_on_path),
+	    cmocka_unit_test(test_stop_is_controlled),
+	    cmocka_unit_test(test_running_dry_is_safe),
+	    cmocka_unit_test(test_smooth_shapes_keep_guarantees),
+	    cmocka_unit_test(test_smooth_shapes_plan),
+	    cmocka_unit_test(test_push_full_and_bad_input),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -13,7 +13,7 @@
 
 #include <cmocka.h>
 
-#include "mlip/ring.h"
+#include "mlip/ipc/ring.h"
 
 /* records through the ring in the stress test: 10 M (about 0.5 s at -O2);
  * 2 M under ASan/TSan, which are there for races and overflows, not volume
@@ -26,7 +26,7 @@
 #endif
 #endif
 #define STRESS_CAPACITY 1024u
-#define CAP 8u
+#define CAP             8u
 
 /* one aligned buffer big enough for every test but the stress one */
 static unsigned char seg[4096] __attribute__((aligned(MLIP_RING_LINE)));
@@ -312,8 +312,7 @@ static void test_attach_ok(void **state)
 	assert_int_equal(why.reason, MLIP_RING_BAD_ARG);
 	assert_int_equal(mlip_ring_attach(NULL, sizeof(seg), 0, &r, &why), MLIP_E_INVALID);
 	assert_int_equal(why.reason, MLIP_RING_BAD_ARG);
-	assert_int_equal(mlip_ring_attach(seg + 16, sizeof(seg) - 16, 0, &r, &why),
-	                 MLIP_E_INVALID);
+	assert_int_equal(mlip_ring_attach(seg + 16, sizeof(seg) - 16, 0, &r, &why), MLIP_E_INVALID);
 	assert_int_equal(why.reason, MLIP_RING_BAD_ALIGN);
 	assert_int_equal(why.found, 16);
 }
@@ -508,7 +507,7 @@ static void test_mailbox(void **state)
 struct stress {
 	struct mlip_ring *r;
 	uint64_t n;
-	uint64_t bad;  /* consumer: records out of order or corrupted */
+	uint64_t bad; /* consumer: records out of order or corrupted */
 	uint64_t got;
 };
 
@@ -610,7 +609,7 @@ static void test_stress_spsc(void **state)
 
 struct box {
 	struct mlip_ring *r;
-	int stop;      /* atomic */
+	int stop; /* atomic */
 	uint64_t applied_sum;
 	int applied;
 	int order_bad;

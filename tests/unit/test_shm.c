@@ -26,10 +26,10 @@
 
 #include <cmocka.h>
 
-#include "mlip/ring.h"
+#include "mlip/ipc/ring.h"
 #include "rt.h"
 
-#define CAP 64u
+#define CAP    64u
 #define NOBODY 65534 /* a uid and gid that is not ours (the tests chown to it as root) */
 
 /* posix_fallocate as rt/shm.c sees it (-Wl,--wrap=posix_fallocate, Makefile):
@@ -349,7 +349,8 @@ static void test_create_refuses_other_version(void **state)
 	assert_int_equal(mlip_shm_attach(&a, name, NULL, 0), -EPROTO);
 	int fd = shm_open(name, O_RDWR, 0);
 	assert_true(fd >= 0);
-	struct mlip_ring *r = mmap(NULL, mlip_ring_bytes(CAP), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+	struct mlip_ring *r =
+	    mmap(NULL, mlip_ring_bytes(CAP), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
 	assert_true(r != MAP_FAILED);
 	r->version = MLIP_RING_VERSION;
 	munmap(r, mlip_ring_bytes(CAP));

@@ -1,5 +1,5 @@
 /*
- * test_smooth.c - the `smooth` filter (src/smooth.c) against a brute-force
+ * test_smooth.c - the `smooth` filter (src/motion/smooth.c) against a brute-force
  * distance to the ORIGINAL polyline: every output segment, densely sampled,
  * stays within rho * budget of it, and each corner's tol_mm plus the
  * deviation of its legs (the halves of its two segments next to it, (19))
@@ -18,14 +18,14 @@
 #include <cmocka.h>
 
 #include "../../tools/lib/blockiter.h"
-#include "mlip/planner.h"
-#include "mlip/smooth.h"
+#include "mlip/motion/planner.h"
+#include "mlip/motion/smooth.h"
 
-#define EPS 0.01
-#define TIGHT 0.003 /* a run with its own, smaller tol_mm */
-#define MAXB 20000
+#define EPS         0.01
+#define TIGHT       0.003 /* a run with its own, smaller tol_mm */
+#define MAXB        20000
 #define TIGHT_FIRST 1543 /* lines of the run with tol_mm = TIGHT */
-#define TIGHT_LAST 1842
+#define TIGHT_LAST  1842
 
 static struct mlip_block in[MAXB];
 static size_t n_in;
@@ -77,7 +77,8 @@ static void program(void)
 		double a = i * 0.02 / R;
 		add(round4(R * cos(a)), round4(R * sin(a)), round4(0.0008 * i), 100.0, 0.0, 0);
 	}
-	double x0 = in[n_in - 1].target[0], y0 = in[n_in - 1].target[1], z0 = in[n_in - 1].target[2];
+	double x0 = in[n_in - 1].target[0], y0 = in[n_in - 1].target[1],
+	       z0 = in[n_in - 1].target[2];
 	for (int i = 1; i <= 20; i++) {
 		add(x0 + 0.1 * i, y0, z0, 100.0, 0.0, 0); /* then a 90 degree corner */
 	}
@@ -206,9 +207,10 @@ static void test_exact_points_and_events(void **state)
 	size_t j = 0;
 	for (size_t i = 0; i < n_in; i++) {
 		const struct mlip_block *b = &in[i];
-		int exact = b->rapid || b->kind != MLIP_BLOCK_MOVE || b->exact_stop || i + 1 == n_in ||
-		            (i + 1 < n_in && (in[i + 1].rapid || in[i + 1].kind != MLIP_BLOCK_MOVE ||
-		                              in[i + 1].feed_mm_s != b->feed_mm_s));
+		int exact =
+		    b->rapid || b->kind != MLIP_BLOCK_MOVE || b->exact_stop || i + 1 == n_in ||
+		    (i + 1 < n_in && (in[i + 1].rapid || in[i + 1].kind != MLIP_BLOCK_MOVE ||
+		                      in[i + 1].feed_mm_s != b->feed_mm_s));
 		if (!exact) {
 			continue;
 		}
@@ -257,7 +259,8 @@ static void test_noise_filtered(void **state)
 				c += u[k] * v[k];
 			}
 			/* curvature at the vertex: turn / mean length */
-			double turn = acos(fmin(1.0, c / sqrt(lu * lv))) / (0.5 * (sqrt(lu) + sqrt(lv)));
+			double turn =
+			    acos(fmin(1.0, c / sqrt(lu * lv))) / (0.5 * (sqrt(lu) + sqrt(lv)));
 			if (last_turn >= 0.0) {
 				double *w = pass ? &worst_out : &worst_in;
 				*w = fmax(*w, fabs(turn - last_turn));
@@ -288,7 +291,7 @@ static void test_random_programs(void **state)
 				s = s * 6364136223846793005ULL + 1442695040888963407ULL;
 				r[k] = (double)(s >> 11) / 9007199254740992.0;
 			}
-			double len = 1e-4 * pow(5e4, r[0]);        /* 0.0001 .. 5 mm */
+			double len = 1e-4 * pow(5e4, r[0]); /* 0.0001 .. 5 mm */
 			double turn = r[1] < 0.7 ? 0.01 : r[1] < 0.95 ? 0.3 : 3.0; /* rad, scale */
 			for (int k = 0; k < 3; k++) {
 				e[k] += turn * (r[(k + 2) % 4] - 0.5);
@@ -373,9 +376,11 @@ static void test_corner_choice(void **state)
 			ee[k] /= ne;
 		}
 		double ds = 1e-3 * pow(1e4, r[11]), de = 1e-3 * pow(1e4, r[12]);
-		double eps = 0.001 + 0.01 * r[13], vs = 10.0 + 200.0 * r[14], ve = 10.0 + 200.0 * r[15];
+		double eps = 0.001 + 0.01 * r[13], vs = 10.0 + 200.0 * r[14],
+		       ve = 10.0 + 200.0 * r[15];
 		struct mlip_corner c, m;
-		mlip_corner_plan(n, MLIP_STRATEGY_SMOOTH, es, ee, ds, de, A, eps, vs, ve, 0.001, &c);
+		mlip_corner_plan(n, MLIP_STRATEGY_SMOOTH, es, ee, ds, de, A, eps, vs, ve, 0.001,
+		                 &c);
 		mlip_corner_plan(n, MLIP_STRATEGY_MPCT, es, ee, ds, de, A, eps, vs, ve, 0.001, &m);
 		if (m.t_s == 0.0) {
 			continue; /* collinear: both pass straight */
@@ -392,10 +397,12 @@ static void test_corner_choice(void **state)
 		}
 		assert_true(amax >= 1.0 - 1e-9);
 		assert_true(sqrt(a2) * c.t_s * c.t_s / 8.0 <= eps * (1.0 + 1e-12));
-		assert_true(c.ls_mm <= 0.5 * ds * (1.0 + 1e-12) && c.le_mm <= 0.5 * de * (1.0 + 1e-12));
+		assert_true(c.ls_mm <= 0.5 * ds * (1.0 + 1e-12) &&
+		            c.le_mm <= 0.5 * de * (1.0 + 1e-12));
 		assert_true(c.vs_mm_s <= vs * (1.0 + 1e-12) && c.ve_mm_s <= ve * (1.0 + 1e-12));
 		/* 1e-9: the LP vertex recomputed in another order, and the choice's own margin */
-		assert_true(fmin(c.vs_mm_s, c.ve_mm_s) >= fmin(m.vs_mm_s, m.ve_mm_s) * (1.0 - 1e-9));
+		assert_true(fmin(c.vs_mm_s, c.ve_mm_s) >=
+		            fmin(m.vs_mm_s, m.ve_mm_s) * (1.0 - 1e-9));
 		sym += fabs(c.alpha_mm_s2 - c.beta_mm_s2) <= 1e-9 * c.alpha_mm_s2;
 		/* B = v_s^2 - 2 a l_s > 0 (beta above the line's own limit), or the
 		 * LP vertex itself: the corner can take what a line fails to shed */
@@ -446,12 +453,12 @@ static void test_full_and_bad_input(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-		cmocka_unit_test(test_within_band_brute_force),
-		cmocka_unit_test(test_exact_points_and_events),
-		cmocka_unit_test(test_noise_filtered),
-		cmocka_unit_test(test_random_programs),
-		cmocka_unit_test(test_corner_choice),
-		cmocka_unit_test(test_full_and_bad_input),
+	    cmocka_unit_test(test_within_band_brute_force),
+	    cmocka_unit_test(test_exact_points_and_events),
+	    cmocka_unit_test(test_noise_filtered),
+	    cmocka_unit_test(test_random_programs),
+	    cmocka_unit_test(test_corner_choice),
+	    cmocka_unit_test(test_full_and_bad_input),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

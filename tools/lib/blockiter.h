@@ -1,6 +1,6 @@
 /*
  * blockiter.h - blocks in program order through a small iterator, and the
- * `smooth` strategy's filter (src/smooth.c) as one: the host glue mlip-sim
+ * `smooth` strategy's filter (src/motion/smooth.c) as one: the host glue mlip-sim
  * and mlip-feed share. Any reader of blocks (an array, the streaming program
  * reader of program.h) plugs in as a struct mlip_block_iter.
  */
@@ -9,7 +9,7 @@
 
 #include <stddef.h>
 
-#include "mlip/smooth.h"
+#include "mlip/motion/smooth.h"
 #include "mlip/types.h"
 
 /* next(): 1 and *out filled, 0 at the program's end, < 0 on an error. */

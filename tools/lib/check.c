@@ -14,9 +14,9 @@
 #include <stdio.h>
 #include <string.h>
 
-#define RING_MASK ((uint64_t)MLIP_CHECK_RING - 1)
-#define NCHUNK (MLIP_CHECK_RING / MLIP_CHECK_CHUNK)
-#define BOX_MARGIN_MM 1e-9 /* a box is skipped only when this much farther */
+#define RING_MASK     ((uint64_t)MLIP_CHECK_RING - 1)
+#define NCHUNK        (MLIP_CHECK_RING / MLIP_CHECK_CHUNK)
+#define BOX_MARGIN_MM 1e-9       /* a box is skipped only when this much farther */
 enum { HINT_A, HINT_R, HINT_B }; /* searches: window start, R, window end */
 
 /* sizes must be powers of two (C99 has no _Static_assert) */
@@ -64,14 +64,15 @@ static void init_common(struct mlip_check *c, const struct mlip_check_limits *li
 	}
 }
 
-void mlip_check_init(struct mlip_check *c, const struct mlip_check_limits *lim,
-                     const double *pts, size_t npts)
+void mlip_check_init(struct mlip_check *c, const struct mlip_check_limits *lim, const double *pts,
+                     size_t npts)
 {
 	init_common(c, lim);
 	c->arr = pts;
 	c->arr_n = npts;
 	if (npts > 0) {
-		memcpy(c->last_pt, pts + (npts - 1) * (size_t)lim->n, sizeof(double) * (size_t)lim->n);
+		memcpy(c->last_pt, pts + (npts - 1) * (size_t)lim->n,
+		       sizeof(double) * (size_t)lim->n);
 	}
 }
 
@@ -192,7 +193,7 @@ static void set_add(struct mlip_check_iv *s, int *ns, double lo, double hi)
 /* One search of the window for a sample. */
 struct query {
 	const double *x;
-	uint64_t ja, jb;  /* segments of the window */
+	uint64_t ja, jb; /* segments of the window */
 	double best2, best_s, near_mm;
 	uint64_t best_j;
 };
@@ -264,7 +265,8 @@ static void scan(const struct mlip_check *c, struct query *q, double radius)
 			const double *p = pt_at(c, j), *e = pt_at(c, j + 1);
 			int far = 0; /* farther than r along one axis: farther than r */
 			for (int k = 0; k < n && !far; k++) {
-				double a0 = p[k] < e[k] ? p[k] : e[k], a1 = p[k] < e[k] ? e[k] : p[k];
+				double a0 = p[k] < e[k] ? p[k] : e[k],
+				       a1 = p[k] < e[k] ? e[k] : p[k];
 				far = x[k] < a0 - r || x[k] > a1 + r;
 			}
 			if (far) {
@@ -284,8 +286,8 @@ static void scan(const struct mlip_check *c, struct query *q, double radius)
 			}
 			double s0 = arc_at(c, j), s = s0 + t * (arc_at(c, j + 1) - s0);
 			/* ties go to the position nearest the last one */
-			if (d2 < q->best2 ||
-			    (d2 == q->best2 && fabs(s - q->near_mm) < fabs(q->best_s - q->near_mm))) {
+			if (d2 < q->best2 || (d2 == q->best2 && fabs(s - q->near_mm) <
+			                                            fabs(q->best_s - q->near_mm))) {
 				q->best2 = d2;
 				q->best_s = s;
 				q->best_j = j;
@@ -296,8 +298,8 @@ static void scan(const struct mlip_check *c, struct query *q, double radius)
 
 /* The u in [0, 1] with |a + u (b - a) - x| <= tol (a convex set): 1 and
  * [*u0, *u1], or 0 when there is none. */
-static int within(int n, const double *a, const double *b, const double *x, double tol2,
-                  double *u0, double *u1)
+static int within(int n, const double *a, const double *b, const double *x, double tol2, double *u0,
+                  double *u1)
 {
 	double len2 = 0.0, dot = 0.0, ax2 = 0.0;
 	for (int k = 0; k < n; k++) {
@@ -412,7 +414,8 @@ static int jump(struct mlip_check *c, const double *x1, double tol2, double reac
 			break;
 		}
 		if (within(c->lim.n, pt_at(c, j), pt_at(c, j + 1), x1, tol2, &u0, &u1)) {
-			double a = fmax(s0 + u0 * (s1 - s0), lo_mm), b = fmin(s0 + u1 * (s1 - s0), hi_mm);
+			double a = fmax(s0 + u0 * (s1 - s0), lo_mm),
+			       b = fmin(s0 + u1 * (s1 - s0), hi_mm);
 			if (a <= b) {
 				set_add(out, &nout, a, b);
 			}
@@ -430,7 +433,8 @@ static void contour(struct mlip_check *c, const double *x, double hole_reach)
 	double wa = c->set[0].lo_mm - win;
 
 	/* the polyline as far as the window goes, before the sweep */
-	while (c->hi < 2 || (!c->src_done && arc_at(c, c->hi - 1) < c->set[c->nset - 1].hi_mm + win)) {
+	while (c->hi < 2 ||
+	       (!c->src_done && arc_at(c, c->hi - 1) < c->set[c->nset - 1].hi_mm + win)) {
 		if (c->hi - c->lo == MLIP_CHECK_RING && !make_room(c, &wa)) {
 			c->window_drops++;
 			break;
@@ -451,7 +455,8 @@ static void contour(struct mlip_check *c, const double *x, double hole_reach)
 		/* after samples beyond tol, from where the last good one left R,
 		 * as across a hole (the chords from them are not judged again) */
 		double since = (double)(c->periods - c->good_period) * c->lim.period_s;
-		double travel = 2.0 * (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * since + 8.0 * tol;
+		double travel =
+		    2.0 * (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * since + 8.0 * tol;
 		nr = jump(c, x, tol * tol, fmax(hole_reach, travel), wa, r, &frontier);
 	} else {
 		double tf = tol + c->chord_mm;
@@ -465,8 +470,13 @@ static void contour(struct mlip_check *c, const double *x, double hole_reach)
 	uint64_t jb = pb < c->hi && arc_at(c, pb) == wb ? pb : pb > c->lo ? pb - 1 : c->lo;
 	jb = jb > c->hi - 2 ? c->hi - 2 : jb;
 	jb = jb < ja ? ja : jb;
-	struct query q = {.x = x, .ja = ja, .jb = jb, .best2 = INFINITY, .best_s = c->near_mm,
-	                  .near_mm = c->near_mm, .best_j = ja};
+	struct query q = {.x = x,
+	                  .ja = ja,
+	                  .jb = jb,
+	                  .best2 = INFINITY,
+	                  .best_s = c->near_mm,
+	                  .near_mm = c->near_mm,
+	                  .best_j = ja};
 	/* within tol first; beyond it, the whole window pruned by the best */
 	scan(c, &q, tol);
 	if (!(q.best2 <= tol * tol)) {
@@ -533,9 +543,10 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 	/* across a hole the tool went at most v_max dt, which may be longer
 	 * than the chord between the two samples; corners cut add to the way
 	 * along the path (twice the travel, and 8 tol) */
-	double hole = c->gap > 1 ? 2.0 * fmax(step, (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * dt) +
-	                               8.0 * tol_of(c)
-	                         : 0.0;
+	double hole = c->gap > 1
+	                  ? 2.0 * fmax(step, (c->lim.vmax_mm_s + c->lim.vmax_rot_deg_s) * dt) +
+	                        8.0 * tol_of(c)
+	                  : 0.0;
 	contour(c, x, hole);
 	if (c->count >= 1) {
 		for (int k = 0; k < n; k++) {
@@ -628,8 +639,8 @@ static void add_msg(char *msg, size_t len, size_t *used, int *bad, const char *l
 	}
 }
 
-int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_acc,
-                       double abs_mm, double end_mm, char *msg, size_t len)
+int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_acc, double abs_mm,
+                       double end_mm, char *msg, size_t len)
 {
 	const struct mlip_check_limits *l = &c->lim;
 	const double T = l->period_s;
@@ -641,15 +652,17 @@ int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_ac
 	}
 	for (int k = 0; k < l->n; k++) {
 		if (c->max_acc[k] > l->accel[k] * (1.0 + rel_tol) + abs_acc) {
-			snprintf(line, sizeof(line),
-			         "axis %d: acceleration %.12g exceeds %.12g at sample %zu (t = %.6f s), "
-			         "block of line %u",
-			         k, c->max_acc[k], l->accel[k], c->max_acc_at[k],
-			         (double)c->max_acc_period[k] * T, (unsigned)c->max_acc_line[k]);
+			snprintf(
+			    line, sizeof(line),
+			    "axis %d: acceleration %.12g exceeds %.12g at sample %zu (t = %.6f s), "
+			    "block of line %u",
+			    k, c->max_acc[k], l->accel[k], c->max_acc_at[k],
+			    (double)c->max_acc_period[k] * T, (unsigned)c->max_acc_line[k]);
 			add_msg(msg, len, &used, &bad, line);
 		}
 		if (c->max_vel[k] > l->vel[k] * (1.0 + rel_tol) + abs_acc * T) {
-			snprintf(line, sizeof(line), "axis %d: velocity %.12g exceeds %.12g at sample %zu", k,
+			snprintf(line, sizeof(line),
+			         "axis %d: velocity %.12g exceeds %.12g at sample %zu", k,
 			         c->max_vel[k], l->vel[k], c->max_vel_at[k]);
 			add_msg(msg, len, &used, &bad, line);
 		}
@@ -673,15 +686,17 @@ int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_ac
 		add_msg(msg, len, &used, &bad, line);
 	}
 	if (c->order_errors > 0) {
-		snprintf(line, sizeof(line),
-		         "order: %zu sample(s) not reachable forwards along the path from the last, "
-		         "the first at sample %zu (t = %.6f s), near the block of line %u",
-		         c->order_errors, c->order_at, (double)c->order_period * T,
-		         (unsigned)c->order_line);
+		snprintf(
+		    line, sizeof(line),
+		    "order: %zu sample(s) not reachable forwards along the path from the last, "
+		    "the first at sample %zu (t = %.6f s), near the block of line %u",
+		    c->order_errors, c->order_at, (double)c->order_period * T,
+		    (unsigned)c->order_line);
 		add_msg(msg, len, &used, &bad, line);
 	}
 	if (c->src_error) {
-		add_msg(msg, len, &used, &bad, "the program's polyline could not be read to its end");
+		add_msg(msg, len, &used, &bad,
+		        "the program's polyline could not be read to its end");
 	}
 	double end = mlip_check_end_error(c);
 	if (!(end <= end_mm)) {

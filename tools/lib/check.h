@@ -49,10 +49,10 @@
 
 #include "mlip/types.h"
 
-#define MLIP_CHECK_RING 4096      /* polyline points kept, power of two */
-#define MLIP_CHECK_CHUNK 16       /* segments under one bounding box, power of two */
+#define MLIP_CHECK_RING      4096 /* polyline points kept, power of two */
+#define MLIP_CHECK_CHUNK     16   /* segments under one bounding box, power of two */
 #define MLIP_CHECK_WINDOW_MM 20.0 /* path distance searched beyond R, both ways */
-#define MLIP_CHECK_MAX_SET 32     /* intervals of R kept (more: merged, R only grows) */
+#define MLIP_CHECK_MAX_SET   32   /* intervals of R kept (more: merged, R only grows) */
 
 /* Next point of the programmed polyline, in order, the start first: returns
  * 1 (pt and line filled: the source line of the block ending there), 0 at
@@ -61,15 +61,15 @@ typedef int (*mlip_check_source_fn)(void *ctx, double *pt, uint32_t *line);
 
 struct mlip_check_limits {
 	int n;
-	double accel[MLIP_MAX_AXES];   /* A_k */
-	double vel[MLIP_MAX_AXES];     /* V_k */
+	double accel[MLIP_MAX_AXES]; /* A_k */
+	double vel[MLIP_MAX_AXES];   /* V_k */
 	uint8_t rotary[MLIP_MAX_AXES];
-	double vmax_mm_s;              /* tool speed (linear axes) */
-	double vmax_rot_deg_s;         /* speed of moves of rotary axes only */
-	double eps_mm;                 /* contour tolerance */
+	double vmax_mm_s;      /* tool speed (linear axes) */
+	double vmax_rot_deg_s; /* speed of moves of rotary axes only */
+	double eps_mm;         /* contour tolerance */
 	double period_s;
-	double tol_mm;                 /* order tolerance; 0: eps_mm (1 + 1e-9) */
-	double window_mm;              /* path distance searched beyond R; 0: MLIP_CHECK_WINDOW_MM */
+	double tol_mm;    /* order tolerance; 0: eps_mm (1 + 1e-9) */
+	double window_mm; /* path distance searched beyond R; 0: MLIP_CHECK_WINDOW_MM */
 };
 
 struct mlip_check_iv {
@@ -81,62 +81,62 @@ struct mlip_check {
 	/* the polyline's source */
 	mlip_check_source_fn src;
 	void *src_ctx;
-	const double *arr;      /* array source of mlip_check_init */
+	const double *arr; /* array source of mlip_check_init */
 	size_t arr_n, arr_i;
-	int src_done;           /* no more points */
-	int src_error;          /* the source failed */
+	int src_done;  /* no more points */
+	int src_error; /* the source failed */
 	/* the window: points [lo, hi) of the polyline at slot p % MLIP_CHECK_RING */
 	double pt[MLIP_CHECK_RING][MLIP_MAX_AXES];
-	double arc_mm[MLIP_CHECK_RING];  /* path position of each point */
+	double arc_mm[MLIP_CHECK_RING]; /* path position of each point */
 	uint32_t line[MLIP_CHECK_RING];
 	double box_lo[MLIP_CHECK_RING / MLIP_CHECK_CHUNK][MLIP_MAX_AXES];
 	double box_hi[MLIP_CHECK_RING / MLIP_CHECK_CHUNK][MLIP_MAX_AXES];
 	uint64_t lo, hi;
-	uint64_t hint[3];                /* the last points searched for, by kind */
-	double last_pt[MLIP_MAX_AXES];   /* the last point pulled */
-	double prog_mm;                  /* polyline length pulled, linear axes */
+	uint64_t hint[3];              /* the last points searched for, by kind */
+	double last_pt[MLIP_MAX_AXES]; /* the last point pulled */
+	double prog_mm;                /* polyline length pulled, linear axes */
 	/* where the samples are on it */
 	struct mlip_check_iv set[MLIP_CHECK_MAX_SET]; /* R, sorted, disjoint */
 	int nset;
-	double chord_mm;                 /* how far a motion within the limits strays from a chord */
-	int restart;                     /* the last sample was beyond tol */
-	uint64_t good_period;            /* time of the last sample within tol */
-	double near_mm;                  /* path position of the last nearest point */
+	double chord_mm;      /* how far a motion within the limits strays from a chord */
+	int restart;          /* the last sample was beyond tol */
+	uint64_t good_period; /* time of the last sample within tol */
+	double near_mm;       /* path position of the last nearest point */
 	/* the samples */
 	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES]; /* last two samples */
-	size_t count;           /* samples seen */
-	size_t run;             /* samples since the last gap (differences need 2, 3) */
-	size_t gap;             /* periods between the last sample and the next (1: none) */
-	uint64_t periods;       /* periods from the first sample to the last */
+	size_t count;                                /* samples seen */
+	size_t run;       /* samples since the last gap (differences need 2, 3) */
+	size_t gap;       /* periods between the last sample and the next (1: none) */
+	uint64_t periods; /* periods from the first sample to the last */
 	/* results */
-	uint32_t cur_line;               /* line of the block nearest to the last sample */
-	double max_acc[MLIP_MAX_AXES];   /* max |second difference| / T^2 */
+	uint32_t cur_line;             /* line of the block nearest to the last sample */
+	double max_acc[MLIP_MAX_AXES]; /* max |second difference| / T^2 */
 	size_t max_acc_at[MLIP_MAX_AXES];
 	uint64_t max_acc_period[MLIP_MAX_AXES];
 	uint32_t max_acc_line[MLIP_MAX_AXES];
-	double max_vel[MLIP_MAX_AXES];   /* max |first difference| / T */
+	double max_vel[MLIP_MAX_AXES]; /* max |first difference| / T */
 	size_t max_vel_at[MLIP_MAX_AXES];
-	double max_speed_mm_s;           /* linear part of the path speed */
+	double max_speed_mm_s; /* linear part of the path speed */
 	size_t max_speed_at;
-	double max_rot_speed_deg_s;      /* on samples where no linear axis moved */
-	double last_contour_mm;          /* contour error of the last sample */
+	double max_rot_speed_deg_s; /* on samples where no linear axis moved */
+	double last_contour_mm;     /* contour error of the last sample */
 	double max_contour_mm;
-	size_t max_contour_at;           /* sample */
-	uint64_t max_contour_period;     /* its time, in periods from the first sample */
-	uint32_t max_contour_line;       /* line of the block of its nearest segment */
-	size_t order_errors;             /* samples out of order */
-	size_t order_at;                 /* the first of them */
+	size_t max_contour_at;       /* sample */
+	uint64_t max_contour_period; /* its time, in periods from the first sample */
+	uint32_t max_contour_line;   /* line of the block of its nearest segment */
+	size_t order_errors;         /* samples out of order */
+	size_t order_at;             /* the first of them */
 	uint64_t order_period;
-	uint32_t order_line;             /* line of the block nearest to it */
-	size_t window_drops;             /* positions of R dropped for room */
-	double path_mm;                  /* length of the sampled path, linear axes */
-	double max_abs_coord;            /* largest |coordinate| seen */
+	uint32_t order_line;  /* line of the block nearest to it */
+	size_t window_drops;  /* positions of R dropped for room */
+	double path_mm;       /* length of the sampled path, linear axes */
+	double max_abs_coord; /* largest |coordinate| seen */
 };
 
 /* A check of a polyline held in an array of npts points (must outlive c);
  * the points' lines are their indices. */
-void mlip_check_init(struct mlip_check *c, const struct mlip_check_limits *lim,
-                     const double *pts, size_t npts);
+void mlip_check_init(struct mlip_check *c, const struct mlip_check_limits *lim, const double *pts,
+                     size_t npts);
 /* A check pulling the polyline from src as the samples need it. */
 void mlip_check_init_source(struct mlip_check *c, const struct mlip_check_limits *lim,
                             mlip_check_source_fn src, void *ctx);
@@ -165,7 +165,7 @@ double mlip_check_rounding_floor(const struct mlip_check *c);
  * within end_mm of the last point. Writes one line per violation (with its
  * sample, time and source line) into msg (NUL-terminated, truncated to len)
  * and returns the number of violations. */
-int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_acc,
-                       double abs_mm, double end_mm, char *msg, size_t len);
+int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_acc, double abs_mm,
+                       double end_mm, char *msg, size_t len);
 
 #endif

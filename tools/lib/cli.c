@@ -8,10 +8,10 @@
 #include <string.h>
 
 #include "check.h"
-#include "mlip/canopen.h"
-#include "mlip/ring.h"
+#include "mlip/canopen/canopen.h"
+#include "mlip/ipc/ring.h"
 #include "confload.h"
-#include "mlip/gcode.h"
+#include "mlip/gcode/gcode.h"
 #include "offsets.h"
 #include "program.h"
 
@@ -42,7 +42,8 @@ int mlip_cli_gcode_option(int c, const char *arg, struct mlip_cli_machine *o, co
 		return 1;
 	case MLIP_CLI_OPT_DEFAULT_FEED:
 		if (mlip_cli_number(arg, &o->default_feed) != 0 || !(o->default_feed > 0.0)) {
-			fprintf(err, "%s: --default-feed: '%s' is not a positive number\n", prog, arg);
+			fprintf(err, "%s: --default-feed: '%s' is not a positive number\n", prog,
+			        arg);
 			return -1;
 		}
 		return 1;
@@ -94,14 +95,17 @@ static int apply_accel(struct mlip_machine *m, const char *list, const char *pro
 	}
 	strcpy(buf, list);
 	for (char *tok = strtok(buf, ","); tok != NULL; tok = strtok(NULL, ",")) {
-		if (count == MLIP_MAX_AXES || mlip_cli_number(tok, &v[count]) != 0 || !(v[count] > 0.0)) {
-			fprintf(err, "%s: --accel: '%s' is not a positive number (mm/s^2)\n", prog, tok);
+		if (count == MLIP_MAX_AXES || mlip_cli_number(tok, &v[count]) != 0 ||
+		    !(v[count] > 0.0)) {
+			fprintf(err, "%s: --accel: '%s' is not a positive number (mm/s^2)\n", prog,
+			        tok);
 			return -1;
 		}
 		count++;
 	}
 	if (count != 1 && count != m->n_axes) {
-		fprintf(err, "%s: --accel: %d values for %d axes (give one for all, or one per axis)\n",
+		fprintf(err,
+		        "%s: --accel: %d values for %d axes (give one for all, or one per axis)\n",
 		        prog, count, m->n_axes);
 		return -1;
 	}
@@ -123,7 +127,9 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
 	} else {
 		char letters[MLIP_MAX_AXES + 1] = "";
 		char why[256];
-		int n = program_path ? mlip_program_scan_axes(program_path, letters, why, sizeof(why)) : 0;
+		int n = program_path
+		            ? mlip_program_scan_axes(program_path, letters, why, sizeof(why))
+		            : 0;
 		if (n < 0) {
 			fprintf(err, "%s: %s: %s\n", prog, program_path, why);
 			return -1;
@@ -247,8 +253,8 @@ void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limit
 }
 
 int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
-                          struct mlip_config *cfg, struct mlip_program *program,
-                          const char *prog, FILE *err)
+                          struct mlip_config *cfg, struct mlip_program *program, const char *prog,
+                          FILE *err)
 {
 	struct mlip_gcode_offsets off;
 	struct mlip_program_options opt = {o->strict, &off, o->default_feed};
@@ -328,20 +334,22 @@ void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
 	switch (event) {
 	case MLIP_DRIVE_NOT_SWITCHED_ON:
 	case MLIP_DRIVE_NOT_ENABLED:
-		snprintf(buf, len,
-		         "%s (controlword 0x%04X) not confirmed within STATE_TIMEOUT_MS: statusword "
-		         "0x%04llX (%s); nothing moves",
-		         event == MLIP_DRIVE_NOT_ENABLED ? "enable operation" : "switch on",
-		         event == MLIP_DRIVE_NOT_ENABLED ? MLIP_402_CW_ENABLE_OPERATION
-		                                         : MLIP_402_CW_SWITCH_ON,
-		         (unsigned long long)(v & 0xFFFF),
-		         mlip_402_state_name(mlip_402_state_of((uint16_t)v)));
+		snprintf(
+		    buf, len,
+		    "%s (controlword 0x%04X) not confirmed within STATE_TIMEOUT_MS: statusword "
+		    "0x%04llX (%s); nothing moves",
+		    event == MLIP_DRIVE_NOT_ENABLED ? "enable operation" : "switch on",
+		    event == MLIP_DRIVE_NOT_ENABLED ? MLIP_402_CW_ENABLE_OPERATION
+		                                    : MLIP_402_CW_SWITCH_ON,
+		    (unsigned long long)(v & 0xFFFF),
+		    mlip_402_state_name(mlip_402_state_of((uint16_t)v)));
 		break;
 	case MLIP_DRIVE_BEYOND_LIMIT:
-		snprintf(buf, len,
-		         "position actual %lld counts is beyond a soft limit (moved while disabled?): "
-		         "bring it back within the limits by hand; nothing moves",
-		         (long long)v);
+		snprintf(
+		    buf, len,
+		    "position actual %lld counts is beyond a soft limit (moved while disabled?): "
+		    "bring it back within the limits by hand; nothing moves",
+		    (long long)v);
 		break;
 	case MLIP_DRIVE_FAULT_BIT:
 	case MLIP_DRIVE_LEFT_ENABLED:
@@ -377,7 +385,8 @@ int mlip_cli_can_override(struct mlip_config *cfg, const char *path, const char 
 	struct mlip_config_error e;
 	if (profile != NULL) {
 		if (mlip_can_profile_parse(profile, prof) != MLIP_OK) {
-			fprintf(err, "%s: --profile: '%s' is not cia402, packed or fd\n", prog, profile);
+			fprintf(err, "%s: --profile: '%s' is not cia402, packed or fd\n", prog,
+			        profile);
 			return 2;
 		}
 		snprintf(cfg->can.profile, sizeof(cfg->can.profile), "%s", profile);

@@ -7,9 +7,9 @@
 
 #include <stdio.h>
 
-#include "mlip/canenc.h"
-#include "mlip/config.h"
-#include "mlip/planner.h"
+#include "mlip/can/canenc.h"
+#include "mlip/machine/config.h"
+#include "mlip/motion/planner.h"
 #include "program.h"
 
 struct mlip_cli_machine {
@@ -34,19 +34,19 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
  * (every error of the program) and return -1, with *program closed. cfg
  * must outlive *program. */
 int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
-                          struct mlip_config *cfg, struct mlip_program *program,
-                          const char *prog, FILE *err);
+                          struct mlip_config *cfg, struct mlip_program *program, const char *prog,
+                          FILE *err);
 
 /* The G-code options every tool that reads programs takes (struct option
  * entries for getopt_long; their values are above any letter). */
-#define MLIP_CLI_OPT_OFFSETS 0x100
-#define MLIP_CLI_OPT_STRICT 0x101
+#define MLIP_CLI_OPT_OFFSETS      0x100
+#define MLIP_CLI_OPT_STRICT       0x101
 #define MLIP_CLI_OPT_DEFAULT_FEED 0x102
-#define MLIP_CLI_GCODE_OPTIONS                                                                   \
-	{"offsets", required_argument, 0, MLIP_CLI_OPT_OFFSETS},                                 \
-	        {"strict", no_argument, 0, MLIP_CLI_OPT_STRICT},                                 \
-	{                                                                                        \
-		"default-feed", required_argument, 0, MLIP_CLI_OPT_DEFAULT_FEED                   \
+#define MLIP_CLI_GCODE_OPTIONS                                                                     \
+	{"offsets", required_argument, 0, MLIP_CLI_OPT_OFFSETS},                                   \
+	    {"strict", no_argument, 0, MLIP_CLI_OPT_STRICT},                                       \
+	{                                                                                          \
+		"default-feed", required_argument, 0, MLIP_CLI_OPT_DEFAULT_FEED                    \
 	}
 
 /* Take getopt_long's c (with arg) when it is one of those: 1 taken, 0 not

@@ -1,7 +1,7 @@
 /* confjson.c - see confjson.h */
 #include "confjson.h"
 
-#include "mlip/canenc.h"
+#include "mlip/can/canenc.h"
 
 void mlip_json_str(FILE *f, const char *s)
 {
@@ -43,7 +43,8 @@ static void frames(FILE *f, const struct mlip_config *c)
 	case MLIP_CAN_PACKED:
 		for (i = 0; i <= nf; i++) {
 			fprintf(f, "%s{\"id\": %u, \"name\": \"%s", i ? ", " : "",
-			        (unsigned)(can->packed_base + (uint32_t)i), i < nf ? "POS " : "COMMIT");
+			        (unsigned)(can->packed_base + (uint32_t)i),
+			        i < nf ? "POS " : "COMMIT");
 			if (i < nf) {
 				fprintf(f, "%d", i);
 			}

@@ -8,7 +8,7 @@
 
 #include <stdio.h>
 
-#include "mlip/config.h"
+#include "mlip/machine/config.h"
 
 /* One JSON object: "file", "machine" (the [TRAJ] values and "axes", one
  * object per axis in COORDINATES order), "lookahead", and "can" (the [CAN]

@@ -9,7 +9,7 @@
 
 #include <stdio.h>
 
-#include "mlip/config.h"
+#include "mlip/machine/config.h"
 
 /* Files larger than this are refused: a configuration is a page of text. */
 #define MLIP_CONFIG_MAX_FILE (1u << 20)

@@ -31,15 +31,15 @@
 
 struct mlip_latstats {
 	/* histogram: caller storage */
-	uint64_t *bins;     /* nbins counters */
-	uint32_t nbins;     /* bins; samples >= nbins * bin_ns go to overflow */
-	int64_t bin_ns;     /* bin width, ns (1000: 1 us bins) */
+	uint64_t *bins; /* nbins counters */
+	uint32_t nbins; /* bins; samples >= nbins * bin_ns go to overflow */
+	int64_t bin_ns; /* bin width, ns (1000: 1 us bins) */
 	/* totals */
-	uint64_t count;     /* samples */
-	uint64_t overflow;  /* samples beyond the last bin */
-	uint64_t sum_ns;    /* sum of the samples, ns (584 years before it wraps) */
-	int64_t min_ns;     /* smallest sample (INT64_MAX while count == 0) */
-	int64_t max_ns;     /* largest sample (0 while count == 0) */
+	uint64_t count;    /* samples */
+	uint64_t overflow; /* samples beyond the last bin */
+	uint64_t sum_ns;   /* sum of the samples, ns (584 years before it wraps) */
+	int64_t min_ns;    /* smallest sample (INT64_MAX while count == 0) */
+	int64_t max_ns;    /* largest sample (0 while count == 0) */
 };
 
 /* Start empty on bins[0..nbins-1] (zeroed here), bin width bin_ns > 0. */

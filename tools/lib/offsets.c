@@ -12,12 +12,18 @@
 
 static double *key_values(struct mlip_gcode_offsets *o, int k)
 {
-	return k < MLIP_GCODE_N_COORD ? o->coord[k] : k == KEY_G92 ? o->g92 : k == KEY_G28 ? o->g28 : o->g30;
+	return k < MLIP_GCODE_N_COORD ? o->coord[k]
+	       : k == KEY_G92         ? o->g92
+	       : k == KEY_G28         ? o->g28
+	                              : o->g30;
 }
 
 static const char *key_name(int k)
 {
-	return k < MLIP_GCODE_N_COORD ? mlip_gcode_coord_name(k) : k == KEY_G92 ? "G92" : k == KEY_G28 ? "G28" : "G30";
+	return k < MLIP_GCODE_N_COORD ? mlip_gcode_coord_name(k)
+	       : k == KEY_G92         ? "G92"
+	       : k == KEY_G28         ? "G28"
+	                              : "G30";
 }
 
 static char *trim(char *s)
@@ -72,7 +78,8 @@ static int parse_line(char *s, const struct mlip_machine *m, struct mlip_gcode_o
 		}
 	}
 	if (k > KEY_G30) {
-		snprintf(why, len, "unknown key '%s' (SELECT, G92_ON, G54..G59.3, G92, G28, G30)", key);
+		snprintf(why, len, "unknown key '%s' (SELECT, G92_ON, G54..G59.3, G92, G28, G30)",
+		         key);
 		return -1;
 	}
 	while (*val) {
@@ -95,8 +102,8 @@ static int parse_line(char *s, const struct mlip_machine *m, struct mlip_gcode_o
 	return 0;
 }
 
-int mlip_offsets_load(const char *path, const struct mlip_machine *m,
-                      struct mlip_gcode_offsets *o, const char *prog, FILE *err)
+int mlip_offsets_load(const char *path, const struct mlip_machine *m, struct mlip_gcode_offsets *o,
+                      const char *prog, FILE *err)
 {
 	char buf[512], why[160];
 	unsigned line = 0;
@@ -146,7 +153,8 @@ int mlip_offsets_save(const char *path, const struct mlip_machine *m,
 	for (i = 0; i < m->n_axes; i++) {
 		fprintf(f, " %c", m->axis[i].letter);
 	}
-	fprintf(f, "\n# Edit with care; delete the file to reset (all zero, G54, G28/G30 at HOME).\n");
+	fprintf(f,
+	        "\n# Edit with care; delete the file to reset (all zero, G54, G28/G30 at HOME).\n");
 	fprintf(f, "SELECT = %s\nG92_ON = %d\n", mlip_gcode_coord_name(o->select), o->g92_on);
 	for (k = 0; k <= KEY_G30; k++) {
 		const double *v = key_values((struct mlip_gcode_offsets *)o, k);

@@ -25,12 +25,12 @@
 #include <stddef.h>
 #include <stdio.h>
 
-#include "mlip/gcode.h"
+#include "mlip/gcode/gcode.h"
 
 /* Defaults, then the file at path when it exists. 0, or -1 after printing
  * "prog: path:LINE: error: ..." to err. */
-int mlip_offsets_load(const char *path, const struct mlip_machine *m,
-                      struct mlip_gcode_offsets *o, const char *prog, FILE *err);
+int mlip_offsets_load(const char *path, const struct mlip_machine *m, struct mlip_gcode_offsets *o,
+                      const char *prog, FILE *err);
 
 /* Write o to path (a temporary file renamed over it). 0, or -1 with a message. */
 int mlip_offsets_save(const char *path, const struct mlip_machine *m,

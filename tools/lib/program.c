@@ -98,7 +98,7 @@ static size_t line_kept(const struct mlip_program *p)
 
 static const char *file_kind(mode_t mode)
 {
-	return S_ISDIR(mode)   ? "a directory"
+	return S_ISDIR(mode)    ? "a directory"
 	       : S_ISFIFO(mode) ? "a FIFO (pipe)"
 	       : S_ISCHR(mode)  ? "a character device"
 	       : S_ISBLK(mode)  ? "a block device"
@@ -170,8 +170,7 @@ static int check_all(struct mlip_program *p)
 	/* the program's first F, for feed moves before it (scan pass) */
 	while ((rc = read_line(p)) > 0) {
 		p->lineno++;
-		f = mlip_gcode_scan_line(p->line, line_kept(p),
-		                         &axes);
+		f = mlip_gcode_scan_line(p->line, line_kept(p), &axes);
 		/* an over-long line is an error: its F (maybe cut off) is not taken */
 		if (f > 0 && !p->initial_feed_line && p->line_len <= MLIP_GCODE_MAX_LINE) {
 			p->initial_feed_word = f;
@@ -418,8 +417,7 @@ int mlip_program_scan_axes(const char *path, char *letters, char *msg, size_t ms
 		return -EINVAL;
 	}
 	while ((rc = read_line(&p)) > 0) {
-		mlip_gcode_scan_line(p.line, line_kept(&p),
-		                     &axes);
+		mlip_gcode_scan_line(p.line, line_kept(&p), &axes);
 	}
 	mlip_program_close(&p);
 	if (rc < 0) {
@@ -469,11 +467,12 @@ void mlip_program_print_notices(const struct mlip_program *prog, const char *pat
 		const struct mlip_gcode_notice *n = &prog->notices[k];
 
 		if (strcmp(n->word, "F") == 0 && prog->initial_feed_line == 0) {
-			fprintf(f,
-			        "%s:%u: note: F: the program sets no feed: --default-feed F%g is used "
-			        "for its %u feed move%s\n",
-			        path, (unsigned)n->first_line, prog->initial_feed_word,
-			        (unsigned)n->count, n->count == 1 ? "" : "s");
+			fprintf(
+			    f,
+			    "%s:%u: note: F: the program sets no feed: --default-feed F%g is used "
+			    "for its %u feed move%s\n",
+			    path, (unsigned)n->first_line, prog->initial_feed_word,
+			    (unsigned)n->count, n->count == 1 ? "" : "s");
 			continue;
 		}
 		if (strcmp(n->word, "F") == 0) {
@@ -543,7 +542,6 @@ out:
 	*len = n;
 	return 0;
 }
-
 
 static int list_fill(struct mlip_program_list *l, int rc)
 {

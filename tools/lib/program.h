@@ -25,17 +25,18 @@
 #include <stdint.h>
 #include <stdio.h>
 
-#include "mlip/gcode.h"
+#include "mlip/gcode/gcode.h"
 #include "mlip/types.h"
 
 #define MLIP_PROGRAM_MAX_ERRORS 1000 /* errors kept; all are counted */
-#define MLIP_PROGRAM_BATCH 4096      /* blocks of one line held at once (longer
-                                        arcs are parsed again from the line) */
+#define MLIP_PROGRAM_BATCH                                                                         \
+	4096 /* blocks of one line held at once (longer                                            \
+	        arcs are parsed again from the line) */
 
 struct mlip_program_options {
 	int strict;                               /* mlip_gcode_set_strict */
 	const struct mlip_gcode_offsets *offsets; /* in force at the start; NULL: defaults */
-	double default_feed;  /* F (units/min) for a program that sets none; 0: none */
+	double default_feed; /* F (units/min) for a program that sets none; 0: none */
 };
 
 struct mlip_program {
@@ -43,29 +44,29 @@ struct mlip_program {
 	size_t n;                        /* blocks (moves and events) */
 	struct mlip_gcode_error *errors; /* in order, at most MLIP_PROGRAM_MAX_ERRORS */
 	size_t n_errors;
-	size_t n_errors_total;           /* including those not kept */
+	size_t n_errors_total; /* including those not kept */
 	struct mlip_gcode_notice notices[MLIP_GCODE_MAX_NOTICES];
 	uint32_t n_notices;
 	uint32_t lines;
-	double initial_feed_word;        /* F used before the first F (0: none) */
-	uint32_t initial_feed_line;      /* line of that first F */
+	double initial_feed_word;                /* F used before the first F (0: none) */
+	uint32_t initial_feed_line;              /* line of that first F */
 	struct mlip_gcode_offsets offsets_start; /* in force at the first line */
 	struct mlip_gcode_offsets offsets_end;   /* left by the last line */
-	char msg[256];                   /* why open or next failed (return < 0) */
+	char msg[256];                           /* why open or next failed (return < 0) */
 	/* private */
 	const struct mlip_machine *m;
 	struct mlip_program_options opt;
 	FILE *f;
 	const char *mem;
 	size_t mem_len, mem_pos;
-	char *line;                      /* MLIP_GCODE_MAX_LINE + 2 bytes */
-	size_t line_len;                 /* as read, may exceed what line holds */
+	char *line;      /* MLIP_GCODE_MAX_LINE + 2 bytes */
+	size_t line_len; /* as read, may exceed what line holds */
 	uint32_t lineno;
-	struct mlip_gcode g, saved;      /* streaming state, and at the line's start */
+	struct mlip_gcode g, saved; /* streaming state, and at the line's start */
 	struct mlip_block *batch;
 	size_t batch_n, batch_pos, skip, skip_base, delivered;
 	int streaming, more, done;
-	int keep_going;                  /* lists: stream the valid lines of a bad program */
+	int keep_going; /* lists: stream the valid lines of a bad program */
 };
 
 /* Check the program at path on machine m (m must outlive prog). Returns 0
@@ -121,7 +122,7 @@ int mlip_read_file(const char *path, char **buf, size_t *len);
 struct mlip_program_list {
 	struct mlip_block *blocks;
 	size_t n, cap;
-	struct mlip_program r;           /* errors, notices, counts */
+	struct mlip_program r; /* errors, notices, counts */
 	/* copies of r's, for brevity */
 	const struct mlip_gcode_error *errors;
 	size_t n_errors, n_errors_total;

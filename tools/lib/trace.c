@@ -3,7 +3,7 @@
 
 #include <string.h>
 
-#include "mlip/ring.h"
+#include "mlip/ipc/ring.h"
 
 static void row(struct mlip_trace *tr, uint64_t k, const double *x)
 {
@@ -37,7 +37,8 @@ void mlip_trace_open(struct mlip_trace *tr, FILE *f, const struct mlip_machine *
 	}
 }
 
-int mlip_trace_sample(struct mlip_trace *tr, uint32_t state, const double *pos, const double **start)
+int mlip_trace_sample(struct mlip_trace *tr, uint32_t state, const double *pos,
+                      const double **start)
 {
 	return mlip_trace_sample_at(tr, tr->started ? tr->last + 1 : tr->t0 + 1, state, pos, start);
 }

@@ -15,11 +15,11 @@
 #include "mlip/types.h"
 
 struct mlip_trace {
-	FILE *f;        /* NULL: rows are counted, not written */
+	FILE *f; /* NULL: rows are counted, not written */
 	int n;
 	double period_s;
 	int started, ended;
-	uint64_t rows;  /* rows after t = 0 */
+	uint64_t rows;     /* rows after t = 0 */
 	uint64_t t0, last; /* period index of t = 0, and of the last row */
 	double pending[MLIP_MAX_AXES];
 	int have_pending;
@@ -32,7 +32,8 @@ void mlip_trace_open(struct mlip_trace *tr, FILE *f, const struct mlip_machine *
 /* One period's setpoint and the state after it. Returns 1 for a row written
  * (the t = 0 row and this one, at the start), 0 when none, and *start (may be
  * NULL) gets the t = 0 point when this is the first. Stops after the end. */
-int mlip_trace_sample(struct mlip_trace *tr, uint32_t state, const double *pos, const double **start);
+int mlip_trace_sample(struct mlip_trace *tr, uint32_t state, const double *pos,
+                      const double **start);
 /* The same at period index `period` (increasing): a gap in the indices (a
  * late controller's missed deadlines) is a gap in t, a hole for mlip-check. */
 int mlip_trace_sample_at(struct mlip_trace *tr, uint64_t period, uint32_t state, const double *pos,

@@ -6,7 +6,7 @@
     mlip-listen.py --check-layout [--config FILE] [--profile P]
 
 Rebuilds every axis position of every period from the frames of the output
-profile (include/mlip/canenc.h, tools/mlip.dbc) and reports what a drive would
+profile (include/mlip/can/canenc.h, tools/mlip.dbc) and reports what a drive would
 have seen: cycles, lost cycles, incomplete cycles, strays, and the period as
 seen on the bus.
 

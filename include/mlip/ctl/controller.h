@@ -1,5 +1,5 @@
 /*
- * mlip/controller.h - the controller's period as a pure function, in the
+ * mlip/ctl/controller.h - the controller's period as a pure function, in the
  * shape of Ruckig's update(input, output): mlip_ctl_period(c, in, out).
  *
  * Inputs: the period's command, the records in the ring (pure ring
@@ -35,7 +35,7 @@
  *             the faulted drive's own fault reaction applies to it)
  *
  * With CiA 402 drives (opts.drives) the controller also decides their power
- * (mlip_drive_power, mlip/ring.h), sent as the RPDOs' controlword and
+ * (mlip_drive_power, mlip/ipc/ring.h), sent as the RPDOs' controlword and
  * confirmed by each drive's TPDO statusword (in->drive_sw), each step within
  * opts.drive_state_periods:
  *   ENABLED --at rest, IDLE after a program or a stop, FAULT, or exiting-->
@@ -63,17 +63,17 @@
 
 #include <stdint.h>
 
-#include "mlip/canenc.h"
-#include "mlip/planner.h"
-#include "mlip/ring.h"
+#include "mlip/can/canenc.h"
+#include "mlip/motion/planner.h"
+#include "mlip/ipc/ring.h"
 #include "mlip/types.h"
 
-#define MLIP_PREREAD_PER_PERIOD 512   /* records a period while not moving */
-#define MLIP_BUS_CLEAN_PERIODS 100    /* after a CAN fault, resume needs a clean bus this long */
-#define MLIP_STALL_PERIODS_DEFAULT 3  /* more missed periods than this: a stall */
-#define MLIP_CTL_MAX_EVENTS 8         /* events one period can report */
-#define MLIP_CTL_FEED_MAX_MM_S 1e6    /* a larger feed is not a feed: a bad record */
-#define MLIP_CTL_DWELL_MAX_S 86400.0  /* a day */
+#define MLIP_PREREAD_PER_PERIOD    512 /* records a period while not moving */
+#define MLIP_BUS_CLEAN_PERIODS     100 /* after a CAN fault, resume needs a clean bus this long */
+#define MLIP_STALL_PERIODS_DEFAULT 3   /* more missed periods than this: a stall */
+#define MLIP_CTL_MAX_EVENTS        8   /* events one period can report */
+#define MLIP_CTL_FEED_MAX_MM_S     1e6 /* a larger feed is not a feed: a bad record */
+#define MLIP_CTL_DWELL_MAX_S       86400.0 /* a day */
 
 typedef enum {
 	MLIP_EV_STATE = 1, /* a transition: from -> state, with its reason */
@@ -102,11 +102,11 @@ struct mlip_ctl_event {
 	uint32_t state; /* state entered, or the current one */
 	struct mlip_ctl_reason r;
 	uint64_t period;
-	uint64_t exec_seq;  /* the record executing (or last completed) then */
+	uint64_t exec_seq; /* the record executing (or last completed) then */
 	uint32_t exec_line;
 };
 
-/* A CiA 402 drive's fault, as rt/drives.c's supervision (mlip/canopen.h,
+/* A CiA 402 drive's fault, as rt/drives.c's supervision (mlip/canopen/canopen.h,
  * mlip_drive_supervise) found it this period. */
 struct mlip_ctl_drive_fault {
 	uint32_t event; /* mlip_drive_fault: statusword fault bit, EMCY, heartbeat lost,
@@ -129,80 +129,80 @@ struct mlip_ctl_in {
 	uint32_t drive_mute; /* bit k: no RPDO for axis k (its drive faulted: not followed) */
 	uint16_t drive_sw[MLIP_MAX_AXES]; /* statusword 0x6041 of drive k's last TPDO (0: none) */
 	struct mlip_ctl_drive_fault drive_fault; /* the first new fault, if any */
-	uint32_t actual_mask;               /* bit k: pos_actual[k] is from drive k's TPDO */
-	double pos_actual[MLIP_MAX_AXES];   /* position actual 0x6064, joint units */
+	uint32_t actual_mask;                    /* bit k: pos_actual[k] is from drive k's TPDO */
+	double pos_actual[MLIP_MAX_AXES];        /* position actual 0x6064, joint units */
 };
 
 struct mlip_ctl_out {
 	double pos[MLIP_MAX_AXES]; /* the setpoint of this period */
 	struct mlip_can_frame frames[MLIP_CAN_MAX_FRAMES];
-	int n_frames;              /* 0: nothing to send (no encoder, or a fault) */
-	int32_t cmd_result;        /* mlip_status for in->cmd */
+	int n_frames;                   /* 0: nothing to send (no encoder, or a fault) */
+	int32_t cmd_result;             /* mlip_status for in->cmd */
 	struct mlip_ring_status status; /* all but heartbeat_ns, pid, CAN counters */
 	struct mlip_ctl_event events[MLIP_CTL_MAX_EVENTS];
 	uint32_t n_events;
-	int done;                  /* an exit request has completed: at rest */
+	int done; /* an exit request has completed: at rest */
 };
 
 struct mlip_ctl_opts {
 	mlip_strategy strategy;
-	uint32_t lookahead;        /* 0: MLIP_LOOKAHEAD */
-	uint32_t stall_periods;    /* 0: MLIP_STALL_PERIODS_DEFAULT */
+	uint32_t lookahead;                /* 0: MLIP_LOOKAHEAD */
+	uint32_t stall_periods;            /* 0: MLIP_STALL_PERIODS_DEFAULT */
 	const struct mlip_can_config *can; /* NULL: no frames */
-	int drives;                /* CiA 402 drives brought up (and enabled): 6-byte RPDOs
-	                              with the controlword of the drives' power, none to
-	                              in->drive_mute */
-	uint32_t drive_state_periods; /* a power step not confirmed this long: a timeout
-	                                 (0: 1000) */
+	int drives;                        /* CiA 402 drives brought up (and enabled): 6-byte RPDOs
+	                                      with the controlword of the drives' power, none to
+	                                      in->drive_mute */
+	uint32_t drive_state_periods;      /* a power step not confirmed this long: a timeout
+	                                      (0: 1000) */
 };
 
 struct mlip_ctl {
 	/* wiring and private copies made at init */
 	struct mlip_planner *planner;
-	struct mlip_ring_port rx;   /* capacity, mask, tail: private copies */
-	int ring_bad;               /* head - tail beyond the capacity: read no more */
-	uint32_t ring_apart;        /* that distance */
+	struct mlip_ring_port rx; /* capacity, mask, tail: private copies */
+	int ring_bad;             /* head - tail beyond the capacity: read no more */
+	uint32_t ring_apart;      /* that distance */
 	struct mlip_machine m;
 	struct mlip_canenc enc;
 	int encode;
 	uint32_t stall_periods;
 	/* the state and why */
-	uint32_t state;             /* mlip_ring_state */
+	uint32_t state; /* mlip_ring_state */
 	struct mlip_ctl_reason why;
-	uint32_t hold_why;          /* the cause of the planner's hold */
+	uint32_t hold_why; /* the cause of the planner's hold */
 	int bus_hold, stall_hold;
-	int drive_faulted;          /* a drive fault came: it stays the reason */
+	int drive_faulted; /* a drive fault came: it stays the reason */
 	/* the drives' power (opts.drives) */
 	int drives;
-	uint32_t power;             /* mlip_drive_power */
+	uint32_t power; /* mlip_drive_power */
 	uint32_t drive_state_periods;
-	uint64_t power_since;       /* period the current step began */
-	uint64_t power_t0;          /* period the current sequence began */
-	uint32_t power_periods;     /* the last complete sequence took this long */
-	int power_want;             /* this period: a program waits for the drives */
-	uint32_t still_periods;     /* periods the setpoint has not changed */
-	int power_ok;               /* the last disable was confirmed in order in time */
-	uint32_t power_late_node;   /* the last step not confirmed in time: drive, */
-	uint16_t power_late_sw;     /* its statusword, */
-	uint32_t power_late_step;   /* the step (mlip_drive_power) */
+	uint64_t power_since;     /* period the current step began */
+	uint64_t power_t0;        /* period the current sequence began */
+	uint32_t power_periods;   /* the last complete sequence took this long */
+	int power_want;           /* this period: a program waits for the drives */
+	uint32_t still_periods;   /* periods the setpoint has not changed */
+	int power_ok;             /* the last disable was confirmed in order in time */
+	uint32_t power_late_node; /* the last step not confirmed in time: drive, */
+	uint16_t power_late_sw;   /* its statusword, */
+	uint32_t power_late_step; /* the step (mlip_drive_power) */
 	/* program */
-	int refill;                 /* the pre-read continues a program */
+	int refill; /* the pre-read continues a program */
 	int end_seen;
 	uint64_t end_seq;
 	uint32_t end_line;
-	int discard;                /* dropping a stopped (or faulted) program's records */
-	int discard_waiting;        /* ... a waiting one's, its first record (seq 1) too */
-	int bad;                    /* a bad record: nothing more is taken */
+	int discard;         /* dropping a stopped (or faulted) program's records */
+	int discard_waiting; /* ... a waiting one's, its first record (seq 1) too */
+	int bad;             /* a bad record: nothing more is taken */
 	int exiting;
-	int optional_stop;          /* the M1 switch */
-	uint64_t next_seq;          /* the record expected next */
-	uint64_t exec_seq;          /* last record whose motion (or wait) is done */
+	int optional_stop; /* the M1 switch */
+	uint64_t next_seq; /* the record expected next */
+	uint64_t exec_seq; /* last record whose motion (or wait) is done */
 	uint32_t exec_line;
 	struct mlip_ring_rec event; /* the event record ingest stopped in front of */
 	uint64_t wait_seq;          /* the dwell or pause being executed */
 	uint32_t wait_line;
-	uint64_t dwell_left;        /* periods */
-	int resume_wait;            /* resume came during a pause */
+	uint64_t dwell_left; /* periods */
+	int resume_wait;     /* resume came during a pause */
 	/* counters */
 	uint64_t period, overruns, underruns, blocks_consumed, refused, frames_encoded;
 	uint64_t bus_tx_seen, bus_err_seen, bus_bad_period;

@@ -1,5 +1,5 @@
 /*
- * mlip/ring.h - the block ring between mlip-feed and mlip-rt, and the status
+ * mlip/ipc/ring.h - the block ring between mlip-feed and mlip-rt, and the status
  * and command areas that mlip-ctl reads and writes, all in one memory segment
  * (a POSIX shared-memory object mapped by every process).
  *
@@ -64,19 +64,19 @@
 
 #include "mlip/types.h"
 
-#define MLIP_RING_MAGIC "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION 5u       /* bump on any change to the layout below */
-#define MLIP_RING_LINE 64          /* bytes: cache line of every area */
+#define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
+#define MLIP_RING_VERSION      5u         /* bump on any change to the layout below */
+#define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
-#define MLIP_RING_CAPACITY 8192u   /* default records in the ring: 8 s of 1 ms blocks */
+#define MLIP_RING_CAPACITY 8192u /* default records in the ring: 8 s of 1 ms blocks */
 #endif
-#define MLIP_RING_READ_TRIES 1000  /* seqlock retries before a reader gives up */
+#define MLIP_RING_READ_TRIES 1000 /* seqlock retries before a reader gives up */
 
 /* For constant expressions only (it evaluates x three times): power of two.
  * The checks below get a negative array size when false (C99 has no
  * _Static_assert; Linux kfifo.h). */
-#define MLIP_RING_IS_POW2(x) ((x) != 0 && ((x) & ((x) - 1)) == 0)
+#define MLIP_RING_IS_POW2(x) ((x) != 0 && ((x) & ((x)-1)) == 0)
 typedef char mlip_ring_capacity_pow2_check[MLIP_RING_IS_POW2(MLIP_RING_CAPACITY) ? 1 : -1];
 typedef char mlip_ring_capacity_max_check[MLIP_RING_CAPACITY <= MLIP_RING_MAX_CAPACITY ? 1 : -1];
 
@@ -86,11 +86,11 @@ typedef char mlip_ring_capacity_max_check[MLIP_RING_CAPACITY <= MLIP_RING_MAX_CA
  * reach the planner; the others are program events (mlip_block_kind) that the
  * controller executes with the machine at rest, or the program's end. */
 typedef enum {
-	MLIP_REC_MOVE = 0,          /* G0/G1 (arcs as chords): target, feed, tol */
-	MLIP_REC_END,               /* end-of-program marker: no motion, target ignored */
-	MLIP_REC_DWELL,             /* G4 P: at rest, dwell_s seconds, to the period */
-	MLIP_REC_PAUSE,             /* M0/M60: at rest until mlip-ctl resume */
-	MLIP_REC_OPTIONAL_PAUSE,    /* M1: as PAUSE when the optional-stop switch is on */
+	MLIP_REC_MOVE = 0,       /* G0/G1 (arcs as chords): target, feed, tol */
+	MLIP_REC_END,            /* end-of-program marker: no motion, target ignored */
+	MLIP_REC_DWELL,          /* G4 P: at rest, dwell_s seconds, to the period */
+	MLIP_REC_PAUSE,          /* M0/M60: at rest until mlip-ctl resume */
+	MLIP_REC_OPTIONAL_PAUSE, /* M1: as PAUSE when the optional-stop switch is on */
 	MLIP_REC_TYPES
 } mlip_rec_type;
 
@@ -138,19 +138,19 @@ typedef enum {
  * transition. */
 typedef enum {
 	MLIP_WHY_NONE = 0,
-	MLIP_WHY_START,          /* a program's first record (seq 1) */
-	MLIP_WHY_CONTINUE,       /* the record after the last completed (--start-seq) */
-	MLIP_WHY_PREREAD_DONE,   /* look-ahead full, END in, or an event next */
-	MLIP_WHY_END,            /* the program's END executed, at rest */
-	MLIP_WHY_UNDERRUN,       /* the ring ran dry before END */
-	MLIP_WHY_FEEDER_GONE,    /* the feeder's heartbeat stopped (or none attached) */
-	MLIP_WHY_HOLD,           /* mlip-ctl hold */
-	MLIP_WHY_OVERRIDE_ZERO,  /* feed override 0 */
-	MLIP_WHY_RESUME,         /* mlip-ctl resume */
-	MLIP_WHY_BUS_TX,         /* CAN frames refused by the tx queue */
-	MLIP_WHY_BUS_ERROR,      /* CAN error frames or bus-off */
-	MLIP_WHY_STALL,          /* the loop missed more periods than allowed (value) */
-	MLIP_WHY_DWELL,          /* G4 record (value: seconds) */
+	MLIP_WHY_START,         /* a program's first record (seq 1) */
+	MLIP_WHY_CONTINUE,      /* the record after the last completed (--start-seq) */
+	MLIP_WHY_PREREAD_DONE,  /* look-ahead full, END in, or an event next */
+	MLIP_WHY_END,           /* the program's END executed, at rest */
+	MLIP_WHY_UNDERRUN,      /* the ring ran dry before END */
+	MLIP_WHY_FEEDER_GONE,   /* the feeder's heartbeat stopped (or none attached) */
+	MLIP_WHY_HOLD,          /* mlip-ctl hold */
+	MLIP_WHY_OVERRIDE_ZERO, /* feed override 0 */
+	MLIP_WHY_RESUME,        /* mlip-ctl resume */
+	MLIP_WHY_BUS_TX,        /* CAN frames refused by the tx queue */
+	MLIP_WHY_BUS_ERROR,     /* CAN error frames or bus-off */
+	MLIP_WHY_STALL,         /* the loop missed more periods than allowed (value) */
+	MLIP_WHY_DWELL,         /* G4 record (value: seconds) */
 	MLIP_WHY_DWELL_DONE,
 	MLIP_WHY_PAUSE,          /* M0/M60 record */
 	MLIP_WHY_OPTIONAL_PAUSE, /* M1 record with optional stop on */
@@ -160,14 +160,14 @@ typedef enum {
 	MLIP_WHY_RING_CORRUPT,   /* head - tail beyond the capacity (value: count) */
 	MLIP_WHY_POSITION_RANGE, /* a setpoint beyond the drives' int32 counts */
 	MLIP_WHY_DRIVE,          /* a CiA 402 drive faulted (mlip-rt --drives): reason_node,
-	                            reason_field the event (mlip_drive_fault, mlip/canopen.h),
+	                            reason_field the event (mlip_drive_fault, mlip/canopen/canopen.h),
 	                            reason_value its detail (statusword, EMCY code, ...) */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 
 /* The drives' power (mlip-rt --drives, status.drive_power), one for all the
  * drives still followed (a faulted drive keeps its own fault reaction). The
- * controller (src/controller.c) moves it through the CiA 402 states by the
+ * controller (src/ctl/controller.c) moves it through the CiA 402 states by the
  * RPDOs' controlword, each step confirmed by every drive's TPDO statusword:
  *   ENABLED --at rest after a program, a stop, a fault or on exit-->
  *   DISABLING (0x07: "switched on") --> SHUTTING_DOWN (0x06: "ready to
@@ -193,8 +193,8 @@ typedef enum {
 	MLIP_FIELD_FEED,
 	MLIP_FIELD_TOL,
 	MLIP_FIELD_DWELL,
-	MLIP_FIELD_HEAD,         /* the ring's head index */
-	MLIP_FIELD_TARGET,       /* + axis index: target of axis k */
+	MLIP_FIELD_HEAD,   /* the ring's head index */
+	MLIP_FIELD_TARGET, /* + axis index: target of axis k */
 	MLIP_FIELD_COUNT = MLIP_FIELD_TARGET + MLIP_MAX_AXES
 } mlip_rec_field;
 
@@ -202,14 +202,14 @@ typedef enum {
  * accessed atomically). All written by mlip-rt, every period. */
 struct mlip_ring_status {
 	/* liveness */
-	uint64_t heartbeat;       /* periods since start: +1 every period */
-	uint64_t heartbeat_ns;    /* CLOCK_MONOTONIC ns of the last heartbeat (rt/ fills) */
+	uint64_t heartbeat;    /* periods since start: +1 every period */
+	uint64_t heartbeat_ns; /* CLOCK_MONOTONIC ns of the last heartbeat (rt/ fills) */
 	/* progress */
-	uint64_t exec_seq;        /* seq of the record being executed (0: none yet) */
-	uint32_t exec_line;       /* its source line */
-	uint32_t state;           /* mlip_ring_state */
-	uint32_t override_pct;    /* feed override in effect, percent */
-	uint32_t reserved;        /* the controller's pid (mlip-rt fills it) */
+	uint64_t exec_seq;     /* seq of the record being executed (0: none yet) */
+	uint32_t exec_line;    /* its source line */
+	uint32_t state;        /* mlip_ring_state */
+	uint32_t override_pct; /* feed override in effect, percent */
+	uint32_t reserved;     /* the controller's pid (mlip-rt fills it) */
 	/* counters since start */
 	uint64_t overruns;        /* periods that started late or ran over */
 	uint64_t underruns;       /* periods that needed a block and found the ring empty */
@@ -219,26 +219,26 @@ struct mlip_ring_status {
 	uint64_t blocks_consumed; /* records popped from the ring */
 	/* the last stop (hold, stop, signal, bus fault) from its request to rest:
 	 * in the status area's spare bytes, zero in segments of older builds */
-	uint64_t stop_nm;         /* path travelled by the linear axes, nanometres */
-	uint32_t stop_periods;    /* periods it took */
-	uint32_t stops;           /* stops completed since start */
+	uint64_t stop_nm;      /* path travelled by the linear axes, nanometres */
+	uint32_t stop_periods; /* periods it took */
+	uint32_t stops;        /* stops completed since start */
 	/* why the state is what it is (layout version 3) */
-	uint32_t reason;          /* mlip_state_why */
-	uint32_t reason_field;    /* mlip_rec_field (BAD_RECORD, RING_CORRUPT) */
-	uint64_t reason_seq;      /* the record concerned (0: none) */
-	uint32_t reason_line;     /* its source line */
-	uint32_t optional_stop;   /* the M1 switch: 1 on */
-	double reason_value;      /* the offending value, the dwell, periods missed */
+	uint32_t reason;        /* mlip_state_why */
+	uint32_t reason_field;  /* mlip_rec_field (BAD_RECORD, RING_CORRUPT) */
+	uint64_t reason_seq;    /* the record concerned (0: none) */
+	uint32_t reason_line;   /* its source line */
+	uint32_t optional_stop; /* the M1 switch: 1 on */
+	double reason_value;    /* the offending value, the dwell, periods missed */
 	/* where the machine is */
-	double pos[MLIP_MAX_AXES];/* commanded position of every axis (the setpoint) */
-	double speed_mm_s;        /* path speed (joint units per second) */
-	uint64_t dwell_left;      /* periods of the current dwell still to wait */
+	double pos[MLIP_MAX_AXES]; /* commanded position of every axis (the setpoint) */
+	double speed_mm_s;         /* path speed (joint units per second) */
+	uint64_t dwell_left;       /* periods of the current dwell still to wait */
 	/* CiA 402 drives (layout version 4; mlip-rt --drives) */
-	uint32_t reason_node;     /* MLIP_WHY_DRIVE: the drive's CANopen node id */
-	uint32_t actual_mask;     /* bit k: pos_actual[k] came from drive k's TPDO */
+	uint32_t reason_node;             /* MLIP_WHY_DRIVE: the drive's CANopen node id */
+	uint32_t actual_mask;             /* bit k: pos_actual[k] came from drive k's TPDO */
 	double pos_actual[MLIP_MAX_AXES]; /* position actual 0x6064 (what the machine did) */
 	/* in the status area's spare bytes, zero (none) in segments of older builds */
-	uint32_t drive_power;     /* mlip_drive_power: the drives' power, as one */
+	uint32_t drive_power;         /* mlip_drive_power: the drives' power, as one */
 	uint32_t drive_power_periods; /* periods the last disable or enable took */
 	/* layout version 5 */
 	double prog_start[MLIP_MAX_AXES]; /* where the current (or last) program's first
@@ -259,10 +259,10 @@ struct mlip_ring_feeder {
 
 typedef enum {
 	MLIP_CMD_NONE = 0,
-	MLIP_CMD_OVERRIDE, /* arg: feed override, percent */
-	MLIP_CMD_HOLD,     /* feed hold: decelerate to rest, keep the program */
-	MLIP_CMD_RESUME,   /* leave a hold */
-	MLIP_CMD_STOP,     /* decelerate to rest and drop the rest of the program */
+	MLIP_CMD_OVERRIDE,      /* arg: feed override, percent */
+	MLIP_CMD_HOLD,          /* feed hold: decelerate to rest, keep the program */
+	MLIP_CMD_RESUME,        /* leave a hold */
+	MLIP_CMD_STOP,          /* decelerate to rest and drop the rest of the program */
 	MLIP_CMD_OPTIONAL_STOP, /* arg 1: M1 pauses; arg 0: M1 is ignored */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
@@ -416,8 +416,8 @@ void mlip_ring_reset(struct mlip_ring *r, uint32_t index);
 struct mlip_ring_port {
 	struct mlip_ring *r;
 	uint32_t capacity, mask, n_axes;
-	uint32_t own;    /* consumer: tail; producer: head (private master copy) */
-	uint32_t other;  /* the other side's index, last seen */
+	uint32_t own;   /* consumer: tail; producer: head (private master copy) */
+	uint32_t other; /* the other side's index, last seen */
 	int producer;
 };
 
@@ -439,8 +439,7 @@ mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ri
 /* Record <-> block: kind <-> type, exact_stop <-> MLIP_REC_EXACT, dwell_s.
  * An END record has no block: mlip_ring_rec_to_block returns MLIP_E_EMPTY for
  * it, and MLIP_E_INVALID for an unknown type. */
-void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b,
-                              uint64_t seq);
+void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b, uint64_t seq);
 void mlip_ring_rec_end(struct mlip_ring_rec *rec, uint64_t seq, uint32_t line);
 mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_block *b);
 

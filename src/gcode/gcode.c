@@ -1,6 +1,6 @@
 /*
  * gcode.c - G-code front end: one line of RS274NGC text in, joint-space
- * G01-style blocks out (see mlip/gcode.h for what is supported).
+ * G01-style blocks out (see mlip/gcode/gcode.h for what is supported).
  *
  * A line goes through four steps, so that a line with an error changes
  * nothing but what it validly said:
@@ -27,11 +27,11 @@
 #include <stdarg.h>
 #include <string.h>
 
-#include "mlip/gcode.h"
+#include "mlip/gcode/gcode.h"
 
-#define MAX_WORDS (MLIP_GCODE_MAX_LINE / 2 + 1) /* a word takes two bytes at least */
-#define MAX_CHORDS 1000000u
-#define PI 3.14159265358979323846
+#define MAX_WORDS   (MLIP_GCODE_MAX_LINE / 2 + 1) /* a word takes two bytes at least */
+#define MAX_CHORDS  1000000u
+#define PI          3.14159265358979323846
 #define MM_PER_INCH 25.4
 
 static const char axis_letters[] = "XYZABC";
@@ -93,8 +93,8 @@ static void put_f(struct msg *m, double v)
  * %f (double, three decimals), %G and %M (a G or M code from its value*10:
  * 641 -> "G64.1"), %b (a byte: 'c' when printable, else 0xNN) and %t (a
  * span: pointer and size_t length, at most 24 bytes shown). */
-static mlip_status failf(struct mlip_gcode_error *e, uint32_t line, uint32_t col,
-                         mlip_status st, const char *fmt, ...)
+static mlip_status failf(struct mlip_gcode_error *e, uint32_t line, uint32_t col, mlip_status st,
+                         const char *fmt, ...)
 {
 	static const char hex[] = "0123456789ABCDEF";
 	struct msg m;
@@ -404,8 +404,9 @@ static mlip_status lex_line(const char *text, size_t len, uint32_t line, struct 
 			end = c == ';' ? len : end;
 			k = comment_check(t, i + 1, end);
 			if (k < end) {
-				return failf(e, line, (uint32_t)k + 1, MLIP_E_SYNTAX, t[k]
-				             ? "invalid UTF-8 in comment" : "NUL byte in line");
+				return failf(e, line, (uint32_t)k + 1, MLIP_E_SYNTAX,
+				             t[k] ? "invalid UTF-8 in comment"
+				                  : "NUL byte in line");
 			}
 			if (c == '(' && end == len) {
 				return failf(e, line, col, MLIP_E_SYNTAX,
@@ -451,9 +452,10 @@ static mlip_status lex_line(const char *text, size_t len, uint32_t line, struct 
 			             "number '%t' without a word letter", text + i, k - i);
 		}
 		if (c == '#') {
-			return failf(e, line, col, MLIP_E_UNSUPPORTED,
-			             "parameters and expressions (# [ ]) not supported: have the CAM "
-			             "write plain numbers");
+			return failf(
+			    e, line, col, MLIP_E_UNSUPPORTED,
+			    "parameters and expressions (# [ ]) not supported: have the CAM "
+			    "write plain numbers");
 		}
 		return failf(e, line, col, MLIP_E_SYNTAX, "unexpected character %b", c);
 	}
@@ -463,27 +465,40 @@ static mlip_status lex_line(const char *text, size_t len, uint32_t line, struct 
 /* ---- classification ---- */
 
 enum gkind {
-	GK_MOTION, /* G0..G3 */
-	GK_PLANE,  /* G17..G19 */
-	GK_UNITS,  /* G20/G21 */
-	GK_DIST,   /* G90/G91 */
-	GK_HOME,   /* G28/G30 */
-	GK_G53,    /* machine coordinates for this line */
-	GK_DWELL,  /* G4 */
-	GK_G10,    /* G10 L2 / L20 */
-	GK_HOMESET, /* G28.1/G30.1 */
-	GK_COORD,  /* G54..G59.3 */
-	GK_PATH,   /* G61, G61.1, G64 */
-	GK_G92,    /* G92, G92.1, G92.2, G92.3 */
+	GK_MOTION,   /* G0..G3 */
+	GK_PLANE,    /* G17..G19 */
+	GK_UNITS,    /* G20/G21 */
+	GK_DIST,     /* G90/G91 */
+	GK_HOME,     /* G28/G30 */
+	GK_G53,      /* machine coordinates for this line */
+	GK_DWELL,    /* G4 */
+	GK_G10,      /* G10 L2 / L20 */
+	GK_HOMESET,  /* G28.1/G30.1 */
+	GK_COORD,    /* G54..G59.3 */
+	GK_PATH,     /* G61, G61.1, G64 */
+	GK_G92,      /* G92, G92.1, G92.2, G92.3 */
 	GK_FEEDMODE, /* G93/G94 */
-	GK_NOTICE, /* accepted, no effect on motion */
-	GK_SILENT, /* accepted, it is what mlip does anyway (G91.1) */
+	GK_NOTICE,   /* accepted, no effect on motion */
+	GK_SILENT,   /* accepted, it is what mlip does anyway (G91.1) */
 	GK_UNSUP
 };
 
 /* modal groups, to refuse two codes of one group on a line */
-enum { GR_NONE, GR_MOTION, GR_PLANE, GR_UNITS, GR_DIST, GR_NONMODAL, GR_FEEDMODE, GR_CUTTER,
-       GR_TOOLLEN, GR_COORD, GR_PATH, GR_ARCDIST, GR_N };
+enum {
+	GR_NONE,
+	GR_MOTION,
+	GR_PLANE,
+	GR_UNITS,
+	GR_DIST,
+	GR_NONMODAL,
+	GR_FEEDMODE,
+	GR_CUTTER,
+	GR_TOOLLEN,
+	GR_COORD,
+	GR_PATH,
+	GR_ARCDIST,
+	GR_N
+};
 
 /* G codes by value*10, as ranges [lo, hi] */
 struct gdef {
@@ -493,34 +508,46 @@ struct gdef {
 };
 
 static const struct gdef gtab[] = {
-	{0, 30, GK_MOTION, GR_MOTION, 0},     {170, 190, GK_PLANE, GR_PLANE, 0},
-	{200, 210, GK_UNITS, GR_UNITS, 0},    {280, 280, GK_HOME, GR_NONMODAL, 0},
-	{300, 300, GK_HOME, GR_NONMODAL, 0},  {400, 400, GK_NOTICE, GR_CUTTER, 0},
-	{490, 490, GK_NOTICE, GR_TOOLLEN, 0}, {530, 530, GK_G53, GR_NONMODAL, 0},
-	{40, 40, GK_DWELL, GR_NONMODAL, 0},   {100, 100, GK_G10, GR_NONMODAL, 0},
-	{281, 281, GK_HOMESET, GR_NONMODAL, 0}, {301, 301, GK_HOMESET, GR_NONMODAL, 0},
-	{540, 540, GK_COORD, GR_COORD, 0},    {550, 550, GK_COORD, GR_COORD, 0},
-	{560, 560, GK_COORD, GR_COORD, 0},    {570, 570, GK_COORD, GR_COORD, 0},
-	{580, 580, GK_COORD, GR_COORD, 0},    {590, 593, GK_COORD, GR_COORD, 0},
-	{610, 611, GK_PATH, GR_PATH, 0},      {640, 640, GK_PATH, GR_PATH, 0},
-	{920, 923, GK_G92, GR_NONMODAL, 0},   {930, 940, GK_FEEDMODE, GR_FEEDMODE, 0},
-	{800, 800, GK_NOTICE, GR_MOTION, 0},
-	{900, 900, GK_DIST, GR_DIST, 0},      {910, 910, GK_DIST, GR_DIST, 0},
-	{911, 911, GK_SILENT, GR_ARCDIST, 0},
-	{50, 53, GK_UNSUP, 0, "splines"},
-	{70, 80, GK_UNSUP, 0, "lathe diameter/radius mode"},
-	{330, 331, GK_UNSUP, 0, "spindle-synchronized motion"},
-	{760, 760, GK_UNSUP, 0, "threading cycle"},
-	{382, 385, GK_UNSUP, 0, "probing"},
-	{410, 421, GK_UNSUP, 0, "cutter radius compensation"},
-	{430, 432, GK_UNSUP, 0, "tool length offset"},
-	{520, 520, GK_UNSUP, 0, "local offsets (use G92 or G10 L2)"},
-	{730, 730, GK_UNSUP, 0, "canned cycles"},
-	{810, 890, GK_UNSUP, 0, "canned cycles"},
-	{980, 990, GK_UNSUP, 0, "canned cycles"},
-	{901, 901, GK_UNSUP, 0, "absolute arc centers"},
-	{950, 950, GK_UNSUP, 0, "feed per revolution"},
-	{960, 970, GK_UNSUP, 0, "constant surface speed"},
+    {0, 30, GK_MOTION, GR_MOTION, 0},
+    {170, 190, GK_PLANE, GR_PLANE, 0},
+    {200, 210, GK_UNITS, GR_UNITS, 0},
+    {280, 280, GK_HOME, GR_NONMODAL, 0},
+    {300, 300, GK_HOME, GR_NONMODAL, 0},
+    {400, 400, GK_NOTICE, GR_CUTTER, 0},
+    {490, 490, GK_NOTICE, GR_TOOLLEN, 0},
+    {530, 530, GK_G53, GR_NONMODAL, 0},
+    {40, 40, GK_DWELL, GR_NONMODAL, 0},
+    {100, 100, GK_G10, GR_NONMODAL, 0},
+    {281, 281, GK_HOMESET, GR_NONMODAL, 0},
+    {301, 301, GK_HOMESET, GR_NONMODAL, 0},
+    {540, 540, GK_COORD, GR_COORD, 0},
+    {550, 550, GK_COORD, GR_COORD, 0},
+    {560, 560, GK_COORD, GR_COORD, 0},
+    {570, 570, GK_COORD, GR_COORD, 0},
+    {580, 580, GK_COORD, GR_COORD, 0},
+    {590, 593, GK_COORD, GR_COORD, 0},
+    {610, 611, GK_PATH, GR_PATH, 0},
+    {640, 640, GK_PATH, GR_PATH, 0},
+    {920, 923, GK_G92, GR_NONMODAL, 0},
+    {930, 940, GK_FEEDMODE, GR_FEEDMODE, 0},
+    {800, 800, GK_NOTICE, GR_MOTION, 0},
+    {900, 900, GK_DIST, GR_DIST, 0},
+    {910, 910, GK_DIST, GR_DIST, 0},
+    {911, 911, GK_SILENT, GR_ARCDIST, 0},
+    {50, 53, GK_UNSUP, 0, "splines"},
+    {70, 80, GK_UNSUP, 0, "lathe diameter/radius mode"},
+    {330, 331, GK_UNSUP, 0, "spindle-synchronized motion"},
+    {760, 760, GK_UNSUP, 0, "threading cycle"},
+    {382, 385, GK_UNSUP, 0, "probing"},
+    {410, 421, GK_UNSUP, 0, "cutter radius compensation"},
+    {430, 432, GK_UNSUP, 0, "tool length offset"},
+    {520, 520, GK_UNSUP, 0, "local offsets (use G92 or G10 L2)"},
+    {730, 730, GK_UNSUP, 0, "canned cycles"},
+    {810, 890, GK_UNSUP, 0, "canned cycles"},
+    {980, 990, GK_UNSUP, 0, "canned cycles"},
+    {901, 901, GK_UNSUP, 0, "absolute arc centers"},
+    {950, 950, GK_UNSUP, 0, "feed per revolution"},
+    {960, 970, GK_UNSUP, 0, "constant surface speed"},
 };
 
 static const struct gdef *gfind(int code10)
@@ -572,16 +599,16 @@ static int code_of(double v)
 
 /* Everything one line says, each word checked alone. */
 struct blk {
-	int motion; /* G0..G3 on this line, -1 none */
-	int plane, units, dist; /* 0 when not on this line, else 17..19, 20/21, 90/91 */
-	int home;               /* 28 or 30, 0 none */
+	int motion;                 /* G0..G3 on this line, -1 none */
+	int plane, units, dist;     /* 0 when not on this line, else 17..19, 20/21, 90/91 */
+	int home;                   /* 28 or 30, 0 none */
 	int g53, g64, g4, g10, g92; /* g92: 920..923 (value*10), 0 none */
-	int homeset;            /* 28 or 30 for G28.1/G30.1, 0 none */
-	int coord;              /* 0..8 for G54..G59.3, -1 none */
-	int path;               /* 610, 611, 640, 0 none */
-	int feedmode;           /* 93, 94, 0 none */
-	int pause;              /* M0/M60: 1, M1: 2, 0 none */
-	int end;                /* M2/M30 */
+	int homeset;                /* 28 or 30 for G28.1/G30.1, 0 none */
+	int coord;                  /* 0..8 for G54..G59.3, -1 none */
+	int path;                   /* 610, 611, 640, 0 none */
+	int feedmode;               /* 93, 94, 0 none */
+	int pause;                  /* M0/M60: 1, M1: 2, 0 none */
+	int end;                    /* M2/M30 */
 	uint32_t motion_col, home_col, g53_col, g4_col, g10_col, g92_col, homeset_col, end_col;
 	int has_ax[6];
 	double ax[6]; /* as written, indexed like axis_letters */
@@ -752,13 +779,20 @@ static mlip_status classify(const struct lexed *lx, uint32_t line, struct blk *b
 				note_word(b, 'M', c);
 			}
 			break;
-		case 'X': case 'Y': case 'Z': case 'A': case 'B': case 'C':
+		case 'X':
+		case 'Y':
+		case 'Z':
+		case 'A':
+		case 'B':
+		case 'C':
 			a = axis_slot(L);
 			b->has_ax[a] = 1;
 			b->ax[a] = w->value;
 			b->ax_col[a] = w->col;
 			break;
-		case 'I': case 'J': case 'K':
+		case 'I':
+		case 'J':
+		case 'K':
 			b->has_ijk[L - 'I'] = 1;
 			b->ijk[L - 'I'] = w->value;
 			b->ijk_col[L - 'I'] = w->col;
@@ -792,12 +826,15 @@ static mlip_status classify(const struct lexed *lx, uint32_t line, struct blk *b
 			b->l = w->value;
 			b->l_col = w->col;
 			break;
-		case 'S': case 'T':
+		case 'S':
+		case 'T':
 			note_word(b, L, -1);
 			break;
 		case 'N':
 			break; /* line numbers: ignored */
-		case 'U': case 'V': case 'W':
+		case 'U':
+		case 'V':
+		case 'W':
 			return failf(e, line, w->col, MLIP_E_UNSUPPORTED,
 			             "axis %c not supported: mlip axes are X Y Z A B C", L);
 		default:
@@ -832,14 +869,16 @@ static mlip_status classify_params(const struct blk *b, uint32_t line, struct ml
 	}
 	if (b->g10) {
 		if (!b->has_l || (b->l != 2 && b->l != 20)) {
-			return failf(e, line, b->has_l ? b->l_col : b->g10_col, MLIP_E_UNSUPPORTED,
-			             "G10 without L2 or L20: only work offsets can be set (mlip has no "
-			             "tool table)");
+			return failf(
+			    e, line, b->has_l ? b->l_col : b->g10_col, MLIP_E_UNSUPPORTED,
+			    "G10 without L2 or L20: only work offsets can be set (mlip has no "
+			    "tool table)");
 		}
 		if (!b->has_p || b->p != floor(b->p) || b->p < 0 || b->p > 9) {
-			return failf(e, line, b->has_p ? b->p_col : b->g10_col, MLIP_E_SYNTAX,
-			             "G10 L%u needs P0..P9 (0: the system in use, 1..9: G54..G59.3)",
-			             (unsigned)b->l);
+			return failf(
+			    e, line, b->has_p ? b->p_col : b->g10_col, MLIP_E_SYNTAX,
+			    "G10 L%u needs P0..P9 (0: the system in use, 1..9: G54..G59.3)",
+			    (unsigned)b->l);
 		}
 		if (b->has_r) {
 			return failf(e, line, b->r_col, MLIP_E_UNSUPPORTED,
@@ -869,7 +908,7 @@ void mlip_gcode_offsets_init(struct mlip_gcode_offsets *o, const struct mlip_mac
 const char *mlip_gcode_coord_name(int select)
 {
 	static const char *const names[MLIP_GCODE_N_COORD] = {
-		"G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3"};
+	    "G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3"};
 
 	return select >= 0 && select < MLIP_GCODE_N_COORD ? names[select] : "?";
 }
@@ -934,33 +973,33 @@ static void notice(struct mlip_gcode *g, const char *word, uint32_t line)
 static const struct {
 	const char *word, *text;
 } notice_texts[] = {
-	{"G28", "rapid to the G28 position (through the intermediate point, if any): HOME of "
-	        "the config or G28.1 in the offsets file"},
-	{"G30", "rapid to the G30 position (through the intermediate point, if any): HOME of "
-	        "the config or G30.1 in the offsets file"},
-	{"F", "missing before a feed move: the initial feed was used"},
-	{"G0", "axis words before any G0/G1/G2/G3 moved as G0, Grbl's start-up motion mode "
-	       "(--strict refuses them)"},
-	{"G64P", "tolerance larger than the machine's CONTOUR_TOLERANCE: capped to it"},
-	{"G64Q", "(LinuxCNC's naive-CAM merge tolerance) ignored: every segment is kept and "
-	         "corners blend within P"},
-	{"M60", "pauses as M0 (no pallet shuttle)"},
-	{"M2", "program end (LinuxCNC: G54 selected, G92 offsets off); later lines are not run"},
-	{"M30", "program end (LinuxCNC: G54 selected, G92 offsets off); later lines are not run"},
-	{"/", "block delete: the line was skipped (the block-delete switch is on, as LinuxCNC "
-	      "starts)"},
-	{"$J", "(Grbl jog) run as a G1 move at its own F; the modal state is left as it was "
-	       "(Grbl 1.1)"},
-	{"$H", "(Grbl homing cycle) skipped: mlip does not home; home the machine with the "
-	       "drives before starting mlip-rt and check HOME in the config"},
-	{"$X", "(Grbl alarm unlock) skipped: mlip has no alarm lock (mlip-rt restarts a "
-	       "faulted machine)"},
-	{"$C", "(Grbl check mode) skipped: mlip checks every program before it moves"},
-	{"$SLP", "(Grbl sleep) skipped: stop mlip-rt instead"},
-	{"$", "(Grbl settings or report) skipped: mlip's settings are in its config file"},
-	{"?", "(Grbl status request) skipped: mlip-ctl status reports the machine"},
-	{"~", "(Grbl cycle start) skipped: mlip-ctl resume continues a held or paused machine"},
-	{"!", "(Grbl feed hold) skipped: a pause in a program is M0; mlip-ctl hold holds"},
+    {"G28", "rapid to the G28 position (through the intermediate point, if any): HOME of "
+            "the config or G28.1 in the offsets file"},
+    {"G30", "rapid to the G30 position (through the intermediate point, if any): HOME of "
+            "the config or G30.1 in the offsets file"},
+    {"F", "missing before a feed move: the initial feed was used"},
+    {"G0", "axis words before any G0/G1/G2/G3 moved as G0, Grbl's start-up motion mode "
+           "(--strict refuses them)"},
+    {"G64P", "tolerance larger than the machine's CONTOUR_TOLERANCE: capped to it"},
+    {"G64Q", "(LinuxCNC's naive-CAM merge tolerance) ignored: every segment is kept and "
+             "corners blend within P"},
+    {"M60", "pauses as M0 (no pallet shuttle)"},
+    {"M2", "program end (LinuxCNC: G54 selected, G92 offsets off); later lines are not run"},
+    {"M30", "program end (LinuxCNC: G54 selected, G92 offsets off); later lines are not run"},
+    {"/", "block delete: the line was skipped (the block-delete switch is on, as LinuxCNC "
+          "starts)"},
+    {"$J", "(Grbl jog) run as a G1 move at its own F; the modal state is left as it was "
+           "(Grbl 1.1)"},
+    {"$H", "(Grbl homing cycle) skipped: mlip does not home; home the machine with the "
+           "drives before starting mlip-rt and check HOME in the config"},
+    {"$X", "(Grbl alarm unlock) skipped: mlip has no alarm lock (mlip-rt restarts a "
+           "faulted machine)"},
+    {"$C", "(Grbl check mode) skipped: mlip checks every program before it moves"},
+    {"$SLP", "(Grbl sleep) skipped: stop mlip-rt instead"},
+    {"$", "(Grbl settings or report) skipped: mlip's settings are in its config file"},
+    {"?", "(Grbl status request) skipped: mlip-ctl status reports the machine"},
+    {"~", "(Grbl cycle start) skipped: mlip-ctl resume continues a held or paused machine"},
+    {"!", "(Grbl feed hold) skipped: a pause in a program is M0; mlip-ctl hold holds"},
 };
 
 const char *mlip_gcode_notice_text(const struct mlip_gcode_notice *n)
@@ -1078,9 +1117,8 @@ static int emit_event(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, uin
 
 /* Soft limits (and finiteness) of a target; col_of[i] is the column to blame
  * for axis i. */
-static mlip_status check_limits(const struct mlip_gcode *g, const double *t,
-                                const uint32_t *col_of, uint32_t line, int on_arc,
-                                struct mlip_gcode_error *e)
+static mlip_status check_limits(const struct mlip_gcode *g, const double *t, const uint32_t *col_of,
+                                uint32_t line, int on_arc, struct mlip_gcode_error *e)
 {
 	const struct mlip_machine *m = g->m;
 	int i;
@@ -1120,8 +1158,8 @@ static const int plane_ou[3] = {0, 2, 1}, plane_ov[3] = {1, 0, 2}, plane_off[3] 
 
 /* Point k of n along the arc; the last one is the programmed end exactly.
  * Axes other than the plane's move linearly with the angle (helix). */
-static void arc_point(const struct arc *a, const double *s, const double *t, int n_axes,
-                      uint32_t k, double *p)
+static void arc_point(const struct arc *a, const double *s, const double *t, int n_axes, uint32_t k,
+                      double *p)
 {
 	double f = (double)k / a->n, ang, r;
 	int i;
@@ -1249,9 +1287,9 @@ static mlip_status arc_setup(const struct mlip_gcode *g, const struct blk *b, in
 /* Chords of an arc: every point checked against the limits before any is
  * emitted (an arc may bulge past a limit its ends respect), so a rejected line
  * emits nothing. Inner corners get eps minus the chord's sagitta. */
-static mlip_status emit_arc(struct mlip_gcode *g, struct emit_ctx *ec,
-                            const struct arc *arc, const double *s, const double *t,
-                            const uint32_t *col_of, struct mlip_gcode_error *e)
+static mlip_status emit_arc(struct mlip_gcode *g, struct emit_ctx *ec, const struct arc *arc,
+                            const double *s, const double *t, const uint32_t *col_of,
+                            struct mlip_gcode_error *e)
 {
 	const struct mlip_machine *m = g->m;
 	double p[MLIP_MAX_AXES];
@@ -1278,12 +1316,12 @@ static mlip_status emit_arc(struct mlip_gcode *g, struct emit_ctx *ec,
 
 /* What the checks found out about a line, for its motion. */
 struct plan {
-	int motion;    /* in effect for this line, -1 none */
-	int moves;     /* the line moves: axis words, or a center-only arc */
-	int has_axes;  /* axis words on the line */
-	int axis_use;  /* they are not motion: G10, G92, G28/G30 */
+	int motion;     /* in effect for this line, -1 none */
+	int moves;      /* the line moves: axis words, or a center-only arc */
+	int has_axes;   /* axis words on the line */
+	int axis_use;   /* they are not motion: G10, G92, G28/G30 */
 	int g0_default; /* they move as G0: no motion mode yet (Grbl) */
-	uint32_t mcol; /* column to blame for the motion: its G word, else the line */
+	uint32_t mcol;  /* column to blame for the motion: its G word, else the line */
 };
 
 /* Work offset plus G92 offset of axis i: machine = program + this. */
@@ -1318,7 +1356,10 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 	if (pl->axis_use && b->motion >= 0 && has_axes) {
 		return failf(e, line, b->motion_col, MLIP_E_SYNTAX,
 		             "%G and %G on one line: both use axis words",
-		             b->home ? b->home * 10 : b->g10 ? 100 : 920, b->motion * 10);
+		             b->home  ? b->home * 10
+		             : b->g10 ? 100
+		                      : 920,
+		             b->motion * 10);
 	}
 	if (b->homeset && has_axes) {
 		return failf(e, line, first_ax, MLIP_E_SYNTAX,
@@ -1348,8 +1389,9 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 	}
 	if (has_axes && !pl->axis_use && pl->motion < 0) {
 		if (g->strict) {
-			return failf(e, line, first_ax, MLIP_E_SYNTAX,
-			             "axis words with no motion mode: program G0, G1, G2 or G3 first");
+			return failf(
+			    e, line, first_ax, MLIP_E_SYNTAX,
+			    "axis words with no motion mode: program G0, G1, G2 or G3 first");
 		}
 		pl->motion = 0; /* Grbl starts in G0 */
 		pl->g0_default = 1;
@@ -1443,9 +1485,10 @@ static mlip_status block_feed(struct mlip_gcode *g, const struct plan *pl, const
 			             "missing feed: a change between G93 and G94 needs a new F");
 		}
 		if (!(g->initial_feed_word > 0)) {
-			return failf(e, line, pl->mcol, MLIP_E_SYNTAX,
-			             "missing feed: no F before the first feed move (a program with "
-			             "none runs with --default-feed F)");
+			return failf(
+			    e, line, pl->mcol, MLIP_E_SYNTAX,
+			    "missing feed: no F before the first feed move (a program with "
+			    "none runs with --default-feed F)");
 		}
 		fword = g->initial_feed_word;
 		fmm = fword * (g->inches ? MM_PER_INCH : 1.0) / 60.0;
@@ -1553,8 +1596,8 @@ static mlip_status system_line(struct mlip_gcode *g, const char *t, size_t len, 
                                uint32_t line, mlip_block_sink sink, void *ctx,
                                struct mlip_gcode_error *e)
 {
-	static const char *const cmds[] = {"$H", "$X", "$C", "$G", "$I", "$N", "$$", "$#", "$SLP",
-	                                   "$RST", "$"};
+	static const char *const cmds[] = {"$H", "$X", "$C",   "$G",   "$I", "$N",
+	                                   "$$", "$#", "$SLP", "$RST", "$"};
 	char word[8];
 	size_t i, n, k;
 
@@ -1573,8 +1616,8 @@ static mlip_status system_line(struct mlip_gcode *g, const char *t, size_t len, 
 	if (n >= 3 && upper(t[i0 + 1]) == 'J' && t[i0 + 2] == '=') {
 		if (g->strict) {
 			return failf(e, line, (uint32_t)i0 + 1, MLIP_E_UNSUPPORTED,
-			             "Grbl jog '%t' is not G-code (strict mode): write it as G1", t + i0,
-			             n);
+			             "Grbl jog '%t' is not G-code (strict mode): write it as G1",
+			             t + i0, n);
 		}
 		return jog_line(g, t, len, i0 + 3, line, sink, ctx, e);
 	}
@@ -1605,7 +1648,8 @@ static mlip_status system_line(struct mlip_gcode *g, const char *t, size_t len, 
 	}
 	word[k] = '\0';
 	for (k = 0; k < sizeof cmds / sizeof cmds[0]; k++) {
-		if (strcmp(word, cmds[k]) == 0 || (k == 10 && word[1] && word[strlen(word) - 1] == '=')) {
+		if (strcmp(word, cmds[k]) == 0 ||
+		    (k == 10 && word[1] && word[strlen(word) - 1] == '=')) {
 			break;
 		}
 	}
@@ -1641,11 +1685,11 @@ static void set_offsets(struct mlip_gcode *g, const struct blk *b, double scale)
 			/* L2: the origin in machine coordinates; L20: the origin that
 			 * makes the current point read v */
 			o->coord[sys][i] =
-			        b->l == 2 ? v : g->cur[i] - (o->g92_on ? o->g92[i] : 0.0) - v;
+			    b->l == 2 ? v : g->cur[i] - (o->g92_on ? o->g92[i] : 0.0) - v;
 		}
 		if (b->g92 == 920) {
 			o->g92[i] = a >= 0 && b->has_ax[a] ? g->cur[i] - o->coord[o->select][i] - v
-			                                    : (o->g92_on ? o->g92[i] : 0.0);
+			                                   : (o->g92_on ? o->g92[i] : 0.0);
 		} else if (b->g92 == 921) {
 			o->g92[i] = 0;
 		}
@@ -1710,9 +1754,8 @@ static size_t first_byte(const char *text, size_t len, uint32_t lineno)
 	return i;
 }
 
-mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
-                            uint32_t lineno, mlip_block_sink sink, void *ctx,
-                            struct mlip_gcode_error *err)
+mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, uint32_t lineno,
+                            mlip_block_sink sink, void *ctx, struct mlip_gcode_error *err)
 {
 	const struct mlip_machine *m = g->m;
 	struct mlip_gcode_error dummy;
@@ -1756,9 +1799,11 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
 		/* Grbl's real-time commands, alone on a line: status, cycle
 		 * start, feed hold (a sender's, never a program's) */
 		if (g->strict) {
-			return failf(err, lineno, (uint32_t)i0 + 1, MLIP_E_UNSUPPORTED,
-			             "Grbl real-time command '%c' is not G-code (strict mode): delete "
-			             "it", text[i0]);
+			return failf(
+			    err, lineno, (uint32_t)i0 + 1, MLIP_E_UNSUPPORTED,
+			    "Grbl real-time command '%c' is not G-code (strict mode): delete "
+			    "it",
+			    text[i0]);
 		}
 		notice(g, text[i0] == '?' ? "?" : text[i0] == '~' ? "~" : "!", lineno);
 		return MLIP_OK;
@@ -1797,8 +1842,9 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
 		col_of[i] = pl.motion >= 2 ? pl.mcol : lx.first_col; /* arcs move wordless axes */
 		if (a >= 0 && b.has_ax[a] && !b.g10 && b.g92 != 920) {
 			k = m->axis[i].kind == MLIP_AXIS_ROTARY ? 1.0 : scale;
-			t[i] = b.g53 ? b.ax[a] * k
-			       : g->absolute ? b.ax[a] * k + offset_of(g, i) : g->cur[i] + b.ax[a] * k;
+			t[i] = b.g53         ? b.ax[a] * k
+			       : g->absolute ? b.ax[a] * k + offset_of(g, i)
+			                     : g->cur[i] + b.ax[a] * k;
 			col_of[i] = b.ax_col[a];
 		}
 	}
@@ -1814,13 +1860,14 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
 		st = go_home(g, &b, &pl, &ec, t, col_of, lineno, err);
 	} else if (pl.moves) {
 		st = pl.motion > 0 && !g->inverse_time
-		             ? block_feed(g, &pl, start, t, lineno, &ec.feed_mm_s, err)
-		             : MLIP_OK;
+		         ? block_feed(g, &pl, start, t, lineno, &ec.feed_mm_s, err)
+		         : MLIP_OK;
 		if (st == MLIP_OK) {
 			st = check_limits(g, t, col_of, lineno, 0, err);
 		}
 		if (st == MLIP_OK && pl.motion >= 2) {
-			st = arc_setup(g, &b, pl.motion, scale, start, t, lineno, pl.mcol, &arc, err);
+			st = arc_setup(g, &b, pl.motion, scale, start, t, lineno, pl.mcol, &arc,
+			               err);
 			if (st == MLIP_OK && g->inverse_time) {
 				ec.feed_mm_s = inverse_time_feed(g, b.f, start, t, &arc);
 			}
@@ -1879,8 +1926,7 @@ mlip_status mlip_gcode_finish(struct mlip_gcode *g, uint32_t last_line,
 /* Next word outside comments from *pi on: its letter (upper case), where its
  * number starts, and its line. A letter counts only when a number follows it
  * (after blanks), as for the lexer. */
-static int next_word(const char *t, size_t n, size_t *pi, uint32_t *line, char *letter,
-                     size_t *num)
+static int next_word(const char *t, size_t n, size_t *pi, uint32_t *line, char *letter, size_t *num)
 {
 	size_t i = *pi, j;
 
@@ -1891,7 +1937,8 @@ static int next_word(const char *t, size_t n, size_t *pi, uint32_t *line, char *
 			(*line)++; /* LF, CRLF or a lone CR */
 			i++;
 		} else if (c == '(' || c == ';') {
-			while (i < n && t[i] != '\n' && t[i] != '\r' && !(c == '(' && t[i] == ')')) {
+			while (i < n && t[i] != '\n' && t[i] != '\r' &&
+			       !(c == '(' && t[i] == ')')) {
 				i++;
 			}
 			i += i < n && t[i] == ')';

@@ -1,5 +1,5 @@
 /*
- * mlip/smooth.h - the `smooth` strategy's path filter: a stream filter with a
+ * mlip/motion/smooth.h - the `smooth` strategy's path filter: a stream filter with a
  * fixed-size sliding window that replaces CAM micro-segments by a smoothed,
  * finely resampled polyline inside the contour tolerance, and gives each
  * output block the part of the tolerance its corner may still use. The
@@ -30,20 +30,23 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "mlip/planner.h"
+#include "mlip/motion/planner.h"
 #include "mlip/types.h"
 
-#define MLIP_SMOOTH_CAP 4096      /* samples in the window */
-#define MLIP_SMOOTH_KEEP 512      /* samples left unsolved after a solve: the
-                                     right-hand context of the frozen ones */
-#define MLIP_SMOOTH_MAX_PIECES 16 /* samples a block adds, at most (and up to 4 more
-                                     sub-samples of the segment before it) */
-#define MLIP_SMOOTH_ITER 24       /* reweighting iterations per solve */
-#define MLIP_SMOOTH_POLISH 3      /* then solves holding the samples beyond their radius */
-#define MLIP_SMOOTH_RHO 0.95      /* share of the budget the smoothing may take */
-#define MLIP_SMOOTH_SHARP_COS 0.76604444311897804 /* cos 40 deg: a vertex turning more
-                                     stays sharp (the filter pins it, the planner
-                                     takes the paper's corner there) */
+#define MLIP_SMOOTH_CAP 4096 /* samples in the window */
+#define MLIP_SMOOTH_KEEP                                                                           \
+	512 /* samples left unsolved after a solve: the                                            \
+	       right-hand context of the frozen ones */
+#define MLIP_SMOOTH_MAX_PIECES                                                                     \
+	16                      /* samples a block adds, at most (and up to 4 more                 \
+	                           sub-samples of the segment before it) */
+#define MLIP_SMOOTH_ITER   24   /* reweighting iterations per solve */
+#define MLIP_SMOOTH_POLISH 3    /* then solves holding the samples beyond their radius */
+#define MLIP_SMOOTH_RHO    0.95 /* share of the budget the smoothing may take */
+#define MLIP_SMOOTH_SHARP_COS                                                                      \
+	0.76604444311897804 /* cos 40 deg: a vertex turning more                                   \
+	       stays sharp (the filter pins it, the planner                                        \
+	       takes the paper's corner there) */
 
 struct mlip_smooth_sample {
 	double p[MLIP_MAX_AXES]; /* point of the original polyline at this sample */
@@ -63,32 +66,32 @@ struct mlip_smooth_sample {
 };
 
 struct mlip_smooth {
-	int n;                 /* axes */
-	double eps_mm;         /* machine tolerance */
-	double step_mm;        /* resampling step */
-	double sharp_cos;      /* cos of the turn above which a vertex stays sharp */
-	double gap_mm;         /* sub-samples this close to a sharp vertex are dropped */
-	double l0_mm;          /* the spline's initial smoothing length */
-	double rho;            /* MLIP_SMOOTH_RHO */
-	double corner_need;    /* share of h^2 k the corners keep (0: none) */
+	int n;                      /* axes */
+	double eps_mm;              /* machine tolerance */
+	double step_mm;             /* resampling step */
+	double sharp_cos;           /* cos of the turn above which a vertex stays sharp */
+	double gap_mm;              /* sub-samples this close to a sharp vertex are dropped */
+	double l0_mm;               /* the spline's initial smoothing length */
+	double rho;                 /* MLIP_SMOOTH_RHO */
+	double corner_need;         /* share of h^2 k the corners keep (0: none) */
 	double last[MLIP_MAX_AXES]; /* last original point */
 	double last_dir[MLIP_MAX_AXES];
-	double last_d_mm;      /* length of the last original segment */
-	double last_b;         /* budget of the corner at last[] */
-	double run_feed;       /* feed of the open run */
-	int run_open;          /* a run of feed moves is open */
-	int have_dir;          /* last_dir valid (the run has a segment) */
-	int pend;              /* the newest segment is one sample, not yet subdivided */
-	int pend_kv_ok;        /* pend_kv is valid */
+	double last_d_mm;              /* length of the last original segment */
+	double last_b;                 /* budget of the corner at last[] */
+	double run_feed;               /* feed of the open run */
+	int run_open;                  /* a run of feed moves is open */
+	int have_dir;                  /* last_dir valid (the run has a segment) */
+	int pend;                      /* the newest segment is one sample, not yet subdivided */
+	int pend_kv_ok;                /* pend_kv is valid */
 	double pend_kv[MLIP_MAX_AXES]; /* curvature at the pending segment's first vertex */
-	double jitter;         /* running mean of how erratically the curvature changes */
-	double jitter_min;     /* subdivide where jitter is above this */
-	int pin_clean;         /* keep vertices exact where it is below jitter_pin */
+	double jitter;                 /* running mean of how erratically the curvature changes */
+	double jitter_min;             /* subdivide where jitter is above this */
+	int pin_clean;                 /* keep vertices exact where it is below jitter_pin */
 	double jitter_pin;
-	uint32_t run0;         /* index of the open run's start sample */
-	uint32_t frozen;       /* samples [0, frozen) are final */
-	uint32_t emit;         /* next sample to emit */
-	uint32_t count;        /* samples in the window */
+	uint32_t run0;           /* index of the open run's start sample */
+	uint32_t frozen;         /* samples [0, frozen) are final */
+	uint32_t emit;           /* next sample to emit */
+	uint32_t count;          /* samples in the window */
 	double prev_dev, prev_b; /* last emitted sample of the run */
 	/* statistics */
 	uint64_t in_blocks, out_blocks, solves;

@@ -1,11 +1,11 @@
 /*
  * canenc.c - setpoints -> CAN frames (cia402, packed, fd), frames -> setpoints,
  * and worst-case bus load. Frame layouts and the bit-count formulas, with
- * their sources, are in mlip/canenc.h; the formulas are implemented in
+ * their sources, are in mlip/can/canenc.h; the formulas are implemented in
  * mlip_can_frame_bits() below, and every profile's frame shapes come from the
  * one function shapes(), so encoder and bus load cannot disagree.
  */
-#include "mlip/canenc.h"
+#include "mlip/can/canenc.h"
 
 #include <math.h>
 #include <string.h>
@@ -164,7 +164,7 @@ mlip_status mlip_canenc_init(struct mlip_canenc *e, const struct mlip_can_config
 	if (n < 1 || n > MLIP_MAX_AXES) {
 		return MLIP_E_INVALID;
 	}
-	/* the identifiers: one set of rules, the INI reader's (mlip/config.h) */
+	/* the identifiers: one set of rules, the INI reader's (mlip/machine/config.h) */
 	if (mlip_can_config_check(can, m, NULL) != MLIP_OK) {
 		return MLIP_E_INVALID;
 	}
@@ -194,8 +194,7 @@ int mlip_canenc_frames(const struct mlip_canenc *e)
 }
 
 mlip_status mlip_canenc_encode(const struct mlip_canenc *e, uint32_t cycle, const double *pos,
-                               struct mlip_can_frame *out, int cap, int *n_out,
-                               uint32_t *saturated)
+                               struct mlip_can_frame *out, int cap, int *n_out, uint32_t *saturated)
 {
 	uint8_t flags[MLIP_CAN_MAX_FRAMES], len[MLIP_CAN_MAX_FRAMES];
 	int32_t counts[MLIP_MAX_AXES];
@@ -375,7 +374,7 @@ static mlip_status feed_packed(struct mlip_candec *d, const struct mlip_can_fram
 		d->malformed++;
 		return MLIP_E_SYNTAX;
 	}
-	if (k < (uint32_t)m) { /* POS frame */
+	if (k < (uint32_t)m) {             /* POS frame */
 		if (d->seen & (1u << k)) { /* the COMMIT of the open period was lost */
 			d->incomplete++;
 			d->seen = 0;
@@ -443,8 +442,8 @@ mlip_status mlip_candec_feed(struct mlip_candec *d, const struct mlip_can_frame 
 	return MLIP_E_INVALID;
 }
 
-mlip_status mlip_canenc_decode(const struct mlip_canenc *e, const struct mlip_can_frame *f,
-                               int n, struct mlip_can_setpoint *out)
+mlip_status mlip_canenc_decode(const struct mlip_canenc *e, const struct mlip_can_frame *f, int n,
+                               struct mlip_can_setpoint *out)
 {
 	struct mlip_candec d;
 	mlip_status st = MLIP_E_SYNTAX;
@@ -479,7 +478,7 @@ struct mlip_can_bits mlip_can_frame_bits(uint8_t flags, uint8_t len)
 		b.data = 0;
 		return b;
 	}
-	/* ISO 11898-1:2015 FD frame; see the table in mlip/canenc.h */
+	/* ISO 11898-1:2015 FD frame; see the table in mlip/can/canenc.h */
 	fdlen = mlip_can_fd_len(len);
 	n = fdlen < 0 ? 64u : (uint32_t)fdlen;
 	hdr = (flags & MLIP_CAN_FLAG_EFF) ? 41u : 22u; /* SOF .. DLC */

@@ -1,6 +1,6 @@
 /*
  * ring.c - SPSC block ring, status seqlocks and command mailbox in a
- * caller-provided (shared) memory segment. See mlip/ring.h for the layout and
+ * caller-provided (shared) memory segment. See mlip/ipc/ring.h for the layout and
  * the protocol; this file only adds the memory-ordering arguments.
  *
  * Ring (kfifo / DPDK rte_ring, one producer and one consumer):
@@ -26,7 +26,7 @@
  * the acquire loads of the fields order the second generation load after them,
  * so no standalone fence is needed (TSan does not model fences).
  */
-#include "mlip/ring.h"
+#include "mlip/ipc/ring.h"
 
 #include <stddef.h>
 #include <string.h>
@@ -53,19 +53,19 @@ MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 640);
 MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 704);
 
 /* shared-memory atomics must not fall back to a process-local lock */
-#if !defined(__GCC_ATOMIC_LLONG_LOCK_FREE) || __GCC_ATOMIC_LLONG_LOCK_FREE != 2 || \
+#if !defined(__GCC_ATOMIC_LLONG_LOCK_FREE) || __GCC_ATOMIC_LLONG_LOCK_FREE != 2 ||                 \
     !defined(__GCC_ATOMIC_INT_LOCK_FREE) || __GCC_ATOMIC_INT_LOCK_FREE != 2
 #error "mlip ring needs always lock-free 32- and 64-bit atomics"
 #endif
 
-#define LD(p, mo) __atomic_load_n((p), (mo))
+#define LD(p, mo)    __atomic_load_n((p), (mo))
 #define ST(p, v, mo) __atomic_store_n((p), (v), (mo))
 /* doubles: the generic builtins (8 bytes, lock-free like the integers) */
-#define STD(p, v) __atomic_store((p), (v), __ATOMIC_RELEASE)
-#define LDD(p, v) __atomic_load((p), (v), __ATOMIC_ACQUIRE)
-#define ACQ __ATOMIC_ACQUIRE
-#define REL __ATOMIC_RELEASE
-#define RLX __ATOMIC_RELAXED
+#define STD(p, v)    __atomic_store((p), (v), __ATOMIC_RELEASE)
+#define LDD(p, v)    __atomic_load((p), (v), __ATOMIC_ACQUIRE)
+#define ACQ          __ATOMIC_ACQUIRE
+#define REL          __ATOMIC_RELEASE
+#define RLX          __ATOMIC_RELAXED
 
 static uint64_t ring_magic(void)
 {
@@ -128,9 +128,8 @@ static mlip_status format(void *mem, size_t bytes, uint32_t capacity, int n_axes
 {
 	struct mlip_ring *r = mem;
 
-	if (mem == NULL || ((uintptr_t)mem & (MLIP_RING_LINE - 1)) != 0 ||
-	    !capacity_ok(capacity) || n_axes < 1 || n_axes > MLIP_MAX_AXES ||
-	    bytes < mlip_ring_bytes(capacity)) {
+	if (mem == NULL || ((uintptr_t)mem & (MLIP_RING_LINE - 1)) != 0 || !capacity_ok(capacity) ||
+	    n_axes < 1 || n_axes > MLIP_MAX_AXES || bytes < mlip_ring_bytes(capacity)) {
 		return MLIP_E_INVALID;
 	}
 	ST(&r->magic, 0, REL); /* unformatted while we write */
@@ -168,8 +167,8 @@ void mlip_ring_machine(const struct mlip_ring *r, struct mlip_machine *out)
 	*out = r->machine; /* immutable once the magic is published */
 }
 
-static mlip_status refuse(struct mlip_ring_mismatch *why, mlip_ring_reason reason,
-                          uint64_t found, uint64_t expected)
+static mlip_status refuse(struct mlip_ring_mismatch *why, mlip_ring_reason reason, uint64_t found,
+                          uint64_t expected)
 {
 	if (why != NULL) {
 		why->reason = reason;
@@ -446,8 +445,7 @@ mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ri
 static const uint16_t kind_type[] = {MLIP_REC_MOVE, MLIP_REC_DWELL, MLIP_REC_PAUSE,
                                      MLIP_REC_OPTIONAL_PAUSE};
 
-void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b,
-                              uint64_t seq)
+void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b, uint64_t seq)
 {
 	int i;
 
@@ -456,8 +454,9 @@ void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block
 	rec->line = b->line;
 	/* an unknown kind stays unknown: the controller refuses it */
 	rec->type = b->kind < sizeof(kind_type) / sizeof(kind_type[0]) ? kind_type[b->kind]
-	                                                                 : (uint16_t)MLIP_REC_TYPES;
-	rec->flags = (uint16_t)((b->rapid ? MLIP_REC_RAPID : 0u) | (b->exact_stop ? MLIP_REC_EXACT : 0u));
+	                                                               : (uint16_t)MLIP_REC_TYPES;
+	rec->flags =
+	    (uint16_t)((b->rapid ? MLIP_REC_RAPID : 0u) | (b->exact_stop ? MLIP_REC_EXACT : 0u));
 	for (i = 0; i < MLIP_MAX_AXES; i++) {
 		rec->target[i] = b->target[i];
 	}
@@ -656,8 +655,7 @@ mlip_status mlip_ring_feeder_read(const struct mlip_ring *r, struct mlip_ring_fe
 
 /* ---- command mailbox --------------------------------------------------- */
 
-mlip_status mlip_ring_cmd_post(struct mlip_ring *r, mlip_ring_cmd_op op, int32_t arg,
-                               uint32_t *seq)
+mlip_status mlip_ring_cmd_post(struct mlip_ring *r, mlip_ring_cmd_op op, int32_t arg, uint32_t *seq)
 {
 	uint32_t s, done;
 
@@ -716,46 +714,62 @@ void mlip_ring_cmd_done(struct mlip_ring *r, uint32_t seq, int32_t result)
 
 const char *mlip_ring_state_name(uint32_t state)
 {
-	static const char *const names[] = {"idle",    "running",  "held",     "stopping", "fault",
-	                                    "starved", "paused",   "dwelling", "pre-read"};
+	static const char *const names[] = {"idle",    "running", "held",     "stopping", "fault",
+	                                    "starved", "paused",  "dwelling", "pre-read"};
 
 	return NAME_OF(names, state);
 }
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
-	static const char *const names[] = {"none", "override", "hold", "resume", "stop",
-	                                    "optional-stop"};
+	static const char *const names[] = {"none",   "override", "hold",
+	                                    "resume", "stop",     "optional-stop"};
 
 	return NAME_OF(names, op);
 }
 
 const char *mlip_state_why_name(uint32_t why)
 {
-	static const char *const names[] = {
-	    "none",          "program start",     "continuation",  "pre-read done",
-	    "program end",   "underrun",          "feeder gone",   "hold",
-	    "override 0",    "resume",            "CAN tx refused", "CAN error frames",
-	    "stall",         "dwell",             "dwell done",    "pause (M0)",
-	    "optional pause (M1)", "stop",        "exit signal",   "bad record",
-	    "ring corrupt",  "position beyond the drives' range", "drive fault"};
+	static const char *const names[] = {"none",
+	                                    "program start",
+	                                    "continuation",
+	                                    "pre-read done",
+	                                    "program end",
+	                                    "underrun",
+	                                    "feeder gone",
+	                                    "hold",
+	                                    "override 0",
+	                                    "resume",
+	                                    "CAN tx refused",
+	                                    "CAN error frames",
+	                                    "stall",
+	                                    "dwell",
+	                                    "dwell done",
+	                                    "pause (M0)",
+	                                    "optional pause (M1)",
+	                                    "stop",
+	                                    "exit signal",
+	                                    "bad record",
+	                                    "ring corrupt",
+	                                    "position beyond the drives' range",
+	                                    "drive fault"};
 
 	return NAME_OF(names, why);
 }
 
 const char *mlip_rec_field_name(uint32_t field)
 {
-	static const char *const names[] = {"none",  "seq", "type",  "flags", "feed",
-	                                    "tol",   "dwell", "head", "target[0]", "target[1]",
-	                                    "target[2]", "target[3]", "target[4]", "target[5]"};
+	static const char *const names[] = {
+	    "none", "seq",       "type",      "flags",     "feed",      "tol",       "dwell",
+	    "head", "target[0]", "target[1]", "target[2]", "target[3]", "target[4]", "target[5]"};
 
 	return NAME_OF(names, field);
 }
 
 const char *mlip_drive_power_name(uint32_t power)
 {
-	static const char *const names[] = {"none",         "enabled",      "disabling", "shutting down",
-	                                    "off",          "switching on", "enabling"};
+	static const char *const names[] = {"none", "enabled",      "disabling", "shutting down",
+	                                    "off",  "switching on", "enabling"};
 
 	return NAME_OF(names, power);
 }

@@ -1,5 +1,5 @@
 /*
- * controller.c - the controller's period, pure (mlip/controller.h): commands
+ * controller.c - the controller's period, pure (mlip/ctl/controller.h): commands
  * in, records in (validated), one interpolation step, frames encoded, status
  * and events out. The ingest rule of planner.h lives here once: records are
  * taken without moving until the look-ahead is full, the program's END is in
@@ -9,13 +9,13 @@
  * before it: the planner always plans its newest block to rest, so stopping
  * the ingest in front of an event is all it takes.
  */
-#include "mlip/controller.h"
+#include "mlip/ctl/controller.h"
 
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
 
-#include "mlip/canopen.h"
+#include "mlip/canopen/canopen.h"
 
 static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line);
 
@@ -172,8 +172,9 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 			return bad(why, rec, MLIP_FIELD_TARGET + (uint32_t)k, x);
 		}
 	}
-	if ((rec->flags & MLIP_REC_RAPID) ? !(rec->feed_mm_s >= 0.0 && rec->feed_mm_s <= MLIP_CTL_FEED_MAX_MM_S)
-	                                   : !(rec->feed_mm_s > 0.0 && rec->feed_mm_s <= MLIP_CTL_FEED_MAX_MM_S)) {
+	if ((rec->flags & MLIP_REC_RAPID)
+	        ? !(rec->feed_mm_s >= 0.0 && rec->feed_mm_s <= MLIP_CTL_FEED_MAX_MM_S)
+	        : !(rec->feed_mm_s > 0.0 && rec->feed_mm_s <= MLIP_CTL_FEED_MAX_MM_S)) {
 		return bad(why, rec, MLIP_FIELD_FEED, rec->feed_mm_s);
 	}
 	if (!(rec->tol_mm >= 0.0 && rec->tol_mm <= 1e6)) {
@@ -247,8 +248,8 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 		size_t got = mlip_planner_push_n(c->planner, c->blocks, n, &err);
 		if (got < n) {
 			/* validated, so only a planner refusal (a stop raced it) */
-			struct mlip_ctl_reason r = reason(MLIP_WHY_BAD_RECORD, c->blocks[got].seq,
-			                                  c->blocks[got].line);
+			struct mlip_ctl_reason r =
+			    reason(MLIP_WHY_BAD_RECORD, c->blocks[got].seq, c->blocks[got].line);
 			r.value = (double)err;
 			fault(c, out, r);
 		}
@@ -412,7 +413,8 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 /* ---- waits: dwell, pause ------------------------------------------------- */
 
 /* At rest with an event record next: take it. */
-static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ring_rec *rec)
+static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
+                       const struct mlip_ring_rec *rec)
 {
 	rx_pop(c);
 	c->next_seq++;
@@ -502,7 +504,8 @@ static void power_go(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		r.seq = 0;
 		c->power_ok = to == MLIP_POWER_DISABLING;
 	}
-	if (late >= 0 && (c->power == MLIP_POWER_DISABLING || c->power == MLIP_POWER_SHUTTING_DOWN)) {
+	if (late >= 0 &&
+	    (c->power == MLIP_POWER_DISABLING || c->power == MLIP_POWER_SHUTTING_DOWN)) {
 		c->power_ok = 0;
 	}
 	if (to == MLIP_POWER_OFF || to == MLIP_POWER_ENABLED) {
@@ -529,7 +532,8 @@ static void power_fault(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct
 	struct mlip_ctl_drive_fault f = {event, (uint32_t)c->m.axis[k].can_node, value};
 	drive_fault(c, out, &f);
 	if (c->power != MLIP_POWER_OFF) {
-		power_go(c, in, out, MLIP_POWER_DISABLING, event == MLIP_DRIVE_BEYOND_LIMIT ? -1 : k);
+		power_go(c, in, out, MLIP_POWER_DISABLING,
+		         event == MLIP_DRIVE_BEYOND_LIMIT ? -1 : k);
 	}
 }
 
@@ -613,7 +617,8 @@ static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 	case MLIP_POWER_SWITCHING_ON:
 		if (!c->power_want) {
 			if (c->power == MLIP_POWER_SWITCHING_ON) {
-				power_go(c, in, out, MLIP_POWER_DISABLING, -1); /* stopped meanwhile */
+				power_go(c, in, out, MLIP_POWER_DISABLING,
+				         -1); /* stopped meanwhile */
 			}
 			return;
 		}
@@ -694,7 +699,8 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 		/* fall through - the pre-read starts in this period */
 	case MLIP_STATE_PREREAD: {
 		uint32_t room = mlip_planner_space(c->planner);
-		int ev = ingest(c, out, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
+		int ev =
+		    ingest(c, out, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
 		if (ev && mlip_planner_queued(c->planner) == 0) {
 			start_event(c, out, in, &c->event); /* nothing to move first */
 		} else if (c->state == MLIP_STATE_PREREAD && preread_done(c, in, ev)) {
@@ -721,7 +727,8 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 	case MLIP_STATE_PAUSED: {
 		/* at rest: pre-read what follows, so motion starts at the end */
 		uint32_t room = mlip_planner_space(c->planner);
-		int ev = ingest(c, out, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
+		int ev =
+		    ingest(c, out, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
 		if (c->state == MLIP_STATE_DWELLING && c->dwell_left == 0) {
 			end_wait(c, out, in, ev, MLIP_WHY_DWELL_DONE);
 		} else if (c->state == MLIP_STATE_PAUSED && c->resume_wait) {
@@ -768,9 +775,11 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 			mlip_planner_done(p, &c->exec_seq, &c->exec_line);
 			if (rx_peek(c, &next) && is_event(&next)) {
 				if (c->state == MLIP_STATE_HELD) {
-					go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
+					go(c, out, MLIP_STATE_RUNNING,
+					   reason(MLIP_WHY_RESUME, 0, 0));
 				}
-				if (still && mlip_ctl_check_record(&c->m, &next, c->next_seq, NULL) == MLIP_OK) {
+				if (still && mlip_ctl_check_record(&c->m, &next, c->next_seq,
+				                                   NULL) == MLIP_OK) {
 					/* at rest since the last period: this one is the
 					 * wait's first, so the wait counts from the arrival */
 					start_event(c, out, in, &next);
@@ -780,9 +789,11 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 				}
 				return; /* else at rest in front of an event: taken next period */
 			}
-			go(c, out, MLIP_STATE_STARVED, reason(MLIP_WHY_UNDERRUN, c->exec_seq, c->exec_line));
+			go(c, out, MLIP_STATE_STARVED,
+			   reason(MLIP_WHY_UNDERRUN, c->exec_seq, c->exec_line));
 		} else if (rs == MLIP_RUN_HELD && c->state == MLIP_STATE_RUNNING) {
-			go(c, out, MLIP_STATE_HELD, reason(c->hold_why ? c->hold_why : MLIP_WHY_HOLD, 0, 0));
+			go(c, out, MLIP_STATE_HELD,
+			   reason(c->hold_why ? c->hold_why : MLIP_WHY_HOLD, 0, 0));
 		} else if (rs == MLIP_RUN_MOVING && c->state == MLIP_STATE_HELD) {
 			go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
 		}
@@ -836,8 +847,8 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 /* Still moving: a stall must freeze it. */
 static int moving(const struct mlip_ctl *c)
 {
-	return mlip_planner_moving(c->planner) && c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_DWELLING &&
-	       c->state != MLIP_STATE_PAUSED;
+	return mlip_planner_moving(c->planner) && c->state != MLIP_STATE_PREREAD &&
+	       c->state != MLIP_STATE_DWELLING && c->state != MLIP_STATE_PAUSED;
 }
 
 void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)

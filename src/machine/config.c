@@ -1,6 +1,6 @@
 /*
  * config.c - the machine configuration: a small INI reader for [TRAJ],
- * [AXIS_X]..[AXIS_C] and [CAN] (format in include/mlip/config.h), and the
+ * [AXIS_X]..[AXIS_C] and [CAN] (format in include/mlip/machine/config.h), and the
  * consistency check of a struct mlip_machine.
  *
  * Pure: reads the caller's buffer, writes the caller's struct; no allocation,
@@ -21,17 +21,17 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "mlip/config.h"
-#include "mlip/planner.h" /* MLIP_LOOKAHEAD: default and largest LOOKAHEAD */
+#include "mlip/machine/config.h"
+#include "mlip/motion/planner.h" /* MLIP_LOOKAHEAD: default and largest LOOKAHEAD */
 
-#define TOK_SHOW 32   /* longest piece of input quoted in a message, bytes */
-#define NKEYS 8       /* keys per section kind (every kind has eight) */
-#define ID_MAX 0x7FFu /* largest 11-bit CAN id */
-#define NODE_MAX 127
-#define BITRATE_MIN 10000
-#define BITRATE_MAX 1000000      /* classical CAN, and the CAN FD arbitration phase */
+#define TOK_SHOW         32     /* longest piece of input quoted in a message, bytes */
+#define NKEYS            8      /* keys per section kind (every kind has eight) */
+#define ID_MAX           0x7FFu /* largest 11-bit CAN id */
+#define NODE_MAX         127
+#define BITRATE_MIN      10000
+#define BITRATE_MAX      1000000  /* classical CAN, and the CAN FD arbitration phase */
 #define DATA_BITRATE_MAX 12000000 /* CAN FD data phase */
-#define LIMIT_DEFAULT 1e9         /* soft limits when not given: none, in practice */
+#define LIMIT_DEFAULT    1e9      /* soft limits when not given: none, in practice */
 
 /* ---- messages: bounded, always NUL-terminated ---------------------------- */
 
@@ -416,45 +416,48 @@ struct keydef {
 };
 
 static const struct keydef keytab[N_KINDS][NKEYS] = {
-	[K_TRAJ] = {{"COORDINATES", V_COORDS, 1},
-	            {"MAX_LINEAR_VELOCITY", V_POS, 1},
-	            {"MAX_ANGULAR_VELOCITY", V_POS, 0},
-	            {"CONTOUR_TOLERANCE", V_POS, 1},
-	            {"PERIOD", V_PERIOD, 0},
-	            {"LINEAR_UNITS", V_LUNITS, 0},
-	            {"ANGULAR_UNITS", V_AUNITS, 0},
-	            {"LOOKAHEAD", V_LOOKAHEAD, 0}},
-	[K_AXIS] = {{"TYPE", V_TYPE, 0},
-	            {"MAX_VELOCITY", V_POS, 1},
-	            {"MAX_ACCELERATION", V_POS, 1},
-	            {"MIN_LIMIT", V_REAL, 0},
-	            {"MAX_LIMIT", V_REAL, 0},
-	            {"HOME", V_REAL, 0},
-	            {"CAN_NODE", V_NODE, 0},
-	            {"COUNTS_PER_UNIT", V_POS, 0}},
-	[K_CAN] = {{"PROFILE", V_PROFILE, 0},
-	           {"BITRATE", V_BITRATE, 0},
-	           {"DATA_BITRATE", V_DBITRATE, 0},
-	           {"SYNC_ID", V_ID, 0},
-	           {"RPDO_BASE", V_ID, 0},
-	           {"PACKED_BASE", V_ID, 0},
-	           {"FD_ID", V_ID, 0},
-	           {"STATUS_ID", V_ID, 0}},
-	[K_DRIVES] = {{"ENABLE", V_BOOL, 0},
-	              {"MASTER_NODE", V_NODE, 0},
-	              {"HEARTBEAT_MS", V_MS, 0},
-	              {"HEARTBEAT_TIMEOUT_MS", V_MS, 0},
-	              {"FOLLOWING_ERROR", V_POS, 0},
-	              {"SDO_TIMEOUT_MS", V_MS, 0},
-	              {"BOOT_TIMEOUT_MS", V_MS, 0},
-	              {"STATE_TIMEOUT_MS", V_MS, 0}},
+    [K_TRAJ] = {{"COORDINATES", V_COORDS, 1},
+                {"MAX_LINEAR_VELOCITY", V_POS, 1},
+                {"MAX_ANGULAR_VELOCITY", V_POS, 0},
+                {"CONTOUR_TOLERANCE", V_POS, 1},
+                {"PERIOD", V_PERIOD, 0},
+                {"LINEAR_UNITS", V_LUNITS, 0},
+                {"ANGULAR_UNITS", V_AUNITS, 0},
+                {"LOOKAHEAD", V_LOOKAHEAD, 0}},
+    [K_AXIS] = {{"TYPE", V_TYPE, 0},
+                {"MAX_VELOCITY", V_POS, 1},
+                {"MAX_ACCELERATION", V_POS, 1},
+                {"MIN_LIMIT", V_REAL, 0},
+                {"MAX_LIMIT", V_REAL, 0},
+                {"HOME", V_REAL, 0},
+                {"CAN_NODE", V_NODE, 0},
+                {"COUNTS_PER_UNIT", V_POS, 0}},
+    [K_CAN] = {{"PROFILE", V_PROFILE, 0},
+               {"BITRATE", V_BITRATE, 0},
+               {"DATA_BITRATE", V_DBITRATE, 0},
+               {"SYNC_ID", V_ID, 0},
+               {"RPDO_BASE", V_ID, 0},
+               {"PACKED_BASE", V_ID, 0},
+               {"FD_ID", V_ID, 0},
+               {"STATUS_ID", V_ID, 0}},
+    [K_DRIVES] = {{"ENABLE", V_BOOL, 0},
+                  {"MASTER_NODE", V_NODE, 0},
+                  {"HEARTBEAT_MS", V_MS, 0},
+                  {"HEARTBEAT_TIMEOUT_MS", V_MS, 0},
+                  {"FOLLOWING_ERROR", V_POS, 0},
+                  {"SDO_TIMEOUT_MS", V_MS, 0},
+                  {"BOOT_TIMEOUT_MS", V_MS, 0},
+                  {"STATE_TIMEOUT_MS", V_MS, 0}},
 };
 
 static const char *const profiles[] = {"cia402", "packed", "fd"};
 
 static int sec_kind(int sec)
 {
-	return sec == SEC_TRAJ ? K_TRAJ : sec == SEC_CAN ? K_CAN : sec == SEC_DRIVES ? K_DRIVES : K_AXIS;
+	return sec == SEC_TRAJ     ? K_TRAJ
+	       : sec == SEC_CAN    ? K_CAN
+	       : sec == SEC_DRIVES ? K_DRIVES
+	                           : K_AXIS;
 }
 
 static int letter_index(char l)
@@ -586,18 +589,18 @@ struct pos {
 };
 
 struct sec {
-	struct pos at;          /* the header, at the section name */
-	unsigned seen;          /* bit k: key k given */
-	struct pos key[NKEYS];  /* where each given key stands */
-	double num[NKEYS];      /* decimal values */
-	int64_t ival[NKEYS];    /* integer and enumerated values */
+	struct pos at;         /* the header, at the section name */
+	unsigned seen;         /* bit k: key k given */
+	struct pos key[NKEYS]; /* where each given key stands */
+	double num[NKEYS];     /* decimal values */
+	int64_t ival[NKEYS];   /* integer and enumerated values */
 };
 
 struct pstate {
 	struct sec sec[N_SEC];
-	int cur;                         /* section of the lines read, -1 before any */
+	int cur; /* section of the lines read, -1 before any */
 	int n_coords;
-	char coords[MLIP_MAX_AXES];      /* COORDINATES, in order */
+	char coords[MLIP_MAX_AXES]; /* COORDINATES, in order */
 	uint32_t coord_col[MLIP_MAX_AXES];
 };
 
@@ -720,11 +723,11 @@ static mlip_status check_bytes(const char *s, size_t n, uint32_t line,
 }
 
 /* "[NAME]" at s[p]: known, not seen before, nothing but a comment after. */
-static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size_t p,
-                                uint32_t line, struct mlip_config_error *err)
+static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size_t p, uint32_t line,
+                                struct mlip_config_error *err)
 {
-	static const char *const names[] = {"TRAJ",   "AXIS_X", "AXIS_Y", "AXIS_Z",
-	                                    "AXIS_A", "AXIS_B", "AXIS_C", "CAN",   "DRIVES"};
+	static const char *const names[] = {"TRAJ",   "AXIS_X", "AXIS_Y", "AXIS_Z", "AXIS_A",
+	                                    "AXIS_B", "AXIS_C", "CAN",    "DRIVES"};
 	size_t q = p + 1, r, a, z;
 	struct sb b;
 	int sec;
@@ -905,8 +908,8 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		}
 		if (kd->type == V_PERIOD &&
 		    !(x >= MLIP_CONFIG_PERIOD_MIN_S && x <= MLIP_CONFIG_PERIOD_MAX_S)) {
-			return range_err(err, line, col, kd->name,
-			                 " must be within 0.0001..0.1 s", v, nv);
+			return range_err(err, line, col, kd->name, " must be within 0.0001..0.1 s",
+			                 v, nv);
 		}
 		st->num[k] = x;
 		return MLIP_OK;
@@ -944,8 +947,9 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 	case V_TYPE:
 	case V_PROFILE:
 		if (kd->type == V_TYPE) {
-			i = tok_is(v, nv, "LINEAR") ? MLIP_AXIS_LINEAR
-			    : tok_is(v, nv, "ANGULAR") ? MLIP_AXIS_ROTARY : -1;
+			i = tok_is(v, nv, "LINEAR")    ? MLIP_AXIS_LINEAR
+			    : tok_is(v, nv, "ANGULAR") ? MLIP_AXIS_ROTARY
+			                               : -1;
 		} else {
 			for (i = 2; i >= 0 && !tok_is(v, nv, profiles[i]); i--) {
 			}
@@ -996,7 +1000,8 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 			return range_err(err, line, col, kd->name, " must be 0 or 1", v, nv);
 		}
 		if (kd->type == V_MS && (i < 1 || i > 65535)) {
-			return range_err(err, line, col, kd->name, " must be within 1..65535 ms", v, nv);
+			return range_err(err, line, col, kd->name, " must be within 1..65535 ms", v,
+			                 nv);
 		}
 		if (kd->type == V_ID && (i < 0 || i > (int64_t)ID_MAX)) {
 			return range_err(err, line, col, kd->name,
@@ -1326,11 +1331,13 @@ static mlip_status check_machine(const struct mlip_machine *m, struct mlip_confi
 			return MLIP_E_RANGE;
 		}
 		is->key = AK_MIN;
-		if (bad_finite(&b, m, i, AK_MIN, a->min_limit) || bad_abs(&b, m, i, AK_MIN, a->min_limit)) {
+		if (bad_finite(&b, m, i, AK_MIN, a->min_limit) ||
+		    bad_abs(&b, m, i, AK_MIN, a->min_limit)) {
 			return MLIP_E_RANGE;
 		}
 		is->key = AK_MAX;
-		if (bad_finite(&b, m, i, AK_MAX, a->max_limit) || bad_abs(&b, m, i, AK_MAX, a->max_limit)) {
+		if (bad_finite(&b, m, i, AK_MAX, a->max_limit) ||
+		    bad_abs(&b, m, i, AK_MAX, a->max_limit)) {
 			return MLIP_E_RANGE;
 		}
 		is->key = AK_MIN; /* the pair: the parser points at the later key */
@@ -1363,8 +1370,8 @@ static mlip_status check_machine(const struct mlip_machine *m, struct mlip_confi
 			if (a->can_node < 0) {
 				sb_putc(&b, '-');
 			}
-			sb_uint(&b, (uint64_t)(a->can_node < 0 ? -(int64_t)a->can_node
-			                                       : a->can_node));
+			sb_uint(&b,
+			        (uint64_t)(a->can_node < 0 ? -(int64_t)a->can_node : a->can_node));
 			return MLIP_E_RANGE;
 		}
 		for (j = 0; j < i; j++) {
@@ -1598,7 +1605,8 @@ static mlip_status can_rules(const struct mlip_can_config *can, const struct mli
 				sb_puts(&b, " (RPDO_BASE + CAN_NODE ");
 				sb_uint(&b, (uint64_t)a->can_node);
 				sb_putc(&b, ')');
-				where(w, SEC_CAN, other_key[j], SEC_CAN, CK_RPDO, SEC_AXIS0 + i, AK_NODE);
+				where(w, SEC_CAN, other_key[j], SEC_CAN, CK_RPDO, SEC_AXIS0 + i,
+				      AK_NODE);
 				return MLIP_E_RANGE;
 			}
 		}
@@ -1642,8 +1650,8 @@ static mlip_status can_rules(const struct mlip_can_config *can, const struct mli
 			sb_uint(&b, (uint64_t)m->n_axes);
 			sb_puts(&b, over ? " axes) is not an 11-bit id (at most 0x7FF)"
 			                 : " axes) is also the STATUS_ID");
-			where(w, SEC_CAN, CK_PACKED, SEC_CAN, over ? CK_PROFILE : CK_STATUS, SEC_CAN,
-			      CK_PROFILE);
+			where(w, SEC_CAN, CK_PACKED, SEC_CAN, over ? CK_PROFILE : CK_STATUS,
+			      SEC_CAN, CK_PROFILE);
 			return MLIP_E_RANGE;
 		}
 	}
@@ -1667,8 +1675,8 @@ static mlip_status can_rules(const struct mlip_can_config *can, const struct mli
 	return MLIP_OK;
 }
 
-mlip_status mlip_can_config_check(const struct mlip_can_config *can,
-                                  const struct mlip_machine *m, struct mlip_config_error *err)
+mlip_status mlip_can_config_check(const struct mlip_can_config *can, const struct mlip_machine *m,
+                                  struct mlip_config_error *err)
 {
 	struct mlip_config_error dummy;
 	struct can_where w;
@@ -1693,8 +1701,8 @@ static void fill_machine(const struct pstate *ps, struct mlip_config *c)
 		struct mlip_axis *a = &m->axis[i];
 		a->letter = ps->coords[i];
 		a->kind = has(ps, sec, AK_TYPE) ? (mlip_axis_kind)st->ival[AK_TYPE]
-		          : li < 3             ? MLIP_AXIS_LINEAR
-		                               : MLIP_AXIS_ROTARY;
+		          : li < 3              ? MLIP_AXIS_LINEAR
+		                                : MLIP_AXIS_ROTARY;
 		a->max_vel = st->num[AK_VEL];
 		a->max_accel = st->num[AK_ACC];
 		a->min_limit = has(ps, sec, AK_MIN) ? st->num[AK_MIN] : -LIMIT_DEFAULT;
@@ -1719,7 +1727,7 @@ static void fill_machine(const struct pstate *ps, struct mlip_config *c)
 static void fill_can(const struct pstate *ps, struct mlip_can_config *can)
 {
 	const struct sec *st = &ps->sec[SEC_CAN];
-	uint32_t *const dst[NKEYS] = {NULL,          &can->bitrate, &can->data_bitrate,
+	uint32_t *const dst[NKEYS] = {NULL,          &can->bitrate,   &can->data_bitrate,
 	                              &can->sync_id, &can->rpdo_base, &can->packed_base,
 	                              &can->fd_id,   &can->status_id};
 	int k;
@@ -1819,7 +1827,8 @@ static mlip_status check_can(const struct pstate *ps, const struct mlip_config *
 	}
 	for (i = 0; i < 3; i++) {
 		if (w.sec[i] >= SEC_AXIS0 && w.sec[i] < SEC_CAN) { /* machine index -> section */
-			w.sec[i] = SEC_AXIS0 + letter_index(c->machine.axis[w.sec[i] - SEC_AXIS0].letter);
+			w.sec[i] =
+			    SEC_AXIS0 + letter_index(c->machine.axis[w.sec[i] - SEC_AXIS0].letter);
 		}
 	}
 	place(ps, err, w.sec[0], w.key[0], w.sec[1], w.key[1], w.sec[2], w.key[2]);
@@ -1832,8 +1841,8 @@ void mlip_config_defaults(struct mlip_config *c)
 {
 	memset(c, 0, sizeof *c);
 	c->machine.n_axes = 0;
-	c->machine.max_feed_mm_s = 0.0;  /* required: MAX_LINEAR_VELOCITY */
-	c->machine.tolerance_mm = 0.0;   /* required: CONTOUR_TOLERANCE */
+	c->machine.max_feed_mm_s = 0.0; /* required: MAX_LINEAR_VELOCITY */
+	c->machine.tolerance_mm = 0.0;  /* required: CONTOUR_TOLERANCE */
 	c->machine.max_rot_feed_deg_s = 360.0;
 	c->machine.period_s = 0.001;
 	c->lookahead = MLIP_LOOKAHEAD;

@@ -31,8 +31,8 @@
 #include <math.h>
 #include <string.h>
 
-#include "mlip/planner.h"
-#include "mlip/smooth.h"
+#include "mlip/motion/planner.h"
+#include "mlip/motion/smooth.h"
 
 static double sq(double x)
 {
@@ -431,7 +431,6 @@ size_t mlip_planner_push_n(struct mlip_planner *p, const struct mlip_block *b, s
 	return done;
 }
 
-
 mlip_status mlip_planner_set_override(struct mlip_planner *p, double pct)
 {
 	if (!(pct >= 0.0 && pct <= 200.0)) {
@@ -470,7 +469,7 @@ void mlip_planner_stop(struct mlip_planner *p)
  * are never exceeded to respond faster.
  */
 static inline double corner_q_at(const struct mlip_corner *c, double a, double q_plan, double rem,
-                          double v, int *brakeable)
+                                 double v, int *brakeable)
 {
 	double vs2 = sq(c->vs_mm_s), ls = c->ls_mm;
 	double geom = ls > 0.0 ? dmin(1.0, rem / ls) : 1.0;
@@ -511,12 +510,12 @@ static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struc
  * symmetric corner, and on finely sampled curves corners take nearly whole
  * segments (19), so the speed can only grow inside corners: where forward
  * reachability (34) caps the corner below its plan, a corner with v_e > v_s
- * leaves faster (elsewhere the plan stays, and costs nothing). Each candidate keeps every bound the plan keeps: its q is
- * within the override's caps, its exit can still brake to the next corner's
+ * leaves faster (elsewhere the plan stays, and costs nothing). Each candidate keeps every bound the
+ * plan keeps: its q is within the override's caps, its exit can still brake to the next corner's
  * planned q (25)(26), and the line can reach or brake to its entry; the one
  * leaving fastest (then entering fastest) is taken.
  */
-#define SMOOTH_EXEC_W 16
+#define SMOOTH_EXEC_W     16
 #define SMOOTH_EXEC_TILTS 9
 static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double rem, double v)
 {
@@ -578,7 +577,8 @@ static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double re
 			continue;
 		}
 		double ve = sqrt(q) * c.ve_mm_s, vs = sqrt(q) * c.vs_mm_s;
-		if (ve > best_ve * (1.0 + 1e-9) || (ve >= best_ve * (1.0 - 1e-12) && vs > best_vs * (1.0 + 1e-9))) {
+		if (ve > best_ve * (1.0 + 1e-9) ||
+		    (ve >= best_ve * (1.0 - 1e-12) && vs > best_vs * (1.0 + 1e-9))) {
 			best_ve = ve;
 			best_vs = vs;
 			best = c;
@@ -859,7 +859,8 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 		 * corner point first, at rest there, when that is the one before */
 		struct mlip_seg *s = seg_at(p, p->tail);
 		const struct mlip_seg *nx = seg_at(p, p->tail + 1);
-		if (line_dist(p->n, p->pos, s->end, nx->e) <= line_dist(p->n, p->pos, s->end, s->e)) {
+		if (line_dist(p->n, p->pos, s->end, nx->e) <=
+		    line_dist(p->n, p->pos, s->end, s->e)) {
 			retire(p);
 		} else {
 			s->exact = 1;

@@ -1,11 +1,11 @@
 /*
- * peer.c - the one liveness rule (mlip/peer.h): alive while it beats, late
+ * peer.c - the one liveness rule (mlip/ipc/peer.h): alive while it beats, late
  * while its process is there without beating, dead when the process is gone
  * too. Pure: the clock and the process come from the caller.
  */
 #include <stddef.h>
 
-#include "mlip/peer.h"
+#include "mlip/ipc/peer.h"
 
 /* Our previous read is too far back to count the time in between as watched
  * (we were stopped or starved ourselves), or there is none. */

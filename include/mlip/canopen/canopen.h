@@ -1,5 +1,5 @@
 /*
- * mlip/canopen.h - the CANopen master's frames and decisions, pure: NMT,
+ * mlip/canopen/canopen.h - the CANopen master's frames and decisions, pure: NMT,
  * heartbeat, EMCY, the SDO client (CiA 301), the CiA 402 power state machine
  * and the drive supervision. No sockets, no clock: rt/drives.c sends the
  * frames this builds and feeds back the frames it receives; tests feed
@@ -22,16 +22,16 @@
 
 #include <stdint.h>
 
-#include "mlip/canenc.h"
+#include "mlip/can/canenc.h"
 #include "mlip/types.h"
 
-#define MLIP_CO_NMT_ID 0x000u
-#define MLIP_CO_EMCY_BASE 0x080u
-#define MLIP_CO_TPDO1_BASE 0x180u
+#define MLIP_CO_NMT_ID      0x000u
+#define MLIP_CO_EMCY_BASE   0x080u
+#define MLIP_CO_TPDO1_BASE  0x180u
 #define MLIP_CO_SDO_TX_BASE 0x580u /* server (drive) -> client (mlip) */
 #define MLIP_CO_SDO_RX_BASE 0x600u /* client -> server */
-#define MLIP_CO_HB_BASE 0x700u
-#define MLIP_CO_NODE_MAX 127
+#define MLIP_CO_HB_BASE     0x700u
+#define MLIP_CO_NODE_MAX    127
 
 /* ---- NMT and heartbeat ------------------------------------------------------ */
 
@@ -60,8 +60,8 @@ const char *mlip_nmt_state_name(uint8_t state);
 /* ---- EMCY ------------------------------------------------------------------- */
 
 struct mlip_emcy {
-	uint16_t code;     /* 0x0000: error reset or no error */
-	uint8_t reg;       /* error register 0x1001 */
+	uint16_t code; /* 0x0000: error reset or no error */
+	uint8_t reg;   /* error register 0x1001 */
 	uint8_t vendor[5];
 };
 /* The class of an emergency error code (CiA 301 table 21, CiA 402 codes
@@ -100,10 +100,10 @@ void mlip_co_pdo_encode(uint32_t id, uint16_t word, int32_t counts, struct mlip_
 #define MLIP_SDO_MAX_DATA 32 /* bytes a segmented upload may bring (device name) */
 
 /* Abort codes mlip itself sends (CiA 301 table 22). */
-#define MLIP_SDO_ABORT_TOGGLE 0x05030000u
+#define MLIP_SDO_ABORT_TOGGLE  0x05030000u
 #define MLIP_SDO_ABORT_TIMEOUT 0x05040000u
 #define MLIP_SDO_ABORT_COMMAND 0x05040001u
-#define MLIP_SDO_ABORT_MEMORY 0x05040005u
+#define MLIP_SDO_ABORT_MEMORY  0x05040005u
 #define MLIP_SDO_ABORT_GENERAL 0x08000000u
 
 /* One transfer. Fill with mlip_sdo_download_begin / mlip_sdo_upload_begin,
@@ -113,12 +113,12 @@ struct mlip_sdo {
 	uint8_t node;
 	uint16_t index;
 	uint8_t sub;
-	uint8_t upload;    /* 1: read (upload), 0: write (download) */
-	uint8_t size;      /* download: bytes written (1..4) */
-	uint32_t value;    /* download: the value; upload: the first 4 bytes, little-endian */
+	uint8_t upload; /* 1: read (upload), 0: write (download) */
+	uint8_t size;   /* download: bytes written (1..4) */
+	uint32_t value; /* download: the value; upload: the first 4 bytes, little-endian */
 	uint8_t data[MLIP_SDO_MAX_DATA];
-	uint32_t len;      /* upload: bytes received */
-	uint8_t toggle;    /* segmented upload: the toggle bit of the next segment */
+	uint32_t len;   /* upload: bytes received */
+	uint8_t toggle; /* segmented upload: the toggle bit of the next segment */
 	uint8_t segmented;
 	uint32_t abort_code; /* ABORTED (from the drive) or PROTOCOL (sent by us) */
 };
@@ -158,14 +158,14 @@ typedef enum {
 	MLIP_402_UNKNOWN
 } mlip_402_state;
 
-#define MLIP_402_SW_FAULT 0x0008u           /* statusword bit 3 */
-#define MLIP_402_SW_FOLLOWING_ERROR 0x2000u /* bit 13 in CSP */
-#define MLIP_402_CW_DISABLE_VOLTAGE 0x0000u
-#define MLIP_402_CW_SHUTDOWN 0x0006u
-#define MLIP_402_CW_SWITCH_ON 0x0007u /* also "disable operation" from enabled */
+#define MLIP_402_SW_FAULT            0x0008u /* statusword bit 3 */
+#define MLIP_402_SW_FOLLOWING_ERROR  0x2000u /* bit 13 in CSP */
+#define MLIP_402_CW_DISABLE_VOLTAGE  0x0000u
+#define MLIP_402_CW_SHUTDOWN         0x0006u
+#define MLIP_402_CW_SWITCH_ON        0x0007u /* also "disable operation" from enabled */
 #define MLIP_402_CW_ENABLE_OPERATION 0x000Fu
-#define MLIP_402_CW_FAULT_RESET 0x0080u /* on its rising edge */
-#define MLIP_402_MODE_CSP 8             /* 0x6060 / 0x6061 */
+#define MLIP_402_CW_FAULT_RESET      0x0080u /* on its rising edge */
+#define MLIP_402_MODE_CSP            8       /* 0x6060 / 0x6061 */
 
 /* The state a statusword shows (CiA 402 table of statusword bits 0-3, 5, 6). */
 mlip_402_state mlip_402_state_of(uint16_t statusword);
@@ -183,13 +183,13 @@ mlip_402_state mlip_402_after(mlip_402_state s, uint16_t cw);
 
 struct mlip_drive_setup {
 	uint8_t node;
-	uint32_t sync_id;        /* 0x1005 */
-	uint32_t rpdo_cob;       /* RPDO1 COB-ID, 0x1400:01 */
-	uint32_t tpdo_cob;       /* TPDO1 COB-ID, 0x1800:01 */
-	double period_s;         /* 0x60C2 */
+	uint32_t sync_id;                 /* 0x1005 */
+	uint32_t rpdo_cob;                /* RPDO1 COB-ID, 0x1400:01 */
+	uint32_t tpdo_cob;                /* TPDO1 COB-ID, 0x1800:01 */
+	double period_s;                  /* 0x60C2 */
 	uint32_t following_window_counts; /* 0x6065 */
-	uint16_t heartbeat_ms;   /* 0x1017, the drive's producer time */
-	uint8_t master_node;     /* 0x1016:01: the drive watches the master's heartbeat */
+	uint16_t heartbeat_ms;            /* 0x1017, the drive's producer time */
+	uint8_t master_node;              /* 0x1016:01: the drive watches the master's heartbeat */
 	uint16_t master_timeout_ms;
 };
 
@@ -215,8 +215,7 @@ mlip_status mlip_co_interp_period(double period_s, uint8_t *value, int8_t *index
  * modes of operation = CSP and its display, interpolation period, following
  * error window, heartbeat producer and consumer. Returns the count, or -1
  * when cap is too small or the period cannot be written. */
-int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out,
-                             int cap);
+int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out, int cap);
 
 /* ---- supervision in the loop ------------------------------------------------------- */
 
@@ -230,7 +229,7 @@ typedef enum {
 	MLIP_DRIVE_FOLLOWING_ERROR, /* |target sent - position actual| beyond the window */
 	MLIP_DRIVE_TPDO_LOST,       /* no TPDO for tpdo_timeout periods, or the last one
 	                               answers a SYNC that many periods old */
-	/* re-enabling for the next program (the controller, src/controller.c) */
+	/* re-enabling for the next program (the controller, src/ctl/controller.c) */
 	MLIP_DRIVE_NOT_SWITCHED_ON, /* switch on (0x0007) not confirmed in time (statusword) */
 	MLIP_DRIVE_NOT_ENABLED,     /* enable operation (0x000F) not confirmed in time */
 	MLIP_DRIVE_BEYOND_LIMIT     /* its position actual is beyond a soft limit (mm, deg) */
@@ -240,12 +239,12 @@ typedef enum {
 struct mlip_drive_obs {
 	uint16_t statusword;
 	int32_t position_counts;
-	uint64_t tpdo_cycle;     /* period of the last TPDO; 0: none yet */
-	uint64_t tpdo_count;     /* TPDOs since the first SYNC: the n-th answers SYNC n */
+	uint64_t tpdo_cycle; /* period of the last TPDO; 0: none yet */
+	uint64_t tpdo_count; /* TPDOs since the first SYNC: the n-th answers SYNC n */
 	uint8_t nmt_state;
-	uint64_t hb_ns;          /* time of the last heartbeat */
+	uint64_t hb_ns; /* time of the last heartbeat */
 	struct mlip_emcy emcy;
-	uint32_t emcy_count;     /* EMCYs with a non-zero code */
+	uint32_t emcy_count; /* EMCYs with a non-zero code */
 };
 
 /* What the drive must be doing now. */

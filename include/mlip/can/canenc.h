@@ -1,5 +1,5 @@
 /*
- * mlip/canenc.h - one period's axis setpoints as CAN frames, the way back
+ * mlip/can/canenc.h - one period's axis setpoints as CAN frames, the way back
  * (decoding, for tests and tools), and the bus load of each output profile.
  *
  * Pure: no sockets, no linux/can.h; struct mlip_can_frame is converted to
@@ -10,7 +10,7 @@
  * zero; a value outside int32 is saturated AND reported (MLIP_E_RANGE): it is
  * a fault, the frames must not be sent.
  *
- * Profiles (ids are the [CAN] defaults of mlip/config.h; n = axes, node =
+ * Profiles (ids are the [CAN] defaults of mlip/machine/config.h; n = axes, node =
  * CAN_NODE of the axis):
  *
  * cia402 (default) - CiA 301 SYNC + one RPDO per drive, for CiA 402 drives in
@@ -79,37 +79,33 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "mlip/config.h"
+#include "mlip/machine/config.h"
 #include "mlip/types.h"
 
-#define MLIP_CAN_FLAG_EFF 0x1u /* 29-bit identifier (never produced by the encoder) */
-#define MLIP_CAN_FLAG_FD 0x2u  /* CAN FD frame */
-#define MLIP_CAN_FLAG_BRS 0x4u /* CAN FD bit-rate switch: data phase at data_bitrate */
-#define MLIP_CAN_MAX_LEN 64
-#define MLIP_CAN_SFF_MAX 0x7FFu /* largest 11-bit identifier */
+#define MLIP_CAN_FLAG_EFF   0x1u /* 29-bit identifier (never produced by the encoder) */
+#define MLIP_CAN_FLAG_FD    0x2u /* CAN FD frame */
+#define MLIP_CAN_FLAG_BRS   0x4u /* CAN FD bit-rate switch: data phase at data_bitrate */
+#define MLIP_CAN_MAX_LEN    64
+#define MLIP_CAN_SFF_MAX    0x7FFu              /* largest 11-bit identifier */
 #define MLIP_CAN_MAX_FRAMES (1 + MLIP_MAX_AXES) /* frames per period, any profile */
 
-typedef enum {
-	MLIP_CAN_CIA402 = 0,
-	MLIP_CAN_PACKED = 1,
-	MLIP_CAN_FD = 2
-} mlip_can_profile;
+typedef enum { MLIP_CAN_CIA402 = 0, MLIP_CAN_PACKED = 1, MLIP_CAN_FD = 2 } mlip_can_profile;
 
 /* One frame (converted to struct can_frame / canfd_frame by rt/). */
 struct mlip_can_frame {
-	uint32_t id;     /* 11-bit (29-bit with MLIP_CAN_FLAG_EFF), no flag bits */
-	uint8_t flags;   /* MLIP_CAN_FLAG_* */
-	uint8_t len;     /* data bytes: 0..8 classic; FD: 0..8,12,16,20,24,32,48,64 */
+	uint32_t id;   /* 11-bit (29-bit with MLIP_CAN_FLAG_EFF), no flag bits */
+	uint8_t flags; /* MLIP_CAN_FLAG_* */
+	uint8_t len;   /* data bytes: 0..8 classic; FD: 0..8,12,16,20,24,32,48,64 */
 	uint8_t data[MLIP_CAN_MAX_LEN];
 };
 
 /* Encoder settings, checked once by mlip_canenc_init. */
 struct mlip_canenc {
 	mlip_can_profile profile;
-	int n_axes;                           /* 1..MLIP_MAX_AXES */
-	uint8_t fd_flags;                     /* FD, plus BRS if data_bitrate > bitrate */
+	int n_axes;       /* 1..MLIP_MAX_AXES */
+	uint8_t fd_flags; /* FD, plus BRS if data_bitrate > bitrate */
 	uint32_t sync_id, rpdo_base, packed_base, fd_id;
-	uint8_t node[MLIP_MAX_AXES];          /* CANopen node id per axis (cia402) */
+	uint8_t node[MLIP_MAX_AXES];           /* CANopen node id per axis (cia402) */
 	double counts_per_unit[MLIP_MAX_AXES]; /* counts per mm or per degree */
 	/* cia402 with drives brought up by mlip (mlip-rt --drives): each RPDO is
 	 * 6 bytes, [0..1] controlword 0x6040 (below, set by the caller every
@@ -122,11 +118,11 @@ struct mlip_canenc {
 
 /* A decoded period. */
 struct mlip_can_setpoint {
-	uint32_t cycle;                /* packed, fd: from the wire; cia402: SYNCs counted
-	                                  by the decoder since its start, from 0 */
+	uint32_t cycle; /* packed, fd: from the wire; cia402: SYNCs counted
+	                   by the decoder since its start, from 0 */
 	int n_axes;
 	int32_t counts[MLIP_MAX_AXES];
-	double pos[MLIP_MAX_AXES];     /* counts / counts_per_unit: mm or deg */
+	double pos[MLIP_MAX_AXES]; /* counts / counts_per_unit: mm or deg */
 };
 
 /* "cia402" / "packed" / "fd" <-> enum. parse: MLIP_E_INVALID for anything
@@ -146,7 +142,7 @@ mlip_status mlip_can_counts(double pos, double counts_per_unit, int32_t *counts)
 /* Build an encoder from the [CAN] section and the machine. MLIP_E_INVALID
  * when: the profile name is unknown; n_axes is outside 1..MLIP_MAX_AXES;
  * counts_per_unit is not finite and > 0; the identifiers break the rules of
- * mlip_can_config_check (mlip/config.h: its message says which and why). */
+ * mlip_can_config_check (mlip/machine/config.h: its message says which and why). */
 mlip_status mlip_canenc_init(struct mlip_canenc *e, const struct mlip_can_config *can,
                              const struct mlip_machine *m);
 
@@ -170,20 +166,20 @@ mlip_status mlip_canenc_encode(const struct mlip_canenc *e, uint32_t cycle, cons
  * first group of fields is its working state; the counters are for tools. */
 struct mlip_candec {
 	struct mlip_canenc enc;
-	int open;             /* a period is being collected */
-	uint32_t seen;        /* bit per position frame received in the open period */
+	int open;      /* a period is being collected */
+	uint32_t seen; /* bit per position frame received in the open period */
 	int32_t counts[MLIP_MAX_AXES];
-	uint32_t syncs;       /* cia402: SYNCs seen */
-	uint32_t last_cycle;  /* packed, fd: counter of the last period closed */
+	uint32_t syncs;      /* cia402: SYNCs seen */
+	uint32_t last_cycle; /* packed, fd: counter of the last period closed */
 	int have_last;
 	/* statistics since init */
-	uint64_t complete;    /* periods delivered */
-	uint64_t incomplete;  /* periods dropped because a frame was missing or repeated */
-	uint64_t lost;        /* periods missing altogether (counter jumps: packed, fd) */
-	uint64_t stray;       /* our position frames outside any period (cia402: before
-	                         the first SYNC or after the period completed) */
-	uint64_t malformed;   /* one of our ids with the wrong length or flags */
-	uint64_t foreign;     /* other ids, ignored */
+	uint64_t complete;   /* periods delivered */
+	uint64_t incomplete; /* periods dropped because a frame was missing or repeated */
+	uint64_t lost;       /* periods missing altogether (counter jumps: packed, fd) */
+	uint64_t stray;      /* our position frames outside any period (cia402: before
+	                        the first SYNC or after the period completed) */
+	uint64_t malformed;  /* one of our ids with the wrong length or flags */
+	uint64_t foreign;    /* other ids, ignored */
 };
 
 void mlip_candec_init(struct mlip_candec *d, const struct mlip_canenc *e);
@@ -200,8 +196,8 @@ mlip_status mlip_candec_feed(struct mlip_candec *d, const struct mlip_can_frame 
 /* Decode exactly one encoded period (as mlip_canenc_encode made it): MLIP_OK
  * when the frames form one complete period ending at the last frame, with no
  * foreign, malformed or left-over frame; MLIP_E_SYNTAX otherwise. */
-mlip_status mlip_canenc_decode(const struct mlip_canenc *e, const struct mlip_can_frame *f,
-                               int n, struct mlip_can_setpoint *out);
+mlip_status mlip_canenc_decode(const struct mlip_canenc *e, const struct mlip_can_frame *f, int n,
+                               struct mlip_can_setpoint *out);
 
 /* ---- bus load -------------------------------------------------------------- */
 
@@ -215,18 +211,18 @@ struct mlip_can_bits mlip_can_frame_bits(uint8_t flags, uint8_t len);
 
 /* Per-period breakdown, for a tool to print. */
 struct mlip_can_load {
-	int frames;                     /* frames per period */
-	uint32_t data_bytes;            /* payload bytes per period */
-	uint32_t bits_nominal;          /* worst-case bits per period at bitrate */
-	uint32_t bits_data;             /* ... at data_bitrate (fd with BRS) */
-	double busy_s;                  /* bus time per period, s */
-	double load;                    /* busy_s / period_s: fraction, > 1: does not fit */
-	double load_pct;                /* 100 * load */
+	int frames;            /* frames per period */
+	uint32_t data_bytes;   /* payload bytes per period */
+	uint32_t bits_nominal; /* worst-case bits per period at bitrate */
+	uint32_t bits_data;    /* ... at data_bitrate (fd with BRS) */
+	double busy_s;         /* bus time per period, s */
+	double load;           /* busy_s / period_s: fraction, > 1: does not fit */
+	double load_pct;       /* 100 * load */
 	struct {
 		uint8_t flags;
 		uint8_t len;
 		struct mlip_can_bits bits;
-		double time_s;          /* on the bus, worst case */
+		double time_s;        /* on the bus, worst case */
 	} frame[MLIP_CAN_MAX_FRAMES]; /* in send order */
 };
 

@@ -1,5 +1,5 @@
 /*
- * mlip/peer.h - is the process on the other side of the segment still there?
+ * mlip/ipc/peer.h - is the process on the other side of the segment still there?
  * The one rule every side uses: the controller judging its feeder, mlip-feed
  * and mlip-ctl judging the controller, a new controller deciding whether it
  * may take a segment over.
@@ -30,13 +30,9 @@
 /* A peer without a beat this long is not alive (feeder <-> controller). */
 #define MLIP_PEER_TIMEOUT_NS 100000000LL
 /* A late peer (its process there, not beating) is reported after this. */
-#define MLIP_PEER_LATE_NS 1000000000LL
+#define MLIP_PEER_LATE_NS    1000000000LL
 
-typedef enum {
-	MLIP_PEER_ALIVE = 0,
-	MLIP_PEER_LATE,
-	MLIP_PEER_DEAD
-} mlip_peer_verdict;
+typedef enum { MLIP_PEER_ALIVE = 0, MLIP_PEER_LATE, MLIP_PEER_DEAD } mlip_peer_verdict;
 
 /* What the reader found of the peer this time. */
 struct mlip_peer_seen {

@@ -1,5 +1,5 @@
 /*
- * mlip/config.h - machine configuration from an INI file in the spirit of
+ * mlip/machine/config.h - machine configuration from an INI file in the spirit of
  * LinuxCNC's ([TRAJ], [AXIS_X], ...), parsed from a buffer.
  *
  * Pure: no allocation, no I/O; the caller reads the file. Unknown sections or
@@ -77,35 +77,35 @@
 
 #include "mlip/types.h"
 
-#define MLIP_CONFIG_MSG 256
-#define MLIP_CONFIG_MAX_LINE 512      /* bytes per line, line ending excluded */
+#define MLIP_CONFIG_MSG          256
+#define MLIP_CONFIG_MAX_LINE     512  /* bytes per line, line ending excluded */
 #define MLIP_CONFIG_PERIOD_MIN_S 1e-4 /* PERIOD range, inclusive */
 #define MLIP_CONFIG_PERIOD_MAX_S 0.1
 /* Largest values a machine may have (mlip_machine_check): beyond any real
  * machine, small enough that positions, speeds and drive counts computed
  * from them stay far from overflow and keep their precision in a double. */
-#define MLIP_CONFIG_ACCEL_MAX 1e6  /* MAX_ACCELERATION, mm/s^2 or deg/s^2 (100 g) */
-#define MLIP_CONFIG_VEL_MAX 1e5    /* MAX_VELOCITY, MAX_*_VELOCITY: mm/s or deg/s */
-#define MLIP_CONFIG_LIMIT_MAX 1e9  /* |MIN_LIMIT|, |MAX_LIMIT|, |HOME|, mm or deg */
-#define MLIP_CONFIG_COUNTS_MAX 1e7 /* COUNTS_PER_UNIT (0.1 nm per count) */
-#define MLIP_CONFIG_TOL_MIN 1e-6   /* CONTOUR_TOLERANCE, mm: 1 nm */
+#define MLIP_CONFIG_ACCEL_MAX    1e6  /* MAX_ACCELERATION, mm/s^2 or deg/s^2 (100 g) */
+#define MLIP_CONFIG_VEL_MAX      1e5  /* MAX_VELOCITY, MAX_*_VELOCITY: mm/s or deg/s */
+#define MLIP_CONFIG_LIMIT_MAX    1e9  /* |MIN_LIMIT|, |MAX_LIMIT|, |HOME|, mm or deg */
+#define MLIP_CONFIG_COUNTS_MAX   1e7  /* COUNTS_PER_UNIT (0.1 nm per count) */
+#define MLIP_CONFIG_TOL_MIN      1e-6 /* CONTOUR_TOLERANCE, mm: 1 nm */
 
 struct mlip_config_error {
-	uint32_t line;  /* 1-based; 0 for a whole-file error (e.g. missing key) */
-	uint32_t col;   /* 1-based; 0 when not applicable */
+	uint32_t line; /* 1-based; 0 for a whole-file error (e.g. missing key) */
+	uint32_t col;  /* 1-based; 0 when not applicable */
 	char msg[MLIP_CONFIG_MSG];
 };
 
 /* [CAN] section: output settings for the real-time controller. */
 struct mlip_can_config {
-	char profile[8];        /* "cia402" (default), "packed", "fd" */
-	uint32_t bitrate;       /* bit/s, default 1000000 */
-	uint32_t data_bitrate;  /* CAN FD data phase bit/s, default 5000000 */
-	uint32_t sync_id;       /* default 0x080 */
-	uint32_t rpdo_base;     /* default 0x200 (+ node id) */
-	uint32_t packed_base;   /* default 0x300 (+ frame index) */
-	uint32_t fd_id;         /* default 0x400 */
-	uint32_t status_id;     /* default 0x180: controller status frame */
+	char profile[8];       /* "cia402" (default), "packed", "fd" */
+	uint32_t bitrate;      /* bit/s, default 1000000 */
+	uint32_t data_bitrate; /* CAN FD data phase bit/s, default 5000000 */
+	uint32_t sync_id;      /* default 0x080 */
+	uint32_t rpdo_base;    /* default 0x200 (+ node id) */
+	uint32_t packed_base;  /* default 0x300 (+ frame index) */
+	uint32_t fd_id;        /* default 0x400 */
+	uint32_t status_id;    /* default 0x180: controller status frame */
 };
 
 /* [DRIVES] section: CiA 402 drives brought up, watched and shut down by
@@ -125,7 +125,7 @@ struct mlip_config {
 	struct mlip_machine machine;
 	struct mlip_can_config can;
 	struct mlip_drives_config drives;
-	uint32_t lookahead;     /* [TRAJ] LOOKAHEAD blocks, default MLIP_LOOKAHEAD */
+	uint32_t lookahead; /* [TRAJ] LOOKAHEAD blocks, default MLIP_LOOKAHEAD */
 };
 
 /* Fill *c with defaults (no axes): MAX_ANGULAR_VELOCITY 360, PERIOD 0.001,
@@ -160,7 +160,7 @@ mlip_status mlip_machine_check(const struct mlip_machine *m, struct mlip_config_
  * error with the reason in err (may be NULL; line = col = 0), e.g.
  * "PACKED_BASE 0x17F + 1 = 0x180 (position frame 1 of 3 axes) is also the
  * STATUS_ID". */
-mlip_status mlip_can_config_check(const struct mlip_can_config *can,
-                                  const struct mlip_machine *m, struct mlip_config_error *err);
+mlip_status mlip_can_config_check(const struct mlip_can_config *can, const struct mlip_machine *m,
+                                  struct mlip_config_error *err);
 
 #endif

@@ -1,5 +1,5 @@
 /*
- * mlip/planner.h - the interpolation core: corner planning (eqs 1-20),
+ * mlip/motion/planner.h - the interpolation core: corner planning (eqs 1-20),
  * adaptive look-ahead (Sec. 2, eqs 21-26, 34), feed override (Sec. 3) and
  * per-period interpolation (Sec. 4) of Zhang, Sun, Gao, Li (2011).
  *
@@ -41,8 +41,8 @@ typedef enum {
 	MLIP_STRATEGY_MPCT = 0, /* the paper: multi-period constant-acceleration corners */
 	MLIP_STRATEGY_BISECTOR, /* equal speeds, one period, a along e_e - e_s (eq 10) */
 	MLIP_STRATEGY_STOP,     /* speed 0 at every corner */
-	MLIP_STRATEGY_SMOOTH    /* mpct's corners on the host's smoothed path (mlip/smooth.h):
-	                           the planner treats it as MPCT */
+	MLIP_STRATEGY_SMOOTH /* mpct's corners on the host's smoothed path (mlip/motion/smooth.h):
+	                        the planner treats it as MPCT */
 } mlip_strategy;
 
 /* ---- corner planning, exposed for tests and benchmarks ---------------- */
@@ -52,8 +52,8 @@ typedef enum {
  * alpha, beta >= 0. e_s, e_e unit vectors of n axes. Returns 0 and the
  * optimum, or -1 when the programme is unbounded (collinear corner: no
  * acceleration needed). Ties (reversals) are broken toward alpha = beta. */
-int mlip_corner_lp(int n, const double *e_s, const double *e_e, const double *accel,
-                   double *alpha, double *beta);
+int mlip_corner_lp(int n, const double *e_s, const double *e_e, const double *accel, double *alpha,
+                   double *beta);
 
 /* Geometry of one corner at its largest admissible size (q = 1). Speeds and
  * distances at q in [0,1] are v = sqrt(q) * v_g, l = q * l_g, t = sqrt(q) * t_g
@@ -69,10 +69,9 @@ struct mlip_corner {
  * of direction e_e and length de_mm, under strategy st, contour budget eps_mm,
  * per-axis limits accel[], hard speed caps vcap_s / vcap_e of the two
  * segments, period T (bisector). Implements (18), (19), (20). */
-void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *e_e,
-                      double ds_mm, double de_mm, const double *accel, double eps_mm,
-                      double vcap_s_mm_s, double vcap_e_mm_s, double period_s,
-                      struct mlip_corner *c);
+void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *e_e, double ds_mm,
+                      double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
+                      double vcap_e_mm_s, double period_s, struct mlip_corner *c);
 
 /* The smooth strategy's corner shapes (beyond the paper, corner.c): out[0]
  * is mlip_corner_plan's, then up to MLIP_SMOOTH_SHAPES - 1 braking shapes on
@@ -97,25 +96,25 @@ struct mlip_shape {
  * public only so the struct has a known size. Grouped by role. */
 struct mlip_seg {
 	/* geometry, set at push */
-	double end[MLIP_MAX_AXES];   /* P_i */
-	double e[MLIP_MAX_AXES];     /* unit direction in joint space */
-	double d_mm;                 /* d_i, joint-space length */
-	double a_mm_s2;              /* a_{i,m}: line acceleration limit */
-	double two_a_d;              /* 2 a_{i,m} d_i, reused by every pass */
-	double vhard_mm_s;           /* hard speed cap of the line: v_m, axis limits */
-	double vfeed_mm_s;           /* programmed feed in joint units (100 %) */
-	double tol_mm;               /* eps budget of the corner at end[] */
-	int exact;                   /* exact stop (G61): the corner at end[] at rest */
-	uint32_t line;               /* source line */
-	uint64_t seq;                /* the block's seq (or a push count, from 1) */
+	double end[MLIP_MAX_AXES]; /* P_i */
+	double e[MLIP_MAX_AXES];   /* unit direction in joint space */
+	double d_mm;               /* d_i, joint-space length */
+	double a_mm_s2;            /* a_{i,m}: line acceleration limit */
+	double two_a_d;            /* 2 a_{i,m} d_i, reused by every pass */
+	double vhard_mm_s;         /* hard speed cap of the line: v_m, axis limits */
+	double vfeed_mm_s;         /* programmed feed in joint units (100 %) */
+	double tol_mm;             /* eps budget of the corner at end[] */
+	int exact;                 /* exact stop (G61): the corner at end[] at rest */
+	uint32_t line;             /* source line */
+	uint64_t seq;              /* the block's seq (or a push count, from 1) */
 	/* corner at end[], valid once the next segment exists */
 	struct mlip_corner c;
-	double inv_vs2, inv_ve2;     /* 1/v_s^2, 1/v_e^2 at q=1 (0 when v is 0) */
-	double brake_b;              /* B = v_s^2 - 2 a_i l_s (this line's a) */
-	double inv_brake_c;          /* 1 / C, C = v_e^2 + 2 a_{i+1} l_e (0: no bound) */
-	double qcap;                 /* largest q under the override (Sec. 3) */
+	double inv_vs2, inv_ve2; /* 1/v_s^2, 1/v_e^2 at q=1 (0 when v is 0) */
+	double brake_b;          /* B = v_s^2 - 2 a_i l_s (this line's a) */
+	double inv_brake_c;      /* 1 / C, C = v_e^2 + 2 a_{i+1} l_e (0: no bound) */
+	double qcap;             /* largest q under the override (Sec. 3) */
 	/* look-ahead state */
-	double q;                    /* planned (t_m / t_g)^2 of the corner, in [0,1] */
+	double q; /* planned (t_m / t_g)^2 of the corner, in [0,1] */
 	/* smooth: the shapes c is chosen among (mlip_corner_smooth_shapes),
 	 * which one it is, or MLIP_SHAPE_FIXED once the executor chose c */
 	uint8_t n_shapes, shape;
@@ -127,57 +126,57 @@ struct mlip_seg {
 
 /* A line's speed profile (35)(36): from v0 to vc at a1, cruise, to v1 at a3. */
 struct mlip_profile {
-	double v0, vc, v1;          /* mm/s */
-	double a1, a3;              /* mm/s^2, signed */
-	double t1, t2, t3;          /* s; t2 may be infinite (feed hold) */
-	double d1, d2;              /* mm */
+	double v0, vc, v1; /* mm/s */
+	double a1, a3;     /* mm/s^2, signed */
+	double t1, t2, t3; /* s; t2 may be infinite (feed hold) */
+	double d1, d2;     /* mm */
 };
 
 typedef enum {
-	MLIP_RUN_IDLE = 0,   /* at rest on the last point, nothing queued */
-	MLIP_RUN_MOVING,     /* executing */
-	MLIP_RUN_HELD        /* feed hold (override 0 or hold): at rest on the path */
+	MLIP_RUN_IDLE = 0, /* at rest on the last point, nothing queued */
+	MLIP_RUN_MOVING,   /* executing */
+	MLIP_RUN_HELD      /* feed hold (override 0 or hold): at rest on the path */
 } mlip_run_state;
 
 struct mlip_planner_stats {
-	uint64_t pushes;           /* blocks appended */
-	uint64_t backward_visits;  /* corners visited by backward passes of pushes */
-	uint64_t full_passes;      /* full re-plans (override changes) */
-	uint64_t periods;          /* calls to step */
+	uint64_t pushes;          /* blocks appended */
+	uint64_t backward_visits; /* corners visited by backward passes of pushes */
+	uint64_t full_passes;     /* full re-plans (override changes) */
+	uint64_t periods;         /* calls to step */
 };
 
 struct mlip_planner {
 	/* configuration, fixed at init */
-	int n;                           /* axes */
+	int n; /* axes */
 	mlip_strategy strategy;
-	double accel[MLIP_MAX_AXES];     /* A_k with MLIP_ACCEL_MARGIN applied */
-	double vaxis[MLIP_MAX_AXES];     /* per-axis velocity limits */
+	double accel[MLIP_MAX_AXES]; /* A_k with MLIP_ACCEL_MARGIN applied */
+	double vaxis[MLIP_MAX_AXES]; /* per-axis velocity limits */
 	uint8_t rotary[MLIP_MAX_AXES];
 	double vmax_mm_s, vmax_rot_deg_s, eps_mm, period_s;
 	/* look-ahead ring: segments [tail, head) are queued, seg[tail] is the
 	 * one being executed (its line or its end corner) */
-	uint32_t head, tail;             /* free-running; index & (cap-1) */
-	uint32_t cap;                    /* <= MLIP_LOOKAHEAD, power of two */
-	uint64_t seq;                    /* seq of the newest segment */
-	double override;                 /* feed override, 0..2 */
-	int hold;                        /* feed hold: plan as if override were 0 */
-	int stopping;                    /* stop: hold, then drop the queue at rest */
-	double last_point[MLIP_MAX_AXES];/* end of the newest segment (or start) */
+	uint32_t head, tail;              /* free-running; index & (cap-1) */
+	uint32_t cap;                     /* <= MLIP_LOOKAHEAD, power of two */
+	uint64_t seq;                     /* seq of the newest segment */
+	double override;                  /* feed override, 0..2 */
+	int hold;                         /* feed hold: plan as if override were 0 */
+	int stopping;                     /* stop: hold, then drop the queue at rest */
+	double last_point[MLIP_MAX_AXES]; /* end of the newest segment (or start) */
 	/* execution state */
-	int in_corner;                   /* 0: on the line of seg[tail]; 1: in its end corner */
-	double l_start_mm;               /* line: where it starts along seg[tail] (l_e of
-	                                    the corner before, as executed) */
-	double s_mm;                     /* line: distance from the line's start */
-	double v_mm_s;                   /* line: current speed */
-	double tc_s;                     /* corner: time spent in it */
-	struct mlip_profile prof;        /* line: the profile being followed */
+	int in_corner;            /* 0: on the line of seg[tail]; 1: in its end corner */
+	double l_start_mm;        /* line: where it starts along seg[tail] (l_e of
+	                             the corner before, as executed) */
+	double s_mm;              /* line: distance from the line's start */
+	double v_mm_s;            /* line: current speed */
+	double tc_s;              /* corner: time spent in it */
+	struct mlip_profile prof; /* line: the profile being followed */
 	int prof_valid;
-	double prof_q, prof_vt;          /* its inputs: end-corner q, target speed */
-	double prof_t, prof_s0, prof_len;/* time in it, s at its start, its length */
-	double q_exec;                   /* corner: frozen q of seg[tail]'s end corner */
-	double pos[MLIP_MAX_AXES];       /* last setpoint */
-	uint64_t done_seq;               /* last completed block (a block pushed at
-	                                    rest sets it to that block's seq - 1) */
+	double prof_q, prof_vt;           /* its inputs: end-corner q, target speed */
+	double prof_t, prof_s0, prof_len; /* time in it, s at its start, its length */
+	double q_exec;                    /* corner: frozen q of seg[tail]'s end corner */
+	double pos[MLIP_MAX_AXES];        /* last setpoint */
+	uint64_t done_seq;                /* last completed block (a block pushed at
+	                                     rest sets it to that block's seq - 1) */
 	uint32_t done_line;
 	struct mlip_planner_stats stats;
 	struct mlip_seg seg[MLIP_LOOKAHEAD];

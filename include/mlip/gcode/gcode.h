@@ -1,5 +1,5 @@
 /*
- * mlip/gcode.h - G-code front end: text in, joint-space blocks out.
+ * mlip/gcode/gcode.h - G-code front end: text in, joint-space blocks out.
  *
  * Pure: reads a line from a buffer, never a file; no allocation, no I/O.
  * The caller feeds a program line by line (mlip_gcode_line), then calls
@@ -38,25 +38,25 @@
 
 #include "mlip/types.h"
 
-#define MLIP_GCODE_MAX_LINE 256   /* longer lines are an error */
-#define MLIP_GCODE_MSG 160
-#define MLIP_GCODE_MAX_NOTICES 32
-#define MLIP_GCODE_N_COORD 9      /* G54..G59, G59.1..G59.3 */
+#define MLIP_GCODE_MAX_LINE     256 /* longer lines are an error */
+#define MLIP_GCODE_MSG          160
+#define MLIP_GCODE_MAX_NOTICES  32
+#define MLIP_GCODE_N_COORD      9 /* G54..G59, G59.1..G59.3 */
 /* points closer than this to the previous one are merged (mlip/types.h) */
-#define MLIP_GCODE_MERGE_MM MLIP_MERGE_MM
+#define MLIP_GCODE_MERGE_MM     MLIP_MERGE_MM
 /* chord sagitta allowed when turning an arc into chords, as a fraction of
  * the contour tolerance; the corner between chords gets the rest */
 #define MLIP_GCODE_ARC_FRACTION 0.1
 
 struct mlip_gcode_error {
-	uint32_t line;   /* 1-based */
-	uint32_t col;    /* 1-based; 0 when the error concerns the whole line/file */
+	uint32_t line;            /* 1-based */
+	uint32_t col;             /* 1-based; 0 when the error concerns the whole line/file */
 	char msg[MLIP_GCODE_MSG]; /* one line, no trailing newline */
 };
 
 /* A word accepted but with no effect on motion, reported once. */
 struct mlip_gcode_notice {
-	char word[8];      /* e.g. "M3", "S", "G54", "T" */
+	char word[8]; /* e.g. "M3", "S", "G54", "T" */
 	uint32_t first_line;
 	uint32_t count;
 };
@@ -69,10 +69,10 @@ typedef int (*mlip_block_sink)(void *ctx, const struct mlip_block *b);
  * #5161-#5386); all in machine units (mm, degrees), config axis order. */
 struct mlip_gcode_offsets {
 	double coord[MLIP_GCODE_N_COORD][MLIP_MAX_AXES]; /* G54..G59.3 origins */
-	double g92[MLIP_MAX_AXES];   /* G92 offset values (#5211-) */
-	int g92_on;                  /* G92 offset applied (#5210) */
-	int select;                  /* selected system, 0 = G54 .. 8 = G59.3 (#5220) */
-	double g28[MLIP_MAX_AXES];   /* G28 / G30 positions, machine coordinates */
+	double g92[MLIP_MAX_AXES];                       /* G92 offset values (#5211-) */
+	int g92_on;                                      /* G92 offset applied (#5210) */
+	int select;                /* selected system, 0 = G54 .. 8 = G59.3 (#5220) */
+	double g28[MLIP_MAX_AXES]; /* G28 / G30 positions, machine coordinates */
 	double g30[MLIP_MAX_AXES];
 };
 
@@ -85,27 +85,27 @@ const char *mlip_gcode_coord_name(int select);
 /* Modal state: fixed size, owned by the caller. Fields are private. */
 struct mlip_gcode {
 	const struct mlip_machine *m;
-	double pos[MLIP_MAX_AXES];   /* last emitted point, machine units */
-	double cur[MLIP_MAX_AXES];   /* programmed point (pos lags it by < MERGE) */
-	double feed_mm_s;            /* current F, converted; <= 0: none yet */
-	double feed_word;            /* current F as written, units/min (deg/min
-	                                for rotary-only moves) */
-	double initial_feed_word;    /* F used by feed moves before any F; <= 0:
-	                                none, such a move is an error */
-	int motion;                  /* 0,1,2,3 or -1 before any */
-	int plane;                   /* 17, 18, 19 */
-	int absolute;                /* G90 = 1, G91 = 0 */
-	int inches;                  /* G20 = 1 */
-	uint32_t blocks;             /* blocks emitted so far (events included) */
-	uint32_t moves;              /* of which moves */
+	double pos[MLIP_MAX_AXES]; /* last emitted point, machine units */
+	double cur[MLIP_MAX_AXES]; /* programmed point (pos lags it by < MERGE) */
+	double feed_mm_s;          /* current F, converted; <= 0: none yet */
+	double feed_word;          /* current F as written, units/min (deg/min
+	                              for rotary-only moves) */
+	double initial_feed_word;  /* F used by feed moves before any F; <= 0:
+	                              none, such a move is an error */
+	int motion;                /* 0,1,2,3 or -1 before any */
+	int plane;                 /* 17, 18, 19 */
+	int absolute;              /* G90 = 1, G91 = 0 */
+	int inches;                /* G20 = 1 */
+	uint32_t blocks;           /* blocks emitted so far (events included) */
+	uint32_t moves;            /* of which moves */
 	struct mlip_gcode_offsets off;
-	int g53;                     /* this line is in machine coordinates */
-	int exact_stop;              /* G61/G61.1 in effect */
-	double tol_mm;               /* corner tolerance of G64 [P] in effect */
-	int inverse_time;            /* G93 */
-	int feed_reset;              /* F forgotten by a G93/G94 change */
-	int ended;                   /* M2/M30 seen: later lines are not run */
-	int strict;                  /* refuse Grbl conveniences ($ lines, G0 default) */
+	int g53;          /* this line is in machine coordinates */
+	int exact_stop;   /* G61/G61.1 in effect */
+	double tol_mm;    /* corner tolerance of G64 [P] in effect */
+	int inverse_time; /* G93 */
+	int feed_reset;   /* F forgotten by a G93/G94 change */
+	int ended;        /* M2/M30 seen: later lines are not run */
+	int strict;       /* refuse Grbl conveniences ($ lines, G0 default) */
 	uint32_t n_notices;
 	struct mlip_gcode_notice notices[MLIP_GCODE_MAX_NOTICES];
 };
@@ -116,9 +116,8 @@ void mlip_gcode_init(struct mlip_gcode *g, const struct mlip_machine *m);
 /* Parse one line (without its newline; len bytes, need not be NUL-terminated).
  * Emits zero or more blocks through sink. Returns MLIP_OK or an error code
  * with *err filled (line, column, message). */
-mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len,
-                            uint32_t lineno, mlip_block_sink sink, void *ctx,
-                            struct mlip_gcode_error *err);
+mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, uint32_t lineno,
+                            mlip_block_sink sink, void *ctx, struct mlip_gcode_error *err);
 
 /* End of program: MLIP_E_SYNTAX "empty program: no motion" when no block was
  * ever emitted. */

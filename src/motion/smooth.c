@@ -1,5 +1,5 @@
 /*
- * smooth.c - the `smooth` strategy's path filter (see mlip/smooth.h).
+ * smooth.c - the `smooth` strategy's path filter (see mlip/motion/smooth.h).
  *
  * Why: on CAM output the paper's corners are limited by their locality, not
  * by eps: each corner fits in half of each neighbouring segment (19), so on a
@@ -93,29 +93,28 @@
 #include <stddef.h>
 #include <string.h>
 
-#include "mlip/smooth.h"
+#include "mlip/motion/smooth.h"
 
-#define SOLVE_BATCH 1024 /* samples frozen per solve */
-#define UNIFORM_STEPS 5 /* segments up to this many steps are sampled uniformly */
-#define GEOM_LEVELS 7   /* else at 1, 2, ... 64 steps from each end */
-#define WEIGHT_UP_MAX 16.0
+#define SOLVE_BATCH     1024 /* samples frozen per solve */
+#define UNIFORM_STEPS   5    /* segments up to this many steps are sampled uniformly */
+#define GEOM_LEVELS     7    /* else at 1, 2, ... 64 steps from each end */
+#define WEIGHT_UP_MAX   16.0
 #define WEIGHT_DOWN_MAX 0.25
-#define WEIGHT_TARGET 0.95
+#define WEIGHT_TARGET   0.95
 
 enum { ROLE_START = 0, ROLE_SUB, ROLE_VERTEX, ROLE_PASS };
 
 /* Tuning (mm). The spline's initial smoothing length L0 sets the weights
  * w = h / L0^4 against a unit bending weight: curves shorter than about L0
  * are flattened unless the band forbids it. */
-#define STEP_MM 0.1
-#define L0_MM 1.0
-#define GAP_STEPS 4.0
+#define STEP_MM     0.1
+#define L0_MM       1.0
+#define GAP_STEPS   4.0
 #define CORNER_NEED 0.15
 #define JITTER_KEEP 0.97
-#define JITTER_MIN 0.4
-#define JITTER_PIN 0.4
-#define SHORT_FRAC 3.0
-
+#define JITTER_MIN  0.4
+#define JITTER_PIN  0.4
+#define SHORT_FRAC  3.0
 
 static double dmin(double a, double b)
 {
@@ -243,7 +242,8 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 		for (uint32_t i = 0; i < m; i++) {
 			int fi = is_fixed(sm, a + i);
 			for (int k = 0; k < n; k++) {
-				rhs[i * (uint32_t)n + (uint32_t)k] = fi ? s[i].x[k] : s[i].w * s[i].p[k];
+				rhs[i * (uint32_t)n + (uint32_t)k] =
+				    fi ? s[i].x[k] : s[i].w * s[i].p[k];
 			}
 		}
 		for (uint32_t j = 0; j < m; j++) {
@@ -280,24 +280,28 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 			double L2 = i >= 2 ? a2[i - 2] / a0[i - 2] : 0.0;
 			double L1 = 0.0;
 			if (i >= 1) {
-				L1 = (a1[i - 1] - (i >= 2 ? L2 * l1[i - 1] * a0[i - 2] : 0.0)) / a0[i - 1];
+				L1 = (a1[i - 1] - (i >= 2 ? L2 * l1[i - 1] * a0[i - 2] : 0.0)) /
+				     a0[i - 1];
 			}
 			l1[i] = L1;
 			l2[i] = L2;
-			a0[i] -= L1 * L1 * (i >= 1 ? a0[i - 1] : 0.0) + L2 * L2 * (i >= 2 ? a0[i - 2] : 0.0);
+			a0[i] -= L1 * L1 * (i >= 1 ? a0[i - 1] : 0.0) +
+			         L2 * L2 * (i >= 2 ? a0[i - 2] : 0.0);
 		}
 		for (int k = 0; k < n; k++) {
 			double *r = rhs + k;
 			for (uint32_t i = 1; i < m; i++) {
-				r[i * (uint32_t)n] -= l1[i] * r[(i - 1) * (uint32_t)n] +
-				                      (i >= 2 ? l2[i] * r[(i - 2) * (uint32_t)n] : 0.0);
+				r[i * (uint32_t)n] -=
+				    l1[i] * r[(i - 1) * (uint32_t)n] +
+				    (i >= 2 ? l2[i] * r[(i - 2) * (uint32_t)n] : 0.0);
 			}
 			for (uint32_t i = 0; i < m; i++) {
 				r[i * (uint32_t)n] /= a0[i];
 			}
 			for (uint32_t i = m - 1; i-- > 0;) {
-				r[i * (uint32_t)n] -= l1[i + 1] * r[(i + 1) * (uint32_t)n] +
-				                      (i + 2 < m ? l2[i + 2] * r[(i + 2) * (uint32_t)n] : 0.0);
+				r[i * (uint32_t)n] -=
+				    l1[i + 1] * r[(i + 1) * (uint32_t)n] +
+				    (i + 2 < m ? l2[i + 2] * r[(i + 2) * (uint32_t)n] : 0.0);
 			}
 		}
 		/* leave each corner what it needs on the smoothed curve: a corner
@@ -309,13 +313,16 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 			}
 			double h1 = s[i].h, h2 = s[i + 1].h, hs = h1 + h2, k2 = 0.0;
 			for (int k = 0; k < n; k++) {
-				double c = rhs[(i + 1) * (uint32_t)n + (uint32_t)k] * (2.0 / (hs * h2)) +
-				           rhs[(i - 1) * (uint32_t)n + (uint32_t)k] * (2.0 / (hs * h1)) -
-				           rhs[i * (uint32_t)n + (uint32_t)k] * (2.0 / (hs * h1) + 2.0 / (hs * h2));
+				double c =
+				    rhs[(i + 1) * (uint32_t)n + (uint32_t)k] * (2.0 / (hs * h2)) +
+				    rhs[(i - 1) * (uint32_t)n + (uint32_t)k] * (2.0 / (hs * h1)) -
+				    rhs[i * (uint32_t)n + (uint32_t)k] *
+				        (2.0 / (hs * h1) + 2.0 / (hs * h2));
 				k2 += c * c;
 			}
 			double hm = dmax(h1, h2);
-			s[i].r = dmax(dmin(sm->rho * s[i].bmin, s[i].bmin - sm->corner_need * hm * hm * sqrt(k2)),
+			s[i].r = dmax(dmin(sm->rho * s[i].bmin,
+			                   s[i].bmin - sm->corner_need * hm * hm * sqrt(k2)),
 			              0.0);
 		}
 		/* take the solution; grow the weights where the band is left */
@@ -337,7 +344,8 @@ static void solve(struct mlip_smooth *sm, uint32_t upto)
 			double r2 = s[i].r * s[i].r * (WEIGHT_TARGET * WEIGHT_TARGET);
 			double q = r2 > 0.0 ? sqrt(d2 / r2) : 0.0;
 			double f = r2 > 0.0 ? q * sqrt(q) : WEIGHT_UP_MAX;
-			s[i].w = dmax(s[i].w * dmin(dmax(f, WEIGHT_DOWN_MAX), WEIGHT_UP_MAX), s[i].w0);
+			s[i].w =
+			    dmax(s[i].w * dmin(dmax(f, WEIGHT_DOWN_MAX), WEIGHT_UP_MAX), s[i].w0);
 		}
 	}
 
@@ -477,7 +485,6 @@ static void open_run(struct mlip_smooth *sm, double feed)
 	sm->have_dir = 0;
 	sm->pend = 0;
 }
-
 
 /* Cut the newest segment (one vertex sample, not final) into pieces of at
  * most step_mm: sub-samples on the original segment before its vertex. */

@@ -1,5 +1,5 @@
 /*
- * canopen.c - CANopen master frames and decisions (mlip/canopen.h): NMT,
+ * canopen.c - CANopen master frames and decisions (mlip/canopen/canopen.h): NMT,
  * heartbeat, EMCY, SDO client, CiA 402 states, the drive set-up list and
  * the supervision of one drive. Pure: no I/O, no clock, no allocation.
  *
@@ -14,7 +14,7 @@
  * bytes 1-2 index, 3 sub-index; an answer for another index/sub-index is a
  * protocol error.
  */
-#include "mlip/canopen.h"
+#include "mlip/canopen/canopen.h"
 
 #include <math.h>
 #include <string.h>
@@ -180,8 +180,7 @@ void mlip_co_pdo_encode(uint32_t id, uint16_t word, int32_t counts, struct mlip_
 
 /* ---- SDO client ---------------------------------------------------------------------- */
 
-static void sdo_req(struct mlip_can_frame *f, uint8_t node, uint8_t cs, uint16_t index,
-                    uint8_t sub)
+static void sdo_req(struct mlip_can_frame *f, uint8_t node, uint8_t cs, uint16_t index, uint8_t sub)
 {
 	frame(f, MLIP_CO_SDO_RX_BASE + node, 8);
 	f->data[0] = cs;
@@ -318,7 +317,8 @@ const char *mlip_sdo_abort_text(uint32_t code)
 	    {0x06010002u, "attempt to write a read only object"},
 	    {0x06020000u, "object does not exist in the object dictionary"},
 	    {0x06040041u, "object cannot be mapped to the PDO"},
-	    {0x06040042u, "the number and length of the objects to be mapped would exceed PDO length"},
+	    {0x06040042u,
+	     "the number and length of the objects to be mapped would exceed PDO length"},
 	    {0x06040043u, "general parameter incompatibility"},
 	    {0x06040047u, "general internal incompatibility in the device"},
 	    {0x06060000u, "access failed due to a hardware error"},
@@ -382,10 +382,15 @@ mlip_402_state mlip_402_state_of(uint16_t sw)
 
 const char *mlip_402_state_name(mlip_402_state s)
 {
-	static const char *const names[] = {
-	    "not ready to switch on", "switch on disabled",    "ready to switch on",
-	    "switched on",            "operation enabled",     "quick stop active",
-	    "fault reaction active",  "fault",                 "unknown"};
+	static const char *const names[] = {"not ready to switch on",
+	                                    "switch on disabled",
+	                                    "ready to switch on",
+	                                    "switched on",
+	                                    "operation enabled",
+	                                    "quick stop active",
+	                                    "fault reaction active",
+	                                    "fault",
+	                                    "unknown"};
 	return (int)s >= 0 && s <= MLIP_402_UNKNOWN ? names[s] : "unknown";
 }
 
@@ -419,8 +424,8 @@ mlip_402_state mlip_402_after(mlip_402_state s, uint16_t cw)
 	}
 	if ((cw & 0x04u) == 0) { /* quick stop */
 		return s == MLIP_402_OPERATION_ENABLED ? MLIP_402_QUICK_STOP_ACTIVE
-		       : s == MLIP_402_FAULT          ? s
-		                                      : MLIP_402_SWITCH_ON_DISABLED;
+		       : s == MLIP_402_FAULT           ? s
+		                                       : MLIP_402_SWITCH_ON_DISABLED;
 	}
 	switch (cw & 0x0Fu) {
 	case MLIP_402_CW_SHUTDOWN:
@@ -461,8 +466,7 @@ mlip_status mlip_co_interp_period(double period_s, uint8_t *value, int8_t *index
 	return MLIP_E_RANGE;
 }
 
-int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out,
-                             int cap)
+int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out, int cap)
 {
 	/* COB-ID bit 31: PDO not valid (disabled while it is mapped); bit 30 of
 	 * a TPDO: no RTR allowed */
@@ -475,15 +479,15 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 	if (mlip_co_interp_period(d->period_s, &pv, &pi) != MLIP_OK) {
 		return -1;
 	}
-#define ADD(ix, sb, sz, val, w)                                                                   \
-	do {                                                                                      \
-		e[n].index = (ix);                                                                \
-		e[n].sub = (sb);                                                                  \
-		e[n].size = (sz);                                                                 \
-		e[n].value = (val);                                                               \
-		e[n].read_only = 0;                                                               \
-		e[n].what = (w);                                                                  \
-		n++;                                                                              \
+#define ADD(ix, sb, sz, val, w)                                                                    \
+	do {                                                                                       \
+		e[n].index = (ix);                                                                 \
+		e[n].sub = (sb);                                                                   \
+		e[n].size = (sz);                                                                  \
+		e[n].value = (val);                                                                \
+		e[n].read_only = 0;                                                                \
+		e[n].what = (w);                                                                   \
+		n++;                                                                               \
 	} while (0)
 	ADD(0x1400, 1, 4, off | d->rpdo_cob, "RPDO1 COB-ID (disabled while mapping)");
 	ADD(0x1400, 2, 1, 1, "RPDO1 transmission type (synchronous)");
@@ -517,7 +521,8 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 	return n;
 }
 
-/* ---- supervision ------------------------------------------------------------------------------ */
+/* ---- supervision ------------------------------------------------------------------------------
+ */
 
 mlip_drive_fault mlip_drive_supervise(const struct mlip_drive_obs *o,
                                       const struct mlip_drive_expect *x, int64_t *detail)
@@ -531,7 +536,8 @@ mlip_drive_fault mlip_drive_supervise(const struct mlip_drive_obs *o,
 		*detail = o->emcy.code;
 		return MLIP_DRIVE_EMCY;
 	}
-	if (x->hb_timeout_ns > 0 && x->now_ns > o->hb_ns && x->now_ns - o->hb_ns > x->hb_timeout_ns) {
+	if (x->hb_timeout_ns > 0 && x->now_ns > o->hb_ns &&
+	    x->now_ns - o->hb_ns > x->hb_timeout_ns) {
 		*detail = (int64_t)((x->now_ns - o->hb_ns) / 1000000u);
 		return MLIP_DRIVE_HEARTBEAT_LOST;
 	}
@@ -553,7 +559,8 @@ mlip_drive_fault mlip_drive_supervise(const struct mlip_drive_obs *o,
 		return MLIP_DRIVE_TPDO_LOST;
 	}
 	/* TPDOs that come, but answer a SYNC that old: the drive is that far behind */
-	if (x->tpdo_timeout > 0 && o->tpdo_count > 0 && x->cycle > o->tpdo_count + x->tpdo_timeout) {
+	if (x->tpdo_timeout > 0 && o->tpdo_count > 0 &&
+	    x->cycle > o->tpdo_count + x->tpdo_timeout) {
 		*detail = (int64_t)(x->cycle - o->tpdo_count);
 		return MLIP_DRIVE_TPDO_LOST;
 	}
@@ -562,11 +569,17 @@ mlip_drive_fault mlip_drive_supervise(const struct mlip_drive_obs *o,
 
 const char *mlip_drive_fault_name(mlip_drive_fault f)
 {
-	static const char *const names[] = {
-	    "ok",           "statusword fault bit",   "emergency",
-	    "heartbeat lost", "left NMT operational", "left operation enabled",
-	    "following error", "TPDOs lost or late", "not switched on",
-	    "not enabled",     "beyond a soft limit"};
+	static const char *const names[] = {"ok",
+	                                    "statusword fault bit",
+	                                    "emergency",
+	                                    "heartbeat lost",
+	                                    "left NMT operational",
+	                                    "left operation enabled",
+	                                    "following error",
+	                                    "TPDOs lost or late",
+	                                    "not switched on",
+	                                    "not enabled",
+	                                    "beyond a soft limit"};
 	return (int)f >= 0 && f <= MLIP_DRIVE_BEYOND_LIMIT ? names[f] : "?";
 }
 

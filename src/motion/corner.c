@@ -26,8 +26,8 @@
  */
 #include <math.h>
 
-#include "mlip/planner.h"
-#include "mlip/smooth.h"
+#include "mlip/motion/planner.h"
+#include "mlip/motion/smooth.h"
 
 /* Turning angles below this (in |e_e - e_s|) need no acceleration at all. */
 #define COLLINEAR_EPS 1e-12
@@ -51,8 +51,8 @@ static double dmax(double a, double b)
  * two of its pieces cross, so those candidates are enough (a vertex of the
  * acceleration polygon, as the paper says). At most 6 axes: <= 33 candidates.
  */
-int mlip_corner_lp(int n, const double *e_s, const double *e_e, const double *accel,
-                   double *alpha, double *beta)
+int mlip_corner_lp(int n, const double *e_s, const double *e_e, const double *accel, double *alpha,
+                   double *beta)
 {
 	double c[MLIP_MAX_AXES], d[MLIP_MAX_AXES];
 	int m = 0;
@@ -178,7 +178,10 @@ int mlip_corner_smooth_w(int n, const double *e_s, const double *e_e, double ds_
 		return -1;
 	}
 	double al = w / g, be = (1.0 - w) / g;
-	corner_from_t(al, be, sqrt(corner_t2(n, e_s, e_e, al, be, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s)), c);
+	corner_from_t(
+	    al, be,
+	    sqrt(corner_t2(n, e_s, e_e, al, be, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s)),
+	    c);
 	return 0;
 }
 
@@ -216,13 +219,15 @@ static int corner_smooth(int n, const double *e_s, const double *e_e, double ds_
 	}
 	/* the LP vertex itself first (the paper's corner), then towards 1/2 */
 	corner_from_t(alpha, beta,
-	              sqrt(corner_t2(n, e_s, e_e, alpha, beta, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s)), c);
+	              sqrt(corner_t2(n, e_s, e_e, alpha, beta, ds_mm, de_mm, eps_mm, vcap_s_mm_s,
+	                             vcap_e_mm_s)),
+	              c);
 	double best_v = dmin(c->vs_mm_s, c->ve_mm_s);
 	for (int i = 1; i <= SMOOTH_W_GRID; i++) {
 		double w = w_lp + (0.5 - w_lp) * (double)i / (double)SMOOTH_W_GRID;
 		struct mlip_corner cw;
-		if (mlip_corner_smooth_w(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s, vcap_e_mm_s, w,
-		                         &cw) != 0 ||
+		if (mlip_corner_smooth_w(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s,
+		                         vcap_e_mm_s, w, &cw) != 0 ||
 		    !(cw.beta_mm_s2 > a_line)) {
 			continue;
 		}
@@ -296,10 +301,9 @@ int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, doubl
 	return m;
 }
 
-void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *e_e,
-                      double ds_mm, double de_mm, const double *accel, double eps_mm,
-                      double vcap_s_mm_s, double vcap_e_mm_s, double period_s,
-                      struct mlip_corner *c)
+void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *e_e, double ds_mm,
+                      double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
+                      double vcap_e_mm_s, double period_s, struct mlip_corner *c)
 {
 	double de[MLIP_MAX_AXES];
 	for (int k = 0; k < n; k++) {
@@ -330,7 +334,7 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 		}
 		double v = T * amax;
 		v = dmin(v, 8.0 * eps_mm / (sqrt(turn2) * T)); /* (17), |a| = v |e_e - e_s| / T */
-		v = dmin(v, dmin(ds_mm, de_mm) / T);    /* l = v T / 2 <= d / 2 */
+		v = dmin(v, dmin(ds_mm, de_mm) / T);           /* l = v T / 2 <= d / 2 */
 		v = dmin(v, dmin(vcap_s_mm_s, vcap_e_mm_s));
 		corner_from_t(v / T, v / T, T, c);
 		return;
@@ -338,7 +342,8 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 
 	double alpha, beta;
 	if (st == MLIP_STRATEGY_SMOOTH && !mlip_corner_smooth_sharp(n, e_s, e_e)) {
-		if (corner_smooth(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s, vcap_e_mm_s, c) != 0) {
+		if (corner_smooth(n, e_s, e_e, ds_mm, de_mm, accel, eps_mm, vcap_s_mm_s,
+		                  vcap_e_mm_s, c) != 0) {
 			corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
 		}
 		return;
@@ -347,7 +352,8 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
 		corner_straight(vcap_s_mm_s, vcap_e_mm_s, c);
 		return;
 	}
-	double t2 = corner_t2(n, e_s, e_e, alpha, beta, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s);
+	double t2 =
+	    corner_t2(n, e_s, e_e, alpha, beta, ds_mm, de_mm, eps_mm, vcap_s_mm_s, vcap_e_mm_s);
 	double t = sqrt(t2);
 
 	corner_from_t(alpha, beta, t, c);
