@@ -149,7 +149,8 @@ struct feed {
 	uint32_t lines[LINE_WINDOW]; /* source line of seq, for seq % LINE_WINDOW */
 	struct mlip_block_iter it;   /* the program's blocks, or smooth's over them */
 	struct mlip_smooth_iter si;
-	const char *offsets; /* --offsets FILE, or NULL */
+	const char *offsets;                   /* --offsets FILE, or NULL */
+	struct mlip_offsets_file offsets_file; /* as loaded: the write-back's merge base */
 	int strict;
 	double default_feed;    /* --default-feed */
 	struct mlip_machine mp; /* the controller's machine, HOME = where the program starts */
@@ -1081,7 +1082,8 @@ int main(int argc, char **argv)
 	}
 	/* the whole program is checked before anything is sent, then streamed */
 	mlip_gcode_offsets_init(&offsets, &m);
-	if (f.offsets != NULL && mlip_offsets_load(f.offsets, &m, &offsets, PROG, stderr) != 0) {
+	if (f.offsets != NULL &&
+	    mlip_offsets_load(&f.offsets_file, f.offsets, &m, &offsets, PROG, stderr) != 0) {
 		goto out;
 	}
 	popt.strict = f.strict;
@@ -1133,10 +1135,11 @@ int main(int argc, char **argv)
 		leave(&f); /* we published: now say we are gone */
 	}
 	if (code == EXIT_DONE && f.offsets != NULL &&
-	    mlip_offsets_save(f.offsets, &m, &f.prog.offsets_end, PROG, stderr) != 0) {
+	    mlip_offsets_save(&f.offsets_file, &m, &f.prog.offsets_end, PROG, stderr) != 0) {
 		code = EXIT_FAIL;
 	}
 out:
+	mlip_offsets_file_free(&f.offsets_file);
 	mlip_program_close(&f.prog);
 	mlip_shm_close(&f.shm); /* closing the fd drops the producer lock */
 	return code;
