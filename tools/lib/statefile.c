@@ -281,7 +281,7 @@ static char *trim(char *s)
 	return s;
 }
 
-/* "# end N sha256 HEX": 1 with N and HEX; 0 when the line is not one. */
+/* "# end N lines sha256 HEX": 1 with N and HEX; 0 when the line is not one. */
 static int parse_marker(const char *s, char comment, unsigned long *count, char *hex)
 {
 	char c, tail;
@@ -359,9 +359,9 @@ static int parse(struct mlip_sf *sf, char *b, size_t n, const char *path,
 			    why, wlen, -1,
 			    "%s:%u: no end marker ('%c %s N lines sha256 ...' as the last line): "
 			    "the "
-			    "file was cut short (a power cut, a full disk) or not written by "
-			    "mlip. If you wrote it by hand and checked it: %s %s; if it was "
-			    "cut short: %s",
+			    "file was cut short (a power cut, a full disk) or not written by mlip. "
+			    "If you wrote it by hand and checked it: %s %s; if it was cut short: "
+			    "%s",
 			    path, line_at(b, last), k->comment, MARKER, k->accept, path, fix);
 		}
 		checksum_hex(b, last, want);
