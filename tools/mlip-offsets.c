@@ -33,7 +33,7 @@ static void usage(FILE *f)
 	fprintf(
 	    f, "usage: " PROG " [--config FILE.ini] [ACTION] OFFSETS\n"
 	       "Show, change, accept, make or convert an mlip offsets file (the work offsets\n"
-	       "G54..G59.3, G92 and the G28/G30 positions; README: offsets).\n\n"
+	       "G54..G59.3, G92 and the G28/G30 positions; docs/gcode.md).\n\n"
 	       "  (no action)       check OFFSETS and show its values; exit 1 if mlip would\n"
 	       "                    refuse it (and why)\n"
 	       "  --set \"KEY ...\"   change values and seal the file, e.g. --set \"G55 X10 Y20\"\n"
