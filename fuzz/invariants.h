@@ -40,7 +40,6 @@
 
 #include "mlip/machine/config.h"
 #include "mlip/gcode/gcode.h"
-#include "mlip/motion/planner.h" /* MLIP_LOOKAHEAD */
 #include "mlip/types.h"
 #include "program.h" /* tools/lib: mlip_program_list_parse, the second opinion */
 

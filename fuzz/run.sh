@@ -2,8 +2,11 @@
 # fuzz/run.sh [SECONDS] - build and run the two libFuzzer targets under ASan
 # and UBSan, SECONDS each (default 60; 0 only replays the corpus once).
 #
-#   fuzz_gcode   the G-code front end (src/gcode/gcode.c) and tools/lib/program.c
-#   fuzz_config  the machine configuration reader (src/machine/config.c)
+#   fuzz_gcode   the G-code front end (src/gcode/) and tools/lib/program.c
+#   fuzz_config  the machine configuration reader (src/machine/)
+#
+# Both targets are built from whole core folders (Makefile LAYERS up to
+# machine/), so a file added to one of them is fuzzed too.
 #
 # Installs clang and its runtimes (libclang-rt-14-dev) with apt-get when
 # missing. Output in build/fuzz/ (override with FUZZ_OUT): the binaries, the
@@ -64,10 +67,16 @@ fi
 # ---- the targets ------------------------------------------------------------
 echo "fuzz: building with $($CC --version | head -n 1)"
 # shellcheck disable=SC2086 # word splitting of the flag lists is intended
-$CC $CFLAGS $SAN -o "$OUT/fuzz_gcode" fuzz/fuzz_gcode.c src/gcode/gcode.c src/machine/config.c \
-	tools/lib/program.c -lm
+# the readers' folders and every one below them: Makefile LAYERS up to machine
+srcs=""
+for d in $(sed -n 's/^LAYERS *:= *//p' Makefile); do
+	srcs="$srcs $(ls src/"$d"/*.c)"
+	[ "$d" = machine ] && break
+done
 # shellcheck disable=SC2086
-$CC $CFLAGS $SAN -o "$OUT/fuzz_config" fuzz/fuzz_config.c src/machine/config.c -lm
+$CC $CFLAGS $SAN -o "$OUT/fuzz_gcode" fuzz/fuzz_gcode.c $srcs tools/lib/program.c -lm
+# shellcheck disable=SC2086
+$CC $CFLAGS $SAN -o "$OUT/fuzz_config" fuzz/fuzz_config.c $srcs -lm
 
 # ---- seeds --------------------------------------------------------------------
 if [ ! -d "$SHARED/toolpaths" ]; then
