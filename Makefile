@@ -106,7 +106,7 @@ PURE_BINS := $(filter-out $(RT_TOOLS),$(TOOLS)) $(BENCH_BINS) $(filter-out $(RT_
 purity: $(BUILD)/libmlip.a $(PURE_BINS)
 	@tools/purity.sh $(BUILD)/libmlip.a
 	@for b in $(PURE_BINS); do \
-		if nm $$b | grep -q ' [TU] \(mlip_shm_\|mlip_rt_\|mlip_canio_\|can_do_\|can_get_\)'; then \
+		if nm $$b | grep -q ' [TU] \(mlip_shm_\|mlip_rt_\|mlip_canbus_\|mlip_period_\|mlip_drives_\|can_do_\|can_get_\)'; then \
 			echo "purity: $$b links rt/ or libsocketcan"; exit 1; fi; done
 	@echo "purity: $(words $(PURE_BINS)) tools, benchmarks and tests without rt/ or libsocketcan"
 

@@ -96,9 +96,9 @@ struct run {
 	uint64_t overruns, overrun_periods;
 	int64_t send_ns; /* this period's send time, for `after` */
 	/* the load */
-	struct mlip_controller *ctl;
-	struct mlip_canio *io; /* MODE_CAN */
-	int encode;            /* encode frames each period */
+	struct mlip_period *ctl;
+	struct mlip_canbus *io; /* MODE_CAN */
+	int encode;             /* encode frames each period */
 	uint64_t frames_encoded, encode_faults;
 	uint64_t passes, moving_periods;
 	uint32_t last_state;
@@ -108,8 +108,9 @@ struct run {
 
 static struct run R;
 static struct mlip_planner planner; /* static, as in mlip-rt: locked and prefaulted */
-static struct mlip_controller ctl;
-static struct mlip_canio io = {.fd = -1};
+static struct mlip_period ctl;
+static struct mlip_canbus bus = {.fd = -1};
+static struct mlip_can_port port;
 
 /* The period's work. */
 static int lat_tick(void *ctx, const struct mlip_rt_tick *t)
@@ -120,8 +121,8 @@ static int lat_tick(void *ctx, const struct mlip_rt_tick *t)
 	}
 	r->send_ns = 0;
 	if (r->mode != MODE_IDLE) {
-		struct mlip_controller *c = r->ctl;
-		(void)mlip_controller_tick(c, t); /* never asked to exit: no exit_request */
+		struct mlip_period *c = r->ctl;
+		(void)mlip_period_tick(c, t); /* never asked to exit: no exit_request */
 		if (c->core.state == MLIP_STATE_RUNNING) {
 			r->moving_periods++;
 		}
@@ -989,17 +990,19 @@ int main(int argc, char **argv)
 			             "would refuse this configuration)\n",
 			        l.load * 100.0, MAX_BUS_LOAD * 100.0);
 		}
-		if (mlip_canio_check(o.iface, info, sizeof(info)) != 0) {
+		if (mlip_canbus_check(o.iface, info, sizeof(info)) != 0) {
 			fprintf(stderr, PROG ": %s\n", info);
 			return 1;
 		}
 		if (!o.quiet) {
 			fprintf(stderr, PROG ": %s\n", info);
 		}
-		if (mlip_canio_open(&io, o.iface, prof == MLIP_CAN_FD, info, sizeof(info)) != 0) {
+		if (mlip_canbus_open(&bus, o.iface, prof == MLIP_CAN_FD, NULL, 0, info,
+		                     sizeof(info)) != 0) {
 			fprintf(stderr, PROG ": %s\n", info);
 			return 1;
 		}
+		mlip_canbus_port(&bus, &port);
 	}
 
 	/* histograms: allocated and touched now, before mlockall (MCL_CURRENT covers
@@ -1044,11 +1047,11 @@ int main(int argc, char **argv)
 		                           .lookahead = cfg.lookahead,
 		                           .stall_periods = UINT32_MAX,
 		                           .can = &cfg.can};
-		if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, ring,
-		                         o.mode == MODE_CAN ? &io : NULL) != 0) {
+		if (mlip_period_init(&ctl, &planner, &cfg.machine, &co, ring,
+		                     o.mode == MODE_CAN ? &port : NULL, NULL) != 0) {
 			co.can = NULL;
-			if (o.mode == MODE_CAN || mlip_controller_init(&ctl, &planner, &cfg.machine,
-			                                               &co, ring, NULL) != 0) {
+			if (o.mode == MODE_CAN || mlip_period_init(&ctl, &planner, &cfg.machine,
+			                                           &co, ring, NULL, NULL) != 0) {
 				fprintf(stderr,
 				        PROG ": the [CAN] settings of %s do not fit this machine\n",
 				        o.config);
@@ -1062,7 +1065,7 @@ int main(int argc, char **argv)
 		memset(&planner.seg, 0,
 		       sizeof(planner.seg)); /* prefault the look-ahead, as mlip-rt */
 		R.ctl = &ctl;
-		R.io = o.mode == MODE_CAN ? &io : NULL;
+		R.io = o.mode == MODE_CAN ? &bus : NULL;
 		R.last_state = MLIP_STATE_IDLE;
 		feed.ring = ring;
 		feed.prog = &prog;
@@ -1190,8 +1193,9 @@ int main(int argc, char **argv)
 		if (o.mode == MODE_CAN) {
 			fprintf(out,
 			        ", %llu sent, %llu dropped (tx queue full), %llu bus errors on %s",
-			        (unsigned long long)io.tx_ok, (unsigned long long)io.tx_dropped,
-			        (unsigned long long)io.bus_errors, o.iface);
+			        (unsigned long long)ctl.can.tx_ok,
+			        (unsigned long long)ctl.can.tx_dropped,
+			        (unsigned long long)ctl.can.bus_errors, o.iface);
 		}
 		if (R.encode_faults) {
 			fprintf(out, ", %llu periods not encodable",
@@ -1369,9 +1373,9 @@ int main(int argc, char **argv)
 				        ",\n      \"frames_sent\": %llu,\n      "
 				        "\"frames_dropped\": %llu,\n"
 				        "      \"bus_errors\": %llu",
-				        (unsigned long long)io.tx_ok,
-				        (unsigned long long)io.tx_dropped,
-				        (unsigned long long)io.bus_errors);
+				        (unsigned long long)ctl.can.tx_ok,
+				        (unsigned long long)ctl.can.tx_dropped,
+				        (unsigned long long)ctl.can.bus_errors);
 			}
 			fprintf(f, "\n    },\n");
 		}
@@ -1392,7 +1396,7 @@ int main(int argc, char **argv)
 		}
 	}
 
-	mlip_canio_close(&io);
+	mlip_canbus_close(&bus);
 	if (o.mode != MODE_IDLE) {
 		mlip_program_list_free(&prog);
 		free(ring_mem);

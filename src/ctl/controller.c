@@ -15,7 +15,7 @@
 #include <stddef.h>
 #include <string.h>
 
-#include "mlip/canopen/canopen.h"
+#include "mlip/canopen/drive.h"
 
 static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line);
 
@@ -80,8 +80,9 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
 	c->state = MLIP_STATE_IDLE;
 	c->drives = o->drives != 0;
-	c->power = c->drives ? MLIP_POWER_ENABLED : MLIP_POWER_NONE; /* by the bring-up */
-	c->drive_state_periods = o->drive_state_periods ? o->drive_state_periods : 1000;
+	/* enabled by the bring-up */
+	mlip_402_seq_init(&c->power, c->drives ? MLIP_POWER_ENABLED : MLIP_POWER_NONE,
+	                  o->drive_state_periods ? o->drive_state_periods : 1000, 0);
 	return MLIP_OK;
 }
 
@@ -460,96 +461,6 @@ static void start_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
 
 /* ---- the drives' power (CiA 402, opts.drives) ------------------------------ */
 
-static uint16_t power_cw(uint32_t power)
-{
-	switch (power) {
-	case MLIP_POWER_DISABLING:
-	case MLIP_POWER_SWITCHING_ON:
-		return MLIP_402_CW_SWITCH_ON; /* from "operation enabled": disable operation */
-	case MLIP_POWER_SHUTTING_DOWN:
-	case MLIP_POWER_OFF:
-		return MLIP_402_CW_SHUTDOWN;
-	default:
-		return MLIP_402_CW_ENABLE_OPERATION;
-	}
-}
-
-/* The first axis whose drive, still followed, does not show `want` in its
- * last TPDO; -1 when every one does. */
-static int power_late(const struct mlip_ctl *c, const struct mlip_ctl_in *in, mlip_402_state want)
-{
-	for (int k = 0; k < c->m.n_axes; k++) {
-		if (!(in->drive_mute & (1u << k)) && mlip_402_state_of(in->drive_sw[k]) != want) {
-			return k;
-		}
-	}
-	return -1;
-}
-
-/* Next power step; late >= 0: that axis' drive did not confirm this one. */
-static void power_go(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
-                     uint32_t to, int late)
-{
-	struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, c->period - c->power_t0, 0);
-	r.value = (double)(c->period - c->power_since);
-	if (late >= 0) {
-		r.node = (uint32_t)c->m.axis[late].can_node;
-		r.field = in->drive_sw[late];
-		c->power_late_node = r.node;
-		c->power_late_sw = in->drive_sw[late];
-		c->power_late_step = c->power;
-	}
-	if (to == MLIP_POWER_DISABLING || to == MLIP_POWER_SWITCHING_ON) {
-		c->power_t0 = c->period; /* a sequence begins */
-		r.seq = 0;
-		c->power_ok = to == MLIP_POWER_DISABLING;
-	}
-	if (late >= 0 &&
-	    (c->power == MLIP_POWER_DISABLING || c->power == MLIP_POWER_SHUTTING_DOWN)) {
-		c->power_ok = 0;
-	}
-	if (to == MLIP_POWER_OFF || to == MLIP_POWER_ENABLED) {
-		c->power_periods = (uint32_t)(c->period - c->power_t0);
-	}
-	if (out->n_events < MLIP_CTL_MAX_EVENTS) {
-		struct mlip_ctl_event *e = &out->events[out->n_events++];
-		e->kind = MLIP_EV_POWER;
-		e->from = c->power;
-		e->state = to;
-		e->r = r;
-		e->period = c->period;
-		progress(c, &e->exec_seq, &e->exec_line);
-	}
-	c->power = to;
-	c->power_since = c->period;
-}
-
-/* Re-enabling failed (event, the drive at axis k): a fault, the program is
- * dropped, the drives are shut down again; nothing has moved. */
-static void power_fault(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
-                        uint32_t event, int k, double value)
-{
-	struct mlip_ctl_drive_fault f = {event, (uint32_t)c->m.axis[k].can_node, value};
-	drive_fault(c, out, &f);
-	if (c->power != MLIP_POWER_OFF) {
-		power_go(c, in, out, MLIP_POWER_DISABLING,
-		         event == MLIP_DRIVE_BEYOND_LIMIT ? -1 : k);
-	}
-}
-
-/* A step toward ENABLED: every drive shows `want`: on to `next`; one does
- * not in time: the fault `event` naming it. */
-static void enable_step(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
-                        mlip_402_state want, uint32_t next, uint32_t event, int timeout)
-{
-	int late = power_late(c, in, want);
-	if (late < 0) {
-		power_go(c, in, out, next, -1);
-	} else if (timeout) {
-		power_fault(c, in, out, event, late, in->drive_sw[late]);
-	}
-}
-
 /* The first axis beyond a soft limit, or -1. */
 static int beyond_limit(const struct mlip_ctl *c)
 {
@@ -577,77 +488,75 @@ static int power_rest(const struct mlip_ctl *c)
 	       (c->state == MLIP_STATE_IDLE && c->why.why != MLIP_WHY_NONE);
 }
 
-/* One period of the drives' power, after the step: never out of ENABLED
- * while the planner moves, never moving out of it (records are taken only
- * when ENABLED). */
+/* A step of the drives' power ended: the event, with the drive that did
+ * not confirm it in time (its node and statusword). */
+static void power_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
+                        const struct mlip_402_change *ch)
+{
+	struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, ch->in_sequence, 0);
+	r.value = (double)ch->in_step;
+	if (ch->late >= 0) {
+		r.node = (uint32_t)c->m.axis[ch->late].can_node;
+		r.field = ch->late_sw;
+	}
+	if (out->n_events < MLIP_CTL_MAX_EVENTS) {
+		struct mlip_ctl_event *e = &out->events[out->n_events++];
+		e->kind = MLIP_EV_POWER;
+		e->from = ch->from;
+		e->state = ch->to;
+		e->r = r;
+		e->period = c->period;
+		progress(c, &e->exec_seq, &e->exec_line);
+	}
+}
+
+/* One period of the drives' power, after the step (the sequencer of
+ * mlip/canopen/cia402.h, all drives in step): never out of ENABLED while the
+ * planner moves, never moving out of it (records are taken only when
+ * ENABLED). A program waiting enables them (from where they stand, inside
+ * the soft limits); at rest after it, a stop or a fault, or on exit, they are
+ * disabled. Enabling not confirmed in time is a fault naming the drive. */
 static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
 {
-	uint64_t waited = c->period - c->power_since;
-	int timeout = waited >= c->drive_state_periods;
-	int late, k;
+	uint32_t power = c->power.step;
+	int want = c->power_want;
+	struct mlip_402_change ch;
 
-	if (c->power == MLIP_POWER_OFF || c->power == MLIP_POWER_SWITCHING_ON) {
+	if (power == MLIP_POWER_OFF || power == MLIP_POWER_SWITCHING_ON) {
 		/* no holding torque: the commanded position is where the drives are */
-		for (k = 0; k < c->m.n_axes; k++) {
+		for (int k = 0; k < c->m.n_axes; k++) {
 			if (in->actual_mask & (1u << k)) {
 				c->pos[k] = in->pos_actual[k];
 			}
 		}
 		mlip_planner_rest_at(c->planner, c->pos);
-	}
-	switch (c->power) {
-	case MLIP_POWER_ENABLED:
-		if (power_rest(c)) {
-			power_go(c, in, out, MLIP_POWER_DISABLING, -1);
-		}
-		return;
-	case MLIP_POWER_DISABLING:
-		late = power_late(c, in, MLIP_402_SWITCHED_ON);
-		if (late < 0 || timeout) {
-			power_go(c, in, out, MLIP_POWER_SHUTTING_DOWN, late);
-		}
-		return;
-	case MLIP_POWER_SHUTTING_DOWN:
-		late = power_late(c, in, MLIP_402_READY_TO_SWITCH_ON);
-		if (late < 0 || timeout) {
-			power_go(c, in, out, MLIP_POWER_OFF, late);
-		}
-		return;
-	case MLIP_POWER_OFF:
-	case MLIP_POWER_SWITCHING_ON:
-		if (!c->power_want) {
-			if (c->power == MLIP_POWER_SWITCHING_ON) {
-				power_go(c, in, out, MLIP_POWER_DISABLING,
-				         -1); /* stopped meanwhile */
-			}
-			return;
-		}
-		k = beyond_limit(c);
+		int k = want ? beyond_limit(c) : -1;
 		if (k >= 0) {
 			int32_t counts = 0;
 			mlip_can_counts(c->pos[k], c->m.axis[k].counts_per_unit, &counts);
-			power_fault(c, in, out, MLIP_DRIVE_BEYOND_LIMIT, k, (double)counts);
-			return;
+			struct mlip_ctl_drive_fault f = {MLIP_DRIVE_BEYOND_LIMIT,
+			                                 (uint32_t)c->m.axis[k].can_node,
+			                                 (double)counts};
+			drive_fault(c, out, &f);
+			want = 0;
 		}
-		if (c->power == MLIP_POWER_OFF) {
-			power_go(c, in, out, MLIP_POWER_SWITCHING_ON, -1);
-			return;
-		}
-		/* from ENABLING on the position is held: 0x0F goes with it */
-		enable_step(c, in, out, MLIP_402_SWITCHED_ON, MLIP_POWER_ENABLING,
-		            MLIP_DRIVE_NOT_SWITCHED_ON, timeout);
-		return;
-	case MLIP_POWER_ENABLING:
-		if (!c->power_want) {
-			power_go(c, in, out, MLIP_POWER_DISABLING, -1);
-			return;
-		}
-		enable_step(c, in, out, MLIP_402_OPERATION_ENABLED, MLIP_POWER_ENABLED,
-		            MLIP_DRIVE_NOT_ENABLED, timeout);
-		return;
-	default:
+	} else if (power == MLIP_POWER_ENABLED) {
+		want = !power_rest(c);
+	}
+	if (!mlip_402_seq_run(&c->power, want ? MLIP_POWER_ENABLED : MLIP_POWER_OFF, in->drive_sw,
+	                      c->m.n_axes, in->drive_mute, c->period, &ch)) {
 		return;
 	}
+	if (ch.failed) {
+		/* not switched on or not enabled in time: a fault, the program is
+		 * dropped, the drives go down again; nothing has moved */
+		struct mlip_ctl_drive_fault f = {
+		    ch.from == MLIP_POWER_SWITCHING_ON ? MLIP_DRIVE_NOT_SWITCHED_ON
+		                                       : MLIP_DRIVE_NOT_ENABLED,
+		    (uint32_t)c->m.axis[ch.late].can_node, (double)ch.late_sw};
+		drive_fault(c, out, &f);
+	}
+	power_event(c, out, &ch);
 }
 
 /* ---- the period ----------------------------------------------------------- */
@@ -680,7 +589,7 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 			c->refused++;
 			return;
 		}
-		if (c->drives && c->power != MLIP_POWER_ENABLED) {
+		if (c->drives && c->power.step != MLIP_POWER_ENABLED) {
 			/* the drives are (being) shut down: enable them first, then
 			 * take the program from where they are */
 			c->power_want = !c->exiting;
@@ -839,8 +748,8 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	memcpy(s->pos, c->pos, sizeof(s->pos));
 	s->speed_mm_s = mlip_planner_speed(p);
 	s->dwell_left = c->state == MLIP_STATE_DWELLING ? c->dwell_left : 0;
-	s->drive_power = c->power;
-	s->drive_power_periods = c->power_periods;
+	s->drive_power = c->power.step;
+	s->drive_power_periods = (uint32_t)c->power.took;
 	memcpy(s->prog_start, c->prog_start, sizeof(s->prog_start));
 }
 
@@ -938,7 +847,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		uint32_t sat = 0;
 		/* the drives' controlword, and no target to a drive faulted */
 		for (int k = 0; k < MLIP_MAX_AXES; k++) {
-			c->enc.controlword[k] = power_cw(c->power);
+			c->enc.controlword[k] = (uint16_t)c->power.cw;
 		}
 		c->enc.rpdo_mute = in->drive_mute;
 		if (mlip_canenc_encode(&c->enc, (uint32_t)c->period, c->pos, out->frames,
@@ -955,11 +864,16 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		c->frames_encoded += (uint64_t)out->n_frames;
 	}
 	publish(c, out);
+	out->power.state = c->power.step;
+	out->power.ok = c->power.ok;
+	out->power.late_node = c->power.late >= 0 ? (uint32_t)c->m.axis[c->power.late].can_node : 0;
+	out->power.late_sw = c->power.late_sw;
+	out->power.late_step = c->power.late_step;
 	out->status.actual_mask = in->actual_mask;
 	memcpy(out->status.pos_actual, in->pos_actual, sizeof(out->status.pos_actual));
 	/* an exit request ends once the machine is at rest */
 	out->done = c->exiting && !c->discard &&
 	            (c->state == MLIP_STATE_IDLE ||
 	             (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0)) &&
-	            (!c->drives || c->power == MLIP_POWER_OFF); /* and the drives disabled */
+	            (!c->drives || c->power.step == MLIP_POWER_OFF); /* and the drives disabled */
 }

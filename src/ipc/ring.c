@@ -766,14 +766,6 @@ const char *mlip_rec_field_name(uint32_t field)
 	return NAME_OF(names, field);
 }
 
-const char *mlip_drive_power_name(uint32_t power)
-{
-	static const char *const names[] = {"none", "enabled",      "disabling", "shutting down",
-	                                    "off",  "switching on", "enabling"};
-
-	return NAME_OF(names, power);
-}
-
 const char *mlip_rec_type_name(uint32_t type)
 {
 	static const char *const names[] = {"move", "end", "dwell", "pause", "optional pause"};

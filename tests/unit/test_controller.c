@@ -15,7 +15,7 @@
 
 #include <cmocka.h>
 
-#include "mlip/canopen/canopen.h"
+#include "mlip/canopen/drive.h"
 #include "mlip/machine/config.h"
 #include "mlip/ctl/controller.h"
 

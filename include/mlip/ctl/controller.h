@@ -64,6 +64,7 @@
 #include <stdint.h>
 
 #include "mlip/can/canenc.h"
+#include "mlip/canopen/cia402.h"
 #include "mlip/motion/planner.h"
 #include "mlip/ipc/ring.h"
 #include "mlip/types.h"
@@ -133,6 +134,15 @@ struct mlip_ctl_in {
 	double pos_actual[MLIP_MAX_AXES];        /* position actual 0x6064, joint units */
 };
 
+/* The drives' power after the period (opts.drives; the sequencer's record). */
+struct mlip_ctl_power {
+	uint32_t state;     /* mlip_drive_power, as status.drive_power */
+	int ok;             /* the last disable: every step confirmed in time */
+	uint32_t late_node; /* the last step not confirmed in time: the drive (0: none), */
+	uint16_t late_sw;   /* its statusword then, */
+	uint32_t late_step; /* and the step (mlip_drive_power) */
+};
+
 struct mlip_ctl_out {
 	double pos[MLIP_MAX_AXES]; /* the setpoint of this period */
 	struct mlip_can_frame frames[MLIP_CAN_MAX_FRAMES];
@@ -141,6 +151,7 @@ struct mlip_ctl_out {
 	struct mlip_ring_status status; /* all but heartbeat_ns, pid, CAN counters */
 	struct mlip_ctl_event events[MLIP_CTL_MAX_EVENTS];
 	uint32_t n_events;
+	struct mlip_ctl_power power;
 	int done; /* an exit request has completed: at rest */
 };
 
@@ -174,17 +185,9 @@ struct mlip_ctl {
 	int drive_faulted; /* a drive fault came: it stays the reason */
 	/* the drives' power (opts.drives) */
 	int drives;
-	uint32_t power; /* mlip_drive_power */
-	uint32_t drive_state_periods;
-	uint64_t power_since;     /* period the current step began */
-	uint64_t power_t0;        /* period the current sequence began */
-	uint32_t power_periods;   /* the last complete sequence took this long */
-	int power_want;           /* this period: a program waits for the drives */
-	uint32_t still_periods;   /* periods the setpoint has not changed */
-	int power_ok;             /* the last disable was confirmed in order in time */
-	uint32_t power_late_node; /* the last step not confirmed in time: drive, */
-	uint16_t power_late_sw;   /* its statusword, */
-	uint32_t power_late_step; /* the step (mlip_drive_power) */
+	struct mlip_402_seq power; /* on the period count */
+	int power_want;            /* this period: a program waits for the drives */
+	uint32_t still_periods;    /* periods the setpoint has not changed */
 	/* program */
 	int refill; /* the pre-read continues a program */
 	int end_seen;

@@ -165,25 +165,6 @@ typedef enum {
 	MLIP_WHY_COUNT
 } mlip_state_why;
 
-/* The drives' power (mlip-rt --drives, status.drive_power), one for all the
- * drives still followed (a faulted drive keeps its own fault reaction). The
- * controller (src/ctl/controller.c) moves it through the CiA 402 states by the
- * RPDOs' controlword, each step confirmed by every drive's TPDO statusword:
- *   ENABLED --at rest after a program, a stop, a fault or on exit-->
- *   DISABLING (0x07: "switched on") --> SHUTTING_DOWN (0x06: "ready to
- *   switch on") --> OFF --the next program's records--> SWITCHING_ON (0x07:
- *   "switched on") --> ENABLING (0x0F: "operation enabled") --> ENABLED */
-typedef enum {
-	MLIP_POWER_NONE = 0,      /* no drives brought up by mlip */
-	MLIP_POWER_ENABLED,       /* operation enabled: the planner may move */
-	MLIP_POWER_DISABLING,     /* disable operation (0x0007) until "switched on" */
-	MLIP_POWER_SHUTTING_DOWN, /* shutdown (0x0006) until "ready to switch on" */
-	MLIP_POWER_OFF,           /* ready to switch on: power stage off, nothing moves */
-	MLIP_POWER_SWITCHING_ON,  /* switch on (0x0007) until "switched on" */
-	MLIP_POWER_ENABLING,      /* enable operation (0x000F) until "operation enabled" */
-	MLIP_POWER_COUNT
-} mlip_drive_power;
-
 /* Which field of a record (or of the segment) a fault names. */
 typedef enum {
 	MLIP_FIELD_NONE = 0,
@@ -238,7 +219,8 @@ struct mlip_ring_status {
 	uint32_t actual_mask;             /* bit k: pos_actual[k] came from drive k's TPDO */
 	double pos_actual[MLIP_MAX_AXES]; /* position actual 0x6064 (what the machine did) */
 	/* in the status area's spare bytes, zero (none) in segments of older builds */
-	uint32_t drive_power;         /* mlip_drive_power: the drives' power, as one */
+	uint32_t drive_power;         /* mlip_drive_power (mlip/canopen/cia402.h): the drives'
+	                                 power, as one */
 	uint32_t drive_power_periods; /* periods the last disable or enable took */
 	/* layout version 5 */
 	double prog_start[MLIP_MAX_AXES]; /* where the current (or last) program's first
@@ -489,8 +471,5 @@ const char *mlip_ring_cmd_name(uint32_t op);
 const char *mlip_state_why_name(uint32_t why);
 const char *mlip_rec_field_name(uint32_t field);
 const char *mlip_rec_type_name(uint32_t type);
-/* "enabled", "disabling", "shutting down", "off", "switching on", "enabling";
- * "none" without drives. */
-const char *mlip_drive_power_name(uint32_t power);
 
 #endif
