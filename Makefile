@@ -139,13 +139,15 @@ unit: $(UNIT_BINS)
 	@fail=0; for t in $(UNIT_BINS); do echo "== $$t"; $$t || fail=1; done; exit $$fail
 
 # System tests (pytest): physics checks on the real toolpaths, CLI behaviour.
+# MLIP_SAN: the sanitizer flags, for a test that links its own build against $(BUILD)
 pytest: all
-	@. .venv/bin/activate && MLIP_BUILD=$(BUILD) python -m pytest -q tests/py
+	@. .venv/bin/activate && MLIP_BUILD=$(BUILD) MLIP_SAN="$(SAN)" python -m pytest -q tests/py
 
 # Formatting: every C file as .clang-format says (Debian's clang-format 14);
 # a difference fails with the file and line (clang-format -i FILE mends it).
 C_FILES := $(shell git ls-files 'src/*.c' 'include/*.h' 'rt/*.c' 'rt/*.h' 'tools/*.c' \
-             'tools/*.h' 'tests/unit/*.c' 'bench/*.c' 'fuzz/*.c' 'fuzz/*.h' 2>/dev/null)
+             'tools/*.h' 'tests/unit/*.c' 'tests/py/*.c' 'bench/*.c' 'fuzz/*.c' 'fuzz/*.h' \
+             2>/dev/null)
 format-check:
 	@clang-format --dry-run -Werror $(C_FILES)
 	@echo "format: $(words $(C_FILES)) C files as .clang-format says"

@@ -671,9 +671,9 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 			__atomic_store_n(&ds->fault, 1, __ATOMIC_RELEASE);
 			/* an input of the controller's period: it stops every axis on
 			 * the path, state fault, reason drive (node, event, value) */
-			in->drive_fault.event = (uint32_t)f;
-			in->drive_fault.node = d->node;
-			in->drive_fault.value = (double)detail;
+			in->drives.fault.event = (uint32_t)f;
+			in->drives.fault.node = d->node;
+			in->drives.fault.value = (double)detail;
 		}
 	}
 }
@@ -685,14 +685,14 @@ static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl
 {
 	struct mlip_drives *ds = ctx;
 	supervise(ds, cycle + 1, now, ds->power != MLIP_POWER_ENABLED, in);
-	in->drive_mute = ds->mute;
-	in->actual_mask = 0;
+	in->drives.mute = ds->mute;
+	in->drives.actual_mask = 0;
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_drive *d = &ds->d[i];
 		int32_t v = d->obs.tpdo_count > 0 ? d->obs.position_counts : d->start_counts;
-		in->drive_sw[i] = d->obs.tpdo_cycle != 0 ? d->obs.statusword : 0;
-		in->pos_actual[i] = v / d->counts_per_unit;
-		in->actual_mask |= 1u << i;
+		in->drives.sw[i] = d->obs.tpdo_cycle != 0 ? d->obs.statusword : 0;
+		in->drives.pos_actual[i] = v / d->counts_per_unit;
+		in->drives.actual_mask |= 1u << i;
 	}
 }
 

@@ -28,7 +28,8 @@ int mlip_period_init(struct mlip_period *p, struct mlip_planner *pl, const struc
 	       sizeof(*p) - offsetof(struct mlip_period, ring));
 	p->rec = rec; /* a record buffer given before init stays */
 	p->rec_cap = rec_cap;
-	if (mlip_ctl_init(&p->core, pl, m, o, ring) != MLIP_OK) {
+	if (mlip_ctl_init(&p->core, pl, m, o) != MLIP_OK ||
+	    mlip_ring_port_open(&p->rx, ring, 0) != MLIP_OK) {
 		return -EINVAL;
 	}
 	p->ring = ring;
@@ -162,6 +163,11 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 		p->hooks.before(p->hooks.ctx, t->cycle, now, &in);
 	}
 	in.period = t->cycle;
+	/* the records queued: the controller's to take; a segment whose indices
+	 * are more than a capacity apart is corrupt (it faults on it) */
+	if (mlip_ring_port_view(&p->rx, &in.recs, &in.recs_corrupt) == MLIP_OK) {
+		in.recs_corrupt = 0;
+	}
 	/* deadlines passed before this wake-up (the loop counts them in
 	 * t->overruns only after this period's work) */
 	int64_t late = t->latency_ns / p->period_ns;
@@ -170,12 +176,12 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 	in.cmd = have_cmd ? &cmd : NULL;
 	in.feeder_alive = feeder_alive(p->ring);
 	in.exit_request = p->exit_request != 0;
-	in.can_tx_refused = p->can.tx_dropped;
-	in.can_error_frames = p->can.bus_errors;
-	in.bus_off = __atomic_load_n(&p->can.bus_off, __ATOMIC_RELAXED);
+	in.bus.tx_refused = p->can.tx_dropped;
+	in.bus.off = __atomic_load_n(&p->can.bus_off, __ATOMIC_RELAXED);
 
 	mlip_ctl_period(&p->core, &in, o);
 
+	mlip_ring_port_pop_n(&p->rx, o->taken); /* their slots back to the feeder */
 	if (have_cmd) {
 		mlip_ring_cmd_done(p->ring, cmd.seq, o->cmd_result);
 	}

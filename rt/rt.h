@@ -58,7 +58,7 @@ void mlip_shm_close(struct mlip_shm *s);
  * alone (beat within MLIP_PEER_TIMEOUT_NS); 0 also for no consistent status. */
 int mlip_shm_controller_alive(const struct mlip_ring *r);
 
-/* ---- peers (rt/peer.c; the rule is mlip/ipc/peer.h) ------------------------ */
+/* ---- peers (rt/liveness.c; the rule is mlip/ipc/peer.h) ------------------------ */
 
 /* 1 when process pid exists and is not a zombie (EPERM counts: another
  * user's); 0 for pid 0 or a process gone. Reads /proc: not for the loop. */
@@ -205,6 +205,7 @@ struct mlip_bus_counts {
 struct mlip_period {
 	struct mlip_ctl core;
 	struct mlip_ring *ring;
+	struct mlip_ring_port rx;           /* the consumer's side of it */
 	const struct mlip_can_port *bus;    /* NULL: frames encoded, not sent */
 	struct mlip_period_hooks hooks;     /* rx/before/after NULL: none */
 	uint32_t pid;                       /* published as status.reserved */

@@ -783,9 +783,9 @@ static int report_run(const char *record, struct app *a, int rc)
 	        "refused; last line %u\n",
 	        (unsigned long long)per.cycles, (unsigned long long)per.can.tx_ok,
 	        (unsigned long long)per.can.tx_dropped, (unsigned long long)per.can.bus_errors,
-	        (unsigned long long)s.overruns, (unsigned long long)per.core.underruns,
-	        (unsigned long long)per.core.blocks_consumed, (unsigned long long)per.core.refused,
-	        (unsigned)s.exec_line);
+	        (unsigned long long)s.overruns, (unsigned long long)per.out.counts.underruns,
+	        (unsigned long long)per.out.counts.blocks_consumed,
+	        (unsigned long long)per.out.counts.refused, (unsigned)s.exec_line);
 	tear_down(a);
 	return rc < 0 ? 1 : 0;
 }

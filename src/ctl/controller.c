@@ -53,13 +53,12 @@ static void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t state,
 }
 
 mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const struct mlip_machine *m,
-                          const struct mlip_ctl_opts *o, struct mlip_ring *ring)
+                          const struct mlip_ctl_opts *o)
 {
-	memset(c, 0, offsetof(struct mlip_ctl, recs));
+	memset(c, 0, offsetof(struct mlip_ctl, blocks));
 	c->planner = p;
 	c->m = *m;
-	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES ||
-	    mlip_ring_port_open(&c->rx, ring, 0) != MLIP_OK) {
+	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES) {
 		return MLIP_E_INVALID;
 	}
 	for (int k = 0; k < m->n_axes; k++) {
@@ -86,45 +85,39 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	return MLIP_OK;
 }
 
-/* ---- the ring, through the consumer's private port --------------------- */
+/* ---- the records of this period: in->recs, taken from the front ---------- */
 
-/* A corrupted segment (head more than a capacity from our tail): take
- * nothing more from it; the period turns it into a fault. */
-static void ring_corrupt(struct mlip_ctl *c, uint32_t apart)
+/* A copy of the next record not taken yet (a queue in shared memory may be
+ * written by a hostile feeder: what is checked is this copy). */
+static int rx_peek(const struct mlip_ctl *c, struct mlip_ring_rec *rec)
 {
-	if (!c->ring_bad) {
-		c->ring_bad = 1;
-		c->ring_apart = apart;
-	}
-}
-
-static int rx_peek(struct mlip_ctl *c, struct mlip_ring_rec *rec)
-{
+	const struct mlip_rec_view *v = c->view;
+	uint32_t i = c->taken;
 	if (c->ring_bad) {
-		return 0;
+		return 0; /* nothing is read from that queue again */
 	}
-	mlip_status st = mlip_ring_port_peek(&c->rx, rec);
-	if (st == MLIP_E_RANGE) {
-		uint32_t n;
-		mlip_ring_port_count(&c->rx, &n, &c->ring_apart);
-		ring_corrupt(c, c->ring_apart);
+	if (i < v->len[0]) {
+		*rec = v->span[0][i];
+		return 1;
 	}
-	return st == MLIP_OK;
+	i -= v->len[0];
+	if (i < v->len[1]) {
+		*rec = v->span[1][i];
+		return 1;
+	}
+	return 0;
 }
 
+/* Take it (the caller pops out->taken records after the period). */
 static void rx_pop(struct mlip_ctl *c)
 {
-	mlip_ring_port_pop(&c->rx);
-	c->blocks_consumed++;
+	c->taken++;
+	c->counts.blocks_consumed++;
 }
 
-static uint32_t rx_count(struct mlip_ctl *c)
+static uint32_t rx_count(const struct mlip_ctl *c)
 {
-	uint32_t n = 0, apart = 0;
-	if (!c->ring_bad && mlip_ring_port_count(&c->rx, &n, &apart) != MLIP_OK) {
-		ring_corrupt(c, apart);
-	}
-	return n;
+	return c->ring_bad ? 0 : c->view->len[0] + c->view->len[1] - c->taken;
 }
 
 /* ---- records ------------------------------------------------------------ */
@@ -216,32 +209,32 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 {
 	uint32_t n = 0;
 	int event_next = 0;
-	struct mlip_ring_rec *rec = c->recs;
-	while (n < max && !c->end_seen && !c->bad && rx_peek(c, &rec[n])) {
+	struct mlip_ring_rec rec;
+	while (n < max && !c->end_seen && !c->bad && rx_peek(c, &rec)) {
 		struct mlip_ctl_reason r;
-		if (mlip_ctl_check_record(&c->m, &rec[n], c->next_seq, &r) != MLIP_OK) {
+		if (mlip_ctl_check_record(&c->m, &rec, c->next_seq, &r) != MLIP_OK) {
 			fault(c, out, r);
 			break;
 		}
-		if (is_event(&rec[n])) {
-			if (rec[n].type == MLIP_REC_OPTIONAL_PAUSE && !c->optional_stop) {
+		if (is_event(&rec)) {
+			if (rec.type == MLIP_REC_OPTIONAL_PAUSE && !c->optional_stop) {
 				rx_pop(c); /* M1 with the switch off: no stop */
 				c->next_seq++;
 				continue;
 			}
 			event_next = 1;
-			c->event = rec[n];
+			c->event = rec;
 			break;
 		}
 		rx_pop(c);
 		c->next_seq++;
-		if (rec[n].type == MLIP_REC_END) {
+		if (rec.type == MLIP_REC_END) {
 			c->end_seen = 1;
-			c->end_seq = rec[n].seq;
-			c->end_line = rec[n].line;
+			c->end_seq = rec.seq;
+			c->end_line = rec.line;
 			break;
 		}
-		mlip_ring_rec_to_block(&rec[n], &c->blocks[n]);
+		mlip_ring_rec_to_block(&rec, &c->blocks[n]);
 		n++;
 	}
 	if (n > 0) {
@@ -525,8 +518,8 @@ static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 	if (power == MLIP_POWER_OFF || power == MLIP_POWER_SWITCHING_ON) {
 		/* no holding torque: the commanded position is where the drives are */
 		for (int k = 0; k < c->m.n_axes; k++) {
-			if (in->actual_mask & (1u << k)) {
-				c->pos[k] = in->pos_actual[k];
+			if (in->drives.actual_mask & (1u << k)) {
+				c->pos[k] = in->drives.pos_actual[k];
 			}
 		}
 		mlip_planner_rest_at(c->planner, c->pos);
@@ -543,8 +536,8 @@ static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 	} else if (power == MLIP_POWER_ENABLED) {
 		want = !power_rest(c);
 	}
-	if (!mlip_402_seq_run(&c->power, want ? MLIP_POWER_ENABLED : MLIP_POWER_OFF, in->drive_sw,
-	                      c->m.n_axes, in->drive_mute, c->period, &ch)) {
+	if (!mlip_402_seq_run(&c->power, want ? MLIP_POWER_ENABLED : MLIP_POWER_OFF, in->drives.sw,
+	                      c->m.n_axes, in->drives.mute, c->period, &ch)) {
 		return;
 	}
 	if (ch.failed) {
@@ -564,7 +557,7 @@ static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 /* Blocks in, by state. */
 static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
 {
-	struct mlip_ring_rec *head = &c->recs[0];
+	struct mlip_ring_rec first, *head = &first;
 	int have = rx_peek(c, head);
 
 	if (c->discard) {
@@ -586,7 +579,7 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 			r.value = (double)(c->exec_seq + 1);
 			emit(c, out, MLIP_EV_REFUSED, c->state, &r);
 			c->discard = 1;
-			c->refused++;
+			c->counts.refused++;
 			return;
 		}
 		if (c->drives && c->power.step != MLIP_POWER_ENABLED) {
@@ -627,7 +620,7 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 		uint32_t room = mlip_planner_space(c->planner);
 		int dry = !c->end_seen && room > 0 && rx_count(c) == 0;
 		if (dry) {
-			c->underruns++; /* the feeder is behind: the plan runs to rest */
+			c->counts.underruns++; /* the feeder is behind: the plan runs to rest */
 		}
 		ingest(c, out, room < MLIP_INGEST_PER_PERIOD ? room : MLIP_INGEST_PER_PERIOD);
 		return;
@@ -733,8 +726,8 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	s->state = c->state;
 	s->override_pct = (uint32_t)(mlip_planner_override_pct(p) + 0.5);
 	s->overruns = c->overruns;
-	s->underruns = c->underruns;
-	s->blocks_consumed = c->blocks_consumed;
+	s->underruns = c->counts.underruns;
+	s->blocks_consumed = c->counts.blocks_consumed;
 	s->stop_nm = c->stop_nm;
 	s->stop_periods = c->stop_periods;
 	s->stops = c->stops;
@@ -772,6 +765,12 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->done = 0;
 	c->period = in->period;
 	c->overruns += in->missed;
+	c->view = &in->recs;
+	c->taken = 0;
+	if (in->recs_corrupt != 0 && !c->ring_bad) {
+		c->ring_bad = 1; /* a corrupted segment: nothing more is read from it */
+		c->ring_apart = in->recs_corrupt;
+	}
 
 	/* a stall: the drives stood at the last setpoint while the plan's clock
 	 * ran on. Never jump: that setpoint becomes a point of rest, and motion
@@ -800,19 +799,18 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	}
 	/* frames the drives did not get, or a bus that is off: do not go on
 	 * blind; hold on the path until the operator resumes on a clean bus */
-	if (in->can_tx_refused != c->bus_tx_seen || in->bus_off) {
+	if (in->bus.tx_refused != c->bus_tx_seen || in->bus.off) {
 		c->bus_bad_period = c->period;
 		if (!c->bus_hold) {
 			c->bus_hold = 1;
-			c->hold_why = in->bus_off ? MLIP_WHY_BUS_ERROR : MLIP_WHY_BUS_TX;
+			c->hold_why = in->bus.off ? MLIP_WHY_BUS_ERROR : MLIP_WHY_BUS_TX;
 			mlip_planner_hold(p, 1);
 			brake_begin(c);
 		}
 	}
-	c->bus_tx_seen = in->can_tx_refused;
-	c->bus_err_seen = in->can_error_frames;
-	if (in->drive_fault.event != 0 && !c->drive_faulted) {
-		drive_fault(c, out, &in->drive_fault);
+	c->bus_tx_seen = in->bus.tx_refused;
+	if (in->drives.fault.event != 0 && !c->drive_faulted) {
+		drive_fault(c, out, &in->drives.fault);
 	}
 
 	blocks_in(c, in, out);
@@ -849,7 +847,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		for (int k = 0; k < MLIP_MAX_AXES; k++) {
 			c->enc.controlword[k] = (uint16_t)c->power.cw;
 		}
-		c->enc.rpdo_mute = in->drive_mute;
+		c->enc.rpdo_mute = in->drives.mute;
 		if (mlip_canenc_encode(&c->enc, (uint32_t)c->period, c->pos, out->frames,
 		                       MLIP_CAN_MAX_FRAMES, &out->n_frames, &sat) != MLIP_OK) {
 			/* a position beyond the drive's int32 range: never send it */
@@ -861,7 +859,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 				go(c, out, MLIP_STATE_FAULT, r);
 			}
 		}
-		c->frames_encoded += (uint64_t)out->n_frames;
+		c->counts.frames_encoded += (uint64_t)out->n_frames;
 	}
 	publish(c, out);
 	out->power.state = c->power.step;
@@ -869,11 +867,14 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->power.late_node = c->power.late >= 0 ? (uint32_t)c->m.axis[c->power.late].can_node : 0;
 	out->power.late_sw = c->power.late_sw;
 	out->power.late_step = c->power.late_step;
-	out->status.actual_mask = in->actual_mask;
-	memcpy(out->status.pos_actual, in->pos_actual, sizeof(out->status.pos_actual));
+	out->status.actual_mask = in->drives.actual_mask;
+	memcpy(out->status.pos_actual, in->drives.pos_actual, sizeof(out->status.pos_actual));
 	/* an exit request ends once the machine is at rest */
 	out->done = c->exiting && !c->discard &&
 	            (c->state == MLIP_STATE_IDLE ||
 	             (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0)) &&
 	            (!c->drives || c->power.step == MLIP_POWER_OFF); /* and the drives disabled */
+	out->taken = c->taken;
+	out->counts = c->counts;
+	c->view = NULL; /* the caller's, for this period only */
 }

@@ -395,27 +395,30 @@ mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t
 	return MLIP_OK;
 }
 
-mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out)
+mlip_status mlip_ring_port_view(struct mlip_ring_port *p, struct mlip_rec_view *v, uint32_t *apart)
 {
 	const struct mlip_ring_rec *recs = (const struct mlip_ring_rec *)(const void *)(p->r + 1);
 
-	if (p->other == p->own && port_reload(p, NULL) != MLIP_OK) {
+	memset(v, 0, sizeof(*v));
+	if (port_reload(p, apart) != MLIP_OK) {
 		return MLIP_E_RANGE;
 	}
-	if (p->other == p->own) {
-		return MLIP_E_EMPTY;
-	}
-	*out = recs[p->own & p->mask];
+	uint32_t n = p->other - p->own, at = p->own & p->mask;
+	uint32_t first = n < p->capacity - at ? n : p->capacity - at;
+	v->span[0] = recs + at;
+	v->len[0] = first;
+	v->span[1] = recs;
+	v->len[1] = n - first;
 	return MLIP_OK;
 }
 
-mlip_status mlip_ring_port_pop(struct mlip_ring_port *p)
+mlip_status mlip_ring_port_pop_n(struct mlip_ring_port *p, uint32_t n)
 {
-	if (p->other == p->own) {
-		return MLIP_E_EMPTY; /* peek first */
+	if (n > p->other - p->own) {
+		return MLIP_E_RANGE; /* more than were there */
 	}
-	p->own++;
-	ST(&p->r->tail, p->own, REL); /* hands the slot back to the producer */
+	p->own += n;
+	ST(&p->r->tail, p->own, REL); /* hands the slots back to the producer */
 	return MLIP_OK;
 }
 

@@ -410,10 +410,20 @@ mlip_status mlip_ring_port_open(struct mlip_ring_port *p, struct mlip_ring *r, i
  * *n = 0, when the indices are more than a capacity apart (*n gets that
  * distance through `apart` when not NULL). */
 mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t *apart);
-/* Consumer: copy the oldest record (MLIP_E_EMPTY, MLIP_E_RANGE). */
-mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out);
-/* Consumer: remove the oldest record (after a peek). */
-mlip_status mlip_ring_port_pop(struct mlip_ring_port *p);
+/* The records a consumer may take, oldest first, where they lie: at most
+ * two spans of the segment's slots (the ring wraps). Read only; a reader
+ * copies a record before it checks it, so a producer that does not keep to
+ * the protocol cannot change what was checked. */
+struct mlip_rec_view {
+	const struct mlip_ring_rec *span[2];
+	uint32_t len[2];
+};
+/* Consumer: every record queued now, without copying (MLIP_E_RANGE, an
+ * empty view and *apart as mlip_ring_port_count, for a corrupted segment). */
+mlip_status mlip_ring_port_view(struct mlip_ring_port *p, struct mlip_rec_view *v, uint32_t *apart);
+/* Consumer: remove the n oldest records (at most those last viewed):
+ * their slots go back to the producer. MLIP_E_RANGE for more. */
+mlip_status mlip_ring_port_pop_n(struct mlip_ring_port *p, uint32_t n);
 /* Producer: append up to n records; how many in *pushed (MLIP_E_RANGE: none). */
 mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ring_rec *recs,
                                   uint32_t n, uint32_t *pushed);
