@@ -90,8 +90,7 @@ int mlip_canbus_open(struct mlip_canbus *bus, const char *ifname, int fd_frames,
 	if (fd < 0) {
 		int e = errno;
 		snprintf(why, why_len, "socket(PF_CAN): %s%s", strerror(e),
-		         e == EAFNOSUPPORT ? " (this kernel has no CAN: see docs/can-vm.md)"
-		                           : "");
+		         e == EAFNOSUPPORT ? " (this kernel has no CAN: see docs/can-vm.md)" : "");
 		return -e;
 	}
 	/* data frames: exactly these standard identifiers (none: the controller
