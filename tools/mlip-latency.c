@@ -6,7 +6,7 @@
  * one of three loads:
  *
  *   --idle        wake and sleep only (cyclictest's measurement)
- *   --plan FILE   the real controller tick (mlip_controller_tick, as
+ *   --plan FILE   the real controller period (mlip_period_tick, as
  *                 `mlip-rt --can none` runs it) on the program, fed into a
  *                 private ring by a feeder thread in this process (what
  *                 mlip-feed does through shared memory), plus the CAN

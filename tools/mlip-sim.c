@@ -379,6 +379,7 @@ static int parse_options(int argc, char **argv, struct options *o)
  * feeder through the queue, the trace, and the check of the trace against
  * the original program's polyline, streamed by a second reader. */
 struct sim {
+	struct mlip_offsets_file offsets_file; /* the offsets as read: the save's merge base */
 	struct mlip_config cfg;
 	struct mlip_program prog, cprog;
 	unsigned long lookahead;
@@ -641,7 +642,7 @@ static int report(const struct options *o, struct sim *s, int rc)
 		        s->chk.max_speed_mm_s, s->chk.max_contour_mm);
 	}
 	mlip_program_close(&s->cprog);
-	if (o->save_offsets && mlip_offsets_save(o->mo.offsets, &s->cfg.machine,
+	if (o->save_offsets && mlip_offsets_save(&s->offsets_file, &s->cfg.machine,
 	                                         &s->prog.offsets_end, PROG, stderr) != 0) {
 		mlip_program_close(&s->prog);
 		return 1;
@@ -664,6 +665,7 @@ int main(int argc, char **argv)
 	if (rc != 0) {
 		return rc < 0 ? 0 : rc;
 	}
+	o.mo.offsets_file = &s.offsets_file;
 	rc = set_up(&o, &s);
 	if (rc != 0) {
 		return rc;
