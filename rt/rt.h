@@ -212,19 +212,24 @@ struct mlip_bus_counts {
 };
 
 struct mlip_period {
+	/* set at init (the controller inside is read through out, never directly) */
 	struct mlip_ctl core;
 	struct mlip_ring *ring;
-	struct mlip_ring_port rx;           /* the consumer's side of it */
-	const struct mlip_can_port *bus;    /* NULL: frames encoded, not sent */
-	struct mlip_period_hooks hooks;     /* rx/before/after NULL: none */
-	uint32_t pid;                       /* published as status.reserved */
-	volatile sig_atomic_t exit_request; /* SIGINT/SIGTERM/SIGHUP: stop, then end the loop */
+	struct mlip_ring_port rx;        /* the consumer's side of it */
+	const struct mlip_can_port *bus; /* NULL: frames encoded, not sent */
+	struct mlip_period_hooks hooks;  /* rx/before/after NULL: none */
+	uint32_t pid;                    /* published as status.reserved */
 	int64_t period_ns;
 	uint64_t first_deadline_ns;
+	/* the one input from outside the loop: SIGINT/SIGTERM/SIGHUP: a stop,
+	 * then the loop ends */
+	volatile sig_atomic_t exit_request;
+	/* results: the last period's output, the periods run, the bus, the
+	 * sends' time (latency tool) */
+	struct mlip_ctl_out out;
 	uint64_t cycles;
 	struct mlip_bus_counts can;
-	int64_t send_ns; /* this period's sends (latency tool) */
-	struct mlip_ctl_out out;
+	int64_t send_ns;
 	/* event queue (SPSC: the loop produces, the monitor thread consumes) */
 	struct mlip_ctl_event log[MLIP_LOG_QUEUE];
 	uint32_t log_head, log_tail;

@@ -250,7 +250,7 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		fprintf(stderr,
 		        PROG ": %s -> idle (%s): at rest, block %llu (line %u) the last "
 		             "completed\n",
-		        mlip_ring_state_name(e->from), mlip_state_why_name(r->why), seq, line);
+		        mlip_ctl_state_name(e->from), mlip_state_why_name(r->why), seq, line);
 		return;
 	default:
 		if (r->why == MLIP_WHY_PREREAD_DONE || r->why == MLIP_WHY_CONTINUE ||
@@ -258,7 +258,7 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			return; /* implied by the line before (start, underrun, dwell) */
 		}
 		fprintf(stderr, PROG ": %s -> %s (%s), block %llu (line %u)\n",
-		        mlip_ring_state_name(e->from), mlip_ring_state_name(e->state),
+		        mlip_ctl_state_name(e->from), mlip_ctl_state_name(e->state),
 		        mlip_state_why_name(r->why), seq, line);
 	}
 }

@@ -767,50 +767,12 @@ int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
 
 #define NAME_OF(names, v) ((v) < sizeof(names) / sizeof((names)[0]) ? (names)[v] : "?")
 
-const char *mlip_ring_state_name(uint32_t state)
-{
-	static const char *const names[] = {"idle",    "running", "held",     "stopping", "fault",
-	                                    "starved", "paused",  "dwelling", "pre-read"};
-
-	return NAME_OF(names, state);
-}
-
 const char *mlip_ring_cmd_name(uint32_t op)
 {
 	static const char *const names[] = {"none",   "override", "hold",
 	                                    "resume", "stop",     "optional-stop"};
 
 	return NAME_OF(names, op);
-}
-
-const char *mlip_state_why_name(uint32_t why)
-{
-	static const char *const names[] = {"none",
-	                                    "program start",
-	                                    "continuation",
-	                                    "pre-read done",
-	                                    "program end",
-	                                    "underrun",
-	                                    "feeder gone",
-	                                    "hold",
-	                                    "override 0",
-	                                    "resume",
-	                                    "CAN tx refused",
-	                                    "CAN error frames",
-	                                    "stall",
-	                                    "dwell",
-	                                    "dwell done",
-	                                    "pause (M0)",
-	                                    "optional pause (M1)",
-	                                    "stop",
-	                                    "exit signal",
-	                                    "bad record",
-	                                    "ring corrupt",
-	                                    "position beyond the drives' range",
-	                                    "drive fault",
-	                                    "stop before the start"};
-
-	return NAME_OF(names, why);
 }
 
 const char *mlip_rec_field_name(uint32_t field)

@@ -143,8 +143,8 @@ static int until(uint32_t s, int n)
 			return i;
 		}
 	}
-	fail_msg("state %s not reached in %d periods (now %s)", mlip_ring_state_name(s), n,
-	         mlip_ring_state_name(out.status.state));
+	fail_msg("state %s not reached in %d periods (now %s)", mlip_ctl_state_name(s), n,
+	         mlip_ctl_state_name(out.status.state));
 	return -1;
 }
 
@@ -929,7 +929,7 @@ static void test_every_name(void **st)
 {
 	(void)st;
 	for (uint32_t v = 0; v < MLIP_STATE_COUNT; v++) {
-		assert_string_not_equal(mlip_ring_state_name(v), "?");
+		assert_string_not_equal(mlip_ctl_state_name(v), "?");
 	}
 	for (uint32_t v = 0; v < MLIP_WHY_COUNT; v++) {
 		assert_string_not_equal(mlip_state_why_name(v), "?");
@@ -943,7 +943,7 @@ static void test_every_name(void **st)
 	for (uint32_t v = 0; v < MLIP_CMD_COUNT; v++) {
 		assert_string_not_equal(mlip_ring_cmd_name(v), "?");
 	}
-	assert_string_equal(mlip_ring_state_name(MLIP_STATE_COUNT), "?");
+	assert_string_equal(mlip_ctl_state_name(MLIP_STATE_COUNT), "?");
 	assert_string_equal(mlip_state_why_name(MLIP_WHY_COUNT), "?");
 }
 

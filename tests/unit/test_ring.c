@@ -13,6 +13,7 @@
 
 #include <cmocka.h>
 
+#include "mlip/ctl/state.h"
 #include "mlip/ipc/ring.h"
 
 /* records through the ring in the stress test: 10 M (about 0.5 s at -O2);
@@ -408,8 +409,8 @@ static void test_reason_strings(void **state)
 		assert_string_not_equal(mlip_ring_reason_str((mlip_ring_reason)k), "?");
 	}
 	assert_string_equal(mlip_ring_reason_str((mlip_ring_reason)99), "?");
-	assert_string_equal(mlip_ring_state_name(MLIP_STATE_HELD), "held");
-	assert_string_equal(mlip_ring_state_name(77), "?");
+	assert_string_equal(mlip_ctl_state_name(MLIP_STATE_HELD), "held");
+	assert_string_equal(mlip_ctl_state_name(77), "?");
 	assert_string_equal(mlip_ring_cmd_name(MLIP_CMD_OVERRIDE), "override");
 	assert_string_equal(mlip_ring_cmd_name(MLIP_CMD_COUNT), "?");
 }

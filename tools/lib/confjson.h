@@ -8,7 +8,6 @@
 
 #include <stdio.h>
 
-#include "json.h" /* mlip_json_str for the status and the summaries */
 #include "mlip/machine/config.h"
 
 /* One JSON object: "file", "machine" (the [TRAJ] values and "axes", one

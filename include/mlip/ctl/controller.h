@@ -30,7 +30,7 @@
  * A new input (an I/O module's inputs, a jog command) is a group of `in`,
  * a new output (a spindle's controlword) a group of `out`.
  *
- * One state (mlip_ring_state), every transition named with its reason
+ * One state (mlip_ctl_state, mlip/ctl/state.h), every transition named with its reason
  * (mlip_state_why + record seq, line, field, value), kept in the status:
  *
  *   IDLE --record seq 1 (or the one after the last completed)--> PREREAD
@@ -87,6 +87,7 @@
 
 #include "mlip/can/canenc.h"
 #include "mlip/canopen/cia402.h"
+#include "mlip/ctl/state.h"
 #include "mlip/motion/planner.h"
 #include "mlip/ipc/ring.h"
 #include "mlip/types.h"
@@ -217,62 +218,83 @@ struct mlip_ctl_opts {
 	                                      (0: 1000) */
 };
 
+/* A record's place in the program: its seq (0: none) and source line. */
+struct mlip_ctl_mark {
+	uint64_t seq;
+	uint32_t line;
+};
+
+/* The controller's own state: read it through out, never here. */
 struct mlip_ctl {
-	/* wiring and private copies made at init */
+	/* set at init */
 	struct mlip_planner *planner;
-	int ring_bad;        /* head - tail beyond the capacity: read no more */
-	uint32_t ring_apart; /* that distance */
 	struct mlip_machine m;
-	struct mlip_canenc enc;
+	struct mlip_canenc enc; /* the period's frames, when encode (opts.can) */
 	int encode;
+	int drives; /* opts.drives */
 	uint32_t stall_periods;
 	/* the state and why */
-	uint32_t state; /* mlip_ring_state */
+	uint32_t state; /* mlip_ctl_state */
 	struct mlip_ctl_reason why;
-	uint32_t bus_why; /* BUS_TX or BUS_ERROR, while bus_hold */
-	int bus_hold, stall_hold;
-	int op_hold;        /* mlip-ctl hold, until resume (or a stop) */
-	uint32_t stop_seen; /* the stop counter applied (in->stop_requests) */
-	int stop_in_wait;   /* the stop came in a dwell or pause: that wait is not done */
-	int drive_faulted;  /* a drive fault came: it stays the reason */
+	int drive_faulted; /* a drive fault came: it stays the reason */
+	/* what holds the planner, each cause until its own release */
+	struct {
+		int op;                  /* mlip-ctl hold: until resume (or a stop) */
+		int stall;               /* more periods missed than allowed: until resume */
+		int bus;                 /* frames refused, bus-off: until resume on a clean bus */
+		uint32_t bus_why;        /* BUS_TX or BUS_ERROR */
+		uint64_t bus_bad_period; /* the last period the bus was bad */
+		uint64_t tx_seen;        /* in->bus.tx_refused as last seen */
+	} hold;
+	/* the operator */
+	struct {
+		uint32_t stop_seen; /* the stop counter applied (in->stop_requests) */
+		int exiting;        /* an exit request: a stop on the path, then done */
+		int optional_stop;  /* the M1 switch */
+	} op;
+	/* the program */
+	struct {
+		uint64_t next_seq;           /* the record expected next */
+		struct mlip_ctl_mark exec;   /* the last record whose motion (or wait) is done */
+		struct mlip_ctl_mark end;    /* its END, once taken (seq 0: not yet) */
+		int refill;                  /* the pre-read continues a program */
+		int bad;                     /* a bad record: nothing more is taken */
+		int discard;                 /* dropping a stopped (or faulted) program's records */
+		int discard_waiting;         /* ... a waiting one's, its first record (seq 1) too */
+		double start[MLIP_MAX_AXES]; /* pos when its first record was taken */
+	} prog;
+	/* a dwell or a pause */
+	struct {
+		struct mlip_ring_rec event; /* the event record ingest stopped in front of */
+		struct mlip_ctl_mark at;    /* the dwell or pause being executed */
+		uint64_t dwell_left;        /* periods */
+		int resume;                 /* resume came during a pause */
+		int stopped;                /* a stop came in it: the wait is not done */
+	} wait;
 	/* the drives' power (opts.drives) */
-	int drives;
-	struct mlip_402_seq power; /* on the period count */
-	int power_want;            /* this period: a program waits for the drives */
-	uint32_t still_periods;    /* periods the setpoint has not changed */
-	/* program */
-	int refill; /* the pre-read continues a program */
-	int end_seen;
-	uint64_t end_seq;
-	uint32_t end_line;
-	int discard;         /* dropping a stopped (or faulted) program's records */
-	int discard_waiting; /* ... a waiting one's, its first record (seq 1) too */
-	int bad;             /* a bad record: nothing more is taken */
-	int exiting;
-	int optional_stop; /* the M1 switch */
-	uint64_t next_seq; /* the record expected next */
-	uint64_t exec_seq; /* last record whose motion (or wait) is done */
-	uint32_t exec_line;
-	struct mlip_ring_rec event; /* the event record ingest stopped in front of */
-	uint64_t wait_seq;          /* the dwell or pause being executed */
-	uint32_t wait_line;
-	uint64_t dwell_left; /* periods */
-	int resume_wait;     /* resume came during a pause */
-	/* counters */
+	struct {
+		struct mlip_402_seq seq; /* on the period count */
+		int want;                /* this period: a program waits for the drives */
+		uint32_t still_periods;  /* periods the setpoint has not changed */
+	} power;
+	/* this period's records (in->recs) */
+	struct {
+		const struct mlip_rec_view *view;
+		uint32_t taken;
+		uint32_t corrupt; /* the queue's indices were this far apart: nothing more is
+		                     read from it (0: never) */
+	} rx;
+	/* a stop measured from its request to rest (status stop_*) */
+	struct {
+		int on;
+		double mm;
+		uint32_t periods;
+		uint64_t last_nm; /* the last stop completed */
+		uint32_t last_periods, count;
+	} brake;
 	uint64_t period, overruns;
 	struct mlip_ctl_counts counts;
-	uint64_t bus_tx_seen, bus_bad_period;
-	/* a stop being measured: from its request to rest (status stop_*) */
-	int braking;
-	double brake_mm;
-	uint32_t brake_periods;
-	uint64_t stop_nm;
-	uint32_t stop_periods, stops;
 	double pos[MLIP_MAX_AXES];
-	double prog_start[MLIP_MAX_AXES]; /* pos when the program's first record was taken */
-	/* this period: the records it may take, how many it took */
-	const struct mlip_rec_view *view;
-	uint32_t taken;
 	/* scratch for one period's blocks (no stack array of this size on RT) */
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];
 };
