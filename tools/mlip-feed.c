@@ -53,7 +53,7 @@
 #include "mlip/machine/config.h"
 #include "mlip/canopen/canopen.h"
 #include "mlip/ipc/ring.h"
-#include "offsets.h"
+#include "offsetfile.h"
 #include "program.h"
 #include "rt.h"
 

@@ -1,5 +1,5 @@
 /*
- * mlip-offsets - the operator's tool for the offsets file (tools/lib/offsets.h,
+ * mlip-offsets - the operator's tool for the offsets file (tools/lib/offsetfile.h,
  * a state file: tools/lib/statefile.h): show it, change values without an
  * editor, accept a hand edit, make a new file, convert an old one.
  *
@@ -20,7 +20,7 @@
 #include <sys/stat.h>
 
 #include "cli.h"
-#include "offsets.h"
+#include "offsetfile.h"
 #include "statefile.h"
 
 #define PROG     "mlip-offsets"

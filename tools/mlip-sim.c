@@ -25,7 +25,7 @@
 #include "mlip/gcode/gcode.h"
 #include "mlip/motion/planner.h"
 #include "mlip/ipc/ring.h"
-#include "offsets.h"
+#include "offsetfile.h"
 #include "program.h"
 #include "trace.h"
 

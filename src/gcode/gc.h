@@ -5,11 +5,11 @@
  *   words.c    words -> one block description (struct blk), each word alone
  *   gcode.c    words against the machine and the modal state (struct plan),
  *              then the line executed in LinuxCNC's order
- *   state.c    the modal state and the notices; the feed of a block
+ *   modal.c    the modal state and the notices; the feed of a block
  *   offsets.c  G10, G92, G28.1/G30.1 and G28/G30
  *   arc.c      G2/G3 into chords
  *   emit.c     blocks out, soft limits
- *   grbl.c     Grbl's '$' system lines and "$J=" jogs
+ *   grblsys.c  Grbl's '$' system lines and "$J=" jogs
  *   scan.c     whole-program scans (no machine needed)
  */
 #ifndef MLIP_GCODE_GC_H
@@ -110,7 +110,7 @@ struct plan {
 	uint32_t mcol;  /* column to blame for the motion: its G word, else the line */
 };
 
-/* ---- state.c ---- */
+/* ---- modal.c ---- */
 
 void mlip_gc_notice(struct mlip_gcode *g, const char *word, uint32_t line);
 /* Config index of the axis with that (upper-case) letter, or -1. */
@@ -160,7 +160,7 @@ mlip_status mlip_gc_emit_arc(struct mlip_gcode *g, struct emit_ctx *ec, const st
                              const double *s, const double *t, const uint32_t *col_of,
                              struct mlip_gcode_error *e);
 
-/* G93's feed (state.c): the move's length times F/60 (arc: may be NULL). */
+/* G93's feed (modal.c): the move's length times F/60 (arc: may be NULL). */
 double mlip_gc_inverse_time_feed(const struct mlip_gcode *g, double f, const double *s,
                                  const double *t, const struct arc *arc);
 
@@ -173,7 +173,7 @@ mlip_status mlip_gc_go_home(struct mlip_gcode *g, const struct blk *b, const str
                             struct emit_ctx *ec, const double *t, const uint32_t *col_of,
                             uint32_t line, struct mlip_gcode_error *e);
 
-/* ---- grbl.c ---- */
+/* ---- grblsys.c ---- */
 
 mlip_status mlip_gc_system_line(struct mlip_gcode *g, const char *t, size_t len, size_t i0,
                                 uint32_t line, mlip_block_sink sink, void *ctx,

@@ -11,7 +11,7 @@
  *                axis and arc words, F, notices), every word checked alone
  *                (words.c);
  *   3. check:    words against the machine and the modal state (here);
- *   4. execute:  modal state committed (state.c), offsets (offsets.c), then
+ *   4. execute:  modal state committed (modal.c), offsets (offsets.c), then
  *                the motion (if any) turned into targets, checked against
  *                the soft limits, and emitted (emit.c, arc.c).
  *

@@ -1,13 +1,13 @@
 /*
  * keys.h - private to src/machine/: the INI file's sections and keys, the
  * parse state, and what the parts of the reader share:
- *   ini.c      the INI reader: lines, sections, keys, single values, the
- *              second pass (presence, placement of errors), entry points
- *   keys.c     the key table
- *   suggest.c  "did you mean" for unknown sections and keys
- *   check.c    the machine check (mlip_machine_check), shared by the reader
- *              and the command-line overrides
- *   drives.c   the [DRIVES] section against the rest
+ *   ini.c       the INI reader: lines, sections, keys, single values, the
+ *               second pass (presence, placement of errors), entry points
+ *   keys.c      the key table
+ *   suggest.c   "did you mean" for unknown sections and keys
+ *   validate.c  the machine check (mlip_machine_check), shared by the
+ *               reader and the command-line overrides
+ *   driveconf.c the [DRIVES] section against the rest
  * The CAN id rules are in src/can/canconf.c (mlip/can/canconf.h).
  */
 #ifndef MLIP_MACHINE_KEYS_H
@@ -144,7 +144,7 @@ void mlip_mc_place(const struct pstate *ps, struct mlip_config_error *err, int s
 /* The candidate the user most likely meant by s[0..n), or NULL. */
 const char *mlip_mc_suggest(const char *s, size_t n, const char *const *cand, int ncand);
 
-/* ---- check.c ---- */
+/* ---- validate.c ---- */
 
 /* What a failed check is about, so that the parser can point at the keys
  * that set the values: axis index (-1: TRAJ), key (AK_* or TK_*), the other
@@ -156,7 +156,7 @@ struct issue {
 mlip_status mlip_mc_check_machine(const struct mlip_machine *m, struct mlip_config_error *err,
                                   struct issue *is);
 
-/* ---- drives.c ---- */
+/* ---- driveconf.c ---- */
 
 void mlip_mc_fill_drives(const struct pstate *ps, struct mlip_drives_config *d);
 mlip_status mlip_mc_check_drives(const struct pstate *ps, const struct mlip_config *c,

@@ -93,3 +93,25 @@ def test_folder_include_rules_fail_the_build(tmp_path, path, include, rule):
     assert bad.returncode != 0
     assert f"{path}:1: includes" in bad.stderr and rule in bad.stderr, bad.stderr
     assert not (tree / "b" / "libmlip.a").exists()
+
+
+def _shared_names(paths):
+    """File name -> its paths, for each name that more than one path has."""
+    by_name = {}
+    for p in paths:
+        by_name.setdefault(p.rsplit("/", 1)[-1], []).append(p)
+    return {n: sorted(ps) for n, ps in by_name.items() if len(ps) > 1}
+
+
+def test_one_name_for_each_c_file():
+    """Issue 16, one name for each thing: no two C or header files of the
+    repository share a file name (a newcomer, a debugger's backtrace or a
+    grep for "check.c" must find one file). The check itself sees a pair."""
+    assert _shared_names(["src/a/x.c", "tools/x.c", "x.h", "src/a/y.c"]) == {
+        "x.c": ["src/a/x.c", "tools/x.c"]
+    }
+    files = subprocess.run(["git", "ls-files", "-z", "*.c", "*.h"], cwd=ROOT, capture_output=True,
+                           check=True).stdout.decode().split("\0")
+    files = [f for f in files if f]
+    assert len(files) > 50, files
+    assert _shared_names(files) == {}

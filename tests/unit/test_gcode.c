@@ -16,7 +16,7 @@
 #include <cmocka.h>
 
 #include "mlip/gcode/gcode.h"
-#include "../../tools/lib/offsets.h"
+#include "../../tools/lib/offsetfile.h"
 #include "../../tools/lib/program.h"
 
 #include <sys/stat.h>

@@ -1,6 +1,6 @@
 /*
  * test_statefile.c - the files mlip keeps for the operator (tools/lib/
- * statefile.h) and the offsets file on it (tools/lib/offsets.h): SHA-256
+ * statefile.h) and the offsets file on it (tools/lib/offsetfile.h): SHA-256
  * against FIPS 180-4's vectors; a file cut at any byte, emptied, filled
  * with NULs, edited without being accepted, holding a key twice or missing
  * one is refused; values named by axis letter land on their axis whatever
@@ -24,7 +24,7 @@
 #include <cmocka.h>
 
 #include "mlip/gcode/gcode.h"
-#include "offsets.h"
+#include "offsetfile.h"
 #include "sha256.h"
 #include "statefile.h"
 

@@ -12,7 +12,7 @@
 #include "mlip/ipc/ring.h"
 #include "confload.h"
 #include "mlip/gcode/gcode.h"
-#include "offsets.h"
+#include "offsetfile.h"
 #include "program.h"
 
 int mlip_cli_number(const char *s, double *out)

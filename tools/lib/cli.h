@@ -16,7 +16,7 @@ struct mlip_offsets_file;
 
 struct mlip_cli_machine {
 	const char *config;  /* INI path, or NULL: axes are those the program uses */
-	const char *offsets; /* offsets file (offsets.h), or NULL: all zero, G54 */
+	const char *offsets; /* offsets file (offsetfile.h), or NULL: all zero, G54 */
 	struct mlip_offsets_file *offsets_file; /* filled by the load when not NULL: the base
 	                                           of a write-back (mlip_offsets_save) */
 	int strict;                             /* mlip_gcode_set_strict */

@@ -1,5 +1,5 @@
-/* offsets.c - see offsets.h */
-#include "offsets.h"
+/* offsetfile.c - see offsetfile.h */
+#include "offsetfile.h"
 
 #include <ctype.h>
 #include <errno.h>

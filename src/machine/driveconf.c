@@ -1,5 +1,5 @@
 /*
- * drives.c - the [DRIVES] section (CiA 402 drives brought up by mlip-rt)
+ * driveconf.c - the [DRIVES] section (CiA 402 drives brought up by mlip-rt)
  * into its struct, and against the rest of the file.
  */
 #include "keys.h"

@@ -1,5 +1,5 @@
 /*
- * offsets.h - the state that outlives a program (work offsets G54-G59.3,
+ * offsetfile.h - the state that outlives a program (work offsets G54-G59.3,
  * G92, the G28/G30 positions, the selected system) in the offsets file: a
  * state file (statefile.h: written through a new file, fsync and rename,
  * read back whole and checked, merged per key with a change made during a
@@ -30,8 +30,8 @@
  * mistyped path must not run a program on zero offsets): `mlip-offsets
  * --init` makes a new one.
  */
-#ifndef MLIP_TOOLS_OFFSETS_H
-#define MLIP_TOOLS_OFFSETS_H
+#ifndef MLIP_TOOLS_OFFSETFILE_H
+#define MLIP_TOOLS_OFFSETFILE_H
 
 #include <stddef.h>
 #include <stdio.h>

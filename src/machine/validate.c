@@ -1,5 +1,5 @@
 /*
- * check.c - the machine check (mlip_machine_check), shared by the INI
+ * validate.c - the machine check (mlip_machine_check), shared by the INI
  * reader (which places its error on the key that set the value) and the
  * tools' command-line overrides.
  */

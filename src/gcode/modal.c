@@ -1,5 +1,5 @@
 /*
- * state.c - the modal state: init and setters of mlip/gcode/gcode.h, the
+ * modal.c - the modal state: init and setters of mlip/gcode/gcode.h, the
  * notices (words accepted without effect, reported once), the commit of a
  * line's modes, and the feed of a block (G94 and G93).
  */

@@ -1,5 +1,5 @@
 /*
- * grbl.c - Grbl's system lines ('$' first): not G-code. A jog "$J=" runs as
+ * grblsys.c - Grbl's system lines ('$' first): not G-code. A jog "$J=" runs as
  * a G1 move (skipping it would change the path); the others are notices
  * naming what mlip does instead, or errors in strict mode (Grbl 1.1's
  * interface: "$" commands, "$J=" jogging).
