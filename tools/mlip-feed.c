@@ -528,8 +528,8 @@ static int controller_fault(struct feed *f)
 		fprintf(stderr,
 		        PROG
 		        ": controller fault: bad record %llu (line %u): %s = %.17g; the machine "
-		        "stops at the end of the last good block; the program is NOT complete "
-		        "(restart mlip-rt to clear)\n",
+		        "comes to rest before it and runs nothing from it on (where: mlip-ctl "
+		        "status); the program is NOT complete (restart mlip-rt to clear)\n",
 		        (unsigned long long)f->st.reason_seq, (unsigned)f->st.reason_line,
 		        mlip_rec_field_name(f->st.reason_field), f->st.reason_value);
 	} else if (f->st.reason == MLIP_WHY_DRIVE) {

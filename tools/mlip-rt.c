@@ -207,15 +207,21 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		if (r->why == MLIP_WHY_DRIVE) {
 			report_drive_fault(mo, e);
 		} else if (r->why == MLIP_WHY_BAD_RECORD) {
+			/* moving: what was taken runs to rest, up to the record
+			 * before the bad one; not moving (a dwell, a pause, the
+			 * pre-read): nothing pre-read starts, the machine stays at
+			 * the end of the block it rests after (e->exec_seq) */
+			int moving = e->from == MLIP_STATE_RUNNING || e->from == MLIP_STATE_HELD;
 			mlip_cli_field_name(mo->m, r->field, fld, sizeof(fld));
 			fprintf(
 			    stderr,
 			    PROG
-			    ": fault: bad record %llu (line %u): %s = %.17g; nothing after it is "
-			    "taken, the machine stops at rest at the end of block %llu; restart "
+			    ": fault: bad record %llu (line %u): %s = %.17g; nothing after it "
+			    "is taken, the machine %s at rest at the end of block %llu; restart "
 			    "mlip-rt to clear\n",
 			    (unsigned long long)r->seq, r->line, fld, r->value,
-			    (unsigned long long)(r->seq ? r->seq - 1 : 0));
+			    moving ? "stops" : "stays",
+			    (unsigned long long)(moving ? (r->seq ? r->seq - 1 : 0) : e->exec_seq));
 		} else {
 			fprintf(stderr,
 			        PROG ": fault: %s in block %llu (line %u); stopping on the path; "

@@ -92,4 +92,61 @@ struct mlip_block {
 	double dwell_s;               /* DWELL: seconds (>= 0) */
 };
 
+/*
+ * What a block may ask: one rule set, kept by the G-code reader (a program
+ * that breaks it is refused before anything moves, at the word to blame) and
+ * by the controller's validation of every record it takes (a record that
+ * breaks it is a fault), so nothing a checked program sends can fault the
+ * controller. The machine's own ranges (CONTOUR_TOLERANCE, COUNTS_PER_UNIT,
+ * ...) are refused when its configuration is loaded (mlip/machine/config.h).
+ */
+#define MLIP_FEED_MIN_MM_S                                                                         \
+	1e-3                       /* a feed move's feed, mm/s (deg/s rotary only):                \
+	                              0.06 mm/min; slower is no cut, and a move                    \
+	                              that never ends */
+#define MLIP_FEED_MAX_MM_S 1e6     /* 60 km/min: a larger feed is not a feed */
+#define MLIP_DWELL_MAX_S   86400.0 /* a dwell (G4 P, seconds): a day */
+#define MLIP_TOL_MAX_MM    1000.0  /* a block's contour tolerance, and CONTOUR_TOLERANCE */
+
+/* The rule a block breaks (mlip_block_check); MLIP_RULE_OK: none. */
+enum {
+	MLIP_RULE_OK = 0,
+	MLIP_RULE_DWELL,                                   /* dwell_s outside 0..DWELL_MAX */
+	MLIP_RULE_TARGET,                                  /* + axis k: not finite or
+	                                                      outside the soft limits */
+	MLIP_RULE_FEED = MLIP_RULE_TARGET + MLIP_MAX_AXES, /* a feed move outside
+	                                                      FEED_MIN..FEED_MAX, a rapid
+	                                                      outside 0..FEED_MAX */
+	MLIP_RULE_TOL                                      /* tol_mm outside 0..TOL_MAX */
+};
+
+/* The first rule b breaks on machine m, in the order above. Bounded (a few
+ * comparisons an axis), so the controller runs it on every record in its
+ * period. NaN fails every comparison: each test passes only a good value. */
+static inline int mlip_block_check(const struct mlip_machine *m, const struct mlip_block *b)
+{
+	int k;
+
+	if (b->kind == MLIP_BLOCK_DWELL && !(b->dwell_s >= 0.0 && b->dwell_s <= MLIP_DWELL_MAX_S)) {
+		return MLIP_RULE_DWELL;
+	}
+	if (b->kind != MLIP_BLOCK_MOVE) {
+		return MLIP_RULE_OK;
+	}
+	for (k = 0; k < m->n_axes; k++) {
+		if (!(b->target[k] >= m->axis[k].min_limit &&
+		      b->target[k] <= m->axis[k].max_limit)) {
+			return MLIP_RULE_TARGET + k;
+		}
+	}
+	if (!(b->feed_mm_s >= (b->rapid ? 0.0 : MLIP_FEED_MIN_MM_S) &&
+	      b->feed_mm_s <= MLIP_FEED_MAX_MM_S)) {
+		return MLIP_RULE_FEED;
+	}
+	if (!(b->tol_mm >= 0.0 && b->tol_mm <= MLIP_TOL_MAX_MM)) {
+		return MLIP_RULE_TOL;
+	}
+	return MLIP_RULE_OK;
+}
+
 #endif

@@ -153,25 +153,23 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 	if ((rec->flags & ~MLIP_REC_FLAGS) != 0) {
 		return bad(why, rec, MLIP_FIELD_FLAGS, (double)rec->flags);
 	}
-	if (rec->type == MLIP_REC_DWELL &&
-	    !(rec->dwell_s >= 0.0 && rec->dwell_s <= MLIP_CTL_DWELL_MAX_S)) {
+	struct mlip_block b;
+	if (mlip_ring_rec_to_block(rec, &b) != MLIP_OK) {
+		return MLIP_OK; /* END: nothing more to check */
+	}
+	/* the rule set the G-code reader keeps too (mlip/types.h) */
+	int rule = mlip_block_check(m, &b);
+	if (rule == MLIP_RULE_DWELL) {
 		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
 	}
-	if (rec->type != MLIP_REC_MOVE) {
-		return MLIP_OK;
+	if (rule >= MLIP_RULE_TARGET && rule < MLIP_RULE_TARGET + MLIP_MAX_AXES) {
+		int k = rule - MLIP_RULE_TARGET;
+		return bad(why, rec, MLIP_FIELD_TARGET + (uint32_t)k, rec->target[k]);
 	}
-	for (int k = 0; k < m->n_axes; k++) {
-		double x = rec->target[k];
-		if (!(x >= m->axis[k].min_limit && x <= m->axis[k].max_limit)) {
-			return bad(why, rec, MLIP_FIELD_TARGET + (uint32_t)k, x);
-		}
-	}
-	if ((rec->flags & MLIP_REC_RAPID)
-	        ? !(rec->feed_mm_s >= 0.0 && rec->feed_mm_s <= MLIP_CTL_FEED_MAX_MM_S)
-	        : !(rec->feed_mm_s > 0.0 && rec->feed_mm_s <= MLIP_CTL_FEED_MAX_MM_S)) {
+	if (rule == MLIP_RULE_FEED) {
 		return bad(why, rec, MLIP_FIELD_FEED, rec->feed_mm_s);
 	}
-	if (!(rec->tol_mm >= 0.0 && rec->tol_mm <= 1e6)) {
+	if (rule == MLIP_RULE_TOL) {
 		return bad(why, rec, MLIP_FIELD_TOL, rec->tol_mm);
 	}
 	return MLIP_OK;

@@ -1,6 +1,8 @@
 /*
  * emit.c - blocks out: moves (points closer than MLIP_GCODE_MERGE_MM to the
- * last one merged), program events, and the soft limits of a target.
+ * last one merged), program events, and the soft limits of a target. Each
+ * block is held to the rule set the controller validates its records by
+ * (mlip_block_check): a block that broke it fails its line, never the run.
  */
 #include <math.h>
 #include <string.h>
@@ -47,7 +49,8 @@ int mlip_gc_emit(struct mlip_gcode *g, struct emit_ctx *c, const double *t, doub
 	b.line = c->line;
 	b.rapid = c->rapid;
 	b.exact_stop = (uint8_t)g->exact_stop;
-	if (c->sink(c->ctx, &b) != 0) {
+	g->broken_rule = mlip_block_check(g->m, &b);
+	if (g->broken_rule != MLIP_RULE_OK || c->sink(c->ctx, &b) != 0) {
 		return -1;
 	}
 	for (i = 0; i < n; i++) {
@@ -72,7 +75,8 @@ int mlip_gc_emit_event(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, ui
 	b.line = line;
 	b.kind = (uint8_t)kind;
 	b.dwell_s = dwell_s;
-	if (sink(ctx, &b) != 0) {
+	g->broken_rule = mlip_block_check(g->m, &b);
+	if (g->broken_rule != MLIP_RULE_OK || sink(ctx, &b) != 0) {
 		return -1;
 	}
 	g->blocks++;

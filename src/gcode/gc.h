@@ -57,6 +57,7 @@ struct lexed {
 	struct word w[MAX_WORDS];
 	int n;
 	uint32_t first_col; /* first non-blank column, 0 for a blank line */
+	int percent;        /* the line is a '%' delimiter (alone, comments aside) */
 };
 
 /* Fill *e and return st; fmt as mlip_tb_format (mlip/text/format.h). */
@@ -160,9 +161,12 @@ mlip_status mlip_gc_emit_arc(struct mlip_gcode *g, struct emit_ctx *ec, const st
                              const double *s, const double *t, const uint32_t *col_of,
                              struct mlip_gcode_error *e);
 
-/* G93's feed (modal.c): the move's length times F/60 (arc: may be NULL). */
-double mlip_gc_inverse_time_feed(const struct mlip_gcode *g, double f, const double *s,
-                                 const double *t, const struct arc *arc);
+/* A feed move's feed (G93: its length times F/60) against the rule set
+ * of mlip/types.h, the error on the F word or the motion (arc: may be NULL). */
+mlip_status mlip_gc_move_feed(const struct mlip_gcode *g, const struct blk *b,
+                              const struct plan *pl, const double *s, const double *t,
+                              const struct arc *arc, uint32_t line, double *feed_mm_s,
+                              struct mlip_gcode_error *e);
 
 /* ---- offsets.c ---- */
 

@@ -90,6 +90,12 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 		pl->motion = 0; /* Grbl starts in G0 */
 		pl->g0_default = 1;
 	}
+	if (b->g53 && b->dist != 90 && !g->absolute) {
+		/* LinuxCNC: NCE_CANNOT_USE_G53_INCREMENTAL, G91 modal as on the line */
+		return mlip_gc_fail(e, line, b->g53_col, MLIP_E_SYNTAX,
+		                    "G53 with G91 in effect: machine coordinates must be absolute "
+		                    "(G90 first, or G90 G53 on this line)");
+	}
 	if (b->g53 && pl->motion >= 2 && (has_axes || arc_words)) {
 		return mlip_gc_fail(e, line, b->g53_col, MLIP_E_SYNTAX, "G53 needs G0 or G1");
 	}
@@ -190,7 +196,23 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 		mlip_gc_notice(g, "/", lineno);
 		return MLIP_OK;
 	}
+	g->broken_rule = 0;
 	st = mlip_gc_lex_line(text, len, lineno, &lx, err);
+	if (st == MLIP_OK && lx.percent) {
+		/* LinuxCNC: a '%' before anything else opens the program; the
+		 * next one closes it, and what follows is not read */
+		if (g->content) {
+			g->ended = 1;
+			mlip_gc_notice(g, "%", lineno);
+		} else {
+			g->percent = 1;
+			g->content = 1;
+		}
+		return MLIP_OK;
+	}
+	if (st == MLIP_OK && lx.n > 0) {
+		g->content = 1;
+	}
 	if (st == MLIP_OK) {
 		st = mlip_gc_classify(&lx, lineno, &b, err);
 	}
@@ -240,16 +262,15 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 		if (st == MLIP_OK && pl.motion >= 2) {
 			st = mlip_gc_arc_setup(g, &b, pl.motion, scale, start, t, lineno, pl.mcol,
 			                       &arc, err);
-			if (st == MLIP_OK && g->inverse_time) {
-				ec.feed_mm_s = mlip_gc_inverse_time_feed(g, b.f, start, t, &arc);
-			}
-			if (st == MLIP_OK) {
-				st = mlip_gc_emit_arc(g, &ec, &arc, start, t, col_of, err);
-			}
+		}
+		if (st == MLIP_OK && pl.motion >= 1) {
+			/* the feed (G93: from the move's length) against the rule set */
+			st = mlip_gc_move_feed(g, &b, &pl, start, t, pl.motion >= 2 ? &arc : NULL,
+			                       lineno, &ec.feed_mm_s, err);
+		}
+		if (st == MLIP_OK && pl.motion >= 2) {
+			st = mlip_gc_emit_arc(g, &ec, &arc, start, t, col_of, err);
 		} else if (st == MLIP_OK) {
-			if (pl.motion == 1 && g->inverse_time) {
-				ec.feed_mm_s = mlip_gc_inverse_time_feed(g, b.f, start, t, 0);
-			}
 			if (mlip_gc_emit(g, &ec, t, g->tol_mm) != 0) {
 				st = MLIP_E_FULL;
 			}
@@ -271,6 +292,14 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 		for (i = 0; i < m->n_axes; i++) {
 			g->cur[i] = g->pos[i]; /* resume from what the sink holds */
 		}
+		if (g->broken_rule) {
+			/* the line's own checks keep the rule set: never reached */
+			return mlip_gc_fail(
+			    err, lineno, lx.first_col, MLIP_E_RANGE,
+			    "a block of this line breaks the rule set of every block "
+			    "(rule %u, mlip_block_check)",
+			    (unsigned)g->broken_rule);
+		}
 		return mlip_gc_fail(err, lineno, 0, MLIP_E_FULL,
 		                    "block sink full: parsing stopped");
 	}
@@ -291,6 +320,12 @@ mlip_status mlip_gcode_finish(struct mlip_gcode *g, uint32_t last_line,
 	if (g->moves == 0) {
 		return mlip_gc_fail(err ? err : &dummy, last_line ? last_line : 1, 0, MLIP_E_SYNTAX,
 		                    "empty program: no motion");
+	}
+	if (g->percent && !g->ended) {
+		return mlip_gc_fail(
+		    err ? err : &dummy, last_line ? last_line : 1, 0, MLIP_E_SYNTAX,
+		    "the program opens with '%%' but ends without the closing "
+		    "'%%' or M2/M30: the file may be cut short (LinuxCNC refuses it)");
 	}
 	return MLIP_OK;
 }

@@ -115,6 +115,7 @@ mlip_status mlip_gc_lex_line(const char *text, size_t len, uint32_t line, struct
 
 	lx->n = 0;
 	lx->first_col = 0;
+	lx->percent = 0;
 	if (line == 1 && len >= 3 && t[0] == 0xEF && t[1] == 0xBB && t[2] == 0xBF) {
 		i = 3; /* UTF-8 byte order mark */
 	}
@@ -151,6 +152,7 @@ mlip_status mlip_gc_lex_line(const char *text, size_t len, uint32_t line, struct
 			lx->first_col = col;
 			if (c == '%') { /* program delimiter */
 				percent = 1;
+				lx->percent = 1;
 				i++;
 				continue;
 			}

@@ -100,6 +100,7 @@ static const struct {
     {"M60", "pauses as M0 (no pallet shuttle)"},
     {"M2", "program end (LinuxCNC: G54 selected, G92 offsets off); later lines are not run"},
     {"M30", "program end (LinuxCNC: G54 selected, G92 offsets off); later lines are not run"},
+    {"%", "closing program delimiter (LinuxCNC): later lines are not run"},
     {"/", "block delete: the line was skipped (the block-delete switch is on, as LinuxCNC "
           "starts)"},
     {"$J", "(Grbl jog) run as a G1 move at its own F; the modal state is left as it was "
@@ -233,14 +234,13 @@ mlip_status mlip_gc_block_feed(struct mlip_gcode *g, const struct plan *pl, cons
 	return MLIP_OK;
 }
 
-/* G93: the move takes 1/F minutes, so its speed is its length times F/60:
- * the linear axes' path length (the arc's, for G2/G3), or the rotary axes'
- * (deg/s) when no linear axis moves. */
-double mlip_gc_inverse_time_feed(const struct mlip_gcode *g, double f, const double *s,
-                                 const double *t, const struct arc *arc)
+/* A move's length: the linear axes' path length (the arc's, for G2/G3), or
+ * the rotary axes' (degrees) when no linear axis moves. */
+static double move_length(const struct mlip_gcode *g, const double *s, const double *t,
+                          const struct arc *arc)
 {
 	const struct mlip_machine *m = g->m;
-	double lin = 0, rot = 0, d, len;
+	double lin = 0, rot = 0, d;
 	int i;
 
 	for (i = 0; i < m->n_axes; i++) {
@@ -259,6 +259,44 @@ double mlip_gc_inverse_time_feed(const struct mlip_gcode *g, double f, const dou
 			lin += d * d;
 		}
 	}
-	len = sqrt(lin) >= MLIP_GCODE_MERGE_MM ? sqrt(lin) : sqrt(rot);
-	return len * f / 60.0;
+	return sqrt(lin) >= MLIP_GCODE_MERGE_MM ? sqrt(lin) : sqrt(rot);
+}
+
+/* The feed of a feed move against the rule set of every block (mlip/types.h),
+ * blamed on the line's F word, else on its motion: at most
+ * MLIP_FEED_MAX_MM_S, at least MLIP_FEED_MIN_MM_S, and no longer than a
+ * day at that feed (as a dwell: a block that never ends is no program). */
+mlip_status mlip_gc_move_feed(const struct mlip_gcode *g, const struct blk *b,
+                              const struct plan *pl, const double *s, const double *t,
+                              const struct arc *arc, uint32_t line, double *feed_mm_s,
+                              struct mlip_gcode_error *e)
+{
+	uint32_t col = b->has_f ? b->f_col : pl->mcol;
+	double len = move_length(g, s, t, arc), v;
+
+	if (g->inverse_time) {
+		*feed_mm_s = len * b->f / 60.0;
+	}
+	v = *feed_mm_s;
+	if (!(v <= MLIP_FEED_MAX_MM_S)) {
+		return mlip_gc_fail(
+		    e, line, col, MLIP_E_RANGE,
+		    "%s%g makes this move's feed %g mm/s: at most %g mm/s (60 km/min)",
+		    g->inverse_time ? "G93 F" : "F", g->inverse_time ? b->f : g->feed_word, v,
+		    MLIP_FEED_MAX_MM_S);
+	}
+	if (!(v >= MLIP_FEED_MIN_MM_S)) {
+		return mlip_gc_fail(e, line, col, MLIP_E_RANGE,
+		                    "%s%g makes this move's feed %g mm/s: at least %g mm/s "
+		                    "(0.06 mm/min)",
+		                    g->inverse_time ? "G93 F" : "F",
+		                    g->inverse_time ? b->f : g->feed_word, v, MLIP_FEED_MIN_MM_S);
+	}
+	if (!(len / v <= MLIP_DWELL_MAX_S)) {
+		return mlip_gc_fail(e, line, col, MLIP_E_RANGE,
+		                    "this move takes %g h at its feed of %g mm/s (length %g): at "
+		                    "most %g h, as a dwell",
+		                    len / v / 3600.0, v, len, MLIP_DWELL_MAX_S / 3600.0);
+	}
+	return MLIP_OK;
 }

@@ -389,6 +389,16 @@ static mlip_status classify_params(const struct blk *b, uint32_t line, struct ml
 	if (b->g4 && !(b->p >= 0)) {
 		return mlip_gc_fail(e, line, b->p_col, MLIP_E_RANGE, "G4 P must be >= 0 seconds");
 	}
+	if (b->g4 && !(b->p <= MLIP_DWELL_MAX_S)) {
+		return mlip_gc_fail(e, line, b->p_col, MLIP_E_RANGE,
+		                    "G4 P%g: a dwell of at most %g s (a day), in seconds", b->p,
+		                    MLIP_DWELL_MAX_S);
+	}
+	if (b->g64 && b->has_p && !(b->p >= 0)) {
+		/* LinuxCNC: P is the path tolerance, a distance */
+		return mlip_gc_fail(e, line, b->p_col, MLIP_E_RANGE,
+		                    "G64 P%g: the path tolerance must be >= 0", b->p);
+	}
 	if (b->g10) {
 		if (!b->has_l || (b->l != 2 && b->l != 20)) {
 			return mlip_gc_fail(

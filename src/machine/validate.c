@@ -162,6 +162,10 @@ mlip_status mlip_mc_check_machine(const struct mlip_machine *m, struct mlip_conf
 		mlip_tb_double(&b, m->tolerance_mm);
 		return MLIP_E_RANGE;
 	}
+	if (bad_max(&b, m, -1, TK_TOL, m->tolerance_mm, MLIP_CONFIG_TOL_MAX)) {
+		mlip_tb_puts(&b, " mm (the largest tolerance a block may carry)");
+		return MLIP_E_RANGE;
+	}
 	is->key = TK_PERIOD;
 	if (!(m->period_s >= MLIP_CONFIG_PERIOD_MIN_S && m->period_s <= MLIP_CONFIG_PERIOD_MAX_S)) {
 		mlip_tb_puts(&b, "TRAJ PERIOD must be within 0.0001..0.1 s, got ");
@@ -263,6 +267,14 @@ mlip_status mlip_mc_check_machine(const struct mlip_machine *m, struct mlip_conf
 		is->key = AK_CPU;
 		if (bad_pos(&b, m, i, AK_CPU, a->counts_per_unit) ||
 		    bad_max(&b, m, i, AK_CPU, a->counts_per_unit, MLIP_CONFIG_COUNTS_MAX)) {
+			return MLIP_E_RANGE;
+		}
+		if (!(a->counts_per_unit >= MLIP_CONFIG_COUNTS_MIN)) {
+			sb_field(&b, m, i, AK_CPU);
+			mlip_tb_puts(&b, " must be at least 0.1 (a drive count of at most 10 ");
+			mlip_tb_puts(&b, a->kind == MLIP_AXIS_ROTARY ? "degrees" : "mm");
+			mlip_tb_puts(&b, "), got ");
+			mlip_tb_double(&b, a->counts_per_unit);
 			return MLIP_E_RANGE;
 		}
 	}

@@ -28,6 +28,18 @@ BAD = {
     "G10 without L2/L20": ("G10 L1 P1 Z5\nG1 X1 F600\n",
                            ":1:5: error: G10 without L2 or L20"),
     "G93 move without F": ("G1 X1 F600\nG93 G1 X2\n", ":2:5: error: G93 inverse time"),
+    # issue 17 item 8: the controller's record validation faulted these mid-run
+    "dwell longer than a day": ("G1 X1 F600\nG4 P100000\nG1 X2\n",
+                                ":2:4: error: G4 P100000: a dwell of at most 86400 s"),
+    "feed beyond 1e6 mm/s": ("G1 X1 F99999999\n",
+                             ":1:7: error: F99999999 makes this move's feed 1666666.65 mm/s"),
+    # issue 17, low: G93 F0.0000001 ran for ever
+    "G93 feed below 0.001 mm/s": ("G1 X1 F600\nG93 G1 X2 F0.0000001\n",
+                                  ":2:11: error: G93 F1e-7 makes this move's feed"),
+    "G53 in modal G91": ("G91\nG53 G0 X10\n", ":2:1: error: G53 with G91 in effect"),
+    "G64 P negative": ("G64 P-1\nG1 X1 F600\n", ":1:5: error: G64 P-1: the path tolerance"),
+    "% opened, never closed": ("%\nG1 X1 F600\nG1 X2\n",
+                               ":3: error: the program opens with '%' but ends without"),
 }
 
 
@@ -42,6 +54,40 @@ def test_bad_program_rejected(tmp_path, case):
     assert f"{prog}{want}" in p.stderr, p.stderr
     assert p.stderr.rstrip().endswith("1 error, program rejected: nothing was run")
     assert not trace.exists()  # a rejected program never starts moving
+
+
+def test_nothing_after_the_closing_percent_runs(tmp_path):
+    """Issue 17 item 9: '%', program, '%', G1 X500 moved to X500; LinuxCNC
+    ignores everything after the second '%'. The trace ends at X10."""
+    prog = tmp_path / "pct.ngc"
+    prog.write_text("%\nG21 G90 G1 X10 F600\n%\nG1 X500\n")
+    trace = tmp_path / "trace.csv"
+    p = run(["mlip-sim", "--config", MILL, "--trace", trace, prog], check=False)
+    assert p.returncode == 0, p.stderr
+    assert f"{prog}:3: note: % closing program delimiter" in p.stderr, p.stderr
+    xs = [float(r.split(",")[1]) for r in trace.read_text().splitlines()[1:]]
+    assert max(xs) == 10.0 and xs[-1] == 10.0
+
+
+def test_straight_move_at_a_tight_tolerance_passes_its_own_check(tmp_path):
+    """Issue 17, low: a single G0 X900 at eps 1e-6 mm, T 0.1 ms, A 50 (a legal
+    machine) failed mlip-sim's own order check (exit 4) on a straight path:
+    the checker lost tol^2 to cancellation far along the segment."""
+    prog = tmp_path / "x900.ngc"
+    prog.write_text("G0 X900\nM2\n")
+    trace = tmp_path / "trace.csv"
+    p = run(["mlip-sim", "--eps", "1e-6", "--period", "0.0001", "--accel", "50", "--trace",
+             trace, "--summary", "-", prog], check=False)
+    assert p.returncode == 0, p.stderr
+    s = json.loads(p.stdout)
+    assert s["order_errors"] == 0 and s["violations"] == 0, s
+    chk = run(["mlip-check", "--eps", "1e-6", "--period", "0.0001", "--accel", "50", prog,
+               trace], check=False)
+    assert chk.returncode == 0, chk.stdout + chk.stderr
+    xs = [float(r.split(",")[1]) for r in trace.read_text().splitlines()[1:]]
+    # forwards along the line, to 1e-9 mm (the last step rounds onto the end)
+    assert xs[-1] == 900.0 and all(b >= a - 1e-9 for a, b in zip(xs, xs[1:]))
+    assert max(xs) <= 900.0 + 1e-9
 
 
 def test_all_errors_listed(tmp_path):

@@ -129,6 +129,34 @@ REC = struct.Struct("<QIHH6dddd")  # include/mlip/ipc/ring.h, layout version 6
 HEAD, TAIL, CAPACITY, HDR_BYTES = 64, 128, 12, 24  # HDR_BYTES: where the records start
 
 
+class Ring:
+    """The segment's record ring, written behind the feeder's back as a
+    hostile local user would."""
+
+    def __init__(self, shm):
+        fd = os.open("/dev/shm" + shm, os.O_RDWR)
+        try:
+            self.mem = mmap.mmap(fd, 0)
+        finally:
+            os.close(fd)
+        self.cap = self.u32(CAPACITY)
+
+    def u32(self, off):
+        return struct.unpack_from("<I", self.mem, off)[0]
+
+    def count(self):
+        return (self.u32(HEAD) - self.u32(TAIL)) % 2**32
+
+    def _off(self, index):
+        return self.u32(HDR_BYTES) + (index % self.cap) * REC.size
+
+    def read(self, index):
+        return list(REC.unpack_from(self.mem, self._off(index)))
+
+    def write(self, index, rec):
+        REC.pack_into(self.mem, self._off(index), *rec)
+
+
 def zigzag(tmp_path, rows=40, per_row=300):
     """0.1 mm segments at 200 mm/s, a turn every 30 mm: many blocks quickly."""
     lines = ["G21 G90 F12000"]
@@ -151,24 +179,15 @@ def test_corrupt_record_is_a_fault_never_complete(controller, tmp_path):
     shm, rt = controller(MILL)
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
                          text=True)
-    fd = os.open("/dev/shm" + shm, os.O_RDWR)
-    try:
-        mem = mmap.mmap(fd, 0)
-        cap = struct.unpack_from("<I", mem, CAPACITY)[0]
-        count = lambda: (struct.unpack_from("<I", mem, HEAD)[0]
-                         - struct.unpack_from("<I", mem, TAIL)[0]) % 2**32
-        assert wait_for(lambda: count() > 4000, 30)
-        # half way between what the controller took and what the feeder sent
-        slot = (struct.unpack_from("<I", mem, TAIL)[0] + count() // 2) % cap
-        off = struct.unpack_from("<I", mem, HDR_BYTES)[0] + slot * REC.size
-        rec = list(REC.unpack_from(mem, off))
-        seq, line = rec[0], rec[1]
-        assert rec[2] == 0  # a MOVE record
-        rec[4] = float("nan")  # target X
-        REC.pack_into(mem, off, *rec)
-        mem.close()
-    finally:
-        os.close(fd)
+    ring = Ring(shm)
+    assert wait_for(lambda: ring.count() > 4000, 30)
+    # half way between what the controller took and what the feeder sent
+    index = ring.u32(TAIL) + ring.count() // 2
+    rec = ring.read(index)
+    seq, line = rec[0], rec[1]
+    assert rec[2] == 0  # a MOVE record
+    rec[4] = float("nan")  # target X
+    ring.write(index, rec)
     _, ferr = f.communicate(timeout=120)
     assert f.returncode == 5, ferr
     assert f"bad record {seq} (line {line}): target[0] = nan" in ferr, ferr
@@ -187,6 +206,40 @@ def test_corrupt_record_is_a_fault_never_complete(controller, tmp_path):
     assert f"record {seq} (line {line}), target X = nan" in st.stdout
     err = stop(rt)
     assert f"fault: bad record {seq} (line {line}): target X = nan" in err, err
+
+
+def test_bad_record_met_in_a_dwell_names_where_the_machine_rests(controller, tmp_path):
+    """Issue 17 item 8, the dwell case: a dwell record out of range (here
+    written into the ring, as the reader now refuses G4 P100000) is met in
+    the pre-read of a dwell: nothing after the dwell starts, the recorded
+    setpoints stay at the end of block 1, and mlip-rt's log says block 1 (it
+    said "stops at rest at the end of block 3", the block before the bad
+    record, which never ran)."""
+    prog = tmp_path / "dwells.ngc"
+    prog.write_text("G21 G90 G1 X200 F6000\nG4 P0.5\nG1 X250\nG4 P1\nG1 X300\nM2\n")
+    rec_csv = tmp_path / "rt.csv"
+    shm, rt = controller(MILL, "--record", rec_csv)
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
+                         text=True)
+    ring = Ring(shm)
+    # the whole program in the ring while block 1 (2 s) still runs
+    assert wait_for(lambda: ring.u32(HEAD) >= 6, 30)
+    s = status(shm)
+    assert s["state"] in ("preread", "running") and s["exec_seq"] <= 1, s
+    rec = ring.read(3)
+    assert rec[0] == 4 and rec[2] == 2  # seq 4, a DWELL record (G4 P1; mlip_rec_type)
+    rec[-1] = 100000.0  # its dwell, s
+    ring.write(3, rec)
+    _, ferr = f.communicate(timeout=60)
+    assert f.returncode == 5, ferr
+    s = wait_for(lambda: (lambda s: s if s["state"] == "fault" else None)(status(shm)), 30)
+    assert s and s["reason"] == "bad record" and s["reason_seq"] == 4, s
+    assert s["exec_seq"] == 1 and s["position"]["X"] == 200.0, s
+    err = stop(rt)
+    assert ("fault: bad record 4 (line 4): dwell = 100000; nothing after it is taken, the "
+            "machine stays at rest at the end of block 1;") in err, err
+    rows = [list(map(float, r.split(",")[1:])) for r in rec_csv.read_text().splitlines()[1:]]
+    assert rows[-1] == [200.0, 0.0, 0.0] and max(r[0] for r in rows) == 200.0
 
 
 def test_status_json_position_and_reason(controller, tmp_path):

@@ -613,6 +613,7 @@ static void test_positive(void **state)
 			 * |A| T^2 / 8 (1.8e-4 mm here, check_period) */
 			const char *v = j < sizeof vals / sizeof vals[0] ? vals[j]
 			                : keys[i].field == 1             ? "1.8e-4"
+			                : keys[i].field == 5             ? "0.1"
 			                                                 : "1e-300";
 			struct tpl t;
 			memset(&t, 0, sizeof t);
@@ -1082,6 +1083,7 @@ static void test_check_limits(void **state)
 			/* the smallest accepted: a tolerance must hold |A| T^2 / 8 */
 			double v = j < sizeof bad / sizeof bad[0] ? bad[j].v
 			           : i == 5                       ? 2.2e-4
+			           : i == 2                       ? MLIP_CONFIG_COUNTS_MIN
 			                                          : 1e-300;
 			double *f[6] = {&m.axis[1].max_vel,         &m.axis[2].max_accel,
 			                &m.axis[0].counts_per_unit, &m.max_feed_mm_s,
@@ -1150,6 +1152,45 @@ static void test_check_ranges(void **state)
 	CHECK(m, MLIP_E_RANGE, "AXIS_Z CAN_NODE must be within 1..127, got -3");
 	m.axis[2].can_node = 1;
 	CHECK(m, MLIP_E_RANGE, "AXIS_Z CAN_NODE 1 is also the CAN_NODE of AXIS_X");
+
+	/* issue 17: what a block may carry (mlip/types.h) bounds the machine */
+	m = good_machine();
+	m.tolerance_mm = MLIP_TOL_MAX_MM;
+	CHECK_OK(m);
+	m.tolerance_mm = nextafter(MLIP_TOL_MAX_MM, INFINITY);
+	CHECK(m, MLIP_E_RANGE,
+	      "TRAJ CONTOUR_TOLERANCE must be at most 1000, got 1000 mm (the largest tolerance a "
+	      "block may carry)");
+	m.tolerance_mm = 2e6;
+	CHECK(
+	    m, MLIP_E_RANGE,
+	    "TRAJ CONTOUR_TOLERANCE must be at most 1000, got 2000000 mm (the largest tolerance a "
+	    "block may carry)");
+	m = good_machine();
+	m.axis[1].counts_per_unit = 0.1;
+	CHECK_OK(m);
+	m.axis[1].counts_per_unit = 0.0999;
+	CHECK(m, MLIP_E_RANGE,
+	      "AXIS_Y COUNTS_PER_UNIT must be at least 0.1 (a drive count of at most 10 mm), got "
+	      "0.0999");
+	m.axis[1].counts_per_unit = 1e-4;
+	CHECK(m, MLIP_E_RANGE,
+	      "AXIS_Y COUNTS_PER_UNIT must be at least 0.1 (a drive count of at most 10 mm), got "
+	      "0.0001");
+}
+
+/* The same ranges in a file: refused where they are written (file:line:col). */
+static void test_block_ranges_in_file(void **state)
+{
+	(void)state;
+	EXPECT(CFG(.tol = "CONTOUR_TOLERANCE = 2000000"), MLIP_E_RANGE, 4, 1,
+	       "TRAJ CONTOUR_TOLERANCE must be at most 1000, got 2000000 mm (the largest tolerance "
+	       "a block may carry)");
+	EXPECT_OK(CFG(.tol = "CONTOUR_TOLERANCE = 1000", .traj = "PERIOD = 0.001"));
+	EXPECT(CFG(.x = "COUNTS_PER_UNIT = 0.0001"), MLIP_E_RANGE, 9, 1,
+	       "AXIS_X COUNTS_PER_UNIT must be at least 0.1 (a drive count of at most 10 mm), got "
+	       "0.0001");
+	EXPECT_OK(CFG(.x = "COUNTS_PER_UNIT = 0.1"));
 }
 
 /* Numbers in messages print as %.9g does, with a short exponent. */
@@ -1692,6 +1733,7 @@ int main(void)
 	    cmocka_unit_test(test_unchanged_on_error),
 	    cmocka_unit_test(test_check_axes),
 	    cmocka_unit_test(test_check_limits),
+	    cmocka_unit_test(test_block_ranges_in_file),
 	    cmocka_unit_test(test_check_ranges),
 	    cmocka_unit_test(test_check_number_format),
 	    cmocka_unit_test(test_random_edits),

@@ -761,6 +761,171 @@ static void test_bad_type_seq_dwell_flags(void **st)
 	check_bad(bad_flags, MLIP_FIELD_FLAGS, 0);
 }
 
+/* One test per rule of the record validation (issue 22): each rule's
+ * mutant (the rule removed, or its bound moved) fails one of these. The
+ * bounds are those of mlip_block_check (mlip/types.h), which the G-code
+ * reader keeps too: issue 17. */
+static void below_limit(struct mlip_ring_rec *r)
+{
+	r->target[0] = -1000.5;
+}
+static void feed_above_max(struct mlip_ring_rec *r)
+{
+	r->feed_mm_s = nextafter(MLIP_FEED_MAX_MM_S, INFINITY);
+}
+static void feed_below_min(struct mlip_ring_rec *r)
+{
+	r->feed_mm_s = nextafter(MLIP_FEED_MIN_MM_S, 0.0);
+}
+static void rapid_negative_feed(struct mlip_ring_rec *r)
+{
+	r->flags |= MLIP_REC_RAPID;
+	r->feed_mm_s = -1.0;
+}
+static void rapid_feed_above_max(struct mlip_ring_rec *r)
+{
+	r->flags |= MLIP_REC_RAPID;
+	r->feed_mm_s = 2e6;
+}
+static void tol_negative(struct mlip_ring_rec *r)
+{
+	r->tol_mm = -1e-9;
+}
+static void tol_nan(struct mlip_ring_rec *r)
+{
+	r->tol_mm = NAN;
+}
+static void tol_above_max(struct mlip_ring_rec *r)
+{
+	r->tol_mm = 2e6; /* CONTOUR_TOLERANCE = 2000000 passed mlip-config before */
+}
+static void dwell_above_max(struct mlip_ring_rec *r)
+{
+	r->type = MLIP_REC_DWELL;
+	r->dwell_s = 100000.0; /* G4 P100000 passed the program check before */
+}
+static void dwell_nan(struct mlip_ring_rec *r)
+{
+	r->type = MLIP_REC_DWELL;
+	r->dwell_s = NAN;
+}
+
+static void test_bad_below_soft_limit(void **st)
+{
+	(void)st;
+	check_bad(below_limit, MLIP_FIELD_TARGET, 0);
+	assert_true(status().reason_value == -1000.5);
+}
+static void test_bad_feed_above_max(void **st)
+{
+	(void)st;
+	check_bad(feed_above_max, MLIP_FIELD_FEED, 0);
+}
+static void test_bad_feed_below_min(void **st)
+{
+	(void)st;
+	check_bad(feed_below_min, MLIP_FIELD_FEED, 0);
+}
+static void test_bad_rapid_feed(void **st)
+{
+	(void)st;
+	check_bad(rapid_negative_feed, MLIP_FIELD_FEED, 0);
+	teardown(NULL);
+	setup(NULL);
+	check_bad(rapid_feed_above_max, MLIP_FIELD_FEED, 0);
+}
+static void test_bad_tol_negative(void **st)
+{
+	(void)st;
+	check_bad(tol_negative, MLIP_FIELD_TOL, 0);
+}
+static void test_bad_tol_nan(void **st)
+{
+	(void)st;
+	check_bad(tol_nan, MLIP_FIELD_TOL, 1);
+}
+static void test_bad_tol_above_max(void **st)
+{
+	(void)st;
+	check_bad(tol_above_max, MLIP_FIELD_TOL, 0);
+	assert_true(status().reason_value == 2e6);
+}
+static void test_bad_dwell_above_max(void **st)
+{
+	(void)st;
+	check_bad(dwell_above_max, MLIP_FIELD_DWELL, 0);
+	assert_true(status().reason_value == 100000.0);
+}
+static void test_bad_dwell_nan(void **st)
+{
+	(void)st;
+	check_bad(dwell_nan, MLIP_FIELD_DWELL, 1);
+}
+
+/* Each bound itself is good: a rule is no stricter than the reader's. */
+static void test_record_bounds_accepted(void **st)
+{
+	(void)st;
+	struct mlip_block b = {
+	    .feed_mm_s = MLIP_FEED_MAX_MM_S, .tol_mm = MLIP_TOL_MAX_MM, .line = 2};
+	b.target[0] = 1000.0;
+	b.target[1] = -1000.0;
+	struct mlip_ring_rec rec;
+	struct mlip_ctl_reason why;
+	mlip_ring_rec_from_block(&rec, &b, 1);
+	assert_int_equal(mlip_ctl_check_record(&mach, &rec, 1, &why), MLIP_OK);
+	rec.feed_mm_s = MLIP_FEED_MIN_MM_S;
+	rec.tol_mm = 0.0;
+	assert_int_equal(mlip_ctl_check_record(&mach, &rec, 1, &why), MLIP_OK);
+	rec.flags |= MLIP_REC_RAPID;
+	rec.feed_mm_s = 0.0;
+	assert_int_equal(mlip_ctl_check_record(&mach, &rec, 1, &why), MLIP_OK);
+	struct mlip_block d = {.kind = MLIP_BLOCK_DWELL, .dwell_s = MLIP_DWELL_MAX_S, .line = 3};
+	mlip_ring_rec_from_block(&rec, &d, 2);
+	assert_int_equal(mlip_ctl_check_record(&mach, &rec, 2, &why), MLIP_OK);
+	rec.dwell_s = 0.0;
+	assert_int_equal(mlip_ctl_check_record(&mach, &rec, 2, &why), MLIP_OK);
+	/* and the same records through mlip_block_check, the reader's side */
+	assert_int_equal(mlip_block_check(&mach, &b), MLIP_RULE_OK);
+	assert_int_equal(mlip_block_check(&mach, &d), MLIP_RULE_OK);
+}
+
+/* Issue 17 item 8, the dwell case: a bad record found while the machine
+ * dwells (the pre-read of what follows the dwell) starts nothing after the
+ * dwell; the fault names the block the machine rests at the end of (3, the
+ * move before the dwell), not the one before the bad record (6). */
+static void test_bad_record_in_dwell_rests_before_it(void **st)
+{
+	(void)st;
+	push(1, 3);
+	event(4, MLIP_BLOCK_DWELL, 10.0);
+	push(5, 6);
+	struct mlip_block d = {.kind = MLIP_BLOCK_DWELL, .dwell_s = 100000.0, .line = 8};
+	struct mlip_ring_rec rec;
+	mlip_ring_rec_from_block(&rec, &d, 7);
+	push_rec(&rec);
+	push(8, 9);
+	end(10);
+	until(MLIP_STATE_FAULT, 5000);
+	const struct mlip_ctl_event *f = NULL;
+	for (uint32_t i = 0; i < out.n_events; i++) {
+		if (out.events[i].kind == MLIP_EV_STATE &&
+		    out.events[i].state == MLIP_STATE_FAULT) {
+			f = &out.events[i];
+		}
+	}
+	assert_non_null(f);
+	assert_int_equal(f->from, MLIP_STATE_DWELLING);
+	assert_int_equal(f->r.seq, 7);
+	assert_int_equal(f->r.field, MLIP_FIELD_DWELL);
+	assert_int_equal(f->exec_seq, 3);
+	assert_int_equal(f->exec_line, 4);
+	tick(2000);
+	assert_true(out.pos[0] == 3.0 && out.pos[1] == 0.0); /* 5 and 6 never started */
+	assert_int_equal(status().exec_seq, 3);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+}
+
 /* A bad record found while nothing moves (the pre-read): nothing moves. */
 static void test_bad_record_in_preread_never_moves(void **st)
 {
@@ -1258,6 +1423,17 @@ int main(void)
 	    T(test_bad_beyond_soft_limit),
 	    T(test_bad_feed),
 	    T(test_bad_type_seq_dwell_flags),
+	    T(test_bad_below_soft_limit),
+	    T(test_bad_feed_above_max),
+	    T(test_bad_feed_below_min),
+	    T(test_bad_rapid_feed),
+	    T(test_bad_tol_negative),
+	    T(test_bad_tol_nan),
+	    T(test_bad_tol_above_max),
+	    T(test_bad_dwell_above_max),
+	    T(test_bad_dwell_nan),
+	    T(test_record_bounds_accepted),
+	    T(test_bad_record_in_dwell_rests_before_it),
 	    T(test_bad_record_in_preread_never_moves),
 	    T(test_stall_holds_at_last_setpoint),
 	    T(test_stall_in_corner),

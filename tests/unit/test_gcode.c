@@ -1395,6 +1395,100 @@ static void test_dwell(void **state)
 	}
 }
 
+/* Every block of a program passes the rule set the controller validates its
+ * records by (mlip_block_check, mlip/types.h). */
+static void all_blocks_keep_the_rules(const struct mlip_machine *m,
+                                      const struct mlip_program_list *p)
+{
+	for (size_t i = 0; i < p->n; i++) {
+		assert_int_equal(mlip_block_check(m, &p->blocks[i]), MLIP_RULE_OK);
+	}
+}
+
+/* Issue 17 item 8: what the controller refuses is refused by the reader,
+ * at the word to blame, boundaries included: a dwell of at most a day, a
+ * feed move's feed within MLIP_FEED_MIN_MM_S..MLIP_FEED_MAX_MM_S (G94 and
+ * G93, mm and inch), no move longer than a day. Before, G4 P100000 and
+ * F99999999 passed the check and faulted the controller mid-run; G93
+ * F0.0000001 made mlip-sim run for ever. */
+static void test_block_rule_set(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+
+	(void)state;
+	parse_ok("G1 X1 F60\nG4 P86400\nG1 X2\n", &m, &p);
+	assert_near(p.blocks[1].dwell_s, MLIP_DWELL_MAX_S, 0);
+	all_blocks_keep_the_rules(&m, &p);
+	mlip_program_list_free(&p);
+	check_err("G1 X1 F60\nG4 P86400.001\n", 2, 4, "G4 P86400.001: a dwell of at most 86400 s");
+	check_err("G1 X1 F60\nG4 P100000 G1 X2\n", 2, 4, "a dwell of at most 86400 s (a day)");
+
+	/* F is mm/min: 6e7 is 1e6 mm/s exactly, the largest */
+	parse_ok("G1 X1 F60000000\nG1 X2 F0.06\n", &m, &p);
+	assert_near(p.blocks[0].feed_mm_s, MLIP_FEED_MAX_MM_S, 0);
+	assert_near(p.blocks[1].feed_mm_s, MLIP_FEED_MIN_MM_S, 1e-18);
+	all_blocks_keep_the_rules(&m, &p);
+	mlip_program_list_free(&p);
+	check_err("G1 X1 F99999999\n", 1, 7, "F99999999 makes this move's feed 1666666.65 mm/s");
+	check_err("G1 X1 F60000001\n", 1, 7, "at most 1000000 mm/s");
+	check_err("G1 X1 F0.0599\n", 1, 7, "at least 0.001 mm/s");
+	/* the F of an earlier line: blamed on the move's own line */
+	check_err("F99999999\nG1 X1\n", 2, 1, "F99999999 makes this move's feed");
+	check_err("G20 G1 X1 F2400000\n", 1, 11, "F2400000 makes this move's feed 1016000 mm/s");
+	/* G93: the move takes 1/F minutes */
+	check_err("G93 G1 X1 F0.0000001\n", 1, 11, "G93 F1e-7 makes this move's feed");
+	check_err("G93 G1 X1 F100000000\n", 1, 11, "at most 1000000 mm/s");
+	check_err("G1 X10 F60\nG93 G3 X-10 I-10 F0.00000001\n", 2, 18, "at least 0.001 mm/s");
+	/* slow enough to take more than a day: 1000 mm at 0.0012 mm/s */
+	check_err("G1 X1000 F0.07\n", 1, 10, "this move takes 238.095238 h");
+	parse_ok("G1 X86 F0.06\n", &m, &p); /* 86 mm at 0.001 mm/s: 23.9 h */
+	mlip_program_list_free(&p);
+	check_err("G1 X87 F0.06\n", 1, 8, "at most 24 h, as a dwell");
+	/* G64 P is a distance (LinuxCNC): P-1 is no tolerance, not the default */
+	check_err("G64 P-1\nG1 X1 F60\n", 1, 5, "G64 P-1: the path tolerance must be >= 0");
+	/* G53 in G91 (LinuxCNC: NCE_CANNOT_USE_G53_INCREMENTAL), modal as on the line */
+	check_err("G91\nG53 G0 X10\n", 2, 1, "G53 with G91 in effect");
+	check_err("G91 G1 X1 F60\nG53 X10\n", 2, 1, "G53 with G91 in effect");
+	parse_ok("G91\nG90 G53 G0 X10\n", &m, &p);
+	assert_near(p.blocks[0].target[0], 10, 0);
+	mlip_program_list_free(&p);
+}
+
+/* Issue 17 item 9: '%' delimits a program as LinuxCNC documents it. */
+static void test_percent_delimiters(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+
+	(void)state;
+	/* everything after the second '%' is ignored: before, G1 X500 ran */
+	parse_ok("%\nG1 X10 F600\n%\nG1 X500\n", &m, &p);
+	assert_int_equal(p.n, 1);
+	assert_near(p.blocks[0].target[0], 10, 0);
+	assert_int_equal(p.n_notices, 1);
+	assert_string_equal(p.notices[0].word, "%");
+	assert_int_equal(p.notices[0].first_line, 3);
+	mlip_program_list_free(&p);
+	/* comments and blank lines before the opening '%'; garbage after the end */
+	parse_ok("(a CAM header)\n\n  %  \nG1 X10 F600\n % (end)\nG1 X500\nnot G-code\n", &m, &p);
+	assert_int_equal(p.n, 1);
+	mlip_program_list_free(&p);
+	/* a '%' after the program started, without an opening one, ends it too */
+	parse_ok("G1 X10 F600\n%\nG1 X500\n", &m, &p);
+	assert_int_equal(p.n, 1);
+	mlip_program_list_free(&p);
+	/* opened, then M2 (the file's own end) or a '%' at the end */
+	parse_ok("%\nG1 X10 F600\nM2\nG1 X500\n", &m, &p);
+	assert_int_equal(p.n, 1);
+	mlip_program_list_free(&p);
+	/* opened and never closed: the file may be cut short (LinuxCNC refuses) */
+	check_err("%\nG1 X10 F600\nG1 X20\n", 3, 0,
+	          "opens with '%' but ends without the closing '%' or M2/M30");
+	check_err("%\n%\nG1 X500\n", 3, 0, "empty program: no motion");
+	check_err("%\nG1 X10 F600 %\n", 2, 13, "unexpected character '%'");
+}
+
 static void test_pauses_and_end(void **state)
 {
 	struct mlip_machine m = machine("XYZ");
@@ -1761,6 +1855,8 @@ int main(void)
 	    cmocka_unit_test(test_toolpaths),
 	    cmocka_unit_test(test_sheeptile_arcs),
 	    cmocka_unit_test(test_dwell),
+	    cmocka_unit_test(test_block_rule_set),
+	    cmocka_unit_test(test_percent_delimiters),
 	    cmocka_unit_test(test_pauses_and_end),
 	    cmocka_unit_test(test_work_offsets),
 	    cmocka_unit_test(test_path_modes),

@@ -313,14 +313,21 @@ static int within(int n, const double *a, const double *b, const double *x, doub
 		*u1 = 1.0;
 		return ax2 <= tol2;
 	}
-	/* |a - x|^2 - 2 u dot + u^2 len2 <= tol^2 */
-	double disc = dot * dot - len2 * (ax2 - tol2);
-	if (disc < 0.0) {
+	/* |a + u (b - a) - x|^2 <= tol^2 around the foot u = dot / len2 of the
+	 * perpendicular, whose length is taken from its components: the
+	 * discriminant dot^2 - len2 (|a - x|^2 - tol^2) would lose tol^2 to
+	 * cancellation far along a long segment (900 mm at tol 1e-6 mm) */
+	double u = dot / len2, p2 = 0.0;
+	for (int k = 0; k < n; k++) {
+		double r = x[k] - a[k] - u * (b[k] - a[k]);
+		p2 += r * r;
+	}
+	if (!(p2 <= tol2)) {
 		return 0;
 	}
-	double sq = sqrt(disc);
-	*u0 = fmax((dot - sq) / len2, 0.0);
-	*u1 = fmin((dot + sq) / len2, 1.0);
+	double h = sqrt((tol2 - p2) / len2);
+	*u0 = fmax(u - h, 0.0);
+	*u1 = fmin(u + h, 1.0);
 	return *u0 <= *u1;
 }
 

@@ -76,9 +76,11 @@
  * and the program starts there.
  *
  * Records are validated where they are taken, at bounded cost: the next
- * sequence number, a known type and flags, finite targets inside the soft
- * limits, a finite feed in (0, MLIP_CTL_FEED_MAX_MM_S], a finite non-negative
- * tolerance and dwell (at most MLIP_CTL_DWELL_MAX_S).
+ * sequence number, a known type and flags, then the rule set of every block
+ * (mlip_block_check, mlip/types.h, which the G-code reader keeps too):
+ * targets inside the soft limits, a feed in MLIP_FEED_MIN_MM_S ..
+ * MLIP_FEED_MAX_MM_S (a rapid's 0 ..), a tolerance in 0 .. MLIP_TOL_MAX_MM,
+ * a dwell in 0 .. MLIP_DWELL_MAX_S.
  */
 #ifndef MLIP_CONTROLLER_H
 #define MLIP_CONTROLLER_H
@@ -96,8 +98,6 @@
 #define MLIP_BUS_CLEAN_PERIODS     100 /* after a CAN fault, resume needs a clean bus this long */
 #define MLIP_STALL_PERIODS_DEFAULT 3   /* more missed periods than this: a stall */
 #define MLIP_CTL_MAX_EVENTS        8   /* events one period can report */
-#define MLIP_CTL_FEED_MAX_MM_S     1e6 /* a larger feed is not a feed: a bad record */
-#define MLIP_CTL_DWELL_MAX_S       86400.0 /* a day */
 
 typedef enum {
 	MLIP_EV_STATE = 1, /* a transition: from -> state, with its reason */

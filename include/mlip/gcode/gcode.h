@@ -16,7 +16,13 @@
  * F, comments in ( ) and after ';', '%' lines, N numbers, '/' block delete,
  * Grbl '$' system lines (skipped with a note, or errors: set_strict; a
  * "$J=" jog runs as a G1 move), Grbl's start-up G0 for axis words before
- * any motion mode. Lines after M2/M30 are not read. G4, M0, M1 and M60
+ * any motion mode. Lines after M2/M30 are not read; '%' delimits a program
+ * as LinuxCNC: a '%' line before any other opens it, the next '%' line ends
+ * it (later lines are not read), and a program opened by '%' that reaches
+ * mlip_gcode_finish without its closing '%' or M2/M30 is refused (a file cut
+ * short). Every block emitted keeps the rule set of mlip/types.h
+ * (mlip_block_check): a dwell, a feed or a tolerance out of its range is an
+ * error of its line, at the word to blame. G4, M0, M1 and M60
  * emit event blocks (kind DWELL, PAUSE, OPTIONAL_PAUSE) at the last point:
  * a line's dwell before its motion, its pause after.
  * Accepted without motion and reported once (see notices): S, M3/M4/M5,
@@ -104,7 +110,10 @@ struct mlip_gcode {
 	double tol_mm;    /* corner tolerance of G64 [P] in effect */
 	int inverse_time; /* G93 */
 	int feed_reset;   /* F forgotten by a G93/G94 change */
-	int ended;        /* M2/M30 seen: later lines are not run */
+	int ended;        /* M2/M30 or the closing '%' seen: later lines are not run */
+	int percent;      /* the program opened with a '%' line */
+	int content;      /* a line with words (or a '%') seen */
+	int broken_rule;  /* the rule (mlip_block_check) a block of this line broke */
 	int strict;       /* refuse Grbl conveniences ($ lines, G0 default) */
 	uint32_t n_notices;
 	struct mlip_gcode_notice notices[MLIP_GCODE_MAX_NOTICES];

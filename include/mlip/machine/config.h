@@ -85,11 +85,17 @@
 /* Largest values a machine may have (mlip_machine_check): beyond any real
  * machine, small enough that positions, speeds and drive counts computed
  * from them stay far from overflow and keep their precision in a double. */
-#define MLIP_CONFIG_ACCEL_MAX    1e6  /* MAX_ACCELERATION, mm/s^2 or deg/s^2 (100 g) */
-#define MLIP_CONFIG_VEL_MAX      1e5  /* MAX_VELOCITY, MAX_*_VELOCITY: mm/s or deg/s */
-#define MLIP_CONFIG_LIMIT_MAX    1e9  /* |MIN_LIMIT|, |MAX_LIMIT|, |HOME|, mm or deg */
-#define MLIP_CONFIG_COUNTS_MAX   1e7  /* COUNTS_PER_UNIT (0.1 nm per count) */
-#define MLIP_CONFIG_TOL_MIN      1e-6 /* CONTOUR_TOLERANCE, mm: 1 nm */
+#define MLIP_CONFIG_ACCEL_MAX    1e6 /* MAX_ACCELERATION, mm/s^2 or deg/s^2 (100 g) */
+#define MLIP_CONFIG_VEL_MAX      1e5 /* MAX_VELOCITY, MAX_*_VELOCITY: mm/s or deg/s */
+#define MLIP_CONFIG_LIMIT_MAX    1e9 /* |MIN_LIMIT|, |MAX_LIMIT|, |HOME|, mm or deg */
+#define MLIP_CONFIG_COUNTS_MAX   1e7 /* COUNTS_PER_UNIT (0.1 nm per count) */
+#define MLIP_CONFIG_COUNTS_MIN                                                                     \
+	0.1                      /* COUNTS_PER_UNIT: 10 mm or 10 degrees per count                 \
+	                            (a full-step motor on a rotary axis has 1.8) */
+#define MLIP_CONFIG_TOL_MIN 1e-6 /* CONTOUR_TOLERANCE, mm: 1 nm */
+#define MLIP_CONFIG_TOL_MAX                                                                        \
+	MLIP_TOL_MAX_MM /* CONTOUR_TOLERANCE, mm: a block's                                        \
+	                   largest (mlip/types.h) */
 
 struct mlip_config_error {
 	uint32_t line; /* 1-based; 0 for a whole-file error (e.g. missing key) */
