@@ -346,9 +346,6 @@ def test_dwell_and_pause(vcan, tmp_path):
     config = MILL
     ngc = tmp_path / "events.ngc"
     ngc.write_text(EVENTS_NGC)
-    probe = procs.run_tool([S.tool("mlip-sim"), "-q", "--config", config, ngc], check=False)
-    if probe.returncode != 0:
-        pytest.skip(f"this build's G-code front end has no G4/M0: {probe.stderr.strip()}")
     rows, summ = compare.simulate(S, config, ngc, tmp_path)
     setup = setup_of(S, config)
     trc = compare.trace_counts(rows, setup.cpu)

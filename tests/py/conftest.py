@@ -45,6 +45,52 @@ def sim_summary(path, *opts):
     return json.loads(p.stdout)
 
 
+# ---- judging motion by the setpoints sent (mlip-rt --record), not by the
+# controller's own counters or log
+
+def record_rows(path):
+    """The setpoints of mlip-rt --record (or mlip-sim --trace): [t, x, y, ...]
+    per row, the header skipped."""
+    return [list(map(float, r.split(","))) for r in Path(path).read_text().splitlines()[1:]]
+
+
+def record_checked(config, program, record):
+    """The whole record against the machine's limits and the program's path
+    (mlip-check: acceleration, speed, contour, order), a stop allowed
+    (--no-end): a dropped or jumping machine fails it."""
+    p = run(["mlip-check", "--config", config, "--no-end", program, record], check=False)
+    assert p.returncode == 0, p.stdout + p.stderr
+    return p
+
+
+def program_end(config, program, tmp_path):
+    """Where the program ends: the last setpoint of mlip-sim's trace."""
+    trace = tmp_path / "program-end.csv"
+    run(["mlip-sim", "-q", "--config", config, "--trace", trace, program])
+    return record_rows(trace)[-1][1:]
+
+
+def braking_tail(rows):
+    """The record's last deceleration to rest: (path mm, periods) from the
+    last row at which the speed stopped falling to the end."""
+    d = [sum((b - a) ** 2 for a, b in zip(p[1:], q[1:])) ** 0.5 for p, q in zip(rows, rows[1:])]
+    k = len(d) - 1
+    while k > 0 and d[k - 1] >= d[k]:
+        k -= 1
+    return sum(d[k:]), len(d) - k
+
+
+def longest_rest(rows):
+    """The longest stretch the setpoints stand still: (seconds by t, position)."""
+    best, start = (0.0, None), 0
+    for i in range(1, len(rows) + 1):
+        if i == len(rows) or rows[i][1:] != rows[start][1:]:
+            if rows[i - 1][0] - rows[start][0] > best[0]:
+                best = (rows[i - 1][0] - rows[start][0], rows[start][1:])
+            start = i
+    return best
+
+
 def offsets_file(path, *sets, config=CONFIG / "mill-3axis.ini"):
     """A sealed offsets file: mlip-offsets --init (all zero, G54, G28/G30 at
     HOME), then --set for each "KEY VALUES" (e.g. "G55 X10 Y20")."""

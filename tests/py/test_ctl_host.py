@@ -267,14 +267,6 @@ def test_status_json_position_and_reason(controller, tmp_path):
 EVENTS = "G21 G90\nG1 X10 F6000\nG4 P0.25\nG1 X20\nM0\nG1 X30\nM1\nG1 X40\nM2\n"
 
 
-def _front_end_has_events():
-    import tempfile
-    with tempfile.NamedTemporaryFile("w", suffix=".ngc") as f:
-        f.write(EVENTS)
-        f.flush()
-        return subprocess.run([tool("mlip-sim"), "-q", f.name], capture_output=True).returncode == 0
-
-
 def rests(rows):
     """{x: periods at rest there} for every point the trace stands still at."""
     out, run = {}, 0
@@ -287,8 +279,6 @@ def rests(rows):
     return out
 
 
-@pytest.mark.skipif(not _front_end_has_events(),
-                    reason="this build's G-code front end has no G4/M0/M1 yet (branch prog)")
 @pytest.mark.parametrize("optional", [False, True])
 def test_sim_dwell_and_pauses_to_the_period(tmp_path, optional):
     """G4 P0.25: 250 periods at rest at X10; M0 with --resume-after 0.5: 500

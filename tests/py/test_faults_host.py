@@ -5,7 +5,8 @@ import signal
 import subprocess
 import time
 
-from conftest import CONFIG, TOOLPATHS, status, tool, wait_for
+from conftest import (CONFIG, TOOLPATHS, program_end, record_checked, record_rows, sim_summary,
+                      status, tool, wait_for)
 
 PAPER = CONFIG / "paper-2axis.ini"
 
@@ -39,7 +40,7 @@ def test_feeder_killed_then_continued(controller, tmp_path):
     assert s["underruns"] > 0 and s["exec_line"] > 0
     executed = s["exec_seq"]
     time.sleep(0.2)
-    assert status(shm)["exec_seq"] == executed  # at rest
+    assert status(shm)["position"] == s["position"] and s["speed_mm_s"] == 0.0  # at rest
     # a new feeder continues from the next block and finishes the program
     p = subprocess.run([tool("mlip-feed"), "--shm", shm, "--quiet", "--start-seq",
                         str(executed + 1), str(prog)], capture_output=True, text=True, timeout=60)
@@ -77,20 +78,39 @@ def test_continuation_read_from_where_the_program_began(controller, tmp_path):
 
 
 def test_slow_feeder_underruns_and_finishes(controller, tmp_path):
-    # a short look-ahead, fed at a quarter of the rate it is cut at: it runs
-    # dry, stops at rest, and picks up again, over and over
+    """A short look-ahead fed at a fraction of the rate it is cut at: the
+    ring runs dry again and again (underruns), the look-ahead plans to rest
+    at the end of what it has, so the motion slows to the feeder's pace.
+    Judged by the setpoints sent: slower than mlip-sim's run of the same
+    program, within every limit and on the path all along (mlip-check), to
+    the program's end; the controller is idle after it, and a "starved" (at rest, nothing to run) is always followed by motion.
+    (The test once said "stops at rest, and picks up again" and collected
+    the states without asserting them: the motion slows, it need not stop.)"""
     prog, n = flower(tmp_path, 4000)
-    shm, _ = controller(short_lookahead(tmp_path, 256))
-    states = set()
+    cfg = short_lookahead(tmp_path, 256)
+    rec = tmp_path / "rt.csv"
+    shm, rt = controller(cfg, "--record", rec)
+    states = []
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", "--rate", "300", str(prog)])
     while f.poll() is None:
         st = status(shm)
-        if st:
-            states.add(st["state"])
+        if st and (not states or states[-1] != st["state"]):
+            states.append(st["state"])
         time.sleep(0.01)
     assert f.returncode == 0
     s = status(shm)
     assert s["underruns"] > 0 and s["exec_seq"] == n + 1  # slowed by it, and finished
+    assert "running" in states and s["state"] == "idle", (states, s["state"])
+    assert all(b in ("running", "idle") for a, b in zip(states, states[1:]) if a == "starved")
+    rt.send_signal(signal.SIGTERM)
+    assert rt.wait(10) == 0
+    rows = record_rows(rec)
+    sim = sim_summary(prog, "--config", cfg)
+    # 3998 blocks at 300 a second: about 13 s; mlip-sim, fed at once, less
+    # than half of that
+    assert rows[-1][0] > 1.5 * sim["total_time_s"], (rows[-1][0], sim["total_time_s"])
+    assert rows[-1][1:] == program_end(cfg, prog, tmp_path)
+    record_checked(cfg, prog, rec)
 
 
 def test_stalled_feeder_stops_and_picks_up(controller, tmp_path):
@@ -101,9 +121,9 @@ def test_stalled_feeder_stops_and_picks_up(controller, tmp_path):
     f.send_signal(signal.SIGSTOP)  # the feeder stalls (swapped out, stopped...)
     s = wait_for(lambda: (lambda s: s if s["state"] == "starved" else None)(status(shm)), 20)
     assert s, status(shm)
-    at = s["exec_seq"]
     time.sleep(0.3)
-    assert status(shm)["exec_seq"] == at  # at rest at the end of what it had
+    # at rest at the end of what it had: the setpoint stands still
+    assert status(shm)["position"] == s["position"] and s["speed_mm_s"] == 0.0
     f.send_signal(signal.SIGCONT)
     assert f.wait(60) == 0  # picked up again and finished
     assert status(shm)["exec_seq"] == n + 1

@@ -2,9 +2,10 @@
 arguments, bad files. Each test uses its own --shm name so parallel runs
 never meet, and checks that no segment was left behind.
 
-The system tests against a running controller (feeding, commands, stop,
-signals, a dead controller, a rejected program) are in test_feed_ctl.py:
-they need build/mlip-rt."""
+The system tests against a running controller (mlip-rt --can none) are in
+test_rt_host.py (feeding, commands, stop, a rejected program),
+test_rt_safety.py (signals, the segment), test_faults_host.py (a dead
+feeder or controller), test_commands.py and test_ctl_host.py."""
 import itertools
 import os
 from pathlib import Path

@@ -2,12 +2,14 @@
 a real SCHED_FIFO mlip-rt, a real shared-memory segment, the real mlip-feed
 and mlip-ctl. The CAN side is tested on a real vcan0 in tests/can."""
 import json
+import math
 import re
 import signal
 import subprocess
 import time
 
-from conftest import CONFIG, ROOT, TOOLPATHS, shm_name, status, tool, wait_for
+from conftest import (CONFIG, ROOT, TOOLPATHS, longest_rest, program_end, record_checked,
+                      record_rows, shm_name, status, tool, wait_for)
 
 DEMO = ROOT / "examples" / "demo.ngc"
 def feed(shm, program, *extra, **kw):
@@ -81,11 +83,15 @@ def test_bad_program_sends_nothing(controller, tmp_path):
 
 
 def test_override_hold_resume_stop(controller, tmp_path):
-    shm, _ = controller()
+    """Override, hold, resume and stop, judged by the setpoints the
+    controller sent (--record): at rest at the held point while held, and
+    after the stop at rest short of the program's end, every limit kept
+    along the way (mlip-check)."""
     prog = tmp_path / "flower.ngc"
     prog.write_text("".join((TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:6000]))
     cfg = CONFIG / "paper-2axis.ini"
-    shm, _ = controller(cfg)
+    rec = tmp_path / "rt.csv"
+    shm, rt = controller(cfg, "--record", rec)
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
                          stderr=subprocess.PIPE, text=True)
     assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50)
@@ -96,17 +102,31 @@ def test_override_hold_resume_stop(controller, tmp_path):
     assert status(shm)["override_pct"] == 50
     assert ctl("override", "250").returncode != 0  # beyond 0..200
     assert ctl("hold").returncode == 0
-    assert wait_for(lambda: status(shm)["state"] == "held", 5)
-    held_at = status(shm)["exec_seq"]
+    held = wait_for(lambda: (lambda s: s if s["state"] == "held" and s["speed_mm_s"] == 0.0
+                             else None)(status(shm)), 5)
+    assert held, status(shm)
     time.sleep(0.3)
-    assert status(shm)["exec_seq"] == held_at  # nothing moves while held
+    assert status(shm)["position"] == held["position"]  # nothing moves while held
     assert ctl("resume").returncode == 0
-    assert wait_for(lambda: status(shm)["exec_seq"] > held_at, 5)
+    assert wait_for(lambda: status(shm)["position"] != held["position"], 5)
     assert ctl("stop").returncode == 0
     f.wait(10)
     assert f.returncode == 4, f.stderr.read()
     assert wait_for(lambda: status(shm)["state"] == "idle", 5)
-    assert status(shm)["exec_seq"] < 6000  # stopped before the end of the program
+    rt.send_signal(signal.SIGTERM)
+    assert rt.wait(10) == 0
+    rows = record_rows(rec)
+    # the hold: the setpoints stood at the held point for the 0.3 s at least
+    # (t counts the periods that ran; the hold was in the middle of the run)
+    still, where = longest_rest(rows[:-1])
+    assert still >= 0.25 and where == [held["position"][a] for a in "XY"], (still, where)
+    # the stop: at rest (the last step at most one period of braking from
+    # rest, A T^2), short of the program's end, every limit kept
+    T, A = 0.001, 1000.0  # paper-2axis.ini
+    assert math.dist(rows[-1][1:], rows[-2][1:]) <= A * T * T * (1 + 1e-9), rows[-2:]
+    end = program_end(cfg, prog, tmp_path)
+    assert math.dist(rows[-1][1:], end) > 1.0, (rows[-1], end)
+    record_checked(cfg, prog, rec)
 
 
 def test_second_controller_refused(controller):
@@ -128,17 +148,31 @@ def test_bus_load_budget_refused(tmp_path):
 
 
 def test_sigterm_is_a_controlled_stop(controller, tmp_path):
+    """SIGTERM mid-program: mlip-rt brakes on the path and exits 0, judged by
+    the setpoints it sent (--record): moving, then a deceleration to rest
+    short of the program's end within every limit (mlip-check), no drop."""
     prog = tmp_path / "flower.ngc"
     prog.write_text("".join((TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:6000]))
-    shm, rt = controller(CONFIG / "paper-2axis.ini")
+    cfg = CONFIG / "paper-2axis.ini"
+    rec = tmp_path / "rt.csv"
+    shm, rt = controller(cfg, "--record", rec)
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
                          stderr=subprocess.PIPE, text=True)
-    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50)
+    assert wait_for(lambda: (status(shm) or {}).get("speed_mm_s", 0) > 10)
     rt.send_signal(signal.SIGTERM)
     _, err = rt.communicate(timeout=10)
     assert rt.returncode == 0, err  # stopped on the path, then exit 0
     f.wait(10)
     assert f.returncode != 0  # the feeder is told: its program did not finish
+    rows = record_rows(rec)
+    T, A = 0.001, 1000.0  # paper-2axis.ini
+    # at rest: the last step is at most one period of braking from rest
+    assert math.dist(rows[-1][1:], rows[-2][1:]) <= A * T * T * (1 + 1e-9), rows[-2:]
+    assert math.dist(rows[-1][1:], program_end(cfg, prog, tmp_path)) > 1.0
+    tail = rows[-2000:]
+    speeds = [math.dist(p[1:], q[1:]) / T for p, q in zip(tail, tail[1:])]
+    assert max(speeds) > 10.0  # it was moving when the signal came
+    record_checked(cfg, prog, rec)
 
 
 def test_ctl_commands_from_stdin(controller):

@@ -4,6 +4,7 @@ made, a full /dev/shm, attaching to a segment of another user, every stop
 signal mid-program, an unprivileged controller. The tests run as root here;
 those that need another user or a private mount namespace say so and skip
 when they cannot have it."""
+import math
 import os
 import shutil
 import signal
@@ -11,7 +12,8 @@ import subprocess
 
 import pytest
 
-from conftest import CONFIG, shm_name, status, tool, wait_for
+from conftest import (CONFIG, braking_tail, program_end, record_checked, record_rows, shm_name,
+                      status, tool, wait_for)
 
 ROOT_ONLY = pytest.mark.skipif(os.geteuid() != 0, reason="needs root (another user, a mount)")
 NOBODY = ["setpriv", "--reuid=nobody", "--regid=nogroup", "--clear-groups"]
@@ -83,8 +85,12 @@ def flower(tmp_path):
     return prog
 
 
+PAPER = CONFIG / "paper-2axis.ini"
+T, A = 0.001, 1000.0  # its period and acceleration
+
+
 def start_moving(controller, flower):
-    shm, rt = controller(CONFIG / "paper-2axis.ini")
+    shm, rt = controller(PAPER, "--record", flower.parent / "rt.csv")
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(flower)],
                          stderr=subprocess.PIPE, text=True)
     assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50), "did not start"
@@ -96,25 +102,44 @@ def start_moving(controller, flower):
 STOP_LINE = r"mlip-rt: stopped on the path: ([0-9.]+) mm in ([0-9]+) periods"
 
 
+def stopped_on_the_path(rt, flower, tmp_path):
+    """Judged by the setpoints mlip-rt sent (--record, complete once it has
+    exited): moving when stopped, then a deceleration to rest (the last step
+    at most one period of braking from rest) short of the program's end, and
+    the whole record within every limit and on the path (mlip-check): a
+    machine dropped or jumping fails it. Returns the braking (mm, periods)."""
+    assert rt.wait(15) == 0
+    rows = record_rows(flower.parent / "rt.csv")
+    assert math.dist(rows[-1][1:], rows[-2][1:]) <= A * T * T * (1 + 1e-9), rows[-2:]
+    assert math.dist(rows[-1][1:], program_end(PAPER, flower, tmp_path)) > 1.0
+    record_checked(PAPER, flower, flower.parent / "rt.csv")
+    mm, periods = braking_tail(rows)
+    # at the flower's speeds (well above 1 mm/s) braking at <= 1000 mm/s^2
+    # takes more than a period and more than a micrometre; a dropped machine
+    # would show neither
+    assert mm > 0.001 and periods > 1, (mm, periods)
+    return mm, periods
+
+
 @pytest.mark.parametrize("sig", [signal.SIGHUP, signal.SIGTERM, signal.SIGINT, signal.SIGQUIT])
-def test_every_stop_signal_to_the_controller_stops_on_the_path(controller, flower, sig):
+def test_every_stop_signal_to_the_controller_stops_on_the_path(controller, flower, sig, tmp_path):
     """Observed on main: SIGHUP (a closed terminal, a dropped ssh session)
     killed mlip-rt mid-cut with no stop. Now each of the four: a controlled
-    stop on the path (a braking distance > 0 over more than one period: it
-    decelerates, it does not drop), exit 0, and the feeder says the program
-    stopped on the path (exit 4), not complete."""
+    stop on the path, judged by the setpoints sent (a deceleration to rest
+    within every limit), exit 0, and the feeder says the program stopped on
+    the path (exit 4), not complete. mlip-rt's log says the same braking."""
     import re
     shm, rt, f = start_moving(controller, flower)
     rt.send_signal(sig)
     _, err = rt.communicate(timeout=15)
     assert rt.returncode == 0, err
+    mm, periods = stopped_on_the_path(rt, flower, tmp_path)
     m = re.search(STOP_LINE, err)
     assert m, err
-    mm, periods = float(m.group(1)), int(m.group(2))
-    # at the flower's speeds (well above 1 mm/s) braking at <= 1000 mm/s^2
-    # takes more than a period and more than a micrometre; a dropped machine
-    # would report neither
-    assert mm > 0.001 and periods > 1, err
+    # the log's braking is the record's last deceleration, or inside it
+    # (that may begin earlier, slowing into a corner); the log rounds to um
+    assert 0.001 < float(m.group(1)) <= mm + 0.0005 and 1 < int(m.group(2)) <= periods, \
+        (m.group(0), mm, periods)
     assert f"mlip-rt: {signal.Signals(sig).name}: stopped on the path, exiting" in err
     ferr = f.communicate(timeout=15)[1]
     assert f.returncode == 4, ferr
@@ -123,7 +148,7 @@ def test_every_stop_signal_to_the_controller_stops_on_the_path(controller, flowe
 
 
 @pytest.mark.parametrize("sig", [signal.SIGHUP, signal.SIGTERM])
-def test_sighup_to_the_feeder_is_sigterm(controller, flower, sig):
+def test_sighup_to_the_feeder_is_sigterm(controller, flower, sig, tmp_path):
     """Observed on main: SIGHUP killed mlip-feed silently (and the machine ran
     on to the end of what it had). Now SIGHUP does what SIGTERM does: the
     controller stops on the path, the feeder reports the line and the block
@@ -138,8 +163,9 @@ def test_sighup_to_the_feeder_is_sigterm(controller, flower, sig):
     s = wait_for(lambda: (lambda s: s if s and s["state"] == "idle" else None)(status(shm)), 10)
     assert s, status(shm)
     assert s["stops"] >= 1 and s["stop_mm"] > 0.001 and s["stop_periods"] > 1, s
-    assert s["exec_seq"] < FLOWER_LINES  # stopped before the end of the program
     assert rt.poll() is None  # the controller itself goes on
+    rt.send_signal(signal.SIGTERM)  # (at rest: nothing more to record)
+    stopped_on_the_path(rt, flower, tmp_path)
 
 
 UNIT = CONFIG.parent / "tools" / "systemd" / "mlip-rt.service"
