@@ -14,6 +14,7 @@
 #   make sanitize   both sanitizers in one build, the unit tests and the system
 #                   tests but test_toolpaths (build-san/; what CI runs)
 #   make fuzz       the fuzz targets, FUZZ_SECONDS each (default 60)
+#   make mutate     each validation rule removed in turn: a test must fail
 
 BUILD   ?= build
 CC      ?= cc
@@ -62,7 +63,7 @@ $(RT_OBJ): INC := -Iinclude -Irt
 $(HOST_OBJ): INC := -Iinclude -Itools/lib
 
 .PHONY: all test unit pytest can bench asan ubsan sanitize fuzz deps clean demo run purity tsan \
-        format-check pycheck format
+        format-check pycheck format mutate
 all: $(BUILD)/libmlip.a $(TOOLS) $(UNIT_BINS) $(BENCH_BINS)
 
 $(BUILD)/obj/%.o: %.c
@@ -206,6 +207,11 @@ bench: deps
 # FUZZ_SECONDS each (default 60); seeds from the shared toolpaths and config/.
 fuzz:
 	@fuzz/run.sh $(or $(FUZZ_SECONDS),60)
+
+# Each validation rule removed in turn in a scratch copy: a test must fail
+# (tools/mutate.py; a few minutes, by hand or in CI when time allows).
+mutate: deps
+	@.venv/bin/python tools/mutate.py
 
 # Sanitizers: the unit tests and the system tests (every tool the tests run
 # is this build's) under AddressSanitizer and UndefinedBehaviorSanitizer.

@@ -1192,6 +1192,10 @@ static void load_file(const char *file, const char *axes, size_t min_blocks,
 	}
 	assert_int_equal(rc, 0);
 	assert_true(p->n >= min_blocks);
+	/* what a real program sends passes the controller's record rules */
+	for (size_t i = 0; i < p->n; i++) {
+		assert_int_equal(mlip_block_check(&m, &p->blocks[i]), MLIP_RULE_OK);
+	}
 }
 
 static void test_toolpaths(void **state)
@@ -1453,6 +1457,31 @@ static void test_block_rule_set(void **state)
 	parse_ok("G91\nG90 G53 G0 X10\n", &m, &p);
 	assert_near(p.blocks[0].target[0], 10, 0);
 	mlip_program_list_free(&p);
+}
+
+/* The reader's last line of defence: a block that would break the rule set
+ * in spite of the line's checks (here a machine handed to the reader without
+ * mlip_machine_check, its tolerance beyond what a block may carry) fails its
+ * line; nothing reaches the sink. */
+static void test_block_rule_backstop(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_gcode g;
+	struct mlip_gcode_error e;
+	struct cap c = {.limit = 64};
+
+	(void)state;
+	m.tolerance_mm = 2 * MLIP_TOL_MAX_MM;
+	mlip_gcode_init(&g, &m);
+	assert_int_equal(line(&g, "G1 X1 F60", 1, &c, &e), MLIP_E_RANGE);
+	assert_int_equal(e.line, 1);
+	assert_int_equal(e.col, 1);
+	assert_non_null(strstr(e.msg, "breaks the rule set of every block"));
+	assert_int_equal(c.n, 0);
+	m.tolerance_mm = MLIP_TOL_MAX_MM;
+	mlip_gcode_init(&g, &m);
+	assert_int_equal(line(&g, "G1 X1 F60", 1, &c, &e), MLIP_OK);
+	assert_int_equal(c.n, 1);
 }
 
 /* Issue 17 item 9: '%' delimits a program as LinuxCNC documents it. */
@@ -1857,6 +1886,7 @@ int main(void)
 	    cmocka_unit_test(test_dwell),
 	    cmocka_unit_test(test_block_rule_set),
 	    cmocka_unit_test(test_percent_delimiters),
+	    cmocka_unit_test(test_block_rule_backstop),
 	    cmocka_unit_test(test_pauses_and_end),
 	    cmocka_unit_test(test_work_offsets),
 	    cmocka_unit_test(test_path_modes),
