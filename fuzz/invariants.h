@@ -327,15 +327,21 @@ static const char *inv_gcode_finish(struct inv_gcode *c, const struct mlip_gcode
 		return c->bad;
 	}
 	c->line = last;
-	if ((st == MLIP_OK) != (c->moves > 0)) {
+	/* a program opened by '%' and never closed (nor ended by M2/M30) is
+	 * refused however many blocks it had: the file may be cut short */
+	int unclosed = g->percent && !g->ended;
+	if ((st == MLIP_OK) != (c->moves > 0 && !unclosed)) {
 		return inv_gcode_fail(c, "finish disagrees with the blocks taken", -1,
 		                      (double)c->accepted);
 	}
 	if (st != MLIP_OK) {
-		if (e->line != (last ? last : 1) || e->col != 0 ||
-		    strcmp(e->msg, "empty program: no motion") != 0) {
-			return inv_gcode_fail(c, "finish error not \"empty program\" at the end",
-			                      -1, e->line);
+		const char *want = c->moves == 0 ? "empty program: no motion"
+		                                 : "the program opens with '%' but ends without "
+		                                   "the closing '%' or M2/M30: the file may be cut "
+		                                   "short (LinuxCNC refuses it)";
+		if (e->line != (last ? last : 1) || e->col != 0 || strcmp(e->msg, want) != 0) {
+			return inv_gcode_fail(c, "finish error not the expected one at the end", -1,
+			                      e->line);
 		}
 		w = inv_message(e->msg, sizeof e->msg, 1);
 		if (w) {
@@ -578,6 +584,7 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 	char letters[8];
 	int n, rc = 0, compare = (flags & INV_INITIAL_FEED) && !(flags & INV_REFUSE);
 	mlip_status st;
+	int finish_failed = 0;
 
 	memset(r, 0, sizeof *r);
 	memset(letters, 0x55, sizeof letters);
@@ -641,14 +648,16 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 		memset(&err, 0x55, sizeof err);
 		st = mlip_gcode_finish(&g, line, &err);
 		w = inv_gcode_finish(&c, &g, line, st, &err);
+		finish_failed = st != MLIP_OK;
 		if (!w && st != MLIP_OK && r->errors++ == 0) {
 			r->first = err;
 		}
 	}
 	r->blocks = c.accepted;
 	if (!w && compare) {
-		/* the tools leave out "empty program" after other errors */
-		size_t total = r->errors - (r->errors > 1 && c.moves == 0);
+		/* the tools leave out finish's error ("empty program", an
+		 * unclosed '%') after other errors */
+		size_t total = r->errors - (r->errors > 1 && finish_failed);
 		if (prog.n != c.accepted || prog.n_errors_total != total || prog.lines != line ||
 		    rc != (total ? 1 : 0) || prog.n_notices != g.n_notices) {
 			w = "mlip_program_list_parse disagrees with the line-by-line run";
