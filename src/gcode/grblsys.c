@@ -19,7 +19,7 @@ static mlip_status jog_line(struct mlip_gcode *g, const char *t, size_t len, siz
 	struct mlip_gcode saved;
 	char buf[MLIP_GCODE_MAX_LINE + 4];
 	mlip_status st;
-	int k, c, has_f = 0;
+	int k, c, has_f = 0, g53 = 0, g91 = 0;
 
 	st = mlip_gc_lex_line(t + j, len - j, 0, &lx, e);
 	if (st != MLIP_OK) {
@@ -30,6 +30,8 @@ static mlip_status jog_line(struct mlip_gcode *g, const char *t, size_t len, siz
 	for (k = 0; k < lx.n; k++) {
 		c = mlip_gc_code_of(lx.w[k].value);
 		has_f |= lx.w[k].letter == 'F';
+		g53 |= lx.w[k].letter == 'G' && c == 530;
+		g91 |= lx.w[k].letter == 'G' && c == 910;
 		if (!(mlip_gc_axis_slot(lx.w[k].letter) >= 0 || lx.w[k].letter == 'F' ||
 		      (lx.w[k].letter == 'G' &&
 		       (c == 200 || c == 210 || c == 900 || c == 910 || c == 530)))) {
@@ -48,6 +50,10 @@ static mlip_status jog_line(struct mlip_gcode *g, const char *t, size_t len, siz
 	saved = *g;
 	g->motion = 1;
 	g->inverse_time = 0;
+	if (g53 && !g91) {
+		g->absolute = 1; /* a G53 jog is in machine coordinates, whatever
+		                    the program's G90/G91 (Grbl 1.1's jogging) */
+	}
 	st = mlip_gcode_line(g, buf, len - j + 3, line, sink, ctx, e);
 	if (st != MLIP_OK && e->col) {
 		e->col = e->col > 3 ? e->col - 3 + (uint32_t)j : (uint32_t)j - 2;

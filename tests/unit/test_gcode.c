@@ -1457,6 +1457,12 @@ static void test_block_rule_set(void **state)
 	parse_ok("G91\nG90 G53 G0 X10\n", &m, &p);
 	assert_near(p.blocks[0].target[0], 10, 0);
 	mlip_program_list_free(&p);
+	/* a Grbl G53 jog is in machine coordinates, in a G91 program too */
+	parse_ok("G91 G0 X5\n$J=G53 X10 F600\nX1\n", &m, &p);
+	assert_int_equal(p.n, 3);
+	assert_near(p.blocks[1].target[0], 10, 0);
+	assert_near(p.blocks[2].target[0], 11, 0); /* G91 again after the jog */
+	mlip_program_list_free(&p);
 }
 
 /* The reader's last line of defence: a block that would break the rule set
