@@ -130,6 +130,13 @@ MUTANTS: tuple[Mutant, ...] = (
         (UNIT_CTL,),
     ),
     Mutant(
+        "rule: target beyond the drive's 32-bit count accepted",
+        TYPES,
+        "counts > -2147483648.5 &&\n\t\t      counts < 2147483647.5",
+        "counts > -1e300 &&\n\t\t      counts < 1e300",
+        (UNIT_CTL,),
+    ),
+    Mutant(
         "rule: feed upper bound (1e6 mm/s) removed",
         TYPES,
         "b->feed_mm_s <= MLIP_FEED_MAX_MM_S",
@@ -179,6 +186,13 @@ MUTANTS: tuple[Mutant, ...] = (
         "src/gcode/words.c",
         "if (b->g4 && !(b->p <= MLIP_DWELL_MAX_S)) {",
         "if (0 && b->g4 && !(b->p <= MLIP_DWELL_MAX_S)) {",
+        (UNIT_GC,),
+    ),
+    Mutant(
+        "reader: a target beyond the drive's count left to the backstop",
+        "src/gcode/emit.c",
+        "if (!(counts > -2147483648.5 && counts < 2147483647.5)) {",
+        "if (0 && !(counts > -2147483648.5 && counts < 2147483647.5)) {",
         (UNIT_GC,),
     ),
     Mutant(

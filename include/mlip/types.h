@@ -112,8 +112,10 @@ struct mlip_block {
 enum {
 	MLIP_RULE_OK = 0,
 	MLIP_RULE_DWELL,                                   /* dwell_s outside 0..DWELL_MAX */
-	MLIP_RULE_TARGET,                                  /* + axis k: not finite or
-	                                                      outside the soft limits */
+	MLIP_RULE_TARGET,                                  /* + axis k: not finite,
+	                                                      outside the soft limits, or
+	                                                      beyond the drive's 32-bit
+	                                                      count (COUNTS_PER_UNIT) */
 	MLIP_RULE_FEED = MLIP_RULE_TARGET + MLIP_MAX_AXES, /* a feed move outside
 	                                                      FEED_MIN..FEED_MAX, a rapid
 	                                                      outside 0..FEED_MAX */
@@ -134,8 +136,11 @@ static inline int mlip_block_check(const struct mlip_machine *m, const struct ml
 		return MLIP_RULE_OK;
 	}
 	for (k = 0; k < m->n_axes; k++) {
+		/* the count as mlip_can_counts rounds it: within int32 (0x607A) */
+		double counts = b->target[k] * m->axis[k].counts_per_unit;
 		if (!(b->target[k] >= m->axis[k].min_limit &&
-		      b->target[k] <= m->axis[k].max_limit)) {
+		      b->target[k] <= m->axis[k].max_limit && counts > -2147483648.5 &&
+		      counts < 2147483647.5)) {
 			return MLIP_RULE_TARGET + k;
 		}
 	}

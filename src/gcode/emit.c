@@ -83,8 +83,8 @@ int mlip_gc_emit_event(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, ui
 	return 0;
 }
 
-/* Soft limits (and finiteness) of a target; col_of[i] is the column to blame
- * for axis i. */
+/* Soft limits (and finiteness) of a target, and the drive's position range;
+ * col_of[i] is the column to blame for axis i. */
 mlip_status mlip_gc_check_limits(const struct mlip_gcode *g, const double *t,
                                  const uint32_t *col_of, uint32_t line, int on_arc,
                                  struct mlip_gcode_error *e)
@@ -104,6 +104,18 @@ mlip_status mlip_gc_check_limits(const struct mlip_gcode *g, const double *t,
 			                    "%c %f beyond soft limit %f%s", mlip_upper(ax->letter),
 			                    t[i],
 			                    t[i] < ax->min_limit ? ax->min_limit : ax->max_limit,
+			                    on_arc ? " on the arc" : "");
+		}
+		/* the drive's position is a 32-bit count (CiA 402 0x607A): the
+		 * controller could not send it (mlip_block_check) */
+		double counts = t[i] * ax->counts_per_unit;
+		if (!(counts > -2147483648.5 && counts < 2147483647.5)) {
+			return mlip_gc_fail(e, line, col_of[i], MLIP_E_RANGE,
+			                    "%c %f beyond the drive's 32-bit position: %f..%f at "
+			                    "COUNTS_PER_UNIT %g%s",
+			                    mlip_upper(ax->letter), t[i],
+			                    -2147483648.0 / ax->counts_per_unit,
+			                    2147483647.0 / ax->counts_per_unit, ax->counts_per_unit,
 			                    on_arc ? " on the arc" : "");
 		}
 	}

@@ -890,6 +890,33 @@ static void test_record_bounds_accepted(void **st)
 	assert_int_equal(mlip_block_check(&mach, &d), MLIP_RULE_OK);
 }
 
+/* A target inside the soft limits but beyond the drive's 32-bit position
+ * (COUNTS_PER_UNIT): refused where the record is taken, before anything
+ * moves; it faulted the controller once the machine got there. */
+static void test_bad_beyond_drive_count(void **st)
+{
+	(void)st;
+	struct mlip_machine m2 = mach;
+	m2.axis[0].counts_per_unit = 1e7; /* 0.1 nm: +-214.7483647 mm in an int32 */
+	struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = 2};
+	struct mlip_ring_rec rec;
+	struct mlip_ctl_reason why;
+	b.target[0] = 214.7483647;
+	mlip_ring_rec_from_block(&rec, &b, 1);
+	assert_int_equal(mlip_ctl_check_record(&m2, &rec, 1, &why), MLIP_OK);
+	b.target[0] = -214.7483648;
+	mlip_ring_rec_from_block(&rec, &b, 1);
+	assert_int_equal(mlip_ctl_check_record(&m2, &rec, 1, &why), MLIP_OK);
+	b.target[0] = 214.75;
+	mlip_ring_rec_from_block(&rec, &b, 1);
+	assert_int_equal(mlip_ctl_check_record(&m2, &rec, 1, &why), MLIP_E_RANGE);
+	assert_int_equal(why.field, MLIP_FIELD_TARGET);
+	assert_true(why.value == 214.75);
+	b.target[0] = -214.75;
+	mlip_ring_rec_from_block(&rec, &b, 1);
+	assert_int_equal(mlip_ctl_check_record(&m2, &rec, 1, &why), MLIP_E_RANGE);
+}
+
 /* Issue 17 item 8, the dwell case: a bad record found while the machine
  * dwells (the pre-read of what follows the dwell) starts nothing after the
  * dwell; the fault names the block the machine rests at the end of (3, the
@@ -1433,6 +1460,7 @@ int main(void)
 	    T(test_bad_dwell_above_max),
 	    T(test_bad_dwell_nan),
 	    T(test_record_bounds_accepted),
+	    T(test_bad_beyond_drive_count),
 	    T(test_bad_record_in_dwell_rests_before_it),
 	    T(test_bad_record_in_preread_never_moves),
 	    T(test_stall_holds_at_last_setpoint),

@@ -1449,6 +1449,23 @@ static void test_block_rule_set(void **state)
 	parse_ok("G1 X86 F0.06\n", &m, &p); /* 86 mm at 0.001 mm/s: 23.9 h */
 	mlip_program_list_free(&p);
 	check_err("G1 X87 F0.06\n", 1, 8, "at most 24 h, as a dwell");
+	/* a target the drive cannot count (a 32-bit position, 0x607A) */
+	{
+		struct mlip_machine w = big_machine("XYZ");
+		w.axis[0].min_limit = -1e9;
+		w.axis[0].max_limit = 1e9;
+		w.axis[0].counts_per_unit = 1000;
+		w.axis[1].min_limit = -1e9;
+		w.axis[1].max_limit = 1e9;
+		parse_ok("G0 X2147483.647\nG0 X-2147483.648\n", &w, &p);
+		all_blocks_keep_the_rules(&w, &p);
+		mlip_program_list_free(&p);
+		check_err_m("G1 X1 F600\nG1 X2147483.648\n", &w, 2, 4,
+		            "X 2147483.648 beyond the drive's 32-bit position: "
+		            "-2147483.648..2147483.647 at COUNTS_PER_UNIT 1000");
+		check_err_m("G0 X1\nG2 X2 I1100000 F6000000\n", &w, 2, 4,
+		            "at COUNTS_PER_UNIT 1000 on the arc");
+	}
 	/* G64 P is a distance (LinuxCNC): P-1 is no tolerance, not the default */
 	check_err("G64 P-1\nG1 X1 F60\n", 1, 5, "G64 P-1: the path tolerance must be >= 0");
 	/* G53 in G91 (LinuxCNC: NCE_CANNOT_USE_G53_INCREMENTAL), modal as on the line */
