@@ -917,6 +917,56 @@ static void test_bad_beyond_drive_count(void **st)
 	assert_int_equal(mlip_ctl_check_record(&m2, &rec, 1, &why), MLIP_E_RANGE);
 }
 
+/* The I/O records' rules (issue 19), one case each side of each bound: a
+ * spindle speed within +-MLIP_REC_RPM_MAX, a whole tool number in
+ * 0..MLIP_REC_TOOL_MAX, coolant as MLIP_COOLANT_* bits. */
+static mlip_status io_record(uint16_t type, double v)
+{
+	struct mlip_ring_rec rec = {.seq = 1, .line = 2, .type = type, .dwell_s = v};
+	struct mlip_ctl_reason why;
+	mlip_status st = mlip_ctl_check_record(&mach, &rec, 1, &why);
+	if (st != MLIP_OK) {
+		assert_int_equal(why.field, MLIP_FIELD_DWELL);
+	}
+	return st;
+}
+
+static void test_bad_spindle_speed(void **st)
+{
+	(void)st;
+	assert_int_equal(io_record(MLIP_REC_SPINDLE, MLIP_REC_RPM_MAX), MLIP_OK);
+	assert_int_equal(io_record(MLIP_REC_SPINDLE, -MLIP_REC_RPM_MAX), MLIP_OK);
+	assert_int_equal(io_record(MLIP_REC_SPINDLE, 0.0), MLIP_OK);
+	assert_int_equal(io_record(MLIP_REC_SPINDLE, nextafter(MLIP_REC_RPM_MAX, INFINITY)),
+	                 MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_SPINDLE, -nextafter(MLIP_REC_RPM_MAX, INFINITY)),
+	                 MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_SPINDLE, NAN), MLIP_E_RANGE);
+}
+
+static void test_bad_tool_number(void **st)
+{
+	(void)st;
+	assert_int_equal(io_record(MLIP_REC_TOOL, 0.0), MLIP_OK);
+	assert_int_equal(io_record(MLIP_REC_TOOL, MLIP_REC_TOOL_MAX), MLIP_OK);
+	assert_int_equal(io_record(MLIP_REC_TOOL, -1.0), MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_TOOL, MLIP_REC_TOOL_MAX + 1.0), MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_TOOL, 2.5), MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_TOOL, NAN), MLIP_E_RANGE);
+}
+
+static void test_bad_coolant_bits(void **st)
+{
+	(void)st;
+	for (unsigned b = 0; b <= (MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD); b++) {
+		assert_int_equal(io_record(MLIP_REC_COOLANT, (double)b), MLIP_OK);
+	}
+	assert_int_equal(io_record(MLIP_REC_COOLANT, 4.0), MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_COOLANT, 1.5), MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_COOLANT, -1.0), MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_COOLANT, NAN), MLIP_E_RANGE);
+}
+
 /* Issue 17 item 8, the dwell case: a bad record found while the machine
  * dwells (the pre-read of what follows the dwell) starts nothing after the
  * dwell; the fault names the block the machine rests at the end of (3, the
@@ -1461,6 +1511,9 @@ int main(void)
 	    T(test_bad_dwell_nan),
 	    T(test_record_bounds_accepted),
 	    T(test_bad_beyond_drive_count),
+	    T(test_bad_spindle_speed),
+	    T(test_bad_tool_number),
+	    T(test_bad_coolant_bits),
 	    T(test_bad_record_in_dwell_rests_before_it),
 	    T(test_bad_record_in_preread_never_moves),
 	    T(test_stall_holds_at_last_setpoint),
