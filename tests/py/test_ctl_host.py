@@ -236,7 +236,7 @@ def test_bad_record_met_in_a_dwell_names_where_the_machine_rests(controller, tmp
     assert s and s["reason"] == "bad record" and s["reason_seq"] == 4, s
     assert s["exec_seq"] == 1 and s["position"]["X"] == 200.0, s
     err = stop(rt)
-    assert ("fault: bad record 4 (line 4): dwell = 100000; nothing after it is taken, the "
+    assert ("fault: bad record 4 (line 4): dwell/value = 100000; nothing after it is taken, the "
             "machine stays at rest at the end of block 1;") in err, err
     rows = [list(map(float, r.split(",")[1:])) for r in rec_csv.read_text().splitlines()[1:]]
     assert rows[-1] == [200.0, 0.0, 0.0] and max(r[0] for r in rows) == 200.0
