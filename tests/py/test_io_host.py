@@ -10,6 +10,7 @@ import json
 import re
 import signal
 import subprocess
+import threading
 
 from conftest import CONFIG, offsets_file, run, status, tool, wait_for
 
@@ -68,7 +69,8 @@ def test_sim_pauses_and_length_offsets(tmp_path):
     assert any(abs(v - 29.25) < 1e-12 for v in z)
     # without the table the program is refused at the first T, nothing runs
     p = run(["mlip-sim", "-q", "--config", cfg, prog], check=False)
-    assert p.returncode == 1 and f"{prog}:2:1: error: T1: no tool table given (--tools FILE)" in p.stderr
+    assert p.returncode == 1
+    assert f"{prog}:2:1: error: T1: no tool table given (--tools FILE)" in p.stderr
 
 
 def test_sim_refusals(tmp_path):
@@ -78,7 +80,8 @@ def test_sim_refusals(tmp_path):
     plain = CONFIG / "mill-3axis.ini"
     p = run(["mlip-sim", "-q", "--config", plain, "--tools", tbl, prog], check=False)
     assert p.returncode == 1
-    assert f"{prog}:2:1: error: T: this machine has no tool change ([TOOL] CHANGE = none)" in p.stderr
+    no_change = "T: this machine has no tool change ([TOOL] CHANGE = none)"
+    assert f"{prog}:2:1: error: {no_change}" in p.stderr
     assert f"{prog}:4:1: error: S: this machine has no spindle ([SPINDLE] TYPE = none)" in p.stderr
     assert f"{prog}:5:1: error: M8: this machine has no coolant ([COOLANT] TYPE = none)" in p.stderr
     p = run(["mlip-sim", "--config", plain, "--ignore-spindle", "--ignore-coolant",
@@ -116,10 +119,17 @@ def test_feed_pauses_for_the_operator(controller, tmp_path):
         (16, "spindle (manual)", "stop the spindle, then resume"),
         (16, "coolant (manual)", "turn the coolant off, then resume"),
     ]
+    # what mlip-feed prints, as it prints it: the operator reads the message,
+    # then resumes (a resume before mlip-feed saw the pause would leave it
+    # untold, as it would a person)
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(iter(feeder.stderr.readline, "")),
+                              daemon=True)
+    reader.start()
     try:
         last = None
         for line, why, what in expected:
-            def paused():
+            def paused(last=last):
                 s = status(shm)
                 if s and s["state"] == "paused" and s["reason_seq"] != last:
                     return s
@@ -127,7 +137,9 @@ def test_feed_pauses_for_the_operator(controller, tmp_path):
             s = wait_for(paused, timeout=30)
             assert s, f"no pause for line {line}: {status(shm)}"
             # mlip-ctl has no tool table: the tool without its comment
-            ctl_what = re.sub(r" \([^)]*\), then", ", then", what) if why.startswith("tool") else what
+            ctl_what = what
+            if why.startswith("tool"):
+                ctl_what = re.sub(r" \([^)]*\), then", ", then", what)
             assert (s["reason_line"], s["reason"], s["operator"]) == (line, why, ctl_what), s
             # at rest where the last move ended
             assert s["speed_mm_s"] == 0.0
@@ -135,12 +147,16 @@ def test_feed_pauses_for_the_operator(controller, tmp_path):
                                   text=True).stdout
             assert why in text
             last = s["reason_seq"]
+            told = f"paused at line {line}, {why}: {what} (mlip-ctl resume)"
+            assert wait_for(lambda told=told: any(told in t for t in lines), 30), "".join(lines)
             assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "resume"]).returncode == 0
-        _, err = feeder.communicate(timeout=60)
+        feeder.wait(timeout=60)
+        reader.join(timeout=10)
     finally:
         if feeder.poll() is None:
             feeder.send_signal(signal.SIGINT)
             feeder.wait(10)
+    err = "".join(lines)
     assert feeder.returncode == 0, err
     for line, why, what in expected:
         assert f"paused at line {line}, {why}: {what} (mlip-ctl resume)" in err, err
@@ -154,22 +170,28 @@ def test_feed_says_what_a_stop_left(controller, tmp_path):
     cfg, tbl, prog = machine(tmp_path)
     offs = offsets_file(tmp_path / "offsets", config=cfg)
     shm, rt = controller(cfg)
-    feeder = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--tools", str(tbl), "-q",
+    feeder = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--tools", str(tbl),
                                "--offsets", str(offs), str(prog)],
                               stderr=subprocess.PIPE, text=True)
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(iter(feeder.stderr.readline, "")),
+                              daemon=True)
+    reader.start()
     try:
         for line in (2, 4, 5):
-            s = wait_for(lambda: (status(shm) or {}).get("reason_line") == line
-                         and status(shm)["state"] == "paused" and status(shm), timeout=30)
-            assert s, status(shm)
+            # the operator acts on what mlip-feed told, once it told it
+            assert wait_for(lambda n=line: any(f"paused at line {n}," in t for t in lines), 30), \
+                "".join(lines)
             if line < 5:
                 assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "resume"]).returncode == 0
         assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "stop"]).returncode == 0
-        _, err = feeder.communicate(timeout=60)
+        feeder.wait(timeout=60)
+        reader.join(timeout=10)
     finally:
         if feeder.poll() is None:
             feeder.send_signal(signal.SIGINT)
             feeder.wait(10)
+    err = "".join(lines)
     assert feeder.returncode == 4, err
     assert "stopped while the machine waited at line 5 for the coolant" in err, err
     assert "the spindle turns since line 4 (12000 rpm clockwise)" in err, err
