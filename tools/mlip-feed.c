@@ -1324,6 +1324,13 @@ int main(int argc, char **argv)
 	    mlip_offsets_save(&f.offsets_file, &m, &f.prog.offsets_end, PROG, stderr) != 0) {
 		code = EXIT_FAIL;
 	}
+	if (code == EXIT_DONE && f.prog.offsets_end.tool != f.prog.offsets_start.tool) {
+		fprintf(stderr, PROG ": tool %d in the spindle now%s%s%s\n",
+		        (int)f.prog.offsets_end.tool, f.offsets ? " (" : "",
+		        f.offsets ? f.offsets
+		                  : " (no --offsets: the next program does not know it)",
+		        f.offsets ? ")" : "");
+	}
 	if (code != EXIT_DONE && f.pushed > 0) {
 		io_after_stop(&f, &m);
 	}
