@@ -44,6 +44,7 @@ static void usage(FILE *f)
 	    "  resume           leave a feed hold, a stall hold or a pause (M0, M1, M60)\n"
 	    "  stop             decelerate to rest on the path, drop the rest of the program\n"
 	    "  optional-stop on|off  M1 pauses the program (on) or is passed (off)\n"
+	    "  reset            leave an E-stop or a limit stop once its input is released\n"
 	    "  status [--json]  controller and feeder state (--json: one object on stdout)\n"
 	    "  -                commands from standard input, one per line, each answered\n"
 	    "                   (on stdout, or stderr when refused) before the next is read\n\n"
@@ -234,6 +235,29 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 		mlip_json_string(&j, "drives", mlip_drive_power_name(st->drive_power));
 	}
 	mlip_json_uint(&j, "drives_last_change_periods", st->drive_power_periods);
+	/* the inputs on the bus (issue 18): each mapped function, on or off
+	 * (null: not read yet) */
+	mlip_json_object(&j, "inputs", 0);
+	for (uint32_t f = 0; f < MLIP_IN_COUNT; f++) {
+		if (st->io_mapped & (1u << f)) {
+			mlip_io_function_name(f, m, fname, sizeof(fname));
+			if (st->io_known & (1u << f)) {
+				mlip_json_bool(&j, fname, (st->io_inputs >> f) & 1u);
+			} else {
+				mlip_json_null(&j, fname);
+			}
+		}
+	}
+	mlip_json_close(&j);
+	if (st->reason == MLIP_WHY_ESTOP || st->reason == MLIP_WHY_LIMIT) {
+		mlip_json_string(&j, "reason_input",
+		                 mlip_io_function_name(st->reason_field, m, fname, sizeof(fname)));
+		mlip_json_uint(&j, "reason_node", st->reason_node);
+	} else if (st->reason == MLIP_WHY_IO_LOST) {
+		mlip_json_string(&j, "reason_input",
+		                 mlip_drive_fault_name((mlip_drive_fault)st->reason_field));
+		mlip_json_uint(&j, "reason_node", st->reason_node);
+	}
 	/* not known without a controller */
 	mlip_json_number(&j, "speed_mm_s", "%.17g", alive ? st->speed_mm_s : NAN);
 	mlip_json_number(&j, "dwell_left_s", "%.6f", (double)st->dwell_left * m->period_s);
@@ -342,12 +366,39 @@ static int cmd_status(struct mlip_shm *s, int json)
 	if (st.reason == MLIP_WHY_STALL) {
 		printf(", %.0f periods missed", st.reason_value);
 	}
+	if (st.reason == MLIP_WHY_ESTOP || st.reason == MLIP_WHY_LIMIT) {
+		printf(": %s, node %u",
+		       mlip_io_function_name(st.reason_field, &m, fname, sizeof(fname)),
+		       (unsigned)st.reason_node);
+	} else if (st.reason == MLIP_WHY_IO_LOST) {
+		mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
+		                          sizeof(fname));
+		printf(": node %u, %s: %s", (unsigned)st.reason_node,
+		       mlip_drive_fault_name((mlip_drive_fault)st.reason_field), fname);
+	}
 	printf("\n");
 	if (st.state == MLIP_STATE_PAUSED ||
 	    (st.state == MLIP_STATE_HELD && st.reason != MLIP_WHY_OVERRIDE_ZERO)) {
 		printf("to continue mlip-ctl resume\n");
+	} else if (st.state == MLIP_STATE_ESTOP ||
+	           (st.state == MLIP_STATE_FAULT && st.reason == MLIP_WHY_LIMIT)) {
+		printf("to continue release the input, then mlip-ctl reset\n");
 	} else if (st.state == MLIP_STATE_FAULT) {
 		printf("to continue restart mlip-rt (the fault stays until then)\n");
+	}
+	if (st.io_mapped != 0) {
+		printf("inputs     ");
+		for (uint32_t f = 0; f < MLIP_IN_COUNT; f++) {
+			if (st.io_mapped & (1u << f)) {
+				printf(" %s %s", mlip_io_function_name(f, &m, fname, sizeof(fname)),
+				       !(st.io_known & (1u << f))   ? "unread"
+				       : (st.io_inputs & (1u << f)) ? "ON"
+				                                    : "off");
+				printf(f + 1 < MLIP_IN_COUNT && (st.io_mapped >> (f + 1)) ? ","
+				                                                          : "");
+			}
+		}
+		printf("\n");
 	}
 	printf("position   ");
 	for (int k = 0; k < m.n_axes; k++) {
@@ -545,6 +596,19 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 		}
 		sleep_ns(POLL_NS);
 	}
+	if (result != MLIP_OK && op == MLIP_CMD_RESET) {
+		fprintf(stderr, PROG ": reset: refused by the controller: %s",
+		        result == MLIP_E_RANGE
+		            ? "the input that stopped the machine is still on (release the E-stop, "
+		              "move the axis off its limit switch; a lost I/O module needs a "
+		              "restart of mlip-rt)"
+		            : "nothing to reset (no E-stop, no limit)");
+		if (read_status(s->ring, &st) == 0) {
+			fprintf(stderr, " (state %s)", mlip_ctl_state_name(st.state));
+		}
+		fputc('\n', stderr);
+		return EXIT_FAIL;
+	}
 	if (result != MLIP_OK) {
 		fprintf(stderr, PROG ": %s: refused by the controller: %s", what,
 		        result_text(result));
@@ -586,6 +650,8 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 		*op = MLIP_CMD_RESUME;
 	} else if (strcmp(cmd, "stop") == 0) {
 		*op = MLIP_CMD_STOP;
+	} else if (strcmp(cmd, "reset") == 0) {
+		*op = MLIP_CMD_RESET;
 	} else if (strcmp(cmd, "optional-stop") == 0) {
 		*op = MLIP_CMD_OPTIONAL_STOP;
 		if (pct == NULL || (strcmp(pct, "on") != 0 && strcmp(pct, "off") != 0)) {
@@ -596,7 +662,7 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 	} else {
 		fprintf(stderr,
 		        PROG ": unknown command '%s' (override, hold, resume, stop, optional-stop, "
-		             "status, -)\n",
+		             "reset, status, -)\n",
 		        cmd);
 		return EXIT_USAGE;
 	}

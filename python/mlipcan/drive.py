@@ -831,6 +831,7 @@ class DriveSim:
         self.rec = rec
         self.lock = threading.RLock()
         self.drives: dict[int, Drive] = {}
+        self.modules: dict[int, Any] = {}  # CiA 401 I/O modules (mlipcan.io401.IoModule)
         self.network = canopen.Network(bus)
         self.sync_no = 0
         self.t_last_sync: float | None = None
@@ -904,6 +905,17 @@ class DriveSim:
                     self.rec.event(d.id, "absent", why="at start")
                     continue
                 d.attach(self.network)
+            for m in self.modules.values():
+                if m.id in absent:
+                    self.rec.event(m.id, "absent", why="at start")
+                    continue
+                m.attach(self.network)
+
+    def add_module(self, node_id: int, heartbeat_ms: int) -> None:
+        """A CiA 401 I/O module on the same bus (before start())."""
+        from .io401 import IoModule
+
+        self.modules[node_id] = IoModule(self, node_id, heartbeat_ms)
 
     def _pump_frames(self) -> None:
         from .sources import Batch, MMsg, bus_socket, tune_socket
@@ -948,6 +960,9 @@ class DriveSim:
             for d in self.drives.values():
                 if d.present:
                     d.check_heartbeats(timestamp)
+            for m in self.modules.values():
+                if m.present:
+                    m.check_heartbeats(timestamp)
 
     def on_sync(self, drive: Drive, t: float) -> None:
         """Called once per drive per SYNC (canopen calls each subscriber)."""
@@ -959,6 +974,9 @@ class DriveSim:
 
     def inject(self, node: int, what: str, arg: str | None = None) -> None:
         with self.lock:
+            if node in self.modules:
+                self.modules[node].inject(what, arg)
+                return
             if node not in self.drives:
                 raise ValueError(f"no drive with node id {node}")
             self.drives[node].inject(what, arg)
@@ -979,6 +997,9 @@ class DriveSim:
                 for d in self.drives.values():
                     if d.present:
                         d.check_heartbeats(now)
+                for m in self.modules.values():
+                    if m.present:
+                        m.check_heartbeats(now)
         self.rec.flush()
 
     def stop(self) -> None:
@@ -986,6 +1007,9 @@ class DriveSim:
             for d in self.drives.values():
                 if d.present:
                     d.node.nmt.stop_heartbeat()
+            for m in self.modules.values():
+                if m.present:
+                    m.node.nmt.stop_heartbeat()
         self._stopping = True
         if self._pump is not None:
             self._pump.join(timeout=5)

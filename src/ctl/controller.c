@@ -76,6 +76,9 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	} else if (o->drives) {
 		return MLIP_E_INVALID; /* drives without frames to send them */
 	}
+	if (o->io != NULL) {
+		c->io.cfg = *o->io;
+	}
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
 	c->state = MLIP_STATE_IDLE;
 	c->drives = o->drives != 0;
@@ -299,6 +302,14 @@ static void drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	r.node = f->node;
 	r.value = f->value;
 	c->drive_faulted = 1;
+	if (c->io.estop) {
+		/* the quick stop goes on; the fault comes back after the reset */
+		if (!c->io.fault_kept) {
+			c->io.fault_kept = 1;
+			c->io.kept = r;
+		}
+		return;
+	}
 	if (mlip_planner_queued(c->planner) > 0) {
 		mlip_planner_stop(c->planner);
 		brake_begin(c);
@@ -340,6 +351,9 @@ static void brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state rs
 /* Stop: decelerate on the path and drop the rest of the program. */
 static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why)
 {
+	if (c->io.estop) {
+		return; /* stopped already, harder */
+	}
 	if (c->state == MLIP_STATE_IDLE && mlip_planner_queued(c->planner) == 0) {
 		/* nothing moving; a program already waiting in the ring (for the
 		 * drives to be enabled) is dropped, its first record too */
@@ -362,10 +376,18 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 	go(c, out, MLIP_STATE_STOPPING, reason(why, 0, 0));
 }
 
+static int32_t reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in);
+
 static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
-                             const struct mlip_ring_cmd *cmd)
+                             const struct mlip_ctl_in *in, const struct mlip_ring_cmd *cmd)
 {
 	struct mlip_planner *p = c->planner;
+	if (cmd->op == MLIP_CMD_RESET) {
+		return reset(c, out, in);
+	}
+	if (c->io.estop && (cmd->op == MLIP_CMD_HOLD || cmd->op == MLIP_CMD_RESUME)) {
+		return MLIP_E_INVALID; /* nothing to hold or resume: a reset first */
+	}
 	switch (cmd->op) {
 	case MLIP_CMD_OVERRIDE:
 		return mlip_planner_set_override(p, (double)cmd->arg);
@@ -402,6 +424,159 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		return MLIP_OK;
 	default:
 		return MLIP_E_INVALID;
+	}
+}
+
+/* ---- the inputs on the bus: E-stop, limits, hold, cycle start (issue 18) ---- */
+
+mlip_status mlip_ctl_set_output(struct mlip_ctl *c, uint32_t sub, uint32_t bit, int on)
+{
+	if (sub < 1 || sub > MLIP_IO_IN_BYTES || bit > 7) {
+		return MLIP_E_RANGE;
+	}
+	if (c->io.estop) {
+		return MLIP_OK; /* every output stays off until the reset */
+	}
+	if (on) {
+		c->io.outputs[sub - 1] |= (uint8_t)(1u << bit);
+	} else {
+		c->io.outputs[sub - 1] &= (uint8_t) ~(1u << bit);
+	}
+	return MLIP_OK;
+}
+
+/* The commanded position is where the drives are (they have no holding
+ * torque, or stop by themselves), the planner at rest there. */
+static void follow_actual(struct mlip_ctl *c, const struct mlip_ctl_in *in)
+{
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if (in->drives.actual_mask & (1u << k)) {
+			c->pos[k] = in->drives.pos_actual[k];
+		}
+	}
+	mlip_planner_abort(c->planner, c->pos);
+}
+
+/* Quick stop (E-stop, limit): with drives, controlword 0x0002 to every drive
+ * in this very period (power_period) and the planner dropped at once where
+ * they are (each drive brakes on its own quick stop ramp, 0x6085); without
+ * drives (nothing to quick stop) the planner stops on the path at the
+ * acceleration limit. The program is dropped; every output goes off. */
+static void quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
+                       uint32_t state, struct mlip_ctl_reason r)
+{
+	progress(c, &r.seq, &r.line);
+	if (c->state == MLIP_STATE_FAULT && c->why.why == MLIP_WHY_DRIVE && !c->io.fault_kept) {
+		c->io.fault_kept = 1; /* a drive fault comes back after the reset */
+		c->io.kept = c->why;
+	}
+	c->io.estop = 1;
+	if (c->drives) {
+		follow_actual(c, in);
+	} else if (mlip_planner_queued(c->planner) > 0) {
+		mlip_planner_stop(c->planner);
+	}
+	c->wait.dwell_left = 0;
+	c->wait.stopped = 0;
+	c->hold.op = 0;
+	c->hold.stall = 0;
+	c->brake.on = 0;
+	c->prog.end.seq = 0;
+	c->prog.bad = 1;     /* nothing more is taken until the reset */
+	c->prog.discard = 1; /* the rest of the program is dropped */
+	memset(c->io.outputs, 0, sizeof(c->io.outputs));
+	go(c, out, state, r);
+}
+
+/* mlip-ctl reset: leave an E-stop or a limit fault once the inputs that
+ * caused it are released (and the I/O module is back): IDLE, or the drive
+ * fault that came before. The drives' power sequence starts again from the
+ * states they are in (toward OFF; a program enables them). */
+static int32_t reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in)
+{
+	uint32_t limits = 0;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		limits |= (1u << MLIP_IN_LIMIT_NEG(k)) | (1u << MLIP_IN_LIMIT_POS(k));
+	}
+	if (!c->io.estop) {
+		return MLIP_E_INVALID; /* nothing to reset */
+	}
+	if ((in->io.active & (1u << MLIP_IN_ESTOP)) || in->io.lost.event != 0 ||
+	    ((c->io.cfg.mapped & (1u << MLIP_IN_ESTOP)) &&
+	     !(in->io.known & (1u << MLIP_IN_ESTOP)))) {
+		return MLIP_E_RANGE; /* the E-stop is still on (or cannot be read) */
+	}
+	if (c->why.why == MLIP_WHY_LIMIT && (in->io.active & limits)) {
+		return MLIP_E_RANGE; /* still on the limit switch */
+	}
+	c->io.estop = 0;
+	c->io.prev = in->io.active; /* a hold still pressed is not a new edge */
+	if (c->drives) {
+		mlip_402_seq_init(&c->power.seq, MLIP_POWER_NONE,
+		                  c->power.seq.timeout ? c->power.seq.timeout : 1000, c->period);
+	}
+	c->prog.bad = 0;
+	c->prog.discard = rx_count(c) > 0;
+	c->prog.discard_waiting = c->prog.discard;
+	if (c->io.fault_kept) {
+		c->prog.bad = 1;
+		go(c, out, MLIP_STATE_FAULT, c->io.kept);
+		return MLIP_OK;
+	}
+	go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_RESET, 0, 0));
+	return MLIP_OK;
+}
+
+/* The inputs of this period, before any command: E-stop wins over every
+ * state; a limit while moving stops everything; hold and cycle start act on
+ * their rising edge, as the commands would. */
+static void io_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
+{
+	uint32_t on = in->io.active & c->io.cfg.mapped, rise = on & ~c->io.prev;
+	struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, 0, 0);
+
+	c->io.prev = on;
+	if (in->io.lost.event != 0 && c->state != MLIP_STATE_ESTOP) {
+		r.why = MLIP_WHY_IO_LOST;
+		r.field = in->io.lost.event;
+		r.node = in->io.lost.node;
+		r.value = in->io.lost.value;
+		quick_stop(c, in, out, MLIP_STATE_ESTOP, r);
+		return;
+	}
+	if ((on & (1u << MLIP_IN_ESTOP)) && c->state != MLIP_STATE_ESTOP) {
+		r.why = MLIP_WHY_ESTOP;
+		r.field = MLIP_IN_ESTOP;
+		r.node = c->io.cfg.in[MLIP_IN_ESTOP].node;
+		r.value = (double)c->io.cfg.in[MLIP_IN_ESTOP].index;
+		quick_stop(c, in, out, MLIP_STATE_ESTOP, r);
+		return;
+	}
+	if (c->io.estop) {
+		return;
+	}
+	for (int k = 0; k < c->m.n_axes; k++) {
+		uint32_t f = MLIP_IN_LIMIT_NEG(k);
+		uint32_t hit = on & ((1u << f) | (1u << (f + 1)));
+		if (hit &&
+		    (mlip_planner_moving(c->planner) || mlip_planner_queued(c->planner) > 0)) {
+			r.why = MLIP_WHY_LIMIT;
+			r.field = (hit & (1u << f)) ? f : f + 1;
+			r.node = c->io.cfg.in[r.field].node;
+			r.value = c->pos[k];
+			quick_stop(c, in, out, MLIP_STATE_FAULT, r);
+			return;
+		}
+	}
+	if (rise & (1u << MLIP_IN_HOLD)) {
+		struct mlip_ring_cmd h = {0};
+		h.op = MLIP_CMD_HOLD;
+		apply_command(c, out, in, &h);
+	}
+	if (rise & (1u << MLIP_IN_CYCLE_START)) {
+		struct mlip_ring_cmd h = {0};
+		h.op = MLIP_CMD_RESUME;
+		apply_command(c, out, in, &h);
 	}
 }
 
@@ -516,6 +691,10 @@ static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 	int want = c->power.want;
 	struct mlip_402_change ch;
 
+	if (c->io.estop) {
+		c->power.seq.cw = MLIP_402_CW_QUICK_STOP; /* to every drive, until the reset */
+		return;
+	}
 	if (power == MLIP_POWER_OFF || power == MLIP_POWER_SWITCHING_ON) {
 		/* no holding torque: the commanded position is where the drives are */
 		for (int k = 0; k < c->m.n_axes; k++) {
@@ -561,6 +740,13 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 	struct mlip_ring_rec first, *head = &first;
 	int have = rx_peek(c, head);
 
+	if (c->io.estop) {
+		/* E-stop or limit: every program is dropped unmoved until the reset */
+		for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && rx_peek(c, head); i++) {
+			rx_pop(c);
+		}
+		return;
+	}
 	if (c->prog.discard) {
 		discard(c, in);
 		return;
@@ -801,10 +987,11 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	memcpy(s->pos, c->pos, sizeof(s->pos));
 	s->speed_mm_s = mlip_planner_speed(p);
 	s->dwell_left = c->state == MLIP_STATE_DWELLING ? c->wait.dwell_left : 0;
-	s->drive_power = c->power.seq.step;
+	s->drive_power = c->drives && c->io.estop ? MLIP_POWER_QUICK_STOP : c->power.seq.step;
 	s->drive_power_periods = (uint32_t)c->power.seq.took;
 	memcpy(s->prog_start, c->prog.start, sizeof(s->prog_start));
 	s->stop_seen = c->op.stop_seen;
+	s->io_mapped = c->io.cfg.mapped;
 }
 
 /* Still moving: a stall must freeze it. */
@@ -850,8 +1037,10 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		}
 		stalled = 1;
 	}
+	/* the inputs first: an E-stop wins over every command of this period */
+	io_period(c, in, out);
 	if (in->cmd != NULL) {
-		out->cmd_result = apply_command(c, out, in->cmd);
+		out->cmd_result = apply_command(c, out, in, in->cmd);
 	}
 	/* a stop request (the segment's counter): never behind a command */
 	if (in->stop_requests != c->op.stop_seen) {
@@ -888,7 +1077,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	}
 
 	/* one step; a pre-read or a wait does not move, nor the stall's period */
-	if (c->state == MLIP_STATE_DWELLING) {
+	if (c->io.estop && c->drives) {
+		follow_actual(c, in); /* the drives brake by themselves */
+	} else if (c->state == MLIP_STATE_DWELLING) {
 		c->wait.dwell_left--; /* >= 1 here: a wait of 0 ended in blocks_in */
 	} else if (c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_PAUSED && !stalled) {
 		double prev[MLIP_MAX_AXES];
@@ -909,8 +1100,8 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	if (c->encode) {
 		uint32_t sat = 0;
 		/* the drives' controlword, and no target to a drive faulted */
-		for (int k = 0; k < MLIP_MAX_AXES; k++) {
-			c->enc.controlword[k] = (uint16_t)c->power.seq.cw;
+		for (int k = 0; k < MLIP_MAX_AXES && c->power.seq.cw >= 0; k++) {
+			c->enc.controlword[k] = (uint16_t)c->power.seq.cw; /* -1: what was sent */
 		}
 		c->enc.rpdo_mute = in->drives.mute;
 		if (mlip_canenc_encode(&c->enc, (uint32_t)c->period, c->pos, out->frames,
@@ -927,7 +1118,10 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		c->counts.frames_encoded += (uint64_t)out->n_frames;
 	}
 	publish(c, out);
-	out->power.state = c->power.seq.step;
+	out->power.state = out->status.drive_power;
+	out->status.io_inputs = in->io.active & c->io.cfg.mapped;
+	out->status.io_known = in->io.known & c->io.cfg.mapped;
+	memcpy(out->outputs, c->io.outputs, sizeof(out->outputs));
 	out->power.ok = c->power.seq.ok;
 	out->power.late_node =
 	    c->power.seq.late >= 0 ? (uint32_t)c->m.axis[c->power.seq.late].can_node : 0;
@@ -936,11 +1130,16 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->status.actual_mask = in->drives.actual_mask;
 	memcpy(out->status.pos_actual, in->drives.pos_actual, sizeof(out->status.pos_actual));
 	/* an exit request ends once the machine is at rest */
-	out->done =
-	    c->op.exiting && !c->prog.discard &&
-	    (c->state == MLIP_STATE_IDLE ||
-	     (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0)) &&
-	    (!c->drives || c->power.seq.step == MLIP_POWER_OFF); /* and the drives disabled */
+	if (c->io.estop) {
+		/* quick stopped (the drives are not enabled), or at rest without drives */
+		out->done = c->op.exiting && (c->drives || !mlip_planner_moving(p));
+	} else {
+		out->done = c->op.exiting && !c->prog.discard &&
+		            (c->state == MLIP_STATE_IDLE ||
+		             (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0)) &&
+		            (!c->drives ||
+		             c->power.seq.step == MLIP_POWER_OFF); /* and the drives disabled */
+	}
 	out->taken = c->rx.taken;
 	out->counts = c->counts;
 	c->rx.view = NULL; /* the caller's, for this period only */

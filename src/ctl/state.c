@@ -11,7 +11,7 @@
 const char *mlip_ctl_state_name(uint32_t state)
 {
 	static const char *const names[] = {"idle",    "running", "held",     "stopping", "fault",
-	                                    "starved", "paused",  "dwelling", "pre-read"};
+	                                    "starved", "paused",  "dwelling", "pre-read", "estop"};
 
 	return NAME_OF(names, state);
 }
@@ -41,7 +41,11 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "ring corrupt",
 	                                    "position beyond the drives' range",
 	                                    "drive fault",
-	                                    "stop before the start"};
+	                                    "stop before the start",
+	                                    "E-stop input",
+	                                    "I/O module lost",
+	                                    "limit switch",
+	                                    "reset"};
 
 	return NAME_OF(names, why);
 }

@@ -118,7 +118,7 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
                                 struct mlip_config_error *err)
 {
 	static const char *const names[] = {"TRAJ",   "AXIS_X", "AXIS_Y", "AXIS_Z", "AXIS_A",
-	                                    "AXIS_B", "AXIS_C", "CAN",    "DRIVES"};
+	                                    "AXIS_B", "AXIS_C", "CAN",    "DRIVES", "IO"};
 	size_t q = p + 1, r, a, z;
 	struct mlip_tb b;
 	int sec;
@@ -167,8 +167,9 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
 			mlip_tb_puts(&b, hint);
 			mlip_tb_puts(&b, "]?)");
 		} else {
-			mlip_tb_puts(&b,
-			             " (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
+			mlip_tb_puts(
+			    &b,
+			    " (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES], [IO])");
 		}
 		return MLIP_E_SYNTAX;
 	}
@@ -192,11 +193,11 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
 static const char *home_of(const char *s, size_t n, int except_kind)
 {
 	static const char *const where[N_KINDS] = {"[TRAJ]", "an [AXIS_*] section", "[CAN]",
-	                                           "[DRIVES]"};
+	                                           "[DRIVES]", "[IO]"};
 	int kd, k;
 
 	for (kd = 0; kd < N_KINDS; kd++) {
-		for (k = 0; kd != except_kind && k < NKEYS; k++) {
+		for (k = 0; kd != except_kind && k < mlip_mc_nkeys(kd); k++) {
 			if (tok_is(s, n, mlip_mc_keytab[kd][k].name)) {
 				return where[kd];
 			}
@@ -280,6 +281,8 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 	switch (kd->type) {
 	case V_COORDS:
 		return parse_coords(ps, v, nv, line, col, err);
+	case V_IOBIT:
+		return mlip_mc_parse_iobit(v, nv, line, col, kd->name, &st->ival[k], err);
 	case V_POS:
 	case V_REAL:
 	case V_PERIOD:
@@ -414,7 +417,7 @@ static mlip_status parse_line(struct pstate *ps, const char *s, size_t n, uint32
 	const char *names[NKEYS];
 	size_t p = skip_ws(s, n, 0), k0, nk, v0, v1;
 	struct mlip_tb b;
-	int kind, k;
+	int kind, k, nkind;
 
 	if (p == n || s[p] == '#' || s[p] == ';') {
 		return MLIP_OK;
@@ -470,14 +473,15 @@ static mlip_status parse_line(struct pstate *ps, const char *s, size_t n, uint32
 		return MLIP_E_SYNTAX;
 	}
 	kind = sec_kind(ps->cur);
-	for (k = 0; k < NKEYS; k++) {
+	nkind = mlip_mc_nkeys(kind);
+	for (k = 0; k < nkind; k++) {
 		names[k] = mlip_mc_keytab[kind][k].name;
 		if (tok_is(s + k0, nk, names[k])) {
 			break;
 		}
 	}
-	if (k == NKEYS) {
-		const char *hint = mlip_mc_suggest(s + k0, nk, names, NKEYS);
+	if (k == nkind) {
+		const char *hint = mlip_mc_suggest(s + k0, nk, names, nkind);
 		const char *where = hint == NULL ? home_of(s + k0, nk, kind) : NULL;
 		err_at(err, &b, line, (uint32_t)k0 + 1);
 		mlip_tb_puts(&b, "unknown key ");
@@ -833,6 +837,9 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
 	st = check_can(&ps, &out, err);
 	if (st == MLIP_OK) {
 		st = mlip_mc_check_drives(&ps, &out, err);
+	}
+	if (st == MLIP_OK) {
+		st = mlip_mc_fill_io(&ps, &out, err);
 	}
 	if (st != MLIP_OK) {
 		return st;

@@ -20,7 +20,10 @@ const struct keydef mlip_mc_keytab[N_KINDS][NKEYS] = {
                 {"MAX_LIMIT", V_REAL, 0},
                 {"HOME", V_REAL, 0},
                 {"CAN_NODE", V_NODE, 0},
-                {"COUNTS_PER_UNIT", V_POS, 0}},
+                {"COUNTS_PER_UNIT", V_POS, 0},
+                {"LIMIT_NEG", V_IOBIT, 0},
+                {"LIMIT_POS", V_IOBIT, 0},
+                {"HOME_SWITCH", V_IOBIT, 0}},
     [K_CAN] = {{"PROFILE", V_PROFILE, 0},
                {"BITRATE", V_BITRATE, 0},
                {"DATA_BITRATE", V_DBITRATE, 0},
@@ -37,7 +40,22 @@ const struct keydef mlip_mc_keytab[N_KINDS][NKEYS] = {
                   {"SDO_TIMEOUT_MS", V_MS, 0},
                   {"BOOT_TIMEOUT_MS", V_MS, 0},
                   {"STATE_TIMEOUT_MS", V_MS, 0}},
+    [K_IO] = {{"NODE", V_NODE, 0},
+              {"ESTOP", V_IOBIT, 0},
+              {"HOLD", V_IOBIT, 0},
+              {"CYCLE_START", V_IOBIT, 0},
+              {"PROBE", V_IOBIT, 0}},
 };
+
+int mlip_mc_nkeys(int kind)
+{
+	int k = 0;
+
+	while (k < NKEYS && mlip_mc_keytab[kind][k].name != NULL) {
+		k++;
+	}
+	return k;
+}
 
 /* "TRAJ", "CAN", "AXIS_X", ... */
 void mlip_mc_secname(struct mlip_tb *b, int sec)
@@ -48,6 +66,8 @@ void mlip_mc_secname(struct mlip_tb *b, int sec)
 		mlip_tb_puts(b, "CAN");
 	} else if (sec == SEC_DRIVES) {
 		mlip_tb_puts(b, "DRIVES");
+	} else if (sec == SEC_IO) {
+		mlip_tb_puts(b, "IO");
 	} else {
 		mlip_tb_puts(b, "AXIS_");
 		mlip_tb_putc(b, AXIS_LETTERS[sec - SEC_AXIS0]);

@@ -19,19 +19,38 @@
 #include "mlip/machine/config.h"
 #include "mlip/text/format.h"
 
-#define NKEYS            8 /* keys per section kind (every kind has eight) */
+#define NKEYS            16 /* keys per section kind, at most (mlip_mc_nkeys: how many) */
 #define BITRATE_MIN      10000
 #define BITRATE_MAX      1000000  /* classical CAN, and the CAN FD arbitration phase */
 #define DATA_BITRATE_MAX 12000000 /* CAN FD data phase */
 #define LIMIT_DEFAULT    1e9      /* soft limits when not given: none, in practice */
 #define AXIS_LETTERS     "XYZABC"
 
-/* Sections by index: TRAJ, one per axis letter (XYZABC order), CAN, DRIVES. */
-enum { SEC_TRAJ = 0, SEC_AXIS0 = 1, SEC_CAN = SEC_AXIS0 + MLIP_MAX_AXES, SEC_DRIVES, N_SEC };
-enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, N_KINDS };
+/* Sections by index: TRAJ, one per axis letter (XYZABC order), CAN, DRIVES, IO. */
+enum {
+	SEC_TRAJ = 0,
+	SEC_AXIS0 = 1,
+	SEC_CAN = SEC_AXIS0 + MLIP_MAX_AXES,
+	SEC_DRIVES,
+	SEC_IO,
+	N_SEC
+};
+enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, K_IO, N_KINDS };
 
 enum { TK_COORDS, TK_VLIN, TK_VANG, TK_TOL, TK_PERIOD, TK_LUNITS, TK_AUNITS, TK_LOOKAHEAD };
-enum { AK_TYPE, AK_VEL, AK_ACC, AK_MIN, AK_MAX, AK_HOME, AK_NODE, AK_CPU };
+enum {
+	AK_TYPE,
+	AK_VEL,
+	AK_ACC,
+	AK_MIN,
+	AK_MAX,
+	AK_HOME,
+	AK_NODE,
+	AK_CPU,
+	AK_LIMIT_NEG, /* inputs (issue 18): a limit switch each way, the home switch */
+	AK_LIMIT_POS,
+	AK_HOME_SW
+};
 /* [CAN] keys in the order of enum mlip_can_key (mlip/can/canconf.h) */
 enum {
 	CK_PROFILE = MLIP_CAN_KEY_PROFILE,
@@ -44,6 +63,8 @@ enum {
 	CK_STATUS = MLIP_CAN_KEY_STATUS_ID
 };
 enum { DK_ENABLE, DK_MASTER, DK_HB, DK_HB_TIMEOUT, DK_FERR, DK_SDO, DK_BOOT, DK_STATE };
+/* [IO]: the CiA 401 module's node, then the inputs in the order of MLIP_IN_* */
+enum { IK_NODE, IK_ESTOP, IK_HOLD, IK_CYCLE_START, IK_PROBE };
 
 /* How a value is read and which single-value range it must meet. */
 enum vtype {
@@ -61,7 +82,8 @@ enum vtype {
 	V_DBITRATE,  /* integer BITRATE_MIN..DATA_BITRATE_MAX */
 	V_ID,        /* integer 0..0x7FF */
 	V_BOOL,      /* 0 | 1 */
-	V_MS         /* integer 1..65535 (CiA 301 heartbeat times are 16-bit ms) */
+	V_MS,        /* integer 1..65535 (CiA 301 heartbeat times are 16-bit ms) */
+	V_IOBIT      /* NODE INDEX:SUB BIT HIGH|LOW (io.c) */
 };
 
 struct keydef {
@@ -77,8 +99,12 @@ static inline int sec_kind(int sec)
 	return sec == SEC_TRAJ     ? K_TRAJ
 	       : sec == SEC_CAN    ? K_CAN
 	       : sec == SEC_DRIVES ? K_DRIVES
+	       : sec == SEC_IO     ? K_IO
 	                           : K_AXIS;
 }
+
+/* The keys a section kind has (the table's first entries). */
+int mlip_mc_nkeys(int kind);
 
 static inline int letter_index(char l)
 {
@@ -155,6 +181,18 @@ struct issue {
 
 mlip_status mlip_mc_check_machine(const struct mlip_machine *m, struct mlip_config_error *err,
                                   struct issue *is);
+
+/* ---- io.c ---- */
+
+/* A V_IOBIT value "NODE INDEX:SUB BIT HIGH|LOW" into *packed (mlip_mc_iobit
+ * unpacks it); errors at line, col + the token's offset. */
+mlip_status mlip_mc_parse_iobit(const char *v, size_t nv, uint32_t line, uint32_t col,
+                                const char *key, int64_t *packed, struct mlip_config_error *err);
+/* [IO] and the axes' input keys into c->io, then against the machine: every
+ * node is the module's or an axis', the object fits the node, no bit carries
+ * two functions. */
+mlip_status mlip_mc_fill_io(const struct pstate *ps, struct mlip_config *c,
+                            struct mlip_config_error *err);
 
 /* ---- drives.c ---- */
 

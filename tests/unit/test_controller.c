@@ -36,6 +36,8 @@ static struct mlip_ctl_drive_fault drv_fault;
 static uint32_t drv_actual_mask;
 static double drv_actual[MLIP_MAX_AXES];
 static uint16_t drv_sw[MLIP_MAX_AXES]; /* the statusword of each drive's TPDO */
+/* the inputs on the bus of the next period (issue 18) */
+static struct mlip_ctl_io io_in;
 /* the segment's stop counter and the feeder's stop_base (mlip/ipc/ring.h) */
 static uint32_t stop_count, feeder_base;
 /* every transition seen since setup: state entered and why */
@@ -80,6 +82,7 @@ static int setup(void **state)
 	stop_count = feeder_base = 0;
 	n_seen = 0;
 	memset(&drv_fault, 0, sizeof(drv_fault));
+	memset(&io_in, 0, sizeof(io_in));
 	drv_actual_mask = 0;
 	return 0;
 }
@@ -115,6 +118,7 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	in.drives.actual_mask = drv_actual_mask;
 	memcpy(in.drives.pos_actual, drv_actual, sizeof(in.drives.pos_actual));
 	memcpy(in.drives.sw, drv_sw, sizeof(in.drives.sw));
+	in.io = io_in;
 	memset(&drv_fault, 0, sizeof(drv_fault));
 	run_period(&in);
 	for (uint32_t i = 0; i < out.n_events; i++) {
@@ -1111,6 +1115,9 @@ static void dtick(int n)
 				drv_sw[k] = 0x0233;
 			} else if (cw == 0x06) {
 				drv_sw[k] = 0x0231;
+			} else if (cw == 0x02 && enabled) {
+				/* quick stop, option code 2: then switch on disabled */
+				drv_sw[k] = 0x0250;
 			}
 		}
 	}
@@ -1233,8 +1240,241 @@ static void test_drives_stop_while_enabling(void **st)
 	assert_true(out.pos[0] == 2.0);
 }
 
-#define T(f)  cmocka_unit_test_setup_teardown(f, setup, teardown)
-#define TD(f) cmocka_unit_test_setup_teardown(f, setup_drives, teardown)
+/* ---- the inputs on the bus: E-stop, limits, hold (issue 18) --------------- */
+
+static struct mlip_io_config io_cfg;
+
+#define BIT(f) (1u << (f))
+
+static void io_config(void)
+{
+	memset(&io_cfg, 0, sizeof(io_cfg));
+	io_cfg.node = 10;
+	io_cfg.in_bytes = 1;
+	uint32_t fs[5] = {MLIP_IN_ESTOP, MLIP_IN_HOLD, MLIP_IN_CYCLE_START, MLIP_IN_LIMIT_NEG(0),
+	                  MLIP_IN_LIMIT_POS(0)};
+	for (int i = 0; i < 5; i++) {
+		struct mlip_io_bit *b = &io_cfg.in[fs[i]];
+		b->node = 10;
+		b->index = 0x6000;
+		b->sub = 1;
+		b->bit = (uint8_t)i;
+		b->active_low = fs[i] == MLIP_IN_ESTOP;
+		io_cfg.mapped |= BIT(fs[i]);
+	}
+}
+
+static int setup_io(void **state)
+{
+	setup_drives(state);
+	io_config();
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .io = &io_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	io_in.known = io_cfg.mapped; /* every input read, all off */
+	return 0;
+}
+
+/* A long program along X, running at speed. */
+static void run_long(void)
+{
+	for (uint64_t k = 1; k <= 40; k++) {
+		move(k, 10.0 * (double)k, 0.0);
+	}
+	end(41);
+	until(MLIP_STATE_RUNNING, 5000);
+	dtick(300);
+	assert_true(status().speed_mm_s > 50.0);
+}
+
+/* The E-stop input: in that very period quick stop (0x0002) to every drive,
+ * state estop naming the input, every output off, the program dropped; the
+ * commanded position follows the drives as they brake on their own ramp. */
+static void test_estop_same_period(void **st)
+{
+	(void)st;
+	assert_int_equal(mlip_ctl_set_output(&ctl, 1, 3, 1), MLIP_OK);
+	assert_int_equal(mlip_ctl_set_output(&ctl, 9, 0, 1), MLIP_E_RANGE);
+	run_long();
+	assert_int_equal(out.outputs[0], 0x08);
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(status().reason, MLIP_WHY_ESTOP);
+	assert_int_equal(status().reason_field, MLIP_IN_ESTOP);
+	assert_int_equal(status().reason_node, 10);
+	assert_int_equal(cw_of(0), 0x0002);
+	assert_int_equal(cw_of(1), 0x0002);
+	assert_int_equal(status().drive_power, MLIP_POWER_QUICK_STOP);
+	assert_int_equal(out.outputs[0], 0);
+	assert_int_equal(status().io_inputs, BIT(MLIP_IN_ESTOP));
+	/* the drives brake by themselves: the setpoint is where they are */
+	drv_actual[0] += 0.75;
+	dtick(5);
+	assert_true(out.pos[0] == drv_actual[0]);
+	assert_int_equal(mlip_ring_count(ring), 0); /* the program dropped */
+	assert_int_equal(mlip_ctl_set_output(&ctl, 1, 3, 1), MLIP_OK);
+	dtick(1);
+	assert_int_equal(out.outputs[0], 0); /* stays off until the reset */
+	/* nothing but a reset: hold, resume refused, stop does nothing */
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_E_INVALID);
+	stop_count++;
+	dtick(3);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(cw_of(1), 0x0002);
+}
+
+/* Reset: refused while the input is on; once released, idle, the drives
+ * brought down from where the quick stop left them, and the next program
+ * enables them from where they stand and runs to its end. */
+static void test_estop_reset(void **st)
+{
+	(void)st;
+	run_long();
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	dtick(1);
+	drv_actual[0] = 123.5; /* where its quick stop ramp ended */
+	dtick(10);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_RANGE);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	io_in.known &= ~BIT(MLIP_IN_ESTOP); /* released but not read: still refused */
+	io_in.active = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_RANGE);
+	io_in.known = io_cfg.mapped;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_RESET);
+	until_power(MLIP_POWER_OFF, 20);
+	assert_true(out.pos[0] == 123.5);
+	push(1, 2);
+	move(3, 130.0, 0.0);
+	end(4);
+	until_power(MLIP_POWER_ENABLED, 20);
+	until(MLIP_STATE_IDLE, 20000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(out.pos[0] == 130.0);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_INVALID); /* nothing to reset */
+}
+
+/* E-stop wins over every state: a hold, a pause, a drive fault (which comes
+ * back after the reset: a restart clears it). */
+static void test_estop_wins(void **st)
+{
+	(void)st;
+	run_long();
+	period_cmd(MLIP_CMD_HOLD, 0, 0);
+	until(MLIP_STATE_HELD, 2000);
+	drv_fault = (struct mlip_ctl_drive_fault){MLIP_DRIVE_FOLLOWING_ERROR, 2, 4000.0};
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(cw_of(0), 0x0002);
+	io_in.active = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
+	assert_int_equal(status().reason_node, 2);
+}
+
+/* The I/O module lost (heartbeat): an E-stop, and no reset while it is. */
+static void test_io_lost(void **st)
+{
+	(void)st;
+	run_long();
+	io_in.lost = (struct mlip_ctl_drive_fault){MLIP_DRIVE_HEARTBEAT_LOST, 10, 350.0};
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(status().reason, MLIP_WHY_IO_LOST);
+	assert_int_equal(status().reason_node, 10);
+	assert_int_equal(status().reason_field, MLIP_DRIVE_HEARTBEAT_LOST);
+	assert_int_equal(cw_of(0), 0x0002);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_RANGE);
+}
+
+/* A limit input while moving: quick stop, fault naming axis and direction;
+ * at rest the same input stops nothing; reset once it is released. */
+static void test_limit(void **st)
+{
+	(void)st;
+	io_in.active = BIT(MLIP_IN_LIMIT_POS(0));
+	dtick(20);
+	assert_int_equal(status().state, MLIP_STATE_IDLE); /* not moving: nothing to stop */
+	io_in.active = 0;
+	run_long();
+	io_in.active = BIT(MLIP_IN_LIMIT_POS(0));
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_LIMIT);
+	assert_int_equal(status().reason_field, MLIP_IN_LIMIT_POS(0));
+	assert_int_equal(cw_of(0), 0x0002);
+	assert_int_equal(cw_of(1), 0x0002);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_RANGE);
+	io_in.active = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+}
+
+/* Hold and cycle start act on their rising edge, as the commands. */
+static void test_hold_cycle_start_inputs(void **st)
+{
+	(void)st;
+	run_long();
+	io_in.active = BIT(MLIP_IN_HOLD);
+	until(MLIP_STATE_HELD, 2000);
+	dtick(50);
+	io_in.active = 0;
+	dtick(50);
+	assert_int_equal(status().state, MLIP_STATE_HELD); /* releasing it is no resume */
+	io_in.active = BIT(MLIP_IN_CYCLE_START);
+	until(MLIP_STATE_RUNNING, 10);
+	io_in.active = 0;
+	until(MLIP_STATE_IDLE, 20000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+}
+
+/* Without drives (nothing to quick stop) the planner stops on the path at
+ * the acceleration limit: never faster. */
+static void test_estop_without_drives(void **st)
+{
+	(void)st;
+	io_config();
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .io = &io_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	io_in.known = io_cfg.mapped;
+	for (uint64_t k = 1; k <= 40; k++) {
+		move(k, 10.0 * (double)k, 0.0);
+	}
+	end(41);
+	until(MLIP_STATE_RUNNING, 5000);
+	tick(300);
+	double x0 = out.pos[0], v0 = status().speed_mm_s;
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	tick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	double prev = out.pos[0], v = (out.pos[0] - x0) / mach.period_s;
+	int n = 0;
+	while (status().speed_mm_s > 0.0 && n < 10000) {
+		tick(1);
+		double v1 = (out.pos[0] - prev) / mach.period_s;
+		assert_true(fabs(v1 - v) / mach.period_s <= 1000.0 * (1.0 + 1e-9) + 1e-6);
+		v = v1;
+		prev = out.pos[0];
+		n++;
+	}
+	/* braking distance v^2 / 2A, within 2 % */
+	double d = out.pos[0] - x0, want = v0 * v0 / (2.0 * 1000.0);
+	assert_true(d >= 0.98 * want && d <= 1.02 * want + 0.1);
+}
+
+#define T(f)   cmocka_unit_test_setup_teardown(f, setup, teardown)
+#define TD(f)  cmocka_unit_test_setup_teardown(f, setup_drives, teardown)
+#define TIO(f) cmocka_unit_test_setup_teardown(f, setup_io, teardown)
 
 int main(void)
 {
@@ -1270,6 +1510,13 @@ int main(void)
 	    TD(test_drives_pause_hold_then_disabled),
 	    TD(test_drives_beyond_limit_when_enabling),
 	    TD(test_drives_stop_while_enabling),
+	    TIO(test_estop_same_period),
+	    TIO(test_estop_reset),
+	    TIO(test_estop_wins),
+	    TIO(test_io_lost),
+	    TIO(test_limit),
+	    TIO(test_hold_cycle_start_inputs),
+	    TIO(test_estop_without_drives),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

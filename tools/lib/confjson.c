@@ -111,5 +111,29 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 	mlip_json_uint(&j, "boot_timeout_ms", d->boot_timeout_ms);
 	mlip_json_uint(&j, "state_timeout_ms", d->state_timeout_ms);
 	mlip_json_close(&j);
+	/* the inputs on the bus (issue 18): the module's node, each function mapped */
+	mlip_json_object(&j, "io", 0);
+	mlip_json_uint(&j, "node", c->io.node);
+	mlip_json_uint(&j, "in_bytes", c->io.in_bytes);
+	mlip_json_array(&j, "inputs", 0);
+	for (uint32_t fn = 0; fn < MLIP_IN_COUNT; fn++) {
+		const struct mlip_io_bit *b = &c->io.in[fn];
+		char name[24];
+		if (!(c->io.mapped & (1u << fn))) {
+			continue;
+		}
+		mlip_json_object(&j, NULL, 1);
+		mlip_json_string(&j, "function",
+		                 mlip_io_function_name(fn, &c->machine, name, sizeof name));
+		mlip_json_uint(&j, "index", fn);
+		mlip_json_uint(&j, "node", b->node);
+		mlip_json_uint(&j, "object", b->index);
+		mlip_json_uint(&j, "sub", b->sub);
+		mlip_json_uint(&j, "bit", b->bit);
+		mlip_json_bool(&j, "active_low", b->active_low);
+		mlip_json_close(&j);
+	}
+	mlip_json_close(&j);
+	mlip_json_close(&j);
 	mlip_json_end(&j);
 }

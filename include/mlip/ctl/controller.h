@@ -55,6 +55,15 @@
  *   any --a drive fault (in->drives.fault)--> FAULT (reason DRIVE: node, event,
  *             value; every axis stops on the path, nothing more is taken;
  *             the faulted drive's own fault reaction applies to it)
+ *   any --E-stop input, or the I/O module lost (in->io)--> ESTOP (reason
+ *             ESTOP or IO_LOST: quick stop 0x0002 to every drive in this
+ *             period, the program dropped, the planner at rest where the
+ *             drives are, every output off) --reset, input released--> IDLE
+ *             (or FAULT again when a drive fault came before or in it)
+ *   RUNNING|HELD|STOPPING|... --a limit input while moving--> FAULT (reason
+ *             LIMIT: the axis and direction; quick stop as for an E-stop)
+ *             --reset, input released--> IDLE
+ *   HELD <--hold input (rising edge)-- ; cycle start input: resume
  *
  * With CiA 402 drives (opts.drives) the controller also decides their power
  * (mlip_drive_power, mlip/ipc/ring.h), sent as the RPDOs' controlword and
@@ -88,6 +97,7 @@
 #include "mlip/can/canenc.h"
 #include "mlip/canopen/cia402.h"
 #include "mlip/ctl/state.h"
+#include "mlip/machine/config.h"
 #include "mlip/motion/planner.h"
 #include "mlip/ipc/ring.h"
 #include "mlip/types.h"
@@ -155,6 +165,16 @@ struct mlip_ctl_drives {
 	double pos_actual[MLIP_MAX_AXES];  /* position actual 0x6064, joint units */
 };
 
+/* The inputs on the bus (issue 18): rt/drives.c reads the I/O module and the
+ * drives, mlip_io_eval (mlip/canopen/io401.h) maps them to functions. */
+struct mlip_ctl_io {
+	uint32_t active;                  /* bit f: function f (MLIP_IN_*) is on */
+	uint32_t known;                   /* bit f: its input has been read (else off) */
+	struct mlip_ctl_drive_fault lost; /* the I/O module failed (event: heartbeat lost,
+	                                     EMCY, left NMT operational; node; detail): an
+	                                     E-stop; 0: fine */
+};
+
 struct mlip_ctl_in {
 	uint64_t period;                 /* 0, 1, 2, ... one per call */
 	uint32_t missed;                 /* deadlines the loop missed before this period */
@@ -173,6 +193,7 @@ struct mlip_ctl_in {
 	int exit_request;                /* stop on the path, then report done */
 	struct mlip_ctl_bus bus;         /* as of the last send */
 	struct mlip_ctl_drives drives;   /* CiA 402 drives (opts.drives) */
+	struct mlip_ctl_io io;           /* the inputs on the bus (opts.io) */
 };
 
 /* The drives' power after the period (opts.drives; the sequencer's record). */
@@ -204,6 +225,9 @@ struct mlip_ctl_out {
 	struct mlip_ctl_power power;
 	struct mlip_ctl_counts counts;
 	int done; /* an exit request has completed: at rest */
+	/* the I/O module's outputs 0x6200:1..8 (mlip_ctl_set_output; all 0 in an
+	 * E-stop): rt/drives.c sends them in its RPDO when they change */
+	uint8_t outputs[MLIP_IO_IN_BYTES];
 };
 
 struct mlip_ctl_opts {
@@ -216,6 +240,7 @@ struct mlip_ctl_opts {
 	                                      in->drives.mute */
 	uint32_t drive_state_periods;      /* a power step not confirmed this long: a timeout
 	                                      (0: 1000) */
+	const struct mlip_io_config *io;   /* the inputs' functions (NULL: none mapped) */
 };
 
 /* A record's place in the program: its seq (0: none) and source line. */
@@ -295,6 +320,15 @@ struct mlip_ctl {
 	uint64_t period, overruns;
 	struct mlip_ctl_counts counts;
 	double pos[MLIP_MAX_AXES];
+	/* the inputs on the bus and the E-stop (issue 18) */
+	struct {
+		struct mlip_io_config cfg;   /* what is mapped where */
+		uint32_t prev;               /* the functions on in the last period (edges) */
+		int estop;                   /* in an E-stop: quick stop until a reset */
+		int fault_kept;              /* a drive fault came before (or in) it: it stays */
+		struct mlip_ctl_reason kept; /* that fault's reason */
+		uint8_t outputs[MLIP_IO_IN_BYTES];
+	} io;
 	/* scratch for one period's blocks (no stack array of this size on RT) */
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];
 };
@@ -306,6 +340,12 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 
 /* One period. */
 void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out);
+
+/* Set (on != 0) or clear bit `bit` (0..7) of the I/O module's output byte
+ * 0x6200:sub (1..8), sent from the next period on (out->outputs). In an
+ * E-stop every output is off and this does nothing. MLIP_E_RANGE for a sub or
+ * bit out of range. For the controller's own use (M7/M8/M9, M64/M65). */
+mlip_status mlip_ctl_set_output(struct mlip_ctl *c, uint32_t sub, uint32_t bit, int on);
 
 /* Check one record as the controller does before taking it: MLIP_OK, or
  * MLIP_E_RANGE with *why (BAD_RECORD, field, seq, line, value). expect_seq 0:

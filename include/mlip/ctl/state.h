@@ -28,6 +28,10 @@ typedef enum {
 	                        mlip-ctl resume continues */
 	MLIP_STATE_DWELLING, /* G4: at rest for the dwell's periods */
 	MLIP_STATE_PREREAD,  /* taking a program's records before moving */
+	MLIP_STATE_ESTOP,    /* E-stop (issue 18): an E-stop input, or the I/O module lost
+	                        (heartbeat, fault): quick stop to every drive in that period,
+	                        the program dropped; left only by a reset (mlip-ctl reset)
+	                        once the input is released; wins over every other state */
 	MLIP_STATE_COUNT
 } mlip_ctl_state;
 
@@ -62,6 +66,15 @@ typedef enum {
 	MLIP_WHY_STOP_EARLY,     /* a stop came after the feeder began, before its program
 	                            started: the program is dropped unmoved (reason_seq, line:
 	                            its first record) */
+	MLIP_WHY_ESTOP,          /* an E-stop input (reason_field: the function MLIP_IN_ESTOP,
+	                            reason_node: its node, reason_value: the object's index) */
+	MLIP_WHY_IO_LOST,        /* the I/O module failed: reason_node, reason_field the event
+	                            (mlip_drive_fault: heartbeat lost, EMCY, not operational),
+	                            reason_value its detail */
+	MLIP_WHY_LIMIT,          /* a limit input while moving: state FAULT, reason_field the
+	                            function (MLIP_IN_LIMIT_NEG/POS(k): axis and direction),
+	                            reason_node its node */
+	MLIP_WHY_RESET,          /* mlip-ctl reset after an E-stop or a limit */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 

@@ -83,7 +83,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION      6u         /* bump on any change to the layout below */
+#define MLIP_RING_VERSION      7u         /* bump on any change to the layout below */
 #define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -194,7 +194,12 @@ struct mlip_ring_status {
 	                                     --start-seq) is read from there */
 	/* layout version 6 */
 	uint32_t stop_seen; /* the stop counter's value the controller has applied */
-	uint32_t spare6;
+	/* layout version 7: operating the machine (issue 18) */
+	uint32_t io_inputs; /* bit f: input function f (MLIP_IN_*, mlip/machine/config.h) is on */
+	uint32_t io_mapped; /* bit f: function f is mapped in the configuration */
+	uint32_t io_known;  /* bit f: its input has been read from the bus */
+	uint32_t homed;     /* bit k: axis k is homed */
+	uint32_t spare7;
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */
@@ -219,6 +224,7 @@ typedef enum {
 	MLIP_CMD_STOP,          /* decelerate to rest and drop the rest of the program
 	                           (in the segment: the stop counter, mlip_ring_stop_post) */
 	MLIP_CMD_OPTIONAL_STOP, /* arg 1: M1 pauses; arg 0: M1 is ignored */
+	MLIP_CMD_RESET,         /* leave estop (or a limit fault) once its input is released */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
 
