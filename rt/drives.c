@@ -807,8 +807,12 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 		if (f == MLIP_DRIVE_OK) {
 			continue;
 		}
-		/* the drive no longer follows: no more targets for it */
-		if (f != MLIP_DRIVE_FOLLOWING_ERROR && f != MLIP_DRIVE_TPDO_LOST) {
+		/* the drive no longer follows: no more targets for it. One whose
+		 * heartbeat is lost may still listen (its TPDOs may even come): it
+		 * keeps getting the stop on the path with the others, then the
+		 * disable, instead of stopping dead at once (issue 18) */
+		if (f != MLIP_DRIVE_FOLLOWING_ERROR && f != MLIP_DRIVE_TPDO_LOST &&
+		    f != MLIP_DRIVE_HEARTBEAT_LOST) {
 			ds->mute |= 1u << i;
 		}
 		if (!__atomic_load_n(&ds->fault, __ATOMIC_ACQUIRE)) {
