@@ -45,6 +45,10 @@ static void usage(FILE *f)
 	    "  stop             decelerate to rest on the path, drop the rest of the program\n"
 	    "  optional-stop on|off  M1 pauses the program (on) or is passed (off)\n"
 	    "  reset            leave an E-stop or a limit stop once its input is released\n"
+	    "  jog AXIS+|AXIS- SPEED [SECONDS]  continuous jog at SPEED mm/min (deg/min),\n"
+	    "                   until SECONDS pass or a signal (Ctrl-C, a dropped session),\n"
+	    "                   then a stop at the acceleration limit; it stops by itself\n"
+	    "                   250 ms after mlip-ctl stops renewing it (killed)\n"
 	    "  status [--json]  controller and feeder state (--json: one object on stdout)\n"
 	    "  -                commands from standard input, one per line, each answered\n"
 	    "                   (on stdout, or stderr when refused) before the next is read\n\n"
@@ -623,6 +627,143 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 }
 
 /* Commands with an argument word after them. */
+/* ---- jog (issue 18) --------------------------------------------------------- */
+
+static volatile sig_atomic_t jog_signal;
+
+static void on_jog_signal(int sig)
+{
+	jog_signal = sig;
+}
+
+/* Post a command and wait for its result (1 s each): 0 with *result, or -1. */
+static int post_wait(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg, int32_t *result)
+{
+	uint32_t seq = 0;
+	uint64_t t0 = mlip_now_ns();
+	mlip_status rc;
+	while ((rc = mlip_ring_cmd_post(s->ring, op, arg, &seq)) == MLIP_E_FULL &&
+	       mlip_now_ns() - t0 < (uint64_t)WAIT_NS) {
+		sleep_ns(POLL_NS);
+	}
+	if (rc != MLIP_OK) {
+		return -1;
+	}
+	t0 = mlip_now_ns();
+	while ((rc = mlip_ring_cmd_result(s->ring, seq, result)) != MLIP_OK) {
+		if (rc == MLIP_E_RANGE || mlip_now_ns() - t0 >= (uint64_t)WAIT_NS) {
+			return -1;
+		}
+		sleep_ns(POLL_NS);
+	}
+	return 0;
+}
+
+/* jog X+|X- SPEED [SECONDS]: a continuous jog at SPEED mm/min (deg/min),
+ * renewed every 100 ms (the controller stops one not renewed within
+ * MLIP_JOG_DEADMAN_S) until SECONDS pass, a signal comes (SIGINT, SIGTERM,
+ * SIGHUP: a dropped ssh session), or the axis reaches its soft limit; then
+ * released: a stop on the path at the acceleration limit. */
+static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const char *secs)
+{
+	struct mlip_machine m;
+	struct mlip_ring_status st;
+	double v = 0.0, dur = -1.0;
+	int axis = -1, neg;
+	int32_t result;
+	size_t n = dir != NULL ? strlen(dir) : 0;
+
+	mlip_ring_machine(s->ring, &m);
+	for (int k = 0; k < m.n_axes && n == 2; k++) {
+		if (dir[0] == m.axis[k].letter || dir[0] == m.axis[k].letter + ('a' - 'A')) {
+			axis = k;
+		}
+	}
+	if (n != 2 || (dir[1] != '+' && dir[1] != '-') || axis < 0) {
+		fprintf(stderr,
+		        PROG ": jog: '%s' is not an axis of this machine and a direction "
+		             "(e.g. X+ or Z-)\n",
+		        dir != NULL ? dir : "");
+		return EXIT_USAGE;
+	}
+	neg = dir[1] == '-';
+	if (speed == NULL || mlip_cli_number(speed, &v) != 0 || !(v >= 1.0) ||
+	    v > (double)MLIP_JOG_SPEED_MAX) {
+		fprintf(stderr,
+		        PROG ": jog: the speed must be a number of mm/min (deg/min) in 1..%u, "
+		             "got '%s'\n",
+		        MLIP_JOG_SPEED_MAX, speed != NULL ? speed : "");
+		return EXIT_USAGE;
+	}
+	if (secs != NULL && (mlip_cli_number(secs, &dur) != 0 || !(dur > 0.0) || dur > 86400.0)) {
+		fprintf(stderr, PROG ": jog: SECONDS must be in (0, 86400], got '%s'\n", secs);
+		return EXIT_USAGE;
+	}
+	int32_t arg = MLIP_JOG_ARG(axis, neg, (uint32_t)(v + 0.5)),
+	        stop = MLIP_JOG_ARG(axis, neg, 0);
+	mlip_cli_on_stop_signals(on_jog_signal);
+	if (post_wait(s, MLIP_CMD_JOG, arg, &result) != 0) {
+		fprintf(stderr, PROG ": jog: no answer from the controller on %s within 1 s\n",
+		        s->name);
+		return EXIT_FAIL;
+	}
+	if (result != MLIP_OK) {
+		read_status(s->ring, &st);
+		if (result == MLIP_E_RANGE) {
+			fprintf(
+			    stderr,
+			    PROG
+			    ": jog %s: refused: %c is at %.4f, at or beyond its soft limit %s %g "
+			    "(Grbl error 15: jog target exceeds machine travel)\n",
+			    dir, m.axis[axis].letter, st.pos[axis], neg ? "MIN_LIMIT" : "MAX_LIMIT",
+			    neg ? m.axis[axis].min_limit : m.axis[axis].max_limit);
+		} else {
+			fprintf(stderr,
+			        PROG ": jog %s: refused: the controller is %s (%s), not idle\n",
+			        dir, mlip_ctl_state_name(st.state), mlip_state_why_name(st.reason));
+		}
+		return EXIT_FAIL;
+	}
+	printf("jog %s at %.0f mm/min: started (renewed every 100 ms; Ctrl-C stops it)\n", dir, v);
+	fflush(stdout);
+	uint64_t t0 = mlip_now_ns();
+	int rc = EXIT_DONE;
+	for (;;) {
+		sleep_ns(100000000L);
+		if (jog_signal || (dur > 0.0 && (double)(mlip_now_ns() - t0) * 1e-9 >= dur)) {
+			break;
+		}
+		if (read_status(s->ring, &st) != 0 || st.state != MLIP_STATE_JOGGING) {
+			break; /* it ended (at the soft limit, a stop, an E-stop, a fault) */
+		}
+		if (post_wait(s, MLIP_CMD_JOG, arg, &result) != 0 || result != MLIP_OK) {
+			break;
+		}
+	}
+	post_wait(s, MLIP_CMD_JOG, stop, &result); /* released: a stop at the acceleration limit */
+	uint64_t t1 = mlip_now_ns();
+	while (read_status(s->ring, &st) == 0 && st.state == MLIP_STATE_JOGGING &&
+	       mlip_now_ns() - t1 < 10ull * (uint64_t)WAIT_NS) {
+		sleep_ns(5 * POLL_NS);
+	}
+	if (st.state == MLIP_STATE_IDLE) {
+		printf("jog %s: at rest at %c %.4f (%s%s)", dir, m.axis[axis].letter, st.pos[axis],
+		       mlip_state_why_name(st.reason), jog_signal ? ", on " : "");
+		if (jog_signal) {
+			printf("%s", mlip_cli_signal_name(jog_signal));
+		}
+		if (st.reason == MLIP_WHY_JOG_RELEASED || st.reason == MLIP_WHY_JOG_DEADMAN) {
+			printf("; %.3f mm from the release to rest", (double)st.stop_nm * 1e-6);
+		}
+		printf(")\n");
+	} else {
+		fprintf(stderr, PROG ": jog %s: ended %s (%s)\n", dir,
+		        mlip_ctl_state_name(st.state), mlip_state_why_name(st.reason));
+		rc = EXIT_FAIL;
+	}
+	return rc;
+}
+
 static int op_takes_arg(const char *cmd)
 {
 	return strcmp(cmd, "override") == 0 || strcmp(cmd, "optional-stop") == 0;
@@ -751,7 +892,7 @@ int main(int argc, char **argv)
 	                                     {"json", no_argument, 0, 'j'},
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
-	const char *shm = MLIP_SHM_DEFAULT, *cmd;
+	const char *shm = MLIP_SHM_DEFAULT, *cmd, *jog_args[3] = {NULL, NULL, NULL};
 	mlip_ring_cmd_op op = MLIP_CMD_NONE;
 	int32_t arg = 0;
 	int json = 0, c, i, rc;
@@ -780,7 +921,15 @@ int main(int argc, char **argv)
 		return EXIT_USAGE;
 	}
 	cmd = argv[optind++];
-	if (strcmp(cmd, "status") == 0) {
+	if (strcmp(cmd, "jog") == 0) {
+		if (argc - optind < 2 || argc - optind > 3) {
+			fprintf(stderr, PROG ": jog: expected AXIS+|AXIS- SPEED [SECONDS]\n");
+			return EXIT_USAGE;
+		}
+		for (i = 0; i < 3 && optind < argc; i++) {
+			jog_args[i] = argv[optind++];
+		}
+	} else if (strcmp(cmd, "status") == 0) {
 		for (i = optind; i < argc; i++) {
 			if (strcmp(argv[i], "--json") != 0) {
 				fprintf(stderr, PROG ": status: unexpected '%s' (only --json)\n",
@@ -817,7 +966,9 @@ int main(int argc, char **argv)
 		}
 		return EXIT_USAGE;
 	}
-	if (strcmp(cmd, "-") == 0) {
+	if (strcmp(cmd, "jog") == 0) {
+		rc = cmd_jog(&s, jog_args[0], jog_args[1], jog_args[2]);
+	} else if (strcmp(cmd, "-") == 0) {
 		rc = cmd_stdin(&s);
 	} else {
 		rc = op == MLIP_CMD_NONE ? cmd_status(&s, json) : cmd_send(&s, op, arg);

@@ -80,6 +80,7 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 		c->io.cfg = *o->io;
 	}
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
+	c->jog.deadman = (uint64_t)floor(MLIP_JOG_DEADMAN_S / m->period_s + 1e-9);
 	c->state = MLIP_STATE_IDLE;
 	c->drives = o->drives != 0;
 	/* enabled by the bring-up */
@@ -287,6 +288,7 @@ static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 /* ---- stops -------------------------------------------------------------- */
 
 static void brake_begin(struct mlip_ctl *c);
+static void jog_release(struct mlip_ctl *c, uint32_t why);
 
 /* A CiA 402 drive faulted (rt/drives.c's supervision): never go on blind.
  * Every axis stops on the path (the planner's stop: the other drives follow
@@ -302,6 +304,7 @@ static void drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	r.node = f->node;
 	r.value = f->value;
 	c->drive_faulted = 1;
+	c->jog.on = 0;
 	if (c->io.estop) {
 		/* the quick stop goes on; the fault comes back after the reset */
 		if (!c->io.fault_kept) {
@@ -354,6 +357,12 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 	if (c->io.estop) {
 		return; /* stopped already, harder */
 	}
+	if (c->jog.on) {
+		jog_release(c, MLIP_WHY_JOG_RELEASED); /* a stop ends a jog on the path */
+		if (why != MLIP_WHY_EXIT) {
+			return;
+		}
+	}
 	if (c->state == MLIP_STATE_IDLE && mlip_planner_queued(c->planner) == 0) {
 		/* nothing moving; a program already waiting in the ring (for the
 		 * drives to be enabled) is dropped, its first record too */
@@ -377,6 +386,7 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 }
 
 static int32_t reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in);
+static int32_t jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
 
 static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
                              const struct mlip_ctl_in *in, const struct mlip_ring_cmd *cmd)
@@ -384,6 +394,13 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	struct mlip_planner *p = c->planner;
 	if (cmd->op == MLIP_CMD_RESET) {
 		return reset(c, out, in);
+	}
+	if (cmd->op == MLIP_CMD_JOG) {
+		return jog_command(c, out, cmd->arg);
+	}
+	if (cmd->op == MLIP_CMD_HOLD && c->jog.on) {
+		jog_release(c, MLIP_WHY_JOG_RELEASED); /* Grbl: a hold cancels a jog */
+		return MLIP_OK;
 	}
 	if (c->io.estop && (cmd->op == MLIP_CMD_HOLD || cmd->op == MLIP_CMD_RESUME)) {
 		return MLIP_E_INVALID; /* nothing to hold or resume: a reset first */
@@ -424,6 +441,124 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		return MLIP_OK;
 	default:
 		return MLIP_E_INVALID;
+	}
+}
+
+/* ---- continuous jog (issue 18) -------------------------------------------- */
+
+/* The jog ends braking on the path at the acceleration limit (the planner's
+ * stop), the reason kept for the state it ends in. */
+static void jog_release(struct mlip_ctl *c, uint32_t why)
+{
+	if (!c->jog.on || c->jog.stopping) {
+		return;
+	}
+	c->jog.end_why = why;
+	if (!c->jog.moving) {
+		c->jog.on = 0; /* still waiting for the drives: nothing moved */
+		return;
+	}
+	c->jog.stopping = 1;
+	mlip_planner_stop(c->planner);
+	brake_begin(c);
+}
+
+/* The axis' end in the jog's direction: its soft limit, and never beyond
+ * what the drives' int32 counts can carry. */
+static double jog_end(const struct mlip_ctl *c)
+{
+	const struct mlip_axis *a = &c->m.axis[c->jog.axis];
+	double range = a->counts_per_unit > 0.0 ? 2147483000.0 / a->counts_per_unit : 1e9;
+	double end = c->jog.neg ? a->min_limit : a->max_limit;
+	return end > range ? range : end < -range ? -range : end;
+}
+
+/* Drives enabled (or none): the jog's block, from where the machine is to the
+ * soft limit, at the jog's speed: the planner plans it to rest there, so the
+ * jog stops exactly at the limit. */
+static void jog_start(struct mlip_ctl *c, struct mlip_ctl_out *out)
+{
+	struct mlip_block b;
+	memset(&b, 0, sizeof(b));
+	memcpy(b.target, c->pos, sizeof(b.target));
+	b.target[c->jog.axis] = jog_end(c);
+	b.feed_mm_s = c->jog.speed;
+	b.tol_mm = c->m.tolerance_mm;
+	b.kind = MLIP_BLOCK_MOVE;
+	if (mlip_planner_push(c->planner, &b) != MLIP_OK) {
+		c->jog.on = 0; /* the planner is not at rest: nothing moves */
+		go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_JOG_RELEASED, 0, 0));
+		return;
+	}
+	c->jog.moving = 1;
+}
+
+/* MLIP_CMD_JOG: start, renew or release. MLIP_E_RANGE: an axis not in the
+ * machine, or no room toward the soft limit (Grbl's error 15: the jog
+ * would leave the machine's travel); MLIP_E_INVALID: not at rest and idle
+ * (a program, a stop, a fault, an E-stop), or another jog moving. */
+static int32_t jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg)
+{
+	uint32_t u = (uint32_t)arg, axis = u & 7u, mm_min = (u >> 4) & 0xFFFFFu;
+	int neg = (u & 8u) != 0;
+	if ((int)axis >= c->m.n_axes) {
+		return MLIP_E_RANGE;
+	}
+	if (mm_min == 0) {
+		if (c->jog.on && axis == c->jog.axis) {
+			jog_release(c, MLIP_WHY_JOG_RELEASED);
+		}
+		return MLIP_OK; /* a release after the end is no error */
+	}
+	if (c->jog.on) {
+		if (axis != c->jog.axis || neg != c->jog.neg || c->jog.stopping) {
+			return MLIP_E_INVALID; /* one jog at a time: release it first */
+		}
+		c->jog.renewed = c->period;
+		return MLIP_OK;
+	}
+	if (c->state != MLIP_STATE_IDLE || c->io.estop || mlip_planner_queued(c->planner) > 0 ||
+	    rx_count(c) > 0) {
+		return MLIP_E_INVALID;
+	}
+	c->jog.axis = axis;
+	c->jog.neg = neg;
+	double end = jog_end(c), here = c->pos[axis];
+	if (neg ? !(end < here) : !(end > here)) {
+		return MLIP_E_RANGE; /* at (or beyond) the soft limit that way already */
+	}
+	c->jog.on = 1;
+	c->jog.moving = 0;
+	c->jog.stopping = 0;
+	c->jog.speed = (double)mm_min / 60.0;
+	c->jog.renewed = c->period;
+	c->jog.end_why = MLIP_WHY_JOG_END;
+	struct mlip_ctl_reason r = reason(MLIP_WHY_JOG, 0, 0);
+	r.field = axis;
+	r.value = neg ? -c->jog.speed : c->jog.speed;
+	go(c, out, MLIP_STATE_JOGGING, r);
+	return MLIP_OK;
+}
+
+/* Each period of a jog: start once the drives are enabled, stop when not
+ * renewed. */
+static void jog_period(struct mlip_ctl *c, struct mlip_ctl_out *out)
+{
+	if (!c->jog.on) {
+		return;
+	}
+	if (!c->jog.moving) {
+		if (!c->drives || c->power.seq.step == MLIP_POWER_ENABLED) {
+			jog_start(c, out);
+		} else {
+			c->power.want = 1; /* enable the drives first, from where they are */
+		}
+	}
+	if (c->period - c->jog.renewed > c->jog.deadman) {
+		jog_release(c, MLIP_WHY_JOG_DEADMAN);
+	}
+	if (!c->jog.on && c->state == MLIP_STATE_JOGGING) {
+		go(c, out, MLIP_STATE_IDLE, reason(c->jog.end_why, 0, 0)); /* never moved */
 	}
 }
 
@@ -471,6 +606,7 @@ static void quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 		c->io.kept = c->why;
 	}
 	c->io.estop = 1;
+	c->jog.on = 0;
 	if (c->drives) {
 		follow_actual(c, in);
 	} else if (mlip_planner_queued(c->planner) > 0) {
@@ -942,6 +1078,13 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 			go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
 		}
 		return;
+	case MLIP_STATE_JOGGING:
+		if (rs == MLIP_RUN_IDLE && c->jog.moving) {
+			c->jog.on = 0;
+			c->jog.moving = 0;
+			go(c, out, MLIP_STATE_IDLE, reason(c->jog.end_why, 0, 0));
+		}
+		return;
 	case MLIP_STATE_STOPPING:
 		if (rs == MLIP_RUN_IDLE) {
 			if (!c->wait.stopped) {
@@ -1067,6 +1210,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		drive_fault(c, out, &in->drives.fault);
 	}
 
+	jog_period(c, out);
 	blocks_in(c, in, out);
 	if (c->rx.corrupt && !c->prog.bad) {
 		struct mlip_ctl_reason r = reason(MLIP_WHY_RING_CORRUPT, c->prog.next_seq, 0);

@@ -10,8 +10,9 @@
 
 const char *mlip_ctl_state_name(uint32_t state)
 {
-	static const char *const names[] = {"idle",    "running", "held",     "stopping", "fault",
-	                                    "starved", "paused",  "dwelling", "pre-read", "estop"};
+	static const char *const names[] = {"idle",     "running", "held",   "stopping",
+	                                    "fault",    "starved", "paused", "dwelling",
+	                                    "pre-read", "estop",   "jog"};
 
 	return NAME_OF(names, state);
 }
@@ -45,7 +46,11 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "E-stop input",
 	                                    "I/O module lost",
 	                                    "limit switch",
-	                                    "reset"};
+	                                    "reset",
+	                                    "jog",
+	                                    "jog released",
+	                                    "jog not renewed",
+	                                    "jog at the soft limit"};
 
 	return NAME_OF(names, why);
 }

@@ -1472,6 +1472,157 @@ static void test_estop_without_drives(void **st)
 	assert_true(d >= 0.98 * want && d <= 1.02 * want + 0.1);
 }
 
+/* ---- continuous jog (issue 18) -------------------------------------------- */
+
+static int32_t jog(uint32_t axis, int neg, uint32_t mm_min)
+{
+	return period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(axis, neg, mm_min), 0);
+}
+
+/* n periods renewing the jog every `every` periods (0: never); the largest
+ * |a| of axis k's setpoints; *v_last: its speed, carried between calls. */
+static double jog_ticks(int n, int every, uint32_t axis, int neg, uint32_t mm_min, int k,
+                        double *v_last)
+{
+	double amax = 0.0, prev = out.pos[k], v = *v_last;
+	for (int i = 0; i < n; i++) {
+		if (every > 0 && i % every == every - 1 && status().state == MLIP_STATE_JOGGING) {
+			assert_int_equal(jog(axis, neg, mm_min), MLIP_OK);
+		} else {
+			tick(1);
+		}
+		double v1 = (out.pos[k] - prev) / mach.period_s;
+		double a = fabs(v1 - v) / mach.period_s;
+		amax = a > amax ? a : amax;
+		v = v1;
+		prev = out.pos[k];
+	}
+	*v_last = v;
+	return amax;
+}
+
+/* Released: a stop on the path at the acceleration limit, v^2 / 2A long. */
+static void test_jog_release(void **st)
+{
+	(void)st;
+	double v = 0.0;
+	assert_int_equal(jog(0, 0, 6000), MLIP_OK); /* X+ at 100 mm/s */
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	assert_int_equal(status().reason, MLIP_WHY_JOG);
+	v = out.pos[0] / mach.period_s; /* its first period: from 0 */
+	double amax = jog_ticks(1000, 100, 0, 0, 6000, 0, &v);
+	assert_true(fabs(v - 100.0) < 1e-6);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	double x0 = out.pos[0];
+	assert_int_equal(jog(0, 0, 0), MLIP_OK); /* released */
+	double v_rel = (out.pos[0] - x0) / mach.period_s;
+	assert_true(fabs(v_rel - v) / mach.period_s <= 1000.0 * (1.0 + 1e-9));
+	v = v_rel;
+	amax = jog_ticks(200, 0, 0, 0, 0, 0, &v);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_RELEASED);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	double d = out.pos[0] - x0, want = 100.0 * 100.0 / (2.0 * 1000.0); /* 5 mm */
+	/* the planner brakes a margin below A: a little longer, never shorter */
+	print_message("jog released at 100 mm/s: %.4f mm to rest, v^2/2A = %.4f mm\n", d, want);
+	assert_true(d >= want * 0.999 && d <= want * 1.03);
+	assert_true(status().stop_nm > 0);
+	assert_true(out.pos[1] == 0.0);
+}
+
+/* Not renewed: the stop begins MLIP_JOG_DEADMAN_S after the last renewal
+ * (250 periods of 1 ms), at the acceleration limit. */
+static void test_jog_deadman(void **st)
+{
+	(void)st;
+	double v = 0.0;
+	assert_int_equal(jog(1, 1, 3000), MLIP_OK); /* Y- at 50 mm/s */
+	jog_ticks(500, 50, 1, 1, 3000, 1, &v);
+	assert_true(fabs(v + 50.0) < 1e-6);
+	/* the last renewal was the last period: silence from now on */
+	jog_ticks(250, 0, 1, 1, 0, 1, &v);
+	assert_true(fabs(v + 50.0) < 1e-6); /* still at speed for 250 periods */
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	double y0 = out.pos[1];
+	double amax = jog_ticks(2, 0, 1, 1, 0, 1, &v);
+	assert_true(v > -50.0 + 1e-9); /* braking */
+	amax = fmax(amax, jog_ticks(200, 0, 1, 1, 0, 1, &v));
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_DEADMAN);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	double d = y0 - out.pos[1], want = 50.0 * 50.0 / 2000.0;
+	print_message("jog not renewed at 50 mm/s: %.4f mm to rest, v^2/2A = %.4f mm\n", d, want);
+	assert_true(d >= want * 0.99 && d <= want * 1.05);
+}
+
+/* Toward a soft limit: it stops exactly at the limit; a jog further that way
+ * is refused (Grbl's error 15: the target lies beyond the travel). */
+static void test_jog_soft_limit(void **st)
+{
+	(void)st;
+	mach.axis[0].max_limit = 20.0;
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	double v = 0.0;
+	assert_int_equal(jog(0, 0, 6000), MLIP_OK);
+	jog_ticks(1000, 100, 0, 0, 6000, 0, &v);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_END);
+	assert_true(out.pos[0] == 20.0);
+	assert_int_equal(jog(0, 0, 6000), MLIP_E_RANGE);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(jog(0, 1, 600), MLIP_OK); /* away from it: fine */
+	assert_int_equal(jog(0, 1, 0), MLIP_OK);
+	until(MLIP_STATE_IDLE, 1000);
+	assert_true(out.pos[0] < 20.0);
+}
+
+/* Refused: an axis not in the machine, a jog during a program, a second
+ * axis during a jog; a hold ends a jog. */
+static void test_jog_refused(void **st)
+{
+	(void)st;
+	assert_int_equal(jog(2, 0, 600), MLIP_E_RANGE); /* a 2-axis machine */
+	assert_int_equal(jog(7, 0, 600), MLIP_E_RANGE);
+	push(1, 5);
+	end(6);
+	until(MLIP_STATE_RUNNING, 100);
+	assert_int_equal(jog(0, 0, 600), MLIP_E_INVALID);
+	until(MLIP_STATE_IDLE, 20000);
+	assert_int_equal(jog(0, 0, 600), MLIP_OK);
+	assert_int_equal(jog(1, 0, 600), MLIP_E_INVALID);
+	assert_int_equal(jog(0, 1, 600), MLIP_E_INVALID);
+	assert_int_equal(jog(0, 0, 600), MLIP_OK); /* the renewal */
+	period_cmd(MLIP_CMD_HOLD, 0, 0);           /* a hold cancels a jog */
+	until(MLIP_STATE_IDLE, 1000);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_RELEASED);
+}
+
+/* With drives switched off after a program: the jog enables them first, from
+ * where they stand, then moves; at rest after it they go off again. */
+static void test_jog_drives(void **st)
+{
+	(void)st;
+	push(1, 2);
+	end(3);
+	until(MLIP_STATE_IDLE, 5000);
+	until_power(MLIP_POWER_OFF, 20);
+	assert_int_equal(jog(0, 0, 600), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	until_power(MLIP_POWER_ENABLED, 20);
+	for (int i = 0; i < 10; i++) {
+		assert_int_equal(jog(0, 0, 600), MLIP_OK);
+		dtick(99);
+	}
+	assert_true(out.pos[0] > 2.0 + 9.0 && out.pos[0] < 2.0 + 10.1);
+	assert_int_equal(jog(0, 0, 0), MLIP_OK);
+	for (int i = 0; i < 200 && status().state != MLIP_STATE_IDLE; i++) {
+		dtick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	until_power(MLIP_POWER_OFF, 20);
+}
+
 #define T(f)   cmocka_unit_test_setup_teardown(f, setup, teardown)
 #define TD(f)  cmocka_unit_test_setup_teardown(f, setup_drives, teardown)
 #define TIO(f) cmocka_unit_test_setup_teardown(f, setup_io, teardown)
@@ -1517,6 +1668,11 @@ int main(void)
 	    TIO(test_limit),
 	    TIO(test_hold_cycle_start_inputs),
 	    TIO(test_estop_without_drives),
+	    T(test_jog_release),
+	    T(test_jog_deadman),
+	    T(test_jog_soft_limit),
+	    T(test_jog_refused),
+	    TD(test_jog_drives),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

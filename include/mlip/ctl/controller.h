@@ -60,6 +60,11 @@
  *             period, the program dropped, the planner at rest where the
  *             drives are, every output off) --reset, input released--> IDLE
  *             (or FAULT again when a drive fault came before or in it)
+ *   IDLE --jog command (MLIP_CMD_JOG: axis, direction, speed)--> JOGGING
+ *             (drives enabled first) toward the soft limit at that speed
+ *             through the planner; --released (speed 0), hold, or not renewed
+ *             within MLIP_JOG_DEADMAN_S--> braking at the acceleration limit
+ *             --at rest--> IDLE (reason JOG_RELEASED, JOG_DEADMAN, JOG_END)
  *   RUNNING|HELD|STOPPING|... --a limit input while moving--> FAULT (reason
  *             LIMIT: the axis and direction; quick stop as for an E-stop)
  *             --reset, input released--> IDLE
@@ -329,6 +334,18 @@ struct mlip_ctl {
 		struct mlip_ctl_reason kept; /* that fault's reason */
 		uint8_t outputs[MLIP_IO_IN_BYTES];
 	} io;
+	/* a continuous jog (MLIP_CMD_JOG) */
+	struct {
+		int on;           /* jogging (or waiting for the drives to be enabled) */
+		int moving;       /* its block is in the planner */
+		int stopping;     /* released or not renewed: braking on the path */
+		uint32_t axis;    /* machine axis index */
+		int neg;          /* toward MIN_LIMIT */
+		double speed;     /* mm/s or deg/s */
+		uint64_t renewed; /* the period of its last command */
+		uint64_t deadman; /* periods without a renewal that stop it */
+		uint32_t end_why; /* the reason it stopped (mlip_state_why) */
+	} jog;
 	/* scratch for one period's blocks (no stack array of this size on RT) */
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];
 };

@@ -32,6 +32,8 @@ typedef enum {
 	                        (heartbeat, fault): quick stop to every drive in that period,
 	                        the program dropped; left only by a reset (mlip-ctl reset)
 	                        once the input is released; wins over every other state */
+	MLIP_STATE_JOGGING,  /* a continuous jog (mlip-ctl jog): one axis toward its soft
+	                        limit at the jog's speed through the planner, while renewed */
 	MLIP_STATE_COUNT
 } mlip_ctl_state;
 
@@ -75,6 +77,11 @@ typedef enum {
 	                            function (MLIP_IN_LIMIT_NEG/POS(k): axis and direction),
 	                            reason_node its node */
 	MLIP_WHY_RESET,          /* mlip-ctl reset after an E-stop or a limit */
+	MLIP_WHY_JOG,            /* a jog started (reason_field: the axis, reason_value: the
+	                            speed, mm/s or deg/s, negative toward MIN_LIMIT) */
+	MLIP_WHY_JOG_RELEASED,   /* its client stopped it: at rest at the acceleration limit */
+	MLIP_WHY_JOG_DEADMAN,    /* its client stopped renewing it (MLIP_JOG_DEADMAN_S) */
+	MLIP_WHY_JOG_END,        /* at rest at the soft limit it was heading to */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 
