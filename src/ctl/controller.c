@@ -79,6 +79,12 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	if (o->io != NULL) {
 		c->io.cfg = *o->io;
 	}
+	if (o->home != NULL) {
+		c->home.cfg = *o->home;
+		for (int k = 0; k < m->n_axes; k++) {
+			c->home.configured |= o->home->axis[k].configured ? 1u << k : 0u;
+		}
+	}
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
 	c->jog.deadman = (uint64_t)floor(MLIP_JOG_DEADMAN_S / m->period_s + 1e-9);
 	c->state = MLIP_STATE_IDLE;
@@ -289,6 +295,7 @@ static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 
 static void brake_begin(struct mlip_ctl *c);
 static void jog_release(struct mlip_ctl *c, uint32_t why);
+static void home_abort(struct mlip_ctl *c);
 
 /* A CiA 402 drive faulted (rt/drives.c's supervision): never go on blind.
  * Every axis stops on the path (the planner's stop: the other drives follow
@@ -305,6 +312,12 @@ static void drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	r.value = f->value;
 	c->drive_faulted = 1;
 	c->jog.on = 0;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if ((uint32_t)c->m.axis[k].can_node == f->node) {
+			c->home.homed &= ~(1u << k); /* a faulted drive may have lost its position */
+		}
+	}
+	home_abort(c);
 	if (c->io.estop) {
 		/* the quick stop goes on; the fault comes back after the reset */
 		if (!c->io.fault_kept) {
@@ -357,6 +370,15 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 	if (c->io.estop) {
 		return; /* stopped already, harder */
 	}
+	if (c->home.on) {
+		home_abort(c); /* the drives move by themselves: back to CSP, then idle */
+		if (c->home.on) {
+			c->home.stop_why = why;
+		} else if (c->state == MLIP_STATE_HOMING) {
+			go(c, out, MLIP_STATE_IDLE, reason(why, 0, 0));
+		}
+		return;
+	}
 	if (c->jog.on) {
 		jog_release(c, MLIP_WHY_JOG_RELEASED); /* a stop ends a jog on the path */
 		if (why != MLIP_WHY_EXIT) {
@@ -387,6 +409,9 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 
 static int32_t reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in);
 static int32_t jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
+static int32_t home_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
+static void quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
+                       uint32_t state, struct mlip_ctl_reason r);
 
 static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
                              const struct mlip_ctl_in *in, const struct mlip_ring_cmd *cmd)
@@ -397,6 +422,9 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	}
 	if (cmd->op == MLIP_CMD_JOG) {
 		return jog_command(c, out, cmd->arg);
+	}
+	if (cmd->op == MLIP_CMD_HOME) {
+		return home_command(c, out, cmd->arg);
 	}
 	if (cmd->op == MLIP_CMD_HOLD && c->jog.on) {
 		jog_release(c, MLIP_WHY_JOG_RELEASED); /* Grbl: a hold cancels a jog */
@@ -562,6 +590,319 @@ static void jog_period(struct mlip_ctl *c, struct mlip_ctl_out *out)
 	}
 }
 
+/* ---- homing with the drives' homing mode (issue 18, CiA 402 mode 6) ------- */
+
+enum { HS_ENABLE = 1, HS_SETUP, HS_ARM, HS_RUN, HS_BACK, HS_NEXT };
+
+#define SW_TARGET_REACHED 0x0400u /* statusword bit 10 */
+#define SW_HOMING_DONE    0x1000u /* bit 12 in mode 6: homing attained */
+#define SW_HOMING_ERROR   0x2000u /* bit 13 in mode 6: homing error */
+#define CW_HOMING_START   0x0010u /* controlword bit 4: homing operation start */
+#define MODE_HOMING       6
+
+/* Object e of axis k's homing set-up (0x6098, 0x6099:1/2, 0x609A, 0x607C,
+ * then 0x6060 = 6), or of its return (0x6060 = 8): 0 when there is none.
+ * *rb: the object read back (0x6061 for 0x6060). */
+static int home_object(const struct mlip_ctl *c, int k, int e, int back, struct mlip_ctl_sdo_req *r,
+                       uint16_t *rb)
+{
+	const struct mlip_axis_home *h = &c->home.cfg.axis[k];
+	double cpu = c->m.axis[k].counts_per_unit;
+	r->node = (uint8_t)c->m.axis[k].can_node;
+	r->upload = 0;
+	r->sub = 0;
+	r->size = 4;
+	if (back) {
+		if (e > 0) {
+			return 0; /* the return is one object: 0x6060 = 8 */
+		}
+		e = 5;
+	}
+	switch (e) {
+	case 0:
+		r->index = 0x6098;
+		r->size = 1;
+		r->value = (uint8_t)(int8_t)h->method;
+		break;
+	case 1:
+	case 2:
+		r->index = 0x6099;
+		r->sub = (uint8_t)e;
+		r->value = (uint32_t)((e == 1 ? h->search_vel : h->latch_vel) * cpu + 0.5);
+		break;
+	case 3:
+		r->index = 0x609A;
+		r->value = (uint32_t)(h->accel * cpu + 0.5);
+		break;
+	case 4: {
+		int32_t counts = 0;
+		mlip_can_counts(h->offset, cpu, &counts);
+		r->index = 0x607C;
+		r->value = (uint32_t)counts;
+		break;
+	}
+	case 5:
+		r->index = 0x6060;
+		r->size = 1;
+		r->value = back ? MLIP_402_MODE_CSP : MODE_HOMING;
+		break;
+	default:
+		return 0;
+	}
+	*rb = r->index == 0x6060 ? 0x6061 : r->index;
+	return 1;
+}
+
+static void home_request(struct mlip_ctl *c, const struct mlip_ctl_sdo_req *r)
+{
+	c->home.req = *r;
+	c->home.requests = c->home.requests + 1 ? c->home.requests + 1 : 1; /* never 0 */
+	c->home.req.seq = c->home.sdo_seq = c->home.requests;
+}
+
+/* The first axis of the group at or after axis k, or -1. */
+static int group_axis(const struct mlip_ctl *c, int k)
+{
+	for (; k < c->m.n_axes; k++) {
+		if (c->home.group & (1u << k)) {
+			return k;
+		}
+	}
+	return -1;
+}
+
+/* Ask for the current object of the current axis (or go on to the next
+ * axis); 0 when the group's list is done. */
+static int home_issue(struct mlip_ctl *c, int back)
+{
+	struct mlip_ctl_sdo_req r;
+	uint16_t rb;
+	while (c->home.axis >= 0) {
+		if (home_object(c, c->home.axis, c->home.entry, back, &r, &rb)) {
+			home_request(c, &r);
+			c->home.readback = 0;
+			return 1;
+		}
+		c->home.axis = group_axis(c, c->home.axis + 1);
+		c->home.entry = 0;
+	}
+	return 0;
+}
+
+/* The next group: the lowest HOME_SEQUENCE among the axes still to home. */
+static int home_next_group(struct mlip_ctl *c)
+{
+	int best = 100;
+	c->home.group = 0;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if ((c->home.todo & (1u << k)) && c->home.cfg.axis[k].sequence < best) {
+			best = c->home.cfg.axis[k].sequence;
+		}
+	}
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if ((c->home.todo & (1u << k)) && c->home.cfg.axis[k].sequence == best) {
+			c->home.group |= 1u << k;
+		}
+	}
+	c->home.todo &= ~c->home.group;
+	c->home.attained = 0;
+	c->home.axis = group_axis(c, 0);
+	c->home.entry = 0;
+	return c->home.group != 0;
+}
+
+/* Homing given up (a failure, an E-stop, a drive fault, a stop): the group
+ * goes back to CSP (best effort: SDO 0x6060 = 8), nothing more is homed. */
+static void home_abort(struct mlip_ctl *c)
+{
+	if (!c->home.on || c->home.failed) {
+		return;
+	}
+	c->home.failed = 1;
+	c->home.todo = 0;
+	c->home.cw = MLIP_402_CW_ENABLE_OPERATION;
+	if (c->home.step < HS_SETUP || c->home.group == 0) {
+		c->home.on = 0; /* nothing was written yet */
+		return;
+	}
+	c->home.step = HS_BACK;
+	c->home.axis = group_axis(c, 0);
+	c->home.entry = 0;
+	home_issue(c, 1);
+}
+
+/* A failure: every axis stops (quick stop), the reason names the drive;
+ * the group is still returned to CSP (best effort) so that a reset leaves
+ * drives that follow targets again. */
+static void home_fail(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
+                      uint32_t why, int k, uint32_t field, double value)
+{
+	struct mlip_ctl_reason r = reason(why, 0, 0);
+	r.node = (uint32_t)c->m.axis[k].can_node;
+	r.field = field;
+	r.value = value;
+	quick_stop(c, in, out, MLIP_STATE_FAULT, r); /* and home_abort */
+}
+
+/* MLIP_CMD_HOME: axes (mask; 0: every configured one). */
+static int32_t home_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg)
+{
+	uint32_t want = (uint32_t)arg & ((1u << c->m.n_axes) - 1u);
+	if (arg == 0) {
+		want = c->home.configured;
+	}
+	if (!c->drives || want == 0 || (want & ~c->home.configured) != 0 ||
+	    ((uint32_t)arg >> c->m.n_axes) != 0) {
+		return MLIP_E_RANGE; /* an axis without HOME_METHOD (or no drives) */
+	}
+	if (c->state != MLIP_STATE_IDLE || c->io.estop || c->home.on ||
+	    mlip_planner_queued(c->planner) > 0 || rx_count(c) > 0) {
+		return MLIP_E_INVALID;
+	}
+	c->home.on = 1;
+	c->home.failed = 0;
+	c->home.todo = want;
+	c->home.homed &= ~want; /* homing again: not homed until it is done */
+	c->home.step = HS_ENABLE;
+	c->home.cw = MLIP_402_CW_ENABLE_OPERATION;
+	struct mlip_ctl_reason r = reason(MLIP_WHY_HOMING, 0, 0);
+	r.field = want;
+	go(c, out, MLIP_STATE_HOMING, r);
+	return MLIP_OK;
+}
+
+/* One period of homing, after the commands and inputs. */
+static void home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
+{
+	if (!c->home.on) {
+		return;
+	}
+	/* the group's axes: the target is where the drive is, to the count, so
+	 * that the return to CSP is no step */
+	if (c->home.step >= HS_ARM && !c->io.estop) {
+		for (int k = 0; k < c->m.n_axes; k++) {
+			if ((c->home.group & (1u << k)) && (in->drives.actual_mask & (1u << k))) {
+				c->pos[k] = in->drives.pos_actual[k];
+			}
+		}
+		mlip_planner_rest_at(c->planner, c->pos);
+	}
+	switch (c->home.step) {
+	case HS_ENABLE:
+		if (c->power.seq.step != MLIP_POWER_ENABLED) {
+			c->power.want = 1; /* from where the drives stand */
+			return;
+		}
+		home_next_group(c);
+		c->home.step = HS_SETUP;
+		home_issue(c, 0);
+		return;
+	case HS_SETUP:
+	case HS_BACK: {
+		int back = c->home.step == HS_BACK;
+		if (c->home.sdo_seq == 0 || in->sdo.seq != c->home.sdo_seq) {
+			return; /* its answer is not there yet */
+		}
+		struct mlip_ctl_sdo_req r = c->home.req;
+		uint32_t field = (uint32_t)r.index << 8 | r.sub;
+		uint16_t rb;
+		c->home.sdo_seq = 0;
+		if (in->sdo.abort != 0 && !c->home.failed) {
+			home_fail(c, in, out, MLIP_WHY_HOMING_SDO, c->home.axis, field,
+			          (double)in->sdo.abort);
+			return;
+		}
+		if (in->sdo.abort == 0 && !c->home.readback) {
+			home_object(c, c->home.axis, c->home.entry, back, &r, &rb);
+			r.index = rb;
+			r.upload = 1;
+			home_request(c, &r);
+			c->home.readback = 1;
+			return;
+		}
+		if (in->sdo.abort == 0 && !c->home.failed) {
+			uint32_t mask = r.size >= 4 ? 0xFFFFFFFFu : (1u << (8 * r.size)) - 1u;
+			home_object(c, c->home.axis, c->home.entry, back, &r, &rb);
+			if ((in->sdo.value & mask) != (r.value & mask)) {
+				home_fail(c, in, out, MLIP_WHY_HOMING_SDO, c->home.axis,
+				          (uint32_t)rb << 8 | r.sub, (double)(in->sdo.value & mask));
+				return;
+			}
+		}
+		c->home.entry++;
+		if (home_issue(c, back)) {
+			return;
+		}
+		if (!back) {
+			c->home.step = HS_ARM;
+			return;
+		}
+		/* back in CSP: where the drives are is where the machine is */
+		if (!c->home.failed) {
+			c->home.homed |= c->home.group;
+		}
+		c->home.step = HS_NEXT;
+		return;
+	}
+	case HS_ARM:
+		c->home.cw = MLIP_402_CW_ENABLE_OPERATION; /* bit 4 low: its rise starts it */
+		c->home.step = HS_RUN;
+		c->home.t0 = c->period + 1;
+		return;
+	case HS_RUN:
+		c->home.cw = MLIP_402_CW_ENABLE_OPERATION | CW_HOMING_START;
+		for (int k = 0; k < c->m.n_axes; k++) {
+			uint16_t sw = in->drives.sw[k];
+			uint64_t when = in->drives.tpdo_period[k];
+			uint32_t bit = 1u << k;
+			if (!(c->home.group & bit) || (c->home.attained & bit)) {
+				continue;
+			}
+			/* only a TPDO that answers a SYNC after the start was applied */
+			int fresh = when != UINT64_MAX && when >= c->home.t0 + 1;
+			if (fresh && (sw & SW_HOMING_ERROR)) {
+				home_fail(c, in, out, MLIP_WHY_HOMING_ERROR, k,
+				          (uint32_t)c->home.cfg.axis[k].method, (double)sw);
+				return;
+			}
+			if (fresh && (sw & (SW_HOMING_DONE | SW_TARGET_REACHED)) ==
+			                 (SW_HOMING_DONE | SW_TARGET_REACHED)) {
+				c->home.attained |= bit;
+			} else if ((double)(c->period - c->home.t0) * c->m.period_s >
+			           c->home.cfg.axis[k].timeout_s) {
+				home_fail(c, in, out, MLIP_WHY_HOMING_TIMEOUT, k,
+				          (uint32_t)c->home.cfg.axis[k].method, (double)sw);
+				return;
+			}
+		}
+		if (c->home.attained == c->home.group) {
+			c->home.cw = MLIP_402_CW_ENABLE_OPERATION;
+			c->home.step = HS_BACK;
+			c->home.axis = group_axis(c, 0);
+			c->home.entry = 0;
+			home_issue(c, 1);
+		}
+		return;
+	case HS_NEXT:
+		if (!c->home.failed && c->home.todo != 0) {
+			home_next_group(c);
+			c->home.step = HS_SETUP;
+			home_issue(c, 0);
+			return;
+		}
+		c->home.on = 0;
+		c->home.group = 0;
+		if (!c->home.failed) {
+			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_HOMED, 0, 0));
+		} else if (c->state == MLIP_STATE_HOMING) {
+			go(c, out, MLIP_STATE_IDLE, reason(c->home.stop_why, 0, 0)); /* a stop */
+		}
+		return;
+	default:
+		return;
+	}
+}
+
 /* ---- the inputs on the bus: E-stop, limits, hold, cycle start (issue 18) ---- */
 
 mlip_status mlip_ctl_set_output(struct mlip_ctl *c, uint32_t sub, uint32_t bit, int on)
@@ -607,6 +948,7 @@ static void quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 	}
 	c->io.estop = 1;
 	c->jog.on = 0;
+	home_abort(c);
 	if (c->drives) {
 		follow_actual(c, in);
 	} else if (mlip_planner_queued(c->planner) > 0) {
@@ -634,8 +976,8 @@ static int32_t reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct 
 	for (int k = 0; k < c->m.n_axes; k++) {
 		limits |= (1u << MLIP_IN_LIMIT_NEG(k)) | (1u << MLIP_IN_LIMIT_POS(k));
 	}
-	if (!c->io.estop) {
-		return MLIP_E_INVALID; /* nothing to reset */
+	if (!c->io.estop || c->home.on) {
+		return MLIP_E_INVALID; /* nothing to reset (or homing still restores CSP) */
 	}
 	if ((in->io.active & (1u << MLIP_IN_ESTOP)) || in->io.lost.event != 0 ||
 	    ((c->io.cfg.mapped & (1u << MLIP_IN_ESTOP)) &&
@@ -920,6 +1262,17 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 				c->why.why = MLIP_WHY_NONE; /* a second refusal is named too */
 			}
 			go(c, out, MLIP_STATE_IDLE, r);
+			return;
+		}
+		if (c->home.cfg.required && (c->home.homed & c->home.configured) != c->home.configured) {
+			/* HOMING_REQUIRED: no program before every axis is homed */
+			c->prog.discard = 1;
+			c->prog.discard_waiting = 1;
+			c->counts.refused++;
+			if (c->why.why == MLIP_WHY_NOT_HOMED) {
+				c->why.why = MLIP_WHY_NONE; /* a second refusal is named too */
+			}
+			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_NOT_HOMED, head->seq, head->line));
 			return;
 		}
 		if (c->drives && c->power.seq.step != MLIP_POWER_ENABLED) {
@@ -1211,6 +1564,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	}
 
 	jog_period(c, out);
+	home_period(c, in, out);
 	blocks_in(c, in, out);
 	if (c->rx.corrupt && !c->prog.bad) {
 		struct mlip_ctl_reason r = reason(MLIP_WHY_RING_CORRUPT, c->prog.next_seq, 0);
@@ -1246,6 +1600,10 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		/* the drives' controlword, and no target to a drive faulted */
 		for (int k = 0; k < MLIP_MAX_AXES && c->power.seq.cw >= 0; k++) {
 			c->enc.controlword[k] = (uint16_t)c->power.seq.cw; /* -1: what was sent */
+			if (c->home.on && (c->home.group & (1u << k)) && !c->io.estop &&
+			    c->power.seq.step == MLIP_POWER_ENABLED && c->home.step >= HS_ARM) {
+				c->enc.controlword[k] = c->home.cw; /* bit 4: homing start */
+			}
 		}
 		c->enc.rpdo_mute = in->drives.mute;
 		if (mlip_canenc_encode(&c->enc, (uint32_t)c->period, c->pos, out->frames,
@@ -1266,6 +1624,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->status.io_inputs = in->io.active & c->io.cfg.mapped;
 	out->status.io_known = in->io.known & c->io.cfg.mapped;
 	memcpy(out->outputs, c->io.outputs, sizeof(out->outputs));
+	out->sdo = c->home.req;
+	out->homing = c->home.on && c->home.step >= HS_ARM ? c->home.group : 0;
+	out->status.homed = c->home.homed;
 	out->power.ok = c->power.seq.ok;
 	out->power.late_node =
 	    c->power.seq.late >= 0 ? (uint32_t)c->m.axis[c->power.seq.late].can_node : 0;
@@ -1274,7 +1635,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->status.actual_mask = in->drives.actual_mask;
 	memcpy(out->status.pos_actual, in->drives.pos_actual, sizeof(out->status.pos_actual));
 	/* an exit request ends once the machine is at rest */
-	if (c->io.estop) {
+	if (c->home.on) {
+		out->done = 0; /* the drives go back to CSP first */
+	} else if (c->io.estop) {
 		/* quick stopped (the drives are not enabled), or at rest without drives */
 		out->done = c->op.exiting && (c->drives || !mlip_planner_moving(p));
 	} else {

@@ -12,7 +12,7 @@ const char *mlip_ctl_state_name(uint32_t state)
 {
 	static const char *const names[] = {"idle",     "running", "held",   "stopping",
 	                                    "fault",    "starved", "paused", "dwelling",
-	                                    "pre-read", "estop",   "jog"};
+	                                    "pre-read", "estop",   "jog",    "homing"};
 
 	return NAME_OF(names, state);
 }
@@ -50,7 +50,13 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "jog",
 	                                    "jog released",
 	                                    "jog not renewed",
-	                                    "jog at the soft limit"};
+	                                    "jog at the soft limit",
+	                                    "homing",
+	                                    "homed",
+	                                    "homing error",
+	                                    "homing timeout",
+	                                    "homing object refused",
+	                                    "not homed"};
 
 	return NAME_OF(names, why);
 }

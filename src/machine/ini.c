@@ -395,6 +395,13 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 			return range_err(err, line, col, kd->name,
 			                 " must be within 10000..12000000 bit/s", v, nv);
 		}
+		if (kd->type == V_METHOD && (i < -128 || i > 127)) {
+			return range_err(err, line, col, kd->name,
+			                 " must be within -128..127 (0x6098 is an INTEGER8)", v, nv);
+		}
+		if (kd->type == V_SEQUENCE && (i < 0 || i > 9)) {
+			return range_err(err, line, col, kd->name, " must be within 0..9", v, nv);
+		}
 		if (kd->type == V_BOOL && i != 0 && i != 1) {
 			return range_err(err, line, col, kd->name, " must be 0 or 1", v, nv);
 		}
@@ -840,6 +847,9 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
 	}
 	if (st == MLIP_OK) {
 		st = mlip_mc_fill_io(&ps, &out, err);
+	}
+	if (st == MLIP_OK) {
+		st = mlip_mc_fill_home(&ps, &out, err);
 	}
 	if (st != MLIP_OK) {
 		return st;

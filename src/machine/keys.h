@@ -19,7 +19,7 @@
 #include "mlip/machine/config.h"
 #include "mlip/text/format.h"
 
-#define NKEYS            16 /* keys per section kind, at most (mlip_mc_nkeys: how many) */
+#define NKEYS            24 /* keys per section kind, at most (mlip_mc_nkeys: how many) */
 #define BITRATE_MIN      10000
 #define BITRATE_MAX      1000000  /* classical CAN, and the CAN FD arbitration phase */
 #define DATA_BITRATE_MAX 12000000 /* CAN FD data phase */
@@ -49,7 +49,14 @@ enum {
 	AK_CPU,
 	AK_LIMIT_NEG, /* inputs (issue 18): a limit switch each way, the home switch */
 	AK_LIMIT_POS,
-	AK_HOME_SW
+	AK_HOME_SW,
+	AK_HOME_METHOD, /* homing with the drive's homing mode (issue 18) */
+	AK_HOME_SEARCH_VEL,
+	AK_HOME_LATCH_VEL,
+	AK_HOME_ACCEL,
+	AK_HOME_OFFSET,
+	AK_HOME_SEQUENCE,
+	AK_HOME_TIMEOUT
 };
 /* [CAN] keys in the order of enum mlip_can_key (mlip/can/canconf.h) */
 enum {
@@ -62,7 +69,17 @@ enum {
 	CK_FD = MLIP_CAN_KEY_FD_ID,
 	CK_STATUS = MLIP_CAN_KEY_STATUS_ID
 };
-enum { DK_ENABLE, DK_MASTER, DK_HB, DK_HB_TIMEOUT, DK_FERR, DK_SDO, DK_BOOT, DK_STATE };
+enum {
+	DK_ENABLE,
+	DK_MASTER,
+	DK_HB,
+	DK_HB_TIMEOUT,
+	DK_FERR,
+	DK_SDO,
+	DK_BOOT,
+	DK_STATE,
+	DK_HOMING_REQUIRED
+};
 /* [IO]: the CiA 401 module's node, then the inputs in the order of MLIP_IN_* */
 enum { IK_NODE, IK_ESTOP, IK_HOLD, IK_CYCLE_START, IK_PROBE };
 
@@ -83,7 +100,9 @@ enum vtype {
 	V_ID,        /* integer 0..0x7FF */
 	V_BOOL,      /* 0 | 1 */
 	V_MS,        /* integer 1..65535 (CiA 301 heartbeat times are 16-bit ms) */
-	V_IOBIT      /* NODE INDEX:SUB BIT HIGH|LOW (io.c) */
+	V_IOBIT,     /* NODE INDEX:SUB BIT HIGH|LOW (io.c) */
+	V_METHOD,    /* integer -128..127 (0x6098, INTEGER8) */
+	V_SEQUENCE   /* integer 0..9 (HOME_SEQUENCE) */
 };
 
 struct keydef {
@@ -193,6 +212,14 @@ mlip_status mlip_mc_parse_iobit(const char *v, size_t nv, uint32_t line, uint32_
  * two functions. */
 mlip_status mlip_mc_fill_io(const struct pstate *ps, struct mlip_config *c,
                             struct mlip_config_error *err);
+
+/* ---- home.c ---- */
+
+/* The axes' HOME_* keys and HOMING_REQUIRED into c->home, checked: no
+ * HOME_* without HOME_METHOD, HOME_OFFSET inside the soft limits, the
+ * drives' units (counts/s, counts/s^2, counts) within their objects. */
+mlip_status mlip_mc_fill_home(const struct pstate *ps, struct mlip_config *c,
+                              struct mlip_config_error *err);
 
 /* ---- drives.c ---- */
 

@@ -38,6 +38,7 @@ static double drv_actual[MLIP_MAX_AXES];
 static uint16_t drv_sw[MLIP_MAX_AXES]; /* the statusword of each drive's TPDO */
 /* the inputs on the bus of the next period (issue 18) */
 static struct mlip_ctl_io io_in;
+static struct mlip_ctl_sdo_res sdo_res_in; /* the drives' SDO answer (homing) */
 /* the segment's stop counter and the feeder's stop_base (mlip/ipc/ring.h) */
 static uint32_t stop_count, feeder_base;
 /* every transition seen since setup: state entered and why */
@@ -118,6 +119,10 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	in.drives.actual_mask = drv_actual_mask;
 	memcpy(in.drives.pos_actual, drv_actual, sizeof(in.drives.pos_actual));
 	memcpy(in.drives.sw, drv_sw, sizeof(in.drives.sw));
+	for (int k = 0; k < MLIP_MAX_AXES; k++) {
+		in.drives.tpdo_period[k] = period > 0 ? period - 1 : UINT64_MAX;
+	}
+	in.sdo = sdo_res_in;
 	in.io = io_in;
 	memset(&drv_fault, 0, sizeof(drv_fault));
 	run_period(&in);
@@ -1623,9 +1628,255 @@ static void test_jog_drives(void **st)
 	until_power(MLIP_POWER_OFF, 20);
 }
 
+/* ---- homing with the drives' homing mode (issue 18) ------------------------ */
+
+static struct mlip_home_config home_cfg;
+#define sdo_res sdo_res_in
+static uint32_t sdo_refuse; /* an index the drives refuse to write (0: none) */
+static int drv_mode[2] = {8, 8};
+static int drv_homing[2];
+static uint16_t drv_cw_prev[2];
+static uint32_t drv_obj[2][8]; /* 0x6098, 0x6099:1, 0x6099:2, 0x609A, 0x607C */
+static int sdo_log_n;
+static uint16_t sdo_log[64];
+
+static int obj_slot(uint16_t index, uint8_t sub)
+{
+	return index == 0x6098   ? 0
+	       : index == 0x6099 ? sub
+	       : index == 0x609A ? 3
+	       : index == 0x607C ? 4
+	                         : -1;
+}
+
+/* The drives' side after a period: the SDO request answered (seen by the
+ * controller in the next period), the homing mode run. */
+static void drive_model(void)
+{
+	const struct mlip_ctl_sdo_req *r = &out.sdo;
+	if (r->seq != 0 && r->seq != sdo_res.seq) {
+		int k = r->node - 1, slot = obj_slot(r->index, r->sub);
+		sdo_res.seq = r->seq;
+		sdo_res.abort = 0;
+		if (sdo_log_n < 64 && !r->upload) {
+			sdo_log[sdo_log_n++] = r->index;
+		}
+		if (r->upload) {
+			sdo_res.value = r->index == 0x6061 ? (uint32_t)drv_mode[k]
+			                : slot >= 0        ? drv_obj[k][slot]
+			                                   : 0;
+		} else if (r->index == sdo_refuse) {
+			sdo_res.abort = 0x06090030;
+		} else if (r->index == 0x6060) {
+			drv_mode[k] = (int)r->value;
+		} else if (slot >= 0) {
+			drv_obj[k][slot] = r->value;
+		}
+	}
+	for (int k = 0; k < 2; k++) {
+		uint16_t cw = cw_of(k);
+		int8_t method = (int8_t)drv_obj[k][0];
+		if (drv_mode[k] == 6 && drv_sw[k] & 0x0004 && (cw & 0x10) &&
+		    !(drv_cw_prev[k] & 0x10)) {
+			drv_homing[k] = 1; /* bit 4's rising edge */
+			drv_sw[k] &= (uint16_t)~0x3400u;
+		}
+		drv_cw_prev[k] = cw;
+		if (!drv_homing[k]) {
+			continue;
+		}
+		double offset = (int32_t)drv_obj[k][4] / 1000.0;
+		if (method == 35 || method == 37) {
+			drv_actual[k] = offset; /* the current position is home */
+		} else if (method == 17) {
+			/* toward the negative limit switch at 0 at the search speed */
+			drv_actual[k] -= drv_obj[k][1] / 1000.0 * mach.period_s;
+			if (drv_actual[k] > 0.0) {
+				continue;
+			}
+			drv_actual[k] = offset;
+		} else if (method == 1) {
+			drv_sw[k] |= 0x2000; /* homing error */
+			drv_homing[k] = 0;
+			continue;
+		} else {
+			continue; /* never done: a timeout */
+		}
+		drv_sw[k] |= 0x1400;
+		drv_homing[k] = 0;
+	}
+}
+
+static void htick(int n)
+{
+	for (int i = 0; i < n; i++) {
+		dtick(1);
+		drive_model();
+	}
+}
+
+static int32_t hcmd(uint32_t op, int32_t arg)
+{
+	int32_t r = period_cmd(op, arg, 0);
+	drive_model();
+	return r;
+}
+
+static int setup_home(void **state)
+{
+	setup_drives(state);
+	memset(&home_cfg, 0, sizeof(home_cfg));
+	for (int k = 0; k < 2; k++) {
+		struct mlip_axis_home *h = &home_cfg.axis[k];
+		h->configured = 1;
+		h->method = k == 0 ? 35 : 17;
+		h->search_vel = 10.0;
+		h->latch_vel = 1.0;
+		h->accel = 100.0;
+		h->offset = k == 0 ? -2.5 : 1.25;
+		h->sequence = k == 0 ? 1 : 0; /* Y first */
+		h->timeout_s = 2.0;
+	}
+	home_cfg.required = 1;
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .home = &home_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	memset(&sdo_res, 0, sizeof(sdo_res));
+	memset(drv_obj, 0, sizeof(drv_obj));
+	drv_mode[0] = drv_mode[1] = 8;
+	drv_homing[0] = drv_homing[1] = 0;
+	drv_cw_prev[0] = drv_cw_prev[1] = 0x0F;
+	sdo_refuse = 0;
+	sdo_log_n = 0;
+	drv_actual[0] = 3.7; /* powered up anywhere */
+	drv_actual[1] = 5.0;
+	return 0;
+}
+
+/* In HOME_SEQUENCE order (Y, then X), every object written and read back,
+ * mode 6, bit 4, bits 10 and 12, back to mode 8: the positions are the home
+ * offsets to the count and the setpoint never steps away from the drive. */
+static void test_home_sequence(void **st)
+{
+	(void)st;
+	htick(5);
+	push(1, 2);
+	end(3);
+	htick(5);
+	assert_int_equal(status().state, MLIP_STATE_IDLE); /* HOMING_REQUIRED */
+	assert_int_equal(status().reason, MLIP_WHY_NOT_HOMED);
+	assert_true(status().pos[0] == 0.0); /* nothing moved */
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_HOMING);
+	int n = 0, prev_mode[2] = {8, 8}, back = 0;
+	while (status().state == MLIP_STATE_HOMING && n++ < 5000) {
+		htick(1);
+		for (int k = 0; k < 2; k++) {
+			if (drv_mode[k] == 8 && prev_mode[k] == 6) {
+				/* back in CSP: the target is the position actual, to the count */
+				assert_true(out.pos[k] == drv_actual[k]);
+				back++;
+			}
+			prev_mode[k] = drv_mode[k];
+		}
+	}
+	assert_int_equal(back, 2);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_HOMED);
+	assert_int_equal(status().homed, 3u);
+	assert_true(out.pos[0] == -2.5 && out.pos[1] == 1.25); /* the offsets, exactly */
+	assert_true(drv_mode[0] == 8 && drv_mode[1] == 8);
+	/* Y's objects first, then X's: 0x6098 0x6099 0x6099 0x609A 0x607C 0x6060 */
+	static const uint16_t want[6] = {0x6098, 0x6099, 0x6099, 0x609A, 0x607C, 0x6060};
+	assert_int_equal(sdo_log_n, 14);
+	for (int i = 0; i < 6; i++) {
+		assert_int_equal(sdo_log[i], want[i]);     /* Y's set-up */
+		assert_int_equal(sdo_log[7 + i], want[i]); /* X's, after Y's return to CSP */
+	}
+	assert_int_equal(sdo_log[6], 0x6060);
+	assert_int_equal(drv_obj[1][1], 10000); /* 10 mm/s in counts/s */
+	assert_int_equal((int32_t)drv_obj[0][4], -2500);
+	/* a program now runs, from the home position */
+	push(1, 2);
+	end(3);
+	for (int i = 0; i < 20000 && status().reason != MLIP_WHY_END; i++) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(out.pos[0] == 2.0);
+}
+
+/* A homing object the drive refuses (SDO abort): a fault naming the node
+ * and the object, every axis quick-stopped, the drive back in mode 8; a
+ * reset, then nothing homed. */
+static void test_home_sdo_refused(void **st)
+{
+	(void)st;
+	sdo_refuse = 0x6098;
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 1), MLIP_OK); /* X only */
+	for (int i = 0; i < 200 && status().state == MLIP_STATE_HOMING; i++) {
+		htick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_HOMING_SDO);
+	assert_int_equal(status().reason_node, 1);
+	assert_int_equal(status().reason_field, 0x609800u);
+	assert_true(status().reason_value == (double)0x06090030);
+	assert_int_equal(cw_of(0), 0x0002);
+	htick(10);
+	assert_int_equal(drv_mode[0], 8);
+	assert_int_equal(hcmd(MLIP_CMD_RESET, 0), MLIP_OK);
+	assert_int_equal(status().homed, 0u);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 4), MLIP_E_RANGE); /* no axis 2 */
+}
+
+/* Homing error (bit 13) and a timeout: a fault naming node, method and
+ * statusword, quick stop, CSP back. */
+static void test_home_error_and_timeout(void **st)
+{
+	(void)st;
+	home_cfg.axis[1].method = 1;
+	home_cfg.axis[0].method = 36;
+	home_cfg.axis[0].timeout_s = 0.5;
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .home = &home_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 2), MLIP_OK);
+	for (int i = 0; i < 500 && status().state == MLIP_STATE_HOMING; i++) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_HOMING_ERROR);
+	assert_int_equal(status().reason_node, 2);
+	assert_int_equal(status().reason_field, 1);
+	assert_true(((uint32_t)status().reason_value & 0x2000u) != 0);
+	assert_int_equal(cw_of(1), 0x0002);
+	htick(10);
+	assert_int_equal(drv_mode[1], 8);
+	assert_int_equal(hcmd(MLIP_CMD_RESET, 0), MLIP_OK);
+	until_power(MLIP_POWER_OFF, 50);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 1), MLIP_OK);
+	int n = 0;
+	while (status().state == MLIP_STATE_HOMING && n++ < 2000) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_HOMING_TIMEOUT);
+	assert_int_equal(status().reason_node, 1);
+	assert_int_equal(status().reason_field, 36);
+	assert_true(n > 500 && n < 600); /* 0.5 s after bit 4, plus the set-up */
+}
+
 #define T(f)   cmocka_unit_test_setup_teardown(f, setup, teardown)
 #define TD(f)  cmocka_unit_test_setup_teardown(f, setup_drives, teardown)
 #define TIO(f) cmocka_unit_test_setup_teardown(f, setup_io, teardown)
+#define TH(f)  cmocka_unit_test_setup_teardown(f, setup_home, teardown)
 
 int main(void)
 {
@@ -1673,6 +1924,9 @@ int main(void)
 	    T(test_jog_soft_limit),
 	    T(test_jog_refused),
 	    TD(test_jog_drives),
+	    TH(test_home_sequence),
+	    TH(test_home_sdo_refused),
+	    TH(test_home_error_and_timeout),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

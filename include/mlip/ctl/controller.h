@@ -167,6 +167,8 @@ struct mlip_ctl_drives {
 	uint16_t sw[MLIP_MAX_AXES];        /* statusword 0x6041 of drive k's last TPDO (0: none) */
 	struct mlip_ctl_drive_fault fault; /* the first new fault, if any */
 	uint32_t actual_mask;              /* bit k: pos_actual[k] is from drive k's TPDO */
+	uint64_t tpdo_period[MLIP_MAX_AXES]; /* the period whose SYNC drive k's last TPDO
+	                                        answers (UINT64_MAX: none yet) */
 	double pos_actual[MLIP_MAX_AXES];  /* position actual 0x6064, joint units */
 };
 
@@ -178,6 +180,25 @@ struct mlip_ctl_io {
 	struct mlip_ctl_drive_fault lost; /* the I/O module failed (event: heartbeat lost,
 	                                     EMCY, left NMT operational; node; detail): an
 	                                     E-stop; 0: fine */
+};
+
+/* An SDO transfer the controller asks the CANopen master for (homing):
+ * rt/drives.c runs it over the next periods without waiting and reports its
+ * end in in->sdo. One at a time; seq 0: none. */
+struct mlip_ctl_sdo_req {
+	uint32_t seq; /* a new request when it changes */
+	uint8_t node;
+	uint8_t sub;
+	uint8_t size;   /* download: 1, 2 or 4 bytes */
+	uint8_t upload; /* 1: read */
+	uint16_t index;
+	uint32_t value; /* download */
+};
+
+struct mlip_ctl_sdo_res {
+	uint32_t seq;   /* the request it ends (0: none yet) */
+	uint32_t abort; /* 0: done; else the abort code (the drive's, or mlip's timeout) */
+	uint32_t value; /* upload: the value read */
 };
 
 struct mlip_ctl_in {
@@ -199,6 +220,7 @@ struct mlip_ctl_in {
 	struct mlip_ctl_bus bus;         /* as of the last send */
 	struct mlip_ctl_drives drives;   /* CiA 402 drives (opts.drives) */
 	struct mlip_ctl_io io;           /* the inputs on the bus (opts.io) */
+	struct mlip_ctl_sdo_res sdo;     /* the last SDO transfer done (out->sdo) */
 };
 
 /* The drives' power after the period (opts.drives; the sequencer's record). */
@@ -233,6 +255,9 @@ struct mlip_ctl_out {
 	/* the I/O module's outputs 0x6200:1..8 (mlip_ctl_set_output; all 0 in an
 	 * E-stop): rt/drives.c sends them in its RPDO when they change */
 	uint8_t outputs[MLIP_IO_IN_BYTES];
+	struct mlip_ctl_sdo_req sdo; /* an SDO transfer to run (homing) */
+	uint32_t homing;             /* bit k: drive k runs its homing mode: its following
+	                                error is its own business, not supervised */
 };
 
 struct mlip_ctl_opts {
@@ -246,6 +271,7 @@ struct mlip_ctl_opts {
 	uint32_t drive_state_periods;      /* a power step not confirmed this long: a timeout
 	                                      (0: 1000) */
 	const struct mlip_io_config *io;   /* the inputs' functions (NULL: none mapped) */
+	const struct mlip_home_config *home; /* homing (NULL: none configured) */
 };
 
 /* A record's place in the program: its seq (0: none) and source line. */
@@ -346,6 +372,27 @@ struct mlip_ctl {
 		uint64_t deadman; /* periods without a renewal that stop it */
 		uint32_t end_why; /* the reason it stopped (mlip_state_why) */
 	} jog;
+	/* homing with the drives' homing mode (MLIP_CMD_HOME) */
+	struct {
+		struct mlip_home_config cfg;
+		uint32_t configured; /* bit k: axis k has a HOME_METHOD */
+		uint32_t homed;      /* bit k: axis k is homed */
+		int on;              /* homing (or restoring CSP after a failure) */
+		int failed;          /* the group failed: CSP restored, then FAULT stays */
+		uint32_t todo;       /* axes still to home */
+		uint32_t group;      /* the axes homing now (one HOME_SEQUENCE) */
+		uint32_t attained;   /* of those: homing attained */
+		int step;            /* the sequencer's step (controller.c) */
+		int axis;            /* the axis whose objects are being written */
+		int entry;           /* its object */
+		int readback;        /* 1: the object's read back is outstanding */
+		uint32_t sdo_seq;    /* the SDO request outstanding (0: none) */
+		uint32_t requests;   /* SDO requests so far (each a new seq) */
+		uint32_t stop_why;   /* a stop during homing: its reason, once CSP is back */
+		struct mlip_ctl_sdo_req req;
+		uint64_t t0;         /* the group's homing move began (period) */
+		uint16_t cw;         /* the group's controlword */
+	} home;
 	/* scratch for one period's blocks (no stack array of this size on RT) */
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];
 };

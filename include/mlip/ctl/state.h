@@ -34,6 +34,7 @@ typedef enum {
 	                        once the input is released; wins over every other state */
 	MLIP_STATE_JOGGING,  /* a continuous jog (mlip-ctl jog): one axis toward its soft
 	                        limit at the jog's speed through the planner, while renewed */
+	MLIP_STATE_HOMING,   /* homing with the drives' homing mode (mlip-ctl home) */
 	MLIP_STATE_COUNT
 } mlip_ctl_state;
 
@@ -82,6 +83,18 @@ typedef enum {
 	MLIP_WHY_JOG_RELEASED,   /* its client stopped it: at rest at the acceleration limit */
 	MLIP_WHY_JOG_DEADMAN,    /* its client stopped renewing it (MLIP_JOG_DEADMAN_S) */
 	MLIP_WHY_JOG_END,        /* at rest at the soft limit it was heading to */
+	MLIP_WHY_HOMING,         /* homing started (reason_field: the axes, a mask) */
+	MLIP_WHY_HOMED,          /* every axis asked for is homed, back in CSP */
+	MLIP_WHY_HOMING_ERROR,   /* a drive reported homing error (statusword bit 13):
+	                            reason_node, reason_field its method, reason_value the
+	                            statusword; state FAULT, quick stop */
+	MLIP_WHY_HOMING_TIMEOUT, /* homing not attained within HOME_TIMEOUT: reason_node,
+	                            reason_field its method, reason_value the statusword */
+	MLIP_WHY_HOMING_SDO,     /* the drive refused a homing object: reason_node,
+	                            reason_field index << 8 | sub, reason_value the abort
+	                            code (or the value read back when it differs) */
+	MLIP_WHY_NOT_HOMED,      /* HOMING_REQUIRED: a program refused before every axis
+	                            is homed (reason_seq, line: its first record) */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 

@@ -228,6 +228,8 @@ typedef enum {
 	MLIP_CMD_JOG,           /* continuous jog (issue 18): arg = MLIP_JOG_ARG(axis, neg,
 	                           mm/min); renewed at least every MLIP_JOG_DEADMAN_S by the
 	                           same command, else it stops; speed 0 stops it */
+	MLIP_CMD_HOME,          /* home (issue 18): arg = axis mask (bit k: axis k; 0: every
+	                           axis with a HOME_METHOD), in HOME_SEQUENCE order */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
 

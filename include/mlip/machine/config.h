@@ -163,11 +163,39 @@ struct mlip_io_config {
  * into buf (16 bytes suffice) and returns it. */
 const char *mlip_io_function_name(uint32_t f, const struct mlip_machine *m, char *buf, size_t n);
 
+/* Homing with the drives' own homing mode (issue 18; CiA 402 mode 6), per
+ * axis in [AXIS_L]:
+ *   HOME_METHOD = 35        ; 0x6098: any method the drive supports (35/37: the
+ *                           ; current position; 17/18: a limit switch; 19..30:
+ *                           ; a home switch); homing is configured by this key
+ *   HOME_SEARCH_VEL = 10    ; mm/s (deg/s): 0x6099:01, in counts/s
+ *   HOME_LATCH_VEL = 1      ; mm/s (deg/s): 0x6099:02
+ *   HOME_ACCEL = 100        ; mm/s^2: 0x609A (default MAX_ACCELERATION)
+ *   HOME_OFFSET = 0         ; mm: 0x607C, the position at home (inside the limits)
+ *   HOME_SEQUENCE = 1       ; 0..9: axes with the same number home together, lower
+ *                           ; first (default: Z 0, the others 1, as LinuxCNC)
+ *   HOME_TIMEOUT = 60       ; s: homing not done by then is a fault
+ * and [DRIVES] HOMING_REQUIRED = 1: programs are refused until every axis
+ * with a HOME_METHOD is homed (jogging stays allowed). */
+struct mlip_axis_home {
+	int configured; /* HOME_METHOD given */
+	int method;     /* 0x6098 */
+	double search_vel, latch_vel, accel, offset; /* axis units */
+	int sequence;
+	double timeout_s;
+};
+
+struct mlip_home_config {
+	int required; /* HOMING_REQUIRED */
+	struct mlip_axis_home axis[MLIP_MAX_AXES]; /* machine order */
+};
+
 struct mlip_config {
 	struct mlip_machine machine;
 	struct mlip_can_config can;
 	struct mlip_drives_config drives;
 	struct mlip_io_config io;
+	struct mlip_home_config home;
 	uint32_t lookahead; /* [TRAJ] LOOKAHEAD blocks, default MLIP_LOOKAHEAD */
 };
 
