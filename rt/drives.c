@@ -282,6 +282,9 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 	ds->n = m->n_axes;
 	ds->io_cfg = cfg->io;
 	ds->io.node = cfg->io.node;
+	for (int k = 0; k < m->n_axes; k++) {
+		ds->home_axes |= cfg->home.axis[k].configured ? 1u << k : 0u;
+	}
 	if (cfg->io.mapped & ~((1u << MLIP_IN_AXIS0) - 1u)) {
 		for (uint32_t f = MLIP_IN_AXIS0; f < MLIP_IN_COUNT; f++) {
 			if ((cfg->io.mapped & (1u << f)) && cfg->io.in[f].node != cfg->io.node) {
@@ -693,7 +696,7 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		ds->d[i].start_counts = v;
 		double pos = v / ds->d[i].counts_per_unit;
 		const char *unit = a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm";
-		if (pos < a->min_limit || pos > a->max_limit) {
+		if (!(ds->home_axes & (1u << i)) && (pos < a->min_limit || pos > a->max_limit)) {
 			snprintf(
 			    why, why_len,
 			    "%s is at %.4f %s (%d counts), beyond its soft limit %s %g: bring it "
@@ -761,12 +764,72 @@ void mlip_drives_disable(struct mlip_drives *ds)
 
 /* ---- the loop: the period's hooks ---------------------------------------------- */
 
+static void sdo_end(struct mlip_drives *ds, uint32_t abort, uint32_t value)
+{
+	ds->sdo.busy = 0;
+	ds->sdo.res.seq = ds->sdo.seq;
+	ds->sdo.res.abort = abort;
+	ds->sdo.res.value = value;
+}
+
 static void hook_rx(void *ctx, const struct mlip_can_frame *f, uint64_t cycle, uint64_t now)
 {
 	struct mlip_drives *ds = ctx;
 	struct mlip_co_msg m;
+	struct mlip_can_frame req;
 	ds->rx_frames++;
 	observe(ds, f, now, cycle + 1, &m);
+	if (m.kind != MLIP_CO_SDO || !ds->sdo.busy || m.node != ds->sdo.s.node) {
+		return;
+	}
+	switch (mlip_sdo_feed(&ds->sdo.s, f, &req)) {
+	case MLIP_SDO_DONE:
+		sdo_end(ds, 0, ds->sdo.s.value);
+		return;
+	case MLIP_SDO_SEND:
+		ds->port.send(ds->port.ctx, &req);
+		ds->sdo.deadline_ns = now + (uint64_t)ds->cfg.sdo_timeout_ms * 1000000u;
+		return;
+	case MLIP_SDO_ABORTED:
+		sdo_end(ds, ds->sdo.s.abort_code, 0);
+		return;
+	case MLIP_SDO_PROTOCOL:
+		ds->port.send(ds->port.ctx, &req);
+		sdo_end(ds, ds->sdo.s.abort_code, 0);
+		return;
+	default:
+		return;
+	}
+}
+
+/* After the controller: its SDO request started when it is a new one; one
+ * not answered within SDO_TIMEOUT_MS aborted (mlip's abort sent). */
+static void sdo_after(struct mlip_drives *ds, uint64_t now, const struct mlip_ctl_out *out)
+{
+	struct mlip_can_frame req;
+	const struct mlip_ctl_sdo_req *r = &out->sdo;
+	if (ds->sdo.busy && now >= ds->sdo.deadline_ns) {
+		mlip_sdo_abort_encode(ds->sdo.s.node, ds->sdo.s.index, ds->sdo.s.sub,
+		                      MLIP_SDO_ABORT_TIMEOUT, &req);
+		ds->port.send(ds->port.ctx, &req);
+		sdo_end(ds, MLIP_SDO_ABORT_TIMEOUT, 0);
+	}
+	if (r->seq == 0 || r->seq == ds->sdo.seq) {
+		return;
+	}
+	ds->sdo.seq = r->seq;
+	if (r->upload) {
+		mlip_sdo_upload_begin(&ds->sdo.s, r->node, r->index, r->sub, &req);
+	} else {
+		mlip_sdo_download_begin(&ds->sdo.s, r->node, r->index, r->sub, r->value, r->size,
+		                        &req);
+	}
+	if (ds->port.send(ds->port.ctx, &req) != 0) {
+		sdo_end(ds, MLIP_SDO_ABORT_GENERAL, 0);
+		return;
+	}
+	ds->sdo.busy = 1;
+	ds->sdo.deadline_ns = now + (uint64_t)ds->cfg.sdo_timeout_ms * 1000000u;
 }
 
 /* any_state: the controller is disabling, has disabled or is enabling the
@@ -793,8 +856,8 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 		/* the newest TPDO answers SYNC j = tpdo_count, sent in period j */
 		uint64_t j = d->obs.tpdo_count;
 		x.following_counts = -1;
-		if (!any_state && d->obs.tpdo_cycle == cycle && j >= 1 &&
-		    cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
+		if (!any_state && !(ds->homing & (1u << i)) && d->obs.tpdo_cycle == cycle &&
+		    j >= 1 && cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
 			int32_t t[MLIP_DRIVE_LAG];
 			for (int k = 0; k < MLIP_DRIVE_LAG; k++) {
 				t[k] = d->targets[(j - 1 - (uint64_t)k + MLIP_DRIVE_HIST) %
@@ -875,7 +938,12 @@ static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl
 		in->drives.sw[i] = d->obs.tpdo_cycle != 0 ? d->obs.statusword : 0;
 		in->drives.pos_actual[i] = v / d->counts_per_unit;
 		in->drives.actual_mask |= 1u << i;
+		/* its newest TPDO answers SYNC tpdo_count, sent in the controller's
+		 * period tpdo_count - 1 */
+		in->drives.tpdo_period[i] =
+		    d->obs.tpdo_count > 0 ? d->obs.tpdo_count - 1 : UINT64_MAX;
 	}
+	in->sdo = ds->sdo.res;
 }
 
 /* After it: the targets just sent (for the following error), the master's
@@ -891,6 +959,8 @@ static void hook_after(void *ctx, uint64_t cycle, uint64_t now, const struct mli
 		d->targets[(cycle + 1) % MLIP_DRIVE_HIST] = counts;
 	}
 	ds->power = out->power.state;
+	ds->homing = out->homing;
+	sdo_after(ds, now, out);
 	/* the module's outputs: when they change, and every 100 ms (a module that
 	 * missed one frame catches up) */
 	if (ds->io.node != 0 && ds->io.setup.out_bytes > 0 &&

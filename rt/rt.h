@@ -303,6 +303,20 @@ struct mlip_drives {
 	/* the inputs (issue 18): the CiA 401 I/O module ([IO] NODE; node 0: none)
 	 * and the functions mapped on it */
 	struct mlip_io_config io_cfg;
+	/* SDO transfers the controller asks for in the loop (homing): one at a
+	 * time, never waited for: the request sent in a period's after hook,
+	 * the answers fed as they come, the result to the next period */
+	struct {
+		uint32_t seq;         /* the request being run (0: none yet) */
+		int busy;             /* its answer is awaited */
+		struct mlip_sdo s;    /* the transfer */
+		uint64_t deadline_ns; /* no answer by then: aborted (timeout) */
+		struct mlip_ctl_sdo_res res;
+	} sdo;
+	uint32_t homing;    /* bit k: drive k runs its homing mode (not supervised for
+	                       following error) */
+	uint32_t home_axes; /* bit k: axis k has a HOME_METHOD: until homed its position at
+	                       bring-up is not judged against the soft limits */
 	struct {
 		uint8_t node;
 		struct mlip_io401_setup setup;

@@ -45,6 +45,8 @@ static void usage(FILE *f)
 	    "  stop             decelerate to rest on the path, drop the rest of the program\n"
 	    "  optional-stop on|off  M1 pauses the program (on) or is passed (off)\n"
 	    "  reset            leave an E-stop or a limit stop once its input is released\n"
+	    "  home [AXES]      home the axes (every one with a HOME_METHOD) with their\n"
+	    "                   drives' homing mode, in HOME_SEQUENCE order; waits for the end\n"
 	    "  jog AXIS+|AXIS- SPEED [SECONDS]  continuous jog at SPEED mm/min (deg/min),\n"
 	    "                   until SECONDS pass or a signal (Ctrl-C, a dropped session),\n"
 	    "                   then a stop at the acceleration limit; it stops by itself\n"
@@ -239,6 +241,12 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 		mlip_json_string(&j, "drives", mlip_drive_power_name(st->drive_power));
 	}
 	mlip_json_uint(&j, "drives_last_change_periods", st->drive_power_periods);
+	mlip_json_object(&j, "homed", 1);
+	for (int k = 0; k < m->n_axes; k++) {
+		char l[2] = {m->axis[k].letter, '\0'};
+		mlip_json_bool(&j, l, (st->homed >> k) & 1u);
+	}
+	mlip_json_close(&j);
 	/* the inputs on the bus (issue 18): each mapped function, on or off
 	 * (null: not read yet) */
 	mlip_json_object(&j, "inputs", 0);
@@ -390,6 +398,11 @@ static int cmd_status(struct mlip_shm *s, int json)
 	} else if (st.state == MLIP_STATE_FAULT) {
 		printf("to continue restart mlip-rt (the fault stays until then)\n");
 	}
+	printf("homed      ");
+	for (int k = 0; k < m.n_axes; k++) {
+		printf(" %c %s", m.axis[k].letter, (st.homed >> k) & 1u ? "yes" : "no");
+	}
+	printf("\n");
 	if (st.io_mapped != 0) {
 		printf("inputs     ");
 		for (uint32_t f = 0; f < MLIP_IN_COUNT; f++) {
@@ -764,6 +777,101 @@ static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const
 	return rc;
 }
 
+/* home [AXES]: the axes (letters, e.g. XZ; none: every axis with a
+ * HOME_METHOD) homed by their drives' homing mode, in HOME_SEQUENCE order;
+ * waits for the end and says how it went. */
+static int cmd_home(struct mlip_shm *s, const char *axes)
+{
+	struct mlip_machine m;
+	struct mlip_ring_status st;
+	uint32_t mask = 0;
+	int32_t result;
+	char fname[32];
+
+	mlip_ring_machine(s->ring, &m);
+	for (const char *p = axes; p != NULL && *p; p++) {
+		int k = -1;
+		for (int i = 0; i < m.n_axes; i++) {
+			if (m.axis[i].letter == *p || m.axis[i].letter + ('a' - 'A') == *p) {
+				k = i;
+			}
+		}
+		if (k < 0) {
+			fprintf(stderr, PROG ": home: '%c' is not an axis of this machine\n", *p);
+			return EXIT_USAGE;
+		}
+		mask |= 1u << k;
+	}
+	if (post_wait(s, MLIP_CMD_HOME, (int32_t)mask, &result) != 0) {
+		fprintf(stderr, PROG ": home: no answer from the controller on %s within 1 s\n",
+		        s->name);
+		return EXIT_FAIL;
+	}
+	read_status(s->ring, &st);
+	if (result != MLIP_OK) {
+		fprintf(stderr, PROG ": home: refused: %s\n",
+		        result == MLIP_E_RANGE ? "an axis without HOME_METHOD in the machine's "
+		                                 "configuration (or no CiA 402 drives)"
+		                               : "the controller is not idle");
+		return EXIT_FAIL;
+	}
+	/* the command's result comes before the status of its period: wait for
+	 * a later one, then for the end (a controller late for a while, as in an
+	 * emulated machine, is waited for; one gone for 5 s is not) */
+	uint64_t t0 = mlip_now_ns(), hb0 = st.heartbeat, quiet = 0;
+	while (read_status(s->ring, &st) == 0 && st.heartbeat <= hb0 + 1 &&
+	       mlip_now_ns() - t0 < 2ull * (uint64_t)WAIT_NS) {
+		sleep_ns(5 * POLL_NS);
+	}
+	while (read_status(s->ring, &st) == 0 && st.state == MLIP_STATE_HOMING) {
+		if (mlip_shm_controller_alive(s->ring)) {
+			quiet = 0;
+		} else if (quiet == 0) {
+			quiet = mlip_now_ns();
+		} else if (mlip_now_ns() - quiet > 5ull * (uint64_t)WAIT_NS) {
+			fprintf(stderr,
+			        PROG ": home: the controller stopped answering while homing\n");
+			return EXIT_FAIL;
+		}
+		sleep_ns(20 * POLL_NS);
+	}
+	double secs = (double)(mlip_now_ns() - t0) * 1e-9;
+	if (st.state == MLIP_STATE_IDLE && st.reason == MLIP_WHY_HOMED) {
+		printf("homed in %.2f s:", secs);
+		for (int k = 0; k < m.n_axes; k++) {
+			if (st.homed & (1u << k)) {
+				printf(" %c %.4f", m.axis[k].letter, st.pos[k]);
+			}
+		}
+		printf("\n");
+		return EXIT_DONE;
+	}
+	if (st.reason == MLIP_WHY_HOMING_SDO) {
+		fprintf(stderr,
+		        PROG
+		        ": home: node %u refused 0x%04X:%02X: %s (0x%08X): every axis stopped; "
+		        "mlip-ctl reset, then check HOME_* of that axis\n",
+		        (unsigned)st.reason_node, st.reason_field >> 8, st.reason_field & 0xFFu,
+		        mlip_sdo_abort_text((uint32_t)st.reason_value), (uint32_t)st.reason_value);
+	} else if (st.reason == MLIP_WHY_HOMING_ERROR || st.reason == MLIP_WHY_HOMING_TIMEOUT) {
+		fprintf(stderr,
+		        PROG
+		        ": home: node %u, method %u: %s (statusword 0x%04X) after %.2f s: every "
+		        "axis stopped; mlip-ctl reset\n",
+		        (unsigned)st.reason_node, st.reason_field,
+		        st.reason == MLIP_WHY_HOMING_ERROR ? "homing error (statusword bit 13)"
+		                                           : "not attained within HOME_TIMEOUT",
+		        (unsigned)st.reason_value, secs);
+	} else {
+		fprintf(stderr, PROG ": home: ended %s (%s)%s\n", mlip_ctl_state_name(st.state),
+		        mlip_state_why_name(st.reason),
+		        st.reason == MLIP_WHY_ESTOP
+		            ? mlip_io_function_name(st.reason_field, &m, fname, sizeof(fname))
+		            : "");
+	}
+	return EXIT_FAIL;
+}
+
 static int op_takes_arg(const char *cmd)
 {
 	return strcmp(cmd, "override") == 0 || strcmp(cmd, "optional-stop") == 0;
@@ -929,6 +1037,12 @@ int main(int argc, char **argv)
 		for (i = 0; i < 3 && optind < argc; i++) {
 			jog_args[i] = argv[optind++];
 		}
+	} else if (strcmp(cmd, "home") == 0) {
+		if (argc - optind > 1) {
+			fprintf(stderr, PROG ": home: expected [AXES] (e.g. XZ)\n");
+			return EXIT_USAGE;
+		}
+		jog_args[0] = optind < argc ? argv[optind++] : NULL;
 	} else if (strcmp(cmd, "status") == 0) {
 		for (i = optind; i < argc; i++) {
 			if (strcmp(argv[i], "--json") != 0) {
@@ -968,6 +1082,8 @@ int main(int argc, char **argv)
 	}
 	if (strcmp(cmd, "jog") == 0) {
 		rc = cmd_jog(&s, jog_args[0], jog_args[1], jog_args[2]);
+	} else if (strcmp(cmd, "home") == 0) {
+		rc = cmd_home(&s, jog_args[0]);
 	} else if (strcmp(cmd, "-") == 0) {
 		rc = cmd_stdin(&s);
 	} else {

@@ -709,7 +709,8 @@ static int set_up(const struct options *o, struct app *a)
 	                               .stall_periods = (uint32_t)o->stall_periods,
 	                               .can = &a->cfg.can,
 	                               .drives = a->cfg.drives.enable,
-	                               .io = &a->cfg.io};
+	                               .io = &a->cfg.io,
+	                               .home = &a->cfg.home};
 	/* each power step in the loop is given STATE_TIMEOUT_MS, in periods */
 	a->co.drive_state_periods =
 	    (uint32_t)(a->cfg.drives.state_timeout_ms * 1e-3 / a->cfg.machine.period_s + 0.999);

@@ -98,6 +98,17 @@ def parse_injection(text: str) -> tuple[int, str, str | None]:
     return int(node), what.strip(), (arg.strip() or None)
 
 
+def parse_switches(text: str) -> dict[str, int]:
+    """'neg:-5000,home:200' -> {'neg': -5000, 'home': 200}."""
+    out: dict[str, int] = {}
+    for item in text.split(","):
+        kind, _, counts = item.partition(":")
+        if kind not in ("neg", "pos", "home"):
+            raise ValueError(f"switch kind '{kind}' (neg, pos or home)")
+        out[kind] = int(counts, 0)
+    return out
+
+
 def node_map(items: Sequence[str] | None, what: str, conv: Callable[[str], T]) -> dict[int, T]:
     out: dict[int, T] = {}
     for it in items or ():
@@ -171,6 +182,13 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
         "batches from the same socket (auto: fast in the emulated VM)",
     )
     ap.add_argument(
+        "--switches",
+        metavar="N=KIND:COUNTS,...",
+        action="append",
+        help="where node N's switches are, for its homing mode (counts): neg and pos "
+        "(limit switches, on beyond them), home (on from it in +), e.g. 1=neg:-5000,home:200",
+    )
+    ap.add_argument(
         "--io",
         metavar="NODE",
         type=int,
@@ -194,8 +212,9 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
             raise UsageError(f"node ids must be distinct, 1..127: {allnodes}")
         starts = node_map(a.start, "--start", int)
         states = node_map(a.state, "--state", lambda v: STATES[v])
+        switches = node_map(a.switches, "--switches", parse_switches)
         injections = [parse_injection(t) for t in a.inject]
-        for n in list(starts) + list(states):
+        for n in list(starts) + list(states) + list(switches):
             if n not in nodes:
                 raise UsageError(f"node {n} is not one of the drives {nodes}")
         for n in [i[0] for i in injections]:
@@ -222,6 +241,7 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
             "start_state": states.get(n, P.SWITCH_ON_DISABLED),
             "heartbeat_ms": a.heartbeat_ms,
             "lag_alpha": a.lag,
+            "switches": switches.get(n, {}),
         }
         for n in nodes
     ]

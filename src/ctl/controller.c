@@ -39,6 +39,13 @@ static struct mlip_ctl_reason reason(uint32_t why, uint64_t seq, uint32_t line)
 	return r;
 }
 
+/* Axis k is to be homed (HOME_METHOD) and is not yet: its soft limits mean
+ * nothing so far. */
+static int unhomed(const struct mlip_ctl *c, int k)
+{
+	return ((c->home.configured & ~c->home.homed) >> k) & 1u;
+}
+
 /* Every change of state goes through here: named, with its reason. */
 static void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t state,
                struct mlip_ctl_reason r)
@@ -314,7 +321,8 @@ static void drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	c->jog.on = 0;
 	for (int k = 0; k < c->m.n_axes; k++) {
 		if ((uint32_t)c->m.axis[k].can_node == f->node) {
-			c->home.homed &= ~(1u << k); /* a faulted drive may have lost its position */
+			c->home.homed &=
+			    ~(1u << k); /* a faulted drive may have lost its position */
 		}
 	}
 	home_abort(c);
@@ -498,6 +506,9 @@ static double jog_end(const struct mlip_ctl *c)
 	const struct mlip_axis *a = &c->m.axis[c->jog.axis];
 	double range = a->counts_per_unit > 0.0 ? 2147483000.0 / a->counts_per_unit : 1e9;
 	double end = c->jog.neg ? a->min_limit : a->max_limit;
+	if (unhomed(c, (int)c->jog.axis)) {
+		end = c->jog.neg ? -range : range; /* machine zero is not known yet (LinuxCNC) */
+	}
 	return end > range ? range : end < -range ? -range : end;
 }
 
@@ -825,7 +836,8 @@ static void home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct
 			home_object(c, c->home.axis, c->home.entry, back, &r, &rb);
 			if ((in->sdo.value & mask) != (r.value & mask)) {
 				home_fail(c, in, out, MLIP_WHY_HOMING_SDO, c->home.axis,
-				          (uint32_t)rb << 8 | r.sub, (double)(in->sdo.value & mask));
+				          (uint32_t)rb << 8 | r.sub,
+				          (double)(in->sdo.value & mask));
 				return;
 			}
 		}
@@ -1108,12 +1120,13 @@ static void start_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
 
 /* ---- the drives' power (CiA 402, opts.drives) ------------------------------ */
 
-/* The first axis beyond a soft limit, or -1. */
+/* The first axis beyond a soft limit, or -1 (an axis still to be homed has
+ * none yet: machine zero is wherever its drive powered up). */
 static int beyond_limit(const struct mlip_ctl *c)
 {
 	for (int k = 0; k < c->m.n_axes; k++) {
 		const struct mlip_axis *a = &c->m.axis[k];
-		if (!(c->pos[k] >= a->min_limit && c->pos[k] <= a->max_limit)) {
+		if (!unhomed(c, k) && !(c->pos[k] >= a->min_limit && c->pos[k] <= a->max_limit)) {
 			return k;
 		}
 	}
@@ -1264,7 +1277,8 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 			go(c, out, MLIP_STATE_IDLE, r);
 			return;
 		}
-		if (c->home.cfg.required && (c->home.homed & c->home.configured) != c->home.configured) {
+		if (c->home.cfg.required &&
+		    (c->home.homed & c->home.configured) != c->home.configured) {
 			/* HOMING_REQUIRED: no program before every axis is homed */
 			c->prog.discard = 1;
 			c->prog.discard_waiting = 1;
@@ -1272,7 +1286,8 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 			if (c->why.why == MLIP_WHY_NOT_HOMED) {
 				c->why.why = MLIP_WHY_NONE; /* a second refusal is named too */
 			}
-			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_NOT_HOMED, head->seq, head->line));
+			go(c, out, MLIP_STATE_IDLE,
+			   reason(MLIP_WHY_NOT_HOMED, head->seq, head->line));
 			return;
 		}
 		if (c->drives && c->power.seq.step != MLIP_POWER_ENABLED) {

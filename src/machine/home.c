@@ -42,8 +42,9 @@ mlip_status mlip_mc_fill_home(const struct pstate *ps, struct mlip_config *c,
 					mlip_tb_putc(&b, a->letter);
 					mlip_tb_putc(&b, ' ');
 					mlip_tb_puts(&b, mlip_mc_keytab[K_AXIS][k].name);
-					mlip_tb_puts(&b, " without HOME_METHOD (homing is configured by "
-					                 "the drive's method, 0x6098)");
+					mlip_tb_puts(
+					    &b, " without HOME_METHOD (homing is configured by "
+					        "the drive's method, 0x6098)");
 					return home_err(ps, err, sec, k);
 				}
 			}
@@ -57,8 +58,8 @@ mlip_status mlip_mc_fill_home(const struct pstate *ps, struct mlip_config *c,
 		x->accel = has(ps, sec, AK_HOME_ACCEL) ? st->num[AK_HOME_ACCEL] : a->max_accel;
 		x->offset = has(ps, sec, AK_HOME_OFFSET) ? st->num[AK_HOME_OFFSET] : 0.0;
 		x->sequence = has(ps, sec, AK_HOME_SEQUENCE) ? (int)st->ival[AK_HOME_SEQUENCE]
-		              : a->letter == 'Z'                 ? 0
-		                                                 : 1;
+		              : a->letter == 'Z'             ? 0
+		                                             : 1;
 		x->timeout_s = has(ps, sec, AK_HOME_TIMEOUT) ? st->num[AK_HOME_TIMEOUT] : 60.0;
 		if (!(x->offset >= a->min_limit && x->offset <= a->max_limit)) {
 			err_at(err, &b, 0, 0);
@@ -68,17 +69,19 @@ mlip_status mlip_mc_fill_home(const struct pstate *ps, struct mlip_config *c,
 			mlip_tb_double(&b, x->offset);
 			mlip_tb_puts(&b, " is outside MIN_LIMIT..MAX_LIMIT: the axis would stand "
 			                 "beyond its soft limits after homing");
-			return home_err(ps, err, sec, has(ps, sec, AK_HOME_OFFSET) ? AK_HOME_OFFSET
-			                                                          : AK_HOME_METHOD);
+			return home_err(ps, err, sec,
+			                has(ps, sec, AK_HOME_OFFSET) ? AK_HOME_OFFSET
+			                                             : AK_HOME_METHOD);
 		}
 		{
 			/* the drive's objects: UNSIGNED32 counts/s and counts/s^2,
 			 * INTEGER32 counts */
-			const double v[4] = {x->search_vel * cpu, x->latch_vel * cpu, x->accel * cpu,
-			                     fabs(x->offset) * cpu};
+			const double v[4] = {x->search_vel * cpu, x->latch_vel * cpu,
+			                     x->accel * cpu, fabs(x->offset) * cpu};
 			const int key[4] = {AK_HOME_SEARCH_VEL, AK_HOME_LATCH_VEL, AK_HOME_ACCEL,
 			                    AK_HOME_OFFSET};
-			const double max[4] = {4294967295.0, 4294967295.0, 4294967295.0, 2147483647.0};
+			const double max[4] = {4294967295.0, 4294967295.0, 4294967295.0,
+			                       2147483647.0};
 			for (k = 0; k < 4; k++) {
 				if (!(v[k] >= (k < 3 ? 1.0 : 0.0) && v[k] <= max[k])) {
 					err_at(err, &b, 0, 0);
@@ -88,10 +91,12 @@ mlip_status mlip_mc_fill_home(const struct pstate *ps, struct mlip_config *c,
 					mlip_tb_puts(&b, mlip_mc_keytab[K_AXIS][key[k]].name);
 					mlip_tb_puts(&b, " is ");
 					mlip_tb_double(&b, v[k]);
-					mlip_tb_puts(&b, k < 3 ? " counts/s: not 1..2^32-1 (0x6099, 0x609A)"
-					                       : " counts: beyond 0x607C's INTEGER32");
+					mlip_tb_puts(
+					    &b, k < 3 ? " counts/s: not 1..2^32-1 (0x6099, 0x609A)"
+					              : " counts: beyond 0x607C's INTEGER32");
 					return home_err(ps, err, sec,
-					                has(ps, sec, key[k]) ? key[k] : AK_HOME_METHOD);
+					                has(ps, sec, key[k]) ? key[k]
+					                                     : AK_HOME_METHOD);
 				}
 			}
 		}

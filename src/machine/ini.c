@@ -397,7 +397,8 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		}
 		if (kd->type == V_METHOD && (i < -128 || i > 127)) {
 			return range_err(err, line, col, kd->name,
-			                 " must be within -128..127 (0x6098 is an INTEGER8)", v, nv);
+			                 " must be within -128..127 (0x6098 is an INTEGER8)", v,
+			                 nv);
 		}
 		if (kd->type == V_SEQUENCE && (i < 0 || i > 9)) {
 			return range_err(err, line, col, kd->name, " must be within 0..9", v, nv);

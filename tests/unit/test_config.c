@@ -915,6 +915,42 @@ static void test_io(void **state)
 	       "unknown key LIMIT_NEG in [IO] (it belongs in an [AXIS_*] section)");
 }
 
+/* Homing keys (issue 18): defaults, the drive's units, each error on its key. */
+static void test_home(void **state)
+{
+	(void)state;
+	EXPECT_OK(CFG(.x = "HOME_METHOD = 35", .tail = "[DRIVES]\nHOMING_REQUIRED = 1"));
+	const struct mlip_axis_home *h = &cfg.home.axis[0];
+	assert_true(h->configured && h->method == 35 && cfg.home.required == 1);
+	assert_near(h->search_vel, 20.0, 0); /* 10 % of MAX_VELOCITY 200 */
+	assert_near(h->latch_vel, 2.0, 1e-12);
+	assert_near(h->accel, 1000.0, 0);
+	assert_near(h->offset, 0.0, 0);
+	assert_int_equal(h->sequence, 1);
+	assert_near(h->timeout_s, 60.0, 0);
+	assert_false(cfg.home.axis[1].configured);
+	EXPECT_OK(
+	    CFG(.x = "HOME_METHOD = -3\nHOME_SEARCH_VEL = 5\nHOME_LATCH_VEL = 0.5\n"
+	             "HOME_ACCEL = 20\nHOME_OFFSET = -1.5\nHOME_SEQUENCE = 0\nHOME_TIMEOUT = 9"));
+	assert_true(h->method == -3 && h->sequence == 0 && h->offset == -1.5 &&
+	            h->timeout_s == 9.0);
+	EXPECT(CFG(.x = "HOME_METHOD = 128"), MLIP_E_RANGE, 9, 15,
+	       "HOME_METHOD must be within -128..127 (0x6098 is an INTEGER8), got 128");
+	EXPECT(CFG(.x = "HOME_METHOD = 35\nHOME_SEARCH_VEL = 0"), MLIP_E_RANGE, 10, 19,
+	       "HOME_SEARCH_VEL must be > 0, got 0");
+	EXPECT(CFG(.x = "HOME_METHOD = 35\nHOME_SEQUENCE = 10"), MLIP_E_RANGE, 10, 17,
+	       "HOME_SEQUENCE must be within 0..9, got 10");
+	EXPECT(CFG(.y = "HOME_LATCH_VEL = 1"), MLIP_E_RANGE, 13, 1,
+	       "AXIS_Y HOME_LATCH_VEL without HOME_METHOD (homing is configured by the drive's "
+	       "method, 0x6098)");
+	EXPECT(CFG(.x = "MIN_LIMIT = -10\nMAX_LIMIT = 10\nHOME_METHOD = 35\nHOME_OFFSET = 11"),
+	       MLIP_E_RANGE, 12, 1,
+	       "AXIS_X HOME_OFFSET 11 is outside MIN_LIMIT..MAX_LIMIT: the axis would stand "
+	       "beyond its soft limits after homing");
+	EXPECT(CFG(.x = "HOME_METHOD = 35\nHOME_LATCH_VEL = 1e-4"), MLIP_E_RANGE, 10, 1,
+	       "AXIS_X HOME_LATCH_VEL is 0.1 counts/s: not 1..2^32-1 (0x6099, 0x609A)");
+}
+
 static void test_can(void **state)
 {
 	static const char *const ids[] = {"SYNC_ID", "RPDO_BASE", "PACKED_BASE", "FD_ID",
@@ -1757,6 +1793,7 @@ int main(void)
 	    cmocka_unit_test(test_can),
 	    cmocka_unit_test(test_drives),
 	    cmocka_unit_test(test_io),
+	    cmocka_unit_test(test_home),
 	    cmocka_unit_test(test_bad_caller_defaults),
 	    cmocka_unit_test(test_unchanged_on_error),
 	    cmocka_unit_test(test_check_axes),

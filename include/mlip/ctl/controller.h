@@ -169,7 +169,7 @@ struct mlip_ctl_drives {
 	uint32_t actual_mask;              /* bit k: pos_actual[k] is from drive k's TPDO */
 	uint64_t tpdo_period[MLIP_MAX_AXES]; /* the period whose SYNC drive k's last TPDO
 	                                        answers (UINT64_MAX: none yet) */
-	double pos_actual[MLIP_MAX_AXES];  /* position actual 0x6064, joint units */
+	double pos_actual[MLIP_MAX_AXES];    /* position actual 0x6064, joint units */
 };
 
 /* The inputs on the bus (issue 18): rt/drives.c reads the I/O module and the
@@ -390,8 +390,8 @@ struct mlip_ctl {
 		uint32_t requests;   /* SDO requests so far (each a new seq) */
 		uint32_t stop_why;   /* a stop during homing: its reason, once CSP is back */
 		struct mlip_ctl_sdo_req req;
-		uint64_t t0;         /* the group's homing move began (period) */
-		uint16_t cw;         /* the group's controlword */
+		uint64_t t0; /* the group's homing move began (period) */
+		uint16_t cw; /* the group's controlword */
 	} home;
 	/* scratch for one period's blocks (no stack array of this size on RT) */
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];

@@ -178,15 +178,15 @@ const char *mlip_io_function_name(uint32_t f, const struct mlip_machine *m, char
  * and [DRIVES] HOMING_REQUIRED = 1: programs are refused until every axis
  * with a HOME_METHOD is homed (jogging stays allowed). */
 struct mlip_axis_home {
-	int configured; /* HOME_METHOD given */
-	int method;     /* 0x6098 */
+	int configured;                              /* HOME_METHOD given */
+	int method;                                  /* 0x6098 */
 	double search_vel, latch_vel, accel, offset; /* axis units */
 	int sequence;
 	double timeout_s;
 };
 
 struct mlip_home_config {
-	int required; /* HOMING_REQUIRED */
+	int required;                              /* HOMING_REQUIRED */
 	struct mlip_axis_home axis[MLIP_MAX_AXES]; /* machine order */
 };
 
