@@ -289,6 +289,8 @@ class IoModule:
                 new[sub - 1] = data[k - 1]
             if new != self.outputs and not self.master_lost:
                 self.outputs[:] = new
+                for i in range(NBYTES):
+                    self.node.data_store.setdefault(0x6200, {})[i + 1] = bytes([new[i]])
                 self.rec.event(self.id, "outputs", data=bytes(new).hex(), sync=self.sim.sync_no)
 
     # ------------------------------------------------------------ the master's heartbeat
@@ -317,6 +319,8 @@ class IoModule:
         if now - self.master_seen > self.master[1] / 1000.0:
             self.master_lost = True
             self.outputs[:] = bytes(NBYTES)
+            for i in range(NBYTES):
+                self.node.data_store.setdefault(0x6200, {})[i + 1] = b"\x00"
             self.rec.event(self.id, "heartbeat_lost", producer=self.master[0])
             self.rec.event(self.id, "outputs", data=bytes(self.outputs).hex(), why="heartbeat")
             if self.present:
