@@ -556,6 +556,27 @@ static int32_t jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t
 		c->jog.renewed = c->period;
 		return MLIP_OK;
 	}
+	if (c->state == MLIP_STATE_FAULT && c->why.why == MLIP_WHY_LIMIT && c->io.estop &&
+	    !c->home.on) {
+		/* stopped on a limit switch: only a jog away from it, which leaves
+		 * the quick stop (the switch does not trip again until released) */
+		uint32_t f = c->why.field, k = (f - MLIP_IN_AXIS0) / 3;
+		int away_neg = f == MLIP_IN_LIMIT_POS(k);
+		if (axis != k || neg != away_neg) {
+			return MLIP_E_RANGE; /* toward the switch, or another axis */
+		}
+		c->io.limit_ignore |= 1u << f;
+		c->io.estop = 0;
+		c->prog.bad = 0;
+		c->prog.discard = rx_count(c) > 0;
+		c->prog.discard_waiting = c->prog.discard;
+		if (c->drives) {
+			mlip_402_seq_init(&c->power.seq, MLIP_POWER_NONE,
+			                  c->power.seq.timeout ? c->power.seq.timeout : 1000,
+			                  c->period);
+		}
+		go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_RESET, 0, 0));
+	}
 	if (c->state != MLIP_STATE_IDLE || c->io.estop || mlip_planner_queued(c->planner) > 0 ||
 	    rx_count(c) > 0) {
 		return MLIP_E_INVALID;
@@ -1045,9 +1066,10 @@ static void io_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 	if (c->io.estop) {
 		return;
 	}
+	c->io.limit_ignore &= on; /* a released limit trips again */
 	for (int k = 0; k < c->m.n_axes; k++) {
 		uint32_t f = MLIP_IN_LIMIT_NEG(k);
-		uint32_t hit = on & ((1u << f) | (1u << (f + 1)));
+		uint32_t hit = on & ((1u << f) | (1u << (f + 1))) & ~c->io.limit_ignore;
 		if (hit &&
 		    (mlip_planner_moving(c->planner) || mlip_planner_queued(c->planner) > 0)) {
 			r.why = MLIP_WHY_LIMIT;

@@ -1425,6 +1425,46 @@ static void test_limit(void **st)
 	assert_int_equal(status().state, MLIP_STATE_IDLE);
 }
 
+/* Stopped on a limit switch that stays on: a jog toward it (or another
+ * axis) is refused, a jog away from it leaves the stop; the switch does not
+ * trip again until released, then it does. */
+static void test_limit_jog_away(void **st)
+{
+	(void)st;
+	run_long();
+	io_in.active = BIT(MLIP_IN_LIMIT_POS(0));
+	dtick(1);
+	assert_int_equal(status().reason, MLIP_WHY_LIMIT);
+	dtick(5);
+	double x = out.pos[0];
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 600), 0), MLIP_E_RANGE);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(1, 1, 600), 0), MLIP_E_RANGE);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 600), 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	for (int i = 0; i < 5; i++) {
+		dtick(50);
+		assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 600), 0), MLIP_OK);
+	}
+	assert_int_equal(status().state, MLIP_STATE_JOGGING); /* the switch, still on, ignored */
+	assert_true(out.pos[0] < x);
+	io_in.active = 0; /* off the switch */
+	dtick(1);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 0), 0), MLIP_OK);
+	for (int i = 0; i < 500 && status().state != MLIP_STATE_IDLE; i++) {
+		dtick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	/* re-armed: it trips the next move again */
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 600), 0), MLIP_OK);
+	until_power(MLIP_POWER_ENABLED, 50);
+	dtick(20);
+	io_in.active = BIT(MLIP_IN_LIMIT_POS(0));
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_LIMIT);
+}
+
 /* Hold and cycle start act on their rising edge, as the commands. */
 static void test_hold_cycle_start_inputs(void **st)
 {
@@ -1918,6 +1958,7 @@ int main(void)
 	    TIO(test_io_lost),
 	    TIO(test_limit),
 	    TIO(test_hold_cycle_start_inputs),
+	    TIO(test_limit_jog_away),
 	    TIO(test_estop_without_drives),
 	    T(test_jog_release),
 	    T(test_jog_deadman),

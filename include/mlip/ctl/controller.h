@@ -355,6 +355,8 @@ struct mlip_ctl {
 	struct {
 		struct mlip_io_config cfg;   /* what is mapped where */
 		uint32_t prev;               /* the functions on in the last period (edges) */
+		uint32_t limit_ignore;       /* limit inputs a jog away from them left on: they
+		                                do not trip until released */
 		int estop;                   /* in an E-stop: quick stop until a reset */
 		int fault_kept;              /* a drive fault came before (or in) it: it stays */
 		struct mlip_ctl_reason kept; /* that fault's reason */
