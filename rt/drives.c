@@ -280,34 +280,35 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 	ds->log = log;
 	ds->log_ctx = log_ctx;
 	ds->n = m->n_axes;
-	ds->io_cfg = cfg->io;
-	ds->io.node = cfg->io.node;
+	ds->io_cfg = cfg->inputs;
+	ds->io.node = cfg->inputs.node;
 	for (int k = 0; k < m->n_axes; k++) {
 		ds->home_axes |= cfg->home.axis[k].configured ? 1u << k : 0u;
 	}
-	if (cfg->io.mapped & ~((1u << MLIP_IN_AXIS0) - 1u)) {
+	if (cfg->inputs.mapped & ~((1u << MLIP_IN_AXIS0) - 1u)) {
 		for (uint32_t f = MLIP_IN_AXIS0; f < MLIP_IN_COUNT; f++) {
-			if ((cfg->io.mapped & (1u << f)) && cfg->io.in[f].node != cfg->io.node) {
+			if ((cfg->inputs.mapped & (1u << f)) &&
+			    cfg->inputs.in[f].node != cfg->inputs.node) {
 				char name[24];
 				snprintf(why, why_len,
 				         "%s is mapped on node %u's 0x60FD: a drive's digital "
 				         "inputs are "
 				         "not read yet; wire it to the I/O module ([IO] NODE)",
 				         mlip_io_function_name(f, m, name, sizeof(name)),
-				         cfg->io.in[f].node);
+				         cfg->inputs.in[f].node);
 				return -EINVAL;
 			}
 		}
 	}
-	if (cfg->io.mapped != 0 && cfg->io.node == 0) {
+	if (cfg->inputs.mapped != 0 && cfg->inputs.node == 0) {
 		snprintf(why, why_len,
 		         "inputs are mapped but [IO] NODE (the I/O module) is not set");
 		return -EINVAL;
 	}
 	if (ds->io.node != 0) {
 		ds->io.setup.node = ds->io.node;
-		ds->io.setup.in_bytes = cfg->io.in_bytes ? cfg->io.in_bytes : 1;
-		ds->io.setup.out_bytes = cfg->io.out_bytes;
+		ds->io.setup.in_bytes = cfg->inputs.in_bytes ? cfg->inputs.in_bytes : 1;
+		ds->io.setup.out_bytes = cfg->inputs.out_bytes;
 		ds->io.setup.heartbeat_ms = (uint16_t)cfg->drives.heartbeat_ms;
 		ds->io.setup.master_node = cfg->drives.master_node;
 		ds->io.setup.master_timeout_ms = (uint16_t)cfg->drives.heartbeat_timeout_ms;

@@ -562,8 +562,8 @@ static int open_bus(struct app *a, const char *iface)
 	}
 	fprintf(stderr, PROG ": %s\n", info);
 	if (a->cfg.drives.enable) {
-		n_ids =
-		    mlip_drives_rx_ids(&a->cfg.machine, a->cfg.io.node, ids, MLIP_CANBUS_MAX_IDS);
+		n_ids = mlip_drives_rx_ids(&a->cfg.machine, a->cfg.inputs.node, ids,
+		                           MLIP_CANBUS_MAX_IDS);
 	}
 	if (mlip_canbus_open(&bus, iface, a->prof == MLIP_CAN_FD, ids, n_ids, info, sizeof(info)) !=
 	    0) {
@@ -663,6 +663,12 @@ static int set_up(const struct options *o, struct app *a)
 		        PROG ": CiA 402 drives need a CAN interface and the cia402 profile\n");
 		return 2;
 	}
+	if ((a->cfg.inputs.node != 0 || a->cfg.inputs.mapped != 0) && !a->cfg.drives.enable) {
+		/* an E-stop that is not read must never look like one that is */
+		fprintf(stderr, PROG ": [IO] needs the CANopen master ([DRIVES] ENABLE = 1 or "
+		                     "--drives): the inputs are read by it\n");
+		return 2;
+	}
 	if (use_can && bus_budget(&a->cfg, a->prof) != 0) {
 		return 1;
 	}
@@ -691,6 +697,11 @@ static int set_up(const struct options *o, struct app *a)
 		tear_down(a);
 		return 1;
 	}
+	{ /* the machine's I/O, for the feeders' checks ([SPINDLE], [TOOL], [COOLANT]) */
+		struct mlip_ring_io rio;
+		mlip_cli_io_to_ring(&a->cfg.io, &a->cfg.machine, &rio);
+		mlip_ring_io_publish(a->shm.ring, &rio);
+	}
 	if (o->record != NULL) {
 		/* 2^15 periods (32 s at 1 ms) of slack for the monitor thread,
 		 * which drains it every 50 ms; 2 MB, locked with the rest */
@@ -709,7 +720,7 @@ static int set_up(const struct options *o, struct app *a)
 	                               .stall_periods = (uint32_t)o->stall_periods,
 	                               .can = &a->cfg.can,
 	                               .drives = a->cfg.drives.enable,
-	                               .io = &a->cfg.io,
+	                               .io = &a->cfg.inputs,
 	                               .home = &a->cfg.home};
 	/* each power step in the loop is given STATE_TIMEOUT_MS, in periods */
 	a->co.drive_state_periods =

@@ -43,6 +43,10 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "position beyond the drives' range",
 	                                    "drive fault",
 	                                    "stop before the start",
+	                                    "spindle (manual)",
+	                                    "tool change (manual)",
+	                                    "coolant (manual)",
+
 	                                    "E-stop input",
 	                                    "I/O module lost",
 	                                    "limit switch",

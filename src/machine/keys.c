@@ -48,22 +48,21 @@ const struct keydef mlip_mc_keytab[N_KINDS][NKEYS] = {
                   {"BOOT_TIMEOUT_MS", V_MS, 0},
                   {"STATE_TIMEOUT_MS", V_MS, 0},
                   {"HOMING_REQUIRED", V_BOOL, 0}},
+    [K_SPINDLE] = {{"TYPE", V_IO, 0}, {"MIN_RPM", V_RPM, 0}, {"MAX_RPM", V_RPM, 0}},
+    [K_TOOL] = {{"CHANGE", V_IO, 0},
+                {"CHANGE_X", V_REAL, 0},
+                {"CHANGE_Y", V_REAL, 0},
+                {"CHANGE_Z", V_REAL, 0},
+                {"CHANGE_A", V_REAL, 0},
+                {"CHANGE_B", V_REAL, 0},
+                {"CHANGE_C", V_REAL, 0}},
+    [K_COOLANT] = {{"TYPE", V_IO, 0}},
     [K_IO] = {{"NODE", V_NODE, 0},
               {"ESTOP", V_IOBIT, 0},
               {"HOLD", V_IOBIT, 0},
               {"CYCLE_START", V_IOBIT, 0},
               {"PROBE", V_IOBIT, 0}},
 };
-
-int mlip_mc_nkeys(int kind)
-{
-	int k = 0;
-
-	while (k < NKEYS && mlip_mc_keytab[kind][k].name != NULL) {
-		k++;
-	}
-	return k;
-}
 
 /* "TRAJ", "CAN", "AXIS_X", ... */
 void mlip_mc_secname(struct mlip_tb *b, int sec)
@@ -74,6 +73,12 @@ void mlip_mc_secname(struct mlip_tb *b, int sec)
 		mlip_tb_puts(b, "CAN");
 	} else if (sec == SEC_DRIVES) {
 		mlip_tb_puts(b, "DRIVES");
+	} else if (sec == SEC_SPINDLE) {
+		mlip_tb_puts(b, "SPINDLE");
+	} else if (sec == SEC_TOOL) {
+		mlip_tb_puts(b, "TOOL");
+	} else if (sec == SEC_COOLANT) {
+		mlip_tb_puts(b, "COOLANT");
 	} else if (sec == SEC_IO) {
 		mlip_tb_puts(b, "IO");
 	} else {

@@ -368,7 +368,7 @@ static void test_sections(void **state)
 	(void)state;
 	EXPECT(CFG(.tail = "[FOO]"), MLIP_E_SYNTAX, 14, 2,
 	       "unknown section [FOO] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES], "
-	       "[IO])");
+	       "[SPINDLE], [TOOL], [COOLANT], [IO])");
 	EXPECT(CFG(.tail = "[traj]"), MLIP_E_SYNTAX, 14, 2,
 	       "unknown section [traj] (did you mean [TRAJ]?)");
 	EXPECT(CFG(.tail = "[AXIS_x]"), MLIP_E_SYNTAX, 14, 2,
@@ -380,7 +380,7 @@ static void test_sections(void **state)
 	EXPECT(
 	    CFG(.tail = "[JOINT_0]"), MLIP_E_SYNTAX, 14, 2,
 	    "unknown section [JOINT_0] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES], "
-	    "[IO])");
+	    "[SPINDLE], [TOOL], [COOLANT], [IO])");
 	EXPECT(CFG(.tail = "  [ TRAJ ]"), MLIP_E_SYNTAX, 14, 5,
 	       "duplicate section [TRAJ] (first at line 1)");
 	EXPECT(CFG(.tail = "[AXIS_X]"), MLIP_E_SYNTAX, 14, 2,
@@ -856,19 +856,19 @@ static void test_io(void **state)
 {
 	(void)state;
 	EXPECT_OK(CFG(.tail = ""));
-	assert_int_equal(cfg.io.node, 0);
-	assert_int_equal(cfg.io.mapped, 0);
+	assert_int_equal(cfg.inputs.node, 0);
+	assert_int_equal(cfg.inputs.mapped, 0);
 	EXPECT_OK(
 	    CFG(.x = "LIMIT_POS = 1 0x60FD:0 1 HIGH",
 	        .tail = "[IO]\nNODE = 10\nESTOP = 10 0x6000:2 7 LOW\nHOLD = 10 0x6000:1 0 HIGH"));
-	assert_int_equal(cfg.io.node, 10);
-	assert_int_equal(cfg.io.in_bytes, 2);
-	assert_int_equal(cfg.io.mapped, (1u << MLIP_IN_ESTOP) | (1u << MLIP_IN_HOLD) |
-	                                    (1u << MLIP_IN_LIMIT_POS(0)));
-	const struct mlip_io_bit *e = &cfg.io.in[MLIP_IN_ESTOP];
+	assert_int_equal(cfg.inputs.node, 10);
+	assert_int_equal(cfg.inputs.in_bytes, 2);
+	assert_int_equal(cfg.inputs.mapped, (1u << MLIP_IN_ESTOP) | (1u << MLIP_IN_HOLD) |
+	                                        (1u << MLIP_IN_LIMIT_POS(0)));
+	const struct mlip_io_bit *e = &cfg.inputs.in[MLIP_IN_ESTOP];
 	assert_true(e->node == 10 && e->index == 0x6000 && e->sub == 2 && e->bit == 7 &&
 	            e->active_low == 1 && e->line == 16);
-	e = &cfg.io.in[MLIP_IN_LIMIT_POS(0)];
+	e = &cfg.inputs.in[MLIP_IN_LIMIT_POS(0)];
 	assert_true(e->node == 1 && e->index == 0x60FD && e->sub == 0 && e->bit == 1 &&
 	            e->active_low == 0);
 	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nESTOP = 10 0x6000:1 0 MAYBE"), MLIP_E_SYNTAX, 16, 23,

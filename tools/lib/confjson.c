@@ -135,14 +135,14 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 	mlip_json_close(&j);
 	mlip_json_close(&j);
 	/* the inputs on the bus (issue 18): the module's node, each function mapped */
-	mlip_json_object(&j, "io", 0);
-	mlip_json_uint(&j, "node", c->io.node);
-	mlip_json_uint(&j, "in_bytes", c->io.in_bytes);
-	mlip_json_array(&j, "inputs", 0);
+	mlip_json_object(&j, "inputs", 0);
+	mlip_json_uint(&j, "node", c->inputs.node);
+	mlip_json_uint(&j, "in_bytes", c->inputs.in_bytes);
+	mlip_json_array(&j, "functions", 0);
 	for (uint32_t fn = 0; fn < MLIP_IN_COUNT; fn++) {
-		const struct mlip_io_bit *b = &c->io.in[fn];
+		const struct mlip_io_bit *b = &c->inputs.in[fn];
 		char name[24];
-		if (!(c->io.mapped & (1u << fn))) {
+		if (!(c->inputs.mapped & (1u << fn))) {
 			continue;
 		}
 		mlip_json_object(&j, NULL, 1);
