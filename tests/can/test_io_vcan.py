@@ -138,8 +138,11 @@ def test_estop_quick_stop_and_reset(sim, tmp_path):
           f"SYNC {qs[1]} ({delay} SYNCs: controlword 0x0002 sent in the period that read the "
           f"frame, applied at the next SYNC)")
     # the frame came after SYNC s_in; the next period reads it and sends the
-    # quick stop with its RPDOs; the drives apply those at the SYNC after
-    assert delay == 2, qs
+    # quick stop with its RPDOs; the drives apply those at the SYNC after: 2.
+    # The send time is taken just after the simulator sent the frame: when it
+    # was descheduled in between, a SYNC may precede that time and not the
+    # frame, which shows as 1
+    assert 1 <= delay <= 2, qs
     # each drive left "operation enabled" through "quick stop active"
     for n in (1, 2, 3):
         st = [e["to"] for e in sim.events("state", n) if e["t"] >= t0]
@@ -194,4 +197,4 @@ def test_limit_switch(sim, tmp_path):
     qs = quick_stop_syncs(sim, s_in - 1)
     assert set(qs) == {1, 2, 3} and len(set(qs.values())) == 1, qs
     print(f"[io] limit X+: input after SYNC {s_in}, quick stop at SYNC {qs[1]}")
-    assert qs[1] - s_in == 2, qs
+    assert 1 <= qs[1] - s_in <= 2, qs
