@@ -53,6 +53,7 @@
 #include "latstats.h"
 #include "mlip/can/canenc.h"
 #include "mlip/ipc/ring.h"
+#include "mlip/motion/smooth.h"
 #include "program.h"
 #include "rt.h"
 
@@ -1040,7 +1041,16 @@ int main(int argc, char **argv)
 		}
 		struct mlip_ring *ring = ring_mem;
 		/* the latency test counts missed periods; it does not hold on them */
+		/* the smooth strategy's planner data, as mlip-rt: only smooth has it */
+		struct mlip_smooth_store *smooth_store = NULL;
+		if (o.strategy == MLIP_STRATEGY_SMOOTH &&
+		    (smooth_store = calloc(1, sizeof(*smooth_store))) == NULL) {
+			fprintf(stderr,
+			        PROG ": out of memory for the smooth strategy's look-ahead\n");
+			return 1;
+		}
 		struct mlip_ctl_opts co = {.strategy = (mlip_strategy)o.strategy,
+		                           .smooth = smooth_store,
 		                           .lookahead = cfg.lookahead,
 		                           .stall_periods = UINT32_MAX,
 		                           .can = &cfg.can};
@@ -1061,6 +1071,9 @@ int main(int argc, char **argv)
 		}
 		memset(&planner.seg, 0,
 		       sizeof(planner.seg)); /* prefault the look-ahead, as mlip-rt */
+		if (smooth_store != NULL) {
+			memset(smooth_store, 0, sizeof(*smooth_store));
+		}
 		R.ctl = &ctl;
 		R.io = o.mode == MODE_CAN ? &io : NULL;
 		R.last_state = MLIP_STATE_IDLE;

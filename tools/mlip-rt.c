@@ -17,6 +17,7 @@
 #include "cli.h"
 #include "confload.h"
 #include "mlip/can/canenc.h"
+#include "mlip/motion/smooth.h"
 #include "rt.h"
 #include "trace.h"
 
@@ -614,7 +615,19 @@ int main(int argc, char **argv)
 	} else {
 		mlip_trace_open(&mon.trace, NULL, &cfg.machine, NULL);
 	}
+	/* the smooth strategy's planner data: only smooth carries it (locked
+	 * with the rest, prefaulted below) */
+	struct mlip_smooth_store *smooth_store = NULL;
+	if (st == MLIP_STRATEGY_SMOOTH &&
+	    (smooth_store = calloc(1, sizeof(*smooth_store))) == NULL) {
+		fprintf(stderr, PROG ": out of memory for the smooth strategy's look-ahead\n");
+		drives_down(cfg.drives.enable ? &drives : NULL, &port);
+		mlip_shm_close(&shm);
+		mlip_canio_close(&io);
+		return 1;
+	}
 	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st,
+	                           .smooth = smooth_store,
 	                           .lookahead = cfg.lookahead,
 	                           .stall_periods = (uint32_t)stall_periods,
 	                           .can = &cfg.can};
@@ -639,6 +652,9 @@ int main(int argc, char **argv)
 		tick_ctx = &drives;
 	}
 	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead */
+	if (smooth_store != NULL) {
+		memset(smooth_store, 0, sizeof(*smooth_store));
+	}
 	ctl.exit_request = got_exit; /* init cleared it: keep a stop asked during start-up */
 
 	fprintf(stderr, PROG ": ready on %s, segment %s, period %.3f ms, %s, priority %d%s\n",

@@ -22,6 +22,7 @@
 #include "mlip/ctl/controller.h"
 #include "mlip/gcode/gcode.h"
 #include "mlip/motion/planner.h"
+#include "mlip/motion/smooth.h"
 #include "mlip/ipc/ring.h"
 #include "offsets.h"
 #include "program.h"
@@ -30,7 +31,8 @@
 #define PROG        "mlip-sim"
 #define MAX_PERIODS 200000000ULL /* 55 h of machining at 1 ms: a runaway */
 
-static struct mlip_planner planner; /* ~2.6 MB: static, like on the controller */
+static struct mlip_planner planner;           /* ~1.1 MB: static, like on the controller */
+static struct mlip_smooth_store smooth_store; /* ~1.5 MB, touched only by smooth */
 static struct mlip_ctl ctl;
 
 static void usage(FILE *f)
@@ -364,7 +366,9 @@ int main(int argc, char **argv)
 		        mo.offsets ? mo.offsets : "no --offsets: defaults");
 	}
 	/* the controller, its ring and feeder, in this process */
-	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st, .lookahead = (uint32_t)lookahead};
+	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st,
+	                           .smooth = st == MLIP_STRATEGY_SMOOTH ? &smooth_store : NULL,
+	                           .lookahead = (uint32_t)lookahead};
 	size_t ring_bytes = mlip_ring_bytes(MLIP_RING_CAPACITY);
 	void *ring_mem = NULL;
 	struct mlip_ring *ring = NULL;

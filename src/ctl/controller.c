@@ -65,7 +65,7 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	for (int k = 0; k < m->n_axes; k++) {
 		c->pos[k] = c->prog_start[k] = m->axis[k].home;
 	}
-	if (mlip_planner_init(p, &c->m, o->strategy, o->lookahead, c->pos) != MLIP_OK) {
+	if (mlip_planner_init(p, &c->m, o->strategy, o->lookahead, c->pos, o->smooth) != MLIP_OK) {
 		return MLIP_E_INVALID;
 	}
 	if (o->can != NULL) {

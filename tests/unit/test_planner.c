@@ -36,6 +36,7 @@
 	} while (0)
 
 static struct mlip_planner P;
+static struct mlip_smooth_store SM; /* the smooth strategy's planner data */
 
 static uint64_t rng = 88172645463325252ULL;
 static double urand(void)
@@ -339,7 +340,10 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 	}
 	memset(r, 0, sizeof(*r));
 	mlip_check_init(&r->chk, &lim, p->pts, p->np);
-	assert_int_equal(mlip_planner_init(&P, m, st, 0, p->pts), MLIP_OK);
+	/* only smooth gets its storage: the others plan without it */
+	assert_int_equal(
+	    mlip_planner_init(&P, m, st, 0, p->pts, st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
+	    MLIP_OK);
 	mlip_check_sample(&r->chk, p->pts);
 	size_t next = 1;
 	int n = m->n_axes;
@@ -534,7 +538,9 @@ static int plan_equals_full_pass(const struct path *p, const struct mlip_machine
 	static double q[MLIP_LOOKAHEAD];
 	static uint8_t sh[MLIP_LOOKAHEAD];
 	int n = p->n, braking = 0;
-	assert_int_equal(mlip_planner_init(&P, m, st, cap, p->pts), MLIP_OK);
+	assert_int_equal(
+	    mlip_planner_init(&P, m, st, cap, p->pts, st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
+	    MLIP_OK);
 	double x[MLIP_MAX_AXES];
 	for (size_t i = 1; i < p->np; i++) {
 		struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
@@ -546,14 +552,16 @@ static int plan_equals_full_pass(const struct path *p, const struct mlip_machine
 		if (i % every == 0) {
 			for (uint32_t j = P.tail; j != P.head; j++) {
 				const struct mlip_seg *g = &P.seg[j & (P.cap - 1)];
+				uint8_t shape = P.sm != NULL ? P.sm[j & (P.cap - 1)].shape : 0;
 				q[j & (P.cap - 1)] = g->q;
-				sh[j & (P.cap - 1)] = g->shape;
-				braking += g->shape > 0 && g->shape != MLIP_SHAPE_FIXED;
+				sh[j & (P.cap - 1)] = shape;
+				braking += shape > 0 && shape != MLIP_SHAPE_FIXED;
 			}
 			mlip_planner_set_override(&P, 100.0); /* full pass */
 			for (uint32_t j = P.tail; j != P.head; j++) {
 				assert_true(q[j & (P.cap - 1)] == P.seg[j & (P.cap - 1)].q);
-				assert_int_equal(sh[j & (P.cap - 1)], P.seg[j & (P.cap - 1)].shape);
+				assert_int_equal(sh[j & (P.cap - 1)],
+				                 P.sm != NULL ? P.sm[j & (P.cap - 1)].shape : 0);
 			}
 		}
 	}
@@ -588,7 +596,7 @@ static void push_n_same_plan(int n, int kind, int zigzag)
 		b[i] = (struct mlip_block){.feed_mm_s = 150, .tol_mm = 0.01, .line = (uint32_t)i};
 		memcpy(b[i].target, p.pts + (i + 1) * (size_t)n, sizeof(double) * (size_t)n);
 	}
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts, NULL), MLIP_OK);
 	for (size_t i = 0; i < 3000; i++) {
 		assert_int_equal(mlip_planner_push(&P, &b[i]), MLIP_OK);
 	}
@@ -600,7 +608,7 @@ static void push_n_same_plan(int n, int kind, int zigzag)
 	for (uint32_t j = 0; j < P.head; j++) {
 		assert_true(q1[j] == P.seg[j].q);
 	}
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts, NULL), MLIP_OK);
 	size_t done = 0;
 	while (done < 3000) {
 		size_t k = 1 + (done * 7) % 23;
@@ -640,7 +648,7 @@ static void test_sharp_corner_zero_side_does_not_stop(void **state)
 	struct mlip_machine m = machine(2, 1000, 200, 0.01);
 	m.axis[1].max_accel = 1000;
 	double start[2] = {0, 0};
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, start), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, start, NULL), MLIP_OK);
 	struct mlip_block b1 = {
 	    .target = {es[0] * 20, es[1] * 20}, .feed_mm_s = 200, .tol_mm = 0.01};
 	struct mlip_block b2 = {.target = {es[0] * 20 + ee[0] * 20, es[1] * 20 + ee[1] * 20},
@@ -843,16 +851,23 @@ static void test_push_full_and_bad_input(void **state)
 	(void)state;
 	struct mlip_machine m = machine(2, 1000, 200, 0.01);
 	double start[2] = {0, 0};
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start), MLIP_OK);
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 12, start), MLIP_E_INVALID);
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start, NULL), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 12, start, NULL),
+	                 MLIP_E_INVALID);
+	/* smooth keeps its own data beside the planner: not without it */
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_SMOOTH, 8, start, NULL),
+	                 MLIP_E_INVALID);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_SMOOTH, 8, start, &SM), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_COUNT, 8, start, &SM),
+	                 MLIP_E_INVALID);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start, NULL), MLIP_OK);
 	for (int i = 1; i <= 8; i++) {
 		struct mlip_block b = {.target = {i * 0.1, 0}, .feed_mm_s = 100, .tol_mm = 0.01};
 		assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
 	}
 	struct mlip_block b = {.target = {1, 1}, .feed_mm_s = 100, .tol_mm = 0.01};
 	assert_int_equal(mlip_planner_push(&P, &b), MLIP_E_FULL);
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start, NULL), MLIP_OK);
 	b.target[0] = NAN;
 	assert_int_equal(mlip_planner_push(&P, &b), MLIP_E_RANGE);
 	b.target[0] = 1;

@@ -54,34 +54,13 @@ int mlip_cli_gcode_option(int c, const char *arg, struct mlip_cli_machine *o, co
 
 int mlip_cli_strategy(const char *name)
 {
-	if (strcmp(name, "mpct") == 0) {
-		return MLIP_STRATEGY_MPCT;
-	}
-	if (strcmp(name, "bisector") == 0) {
-		return MLIP_STRATEGY_BISECTOR;
-	}
-	if (strcmp(name, "stop") == 0) {
-		return MLIP_STRATEGY_STOP;
-	}
-	if (strcmp(name, "smooth") == 0) {
-		return MLIP_STRATEGY_SMOOTH;
-	}
-	return -1;
+	return mlip_strategy_from_name(name); /* the table's names (mlip/motion/planner.h) */
 }
 
 const char *mlip_cli_strategy_name(mlip_strategy st)
 {
-	switch (st) {
-	case MLIP_STRATEGY_MPCT:
-		return "mpct";
-	case MLIP_STRATEGY_BISECTOR:
-		return "bisector";
-	case MLIP_STRATEGY_STOP:
-		return "stop";
-	case MLIP_STRATEGY_SMOOTH:
-		return "smooth";
-	}
-	return "?";
+	const char *name = mlip_strategy_name(st);
+	return name != NULL ? name : "?";
 }
 
 static int apply_accel(struct mlip_machine *m, const char *list, const char *prog, FILE *err)

@@ -41,9 +41,15 @@ typedef enum {
 	MLIP_STRATEGY_MPCT = 0, /* the paper: multi-period constant-acceleration corners */
 	MLIP_STRATEGY_BISECTOR, /* equal speeds, one period, a along e_e - e_s (eq 10) */
 	MLIP_STRATEGY_STOP,     /* speed 0 at every corner */
-	MLIP_STRATEGY_SMOOTH /* mpct's corners on the host's smoothed path (mlip/motion/smooth.h):
-	                        the planner treats it as MPCT */
+	MLIP_STRATEGY_SMOOTH,   /* the host's smoothed path (mlip/motion/smooth.h), corners chosen
+	                           on the acceleration polygon's boundary (smoothplan.c) */
+	MLIP_STRATEGY_COUNT
 } mlip_strategy;
+
+/* Command-line name of a strategy ("mpct", ...), NULL when st is none;
+ * the strategy of a name, -1 when none has it. */
+const char *mlip_strategy_name(mlip_strategy st);
+int mlip_strategy_from_name(const char *name);
 
 /* ---- corner planning, exposed for tests and benchmarks ---------------- */
 
@@ -73,23 +79,7 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
                       double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
                       double vcap_e_mm_s, double period_s, struct mlip_corner *c);
 
-/* The smooth strategy's corner shapes (beyond the paper, corner.c): out[0]
- * is mlip_corner_plan's, then up to MLIP_SMOOTH_SHAPES - 1 braking shapes on
- * the acceleration polygon's boundary (v_e < v_s) that the backward pass
- * chooses where braking limits the corner, with their w (shapes 1..: the
- * corner is mlip_corner_smooth_w's at that w). Returns how many. */
-#define MLIP_SMOOTH_SHAPES 6
-int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, double ds_mm,
-                              double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
-                              double vcap_e_mm_s, struct mlip_corner *out, double *w_out);
 /* ---- the planner ------------------------------------------------------- */
-
-/* A corner shape as the backward pass weighs it (smooth): its w (for
- * mlip_corner_smooth_w) and, at q = 1, 1/v_s^2, 1/v_e^2, B = v_s^2 - 2 a l_s,
- * C = v_e^2 + 2 a' l_e and 1/C (0 when C is 0), as link_coeffs has them. */
-struct mlip_shape {
-	double w, inv_vs2, inv_ve2, b, c, inv_c;
-};
 
 /* One segment of the look-ahead: the line from the previous point to end[],
  * and the corner at end[] towards the next segment. Private to the planner;
@@ -115,14 +105,11 @@ struct mlip_seg {
 	double qcap;             /* largest q under the override (Sec. 3) */
 	/* look-ahead state */
 	double q; /* planned (t_m / t_g)^2 of the corner, in [0,1] */
-	/* smooth: the shapes c is chosen among (mlip_corner_smooth_shapes),
-	 * which one it is, or MLIP_SHAPE_FIXED once the executor chose c */
-	uint8_t n_shapes, shape;
-	double commit_in, commit_out; /* the largest q B and q C any plan gave it */
-	struct mlip_corner shape0;    /* shapes[0]'s corner; the others from w */
-	struct mlip_shape shapes[MLIP_SMOOTH_SHAPES];
 };
-#define MLIP_SHAPE_FIXED 255
+
+struct mlip_strategy_ops;
+struct mlip_smooth_seg;   /* smooth's own data of a segment (mlip/motion/smooth.h) */
+struct mlip_smooth_store; /* ... for every slot: storage only smooth needs */
 
 /* A line's speed profile (35)(36): from v0 to vc at a1, cruise, to v1 at a3. */
 struct mlip_profile {
@@ -153,6 +140,8 @@ struct mlip_planner {
 	double vaxis[MLIP_MAX_AXES]; /* per-axis velocity limits */
 	uint8_t rotary[MLIP_MAX_AXES];
 	double vmax_mm_s, vmax_rot_deg_s, eps_mm, period_s;
+	const struct mlip_strategy_ops *ops; /* the strategy's entry (mlip/motion/strategy.h) */
+	struct mlip_smooth_seg *sm;          /* smooth: its data, slot for slot with seg */
 	/* look-ahead ring: segments [tail, head) are queued, seg[tail] is the
 	 * one being executed (its line or its end corner) */
 	uint32_t head, tail;              /* free-running; index & (cap-1) */
@@ -184,9 +173,13 @@ struct mlip_planner {
 
 /* Initialise at rest at start[] (n joint coordinates). cap = look-ahead
  * capacity (0 means MLIP_LOOKAHEAD; else a power of two <= MLIP_LOOKAHEAD).
- * Returns MLIP_E_INVALID for an inconsistent machine or capacity. */
+ * store: the smooth strategy's data (mlip/motion/smooth.h), required with
+ * MLIP_STRATEGY_SMOOTH and ignored otherwise, so that the other strategies
+ * carry none of it. Returns MLIP_E_INVALID for an inconsistent machine or
+ * capacity, or smooth without store. */
 mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine *m,
-                              mlip_strategy st, uint32_t cap, const double *start);
+                              mlip_strategy st, uint32_t cap, const double *start,
+                              struct mlip_smooth_store *store);
 
 /* Free slots for push. */
 uint32_t mlip_planner_space(const struct mlip_planner *p);
