@@ -148,6 +148,10 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 		const struct mlip_seg *s = seg_at(p, i);
 		struct mlip_seg *pr = seg_at(p, i - 1);
 		if (full) {
+			if (p->ops->commit != NULL) {
+				p->ops->commit(p, i - 1,
+				               pr); /* the plan in effect, before it goes */
+			}
 			pr->qcap = corner_soft_cap(p, pr, s);
 		}
 		/* (25)(26): q_{i-1} C <= q_i B + 2 a d */
@@ -166,9 +170,6 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 			break; /* termination condition: nothing older can change */
 		}
 		pr->q = q;
-		if (p->ops->commit != NULL) {
-			p->ops->commit(p, i - 1, pr);
-		}
 		q_next = q;
 		i--;
 	}

@@ -192,6 +192,7 @@ void mlip_smooth_link(struct mlip_planner *p, uint32_t i, struct mlip_seg *pr,
 	struct mlip_smooth_seg *g = mlip_smooth_at(p, i);
 	g->n_shapes = 0;
 	g->shape = 0;
+	g->anchor = 0;
 	g->commit_in = 0.0;
 	g->commit_out = 0.0;
 	if (pr->exact) {
@@ -226,18 +227,31 @@ void mlip_smooth_link(struct mlip_planner *p, uint32_t i, struct mlip_seg *pr,
  * it, a shape with v_e < v_s on the polygon's boundary brakes inside the
  * turn too (normal and tangential parts together, as a time-optimal
  * profile does). The measure is q B, the largest v^2 - 2 a l_s the line
- * before may arrive with (25), q as the pass computes it; a braking shape
- * only where its exit is at its bound (else it would leave slower than
- * allowed).
+ * before may arrive with (25), q as the pass computes it, the largest taken.
+ *
+ * The choice is a function of rhs and of the corner's own data only, never
+ * of the shape an earlier pass left: so the plan is the same however the
+ * blocks were batched (one pass per push_n), and the termination condition
+ * stays exact (a corner that computes what it holds has successors that
+ * compute what they hold). Ties go to the lowest shape. Between full passes
+ * rhs only grows (new blocks relax every braking bound), each shape's q B =
+ * min(qcap, rhs / C) B with it, and so their largest: a plan in effect never
+ * promises less than an earlier one, and the chosen shape takes any entry
+ * promised before (B >= q B) at a q no larger than its own, so it leaves
+ * within this plan's exit (q C <= rhs). (Taking braking shapes only where
+ * braking binds them, as before, made the largest q B drop when a shape
+ * left that range: a corner then had to take more than its shape could, by
+ * 3x the limit on a Lissajous at 200 mm/s^2.)
  *
  * What the machine may still carry into a corner is bounded by the plans
- * it followed, not only by this one (after an override cut or a hold it
- * brakes as it can, Sec. 3.2 case b, and relies on each corner taking the
- * speed the line cannot shed). So a corner changes shape only to a better
- * one (q B larger: sticky, so passes that change nothing keep it), that
- * takes every entry any plan promised it (B at q = 1 >= commit_in) and
- * then leaves no faster than promised or allowed now (commit_in / B C <=
- * max(commit_out, rhs)). Full passes (override, hold) only recompute q.
+ * it followed, not only by this one: after an override cut or a hold (a
+ * full pass) it brakes as it can, Sec. 3.2 case b, and relies on each
+ * corner taking the speed the line cannot shed. The plan a full pass
+ * replaces holds all that was promised since the last one: mlip_smooth_commit
+ * keeps its q B and q C (commit_in, commit_out) and its shape (anchor). A shape is then chosen only
+ * if it takes every entry promised (B at q = 1 >= commit_in) and leaves no faster than promised or
+ * allowed now (commit_in / B C <= max(commit_out, rhs)); when none does, the anchor stays. Full
+ * passes only recompute q.
  */
 int mlip_smooth_choose(struct mlip_planner *p, uint32_t i, struct mlip_seg *pr,
                        const struct mlip_seg *nx, double rhs)
@@ -246,14 +260,9 @@ int mlip_smooth_choose(struct mlip_planner *p, uint32_t i, struct mlip_seg *pr,
 	if (g->n_shapes <= 1 || g->shape == MLIP_SHAPE_FIXED) {
 		return 0; /* one shape, or the executor chose it */
 	}
-	/* the plan's shape where braking does not limit it: nothing to gain
-	 * (and nothing to compute, the common case) */
-	if (g->shape == 0 && !(pr->inv_brake_c > 0.0 && rhs * pr->inv_brake_c < pr->qcap)) {
-		return 0;
-	}
 	double ts2 = mlip_sq(mlip_line_target(p, pr)), te2 = mlip_sq(mlip_line_target(p, nx));
-	double val[MLIP_SMOOTH_SHAPES];
-	int lim[MLIP_SMOOTH_SHAPES];
+	int best = -1;
+	double best_val = 0.0;
 	for (int j = 0; j < g->n_shapes; j++) {
 		const struct mlip_shape *h = &g->shapes[j];
 		double q = 1.0;
@@ -263,48 +272,47 @@ int mlip_smooth_choose(struct mlip_planner *p, uint32_t i, struct mlip_seg *pr,
 		if (h->inv_ve2 > 0.0) {
 			q = mlip_dmin(q, te2 * h->inv_ve2);
 		}
-		lim[j] = h->inv_c > 0.0 && rhs < q * h->c;
-		if (lim[j]) {
-			q = mlip_dmax(rhs * h->inv_c, 0.0);
+		if (h->inv_c > 0.0 && rhs < q * h->c) {
+			q = mlip_dmax(rhs * h->inv_c, 0.0); /* braking binds it (25)(26) */
 		}
-		val[j] = q * h->b;
-	}
-	int best = g->shape;
-	double best_val = val[best];
-	for (int j = 0; j < g->n_shapes; j++) {
-		const struct mlip_shape *h = &g->shapes[j];
-		if (j == best || !(j == 0 || lim[j]) || !(val[j] > best_val * (1.0 + 1e-12)) ||
-		    !(h->b >= g->commit_in) ||
+		double val = q * h->b;
+		if (!(h->b >= g->commit_in) ||
 		    !(g->commit_in / h->b * h->c <= mlip_dmax(g->commit_out, rhs))) {
 			continue;
 		}
-		best = j;
-		best_val = val[j];
-	}
-	if (best != g->shape) {
-		g->shape = (uint8_t)best;
-		if (best == 0) {
-			pr->c = g->shape0;
-		} else {
-			mlip_corner_smooth_w(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
-			                     pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s,
-			                     g->shapes[best].w, &pr->c);
+		if (best < 0 || val > best_val * (1.0 + 1e-12)) {
+			best = j;
+			best_val = val;
 		}
-		mlip_planner_link_coeffs(p, pr, nx);
-		return 1;
 	}
-	return 0;
+	if (best < 0) {
+		best = g->anchor; /* none qualifies: what the last full pass left */
+	}
+	if (best == g->shape) {
+		return 0;
+	}
+	g->shape = (uint8_t)best;
+	if (best == 0) {
+		pr->c = g->shape0;
+	} else {
+		mlip_corner_smooth_w(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel, pr->tol_mm,
+		                     pr->vhard_mm_s, nx->vhard_mm_s, g->shapes[best].w, &pr->c);
+	}
+	mlip_planner_link_coeffs(p, pr, nx);
+	return 1;
 }
 
-/* A pass set pr's q: what it promised the corner (see mlip_smooth_choose). */
+/* A full pass is about to replace pr's plan (its q, the plan in effect):
+ * keep what that plan promised (see mlip_smooth_choose). */
 void mlip_smooth_commit(struct mlip_planner *p, uint32_t i, const struct mlip_seg *pr)
 {
 	struct mlip_smooth_seg *g = mlip_smooth_at(p, i);
-	if (g->n_shapes > 1) {
+	if (g->n_shapes > 1 && g->shape != MLIP_SHAPE_FIXED) {
 		g->commit_in = mlip_dmax(g->commit_in, pr->q * pr->brake_b);
 		if (pr->inv_brake_c > 0.0) {
 			g->commit_out = mlip_dmax(g->commit_out, pr->q / pr->inv_brake_c);
 		}
+		g->anchor = g->shape;
 	}
 }
 

@@ -379,8 +379,10 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 				} else {
 					mlip_planner_set_override(&P, 200.0 * urand());
 				}
-			} else if (events == EV_HOLD_RESUME && r->periods < 20000) {
-				mlip_planner_hold(&P, !P.hold);
+			} else if (events == EV_HOLD_RESUME) {
+				/* toggles until 20,000 periods, then resumed for good
+				 * (an odd number of toggles left it held forever) */
+				mlip_planner_hold(&P, r->periods < 20000 ? !P.hold : 0);
 			} else if (events == EV_STOP && r->periods >= 1500 && !P.stopping) {
 				mlip_planner_stop(&P);
 				next = p->np; /* the operator's stop ends the program */
@@ -817,6 +819,104 @@ static struct path make_fine_curve(size_t segs)
 	return p;
 }
 
+/*
+ * The motion depends on which blocks are queued when, never on how they
+ * were pushed: the same blocks per period, pushed as one batch, one by one
+ * or in random sub-batches (a feeder's timing: the controller takes what
+ * the ring holds, up to MLIP_PREREAD_PER_PERIOD or MLIP_INGEST_PER_PERIOD),
+ * give the same setpoints to the bit. The pre-read (everything until the
+ * look-ahead is full) is split the same ways. A smooth corner's shape once
+ * depended on the passes its batches made: a CAN run's bus differed from
+ * mlip-sim by one count (tests/can, test_mb23_smooth_exact).
+ */
+static size_t run_batched(const struct path *p, const struct mlip_machine *m, mlip_strategy st,
+                          uint32_t cap, int split, double *out, size_t max)
+{
+	int n = p->n;
+	uint64_t counts = 0x9E3779B97F4A7C15ULL, splits = 0xD1B54A32D192ED03ULL;
+	assert_int_equal(
+	    mlip_planner_init(&P, m, st, cap, p->pts, st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
+	    MLIP_OK);
+	static struct mlip_block b[40000];
+	assert_true(p->np - 1 <= 40000);
+	for (size_t i = 1; i < p->np; i++) {
+		b[i - 1] =
+		    (struct mlip_block){.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
+		memcpy(b[i - 1].target, p->pts + i * (size_t)n, sizeof(double) * (size_t)n);
+	}
+	size_t next = 0, total = p->np - 1, k = 0;
+	for (int pre = 1;; pre = 0) {
+		/* how many this period: the same in every run */
+		counts = counts * 6364136223846793005ULL + 1442695040888963407ULL;
+		size_t want = pre ? 4096 : (size_t)(counts >> 33) % 17;
+		want = want < total - next ? want : total - next;
+		want = want < mlip_planner_space(&P) ? want : mlip_planner_space(&P);
+		while (want > 0) {
+			size_t k1 = want;
+			if (split == 1) {
+				k1 = 1;
+			} else if (split == 2) {
+				splits = splits * 6364136223846793005ULL + 1442695040888963407ULL;
+				k1 = 1 + (size_t)(splits >> 33) % 97;
+				k1 = k1 < want ? k1 : want;
+			}
+			assert_int_equal(mlip_planner_push_n(&P, b + next, k1, NULL), k1);
+			next += k1;
+			want -= k1;
+		}
+		double x[MLIP_MAX_AXES];
+		mlip_run_state rs = mlip_planner_step(&P, x);
+		assert_true(k < max);
+		memcpy(out + k * (size_t)n, x, sizeof(double) * (size_t)n);
+		k++;
+		if (rs == MLIP_RUN_IDLE && next == total) {
+			return k;
+		}
+	}
+}
+
+static void test_batches_same_setpoints(void **state)
+{
+	(void)state;
+	struct path curve = make_fine_curve(6000);
+	struct path walk = make_path(3, 1, 3000);
+	const struct path *paths[2] = {&curve, &walk};
+	size_t max = 200000;
+	double *ref = malloc(max * 3 * sizeof(double)), *got = malloc(max * 3 * sizeof(double));
+	for (int pi = 0; pi < 2; pi++) {
+		const struct path *p = paths[pi];
+		struct mlip_machine m = machine(p->n, 1000, 200, 0.01);
+		for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+			for (uint32_t cap = 1024; cap <= 4096; cap *= 4) {
+				size_t n0 = run_batched(p, &m, (mlip_strategy)st, cap, 0, ref, max);
+				for (int split = 1; split <= 2; split++) {
+					size_t n1 = run_batched(p, &m, (mlip_strategy)st, cap,
+					                        split, got, max);
+					size_t bad = 0;
+					while (bad < n0 && bad < n1 &&
+					       memcmp(ref + bad * (size_t)p->n,
+					              got + bad * (size_t)p->n,
+					              sizeof(double) * (size_t)p->n) == 0) {
+						bad++;
+					}
+					if (n0 != n1 || bad != n0) {
+						fail_msg(
+						    "path %d, strategy %s, look-ahead %u, batches "
+						    "%d: "
+						    "%zu / %zu setpoints, the first differs at %zu",
+						    pi, mlip_strategy_name((mlip_strategy)st), cap,
+						    split, n0, n1, bad);
+					}
+				}
+			}
+		}
+	}
+	free(ref);
+	free(got);
+	free(curve.pts);
+	free(walk.pts);
+}
+
 /* With shape choices the early-terminated passes leave the q a full pass
  * computes (a full pass keeps the shapes), braking shapes are chosen, and
  * the motion keeps every limit with override storms (several: a shape
@@ -898,6 +998,7 @@ int main(void)
 	    cmocka_unit_test(test_eps_binds_end_to_end),
 	    cmocka_unit_test(test_termination_condition_is_exact),
 	    cmocka_unit_test(test_push_n_same_plan),
+	    cmocka_unit_test(test_batches_same_setpoints),
 	    cmocka_unit_test(test_sharp_corner_zero_side_does_not_stop),
 	    cmocka_unit_test(test_override_storm),
 	    cmocka_unit_test(test_hold_resume_on_path),

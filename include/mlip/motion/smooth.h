@@ -151,9 +151,10 @@ struct mlip_shape {
 /* What the smooth strategy keeps of a segment's end corner, beside the
  * planner's struct mlip_seg: the shapes its corner is chosen among, which
  * one it is (or MLIP_SHAPE_FIXED once the executor chose the corner), and
- * the largest q B and q C any plan gave it. */
+ * what the plans a full pass replaced promised it: the largest q B and q C,
+ * and the shape the last one left (anchor). */
 struct mlip_smooth_seg {
-	uint8_t n_shapes, shape;
+	uint8_t n_shapes, shape, anchor;
 	double commit_in, commit_out;
 	struct mlip_corner shape0; /* shapes[0]'s corner; the others from w */
 	struct mlip_shape shapes[MLIP_SMOOTH_SHAPES];

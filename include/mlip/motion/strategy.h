@@ -39,7 +39,8 @@ struct mlip_strategy_ops {
 	 * (then relinks it). Returns 1 when it did. NULL: never. */
 	int (*choose)(struct mlip_planner *p, uint32_t i, struct mlip_seg *pr,
 	              const struct mlip_seg *nx, double rhs);
-	/* Backward pass: pr's new q was stored (every pass). NULL: nothing. */
+	/* Full backward pass (an override or hold change): pr's q is about to
+	 * be replaced; pr still holds the plan in effect. NULL: nothing. */
 	void (*commit)(struct mlip_planner *p, uint32_t i, const struct mlip_seg *pr);
 	/* Executor: the line of slot tail (s) is about to be planned from speed v
 	 * with rem to its corner point, a next segment queued. NULL: nothing. */
