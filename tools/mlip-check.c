@@ -1,6 +1,7 @@
 /*
- * mlip-check - judge a setpoint trace by its physics alone: per-axis
- * acceleration (second differences), per-axis velocity and tool speed (first
+ * mlip-check - judge a setpoint trace by its physics alone: per-axis jerk
+ * (third differences, on axes with a limit), acceleration (second
+ * differences), per-axis velocity and tool speed (first
  * differences), contour error against the program's polyline, and whether it
  * ends on the program's last point. Reads the CSV that mlip-sim --trace
  * writes (t,x,y,...), or positions decoded from the CAN bus; t steps by one
@@ -27,11 +28,14 @@ static void usage(FILE *f)
 	        "Rows further apart in t than one period follow a hole (lost setpoints): no\n"
 	        "acceleration is taken across it, velocities are its mean.\n\n"
 	        "  --config FILE / --accel A[,A..] / --vmax MM_S / --eps MM / --period S\n"
-	        "                      the machine, as for mlip-sim\n"
+	        "  --jerk J            the machine, as for mlip-sim (--jerk: every axis's\n"
+	        "                      MAX_JERK, mm/s^3; a trace is judged on the third\n"
+	        "                      difference / T^3 of each axis that has one)\n"
 	        "  --offsets FILE / --strict / --default-feed F   as for mlip-sim\n"
 	        "  --quantum MM        position resolution of the trace (e.g. 0.001 for\n"
 	        "                      1000 counts/mm): adds 4 quantum / T^2 to the acceleration\n"
-	        "                      bound and quantum to the contour and end bounds\n"
+	        "                      bound, 8 quantum / T^3 to the jerk bound and quantum to\n"
+	        "                      the contour and end bounds\n"
 	        "  --rel R             relative tolerance on every limit (default 1e-9)\n"
 	        "  --no-end            the trace need not end on the program's last point\n"
 	        "                      (a run stopped by the operator)\n"
@@ -51,6 +55,7 @@ int main(int argc, char **argv)
 	                                     {"vmax", required_argument, 0, 'v'},
 	                                     {"eps", required_argument, 0, 'e'},
 	                                     {"period", required_argument, 0, 'p'},
+	                                     {"jerk", required_argument, 0, 'J'},
 	                                     {"quantum", required_argument, 0, 'Q'},
 	                                     {"rel", required_argument, 0, 'r'},
 	                                     {"json", required_argument, 0, 'j'},
@@ -69,7 +74,7 @@ int main(int argc, char **argv)
 			}
 			continue;
 		}
-		if (c > 0 && c < 128 && strchr("vepQr", c) &&
+		if (c > 0 && c < 128 && strchr("vepJQr", c) &&
 		    (mlip_cli_number(optarg, &v) != 0 || v < 0.0)) {
 			fprintf(stderr, PROG ": '%s' is not a non-negative number\n", optarg);
 			return 2;
@@ -89,6 +94,9 @@ int main(int argc, char **argv)
 			break;
 		case 'p':
 			mo.period_s = v;
+			break;
+		case 'J':
+			mo.jerk = v;
 			break;
 		case 'Q':
 			quantum = v;
@@ -229,6 +237,10 @@ int main(int argc, char **argv)
 		fprintf(jf, "{\n  \"samples\": %zu,\n  \"max_axis_accel\": [", chk.count);
 		for (int k = 0; k < n; k++) {
 			fprintf(jf, "%s%.12g", k ? ", " : "", chk.max_acc[k]);
+		}
+		fprintf(jf, "],\n  \"max_axis_jerk\": [");
+		for (int k = 0; k < n; k++) {
+			fprintf(jf, "%s%.12g", k ? ", " : "", chk.max_jerk[k]);
 		}
 		fprintf(jf, "],\n  \"max_axis_vel\": [");
 		for (int k = 0; k < n; k++) {

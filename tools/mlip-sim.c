@@ -46,6 +46,8 @@ static void usage(FILE *f)
 	    "                        the path smoothed within the tolerance, "
 	    "mlip/motion/smooth.h)\n"
 	    "  --accel A[,A...]      per-axis acceleration, mm/s^2 (one for all, or per axis)\n"
+	    "  --jerk J              every axis's jerk limit (MAX_JERK), mm/s^3: the motion keeps\n"
+	    "                        it at every sample (mlip/motion/jerk.h)\n"
 	    "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	    "  --eps MM              contour tolerance (default 0.01 without --config)\n"
 	    "  --period S            interpolation period T (default 0.001)\n"
@@ -216,6 +218,7 @@ int main(int argc, char **argv)
 	static const struct option opts[] = {{"config", required_argument, 0, 'c'},
 	                                     {"strategy", required_argument, 0, 's'},
 	                                     {"accel", required_argument, 0, 'a'},
+	                                     {"jerk", required_argument, 0, 'J'},
 	                                     {"vmax", required_argument, 0, 'v'},
 	                                     {"eps", required_argument, 0, 'e'},
 	                                     {"period", required_argument, 0, 'p'},
@@ -258,6 +261,7 @@ int main(int argc, char **argv)
 		case 'p':
 		case 'f':
 		case 'o':
+		case 'J':
 			if (mlip_cli_number(optarg, &v) != 0 ||
 			    !(v > 0.0 || (c == 'o' && v == 0.0))) {
 				fprintf(stderr, PROG ": --%s: '%s' is not a positive number\n",
@@ -265,11 +269,14 @@ int main(int argc, char **argv)
 				        : c == 'e' ? "eps"
 				        : c == 'p' ? "period"
 				        : c == 'f' ? "feed"
+				        : c == 'J' ? "jerk"
 				                   : "override",
 				        optarg);
 				return 2;
 			}
-			if (c == 'v') {
+			if (c == 'J') {
+				mo.jerk = v;
+			} else if (c == 'v') {
 				mo.vmax_mm_s = v;
 			} else if (c == 'e') {
 				mo.eps_mm = v;
@@ -532,6 +539,14 @@ int main(int argc, char **argv)
 		fprintf(sf, "],\n  \"max_axis_vel\": [");
 		for (int a = 0; a < n; a++) {
 			fprintf(sf, "%s%.12g", a ? ", " : "", chk.max_vel[a]);
+		}
+		fprintf(sf, "],\n  \"max_axis_jerk\": [");
+		for (int a = 0; a < n; a++) {
+			fprintf(sf, "%s%.12g", a ? ", " : "", chk.max_jerk[a]);
+		}
+		fprintf(sf, "],\n  \"jerk_limit\": [");
+		for (int a = 0; a < n; a++) {
+			fprintf(sf, "%s%.12g", a ? ", " : "", m->axis[a].max_jerk);
 		}
 		fprintf(sf, "],\n  \"accel_limit\": [");
 		for (int a = 0; a < n; a++) {

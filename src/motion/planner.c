@@ -43,6 +43,60 @@ static const struct mlip_seg *cseg_at(const struct mlip_planner *p, uint32_t i)
 	return &p->seg[i & (p->cap - 1)];
 }
 
+/* ---- the jerk limit's mean (mlip/motion/jerk.h) ---------------------------- */
+
+#define FIR_MASK (MLIP_JERK_MAX_TAPS - 1u)
+typedef char mlip_fir_pow2[(MLIP_JERK_MAX_TAPS & FIR_MASK) == 0 ? 1 : -1];
+
+/* The mark of the sample at the window's centre, (m - 1) / 2 periods ago:
+ * the setpoint is within E_f of the plan there (J5; m is odd). */
+static const struct mlip_exec_mark *centre_mark(const struct mlip_planner *p)
+{
+	return &p->mark[(p->fir_n - 1u - (uint32_t)(p->taps - 1) / 2u) & FIR_MASK];
+}
+
+/* The mean has come to rest: the plan stood still over the whole window. */
+static int settled(const struct mlip_planner *p)
+{
+	return p->still + 1u >= (uint32_t)p->taps;
+}
+
+/* Every sample of the window at p->pos, where the plan is now: at rest. */
+static void filter_reset(struct mlip_planner *p)
+{
+	struct mlip_exec_mark mk = {p->tail, p->in_corner, p->done_seq, p->done_line};
+	for (uint32_t i = 0; i < MLIP_JERK_MAX_TAPS; i++) {
+		memcpy(p->fir[i], p->pos, sizeof(p->fir[i]));
+		p->mark[i] = mk;
+	}
+	memcpy(p->out, p->pos, sizeof(p->out));
+	p->fir_n = MLIP_JERK_MAX_TAPS;
+	p->still = (uint32_t)p->taps;
+	p->dwell = 0;
+}
+
+/* Take this period's plan position: the setpoint is the mean of the last
+ * taps ones (J1), summed as offsets from the newest so that a window at
+ * rest gives exactly its point. */
+static void filter_step(struct mlip_planner *p, double *pos_out)
+{
+	const double *last = p->fir[(p->fir_n - 1u) & FIR_MASK];
+	int moved = memcmp(last, p->pos, sizeof(double) * (size_t)p->n) != 0;
+	p->still = moved ? 0u : p->still + 1u;
+	uint32_t i0 = p->fir_n & FIR_MASK;
+	memcpy(p->fir[i0], p->pos, sizeof(p->fir[i0]));
+	p->mark[i0] = (struct mlip_exec_mark){p->tail, p->in_corner, p->done_seq, p->done_line};
+	p->fir_n++;
+	for (int k = 0; k < p->n; k++) {
+		double sum = 0.0;
+		for (uint32_t j = 1; j < (uint32_t)p->taps; j++) {
+			sum += p->fir[(p->fir_n - 1u - j) & FIR_MASK][k] - p->pos[k];
+		}
+		p->out[k] = p->pos[k] + sum / (double)p->taps;
+	}
+	memcpy(pos_out, p->out, sizeof(double) * (size_t)p->n);
+}
+
 /* ---- initialisation ----------------------------------------------------- */
 
 mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine *m,
@@ -64,12 +118,16 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 	p->strategy = st;
 	p->ops = &mlip_strategies[st];
 	p->sm = p->ops->needs_store ? store->seg : NULL;
+	struct mlip_jerk_plan jp;
+	mlip_jerk_plan(m, &jp);
+	p->taps = jp.taps;
+	p->filter_mm = jp.filter_mm;
 	for (int k = 0; k < p->n; k++) {
 		const struct mlip_axis *ax = &m->axis[k];
 		if (!(ax->max_accel > 0.0) || !(ax->max_vel > 0.0) || !isfinite(start[k])) {
 			return MLIP_E_INVALID;
 		}
-		p->accel[k] = ax->max_accel * (1.0 - MLIP_ACCEL_MARGIN);
+		p->accel[k] = jp.accel[k] * (1.0 - MLIP_ACCEL_MARGIN); /* A' (J4), A without */
 		p->vaxis[k] = ax->max_vel;
 		p->rotary[k] = ax->kind == MLIP_AXIS_ROTARY;
 		p->last_point[k] = start[k];
@@ -81,17 +139,20 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 	p->period_s = m->period_s;
 	p->cap = cap;
 	p->override = 1.0;
+	filter_reset(p);
 	return MLIP_OK;
 }
 
 uint32_t mlip_planner_space(const struct mlip_planner *p)
 {
-	return p->cap - (p->head - p->tail);
+	/* with a jerk limit, the segments the mean's centre is still on stay */
+	uint32_t keep = p->taps > 1 ? centre_mark(p)->tail : p->tail;
+	return p->cap - (p->head - keep);
 }
 
 uint32_t mlip_planner_queued(const struct mlip_planner *p)
 {
-	return p->head - p->tail;
+	return p->head - p->tail + (p->head == p->tail && !settled(p) ? 1u : 0u);
 }
 
 /* ---- look-ahead --------------------------------------------------------- */
@@ -263,6 +324,14 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 	s->vfeed_mm_s = b->rapid ? s->vhard_mm_s : b->feed_mm_s * joint_per_tool;
 	s->tol_mm = b->tol_mm > 0.0 ? mlip_dmin(b->tol_mm, p->eps_mm) : p->eps_mm;
 	s->exact = b->exact_stop != 0;
+	if (p->taps > 1) {
+		/* the mean takes E_f of the budget (J5); none left: at rest, exactly */
+		s->tol_mm -= p->filter_mm;
+		if (!(s->tol_mm > 0.0)) {
+			s->tol_mm = 0.0;
+			s->exact = 1;
+		}
+	}
 	s->line = b->line;
 	s->seq = b->seq ? b->seq : p->seq + 1; /* the caller's number, if any */
 	p->seq = s->seq;
@@ -452,6 +521,11 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 		int has_next = p->head - p->tail > 1;
 
 		if (p->in_corner) {
+			if (p->dwell > 0) {
+				p->dwell--; /* at rest on an exact corner, for the mean (jerk.h) */
+				tau = 0.0;
+				break;
+			}
 			double tm = sqrt(p->q_exec) * s->c.t_s;
 			double left = tm - p->tc_s;
 			if (left > tau) {
@@ -514,10 +588,19 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 		p->in_corner = 1;
 		p->q_exec = q;
 		p->tc_s = 0.0;
+		if (p->taps > 1 && s->exact) {
+			/* the corner point is this period's sample and the next
+			 * taps - 2 ones: no window then holds both legs (jerk.h) */
+			p->dwell = (uint32_t)p->taps - 2u;
+			tau = 0.0;
+			break;
+		}
 	}
 
-	/* controlled stop: once at rest on the path, drop what is queued */
-	if (p->stopping && p->v_mm_s == 0.0 && !p->in_corner) {
+	/* controlled stop: once at rest on the path (and the mean with it),
+	 * drop what is queued */
+	if (p->stopping && p->v_mm_s == 0.0 && !p->in_corner &&
+	    (p->taps <= 1 || p->still + 2u >= (uint32_t)p->taps)) {
 		if (p->head != p->tail) {
 			line_position(p, seg_at(p, p->tail), p->pos);
 			p->head = p->tail;
@@ -536,15 +619,18 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 	} else {
 		line_position(p, seg_at(p, p->tail), p->pos);
 	}
-	memcpy(pos_out, p->pos, sizeof(double) * (size_t)p->n);
-
+	mlip_run_state rs = MLIP_RUN_MOVING;
 	if (p->head == p->tail) {
-		return MLIP_RUN_IDLE;
+		rs = MLIP_RUN_IDLE;
+	} else if (effective_override(p) == 0.0 && p->v_mm_s == 0.0 && !p->in_corner) {
+		rs = MLIP_RUN_HELD;
 	}
-	if (effective_override(p) == 0.0 && p->v_mm_s == 0.0 && !p->in_corner) {
-		return MLIP_RUN_HELD;
+	if (p->taps <= 1) {
+		memcpy(pos_out, p->pos, sizeof(double) * (size_t)p->n);
+		return rs;
 	}
-	return MLIP_RUN_MOVING;
+	filter_step(p, pos_out);
+	return settled(p) ? rs : MLIP_RUN_MOVING; /* at rest once the mean is */
 }
 
 double mlip_planner_speed(const struct mlip_planner *p)
@@ -592,7 +678,7 @@ static double line_dist(int n, const double *x, const double *P, const double *e
 
 mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
 {
-	if (p->head != p->tail || p->stopping || p->in_corner) {
+	if (p->head != p->tail || p->stopping || p->in_corner || !settled(p)) {
 		return MLIP_E_INVALID;
 	}
 	for (int k = 0; k < p->n; k++) {
@@ -603,11 +689,35 @@ mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
 	memcpy(p->last_point, pos, sizeof(double) * (size_t)p->n);
 	memcpy(p->pos, pos, sizeof(double) * (size_t)p->n);
 	p->v_mm_s = 0.0;
+	filter_reset(p);
 	return MLIP_OK;
 }
 
 void mlip_planner_rest_here(struct mlip_planner *p)
 {
+	if (p->taps > 1) {
+		/* the last setpoint is the mean: within E_f of where the plan was
+		 * at the window's centre (J5, m odd), so the path goes on from
+		 * there, and a straight line from the setpoint to the end of that
+		 * segment stays within the corner's budget plus E_f (convexity) */
+		const struct mlip_exec_mark *mk = centre_mark(p);
+		p->tail = mk->tail;
+		p->in_corner = mk->in_corner;
+		p->done_seq = mk->done_seq;
+		p->done_line = mk->done_line;
+		p->dwell = 0;
+		if (p->head == p->tail && !p->stopping &&
+		    memcmp(p->out, p->last_point, sizeof(double) * (size_t)p->n) != 0) {
+			/* the plan had reached its last point, the mean not yet:
+			 * the rest of the last block, a straight line of at most E_f
+			 * from the setpoint (the centre sample is that point) */
+			struct mlip_block b = {.rapid = 1, .seq = p->seq, .line = p->done_line};
+			memcpy(b.target, p->last_point, sizeof(double) * (size_t)p->n);
+			memcpy(p->last_point, p->out, sizeof(double) * (size_t)p->n);
+			append(p, &b);
+		}
+		memcpy(p->pos, p->out, sizeof(p->pos));
+	}
 	if (p->in_corner) {
 		/* in a corner: on to whichever of its two segments is nearer (the
 		 * distance to one segment is convex along a straight line); to the
@@ -662,12 +772,13 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 	if (p->head == p->tail) {
 		memcpy(p->last_point, p->pos, sizeof(double) * (size_t)p->n);
 	}
+	filter_reset(p);         /* at rest on the last setpoint */
 	mlip_planner_hold(p, 1); /* full backward pass from the new geometry */
 }
 
 int mlip_planner_moving(const struct mlip_planner *p)
 {
-	return p->head != p->tail && (p->v_mm_s > 0.0 || p->in_corner);
+	return (p->head != p->tail && (p->v_mm_s > 0.0 || p->in_corner)) || !settled(p);
 }
 
 void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)

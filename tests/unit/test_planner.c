@@ -337,6 +337,7 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 	for (int k = 0; k < m->n_axes; k++) {
 		lim.accel[k] = m->axis[k].max_accel;
 		lim.vel[k] = m->axis[k].max_vel;
+		lim.jerk[k] = m->axis[k].max_jerk;
 	}
 	memset(r, 0, sizeof(*r));
 	mlip_check_init(&r->chk, &lim, p->pts, p->np);
@@ -917,6 +918,182 @@ static void test_batches_same_setpoints(void **state)
 	free(walk.pts);
 }
 
+/* ---- the jerk limit (mlip/motion/jerk.h) ---------------------------------- */
+
+/* The mean's parameters (J4, J5): an odd window, the longest whose E_f
+ * takes at most half of eps; the plan's accelerations min(A, J m T / 2);
+ * nothing at all without a limit (the planner then is the paper's). */
+static void test_jerk_plan(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine(3, 1000, 200, 0.01);
+	struct mlip_jerk_plan jp;
+	assert_int_equal(mlip_jerk_plan(&m, &jp), 0);
+	assert_int_equal(jp.taps, 1);
+	assert_true(jp.filter_mm == 0.0);
+	for (int k = 0; k < 3; k++) {
+		assert_true(jp.accel[k] == m.axis[k].max_accel);
+	}
+	static const double jerks[] = {1e3, 1e4, 1e5, 1e6, 1e9};
+	for (int i = 0; i < 5; i++) {
+		for (int k = 0; k < 3; k++) {
+			m.axis[k].max_jerk = k == 2 ? 0.0 : jerks[i]; /* Z without a limit */
+		}
+		assert_int_equal(mlip_jerk_plan(&m, &jp), 1);
+		assert_true(jp.taps >= 1 && jp.taps < MLIP_JERK_MAX_TAPS && jp.taps % 2 == 1);
+		double a2 = 0.0, mt = (double)jp.taps;
+		for (int k = 0; k < 3; k++) {
+			double want = k == 2 ? m.axis[k].max_accel
+			                     : fmin(m.axis[k].max_accel,
+			                            0.5 * jerks[i] * mt * 1e-3 * (1.0 - 1e-6));
+			assert_near(jp.accel[k], want, 1e-12 * want);
+			a2 += jp.accel[k] * jp.accel[k];
+		}
+		double ef = sqrt(a2) * 1e-6 * (mt * mt - 1.0) / 24.0;
+		assert_near(jp.filter_mm, ef, 1e-15);
+		assert_le(jp.filter_mm, 0.5 * m.tolerance_mm);
+		/* the next window (2 more) would take more than half, or gain
+		 * nothing (every axis at A) */
+		if (jp.taps + 2 < MLIP_JERK_MAX_TAPS && jp.accel[0] < m.axis[0].max_accel) {
+			double a[MLIP_MAX_AXES];
+			for (int k = 0; k < 3; k++) {
+				a[k] = k == 2
+				           ? m.axis[k].max_accel
+				           : fmin(m.axis[k].max_accel,
+				                  0.5 * jerks[i] * (mt + 2) * 1e-3 * (1.0 - 1e-6));
+			}
+			assert_true(mlip_jerk_filter_mm(3, a, jp.taps + 2, 1e-3) >
+			            0.5 * m.tolerance_mm);
+		}
+		print_message("J %g: %d taps, A' %.1f, E_f %.5f mm\n", jerks[i], jp.taps,
+		              jp.accel[0], jp.filter_mm);
+	}
+}
+
+/* Every part of the motion keeps each axis's jerk limit at every sample
+ * (third difference / T^3 within J (1 + REL) + the rounding floor), with
+ * every other limit and the contour: lines, corners, the look-ahead's stops,
+ * override storms, hold and resume, a stop, blocks arriving too slowly, the
+ * start and the end, every strategy; and the limit is used (above half of J
+ * on some axis, with every block at hand: a bound asserted from both sides). */
+static void test_jerk_every_part(void **state)
+{
+	(void)state;
+	struct path walk = make_path(3, 1, 1500), curve = make_fine_curve(4000);
+	const struct path *paths[2] = {&walk, &curve};
+	static const int events[] = {EV_NONE, EV_STORM, EV_HOLD_RESUME, EV_STOP, EV_DRIP};
+	for (int pi = 0; pi < 2; pi++) {
+		const struct path *p = paths[pi];
+		for (int ji = 0; ji < 2; ji++) {
+			double J = ji == 0 ? 1e4 : 1e5;
+			struct mlip_machine m = machine(p->n, 1000, 200, 0.01);
+			for (int k = 0; k < p->n; k++) {
+				m.axis[k].max_jerk = J * (1.0 + 0.25 * k); /* unequal on purpose */
+			}
+			for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+				for (int e = 0; e < 5; e++) {
+					struct run r;
+					run_path(&m, (mlip_strategy)st, p, events[e], &r);
+					char msg[1024];
+					int bad = mlip_check_verdict(
+					    &r.chk, REL, mlip_check_rounding_floor(&r.chk), 0.0,
+					    events[e] == EV_STOP ? INFINITY : 1e-9, msg,
+					    sizeof(msg));
+					if (bad) {
+						fail_msg("path %d, J %g, %s, events %d: %s", pi, J,
+						         mlip_strategy_name((mlip_strategy)st),
+						         events[e], msg);
+					}
+					double used = 0.0;
+					for (int k = 0; k < p->n; k++) {
+						used = fmax(used,
+						            r.chk.max_jerk[k] / m.axis[k].max_jerk);
+					}
+					if (events[e] == EV_NONE || events[e] == EV_STORM) {
+						assert_true(used > 0.5); /* blocks dripping in
+						                            move gently */
+					}
+					if (e == 0) {
+						print_message(
+						    "path %d, J %g, %s: %.3f s, jerk used %.4f\n",
+						    pi, J, mlip_strategy_name((mlip_strategy)st),
+						    (double)r.periods * m.period_s, used);
+					}
+				}
+			}
+		}
+	}
+	free(walk.pts);
+	free(curve.pts);
+}
+
+/* A stall (the loop missed periods: the drives stood at the last setpoint,
+ * which is the mean) is a point of rest, and the motion goes on from it
+ * within every limit, the jerk's included, and within eps of the path: the
+ * plan goes back to where it was at the window's centre, within E_f of the
+ * setpoint (mlip_planner_rest_here). Stalls in lines, in corners, in a
+ * smooth run and while the mean settles at the end; every strategy. */
+static void test_jerk_stall(void **state)
+{
+	(void)state;
+	struct path p = make_path(2, 1, 600);
+	for (size_t i = 0; i < 2 * p.np; i++) {
+		p.pts[i] *= 5.0; /* 0.25-2.5 mm steps: fast, the mean lags by a segment */
+	}
+	struct mlip_machine m = machine(2, 1000, 200, 0.01);
+	for (int k = 0; k < 2; k++) {
+		m.axis[k].max_jerk = 1e5;
+	}
+	struct mlip_check_limits lim = {
+	    .n = 2, .vmax_mm_s = 200, .vmax_rot_deg_s = 360, .eps_mm = 0.01, .period_s = 0.001};
+	for (int k = 0; k < 2; k++) {
+		lim.accel[k] = m.axis[k].max_accel;
+		lim.vel[k] = m.axis[k].max_vel;
+		lim.jerk[k] = m.axis[k].max_jerk;
+	}
+	static struct mlip_check chk;
+	for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+		mlip_check_init(&chk, &lim, p.pts, p.np);
+		assert_int_equal(mlip_planner_init(&P, &m, (mlip_strategy)st, 0, p.pts,
+		                                   st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
+		                 MLIP_OK);
+		mlip_check_sample(&chk, p.pts);
+		size_t next = 1;
+		int stalls = 0, resume_at = -1;
+		for (int k = 0; k < 2000000; k++) {
+			for (int i = 0; i < 16 && next < p.np && mlip_planner_space(&P) > 0; i++) {
+				struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01};
+				memcpy(b.target, p.pts + next * 2, sizeof(double) * 2);
+				assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+				next++;
+			}
+			if (k % 61 == 30 && mlip_planner_moving(&P)) {
+				mlip_planner_rest_here(&P); /* 3 periods missed */
+				mlip_check_gap(&chk, 4);
+				stalls++;
+				resume_at = k + 5;
+			}
+			if (k == resume_at) {
+				mlip_planner_hold(&P, 0);
+			}
+			double x[2];
+			mlip_run_state rs = mlip_planner_step(&P, x);
+			mlip_check_sample(&chk, x);
+			if (rs == MLIP_RUN_IDLE && next >= p.np && k > resume_at) {
+				break;
+			}
+		}
+		char msg[1024];
+		if (mlip_check_verdict(&chk, REL, mlip_check_rounding_floor(&chk), 0.0, 1e-9, msg,
+		                       sizeof(msg))) {
+			fail_msg("%s, %d stalls: %s", mlip_strategy_name((mlip_strategy)st), stalls,
+			         msg);
+		}
+		assert_true(stalls > 100);
+	}
+	free(p.pts);
+}
+
 /* With shape choices the early-terminated passes leave the q a full pass
  * computes (a full pass keeps the shapes), braking shapes are chosen, and
  * the motion keeps every limit with override storms (several: a shape
@@ -1006,6 +1183,9 @@ int main(void)
 	    cmocka_unit_test(test_running_dry_is_safe),
 	    cmocka_unit_test(test_smooth_shapes_keep_guarantees),
 	    cmocka_unit_test(test_smooth_shapes_plan),
+	    cmocka_unit_test(test_jerk_plan),
+	    cmocka_unit_test(test_jerk_every_part),
+	    cmocka_unit_test(test_jerk_stall),
 	    cmocka_unit_test(test_push_full_and_bad_input),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

@@ -164,6 +164,11 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
 	if (o->period_s > 0.0) {
 		m->period_s = o->period_s;
 	}
+	if (o->jerk > 0.0) {
+		for (int k = 0; k < m->n_axes; k++) {
+			m->axis[k].max_jerk = o->jerk;
+		}
+	}
 	struct mlip_config_error e;
 	if (mlip_machine_check(m, &e) != MLIP_OK) {
 		fprintf(err, "%s: machine: %s\n", prog, e.msg);
@@ -226,6 +231,7 @@ void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limit
 	lim->period_s = m->period_s;
 	for (int k = 0; k < m->n_axes; k++) {
 		lim->accel[k] = m->axis[k].max_accel;
+		lim->jerk[k] = m->axis[k].max_jerk;
 		lim->vel[k] = m->axis[k].max_vel;
 		lim->rotary[k] = m->axis[k].kind == MLIP_AXIS_ROTARY;
 	}

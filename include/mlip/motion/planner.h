@@ -18,6 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "mlip/motion/jerk.h"
 #include "mlip/types.h"
 
 #ifndef MLIP_LOOKAHEAD
@@ -168,6 +169,21 @@ struct mlip_planner {
 	                                     rest sets it to that block's seq - 1) */
 	uint32_t done_line;
 	struct mlip_planner_stats stats;
+	/* the jerk limit (mlip/motion/jerk.h): the setpoint is the mean of the
+	 * plan's last `taps` positions (pos is the plan's; taps 1: no limit) */
+	int taps;
+	double filter_mm;          /* E_f (J5), taken from every corner's budget */
+	uint32_t dwell;            /* periods still to stand at an exact corner */
+	uint32_t still;            /* periods the plan has not moved */
+	uint32_t fir_n;            /* samples taken (free-running) */
+	double out[MLIP_MAX_AXES]; /* the setpoint: the mean */
+	double fir[MLIP_JERK_MAX_TAPS][MLIP_MAX_AXES]; /* the plan's last positions */
+	struct mlip_exec_mark {                        /* where each of them was on the path */
+		uint32_t tail;
+		int in_corner;
+		uint64_t done_seq;
+		uint32_t done_line;
+	} mark[MLIP_JERK_MAX_TAPS];
 	struct mlip_seg seg[MLIP_LOOKAHEAD];
 };
 
@@ -183,7 +199,8 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 
 /* Free slots for push. */
 uint32_t mlip_planner_space(const struct mlip_planner *p);
-/* Queued blocks not yet completed (including the one executing). */
+/* Queued blocks not yet completed (including the one executing; with a
+ * jerk limit, the last one until the mean has come to rest on it). */
 uint32_t mlip_planner_queued(const struct mlip_planner *p);
 
 /* Append one block. MLIP_E_FULL when no slot is free. A block closer than
@@ -225,7 +242,8 @@ void mlip_planner_rest_here(struct mlip_planner *p);
 mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos);
 
 /* Advance one period; writes the setpoint of every axis to pos_out[n].
- * Returns the run state after the period. */
+ * Returns the run state after the period (with a jerk limit, IDLE and HELD
+ * once the mean has come to rest too). */
 mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out);
 
 /* Current speed along the path (joint units/s), for status displays. */

@@ -10,7 +10,9 @@
  * of the ORIGINAL polyline, and each output block's tol_mm is
  *     tol = budget - (largest dev of the two segments its end corner touches),
  * so a corner's deviation (17)(18) plus the smoothing's stays within the budget:
- * min(eps, the block's own tol_mm) of the original blocks around it.
+ * min(eps, the block's own tol_mm) of the original blocks around it. With a
+ * jerk limit the budget is that less E_f (mlip/motion/jerk.h, J5), and tol_mm
+ * carries E_f back, which the planner takes from every block.
  *
  * Fixed memory (the struct, owned by the caller) and bounded work per block:
  * a block adds at most MLIP_SMOOTH_MAX_PIECES samples, and each sample is
@@ -30,6 +32,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "mlip/motion/jerk.h"
 #include "mlip/motion/planner.h"
 #include "mlip/types.h"
 
@@ -68,6 +71,7 @@ struct mlip_smooth_sample {
 struct mlip_smooth {
 	int n;                      /* axes */
 	double eps_mm;              /* machine tolerance */
+	double filter_mm;           /* what a jerk limit's mean takes of it (E_f, jerk.h) */
 	double step_mm;             /* resampling step */
 	double sharp_cos;           /* cos of the turn above which a vertex stays sharp */
 	double gap_mm;              /* sub-samples this close to a sharp vertex are dropped */
