@@ -143,16 +143,39 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 	return MLIP_OK;
 }
 
-uint32_t mlip_planner_space(const struct mlip_planner *p)
+/* Free slots of the segment ring. */
+static uint32_t ring_space(const struct mlip_planner *p)
 {
 	/* with a jerk limit, the segments the mean's centre is still on stay */
 	uint32_t keep = p->taps > 1 ? centre_mark(p)->tail : p->tail;
 	return p->cap - (p->head - keep);
 }
 
+uint32_t mlip_planner_space(const struct mlip_planner *p)
+{
+	uint32_t ring = ring_space(p), inputs = p->in_head - p->in_tail;
+	if (!p->async) {
+		return ring;
+	}
+	ring = ring > inputs ? ring - inputs : 0u;
+	return ring < MLIP_INPUT_CAP - inputs ? ring : MLIP_INPUT_CAP - inputs;
+}
+
 uint32_t mlip_planner_queued(const struct mlip_planner *p)
 {
-	return p->head - p->tail + (p->head == p->tail && !settled(p) ? 1u : 0u);
+	uint32_t inputs = p->in_head - p->in_tail;
+	return p->head - p->tail + inputs +
+	       (p->head == p->tail && inputs == 0 && !settled(p) ? 1u : 0u);
+}
+
+void mlip_planner_set_async(struct mlip_planner *p, int on)
+{
+	p->async = on != 0;
+}
+
+int mlip_planner_busy(const struct mlip_planner *p)
+{
+	return p->pass.on || p->in_head != p->in_tail;
 }
 
 /* ---- look-ahead --------------------------------------------------------- */
@@ -195,19 +218,52 @@ static uint32_t first_mutable(const struct mlip_planner *p)
  * 0) are always visited. (A fresh corner computes to exactly 0 only under a
  * hold, which a full pass follows; the guard keeps batches exact without
  * relying on that.)
+ *
+ * A pass may run in pieces (mlip_planner_work: a bounded amount of work a
+ * period): it keeps where it is (p->pass). Meanwhile the executor follows
+ * the values the pass has not reached yet, which the last complete pass
+ * left: a plan that brakes to rest where it was planned to, safe, only
+ * slower than the new one. A pass given up for another (an override change
+ * while a pass runs) leaves the corners below the point it reached stale:
+ * the next pass may not stop above that point (pass.reach).
  */
-static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
+static void pass_start(struct mlip_planner *p, int full, uint32_t fresh)
 {
-	uint32_t first = first_mutable(p);
-	if ((uint32_t)(p->head - first) < 2u) {
-		return; /* no mutable corner before the newest segment's end */
+	struct mlip_pass *ps = &p->pass;
+	if (ps->on) {
+		/* given up: what it left below i - 1 is stale */
+		if (!ps->has_reach || (int32_t)(ps->i - ps->reach) < 0) {
+			ps->reach = ps->i;
+		}
+		ps->has_reach = 1;
+		full |= ps->full;
+		fresh += ps->fresh; /* every corner linked since a pass completed */
 	}
-	uint32_t i = p->head - 1; /* newest: ends at rest, q = 0 */
-	uint32_t visits = 0;
-	double q_next = 0.0;
-	while (i != first) {
+	ps->on = 1;
+	ps->full = full;
+	ps->fresh = fresh;
+	ps->i = p->head - 1; /* newest: ends at rest, q = 0 */
+	ps->visits = 0;
+	ps->q_next = 0.0;
+}
+
+/* Run the pass until it ends or `budget` work units are spent (1 a corner,
+ * more with a strategy's choice); returns the units left. */
+static uint32_t pass_run(struct mlip_planner *p, uint32_t budget)
+{
+	struct mlip_pass *ps = &p->pass;
+	uint32_t unit = p->ops->choose != NULL ? MLIP_WORK_CHOOSE : 1u;
+	uint32_t first = first_mutable(p);
+	uint32_t i = ps->i, visits = 0;
+	double q_next = ps->q_next;
+	int full = ps->full, done = 0;
+	if ((uint32_t)(p->head - first) < 2u || (int32_t)(i - first) <= 0) {
+		done = 1; /* no mutable corner before (the executor passed it) */
+	}
+	while (!done && budget >= unit) {
 		const struct mlip_seg *s = seg_at(p, i);
 		struct mlip_seg *pr = seg_at(p, i - 1);
+		budget -= unit;
 		if (full) {
 			if (p->ops->commit != NULL) {
 				p->ops->commit(p, i - 1,
@@ -227,14 +283,33 @@ static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
 		}
 		q = mlip_dmax(q, 0.0);
 		visits++;
-		if (!full && visits > fresh && q == pr->q && !changed) {
-			break; /* termination condition: nothing older can change */
+		if (!full && ps->visits + visits > ps->fresh && q == pr->q && !changed &&
+		    (!ps->has_reach || (int32_t)(i - 1 - ps->reach) < 0)) {
+			done = 1; /* termination condition: nothing older can change */
+			break;
 		}
 		pr->q = q;
 		q_next = q;
 		i--;
+		done = i == first;
 	}
 	p->stats.backward_visits += visits;
+	ps->i = i;
+	ps->q_next = q_next;
+	ps->visits += visits;
+	if (done) {
+		ps->on = 0;
+		ps->has_reach = 0; /* every corner consistent again */
+	}
+	return budget;
+}
+
+static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
+{
+	pass_start(p, full, fresh);
+	if (!p->async) {
+		pass_run(p, UINT32_MAX);
+	}
 }
 
 /* Precompute the look-ahead coefficients of the corner between pr and nx. */
@@ -270,7 +345,7 @@ static void link_corner(struct mlip_planner *p, uint32_t i, struct mlip_seg *pr,
 
 static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 {
-	if (mlip_planner_space(p) == 0) {
+	if (ring_space(p) == 0) {
 		return MLIP_E_FULL;
 	}
 	if (p->stopping) {
@@ -352,6 +427,11 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 
 mlip_status mlip_planner_push(struct mlip_planner *p, const struct mlip_block *b)
 {
+	if (p->async) {
+		mlip_status err = MLIP_OK;
+		size_t got = mlip_planner_push_n(p, b, 1, &err);
+		return got == 1 ? MLIP_OK : err != MLIP_OK ? err : MLIP_E_FULL;
+	}
 	uint32_t before = p->head;
 	mlip_status st = append(p, b);
 	if (st == MLIP_OK && p->head != before) {
@@ -364,11 +444,41 @@ mlip_status mlip_planner_push(struct mlip_planner *p, const struct mlip_block *b
  * at the termination condition exactly as n single pushes would, so the
  * plan is the same, for a fraction of the visits (the pre-read, and each
  * period's ingest). */
+/* The checks append makes at once, for a block queued (async). */
+static mlip_status check_block(const struct mlip_planner *p, const struct mlip_block *b)
+{
+	if (p->stopping) {
+		return MLIP_E_INVALID;
+	}
+	for (int k = 0; k < p->n; k++) {
+		if (!isfinite(b->target[k])) {
+			return MLIP_E_RANGE;
+		}
+	}
+	return !b->rapid && !(b->feed_mm_s > 0.0) ? MLIP_E_RANGE : MLIP_OK;
+}
+
 size_t mlip_planner_push_n(struct mlip_planner *p, const struct mlip_block *b, size_t n,
                            mlip_status *err)
 {
 	size_t done = 0;
 	mlip_status st = MLIP_OK;
+	if (p->async) {
+		/* queued: mlip_planner_work appends them, a bounded amount a period */
+		while (done < n && mlip_planner_space(p) > 0) {
+			st = check_block(p, &b[done]);
+			if (st != MLIP_OK) {
+				break;
+			}
+			p->in[p->in_head & (MLIP_INPUT_CAP - 1u)] = b[done];
+			p->in_head++;
+			done++;
+		}
+		if (err != NULL) {
+			*err = st;
+		}
+		return done;
+	}
 	while (done < n && mlip_planner_space(p) > 0) {
 		st = append(p, &b[done]);
 		if (st != MLIP_OK) {
@@ -406,7 +516,40 @@ void mlip_planner_hold(struct mlip_planner *p, int on)
 void mlip_planner_stop(struct mlip_planner *p)
 {
 	p->stopping = 1;
+	p->in_tail = p->in_head; /* what was not appended yet goes too */
 	mlip_planner_hold(p, 1);
+}
+
+/*
+ * The look-ahead's work of one period (async): the pass in progress, then
+ * the queued blocks (appended and their corners planned, a batch at a
+ * time, each batch followed by its pass), until MLIP_WORK_PER_PERIOD units
+ * are spent. The plan a batch makes does not depend on how the blocks were
+ * batched, so work done in pieces ends in the plan push_n makes at once.
+ */
+void mlip_planner_work(struct mlip_planner *p)
+{
+	uint32_t budget = MLIP_WORK_PER_PERIOD;
+	uint32_t cost = p->ops->link != NULL ? MLIP_WORK_APPEND_SHAPES : MLIP_WORK_APPEND;
+	for (;;) {
+		if (p->pass.on) {
+			budget = pass_run(p, budget);
+			if (p->pass.on) {
+				return; /* the rest next period */
+			}
+		}
+		uint32_t done = 0;
+		while (p->in_head != p->in_tail && budget >= cost && ring_space(p) > 0) {
+			append(p, &p->in[p->in_tail & (MLIP_INPUT_CAP - 1u)]); /* checked at push */
+			p->in_tail++;
+			budget -= cost;
+			done++;
+		}
+		if (done == 0) {
+			return;
+		}
+		pass_start(p, 0, done); /* merged blocks only add fewer */
+	}
 }
 
 /* ---- execution ---------------------------------------------------------- */
@@ -604,6 +747,8 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 		if (p->head != p->tail) {
 			line_position(p, seg_at(p, p->tail), p->pos);
 			p->head = p->tail;
+			p->pass.on = 0; /* nothing left to plan */
+			p->pass.has_reach = 0;
 			memcpy(p->last_point, p->pos, sizeof(double) * (size_t)p->n);
 			p->l_start_mm = 0.0;
 			p->s_mm = 0.0;
@@ -678,7 +823,8 @@ static double line_dist(int n, const double *x, const double *P, const double *e
 
 mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
 {
-	if (p->head != p->tail || p->stopping || p->in_corner || !settled(p)) {
+	if (p->head != p->tail || p->stopping || p->in_corner || !settled(p) ||
+	    mlip_planner_busy(p)) {
 		return MLIP_E_INVALID;
 	}
 	for (int k = 0; k < p->n; k++) {

@@ -326,6 +326,15 @@ struct run {
 	double hold_drift; /* largest movement while held and at rest */
 };
 
+/* run_path with bounded look-ahead work (mlip_planner_set_async): the
+ * pre-read as the controller's (push what fits, work, until the look-ahead
+ * is full or the path is in and the work done), then a period's pushes,
+ * its work, its step. */
+static int g_async;
+/* every setpoint run_path produced, when not NULL */
+static double *g_rows;
+static size_t g_nrows, g_maxrows;
+
 static void run_path(const struct mlip_machine *m, mlip_strategy st, const struct path *p,
                      int events, struct run *r)
 {
@@ -351,9 +360,27 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 	double x[MLIP_MAX_AXES], held_at[MLIP_MAX_AXES];
 	int held = 0;
 	uint64_t next_event = 20;
+	g_nrows = 0;
+	mlip_planner_set_async(&P, g_async);
+	while (g_async && events != EV_DRIP) {
+		/* the pre-read: no step until the look-ahead is full (or the path
+		 * is in) and planned */
+		for (uint32_t sp = mlip_planner_space(&P); sp > 0 && next < p->np; sp--) {
+			struct mlip_block b = {.feed_mm_s = m->max_feed_mm_s,
+			                       .tol_mm = m->tolerance_mm,
+			                       .line = (uint32_t)next};
+			memcpy(b.target, p->pts + next * (size_t)n, sizeof(double) * (size_t)n);
+			assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+			next++;
+		}
+		mlip_planner_work(&P);
+		if (!mlip_planner_busy(&P) && (next >= p->np || mlip_planner_space(&P) == 0)) {
+			break;
+		}
+	}
 	for (;;) {
 		int budget = events == EV_DRIP ? (r->periods % 7 == 0) : MLIP_INGEST_PER_PERIOD;
-		if (r->periods == 0 && events != EV_DRIP) {
+		if (r->periods == 0 && events != EV_DRIP && !g_async) {
 			budget = MLIP_LOOKAHEAD;
 		}
 		for (int i = 0; i < budget && next < p->np && mlip_planner_space(&P) > 0; i++) {
@@ -389,9 +416,14 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 				next = p->np; /* the operator's stop ends the program */
 			}
 		}
+		mlip_planner_work(&P);
 		mlip_run_state rs = mlip_planner_step(&P, x);
 		r->periods++;
 		mlip_check_sample(&r->chk, x);
+		if (g_rows != NULL && g_nrows < g_maxrows) {
+			memcpy(g_rows + g_nrows * (size_t)n, x, sizeof(double) * (size_t)n);
+			g_nrows++;
+		}
 		if (rs == MLIP_RUN_HELD) {
 			if (!held) {
 				memcpy(held_at, x, sizeof(held_at));
@@ -918,6 +950,77 @@ static void test_batches_same_setpoints(void **state)
 	free(walk.pts);
 }
 
+/* ---- bounded work a period (mlip_planner_set_async) ----------------------- */
+
+/* The look-ahead's work done a bounded amount a period ends in the plan
+ * done at once: with every block at hand and no command, the same
+ * setpoints to the bit, every strategy, with and without a jerk limit, on
+ * a fine curve and a random walk; under override storms, holds, a stop and
+ * blocks dripping in (the work then lags the commands by periods) every
+ * limit holds. */
+static void test_bounded_work(void **state)
+{
+	(void)state;
+	struct path walk = make_path(3, 1, 2500), curve = make_fine_curve(6000);
+	const struct path *paths[2] = {&walk, &curve};
+	g_maxrows = 400000;
+	double *ref = malloc(g_maxrows * 3 * sizeof(double));
+	double *got = malloc(g_maxrows * 3 * sizeof(double));
+	static const int events[] = {EV_STORM, EV_HOLD_RESUME, EV_STOP, EV_DRIP};
+	for (int pi = 0; pi < 2; pi++) {
+		const struct path *p = paths[pi];
+		for (int jerk = 0; jerk < 2; jerk++) {
+			struct mlip_machine m = machine(p->n, 1000, 200, 0.01);
+			for (int k = 0; jerk && k < p->n; k++) {
+				m.axis[k].max_jerk = 1e5;
+			}
+			for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+				struct run r;
+				g_async = 0;
+				g_rows = ref;
+				run_path(&m, (mlip_strategy)st, p, EV_NONE, &r);
+				size_t n0 = g_nrows;
+				g_async = 1;
+				g_rows = got;
+				run_path(&m, (mlip_strategy)st, p, EV_NONE, &r);
+				g_rows = NULL;
+				size_t same = 0;
+				while (same < n0 && same < g_nrows &&
+				       memcmp(ref + same * (size_t)p->n, got + same * (size_t)p->n,
+				              sizeof(double) * (size_t)p->n) == 0) {
+					same++;
+				}
+				if (same != n0 || n0 != g_nrows) {
+					fail_msg(
+					    "path %d, jerk %d, %s: %zu / %zu setpoints, the first "
+					    "differs at %zu",
+					    pi, jerk, mlip_strategy_name((mlip_strategy)st), n0,
+					    g_nrows, same);
+				}
+				assert_physics(&m, &r, jerk ? 0.01 : 0.5, 1);
+				for (int e = 0; e < 4; e++) {
+					run_path(&m, (mlip_strategy)st, p, events[e], &r);
+					char msg[1024];
+					if (mlip_check_verdict(
+					        &r.chk, REL, mlip_check_rounding_floor(&r.chk), 0.0,
+					        events[e] == EV_STOP ? INFINITY : 1e-9, msg,
+					        sizeof(msg))) {
+						fail_msg("path %d, jerk %d, %s, events %d: %s", pi,
+						         jerk,
+						         mlip_strategy_name((mlip_strategy)st),
+						         events[e], msg);
+					}
+				}
+				g_async = 0;
+			}
+		}
+	}
+	free(ref);
+	free(got);
+	free(walk.pts);
+	free(curve.pts);
+}
+
 /* ---- the jerk limit (mlip/motion/jerk.h) ---------------------------------- */
 
 /* The mean's parameters (J4, J5): an odd window, the longest whose E_f
@@ -1160,33 +1263,43 @@ static void test_push_full_and_bad_input(void **state)
 	assert_int_equal(mlip_planner_queued(&P), 0);
 }
 
+/* run_path's switches back to their defaults (a failed test may leave them set) */
+static int reset(void **state)
+{
+	(void)state;
+	g_async = 0;
+	g_rows = NULL;
+	return 0;
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_lp_optimal_2axes),
-	    cmocka_unit_test(test_lp_optimal_3axes),
-	    cmocka_unit_test(test_lp_optimal_5axes),
-	    cmocka_unit_test(test_lp_paper_example),
-	    cmocka_unit_test(test_corner_collinear_and_reversal),
-	    cmocka_unit_test(test_corner_contour_and_peak_speed),
-	    cmocka_unit_test(test_corner_caps_19_20),
-	    cmocka_unit_test(test_run_all_strategies),
-	    cmocka_unit_test(test_mpct_faster_than_baselines),
-	    cmocka_unit_test(test_eps_binds_end_to_end),
-	    cmocka_unit_test(test_termination_condition_is_exact),
-	    cmocka_unit_test(test_push_n_same_plan),
-	    cmocka_unit_test(test_batches_same_setpoints),
-	    cmocka_unit_test(test_sharp_corner_zero_side_does_not_stop),
-	    cmocka_unit_test(test_override_storm),
-	    cmocka_unit_test(test_hold_resume_on_path),
-	    cmocka_unit_test(test_stop_is_controlled),
-	    cmocka_unit_test(test_running_dry_is_safe),
-	    cmocka_unit_test(test_smooth_shapes_keep_guarantees),
-	    cmocka_unit_test(test_smooth_shapes_plan),
-	    cmocka_unit_test(test_jerk_plan),
-	    cmocka_unit_test(test_jerk_every_part),
-	    cmocka_unit_test(test_jerk_stall),
-	    cmocka_unit_test(test_push_full_and_bad_input),
+	    cmocka_unit_test_setup(test_lp_optimal_2axes, reset),
+	    cmocka_unit_test_setup(test_lp_optimal_3axes, reset),
+	    cmocka_unit_test_setup(test_lp_optimal_5axes, reset),
+	    cmocka_unit_test_setup(test_lp_paper_example, reset),
+	    cmocka_unit_test_setup(test_corner_collinear_and_reversal, reset),
+	    cmocka_unit_test_setup(test_corner_contour_and_peak_speed, reset),
+	    cmocka_unit_test_setup(test_corner_caps_19_20, reset),
+	    cmocka_unit_test_setup(test_run_all_strategies, reset),
+	    cmocka_unit_test_setup(test_mpct_faster_than_baselines, reset),
+	    cmocka_unit_test_setup(test_eps_binds_end_to_end, reset),
+	    cmocka_unit_test_setup(test_termination_condition_is_exact, reset),
+	    cmocka_unit_test_setup(test_push_n_same_plan, reset),
+	    cmocka_unit_test_setup(test_batches_same_setpoints, reset),
+	    cmocka_unit_test_setup(test_sharp_corner_zero_side_does_not_stop, reset),
+	    cmocka_unit_test_setup(test_override_storm, reset),
+	    cmocka_unit_test_setup(test_hold_resume_on_path, reset),
+	    cmocka_unit_test_setup(test_stop_is_controlled, reset),
+	    cmocka_unit_test_setup(test_running_dry_is_safe, reset),
+	    cmocka_unit_test_setup(test_smooth_shapes_keep_guarantees, reset),
+	    cmocka_unit_test_setup(test_smooth_shapes_plan, reset),
+	    cmocka_unit_test_setup(test_bounded_work, reset),
+	    cmocka_unit_test_setup(test_jerk_plan, reset),
+	    cmocka_unit_test_setup(test_jerk_every_part, reset),
+	    cmocka_unit_test_setup(test_jerk_stall, reset),
+	    cmocka_unit_test_setup(test_push_full_and_bad_input, reset),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -120,6 +120,26 @@ struct mlip_profile {
 	double d1, d2;     /* mm */
 };
 
+/* A backward pass that may run in pieces (planner.c, mlip_planner_work). */
+struct mlip_pass {
+	int on, full;    /* running; a full pass (override, hold) */
+	uint32_t i;      /* it visits corner i - 1 next (segment i its successor) */
+	uint32_t visits; /* corners visited so far */
+	uint32_t fresh;  /* the newest corners linked since a pass completed */
+	double q_next;   /* q of corner i */
+	int has_reach;   /* a pass given up left the corners below reach - 1 stale: */
+	uint32_t reach;  /* no termination at a corner >= reach */
+};
+
+/* Bounded work (mlip_planner_set_async): units a period, and what things
+ * cost in them (a corner a pass visits: 1, about 6 ns on this host). */
+#define MLIP_WORK_PER_PERIOD    1200u
+#define MLIP_WORK_CHOOSE        4u   /* a visit with smooth's shape choice */
+#define MLIP_WORK_APPEND        40u  /* a block appended and its corner planned */
+#define MLIP_WORK_APPEND_SHAPES 150u /* ... with smooth's six shapes */
+#define MLIP_INPUT_CAP          512u /* blocks pushed, not yet appended; power of two */
+typedef char mlip_input_pow2_check[(MLIP_INPUT_CAP & (MLIP_INPUT_CAP - 1)) == 0 ? 1 : -1];
+
 typedef enum {
 	MLIP_RUN_IDLE = 0, /* at rest on the last point, nothing queued */
 	MLIP_RUN_MOVING,   /* executing */
@@ -152,6 +172,10 @@ struct mlip_planner {
 	int hold;                         /* feed hold: plan as if override were 0 */
 	int stopping;                     /* stop: hold, then drop the queue at rest */
 	double last_point[MLIP_MAX_AXES]; /* end of the newest segment (or start) */
+	/* the look-ahead's work, a bounded amount a period (async) */
+	int async;                 /* 0: push_n and the commands do all of it at once */
+	struct mlip_pass pass;     /* the backward pass in progress */
+	uint32_t in_head, in_tail; /* input queue: blocks pushed, not yet appended */
 	/* execution state */
 	int in_corner;            /* 0: on the line of seg[tail]; 1: in its end corner */
 	double l_start_mm;        /* line: where it starts along seg[tail] (l_e of
@@ -184,6 +208,7 @@ struct mlip_planner {
 		uint64_t done_seq;
 		uint32_t done_line;
 	} mark[MLIP_JERK_MAX_TAPS];
+	struct mlip_block in[MLIP_INPUT_CAP]; /* the input queue (async) */
 	struct mlip_seg seg[MLIP_LOOKAHEAD];
 };
 
@@ -213,6 +238,21 @@ mlip_status mlip_planner_push(struct mlip_planner *p, const struct mlip_block *b
  * reason other than room. */
 size_t mlip_planner_push_n(struct mlip_planner *p, const struct mlip_block *b, size_t n,
                            mlip_status *err);
+
+/* Bounded work: with on = 1, push_n only queues the blocks (at most
+ * MLIP_INPUT_CAP waiting) and the commands only ask for their backward
+ * pass; mlip_planner_work does the look-ahead's work, at most
+ * MLIP_WORK_PER_PERIOD units of it a call, so that a period's cost does
+ * not grow with the look-ahead's depth (the pre-read's 4096 blocks, an
+ * override's pass over all of them). Until a pass has reached a corner the
+ * executor follows the plan it replaces, which brakes to rest where it was
+ * planned to: safe, and only slower. Off (0, the default): all of it at
+ * once, as push_n and the commands always did. */
+void mlip_planner_set_async(struct mlip_planner *p, int on);
+/* One period's look-ahead work (async; nothing otherwise). */
+void mlip_planner_work(struct mlip_planner *p);
+/* Look-ahead work is pending: blocks not yet appended, or a pass not done. */
+int mlip_planner_busy(const struct mlip_planner *p);
 
 /* Feed override, pct in [0, 200]; takes effect from the next step. 0 holds. */
 mlip_status mlip_planner_set_override(struct mlip_planner *p, double pct);
