@@ -34,18 +34,22 @@ int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
 	return 0;
 }
 
-/* The ring is fed: a feeder is attached and alive (mlip/ipc/peer.h, on its
- * stamp: late or dead, it feeds nothing). A feeder area mid-update counts as
- * alive (it is being written). */
-static int feeder_alive(const struct mlip_ring *r)
+/* The feeder into in: the ring is fed (a feeder attached and alive,
+ * mlip/ipc/peer.h, on its stamp: late or dead, it feeds nothing) and the stop
+ * counter when it began. A feeder area mid-update counts as alive (it is
+ * being written), and its stop_base as unknown (no program starts). */
+static void feeder_in(const struct mlip_ring *r, struct mlip_ctl_in *in)
 {
 	struct mlip_ring_feeder f;
 	if (mlip_ring_feeder_read(r, &f) != MLIP_OK) {
-		return 1;
+		in->feeder_alive = 1;
+		in->feeder_unread = 1;
+		return;
 	}
 	struct mlip_peer_seen s = {f.heartbeat, f.heartbeat_ns, f.pid == 0,
 	                           -1}; /* pid 0: it left */
-	return mlip_peer_judge(&s, NULL, mlip_now_ns(), NULL) == MLIP_PEER_ALIVE;
+	in->feeder_alive = mlip_peer_judge(&s, NULL, mlip_now_ns(), NULL) == MLIP_PEER_ALIVE;
+	in->feeder_stop_base = f.stop_base;
 }
 
 static void log_push(struct mlip_controller *c, const struct mlip_ctl_event *ev)
@@ -125,7 +129,8 @@ int mlip_controller_period(struct mlip_controller *c, const struct mlip_rt_tick 
 	in.missed = late > (int64_t)UINT32_MAX ? UINT32_MAX : (uint32_t)late;
 	int have_cmd = mlip_ring_cmd_take(c->ring, &cmd) == MLIP_OK;
 	in.cmd = have_cmd ? &cmd : NULL;
-	in.feeder_alive = feeder_alive(c->ring);
+	in.stop_requests = mlip_ring_stop_count(c->ring);
+	feeder_in(c->ring, &in);
 	in.exit_request = c->exit_request != 0;
 	if (c->can != NULL) {
 		in.can_tx_refused = c->can->tx_dropped;

@@ -56,6 +56,15 @@ void mlip_shm_close(struct mlip_shm *s);
  * alone (beat within MLIP_PEER_TIMEOUT_NS); 0 also for no consistent status. */
 int mlip_shm_controller_alive(const struct mlip_ring *r);
 
+/* The ring's single producer: a POSIX record lock on the producer cache line
+ * of the segment (the kernel drops it when the feeder dies). mlip-feed takes
+ * it before it checks its program: 0, or -EBUSY with *holder (0 if unknown)
+ * when another process has it, or -errno. */
+int mlip_shm_feeder_lock(struct mlip_shm *s, int32_t *holder);
+/* The pid of the process holding the producer lock (a feeder checking or
+ * sending its program), 0 when none. */
+int32_t mlip_shm_feeder_holder(const struct mlip_shm *s);
+
 /* ---- peers (rt/peer.c; the rule is mlip/ipc/peer.h) ------------------------ */
 
 /* 1 when process pid exists and is not a zombie (EPERM counts: another

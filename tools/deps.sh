@@ -17,6 +17,7 @@ command -v valgrind >/dev/null 2>&1 || need="$need valgrind"
 command -v cyclictest >/dev/null 2>&1 || need="$need rt-tests"
 command -v candump >/dev/null 2>&1 || need="$need can-utils"
 [ -x /usr/bin/time ] || need="$need time" # GNU time: peak RSS of a program (bench/rss.py)
+command -v strace >/dev/null 2>&1 || need="$need strace" # the state files' fsync order (tests)
 python3 -c 'import venv, ensurepip' >/dev/null 2>&1 || need="$need python3-venv"
 if [ -n "$need" ]; then
 	echo "deps: apt-get install$need"

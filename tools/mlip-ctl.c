@@ -1,11 +1,13 @@
 /*
  * mlip-ctl - talk to a running mlip-rt through its shared-memory segment:
- * feed override, hold, resume, stop (the command mailbox of mlip/ipc/ring.h), and
- * a status report (the controller's and the feeder's seqlocked areas).
+ * feed override, hold, resume (the command mailbox of mlip/ipc/ring.h), stop
+ * (the stop counter: its own path, never behind the mailbox), and a status
+ * report (the controller's and the feeder's seqlocked areas).
  *
  * A command is posted only once the previous one is completed (the mailbox
- * has one slot), then acknowledged by the controller with a result code; both
- * waits are bounded (1 s) so a dead controller never hangs the tool.
+ * has one slot), then acknowledged by the controller with a result code; a
+ * stop is acknowledged by the controller's stop_seen. Every wait is bounded
+ * (1 s) so a dead controller never hangs the tool.
  */
 #include <errno.h>
 #include <getopt.h>
@@ -23,9 +25,10 @@
 #include "mlip/ipc/ring.h"
 #include "rt.h"
 
-#define PROG    "mlip-ctl"
-#define WAIT_NS 1000000000LL /* post retries and answer wait: 1 s each */
-#define POLL_NS 1000000L     /* poll the mailbox every 1 ms */
+#define PROG     "mlip-ctl"
+#define WAIT_NS  1000000000LL /* post retries and answer wait: 1 s each */
+#define POLL_NS  1000000L     /* poll the mailbox every 1 ms */
+#define LINE_MAX 256          /* `-`: a longer command line is refused whole */
 
 enum { EXIT_DONE = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
 
@@ -160,6 +163,13 @@ static void json_num(double v)
 	}
 }
 
+/* The state of a controller that does not beat (mlip/ipc/peer.h): its
+ * process there but not running, or gone. */
+static const char *dead_name(mlip_peer_verdict v)
+{
+	return v == MLIP_PEER_LATE ? "not responding" : "not running";
+}
+
 static int cmd_status(struct mlip_shm *s, int json)
 {
 	struct mlip_ring_status st;
@@ -209,8 +219,11 @@ static int cmd_status(struct mlip_shm *s, int json)
 		printf("{\n  \"shm\": ");
 		mlip_json_str(stdout, s->name);
 		printf(",\n");
-		printf("  \"state\": \"%s\",\n  \"alive\": %s,\n", mlip_ring_state_name(st.state),
-		       alive ? "true" : "false");
+		/* a controller that does not beat is in no state of its own: say so,
+		 * with the one it last published beside */
+		printf("  \"state\": \"%s\",\n  \"last_state\": \"%s\",\n  \"alive\": %s,\n",
+		       alive ? mlip_ring_state_name(st.state) : dead_name(v),
+		       mlip_ring_state_name(st.state), alive ? "true" : "false");
 		printf("  \"liveness\": \"%s\",\n", mlip_peer_verdict_name(v));
 		printf("  \"heartbeat\": %llu,\n", (unsigned long long)st.heartbeat);
 		if (a < 0) {
@@ -287,7 +300,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 		}
 		printf(",\n  \"drives_last_change_periods\": %u", (unsigned)st.drive_power_periods);
 		printf(",\n  \"speed_mm_s\": ");
-		json_num(st.speed_mm_s);
+		json_num(alive ? st.speed_mm_s : NAN); /* not known without a controller */
 		printf(",\n  \"dwell_left_s\": %.6f,\n  \"optional_stop\": %s,\n",
 		       (double)st.dwell_left * m.period_s, st.optional_stop ? "true" : "false");
 		printf("  \"exec_seq\": %llu,\n  \"exec_line\": %u,\n",
@@ -310,8 +323,14 @@ static int cmd_status(struct mlip_shm *s, int json)
 		return alive && st.state != MLIP_STATE_FAULT ? EXIT_DONE : EXIT_FAIL;
 	}
 
-	printf("controller  %s: %s, %s (heartbeat ", s->name, mlip_ring_state_name(st.state),
-	       alive ? "alive" : "NOT RESPONDING");
+	if (alive) {
+		printf("controller  %s: %s, alive (heartbeat ", s->name,
+		       mlip_ring_state_name(st.state));
+	} else {
+		printf("controller  %s: %s, last state %s (heartbeat ", s->name,
+		       v == MLIP_PEER_LATE ? "NOT RESPONDING" : "NOT RUNNING",
+		       mlip_ring_state_name(st.state));
+	}
 	print_age(stdout, a);
 	printf(", period %llu)\n", (unsigned long long)st.heartbeat);
 	/* at rest (idle, starved): the last block completed, where a program
@@ -348,7 +367,11 @@ static int cmd_status(struct mlip_shm *s, int json)
 	for (int k = 0; k < m.n_axes; k++) {
 		printf(" %c %.4f", m.axis[k].letter, st.pos[k]);
 	}
-	printf("  (%.3f mm/s)\n", st.speed_mm_s);
+	if (alive) {
+		printf("  (%.3f mm/s)\n", st.speed_mm_s);
+	} else {
+		printf("  (the last setpoint; speed unknown)\n");
+	}
 	if (st.actual_mask != 0) {
 		printf("actual     ");
 		for (int k = 0; k < m.n_axes; k++) {
@@ -438,6 +461,52 @@ static void describe(char *buf, size_t len, mlip_ring_cmd_op op, int32_t arg)
 	}
 }
 
+/* stop: the stop counter (never refused, never behind a busy mailbox or a
+ * dead mlip-ctl), acknowledged by the controller's stop_seen. Posted even to
+ * a controller that does not answer: a stop is latched for a program whose
+ * mlip-feed began before it (it is being checked, or waits), which then
+ * never starts. */
+static int cmd_stop(struct mlip_shm *s)
+{
+	struct mlip_ring_status st;
+	int alive = mlip_shm_controller_alive(s->ring);
+	uint32_t ticket = mlip_ring_stop_post(s->ring);
+	int32_t feeder = mlip_shm_feeder_holder(s);
+	uint64_t t0 = mlip_now_ns();
+
+	if (!alive) {
+		fprintf(stderr, PROG ": stop: controller on %s is not running: start mlip-rt%s\n",
+		        s->name,
+		        feeder ? " (the stop is posted: the waiting mlip-feed will not start its "
+		                 "program)"
+		               : "");
+		return EXIT_FAIL;
+	}
+	for (;;) {
+		if (read_status(s->ring, &st) == 0 &&
+		    mlip_ring_stop_applied(st.stop_seen, ticket)) {
+			break;
+		}
+		if (mlip_now_ns() - t0 >= (uint64_t)WAIT_NS) {
+			fprintf(stderr, PROG
+			        ": stop: no answer from the controller within 1 s (posted: it is "
+			        "applied when the controller runs again): check " PROG " status\n");
+			return EXIT_FAIL;
+		}
+		sleep_ns(POLL_NS);
+	}
+	if (st.state == MLIP_STATE_IDLE && feeder != 0) {
+		printf("stop: done (the machine was idle; the program of mlip-feed pid %d, "
+		       "begun before this stop, will not start)\n",
+		       (int)feeder);
+	} else if (st.state == MLIP_STATE_IDLE) {
+		printf("stop: done (the machine was idle)\n");
+	} else {
+		printf("stop: done\n");
+	}
+	return EXIT_DONE;
+}
+
 static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 {
 	struct mlip_ring_status st;
@@ -447,6 +516,9 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 	uint64_t t0;
 	mlip_status rc;
 
+	if (op == MLIP_CMD_STOP) {
+		return cmd_stop(s);
+	}
 	describe(what, sizeof(what), op, arg);
 	if (!mlip_shm_controller_alive(s->ring)) {
 		fprintf(stderr, PROG ": %s: controller on %s is not running: start mlip-rt\n", what,
@@ -460,13 +532,21 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 	}
 	if (rc != MLIP_OK) {
 		fprintf(stderr,
-		        PROG ": %s: the command mailbox stayed busy for 1 s (a previous command "
-		             "was not completed): check mlip-rt with " PROG " status\n",
+		        PROG ": %s: the command mailbox stayed busy for 1 s (the controller "
+		             "completes a command each period: it is not running, or other "
+		             "mlip-ctl keep it busy; stop has its own path): check " PROG
+		             " status\n",
 		        what);
 		return EXIT_FAIL;
 	}
 	t0 = mlip_now_ns();
-	while (mlip_ring_cmd_result(s->ring, seq, &result) != MLIP_OK) {
+	while ((rc = mlip_ring_cmd_result(s->ring, seq, &result)) != MLIP_OK) {
+		if (rc == MLIP_E_RANGE) {
+			printf("%s: done (applied; its result was overwritten by later commands of "
+			       "another mlip-ctl: check " PROG " status)\n",
+			       what);
+			return EXIT_DONE;
+		}
 		if (mlip_now_ns() - t0 >= (uint64_t)WAIT_NS) {
 			fprintf(stderr,
 			        PROG
@@ -535,27 +615,65 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 	return 0;
 }
 
+/* One line of f, whole: its first cap - 1 bytes into buf (NUL-terminated),
+ * the rest read and counted, never split into another line. *len is the
+ * line's full length (newline excluded); *nul is set when it holds a NUL.
+ * 0 at the end of the input. */
+static int read_line(FILE *f, char *buf, size_t cap, size_t *len, int *nul)
+{
+	size_t n = 0;
+	int c, any = 0;
+
+	*nul = 0;
+	while ((c = getc(f)) != EOF) {
+		any = 1;
+		if (c == '\n') {
+			break;
+		}
+		*nul |= c == '\0';
+		if (n + 1 < cap) {
+			buf[n] = (char)c;
+		}
+		n++;
+	}
+	buf[n + 1 < cap ? n : cap - 1] = '\0';
+	*len = n;
+	return any;
+}
+
 /* '-': commands from standard input, one per line, each applied (or refused)
  * before the next line is read: for a pendant or a script driving one
- * long-lived mlip-ctl. Exit 0 when every command was done, else 1 (2: a line
- * that is not a command; the lines before it were applied). */
+ * long-lived mlip-ctl. Lines are read whole, whatever their length: a
+ * comment line (#) of any length is skipped, a command line longer than
+ * LINE_MAX - 1 bytes (or with a NUL) is no command. Exit 0 when every
+ * command was done, else 1 (2: a line that is not a command ends the input;
+ * the lines before it were applied, nothing of it). */
 static int cmd_stdin(struct mlip_shm *s)
 {
-	char line[128];
-	int rc = EXIT_DONE;
+	char line[LINE_MAX];
+	size_t len;
+	int rc = EXIT_DONE, nul;
 	unsigned long lineno = 0;
-	while (fgets(line, sizeof(line), stdin) != NULL) {
+	while (read_line(stdin, line, sizeof(line), &len, &nul)) {
 		char *w[3] = {NULL, NULL, NULL}, *save = NULL;
 		int n = 0;
 		mlip_ring_cmd_op op;
 		int32_t arg;
 		lineno++;
-		for (char *t = strtok_r(line, " \t\r\n", &save); t != NULL && n < 3;
-		     t = strtok_r(NULL, " \t\r\n", &save)) {
-			w[n++] = t;
+		const char *first = line + strspn(line, " \t\r");
+		if (*first == '#' || (len < sizeof(line) && !nul && *first == '\0')) {
+			continue; /* a comment, whatever its length; a blank line */
 		}
-		if (n == 0 || w[0][0] == '#') {
-			continue;
+		if (len >= sizeof(line) || nul) {
+			fprintf(stderr,
+			        PROG ": stdin:%lu: %s: not a command (nothing of it was applied)\n",
+			        lineno,
+			        nul ? "a NUL byte in the line" : "line longer than 255 bytes");
+			return EXIT_USAGE;
+		}
+		for (char *t = strtok_r(line, " \t\r", &save); t != NULL && n < 3;
+		     t = strtok_r(NULL, " \t\r", &save)) {
+			w[n++] = t;
 		}
 		int takes_arg = op_takes_arg(w[0]);
 		if (parse_command(w[0], w[1], &op, &arg) != 0 || n > 1 + takes_arg) {

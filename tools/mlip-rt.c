@@ -240,6 +240,14 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		        mlip_state_why_name(r->why), r->line, (unsigned long long)r->seq);
 		return;
 	case MLIP_STATE_IDLE:
+		if (r->why == MLIP_WHY_STOP_EARLY) {
+			fprintf(stderr,
+			        PROG
+			        ": stop before the start: the program from block %llu (line %u) "
+			        "is dropped unmoved (its mlip-feed began before the stop)\n",
+			        (unsigned long long)r->seq, r->line);
+			return;
+		}
 		fprintf(stderr,
 		        PROG ": %s -> idle (%s): at rest, block %llu (line %u) the last "
 		             "completed\n",

@@ -208,6 +208,7 @@ static void feed_step(struct feeder *f, struct mlip_ring *r)
 int main(int argc, char **argv)
 {
 	struct mlip_cli_machine mo = {0};
+	static struct mlip_offsets_file offsets_file; /* the save's merge base */
 	const char *strategy = "mpct", *trace_path = NULL, *summary_path = NULL;
 	double feed = -1.0, override = 100.0;
 	long long storm_seed = -1;
@@ -347,6 +348,7 @@ int main(int argc, char **argv)
 		return 2;
 	}
 
+	mo.offsets_file = &offsets_file;
 	if (save_offsets && mo.offsets == NULL) {
 		fprintf(stderr, PROG ": --save-offsets needs --offsets FILE\n");
 		return 2;
@@ -581,7 +583,7 @@ int main(int argc, char **argv)
 	}
 	mlip_program_close(&cprog);
 	if (save_offsets &&
-	    mlip_offsets_save(mo.offsets, m, &prog.offsets_end, PROG, stderr) != 0) {
+	    mlip_offsets_save(&offsets_file, m, &prog.offsets_end, PROG, stderr) != 0) {
 		mlip_program_close(&prog);
 		return 1;
 	}

@@ -357,8 +357,12 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 		c->discard_waiting = c->discard;
 		return;
 	}
+	/* in a dwell or a pause the wait is not done: the block completed is
+	 * the one before it (the pre-read after it never moved) */
+	c->stop_in_wait = c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED;
 	mlip_planner_stop(c->planner);
 	c->dwell_left = 0;
+	c->op_hold = 0; /* the planner's stop ends a hold too */
 	if (c->state == MLIP_STATE_FAULT) {
 		return; /* the fault stays the reason */
 	}
@@ -374,13 +378,10 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	struct mlip_planner *p = c->planner;
 	switch (cmd->op) {
 	case MLIP_CMD_OVERRIDE:
-		if (cmd->arg == 0) {
-			c->hold_why = MLIP_WHY_OVERRIDE_ZERO;
-		}
 		return mlip_planner_set_override(p, (double)cmd->arg);
 	case MLIP_CMD_HOLD:
 		mlip_planner_hold(p, 1);
-		c->hold_why = MLIP_WHY_HOLD;
+		c->op_hold = 1;
 		brake_begin(c);
 		return MLIP_OK;
 	case MLIP_CMD_RESUME:
@@ -395,6 +396,7 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 			c->bus_hold = 0;
 		}
 		c->stall_hold = 0;
+		c->op_hold = 0;
 		mlip_planner_hold(p, 0);
 		c->braking = 0; /* resumed before rest: no stop to measure */
 		c->resume_wait = c->state == MLIP_STATE_PAUSED; /* and a pause ends */
@@ -683,6 +685,23 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 			c->refused++;
 			return;
 		}
+		if (in->feeder_unread) {
+			return; /* whose program this is: known next period */
+		}
+		if (mlip_ring_stop_after(c->stop_seen, in->feeder_stop_base)) {
+			/* a stop came after this program's feeder began (during its
+			 * check, say): latched for it, the program never starts */
+			c->discard = 1;
+			c->discard_waiting = 1; /* its first record too */
+			c->refused++;
+			struct mlip_ctl_reason r =
+			    reason(MLIP_WHY_STOP_EARLY, head->seq, head->line);
+			if (c->state == MLIP_STATE_IDLE && c->why.why == MLIP_WHY_STOP_EARLY) {
+				c->why.why = MLIP_WHY_NONE; /* a second refusal is named too */
+			}
+			go(c, out, MLIP_STATE_IDLE, r);
+			return;
+		}
 		if (c->drives && c->power != MLIP_POWER_ENABLED) {
 			/* the drives are (being) shut down: enable them first, then
 			 * take the program from where they are */
@@ -754,9 +773,47 @@ static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
 	if (c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED) {
 		*seq = c->wait_seq;
 		*line = c->wait_line;
+	} else if (c->stop_in_wait) {
+		return; /* stopping in a wait: the pre-read after it never moves */
 	} else if (c->state != MLIP_STATE_PREREAD && mlip_planner_queued(p) > 0) {
 		mlip_planner_executing(p, seq, line);
 	}
+}
+
+/* Why the machine is held now, the strongest cause first: a stall and a bad
+ * bus need a resume (and a clean bus), an operator's hold a resume, an
+ * override of 0 a higher override. The reason follows the causes: after
+ * override 0, hold, override 100 it is the hold, not the override. */
+static uint32_t held_why(const struct mlip_ctl *c)
+{
+	if (c->stall_hold) {
+		return MLIP_WHY_STALL;
+	}
+	if (c->bus_hold) {
+		return c->bus_why;
+	}
+	if (c->op_hold) {
+		return MLIP_WHY_HOLD;
+	}
+	if (mlip_planner_override_pct(c->planner) == 0.0) {
+		return MLIP_WHY_OVERRIDE_ZERO;
+	}
+	return MLIP_WHY_HOLD;
+}
+
+/* The planner's last completed block into exec_seq/line. At rest with
+ * nothing queued the planner knows a new block's predecessor by its number
+ * only (line 0): that is the block the controller already names. */
+static void take_done(struct mlip_ctl *c)
+{
+	uint64_t seq;
+	uint32_t line;
+	mlip_planner_done(c->planner, &seq, &line);
+	if (line == 0 && seq == c->exec_seq) {
+		return;
+	}
+	c->exec_seq = seq;
+	c->exec_line = line;
 }
 
 /* After the step: the transitions the motion decides. still: this period's
@@ -765,7 +822,6 @@ static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
 static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
                        mlip_run_state rs, int still)
 {
-	struct mlip_planner *p = c->planner;
 	struct mlip_ring_rec next;
 	switch (c->state) {
 	case MLIP_STATE_RUNNING:
@@ -776,7 +832,7 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 			c->end_seen = 0;
 			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_END, c->end_seq, c->end_line));
 		} else if (rs == MLIP_RUN_IDLE) {
-			mlip_planner_done(p, &c->exec_seq, &c->exec_line);
+			take_done(c);
 			if (rx_peek(c, &next) && is_event(&next)) {
 				if (c->state == MLIP_STATE_HELD) {
 					go(c, out, MLIP_STATE_RUNNING,
@@ -795,22 +851,26 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 			}
 			go(c, out, MLIP_STATE_STARVED,
 			   reason(MLIP_WHY_UNDERRUN, c->exec_seq, c->exec_line));
-		} else if (rs == MLIP_RUN_HELD && c->state == MLIP_STATE_RUNNING) {
-			go(c, out, MLIP_STATE_HELD,
-			   reason(c->hold_why ? c->hold_why : MLIP_WHY_HOLD, 0, 0));
+		} else if (rs == MLIP_RUN_HELD &&
+		           (c->state == MLIP_STATE_RUNNING || c->why.why != held_why(c))) {
+			go(c, out, MLIP_STATE_HELD, reason(held_why(c), 0, 0));
 		} else if (rs == MLIP_RUN_MOVING && c->state == MLIP_STATE_HELD) {
 			go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
 		}
 		return;
 	case MLIP_STATE_STOPPING:
 		if (rs == MLIP_RUN_IDLE) {
-			mlip_planner_done(p, &c->exec_seq, &c->exec_line);
+			if (!c->stop_in_wait) {
+				take_done(c);
+			}
+			c->stop_in_wait = 0;
+			c->op_hold = 0; /* the planner's stop released its hold */
 			go(c, out, MLIP_STATE_IDLE, c->why); /* the stop stays the reason */
 		}
 		return;
 	case MLIP_STATE_FAULT:
-		if (rs == MLIP_RUN_IDLE) {
-			mlip_planner_done(p, &c->exec_seq, &c->exec_line); /* the last good block */
+		if (rs == MLIP_RUN_IDLE && !c->stop_in_wait) {
+			take_done(c); /* the last good block */
 		}
 		return;
 	default:
@@ -846,6 +906,7 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	s->drive_power = c->power;
 	s->drive_power_periods = c->power_periods;
 	memcpy(s->prog_start, c->prog_start, sizeof(s->prog_start));
+	s->stop_seen = c->stop_seen;
 }
 
 /* Still moving: a stall must freeze it. */
@@ -877,7 +938,6 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 			mlip_planner_stop(p); /* a stop in progress ends here */
 		} else {
 			c->stall_hold = 1;
-			c->hold_why = MLIP_WHY_STALL;
 			c->braking = 0;
 			struct mlip_ctl_reason r = reason(MLIP_WHY_STALL, 0, 0);
 			progress(c, &r.seq, &r.line);
@@ -889,6 +949,11 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	if (in->cmd != NULL) {
 		out->cmd_result = apply_command(c, out, in->cmd);
 	}
+	/* a stop request (the segment's counter): never behind a command */
+	if (in->stop_requests != c->stop_seen) {
+		c->stop_seen = in->stop_requests;
+		begin_stop(c, out, MLIP_WHY_STOP);
+	}
 	if (in->exit_request && !c->exiting) {
 		c->exiting = 1; /* a controlled stop on the path, then done */
 		begin_stop(c, out, MLIP_WHY_EXIT);
@@ -899,7 +964,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		c->bus_bad_period = c->period;
 		if (!c->bus_hold) {
 			c->bus_hold = 1;
-			c->hold_why = in->bus_off ? MLIP_WHY_BUS_ERROR : MLIP_WHY_BUS_TX;
+			c->bus_why = in->bus_off ? MLIP_WHY_BUS_ERROR : MLIP_WHY_BUS_TX;
 			mlip_planner_hold(p, 1);
 			brake_begin(c);
 		}

@@ -37,6 +37,15 @@ def sim_summary(path, *opts):
     return json.loads(p.stdout)
 
 
+def offsets_file(path, *sets, config=CONFIG / "mill-3axis.ini"):
+    """A sealed offsets file: mlip-offsets --init (all zero, G54, G28/G30 at
+    HOME), then --set for each "KEY VALUES" (e.g. "G55 X10 Y20")."""
+    run(["mlip-offsets", "--init", "--config", config, path])
+    if sets:
+        run(["mlip-offsets", *[a for s in sets for a in ("--set", s)], path])
+    return path
+
+
 @pytest.fixture(scope="session", autouse=True)
 def built():
     for t in ("mlip-sim", "mlip-check"):

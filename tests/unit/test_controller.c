@@ -35,6 +35,8 @@ static struct mlip_ctl_drive_fault drv_fault;
 static uint32_t drv_actual_mask;
 static double drv_actual[MLIP_MAX_AXES];
 static uint16_t drv_sw[MLIP_MAX_AXES]; /* the statusword of each drive's TPDO */
+/* the segment's stop counter and the feeder's stop_base (mlip/ipc/ring.h) */
+static uint32_t stop_count, feeder_base;
 /* every transition seen since setup: state entered and why */
 static uint32_t seen_state[256], seen_why[256];
 static int n_seen;
@@ -73,6 +75,7 @@ static int setup(void **state)
 	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o, ring), MLIP_OK);
 	period = 0;
 	feeder_alive = 1;
+	stop_count = feeder_base = 0;
 	n_seen = 0;
 	memset(&drv_fault, 0, sizeof(drv_fault));
 	drv_actual_mask = 0;
@@ -90,8 +93,11 @@ static int teardown(void **state)
 static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 {
 	struct mlip_ring_cmd cmd = {.seq = 2, .op = op, .arg = arg};
-	struct mlip_ctl_in in = {
-	    .period = period++, .missed = missed, .feeder_alive = feeder_alive};
+	struct mlip_ctl_in in = {.period = period++,
+	                         .missed = missed,
+	                         .feeder_alive = feeder_alive,
+	                         .stop_requests = stop_count,
+	                         .feeder_stop_base = feeder_base};
 	in.cmd = op ? &cmd : NULL;
 	in.drive_fault = drv_fault;
 	in.actual_mask = drv_actual_mask;
@@ -296,6 +302,169 @@ static void test_stop_before_first_block_completes(void **st)
 	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
 	assert_true(out.pos[0] > 0.0 && out.pos[0] < 5.0); /* stopped inside block 1 */
 	assert_int_equal(status().exec_seq, 0);
+}
+
+/* mlip-ctl stop while the feeder still checks its program (issue 17: the
+ * controller was idle, stop was a no-op, the program ran 1.5 s later): the
+ * stop is latched for the program whose feeder began before it, which is
+ * dropped unmoved and named; a stop older than the feeder (stale) does not
+ * touch the next program; a feeder area mid-update starts nothing. */
+static void test_stop_latched_for_the_program_about_to_start(void **st)
+{
+	(void)st;
+	feeder_base = 3; /* the feeder began when the counter was 3 */
+	stop_count = 3;
+	tick(5);
+	stop_count = 4; /* mlip-ctl stop during its check pass */
+	tick(5);
+	assert_int_equal(status().stop_seen, 4); /* acknowledged */
+	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	push(1, 5);
+	end(6);
+	tick(300);
+	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_true(out.pos[0] == 0.0 && out.pos[1] == 0.0); /* nothing moved */
+	assert_int_equal(status().reason, MLIP_WHY_STOP_EARLY);
+	assert_int_equal(status().reason_seq, 1);
+	assert_int_equal(status().reason_line, 2);
+	assert_int_equal(mlip_ring_count(ring), 0); /* its records dropped, END too */
+	assert_int_equal(status().exec_seq, 0);
+	assert_true(saw(MLIP_STATE_IDLE, MLIP_WHY_STOP_EARLY));
+	/* the next feeder began after that stop: its program runs */
+	feeder_base = 4;
+	push(1, 5);
+	end(6);
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 5.0);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	/* a stop while idle with nothing about to start, then a feeder that
+	 * begins after it: stale for it, the program runs */
+	stop_count = 5;
+	tick(5);
+	feeder_base = 5;
+	move(1, 0.0, 0.0);
+	end(2);
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 0.0);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	/* whose program it is unknown (feeder area mid-update): it waits */
+	stop_count = 6;
+	tick(2);
+	move(1, 3.0, 0.0);
+	end(2);
+	struct mlip_ctl_in in = {.period = period++,
+	                         .feeder_alive = 1,
+	                         .feeder_unread = 1,
+	                         .stop_requests = stop_count,
+	                         .feeder_stop_base = 6};
+	mlip_ctl_period(&ctl, &in, &out);
+	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_int_equal(mlip_ring_count(ring), 2);
+	feeder_base = 6;
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 3.0);
+}
+
+/* A stop request (the counter) while running: the same stop as the
+ * command, never behind the mailbox. */
+static void test_stop_counter_stops_a_running_program(void **st)
+{
+	(void)st;
+	move(1, 100.0, 0.0);
+	end(2);
+	tick(300);
+	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	stop_count++;
+	tick(1);
+	assert_int_equal(ctl.state, MLIP_STATE_STOPPING);
+	assert_int_equal(status().stop_seen, stop_count);
+	until(MLIP_STATE_IDLE, 500);
+	assert_int_equal(status().reason, MLIP_WHY_STOP);
+	assert_true(out.pos[0] > 10.0 && out.pos[0] < 100.0);
+}
+
+/* The reason follows the state (issue 17: after override 0, hold, override
+ * 100 the status said "held, override 0" at 100 %). */
+static void test_hold_reason_follows_the_causes(void **st)
+{
+	(void)st;
+	move(1, 500.0, 0.0);
+	end(2);
+	tick(200);
+	period_cmd(MLIP_CMD_OVERRIDE, 0, 0);
+	until(MLIP_STATE_HELD, 500);
+	assert_int_equal(status().reason, MLIP_WHY_OVERRIDE_ZERO);
+	period_cmd(MLIP_CMD_HOLD, 0, 0);
+	tick(1);
+	assert_int_equal(status().reason, MLIP_WHY_HOLD);
+	period_cmd(MLIP_CMD_OVERRIDE, 100, 0);
+	tick(50);
+	double x = out.pos[0];
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	assert_int_equal(status().reason, MLIP_WHY_HOLD); /* not "override 0" at 100 % */
+	assert_int_equal(status().override_pct, 100);
+	assert_true(out.pos[0] == x); /* and held indeed */
+	/* hold, then override 0, then resume: held by the override now */
+	period_cmd(MLIP_CMD_OVERRIDE, 0, 0);
+	period_cmd(MLIP_CMD_RESUME, 0, 0);
+	tick(2);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	assert_int_equal(status().reason, MLIP_WHY_OVERRIDE_ZERO);
+	assert_true(out.pos[0] == x);
+	period_cmd(MLIP_CMD_OVERRIDE, 100, 0);
+	until(MLIP_STATE_RUNNING, 10);
+	assert_int_equal(status().reason, MLIP_WHY_RESUME);
+}
+
+/* A stop (or an exit signal) in a dwell or a pause: the wait is not done;
+ * the block completed is the move before it, with its line (issue 17:
+ * line 0), and the status and the events say so. */
+static void stop_in_wait(uint8_t kind, int exit_signal)
+{
+	push(1, 3);
+	event(4, kind, 10.0); /* line 5 */
+	push(5, 8);
+	end(9);
+	until(kind == MLIP_BLOCK_DWELL ? MLIP_STATE_DWELLING : MLIP_STATE_PAUSED, 3000);
+	tick(20);
+	assert_int_equal(status().exec_seq, 4);
+	assert_int_equal(status().exec_line, 5);
+	if (exit_signal) {
+		struct mlip_ctl_in in = {.period = period++, .feeder_alive = 1, .exit_request = 1};
+		mlip_ctl_period(&ctl, &in, &out);
+	} else {
+		stop_count++;
+		tick(1);
+	}
+	for (uint32_t i = 0; i < out.n_events; i++) {
+		if (out.events[i].kind == MLIP_EV_STATE) {
+			assert_int_equal(out.events[i].exec_seq, 3);
+			assert_int_equal(out.events[i].exec_line, 4);
+		}
+	}
+	until(MLIP_STATE_IDLE, 100);
+	assert_true(out.pos[0] == 3.0); /* nothing after the wait moved */
+	assert_int_equal(status().exec_seq, 3);
+	assert_int_equal(status().exec_line, 4);
+	assert_int_equal(status().reason, exit_signal ? MLIP_WHY_EXIT : MLIP_WHY_STOP);
+}
+
+static void test_stop_in_dwell_names_the_block_before(void **st)
+{
+	(void)st;
+	stop_in_wait(MLIP_BLOCK_DWELL, 0);
+}
+
+static void test_stop_in_pause_names_the_block_before(void **st)
+{
+	(void)st;
+	stop_in_wait(MLIP_BLOCK_PAUSE, 0);
+}
+
+static void test_exit_in_dwell_names_the_block_before(void **st)
+{
+	(void)st;
+	stop_in_wait(MLIP_BLOCK_DWELL, 1);
 }
 
 /* Override 0 holds with its own reason; an exit request stops and reports
@@ -1063,6 +1232,12 @@ int main(void)
 	    T(test_stop_distance_published),
 	    T(test_stop_before_first_block_completes),
 	    T(test_override_zero_and_exit),
+	    T(test_stop_latched_for_the_program_about_to_start),
+	    T(test_stop_counter_stops_a_running_program),
+	    T(test_hold_reason_follows_the_causes),
+	    T(test_stop_in_dwell_names_the_block_before),
+	    T(test_stop_in_pause_names_the_block_before),
+	    T(test_exit_in_dwell_names_the_block_before),
 	    T(test_dwell_exact_periods),
 	    T(test_dwell_first_and_zero),
 	    T(test_pause_and_optional_pause),

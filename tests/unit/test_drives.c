@@ -930,7 +930,7 @@ static void test_loop_stop_disables(void **state)
 		period();
 	}
 	assert_int_equal(ctl.out.status.state, MLIP_STATE_RUNNING);
-	assert_int_equal(mlip_ring_cmd_post(ctl.ring, MLIP_CMD_STOP, 0, NULL), MLIP_OK);
+	mlip_ring_stop_post(ctl.ring);
 	run_until(0, MLIP_POWER_OFF, 3000, &r);
 	assert_int_equal(r.n_cw, 3);
 	assert_true(r.last_move > 10 && r.last_move < r.first_cw_period[1]);

@@ -27,6 +27,9 @@
  *             (a wait pre-reads what follows; if that is not done at its
  *             end: PREREAD first)
  *   any --stop | exit signal--> STOPPING --at rest--> IDLE
+ *   IDLE --a program whose feeder began before a stop seen--> IDLE (reason
+ *             STOP_EARLY: the stop is latched for the program about to
+ *             start; its records are dropped unmoved, its first one named)
  *   any --bad record--> FAULT (at rest at the end of the last good block:
  *             ingest stops, the look-ahead already plans it to rest)
  *   any --position beyond the drives' range--> FAULT (stop on the path)
@@ -120,6 +123,12 @@ struct mlip_ctl_in {
 	uint64_t period;                 /* 0, 1, 2, ... one per call */
 	uint32_t missed;                 /* deadlines the loop missed before this period */
 	const struct mlip_ring_cmd *cmd; /* this period's command; NULL: none */
+	uint32_t stop_requests;          /* the stop counter (mlip_ring_stop_count): each
+	                                    change is a stop (never lost behind a command) */
+	uint32_t feeder_stop_base;       /* the feeder's stop_base: a program whose feeder
+	                                    began before a stop seen never starts */
+	int feeder_unread;               /* the feeder area was mid-update: whose program it
+	                                    is is not known, none starts this period */
 	int feeder_alive;                /* a feeder is attached and beating */
 	int exit_request;                /* stop on the path, then report done */
 	/* the bus as of the last send (cumulative) */
@@ -171,9 +180,12 @@ struct mlip_ctl {
 	/* the state and why */
 	uint32_t state; /* mlip_ring_state */
 	struct mlip_ctl_reason why;
-	uint32_t hold_why; /* the cause of the planner's hold */
+	uint32_t bus_why; /* BUS_TX or BUS_ERROR, while bus_hold */
 	int bus_hold, stall_hold;
-	int drive_faulted; /* a drive fault came: it stays the reason */
+	int op_hold;        /* mlip-ctl hold, until resume (or a stop) */
+	uint32_t stop_seen; /* the stop counter applied (in->stop_requests) */
+	int stop_in_wait;   /* the stop came in a dwell or pause: that wait is not done */
+	int drive_faulted;  /* a drive fault came: it stays the reason */
 	/* the drives' power (opts.drives) */
 	int drives;
 	uint32_t power; /* mlip_drive_power */

@@ -16,10 +16,11 @@
  *                   (six lines: state, reason, position of every axis,
  *                   the drives' positions actual, the program's start)
  *   576  feeder     seqlock generation, struct mlip_ring_feeder
- *   640  mailbox    command sequence, op, argument (written by mlip-ctl)
+ *   640  mailbox    the command word (sequence, op, argument in one 64-bit
+ *                   word, written by mlip-ctl) and the stop counter
  *   704  machine    the controller's struct mlip_machine, so that a feeder
  *                   checks programs against exactly the limits in force
- *                   (version 6: each axis's max_jerk, mlip/motion/jerk.h)
+ *                   (version 7: each axis's max_jerk, mlip/motion/jerk.h)
  *  1216  records    capacity x struct mlip_ring_rec (88 bytes each)
  *
  * The magic (offset 0) and the version (offset 8) keep their places in every
@@ -31,7 +32,8 @@
  *   feeder (the single producer):  head, tail_cache, feeder area, records.
  *   controller (the single consumer, the RT thread): tail, head_cache,
  *                                  status area and command reply.
- *   mlip-ctl: the command mailbox (several mlip-ctl may race: a CAS decides).
+ *   mlip-ctl: the command word (several mlip-ctl may race: a CAS decides);
+ *   anyone attached (mlip-ctl stop, mlip-feed on a signal): the stop counter.
  *
  * The ring is single-producer single-consumer and lock-free (Linux kfifo,
  * DPDK rte_ring): head and tail are free-running uint32_t indices, a slot is
@@ -47,15 +49,31 @@
  * Every field in shared memory is only ever accessed with __atomic builtins,
  * so 64-bit counters are never torn and readers are data-race free.
  *
- * Command mailbox (one slot, acknowledged): mlip-ctl may post only when the
- * previous command has been completed (cmd_seq == cmd_done), so a command is
- * never lost; the controller takes a command only when cmd_seq differs from
- * the last one it took, so it is never applied twice. Sequence numbers step by
- * 2: odd means "being written", even means "posted".
+ * Command mailbox (one slot, acknowledged): a command is one 64-bit word,
+ * sequence | op << 32 | (arg & 0xffffff) << 40, posted by one compare-and-
+ * swap: there is no half-posted state, so a poster killed or stopped at any
+ * instruction leaves the mailbox either untouched or holding its whole
+ * command (issue 17: a claim-then-publish slot stayed busy for good). A
+ * poster may post only when the previous command has been completed
+ * (sequence == cmd_done), so a command is never lost; the controller takes a
+ * command only when its sequence differs from the last one it took, so it is
+ * never applied twice.
  *
- *     ctl: post(op,arg) --CAS seq s->s+1, write op,arg, seq=s+2--> mailbox
+ *     ctl: post(op,arg) --CAS word(s) -> word(s+1, op, arg)--> mailbox
  *     rt:  take() sees seq != taken -> applies -> done(seq, result)
  *     ctl: result(seq) -> MLIP_OK once done == seq, with the result code
+ *
+ * Stop has its own path: a counter that every request increments (one
+ * atomic add, never refused, never blocked by the mailbox, a dead poster or
+ * a flood of other commands). The controller applies a stop whenever the
+ * counter differs from the last value it saw, and publishes that value
+ * (status.stop_seen): a request r (the counter's value after its add) is
+ * applied once stop_seen - r >= 0 (mod 2^32). A stop is latched for the
+ * program about to start: each feeder publishes the counter's value it read
+ * at its start (feeder.stop_base, before it checks its program), and the
+ * controller refuses a program whose feeder started before a stop it has
+ * seen (stop_seen - stop_base > 0); a stop older than the feeder is stale
+ * and does not touch its program.
  */
 #ifndef MLIP_RING_H
 #define MLIP_RING_H
@@ -66,13 +84,14 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION      6u         /* bump on any change to the layout below */
+#define MLIP_RING_VERSION      7u         /* bump on any change to the layout below */
 #define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
 #define MLIP_RING_CAPACITY 8192u /* default records in the ring: 8 s of 1 ms blocks */
 #endif
-#define MLIP_RING_READ_TRIES 1000 /* seqlock retries before a reader gives up */
+#define MLIP_RING_READ_TRIES  1000 /* seqlock retries before a reader gives up */
+#define MLIP_RING_CMD_HISTORY 8u   /* command results kept (a power of two) */
 
 /* For constant expressions only (it evaluates x three times): power of two.
  * The checks below get a negative array size when false (C99 has no
@@ -163,6 +182,9 @@ typedef enum {
 	MLIP_WHY_DRIVE,          /* a CiA 402 drive faulted (mlip-rt --drives): reason_node,
 	                            reason_field the event (mlip_drive_fault, mlip/canopen/canopen.h),
 	                            reason_value its detail (statusword, EMCY code, ...) */
+	MLIP_WHY_STOP_EARLY,     /* a stop came after the feeder began, before its program
+	                            started: the program is dropped unmoved (reason_seq, line:
+	                            its first record) */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 
@@ -245,6 +267,9 @@ struct mlip_ring_status {
 	double prog_start[MLIP_MAX_AXES]; /* where the current (or last) program's first
 	                                     record was taken: a continuation (mlip-feed
 	                                     --start-seq) is read from there */
+	/* layout version 6 */
+	uint32_t stop_seen; /* the stop counter's value the controller has applied */
+	uint32_t spare6;
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */
@@ -254,6 +279,9 @@ struct mlip_ring_feeder {
 	uint64_t total_blocks; /* records in the whole program (END included); 0: not known yet */
 	uint32_t program_end;  /* 1 once the END record has been pushed */
 	int32_t pid;           /* feeder process id (0: no feeder) */
+	uint32_t stop_base;    /* the stop counter when this feeder began (layout 6): a
+	                          later stop refuses its program before it starts */
+	uint32_t spare;
 };
 
 /* ---- commands ------------------------------------------------------- */
@@ -263,7 +291,8 @@ typedef enum {
 	MLIP_CMD_OVERRIDE,      /* arg: feed override, percent */
 	MLIP_CMD_HOLD,          /* feed hold: decelerate to rest, keep the program */
 	MLIP_CMD_RESUME,        /* leave a hold */
-	MLIP_CMD_STOP,          /* decelerate to rest and drop the rest of the program */
+	MLIP_CMD_STOP,          /* decelerate to rest and drop the rest of the program
+	                           (in the segment: the stop counter, mlip_ring_stop_post) */
 	MLIP_CMD_OPTIONAL_STOP, /* arg 1: M1 pauses; arg 0: M1 is ignored */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
@@ -304,16 +333,18 @@ struct mlip_ring {
 	uint32_t cmd_done;                     /* seq of the last command completed */
 	int32_t cmd_result;                    /* its result: an mlip_status value */
 	struct mlip_ring_status status;
+	int32_t cmd_results[MLIP_RING_CMD_HISTORY]; /* result of command seq at seq % 8:
+	                                               a poster that lost the race to
+	                                               read cmd_result still finds its own */
 
 	/* feeder area: the feeder */
 	uint32_t feeder_gen MLIP_RING_ALIGNED; /* seqlock over feeder */
 	uint32_t feeder_reserved;
 	struct mlip_ring_feeder feeder;
 
-	/* command mailbox: mlip-ctl */
-	uint32_t cmd_seq MLIP_RING_ALIGNED; /* even: posted; odd: being written */
-	uint32_t cmd_op;                    /* mlip_ring_cmd_op */
-	int32_t cmd_arg;
+	/* command mailbox: mlip-ctl; the stop counter: anyone attached */
+	uint64_t cmd_word MLIP_RING_ALIGNED; /* seq | op << 32 | (arg & 0xffffff) << 40 */
+	uint32_t stop_req;                   /* stop requests so far (+1 each) */
 
 	/* machine: written by mlip_ring_format_machine before the magic */
 	struct mlip_machine machine MLIP_RING_ALIGNED;
@@ -463,14 +494,20 @@ mlip_status mlip_ring_feeder_read(const struct mlip_ring *r, struct mlip_ring_fe
 /* ---- command mailbox -------------------------------------------------- */
 
 /* mlip-ctl: post a command. MLIP_E_FULL while the previous command is not
- * completed yet (or another mlip-ctl is posting): retry later; MLIP_E_INVALID
- * for an unknown op. On MLIP_OK *seq (may be NULL) is the command's sequence
- * number, to pass to mlip_ring_cmd_result. */
+ * completed yet (or another mlip-ctl posted first): retry later;
+ * MLIP_E_INVALID for an unknown op and for MLIP_CMD_STOP (the stop counter
+ * is its path); MLIP_E_RANGE for an arg outside MLIP_RING_CMD_ARG_MIN..MAX.
+ * On MLIP_OK *seq (may be NULL) is the command's sequence number, to pass
+ * to mlip_ring_cmd_result. */
+#define MLIP_RING_CMD_ARG_MIN (-(1 << 23))
+#define MLIP_RING_CMD_ARG_MAX ((1 << 23) - 1)
 mlip_status mlip_ring_cmd_post(struct mlip_ring *r, mlip_ring_cmd_op op, int32_t arg,
                                uint32_t *seq);
 
 /* mlip-ctl: MLIP_OK with *result (an mlip_status the controller returned for
- * the command) once command seq is completed; MLIP_E_EMPTY while pending. */
+ * the command) once command seq is completed; MLIP_E_EMPTY while pending;
+ * MLIP_E_RANGE when it was completed but MLIP_RING_CMD_HISTORY later commands
+ * (other mlip-ctl's) have completed since, so its result is no longer kept. */
 mlip_status mlip_ring_cmd_result(const struct mlip_ring *r, uint32_t seq, int32_t *result);
 
 /* Controller: take a newly posted command (each exactly once). MLIP_E_EMPTY
@@ -480,6 +517,23 @@ mlip_status mlip_ring_cmd_take(struct mlip_ring *r, struct mlip_ring_cmd *out);
 /* Controller: report command seq completed with result (MLIP_OK, or e.g.
  * MLIP_E_RANGE for an override out of range). Lets mlip-ctl post again. */
 void mlip_ring_cmd_done(struct mlip_ring *r, uint32_t seq, int32_t result);
+
+/* Anyone attached: ask for a stop (mlip-ctl stop, mlip-feed on a signal).
+ * One atomic add: never refused, never blocked. Returns the request's
+ * ticket, applied once mlip_ring_stop_applied(status.stop_seen, ticket). */
+uint32_t mlip_ring_stop_post(struct mlip_ring *r);
+
+/* The stop counter: requests so far (a feeder's stop_base; the controller's
+ * input every period). */
+uint32_t mlip_ring_stop_count(const struct mlip_ring *r);
+
+/* 1 when a controller that has seen the counter at `seen` has applied the
+ * request with `ticket` (modular: the counter wraps). */
+int mlip_ring_stop_applied(uint32_t seen, uint32_t ticket);
+
+/* 1 when a stop newer than a feeder's start (stop_base) has been seen: its
+ * program must not start. */
+int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base);
 
 /* Names for tools: "idle", "running", ...; "override", "hold", ...;
  * "?" for values out of range. Never NULL. */
