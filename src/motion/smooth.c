@@ -126,9 +126,19 @@ static double dmax(double a, double b)
 	return a > b ? a : b;
 }
 
+/* What the smoothing and the corner of a block may share: min(eps, its own
+ * tol_mm), less what a jerk limit's mean takes (E_f, mlip/motion/jerk.h). */
 static double budget(const struct mlip_smooth *sm, const struct mlip_block *b)
 {
-	return b->tol_mm > 0.0 ? dmin(b->tol_mm, sm->eps_mm) : sm->eps_mm;
+	double bb = b->tol_mm > 0.0 ? dmin(b->tol_mm, sm->eps_mm) : sm->eps_mm;
+	return sm->filter_mm > 0.0 ? dmax(bb - sm->filter_mm, 0.0) : bb;
+}
+
+/* An output block's tol_mm: the corner's share, plus E_f, which the planner
+ * takes from every block's budget (it cannot tell ours from others). */
+static double emit_tol(const struct mlip_smooth *sm, double tol)
+{
+	return sm->filter_mm > 0.0 ? tol + sm->filter_mm : tol;
 }
 
 mlip_status mlip_smooth_init(struct mlip_smooth *sm, const struct mlip_machine *m,
@@ -140,6 +150,9 @@ mlip_status mlip_smooth_init(struct mlip_smooth *sm, const struct mlip_machine *
 	memset(sm, 0, offsetof(struct mlip_smooth, s));
 	sm->n = m->n_axes;
 	sm->eps_mm = m->tolerance_mm;
+	struct mlip_jerk_plan jp;
+	mlip_jerk_plan(m, &jp);
+	sm->filter_mm = jp.filter_mm;
 	sm->step_mm = STEP_MM;
 	sm->sharp_cos = MLIP_SMOOTH_SHARP_COS;
 	sm->gap_mm = GAP_STEPS * STEP_MM;
@@ -695,7 +708,7 @@ mlip_status mlip_smooth_push(struct mlip_smooth *sm, const struct mlip_block *b)
 	if (is_move) {
 		double bb = budget(sm, b);
 		/* the run that may start at its end is within rho bb of it */
-		s->blk.tol_mm = (1.0 - 0.5 * sm->rho) * bb;
+		s->blk.tol_mm = emit_tol(sm, (1.0 - 0.5 * sm->rho) * bb);
 		memcpy(sm->last, b->target, sizeof(double) * (size_t)sm->n);
 		sm->last_b = bb;
 	}
@@ -757,7 +770,7 @@ mlip_status mlip_smooth_pop(struct mlip_smooth *sm, struct mlip_block *out)
 		double tol = b - dmax(s->dev, 0.5 * (s->dev + dmax(sm->prev_dev, next_dev)));
 		*out = s->blk;
 		memcpy(out->target, s->x, sizeof(double) * (size_t)sm->n);
-		out->tol_mm = dmax(tol, 1e-12);
+		out->tol_mm = emit_tol(sm, dmax(tol, 1e-12));
 		out->rapid = 0;
 		out->exact_stop = run_end ? s->blk.exact_stop : 0;
 		sm->prev_dev = s->dev;

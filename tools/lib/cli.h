@@ -25,6 +25,7 @@ struct mlip_cli_machine {
 	double vmax_mm_s;    /* <= 0: unset */
 	double eps_mm;
 	double period_s;
+	double jerk; /* > 0: every axis's MAX_JERK (--jerk), mm/s^3 or deg/s^3 */
 };
 
 /* Build cfg from the options; the program at program_path (may be NULL)

@@ -20,7 +20,8 @@
  *                   word, written by mlip-ctl) and the stop counter
  *   704  machine    the controller's struct mlip_machine, so that a feeder
  *                   checks programs against exactly the limits in force
- *  1152  records    capacity x struct mlip_ring_rec (88 bytes each)
+ *                   (version 7: each axis's max_jerk, mlip/motion/jerk.h)
+ *  1216  records    capacity x struct mlip_ring_rec (88 bytes each)
  *
  * The magic (offset 0) and the version (offset 8) keep their places in every
  * layout version, so any version can tell any other that they differ.
@@ -83,7 +84,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION      6u         /* bump on any change to the layout below */
+#define MLIP_RING_VERSION      7u         /* bump on any change to the layout below */
 #define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
