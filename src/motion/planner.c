@@ -175,7 +175,7 @@ void mlip_planner_set_async(struct mlip_planner *p, int on)
 
 int mlip_planner_busy(const struct mlip_planner *p)
 {
-	return p->pass.on || p->in_head != p->in_tail;
+	return p->pass.on || p->pending > 0 || p->in_head != p->in_tail;
 }
 
 /* ---- look-ahead --------------------------------------------------------- */
@@ -239,6 +239,8 @@ static void pass_start(struct mlip_planner *p, int full, uint32_t fresh)
 		full |= ps->full;
 		fresh += ps->fresh; /* every corner linked since a pass completed */
 	}
+	fresh += p->pending; /* appended while the last one ran: this one plans them */
+	p->pending = 0;
 	ps->on = 1;
 	ps->full = full;
 	ps->fresh = fresh;
@@ -531,6 +533,21 @@ void mlip_planner_work(struct mlip_planner *p)
 {
 	uint32_t budget = MLIP_WORK_PER_PERIOD;
 	uint32_t cost = p->ops->link != NULL ? MLIP_WORK_APPEND_SHAPES : MLIP_WORK_APPEND;
+	/* what the executor used up is replaced outside the budget (at most the
+	 * ingest's rate a period), so that the plan does not fall behind */
+	uint32_t owed = p->retired - p->retired_seen;
+	if (owed > p->cap) {
+		p->retired_seen = p->retired - p->cap;
+		owed = p->cap;
+	}
+	uint32_t keep_up = owed < MLIP_INGEST_PER_PERIOD ? owed : MLIP_INGEST_PER_PERIOD;
+	while (keep_up > 0 && p->in_head != p->in_tail && ring_space(p) > 0) {
+		append(p, &p->in[p->in_tail & (MLIP_INPUT_CAP - 1u)]); /* checked at push */
+		p->in_tail++;
+		p->pending++;
+		p->retired_seen++;
+		keep_up--;
+	}
 	for (;;) {
 		if (p->pass.on) {
 			budget = pass_run(p, budget);
@@ -538,17 +555,19 @@ void mlip_planner_work(struct mlip_planner *p)
 				return; /* the rest next period */
 			}
 		}
-		uint32_t done = 0;
+		if (p->pending > 0) {
+			pass_start(p, 0, 0); /* for what was appended meanwhile */
+			continue;
+		}
 		while (p->in_head != p->in_tail && budget >= cost && ring_space(p) > 0) {
 			append(p, &p->in[p->in_tail & (MLIP_INPUT_CAP - 1u)]); /* checked at push */
 			p->in_tail++;
+			p->pending++; /* merged blocks only add fewer */
 			budget -= cost;
-			done++;
 		}
-		if (done == 0) {
+		if (p->pending == 0) {
 			return;
 		}
-		pass_start(p, 0, done); /* merged blocks only add fewer */
 	}
 }
 
@@ -630,6 +649,7 @@ static void retire(struct mlip_planner *p)
 	p->done_seq = s->seq;
 	p->done_line = s->line;
 	p->tail++;
+	p->retired++;
 }
 
 static void line_position(const struct mlip_planner *p, const struct mlip_seg *s, double *out)
@@ -748,6 +768,7 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 			line_position(p, seg_at(p, p->tail), p->pos);
 			p->head = p->tail;
 			p->pass.on = 0; /* nothing left to plan */
+			p->pending = 0;
 			p->pass.has_reach = 0;
 			memcpy(p->last_point, p->pos, sizeof(double) * (size_t)p->n);
 			p->l_start_mm = 0.0;

@@ -14,6 +14,7 @@
 
 #include <cmocka.h>
 
+#include "../../tools/lib/blockiter.h"
 #include "../../tools/lib/check.h"
 #include "mlip/motion/planner.h"
 #include "mlip/motion/smooth.h"
@@ -852,6 +853,34 @@ static struct path make_fine_curve(size_t segs)
 	return p;
 }
 
+/* The path mlip-feed sends with the smooth strategy: the filter's output
+ * (mlip_smooth_program) for p, from its first point. */
+static struct path smoothed_path(const struct path *p, const struct mlip_machine *m)
+{
+	size_t n = p->np - 1, nout = 0, w = (size_t)p->n;
+	struct mlip_machine mh = *m;
+	struct mlip_block *b = calloc(n, sizeof(*b)), *out = NULL;
+	for (int k = 0; k < p->n; k++) {
+		mh.axis[k].home = p->pts[k];
+	}
+	for (size_t i = 0; i < n; i++) {
+		b[i] = (struct mlip_block){.feed_mm_s = m->max_feed_mm_s,
+		                           .tol_mm = m->tolerance_mm,
+		                           .line = (uint32_t)i + 1};
+		memcpy(b[i].target, p->pts + (i + 1) * w, sizeof(double) * w);
+	}
+	assert_int_equal(mlip_smooth_program(&mh, b, n, &out, &nout), 0);
+	struct path q = {.n = p->n, .np = nout + 1};
+	q.pts = calloc(q.np * w, sizeof(double));
+	memcpy(q.pts, p->pts, sizeof(double) * w);
+	for (size_t i = 0; i < nout; i++) {
+		memcpy(q.pts + (i + 1) * w, out[i].target, sizeof(double) * w);
+	}
+	free(b);
+	free(out);
+	return q;
+}
+
 /*
  * The motion depends on which blocks are queued when, never on how they
  * were pushed: the same blocks per period, pushed as one batch, one by one
@@ -955,26 +984,32 @@ static void test_batches_same_setpoints(void **state)
 /* The look-ahead's work done a bounded amount a period ends in the plan
  * done at once: with every block at hand and no command, the same
  * setpoints to the bit, every strategy, with and without a jerk limit, on
- * a fine curve and a random walk; under override storms, holds, a stop and
+ * a fine curve longer than the look-ahead (the plan keeps up with the
+ * motion) and a random walk; under override storms, holds, a stop and
  * blocks dripping in (the work then lags the commands by periods) every
  * limit holds. */
 static void test_bounded_work(void **state)
 {
 	(void)state;
-	struct path walk = make_path(3, 1, 2500), curve = make_fine_curve(6000);
+	/* the curve's 20,000 segments of 0.02 mm are five look-aheads, and
+	 * smoothed (as mlip-feed sends them to smooth) it is run at up to
+	 * 200 mm/s: the work has to keep up with 10 segments a period */
+	struct path walk = make_path(3, 1, 2500), curve = make_fine_curve(20000);
 	const struct path *paths[2] = {&walk, &curve};
 	g_maxrows = 400000;
 	double *ref = malloc(g_maxrows * 3 * sizeof(double));
 	double *got = malloc(g_maxrows * 3 * sizeof(double));
 	static const int events[] = {EV_STORM, EV_HOLD_RESUME, EV_STOP, EV_DRIP};
 	for (int pi = 0; pi < 2; pi++) {
-		const struct path *p = paths[pi];
+		const struct path *raw = paths[pi];
 		for (int jerk = 0; jerk < 2; jerk++) {
-			struct mlip_machine m = machine(p->n, 1000, 200, 0.01);
-			for (int k = 0; jerk && k < p->n; k++) {
+			struct mlip_machine m = machine(raw->n, 1000, 200, 0.01);
+			for (int k = 0; jerk && k < raw->n; k++) {
 				m.axis[k].max_jerk = 1e5;
 			}
+			struct path sp = smoothed_path(raw, &m);
 			for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+				const struct path *p = st == MLIP_STRATEGY_SMOOTH ? &sp : raw;
 				struct run r;
 				g_async = 0;
 				g_rows = ref;
@@ -1013,6 +1048,7 @@ static void test_bounded_work(void **state)
 				}
 				g_async = 0;
 			}
+			free(sp.pts);
 		}
 	}
 	free(ref);

@@ -130,7 +130,14 @@ struct mlip_pass {
 };
 
 /* Bounded work (mlip_planner_set_async): units a period, and what things
- * cost in them (a corner a pass visits: 1, about 6 ns on this host). */
+ * cost in them (a corner a pass visits: 1, about 6 ns on this host). Beyond
+ * them, a period appends as many queued blocks as the executor finished
+ * segments, at most MLIP_INGEST_PER_PERIOD, also while a pass runs (the
+ * next pass plans them all): the look-ahead keeps up with the motion. A
+ * batch's pass visits every corner within braking distance of the old end
+ * (at 200 mm/s and 1000 mm/s^2, 20 mm: 1000 corners of 0.02 mm, more than
+ * a period's units with smooth), so the passes run back to back, each for
+ * all that was appended during the one before. */
 #define MLIP_WORK_PER_PERIOD    1200u
 #define MLIP_WORK_CHOOSE        4u   /* a visit with smooth's shape choice */
 #define MLIP_WORK_APPEND        40u  /* a block appended and its corner planned */
@@ -171,9 +178,13 @@ struct mlip_planner {
 	int stopping;                     /* stop: hold, then drop the queue at rest */
 	double last_point[MLIP_MAX_AXES]; /* end of the newest segment (or start) */
 	/* the look-ahead's work, a bounded amount a period (async) */
-	int async;                 /* 0: push_n and the commands do all of it at once */
-	struct mlip_pass pass;     /* the backward pass in progress */
-	uint32_t in_head, in_tail; /* input queue: blocks pushed, not yet appended */
+	int async;                      /* 0: push_n and the commands do all of it at once */
+	struct mlip_pass pass;          /* the backward pass in progress */
+	uint32_t in_head, in_tail;      /* input queue: blocks pushed, not yet appended */
+	uint32_t retired, retired_seen; /* segments finished (free-running), and those
+	                                   replaced by appends (mlip_planner_work) */
+	uint32_t pending;               /* blocks appended since the running pass started (async):
+	                                   the next pass plans them */
 	/* execution state */
 	int in_corner;            /* 0: on the line of seg[tail]; 1: in its end corner */
 	double l_start_mm;        /* line: where it starts along seg[tail] (l_e of
