@@ -196,7 +196,7 @@ static const char *home_of(const char *s, size_t n, int except_kind)
 	int kd, k;
 
 	for (kd = 0; kd < N_KINDS; kd++) {
-		for (k = 0; kd != except_kind && k < NKEYS; k++) {
+		for (k = 0; kd != except_kind && k < kind_keys(kd); k++) {
 			if (tok_is(s, n, mlip_mc_keytab[kd][k].name)) {
 				return where[kd];
 			}
@@ -414,7 +414,7 @@ static mlip_status parse_line(struct pstate *ps, const char *s, size_t n, uint32
 	const char *names[NKEYS];
 	size_t p = skip_ws(s, n, 0), k0, nk, v0, v1;
 	struct mlip_tb b;
-	int kind, k;
+	int kind, k, nkeys;
 
 	if (p == n || s[p] == '#' || s[p] == ';') {
 		return MLIP_OK;
@@ -470,14 +470,15 @@ static mlip_status parse_line(struct pstate *ps, const char *s, size_t n, uint32
 		return MLIP_E_SYNTAX;
 	}
 	kind = sec_kind(ps->cur);
-	for (k = 0; k < NKEYS; k++) {
+	nkeys = kind_keys(kind);
+	for (k = 0; k < nkeys; k++) {
 		names[k] = mlip_mc_keytab[kind][k].name;
 		if (tok_is(s + k0, nk, names[k])) {
 			break;
 		}
 	}
-	if (k == NKEYS) {
-		const char *hint = mlip_mc_suggest(s + k0, nk, names, NKEYS);
+	if (k == nkeys) {
+		const char *hint = mlip_mc_suggest(s + k0, nk, names, nkeys);
 		const char *where = hint == NULL ? home_of(s + k0, nk, kind) : NULL;
 		err_at(err, &b, line, (uint32_t)k0 + 1);
 		mlip_tb_puts(&b, "unknown key ");
@@ -648,6 +649,7 @@ static void fill_machine(const struct pstate *ps, struct mlip_config *c)
 		a->home = has(ps, sec, AK_HOME) ? st->num[AK_HOME] : 0.0;
 		a->can_node = has(ps, sec, AK_NODE) ? (int)st->ival[AK_NODE] : i + 1;
 		a->counts_per_unit = has(ps, sec, AK_CPU) ? st->num[AK_CPU] : 1000.0;
+		a->max_jerk = has(ps, sec, AK_JERK) ? st->num[AK_JERK] : 0.0; /* 0: none */
 	}
 	m->max_feed_mm_s = tr->num[TK_VLIN];
 	m->tolerance_mm = tr->num[TK_TOL];
@@ -676,7 +678,7 @@ static void fill_can(const struct pstate *ps, struct mlip_can_config *can)
 		memcpy(can->profile, name, strlen(name));
 	}
 	for (k = CK_BITRATE; k < NKEYS; k++) {
-		if (has(ps, SEC_CAN, k)) {
+		if (has(ps, SEC_CAN, k) && dst[k] != NULL) {
 			*dst[k] = (uint32_t)st->ival[k];
 		}
 	}

@@ -19,7 +19,7 @@
 #include "mlip/machine/config.h"
 #include "mlip/text/format.h"
 
-#define NKEYS            8 /* keys per section kind (every kind has eight) */
+#define NKEYS            9 /* keys per section kind at most (a slot left empty: name NULL) */
 #define BITRATE_MIN      10000
 #define BITRATE_MAX      1000000  /* classical CAN, and the CAN FD arbitration phase */
 #define DATA_BITRATE_MAX 12000000 /* CAN FD data phase */
@@ -31,7 +31,7 @@ enum { SEC_TRAJ = 0, SEC_AXIS0 = 1, SEC_CAN = SEC_AXIS0 + MLIP_MAX_AXES, SEC_DRI
 enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, N_KINDS };
 
 enum { TK_COORDS, TK_VLIN, TK_VANG, TK_TOL, TK_PERIOD, TK_LUNITS, TK_AUNITS, TK_LOOKAHEAD };
-enum { AK_TYPE, AK_VEL, AK_ACC, AK_MIN, AK_MAX, AK_HOME, AK_NODE, AK_CPU };
+enum { AK_TYPE, AK_VEL, AK_ACC, AK_MIN, AK_MAX, AK_HOME, AK_NODE, AK_CPU, AK_JERK };
 /* [CAN] keys in the order of enum mlip_can_key (mlip/can/canconf.h) */
 enum {
 	CK_PROFILE = MLIP_CAN_KEY_PROFILE,
@@ -71,6 +71,17 @@ struct keydef {
 };
 
 extern const struct keydef mlip_mc_keytab[N_KINDS][NKEYS];
+
+/* The keys of a section kind: the table's slots up to the first empty one. */
+static inline int kind_keys(int kind)
+{
+	int k = 0;
+
+	while (k < NKEYS && mlip_mc_keytab[kind][k].name != NULL) {
+		k++;
+	}
+	return k;
+}
 
 static inline int sec_kind(int sec)
 {

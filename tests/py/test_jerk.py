@@ -11,6 +11,8 @@ against the ORIGINAL program's polyline.
 and without a jerk limit the traces carry the jerk the issue measured
 (mlip-sim --strategy smooth on examples/demo.ngc: about 1.5e6 mm/s^3).
 """
+import json
+
 import pytest
 
 from conftest import REL, ROOT, TOOLPATHS, run, sim_summary
@@ -103,3 +105,30 @@ def test_check_refuses_a_jerk_beyond_the_limit(tmp_path):
         assert p.returncode == want, p.stderr
         if want:
             assert "jerk" in p.stderr and "exceeds 100000" in p.stderr
+
+
+def test_max_jerk_in_the_machine_file(tmp_path):
+    """MAX_JERK in each [AXIS_*] is the same limit as --jerk: the same
+    trace, kept and used; a key absent is no limit (the trace without)."""
+    demo = ROOT / "examples" / "demo.ngc"
+    ini = (ROOT / "config" / "mill-3axis.ini").read_text()
+    limited = tmp_path / "jerk.ini"
+    limited.write_text(ini.replace("[AXIS_X]\n", "[AXIS_X]\nMAX_JERK = 100000\n")
+                       .replace("[AXIS_Y]\n", "[AXIS_Y]\nMAX_JERK = 100000\n")
+                       .replace("[AXIS_Z]\n", "[AXIS_Z]\nMAX_JERK = 100000\n"))
+    assert limited.read_text().count("MAX_JERK") == 3
+    traces = {}
+    for name, args in (("file", ["--config", limited]),
+                       ("option", ["--config", ROOT / "config" / "mill-3axis.ini",
+                                   "--jerk", "100000"]),
+                       ("none", ["--config", ROOT / "config" / "mill-3axis.ini"])):
+        trace = tmp_path / f"{name}.csv"
+        summary = tmp_path / f"{name}.json"
+        run(["mlip-sim", "-q", "--strategy", "smooth", *args, "--trace", trace, "--summary",
+             summary, demo])
+        traces[name] = trace.read_bytes()
+        if name != "none":
+            s = json.loads(summary.read_text())
+            assert s["jerk_limit"] == [100000] * 3
+            assert_jerk_physics(s)
+    assert traces["file"] == traces["option"] != traces["none"]
