@@ -46,6 +46,7 @@
 #define MLIP_SMOOTH_ITER   24   /* reweighting iterations per solve */
 #define MLIP_SMOOTH_POLISH 3    /* then solves holding the samples beyond their radius */
 #define MLIP_SMOOTH_RHO    0.95 /* share of the budget the smoothing may take */
+#define MLIP_SMOOTH_LONE   2    /* turns between two sharp ones that stay exact (smooth.c) */
 #define MLIP_SMOOTH_SHARP_COS                                                                      \
 	0.76604444311897804 /* cos 40 deg: a vertex turning more                                   \
 	       stays sharp (the filter pins it, the planner                                        \
@@ -92,11 +93,15 @@ struct mlip_smooth {
 	double jitter_min;             /* subdivide where jitter is above this */
 	int pin_clean;                 /* keep vertices exact where it is below jitter_pin */
 	double jitter_pin;
-	uint32_t run0;           /* index of the open run's start sample */
-	uint32_t frozen;         /* samples [0, frozen) are final */
-	uint32_t emit;           /* next sample to emit */
-	uint32_t count;          /* samples in the window */
-	double prev_dev, prev_b; /* last emitted sample of the run */
+	uint32_t run0;                   /* index of the open run's start sample */
+	int n_lone;                      /* turns below sharp_deg since the last sharp vertex
+	                                    or the run's start, up to MLIP_SMOOTH_LONE
+	                                    (more, or a clean one: -1) */
+	uint32_t lone[MLIP_SMOOTH_LONE]; /* their samples */
+	uint32_t frozen;                 /* samples [0, frozen) are final */
+	uint32_t emit;                   /* next sample to emit */
+	uint32_t count;                  /* samples in the window */
+	double prev_dev, prev_b;         /* last emitted sample of the run */
 	/* statistics */
 	uint64_t in_blocks, out_blocks, solves;
 	double max_dev;
