@@ -533,8 +533,9 @@ void mlip_planner_work(struct mlip_planner *p)
 {
 	uint32_t budget = MLIP_WORK_PER_PERIOD;
 	uint32_t cost = p->ops->link != NULL ? MLIP_WORK_APPEND_SHAPES : MLIP_WORK_APPEND;
-	/* what the executor used up is replaced outside the budget (at most the
-	 * ingest's rate a period), so that the plan does not fall behind */
+	/* what the executor used up is replaced first, beyond the budget if need
+	 * be (at most the ingest's rate a period), so that the plan does not
+	 * fall behind */
 	uint32_t owed = p->retired - p->retired_seen;
 	if (owed > p->cap) {
 		p->retired_seen = p->retired - p->cap;
@@ -547,6 +548,21 @@ void mlip_planner_work(struct mlip_planner *p)
 		p->pending++;
 		p->retired_seen++;
 		keep_up--;
+		/* ... and counted: the passes then take longer, in larger batches,
+		 * but never less than a quarter of the units */
+		budget = budget >= MLIP_WORK_PER_PERIOD / 4u + cost ? budget - cost
+		                                                    : MLIP_WORK_PER_PERIOD / 4u;
+	}
+	/* then the budget's appends, half of it when a pass waits too (the
+	 * passes cost the braking distance's depth whatever the batch: the
+	 * pre-read appends while they run, not only between them) */
+	uint32_t share = p->pass.on || p->pending > 0 ? budget / 2u : budget;
+	while (p->in_head != p->in_tail && share >= cost && ring_space(p) > 0) {
+		append(p, &p->in[p->in_tail & (MLIP_INPUT_CAP - 1u)]); /* checked at push */
+		p->in_tail++;
+		p->pending++; /* merged blocks only add fewer */
+		share -= cost;
+		budget -= cost;
 	}
 	for (;;) {
 		if (p->pass.on) {
