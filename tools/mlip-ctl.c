@@ -197,6 +197,12 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 	mlip_json_string(&j, "reason", mlip_state_why_name(st->reason));
 	mlip_json_uint(&j, "reason_seq", st->reason_seq);
 	mlip_json_uint(&j, "reason_line", st->reason_line);
+	if (st->reason == MLIP_WHY_SPINDLE || st->reason == MLIP_WHY_TOOL ||
+	    st->reason == MLIP_WHY_COOLANT) {
+		char what[200];
+		mlip_cli_io_message(st->reason, st->reason_value, NULL, what, sizeof(what));
+		mlip_json_string(&j, "operator", what);
+	}
 	if (st->reason == MLIP_WHY_DRIVE) {
 		/* a drive fault: the field is the event, with the drive's node */
 		mlip_cli_drive_fault_text(st->reason_field, (int64_t)st->reason_value, fname,
@@ -342,6 +348,12 @@ static int cmd_status(struct mlip_shm *s, int json)
 	if (st.reason == MLIP_WHY_STALL) {
 		printf(", %.0f periods missed", st.reason_value);
 	}
+	if (st.reason == MLIP_WHY_SPINDLE || st.reason == MLIP_WHY_TOOL ||
+	    st.reason == MLIP_WHY_COOLANT) {
+		/* the tool's comment is in the feeder's table: mlip-feed shows it */
+		mlip_cli_io_message(st.reason, st.reason_value, NULL, fname, sizeof(fname));
+		printf(": %s", fname);
+	}
 	printf("\n");
 	if (st.state == MLIP_STATE_PAUSED ||
 	    (st.state == MLIP_STATE_HELD && st.reason != MLIP_WHY_OVERRIDE_ZERO)) {
@@ -456,8 +468,12 @@ static void describe(char *buf, size_t len, mlip_ring_cmd_op op, int32_t arg)
  * never starts. */
 static int cmd_stop(struct mlip_shm *s)
 {
-	struct mlip_ring_status st;
+	struct mlip_ring_status st, before;
 	int alive = mlip_shm_controller_alive(s->ring);
+	/* a program waiting at rest (a pause, a dwell, a manual spindle or tool
+	 * change) ends in IDLE at once: it was not "idle" */
+	int waiting = read_status(s->ring, &before) == 0 &&
+	              (before.state == MLIP_STATE_PAUSED || before.state == MLIP_STATE_DWELLING);
 	uint32_t ticket = mlip_ring_stop_post(s->ring);
 	int32_t feeder = mlip_shm_feeder_holder(s);
 	uint64_t t0 = mlip_now_ns();
@@ -483,7 +499,10 @@ static int cmd_stop(struct mlip_shm *s)
 		}
 		sleep_ns(POLL_NS);
 	}
-	if (st.state == MLIP_STATE_IDLE && feeder != 0) {
+	if (st.state == MLIP_STATE_IDLE && waiting) {
+		printf("stop: done (the program waited at rest, line %u: it is dropped)\n",
+		       (unsigned)before.reason_line);
+	} else if (st.state == MLIP_STATE_IDLE && feeder != 0) {
 		printf("stop: done (the machine was idle; the program of mlip-feed pid %d, "
 		       "begun before this stop, will not start)\n",
 		       (int)feeder);

@@ -665,6 +665,11 @@ static int set_up(const struct options *o, struct app *a)
 		tear_down(a);
 		return 1;
 	}
+	{ /* the machine's I/O, for the feeders' checks ([SPINDLE], [TOOL], [COOLANT]) */
+		struct mlip_ring_io rio;
+		mlip_cli_io_to_ring(&a->cfg.io, &a->cfg.machine, &rio);
+		mlip_ring_io_publish(a->shm.ring, &rio);
+	}
 	if (o->record != NULL) {
 		/* 2^15 periods (32 s at 1 ms) of slack for the monitor thread,
 		 * which drains it every 50 ms; 2 MB, locked with the rest */

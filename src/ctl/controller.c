@@ -160,6 +160,22 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 	    !(rec->dwell_s >= 0.0 && rec->dwell_s <= MLIP_CTL_DWELL_MAX_S)) {
 		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
 	}
+	/* the machine's I/O: a speed, a whole tool number, coolant bits */
+	if (rec->type == MLIP_REC_SPINDLE &&
+	    !(rec->dwell_s >= -MLIP_REC_RPM_MAX && rec->dwell_s <= MLIP_REC_RPM_MAX)) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
+	if (rec->type == MLIP_REC_TOOL &&
+	    !(rec->dwell_s >= 0.0 && rec->dwell_s <= MLIP_REC_TOOL_MAX &&
+	      rec->dwell_s == floor(rec->dwell_s))) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
+	if (rec->type == MLIP_REC_COOLANT &&
+	    !(rec->dwell_s == 0.0 || rec->dwell_s == MLIP_COOLANT_MIST ||
+	      rec->dwell_s == MLIP_COOLANT_FLOOD ||
+	      rec->dwell_s == (MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD))) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
 	if (rec->type != MLIP_REC_MOVE) {
 		return MLIP_OK;
 	}
@@ -183,7 +199,8 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 static int is_event(const struct mlip_ring_rec *rec)
 {
 	return rec->type == MLIP_REC_DWELL || rec->type == MLIP_REC_PAUSE ||
-	       rec->type == MLIP_REC_OPTIONAL_PAUSE;
+	       rec->type == MLIP_REC_OPTIONAL_PAUSE || rec->type == MLIP_REC_SPINDLE ||
+	       rec->type == MLIP_REC_TOOL || rec->type == MLIP_REC_COOLANT;
 }
 
 /* The ring is empty and nothing will fill it. */
@@ -425,6 +442,15 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		c->wait.dwell_left = (uint64_t)floor(rec->dwell_s / c->m.period_s + 0.5);
 		r.value = rec->dwell_s;
 		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_SPINDLE || rec->type == MLIP_REC_TOOL ||
+	           rec->type == MLIP_REC_COOLANT) {
+		/* a manual spindle, tool change or coolant: the operator does it
+		 * with the machine at rest, then resumes (status: what, value) */
+		r.why = rec->type == MLIP_REC_SPINDLE ? MLIP_WHY_SPINDLE
+		        : rec->type == MLIP_REC_TOOL  ? MLIP_WHY_TOOL
+		                                      : MLIP_WHY_COOLANT;
+		r.value = rec->dwell_s;
+		go(c, out, MLIP_STATE_PAUSED, r);
 	} else if (rec->type == MLIP_REC_PAUSE || c->op.optional_stop) {
 		r.why = rec->type == MLIP_REC_PAUSE ? MLIP_WHY_PAUSE : MLIP_WHY_OPTIONAL_PAUSE;
 		go(c, out, MLIP_STATE_PAUSED, r);
@@ -711,7 +737,9 @@ static void take_done(struct mlip_ctl *c)
 	uint64_t seq;
 	uint32_t line;
 	mlip_planner_done(c->planner, &seq, &line);
-	if (line == 0 && seq == c->prog.exec.seq) {
+	if ((line == 0 && seq == c->prog.exec.seq) || seq < c->prog.exec.seq) {
+		/* never back: an event after the planner's last block (a pause,
+		 * a manual tool change) is done once its wait ended */
 		return;
 	}
 	c->prog.exec.seq = seq;

@@ -41,7 +41,10 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "ring corrupt",
 	                                    "position beyond the drives' range",
 	                                    "drive fault",
-	                                    "stop before the start"};
+	                                    "stop before the start",
+	                                    "spindle (manual)",
+	                                    "tool change (manual)",
+	                                    "coolant (manual)"};
 
 	return NAME_OF(names, why);
 }

@@ -38,6 +38,15 @@ const struct keydef mlip_mc_keytab[N_KINDS][NKEYS] = {
                   {"SDO_TIMEOUT_MS", V_MS, 0},
                   {"BOOT_TIMEOUT_MS", V_MS, 0},
                   {"STATE_TIMEOUT_MS", V_MS, 0}},
+    [K_SPINDLE] = {{"TYPE", V_IO, 0}, {"MIN_RPM", V_RPM, 0}, {"MAX_RPM", V_RPM, 0}},
+    [K_TOOL] = {{"CHANGE", V_IO, 0},
+                {"CHANGE_X", V_REAL, 0},
+                {"CHANGE_Y", V_REAL, 0},
+                {"CHANGE_Z", V_REAL, 0},
+                {"CHANGE_A", V_REAL, 0},
+                {"CHANGE_B", V_REAL, 0},
+                {"CHANGE_C", V_REAL, 0}},
+    [K_COOLANT] = {{"TYPE", V_IO, 0}},
 };
 
 /* "TRAJ", "CAN", "AXIS_X", ... */
@@ -49,6 +58,12 @@ void mlip_mc_secname(struct mlip_tb *b, int sec)
 		mlip_tb_puts(b, "CAN");
 	} else if (sec == SEC_DRIVES) {
 		mlip_tb_puts(b, "DRIVES");
+	} else if (sec == SEC_SPINDLE) {
+		mlip_tb_puts(b, "SPINDLE");
+	} else if (sec == SEC_TOOL) {
+		mlip_tb_puts(b, "TOOL");
+	} else if (sec == SEC_COOLANT) {
+		mlip_tb_puts(b, "COOLANT");
 	} else {
 		mlip_tb_puts(b, "AXIS_");
 		mlip_tb_putc(b, AXIS_LETTERS[sec - SEC_AXIS0]);

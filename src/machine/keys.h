@@ -19,7 +19,7 @@
 #include "mlip/machine/config.h"
 #include "mlip/text/format.h"
 
-#define NKEYS            9 /* keys per section kind at most (a slot left empty: name NULL) */
+#define NKEYS            9 /* keys per section kind at most (a NULL name ends a kind's) */
 #define BITRATE_MIN      10000
 #define BITRATE_MAX      1000000  /* classical CAN, and the CAN FD arbitration phase */
 #define DATA_BITRATE_MAX 12000000 /* CAN FD data phase */
@@ -27,8 +27,17 @@
 #define AXIS_LETTERS     "XYZABC"
 
 /* Sections by index: TRAJ, one per axis letter (XYZABC order), CAN, DRIVES. */
-enum { SEC_TRAJ = 0, SEC_AXIS0 = 1, SEC_CAN = SEC_AXIS0 + MLIP_MAX_AXES, SEC_DRIVES, N_SEC };
-enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, N_KINDS };
+enum {
+	SEC_TRAJ = 0,
+	SEC_AXIS0 = 1,
+	SEC_CAN = SEC_AXIS0 + MLIP_MAX_AXES,
+	SEC_DRIVES,
+	SEC_SPINDLE,
+	SEC_TOOL,
+	SEC_COOLANT,
+	N_SEC
+};
+enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, K_SPINDLE, K_TOOL, K_COOLANT, N_KINDS };
 
 enum { TK_COORDS, TK_VLIN, TK_VANG, TK_TOL, TK_PERIOD, TK_LUNITS, TK_AUNITS, TK_LOOKAHEAD };
 enum { AK_TYPE, AK_VEL, AK_ACC, AK_MIN, AK_MAX, AK_HOME, AK_NODE, AK_CPU, AK_JERK };
@@ -44,6 +53,10 @@ enum {
 	CK_STATUS = MLIP_CAN_KEY_STATUS_ID
 };
 enum { DK_ENABLE, DK_MASTER, DK_HB, DK_HB_TIMEOUT, DK_FERR, DK_SDO, DK_BOOT, DK_STATE };
+enum { SK_TYPE, SK_MIN_RPM, SK_MAX_RPM };
+/* [TOOL]: CHANGE, then CHANGE_X .. CHANGE_C in AXIS_LETTERS order */
+enum { OK_CHANGE, OK_POS0 };
+enum { QK_TYPE };
 
 /* How a value is read and which single-value range it must meet. */
 enum vtype {
@@ -61,7 +74,9 @@ enum vtype {
 	V_DBITRATE,  /* integer BITRATE_MIN..DATA_BITRATE_MAX */
 	V_ID,        /* integer 0..0x7FF */
 	V_BOOL,      /* 0 | 1 */
-	V_MS         /* integer 1..65535 (CiA 301 heartbeat times are 16-bit ms) */
+	V_MS,        /* integer 1..65535 (CiA 301 heartbeat times are 16-bit ms) */
+	V_IO,        /* none | manual (a spindle, a tool change, coolant) */
+	V_RPM        /* decimal >= 0 */
 };
 
 struct keydef {
@@ -72,23 +87,15 @@ struct keydef {
 
 extern const struct keydef mlip_mc_keytab[N_KINDS][NKEYS];
 
-/* The keys of a section kind: the table's slots up to the first empty one. */
-static inline int kind_keys(int kind)
-{
-	int k = 0;
-
-	while (k < NKEYS && mlip_mc_keytab[kind][k].name != NULL) {
-		k++;
-	}
-	return k;
-}
-
 static inline int sec_kind(int sec)
 {
-	return sec == SEC_TRAJ     ? K_TRAJ
-	       : sec == SEC_CAN    ? K_CAN
-	       : sec == SEC_DRIVES ? K_DRIVES
-	                           : K_AXIS;
+	return sec == SEC_TRAJ      ? K_TRAJ
+	       : sec == SEC_CAN     ? K_CAN
+	       : sec == SEC_DRIVES  ? K_DRIVES
+	       : sec == SEC_SPINDLE ? K_SPINDLE
+	       : sec == SEC_TOOL    ? K_TOOL
+	       : sec == SEC_COOLANT ? K_COOLANT
+	                            : K_AXIS;
 }
 
 static inline int letter_index(char l)
@@ -166,6 +173,23 @@ struct issue {
 
 mlip_status mlip_mc_check_machine(const struct mlip_machine *m, struct mlip_config_error *err,
                                   struct issue *is);
+
+/* Keys of a kind (its names before the first NULL). */
+static inline int nkeys(int kind)
+{
+	int k = 0;
+
+	while (k < NKEYS && mlip_mc_keytab[kind][k].name != NULL) {
+		k++;
+	}
+	return k;
+}
+
+/* ---- io.c ---- */
+
+void mlip_mc_fill_io(const struct pstate *ps, struct mlip_config *c);
+mlip_status mlip_mc_check_io(const struct pstate *ps, const struct mlip_config *c,
+                             struct mlip_config_error *err);
 
 /* ---- drives.c ---- */
 

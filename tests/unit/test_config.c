@@ -367,7 +367,8 @@ static void test_sections(void **state)
 {
 	(void)state;
 	EXPECT(CFG(.tail = "[FOO]"), MLIP_E_SYNTAX, 14, 2,
-	       "unknown section [FOO] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
+	       "unknown section [FOO] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES], "
+	       "[SPINDLE], [TOOL], [COOLANT])");
 	EXPECT(CFG(.tail = "[traj]"), MLIP_E_SYNTAX, 14, 2,
 	       "unknown section [traj] (did you mean [TRAJ]?)");
 	EXPECT(CFG(.tail = "[AXIS_x]"), MLIP_E_SYNTAX, 14, 2,
@@ -378,7 +379,8 @@ static void test_sections(void **state)
 	       "unknown section [AXIS_W] (axis letters are X Y Z A B C)");
 	EXPECT(
 	    CFG(.tail = "[JOINT_0]"), MLIP_E_SYNTAX, 14, 2,
-	    "unknown section [JOINT_0] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
+	    "unknown section [JOINT_0] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES], "
+	    "[SPINDLE], [TOOL], [COOLANT])");
 	EXPECT(CFG(.tail = "  [ TRAJ ]"), MLIP_E_SYNTAX, 14, 5,
 	       "duplicate section [TRAJ] (first at line 1)");
 	EXPECT(CFG(.tail = "[AXIS_X]"), MLIP_E_SYNTAX, 14, 2,

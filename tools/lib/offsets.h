@@ -16,6 +16,8 @@
  *   G92 X0 Y0 Z0
  *   G28 X0 Y0 Z50
  *   G30 X0 Y0 Z50
+ *   TOOL 2                 the tool in the spindle (0: none), left by M6/M61;
+ *                          optional (a file of an older mlip has none: 0)
  *   # end 21 lines sha256 3f2a9c5b1d7e0a42
  *
  * Every key once, every value named by its axis letter (each axis of the

@@ -24,7 +24,9 @@ typedef enum {
 	MLIP_STATE_STARVED,  /* the program's blocks ran out before its END: at rest
 	                        at the end of the last block received (underrun);
 	                        continues when blocks come (mlip-feed --start-seq) */
-	MLIP_STATE_PAUSED,   /* M0/M60 (or M1 with optional stop on): at rest;
+	MLIP_STATE_PAUSED,   /* M0/M60 (or M1 with optional stop on), or the
+	                        operator's part of a manual spindle, tool change or
+	                        coolant (reason SPINDLE, TOOL, COOLANT): at rest;
 	                        mlip-ctl resume continues */
 	MLIP_STATE_DWELLING, /* G4: at rest for the dwell's periods */
 	MLIP_STATE_PREREAD,  /* taking a program's records before moving */
@@ -62,6 +64,10 @@ typedef enum {
 	MLIP_WHY_STOP_EARLY,     /* a stop came after the feeder began, before its program
 	                            started: the program is dropped unmoved (reason_seq, line:
 	                            its first record) */
+	MLIP_WHY_SPINDLE,        /* a manual spindle: start it (reason_value rpm, > 0
+	                            clockwise, < 0 counter-clockwise) or stop it (0), resume */
+	MLIP_WHY_TOOL,           /* a manual tool change: insert tool reason_value, resume */
+	MLIP_WHY_COOLANT,        /* manual coolant: switch it to reason_value (MLIP_COOLANT_*) */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 

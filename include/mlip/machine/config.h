@@ -44,6 +44,19 @@
  *   SDO_TIMEOUT_MS = 200       ; one SDO answer
  *   BOOT_TIMEOUT_MS = 3000     ; boot-up after NMT reset communication
  *   STATE_TIMEOUT_MS = 1000    ; one CiA 402 transition confirmed by the statusword
+ *   [SPINDLE]                  ; optional (issue 19; docs/machine.md)
+ *   TYPE = manual              ; none (default: M3/M4/S refused) or manual (the
+ *                              ;   program pauses for the operator)
+ *   MIN_RPM = 6000             ; rpm, 0..MAX_RPM (optional, default 0)
+ *   MAX_RPM = 24000            ; rpm, > 0, required with manual; an S beyond is refused
+ *   [TOOL]                     ; optional
+ *   CHANGE = manual            ; none (default: M6 refused) or manual (pause: "insert
+ *                              ;   tool n"); the tool table is a file (--tools FILE)
+ *   CHANGE_Z = 50              ; optional change position, machine coordinates, per
+ *   CHANGE_X = 0               ;   axis of COORDINATES, inside its soft limits; M6
+ *                              ;   rapids there (Z first) before the pause
+ *   [COOLANT]                  ; optional
+ *   TYPE = manual              ; none (default: M7/M8 refused) or manual
  *
  * Syntax. Section names and keys are upper case and case-sensitive, as in
  * LinuxCNC; enumerated values are case-sensitive too. A line is blank, a
@@ -78,6 +91,7 @@
 #include <stdint.h>
 
 #include "mlip/can/canconf.h"
+#include "mlip/gcode/gcode.h"
 #include "mlip/types.h"
 
 #define MLIP_CONFIG_MSG          256
@@ -118,6 +132,9 @@ struct mlip_config {
 	struct mlip_can_config can;
 	struct mlip_drives_config drives;
 	uint32_t lookahead; /* [TRAJ] LOOKAHEAD blocks, default MLIP_LOOKAHEAD */
+	/* [SPINDLE], [TOOL], [COOLANT]: what the program's I/O words meet (the
+	 * tools add the tool table and the --ignore-* choices); default none */
+	struct mlip_gcode_io io;
 };
 
 /* Fill *c with defaults (no axes): MAX_ANGULAR_VELOCITY 360, PERIOD 0.001,
