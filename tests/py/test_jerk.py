@@ -26,8 +26,8 @@ def opts(name, strategy, jerk, *extra):
     if name in FILES:
         cfg, n = FILES[name]
         o = ["--accel", ",".join(["1000"] * n)]
-        if cfg is not None:
-            o = ["--config", cfg] + o
+        if cfg is not None:  # its spindle and tool words run as nothing: the motion is tested
+            o = ["--config", cfg, "--ignore-spindle", "--ignore-coolant", "--ignore-tools"] + o
     else:  # the axes the program uses; F-less programs at 600/min
         o = ["--accel", "1000", "--default-feed", "600"]
     return o + ["--strategy", strategy, "--vmax", "200", "--feed", "200", "--eps", "0.01",
