@@ -19,7 +19,8 @@
 #      package) powered up away from HOME, one in fault; mlip-rt --drives
 #      (config/mill-3axis-drives.ini at a 40 ms period) brings them up, runs a
 #      short program, shuts them down; prints each bring-up step as the
-#      drives saw it, what they reported, the shut-down, and the checks
+#      drives saw it, what they reported, homing with the drives' own homing
+#      mode (Z first, then X and Y), the shut-down, and the checks
 #      (first target = start position, the drives' targets = mlip-sim's
 #      trace in counts, disabled in order, no fault);
 #   5. plots the tool speed decoded from the bus against time, the feed limit

@@ -565,6 +565,17 @@ static int controller_fault(struct feed *f)
 		        (unsigned)f->st.reason_node,
 		        mlip_drive_fault_name((mlip_drive_fault)f->st.reason_field), what,
 		        (unsigned long long)f->st.reason_seq, (unsigned)f->st.reason_line);
+	} else if (f->st.state == MLIP_STATE_ESTOP || f->st.reason == MLIP_WHY_LIMIT) {
+		char name[24];
+		fprintf(
+		    stderr,
+		    PROG ": %s (%s, node %u) at line %u (block %llu): quick stop of every axis; "
+		         "the program is NOT complete (release the input, then mlip-ctl reset)\n",
+		    f->st.state == MLIP_STATE_ESTOP ? "E-stop" : "limit switch",
+		    f->st.reason == MLIP_WHY_IO_LOST
+		        ? "I/O module lost"
+		        : mlip_io_function_name(f->st.reason_field, &f->mp, name, sizeof(name)),
+		    (unsigned)f->st.reason_node, resume_line(f), (unsigned long long)resume_seq(f));
 	} else {
 		fprintf(stderr,
 		        PROG ": controller fault (%s) at line %u (block %llu): the program is NOT "
@@ -919,12 +930,14 @@ static int wait_start(struct feed *f)
 			             "to be idle: nothing was sent\n");
 			return EXIT_CTRL_DEAD;
 		}
-		if (f->st.state == MLIP_STATE_FAULT) {
+		if (f->st.state == MLIP_STATE_FAULT || f->st.state == MLIP_STATE_ESTOP) {
 			fprintf(stderr,
-			        PROG
-			        ": controller on %s is in fault: nothing was sent; see mlip-rt's "
-			        "messages (restart it to clear the fault)\n",
-			        f->shm.name);
+			        PROG ": controller on %s is in %s (%s): nothing was sent; %s\n",
+			        f->shm.name, mlip_ctl_state_name(f->st.state),
+			        mlip_state_why_name(f->st.reason),
+			        f->st.state == MLIP_STATE_ESTOP || f->st.reason == MLIP_WHY_LIMIT
+			            ? "release the input, then mlip-ctl reset"
+			            : "see mlip-rt's messages (restart it to clear the fault)");
 			return EXIT_FAIL;
 		}
 		/* idle, or starved (a feeder died): our records continue or replace
@@ -994,7 +1007,7 @@ static int run(struct feed *f)
 		if (poll_controller(f) != 0) {
 			return controller_dead(f);
 		}
-		if (f->st.state == MLIP_STATE_FAULT) {
+		if (f->st.state == MLIP_STATE_FAULT || f->st.state == MLIP_STATE_ESTOP) {
 			return controller_fault(f);
 		}
 		explain(f);
@@ -1323,6 +1336,13 @@ int main(int argc, char **argv)
 	if (code == EXIT_DONE && f.offsets != NULL &&
 	    mlip_offsets_save(&f.offsets_file, &m, &f.prog.offsets_end, PROG, stderr) != 0) {
 		code = EXIT_FAIL;
+	}
+	if (code == EXIT_DONE && f.prog.offsets_end.tool != f.prog.offsets_start.tool) {
+		fprintf(stderr, PROG ": tool %d in the spindle now%s%s%s\n",
+		        (int)f.prog.offsets_end.tool, f.offsets ? " (" : "",
+		        f.offsets ? f.offsets
+		                  : " (no --offsets: the next program does not know it)",
+		        f.offsets ? ")" : "");
 	}
 	if (code != EXIT_DONE && f.pushed > 0) {
 		io_after_stop(&f, &m);

@@ -47,7 +47,7 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 320);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 336);
 MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 576);
 MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 584);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 40);
@@ -616,6 +616,10 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 		STD(&d->prog_start[k], &s->prog_start[k]);
 	}
 	ST(&d->stop_seen, s->stop_seen, REL);
+	ST(&d->io_inputs, s->io_inputs, REL);
+	ST(&d->io_mapped, s->io_mapped, REL);
+	ST(&d->io_known, s->io_known, REL);
+	ST(&d->homed, s->homed, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -668,7 +672,11 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 			LDD(&d->prog_start[k], &s->prog_start[k]);
 		}
 		s->stop_seen = LD(&d->stop_seen, ACQ);
-		s->spare6 = 0;
+		s->io_inputs = LD(&d->io_inputs, ACQ);
+		s->io_mapped = LD(&d->io_mapped, ACQ);
+		s->io_known = LD(&d->io_known, ACQ);
+		s->homed = LD(&d->homed, ACQ);
+		s->spare7 = 0;
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -824,8 +832,8 @@ int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
-	static const char *const names[] = {"none",   "override", "hold",
-	                                    "resume", "stop",     "optional-stop"};
+	static const char *const names[] = {"none",          "override", "hold", "resume", "stop",
+	                                    "optional-stop", "reset",    "jog",  "home"};
 
 	return NAME_OF(names, op);
 }

@@ -117,9 +117,9 @@ static mlip_status check_bytes(const char *s, size_t n, uint32_t line,
 static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size_t p, uint32_t line,
                                 struct mlip_config_error *err)
 {
-	static const char *const names[] = {"TRAJ",   "AXIS_X",  "AXIS_Y", "AXIS_Z",
-	                                    "AXIS_A", "AXIS_B",  "AXIS_C", "CAN",
-	                                    "DRIVES", "SPINDLE", "TOOL",   "COOLANT"};
+	static const char *const names[] = {"TRAJ",   "AXIS_X",  "AXIS_Y", "AXIS_Z", "AXIS_A",
+	                                    "AXIS_B", "AXIS_C",  "CAN",    "DRIVES", "SPINDLE",
+	                                    "TOOL",   "COOLANT", "IO"};
 	size_t q = p + 1, r, a, z;
 	struct mlip_tb b;
 	int sec;
@@ -170,7 +170,7 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
 		} else {
 			mlip_tb_puts(&b,
 			             " (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES], "
-			             "[SPINDLE], [TOOL], [COOLANT])");
+			             "[SPINDLE], [TOOL], [COOLANT], [IO])");
 		}
 		return MLIP_E_SYNTAX;
 	}
@@ -193,9 +193,9 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
  * belongs anywhere: "[TRAJ]", "an [AXIS_*] section", "[CAN]". */
 static const char *home_of(const char *s, size_t n, int except_kind)
 {
-	static const char *const where[N_KINDS] = {"[TRAJ]",   "an [AXIS_*] section", "[CAN]",
-	                                           "[DRIVES]", "[SPINDLE]",           "[TOOL]",
-	                                           "[COOLANT]"};
+	static const char *const where[N_KINDS] = {
+	    "[TRAJ]", "an [AXIS_*] section", "[CAN]", "[DRIVES]", "[SPINDLE]",
+	    "[TOOL]", "[COOLANT]",           "[IO]"};
 	int kd, k;
 
 	for (kd = 0; kd < N_KINDS; kd++) {
@@ -283,6 +283,8 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 	switch (kd->type) {
 	case V_COORDS:
 		return parse_coords(ps, v, nv, line, col, err);
+	case V_IOBIT:
+		return mlip_mc_parse_iobit(v, nv, line, col, kd->name, &st->ival[k], err);
 	case V_POS:
 	case V_REAL:
 	case V_PERIOD:
@@ -416,6 +418,14 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		if (kd->type == V_DBITRATE && (i < BITRATE_MIN || i > DATA_BITRATE_MAX)) {
 			return range_err(err, line, col, kd->name,
 			                 " must be within 10000..12000000 bit/s", v, nv);
+		}
+		if (kd->type == V_METHOD && (i < -128 || i > 127)) {
+			return range_err(err, line, col, kd->name,
+			                 " must be within -128..127 (0x6098 is an INTEGER8)", v,
+			                 nv);
+		}
+		if (kd->type == V_SEQUENCE && (i < 0 || i > 9)) {
+			return range_err(err, line, col, kd->name, " must be within 0..9", v, nv);
 		}
 		if (kd->type == V_BOOL && i != 0 && i != 1) {
 			return range_err(err, line, col, kd->name, " must be 0 or 1", v, nv);
@@ -863,6 +873,12 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
 	if (st == MLIP_OK) {
 		mlip_mc_fill_io(&ps, &out);
 		st = mlip_mc_check_io(&ps, &out, err);
+	}
+	if (st == MLIP_OK) {
+		st = mlip_mc_fill_inputs(&ps, &out, err);
+	}
+	if (st == MLIP_OK) {
+		st = mlip_mc_fill_home(&ps, &out, err);
 	}
 	if (st != MLIP_OK) {
 		return st;

@@ -876,6 +876,32 @@ mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
 	return MLIP_OK;
 }
 
+mlip_status mlip_planner_abort(struct mlip_planner *p, const double *pos)
+{
+	for (int k = 0; k < p->n; k++) {
+		if (!isfinite(pos[k])) {
+			return MLIP_E_INVALID;
+		}
+	}
+	p->head = p->tail;
+	p->in_tail = p->in_head; /* the blocks queued for the bounded work too */
+	p->pending = 0;
+	p->pass.on = 0;
+	p->pass.has_reach = 0;
+	p->in_corner = 0;
+	p->stopping = 0;
+	p->hold = 0;
+	p->prof_valid = 0;
+	p->l_start_mm = 0.0;
+	p->s_mm = 0.0;
+	p->v_mm_s = 0.0;
+	p->tc_s = 0.0;
+	memcpy(p->last_point, pos, sizeof(double) * (size_t)p->n);
+	memcpy(p->pos, pos, sizeof(double) * (size_t)p->n);
+	filter_reset(p); /* a jerk limit's mean rests at pos too, its window with it */
+	return MLIP_OK;
+}
+
 void mlip_planner_rest_here(struct mlip_planner *p)
 {
 	if (p->taps > 1) {

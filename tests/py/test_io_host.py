@@ -161,6 +161,7 @@ def test_feed_pauses_for_the_operator(controller, tmp_path):
     for line, why, what in expected:
         assert f"paused at line {line}, {why}: {what} (mlip-ctl resume)" in err, err
     assert "TOOL 2" in offs.read_text()
+    assert f"tool 2 in the spindle now ({offs})" in err, err
 
 
 def test_feed_says_what_a_stop_left(controller, tmp_path):

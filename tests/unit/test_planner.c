@@ -1262,6 +1262,61 @@ static void test_smooth_shapes_plan(void **state)
 	free(p.pts);
 }
 
+/* An abort (E-stop, mlip_planner_abort) mid-run with bounded work and a
+ * jerk limit drops everything, the blocks still queued for the work and the
+ * pass in progress too, and rests exactly at the given point (the mean's
+ * window with it); a block pushed then starts from there. */
+static void test_abort_drops_the_queue(void **state)
+{
+	(void)state;
+	struct path p = make_path(2, 1, 600);
+	struct mlip_machine m = machine(2, 1000, 200, 0.01);
+	m.axis[0].max_jerk = m.axis[1].max_jerk = 1e5;
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts, NULL), MLIP_OK);
+	mlip_planner_set_async(&P, 1);
+	size_t next = 1;
+	double x[MLIP_MAX_AXES];
+	for (int k = 0; k < 300; k++) {
+		for (; next < p.np && mlip_planner_space(&P) > 0; next++) {
+			struct mlip_block b = {
+			    .feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)next};
+			memcpy(b.target, p.pts + 2 * next, sizeof(double) * 2);
+			assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+		}
+		mlip_planner_work(&P);
+		mlip_planner_step(&P, x);
+	}
+	/* moving, and blocks queued that the work has not appended yet */
+	struct mlip_block more = {.feed_mm_s = 200, .tol_mm = 0.01, .line = 9999};
+	more.target[0] = p.pts[2 * (p.np - 1)] + 1.0;
+	more.target[1] = p.pts[2 * (p.np - 1) + 1];
+	assert_int_equal(mlip_planner_push(&P, &more), MLIP_OK);
+	assert_true(mlip_planner_busy(&P) && mlip_planner_queued(&P) > 0);
+	assert_true(x[0] != p.pts[0] || x[1] != p.pts[1]);
+	double at[2] = {x[0] + 0.5, x[1] - 0.25}; /* where the drives stopped */
+	assert_int_equal(mlip_planner_abort(&P, at), MLIP_OK);
+	assert_false(mlip_planner_busy(&P));
+	assert_int_equal(mlip_planner_queued(&P), 0);
+	for (int k = 0; k < 50; k++) {
+		mlip_planner_work(&P);
+		assert_int_equal(mlip_planner_step(&P, x), MLIP_RUN_IDLE);
+		assert_true(x[0] == at[0] && x[1] == at[1]);
+	}
+	struct mlip_block b = {.feed_mm_s = 100, .tol_mm = 0.01, .line = 1};
+	b.target[0] = at[0] + 1.0;
+	b.target[1] = at[1];
+	assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+	mlip_run_state rs;
+	int k = 0;
+	do {
+		mlip_planner_work(&P);
+		rs = mlip_planner_step(&P, x);
+		assert_true(fabs(x[1] - at[1]) < 1e-12 && x[0] >= at[0] - 1e-12);
+	} while (rs != MLIP_RUN_IDLE && ++k < 10000);
+	assert_true(x[0] == b.target[0] && x[1] == b.target[1]);
+	free(p.pts);
+}
+
 static void test_push_full_and_bad_input(void **state)
 {
 	(void)state;
@@ -1335,6 +1390,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_jerk_plan, reset),
 	    cmocka_unit_test_setup(test_jerk_every_part, reset),
 	    cmocka_unit_test_setup(test_jerk_stall, reset),
+	    cmocka_unit_test_setup(test_abort_drops_the_queue, reset),
 	    cmocka_unit_test_setup(test_push_full_and_bad_input, reset),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

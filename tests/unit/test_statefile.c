@@ -165,7 +165,7 @@ static void test_offsets_round_trip(void **state)
 	o.coord[1][2] = 0.0;                       /* written "0" */
 	assert_memory_equal(&o, &back, sizeof(o)); /* exact: the shortest text that reads back */
 	mlip_offsets_describe(&m, &o, buf, sizeof(buf));
-	assert_string_equal(buf, "G59.2 X0 Y-12.5 Z0, G92 on X0.1 Y0 Z0");
+	assert_string_equal(buf, "G59.2 X0 Y-12.5 Z0, G92 on X0.1 Y0 Z0, tool 7 in the spindle");
 	const char *text = read_file(path, &len);
 	assert_non_null(strstr(text, "\nSELECT G59.2\nG92_ON 1\nG54 X0 Y0 Z0\n"));
 	assert_non_null(strstr(text, "\nG59.2 X0 Y-12.5 Z0\n"));

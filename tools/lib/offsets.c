@@ -530,4 +530,7 @@ void mlip_offsets_describe(const struct mlip_machine *m, const struct mlip_gcode
 	for (i = 0; o->g92_on && i < m->n_axes && n < len; i++) {
 		n += (size_t)snprintf(buf + n, len - n, " %c%g", m->axis[i].letter, o->g92[i]);
 	}
+	if (o->tool > 0 && n < len) {
+		snprintf(buf + n, len - n, ", tool %d in the spindle", (int)o->tool);
+	}
 }

@@ -65,7 +65,8 @@ int mlip_offsets_save(struct mlip_offsets_file *f, const struct mlip_machine *m,
 void mlip_offsets_file_free(struct mlip_offsets_file *f);
 
 /* One line for the operator: "G55 X10 Y20 Z-5, G92 off" (the selected
- * system's origin; the G92 offset when on). */
+ * system's origin; the G92 offset when on; ", tool 2 in the spindle" when
+ * one is). */
 void mlip_offsets_describe(const struct mlip_machine *m, const struct mlip_gcode_offsets *o,
                            char *buf, size_t len);
 

@@ -205,7 +205,12 @@ struct mlip_ring_status {
 	                                     --start-seq) is read from there */
 	/* layout version 6 */
 	uint32_t stop_seen; /* the stop counter's value the controller has applied */
-	uint32_t spare6;
+	/* layout version 8: operating the machine (issue 18) */
+	uint32_t io_inputs; /* bit f: input function f (MLIP_IN_*, mlip/machine/config.h) is on */
+	uint32_t io_mapped; /* bit f: function f is mapped in the configuration */
+	uint32_t io_known;  /* bit f: its input has been read from the bus */
+	uint32_t homed;     /* bit k: axis k is homed */
+	uint32_t spare7;
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */
@@ -230,8 +235,22 @@ typedef enum {
 	MLIP_CMD_STOP,          /* decelerate to rest and drop the rest of the program
 	                           (in the segment: the stop counter, mlip_ring_stop_post) */
 	MLIP_CMD_OPTIONAL_STOP, /* arg 1: M1 pauses; arg 0: M1 is ignored */
+	MLIP_CMD_RESET,         /* leave estop (or a limit fault) once its input is released */
+	MLIP_CMD_JOG,           /* continuous jog (issue 18): arg = MLIP_JOG_ARG(axis, neg,
+	                           mm/min); renewed at least every MLIP_JOG_DEADMAN_S by the
+	                           same command, else it stops; speed 0 stops it */
+	MLIP_CMD_HOME,          /* home (issue 18): arg = axis mask (bit k: axis k; 0: every
+	                           axis with a HOME_METHOD), in HOME_SEQUENCE order */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
+
+/* MLIP_CMD_JOG's argument: axis index (bits 0-2), negative direction (bit 3),
+ * speed in mm/min or deg/min (bits 4-23, 0..1048575; 0: stop the jog). */
+#define MLIP_JOG_ARG(axis, neg, mm_min)                                                            \
+	((int32_t)(((uint32_t)(axis)&7u) | ((neg) ? 8u : 0u) |                                     \
+	           (((uint32_t)(mm_min)&0xFFFFFu) << 4)))
+#define MLIP_JOG_SPEED_MAX 1048575u /* mm/min */
+#define MLIP_JOG_DEADMAN_S 0.25     /* a jog not renewed for this long stops */
 
 struct mlip_ring_cmd {
 	uint32_t seq; /* mailbox sequence number of this command (even, > 0) */
