@@ -29,7 +29,14 @@ if [ ! -x .venv/bin/python ]; then
 	echo "deps: creating .venv"
 	python3 -m venv .venv
 fi
-if ! .venv/bin/python -c 'import pytest, numpy, cantools, matplotlib, canopen, can' >/dev/null 2>&1; then
+if ! .venv/bin/python -c 'import pytest, numpy, cantools, matplotlib, canopen, can, serial, svgelements, shxparser' >/dev/null 2>&1; then
 	echo "deps: pip install -r tests/requirements.txt"
 	.venv/bin/pip install -q -r tests/requirements.txt
+fi
+# bCNC, a real G-code sender for the Grbl front-end's tests (tests/py/test_senders.py):
+# its Sender and GRBL1 controller only, so not its camera's opencv (--no-deps; what
+# it imports is in tests/requirements.txt); tkinter comes with Python
+if ! .venv/bin/python -c 'import bCNC' >/dev/null 2>&1; then
+	echo "deps: pip install --no-deps bCNC==0.9.16"
+	.venv/bin/pip install -q --no-deps bCNC==0.9.16
 fi

@@ -550,7 +550,8 @@ static void rt_cmd(void *ctx, grbl_rt c)
 		if (S.err_hold) {
 			S.err_hold = 0; /* the sender goes on after a refused line */
 		}
-		if (S.hold_idle || cs->state == MLIP_STATE_HELD || cs->state == MLIP_STATE_PAUSED) {
+		if (S.hold_idle || S.hold_req || cs->state == MLIP_STATE_HELD ||
+		    cs->state == MLIP_STATE_PAUSED) {
 			cmd_push(MLIP_CMD_RESUME, 0);
 		}
 		S.hold_idle = 0;
