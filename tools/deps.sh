@@ -17,6 +17,9 @@ command -v valgrind >/dev/null 2>&1 || need="$need valgrind"
 command -v cyclictest >/dev/null 2>&1 || need="$need rt-tests"
 command -v candump >/dev/null 2>&1 || need="$need can-utils"
 [ -x /usr/bin/time ] || need="$need time" # GNU time: peak RSS of a program (bench/rss.py)
+# CNCjs, a real sender, and its page in a real browser (tests/py/test_senders.py)
+command -v npm >/dev/null 2>&1 || need="$need nodejs npm"
+[ -x /usr/bin/chromium ] || need="$need chromium chromium-driver"
 python3 -c 'import venv, ensurepip' >/dev/null 2>&1 || need="$need python3-venv"
 if [ -n "$need" ]; then
 	echo "deps: apt-get install$need"
@@ -32,6 +35,12 @@ fi
 if ! .venv/bin/python -c 'import pytest, numpy, cantools, matplotlib, canopen, can, serial, svgelements, shxparser' >/dev/null 2>&1; then
 	echo "deps: pip install -r tests/requirements.txt"
 	.venv/bin/pip install -q -r tests/requirements.txt
+fi
+# CNCjs (npm, tests/cncjs/package-lock.json): its server, Grbl controller and page
+if [ ! -f tests/cncjs/node_modules/cncjs/package.json ] ||
+	[ ! -f tests/cncjs/node_modules/playwright-core/package.json ]; then
+	echo "deps: npm ci (tests/cncjs)"
+	(cd tests/cncjs && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
 fi
 # bCNC, a real G-code sender for the Grbl front-end's tests (tests/py/test_senders.py):
 # its Sender and GRBL1 controller only, so not its camera's opencv (--no-deps; what

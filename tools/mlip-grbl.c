@@ -359,6 +359,10 @@ static int take_producer(void)
 /* Staged records into the ring, as many as fit. */
 static void push_records(void)
 {
+	if (S.port_open && grbl_stream_staged(&S.st) > 0 && S.fa.pid == 0) {
+		S.fa.pid = (int32_t)getpid(); /* feeding again (after a quiet pre-read) */
+		beat();
+	}
 	while (S.port_open && grbl_stream_staged(&S.st) > 0) {
 		uint32_t n = grbl_stream_staged(&S.st), got = 0;
 		const struct mlip_ring_rec *recs = grbl_stream_peek(&S.st);
@@ -948,9 +952,13 @@ static void process_lines(void)
 }
 
 /* The sender went quiet: what it sent must not wait for lines that may not
- * come. The smoothing filter gives what it holds (the program goes on); and
- * with the controller waiting for more (pre-reading, or at rest starved),
- * the program ends there so it runs. A file streamed without pause is one
+ * come. The smoothing filter gives what it holds (the program goes on).
+ * A controller still pre-reading is told "nothing more for now" (the
+ * feeder area's pid 0, as a feeder that left): it starts with what it has,
+ * and lines that come later continue the same program, so a sender that
+ * pauses for a while (CNCjs does, while it draws) costs no stop. A program
+ * whose controller is at rest waiting for more ends there (END): it is
+ * complete, the controller idle. A file streamed without pauses is one
  * program, as mlip-feed runs it. */
 static void quiet_end(void)
 {
@@ -975,9 +983,16 @@ static void quiet_end(void)
 		}
 		grbl_stream_flush(&S.st, 0);
 	}
-	int waiting = S.cs.state == MLIP_STATE_PREREAD || S.cs.state == MLIP_STATE_STARVED ||
-	              S.cs.state == MLIP_STATE_IDLE;
-	if (waiting && S.st.open && !S.st.end_pending) {
+	if (!S.st.open || S.st.end_pending || grbl_stream_staged(&S.st) > 0) {
+		return;
+	}
+	if (S.cs.state == MLIP_STATE_PREREAD && S.fa.pid != 0) {
+		if (S.verbose) {
+			logf_("quiet, controller pre-reading: it starts with what it has (line %u)",
+			      (unsigned)S.lineno);
+		}
+		S.fa.pid = 0; /* beat() publishes it */
+	} else if (S.cs.state == MLIP_STATE_STARVED || S.cs.state == MLIP_STATE_IDLE) {
 		if (S.verbose) {
 			logf_("quiet, controller %s: program ends at line %u",
 			      mlip_ring_state_name(S.cs.state), (unsigned)S.lineno);
