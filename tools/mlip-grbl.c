@@ -729,7 +729,6 @@ static int system_line(const char *t, size_t len)
 	char b[GRBL_MSG_BYTES];
 	grbl_sys_parse(t, len, &c);
 	const char *state = grbl_state();
-	int idle = strcmp(state, "Idle") == 0 || strcmp(state, "Check") == 0;
 	switch (c.kind) {
 	case GRBL_SYS_HELP:
 		send_line(S.ctl, "[HLP:$$ $# $G $I $N $x=val $Nx=line $J=line $SLP $C $X $H ~ ! ? "
@@ -737,10 +736,7 @@ static int system_line(const char *t, size_t len)
 		answer(0);
 		return 1;
 	case GRBL_SYS_SETTINGS:
-		if (!idle && !idle_or_alarm() && strncmp(state, "Hold", 4) == 0) {
-			answer(GRBL_E_IDLE);
-			return 1;
-		}
+		/* system.c: not during a cycle or a hold (it takes too long to print) */
 		if (strcmp(state, "Run") == 0 || strncmp(state, "Hold", 4) == 0) {
 			answer(GRBL_E_IDLE);
 			return 1;
@@ -1015,6 +1011,9 @@ static void follow_controller(void)
 	if (S.program_live && quiet_controller()) {
 		S.program_live = 0;
 	}
+	if (S.hold_req && S.cs.state == MLIP_STATE_HELD) {
+		S.hold_req = 0; /* the controller says held itself from now on */
+	}
 	if (!S.stop_ours && S.cs.state == MLIP_STATE_STOPPING && (S.st.open || S.program_live)) {
 		/* stopped by someone else (mlip-ctl stop, a signal to mlip-rt) */
 		S.alarm = 1;
@@ -1065,7 +1064,13 @@ static void peer_close(struct peer *p)
  * what it sent is dropped. */
 static void lose_controller(const char *why)
 {
-	logf_("%s %s (line %u)", S.ctl->name, why, (unsigned)S.lineno);
+	if (S.st.open || S.program_live || S.partial) {
+		logf_("%s %s mid-program (line %u): the machine runs what was acknowledged to its "
+		      "end and stops at rest there; lines not acknowledged are dropped",
+		      S.ctl->name, why, (unsigned)S.lineno);
+	} else {
+		logf_("%s %s (line %u)", S.ctl->name, why, (unsigned)S.lineno);
+	}
 	if (S.partial) {
 		/* its line was not acknowledged: none of it runs */
 		grbl_stream_restart(&S.st, grbl_stream_pos(&S.st), 1);
@@ -1092,6 +1097,17 @@ static void take_control(struct peer *p)
 	S.ctl = p;
 	S.last_rx_ns = now_ns();
 	logf_("%s is the controlling sender", p->name);
+	/* a new sender finds Grbl as after a reset: the parser's defaults, from
+	 * where the machine stands (or will, once what was queued has run) */
+	if (grbl_stream_staged(&S.st) == 0 && !S.st.end_pending && !S.st.open) {
+		if (quiet_controller() && !S.program_live) {
+			resync(0);
+		} else {
+			double at[MLIP_MAX_AXES];
+			memcpy(at, grbl_stream_pos(&S.st), sizeof(at));
+			grbl_stream_restart(&S.st, at, 0);
+		}
+	}
 	welcome();
 }
 

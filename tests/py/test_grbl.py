@@ -410,3 +410,56 @@ def test_pty_sender(grbl):
             buf += os.read(fd, 4096)
     assert b"ok\r\n" in buf and b"<" in buf
     os.close(fd)
+
+
+def test_stop_by_mlip_ctl_is_an_alarm_until_unlocked(grbl):
+    """Someone else stops the program (mlip-ctl stop): the sender is told, the
+    rest is never run, lines are locked out (error:9) until $X or a reset."""
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    assert g.cmd("G1 X900 F3000")[0] == "ok"
+    assert wait_for(lambda: status(shm)["state"] == "running", 10)
+    subprocess.run([tool("mlip-ctl"), "--shm", shm, "stop"], check=True, capture_output=True)
+    s = g.wait_state({"Alarm"}, 10)
+    g.wait_line(lambda l: "stopped by mlip-ctl stop" in l, 5)
+    a, m = g.cmd("G0 X0")
+    assert a == "error:9" and "alarm" in m[0]
+    assert wait_for(lambda: status(shm)["state"] == "idle", 10)
+    x = status(shm)["position"]["X"]
+    assert 0 < x < 900
+    assert g.cmd("$X") == ("ok", ["[MSG:Caution: Unlocked]"])
+    assert g.cmd("G0 X0")[0] == "ok"
+    idle_at(g, [0, 0, 0])
+
+
+def test_sleep_reset_alarm_unlock(grbl):
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    assert g.cmd("$SLP") == ("ok", ["[MSG:Sleeping]"])
+    assert g.status()["state"] == "Sleep"
+    assert g.cmd("G0 X1")[0] == "error:9"
+    g.send(b"\x18")
+    assert wait_for(lambda: g.lines.count("Grbl 1.1h ['$' for help]") == 2, 5)
+    g.wait_line(lambda l: l == "[MSG:'$H'|'$X' to unlock]", 5)
+    assert g.status()["state"] == "Alarm"     # protocol.c: out of sleep into alarm
+    assert g.cmd("$X") == ("ok", ["[MSG:Caution: Unlocked]"])
+    assert g.status()["state"] == "Idle"
+
+
+def test_next_sender_starts_from_defaults(grbl):
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    assert g.cmd("G91 G1 X5 F600")[0] == "ok"
+    idle_at(g, [5, 0, 0])
+    g.close()
+    h = None
+    for _ in range(50):
+        try:
+            h = connect(port)
+            break
+        except (AssertionError, OSError):
+            time.sleep(0.1)
+    assert h is not None
+    assert h.cmd("$G") == ("ok", ["[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]"])
+    assert h.cmd("X1")[0] == "ok"             # absolute again: to X1, not X6
+    idle_at(h, [1, 0, 0])

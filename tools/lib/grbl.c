@@ -140,9 +140,22 @@ static int assemble(struct grbl_rx *rx, uint16_t v)
 	return 0;
 }
 
+/* The newest lost-line mark in the buffer, or NULL. */
+static uint16_t *last_mark(struct grbl_rx *rx)
+{
+	for (uint32_t i = rx->head; i != rx->tail; i--) {
+		uint16_t *v = rx_at(rx, i - 1);
+		if (*v >= RX_MARK) {
+			return v;
+		}
+	}
+	return NULL;
+}
+
 /* The receive buffer is full: drop the line this byte belongs to. Its bytes
  * already buffered (after the last line end in the buffer) go too, and a
- * mark takes their place, counting the lines lost. */
+ * mark takes their place, counting the lines lost (when GRBL_RX_MARKS marks
+ * wait already, the newest one counts them: the answers stay one per line). */
 static void overflow(struct grbl_rx *rx, unsigned char c)
 {
 	rx->overflows++;
@@ -160,19 +173,17 @@ static void overflow(struct grbl_rx *rx, unsigned char c)
 			rx->drop_bytes++;
 		}
 		uint16_t *last = rx_count(rx) ? rx_at(rx, rx->head - 1) : NULL;
-		if (last == NULL || *last < RX_MARK) {
-			if (rx->marks < GRBL_RX_MARKS) {
-				*rx_at(rx, rx->head++) = (uint16_t)RX_MARK; /* 0 lines so far */
-				rx->marks++;
-			}
+		if ((last == NULL || *last < RX_MARK) && rx->marks < GRBL_RX_MARKS) {
+			*rx_at(rx, rx->head++) = (uint16_t)RX_MARK; /* 0 lines so far */
+			rx->marks++;
 		}
 	}
 	rx->drop_bytes++;
 	if (c == '\n' || c == '\r') {
-		/* the dropped line ends: count it on the last mark */
-		uint16_t *last = rx_count(rx) ? rx_at(rx, rx->head - 1) : NULL;
-		if (last != NULL && *last >= RX_MARK && *last < 0xFFFF) {
-			(*last)++;
+		/* the dropped line ends: count it on the newest mark */
+		uint16_t *m = last_mark(rx);
+		if (m != NULL && *m < 0xFFFF) {
+			(*m)++;
 		}
 		rx->dropping = 0;
 	}
