@@ -166,7 +166,7 @@ demo: deps
 	@tools/demo.sh
 
 # CAN tests on a real vcan0: on this host when it can make one, else in a
-# QEMU VM (tools/vcan/README.md). One call, one boot.
+# QEMU VM (docs/can-vm.md). One call, one boot.
 can: all
 	@tests/can/run-tests.sh
 

@@ -79,8 +79,7 @@ int mlip_canio_open(struct mlip_canio *io, const char *ifname, int fd_frames, ch
 	if (fd < 0) {
 		int e = errno;
 		snprintf(why, why_len, "socket(PF_CAN): %s%s", strerror(e),
-		         e == EAFNOSUPPORT ? " (this kernel has no CAN: see tools/vcan/README.md)"
-		                           : "");
+		         e == EAFNOSUPPORT ? " (this kernel has no CAN: see docs/can-vm.md)" : "");
 		return -e;
 	}
 	/* no data frames in: the controller only talks; error frames yes */

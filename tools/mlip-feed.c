@@ -91,7 +91,7 @@ static void usage(FILE *f)
 	        "                    crash or a stop (default 1: the whole program); with a\n"
 	        "                    `smooth` controller, blocks are the smoothed records\n"
 	        "  --offsets FILE    work offsets, G92, G28/G30 positions: read before the\n"
-	        "                    program, written back when it completes (README: offsets)\n"
+	        "                    program, written back when it completes (docs/gcode.md)\n"
 	        "  --default-feed F  feed (units/min) for a program that sets no F at all\n"
 	        "  --strict          refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
 	        "  -q, --quiet       no notes, no progress, no summary: errors only\n"

@@ -335,7 +335,7 @@ static void usage(FILE *f)
 	    "                      --trace does (from the monitor thread, not the loop)\n"
 	    "  --drives            bring up CiA 402 drives first (NMT, SDO set-up, power state\n"
 	    "                      machine), start where they are, supervise and shut them\n"
-	    "                      down (also [DRIVES] ENABLE = 1; README: Deploying)\n"
+	    "                      down (also [DRIVES] ENABLE = 1; docs/cia402.md)\n"
 	    "  -h, --help\n",
 	    MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY, MLIP_STALL_PERIODS_DEFAULT);
 }

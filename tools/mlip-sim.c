@@ -57,7 +57,7 @@ static void usage(FILE *f)
 	    "  --optional-stop       M1 pauses (the optional-stop switch on)\n"
 	    "  --trace OUT.csv       setpoints: t,x,y,... one row per period, t = 0 to rest\n"
 	    "  --summary OUT.json    totals and measured physics (JSON)\n"
-	    "  --offsets FILE        work offsets, G92 and G28/G30 positions (README: offsets)\n"
+	    "  --offsets FILE        work offsets, G92 and G28/G30 positions (docs/gcode.md)\n"
 	    "  --save-offsets        write the offsets the program leaves back to that FILE\n"
 	    "  --default-feed F      feed (units/min) for a program that sets no F at all\n"
 	    "  --strict              refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"

@@ -96,8 +96,8 @@ def test_no_python_ini_parser_in_the_tools():
 
 
 def test_drive_machine_and_the_demos_copy(tmp_path):
-    """config/mill-3axis-drives.ini (the README's starting point for a real
-    machine) has [DRIVES] on and a 2 ms period; the drives stage of make demo
+    """config/mill-3axis-drives.ini (docs/cia402.md: the starting point for a
+    real machine) has [DRIVES] on and a 2 ms period; the drives stage of make demo
     (tools/mlipcan/drivedemo.py) runs it at 40 ms, where mlip-config refuses
     the full accelerations (eq. 17: |A| T^2 / 8 > eps) and accepts the
     lowered ones, which keep |A| T^2 / 8 within eps but not far below it."""

@@ -8,7 +8,7 @@
  * with the next line, so a caller can list every error of a file; a program
  * with any error must be rejected as a whole (the tools do that).
  *
- * Supported (README "G-code" has the table, with the LinuxCNC or Grbl rule
+ * Supported (docs/gcode.md has the table, with the LinuxCNC or Grbl rule
  * each follows): G0/G1/G2/G3 (arcs in G17/G18/G19 with I J K or R, turned
  * into chords within a fraction of the contour tolerance), G4 P dwell,
  * G10 L2/L20, G20/G21, G28/G30 (+ .1), G53, G54-G59.3, G61/G61.1/G64 P Q,

@@ -109,7 +109,7 @@ struct mlip_can_config {
 };
 
 /* [DRIVES] section: CiA 402 drives brought up, watched and shut down by
- * mlip-rt (rt/drives.c; README "Deploying on CiA 402 drives"). */
+ * mlip-rt (rt/drives.c; docs/cia402.md). */
 struct mlip_drives_config {
 	int enable;                    /* ENABLE = 1 (or mlip-rt --drives); default 0 */
 	uint8_t master_node;           /* MASTER_NODE: mlip's own node id, default 127 */
