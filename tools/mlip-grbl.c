@@ -422,7 +422,8 @@ static const char *grbl_state(void)
 	case MLIP_STATE_DWELLING:
 		/* a hold decelerates in RUNNING: Grbl's Hold:1 */
 		return S.hold_req ? (moving ? "Hold:1" : "Hold:0") : "Run";
-	default: /* IDLE, STARVED */
+	case MLIP_STATE_IDLE:
+	case MLIP_STATE_STARVED:
 		if (S.hold_req || S.hold_idle) {
 			return "Hold:0";
 		}
@@ -431,6 +432,10 @@ static const char *grbl_state(void)
 			return ring || moving ? "Run" : "Hold:0";
 		}
 		return ours_queued ? "Run" : "Idle";
+	default:
+		/* a state this build does not know (a newer controller's E-stop,
+		 * homing, jog): never "Idle"; the one mapping to extend here */
+		return "Alarm";
 	}
 }
 
