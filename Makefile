@@ -44,11 +44,14 @@ RT_TESTS  := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(shell grep -l '"rt.h"'
 # Layers: src/ sees include/ only (the pure core), rt/ include/ and itself,
 # tools/lib/ include/ and itself; tools and tests see everything.
 # Inside the core, src/F/ and include/mlip/F/ are one folder along the data
-# path: a folder includes mlip/types.h, its own headers and those of the
-# folders before it in LAYERS, nothing else (tools/layers.sh; libmlip.a
-# depends on the check, so a forbidden include fails the build).
-LAYERS    := gcode motion machine can canopen ipc ctl
-CORE_HDR  := $(wildcard include/mlip/*.h include/mlip/*/*.h)
+# path: a folder includes mlip/types.h, its own headers (src/F/NAME.h, its
+# private ones, by their bare name) and those of the folders before it in
+# LAYERS, nothing else (tools/layers.sh; libmlip.a depends on the check, so
+# a forbidden include fails the build). text/ is the readers' lowest layer
+# (formatter, number lexer, UTF-8); machine/ reads the [CAN] section that
+# can/ defines and checks.
+LAYERS    := text gcode can machine motion canopen ipc ctl
+CORE_HDR  := $(wildcard include/mlip/*.h include/mlip/*/*.h src/*/*.h)
 INC       := -Iinclude -Itools/lib -Irt
 $(LIB_OBJ): INC := -Iinclude
 $(RT_OBJ): INC := -Iinclude -Irt

@@ -1,5 +1,5 @@
 """Configurations that cannot keep the guarantees are refused by every tool,
-with the reason at file:line:col (src/machine/config.c; unit tests in
+with the reason at file:line:col (src/machine/; unit tests in
 tests/unit/test_config.c): the probes of issue 9."""
 import re
 import subprocess
