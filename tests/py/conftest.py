@@ -8,11 +8,19 @@ from pathlib import Path
 
 import pytest
 
+import mlipcan  # the project's Python package (pip install -e . by tools/deps.sh)
+from mlipcan.settings import Settings
+
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / os.environ.get("MLIP_BUILD", "build")
 SHARED = Path(os.environ.get("MLIP_SHARED", ROOT.parent / "shared"))
 TOOLPATHS = SHARED / "toolpaths"
 CONFIG = ROOT / "config"
+# the package's view of the same: what its functions take as settings
+S = Settings.from_environ(ROOT)
+if Path(mlipcan.__file__).resolve().parent != ROOT / "python" / "mlipcan":
+    pytest.exit(f"mlipcan is imported from {Path(mlipcan.__file__).parent}, not from this "
+                f"checkout ({ROOT}): run tools/deps.sh (pip install -e .)", returncode=4)
 
 # Every physical limit is asserted with this relative tolerance, above; and
 # "the limit is used" is asserted below it (both sides of each bound).

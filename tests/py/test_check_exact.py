@@ -5,6 +5,7 @@ rows come within 4 um of each other (tools/gen_zigzag.py); a real
 excursion injected into the trace is caught; mlip-sim exits non-zero when
 its own check sees a violation (a test build that pushes one setpoint off
 the path)."""
+import os
 import subprocess
 import sys
 
@@ -106,7 +107,10 @@ def test_sim_exits_nonzero_on_its_own_violation(tmp_path):
     line, and the exit status is 4; the real build on the same program
     exits 0."""
     exe = tmp_path / "mlip-sim-fault"
-    cc = ["cc", "-std=c99", "-D_POSIX_C_SOURCE=200809L", "-D_DEFAULT_SOURCE", "-O1",
+    # the libraries of BUILD were compiled with the Makefile's sanitizer flags
+    # (make asan, ubsan: MLIP_SAN); this program must be too, or it cannot link
+    san = os.environ.get("MLIP_SAN", "").split()
+    cc = ["cc", "-std=c99", "-D_POSIX_C_SOURCE=200809L", "-D_DEFAULT_SOURCE", "-O1", *san,
           f"-I{ROOT / 'include'}", f"-I{ROOT / 'tools' / 'lib'}", "-DMLIP_SIM_TEST_FAULT_AT=500",
           str(ROOT / "tools" / "mlip-sim.c"), str(BUILD / "libmlip-host.a"),
           str(BUILD / "libmlip.a"), "-lm", "-o", str(exe)]

@@ -28,7 +28,7 @@ SW_PATTERN = {
 
 # statusword bits beyond the state pattern
 SW_VOLTAGE_ENABLED = 1 << 4
-SW_QUICK_STOP = 1 << 5      # 1: quick stop NOT active
+SW_QUICK_STOP = 1 << 5  # 1: quick stop NOT active
 SW_WARNING = 1 << 7
 SW_REMOTE = 1 << 9
 SW_TARGET_REACHED = 1 << 10
@@ -37,21 +37,27 @@ SW_FOLLOWING_ERROR = 1 << 13
 
 # controlword commands (CiA 402 table "device control commands"): (mask, value)
 CW_SHUTDOWN = (0x87, 0x06)
-CW_SWITCH_ON = (0x8F, 0x07)          # also "disable operation" from operation enabled
-CW_ENABLE_OPERATION = (0x8F, 0x0F)   # switch on + enable operation
+CW_SWITCH_ON = (0x8F, 0x07)  # also "disable operation" from operation enabled
+CW_ENABLE_OPERATION = (0x8F, 0x0F)  # switch on + enable operation
 CW_DISABLE_VOLTAGE = (0x82, 0x00)
 CW_QUICK_STOP = (0x86, 0x02)
-CW_FAULT_RESET = 0x80                # rising edge of bit 7
+CW_FAULT_RESET = 0x80  # rising edge of bit 7
 
 # the values a master writes
-CONTROLWORD = {"shutdown": 0x06, "switch on": 0x07, "enable operation": 0x0F,
-               "disable operation": 0x07, "disable voltage": 0x00, "quick stop": 0x02,
-               "fault reset": 0x80}
+CONTROLWORD = {
+    "shutdown": 0x06,
+    "switch on": 0x07,
+    "enable operation": 0x0F,
+    "disable operation": 0x07,
+    "disable voltage": 0x00,
+    "quick stop": 0x02,
+    "fault reset": 0x80,
+}
 
 MODE_CSP = 8  # 0x6060 modes of operation: cyclic synchronous position
 
 
-def state_of(statusword):
+def state_of(statusword: int) -> str | None:
     """The power state a statusword shows (None: no valid pattern)."""
     for name, (mask, value) in SW_PATTERN.items():
         if statusword & mask == value:
@@ -59,14 +65,16 @@ def state_of(statusword):
     return None
 
 
-def command_of(controlword):
+def command_of(controlword: int) -> str | None:
     """The device control command of a controlword (None: no command, e.g.
     bit 7 alone is the fault reset edge, judged by the caller)."""
-    for name, (mask, value) in (("disable voltage", CW_DISABLE_VOLTAGE),
-                                ("quick stop", CW_QUICK_STOP),
-                                ("shutdown", CW_SHUTDOWN),
-                                ("switch on", CW_SWITCH_ON),
-                                ("enable operation", CW_ENABLE_OPERATION)):
+    for name, (mask, value) in (
+        ("disable voltage", CW_DISABLE_VOLTAGE),
+        ("quick stop", CW_QUICK_STOP),
+        ("shutdown", CW_SHUTDOWN),
+        ("switch on", CW_SWITCH_ON),
+        ("enable operation", CW_ENABLE_OPERATION),
+    ):
         if controlword & mask == value:
             return name
     return None
@@ -91,7 +99,7 @@ ABORT = {
     0x08000000: "general error",
     0x08000020: "data cannot be transferred or stored to the application",
     0x08000022: "data cannot be transferred or stored to the application because of the "
-                "present device state",
+    "present device state",
 }
 
 # CiA 301 / CiA 402 emergency error codes the drives send
@@ -111,8 +119,16 @@ HB_STATE = {0x00: "boot-up", 0x04: "stopped", 0x05: "operational", 0x7F: "pre-op
 
 # short names of the objects a master writes at bring-up (for reports)
 OBJECT = {
-    0x1005: "COB-ID SYNC", 0x1016: "consumer heartbeat", 0x1017: "producer heartbeat",
-    0x1400: "RPDO1 comm", 0x1600: "RPDO1 map", 0x1800: "TPDO1 comm", 0x1A00: "TPDO1 map",
-    0x6040: "controlword (hex)", 0x6060: "modes of operation", 0x6065: "following error window",
-    0x607A: "target position", 0x60C2: "interpolation period",
+    0x1005: "COB-ID SYNC",
+    0x1016: "consumer heartbeat",
+    0x1017: "producer heartbeat",
+    0x1400: "RPDO1 comm",
+    0x1600: "RPDO1 map",
+    0x1800: "TPDO1 comm",
+    0x1A00: "TPDO1 map",
+    0x6040: "controlword (hex)",
+    0x6060: "modes of operation",
+    0x6065: "following error window",
+    0x607A: "target position",
+    0x60C2: "interpolation period",
 }

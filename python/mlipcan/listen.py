@@ -1,9 +1,9 @@
 """mlip-listen - watch the setpoint frames mlip-rt puts on a CAN bus.
 
-    mlip-listen.py (--can IFACE | --from-log FILE) [--config FILE] [--profile P]
-                   [--csv OUT] [--log OUT] [--json OUT] [--tpdo-csv OUT] [--duration S]
-                   [--receive auto|python-can|fast|recvmsg]
-    mlip-listen.py --check-layout [--config FILE] [--profile P]
+    mlip-listen (--can IFACE | --from-log FILE) [--config FILE] [--profile P]
+                [--csv OUT] [--log OUT] [--json OUT] [--tpdo-csv OUT] [--duration S]
+                [--receive auto|python-can|fast|recvmsg]
+    mlip-listen --check-layout [--config FILE] [--profile P]
 
 Rebuilds every axis position of every period from the frames of the output
 profile (include/mlip/can/canenc.h, tools/mlip.dbc) and reports what a drive would
@@ -66,32 +66,38 @@ SHA-256; --check-layout fills the cache and prints the layout. The hot path
 then decodes with struct and slicing. Exit status: 0 done, 1 runtime error
 (interface, log file), 2 usage or a layout mismatch.
 """
+
 import argparse
 import json
 import os
 import signal
 import sys
 import time
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import Any
 
 from . import sources
-from .decoders import DECODERS
-from .layout import DEFAULT_DBC, ROOT, Layout, _ns, fd_len, load_dbc  # noqa: F401 (API)
-from .report import position_record, timing, write_csv, write_log
-from .setup import Setup, UsageError  # noqa: F401 (API)
-from .sources import (expand_kept, open_python_can, open_socket, run_live, run_live_batch,
-                      run_log, run_python_can)
+from .config import Setup, StrPath, UsageError
+from .decoders import BATCH, DECODERS
+from .layout import Layout
+from .report import Frame, position_record, timing, write_csv, write_log
+from .settings import Settings
+from .sources import (
+    Kept,
+    expand_kept,
+    open_python_can,
+    open_socket,
+    run_live,
+    run_live_batch,
+    run_log,
+    run_python_can,
+)
 
 PROG = "mlip-listen"
-BATCH = sources.BATCH
-IN_VM = os.environ.get("MLIP_IN_VM") == "1"
 
 
-def _on_signal(sig, frame):
-    sources._stop = True
-
-
-def write_any_log(path, frames, iface):
+def write_any_log(path: StrPath, frames: Iterable[Frame], iface: str) -> None:
     """candump text (.log) written here; other formats through can.Logger."""
     if str(path).endswith(".log"):
         return write_log(path, frames, iface)
@@ -102,52 +108,113 @@ def write_any_log(path, frames, iface):
     with can.Logger(str(path)) as lg:
         for t, raw_id, fl, data in frames:
             ext = bool(raw_id & CAN_EFF_FLAG)
-            lg.on_message_received(can.Message(
-                timestamp=t / 1e9, arbitration_id=raw_id & (CAN_EFF_MASK if ext else CAN_SFF_MASK),
-                is_extended_id=ext, is_remote_frame=bool(raw_id & CAN_RTR_FLAG),
-                is_error_frame=bool(raw_id & CAN_ERR_FLAG), is_fd=fl is not None,
-                bitrate_switch=bool(fl and fl & 1), error_state_indicator=bool(fl and fl & 2),
-                data=data, channel=iface, is_rx=True))
+            lg.on_message_received(
+                can.Message(
+                    timestamp=t / 1e9,
+                    arbitration_id=raw_id & (CAN_EFF_MASK if ext else CAN_SFF_MASK),
+                    is_extended_id=ext,
+                    is_remote_frame=bool(raw_id & CAN_RTR_FLAG),
+                    is_error_frame=bool(raw_id & CAN_ERR_FLAG),
+                    is_fd=fl is not None,
+                    bitrate_switch=bool(fl and fl & 1),
+                    error_state_indicator=bool(fl and fl & 2),
+                    data=data,
+                    channel=iface,
+                    is_rx=True,
+                )
+            )
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: Sequence[str] | None = None, settings: Settings | None = None) -> int:
+    """The command line; settings: where the build (mlip-config), the DBC and
+    its cache are, and whether this runs in the emulated test VM (default:
+    from the environment, Settings.from_environ)."""
+    st = Settings.from_environ() if settings is None else settings
+    ap = argparse.ArgumentParser(
+        prog=PROG,
+        description=(__doc__ or "").split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     src = ap.add_mutually_exclusive_group()
     src.add_argument("--can", metavar="IFACE", help="SocketCAN interface to listen on, e.g. vcan0")
-    src.add_argument("--from-log", metavar="FILE",
-                     help="a log to decode instead: candump -l/-L text, or .asc/.blf/... (can.LogReader)")
-    ap.add_argument("--config", metavar="FILE", help="machine INI (axes, CAN_NODE, COUNTS_PER_UNIT, [CAN])")
-    ap.add_argument("--profile", choices=sorted(DECODERS), help="output profile (default: [CAN] PROFILE)")
-    ap.add_argument("--dbc", metavar="FILE", default=str(DEFAULT_DBC), help="frame layouts (default tools/mlip.dbc)")
+    src.add_argument(
+        "--from-log",
+        metavar="FILE",
+        help="a log to decode instead: candump -l/-L text, or .asc/.blf/... (can.LogReader)",
+    )
+    ap.add_argument(
+        "--config", metavar="FILE", help="machine INI (axes, CAN_NODE, COUNTS_PER_UNIT, [CAN])"
+    )
+    ap.add_argument(
+        "--profile", choices=sorted(DECODERS), help="output profile (default: [CAN] PROFILE)"
+    )
+    ap.add_argument(
+        "--dbc", metavar="FILE", default=str(st.dbc), help="frame layouts (default tools/mlip.dbc)"
+    )
     ap.add_argument("--csv", metavar="OUT", help="decoded cycles: cycle,t,x,...,cx,...")
-    ap.add_argument("--log", metavar="OUT",
-                    help="every frame: .log candump -l text, or .asc/.blf/... (can.Logger)")
-    ap.add_argument("--tpdo-csv", metavar="OUT",
-                    help="cia402: the drives' TPDOs, t,node,axis,statusword,state,actual,pos")
-    ap.add_argument("--drives", action="store_true",
-                    help="cia402: 6-byte RPDOs (controlword + target), as [DRIVES] ENABLE = 1")
-    ap.add_argument("--receive", choices=["auto", "python-can", "fast", "recvmsg"], default="auto",
-                    help="live receive path (default auto: fast in the emulated VM, else python-can)")
+    ap.add_argument(
+        "--log",
+        metavar="OUT",
+        help="every frame: .log candump -l text, or .asc/.blf/... (can.Logger)",
+    )
+    ap.add_argument(
+        "--tpdo-csv",
+        metavar="OUT",
+        help="cia402: the drives' TPDOs, t,node,axis,statusword,state,actual,pos",
+    )
+    ap.add_argument(
+        "--drives",
+        action="store_true",
+        help="cia402: 6-byte RPDOs (controlword + target), as [DRIVES] ENABLE = 1",
+    )
+    ap.add_argument(
+        "--receive",
+        choices=["auto", "python-can", "fast", "recvmsg"],
+        default="auto",
+        help="live receive path (default auto: fast in the emulated VM, else python-can)",
+    )
     ap.add_argument("--json", metavar="OUT", help="the report as JSON ('-': stdout)")
     ap.add_argument("--duration", metavar="S", type=float, help="stop after S seconds (live)")
-    ap.add_argument("--rcvbuf", metavar="BYTES", type=int, default=16 << 20,
-                    help="socket receive buffer (default 16 MiB)")
+    ap.add_argument(
+        "--rcvbuf",
+        metavar="BYTES",
+        type=int,
+        default=16 << 20,
+        help="socket receive buffer (default 16 MiB)",
+    )
     ap.add_argument("--log-iface", metavar="NAME", help="--from-log: only frames of this interface")
-    ap.add_argument("--python-can", "--python-can-recv", dest="receive", action="store_const",
-                    const="python-can", help="= --receive python-can")
-    ap.add_argument("--no-batch", dest="receive", action="store_const", const="recvmsg",
-                    help="= --receive recvmsg")
-    ap.add_argument("--dbc-cache", metavar="DIR", default=str(ROOT / "build"),
-                    help="where the layout read from the DBC is cached (default build/; '' : none)")
-    ap.add_argument("--check-layout", action="store_true",
-                    help="read the DBC (filling the cache), check it against the config, print "
-                         "the layout as JSON and exit (no --can/--from-log needed)")
+    ap.add_argument(
+        "--python-can",
+        "--python-can-recv",
+        dest="receive",
+        action="store_const",
+        const="python-can",
+        help="= --receive python-can",
+    )
+    ap.add_argument(
+        "--no-batch",
+        dest="receive",
+        action="store_const",
+        const="recvmsg",
+        help="= --receive recvmsg",
+    )
+    ap.add_argument(
+        "--dbc-cache",
+        metavar="DIR",
+        default=str(st.build),
+        help="where the layout read from the DBC is cached (default build/; '' : none)",
+    )
+    ap.add_argument(
+        "--check-layout",
+        action="store_true",
+        help="read the DBC (filling the cache), check it against the config, print "
+        "the layout as JSON and exit (no --can/--from-log needed)",
+    )
     ap.add_argument("-q", "--quiet", action="store_true", help="no summary line")
     a = ap.parse_args(argv)
 
     try:
-        setup = Setup.from_ini(a.config) if a.config else Setup()
+        setup = Setup.from_ini(a.config, st.build) if a.config else Setup()
         if a.drives:
             setup.drives = True
         profile = a.profile or setup.profile
@@ -156,65 +223,93 @@ def main(argv=None):
         print(f"{PROG}: {e}", file=sys.stderr)
         return 2
     if a.check_layout:
-        print(json.dumps({"profile": profile, "config": setup.source, "dbc": layout.dbc,
-                          "dbc_read_by": layout.dbc_source, "axes": setup.axes,
-                          "layout": layout.describe(), "dbc_notes": layout.notes}, indent=1))
+        print(
+            json.dumps(
+                {
+                    "profile": profile,
+                    "config": setup.source,
+                    "dbc": layout.dbc,
+                    "dbc_read_by": layout.dbc_source,
+                    "axes": setup.axes,
+                    "layout": layout.describe(),
+                    "dbc_notes": layout.notes,
+                },
+                indent=1,
+            )
+        )
         return 0
     if not a.can and not a.from_log:
         ap.error("one of --can IFACE or --from-log FILE is required")
     dec = DECODERS[profile](layout)
-    frames = [] if a.log else None
-    sources._stop = False
-    signal.signal(signal.SIGTERM, _on_signal)
-    signal.signal(signal.SIGINT, _on_signal)
+    frames: list[Frame] | None = [] if a.log else None
+    sources.STOP.clear()
+    signal.signal(signal.SIGTERM, sources.on_signal)
+    signal.signal(signal.SIGINT, sources.on_signal)
 
-    report = {"tool": PROG, "profile": profile, "config": setup.source, "dbc": layout.dbc,
-              "dbc_read_by": layout.dbc_source,
-              "axes": setup.axes, "nodes": setup.nodes, "counts_per_unit": setup.cpu,
-              "period_s": setup.period_s, "frames_per_cycle": layout.frames_per_cycle,
-              "layout": layout.describe(), "dbc_notes": layout.notes}
+    report: dict[str, Any] = {
+        "tool": PROG,
+        "profile": profile,
+        "config": setup.source,
+        "dbc": layout.dbc,
+        "dbc_read_by": layout.dbc_source,
+        "axes": setup.axes,
+        "nodes": setup.nodes,
+        "counts_per_unit": setup.cpu,
+        "period_s": setup.period_s,
+        "frames_per_cycle": layout.frames_per_cycle,
+        "layout": layout.describe(),
+        "dbc_notes": layout.notes,
+    }
     cpu0 = os.times()
     t0 = time.monotonic()
     iface = a.can or "vcan0"
     how = a.receive
     if how == "auto":
-        how = "fast" if IN_VM else "python-can"
+        how = "fast" if st.in_vm else "python-can"
     try:
         if a.can:
             if how == "python-can":
-                closer, info = open_python_can(a.can, a.rcvbuf, profile == "fd")
-                sock = closer.socket
+                bus, info = open_python_can(a.can, a.rcvbuf, profile == "fd")
+                sock = sources.bus_socket(bus)
             else:
                 sock, info = open_socket(a.can, a.rcvbuf, profile == "fd")
-                closer = sock
             report["source"] = a.can
             report["socket"] = info
             if "warning" in info:
                 print(f"{PROG}: warning: {info['warning']}", file=sys.stderr)
-            print(f"{PROG}: listening on {a.can} ({profile}, {len(setup.axes)} axes "
-                  f"{''.join(setup.axes)}, {how}, rcvbuf {info['rcvbuf_bytes']} bytes)",
-                  file=sys.stderr, flush=True)
+            print(
+                f"{PROG}: listening on {a.can} ({profile}, {len(setup.axes)} axes "
+                f"{''.join(setup.axes)}, {how}, rcvbuf {info['rcvbuf_bytes']} bytes)",
+                file=sys.stderr,
+                flush=True,
+            )
             t0 = time.monotonic()
             cpu0 = os.times()
             deadline = t0 + a.duration if a.duration else None
             try:
+                drops: int | None
                 if how == "python-can":
-                    drops = run_python_can(closer, dec, a.log, deadline)
-                    report["receive"] = "python-can can.Notifier" + \
-                        (", can.Logger" if a.log else "")
+                    run_python_can(bus, dec, a.log, deadline)
+                    drops = None  # python-can does not report kernel drops
+                    report["receive"] = "python-can can.Notifier" + (
+                        ", can.Logger" if a.log else ""
+                    )
                     frames = None  # can.Logger wrote the log
                 elif how == "recvmsg":
-                    drops = run_live(sock, dec, frames, deadline, a.can)
+                    drops = run_live(sock, dec, frames, deadline)
                     report["receive"] = "recvmsg per frame"
                 else:
-                    kept = [] if frames is not None else None
+                    kept: list[Kept] | None = [] if frames is not None else None
                     nwords = {"cia402": 1, "packed": 2, "fd": 1 + len(setup.axes)}[profile]
                     drops = run_live_batch(sock, dec, kept, deadline, nwords)
                     if kept is not None:
-                        frames = expand_kept(kept)
+                        frames = list(expand_kept(kept))
                     report["receive"] = f"recvmmsg, up to {BATCH} frames per call"
             finally:
-                closer.shutdown() if how == "python-can" else closer.close()
+                if how == "python-can":
+                    bus.shutdown()
+                else:
+                    sock.close()
             report["socket_drops"] = drops
         else:
             report["source"] = a.from_log
@@ -232,20 +327,28 @@ def main(argv=None):
     dec.finish()
 
     n_cyc = len(dec.cyc)
-    report.update({
-        "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
-        "cpu_user_s": round(cpu_user, 3), "cpu_sys_s": round(cpu_sys, 3),
-        "frames": dec.frames, "frames_ours": dec.ours,
-        "foreign": sum(dec.foreign.values()),
-        "foreign_ids": {f"0x{k:X}": v for k, v in sorted(dec.foreign.items())},
-        "malformed": dec.malformed,
-        "cycles": n_cyc,
-        "first_cycle": dec.cyc[0] if n_cyc else None,
-        "last_cycle": dec.cyc[-1] if n_cyc else None,
-        "gaps": dec.gaps, "gap_events": dec.gap_events,
-        "incomplete": dec.incomplete, "duplicates": dec.duplicates,
-        "backwards": dec.backwards, "stray": dec.stray,
-    })
+    report.update(
+        {
+            "wall_s": round(wall, 3),
+            "cpu_s": round(cpu, 3),
+            "cpu_user_s": round(cpu_user, 3),
+            "cpu_sys_s": round(cpu_sys, 3),
+            "frames": dec.frames,
+            "frames_ours": dec.ours,
+            "foreign": sum(dec.foreign.values()),
+            "foreign_ids": {f"0x{k:X}": v for k, v in sorted(dec.foreign.items())},
+            "malformed": dec.malformed,
+            "cycles": n_cyc,
+            "first_cycle": dec.cyc[0] if n_cyc else None,
+            "last_cycle": dec.cyc[-1] if n_cyc else None,
+            "gaps": dec.gaps,
+            "gap_events": dec.gap_events,
+            "incomplete": dec.incomplete,
+            "duplicates": dec.duplicates,
+            "backwards": dec.backwards,
+            "stray": dec.stray,
+        }
+    )
     if dec.batches:
         report["batches"] = dec.batches
         report["frames_per_batch"] = round(dec.frames / dec.batches, 1)
@@ -260,8 +363,15 @@ def main(argv=None):
     report["events"] = dec.events
     if dec.drives is not None:
         report.update(dec.drives.report())
-    ok = (dec.gaps == 0 and dec.incomplete == 0 and dec.stray == 0 and dec.duplicates == 0
-          and dec.malformed == 0 and dec.backwards == 0 and not report.get("socket_drops"))
+    ok = (
+        dec.gaps == 0
+        and dec.incomplete == 0
+        and dec.stray == 0
+        and dec.duplicates == 0
+        and dec.malformed == 0
+        and dec.backwards == 0
+        and not report.get("socket_drops")
+    )
     report["clean"] = ok
 
     try:
@@ -283,15 +393,25 @@ def main(argv=None):
 
     if not a.quiet:
         tm = report["timing"]
-        per = (f"period p50 {tm['p50_us']} us p99 {tm['p99_us']} us max {tm['max_us']} us"
-               if tm.get("intervals") else "period: n/a")
+        per = (
+            f"period p50 {tm['p50_us']} us p99 {tm['p99_us']} us max {tm['max_us']} us"
+            if tm.get("intervals")
+            else "period: n/a"
+        )
         last = ""
         if n_cyc:
             last = " last " + " ".join(f"{k}={v:g}" for k, v in report["last"]["pos"].items())
         drops = report.get("socket_drops")
-        print(f"{PROG}: {report['source']} {profile}: {dec.frames} frames, {n_cyc} cycles, "
-              f"{dec.gaps} lost, {dec.incomplete} incomplete, {dec.duplicates} duplicate, "
-              f"{dec.stray} stray, {dec.malformed} malformed, "
-              f"{'n/a' if drops is None else drops} socket drops; {per};{last}",
-              file=sys.stdout if a.json != "-" else sys.stderr, flush=True)
+        print(
+            f"{PROG}: {report['source']} {profile}: {dec.frames} frames, {n_cyc} cycles, "
+            f"{dec.gaps} lost, {dec.incomplete} incomplete, {dec.duplicates} duplicate, "
+            f"{dec.stray} stray, {dec.malformed} malformed, "
+            f"{'n/a' if drops is None else drops} socket drops; {per};{last}",
+            file=sys.stdout if a.json != "-" else sys.stderr,
+            flush=True,
+        )
     return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,15 +1,14 @@
-#!/usr/bin/env python3
 """mlip-drive-sim - simulated CiA 402 servo drives (CSP) on a CAN bus.
 
-    mlip-drive-sim.py [--can IFACE] (--nodes 1,2,3 | --config INI) [--start N=COUNTS]...
-                      [--state N=fault|switch-on-disabled] [--inject N:WHAT[=ARG]]...
-                      [--control FILE] [--record DIR] [--heartbeat-ms MS] [--lag ALPHA]
-                      [--duration S]
-    mlip-drive-sim.py --write-eds FILE [--nodes N]
+    mlip-drive-sim [--can IFACE] (--nodes 1,2,3 | --config INI) [--start N=COUNTS]...
+                   [--state N=fault|switch-on-disabled] [--inject N:WHAT[=ARG]]...
+                   [--control FILE] [--record DIR] [--heartbeat-ms MS] [--lag ALPHA]
+                   [--duration S]
+    mlip-drive-sim --write-eds FILE [--nodes N]
 
 One process plays N drives on one bus, each a canopen.LocalNode (the
 `canopen` package: SDO server, NMT slave, heartbeat and EMCY producers, PDO
-maps) with the CiA 402 drive profile on top (tools/mlipcan/drive.py):
+maps) with the CiA 402 drive profile on top (mlipcan.drive):
 
   NMT      boot-up message at start and after a reset (node / communication),
            pre-operational, operational (PDOs on), stopped
@@ -60,30 +59,37 @@ stderr: "mlip-drive-sim: ... ready" once every drive has sent its boot-up.
 SIGTERM/SIGINT: records written, a summary line (SYNCs, CPU per cycle),
 exit 0. Exit 1: the bus cannot be opened; 2: usage.
 """
+
 import argparse
 import os
 import signal
 import sys
+import threading
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import FrameType
+from typing import TypeVar
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from mlipcan import cia402 as P  # noqa: E402
-from mlipcan.setup import Setup, UsageError  # noqa: E402
+from . import cia402 as P
+from .config import Setup, UsageError
+from .settings import Settings
 
 PROG = "mlip-drive-sim"
-STATES = {"switch-on-disabled": P.SWITCH_ON_DISABLED, "fault": P.FAULT,
-          "not-ready": P.NOT_READY}
-_stop = False
+STATES = {
+    "switch-on-disabled": P.SWITCH_ON_DISABLED,
+    "fault": P.FAULT,
+    "not-ready": P.NOT_READY,
+}
+_STOP = threading.Event()  # SIGTERM, SIGINT
+T = TypeVar("T")
 
 
-def _on_signal(sig, frame):
-    global _stop
-    _stop = True
+def _on_signal(sig: int, frame: FrameType | None) -> None:
+    _STOP.set()
 
 
-def parse_injection(text):
+def parse_injection(text: str) -> tuple[int, str, str | None]:
     """'N:WHAT[=ARG]' -> (node, what, arg)."""
     node, sep, rest = text.strip().partition(":")
     if not sep or not node.strip().isdigit() or not rest:
@@ -92,48 +98,84 @@ def parse_injection(text):
     return int(node), what.strip(), (arg.strip() or None)
 
 
-def node_map(items, what, conv):
-    out = {}
+def node_map(items: Sequence[str] | None, what: str, conv: Callable[[str], T]) -> dict[int, T]:
+    out: dict[int, T] = {}
     for it in items or ():
         n, sep, v = it.partition("=")
         if not sep or not n.strip().isdigit():
             raise UsageError(f"{what} '{it}': expected NODE=VALUE")
         try:
             out[int(n)] = conv(v.strip())
-        except (ValueError, KeyError):
-            raise UsageError(f"{what} '{it}': bad value '{v}'")
+        except (ValueError, KeyError) as e:
+            raise UsageError(f"{what} '{it}': bad value '{v}'") from e
     return out
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: Sequence[str] | None = None, settings: Settings | None = None) -> int:
+    """The command line; settings: the build (mlip-config reads --config) and
+    whether this runs in the emulated test VM (default: the environment's)."""
+    st = Settings.from_environ() if settings is None else settings
+    ap = argparse.ArgumentParser(
+        prog=PROG,
+        description=(__doc__ or "").split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     ap.add_argument("--can", metavar="IFACE", default="vcan0", help="SocketCAN interface (vcan0)")
     ap.add_argument("--nodes", metavar="LIST", help="node ids, e.g. 1,2,3")
     ap.add_argument("--config", metavar="INI", help="machine INI: one drive per axis' CAN_NODE")
-    ap.add_argument("--start", metavar="N=COUNTS", action="append",
-                    help="position actual value of node N at power-up (counts; default 0)")
-    ap.add_argument("--state", metavar="N=STATE", action="append",
-                    help=f"power state of node N at power-up: {', '.join(STATES)}")
-    ap.add_argument("--inject", metavar="N:WHAT[=ARG]", action="append", default=[],
-                    help="fault injection from the start (see above)")
+    ap.add_argument(
+        "--start",
+        metavar="N=COUNTS",
+        action="append",
+        help="position actual value of node N at power-up (counts; default 0)",
+    )
+    ap.add_argument(
+        "--state",
+        metavar="N=STATE",
+        action="append",
+        help=f"power state of node N at power-up: {', '.join(STATES)}",
+    )
+    ap.add_argument(
+        "--inject",
+        metavar="N:WHAT[=ARG]",
+        action="append",
+        default=[],
+        help="fault injection from the start (see above)",
+    )
     ap.add_argument("--control", metavar="FILE", help="injections at run time: lines appended here")
     ap.add_argument("--record", metavar="DIR", help="events.jsonl and sync.csv here")
-    ap.add_argument("--heartbeat-ms", type=int, default=100,
-                    help="producer heartbeat time 0x1017 at power-up (default 100; 0: off)")
-    ap.add_argument("--lag", type=float, default=1.0, metavar="ALPHA",
-                    help="position loop: actual += ALPHA (target - actual) per SYNC (default 1)")
-    ap.add_argument("--sync-id", type=lambda s: int(s, 0), default=0x80,
-                    help="the SYNC COB-ID counted for sync.csv (default 0x80)")
-    ap.add_argument("--receive", choices=["auto", "python-can", "fast"], default="auto",
-                    help="how frames are read: python-can's Notifier, or the listener's recvmmsg "
-                         "batches from the same socket (auto: fast in the emulated VM)")
+    ap.add_argument(
+        "--heartbeat-ms",
+        type=int,
+        default=100,
+        help="producer heartbeat time 0x1017 at power-up (default 100; 0: off)",
+    )
+    ap.add_argument(
+        "--lag",
+        type=float,
+        default=1.0,
+        metavar="ALPHA",
+        help="position loop: actual += ALPHA (target - actual) per SYNC (default 1)",
+    )
+    ap.add_argument(
+        "--sync-id",
+        type=lambda s: int(s, 0),
+        default=0x80,
+        help="the SYNC COB-ID counted for sync.csv (default 0x80)",
+    )
+    ap.add_argument(
+        "--receive",
+        choices=["auto", "python-can", "fast"],
+        default="auto",
+        help="how frames are read: python-can's Notifier, or the listener's recvmmsg "
+        "batches from the same socket (auto: fast in the emulated VM)",
+    )
     ap.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     ap.add_argument("--write-eds", metavar="FILE", help="export a drive's object dictionary, exit")
     a = ap.parse_args(argv)
     try:
         if a.config:
-            nodes = Setup.from_ini(a.config).nodes
+            nodes = Setup.from_ini(a.config, st.build).nodes
         elif a.nodes:
             nodes = [int(v) for v in a.nodes.split(",")]
         else:
@@ -150,7 +192,7 @@ def main(argv=None):
         print(f"{PROG}: {e}", file=sys.stderr)
         return 2
 
-    from mlipcan import drive as D  # canopen: slow to import in the emulated VM
+    from . import drive as D  # canopen: slow to import in the emulated VM
 
     if a.write_eds:
         import canopen
@@ -160,15 +202,22 @@ def main(argv=None):
         return 0
 
     rec = D.Recorder(Path(a.record) if a.record else None)
-    specs = [{"node_id": n, "start_position": starts.get(n, 0),
-              "start_state": states.get(n, P.SWITCH_ON_DISABLED),
-              "heartbeat_ms": a.heartbeat_ms, "lag_alpha": a.lag} for n in nodes]
+    specs: list[D.DriveSpec] = [
+        {
+            "node_id": n,
+            "start_position": starts.get(n, 0),
+            "start_state": states.get(n, P.SWITCH_ON_DISABLED),
+            "heartbeat_ms": a.heartbeat_ms,
+            "lag_alpha": a.lag,
+        }
+        for n in nodes
+    ]
     sim = D.DriveSim(a.can, specs, rec, sync_id=a.sync_id)
     absent = {n for n, w, _ in injections if w == "absent"}
     signal.signal(signal.SIGTERM, _on_signal)
     signal.signal(signal.SIGINT, _on_signal)
     try:
-        fast = a.receive == "fast" or (a.receive == "auto" and os.environ.get("MLIP_IN_VM") == "1")
+        fast = a.receive == "fast" or (a.receive == "auto" and st.in_vm)
         sim.start(absent=absent, fast=fast)
     except (RuntimeError, OSError) as e:
         print(f"{PROG}: {e}", file=sys.stderr)
@@ -176,16 +225,20 @@ def main(argv=None):
     for n, w, arg in injections:
         if w != "absent":
             sim.inject(n, w, arg)
-    print(f"{PROG}: {len(nodes)} drives (nodes {','.join(map(str, nodes))}) on {a.can}, "
-          f"{'recvmmsg' if fast else 'python-can'} receive"
-          + (f", absent: {sorted(absent)}" if absent else "") + ": ready",
-          file=sys.stderr, flush=True)
+    print(
+        f"{PROG}: {len(nodes)} drives (nodes {','.join(map(str, nodes))}) on {a.can}, "
+        f"{'recvmmsg' if fast else 'python-can'} receive"
+        + (f", absent: {sorted(absent)}" if absent else "")
+        + ": ready",
+        file=sys.stderr,
+        flush=True,
+    )
     ctl_pos = 0
     if a.control:
         Path(a.control).touch()
     t_end = time.monotonic() + a.duration if a.duration else None
     cpu0 = os.times()
-    while not _stop and (t_end is None or time.monotonic() < t_end):
+    while not _STOP.is_set() and (t_end is None or time.monotonic() < t_end):
         time.sleep(0.005)
         sim.tick()
         if a.control:
@@ -207,10 +260,14 @@ def main(argv=None):
     cpu1 = os.times()
     sim.stop()
     per = sim.cycle_cpu_s / sim.cycles * 1e6 if sim.cycles else 0.0
-    print(f"{PROG}: {sim.sync_no} SYNCs, {sim.cycles} drive cycles, "
-          f"{per:.0f} us CPU per drive cycle (handler only), socket drops "
-          f"{'n/a' if sim.socket_drops is None else sim.socket_drops}, process CPU "
-          f"{cpu1.user + cpu1.system - cpu0.user - cpu0.system:.2f} s", file=sys.stderr, flush=True)
+    print(
+        f"{PROG}: {sim.sync_no} SYNCs, {sim.cycles} drive cycles, "
+        f"{per:.0f} us CPU per drive cycle (handler only), socket drops "
+        f"{'n/a' if sim.socket_drops is None else sim.socket_drops}, process CPU "
+        f"{cpu1.user + cpu1.system - cpu0.user - cpu0.system:.2f} s",
+        file=sys.stderr,
+        flush=True,
+    )
     return 0
 
 
