@@ -114,7 +114,7 @@ PURE_BINS := $(filter-out $(RT_TOOLS),$(TOOLS)) $(BENCH_BINS) $(filter-out $(RT_
 purity: $(BUILD)/libmlip.a $(PURE_BINS)
 	@tools/purity.sh $(BUILD)/libmlip.a
 	@for b in $(PURE_BINS); do \
-		if nm $$b | grep -q ' [TU] \(mlip_shm_\|mlip_rt_\|mlip_canio_\|can_do_\|can_get_\)'; then \
+		if nm $$b | grep -q ' [TU] \(mlip_shm_\|mlip_rt_\|mlip_canbus_\|mlip_period_\|mlip_drives_\|can_do_\|can_get_\)'; then \
 			echo "purity: $$b links rt/ or libsocketcan"; exit 1; fi; done
 	@echo "purity: $(words $(PURE_BINS)) tools, benchmarks and tests without rt/ or libsocketcan"
 
@@ -156,7 +156,8 @@ pytest: all
 # Formatting: every C file as .clang-format says (Debian's clang-format 14);
 # a difference fails with the file and line (clang-format -i FILE mends it).
 C_FILES := $(shell git ls-files 'src/*.c' 'include/*.h' 'rt/*.c' 'rt/*.h' 'tools/*.c' \
-             'tools/*.h' 'tests/unit/*.c' 'bench/*.c' 'fuzz/*.c' 'fuzz/*.h' 2>/dev/null)
+             'tools/*.h' 'tests/unit/*.c' 'tests/py/*.c' 'bench/*.c' 'fuzz/*.c' 'fuzz/*.h' \
+             2>/dev/null)
 format-check:
 	@clang-format --dry-run -Werror $(C_FILES)
 	@echo "format: $(words $(C_FILES)) C files as .clang-format says"

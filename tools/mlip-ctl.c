@@ -20,7 +20,7 @@
 #include <time.h>
 
 #include "cli.h"
-#include "confjson.h"
+#include "json.h"
 #include "mlip/canopen/canopen.h"
 #include "mlip/ipc/ring.h"
 #include "rt.h"
@@ -153,21 +153,110 @@ static void print_age(FILE *f, int64_t a)
 	}
 }
 
-/* A number, or null when it is not finite (JSON has no NaN). */
-static void json_num(double v)
-{
-	if (isfinite(v)) {
-		printf("%.17g", v);
-	} else {
-		printf("null");
-	}
-}
-
 /* The state of a controller that does not beat (mlip/ipc/peer.h): its
  * process there but not running, or gone. */
 static const char *dead_name(mlip_peer_verdict v)
 {
 	return v == MLIP_PEER_LATE ? "not responding" : "not running";
+}
+
+/* Axis letter -> value, for the axes in mask. */
+static void json_axes(struct mlip_json *j, const char *key, const struct mlip_machine *m,
+                      const double *v, uint32_t mask)
+{
+	mlip_json_object(j, key, 1);
+	for (int k = 0; k < m->n_axes; k++) {
+		if (mask & (1u << k)) {
+			char letter[2] = {m->axis[k].letter, '\0'};
+			mlip_json_number(j, letter, "%.17g", v[k]);
+		}
+	}
+	mlip_json_close(j);
+}
+
+/* status --json: one object on stdout. */
+static void status_json(const struct mlip_shm *s, const struct mlip_ring_status *st,
+                        const struct mlip_ring_feeder *fd, const struct mlip_machine *m,
+                        mlip_peer_verdict v, int64_t age, int falive)
+{
+	struct mlip_json j;
+	char fname[160];
+	int alive = v == MLIP_PEER_ALIVE;
+	uint32_t all = (1u << m->n_axes) - 1u;
+	double home[MLIP_MAX_AXES];
+	mlip_json_begin(&j, stdout);
+	mlip_json_string(&j, "shm", s->name);
+	/* a controller that does not beat is in no state of its own: say so,
+	 * with the one it last published beside */
+	mlip_json_string(&j, "state", alive ? mlip_ctl_state_name(st->state) : dead_name(v));
+	mlip_json_string(&j, "last_state", mlip_ctl_state_name(st->state));
+	mlip_json_bool(&j, "alive", alive);
+	mlip_json_string(&j, "liveness", mlip_peer_verdict_name(v));
+	mlip_json_uint(&j, "heartbeat", st->heartbeat);
+	mlip_json_number(&j, "heartbeat_age_ms", "%.3f", age < 0 ? NAN : (double)age / 1e6);
+	mlip_json_string(&j, "reason", mlip_state_why_name(st->reason));
+	mlip_json_uint(&j, "reason_seq", st->reason_seq);
+	mlip_json_uint(&j, "reason_line", st->reason_line);
+	if (st->reason == MLIP_WHY_DRIVE) {
+		/* a drive fault: the field is the event, with the drive's node */
+		mlip_cli_drive_fault_text(st->reason_field, (int64_t)st->reason_value, fname,
+		                          sizeof(fname));
+		mlip_json_string(&j, "reason_field",
+		                 mlip_drive_fault_name((mlip_drive_fault)st->reason_field));
+		mlip_json_uint(&j, "reason_node", st->reason_node);
+		mlip_json_string(&j, "reason_text", fname);
+	} else if (st->reason_field == MLIP_FIELD_NONE) {
+		mlip_json_null(&j, "reason_field");
+	} else {
+		mlip_cli_field_name(m, st->reason_field, fname, sizeof(fname));
+		mlip_json_string(&j, "reason_field", fname);
+	}
+	mlip_json_number(&j, "reason_value", "%.17g", st->reason_value);
+	json_axes(&j, "position", m, st->pos, all);
+	/* where the current (or last) program began: a continuation's origin */
+	json_axes(&j, "program_start", m, st->prog_start, all);
+	/* the drives' position actual (mlip-rt --drives), and the machine's HOME:
+	 * where they were at bring-up; null without drives */
+	for (int k = 0; k < m->n_axes; k++) {
+		home[k] = m->axis[k].home;
+	}
+	if (st->actual_mask == 0) {
+		mlip_json_null(&j, "position_actual");
+		mlip_json_null(&j, "start_position");
+	} else {
+		json_axes(&j, "position_actual", m, st->pos_actual, st->actual_mask);
+		json_axes(&j, "start_position", m, home, all);
+	}
+	/* the drives' power (mlip-rt --drives): null without drives */
+	if (st->drive_power == MLIP_POWER_NONE) {
+		mlip_json_null(&j, "drives");
+	} else {
+		mlip_json_string(&j, "drives", mlip_drive_power_name(st->drive_power));
+	}
+	mlip_json_uint(&j, "drives_last_change_periods", st->drive_power_periods);
+	/* not known without a controller */
+	mlip_json_number(&j, "speed_mm_s", "%.17g", alive ? st->speed_mm_s : NAN);
+	mlip_json_number(&j, "dwell_left_s", "%.6f", (double)st->dwell_left * m->period_s);
+	mlip_json_bool(&j, "optional_stop", st->optional_stop);
+	mlip_json_uint(&j, "exec_seq", st->exec_seq);
+	mlip_json_uint(&j, "exec_line", st->exec_line);
+	mlip_json_uint(&j, "override_pct", st->override_pct);
+	mlip_json_uint(&j, "overruns", st->overruns);
+	mlip_json_uint(&j, "underruns", st->underruns);
+	mlip_json_uint(&j, "can_tx_errors", st->can_tx_errors);
+	mlip_json_uint(&j, "can_bus_errors", st->can_bus_errors);
+	mlip_json_uint(&j, "frames_sent", st->frames_sent);
+	mlip_json_uint(&j, "blocks_consumed", st->blocks_consumed);
+	mlip_json_uint(&j, "stops", st->stops);
+	mlip_json_number(&j, "stop_mm", "%.6f", (double)st->stop_nm * 1e-6);
+	mlip_json_uint(&j, "stop_periods", st->stop_periods);
+	mlip_json_uint(&j, "queued", mlip_ring_count(s->ring));
+	mlip_json_uint(&j, "capacity", s->ring->capacity);
+	mlip_json_int(&j, "feeder_pid", fd->pid);
+	mlip_json_bool(&j, "feeder_alive", falive);
+	mlip_json_uint(&j, "total_blocks", fd->total_blocks);
+	mlip_json_bool(&j, "program_end", fd->program_end);
+	mlip_json_end(&j);
 }
 
 static int cmd_status(struct mlip_shm *s, int json)
@@ -216,120 +305,17 @@ static int cmd_status(struct mlip_shm *s, int json)
 	}
 
 	if (json) {
-		printf("{\n  \"shm\": ");
-		mlip_json_str(stdout, s->name);
-		printf(",\n");
-		/* a controller that does not beat is in no state of its own: say so,
-		 * with the one it last published beside */
-		printf("  \"state\": \"%s\",\n  \"last_state\": \"%s\",\n  \"alive\": %s,\n",
-		       alive ? mlip_ring_state_name(st.state) : dead_name(v),
-		       mlip_ring_state_name(st.state), alive ? "true" : "false");
-		printf("  \"liveness\": \"%s\",\n", mlip_peer_verdict_name(v));
-		printf("  \"heartbeat\": %llu,\n", (unsigned long long)st.heartbeat);
-		if (a < 0) {
-			printf("  \"heartbeat_age_ms\": null,\n");
-		} else {
-			printf("  \"heartbeat_age_ms\": %.3f,\n", (double)a / 1e6);
-		}
-		printf("  \"reason\": \"%s\",\n  \"reason_seq\": %llu,\n  \"reason_line\": %u,\n",
-		       mlip_state_why_name(st.reason), (unsigned long long)st.reason_seq,
-		       (unsigned)st.reason_line);
-		printf("  \"reason_field\": ");
-		if (st.reason == MLIP_WHY_DRIVE) {
-			/* a drive fault: the field is the event, with the drive's node */
-			mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
-			                          sizeof(fname));
-			mlip_json_str(stdout,
-			              mlip_drive_fault_name((mlip_drive_fault)st.reason_field));
-			printf(",\n  \"reason_node\": %u,\n  \"reason_text\": ",
-			       (unsigned)st.reason_node);
-			mlip_json_str(stdout, fname);
-			printf(",\n");
-		} else if (st.reason_field == MLIP_FIELD_NONE) {
-			printf("null,\n");
-		} else {
-			mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
-			mlip_json_str(stdout, fname);
-			printf(",\n");
-		}
-		printf("  \"reason_value\": ");
-		json_num(st.reason_value);
-		printf(",\n  \"position\": {");
-		for (int k = 0; k < m.n_axes; k++) {
-			printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
-			json_num(st.pos[k]);
-		}
-		printf("},\n  \"program_start\": {");
-		/* where the current (or last) program began: a continuation's origin */
-		for (int k = 0; k < m.n_axes; k++) {
-			printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
-			json_num(st.prog_start[k]);
-		}
-		printf("},\n  \"position_actual\": ");
-		/* the drives' position actual (mlip-rt --drives); null without drives */
-		if (st.actual_mask == 0) {
-			printf("null");
-		} else {
-			printf("{");
-			for (int k = 0, n = 0; k < m.n_axes; k++) {
-				if (st.actual_mask & (1u << k)) {
-					printf("%s\"%c\": ", n++ ? ", " : "", m.axis[k].letter);
-					json_num(st.pos_actual[k]);
-				}
-			}
-			printf("}");
-		}
-		printf(",\n  \"start_position\": ");
-		/* with drives, the machine's HOME is where they were at bring-up */
-		if (st.actual_mask == 0) {
-			printf("null");
-		} else {
-			printf("{");
-			for (int k = 0; k < m.n_axes; k++) {
-				printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
-				json_num(m.axis[k].home);
-			}
-			printf("}");
-		}
-		/* the drives' power (mlip-rt --drives): null without drives */
-		printf(",\n  \"drives\": ");
-		if (st.drive_power == MLIP_POWER_NONE) {
-			printf("null");
-		} else {
-			printf("\"%s\"", mlip_drive_power_name(st.drive_power));
-		}
-		printf(",\n  \"drives_last_change_periods\": %u", (unsigned)st.drive_power_periods);
-		printf(",\n  \"speed_mm_s\": ");
-		json_num(alive ? st.speed_mm_s : NAN); /* not known without a controller */
-		printf(",\n  \"dwell_left_s\": %.6f,\n  \"optional_stop\": %s,\n",
-		       (double)st.dwell_left * m.period_s, st.optional_stop ? "true" : "false");
-		printf("  \"exec_seq\": %llu,\n  \"exec_line\": %u,\n",
-		       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
-		printf("  \"override_pct\": %u,\n", (unsigned)st.override_pct);
-		printf("  \"overruns\": %llu,\n  \"underruns\": %llu,\n",
-		       (unsigned long long)st.overruns, (unsigned long long)st.underruns);
-		printf("  \"can_tx_errors\": %llu,\n  \"can_bus_errors\": %llu,\n",
-		       (unsigned long long)st.can_tx_errors, (unsigned long long)st.can_bus_errors);
-		printf("  \"frames_sent\": %llu,\n  \"blocks_consumed\": %llu,\n",
-		       (unsigned long long)st.frames_sent, (unsigned long long)st.blocks_consumed);
-		printf("  \"stops\": %u,\n  \"stop_mm\": %.6f,\n  \"stop_periods\": %u,\n",
-		       (unsigned)st.stops, (double)st.stop_nm * 1e-6, (unsigned)st.stop_periods);
-		printf("  \"queued\": %u,\n  \"capacity\": %u,\n",
-		       (unsigned)mlip_ring_count(s->ring), (unsigned)s->ring->capacity);
-		printf("  \"feeder_pid\": %d,\n  \"feeder_alive\": %s,\n", (int)fd.pid,
-		       falive ? "true" : "false");
-		printf("  \"total_blocks\": %llu,\n  \"program_end\": %s\n}\n",
-		       (unsigned long long)fd.total_blocks, fd.program_end ? "true" : "false");
+		status_json(s, &st, &fd, &m, v, a, falive);
 		return alive && st.state != MLIP_STATE_FAULT ? EXIT_DONE : EXIT_FAIL;
 	}
 
 	if (alive) {
 		printf("controller  %s: %s, alive (heartbeat ", s->name,
-		       mlip_ring_state_name(st.state));
+		       mlip_ctl_state_name(st.state));
 	} else {
 		printf("controller  %s: %s, last state %s (heartbeat ", s->name,
 		       v == MLIP_PEER_LATE ? "NOT RESPONDING" : "NOT RUNNING",
-		       mlip_ring_state_name(st.state));
+		       mlip_ctl_state_name(st.state));
 	}
 	print_age(stdout, a);
 	printf(", period %llu)\n", (unsigned long long)st.heartbeat);
@@ -395,7 +381,9 @@ static int cmd_status(struct mlip_shm *s, int json)
 		    "switch on 0x0007 for the next program",
 		    "enable operation 0x000F"};
 		printf("drives      %s (%s)", mlip_drive_power_name(st.drive_power),
-		       st.drive_power < MLIP_POWER_COUNT ? how[st.drive_power] : "?");
+		       st.drive_power < MLIP_POWER_COUNT && how[st.drive_power] != NULL
+		           ? how[st.drive_power]
+		           : "?");
 		if (st.drive_power_periods > 0 &&
 		    (st.drive_power == MLIP_POWER_OFF || st.drive_power == MLIP_POWER_ENABLED)) {
 			printf(", last change in %u periods", (unsigned)st.drive_power_periods);
@@ -561,7 +549,7 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 		fprintf(stderr, PROG ": %s: refused by the controller: %s", what,
 		        result_text(result));
 		if (read_status(s->ring, &st) == 0) {
-			fprintf(stderr, " (state %s)", mlip_ring_state_name(st.state));
+			fprintf(stderr, " (state %s)", mlip_ctl_state_name(st.state));
 		}
 		fputc('\n', stderr);
 		return EXIT_FAIL;

@@ -299,7 +299,7 @@ static void progress(struct feed *f, int force)
 		    "\r[%s] %3d%%  block %llu/%llu  queued %llu  line %u  override %u %%  %s\033[K",
 		    b, pct, (unsigned long long)done, (unsigned long long)total,
 		    (unsigned long long)queued, (unsigned)(done ? f->exec_line : 0),
-		    (unsigned)f->st.override_pct, mlip_ring_state_name(f->st.state));
+		    (unsigned)f->st.override_pct, mlip_ctl_state_name(f->st.state));
 		f->line_open = 1;
 	} else {
 		fprintf(stderr,
@@ -308,7 +308,7 @@ static void progress(struct feed *f, int force)
 		        "%%, %s\n",
 		        (unsigned long long)done, (unsigned long long)total, pct,
 		        (unsigned long long)queued, (unsigned)(done ? f->exec_line : 0),
-		        (unsigned)f->st.override_pct, mlip_ring_state_name(f->st.state));
+		        (unsigned)f->st.override_pct, mlip_ctl_state_name(f->st.state));
 	}
 	fflush(stderr);
 }
@@ -663,7 +663,7 @@ static int interrupted(struct feed *f)
 		fprintf(stderr,
 		        PROG ": interrupted: stop posted; controller still %s at line %u: check "
 		             "mlip-ctl status\n",
-		        mlip_ring_state_name(f->st.state), resume_line(f));
+		        mlip_ctl_state_name(f->st.state), resume_line(f));
 	} else {
 		uint64_t next = rest_seq(f);
 		fprintf(stderr,
@@ -738,7 +738,7 @@ static int check_continues(struct feed *f)
 		        "(state %s): it cannot continue one; nothing was sent (send the program "
 		        "from its start)\n",
 		        (unsigned long long)f->first_seq, f->shm.name,
-		        mlip_ring_state_name(f->st.state));
+		        mlip_ctl_state_name(f->st.state));
 	} else {
 		fprintf(stderr,
 		        PROG
@@ -813,7 +813,7 @@ static int wait_start(struct feed *f)
 				    ": waiting for the controller to be idle (state %s, line %u, "
 				    "%u records queued): a previous program is still running; "
 				    "mlip-ctl stop ends it\n",
-				    mlip_ring_state_name(f->st.state), (unsigned)f->st.exec_line,
+				    mlip_ctl_state_name(f->st.state), (unsigned)f->st.exec_line,
 				    (unsigned)count);
 			}
 		}

@@ -396,27 +396,30 @@ mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t
 	return MLIP_OK;
 }
 
-mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out)
+mlip_status mlip_ring_port_view(struct mlip_ring_port *p, struct mlip_rec_view *v, uint32_t *apart)
 {
 	const struct mlip_ring_rec *recs = (const struct mlip_ring_rec *)(const void *)(p->r + 1);
 
-	if (p->other == p->own && port_reload(p, NULL) != MLIP_OK) {
+	memset(v, 0, sizeof(*v));
+	if (port_reload(p, apart) != MLIP_OK) {
 		return MLIP_E_RANGE;
 	}
-	if (p->other == p->own) {
-		return MLIP_E_EMPTY;
-	}
-	*out = recs[p->own & p->mask];
+	uint32_t n = p->other - p->own, at = p->own & p->mask;
+	uint32_t first = n < p->capacity - at ? n : p->capacity - at;
+	v->span[0] = recs + at;
+	v->len[0] = first;
+	v->span[1] = recs;
+	v->len[1] = n - first;
 	return MLIP_OK;
 }
 
-mlip_status mlip_ring_port_pop(struct mlip_ring_port *p)
+mlip_status mlip_ring_port_pop_n(struct mlip_ring_port *p, uint32_t n)
 {
-	if (p->other == p->own) {
-		return MLIP_E_EMPTY; /* peek first */
+	if (n > p->other - p->own) {
+		return MLIP_E_RANGE; /* more than were there */
 	}
-	p->own++;
-	ST(&p->r->tail, p->own, REL); /* hands the slot back to the producer */
+	p->own += n;
+	ST(&p->r->tail, p->own, REL); /* hands the slots back to the producer */
 	return MLIP_OK;
 }
 
@@ -764,50 +767,12 @@ int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
 
 #define NAME_OF(names, v) ((v) < sizeof(names) / sizeof((names)[0]) ? (names)[v] : "?")
 
-const char *mlip_ring_state_name(uint32_t state)
-{
-	static const char *const names[] = {"idle",    "running", "held",     "stopping", "fault",
-	                                    "starved", "paused",  "dwelling", "pre-read"};
-
-	return NAME_OF(names, state);
-}
-
 const char *mlip_ring_cmd_name(uint32_t op)
 {
 	static const char *const names[] = {"none",   "override", "hold",
 	                                    "resume", "stop",     "optional-stop"};
 
 	return NAME_OF(names, op);
-}
-
-const char *mlip_state_why_name(uint32_t why)
-{
-	static const char *const names[] = {"none",
-	                                    "program start",
-	                                    "continuation",
-	                                    "pre-read done",
-	                                    "program end",
-	                                    "underrun",
-	                                    "feeder gone",
-	                                    "hold",
-	                                    "override 0",
-	                                    "resume",
-	                                    "CAN tx refused",
-	                                    "CAN error frames",
-	                                    "stall",
-	                                    "dwell",
-	                                    "dwell done",
-	                                    "pause (M0)",
-	                                    "optional pause (M1)",
-	                                    "stop",
-	                                    "exit signal",
-	                                    "bad record",
-	                                    "ring corrupt",
-	                                    "position beyond the drives' range",
-	                                    "drive fault",
-	                                    "stop before the start"};
-
-	return NAME_OF(names, why);
 }
 
 const char *mlip_rec_field_name(uint32_t field)
@@ -817,14 +782,6 @@ const char *mlip_rec_field_name(uint32_t field)
 	    "head", "target[0]", "target[1]", "target[2]", "target[3]", "target[4]", "target[5]"};
 
 	return NAME_OF(names, field);
-}
-
-const char *mlip_drive_power_name(uint32_t power)
-{
-	static const char *const names[] = {"none", "enabled",      "disabling", "shutting down",
-	                                    "off",  "switching on", "enabling"};
-
-	return NAME_OF(names, power);
 }
 
 const char *mlip_rec_type_name(uint32_t type)

@@ -15,7 +15,7 @@
 
 #include <cmocka.h>
 
-#include "mlip/canopen/canopen.h"
+#include "mlip/canopen/drive.h"
 #include "mlip/machine/config.h"
 #include "mlip/ctl/controller.h"
 
@@ -26,6 +26,7 @@ static struct mlip_planner planner;
 static struct mlip_ctl ctl;
 static struct mlip_ctl_out out;
 static struct mlip_ring *ring;
+static struct mlip_ring_port rx; /* the controller's records: a view of it each period */
 static void *mem;
 static uint64_t period;
 static int feeder_alive;
@@ -72,7 +73,8 @@ static int setup(void **state)
 	/* look-ahead 16: smaller than the programs below, so the pre-read ends
 	 * on a full look-ahead unless a feeder dies first */
 	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16};
-	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o, ring), MLIP_OK);
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	assert_int_equal(mlip_ring_port_open(&rx, ring, 0), MLIP_OK);
 	period = 0;
 	feeder_alive = 1;
 	stop_count = feeder_base = 0;
@@ -89,6 +91,16 @@ static int teardown(void **state)
 	return 0;
 }
 
+/* One period on in, its records the ring's; what it took popped. */
+static void run_period(struct mlip_ctl_in *in)
+{
+	if (mlip_ring_port_view(&rx, &in->recs, &in->recs_corrupt) == MLIP_OK) {
+		in->recs_corrupt = 0;
+	}
+	mlip_ctl_period(&ctl, in, &out);
+	assert_int_equal(mlip_ring_port_pop_n(&rx, out.taken), MLIP_OK);
+}
+
 /* One period with a command (op 0: none) after `missed` missed periods. */
 static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 {
@@ -99,12 +111,12 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	                         .stop_requests = stop_count,
 	                         .feeder_stop_base = feeder_base};
 	in.cmd = op ? &cmd : NULL;
-	in.drive_fault = drv_fault;
-	in.actual_mask = drv_actual_mask;
-	memcpy(in.pos_actual, drv_actual, sizeof(in.pos_actual));
-	memcpy(in.drive_sw, drv_sw, sizeof(in.drive_sw));
+	in.drives.fault = drv_fault;
+	in.drives.actual_mask = drv_actual_mask;
+	memcpy(in.drives.pos_actual, drv_actual, sizeof(in.drives.pos_actual));
+	memcpy(in.drives.sw, drv_sw, sizeof(in.drives.sw));
 	memset(&drv_fault, 0, sizeof(drv_fault));
-	mlip_ctl_period(&ctl, &in, &out);
+	run_period(&in);
 	for (uint32_t i = 0; i < out.n_events; i++) {
 		if (out.events[i].kind == MLIP_EV_STATE && n_seen < 256) {
 			seen_state[n_seen] = out.events[i].state;
@@ -127,12 +139,12 @@ static int until(uint32_t s, int n)
 {
 	for (int i = 1; i <= n; i++) {
 		tick(1);
-		if (ctl.state == s) {
+		if (out.status.state == s) {
 			return i;
 		}
 	}
-	fail_msg("state %s not reached in %d periods (now %s)", mlip_ring_state_name(s), n,
-	         mlip_ring_state_name(ctl.state));
+	fail_msg("state %s not reached in %d periods (now %s)", mlip_ctl_state_name(s), n,
+	         mlip_ctl_state_name(out.status.state));
 	return -1;
 }
 
@@ -198,7 +210,7 @@ static void test_feeder_dead_in_preread_runs_what_came(void **st)
 	(void)st;
 	push(1, 10); /* 10 < look-ahead 16, no END */
 	tick(50);
-	assert_int_equal(ctl.state, MLIP_STATE_PREREAD); /* a live feeder may still send */
+	assert_int_equal(out.status.state, MLIP_STATE_PREREAD); /* a live feeder may still send */
 	assert_true(out.pos[0] == 0.0);
 	feeder_alive = 0;
 	until(MLIP_STATE_STARVED, 3000);
@@ -218,20 +230,20 @@ static void test_starved_takes_only_the_next_block(void **st)
 	tick(20);
 	feeder_alive = 0;
 	until(MLIP_STATE_STARVED, 3000);
-	assert_int_equal(ctl.exec_seq, 20);
+	assert_int_equal(out.status.exec_seq, 20);
 	feeder_alive = 1;
 	push(25, 30); /* skips 21..24 */
 	tick(100);
-	assert_int_equal(ctl.refused, 1);
+	assert_int_equal(out.counts.refused, 1);
 	assert_int_equal(mlip_ring_count(ring), 0); /* dropped */
 	assert_true(out.pos[0] == 20.0);
-	assert_int_equal(ctl.state, MLIP_STATE_STARVED);
+	assert_int_equal(out.status.state, MLIP_STATE_STARVED);
 	feeder_alive = 0; /* that feeder gone: the dropping ends */
 	tick(2);
 	feeder_alive = 1;
 	push(20, 22); /* repeats 20 */
 	tick(100);
-	assert_int_equal(ctl.refused, 2);
+	assert_int_equal(out.counts.refused, 2);
 	assert_true(out.pos[0] == 20.0);
 	feeder_alive = 0;
 	tick(2);
@@ -240,8 +252,8 @@ static void test_starved_takes_only_the_next_block(void **st)
 	end(25);
 	until(MLIP_STATE_IDLE, 3000);
 	assert_true(out.pos[0] == 24.0);
-	assert_int_equal(ctl.exec_seq, 25);
-	assert_int_equal(ctl.refused, 2);
+	assert_int_equal(out.status.exec_seq, 25);
+	assert_int_equal(out.counts.refused, 2);
 	assert_true(saw(MLIP_STATE_PREREAD, MLIP_WHY_CONTINUE));
 	assert_true(saw(MLIP_STATE_IDLE, MLIP_WHY_END));
 }
@@ -271,10 +283,10 @@ static void test_stop_distance_published(void **st)
 	/* resumed, then stopped: a second stop, to rest on the line */
 	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
 	tick(200);
-	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
 	assert_true(saw(MLIP_STATE_RUNNING, MLIP_WHY_RESUME));
 	assert_int_equal(period_cmd(MLIP_CMD_STOP, 0, 0), MLIP_OK);
-	assert_int_equal(ctl.state, MLIP_STATE_STOPPING);
+	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
 	tick(300);
 	s = status();
 	assert_int_equal(s.state, MLIP_STATE_IDLE);
@@ -299,7 +311,7 @@ static void test_stop_before_first_block_completes(void **st)
 	tick(20);
 	period_cmd(MLIP_CMD_STOP, 0, 0);
 	tick(300);
-	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_true(out.pos[0] > 0.0 && out.pos[0] < 5.0); /* stopped inside block 1 */
 	assert_int_equal(status().exec_seq, 0);
 }
@@ -318,11 +330,11 @@ static void test_stop_latched_for_the_program_about_to_start(void **st)
 	stop_count = 4; /* mlip-ctl stop during its check pass */
 	tick(5);
 	assert_int_equal(status().stop_seen, 4); /* acknowledged */
-	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	push(1, 5);
 	end(6);
 	tick(300);
-	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_true(out.pos[0] == 0.0 && out.pos[1] == 0.0); /* nothing moved */
 	assert_int_equal(status().reason, MLIP_WHY_STOP_EARLY);
 	assert_int_equal(status().reason_seq, 1);
@@ -357,8 +369,8 @@ static void test_stop_latched_for_the_program_about_to_start(void **st)
 	                         .feeder_unread = 1,
 	                         .stop_requests = stop_count,
 	                         .feeder_stop_base = 6};
-	mlip_ctl_period(&ctl, &in, &out);
-	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	run_period(&in);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_int_equal(mlip_ring_count(ring), 2);
 	feeder_base = 6;
 	until(MLIP_STATE_IDLE, 3000);
@@ -373,10 +385,10 @@ static void test_stop_counter_stops_a_running_program(void **st)
 	move(1, 100.0, 0.0);
 	end(2);
 	tick(300);
-	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
 	stop_count++;
 	tick(1);
-	assert_int_equal(ctl.state, MLIP_STATE_STOPPING);
+	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
 	assert_int_equal(status().stop_seen, stop_count);
 	until(MLIP_STATE_IDLE, 500);
 	assert_int_equal(status().reason, MLIP_WHY_STOP);
@@ -431,7 +443,7 @@ static void stop_in_wait(uint8_t kind, int exit_signal)
 	assert_int_equal(status().exec_line, 5);
 	if (exit_signal) {
 		struct mlip_ctl_in in = {.period = period++, .feeder_alive = 1, .exit_request = 1};
-		mlip_ctl_period(&ctl, &in, &out);
+		run_period(&in);
 	} else {
 		stop_count++;
 		tick(1);
@@ -482,17 +494,17 @@ static void test_override_zero_and_exit(void **st)
 	period_cmd(MLIP_CMD_OVERRIDE, 100, 0);
 	until(MLIP_STATE_RUNNING, 10);
 	struct mlip_ctl_in in = {.period = period++, .feeder_alive = 1, .exit_request = 1};
-	mlip_ctl_period(&ctl, &in, &out);
-	assert_int_equal(ctl.state, MLIP_STATE_STOPPING);
-	assert_int_equal(ctl.why.why, MLIP_WHY_EXIT);
+	run_period(&in);
+	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
+	assert_int_equal(out.status.reason, MLIP_WHY_EXIT);
 	int done = 0;
 	for (int i = 0; i < 500 && !done; i++) {
 		in.period = period++;
-		mlip_ctl_period(&ctl, &in, &out);
+		run_period(&in);
 		done = out.done;
 	}
 	assert_true(done);
-	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_true(out.pos[0] < 100.0);
 }
 
@@ -511,10 +523,10 @@ static void dwell_at(double x)
 	end(4);
 	double last = NAN;
 	int run = 0, longest = 0, dwelling = 0;
-	for (int i = 0; i < 5000 && !(ctl.state == MLIP_STATE_IDLE && i > 0); i++) {
+	for (int i = 0; i < 5000 && !(out.status.state == MLIP_STATE_IDLE && i > 0); i++) {
 		tick(1);
-		dwelling += ctl.state == MLIP_STATE_DWELLING;
-		if (ctl.state == MLIP_STATE_DWELLING) {
+		dwelling += out.status.state == MLIP_STATE_DWELLING;
+		if (out.status.state == MLIP_STATE_DWELLING) {
 			assert_int_equal(status().exec_seq, 2);
 			assert_true(out.pos[0] == x);
 		}
@@ -524,7 +536,7 @@ static void dwell_at(double x)
 		}
 		last = out.pos[0];
 	}
-	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_true(out.pos[0] == 2.0 * x);
 	assert_true(dwelling == 249 || dwelling == 250);
 	/* the arrival at x and 250 periods more at it: 250 periods of rest */
@@ -551,9 +563,9 @@ static void test_dwell_first_and_zero(void **st)
 	move(3, 1.0, 0.0);
 	end(4);
 	int dwelling = 0;
-	for (int i = 0; i < 2000 && !(ctl.state == MLIP_STATE_IDLE && i > 0); i++) {
+	for (int i = 0; i < 2000 && !(out.status.state == MLIP_STATE_IDLE && i > 0); i++) {
 		tick(1);
-		dwelling += ctl.state == MLIP_STATE_DWELLING;
+		dwelling += out.status.state == MLIP_STATE_DWELLING;
 	}
 	assert_int_equal(dwelling, 10);
 	assert_true(out.pos[0] == 1.0);
@@ -576,11 +588,11 @@ static void test_pause_and_optional_pause(void **st)
 	assert_int_equal(status().reason, MLIP_WHY_PAUSE);
 	assert_int_equal(status().exec_seq, 2);
 	tick(1000);
-	assert_int_equal(ctl.state, MLIP_STATE_PAUSED);
+	assert_int_equal(out.status.state, MLIP_STATE_PAUSED);
 	assert_true(out.pos[0] == 5.0);
 	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK); /* a hold meanwhile */
 	tick(10);
-	assert_int_equal(ctl.state, MLIP_STATE_PAUSED);
+	assert_int_equal(out.status.state, MLIP_STATE_PAUSED);
 	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK); /* one resume: both */
 	tick(1);
 	assert_true(out.pos[0] > 5.0); /* pre-read during the pause: moves at once */
@@ -625,7 +637,7 @@ static int corner_samples(int exact)
 	move(2, 10.0, 10.0);
 	end(3);
 	int inside = 0;
-	for (int i = 0; i < 3000 && !(ctl.state == MLIP_STATE_IDLE && i > 0); i++) {
+	for (int i = 0; i < 3000 && !(out.status.state == MLIP_STATE_IDLE && i > 0); i++) {
 		tick(1);
 		inside += out.pos[0] < 10.0 - 1e-12 && out.pos[1] > 1e-12;
 	}
@@ -760,7 +772,7 @@ static void test_bad_record_in_preread_never_moves(void **st)
 	mlip_ring_rec_from_block(&rec, &b, 4);
 	push_rec(&rec);
 	tick(500);
-	assert_int_equal(ctl.state, MLIP_STATE_FAULT);
+	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
 	assert_true(out.pos[0] == 0.0);
 }
 
@@ -789,7 +801,7 @@ static void test_corrupt_head_is_a_fault(void **st)
 	push(1, 40);
 	end(41);
 	tick(200); /* moving, look-ahead of 16 taken */
-	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
 	uint32_t tail = __atomic_load_n(&ring->tail, __ATOMIC_ACQUIRE);
 	__atomic_store_n(&ring->head, tail + 3 * CAP + 5, __ATOMIC_RELEASE);
 	tick(5000);
@@ -817,11 +829,11 @@ static void test_stall_holds_at_last_setpoint(void **st)
 	double before = out.pos[0];
 	assert_true(status().speed_mm_s > 50.0);
 	period_cmd(0, 0, 3); /* at the limit: not a stall */
-	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
 	assert_true(out.pos[0] > before);
 	before = out.pos[0];
 	period_cmd(0, 0, 2000); /* 2 s */
-	assert_int_equal(ctl.state, MLIP_STATE_HELD);
+	assert_int_equal(out.status.state, MLIP_STATE_HELD);
 	assert_int_equal(status().reason, MLIP_WHY_STALL);
 	assert_true(status().reason_value == 2000.0);
 	assert_true(out.pos[0] == before);
@@ -829,7 +841,7 @@ static void test_stall_holds_at_last_setpoint(void **st)
 		tick(1);
 		assert_true(fabs(out.pos[0] - before) <= 1e-9 && fabs(out.pos[1]) <= 1e-9);
 	}
-	assert_int_equal(ctl.state, MLIP_STATE_HELD);
+	assert_int_equal(out.status.state, MLIP_STATE_HELD);
 	assert_true(status().speed_mm_s == 0.0);
 	/* resume: from rest, the first steps within A T^2 (a margin of 1e-9) */
 	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
@@ -859,12 +871,12 @@ static void test_stall_in_corner(void **st)
 	assert_true(out.pos[0] < 10.0 - 1e-12 && out.pos[1] > 1e-12);
 	double p0[2] = {out.pos[0], out.pos[1]};
 	period_cmd(0, 0, 50);
-	assert_int_equal(ctl.state, MLIP_STATE_HELD);
+	assert_int_equal(out.status.state, MLIP_STATE_HELD);
 	tick(10);
 	assert_true(fabs(out.pos[0] - p0[0]) <= 1e-9 && fabs(out.pos[1] - p0[1]) <= 1e-9);
 	period_cmd(MLIP_CMD_RESUME, 0, 0);
 	double worst = 0.0;
-	for (k = 0; k < 3000 && ctl.state != MLIP_STATE_IDLE; k++) {
+	for (k = 0; k < 3000 && out.status.state != MLIP_STATE_IDLE; k++) {
 		tick(1);
 		/* distance to the polyline (0,0)-(10,0)-(10,10) */
 		double dx = out.pos[0] <= 10.0 ? fabs(out.pos[1]) : INFINITY;
@@ -917,7 +929,7 @@ static void test_every_name(void **st)
 {
 	(void)st;
 	for (uint32_t v = 0; v < MLIP_STATE_COUNT; v++) {
-		assert_string_not_equal(mlip_ring_state_name(v), "?");
+		assert_string_not_equal(mlip_ctl_state_name(v), "?");
 	}
 	for (uint32_t v = 0; v < MLIP_WHY_COUNT; v++) {
 		assert_string_not_equal(mlip_state_why_name(v), "?");
@@ -931,7 +943,7 @@ static void test_every_name(void **st)
 	for (uint32_t v = 0; v < MLIP_CMD_COUNT; v++) {
 		assert_string_not_equal(mlip_ring_cmd_name(v), "?");
 	}
-	assert_string_equal(mlip_ring_state_name(MLIP_STATE_COUNT), "?");
+	assert_string_equal(mlip_ctl_state_name(MLIP_STATE_COUNT), "?");
 	assert_string_equal(mlip_state_why_name(MLIP_WHY_COUNT), "?");
 }
 
@@ -959,7 +971,7 @@ static void test_drive_fault_stops_on_the_path(void **st)
 	push(1, 50); /* 1 mm blocks along X at 100 mm/s */
 	end(51);
 	tick(300); /* 0.3 s: past the 0.1 s ramp to 100 mm/s, about X = 25 */
-	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
 	double v0 = status().speed_mm_s, x0 = out.pos[0];
 	assert_true(v0 > 99.0 && v0 < 100.0 + 1e-6);
 	uint64_t executing = status().exec_seq;
@@ -1014,7 +1026,7 @@ static void test_drive_fault_stops_on_the_path(void **st)
 	 * its END dropped */
 	assert_int_equal(mlip_ring_count(ring), 0);
 	struct mlip_ctl_in in = {.period = period++, .exit_request = 1, .feeder_alive = 1};
-	mlip_ctl_period(&ctl, &in, &out);
+	run_period(&in);
 	assert_int_equal(out.done, 1);
 }
 
@@ -1061,7 +1073,7 @@ static int setup_drives(void **state)
 	                          .can = &can_cia402,
 	                          .drives = 1,
 	                          .drive_state_periods = 50};
-	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o, ring), MLIP_OK);
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
 	drv_actual_mask = 3u;
 	drv_actual[0] = drv_actual[1] = 0.0;
 	drv_sw[0] = drv_sw[1] = 0x0237; /* enabled by the bring-up */

@@ -13,6 +13,7 @@
 
 #include <cmocka.h>
 
+#include "mlip/ctl/state.h"
 #include "mlip/ipc/ring.h"
 
 /* records through the ring in the stress test: 10 M (about 0.5 s at -O2);
@@ -408,8 +409,8 @@ static void test_reason_strings(void **state)
 		assert_string_not_equal(mlip_ring_reason_str((mlip_ring_reason)k), "?");
 	}
 	assert_string_equal(mlip_ring_reason_str((mlip_ring_reason)99), "?");
-	assert_string_equal(mlip_ring_state_name(MLIP_STATE_HELD), "held");
-	assert_string_equal(mlip_ring_state_name(77), "?");
+	assert_string_equal(mlip_ctl_state_name(MLIP_STATE_HELD), "held");
+	assert_string_equal(mlip_ctl_state_name(77), "?");
 	assert_string_equal(mlip_ring_cmd_name(MLIP_CMD_OVERRIDE), "override");
 	assert_string_equal(mlip_ring_cmd_name(MLIP_CMD_COUNT), "?");
 }
@@ -833,9 +834,12 @@ static void test_port_corrupt_header(void **state)
 	assert_int_equal(n, 4);
 	r->mask = 0xFFFFFFFFu; /* not used after open */
 	r->capacity = 0;
-	assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_OK);
+	struct mlip_rec_view v;
+	assert_int_equal(mlip_ring_port_view(&rx, &v, NULL), MLIP_OK);
+	assert_int_equal(v.len[0] + v.len[1], 4);
+	out = v.span[0][0];
 	assert_true(rec_ok(&out, 0));
-	assert_int_equal(mlip_ring_port_pop(&rx), MLIP_OK);
+	assert_int_equal(mlip_ring_port_pop_n(&rx, 1), MLIP_OK);
 	assert_int_equal(mlip_ring_port_count(&rx, &n, NULL), MLIP_OK);
 	assert_int_equal(n, 3);
 	/* a head a lap and more ahead of the consumer */
@@ -843,13 +847,15 @@ static void test_port_corrupt_header(void **state)
 	assert_int_equal(mlip_ring_port_count(&rx, &n, &apart), MLIP_E_RANGE);
 	assert_int_equal(n, 0);
 	assert_int_equal(apart, CAP + 1);
-	/* the peek still serves what it had seen, then refuses */
-	for (int i = 0; i < 3; i++) {
-		assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_OK);
-		assert_int_equal(mlip_ring_port_pop(&rx), MLIP_OK);
-	}
+	apart = 0;
+	assert_int_equal(mlip_ring_port_view(&rx, &v, &apart), MLIP_E_RANGE);
+	assert_int_equal(v.len[0] + v.len[1], 0);
+	assert_int_equal(apart, CAP + 1);
+	/* what was seen can still be popped, not more */
+	assert_int_equal(mlip_ring_port_pop_n(&rx, 4), MLIP_E_RANGE);
+	assert_int_equal(mlip_ring_port_pop_n(&rx, 3), MLIP_OK);
 	__atomic_store_n(&r->head, rx.own - 1, __ATOMIC_RELEASE); /* behind the consumer */
-	assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_E_RANGE);
+	assert_int_equal(mlip_ring_port_view(&rx, &v, NULL), MLIP_E_RANGE);
 	/* a tail behind the producer by more than a lap (or ahead of it) */
 	__atomic_store_n(&r->tail, tx.own + 7, __ATOMIC_RELEASE);
 	assert_int_equal(mlip_ring_port_push_n(&tx, in, 1, &n), MLIP_E_RANGE);
@@ -859,10 +865,43 @@ static void test_port_corrupt_header(void **state)
 	assert_int_equal(mlip_ring_port_open(&rx, r, 0), MLIP_E_INVALID);
 }
 
+/* The consumer's view across the end of the slots: two spans, in order,
+ * and a pop of what was taken hands exactly those slots back. */
+static void test_port_view_wraps(void **state)
+{
+	(void)state;
+	struct mlip_ring *r = fresh(CAP, 3);
+	struct mlip_ring_port tx, rx;
+	struct mlip_ring_rec in[5];
+	struct mlip_rec_view v;
+	uint32_t n;
+
+	mlip_ring_reset(r, 0xFFFFFFFFu - 1u); /* indices about to wrap, too */
+	for (uint32_t k = 0; k < 5; k++) {
+		make_rec(&in[k], k);
+	}
+	assert_int_equal(mlip_ring_port_open(&tx, r, 1), MLIP_OK);
+	assert_int_equal(mlip_ring_port_open(&rx, r, 0), MLIP_OK);
+	assert_int_equal(mlip_ring_port_push_n(&tx, in, 5, &n), MLIP_OK);
+	assert_int_equal(mlip_ring_port_view(&rx, &v, NULL), MLIP_OK);
+	assert_int_equal(v.len[0], 2); /* the last two slots, then from slot 0 */
+	assert_int_equal(v.len[1], 3);
+	for (uint32_t k = 0; k < 5; k++) {
+		assert_true(rec_ok(k < 2 ? &v.span[0][k] : &v.span[1][k - 2], k));
+	}
+	assert_int_equal(mlip_ring_port_pop_n(&rx, 3), MLIP_OK);
+	assert_int_equal(mlip_ring_space(r), CAP - 2);
+	assert_int_equal(mlip_ring_port_view(&rx, &v, NULL), MLIP_OK);
+	assert_int_equal(v.len[0], 2);
+	assert_int_equal(v.len[1], 0);
+	assert_true(rec_ok(&v.span[0][0], 3));
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test(test_port_corrupt_header),
+	    cmocka_unit_test(test_port_view_wraps),
 	    cmocka_unit_test(test_layout),
 	    cmocka_unit_test(test_format_rejects),
 	    cmocka_unit_test(test_format_fresh_state),

@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "mlip/canopen/canopen.h"
+#include "mlip/canopen/drive.h"
 #include "mlip/ipc/ring.h"
 #include "confload.h"
 #include "mlip/gcode/gcode.h"

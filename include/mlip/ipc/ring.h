@@ -131,81 +131,6 @@ struct mlip_ring_rec {
 
 /* ---- status published by the controller ---------------------------- */
 
-/* The controller's one state (published as status.state). Values 0..5 keep
- * their numbers of layout version 2. */
-typedef enum {
-	MLIP_STATE_IDLE = 0, /* no program running, ring may be empty */
-	MLIP_STATE_RUNNING,  /* moving (or about to), taking records as it goes */
-	MLIP_STATE_HELD,     /* feed hold, override 0, a CAN fault or a stall:
-	                        decelerated (or frozen) to rest on the path; resume */
-	MLIP_STATE_STOPPING, /* stop requested: decelerating, ring being flushed */
-	MLIP_STATE_FAULT,    /* stopped on an error that needs a restart of mlip-rt:
-	                        a bad record (at rest at the end of the last good
-	                        block), a corrupt segment, a position the drives
-	                        cannot represent; status.reason says which */
-	MLIP_STATE_STARVED,  /* the program's blocks ran out before its END: at rest
-	                        at the end of the last block received (underrun);
-	                        continues when blocks come (mlip-feed --start-seq) */
-	MLIP_STATE_PAUSED,   /* M0/M60 (or M1 with optional stop on): at rest;
-	                        mlip-ctl resume continues */
-	MLIP_STATE_DWELLING, /* G4: at rest for the dwell's periods */
-	MLIP_STATE_PREREAD,  /* taking a program's records before moving */
-	MLIP_STATE_COUNT
-} mlip_ring_state;
-
-/* Why the controller is in its state (status.reason): the cause of the last
- * transition. */
-typedef enum {
-	MLIP_WHY_NONE = 0,
-	MLIP_WHY_START,         /* a program's first record (seq 1) */
-	MLIP_WHY_CONTINUE,      /* the record after the last completed (--start-seq) */
-	MLIP_WHY_PREREAD_DONE,  /* look-ahead full, END in, or an event next */
-	MLIP_WHY_END,           /* the program's END executed, at rest */
-	MLIP_WHY_UNDERRUN,      /* the ring ran dry before END */
-	MLIP_WHY_FEEDER_GONE,   /* the feeder's heartbeat stopped (or none attached) */
-	MLIP_WHY_HOLD,          /* mlip-ctl hold */
-	MLIP_WHY_OVERRIDE_ZERO, /* feed override 0 */
-	MLIP_WHY_RESUME,        /* mlip-ctl resume */
-	MLIP_WHY_BUS_TX,        /* CAN frames refused by the tx queue */
-	MLIP_WHY_BUS_ERROR,     /* CAN error frames or bus-off */
-	MLIP_WHY_STALL,         /* the loop missed more periods than allowed (value) */
-	MLIP_WHY_DWELL,         /* G4 record (value: seconds) */
-	MLIP_WHY_DWELL_DONE,
-	MLIP_WHY_PAUSE,          /* M0/M60 record */
-	MLIP_WHY_OPTIONAL_PAUSE, /* M1 record with optional stop on */
-	MLIP_WHY_STOP,           /* mlip-ctl stop */
-	MLIP_WHY_EXIT,           /* SIGINT/SIGTERM/SIGHUP to mlip-rt */
-	MLIP_WHY_BAD_RECORD,     /* reason_seq, reason_field, reason_value */
-	MLIP_WHY_RING_CORRUPT,   /* head - tail beyond the capacity (value: count) */
-	MLIP_WHY_POSITION_RANGE, /* a setpoint beyond the drives' int32 counts */
-	MLIP_WHY_DRIVE,          /* a CiA 402 drive faulted (mlip-rt --drives): reason_node,
-	                            reason_field the event (mlip_drive_fault, mlip/canopen/canopen.h),
-	                            reason_value its detail (statusword, EMCY code, ...) */
-	MLIP_WHY_STOP_EARLY,     /* a stop came after the feeder began, before its program
-	                            started: the program is dropped unmoved (reason_seq, line:
-	                            its first record) */
-	MLIP_WHY_COUNT
-} mlip_state_why;
-
-/* The drives' power (mlip-rt --drives, status.drive_power), one for all the
- * drives still followed (a faulted drive keeps its own fault reaction). The
- * controller (src/ctl/controller.c) moves it through the CiA 402 states by the
- * RPDOs' controlword, each step confirmed by every drive's TPDO statusword:
- *   ENABLED --at rest after a program, a stop, a fault or on exit-->
- *   DISABLING (0x07: "switched on") --> SHUTTING_DOWN (0x06: "ready to
- *   switch on") --> OFF --the next program's records--> SWITCHING_ON (0x07:
- *   "switched on") --> ENABLING (0x0F: "operation enabled") --> ENABLED */
-typedef enum {
-	MLIP_POWER_NONE = 0,      /* no drives brought up by mlip */
-	MLIP_POWER_ENABLED,       /* operation enabled: the planner may move */
-	MLIP_POWER_DISABLING,     /* disable operation (0x0007) until "switched on" */
-	MLIP_POWER_SHUTTING_DOWN, /* shutdown (0x0006) until "ready to switch on" */
-	MLIP_POWER_OFF,           /* ready to switch on: power stage off, nothing moves */
-	MLIP_POWER_SWITCHING_ON,  /* switch on (0x0007) until "switched on" */
-	MLIP_POWER_ENABLING,      /* enable operation (0x000F) until "operation enabled" */
-	MLIP_POWER_COUNT
-} mlip_drive_power;
-
 /* Which field of a record (or of the segment) a fault names. */
 typedef enum {
 	MLIP_FIELD_NONE = 0,
@@ -229,7 +154,7 @@ struct mlip_ring_status {
 	/* progress */
 	uint64_t exec_seq;     /* seq of the record being executed (0: none yet) */
 	uint32_t exec_line;    /* its source line */
-	uint32_t state;        /* mlip_ring_state */
+	uint32_t state;        /* mlip_ctl_state (mlip/ctl/state.h) */
 	uint32_t override_pct; /* feed override in effect, percent */
 	uint32_t reserved;     /* the controller's pid (mlip-rt fills it) */
 	/* counters since start */
@@ -260,7 +185,8 @@ struct mlip_ring_status {
 	uint32_t actual_mask;             /* bit k: pos_actual[k] came from drive k's TPDO */
 	double pos_actual[MLIP_MAX_AXES]; /* position actual 0x6064 (what the machine did) */
 	/* in the status area's spare bytes, zero (none) in segments of older builds */
-	uint32_t drive_power;         /* mlip_drive_power: the drives' power, as one */
+	uint32_t drive_power;         /* mlip_drive_power (mlip/canopen/cia402.h): the drives'
+	                                 power, as one */
 	uint32_t drive_power_periods; /* periods the last disable or enable took */
 	/* layout version 5 */
 	double prog_start[MLIP_MAX_AXES]; /* where the current (or last) program's first
@@ -459,10 +385,20 @@ mlip_status mlip_ring_port_open(struct mlip_ring_port *p, struct mlip_ring *r, i
  * *n = 0, when the indices are more than a capacity apart (*n gets that
  * distance through `apart` when not NULL). */
 mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t *apart);
-/* Consumer: copy the oldest record (MLIP_E_EMPTY, MLIP_E_RANGE). */
-mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out);
-/* Consumer: remove the oldest record (after a peek). */
-mlip_status mlip_ring_port_pop(struct mlip_ring_port *p);
+/* The records a consumer may take, oldest first, where they lie: at most
+ * two spans of the segment's slots (the ring wraps). Read only; a reader
+ * copies a record before it checks it, so a producer that does not keep to
+ * the protocol cannot change what was checked. */
+struct mlip_rec_view {
+	const struct mlip_ring_rec *span[2];
+	uint32_t len[2];
+};
+/* Consumer: every record queued now, without copying (MLIP_E_RANGE, an
+ * empty view and *apart as mlip_ring_port_count, for a corrupted segment). */
+mlip_status mlip_ring_port_view(struct mlip_ring_port *p, struct mlip_rec_view *v, uint32_t *apart);
+/* Consumer: remove the n oldest records (at most those last viewed):
+ * their slots go back to the producer. MLIP_E_RANGE for more. */
+mlip_status mlip_ring_port_pop_n(struct mlip_ring_port *p, uint32_t n);
 /* Producer: append up to n records; how many in *pushed (MLIP_E_RANGE: none). */
 mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ring_rec *recs,
                                   uint32_t n, uint32_t *pushed);
@@ -534,17 +470,12 @@ int mlip_ring_stop_applied(uint32_t seen, uint32_t ticket);
  * program must not start. */
 int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base);
 
-/* Names for tools: "idle", "running", ...; "override", "hold", ...;
- * "?" for values out of range. Never NULL. */
-const char *mlip_ring_state_name(uint32_t state);
+/* Names for tools: "override", "hold", ...; "feed", "target[0]", ... for a
+ * field (target fields by axis letter need the machine: see tools); "?"
+ * for values out of range. Never NULL. The state's and the reason's:
+ * mlip/ctl/state.h. */
 const char *mlip_ring_cmd_name(uint32_t op);
-/* "program end", "stall", ... for mlip_state_why; "x", "feed", ... for a
- * field (target fields by axis letter need the machine: see tools). */
-const char *mlip_state_why_name(uint32_t why);
 const char *mlip_rec_field_name(uint32_t field);
 const char *mlip_rec_type_name(uint32_t type);
-/* "enabled", "disabling", "shutting down", "off", "switching on", "enabling";
- * "none" without drives. */
-const char *mlip_drive_power_name(uint32_t power);
 
 #endif

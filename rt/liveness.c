@@ -1,7 +1,7 @@
 /*
- * peer.c - the system side of the liveness rule (mlip/ipc/peer.h): the clock,
- * and whether the peer's process is there, asked only when the stamp alone
- * does not decide. Not for the periodic loop (it may read /proc).
+ * liveness.c - the system side of the peers' liveness rule (mlip/ipc/peer.h):
+ * the clock, and whether the peer's process is there, asked only when the
+ * stamp alone does not decide. Not for the periodic loop (it may read /proc).
  */
 #include <errno.h>
 #include <signal.h>
