@@ -5,10 +5,14 @@
 #   make test       install missing deps, build, run every test (what CI runs)
 #   make purity     the core (libmlip.a) uses libm and pure string functions only
 #   make format-check  clang-format on every C file (make test runs it)
+#   make pycheck    the Python: ruff format and lint, mypy --strict (make test runs it)
+#   make format     rewrite C and Python files as the checks want them
 #   make tsan       ThreadSanitizer: the ring's thread tests, controller + feeder threads
 #   make can        the CAN tests alone (vcan0 on the host, or in a VM)
 #   make bench      Table 1 and Table 2 of the paper, redone
-#   make asan|ubsan the whole test suite under a sanitizer (build-asan/, build-ubsan/)
+#   make asan|ubsan the unit and system tests under a sanitizer (build-asan/, build-ubsan/)
+#   make sanitize   both sanitizers in one build, the unit tests and the system
+#                   tests but test_toolpaths (build-san/; what CI runs)
 #   make fuzz       the fuzz targets, FUZZ_SECONDS each (default 60)
 
 BUILD   ?= build
@@ -44,17 +48,21 @@ RT_TESTS  := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(shell grep -l '"rt.h"'
 # Layers: src/ sees include/ only (the pure core), rt/ include/ and itself,
 # tools/lib/ include/ and itself; tools and tests see everything.
 # Inside the core, src/F/ and include/mlip/F/ are one folder along the data
-# path: a folder includes mlip/types.h, its own headers and those of the
-# folders before it in LAYERS, nothing else (tools/layers.sh; libmlip.a
-# depends on the check, so a forbidden include fails the build).
-LAYERS    := gcode motion machine can canopen ipc ctl
-CORE_HDR  := $(wildcard include/mlip/*.h include/mlip/*/*.h)
+# path: a folder includes mlip/types.h, its own headers (src/F/NAME.h, its
+# private ones, by their bare name) and those of the folders before it in
+# LAYERS, nothing else (tools/layers.sh; libmlip.a depends on the check, so
+# a forbidden include fails the build). text/ is the readers' lowest layer
+# (formatter, number lexer, UTF-8); machine/ reads the [CAN] section that
+# can/ defines and checks.
+LAYERS    := text gcode can machine motion canopen ipc ctl
+CORE_HDR  := $(wildcard include/mlip/*.h include/mlip/*/*.h src/*/*.h)
 INC       := -Iinclude -Itools/lib -Irt
 $(LIB_OBJ): INC := -Iinclude
 $(RT_OBJ): INC := -Iinclude -Irt
 $(HOST_OBJ): INC := -Iinclude -Itools/lib
 
-.PHONY: all test unit pytest can bench asan ubsan fuzz deps clean demo run purity tsan format-check
+.PHONY: all test unit pytest can bench asan ubsan sanitize fuzz deps clean demo run purity tsan \
+        format-check pycheck format
 all: $(BUILD)/libmlip.a $(TOOLS) $(UNIT_BINS) $(BENCH_BINS)
 
 $(BUILD)/obj/%.o: %.c
@@ -106,7 +114,7 @@ PURE_BINS := $(filter-out $(RT_TOOLS),$(TOOLS)) $(BENCH_BINS) $(filter-out $(RT_
 purity: $(BUILD)/libmlip.a $(PURE_BINS)
 	@tools/purity.sh $(BUILD)/libmlip.a
 	@for b in $(PURE_BINS); do \
-		if nm $$b | grep -q ' [TU] \(mlip_shm_\|mlip_rt_\|mlip_canio_\|can_do_\|can_get_\)'; then \
+		if nm $$b | grep -q ' [TU] \(mlip_shm_\|mlip_rt_\|mlip_canbus_\|mlip_period_\|mlip_drives_\|can_do_\|can_get_\)'; then \
 			echo "purity: $$b links rt/ or libsocketcan"; exit 1; fi; done
 	@echo "purity: $(words $(PURE_BINS)) tools, benchmarks and tests without rt/ or libsocketcan"
 
@@ -139,19 +147,39 @@ unit: $(UNIT_BINS)
 	@fail=0; for t in $(UNIT_BINS); do echo "== $$t"; $$t || fail=1; done; exit $$fail
 
 # System tests (pytest): physics checks on the real toolpaths, CLI behaviour.
+# PYTEST_ARGS: which tests (default all of tests/py); MLIP_SAN tells a test
+# that compiles a program of its own the sanitizer flags of this build.
+PYTEST_ARGS ?= tests/py
 pytest: all
-	@. .venv/bin/activate && MLIP_BUILD=$(BUILD) python -m pytest -q tests/py
+	@. .venv/bin/activate && MLIP_BUILD=$(BUILD) MLIP_SAN="$(SAN)" python -m pytest -q $(PYTEST_ARGS)
 
 # Formatting: every C file as .clang-format says (Debian's clang-format 14);
 # a difference fails with the file and line (clang-format -i FILE mends it).
 C_FILES := $(shell git ls-files 'src/*.c' 'include/*.h' 'rt/*.c' 'rt/*.h' 'tools/*.c' \
-             'tools/*.h' 'tests/unit/*.c' 'bench/*.c' 'fuzz/*.c' 'fuzz/*.h' 2>/dev/null)
+             'tools/*.h' 'tests/unit/*.c' 'tests/py/*.c' 'bench/*.c' 'fuzz/*.c' 'fuzz/*.h' \
+             2>/dev/null)
 format-check:
 	@clang-format --dry-run -Werror $(C_FILES)
 	@echo "format: $(words $(C_FILES)) C files as .clang-format says"
 
+# The Python package (python/mlipcan) and the Python tools (tools/*.py):
+# ruff's format (a difference fails, with the diff) and lint, and mypy
+# --strict (pyproject.toml says what and how). tools/deps.sh installs them.
+PY_DIRS := python tools
+pycheck:
+	@.venv/bin/ruff format --check --diff $(PY_DIRS)
+	@.venv/bin/ruff check --no-fix $(PY_DIRS)
+	@.venv/bin/mypy
+	@echo "pycheck: ruff format and lint, mypy --strict: clean"
+
+format:
+	clang-format -i $(C_FILES)
+	.venv/bin/ruff format $(PY_DIRS)
+	.venv/bin/ruff check --fix $(PY_DIRS)
+
 test: deps
 	@$(MAKE) --no-print-directory format-check
+	@$(MAKE) --no-print-directory pycheck
 	@$(MAKE) --no-print-directory all
 	@$(MAKE) --no-print-directory purity
 	@$(MAKE) --no-print-directory unit
@@ -179,13 +207,25 @@ bench: deps
 fuzz:
 	@fuzz/run.sh $(or $(FUZZ_SECONDS),60)
 
-asan:
-	@$(MAKE) --no-print-directory BUILD=build-asan OPT=-O1 SAN="-fsanitize=address -fno-omit-frame-pointer" unit pytest
-ubsan:
-	@$(MAKE) --no-print-directory BUILD=build-ubsan OPT=-O1 SAN="-fsanitize=undefined -fno-sanitize-recover=all" unit pytest
+# Sanitizers: the unit tests and the system tests (every tool the tests run
+# is this build's) under AddressSanitizer and UndefinedBehaviorSanitizer.
+# make asan, make ubsan: all of tests/py, each in its own build. make
+# sanitize: both at once in one build, tests/py but test_toolpaths (two
+# thirds of the sanitized time: physics of every toolpath x setting x
+# strategy, the code every other test runs too): what .ci/run runs before
+# make test. Times: docs/testing.md.
+SAN_ADDRESS   := -fsanitize=address -fno-omit-frame-pointer
+SAN_UNDEFINED := -fsanitize=undefined -fno-sanitize-recover=all
+asan: deps
+	@$(MAKE) --no-print-directory BUILD=build-asan OPT=-O1 SAN="$(SAN_ADDRESS)" unit pytest
+ubsan: deps
+	@$(MAKE) --no-print-directory BUILD=build-ubsan OPT=-O1 SAN="$(SAN_UNDEFINED)" unit pytest
+sanitize: deps
+	@$(MAKE) --no-print-directory BUILD=build-san OPT=-O1 SAN="$(SAN_ADDRESS) $(SAN_UNDEFINED)" \
+		PYTEST_ARGS="tests/py --ignore=tests/py/test_toolpaths.py" unit pytest
 
 clean:
-	rm -rf build build-asan build-ubsan build-tsan
+	rm -rf build build-asan build-ubsan build-tsan build-san
 
 .SECONDARY:
 

@@ -28,8 +28,7 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import topp  # noqa: E402  (bench/topp.py: the time-optimal ceiling)
+import topp  # bench/topp.py, beside this script (its folder is sys.path[0])
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SHARED = os.environ.get("MLIP_SHARED", os.path.join(ROOT, "..", "shared"))

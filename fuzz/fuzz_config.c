@@ -1,6 +1,6 @@
 /*
  * fuzz_config.c - libFuzzer target for the machine configuration reader
- * (src/machine/config.c). The checks: fuzz/invariants.h (inv_config_text,
+ * (src/machine/). The checks: fuzz/invariants.h (inv_config_text,
  * inv_machine_raw). Built and run by fuzz/run.sh.
  *
  * Input: the INI text, parsed into defaults, again with err == NULL, and into

@@ -1,5 +1,5 @@
 /*
- * fuzz_gcode.c - libFuzzer target for the G-code front end (src/gcode/gcode.c),
+ * fuzz_gcode.c - libFuzzer target for the G-code front end (src/gcode/),
  * with the whole-program wrapper of the tools (tools/lib/program.c) as a
  * second opinion. The checks: fuzz/invariants.h (inv_gcode_program). Built
  * and run by fuzz/run.sh.

@@ -1,6 +1,6 @@
 /*
  * fuzz/invariants.h - what must hold for any input to the two text front ends
- * (src/gcode/gcode.c, src/machine/config.c), checked by the fuzz targets (fuzz_gcode.c,
+ * (src/gcode/, src/machine/), checked by the fuzz targets (fuzz_gcode.c,
  * fuzz_config.c, which abort on a violation) and by the regression test
  * (tests/unit/test_fuzz_regress.c, which fails with the same text).
  *
@@ -40,7 +40,6 @@
 
 #include "mlip/machine/config.h"
 #include "mlip/gcode/gcode.h"
-#include "mlip/motion/planner.h" /* MLIP_LOOKAHEAD */
 #include "mlip/types.h"
 #include "program.h" /* tools/lib: mlip_program_list_parse, the second opinion */
 

@@ -2,8 +2,13 @@
 # fuzz/run.sh [SECONDS] - build and run the two libFuzzer targets under ASan
 # and UBSan, SECONDS each (default 60; 0 only replays the corpus once).
 #
-#   fuzz_gcode   the G-code front end (src/gcode/gcode.c) and tools/lib/program.c
-#   fuzz_config  the machine configuration reader (src/machine/config.c)
+#   fuzz_gcode   the G-code front end (src/gcode/) and tools/lib/program.c (with
+#                the rest of tools/lib/, whatever program.c comes to need)
+#   fuzz_config  the machine configuration reader (src/machine/)
+#
+# Both targets are built from whole folders (the core's, Makefile LAYERS, and
+# tools/lib/), so a file added to one of them is in, and a new dependency of
+# program.c does not break the build.
 #
 # Installs clang and its runtimes (libclang-rt-14-dev) with apt-get when
 # missing. Output in build/fuzz/ (override with FUZZ_OUT): the binaries, the
@@ -64,10 +69,18 @@ fi
 # ---- the targets ------------------------------------------------------------
 echo "fuzz: building with $($CC --version | head -n 1)"
 # shellcheck disable=SC2086 # word splitting of the flag lists is intended
-$CC $CFLAGS $SAN -o "$OUT/fuzz_gcode" fuzz/fuzz_gcode.c src/gcode/gcode.c src/machine/config.c \
-	tools/lib/program.c -lm
+# the core by its folders (Makefile LAYERS) and the host library, whatever
+# the readers and program.c come to need
+srcs=""
+for d in $(sed -n 's/^LAYERS *:= *//p' Makefile); do
+	for f in src/"$d"/*.c; do
+		[ -e "$f" ] && srcs="$srcs $f" # a folder of headers only has none
+	done
+done
 # shellcheck disable=SC2086
-$CC $CFLAGS $SAN -o "$OUT/fuzz_config" fuzz/fuzz_config.c src/machine/config.c -lm
+$CC $CFLAGS $SAN -o "$OUT/fuzz_gcode" fuzz/fuzz_gcode.c $srcs tools/lib/*.c -lm -lpthread
+# shellcheck disable=SC2086
+$CC $CFLAGS $SAN -o "$OUT/fuzz_config" fuzz/fuzz_config.c $srcs -lm
 
 # ---- seeds --------------------------------------------------------------------
 if [ ! -d "$SHARED/toolpaths" ]; then

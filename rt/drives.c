@@ -1,9 +1,10 @@
 /*
  * drives.c - the CANopen master of mlip-rt for CiA 402 drives in cyclic
  * synchronous position mode: bring-up before the first period, supervision
- * and shut-down in the loop. The frames and decisions are the pure ones of
- * mlip/canopen/canopen.h; this file sequences them on a port (SocketCAN, or a
- * scripted peer in tests/unit/test_drives.c).
+ * in the loop (as the period's hooks), shut-down by SDO when the loop could
+ * not do it. The frames and decisions are the pure ones of mlip/canopen/
+ * (canopen.h, cia402.h, drive.h); this file sequences them on a port (the
+ * bus of rt/canbus.c, or a scripted peer in tests/unit/test_drives.c).
  *
  * Bring-up (outside the loop; may wait, print through ds->log):
  *   1. NMT reset communication to each node; wait for every boot-up
@@ -11,134 +12,28 @@
  *      mlip_drive_setup_entries (PDO mapping, SYNC, CSP, 0x60C2, 0x6065,
  *      heartbeats)
  *   3. NMT start; wait for each heartbeat to say operational
- *   4. CiA 402 by SDO (0x6040 written, 0x6041 polled): fault reset,
- *      shutdown, switch on, each confirmed within STATE_TIMEOUT_MS
+ *   4. CiA 402 by SDO (0x6040 written, 0x6041 polled), the steps of the
+ *      power sequencer (mlip/canopen/cia402.h) from whatever state the
+ *      drive is in up to "switched on" (fault reset, shutdown, switch on,
+ *      or disable operation), each confirmed within STATE_TIMEOUT_MS
  *   5. position actual 0x6064 of every drive, checked against the soft
  *      limits; 0x607A = that position; enable operation, confirmed; the
  *      position read again: the planner starts there
  * The master's heartbeat is produced from step 1 on (every wait serves it),
  * then by the loop.
  *
- * In the loop (mlip_drives_tick): no wait, no print: the socket is read
- * with MSG_DONTWAIT, at most RX_PER_PERIOD frames a period.
+ * In the loop (mlip_drives_hooks): no wait, no print, no text: the period
+ * reads the bus (at most RX_PER_PERIOD frames) and calls the hooks.
  */
-#define _GNU_SOURCE
-
 #include <errno.h>
-#include <fcntl.h>
-#include <net/if.h>
-#include <poll.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
-#include <linux/can.h>
-#include <linux/can/raw.h>
 
 #include "rt.h"
 
 #define RX_PER_PERIOD(n) (4 * (n) + 16) /* TPDO + heartbeat + EMCY per drive, and margin */
 #define STATE_POLL_NS    5000000LL      /* 0x6041 read every 5 ms while waiting */
-
-/* ---- SocketCAN port --------------------------------------------------------- */
-
-struct co_sock {
-	int fd;
-};
-static struct co_sock sock_ctx = {-1};
-
-static int sock_send(void *ctx, const struct mlip_can_frame *f)
-{
-	struct co_sock *s = ctx;
-	struct can_frame cf;
-	memset(&cf, 0, sizeof(cf));
-	cf.can_id = f->id;
-	cf.can_dlc = f->len;
-	memcpy(cf.data, f->data, f->len > 8 ? 8 : f->len);
-	return send(s->fd, &cf, sizeof(cf), MSG_DONTWAIT) == (ssize_t)sizeof(cf) ? 0 : -errno;
-}
-
-static int sock_recv(void *ctx, struct mlip_can_frame *f, int64_t timeout_ns)
-{
-	struct co_sock *s = ctx;
-	struct can_frame cf;
-	if (timeout_ns > 0) {
-		struct pollfd pf = {s->fd, POLLIN, 0};
-		int r = poll(&pf, 1, (int)((timeout_ns + 999999) / 1000000));
-		if (r <= 0) {
-			return r < 0 && errno != EINTR ? -errno : 0;
-		}
-	}
-	ssize_t n = recv(s->fd, &cf, sizeof(cf), MSG_DONTWAIT);
-	if (n < 0) {
-		return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR ? 0 : -errno;
-	}
-	if (n != (ssize_t)sizeof(cf) || (cf.can_id & (CAN_ERR_FLAG | CAN_RTR_FLAG))) {
-		return 0;
-	}
-	memset(f, 0, sizeof(*f));
-	f->id = cf.can_id & (cf.can_id & CAN_EFF_FLAG ? CAN_EFF_MASK : CAN_SFF_MASK);
-	f->flags = (cf.can_id & CAN_EFF_FLAG) ? MLIP_CAN_FLAG_EFF : 0;
-	f->len = cf.can_dlc > 8 ? 8 : cf.can_dlc;
-	memcpy(f->data, cf.data, f->len);
-	return 1;
-}
-
-static uint64_t sock_now(void *ctx)
-{
-	(void)ctx;
-	return mlip_now_ns();
-}
-
-int mlip_co_socket_open(struct mlip_co_port *p, const char *ifname, const struct mlip_machine *m,
-                        char *why, size_t why_len)
-{
-	struct can_filter flt[4 * MLIP_MAX_AXES];
-	static const uint32_t bases[4] = {MLIP_CO_SDO_TX_BASE, MLIP_CO_HB_BASE, MLIP_CO_EMCY_BASE,
-	                                  MLIP_CO_TPDO1_BASE};
-	int nf = 0;
-	int fd = socket(PF_CAN, SOCK_RAW, CAN_RAW);
-	if (fd < 0) {
-		int e = errno;
-		snprintf(why, why_len, "socket(PF_CAN): %s", strerror(e));
-		return -e;
-	}
-	for (int i = 0; i < m->n_axes; i++) {
-		for (int b = 0; b < 4; b++) {
-			flt[nf].can_id = bases[b] + (uint32_t)m->axis[i].can_node;
-			flt[nf].can_mask = CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG;
-			nf++;
-		}
-	}
-	setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, flt, (socklen_t)(nf * sizeof(flt[0])));
-	struct sockaddr_can addr;
-	memset(&addr, 0, sizeof(addr));
-	addr.can_family = AF_CAN;
-	addr.can_ifindex = (int)if_nametoindex(ifname);
-	if (addr.can_ifindex == 0 || bind(fd, (struct sockaddr *)&addr, sizeof(addr)) != 0 ||
-	    fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK) != 0) {
-		int e = addr.can_ifindex == 0 ? ENODEV : errno;
-		snprintf(why, why_len, "CANopen socket on %s: %s", ifname, strerror(e));
-		close(fd);
-		return -e;
-	}
-	sock_ctx.fd = fd;
-	p->ctx = &sock_ctx;
-	p->send = sock_send;
-	p->recv = sock_recv;
-	p->now_ns = sock_now;
-	return 0;
-}
-
-void mlip_co_socket_close(struct mlip_co_port *p)
-{
-	if (p->ctx == &sock_ctx && sock_ctx.fd >= 0) {
-		close(sock_ctx.fd);
-		sock_ctx.fd = -1;
-	}
-}
 
 /* ---- helpers ------------------------------------------------------------------ */
 
@@ -230,8 +125,8 @@ static int wait_frame(struct mlip_drives *ds, uint64_t deadline, struct mlip_can
 		if (r < 0) {
 			return r;
 		}
-		if (r == 0) {
-			continue;
+		if (r != MLIP_CAN_RX_FRAME) {
+			continue; /* none yet, or an error frame (the period counts those) */
 		}
 		observe(ds, f, ds->port.now_ns(ds->port.ctx), 0, m);
 		if (m->kind == MLIP_CO_EMCY) {
@@ -357,7 +252,7 @@ static int sdo_entry(struct mlip_drives *ds, int i, const struct mlip_sdo_entry 
 /* ---- bring-up ------------------------------------------------------------------- */
 
 int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
-                     const struct mlip_co_port *port, void (*log)(void *, const char *),
+                     const struct mlip_can_port *port, void (*log)(void *, const char *),
                      void *log_ctx, char *why, size_t why_len)
 {
 	const struct mlip_machine *m = &cfg->machine;
@@ -415,14 +310,11 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 	return 0;
 }
 
-static int read_state(struct mlip_drives *ds, int i, uint16_t *sw, char *why, size_t why_len)
+static int read_sw(struct mlip_drives *ds, int i, uint16_t *sw, char *why, size_t why_len)
 {
 	uint32_t v = 0;
 	int rc = sdo(ds, i, 1, 0x6041, 0, 0, 0, "statusword", &v, why, why_len);
-	if (rc == 0) {
-		*sw = (uint16_t)v;
-		ds->d[i].state = mlip_402_state_of(*sw);
-	}
+	*sw = (uint16_t)v;
 	return rc;
 }
 
@@ -436,120 +328,91 @@ static void pause_poll(struct mlip_drives *ds)
 	}
 }
 
-static int write_cw(struct mlip_drives *ds, int i, uint16_t cw, char *why, size_t why_len)
+/* "disable operation (0x0007)": a step's command and controlword. */
+static const char *step_text(uint32_t step, char *buf, size_t n)
 {
-	return sdo(ds, i, 0, 0x6040, 0, cw, 2, "controlword", NULL, why, why_len);
+	snprintf(buf, n, "%s (0x%04X)", mlip_402_step_command(step),
+	         (unsigned)mlip_402_step_cw(step));
+	return buf;
 }
 
-/* Write controlword cw and wait until the statusword shows `want`. */
-static int transition(struct mlip_drives *ds, int i, uint16_t cw, mlip_402_state want,
-                      const char *name, char *why, size_t why_len)
+/* Drive i to `want` (SWITCHED_ON, ENABLED or OFF) by SDO: the power
+ * sequencer (mlip/canopen/cia402.h) decides each controlword, 0x6040 is
+ * written when it changes, 0x6041 read at once and then every
+ * STATE_POLL_NS; each step confirmed is logged with its time. One not
+ * confirmed within STATE_TIMEOUT_MS: toward power an error naming the
+ * drive's state (-ETIMEDOUT), toward OFF logged and gone on from. */
+static int power_to(struct mlip_drives *ds, int i, mlip_drive_power want, int log_start, char *why,
+                    size_t why_len)
 {
+	struct mlip_402_seq s;
+	struct mlip_402_change ch;
+	char who[32], cmd[48];
 	uint16_t sw = 0;
-	char who[32];
-	int rc = write_cw(ds, i, cw, why, why_len);
-	if (rc != 0) {
-		return rc;
-	}
-	uint64_t t0 = ds->port.now_ns(ds->port.ctx);
-	uint64_t deadline = t0 + (uint64_t)ds->cfg.state_timeout_ms * 1000000u;
+	int32_t written = -1;
+	int steps = 0;
+
+	axis_of(ds, i, who, sizeof(who));
+	mlip_402_seq_init(&s, MLIP_POWER_NONE, (uint64_t)ds->cfg.state_timeout_ms * 1000000u,
+	                  ds->port.now_ns(ds->port.ctx));
 	for (;;) {
-		rc = read_state(ds, i, &sw, why, why_len);
+		int rc = read_sw(ds, i, &sw, why, why_len);
 		if (rc != 0) {
 			return rc;
 		}
-		if (ds->d[i].state == want) {
-			say(ds, "%s: %s (0x%04X): %s, statusword 0x%04X after %.1f ms",
-			    axis_of(ds, i, who, sizeof(who)), name, cw, mlip_402_state_name(want),
-			    sw, (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
+		if (mlip_402_seq_run(&s, want, &sw, 1, 0, ds->port.now_ns(ds->port.ctx), &ch)) {
+			mlip_402_state now_in = mlip_402_state_of(sw);
+			if (ch.from == MLIP_POWER_NONE && log_start) {
+				say(ds, "%s: power-up state \"%s\", statusword 0x%04X", who,
+				    mlip_402_state_name(now_in), sw);
+			} else if (ch.failed && ch.from == MLIP_POWER_WAITING) {
+				snprintf(why, why_len, "%s: stays \"%s\" (statusword 0x%04X)", who,
+				         mlip_402_state_name(now_in), sw);
+				return -ETIMEDOUT;
+			} else if (ch.failed || ch.late >= 0) {
+				const struct mlip_drive_obs *o = &ds->d[i].obs;
+				char emcy[64] = "";
+				if (o->emcy_count > 0) {
+					snprintf(emcy, sizeof(emcy), "; last EMCY 0x%04X (%s)",
+					         o->emcy.code, mlip_emcy_text(o->emcy.code));
+				}
+				snprintf(why, why_len,
+				         "%s: still \"%s\" (statusword 0x%04X) %u ms after %s "
+				         "(controlword 0x%04X), expected \"%s\"%s",
+				         who, mlip_402_state_name(now_in), sw,
+				         (unsigned)ds->cfg.state_timeout_ms,
+				         mlip_402_step_command(ch.from),
+				         (unsigned)mlip_402_step_cw(ch.from),
+				         mlip_402_state_name(ch.reached), emcy);
+				if (ch.failed) {
+					return -ETIMEDOUT;
+				}
+				say(ds, "%s; going on", why); /* toward OFF */
+			} else if (ch.from != MLIP_POWER_NONE && ch.from != MLIP_POWER_WAITING) {
+				say(ds, "%s: %s: %s, statusword 0x%04X after %.1f ms", who,
+				    step_text(ch.from, cmd, sizeof(cmd)),
+				    mlip_402_state_name(ch.reached), sw, (double)ch.in_step * 1e-6);
+			}
+			if (++steps > 8) {
+				snprintf(why, why_len, "%s: does not reach \"%s\"", who,
+				         mlip_drive_power_name(want));
+				return -ETIMEDOUT;
+			}
+		}
+		if (mlip_402_power_is_rest(s.step)) {
 			return 0;
 		}
-		if (ds->port.now_ns(ds->port.ctx) >= deadline) {
-			const struct mlip_drive_obs *o = &ds->d[i].obs;
-			char emcy[64] = "";
-			if (o->emcy_count > 0) {
-				snprintf(emcy, sizeof(emcy), "; last EMCY 0x%04X (%s)",
-				         o->emcy.code, mlip_emcy_text(o->emcy.code));
+		if (s.cw >= 0 && s.cw != written) {
+			rc = sdo(ds, i, 0, 0x6040, 0, (uint32_t)s.cw, 2, "controlword", NULL, why,
+			         why_len);
+			if (rc != 0) {
+				return rc;
 			}
-			snprintf(why, why_len,
-			         "%s: still \"%s\" (statusword 0x%04X) %u ms after %s (controlword "
-			         "0x%04X), expected \"%s\"%s",
-			         axis_of(ds, i, who, sizeof(who)),
-			         mlip_402_state_name(ds->d[i].state), sw,
-			         (unsigned)ds->cfg.state_timeout_ms, name, cw,
-			         mlip_402_state_name(want), emcy);
-			return -ETIMEDOUT;
+			written = s.cw;
+			continue; /* read back at once */
 		}
 		pause_poll(ds);
 	}
-}
-
-/* From whatever state the drive is in up to "switched on". */
-static int up_to_switched_on(struct mlip_drives *ds, int i, char *why, size_t why_len)
-{
-	uint16_t sw = 0;
-	char who[32];
-	int rc = read_state(ds, i, &sw, why, why_len);
-	uint64_t deadline =
-	    ds->port.now_ns(ds->port.ctx) + (uint64_t)ds->cfg.state_timeout_ms * 1000000u;
-	if (rc != 0) {
-		return rc;
-	}
-	say(ds, "%s: power-up state \"%s\", statusword 0x%04X", axis_of(ds, i, who, sizeof(who)),
-	    mlip_402_state_name(ds->d[i].state), sw);
-	for (int steps = 0; steps < 8; steps++) {
-		mlip_402_state s = ds->d[i].state;
-		if (s == MLIP_402_SWITCHED_ON) {
-			return 0;
-		}
-		if (s == MLIP_402_OPERATION_ENABLED) {
-			/* enabled before we came: disable operation first, nothing moves */
-			rc = transition(ds, i, MLIP_402_CW_SWITCH_ON, MLIP_402_SWITCHED_ON,
-			                "disable operation", why, why_len);
-			if (rc != 0) {
-				return rc;
-			}
-			continue;
-		}
-		int cw = mlip_402_step_up(s);
-		if (cw < 0) { /* not ready, fault reaction: the drive goes on by itself */
-			if (ds->port.now_ns(ds->port.ctx) >= deadline) {
-				snprintf(why, why_len, "%s: stays \"%s\" (statusword 0x%04X)",
-				         axis_of(ds, i, who, sizeof(who)), mlip_402_state_name(s),
-				         sw);
-				return -ETIMEDOUT;
-			}
-			pause_poll(ds);
-			rc = read_state(ds, i, &sw, why, why_len);
-			if (rc != 0) {
-				return rc;
-			}
-			continue;
-		}
-		if (cw == MLIP_402_CW_FAULT_RESET) {
-			/* the reset acts on a rising edge of bit 7 */
-			rc = write_cw(ds, i, MLIP_402_CW_DISABLE_VOLTAGE, why, why_len);
-			if (rc == 0) {
-				rc = transition(ds, i, MLIP_402_CW_FAULT_RESET,
-				                MLIP_402_SWITCH_ON_DISABLED, "fault reset", why,
-				                why_len);
-			}
-		} else {
-			static const char *const names[] = {"shutdown", "switch on",
-			                                    "disable voltage"};
-			const char *name = cw == MLIP_402_CW_SHUTDOWN    ? names[0]
-			                   : cw == MLIP_402_CW_SWITCH_ON ? names[1]
-			                                                 : names[2];
-			rc = transition(ds, i, (uint16_t)cw, mlip_402_after(s, (uint16_t)cw), name,
-			                why, why_len);
-		}
-		if (rc != 0) {
-			return rc;
-		}
-	}
-	snprintf(why, why_len, "%s: does not reach \"switched on\"",
-	         axis_of(ds, i, who, sizeof(who)));
-	return -ETIMEDOUT;
 }
 
 static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, const char *what,
@@ -604,15 +467,12 @@ static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, cons
 
 /* Every drive up to "switched on" (from whatever state) or on to
  * "operation enabled", then every position actual 0x6064, by SDO. */
-static int all_drives_to(struct mlip_drives *ds, mlip_402_state want, int32_t *counts, char *why,
+static int all_drives_to(struct mlip_drives *ds, mlip_drive_power want, int32_t *counts, char *why,
                          size_t why_len)
 {
 	int rc;
 	for (int i = 0; i < ds->n; i++) {
-		rc = want == MLIP_402_OPERATION_ENABLED
-		         ? transition(ds, i, MLIP_402_CW_ENABLE_OPERATION,
-		                      MLIP_402_OPERATION_ENABLED, "enable operation", why, why_len)
-		         : up_to_switched_on(ds, i, why, why_len);
+		rc = power_to(ds, i, want, want == MLIP_POWER_SWITCHED_ON, why, why_len);
 		if (rc != 0) {
 			return rc;
 		}
@@ -675,7 +535,7 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		goto fail;
 	}
 	/* where the machine is, before anything is enabled */
-	rc = all_drives_to(ds, MLIP_402_SWITCHED_ON, pos_counts, why, why_len);
+	rc = all_drives_to(ds, MLIP_POWER_SWITCHED_ON, pos_counts, why, why_len);
 	if (rc != 0) {
 		goto fail;
 	}
@@ -703,7 +563,7 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 			goto fail;
 		}
 	}
-	rc = all_drives_to(ds, MLIP_402_OPERATION_ENABLED, pos_counts, why, why_len);
+	rc = all_drives_to(ds, MLIP_POWER_ENABLED, pos_counts, why, why_len);
 	if (rc != 0) {
 		goto fail;
 	}
@@ -733,6 +593,7 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		    a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", v);
 	}
 	ds->phase = MLIP_DRIVES_RUN;
+	ds->power = MLIP_POWER_ENABLED;
 	return 0;
 fail:
 	mlip_drives_disable(ds);
@@ -742,43 +603,29 @@ fail:
 void mlip_drives_disable(struct mlip_drives *ds)
 {
 	char why[256];
+	uint16_t sw;
 	for (int i = 0; i < ds->n; i++) {
-		uint16_t sw = 0;
-		if (read_state(ds, i, &sw, why, sizeof(why)) != 0) {
-			continue; /* gone or never there: nothing to disable */
-		}
-		mlip_402_state s = ds->d[i].state;
-		if (s == MLIP_402_OPERATION_ENABLED) {
-			transition(ds, i, MLIP_402_CW_SWITCH_ON, MLIP_402_SWITCHED_ON,
-			           "disable operation", why, sizeof(why));
-			s = ds->d[i].state;
-		}
-		if (s == MLIP_402_SWITCHED_ON) {
-			transition(ds, i, MLIP_402_CW_SHUTDOWN, MLIP_402_READY_TO_SWITCH_ON,
-			           "shutdown", why, sizeof(why));
+		if (read_sw(ds, i, &sw, why, sizeof(why)) == 0) { /* else gone or never there */
+			power_to(ds, i, MLIP_POWER_OFF, 0, why, sizeof(why));
 		}
 	}
 }
 
-/* ---- the loop -------------------------------------------------------------------- */
+/* ---- the loop: the period's hooks ---------------------------------------------- */
 
-static void read_frames(struct mlip_drives *ds, uint64_t cycle, uint64_t now)
+static void hook_rx(void *ctx, const struct mlip_can_frame *f, uint64_t cycle, uint64_t now)
 {
-	struct mlip_can_frame f;
+	struct mlip_drives *ds = ctx;
 	struct mlip_co_msg m;
-	for (int k = 0; k < RX_PER_PERIOD(ds->n); k++) {
-		if (ds->port.recv(ds->port.ctx, &f, 0) != 1) {
-			break;
-		}
-		ds->rx_frames++;
-		observe(ds, &f, now, cycle, &m);
-	}
+	ds->rx_frames++;
+	observe(ds, f, now, cycle + 1, &m);
 }
 
 /* any_state: the controller is disabling, has disabled or is enabling the
  * drives (its power is not ENABLED): no state but fault is wrong, and they
- * follow no target. */
-static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int any_state)
+ * follow no target. The first new fault goes to the controller's input. */
+static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int any_state,
+                      struct mlip_ctl_in *in)
 {
 	struct mlip_drive_expect x;
 	uint64_t period_ns = (uint64_t)(ds->m->period_s * 1e9 + 0.5);
@@ -824,81 +671,99 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 			__atomic_store_n(&ds->fault, 1, __ATOMIC_RELEASE);
 			/* an input of the controller's period: it stops every axis on
 			 * the path, state fault, reason drive (node, event, value) */
-			ds->in.drive_fault.event = (uint32_t)f;
-			ds->in.drive_fault.node = d->node;
-			ds->in.drive_fault.value = (double)detail;
+			in->drives.fault.event = (uint32_t)f;
+			in->drives.fault.node = d->node;
+			in->drives.fault.value = (double)detail;
 		}
 	}
 }
 
-int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t)
+/* Before the controller: supervision against the power its last period
+ * left, then its inputs from the drives: the faulted ones (no RPDO),
+ * statuswords (its power steps are confirmed by them), positions actual. */
+static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl_in *in)
 {
 	struct mlip_drives *ds = ctx;
-	struct mlip_controller *c = ds->ctl;
-	uint64_t cycle = t->cycle + 1, now = ds->port.now_ns(ds->port.ctx);
-
-	memset(&ds->in.drive_fault, 0, sizeof(ds->in.drive_fault));
-	read_frames(ds, cycle, now);
-	/* the power as the controller's last period left it (the RPDOs sent) */
-	supervise(ds, cycle, now, c->core.power != MLIP_POWER_ENABLED);
-	/* the controller's inputs from the drives: the faulted ones (no RPDO),
-	 * statuswords (its power steps are confirmed by them), positions actual */
-	ds->in.drive_mute = ds->mute;
-	ds->in.actual_mask = 0;
+	supervise(ds, cycle + 1, now, ds->power != MLIP_POWER_ENABLED, in);
+	in->drives.mute = ds->mute;
+	in->drives.actual_mask = 0;
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_drive *d = &ds->d[i];
 		int32_t v = d->obs.tpdo_count > 0 ? d->obs.position_counts : d->start_counts;
-		ds->in.drive_sw[i] = d->obs.tpdo_cycle != 0 ? d->obs.statusword : 0;
-		ds->in.pos_actual[i] = v / d->counts_per_unit;
-		ds->in.actual_mask |= 1u << i;
+		in->drives.sw[i] = d->obs.tpdo_cycle != 0 ? d->obs.statusword : 0;
+		in->drives.pos_actual[i] = v / d->counts_per_unit;
+		in->drives.actual_mask |= 1u << i;
 	}
-	int done = mlip_controller_period(c, t, &ds->in);
-	/* the targets just sent, for the following error */
+}
+
+/* After it: the targets just sent (for the following error), the master's
+ * heartbeat, and the loop's end once the controller is at rest with the
+ * drives disabled (or faulted). */
+static void hook_after(void *ctx, uint64_t cycle, uint64_t now, const struct mlip_ctl_out *out)
+{
+	struct mlip_drives *ds = ctx;
 	for (int i = 0; i < ds->n; i++) {
 		struct mlip_drive *d = &ds->d[i];
 		int32_t counts;
-		mlip_can_counts(c->out.pos[i], d->counts_per_unit, &counts);
-		d->targets[cycle % MLIP_DRIVE_HIST] = counts;
+		mlip_can_counts(out->pos[i], d->counts_per_unit, &counts);
+		d->targets[(cycle + 1) % MLIP_DRIVE_HIST] = counts;
 	}
+	ds->power = out->power.state;
 	serve_heartbeat(ds, now);
-	/* the controller ends only at rest with the drives disabled (or faulted) */
-	if (done && ds->phase == MLIP_DRIVES_RUN) {
-		const struct mlip_ctl *k = &c->core;
+	if (out->done && ds->phase == MLIP_DRIVES_RUN) {
 		ds->phase = MLIP_DRIVES_OFF;
-		ds->shutdown_ok = k->power_ok;
-		if (!k->power_ok) {
-			/* once, as the loop ends */
-			snprintf(ds->shutdown_note, sizeof(ds->shutdown_note),
-			         "node %u did not confirm \"%s\" within %u ms after %s: statusword "
-			         "0x%04X",
-			         (unsigned)k->power_late_node,
-			         k->power_late_step == MLIP_POWER_DISABLING ? "switched on"
-			                                                    : "ready to switch on",
-			         (unsigned)ds->cfg.state_timeout_ms,
-			         k->power_late_step == MLIP_POWER_DISABLING ? "disable operation"
-			                                                    : "shutdown",
-			         (unsigned)k->power_late_sw);
+		ds->shutdown_ok = out->power.ok;
+		ds->shutdown = out->power; /* its text: mlip_drives_shutdown_text, after the loop */
+	}
+}
+
+void mlip_drives_hooks(struct mlip_drives *ds, struct mlip_period_hooks *h)
+{
+	memset(h, 0, sizeof(*h));
+	h->ctx = ds;
+	h->rx_max = RX_PER_PERIOD(ds->n);
+	h->rx = hook_rx;
+	h->before = hook_before;
+	h->after = hook_after;
+}
+
+void mlip_drives_shutdown_text(const struct mlip_drives *ds, char *buf, size_t len)
+{
+	const struct mlip_ctl_power *p = &ds->shutdown;
+	buf[0] = '\0';
+	if (ds->phase == MLIP_DRIVES_OFF && !ds->shutdown_ok) {
+		snprintf(buf, len,
+		         "node %u did not confirm \"%s\" within %u ms after %s: statusword "
+		         "0x%04X",
+		         (unsigned)p->late_node,
+		         mlip_402_state_name(mlip_402_step_expects(p->late_step)),
+		         (unsigned)ds->cfg.state_timeout_ms, mlip_402_step_command(p->late_step),
+		         (unsigned)p->late_sw);
+	}
+}
+
+int mlip_drives_rx_ids(const struct mlip_machine *m, uint32_t *ids, int cap)
+{
+	static const uint32_t bases[4] = {MLIP_CO_SDO_TX_BASE, MLIP_CO_HB_BASE, MLIP_CO_EMCY_BASE,
+	                                  MLIP_CO_TPDO1_BASE};
+	int n = 0;
+	for (int i = 0; i < m->n_axes; i++) {
+		for (int b = 0; b < 4 && n < cap; b++) {
+			ids[n++] = bases[b] + (uint32_t)m->axis[i].can_node;
 		}
 	}
-	return done;
+	return n;
 }
 
 /* The text of a power event (MLIP_EV_POWER) for the log, outside the loop. */
 void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_event *e, char *buf,
                             size_t len)
 {
-	static const char *const cw[MLIP_POWER_COUNT] = {"",
-	                                                 "",
-	                                                 "disable operation (0x0007)",
-	                                                 "shutdown (0x0006)",
-	                                                 "",
-	                                                 "switch on (0x0007)",
-	                                                 "enable operation (0x000F)"};
-	static const char *const want[MLIP_POWER_COUNT] = {
-	    "", "operation enabled", "switched on",      "ready to switch on",
-	    "", "switched on",       "operation enabled"};
+	char cw[48], cw_to[48];
+	const char *want = mlip_402_state_name(mlip_402_step_expects(e->from));
 	double ms = ds->m->period_s * 1e3;
-	uint32_t from = e->from < MLIP_POWER_COUNT ? e->from : 0;
+	step_text(e->from, cw, sizeof(cw));
+	step_text(e->state, cw_to, sizeof(cw_to));
 	if (e->r.node != 0) {
 		int i = find_node(ds, (uint8_t)e->r.node);
 		snprintf(
@@ -907,7 +772,7 @@ void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_
 		    "%s, expected \"%s\"",
 		    (unsigned)e->r.node, i >= 0 ? ds->d[i].letter : '?',
 		    mlip_402_state_name(mlip_402_state_of((uint16_t)e->r.field)),
-		    (unsigned)e->r.field, e->r.value, cw[from], want[from]);
+		    (unsigned)e->r.field, e->r.value, cw, want);
 		return;
 	}
 	switch (e->state) {
@@ -917,19 +782,17 @@ void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_
 		         e->state == MLIP_POWER_DISABLING ? "at rest: disabling"
 		                                          : "a program waits: enabling",
 		         (unsigned long long)e->period, (unsigned long long)e->exec_seq,
-		         (unsigned)e->exec_line, cw[e->state]);
+		         (unsigned)e->exec_line, cw_to);
 		return;
 	case MLIP_POWER_OFF:
 	case MLIP_POWER_ENABLED:
 		snprintf(buf, len,
-		         "drives: %s: \"%s\" after %.0f periods, %s in %llu periods (%.1f ms)",
-		         cw[from], want[from], e->r.value,
-		         e->state == MLIP_POWER_OFF ? "disabled" : "enabled",
+		         "drives: %s: \"%s\" after %.0f periods, %s in %llu periods (%.1f ms)", cw,
+		         want, e->r.value, e->state == MLIP_POWER_OFF ? "disabled" : "enabled",
 		         (unsigned long long)e->r.seq, (double)e->r.seq * ms);
 		return;
 	default:
-		snprintf(buf, len, "drives: %s: \"%s\" after %.0f periods", cw[from], want[from],
-		         e->r.value);
+		snprintf(buf, len, "drives: %s: \"%s\" after %.0f periods", cw, want, e->r.value);
 	}
 }
 

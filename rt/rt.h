@@ -1,7 +1,8 @@
 /*
  * rt/rt.h - the real-time runtime around the pure core: the POSIX shared
- * memory segment (ring, status, commands, machine), SocketCAN output, the
- * periodic SCHED_FIFO loop and the controller that runs in it.
+ * memory segment (ring, status, commands, machine), the one SocketCAN socket,
+ * the periodic SCHED_FIFO loop, the period that runs the controller in it,
+ * and the CANopen master of the CiA 402 drives.
  *
  * Functions return 0 or -errno and never print; a `why` buffer, when given,
  * receives one line a tool can show. Nothing called from the periodic loop
@@ -16,6 +17,7 @@
 
 #include "mlip/can/canenc.h"
 #include "mlip/machine/config.h"
+#include "mlip/canopen/drive.h"
 #include "mlip/ctl/controller.h"
 #include "mlip/ipc/peer.h"
 #include "mlip/motion/planner.h"
@@ -56,7 +58,16 @@ void mlip_shm_close(struct mlip_shm *s);
  * alone (beat within MLIP_PEER_TIMEOUT_NS); 0 also for no consistent status. */
 int mlip_shm_controller_alive(const struct mlip_ring *r);
 
-/* ---- peers (rt/peer.c; the rule is mlip/ipc/peer.h) ------------------------ */
+/* The ring's single producer: a POSIX record lock on the producer cache line
+ * of the segment (the kernel drops it when the feeder dies). mlip-feed takes
+ * it before it checks its program: 0, or -EBUSY with *holder (0 if unknown)
+ * when another process has it, or -errno. */
+int mlip_shm_feeder_lock(struct mlip_shm *s, int32_t *holder);
+/* The pid of the process holding the producer lock (a feeder checking or
+ * sending its program), 0 when none. */
+int32_t mlip_shm_feeder_holder(const struct mlip_shm *s);
+
+/* ---- peers (rt/liveness.c; the rule is mlip/ipc/peer.h) ------------------------ */
 
 /* 1 when process pid exists and is not a zombie (EPERM counts: another
  * user's); 0 for pid 0 or a process gone. Reads /proc: not for the loop. */
@@ -69,32 +80,53 @@ mlip_peer_verdict mlip_peer_check(struct mlip_peer_seen *s, uint32_t pid, struct
 /* A feeder area judged on its stamp and its process (pid 0: it left). */
 mlip_peer_verdict mlip_peer_feeder(const struct mlip_ring_feeder *f);
 
-/* ---- CAN (rt/canio.c) ---------------------------------------------------- */
+/* ---- CAN (rt/canbus.c): the one socket ------------------------------------ */
 
-struct mlip_canio {
+/* How the period and the CANopen master reach the bus: a SocketCAN socket
+ * (mlip_canbus_port) or, in the unit tests, a scripted peer. */
+enum {
+	MLIP_CAN_RX_NONE = 0, /* nothing within the time given */
+	MLIP_CAN_RX_FRAME,    /* a data frame */
+	MLIP_CAN_RX_ERROR,    /* an error frame: f->id is its class (mlip_canbus_error_bus_off) */
+	MLIP_CAN_RX_OTHER     /* something else (a remote request, a malformed read): skip it */
+};
+
+struct mlip_can_port {
+	void *ctx;
+	int (*send)(void *ctx, const struct mlip_can_frame *f); /* 0 or -errno, never waits */
+	/* one frame (MLIP_CAN_RX_*) within timeout_ns (0: do not wait), or -errno */
+	int (*recv)(void *ctx, struct mlip_can_frame *f, int64_t timeout_ns);
+	uint64_t (*now_ns)(void *ctx);
+};
+
+#define MLIP_CANBUS_MAX_IDS (4 * MLIP_MAX_AXES + 8) /* identifiers a socket receives */
+
+struct mlip_canbus {
 	int fd;
 	int fd_frames; /* CAN FD enabled on the socket */
 	char ifname[16];
-	/* counters, updated by send/poll */
-	uint64_t tx_ok, tx_dropped; /* dropped: ENOBUFS / EAGAIN, never waited on */
-	uint64_t bus_errors;        /* error frames received */
-	int bus_off;                /* an error frame reported bus-off */
 };
 
 /* Check the interface with libsocketcan outside the loop: exists, is up, its
  * state when the driver reports one (vcan does not). *info gets a line. */
-int mlip_canio_check(const char *ifname, char *info, size_t info_len);
-/* Raw socket bound to ifname, non-blocking, receiving error frames only. */
-int mlip_canio_open(struct mlip_canio *io, const char *ifname, int fd_frames, char *why,
-                    size_t why_len);
-/* Send one frame without waiting: 0, -EAGAIN/-ENOBUFS (counted in
- * tx_dropped), or another -errno. */
-int mlip_canio_send(struct mlip_canio *io, const struct mlip_can_frame *f);
-/* Read pending error frames without waiting; returns how many. */
-int mlip_canio_poll(struct mlip_canio *io);
+int mlip_canbus_check(const char *ifname, char *info, size_t info_len);
+/* A raw socket bound to ifname, non-blocking, receiving the standard
+ * identifiers rx_ids[0..n_ids) (at most MLIP_CANBUS_MAX_IDS; none: error
+ * frames only) and every error frame. */
+int mlip_canbus_open(struct mlip_canbus *bus, const char *ifname, int fd_frames,
+                     const uint32_t *rx_ids, int n_ids, char *why, size_t why_len);
+/* Send one frame without waiting: 0, -EAGAIN/-ENOBUFS (the queue is full),
+ * or another -errno. */
+int mlip_canbus_send(struct mlip_canbus *bus, const struct mlip_can_frame *f);
+/* One frame (MLIP_CAN_RX_*), waiting up to timeout_ns (0: not at all). */
+int mlip_canbus_recv(struct mlip_canbus *bus, struct mlip_can_frame *f, int64_t timeout_ns);
+/* An error frame's class: 1 says bus-off, 0 restarted, -1 neither. */
+int mlip_canbus_error_bus_off(uint32_t err_class);
+/* The bus as a port (its clock: mlip_now_ns). */
+void mlip_canbus_port(struct mlip_canbus *bus, struct mlip_can_port *p);
 /* Restart after bus-off where the driver supports it (-EOPNOTSUPP on vcan). */
-int mlip_canio_restart(const char *ifname);
-void mlip_canio_close(struct mlip_canio *io);
+int mlip_canbus_restart(const char *ifname);
+void mlip_canbus_close(struct mlip_canbus *bus);
 
 /* ---- the periodic loop (rt/rtloop.c) ------------------------------------- */
 
@@ -140,12 +172,14 @@ int mlip_rt_run(const struct mlip_rt_opts *o, mlip_rt_fn fn, mlip_rt_after_fn af
 void mlip_rt_request_stop(void);
 int mlip_rt_stop_requested(void);
 
-/* ---- the controller (rt/controller.c) ------------------------------------ */
+/* ---- the period (rt/period.c) ------------------------------------------- */
 
-/* The thin part around the pure controller (mlip/ctl/controller.h): the clock,
- * the feeder's liveness, the command mailbox, CAN send and poll, the status
- * write, and two queues read by an ordinary thread, never by the loop: the
- * events to log and (with a record buffer) the setpoints of every period. */
+/* One period of mlip-rt around the pure controller (mlip/ctl/controller.h):
+ * the clock, the feeder's liveness, the command mailbox, the bus read once
+ * (error frames counted, the rest handed to the hooks), the controller, its
+ * frames sent, the status written, and two queues read by an ordinary
+ * thread, never by the loop: the events to log and (with a record buffer)
+ * the setpoints of every period. */
 #define MLIP_LOG_QUEUE 256 /* events; more in one burst are counted as lost */
 
 struct mlip_rt_sample {
@@ -154,17 +188,48 @@ struct mlip_rt_sample {
 	double pos[MLIP_MAX_AXES];
 };
 
-struct mlip_controller {
+/* What the CANopen master (rt/drives.c) does in each period, called by the
+ * period (never the other way round); cycle is the loop's, now_ns the bus
+ * port's clock at the period's start. */
+struct mlip_period_hooks {
+	void *ctx;
+	int rx_max; /* frames read from the bus a period, at most */
+	/* a data frame from the bus */
+	void (*rx)(void *ctx, const struct mlip_can_frame *f, uint64_t cycle, uint64_t now_ns);
+	/* before the controller: the drives' part of its input */
+	void (*before)(void *ctx, uint64_t cycle, uint64_t now_ns, struct mlip_ctl_in *in);
+	/* after it (its frames sent): what it decided */
+	void (*after)(void *ctx, uint64_t cycle, uint64_t now_ns, const struct mlip_ctl_out *out);
+};
+
+/* The bus as the loop saw it (written by the loop thread only). */
+struct mlip_bus_counts {
+	uint64_t tx_ok, tx_dropped; /* the controller's frames: sent, refused by a full queue */
+	uint64_t rx_frames;         /* data frames handed to the hooks */
+	uint64_t bus_errors;        /* error frames */
+	int bus_off;                /* the last error frame said bus-off (atomic: the monitor
+	                               thread reads it to restart the controller) */
+};
+
+struct mlip_period {
+	/* set at init (the controller inside is read through out, never directly) */
 	struct mlip_ctl core;
 	struct mlip_ring *ring;
-	struct mlip_canio *can;             /* NULL: frames encoded, not sent */
-	uint32_t pid;                       /* published as status.reserved */
-	volatile sig_atomic_t exit_request; /* SIGINT/SIGTERM/SIGHUP: stop, then end the loop */
+	struct mlip_ring_port rx;        /* the consumer's side of it */
+	const struct mlip_can_port *bus; /* NULL: frames encoded, not sent */
+	struct mlip_period_hooks hooks;  /* rx/before/after NULL: none */
+	uint32_t pid;                    /* published as status.reserved */
 	int64_t period_ns;
 	uint64_t first_deadline_ns;
-	uint64_t cycles, frames_sent;
-	int64_t send_ns; /* this period's sends (latency tool) */
+	/* the one input from outside the loop: SIGINT/SIGTERM/SIGHUP: a stop,
+	 * then the loop ends */
+	volatile sig_atomic_t exit_request;
+	/* results: the last period's output, the periods run, the bus, the
+	 * sends' time (latency tool) */
 	struct mlip_ctl_out out;
+	uint64_t cycles;
+	struct mlip_bus_counts can;
+	int64_t send_ns;
 	/* event queue (SPSC: the loop produces, the monitor thread consumes) */
 	struct mlip_ctl_event log[MLIP_LOG_QUEUE];
 	uint32_t log_head, log_tail;
@@ -175,42 +240,21 @@ struct mlip_controller {
 	uint64_t rec_lost;
 };
 
-/* o: strategy, look-ahead, stall periods, [CAN] settings (NULL: none). */
-int mlip_controller_init(struct mlip_controller *c, struct mlip_planner *p,
-                         const struct mlip_machine *m, const struct mlip_ctl_opts *o,
-                         struct mlip_ring *ring, struct mlip_canio *io);
-/* The period's work (an mlip_rt_fn). Returns non-zero when a requested stop
- * has completed. */
-int mlip_controller_tick(void *ctx, const struct mlip_rt_tick *t);
-/* The same with the drives' inputs of this period (rt/drives.c: controlword,
- * muted drives, a drive fault, positions actual; the other fields of drv are
- * ignored). */
-int mlip_controller_period(struct mlip_controller *c, const struct mlip_rt_tick *t,
-                           const struct mlip_ctl_in *drv);
+/* o: strategy, look-ahead, stall periods, [CAN] settings (NULL: none), the
+ * drives; bus NULL: no CAN; hooks NULL: none. A record buffer (rec, rec_cap)
+ * set before stays. */
+int mlip_period_init(struct mlip_period *p, struct mlip_planner *pl, const struct mlip_machine *m,
+                     const struct mlip_ctl_opts *o, struct mlip_ring *ring,
+                     const struct mlip_can_port *bus, const struct mlip_period_hooks *hooks);
+/* The period's work (an mlip_rt_fn, ctx = p). Returns non-zero when a
+ * requested stop has completed. */
+int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t);
 /* Monitor thread: the next event (1) or none (0). */
-int mlip_controller_log_pop(struct mlip_controller *c, struct mlip_ctl_event *ev);
+int mlip_period_log_pop(struct mlip_period *p, struct mlip_ctl_event *ev);
 /* Monitor thread: the next recorded setpoint (1) or none (0). */
-int mlip_controller_rec_pop(struct mlip_controller *c, struct mlip_rt_sample *s);
+int mlip_period_rec_pop(struct mlip_period *p, struct mlip_rt_sample *s);
 
 /* ---- CiA 402 drives (rt/drives.c) ------------------------------------------ */
-
-#include "mlip/canopen/canopen.h"
-
-/* How the master reaches the bus: SocketCAN (mlip_co_socket_open) or, in the
- * unit tests, a scripted peer. */
-struct mlip_co_port {
-	void *ctx;
-	int (*send)(void *ctx, const struct mlip_can_frame *f); /* 0 or -errno, never waits */
-	/* one frame: 1; none within timeout_ns (0: do not wait): 0; or -errno */
-	int (*recv)(void *ctx, struct mlip_can_frame *f, int64_t timeout_ns);
-	uint64_t (*now_ns)(void *ctx);
-};
-
-/* A raw socket on ifname receiving only what the master reads from the
- * drives of m (SDO answers, heartbeats, EMCY, TPDO1), non-blocking. */
-int mlip_co_socket_open(struct mlip_co_port *p, const char *ifname, const struct mlip_machine *m,
-                        char *why, size_t why_len);
-void mlip_co_socket_close(struct mlip_co_port *p);
 
 /* Targets kept per drive, by period: a TPDO is judged against the targets
  * sent before the SYNC it answers, so a drive that answers late (the
@@ -224,7 +268,6 @@ struct mlip_drive {
 	double counts_per_unit;
 	struct mlip_drive_setup setup;
 	struct mlip_drive_obs obs;
-	mlip_402_state state;             /* as last confirmed */
 	int32_t start_counts;             /* position actual at bring-up */
 	int32_t targets[MLIP_DRIVE_HIST]; /* target sent in period c at c % MLIP_DRIVE_HIST */
 };
@@ -232,7 +275,7 @@ struct mlip_drive {
 enum { MLIP_DRIVES_RUN = 0, MLIP_DRIVES_OFF }; /* the loop runs; it ended, drives disabled */
 
 struct mlip_drives {
-	struct mlip_co_port port;
+	struct mlip_can_port port;
 	struct mlip_drives_config cfg;
 	const struct mlip_machine *m;
 	int n;
@@ -241,14 +284,11 @@ struct mlip_drives {
 	void (*log)(void *ctx, const char *line); /* bring-up and shut-down (outside the loop) */
 	void *log_ctx;
 	/* the loop */
-	struct mlip_controller *ctl;
-	int phase; /* MLIP_DRIVES_* */
-	uint64_t phase_cycle;
-	uint32_t mute; /* drives sent no RPDO: not operation enabled */
+	int phase;      /* MLIP_DRIVES_* */
+	uint32_t power; /* the drives' power the controller's last period left (mlip_drive_power) */
+	uint32_t mute;  /* drives sent no RPDO: not operation enabled */
 	uint64_t rx_frames, rx_malformed;
-	/* this period's inputs of the controller (mute, the new fault,
-	 * statuswords, positions actual), built here, never poked into it */
-	struct mlip_ctl_in in;
+	struct mlip_ctl_drive_fault new_fault; /* found this period, for the controller */
 	/* the first fault (the controller's state and log carry it; kept here
 	 * for the exit summary and the tests): `fault` set once, release */
 	int fault;
@@ -256,37 +296,42 @@ struct mlip_drives {
 	mlip_drive_fault fault_reason;
 	int64_t fault_detail;
 	uint64_t fault_cycle;
-	int shutdown_ok;         /* the last disable in order within the timeouts */
-	char shutdown_note[160]; /* what went wrong in it */
+	/* the in-loop shut-down, as the controller's last period reported it */
+	int shutdown_ok;                /* the last disable in order within the timeouts */
+	struct mlip_ctl_power shutdown; /* which drive did not confirm which step */
 };
 
+/* The identifiers the master receives from the drives of m (SDO answers,
+ * heartbeats, EMCY, TPDO1): the bus' receive filter; returns how many. */
+int mlip_drives_rx_ids(const struct mlip_machine *m, uint32_t *ids, int cap);
 /* Check the [DRIVES] settings against the machine (master node, following
  * window in counts, period) and fill ds; log gets one line per step. */
 int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
-                     const struct mlip_co_port *port, void (*log)(void *, const char *),
+                     const struct mlip_can_port *port, void (*log)(void *, const char *),
                      void *log_ctx, char *why, size_t why_len);
 /* Outside the loop: NMT reset communication and boot-up of every drive, the
  * SDO set-up (each write read back), NMT start, CiA 402 up to "operation
- * enabled" with 0x607A = position actual; start_pos[] gets the positions in
- * mm (deg), checked against the soft limits. On any error: why names node,
- * object, abort code; the drives are shut down again; -errno. */
+ * enabled" (the sequencer of mlip/canopen/cia402.h, by SDO) with 0x607A =
+ * position actual; start_pos[] gets the positions in mm (deg), checked
+ * against the soft limits. On any error: why names node, object, abort
+ * code; the drives are shut down again; -errno. */
 int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, size_t why_len);
-/* The loop's function (an mlip_rt_fn, ctx = ds, after ds->ctl is set, its
- * controller initialised with opts.drives and drive_state_periods): reads the
- * drives' frames without waiting (bounded), supervises them (any state but
- * fault is right while the controller's power is not ENABLED), runs the
- * controller's period with the drives as inputs (muted drives, a drive
- * fault: the controller stops every axis on the path, state fault, reason
- * drive; statuswords and positions actual: the controller disables the
- * drives at rest after a program, a stop or a fault, and enables them again
- * for the next, through the RPDOs' controlword), sends the master's
- * heartbeat. It ends the loop on exit once the controller is at rest with
- * the drives disabled (the SYNC still running until then). */
-int mlip_drives_tick(void *ctx, const struct mlip_rt_tick *t);
+/* The loop's part, as hooks of the period (after the bring-up; the period's
+ * controller initialised with opts.drives and drive_state_periods): the
+ * drives' frames observed, their supervision (any state but fault is right
+ * while the controller's power is not ENABLED), the controller's inputs from
+ * them (muted drives, a new fault, statuswords, positions actual), the
+ * targets sent kept for the following error, the master's heartbeat. The
+ * period ends the loop on exit once the controller is at rest with the
+ * drives disabled (the SYNC still running until then). */
+void mlip_drives_hooks(struct mlip_drives *ds, struct mlip_period_hooks *h);
 /* Outside the loop (the monitor): one line for a power event (MLIP_EV_POWER)
  * with node, axis, controlwords, periods. */
 void mlip_drives_power_text(const struct mlip_drives *ds, const struct mlip_ctl_event *e, char *buf,
                             size_t len);
+/* Outside the loop, after it: what went wrong in the in-loop shut-down (a
+ * drive that did not confirm a step in time), or "" when it was in order. */
+void mlip_drives_shutdown_text(const struct mlip_drives *ds, char *buf, size_t len);
 /* Outside the loop, by SDO: shutdown (0x0006) to every drive still enabled
  * (after a failed bring-up, or a loop that ended without its shut-down). */
 void mlip_drives_disable(struct mlip_drives *ds);

@@ -43,6 +43,7 @@
 #include <inttypes.h>
 #include <pwd.h>
 #include <stdarg.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -575,6 +576,41 @@ fail:
 	close(s->fd);
 	shm_reset(s);
 	return say(why, why_len, rc, "%s: %s", name, strerror(-rc));
+}
+
+static void producer_line(struct flock *fl)
+{
+	memset(fl, 0, sizeof(*fl));
+	fl->l_type = F_WRLCK;
+	fl->l_whence = SEEK_SET;
+	fl->l_start = (off_t)offsetof(struct mlip_ring, head);
+	fl->l_len = MLIP_RING_LINE;
+}
+
+int mlip_shm_feeder_lock(struct mlip_shm *s, int32_t *holder)
+{
+	struct flock fl;
+
+	producer_line(&fl);
+	if (fcntl(s->fd, F_SETLK, &fl) == 0) {
+		return 0;
+	}
+	if (errno != EACCES && errno != EAGAIN) {
+		return -errno;
+	}
+	*holder = mlip_shm_feeder_holder(s);
+	return -EBUSY;
+}
+
+int32_t mlip_shm_feeder_holder(const struct mlip_shm *s)
+{
+	struct flock fl;
+
+	producer_line(&fl);
+	if (s->mem == NULL || fcntl(s->fd, F_GETLK, &fl) != 0 || fl.l_type == F_UNLCK) {
+		return 0;
+	}
+	return (int32_t)fl.l_pid;
 }
 
 void mlip_shm_close(struct mlip_shm *s)

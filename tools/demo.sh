@@ -6,7 +6,7 @@
 #   1. builds everything (make);
 #   2. brings up vcan0: on this machine when its kernel has CAN, else in a QEMU
 #      VM (tools/vcan/run.sh: 12-25 s to boot, software emulation);
-#   3. there: the listener (tools/mlip-listen.py) on vcan0, then the controller
+#   3. there: the listener (mlip-listen) on vcan0, then the controller
 #      (build/mlip-rt, config/mill-3axis.ini), then build/mlip-feed with
 #      examples/demo.ngc (our own: a rose engraved in micro-segments on a wavy
 #      surface, and a helix; 1819 blocks, 6.5 s), then a controlled stop;
@@ -14,8 +14,8 @@
 #      bus, and the checks: every frame sent was received, the decoded
 #      positions equal the simulator's (mlip-sim) to the last drive count,
 #      mlip-check's physics (acceleration, speed, contour) on them;
-#   then the drives stage, in the same place (tools/mlipcan/drivedemo.py):
-#      three simulated CiA 402 drives (tools/mlip-drive-sim.py, the canopen
+#   then the drives stage, in the same place (mlipcan.demo_drives):
+#      three simulated CiA 402 drives (mlip-drive-sim, the canopen
 #      package) powered up away from HOME, one in fault; mlip-rt --drives
 #      (config/mill-3axis-drives.ini at a 40 ms period) brings them up, runs a
 #      short program, shuts them down; prints each bring-up step as the
@@ -59,21 +59,18 @@ say() { printf '\n== %s\n' "$*"; }
 say "build (make)"
 make -s || exit 1
 
-say "Python packages (.venv: python-can, cantools; matplotlib for the plot)"
-tools/vcan/setup.sh --python || exit 1
-if ! .venv/bin/python -c 'import matplotlib' >/dev/null 2>&1; then
-	.venv/bin/pip install -q --disable-pip-version-check -r tests/can/requirements.txt || exit 1
-fi
+say "Python packages (.venv: mlipcan, python-can, cantools, canopen; matplotlib for the plot)"
+tools/deps.sh --python || exit 1
 # The frame layout, read from tools/mlip.dbc with cantools and checked against
 # the config, cached in build/: the listener in the VM then skips the import.
-.venv/bin/python tools/mlip-listen.py --check-layout --config config/mill-3axis.ini \
+.venv/bin/mlip-listen --check-layout --config config/mill-3axis.ini \
 	--profile "$profile" >/dev/null || exit 1
 
 say "run on vcan0: listener, mlip-rt, mlip-feed $program; then mlip-rt --drives with simulated drives"
 rm -rf build/demo
 # One VM boot for both stages; the exit code is the first failing stage's.
-bus=".venv/bin/python tools/mlip-demo.py demo --profile $profile \"\${MLIP_VM_OUTDIR:-build}/demo\" $program"
-drv="echo; echo '== drives stage: mlip-rt --drives, three simulated CiA 402 drives on vcan0'; .venv/bin/python tools/mlip-demo.py drives \"\${MLIP_VM_OUTDIR:-build}/demo/drives\""
+bus=".venv/bin/mlip-demo demo --profile $profile \"\${MLIP_VM_OUTDIR:-build}/demo\" $program"
+drv="echo; echo '== drives stage: mlip-rt --drives, three simulated CiA 402 drives on vcan0'; .venv/bin/mlip-demo drives \"\${MLIP_VM_OUTDIR:-build}/demo/drives\""
 case "$only" in
 	bus) cmd=$bus ;;
 	drives) cmd=$drv ;;
@@ -107,6 +104,6 @@ if [ "$only" = drives ]; then
 fi
 
 say "plot"
-.venv/bin/python tools/mlip-demo.py plot build/demo build/demo-velocity.png || exit 1
+.venv/bin/mlip-demo plot build/demo build/demo-velocity.png || exit 1
 echo "results: build/demo/ (decoded.csv, demo.json, can.json, logs; drives/), plot: build/demo-velocity.png"
 exit "$rc"

@@ -18,35 +18,47 @@ ceiling turned out 2.41x mpct: on the larger figure the rounding noise, not
 the curvature, limits mpct over most of the path). Points are placed every
 --seg mm of arc length.
 """
+
 import argparse
 import math
+from collections.abc import Callable
+from typing import Any
+
+# a curve: t (a float, or a numpy array in bench/topp.py) and the module whose
+# sin/cos to use -> (x, y, z)
+Curve = Callable[..., tuple[Any, Any, Any]]
 
 
 # m: the module whose sin/cos to use (math here; numpy arrays in bench/topp.py)
-def lissajous(t, m=math):
+def lissajous(t: Any, m: Any = math) -> tuple[Any, Any, Any]:
     return (40.0 * m.sin(3.0 * t + math.pi / 2), 30.0 * m.sin(4.0 * t), 0.0 * t)
 
 
-def lissajous_large(t, m=math):
+def lissajous_large(t: Any, m: Any = math) -> tuple[Any, Any, Any]:
     return (100.0 * m.sin(3.0 * t + math.pi / 2), 75.0 * m.sin(4.0 * t), 0.0 * t)
 
 
-def spiral(t, m=math):
+def spiral(t: Any, m: Any = math) -> tuple[Any, Any, Any]:
     r = 2.0 + 0.5 * t
     return (r * m.cos(t), r * m.sin(t), 0.5 * m.sin(3.0 * t))
 
 
-def trochoid(t, m=math):
+def trochoid(t: Any, m: Any = math) -> tuple[Any, Any, Any]:
     return (3.0 * m.cos(t) + 0.5 * t / (2 * math.pi), 3.0 * m.sin(t), 0.0 * t)
 
 
-CURVES = {"lissajous": (lissajous, 2 * math.pi, 2), "spiral": (spiral, 24 * math.pi, 3),
-          "trochoid": (trochoid, 80 * math.pi, 2),
-          "lissajous-large": (lissajous_large, 2 * math.pi, 2)}
+CURVES: dict[str, tuple[Curve, float, int]] = {
+    "lissajous": (lissajous, 2 * math.pi, 2),
+    "spiral": (spiral, 24 * math.pi, 3),
+    "trochoid": (trochoid, 80 * math.pi, 2),
+    "lissajous-large": (lissajous_large, 2 * math.pi, 2),
+}
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main() -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("curve", choices=sorted(CURVES))
     ap.add_argument("out")
     ap.add_argument("--seg", type=float, default=0.02, help="segment length, mm")
@@ -67,12 +79,22 @@ def main():
             acc = 0.0
     fmt = f"{{:.{a.decimals}f}}"
     with open(a.out, "w") as o:
-        o.write(f"(gen_curves.py {a.curve}: {len(pts) - 1} segments of {a.seg} mm, "
-                f"{a.decimals} decimals)\nG21 G90\n")
+        o.write(
+            f"(gen_curves.py {a.curve}: {len(pts) - 1} segments of {a.seg} mm, "
+            f"{a.decimals} decimals)\nG21 G90\n"
+        )
         x = pts[0]
-        o.write("G0 " + " ".join(f"{c}{fmt.format(v)}" for c, v in zip("XYZ", x[:axes])) + "\nG1 F12000\n")
+        o.write(
+            "G0 "
+            + " ".join(f"{c}{fmt.format(v)}" for c, v in zip("XYZ", x[:axes], strict=False))
+            + "\nG1 F12000\n"
+        )
         for p in pts[1:]:
-            o.write("G1 " + " ".join(f"{c}{fmt.format(v)}" for c, v in zip("XYZ", p[:axes])) + "\n")
+            o.write(
+                "G1 "
+                + " ".join(f"{c}{fmt.format(v)}" for c, v in zip("XYZ", p[:axes], strict=False))
+                + "\n"
+            )
 
 
 if __name__ == "__main__":

@@ -11,11 +11,15 @@ rounded to --decimals as CAM output is.
     build/mlip-sim --accel 1000 --vmax 200 --eps 0.01 --trace t.csv zigzag.ngc
     build/mlip-check --accel 1000 --vmax 200 --eps 0.01 zigzag.ngc t.csv
 """
+
 import argparse
 import sys
+from collections.abc import Sequence
 
 
-def zigzag(seg, pitch, length, rows, row_gap):
+def zigzag(
+    seg: float, pitch: float, length: float, rows: int, row_gap: float
+) -> list[tuple[float, float]]:
     """The points, start first: (x, y) in mm."""
     pts = [(0.0, 0.0)]
     n = int(round(length / pitch))
@@ -31,8 +35,8 @@ def zigzag(seg, pitch, length, rows, row_gap):
     return pts
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main(argv: Sequence[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
     ap.add_argument("--seg", type=float, default=0.3, help="stroke length, mm (0.3)")
     ap.add_argument("--pitch", type=float, default=0.02, help="stroke spacing, mm (0.02)")
     ap.add_argument("--length", type=float, default=20.0, help="row length, mm (20)")

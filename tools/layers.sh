@@ -3,7 +3,9 @@
 # a file of src/F/ or include/mlip/F/ may include mlip/types.h, mlip/F/ and
 # mlip/G/ for a folder G before F in LAYERS, and no other project header
 # (rt.h and tools/lib/ are outside the core: -Iinclude alone already refuses
-# them). Every violation is named with file, line and the rule; exit 1.
+# them); a file of src/F/ may also include a private header of its own
+# folder by its bare name ("gc.h" for src/F/gc.h), itself held to F's rules.
+# Every violation is named with file, line and the rule; exit 1.
 #
 #   tools/layers.sh "LAYER..." FILE...
 set -u
@@ -36,6 +38,13 @@ for f in "$@"; do
 		inc=$(printf '%s\n' "$hit" | sed 's/^[^"]*"\([^"]*\)".*/\1/')
 		case $inc in
 		mlip/types.h) continue ;;
+		*/*) ;;
+		*)
+			# a private header of the file's own folder
+			case $f in src/*/*) [ -f "src/$own/$inc" ] && continue ;; esac
+			;;
+		esac
+		case $inc in
 		mlip/*/*)
 			g=${inc#mlip/}; g=${g%%/*}
 			case " $allowed " in *" $g "*) continue ;; esac
@@ -43,7 +52,8 @@ for f in "$@"; do
 				"mlip/types.h and mlip/{${allowed# }}/ (Makefile LAYERS, bottom first: $layers)" >&2
 			;;
 		*)
-			echo "$f:$n: includes \"$inc\": the core includes project headers as mlip/FOLDER/NAME.h only" >&2
+			echo "$f:$n: includes \"$inc\": the core includes project headers as mlip/FOLDER/NAME.h only" \
+				"(or a private header of its own src/ folder by its name)" >&2
 			;;
 		esac
 		echo bad

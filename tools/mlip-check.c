@@ -14,6 +14,7 @@
 
 #include "check.h"
 #include "cli.h"
+#include "json.h"
 #include "program.h"
 
 #define PROG "mlip-check"
@@ -40,12 +41,16 @@ static void usage(FILE *f)
 	        "exit status: 0 within limits, 1 violation, 2 usage or input error\n");
 }
 
-int main(int argc, char **argv)
+struct options {
+	struct mlip_cli_machine mo;
+	const char *json, *errors, *ppath, *tpath;
+	double quantum, rel;
+	int no_end;
+};
+
+/* 0, or the exit status (-1: --help, exit 0). */
+static int parse_options(int argc, char **argv, struct options *o)
 {
-	struct mlip_cli_machine mo = {0};
-	const char *json = NULL, *errors = NULL;
-	double quantum = 0.0, rel = 1e-9;
-	int no_end = 0;
 	static const struct option opts[] = {{"config", required_argument, 0, 'c'},
 	                                     {"accel", required_argument, 0, 'a'},
 	                                     {"vmax", required_argument, 0, 'v'},
@@ -60,9 +65,11 @@ int main(int argc, char **argv)
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
 	int c;
+	memset(o, 0, sizeof(*o));
+	o->rel = 1e-9;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
 		double v = 0.0;
-		int g = mlip_cli_gcode_option(c, optarg, &mo, PROG, stderr);
+		int g = mlip_cli_gcode_option(c, optarg, &o->mo, PROG, stderr);
 		if (g != 0) {
 			if (g < 0) {
 				return 2;
@@ -76,38 +83,38 @@ int main(int argc, char **argv)
 		}
 		switch (c) {
 		case 'c':
-			mo.config = optarg;
+			o->mo.config = optarg;
 			break;
 		case 'a':
-			mo.accel = optarg;
+			o->mo.accel = optarg;
 			break;
 		case 'v':
-			mo.vmax_mm_s = v;
+			o->mo.vmax_mm_s = v;
 			break;
 		case 'e':
-			mo.eps_mm = v;
+			o->mo.eps_mm = v;
 			break;
 		case 'p':
-			mo.period_s = v;
+			o->mo.period_s = v;
 			break;
 		case 'Q':
-			quantum = v;
+			o->quantum = v;
 			break;
 		case 'r':
-			rel = v;
+			o->rel = v;
 			break;
 		case 'j':
-			json = optarg;
+			o->json = optarg;
 			break;
 		case 'E':
-			no_end = 1;
+			o->no_end = 1;
 			break;
 		case 'O':
-			errors = optarg;
+			o->errors = optarg;
 			break;
 		case 'h':
 			usage(stdout);
-			return 0;
+			return -1;
 		default:
 			usage(stderr);
 			return 2;
@@ -117,68 +124,90 @@ int main(int argc, char **argv)
 		usage(stderr);
 		return 2;
 	}
-	const char *ppath = argv[optind], *tpath = argv[optind + 1];
-	static struct mlip_config cfg;
-	static struct mlip_program prog;
-	if (mlip_cli_open_program(ppath, &mo, &cfg, &prog, PROG, stderr) != 0) {
+	o->ppath = argv[optind];
+	o->tpath = argv[optind + 1];
+	return 0;
+}
+
+/* The program, the check streaming its polyline, the trace and the errors
+ * file open. */
+struct run {
+	struct mlip_config cfg;
+	struct mlip_program prog;
+	struct mlip_cli_path src;
+	struct mlip_check chk;
+	FILE *tf, *ef;
+};
+
+static void close_files(struct run *r)
+{
+	if (r->tf != NULL && r->tf != stdin) {
+		fclose(r->tf);
+	}
+	r->tf = NULL;
+	if (r->ef != NULL) {
+		fclose(r->ef);
+		r->ef = NULL;
+	}
+}
+
+/* 0, or the exit status. */
+static int set_up(const struct options *o, struct run *r)
+{
+	if (mlip_cli_open_program(o->ppath, &o->mo, &r->cfg, &r->prog, PROG, stderr) != 0) {
 		return 2;
 	}
-	const struct mlip_machine *m = &cfg.machine;
-	int n = m->n_axes;
+	const struct mlip_machine *m = &r->cfg.machine;
 	/* the polyline is streamed from the program as the trace needs it, the
 	 * trace row by row: the check's memory is fixed */
-	struct mlip_cli_path src;
-	mlip_cli_path_start(&src, &prog, m);
+	mlip_cli_path_start(&r->src, &r->prog, m);
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
-	lim.tol_mm = m->tolerance_mm * (1.0 + rel) + quantum; /* the contour bound, for order */
-	static struct mlip_check chk;
-	mlip_check_init_source(&chk, &lim, mlip_cli_path_next, &src);
+	lim.tol_mm =
+	    m->tolerance_mm * (1.0 + o->rel) + o->quantum; /* the contour bound, for order */
+	mlip_check_init_source(&r->chk, &lim, mlip_cli_path_next, &r->src);
+	r->tf = strcmp(o->tpath, "-") == 0 ? stdin : fopen(o->tpath, "r");
+	if (r->tf == NULL) {
+		perror(o->tpath);
+		mlip_program_close(&r->prog);
+		return 2;
+	}
+	if (o->errors != NULL && (r->ef = fopen(o->errors, "w")) == NULL) {
+		perror(o->errors);
+		close_files(r);
+		mlip_program_close(&r->prog);
+		return 2;
+	}
+	return 0;
+}
 
-	FILE *tf = strcmp(tpath, "-") == 0 ? stdin : fopen(tpath, "r");
-	if (tf == NULL) {
-		perror(tpath);
-		mlip_program_close(&prog);
-		return 2;
-	}
-	FILE *ef = NULL;
-	if (errors != NULL && (ef = fopen(errors, "w")) == NULL) {
-		perror(errors);
-		if (tf != stdin) {
-			fclose(tf);
-		}
-		mlip_program_close(&prog);
-		return 2;
-	}
+/* Every row of the trace into the check: 0, or 2 for a row that is not one. */
+static int run(const struct options *o, struct run *r)
+{
+	const struct mlip_machine *m = &r->cfg.machine;
+	int n = m->n_axes;
 	char line[1024];
-	size_t lineno = 0;
+	size_t lineno = 0, rows = 0;
 	double t_prev = 0.0;
-	size_t rows = 0;
-	int input_error = 0;
-	while (fgets(line, sizeof(line), tf) != NULL) {
+	while (fgets(line, sizeof(line), r->tf) != NULL) {
 		lineno++;
 		if (lineno == 1 && line[0] == 't') {
 			continue; /* header */
 		}
 		double x[MLIP_MAX_AXES + 1];
 		char *p = line;
-		int cols = 0;
-		while (cols <= n) {
+		for (int cols = 0; cols <= n; cols++) {
 			char *end;
-			x[cols++] = strtod(p, &end);
+			x[cols] = strtod(p, &end);
 			if (end == p) {
-				fprintf(stderr, PROG ": %s:%zu: expected %d numbers\n", tpath,
+				fprintf(stderr, PROG ": %s:%zu: expected %d numbers\n", o->tpath,
 				        lineno, n + 1);
-				input_error = 1;
-				break;
+				return 2;
 			}
 			p = end;
 			if (*p == ',') {
 				p++;
 			}
-		}
-		if (input_error) {
-			break;
 		}
 		/* column 0 is t: a row more than one period after the last one
 		 * follows a hole (setpoints lost on the bus) */
@@ -188,69 +217,99 @@ int main(int argc, char **argv)
 				fprintf(stderr,
 				        PROG
 				        ": %s:%zu: t %.9g is not at least one period after %.9g\n",
-				        tpath, lineno, x[0], t_prev);
-				input_error = 1;
-				break;
+				        o->tpath, lineno, x[0], t_prev);
+				return 2;
 			}
-			mlip_check_gap(&chk, (size_t)k);
+			mlip_check_gap(&r->chk, (size_t)k);
 		}
 		t_prev = x[0];
 		rows++;
-		mlip_check_sample(&chk, x + 1);
-		if (ef != NULL) {
-			fprintf(ef, "%.17g,%.17g\n", x[0], chk.last_contour_mm);
+		mlip_check_sample(&r->chk, x + 1);
+		if (r->ef != NULL) {
+			fprintf(r->ef, "%.17g,%.17g\n", x[0], r->chk.last_contour_mm);
 		}
 	}
-	if (tf != stdin) {
-		fclose(tf);
+	return 0;
+}
+
+static int write_json(const char *path, const struct mlip_check *chk, int n, int bad)
+{
+	FILE *jf = strcmp(path, "-") == 0 ? stdout : fopen(path, "w");
+	struct mlip_json j;
+	if (jf == NULL) {
+		perror(path);
+		return -1;
 	}
-	if (ef != NULL && fclose(ef) != 0) {
-		perror(errors);
+	mlip_json_begin(&j, jf);
+	mlip_json_uint(&j, "samples", chk->count);
+	mlip_json_numbers(&j, "max_axis_accel", "%.12g", chk->max_acc, n);
+	mlip_json_numbers(&j, "max_axis_vel", "%.12g", chk->max_vel, n);
+	mlip_json_number(&j, "max_speed_mm_s", "%.12g", chk->max_speed_mm_s);
+	mlip_json_number(&j, "max_rot_speed_deg_s", "%.12g", chk->max_rot_speed_deg_s);
+	mlip_json_number(&j, "max_contour_error_mm", "%.12g", chk->max_contour_mm);
+	mlip_json_uint(&j, "order_errors", chk->order_errors);
+	mlip_json_uint(&j, "window_drops", chk->window_drops);
+	mlip_json_number(&j, "end_error_mm", "%.3g", mlip_check_end_error(chk));
+	mlip_json_int(&j, "violations", bad);
+	int rc = mlip_json_end(&j);
+	if (jf != stdout && fclose(jf) != 0) {
+		rc = -1;
+	}
+	if (rc != 0) {
+		perror(path);
+	}
+	return rc;
+}
+
+/* The verdict: 0 within limits, 1 a violation, 2 an input error. */
+static int report(const struct options *o, struct run *r, int input_error)
+{
+	struct mlip_check *chk = &r->chk;
+	if (r->ef != NULL && fclose(r->ef) != 0) {
+		perror(o->errors);
 		input_error = 1;
 	}
+	r->ef = NULL;
+	close_files(r);
 	if (input_error) {
-		mlip_program_close(&prog);
+		mlip_program_close(&r->prog);
 		return 2;
 	}
-	mlip_check_finish(&chk);
-	if (src.rc < 0) { /* the file changed since it was checked, or I/O */
-		fprintf(stderr, PROG ": %s: %s\n", ppath, prog.msg);
-		mlip_program_close(&prog);
+	mlip_check_finish(chk);
+	if (r->src.rc < 0) { /* the file changed since it was checked, or I/O */
+		fprintf(stderr, PROG ": %s: %s\n", o->ppath, r->prog.msg);
+		mlip_program_close(&r->prog);
 		return 2;
 	}
-	double T = m->period_s;
-	double abs_acc = mlip_check_rounding_floor(&chk) + 4.0 * quantum / (T * T);
+	double T = r->cfg.machine.period_s;
+	double abs_acc = mlip_check_rounding_floor(chk) + 4.0 * o->quantum / (T * T);
 	char msg[4096];
-	int bad = mlip_check_verdict(&chk, rel, abs_acc, quantum,
-	                             no_end ? INFINITY : 1e-9 + quantum, msg, sizeof(msg));
-
-	FILE *jf = json == NULL ? NULL : strcmp(json, "-") == 0 ? stdout : fopen(json, "w");
-	if (jf != NULL) {
-		fprintf(jf, "{\n  \"samples\": %zu,\n  \"max_axis_accel\": [", chk.count);
-		for (int k = 0; k < n; k++) {
-			fprintf(jf, "%s%.12g", k ? ", " : "", chk.max_acc[k]);
-		}
-		fprintf(jf, "],\n  \"max_axis_vel\": [");
-		for (int k = 0; k < n; k++) {
-			fprintf(jf, "%s%.12g", k ? ", " : "", chk.max_vel[k]);
-		}
-		fprintf(jf, "],\n  \"max_speed_mm_s\": %.12g,\n", chk.max_speed_mm_s);
-		fprintf(jf, "  \"max_rot_speed_deg_s\": %.12g,\n", chk.max_rot_speed_deg_s);
-		fprintf(jf, "  \"max_contour_error_mm\": %.12g,\n", chk.max_contour_mm);
-		fprintf(jf, "  \"order_errors\": %zu,\n", chk.order_errors);
-		fprintf(jf, "  \"window_drops\": %zu,\n", chk.window_drops);
-		fprintf(jf, "  \"end_error_mm\": %.3g,\n", mlip_check_end_error(&chk));
-		fprintf(jf, "  \"violations\": %d\n}\n", bad);
-		if (jf != stdout) {
-			fclose(jf);
-		}
+	int bad = mlip_check_verdict(chk, o->rel, abs_acc, o->quantum,
+	                             o->no_end ? INFINITY : 1e-9 + o->quantum, msg, sizeof(msg));
+	if (o->json != NULL) {
+		write_json(o->json, chk, r->cfg.machine.n_axes, bad);
 	}
 	if (bad) {
-		fprintf(stderr, PROG ": %s: %d violation(s):\n%s", tpath, bad, msg);
+		fprintf(stderr, PROG ": %s: %d violation(s):\n%s", o->tpath, bad, msg);
 	} else {
 		fprintf(stderr, PROG ": %s: %zu samples within limits (max contour %.6f mm)\n",
-		        tpath, chk.count, chk.max_contour_mm);
+		        o->tpath, chk->count, chk->max_contour_mm);
 	}
-	mlip_program_close(&prog);
+	mlip_program_close(&r->prog);
 	return bad ? 1 : 0;
+}
+
+int main(int argc, char **argv)
+{
+	static struct options o;
+	static struct run r;
+	int rc = parse_options(argc, argv, &o);
+	if (rc != 0) {
+		return rc < 0 ? 0 : rc;
+	}
+	rc = set_up(&o, &r);
+	if (rc != 0) {
+		return rc;
+	}
+	return report(&o, &r, run(&o, &r) != 0);
 }

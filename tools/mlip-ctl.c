@@ -1,11 +1,13 @@
 /*
  * mlip-ctl - talk to a running mlip-rt through its shared-memory segment:
- * feed override, hold, resume, stop (the command mailbox of mlip/ipc/ring.h), and
- * a status report (the controller's and the feeder's seqlocked areas).
+ * feed override, hold, resume (the command mailbox of mlip/ipc/ring.h), stop
+ * (the stop counter: its own path, never behind the mailbox), and a status
+ * report (the controller's and the feeder's seqlocked areas).
  *
  * A command is posted only once the previous one is completed (the mailbox
- * has one slot), then acknowledged by the controller with a result code; both
- * waits are bounded (1 s) so a dead controller never hangs the tool.
+ * has one slot), then acknowledged by the controller with a result code; a
+ * stop is acknowledged by the controller's stop_seen. Every wait is bounded
+ * (1 s) so a dead controller never hangs the tool.
  */
 #include <errno.h>
 #include <getopt.h>
@@ -18,14 +20,15 @@
 #include <time.h>
 
 #include "cli.h"
-#include "confjson.h"
+#include "json.h"
 #include "mlip/canopen/canopen.h"
 #include "mlip/ipc/ring.h"
 #include "rt.h"
 
-#define PROG    "mlip-ctl"
-#define WAIT_NS 1000000000LL /* post retries and answer wait: 1 s each */
-#define POLL_NS 1000000L     /* poll the mailbox every 1 ms */
+#define PROG     "mlip-ctl"
+#define WAIT_NS  1000000000LL /* post retries and answer wait: 1 s each */
+#define POLL_NS  1000000L     /* poll the mailbox every 1 ms */
+#define LINE_MAX 256          /* `-`: a longer command line is refused whole */
 
 enum { EXIT_DONE = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
 
@@ -150,14 +153,110 @@ static void print_age(FILE *f, int64_t a)
 	}
 }
 
-/* A number, or null when it is not finite (JSON has no NaN). */
-static void json_num(double v)
+/* The state of a controller that does not beat (mlip/ipc/peer.h): its
+ * process there but not running, or gone. */
+static const char *dead_name(mlip_peer_verdict v)
 {
-	if (isfinite(v)) {
-		printf("%.17g", v);
-	} else {
-		printf("null");
+	return v == MLIP_PEER_LATE ? "not responding" : "not running";
+}
+
+/* Axis letter -> value, for the axes in mask. */
+static void json_axes(struct mlip_json *j, const char *key, const struct mlip_machine *m,
+                      const double *v, uint32_t mask)
+{
+	mlip_json_object(j, key, 1);
+	for (int k = 0; k < m->n_axes; k++) {
+		if (mask & (1u << k)) {
+			char letter[2] = {m->axis[k].letter, '\0'};
+			mlip_json_number(j, letter, "%.17g", v[k]);
+		}
 	}
+	mlip_json_close(j);
+}
+
+/* status --json: one object on stdout. */
+static void status_json(const struct mlip_shm *s, const struct mlip_ring_status *st,
+                        const struct mlip_ring_feeder *fd, const struct mlip_machine *m,
+                        mlip_peer_verdict v, int64_t age, int falive)
+{
+	struct mlip_json j;
+	char fname[160];
+	int alive = v == MLIP_PEER_ALIVE;
+	uint32_t all = (1u << m->n_axes) - 1u;
+	double home[MLIP_MAX_AXES];
+	mlip_json_begin(&j, stdout);
+	mlip_json_string(&j, "shm", s->name);
+	/* a controller that does not beat is in no state of its own: say so,
+	 * with the one it last published beside */
+	mlip_json_string(&j, "state", alive ? mlip_ctl_state_name(st->state) : dead_name(v));
+	mlip_json_string(&j, "last_state", mlip_ctl_state_name(st->state));
+	mlip_json_bool(&j, "alive", alive);
+	mlip_json_string(&j, "liveness", mlip_peer_verdict_name(v));
+	mlip_json_uint(&j, "heartbeat", st->heartbeat);
+	mlip_json_number(&j, "heartbeat_age_ms", "%.3f", age < 0 ? NAN : (double)age / 1e6);
+	mlip_json_string(&j, "reason", mlip_state_why_name(st->reason));
+	mlip_json_uint(&j, "reason_seq", st->reason_seq);
+	mlip_json_uint(&j, "reason_line", st->reason_line);
+	if (st->reason == MLIP_WHY_DRIVE) {
+		/* a drive fault: the field is the event, with the drive's node */
+		mlip_cli_drive_fault_text(st->reason_field, (int64_t)st->reason_value, fname,
+		                          sizeof(fname));
+		mlip_json_string(&j, "reason_field",
+		                 mlip_drive_fault_name((mlip_drive_fault)st->reason_field));
+		mlip_json_uint(&j, "reason_node", st->reason_node);
+		mlip_json_string(&j, "reason_text", fname);
+	} else if (st->reason_field == MLIP_FIELD_NONE) {
+		mlip_json_null(&j, "reason_field");
+	} else {
+		mlip_cli_field_name(m, st->reason_field, fname, sizeof(fname));
+		mlip_json_string(&j, "reason_field", fname);
+	}
+	mlip_json_number(&j, "reason_value", "%.17g", st->reason_value);
+	json_axes(&j, "position", m, st->pos, all);
+	/* where the current (or last) program began: a continuation's origin */
+	json_axes(&j, "program_start", m, st->prog_start, all);
+	/* the drives' position actual (mlip-rt --drives), and the machine's HOME:
+	 * where they were at bring-up; null without drives */
+	for (int k = 0; k < m->n_axes; k++) {
+		home[k] = m->axis[k].home;
+	}
+	if (st->actual_mask == 0) {
+		mlip_json_null(&j, "position_actual");
+		mlip_json_null(&j, "start_position");
+	} else {
+		json_axes(&j, "position_actual", m, st->pos_actual, st->actual_mask);
+		json_axes(&j, "start_position", m, home, all);
+	}
+	/* the drives' power (mlip-rt --drives): null without drives */
+	if (st->drive_power == MLIP_POWER_NONE) {
+		mlip_json_null(&j, "drives");
+	} else {
+		mlip_json_string(&j, "drives", mlip_drive_power_name(st->drive_power));
+	}
+	mlip_json_uint(&j, "drives_last_change_periods", st->drive_power_periods);
+	/* not known without a controller */
+	mlip_json_number(&j, "speed_mm_s", "%.17g", alive ? st->speed_mm_s : NAN);
+	mlip_json_number(&j, "dwell_left_s", "%.6f", (double)st->dwell_left * m->period_s);
+	mlip_json_bool(&j, "optional_stop", st->optional_stop);
+	mlip_json_uint(&j, "exec_seq", st->exec_seq);
+	mlip_json_uint(&j, "exec_line", st->exec_line);
+	mlip_json_uint(&j, "override_pct", st->override_pct);
+	mlip_json_uint(&j, "overruns", st->overruns);
+	mlip_json_uint(&j, "underruns", st->underruns);
+	mlip_json_uint(&j, "can_tx_errors", st->can_tx_errors);
+	mlip_json_uint(&j, "can_bus_errors", st->can_bus_errors);
+	mlip_json_uint(&j, "frames_sent", st->frames_sent);
+	mlip_json_uint(&j, "blocks_consumed", st->blocks_consumed);
+	mlip_json_uint(&j, "stops", st->stops);
+	mlip_json_number(&j, "stop_mm", "%.6f", (double)st->stop_nm * 1e-6);
+	mlip_json_uint(&j, "stop_periods", st->stop_periods);
+	mlip_json_uint(&j, "queued", mlip_ring_count(s->ring));
+	mlip_json_uint(&j, "capacity", s->ring->capacity);
+	mlip_json_int(&j, "feeder_pid", fd->pid);
+	mlip_json_bool(&j, "feeder_alive", falive);
+	mlip_json_uint(&j, "total_blocks", fd->total_blocks);
+	mlip_json_bool(&j, "program_end", fd->program_end);
+	mlip_json_end(&j);
 }
 
 static int cmd_status(struct mlip_shm *s, int json)
@@ -206,112 +305,18 @@ static int cmd_status(struct mlip_shm *s, int json)
 	}
 
 	if (json) {
-		printf("{\n  \"shm\": ");
-		mlip_json_str(stdout, s->name);
-		printf(",\n");
-		printf("  \"state\": \"%s\",\n  \"alive\": %s,\n", mlip_ring_state_name(st.state),
-		       alive ? "true" : "false");
-		printf("  \"liveness\": \"%s\",\n", mlip_peer_verdict_name(v));
-		printf("  \"heartbeat\": %llu,\n", (unsigned long long)st.heartbeat);
-		if (a < 0) {
-			printf("  \"heartbeat_age_ms\": null,\n");
-		} else {
-			printf("  \"heartbeat_age_ms\": %.3f,\n", (double)a / 1e6);
-		}
-		printf("  \"reason\": \"%s\",\n  \"reason_seq\": %llu,\n  \"reason_line\": %u,\n",
-		       mlip_state_why_name(st.reason), (unsigned long long)st.reason_seq,
-		       (unsigned)st.reason_line);
-		printf("  \"reason_field\": ");
-		if (st.reason == MLIP_WHY_DRIVE) {
-			/* a drive fault: the field is the event, with the drive's node */
-			mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
-			                          sizeof(fname));
-			mlip_json_str(stdout,
-			              mlip_drive_fault_name((mlip_drive_fault)st.reason_field));
-			printf(",\n  \"reason_node\": %u,\n  \"reason_text\": ",
-			       (unsigned)st.reason_node);
-			mlip_json_str(stdout, fname);
-			printf(",\n");
-		} else if (st.reason_field == MLIP_FIELD_NONE) {
-			printf("null,\n");
-		} else {
-			mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
-			mlip_json_str(stdout, fname);
-			printf(",\n");
-		}
-		printf("  \"reason_value\": ");
-		json_num(st.reason_value);
-		printf(",\n  \"position\": {");
-		for (int k = 0; k < m.n_axes; k++) {
-			printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
-			json_num(st.pos[k]);
-		}
-		printf("},\n  \"program_start\": {");
-		/* where the current (or last) program began: a continuation's origin */
-		for (int k = 0; k < m.n_axes; k++) {
-			printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
-			json_num(st.prog_start[k]);
-		}
-		printf("},\n  \"position_actual\": ");
-		/* the drives' position actual (mlip-rt --drives); null without drives */
-		if (st.actual_mask == 0) {
-			printf("null");
-		} else {
-			printf("{");
-			for (int k = 0, n = 0; k < m.n_axes; k++) {
-				if (st.actual_mask & (1u << k)) {
-					printf("%s\"%c\": ", n++ ? ", " : "", m.axis[k].letter);
-					json_num(st.pos_actual[k]);
-				}
-			}
-			printf("}");
-		}
-		printf(",\n  \"start_position\": ");
-		/* with drives, the machine's HOME is where they were at bring-up */
-		if (st.actual_mask == 0) {
-			printf("null");
-		} else {
-			printf("{");
-			for (int k = 0; k < m.n_axes; k++) {
-				printf("%s\"%c\": ", k ? ", " : "", m.axis[k].letter);
-				json_num(m.axis[k].home);
-			}
-			printf("}");
-		}
-		/* the drives' power (mlip-rt --drives): null without drives */
-		printf(",\n  \"drives\": ");
-		if (st.drive_power == MLIP_POWER_NONE) {
-			printf("null");
-		} else {
-			printf("\"%s\"", mlip_drive_power_name(st.drive_power));
-		}
-		printf(",\n  \"drives_last_change_periods\": %u", (unsigned)st.drive_power_periods);
-		printf(",\n  \"speed_mm_s\": ");
-		json_num(st.speed_mm_s);
-		printf(",\n  \"dwell_left_s\": %.6f,\n  \"optional_stop\": %s,\n",
-		       (double)st.dwell_left * m.period_s, st.optional_stop ? "true" : "false");
-		printf("  \"exec_seq\": %llu,\n  \"exec_line\": %u,\n",
-		       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
-		printf("  \"override_pct\": %u,\n", (unsigned)st.override_pct);
-		printf("  \"overruns\": %llu,\n  \"underruns\": %llu,\n",
-		       (unsigned long long)st.overruns, (unsigned long long)st.underruns);
-		printf("  \"can_tx_errors\": %llu,\n  \"can_bus_errors\": %llu,\n",
-		       (unsigned long long)st.can_tx_errors, (unsigned long long)st.can_bus_errors);
-		printf("  \"frames_sent\": %llu,\n  \"blocks_consumed\": %llu,\n",
-		       (unsigned long long)st.frames_sent, (unsigned long long)st.blocks_consumed);
-		printf("  \"stops\": %u,\n  \"stop_mm\": %.6f,\n  \"stop_periods\": %u,\n",
-		       (unsigned)st.stops, (double)st.stop_nm * 1e-6, (unsigned)st.stop_periods);
-		printf("  \"queued\": %u,\n  \"capacity\": %u,\n",
-		       (unsigned)mlip_ring_count(s->ring), (unsigned)s->ring->capacity);
-		printf("  \"feeder_pid\": %d,\n  \"feeder_alive\": %s,\n", (int)fd.pid,
-		       falive ? "true" : "false");
-		printf("  \"total_blocks\": %llu,\n  \"program_end\": %s\n}\n",
-		       (unsigned long long)fd.total_blocks, fd.program_end ? "true" : "false");
+		status_json(s, &st, &fd, &m, v, a, falive);
 		return alive && st.state != MLIP_STATE_FAULT ? EXIT_DONE : EXIT_FAIL;
 	}
 
-	printf("controller  %s: %s, %s (heartbeat ", s->name, mlip_ring_state_name(st.state),
-	       alive ? "alive" : "NOT RESPONDING");
+	if (alive) {
+		printf("controller  %s: %s, alive (heartbeat ", s->name,
+		       mlip_ctl_state_name(st.state));
+	} else {
+		printf("controller  %s: %s, last state %s (heartbeat ", s->name,
+		       v == MLIP_PEER_LATE ? "NOT RESPONDING" : "NOT RUNNING",
+		       mlip_ctl_state_name(st.state));
+	}
 	print_age(stdout, a);
 	printf(", period %llu)\n", (unsigned long long)st.heartbeat);
 	/* at rest (idle, starved): the last block completed, where a program
@@ -348,7 +353,11 @@ static int cmd_status(struct mlip_shm *s, int json)
 	for (int k = 0; k < m.n_axes; k++) {
 		printf(" %c %.4f", m.axis[k].letter, st.pos[k]);
 	}
-	printf("  (%.3f mm/s)\n", st.speed_mm_s);
+	if (alive) {
+		printf("  (%.3f mm/s)\n", st.speed_mm_s);
+	} else {
+		printf("  (the last setpoint; speed unknown)\n");
+	}
 	if (st.actual_mask != 0) {
 		printf("actual     ");
 		for (int k = 0; k < m.n_axes; k++) {
@@ -372,7 +381,9 @@ static int cmd_status(struct mlip_shm *s, int json)
 		    "switch on 0x0007 for the next program",
 		    "enable operation 0x000F"};
 		printf("drives      %s (%s)", mlip_drive_power_name(st.drive_power),
-		       st.drive_power < MLIP_POWER_COUNT ? how[st.drive_power] : "?");
+		       st.drive_power < MLIP_POWER_COUNT && how[st.drive_power] != NULL
+		           ? how[st.drive_power]
+		           : "?");
 		if (st.drive_power_periods > 0 &&
 		    (st.drive_power == MLIP_POWER_OFF || st.drive_power == MLIP_POWER_ENABLED)) {
 			printf(", last change in %u periods", (unsigned)st.drive_power_periods);
@@ -438,6 +449,52 @@ static void describe(char *buf, size_t len, mlip_ring_cmd_op op, int32_t arg)
 	}
 }
 
+/* stop: the stop counter (never refused, never behind a busy mailbox or a
+ * dead mlip-ctl), acknowledged by the controller's stop_seen. Posted even to
+ * a controller that does not answer: a stop is latched for a program whose
+ * mlip-feed began before it (it is being checked, or waits), which then
+ * never starts. */
+static int cmd_stop(struct mlip_shm *s)
+{
+	struct mlip_ring_status st;
+	int alive = mlip_shm_controller_alive(s->ring);
+	uint32_t ticket = mlip_ring_stop_post(s->ring);
+	int32_t feeder = mlip_shm_feeder_holder(s);
+	uint64_t t0 = mlip_now_ns();
+
+	if (!alive) {
+		fprintf(stderr, PROG ": stop: controller on %s is not running: start mlip-rt%s\n",
+		        s->name,
+		        feeder ? " (the stop is posted: the waiting mlip-feed will not start its "
+		                 "program)"
+		               : "");
+		return EXIT_FAIL;
+	}
+	for (;;) {
+		if (read_status(s->ring, &st) == 0 &&
+		    mlip_ring_stop_applied(st.stop_seen, ticket)) {
+			break;
+		}
+		if (mlip_now_ns() - t0 >= (uint64_t)WAIT_NS) {
+			fprintf(stderr, PROG
+			        ": stop: no answer from the controller within 1 s (posted: it is "
+			        "applied when the controller runs again): check " PROG " status\n");
+			return EXIT_FAIL;
+		}
+		sleep_ns(POLL_NS);
+	}
+	if (st.state == MLIP_STATE_IDLE && feeder != 0) {
+		printf("stop: done (the machine was idle; the program of mlip-feed pid %d, "
+		       "begun before this stop, will not start)\n",
+		       (int)feeder);
+	} else if (st.state == MLIP_STATE_IDLE) {
+		printf("stop: done (the machine was idle)\n");
+	} else {
+		printf("stop: done\n");
+	}
+	return EXIT_DONE;
+}
+
 static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 {
 	struct mlip_ring_status st;
@@ -447,6 +504,9 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 	uint64_t t0;
 	mlip_status rc;
 
+	if (op == MLIP_CMD_STOP) {
+		return cmd_stop(s);
+	}
 	describe(what, sizeof(what), op, arg);
 	if (!mlip_shm_controller_alive(s->ring)) {
 		fprintf(stderr, PROG ": %s: controller on %s is not running: start mlip-rt\n", what,
@@ -460,13 +520,21 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 	}
 	if (rc != MLIP_OK) {
 		fprintf(stderr,
-		        PROG ": %s: the command mailbox stayed busy for 1 s (a previous command "
-		             "was not completed): check mlip-rt with " PROG " status\n",
+		        PROG ": %s: the command mailbox stayed busy for 1 s (the controller "
+		             "completes a command each period: it is not running, or other "
+		             "mlip-ctl keep it busy; stop has its own path): check " PROG
+		             " status\n",
 		        what);
 		return EXIT_FAIL;
 	}
 	t0 = mlip_now_ns();
-	while (mlip_ring_cmd_result(s->ring, seq, &result) != MLIP_OK) {
+	while ((rc = mlip_ring_cmd_result(s->ring, seq, &result)) != MLIP_OK) {
+		if (rc == MLIP_E_RANGE) {
+			printf("%s: done (applied; its result was overwritten by later commands of "
+			       "another mlip-ctl: check " PROG " status)\n",
+			       what);
+			return EXIT_DONE;
+		}
 		if (mlip_now_ns() - t0 >= (uint64_t)WAIT_NS) {
 			fprintf(stderr,
 			        PROG
@@ -481,7 +549,7 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 		fprintf(stderr, PROG ": %s: refused by the controller: %s", what,
 		        result_text(result));
 		if (read_status(s->ring, &st) == 0) {
-			fprintf(stderr, " (state %s)", mlip_ring_state_name(st.state));
+			fprintf(stderr, " (state %s)", mlip_ctl_state_name(st.state));
 		}
 		fputc('\n', stderr);
 		return EXIT_FAIL;
@@ -535,27 +603,65 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 	return 0;
 }
 
+/* One line of f, whole: its first cap - 1 bytes into buf (NUL-terminated),
+ * the rest read and counted, never split into another line. *len is the
+ * line's full length (newline excluded); *nul is set when it holds a NUL.
+ * 0 at the end of the input. */
+static int read_line(FILE *f, char *buf, size_t cap, size_t *len, int *nul)
+{
+	size_t n = 0;
+	int c, any = 0;
+
+	*nul = 0;
+	while ((c = getc(f)) != EOF) {
+		any = 1;
+		if (c == '\n') {
+			break;
+		}
+		*nul |= c == '\0';
+		if (n + 1 < cap) {
+			buf[n] = (char)c;
+		}
+		n++;
+	}
+	buf[n + 1 < cap ? n : cap - 1] = '\0';
+	*len = n;
+	return any;
+}
+
 /* '-': commands from standard input, one per line, each applied (or refused)
  * before the next line is read: for a pendant or a script driving one
- * long-lived mlip-ctl. Exit 0 when every command was done, else 1 (2: a line
- * that is not a command; the lines before it were applied). */
+ * long-lived mlip-ctl. Lines are read whole, whatever their length: a
+ * comment line (#) of any length is skipped, a command line longer than
+ * LINE_MAX - 1 bytes (or with a NUL) is no command. Exit 0 when every
+ * command was done, else 1 (2: a line that is not a command ends the input;
+ * the lines before it were applied, nothing of it). */
 static int cmd_stdin(struct mlip_shm *s)
 {
-	char line[128];
-	int rc = EXIT_DONE;
+	char line[LINE_MAX];
+	size_t len;
+	int rc = EXIT_DONE, nul;
 	unsigned long lineno = 0;
-	while (fgets(line, sizeof(line), stdin) != NULL) {
+	while (read_line(stdin, line, sizeof(line), &len, &nul)) {
 		char *w[3] = {NULL, NULL, NULL}, *save = NULL;
 		int n = 0;
 		mlip_ring_cmd_op op;
 		int32_t arg;
 		lineno++;
-		for (char *t = strtok_r(line, " \t\r\n", &save); t != NULL && n < 3;
-		     t = strtok_r(NULL, " \t\r\n", &save)) {
-			w[n++] = t;
+		const char *first = line + strspn(line, " \t\r");
+		if (*first == '#' || (len < sizeof(line) && !nul && *first == '\0')) {
+			continue; /* a comment, whatever its length; a blank line */
 		}
-		if (n == 0 || w[0][0] == '#') {
-			continue;
+		if (len >= sizeof(line) || nul) {
+			fprintf(stderr,
+			        PROG ": stdin:%lu: %s: not a command (nothing of it was applied)\n",
+			        lineno,
+			        nul ? "a NUL byte in the line" : "line longer than 255 bytes");
+			return EXIT_USAGE;
+		}
+		for (char *t = strtok_r(line, " \t\r", &save); t != NULL && n < 3;
+		     t = strtok_r(NULL, " \t\r", &save)) {
+			w[n++] = t;
 		}
 		int takes_arg = op_takes_arg(w[0]);
 		if (parse_command(w[0], w[1], &op, &arg) != 0 || n > 1 + takes_arg) {

@@ -15,7 +15,15 @@
  *
  * The feeder is the ring's single producer. Two feeders would corrupt it, so
  * the producer line is guarded by a POSIX record lock on the segment (the
- * kernel drops it when a feeder dies), on top of the pid/heartbeat check.
+ * kernel drops it when a feeder dies), on top of the pid/heartbeat check;
+ * it is taken before the program is checked, so mlip-ctl sees a feeder that
+ * is still checking.
+ *
+ * A stop is latched for our program (mlip/ipc/ring.h): the stop counter is
+ * read at attach (feeder.stop_base, published with our first heartbeat); a
+ * mlip-ctl stop during the check or the wait for an idle controller ends
+ * the run before anything is sent, and one that races our first records is
+ * refused by the controller (state idle, reason "stop before the start").
  *
  * Life of a run; every loop polls the controller, and from the first push on
  * refreshes the feeder heartbeat (pid 0 in the feeder area: no feeder):
@@ -25,6 +33,7 @@
  *                 +-- controller stale: 3 ----------------+-------+   FAULT: 5
  *                                 +-- STOPPING/IDLE early: END alone, wait rest, 4
  *                                 +-- SIGINT/SIGTERM: STOP, END alone, wait rest, 130/143
+ *            +-- mlip-ctl stop before the start: nothing sent (or dropped unmoved): 4
  */
 #include <errno.h>
 #include <fcntl.h>
@@ -99,7 +108,8 @@ static void usage(FILE *f)
 	        "exit status: 0 program complete, machine at rest; 1 nothing sent (program\n"
 	        "errors, no controller, another feeder); 2 usage; 3 controller stopped\n"
 	        "responding; 4 stopped on the path (mlip-ctl stop, or mlip-rt told to exit by\n"
-	        "a signal); 5 controller fault;\n"
+	        "a signal), or mlip-ctl stop before the program started (nothing moved);\n"
+	        "5 controller fault;\n"
 	        "128+N interrupted by signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP, 131\n"
 	        "SIGQUIT): the machine was stopped on the path\n");
 }
@@ -117,31 +127,6 @@ static void sleep_ns(long ns)
 static int64_t age_ns(uint64_t stamp_ns)
 {
 	return mlip_peer_age_ns(stamp_ns, mlip_now_ns());
-}
-
-/* Claim the producer side: a write lock on the producer cache line. -EBUSY
- * with *holder (0 if unknown) when another process has it. */
-static int producer_lock(int fd, int32_t *holder)
-{
-	struct flock fl;
-
-	memset(&fl, 0, sizeof(fl));
-	fl.l_type = F_WRLCK;
-	fl.l_whence = SEEK_SET;
-	fl.l_start = (off_t)offsetof(struct mlip_ring, head);
-	fl.l_len = MLIP_RING_LINE;
-	if (fcntl(fd, F_SETLK, &fl) == 0) {
-		return 0;
-	}
-	if (errno != EACCES && errno != EAGAIN) {
-		return -errno;
-	}
-	*holder = 0;
-	fl.l_type = F_WRLCK;
-	if (fcntl(fd, F_GETLK, &fl) == 0 && fl.l_type != F_UNLCK) {
-		*holder = (int32_t)fl.l_pid;
-	}
-	return -EBUSY;
 }
 
 /* Source lines of the last blocks sent, for messages about the block being
@@ -164,7 +149,8 @@ struct feed {
 	uint32_t lines[LINE_WINDOW]; /* source line of seq, for seq % LINE_WINDOW */
 	struct mlip_block_iter it;   /* the program's blocks, or smooth's over them */
 	struct mlip_smooth_iter si;
-	const char *offsets; /* --offsets FILE, or NULL */
+	const char *offsets;                   /* --offsets FILE, or NULL */
+	struct mlip_offsets_file offsets_file; /* as loaded: the write-back's merge base */
 	int strict;
 	double default_feed;    /* --default-feed */
 	struct mlip_machine mp; /* the controller's machine, HOME = where the program starts */
@@ -313,7 +299,7 @@ static void progress(struct feed *f, int force)
 		    "\r[%s] %3d%%  block %llu/%llu  queued %llu  line %u  override %u %%  %s\033[K",
 		    b, pct, (unsigned long long)done, (unsigned long long)total,
 		    (unsigned long long)queued, (unsigned)(done ? f->exec_line : 0),
-		    (unsigned)f->st.override_pct, mlip_ring_state_name(f->st.state));
+		    (unsigned)f->st.override_pct, mlip_ctl_state_name(f->st.state));
 		f->line_open = 1;
 	} else {
 		fprintf(stderr,
@@ -322,7 +308,7 @@ static void progress(struct feed *f, int force)
 		        "%%, %s\n",
 		        (unsigned long long)done, (unsigned long long)total, pct,
 		        (unsigned long long)queued, (unsigned)(done ? f->exec_line : 0),
-		        (unsigned)f->st.override_pct, mlip_ring_state_name(f->st.state));
+		        (unsigned)f->st.override_pct, mlip_ctl_state_name(f->st.state));
 	}
 	fflush(stderr);
 }
@@ -616,13 +602,9 @@ static void push_end(struct feed *f)
 
 /* After a stop: keep beating until the controller is idle and our END is in
  * (or t_max passes, or another signal arrives). 0 at rest, -1 dead, 1 time-out.
- *
- * ack_hb (0: none) is the controller's period count when it acknowledged a
- * stop of ours. A controller that took that stop while idle with our first
- * records not yet taken ignores it, then starts the program: seen running in
- * a status written two periods later, it gets the stop once more. Never while
- * STOPPING: a second stop there would also drop the next program's records. */
-static int wait_rest(struct feed *f, uint64_t t_max, uint64_t ack_hb)
+ * A stop that reached an idle controller before it took our first record is
+ * latched for our program (our stop_base is older): it never starts. */
+static int wait_rest(struct feed *f, uint64_t t_max)
 {
 	uint64_t t0 = mlip_now_ns();
 	sig_atomic_t sig_seen = n_signals;
@@ -636,13 +618,6 @@ static int wait_rest(struct feed *f, uint64_t t_max, uint64_t ack_hb)
 		if ((f->st.state == MLIP_STATE_IDLE || f->st.state == MLIP_STATE_FAULT) &&
 		    f->end_pushed) {
 			return 0;
-		}
-		if (ack_hb != 0 && f->st.heartbeat > ack_hb + 1 &&
-		    (f->st.state == MLIP_STATE_RUNNING || f->st.state == MLIP_STATE_HELD ||
-		     f->st.state == MLIP_STATE_PREREAD || f->st.state == MLIP_STATE_PAUSED ||
-		     f->st.state == MLIP_STATE_DWELLING) &&
-		    mlip_ring_cmd_post(f->r, MLIP_CMD_STOP, 0, NULL) == MLIP_OK) {
-			ack_hb = 0; /* once: that race exists only before the first record */
 		}
 		if (mlip_now_ns() - t0 > t_max || n_signals != sig_seen) {
 			return 1;
@@ -659,9 +634,7 @@ static int interrupted(struct feed *f)
 	int sig = got_signal, w;
 	int code = 128 + sig;
 	uint64_t t0;
-	uint32_t seq = 0;
-	int32_t result;
-	mlip_status rc;
+	uint32_t ticket;
 
 	close_line(f);
 	if (f->next_seq == f->first_seq) {
@@ -670,28 +643,19 @@ static int interrupted(struct feed *f)
 		return code;
 	}
 	fprintf(stderr, PROG ": %s: stopping the machine on the path\n", mlip_cli_signal_name(sig));
-	t0 = mlip_now_ns();
-	while ((rc = mlip_ring_cmd_post(f->r, MLIP_CMD_STOP, 0, &seq)) == MLIP_E_FULL &&
-	       mlip_now_ns() - t0 < CMD_WAIT_NS) {
-		beat(f); /* a previous mlip-ctl command is being applied */
-		sleep_ns(FULL_SLEEP_NS);
-	}
-	if (rc != MLIP_OK) {
-		fprintf(stderr, PROG
-		        ": interrupted: could not post stop (command mailbox busy for 1 s): run "
-		        "mlip-ctl stop\n");
-		return code;
-	}
+	/* the stop counter: never refused, never behind mlip-ctl's mailbox */
+	ticket = mlip_ring_stop_post(f->r);
 	leave(f); /* nothing more will come: the rest of the program is dropped */
 	/* once the controller has applied the stop, "idle" means at rest */
 	t0 = mlip_now_ns();
-	while (mlip_ring_cmd_result(f->r, seq, &result) != MLIP_OK &&
-	       mlip_now_ns() - t0 < CMD_WAIT_NS) {
+	while (mlip_now_ns() - t0 < CMD_WAIT_NS) {
+		if (poll_controller(f) != 0 || mlip_ring_stop_applied(f->st.stop_seen, ticket)) {
+			break;
+		}
 		beat(f);
 		sleep_ns(FULL_SLEEP_NS);
 	}
-	poll_controller(f); /* a status no older than the acknowledgement */
-	w = wait_rest(f, STOP_WAIT_NS, f->st.heartbeat > 0 ? f->st.heartbeat : 1);
+	w = wait_rest(f, STOP_WAIT_NS);
 	if (w < 0) {
 		fprintf(stderr, PROG ": interrupted: stop posted, but the controller stopped "
 		                     "responding\n");
@@ -699,7 +663,7 @@ static int interrupted(struct feed *f)
 		fprintf(stderr,
 		        PROG ": interrupted: stop posted; controller still %s at line %u: check "
 		             "mlip-ctl status\n",
-		        mlip_ring_state_name(f->st.state), resume_line(f));
+		        mlip_ctl_state_name(f->st.state), resume_line(f));
 	} else {
 		uint64_t next = rest_seq(f);
 		fprintf(stderr,
@@ -717,11 +681,18 @@ static int operator_stop(struct feed *f)
 
 	leave(f); /* no more records: pid 0 says so */
 	/* wait for rest so the line reported is where the machine is */
-	w = wait_rest(f, STOP_WAIT_NS, 0);
+	w = wait_rest(f, STOP_WAIT_NS);
 
 	close_line(f);
 	if (w < 0) {
 		return controller_dead(f);
+	}
+	if (f->exec == 0 && f->st.reason == MLIP_WHY_STOP_EARLY) {
+		fprintf(stderr,
+		        PROG ": %s: mlip-ctl stop came before the program started: the controller "
+		             "dropped it, nothing moved\n",
+		        f->path);
+		return EXIT_OPERATOR;
 	}
 	uint64_t next = rest_seq(f);
 	fprintf(stderr,
@@ -767,7 +738,7 @@ static int check_continues(struct feed *f)
 		        "(state %s): it cannot continue one; nothing was sent (send the program "
 		        "from its start)\n",
 		        (unsigned long long)f->first_seq, f->shm.name,
-		        mlip_ring_state_name(f->st.state));
+		        mlip_ctl_state_name(f->st.state));
 	} else {
 		fprintf(stderr,
 		        PROG
@@ -796,6 +767,13 @@ static int wait_start(struct feed *f)
 	for (;;) {
 		if (got_signal) {
 			return interrupted(f);
+		}
+		if (mlip_ring_stop_after(mlip_ring_stop_count(f->r), f->fa.stop_base)) {
+			fprintf(stderr,
+			        PROG ": %s: mlip-ctl stop came while the program was checked or "
+			             "waited: nothing was sent\n",
+			        f->path);
+			return EXIT_OPERATOR;
 		}
 		count = mlip_ring_count(f->r); /* before the status: see above */
 		if (poll_controller(f) != 0) {
@@ -835,7 +813,7 @@ static int wait_start(struct feed *f)
 				    ": waiting for the controller to be idle (state %s, line %u, "
 				    "%u records queued): a previous program is still running; "
 				    "mlip-ctl stop ends it\n",
-				    mlip_ring_state_name(f->st.state), (unsigned)f->st.exec_line,
+				    mlip_ctl_state_name(f->st.state), (unsigned)f->st.exec_line,
 				    (unsigned)count);
 			}
 		}
@@ -1076,9 +1054,36 @@ int main(int argc, char **argv)
 		        shm, cerr.msg);
 		goto out;
 	}
+	/* the stop counter now, before mlip-ctl can see us (the lock): a stop
+	 * from here on is meant for our program */
+	f.fa.stop_base = mlip_ring_stop_count(f.r);
+	/* one producer only, from before the check on: mlip-ctl sees us */
+	rc = mlip_shm_feeder_lock(&f.shm, &holder);
+	if (rc != 0) {
+		if (rc == -EBUSY) {
+			fprintf(stderr,
+			        PROG
+			        ": another mlip-feed (pid %d) is checking or feeding a program "
+			        "on %s: wait for it to finish, or stop it (mlip-ctl stop)\n",
+			        (int)holder, shm);
+		} else {
+			fprintf(stderr, PROG ": %s: locking the producer side: %s\n", shm,
+			        strerror(-rc));
+		}
+		goto out;
+	}
+	if (mlip_ring_feeder_read(f.r, &other) == MLIP_OK && other.pid != (int32_t)getpid() &&
+	    mlip_peer_feeder(&other) == MLIP_PEER_ALIVE) {
+		fprintf(stderr,
+		        PROG ": another feeder (pid %d) is feeding %s: wait for it to finish, or "
+		             "stop it (mlip-ctl stop)\n",
+		        (int)other.pid, shm);
+		goto out;
+	}
 	/* the whole program is checked before anything is sent, then streamed */
 	mlip_gcode_offsets_init(&offsets, &m);
-	if (f.offsets != NULL && mlip_offsets_load(f.offsets, &m, &offsets, PROG, stderr) != 0) {
+	if (f.offsets != NULL &&
+	    mlip_offsets_load(&f.offsets_file, f.offsets, &m, &offsets, PROG, stderr) != 0) {
 		goto out;
 	}
 	popt.strict = f.strict;
@@ -1104,28 +1109,6 @@ int main(int argc, char **argv)
 	}
 	code = EXIT_FAIL;
 
-	/* one producer only */
-	rc = producer_lock(f.shm.fd, &holder);
-	if (rc != 0) {
-		if (rc == -EBUSY) {
-			fprintf(stderr,
-			        PROG ": another mlip-feed (pid %d) is feeding %s: wait for it to "
-			             "finish, or stop it (mlip-ctl stop)\n",
-			        (int)holder, shm);
-		} else {
-			fprintf(stderr, PROG ": %s: locking the producer side: %s\n", shm,
-			        strerror(-rc));
-		}
-		goto out;
-	}
-	if (mlip_ring_feeder_read(f.r, &other) == MLIP_OK && other.pid != (int32_t)getpid() &&
-	    mlip_peer_feeder(&other) == MLIP_PEER_ALIVE) {
-		fprintf(stderr,
-		        PROG ": another feeder (pid %d) is feeding %s: wait for it to finish, or "
-		             "stop it (mlip-ctl stop)\n",
-		        (int)other.pid, shm);
-		goto out;
-	}
 	if (poll_controller(&f) != 0) {
 		int64_t a = age_ns(f.st.heartbeat_ns);
 
@@ -1152,10 +1135,11 @@ int main(int argc, char **argv)
 		leave(&f); /* we published: now say we are gone */
 	}
 	if (code == EXIT_DONE && f.offsets != NULL &&
-	    mlip_offsets_save(f.offsets, &m, &f.prog.offsets_end, PROG, stderr) != 0) {
+	    mlip_offsets_save(&f.offsets_file, &m, &f.prog.offsets_end, PROG, stderr) != 0) {
 		code = EXIT_FAIL;
 	}
 out:
+	mlip_offsets_file_free(&f.offsets_file);
 	mlip_program_close(&f.prog);
 	mlip_shm_close(&f.shm); /* closing the fd drops the producer lock */
 	return code;

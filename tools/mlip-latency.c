@@ -6,7 +6,7 @@
  * one of three loads:
  *
  *   --idle        wake and sleep only (cyclictest's measurement)
- *   --plan FILE   the real controller tick (mlip_controller_tick, as
+ *   --plan FILE   the real controller period (mlip_period_tick, as
  *                 `mlip-rt --can none` runs it) on the program, fed into a
  *                 private ring by a feeder thread in this process (what
  *                 mlip-feed does through shared memory), plus the CAN
@@ -50,6 +50,7 @@
 #include "blockiter.h"
 #include "cli.h"
 #include "confload.h"
+#include "json.h"
 #include "latstats.h"
 #include "mlip/can/canenc.h"
 #include "mlip/ipc/ring.h"
@@ -96,9 +97,9 @@ struct run {
 	uint64_t overruns, overrun_periods;
 	int64_t send_ns; /* this period's send time, for `after` */
 	/* the load */
-	struct mlip_controller *ctl;
-	struct mlip_canio *io; /* MODE_CAN */
-	int encode;            /* encode frames each period */
+	struct mlip_period *ctl;
+	struct mlip_canbus *io; /* MODE_CAN */
+	int encode;             /* encode frames each period */
 	uint64_t frames_encoded, encode_faults;
 	uint64_t passes, moving_periods;
 	uint32_t last_state;
@@ -108,8 +109,9 @@ struct run {
 
 static struct run R;
 static struct mlip_planner planner; /* static, as in mlip-rt: locked and prefaulted */
-static struct mlip_controller ctl;
-static struct mlip_canio io = {.fd = -1};
+static struct mlip_period ctl;
+static struct mlip_canbus bus = {.fd = -1};
+static struct mlip_can_port port;
 
 /* The period's work. */
 static int lat_tick(void *ctx, const struct mlip_rt_tick *t)
@@ -120,19 +122,20 @@ static int lat_tick(void *ctx, const struct mlip_rt_tick *t)
 	}
 	r->send_ns = 0;
 	if (r->mode != MODE_IDLE) {
-		struct mlip_controller *c = r->ctl;
-		(void)mlip_controller_tick(c, t); /* never asked to exit: no exit_request */
-		if (c->core.state == MLIP_STATE_RUNNING) {
+		struct mlip_period *c = r->ctl;
+		(void)mlip_period_tick(c, t); /* never asked to exit: no exit_request */
+		uint32_t state = c->out.status.state;
+		if (state == MLIP_STATE_RUNNING) {
 			r->moving_periods++;
 		}
-		if (c->core.state == MLIP_STATE_IDLE && r->last_state != MLIP_STATE_IDLE) {
+		if (state == MLIP_STATE_IDLE && r->last_state != MLIP_STATE_IDLE) {
 			r->passes++; /* a program run ended: the next one is in the ring */
 		}
-		r->last_state = c->core.state;
+		r->last_state = state;
 		/* the controller encodes (and with --can sends) its own frames */
 		r->send_ns = c->send_ns;
-		r->frames_encoded = c->core.frames_encoded;
-		r->encode_faults = c->core.why.why == MLIP_WHY_POSITION_RANGE;
+		r->frames_encoded = c->out.counts.frames_encoded;
+		r->encode_faults = c->out.status.reason == MLIP_WHY_POSITION_RANGE;
 	}
 	if (r->loops != 0 && t->cycle + 1 >= r->loops) {
 		return 1;
@@ -504,7 +507,7 @@ static int parse_opts(int argc, char **argv, struct opts *o)
 			break;
 		case O_HELP:
 			usage(stdout);
-			exit(0);
+			return -1;
 		default:
 			usage(stderr);
 			return 2;
@@ -567,24 +570,7 @@ static void sys_probe(struct sysinfo_rt *s)
 	s->ncpu = sysconf(_SC_NPROCESSORS_ONLN);
 }
 
-/* ---- JSON -------------------------------------------------------------------- */
-
-static void json_str(FILE *f, const char *s)
-{
-	fputc('"', f);
-	for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
-		if (*p == '"' || *p == '\\') {
-			fprintf(f, "\\%c", *p);
-		} else if (*p == '\n') {
-			fputs("\\n", f);
-		} else if (*p < 0x20) {
-			fprintf(f, "\\u%04x", *p);
-		} else {
-			fputc(*p, f);
-		}
-	}
-	fputc('"', f);
-}
+/* ---- JSON ------------------------------------------------------------------- */
 
 static const double pcts[] = {50.0, 99.0, 99.9, 99.99};
 static const char *const pct_key[] = {"p50", "p99", "p99_9", "p99_99"};
@@ -596,63 +582,62 @@ static double us(int64_t ns)
 }
 
 /* Sparse histogram of bins [0, hist_us): {"us": count, ...}, like cyclictest. */
-static void json_hist(FILE *f, const struct mlip_latstats *s, uint32_t hist_us)
+static void json_hist(struct mlip_json *j, const char *key, const struct mlip_latstats *s,
+                      uint32_t hist_us)
 {
-	int first = 1;
+	char bin[16];
 	uint32_t end = hist_us < s->nbins ? hist_us : s->nbins;
-	fputc('{', f);
+	mlip_json_object(j, key, 1);
 	for (uint32_t b = 0; b < end; b++) {
 		if (s->bins[b] != 0) {
-			fprintf(f, "%s\"%u\": %llu", first ? "" : ", ", b,
-			        (unsigned long long)s->bins[b]);
-			first = 0;
+			snprintf(bin, sizeof(bin), "%u", b);
+			mlip_json_uint(j, bin, s->bins[b]);
 		}
 	}
-	fputc('}', f);
+	mlip_json_close(j);
 }
 
 /* max_at: the period of the max (-1: not known) */
-static void json_series(FILE *f, const struct mlip_latstats *s, long long max_at, uint32_t hist_us,
-                        const char *ind)
+static void json_series(struct mlip_json *j, const char *key, const struct mlip_latstats *s,
+                        long long max_at, uint32_t hist_us)
 {
 	int capped = 0;
-	fprintf(f, "{\n%s  \"unit\": \"us\",\n%s  \"samples\": %llu,\n", ind, ind,
-	        (unsigned long long)s->count);
-	fprintf(f, "%s  \"min\": %.3f,\n%s  \"avg\": %.3f,\n%s  \"max\": %.3f,\n", ind,
-	        us(mlip_latstats_min_ns(s)), ind, mlip_latstats_mean_ns(s) / 1e3, ind,
-	        us(s->max_ns));
+	mlip_json_object(j, key, 0);
+	mlip_json_string(j, "unit", "us");
+	mlip_json_uint(j, "samples", s->count);
+	mlip_json_number(j, "min", "%.3f", us(mlip_latstats_min_ns(s)));
+	mlip_json_number(j, "avg", "%.3f", mlip_latstats_mean_ns(s) / 1e3);
+	mlip_json_number(j, "max", "%.3f", us(s->max_ns));
 	for (int k = 0; k < NPCT; k++) {
 		int ov;
-		fprintf(f, "%s  \"%s\": %.3f,\n", ind, pct_key[k],
-		        us(mlip_latstats_percentile_ns(s, pcts[k], &ov)));
+		mlip_json_number(j, pct_key[k], "%.3f",
+		                 us(mlip_latstats_percentile_ns(s, pcts[k], &ov)));
 		capped |= ov;
 	}
-	fprintf(f, "%s  \"percentiles_in_overflow\": %s,\n", ind, capped ? "true" : "false");
+	mlip_json_bool(j, "percentiles_in_overflow", capped);
 	if (max_at >= 0) {
-		fprintf(f, "%s  \"max_at_period\": %lld,\n", ind, max_at);
+		mlip_json_int(j, "max_at_period", max_at);
 	}
-	fprintf(f, "%s  \"histogram_us\": %u,\n%s  \"histogram\": ", ind, hist_us, ind);
-	json_hist(f, s, hist_us);
-	fprintf(f, ",\n%s  \"overflow\": %llu\n%s}", ind,
-	        (unsigned long long)(s->count - mlip_latstats_count_below(s, hist_us)), ind);
+	mlip_json_uint(j, "histogram_us", hist_us);
+	json_hist(j, "histogram", s, hist_us);
+	mlip_json_uint(j, "overflow", s->count - mlip_latstats_count_below(s, hist_us));
+	mlip_json_close(j);
 }
 
-static void json_warnings(FILE *f, const char *w)
+/* One string per line of w. */
+static void json_warnings(struct mlip_json *j, const char *key, const char *w)
 {
-	int first = 1;
-	fputc('[', f);
+	mlip_json_array(j, key, 0);
 	while (*w) {
 		size_t n = strcspn(w, "\n");
 		char line[512];
 		snprintf(line, sizeof(line), "%.*s", (int)n, w);
 		if (n > 0) {
-			fputs(first ? "\n      " : ",\n      ", f);
-			json_str(f, line);
-			first = 0;
+			mlip_json_string(j, NULL, line);
 		}
 		w += n + (w[n] == '\n');
 	}
-	fputs(first ? "]" : "\n    ]", f);
+	mlip_json_close(j);
 }
 
 /* ---- cyclictest, side by side ---------------------------------------------- */
@@ -910,103 +895,182 @@ static void print_histogram(FILE *f, int nseries, uint32_t hist_us)
 	}
 }
 
-int main(int argc, char **argv)
+/* ---- set up --------------------------------------------------------------------- */
+
+/* Everything a test holds besides R (the loop's own). */
+struct app {
+	struct mlip_config cfg;
+	struct mlip_program_list prog;
+	struct feeder feed;
+	void *ring_mem;
+	int64_t period_ns;
+	mlip_can_profile prof;
+	pthread_attr_t small;
+	pthread_t feeder_th, live_th;
+	int feeder_started, live_started;
+	struct mlip_rt_opts ro;
+	struct mlip_rt_report rep, run;
+	char chosen[256];                                       /* what was chosen away */
+	char warnings[256 + 2 * sizeof(struct mlip_rt_report)]; /* every warning, for the JSON */
+	time_t t_start, t_end;
+	uint64_t t0_ns, t1_ns;
+	struct sysinfo_rt sys;
+	char summary[768];
+	struct ct_result ct;
+};
+
+/* The load: config (its period, or -i's), program (smoothed with
+ * --strategy smooth, as mlip-feed sends it), the CAN interface. 0, or the
+ * exit status. */
+static int load(const struct opts *o, struct app *a)
 {
-	struct opts o;
-	int rc = parse_opts(argc, argv, &o);
+	char info[256];
+	if (mlip_config_load(o->config, &a->cfg, stderr) != 0) {
+		if (!o->config_given) {
+			fprintf(stderr,
+			        PROG ": hint: run from the repository root, or pass --config\n");
+		}
+		return 1;
+	}
+	if (o->interval_us) {
+		a->cfg.machine.period_s = (double)o->interval_us * 1e-6;
+		struct mlip_config_error e;
+		if (mlip_machine_check(&a->cfg.machine, &e) != MLIP_OK) {
+			mlip_config_perror(stderr, PROG, &e);
+			return 2;
+		}
+	}
+	a->period_ns = (int64_t)(a->cfg.machine.period_s * 1e9 + 0.5);
+	int rc = mlip_program_list_load(o->program, &a->cfg.machine, &a->prog);
+	if (rc < 0) {
+		fprintf(stderr, PROG ": %s: %s\n", o->program, a->prog.r.msg);
+		return 1;
+	}
+	if (rc > 0) {
+		mlip_program_print_errors(&a->prog.r, o->program, stderr);
+		return 1;
+	}
+	if (a->prog.n == 0) {
+		fprintf(stderr, PROG ": %s: no motion to run\n", o->program);
+		return 1;
+	}
+	if (o->strategy == MLIP_STRATEGY_SMOOTH) {
+		/* the ring carries the smoothed blocks, as from mlip-feed */
+		struct mlip_block *sb;
+		size_t sn;
+		if (mlip_smooth_program(&a->cfg.machine, a->prog.blocks, a->prog.n, &sb, &sn) !=
+		    0) {
+			fprintf(stderr, PROG ": %s: out of memory smoothing the program\n",
+			        o->program);
+			return 1;
+		}
+		free(a->prog.blocks);
+		a->prog.blocks = sb;
+		a->prog.n = a->prog.cap = sn;
+	}
+	if (mlip_can_profile_parse(a->cfg.can.profile, &a->prof) != MLIP_OK) {
+		a->prof = MLIP_CAN_CIA402;
+	}
+	if (o->mode != MODE_CAN) {
+		return 0;
+	}
+	struct mlip_can_load l;
+	if (mlip_can_load_breakdown(a->prof, a->cfg.machine.n_axes, a->cfg.can.bitrate,
+	                            a->cfg.can.data_bitrate, a->cfg.machine.period_s,
+	                            &l) == MLIP_OK &&
+	    l.load > MAX_BUS_LOAD) {
+		fprintf(stderr,
+		        PROG
+		        ": warning: bus load %.1f %% is above mlip-rt's %.0f %% budget (mlip-rt "
+		        "would refuse this configuration)\n",
+		        l.load * 100.0, MAX_BUS_LOAD * 100.0);
+	}
+	if (mlip_canbus_check(o->iface, info, sizeof(info)) != 0) {
+		fprintf(stderr, PROG ": %s\n", info);
+		return 1;
+	}
+	if (!o->quiet) {
+		fprintf(stderr, PROG ": %s\n", info);
+	}
+	if (mlip_canbus_open(&bus, o->iface, a->prof == MLIP_CAN_FD, NULL, 0, info, sizeof(info)) !=
+	    0) {
+		fprintf(stderr, PROG ": %s\n", info);
+		return 1;
+	}
+	mlip_canbus_port(&bus, &port);
+	return 0;
+}
+
+/* The controller's period on a private ring, filled by a feeder thread
+ * (what mlip-feed does through shared memory). 0, or the exit status. */
+static int start_load(const struct opts *o, struct app *a)
+{
+	uint32_t cap = MLIP_RING_CAPACITY;
+	size_t bytes = mlip_ring_bytes(cap);
+	if (posix_memalign(&a->ring_mem, MLIP_RING_LINE, bytes) != 0) {
+		fprintf(stderr, PROG ": out of memory for the ring\n");
+		return 1;
+	}
+	memset(a->ring_mem, 0, bytes);
+	if (mlip_ring_format_machine(a->ring_mem, bytes, cap, &a->cfg.machine) != MLIP_OK) {
+		fprintf(stderr, PROG ": cannot format the ring\n");
+		return 1;
+	}
+	struct mlip_ring *ring = a->ring_mem;
+	/* the latency test counts missed periods; it does not hold on them */
+	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)o->strategy,
+	                           .lookahead = a->cfg.lookahead,
+	                           .stall_periods = UINT32_MAX,
+	                           .can = &a->cfg.can};
+	const struct mlip_can_port *bp = o->mode == MODE_CAN ? &port : NULL;
+	if (mlip_period_init(&ctl, &planner, &a->cfg.machine, &co, ring, bp, NULL) != 0) {
+		co.can = NULL;
+		if (o->mode == MODE_CAN ||
+		    mlip_period_init(&ctl, &planner, &a->cfg.machine, &co, ring, NULL, NULL) != 0) {
+			fprintf(stderr, PROG ": the [CAN] settings of %s do not fit this machine\n",
+			        o->config);
+			return 1;
+		}
+		fprintf(stderr, PROG ": note: [CAN] settings do not fit: frames not encoded\n");
+	} else {
+		R.encode = 1;
+	}
+	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead, as mlip-rt */
+	R.ctl = &ctl;
+	R.io = o->mode == MODE_CAN ? &bus : NULL;
+	R.last_state = MLIP_STATE_IDLE;
+	a->feed.ring = ring;
+	a->feed.prog = &a->prog;
+	a->feed.end_line = a->prog.lines;
+	while (feed_some(&a->feed) > 0) { /* the ring full before the first period */
+	}
+	if (pthread_create(&a->feeder_th, &a->small, feeder_main, &a->feed) != 0) {
+		fprintf(stderr, PROG ": cannot start the feeder thread\n");
+		return 1;
+	}
+	a->feeder_started = 1;
+	return 0;
+}
+
+/* The load, the histograms, the real-time set-up as mlip-rt's (after every
+ * allocation, so that mlip_rt_prepare's memlock check sees what is really
+ * locked), the warnings. 0, or the exit status. */
+static int set_up(const struct opts *o, struct app *a)
+{
+	a->t_start = time(NULL);
+	a->period_ns = (o->interval_us ? o->interval_us : DEFAULT_INTERVAL_US) * 1000;
+	a->prof = MLIP_CAN_CIA402;
+	memset(&R, 0, sizeof(R));
+	R.mode = o->mode;
+	int rc = o->mode != MODE_IDLE ? load(o, a) : 0;
 	if (rc != 0) {
 		return rc;
 	}
-	time_t t_start = time(NULL);
-
-	/* ---- the load: config, program, controller, ring, CAN ---- */
-	static struct mlip_config cfg;
-	static struct mlip_program_list prog;
-	static struct feeder feed;
-	void *ring_mem = NULL;
-	int64_t period_ns = (o.interval_us ? o.interval_us : DEFAULT_INTERVAL_US) * 1000;
-	mlip_can_profile prof = MLIP_CAN_CIA402;
-	char info[256] = "";
-
-	memset(&R, 0, sizeof(R));
-	R.mode = o.mode;
-	if (o.mode != MODE_IDLE) {
-		if (mlip_config_load(o.config, &cfg, stderr) != 0) {
-			if (!o.config_given) {
-				fprintf(stderr, PROG
-				        ": hint: run from the repository root, or pass --config\n");
-			}
-			return 1;
-		}
-		if (o.interval_us) {
-			cfg.machine.period_s = (double)o.interval_us * 1e-6;
-			struct mlip_config_error e;
-			if (mlip_machine_check(&cfg.machine, &e) != MLIP_OK) {
-				mlip_config_perror(stderr, PROG, &e);
-				return 2;
-			}
-		}
-		period_ns = (int64_t)(cfg.machine.period_s * 1e9 + 0.5);
-		rc = mlip_program_list_load(o.program, &cfg.machine, &prog);
-		if (rc < 0) {
-			fprintf(stderr, PROG ": %s: %s\n", o.program, prog.r.msg);
-			return 1;
-		}
-		if (rc > 0) {
-			mlip_program_print_errors(&prog.r, o.program, stderr);
-			return 1;
-		}
-		if (prog.n == 0) {
-			fprintf(stderr, PROG ": %s: no motion to run\n", o.program);
-			return 1;
-		}
-		if (o.strategy == MLIP_STRATEGY_SMOOTH) {
-			/* the ring carries the smoothed blocks, as from mlip-feed */
-			struct mlip_block *sb;
-			size_t sn;
-			if (mlip_smooth_program(&cfg.machine, prog.blocks, prog.n, &sb, &sn) != 0) {
-				fprintf(stderr, PROG ": %s: out of memory smoothing the program\n",
-				        o.program);
-				return 1;
-			}
-			free(prog.blocks);
-			prog.blocks = sb;
-			prog.n = prog.cap = sn;
-		}
-		if (mlip_can_profile_parse(cfg.can.profile, &prof) != MLIP_OK) {
-			prof = MLIP_CAN_CIA402;
-		}
-	}
-	if (o.mode == MODE_CAN) {
-		struct mlip_can_load l;
-		if (mlip_can_load_breakdown(prof, cfg.machine.n_axes, cfg.can.bitrate,
-		                            cfg.can.data_bitrate, cfg.machine.period_s,
-		                            &l) == MLIP_OK &&
-		    l.load > MAX_BUS_LOAD) {
-			fprintf(stderr,
-			        PROG ": warning: bus load %.1f %% is above mlip-rt's %.0f %% "
-			             "budget (mlip-rt "
-			             "would refuse this configuration)\n",
-			        l.load * 100.0, MAX_BUS_LOAD * 100.0);
-		}
-		if (mlip_canio_check(o.iface, info, sizeof(info)) != 0) {
-			fprintf(stderr, PROG ": %s\n", info);
-			return 1;
-		}
-		if (!o.quiet) {
-			fprintf(stderr, PROG ": %s\n", info);
-		}
-		if (mlip_canio_open(&io, o.iface, prof == MLIP_CAN_FD, info, sizeof(info)) != 0) {
-			fprintf(stderr, PROG ": %s\n", info);
-			return 1;
-		}
-	}
-
 	/* histograms: allocated and touched now, before mlockall (MCL_CURRENT covers
 	 * them, and its RLIMIT_MEMLOCK check counts them) */
-	uint32_t keep = o.hist_us > KEEP_HIST_US ? o.hist_us : KEEP_HIST_US;
-	keep = keep < (uint32_t)(4 * (period_ns / BIN_NS)) ? (uint32_t)(4 * (period_ns / BIN_NS))
-	                                                   : keep;
+	uint32_t keep = o->hist_us > KEEP_HIST_US ? o->hist_us : KEEP_HIST_US;
+	uint32_t four = (uint32_t)(4 * (a->period_ns / BIN_NS));
+	keep = keep < four ? four : keep;
 	for (int k = 0; k < S_N; k++) {
 		uint64_t *b = malloc((size_t)keep * sizeof(uint64_t));
 		if (b == NULL) {
@@ -1015,183 +1079,134 @@ int main(int argc, char **argv)
 		}
 		mlip_latstats_init(&R.s[k], b, keep, BIN_NS); /* zeroes: every page touched */
 	}
-	R.period_ns = period_ns;
-	R.duration_ns = (int64_t)(o.duration_s * 1e9 + 0.5);
-	R.loops = o.loops;
-
-	pthread_t feeder_th, live_th;
-	int feeder_started = 0, live_started = 0;
+	R.period_ns = a->period_ns;
+	R.duration_ns = (int64_t)(o->duration_s * 1e9 + 0.5);
+	R.loops = o->loops;
 	/* helper threads: small stacks (the default, often 8 MiB, would be locked
 	 * whole and exhaust an unprivileged RLIMIT_MEMLOCK) */
-	pthread_attr_t small;
-	pthread_attr_init(&small);
-	pthread_attr_setstacksize(&small, 256 * 1024);
-	if (o.mode != MODE_IDLE) {
-		uint32_t cap = MLIP_RING_CAPACITY;
-		size_t bytes = mlip_ring_bytes(cap);
-		if (posix_memalign(&ring_mem, MLIP_RING_LINE, bytes) != 0) {
-			fprintf(stderr, PROG ": out of memory for the ring\n");
-			return 1;
-		}
-		memset(ring_mem, 0, bytes);
-		if (mlip_ring_format_machine(ring_mem, bytes, cap, &cfg.machine) != MLIP_OK) {
-			fprintf(stderr, PROG ": cannot format the ring\n");
-			return 1;
-		}
-		struct mlip_ring *ring = ring_mem;
-		/* the latency test counts missed periods; it does not hold on them */
-		struct mlip_ctl_opts co = {.strategy = (mlip_strategy)o.strategy,
-		                           .lookahead = cfg.lookahead,
-		                           .stall_periods = UINT32_MAX,
-		                           .can = &cfg.can};
-		if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, ring,
-		                         o.mode == MODE_CAN ? &io : NULL) != 0) {
-			co.can = NULL;
-			if (o.mode == MODE_CAN || mlip_controller_init(&ctl, &planner, &cfg.machine,
-			                                               &co, ring, NULL) != 0) {
-				fprintf(stderr,
-				        PROG ": the [CAN] settings of %s do not fit this machine\n",
-				        o.config);
-				return 1;
-			}
-			fprintf(stderr,
-			        PROG ": note: [CAN] settings do not fit: frames not encoded\n");
-		} else {
-			R.encode = 1;
-		}
-		memset(&planner.seg, 0,
-		       sizeof(planner.seg)); /* prefault the look-ahead, as mlip-rt */
-		R.ctl = &ctl;
-		R.io = o.mode == MODE_CAN ? &io : NULL;
-		R.last_state = MLIP_STATE_IDLE;
-		feed.ring = ring;
-		feed.prog = &prog;
-		feed.end_line = prog.lines;
-		while (feed_some(&feed) > 0) { /* the ring full before the first period */
-		}
-		if (pthread_create(&feeder_th, &small, feeder_main, &feed) != 0) {
-			fprintf(stderr, PROG ": cannot start the feeder thread\n");
-			return 1;
-		}
-		feeder_started = 1;
+	pthread_attr_init(&a->small);
+	pthread_attr_setstacksize(&a->small, 256 * 1024);
+	if (o->mode != MODE_IDLE && (rc = start_load(o, a)) != 0) {
+		return rc;
 	}
-
-	/* ---- real-time set-up, as mlip-rt: after every allocation, so that
-	 * mlip_rt_prepare's memlock check sees what is really locked ---- */
-	struct mlip_rt_opts ro = {.period_ns = period_ns,
-	                          .priority = o.priority,
-	                          .cpu = o.cpu,
-	                          .lock_memory = o.lock_memory};
-	struct mlip_rt_report rep;
-	mlip_rt_prepare(&ro, &rep);
+	a->ro = (struct mlip_rt_opts){.period_ns = a->period_ns,
+	                              .priority = o->priority,
+	                              .cpu = o->cpu,
+	                              .lock_memory = o->lock_memory};
+	mlip_rt_prepare(&a->ro, &a->rep);
 	/* what was chosen away: mlip_rt_prepare warns only about what failed */
-	char chosen[256] = "";
-	if (o.priority == 0) {
+	if (o->priority == 0) {
 		snprintf(
-		    chosen, sizeof(chosen), "%s",
+		    a->chosen, sizeof(a->chosen), "%s",
 		    "priority 0: the loop runs SCHED_OTHER, not real-time; mlip-rt runs -p 80\n");
 	}
-	if (!o.lock_memory) {
-		size_t used = strlen(chosen);
+	if (!o->lock_memory) {
+		size_t used = strlen(a->chosen);
 		snprintf(
-		    chosen + used, sizeof(chosen) - used, "%s",
+		    a->chosen + used, sizeof(a->chosen) - used, "%s",
 		    "memory not locked (--no-mlockall): page faults can stall the loop; mlip-rt "
 		    "locks it\n");
 	}
-
 	mlip_cli_on_stop_signals(on_signal);
-
 	/* what is being measured, and what is not real-time about it */
-	if (!o.quiet) {
+	if (!o->quiet) {
 		char lim[64] = "until Ctrl-C";
-		if (o.duration_s > 0) {
-			snprintf(lim, sizeof(lim), "for %g s", o.duration_s);
-		} else if (o.loops) {
-			snprintf(lim, sizeof(lim), "for %llu periods", (unsigned long long)o.loops);
+		if (o->duration_s > 0) {
+			snprintf(lim, sizeof(lim), "for %g s", o->duration_s);
+		} else if (o->loops) {
+			snprintf(lim, sizeof(lim), "for %llu periods",
+			         (unsigned long long)o->loops);
 		}
-		fprintf(stderr, PROG ": %s load%s%s%s%s, period %lld us, %s\n", mode_name[o.mode],
-		        o.mode == MODE_IDLE ? "" : " ", o.mode == MODE_IDLE ? "" : o.program,
-		        o.mode == MODE_CAN ? " on " : "", o.mode == MODE_CAN ? o.iface : "",
-		        (long long)(period_ns / 1000), lim);
+		fprintf(stderr, PROG ": %s load%s%s%s%s, period %lld us, %s\n", mode_name[o->mode],
+		        o->mode == MODE_IDLE ? "" : " ", o->mode == MODE_IDLE ? "" : o->program,
+		        o->mode == MODE_CAN ? " on " : "", o->mode == MODE_CAN ? o->iface : "",
+		        (long long)(a->period_ns / 1000), lim);
 	}
-	fprintf(stderr, "%s%s", chosen, rep.warnings);
-	if (!o.quiet && isatty(STDERR_FILENO)) {
-		live_started = pthread_create(&live_th, &small, live_main, NULL) == 0;
+	fprintf(stderr, "%s%s", a->chosen, a->rep.warnings);
+	return 0;
+}
+
+/* ---- run -------------------------------------------------------------------------- */
+
+/* The loop (and the live line on a terminal); 0, or 1 when it did not start. */
+static int run(const struct opts *o, struct app *a)
+{
+	if (!o->quiet && isatty(STDERR_FILENO)) {
+		a->live_started = pthread_create(&a->live_th, &a->small, live_main, NULL) == 0;
 	}
-
-	struct mlip_rt_report run;
-	memset(&run, 0, sizeof(run));
-	uint64_t t0 = mlip_now_ns();
-	rc = mlip_rt_run(&ro, lat_tick, lat_after, &R, &run);
-	uint64_t t1 = mlip_now_ns();
-	time_t t_end = time(NULL);
-
-	if (live_started) {
+	memset(&a->run, 0, sizeof(a->run));
+	a->t0_ns = mlip_now_ns();
+	int rc = mlip_rt_run(&a->ro, lat_tick, lat_after, &R, &a->run);
+	a->t1_ns = mlip_now_ns();
+	a->t_end = time(NULL);
+	if (a->live_started) {
 		__atomic_store_n(&live_stop, 1, __ATOMIC_RELEASE);
-		pthread_join(live_th, NULL);
+		pthread_join(a->live_th, NULL);
 	}
-	if (feeder_started) {
-		__atomic_store_n(&feed.stop, 1, __ATOMIC_RELEASE);
-		pthread_join(feeder_th, NULL);
+	if (a->feeder_started) {
+		__atomic_store_n(&a->feed.stop, 1, __ATOMIC_RELEASE);
+		pthread_join(a->feeder_th, NULL);
 	}
 	if (rc < 0) {
 		fprintf(stderr, PROG ": cannot start the loop: %s\n", strerror(-rc));
 		return 1;
 	}
-	if (run.warnings[0]) {
-		fprintf(stderr, "%s", run.warnings);
+	if (a->run.warnings[0]) {
+		fprintf(stderr, "%s", a->run.warnings);
 	}
-	/* every warning, for the JSON */
-	char warnings[sizeof(chosen) + 2 * sizeof(rep.warnings)];
-	snprintf(warnings, sizeof(warnings), "%s%s%s", chosen, rep.warnings, run.warnings);
+	snprintf(a->warnings, sizeof(a->warnings), "%s%s%s", a->chosen, a->rep.warnings,
+	         a->run.warnings);
+	sys_probe(&a->sys);
+	return 0;
+}
 
-	struct sysinfo_rt sys;
-	sys_probe(&sys);
-	int nseries = o.mode == MODE_CAN ? S_N : S_SEND;
-	double elapsed_s = R.periods ? (double)(t1 - t0) / 1e9 : 0.0;
-	int fifo = run.fifo, locked = rep.locked;
+/* ---- report ----------------------------------------------------------------------- */
 
-	/* ---- results ---- */
-	/* results on stdout, unless the JSON goes there */
-	FILE *out = o.json != NULL && strcmp(o.json, "-") == 0 ? stderr : stdout;
-	if (o.hist_given) {
-		print_histogram(out, nseries, o.hist_us);
+/* The tables, the load and the summary line (on out). */
+static void print_results(const struct opts *o, struct app *a, FILE *out)
+{
+	char info[64], where[32] = "";
+	int nseries = o->mode == MODE_CAN ? S_N : S_SEND;
+	double elapsed_s = R.periods ? (double)(a->t1_ns - a->t0_ns) / 1e9 : 0.0;
+	if (o->hist_given) {
+		print_histogram(out, nseries, o->hist_us);
 	}
-	char where[32] = "";
-	if (run.pinned) {
-		snprintf(where, sizeof(where), " on CPU %d", o.cpu);
+	if (a->run.pinned) {
+		snprintf(where, sizeof(where), " on CPU %d", o->cpu);
 	}
-	fprintf(out, PROG ": %s%s%s, %llu periods of %lld us (%.1f s)\n", mode_name[o.mode],
-	        o.mode == MODE_IDLE ? "" : " ", o.mode == MODE_IDLE ? "" : o.program,
-	        (unsigned long long)R.periods, (long long)(period_ns / 1000), elapsed_s);
-	if (fifo) {
-		snprintf(info, sizeof(info), "SCHED_FIFO priority %d", o.priority);
+	fprintf(out, PROG ": %s%s%s, %llu periods of %lld us (%.1f s)\n", mode_name[o->mode],
+	        o->mode == MODE_IDLE ? "" : " ", o->mode == MODE_IDLE ? "" : o->program,
+	        (unsigned long long)R.periods, (long long)(a->period_ns / 1000), elapsed_s);
+	if (a->run.fifo) {
+		snprintf(info, sizeof(info), "SCHED_FIFO priority %d", o->priority);
 	} else {
 		snprintf(info, sizeof(info), "SCHED_OTHER (not real-time)");
 	}
 	fprintf(out, "  %s%s, memory %s, kernel %s %s, isolated CPUs: %s\n", info, where,
-	        locked ? "locked" : "not locked", sys.u.release,
-	        sys.preempt_rt ? "PREEMPT_RT" : "(not PREEMPT_RT)",
-	        sys.isolated[0] ? sys.isolated : "none");
+	        a->rep.locked ? "locked" : "not locked", a->sys.u.release,
+	        a->sys.preempt_rt ? "PREEMPT_RT" : "(not PREEMPT_RT)",
+	        a->sys.isolated[0] ? a->sys.isolated : "none");
 	print_table_head(out, "us", 1);
 	for (int k = 0; k < nseries; k++) {
 		print_table(out, series_label[k], &R.s[k], (long long)R.max_at[k]);
 	}
-	if (o.mode != MODE_IDLE) {
+	if (o->mode != MODE_IDLE) {
+		const struct mlip_ctl_counts *n = &ctl.out.counts;
 		fprintf(
 		    out,
 		    "  load: %s, %llu runs of the program finished, %llu blocks taken, %.1f %% of "
 		    "periods moving, %llu underruns, %llu frames %s",
-		    o.program, (unsigned long long)R.passes,
-		    (unsigned long long)ctl.core.blocks_consumed,
+		    o->program, (unsigned long long)R.passes,
+		    (unsigned long long)n->blocks_consumed,
 		    R.periods ? 100.0 * (double)R.moving_periods / (double)R.periods : 0.0,
-		    (unsigned long long)ctl.core.underruns, (unsigned long long)R.frames_encoded,
-		    o.mode == MODE_CAN ? "encoded" : "encoded and discarded");
-		if (o.mode == MODE_CAN) {
+		    (unsigned long long)n->underruns, (unsigned long long)R.frames_encoded,
+		    o->mode == MODE_CAN ? "encoded" : "encoded and discarded");
+		if (o->mode == MODE_CAN) {
 			fprintf(out,
 			        ", %llu sent, %llu dropped (tx queue full), %llu bus errors on %s",
-			        (unsigned long long)io.tx_ok, (unsigned long long)io.tx_dropped,
-			        (unsigned long long)io.bus_errors, o.iface);
+			        (unsigned long long)ctl.can.tx_ok,
+			        (unsigned long long)ctl.can.tx_dropped,
+			        (unsigned long long)ctl.can.bus_errors, o->iface);
 		}
 		if (R.encode_faults) {
 			fprintf(out, ", %llu periods not encodable",
@@ -1199,208 +1214,228 @@ int main(int argc, char **argv)
 		}
 		fputc('\n', out);
 	}
-
 	/* the summary line: the figures a person looks at */
 	const struct mlip_latstats *L = &R.s[S_LAT], *J = &R.s[S_JIT], *C = &R.s[S_COMP];
 	double worst_us = us(L->max_ns) + us(C->max_ns);
-	char summary[768];
-	int sl = snprintf(summary, sizeof(summary),
+	char *sm = a->summary;
+	size_t cap = sizeof(a->summary);
+	int sl = snprintf(sm, cap,
 	                  PROG " %s: wake-up p99 %.0f us, p99.99 %.0f us, max %.0f us | jitter max "
 	                       "%.0f us (%s) | compute p99 %.0f us, max %.0f us",
-	                  mode_name[o.mode], us(mlip_latstats_percentile_ns(L, 99, NULL)),
+	                  mode_name[o->mode], us(mlip_latstats_percentile_ns(L, 99, NULL)),
 	                  us(mlip_latstats_percentile_ns(L, 99.99, NULL)), us(L->max_ns),
 	                  us(J->max_ns), jitter_grade(us(J->max_ns)),
 	                  us(mlip_latstats_percentile_ns(C, 99, NULL)), us(C->max_ns));
-	if (o.mode == MODE_CAN && sl > 0 && (size_t)sl < sizeof(summary)) {
-		sl += snprintf(summary + sl, sizeof(summary) - (size_t)sl, " | send max %.0f us",
+	if (o->mode == MODE_CAN && sl > 0 && (size_t)sl < cap) {
+		sl += snprintf(sm + sl, cap - (size_t)sl, " | send max %.0f us",
 		               us(R.s[S_SEND].max_ns));
 	}
-	if (sl > 0 && (size_t)sl < sizeof(summary)) {
+	if (sl > 0 && (size_t)sl < cap) {
 		int nw = 0;
-		for (const char *w = warnings; *w; w++) {
+		for (const char *w = a->warnings; *w; w++) {
 			nw += *w == '\n';
 		}
-		sl += snprintf(summary + sl, sizeof(summary) - (size_t)sl,
-		               " | %llu overruns | worst wake-up + compute %.0f of %lld us%s",
-		               (unsigned long long)R.overruns, worst_us,
-		               (long long)(period_ns / 1000),
-		               nw ? " | NOT REAL-TIME, see the warnings" : "");
+		snprintf(sm + sl, cap - (size_t)sl,
+		         " | %llu overruns | worst wake-up + compute %.0f of %lld us%s",
+		         (unsigned long long)R.overruns, worst_us, (long long)(a->period_ns / 1000),
+		         nw ? " | NOT REAL-TIME, see the warnings" : "");
 	}
-	fprintf(out, "%s\n", summary);
+	fprintf(out, "%s\n", sm);
 	fflush(out);
+}
 
-	/* ---- cyclictest, same settings, after us ---- */
-	struct ct_result ct;
-	memset(&ct, 0, sizeof(ct));
-	if (o.compare) {
-		uint32_t ct_hist = o.hist_us > DEFAULT_HIST_US ? o.hist_us : DEFAULT_HIST_US;
-		if (!o.quiet) {
-			fprintf(stderr, PROG ": now cyclictest with the same settings...\n");
-		}
-		if (run_cyclictest(&o, period_ns, elapsed_s, ct_hist, &ct) == 0) {
-			fprintf(out, "\nwake-up latency, us (the same loop settings, one run after "
-			             "the other)\n");
-			print_table_head(out, "", 0);
-			char name[40];
-			snprintf(name, sizeof(name), "mlip-latency %s", mode_name[o.mode]);
-			print_table(out, name, L, -1);
-			print_table(out, "cyclictest", &ct.s, -1);
-			fprintf(out, "  cyclictest: %s\n", ct.cmd);
-			fprintf(
-			    out,
-			    "  (cyclictest whole us, its avg %.2f; percentiles from its histogram, "
-			    "same rule as ours)\n",
-			    ct.avg_us);
-		}
+/* cyclictest with the same settings, after us, in one table with ours. */
+static void compare(const struct opts *o, struct app *a, FILE *out)
+{
+	uint32_t ct_hist = o->hist_us > DEFAULT_HIST_US ? o->hist_us : DEFAULT_HIST_US;
+	double elapsed_s = R.periods ? (double)(a->t1_ns - a->t0_ns) / 1e9 : 0.0;
+	char name[40];
+	if (!o->quiet) {
+		fprintf(stderr, PROG ": now cyclictest with the same settings...\n");
 	}
-
-	/* ---- JSON ---- */
-	if (o.json != NULL) {
-		FILE *f = strcmp(o.json, "-") == 0 ? stdout : fopen(o.json, "w");
-		if (f == NULL) {
-			perror(o.json);
-			return 1;
-		}
-		char ts0[64], ts1[64], cmdline[2048];
-		size_t used = 0;
-		for (int k = 0; k < argc && used < sizeof(cmdline); k++) {
-			used += (size_t)snprintf(cmdline + used, sizeof(cmdline) - used, "%s%s",
-			                         k ? " " : "", argv[k]);
-		}
-		fmt_time(ts0, sizeof(ts0), t_start);
-		fmt_time(ts1, sizeof(ts1), t_end);
-		struct timespec res;
-		clock_getres(CLOCK_MONOTONIC, &res);
-		/* cyclictest's keys first (its "cmdline:" and "rt_test_version:" keep their colon)
-		 */
-		fprintf(f, "{\n  \"file_version\": 1,\n  \"cmdline:\": ");
-		json_str(f, cmdline);
-		fprintf(f, ",\n  \"rt_test_version:\": \"mlip-latency " VERSION "\",\n");
-		fprintf(f, "  \"start_time\": \"%s\",\n  \"end_time\": \"%s\",\n", ts0, ts1);
-		fprintf(f, "  \"return_code\": 0,\n  \"sysinfo\": {\n    \"sysname\": ");
-		json_str(f, sys.u.sysname);
-		fprintf(f, ",\n    \"nodename\": ");
-		json_str(f, sys.u.nodename);
-		fprintf(f, ",\n    \"release\": ");
-		json_str(f, sys.u.release);
-		fprintf(f, ",\n    \"version\": ");
-		json_str(f, sys.u.version);
-		fprintf(f, ",\n    \"machine\": ");
-		json_str(f, sys.u.machine);
-		fprintf(f, ",\n    \"realtime\": %d\n  },\n", sys.sys_realtime);
-		fprintf(f, "  \"num_threads\": 1,\n  \"resolution_in_ns\": %ld,\n",
-		        (long)(res.tv_sec * 1000000000L + res.tv_nsec));
-		fprintf(f, "  \"thread\": {\n    \"0\": {\n      \"histogram\": ");
-		json_hist(f, L, o.hist_us);
-		fprintf(f,
-		        ",\n      \"cycles\": %llu,\n      \"min\": %lld,\n      \"max\": %lld,\n"
-		        "      \"avg\": %.2f,\n      \"cpu\": %d,\n      \"node\": 0,\n",
-		        (unsigned long long)L->count, (long long)(mlip_latstats_min_ns(L) / 1000),
-		        (long long)(L->max_ns / 1000), mlip_latstats_mean_ns(L) / 1e3,
-		        run.pinned ? o.cpu : -1);
-		fprintf(f, "      \"overflow\": %llu",
-		        (unsigned long long)(L->count - mlip_latstats_count_below(L, o.hist_us)));
-		for (int k = 0; k < NPCT; k++) {
-			fprintf(f, ",\n      \"%s\": %.3f", pct_key[k],
-			        us(mlip_latstats_percentile_ns(L, pcts[k], NULL)));
-		}
-		fprintf(f, "\n    }\n  },\n");
-		/* ours */
-		fprintf(f, "  \"mlip\": {\n    \"tool\": \"" PROG "\",\n    \"version\": \"" VERSION
-		           "\",\n");
-		fprintf(f, "    \"mode\": \"%s\",\n", mode_name[o.mode]);
-		if (o.mode != MODE_IDLE) {
-			fprintf(f, "    \"program\": ");
-			json_str(f, o.program);
-			fprintf(f, ",\n    \"config\": ");
-			json_str(f, o.config);
-			fprintf(f, ",\n");
-		}
-		if (o.mode == MODE_CAN) {
-			fprintf(f, "    \"interface\": ");
-			json_str(f, o.iface);
-			fprintf(f, ",\n    \"can_profile\": \"%s\",\n",
-			        mlip_can_profile_name(prof));
-		}
-		fprintf(
-		    f,
-		    "    \"period_us\": %.3f,\n    \"duration_s\": %.3f,\n    \"loops\": %llu,\n"
-		    "    \"elapsed_s\": %.3f,\n    \"periods\": %llu,\n",
-		    (double)period_ns / 1e3, o.duration_s, (unsigned long long)o.loops, elapsed_s,
-		    (unsigned long long)R.periods);
-		fprintf(f, "    \"overruns\": %llu,\n    \"overrun_periods\": %llu,\n",
-		        (unsigned long long)R.overruns, (unsigned long long)R.overrun_periods);
-		fprintf(f,
-		        "    \"realtime\": {\n      \"priority\": %d,\n      \"sched_fifo\": %s,\n"
-		        "      \"mlockall\": %s,\n      \"cpu\": %d,\n      \"pinned\": %s,\n"
-		        "      \"kernel\": ",
-		        o.priority, fifo ? "true" : "false", locked ? "true" : "false", o.cpu,
-		        run.pinned ? "true" : "false");
-		json_str(f, sys.u.release);
-		fprintf(f, ",\n      \"kernel_version\": ");
-		json_str(f, sys.u.version);
-		fprintf(f, ",\n      \"preempt_rt\": %s,\n      \"isolated_cpus\": ",
-		        sys.preempt_rt ? "true" : "false");
-		json_str(f, sys.isolated);
-		fprintf(f, ",\n      \"cpus\": %ld,\n      \"warnings\": ", sys.ncpu);
-		json_warnings(f, warnings);
-		fprintf(f, "\n    },\n");
-		for (int k = 0; k < nseries; k++) {
-			fprintf(f, "    \"%s\": ", series_key[k]);
-			json_series(f, &R.s[k], (long long)R.max_at[k], o.hist_us, "    ");
-			fprintf(f, ",\n");
-		}
-		if (o.mode != MODE_IDLE) {
-			fprintf(f,
-			        "    \"load\": {\n      \"program_blocks\": %llu,\n      "
-			        "\"runs_finished\": "
-			        "%llu,\n      \"blocks_taken\": %llu,\n      \"moving_periods\": "
-			        "%llu,\n"
-			        "      \"underruns\": %llu,\n      \"frames_encoded\": %llu,\n"
-			        "      \"encode_faults\": %llu",
-			        (unsigned long long)prog.n, (unsigned long long)R.passes,
-			        (unsigned long long)ctl.core.blocks_consumed,
-			        (unsigned long long)R.moving_periods,
-			        (unsigned long long)ctl.core.underruns,
-			        (unsigned long long)R.frames_encoded,
-			        (unsigned long long)R.encode_faults);
-			if (o.mode == MODE_CAN) {
-				fprintf(f,
-				        ",\n      \"frames_sent\": %llu,\n      "
-				        "\"frames_dropped\": %llu,\n"
-				        "      \"bus_errors\": %llu",
-				        (unsigned long long)io.tx_ok,
-				        (unsigned long long)io.tx_dropped,
-				        (unsigned long long)io.bus_errors);
-			}
-			fprintf(f, "\n    },\n");
-		}
-		fprintf(f, "    \"summary\": ");
-		json_str(f, summary);
-		fprintf(f, "\n  }");
-		if (ct.ran) {
-			fprintf(f, ",\n  \"cyclictest\": {\n    \"cmdline\": ");
-			json_str(f, ct.cmd);
-			fprintf(f, ",\n    \"wakeup_latency\": ");
-			json_series(f, &ct.s, -1, ct.s.nbins, "    ");
-			fprintf(f, ",\n    \"json\": %s\n  }", ct.json != NULL ? ct.json : "null");
-		}
-		fprintf(f, "\n}\n");
-		if (f != stdout && fclose(f) != 0) {
-			perror(o.json);
-			return 1;
-		}
+	if (run_cyclictest(o, a->period_ns, elapsed_s, ct_hist, &a->ct) != 0) {
+		return;
 	}
+	fprintf(out, "\nwake-up latency, us (the same loop settings, one run after the other)\n");
+	print_table_head(out, "", 0);
+	snprintf(name, sizeof(name), "mlip-latency %s", mode_name[o->mode]);
+	print_table(out, name, &R.s[S_LAT], -1);
+	print_table(out, "cyclictest", &a->ct.s, -1);
+	fprintf(out, "  cyclictest: %s\n", a->ct.cmd);
+	fprintf(out,
+	        "  (cyclictest whole us, its avg %.2f; percentiles from its histogram, same rule "
+	        "as ours)\n",
+	        a->ct.avg_us);
+}
 
-	mlip_canio_close(&io);
-	if (o.mode != MODE_IDLE) {
-		mlip_program_list_free(&prog);
-		free(ring_mem);
+/* The results as JSON: cyclictest's keys first (its "cmdline:" and
+ * "rt_test_version:" keep their colon), then ours under "mlip". */
+static int write_json(const struct opts *o, struct app *a, int argc, char **argv)
+{
+	FILE *f = strcmp(o->json, "-") == 0 ? stdout : fopen(o->json, "w");
+	if (f == NULL) {
+		perror(o->json);
+		return -1;
+	}
+	const struct mlip_latstats *L = &R.s[S_LAT];
+	int nseries = o->mode == MODE_CAN ? S_N : S_SEND;
+	double elapsed_s = R.periods ? (double)(a->t1_ns - a->t0_ns) / 1e9 : 0.0;
+	char ts0[64], ts1[64], cmdline[2048];
+	size_t used = 0;
+	for (int k = 0; k < argc && used < sizeof(cmdline); k++) {
+		used += (size_t)snprintf(cmdline + used, sizeof(cmdline) - used, "%s%s",
+		                         k ? " " : "", argv[k]);
+	}
+	fmt_time(ts0, sizeof(ts0), a->t_start);
+	fmt_time(ts1, sizeof(ts1), a->t_end);
+	struct timespec res;
+	clock_getres(CLOCK_MONOTONIC, &res);
+	struct mlip_json j;
+	mlip_json_begin(&j, f);
+	mlip_json_uint(&j, "file_version", 1);
+	mlip_json_string(&j, "cmdline:", cmdline);
+	mlip_json_string(&j, "rt_test_version:", "mlip-latency " VERSION);
+	mlip_json_string(&j, "start_time", ts0);
+	mlip_json_string(&j, "end_time", ts1);
+	mlip_json_int(&j, "return_code", 0);
+	mlip_json_object(&j, "sysinfo", 0);
+	mlip_json_string(&j, "sysname", a->sys.u.sysname);
+	mlip_json_string(&j, "nodename", a->sys.u.nodename);
+	mlip_json_string(&j, "release", a->sys.u.release);
+	mlip_json_string(&j, "version", a->sys.u.version);
+	mlip_json_string(&j, "machine", a->sys.u.machine);
+	mlip_json_int(&j, "realtime", a->sys.sys_realtime);
+	mlip_json_close(&j);
+	mlip_json_int(&j, "num_threads", 1);
+	mlip_json_int(&j, "resolution_in_ns", (int64_t)res.tv_sec * 1000000000 + res.tv_nsec);
+	mlip_json_object(&j, "thread", 0);
+	mlip_json_object(&j, "0", 0);
+	json_hist(&j, "histogram", L, o->hist_us);
+	mlip_json_uint(&j, "cycles", L->count);
+	mlip_json_int(&j, "min", mlip_latstats_min_ns(L) / 1000);
+	mlip_json_int(&j, "max", L->max_ns / 1000);
+	mlip_json_number(&j, "avg", "%.2f", mlip_latstats_mean_ns(L) / 1e3);
+	mlip_json_int(&j, "cpu", a->run.pinned ? o->cpu : -1);
+	mlip_json_int(&j, "node", 0);
+	mlip_json_uint(&j, "overflow", L->count - mlip_latstats_count_below(L, o->hist_us));
+	for (int k = 0; k < NPCT; k++) {
+		mlip_json_number(&j, pct_key[k], "%.3f",
+		                 us(mlip_latstats_percentile_ns(L, pcts[k], NULL)));
+	}
+	mlip_json_close(&j);
+	mlip_json_close(&j);
+	/* ours */
+	mlip_json_object(&j, "mlip", 0);
+	mlip_json_string(&j, "tool", PROG);
+	mlip_json_string(&j, "version", VERSION);
+	mlip_json_string(&j, "mode", mode_name[o->mode]);
+	if (o->mode != MODE_IDLE) {
+		mlip_json_string(&j, "program", o->program);
+		mlip_json_string(&j, "config", o->config);
+	}
+	if (o->mode == MODE_CAN) {
+		mlip_json_string(&j, "interface", o->iface);
+		mlip_json_string(&j, "can_profile", mlip_can_profile_name(a->prof));
+	}
+	mlip_json_number(&j, "period_us", "%.3f", (double)a->period_ns / 1e3);
+	mlip_json_number(&j, "duration_s", "%.3f", o->duration_s);
+	mlip_json_uint(&j, "loops", o->loops);
+	mlip_json_number(&j, "elapsed_s", "%.3f", elapsed_s);
+	mlip_json_uint(&j, "periods", R.periods);
+	mlip_json_uint(&j, "overruns", R.overruns);
+	mlip_json_uint(&j, "overrun_periods", R.overrun_periods);
+	mlip_json_object(&j, "realtime", 0);
+	mlip_json_int(&j, "priority", o->priority);
+	mlip_json_bool(&j, "sched_fifo", a->run.fifo);
+	mlip_json_bool(&j, "mlockall", a->rep.locked);
+	mlip_json_int(&j, "cpu", o->cpu);
+	mlip_json_bool(&j, "pinned", a->run.pinned);
+	mlip_json_string(&j, "kernel", a->sys.u.release);
+	mlip_json_string(&j, "kernel_version", a->sys.u.version);
+	mlip_json_bool(&j, "preempt_rt", a->sys.preempt_rt);
+	mlip_json_string(&j, "isolated_cpus", a->sys.isolated);
+	mlip_json_int(&j, "cpus", a->sys.ncpu);
+	json_warnings(&j, "warnings", a->warnings);
+	mlip_json_close(&j);
+	for (int k = 0; k < nseries; k++) {
+		json_series(&j, series_key[k], &R.s[k], (long long)R.max_at[k], o->hist_us);
+	}
+	if (o->mode != MODE_IDLE) {
+		const struct mlip_ctl_counts *n = &ctl.out.counts;
+		mlip_json_object(&j, "load", 0);
+		mlip_json_uint(&j, "program_blocks", a->prog.n);
+		mlip_json_uint(&j, "runs_finished", R.passes);
+		mlip_json_uint(&j, "blocks_taken", n->blocks_consumed);
+		mlip_json_uint(&j, "moving_periods", R.moving_periods);
+		mlip_json_uint(&j, "underruns", n->underruns);
+		mlip_json_uint(&j, "frames_encoded", R.frames_encoded);
+		mlip_json_uint(&j, "encode_faults", R.encode_faults);
+		if (o->mode == MODE_CAN) {
+			mlip_json_uint(&j, "frames_sent", ctl.can.tx_ok);
+			mlip_json_uint(&j, "frames_dropped", ctl.can.tx_dropped);
+			mlip_json_uint(&j, "bus_errors", ctl.can.bus_errors);
+		}
+		mlip_json_close(&j);
+	}
+	mlip_json_string(&j, "summary", a->summary);
+	mlip_json_close(&j);
+	if (a->ct.ran) {
+		mlip_json_object(&j, "cyclictest", 0);
+		mlip_json_string(&j, "cmdline", a->ct.cmd);
+		json_series(&j, "wakeup_latency", &a->ct.s, -1, a->ct.s.nbins);
+		mlip_json_raw(&j, "json", a->ct.json != NULL ? a->ct.json : "null");
+		mlip_json_close(&j);
+	}
+	int rc = mlip_json_end(&j);
+	if (f != stdout && fclose(f) != 0) {
+		rc = -1;
+	}
+	if (rc != 0) {
+		perror(o->json);
+	}
+	return rc;
+}
+
+/* Tables, the comparison, the JSON; then everything freed. The exit status. */
+static int report(const struct opts *o, struct app *a, int argc, char **argv)
+{
+	/* results on stdout, unless the JSON goes there */
+	FILE *out = o->json != NULL && strcmp(o->json, "-") == 0 ? stderr : stdout;
+	int rc = 0;
+	print_results(o, a, out);
+	if (o->compare) {
+		compare(o, a, out);
+	}
+	if (o->json != NULL && write_json(o, a, argc, argv) != 0) {
+		rc = 1;
+	}
+	mlip_canbus_close(&bus);
+	if (o->mode != MODE_IDLE) {
+		mlip_program_list_free(&a->prog);
+		free(a->ring_mem);
 	}
 	for (int k = 0; k < S_N; k++) {
 		free(R.s[k].bins);
 	}
-	free(ct.bins);
-	free(ct.json);
-	return 0;
+	free(a->ct.bins);
+	free(a->ct.json);
+	return rc;
+}
+
+int main(int argc, char **argv)
+{
+	static struct opts o;
+	static struct app a;
+	int rc = parse_opts(argc, argv, &o);
+	if (rc != 0) {
+		return rc < 0 ? 0 : rc;
+	}
+	rc = set_up(&o, &a);
+	if (rc != 0) {
+		return rc;
+	}
+	if (run(&o, &a) != 0) {
+		return 1;
+	}
+	return report(&o, &a, argc, argv);
 }

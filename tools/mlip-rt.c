@@ -24,18 +24,18 @@
 #define MAX_BUS_LOAD 0.70
 
 static struct mlip_planner planner; /* static: locked and prefaulted with the rest */
-static struct mlip_controller ctl;
+static struct mlip_period per;
 static struct mlip_drives drives; /* --drives: the CiA 402 master (rt/drives.c) */
-static struct mlip_co_port port;  /* its socket */
+static struct mlip_canbus bus;    /* the one socket */
+static struct mlip_can_port port; /* and the bus as a port */
 
 /* A start-up that fails after the bring-up: the drives disabled by SDO and
  * released (they stop watching our heartbeat); ds NULL: no drives. */
-static void drives_down(struct mlip_drives *ds, struct mlip_co_port *p)
+static void drives_down(struct mlip_drives *ds)
 {
 	if (ds != NULL) {
 		mlip_drives_disable(ds);
 		mlip_drives_release(ds);
-		mlip_co_socket_close(p);
 	}
 }
 
@@ -44,7 +44,7 @@ static volatile sig_atomic_t got_exit;
 static void on_signal(int sig)
 {
 	got_exit = sig;       /* SIGINT, SIGTERM, SIGHUP or SIGQUIT */
-	ctl.exit_request = 1; /* a controlled stop on the path, then exit 0 */
+	per.exit_request = 1; /* a controlled stop on the path, then exit 0 */
 }
 
 /* Outside the loop (an ordinary thread, every 50 ms): tell the operator what
@@ -56,7 +56,7 @@ static void on_signal(int sig)
  * the bus is clean. */
 struct monitor {
 	const char *iface;
-	struct mlip_canio *io; /* NULL: --can none */
+	struct mlip_bus_counts *can; /* NULL: --can none */
 	struct mlip_ring *ring;
 	const struct mlip_machine *m;
 	uint32_t stall_periods;
@@ -239,10 +239,18 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		        mlip_state_why_name(r->why), r->line, (unsigned long long)r->seq);
 		return;
 	case MLIP_STATE_IDLE:
+		if (r->why == MLIP_WHY_STOP_EARLY) {
+			fprintf(stderr,
+			        PROG
+			        ": stop before the start: the program from block %llu (line %u) "
+			        "is dropped unmoved (its mlip-feed began before the stop)\n",
+			        (unsigned long long)r->seq, r->line);
+			return;
+		}
 		fprintf(stderr,
 		        PROG ": %s -> idle (%s): at rest, block %llu (line %u) the last "
 		             "completed\n",
-		        mlip_ring_state_name(e->from), mlip_state_why_name(r->why), seq, line);
+		        mlip_ctl_state_name(e->from), mlip_state_why_name(r->why), seq, line);
 		return;
 	default:
 		if (r->why == MLIP_WHY_PREREAD_DONE || r->why == MLIP_WHY_CONTINUE ||
@@ -250,7 +258,7 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			return; /* implied by the line before (start, underrun, dwell) */
 		}
 		fprintf(stderr, PROG ": %s -> %s (%s), block %llu (line %u)\n",
-		        mlip_ring_state_name(e->from), mlip_ring_state_name(e->state),
+		        mlip_ctl_state_name(e->from), mlip_ctl_state_name(e->state),
 		        mlip_state_why_name(r->why), seq, line);
 	}
 }
@@ -260,10 +268,10 @@ static void drain(struct monitor *mo)
 {
 	struct mlip_ctl_event e;
 	struct mlip_rt_sample smp;
-	while (mlip_controller_log_pop(&ctl, &e)) {
+	while (mlip_period_log_pop(&per, &e)) {
 		log_event(mo, &e);
 	}
-	while (mlip_controller_rec_pop(&ctl, &smp)) {
+	while (mlip_period_rec_pop(&per, &smp)) {
 		mlip_trace_sample_at(&mo->trace, smp.period, smp.state, smp.pos, NULL);
 	}
 }
@@ -284,11 +292,11 @@ static void *monitor(void *arg)
 			a = b;
 			have = 1;
 		}
-		if (mo->io == NULL || tick % 2 ||
-		    !__atomic_load_n(&mo->io->bus_off, __ATOMIC_RELAXED)) {
+		if (mo->can == NULL || tick % 2 ||
+		    !__atomic_load_n(&mo->can->bus_off, __ATOMIC_RELAXED)) {
 			continue;
 		}
-		int rc = mlip_canio_restart(mo->iface);
+		int rc = mlip_canbus_restart(mo->iface);
 		if (rc == 0) {
 			fprintf(stderr, PROG ": %s was bus-off: controller restarted\n", mo->iface);
 			told = 0;
@@ -376,17 +384,21 @@ static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 	return 0;
 }
 
-int main(int argc, char **argv)
-{
-	const char *config = NULL, *iface = NULL, *shm_name = MLIP_SHM_DEFAULT;
-	long shm_gid = -1; /* --shm-group */
-	const char *profile = NULL, *strategy = "mpct";
-	double bitrate = 0.0, v;
-	struct mlip_rt_opts ro = {.priority = 80, .cpu = -1, .lock_memory = 1};
-	unsigned long capacity = MLIP_RING_CAPACITY;
-	const char *record = NULL;
-	double stall_periods = MLIP_STALL_PERIODS_DEFAULT;
+/* ---- parse -------------------------------------------------------------------- */
 
+struct options {
+	const char *config, *iface, *shm_name, *profile, *strategy, *record;
+	long shm_gid; /* --shm-group; -1: none */
+	double bitrate;
+	struct mlip_rt_opts ro;
+	unsigned long capacity;
+	double stall_periods;
+	int want_drives;
+};
+
+/* 0, or the exit status of a usage error (or of --help: -1, exit 0). */
+static int parse_options(int argc, char **argv, struct options *o)
+{
 	static const struct option opts[] = {{"shm-group", required_argument, 0, 'G'},
 	                                     {"config", required_argument, 0, 'c'},
 	                                     {"can", required_argument, 0, 'i'},
@@ -402,8 +414,15 @@ int main(int argc, char **argv)
 	                                     {"record", required_argument, 0, 'R'},
 	                                     {"drives", no_argument, 0, 'D'},
 	                                     {0, 0, 0, 0}};
-	int want_drives = 0;
+	double v;
 	int c;
+	memset(o, 0, sizeof(*o));
+	o->shm_name = MLIP_SHM_DEFAULT;
+	o->shm_gid = -1;
+	o->strategy = "mpct";
+	o->ro = (struct mlip_rt_opts){.priority = 80, .cpu = -1, .lock_memory = 1};
+	o->capacity = MLIP_RING_CAPACITY;
+	o->stall_periods = MLIP_STALL_PERIODS_DEFAULT;
 	while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
 		switch (c) {
 		case 'G': {
@@ -412,21 +431,21 @@ int main(int argc, char **argv)
 				fprintf(stderr, PROG ": --shm-group: no group '%s'\n", optarg);
 				return 2;
 			}
-			shm_gid = (long)g->gr_gid;
+			o->shm_gid = (long)g->gr_gid;
 			break;
 		}
 		case 'c':
-			config = optarg;
+			o->config = optarg;
 			break;
 		case 'i':
-			iface = optarg;
+			o->iface = optarg;
 			break;
 		case 'P':
-			profile = optarg;
+			o->profile = optarg;
 			break;
 		case 'b':
-			if (mlip_cli_number(optarg, &bitrate) != 0 || bitrate < 10000 ||
-			    bitrate > 1e6) {
+			if (mlip_cli_number(optarg, &o->bitrate) != 0 || o->bitrate < 10000 ||
+			    o->bitrate > 1e6) {
 				fprintf(stderr,
 				        PROG ": --bitrate: '%s' is not 10000..1000000 bit/s\n",
 				        optarg);
@@ -434,32 +453,32 @@ int main(int argc, char **argv)
 			}
 			break;
 		case 's':
-			shm_name = optarg;
+			o->shm_name = optarg;
 			break;
 		case 'p':
 			if (mlip_cli_number(optarg, &v) != 0 || v < 0 || v > 99) {
 				fprintf(stderr, PROG ": --priority: '%s' is not 0..99\n", optarg);
 				return 2;
 			}
-			ro.priority = (int)v;
+			o->ro.priority = (int)v;
 			break;
 		case 'C':
 			if (mlip_cli_number(optarg, &v) != 0 || v < 0) {
 				fprintf(stderr, PROG ": --cpu: '%s' is not a CPU number\n", optarg);
 				return 2;
 			}
-			ro.cpu = (int)v;
+			o->ro.cpu = (int)v;
 			break;
 		case 'S':
-			strategy = optarg;
+			o->strategy = optarg;
 			break;
 		case 'n':
-			capacity = strtoul(optarg, NULL, 0);
+			o->capacity = strtoul(optarg, NULL, 0);
 			break;
 		case 'T':
-			if (mlip_cli_number(optarg, &stall_periods) != 0 || stall_periods < 1 ||
-			    stall_periods > 100000 ||
-			    stall_periods != (double)(uint32_t)stall_periods) {
+			if (mlip_cli_number(optarg, &o->stall_periods) != 0 ||
+			    o->stall_periods < 1 || o->stall_periods > 100000 ||
+			    o->stall_periods != (double)(uint32_t)o->stall_periods) {
 				fprintf(stderr,
 				        PROG
 				        ": --stall-periods: '%s' is not a whole number 1..100000\n",
@@ -468,234 +487,294 @@ int main(int argc, char **argv)
 			}
 			break;
 		case 'R':
-			record = optarg;
+			o->record = optarg;
 			break;
 		case 'D':
-			want_drives = 1;
+			o->want_drives = 1;
 			break;
 		case 'h':
 			usage(stdout);
-			return 0;
+			return -1;
 		default:
 			usage(stderr);
 			return 2;
 		}
 	}
-	if (config == NULL || iface == NULL || optind != argc) {
+	if (o->config == NULL || o->iface == NULL || optind != argc) {
 		usage(stderr);
 		return 2;
 	}
-	/* first: a stop asked for while starting up must not kill us blind */
-	mlip_cli_on_stop_signals(on_signal);
+	return 0;
+}
 
-	int st = mlip_cli_strategy(strategy);
-	if (st < 0) {
+/* ---- set up ------------------------------------------------------------------- */
+
+/* Everything the run holds; static (locked and prefaulted with the rest). */
+struct app {
+	struct mlip_config cfg;
+	mlip_can_profile prof;
+	int strategy;
+	int use_can, drives_up; /* the bus is open; the drives are brought up */
+	struct mlip_rt_report rep;
+	struct mlip_shm shm;
+	struct monitor mon;
+	struct mlip_ctl_opts co;
+};
+
+/* The bus, opened once: with CiA 402 drives it receives what they send. */
+static int open_bus(struct app *a, const char *iface)
+{
+	char info[256];
+	uint32_t ids[MLIP_CANBUS_MAX_IDS];
+	int n_ids = 0;
+	if (mlip_canbus_check(iface, info, sizeof(info)) != 0) {
+		fprintf(stderr, PROG ": %s\n", info);
+		return -1;
+	}
+	fprintf(stderr, PROG ": %s\n", info);
+	if (a->cfg.drives.enable) {
+		n_ids = mlip_drives_rx_ids(&a->cfg.machine, ids, MLIP_CANBUS_MAX_IDS);
+	}
+	if (mlip_canbus_open(&bus, iface, a->prof == MLIP_CAN_FD, ids, n_ids, info, sizeof(info)) !=
+	    0) {
+		fprintf(stderr, PROG ": %s\n", info);
+		return -1;
+	}
+	mlip_canbus_port(&bus, &port);
+	a->use_can = 1;
+	return 0;
+}
+
+/* Bring the drives up, before the first period: nothing moves on any error;
+ * the machine then starts where they are (published as HOME, so mlip-feed
+ * parses programs from there; the first setpoint is the position actual). */
+static int bring_up(struct app *a, const char *shm_name)
+{
+	char info[256], why[320];
+	double start[MLIP_MAX_AXES];
+	static struct mlip_shm peek;
+	/* never reset the drives of a controller that runs */
+	if (mlip_shm_attach(&peek, shm_name, info, sizeof(info)) == 0) {
+		int alive = mlip_shm_controller_alive(peek.ring);
+		mlip_shm_close(&peek);
+		if (alive) {
+			fprintf(stderr,
+			        PROG ": a live controller runs on %s: its drives are left alone\n",
+			        shm_name);
+			return -1;
+		}
+	}
+	if (mlip_drives_init(&drives, &a->cfg, &port, drive_log, NULL, why, sizeof(why)) != 0 ||
+	    mlip_drives_bringup(&drives, start, why, sizeof(why)) != 0) {
+		fprintf(stderr, PROG ": drives not brought up: %s; nothing moves\n", why);
+		if (drives.n > 0) {
+			mlip_drives_release(&drives); /* they stop watching our heartbeat */
+		}
+		return -1;
+	}
+	a->drives_up = 1;
+	fprintf(stderr, PROG ": start position");
+	for (int k = 0; k < a->cfg.machine.n_axes; k++) {
+		a->cfg.machine.axis[k].home = start[k];
+		fprintf(stderr, " %c %.4f", a->cfg.machine.axis[k].letter, start[k]);
+	}
+	fprintf(stderr, " (position actual of the drives, published as HOME)\n");
+	return 0;
+}
+
+/* Undo what set_up did, in reverse. */
+static void tear_down(struct app *a)
+{
+	if (a->mon.rec != NULL) {
+		fclose(a->mon.rec);
+		a->mon.rec = NULL;
+	}
+	if (a->shm.ring != NULL) {
+		mlip_shm_close(&a->shm);
+	}
+	if (a->drives_up) {
+		drives_down(&drives);
+	}
+	if (a->use_can) {
+		mlip_canbus_close(&bus);
+	}
+}
+
+/* Config, bus budget, bus, real-time preparation, drives, segment, record
+ * buffer, the period: 0, or the exit status. */
+static int set_up(const struct options *o, struct app *a)
+{
+	char info[256];
+	a->strategy = mlip_cli_strategy(o->strategy);
+	if (a->strategy < 0) {
 		fprintf(stderr,
 		        PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
-		        strategy);
+		        o->strategy);
 		return 2;
 	}
-	if (mlip_ring_bytes((uint32_t)capacity) == 0) {
-		fprintf(stderr, PROG ": --capacity: %lu is not a power of two\n", capacity);
+	if (mlip_ring_bytes((uint32_t)o->capacity) == 0) {
+		fprintf(stderr, PROG ": --capacity: %lu is not a power of two\n", o->capacity);
 		return 2;
 	}
-
-	static struct mlip_config cfg;
-	if (mlip_config_load(config, &cfg, stderr) != 0) {
+	if (mlip_config_load(o->config, &a->cfg, stderr) != 0) {
 		return 1;
 	}
-	mlip_can_profile prof;
-	int rc = mlip_cli_can_override(&cfg, config, profile, bitrate, &prof, PROG, stderr);
+	int rc = mlip_cli_can_override(&a->cfg, o->config, o->profile, o->bitrate, &a->prof, PROG,
+	                               stderr);
 	if (rc != 0) {
 		return rc;
 	}
-	int use_can = strcmp(iface, "none") != 0;
-	if (want_drives) {
-		cfg.drives.enable = 1;
+	int use_can = strcmp(o->iface, "none") != 0;
+	if (o->want_drives) {
+		a->cfg.drives.enable = 1;
 	}
-	if (cfg.drives.enable && (!use_can || prof != MLIP_CAN_CIA402)) {
+	if (a->cfg.drives.enable && (!use_can || a->prof != MLIP_CAN_CIA402)) {
 		fprintf(stderr,
 		        PROG ": CiA 402 drives need a CAN interface and the cia402 profile\n");
 		return 2;
 	}
-	if (use_can && bus_budget(&cfg, prof) != 0) {
+	if (use_can && bus_budget(&a->cfg, a->prof) != 0) {
 		return 1;
 	}
-
-	char info[256];
-	static struct mlip_canio io = {.fd = -1};
-	if (use_can) {
-		if (mlip_canio_check(iface, info, sizeof(info)) != 0) {
-			fprintf(stderr, PROG ": %s\n", info);
-			return 1;
-		}
-		fprintf(stderr, PROG ": %s\n", info);
-		if (mlip_canio_open(&io, iface, prof == MLIP_CAN_FD, info, sizeof(info)) != 0) {
-			fprintf(stderr, PROG ": %s\n", info);
-			return 1;
-		}
-	} else {
+	if (use_can && open_bus(a, o->iface) != 0) {
+		return 1;
+	}
+	if (!use_can) {
 		fprintf(stderr,
 		        PROG ": no CAN output (--can none): setpoints are computed, not sent\n");
 	}
-
-	ro.period_ns = (int64_t)(cfg.machine.period_s * 1e9 + 0.5);
-	struct mlip_rt_report rep;
-	mlip_rt_prepare(&ro, &rep);
-	if (rep.warnings[0]) {
-		fprintf(stderr, "%s", rep.warnings);
+	struct mlip_rt_opts ro = o->ro;
+	ro.period_ns = (int64_t)(a->cfg.machine.period_s * 1e9 + 0.5);
+	mlip_rt_prepare(&ro, &a->rep);
+	if (a->rep.warnings[0]) {
+		fprintf(stderr, "%s", a->rep.warnings);
 	}
-
-	static struct mlip_shm shm;
-	if (cfg.drives.enable) {
-		/* never reset the drives of a controller that runs */
-		static struct mlip_shm peek;
-		if (mlip_shm_attach(&peek, shm_name, info, sizeof(info)) == 0) {
-			int alive = mlip_shm_controller_alive(peek.ring);
-			mlip_shm_close(&peek);
-			if (alive) {
-				fprintf(stderr,
-				        PROG ": a live controller runs on %s: its drives are left "
-				             "alone\n",
-				        shm_name);
-				mlip_canio_close(&io);
-				return 1;
-			}
-		}
-		/* bring-up, before the first period: nothing moves on any error */
-		double start[MLIP_MAX_AXES];
-		char why[320];
-		if (mlip_co_socket_open(&port, iface, &cfg.machine, why, sizeof(why)) != 0 ||
-		    mlip_drives_init(&drives, &cfg, &port, drive_log, NULL, why, sizeof(why)) !=
-		        0 ||
-		    mlip_drives_bringup(&drives, start, why, sizeof(why)) != 0) {
-			fprintf(stderr, PROG ": drives not brought up: %s; nothing moves\n", why);
-			if (drives.n > 0) {
-				mlip_drives_release(&drives); /* they stop watching our heartbeat */
-			}
-			mlip_co_socket_close(&port);
-			mlip_canio_close(&io);
-			return 1;
-		}
-		/* start where the machine is: the planner, and the machine published
-		 * in the segment (so mlip-feed parses programs from there), take the
-		 * positions actual as HOME; the first setpoint is the position actual */
-		fprintf(stderr, PROG ": start position");
-		for (int k = 0; k < cfg.machine.n_axes; k++) {
-			cfg.machine.axis[k].home = start[k];
-			fprintf(stderr, " %c %.4f", cfg.machine.axis[k].letter, start[k]);
-		}
-		fprintf(stderr, " (position actual of the drives, published as HOME)\n");
+	if (a->cfg.drives.enable && bring_up(a, o->shm_name) != 0) {
+		tear_down(a);
+		return 1;
 	}
 	/* published with the machine: feeders then send the smoothed path */
-	cfg.machine.smooth = st == MLIP_STRATEGY_SMOOTH;
-	if (mlip_shm_create_group(&shm, shm_name, (uint32_t)capacity, &cfg.machine, shm_gid, info,
-	                          sizeof(info)) != 0) {
+	a->cfg.machine.smooth = a->strategy == MLIP_STRATEGY_SMOOTH;
+	if (mlip_shm_create_group(&a->shm, o->shm_name, (uint32_t)o->capacity, &a->cfg.machine,
+	                          o->shm_gid, info, sizeof(info)) != 0) {
 		fprintf(stderr, PROG ": %s\n", info);
-		drives_down(cfg.drives.enable ? &drives : NULL, &port);
-		mlip_canio_close(&io);
+		tear_down(a);
 		return 1;
 	}
-	static struct monitor mon;
-	if (record != NULL) {
+	if (o->record != NULL) {
 		/* 2^15 periods (32 s at 1 ms) of slack for the monitor thread,
 		 * which drains it every 50 ms; 2 MB, locked with the rest */
-		ctl.rec_cap = 1u << 15;
-		ctl.rec = calloc(ctl.rec_cap, sizeof(*ctl.rec));
-		mon.rec = fopen(record, "w");
-		if (ctl.rec == NULL || mon.rec == NULL) {
-			fprintf(stderr, PROG ": --record %s: %s\n", record, strerror(errno));
-			drives_down(cfg.drives.enable ? &drives : NULL, &port);
-			mlip_shm_close(&shm);
-			mlip_canio_close(&io);
+		per.rec_cap = 1u << 15;
+		per.rec = calloc(per.rec_cap, sizeof(*per.rec));
+		a->mon.rec = fopen(o->record, "w");
+		if (per.rec == NULL || a->mon.rec == NULL) {
+			fprintf(stderr, PROG ": --record %s: %s\n", o->record, strerror(errno));
+			tear_down(a);
 			return 1;
 		}
-		mlip_trace_open(&mon.trace, mon.rec, &cfg.machine, NULL);
-	} else {
-		mlip_trace_open(&mon.trace, NULL, &cfg.machine, NULL);
 	}
-	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st,
-	                           .lookahead = cfg.lookahead,
-	                           .stall_periods = (uint32_t)stall_periods,
-	                           .can = &cfg.can};
-	co.drives = cfg.drives.enable;
+	mlip_trace_open(&a->mon.trace, a->mon.rec, &a->cfg.machine, NULL);
+	a->co = (struct mlip_ctl_opts){.strategy = (mlip_strategy)a->strategy,
+	                               .lookahead = a->cfg.lookahead,
+	                               .stall_periods = (uint32_t)o->stall_periods,
+	                               .can = &a->cfg.can,
+	                               .drives = a->cfg.drives.enable};
 	/* each power step in the loop is given STATE_TIMEOUT_MS, in periods */
-	co.drive_state_periods =
-	    (uint32_t)(cfg.drives.state_timeout_ms * 1e-3 / cfg.machine.period_s + 0.999);
-	if (mlip_controller_init(&ctl, &planner, &cfg.machine, &co, shm.ring,
-	                         use_can ? &io : NULL) != 0) {
+	a->co.drive_state_periods =
+	    (uint32_t)(a->cfg.drives.state_timeout_ms * 1e-3 / a->cfg.machine.period_s + 0.999);
+	struct mlip_period_hooks hooks;
+	if (a->drives_up) {
+		mlip_drives_hooks(&drives, &hooks);
+	}
+	if (mlip_period_init(&per, &planner, &a->cfg.machine, &a->co, a->shm.ring,
+	                     a->use_can ? &port : NULL, a->drives_up ? &hooks : NULL) != 0) {
 		fprintf(stderr,
 		        PROG ": the [CAN] settings do not fit this machine (node ids, ids)\n");
-		drives_down(cfg.drives.enable ? &drives : NULL, &port);
-		mlip_shm_close(&shm);
-		mlip_canio_close(&io);
+		tear_down(a);
 		return 1;
 	}
-	mlip_rt_fn tick_fn = mlip_controller_tick;
-	void *tick_ctx = &ctl;
-	if (cfg.drives.enable) {
-		drives.ctl = &ctl;
-		tick_fn = mlip_drives_tick;
-		tick_ctx = &drives;
-	}
 	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead */
-	ctl.exit_request = got_exit; /* init cleared it: keep a stop asked during start-up */
-
+	per.exit_request = got_exit; /* init cleared it: keep a stop asked during start-up */
 	fprintf(stderr, PROG ": ready on %s, segment %s, period %.3f ms, %s, priority %d%s\n",
-	        iface, shm_name, cfg.machine.period_s * 1e3, mlip_can_profile_name(prof),
-	        ro.priority, rep.locked ? ", memory locked" : "");
-	struct mlip_rt_report run;
-	memset(&run, 0, sizeof(run));
+	        o->iface, o->shm_name, a->cfg.machine.period_s * 1e3,
+	        mlip_can_profile_name(a->prof), o->ro.priority,
+	        a->rep.locked ? ", memory locked" : "");
+	return 0;
+}
+
+/* ---- run ------------------------------------------------------------------------- */
+
+/* The loop, with the monitor thread beside it; the loop's result. */
+static int run(const struct options *o, struct app *a)
+{
+	struct mlip_rt_opts ro = o->ro;
+	struct mlip_rt_report rep;
 	pthread_t mon_th;
-	mon.m = &cfg.machine;
-	mon.stall_periods = co.stall_periods;
-	mon.iface = iface;
-	mon.io = use_can ? &io : NULL;
-	mon.ring = shm.ring;
-	mon.ds = cfg.drives.enable ? &drives : NULL;
 	pthread_attr_t attr;
+	ro.period_ns = (int64_t)(a->cfg.machine.period_s * 1e9 + 0.5);
+	memset(&rep, 0, sizeof(rep));
+	a->mon.m = &a->cfg.machine;
+	a->mon.stall_periods = a->co.stall_periods;
+	a->mon.iface = o->iface;
+	a->mon.can = a->use_can ? &per.can : NULL;
+	a->mon.ring = a->shm.ring;
+	a->mon.ds = a->drives_up ? &drives : NULL;
 	pthread_attr_init(&attr);
 	pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
-	int mon_ok = pthread_create(&mon_th, &attr, monitor, &mon) == 0;
+	int mon_ok = pthread_create(&mon_th, &attr, monitor, &a->mon) == 0;
 	pthread_attr_destroy(&attr);
-	rc = mlip_rt_run(&ro, tick_fn, NULL, tick_ctx, &run);
+	int rc = mlip_rt_run(&ro, mlip_period_tick, NULL, &per, &rep);
 	if (mon_ok) {
-		mon.done = 1;
+		a->mon.done = 1;
 		pthread_join(mon_th, NULL);
 	}
-	if (mon.rec != NULL && (fclose(mon.rec) != 0 || ctl.rec_lost > 0)) {
-		fprintf(stderr, PROG ": --record %s: incomplete (%llu setpoints lost)\n", record,
-		        (unsigned long long)ctl.rec_lost);
+	return rc;
+}
+
+/* ---- report ------------------------------------------------------------------- */
+
+/* The drives after the loop: the faulted ones, the shut-down (by SDO when
+ * the loop could not finish it), released. */
+static void drives_report(void)
+{
+	char faulted[64] = "", note[192];
+	size_t k = 0;
+	for (int i = 0; i < drives.n && k < sizeof(faulted); i++) {
+		if (drives.mute & (1u << i)) {
+			k += (size_t)snprintf(faulted + k, sizeof(faulted) - k, " %u",
+			                      drives.d[i].node);
+		}
 	}
-	if (cfg.drives.enable) {
-		char faulted[64] = "";
-		size_t k = 0;
-		for (int i = 0; i < drives.n && k < sizeof(faulted); i++) {
-			if (drives.mute & (1u << i)) {
-				k += (size_t)snprintf(faulted + k, sizeof(faulted) - k, " %u",
-				                      drives.d[i].node);
-			}
-		}
-		if (faulted[0]) {
-			fprintf(stderr,
-			        PROG ": drives: node%s faulted: left in the drive's own fault "
-			             "reaction\n",
-			        faulted);
-		}
-		if (drives.shutdown_ok) {
-			fprintf(stderr,
-			        PROG ": drives disabled in order (disable operation, shutdown) "
-			             "with the SYNC running, then the SYNC stopped\n");
-		} else {
-			fprintf(stderr,
-			        PROG ": drives: in-loop shut-down incomplete (%s): shutting "
-			             "down by SDO\n",
-			        drives.shutdown_note[0] ? drives.shutdown_note
-			                                : "the loop ended early");
-			mlip_drives_disable(&drives);
-		}
-		mlip_drives_release(&drives);
-		mlip_co_socket_close(&port);
+	if (faulted[0]) {
+		fprintf(stderr,
+		        PROG ": drives: node%s faulted: left in the drive's own fault reaction\n",
+		        faulted);
+	}
+	if (drives.shutdown_ok) {
+		fprintf(stderr, PROG ": drives disabled in order (disable operation, shutdown) "
+		                     "with the SYNC running, then the SYNC stopped\n");
+	} else {
+		mlip_drives_shutdown_text(&drives, note, sizeof(note));
+		fprintf(stderr,
+		        PROG ": drives: in-loop shut-down incomplete (%s): shutting down by SDO\n",
+		        note[0] ? note : "the loop ended early");
+		mlip_drives_disable(&drives);
+	}
+	mlip_drives_release(&drives);
+	drives.n = 0; /* released: tear_down leaves them */
+}
+
+static int report_run(const char *record, struct app *a, int rc)
+{
+	struct mlip_ring_status s;
+	if (a->mon.rec != NULL && (fclose(a->mon.rec) != 0 || per.rec_lost > 0)) {
+		fprintf(stderr, PROG ": --record %s: incomplete (%llu setpoints lost)\n", record,
+		        (unsigned long long)per.rec_lost);
+	}
+	a->mon.rec = NULL;
+	if (a->drives_up) {
+		drives_report();
+		a->drives_up = 0;
 	}
 	if (rc < 0) {
 		fprintf(stderr, PROG ": cannot start the loop: %s\n", strerror(-rc));
@@ -704,20 +783,34 @@ int main(int argc, char **argv)
 		fprintf(stderr, PROG ": %s: stopped on the path, exiting\n",
 		        mlip_cli_signal_name(got_exit));
 	}
-
-	struct mlip_ring_status s;
-	mlip_ring_status_read(shm.ring, &s);
+	mlip_ring_status_read(a->shm.ring, &s);
 	fprintf(stderr,
 	        PROG
 	        ": stopped after %llu periods: %llu frames sent, %llu dropped (tx queue), "
 	        "%llu bus errors, %llu overruns, %llu underruns, %llu records taken, %llu programs "
 	        "refused; last line %u\n",
-	        (unsigned long long)ctl.cycles, (unsigned long long)ctl.frames_sent,
-	        (unsigned long long)io.tx_dropped, (unsigned long long)io.bus_errors,
-	        (unsigned long long)s.overruns, (unsigned long long)ctl.core.underruns,
-	        (unsigned long long)ctl.core.blocks_consumed, (unsigned long long)ctl.core.refused,
-	        (unsigned)s.exec_line);
-	mlip_shm_close(&shm);
-	mlip_canio_close(&io);
+	        (unsigned long long)per.cycles, (unsigned long long)per.can.tx_ok,
+	        (unsigned long long)per.can.tx_dropped, (unsigned long long)per.can.bus_errors,
+	        (unsigned long long)s.overruns, (unsigned long long)per.out.counts.underruns,
+	        (unsigned long long)per.out.counts.blocks_consumed,
+	        (unsigned long long)per.out.counts.refused, (unsigned)s.exec_line);
+	tear_down(a);
 	return rc < 0 ? 1 : 0;
+}
+
+int main(int argc, char **argv)
+{
+	static struct options o;
+	static struct app a;
+	int rc = parse_options(argc, argv, &o);
+	if (rc != 0) {
+		return rc < 0 ? 0 : rc;
+	}
+	/* first: a stop asked for while starting up must not kill us blind */
+	mlip_cli_on_stop_signals(on_signal);
+	rc = set_up(&o, &a);
+	if (rc != 0) {
+		return rc;
+	}
+	return report_run(o.record, &a, run(&o, &a));
 }

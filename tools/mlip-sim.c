@@ -4,10 +4,11 @@
  * clock, and writes the setpoints it would send (--trace) and a summary
  * (--summary).
  *
- * The records reach the controller as in mlip-rt: through a ring (in this
- * process' memory), filled by a feeder step before every period, so the
- * ingest rule, the program events (dwell, pauses) and the states are the
- * controller's own, by construction.
+ * The records reach the controller as they do in mlip-rt: a queue (here an
+ * array in this process, there the segment's ring), filled by a feeder step
+ * before every period and shown to the controller as a view, of which it
+ * takes what it takes; so the ingest rule, the program events (dwell,
+ * pauses) and the states are the controller's own, by construction.
  */
 #include <getopt.h>
 #include <math.h>
@@ -19,6 +20,7 @@
 #include "blockiter.h"
 #include "check.h"
 #include "cli.h"
+#include "json.h"
 #include "mlip/ctl/controller.h"
 #include "mlip/gcode/gcode.h"
 #include "mlip/motion/planner.h"
@@ -167,9 +169,32 @@ static int source_next(struct source *src, struct mlip_block *b)
 	return r > 0;
 }
 
-/* The feeder's step before each period: the ring filled as far as it goes,
- * records numbered as mlip-feed numbers them (blocks 1..n, then END; with
- * smooth, the filter's output blocks 1..n, each with its source line). */
+/* The records between the feeder and the controller: a FIFO of the ring's
+ * capacity, shown to the controller as the ring shows itself (two spans). */
+#define QUEUE_CAP MLIP_RING_CAPACITY
+
+struct queue {
+	struct mlip_ring_rec rec[QUEUE_CAP];
+	uint32_t head, tail; /* free-running */
+};
+
+static uint32_t queue_space(const struct queue *q)
+{
+	return QUEUE_CAP - (q->head - q->tail);
+}
+
+static void queue_view(const struct queue *q, struct mlip_rec_view *v)
+{
+	uint32_t n = q->head - q->tail, at = q->tail & (QUEUE_CAP - 1u);
+	v->span[0] = q->rec + at;
+	v->len[0] = n < QUEUE_CAP - at ? n : QUEUE_CAP - at;
+	v->span[1] = q->rec;
+	v->len[1] = n - v->len[0];
+}
+
+/* The feeder's step before each period: the queue filled as far as it
+ * goes, records numbered as mlip-feed numbers them (blocks 1..n, then END;
+ * with smooth, the filter's output blocks 1..n, each with its source line). */
 struct feeder {
 	struct source src;
 	uint64_t seq; /* last record pushed */
@@ -177,40 +202,38 @@ struct feeder {
 	int end_pushed;
 };
 
-static void feed_step(struct feeder *f, struct mlip_ring *r)
+static void feed_step(struct feeder *f, struct queue *q)
 {
-	static struct mlip_ring_rec recs[256];
 	struct mlip_block b;
-	uint32_t space = mlip_ring_space(r);
-	while (!f->end_pushed && space > 0) {
-		uint32_t k = 0;
-		for (; k < space && k < 256 && !f->end_pushed; k++) {
-			if (source_next(&f->src, &b)) {
-				mlip_ring_rec_from_block(&recs[k], &b, ++f->seq);
-			} else if (f->src.rc < 0) {
-				break; /* no END: the run stops, the caller says why */
-			} else {
-				mlip_ring_rec_end(&recs[k], ++f->seq, f->end_line);
-				f->end_pushed = 1;
-			}
+	while (!f->end_pushed && queue_space(q) > 0) {
+		struct mlip_ring_rec *rec = &q->rec[q->head & (QUEUE_CAP - 1u)];
+		if (source_next(&f->src, &b)) {
+			mlip_ring_rec_from_block(rec, &b, ++f->seq);
+		} else if (f->src.rc < 0) {
+			return; /* no END: the run stops, the caller says why */
+		} else {
+			mlip_ring_rec_end(rec, ++f->seq, f->end_line);
+			f->end_pushed = 1;
 		}
-		space -= mlip_ring_push_n(r, recs, k); /* all k: only we add */
-		if (f->src.rc < 0) {
-			return;
-		}
+		q->head++;
 	}
 }
 
-int main(int argc, char **argv)
-{
-	struct mlip_cli_machine mo = {0};
-	const char *strategy = "mpct", *trace_path = NULL, *summary_path = NULL;
-	double feed = -1.0, override = 100.0;
-	long long storm_seed = -1;
-	unsigned long lookahead = 0;
-	int quiet = 0, notes = 1, optional_stop = 0, save_offsets = 0;
-	double resume_after = 0.0;
+/* ---- parse -------------------------------------------------------------------- */
 
+struct options {
+	struct mlip_cli_machine mo;
+	const char *path, *strategy_name, *trace_path, *summary_path;
+	int strategy;
+	double feed, override, resume_after;
+	long long storm_seed;
+	unsigned long lookahead;
+	int quiet, notes, optional_stop, save_offsets;
+};
+
+/* 0, or the exit status (-1: --help, exit 0). */
+static int parse_options(int argc, char **argv, struct options *o)
+{
 	static const struct option opts[] = {{"config", required_argument, 0, 'c'},
 	                                     {"strategy", required_argument, 0, 's'},
 	                                     {"accel", required_argument, 0, 'a'},
@@ -232,9 +255,15 @@ int main(int argc, char **argv)
 	                                     MLIP_CLI_GCODE_OPTIONS,
 	                                     {0, 0, 0, 0}};
 	int c;
+	memset(o, 0, sizeof(*o));
+	o->strategy_name = "mpct";
+	o->feed = -1.0;
+	o->override = 100.0;
+	o->storm_seed = -1;
+	o->notes = 1;
 	while ((c = getopt_long(argc, argv, "qh", opts, NULL)) != -1) {
 		double v;
-		int g = mlip_cli_gcode_option(c, optarg, &mo, PROG, stderr);
+		int g = mlip_cli_gcode_option(c, optarg, &o->mo, PROG, stderr);
 		if (g != 0) {
 			if (g < 0) {
 				return 2;
@@ -243,13 +272,13 @@ int main(int argc, char **argv)
 		}
 		switch (c) {
 		case 'c':
-			mo.config = optarg;
+			o->mo.config = optarg;
 			break;
 		case 's':
-			strategy = optarg;
+			o->strategy_name = optarg;
 			break;
 		case 'a':
-			mo.accel = optarg;
+			o->mo.accel = optarg;
 			break;
 		case 'v':
 		case 'e':
@@ -268,39 +297,39 @@ int main(int argc, char **argv)
 				return 2;
 			}
 			if (c == 'v') {
-				mo.vmax_mm_s = v;
+				o->mo.vmax_mm_s = v;
 			} else if (c == 'e') {
-				mo.eps_mm = v;
+				o->mo.eps_mm = v;
 			} else if (c == 'p') {
-				mo.period_s = v;
+				o->mo.period_s = v;
 			} else if (c == 'f') {
-				feed = v;
+				o->feed = v;
 			} else {
-				override = v;
+				o->override = v;
 			}
 			break;
 		case 'S':
-			storm_seed = strtoll(optarg, NULL, 0);
+			o->storm_seed = strtoll(optarg, NULL, 0);
 			break;
 		case 'L':
-			lookahead = strtoul(optarg, NULL, 0);
+			o->lookahead = strtoul(optarg, NULL, 0);
 			break;
 		case 't':
-			trace_path = optarg;
+			o->trace_path = optarg;
 			break;
 		case 'j':
-			summary_path = optarg;
+			o->summary_path = optarg;
 			break;
 		case 'q':
-			quiet = 1;
-			notes = 0;
+			o->quiet = 1;
+			o->notes = 0;
 			break;
 		case 'N':
-			notes = 0;
+			o->notes = 0;
 			break;
 		case 'r':
-			if (mlip_cli_number(optarg, &resume_after) != 0 || !(resume_after >= 0.0) ||
-			    resume_after > 86400.0) {
+			if (mlip_cli_number(optarg, &o->resume_after) != 0 ||
+			    !(o->resume_after >= 0.0) || o->resume_after > 86400.0) {
 				fprintf(stderr,
 				        PROG ": --resume-after: '%s' is not 0..86400 seconds\n",
 				        optarg);
@@ -308,14 +337,14 @@ int main(int argc, char **argv)
 			}
 			break;
 		case 'O':
-			optional_stop = 1;
+			o->optional_stop = 1;
 			break;
 		case 'W':
-			save_offsets = 1;
+			o->save_offsets = 1;
 			break;
 		case 'h':
 			usage(stdout);
-			return 0;
+			return -1;
 		default:
 			usage(stderr);
 			return 2;
@@ -325,144 +354,176 @@ int main(int argc, char **argv)
 		usage(stderr);
 		return 2;
 	}
-	const char *path = argv[optind];
-	int st = mlip_cli_strategy(strategy);
-	if (st < 0) {
+	o->path = argv[optind];
+	o->strategy = mlip_cli_strategy(o->strategy_name);
+	if (o->strategy < 0) {
 		fprintf(stderr,
 		        PROG ": --strategy: '%s' is not one of mpct, bisector, stop, smooth\n",
-		        strategy);
+		        o->strategy_name);
 		return 2;
 	}
-	if (override > 200.0) {
-		fprintf(stderr, PROG ": --override: %g is above 200 %%\n", override);
+	if (o->override > 200.0) {
+		fprintf(stderr, PROG ": --override: %g is above 200 %%\n", o->override);
 		return 2;
 	}
-
-	if (save_offsets && mo.offsets == NULL) {
+	if (o->save_offsets && o->mo.offsets == NULL) {
 		fprintf(stderr, PROG ": --save-offsets needs --offsets FILE\n");
 		return 2;
 	}
-	/* the whole program is checked before anything moves, then streamed */
-	static struct mlip_config cfg;
-	static struct mlip_program prog;
-	if (mlip_cli_open_program(path, &mo, &cfg, &prog, PROG, stderr) != 0) {
-		return 1;
-	}
-	const struct mlip_machine *m = &cfg.machine;
-	int n = m->n_axes;
-	if (lookahead == 0) {
-		lookahead = cfg.lookahead ? cfg.lookahead : MLIP_LOOKAHEAD;
-	}
+	return 0;
+}
 
-	if (notes) {
-		mlip_program_print_notices(&prog, path, stderr);
+/* ---- set up ------------------------------------------------------------------- */
+
+/* A run: the program (checked, then streamed), the controller fed by the
+ * feeder through the queue, the trace, and the check of the trace against
+ * the original program's polyline, streamed by a second reader. */
+struct sim {
+	struct mlip_offsets_file offsets_file; /* the offsets as read: the save's merge base */
+	struct mlip_config cfg;
+	struct mlip_program prog, cprog;
+	unsigned long lookahead;
+	char offsets[512];
+	struct queue q;
+	struct feeder fdr;
+	struct mlip_cli_path csrc;
+	struct mlip_check chk;
+	FILE *tf;
+	char tbuf[1 << 20];
+	struct mlip_trace trace;
+	struct storm storm;
+	uint64_t rows, pauses, dwells; /* trace rows after t = 0 */
+};
+
+static void close_trace(struct sim *s)
+{
+	if (s->tf != NULL && s->tf != stdout) {
+		fclose(s->tf);
 	}
-	char offs[512];
-	mlip_offsets_describe(m, &prog.offsets_start, offs, sizeof(offs));
-	if (!quiet) {
-		fprintf(stderr, PROG ": offsets: %s (%s)\n", offs,
-		        mo.offsets ? mo.offsets : "no --offsets: defaults");
-	}
-	/* the controller, its ring and feeder, in this process */
-	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)st, .lookahead = (uint32_t)lookahead};
-	size_t ring_bytes = mlip_ring_bytes(MLIP_RING_CAPACITY);
-	void *ring_mem = NULL;
-	struct mlip_ring *ring = NULL;
-	if (posix_memalign(&ring_mem, MLIP_RING_LINE, ring_bytes) != 0 ||
-	    mlip_ring_format_machine(ring_mem, ring_bytes, MLIP_RING_CAPACITY, m) != MLIP_OK ||
-	    mlip_ring_attach(ring_mem, ring_bytes, n, &ring, NULL) != MLIP_OK) {
-		fprintf(stderr, PROG ": cannot make the ring\n");
+	s->tf = NULL;
+}
+
+/* 0, or the exit status. */
+static int set_up(const struct options *o, struct sim *s)
+{
+	/* the whole program is checked before anything moves, then streamed */
+	if (mlip_cli_open_program(o->path, &o->mo, &s->cfg, &s->prog, PROG, stderr) != 0) {
 		return 1;
 	}
-	if (mlip_ctl_init(&ctl, &planner, m, &co, ring) != MLIP_OK) {
+	const struct mlip_machine *m = &s->cfg.machine;
+	s->lookahead = o->lookahead       ? o->lookahead
+	               : s->cfg.lookahead ? s->cfg.lookahead
+	                                  : MLIP_LOOKAHEAD;
+	if (o->notes) {
+		mlip_program_print_notices(&s->prog, o->path, stderr);
+	}
+	mlip_offsets_describe(m, &s->prog.offsets_start, s->offsets, sizeof(s->offsets));
+	if (!o->quiet) {
+		fprintf(stderr, PROG ": offsets: %s (%s)\n", s->offsets,
+		        o->mo.offsets ? o->mo.offsets : "no --offsets: defaults");
+	}
+	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)o->strategy,
+	                           .lookahead = (uint32_t)s->lookahead};
+	if (mlip_ctl_init(&ctl, &planner, m, &co) != MLIP_OK) {
 		fprintf(stderr, PROG ": look-ahead %lu must be a power of two in 2..%d\n",
-		        lookahead, MLIP_LOOKAHEAD);
+		        s->lookahead, MLIP_LOOKAHEAD);
 		return 1;
 	}
-	mlip_planner_set_override(&planner, override);
-	struct feeder fdr = {.src = {.p = &prog, .feed = feed}, .end_line = prog.lines};
+	mlip_planner_set_override(&planner, o->override);
+	s->fdr =
+	    (struct feeder){.src = {.p = &s->prog, .feed = o->feed}, .end_line = s->prog.lines};
 
 	/* the check streams the ORIGINAL program's polyline (whatever runs:
 	 * smooth's output too) from a second reader of the file, behind the
-	 * feeder's, as the samples need it: with the check's window, the ring
+	 * feeder's, as the samples need it: with the check's window, the queue
 	 * and smooth's window, mlip-sim's memory is fixed whatever the length */
-	static struct mlip_program cprog;
-	if (mlip_program_open_reader(&cprog, &prog, path) != 0) {
-		fprintf(stderr, PROG ": %s: %s\n", path, cprog.msg);
-		mlip_program_close(&cprog);
-		mlip_program_close(&prog);
+	if (mlip_program_open_reader(&s->cprog, &s->prog, o->path) != 0) {
+		fprintf(stderr, PROG ": %s: %s\n", o->path, s->cprog.msg);
+		mlip_program_close(&s->cprog);
+		mlip_program_close(&s->prog);
 		return 1;
 	}
-	struct mlip_cli_path csrc;
-	mlip_cli_path_start(&csrc, &cprog, m);
-	source_init(&fdr.src, m, st == MLIP_STRATEGY_SMOOTH);
+	mlip_cli_path_start(&s->csrc, &s->cprog, m);
+	source_init(&s->fdr.src, m, o->strategy == MLIP_STRATEGY_SMOOTH);
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
-	static struct mlip_check chk;
-	mlip_check_init_source(&chk, &lim, mlip_cli_path_next, &csrc);
+	mlip_check_init_source(&s->chk, &lim, mlip_cli_path_next, &s->csrc);
 
-	FILE *tf = NULL;
-	static char tbuf[1 << 20];
-	if (trace_path != NULL) {
-		tf = strcmp(trace_path, "-") == 0 ? stdout : fopen(trace_path, "w");
-		if (tf == NULL) {
-			perror(trace_path);
+	if (o->trace_path != NULL) {
+		s->tf = strcmp(o->trace_path, "-") == 0 ? stdout : fopen(o->trace_path, "w");
+		if (s->tf == NULL) {
+			perror(o->trace_path);
 			return 1;
 		}
-		setvbuf(tf, tbuf, _IOFBF, sizeof(tbuf));
+		setvbuf(s->tf, s->tbuf, _IOFBF, sizeof(s->tbuf));
 	}
-	struct mlip_trace trace;
-	mlip_trace_open(&trace, tf, m, ctl.pos);
+	double home[MLIP_MAX_AXES] = {0};
+	for (int k = 0; k < m->n_axes; k++) {
+		home[k] = m->axis[k].home; /* where the controller starts */
+	}
+	mlip_trace_open(&s->trace, s->tf, m, home);
+	s->storm = (struct storm){.state = (uint64_t)o->storm_seed * 0x9E3779B97F4A7C15ULL + 1,
+	                          .next_at = 1,
+	                          .active = o->storm_seed >= 0};
+	return 0;
+}
 
-	struct storm storm = {.state = (uint64_t)storm_seed * 0x9E3779B97F4A7C15ULL + 1,
-	                      .next_at = 1,
-	                      .active = storm_seed >= 0};
-	uint64_t resume_periods = (uint64_t)floor(resume_after / m->period_s + 0.5);
-	uint64_t paused = 0, pauses = 0, dwells = 0, period = 0, k = 0;
-	struct mlip_ctl_out out;
-	for (;; period++) {
+/* ---- run ---------------------------------------------------------------------- */
+
+/* This period's command of the operator: the optional-stop switch, a
+ * resume after --resume-after at a pause, the override storm. */
+static int operator_command(const struct options *o, struct sim *s, uint64_t period, uint32_t state,
+                            uint64_t paused, struct mlip_ring_cmd *cmd)
+{
+	uint64_t resume_periods = (uint64_t)floor(o->resume_after / s->cfg.machine.period_s + 0.5);
+	if (period == 0 && o->optional_stop) {
+		cmd->op = MLIP_CMD_OPTIONAL_STOP;
+		cmd->arg = 1;
+		return 1;
+	}
+	if (state == MLIP_STATE_PAUSED && paused >= resume_periods) {
+		cmd->op = MLIP_CMD_RESUME; /* --resume-after: the operator's resume */
+		return 1;
+	}
+	return s->rows > 0 && storm_tick(&s->storm, s->rows, cmd);
+}
+
+/* Period by period until the trace ends at rest: 0, or the exit status. */
+static int run(const struct options *o, struct sim *s)
+{
+	static struct mlip_ctl_out out; /* the last period's: IDLE before the first */
+	uint64_t paused = 0;
+	for (uint64_t period = 0;; period++) {
 		struct mlip_ring_cmd cmd = {.seq = 2};
 		struct mlip_ctl_in in = {.period = period, .feeder_alive = 1};
-		feed_step(&fdr, ring);
-		if (fdr.src.rc < 0) {
-			fprintf(stderr, PROG ": %s: %s\n", path, prog.msg);
+		feed_step(&s->fdr, &s->q);
+		if (s->fdr.src.rc < 0) {
+			fprintf(stderr, PROG ": %s: %s\n", o->path, s->prog.msg);
 			return 1;
 		}
-		if (period == 0 && optional_stop) {
-			cmd.op = MLIP_CMD_OPTIONAL_STOP;
-			cmd.arg = 1;
-			in.cmd = &cmd;
-		} else if (ctl.state == MLIP_STATE_PAUSED && paused >= resume_periods) {
-			cmd.op = MLIP_CMD_RESUME; /* --resume-after: the operator's resume */
-			in.cmd = &cmd;
-		} else if (k > 0 && storm_tick(&storm, k, &cmd)) {
+		if (operator_command(o, s, period, out.status.state, paused, &cmd)) {
 			in.cmd = &cmd;
 		}
+		queue_view(&s->q, &in.recs);
 		mlip_ctl_period(&ctl, &in, &out);
+		s->q.tail += out.taken;
 		paused = out.status.state == MLIP_STATE_PAUSED ? paused + 1 : 0;
 		for (uint32_t i = 0; i < out.n_events; i++) {
-			pauses += out.events[i].kind == MLIP_EV_STATE &&
-			          out.events[i].state == MLIP_STATE_PAUSED;
-			dwells += out.events[i].kind == MLIP_EV_STATE &&
-			          out.events[i].state == MLIP_STATE_DWELLING;
+			s->pauses += out.events[i].kind == MLIP_EV_STATE &&
+			             out.events[i].state == MLIP_STATE_PAUSED;
+			s->dwells += out.events[i].kind == MLIP_EV_STATE &&
+			             out.events[i].state == MLIP_STATE_DWELLING;
 		}
 		const double *start;
-#ifdef MLIP_SIM_TEST_FAULT_AT /* test builds only (tests/py): one setpoint off the path */
-		if (trace.started && !trace.ended && trace.rows + 1 == MLIP_SIM_TEST_FAULT_AT) {
-			for (int a = 0; a < n; a++) {
-				out.pos[a] += 0.05;
-			}
-		}
-#endif
-		if (mlip_trace_sample(&trace, out.status.state, out.pos, &start)) {
+		if (mlip_trace_sample(&s->trace, out.status.state, out.pos, &start)) {
 			if (start != NULL) {
-				mlip_check_sample(&chk, start);
+				mlip_check_sample(&s->chk, start);
 			}
-			mlip_check_sample(&chk, out.pos);
-			k = trace.rows;
+			mlip_check_sample(&s->chk, out.pos);
+			s->rows = s->trace.rows;
 		}
-		if (trace.ended) {
-			break;
+		if (s->trace.ended) {
+			return 0;
 		}
 		if (out.status.state == MLIP_STATE_FAULT) {
 			fprintf(stderr, PROG ": controller fault (%s) at record %llu (line %u)\n",
@@ -477,101 +538,137 @@ int main(int argc, char **argv)
 			return 3;
 		}
 	}
-	free(ring_mem);
-	if (tf != NULL && tf != stdout && fclose(tf) != 0) {
-		perror(trace_path);
+}
+
+/* ---- report ------------------------------------------------------------------- */
+
+/* The summary (--summary): totals and measured physics. */
+static int write_summary(const struct options *o, const struct sim *s, int bad)
+{
+	const struct mlip_machine *m = &s->cfg.machine;
+	const struct mlip_check *chk = &s->chk;
+	const struct mlip_planner_stats *ps = mlip_planner_get_stats(&planner);
+	double visits = ps->pushes ? (double)ps->backward_visits / (double)ps->pushes : 0.0;
+	double acc_lim[MLIP_MAX_AXES], vel_lim[MLIP_MAX_AXES];
+	char axes[MLIP_MAX_AXES + 1];
+	int n = m->n_axes;
+	for (int a = 0; a < n; a++) {
+		axes[a] = m->axis[a].letter;
+		acc_lim[a] = m->axis[a].max_accel;
+		vel_lim[a] = m->axis[a].max_vel;
+	}
+	axes[n] = '\0';
+	FILE *sf = strcmp(o->summary_path, "-") == 0 ? stdout : fopen(o->summary_path, "w");
+	if (sf == NULL) {
+		perror(o->summary_path);
+		return -1;
+	}
+	struct mlip_json j;
+	mlip_json_begin(&j, sf);
+	mlip_json_string(&j, "file", o->path);
+	mlip_json_string(&j, "strategy", mlip_cli_strategy_name((mlip_strategy)o->strategy));
+	mlip_json_number(&j, "total_time_s", "%.6f", (double)s->rows * m->period_s);
+	mlip_json_uint(&j, "periods", s->rows);
+	mlip_json_uint(&j, "blocks", s->prog.n);
+	mlip_json_uint(&j, "segments", ps->pushes);
+	/* smooth: the filter's output */
+	mlip_json_uint(&j, "blocks_run", s->fdr.seq > 0 ? s->fdr.seq - 1 : 0);
+	mlip_json_number(&j, "path_length_mm", "%.6f", chk->prog_mm);
+	mlip_json_number(&j, "max_speed_mm_s", "%.9g", chk->max_speed_mm_s);
+	mlip_json_string(&j, "axes", axes);
+	mlip_json_numbers(&j, "max_axis_accel", "%.12g", chk->max_acc, n);
+	mlip_json_numbers(&j, "max_axis_vel", "%.12g", chk->max_vel, n);
+	mlip_json_numbers(&j, "accel_limit", "%.12g", acc_lim, n);
+	mlip_json_numbers(&j, "vel_limit", "%.12g", vel_lim, n);
+	mlip_json_number(&j, "max_contour_error_mm", "%.9g", chk->max_contour_mm);
+	mlip_json_number(&j, "end_error_mm", "%.3g", mlip_check_end_error(chk));
+	mlip_json_number(&j, "vmax_mm_s", "%.9g", m->max_feed_mm_s);
+	mlip_json_number(&j, "eps_mm", "%.9g", m->tolerance_mm);
+	mlip_json_number(&j, "period_s", "%.9g", m->period_s);
+	mlip_json_uint(&j, "lookahead", s->lookahead);
+	mlip_json_number(&j, "backward_visits_per_block", "%.3f", visits);
+	mlip_json_string(&j, "offsets", s->offsets);
+	mlip_json_uint(&j, "override_events", s->storm.events);
+	mlip_json_uint(&j, "dwells", s->dwells);
+	mlip_json_uint(&j, "pauses", s->pauses);
+	mlip_json_uint(&j, "order_errors", chk->order_errors);
+	mlip_json_int(&j, "violations", bad);
+	int rc = mlip_json_end(&j);
+	if (sf != stdout && fclose(sf) != 0) {
+		rc = -1;
+	}
+	if (rc != 0) {
+		perror(o->summary_path);
+	}
+	return rc;
+}
+
+/* The trace closed, the verdict of its own check (as mlip-check's), the
+ * summary, the offsets written back: the exit status. */
+static int report(const struct options *o, struct sim *s, int rc)
+{
+	if (rc != 0) {
+		close_trace(s);
+		return rc;
+	}
+	if (s->tf != NULL && s->tf != stdout && fclose(s->tf) != 0) {
+		s->tf = NULL;
+		perror(o->trace_path);
 		return 1;
 	}
-	if (tf == stdout) {
+	if (s->tf == stdout) {
 		fflush(stdout);
 	}
-
-	double total = (double)k * m->period_s;
-	mlip_check_finish(&chk);
-	if (csrc.rc < 0) {
-		fprintf(stderr, PROG ": %s: %s\n", path, cprog.msg);
+	s->tf = NULL;
+	mlip_check_finish(&s->chk);
+	if (s->csrc.rc < 0) {
+		fprintf(stderr, PROG ": %s: %s\n", o->path, s->cprog.msg);
 		return 1;
 	}
-	double path_mm = chk.prog_mm;
 	/* the same verdict as mlip-check on this trace: limits within 1e-9, the
 	 * rounding floor of the second differences, the end on the last point */
 	char vmsg[4096];
-	int bad = mlip_check_verdict(&chk, 1e-9, mlip_check_rounding_floor(&chk), 0.0, 1e-9, vmsg,
-	                             sizeof(vmsg));
-	const struct mlip_planner_stats *ps = mlip_planner_get_stats(&planner);
-	double visits = ps->pushes ? (double)ps->backward_visits / (double)ps->pushes : 0.0;
-
-	if (summary_path != NULL) {
-		FILE *sf = strcmp(summary_path, "-") == 0 ? stdout : fopen(summary_path, "w");
-		if (sf == NULL) {
-			perror(summary_path);
-			return 1;
-		}
-		fprintf(sf, "{\n  \"file\": \"%s\",\n  \"strategy\": \"%s\",\n", path,
-		        mlip_cli_strategy_name((mlip_strategy)st));
-		fprintf(sf, "  \"total_time_s\": %.6f,\n  \"periods\": %llu,\n", total,
-		        (unsigned long long)k);
-		fprintf(sf, "  \"blocks\": %zu,\n  \"segments\": %llu,\n", prog.n,
-		        (unsigned long long)ps->pushes);
-		fprintf(sf, "  \"blocks_run\": %llu,\n", /* smooth: the filter's output */
-		        (unsigned long long)(fdr.seq > 0 ? fdr.seq - 1 : 0));
-		fprintf(sf, "  \"path_length_mm\": %.6f,\n", path_mm);
-		fprintf(sf, "  \"max_speed_mm_s\": %.9g,\n", chk.max_speed_mm_s);
-		fprintf(sf, "  \"axes\": \"");
-		for (int a = 0; a < n; a++) {
-			fputc(m->axis[a].letter, sf);
-		}
-		fprintf(sf, "\",\n  \"max_axis_accel\": [");
-		for (int a = 0; a < n; a++) {
-			fprintf(sf, "%s%.12g", a ? ", " : "", chk.max_acc[a]);
-		}
-		fprintf(sf, "],\n  \"max_axis_vel\": [");
-		for (int a = 0; a < n; a++) {
-			fprintf(sf, "%s%.12g", a ? ", " : "", chk.max_vel[a]);
-		}
-		fprintf(sf, "],\n  \"accel_limit\": [");
-		for (int a = 0; a < n; a++) {
-			fprintf(sf, "%s%.12g", a ? ", " : "", m->axis[a].max_accel);
-		}
-		fprintf(sf, "],\n  \"vel_limit\": [");
-		for (int a = 0; a < n; a++) {
-			fprintf(sf, "%s%.12g", a ? ", " : "", m->axis[a].max_vel);
-		}
-		fprintf(sf, "],\n  \"max_contour_error_mm\": %.9g,\n", chk.max_contour_mm);
-		fprintf(sf, "  \"end_error_mm\": %.3g,\n", mlip_check_end_error(&chk));
-		fprintf(sf, "  \"vmax_mm_s\": %.9g,\n  \"eps_mm\": %.9g,\n  \"period_s\": %.9g,\n",
-		        m->max_feed_mm_s, m->tolerance_mm, m->period_s);
-		fprintf(sf, "  \"lookahead\": %lu,\n  \"backward_visits_per_block\": %.3f,\n",
-		        lookahead, visits);
-		fprintf(sf, "  \"offsets\": \"%s\",\n", offs);
-		fprintf(sf, "  \"override_events\": %llu,\n", (unsigned long long)storm.events);
-		fprintf(sf, "  \"dwells\": %llu,\n  \"pauses\": %llu,\n",
-		        (unsigned long long)dwells, (unsigned long long)pauses);
-		fprintf(sf, "  \"order_errors\": %zu,\n  \"violations\": %d\n}\n", chk.order_errors,
-		        bad);
-		if (sf != stdout) {
-			fclose(sf);
-		}
+	int bad = mlip_check_verdict(&s->chk, 1e-9, mlip_check_rounding_floor(&s->chk), 0.0, 1e-9,
+	                             vmsg, sizeof(vmsg));
+	if (o->summary_path != NULL && write_summary(o, s, bad) != 0) {
+		return 1;
 	}
-	if (!quiet) {
+	if (!o->quiet) {
 		fprintf(stderr,
 		        PROG ": %s: %s %.3f s, %zu blocks, %.1f mm, max speed %.2f mm/s, "
 		             "max contour error %.6f mm\n",
-		        path, mlip_cli_strategy_name((mlip_strategy)st), total, prog.n, path_mm,
-		        chk.max_speed_mm_s, chk.max_contour_mm);
+		        o->path, mlip_cli_strategy_name((mlip_strategy)o->strategy),
+		        (double)s->rows * s->cfg.machine.period_s, s->prog.n, s->chk.prog_mm,
+		        s->chk.max_speed_mm_s, s->chk.max_contour_mm);
 	}
-	mlip_program_close(&cprog);
-	if (save_offsets &&
-	    mlip_offsets_save(mo.offsets, m, &prog.offsets_end, PROG, stderr) != 0) {
-		mlip_program_close(&prog);
+	mlip_program_close(&s->cprog);
+	if (o->save_offsets && mlip_offsets_save(&s->offsets_file, &s->cfg.machine,
+	                                         &s->prog.offsets_end, PROG, stderr) != 0) {
+		mlip_program_close(&s->prog);
 		return 1;
 	}
-	mlip_program_close(&prog);
+	mlip_program_close(&s->prog);
 	if (bad) {
 		fprintf(stderr,
-		        PROG ": %s: the trace breaks the machine's limits (%d check(s)):\n%s", path,
-		        bad, vmsg);
+		        PROG ": %s: the trace breaks the machine's limits (%d check(s)):\n%s",
+		        o->path, bad, vmsg);
 		return 4;
 	}
 	return 0;
+}
+
+int main(int argc, char **argv)
+{
+	static struct options o;
+	static struct sim s;
+	int rc = parse_options(argc, argv, &o);
+	if (rc != 0) {
+		return rc < 0 ? 0 : rc;
+	}
+	o.mo.offsets_file = &s.offsets_file;
+	rc = set_up(&o, &s);
+	if (rc != 0) {
+		return rc;
+	}
+	return report(&o, &s, run(&o, &s));
 }

@@ -13,6 +13,12 @@
 #include <stdint.h>
 
 #define MLIP_MAX_AXES 6
+/* Blocks the look-ahead holds: the planner's ring (mlip/motion/planner.h)
+ * and the largest [TRAJ] LOOKAHEAD a configuration may ask for. A build-time
+ * capacity like MLIP_MAX_AXES, a power of two; a build may set its own. */
+#ifndef MLIP_LOOKAHEAD
+#define MLIP_LOOKAHEAD 4096
+#endif
 /* Two points closer than this (joint-space distance) are one: the G-code
  * reader merges them, smooth and the planner skip such a block, so no
  * zero-length segment is ever planned. */

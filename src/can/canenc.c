@@ -164,8 +164,8 @@ mlip_status mlip_canenc_init(struct mlip_canenc *e, const struct mlip_can_config
 	if (n < 1 || n > MLIP_MAX_AXES) {
 		return MLIP_E_INVALID;
 	}
-	/* the identifiers: one set of rules, the INI reader's (mlip/machine/config.h) */
-	if (mlip_can_config_check(can, m, NULL) != MLIP_OK) {
+	/* the identifiers: one set of rules, the INI reader's (mlip/can/canconf.h) */
+	if (mlip_can_rules(can, m, NULL) != MLIP_OK) {
 		return MLIP_E_INVALID;
 	}
 	e->n_axes = n;

@@ -15,7 +15,7 @@
 #include <stddef.h>
 #include <string.h>
 
-#include "mlip/canopen/canopen.h"
+#include "mlip/canopen/drive.h"
 
 static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line);
 
@@ -53,17 +53,16 @@ static void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t state,
 }
 
 mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const struct mlip_machine *m,
-                          const struct mlip_ctl_opts *o, struct mlip_ring *ring)
+                          const struct mlip_ctl_opts *o)
 {
-	memset(c, 0, offsetof(struct mlip_ctl, recs));
+	memset(c, 0, offsetof(struct mlip_ctl, blocks));
 	c->planner = p;
 	c->m = *m;
-	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES ||
-	    mlip_ring_port_open(&c->rx, ring, 0) != MLIP_OK) {
+	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES) {
 		return MLIP_E_INVALID;
 	}
 	for (int k = 0; k < m->n_axes; k++) {
-		c->pos[k] = c->prog_start[k] = m->axis[k].home;
+		c->pos[k] = c->prog.start[k] = m->axis[k].home;
 	}
 	if (mlip_planner_init(p, &c->m, o->strategy, o->lookahead, c->pos) != MLIP_OK) {
 		return MLIP_E_INVALID;
@@ -80,50 +79,45 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
 	c->state = MLIP_STATE_IDLE;
 	c->drives = o->drives != 0;
-	c->power = c->drives ? MLIP_POWER_ENABLED : MLIP_POWER_NONE; /* by the bring-up */
-	c->drive_state_periods = o->drive_state_periods ? o->drive_state_periods : 1000;
+	/* enabled by the bring-up */
+	mlip_402_seq_init(&c->power.seq, c->drives ? MLIP_POWER_ENABLED : MLIP_POWER_NONE,
+	                  o->drive_state_periods ? o->drive_state_periods : 1000, 0);
 	return MLIP_OK;
 }
 
-/* ---- the ring, through the consumer's private port --------------------- */
+/* ---- the records of this period: in->recs, taken from the front ---------- */
 
-/* A corrupted segment (head more than a capacity from our tail): take
- * nothing more from it; the period turns it into a fault. */
-static void ring_corrupt(struct mlip_ctl *c, uint32_t apart)
+/* A copy of the next record not taken yet (a queue in shared memory may be
+ * written by a hostile feeder: what is checked is this copy). */
+static int rx_peek(const struct mlip_ctl *c, struct mlip_ring_rec *rec)
 {
-	if (!c->ring_bad) {
-		c->ring_bad = 1;
-		c->ring_apart = apart;
+	const struct mlip_rec_view *v = c->rx.view;
+	uint32_t i = c->rx.taken;
+	if (c->rx.corrupt) {
+		return 0; /* nothing is read from that queue again */
 	}
+	if (i < v->len[0]) {
+		*rec = v->span[0][i];
+		return 1;
+	}
+	i -= v->len[0];
+	if (i < v->len[1]) {
+		*rec = v->span[1][i];
+		return 1;
+	}
+	return 0;
 }
 
-static int rx_peek(struct mlip_ctl *c, struct mlip_ring_rec *rec)
-{
-	if (c->ring_bad) {
-		return 0;
-	}
-	mlip_status st = mlip_ring_port_peek(&c->rx, rec);
-	if (st == MLIP_E_RANGE) {
-		uint32_t n;
-		mlip_ring_port_count(&c->rx, &n, &c->ring_apart);
-		ring_corrupt(c, c->ring_apart);
-	}
-	return st == MLIP_OK;
-}
-
+/* Take it (the caller pops out->taken records after the period). */
 static void rx_pop(struct mlip_ctl *c)
 {
-	mlip_ring_port_pop(&c->rx);
-	c->blocks_consumed++;
+	c->rx.taken++;
+	c->counts.blocks_consumed++;
 }
 
-static uint32_t rx_count(struct mlip_ctl *c)
+static uint32_t rx_count(const struct mlip_ctl *c)
 {
-	uint32_t n = 0, apart = 0;
-	if (!c->ring_bad && mlip_ring_port_count(&c->rx, &n, &apart) != MLIP_OK) {
-		ring_corrupt(c, apart);
-	}
-	return n;
+	return c->rx.corrupt ? 0 : c->rx.view->len[0] + c->rx.view->len[1] - c->rx.taken;
 }
 
 /* ---- records ------------------------------------------------------------ */
@@ -199,12 +193,12 @@ static int ring_dry(struct mlip_ctl *c, const struct mlip_ctl_in *in)
  * good block to rest; the rest of the program is dropped. */
 static void fault(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl_reason r)
 {
-	c->bad = 1;
-	c->discard = 1;
+	c->prog.bad = 1;
+	c->prog.discard = 1;
 	if (c->state != MLIP_STATE_RUNNING && c->state != MLIP_STATE_HELD) {
 		/* not moving (pre-read, a wait): what was pre-read never starts */
 		mlip_planner_stop(c->planner);
-		c->dwell_left = 0;
+		c->wait.dwell_left = 0;
 	}
 	go(c, out, MLIP_STATE_FAULT, r);
 }
@@ -215,32 +209,31 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 {
 	uint32_t n = 0;
 	int event_next = 0;
-	struct mlip_ring_rec *rec = c->recs;
-	while (n < max && !c->end_seen && !c->bad && rx_peek(c, &rec[n])) {
+	struct mlip_ring_rec rec;
+	while (n < max && c->prog.end.seq == 0 && !c->prog.bad && rx_peek(c, &rec)) {
 		struct mlip_ctl_reason r;
-		if (mlip_ctl_check_record(&c->m, &rec[n], c->next_seq, &r) != MLIP_OK) {
+		if (mlip_ctl_check_record(&c->m, &rec, c->prog.next_seq, &r) != MLIP_OK) {
 			fault(c, out, r);
 			break;
 		}
-		if (is_event(&rec[n])) {
-			if (rec[n].type == MLIP_REC_OPTIONAL_PAUSE && !c->optional_stop) {
+		if (is_event(&rec)) {
+			if (rec.type == MLIP_REC_OPTIONAL_PAUSE && !c->op.optional_stop) {
 				rx_pop(c); /* M1 with the switch off: no stop */
-				c->next_seq++;
+				c->prog.next_seq++;
 				continue;
 			}
 			event_next = 1;
-			c->event = rec[n];
+			c->wait.event = rec;
 			break;
 		}
 		rx_pop(c);
-		c->next_seq++;
-		if (rec[n].type == MLIP_REC_END) {
-			c->end_seen = 1;
-			c->end_seq = rec[n].seq;
-			c->end_line = rec[n].line;
+		c->prog.next_seq++;
+		if (rec.type == MLIP_REC_END) {
+			c->prog.end.seq = rec.seq;
+			c->prog.end.line = rec.line;
 			break;
 		}
-		mlip_ring_rec_to_block(&rec[n], &c->blocks[n]);
+		mlip_ring_rec_to_block(&rec, &c->blocks[n]);
 		n++;
 	}
 	if (n > 0) {
@@ -260,8 +253,8 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 /* The pre-read of a program (or a refill) is complete: move. */
 static int preread_done(struct mlip_ctl *c, const struct mlip_ctl_in *in, int event_next)
 {
-	return mlip_planner_space(c->planner) == 0 || c->end_seen || event_next || c->bad ||
-	       (c->refill && rx_count(c) == 0) || ring_dry(c, in);
+	return mlip_planner_space(c->planner) == 0 || c->prog.end.seq != 0 || event_next ||
+	       c->prog.bad || (c->prog.refill && rx_count(c) == 0) || ring_dry(c, in);
 }
 
 /* A stopped program's remaining records: drop them, up to its END. A feeder
@@ -271,18 +264,18 @@ static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 {
 	struct mlip_ring_rec rec;
 	if (ring_dry(c, in)) {
-		c->discard = 0; /* the stopped program's feeder is gone */
+		c->prog.discard = 0; /* the stopped program's feeder is gone */
 		return;
 	}
 	for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && rx_peek(c, &rec); i++) {
-		if (rec.seq == 1 && !c->bad && !c->discard_waiting) {
-			c->discard = 0;
+		if (rec.seq == 1 && !c->prog.bad && !c->prog.discard_waiting) {
+			c->prog.discard = 0;
 			break;
 		}
-		c->discard_waiting = 0; /* its first record: the rest is its own */
+		c->prog.discard_waiting = 0; /* its first record: the rest is its own */
 		rx_pop(c);
 		if (rec.type == MLIP_REC_END) {
-			c->discard = 0;
+			c->prog.discard = 0;
 			break;
 		}
 	}
@@ -310,19 +303,19 @@ static void drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		mlip_planner_stop(c->planner);
 		brake_begin(c);
 	}
-	c->dwell_left = 0;
-	c->bad = 1;     /* nothing more is taken */
-	c->discard = 1; /* the rest of the program is dropped */
+	c->wait.dwell_left = 0;
+	c->prog.bad = 1;     /* nothing more is taken */
+	c->prog.discard = 1; /* the rest of the program is dropped */
 	go(c, out, MLIP_STATE_FAULT, r);
 }
 
 /* A stop or hold was asked for: measure the path to rest (status stop_*). */
 static void brake_begin(struct mlip_ctl *c)
 {
-	if (!c->braking) {
-		c->braking = 1;
-		c->brake_mm = 0.0;
-		c->brake_periods = 0;
+	if (!c->brake.on) {
+		c->brake.on = 1;
+		c->brake.mm = 0.0;
+		c->brake.periods = 0;
 	}
 }
 
@@ -334,13 +327,13 @@ static void brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state rs
 			d2 += (c->pos[k] - prev[k]) * (c->pos[k] - prev[k]);
 		}
 	}
-	c->brake_mm += sqrt(d2);
-	c->brake_periods++;
+	c->brake.mm += sqrt(d2);
+	c->brake.periods++;
 	if (rs != MLIP_RUN_MOVING) {
-		c->braking = 0;
-		c->stop_nm = (uint64_t)(c->brake_mm * 1e6 + 0.5);
-		c->stop_periods = c->brake_periods;
-		c->stops++;
+		c->brake.on = 0;
+		c->brake.last_nm = (uint64_t)(c->brake.mm * 1e6 + 0.5);
+		c->brake.last_periods = c->brake.periods;
+		c->brake.count++;
 	}
 }
 
@@ -350,18 +343,22 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 	if (c->state == MLIP_STATE_IDLE && mlip_planner_queued(c->planner) == 0) {
 		/* nothing moving; a program already waiting in the ring (for the
 		 * drives to be enabled) is dropped, its first record too */
-		c->discard = rx_count(c) > 0;
-		c->discard_waiting = c->discard;
+		c->prog.discard = rx_count(c) > 0;
+		c->prog.discard_waiting = c->prog.discard;
 		return;
 	}
+	/* in a dwell or a pause the wait is not done: the block completed is
+	 * the one before it (the pre-read after it never moved) */
+	c->wait.stopped = c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED;
 	mlip_planner_stop(c->planner);
-	c->dwell_left = 0;
+	c->wait.dwell_left = 0;
+	c->hold.op = 0; /* the planner's stop ends a hold too */
 	if (c->state == MLIP_STATE_FAULT) {
 		return; /* the fault stays the reason */
 	}
 	brake_begin(c);
-	c->discard = !c->end_seen;
-	c->end_seen = 0;
+	c->prog.discard = c->prog.end.seq == 0;
+	c->prog.end.seq = 0;
 	go(c, out, MLIP_STATE_STOPPING, reason(why, 0, 0));
 }
 
@@ -371,30 +368,28 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	struct mlip_planner *p = c->planner;
 	switch (cmd->op) {
 	case MLIP_CMD_OVERRIDE:
-		if (cmd->arg == 0) {
-			c->hold_why = MLIP_WHY_OVERRIDE_ZERO;
-		}
 		return mlip_planner_set_override(p, (double)cmd->arg);
 	case MLIP_CMD_HOLD:
 		mlip_planner_hold(p, 1);
-		c->hold_why = MLIP_WHY_HOLD;
+		c->hold.op = 1;
 		brake_begin(c);
 		return MLIP_OK;
 	case MLIP_CMD_RESUME:
 		if (c->state == MLIP_STATE_FAULT) {
 			return MLIP_E_INVALID;
 		}
-		if (c->bus_hold) {
+		if (c->hold.bus) {
 			/* held by the bus: only once it has been clean for a while */
-			if (c->period - c->bus_bad_period < MLIP_BUS_CLEAN_PERIODS) {
+			if (c->period - c->hold.bus_bad_period < MLIP_BUS_CLEAN_PERIODS) {
 				return MLIP_E_INVALID;
 			}
-			c->bus_hold = 0;
+			c->hold.bus = 0;
 		}
-		c->stall_hold = 0;
+		c->hold.stall = 0;
+		c->hold.op = 0;
 		mlip_planner_hold(p, 0);
-		c->braking = 0; /* resumed before rest: no stop to measure */
-		c->resume_wait = c->state == MLIP_STATE_PAUSED; /* and a pause ends */
+		c->brake.on = 0; /* resumed before rest: no stop to measure */
+		c->wait.resume = c->state == MLIP_STATE_PAUSED; /* and a pause ends */
 		return MLIP_OK;
 	case MLIP_CMD_STOP:
 		begin_stop(c, out, MLIP_WHY_STOP);
@@ -403,7 +398,7 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		if (cmd->arg != 0 && cmd->arg != 1) {
 			return MLIP_E_RANGE;
 		}
-		c->optional_stop = cmd->arg;
+		c->op.optional_stop = cmd->arg;
 		return MLIP_OK;
 	default:
 		return MLIP_E_INVALID;
@@ -417,21 +412,21 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
                        const struct mlip_ring_rec *rec)
 {
 	rx_pop(c);
-	c->next_seq++;
-	c->wait_seq = rec->seq;
-	c->wait_line = rec->line;
-	c->resume_wait = 0;
+	c->prog.next_seq++;
+	c->wait.at.seq = rec->seq;
+	c->wait.at.line = rec->line;
+	c->wait.resume = 0;
 	struct mlip_ctl_reason r = reason(MLIP_WHY_DWELL, rec->seq, rec->line);
 	if (rec->type == MLIP_REC_DWELL) {
 		/* to the period: round(dwell / T) periods at rest */
-		c->dwell_left = (uint64_t)floor(rec->dwell_s / c->m.period_s + 0.5);
+		c->wait.dwell_left = (uint64_t)floor(rec->dwell_s / c->m.period_s + 0.5);
 		r.value = rec->dwell_s;
 		go(c, out, MLIP_STATE_DWELLING, r);
-	} else if (rec->type == MLIP_REC_PAUSE || c->optional_stop) {
+	} else if (rec->type == MLIP_REC_PAUSE || c->op.optional_stop) {
 		r.why = rec->type == MLIP_REC_PAUSE ? MLIP_WHY_PAUSE : MLIP_WHY_OPTIONAL_PAUSE;
 		go(c, out, MLIP_STATE_PAUSED, r);
 	} else {
-		c->dwell_left = 0; /* M1, switched off since it was reached: no wait */
+		c->wait.dwell_left = 0; /* M1, switched off since it was reached: no wait */
 		r.why = MLIP_WHY_OPTIONAL_PAUSE;
 		go(c, out, MLIP_STATE_DWELLING, r);
 	}
@@ -441,11 +436,11 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 static void end_wait(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
                      int event_next, uint32_t why)
 {
-	c->exec_seq = c->wait_seq;
-	c->exec_line = c->wait_line;
-	c->refill = 1;
+	c->prog.exec.seq = c->wait.at.seq;
+	c->prog.exec.line = c->wait.at.line;
+	c->prog.refill = 1;
 	go(c, out, preread_done(c, in, event_next) ? MLIP_STATE_RUNNING : MLIP_STATE_PREREAD,
-	   reason(why, c->wait_seq, c->wait_line));
+	   reason(why, c->wait.at.seq, c->wait.at.line));
 }
 
 /* Take the event and end a wait of 0 periods at once. */
@@ -453,102 +448,12 @@ static void start_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
                         const struct mlip_ring_rec *rec)
 {
 	take_event(c, out, rec);
-	if (c->state == MLIP_STATE_DWELLING && c->dwell_left == 0) {
+	if (c->state == MLIP_STATE_DWELLING && c->wait.dwell_left == 0) {
 		end_wait(c, out, in, 0, MLIP_WHY_DWELL_DONE);
 	}
 }
 
 /* ---- the drives' power (CiA 402, opts.drives) ------------------------------ */
-
-static uint16_t power_cw(uint32_t power)
-{
-	switch (power) {
-	case MLIP_POWER_DISABLING:
-	case MLIP_POWER_SWITCHING_ON:
-		return MLIP_402_CW_SWITCH_ON; /* from "operation enabled": disable operation */
-	case MLIP_POWER_SHUTTING_DOWN:
-	case MLIP_POWER_OFF:
-		return MLIP_402_CW_SHUTDOWN;
-	default:
-		return MLIP_402_CW_ENABLE_OPERATION;
-	}
-}
-
-/* The first axis whose drive, still followed, does not show `want` in its
- * last TPDO; -1 when every one does. */
-static int power_late(const struct mlip_ctl *c, const struct mlip_ctl_in *in, mlip_402_state want)
-{
-	for (int k = 0; k < c->m.n_axes; k++) {
-		if (!(in->drive_mute & (1u << k)) && mlip_402_state_of(in->drive_sw[k]) != want) {
-			return k;
-		}
-	}
-	return -1;
-}
-
-/* Next power step; late >= 0: that axis' drive did not confirm this one. */
-static void power_go(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
-                     uint32_t to, int late)
-{
-	struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, c->period - c->power_t0, 0);
-	r.value = (double)(c->period - c->power_since);
-	if (late >= 0) {
-		r.node = (uint32_t)c->m.axis[late].can_node;
-		r.field = in->drive_sw[late];
-		c->power_late_node = r.node;
-		c->power_late_sw = in->drive_sw[late];
-		c->power_late_step = c->power;
-	}
-	if (to == MLIP_POWER_DISABLING || to == MLIP_POWER_SWITCHING_ON) {
-		c->power_t0 = c->period; /* a sequence begins */
-		r.seq = 0;
-		c->power_ok = to == MLIP_POWER_DISABLING;
-	}
-	if (late >= 0 &&
-	    (c->power == MLIP_POWER_DISABLING || c->power == MLIP_POWER_SHUTTING_DOWN)) {
-		c->power_ok = 0;
-	}
-	if (to == MLIP_POWER_OFF || to == MLIP_POWER_ENABLED) {
-		c->power_periods = (uint32_t)(c->period - c->power_t0);
-	}
-	if (out->n_events < MLIP_CTL_MAX_EVENTS) {
-		struct mlip_ctl_event *e = &out->events[out->n_events++];
-		e->kind = MLIP_EV_POWER;
-		e->from = c->power;
-		e->state = to;
-		e->r = r;
-		e->period = c->period;
-		progress(c, &e->exec_seq, &e->exec_line);
-	}
-	c->power = to;
-	c->power_since = c->period;
-}
-
-/* Re-enabling failed (event, the drive at axis k): a fault, the program is
- * dropped, the drives are shut down again; nothing has moved. */
-static void power_fault(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
-                        uint32_t event, int k, double value)
-{
-	struct mlip_ctl_drive_fault f = {event, (uint32_t)c->m.axis[k].can_node, value};
-	drive_fault(c, out, &f);
-	if (c->power != MLIP_POWER_OFF) {
-		power_go(c, in, out, MLIP_POWER_DISABLING,
-		         event == MLIP_DRIVE_BEYOND_LIMIT ? -1 : k);
-	}
-}
-
-/* A step toward ENABLED: every drive shows `want`: on to `next`; one does
- * not in time: the fault `event` naming it. */
-static void enable_step(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
-                        mlip_402_state want, uint32_t next, uint32_t event, int timeout)
-{
-	int late = power_late(c, in, want);
-	if (late < 0) {
-		power_go(c, in, out, next, -1);
-	} else if (timeout) {
-		power_fault(c, in, out, event, late, in->drive_sw[late]);
-	}
-}
 
 /* The first axis beyond a soft limit, or -1. */
 static int beyond_limit(const struct mlip_ctl *c)
@@ -570,84 +475,82 @@ static int power_rest(const struct mlip_ctl *c)
 	/* the last setpoint sent twice: every drive has applied it at a SYNC
 	 * before it is told to disable operation */
 	if (mlip_planner_queued(c->planner) > 0 || mlip_planner_moving(c->planner) ||
-	    c->still_periods < 2) {
+	    c->power.still_periods < 2) {
 		return 0;
 	}
-	return c->state == MLIP_STATE_FAULT || c->exiting ||
+	return c->state == MLIP_STATE_FAULT || c->op.exiting ||
 	       (c->state == MLIP_STATE_IDLE && c->why.why != MLIP_WHY_NONE);
 }
 
-/* One period of the drives' power, after the step: never out of ENABLED
- * while the planner moves, never moving out of it (records are taken only
- * when ENABLED). */
+/* A step of the drives' power ended: the event, with the drive that did
+ * not confirm it in time (its node and statusword). */
+static void power_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
+                        const struct mlip_402_change *ch)
+{
+	struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, ch->in_sequence, 0);
+	r.value = (double)ch->in_step;
+	if (ch->late >= 0) {
+		r.node = (uint32_t)c->m.axis[ch->late].can_node;
+		r.field = ch->late_sw;
+	}
+	if (out->n_events < MLIP_CTL_MAX_EVENTS) {
+		struct mlip_ctl_event *e = &out->events[out->n_events++];
+		e->kind = MLIP_EV_POWER;
+		e->from = ch->from;
+		e->state = ch->to;
+		e->r = r;
+		e->period = c->period;
+		progress(c, &e->exec_seq, &e->exec_line);
+	}
+}
+
+/* One period of the drives' power, after the step (the sequencer of
+ * mlip/canopen/cia402.h, all drives in step): never out of ENABLED while the
+ * planner moves, never moving out of it (records are taken only when
+ * ENABLED). A program waiting enables them (from where they stand, inside
+ * the soft limits); at rest after it, a stop or a fault, or on exit, they are
+ * disabled. Enabling not confirmed in time is a fault naming the drive. */
 static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
 {
-	uint64_t waited = c->period - c->power_since;
-	int timeout = waited >= c->drive_state_periods;
-	int late, k;
+	uint32_t power = c->power.seq.step;
+	int want = c->power.want;
+	struct mlip_402_change ch;
 
-	if (c->power == MLIP_POWER_OFF || c->power == MLIP_POWER_SWITCHING_ON) {
+	if (power == MLIP_POWER_OFF || power == MLIP_POWER_SWITCHING_ON) {
 		/* no holding torque: the commanded position is where the drives are */
-		for (k = 0; k < c->m.n_axes; k++) {
-			if (in->actual_mask & (1u << k)) {
-				c->pos[k] = in->pos_actual[k];
+		for (int k = 0; k < c->m.n_axes; k++) {
+			if (in->drives.actual_mask & (1u << k)) {
+				c->pos[k] = in->drives.pos_actual[k];
 			}
 		}
 		mlip_planner_rest_at(c->planner, c->pos);
-	}
-	switch (c->power) {
-	case MLIP_POWER_ENABLED:
-		if (power_rest(c)) {
-			power_go(c, in, out, MLIP_POWER_DISABLING, -1);
-		}
-		return;
-	case MLIP_POWER_DISABLING:
-		late = power_late(c, in, MLIP_402_SWITCHED_ON);
-		if (late < 0 || timeout) {
-			power_go(c, in, out, MLIP_POWER_SHUTTING_DOWN, late);
-		}
-		return;
-	case MLIP_POWER_SHUTTING_DOWN:
-		late = power_late(c, in, MLIP_402_READY_TO_SWITCH_ON);
-		if (late < 0 || timeout) {
-			power_go(c, in, out, MLIP_POWER_OFF, late);
-		}
-		return;
-	case MLIP_POWER_OFF:
-	case MLIP_POWER_SWITCHING_ON:
-		if (!c->power_want) {
-			if (c->power == MLIP_POWER_SWITCHING_ON) {
-				power_go(c, in, out, MLIP_POWER_DISABLING,
-				         -1); /* stopped meanwhile */
-			}
-			return;
-		}
-		k = beyond_limit(c);
+		int k = want ? beyond_limit(c) : -1;
 		if (k >= 0) {
 			int32_t counts = 0;
 			mlip_can_counts(c->pos[k], c->m.axis[k].counts_per_unit, &counts);
-			power_fault(c, in, out, MLIP_DRIVE_BEYOND_LIMIT, k, (double)counts);
-			return;
+			struct mlip_ctl_drive_fault f = {MLIP_DRIVE_BEYOND_LIMIT,
+			                                 (uint32_t)c->m.axis[k].can_node,
+			                                 (double)counts};
+			drive_fault(c, out, &f);
+			want = 0;
 		}
-		if (c->power == MLIP_POWER_OFF) {
-			power_go(c, in, out, MLIP_POWER_SWITCHING_ON, -1);
-			return;
-		}
-		/* from ENABLING on the position is held: 0x0F goes with it */
-		enable_step(c, in, out, MLIP_402_SWITCHED_ON, MLIP_POWER_ENABLING,
-		            MLIP_DRIVE_NOT_SWITCHED_ON, timeout);
-		return;
-	case MLIP_POWER_ENABLING:
-		if (!c->power_want) {
-			power_go(c, in, out, MLIP_POWER_DISABLING, -1);
-			return;
-		}
-		enable_step(c, in, out, MLIP_402_OPERATION_ENABLED, MLIP_POWER_ENABLED,
-		            MLIP_DRIVE_NOT_ENABLED, timeout);
-		return;
-	default:
+	} else if (power == MLIP_POWER_ENABLED) {
+		want = !power_rest(c);
+	}
+	if (!mlip_402_seq_run(&c->power.seq, want ? MLIP_POWER_ENABLED : MLIP_POWER_OFF,
+	                      in->drives.sw, c->m.n_axes, in->drives.mute, c->period, &ch)) {
 		return;
 	}
+	if (ch.failed) {
+		/* not switched on or not enabled in time: a fault, the program is
+		 * dropped, the drives go down again; nothing has moved */
+		struct mlip_ctl_drive_fault f = {
+		    ch.from == MLIP_POWER_SWITCHING_ON ? MLIP_DRIVE_NOT_SWITCHED_ON
+		                                       : MLIP_DRIVE_NOT_ENABLED,
+		    (uint32_t)c->m.axis[ch.late].can_node, (double)ch.late_sw};
+		drive_fault(c, out, &f);
+	}
+	power_event(c, out, &ch);
 }
 
 /* ---- the period ----------------------------------------------------------- */
@@ -655,10 +558,10 @@ static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 /* Blocks in, by state. */
 static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
 {
-	struct mlip_ring_rec *head = &c->recs[0];
+	struct mlip_ring_rec first, *head = &first;
 	int have = rx_peek(c, head);
 
-	if (c->discard) {
+	if (c->prog.discard) {
 		discard(c, in);
 		return;
 	}
@@ -668,41 +571,59 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 		if (!have) {
 			return;
 		}
-		if (head->seq != 1 && head->seq != c->exec_seq + 1) {
+		if (head->seq != 1 && head->seq != c->prog.exec.seq + 1) {
 			/* neither a program's start nor the block after the last one
 			 * completed here: running it would cut a straight line from
 			 * where the machine is to that block's end. Drop that program
 			 * (mlip-feed refuses such a --start-seq before sending). */
 			struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, head->seq, head->line);
-			r.value = (double)(c->exec_seq + 1);
+			r.value = (double)(c->prog.exec.seq + 1);
 			emit(c, out, MLIP_EV_REFUSED, c->state, &r);
-			c->discard = 1;
-			c->refused++;
+			c->prog.discard = 1;
+			c->counts.refused++;
 			return;
 		}
-		if (c->drives && c->power != MLIP_POWER_ENABLED) {
+		if (in->feeder_unread) {
+			return; /* whose program this is: known next period */
+		}
+		if (mlip_ring_stop_after(c->op.stop_seen, in->feeder_stop_base)) {
+			/* a stop came after this program's feeder began (during its
+			 * check, say): latched for it, the program never starts */
+			c->prog.discard = 1;
+			c->prog.discard_waiting = 1; /* its first record too */
+			c->counts.refused++;
+			struct mlip_ctl_reason r =
+			    reason(MLIP_WHY_STOP_EARLY, head->seq, head->line);
+			if (c->state == MLIP_STATE_IDLE && c->why.why == MLIP_WHY_STOP_EARLY) {
+				c->why.why = MLIP_WHY_NONE; /* a second refusal is named too */
+			}
+			go(c, out, MLIP_STATE_IDLE, r);
+			return;
+		}
+		if (c->drives && c->power.seq.step != MLIP_POWER_ENABLED) {
 			/* the drives are (being) shut down: enable them first, then
 			 * take the program from where they are */
-			c->power_want = !c->exiting;
+			c->power.want = !c->op.exiting;
 			return;
 		}
-		c->refill = c->state == MLIP_STATE_STARVED && head->seq != 1;
-		if (!c->refill) {
-			c->exec_seq = 0; /* a new program (a starved one is given up) */
-			c->exec_line = 0;
-			memcpy(c->prog_start, c->pos, sizeof(c->prog_start));
+		c->prog.refill = c->state == MLIP_STATE_STARVED && head->seq != 1;
+		if (!c->prog.refill) {
+			c->prog.exec.seq = 0; /* a new program (a starved one is given up) */
+			c->prog.exec.line = 0;
+			memcpy(c->prog.start, c->pos, sizeof(c->prog.start));
 		}
-		c->next_seq = head->seq;
-		c->end_seen = 0;
+		c->prog.next_seq = head->seq;
+		c->prog.end.seq = 0;
 		go(c, out, MLIP_STATE_PREREAD,
-		   reason(c->refill ? MLIP_WHY_CONTINUE : MLIP_WHY_START, head->seq, head->line));
+		   reason(c->prog.refill ? MLIP_WHY_CONTINUE : MLIP_WHY_START, head->seq,
+		          head->line));
 		/* fall through - the pre-read starts in this period */
 	case MLIP_STATE_PREREAD: {
 		uint32_t room = mlip_planner_space(c->planner);
 		int ev =
 		    ingest(c, out, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
 		if (ev && mlip_planner_queued(c->planner) == 0) {
-			start_event(c, out, in, &c->event); /* nothing to move first */
+			start_event(c, out, in, &c->wait.event); /* nothing to move first */
 		} else if (c->state == MLIP_STATE_PREREAD && preread_done(c, in, ev)) {
 			go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_PREREAD_DONE, 0, 0));
 		}
@@ -711,14 +632,14 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD: {
 		if (mlip_planner_queued(c->planner) == 0 && have && is_event(head) &&
-		    mlip_ctl_check_record(&c->m, head, c->next_seq, NULL) == MLIP_OK) {
+		    mlip_ctl_check_record(&c->m, head, c->prog.next_seq, NULL) == MLIP_OK) {
 			start_event(c, out, in, head);
 			return;
 		}
 		uint32_t room = mlip_planner_space(c->planner);
-		int dry = !c->end_seen && room > 0 && rx_count(c) == 0;
+		int dry = c->prog.end.seq == 0 && room > 0 && rx_count(c) == 0;
 		if (dry) {
-			c->underruns++; /* the feeder is behind: the plan runs to rest */
+			c->counts.underruns++; /* the feeder is behind: the plan runs to rest */
 		}
 		ingest(c, out, room < MLIP_INGEST_PER_PERIOD ? room : MLIP_INGEST_PER_PERIOD);
 		return;
@@ -729,9 +650,9 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 		uint32_t room = mlip_planner_space(c->planner);
 		int ev =
 		    ingest(c, out, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
-		if (c->state == MLIP_STATE_DWELLING && c->dwell_left == 0) {
+		if (c->state == MLIP_STATE_DWELLING && c->wait.dwell_left == 0) {
 			end_wait(c, out, in, ev, MLIP_WHY_DWELL_DONE);
-		} else if (c->state == MLIP_STATE_PAUSED && c->resume_wait) {
+		} else if (c->state == MLIP_STATE_PAUSED && c->wait.resume) {
 			end_wait(c, out, in, ev, MLIP_WHY_RESUME);
 		}
 		return;
@@ -745,14 +666,52 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
 {
 	const struct mlip_planner *p = c->planner;
-	*seq = c->exec_seq;
-	*line = c->exec_line;
+	*seq = c->prog.exec.seq;
+	*line = c->prog.exec.line;
 	if (c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED) {
-		*seq = c->wait_seq;
-		*line = c->wait_line;
+		*seq = c->wait.at.seq;
+		*line = c->wait.at.line;
+	} else if (c->wait.stopped) {
+		return; /* stopping in a wait: the pre-read after it never moves */
 	} else if (c->state != MLIP_STATE_PREREAD && mlip_planner_queued(p) > 0) {
 		mlip_planner_executing(p, seq, line);
 	}
+}
+
+/* Why the machine is held now, the strongest cause first: a stall and a bad
+ * bus need a resume (and a clean bus), an operator's hold a resume, an
+ * override of 0 a higher override. The reason follows the causes: after
+ * override 0, hold, override 100 it is the hold, not the override. */
+static uint32_t held_why(const struct mlip_ctl *c)
+{
+	if (c->hold.stall) {
+		return MLIP_WHY_STALL;
+	}
+	if (c->hold.bus) {
+		return c->hold.bus_why;
+	}
+	if (c->hold.op) {
+		return MLIP_WHY_HOLD;
+	}
+	if (mlip_planner_override_pct(c->planner) == 0.0) {
+		return MLIP_WHY_OVERRIDE_ZERO;
+	}
+	return MLIP_WHY_HOLD;
+}
+
+/* The planner's last completed block into exec_seq/line. At rest with
+ * nothing queued the planner knows a new block's predecessor by its number
+ * only (line 0): that is the block the controller already names. */
+static void take_done(struct mlip_ctl *c)
+{
+	uint64_t seq;
+	uint32_t line;
+	mlip_planner_done(c->planner, &seq, &line);
+	if (line == 0 && seq == c->prog.exec.seq) {
+		return;
+	}
+	c->prog.exec.seq = seq;
+	c->prog.exec.line = line;
 }
 
 /* After the step: the transitions the motion decides. still: this period's
@@ -761,52 +720,55 @@ static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
 static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
                        mlip_run_state rs, int still)
 {
-	struct mlip_planner *p = c->planner;
 	struct mlip_ring_rec next;
 	switch (c->state) {
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD:
-		if (rs == MLIP_RUN_IDLE && c->end_seen) {
-			c->exec_seq = c->end_seq; /* the program is done, at rest */
-			c->exec_line = c->end_line;
-			c->end_seen = 0;
-			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_END, c->end_seq, c->end_line));
+		if (rs == MLIP_RUN_IDLE && c->prog.end.seq != 0) {
+			c->prog.exec = c->prog.end; /* the program is done, at rest */
+			c->prog.end.seq = 0;
+			go(c, out, MLIP_STATE_IDLE,
+			   reason(MLIP_WHY_END, c->prog.exec.seq, c->prog.exec.line));
 		} else if (rs == MLIP_RUN_IDLE) {
-			mlip_planner_done(p, &c->exec_seq, &c->exec_line);
+			take_done(c);
 			if (rx_peek(c, &next) && is_event(&next)) {
 				if (c->state == MLIP_STATE_HELD) {
 					go(c, out, MLIP_STATE_RUNNING,
 					   reason(MLIP_WHY_RESUME, 0, 0));
 				}
-				if (still && mlip_ctl_check_record(&c->m, &next, c->next_seq,
+				if (still && mlip_ctl_check_record(&c->m, &next, c->prog.next_seq,
 				                                   NULL) == MLIP_OK) {
 					/* at rest since the last period: this one is the
 					 * wait's first, so the wait counts from the arrival */
 					start_event(c, out, in, &next);
 					if (c->state == MLIP_STATE_DWELLING) {
-						c->dwell_left--;
+						c->wait.dwell_left--;
 					}
 				}
 				return; /* else at rest in front of an event: taken next period */
 			}
 			go(c, out, MLIP_STATE_STARVED,
-			   reason(MLIP_WHY_UNDERRUN, c->exec_seq, c->exec_line));
-		} else if (rs == MLIP_RUN_HELD && c->state == MLIP_STATE_RUNNING) {
-			go(c, out, MLIP_STATE_HELD,
-			   reason(c->hold_why ? c->hold_why : MLIP_WHY_HOLD, 0, 0));
+			   reason(MLIP_WHY_UNDERRUN, c->prog.exec.seq, c->prog.exec.line));
+		} else if (rs == MLIP_RUN_HELD &&
+		           (c->state == MLIP_STATE_RUNNING || c->why.why != held_why(c))) {
+			go(c, out, MLIP_STATE_HELD, reason(held_why(c), 0, 0));
 		} else if (rs == MLIP_RUN_MOVING && c->state == MLIP_STATE_HELD) {
 			go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
 		}
 		return;
 	case MLIP_STATE_STOPPING:
 		if (rs == MLIP_RUN_IDLE) {
-			mlip_planner_done(p, &c->exec_seq, &c->exec_line);
+			if (!c->wait.stopped) {
+				take_done(c);
+			}
+			c->wait.stopped = 0;
+			c->hold.op = 0; /* the planner's stop released its hold */
 			go(c, out, MLIP_STATE_IDLE, c->why); /* the stop stays the reason */
 		}
 		return;
 	case MLIP_STATE_FAULT:
-		if (rs == MLIP_RUN_IDLE) {
-			mlip_planner_done(p, &c->exec_seq, &c->exec_line); /* the last good block */
+		if (rs == MLIP_RUN_IDLE && !c->wait.stopped) {
+			take_done(c); /* the last good block */
 		}
 		return;
 	default:
@@ -824,24 +786,25 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	s->state = c->state;
 	s->override_pct = (uint32_t)(mlip_planner_override_pct(p) + 0.5);
 	s->overruns = c->overruns;
-	s->underruns = c->underruns;
-	s->blocks_consumed = c->blocks_consumed;
-	s->stop_nm = c->stop_nm;
-	s->stop_periods = c->stop_periods;
-	s->stops = c->stops;
+	s->underruns = c->counts.underruns;
+	s->blocks_consumed = c->counts.blocks_consumed;
+	s->stop_nm = c->brake.last_nm;
+	s->stop_periods = c->brake.last_periods;
+	s->stops = c->brake.count;
 	s->reason = c->why.why;
 	s->reason_field = c->why.field;
 	s->reason_seq = c->why.seq;
 	s->reason_line = c->why.line;
 	s->reason_value = c->why.value;
 	s->reason_node = c->why.node;
-	s->optional_stop = (uint32_t)c->optional_stop;
+	s->optional_stop = (uint32_t)c->op.optional_stop;
 	memcpy(s->pos, c->pos, sizeof(s->pos));
 	s->speed_mm_s = mlip_planner_speed(p);
-	s->dwell_left = c->state == MLIP_STATE_DWELLING ? c->dwell_left : 0;
-	s->drive_power = c->power;
-	s->drive_power_periods = c->power_periods;
-	memcpy(s->prog_start, c->prog_start, sizeof(s->prog_start));
+	s->dwell_left = c->state == MLIP_STATE_DWELLING ? c->wait.dwell_left : 0;
+	s->drive_power = c->power.seq.step;
+	s->drive_power_periods = (uint32_t)c->power.seq.took;
+	memcpy(s->prog_start, c->prog.start, sizeof(s->prog_start));
+	s->stop_seen = c->op.stop_seen;
 }
 
 /* Still moving: a stall must freeze it. */
@@ -858,11 +821,17 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 
 	out->n_events = 0;
 	out->n_frames = 0;
-	c->power_want = 0; /* blocks_in says again whether a program waits */
+	c->power.want = 0; /* blocks_in says again whether a program waits */
 	out->cmd_result = MLIP_OK;
 	out->done = 0;
 	c->period = in->period;
 	c->overruns += in->missed;
+	c->rx.view = &in->recs;
+	c->rx.taken = 0;
+	if (in->recs_corrupt != 0 && c->rx.corrupt == 0) {
+		c->rx.corrupt =
+		    in->recs_corrupt; /* a corrupted segment: nothing more is read from it */
+	}
 
 	/* a stall: the drives stood at the last setpoint while the plan's clock
 	 * ran on. Never jump: that setpoint becomes a point of rest, and motion
@@ -872,9 +841,8 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		if (c->state == MLIP_STATE_FAULT || c->state == MLIP_STATE_STOPPING) {
 			mlip_planner_stop(p); /* a stop in progress ends here */
 		} else {
-			c->stall_hold = 1;
-			c->hold_why = MLIP_WHY_STALL;
-			c->braking = 0;
+			c->hold.stall = 1;
+			c->brake.on = 0;
 			struct mlip_ctl_reason r = reason(MLIP_WHY_STALL, 0, 0);
 			progress(c, &r.seq, &r.line);
 			r.value = (double)in->missed;
@@ -885,48 +853,52 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	if (in->cmd != NULL) {
 		out->cmd_result = apply_command(c, out, in->cmd);
 	}
-	if (in->exit_request && !c->exiting) {
-		c->exiting = 1; /* a controlled stop on the path, then done */
+	/* a stop request (the segment's counter): never behind a command */
+	if (in->stop_requests != c->op.stop_seen) {
+		c->op.stop_seen = in->stop_requests;
+		begin_stop(c, out, MLIP_WHY_STOP);
+	}
+	if (in->exit_request && !c->op.exiting) {
+		c->op.exiting = 1; /* a controlled stop on the path, then done */
 		begin_stop(c, out, MLIP_WHY_EXIT);
 	}
 	/* frames the drives did not get, or a bus that is off: do not go on
 	 * blind; hold on the path until the operator resumes on a clean bus */
-	if (in->can_tx_refused != c->bus_tx_seen || in->bus_off) {
-		c->bus_bad_period = c->period;
-		if (!c->bus_hold) {
-			c->bus_hold = 1;
-			c->hold_why = in->bus_off ? MLIP_WHY_BUS_ERROR : MLIP_WHY_BUS_TX;
+	if (in->bus.tx_refused != c->hold.tx_seen || in->bus.off) {
+		c->hold.bus_bad_period = c->period;
+		if (!c->hold.bus) {
+			c->hold.bus = 1;
+			c->hold.bus_why = in->bus.off ? MLIP_WHY_BUS_ERROR : MLIP_WHY_BUS_TX;
 			mlip_planner_hold(p, 1);
 			brake_begin(c);
 		}
 	}
-	c->bus_tx_seen = in->can_tx_refused;
-	c->bus_err_seen = in->can_error_frames;
-	if (in->drive_fault.event != 0 && !c->drive_faulted) {
-		drive_fault(c, out, &in->drive_fault);
+	c->hold.tx_seen = in->bus.tx_refused;
+	if (in->drives.fault.event != 0 && !c->drive_faulted) {
+		drive_fault(c, out, &in->drives.fault);
 	}
 
 	blocks_in(c, in, out);
-	if (c->ring_bad && !c->bad) {
-		struct mlip_ctl_reason r = reason(MLIP_WHY_RING_CORRUPT, c->next_seq, 0);
+	if (c->rx.corrupt && !c->prog.bad) {
+		struct mlip_ctl_reason r = reason(MLIP_WHY_RING_CORRUPT, c->prog.next_seq, 0);
 		r.field = MLIP_FIELD_HEAD;
-		r.value = (double)c->ring_apart;
+		r.value = (double)c->rx.corrupt;
 		fault(c, out, r);
-		c->discard = 0; /* nothing is read from that ring again */
+		c->prog.discard = 0; /* nothing is read from that ring again */
 	}
 
 	/* one step; a pre-read or a wait does not move, nor the stall's period */
 	if (c->state == MLIP_STATE_DWELLING) {
-		c->dwell_left--; /* >= 1 here: a wait of 0 ended in blocks_in */
+		c->wait.dwell_left--; /* >= 1 here: a wait of 0 ended in blocks_in */
 	} else if (c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_PAUSED && !stalled) {
 		double prev[MLIP_MAX_AXES];
 		memcpy(prev, c->pos, sizeof(prev));
 		mlip_run_state rs = mlip_planner_step(p, c->pos);
-		if (c->braking) {
+		if (c->brake.on) {
 			brake_step(c, prev, rs);
 		}
 		int still = memcmp(prev, c->pos, sizeof(prev)) == 0;
-		c->still_periods = still ? c->still_periods + 1 : 0;
+		c->power.still_periods = still ? c->power.still_periods + 1 : 0;
 		after_step(c, out, in, rs, still);
 	}
 
@@ -938,9 +910,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		uint32_t sat = 0;
 		/* the drives' controlword, and no target to a drive faulted */
 		for (int k = 0; k < MLIP_MAX_AXES; k++) {
-			c->enc.controlword[k] = power_cw(c->power);
+			c->enc.controlword[k] = (uint16_t)c->power.seq.cw;
 		}
-		c->enc.rpdo_mute = in->drive_mute;
+		c->enc.rpdo_mute = in->drives.mute;
 		if (mlip_canenc_encode(&c->enc, (uint32_t)c->period, c->pos, out->frames,
 		                       MLIP_CAN_MAX_FRAMES, &out->n_frames, &sat) != MLIP_OK) {
 			/* a position beyond the drive's int32 range: never send it */
@@ -952,14 +924,24 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 				go(c, out, MLIP_STATE_FAULT, r);
 			}
 		}
-		c->frames_encoded += (uint64_t)out->n_frames;
+		c->counts.frames_encoded += (uint64_t)out->n_frames;
 	}
 	publish(c, out);
-	out->status.actual_mask = in->actual_mask;
-	memcpy(out->status.pos_actual, in->pos_actual, sizeof(out->status.pos_actual));
+	out->power.state = c->power.seq.step;
+	out->power.ok = c->power.seq.ok;
+	out->power.late_node =
+	    c->power.seq.late >= 0 ? (uint32_t)c->m.axis[c->power.seq.late].can_node : 0;
+	out->power.late_sw = c->power.seq.late_sw;
+	out->power.late_step = c->power.seq.late_step;
+	out->status.actual_mask = in->drives.actual_mask;
+	memcpy(out->status.pos_actual, in->drives.pos_actual, sizeof(out->status.pos_actual));
 	/* an exit request ends once the machine is at rest */
-	out->done = c->exiting && !c->discard &&
-	            (c->state == MLIP_STATE_IDLE ||
-	             (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0)) &&
-	            (!c->drives || c->power == MLIP_POWER_OFF); /* and the drives disabled */
+	out->done =
+	    c->op.exiting && !c->prog.discard &&
+	    (c->state == MLIP_STATE_IDLE ||
+	     (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0)) &&
+	    (!c->drives || c->power.seq.step == MLIP_POWER_OFF); /* and the drives disabled */
+	out->taken = c->rx.taken;
+	out->counts = c->counts;
+	c->rx.view = NULL; /* the caller's, for this period only */
 }

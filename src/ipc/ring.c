@@ -45,11 +45,12 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 312);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 320);
 MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 576);
 MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 584);
-MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 32);
-MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_seq) == 640);
+MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 40);
+MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_word) == 640);
+MLIP_RING_CHECK(off_stop, offsetof(struct mlip_ring, stop_req) == 648);
 MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 704);
 
 /* shared-memory atomics must not fall back to a process-local lock */
@@ -395,27 +396,30 @@ mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t
 	return MLIP_OK;
 }
 
-mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out)
+mlip_status mlip_ring_port_view(struct mlip_ring_port *p, struct mlip_rec_view *v, uint32_t *apart)
 {
 	const struct mlip_ring_rec *recs = (const struct mlip_ring_rec *)(const void *)(p->r + 1);
 
-	if (p->other == p->own && port_reload(p, NULL) != MLIP_OK) {
+	memset(v, 0, sizeof(*v));
+	if (port_reload(p, apart) != MLIP_OK) {
 		return MLIP_E_RANGE;
 	}
-	if (p->other == p->own) {
-		return MLIP_E_EMPTY;
-	}
-	*out = recs[p->own & p->mask];
+	uint32_t n = p->other - p->own, at = p->own & p->mask;
+	uint32_t first = n < p->capacity - at ? n : p->capacity - at;
+	v->span[0] = recs + at;
+	v->len[0] = first;
+	v->span[1] = recs;
+	v->len[1] = n - first;
 	return MLIP_OK;
 }
 
-mlip_status mlip_ring_port_pop(struct mlip_ring_port *p)
+mlip_status mlip_ring_port_pop_n(struct mlip_ring_port *p, uint32_t n)
 {
-	if (p->other == p->own) {
-		return MLIP_E_EMPTY; /* peek first */
+	if (n > p->other - p->own) {
+		return MLIP_E_RANGE; /* more than were there */
 	}
-	p->own++;
-	ST(&p->r->tail, p->own, REL); /* hands the slot back to the producer */
+	p->own += n;
+	ST(&p->r->tail, p->own, REL); /* hands the slots back to the producer */
 	return MLIP_OK;
 }
 
@@ -556,6 +560,7 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	for (int k = 0; k < MLIP_MAX_AXES; k++) {
 		STD(&d->prog_start[k], &s->prog_start[k]);
 	}
+	ST(&d->stop_seen, s->stop_seen, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -607,6 +612,8 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		for (int k = 0; k < MLIP_MAX_AXES; k++) {
 			LDD(&d->prog_start[k], &s->prog_start[k]);
 		}
+		s->stop_seen = LD(&d->stop_seen, ACQ);
+		s->spare6 = 0;
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -626,6 +633,7 @@ void mlip_ring_feeder_write(struct mlip_ring *r, const struct mlip_ring_feeder *
 	ST(&d->total_blocks, f->total_blocks, REL);
 	ST(&d->program_end, f->program_end, REL);
 	ST(&d->pid, f->pid, REL);
+	ST(&d->stop_base, f->stop_base, REL);
 	ST(&r->feeder_gen, g + 2, REL);
 }
 
@@ -645,6 +653,8 @@ mlip_status mlip_ring_feeder_read(const struct mlip_ring *r, struct mlip_ring_fe
 		f->total_blocks = LD(&d->total_blocks, ACQ);
 		f->program_end = LD(&d->program_end, ACQ);
 		f->pid = LD(&d->pid, ACQ);
+		f->stop_base = LD(&d->stop_base, ACQ);
+		f->spare = 0;
 		g2 = LD(&r->feeder_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -655,51 +665,75 @@ mlip_status mlip_ring_feeder_read(const struct mlip_ring *r, struct mlip_ring_fe
 
 /* ---- command mailbox --------------------------------------------------- */
 
+#define CMD_SEQ(w) ((uint32_t)(w))
+#define CMD_OP(w)  ((uint32_t)((w) >> 32) & 0xffu)
+/* the 24-bit field back to a signed value */
+#define CMD_ARG(w) ((int32_t)((uint32_t)((w) >> 40) ^ 0x800000u) - 0x800000)
+
 mlip_status mlip_ring_cmd_post(struct mlip_ring *r, mlip_ring_cmd_op op, int32_t arg, uint32_t *seq)
 {
-	uint32_t s, done;
+	uint64_t w, nw;
+	uint32_t s;
 
-	if ((int)op <= (int)MLIP_CMD_NONE || (int)op >= (int)MLIP_CMD_COUNT) {
+	if ((int)op <= (int)MLIP_CMD_NONE || (int)op >= (int)MLIP_CMD_COUNT ||
+	    op == MLIP_CMD_STOP) {
 		return MLIP_E_INVALID;
 	}
-	s = LD(&r->cmd_seq, ACQ);
-	done = LD(&r->cmd_done, ACQ); /* the controller is finished with op/arg */
-	if ((s & 1u) || s != done) {
+	if (arg < MLIP_RING_CMD_ARG_MIN || arg > MLIP_RING_CMD_ARG_MAX) {
+		return MLIP_E_RANGE;
+	}
+	w = LD(&r->cmd_word, ACQ);
+	s = CMD_SEQ(w);
+	if (s != LD(&r->cmd_done, ACQ)) {
+		return MLIP_E_FULL; /* the controller has not completed the last one */
+	}
+	s = s + 1 == 0 ? 1 : s + 1; /* 0 is "none taken yet" */
+	nw = (uint64_t)s | (uint64_t)op << 32 | (uint64_t)((uint32_t)arg & 0xffffffu) << 40;
+	/* one word: posted whole or not at all (another mlip-ctl won) */
+	if (!__atomic_compare_exchange_n(&r->cmd_word, &w, nw, 0, __ATOMIC_ACQ_REL, ACQ)) {
 		return MLIP_E_FULL;
 	}
-	/* claim the slot against another mlip-ctl: s (even) -> s+1 (odd) */
-	if (!__atomic_compare_exchange_n(&r->cmd_seq, &s, s + 1, 0, __ATOMIC_ACQ_REL, ACQ)) {
-		return MLIP_E_FULL;
-	}
-	ST(&r->cmd_op, (uint32_t)op, RLX);
-	ST(&r->cmd_arg, arg, RLX);
-	ST(&r->cmd_seq, s + 2, REL); /* publishes op and arg */
 	if (seq != NULL) {
-		*seq = s + 2;
+		*seq = s;
 	}
 	return MLIP_OK;
 }
 
+/* commands completed after seq (done - seq, modular), or -1 when seq is not
+ * completed yet */
+static int64_t done_since(uint32_t done, uint32_t seq)
+{
+	int32_t d = (int32_t)(done - seq);
+	return d < 0 ? -1 : (int64_t)d;
+}
+
 mlip_status mlip_ring_cmd_result(const struct mlip_ring *r, uint32_t seq, int32_t *result)
 {
-	if (LD(&r->cmd_done, ACQ) != seq) {
+	int64_t since = done_since(LD(&r->cmd_done, ACQ), seq);
+	if (since < 0) {
 		return MLIP_E_EMPTY;
 	}
-	*result = LD(&r->cmd_result, RLX); /* stored before done (release) */
+	/* stored before done (release); still ours if no 8 more completed since */
+	int32_t res = LD(&r->cmd_results[seq % MLIP_RING_CMD_HISTORY], ACQ);
+	since = done_since(LD(&r->cmd_done, ACQ), seq);
+	if (since >= (int64_t)MLIP_RING_CMD_HISTORY - 1) {
+		return MLIP_E_RANGE;
+	}
+	*result = res;
 	return MLIP_OK;
 }
 
 mlip_status mlip_ring_cmd_take(struct mlip_ring *r, struct mlip_ring_cmd *out)
 {
-	uint32_t s = LD(&r->cmd_seq, ACQ); /* pairs with the publishing store */
+	uint64_t w = LD(&r->cmd_word, ACQ);
+	uint32_t s = CMD_SEQ(w);
 
-	if ((s & 1u) || s == LD(&r->cmd_taken, RLX)) {
-		return MLIP_E_EMPTY; /* nothing new, or a post in progress */
+	if (s == LD(&r->cmd_taken, RLX)) {
+		return MLIP_E_EMPTY;
 	}
-	/* no poster can write op/arg now: they wait for cmd_done == cmd_seq */
 	out->seq = s;
-	out->op = LD(&r->cmd_op, RLX);
-	out->arg = LD(&r->cmd_arg, RLX);
+	out->op = CMD_OP(w);
+	out->arg = CMD_ARG(w);
 	ST(&r->cmd_taken, s, RLX);
 	return MLIP_OK;
 }
@@ -707,18 +741,31 @@ mlip_status mlip_ring_cmd_take(struct mlip_ring *r, struct mlip_ring_cmd *out)
 void mlip_ring_cmd_done(struct mlip_ring *r, uint32_t seq, int32_t result)
 {
 	ST(&r->cmd_result, result, RLX);
-	ST(&r->cmd_done, seq, REL); /* our reads of op/arg happen before the next post */
+	ST(&r->cmd_results[seq % MLIP_RING_CMD_HISTORY], result, REL);
+	ST(&r->cmd_done, seq, REL); /* lets the next post in */
+}
+
+uint32_t mlip_ring_stop_post(struct mlip_ring *r)
+{
+	return __atomic_add_fetch(&r->stop_req, 1u, __ATOMIC_ACQ_REL);
+}
+
+uint32_t mlip_ring_stop_count(const struct mlip_ring *r)
+{
+	return LD(&r->stop_req, ACQ);
+}
+
+int mlip_ring_stop_applied(uint32_t seen, uint32_t ticket)
+{
+	return (int32_t)(seen - ticket) >= 0;
+}
+
+int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
+{
+	return (int32_t)(seen - stop_base) > 0;
 }
 
 #define NAME_OF(names, v) ((v) < sizeof(names) / sizeof((names)[0]) ? (names)[v] : "?")
-
-const char *mlip_ring_state_name(uint32_t state)
-{
-	static const char *const names[] = {"idle",    "running", "held",     "stopping", "fault",
-	                                    "starved", "paused",  "dwelling", "pre-read"};
-
-	return NAME_OF(names, state);
-}
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
@@ -728,35 +775,6 @@ const char *mlip_ring_cmd_name(uint32_t op)
 	return NAME_OF(names, op);
 }
 
-const char *mlip_state_why_name(uint32_t why)
-{
-	static const char *const names[] = {"none",
-	                                    "program start",
-	                                    "continuation",
-	                                    "pre-read done",
-	                                    "program end",
-	                                    "underrun",
-	                                    "feeder gone",
-	                                    "hold",
-	                                    "override 0",
-	                                    "resume",
-	                                    "CAN tx refused",
-	                                    "CAN error frames",
-	                                    "stall",
-	                                    "dwell",
-	                                    "dwell done",
-	                                    "pause (M0)",
-	                                    "optional pause (M1)",
-	                                    "stop",
-	                                    "exit signal",
-	                                    "bad record",
-	                                    "ring corrupt",
-	                                    "position beyond the drives' range",
-	                                    "drive fault"};
-
-	return NAME_OF(names, why);
-}
-
 const char *mlip_rec_field_name(uint32_t field)
 {
 	static const char *const names[] = {
@@ -764,14 +782,6 @@ const char *mlip_rec_field_name(uint32_t field)
 	    "head", "target[0]", "target[1]", "target[2]", "target[3]", "target[4]", "target[5]"};
 
 	return NAME_OF(names, field);
-}
-
-const char *mlip_drive_power_name(uint32_t power)
-{
-	static const char *const names[] = {"none", "enabled",      "disabling", "shutting down",
-	                                    "off",  "switching on", "enabling"};
-
-	return NAME_OF(names, power);
 }
 
 const char *mlip_rec_type_name(uint32_t type)

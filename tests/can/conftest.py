@@ -2,17 +2,22 @@
 CAN FD capable for the fd profile. They fail, never skip: a green run means
 the SocketCAN path really was exercised."""
 import os
-import sys
 from pathlib import Path
 
 import pytest
 
-# the tool-side harness and CAN code (tools/mlipcan): tests import tools, not
-# the other way round
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
-import mlipcan.harness as h  # noqa: E402
+import mlipcan  # the project's Python package (pip install -e . by tools/deps.sh)
+from mlipcan import layout
+from mlipcan.settings import Settings
 
-IFACE = h.IFACE
+ROOT = Path(__file__).resolve().parents[2]
+if Path(mlipcan.__file__).resolve().parent != ROOT / "python" / "mlipcan":
+    pytest.exit(f"mlipcan is imported from {Path(mlipcan.__file__).parent}, not from this "
+                f"checkout ({ROOT}): run tools/deps.sh (pip install -e .)", returncode=4)
+# where things are and how the runs behave (MLIP_BUILD, MLIP_SHARED,
+# MLIP_VCAN_IFACE, MLIP_IN_VM, ...): read once here, passed to the package
+S = Settings.from_environ(ROOT)
+IFACE = S.iface
 SYS = Path("/sys/class/net") / IFACE
 ARPHRD_CAN = 280
 CANFD_MTU = 72
@@ -26,11 +31,11 @@ def vcan():
     assert int((SYS / "type").read_text()) == ARPHRD_CAN, f"{IFACE} is not a CAN interface"
     assert int((SYS / "flags").read_text(), 16) & 0x1, f"{IFACE} is down"
     for t in ("mlip-rt", "mlip-feed", "mlip-ctl", "mlip-sim", "mlip-check"):
-        if not Path(h.tool(t)).exists():
-            pytest.fail(f"{h.tool(t)} missing: run make first")
-    if not h.TOOLPATHS.is_dir():
-        pytest.fail(f"{h.TOOLPATHS} missing: set MLIP_SHARED")
-    h.prime_dbc_cache()  # listener processes then skip the cantools import
+        if not Path(S.tool(t)).exists():
+            pytest.fail(f"{S.tool(t)} missing: run make first")
+    if not S.toolpaths.is_dir():
+        pytest.fail(f"{S.toolpaths} missing: set MLIP_SHARED")
+    layout.prime_cache(S.dbc, S.build)  # listener processes then skip the cantools import
     return IFACE
 
 

@@ -20,10 +20,12 @@ import time
 
 import pytest
 
-import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
-from mlipcan.harness import targets_by_sync, trim  # shared with the demo (drivedemo.py)
+from conftest import S
+from mlipcan import compare, procs
+from mlipcan.compare import targets_by_sync, trim  # shared with the demo (demo_drives.py)
+from mlipcan.config import MachineLimits
 
-MILL = h.CONFIG / "mill-3axis.ini"
+MILL = S.config_dir / "mill-3axis.ini"
 START = {1: 1234, 2: -5000, 3: 250500}
 CPU = 1000.0
 PERIOD_S = 0.04
@@ -69,7 +71,7 @@ def machine(tmp, nodes, home=None, name="m.ini"):
 @pytest.fixture(scope="module")
 def sim(vcan, tmp_path_factory):
     w = tmp_path_factory.mktemp("drivesim")
-    s = h.DriveSim(w, nodes=[1, 2, 3, 4, 5, 6], starts=START, states={2: "fault", 5: "fault"},
+    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3, 4, 5, 6], starts=START, states={2: "fault", 5: "fault"},
                    inject=["4:refuse=0x6060,0x06090030", "5:never-enable", "6:absent"])
     yield s
     s.stop()
@@ -88,7 +90,7 @@ def rt_fails(tmp, config, sim):
     """mlip-rt that must refuse to start: (stderr, time it started)."""
     t0 = time.time()
     rows0 = len(sim.sync_rows())
-    p = h.Proc("rt", [h.tool("mlip-rt"), "--config", config, "--can", h.IFACE, "--priority", "0",
+    p = procs.Proc("rt", [S.tool("mlip-rt"), "--config", config, "--can", S.iface, "--priority", "0",
                       "--shm", f"/mlip-drv-{id(tmp)}"], tmp)
     rc = p.p.wait(timeout=120)
     err = p.stderr()
@@ -150,7 +152,7 @@ def test_bringup_program_shutdown(sim, tmp_path):
     ngc = tmp_path / "p.ngc"
     ngc.write_text(PROGRAM)
     t0 = time.time()
-    with h.Rig(cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         rc, out, err = rig.feed(ngc, timeout=600)
         assert rc == 0, err + rig.rt.stderr()
     r = rig.result
@@ -184,10 +186,10 @@ def test_bringup_program_shutdown(sim, tmp_path):
     assert first == START, first
     got = trim(targets_by_sync(rows, [1, 2, 3]))
     home = {"X": 1.234, "Y": -5.0, "Z": 250.5}
-    trc, _ = h.simulate(machine(tmp_path, [1, 2, 3], home, "sim.ini"), ngc, tmp_path)
-    want = trim(h.trace_counts(trc, [CPU] * 3))
+    trc, _ = compare.simulate(S, machine(tmp_path, [1, 2, 3], home, "sim.ini"), ngc, tmp_path)
+    want = trim(compare.trace_counts(trc, [CPU] * 3))
     assert len(got) == len(want) and got == want, (len(got), len(want))
-    within_limits(got, h.MachineLimits(cfg))
+    within_limits(got, MachineLimits.of(S, cfg))
     # shut-down: disable operation, then shutdown, each drive, with the SYNC
     # still running after both (the drives recorded SYNCs in those states)
     assert "drives disabled in order" in log, log
@@ -225,7 +227,7 @@ def test_supervision(sim, tmp_path, inject, node, axis, reasons):
     ngc = tmp_path / "p.ngc"
     ngc.write_text(PROGRAM_LONG)
     t0 = time.time()
-    with h.Rig(cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         f = rig.feeder(ngc)
         # moving: a target of this run away from this run's first one
         def moving(rs):
@@ -264,7 +266,7 @@ def test_supervision(sim, tmp_path, inject, node, axis, reasons):
     others = [n for n in (1, 2, 3) if n != node]
     seq = targets_by_sync(rows, others)
     assert len(seq) > 10 and len(set(seq[-5:])) == 1, seq[-5:]
-    lim = h.MachineLimits(cfg)
+    lim = MachineLimits.of(S, cfg)
     sub = type("L", (), {"vel": [lim.vel[n - 1] for n in others],
                          "accel": [lim.accel[n - 1] for n in others]})
     within_limits(seq, sub)
@@ -275,9 +277,9 @@ def test_second_controller_leaves_drives_alone(sim, tmp_path):
     """A second mlip-rt --drives on a segment a live controller runs on is
     refused before it sends anything: the running drives are not reset."""
     cfg = machine(tmp_path, [1, 2, 3])
-    with h.Rig(cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         t1 = time.time()
-        p = h.Proc("rt2", [h.tool("mlip-rt"), "--config", cfg, "--can", h.IFACE, "--priority",
+        p = procs.Proc("rt2", [S.tool("mlip-rt"), "--config", cfg, "--can", S.iface, "--priority",
                            "0", "--shm", rig.shm, "--drives"], tmp_path)
         rc = p.p.wait(timeout=120)
         err = p.stderr()
@@ -332,7 +334,7 @@ def test_programs_disable_enable_stop_fail(sim, tmp_path):
     ngc.write_text(PROGRAM)
     long_ngc = tmp_path / "long.ngc"
     long_ngc.write_text(PROGRAM_LONG)
-    with h.Rig(cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         assert rig.status()["drives"] == "enabled"  # by the bring-up, until a program ends
         # 1: a whole program, then disable operation, shutdown, per drive
         t_a = time.time()
@@ -387,7 +389,7 @@ def test_programs_disable_enable_stop_fail(sim, tmp_path):
         assert got[0] == (START[1], moved, START[3]), got[0]
         assert got[-1] == (START[1], START[2], START[3]), got[-1]
         assert len(got) > 50
-        within_limits(got, h.MachineLimits(cfg))
+        within_limits(got, MachineLimits.of(S, cfg))
         # 3: a stop mid-program: at rest on the path, then disabled in order
         t_c = time.time()
         f = rig.feeder(long_ngc)

@@ -1,4 +1,4 @@
-"""The simulated CiA 402 drives (tools/mlip-drive-sim.py) on a real vcan0,
+"""The simulated CiA 402 drives (mlip-drive-sim) on a real vcan0,
 driven by an independent master: canopen's RemoteNode (SDO client, NMT
 master, EMCY consumer, PDO configuration) and raw SYNC/RPDO frames from this
 process. What the drives must do is what CiA 301 / CiA 402 say; what they
@@ -25,18 +25,18 @@ from pathlib import Path
 
 import pytest
 
-import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
+from conftest import S
+from mlipcan import listen, procs, sources
 
 from mlipcan import cia402 as P
 
-SIM = h.ROOT / "tools" / "mlip-drive-sim.py"
 NODES = [1, 2, 3, 4, 5, 6]
 HEALTHY = [1, 2, 3]
 START = {1: 1234, 2: -5000, 3: 250500}
 PERIOD_MS = 4       # 0x60C2 written: 4 x 10^-3 s
 FE_WINDOW = 5000    # 0x6065, counts
 HB_MS = 50          # 0x1017 written to the healthy drives
-T_WAIT = 20.0 if h.IN_VM else 5.0
+T_WAIT = 20.0 if S.in_vm else 5.0
 
 
 class Frames:
@@ -93,14 +93,14 @@ class Bench:
         self.frames = Frames()
         self.net = canopen.Network()
         self.net.listeners.append(self.frames)
-        self.net.connect(interface="socketcan", channel=h.IFACE)
+        self.net.connect(interface="socketcan", channel=S.iface)
         self.nodes = {}
         for n in NODES:
             r = self.net.add_node(n, D.build_od(n))  # the master's view of the OD
             r.sdo.RESPONSE_TIMEOUT = T_WAIT / 4
             self.nodes[n] = r
         self.mark0 = self.frames.mark()
-        self.sim = h.DriveSim(tmp, nodes=NODES, starts=START, states={5: "fault"},
+        self.sim = procs.DriveSimProc(S, tmp, nodes=NODES, starts=START, states={5: "fault"},
                               inject=["4:refuse=0x6060,0x06090030", "5:never-enable", "6:absent"])
         self.proc = self.sim.proc
         self.inject, self.events, self.wait_event = \
@@ -211,7 +211,7 @@ def test_sdo_configuration_read_back(bench):
     b.frames.wait(lambda: len(b.frames.since(m, 0x701)) >= 6, what="6 heartbeats")
     ts = [f[0] for f in b.frames.since(m, 0x701)]
     gaps = [y - x for x, y in zip(ts[1:], ts[2:])]
-    if not h.IN_VM:  # the emulated VM delays user space by tens of ms at times
+    if not S.in_vm:  # the emulated VM delays user space by tens of ms at times
         assert all(0.5 * HB_MS / 1e3 < g < 2 * HB_MS / 1e3 for g in gaps), gaps
 
 
@@ -264,15 +264,15 @@ def test_csp_follows_targets_on_sync(bench):
     # the listener on python-can (can.Bus, can.Notifier, can.Logger to .blf)
     # records the same bus: a fork of this process, python-can already imported
     w = b.tmp
-    largs = ["--can", h.IFACE, "--config", str(h.CONFIG / "mill-3axis.ini"), "--drives",
+    largs = ["--can", S.iface, "--config", str(S.config_dir / "mill-3axis.ini"), "--drives",
              "--receive", "python-can", "--json", str(w / "can.json"),
              "--tpdo-csv", str(w / "tpdo.csv"), "--log", str(w / "can.blf")]
 
     def listener():
-        h.sources._stop = False
-        return h.listen.main(largs)
+        sources.STOP.clear()
+        return listen.main(largs, settings=S)
 
-    lis = h.Proc("listen", largs, w, fn=listener)
+    lis = procs.Proc("listen", largs, w, fn=listener)
     lis.wait_for("listening on")
     try:
         for j in range(n_cyc):
@@ -308,9 +308,9 @@ def test_csp_follows_targets_on_sync(bench):
         acts = [int(f[5]) for f in tp if int(f[1]) == n]
         assert acts == [g[n][1] for g in got], f"node {n}: the listener's TPDOs"
     # and the can.Logger .blf decodes offline to the same cycles
-    assert h.listen.main(["--from-log", str(w / "can.blf"), "--config",
-                          str(h.CONFIG / "mill-3axis.ini"), "--drives",
-                          "--json", str(w / "blf.json"), "-q"]) == 0
+    assert listen.main(["--from-log", str(w / "can.blf"), "--config",
+                          str(S.config_dir / "mill-3axis.ini"), "--drives",
+                          "--json", str(w / "blf.json"), "-q"], settings=S) == 0
     rep2 = json.loads((w / "blf.json").read_text())
     assert rep2["cycles"] == n_cyc and rep2["last"]["counts"] == rep["last"]["counts"]
 
@@ -429,7 +429,7 @@ def test_consumer_heartbeat_lost(bench):
     t, _, d = b.frames.wait_for(m, 0x81)
     assert struct.unpack_from("<H", d)[0] == 0x8130
     assert t - t_stop > 0.2, "EMCY before the consumer time ran out"
-    if not h.IN_VM:
+    if not S.in_vm:
         assert t - t_stop < 0.3 + 0.1
     assert b.events("heartbeat_lost", 1)[0]["producer"] == 127
     assert sdo_state(r) == P.FAULT

@@ -1,4 +1,4 @@
-"""mlip-rt --drives against the simulated CiA 402 drives (tools/mlip-drive-sim.py,
+"""mlip-rt --drives against the simulated CiA 402 drives (mlip-drive-sim,
 the `canopen` package) on a real vcan0: the bring-up as the drives saw it
 (every SDO write, every state transition), a program from where the drives
 stand, the drives' recorded targets against the bus, the shut-down order.
@@ -12,10 +12,12 @@ for the same reason (there mlip-rt's own heartbeats were seen 2.3-4.1 s apart
 on the bus while its loop overran: HEARTBEAT_TIMEOUT_MS 20000)."""
 import time
 
-import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
+from conftest import S
 from mlipcan import cia402 as P
+from mlipcan import compare, procs
+from mlipcan.config import setup_of
 
-MILL = h.CONFIG / "mill-3axis.ini"
+MILL = S.config_dir / "mill-3axis.ini"
 START = {1: 1234, 2: -5000, 3: 2500}   # counts: X 1.234, Y -5, Z 2.5 mm
 SETUP_OBJECTS = {("0x1400", 1), ("0x1400", 2), ("0x1600", 0), ("0x1600", 1), ("0x1600", 2),
                  ("0x1800", 1), ("0x1800", 2), ("0x1A00", 0), ("0x1A00", 1), ("0x1A00", 2),
@@ -36,10 +38,10 @@ def drives_config(tmp_path, period_s=0.004):
 
 def test_bringup_program_shutdown(vcan, tmp_path):
     config = drives_config(tmp_path)
-    setup = h.setup_of(config)
+    setup = setup_of(S, config)
     assert setup.drives
-    ngc = h.cut_program(h.TOOLPATHS / "flower-spiral-2d.ngc", 300, tmp_path / "flower-300.ngc")
-    sim = h.DriveSim(tmp_path, config=config, starts=START, states={2: "fault"})
+    ngc = compare.cut_program(S.toolpaths / "flower-spiral-2d.ngc", 300, tmp_path / "flower-300.ngc")
+    sim = procs.DriveSimProc(S, tmp_path, config=config, starts=START, states={2: "fault"})
     rig = None
 
     def story():
@@ -51,7 +53,7 @@ def test_bringup_program_shutdown(vcan, tmp_path):
                 + "\n".join(str(e) for e in ev[-30:]))
 
     try:
-        with h.Rig(config, "cia402", tmp_path) as rig:
+        with procs.Rig(S, config, "cia402", tmp_path) as rig:
             rc, out, err = rig.feed(ngc, timeout=900)
             try:
                 rig.wait_state("idle", timeout=120)

@@ -23,7 +23,9 @@ import time
 import pytest
 from pathlib import Path
 
-import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
+from conftest import S
+from mlipcan import compare, procs
+from mlipcan.config import MachineLimits
 from test_rt_vcan import DEMO, FLOWER, MILL, PAPER, bus_complete, cut, wait_periods
 
 # <linux/can/error.h>
@@ -69,10 +71,10 @@ def check_physics(rig, ngc, r, tmp, end=True, upto=None):
     setup = rig.setup
     cyc, counts = r["cycles"][:upto], r["counts"][:upto]
     csv = tmp / "decoded.csv"
-    h.write_positions_csv(csv, counts, setup.cpu, setup.period_s, cycles=cyc)
-    args = [h.tool("mlip-check"), "--config", rig.config, "--quantum", repr(quantum(setup)),
+    compare.write_positions_csv(csv, counts, setup.cpu, setup.period_s, cycles=cyc)
+    args = [S.tool("mlip-check"), "--config", rig.config, "--quantum", repr(quantum(setup)),
             "--json", tmp / "check.json"] + ([] if end else ["--no-end"]) + [ngc, csv]
-    p = h.run(args, check=False)
+    p = procs.run_tool(args, check=False)
     assert p.returncode == 0, f"mlip-check on the decoded positions:\n{p.stderr}"
     import json
 
@@ -156,7 +158,7 @@ def test_feeder_killed_then_continued(vcan, tmp_path):
     cfg = short_lookahead(tmp_path, 256)
     prog = cut(FLOWER, 3000, tmp_path)  # 2998 blocks, G01 only
     n = 2998
-    with h.Rig(cfg, "packed", tmp_path, rt_args=["--capacity", "256"]) as rig:
+    with procs.Rig(S, cfg, "packed", tmp_path, rt_args=["--capacity", "256"]) as rig:
         f = rig.feeder(prog, "--quiet")
         at_kill = rig.wait_state("running", timeout=120, pred=lambda s: s["exec_seq"] > 600)
         f.kill()
@@ -174,7 +176,7 @@ def test_feeder_killed_then_continued(vcan, tmp_path):
     assert final["exec_seq"] == n + 1
     assert starved["underruns"] > 0 and at_kill["exec_seq"] < done_seq < n, (at_kill, starved)
     # at rest on the end of the last block received, the whole time starved
-    want = [h.to_counts(v, c) for v, c in zip(line_end(prog, done_line, setup.axes), setup.cpu)]
+    want = [compare.to_counts(v, c) for v, c in zip(line_end(prog, done_line, setup.axes), setup.cpu)]
     i_starved, i_later = starved["heartbeat"] - 1, later["heartbeat"] - 1
     assert all(abs(a - b) <= 1 for a, b in zip(can[i_starved], want)), \
         f"starved at {can[i_starved]} counts, the end of line {done_line} is {want} (+-1 count)"
@@ -204,7 +206,7 @@ def test_feeder_too_slow(vcan, tmp_path):
     prog = cut(FLOWER, 600, tmp_path)  # 598 blocks
     n = 598
     rests = []
-    with h.Rig(cfg, "cia402", tmp_path) as rig:
+    with procs.Rig(S, cfg, "cia402", tmp_path) as rig:
         f = rig.feeder(prog, "--quiet", "--rate", "60")
         for k in (1, 2):
             rig.wait_state("running", timeout=120, pred=lambda s: s["exec_seq"] > 150 * k)
@@ -229,7 +231,7 @@ def test_feeder_too_slow(vcan, tmp_path):
     assert "underrun: no block came after block" in r["rt_stderr"], r["rt_stderr"]
     for starved, later in rests:
         i0, i1 = starved["heartbeat"] - 1, later["heartbeat"] - 1
-        want = [h.to_counts(v, c)
+        want = [compare.to_counts(v, c)
                 for v, c in zip(line_end(prog, starved["exec_line"], setup.axes), setup.cpu)]
         assert all(abs(a - b) <= 1 for a, b in zip(can[i0], want)), (can[i0], want)
         assert all(c == can[i0] for c in can[i0:i1 + 1]), "moved while starved"
@@ -259,7 +261,7 @@ def test_feeder_sigterm_stops_on_the_path(vcan, tmp_path, sig):
     """SIGTERM to mlip-feed: it asks the controller to stop on the path and
     exits 143 naming the line and the --start-seq to resume with. SIGHUP (its
     terminal or ssh session gone) does the same, exit 129."""
-    with h.Rig(MILL, "cia402", tmp_path) as rig:
+    with procs.Rig(S, MILL, "cia402", tmp_path) as rig:
         f = rig.feeder(DEMO)
         before = rig.wait_state("running", timeout=120, pred=lambda s: s["exec_seq"] > 400)
         f.p.send_signal(sig)
@@ -295,7 +297,7 @@ def test_controller_killed(vcan, tmp_path):
     takes over). A new mlip-rt refuses the segment once its layout version
     is another build's, takes it over when it is its own, and refuses to
     continue a program it has not run."""
-    with h.Rig(MILL, "cia402", tmp_path) as rig:
+    with procs.Rig(S, MILL, "cia402", tmp_path) as rig:
         f = rig.feeder(DEMO)
         before = rig.wait_state("running", timeout=120, pred=lambda s: s["exec_seq"] > 300)
         rig.rt.p.kill()
@@ -322,20 +324,20 @@ def test_controller_killed(vcan, tmp_path):
     # the segment a SIGKILL left behind
     seg = Path("/dev/shm") / rig.shm.lstrip("/")
     assert seg.exists()
-    args = [h.tool("mlip-rt"), "--config", MILL, "--can", h.IFACE, "--shm", rig.shm]
+    args = [S.tool("mlip-rt"), "--config", MILL, "--can", S.iface, "--shm", rig.shm]
     with open(seg, "r+b") as fh, mmap.mmap(fh.fileno(), 64) as mm:
         version = struct.unpack_from("<I", mm, 8)[0]
         struct.pack_into("<I", mm, 8, version + 1)  # as if another build had left it
-        p = h.run(args, check=False, timeout=120)
+        p = procs.run_tool(args, check=False, timeout=120)
         assert p.returncode == 1, p.stderr
         assert f"has layout version {version + 1}, this mlip-rt speaks {version}" in p.stderr
         struct.pack_into("<I", mm, 8, version)
-    new = h.Proc("rt2", args, tmp_path)
+    new = procs.Proc("rt2", args, tmp_path)
     try:
         new.wait_for("ready on")
         s = rig.wait_state("idle", timeout=60)
         assert s["alive"] and s["exec_seq"] == 0, s
-        p = h.run([h.tool("mlip-feed"), "--shm", rig.shm, "--start-seq", line, DEMO], check=False,
+        p = procs.run_tool([S.tool("mlip-feed"), "--shm", rig.shm, "--start-seq", line, DEMO], check=False,
                   timeout=120)
         assert p.returncode == 1 and "has run no block of a program" in p.stderr, p.stderr
     finally:
@@ -347,7 +349,7 @@ def test_controller_killed(vcan, tmp_path):
 
 
 def signal_rt(tmp_path, sig):
-    with h.Rig(MILL, "cia402", tmp_path) as rig:
+    with procs.Rig(S, MILL, "cia402", tmp_path) as rig:
         f = rig.feeder(DEMO)
         before = rig.wait_state("running", timeout=120, pred=lambda s: s["exec_seq"] > 400)
         rig.rt.p.send_signal(sig)
@@ -363,7 +365,7 @@ def signal_rt(tmp_path, sig):
     check_physics(rig, DEMO, r, tmp_path, end=False)
     # at rest when it exited: the last period is the last step of the
     # braking, from at most A T into rest: |step| <= A T^2 (+ a count)
-    lim = h.MachineLimits(MILL)
+    lim = MachineLimits.of(S, MILL)
     for k, c in enumerate(setup.cpu):
         step = abs(can[-1][k] - can[-2][k]) / c
         assert step <= lim.accel[k] * setup.period_s ** 2 + 1 / c, \
@@ -423,7 +425,7 @@ def bus_fault(tmp_path, profile, inject, recover, what):
         rig.ctl("resume")
         m["after"] = rig.wait_state("running", timeout=60)
 
-    with h.Rig(MILL, profile, tmp_path) as rig:
+    with procs.Rig(S, MILL, profile, tmp_path) as rig:
         rc, _, err = rig.feed(DEMO, actions)
         assert rc == 0, err
         final = rig.wait_state("idle", timeout=60)
@@ -440,7 +442,7 @@ def test_tx_queue_full_holds_then_resumes(vcan, fd_mtu, tmp_path):
     refusals, holds the machine on the path, refuses a resume until the bus
     has been clean for 100 periods, then finishes the program. fd profile:
     its counter shows the periods the bus lost."""
-    dev = h.IFACE
+    dev = S.iface
 
     def inject():
         tc("qdisc", "add", "dev", dev, "root", "pfifo", "limit", "0")
@@ -501,8 +503,8 @@ def test_bus_off_holds_then_resumes(vcan, tmp_path):
     restarted error frame. vcan carries every setpoint meanwhile, so the
     braking itself is on the record."""
     rig, r, m = bus_fault(tmp_path, "cia402",
-                          lambda: send_error_frame(h.IFACE, CAN_ERR_BUSOFF),
-                          lambda: send_error_frame(h.IFACE, CAN_ERR_RESTARTED),
+                          lambda: send_error_frame(S.iface, CAN_ERR_BUSOFF),
+                          lambda: send_error_frame(S.iface, CAN_ERR_RESTARTED),
                           "can_bus_errors")
     setup = rig.setup
     bus_complete(r, setup, "cia402")
@@ -541,7 +543,7 @@ def test_override_storm_with_holds(vcan, tmp_path):
 
     def actions(rig):
         rig.wait_state("running", pred=lambda s: s["exec_seq"] > 20)
-        ctl = subprocess.Popen([h.tool("mlip-ctl"), "--shm", rig.shm, "-"], stdin=subprocess.PIPE,
+        ctl = subprocess.Popen([S.tool("mlip-ctl"), "--shm", rig.shm, "-"], stdin=subprocess.PIPE,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             t_status = 0.0
@@ -570,7 +572,7 @@ def test_override_storm_with_holds(vcan, tmp_path):
             out, err = ctl.communicate(timeout=120)
         m["rc"], m["done"], m["err"] = ctl.returncode, out.count(": done"), err
 
-    with h.Rig(MILL, "cia402", tmp_path) as rig:
+    with procs.Rig(S, MILL, "cia402", tmp_path) as rig:
         rc, _, err = rig.feed(DEMO, actions)
         assert rc == 0, f"seed {seed}: {err}"
         final = rig.wait_state("idle", timeout=60)
@@ -580,7 +582,7 @@ def test_override_storm_with_holds(vcan, tmp_path):
     bus_complete(r, setup, "cia402")
     assert final["exec_seq"] == 1820 and final["override_pct"] == 100, final
     js = check_physics(rig, DEMO, r, tmp_path)
-    rows, _ = h.simulate(MILL, DEMO, tmp_path)
+    rows, _ = compare.simulate(S, MILL, DEMO, tmp_path)
     moving = [i for i in range(1, len(r["counts"])) if r["counts"][i] != r["counts"][i - 1]]
     report("override storm with holds", seed=seed, commands=m["sent"], holds=m["holds"],
            overrides=len(m["overrides"]), blocks_executed="1819 of 1819",

@@ -1,5 +1,5 @@
 """End to end on a real vcan0: mlip-rt puts setpoints on the bus, the listener
-(tools/mlip-listen.py) rebuilds them, and they must equal mlip-sim's trace for
+(mlip-listen) rebuilds them, and they must equal mlip-sim's trace for
 the same program and machine to the last drive count.
 
 Run it where vcan0 exists (on the host if its kernel has CAN, else in a VM):
@@ -33,15 +33,17 @@ import time
 
 import pytest
 
-import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
+from conftest import S
+from mlipcan import compare, decoders, layout, listen, procs, report, sources
+from mlipcan.config import MachineLimits, UsageError, setup_of
 
-IFACE = h.IFACE
+IFACE = S.iface
 
-FLOWER = h.TOOLPATHS / "flower-spiral-2d.ngc"
-MB23 = h.TOOLPATHS / "MB-2.3_test.nc"
-DEMO = h.ROOT / "examples" / "demo.ngc"
-PAPER = h.CONFIG / "paper-2axis.ini"
-MILL = h.CONFIG / "mill-3axis.ini"
+FLOWER = S.toolpaths / "flower-spiral-2d.ngc"
+MB23 = S.toolpaths / "MB-2.3_test.nc"
+DEMO = S.root / "examples" / "demo.ngc"
+PAPER = S.config_dir / "paper-2axis.ini"
+MILL = S.config_dir / "mill-3axis.ini"
 # Cuts: the first lines of each file (its header sets units and modes), a few
 # seconds of machining at the machine's limits.
 FLOWER_LINES = 2000   # 1998 blocks, 2.95 s
@@ -49,7 +51,7 @@ MB23_LINES = 400      # 398 blocks, ~3.6 s
 
 
 def cut(src, n, tmp_path):
-    return h.cut_program(src, n, tmp_path / f"{src.stem}-{n}.ngc")
+    return compare.cut_program(src, n, tmp_path / f"{src.stem}-{n}.ngc")
 
 
 # ------------------------------------------------------------------ checks
@@ -81,8 +83,8 @@ def physics(rig, ngc, counts, quantum, tmp, end_on_last=True):
     """mlip-check --quantum on decoded positions (t = k T)."""
     setup = rig.setup
     csv = tmp / "decoded.csv"
-    h.write_positions_csv(csv, counts, setup.cpu, setup.period_s)
-    p, js = h.mlip_check(rig.config, ngc, csv, quantum, tmp / "check.json")
+    compare.write_positions_csv(csv, counts, setup.cpu, setup.period_s)
+    p, js = compare.mlip_check(S, rig.config, ngc, csv, quantum, tmp / "check.json")
     if end_on_last:
         assert p.returncode == 0, f"mlip-check on the decoded positions:\n{p.stderr}"
     else:
@@ -90,7 +92,7 @@ def physics(rig, ngc, counts, quantum, tmp, end_on_last=True):
         # stop we judge its measurements with the same bounds, minus that.
         assert js is not None, p.stderr
         max_abs = max(abs(c[i] / setup.cpu[i]) for c in counts for i in range(len(setup.cpu)))
-        bad = h.check_bounds(rig.config, js, quantum, max_abs)
+        bad = compare.check_bounds(MachineLimits.of(S, rig.config), js, quantum, max_abs)
         assert not bad, f"decoded positions out of bounds: {bad}\n{p.stderr}"
     return js
 
@@ -104,12 +106,12 @@ def summary_line(name, rig, r, extra=""):
           f"overruns {r['rt'].get('overruns')}{extra}")
 
 
-def exact_run(tmp_path, config, ngc, profile, exec_listener=h.EXEC_LISTENER, strategy="mpct"):
+def exact_run(tmp_path, config, ngc, profile, exec_listener=S.exec_listener, strategy="mpct"):
     """A whole program, no commands: the bus must carry the simulator's trace."""
-    rows, summ = h.simulate(config, ngc, tmp_path, "--strategy", strategy)
-    setup = h.setup_of(config)
-    trc = h.trace_counts(rows, setup.cpu)
-    with h.Rig(config, profile, tmp_path, exec_listener=exec_listener,
+    rows, summ = compare.simulate(S, config, ngc, tmp_path, "--strategy", strategy)
+    setup = setup_of(S, config)
+    trc = compare.trace_counts(rows, setup.cpu)
+    with procs.Rig(S, config, profile, tmp_path, exec_listener=exec_listener,
                rt_args=("--strategy", strategy)) as rig:
         rc, out, err = rig.feed(ngc)
         assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
@@ -117,11 +119,11 @@ def exact_run(tmp_path, config, ngc, profile, exec_listener=h.EXEC_LISTENER, str
     r = rig.result
     bus_complete(r, setup, profile)
     can = r["counts"]
-    off, how = h.align(can, trc)
+    off, how = compare.align(can, trc)
     home = trc[0]
     assert off > 0, f"no idle cycle before the motion ({how})"
     assert all(c == home for c in can[:off]), "the bus moved before the trace's first row"
-    bad = h.first_mismatch(can, trc, off)
+    bad = compare.first_mismatch(can, trc, off)
     assert bad is None, f"bus != mlip-sim trace ({how}): {bad}"
     tail = can[off + len(trc):]
     assert len(tail) > 0 and all(c == trc[-1] for c in tail), \
@@ -166,8 +168,8 @@ def test_demo_whole_exact(vcan, tmp_path):
     """One whole program: examples/demo.ngc (1819 blocks, 6.5 s, arcs and a
     helix). No shared toolpath runs in under a minute: the shortest, 4006.nc
     on config/rotary-4axis.ini, takes 228 s of machining.
-    The listener runs here as its own process (`python tools/mlip-listen.py`,
-    the command line a user types, SIGTERM to end it); the other runs fork it
+    The listener runs here as its own process (`mlip-listen`, the command
+    line a user types, SIGTERM to end it); the other runs fork it
     from pytest to save the interpreter's start, 10-35 s in the emulated VM."""
     exact_run(tmp_path, MILL, DEMO, "cia402", exec_listener=True)
 
@@ -204,8 +206,8 @@ def test_override_changes(vcan, tmp_path):
     """Override 40 %, then 150 %, then 100 % during demo.ngc: the limits hold,
     the 40 % phase stays under 40 % of the feed cap, the program completes."""
     config, ngc = MILL, DEMO
-    rows, summ = h.simulate(config, ngc, tmp_path)
-    lim = h.MachineLimits(config)
+    rows, summ = compare.simulate(S, config, ngc, tmp_path)
+    lim = MachineLimits.of(S, config)
     m = {}
 
     def actions(rig):
@@ -218,7 +220,7 @@ def test_override_changes(vcan, tmp_path):
         rig.ctl("override", "100")
         m["last"] = rig.status()
 
-    with h.Rig(config, "cia402", tmp_path) as rig:
+    with procs.Rig(S, config, "cia402", tmp_path) as rig:
         rc, out, err = rig.feed(ngc, actions)
         assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
         rig.wait_state("idle", timeout=60)
@@ -232,12 +234,12 @@ def test_override_changes(vcan, tmp_path):
     assert m["last"]["override_pct"] == 100, m["last"]
     st = rig.final_status
     assert st["state"] == "idle" and st["exec_seq"] == summ["blocks"] + 1, st
-    assert can[-1] == h.trace_counts(rows[-1:], setup.cpu)[0], "not at rest on the last point"
+    assert can[-1] == compare.trace_counts(rows[-1:], setup.cpu)[0], "not at rest on the last point"
     # the 40 % phase: from the command plus the time to brake from v_m on
     brake = int(lim.vmax / min(lim.accel) / lim.period_s) + 20
     i0, i1 = m["slow_from"]["heartbeat"] + brake, m["slow_to"]["heartbeat"] - 1
     assert i1 - i0 >= 900 and start < i0 and i1 < end, (start, i0, i1, end)
-    sp = h.speeds(can[i0:i1], setup.cpu, setup.period_s, [True] * 3)
+    sp = compare.speeds(can[i0:i1], setup.cpu, setup.period_s, [True] * 3)
     cap = 0.40 * lim.vmax + 4 * quantum * 3 ** 0.5 / lim.period_s
     assert max(sp) <= cap, f"speed {max(sp):.3f} mm/s at 40 % override (cap {cap:.3f})"
     moving = end - start
@@ -251,7 +253,7 @@ def test_hold_resume(vcan, tmp_path):
     """Feed hold mid-program: the machine brakes to rest on the path (the
     same setpoint on consecutive cycles while held), resumes, completes."""
     config, ngc = MILL, DEMO
-    rows, summ = h.simulate(config, ngc, tmp_path)
+    rows, summ = compare.simulate(S, config, ngc, tmp_path)
     m = {}
 
     def actions(rig):
@@ -263,7 +265,7 @@ def test_hold_resume(vcan, tmp_path):
         rig.ctl("resume")
         m["after"] = rig.wait_state("running", timeout=60)
 
-    with h.Rig(config, "cia402", tmp_path) as rig:
+    with procs.Rig(S, config, "cia402", tmp_path) as rig:
         rc, out, err = rig.feed(ngc, actions)
         assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
         rig.wait_state("idle", timeout=60)
@@ -278,7 +280,7 @@ def test_hold_resume(vcan, tmp_path):
     # still from when HELD was reported until the resume
     h0, h1 = m["held"]["heartbeat"] - 1, m["resume"]["heartbeat"] - 1
     assert all(c == can[h0] for c in can[h0:h1 + 1]), "the setpoint moved while HELD"
-    run_len, at = h.longest_still_run(can, start + 1, end)
+    run_len, at = compare.longest_still_run(can, start + 1, end)
     assert at <= h0 and h1 < at + run_len, (at, run_len, h0, h1)
     assert start < at and at + run_len < end, "the still run is not inside the motion"
     # moving when the hold was sent (the rest began after it)
@@ -286,7 +288,7 @@ def test_hold_resume(vcan, tmp_path):
     assert 0 < m["held"]["exec_seq"] < summ["blocks"] + 1, m["held"]
     st = rig.final_status
     assert st["state"] == "idle" and st["exec_seq"] == summ["blocks"] + 1, st
-    assert can[-1] == h.trace_counts(rows[-1:], setup.cpu)[0], "not at rest on the last point"
+    assert can[-1] == compare.trace_counts(rows[-1:], setup.cpu)[0], "not at rest on the last point"
     summary_line("hold", rig, r, f", still for {run_len} cycles from cycle {at} "
                  f"(block {m['held']['exec_seq']}), then resumed to the end")
 
@@ -296,8 +298,8 @@ def test_stop(vcan, tmp_path):
     to rest (contour and acceleration within bounds; no end-point condition),
     the controller is IDLE and the rest of the program is dropped."""
     config, ngc = MILL, DEMO
-    rows, summ = h.simulate(config, ngc, tmp_path)
-    lim = h.MachineLimits(config)
+    rows, summ = compare.simulate(S, config, ngc, tmp_path)
+    lim = MachineLimits.of(S, config)
     m = {}
 
     def actions(rig):
@@ -306,7 +308,7 @@ def test_stop(vcan, tmp_path):
         rig.ctl("stop")
         m["after"] = rig.status()
 
-    with h.Rig(config, "cia402", tmp_path) as rig:
+    with procs.Rig(S, config, "cia402", tmp_path) as rig:
         rc, out, err = rig.feed(ngc, actions)
         assert rc == 4, f"mlip-feed exited {rc} after a stop (4 expected):\n{err}"
         idle = rig.wait_state("idle", timeout=60)
@@ -317,7 +319,7 @@ def test_stop(vcan, tmp_path):
     start, end = moving_span(can)
     quantum = max(1.0 / c for c in setup.cpu)
     physics(rig, ngc, can[start:], quantum, tmp_path, end_on_last=False)
-    last = h.trace_counts(rows[-1:], setup.cpu)[0]
+    last = compare.trace_counts(rows[-1:], setup.cpu)[0]
     assert can[-1] != last, "the program ran to its end despite the stop"
     assert all(c == can[end] for c in can[end:]), "not at rest after the stop"
     # moving when the stop was sent, at rest within the braking time after
@@ -344,14 +346,14 @@ def test_dwell_and_pause(vcan, tmp_path):
     config = MILL
     ngc = tmp_path / "events.ngc"
     ngc.write_text(EVENTS_NGC)
-    probe = h.run([h.tool("mlip-sim"), "-q", "--config", config, ngc], check=False)
+    probe = procs.run_tool([S.tool("mlip-sim"), "-q", "--config", config, ngc], check=False)
     if probe.returncode != 0:
         pytest.skip(f"this build's G-code front end has no G4/M0: {probe.stderr.strip()}")
-    rows, summ = h.simulate(config, ngc, tmp_path)
-    setup = h.setup_of(config)
-    trc = h.trace_counts(rows, setup.cpu)
-    dwell_pt = tuple(h.to_counts(x, c) for x, c in zip((20.0, 20.0, 0.0), setup.cpu))
-    pause_pt = tuple(h.to_counts(x, c) for x, c in zip((40.0, 20.0, 0.0), setup.cpu))
+    rows, summ = compare.simulate(S, config, ngc, tmp_path)
+    setup = setup_of(S, config)
+    trc = compare.trace_counts(rows, setup.cpu)
+    dwell_pt = tuple(compare.to_counts(x, c) for x, c in zip((20.0, 20.0, 0.0), setup.cpu))
+    pause_pt = tuple(compare.to_counts(x, c) for x, c in zip((40.0, 20.0, 0.0), setup.cpu))
     j = trc.index(pause_pt)  # the trace reaches the M0 point
     m = {}
 
@@ -360,7 +362,7 @@ def test_dwell_and_pause(vcan, tmp_path):
         m["resume"] = wait_periods(rig, 500, m["paused"])
         rig.ctl("resume")
 
-    with h.Rig(config, "cia402", tmp_path) as rig:
+    with procs.Rig(S, config, "cia402", tmp_path) as rig:
         rc, out, err = rig.feed(ngc, actions)
         assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
         assert "paused (pause (M0)) at line 6: mlip-ctl resume continues" in err, err
@@ -368,8 +370,8 @@ def test_dwell_and_pause(vcan, tmp_path):
     r = rig.result
     bus_complete(r, setup, "cia402")
     can = r["counts"]
-    off, how = h.align(can, trc)
-    bad = h.first_mismatch(can[:off + j + 1], trc[:j + 1], off)
+    off, how = compare.align(can, trc)
+    bad = compare.first_mismatch(can[:off + j + 1], trc[:j + 1], off)
     assert bad is None, f"bus != mlip-sim trace up to the pause ({how}): {bad}"
     # the dwell in the setpoints the bus carried (equal to the trace there):
     # exactly at (20, 20) for 301 samples, 300 periods (counts round a few
@@ -393,7 +395,7 @@ def test_stall_holds_without_jump(vcan, tmp_path):
     rest on mlip-ctl resume; mlip-check passes on the decoded positions with
     the gaps as holes (this guest adds stalls of its own: each is resumed)."""
     config, ngc = MILL, DEMO
-    setup = h.setup_of(config)
+    setup = setup_of(S, config)
     m = {}
 
     def actions(rig):
@@ -410,7 +412,7 @@ def test_stall_holds_without_jump(vcan, tmp_path):
             time.sleep(0.05)
 
     # 200 periods: above the spikes of an emulated guest (~0.3 s at worst)
-    with h.Rig(config, "cia402", tmp_path, rt_args=["--stall-periods", "200"]) as rig:
+    with procs.Rig(S, config, "cia402", tmp_path, rt_args=["--stall-periods", "200"]) as rig:
         rc, out, err = rig.feed(ngc, actions)
         assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
         assert "stall: the controller missed" in err and "mlip-ctl resume" in err, err
@@ -428,7 +430,7 @@ def test_stall_holds_without_jump(vcan, tmp_path):
     j = next(i for i in range(k, len(can)) if can[i] != can[k])
     quantum = max(1.0 / c for c in setup.cpu)
     step = max(abs(a - b) / c for a, b, c in zip(can[j], can[j - 1], setup.cpu))
-    amax = max(h.MachineLimits(config).accel)
+    amax = max(MachineLimits.of(S, config).accel)
     assert step <= amax * T * T + 2 * quantum, f"restarted with {step} mm in one period"
     # physics across the whole run, gaps of more than 10 periods as holes
     cycles = [0]
@@ -436,8 +438,8 @@ def test_stall_holds_without_jump(vcan, tmp_path):
         d = t[i] - t[i - 1]
         cycles.append(cycles[-1] + (round(d / T) if d > 10 * T else 1))
     csv = tmp_path / "decoded.csv"
-    h.write_positions_csv(csv, can, setup.cpu, T, cycles)
-    p, _ = h.mlip_check(config, ngc, csv, quantum, tmp_path / "check.json")
+    compare.write_positions_csv(csv, can, setup.cpu, T, cycles)
+    p, _ = compare.mlip_check(S, config, ngc, csv, quantum, tmp_path / "check.json")
     assert p.returncode == 0, f"mlip-check on the decoded positions:\n{p.stderr}"
     summary_line("stall", rig, r, f", gap {gap:.3f} s at cycle {k}, held {j - k} cycles, "
                  f"restart step {step * 1e3:.2f} um")
@@ -458,7 +460,7 @@ def _frames(setup, profile, cycle, counts):
             out.append((setup.packed_base + k, struct.pack("<" + "i" * len(vals), *vals), False))
         out.append((setup.packed_base + (n + 1) // 2, struct.pack("<I", cycle), False))
         return out
-    ln = h.listen.fd_len(4 + 4 * n)
+    ln = layout.fd_len(4 + 4 * n)
     data = struct.pack("<I" + "i" * n, cycle, *counts)
     return [(setup.fd_id, data + bytes(ln - len(data)), True)]
 
@@ -476,22 +478,22 @@ def _write_log(path, frames):
 def _listen_offline(tmp_path, config, profile, frames):
     log = tmp_path / f"{profile}.log"
     _write_log(log, frames)
-    rc = h.listen.main(["--from-log", str(log), "--config", str(config), "--profile", profile,
+    rc = listen.main(["--from-log", str(log), "--config", str(config), "--profile", profile,
                         "--csv", str(tmp_path / "o.csv"), "--json", str(tmp_path / "o.json"),
-                        "--log", str(tmp_path / "o.log"), "-q"])
+                        "--log", str(tmp_path / "o.log"), "-q"], settings=S)
     assert rc == 0
     rep = json.loads((tmp_path / "o.json").read_text())
     assert (tmp_path / "o.log").read_text() == log.read_text(), "--log is not the same candump text"
-    return rep, h.read_can_csv(tmp_path / "o.csv", len(h.setup_of(config).axes))
+    return rep, report.read_csv(tmp_path / "o.csv", len(setup_of(S, config).axes))
 
 
 @pytest.mark.parametrize("profile", ["cia402", "packed", "fd"])
-@pytest.mark.parametrize("config", [PAPER, MILL, h.CONFIG / "rotary-4axis.ini"],
+@pytest.mark.parametrize("config", [PAPER, MILL, S.config_dir / "rotary-4axis.ini"],
                          ids=["2axis", "3axis", "4axis"])
 def test_listener_decodes_and_reports_loss(tmp_path, config, profile):
     """Frames of 20 periods with one period lost, one frame lost and one frame
     duplicated: the listener rebuilds the rest and names each anomaly."""
-    setup = h.setup_of(config)
+    setup = setup_of(S, config)
     n = len(setup.axes)
     npos = (n + 1) // 2
     t0 = 1_700_000_000_000_000_000
@@ -541,7 +543,7 @@ def test_listener_decodes_and_reports_loss(tmp_path, config, profile):
 
 def test_listener_missing_sync(tmp_path):
     """cia402: a whole set of RPDOs with no SYNC before it is a missing SYNC."""
-    setup = h.setup_of(MILL)
+    setup = setup_of(S, MILL)
     seq = []
     for c in range(6):
         fr = _frames(setup, "cia402", c, [c, c, c])
@@ -555,8 +557,8 @@ def test_listener_missing_sync(tmp_path):
 
 def test_listener_counts_to_positions(tmp_path):
     """CSV positions are counts / COUNTS_PER_UNIT (100 counts/deg on A)."""
-    config = h.CONFIG / "rotary-4axis.ini"
-    setup = h.setup_of(config)
+    config = S.config_dir / "rotary-4axis.ini"
+    setup = setup_of(S, config)
     assert setup.cpu == [1000.0, 1000.0, 1000.0, 100.0] and setup.nodes == [1, 2, 3, 4]
     counts = [12345, -1, 2**31 - 1, -2**31]
     frames = [(1_700_000_000_000_000_000, f) for f in _frames(setup, "cia402", 0, counts)]
@@ -575,7 +577,7 @@ def test_listener_records_a_cia402_deployment(tmp_path):
     go to --tpdo-csv and the report's "drives", the rest is named; the same
     frames through an .asc log (python-can's can.Logger / can.LogReader)
     decode the same."""
-    setup = h.setup_of(MILL)
+    setup = setup_of(S, MILL)
     t0 = 1_700_000_000_000_000_000
     seq = [(t0, (0x000, bytes([0x01, 0]), False))]
     for c in range(10):
@@ -595,12 +597,12 @@ def test_listener_records_a_cia402_deployment(tmp_path):
     out = {}
     for name, src in (("log", log), ("asc", tmp_path / "d.asc")):
         if name == "asc":  # candump -> .asc through the listener's own --log
-            assert h.listen.main(["--from-log", str(log), "--config", str(MILL), "--drives",
-                                  "--log", str(src), "-q"]) == 0
+            assert listen.main(["--from-log", str(log), "--config", str(MILL), "--drives",
+                                  "--log", str(src), "-q"], settings=S) == 0
         js = tmp_path / f"{name}.json"
         tp = tmp_path / f"{name}-tpdo.csv"
-        assert h.listen.main(["--from-log", str(src), "--config", str(MILL), "--drives",
-                              "--json", str(js), "--tpdo-csv", str(tp), "-q"]) == 0
+        assert listen.main(["--from-log", str(src), "--config", str(MILL), "--drives",
+                              "--json", str(js), "--tpdo-csv", str(tp), "-q"], settings=S) == 0
         out[name] = (json.loads(js.read_text()), tp.read_text().splitlines())
     for rep, rows in out.values():
         assert rep["cycles"] == 10 and rep["incomplete"] == 0 and rep["malformed"] == 0
@@ -622,7 +624,7 @@ def test_listener_records_a_cia402_deployment(tmp_path):
 def _batch(frames):
     """(t ns, id, data) frames as one recvmmsg would leave them in the fast
     path's buffers (frame, msg_len, the SO_TIMESTAMPNS control message)."""
-    src = h.sources
+    src = sources
 
     class NoSocket:
         def fileno(self):
@@ -647,9 +649,9 @@ def test_listener_fast_path_with_drives_frames():
     TPDOs), and most stream frames by slicing."""
     import random
 
-    setup = h.setup_of(MILL)
+    setup = setup_of(S, MILL)
     setup.drives = True
-    lay = h.listen.Layout(setup, "cia402", h.listen.DEFAULT_DBC, h.ROOT / "build")
+    lay = layout.Layout(setup, "cia402", S.dbc, S.build)
     fr, t = [], 1_700_000_000_000_000_000
     for c in range(60):
         t += 1_000_000
@@ -659,10 +661,10 @@ def test_listener_fast_path_with_drives_frames():
         random.Random(c).shuffle(mix)
         rpdos = iter(rp)  # the RPDOs stay in axis order (mlip-rt sends them so)
         fr += [(t, 0x80, b"")] + [x if x[1] < 0x200 else next(rpdos) for x in mix]
-    fast = h.decoders.DECODERS["cia402"](lay)
+    fast = decoders.DECODERS["cia402"](lay)
     for i in range(0, len(fr), 97):
         fast.feed_batch(_batch(fr[i:i + 97]))
-    slow = h.decoders.DECODERS["cia402"](lay)
+    slow = decoders.DECODERS["cia402"](lay)
     for t, cid, d in fr:
         slow.feed(t, cid, d, len(d), False)
     assert len(slow.cyc) == 60 and slow.counts[-1] == (58993, 117993, 176993)
@@ -682,7 +684,7 @@ def test_listener_fast_path_with_drives_frames():
 def test_listener_refuses_a_dbc_that_disagrees(monkeypatch, profile, message, change, error):
     """The layout read from the DBC is checked field by field against what
     canenc.h sends for this config; a disagreement is an error (exit 2)."""
-    msgs, _ = h.listen.load_dbc(h.listen.DEFAULT_DBC, h.ROOT / "build")
+    msgs, _ = layout.load_dbc(S.dbc, S.build)
     bad = []
     for m in msgs:
         sigs = list(m.signals)
@@ -690,21 +692,22 @@ def test_listener_refuses_a_dbc_that_disagrees(monkeypatch, profile, message, ch
             # the first axis field, or the counter when the error names it
             target = [s for s in sigs if (s.name == "cycle") == ("cycle" in error)
                       and s.name != "controlword"][:1]
-            sigs = [h.listen._ns(dict(vars(s), **change)) if s in target else s for s in sigs]
-        bad.append(h.listen._ns(dict(vars(m), signals=sigs)))
-    monkeypatch.setattr(h.layout, "load_dbc", lambda path, cache=None: (bad, "test"))
-    with pytest.raises(h.listen.UsageError, match=error):
-        h.listen.Layout(h.setup_of(MILL), profile, h.listen.DEFAULT_DBC)
-    assert h.listen.main(["--check-layout", "--config", str(MILL), "--profile", profile]) == 2
+            sigs = [s._replace(**change) if s in target else s for s in sigs]
+        bad.append(m._replace(signals=tuple(sigs)))
+    monkeypatch.setattr(layout, "load_dbc", lambda path, cache=None: (bad, "test"))
+    with pytest.raises(UsageError, match=error):
+        layout.Layout(setup_of(S, MILL), profile, S.dbc)
+    rc = listen.main(["--check-layout", "--config", str(MILL), "--profile", profile], settings=S)
+    assert rc == 2
 
 
 def test_listener_layout_matches_config():
     """The DBC's default 6-axis setup against the shipped configs: ids and
     layouts agree; what differs (lengths, the COMMIT id for fewer axes,
     counts per unit) is noted, not refused."""
-    for cfg in (PAPER, MILL, h.CONFIG / "rotary-4axis.ini"):
+    for cfg in (PAPER, MILL, S.config_dir / "rotary-4axis.ini"):
         for profile in ("cia402", "packed", "fd"):
-            lay = h.listen.Layout(h.setup_of(cfg), profile, h.listen.DEFAULT_DBC, h.ROOT / "build")
+            lay = layout.Layout(setup_of(S, cfg), profile, S.dbc, S.build)
             assert lay.frames_per_cycle == {"cia402": 1 + lay.n, "packed": (lay.n + 1) // 2 + 1,
                                             "fd": 1}[profile]
             assert not any("0x" in n and "by the config" in n for n in lay.notes), lay.notes
@@ -712,7 +715,7 @@ def test_listener_layout_matches_config():
 
 def test_counts_rounding_matches_canenc():
     """round half away from zero, as mlip_can_counts (canenc.h)."""
-    assert [h.to_counts(v, 1000) for v in (0.0005, -0.0005, 0.0015, -0.0025, 1.2344999)] == \
+    assert [compare.to_counts(v, 1000) for v in (0.0005, -0.0005, 0.0015, -0.0025, 1.2344999)] == \
         [1, -1, 2, -3, 1234]
-    assert h.to_counts(0.49999999999999994, 1) == 0
-    assert h.to_counts(2.5, 1) == 3 and h.to_counts(-2.5, 1) == -3
+    assert compare.to_counts(0.49999999999999994, 1) == 0
+    assert compare.to_counts(2.5, 1) == 3 and compare.to_counts(-2.5, 1) == -3

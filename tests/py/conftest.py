@@ -8,11 +8,19 @@ from pathlib import Path
 
 import pytest
 
+import mlipcan  # the project's Python package (pip install -e . by tools/deps.sh)
+from mlipcan.settings import Settings
+
 ROOT = Path(__file__).resolve().parents[2]
 BUILD = ROOT / os.environ.get("MLIP_BUILD", "build")
 SHARED = Path(os.environ.get("MLIP_SHARED", ROOT.parent / "shared"))
 TOOLPATHS = SHARED / "toolpaths"
 CONFIG = ROOT / "config"
+# the package's view of the same: what its functions take as settings
+S = Settings.from_environ(ROOT)
+if Path(mlipcan.__file__).resolve().parent != ROOT / "python" / "mlipcan":
+    pytest.exit(f"mlipcan is imported from {Path(mlipcan.__file__).parent}, not from this "
+                f"checkout ({ROOT}): run tools/deps.sh (pip install -e .)", returncode=4)
 
 # Every physical limit is asserted with this relative tolerance, above; and
 # "the limit is used" is asserted below it (both sides of each bound).
@@ -35,6 +43,15 @@ def run(args, check=True, **kw):
 def sim_summary(path, *opts):
     p = run(["mlip-sim", "-q", "--summary", "-", *opts, path])
     return json.loads(p.stdout)
+
+
+def offsets_file(path, *sets, config=CONFIG / "mill-3axis.ini"):
+    """A sealed offsets file: mlip-offsets --init (all zero, G54, G28/G30 at
+    HOME), then --set for each "KEY VALUES" (e.g. "G55 X10 Y20")."""
+    run(["mlip-offsets", "--init", "--config", config, path])
+    if sets:
+        run(["mlip-offsets", *[a for s in sets for a in ("--set", s)], path])
+    return path
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -70,6 +70,10 @@ def _scratch_copy(tmp_path):
     # a lower folder reaching up the data path
     ("src/gcode/gcode.c", "mlip/ctl/controller.h", "folder 'gcode' may include only"),
     ("include/mlip/motion/planner.h", "mlip/ipc/ring.h", "folder 'motion' may include only"),
+    ("include/mlip/can/canenc.h", "mlip/machine/config.h", "folder 'can' may include only"),
+    # a folder's private header keeps the folder's rules; another folder's is refused
+    ("src/gcode/gc.h", "mlip/machine/config.h", "folder 'gcode' may include only"),
+    ("src/text/format.c", "gc.h", "as mlip/FOLDER/NAME.h only"),
     # rt/ and tools/lib headers are outside the core
     ("src/ipc/ring.c", "rt.h", "as mlip/FOLDER/NAME.h only"),
 ])

@@ -5,6 +5,7 @@ rows come within 4 um of each other (tools/gen_zigzag.py); a real
 excursion injected into the trace is caught; mlip-sim exits non-zero when
 its own check sees a violation (a test build that pushes one setpoint off
 the path)."""
+import os
 import subprocess
 import sys
 
@@ -102,14 +103,16 @@ def test_excursion_is_caught(tmp_path, zigzag):
 
 def test_sim_exits_nonzero_on_its_own_violation(tmp_path):
     """A test build of mlip-sim that pushes setpoint 500 by 0.05 mm on every
-    axis: the summary's check sees it, says which check, sample, time and
-    line, and the exit status is 4; the real build on the same program
-    exits 0."""
+    axis (tests/py/sim_fault.c wraps the trace's sample: nothing in mlip-sim):
+    the summary's check sees it, says which check, sample, time and line,
+    and the exit status is 4; the real build on the same program exits 0."""
     exe = tmp_path / "mlip-sim-fault"
     cc = ["cc", "-std=c99", "-D_POSIX_C_SOURCE=200809L", "-D_DEFAULT_SOURCE", "-O1",
-          f"-I{ROOT / 'include'}", f"-I{ROOT / 'tools' / 'lib'}", "-DMLIP_SIM_TEST_FAULT_AT=500",
-          str(ROOT / "tools" / "mlip-sim.c"), str(BUILD / "libmlip-host.a"),
+          f"-I{ROOT / 'include'}", f"-I{ROOT / 'tools' / 'lib'}", "-DMLIP_SIM_FAULT_AT=500",
+          str(ROOT / "tools" / "mlip-sim.c"), str(ROOT / "tests" / "py" / "sim_fault.c"),
+          "-Wl,--wrap=mlip_trace_sample", str(BUILD / "libmlip-host.a"),
           str(BUILD / "libmlip.a"), "-lm", "-o", str(exe)]
+    cc[1:1] = os.environ.get("MLIP_SAN", "").split()  # make asan/ubsan: the library's flags
     subprocess.run(cc, check=True)
     demo = ROOT / "examples" / "demo.ngc"
     p = subprocess.run([str(exe), "-q", *MACHINE, str(demo)], capture_output=True, text=True)

@@ -2,6 +2,7 @@
 messages naming file, line and column, and nothing moves; options and
 outputs behave as documented."""
 import json
+import os
 
 import pytest
 
@@ -109,3 +110,18 @@ def test_lookahead_depth_matters():
                               "--lookahead", "16", "--summary", "-", f]).stdout)
     assert shallow["total_time_s"] > 1.05 * deep["total_time_s"]
     assert max(shallow["max_axis_accel"]) <= 1000 * (1 + 1e-9)
+
+
+def test_summary_names_any_file(tmp_path):
+    """The summary's "file" is the program's path as given, whatever bytes it
+    holds (quotes, a backslash, a newline, a byte that is not UTF-8): the
+    JSON parses, and the path comes back byte for byte (os.fsencode of the
+    decoded string, Python's surrogateescape)."""
+    name = b'a "quoted"\\ name\nwith \xff and \xc3\xa9.ngc'
+    prog = tmp_path.joinpath(os.fsdecode(name))
+    prog.write_text("G1 X1 Y2 F600\n")
+    summary = tmp_path / "s.json"
+    run(["mlip-sim", "-q", "--config", MILL, "--summary", summary, prog])
+    d = json.loads(summary.read_text(encoding="utf-8"))
+    assert os.fsencode(d["file"]) == os.fsencode(prog)
+    assert d["violations"] == 0 and d["blocks"] == 1

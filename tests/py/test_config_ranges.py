@@ -1,5 +1,5 @@
 """Configurations that cannot keep the guarantees are refused by every tool,
-with the reason at file:line:col (src/machine/config.c; unit tests in
+with the reason at file:line:col (src/machine/; unit tests in
 tests/unit/test_config.c): the probes of issue 9."""
 import re
 import subprocess
@@ -105,21 +105,13 @@ def test_mlip_config_json_is_the_one_reader(tmp_path):
 
 
 def test_can_harness_reads_the_config_through_mlip_config():
-    """The CAN tests' harness takes the machine from mlip-config --json (it
-    lives in tests/can/rtharness.py, or tools/mlipcan/harness.py)."""
-    import importlib.util
-    path = next(p for p in (ROOT / "tools" / "mlipcan" / "harness.py",
-                            ROOT / "tests" / "can" / "rtharness.py") if p.exists())
-    assert "mlip-config" in path.read_text() and "configparser" not in path.read_text()
-    import sys
-    sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "tests" / "can")]
-    if path.parent.name == "mlipcan":  # a module of the tools' package
-        import importlib
-        harness = importlib.import_module("mlipcan.harness")
-    else:
-        spec = importlib.util.spec_from_file_location("mlip_harness_under_test", path)
-        harness = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(harness)
-    lim = harness.MachineLimits(CONFIG / "rotary-4axis.ini")
+    """The CAN tests' harness takes the machine from mlip-config --json
+    (mlipcan.config), with no INI parser of its own."""
+    from conftest import S
+    from mlipcan import config
+
+    text = (ROOT / "python" / "mlipcan" / "config.py").read_text()
+    assert "mlip-config" in text and "configparser" not in text
+    lim = config.MachineLimits.of(S, CONFIG / "rotary-4axis.ini")
     assert lim.axes == ["X", "Y", "Z", "A"] and lim.accel == [1000.0, 1000.0, 1000.0, 3600.0]
     assert lim.period_s == 0.001 and lim.eps == 0.01 and lim.vel[3] == 720.0

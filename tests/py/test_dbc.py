@@ -8,7 +8,7 @@ through them. The DBC's RPDO is the deployment form (controlword 0x6040, then
 target 0x607A: [DRIVES] ENABLE = 1); its bytes 2..5 are the 4-byte target-only
 RPDO of test_canenc.c. The other deployment frames (NMT, heartbeat, TPDO,
 EMCY) are laid out as CiA 301 / CiA 402 say and as the simulated drives
-(tools/mlipcan/drive.py, on the canopen package) send them.
+(mlipcan.drive, on the canopen package) send them.
 """
 from pathlib import Path
 

@@ -1,22 +1,17 @@
-"""The simulated CiA 402 drive (tools/mlipcan/drive.py) on the host, without
+"""The simulated CiA 402 drive (mlipcan.drive) on the host, without
 vcan: drive and master are both the real `canopen` package, joined by
 python-can's in-process virtual bus. The power state machine is walked
 through every transition of CiA 402's figure by SDO controlword writes and
 checked on the statusword the master reads back; the bus version of these
 checks (and the PDOs on SYNC) is tests/can/test_drive_sim_vcan.py."""
-import sys
 import time
-from pathlib import Path
 
-import can  # tests/requirements.txt (tools/deps.sh)
+import can  # the package's dependencies, installed by tools/deps.sh
 import canopen
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tools"))
-
-from mlipcan import cia402 as P  # noqa: E402
-from mlipcan import drive as D  # noqa: E402
+from mlipcan import cia402 as P
+from mlipcan import drive as D
 
 
 @pytest.fixture

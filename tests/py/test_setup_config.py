@@ -1,4 +1,4 @@
-"""The listener's Setup (tools/mlipcan/setup.py) takes the machine from the C
+"""The listener's Setup (mlipcan.config) takes the machine from the C
 reader (mlip-config --json): the same values for every shipped config and for
 [CAN] / [DRIVES] sections, and the C reader's file:line:col error for a file
 it refuses, with no second INI parser in the Python tools."""
@@ -6,15 +6,12 @@ import contextlib
 import io
 import json
 import re
-import sys
 
 import pytest
 
-from conftest import CONFIG, ROOT, run
-
-sys.path.insert(0, str(ROOT / "tools"))
-from mlipcan import listen  # noqa: E402
-from mlipcan.setup import Setup, UsageError  # noqa: E402
+from conftest import BUILD, CONFIG, ROOT, S, run
+from mlipcan import demo_drives, listen
+from mlipcan.config import Setup, UsageError
 
 
 def c_reader(path):
@@ -36,7 +33,7 @@ def assert_same(s, js):
 
 @pytest.mark.parametrize("ini", sorted(p.name for p in CONFIG.glob("*.ini")))
 def test_setup_equals_mlip_config(ini):
-    assert_same(Setup.from_ini(CONFIG / ini), c_reader(CONFIG / ini))
+    assert_same(Setup.from_ini(CONFIG / ini, BUILD), c_reader(CONFIG / ini))
 
 
 def test_can_and_drives_sections(tmp_path):
@@ -54,7 +51,7 @@ def test_can_and_drives_sections(tmp_path):
     cfg = tmp_path / "can-drives.ini"
     cfg.write_text(text)
     js = c_reader(cfg)
-    s = Setup.from_ini(cfg)
+    s = Setup.from_ini(cfg, BUILD)
     assert_same(s, js)
     assert js["drives"]["heartbeat_ms"] == 50 and js["drives"]["heartbeat_timeout_ms"] == 300
     assert (s.nodes, s.period_s, s.profile, s.bitrate, s.data_bitrate) == \
@@ -62,7 +59,7 @@ def test_can_and_drives_sections(tmp_path):
     assert (s.sync_id, s.rpdo_base, s.packed_base, s.fd_id, s.status_id) == \
         (0x81, 0x210, 0x320, 1100, 0x190)
     assert (s.drives, s.master_node, s.source) == (True, 100, str(cfg))
-    assert Setup.from_ini(CONFIG / "mill-3axis.ini").drives is False
+    assert Setup.from_ini(CONFIG / "mill-3axis.ini", BUILD).drives is False
 
 
 def test_invalid_config_gives_the_c_readers_error(tmp_path):
@@ -82,27 +79,25 @@ def test_invalid_config_gives_the_c_readers_error(tmp_path):
     want = rf"{re.escape(str(cfg))}:({lines}):1: error: PACKED_BASE 0x17F .*STATUS_ID"
     assert re.match(want, c.stderr), c.stderr
     with pytest.raises(UsageError) as e:
-        Setup.from_ini(cfg)
+        Setup.from_ini(cfg, BUILD)
     assert str(e.value) == c.stderr.strip()
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        rc = listen.main(["--check-layout", "--config", str(cfg), "--dbc-cache", ""])
+        rc = listen.main(["--check-layout", "--config", str(cfg), "--dbc-cache", ""], settings=S)
     assert rc == 2 and re.search(want, err.getvalue()), err.getvalue()
 
 
 def test_no_python_ini_parser_in_the_tools():
-    for p in list((ROOT / "tools").rglob("*.py")):
+    for p in list((ROOT / "tools").rglob("*.py")) + list((ROOT / "python").rglob("*.py")):
         assert "configparser" not in p.read_text(), p
 
 
 def test_drive_machine_and_the_demos_copy(tmp_path):
     """config/mill-3axis-drives.ini (docs/cia402.md: the starting point for a
     real machine) has [DRIVES] on and a 2 ms period; the drives stage of make demo
-    (tools/mlipcan/drivedemo.py) runs it at 40 ms, where mlip-config refuses
+    (mlipcan.demo_drives) runs it at 40 ms, where mlip-config refuses
     the full accelerations (eq. 17: |A| T^2 / 8 > eps) and accepts the
     lowered ones, which keep |A| T^2 / 8 within eps but not far below it."""
-    from mlipcan import drivedemo
-
     js = c_reader(CONFIG / "mill-3axis-drives.ini")
     assert js["drives"]["enable"] is True and js["machine"]["period"] == 0.002
     assert [a["can_node"] for a in js["machine"]["axes"]] == [1, 2, 3]
@@ -111,7 +106,7 @@ def test_drive_machine_and_the_demos_copy(tmp_path):
     (tmp_path / "full.ini").write_text(full)
     p = run(["mlip-config", "--json", tmp_path / "full.ini"], check=False)
     assert p.returncode != 0 and "is too long for CONTOUR_TOLERANCE" in p.stderr, p.stderr
-    text, accel, dev = drivedemo.demo_machine(CONFIG / "mill-3axis-drives.ini", 0.04)
+    text, accel, dev = demo_drives.demo_machine(S, CONFIG / "mill-3axis-drives.ini", 0.04)
     (tmp_path / "demo.ini").write_text(text)
     m = c_reader(tmp_path / "demo.ini")["machine"]
     assert m["period"] == 0.04

@@ -2,9 +2,9 @@
  * test_canopen.c - the pure CANopen master (mlip/canopen/canopen.h): NMT and
  * heartbeat bytes, frame classification, the SDO client against answers
  * written from CiA 301's tables (expedited both ways, segmented upload with
- * its toggle, aborts, wrong answers), abort texts, CiA 402 statusword
- * decoding from the standard's bit patterns, the transitions toward
- * "operation enabled", 0x60C2, the set-up list, and the supervision.
+ * its toggle, aborts, wrong answers), abort texts, 0x60C2, the drive's
+ * set-up list, and its supervision (mlip/canopen/drive.h). The CiA 402
+ * states and the power sequencer: test_cia402.c.
  */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -14,7 +14,7 @@
 
 #include <cmocka.h>
 
-#include "mlip/canopen/canopen.h"
+#include "mlip/canopen/drive.h"
 
 static void answer(struct mlip_can_frame *f, uint8_t node, const uint8_t b[8])
 {
@@ -182,44 +182,6 @@ static void test_sdo_upload(void **state)
 	                    8);
 	assert_string_equal(mlip_sdo_abort_text(MLIP_SDO_ABORT_TOGGLE),
 	                    "toggle bit not alternated");
-}
-
-static void test_402_states(void **state)
-{
-	(void)state;
-	/* the statusword patterns of CiA 402-2, with other bits set around them */
-	assert_int_equal(mlip_402_state_of(0x0000), MLIP_402_NOT_READY);
-	assert_int_equal(mlip_402_state_of(0x0250), MLIP_402_SWITCH_ON_DISABLED);
-	assert_int_equal(mlip_402_state_of(0x0231), MLIP_402_READY_TO_SWITCH_ON);
-	assert_int_equal(mlip_402_state_of(0x0233), MLIP_402_SWITCHED_ON);
-	assert_int_equal(mlip_402_state_of(0x1237), MLIP_402_OPERATION_ENABLED);
-	assert_int_equal(mlip_402_state_of(0x0217), MLIP_402_QUICK_STOP_ACTIVE);
-	assert_int_equal(mlip_402_state_of(0x021F), MLIP_402_FAULT_REACTION_ACTIVE);
-	assert_int_equal(mlip_402_state_of(0x0218), MLIP_402_FAULT);
-	/* fault bit with "operation enabled" bits: fault reaction active, not enabled */
-	assert_int_equal(mlip_402_state_of(0x003F), MLIP_402_FAULT_REACTION_ACTIVE);
-	assert_string_equal(mlip_402_state_name(MLIP_402_OPERATION_ENABLED), "operation enabled");
-	/* one step at a time toward operation enabled */
-	assert_int_equal(mlip_402_step_up(MLIP_402_FAULT), 0x0080);
-	assert_int_equal(mlip_402_step_up(MLIP_402_SWITCH_ON_DISABLED), 0x0006);
-	assert_int_equal(mlip_402_step_up(MLIP_402_READY_TO_SWITCH_ON), 0x0007);
-	assert_int_equal(mlip_402_step_up(MLIP_402_SWITCHED_ON), 0x000F);
-	assert_int_equal(mlip_402_step_up(MLIP_402_QUICK_STOP_ACTIVE), 0x0000);
-	assert_int_equal(mlip_402_step_up(MLIP_402_FAULT_REACTION_ACTIVE), -1);
-	assert_int_equal(mlip_402_step_up(MLIP_402_NOT_READY), -1);
-	/* what each command leads to */
-	assert_int_equal(mlip_402_after(MLIP_402_FAULT, 0x0080), MLIP_402_SWITCH_ON_DISABLED);
-	assert_int_equal(mlip_402_after(MLIP_402_FAULT, 0x0006), MLIP_402_FAULT);
-	assert_int_equal(mlip_402_after(MLIP_402_SWITCH_ON_DISABLED, 0x0006),
-	                 MLIP_402_READY_TO_SWITCH_ON);
-	assert_int_equal(mlip_402_after(MLIP_402_READY_TO_SWITCH_ON, 0x0007), MLIP_402_SWITCHED_ON);
-	assert_int_equal(mlip_402_after(MLIP_402_SWITCHED_ON, 0x000F), MLIP_402_OPERATION_ENABLED);
-	assert_int_equal(mlip_402_after(MLIP_402_OPERATION_ENABLED, 0x0007), MLIP_402_SWITCHED_ON);
-	assert_int_equal(mlip_402_after(MLIP_402_OPERATION_ENABLED, 0x0002),
-	                 MLIP_402_QUICK_STOP_ACTIVE);
-	assert_int_equal(mlip_402_after(MLIP_402_SWITCHED_ON, 0x0006), MLIP_402_READY_TO_SWITCH_ON);
-	assert_int_equal(mlip_402_after(MLIP_402_SWITCH_ON_DISABLED, 0x0007),
-	                 MLIP_402_SWITCH_ON_DISABLED);
 }
 
 static void test_interp_period(void **state)
@@ -410,11 +372,10 @@ static void test_following_error(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_nmt_heartbeat),   cmocka_unit_test(test_classify),
-	    cmocka_unit_test(test_sdo_download),    cmocka_unit_test(test_sdo_upload),
-	    cmocka_unit_test(test_402_states),      cmocka_unit_test(test_interp_period),
-	    cmocka_unit_test(test_setup_entries),   cmocka_unit_test(test_supervise),
-	    cmocka_unit_test(test_following_error),
+	    cmocka_unit_test(test_nmt_heartbeat), cmocka_unit_test(test_classify),
+	    cmocka_unit_test(test_sdo_download),  cmocka_unit_test(test_sdo_upload),
+	    cmocka_unit_test(test_interp_period), cmocka_unit_test(test_setup_entries),
+	    cmocka_unit_test(test_supervise),     cmocka_unit_test(test_following_error),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

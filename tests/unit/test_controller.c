@@ -15,7 +15,7 @@
 
 #include <cmocka.h>
 
-#include "mlip/canopen/canopen.h"
+#include "mlip/canopen/drive.h"
 #include "mlip/machine/config.h"
 #include "mlip/ctl/controller.h"
 
@@ -26,6 +26,7 @@ static struct mlip_planner planner;
 static struct mlip_ctl ctl;
 static struct mlip_ctl_out out;
 static struct mlip_ring *ring;
+static struct mlip_ring_port rx; /* the controller's records: a view of it each period */
 static void *mem;
 static uint64_t period;
 static int feeder_alive;
@@ -35,6 +36,8 @@ static struct mlip_ctl_drive_fault drv_fault;
 static uint32_t drv_actual_mask;
 static double drv_actual[MLIP_MAX_AXES];
 static uint16_t drv_sw[MLIP_MAX_AXES]; /* the statusword of each drive's TPDO */
+/* the segment's stop counter and the feeder's stop_base (mlip/ipc/ring.h) */
+static uint32_t stop_count, feeder_base;
 /* every transition seen since setup: state entered and why */
 static uint32_t seen_state[256], seen_why[256];
 static int n_seen;
@@ -70,9 +73,11 @@ static int setup(void **state)
 	/* look-ahead 16: smaller than the programs below, so the pre-read ends
 	 * on a full look-ahead unless a feeder dies first */
 	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16};
-	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o, ring), MLIP_OK);
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	assert_int_equal(mlip_ring_port_open(&rx, ring, 0), MLIP_OK);
 	period = 0;
 	feeder_alive = 1;
+	stop_count = feeder_base = 0;
 	n_seen = 0;
 	memset(&drv_fault, 0, sizeof(drv_fault));
 	drv_actual_mask = 0;
@@ -86,19 +91,32 @@ static int teardown(void **state)
 	return 0;
 }
 
+/* One period on in, its records the ring's; what it took popped. */
+static void run_period(struct mlip_ctl_in *in)
+{
+	if (mlip_ring_port_view(&rx, &in->recs, &in->recs_corrupt) == MLIP_OK) {
+		in->recs_corrupt = 0;
+	}
+	mlip_ctl_period(&ctl, in, &out);
+	assert_int_equal(mlip_ring_port_pop_n(&rx, out.taken), MLIP_OK);
+}
+
 /* One period with a command (op 0: none) after `missed` missed periods. */
 static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 {
 	struct mlip_ring_cmd cmd = {.seq = 2, .op = op, .arg = arg};
-	struct mlip_ctl_in in = {
-	    .period = period++, .missed = missed, .feeder_alive = feeder_alive};
+	struct mlip_ctl_in in = {.period = period++,
+	                         .missed = missed,
+	                         .feeder_alive = feeder_alive,
+	                         .stop_requests = stop_count,
+	                         .feeder_stop_base = feeder_base};
 	in.cmd = op ? &cmd : NULL;
-	in.drive_fault = drv_fault;
-	in.actual_mask = drv_actual_mask;
-	memcpy(in.pos_actual, drv_actual, sizeof(in.pos_actual));
-	memcpy(in.drive_sw, drv_sw, sizeof(in.drive_sw));
+	in.drives.fault = drv_fault;
+	in.drives.actual_mask = drv_actual_mask;
+	memcpy(in.drives.pos_actual, drv_actual, sizeof(in.drives.pos_actual));
+	memcpy(in.drives.sw, drv_sw, sizeof(in.drives.sw));
 	memset(&drv_fault, 0, sizeof(drv_fault));
-	mlip_ctl_period(&ctl, &in, &out);
+	run_period(&in);
 	for (uint32_t i = 0; i < out.n_events; i++) {
 		if (out.events[i].kind == MLIP_EV_STATE && n_seen < 256) {
 			seen_state[n_seen] = out.events[i].state;
@@ -121,12 +139,12 @@ static int until(uint32_t s, int n)
 {
 	for (int i = 1; i <= n; i++) {
 		tick(1);
-		if (ctl.state == s) {
+		if (out.status.state == s) {
 			return i;
 		}
 	}
-	fail_msg("state %s not reached in %d periods (now %s)", mlip_ring_state_name(s), n,
-	         mlip_ring_state_name(ctl.state));
+	fail_msg("state %s not reached in %d periods (now %s)", mlip_ctl_state_name(s), n,
+	         mlip_ctl_state_name(out.status.state));
 	return -1;
 }
 
@@ -192,7 +210,7 @@ static void test_feeder_dead_in_preread_runs_what_came(void **st)
 	(void)st;
 	push(1, 10); /* 10 < look-ahead 16, no END */
 	tick(50);
-	assert_int_equal(ctl.state, MLIP_STATE_PREREAD); /* a live feeder may still send */
+	assert_int_equal(out.status.state, MLIP_STATE_PREREAD); /* a live feeder may still send */
 	assert_true(out.pos[0] == 0.0);
 	feeder_alive = 0;
 	until(MLIP_STATE_STARVED, 3000);
@@ -212,20 +230,20 @@ static void test_starved_takes_only_the_next_block(void **st)
 	tick(20);
 	feeder_alive = 0;
 	until(MLIP_STATE_STARVED, 3000);
-	assert_int_equal(ctl.exec_seq, 20);
+	assert_int_equal(out.status.exec_seq, 20);
 	feeder_alive = 1;
 	push(25, 30); /* skips 21..24 */
 	tick(100);
-	assert_int_equal(ctl.refused, 1);
+	assert_int_equal(out.counts.refused, 1);
 	assert_int_equal(mlip_ring_count(ring), 0); /* dropped */
 	assert_true(out.pos[0] == 20.0);
-	assert_int_equal(ctl.state, MLIP_STATE_STARVED);
+	assert_int_equal(out.status.state, MLIP_STATE_STARVED);
 	feeder_alive = 0; /* that feeder gone: the dropping ends */
 	tick(2);
 	feeder_alive = 1;
 	push(20, 22); /* repeats 20 */
 	tick(100);
-	assert_int_equal(ctl.refused, 2);
+	assert_int_equal(out.counts.refused, 2);
 	assert_true(out.pos[0] == 20.0);
 	feeder_alive = 0;
 	tick(2);
@@ -234,8 +252,8 @@ static void test_starved_takes_only_the_next_block(void **st)
 	end(25);
 	until(MLIP_STATE_IDLE, 3000);
 	assert_true(out.pos[0] == 24.0);
-	assert_int_equal(ctl.exec_seq, 25);
-	assert_int_equal(ctl.refused, 2);
+	assert_int_equal(out.status.exec_seq, 25);
+	assert_int_equal(out.counts.refused, 2);
 	assert_true(saw(MLIP_STATE_PREREAD, MLIP_WHY_CONTINUE));
 	assert_true(saw(MLIP_STATE_IDLE, MLIP_WHY_END));
 }
@@ -265,10 +283,10 @@ static void test_stop_distance_published(void **st)
 	/* resumed, then stopped: a second stop, to rest on the line */
 	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
 	tick(200);
-	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
 	assert_true(saw(MLIP_STATE_RUNNING, MLIP_WHY_RESUME));
 	assert_int_equal(period_cmd(MLIP_CMD_STOP, 0, 0), MLIP_OK);
-	assert_int_equal(ctl.state, MLIP_STATE_STOPPING);
+	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
 	tick(300);
 	s = status();
 	assert_int_equal(s.state, MLIP_STATE_IDLE);
@@ -293,9 +311,172 @@ static void test_stop_before_first_block_completes(void **st)
 	tick(20);
 	period_cmd(MLIP_CMD_STOP, 0, 0);
 	tick(300);
-	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_true(out.pos[0] > 0.0 && out.pos[0] < 5.0); /* stopped inside block 1 */
 	assert_int_equal(status().exec_seq, 0);
+}
+
+/* mlip-ctl stop while the feeder still checks its program (issue 17: the
+ * controller was idle, stop was a no-op, the program ran 1.5 s later): the
+ * stop is latched for the program whose feeder began before it, which is
+ * dropped unmoved and named; a stop older than the feeder (stale) does not
+ * touch the next program; a feeder area mid-update starts nothing. */
+static void test_stop_latched_for_the_program_about_to_start(void **st)
+{
+	(void)st;
+	feeder_base = 3; /* the feeder began when the counter was 3 */
+	stop_count = 3;
+	tick(5);
+	stop_count = 4; /* mlip-ctl stop during its check pass */
+	tick(5);
+	assert_int_equal(status().stop_seen, 4); /* acknowledged */
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+	push(1, 5);
+	end(6);
+	tick(300);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+	assert_true(out.pos[0] == 0.0 && out.pos[1] == 0.0); /* nothing moved */
+	assert_int_equal(status().reason, MLIP_WHY_STOP_EARLY);
+	assert_int_equal(status().reason_seq, 1);
+	assert_int_equal(status().reason_line, 2);
+	assert_int_equal(mlip_ring_count(ring), 0); /* its records dropped, END too */
+	assert_int_equal(status().exec_seq, 0);
+	assert_true(saw(MLIP_STATE_IDLE, MLIP_WHY_STOP_EARLY));
+	/* the next feeder began after that stop: its program runs */
+	feeder_base = 4;
+	push(1, 5);
+	end(6);
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 5.0);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	/* a stop while idle with nothing about to start, then a feeder that
+	 * begins after it: stale for it, the program runs */
+	stop_count = 5;
+	tick(5);
+	feeder_base = 5;
+	move(1, 0.0, 0.0);
+	end(2);
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 0.0);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	/* whose program it is unknown (feeder area mid-update): it waits */
+	stop_count = 6;
+	tick(2);
+	move(1, 3.0, 0.0);
+	end(2);
+	struct mlip_ctl_in in = {.period = period++,
+	                         .feeder_alive = 1,
+	                         .feeder_unread = 1,
+	                         .stop_requests = stop_count,
+	                         .feeder_stop_base = 6};
+	run_period(&in);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+	assert_int_equal(mlip_ring_count(ring), 2);
+	feeder_base = 6;
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 3.0);
+}
+
+/* A stop request (the counter) while running: the same stop as the
+ * command, never behind the mailbox. */
+static void test_stop_counter_stops_a_running_program(void **st)
+{
+	(void)st;
+	move(1, 100.0, 0.0);
+	end(2);
+	tick(300);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
+	stop_count++;
+	tick(1);
+	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
+	assert_int_equal(status().stop_seen, stop_count);
+	until(MLIP_STATE_IDLE, 500);
+	assert_int_equal(status().reason, MLIP_WHY_STOP);
+	assert_true(out.pos[0] > 10.0 && out.pos[0] < 100.0);
+}
+
+/* The reason follows the state (issue 17: after override 0, hold, override
+ * 100 the status said "held, override 0" at 100 %). */
+static void test_hold_reason_follows_the_causes(void **st)
+{
+	(void)st;
+	move(1, 500.0, 0.0);
+	end(2);
+	tick(200);
+	period_cmd(MLIP_CMD_OVERRIDE, 0, 0);
+	until(MLIP_STATE_HELD, 500);
+	assert_int_equal(status().reason, MLIP_WHY_OVERRIDE_ZERO);
+	period_cmd(MLIP_CMD_HOLD, 0, 0);
+	tick(1);
+	assert_int_equal(status().reason, MLIP_WHY_HOLD);
+	period_cmd(MLIP_CMD_OVERRIDE, 100, 0);
+	tick(50);
+	double x = out.pos[0];
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	assert_int_equal(status().reason, MLIP_WHY_HOLD); /* not "override 0" at 100 % */
+	assert_int_equal(status().override_pct, 100);
+	assert_true(out.pos[0] == x); /* and held indeed */
+	/* hold, then override 0, then resume: held by the override now */
+	period_cmd(MLIP_CMD_OVERRIDE, 0, 0);
+	period_cmd(MLIP_CMD_RESUME, 0, 0);
+	tick(2);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	assert_int_equal(status().reason, MLIP_WHY_OVERRIDE_ZERO);
+	assert_true(out.pos[0] == x);
+	period_cmd(MLIP_CMD_OVERRIDE, 100, 0);
+	until(MLIP_STATE_RUNNING, 10);
+	assert_int_equal(status().reason, MLIP_WHY_RESUME);
+}
+
+/* A stop (or an exit signal) in a dwell or a pause: the wait is not done;
+ * the block completed is the move before it, with its line (issue 17:
+ * line 0), and the status and the events say so. */
+static void stop_in_wait(uint8_t kind, int exit_signal)
+{
+	push(1, 3);
+	event(4, kind, 10.0); /* line 5 */
+	push(5, 8);
+	end(9);
+	until(kind == MLIP_BLOCK_DWELL ? MLIP_STATE_DWELLING : MLIP_STATE_PAUSED, 3000);
+	tick(20);
+	assert_int_equal(status().exec_seq, 4);
+	assert_int_equal(status().exec_line, 5);
+	if (exit_signal) {
+		struct mlip_ctl_in in = {.period = period++, .feeder_alive = 1, .exit_request = 1};
+		run_period(&in);
+	} else {
+		stop_count++;
+		tick(1);
+	}
+	for (uint32_t i = 0; i < out.n_events; i++) {
+		if (out.events[i].kind == MLIP_EV_STATE) {
+			assert_int_equal(out.events[i].exec_seq, 3);
+			assert_int_equal(out.events[i].exec_line, 4);
+		}
+	}
+	until(MLIP_STATE_IDLE, 100);
+	assert_true(out.pos[0] == 3.0); /* nothing after the wait moved */
+	assert_int_equal(status().exec_seq, 3);
+	assert_int_equal(status().exec_line, 4);
+	assert_int_equal(status().reason, exit_signal ? MLIP_WHY_EXIT : MLIP_WHY_STOP);
+}
+
+static void test_stop_in_dwell_names_the_block_before(void **st)
+{
+	(void)st;
+	stop_in_wait(MLIP_BLOCK_DWELL, 0);
+}
+
+static void test_stop_in_pause_names_the_block_before(void **st)
+{
+	(void)st;
+	stop_in_wait(MLIP_BLOCK_PAUSE, 0);
+}
+
+static void test_exit_in_dwell_names_the_block_before(void **st)
+{
+	(void)st;
+	stop_in_wait(MLIP_BLOCK_DWELL, 1);
 }
 
 /* Override 0 holds with its own reason; an exit request stops and reports
@@ -313,17 +494,17 @@ static void test_override_zero_and_exit(void **st)
 	period_cmd(MLIP_CMD_OVERRIDE, 100, 0);
 	until(MLIP_STATE_RUNNING, 10);
 	struct mlip_ctl_in in = {.period = period++, .feeder_alive = 1, .exit_request = 1};
-	mlip_ctl_period(&ctl, &in, &out);
-	assert_int_equal(ctl.state, MLIP_STATE_STOPPING);
-	assert_int_equal(ctl.why.why, MLIP_WHY_EXIT);
+	run_period(&in);
+	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
+	assert_int_equal(out.status.reason, MLIP_WHY_EXIT);
 	int done = 0;
 	for (int i = 0; i < 500 && !done; i++) {
 		in.period = period++;
-		mlip_ctl_period(&ctl, &in, &out);
+		run_period(&in);
 		done = out.done;
 	}
 	assert_true(done);
-	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_true(out.pos[0] < 100.0);
 }
 
@@ -342,10 +523,10 @@ static void dwell_at(double x)
 	end(4);
 	double last = NAN;
 	int run = 0, longest = 0, dwelling = 0;
-	for (int i = 0; i < 5000 && !(ctl.state == MLIP_STATE_IDLE && i > 0); i++) {
+	for (int i = 0; i < 5000 && !(out.status.state == MLIP_STATE_IDLE && i > 0); i++) {
 		tick(1);
-		dwelling += ctl.state == MLIP_STATE_DWELLING;
-		if (ctl.state == MLIP_STATE_DWELLING) {
+		dwelling += out.status.state == MLIP_STATE_DWELLING;
+		if (out.status.state == MLIP_STATE_DWELLING) {
 			assert_int_equal(status().exec_seq, 2);
 			assert_true(out.pos[0] == x);
 		}
@@ -355,7 +536,7 @@ static void dwell_at(double x)
 		}
 		last = out.pos[0];
 	}
-	assert_int_equal(ctl.state, MLIP_STATE_IDLE);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_true(out.pos[0] == 2.0 * x);
 	assert_true(dwelling == 249 || dwelling == 250);
 	/* the arrival at x and 250 periods more at it: 250 periods of rest */
@@ -382,9 +563,9 @@ static void test_dwell_first_and_zero(void **st)
 	move(3, 1.0, 0.0);
 	end(4);
 	int dwelling = 0;
-	for (int i = 0; i < 2000 && !(ctl.state == MLIP_STATE_IDLE && i > 0); i++) {
+	for (int i = 0; i < 2000 && !(out.status.state == MLIP_STATE_IDLE && i > 0); i++) {
 		tick(1);
-		dwelling += ctl.state == MLIP_STATE_DWELLING;
+		dwelling += out.status.state == MLIP_STATE_DWELLING;
 	}
 	assert_int_equal(dwelling, 10);
 	assert_true(out.pos[0] == 1.0);
@@ -407,11 +588,11 @@ static void test_pause_and_optional_pause(void **st)
 	assert_int_equal(status().reason, MLIP_WHY_PAUSE);
 	assert_int_equal(status().exec_seq, 2);
 	tick(1000);
-	assert_int_equal(ctl.state, MLIP_STATE_PAUSED);
+	assert_int_equal(out.status.state, MLIP_STATE_PAUSED);
 	assert_true(out.pos[0] == 5.0);
 	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK); /* a hold meanwhile */
 	tick(10);
-	assert_int_equal(ctl.state, MLIP_STATE_PAUSED);
+	assert_int_equal(out.status.state, MLIP_STATE_PAUSED);
 	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK); /* one resume: both */
 	tick(1);
 	assert_true(out.pos[0] > 5.0); /* pre-read during the pause: moves at once */
@@ -456,7 +637,7 @@ static int corner_samples(int exact)
 	move(2, 10.0, 10.0);
 	end(3);
 	int inside = 0;
-	for (int i = 0; i < 3000 && !(ctl.state == MLIP_STATE_IDLE && i > 0); i++) {
+	for (int i = 0; i < 3000 && !(out.status.state == MLIP_STATE_IDLE && i > 0); i++) {
 		tick(1);
 		inside += out.pos[0] < 10.0 - 1e-12 && out.pos[1] > 1e-12;
 	}
@@ -591,7 +772,7 @@ static void test_bad_record_in_preread_never_moves(void **st)
 	mlip_ring_rec_from_block(&rec, &b, 4);
 	push_rec(&rec);
 	tick(500);
-	assert_int_equal(ctl.state, MLIP_STATE_FAULT);
+	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
 	assert_true(out.pos[0] == 0.0);
 }
 
@@ -620,7 +801,7 @@ static void test_corrupt_head_is_a_fault(void **st)
 	push(1, 40);
 	end(41);
 	tick(200); /* moving, look-ahead of 16 taken */
-	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
 	uint32_t tail = __atomic_load_n(&ring->tail, __ATOMIC_ACQUIRE);
 	__atomic_store_n(&ring->head, tail + 3 * CAP + 5, __ATOMIC_RELEASE);
 	tick(5000);
@@ -648,11 +829,11 @@ static void test_stall_holds_at_last_setpoint(void **st)
 	double before = out.pos[0];
 	assert_true(status().speed_mm_s > 50.0);
 	period_cmd(0, 0, 3); /* at the limit: not a stall */
-	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
 	assert_true(out.pos[0] > before);
 	before = out.pos[0];
 	period_cmd(0, 0, 2000); /* 2 s */
-	assert_int_equal(ctl.state, MLIP_STATE_HELD);
+	assert_int_equal(out.status.state, MLIP_STATE_HELD);
 	assert_int_equal(status().reason, MLIP_WHY_STALL);
 	assert_true(status().reason_value == 2000.0);
 	assert_true(out.pos[0] == before);
@@ -660,7 +841,7 @@ static void test_stall_holds_at_last_setpoint(void **st)
 		tick(1);
 		assert_true(fabs(out.pos[0] - before) <= 1e-9 && fabs(out.pos[1]) <= 1e-9);
 	}
-	assert_int_equal(ctl.state, MLIP_STATE_HELD);
+	assert_int_equal(out.status.state, MLIP_STATE_HELD);
 	assert_true(status().speed_mm_s == 0.0);
 	/* resume: from rest, the first steps within A T^2 (a margin of 1e-9) */
 	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
@@ -690,12 +871,12 @@ static void test_stall_in_corner(void **st)
 	assert_true(out.pos[0] < 10.0 - 1e-12 && out.pos[1] > 1e-12);
 	double p0[2] = {out.pos[0], out.pos[1]};
 	period_cmd(0, 0, 50);
-	assert_int_equal(ctl.state, MLIP_STATE_HELD);
+	assert_int_equal(out.status.state, MLIP_STATE_HELD);
 	tick(10);
 	assert_true(fabs(out.pos[0] - p0[0]) <= 1e-9 && fabs(out.pos[1] - p0[1]) <= 1e-9);
 	period_cmd(MLIP_CMD_RESUME, 0, 0);
 	double worst = 0.0;
-	for (k = 0; k < 3000 && ctl.state != MLIP_STATE_IDLE; k++) {
+	for (k = 0; k < 3000 && out.status.state != MLIP_STATE_IDLE; k++) {
 		tick(1);
 		/* distance to the polyline (0,0)-(10,0)-(10,10) */
 		double dx = out.pos[0] <= 10.0 ? fabs(out.pos[1]) : INFINITY;
@@ -748,7 +929,7 @@ static void test_every_name(void **st)
 {
 	(void)st;
 	for (uint32_t v = 0; v < MLIP_STATE_COUNT; v++) {
-		assert_string_not_equal(mlip_ring_state_name(v), "?");
+		assert_string_not_equal(mlip_ctl_state_name(v), "?");
 	}
 	for (uint32_t v = 0; v < MLIP_WHY_COUNT; v++) {
 		assert_string_not_equal(mlip_state_why_name(v), "?");
@@ -762,7 +943,7 @@ static void test_every_name(void **st)
 	for (uint32_t v = 0; v < MLIP_CMD_COUNT; v++) {
 		assert_string_not_equal(mlip_ring_cmd_name(v), "?");
 	}
-	assert_string_equal(mlip_ring_state_name(MLIP_STATE_COUNT), "?");
+	assert_string_equal(mlip_ctl_state_name(MLIP_STATE_COUNT), "?");
 	assert_string_equal(mlip_state_why_name(MLIP_WHY_COUNT), "?");
 }
 
@@ -790,7 +971,7 @@ static void test_drive_fault_stops_on_the_path(void **st)
 	push(1, 50); /* 1 mm blocks along X at 100 mm/s */
 	end(51);
 	tick(300); /* 0.3 s: past the 0.1 s ramp to 100 mm/s, about X = 25 */
-	assert_int_equal(ctl.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
 	double v0 = status().speed_mm_s, x0 = out.pos[0];
 	assert_true(v0 > 99.0 && v0 < 100.0 + 1e-6);
 	uint64_t executing = status().exec_seq;
@@ -845,7 +1026,7 @@ static void test_drive_fault_stops_on_the_path(void **st)
 	 * its END dropped */
 	assert_int_equal(mlip_ring_count(ring), 0);
 	struct mlip_ctl_in in = {.period = period++, .exit_request = 1, .feeder_alive = 1};
-	mlip_ctl_period(&ctl, &in, &out);
+	run_period(&in);
 	assert_int_equal(out.done, 1);
 }
 
@@ -892,7 +1073,7 @@ static int setup_drives(void **state)
 	                          .can = &can_cia402,
 	                          .drives = 1,
 	                          .drive_state_periods = 50};
-	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o, ring), MLIP_OK);
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
 	drv_actual_mask = 3u;
 	drv_actual[0] = drv_actual[1] = 0.0;
 	drv_sw[0] = drv_sw[1] = 0x0237; /* enabled by the bring-up */
@@ -1063,6 +1244,12 @@ int main(void)
 	    T(test_stop_distance_published),
 	    T(test_stop_before_first_block_completes),
 	    T(test_override_zero_and_exit),
+	    T(test_stop_latched_for_the_program_about_to_start),
+	    T(test_stop_counter_stops_a_running_program),
+	    T(test_hold_reason_follows_the_causes),
+	    T(test_stop_in_dwell_names_the_block_before),
+	    T(test_stop_in_pause_names_the_block_before),
+	    T(test_exit_in_dwell_names_the_block_before),
 	    T(test_dwell_exact_periods),
 	    T(test_dwell_first_and_zero),
 	    T(test_pause_and_optional_pause),

@@ -274,7 +274,7 @@ static uint64_t port_now(void *ctx)
 	return now_ns;
 }
 
-static const struct mlip_co_port port = {NULL, port_send, port_recv, port_now};
+static const struct mlip_can_port port = {NULL, port_send, port_recv, port_now};
 
 /* ---- fixtures ------------------------------------------------------------------- */
 
@@ -474,9 +474,10 @@ static void test_beyond_limit(void **state)
 
 #define CAP 64u
 static struct mlip_planner planner;
-static struct mlip_controller ctl;
+static struct mlip_period ctl; /* the period, with the master as its hooks */
 static void *mem;
 static uint64_t cycle;
+static double home[NP]; /* where the bring-up found the drives */
 
 static void loop_setup(double *start)
 {
@@ -489,15 +490,16 @@ static void loop_setup(double *start)
 	/* as mlip-rt does: the drives' positions actual are the machine's HOME */
 	struct mlip_machine m = cfg.machine;
 	for (int k = 0; k < NP; k++) {
-		m.axis[k].home = start[k];
+		m.axis[k].home = home[k] = start[k];
 	}
 	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
 	                          .lookahead = 16,
 	                          .can = &cfg.can,
 	                          .drives = 1,
 	                          .drive_state_periods = 1000};
-	assert_int_equal(mlip_controller_init(&ctl, &planner, &m, &o, ring, NULL), 0);
-	ds.ctl = &ctl;
+	struct mlip_period_hooks hooks;
+	mlip_drives_hooks(&ds, &hooks);
+	assert_int_equal(mlip_period_init(&ctl, &planner, &m, &o, ring, &port, &hooks), 0);
 	cycle = 0;
 }
 
@@ -555,7 +557,7 @@ static int period(void)
 	}
 	struct mlip_rt_tick t = {.cycle = cycle++};
 	now_ns += 1000000;
-	int r = mlip_drives_tick(&ds, &t);
+	int r = mlip_period_tick(&ctl, &t);
 	q_head = q_tail; /* what the master did not read is gone */
 	return r;
 }
@@ -716,7 +718,7 @@ static void period_late(int delay, int32_t behind_x)
 	}
 	struct mlip_rt_tick t = {.cycle = cycle++};
 	now_ns += 1000000;
-	mlip_drives_tick(&ds, &t);
+	mlip_period_tick(&ctl, &t);
 	q_head = q_tail;
 	for (int i = 0; i < NP; i++) {
 		mlip_can_counts(ctl.out.pos[i], 1000.0, &sent[i][c]);
@@ -780,7 +782,7 @@ static void program(int n, double dir)
 {
 	double at[NP];
 	for (int k = 0; k < NP; k++) {
-		at[k] = ctl.core.pos[k];
+		at[k] = ctl.cycles > 0 ? ctl.out.pos[k] : home[k]; /* the last setpoint sent */
 	}
 	for (int i = 1; i <= n + 1; i++) {
 		struct mlip_ring_rec rec;
@@ -868,7 +870,7 @@ static void test_loop_between_programs(void **state)
 	 * period for disable operation, one for shutdown */
 	assert_int_equal(ctl.out.status.drive_power_periods, 2);
 	assert_int_equal(ds.shutdown_ok, 0); /* not the loop's end yet */
-	assert_int_equal(ctl.core.power_ok, 1);
+	assert_int_equal(ctl.out.power.ok, 1);
 
 	/* disabled: Y is pushed by hand 0.777 mm; the commanded position follows */
 	peers[1].pos += 777;
@@ -930,7 +932,7 @@ static void test_loop_stop_disables(void **state)
 		period();
 	}
 	assert_int_equal(ctl.out.status.state, MLIP_STATE_RUNNING);
-	assert_int_equal(mlip_ring_cmd_post(ctl.ring, MLIP_CMD_STOP, 0, NULL), MLIP_OK);
+	mlip_ring_stop_post(ctl.ring);
 	run_until(0, MLIP_POWER_OFF, 3000, &r);
 	assert_int_equal(r.n_cw, 3);
 	assert_true(r.last_move > 10 && r.last_move < r.first_cw_period[1]);

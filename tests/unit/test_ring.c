@@ -13,6 +13,7 @@
 
 #include <cmocka.h>
 
+#include "mlip/ctl/state.h"
 #include "mlip/ipc/ring.h"
 
 /* records through the ring in the stress test: 10 M (about 0.5 s at -O2);
@@ -408,8 +409,8 @@ static void test_reason_strings(void **state)
 		assert_string_not_equal(mlip_ring_reason_str((mlip_ring_reason)k), "?");
 	}
 	assert_string_equal(mlip_ring_reason_str((mlip_ring_reason)99), "?");
-	assert_string_equal(mlip_ring_state_name(MLIP_STATE_HELD), "held");
-	assert_string_equal(mlip_ring_state_name(77), "?");
+	assert_string_equal(mlip_ctl_state_name(MLIP_STATE_HELD), "held");
+	assert_string_equal(mlip_ctl_state_name(77), "?");
 	assert_string_equal(mlip_ring_cmd_name(MLIP_CMD_OVERRIDE), "override");
 	assert_string_equal(mlip_ring_cmd_name(MLIP_CMD_COUNT), "?");
 }
@@ -438,6 +439,7 @@ static void test_status_feeder(void **state)
 	s.blocks_consumed = 6;
 	s.prog_start[0] = -12.5;
 	s.prog_start[MLIP_MAX_AXES - 1] = 7.25;
+	s.stop_seen = 0xfffffffeu;
 	mlip_ring_status_write(r, &s);
 	assert_int_equal(r->status_gen, 2);
 	assert_int_equal(mlip_ring_status_read(r, &got), MLIP_OK);
@@ -451,6 +453,8 @@ static void test_status_feeder(void **state)
 	f.total_blocks = 11;
 	f.program_end = 1;
 	f.pid = 4242;
+	f.stop_base = 77;
+	f.spare = 0;
 	mlip_ring_feeder_write(r, &f);
 	assert_int_equal(mlip_ring_feeder_read(r, &fgot), MLIP_OK);
 	assert_memory_equal(&f, &fgot, sizeof(f));
@@ -468,8 +472,11 @@ static void test_mailbox(void **state)
 	(void)state;
 	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_NONE, 0, &s1), MLIP_E_INVALID);
 	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_COUNT, 0, &s1), MLIP_E_INVALID);
+	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_STOP, 0, &s1), MLIP_E_INVALID);
+	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_OVERRIDE, MLIP_RING_CMD_ARG_MAX + 1, &s1),
+	                 MLIP_E_RANGE);
 	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_OVERRIDE, 80, &s1), MLIP_OK);
-	assert_int_equal(s1, 2);
+	assert_int_equal(s1, 1);
 	assert_int_equal(mlip_ring_cmd_result(r, s1, &res), MLIP_E_EMPTY);
 	/* never lost: a second post is refused until the first is completed */
 	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_HOLD, 0, &s2), MLIP_E_FULL);
@@ -487,19 +494,75 @@ static void test_mailbox(void **state)
 	assert_int_equal(mlip_ring_cmd_take(r, &cmd), MLIP_E_EMPTY);
 
 	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_OVERRIDE, 900, &s2), MLIP_OK);
-	assert_int_equal(s2, 4);
+	assert_int_equal(s2, 2);
 	assert_int_equal(mlip_ring_cmd_take(r, &cmd), MLIP_OK);
 	assert_int_equal(cmd.arg, 900);
 	mlip_ring_cmd_done(r, cmd.seq, MLIP_E_RANGE); /* refused by the controller */
-	assert_int_equal(mlip_ring_cmd_result(r, s1, &res), MLIP_E_EMPTY); /* old seq */
 	assert_int_equal(mlip_ring_cmd_result(r, s2, &res), MLIP_OK);
 	assert_int_equal(res, MLIP_E_RANGE);
+	/* an earlier command keeps its own result (another mlip-ctl posted
+	 * after it before it read it) */
+	assert_int_equal(mlip_ring_cmd_result(r, s1, &res), MLIP_OK);
+	assert_int_equal(res, MLIP_OK);
 
-	/* a post in progress (odd seq) is neither taken nor overwritten */
-	r->cmd_seq = 5;
-	r->cmd_done = 5;
-	assert_int_equal(mlip_ring_cmd_take(r, &cmd), MLIP_E_EMPTY);
-	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_STOP, 0, NULL), MLIP_E_FULL);
+	/* the argument's sign survives the packing, at both ends of its range */
+	int32_t args[] = {MLIP_RING_CMD_ARG_MIN, -1, 0, MLIP_RING_CMD_ARG_MAX};
+	for (unsigned k = 0; k < sizeof(args) / sizeof(args[0]); k++) {
+		assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_OPTIONAL_STOP, args[k], &s1),
+		                 MLIP_OK);
+		assert_int_equal(mlip_ring_cmd_take(r, &cmd), MLIP_OK);
+		assert_int_equal(cmd.arg, args[k]);
+		assert_int_equal(cmd.op, MLIP_CMD_OPTIONAL_STOP);
+		mlip_ring_cmd_done(r, cmd.seq, MLIP_OK);
+	}
+
+	/* whatever a dead or hostile poster left in the word (an old layout's
+	 * claim: an odd sequence, no op) is one command: taken, refused by the
+	 * controller as unknown, completed; the mailbox is free again */
+	__atomic_store_n(&r->cmd_word, (uint64_t)12345, __ATOMIC_RELEASE);
+	assert_int_equal(mlip_ring_cmd_take(r, &cmd), MLIP_OK);
+	assert_int_equal(cmd.seq, 12345);
+	assert_int_equal(cmd.op, MLIP_CMD_NONE);
+	mlip_ring_cmd_done(r, cmd.seq, MLIP_E_INVALID);
+	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_HOLD, 0, &s1), MLIP_OK);
+	assert_int_equal(s1, 12346);
+	/* the sequence wraps past 0 (0: nothing taken yet) */
+	mlip_ring_cmd_take(r, &cmd);
+	mlip_ring_cmd_done(r, cmd.seq, MLIP_OK);
+	__atomic_store_n(&r->cmd_word, (uint64_t)UINT32_MAX, __ATOMIC_RELEASE);
+	r->cmd_done = UINT32_MAX;
+	r->cmd_taken = UINT32_MAX;
+	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_HOLD, 0, &s1), MLIP_OK);
+	assert_int_equal(s1, 1);
+	assert_int_equal(mlip_ring_cmd_take(r, &cmd), MLIP_OK);
+	assert_int_equal(cmd.seq, 1);
+}
+
+/* Stop has its own path: a counter, never refused, never behind the
+ * mailbox; applied and "after a feeder's start" are modular. */
+static void test_stop_counter(void **state)
+{
+	struct mlip_ring *r = fresh(CAP, 3);
+	uint32_t seq;
+
+	(void)state;
+	assert_int_equal(mlip_ring_stop_count(r), 0);
+	/* the mailbox busy (posted, never completed): stop still goes in */
+	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_HOLD, 0, &seq), MLIP_OK);
+	assert_int_equal(mlip_ring_cmd_post(r, MLIP_CMD_RESUME, 0, &seq), MLIP_E_FULL);
+	assert_int_equal(mlip_ring_stop_post(r), 1);
+	assert_int_equal(mlip_ring_stop_post(r), 2);
+	assert_int_equal(mlip_ring_stop_count(r), 2);
+	assert_false(mlip_ring_stop_applied(1, 2));
+	assert_true(mlip_ring_stop_applied(2, 2));
+	assert_true(mlip_ring_stop_applied(3, 2));
+	assert_true(mlip_ring_stop_applied(1, UINT32_MAX)); /* wrapped past it */
+	assert_false(mlip_ring_stop_applied(UINT32_MAX, 1));
+	/* a feeder that began at count b: only a stop seen after it counts */
+	assert_false(mlip_ring_stop_after(5, 5));
+	assert_true(mlip_ring_stop_after(6, 5));
+	assert_false(mlip_ring_stop_after(4, 5));
+	assert_true(mlip_ring_stop_after(0, UINT32_MAX));
 }
 
 /* ---- two-thread tests --------------------------------------------------- */
@@ -684,6 +747,74 @@ static void test_stress_mailbox(void **state)
 	assert_true(reads > 0);
 }
 
+/* Two mlip-ctl race for the mailbox (a CAS decides): every post that
+ * returned MLIP_OK is applied exactly once, with its own op and argument. */
+#define RACE_CMDS 5000
+
+struct racer {
+	struct mlip_ring *r;
+	int id; /* 1 or 2: the argument is id * 100000 + i */
+};
+
+static void *racer(void *arg)
+{
+	struct racer *t = arg;
+	uint32_t seq;
+	int32_t res;
+	for (int i = 0; i < RACE_CMDS; i++) {
+		while (mlip_ring_cmd_post(t->r, MLIP_CMD_OVERRIDE, t->id * 100000 + i, &seq) !=
+		       MLIP_OK) {
+			sched_yield();
+		}
+		mlip_status st;
+		while ((st = mlip_ring_cmd_result(t->r, seq, &res)) == MLIP_E_EMPTY) {
+			sched_yield();
+		}
+		/* MLIP_E_RANGE: done, but 8 of the other's completed since */
+		if (st == MLIP_OK && res != t->id) {
+			return (void *)1; /* another command's result */
+		}
+	}
+	return NULL;
+}
+
+static void test_stress_two_posters(void **state)
+{
+	struct mlip_ring *r = fresh(CAP, 3);
+	struct racer a = {r, 1}, b = {r, 2};
+	pthread_t ta, tb;
+	void *ra, *rb;
+	int next[3] = {0, 0, 0}, bad = 0, n = 0;
+	struct mlip_ring_cmd cmd;
+
+	(void)state;
+	assert_int_equal(pthread_create(&ta, NULL, racer, &a), 0);
+	assert_int_equal(pthread_create(&tb, NULL, racer, &b), 0);
+	while (n < 2 * RACE_CMDS) {
+		if (mlip_ring_cmd_take(r, &cmd) != MLIP_OK) {
+			sched_yield();
+			continue;
+		}
+		int id = cmd.arg / 100000, i = cmd.arg % 100000;
+		/* each poster's commands in its order, none twice, none lost */
+		if (cmd.op != MLIP_CMD_OVERRIDE || id < 1 || id > 2 || i != next[id]) {
+			bad++;
+		} else {
+			next[id]++;
+		}
+		n++;
+		mlip_ring_cmd_done(r, cmd.seq, id); /* the result names the poster */
+	}
+	assert_int_equal(pthread_join(ta, &ra), 0);
+	assert_int_equal(pthread_join(tb, &rb), 0);
+	assert_null(ra);
+	assert_null(rb);
+	assert_int_equal(bad, 0);
+	assert_int_equal(next[1], RACE_CMDS);
+	assert_int_equal(next[2], RACE_CMDS);
+	assert_int_equal(mlip_ring_cmd_take(r, &cmd), MLIP_E_EMPTY);
+}
+
 /* Ports keep the sizes and their own index; the other side's index is
  * range-checked, never trusted. */
 static void test_port_corrupt_header(void **state)
@@ -703,9 +834,12 @@ static void test_port_corrupt_header(void **state)
 	assert_int_equal(n, 4);
 	r->mask = 0xFFFFFFFFu; /* not used after open */
 	r->capacity = 0;
-	assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_OK);
+	struct mlip_rec_view v;
+	assert_int_equal(mlip_ring_port_view(&rx, &v, NULL), MLIP_OK);
+	assert_int_equal(v.len[0] + v.len[1], 4);
+	out = v.span[0][0];
 	assert_true(rec_ok(&out, 0));
-	assert_int_equal(mlip_ring_port_pop(&rx), MLIP_OK);
+	assert_int_equal(mlip_ring_port_pop_n(&rx, 1), MLIP_OK);
 	assert_int_equal(mlip_ring_port_count(&rx, &n, NULL), MLIP_OK);
 	assert_int_equal(n, 3);
 	/* a head a lap and more ahead of the consumer */
@@ -713,13 +847,15 @@ static void test_port_corrupt_header(void **state)
 	assert_int_equal(mlip_ring_port_count(&rx, &n, &apart), MLIP_E_RANGE);
 	assert_int_equal(n, 0);
 	assert_int_equal(apart, CAP + 1);
-	/* the peek still serves what it had seen, then refuses */
-	for (int i = 0; i < 3; i++) {
-		assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_OK);
-		assert_int_equal(mlip_ring_port_pop(&rx), MLIP_OK);
-	}
+	apart = 0;
+	assert_int_equal(mlip_ring_port_view(&rx, &v, &apart), MLIP_E_RANGE);
+	assert_int_equal(v.len[0] + v.len[1], 0);
+	assert_int_equal(apart, CAP + 1);
+	/* what was seen can still be popped, not more */
+	assert_int_equal(mlip_ring_port_pop_n(&rx, 4), MLIP_E_RANGE);
+	assert_int_equal(mlip_ring_port_pop_n(&rx, 3), MLIP_OK);
 	__atomic_store_n(&r->head, rx.own - 1, __ATOMIC_RELEASE); /* behind the consumer */
-	assert_int_equal(mlip_ring_port_peek(&rx, &out), MLIP_E_RANGE);
+	assert_int_equal(mlip_ring_port_view(&rx, &v, NULL), MLIP_E_RANGE);
 	/* a tail behind the producer by more than a lap (or ahead of it) */
 	__atomic_store_n(&r->tail, tx.own + 7, __ATOMIC_RELEASE);
 	assert_int_equal(mlip_ring_port_push_n(&tx, in, 1, &n), MLIP_E_RANGE);
@@ -729,10 +865,43 @@ static void test_port_corrupt_header(void **state)
 	assert_int_equal(mlip_ring_port_open(&rx, r, 0), MLIP_E_INVALID);
 }
 
+/* The consumer's view across the end of the slots: two spans, in order,
+ * and a pop of what was taken hands exactly those slots back. */
+static void test_port_view_wraps(void **state)
+{
+	(void)state;
+	struct mlip_ring *r = fresh(CAP, 3);
+	struct mlip_ring_port tx, rx;
+	struct mlip_ring_rec in[5];
+	struct mlip_rec_view v;
+	uint32_t n;
+
+	mlip_ring_reset(r, 0xFFFFFFFFu - 1u); /* indices about to wrap, too */
+	for (uint32_t k = 0; k < 5; k++) {
+		make_rec(&in[k], k);
+	}
+	assert_int_equal(mlip_ring_port_open(&tx, r, 1), MLIP_OK);
+	assert_int_equal(mlip_ring_port_open(&rx, r, 0), MLIP_OK);
+	assert_int_equal(mlip_ring_port_push_n(&tx, in, 5, &n), MLIP_OK);
+	assert_int_equal(mlip_ring_port_view(&rx, &v, NULL), MLIP_OK);
+	assert_int_equal(v.len[0], 2); /* the last two slots, then from slot 0 */
+	assert_int_equal(v.len[1], 3);
+	for (uint32_t k = 0; k < 5; k++) {
+		assert_true(rec_ok(k < 2 ? &v.span[0][k] : &v.span[1][k - 2], k));
+	}
+	assert_int_equal(mlip_ring_port_pop_n(&rx, 3), MLIP_OK);
+	assert_int_equal(mlip_ring_space(r), CAP - 2);
+	assert_int_equal(mlip_ring_port_view(&rx, &v, NULL), MLIP_OK);
+	assert_int_equal(v.len[0], 2);
+	assert_int_equal(v.len[1], 0);
+	assert_true(rec_ok(&v.span[0][0], 3));
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test(test_port_corrupt_header),
+	    cmocka_unit_test(test_port_view_wraps),
 	    cmocka_unit_test(test_layout),
 	    cmocka_unit_test(test_format_rejects),
 	    cmocka_unit_test(test_format_fresh_state),
@@ -751,8 +920,10 @@ int main(void)
 	    cmocka_unit_test(test_reason_strings),
 	    cmocka_unit_test(test_status_feeder),
 	    cmocka_unit_test(test_mailbox),
+	    cmocka_unit_test(test_stop_counter),
 	    cmocka_unit_test(test_stress_spsc),
 	    cmocka_unit_test(test_stress_mailbox),
+	    cmocka_unit_test(test_stress_two_posters),
 	};
 
 	return cmocka_run_group_tests_name("ring", tests, NULL, NULL);

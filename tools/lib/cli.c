@@ -8,7 +8,7 @@
 #include <string.h>
 
 #include "check.h"
-#include "mlip/canopen/canopen.h"
+#include "mlip/canopen/drive.h"
 #include "mlip/ipc/ring.h"
 #include "confload.h"
 #include "mlip/gcode/gcode.h"
@@ -262,7 +262,8 @@ int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
 		return -1;
 	}
 	if (o->offsets != NULL) {
-		if (mlip_offsets_load(o->offsets, &cfg->machine, &off, prog, err) != 0) {
+		if (mlip_offsets_load(o->offsets_file, o->offsets, &cfg->machine, &off, prog,
+		                      err) != 0) {
 			return -1;
 		}
 	} else {

@@ -12,10 +12,14 @@
 #include "mlip/motion/planner.h"
 #include "program.h"
 
+struct mlip_offsets_file;
+
 struct mlip_cli_machine {
 	const char *config;  /* INI path, or NULL: axes are those the program uses */
 	const char *offsets; /* offsets file (offsets.h), or NULL: all zero, G54 */
-	int strict;          /* mlip_gcode_set_strict */
+	struct mlip_offsets_file *offsets_file; /* filled by the load when not NULL: the base
+	                                           of a write-back (mlip_offsets_save) */
+	int strict;                             /* mlip_gcode_set_strict */
 	double default_feed; /* --default-feed: F for a program without any, or 0 */
 	const char *accel;   /* "A" or "A1,A2,..." in config order, or NULL */
 	double vmax_mm_s;    /* <= 0: unset */

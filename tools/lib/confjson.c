@@ -1,61 +1,53 @@
 /* confjson.c - see confjson.h */
 #include "confjson.h"
 
+#include "json.h"
 #include "mlip/can/canenc.h"
 
-void mlip_json_str(FILE *f, const char *s)
+#define G17 "%.17g" /* reads back to the same double */
+
+static void frame(struct mlip_json *j, uint32_t id, const char *name)
 {
-	fputc('"', f);
-	for (; *s != '\0'; s++) {
-		unsigned char ch = (unsigned char)*s;
-		if (ch == '"' || ch == '\\') {
-			fprintf(f, "\\%c", ch);
-		} else if (ch < 0x20) {
-			fprintf(f, "\\u%04x", ch);
-		} else {
-			fputc(ch, f);
-		}
-	}
-	fputc('"', f);
+	mlip_json_object(j, NULL, 1);
+	mlip_json_uint(j, "id", id);
+	mlip_json_string(j, "name", name);
+	mlip_json_close(j);
 }
 
-static void frames(FILE *f, const struct mlip_config *c)
+static void frames(struct mlip_json *j, const struct mlip_config *c)
 {
 	const struct mlip_can_config *can = &c->can;
 	const struct mlip_machine *m = &c->machine;
 	mlip_can_profile p;
+	char name[16];
 	int i, nf = (m->n_axes + 1) / 2;
 
-	fprintf(f, "[");
-	if (mlip_can_profile_parse(can->profile, &p) != MLIP_OK) {
-		fprintf(f, "]");
-		return;
-	}
-	switch (p) {
-	case MLIP_CAN_CIA402:
-		fprintf(f, "{\"id\": %u, \"name\": \"SYNC\"}", (unsigned)can->sync_id);
-		for (i = 0; i < m->n_axes; i++) {
-			fprintf(f, ", {\"id\": %u, \"name\": \"RPDO %c\"}",
-			        (unsigned)(can->rpdo_base + (uint32_t)m->axis[i].can_node),
-			        m->axis[i].letter);
-		}
-		break;
-	case MLIP_CAN_PACKED:
-		for (i = 0; i <= nf; i++) {
-			fprintf(f, "%s{\"id\": %u, \"name\": \"%s", i ? ", " : "",
-			        (unsigned)(can->packed_base + (uint32_t)i),
-			        i < nf ? "POS " : "COMMIT");
-			if (i < nf) {
-				fprintf(f, "%d", i);
+	mlip_json_array(j, "frames", 1);
+	if (mlip_can_profile_parse(can->profile, &p) == MLIP_OK) {
+		switch (p) {
+		case MLIP_CAN_CIA402:
+			frame(j, can->sync_id, "SYNC");
+			for (i = 0; i < m->n_axes; i++) {
+				snprintf(name, sizeof(name), "RPDO %c", m->axis[i].letter);
+				frame(j, can->rpdo_base + (uint32_t)m->axis[i].can_node, name);
 			}
-			fprintf(f, "\"}");
+			break;
+		case MLIP_CAN_PACKED:
+			for (i = 0; i <= nf; i++) {
+				if (i < nf) {
+					snprintf(name, sizeof(name), "POS %d", i);
+				} else {
+					snprintf(name, sizeof(name), "COMMIT");
+				}
+				frame(j, can->packed_base + (uint32_t)i, name);
+			}
+			break;
+		case MLIP_CAN_FD:
+			frame(j, can->fd_id, "FD");
+			break;
 		}
-		break;
-	case MLIP_CAN_FD:
-		fprintf(f, "{\"id\": %u, \"name\": \"FD\"}", (unsigned)can->fd_id);
-		break;
 	}
-	fprintf(f, "]");
+	mlip_json_close(j);
 }
 
 void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config *c)
@@ -63,45 +55,61 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 	const struct mlip_machine *m = &c->machine;
 	const struct mlip_can_config *can = &c->can;
 	const struct mlip_drives_config *d = &c->drives;
+	struct mlip_json j;
+	char letters[MLIP_MAX_AXES + 1];
 	int i;
 
-	fprintf(f, "{\n  \"file\": ");
-	mlip_json_str(f, path);
-	fprintf(f, ",\n  \"machine\": {\n    \"coordinates\": \"");
+	mlip_json_begin(&j, f);
+	mlip_json_string(&j, "file", path);
+	mlip_json_object(&j, "machine", 0);
 	for (i = 0; i < m->n_axes; i++) {
-		fputc(m->axis[i].letter, f);
+		letters[i] = m->axis[i].letter;
 	}
-	fprintf(f,
-	        "\",\n    \"max_linear_velocity\": %.17g,\n    \"max_angular_velocity\": %.17g,\n"
-	        "    \"contour_tolerance\": %.17g,\n    \"period\": %.17g,\n    \"axes\": [",
-	        m->max_feed_mm_s, m->max_rot_feed_deg_s, m->tolerance_mm, m->period_s);
+	letters[m->n_axes] = '\0';
+	mlip_json_string(&j, "coordinates", letters);
+	mlip_json_number(&j, "max_linear_velocity", G17, m->max_feed_mm_s);
+	mlip_json_number(&j, "max_angular_velocity", G17, m->max_rot_feed_deg_s);
+	mlip_json_number(&j, "contour_tolerance", G17, m->tolerance_mm);
+	mlip_json_number(&j, "period", G17, m->period_s);
+	mlip_json_array(&j, "axes", 0);
 	for (i = 0; i < m->n_axes; i++) {
 		const struct mlip_axis *a = &m->axis[i];
-		fprintf(f,
-		        "%s\n      {\"letter\": \"%c\", \"type\": \"%s\", \"max_velocity\": %.17g, "
-		        "\"max_acceleration\": %.17g, \"min_limit\": %.17g, \"max_limit\": %.17g, "
-		        "\"home\": %.17g, \"can_node\": %d, \"counts_per_unit\": %.17g}",
-		        i ? "," : "", a->letter, a->kind == MLIP_AXIS_ROTARY ? "ANGULAR" : "LINEAR",
-		        a->max_vel, a->max_accel, a->min_limit, a->max_limit, a->home, a->can_node,
-		        a->counts_per_unit);
+		char letter[2] = {a->letter, '\0'};
+		mlip_json_object(&j, NULL, 1);
+		mlip_json_string(&j, "letter", letter);
+		mlip_json_string(&j, "type", a->kind == MLIP_AXIS_ROTARY ? "ANGULAR" : "LINEAR");
+		mlip_json_number(&j, "max_velocity", G17, a->max_vel);
+		mlip_json_number(&j, "max_acceleration", G17, a->max_accel);
+		mlip_json_number(&j, "min_limit", G17, a->min_limit);
+		mlip_json_number(&j, "max_limit", G17, a->max_limit);
+		mlip_json_number(&j, "home", G17, a->home);
+		mlip_json_int(&j, "can_node", a->can_node);
+		mlip_json_number(&j, "counts_per_unit", G17, a->counts_per_unit);
+		mlip_json_close(&j);
 	}
-	fprintf(f, "\n    ]\n  },\n  \"lookahead\": %u,\n  \"can\": {\n    \"profile\": ",
-	        (unsigned)c->lookahead);
-	mlip_json_str(f, can->profile);
-	fprintf(f,
-	        ",\n    \"bitrate\": %u,\n    \"data_bitrate\": %u,\n    \"sync_id\": %u,\n"
-	        "    \"rpdo_base\": %u,\n    \"packed_base\": %u,\n    \"fd_id\": %u,\n"
-	        "    \"status_id\": %u,\n    \"frames\": ",
-	        (unsigned)can->bitrate, (unsigned)can->data_bitrate, (unsigned)can->sync_id,
-	        (unsigned)can->rpdo_base, (unsigned)can->packed_base, (unsigned)can->fd_id,
-	        (unsigned)can->status_id);
-	frames(f, c);
-	fprintf(f,
-	        "\n  },\n  \"drives\": {\n    \"enable\": %s,\n    \"master_node\": %u,\n"
-	        "    \"heartbeat_ms\": %u,\n    \"heartbeat_timeout_ms\": %u,\n"
-	        "    \"following_error\": %.17g,\n    \"sdo_timeout_ms\": %u,\n"
-	        "    \"boot_timeout_ms\": %u,\n    \"state_timeout_ms\": %u\n  }\n}\n",
-	        d->enable ? "true" : "false", (unsigned)d->master_node, (unsigned)d->heartbeat_ms,
-	        (unsigned)d->heartbeat_timeout_ms, d->following_error, (unsigned)d->sdo_timeout_ms,
-	        (unsigned)d->boot_timeout_ms, (unsigned)d->state_timeout_ms);
+	mlip_json_close(&j);
+	mlip_json_close(&j);
+	mlip_json_uint(&j, "lookahead", c->lookahead);
+	mlip_json_object(&j, "can", 0);
+	mlip_json_string(&j, "profile", can->profile);
+	mlip_json_uint(&j, "bitrate", can->bitrate);
+	mlip_json_uint(&j, "data_bitrate", can->data_bitrate);
+	mlip_json_uint(&j, "sync_id", can->sync_id);
+	mlip_json_uint(&j, "rpdo_base", can->rpdo_base);
+	mlip_json_uint(&j, "packed_base", can->packed_base);
+	mlip_json_uint(&j, "fd_id", can->fd_id);
+	mlip_json_uint(&j, "status_id", can->status_id);
+	frames(&j, c);
+	mlip_json_close(&j);
+	mlip_json_object(&j, "drives", 0);
+	mlip_json_bool(&j, "enable", d->enable);
+	mlip_json_uint(&j, "master_node", d->master_node);
+	mlip_json_uint(&j, "heartbeat_ms", d->heartbeat_ms);
+	mlip_json_uint(&j, "heartbeat_timeout_ms", d->heartbeat_timeout_ms);
+	mlip_json_number(&j, "following_error", G17, d->following_error);
+	mlip_json_uint(&j, "sdo_timeout_ms", d->sdo_timeout_ms);
+	mlip_json_uint(&j, "boot_timeout_ms", d->boot_timeout_ms);
+	mlip_json_uint(&j, "state_timeout_ms", d->state_timeout_ms);
+	mlip_json_close(&j);
+	mlip_json_end(&j);
 }

@@ -13,12 +13,9 @@
 /* One JSON object: "file", "machine" (the [TRAJ] values and "axes", one
  * object per axis in COORDINATES order), "lookahead", and "can" (the [CAN]
  * values and "frames": every frame the profile sends each period, in send
- * order, as {"id", "name"}). Doubles with 17 significant digits (they read
- * back to the same value); ids as numbers. */
+ * order, as {"id", "name"}), and "drives" (the [DRIVES] values). Doubles
+ * with 17 significant digits (they read back to the same value); ids as
+ * numbers. Written with the tools' one JSON writer (json.h). */
 void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config *c);
-
-/* s as a JSON string: quotes, backslashes and control characters escaped
- * (paths and shm names may hold any byte but NUL). */
-void mlip_json_str(FILE *f, const char *s);
 
 #endif

@@ -6,34 +6,111 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "sha256.h"
+#include "statefile.h"
+
 #define LINE_CAP (MLIP_GCODE_MAX_LINE + 2) /* one byte more than a valid line */
+
+/* ---- the file, in pinned chunks (program.h) ---- */
+
+static void stale(struct mlip_program *p, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+static void stale(struct mlip_program *p, const char *fmt, ...)
+{
+	va_list ap;
+	va_start(ap, fmt);
+	vsnprintf(p->stale, sizeof p->stale, fmt, ap);
+	va_end(ap);
+	p->io_err = -ESTALE;
+}
+
+/* The next chunk into p->buf, recorded in the pin (the first pass) or
+ * verified against it (every other one) before a byte of it is used: its
+ * length (0 at the end), or -1 with p->io_err. */
+static int load_chunk(struct mlip_program *p)
+{
+	size_t n = 0, k = p->chunk_at;
+	unsigned long long at = (unsigned long long)k * p->chunk;
+	uint8_t h[MLIP_SHA256_BYTES];
+
+	while (n < p->chunk) {
+		ssize_t r = read(p->fd, p->buf + n, p->chunk - n);
+		if (r < 0 && errno == EINTR) {
+			continue;
+		}
+		if (r < 0) {
+			p->io_err = -errno;
+			return -1;
+		}
+		if (r == 0) {
+			break;
+		}
+		n += (size_t)r;
+	}
+	p->buf_len = n;
+	p->buf_pos = 0;
+	if (n == 0) {
+		if (p->pinning) {
+			p->n_chunks = k;
+		} else if (k != p->n_chunks) {
+			stale(p, "it ends at byte %llu, before the %llu chunks that were checked",
+			      at, (unsigned long long)p->n_chunks);
+			return -1;
+		}
+		return 0;
+	}
+	mlip_sha256(p->buf, n, h);
+	if (p->pinning) {
+		if (k == MLIP_PROGRAM_MAX_CHUNKS) {
+			stale(p, "it grew past byte %llu while it was read (%llu chunks)", at,
+			      (unsigned long long)k);
+			return -1;
+		}
+		memcpy(p->pin[k], h, MLIP_PROGRAM_PIN_BYTES);
+	} else if (k >= p->n_chunks) {
+		stale(p, "bytes from %llu on were not there when it was checked", at);
+		return -1;
+	} else if (memcmp(p->pin[k], h, MLIP_PROGRAM_PIN_BYTES) != 0) {
+		stale(p, "bytes %llu to %llu differ from the ones checked", at,
+		      at + (unsigned long long)n - 1);
+		return -1;
+	}
+	p->chunk_at++;
+	return (int)n;
+}
 
 /* ---- lines: LF, CRLF or a lone CR end one ---- */
 
 static int get_byte(struct mlip_program *p)
 {
-	if (p->f) {
-		return getc_unlocked(p->f);
+	if (p->file) {
+		if (p->buf_pos == p->buf_len && (p->io_err || load_chunk(p) <= 0)) {
+			return EOF;
+		}
+		return p->buf[p->buf_pos++];
 	}
 	return p->mem_pos < p->mem_len ? (unsigned char)p->mem[p->mem_pos++] : EOF;
 }
 
 static void unget_byte(struct mlip_program *p, int c)
 {
-	if (p->f) {
-		ungetc(c, p->f);
+	(void)c;
+	if (p->file) {
+		p->buf_pos--; /* the byte just taken is still in the buffer */
 	} else {
 		p->mem_pos--;
 	}
 }
 
 /* The next line into p->line (at most LINE_CAP bytes kept, p->line_len
- * counts them all): 1, 0 at the end of the input, -errno. */
+ * counts them all): 1, 0 at the end of the input, -errno (-ESTALE: the
+ * file is not the one checked, p->stale says how). */
 static int read_line(struct mlip_program *p)
 {
 	size_t n = 0;
@@ -42,8 +119,8 @@ static int read_line(struct mlip_program *p)
 	for (;;) {
 		c = get_byte(p);
 		if (c == EOF) {
-			if (p->f && ferror(p->f)) {
-				return errno ? -errno : -EIO;
+			if (p->file && p->io_err) {
+				return p->io_err;
 			}
 			break;
 		}
@@ -55,6 +132,9 @@ static int read_line(struct mlip_program *p)
 			c = get_byte(p);
 			if (c != '\n' && c != EOF) {
 				unget_byte(p, c);
+			}
+			if (c == EOF && p->file && p->io_err) {
+				return p->io_err;
 			}
 			break;
 		}
@@ -69,16 +149,29 @@ static int read_line(struct mlip_program *p)
 
 static int rewind_input(struct mlip_program *p)
 {
-	if (p->f) {
-		if (fseek(p->f, 0, SEEK_SET) != 0) {
+	if (p->file) {
+		if (lseek(p->fd, 0, SEEK_SET) != 0) {
 			return -errno;
 		}
-		clearerr(p->f);
+		p->buf_len = p->buf_pos = p->chunk_at = 0;
+		p->io_err = 0;
+		p->pinning = 0; /* only the first pass records */
 	} else {
 		p->mem_pos = 0;
 	}
 	p->lineno = 0;
 	return 0;
+}
+
+/* The message for a failed read: a changed file, or the system's error. */
+static void read_failed(struct mlip_program *p, int rc, const char *when)
+{
+	if (rc == -ESTALE) {
+		snprintf(p->msg, sizeof p->msg, "the file changed %s (%s, line %u)", when, p->stale,
+		         (unsigned)p->lineno + 1);
+	} else {
+		snprintf(p->msg, sizeof p->msg, "%s", strerror(-rc));
+	}
 }
 
 /* The parser gets the length as read: it reads no byte of a line longer
@@ -96,42 +189,65 @@ static size_t line_kept(const struct mlip_program *p)
 
 /* ---- opening ---- */
 
-static const char *file_kind(mode_t mode)
-{
-	return S_ISDIR(mode)    ? "a directory"
-	       : S_ISFIFO(mode) ? "a FIFO (pipe)"
-	       : S_ISCHR(mode)  ? "a character device"
-	       : S_ISBLK(mode)  ? "a block device"
-	       : S_ISSOCK(mode) ? "a socket"
-	                        : "not a regular file";
-}
-
-/* A regular file, opened without blocking on a FIFO; -errno with msg. */
-static FILE *open_regular(const char *path, char *msg, size_t len)
+/* A regular file, opened without blocking on a FIFO: the fd, or -1 with
+ * msg; *size its size. */
+static int open_regular(const char *path, char *msg, size_t len, uint64_t *size)
 {
 	struct stat st;
 	int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-	FILE *f;
 
 	if (fd < 0) {
 		snprintf(msg, len, "%s", strerror(errno));
-		return NULL;
+		return -1;
 	}
 	if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
 		snprintf(msg, len,
 		         "%s: mlip reads a program from a regular file only (it checks the whole "
 		         "file before anything moves, then reads it again to run it): save it to "
 		         "a file first",
-		         file_kind(st.st_mode));
+		         mlip_file_kind(st.st_mode));
 		close(fd);
-		return NULL;
+		return -1;
 	}
-	if (fcntl(fd, F_SETFL, 0) != 0 || (f = fdopen(fd, "rb")) == NULL) {
+	if (fcntl(fd, F_SETFL, 0) != 0) {
 		snprintf(msg, len, "%s", strerror(errno));
 		close(fd);
-		return NULL;
+		return -1;
 	}
-	return f;
+	*size = (uint64_t)st.st_size;
+	return fd;
+}
+
+/* Open path as p's input: the fd, the chunk buffer, and (pin NULL) a new
+ * pin table recorded by the first pass, else the given one (a second reader
+ * of a checked program). 0, or < 0 with p->msg. */
+static int open_file(struct mlip_program *p, const char *path,
+                     uint8_t (*pin)[MLIP_PROGRAM_PIN_BYTES], size_t chunk)
+{
+	uint64_t size = 0;
+	p->fd = open_regular(path, p->msg, sizeof p->msg, &size);
+	if (p->fd < 0) {
+		return -EINVAL;
+	}
+	p->file = 1;
+	if (pin == NULL) {
+		/* 64 KiB chunks, larger for a program over 256 MiB (4096 of them) */
+		uint64_t c = (size + MLIP_PROGRAM_MAX_CHUNKS - 1) / MLIP_PROGRAM_MAX_CHUNKS;
+		c = (c + 4095) / 4096 * 4096;
+		chunk = c > MLIP_PROGRAM_CHUNK ? (size_t)c : MLIP_PROGRAM_CHUNK;
+		p->pin = malloc(MLIP_PROGRAM_MAX_CHUNKS * sizeof *p->pin);
+		p->pin_owner = 1;
+		p->pinning = 1;
+	} else {
+		p->pin = pin;
+	}
+	p->chunk = chunk;
+	p->buf = malloc(chunk);
+	if (!p->pin || !p->buf) {
+		snprintf(p->msg, sizeof p->msg, "%s", strerror(ENOMEM));
+		return -ENOMEM;
+	}
+	return 0;
 }
 
 static int add_error(struct mlip_program *p, const struct mlip_gcode_error *e)
@@ -181,7 +297,7 @@ static int check_all(struct mlip_program *p)
 		p->initial_feed_word = p->opt.default_feed; /* line 0: from the option */
 	}
 	if (rc < 0 || (rc = rewind_input(p)) < 0) {
-		snprintf(p->msg, sizeof p->msg, "%s", strerror(-rc));
+		read_failed(p, rc, "while it was read");
 		return rc;
 	}
 	start_parser(p, &p->g);
@@ -193,7 +309,7 @@ static int check_all(struct mlip_program *p)
 		}
 	}
 	if (rc < 0) {
-		snprintf(p->msg, sizeof p->msg, "%s", strerror(-rc));
+		read_failed(p, rc, "while it was checked: check it again");
 		return rc;
 	}
 	p->lines = p->lineno;
@@ -234,9 +350,9 @@ int mlip_program_open(struct mlip_program *p, const char *path, const struct mli
                       const struct mlip_program_options *opt)
 {
 	memset(p, 0, sizeof *p);
-	p->f = open_regular(path, p->msg, sizeof p->msg);
-	if (!p->f) {
-		return -EINVAL;
+	int rc = open_file(p, path, NULL, 0);
+	if (rc < 0) {
+		return rc;
 	}
 	return open_common(p, m, opt);
 }
@@ -313,6 +429,12 @@ int mlip_program_next(struct mlip_program *p, struct mlip_block *b)
 			p->g = p->saved;
 		} else {
 			rc = read_line(p);
+			if (rc == -ESTALE) {
+				char what[sizeof p->stale + 32];
+				snprintf(what, sizeof what, "%s, line %u", p->stale,
+				         (unsigned)p->lineno + 1);
+				return changed(p, what);
+			}
 			if (rc < 0) {
 				snprintf(p->msg, sizeof p->msg, "%s", strerror(-rc));
 				p->done = 1;
@@ -356,16 +478,22 @@ int mlip_program_open_reader(struct mlip_program *p, const struct mlip_program *
                              const char *path)
 {
 	*p = *checked; /* counts, first F, offsets at the start: what next() needs */
-	p->f = NULL;
+	p->file = 0;
+	p->fd = -1;
+	p->buf = NULL;
+	p->pin_owner = 0; /* the checked program's pin, verified here too */
+	p->pinning = 0;
+	p->buf_len = p->buf_pos = p->chunk_at = 0;
+	p->io_err = 0;
 	p->errors = NULL;
 	p->n_errors = 0; /* kept by checked; n_errors_total still refuses a bad one */
 	p->line = NULL;
 	p->batch = NULL;
 	mlip_program_rewind(p);
-	if (checked->f) {
-		p->f = open_regular(path, p->msg, sizeof p->msg);
-		if (!p->f) {
-			return -EINVAL;
+	if (checked->file) {
+		int rc = open_file(p, path, checked->pin, checked->chunk);
+		if (rc < 0) {
+			return rc;
 		}
 	}
 	p->line = malloc(LINE_CAP);
@@ -379,9 +507,13 @@ int mlip_program_open_reader(struct mlip_program *p, const struct mlip_program *
 
 void mlip_program_close(struct mlip_program *p)
 {
-	if (p->f) {
-		fclose(p->f);
+	if (p->file && p->fd >= 0) {
+		close(p->fd);
 	}
+	if (p->pin_owner) {
+		free(p->pin);
+	}
+	free(p->buf);
 	free(p->errors);
 	free(p->line);
 	free(p->batch);
@@ -390,12 +522,13 @@ void mlip_program_close(struct mlip_program *p)
 
 int mlip_program_check_file(const char *path, char *msg, size_t msg_len)
 {
-	FILE *f = open_regular(path, msg, msg_len);
+	uint64_t size;
+	int fd = open_regular(path, msg, msg_len, &size);
 
-	if (!f) {
+	if (fd < 0) {
 		return -EINVAL;
 	}
-	fclose(f);
+	close(fd);
 	return 0;
 }
 
@@ -407,12 +540,10 @@ int mlip_program_scan_axes(const char *path, char *letters, char *msg, size_t ms
 	int rc, k, n = 0;
 
 	memset(&p, 0, sizeof p);
-	p.f = open_regular(path, msg, msg_len);
+	rc = open_file(&p, path, NULL, 0);
 	p.line = malloc(LINE_CAP);
-	if (!p.f || !p.line) {
-		if (p.f) {
-			snprintf(msg, msg_len, "%s", strerror(ENOMEM));
-		}
+	if (rc < 0 || !p.line) {
+		snprintf(msg, msg_len, "%s", rc < 0 ? p.msg : strerror(ENOMEM));
 		mlip_program_close(&p);
 		return -EINVAL;
 	}

@@ -9,10 +9,24 @@
  *   mlip_program_close().
  *
  * So "a program with any error never starts" holds without holding the
- * program. Only regular files are read (twice): a FIFO, a device such as
- * /dev/zero or a directory is refused with a message. Lines end in LF, CRLF
- * or a lone CR; a line longer than MLIP_GCODE_MAX_LINE is an error, and only
- * that many bytes of it are kept.
+ * program. Only regular files are read (several times): a FIFO, a device
+ * such as /dev/zero or a directory is refused with a message. Lines end in
+ * LF, CRLF or a lone CR; a line longer than MLIP_GCODE_MAX_LINE is an error,
+ * and only that many bytes of it are kept.
+ *
+ * The program is pinned for the whole run: every pass reads the file in
+ * chunks, and the first pass keeps each chunk's SHA-256 (a table of at most
+ * MLIP_PROGRAM_MAX_CHUNKS, 16 bytes each). Every later pass (the check, the
+ * stream, a second reader) reads a chunk whole into its own buffer and
+ * compares its hash before it parses a byte of it, so the blocks given out
+ * are the bytes that were checked: a file rewritten in place, replaced
+ * (cp, an editor's rename) or cut is found at the first chunk that differs,
+ * and the stream ends there with "the file changed after it was checked"
+ * (mlip-feed: the machine stops at rest at the end of the last block sent,
+ * every one of them verified). Memory stays independent of the program's
+ * length: the table, and one chunk of MLIP_PROGRAM_CHUNK bytes (larger only
+ * for a program over MLIP_PROGRAM_CHUNK x MLIP_PROGRAM_MAX_CHUNKS = 256 MiB:
+ * 1/4096 of its size).
  *
  * mlip_program_list_*() collect a whole program into an array, for the
  * benchmarks and tests that need every block at once (never the tools that
@@ -28,7 +42,10 @@
 #include "mlip/gcode/gcode.h"
 #include "mlip/types.h"
 
-#define MLIP_PROGRAM_MAX_ERRORS 1000 /* errors kept; all are counted */
+#define MLIP_PROGRAM_MAX_ERRORS 1000   /* errors kept; all are counted */
+#define MLIP_PROGRAM_CHUNK      65536u /* bytes hashed as one (at least) */
+#define MLIP_PROGRAM_MAX_CHUNKS 4096u  /* chunks of a file (more: larger chunks) */
+#define MLIP_PROGRAM_PIN_BYTES  16     /* of each chunk's SHA-256 */
 #define MLIP_PROGRAM_BATCH                                                                         \
 	4096 /* blocks of one line held at once (longer                                            \
 	        arcs are parsed again from the line) */
@@ -56,7 +73,15 @@ struct mlip_program {
 	/* private */
 	const struct mlip_machine *m;
 	struct mlip_program_options opt;
-	FILE *f;
+	int file, fd; /* a file (fd), else mem */
+	/* the pin: chunk hashes of the first pass (shared with readers) */
+	uint8_t (*pin)[MLIP_PROGRAM_PIN_BYTES];
+	int pin_owner, pinning; /* this pass records (the first) */
+	size_t chunk, n_chunks; /* bytes per chunk; chunks the first pass read */
+	unsigned char *buf;     /* the chunk being parsed (verified) */
+	size_t buf_len, buf_pos, chunk_at;
+	int io_err;     /* 0, -errno, or -ESTALE: a chunk that differs */
+	char stale[96]; /* which one, how */
 	const char *mem;
 	size_t mem_len, mem_pos;
 	char *line;      /* MLIP_GCODE_MAX_LINE + 2 bytes */
@@ -81,7 +106,8 @@ int mlip_program_open_mem(struct mlip_program *prog, const char *text, size_t le
                           const struct mlip_machine *m, const struct mlip_program_options *opt);
 
 /* The next block of a valid program: 1, 0 at the end, < 0 when the file no
- * longer gives what was checked (changed on disk, I/O error: prog->msg). */
+ * longer gives what was checked (prog->msg: "the file changed after it was
+ * checked (...)"; an I/O error). */
 int mlip_program_next(struct mlip_program *prog, struct mlip_block *b);
 
 /* Stream the blocks again from the first (a third pass over the file). */

@@ -3,7 +3,7 @@
 
 #include <string.h>
 
-#include "mlip/ipc/ring.h"
+#include "mlip/ctl/state.h"
 
 static void row(struct mlip_trace *tr, uint64_t k, const double *x)
 {

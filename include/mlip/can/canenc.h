@@ -79,7 +79,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "mlip/machine/config.h"
+#include "mlip/can/canconf.h"
 #include "mlip/types.h"
 
 #define MLIP_CAN_FLAG_EFF   0x1u /* 29-bit identifier (never produced by the encoder) */
@@ -142,7 +142,7 @@ mlip_status mlip_can_counts(double pos, double counts_per_unit, int32_t *counts)
 /* Build an encoder from the [CAN] section and the machine. MLIP_E_INVALID
  * when: the profile name is unknown; n_axes is outside 1..MLIP_MAX_AXES;
  * counts_per_unit is not finite and > 0; the identifiers break the rules of
- * mlip_can_config_check (mlip/machine/config.h: its message says which and why). */
+ * mlip_can_rules (mlip/can/canconf.h: its message says which and why). */
 mlip_status mlip_canenc_init(struct mlip_canenc *e, const struct mlip_can_config *can,
                              const struct mlip_machine *m);
 

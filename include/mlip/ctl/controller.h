@@ -2,16 +2,35 @@
  * mlip/ctl/controller.h - the controller's period as a pure function, in the
  * shape of Ruckig's update(input, output): mlip_ctl_period(c, in, out).
  *
- * Inputs: the period's command, the records in the ring (pure ring
- * operations: memory, no system call), the period index and how many
- * periods the loop missed before it, the feeder's liveness (a boolean the
- * caller computes from its clock) and the bus counters of the last send.
- * Outputs: the setpoint, the CAN frames to send (encoded, not sent), the
- * status to publish, and the events to log. No allocation, no I/O, no clock:
- * rt/controller.c runs it on the SCHED_FIFO loop, mlip-sim on a virtual
- * clock, so both produce the same setpoints by construction.
+ * Everything the period needs arrives in `in`: the period index and how
+ * many periods the loop missed before it, the records it may take (a view
+ * of the caller's queue: the segment's ring in mlip-rt, an array in
+ * mlip-sim; nothing is removed from it here), the command, the feeder's
+ * liveness (a boolean the caller computes from its clock), the bus counters
+ * of the last send, and what the drives said. Everything it decides leaves
+ * in `out`: how many records it took (the caller pops them), the setpoint,
+ * the CAN frames to send (encoded, not sent), the status to publish, the
+ * events to log, the drives' power and the counters. No allocation, no I/O,
+ * no clock: rt/period.c runs it on the SCHED_FIFO loop, mlip-sim on a
+ * virtual clock, so both produce the same setpoints by construction.
  *
- * One state (mlip_ring_state), every transition named with its reason
+ *   in:  period, missed        the clock: index, deadlines missed before it
+ *        recs, recs_corrupt    the records it may take (mlip_rec_view)
+ *        cmd, exit_request     the operator: a mailbox command, a signal
+ *        feeder_alive          the peer: is a feeder attached and beating
+ *        bus                   tx refused, bus-off
+ *        drives                muted drives, statuswords, a new fault,
+ *                              positions actual (rt/drives.c's hooks)
+ *   out: taken                 records to pop from the front of recs
+ *        pos, frames           the setpoint, and its CAN frames to send
+ *        cmd_result            the mailbox command's result
+ *        status, events        what to publish and what to log
+ *        power, counts         the drives' power, the counters since init
+ *        done                  an exit request is complete (at rest, drives off)
+ * A new input (an I/O module's inputs, a jog command) is a group of `in`,
+ * a new output (a spindle's controlword) a group of `out`.
+ *
+ * One state (mlip_ctl_state, mlip/ctl/state.h), every transition named with its reason
  * (mlip_state_why + record seq, line, field, value), kept in the status:
  *
  *   IDLE --record seq 1 (or the one after the last completed)--> PREREAD
@@ -27,16 +46,19 @@
  *             (a wait pre-reads what follows; if that is not done at its
  *             end: PREREAD first)
  *   any --stop | exit signal--> STOPPING --at rest--> IDLE
+ *   IDLE --a program whose feeder began before a stop seen--> IDLE (reason
+ *             STOP_EARLY: the stop is latched for the program about to
+ *             start; its records are dropped unmoved, its first one named)
  *   any --bad record--> FAULT (at rest at the end of the last good block:
  *             ingest stops, the look-ahead already plans it to rest)
  *   any --position beyond the drives' range--> FAULT (stop on the path)
- *   any --a drive fault (in->drive_fault)--> FAULT (reason DRIVE: node, event,
+ *   any --a drive fault (in->drives.fault)--> FAULT (reason DRIVE: node, event,
  *             value; every axis stops on the path, nothing more is taken;
  *             the faulted drive's own fault reaction applies to it)
  *
  * With CiA 402 drives (opts.drives) the controller also decides their power
  * (mlip_drive_power, mlip/ipc/ring.h), sent as the RPDOs' controlword and
- * confirmed by each drive's TPDO statusword (in->drive_sw), each step within
+ * confirmed by each drive's TPDO statusword (in->drives.sw), each step within
  * opts.drive_state_periods:
  *   ENABLED --at rest, IDLE after a program or a stop, FAULT, or exiting-->
  *     DISABLING (0x07) --all "switched on"--> SHUTTING_DOWN (0x06) --all
@@ -48,7 +70,7 @@
  * Records are taken (IDLE -> PREREAD) only with the drives ENABLED, so the
  * planner never moves otherwise; pause, dwell, hold and starved keep them
  * enabled, holding position. From OFF to ENABLING the commanded position
- * follows in->pos_actual (a disabled axis may be moved by hand or gravity)
+ * follows in->drives.pos_actual (a disabled axis may be moved by hand or gravity)
  * and must be inside the soft limits (else FAULT, BEYOND_LIMIT); ENABLING
  * sends it unchanged, so the target equals the position actual to the count
  * and the program starts there.
@@ -64,6 +86,8 @@
 #include <stdint.h>
 
 #include "mlip/can/canenc.h"
+#include "mlip/canopen/cia402.h"
+#include "mlip/ctl/state.h"
 #include "mlip/motion/planner.h"
 #include "mlip/ipc/ring.h"
 #include "mlip/types.h"
@@ -106,7 +130,7 @@ struct mlip_ctl_event {
 	uint32_t exec_line;
 };
 
-/* A CiA 402 drive's fault, as rt/drives.c's supervision (mlip/canopen/canopen.h,
+/* A CiA 402 drive's fault, as rt/drives.c's supervision (mlip/canopen/drive.h,
  * mlip_drive_supervise) found it this period. */
 struct mlip_ctl_drive_fault {
 	uint32_t event; /* mlip_drive_fault: statusword fault bit, EMCY, heartbeat lost,
@@ -116,24 +140,60 @@ struct mlip_ctl_drive_fault {
 	double value;   /* statusword, EMCY code, ms without heartbeat, counts, periods */
 };
 
+/* The bus as of the last send. */
+struct mlip_ctl_bus {
+	uint64_t tx_refused; /* frames the tx queue refused (cumulative: a change holds) */
+	int off;             /* the last error frame said bus-off */
+};
+
+/* What the CANopen master (rt/drives.c) saw of the drives this period. */
+struct mlip_ctl_drives {
+	uint32_t mute;                     /* bit k: no RPDO for axis k (its drive faulted) */
+	uint16_t sw[MLIP_MAX_AXES];        /* statusword 0x6041 of drive k's last TPDO (0: none) */
+	struct mlip_ctl_drive_fault fault; /* the first new fault, if any */
+	uint32_t actual_mask;              /* bit k: pos_actual[k] is from drive k's TPDO */
+	double pos_actual[MLIP_MAX_AXES];  /* position actual 0x6064, joint units */
+};
+
 struct mlip_ctl_in {
 	uint64_t period;                 /* 0, 1, 2, ... one per call */
 	uint32_t missed;                 /* deadlines the loop missed before this period */
+	struct mlip_rec_view recs;       /* the records it may take, oldest first (copied
+	                                    before they are checked; out->taken: popped) */
+	uint32_t recs_corrupt;           /* the queue's indices are this far apart, more than
+	                                    its capacity (a corrupted segment); 0: fine */
 	const struct mlip_ring_cmd *cmd; /* this period's command; NULL: none */
+	uint32_t stop_requests;          /* the stop counter (mlip_ring_stop_count): each
+	                                    change is a stop (never lost behind a command) */
+	uint32_t feeder_stop_base;       /* the feeder's stop_base: a program whose feeder
+	                                    began before a stop seen never starts */
+	int feeder_unread;               /* the feeder area was mid-update: whose program it
+	                                    is is not known, none starts this period */
 	int feeder_alive;                /* a feeder is attached and beating */
 	int exit_request;                /* stop on the path, then report done */
-	/* the bus as of the last send (cumulative) */
-	uint64_t can_tx_refused, can_error_frames;
-	int bus_off;
-	/* CiA 402 drives (opts.drives): what rt/drives.c saw this period */
-	uint32_t drive_mute; /* bit k: no RPDO for axis k (its drive faulted: not followed) */
-	uint16_t drive_sw[MLIP_MAX_AXES]; /* statusword 0x6041 of drive k's last TPDO (0: none) */
-	struct mlip_ctl_drive_fault drive_fault; /* the first new fault, if any */
-	uint32_t actual_mask;                    /* bit k: pos_actual[k] is from drive k's TPDO */
-	double pos_actual[MLIP_MAX_AXES];        /* position actual 0x6064, joint units */
+	struct mlip_ctl_bus bus;         /* as of the last send */
+	struct mlip_ctl_drives drives;   /* CiA 402 drives (opts.drives) */
+};
+
+/* The drives' power after the period (opts.drives; the sequencer's record). */
+struct mlip_ctl_power {
+	uint32_t state;     /* mlip_drive_power, as status.drive_power */
+	int ok;             /* the last disable: every step confirmed in time */
+	uint32_t late_node; /* the last step not confirmed in time: the drive (0: none), */
+	uint16_t late_sw;   /* its statusword then, */
+	uint32_t late_step; /* and the step (mlip_drive_power) */
+};
+
+/* Since init. */
+struct mlip_ctl_counts {
+	uint64_t blocks_consumed; /* records taken */
+	uint64_t underruns;       /* periods that needed a record and found none */
+	uint64_t refused;         /* programs dropped that did not continue the last */
+	uint64_t frames_encoded;  /* CAN frames put in out->frames */
 };
 
 struct mlip_ctl_out {
+	uint32_t taken;            /* records taken from the front of in->recs: pop them */
 	double pos[MLIP_MAX_AXES]; /* the setpoint of this period */
 	struct mlip_can_frame frames[MLIP_CAN_MAX_FRAMES];
 	int n_frames;                   /* 0: nothing to send (no encoder, or a fault) */
@@ -141,6 +201,8 @@ struct mlip_ctl_out {
 	struct mlip_ring_status status; /* all but heartbeat_ns, pid, CAN counters */
 	struct mlip_ctl_event events[MLIP_CTL_MAX_EVENTS];
 	uint32_t n_events;
+	struct mlip_ctl_power power;
+	struct mlip_ctl_counts counts;
 	int done; /* an exit request has completed: at rest */
 };
 
@@ -151,78 +213,96 @@ struct mlip_ctl_opts {
 	const struct mlip_can_config *can; /* NULL: no frames */
 	int drives;                        /* CiA 402 drives brought up (and enabled): 6-byte RPDOs
 	                                      with the controlword of the drives' power, none to
-	                                      in->drive_mute */
+	                                      in->drives.mute */
 	uint32_t drive_state_periods;      /* a power step not confirmed this long: a timeout
 	                                      (0: 1000) */
 };
 
+/* A record's place in the program: its seq (0: none) and source line. */
+struct mlip_ctl_mark {
+	uint64_t seq;
+	uint32_t line;
+};
+
+/* The controller's own state: read it through out, never here. */
 struct mlip_ctl {
-	/* wiring and private copies made at init */
+	/* set at init */
 	struct mlip_planner *planner;
-	struct mlip_ring_port rx; /* capacity, mask, tail: private copies */
-	int ring_bad;             /* head - tail beyond the capacity: read no more */
-	uint32_t ring_apart;      /* that distance */
 	struct mlip_machine m;
-	struct mlip_canenc enc;
+	struct mlip_canenc enc; /* the period's frames, when encode (opts.can) */
 	int encode;
+	int drives; /* opts.drives */
 	uint32_t stall_periods;
 	/* the state and why */
-	uint32_t state; /* mlip_ring_state */
+	uint32_t state; /* mlip_ctl_state */
 	struct mlip_ctl_reason why;
-	uint32_t hold_why; /* the cause of the planner's hold */
-	int bus_hold, stall_hold;
 	int drive_faulted; /* a drive fault came: it stays the reason */
+	/* what holds the planner, each cause until its own release */
+	struct {
+		int op;                  /* mlip-ctl hold: until resume (or a stop) */
+		int stall;               /* more periods missed than allowed: until resume */
+		int bus;                 /* frames refused, bus-off: until resume on a clean bus */
+		uint32_t bus_why;        /* BUS_TX or BUS_ERROR */
+		uint64_t bus_bad_period; /* the last period the bus was bad */
+		uint64_t tx_seen;        /* in->bus.tx_refused as last seen */
+	} hold;
+	/* the operator */
+	struct {
+		uint32_t stop_seen; /* the stop counter applied (in->stop_requests) */
+		int exiting;        /* an exit request: a stop on the path, then done */
+		int optional_stop;  /* the M1 switch */
+	} op;
+	/* the program */
+	struct {
+		uint64_t next_seq;           /* the record expected next */
+		struct mlip_ctl_mark exec;   /* the last record whose motion (or wait) is done */
+		struct mlip_ctl_mark end;    /* its END, once taken (seq 0: not yet) */
+		int refill;                  /* the pre-read continues a program */
+		int bad;                     /* a bad record: nothing more is taken */
+		int discard;                 /* dropping a stopped (or faulted) program's records */
+		int discard_waiting;         /* ... a waiting one's, its first record (seq 1) too */
+		double start[MLIP_MAX_AXES]; /* pos when its first record was taken */
+	} prog;
+	/* a dwell or a pause */
+	struct {
+		struct mlip_ring_rec event; /* the event record ingest stopped in front of */
+		struct mlip_ctl_mark at;    /* the dwell or pause being executed */
+		uint64_t dwell_left;        /* periods */
+		int resume;                 /* resume came during a pause */
+		int stopped;                /* a stop came in it: the wait is not done */
+	} wait;
 	/* the drives' power (opts.drives) */
-	int drives;
-	uint32_t power; /* mlip_drive_power */
-	uint32_t drive_state_periods;
-	uint64_t power_since;     /* period the current step began */
-	uint64_t power_t0;        /* period the current sequence began */
-	uint32_t power_periods;   /* the last complete sequence took this long */
-	int power_want;           /* this period: a program waits for the drives */
-	uint32_t still_periods;   /* periods the setpoint has not changed */
-	int power_ok;             /* the last disable was confirmed in order in time */
-	uint32_t power_late_node; /* the last step not confirmed in time: drive, */
-	uint16_t power_late_sw;   /* its statusword, */
-	uint32_t power_late_step; /* the step (mlip_drive_power) */
-	/* program */
-	int refill; /* the pre-read continues a program */
-	int end_seen;
-	uint64_t end_seq;
-	uint32_t end_line;
-	int discard;         /* dropping a stopped (or faulted) program's records */
-	int discard_waiting; /* ... a waiting one's, its first record (seq 1) too */
-	int bad;             /* a bad record: nothing more is taken */
-	int exiting;
-	int optional_stop; /* the M1 switch */
-	uint64_t next_seq; /* the record expected next */
-	uint64_t exec_seq; /* last record whose motion (or wait) is done */
-	uint32_t exec_line;
-	struct mlip_ring_rec event; /* the event record ingest stopped in front of */
-	uint64_t wait_seq;          /* the dwell or pause being executed */
-	uint32_t wait_line;
-	uint64_t dwell_left; /* periods */
-	int resume_wait;     /* resume came during a pause */
-	/* counters */
-	uint64_t period, overruns, underruns, blocks_consumed, refused, frames_encoded;
-	uint64_t bus_tx_seen, bus_err_seen, bus_bad_period;
-	/* a stop being measured: from its request to rest (status stop_*) */
-	int braking;
-	double brake_mm;
-	uint32_t brake_periods;
-	uint64_t stop_nm;
-	uint32_t stop_periods, stops;
+	struct {
+		struct mlip_402_seq seq; /* on the period count */
+		int want;                /* this period: a program waits for the drives */
+		uint32_t still_periods;  /* periods the setpoint has not changed */
+	} power;
+	/* this period's records (in->recs) */
+	struct {
+		const struct mlip_rec_view *view;
+		uint32_t taken;
+		uint32_t corrupt; /* the queue's indices were this far apart: nothing more is
+		                     read from it (0: never) */
+	} rx;
+	/* a stop measured from its request to rest (status stop_*) */
+	struct {
+		int on;
+		double mm;
+		uint32_t periods;
+		uint64_t last_nm; /* the last stop completed */
+		uint32_t last_periods, count;
+	} brake;
+	uint64_t period, overruns;
+	struct mlip_ctl_counts counts;
 	double pos[MLIP_MAX_AXES];
-	double prog_start[MLIP_MAX_AXES]; /* pos when the program's first record was taken */
-	/* scratch for one period's records (no stack arrays of this size on RT) */
-	struct mlip_ring_rec recs[MLIP_PREREAD_PER_PERIOD];
+	/* scratch for one period's blocks (no stack array of this size on RT) */
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];
 };
 
 /* At rest at the machine's HOME, state IDLE. The machine is copied;
  * MLIP_E_INVALID for a machine, look-ahead or [CAN] settings that do not fit. */
 mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const struct mlip_machine *m,
-                          const struct mlip_ctl_opts *o, struct mlip_ring *ring);
+                          const struct mlip_ctl_opts *o);
 
 /* One period. */
 void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out);

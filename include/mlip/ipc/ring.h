@@ -16,7 +16,8 @@
  *                   (six lines: state, reason, position of every axis,
  *                   the drives' positions actual, the program's start)
  *   576  feeder     seqlock generation, struct mlip_ring_feeder
- *   640  mailbox    command sequence, op, argument (written by mlip-ctl)
+ *   640  mailbox    the command word (sequence, op, argument in one 64-bit
+ *                   word, written by mlip-ctl) and the stop counter
  *   704  machine    the controller's struct mlip_machine, so that a feeder
  *                   checks programs against exactly the limits in force
  *  1152  records    capacity x struct mlip_ring_rec (88 bytes each)
@@ -30,7 +31,8 @@
  *   feeder (the single producer):  head, tail_cache, feeder area, records.
  *   controller (the single consumer, the RT thread): tail, head_cache,
  *                                  status area and command reply.
- *   mlip-ctl: the command mailbox (several mlip-ctl may race: a CAS decides).
+ *   mlip-ctl: the command word (several mlip-ctl may race: a CAS decides);
+ *   anyone attached (mlip-ctl stop, mlip-feed on a signal): the stop counter.
  *
  * The ring is single-producer single-consumer and lock-free (Linux kfifo,
  * DPDK rte_ring): head and tail are free-running uint32_t indices, a slot is
@@ -46,15 +48,31 @@
  * Every field in shared memory is only ever accessed with __atomic builtins,
  * so 64-bit counters are never torn and readers are data-race free.
  *
- * Command mailbox (one slot, acknowledged): mlip-ctl may post only when the
- * previous command has been completed (cmd_seq == cmd_done), so a command is
- * never lost; the controller takes a command only when cmd_seq differs from
- * the last one it took, so it is never applied twice. Sequence numbers step by
- * 2: odd means "being written", even means "posted".
+ * Command mailbox (one slot, acknowledged): a command is one 64-bit word,
+ * sequence | op << 32 | (arg & 0xffffff) << 40, posted by one compare-and-
+ * swap: there is no half-posted state, so a poster killed or stopped at any
+ * instruction leaves the mailbox either untouched or holding its whole
+ * command (issue 17: a claim-then-publish slot stayed busy for good). A
+ * poster may post only when the previous command has been completed
+ * (sequence == cmd_done), so a command is never lost; the controller takes a
+ * command only when its sequence differs from the last one it took, so it is
+ * never applied twice.
  *
- *     ctl: post(op,arg) --CAS seq s->s+1, write op,arg, seq=s+2--> mailbox
+ *     ctl: post(op,arg) --CAS word(s) -> word(s+1, op, arg)--> mailbox
  *     rt:  take() sees seq != taken -> applies -> done(seq, result)
  *     ctl: result(seq) -> MLIP_OK once done == seq, with the result code
+ *
+ * Stop has its own path: a counter that every request increments (one
+ * atomic add, never refused, never blocked by the mailbox, a dead poster or
+ * a flood of other commands). The controller applies a stop whenever the
+ * counter differs from the last value it saw, and publishes that value
+ * (status.stop_seen): a request r (the counter's value after its add) is
+ * applied once stop_seen - r >= 0 (mod 2^32). A stop is latched for the
+ * program about to start: each feeder publishes the counter's value it read
+ * at its start (feeder.stop_base, before it checks its program), and the
+ * controller refuses a program whose feeder started before a stop it has
+ * seen (stop_seen - stop_base > 0); a stop older than the feeder is stale
+ * and does not touch its program.
  */
 #ifndef MLIP_RING_H
 #define MLIP_RING_H
@@ -65,13 +83,14 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION      5u         /* bump on any change to the layout below */
+#define MLIP_RING_VERSION      6u         /* bump on any change to the layout below */
 #define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
 #define MLIP_RING_CAPACITY 8192u /* default records in the ring: 8 s of 1 ms blocks */
 #endif
-#define MLIP_RING_READ_TRIES 1000 /* seqlock retries before a reader gives up */
+#define MLIP_RING_READ_TRIES  1000 /* seqlock retries before a reader gives up */
+#define MLIP_RING_CMD_HISTORY 8u   /* command results kept (a power of two) */
 
 /* For constant expressions only (it evaluates x three times): power of two.
  * The checks below get a negative array size when false (C99 has no
@@ -112,78 +131,6 @@ struct mlip_ring_rec {
 
 /* ---- status published by the controller ---------------------------- */
 
-/* The controller's one state (published as status.state). Values 0..5 keep
- * their numbers of layout version 2. */
-typedef enum {
-	MLIP_STATE_IDLE = 0, /* no program running, ring may be empty */
-	MLIP_STATE_RUNNING,  /* moving (or about to), taking records as it goes */
-	MLIP_STATE_HELD,     /* feed hold, override 0, a CAN fault or a stall:
-	                        decelerated (or frozen) to rest on the path; resume */
-	MLIP_STATE_STOPPING, /* stop requested: decelerating, ring being flushed */
-	MLIP_STATE_FAULT,    /* stopped on an error that needs a restart of mlip-rt:
-	                        a bad record (at rest at the end of the last good
-	                        block), a corrupt segment, a position the drives
-	                        cannot represent; status.reason says which */
-	MLIP_STATE_STARVED,  /* the program's blocks ran out before its END: at rest
-	                        at the end of the last block received (underrun);
-	                        continues when blocks come (mlip-feed --start-seq) */
-	MLIP_STATE_PAUSED,   /* M0/M60 (or M1 with optional stop on): at rest;
-	                        mlip-ctl resume continues */
-	MLIP_STATE_DWELLING, /* G4: at rest for the dwell's periods */
-	MLIP_STATE_PREREAD,  /* taking a program's records before moving */
-	MLIP_STATE_COUNT
-} mlip_ring_state;
-
-/* Why the controller is in its state (status.reason): the cause of the last
- * transition. */
-typedef enum {
-	MLIP_WHY_NONE = 0,
-	MLIP_WHY_START,         /* a program's first record (seq 1) */
-	MLIP_WHY_CONTINUE,      /* the record after the last completed (--start-seq) */
-	MLIP_WHY_PREREAD_DONE,  /* look-ahead full, END in, or an event next */
-	MLIP_WHY_END,           /* the program's END executed, at rest */
-	MLIP_WHY_UNDERRUN,      /* the ring ran dry before END */
-	MLIP_WHY_FEEDER_GONE,   /* the feeder's heartbeat stopped (or none attached) */
-	MLIP_WHY_HOLD,          /* mlip-ctl hold */
-	MLIP_WHY_OVERRIDE_ZERO, /* feed override 0 */
-	MLIP_WHY_RESUME,        /* mlip-ctl resume */
-	MLIP_WHY_BUS_TX,        /* CAN frames refused by the tx queue */
-	MLIP_WHY_BUS_ERROR,     /* CAN error frames or bus-off */
-	MLIP_WHY_STALL,         /* the loop missed more periods than allowed (value) */
-	MLIP_WHY_DWELL,         /* G4 record (value: seconds) */
-	MLIP_WHY_DWELL_DONE,
-	MLIP_WHY_PAUSE,          /* M0/M60 record */
-	MLIP_WHY_OPTIONAL_PAUSE, /* M1 record with optional stop on */
-	MLIP_WHY_STOP,           /* mlip-ctl stop */
-	MLIP_WHY_EXIT,           /* SIGINT/SIGTERM/SIGHUP to mlip-rt */
-	MLIP_WHY_BAD_RECORD,     /* reason_seq, reason_field, reason_value */
-	MLIP_WHY_RING_CORRUPT,   /* head - tail beyond the capacity (value: count) */
-	MLIP_WHY_POSITION_RANGE, /* a setpoint beyond the drives' int32 counts */
-	MLIP_WHY_DRIVE,          /* a CiA 402 drive faulted (mlip-rt --drives): reason_node,
-	                            reason_field the event (mlip_drive_fault, mlip/canopen/canopen.h),
-	                            reason_value its detail (statusword, EMCY code, ...) */
-	MLIP_WHY_COUNT
-} mlip_state_why;
-
-/* The drives' power (mlip-rt --drives, status.drive_power), one for all the
- * drives still followed (a faulted drive keeps its own fault reaction). The
- * controller (src/ctl/controller.c) moves it through the CiA 402 states by the
- * RPDOs' controlword, each step confirmed by every drive's TPDO statusword:
- *   ENABLED --at rest after a program, a stop, a fault or on exit-->
- *   DISABLING (0x07: "switched on") --> SHUTTING_DOWN (0x06: "ready to
- *   switch on") --> OFF --the next program's records--> SWITCHING_ON (0x07:
- *   "switched on") --> ENABLING (0x0F: "operation enabled") --> ENABLED */
-typedef enum {
-	MLIP_POWER_NONE = 0,      /* no drives brought up by mlip */
-	MLIP_POWER_ENABLED,       /* operation enabled: the planner may move */
-	MLIP_POWER_DISABLING,     /* disable operation (0x0007) until "switched on" */
-	MLIP_POWER_SHUTTING_DOWN, /* shutdown (0x0006) until "ready to switch on" */
-	MLIP_POWER_OFF,           /* ready to switch on: power stage off, nothing moves */
-	MLIP_POWER_SWITCHING_ON,  /* switch on (0x0007) until "switched on" */
-	MLIP_POWER_ENABLING,      /* enable operation (0x000F) until "operation enabled" */
-	MLIP_POWER_COUNT
-} mlip_drive_power;
-
 /* Which field of a record (or of the segment) a fault names. */
 typedef enum {
 	MLIP_FIELD_NONE = 0,
@@ -207,7 +154,7 @@ struct mlip_ring_status {
 	/* progress */
 	uint64_t exec_seq;     /* seq of the record being executed (0: none yet) */
 	uint32_t exec_line;    /* its source line */
-	uint32_t state;        /* mlip_ring_state */
+	uint32_t state;        /* mlip_ctl_state (mlip/ctl/state.h) */
 	uint32_t override_pct; /* feed override in effect, percent */
 	uint32_t reserved;     /* the controller's pid (mlip-rt fills it) */
 	/* counters since start */
@@ -238,12 +185,16 @@ struct mlip_ring_status {
 	uint32_t actual_mask;             /* bit k: pos_actual[k] came from drive k's TPDO */
 	double pos_actual[MLIP_MAX_AXES]; /* position actual 0x6064 (what the machine did) */
 	/* in the status area's spare bytes, zero (none) in segments of older builds */
-	uint32_t drive_power;         /* mlip_drive_power: the drives' power, as one */
+	uint32_t drive_power;         /* mlip_drive_power (mlip/canopen/cia402.h): the drives'
+	                                 power, as one */
 	uint32_t drive_power_periods; /* periods the last disable or enable took */
 	/* layout version 5 */
 	double prog_start[MLIP_MAX_AXES]; /* where the current (or last) program's first
 	                                     record was taken: a continuation (mlip-feed
 	                                     --start-seq) is read from there */
+	/* layout version 6 */
+	uint32_t stop_seen; /* the stop counter's value the controller has applied */
+	uint32_t spare6;
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */
@@ -253,6 +204,9 @@ struct mlip_ring_feeder {
 	uint64_t total_blocks; /* records in the whole program (END included); 0: not known yet */
 	uint32_t program_end;  /* 1 once the END record has been pushed */
 	int32_t pid;           /* feeder process id (0: no feeder) */
+	uint32_t stop_base;    /* the stop counter when this feeder began (layout 6): a
+	                          later stop refuses its program before it starts */
+	uint32_t spare;
 };
 
 /* ---- commands ------------------------------------------------------- */
@@ -262,7 +216,8 @@ typedef enum {
 	MLIP_CMD_OVERRIDE,      /* arg: feed override, percent */
 	MLIP_CMD_HOLD,          /* feed hold: decelerate to rest, keep the program */
 	MLIP_CMD_RESUME,        /* leave a hold */
-	MLIP_CMD_STOP,          /* decelerate to rest and drop the rest of the program */
+	MLIP_CMD_STOP,          /* decelerate to rest and drop the rest of the program
+	                           (in the segment: the stop counter, mlip_ring_stop_post) */
 	MLIP_CMD_OPTIONAL_STOP, /* arg 1: M1 pauses; arg 0: M1 is ignored */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
@@ -303,16 +258,18 @@ struct mlip_ring {
 	uint32_t cmd_done;                     /* seq of the last command completed */
 	int32_t cmd_result;                    /* its result: an mlip_status value */
 	struct mlip_ring_status status;
+	int32_t cmd_results[MLIP_RING_CMD_HISTORY]; /* result of command seq at seq % 8:
+	                                               a poster that lost the race to
+	                                               read cmd_result still finds its own */
 
 	/* feeder area: the feeder */
 	uint32_t feeder_gen MLIP_RING_ALIGNED; /* seqlock over feeder */
 	uint32_t feeder_reserved;
 	struct mlip_ring_feeder feeder;
 
-	/* command mailbox: mlip-ctl */
-	uint32_t cmd_seq MLIP_RING_ALIGNED; /* even: posted; odd: being written */
-	uint32_t cmd_op;                    /* mlip_ring_cmd_op */
-	int32_t cmd_arg;
+	/* command mailbox: mlip-ctl; the stop counter: anyone attached */
+	uint64_t cmd_word MLIP_RING_ALIGNED; /* seq | op << 32 | (arg & 0xffffff) << 40 */
+	uint32_t stop_req;                   /* stop requests so far (+1 each) */
 
 	/* machine: written by mlip_ring_format_machine before the magic */
 	struct mlip_machine machine MLIP_RING_ALIGNED;
@@ -428,10 +385,20 @@ mlip_status mlip_ring_port_open(struct mlip_ring_port *p, struct mlip_ring *r, i
  * *n = 0, when the indices are more than a capacity apart (*n gets that
  * distance through `apart` when not NULL). */
 mlip_status mlip_ring_port_count(struct mlip_ring_port *p, uint32_t *n, uint32_t *apart);
-/* Consumer: copy the oldest record (MLIP_E_EMPTY, MLIP_E_RANGE). */
-mlip_status mlip_ring_port_peek(struct mlip_ring_port *p, struct mlip_ring_rec *out);
-/* Consumer: remove the oldest record (after a peek). */
-mlip_status mlip_ring_port_pop(struct mlip_ring_port *p);
+/* The records a consumer may take, oldest first, where they lie: at most
+ * two spans of the segment's slots (the ring wraps). Read only; a reader
+ * copies a record before it checks it, so a producer that does not keep to
+ * the protocol cannot change what was checked. */
+struct mlip_rec_view {
+	const struct mlip_ring_rec *span[2];
+	uint32_t len[2];
+};
+/* Consumer: every record queued now, without copying (MLIP_E_RANGE, an
+ * empty view and *apart as mlip_ring_port_count, for a corrupted segment). */
+mlip_status mlip_ring_port_view(struct mlip_ring_port *p, struct mlip_rec_view *v, uint32_t *apart);
+/* Consumer: remove the n oldest records (at most those last viewed):
+ * their slots go back to the producer. MLIP_E_RANGE for more. */
+mlip_status mlip_ring_port_pop_n(struct mlip_ring_port *p, uint32_t n);
 /* Producer: append up to n records; how many in *pushed (MLIP_E_RANGE: none). */
 mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ring_rec *recs,
                                   uint32_t n, uint32_t *pushed);
@@ -462,14 +429,20 @@ mlip_status mlip_ring_feeder_read(const struct mlip_ring *r, struct mlip_ring_fe
 /* ---- command mailbox -------------------------------------------------- */
 
 /* mlip-ctl: post a command. MLIP_E_FULL while the previous command is not
- * completed yet (or another mlip-ctl is posting): retry later; MLIP_E_INVALID
- * for an unknown op. On MLIP_OK *seq (may be NULL) is the command's sequence
- * number, to pass to mlip_ring_cmd_result. */
+ * completed yet (or another mlip-ctl posted first): retry later;
+ * MLIP_E_INVALID for an unknown op and for MLIP_CMD_STOP (the stop counter
+ * is its path); MLIP_E_RANGE for an arg outside MLIP_RING_CMD_ARG_MIN..MAX.
+ * On MLIP_OK *seq (may be NULL) is the command's sequence number, to pass
+ * to mlip_ring_cmd_result. */
+#define MLIP_RING_CMD_ARG_MIN (-(1 << 23))
+#define MLIP_RING_CMD_ARG_MAX ((1 << 23) - 1)
 mlip_status mlip_ring_cmd_post(struct mlip_ring *r, mlip_ring_cmd_op op, int32_t arg,
                                uint32_t *seq);
 
 /* mlip-ctl: MLIP_OK with *result (an mlip_status the controller returned for
- * the command) once command seq is completed; MLIP_E_EMPTY while pending. */
+ * the command) once command seq is completed; MLIP_E_EMPTY while pending;
+ * MLIP_E_RANGE when it was completed but MLIP_RING_CMD_HISTORY later commands
+ * (other mlip-ctl's) have completed since, so its result is no longer kept. */
 mlip_status mlip_ring_cmd_result(const struct mlip_ring *r, uint32_t seq, int32_t *result);
 
 /* Controller: take a newly posted command (each exactly once). MLIP_E_EMPTY
@@ -480,17 +453,29 @@ mlip_status mlip_ring_cmd_take(struct mlip_ring *r, struct mlip_ring_cmd *out);
  * MLIP_E_RANGE for an override out of range). Lets mlip-ctl post again. */
 void mlip_ring_cmd_done(struct mlip_ring *r, uint32_t seq, int32_t result);
 
-/* Names for tools: "idle", "running", ...; "override", "hold", ...;
- * "?" for values out of range. Never NULL. */
-const char *mlip_ring_state_name(uint32_t state);
+/* Anyone attached: ask for a stop (mlip-ctl stop, mlip-feed on a signal).
+ * One atomic add: never refused, never blocked. Returns the request's
+ * ticket, applied once mlip_ring_stop_applied(status.stop_seen, ticket). */
+uint32_t mlip_ring_stop_post(struct mlip_ring *r);
+
+/* The stop counter: requests so far (a feeder's stop_base; the controller's
+ * input every period). */
+uint32_t mlip_ring_stop_count(const struct mlip_ring *r);
+
+/* 1 when a controller that has seen the counter at `seen` has applied the
+ * request with `ticket` (modular: the counter wraps). */
+int mlip_ring_stop_applied(uint32_t seen, uint32_t ticket);
+
+/* 1 when a stop newer than a feeder's start (stop_base) has been seen: its
+ * program must not start. */
+int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base);
+
+/* Names for tools: "override", "hold", ...; "feed", "target[0]", ... for a
+ * field (target fields by axis letter need the machine: see tools); "?"
+ * for values out of range. Never NULL. The state's and the reason's:
+ * mlip/ctl/state.h. */
 const char *mlip_ring_cmd_name(uint32_t op);
-/* "program end", "stall", ... for mlip_state_why; "x", "feed", ... for a
- * field (target fields by axis letter need the machine: see tools). */
-const char *mlip_state_why_name(uint32_t why);
 const char *mlip_rec_field_name(uint32_t field);
 const char *mlip_rec_type_name(uint32_t type);
-/* "enabled", "disabling", "shutting down", "off", "switching on", "enabling";
- * "none" without drives. */
-const char *mlip_drive_power_name(uint32_t power);
 
 #endif

@@ -24,7 +24,7 @@
  *   HOME = 0                   ; start position (optional, default 0)
  *   CAN_NODE = 1               ; CANopen node id 1..127 (optional, default index+1)
  *   COUNTS_PER_UNIT = 1000     ; drive counts per mm or degree (optional, default 1000)
- *   [CAN]                      ; optional, read by rt/ (see mlip_can_config)
+ *   [CAN]                      ; optional, read by rt/ (mlip/can/canconf.h)
  *   PROFILE = cia402           ; cia402, packed or fd
  *   BITRATE = 1000000          ; bit/s, 10000..1000000
  *   DATA_BITRATE = 5000000     ; bit/s, 10000..12000000, >= BITRATE with fd
@@ -75,6 +75,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "mlip/can/canconf.h"
 #include "mlip/types.h"
 
 #define MLIP_CONFIG_MSG          256
@@ -94,18 +95,6 @@ struct mlip_config_error {
 	uint32_t line; /* 1-based; 0 for a whole-file error (e.g. missing key) */
 	uint32_t col;  /* 1-based; 0 when not applicable */
 	char msg[MLIP_CONFIG_MSG];
-};
-
-/* [CAN] section: output settings for the real-time controller. */
-struct mlip_can_config {
-	char profile[8];       /* "cia402" (default), "packed", "fd" */
-	uint32_t bitrate;      /* bit/s, default 1000000 */
-	uint32_t data_bitrate; /* CAN FD data phase bit/s, default 5000000 */
-	uint32_t sync_id;      /* default 0x080 */
-	uint32_t rpdo_base;    /* default 0x200 (+ node id) */
-	uint32_t packed_base;  /* default 0x300 (+ frame index) */
-	uint32_t fd_id;        /* default 0x400 */
-	uint32_t status_id;    /* default 0x180: controller status frame */
 };
 
 /* [DRIVES] section: CiA 402 drives brought up, watched and shut down by
@@ -151,15 +140,10 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
  * MLIP_E_INVALID for the axis set (count, letters, kind), else MLIP_E_RANGE. */
 mlip_status mlip_machine_check(const struct mlip_machine *m, struct mlip_config_error *err);
 
-/* The CAN id rules, the one home of them (the INI reader, mlip_canenc_init
- * and mlip-rt after --profile all use it): for the profile can->profile
- * names, every identifier sent each period (cia402: SYNC_ID and RPDO_BASE +
- * CAN_NODE, nodes 1..127, distinct; packed: PACKED_BASE + 0..ceil(n/2), the
- * last the commit frame; fd: FD_ID) is an 11-bit id and not STATUS_ID;
- * SYNC_ID != STATUS_ID; with fd, DATA_BITRATE >= BITRATE. MLIP_OK, or an
- * error with the reason in err (may be NULL; line = col = 0), e.g.
- * "PACKED_BASE 0x17F + 1 = 0x180 (position frame 1 of 3 axes) is also the
- * STATUS_ID". */
+/* The CAN id rules (mlip_can_rules of mlip/can/canconf.h, their one home)
+ * with the reason in err (may be NULL; line = col = 0), e.g. "PACKED_BASE
+ * 0x17F + 1 = 0x180 (position frame 1 of 3 axes) is also the STATUS_ID".
+ * MLIP_E_INVALID for NULL arguments. */
 mlip_status mlip_can_config_check(const struct mlip_can_config *can, const struct mlip_machine *m,
                                   struct mlip_config_error *err);
 

@@ -20,10 +20,8 @@
 
 #include "mlip/types.h"
 
-#ifndef MLIP_LOOKAHEAD
-#define MLIP_LOOKAHEAD 4096 /* segments in the look-ahead ring; power of two */
-#endif
-/* negative array size if not a power of two (C99 has no _Static_assert) */
+/* MLIP_LOOKAHEAD (mlip/types.h): segments in the look-ahead ring; negative
+ * array size if not a power of two (C99 has no _Static_assert) */
 typedef char mlip_lookahead_pow2_check[(MLIP_LOOKAHEAD & (MLIP_LOOKAHEAD - 1)) == 0 ? 1 : -1];
 
 /* Relative margin kept below every acceleration limit so that floating-point

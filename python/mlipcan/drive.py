@@ -1,0 +1,1015 @@
+"""Simulated CiA 402 servo drives in cyclic synchronous position mode, on the
+`canopen` package: each drive is a canopen.LocalNode (its SDO server, NMT
+slave, heartbeat producer, EMCY producer and PDO maps are canopen's), plus the
+drive profile on top: the CiA 402 power state machine driven by the
+controlword, the statusword, modes of operation, and a position loop that
+follows the target position with a lag on each SYNC.
+
+An independent implementation to test mlip-rt's drive bring-up, supervision
+and shut-down against (issue 10): nothing here is shared with the C side but
+the standards (CiA 301, CiA 402). Every SDO write received, every NMT and
+power state transition and every target applied at a SYNC is recorded for
+the tests to judge (see Recorder).
+
+The object dictionary is built in code (build_od); `mlip-drive-sim
+--write-eds FILE` exports it as an EDS (canopen's exporter) for a master or
+a person to read."""
+
+import json
+import socket
+import struct
+import sys
+import threading
+import time
+from collections.abc import Iterable
+from pathlib import Path
+from typing import IO, Any, TypedDict, cast
+
+from canopen.objectdictionary import ODRecord, ODVariable
+from canopen.pdo.base import PdoMap
+from canopen.sdo.exceptions import SdoAbortedError
+
+import can
+import canopen
+from canopen import objectdictionary as odm
+
+from . import cia402 as P
+
+# one drive at one SYNC (sync.csv): sync, node, t, state, controlword,
+# target applied (None: no RPDO), an RPDO arrived since the previous SYNC,
+# position actual and statusword sent
+SyncRow = tuple[int, int, float, str | None, int, int | None, bool, int, int]
+
+U8, U16, U32 = odm.UNSIGNED8, odm.UNSIGNED16, odm.UNSIGNED32
+I8, I32 = odm.INTEGER8, odm.INTEGER32
+VENDOR_ID = 0x00000000  # none: a simulation
+PRODUCT_CODE = 0x4D4C4950  # "MLIP"
+PDO_INVALID = 0x80000000
+FE_WINDOW_OFF = 0xFFFFFFFF  # 0x6065 = this: following error monitoring off (CiA 402)
+
+
+def _var(
+    name: str,
+    index: int,
+    sub: int,
+    dtype: int,
+    access: str,
+    default: int,
+    mappable: bool = False,
+    desc: str = "",
+) -> ODVariable:
+    v = ODVariable(name, index, sub)
+    v.data_type, v.access_type, v.default, v.value = dtype, access, default, default
+    v.pdo_mappable = mappable
+    v.description = desc
+    return v
+
+
+def build_od(
+    node_id: int,
+    heartbeat_ms: int = 0,
+    start_position: int = 0,
+    fe_window: int = 10000,
+    fe_time_ms: int = 10,
+) -> odm.ObjectDictionary:
+    """The object dictionary of one drive (CiA 301 communication area, CiA 402
+    objects for CSP). Defaults: RPDO1 = controlword + target position, TPDO1 =
+    statusword + position actual value, both synchronous (type 1), COB-IDs of
+    the pre-defined connection set; the master (mlip-rt) writes them again."""
+    od = odm.ObjectDictionary()
+    od.node_id = node_id
+    od.device_information.vendor_name = "mlip (simulated drive)"
+    od.device_information.product_name = "mlip-drive-sim CiA 402 CSP"
+    od.device_information.vendor_number = VENDOR_ID
+    od.device_information.product_number = PRODUCT_CODE
+
+    def add(v: ODVariable) -> None:
+        od.add_object(v)
+
+    def record(name: str, index: int, members: list[tuple[str, int, str, int]]) -> None:
+        r = ODRecord(name, index)
+        r.add_member(_var("Highest sub-index supported", index, 0, U8, "ro", len(members)))
+        for i, (mname, dtype, access, default) in enumerate(members, 1):
+            r.add_member(_var(mname, index, i, dtype, access, default))
+        od.add_object(r)
+
+    add(_var("Device type", 0x1000, 0, U32, "ro", 0x00020192, desc="CiA 402 servo drive"))
+    add(_var("Error register", 0x1001, 0, U8, "ro", 0))
+    add(_var("COB-ID SYNC", 0x1005, 0, U32, "rw", 0x80))
+    add(_var("COB-ID EMCY", 0x1014, 0, U32, "rw", 0x80 + node_id))
+    # consumer heartbeat: sub n = node id << 16 | time ms (0: not used)
+    record(
+        "Consumer heartbeat time",
+        0x1016,
+        [("Consumer heartbeat time 1", U32, "rw", 0), ("Consumer heartbeat time 2", U32, "rw", 0)],
+    )
+    add(_var("Producer heartbeat time", 0x1017, 0, U16, "rw", heartbeat_ms))
+    record(
+        "Identity object",
+        0x1018,
+        [
+            ("Vendor-ID", U32, "ro", VENDOR_ID),
+            ("Product code", U32, "ro", PRODUCT_CODE),
+            ("Revision number", U32, "ro", 0x00010000),
+            ("Serial number", U32, "ro", node_id),
+        ],
+    )
+
+    def pdo(kind: str, com: int, cob: int, entries: tuple[int, ...]) -> None:
+        """PDO1: communication record (COB-ID, transmission type 1: synchronous)
+        and mapping record (sub 0 = number of entries, 4 entries)."""
+        record(
+            f"{kind}1 communication parameter",
+            com,
+            [(f"COB-ID used by {kind}", U32, "rw", cob), ("Transmission type", U8, "rw", 1)],
+        )
+        r = ODRecord(f"{kind}1 mapping parameter", com + 0x200)
+        r.add_member(_var("Number of mapped objects", com + 0x200, 0, U8, "rw", len(entries)))
+        for i, val in enumerate(entries + (0,) * (4 - len(entries)), 1):
+            r.add_member(_var(f"Mapped object {i}", com + 0x200, i, U32, "rw", val))
+        od.add_object(r)
+
+    pdo("RPDO", 0x1400, 0x200 + node_id, (0x60400010, 0x607A0020))
+    pdo("TPDO", 0x1800, 0x180 + node_id, (0x60410010, 0x60640020))
+
+    add(_var("Controlword", 0x6040, 0, U16, "rw", 0, True))
+    add(_var("Statusword", 0x6041, 0, U16, "ro", 0x0250, True))
+    add(_var("Quick stop option code", 0x605A, 0, odm.INTEGER16, "rw", 2))
+    add(_var("Modes of operation", 0x6060, 0, I8, "rw", 0, True))
+    add(_var("Modes of operation display", 0x6061, 0, I8, "ro", 0, True))
+    add(_var("Position actual value", 0x6064, 0, I32, "ro", start_position, True))
+    add(_var("Following error window", 0x6065, 0, U32, "rw", fe_window))
+    add(_var("Following error time out", 0x6066, 0, U16, "rw", fe_time_ms))
+    add(_var("Target position", 0x607A, 0, I32, "rw", start_position, True))
+    record(
+        "Interpolation time period",
+        0x60C2,
+        [
+            ("Interpolation time period value", U8, "rw", 1),
+            ("Interpolation time index", I8, "rw", -3),
+        ],
+    )
+    add(_var("Following error actual value", 0x60F4, 0, I32, "ro", 0, True))
+    add(_var("Supported drive modes", 0x6502, 0, U32, "ro", 1 << (P.MODE_CSP - 1)))
+    return od
+
+
+# objects the cycle reads, cached in Drive.load_params() after each write
+PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A)
+MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0)}
+MAPPABLE_TX = {(0x6041, 0), (0x6064, 0), (0x6061, 0), (0x60F4, 0)}
+
+
+class Recorder:
+    """What the drives saw, for the tests: events.jsonl (one JSON object a
+    line, written at once: SDO writes with their outcome, NMT and power
+    state transitions, EMCYs sent, injected faults, heartbeat losses) and
+    sync.csv (one row per drive per SYNC while the drive is NMT
+    operational: the target applied at that SYNC, the position actual value
+    and statusword sent in its TPDO). Rows are kept in memory and written by
+    flush() from the main thread (no file I/O in the bus thread)."""
+
+    SYNC_HEADER = "sync,node,t,state,controlword,target,fresh,actual,statusword\n"
+
+    def __init__(self, outdir: Path | None) -> None:
+        self.outdir = outdir
+        self.lock = threading.Lock()
+        self.rows: list[SyncRow] = []
+        self.events_fh: IO[str] | None = None
+        self.sync_fh: IO[str] | None = None
+        if outdir is not None:
+            outdir.mkdir(parents=True, exist_ok=True)
+            self.events_fh = open(outdir / "events.jsonl", "w", buffering=1)
+            self.sync_fh = open(outdir / "sync.csv", "w")
+            self.sync_fh.write(self.SYNC_HEADER)
+
+    def event(self, node: int, kind: str, **kw: Any) -> None:
+        e: dict[str, Any] = {"t": time.time(), "node": node, "kind": kind}
+        e.update(kw)
+        if self.events_fh is not None:
+            with self.lock:
+                self.events_fh.write(json.dumps(e) + "\n")
+
+    def sync(self, row: SyncRow) -> None:
+        self.rows.append(row)  # list.append is atomic; flush() swaps the list
+
+    def flush(self) -> None:
+        if self.sync_fh is None:
+            return
+        rows, self.rows = self.rows, []
+        w = self.sync_fh.write
+        for s, node, t, state, cw, target, fresh, actual, sw in rows:
+            w(
+                f"{s},{node},{t:.6f},{state},{cw},{'' if target is None else target},"
+                f"{int(fresh)},{actual},{sw}\n"
+            )
+        self.sync_fh.flush()
+
+    def close(self) -> None:
+        self.flush()
+        for fh in (self.events_fh, self.sync_fh):
+            if fh is not None:
+                fh.close()
+
+
+class DriveNode(canopen.LocalNode):
+    """canopen's LocalNode with every SDO write recorded, accepted or not."""
+
+    def __init__(self, drive: "Drive", node_id: int, od: odm.ObjectDictionary) -> None:
+        super().__init__(node_id, od)
+        self.drive = drive
+
+    def set_data(
+        self, index: int, subindex: int, data: bytes, check_writable: bool = False
+    ) -> None:
+        if not check_writable:  # our own writes (the drive's state), not an SDO download
+            super().set_data(index, subindex, data, check_writable)
+            return
+        d = self.drive
+        try:
+            with d.sim.lock:
+                super().set_data(index, subindex, data, check_writable)
+        except SdoAbortedError as e:
+            d.rec.event(
+                d.id,
+                "sdo_write",
+                index=f"0x{index:04X}",
+                sub=subindex,
+                data=bytes(data).hex(),
+                abort=f"0x{e.code:08X}",
+                meaning=P.ABORT.get(e.code, "?"),
+            )
+            raise
+        if index in PARAM_OBJECTS:
+            d.load_params()
+        d.rec.event(
+            d.id,
+            "sdo_write",
+            index=f"0x{index:04X}",
+            sub=subindex,
+            data=bytes(data).hex(),
+            value=d.value_of(index, subindex),
+        )
+
+
+class Drive:
+    """One simulated servo drive: node id, position (counts), power state."""
+
+    def __init__(
+        self,
+        sim: "DriveSim",
+        node_id: int,
+        start_position: int = 0,
+        start_state: str = P.SWITCH_ON_DISABLED,
+        heartbeat_ms: int = 0,
+        lag_alpha: float = 1.0,
+    ) -> None:
+        self.sim = sim
+        self.rec = sim.rec
+        self.id = node_id
+        self.start_position = start_position
+        self.start_state = start_state
+        self.heartbeat_ms = heartbeat_ms
+        self.lag_alpha = lag_alpha
+        self.present = False
+        self.state: str | None = None  # None until powered up
+        # injected faults
+        self.refuse: dict[tuple[int, int | None], int] = {}  # (index, sub or None) -> abort
+        self.never_enable = False
+        self.follow_error_rate = 0.0  # counts added to the lag per SYNC
+        self.hb_stopped = False
+        self._pdo_live = False
+        self._sync_cob = 0
+        self._reset_application()
+        self.node = DriveNode(self, self.id, build_od(self.id, heartbeat_ms, start_position))
+        # canopen's LocalNode, untyped there (inherited: not excluded by name)
+        self.node.add_write_callback(self._on_write)  # type: ignore[no-untyped-call]
+        self.node.add_read_callback(self._on_read)  # type: ignore[no-untyped-call]
+        self.load_params()
+
+    # ------------------------------------------------------------ set-up
+    def _reset_application(self) -> None:
+        self.actual = self.start_position
+        self.actual_f = float(self.start_position)
+        self.target = self.start_position
+        self.pending_target: int | None = None  # from the RPDO since the last SYNC
+        self.pending_cw: int | None = None
+        self.cw = 0
+        self.fe_extra = 0.0
+        self.fe_cycles = 0
+        self.error_register = 0
+        # producer node -> [time ms, last seen (receive time, s) or None]
+        self.hb_consumed: dict[int, tuple[int, float | None]] = {}
+        self.hb_lost: set[int] = set()
+
+    def load_params(self) -> None:
+        """What the cycle needs of the OD, read once per change, not per SYNC."""
+        od = self.sim.od_int
+        n = self.node
+        self.p_mode = od(n, 0x6060, "<b")
+        self.p_window = od(n, 0x6065, "<I")
+        self.p_fe_ms = od(n, 0x6066, "<H")
+        self.p_period_ms = self.sim.period_ms(n)
+        self.p_quick_stop = od(n, 0x605A, "<h")
+
+    def attach(self, network: canopen.Network) -> None:
+        """Power up on the bus: boot-up message, pre-operational, heartbeat."""
+        network.add_node(self.node)
+        # our NMT handler instead of canopen's: boot-up and pre-operational
+        # again after a reset, and the PDO maps read on entering operational
+        network.unsubscribe(0, self.node.nmt.on_command)
+        network.subscribe(0, self._on_nmt)
+        self._sync_cob = self.sim.od_u32(self.node, 0x1005) & 0x7FF
+        network.subscribe(self._sync_cob, self._on_sync)
+        self.present = True
+        self._set_state(self.start_state if self.state is None else self.state, "power on")
+        self._boot("power on")
+
+    def detach(self) -> None:
+        """Gone from the bus (injected): no SDO answers, no heartbeat, no PDOs."""
+        n = self.node
+        net = n.network
+        n.nmt.stop_heartbeat()
+        self._pdo_off()
+        net.unsubscribe(0, self._on_nmt)
+        net.unsubscribe(self._sync_cob, self._on_sync)
+        for cob in list(self._hb_subs()):
+            net.unsubscribe(cob, self._on_heartbeat)
+        net.subscribe(0, n.nmt.on_command)  # remove_network() unsubscribes it
+        del net[self.id]  # remove_network(): the SDO server stops answering
+        self.present = False
+        self.rec.event(self.id, "absent")
+
+    def _hb_subs(self) -> list[int]:
+        return [0x700 + p for p in self.hb_consumed]
+
+    def _boot(self, why: str) -> None:
+        """INITIALISING -> boot-up message -> PRE-OPERATIONAL (CiA 301)."""
+        nmt = self.node.nmt
+        nmt.stop_heartbeat()
+        self._pdo_off()
+        nmt.send_command(P.NMT_RESET_COMM)  # canopen: state 0 and the boot-up frame
+        self.rec.event(self.id, "nmt", to="INITIALISING", why=why)
+        nmt.send_command(P.NMT_PREOP)  # and the heartbeat producer (0x1017)
+        if self.hb_stopped:
+            nmt.stop_heartbeat()
+        self.rec.event(self.id, "nmt", to="PRE-OPERATIONAL", why="boot-up sent")
+
+    # ------------------------------------------------------------ OD access
+    def value_of(self, index: int, sub: int) -> Any:
+        try:
+            obj = self.node._find_object(index, sub)  # type: ignore[no-untyped-call]
+            return obj.decode_raw(self.node.data_store[index][sub])
+        except Exception:
+            return None
+
+    def _store(self, index: int, sub: int, fmt: str, value: int) -> None:
+        self.node.data_store.setdefault(index, {})[sub] = struct.pack(fmt, value)
+
+    def _publish(self) -> None:
+        """The drive's own objects into the OD (SDO reads, TPDO)."""
+        self._store(0x6041, 0, "<H", self.statusword())
+        self._store(0x6064, 0, "<i", self.actual)
+        self._store(0x60F4, 0, "<i", self.target - self.actual)
+        self._store(0x6061, 0, "<b", self.mode_display())
+        self._store(0x1001, 0, "B", self.error_register)
+
+    def _on_read(self, index: int, subindex: int, od: ODVariable) -> None:
+        if index in (0x6041, 0x6064, 0x60F4, 0x6061, 0x1001):
+            self._publish()
+        # then the stored data
+
+    def mode(self) -> int:
+        return self.p_mode
+
+    def mode_display(self) -> int:
+        return self.mode()  # the drive runs the mode it was told (validated on write)
+
+    # ------------------------------------------------------------ SDO writes
+    def _on_write(self, index: int, subindex: int, od: ODVariable, data: bytes) -> None:
+        """Validation as a drive does it (raise SdoAbortedError to refuse),
+        then the side effects. Called by canopen before it stores the data."""
+        for key in ((index, subindex), (index, None)):
+            if key in self.refuse:
+                raise SdoAbortedError(self.refuse[key])
+        raw = od.decode_raw(data)
+        if not isinstance(raw, int):
+            return  # no such object here: every one the drive acts on is an integer
+        val = raw
+        if index == 0x6060:
+            if val not in (0, P.MODE_CSP):
+                raise SdoAbortedError(0x06090030)
+        elif index == 0x6040:
+            self._controlword(val, "SDO")
+        elif index == 0x607A:
+            self.pending_target = val
+        elif index == 0x1005:
+            if val & 0x40000000:  # this device does not generate SYNC
+                raise SdoAbortedError(0x06090030)
+            net = self.node.network
+            net.unsubscribe(self._sync_cob, self._on_sync)
+            self._sync_cob = val & 0x7FF
+            net.subscribe(self._sync_cob, self._on_sync)
+        elif index == 0x1016 and subindex >= 1:
+            self._consumer(subindex, val)
+        elif index in (0x1400, 0x1800) and subindex == 1:
+            old = self.sim.od_u32(self.node, index, 1)
+            if not old & PDO_INVALID and not val & PDO_INVALID and (old ^ val) & 0x7FF:
+                raise SdoAbortedError(0x06090030)  # CiA 301: change only while invalid
+        elif index in (0x1600, 0x1A00):
+            self._check_mapping(index, subindex, val)
+
+    def _check_mapping(self, index: int, sub: int, val: int) -> None:
+        com = 0x1400 if index == 0x1600 else 0x1800
+        valid = not self.sim.od_u32(self.node, com, 1) & PDO_INVALID
+        n_now = self.sim.od_int(self.node, index, "B", 0)
+        if valid or (sub >= 1 and n_now != 0):
+            # CiA 301: disable the PDO, set sub 0 to 0, write the entries, set sub 0
+            raise SdoAbortedError(0x06010000)
+        allowed = MAPPABLE_RX if index == 0x1600 else MAPPABLE_TX
+        if sub >= 1:
+            if val and ((val >> 16, (val >> 8) & 0xFF) not in allowed):
+                if (val >> 16) not in self.node.object_dictionary:
+                    raise SdoAbortedError(0x06020000)
+                raise SdoAbortedError(0x06040041)
+            return
+        if val > 4:
+            raise SdoAbortedError(0x06090031)
+        bits = sum(self.sim.od_int(self.node, index, "<I", k) & 0xFF for k in range(1, val + 1))
+        if bits > 64:
+            raise SdoAbortedError(0x06040042)
+
+    def _consumer(self, sub: int, val: int) -> None:
+        """0x1016 sub: monitor node (val >> 16 & 0x7F) every (val & 0xFFFF) ms."""
+        net = self.node.network
+        # drop this sub-index's old entry
+        old = self.sim.od_int(self.node, 0x1016, "<I", sub)
+        if old and (old >> 16) & 0x7F in self.hb_consumed:
+            p = (old >> 16) & 0x7F
+            del self.hb_consumed[p]
+            net.unsubscribe(0x700 + p, self._on_heartbeat)
+        producer, ms = (val >> 16) & 0x7F, val & 0xFFFF
+        if producer and ms:
+            self.hb_consumed[producer] = (ms, None)
+            net.subscribe(0x700 + producer, self._on_heartbeat)
+
+    def _on_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        p = can_id - 0x700
+        e = self.hb_consumed.get(p)
+        if e is not None:
+            self.hb_consumed[p] = (e[0], timestamp)  # the frame's receive time (kernel), s
+            self.hb_lost.discard(p)
+
+    def check_heartbeats(self, now: float) -> None:
+        """A consumed heartbeat overdue at bus time `now` (the receive time of
+        a later frame, so a simulator running behind the bus judges by frame
+        order, not by its own lateness) is a heartbeat event (CiA 301): EMCY
+        0x8130, and the drive faults (its communication error reaction)."""
+        for p, (ms, seen) in list(self.hb_consumed.items()):
+            if seen is None or p in self.hb_lost:
+                continue  # CiA 301: monitoring starts with the first heartbeat
+            if now - seen > ms / 1000.0:
+                self.hb_lost.add(p)
+                self.rec.event(
+                    self.id, "heartbeat_lost", producer=p, ms=ms, late_s=round(now - seen, 4)
+                )
+                self.fault(0x8130, f"heartbeat of node {p} lost")
+
+    # ------------------------------------------------------------ NMT
+    def nmt_state(self) -> str:
+        return self.node.nmt.state
+
+    def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if len(data) != 2:
+            return
+        cmd, target = data[0], data[1]
+        if target not in (0, self.id) or not self.present:
+            return
+        old = self.nmt_state()
+        nmt = self.node.nmt
+        if cmd in (P.NMT_RESET_NODE, P.NMT_RESET_COMM):
+            if cmd == P.NMT_RESET_NODE:
+                # reset application: the profile area to its defaults (the
+                # axis does not move: the position is physical)
+                self._reset_od(0x2000, 0xFFFF)
+                self.start_position = self.actual
+                pos = self.actual
+                self._reset_application()
+                self.actual = self.target = pos
+                self.actual_f = float(pos)
+                self._set_state(P.SWITCH_ON_DISABLED, "NMT reset node")
+            self._reset_od(0x1000, 0x1FFF)
+            self._leave_operational(old, "NMT reset")
+            self._boot("NMT reset node" if cmd == P.NMT_RESET_NODE else "NMT reset communication")
+            return
+        if cmd == P.NMT_START:
+            nmt.send_command(cmd)
+            if old != "OPERATIONAL":
+                self._pdo_on()
+        elif cmd in (P.NMT_STOP, P.NMT_PREOP):
+            nmt.send_command(cmd)
+            self._leave_operational(old, "NMT")
+        else:
+            return
+        if self.hb_stopped:
+            nmt.stop_heartbeat()
+        if self.nmt_state() != old:
+            self.rec.event(self.id, "nmt", to=self.nmt_state(), why=f"NMT command 0x{cmd:02X}")
+
+    def _reset_od(self, lo: int, hi: int) -> None:
+        ds = self.node.data_store
+        for k in [k for k in ds if lo <= k <= hi]:
+            del ds[k]
+        self.load_params()
+        if lo <= 0x1016 <= hi:
+            for cob in self._hb_subs():
+                self.node.network.unsubscribe(cob, self._on_heartbeat)
+            self.hb_consumed.clear()
+        if lo <= 0x1005 <= hi:
+            net = self.node.network
+            net.unsubscribe(self._sync_cob, self._on_sync)
+            self._sync_cob = self.sim.od_u32(self.node, 0x1005) & 0x7FF
+            net.subscribe(self._sync_cob, self._on_sync)
+
+    def _leave_operational(self, old: str, why: str) -> None:
+        if old == "OPERATIONAL":
+            self._pdo_off()
+            if self.state in (P.OPERATION_ENABLED, P.QUICK_STOP):
+                # no more setpoints: stop where it is (communication error reaction)
+                self._set_state(P.SWITCH_ON_DISABLED, f"{why}: left NMT operational")
+
+    def _pdo_on(self) -> None:
+        """Entering operational: the PDO maps as the master configured them,
+        read through canopen's own PdoMap.read() from this node's OD."""
+        self._pdo_off()
+        self.rpdo = self.node.rpdo[1]
+        self.tpdo = self.node.tpdo[1]
+        self.rpdo.read()  # subscribes the RPDO when valid
+        self.tpdo.read()
+        self.tpdo.pdo_node.network.unsubscribe(self.tpdo.cob_id)  # read() subscribes TPDOs too
+        self.rpdo.add_callback(self._on_rpdo)
+        self._rx = self._codec(self.rpdo)
+        self._tx = self._codec(self.tpdo)
+        self.tpdo_every = self.tpdo.trans_type if 1 <= (self.tpdo.trans_type or 0) <= 240 else 1
+        self.rec.event(
+            self.id,
+            "pdo_maps",
+            rpdo={
+                "cob_id": f"0x{self.rpdo.cob_id:03X}",
+                "valid": self.rpdo.enabled,
+                "type": self.rpdo.trans_type,
+                "map": [f"0x{v.index:04X}:{v.subindex}/{v.length}" for v in self.rpdo.map],
+            },
+            tpdo={
+                "cob_id": f"0x{self.tpdo.cob_id:03X}",
+                "valid": self.tpdo.enabled,
+                "type": self.tpdo.trans_type,
+                "map": [f"0x{v.index:04X}:{v.subindex}/{v.length}" for v in self.tpdo.map],
+            },
+        )
+        self._pdo_live = True
+
+    @staticmethod
+    def _codec(pdo: PdoMap) -> list[tuple[int, int, struct.Struct]]:
+        """(index, byte offset, struct) of each object a PDO map carries (whole
+        bytes: what CiA 402 maps), from canopen's PdoMap: the cycle then packs
+        and unpacks with struct instead of canopen's per-variable codec."""
+        out = []
+        for v in pdo.map:
+            dt = v.od.data_type
+            st = None if dt is None else v.od.STRUCT_TYPES.get(dt)
+            off = v.offset or 0
+            if st is None or off % 8 or v.length != 8 * st.size:
+                raise ValueError(
+                    f"PDO 0x{pdo.cob_id or 0:03X}: 0x{v.index:04X} is not byte-aligned "
+                    f"whole (offset {v.offset}, {v.length} bits)"
+                )
+            out.append((v.index, off // 8, st))
+        return out
+
+    def _pdo_off(self) -> None:
+        if self._pdo_live:
+            net = self.node.network
+            if self.rpdo.enabled:
+                net.unsubscribe(self.rpdo.cob_id, self.rpdo.on_message)
+            self.rpdo.callbacks.clear()
+        self._pdo_live = False
+        self.pending_target = self.pending_cw = None
+
+    def _on_rpdo(self, m: PdoMap) -> None:
+        """An RPDO: latched, applied at the next SYNC (synchronous types)."""
+        with self.sim.lock:
+            self._rpdo_latch()
+
+    def _rpdo_latch(self) -> None:
+        data = self.rpdo.data
+        if len(data) < self.rpdo.length // 8:
+            return  # shorter than its map: ignored (CiA 301 would EMCY 0x8210)
+        for index, off, st in self._rx:
+            val = st.unpack_from(data, off)[0]
+            if index == 0x607A:
+                self.pending_target = val
+            elif index == 0x6040:
+                self.pending_cw = val
+            elif index == 0x6060:
+                self._store(0x6060, 0, "<b", val)
+                self.load_params()
+        if self.rpdo.trans_type is not None and self.rpdo.trans_type >= 254:
+            self._apply_rpdo()  # event driven: at once
+
+    def _apply_rpdo(self) -> int | None:
+        cw, self.pending_cw = self.pending_cw, None
+        if cw is not None:
+            self._store(0x6040, 0, "<H", cw)
+            self._controlword(cw, "RPDO")
+        tgt, self.pending_target = self.pending_target, None
+        if tgt is not None:
+            self._store(0x607A, 0, "<i", tgt)
+        return tgt
+
+    # ------------------------------------------------------------ CiA 402
+    def statusword(self) -> int:
+        if self.state is None:
+            return 0
+        mask, value = P.SW_PATTERN[self.state]
+        sw = value | P.SW_REMOTE
+        if self.state not in (P.QUICK_STOP,) and value & 0x21 == 0x21:
+            sw |= P.SW_QUICK_STOP
+        if self.state in (P.READY, P.SWITCHED_ON, P.OPERATION_ENABLED, P.QUICK_STOP):
+            sw |= P.SW_VOLTAGE_ENABLED
+        if self.state == P.OPERATION_ENABLED and self.mode() == P.MODE_CSP:
+            sw |= P.SW_CSP_FOLLOWING
+        if self.fe_cycles:
+            sw |= P.SW_FOLLOWING_ERROR
+        return sw
+
+    def _set_state(self, new: str, why: str) -> None:
+        old = self.state
+        if new == old:
+            return
+        self.state = new
+        if new == P.OPERATION_ENABLED:
+            # enabling holds the position: the loop starts from where it is
+            self.target = self.actual
+            self.fe_cycles = 0
+        self._publish()
+        self.rec.event(
+            self.id, "state", frm=old, to=new, why=why, statusword=f"0x{self.statusword():04X}"
+        )
+
+    def _controlword(self, cw: int, via: str) -> None:
+        """CiA 402 transitions 2-16 on a controlword (bit 7 rising: fault reset)."""
+        prev, self.cw = self.cw, cw
+        s = self.state
+        if s == P.FAULT:
+            if cw & P.CW_FAULT_RESET and not prev & P.CW_FAULT_RESET:
+                self.error_register = 0
+                self.fe_extra = 0.0
+                if self.present:
+                    self.node.emcy.reset()
+                    self.rec.event(self.id, "emcy", code="0x0000", meaning=P.EMCY[0])
+                self._set_state(P.SWITCH_ON_DISABLED, f"fault reset ({via})")  # 15
+            return
+        if s in (P.FAULT_REACTION, P.NOT_READY):
+            return
+        cmd = P.command_of(cw)
+        why = f"controlword 0x{cw:04X} {cmd} ({via})"
+        if cmd == "disable voltage":
+            if s != P.SWITCH_ON_DISABLED:
+                self._set_state(P.SWITCH_ON_DISABLED, why)  # 7, 9, 10, 12
+        elif cmd == "quick stop":
+            if s in (P.READY, P.SWITCHED_ON):
+                self._set_state(P.SWITCH_ON_DISABLED, why)  # 7, 10
+            elif s == P.OPERATION_ENABLED:
+                self._set_state(P.QUICK_STOP, why)  # 11
+                if self.p_quick_stop in (1, 2, 3, 4):
+                    self._set_state(P.SWITCH_ON_DISABLED, "quick stop done")  # 12
+        elif cmd == "shutdown":
+            if s in (P.SWITCH_ON_DISABLED, P.SWITCHED_ON, P.OPERATION_ENABLED):
+                self._set_state(P.READY, why)  # 2, 6, 8
+        elif cmd == "switch on":
+            if s == P.READY:
+                self._set_state(P.SWITCHED_ON, why)  # 3
+            elif s == P.OPERATION_ENABLED:
+                self._set_state(P.SWITCHED_ON, why.replace("switch on", "disable operation"))  # 5
+        elif cmd == "enable operation":
+            if s == P.READY:
+                self._set_state(P.SWITCHED_ON, why)  # 3
+                s = P.SWITCHED_ON
+            if s in (P.SWITCHED_ON, P.QUICK_STOP):
+                if self.never_enable:
+                    self.rec.event(self.id, "refused_enable", why="injected never-enable")
+                else:
+                    self._set_state(P.OPERATION_ENABLED, why)  # 4, 16
+
+    def fault(self, code: int, why: str) -> None:
+        """Fault reaction (CiA 402 transitions 13, 14): statusword fault bit,
+        EMCY with the error code, error register bit 0 (generic)."""
+        if self.state in (P.FAULT, P.FAULT_REACTION):
+            return
+        self.error_register |= 0x01 | (0x10 if code in (0x8130, 0x7500) else 0)
+        self._set_state(P.FAULT_REACTION, why)
+        self._set_state(P.FAULT, "fault reaction done")
+        if self.present:
+            self.node.emcy.send(code, self.error_register)
+        self.rec.event(
+            self.id,
+            "emcy",
+            code=f"0x{code:04X}",
+            meaning=P.EMCY.get(code, "?"),
+            error_register=self.error_register,
+            why=why,
+        )
+
+    # ------------------------------------------------------------ the cycle
+    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if self.present:
+            self.sim.on_sync(self, timestamp)
+
+    def cycle(self, sync_no: int, t: float) -> None:
+        """One SYNC (CiA 301 synchronous PDOs): send the TPDO with the state
+        sampled now, then apply the RPDO received since the previous SYNC,
+        then move: position actual = previous actual + alpha (target -
+        previous actual), i.e. with alpha = 1 the target of this SYNC is
+        reached at the next one (a one-period lag)."""
+        if not self._pdo_live:
+            return
+        sw, sent = self.statusword(), self.actual
+        if self.tpdo.enabled and sync_no % self.tpdo_every == 0:
+            tp = self.tpdo
+            now = {0x6041: sw, 0x6064: sent, 0x6061: self.p_mode, 0x60F4: self.target - sent}
+            for index, off, st in self._tx:
+                st.pack_into(tp.data, off, now[index])
+            tp.transmit()
+        fresh = self.pending_target is not None
+        if self.rpdo.trans_type is None or self.rpdo.trans_type <= 240:
+            tgt = self._apply_rpdo()
+        else:
+            tgt = None
+        if self.state == P.OPERATION_ENABLED and self.mode() == P.MODE_CSP:
+            if tgt is not None:
+                self.target = tgt
+            self.fe_extra += self.follow_error_rate
+            self.actual_f += self.lag_alpha * (self.target - self.actual_f)
+            self.actual = int(round(self.actual_f - self.fe_extra))
+            self._following(self.target - self.actual)
+        self.rec.sync((sync_no, self.id, t, self.state, self.cw, tgt, fresh, sent, sw))
+
+    def _following(self, fe: int) -> None:
+        """CiA 402: statusword bit 13 while |following error| > 0x6065 for
+        longer than 0x6066 ms; the drive then faults (EMCY 0x8611)."""
+        win = self.p_window
+        if win == FE_WINDOW_OFF or abs(fe) <= win:
+            self.fe_cycles = 0
+            return
+        self.fe_cycles += 1
+        if self.fe_cycles * self.p_period_ms > self.p_fe_ms:
+            self.fault(
+                0x8611, f"following error {fe} counts > window {win} for {self.fe_cycles} periods"
+            )
+
+    # ------------------------------------------------------------ injections
+    def inject(self, what: str, arg: str | None = None) -> None:
+        """Fault injection (at start or at run time), recorded as an event."""
+        self.rec.event(self.id, "inject", what=what, arg=arg)
+        if what == "fault":
+            self.fault(int(arg, 0) if arg else 0x2310, "injected")
+        elif what == "heartbeat":
+            off = arg == "off"
+            self.hb_stopped = off
+            if self.present:
+                if off:
+                    self.node.nmt.stop_heartbeat()
+                else:
+                    self.node.nmt.start_heartbeat(self.sim.od_int(self.node, 0x1017, "<H"))
+        elif what == "leave-enabled":
+            if self.state in (P.OPERATION_ENABLED, P.SWITCHED_ON, P.READY, P.QUICK_STOP):
+                self._set_state(P.SWITCH_ON_DISABLED, "injected: voltage lost")
+        elif what == "follow-error":
+            self.follow_error_rate = float(arg or 1)
+        elif what == "refuse":
+            obj, _, code = (arg or "").partition(",")
+            idx, _, sub = obj.partition(":")
+            key = (int(idx, 16), int(sub, 0) if sub else None)
+            self.refuse[key] = int(code, 0) if code else 0x08000022
+        elif what == "move":
+            # a disabled axis pushed by hand (or by gravity): ARG counts more;
+            # an enabled drive holds its position against it
+            if self.state == P.OPERATION_ENABLED:
+                self.rec.event(self.id, "move_refused", why="operation enabled: holding")
+            else:
+                self.actual += int(arg or "0", 0)
+                self.actual_f = float(self.actual)
+                self.target = self.actual
+                self._publish()
+                self.rec.event(self.id, "moved", to=self.actual, state=self.state)
+        elif what == "never-enable":
+            self.never_enable = arg != "off"
+        elif what == "absent":
+            if self.present:
+                self.detach()
+        elif what == "present":
+            if not self.present:
+                self.attach(self.sim.network)
+        else:
+            raise ValueError(f"unknown injection '{what}'")
+
+
+class DriveSim:
+    """N drives on one bus (one canopen Network, one python-can bus)."""
+
+    def __init__(
+        self,
+        channel: str,
+        drives: Iterable["DriveSpec"],
+        rec: Recorder,
+        bus: can.BusABC | None = None,
+        sync_id: int = 0x80,
+    ) -> None:
+        self.channel = channel
+        self.sync_id = sync_id
+        self.rec = rec
+        self.lock = threading.RLock()
+        self.drives: dict[int, Drive] = {}
+        self.network = canopen.Network(bus)
+        self.sync_no = 0
+        self.t_last_sync: float | None = None
+        self.cycle_cpu_s = 0.0
+        self.cycles = 0
+        self.last_rx_mono = time.monotonic()  # when the last frame was taken off the bus
+        self.last_rx_t = 0.0  # its receive time (kernel clock, s): the bus time reached
+        self._stopping = False
+        self._pump: threading.Thread | None = None
+        self.pump_errors = 0
+        self.socket_drops: int | None = None  # fast receive: the kernel's frames dropped
+        for spec in drives:
+            d = Drive(self, **spec)
+            self.drives[d.id] = d
+
+    # helpers reading this node's OD (stored data or the default)
+    @staticmethod
+    def od_u32(node: canopen.LocalNode, index: int, sub: int = 0) -> int:
+        return DriveSim.od_int(node, index, "<I", sub)
+
+    @staticmethod
+    def od_int(node: canopen.LocalNode, index: int, fmt: str, sub: int = 0) -> int:
+        raw = node.data_store.get(index, {}).get(sub)
+        if raw is None:
+            obj = node._find_object(index, sub)
+            return int(obj.default)
+        return int(struct.unpack(fmt, raw)[0])
+
+    def period_ms(self, node: canopen.LocalNode) -> float:
+        """0x60C2: value x 10^index s, in ms."""
+        v = self.od_int(node, 0x60C2, "B", 1)
+        e = self.od_int(node, 0x60C2, "<b", 2)
+        return v * 10.0 ** (e + 3)
+
+    def start(self, absent: Iterable[int] = (), fast: bool = False) -> None:
+        """Open the bus, then power the drives up. fast: frames are read with
+        the listener's recvmmsg batches (mlipcan.sources) from the bus's own
+        socket and handed to canopen's Network.notify, instead of python-can's
+        Notifier (Bus.recv costs ~1-2.6 ms a frame in the emulated VM: three
+        drives at a 4 ms SYNC fall behind the bus there)."""
+        if self.network.bus is None:
+            from .bus import open_bus
+
+            self.network.bus = open_bus(self.channel)
+        if not fast:  # python-can reads it; a simulator behind the bus must not lose frames
+            from .layout import SO_RCVBUFFORCE
+
+            sock = getattr(self.network.bus, "socket", None)
+            if isinstance(sock, socket.socket):  # not python-can's virtual bus (the host test)
+                try:
+                    sock.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, 16 << 20)
+                except OSError:
+                    pass  # not root
+        if fast:
+            self.socket_drops = 0
+            self._pump = threading.Thread(
+                target=self._pump_frames, name="drive-sim rx", daemon=True
+            )
+            self._pump.start()
+        else:
+            # canopen types its listeners as its own MessageListener; the
+            # Notifier it makes takes any can.Listener
+            self.network.listeners.append(cast(Any, SeenListener(self)))
+            self.network.connect()
+        # the SYNC count, before any drive's handler sees the SYNC
+        self.network.subscribe(self.sync_id, self._count_sync)
+        absent = set(absent)
+        with self.lock:
+            for d in self.drives.values():
+                if d.id in absent:
+                    self.rec.event(d.id, "absent", why="at start")
+                    continue
+                d.attach(self.network)
+
+    def _pump_frames(self) -> None:
+        from .sources import Batch, MMsg, bus_socket, tune_socket
+
+        assert self.network.bus is not None
+        sock = bus_socket(self.network.bus)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, struct.pack("ll", 0, 100000))
+        # a simulator running behind the bus must not lose frames: a large
+        # buffer, and the kernel's drop counter (reported at exit)
+        tune_socket(sock, self.channel, 16 << 20, False, {})
+        mm = MMsg(sock)
+        notify = self.network.notify
+        while not self._stopping:
+            k = mm.recv()
+            if not k:
+                continue
+            B = Batch(mm, k, 1)
+            if B.drops is not None:
+                self.socket_drops = B.drops
+            ids, bad = B.ids, B.raw_bad
+            for j in range(k):
+                if bad[j]:
+                    continue
+                self.last_rx_t = B.t(j) / 1e9
+                self.last_rx_mono = time.monotonic()
+                try:
+                    notify(ids[j], bytearray(B.data(j)), B.t(j) / 1e9)
+                except Exception as e:  # as canopen's own listener: log, go on
+                    self.pump_errors += 1
+                    if self.pump_errors <= 5:
+                        print(
+                            f"mlip-drive-sim: frame 0x{ids[j]:03X}: {e!r}",
+                            file=sys.stderr,
+                            flush=True,
+                        )
+
+    def _count_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        with self.lock:
+            self.sync_no += 1
+            self.t_last_sync = timestamp
+            self.last_rx_mono = time.monotonic()
+            for d in self.drives.values():
+                if d.present:
+                    d.check_heartbeats(timestamp)
+
+    def on_sync(self, drive: Drive, t: float) -> None:
+        """Called once per drive per SYNC (canopen calls each subscriber)."""
+        with self.lock:
+            c0 = time.thread_time()
+            drive.cycle(self.sync_no, t)
+            self.cycle_cpu_s += time.thread_time() - c0
+            self.cycles += 1
+
+    def inject(self, node: int, what: str, arg: str | None = None) -> None:
+        with self.lock:
+            if node not in self.drives:
+                raise ValueError(f"no drive with node id {node}")
+            self.drives[node].inject(what, arg)
+
+    def tick(self) -> None:
+        """Main thread, every few ms: records to disk; heartbeat consumers
+        judged at the receive time of the newest frame taken off the bus (frame
+        order: a simulator running behind the bus does not blame the producer
+        for its own lateness), or by the wall clock once nothing has been taken
+        off the bus for 50 ms (a silent bus). Without SYNCs other frames (the
+        drives' own heartbeats, sent by the kernel's timer) still flow, so the
+        bus time must come from them too."""
+        now = self.last_rx_t
+        if time.monotonic() - self.last_rx_mono > 0.05:
+            now = max(now, time.time())
+        if now > 0.0:
+            with self.lock:
+                for d in self.drives.values():
+                    if d.present:
+                        d.check_heartbeats(now)
+        self.rec.flush()
+
+    def stop(self) -> None:
+        with self.lock:
+            for d in self.drives.values():
+                if d.present:
+                    d.node.nmt.stop_heartbeat()
+        self._stopping = True
+        if self._pump is not None:
+            self._pump.join(timeout=5)
+        self.network.disconnect()
+        self.rec.close()
+
+
+class DriveSpec(TypedDict):
+    """The keyword arguments of one Drive (DriveSim's drives)."""
+
+    node_id: int
+    start_position: int
+    start_state: str
+    heartbeat_ms: int
+    lag_alpha: float
+
+
+class SeenListener(can.Listener):
+    """python-can's path: the receive time of the newest frame taken off the
+    bus, the bus time the heartbeat consumers are judged at (DriveSim.tick)."""
+
+    def __init__(self, sim: DriveSim) -> None:
+        self.sim = sim
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.sim.last_rx_t = msg.timestamp
+        self.sim.last_rx_mono = time.monotonic()

@@ -1,0 +1,163 @@
+/*
+ * drive.c - a CiA 402 drive in cyclic synchronous position mode as mlip sets it
+ * up and supervises it (mlip/canopen/drive.h). Pure.
+ */
+#include "mlip/canopen/drive.h"
+
+#include <math.h>
+#include <string.h>
+
+/* ---- the set-up list -------------------------------------------------------------------- */
+
+mlip_status mlip_co_interp_period(double period_s, uint8_t *value, int8_t *index)
+{
+	double scale = 1.0;
+	int idx;
+
+	if (!isfinite(period_s) || !(period_s > 0.0)) {
+		return MLIP_E_RANGE;
+	}
+	/* the largest exponent whose mantissa is a whole 1..255 */
+	for (idx = 0; idx >= -6; idx--, scale *= 10.0) {
+		double v = period_s * scale, r = round(v);
+		if (r >= 1.0 && r <= 255.0 && fabs(v - r) <= 1e-9 * r) {
+			*value = (uint8_t)r;
+			*index = (int8_t)idx;
+			return MLIP_OK;
+		}
+	}
+	return MLIP_E_RANGE;
+}
+
+int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out, int cap)
+{
+	/* COB-ID bit 31: PDO not valid (disabled while it is mapped); bit 30 of
+	 * a TPDO: no RTR allowed */
+	const uint32_t off = 0x80000000u, no_rtr = 0x40000000u;
+	uint8_t pv;
+	int8_t pi;
+	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
+	int n = 0;
+
+	if (mlip_co_interp_period(d->period_s, &pv, &pi) != MLIP_OK) {
+		return -1;
+	}
+#define ADD(ix, sb, sz, val, w)                                                                    \
+	do {                                                                                       \
+		e[n].index = (ix);                                                                 \
+		e[n].sub = (sb);                                                                   \
+		e[n].size = (sz);                                                                  \
+		e[n].value = (val);                                                                \
+		e[n].read_only = 0;                                                                \
+		e[n].what = (w);                                                                   \
+		n++;                                                                               \
+	} while (0)
+	ADD(0x1400, 1, 4, off | d->rpdo_cob, "RPDO1 COB-ID (disabled while mapping)");
+	ADD(0x1400, 2, 1, 1, "RPDO1 transmission type (synchronous)");
+	ADD(0x1600, 0, 1, 0, "RPDO1 mapping count (cleared)");
+	ADD(0x1600, 1, 4, 0x60400010u, "RPDO1 mapping 1: controlword 0x6040");
+	ADD(0x1600, 2, 4, 0x607A0020u, "RPDO1 mapping 2: target position 0x607A");
+	ADD(0x1600, 0, 1, 2, "RPDO1 mapping count");
+	ADD(0x1400, 1, 4, d->rpdo_cob, "RPDO1 COB-ID");
+	ADD(0x1800, 1, 4, off | no_rtr | d->tpdo_cob, "TPDO1 COB-ID (disabled while mapping)");
+	ADD(0x1800, 2, 1, 1, "TPDO1 transmission type (synchronous, every SYNC)");
+	ADD(0x1A00, 0, 1, 0, "TPDO1 mapping count (cleared)");
+	ADD(0x1A00, 1, 4, 0x60410010u, "TPDO1 mapping 1: statusword 0x6041");
+	ADD(0x1A00, 2, 4, 0x60640020u, "TPDO1 mapping 2: position actual value 0x6064");
+	ADD(0x1A00, 0, 1, 2, "TPDO1 mapping count");
+	ADD(0x1800, 1, 4, no_rtr | d->tpdo_cob, "TPDO1 COB-ID");
+	ADD(0x1005, 0, 4, d->sync_id, "COB-ID SYNC (consumer)");
+	ADD(0x6060, 0, 1, MLIP_402_MODE_CSP, "modes of operation (8: cyclic synchronous position)");
+	ADD(0x6061, 0, 1, MLIP_402_MODE_CSP, "modes of operation display");
+	e[n - 1].read_only = 1;
+	ADD(0x60C2, 1, 1, pv, "interpolation time period value");
+	ADD(0x60C2, 2, 1, (uint8_t)pi, "interpolation time index");
+	ADD(0x6065, 0, 4, d->following_window_counts, "following error window");
+	ADD(0x1017, 0, 2, d->heartbeat_ms, "producer heartbeat time (ms)");
+	ADD(0x1016, 1, 4, ((uint32_t)d->master_node << 16) | d->master_timeout_ms,
+	    "consumer heartbeat time: the master's node and timeout (ms)");
+#undef ADD
+	if (n > cap) {
+		return -1;
+	}
+	memcpy(out, e, (size_t)n * sizeof(e[0]));
+	return n;
+}
+
+/* ---- supervision ------------------------------------------------------------------------ */
+
+mlip_drive_fault mlip_drive_supervise(const struct mlip_drive_obs *o,
+                                      const struct mlip_drive_expect *x, int64_t *detail)
+{
+	*detail = 0;
+	if (o->tpdo_cycle != 0 && (o->statusword & MLIP_402_SW_FAULT)) {
+		*detail = o->statusword;
+		return MLIP_DRIVE_FAULT_BIT;
+	}
+	if (o->emcy_count > 0) {
+		*detail = o->emcy.code;
+		return MLIP_DRIVE_EMCY;
+	}
+	if (x->hb_timeout_ns > 0 && x->now_ns > o->hb_ns &&
+	    x->now_ns - o->hb_ns > x->hb_timeout_ns) {
+		*detail = (int64_t)((x->now_ns - o->hb_ns) / 1000000u);
+		return MLIP_DRIVE_HEARTBEAT_LOST;
+	}
+	if (o->nmt_state != MLIP_NMT_OPERATIONAL) {
+		*detail = o->nmt_state;
+		return MLIP_DRIVE_NOT_OPERATIONAL;
+	}
+	if (o->tpdo_cycle != 0 && !x->any_state &&
+	    mlip_402_state_of(o->statusword) != MLIP_402_OPERATION_ENABLED) {
+		*detail = o->statusword;
+		return MLIP_DRIVE_LEFT_ENABLED;
+	}
+	if (x->following_counts >= 0 && (uint64_t)x->following_counts > x->window_counts) {
+		*detail = x->following_counts;
+		return MLIP_DRIVE_FOLLOWING_ERROR;
+	}
+	if (x->tpdo_timeout > 0 && x->cycle > o->tpdo_cycle + x->tpdo_timeout) {
+		*detail = (int64_t)(x->cycle - o->tpdo_cycle);
+		return MLIP_DRIVE_TPDO_LOST;
+	}
+	/* TPDOs that come, but answer a SYNC that old: the drive is that far behind */
+	if (x->tpdo_timeout > 0 && o->tpdo_count > 0 &&
+	    x->cycle > o->tpdo_count + x->tpdo_timeout) {
+		*detail = (int64_t)(x->cycle - o->tpdo_count);
+		return MLIP_DRIVE_TPDO_LOST;
+	}
+	return MLIP_DRIVE_OK;
+}
+
+const char *mlip_drive_fault_name(mlip_drive_fault f)
+{
+	static const char *const names[] = {"ok",
+	                                    "statusword fault bit",
+	                                    "emergency",
+	                                    "heartbeat lost",
+	                                    "left NMT operational",
+	                                    "left operation enabled",
+	                                    "following error",
+	                                    "TPDOs lost or late",
+	                                    "not switched on",
+	                                    "not enabled",
+	                                    "beyond a soft limit"};
+	return (int)f >= 0 && f <= MLIP_DRIVE_BEYOND_LIMIT ? names[f] : "?";
+}
+
+int64_t mlip_drive_following_error(const int32_t *targets, int n, int32_t actual)
+{
+	int64_t best = -1;
+	int i;
+
+	for (i = 0; i < n; i++) {
+		int64_t e = (int64_t)actual - targets[i];
+		if (e < 0) {
+			e = -e;
+		}
+		if (best < 0 || e < best) {
+			best = e;
+		}
+	}
+	return best;
+}

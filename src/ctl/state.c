@@ -1,0 +1,47 @@
+/*
+ * state.c - the names of the controller's states and reasons
+ * (mlip/ctl/state.h), for the tools and the log.
+ */
+#include "mlip/ctl/state.h"
+
+#include <stddef.h>
+
+#define NAME_OF(names, v) ((v) < sizeof(names) / sizeof((names)[0]) ? (names)[v] : "?")
+
+const char *mlip_ctl_state_name(uint32_t state)
+{
+	static const char *const names[] = {"idle",    "running", "held",     "stopping", "fault",
+	                                    "starved", "paused",  "dwelling", "pre-read"};
+
+	return NAME_OF(names, state);
+}
+
+const char *mlip_state_why_name(uint32_t why)
+{
+	static const char *const names[] = {"none",
+	                                    "program start",
+	                                    "continuation",
+	                                    "pre-read done",
+	                                    "program end",
+	                                    "underrun",
+	                                    "feeder gone",
+	                                    "hold",
+	                                    "override 0",
+	                                    "resume",
+	                                    "CAN tx refused",
+	                                    "CAN error frames",
+	                                    "stall",
+	                                    "dwell",
+	                                    "dwell done",
+	                                    "pause (M0)",
+	                                    "optional pause (M1)",
+	                                    "stop",
+	                                    "exit signal",
+	                                    "bad record",
+	                                    "ring corrupt",
+	                                    "position beyond the drives' range",
+	                                    "drive fault",
+	                                    "stop before the start"};
+
+	return NAME_OF(names, why);
+}

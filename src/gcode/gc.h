@@ -1,0 +1,182 @@
+/*
+ * gc.h - private to src/gcode/: what the steps of one line share (see
+ * gcode.c for the steps). A line goes
+ *   lex.c      bytes -> words (struct lexed)
+ *   words.c    words -> one block description (struct blk), each word alone
+ *   gcode.c    words against the machine and the modal state (struct plan),
+ *              then the line executed in LinuxCNC's order
+ *   state.c    the modal state and the notices; the feed of a block
+ *   offsets.c  G10, G92, G28.1/G30.1 and G28/G30
+ *   arc.c      G2/G3 into chords
+ *   emit.c     blocks out, soft limits
+ *   grbl.c     Grbl's '$' system lines and "$J=" jogs
+ *   scan.c     whole-program scans (no machine needed)
+ */
+#ifndef MLIP_GCODE_GC_H
+#define MLIP_GCODE_GC_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mlip/gcode/gcode.h"
+#include "mlip/text/chars.h"
+
+#define MAX_WORDS   (MLIP_GCODE_MAX_LINE / 2 + 1) /* a word takes two bytes at least */
+#define MAX_CHORDS  1000000u
+#define PI          3.14159265358979323846
+#define MM_PER_INCH 25.4
+#define GC_AXES     "XYZABC" /* axis words, in the order of struct blk's arrays */
+
+/* Index of an axis letter in GC_AXES, or -1. */
+static inline int mlip_gc_axis_slot(char c)
+{
+	int k;
+
+	for (k = 0; k < 6; k++) {
+		if (GC_AXES[k] == c) {
+			return k;
+		}
+	}
+	return -1;
+}
+
+static inline int mlip_gc_starts_number(int c)
+{
+	return mlip_is_digit(c) || c == '.' || c == '+' || c == '-';
+}
+
+/* ---- lex.c ---- */
+
+struct word {
+	char letter;  /* upper case */
+	uint32_t col; /* 1-based column of the letter */
+	double value;
+};
+
+struct lexed {
+	struct word w[MAX_WORDS];
+	int n;
+	uint32_t first_col; /* first non-blank column, 0 for a blank line */
+};
+
+/* Fill *e and return st; fmt as mlip_tb_format (mlip/text/format.h). */
+mlip_status mlip_gc_fail(struct mlip_gcode_error *e, uint32_t line, uint32_t col, mlip_status st,
+                         const char *fmt, ...);
+mlip_status mlip_gc_lex_line(const char *text, size_t len, uint32_t line, struct lexed *lx,
+                             struct mlip_gcode_error *e);
+
+/* ---- words.c ---- */
+
+/* Everything one line says, each word checked alone. */
+struct blk {
+	int motion;                 /* G0..G3 on this line, -1 none */
+	int plane, units, dist;     /* 0 when not on this line, else 17..19, 20/21, 90/91 */
+	int home;                   /* 28 or 30, 0 none */
+	int g53, g64, g4, g10, g92; /* g92: 920..923 (value*10), 0 none */
+	int homeset;                /* 28 or 30 for G28.1/G30.1, 0 none */
+	int coord;                  /* 0..8 for G54..G59.3, -1 none */
+	int path;                   /* 610, 611, 640, 0 none */
+	int feedmode;               /* 93, 94, 0 none */
+	int pause;                  /* M0/M60: 1, M1: 2, 0 none */
+	int end;                    /* M2/M30 */
+	uint32_t motion_col, home_col, g53_col, g4_col, g10_col, g92_col, homeset_col, end_col;
+	int has_ax[6];
+	double ax[6]; /* as written, indexed like GC_AXES */
+	uint32_t ax_col[6];
+	int has_ijk[3];
+	double ijk[3];
+	uint32_t ijk_col[3];
+	int has_r, has_f, has_p, has_q, has_l;
+	double r, f, p, q, l;
+	uint32_t r_col, p_col, q_col, l_col, f_col;
+	char notes[MAX_WORDS][8]; /* notices to record once the line is accepted */
+	int n_notes;
+};
+
+/* value*10 as an int when value is a non-negative multiple of 0.1, else -1 */
+int mlip_gc_code_of(double v);
+mlip_status mlip_gc_classify(const struct lexed *lx, uint32_t line, struct blk *b,
+                             struct mlip_gcode_error *e);
+
+/* ---- gcode.c ---- */
+
+/* What the checks found out about a line, for its motion. */
+struct plan {
+	int motion;     /* in effect for this line, -1 none */
+	int moves;      /* the line moves: axis words, or a center-only arc */
+	int has_axes;   /* axis words on the line */
+	int axis_use;   /* they are not motion: G10, G92, G28/G30 */
+	int g0_default; /* they move as G0: no motion mode yet (Grbl) */
+	uint32_t mcol;  /* column to blame for the motion: its G word, else the line */
+};
+
+/* ---- state.c ---- */
+
+void mlip_gc_notice(struct mlip_gcode *g, const char *word, uint32_t line);
+/* Config index of the axis with that (upper-case) letter, or -1. */
+int mlip_gc_axis_index(const struct mlip_machine *m, char letter);
+void mlip_gc_commit_modal(struct mlip_gcode *g, const struct blk *b, const struct plan *pl,
+                          uint32_t line);
+mlip_status mlip_gc_block_feed(struct mlip_gcode *g, const struct plan *pl, const double *s,
+                               const double *t, uint32_t line, double *feed_mm_s,
+                               struct mlip_gcode_error *e);
+
+/* ---- emit.c ---- */
+
+/* What a line's blocks share, besides target and tolerance. */
+struct emit_ctx {
+	mlip_block_sink sink;
+	void *ctx;
+	uint32_t line;
+	uint8_t rapid;
+	double feed_mm_s;
+	int dwell_pending; /* G4: its DWELL goes first, once the line is known good */
+	double dwell_s;
+};
+
+int mlip_gc_flush_dwell(struct mlip_gcode *g, struct emit_ctx *c);
+int mlip_gc_emit(struct mlip_gcode *g, struct emit_ctx *c, const double *t, double tol_mm);
+int mlip_gc_emit_event(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, uint32_t line,
+                       mlip_block_kind kind, double dwell_s);
+mlip_status mlip_gc_check_limits(const struct mlip_gcode *g, const double *t,
+                                 const uint32_t *col_of, uint32_t line, int on_arc,
+                                 struct mlip_gcode_error *e);
+
+/* ---- arc.c ---- */
+
+struct arc {
+	int iu, iv;       /* config indices of the plane axes */
+	double cu, cv;    /* center */
+	double r0, r1;    /* radius at start and at end: a slight spiral, as LinuxCNC */
+	double a0, sweep; /* start angle and signed sweep, rad; G3 > 0 */
+	uint32_t n;       /* chords */
+	double sag_mm;    /* sagitta of each chord */
+};
+
+mlip_status mlip_gc_arc_setup(const struct mlip_gcode *g, const struct blk *b, int motion,
+                              double scale, const double *s, const double *t, uint32_t line,
+                              uint32_t col, struct arc *a, struct mlip_gcode_error *e);
+mlip_status mlip_gc_emit_arc(struct mlip_gcode *g, struct emit_ctx *ec, const struct arc *arc,
+                             const double *s, const double *t, const uint32_t *col_of,
+                             struct mlip_gcode_error *e);
+
+/* G93's feed (state.c): the move's length times F/60 (arc: may be NULL). */
+double mlip_gc_inverse_time_feed(const struct mlip_gcode *g, double f, const double *s,
+                                 const double *t, const struct arc *arc);
+
+/* ---- offsets.c ---- */
+
+/* Work offset plus G92 offset of axis i: machine = program + this. */
+double mlip_gc_offset_of(const struct mlip_gcode *g, int i);
+void mlip_gc_set_offsets(struct mlip_gcode *g, const struct blk *b, double scale);
+mlip_status mlip_gc_go_home(struct mlip_gcode *g, const struct blk *b, const struct plan *pl,
+                            struct emit_ctx *ec, const double *t, const uint32_t *col_of,
+                            uint32_t line, struct mlip_gcode_error *e);
+
+/* ---- grbl.c ---- */
+
+mlip_status mlip_gc_system_line(struct mlip_gcode *g, const char *t, size_t len, size_t i0,
+                                uint32_t line, mlip_block_sink sink, void *ctx,
+                                struct mlip_gcode_error *e);
+
+#endif

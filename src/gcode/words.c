@@ -1,0 +1,415 @@
+/*
+ * words.c - step 2 of a line: words -> one block description (struct blk):
+ * G and M codes by modal group (LinuxCNC's table of modal groups), axis and
+ * arc words, F, P, Q, L, the notices; every word checked alone.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "gc.h"
+
+enum gkind {
+	GK_MOTION,   /* G0..G3 */
+	GK_PLANE,    /* G17..G19 */
+	GK_UNITS,    /* G20/G21 */
+	GK_DIST,     /* G90/G91 */
+	GK_HOME,     /* G28/G30 */
+	GK_G53,      /* machine coordinates for this line */
+	GK_DWELL,    /* G4 */
+	GK_G10,      /* G10 L2 / L20 */
+	GK_HOMESET,  /* G28.1/G30.1 */
+	GK_COORD,    /* G54..G59.3 */
+	GK_PATH,     /* G61, G61.1, G64 */
+	GK_G92,      /* G92, G92.1, G92.2, G92.3 */
+	GK_FEEDMODE, /* G93/G94 */
+	GK_NOTICE,   /* accepted, no effect on motion */
+	GK_SILENT,   /* accepted, it is what mlip does anyway (G91.1) */
+	GK_UNSUP
+};
+
+/* modal groups, to refuse two codes of one group on a line */
+enum {
+	GR_NONE,
+	GR_MOTION,
+	GR_PLANE,
+	GR_UNITS,
+	GR_DIST,
+	GR_NONMODAL,
+	GR_FEEDMODE,
+	GR_CUTTER,
+	GR_TOOLLEN,
+	GR_COORD,
+	GR_PATH,
+	GR_ARCDIST,
+	GR_N
+};
+
+/* G codes by value*10, as ranges [lo, hi] */
+struct gdef {
+	short lo, hi;
+	unsigned char kind, group;
+	const char *why; /* GK_UNSUP: what it is, for the message */
+};
+
+static const struct gdef gtab[] = {
+    {0, 30, GK_MOTION, GR_MOTION, 0},
+    {170, 190, GK_PLANE, GR_PLANE, 0},
+    {200, 210, GK_UNITS, GR_UNITS, 0},
+    {280, 280, GK_HOME, GR_NONMODAL, 0},
+    {300, 300, GK_HOME, GR_NONMODAL, 0},
+    {400, 400, GK_NOTICE, GR_CUTTER, 0},
+    {490, 490, GK_NOTICE, GR_TOOLLEN, 0},
+    {530, 530, GK_G53, GR_NONMODAL, 0},
+    {40, 40, GK_DWELL, GR_NONMODAL, 0},
+    {100, 100, GK_G10, GR_NONMODAL, 0},
+    {281, 281, GK_HOMESET, GR_NONMODAL, 0},
+    {301, 301, GK_HOMESET, GR_NONMODAL, 0},
+    {540, 540, GK_COORD, GR_COORD, 0},
+    {550, 550, GK_COORD, GR_COORD, 0},
+    {560, 560, GK_COORD, GR_COORD, 0},
+    {570, 570, GK_COORD, GR_COORD, 0},
+    {580, 580, GK_COORD, GR_COORD, 0},
+    {590, 593, GK_COORD, GR_COORD, 0},
+    {610, 611, GK_PATH, GR_PATH, 0},
+    {640, 640, GK_PATH, GR_PATH, 0},
+    {920, 923, GK_G92, GR_NONMODAL, 0},
+    {930, 940, GK_FEEDMODE, GR_FEEDMODE, 0},
+    {800, 800, GK_NOTICE, GR_MOTION, 0},
+    {900, 900, GK_DIST, GR_DIST, 0},
+    {910, 910, GK_DIST, GR_DIST, 0},
+    {911, 911, GK_SILENT, GR_ARCDIST, 0},
+    {50, 53, GK_UNSUP, 0, "splines"},
+    {70, 80, GK_UNSUP, 0, "lathe diameter/radius mode"},
+    {330, 331, GK_UNSUP, 0, "spindle-synchronized motion"},
+    {760, 760, GK_UNSUP, 0, "threading cycle"},
+    {382, 385, GK_UNSUP, 0, "probing"},
+    {410, 421, GK_UNSUP, 0, "cutter radius compensation"},
+    {430, 432, GK_UNSUP, 0, "tool length offset"},
+    {520, 520, GK_UNSUP, 0, "local offsets (use G92 or G10 L2)"},
+    {730, 730, GK_UNSUP, 0, "canned cycles"},
+    {810, 890, GK_UNSUP, 0, "canned cycles"},
+    {980, 990, GK_UNSUP, 0, "canned cycles"},
+    {901, 901, GK_UNSUP, 0, "absolute arc centers"},
+    {950, 950, GK_UNSUP, 0, "feed per revolution"},
+    {960, 970, GK_UNSUP, 0, "constant surface speed"},
+};
+
+static const struct gdef *gfind(int code10)
+{
+	size_t k;
+
+	for (k = 0; k < sizeof gtab / sizeof gtab[0]; k++) {
+		/* motion and plane ranges hold whole codes only */
+		if (code10 >= gtab[k].lo && code10 <= gtab[k].hi &&
+		    !((gtab[k].kind <= GK_UNITS || gtab[k].kind == GK_FEEDMODE) && code10 % 10)) {
+			return &gtab[k];
+		}
+	}
+	return 0;
+}
+
+/* M codes that cannot be ignored, and why (LinuxCNC's meanings); every
+ * other whole M code up to M199 is a notice: no effect on motion (spindle,
+ * coolant, tool change, overrides, user M codes, printer fans, ...). */
+static const char *m_refused(int code10)
+{
+	int m = code10 / 10;
+
+	if (code10 % 10 || m > 199) {
+		return "";
+	}
+	if (m == 98 || m == 99) {
+		return ": subprogram calls (have the CAM expand them)";
+	}
+	if (m >= 62 && m <= 68) {
+		return ": digital/analog I/O synchronized with motion or a wait for an input";
+	}
+	if (m >= 70 && m <= 73) {
+		return ": saving and restoring the modal state";
+	}
+	return 0;
+}
+
+int mlip_gc_code_of(double v)
+{
+	double t = floor(v * 10.0 + 0.5);
+
+	if (v < 0 || t > 10000 || fabs(v * 10.0 - t) > 1e-6) {
+		return -1;
+	}
+	return (int)t;
+}
+
+/* Everything one line says, each word checked alone. */
+
+static void note_word(struct blk *b, char letter, int code10)
+{
+	char *w = b->notes[b->n_notes++];
+	int k = 0;
+
+	w[k++] = letter;
+	if (code10 >= 0) { /* at most "G61.1" or "M199" (code10 < 10000): fits */
+		if (code10 >= 1000) {
+			w[k++] = (char)('0' + code10 / 1000 % 10);
+		}
+		if (code10 >= 100) {
+			w[k++] = (char)('0' + code10 / 100 % 10);
+		}
+		w[k++] = (char)('0' + code10 / 10 % 10);
+		if (code10 % 10) {
+			w[k++] = '.';
+			w[k++] = (char)('0' + code10 % 10);
+		}
+	}
+	w[k] = '\0';
+}
+
+static mlip_status classify_g(const struct word *w, uint32_t line, struct blk *b, int *group_code,
+                              struct mlip_gcode_error *e)
+{
+	int c = mlip_gc_code_of(w->value);
+	const struct gdef *d = c >= 0 ? gfind(c) : 0;
+
+	if (c < 0) {
+		return mlip_gc_fail(e, line, w->col, MLIP_E_UNSUPPORTED, "unsupported G code G%f",
+		                    w->value);
+	}
+	if (!d || d->kind == GK_UNSUP) {
+		return mlip_gc_fail(e, line, w->col, MLIP_E_UNSUPPORTED,
+		                    "unsupported G code %G%s%s", c, d ? ": " : "", d ? d->why : "");
+	}
+	if (d->group != GR_NONE && group_code[d->group] >= 0 && group_code[d->group] != c) {
+		return mlip_gc_fail(e, line, w->col, MLIP_E_SYNTAX,
+		                    d->group == GR_MOTION
+		                        ? "two motion codes on one line: %G and %G"
+		                        : "%G and %G on one line: same modal group",
+		                    group_code[d->group], c);
+	}
+	group_code[d->group] = c;
+	switch (d->kind) {
+	case GK_MOTION:
+		b->motion = c / 10;
+		b->motion_col = w->col;
+		break;
+	case GK_PLANE:
+		b->plane = c / 10;
+		break;
+	case GK_UNITS:
+		b->units = c / 10;
+		break;
+	case GK_DIST:
+		b->dist = c / 10;
+		break;
+	case GK_HOME:
+		b->home = c / 10;
+		b->home_col = w->col;
+		break;
+	case GK_G53:
+		b->g53 = 1;
+		b->g53_col = w->col;
+		break;
+	case GK_DWELL:
+		b->g4 = 1;
+		b->g4_col = w->col;
+		break;
+	case GK_G10:
+		b->g10 = 1;
+		b->g10_col = w->col;
+		break;
+	case GK_HOMESET:
+		b->homeset = c / 10;
+		b->homeset_col = w->col;
+		break;
+	case GK_COORD:
+		b->coord = c < 590 ? c / 10 - 54 : 5 + c % 10;
+		break;
+	case GK_PATH:
+		b->path = c;
+		b->g64 = c == 640;
+		break;
+	case GK_G92:
+		b->g92 = c;
+		b->g92_col = w->col;
+		break;
+	case GK_FEEDMODE:
+		b->feedmode = c / 10;
+		break;
+	case GK_NOTICE:
+		note_word(b, 'G', c);
+		break;
+	default:
+		break;
+	}
+	return MLIP_OK;
+}
+
+static mlip_status classify_params(const struct blk *b, uint32_t line, struct mlip_gcode_error *e);
+
+mlip_status mlip_gc_classify(const struct lexed *lx, uint32_t line, struct blk *b,
+                             struct mlip_gcode_error *e)
+{
+	int group_code[GR_N], k, a, c;
+	uint32_t seen[26] = {0}; /* column of the first word of each letter */
+	mlip_status st;
+
+	memset(b, 0, sizeof *b);
+	b->motion = -1;
+	b->coord = -1;
+	for (k = 0; k < GR_N; k++) {
+		group_code[k] = -1;
+	}
+	for (k = 0; k < lx->n; k++) {
+		const struct word *w = &lx->w[k];
+		char L = w->letter;
+
+		if (!seen[L - 'A']) {
+			seen[L - 'A'] = w->col;
+		} else if (L != 'G' && L != 'M' && L != 'N') {
+			return mlip_gc_fail(e, line, w->col, MLIP_E_SYNTAX,
+			                    "duplicate %c word (first at column %u)", L,
+			                    seen[L - 'A']);
+		}
+		switch (L) {
+		case 'G':
+			st = classify_g(w, line, b, group_code, e);
+			if (st != MLIP_OK) {
+				return st;
+			}
+			break;
+		case 'M':
+			c = mlip_gc_code_of(w->value);
+			if (c < 0) {
+				return mlip_gc_fail(e, line, w->col, MLIP_E_UNSUPPORTED,
+				                    "unsupported M code M%f", w->value);
+			}
+			if (m_refused(c)) {
+				return mlip_gc_fail(e, line, w->col, MLIP_E_UNSUPPORTED,
+				                    "unsupported M code %M%s", c, m_refused(c));
+			}
+			if (c == 0 || c == 10 || c == 600) {
+				b->pause = c == 10 ? 2 : 1;
+				if (c == 600) {
+					note_word(b, 'M', c);
+				}
+			} else if (c == 20 || c == 300) {
+				b->end = 1;
+				b->end_col = w->col;
+				note_word(b, 'M', c);
+			} else {
+				note_word(b, 'M', c);
+			}
+			break;
+		case 'X':
+		case 'Y':
+		case 'Z':
+		case 'A':
+		case 'B':
+		case 'C':
+			a = mlip_gc_axis_slot(L);
+			b->has_ax[a] = 1;
+			b->ax[a] = w->value;
+			b->ax_col[a] = w->col;
+			break;
+		case 'I':
+		case 'J':
+		case 'K':
+			b->has_ijk[L - 'I'] = 1;
+			b->ijk[L - 'I'] = w->value;
+			b->ijk_col[L - 'I'] = w->col;
+			break;
+		case 'R':
+			b->has_r = 1;
+			b->r = w->value;
+			b->r_col = w->col;
+			break;
+		case 'F':
+			if (!(w->value > 0)) {
+				return mlip_gc_fail(e, line, w->col, MLIP_E_RANGE,
+				                    "feed F must be positive");
+			}
+			b->has_f = 1;
+			b->f = w->value;
+			b->f_col = w->col;
+			break;
+		case 'P':
+			b->has_p = 1;
+			b->p = w->value;
+			b->p_col = w->col;
+			break;
+		case 'Q':
+			b->has_q = 1;
+			b->q = w->value;
+			b->q_col = w->col;
+			break;
+		case 'L':
+			b->has_l = 1;
+			b->l = w->value;
+			b->l_col = w->col;
+			break;
+		case 'S':
+		case 'T':
+			note_word(b, L, -1);
+			break;
+		case 'N':
+			break; /* line numbers: ignored */
+		case 'U':
+		case 'V':
+		case 'W':
+			return mlip_gc_fail(e, line, w->col, MLIP_E_UNSUPPORTED,
+			                    "axis %c not supported: mlip axes are X Y Z A B C", L);
+		default:
+			return mlip_gc_fail(e, line, w->col, MLIP_E_SYNTAX,
+			                    "unknown word letter %c", L);
+		}
+	}
+	return classify_params(b, line, e);
+}
+
+/* P, Q, L and R words against the codes that take them (LinuxCNC's rules). */
+static mlip_status classify_params(const struct blk *b, uint32_t line, struct mlip_gcode_error *e)
+{
+	int n = (b->g4 != 0) + (b->g10 != 0) + (b->g64 != 0);
+
+	if (b->has_p && n != 1) {
+		return mlip_gc_fail(
+		    e, line, b->p_col, MLIP_E_SYNTAX,
+		    n ? "P word with two of G4, G10, G64: put them on separate lines"
+		      : "P word without G4, G10 or G64");
+	}
+	if (b->has_q && !b->g64) {
+		return mlip_gc_fail(e, line, b->q_col, MLIP_E_SYNTAX, "Q word without G64");
+	}
+	if (b->has_l && !b->g10) {
+		return mlip_gc_fail(e, line, b->l_col, MLIP_E_SYNTAX, "L word without G10");
+	}
+	if (b->g4 && !b->has_p) {
+		return mlip_gc_fail(e, line, b->g4_col, MLIP_E_SYNTAX,
+		                    "G4 without P: write the dwell in seconds, e.g. G4 P0.5");
+	}
+	if (b->g4 && !(b->p >= 0)) {
+		return mlip_gc_fail(e, line, b->p_col, MLIP_E_RANGE, "G4 P must be >= 0 seconds");
+	}
+	if (b->g10) {
+		if (!b->has_l || (b->l != 2 && b->l != 20)) {
+			return mlip_gc_fail(
+			    e, line, b->has_l ? b->l_col : b->g10_col, MLIP_E_UNSUPPORTED,
+			    "G10 without L2 or L20: only work offsets can be set (mlip has no "
+			    "tool table)");
+		}
+		if (!b->has_p || b->p != floor(b->p) || b->p < 0 || b->p > 9) {
+			return mlip_gc_fail(
+			    e, line, b->has_p ? b->p_col : b->g10_col, MLIP_E_SYNTAX,
+			    "G10 L%u needs P0..P9 (0: the system in use, 1..9: G54..G59.3)",
+			    (unsigned)b->l);
+		}
+		if (b->has_r) {
+			return mlip_gc_fail(e, line, b->r_col, MLIP_E_UNSUPPORTED,
+			                    "G10 R (rotated coordinate system) not supported");
+		}
+	}
+	if (b->g53 && b->dist == 91) {
+		return mlip_gc_fail(e, line, b->g53_col, MLIP_E_SYNTAX,
+		                    "G53 with G91: machine coordinates must be absolute");
+	}
+	return MLIP_OK;
+}

@@ -1,0 +1,55 @@
+/*
+ * keys.c - the keys of each section kind, in the order of keys.h's enums,
+ * with how each value is read and whether it is required.
+ */
+#include "keys.h"
+
+const struct keydef mlip_mc_keytab[N_KINDS][NKEYS] = {
+    [K_TRAJ] = {{"COORDINATES", V_COORDS, 1},
+                {"MAX_LINEAR_VELOCITY", V_POS, 1},
+                {"MAX_ANGULAR_VELOCITY", V_POS, 0},
+                {"CONTOUR_TOLERANCE", V_POS, 1},
+                {"PERIOD", V_PERIOD, 0},
+                {"LINEAR_UNITS", V_LUNITS, 0},
+                {"ANGULAR_UNITS", V_AUNITS, 0},
+                {"LOOKAHEAD", V_LOOKAHEAD, 0}},
+    [K_AXIS] = {{"TYPE", V_TYPE, 0},
+                {"MAX_VELOCITY", V_POS, 1},
+                {"MAX_ACCELERATION", V_POS, 1},
+                {"MIN_LIMIT", V_REAL, 0},
+                {"MAX_LIMIT", V_REAL, 0},
+                {"HOME", V_REAL, 0},
+                {"CAN_NODE", V_NODE, 0},
+                {"COUNTS_PER_UNIT", V_POS, 0}},
+    [K_CAN] = {{"PROFILE", V_PROFILE, 0},
+               {"BITRATE", V_BITRATE, 0},
+               {"DATA_BITRATE", V_DBITRATE, 0},
+               {"SYNC_ID", V_ID, 0},
+               {"RPDO_BASE", V_ID, 0},
+               {"PACKED_BASE", V_ID, 0},
+               {"FD_ID", V_ID, 0},
+               {"STATUS_ID", V_ID, 0}},
+    [K_DRIVES] = {{"ENABLE", V_BOOL, 0},
+                  {"MASTER_NODE", V_NODE, 0},
+                  {"HEARTBEAT_MS", V_MS, 0},
+                  {"HEARTBEAT_TIMEOUT_MS", V_MS, 0},
+                  {"FOLLOWING_ERROR", V_POS, 0},
+                  {"SDO_TIMEOUT_MS", V_MS, 0},
+                  {"BOOT_TIMEOUT_MS", V_MS, 0},
+                  {"STATE_TIMEOUT_MS", V_MS, 0}},
+};
+
+/* "TRAJ", "CAN", "AXIS_X", ... */
+void mlip_mc_secname(struct mlip_tb *b, int sec)
+{
+	if (sec == SEC_TRAJ) {
+		mlip_tb_puts(b, "TRAJ");
+	} else if (sec == SEC_CAN) {
+		mlip_tb_puts(b, "CAN");
+	} else if (sec == SEC_DRIVES) {
+		mlip_tb_puts(b, "DRIVES");
+	} else {
+		mlip_tb_puts(b, "AXIS_");
+		mlip_tb_putc(b, AXIS_LETTERS[sec - SEC_AXIS0]);
+	}
+}
