@@ -56,6 +56,7 @@
 #include "cli.h"
 #include "grbl.h"
 #include "grblstream.h"
+#include "mlip/ctl/state.h"
 #include "mlip/ipc/ring.h"
 #include "mlip/machine/config.h"
 #include "rt.h"
@@ -126,8 +127,10 @@ struct srv {
 	int hold_req;    /* we asked for a feed hold (the controller says held only at rest) */
 	uint64_t cmd_hb; /* the controller's period when we last posted a command */
 	uint64_t cmd_ns;
-	int stop_ours; /* we posted a stop (a reset) */
-	int partial;   /* the current line's blocks are not all staged */
+	int stop_ours;        /* we posted a stop (a reset) */
+	uint32_t stop_ticket; /* its ticket (mlip_ring_stop_post) */
+	uint32_t stop_seen;   /* the controller's stop_seen when we last looked */
+	int partial;          /* the current line's blocks are not all staged */
 	int ov_feed, ov_rapid, ov_spindle;
 	double wco_last[MLIP_MAX_AXES];
 	int fault_told;
@@ -271,7 +274,7 @@ static void cmd_pump(void)
 		S.cmd_ns = now_ns();
 		if (S.q[0].op == MLIP_CMD_HOLD) {
 			S.hold_req = 1;
-		} else if (S.q[0].op == MLIP_CMD_RESUME || S.q[0].op == MLIP_CMD_STOP) {
+		} else if (S.q[0].op == MLIP_CMD_RESUME) {
 			S.hold_req = 0;
 		}
 		memmove(S.q, S.q + 1, (size_t)(S.qn - 1) * sizeof(S.q[0]));
@@ -279,26 +282,16 @@ static void cmd_pump(void)
 	}
 }
 
-/* ---- the ring's producer side ------------------------------------------------ */
-
-static int producer_lock(int fd, int32_t *holder)
+/* A controlled stop on the path (the stop counter: never refused, never
+ * behind the mailbox); the controller drops what is queued. */
+static void stop_post(void)
 {
-	struct flock fl;
-	memset(&fl, 0, sizeof(fl));
-	fl.l_type = F_WRLCK;
-	fl.l_whence = SEEK_SET;
-	fl.l_start = (off_t)offsetof(struct mlip_ring, head);
-	fl.l_len = MLIP_RING_LINE;
-	if (fcntl(fd, F_SETLK, &fl) == 0) {
-		return 0;
-	}
-	*holder = 0;
-	fl.l_type = F_WRLCK;
-	if (fcntl(fd, F_GETLK, &fl) == 0 && fl.l_type != F_UNLCK) {
-		*holder = (int32_t)fl.l_pid;
-	}
-	return -1;
+	S.stop_ticket = mlip_ring_stop_post(S.r);
+	S.stop_ours = 1;
+	S.hold_req = 0;
 }
+
+/* ---- the ring's producer side ------------------------------------------------ */
 
 static void producer_unlock(void)
 {
@@ -328,7 +321,7 @@ static int take_producer(void)
 	if (S.locked) {
 		return 0;
 	}
-	if (producer_lock(S.shm.fd, &holder) != 0) {
+	if (mlip_shm_feeder_lock(&S.shm, &holder) != 0) {
 		send_msg(S.ctl,
 		         "another feeder (pid %d) is feeding %s: wait for it to finish, or stop "
 		         "it (mlip-ctl stop)",
@@ -522,8 +515,7 @@ static void soft_reset(void)
 	}
 	S.ov_rapid = S.ov_spindle = 100;
 	if (!quiet_controller() && S.cs.state != MLIP_STATE_FAULT) {
-		cmd_push(MLIP_CMD_STOP, 0);
-		S.stop_ours = 1;
+		stop_post();
 		S.reset_wait = 1;
 		grbl_stream_restart(&S.st, S.cs.pos, 0);
 		push_end_alone();
@@ -688,9 +680,13 @@ static int gcode_line(const char *t, size_t len)
 		answer(0);
 		return 1;
 	}
-	/* a new program starts where the machine stands now */
-	if (!S.st.open && grbl_stream_staged(&S.st) == 0 && quiet_controller() && !S.program_live) {
-		resync(1);
+	if (!S.st.open && grbl_stream_staged(&S.st) == 0) {
+		/* a new program: a stop from now on is meant for it (the
+		 * controller refuses it, were it still to start) */
+		S.fa.stop_base = mlip_ring_stop_count(S.r);
+		if (quiet_controller() && !S.program_live) {
+			resync(1); /* it starts where the machine stands now */
+		}
 	}
 	if (grbl_stream_check(&S.st, t, len, S.lineno, &e) != MLIP_OK) {
 		say_error(&e, grbl_error_code(&e, 0));
@@ -996,7 +992,7 @@ static void quiet_end(void)
 	} else if (S.cs.state == MLIP_STATE_STARVED || S.cs.state == MLIP_STATE_IDLE) {
 		if (S.verbose) {
 			logf_("quiet, controller %s: program ends at line %u",
-			      mlip_ring_state_name(S.cs.state), (unsigned)S.lineno);
+			      mlip_ctl_state_name(S.cs.state), (unsigned)S.lineno);
 		}
 		grbl_stream_end(&S.st);
 	}
@@ -1006,7 +1002,12 @@ static void quiet_end(void)
  * the end of a reset. */
 static void follow_controller(void)
 {
-	if (S.reset_wait && quiet_controller() && S.cs.state != MLIP_STATE_STOPPING) {
+	int stop_done = !S.stop_ours || mlip_ring_stop_applied(S.cs.stop_seen, S.stop_ticket);
+	/* a stop the controller applied that is not ours (mlip-ctl stop) */
+	int foreign =
+	    S.cs.stop_seen != S.stop_seen && !(S.stop_ours && S.cs.stop_seen == S.stop_ticket);
+	S.stop_seen = S.cs.stop_seen;
+	if (S.reset_wait && stop_done && quiet_controller() && S.cs.state != MLIP_STATE_STOPPING) {
 		S.reset_wait = 0;
 		S.stop_ours = 0;
 		S.program_live = 0;
@@ -1019,7 +1020,8 @@ static void follow_controller(void)
 	if (S.hold_req && S.cs.state == MLIP_STATE_HELD) {
 		S.hold_req = 0; /* the controller says held itself from now on */
 	}
-	if (!S.stop_ours && S.cs.state == MLIP_STATE_STOPPING && (S.st.open || S.program_live)) {
+	if ((foreign || (!S.stop_ours && S.cs.state == MLIP_STATE_STOPPING)) &&
+	    (S.st.open || S.program_live || grbl_stream_staged(&S.st) > 0)) {
 		/* stopped by someone else (mlip-ctl stop, a signal to mlip-rt) */
 		S.alarm = 1;
 		snprintf(
@@ -1445,6 +1447,7 @@ int main(int argc, char **argv)
 	}
 	grbl_axes_of(&S.m, &S.ax);
 	poll_controller();
+	S.stop_seen = S.cs.stop_seen;
 	if (!S.cs_ok || S.cs.heartbeat == 0) {
 		logf_("controller not running on %s: start mlip-rt", shm);
 		return 1;
