@@ -120,11 +120,16 @@ struct srv {
 	int check_mode;
 	int err_hold;  /* a refused line: nothing more taken until ~ or reset */
 	int hold_idle; /* ! while idle: Hold:0 until ~ */
+	int door;      /* 0x84: a safety-door hold (Door:2 stopping, Door:0 until ~) */
 	int sleeping;  /* $SLP: until reset */
-	int alarm;     /* our own alarm latch (a stop by someone else, lost lines) */
+	int alarm;     /* our own alarm latch (a stop by someone else, a soft limit):
+	                  kept through a reset, cleared by $X, as Grbl's */
+	int critical;  /* ALARM:2 (a soft limit): no line taken until a reset */
 	char alarm_why[200];
 	int reset_wait;  /* a reset waits for rest before the welcome */
 	int hold_req;    /* we asked for a feed hold (the controller says held only at rest) */
+	int jog;         /* a jog ($J=) is queued or moving: Grbl's Jog state */
+	int jog_cancel;  /* a jog cancel is stopping it: Jog until at rest */
 	uint64_t cmd_hb; /* the controller's period when we last posted a command */
 	uint64_t cmd_ns;
 	int stop_ours;        /* we posted a stop (a reset) */
@@ -196,6 +201,18 @@ static void answer(int code)
 	} else {
 		snprintf(b, sizeof(b), "error:%d", code);
 		send_line(S.ctl, b);
+	}
+}
+
+/* Grbl's alarm push (interface.md: ALARM:x; the codes of doc/csv/
+ * alarm_codes_en_US.csv), then why, in mlip's words. */
+static void alarm_push(int code, const char *why)
+{
+	char b[16];
+	snprintf(b, sizeof(b), "ALARM:%d", code);
+	send_line(S.ctl, b);
+	if (why != NULL) {
+		send_msg(S.ctl, "%s", why);
 	}
 }
 
@@ -394,7 +411,10 @@ static const char *grbl_state(void)
 	int ours_queued = grbl_stream_staged(&S.st) > 0 || mlip_ring_count(S.r) > 0 || S.st.open ||
 	                  S.st.end_pending;
 	int moving = c->speed_mm_s > 0.0;
-	if (S.dead || c->state == MLIP_STATE_FAULT || S.alarm) {
+	/* a soft-limit alarm while what was acknowledged still runs: Alarm once
+	 * at rest (Grbl: Hold, then Alarm) */
+	int settling = S.critical && !quiet_controller();
+	if (S.dead || c->state == MLIP_STATE_FAULT || (S.alarm && !settling)) {
 		return "Alarm";
 	}
 	if (S.sleeping) {
@@ -402,6 +422,13 @@ static const char *grbl_state(void)
 	}
 	if (S.check_mode) {
 		return "Check";
+	}
+	if (S.door) {
+		/* mlip has no door switch: the door reads closed once at rest */
+		return moving || c->state == MLIP_STATE_STOPPING ? "Door:2" : "Door:0";
+	}
+	if (S.jog) {
+		return "Jog"; /* Grbl: Jog also while a jog cancel decelerates */
 	}
 	switch (c->state) {
 	case MLIP_STATE_HELD:
@@ -502,8 +529,12 @@ static void soft_reset(void)
 	S.err_hold = 0;
 	S.hold_idle = 0;
 	S.hold_req = 0;
-	S.alarm = S.sleeping ? 1 : 0; /* Grbl: out of sleep into alarm */
+	S.door = 0;
+	S.jog = 0;
+	S.jog_cancel = 0;
+	S.critical = 0;
 	if (S.sleeping) {
+		S.alarm = 1; /* Grbl: out of sleep into alarm */
 		snprintf(S.alarm_why, sizeof(S.alarm_why), "after sleep ($SLP)");
 	}
 	S.sleeping = 0;
@@ -525,6 +556,55 @@ static void soft_reset(void)
 	welcome();
 }
 
+/* ---- jogging -------------------------------------------------------------------- */
+
+/* Grbl's jog ($J=, jogging.md) as a program of its own: each $J= line is a
+ * G1 move at its own F through the same planner and limits as a program
+ * (the G-code reader runs it with the modal state left as it was), queued
+ * behind the last, and given to the controller at once (no waiting for more
+ * look-ahead); the program ends as soon as the controller has run it. A
+ * cancel (0x85, a feed hold, the sender gone) is the controller's stop on
+ * the path: it decelerates at the acceleration limit and drops what is
+ * queued. This is the one mapping to move onto the controller's own jog
+ * (issue 18: a continuous jog with a dead-man) when it lands: jog_line,
+ * jog_cancel and jog_done are all that know how a jog runs. */
+static void jog_cancel(const char *why)
+{
+	if (!S.jog || S.jog_cancel) {
+		return;
+	}
+	if (S.verbose) {
+		logf_("jog cancelled (%s)", why);
+	}
+	S.jog_cancel = 1;
+	if (quiet_controller() && !S.st.open) {
+		return; /* it has ended at rest already: jog_done says Idle */
+	}
+	stop_post();
+	grbl_stream_restart(&S.st, S.cs.pos, 1);
+	S.partial = 0;
+	push_end_alone();
+}
+
+/* The jog has ended (run to its end, or cancelled and at rest). */
+static void jog_done(void)
+{
+	if (!S.jog || S.st.open || S.st.end_pending || grbl_stream_staged(&S.st) > 0 ||
+	    !quiet_controller() || S.cs.state == MLIP_STATE_STOPPING) {
+		return;
+	}
+	if (S.jog_cancel && S.stop_ours && !mlip_ring_stop_applied(S.cs.stop_seen, S.stop_ticket)) {
+		return;
+	}
+	if (S.jog_cancel) {
+		S.stop_ours = 0;
+		resync(1); /* where it stopped, on the jog's path */
+	}
+	S.jog = 0;
+	S.jog_cancel = 0;
+	S.program_live = 0;
+}
+
 /* ---- real-time commands -------------------------------------------------------- */
 
 static void rt_cmd(void *ctx, grbl_rt c)
@@ -542,12 +622,27 @@ static void rt_cmd(void *ctx, grbl_rt c)
 		if (S.check_mode || S.alarm || S.sleeping) {
 			return;
 		}
+		if (S.jog) {
+			jog_cancel("feed hold"); /* Grbl: any hold cancels a jog */
+			return;
+		}
 		if (at_rest_state(cs->state) && quiet_controller()) {
 			S.hold_idle = 1; /* Grbl: a hold while idle suspends too */
 		}
 		cmd_push(MLIP_CMD_HOLD, 0);
 		return;
 	case GRBL_RT_CYCLE_START:
+		if (S.door) {
+			S.door = 0; /* the door is closed (no switch says otherwise) */
+			if (S.hold_req || cs->state == MLIP_STATE_HELD) {
+				cmd_push(MLIP_CMD_RESUME, 0);
+			}
+			S.hold_idle = 0;
+			return;
+		}
+		if (S.jog) {
+			return; /* nothing to resume: a jog is cancelled, not held */
+		}
 		if (S.err_hold) {
 			S.err_hold = 0; /* the sender goes on after a refused line */
 		}
@@ -558,12 +653,23 @@ static void rt_cmd(void *ctx, grbl_rt c)
 		S.hold_idle = 0;
 		return;
 	case GRBL_RT_JOG_CANCEL:
-		return; /* no jog runs (see $J=): ignored, as Grbl outside the Jog state */
+		jog_cancel("jog cancel"); /* outside the Jog state: ignored, as Grbl */
+		return;
 	case GRBL_RT_SAFETY_DOOR:
-		if (S.ctl) {
-			send_msg(S.ctl,
-			         "safety door: mlip has no door input yet; use ! (feed hold)");
+		/* Grbl's door as a command: a feed hold (a jog is cancelled), Door
+		 * until ~; mlip has no door switch and no spindle to stop yet */
+		if (S.check_mode || S.alarm || S.sleeping || S.door) {
+			return;
 		}
+		S.door = 1;
+		if (S.jog) {
+			jog_cancel("safety door");
+			return;
+		}
+		if (at_rest_state(cs->state) && quiet_controller()) {
+			S.hold_idle = 1;
+		}
+		cmd_push(MLIP_CMD_HOLD, 0);
 		return;
 	case GRBL_RT_FEED_100:
 	case GRBL_RT_FEED_PLUS_10:
@@ -622,6 +728,20 @@ static int idle_or_alarm(void)
 	return strcmp(s, "Idle") == 0 || strcmp(s, "Alarm") == 0;
 }
 
+/* A target beyond the soft limits: Grbl's ALARM:2 (limits.c: the line is
+ * not run, not answered, and nothing is taken until a reset; after it the
+ * alarm stays until $X). The machine runs what was acknowledged and stops
+ * at rest there. */
+static void soft_limit_alarm(const struct mlip_gcode_error *e)
+{
+	send_msg(S.ctl, "line %u col %u: %s", (unsigned)e->line, (unsigned)e->col, e->msg);
+	S.alarm = 1;
+	S.critical = 1;
+	snprintf(S.alarm_why, sizeof(S.alarm_why), "soft limit (line %u)", (unsigned)e->line);
+	alarm_push(2, NULL);
+	send_msg(S.ctl, "Reset to continue");
+}
+
 static void say_error(const struct mlip_gcode_error *e, int code)
 {
 	if (e->col) {
@@ -633,10 +753,16 @@ static void say_error(const struct mlip_gcode_error *e, int code)
 }
 
 /* A refused line in a stream: the machine runs what was acknowledged and
- * stops at rest there; nothing more is taken until ~ or reset. */
+ * stops at rest there; nothing more is taken until ~ or reset. A line
+ * refused with nothing of ours queued and no line behind it (typed in a
+ * console: the sender waits for its answer) holds nothing: the next line
+ * is taken, as Grbl takes it. */
 static void refuse_hold(void)
 {
-	S.err_hold = 1;
+	if (S.st.open || S.program_live || grbl_stream_staged(&S.st) > 0 || S.rx.bytes > 0 ||
+	    S.rx.marks > 0) {
+		S.err_hold = 1;
+	}
 	grbl_stream_end(&S.st);
 }
 
@@ -671,8 +797,18 @@ static int gcode_line(const char *t, size_t len)
 		answer(GRBL_E_LOCK);
 		return 1;
 	}
+	if (S.jog) {
+		send_msg(S.ctl,
+		         "jogging: G-code waits until the jog has ended (or 0x85 cancels it)");
+		answer(GRBL_E_LOCK);
+		return 1;
+	}
 	if (S.check_mode) {
 		if (grbl_stream_dry(&S.st, t, len, S.lineno, &e) != MLIP_OK) {
+			if (grbl_error_travel(&e)) {
+				soft_limit_alarm(&e); /* "soft limits still work" in check mode */
+				return 1;
+			}
 			say_error(&e, grbl_error_code(&e, 0));
 			return 1;
 		}
@@ -689,7 +825,11 @@ static int gcode_line(const char *t, size_t len)
 		}
 	}
 	if (grbl_stream_check(&S.st, t, len, S.lineno, &e) != MLIP_OK) {
-		say_error(&e, grbl_error_code(&e, 0));
+		if (grbl_error_travel(&e)) {
+			soft_limit_alarm(&e);
+		} else {
+			say_error(&e, grbl_error_code(&e, 0));
+		}
 		refuse_hold();
 		return 1;
 	}
@@ -721,6 +861,58 @@ static void settings_list(void)
 	for (int i = 0; grbl_setting_line(b, sizeof(b), &S.m, &S.fmt, i) > 0; i++) {
 		send_line(S.ctl, b);
 	}
+}
+
+/* A $J= line: 1 answered, 0 waits (a cancel still decelerating). */
+static int jog_line(const char *t, size_t len, const char *state)
+{
+	struct mlip_gcode_error e;
+	if (S.jog_cancel) {
+		return 0; /* Grbl takes no line until the cancel has ended */
+	}
+	if (S.dead) {
+		send_msg(S.ctl, "the controller on %s is not responding: nothing runs", S.shm.name);
+		answer(GRBL_E_IDLE);
+		return 1;
+	}
+	if (strcmp(state, "Idle") != 0 && strcmp(state, "Jog") != 0) {
+		if (strcmp(state, "Alarm") == 0) {
+			send_msg(S.ctl, "alarm: no jog until it is cleared ($X, or a restart of "
+			                "mlip-rt for a fault)");
+		}
+		answer(GRBL_E_IDLE); /* jogging.md: only in Idle or Jog */
+		return 1;
+	}
+	int first = !S.jog;
+	if (first) {
+		/* a jog program of its own, from where the machine stands */
+		S.fa.stop_base = mlip_ring_stop_count(S.r);
+		resync(1);
+	}
+	if (grbl_stream_check(&S.st, t, len, S.lineno, &e) != MLIP_OK) {
+		/* not run, and nothing else changes (no hold: jogging.md) */
+		say_error(&e, grbl_error_code(&e, 1));
+		return 1;
+	}
+	if (take_producer() != 0) {
+		answer(GRBL_E_IDLE);
+		return 1;
+	}
+	S.jog = 1;
+	int rc = grbl_stream_line(&S.st, t, len, S.lineno, &e);
+	if (rc < 0) { /* cannot happen: checked above */
+		say_error(&e, grbl_error_code(&e, 1));
+		return 1;
+	}
+	if (rc == 0) {
+		S.partial = 1;
+		return 0;
+	}
+	/* at once: the smoothing filter's rest, and the controller told to
+	 * start with what it has (quiet_end) */
+	grbl_stream_flush(&S.st, 0);
+	answer(0);
+	return 1;
 }
 
 /* A `$` line: 1 answered. */
@@ -781,16 +973,7 @@ static int system_line(const char *t, size_t len)
 		answer(0);
 		return 1;
 	case GRBL_SYS_JOG:
-		/* one mapping: switched on with the operate issue's jog (18) */
-		if (strcmp(state, "Idle") != 0 && strcmp(state, "Jog") != 0) {
-			answer(GRBL_E_IDLE);
-			return 1;
-		}
-		send_msg(S.ctl,
-		         "$J= jog: mlip has no jog command yet (a jog that a cancel or a "
-		         "dropped connection stops at once needs the controller's jog): not run");
-		answer(GRBL_E_INVALID_STATEMENT);
-		return 1;
+		return jog_line(t, len, state);
 	default:
 		break;
 	}
@@ -883,7 +1066,7 @@ static int is_query(const char *t, size_t len)
 static void process_lines(void)
 {
 	struct grbl_line l;
-	if (S.ctl == NULL || S.reset_wait) {
+	if (S.ctl == NULL || S.reset_wait || S.critical) {
 		return;
 	}
 	if (S.partial) {
@@ -917,6 +1100,7 @@ static void process_lines(void)
 			}
 			S.lineno += l.lost - 1;
 			refuse_hold();
+			S.err_hold = 1; /* lines were lost: always */
 			grbl_rx_done(&S.rx);
 			continue;
 		}
@@ -970,8 +1154,8 @@ static void quiet_end(void)
 		grbl_stream_end(&S.st);
 		return;
 	}
-	if (grbl_rx_pending(&S.rx) || now_ns() - S.last_rx_ns < S.quiet_ns) {
-		return;
+	if (grbl_rx_pending(&S.rx) || (!S.jog && now_ns() - S.last_rx_ns < S.quiet_ns)) {
+		return; /* a jog runs at once (jogging.md's joystick: no waiting for more) */
 	}
 	if (grbl_stream_holding(&S.st)) {
 		if (S.verbose) {
@@ -989,7 +1173,10 @@ static void quiet_end(void)
 			      (unsigned)S.lineno);
 		}
 		S.fa.pid = 0; /* beat() publishes it */
-	} else if (S.cs.state == MLIP_STATE_STARVED || S.cs.state == MLIP_STATE_IDLE) {
+	} else if ((S.cs.state == MLIP_STATE_STARVED || S.cs.state == MLIP_STATE_IDLE) &&
+	           (!S.jog || mlip_ring_count(S.r) == 0)) {
+		/* (a jog's records just pushed may not be taken yet: the
+		 * controller is idle until its next period) */
 		if (S.verbose) {
 			logf_("quiet, controller %s: program ends at line %u",
 			      mlip_ctl_state_name(S.cs.state), (unsigned)S.lineno);
@@ -1014,6 +1201,7 @@ static void follow_controller(void)
 		resync(0);
 		welcome();
 	}
+	jog_done();
 	if (S.program_live && quiet_controller()) {
 		S.program_live = 0;
 	}
@@ -1030,7 +1218,9 @@ static void follow_controller(void)
 		    "program was dropped",
 		    (unsigned)S.cs.exec_line);
 		if (S.ctl) {
-			send_msg(S.ctl, "%s", S.alarm_why);
+			/* Grbl's nearest: an abort in motion (a reset); mlip kept
+			 * the position (a stop on the path) */
+			alarm_push(3, S.alarm_why);
 		}
 		grbl_stream_restart(&S.st, S.cs.pos, 1);
 		S.partial = 0;
@@ -1040,11 +1230,15 @@ static void follow_controller(void)
 	if (S.cs.state == MLIP_STATE_FAULT && !S.fault_told) {
 		S.fault_told = 1;
 		if (S.ctl) {
-			send_msg(
-			    S.ctl,
+			char why[200];
+			snprintf(
+			    why, sizeof(why),
 			    "mlip-rt fault: %s at line %u: every axis stopped; restart mlip-rt "
 			    "to clear",
 			    mlip_state_why_name(S.cs.reason), (unsigned)S.cs.reason_line);
+			/* Grbl has no code for a drive or bus fault: 3, "position not
+			 * guaranteed", is what a stop by a fault means */
+			alarm_push(3, why);
 		}
 		grbl_stream_restart(&S.st, S.cs.pos, 1);
 		S.partial = 0;
@@ -1071,6 +1265,21 @@ static void peer_close(struct peer *p)
  * what it sent is dropped. */
 static void lose_controller(const char *why)
 {
+	if (S.jog) {
+		/* a jog is the operator's hand on the machine: it stops with them */
+		logf_("%s %s mid-jog: the jog is cancelled (a stop on its path)", S.ctl->name, why);
+		jog_cancel("the sender left");
+		grbl_rx_reset(&S.rx);
+		S.check_mode = 0;
+		S.err_hold = 0;
+		S.hold_idle = 0;
+		struct peer *p = S.ctl;
+		S.ctl = NULL;
+		if (!p->pty) {
+			peer_close(p);
+		}
+		return;
+	}
 	if (S.st.open || S.program_live || S.partial) {
 		logf_("%s %s mid-program (line %u): the machine runs what was acknowledged to its "
 		      "end and stops at rest there; lines not acknowledged are dropped",

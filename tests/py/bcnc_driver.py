@@ -1,9 +1,9 @@
 """Drive bCNC (PyPI bCNC, its own Sender: the serial thread, the GRBL1
 controller plugin, its G-code compiler) without its window: connect through
-pyserial's socket:// URL, read the DRO, run a file, hold and resume it, and
+pyserial's socket:// URL, read the DRO, jog, run a file, hold and resume it, and
 print one JSON line per event for the test to judge.
 
-    python bcnc_driver.py socket://127.0.0.1:PORT FILE [--hold-at SECONDS]
+    python bcnc_driver.py socket://127.0.0.1:PORT FILE [--hold-at SECONDS] [--jog X2Y1]
 
 bCNC's modules import each other by their bare names (its __main__ puts its
 folder on the path): this driver does the same for the installed package.
@@ -71,6 +71,18 @@ def main():
     while time.monotonic() < end and CNC.vars.get("state") not in ("Idle", "Alarm"):
         time.sleep(0.05)
     say(event="connected", version=CNC.vars.get("version"), **dro())
+    if "--jog" in sys.argv:
+        # its jog pad's step, as its GRBL1 controller sends it ($J=G91 ... F100000)
+        s.mcontrol.jog(sys.argv[sys.argv.index("--jog") + 1])
+        end = time.monotonic() + 20
+        while time.monotonic() < end and CNC.vars.get("state") != "Jog":
+            time.sleep(0.01)
+        seen_jog = CNC.vars.get("state") == "Jog"
+        while time.monotonic() < end and CNC.vars.get("state") != "Idle":
+            time.sleep(0.05)
+        time.sleep(0.3)  # a status report after the move
+        drain(s)
+        say(event="jogged", seen_jog=seen_jog, **dro())
     s.load(path)
     # what bCNC's Application.run does, without the canvas
     s.initRun()

@@ -2,8 +2,10 @@
 sees it (gnea/grbl doc/markdown/interface.md, commands.md): the welcome,
 every `$` command, status reports and their refresh rules, real-time bytes,
 character-counting streams whose setpoints are mlip-feed's, refused lines,
-overrides, hold/resume, reset, check mode, one sender at a time, and bad
-input that must never move the machine."""
+overrides, hold/resume, reset, check mode, jogging (jogging.md) and jog
+cancel at the acceleration limit, alarms (ALARM:2, ALARM:3), the safety door
+command, one sender at a time, and bad input that must never move the
+machine."""
 import json
 import os
 import re
@@ -60,6 +62,25 @@ def connect(port):
     return g
 
 
+def reconnect(port, timeout=30):
+    """Connect once the server has let the last sender go (until then it
+    refuses and closes: try again)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        try:
+            g = Grbl(port)
+        except OSError:
+            time.sleep(0.1)
+            continue
+        while not g.closed.is_set() and time.monotonic() < end:
+            if any(line.startswith("Grbl ") for line in g.lines):
+                assert g.welcome() == "Grbl 1.1h ['$' for help]"
+                return g
+            time.sleep(0.02)
+        g.close()
+    raise AssertionError("the server never took a new sender")
+
+
 def idle_at(g, pos, timeout=30):
     s = g.wait_state({"Idle"}, timeout)
     assert s["MPos"][:len(pos)] == pytest.approx(pos, abs=1e-3), s
@@ -98,8 +119,10 @@ def test_welcome_and_system_commands(grbl):
     assert ans == "error:3" and "configuration file" in msgs[0]
     ans, msgs = g.cmd("$H")
     assert ans == "error:5" and "home" in msgs[0]           # homing not enabled (issue 18)
-    ans, msgs = g.cmd("$J=G91 X1 F100")
-    assert ans == "error:3" and "jog" in msgs[0]            # no jog command yet (issue 18)
+    assert g.cmd("$J=G91 X1 F600") == ("ok", [])           # a jog (jogging.md), and back
+    idle_at(g, [1, 0, 0])
+    assert g.cmd("$J=G91 X-1 F600") == ("ok", [])
+    idle_at(g, [0, 0, 0])
     # $10: MPos or WPos (a report setting, kept by the server)
     assert g.cmd("G10 L20 P1 X5 Y0 Z0")[0] == "ok"  # here is X5 in G54: offset -5
     assert g.cmd("$10=0")[0] == "ok"
@@ -231,12 +254,12 @@ def test_stream_equals_mlip_feed(grbl, controller, tmp_path, strategy):
 def test_refused_line_holds_at_the_last_good_block(grbl):
     shm, rt, srv, port, _ = grbl()
     g = connect(port)
-    lines = ["G21 G90", "G1 X10 F3000", "G1 X20", "G1 Y9999", "G1 X30", "G1 X40"]
+    lines = ["G21 G90", "G1 X10 F3000", "G1 X20", "G1 X30 Y", "G1 X30", "G1 X40"]
     for l in lines:
         g.send(l + "\n")
     got = [g.answer() for _ in range(4)]
-    assert [a for a, _ in got] == ["ok", "ok", "ok", "error:33"]
-    assert got[3][1] == ["[MSG:line 4 col 4: Y 9999.000 beyond soft limit 1000.000]"]
+    assert [a for a, _ in got] == ["ok", "ok", "ok", "error:2"]
+    assert got[3][1] == ["[MSG:line 4 col 8: word Y has no number]"]
     s = g.wait_state({"Hold:0"}, 10)   # at rest at the end of the last good line
     assert s["MPos"] == pytest.approx([20, 0, 0], abs=1e-3)
     with pytest.raises(Exception):
@@ -297,7 +320,7 @@ def test_check_mode(grbl):
     assert g.cmd("$C") == ("ok", ["[MSG:Enabled]"])
     assert g.status()["state"] == "Check"
     assert g.cmd("G1 X100 F1000")[0] == "ok"
-    assert g.cmd("G1 X5000")[0] == "error:33"
+    assert g.cmd("G1 X30 Y")[0] == "error:2"
     assert g.cmd("G4 P10")[0] == "ok"
     time.sleep(0.3)
     assert g.status()["MPos"] == [0, 0, 0]           # nothing moved
@@ -431,6 +454,7 @@ def test_stop_by_mlip_ctl_is_an_alarm_until_unlocked(grbl):
     assert wait_for(lambda: status(shm)["state"] == "running", 10)
     subprocess.run([tool("mlip-ctl"), "--shm", shm, "stop"], check=True, capture_output=True)
     s = g.wait_state({"Alarm"}, 10)
+    g.wait_line(lambda l: l == "ALARM:3", 5)     # an abort in motion; position kept
     g.wait_line(lambda l: "stopped by mlip-ctl stop" in l, 5)
     a, m = g.cmd("G0 X0")
     assert a == "error:9" and "alarm" in m[0]
@@ -462,14 +486,175 @@ def test_next_sender_starts_from_defaults(grbl):
     assert g.cmd("G91 G1 X5 F600")[0] == "ok"
     idle_at(g, [5, 0, 0])
     g.close()
-    h = None
-    for _ in range(50):
-        try:
-            h = connect(port)
-            break
-        except (AssertionError, OSError):
-            time.sleep(0.1)
-    assert h is not None
+    h = reconnect(port)
     assert h.cmd("$G") == ("ok", ["[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]"])
     assert h.cmd("X1")[0] == "ok"             # absolute again: to X1, not X6
     idle_at(h, [1, 0, 0])
+
+
+def test_typed_error_holds_nothing(grbl):
+    """A line refused while nothing is queued and nothing follows it (typed
+    in a console): error:N, and the next line runs, as on Grbl."""
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    assert g.cmd("G1 X30 Y")[0] == "error:2"
+    assert g.status()["state"] == "Idle"
+    assert g.cmd("G1 X3 F3000")[0] == "ok"
+    idle_at(g, [3, 0, 0])
+
+
+def test_soft_limit_is_alarm_2(grbl):
+    """A target beyond the soft limits ($20=1): Grbl's ALARM:2 and
+    [MSG:Reset to continue]; the line is not answered and never runs; the
+    machine stops at rest at the end of the last good line (Alarm once
+    there); a reset keeps the alarm (welcome + '$H'|'$X' to unlock), G-code
+    is locked out (error:9) until $X."""
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    for l in ["G1 X10 F3000", "G1 Y9999", "G1 X30"]:
+        g.send(l + "\n")
+    assert g.answer()[0] == "ok"
+    g.wait_line(lambda l: l == "ALARM:2", 10)
+    i = g.lines.index("ALARM:2")
+    assert g.lines[i - 1] == "[MSG:line 2 col 4: Y 9999.000 beyond soft limit 1000.000]"
+    assert g.lines[i + 1] == "[MSG:Reset to continue]"
+    s = g.wait_state({"Alarm"}, 10)
+    assert s["MPos"] == pytest.approx([10, 0, 0], abs=1e-3)
+    with pytest.raises(Exception):
+        g.answer(timeout=0.5)                     # neither line after it answered
+    assert status(shm)["position"]["Y"] == 0
+    g.send(b"\x18")
+    assert wait_for(lambda: g.lines.count("Grbl 1.1h ['$' for help]") == 2, 10)
+    g.wait_line(lambda l: l == "[MSG:'$H'|'$X' to unlock]", 5)
+    assert g.status()["state"] == "Alarm"
+    assert g.cmd("G0 X0")[0] == "error:9"
+    assert g.cmd("$X") == ("ok", ["[MSG:Caution: Unlocked]"])
+    assert g.cmd("G0 X0")[0] == "ok"
+    idle_at(g, [0, 0, 0])
+
+
+# ---- jogging (gnea/grbl doc/markdown/jogging.md) ---------------------------
+
+def axis_limits(config):
+    import configparser
+    c = configparser.ConfigParser(inline_comment_prefixes=("#",))
+    c.read(config)
+    return float(c["AXIS_X"]["MAX_ACCELERATION"]), float(c["TRAJ"]["PERIOD"])
+
+
+def test_jog_moves_without_touching_the_modal_state(grbl):
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    gc = g.cmd("$G")
+    assert g.cmd("$J=G91 X2 Y-1 F1200") == ("ok", [])
+    idle_at(g, [2, -1, 0])
+    assert g.cmd("$J=G53 X0 F1200")[0] == "ok"    # machine coordinates
+    assert g.cmd("$J=N7 G20 G91 Y0.1 F60")[0] == "ok"   # inches, N is valid
+    idle_at(g, [0, 1.54, 0])
+    assert g.cmd("$G") == gc                      # G0 G90 G21, F0: as before
+    # jogging.md: F is required and not modal (22), only G20/G21/G90/G91/G53,
+    # axis words, F and N (16); beyond the travel: not run, no alarm (15)
+    assert g.cmd("$J=G91 X1")[0] == "error:22"
+    assert g.cmd("$J=G91 G1 X1 F100")[0] == "error:16"
+    assert g.cmd("$J=G91 X1 S100 F100")[0] == "error:16"
+    a, m = g.cmd("$J=X2000 F600")
+    assert a == "error:15" and "soft limit" in m[0], m
+    assert g.status()["state"] == "Idle"
+    assert status(shm)["position"]["X"] == 0
+    # G-code during a jog is locked out (9); a jog during a program is not idle (8)
+    assert g.cmd("$J=G91 X50 F600")[0] == "ok"
+    assert g.status()["state"] == "Jog"
+    assert g.cmd("G0 X0")[0] == "error:9"
+    g.send(b"\x85")
+    g.wait_state({"Idle"}, 10)
+    assert g.cmd("G1 X100 F600")[0] == "ok"
+    g.wait_state({"Run"}, 5)
+    assert g.cmd("$J=G91 X1 F600")[0] == "error:8"
+    g.send(b"\x18")
+    g.wait_state({"Idle"}, 10)
+
+
+def test_jog_cancel_stops_at_the_acceleration_limit(grbl, tmp_path):
+    """0x85 while jogging at 100 mm/s: the state stays Jog while it
+    decelerates (Grbl), then Idle on the jog's path. In the setpoints: no
+    period beyond the acceleration limit, and the braking is at the limit:
+    v^2/(2a) from full speed to rest, within a period's travel."""
+    rec = tmp_path / "jog.csv"
+    shm, rt, srv, port, _ = grbl(MILL, "--record", rec)
+    a_max, T = axis_limits(MILL)
+    g = connect(port)
+    assert g.cmd("$J=G91 X500 F6000")[0] == "ok"
+    end = time.monotonic() + 30
+    while time.monotonic() < end:
+        s = g.status()
+        if s["state"] == "Jog" and s["FS"][0] == pytest.approx(6000, abs=1e-6):
+            break
+        time.sleep(0.02)
+    assert s["FS"][0] == pytest.approx(6000, abs=1e-6), s
+    g.send(b"\x85")
+    states = []
+    while time.monotonic() < end:
+        states.append(g.status())
+        if states[-1]["state"] == "Idle":
+            break
+    assert states[-1]["state"] == "Idle", states[-1]
+    assert {r["state"] for r in states} <= {"Jog", "Idle"}, states
+    x_stop = states[-1]["MPos"][0]
+    assert 0 < x_stop < 500 and states[-1]["MPos"][1:] == [0, 0]
+    rt.send_signal(signal.SIGTERM)
+    rt.wait(20)
+    xs = [float(r.split(",")[1]) for r in rec.read_text().splitlines()[1:]]
+    v = [(b - a) / T for a, b in zip(xs, xs[1:])]
+    acc = [(b - a) / T for a, b in zip(v, v[1:])]
+    assert max(abs(x) for x in acc) <= a_max * (1 + 1e-6)
+    # the braking: from the last period at full speed to rest
+    last_full = max(i for i, x in enumerate(v) if x >= 100 - 1e-6)
+    rest = next(i for i in range(last_full, len(v)) if v[i] <= 1e-9)
+    braking = xs[rest] - xs[last_full + 1]
+    ideal = 100.0 ** 2 / (2 * a_max)
+    assert ideal - 100 * T <= braking <= ideal + 100 * T, (braking, ideal)
+    assert abs((rest - last_full) * T - 100.0 / a_max) <= 2 * T
+    assert xs[-1] == pytest.approx(x_stop, abs=1e-3)
+    print(f"jog cancel at 100 mm/s: {braking:.4f} mm in {rest - last_full} periods "
+          f"(v^2/2a = {ideal:.4f} mm, v/a = {100.0 / a_max / T:.0f} periods)")
+
+
+def test_feed_hold_or_a_lost_sender_cancels_a_jog(grbl):
+    """jogging.md: any feed hold cancels a jog (no suspend: Idle after);
+    issue 20: a sender that disconnects mid-jog cancels it (the operator's
+    hand is off the machine)."""
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    assert g.cmd("$J=G91 X400 F3000")[0] == "ok"
+    assert wait_for(lambda: status(shm)["speed_mm_s"] > 10, 10)
+    g.send(b"!")
+    s = g.wait_state({"Idle"}, 10)
+    assert 0 < s["MPos"][0] < 400
+    assert g.cmd("$J=G91 X400 F3000")[0] == "ok"
+    assert wait_for(lambda: status(shm)["speed_mm_s"] > 10, 10)
+    g.close()
+    assert wait_for(lambda: status(shm)["state"] == "idle", 10)
+    x = status(shm)["position"]["X"]
+    assert x < s["MPos"][0] + 400 - 1
+    h = reconnect(port)
+    assert h.status()["MPos"][0] == pytest.approx(x, abs=1e-3)
+    assert h.status()["state"] == "Idle"
+
+
+def test_safety_door_command(grbl):
+    """0x84 (commands.md: the safety door as a command): a feed hold, Door:2
+    while it stops, Door:0 at rest (mlip has no door switch: the door reads
+    closed), ~ resumes the program where it stopped."""
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    assert g.cmd("G1 X600 F6000")[0] == "ok"
+    assert wait_for(lambda: status(shm)["speed_mm_s"] > 50, 10)
+    g.send(b"\x84")
+    s = g.status()
+    assert s["state"] in ("Door:2", "Door:0"), s          # within one report
+    s = g.wait_state({"Door:0"}, 10)
+    assert 0 < s["MPos"][0] < 600
+    assert wait_for(lambda: status(shm)["state"] == "held", 5)
+    g.send(b"~")
+    g.wait_state({"Run"}, 5)
+    idle_at(g, [600, 0, 0])

@@ -2,7 +2,7 @@
 bCNC (PyPI bCNC, its own Sender thread and GRBL1 controller, driven without
 its window by bcnc_driver.py) through pyserial's socket:// URL: it connects,
 reads the DRO, runs a shared toolpath end to end in the time mlip-feed takes
-(within 1 %), holds and resumes it on the path. CNCjs (npm cncjs, its server
+(within 1 %), jogs as its jog pad does ($J=), holds and resumes it on the path. CNCjs (npm cncjs, its server
 and Grbl controller, tests/cncjs/drive.js) through the pseudo-terminal: the
 same, a jog as its axes widget sends it, and its page in headless Chromium
 showing mlip's position (build/cncjs-dro.png)."""
@@ -70,7 +70,10 @@ def test_bcnc_runs_a_file_as_mlip_feed(grbl, controller, tmp_path):
 def test_bcnc_hold_resume(grbl, tmp_path):
     prog = program(tmp_path, 3000)
     shm, rt, srv, port, _ = grbl(MILL)
-    ev = bcnc(port, prog, tmp_path, "--hold-at", "2")
+    ev = bcnc(port, prog, tmp_path, "--hold-at", "2", "--jog", "X2Y1")
+    jog = next(e for e in ev if e["event"] == "jogged")
+    assert jog["state"] == "Idle" and jog["mpos"] == [2, 1, 0], jog   # $J=G91 X2Y1 F100000
+    assert not [e for e in ev if e["event"] == "error"], ev
     held = [e for e in ev if e["event"] == "held"]
     assert held, ev
     h = held[0]

@@ -770,11 +770,19 @@ static int has(const char *msg, const char *s)
 	return strstr(msg, s) != NULL;
 }
 
+int grbl_error_travel(const struct mlip_gcode_error *e)
+{
+	return has(e->msg, "soft limit");
+}
+
 int grbl_error_code(const struct mlip_gcode_error *e, int jog)
 {
 	const char *m = e->msg;
 	if (has(m, "soft limit")) {
 		return jog ? GRBL_E_TRAVEL : GRBL_E_TARGET;
+	}
+	if (has(m, "jog without F")) {
+		return GRBL_E_FEED; /* Grbl: a jog's F is not modal, none is error 22 */
 	}
 	if (has(m, "Grbl jog")) {
 		return GRBL_E_JOG;

@@ -261,6 +261,9 @@ void grbl_wco(const struct mlip_gcode_offsets *o, int n_axes, double *wco);
  * reader's messages are the contract, tests/unit/test_grbl.c checks each
  * kind); jog: the line was a $J= jog (a soft limit is then error:15). */
 int grbl_error_code(const struct mlip_gcode_error *e, int jog);
+/* The reader's error is a target beyond the soft limits (a G-code line:
+ * Grbl's ALARM:2, not an error). */
+int grbl_error_travel(const struct mlip_gcode_error *e);
 
 /* Keep a message printable inside "[MSG:...]": no CR/LF, no ']' (Grbl's
  * message grammar ends at the first ']'), ASCII only. */
