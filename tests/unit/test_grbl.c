@@ -318,7 +318,10 @@ static void test_error_codes(void **state)
 	             {"G5 X1", GRBL_E_UNSUPPORTED},
 	             {"G0 X1\x01", GRBL_E_EXPECTED_LETTER},
 	             {"G0 X1 \xc3\xa9", GRBL_E_EXPECTED_LETTER},
-	             {"G53 G2 X1 I1", GRBL_E_G53}};
+	             {"G53 G2 X1 I1", GRBL_E_G53},
+	             {"$J=G91 X1", GRBL_E_FEED}, /* a jog's F is not modal */
+	             {"$J=G91 G1 X1 F100", GRBL_E_JOG},
+	             {"$J=G91 X1 S100 F100", GRBL_E_JOG}};
 	struct mlip_machine m = machine();
 	static struct grbl_stream st;
 	double zero[MLIP_MAX_AXES] = {0};
@@ -336,6 +339,11 @@ static void test_error_codes(void **state)
 	struct mlip_gcode_error e;
 	assert_int_not_equal(grbl_stream_check(&st, "G0 X5000", 8, 1, &e), MLIP_OK);
 	assert_int_equal(grbl_error_code(&e, 1), GRBL_E_TRAVEL);
+	assert_true(grbl_error_travel(&e)); /* a G-code line: ALARM:2 */
+	assert_int_not_equal(grbl_stream_check(&st, "G0 X", 4, 1, &e), MLIP_OK);
+	assert_false(grbl_error_travel(&e));
+	/* N is a jog's line number (jogging.md) */
+	assert_int_equal(grbl_stream_check(&st, "$J=N5 G91 X1 F100", 17, 1, &e), MLIP_OK);
 }
 
 /* ---- the stream ---- */
