@@ -252,8 +252,17 @@ static void poll_controller(void)
 		}
 	}
 	int dead = S.cs_beat_ns == 0 || now_ns() - S.cs_beat_ns > DEAD_NS;
-	if (dead && !S.dead) {
+	if (dead && !S.dead && S.cs_beat_ns != 0) {
 		logf_("the controller on %s stopped responding", S.shm.name);
+		if (S.ctl) {
+			char why[160];
+			snprintf(
+			    why, sizeof(why),
+			    "the controller on %s stopped responding (mlip-rt gone or stalled): "
+			    "nothing runs",
+			    S.shm.name);
+			alarm_push(3, why); /* what it did last is not known */
+		}
 	}
 	S.dead = dead;
 }

@@ -70,6 +70,12 @@ class Grbl:
         self.closed.set()
 
     def close(self):
+        """Disconnect now: shutdown sends the FIN at once (a close alone
+        waits for the reader thread's recv to return)."""
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
         try:
             self.sock.close()
         except OSError:

@@ -658,3 +658,19 @@ def test_safety_door_command(grbl):
     g.send(b"~")
     g.wait_state({"Run"}, 5)
     idle_at(g, [600, 0, 0])
+
+
+def test_controller_gone_is_an_alarm(grbl):
+    """mlip-rt killed mid-program: the sender is told (ALARM:3, its reason),
+    the state is Alarm and G-code is locked out; the server stays up."""
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    assert g.cmd("G1 X900 F3000")[0] == "ok"
+    assert wait_for(lambda: status(shm)["state"] == "running", 10)
+    rt.kill()
+    rt.wait(10)
+    g.wait_line(lambda l: l == "ALARM:3", 10)
+    g.wait_line(lambda l: "stopped responding" in l, 5)
+    assert g.status()["state"] == "Alarm"
+    assert g.cmd("G0 X0")[0] == "error:9"
+    assert srv.poll() is None
