@@ -103,6 +103,9 @@ static int64_t heartbeat_age_ns(uint64_t hb_ns)
 }
 
 /* The one liveness rule (mlip/ipc/peer.h) on the status stamp alone. */
+/* looks at a controller that seems dead before saying so (5 x 100 ms) */
+#define MLIP_SHM_ALIVE_LOOKS 5
+
 static mlip_peer_verdict status_verdict(const struct mlip_ring_status *st)
 {
 	struct mlip_peer_seen seen = {st->heartbeat, st->heartbeat_ns, 0, -1};
@@ -112,12 +115,37 @@ static mlip_peer_verdict status_verdict(const struct mlip_ring_status *st)
 
 int mlip_shm_controller_alive(const struct mlip_ring *r)
 {
-	struct mlip_ring_status st;
+	struct mlip_ring_status first, now;
+	int have_first;
 
-	if (r == NULL || mlip_ring_status_read(r, &st) != MLIP_OK) {
-		return 0; /* no consistent status: died mid-update */
+	if (r == NULL) {
+		return 0;
 	}
-	return status_verdict(&st) == MLIP_PEER_ALIVE;
+	have_first = mlip_ring_status_read(r, &first) == MLIP_OK;
+	if (have_first && status_verdict(&first) == MLIP_PEER_ALIVE) {
+		return 1;
+	}
+	/* An old stamp, or reads that kept meeting the writer, may be ours to
+	 * blame (this process, or the whole host, was paused): look again for a
+	 * few timeouts, as `mlip-ctl status` does; a heartbeat that moved is
+	 * alive. A dead controller costs a command this wait, never a wrong
+	 * "not running" for a live one on a loaded host. */
+	for (int look = 0; look < MLIP_SHM_ALIVE_LOOKS; look++) {
+		struct timespec ts = {0, (long)MLIP_PEER_TIMEOUT_NS};
+		nanosleep(&ts, NULL);
+		if (mlip_ring_status_read(r, &now) != MLIP_OK) {
+			continue; /* mid-update again: look once more */
+		}
+		if ((have_first && now.heartbeat != first.heartbeat) ||
+		    status_verdict(&now) == MLIP_PEER_ALIVE) {
+			return 1;
+		}
+		if (!have_first) {
+			first = now;
+			have_first = 1;
+		}
+	}
+	return 0; /* no consistent status, or a heartbeat that never moved */
 }
 
 /* "name" of uid (or "uid N" when it has none), for messages. */
