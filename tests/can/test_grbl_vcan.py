@@ -12,7 +12,9 @@ import sys
 import time
 from pathlib import Path
 
-import mlipcan.harness as h  # tools/mlipcan (on sys.path by conftest.py)
+from conftest import S
+from mlipcan import compare, procs
+from mlipcan.config import setup_of
 from test_rt_vcan import MB23, MB23_LINES, MILL, bus_complete, cut, physics, summary_line
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "py"))  # the Grbl test client
@@ -20,7 +22,7 @@ from grblclient import Grbl  # noqa: E402
 
 
 def start_grbl(rig, *opts):
-    p = subprocess.Popen([h.tool("mlip-grbl"), "--shm", rig.shm, "--listen", "127.0.0.1:0",
+    p = subprocess.Popen([S.tool("mlip-grbl"), "--shm", rig.shm, "--listen", "127.0.0.1:0",
                           "--pty", "none", *opts], stderr=subprocess.PIPE, text=True)
     end = time.monotonic() + 30
     while time.monotonic() < end:
@@ -34,10 +36,10 @@ def start_grbl(rig, *opts):
 def test_grbl_stream_on_the_bus(vcan, tmp_path):
     ngc = cut(MB23, MB23_LINES, tmp_path)
     ngc.write_text(ngc.read_text() + "M2\n")  # a sender's file ends its program
-    rows, summ = h.simulate(MILL, ngc, tmp_path)
-    setup = h.setup_of(MILL)
-    trc = h.trace_counts(rows, setup.cpu)
-    with h.Rig(MILL, "cia402", tmp_path) as rig:
+    rows, summ = compare.simulate(S, MILL, ngc, tmp_path)
+    setup = setup_of(S, MILL)
+    trc = compare.trace_counts(rows, setup.cpu)
+    with procs.Rig(S, MILL, "cia402", tmp_path) as rig:
         # a quiet sender ends the pre-read early: none may pass in this slow guest
         srv, port = start_grbl(rig, "--quiet-ms", "10000")
         try:
@@ -57,9 +59,9 @@ def test_grbl_stream_on_the_bus(vcan, tmp_path):
     r = rig.result
     bus_complete(r, setup, "cia402")
     can = r["counts"]
-    off, how = h.align(can, trc)
+    off, how = compare.align(can, trc)
     assert off > 0, f"no idle cycle before the motion ({how})"
-    bad = h.first_mismatch(can, trc, off)
+    bad = compare.first_mismatch(can, trc, off)
     assert bad is None, f"bus != mlip-sim trace ({how}): {bad}"
     quantum = max(1.0 / c for c in setup.cpu)
     js = physics(rig, ngc, can[off:], quantum, tmp_path)
