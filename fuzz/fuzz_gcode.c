@@ -50,8 +50,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 	if (size < 1) {
 		return 0;
 	}
-	w = inv_gcode_program(&machines[data[0] & 1], (const char *)data + 1, size - 1, data[0],
-	                      &r);
+	/* bit 7: with the machine's I/O (a manual spindle, tool change and
+	 * coolant, a tool table) */
+	w = inv_gcode_program(&machines[data[0] & 1], (const char *)data + 1, size - 1,
+	                      data[0] | ((data[0] & 0x80) ? INV_IO : 0), &r);
 	if (w) {
 		violation(w, r.why);
 	}

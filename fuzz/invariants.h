@@ -147,6 +147,24 @@ struct inv_gcode {
 	char why[INV_WHY];
 };
 
+/* The machine's I/O of INV_IO: a manual spindle 1000..24000 rpm, a manual
+ * tool change at Z100 (inside both machines' limits, axis index 2), manual
+ * coolant, three tools (sorted). */
+static const struct mlip_tool inv_tools[] = {
+    {1, 1, 10.0, 6.0}, {2, 2, 30.5, 3.0}, {7, 5, -2.0, 0.0}};
+static const struct mlip_gcode_io inv_io = {MLIP_IO_MANUAL,
+                                            1000,
+                                            24000,
+                                            MLIP_IO_MANUAL,
+                                            1u << 2,
+                                            {0, 0, 100, 0, 0, 0},
+                                            MLIP_IO_MANUAL,
+                                            inv_tools,
+                                            3,
+                                            0,
+                                            0,
+                                            0};
+
 static void inv_gcode_init(struct inv_gcode *c, const struct mlip_machine *m)
 {
 	int i;
@@ -191,8 +209,26 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 		}
 		d2 += (t - c->prev[i]) * (t - c->prev[i]);
 	}
-	if (b->kind > MLIP_BLOCK_OPTIONAL_PAUSE) {
+	if (b->kind > MLIP_BLOCK_COOLANT) {
 		return inv_gcode_fail(c, "unknown block kind", -1, b->kind);
+	}
+	/* the machine's I/O (INV_IO): a speed within the spindle's, a whole
+	 * tool of the table (or 0), coolant bits; nothing else carries a value */
+	if (b->kind == MLIP_BLOCK_SPINDLE &&
+	    !(fabs(b->value) <= inv_io.max_rpm &&
+	      (b->value == 0 || fabs(b->value) >= inv_io.min_rpm))) {
+		return inv_gcode_fail(c, "spindle speed outside MIN_RPM..MAX_RPM", -1, b->value);
+	}
+	if (b->kind == MLIP_BLOCK_TOOL &&
+	    !(b->value == 0 || mlip_gcode_find_tool(&inv_io, (int32_t)b->value) != NULL)) {
+		return inv_gcode_fail(c, "tool change to a tool not in the table", -1, b->value);
+	}
+	if (b->kind == MLIP_BLOCK_COOLANT &&
+	    !(b->value >= 0 && b->value <= 3 && b->value == floor(b->value))) {
+		return inv_gcode_fail(c, "coolant bits not 0..3", -1, b->value);
+	}
+	if (b->kind < MLIP_BLOCK_SPINDLE && b->value != 0) {
+		return inv_gcode_fail(c, "a value on a block that carries none", -1, b->value);
 	}
 	if (b->kind != MLIP_BLOCK_MOVE) {
 		/* an event: at the last point, a finite dwell >= 0 (DWELL only) */
@@ -548,8 +584,9 @@ static int inv_machine(const char *ini, struct mlip_machine *m)
 
 /* ---- whole inputs, as the fuzz targets and the regression test run them ---- */
 
-#define INV_INITIAL_FEED 2 /* use the program's first F before it, as the tools do */
-#define INV_REFUSE       4 /* the sink refuses every n-th block, n = 2 + (flags >> 3) */
+#define INV_INITIAL_FEED 2     /* use the program's first F before it, as the tools do */
+#define INV_REFUSE       4     /* the sink refuses every n-th block, n = 2 + (flags >> 3 & 31) */
+#define INV_IO           0x100 /* the machine's I/O set (inv_io: all manual, a table) */
 
 /* What a program gave: blocks taken, errors (finish's included), the first. */
 struct inv_gcode_result {
@@ -576,7 +613,8 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 	uint32_t line = 0;
 	double f_word = 0;
 	char letters[8];
-	int n, rc = 0, compare = (flags & INV_INITIAL_FEED) && !(flags & INV_REFUSE);
+	int n, rc = 0,
+	       compare = (flags & INV_INITIAL_FEED) && !(flags & INV_REFUSE) && !(flags & INV_IO);
 	mlip_status st;
 
 	memset(r, 0, sizeof *r);
@@ -596,8 +634,11 @@ static const char *inv_gcode_program(const struct mlip_machine *m, const char *t
 	}
 	inv_gcode_init(&c, m);
 	c.expect = compare ? &list : NULL;
-	c.refuse_every = (flags & INV_REFUSE) ? 2u + ((unsigned)flags >> 3) : 0u;
+	c.refuse_every = (flags & INV_REFUSE) ? 2u + (((unsigned)flags >> 3) & 31u) : 0u;
 	mlip_gcode_init(&g, m);
+	if (flags & INV_IO) {
+		mlip_gcode_set_io(&g, &inv_io);
+	}
 	if (flags & INV_INITIAL_FEED) {
 		if (!mlip_gcode_scan_feed(text, len, &f_word)) {
 			f_word = 0;

@@ -76,17 +76,29 @@ static void serve_heartbeat(struct mlip_drives *ds, uint64_t now)
 static void observe(struct mlip_drives *ds, const struct mlip_can_frame *f, uint64_t now,
                     uint64_t cycle, struct mlip_co_msg *m)
 {
+	if (ds->io.node != 0 && f->id == MLIP_CO_TPDO1_BASE + ds->io.node) {
+		/* the module's inputs, on change: its own length (not a drive's) */
+		m->kind = MLIP_CO_OTHER;
+		if (f->len != ds->io.setup.in_bytes) {
+			ds->rx_malformed++;
+			return;
+		}
+		memcpy(ds->io.img.in, f->data, f->len);
+		ds->io.img.module_read = 1;
+		ds->io.rx_frames++;
+		return;
+	}
 	if (mlip_co_classify(f, m) != MLIP_OK) {
 		ds->rx_malformed++;
 		m->kind = MLIP_CO_OTHER;
 		return;
 	}
 	int i = find_node(ds, m->node);
-	if (i < 0) {
+	if (i < 0 && (ds->io.node == 0 || m->node != ds->io.node || m->kind == MLIP_CO_TPDO)) {
 		m->kind = MLIP_CO_OTHER;
 		return;
 	}
-	struct mlip_drive_obs *o = &ds->d[i].obs;
+	struct mlip_drive_obs *o = i < 0 ? &ds->io.obs : &ds->d[i].obs;
 	switch (m->kind) {
 	case MLIP_CO_HEARTBEAT:
 		o->nmt_state = m->nmt_state;
@@ -137,9 +149,14 @@ static int wait_frame(struct mlip_drives *ds, uint64_t deadline, struct mlip_can
 	}
 }
 
+/* i < 0: the I/O module */
 static const char *axis_of(const struct mlip_drives *ds, int i, char *buf, size_t n)
 {
-	snprintf(buf, n, "node %u (axis %c)", ds->d[i].node, ds->d[i].letter);
+	if (i < 0) {
+		snprintf(buf, n, "node %u (I/O module)", ds->io.node);
+	} else {
+		snprintf(buf, n, "node %u (axis %c)", ds->d[i].node, ds->d[i].letter);
+	}
 	return buf;
 }
 
@@ -154,7 +171,7 @@ static int sdo(struct mlip_drives *ds, int i, int upload, uint16_t index, uint8_
 	struct mlip_co_msg m;
 	char who[32];
 	const char *verb = upload ? "reading" : "writing";
-	uint8_t node = ds->d[i].node;
+	uint8_t node = i < 0 ? ds->io.node : ds->d[i].node;
 
 	if (upload) {
 		mlip_sdo_upload_begin(&s, node, index, sub, &req);
@@ -263,6 +280,39 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 	ds->log = log;
 	ds->log_ctx = log_ctx;
 	ds->n = m->n_axes;
+	ds->io_cfg = cfg->inputs;
+	ds->io.node = cfg->inputs.node;
+	for (int k = 0; k < m->n_axes; k++) {
+		ds->home_axes |= cfg->home.axis[k].configured ? 1u << k : 0u;
+	}
+	if (cfg->inputs.mapped & ~((1u << MLIP_IN_AXIS0) - 1u)) {
+		for (uint32_t f = MLIP_IN_AXIS0; f < MLIP_IN_COUNT; f++) {
+			if ((cfg->inputs.mapped & (1u << f)) &&
+			    cfg->inputs.in[f].node != cfg->inputs.node) {
+				char name[24];
+				snprintf(why, why_len,
+				         "%s is mapped on node %u's 0x60FD: a drive's digital "
+				         "inputs are "
+				         "not read yet; wire it to the I/O module ([IO] NODE)",
+				         mlip_io_function_name(f, m, name, sizeof(name)),
+				         cfg->inputs.in[f].node);
+				return -EINVAL;
+			}
+		}
+	}
+	if (cfg->inputs.mapped != 0 && cfg->inputs.node == 0) {
+		snprintf(why, why_len,
+		         "inputs are mapped but [IO] NODE (the I/O module) is not set");
+		return -EINVAL;
+	}
+	if (ds->io.node != 0) {
+		ds->io.setup.node = ds->io.node;
+		ds->io.setup.in_bytes = cfg->inputs.in_bytes ? cfg->inputs.in_bytes : 1;
+		ds->io.setup.out_bytes = cfg->inputs.out_bytes;
+		ds->io.setup.heartbeat_ms = (uint16_t)cfg->drives.heartbeat_ms;
+		ds->io.setup.master_node = cfg->drives.master_node;
+		ds->io.setup.master_timeout_ms = (uint16_t)cfg->drives.heartbeat_timeout_ms;
+	}
 	if (strcmp(cfg->can.profile, "cia402") != 0) {
 		snprintf(why, why_len, "CiA 402 drives need [CAN] PROFILE = cia402, not %s",
 		         cfg->can.profile);
@@ -488,6 +538,104 @@ static int all_drives_to(struct mlip_drives *ds, mlip_drive_power want, int32_t 
 	return 0;
 }
 
+/* The I/O module (issue 18), before the drives: NMT reset communication and
+ * its boot-up, device type 401, the PDOs and heartbeats by SDO (each read
+ * back), the inputs read once by SDO (0x6000:1..n), NMT start. An E-stop
+ * that is on refuses the start: nothing is enabled under it. */
+static int io_bringup(struct mlip_drives *ds, char *why, size_t why_len)
+{
+	struct mlip_sdo_entry e[MLIP_IO401_SETUP_MAX];
+	struct mlip_can_frame f;
+	struct mlip_co_msg m;
+	char who[32];
+	uint32_t v = 0, known = 0;
+	int rc, n, stage;
+	static const uint8_t cmds[2] = {MLIP_NMT_RESET_COMM, MLIP_NMT_START};
+	static const uint8_t states[2] = {MLIP_NMT_BOOTUP, MLIP_NMT_OPERATIONAL};
+	static const char *const what[2] = {"boot-up after NMT reset communication",
+	                                    "operational after NMT start"};
+
+	if (ds->io.node == 0) {
+		return 0;
+	}
+	axis_of(ds, -1, who, sizeof(who));
+	for (stage = 0; stage < 2; stage++) {
+		uint64_t t0 = ds->port.now_ns(ds->port.ctx);
+		uint64_t deadline = t0 + (uint64_t)ds->cfg.boot_timeout_ms * 1000000u;
+		if (stage == 1) {
+			rc = sdo(ds, -1, 1, 0x1000, 0, 0, 0, "device type", &v, why, why_len);
+			if (rc != 0) {
+				return rc;
+			}
+			if ((v & 0xFFFFu) != MLIP_IO401_DEVICE) {
+				snprintf(
+				    why, why_len,
+				    "%s: device type 0x%08X is not a CiA 401 I/O module (0x1000 "
+				    "low word 401)",
+				    who, v);
+				return -EPROTO;
+			}
+			n = mlip_io401_setup_entries(&ds->io.setup, e, MLIP_IO401_SETUP_MAX);
+			for (int k = 0; k < n; k++) {
+				rc = sdo_entry(ds, -1, &e[k], why, why_len);
+				if (rc != 0) {
+					return rc;
+				}
+			}
+			for (int k = 1; k <= ds->io.setup.in_bytes; k++) {
+				rc = sdo(ds, -1, 1, 0x6000, (uint8_t)k, 0, 0, "digital inputs", &v,
+				         why, why_len);
+				if (rc != 0) {
+					return rc;
+				}
+				ds->io.img.in[k - 1] = (uint8_t)v;
+			}
+			ds->io.img.module_read = 1;
+			say(ds,
+			    "%s: CiA 401 I/O module, %d objects written and read back: TPDO 0x%03X "
+			    "(0x6000:1..%u on change), %u output bytes, heartbeat %u ms",
+			    who, n, MLIP_CO_TPDO1_BASE + ds->io.node, ds->io.setup.in_bytes,
+			    ds->io.setup.out_bytes, ds->io.setup.heartbeat_ms);
+		}
+		mlip_nmt_encode(cmds[stage], ds->io.node, &f);
+		if (ds->port.send(ds->port.ctx, &f) != 0) {
+			snprintf(why, why_len, "cannot send the NMT command 0x%02X", cmds[stage]);
+			return -EIO;
+		}
+		for (;;) {
+			int r = wait_frame(ds, deadline, &f, &m);
+			if (r < 0) {
+				snprintf(why, why_len, "bus read failed: %s", strerror(-r));
+				return r;
+			}
+			if (r == 0) {
+				snprintf(
+				    why, why_len,
+				    "%s: no %s within %u ms (powered? node id? bit rate? wiring "
+				    "and termination?)",
+				    who, what[stage], (unsigned)ds->cfg.boot_timeout_ms);
+				return -ETIMEDOUT;
+			}
+			if (m.kind == MLIP_CO_HEARTBEAT && m.node == ds->io.node &&
+			    m.nmt_state == states[stage]) {
+				say(ds, "%s: %s after %.1f ms", who, what[stage],
+				    (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
+				break;
+			}
+		}
+	}
+	ds->io.obs.hb_ns = ds->port.now_ns(ds->port.ctx);
+	ds->io.obs.nmt_state = MLIP_NMT_OPERATIONAL;
+	if (mlip_io_eval(&ds->io_cfg, ds->m, &ds->io.img, &known) & (1u << MLIP_IN_ESTOP)) {
+		const struct mlip_io_bit *b = &ds->io_cfg.in[MLIP_IN_ESTOP];
+		snprintf(why, why_len,
+		         "E-stop is on (%s 0x%04X:%u bit %u reads %u): release it before starting",
+		         who, b->index, b->sub, b->bit, b->active_low ? 0u : 1u);
+		return -EAGAIN;
+	}
+	return 0;
+}
+
 int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, size_t why_len)
 {
 	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
@@ -496,6 +644,10 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 	int rc;
 
 	ds->hb_next_ns = 0;
+	rc = io_bringup(ds, why, why_len);
+	if (rc != 0) {
+		return rc;
+	}
 	rc = nmt_wait_all(ds, MLIP_NMT_RESET_COMM, MLIP_NMT_BOOTUP,
 	                  "boot-up after NMT reset communication", why, why_len);
 	if (rc != 0) {
@@ -545,7 +697,7 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		ds->d[i].start_counts = v;
 		double pos = v / ds->d[i].counts_per_unit;
 		const char *unit = a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm";
-		if (pos < a->min_limit || pos > a->max_limit) {
+		if (!(ds->home_axes & (1u << i)) && (pos < a->min_limit || pos > a->max_limit)) {
 			snprintf(
 			    why, why_len,
 			    "%s is at %.4f %s (%d counts), beyond its soft limit %s %g: bring it "
@@ -613,12 +765,72 @@ void mlip_drives_disable(struct mlip_drives *ds)
 
 /* ---- the loop: the period's hooks ---------------------------------------------- */
 
+static void sdo_end(struct mlip_drives *ds, uint32_t abort, uint32_t value)
+{
+	ds->sdo.busy = 0;
+	ds->sdo.res.seq = ds->sdo.seq;
+	ds->sdo.res.abort = abort;
+	ds->sdo.res.value = value;
+}
+
 static void hook_rx(void *ctx, const struct mlip_can_frame *f, uint64_t cycle, uint64_t now)
 {
 	struct mlip_drives *ds = ctx;
 	struct mlip_co_msg m;
+	struct mlip_can_frame req;
 	ds->rx_frames++;
 	observe(ds, f, now, cycle + 1, &m);
+	if (m.kind != MLIP_CO_SDO || !ds->sdo.busy || m.node != ds->sdo.s.node) {
+		return;
+	}
+	switch (mlip_sdo_feed(&ds->sdo.s, f, &req)) {
+	case MLIP_SDO_DONE:
+		sdo_end(ds, 0, ds->sdo.s.value);
+		return;
+	case MLIP_SDO_SEND:
+		ds->port.send(ds->port.ctx, &req);
+		ds->sdo.deadline_ns = now + (uint64_t)ds->cfg.sdo_timeout_ms * 1000000u;
+		return;
+	case MLIP_SDO_ABORTED:
+		sdo_end(ds, ds->sdo.s.abort_code, 0);
+		return;
+	case MLIP_SDO_PROTOCOL:
+		ds->port.send(ds->port.ctx, &req);
+		sdo_end(ds, ds->sdo.s.abort_code, 0);
+		return;
+	default:
+		return;
+	}
+}
+
+/* After the controller: its SDO request started when it is a new one; one
+ * not answered within SDO_TIMEOUT_MS aborted (mlip's abort sent). */
+static void sdo_after(struct mlip_drives *ds, uint64_t now, const struct mlip_ctl_out *out)
+{
+	struct mlip_can_frame req;
+	const struct mlip_ctl_sdo_req *r = &out->sdo;
+	if (ds->sdo.busy && now >= ds->sdo.deadline_ns) {
+		mlip_sdo_abort_encode(ds->sdo.s.node, ds->sdo.s.index, ds->sdo.s.sub,
+		                      MLIP_SDO_ABORT_TIMEOUT, &req);
+		ds->port.send(ds->port.ctx, &req);
+		sdo_end(ds, MLIP_SDO_ABORT_TIMEOUT, 0);
+	}
+	if (r->seq == 0 || r->seq == ds->sdo.seq) {
+		return;
+	}
+	ds->sdo.seq = r->seq;
+	if (r->upload) {
+		mlip_sdo_upload_begin(&ds->sdo.s, r->node, r->index, r->sub, &req);
+	} else {
+		mlip_sdo_download_begin(&ds->sdo.s, r->node, r->index, r->sub, r->value, r->size,
+		                        &req);
+	}
+	if (ds->port.send(ds->port.ctx, &req) != 0) {
+		sdo_end(ds, MLIP_SDO_ABORT_GENERAL, 0);
+		return;
+	}
+	ds->sdo.busy = 1;
+	ds->sdo.deadline_ns = now + (uint64_t)ds->cfg.sdo_timeout_ms * 1000000u;
 }
 
 /* any_state: the controller is disabling, has disabled or is enabling the
@@ -645,8 +857,8 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 		/* the newest TPDO answers SYNC j = tpdo_count, sent in period j */
 		uint64_t j = d->obs.tpdo_count;
 		x.following_counts = -1;
-		if (!any_state && d->obs.tpdo_cycle == cycle && j >= 1 &&
-		    cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
+		if (!any_state && !(ds->homing & (1u << i)) && d->obs.tpdo_cycle == cycle &&
+		    j >= 1 && cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
 			int32_t t[MLIP_DRIVE_LAG];
 			for (int k = 0; k < MLIP_DRIVE_LAG; k++) {
 				t[k] = d->targets[(j - 1 - (uint64_t)k + MLIP_DRIVE_HIST) %
@@ -659,8 +871,12 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 		if (f == MLIP_DRIVE_OK) {
 			continue;
 		}
-		/* the drive no longer follows: no more targets for it */
-		if (f != MLIP_DRIVE_FOLLOWING_ERROR && f != MLIP_DRIVE_TPDO_LOST) {
+		/* the drive no longer follows: no more targets for it. One whose
+		 * heartbeat is lost may still listen (its TPDOs may even come): it
+		 * keeps getting the stop on the path with the others, then the
+		 * disable, instead of stopping dead at once (issue 18) */
+		if (f != MLIP_DRIVE_FOLLOWING_ERROR && f != MLIP_DRIVE_TPDO_LOST &&
+		    f != MLIP_DRIVE_HEARTBEAT_LOST) {
 			ds->mute |= 1u << i;
 		}
 		if (!__atomic_load_n(&ds->fault, __ATOMIC_ACQUIRE)) {
@@ -681,9 +897,39 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 /* Before the controller: supervision against the power its last period
  * left, then its inputs from the drives: the faulted ones (no RPDO),
  * statuswords (its power steps are confirmed by them), positions actual. */
+/* The I/O module's supervision (its heartbeat, NMT state, EMCY: any failure
+ * is an E-stop, for good) and the input functions of this period. */
+static void io_before(struct mlip_drives *ds, uint64_t now, struct mlip_ctl_in *in)
+{
+	const struct mlip_drive_obs *o = &ds->io.obs;
+	uint64_t timeout = (uint64_t)ds->cfg.heartbeat_timeout_ms * 1000000u;
+	if (ds->io.node == 0) {
+		return;
+	}
+	if (ds->io.lost == 0) {
+		if (now > o->hb_ns && now - o->hb_ns > timeout) {
+			ds->io.lost = MLIP_DRIVE_HEARTBEAT_LOST;
+			ds->io.lost_value = (double)(now - o->hb_ns) * 1e-6;
+		} else if (o->nmt_state != MLIP_NMT_OPERATIONAL) {
+			ds->io.lost = MLIP_DRIVE_NOT_OPERATIONAL;
+			ds->io.lost_value = o->nmt_state;
+		} else if (o->emcy_count > 0) {
+			ds->io.lost = MLIP_DRIVE_EMCY;
+			ds->io.lost_value = o->emcy.code;
+		}
+	}
+	if (ds->io.lost != 0) {
+		in->io.lost.event = ds->io.lost;
+		in->io.lost.node = ds->io.node;
+		in->io.lost.value = ds->io.lost_value;
+	}
+	in->io.active = mlip_io_eval(&ds->io_cfg, ds->m, &ds->io.img, &in->io.known);
+}
+
 static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl_in *in)
 {
 	struct mlip_drives *ds = ctx;
+	io_before(ds, now, in);
 	supervise(ds, cycle + 1, now, ds->power != MLIP_POWER_ENABLED, in);
 	in->drives.mute = ds->mute;
 	in->drives.actual_mask = 0;
@@ -693,7 +939,12 @@ static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl
 		in->drives.sw[i] = d->obs.tpdo_cycle != 0 ? d->obs.statusword : 0;
 		in->drives.pos_actual[i] = v / d->counts_per_unit;
 		in->drives.actual_mask |= 1u << i;
+		/* its newest TPDO answers SYNC tpdo_count, sent in the controller's
+		 * period tpdo_count - 1 */
+		in->drives.tpdo_period[i] =
+		    d->obs.tpdo_count > 0 ? d->obs.tpdo_count - 1 : UINT64_MAX;
 	}
+	in->sdo = ds->sdo.res;
 }
 
 /* After it: the targets just sent (for the following error), the master's
@@ -709,6 +960,23 @@ static void hook_after(void *ctx, uint64_t cycle, uint64_t now, const struct mli
 		d->targets[(cycle + 1) % MLIP_DRIVE_HIST] = counts;
 	}
 	ds->power = out->power.state;
+	ds->homing = out->homing;
+	sdo_after(ds, now, out);
+	/* the module's outputs: when they change, and every 100 ms (a module that
+	 * missed one frame catches up) */
+	if (ds->io.node != 0 && ds->io.setup.out_bytes > 0 &&
+	    (ds->io.sent_ns == 0 || now - ds->io.sent_ns >= 100000000u ||
+	     memcmp(ds->io.sent, out->outputs, ds->io.setup.out_bytes) != 0)) {
+		struct mlip_can_frame f;
+		memset(&f, 0, sizeof(f));
+		f.id = 0x200u + ds->io.node;
+		f.len = ds->io.setup.out_bytes;
+		memcpy(f.data, out->outputs, f.len);
+		if (ds->port.send(ds->port.ctx, &f) == 0) {
+			memcpy(ds->io.sent, out->outputs, f.len);
+			ds->io.sent_ns = now;
+		}
+	}
 	serve_heartbeat(ds, now);
 	if (out->done && ds->phase == MLIP_DRIVES_RUN) {
 		ds->phase = MLIP_DRIVES_OFF;
@@ -742,14 +1010,15 @@ void mlip_drives_shutdown_text(const struct mlip_drives *ds, char *buf, size_t l
 	}
 }
 
-int mlip_drives_rx_ids(const struct mlip_machine *m, uint32_t *ids, int cap)
+int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint32_t *ids, int cap)
 {
 	static const uint32_t bases[4] = {MLIP_CO_SDO_TX_BASE, MLIP_CO_HB_BASE, MLIP_CO_EMCY_BASE,
 	                                  MLIP_CO_TPDO1_BASE};
 	int n = 0;
-	for (int i = 0; i < m->n_axes; i++) {
-		for (int b = 0; b < 4 && n < cap; b++) {
-			ids[n++] = bases[b] + (uint32_t)m->axis[i].can_node;
+	for (int i = 0; i <= m->n_axes; i++) {
+		uint32_t node = i < m->n_axes ? (uint32_t)m->axis[i].can_node : io_node;
+		for (int b = 0; b < 4 && n < cap && node != 0; b++) {
+			ids[n++] = bases[b] + node;
 		}
 	}
 	return n;
@@ -806,6 +1075,21 @@ void mlip_drives_release(struct mlip_drives *ds)
 			say(ds, "%s", why);
 		}
 		mlip_nmt_encode(MLIP_NMT_PREOP, ds->d[i].node, &f);
+		ds->port.send(ds->port.ctx, &f);
+	}
+	if (ds->io.node != 0 && ds->io.lost == 0) {
+		/* outputs off, then the module stops watching us */
+		if (ds->io.setup.out_bytes > 0) {
+			memset(&f, 0, sizeof(f));
+			f.id = 0x200u + ds->io.node;
+			f.len = ds->io.setup.out_bytes;
+			ds->port.send(ds->port.ctx, &f);
+		}
+		if (sdo(ds, -1, 0, 0x1016, 1, 0, 4, "consumer heartbeat time (off)", NULL, why,
+		        sizeof(why)) != 0) {
+			say(ds, "%s", why);
+		}
+		mlip_nmt_encode(MLIP_NMT_PREOP, ds->io.node, &f);
 		ds->port.send(ds->port.ctx, &f);
 	}
 	say(ds, "drives released: heartbeat consumers off, NMT pre-operational");

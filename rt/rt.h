@@ -18,6 +18,7 @@
 #include "mlip/can/canenc.h"
 #include "mlip/machine/config.h"
 #include "mlip/canopen/drive.h"
+#include "mlip/canopen/io401.h"
 #include "mlip/ctl/controller.h"
 #include "mlip/ipc/peer.h"
 #include "mlip/motion/planner.h"
@@ -299,11 +300,41 @@ struct mlip_drives {
 	/* the in-loop shut-down, as the controller's last period reported it */
 	int shutdown_ok;                /* the last disable in order within the timeouts */
 	struct mlip_ctl_power shutdown; /* which drive did not confirm which step */
+	/* the inputs (issue 18): the CiA 401 I/O module ([IO] NODE; node 0: none)
+	 * and the functions mapped on it */
+	struct mlip_io_config io_cfg;
+	/* SDO transfers the controller asks for in the loop (homing): one at a
+	 * time, never waited for: the request sent in a period's after hook,
+	 * the answers fed as they come, the result to the next period */
+	struct {
+		uint32_t seq;         /* the request being run (0: none yet) */
+		int busy;             /* its answer is awaited */
+		struct mlip_sdo s;    /* the transfer */
+		uint64_t deadline_ns; /* no answer by then: aborted (timeout) */
+		struct mlip_ctl_sdo_res res;
+	} sdo;
+	uint32_t homing;    /* bit k: drive k runs its homing mode (not supervised for
+	                       following error) */
+	uint32_t home_axes; /* bit k: axis k has a HOME_METHOD: until homed its position at
+	                       bring-up is not judged against the soft limits */
+	struct {
+		uint8_t node;
+		struct mlip_io401_setup setup;
+		struct mlip_drive_obs obs;
+		struct mlip_io_image img;       /* what the bus said of the inputs */
+		uint8_t sent[MLIP_IO_IN_BYTES]; /* the outputs last sent */
+		uint64_t sent_ns;               /* when (0: never) */
+		uint32_t lost;                  /* mlip_drive_fault: the module failed (for good:
+		                                   it reboots unconfigured; restart mlip-rt) */
+		double lost_value;
+		uint64_t rx_frames;
+	} io;
 };
 
 /* The identifiers the master receives from the drives of m (SDO answers,
- * heartbeats, EMCY, TPDO1): the bus' receive filter; returns how many. */
-int mlip_drives_rx_ids(const struct mlip_machine *m, uint32_t *ids, int cap);
+ * heartbeats, EMCY, TPDO1) and from the I/O module io_node (0: none): the
+ * bus' receive filter; returns how many. */
+int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint32_t *ids, int cap);
 /* Check the [DRIVES] settings against the machine (master node, following
  * window in counts, period) and fill ds; log gets one line per step. */
 int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,

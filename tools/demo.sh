@@ -19,11 +19,16 @@
 #      package) powered up away from HOME, one in fault; mlip-rt --drives
 #      (config/mill-3axis-drives.ini at a 40 ms period) brings them up, runs a
 #      short program, shuts them down; prints each bring-up step as the
-#      drives saw it, what they reported, the shut-down, and the checks
+#      drives saw it, what they reported, homing with the drives' own homing
+#      mode (Z first, then X and Y), the shut-down, and the checks
 #      (first target = start position, the drives' targets = mlip-sim's
 #      trace in counts, disabled in order, no fault);
 #   5. plots the tool speed decoded from the bus against time, the feed limit
-#      marked: build/demo-velocity.png.
+#      marked: build/demo-velocity.png;
+#   6. the machine's I/O on this host: examples/demo-io.ngc (two tools, the
+#      spindle, coolant) on config/mill-3axis-io.ini (manual spindle, tool
+#      change at Z100, coolant) with examples/tool.tbl, in mlip-sim: what the
+#      operator is told at each pause (the simulated operator resumes at once).
 #
 # Everything it wrote is in build/demo/ (decoded.csv, demo.json, the listener's
 # report can.json, the logs of mlip-rt, mlip-feed and the listener; the drives
@@ -105,5 +110,9 @@ fi
 
 say "plot"
 .venv/bin/mlip-demo plot build/demo build/demo-velocity.png || exit 1
+
+say "the machine's I/O: M6, G43, M3, M8 on a manual machine (mlip-sim, the operator resuming at once)"
+build/mlip-sim --config config/mill-3axis-io.ini --tools examples/tool.tbl examples/demo-io.ngc ||
+	exit 1
 echo "results: build/demo/ (decoded.csv, demo.json, can.json, logs; drives/), plot: build/demo-velocity.png"
 exit "$rc"

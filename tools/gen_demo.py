@@ -14,7 +14,6 @@ def main(out: str) -> None:
         "(mlip demo: rose on a wavy surface, micro-segments, one helix)",
         "G21 G90 G17 G94",
         "G54",
-        "S12000 M3",
         "G0 Z5.000",
         "G0 X40.000 Y0.000",
         "G1 Z0.000 F600",
@@ -38,7 +37,6 @@ def main(out: str) -> None:
         "G1 Z-0.500 F600",
         "G2 X10.000 Y0.000 Z-2.000 I-10.000 J0.000 F3000 (a helix, full turn)",
         "G0 Z5.000",
-        "M5",
         "M30",
         "%",
     ]

@@ -85,5 +85,24 @@ int main(int argc, char **argv)
 		       a->max_accel, a->min_limit, a->max_limit, a->home, a->can_node,
 		       a->counts_per_unit);
 	}
+	/* the machine's I/O: what a program's S, M3, M6, M8 meet */
+	const struct mlip_gcode_io *io = &cfg.io;
+	if (io->spindle == MLIP_IO_NONE) {
+		printf("  spindle: none (M3/M4/S refused)\n");
+	} else {
+		printf("  spindle: manual, %g..%g rpm\n", io->min_rpm, io->max_rpm);
+	}
+	if (io->tool_change == MLIP_IO_NONE) {
+		printf("  tool change: none (M6 refused)\n");
+	} else {
+		printf("  tool change: manual");
+		for (int i = 0; i < m->n_axes; i++) {
+			if (io->change_mask >> i & 1u) {
+				printf(" %c%g", m->axis[i].letter, io->change_pos[i]);
+			}
+		}
+		printf("%s\n", io->change_mask ? " (change position, machine coordinates)" : "");
+	}
+	printf("  coolant: %s\n", io->coolant == MLIP_IO_NONE ? "none (M7/M8 refused)" : "manual");
 	return 0;
 }

@@ -44,6 +44,13 @@ static void usage(FILE *f)
 	    "  resume           leave a feed hold, a stall hold or a pause (M0, M1, M60)\n"
 	    "  stop             decelerate to rest on the path, drop the rest of the program\n"
 	    "  optional-stop on|off  M1 pauses the program (on) or is passed (off)\n"
+	    "  reset            leave an E-stop or a limit stop once its input is released\n"
+	    "  home [AXES]      home the axes (every one with a HOME_METHOD) with their\n"
+	    "                   drives' homing mode, in HOME_SEQUENCE order; waits for the end\n"
+	    "  jog AXIS+|AXIS- SPEED [SECONDS]  continuous jog at SPEED mm/min (deg/min),\n"
+	    "                   until SECONDS pass or a signal (Ctrl-C, a dropped session),\n"
+	    "                   then a stop at the acceleration limit; it stops by itself\n"
+	    "                   250 ms after mlip-ctl stops renewing it (killed)\n"
 	    "  status [--json]  controller and feeder state (--json: one object on stdout)\n"
 	    "  -                commands from standard input, one per line, each answered\n"
 	    "                   (on stdout, or stderr when refused) before the next is read\n\n"
@@ -197,6 +204,12 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 	mlip_json_string(&j, "reason", mlip_state_why_name(st->reason));
 	mlip_json_uint(&j, "reason_seq", st->reason_seq);
 	mlip_json_uint(&j, "reason_line", st->reason_line);
+	if (st->reason == MLIP_WHY_SPINDLE || st->reason == MLIP_WHY_TOOL ||
+	    st->reason == MLIP_WHY_COOLANT) {
+		char what[200];
+		mlip_cli_io_message(st->reason, st->reason_value, NULL, what, sizeof(what));
+		mlip_json_string(&j, "operator", what);
+	}
 	if (st->reason == MLIP_WHY_DRIVE) {
 		/* a drive fault: the field is the event, with the drive's node */
 		mlip_cli_drive_fault_text(st->reason_field, (int64_t)st->reason_value, fname,
@@ -234,6 +247,35 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 		mlip_json_string(&j, "drives", mlip_drive_power_name(st->drive_power));
 	}
 	mlip_json_uint(&j, "drives_last_change_periods", st->drive_power_periods);
+	mlip_json_object(&j, "homed", 1);
+	for (int k = 0; k < m->n_axes; k++) {
+		char l[2] = {m->axis[k].letter, '\0'};
+		mlip_json_bool(&j, l, (st->homed >> k) & 1u);
+	}
+	mlip_json_close(&j);
+	/* the inputs on the bus (issue 18): each mapped function, on or off
+	 * (null: not read yet) */
+	mlip_json_object(&j, "inputs", 0);
+	for (uint32_t f = 0; f < MLIP_IN_COUNT; f++) {
+		if (st->io_mapped & (1u << f)) {
+			mlip_io_function_name(f, m, fname, sizeof(fname));
+			if (st->io_known & (1u << f)) {
+				mlip_json_bool(&j, fname, (st->io_inputs >> f) & 1u);
+			} else {
+				mlip_json_null(&j, fname);
+			}
+		}
+	}
+	mlip_json_close(&j);
+	if (st->reason == MLIP_WHY_ESTOP || st->reason == MLIP_WHY_LIMIT) {
+		mlip_json_string(&j, "reason_input",
+		                 mlip_io_function_name(st->reason_field, m, fname, sizeof(fname)));
+		mlip_json_uint(&j, "reason_node", st->reason_node);
+	} else if (st->reason == MLIP_WHY_IO_LOST) {
+		mlip_json_string(&j, "reason_input",
+		                 mlip_drive_fault_name((mlip_drive_fault)st->reason_field));
+		mlip_json_uint(&j, "reason_node", st->reason_node);
+	}
 	/* not known without a controller */
 	mlip_json_number(&j, "speed_mm_s", "%.17g", alive ? st->speed_mm_s : NAN);
 	mlip_json_number(&j, "dwell_left_s", "%.6f", (double)st->dwell_left * m->period_s);
@@ -342,12 +384,49 @@ static int cmd_status(struct mlip_shm *s, int json)
 	if (st.reason == MLIP_WHY_STALL) {
 		printf(", %.0f periods missed", st.reason_value);
 	}
+	if (st.reason == MLIP_WHY_SPINDLE || st.reason == MLIP_WHY_TOOL ||
+	    st.reason == MLIP_WHY_COOLANT) {
+		/* the tool's comment is in the feeder's table: mlip-feed shows it */
+		mlip_cli_io_message(st.reason, st.reason_value, NULL, fname, sizeof(fname));
+		printf(": %s", fname);
+	} else if (st.reason == MLIP_WHY_ESTOP || st.reason == MLIP_WHY_LIMIT) {
+		printf(": %s, node %u",
+		       mlip_io_function_name(st.reason_field, &m, fname, sizeof(fname)),
+		       (unsigned)st.reason_node);
+	} else if (st.reason == MLIP_WHY_IO_LOST) {
+		mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
+		                          sizeof(fname));
+		printf(": node %u, %s: %s", (unsigned)st.reason_node,
+		       mlip_drive_fault_name((mlip_drive_fault)st.reason_field), fname);
+	}
 	printf("\n");
 	if (st.state == MLIP_STATE_PAUSED ||
 	    (st.state == MLIP_STATE_HELD && st.reason != MLIP_WHY_OVERRIDE_ZERO)) {
 		printf("to continue mlip-ctl resume\n");
+	} else if (st.state == MLIP_STATE_ESTOP ||
+	           (st.state == MLIP_STATE_FAULT && st.reason == MLIP_WHY_LIMIT)) {
+		printf("to continue release the input, then mlip-ctl reset\n");
 	} else if (st.state == MLIP_STATE_FAULT) {
 		printf("to continue restart mlip-rt (the fault stays until then)\n");
+	}
+	printf("homed      ");
+	for (int k = 0; k < m.n_axes; k++) {
+		printf(" %c %s", m.axis[k].letter, (st.homed >> k) & 1u ? "yes" : "no");
+	}
+	printf("\n");
+	if (st.io_mapped != 0) {
+		printf("inputs     ");
+		for (uint32_t f = 0; f < MLIP_IN_COUNT; f++) {
+			if (st.io_mapped & (1u << f)) {
+				printf(" %s %s", mlip_io_function_name(f, &m, fname, sizeof(fname)),
+				       !(st.io_known & (1u << f))   ? "unread"
+				       : (st.io_inputs & (1u << f)) ? "ON"
+				                                    : "off");
+				printf(f + 1 < MLIP_IN_COUNT && (st.io_mapped >> (f + 1)) ? ","
+				                                                          : "");
+			}
+		}
+		printf("\n");
 	}
 	printf("position   ");
 	for (int k = 0; k < m.n_axes; k++) {
@@ -456,8 +535,12 @@ static void describe(char *buf, size_t len, mlip_ring_cmd_op op, int32_t arg)
  * never starts. */
 static int cmd_stop(struct mlip_shm *s)
 {
-	struct mlip_ring_status st;
+	struct mlip_ring_status st, before;
 	int alive = mlip_shm_controller_alive(s->ring);
+	/* a program waiting at rest (a pause, a dwell, a manual spindle or tool
+	 * change) ends in IDLE at once: it was not "idle" */
+	int waiting = read_status(s->ring, &before) == 0 &&
+	              (before.state == MLIP_STATE_PAUSED || before.state == MLIP_STATE_DWELLING);
 	uint32_t ticket = mlip_ring_stop_post(s->ring);
 	int32_t feeder = mlip_shm_feeder_holder(s);
 	uint64_t t0 = mlip_now_ns();
@@ -483,7 +566,10 @@ static int cmd_stop(struct mlip_shm *s)
 		}
 		sleep_ns(POLL_NS);
 	}
-	if (st.state == MLIP_STATE_IDLE && feeder != 0) {
+	if (st.state == MLIP_STATE_IDLE && waiting) {
+		printf("stop: done (the program waited at rest, line %u: it is dropped)\n",
+		       (unsigned)before.reason_line);
+	} else if (st.state == MLIP_STATE_IDLE && feeder != 0) {
 		printf("stop: done (the machine was idle; the program of mlip-feed pid %d, "
 		       "begun before this stop, will not start)\n",
 		       (int)feeder);
@@ -545,6 +631,19 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 		}
 		sleep_ns(POLL_NS);
 	}
+	if (result != MLIP_OK && op == MLIP_CMD_RESET) {
+		fprintf(stderr, PROG ": reset: refused by the controller: %s",
+		        result == MLIP_E_RANGE
+		            ? "the input that stopped the machine is still on (release the E-stop, "
+		              "move the axis off its limit switch; a lost I/O module needs a "
+		              "restart of mlip-rt)"
+		            : "nothing to reset (no E-stop, no limit)");
+		if (read_status(s->ring, &st) == 0) {
+			fprintf(stderr, " (state %s)", mlip_ctl_state_name(st.state));
+		}
+		fputc('\n', stderr);
+		return EXIT_FAIL;
+	}
 	if (result != MLIP_OK) {
 		fprintf(stderr, PROG ": %s: refused by the controller: %s", what,
 		        result_text(result));
@@ -559,6 +658,238 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 }
 
 /* Commands with an argument word after them. */
+/* ---- jog (issue 18) --------------------------------------------------------- */
+
+static volatile sig_atomic_t jog_signal;
+
+static void on_jog_signal(int sig)
+{
+	jog_signal = sig;
+}
+
+/* Post a command and wait for its result (1 s each): 0 with *result, or -1. */
+static int post_wait(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg, int32_t *result)
+{
+	uint32_t seq = 0;
+	uint64_t t0 = mlip_now_ns();
+	mlip_status rc;
+	while ((rc = mlip_ring_cmd_post(s->ring, op, arg, &seq)) == MLIP_E_FULL &&
+	       mlip_now_ns() - t0 < (uint64_t)WAIT_NS) {
+		sleep_ns(POLL_NS);
+	}
+	if (rc != MLIP_OK) {
+		return -1;
+	}
+	t0 = mlip_now_ns();
+	while ((rc = mlip_ring_cmd_result(s->ring, seq, result)) != MLIP_OK) {
+		if (rc == MLIP_E_RANGE || mlip_now_ns() - t0 >= (uint64_t)WAIT_NS) {
+			return -1;
+		}
+		sleep_ns(POLL_NS);
+	}
+	return 0;
+}
+
+/* jog X+|X- SPEED [SECONDS]: a continuous jog at SPEED mm/min (deg/min),
+ * renewed every 100 ms (the controller stops one not renewed within
+ * MLIP_JOG_DEADMAN_S) until SECONDS pass, a signal comes (SIGINT, SIGTERM,
+ * SIGHUP: a dropped ssh session), or the axis reaches its soft limit; then
+ * released: a stop on the path at the acceleration limit. */
+static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const char *secs)
+{
+	struct mlip_machine m;
+	struct mlip_ring_status st;
+	double v = 0.0, dur = -1.0;
+	int axis = -1, neg;
+	int32_t result;
+	size_t n = dir != NULL ? strlen(dir) : 0;
+
+	mlip_ring_machine(s->ring, &m);
+	for (int k = 0; k < m.n_axes && n == 2; k++) {
+		if (dir[0] == m.axis[k].letter || dir[0] == m.axis[k].letter + ('a' - 'A')) {
+			axis = k;
+		}
+	}
+	if (n != 2 || (dir[1] != '+' && dir[1] != '-') || axis < 0) {
+		fprintf(stderr,
+		        PROG ": jog: '%s' is not an axis of this machine and a direction "
+		             "(e.g. X+ or Z-)\n",
+		        dir != NULL ? dir : "");
+		return EXIT_USAGE;
+	}
+	neg = dir[1] == '-';
+	if (speed == NULL || mlip_cli_number(speed, &v) != 0 || !(v >= 1.0) ||
+	    v > (double)MLIP_JOG_SPEED_MAX) {
+		fprintf(stderr,
+		        PROG ": jog: the speed must be a number of mm/min (deg/min) in 1..%u, "
+		             "got '%s'\n",
+		        MLIP_JOG_SPEED_MAX, speed != NULL ? speed : "");
+		return EXIT_USAGE;
+	}
+	if (secs != NULL && (mlip_cli_number(secs, &dur) != 0 || !(dur > 0.0) || dur > 86400.0)) {
+		fprintf(stderr, PROG ": jog: SECONDS must be in (0, 86400], got '%s'\n", secs);
+		return EXIT_USAGE;
+	}
+	int32_t arg = MLIP_JOG_ARG(axis, neg, (uint32_t)(v + 0.5)),
+	        stop = MLIP_JOG_ARG(axis, neg, 0);
+	mlip_cli_on_stop_signals(on_jog_signal);
+	if (post_wait(s, MLIP_CMD_JOG, arg, &result) != 0) {
+		fprintf(stderr, PROG ": jog: no answer from the controller on %s within 1 s\n",
+		        s->name);
+		return EXIT_FAIL;
+	}
+	if (result != MLIP_OK) {
+		read_status(s->ring, &st);
+		if (result == MLIP_E_RANGE) {
+			fprintf(
+			    stderr,
+			    PROG
+			    ": jog %s: refused: %c is at %.4f, at or beyond its soft limit %s %g "
+			    "(Grbl error 15: jog target exceeds machine travel)\n",
+			    dir, m.axis[axis].letter, st.pos[axis], neg ? "MIN_LIMIT" : "MAX_LIMIT",
+			    neg ? m.axis[axis].min_limit : m.axis[axis].max_limit);
+		} else {
+			fprintf(stderr,
+			        PROG ": jog %s: refused: the controller is %s (%s), not idle\n",
+			        dir, mlip_ctl_state_name(st.state), mlip_state_why_name(st.reason));
+		}
+		return EXIT_FAIL;
+	}
+	printf("jog %s at %.0f mm/min: started (renewed every 100 ms; Ctrl-C stops it)\n", dir, v);
+	fflush(stdout);
+	uint64_t t0 = mlip_now_ns();
+	int rc = EXIT_DONE;
+	for (;;) {
+		sleep_ns(100000000L);
+		if (jog_signal || (dur > 0.0 && (double)(mlip_now_ns() - t0) * 1e-9 >= dur)) {
+			break;
+		}
+		if (read_status(s->ring, &st) != 0 || st.state != MLIP_STATE_JOGGING) {
+			break; /* it ended (at the soft limit, a stop, an E-stop, a fault) */
+		}
+		if (post_wait(s, MLIP_CMD_JOG, arg, &result) != 0 || result != MLIP_OK) {
+			break;
+		}
+	}
+	post_wait(s, MLIP_CMD_JOG, stop, &result); /* released: a stop at the acceleration limit */
+	uint64_t t1 = mlip_now_ns();
+	while (read_status(s->ring, &st) == 0 && st.state == MLIP_STATE_JOGGING &&
+	       mlip_now_ns() - t1 < 10ull * (uint64_t)WAIT_NS) {
+		sleep_ns(5 * POLL_NS);
+	}
+	if (st.state == MLIP_STATE_IDLE) {
+		printf("jog %s: at rest at %c %.4f (%s%s)", dir, m.axis[axis].letter, st.pos[axis],
+		       mlip_state_why_name(st.reason), jog_signal ? ", on " : "");
+		if (jog_signal) {
+			printf("%s", mlip_cli_signal_name(jog_signal));
+		}
+		if (st.reason == MLIP_WHY_JOG_RELEASED || st.reason == MLIP_WHY_JOG_DEADMAN) {
+			printf("; %.3f mm from the release to rest", (double)st.stop_nm * 1e-6);
+		}
+		printf(")\n");
+	} else {
+		fprintf(stderr, PROG ": jog %s: ended %s (%s)\n", dir,
+		        mlip_ctl_state_name(st.state), mlip_state_why_name(st.reason));
+		rc = EXIT_FAIL;
+	}
+	return rc;
+}
+
+/* home [AXES]: the axes (letters, e.g. XZ; none: every axis with a
+ * HOME_METHOD) homed by their drives' homing mode, in HOME_SEQUENCE order;
+ * waits for the end and says how it went. */
+static int cmd_home(struct mlip_shm *s, const char *axes)
+{
+	struct mlip_machine m;
+	struct mlip_ring_status st;
+	uint32_t mask = 0;
+	int32_t result;
+	char fname[32];
+
+	mlip_ring_machine(s->ring, &m);
+	for (const char *p = axes; p != NULL && *p; p++) {
+		int k = -1;
+		for (int i = 0; i < m.n_axes; i++) {
+			if (m.axis[i].letter == *p || m.axis[i].letter + ('a' - 'A') == *p) {
+				k = i;
+			}
+		}
+		if (k < 0) {
+			fprintf(stderr, PROG ": home: '%c' is not an axis of this machine\n", *p);
+			return EXIT_USAGE;
+		}
+		mask |= 1u << k;
+	}
+	if (post_wait(s, MLIP_CMD_HOME, (int32_t)mask, &result) != 0) {
+		fprintf(stderr, PROG ": home: no answer from the controller on %s within 1 s\n",
+		        s->name);
+		return EXIT_FAIL;
+	}
+	read_status(s->ring, &st);
+	if (result != MLIP_OK) {
+		fprintf(stderr, PROG ": home: refused: %s\n",
+		        result == MLIP_E_RANGE ? "an axis without HOME_METHOD in the machine's "
+		                                 "configuration (or no CiA 402 drives)"
+		                               : "the controller is not idle");
+		return EXIT_FAIL;
+	}
+	/* the command's result comes before the status of its period: wait for
+	 * a later one, then for the end (a controller late for a while, as in an
+	 * emulated machine, is waited for; one gone for 5 s is not) */
+	uint64_t t0 = mlip_now_ns(), hb0 = st.heartbeat, quiet = 0;
+	while (read_status(s->ring, &st) == 0 && st.heartbeat <= hb0 + 1 &&
+	       mlip_now_ns() - t0 < 2ull * (uint64_t)WAIT_NS) {
+		sleep_ns(5 * POLL_NS);
+	}
+	while (read_status(s->ring, &st) == 0 && st.state == MLIP_STATE_HOMING) {
+		if (mlip_shm_controller_alive(s->ring)) {
+			quiet = 0;
+		} else if (quiet == 0) {
+			quiet = mlip_now_ns();
+		} else if (mlip_now_ns() - quiet > 5ull * (uint64_t)WAIT_NS) {
+			fprintf(stderr,
+			        PROG ": home: the controller stopped answering while homing\n");
+			return EXIT_FAIL;
+		}
+		sleep_ns(20 * POLL_NS);
+	}
+	double secs = (double)(mlip_now_ns() - t0) * 1e-9;
+	if (st.state == MLIP_STATE_IDLE && st.reason == MLIP_WHY_HOMED) {
+		printf("homed in %.2f s:", secs);
+		for (int k = 0; k < m.n_axes; k++) {
+			if (st.homed & (1u << k)) {
+				printf(" %c %.4f", m.axis[k].letter, st.pos[k]);
+			}
+		}
+		printf("\n");
+		return EXIT_DONE;
+	}
+	if (st.reason == MLIP_WHY_HOMING_SDO) {
+		fprintf(stderr,
+		        PROG
+		        ": home: node %u refused 0x%04X:%02X: %s (0x%08X): every axis stopped; "
+		        "mlip-ctl reset, then check HOME_* of that axis\n",
+		        (unsigned)st.reason_node, st.reason_field >> 8, st.reason_field & 0xFFu,
+		        mlip_sdo_abort_text((uint32_t)st.reason_value), (uint32_t)st.reason_value);
+	} else if (st.reason == MLIP_WHY_HOMING_ERROR || st.reason == MLIP_WHY_HOMING_TIMEOUT) {
+		fprintf(stderr,
+		        PROG
+		        ": home: node %u, method %u: %s (statusword 0x%04X) after %.2f s: every "
+		        "axis stopped; mlip-ctl reset\n",
+		        (unsigned)st.reason_node, st.reason_field,
+		        st.reason == MLIP_WHY_HOMING_ERROR ? "homing error (statusword bit 13)"
+		                                           : "not attained within HOME_TIMEOUT",
+		        (unsigned)st.reason_value, secs);
+	} else {
+		fprintf(stderr, PROG ": home: ended %s (%s)%s\n", mlip_ctl_state_name(st.state),
+		        mlip_state_why_name(st.reason),
+		        st.reason == MLIP_WHY_ESTOP
+		            ? mlip_io_function_name(st.reason_field, &m, fname, sizeof(fname))
+		            : "");
+	}
+	return EXIT_FAIL;
+}
+
 static int op_takes_arg(const char *cmd)
 {
 	return strcmp(cmd, "override") == 0 || strcmp(cmd, "optional-stop") == 0;
@@ -586,6 +917,8 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 		*op = MLIP_CMD_RESUME;
 	} else if (strcmp(cmd, "stop") == 0) {
 		*op = MLIP_CMD_STOP;
+	} else if (strcmp(cmd, "reset") == 0) {
+		*op = MLIP_CMD_RESET;
 	} else if (strcmp(cmd, "optional-stop") == 0) {
 		*op = MLIP_CMD_OPTIONAL_STOP;
 		if (pct == NULL || (strcmp(pct, "on") != 0 && strcmp(pct, "off") != 0)) {
@@ -596,7 +929,7 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 	} else {
 		fprintf(stderr,
 		        PROG ": unknown command '%s' (override, hold, resume, stop, optional-stop, "
-		             "status, -)\n",
+		             "reset, status, -)\n",
 		        cmd);
 		return EXIT_USAGE;
 	}
@@ -685,7 +1018,7 @@ int main(int argc, char **argv)
 	                                     {"json", no_argument, 0, 'j'},
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
-	const char *shm = MLIP_SHM_DEFAULT, *cmd;
+	const char *shm = MLIP_SHM_DEFAULT, *cmd, *jog_args[3] = {NULL, NULL, NULL};
 	mlip_ring_cmd_op op = MLIP_CMD_NONE;
 	int32_t arg = 0;
 	int json = 0, c, i, rc;
@@ -714,7 +1047,21 @@ int main(int argc, char **argv)
 		return EXIT_USAGE;
 	}
 	cmd = argv[optind++];
-	if (strcmp(cmd, "status") == 0) {
+	if (strcmp(cmd, "jog") == 0) {
+		if (argc - optind < 2 || argc - optind > 3) {
+			fprintf(stderr, PROG ": jog: expected AXIS+|AXIS- SPEED [SECONDS]\n");
+			return EXIT_USAGE;
+		}
+		for (i = 0; i < 3 && optind < argc; i++) {
+			jog_args[i] = argv[optind++];
+		}
+	} else if (strcmp(cmd, "home") == 0) {
+		if (argc - optind > 1) {
+			fprintf(stderr, PROG ": home: expected [AXES] (e.g. XZ)\n");
+			return EXIT_USAGE;
+		}
+		jog_args[0] = optind < argc ? argv[optind++] : NULL;
+	} else if (strcmp(cmd, "status") == 0) {
 		for (i = optind; i < argc; i++) {
 			if (strcmp(argv[i], "--json") != 0) {
 				fprintf(stderr, PROG ": status: unexpected '%s' (only --json)\n",
@@ -751,7 +1098,11 @@ int main(int argc, char **argv)
 		}
 		return EXIT_USAGE;
 	}
-	if (strcmp(cmd, "-") == 0) {
+	if (strcmp(cmd, "jog") == 0) {
+		rc = cmd_jog(&s, jog_args[0], jog_args[1], jog_args[2]);
+	} else if (strcmp(cmd, "home") == 0) {
+		rc = cmd_home(&s, jog_args[0]);
+	} else if (strcmp(cmd, "-") == 0) {
 		rc = cmd_stdin(&s);
 	} else {
 		rc = op == MLIP_CMD_NONE ? cmd_status(&s, json) : cmd_send(&s, op, arg);

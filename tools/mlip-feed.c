@@ -56,6 +56,7 @@
 #include "offsets.h"
 #include "program.h"
 #include "rt.h"
+#include "tooltable.h"
 
 #define PROG          "mlip-feed"
 #define BATCH         256u          /* records per mlip_ring_push_n */
@@ -103,6 +104,12 @@ static void usage(FILE *f)
 	        "                    program, written back when it completes (docs/gcode.md)\n"
 	        "  --default-feed F  feed (units/min) for a program that sets no F at all\n"
 	        "  --strict          refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
+	        "  --tools FILE      the tool table (T P Z D ;comment, LinuxCNC's format): M6,\n"
+	        "                    G43 H; the tool in the spindle is in the offsets file\n"
+	        "  --ignore-spindle  run S/M3/M4/M5 as nothing, on purpose (the machine's\n"
+	        "                    [SPINDLE] is mlip-rt's config; TYPE none refuses them)\n"
+	        "  --ignore-coolant  run M7/M8/M9 as nothing, on purpose\n"
+	        "  --ignore-tools    run T/M6/M61/G43/G49 as nothing, on purpose\n"
 	        "  -q, --quiet       no notes, no progress, no summary: errors only\n"
 	        "  -h, --help        this help\n\n"
 	        "exit status: 0 program complete, machine at rest; 1 nothing sent (program\n"
@@ -133,6 +140,7 @@ static int64_t age_ns(uint64_t stamp_ns)
  * executed or resumed from: those are within the controller's look-ahead and
  * the ring's capacity of the last one sent. */
 #define LINE_WINDOW (1u << 16)
+#define IO_HIST     256u /* spindle, tool, coolant events remembered per kind */
 
 struct feed {
 	/* wiring */
@@ -155,6 +163,20 @@ struct feed {
 	double default_feed;    /* --default-feed */
 	struct mlip_machine mp; /* the controller's machine, HOME = where the program starts */
 	struct mlip_program_options popt;
+	/* the machine's I/O: mlip-rt's, the tool table, the --ignore-* choices */
+	struct mlip_gcode_io io;
+	const char *tools; /* --tools FILE */
+	struct mlip_tooltable table;
+	int table_ok;
+	/* the I/O events sent (the last IO_HIST of each kind), and the one the
+	 * machine last paused at for the operator: what to say after a stop */
+	struct {
+		uint64_t seq;
+		uint32_t line;
+		double value;
+	} ioev[3][IO_HIST];
+	uint64_t ioev_n[3];
+	uint64_t io_wait_seq;
 	int from_controller; /* mp's HOME is the idle controller's position */
 	/* progress */
 	struct mlip_ring_feeder fa;   /* what we publish */
@@ -543,6 +565,17 @@ static int controller_fault(struct feed *f)
 		        (unsigned)f->st.reason_node,
 		        mlip_drive_fault_name((mlip_drive_fault)f->st.reason_field), what,
 		        (unsigned long long)f->st.reason_seq, (unsigned)f->st.reason_line);
+	} else if (f->st.state == MLIP_STATE_ESTOP || f->st.reason == MLIP_WHY_LIMIT) {
+		char name[24];
+		fprintf(
+		    stderr,
+		    PROG ": %s (%s, node %u) at line %u (block %llu): quick stop of every axis; "
+		         "the program is NOT complete (release the input, then mlip-ctl reset)\n",
+		    f->st.state == MLIP_STATE_ESTOP ? "E-stop" : "limit switch",
+		    f->st.reason == MLIP_WHY_IO_LOST
+		        ? "I/O module lost"
+		        : mlip_io_function_name(f->st.reason_field, &f->mp, name, sizeof(name)),
+		    (unsigned)f->st.reason_node, resume_line(f), (unsigned long long)resume_seq(f));
 	} else {
 		fprintf(stderr,
 		        PROG ": controller fault (%s) at line %u (block %llu): the program is NOT "
@@ -558,6 +591,14 @@ static int controller_fault(struct feed *f)
 static void explain(struct feed *f)
 {
 	const struct mlip_ring_status *st = &f->st;
+	if (st->state == MLIP_STATE_PAUSED &&
+	    (st->reason == MLIP_WHY_SPINDLE || st->reason == MLIP_WHY_TOOL ||
+	     st->reason == MLIP_WHY_COOLANT)) {
+		f->io_wait_seq = st->reason_seq; /* the operator's part, not done yet */
+	} else if (st->state != MLIP_STATE_STOPPING && st->state != MLIP_STATE_IDLE &&
+	           st->state != MLIP_STATE_FAULT) {
+		f->io_wait_seq = 0; /* moved on: it was done */
+	}
 	if (st->state == f->told_state && st->reason == f->told_why) {
 		return;
 	}
@@ -566,7 +607,16 @@ static void explain(struct feed *f)
 	if (f->quiet) {
 		return;
 	}
-	if (st->state == MLIP_STATE_PAUSED) {
+	if (st->state == MLIP_STATE_PAUSED &&
+	    (st->reason == MLIP_WHY_SPINDLE || st->reason == MLIP_WHY_TOOL ||
+	     st->reason == MLIP_WHY_COOLANT)) {
+		char what[200];
+		mlip_cli_io_message(st->reason, st->reason_value, f->table_ok ? &f->table : NULL,
+		                    what, sizeof(what));
+		close_line(f);
+		fprintf(stderr, PROG ": paused at line %u, %s: %s (mlip-ctl resume)\n",
+		        (unsigned)st->reason_line, mlip_state_why_name(st->reason), what);
+	} else if (st->state == MLIP_STATE_PAUSED) {
 		close_line(f);
 		fprintf(stderr, PROG ": paused (%s) at line %u: mlip-ctl resume continues\n",
 		        mlip_state_why_name(st->reason), (unsigned)st->reason_line);
@@ -577,6 +627,97 @@ static void explain(struct feed *f)
 		        ": stall: the controller missed %.0f periods; held at rest at the last "
 		        "setpoint sent, line %u; to continue: mlip-ctl resume\n",
 		        st->reason_value, (unsigned)st->exec_line);
+	}
+}
+
+/* The last event of kind kd (0 spindle, 1 tool, 2 coolant) the machine
+ * completed: 1 with it in *at, 0 none of ours, -1 not known (the history
+ * does not reach back that far). *waiting: the one it was paused at for the
+ * operator when it stopped (done or not: only the operator knows). */
+static int io_done(const struct feed *f, int kd, uint64_t done, int *at, int *waiting)
+{
+	uint64_t n = f->ioev_n[kd], lo = n > IO_HIST ? n - IO_HIST : 0;
+
+	*waiting = -1;
+	for (uint64_t i = n; i-- > lo;) {
+		uint64_t seq = f->ioev[kd][i % IO_HIST].seq;
+		if (seq == f->io_wait_seq) {
+			*waiting = (int)(i % IO_HIST);
+			continue;
+		}
+		if (seq <= done) {
+			*at = (int)(i % IO_HIST);
+			return 1;
+		}
+	}
+	return lo > 0 ? -1 : 0;
+}
+
+/* A program that did not complete may leave the spindle turning, coolant
+ * on, or another tool in the spindle: say so (whatever -q says), and keep
+ * the tool the machine holds in the offsets file (the work offsets as they
+ * were: the program's changes to them are not written). */
+static void io_after_stop(struct feed *f, const struct mlip_machine *m)
+{
+	static const char *const kind[3] = {"spindle", "tool change", "coolant"};
+	uint64_t done = f->exec;
+	int at, waiting, tool = -1, unsure = 0;
+
+	for (int kd = 0; kd < 3; kd++) {
+		int r = io_done(f, kd, done, &at, &waiting);
+		if (waiting >= 0) {
+			char what[200];
+			mlip_cli_io_message(kd == 0   ? MLIP_WHY_SPINDLE
+			                    : kd == 1 ? MLIP_WHY_TOOL
+			                              : MLIP_WHY_COOLANT,
+			                    f->ioev[kd][waiting].value,
+			                    f->table_ok ? &f->table : NULL, what, sizeof(what));
+			fprintf(stderr,
+			        PROG
+			        ": stopped while the machine waited at line %u for the %s (%s): "
+			        "check whether it was done\n",
+			        (unsigned)f->ioev[kd][waiting].line, kind[kd], what);
+			unsure |= kd == 1;
+		}
+		if (r < 0) {
+			fprintf(stderr, PROG ": the %s's state is not known: check it\n", kind[kd]);
+			unsure |= kd == 1;
+			continue;
+		}
+		if (r == 0 || waiting >= 0) {
+			continue;
+		}
+		double v = f->ioev[kd][at].value;
+		unsigned line = f->ioev[kd][at].line;
+		if (kd == 0 && v != 0) {
+			fprintf(stderr,
+			        PROG
+			        ": the spindle turns since line %u (%g rpm %s): the program did "
+			        "not stop it\n",
+			        line, fabs(v), v > 0 ? "clockwise" : "counter-clockwise");
+		} else if (kd == 2 && v != 0) {
+			fprintf(stderr,
+			        PROG ": coolant on since line %u: the program did not stop it\n",
+			        line);
+		} else if (kd == 1) {
+			tool = (int)v;
+			fprintf(stderr, PROG ": tool %d is in the spindle since line %u\n", tool,
+			        line);
+		}
+	}
+	if ((tool >= 0 || unsure) && f->offsets != NULL) {
+		struct mlip_gcode_offsets o = f->prog.offsets_start;
+		o.tool = unsure ? 0 : tool; /* not known: no tool, G43 then needs an H */
+		if (mlip_offsets_save(&f->offsets_file, m, &o, PROG, stderr) == 0) {
+			fprintf(stderr, PROG ": %s: TOOL %d written%s\n", f->offsets, (int)o.tool,
+			        unsure
+			            ? " (not known: say which with mlip-offsets --set \"TOOL n\")"
+			            : "");
+		}
+	} else if (tool >= 0 || unsure) {
+		fprintf(stderr,
+		        PROG ": no --offsets: the next program does not know which tool is in the "
+		             "spindle\n");
 	}
 }
 
@@ -715,6 +856,13 @@ static uint32_t fill(struct feed *f, struct mlip_ring_rec *recs, uint32_t max)
 				break; /* the caller sees fewer records, then the stream's error */
 			}
 			mlip_ring_rec_from_block(&recs[k], &b, seq);
+			if (b.kind >= MLIP_BLOCK_SPINDLE && b.kind <= MLIP_BLOCK_COOLANT) {
+				int kd = b.kind - MLIP_BLOCK_SPINDLE;
+				uint64_t i = f->ioev_n[kd]++ % IO_HIST;
+				f->ioev[kd][i].seq = seq;
+				f->ioev[kd][i].line = b.line;
+				f->ioev[kd][i].value = b.value;
+			}
 		} else {
 			mlip_ring_rec_end(&recs[k], seq, f->end_line);
 		}
@@ -782,12 +930,14 @@ static int wait_start(struct feed *f)
 			             "to be idle: nothing was sent\n");
 			return EXIT_CTRL_DEAD;
 		}
-		if (f->st.state == MLIP_STATE_FAULT) {
+		if (f->st.state == MLIP_STATE_FAULT || f->st.state == MLIP_STATE_ESTOP) {
 			fprintf(stderr,
-			        PROG
-			        ": controller on %s is in fault: nothing was sent; see mlip-rt's "
-			        "messages (restart it to clear the fault)\n",
-			        f->shm.name);
+			        PROG ": controller on %s is in %s (%s): nothing was sent; %s\n",
+			        f->shm.name, mlip_ctl_state_name(f->st.state),
+			        mlip_state_why_name(f->st.reason),
+			        f->st.state == MLIP_STATE_ESTOP || f->st.reason == MLIP_WHY_LIMIT
+			            ? "release the input, then mlip-ctl reset"
+			            : "see mlip-rt's messages (restart it to clear the fault)");
 			return EXIT_FAIL;
 		}
 		/* idle, or starved (a feeder died): our records continue or replace
@@ -857,7 +1007,7 @@ static int run(struct feed *f)
 		if (poll_controller(f) != 0) {
 			return controller_dead(f);
 		}
-		if (f->st.state == MLIP_STATE_FAULT) {
+		if (f->st.state == MLIP_STATE_FAULT || f->st.state == MLIP_STATE_ESTOP) {
 			return controller_fault(f);
 		}
 		explain(f);
@@ -961,6 +1111,10 @@ int main(int argc, char **argv)
 	                                     {"offsets", required_argument, 0, 'O'},
 	                                     {"strict", no_argument, 0, 'X'},
 	                                     {"default-feed", required_argument, 0, 'D'},
+	                                     {"tools", required_argument, 0, 'T'},
+	                                     {"ignore-spindle", no_argument, 0, 'P'},
+	                                     {"ignore-coolant", no_argument, 0, 'C'},
+	                                     {"ignore-tools", no_argument, 0, 'I'},
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
 	static struct feed f;
@@ -1020,6 +1174,18 @@ int main(int argc, char **argv)
 			}
 			break;
 		}
+		case 'T':
+			f.tools = optarg;
+			break;
+		case 'P':
+			f.io.ignore_spindle = 1;
+			break;
+		case 'C':
+			f.io.ignore_coolant = 1;
+			break;
+		case 'I':
+			f.io.ignore_tools = 1;
+			break;
 		case 'h':
 			usage(stdout);
 			return EXIT_DONE;
@@ -1086,9 +1252,42 @@ int main(int argc, char **argv)
 	    mlip_offsets_load(&f.offsets_file, f.offsets, &m, &offsets, PROG, stderr) != 0) {
 		goto out;
 	}
+	/* the machine's I/O is the controller's too ([SPINDLE], [TOOL], [COOLANT]) */
+	{
+		struct mlip_ring_io rio;
+		int ig[3] = {f.io.ignore_spindle, f.io.ignore_coolant, f.io.ignore_tools};
+		if (mlip_ring_io_read(f.r, &rio) != MLIP_OK) {
+			fprintf(stderr,
+			        PROG ": %s publishes no machine I/O yet (mlip-rt starting?): try "
+			             "again\n",
+			        shm);
+			goto out;
+		}
+		if (mlip_cli_io_from_ring(&rio, &m, &f.io) != 0) {
+			fprintf(stderr,
+			        PROG
+			        ": %s publishes a machine I/O this mlip-feed cannot use (types, "
+			        "speeds or a change position beyond the soft limits): restart "
+			        "mlip-rt\n",
+			        shm);
+			goto out;
+		}
+		f.io.ignore_spindle = ig[0];
+		f.io.ignore_coolant = ig[1];
+		f.io.ignore_tools = ig[2];
+	}
+	if (f.tools != NULL) {
+		if (mlip_tooltable_load(&f.table, f.tools, 0, PROG, stderr) != 0) {
+			goto out;
+		}
+		f.table_ok = 1;
+		f.io.tools = f.table.tools;
+		f.io.n_tools = f.table.n;
+	}
 	popt.strict = f.strict;
 	popt.default_feed = f.default_feed;
 	popt.offsets = &offsets;
+	popt.io = &f.io;
 	/* from where the controller stands when it is idle now (else from
 	 * HOME; run() checks again once it is idle: start_moved) */
 	f.popt = popt;
@@ -1138,8 +1337,21 @@ int main(int argc, char **argv)
 	    mlip_offsets_save(&f.offsets_file, &m, &f.prog.offsets_end, PROG, stderr) != 0) {
 		code = EXIT_FAIL;
 	}
+	if (code == EXIT_DONE && f.prog.offsets_end.tool != f.prog.offsets_start.tool) {
+		fprintf(stderr, PROG ": tool %d in the spindle now%s%s%s\n",
+		        (int)f.prog.offsets_end.tool, f.offsets ? " (" : "",
+		        f.offsets ? f.offsets
+		                  : " (no --offsets: the next program does not know it)",
+		        f.offsets ? ")" : "");
+	}
+	if (code != EXIT_DONE && f.pushed > 0) {
+		io_after_stop(&f, &m);
+	}
 out:
 	mlip_offsets_file_free(&f.offsets_file);
+	if (f.table_ok) {
+		mlip_tooltable_free(&f.table);
+	}
 	mlip_program_close(&f.prog);
 	mlip_shm_close(&f.shm); /* closing the fd drops the producer lock */
 	return code;

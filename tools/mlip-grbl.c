@@ -461,9 +461,12 @@ static const char *grbl_state(void)
 			return ring || moving ? "Run" : "Hold:0";
 		}
 		return ours_queued ? "Run" : "Idle";
+	case MLIP_STATE_JOGGING:
+		return "Jog"; /* mlip-ctl jog (a continuous jog, issue 18) */
+	case MLIP_STATE_HOMING:
+		return "Home"; /* mlip-ctl home */
 	default:
-		/* a state this build does not know (a newer controller's E-stop,
-		 * homing, jog): never "Idle"; the one mapping to extend here */
+		/* E-stop, and a state this build does not know: never "Idle" */
 		return "Alarm";
 	}
 }

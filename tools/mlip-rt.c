@@ -203,8 +203,37 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			        mlip_state_why_name(r->why), seq, line);
 		}
 		return;
+	case MLIP_STATE_ESTOP:
+		if (r->why == MLIP_WHY_IO_LOST) {
+			char what[160];
+			mlip_cli_drive_fault_text(r->field, (int64_t)r->value, what, sizeof(what));
+			fprintf(
+			    stderr,
+			    PROG ": E-stop: the I/O module (node %u) is lost: %s: %s, period %llu, "
+			         "block %llu (line %u): quick stop to every drive, the program "
+			         "dropped; restart mlip-rt (the module reboots unconfigured)\n",
+			    (unsigned)r->node, mlip_drive_fault_name((mlip_drive_fault)r->field),
+			    what, (unsigned long long)e->period, seq, line);
+		} else {
+			fprintf(stderr,
+			        PROG
+			        ": E-stop: input %s (node %u) at period %llu, block %llu (line "
+			        "%u): quick stop to every drive, the program dropped; release it, "
+			        "then mlip-ctl reset\n",
+			        mlip_io_function_name(r->field, mo->m, fld, sizeof(fld)),
+			        (unsigned)r->node, (unsigned long long)e->period, seq, line);
+		}
+		return;
 	case MLIP_STATE_FAULT:
-		if (r->why == MLIP_WHY_DRIVE) {
+		if (r->why == MLIP_WHY_LIMIT) {
+			fprintf(stderr,
+			        PROG
+			        ": limit switch: %s (node %u) while moving, period %llu, block "
+			        "%llu (line %u): quick stop to every drive; move off the switch, "
+			        "then mlip-ctl reset\n",
+			        mlip_io_function_name(r->field, mo->m, fld, sizeof(fld)),
+			        (unsigned)r->node, (unsigned long long)e->period, seq, line);
+		} else if (r->why == MLIP_WHY_DRIVE) {
 			report_drive_fault(mo, e);
 		} else if (r->why == MLIP_WHY_BAD_RECORD) {
 			mlip_cli_field_name(mo->m, r->field, fld, sizeof(fld));
@@ -533,7 +562,8 @@ static int open_bus(struct app *a, const char *iface)
 	}
 	fprintf(stderr, PROG ": %s\n", info);
 	if (a->cfg.drives.enable) {
-		n_ids = mlip_drives_rx_ids(&a->cfg.machine, ids, MLIP_CANBUS_MAX_IDS);
+		n_ids = mlip_drives_rx_ids(&a->cfg.machine, a->cfg.inputs.node, ids,
+		                           MLIP_CANBUS_MAX_IDS);
 	}
 	if (mlip_canbus_open(&bus, iface, a->prof == MLIP_CAN_FD, ids, n_ids, info, sizeof(info)) !=
 	    0) {
@@ -633,6 +663,12 @@ static int set_up(const struct options *o, struct app *a)
 		        PROG ": CiA 402 drives need a CAN interface and the cia402 profile\n");
 		return 2;
 	}
+	if ((a->cfg.inputs.node != 0 || a->cfg.inputs.mapped != 0) && !a->cfg.drives.enable) {
+		/* an E-stop that is not read must never look like one that is */
+		fprintf(stderr, PROG ": [IO] needs the CANopen master ([DRIVES] ENABLE = 1 or "
+		                     "--drives): the inputs are read by it\n");
+		return 2;
+	}
 	if (use_can && bus_budget(&a->cfg, a->prof) != 0) {
 		return 1;
 	}
@@ -661,6 +697,11 @@ static int set_up(const struct options *o, struct app *a)
 		tear_down(a);
 		return 1;
 	}
+	{ /* the machine's I/O, for the feeders' checks ([SPINDLE], [TOOL], [COOLANT]) */
+		struct mlip_ring_io rio;
+		mlip_cli_io_to_ring(&a->cfg.io, &a->cfg.machine, &rio);
+		mlip_ring_io_publish(a->shm.ring, &rio);
+	}
 	if (o->record != NULL) {
 		/* 2^15 periods (32 s at 1 ms) of slack for the monitor thread,
 		 * which drains it every 50 ms; 2 MB, locked with the rest */
@@ -678,7 +719,9 @@ static int set_up(const struct options *o, struct app *a)
 	                               .lookahead = a->cfg.lookahead,
 	                               .stall_periods = (uint32_t)o->stall_periods,
 	                               .can = &a->cfg.can,
-	                               .drives = a->cfg.drives.enable};
+	                               .drives = a->cfg.drives.enable,
+	                               .io = &a->cfg.inputs,
+	                               .home = &a->cfg.home};
 	/* each power step in the loop is given STATE_TIMEOUT_MS, in periods */
 	a->co.drive_state_periods =
 	    (uint32_t)(a->cfg.drives.state_timeout_ms * 1e-3 / a->cfg.machine.period_s + 0.999);

@@ -509,8 +509,23 @@ static int run(const struct options *o, struct sim *s)
 		s->q.tail += out.taken;
 		paused = out.status.state == MLIP_STATE_PAUSED ? paused + 1 : 0;
 		for (uint32_t i = 0; i < out.n_events; i++) {
+			const struct mlip_ctl_event *ev = &out.events[i];
 			s->pauses += out.events[i].kind == MLIP_EV_STATE &&
 			             out.events[i].state == MLIP_STATE_PAUSED;
+			if (ev->kind == MLIP_EV_STATE && ev->state == MLIP_STATE_PAUSED &&
+			    !o->quiet &&
+			    (ev->r.why == MLIP_WHY_SPINDLE || ev->r.why == MLIP_WHY_TOOL ||
+			     ev->r.why == MLIP_WHY_COOLANT)) {
+				/* what the operator is to do, at its time (the virtual
+				 * operator resumes after --resume-after) */
+				char what[200];
+				mlip_cli_io_message(ev->r.why, ev->r.value, mlip_cli_tooltable(),
+				                    what, sizeof(what));
+				fprintf(stderr, PROG ": %s:%u: t = %.3f s, %s: %s\n", o->path,
+				        (unsigned)ev->r.line,
+				        (double)period * s->cfg.machine.period_s,
+				        mlip_state_why_name(ev->r.why), what);
+			}
 			s->dwells += out.events[i].kind == MLIP_EV_STATE &&
 			             out.events[i].state == MLIP_STATE_DWELLING;
 		}

@@ -68,11 +68,21 @@ struct mlip_machine {
  * program events that the controller executes between moves, with the
  * machine at rest at the end of the move before them (target ignored). */
 typedef enum {
-	MLIP_BLOCK_MOVE = 0,      /* G0/G1 (arcs arrive as chords) */
-	MLIP_BLOCK_DWELL,         /* G4 P: wait dwell_s, to the period */
-	MLIP_BLOCK_PAUSE,         /* M0/M60: wait for the operator's resume */
-	MLIP_BLOCK_OPTIONAL_PAUSE /* M1: as M0 when the optional-stop switch is on */
+	MLIP_BLOCK_MOVE = 0,       /* G0/G1 (arcs arrive as chords) */
+	MLIP_BLOCK_DWELL,          /* G4 P: wait dwell_s, to the period */
+	MLIP_BLOCK_PAUSE,          /* M0/M60: wait for the operator's resume */
+	MLIP_BLOCK_OPTIONAL_PAUSE, /* M1: as M0 when the optional-stop switch is on */
+	MLIP_BLOCK_SPINDLE,        /* M3/M4/M5, an S change while it turns, M2/M30:
+	                              value = rpm, > 0 clockwise (M3), < 0 counter-
+	                              clockwise (M4), 0 stopped */
+	MLIP_BLOCK_TOOL,           /* M6: value = the tool to put in the spindle (0:
+	                              none), the spindle stopped by a SPINDLE before */
+	MLIP_BLOCK_COOLANT         /* M7/M8/M9, M2/M30: value = the outlets on, bits
+	                              MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD (0: off) */
 } mlip_block_kind;
+
+#define MLIP_COOLANT_MIST  0x1u /* M7 */
+#define MLIP_COOLANT_FLOOD 0x2u /* M8 */
 
 /* One G01-style block: an absolute target in joint space. Produced by the
  * G-code front end (arcs arrive as several chord blocks). A zeroed block is
@@ -90,6 +100,7 @@ struct mlip_block {
 	uint8_t kind;                 /* mlip_block_kind */
 	uint8_t exact_stop;           /* G61: come to rest at the end of this move */
 	double dwell_s;               /* DWELL: seconds (>= 0) */
+	double value;                 /* SPINDLE, TOOL, COOLANT: what it asks (see the kind) */
 };
 
 #endif

@@ -47,6 +47,16 @@ DEMO_DRIVES = {
     "BOOT_TIMEOUT_MS": 8000,
     "STATE_TIMEOUT_MS": 10000,
 }
+# homing after the program, with each drive's homing mode (CiA 402 mode 6),
+# per axis index: method, HOME_OFFSET mm, HOME_SEQUENCE, and the switch the
+# simulated drive has (kind, counts from its start position): X the current
+# position (35), Y its negative limit switch (17), Z its home switch (19),
+# Z first
+HOMING = (
+    (35, 0.0, 1, None),
+    (17, -1.0, 1, ("neg", -3000)),
+    (19, 0.0, 0, ("home", 1500)),
+)
 # a rectangle at two depths and back to where the drives stood
 PROGRAM = """(mlip demo, drives stage: a 10 x 10 mm outline, then back to the start)
 G21 G90 G17
@@ -148,6 +158,20 @@ def run(
     states = {nodes[FAULTED]: "fault"} if len(nodes) > FAULTED else {}
     base = MachineLimits.of(s, config)
     text, a_new, dev = demo_machine(s, config, period_s)
+    switches: list[str] = []
+    for i, ax in enumerate(axes):
+        method, offset, seq, sw = HOMING[i % len(HOMING)]
+        for key, val in (
+            ("HOME_METHOD", method),
+            ("HOME_OFFSET", offset),
+            ("HOME_SEQUENCE", seq),
+            ("HOME_SEARCH_VEL", 5),
+            ("HOME_LATCH_VEL", 0.5),
+            ("HOME_ACCEL", 20),
+        ):
+            text = text.replace(f"[AXIS_{ax}]\n", f"[AXIS_{ax}]\n{key} = {val}\n", 1)
+        if sw is not None:
+            switches += ["--switches", f"{nodes[i]}={sw[0]}:{starts[nodes[i]] + sw[1]}"]
     cfg = out / "machine.ini"
     cfg.write_text(text)
     lim = MachineLimits.of(s, cfg)  # mlip-config accepts it, or this raises with its message
@@ -201,7 +225,9 @@ def run(
         flush=True,
     )
     t_boot = time.monotonic()
-    sim = DriveSimProc(s, work, nodes=nodes, starts=starts, states=states, name="drivesim")
+    sim = DriveSimProc(
+        s, work, nodes=nodes, starts=starts, states=states, name="drivesim", args=switches
+    )
     print(
         f"drives: drives up after {time.monotonic() - t_boot:.1f} s; mlip-rt --drives, then "
         f"mlip-feed {prog.name}, then SIGTERM (a controlled stop) ...",
@@ -210,9 +236,18 @@ def run(
     t0 = time.time()
     feed: tuple[int | None, str, str] = (None, "", "")
     rig = Rig(s, cfg, "cia402", work, priority=0, rt_args=["--drives"])
+    t_home0 = t_home1 = float("inf")
+    home_out = ("", "", -1)
+    home_st: dict[str, Any] = {}
     try:
         with rig:
             feed = rig.feed(prog, timeout=900)
+            # then homing, with the drives' own homing mode (mlip-ctl home)
+            t_home0 = time.time()
+            hp = rig.ctl("home", check=False)
+            t_home1 = time.time()
+            home_out = (hp.stdout, hp.stderr, hp.returncode)
+            home_st = rig.status()
     finally:
         sim.stop()
     r = rig.result
@@ -232,6 +267,8 @@ def run(
     def phase(e: dict[str, Any]) -> int:
         if e["t"] < rig.t_ready:
             return 0
+        if t_home0 <= e["t"] <= t_home1:
+            return 3  # homing: its own section
         return 1 if e["t"] < rig.t_feed_end else 2
 
     def report_run() -> tuple[dict[int, int], list[int]]:
@@ -387,6 +424,26 @@ def run(
             for line in rt_lines(log, "drives disabled"):
                 print(f"  mlip-rt: {line}")
 
+    # ---- homing, as the drives did it
+    print("\nhoming (mlip-ctl home, after the program), as the drives did it:")
+    homing = [e for e in ev if e["kind"] == "homing" and t_home0 <= e["t"] <= t_home1]
+    for e in homing:
+        n = e["node"]
+        what = {
+            "start": f"homing started (method {e.get('method')}) at {e.get('at')} counts",
+            "switch": f"switch reached at {e.get('at')} counts: braking, then back at the "
+            "latch speed",
+            "done": f"homing attained at {e.get('at')} counts: position := home offset "
+            f"{e.get('offset')}",
+            "error": f"homing error ({e.get('why')})",
+        }.get(e["phase"], e["phase"])
+        print(f"  {at(e['t'])}  node {n} ({ax_of.get(n, '?')})  SYNC {e['sync']}: {what}")
+    print(f"  mlip-ctl home: {(home_out[0] or home_out[1]).strip()}")
+    offsets = {
+        n: round(HOMING[i % len(HOMING)][1] * c)
+        for i, (n, c) in enumerate(zip(nodes, cpu, strict=True))
+    }
+
     # ---- checks
     checks: list[tuple[bool, str]] = []
 
@@ -403,7 +460,7 @@ def run(
         "first target = start position to the count: "
         + ", ".join(f"node {n} {first.get(n)} = {starts[n]}" for n in nodes),
     )
-    got = trim(targets_by_sync(rows, nodes))
+    got = trim(targets_by_sync([x for x in rows if x["t"] < t_home0], nodes))
     bad = next((i for i, (a, b) in enumerate(zip(got, want, strict=False)) if a != b), None)
     if bad is None and len(got) != len(want):
         bad = min(len(got), len(want))
@@ -431,6 +488,44 @@ def run(
         "(disable operation 0x07) -> ready to switch on (shutdown 0x06), the SYNC "
         "still running: "
         + ", ".join(f"node {n} {'yes' if o else 'NO'}" for n, o in zip(nodes, order, strict=True)),
+    )
+    check(
+        home_out[2] == 0,
+        f"homed in HOME_SEQUENCE order (Z first), the drives' own homing mode: mlip-ctl home "
+        f"exited {home_out[2]}",
+    )
+    order_ok = False
+    starts_h = {e["node"]: e["sync"] for e in homing if e["phase"] == "start"}
+    dones_h = {e["node"]: e["sync"] for e in homing if e["phase"] == "done"}
+    if len(nodes) >= 3 and len(dones_h) == len(nodes) and len(starts_h) == len(nodes):
+        order_ok = dones_h[nodes[2]] < min(starts_h[nodes[0]], starts_h[nodes[1]])
+    check(order_ok, f"Z ({HOMING[2][2]}) homed before X and Y: starts {starts_h}, done {dones_h}")
+    csp_first: dict[int, int | None] = {}
+    for n in nodes:
+        t_csp = [
+            e["t"]
+            for e in ev
+            if e["kind"] == "sdo_write"
+            and e["node"] == n
+            and e["index"] == "0x6060"
+            and e.get("value") == 8
+            and t_home0 <= e["t"]
+        ]
+        after = [
+            x
+            for x in rows
+            if x["node"] == n and t_csp and x["t"] > max(t_csp) and x["target"] is not None
+        ]
+        csp_first[n] = after[0]["target"] if after else None
+    check(
+        csp_first == offsets,
+        "after homing every drive is at its home offset and its first target in CSP equals "
+        "it, to the count (no step): "
+        + ", ".join(f"node {n} {csp_first.get(n)} = {offsets[n]}" for n in nodes),
+    )
+    check(
+        home_st.get("homed") == {ax: True for ax in axes},
+        f"mlip-ctl status: homed {home_st.get('homed')}",
     )
     faults = [
         e

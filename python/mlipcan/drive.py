@@ -45,6 +45,13 @@ I8, I32 = odm.INTEGER8, odm.INTEGER32
 VENDOR_ID = 0x00000000  # none: a simulation
 PRODUCT_CODE = 0x4D4C4950  # "MLIP"
 PDO_INVALID = 0x80000000
+MODE_HOMING = 6  # 0x6060: homing mode
+# homing methods this drive runs (CiA 402): 17/18 the negative/positive limit
+# switch, 19/21 the home switch searched in the positive/negative direction,
+# 35/37 the current position
+HOMING_METHODS = (17, 18, 19, 21, 35, 37)
+SW_HOMING_ATTAINED = 1 << 12  # mode 6
+SW_HOMING_ERROR = 1 << 13  # mode 6
 FE_WINDOW_OFF = 0xFFFFFFFF  # 0x6065 = this: following error monitoring off (CiA 402)
 
 
@@ -150,7 +157,28 @@ def build_od(
         ],
     )
     add(_var("Following error actual value", 0x60F4, 0, I32, "ro", 0, True))
-    add(_var("Supported drive modes", 0x6502, 0, U32, "ro", 1 << (P.MODE_CSP - 1)))
+    # homing mode (6): method, speeds (search, latch), acceleration, offset
+    add(_var("Homing method", 0x6098, 0, I8, "rw", 0))
+    record(
+        "Homing speeds",
+        0x6099,
+        [
+            ("Speed during search for switch", U32, "rw", 1000),
+            ("Speed during search for zero", U32, "rw", 100),
+        ],
+    )
+    add(_var("Homing acceleration", 0x609A, 0, U32, "rw", 10000))
+    add(_var("Home offset", 0x607C, 0, I32, "rw", 0))
+    add(
+        _var(
+            "Supported drive modes",
+            0x6502,
+            0,
+            U32,
+            "ro",
+            1 << (P.MODE_CSP - 1) | 1 << (MODE_HOMING - 1),
+        )
+    )
     return od
 
 
@@ -263,8 +291,12 @@ class Drive:
         start_state: str = P.SWITCH_ON_DISABLED,
         heartbeat_ms: int = 0,
         lag_alpha: float = 1.0,
+        switches: dict[str, int] | None = None,
     ) -> None:
         self.sim = sim
+        # where the axis' switches are (counts): "neg", "pos" (limit switches,
+        # on beyond them), "home" (on at and beyond it in +)
+        self.switches = dict(switches or {})
         self.rec = sim.rec
         self.id = node_id
         self.start_position = start_position
@@ -289,6 +321,14 @@ class Drive:
 
     # ------------------------------------------------------------ set-up
     def _reset_application(self) -> None:
+        self.home_phase = "idle"  # idle, search, latch, done, error
+        self.home_attained = False
+        self.home_dir = 1
+        self.home_stall = getattr(self, "home_stall", False)
+        self.home_method = 0
+        self.home_switch = "home"
+        self.home_v = 0.0
+        self._cw_prev_home = 0
         self.actual = self.start_position
         self.actual_f = float(self.start_position)
         self.target = self.start_position
@@ -397,8 +437,11 @@ class Drive:
             return  # no such object here: every one the drive acts on is an integer
         val = raw
         if index == 0x6060:
-            if val not in (0, P.MODE_CSP):
+            if val not in (0, P.MODE_CSP, MODE_HOMING):
                 raise SdoAbortedError(0x06090030)
+        elif index == 0x6098:
+            if val not in HOMING_METHODS:
+                raise SdoAbortedError(0x06090030)  # a method this drive does not have
         elif index == 0x6040:
             self._controlword(val, "SDO")
         elif index == 0x607A:
@@ -639,8 +682,17 @@ class Drive:
             sw |= P.SW_VOLTAGE_ENABLED
         if self.state == P.OPERATION_ENABLED and self.mode() == P.MODE_CSP:
             sw |= P.SW_CSP_FOLLOWING
-        if self.fe_cycles:
+        if self.fe_cycles and self.mode() == P.MODE_CSP:
             sw |= P.SW_FOLLOWING_ERROR
+        if self.mode() == MODE_HOMING:
+            # bit 10 target reached (at rest: done or halted), 12 homing
+            # attained, 13 homing error
+            if self.home_phase in ("done", "error", "idle"):
+                sw |= P.SW_TARGET_REACHED
+            if self.home_phase == "done" and self.home_attained:
+                sw |= SW_HOMING_ATTAINED
+            if self.home_phase == "error":
+                sw |= SW_HOMING_ERROR
         return sw
 
     def _set_state(self, new: str, why: str) -> None:
@@ -746,6 +798,8 @@ class Drive:
             tgt = self._apply_rpdo()
         else:
             tgt = None
+        if self.state == P.OPERATION_ENABLED and self.mode() == MODE_HOMING:
+            self._homing(sync_no)
         if self.state == P.OPERATION_ENABLED and self.mode() == P.MODE_CSP:
             if tgt is not None:
                 self.target = tgt
@@ -754,6 +808,82 @@ class Drive:
             self.actual = int(round(self.actual_f - self.fe_extra))
             self._following(self.target - self.actual)
         self.rec.sync((sync_no, self.id, t, self.state, self.cw, tgt, fresh, sent, sw))
+
+    def _switch_on(self, which: str, pos: int) -> bool:
+        at = self.switches.get(which)
+        if at is None:
+            return False
+        return pos <= at if which == "neg" else pos >= at
+
+    def _homing(self, sync_no: int) -> None:
+        """CiA 402 homing mode, one SYNC: started by controlword bit 4's
+        rising edge; moves at the search speed (0x6099:1) toward the switch of
+        its method, then back at the latch speed (0x6099:2) until the switch
+        releases; that edge is the home: position actual := home offset
+        (0x607C), homing attained. 35/37: the current position is home."""
+        od = self.sim.od_int
+        n = self.node
+        start = bool(self.cw & 0x10) and not (self._cw_prev_home & 0x10)
+        self._cw_prev_home = self.cw
+        if start:
+            method = od(n, 0x6098, "<b")
+            self.home_method = method
+            self.home_attained = False
+            self.rec.event(
+                self.id, "homing", phase="start", method=method, at=self.actual, sync=sync_no
+            )
+            if method in (35, 37):
+                self._home_here(sync_no)
+                return
+            which = {17: "neg", 18: "pos", 19: "home", 21: "home"}[method]
+            if which not in self.switches:
+                self.home_phase = "error"
+                self.rec.event(
+                    self.id, "homing", phase="error", why=f"no {which} switch", sync=sync_no
+                )
+                return
+            self.home_switch = which
+            # toward the switch: 17 and 21 negative, 18 and 19 positive
+            self.home_dir = -1 if method in (17, 21) else 1
+            if which == "home" and self._switch_on("home", self.actual) and self.home_dir > 0:
+                self.home_dir = -1  # on it already: off it first (simplified)
+            self.home_phase = "search"
+            return
+        if self.home_phase not in ("search", "brake", "latch") or self.home_stall:
+            return
+        per_s = self.p_period_ms / 1000.0
+        if self.home_phase == "search":
+            v = od(n, 0x6099, "<I", 1)
+            self.home_v = float(v)
+            self.actual_f += self.home_dir * v * per_s
+            self.actual = int(round(self.actual_f))
+            if self._switch_on(self.home_switch, self.actual):
+                self.home_phase = "brake"
+                self.rec.event(self.id, "homing", phase="switch", at=self.actual, sync=sync_no)
+        elif self.home_phase == "brake":
+            # past the switch at the homing acceleration 0x609A, to rest
+            self.home_v = max(0.0, self.home_v - od(n, 0x609A, "<I") * per_s)
+            self.actual_f += self.home_dir * self.home_v * per_s
+            self.actual = int(round(self.actual_f))
+            if self.home_v == 0.0:
+                self.home_phase = "latch"
+        else:
+            v = od(n, 0x6099, "<I", 2)
+            self.actual_f -= self.home_dir * v * per_s
+            self.actual = int(round(self.actual_f))
+            if not self._switch_on(self.home_switch, self.actual):
+                self._home_here(sync_no)
+
+    def _home_here(self, sync_no: int) -> None:
+        offset = self.sim.od_int(self.node, 0x607C, "<i")
+        self.rec.event(self.id, "homing", phase="done", at=self.actual, offset=offset, sync=sync_no)
+        # the reference moves, not the axis: the switches move with it
+        shift = offset - self.actual
+        self.switches = {k: v + shift for k, v in self.switches.items()}
+        self.actual = self.target = offset
+        self.actual_f = float(offset)
+        self.home_phase = "done"
+        self.home_attained = True
 
     def _following(self, fe: int) -> None:
         """CiA 402: statusword bit 13 while |following error| > 0x6065 for
@@ -803,6 +933,8 @@ class Drive:
                 self.target = self.actual
                 self._publish()
                 self.rec.event(self.id, "moved", to=self.actual, state=self.state)
+        elif what == "homing-stall":
+            self.home_stall = arg != "off"  # a homing that never ends (a timeout)
         elif what == "never-enable":
             self.never_enable = arg != "off"
         elif what == "absent":
@@ -831,6 +963,7 @@ class DriveSim:
         self.rec = rec
         self.lock = threading.RLock()
         self.drives: dict[int, Drive] = {}
+        self.modules: dict[int, Any] = {}  # CiA 401 I/O modules (mlipcan.io401.IoModule)
         self.network = canopen.Network(bus)
         self.sync_no = 0
         self.t_last_sync: float | None = None
@@ -904,6 +1037,17 @@ class DriveSim:
                     self.rec.event(d.id, "absent", why="at start")
                     continue
                 d.attach(self.network)
+            for m in self.modules.values():
+                if m.id in absent:
+                    self.rec.event(m.id, "absent", why="at start")
+                    continue
+                m.attach(self.network)
+
+    def add_module(self, node_id: int, heartbeat_ms: int) -> None:
+        """A CiA 401 I/O module on the same bus (before start())."""
+        from .io401 import IoModule
+
+        self.modules[node_id] = IoModule(self, node_id, heartbeat_ms)
 
     def _pump_frames(self) -> None:
         from .sources import Batch, MMsg, bus_socket, tune_socket
@@ -948,6 +1092,9 @@ class DriveSim:
             for d in self.drives.values():
                 if d.present:
                     d.check_heartbeats(timestamp)
+            for m in self.modules.values():
+                if m.present:
+                    m.check_heartbeats(timestamp)
 
     def on_sync(self, drive: Drive, t: float) -> None:
         """Called once per drive per SYNC (canopen calls each subscriber)."""
@@ -959,6 +1106,9 @@ class DriveSim:
 
     def inject(self, node: int, what: str, arg: str | None = None) -> None:
         with self.lock:
+            if node in self.modules:
+                self.modules[node].inject(what, arg)
+                return
             if node not in self.drives:
                 raise ValueError(f"no drive with node id {node}")
             self.drives[node].inject(what, arg)
@@ -979,6 +1129,9 @@ class DriveSim:
                 for d in self.drives.values():
                     if d.present:
                         d.check_heartbeats(now)
+                for m in self.modules.values():
+                    if m.present:
+                        m.check_heartbeats(now)
         self.rec.flush()
 
     def stop(self) -> None:
@@ -986,6 +1139,9 @@ class DriveSim:
             for d in self.drives.values():
                 if d.present:
                     d.node.nmt.stop_heartbeat()
+            for m in self.modules.values():
+                if m.present:
+                    m.node.nmt.stop_heartbeat()
         self._stopping = True
         if self._pump is not None:
             self._pump.join(timeout=5)
@@ -1001,6 +1157,7 @@ class DriveSpec(TypedDict):
     start_state: str
     heartbeat_ms: int
     lag_alpha: float
+    switches: dict[str, int]
 
 
 class SeenListener(can.Listener):

@@ -98,6 +98,17 @@ def parse_injection(text: str) -> tuple[int, str, str | None]:
     return int(node), what.strip(), (arg.strip() or None)
 
 
+def parse_switches(text: str) -> dict[str, int]:
+    """'neg:-5000,home:200' -> {'neg': -5000, 'home': 200}."""
+    out: dict[str, int] = {}
+    for item in text.split(","):
+        kind, _, counts = item.partition(":")
+        if kind not in ("neg", "pos", "home"):
+            raise ValueError(f"switch kind '{kind}' (neg, pos or home)")
+        out[kind] = int(counts, 0)
+    return out
+
+
 def node_map(items: Sequence[str] | None, what: str, conv: Callable[[str], T]) -> dict[int, T]:
     out: dict[int, T] = {}
     for it in items or ():
@@ -170,6 +181,22 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
         help="how frames are read: python-can's Notifier, or the listener's recvmmsg "
         "batches from the same socket (auto: fast in the emulated VM)",
     )
+    ap.add_argument(
+        "--switches",
+        metavar="N=KIND:COUNTS,...",
+        action="append",
+        help="where node N's switches are, for its homing mode (counts): neg and pos "
+        "(limit switches, on beyond them), home (on from it in +), e.g. 1=neg:-5000,home:200",
+    )
+    ap.add_argument(
+        "--io",
+        metavar="NODE",
+        type=int,
+        action="append",
+        default=[],
+        help="a CiA 401 I/O module at NODE on the same bus (mlipcan.io401; injections "
+        "NODE:input=BYTE.BIT=0|1, heartbeat=off|on, fault[=CODE], absent, present)",
+    )
     ap.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     ap.add_argument("--write-eds", metavar="FILE", help="export a drive's object dictionary, exit")
     a = ap.parse_args(argv)
@@ -180,14 +207,19 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
             nodes = [int(v) for v in a.nodes.split(",")]
         else:
             nodes = [1]
-        if any(not 1 <= n <= 127 for n in nodes) or len(set(nodes)) != len(nodes):
-            raise UsageError(f"node ids must be distinct, 1..127: {nodes}")
+        allnodes = nodes + list(a.io)
+        if any(not 1 <= n <= 127 for n in allnodes) or len(set(allnodes)) != len(allnodes):
+            raise UsageError(f"node ids must be distinct, 1..127: {allnodes}")
         starts = node_map(a.start, "--start", int)
         states = node_map(a.state, "--state", lambda v: STATES[v])
+        switches = node_map(a.switches, "--switches", parse_switches)
         injections = [parse_injection(t) for t in a.inject]
-        for n in list(starts) + list(states) + [i[0] for i in injections]:
+        for n in list(starts) + list(states) + list(switches):
             if n not in nodes:
                 raise UsageError(f"node {n} is not one of the drives {nodes}")
+        for n in [i[0] for i in injections]:
+            if n not in allnodes:
+                raise UsageError(f"node {n} is not one of the devices {allnodes}")
     except (UsageError, ValueError) as e:
         print(f"{PROG}: {e}", file=sys.stderr)
         return 2
@@ -209,10 +241,13 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
             "start_state": states.get(n, P.SWITCH_ON_DISABLED),
             "heartbeat_ms": a.heartbeat_ms,
             "lag_alpha": a.lag,
+            "switches": switches.get(n, {}),
         }
         for n in nodes
     ]
     sim = D.DriveSim(a.can, specs, rec, sync_id=a.sync_id)
+    for n in a.io:
+        sim.add_module(n, a.heartbeat_ms)
     absent = {n for n, w, _ in injections if w == "absent"}
     signal.signal(signal.SIGTERM, _on_signal)
     signal.signal(signal.SIGINT, _on_signal)
@@ -227,7 +262,8 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
             sim.inject(n, w, arg)
     print(
         f"{PROG}: {len(nodes)} drives (nodes {','.join(map(str, nodes))}) on {a.can}, "
-        f"{'recvmmsg' if fast else 'python-can'} receive"
+        + (f"I/O module {','.join(map(str, a.io))}, " if a.io else "")
+        + f"{'recvmmsg' if fast else 'python-can'} receive"
         + (f", absent: {sorted(absent)}" if absent else "")
         + ": ready",
         file=sys.stderr,

@@ -73,6 +73,8 @@ static const struct step {
     [MLIP_POWER_VOLTAGE_OFF] = {"voltage off", "disable voltage", MLIP_402_CW_DISABLE_VOLTAGE,
                                 MLIP_402_SWITCH_ON_DISABLED},
     [MLIP_POWER_WAITING] = {"waiting", "", -1, MLIP_402_UNKNOWN},
+    [MLIP_POWER_QUICK_STOP] = {"quick stop", "quick stop", MLIP_402_CW_QUICK_STOP,
+                               MLIP_402_UNKNOWN},
 };
 
 const char *mlip_drive_power_name(uint32_t power)

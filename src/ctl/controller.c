@@ -39,6 +39,13 @@ static struct mlip_ctl_reason reason(uint32_t why, uint64_t seq, uint32_t line)
 	return r;
 }
 
+/* Axis k is to be homed (HOME_METHOD) and is not yet: its soft limits mean
+ * nothing so far. */
+static int unhomed(const struct mlip_ctl *c, int k)
+{
+	return ((c->home.configured & ~c->home.homed) >> k) & 1u;
+}
+
 /* Every change of state goes through here: named, with its reason. */
 static void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t state,
                struct mlip_ctl_reason r)
@@ -76,7 +83,17 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	} else if (o->drives) {
 		return MLIP_E_INVALID; /* drives without frames to send them */
 	}
+	if (o->io != NULL) {
+		c->io.cfg = *o->io;
+	}
+	if (o->home != NULL) {
+		c->home.cfg = *o->home;
+		for (int k = 0; k < m->n_axes; k++) {
+			c->home.configured |= o->home->axis[k].configured ? 1u << k : 0u;
+		}
+	}
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
+	c->jog.deadman = (uint64_t)floor(MLIP_JOG_DEADMAN_S / m->period_s + 1e-9);
 	c->state = MLIP_STATE_IDLE;
 	c->drives = o->drives != 0;
 	/* enabled by the bring-up */
@@ -157,6 +174,22 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 	    !(rec->dwell_s >= 0.0 && rec->dwell_s <= MLIP_CTL_DWELL_MAX_S)) {
 		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
 	}
+	/* the machine's I/O: a speed, a whole tool number, coolant bits */
+	if (rec->type == MLIP_REC_SPINDLE &&
+	    !(rec->dwell_s >= -MLIP_REC_RPM_MAX && rec->dwell_s <= MLIP_REC_RPM_MAX)) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
+	if (rec->type == MLIP_REC_TOOL &&
+	    !(rec->dwell_s >= 0.0 && rec->dwell_s <= MLIP_REC_TOOL_MAX &&
+	      rec->dwell_s == floor(rec->dwell_s))) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
+	if (rec->type == MLIP_REC_COOLANT &&
+	    !(rec->dwell_s == 0.0 || rec->dwell_s == MLIP_COOLANT_MIST ||
+	      rec->dwell_s == MLIP_COOLANT_FLOOD ||
+	      rec->dwell_s == (MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD))) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
 	if (rec->type != MLIP_REC_MOVE) {
 		return MLIP_OK;
 	}
@@ -180,7 +213,8 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 static int is_event(const struct mlip_ring_rec *rec)
 {
 	return rec->type == MLIP_REC_DWELL || rec->type == MLIP_REC_PAUSE ||
-	       rec->type == MLIP_REC_OPTIONAL_PAUSE;
+	       rec->type == MLIP_REC_OPTIONAL_PAUSE || rec->type == MLIP_REC_SPINDLE ||
+	       rec->type == MLIP_REC_TOOL || rec->type == MLIP_REC_COOLANT;
 }
 
 /* The ring is empty and nothing will fill it. */
@@ -284,6 +318,8 @@ static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 /* ---- stops -------------------------------------------------------------- */
 
 static void brake_begin(struct mlip_ctl *c);
+static void jog_release(struct mlip_ctl *c, uint32_t why);
+static void home_abort(struct mlip_ctl *c);
 
 /* A CiA 402 drive faulted (rt/drives.c's supervision): never go on blind.
  * Every axis stops on the path (the planner's stop: the other drives follow
@@ -299,6 +335,22 @@ static void drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	r.node = f->node;
 	r.value = f->value;
 	c->drive_faulted = 1;
+	c->jog.on = 0;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if ((uint32_t)c->m.axis[k].can_node == f->node) {
+			c->home.homed &=
+			    ~(1u << k); /* a faulted drive may have lost its position */
+		}
+	}
+	home_abort(c);
+	if (c->io.estop) {
+		/* the quick stop goes on; the fault comes back after the reset */
+		if (!c->io.fault_kept) {
+			c->io.fault_kept = 1;
+			c->io.kept = r;
+		}
+		return;
+	}
 	if (mlip_planner_queued(c->planner) > 0) {
 		mlip_planner_stop(c->planner);
 		brake_begin(c);
@@ -340,6 +392,24 @@ static void brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state rs
 /* Stop: decelerate on the path and drop the rest of the program. */
 static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why)
 {
+	if (c->io.estop) {
+		return; /* stopped already, harder */
+	}
+	if (c->home.on) {
+		home_abort(c); /* the drives move by themselves: back to CSP, then idle */
+		if (c->home.on) {
+			c->home.stop_why = why;
+		} else if (c->state == MLIP_STATE_HOMING) {
+			go(c, out, MLIP_STATE_IDLE, reason(why, 0, 0));
+		}
+		return;
+	}
+	if (c->jog.on) {
+		jog_release(c, MLIP_WHY_JOG_RELEASED); /* a stop ends a jog on the path */
+		if (why != MLIP_WHY_EXIT) {
+			return;
+		}
+	}
 	if (c->state == MLIP_STATE_IDLE && mlip_planner_queued(c->planner) == 0) {
 		/* nothing moving; a program already waiting in the ring (for the
 		 * drives to be enabled) is dropped, its first record too */
@@ -362,10 +432,32 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 	go(c, out, MLIP_STATE_STOPPING, reason(why, 0, 0));
 }
 
+static int32_t reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in);
+static int32_t jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
+static int32_t home_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
+static void quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
+                       uint32_t state, struct mlip_ctl_reason r);
+
 static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
-                             const struct mlip_ring_cmd *cmd)
+                             const struct mlip_ctl_in *in, const struct mlip_ring_cmd *cmd)
 {
 	struct mlip_planner *p = c->planner;
+	if (cmd->op == MLIP_CMD_RESET) {
+		return reset(c, out, in);
+	}
+	if (cmd->op == MLIP_CMD_JOG) {
+		return jog_command(c, out, cmd->arg);
+	}
+	if (cmd->op == MLIP_CMD_HOME) {
+		return home_command(c, out, cmd->arg);
+	}
+	if (cmd->op == MLIP_CMD_HOLD && c->jog.on) {
+		jog_release(c, MLIP_WHY_JOG_RELEASED); /* Grbl: a hold cancels a jog */
+		return MLIP_OK;
+	}
+	if (c->io.estop && (cmd->op == MLIP_CMD_HOLD || cmd->op == MLIP_CMD_RESUME)) {
+		return MLIP_E_INVALID; /* nothing to hold or resume: a reset first */
+	}
 	switch (cmd->op) {
 	case MLIP_CMD_OVERRIDE:
 		return mlip_planner_set_override(p, (double)cmd->arg);
@@ -405,6 +497,618 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	}
 }
 
+/* ---- continuous jog (issue 18) -------------------------------------------- */
+
+/* The jog ends braking on the path at the acceleration limit (the planner's
+ * stop), the reason kept for the state it ends in. */
+static void jog_release(struct mlip_ctl *c, uint32_t why)
+{
+	if (!c->jog.on || c->jog.stopping) {
+		return;
+	}
+	c->jog.end_why = why;
+	if (!c->jog.moving) {
+		c->jog.on = 0; /* still waiting for the drives: nothing moved */
+		return;
+	}
+	c->jog.stopping = 1;
+	mlip_planner_stop(c->planner);
+	brake_begin(c);
+}
+
+/* The axis' end in the jog's direction: its soft limit, and never beyond
+ * what the drives' int32 counts can carry. */
+static double jog_end(const struct mlip_ctl *c)
+{
+	const struct mlip_axis *a = &c->m.axis[c->jog.axis];
+	double range = a->counts_per_unit > 0.0 ? 2147483000.0 / a->counts_per_unit : 1e9;
+	double end = c->jog.neg ? a->min_limit : a->max_limit;
+	if (unhomed(c, (int)c->jog.axis)) {
+		end = c->jog.neg ? -range : range; /* machine zero is not known yet (LinuxCNC) */
+	}
+	return end > range ? range : end < -range ? -range : end;
+}
+
+/* Drives enabled (or none): the jog's block, from where the machine is to the
+ * soft limit, at the jog's speed: the planner plans it to rest there, so the
+ * jog stops exactly at the limit. */
+static void jog_start(struct mlip_ctl *c, struct mlip_ctl_out *out)
+{
+	struct mlip_block b;
+	memset(&b, 0, sizeof(b));
+	memcpy(b.target, c->pos, sizeof(b.target));
+	b.target[c->jog.axis] = jog_end(c);
+	b.feed_mm_s = c->jog.speed;
+	b.tol_mm = c->m.tolerance_mm;
+	b.kind = MLIP_BLOCK_MOVE;
+	if (mlip_planner_push(c->planner, &b) != MLIP_OK) {
+		c->jog.on = 0; /* the planner is not at rest: nothing moves */
+		go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_JOG_RELEASED, 0, 0));
+		return;
+	}
+	c->jog.moving = 1;
+}
+
+/* MLIP_CMD_JOG: start, renew or release. MLIP_E_RANGE: an axis not in the
+ * machine, or no room toward the soft limit (Grbl's error 15: the jog
+ * would leave the machine's travel); MLIP_E_INVALID: not at rest and idle
+ * (a program, a stop, a fault, an E-stop), or another jog moving. */
+static int32_t jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg)
+{
+	uint32_t u = (uint32_t)arg, axis = u & 7u, mm_min = (u >> 4) & 0xFFFFFu;
+	int neg = (u & 8u) != 0;
+	if ((int)axis >= c->m.n_axes) {
+		return MLIP_E_RANGE;
+	}
+	if (mm_min == 0) {
+		if (c->jog.on && axis == c->jog.axis) {
+			jog_release(c, MLIP_WHY_JOG_RELEASED);
+		}
+		return MLIP_OK; /* a release after the end is no error */
+	}
+	if (c->jog.on) {
+		if (axis != c->jog.axis || neg != c->jog.neg || c->jog.stopping) {
+			return MLIP_E_INVALID; /* one jog at a time: release it first */
+		}
+		c->jog.renewed = c->period;
+		return MLIP_OK;
+	}
+	if (c->state == MLIP_STATE_FAULT && c->why.why == MLIP_WHY_LIMIT && c->io.estop &&
+	    !c->home.on) {
+		/* stopped on a limit switch: only a jog away from it, which leaves
+		 * the quick stop (the switch does not trip again until released) */
+		uint32_t f = c->why.field, k = (f - MLIP_IN_AXIS0) / 3;
+		int away_neg = f == MLIP_IN_LIMIT_POS(k);
+		if (axis != k || neg != away_neg) {
+			return MLIP_E_RANGE; /* toward the switch, or another axis */
+		}
+		c->io.limit_ignore |= 1u << f;
+		c->io.estop = 0;
+		c->prog.bad = 0;
+		c->prog.discard = rx_count(c) > 0;
+		c->prog.discard_waiting = c->prog.discard;
+		if (c->drives) {
+			mlip_402_seq_init(&c->power.seq, MLIP_POWER_NONE,
+			                  c->power.seq.timeout ? c->power.seq.timeout : 1000,
+			                  c->period);
+		}
+		go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_RESET, 0, 0));
+	}
+	if (c->state != MLIP_STATE_IDLE || c->io.estop || mlip_planner_queued(c->planner) > 0 ||
+	    rx_count(c) > 0) {
+		return MLIP_E_INVALID;
+	}
+	c->jog.axis = axis;
+	c->jog.neg = neg;
+	double end = jog_end(c), here = c->pos[axis];
+	if (neg ? !(end < here) : !(end > here)) {
+		return MLIP_E_RANGE; /* at (or beyond) the soft limit that way already */
+	}
+	c->jog.on = 1;
+	c->jog.moving = 0;
+	c->jog.stopping = 0;
+	c->jog.speed = (double)mm_min / 60.0;
+	c->jog.renewed = c->period;
+	c->jog.end_why = MLIP_WHY_JOG_END;
+	struct mlip_ctl_reason r = reason(MLIP_WHY_JOG, 0, 0);
+	r.field = axis;
+	r.value = neg ? -c->jog.speed : c->jog.speed;
+	go(c, out, MLIP_STATE_JOGGING, r);
+	return MLIP_OK;
+}
+
+/* Each period of a jog: start once the drives are enabled, stop when not
+ * renewed. */
+static void jog_period(struct mlip_ctl *c, struct mlip_ctl_out *out)
+{
+	if (!c->jog.on) {
+		return;
+	}
+	if (!c->jog.moving) {
+		if (!c->drives || c->power.seq.step == MLIP_POWER_ENABLED) {
+			jog_start(c, out);
+		} else {
+			c->power.want = 1; /* enable the drives first, from where they are */
+		}
+	}
+	if (c->period - c->jog.renewed > c->jog.deadman) {
+		jog_release(c, MLIP_WHY_JOG_DEADMAN);
+	}
+	if (!c->jog.on && c->state == MLIP_STATE_JOGGING) {
+		go(c, out, MLIP_STATE_IDLE, reason(c->jog.end_why, 0, 0)); /* never moved */
+	}
+}
+
+/* ---- homing with the drives' homing mode (issue 18, CiA 402 mode 6) ------- */
+
+enum { HS_ENABLE = 1, HS_SETUP, HS_ARM, HS_RUN, HS_BACK, HS_NEXT };
+
+#define SW_TARGET_REACHED 0x0400u /* statusword bit 10 */
+#define SW_HOMING_DONE    0x1000u /* bit 12 in mode 6: homing attained */
+#define SW_HOMING_ERROR   0x2000u /* bit 13 in mode 6: homing error */
+#define CW_HOMING_START   0x0010u /* controlword bit 4: homing operation start */
+#define MODE_HOMING       6
+
+/* Object e of axis k's homing set-up (0x6098, 0x6099:1/2, 0x609A, 0x607C,
+ * then 0x6060 = 6), or of its return (0x6060 = 8): 0 when there is none.
+ * *rb: the object read back (0x6061 for 0x6060). */
+static int home_object(const struct mlip_ctl *c, int k, int e, int back, struct mlip_ctl_sdo_req *r,
+                       uint16_t *rb)
+{
+	const struct mlip_axis_home *h = &c->home.cfg.axis[k];
+	double cpu = c->m.axis[k].counts_per_unit;
+	r->node = (uint8_t)c->m.axis[k].can_node;
+	r->upload = 0;
+	r->sub = 0;
+	r->size = 4;
+	if (back) {
+		if (e > 0) {
+			return 0; /* the return is one object: 0x6060 = 8 */
+		}
+		e = 5;
+	}
+	switch (e) {
+	case 0:
+		r->index = 0x6098;
+		r->size = 1;
+		r->value = (uint8_t)(int8_t)h->method;
+		break;
+	case 1:
+	case 2:
+		r->index = 0x6099;
+		r->sub = (uint8_t)e;
+		r->value = (uint32_t)((e == 1 ? h->search_vel : h->latch_vel) * cpu + 0.5);
+		break;
+	case 3:
+		r->index = 0x609A;
+		r->value = (uint32_t)(h->accel * cpu + 0.5);
+		break;
+	case 4: {
+		int32_t counts = 0;
+		mlip_can_counts(h->offset, cpu, &counts);
+		r->index = 0x607C;
+		r->value = (uint32_t)counts;
+		break;
+	}
+	case 5:
+		r->index = 0x6060;
+		r->size = 1;
+		r->value = back ? MLIP_402_MODE_CSP : MODE_HOMING;
+		break;
+	default:
+		return 0;
+	}
+	*rb = r->index == 0x6060 ? 0x6061 : r->index;
+	return 1;
+}
+
+static void home_request(struct mlip_ctl *c, const struct mlip_ctl_sdo_req *r)
+{
+	c->home.req = *r;
+	c->home.requests = c->home.requests + 1 ? c->home.requests + 1 : 1; /* never 0 */
+	c->home.req.seq = c->home.sdo_seq = c->home.requests;
+}
+
+/* The first axis of the group at or after axis k, or -1. */
+static int group_axis(const struct mlip_ctl *c, int k)
+{
+	for (; k < c->m.n_axes; k++) {
+		if (c->home.group & (1u << k)) {
+			return k;
+		}
+	}
+	return -1;
+}
+
+/* Ask for the current object of the current axis (or go on to the next
+ * axis); 0 when the group's list is done. */
+static int home_issue(struct mlip_ctl *c, int back)
+{
+	struct mlip_ctl_sdo_req r;
+	uint16_t rb;
+	while (c->home.axis >= 0) {
+		if (home_object(c, c->home.axis, c->home.entry, back, &r, &rb)) {
+			home_request(c, &r);
+			c->home.readback = 0;
+			return 1;
+		}
+		c->home.axis = group_axis(c, c->home.axis + 1);
+		c->home.entry = 0;
+	}
+	return 0;
+}
+
+/* The next group: the lowest HOME_SEQUENCE among the axes still to home. */
+static int home_next_group(struct mlip_ctl *c)
+{
+	int best = 100;
+	c->home.group = 0;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if ((c->home.todo & (1u << k)) && c->home.cfg.axis[k].sequence < best) {
+			best = c->home.cfg.axis[k].sequence;
+		}
+	}
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if ((c->home.todo & (1u << k)) && c->home.cfg.axis[k].sequence == best) {
+			c->home.group |= 1u << k;
+		}
+	}
+	c->home.todo &= ~c->home.group;
+	c->home.attained = 0;
+	c->home.axis = group_axis(c, 0);
+	c->home.entry = 0;
+	return c->home.group != 0;
+}
+
+/* Homing given up (a failure, an E-stop, a drive fault, a stop): the group
+ * goes back to CSP (best effort: SDO 0x6060 = 8), nothing more is homed. */
+static void home_abort(struct mlip_ctl *c)
+{
+	if (!c->home.on || c->home.failed) {
+		return;
+	}
+	c->home.failed = 1;
+	c->home.todo = 0;
+	c->home.cw = MLIP_402_CW_ENABLE_OPERATION;
+	if (c->home.step < HS_SETUP || c->home.group == 0) {
+		c->home.on = 0; /* nothing was written yet */
+		return;
+	}
+	c->home.step = HS_BACK;
+	c->home.axis = group_axis(c, 0);
+	c->home.entry = 0;
+	home_issue(c, 1);
+}
+
+/* A failure: every axis stops (quick stop), the reason names the drive;
+ * the group is still returned to CSP (best effort) so that a reset leaves
+ * drives that follow targets again. */
+static void home_fail(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
+                      uint32_t why, int k, uint32_t field, double value)
+{
+	struct mlip_ctl_reason r = reason(why, 0, 0);
+	r.node = (uint32_t)c->m.axis[k].can_node;
+	r.field = field;
+	r.value = value;
+	quick_stop(c, in, out, MLIP_STATE_FAULT, r); /* and home_abort */
+}
+
+/* MLIP_CMD_HOME: axes (mask; 0: every configured one). */
+static int32_t home_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg)
+{
+	uint32_t want = (uint32_t)arg & ((1u << c->m.n_axes) - 1u);
+	if (arg == 0) {
+		want = c->home.configured;
+	}
+	if (!c->drives || want == 0 || (want & ~c->home.configured) != 0 ||
+	    ((uint32_t)arg >> c->m.n_axes) != 0) {
+		return MLIP_E_RANGE; /* an axis without HOME_METHOD (or no drives) */
+	}
+	if (c->state != MLIP_STATE_IDLE || c->io.estop || c->home.on ||
+	    mlip_planner_queued(c->planner) > 0 || rx_count(c) > 0) {
+		return MLIP_E_INVALID;
+	}
+	c->home.on = 1;
+	c->home.failed = 0;
+	c->home.todo = want;
+	c->home.homed &= ~want; /* homing again: not homed until it is done */
+	c->home.step = HS_ENABLE;
+	c->home.cw = MLIP_402_CW_ENABLE_OPERATION;
+	struct mlip_ctl_reason r = reason(MLIP_WHY_HOMING, 0, 0);
+	r.field = want;
+	go(c, out, MLIP_STATE_HOMING, r);
+	return MLIP_OK;
+}
+
+/* One period of homing, after the commands and inputs. */
+static void home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
+{
+	if (!c->home.on) {
+		return;
+	}
+	/* the group's axes: the target is where the drive is, to the count, so
+	 * that the return to CSP is no step */
+	if (c->home.step >= HS_ARM && !c->io.estop) {
+		for (int k = 0; k < c->m.n_axes; k++) {
+			if ((c->home.group & (1u << k)) && (in->drives.actual_mask & (1u << k))) {
+				c->pos[k] = in->drives.pos_actual[k];
+			}
+		}
+		mlip_planner_rest_at(c->planner, c->pos);
+	}
+	switch (c->home.step) {
+	case HS_ENABLE:
+		if (c->power.seq.step != MLIP_POWER_ENABLED) {
+			c->power.want = 1; /* from where the drives stand */
+			return;
+		}
+		home_next_group(c);
+		c->home.step = HS_SETUP;
+		home_issue(c, 0);
+		return;
+	case HS_SETUP:
+	case HS_BACK: {
+		int back = c->home.step == HS_BACK;
+		if (c->home.sdo_seq == 0 || in->sdo.seq != c->home.sdo_seq) {
+			return; /* its answer is not there yet */
+		}
+		struct mlip_ctl_sdo_req r = c->home.req;
+		uint32_t field = (uint32_t)r.index << 8 | r.sub;
+		uint16_t rb;
+		c->home.sdo_seq = 0;
+		if (in->sdo.abort != 0 && !c->home.failed) {
+			home_fail(c, in, out, MLIP_WHY_HOMING_SDO, c->home.axis, field,
+			          (double)in->sdo.abort);
+			return;
+		}
+		if (in->sdo.abort == 0 && !c->home.readback) {
+			home_object(c, c->home.axis, c->home.entry, back, &r, &rb);
+			r.index = rb;
+			r.upload = 1;
+			home_request(c, &r);
+			c->home.readback = 1;
+			return;
+		}
+		if (in->sdo.abort == 0 && !c->home.failed) {
+			uint32_t mask = r.size >= 4 ? 0xFFFFFFFFu : (1u << (8 * r.size)) - 1u;
+			home_object(c, c->home.axis, c->home.entry, back, &r, &rb);
+			if ((in->sdo.value & mask) != (r.value & mask)) {
+				home_fail(c, in, out, MLIP_WHY_HOMING_SDO, c->home.axis,
+				          (uint32_t)rb << 8 | r.sub,
+				          (double)(in->sdo.value & mask));
+				return;
+			}
+		}
+		c->home.entry++;
+		if (home_issue(c, back)) {
+			return;
+		}
+		if (!back) {
+			c->home.step = HS_ARM;
+			return;
+		}
+		/* back in CSP: where the drives are is where the machine is */
+		if (!c->home.failed) {
+			c->home.homed |= c->home.group;
+		}
+		c->home.step = HS_NEXT;
+		return;
+	}
+	case HS_ARM:
+		c->home.cw = MLIP_402_CW_ENABLE_OPERATION; /* bit 4 low: its rise starts it */
+		c->home.step = HS_RUN;
+		c->home.t0 = c->period + 1;
+		return;
+	case HS_RUN:
+		c->home.cw = MLIP_402_CW_ENABLE_OPERATION | CW_HOMING_START;
+		for (int k = 0; k < c->m.n_axes; k++) {
+			uint16_t sw = in->drives.sw[k];
+			uint64_t when = in->drives.tpdo_period[k];
+			uint32_t bit = 1u << k;
+			if (!(c->home.group & bit) || (c->home.attained & bit)) {
+				continue;
+			}
+			/* only a TPDO that answers a SYNC after the start was applied */
+			int fresh = when != UINT64_MAX && when >= c->home.t0 + 1;
+			if (fresh && (sw & SW_HOMING_ERROR)) {
+				home_fail(c, in, out, MLIP_WHY_HOMING_ERROR, k,
+				          (uint32_t)c->home.cfg.axis[k].method, (double)sw);
+				return;
+			}
+			if (fresh && (sw & (SW_HOMING_DONE | SW_TARGET_REACHED)) ==
+			                 (SW_HOMING_DONE | SW_TARGET_REACHED)) {
+				c->home.attained |= bit;
+			} else if ((double)(c->period - c->home.t0) * c->m.period_s >
+			           c->home.cfg.axis[k].timeout_s) {
+				home_fail(c, in, out, MLIP_WHY_HOMING_TIMEOUT, k,
+				          (uint32_t)c->home.cfg.axis[k].method, (double)sw);
+				return;
+			}
+		}
+		if (c->home.attained == c->home.group) {
+			c->home.cw = MLIP_402_CW_ENABLE_OPERATION;
+			c->home.step = HS_BACK;
+			c->home.axis = group_axis(c, 0);
+			c->home.entry = 0;
+			home_issue(c, 1);
+		}
+		return;
+	case HS_NEXT:
+		if (!c->home.failed && c->home.todo != 0) {
+			home_next_group(c);
+			c->home.step = HS_SETUP;
+			home_issue(c, 0);
+			return;
+		}
+		c->home.on = 0;
+		c->home.group = 0;
+		if (!c->home.failed) {
+			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_HOMED, 0, 0));
+		} else if (c->state == MLIP_STATE_HOMING) {
+			go(c, out, MLIP_STATE_IDLE, reason(c->home.stop_why, 0, 0)); /* a stop */
+		}
+		return;
+	default:
+		return;
+	}
+}
+
+/* ---- the inputs on the bus: E-stop, limits, hold, cycle start (issue 18) ---- */
+
+mlip_status mlip_ctl_set_output(struct mlip_ctl *c, uint32_t sub, uint32_t bit, int on)
+{
+	if (sub < 1 || sub > MLIP_IO_IN_BYTES || bit > 7) {
+		return MLIP_E_RANGE;
+	}
+	if (c->io.estop) {
+		return MLIP_OK; /* every output stays off until the reset */
+	}
+	if (on) {
+		c->io.outputs[sub - 1] |= (uint8_t)(1u << bit);
+	} else {
+		c->io.outputs[sub - 1] &= (uint8_t) ~(1u << bit);
+	}
+	return MLIP_OK;
+}
+
+/* The commanded position is where the drives are (they have no holding
+ * torque, or stop by themselves), the planner at rest there. */
+static void follow_actual(struct mlip_ctl *c, const struct mlip_ctl_in *in)
+{
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if (in->drives.actual_mask & (1u << k)) {
+			c->pos[k] = in->drives.pos_actual[k];
+		}
+	}
+	mlip_planner_abort(c->planner, c->pos);
+}
+
+/* Quick stop (E-stop, limit): with drives, controlword 0x0002 to every drive
+ * in this very period (power_period) and the planner dropped at once where
+ * they are (each drive brakes on its own quick stop ramp, 0x6085); without
+ * drives (nothing to quick stop) the planner stops on the path at the
+ * acceleration limit. The program is dropped; every output goes off. */
+static void quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
+                       uint32_t state, struct mlip_ctl_reason r)
+{
+	progress(c, &r.seq, &r.line);
+	if (c->state == MLIP_STATE_FAULT && c->why.why == MLIP_WHY_DRIVE && !c->io.fault_kept) {
+		c->io.fault_kept = 1; /* a drive fault comes back after the reset */
+		c->io.kept = c->why;
+	}
+	c->io.estop = 1;
+	c->jog.on = 0;
+	home_abort(c);
+	if (c->drives) {
+		follow_actual(c, in);
+	} else if (mlip_planner_queued(c->planner) > 0) {
+		mlip_planner_stop(c->planner);
+	}
+	c->wait.dwell_left = 0;
+	c->wait.stopped = 0;
+	c->hold.op = 0;
+	c->hold.stall = 0;
+	c->brake.on = 0;
+	c->prog.end.seq = 0;
+	c->prog.bad = 1;     /* nothing more is taken until the reset */
+	c->prog.discard = 1; /* the rest of the program is dropped */
+	memset(c->io.outputs, 0, sizeof(c->io.outputs));
+	go(c, out, state, r);
+}
+
+/* mlip-ctl reset: leave an E-stop or a limit fault once the inputs that
+ * caused it are released (and the I/O module is back): IDLE, or the drive
+ * fault that came before. The drives' power sequence starts again from the
+ * states they are in (toward OFF; a program enables them). */
+static int32_t reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in)
+{
+	uint32_t limits = 0;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		limits |= (1u << MLIP_IN_LIMIT_NEG(k)) | (1u << MLIP_IN_LIMIT_POS(k));
+	}
+	if (!c->io.estop || c->home.on) {
+		return MLIP_E_INVALID; /* nothing to reset (or homing still restores CSP) */
+	}
+	if ((in->io.active & (1u << MLIP_IN_ESTOP)) || in->io.lost.event != 0 ||
+	    ((c->io.cfg.mapped & (1u << MLIP_IN_ESTOP)) &&
+	     !(in->io.known & (1u << MLIP_IN_ESTOP)))) {
+		return MLIP_E_RANGE; /* the E-stop is still on (or cannot be read) */
+	}
+	if (c->why.why == MLIP_WHY_LIMIT && (in->io.active & limits)) {
+		return MLIP_E_RANGE; /* still on the limit switch */
+	}
+	c->io.estop = 0;
+	c->io.prev = in->io.active; /* a hold still pressed is not a new edge */
+	if (c->drives) {
+		mlip_402_seq_init(&c->power.seq, MLIP_POWER_NONE,
+		                  c->power.seq.timeout ? c->power.seq.timeout : 1000, c->period);
+	}
+	c->prog.bad = 0;
+	c->prog.discard = rx_count(c) > 0;
+	c->prog.discard_waiting = c->prog.discard;
+	if (c->io.fault_kept) {
+		c->prog.bad = 1;
+		go(c, out, MLIP_STATE_FAULT, c->io.kept);
+		return MLIP_OK;
+	}
+	go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_RESET, 0, 0));
+	return MLIP_OK;
+}
+
+/* The inputs of this period, before any command: E-stop wins over every
+ * state; a limit while moving stops everything; hold and cycle start act on
+ * their rising edge, as the commands would. */
+static void io_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
+{
+	uint32_t on = in->io.active & c->io.cfg.mapped, rise = on & ~c->io.prev;
+	struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, 0, 0);
+
+	c->io.prev = on;
+	if (in->io.lost.event != 0 && c->state != MLIP_STATE_ESTOP) {
+		r.why = MLIP_WHY_IO_LOST;
+		r.field = in->io.lost.event;
+		r.node = in->io.lost.node;
+		r.value = in->io.lost.value;
+		quick_stop(c, in, out, MLIP_STATE_ESTOP, r);
+		return;
+	}
+	if ((on & (1u << MLIP_IN_ESTOP)) && c->state != MLIP_STATE_ESTOP) {
+		r.why = MLIP_WHY_ESTOP;
+		r.field = MLIP_IN_ESTOP;
+		r.node = c->io.cfg.in[MLIP_IN_ESTOP].node;
+		r.value = (double)c->io.cfg.in[MLIP_IN_ESTOP].index;
+		quick_stop(c, in, out, MLIP_STATE_ESTOP, r);
+		return;
+	}
+	if (c->io.estop) {
+		return;
+	}
+	c->io.limit_ignore &= on; /* a released limit trips again */
+	for (int k = 0; k < c->m.n_axes; k++) {
+		uint32_t f = MLIP_IN_LIMIT_NEG(k);
+		uint32_t hit = on & ((1u << f) | (1u << (f + 1))) & ~c->io.limit_ignore;
+		if (hit &&
+		    (mlip_planner_moving(c->planner) || mlip_planner_queued(c->planner) > 0)) {
+			r.why = MLIP_WHY_LIMIT;
+			r.field = (hit & (1u << f)) ? f : f + 1;
+			r.node = c->io.cfg.in[r.field].node;
+			r.value = c->pos[k];
+			quick_stop(c, in, out, MLIP_STATE_FAULT, r);
+			return;
+		}
+	}
+	if (rise & (1u << MLIP_IN_HOLD)) {
+		struct mlip_ring_cmd h = {0};
+		h.op = MLIP_CMD_HOLD;
+		apply_command(c, out, in, &h);
+	}
+	if (rise & (1u << MLIP_IN_CYCLE_START)) {
+		struct mlip_ring_cmd h = {0};
+		h.op = MLIP_CMD_RESUME;
+		apply_command(c, out, in, &h);
+	}
+}
+
 /* ---- waits: dwell, pause ------------------------------------------------- */
 
 /* At rest with an event record next: take it. */
@@ -422,6 +1126,15 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		c->wait.dwell_left = (uint64_t)floor(rec->dwell_s / c->m.period_s + 0.5);
 		r.value = rec->dwell_s;
 		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_SPINDLE || rec->type == MLIP_REC_TOOL ||
+	           rec->type == MLIP_REC_COOLANT) {
+		/* a manual spindle, tool change or coolant: the operator does it
+		 * with the machine at rest, then resumes (status: what, value) */
+		r.why = rec->type == MLIP_REC_SPINDLE ? MLIP_WHY_SPINDLE
+		        : rec->type == MLIP_REC_TOOL  ? MLIP_WHY_TOOL
+		                                      : MLIP_WHY_COOLANT;
+		r.value = rec->dwell_s;
+		go(c, out, MLIP_STATE_PAUSED, r);
 	} else if (rec->type == MLIP_REC_PAUSE || c->op.optional_stop) {
 		r.why = rec->type == MLIP_REC_PAUSE ? MLIP_WHY_PAUSE : MLIP_WHY_OPTIONAL_PAUSE;
 		go(c, out, MLIP_STATE_PAUSED, r);
@@ -455,12 +1168,13 @@ static void start_event(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
 
 /* ---- the drives' power (CiA 402, opts.drives) ------------------------------ */
 
-/* The first axis beyond a soft limit, or -1. */
+/* The first axis beyond a soft limit, or -1 (an axis still to be homed has
+ * none yet: machine zero is wherever its drive powered up). */
 static int beyond_limit(const struct mlip_ctl *c)
 {
 	for (int k = 0; k < c->m.n_axes; k++) {
 		const struct mlip_axis *a = &c->m.axis[k];
-		if (!(c->pos[k] >= a->min_limit && c->pos[k] <= a->max_limit)) {
+		if (!unhomed(c, k) && !(c->pos[k] >= a->min_limit && c->pos[k] <= a->max_limit)) {
 			return k;
 		}
 	}
@@ -516,6 +1230,10 @@ static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 	int want = c->power.want;
 	struct mlip_402_change ch;
 
+	if (c->io.estop) {
+		c->power.seq.cw = MLIP_402_CW_QUICK_STOP; /* to every drive, until the reset */
+		return;
+	}
 	if (power == MLIP_POWER_OFF || power == MLIP_POWER_SWITCHING_ON) {
 		/* no holding torque: the commanded position is where the drives are */
 		for (int k = 0; k < c->m.n_axes; k++) {
@@ -561,6 +1279,13 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 	struct mlip_ring_rec first, *head = &first;
 	int have = rx_peek(c, head);
 
+	if (c->io.estop) {
+		/* E-stop or limit: every program is dropped unmoved until the reset */
+		for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && rx_peek(c, head); i++) {
+			rx_pop(c);
+		}
+		return;
+	}
 	if (c->prog.discard) {
 		discard(c, in);
 		return;
@@ -598,6 +1323,19 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 				c->why.why = MLIP_WHY_NONE; /* a second refusal is named too */
 			}
 			go(c, out, MLIP_STATE_IDLE, r);
+			return;
+		}
+		if (c->home.cfg.required &&
+		    (c->home.homed & c->home.configured) != c->home.configured) {
+			/* HOMING_REQUIRED: no program before every axis is homed */
+			c->prog.discard = 1;
+			c->prog.discard_waiting = 1;
+			c->counts.refused++;
+			if (c->why.why == MLIP_WHY_NOT_HOMED) {
+				c->why.why = MLIP_WHY_NONE; /* a second refusal is named too */
+			}
+			go(c, out, MLIP_STATE_IDLE,
+			   reason(MLIP_WHY_NOT_HOMED, head->seq, head->line));
 			return;
 		}
 		if (c->drives && c->power.seq.step != MLIP_POWER_ENABLED) {
@@ -707,7 +1445,9 @@ static void take_done(struct mlip_ctl *c)
 	uint64_t seq;
 	uint32_t line;
 	mlip_planner_done(c->planner, &seq, &line);
-	if (line == 0 && seq == c->prog.exec.seq) {
+	if ((line == 0 && seq == c->prog.exec.seq) || seq < c->prog.exec.seq) {
+		/* never back: an event after the planner's last block (a pause,
+		 * a manual tool change) is done once its wait ended */
 		return;
 	}
 	c->prog.exec.seq = seq;
@@ -756,6 +1496,13 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 			go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_RESUME, 0, 0));
 		}
 		return;
+	case MLIP_STATE_JOGGING:
+		if (rs == MLIP_RUN_IDLE && c->jog.moving) {
+			c->jog.on = 0;
+			c->jog.moving = 0;
+			go(c, out, MLIP_STATE_IDLE, reason(c->jog.end_why, 0, 0));
+		}
+		return;
 	case MLIP_STATE_STOPPING:
 		if (rs == MLIP_RUN_IDLE) {
 			if (!c->wait.stopped) {
@@ -801,10 +1548,11 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	memcpy(s->pos, c->pos, sizeof(s->pos));
 	s->speed_mm_s = mlip_planner_speed(p);
 	s->dwell_left = c->state == MLIP_STATE_DWELLING ? c->wait.dwell_left : 0;
-	s->drive_power = c->power.seq.step;
+	s->drive_power = c->drives && c->io.estop ? MLIP_POWER_QUICK_STOP : c->power.seq.step;
 	s->drive_power_periods = (uint32_t)c->power.seq.took;
 	memcpy(s->prog_start, c->prog.start, sizeof(s->prog_start));
 	s->stop_seen = c->op.stop_seen;
+	s->io_mapped = c->io.cfg.mapped;
 }
 
 /* Still moving: a stall must freeze it. */
@@ -850,8 +1598,10 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		}
 		stalled = 1;
 	}
+	/* the inputs first: an E-stop wins over every command of this period */
+	io_period(c, in, out);
 	if (in->cmd != NULL) {
-		out->cmd_result = apply_command(c, out, in->cmd);
+		out->cmd_result = apply_command(c, out, in, in->cmd);
 	}
 	/* a stop request (the segment's counter): never behind a command */
 	if (in->stop_requests != c->op.stop_seen) {
@@ -878,6 +1628,8 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		drive_fault(c, out, &in->drives.fault);
 	}
 
+	jog_period(c, out);
+	home_period(c, in, out);
 	blocks_in(c, in, out);
 	if (c->rx.corrupt && !c->prog.bad) {
 		struct mlip_ctl_reason r = reason(MLIP_WHY_RING_CORRUPT, c->prog.next_seq, 0);
@@ -888,7 +1640,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	}
 
 	/* one step; a pre-read or a wait does not move, nor the stall's period */
-	if (c->state == MLIP_STATE_DWELLING) {
+	if (c->io.estop && c->drives) {
+		follow_actual(c, in); /* the drives brake by themselves */
+	} else if (c->state == MLIP_STATE_DWELLING) {
 		c->wait.dwell_left--; /* >= 1 here: a wait of 0 ended in blocks_in */
 	} else if (c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_PAUSED && !stalled) {
 		double prev[MLIP_MAX_AXES];
@@ -909,8 +1663,12 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	if (c->encode) {
 		uint32_t sat = 0;
 		/* the drives' controlword, and no target to a drive faulted */
-		for (int k = 0; k < MLIP_MAX_AXES; k++) {
-			c->enc.controlword[k] = (uint16_t)c->power.seq.cw;
+		for (int k = 0; k < MLIP_MAX_AXES && c->power.seq.cw >= 0; k++) {
+			c->enc.controlword[k] = (uint16_t)c->power.seq.cw; /* -1: what was sent */
+			if (c->home.on && (c->home.group & (1u << k)) && !c->io.estop &&
+			    c->power.seq.step == MLIP_POWER_ENABLED && c->home.step >= HS_ARM) {
+				c->enc.controlword[k] = c->home.cw; /* bit 4: homing start */
+			}
 		}
 		c->enc.rpdo_mute = in->drives.mute;
 		if (mlip_canenc_encode(&c->enc, (uint32_t)c->period, c->pos, out->frames,
@@ -927,7 +1685,13 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		c->counts.frames_encoded += (uint64_t)out->n_frames;
 	}
 	publish(c, out);
-	out->power.state = c->power.seq.step;
+	out->power.state = out->status.drive_power;
+	out->status.io_inputs = in->io.active & c->io.cfg.mapped;
+	out->status.io_known = in->io.known & c->io.cfg.mapped;
+	memcpy(out->outputs, c->io.outputs, sizeof(out->outputs));
+	out->sdo = c->home.req;
+	out->homing = c->home.on && c->home.step >= HS_ARM ? c->home.group : 0;
+	out->status.homed = c->home.homed;
 	out->power.ok = c->power.seq.ok;
 	out->power.late_node =
 	    c->power.seq.late >= 0 ? (uint32_t)c->m.axis[c->power.seq.late].can_node : 0;
@@ -936,11 +1700,18 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->status.actual_mask = in->drives.actual_mask;
 	memcpy(out->status.pos_actual, in->drives.pos_actual, sizeof(out->status.pos_actual));
 	/* an exit request ends once the machine is at rest */
-	out->done =
-	    c->op.exiting && !c->prog.discard &&
-	    (c->state == MLIP_STATE_IDLE ||
-	     (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0)) &&
-	    (!c->drives || c->power.seq.step == MLIP_POWER_OFF); /* and the drives disabled */
+	if (c->home.on) {
+		out->done = 0; /* the drives go back to CSP first */
+	} else if (c->io.estop) {
+		/* quick stopped (the drives are not enabled), or at rest without drives */
+		out->done = c->op.exiting && (c->drives || !mlip_planner_moving(p));
+	} else {
+		out->done = c->op.exiting && !c->prog.discard &&
+		            (c->state == MLIP_STATE_IDLE ||
+		             (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0)) &&
+		            (!c->drives ||
+		             c->power.seq.step == MLIP_POWER_OFF); /* and the drives disabled */
+	}
 	out->taken = c->rx.taken;
 	out->counts = c->counts;
 	c->rx.view = NULL; /* the caller's, for this period only */

@@ -10,8 +10,9 @@
 
 const char *mlip_ctl_state_name(uint32_t state)
 {
-	static const char *const names[] = {"idle",    "running", "held",     "stopping", "fault",
-	                                    "starved", "paused",  "dwelling", "pre-read"};
+	static const char *const names[] = {"idle",     "running", "held",   "stopping",
+	                                    "fault",    "starved", "paused", "dwelling",
+	                                    "pre-read", "estop",   "jog",    "homing"};
 
 	return NAME_OF(names, state);
 }
@@ -41,7 +42,25 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "ring corrupt",
 	                                    "position beyond the drives' range",
 	                                    "drive fault",
-	                                    "stop before the start"};
+	                                    "stop before the start",
+	                                    "spindle (manual)",
+	                                    "tool change (manual)",
+	                                    "coolant (manual)",
+
+	                                    "E-stop input",
+	                                    "I/O module lost",
+	                                    "limit switch",
+	                                    "reset",
+	                                    "jog",
+	                                    "jog released",
+	                                    "jog not renewed",
+	                                    "jog at the soft limit",
+	                                    "homing",
+	                                    "homed",
+	                                    "homing error",
+	                                    "homing timeout",
+	                                    "homing object refused",
+	                                    "not homed"};
 
 	return NAME_OF(names, why);
 }

@@ -10,6 +10,9 @@
 /* The line's dwell, before its first move (LinuxCNC: dwell, then motion). */
 int mlip_gc_flush_dwell(struct mlip_gcode *g, struct emit_ctx *c)
 {
+	if (c->n_io > 0 && mlip_gc_flush_io(g, c) != 0) {
+		return -1; /* the line's I/O first (LinuxCNC: before the dwell) */
+	}
 	if (c->dwell_pending) {
 		if (mlip_gc_emit_event(g, c->sink, c->ctx, c->line, MLIP_BLOCK_DWELL, c->dwell_s) !=
 		    0) {
@@ -58,8 +61,9 @@ int mlip_gc_emit(struct mlip_gcode *g, struct emit_ctx *c, const double *t, doub
 	return 0;
 }
 
-/* A program event (dwell, pause) at the last emitted point. 0, or -1 when
- * the sink refused it. */
+/* A program event (dwell, pause; the machine's I/O: value is then the
+ * event's, else the dwell) at the last emitted point. 0, or -1 when the sink
+ * refused it. */
 int mlip_gc_emit_event(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, uint32_t line,
                        mlip_block_kind kind, double dwell_s)
 {
@@ -71,7 +75,11 @@ int mlip_gc_emit_event(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, ui
 	b.tol_mm = g->tol_mm;
 	b.line = line;
 	b.kind = (uint8_t)kind;
-	b.dwell_s = dwell_s;
+	if (kind >= MLIP_BLOCK_SPINDLE) {
+		b.value = dwell_s;
+	} else {
+		b.dwell_s = dwell_s;
+	}
 	if (sink(ctx, &b) != 0) {
 		return -1;
 	}

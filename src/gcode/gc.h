@@ -91,6 +91,18 @@ struct blk {
 	uint32_t r_col, p_col, q_col, l_col, f_col;
 	char notes[MAX_WORDS][8]; /* notices to record once the line is accepted */
 	int n_notes;
+	/* the machine's I/O (io.c) */
+	int has_s, has_t, has_h;
+	double s, t, h;
+	uint32_t s_col, t_col, h_col;
+	int spindle_m;      /* 3, 4, 5 for M3/M4/M5, 0 none */
+	int m6, m61;        /* M6, M61 on the line */
+	unsigned coolant_m; /* M7: MLIP_COOLANT_MIST, M8: MLIP_COOLANT_FLOOD */
+	int m9;
+	int g43; /* 430 G43, 431 G43.1, 490 G49, 0 none */
+	uint32_t spindle_col, m6_col, m61_col, coolant_col, m9_col, g43_col;
+	char io_notes[MAX_WORDS][8]; /* those words in order: notices without set_io */
+	int n_io_notes;
 };
 
 /* value*10 as an int when value is a non-negative multiple of 0.1, else -1 */
@@ -113,6 +125,8 @@ struct plan {
 /* ---- state.c ---- */
 
 void mlip_gc_notice(struct mlip_gcode *g, const char *word, uint32_t line);
+/* The same with its own text (a static string), e.g. "ignored on purpose". */
+void mlip_gc_notice_text(struct mlip_gcode *g, const char *word, const char *text, uint32_t line);
 /* Config index of the axis with that (upper-case) letter, or -1. */
 int mlip_gc_axis_index(const struct mlip_machine *m, char letter);
 void mlip_gc_commit_modal(struct mlip_gcode *g, const struct blk *b, const struct plan *pl,
@@ -132,7 +146,16 @@ struct emit_ctx {
 	double feed_mm_s;
 	int dwell_pending; /* G4: its DWELL goes first, once the line is known good */
 	double dwell_s;
+	/* the line's I/O events (io.c), before its dwell, once the line is known
+	 * good: kind MLIP_BLOCK_SPINDLE, _TOOL, _COOLANT, or IO_CHANGE (M6's moves
+	 * to the change position) */
+	struct {
+		uint8_t kind;
+		double value;
+	} io[8];
+	int n_io;
 };
+#define IO_CHANGE 255
 
 int mlip_gc_flush_dwell(struct mlip_gcode *g, struct emit_ctx *c);
 int mlip_gc_emit(struct mlip_gcode *g, struct emit_ctx *c, const double *t, double tol_mm);
@@ -172,6 +195,24 @@ void mlip_gc_set_offsets(struct mlip_gcode *g, const struct blk *b, double scale
 mlip_status mlip_gc_go_home(struct mlip_gcode *g, const struct blk *b, const struct plan *pl,
                             struct emit_ctx *ec, const double *t, const uint32_t *col_of,
                             uint32_t line, struct mlip_gcode_error *e);
+
+/* ---- io.c ---- */
+
+/* The line's I/O words against the machine (set_io) and the state, before
+ * anything of the line is executed. */
+mlip_status mlip_gc_check_io(const struct mlip_gcode *g, const struct blk *b, uint32_t line,
+                             struct mlip_gcode_error *e);
+/* Execute them (S, T, M6, M3/M4/M5, M7/M8/M9, in LinuxCNC's order), then
+ * G43, G43.1, G49: the state now, the events (and M6's moves to the change
+ * position) queued in ec->io, emitted by mlip_gc_flush_io once the line is
+ * known good. */
+void mlip_gc_exec_io(struct mlip_gcode *g, const struct blk *b, double scale, struct emit_ctx *ec);
+/* The queued events at the last point: 0, or -1 when the sink refused one. */
+int mlip_gc_flush_io(struct mlip_gcode *g, struct emit_ctx *ec);
+/* M2/M30: the spindle and the coolant stop (events when they were on). */
+mlip_status mlip_gc_end_io(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, uint32_t line);
+/* Config index of Z, or -1. */
+int mlip_gc_z_index(const struct mlip_machine *m);
 
 /* ---- grbl.c ---- */
 

@@ -43,15 +43,23 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 		first_ax = !first_ax || b->ax_col[a] < first_ax ? b->ax_col[a] : first_ax;
 	}
 	pl->has_axes = has_axes;
-	pl->axis_use = b->home || b->g10 || b->g92 == 920;
+	pl->axis_use = b->home || b->g10 || b->g92 == 920 || b->g43 == 431;
 	pl->g0_default = 0;
 	if (pl->axis_use && b->motion >= 0 && has_axes) {
 		return mlip_gc_fail(e, line, b->motion_col, MLIP_E_SYNTAX,
 		                    "%G and %G on one line: both use axis words",
+		                    b->home         ? b->home * 10
+		                    : b->g10        ? 100
+		                    : b->g43 == 431 ? 431
+		                                    : 920,
+		                    b->motion * 10);
+	}
+	if (b->g43 == 431 && (b->home || b->g10 || b->g92 == 920)) {
+		return mlip_gc_fail(e, line, b->g43_col, MLIP_E_SYNTAX,
+		                    "G43.1 and %G on one line: both use axis words",
 		                    b->home  ? b->home * 10
 		                    : b->g10 ? 100
-		                             : 920,
-		                    b->motion * 10);
+		                             : 920);
 	}
 	if (b->homeset && has_axes) {
 		return mlip_gc_fail(e, line, first_ax, MLIP_E_SYNTAX,
@@ -197,6 +205,9 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 	if (st == MLIP_OK) {
 		st = check_line(g, &b, &lx, lineno, &pl, err);
 	}
+	if (st == MLIP_OK) {
+		st = mlip_gc_check_io(g, &b, lineno, err);
+	}
 	if (st != MLIP_OK) {
 		return st;
 	}
@@ -204,6 +215,13 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 	 * the dwell is emitted with the motion, once that is known good */
 	mlip_gc_commit_modal(g, &b, &pl, lineno);
 	scale = g->inches ? MM_PER_INCH : 1.0;
+	/* S, T, M6, M3/M4/M5, M7/M8/M9 (events queued in ec, emitted with the
+	 * dwell once the line is known good), G43/G49 (io.c) */
+	ec.sink = sink;
+	ec.ctx = ctx;
+	ec.line = lineno;
+	ec.n_io = 0;
+	mlip_gc_exec_io(g, &b, scale, &ec);
 	mlip_gc_set_offsets(g, &b, scale);
 
 	/* target: absolute machine coordinates, config order, machine units
@@ -212,7 +230,7 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 		a = mlip_gc_axis_slot(mlip_upper(m->axis[i].letter));
 		start[i] = t[i] = g->cur[i];
 		col_of[i] = pl.motion >= 2 ? pl.mcol : lx.first_col; /* arcs move wordless axes */
-		if (a >= 0 && b.has_ax[a] && !b.g10 && b.g92 != 920) {
+		if (a >= 0 && b.has_ax[a] && !b.g10 && b.g92 != 920 && b.g43 != 431) {
 			k = m->axis[i].kind == MLIP_AXIS_ROTARY ? 1.0 : scale;
 			t[i] = b.g53         ? b.ax[a] * k
 			       : g->absolute ? b.ax[a] * k + mlip_gc_offset_of(g, i)
@@ -274,8 +292,13 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 		return mlip_gc_fail(err, lineno, 0, MLIP_E_FULL,
 		                    "block sink full: parsing stopped");
 	}
+	if (st == MLIP_OK && b.end && mlip_gc_end_io(g, sink, ctx, lineno) != MLIP_OK) {
+		return mlip_gc_fail(err, lineno, 0, MLIP_E_FULL,
+		                    "block sink full: parsing stopped");
+	}
 	if (b.end) {
-		/* M2/M30 (LinuxCNC): G54 selected, G92 offsets off, values kept */
+		/* M2/M30 (LinuxCNC): G54 selected, G92 offsets off, values kept;
+		 * the spindle and the coolant stopped (above) */
 		g->ended = 1;
 		g->off.select = 0;
 		g->off.g92_on = 0;

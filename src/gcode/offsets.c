@@ -6,9 +6,16 @@
 
 #include "gc.h"
 
+/* The tool length offset on axis i (Z only). */
+static double tlo_of(const struct mlip_gcode *g, int i)
+{
+	return g->tlo_mm != 0.0 && i == mlip_gc_z_index(g->m) ? g->tlo_mm : 0.0;
+}
+
 double mlip_gc_offset_of(const struct mlip_gcode *g, int i)
 {
-	return g->off.coord[g->off.select][i] + (g->off.g92_on ? g->off.g92[i] : 0.0);
+	return g->off.coord[g->off.select][i] + (g->off.g92_on ? g->off.g92[i] : 0.0) +
+	       tlo_of(g, i);
 }
 
 /* G10 L2/L20, G92 and its variants, G28.1/G30.1: the offsets state, in
@@ -29,12 +36,14 @@ void mlip_gc_set_offsets(struct mlip_gcode *g, const struct blk *b, double scale
 			sys = b->p == 0 ? o->select : (int)b->p - 1;
 			/* L2: the origin in machine coordinates; L20: the origin that
 			 * makes the current point read v */
-			o->coord[sys][i] =
-			    b->l == 2 ? v : g->cur[i] - (o->g92_on ? o->g92[i] : 0.0) - v;
+			o->coord[sys][i] = b->l == 2 ? v
+			                             : g->cur[i] - (o->g92_on ? o->g92[i] : 0.0) -
+			                                   tlo_of(g, i) - v;
 		}
 		if (b->g92 == 920) {
-			o->g92[i] = a >= 0 && b->has_ax[a] ? g->cur[i] - o->coord[o->select][i] - v
-			                                   : (o->g92_on ? o->g92[i] : 0.0);
+			o->g92[i] = a >= 0 && b->has_ax[a]
+			                ? g->cur[i] - o->coord[o->select][i] - tlo_of(g, i) - v
+			                : (o->g92_on ? o->g92[i] : 0.0);
 		} else if (b->g92 == 921) {
 			o->g92[i] = 0;
 		}

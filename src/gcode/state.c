@@ -42,6 +42,14 @@ void mlip_gcode_init(struct mlip_gcode *g, const struct mlip_machine *m)
 		g->cur[i] = m->axis[i].home;
 	}
 	mlip_gcode_offsets_init(&g->off, m);
+	g->s_rpm = -1;
+	g->tool_sel = -1;
+	g->tlo_mode = 490;
+}
+
+void mlip_gcode_set_io(struct mlip_gcode *g, const struct mlip_gcode_io *io)
+{
+	g->io = io;
 }
 
 void mlip_gcode_set_initial_feed(struct mlip_gcode *g, double f_word)
@@ -61,15 +69,23 @@ void mlip_gcode_set_offsets(struct mlip_gcode *g, const struct mlip_gcode_offset
 		g->off.select = 0;
 	}
 	g->off.g92_on = g->off.g92_on != 0;
+	if (g->off.tool < 0) {
+		g->off.tool = 0;
+	}
 }
 
 void mlip_gc_notice(struct mlip_gcode *g, const char *word, uint32_t line)
+{
+	mlip_gc_notice_text(g, word, 0, line);
+}
+
+void mlip_gc_notice_text(struct mlip_gcode *g, const char *word, const char *text, uint32_t line)
 {
 	struct mlip_gcode_notice *n;
 	uint32_t k;
 
 	for (k = 0; k < g->n_notices; k++) {
-		if (strcmp(g->notices[k].word, word) == 0) {
+		if (strcmp(g->notices[k].word, word) == 0 && g->notices[k].text == text) {
 			g->notices[k].count++;
 			return;
 		}
@@ -80,6 +96,7 @@ void mlip_gc_notice(struct mlip_gcode *g, const char *word, uint32_t line)
 		strncpy(n->word, word, sizeof n->word - 1);
 		n->first_line = line;
 		n->count = 1;
+		n->text = text;
 	}
 }
 
@@ -120,6 +137,9 @@ const char *mlip_gcode_notice_text(const struct mlip_gcode_notice *n)
 {
 	size_t k;
 
+	if (n->text != NULL) {
+		return n->text;
+	}
 	for (k = 0; k < sizeof notice_texts / sizeof notice_texts[0]; k++) {
 		if (strcmp(n->word, notice_texts[k].word) == 0 ||
 		    (n->word[0] == '$' && notice_texts[k].word[1] == '\0' &&

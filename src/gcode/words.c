@@ -22,6 +22,7 @@ enum gkind {
 	GK_PATH,     /* G61, G61.1, G64 */
 	GK_G92,      /* G92, G92.1, G92.2, G92.3 */
 	GK_FEEDMODE, /* G93/G94 */
+	GK_TOOLLEN,  /* G43, G43.1, G49 */
 	GK_NOTICE,   /* accepted, no effect on motion */
 	GK_SILENT,   /* accepted, it is what mlip does anyway (G91.1) */
 	GK_UNSUP
@@ -58,7 +59,8 @@ static const struct gdef gtab[] = {
     {280, 280, GK_HOME, GR_NONMODAL, 0},
     {300, 300, GK_HOME, GR_NONMODAL, 0},
     {400, 400, GK_NOTICE, GR_CUTTER, 0},
-    {490, 490, GK_NOTICE, GR_TOOLLEN, 0},
+    {430, 431, GK_TOOLLEN, GR_TOOLLEN, 0},
+    {490, 490, GK_TOOLLEN, GR_TOOLLEN, 0},
     {530, 530, GK_G53, GR_NONMODAL, 0},
     {40, 40, GK_DWELL, GR_NONMODAL, 0},
     {100, 100, GK_G10, GR_NONMODAL, 0},
@@ -84,7 +86,7 @@ static const struct gdef gtab[] = {
     {760, 760, GK_UNSUP, 0, "threading cycle"},
     {382, 385, GK_UNSUP, 0, "probing"},
     {410, 421, GK_UNSUP, 0, "cutter radius compensation"},
-    {430, 432, GK_UNSUP, 0, "tool length offset"},
+    {432, 432, GK_UNSUP, 0, "an additional tool length offset (G43.2)"},
     {520, 520, GK_UNSUP, 0, "local offsets (use G92 or G10 L2)"},
     {730, 730, GK_UNSUP, 0, "canned cycles"},
     {810, 890, GK_UNSUP, 0, "canned cycles"},
@@ -142,9 +144,21 @@ int mlip_gc_code_of(double v)
 
 /* Everything one line says, each word checked alone. */
 
+static void word_text(char *w, char letter, int code10);
+
 static void note_word(struct blk *b, char letter, int code10)
 {
-	char *w = b->notes[b->n_notes++];
+	word_text(b->notes[b->n_notes++], letter, code10);
+}
+
+/* An I/O word: a notice when the reader has no machine I/O (io.c). */
+static void note_io(struct blk *b, char letter, int code10)
+{
+	word_text(b->io_notes[b->n_io_notes++], letter, code10);
+}
+
+static void word_text(char *w, char letter, int code10)
+{
 	int k = 0;
 
 	w[k++] = letter;
@@ -234,6 +248,13 @@ static mlip_status classify_g(const struct word *w, uint32_t line, struct blk *b
 	case GK_FEEDMODE:
 		b->feedmode = c / 10;
 		break;
+	case GK_TOOLLEN:
+		b->g43 = c;
+		b->g43_col = w->col;
+		if (c == 490) {
+			note_io(b, 'G', c);
+		}
+		break;
 	case GK_NOTICE:
 		note_word(b, 'G', c);
 		break;
@@ -295,6 +316,45 @@ mlip_status mlip_gc_classify(const struct lexed *lx, uint32_t line, struct blk *
 				b->end = 1;
 				b->end_col = w->col;
 				note_word(b, 'M', c);
+			} else if (c == 30 || c == 40 || c == 50) {
+				/* modal group 7 (LinuxCNC): one of them a line */
+				if (b->spindle_m) {
+					return mlip_gc_fail(
+					    e, line, w->col, MLIP_E_SYNTAX,
+					    "M%u and M%u on one line: same modal group (spindle)",
+					    (unsigned)b->spindle_m, (unsigned)(c / 10));
+				}
+				b->spindle_m = c / 10;
+				b->spindle_col = w->col;
+				note_io(b, 'M', c);
+			} else if (c == 60 || c == 610) {
+				/* modal group 6: M6 or M61 */
+				if (b->m6 || b->m61) {
+					return mlip_gc_fail(
+					    e, line, w->col, MLIP_E_SYNTAX,
+					    "M6 and M61 on one line: same modal group "
+					    "(tool change)");
+				}
+				b->m6 = c == 60;
+				b->m61 = c == 610;
+				b->m6_col = b->m61_col = w->col;
+				note_io(b, 'M', c);
+			} else if (c == 70 || c == 80 || c == 90) {
+				/* group 8: M7 and M8 together turn both on; M9 alone */
+				if ((c == 90 && b->coolant_m) || (c != 90 && b->m9)) {
+					return mlip_gc_fail(e, line, w->col, MLIP_E_SYNTAX,
+					                    "M9 with M7 or M8 on one line: coolant "
+					                    "off and on at once");
+				}
+				note_io(b, 'M', c);
+				if (c == 90) {
+					b->m9 = 1;
+					b->m9_col = w->col;
+				} else {
+					b->coolant_m |=
+					    c == 70 ? MLIP_COOLANT_MIST : MLIP_COOLANT_FLOOD;
+					b->coolant_col = b->coolant_col ? b->coolant_col : w->col;
+				}
 			} else {
 				note_word(b, 'M', c);
 			}
@@ -347,8 +407,21 @@ mlip_status mlip_gc_classify(const struct lexed *lx, uint32_t line, struct blk *
 			b->l_col = w->col;
 			break;
 		case 'S':
+			b->has_s = 1;
+			b->s = w->value;
+			b->s_col = w->col;
+			note_io(b, 'S', -1);
+			break;
 		case 'T':
-			note_word(b, L, -1);
+			b->has_t = 1;
+			b->t = w->value;
+			b->t_col = w->col;
+			note_io(b, 'T', -1);
+			break;
+		case 'H':
+			b->has_h = 1;
+			b->h = w->value;
+			b->h_col = w->col;
 			break;
 		case 'N':
 			break; /* line numbers: ignored */
@@ -376,8 +449,19 @@ static mlip_status classify_params(const struct blk *b, uint32_t line, struct ml
 		    n ? "P word with two of G4, G10, G64: put them on separate lines"
 		      : "P word without G4, G10 or G64");
 	}
-	if (b->has_q && !b->g64) {
-		return mlip_gc_fail(e, line, b->q_col, MLIP_E_SYNTAX, "Q word without G64");
+	if (b->has_q && !b->g64 && !b->m61) {
+		return mlip_gc_fail(e, line, b->q_col, MLIP_E_SYNTAX, "Q word without G64 or M61");
+	}
+	if (b->has_q && b->g64 && b->m61) {
+		return mlip_gc_fail(e, line, b->q_col, MLIP_E_SYNTAX,
+		                    "Q word with both G64 and M61: put them on separate lines");
+	}
+	if (b->m61 && !b->has_q) {
+		return mlip_gc_fail(e, line, b->m61_col, MLIP_E_SYNTAX,
+		                    "M61 without Q: give the tool in the spindle, e.g. M61 Q2");
+	}
+	if (b->has_h && b->g43 != 430) {
+		return mlip_gc_fail(e, line, b->h_col, MLIP_E_SYNTAX, "H word without G43");
 	}
 	if (b->has_l && !b->g10) {
 		return mlip_gc_fail(e, line, b->l_col, MLIP_E_SYNTAX, "L word without G10");
@@ -393,8 +477,8 @@ static mlip_status classify_params(const struct blk *b, uint32_t line, struct ml
 		if (!b->has_l || (b->l != 2 && b->l != 20)) {
 			return mlip_gc_fail(
 			    e, line, b->has_l ? b->l_col : b->g10_col, MLIP_E_UNSUPPORTED,
-			    "G10 without L2 or L20: only work offsets can be set (mlip has no "
-			    "tool table)");
+			    "G10 without L2 or L20: only work offsets can be set (the tool table "
+			    "is a file: edit it, then mlip-tools --accept FILE)");
 		}
 		if (!b->has_p || b->p != floor(b->p) || b->p < 0 || b->p > 9) {
 			return mlip_gc_fail(

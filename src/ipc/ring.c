@@ -37,7 +37,9 @@
 MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 88);
 MLIP_RING_CHECK(rec_align, sizeof(struct mlip_ring_rec) % 8 == 0);
 MLIP_RING_CHECK(rec_target, offsetof(struct mlip_ring_rec, target) == 16);
-MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1152);
+MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1280);
+MLIP_RING_CHECK(off_io, offsetof(struct mlip_ring, io) == 1152);
+MLIP_RING_CHECK(io_size, sizeof(struct mlip_ring_io) == 88);
 MLIP_RING_CHECK(hdr_lines, sizeof(struct mlip_ring) % MLIP_RING_LINE == 0);
 MLIP_RING_CHECK(line_pow2, MLIP_RING_IS_POW2(MLIP_RING_LINE));
 MLIP_RING_CHECK(max_pow2, MLIP_RING_IS_POW2(MLIP_RING_MAX_CAPACITY));
@@ -45,7 +47,7 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 320);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 336);
 MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 576);
 MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 584);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 40);
@@ -166,6 +168,45 @@ mlip_status mlip_ring_format_machine(void *mem, size_t bytes, uint32_t capacity,
 void mlip_ring_machine(const struct mlip_ring *r, struct mlip_machine *out)
 {
 	*out = r->machine; /* immutable once the magic is published */
+}
+
+void mlip_ring_io_publish(struct mlip_ring *r, const struct mlip_ring_io *io)
+{
+	struct mlip_ring_io *d = &r->io;
+	int i;
+
+	ST(&d->spindle, io->spindle, RLX);
+	ST(&d->tool_change, io->tool_change, RLX);
+	ST(&d->coolant, io->coolant, RLX);
+	ST(&d->change_mask, io->change_mask, RLX);
+	STD(&d->min_rpm, &io->min_rpm);
+	STD(&d->max_rpm, &io->max_rpm);
+	for (i = 0; i < MLIP_MAX_AXES; i++) {
+		STD(&d->change_pos[i], &io->change_pos[i]);
+	}
+	ST(&d->published, 1u, REL);
+}
+
+mlip_status mlip_ring_io_read(const struct mlip_ring *r, struct mlip_ring_io *out)
+{
+	const struct mlip_ring_io *d = &r->io;
+	int i;
+
+	memset(out, 0, sizeof(*out));
+	if (LD(&d->published, ACQ) != 1u) {
+		return MLIP_E_EMPTY;
+	}
+	out->published = 1;
+	out->spindle = LD(&d->spindle, RLX);
+	out->tool_change = LD(&d->tool_change, RLX);
+	out->coolant = LD(&d->coolant, RLX);
+	out->change_mask = LD(&d->change_mask, RLX);
+	LDD(&d->min_rpm, &out->min_rpm);
+	LDD(&d->max_rpm, &out->max_rpm);
+	for (i = 0; i < MLIP_MAX_AXES; i++) {
+		LDD(&d->change_pos[i], &out->change_pos[i]);
+	}
+	return MLIP_OK;
 }
 
 static mlip_status refuse(struct mlip_ring_mismatch *why, mlip_ring_reason reason, uint64_t found,
@@ -445,9 +486,10 @@ mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ri
 	return MLIP_OK;
 }
 
-/* block kind <-> record type: the same four events in both (types.h) */
-static const uint16_t kind_type[] = {MLIP_REC_MOVE, MLIP_REC_DWELL, MLIP_REC_PAUSE,
-                                     MLIP_REC_OPTIONAL_PAUSE};
+/* block kind <-> record type: the same events in both (types.h) */
+static const uint16_t kind_type[] = {MLIP_REC_MOVE,           MLIP_REC_DWELL,   MLIP_REC_PAUSE,
+                                     MLIP_REC_OPTIONAL_PAUSE, MLIP_REC_SPINDLE, MLIP_REC_TOOL,
+                                     MLIP_REC_COOLANT};
 
 void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b, uint64_t seq)
 {
@@ -466,7 +508,7 @@ void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block
 	}
 	rec->feed_mm_s = b->feed_mm_s;
 	rec->tol_mm = b->tol_mm;
-	rec->dwell_s = b->dwell_s;
+	rec->dwell_s = b->kind >= MLIP_BLOCK_SPINDLE ? b->value : b->dwell_s;
 }
 
 void mlip_ring_rec_end(struct mlip_ring_rec *rec, uint64_t seq, uint32_t line)
@@ -497,6 +539,15 @@ mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_
 	case MLIP_REC_OPTIONAL_PAUSE:
 		kind = MLIP_BLOCK_OPTIONAL_PAUSE;
 		break;
+	case MLIP_REC_SPINDLE:
+		kind = MLIP_BLOCK_SPINDLE;
+		break;
+	case MLIP_REC_TOOL:
+		kind = MLIP_BLOCK_TOOL;
+		break;
+	case MLIP_REC_COOLANT:
+		kind = MLIP_BLOCK_COOLANT;
+		break;
 	default:
 		return MLIP_E_INVALID;
 	}
@@ -511,7 +562,11 @@ mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_
 	b->rapid = (rec->flags & MLIP_REC_RAPID) ? 1 : 0;
 	b->kind = kind;
 	b->exact_stop = (rec->flags & MLIP_REC_EXACT) ? 1 : 0;
-	b->dwell_s = rec->dwell_s;
+	if (kind >= MLIP_BLOCK_SPINDLE) {
+		b->value = rec->dwell_s;
+	} else {
+		b->dwell_s = rec->dwell_s;
+	}
 	return MLIP_OK;
 }
 
@@ -561,6 +616,10 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 		STD(&d->prog_start[k], &s->prog_start[k]);
 	}
 	ST(&d->stop_seen, s->stop_seen, REL);
+	ST(&d->io_inputs, s->io_inputs, REL);
+	ST(&d->io_mapped, s->io_mapped, REL);
+	ST(&d->io_known, s->io_known, REL);
+	ST(&d->homed, s->homed, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -613,7 +672,11 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 			LDD(&d->prog_start[k], &s->prog_start[k]);
 		}
 		s->stop_seen = LD(&d->stop_seen, ACQ);
-		s->spare6 = 0;
+		s->io_inputs = LD(&d->io_inputs, ACQ);
+		s->io_mapped = LD(&d->io_mapped, ACQ);
+		s->io_known = LD(&d->io_known, ACQ);
+		s->homed = LD(&d->homed, ACQ);
+		s->spare7 = 0;
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -769,8 +832,8 @@ int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
-	static const char *const names[] = {"none",   "override", "hold",
-	                                    "resume", "stop",     "optional-stop"};
+	static const char *const names[] = {"none",          "override", "hold", "resume", "stop",
+	                                    "optional-stop", "reset",    "jog",  "home"};
 
 	return NAME_OF(names, op);
 }
@@ -778,7 +841,7 @@ const char *mlip_ring_cmd_name(uint32_t op)
 const char *mlip_rec_field_name(uint32_t field)
 {
 	static const char *const names[] = {
-	    "none", "seq",       "type",      "flags",     "feed",      "tol",       "dwell",
+	    "none", "seq",       "type",      "flags",     "feed",      "tol",       "dwell/value",
 	    "head", "target[0]", "target[1]", "target[2]", "target[3]", "target[4]", "target[5]"};
 
 	return NAME_OF(names, field);
@@ -786,7 +849,8 @@ const char *mlip_rec_field_name(uint32_t field)
 
 const char *mlip_rec_type_name(uint32_t type)
 {
-	static const char *const names[] = {"move", "end", "dwell", "pause", "optional pause"};
+	static const char *const names[] = {"move",           "end",     "dwell", "pause",
+	                                    "optional pause", "spindle", "tool",  "coolant"};
 
 	return NAME_OF(names, type);
 }

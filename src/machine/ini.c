@@ -117,8 +117,9 @@ static mlip_status check_bytes(const char *s, size_t n, uint32_t line,
 static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size_t p, uint32_t line,
                                 struct mlip_config_error *err)
 {
-	static const char *const names[] = {"TRAJ",   "AXIS_X", "AXIS_Y", "AXIS_Z", "AXIS_A",
-	                                    "AXIS_B", "AXIS_C", "CAN",    "DRIVES"};
+	static const char *const names[] = {"TRAJ",   "AXIS_X",  "AXIS_Y", "AXIS_Z", "AXIS_A",
+	                                    "AXIS_B", "AXIS_C",  "CAN",    "DRIVES", "SPINDLE",
+	                                    "TOOL",   "COOLANT", "IO"};
 	size_t q = p + 1, r, a, z;
 	struct mlip_tb b;
 	int sec;
@@ -168,7 +169,8 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
 			mlip_tb_puts(&b, "]?)");
 		} else {
 			mlip_tb_puts(&b,
-			             " (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
+			             " (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES], "
+			             "[SPINDLE], [TOOL], [COOLANT], [IO])");
 		}
 		return MLIP_E_SYNTAX;
 	}
@@ -191,12 +193,13 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
  * belongs anywhere: "[TRAJ]", "an [AXIS_*] section", "[CAN]". */
 static const char *home_of(const char *s, size_t n, int except_kind)
 {
-	static const char *const where[N_KINDS] = {"[TRAJ]", "an [AXIS_*] section", "[CAN]",
-	                                           "[DRIVES]"};
+	static const char *const where[N_KINDS] = {
+	    "[TRAJ]", "an [AXIS_*] section", "[CAN]", "[DRIVES]", "[SPINDLE]",
+	    "[TOOL]", "[COOLANT]",           "[IO]"};
 	int kd, k;
 
 	for (kd = 0; kd < N_KINDS; kd++) {
-		for (k = 0; kd != except_kind && k < NKEYS; k++) {
+		for (k = 0; kd != except_kind && k < nkeys(kd); k++) {
 			if (tok_is(s, n, mlip_mc_keytab[kd][k].name)) {
 				return where[kd];
 			}
@@ -280,9 +283,12 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 	switch (kd->type) {
 	case V_COORDS:
 		return parse_coords(ps, v, nv, line, col, err);
+	case V_IOBIT:
+		return mlip_mc_parse_iobit(v, nv, line, col, kd->name, &st->ival[k], err);
 	case V_POS:
 	case V_REAL:
 	case V_PERIOD:
+	case V_RPM:
 		rc = parse_real(v, nv, &x);
 		if (rc != 0) {
 			err_at(err, &b, line, col);
@@ -298,6 +304,10 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		}
 		if (kd->type == V_POS && !(x > 0)) {
 			return range_err(err, line, col, kd->name, " must be > 0", v, nv);
+		}
+		if (kd->type == V_RPM && !(x >= 0 && x <= 1e6)) {
+			return range_err(err, line, col, kd->name, " must be within 0..1000000 rpm",
+			                 v, nv);
 		}
 		if (kd->type == V_PERIOD &&
 		    !(x >= MLIP_CONFIG_PERIOD_MIN_S && x <= MLIP_CONFIG_PERIOD_MAX_S)) {
@@ -337,6 +347,23 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		mlip_tb_token(&b, v, nv);
 		mlip_tb_putc(&b, '\'');
 		return MLIP_E_SYNTAX;
+	case V_IO:
+		i = tok_is(v, nv, "none")     ? MLIP_IO_NONE
+		    : tok_is(v, nv, "manual") ? MLIP_IO_MANUAL
+		                              : -1;
+		if (i < 0) {
+			err_at(err, &b, line, col);
+			mlip_tb_puts(&b, kd->name);
+			mlip_tb_puts(&b, " must be none or manual, got '");
+			mlip_tb_token(&b, v, nv);
+			mlip_tb_putc(&b, '\'');
+			if (sec == SEC_SPINDLE && tok_is(v, nv, "cia402")) {
+				mlip_tb_puts(&b, " (a CiA 402 spindle drive is not supported yet)");
+			}
+			return MLIP_E_SYNTAX;
+		}
+		st->ival[k] = i;
+		return MLIP_OK;
 	case V_TYPE:
 	case V_PROFILE:
 		if (kd->type == V_TYPE) {
@@ -391,6 +418,14 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		if (kd->type == V_DBITRATE && (i < BITRATE_MIN || i > DATA_BITRATE_MAX)) {
 			return range_err(err, line, col, kd->name,
 			                 " must be within 10000..12000000 bit/s", v, nv);
+		}
+		if (kd->type == V_METHOD && (i < -128 || i > 127)) {
+			return range_err(err, line, col, kd->name,
+			                 " must be within -128..127 (0x6098 is an INTEGER8)", v,
+			                 nv);
+		}
+		if (kd->type == V_SEQUENCE && (i < 0 || i > 9)) {
+			return range_err(err, line, col, kd->name, " must be within 0..9", v, nv);
 		}
 		if (kd->type == V_BOOL && i != 0 && i != 1) {
 			return range_err(err, line, col, kd->name, " must be 0 or 1", v, nv);
@@ -470,14 +505,14 @@ static mlip_status parse_line(struct pstate *ps, const char *s, size_t n, uint32
 		return MLIP_E_SYNTAX;
 	}
 	kind = sec_kind(ps->cur);
-	for (k = 0; k < NKEYS; k++) {
+	for (k = 0; k < nkeys(kind); k++) {
 		names[k] = mlip_mc_keytab[kind][k].name;
 		if (tok_is(s + k0, nk, names[k])) {
 			break;
 		}
 	}
-	if (k == NKEYS) {
-		const char *hint = mlip_mc_suggest(s + k0, nk, names, NKEYS);
+	if (k == nkeys(kind)) {
+		const char *hint = mlip_mc_suggest(s + k0, nk, names, nkeys(kind));
 		const char *where = hint == NULL ? home_of(s + k0, nk, kind) : NULL;
 		err_at(err, &b, line, (uint32_t)k0 + 1);
 		mlip_tb_puts(&b, "unknown key ");
@@ -833,6 +868,16 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
 	st = check_can(&ps, &out, err);
 	if (st == MLIP_OK) {
 		st = mlip_mc_check_drives(&ps, &out, err);
+	}
+	if (st == MLIP_OK) {
+		mlip_mc_fill_io(&ps, &out);
+		st = mlip_mc_check_io(&ps, &out, err);
+	}
+	if (st == MLIP_OK) {
+		st = mlip_mc_fill_inputs(&ps, &out, err);
+	}
+	if (st == MLIP_OK) {
+		st = mlip_mc_fill_home(&ps, &out, err);
 	}
 	if (st != MLIP_OK) {
 		return st;

@@ -20,7 +20,17 @@ const struct keydef mlip_mc_keytab[N_KINDS][NKEYS] = {
                 {"MAX_LIMIT", V_REAL, 0},
                 {"HOME", V_REAL, 0},
                 {"CAN_NODE", V_NODE, 0},
-                {"COUNTS_PER_UNIT", V_POS, 0}},
+                {"COUNTS_PER_UNIT", V_POS, 0},
+                {"LIMIT_NEG", V_IOBIT, 0},
+                {"LIMIT_POS", V_IOBIT, 0},
+                {"HOME_SWITCH", V_IOBIT, 0},
+                {"HOME_METHOD", V_METHOD, 0},
+                {"HOME_SEARCH_VEL", V_POS, 0},
+                {"HOME_LATCH_VEL", V_POS, 0},
+                {"HOME_ACCEL", V_POS, 0},
+                {"HOME_OFFSET", V_REAL, 0},
+                {"HOME_SEQUENCE", V_SEQUENCE, 0},
+                {"HOME_TIMEOUT", V_POS, 0}},
     [K_CAN] = {{"PROFILE", V_PROFILE, 0},
                {"BITRATE", V_BITRATE, 0},
                {"DATA_BITRATE", V_DBITRATE, 0},
@@ -36,7 +46,22 @@ const struct keydef mlip_mc_keytab[N_KINDS][NKEYS] = {
                   {"FOLLOWING_ERROR", V_POS, 0},
                   {"SDO_TIMEOUT_MS", V_MS, 0},
                   {"BOOT_TIMEOUT_MS", V_MS, 0},
-                  {"STATE_TIMEOUT_MS", V_MS, 0}},
+                  {"STATE_TIMEOUT_MS", V_MS, 0},
+                  {"HOMING_REQUIRED", V_BOOL, 0}},
+    [K_SPINDLE] = {{"TYPE", V_IO, 0}, {"MIN_RPM", V_RPM, 0}, {"MAX_RPM", V_RPM, 0}},
+    [K_TOOL] = {{"CHANGE", V_IO, 0},
+                {"CHANGE_X", V_REAL, 0},
+                {"CHANGE_Y", V_REAL, 0},
+                {"CHANGE_Z", V_REAL, 0},
+                {"CHANGE_A", V_REAL, 0},
+                {"CHANGE_B", V_REAL, 0},
+                {"CHANGE_C", V_REAL, 0}},
+    [K_COOLANT] = {{"TYPE", V_IO, 0}},
+    [K_IO] = {{"NODE", V_NODE, 0},
+              {"ESTOP", V_IOBIT, 0},
+              {"HOLD", V_IOBIT, 0},
+              {"CYCLE_START", V_IOBIT, 0},
+              {"PROBE", V_IOBIT, 0}},
 };
 
 /* "TRAJ", "CAN", "AXIS_X", ... */
@@ -48,6 +73,14 @@ void mlip_mc_secname(struct mlip_tb *b, int sec)
 		mlip_tb_puts(b, "CAN");
 	} else if (sec == SEC_DRIVES) {
 		mlip_tb_puts(b, "DRIVES");
+	} else if (sec == SEC_SPINDLE) {
+		mlip_tb_puts(b, "SPINDLE");
+	} else if (sec == SEC_TOOL) {
+		mlip_tb_puts(b, "TOOL");
+	} else if (sec == SEC_COOLANT) {
+		mlip_tb_puts(b, "COOLANT");
+	} else if (sec == SEC_IO) {
+		mlip_tb_puts(b, "IO");
 	} else {
 		mlip_tb_puts(b, "AXIS_");
 		mlip_tb_putc(b, AXIS_LETTERS[sec - SEC_AXIS0]);

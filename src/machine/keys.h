@@ -19,19 +19,49 @@
 #include "mlip/machine/config.h"
 #include "mlip/text/format.h"
 
-#define NKEYS            8 /* keys per section kind (every kind has eight) */
+#define NKEYS            24 /* keys per section kind at most (a NULL name ends a kind's) */
 #define BITRATE_MIN      10000
 #define BITRATE_MAX      1000000  /* classical CAN, and the CAN FD arbitration phase */
 #define DATA_BITRATE_MAX 12000000 /* CAN FD data phase */
 #define LIMIT_DEFAULT    1e9      /* soft limits when not given: none, in practice */
 #define AXIS_LETTERS     "XYZABC"
 
-/* Sections by index: TRAJ, one per axis letter (XYZABC order), CAN, DRIVES. */
-enum { SEC_TRAJ = 0, SEC_AXIS0 = 1, SEC_CAN = SEC_AXIS0 + MLIP_MAX_AXES, SEC_DRIVES, N_SEC };
-enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, N_KINDS };
+/* Sections by index: TRAJ, one per axis letter (XYZABC order), CAN, DRIVES, SPINDLE,
+ * TOOL, COOLANT, IO. */
+enum {
+	SEC_TRAJ = 0,
+	SEC_AXIS0 = 1,
+	SEC_CAN = SEC_AXIS0 + MLIP_MAX_AXES,
+	SEC_DRIVES,
+	SEC_SPINDLE,
+	SEC_TOOL,
+	SEC_COOLANT,
+	SEC_IO,
+	N_SEC
+};
+enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, K_SPINDLE, K_TOOL, K_COOLANT, K_IO, N_KINDS };
 
 enum { TK_COORDS, TK_VLIN, TK_VANG, TK_TOL, TK_PERIOD, TK_LUNITS, TK_AUNITS, TK_LOOKAHEAD };
-enum { AK_TYPE, AK_VEL, AK_ACC, AK_MIN, AK_MAX, AK_HOME, AK_NODE, AK_CPU };
+enum {
+	AK_TYPE,
+	AK_VEL,
+	AK_ACC,
+	AK_MIN,
+	AK_MAX,
+	AK_HOME,
+	AK_NODE,
+	AK_CPU,
+	AK_LIMIT_NEG, /* inputs (issue 18): a limit switch each way, the home switch */
+	AK_LIMIT_POS,
+	AK_HOME_SW,
+	AK_HOME_METHOD, /* homing with the drive's homing mode (issue 18) */
+	AK_HOME_SEARCH_VEL,
+	AK_HOME_LATCH_VEL,
+	AK_HOME_ACCEL,
+	AK_HOME_OFFSET,
+	AK_HOME_SEQUENCE,
+	AK_HOME_TIMEOUT
+};
 /* [CAN] keys in the order of enum mlip_can_key (mlip/can/canconf.h) */
 enum {
 	CK_PROFILE = MLIP_CAN_KEY_PROFILE,
@@ -43,7 +73,23 @@ enum {
 	CK_FD = MLIP_CAN_KEY_FD_ID,
 	CK_STATUS = MLIP_CAN_KEY_STATUS_ID
 };
-enum { DK_ENABLE, DK_MASTER, DK_HB, DK_HB_TIMEOUT, DK_FERR, DK_SDO, DK_BOOT, DK_STATE };
+enum {
+	DK_ENABLE,
+	DK_MASTER,
+	DK_HB,
+	DK_HB_TIMEOUT,
+	DK_FERR,
+	DK_SDO,
+	DK_BOOT,
+	DK_STATE,
+	DK_HOMING_REQUIRED
+};
+/* [IO]: the CiA 401 module's node, then the inputs in the order of MLIP_IN_* */
+enum { IK_NODE, IK_ESTOP, IK_HOLD, IK_CYCLE_START, IK_PROBE };
+enum { SK_TYPE, SK_MIN_RPM, SK_MAX_RPM };
+/* [TOOL]: CHANGE, then CHANGE_X .. CHANGE_C in AXIS_LETTERS order */
+enum { OK_CHANGE, OK_POS0 };
+enum { QK_TYPE };
 
 /* How a value is read and which single-value range it must meet. */
 enum vtype {
@@ -61,7 +107,12 @@ enum vtype {
 	V_DBITRATE,  /* integer BITRATE_MIN..DATA_BITRATE_MAX */
 	V_ID,        /* integer 0..0x7FF */
 	V_BOOL,      /* 0 | 1 */
-	V_MS         /* integer 1..65535 (CiA 301 heartbeat times are 16-bit ms) */
+	V_MS,        /* integer 1..65535 (CiA 301 heartbeat times are 16-bit ms) */
+	V_IO,        /* none | manual (a spindle, a tool change, coolant) */
+	V_RPM,       /* decimal >= 0 */
+	V_IOBIT,     /* NODE INDEX:SUB BIT HIGH|LOW (io.c) */
+	V_METHOD,    /* integer -128..127 (0x6098, INTEGER8) */
+	V_SEQUENCE   /* integer 0..9 (HOME_SEQUENCE) */
 };
 
 struct keydef {
@@ -74,10 +125,14 @@ extern const struct keydef mlip_mc_keytab[N_KINDS][NKEYS];
 
 static inline int sec_kind(int sec)
 {
-	return sec == SEC_TRAJ     ? K_TRAJ
-	       : sec == SEC_CAN    ? K_CAN
-	       : sec == SEC_DRIVES ? K_DRIVES
-	                           : K_AXIS;
+	return sec == SEC_TRAJ      ? K_TRAJ
+	       : sec == SEC_CAN     ? K_CAN
+	       : sec == SEC_DRIVES  ? K_DRIVES
+	       : sec == SEC_SPINDLE ? K_SPINDLE
+	       : sec == SEC_TOOL    ? K_TOOL
+	       : sec == SEC_COOLANT ? K_COOLANT
+	       : sec == SEC_IO      ? K_IO
+	                            : K_AXIS;
 }
 
 static inline int letter_index(char l)
@@ -155,6 +210,43 @@ struct issue {
 
 mlip_status mlip_mc_check_machine(const struct mlip_machine *m, struct mlip_config_error *err,
                                   struct issue *is);
+
+/* Keys of a kind (its names before the first NULL). */
+static inline int nkeys(int kind)
+{
+	int k = 0;
+
+	while (k < NKEYS && mlip_mc_keytab[kind][k].name != NULL) {
+		k++;
+	}
+	return k;
+}
+
+/* ---- io.c ---- */
+
+void mlip_mc_fill_io(const struct pstate *ps, struct mlip_config *c);
+mlip_status mlip_mc_check_io(const struct pstate *ps, const struct mlip_config *c,
+                             struct mlip_config_error *err);
+
+/* ---- inputs.c ---- */
+
+/* A V_IOBIT value "NODE INDEX:SUB BIT HIGH|LOW" into *packed (mlip_mc_iobit
+ * unpacks it); errors at line, col + the token's offset. */
+mlip_status mlip_mc_parse_iobit(const char *v, size_t nv, uint32_t line, uint32_t col,
+                                const char *key, int64_t *packed, struct mlip_config_error *err);
+/* [IO] and the axes' input keys into c->inputs, then against the machine: every
+ * node is the module's or an axis', the object fits the node, no bit carries
+ * two functions. */
+mlip_status mlip_mc_fill_inputs(const struct pstate *ps, struct mlip_config *c,
+                                struct mlip_config_error *err);
+
+/* ---- home.c ---- */
+
+/* The axes' HOME_* keys and HOMING_REQUIRED into c->home, checked: no
+ * HOME_* without HOME_METHOD, HOME_OFFSET inside the soft limits, the
+ * drives' units (counts/s, counts/s^2, counts) within their objects. */
+mlip_status mlip_mc_fill_home(const struct pstate *ps, struct mlip_config *c,
+                              struct mlip_config_error *err);
 
 /* ---- drives.c ---- */
 

@@ -851,6 +851,27 @@ mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
 	return MLIP_OK;
 }
 
+mlip_status mlip_planner_abort(struct mlip_planner *p, const double *pos)
+{
+	for (int k = 0; k < p->n; k++) {
+		if (!isfinite(pos[k])) {
+			return MLIP_E_INVALID;
+		}
+	}
+	p->head = p->tail;
+	p->in_corner = 0;
+	p->stopping = 0;
+	p->hold = 0;
+	p->prof_valid = 0;
+	p->l_start_mm = 0.0;
+	p->s_mm = 0.0;
+	p->v_mm_s = 0.0;
+	p->tc_s = 0.0;
+	memcpy(p->last_point, pos, sizeof(double) * (size_t)p->n);
+	memcpy(p->pos, pos, sizeof(double) * (size_t)p->n);
+	return MLIP_OK;
+}
+
 void mlip_planner_rest_here(struct mlip_planner *p)
 {
 	if (p->in_corner) {

@@ -262,8 +262,10 @@ def test_supervision(sim, tmp_path, inject, node, axis, reasons):
     s_inj = min((x["sync"] - s0 for x in rows if x["t"] >= t_inj), default=None)
     print(f"\n{inject}: {m.group(0)[:160]}; injected at the drives' SYNC {s_inj} of this "
           f"run, detected in period {m.group(2)}")
-    # every other axis at rest at the end, within the limits on the way
-    others = [n for n in (1, 2, 3) if n != node]
+    # every other axis at rest at the end, within the limits on the way; a
+    # drive whose heartbeat is lost may still listen: it too gets the stop on
+    # the path (issue 18), and is disabled like the others
+    others = [n for n in (1, 2, 3) if n != node or "heartbeat" in inject]
     seq = targets_by_sync(rows, others)
     assert len(seq) > 10 and len(set(seq[-5:])) == 1, seq[-5:]
     lim = MachineLimits.of(S, cfg)
@@ -271,6 +273,10 @@ def test_supervision(sim, tmp_path, inject, node, axis, reasons):
                          "accel": [lim.accel[n - 1] for n in others]})
     within_limits(seq, sub)
     assert r["rt_rc"] == 0, log
+    # no drive is left enabled when mlip-rt exits
+    for n in (1, 2, 3):
+        st = [e["to"] for e in sim.events("state", n) if e["t"] >= t0]
+        assert st and st[-1] != "operation enabled", (n, st)
 
 
 def test_second_controller_leaves_drives_alone(sim, tmp_path):

@@ -113,7 +113,7 @@ def test_ctl_override_rejected(shm, pct):
 
 @pytest.mark.parametrize("args,msg", [
     ([], "usage: mlip-ctl"),
-    (["jog"], "unknown command 'jog'"),
+    (["jig"], "unknown command 'jig'"),
     (["override"], "override: missing PCT"),
     (["hold", "now"], "hold: unexpected 'now'"),
     (["override", "50", "60"], "override: unexpected '60'"),

@@ -68,7 +68,8 @@ def test_mlip_check_agrees_and_fails_on_violation(tmp_path):
 
 def test_rotary_config_trace_header(tmp_path):
     trace = tmp_path / "r.csv"
-    s = sim_summary(TOOLPATHS / "4006.nc", "--config", CONFIG / "rotary-4axis.ini", "--trace", trace)
+    s = sim_summary(TOOLPATHS / "4006.nc", "--config", CONFIG / "rotary-4axis.ini",
+                    "--ignore-spindle", "--ignore-tools", "--trace", trace)
     header, d = load_trace(trace)
     assert header == ["t", "x", "y", "z", "a"]
     assert s["axes"] == "XYZA"

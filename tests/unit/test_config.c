@@ -367,7 +367,8 @@ static void test_sections(void **state)
 {
 	(void)state;
 	EXPECT(CFG(.tail = "[FOO]"), MLIP_E_SYNTAX, 14, 2,
-	       "unknown section [FOO] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
+	       "unknown section [FOO] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES], "
+	       "[SPINDLE], [TOOL], [COOLANT], [IO])");
 	EXPECT(CFG(.tail = "[traj]"), MLIP_E_SYNTAX, 14, 2,
 	       "unknown section [traj] (did you mean [TRAJ]?)");
 	EXPECT(CFG(.tail = "[AXIS_x]"), MLIP_E_SYNTAX, 14, 2,
@@ -378,7 +379,8 @@ static void test_sections(void **state)
 	       "unknown section [AXIS_W] (axis letters are X Y Z A B C)");
 	EXPECT(
 	    CFG(.tail = "[JOINT_0]"), MLIP_E_SYNTAX, 14, 2,
-	    "unknown section [JOINT_0] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES])");
+	    "unknown section [JOINT_0] (sections are [TRAJ], [AXIS_X]..[AXIS_C], [CAN], [DRIVES], "
+	    "[SPINDLE], [TOOL], [COOLANT], [IO])");
 	EXPECT(CFG(.tail = "  [ TRAJ ]"), MLIP_E_SYNTAX, 14, 5,
 	       "duplicate section [TRAJ] (first at line 1)");
 	EXPECT(CFG(.tail = "[AXIS_X]"), MLIP_E_SYNTAX, 14, 2,
@@ -845,6 +847,108 @@ static void test_drives(void **state)
 	/* without the section, the defaults are not checked against the nodes
 	 * (mlip-rt --drives does that) */
 	EXPECT_OK(CFG(.x = "CAN_NODE = 127"));
+}
+
+/* [IO] and the axes' input keys (issue 18): NODE INDEX:SUB BIT HIGH|LOW, the
+ * node the module's or a drive's, the object fitting the node, one function
+ * a bit; each error on its key (line 15: the section's first key). */
+static void test_io(void **state)
+{
+	(void)state;
+	EXPECT_OK(CFG(.tail = ""));
+	assert_int_equal(cfg.inputs.node, 0);
+	assert_int_equal(cfg.inputs.mapped, 0);
+	EXPECT_OK(
+	    CFG(.x = "LIMIT_POS = 1 0x60FD:0 1 HIGH",
+	        .tail = "[IO]\nNODE = 10\nESTOP = 10 0x6000:2 7 LOW\nHOLD = 10 0x6000:1 0 HIGH"));
+	assert_int_equal(cfg.inputs.node, 10);
+	assert_int_equal(cfg.inputs.in_bytes, 2);
+	assert_int_equal(cfg.inputs.mapped, (1u << MLIP_IN_ESTOP) | (1u << MLIP_IN_HOLD) |
+	                                        (1u << MLIP_IN_LIMIT_POS(0)));
+	const struct mlip_io_bit *e = &cfg.inputs.in[MLIP_IN_ESTOP];
+	assert_true(e->node == 10 && e->index == 0x6000 && e->sub == 2 && e->bit == 7 &&
+	            e->active_low == 1 && e->line == 16);
+	e = &cfg.inputs.in[MLIP_IN_LIMIT_POS(0)];
+	assert_true(e->node == 1 && e->index == 0x60FD && e->sub == 0 && e->bit == 1 &&
+	            e->active_low == 0);
+	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nESTOP = 10 0x6000:1 0 MAYBE"), MLIP_E_SYNTAX, 16, 23,
+	       "ESTOP: the polarity must be HIGH (on when the bit is 1) or LOW (on when 0), got "
+	       "'MAYBE'");
+	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nESTOP = 10 0x6000:1"), MLIP_E_SYNTAX, 16, 20,
+	       "ESTOP must be NODE INDEX:SUB BIT HIGH|LOW (e.g. 10 0x6000:1 0 LOW)");
+	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nESTOP = 10 0x6000:1 0 LOW 5"), MLIP_E_SYNTAX, 16, 27,
+	       "ESTOP must be NODE INDEX:SUB BIT HIGH|LOW (e.g. 10 0x6000:1 0 LOW), got '5'");
+	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nESTOP = 200 0x6000:1 0 LOW"), MLIP_E_SYNTAX, 16, 9,
+	       "ESTOP: NODE must be a node id 1..127, got '200'");
+	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nESTOP = 10 0x6000 0 LOW"), MLIP_E_SYNTAX, 16, 12,
+	       "ESTOP: the object must be INDEX:SUB (e.g. 0x6000:1), got '0x6000'");
+	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nESTOP = 10 0x6000:1 32 LOW"), MLIP_E_SYNTAX, 16, 21,
+	       "ESTOP: BIT must be 0..31, got '32'");
+	/* a node that is neither the module nor a drive */
+	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nHOLD = 12 0x6000:1 0 HIGH"), MLIP_E_RANGE, 16, 1,
+	       "[IO] HOLD: node 12 is neither the I/O module ([IO] NODE 10) nor a drive (an "
+	       "axis' CAN_NODE)");
+	EXPECT(CFG(.tail = "[IO]\nHOLD = 12 0x6000:1 0 HIGH"), MLIP_E_RANGE, 15, 1,
+	       "[IO] HOLD: node 12 is neither the I/O module ([IO] NODE not set) nor a drive (an "
+	       "axis' CAN_NODE)");
+	/* the object must fit the node */
+	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nESTOP = 10 0x6200:1 0 LOW"), MLIP_E_RANGE, 16, 1,
+	       "[IO] ESTOP: the I/O module's inputs are 0x6000:1..8, bits 0..7");
+	EXPECT(CFG(.tail = "[IO]\nNODE = 10\nESTOP = 10 0x6000:1 8 LOW"), MLIP_E_RANGE, 16, 1,
+	       "[IO] ESTOP: the I/O module's inputs are 0x6000:1..8, bits 0..7");
+	EXPECT(CFG(.y = "HOME_SWITCH = 2 0x6000:1 2 HIGH"), MLIP_E_RANGE, 13, 1,
+	       "[AXIS_Y] HOME_SWITCH: a drive's inputs are 0x60FD:0 (digital inputs), bits 0..31");
+	/* two functions on one bit: on the later key, naming the first */
+	EXPECT(CFG(.x = "LIMIT_NEG = 10 0x6000:1 3 HIGH",
+	           .tail = "[IO]\nNODE = 10\nPROBE = 10 0x6000:1 3 HIGH"),
+	       MLIP_E_RANGE, 16, 1,
+	       "[IO] PROBE: node 10 bit 3 of its inputs already carries [AXIS_X] LIMIT_NEG (one "
+	       "function a bit)");
+	/* the module's node is no drive's nor the master's */
+	EXPECT(CFG(.tail = "[IO]\nNODE = 2"), MLIP_E_RANGE, 15, 1,
+	       "[IO] NODE 2 is also the CAN_NODE of AXIS_Y");
+	EXPECT(CFG(.tail = "[IO]\nNODE = 127"), MLIP_E_RANGE, 15, 1,
+	       "[IO] NODE 127 is also the [DRIVES] MASTER_NODE");
+	EXPECT(CFG(.tail = "[IO]\nESTOPP = 1"), MLIP_E_SYNTAX, 15, 1,
+	       "unknown key ESTOPP in [IO] (did you mean ESTOP?)");
+	EXPECT(CFG(.tail = "[IO]\nLIMIT_NEG = 10 0x6000:1 3 HIGH"), MLIP_E_SYNTAX, 15, 1,
+	       "unknown key LIMIT_NEG in [IO] (it belongs in an [AXIS_*] section)");
+}
+
+/* Homing keys (issue 18): defaults, the drive's units, each error on its key. */
+static void test_home(void **state)
+{
+	(void)state;
+	EXPECT_OK(CFG(.x = "HOME_METHOD = 35", .tail = "[DRIVES]\nHOMING_REQUIRED = 1"));
+	const struct mlip_axis_home *h = &cfg.home.axis[0];
+	assert_true(h->configured && h->method == 35 && cfg.home.required == 1);
+	assert_near(h->search_vel, 20.0, 0); /* 10 % of MAX_VELOCITY 200 */
+	assert_near(h->latch_vel, 2.0, 1e-12);
+	assert_near(h->accel, 1000.0, 0);
+	assert_near(h->offset, 0.0, 0);
+	assert_int_equal(h->sequence, 1);
+	assert_near(h->timeout_s, 60.0, 0);
+	assert_false(cfg.home.axis[1].configured);
+	EXPECT_OK(
+	    CFG(.x = "HOME_METHOD = -3\nHOME_SEARCH_VEL = 5\nHOME_LATCH_VEL = 0.5\n"
+	             "HOME_ACCEL = 20\nHOME_OFFSET = -1.5\nHOME_SEQUENCE = 0\nHOME_TIMEOUT = 9"));
+	assert_true(h->method == -3 && h->sequence == 0 && h->offset == -1.5 &&
+	            h->timeout_s == 9.0);
+	EXPECT(CFG(.x = "HOME_METHOD = 128"), MLIP_E_RANGE, 9, 15,
+	       "HOME_METHOD must be within -128..127 (0x6098 is an INTEGER8), got 128");
+	EXPECT(CFG(.x = "HOME_METHOD = 35\nHOME_SEARCH_VEL = 0"), MLIP_E_RANGE, 10, 19,
+	       "HOME_SEARCH_VEL must be > 0, got 0");
+	EXPECT(CFG(.x = "HOME_METHOD = 35\nHOME_SEQUENCE = 10"), MLIP_E_RANGE, 10, 17,
+	       "HOME_SEQUENCE must be within 0..9, got 10");
+	EXPECT(CFG(.y = "HOME_LATCH_VEL = 1"), MLIP_E_RANGE, 13, 1,
+	       "AXIS_Y HOME_LATCH_VEL without HOME_METHOD (homing is configured by the drive's "
+	       "method, 0x6098)");
+	EXPECT(CFG(.x = "MIN_LIMIT = -10\nMAX_LIMIT = 10\nHOME_METHOD = 35\nHOME_OFFSET = 11"),
+	       MLIP_E_RANGE, 12, 1,
+	       "AXIS_X HOME_OFFSET 11 is outside MIN_LIMIT..MAX_LIMIT: the axis would stand "
+	       "beyond its soft limits after homing");
+	EXPECT(CFG(.x = "HOME_METHOD = 35\nHOME_LATCH_VEL = 1e-4"), MLIP_E_RANGE, 10, 1,
+	       "AXIS_X HOME_LATCH_VEL is 0.1 counts/s: not 1..2^32-1 (0x6099, 0x609A)");
 }
 
 static void test_can(void **state)
@@ -1688,6 +1792,8 @@ int main(void)
 	    cmocka_unit_test(test_axis_values),
 	    cmocka_unit_test(test_can),
 	    cmocka_unit_test(test_drives),
+	    cmocka_unit_test(test_io),
+	    cmocka_unit_test(test_home),
 	    cmocka_unit_test(test_bad_caller_defaults),
 	    cmocka_unit_test(test_unchanged_on_error),
 	    cmocka_unit_test(test_check_axes),

@@ -36,6 +36,9 @@ static struct mlip_ctl_drive_fault drv_fault;
 static uint32_t drv_actual_mask;
 static double drv_actual[MLIP_MAX_AXES];
 static uint16_t drv_sw[MLIP_MAX_AXES]; /* the statusword of each drive's TPDO */
+/* the inputs on the bus of the next period (issue 18) */
+static struct mlip_ctl_io io_in;
+static struct mlip_ctl_sdo_res sdo_res_in; /* the drives' SDO answer (homing) */
 /* the segment's stop counter and the feeder's stop_base (mlip/ipc/ring.h) */
 static uint32_t stop_count, feeder_base;
 /* every transition seen since setup: state entered and why */
@@ -80,6 +83,7 @@ static int setup(void **state)
 	stop_count = feeder_base = 0;
 	n_seen = 0;
 	memset(&drv_fault, 0, sizeof(drv_fault));
+	memset(&io_in, 0, sizeof(io_in));
 	drv_actual_mask = 0;
 	return 0;
 }
@@ -115,6 +119,11 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	in.drives.actual_mask = drv_actual_mask;
 	memcpy(in.drives.pos_actual, drv_actual, sizeof(in.drives.pos_actual));
 	memcpy(in.drives.sw, drv_sw, sizeof(in.drives.sw));
+	for (int k = 0; k < MLIP_MAX_AXES; k++) {
+		in.drives.tpdo_period[k] = period > 0 ? period - 1 : UINT64_MAX;
+	}
+	in.sdo = sdo_res_in;
+	in.io = io_in;
 	memset(&drv_fault, 0, sizeof(drv_fault));
 	run_period(&in);
 	for (uint32_t i = 0; i < out.n_events; i++) {
@@ -1111,6 +1120,9 @@ static void dtick(int n)
 				drv_sw[k] = 0x0233;
 			} else if (cw == 0x06) {
 				drv_sw[k] = 0x0231;
+			} else if (cw == 0x02 && enabled) {
+				/* quick stop, option code 2: then switch on disabled */
+				drv_sw[k] = 0x0250;
 			}
 		}
 	}
@@ -1233,8 +1245,678 @@ static void test_drives_stop_while_enabling(void **st)
 	assert_true(out.pos[0] == 2.0);
 }
 
-#define T(f)  cmocka_unit_test_setup_teardown(f, setup, teardown)
-#define TD(f) cmocka_unit_test_setup_teardown(f, setup_drives, teardown)
+/* ---- the inputs on the bus: E-stop, limits, hold (issue 18) --------------- */
+
+static struct mlip_io_config io_cfg;
+
+#define BIT(f) (1u << (f))
+
+static void io_config(void)
+{
+	memset(&io_cfg, 0, sizeof(io_cfg));
+	io_cfg.node = 10;
+	io_cfg.in_bytes = 1;
+	uint32_t fs[5] = {MLIP_IN_ESTOP, MLIP_IN_HOLD, MLIP_IN_CYCLE_START, MLIP_IN_LIMIT_NEG(0),
+	                  MLIP_IN_LIMIT_POS(0)};
+	for (int i = 0; i < 5; i++) {
+		struct mlip_io_bit *b = &io_cfg.in[fs[i]];
+		b->node = 10;
+		b->index = 0x6000;
+		b->sub = 1;
+		b->bit = (uint8_t)i;
+		b->active_low = fs[i] == MLIP_IN_ESTOP;
+		io_cfg.mapped |= BIT(fs[i]);
+	}
+}
+
+static int setup_io(void **state)
+{
+	setup_drives(state);
+	io_config();
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .io = &io_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	io_in.known = io_cfg.mapped; /* every input read, all off */
+	return 0;
+}
+
+/* A long program along X, running at speed. */
+static void run_long(void)
+{
+	for (uint64_t k = 1; k <= 40; k++) {
+		move(k, 10.0 * (double)k, 0.0);
+	}
+	end(41);
+	until(MLIP_STATE_RUNNING, 5000);
+	dtick(300);
+	assert_true(status().speed_mm_s > 50.0);
+}
+
+/* The E-stop input: in that very period quick stop (0x0002) to every drive,
+ * state estop naming the input, every output off, the program dropped; the
+ * commanded position follows the drives as they brake on their own ramp. */
+static void test_estop_same_period(void **st)
+{
+	(void)st;
+	assert_int_equal(mlip_ctl_set_output(&ctl, 1, 3, 1), MLIP_OK);
+	assert_int_equal(mlip_ctl_set_output(&ctl, 9, 0, 1), MLIP_E_RANGE);
+	run_long();
+	assert_int_equal(out.outputs[0], 0x08);
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(status().reason, MLIP_WHY_ESTOP);
+	assert_int_equal(status().reason_field, MLIP_IN_ESTOP);
+	assert_int_equal(status().reason_node, 10);
+	assert_int_equal(cw_of(0), 0x0002);
+	assert_int_equal(cw_of(1), 0x0002);
+	assert_int_equal(status().drive_power, MLIP_POWER_QUICK_STOP);
+	assert_int_equal(out.outputs[0], 0);
+	assert_int_equal(status().io_inputs, BIT(MLIP_IN_ESTOP));
+	/* the drives brake by themselves: the setpoint is where they are */
+	drv_actual[0] += 0.75;
+	dtick(5);
+	assert_true(out.pos[0] == drv_actual[0]);
+	assert_int_equal(mlip_ring_count(ring), 0); /* the program dropped */
+	assert_int_equal(mlip_ctl_set_output(&ctl, 1, 3, 1), MLIP_OK);
+	dtick(1);
+	assert_int_equal(out.outputs[0], 0); /* stays off until the reset */
+	/* nothing but a reset: hold, resume refused, stop does nothing */
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_E_INVALID);
+	stop_count++;
+	dtick(3);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(cw_of(1), 0x0002);
+}
+
+/* Reset: refused while the input is on; once released, idle, the drives
+ * brought down from where the quick stop left them, and the next program
+ * enables them from where they stand and runs to its end. */
+static void test_estop_reset(void **st)
+{
+	(void)st;
+	run_long();
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	dtick(1);
+	drv_actual[0] = 123.5; /* where its quick stop ramp ended */
+	dtick(10);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_RANGE);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	io_in.known &= ~BIT(MLIP_IN_ESTOP); /* released but not read: still refused */
+	io_in.active = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_RANGE);
+	io_in.known = io_cfg.mapped;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_RESET);
+	until_power(MLIP_POWER_OFF, 20);
+	assert_true(out.pos[0] == 123.5);
+	push(1, 2);
+	move(3, 130.0, 0.0);
+	end(4);
+	until_power(MLIP_POWER_ENABLED, 20);
+	until(MLIP_STATE_IDLE, 20000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(out.pos[0] == 130.0);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_INVALID); /* nothing to reset */
+}
+
+/* E-stop wins over every state: a hold, a pause, a drive fault (which comes
+ * back after the reset: a restart clears it). */
+static void test_estop_wins(void **st)
+{
+	(void)st;
+	run_long();
+	period_cmd(MLIP_CMD_HOLD, 0, 0);
+	until(MLIP_STATE_HELD, 2000);
+	drv_fault = (struct mlip_ctl_drive_fault){MLIP_DRIVE_FOLLOWING_ERROR, 2, 4000.0};
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(cw_of(0), 0x0002);
+	io_in.active = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
+	assert_int_equal(status().reason_node, 2);
+}
+
+/* The I/O module lost (heartbeat): an E-stop, and no reset while it is. */
+static void test_io_lost(void **st)
+{
+	(void)st;
+	run_long();
+	io_in.lost = (struct mlip_ctl_drive_fault){MLIP_DRIVE_HEARTBEAT_LOST, 10, 350.0};
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(status().reason, MLIP_WHY_IO_LOST);
+	assert_int_equal(status().reason_node, 10);
+	assert_int_equal(status().reason_field, MLIP_DRIVE_HEARTBEAT_LOST);
+	assert_int_equal(cw_of(0), 0x0002);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_RANGE);
+}
+
+/* A limit input while moving: quick stop, fault naming axis and direction;
+ * at rest the same input stops nothing; reset once it is released. */
+static void test_limit(void **st)
+{
+	(void)st;
+	io_in.active = BIT(MLIP_IN_LIMIT_POS(0));
+	dtick(20);
+	assert_int_equal(status().state, MLIP_STATE_IDLE); /* not moving: nothing to stop */
+	io_in.active = 0;
+	run_long();
+	io_in.active = BIT(MLIP_IN_LIMIT_POS(0));
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_LIMIT);
+	assert_int_equal(status().reason_field, MLIP_IN_LIMIT_POS(0));
+	assert_int_equal(cw_of(0), 0x0002);
+	assert_int_equal(cw_of(1), 0x0002);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_RANGE);
+	io_in.active = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+}
+
+/* Stopped on a limit switch that stays on: a jog toward it (or another
+ * axis) is refused, a jog away from it leaves the stop; the switch does not
+ * trip again until released, then it does. */
+static void test_limit_jog_away(void **st)
+{
+	(void)st;
+	run_long();
+	io_in.active = BIT(MLIP_IN_LIMIT_POS(0));
+	dtick(1);
+	assert_int_equal(status().reason, MLIP_WHY_LIMIT);
+	dtick(5);
+	double x = out.pos[0];
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 600), 0), MLIP_E_RANGE);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(1, 1, 600), 0), MLIP_E_RANGE);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 600), 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	for (int i = 0; i < 5; i++) {
+		dtick(50);
+		assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 600), 0), MLIP_OK);
+	}
+	assert_int_equal(status().state, MLIP_STATE_JOGGING); /* the switch, still on, ignored */
+	assert_true(out.pos[0] < x);
+	io_in.active = 0; /* off the switch */
+	dtick(1);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 0), 0), MLIP_OK);
+	for (int i = 0; i < 500 && status().state != MLIP_STATE_IDLE; i++) {
+		dtick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	/* re-armed: it trips the next move again */
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 600), 0), MLIP_OK);
+	until_power(MLIP_POWER_ENABLED, 50);
+	dtick(20);
+	io_in.active = BIT(MLIP_IN_LIMIT_POS(0));
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_LIMIT);
+}
+
+/* Hold and cycle start act on their rising edge, as the commands. */
+static void test_hold_cycle_start_inputs(void **st)
+{
+	(void)st;
+	run_long();
+	io_in.active = BIT(MLIP_IN_HOLD);
+	until(MLIP_STATE_HELD, 2000);
+	dtick(50);
+	io_in.active = 0;
+	dtick(50);
+	assert_int_equal(status().state, MLIP_STATE_HELD); /* releasing it is no resume */
+	io_in.active = BIT(MLIP_IN_CYCLE_START);
+	until(MLIP_STATE_RUNNING, 10);
+	io_in.active = 0;
+	until(MLIP_STATE_IDLE, 20000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+}
+
+/* Without drives (nothing to quick stop) the planner stops on the path at
+ * the acceleration limit: never faster. */
+static void test_estop_without_drives(void **st)
+{
+	(void)st;
+	io_config();
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .io = &io_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	io_in.known = io_cfg.mapped;
+	for (uint64_t k = 1; k <= 40; k++) {
+		move(k, 10.0 * (double)k, 0.0);
+	}
+	end(41);
+	until(MLIP_STATE_RUNNING, 5000);
+	tick(300);
+	double x0 = out.pos[0], v0 = status().speed_mm_s;
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	tick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	double prev = out.pos[0], v = (out.pos[0] - x0) / mach.period_s;
+	int n = 0;
+	while (status().speed_mm_s > 0.0 && n < 10000) {
+		tick(1);
+		double v1 = (out.pos[0] - prev) / mach.period_s;
+		assert_true(fabs(v1 - v) / mach.period_s <= 1000.0 * (1.0 + 1e-9) + 1e-6);
+		v = v1;
+		prev = out.pos[0];
+		n++;
+	}
+	/* braking distance v^2 / 2A, within 2 % */
+	double d = out.pos[0] - x0, want = v0 * v0 / (2.0 * 1000.0);
+	assert_true(d >= 0.98 * want && d <= 1.02 * want + 0.1);
+}
+
+/* ---- continuous jog (issue 18) -------------------------------------------- */
+
+static int32_t jog(uint32_t axis, int neg, uint32_t mm_min)
+{
+	return period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(axis, neg, mm_min), 0);
+}
+
+/* n periods renewing the jog every `every` periods (0: never); the largest
+ * |a| of axis k's setpoints; *v_last: its speed, carried between calls. */
+static double jog_ticks(int n, int every, uint32_t axis, int neg, uint32_t mm_min, int k,
+                        double *v_last)
+{
+	double amax = 0.0, prev = out.pos[k], v = *v_last;
+	for (int i = 0; i < n; i++) {
+		if (every > 0 && i % every == every - 1 && status().state == MLIP_STATE_JOGGING) {
+			assert_int_equal(jog(axis, neg, mm_min), MLIP_OK);
+		} else {
+			tick(1);
+		}
+		double v1 = (out.pos[k] - prev) / mach.period_s;
+		double a = fabs(v1 - v) / mach.period_s;
+		amax = a > amax ? a : amax;
+		v = v1;
+		prev = out.pos[k];
+	}
+	*v_last = v;
+	return amax;
+}
+
+/* Released: a stop on the path at the acceleration limit, v^2 / 2A long. */
+static void test_jog_release(void **st)
+{
+	(void)st;
+	double v = 0.0;
+	assert_int_equal(jog(0, 0, 6000), MLIP_OK); /* X+ at 100 mm/s */
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	assert_int_equal(status().reason, MLIP_WHY_JOG);
+	v = out.pos[0] / mach.period_s; /* its first period: from 0 */
+	double amax = jog_ticks(1000, 100, 0, 0, 6000, 0, &v);
+	assert_true(fabs(v - 100.0) < 1e-6);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	double x0 = out.pos[0];
+	assert_int_equal(jog(0, 0, 0), MLIP_OK); /* released */
+	double v_rel = (out.pos[0] - x0) / mach.period_s;
+	assert_true(fabs(v_rel - v) / mach.period_s <= 1000.0 * (1.0 + 1e-9));
+	v = v_rel;
+	amax = jog_ticks(200, 0, 0, 0, 0, 0, &v);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_RELEASED);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	double d = out.pos[0] - x0, want = 100.0 * 100.0 / (2.0 * 1000.0); /* 5 mm */
+	/* the planner brakes a margin below A: a little longer, never shorter */
+	print_message("jog released at 100 mm/s: %.4f mm to rest, v^2/2A = %.4f mm\n", d, want);
+	assert_true(d >= want * 0.999 && d <= want * 1.03);
+	assert_true(status().stop_nm > 0);
+	assert_true(out.pos[1] == 0.0);
+}
+
+/* Not renewed: the stop begins MLIP_JOG_DEADMAN_S after the last renewal
+ * (250 periods of 1 ms), at the acceleration limit. */
+static void test_jog_deadman(void **st)
+{
+	(void)st;
+	double v = 0.0;
+	assert_int_equal(jog(1, 1, 3000), MLIP_OK); /* Y- at 50 mm/s */
+	jog_ticks(500, 50, 1, 1, 3000, 1, &v);
+	assert_true(fabs(v + 50.0) < 1e-6);
+	/* the last renewal was the last period: silence from now on */
+	jog_ticks(250, 0, 1, 1, 0, 1, &v);
+	assert_true(fabs(v + 50.0) < 1e-6); /* still at speed for 250 periods */
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	double y0 = out.pos[1];
+	double amax = jog_ticks(2, 0, 1, 1, 0, 1, &v);
+	assert_true(v > -50.0 + 1e-9); /* braking */
+	amax = fmax(amax, jog_ticks(200, 0, 1, 1, 0, 1, &v));
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_DEADMAN);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	double d = y0 - out.pos[1], want = 50.0 * 50.0 / 2000.0;
+	print_message("jog not renewed at 50 mm/s: %.4f mm to rest, v^2/2A = %.4f mm\n", d, want);
+	assert_true(d >= want * 0.99 && d <= want * 1.05);
+}
+
+/* Toward a soft limit: it stops exactly at the limit; a jog further that way
+ * is refused (Grbl's error 15: the target lies beyond the travel). */
+static void test_jog_soft_limit(void **st)
+{
+	(void)st;
+	mach.axis[0].max_limit = 20.0;
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	double v = 0.0;
+	assert_int_equal(jog(0, 0, 6000), MLIP_OK);
+	jog_ticks(1000, 100, 0, 0, 6000, 0, &v);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_END);
+	assert_true(out.pos[0] == 20.0);
+	assert_int_equal(jog(0, 0, 6000), MLIP_E_RANGE);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(jog(0, 1, 600), MLIP_OK); /* away from it: fine */
+	assert_int_equal(jog(0, 1, 0), MLIP_OK);
+	until(MLIP_STATE_IDLE, 1000);
+	assert_true(out.pos[0] < 20.0);
+}
+
+/* Refused: an axis not in the machine, a jog during a program, a second
+ * axis during a jog; a hold ends a jog. */
+static void test_jog_refused(void **st)
+{
+	(void)st;
+	assert_int_equal(jog(2, 0, 600), MLIP_E_RANGE); /* a 2-axis machine */
+	assert_int_equal(jog(7, 0, 600), MLIP_E_RANGE);
+	push(1, 5);
+	end(6);
+	until(MLIP_STATE_RUNNING, 100);
+	assert_int_equal(jog(0, 0, 600), MLIP_E_INVALID);
+	until(MLIP_STATE_IDLE, 20000);
+	assert_int_equal(jog(0, 0, 600), MLIP_OK);
+	assert_int_equal(jog(1, 0, 600), MLIP_E_INVALID);
+	assert_int_equal(jog(0, 1, 600), MLIP_E_INVALID);
+	assert_int_equal(jog(0, 0, 600), MLIP_OK); /* the renewal */
+	period_cmd(MLIP_CMD_HOLD, 0, 0);           /* a hold cancels a jog */
+	until(MLIP_STATE_IDLE, 1000);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_RELEASED);
+}
+
+/* With drives switched off after a program: the jog enables them first, from
+ * where they stand, then moves; at rest after it they go off again. */
+static void test_jog_drives(void **st)
+{
+	(void)st;
+	push(1, 2);
+	end(3);
+	until(MLIP_STATE_IDLE, 5000);
+	until_power(MLIP_POWER_OFF, 20);
+	assert_int_equal(jog(0, 0, 600), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	until_power(MLIP_POWER_ENABLED, 20);
+	for (int i = 0; i < 10; i++) {
+		assert_int_equal(jog(0, 0, 600), MLIP_OK);
+		dtick(99);
+	}
+	assert_true(out.pos[0] > 2.0 + 9.0 && out.pos[0] < 2.0 + 10.1);
+	assert_int_equal(jog(0, 0, 0), MLIP_OK);
+	for (int i = 0; i < 200 && status().state != MLIP_STATE_IDLE; i++) {
+		dtick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	until_power(MLIP_POWER_OFF, 20);
+}
+
+/* ---- homing with the drives' homing mode (issue 18) ------------------------ */
+
+static struct mlip_home_config home_cfg;
+#define sdo_res sdo_res_in
+static uint32_t sdo_refuse; /* an index the drives refuse to write (0: none) */
+static int drv_mode[2] = {8, 8};
+static int drv_homing[2];
+static uint16_t drv_cw_prev[2];
+static uint32_t drv_obj[2][8]; /* 0x6098, 0x6099:1, 0x6099:2, 0x609A, 0x607C */
+static int sdo_log_n;
+static uint16_t sdo_log[64];
+
+static int obj_slot(uint16_t index, uint8_t sub)
+{
+	return index == 0x6098   ? 0
+	       : index == 0x6099 ? sub
+	       : index == 0x609A ? 3
+	       : index == 0x607C ? 4
+	                         : -1;
+}
+
+/* The drives' side after a period: the SDO request answered (seen by the
+ * controller in the next period), the homing mode run. */
+static void drive_model(void)
+{
+	const struct mlip_ctl_sdo_req *r = &out.sdo;
+	if (r->seq != 0 && r->seq != sdo_res.seq) {
+		int k = r->node - 1, slot = obj_slot(r->index, r->sub);
+		sdo_res.seq = r->seq;
+		sdo_res.abort = 0;
+		if (sdo_log_n < 64 && !r->upload) {
+			sdo_log[sdo_log_n++] = r->index;
+		}
+		if (r->upload) {
+			sdo_res.value = r->index == 0x6061 ? (uint32_t)drv_mode[k]
+			                : slot >= 0        ? drv_obj[k][slot]
+			                                   : 0;
+		} else if (r->index == sdo_refuse) {
+			sdo_res.abort = 0x06090030;
+		} else if (r->index == 0x6060) {
+			drv_mode[k] = (int)r->value;
+		} else if (slot >= 0) {
+			drv_obj[k][slot] = r->value;
+		}
+	}
+	for (int k = 0; k < 2; k++) {
+		uint16_t cw = cw_of(k);
+		int8_t method = (int8_t)drv_obj[k][0];
+		if (drv_mode[k] == 6 && drv_sw[k] & 0x0004 && (cw & 0x10) &&
+		    !(drv_cw_prev[k] & 0x10)) {
+			drv_homing[k] = 1; /* bit 4's rising edge */
+			drv_sw[k] &= (uint16_t)~0x3400u;
+		}
+		drv_cw_prev[k] = cw;
+		if (!drv_homing[k]) {
+			continue;
+		}
+		double offset = (int32_t)drv_obj[k][4] / 1000.0;
+		if (method == 35 || method == 37) {
+			drv_actual[k] = offset; /* the current position is home */
+		} else if (method == 17) {
+			/* toward the negative limit switch at 0 at the search speed */
+			drv_actual[k] -= drv_obj[k][1] / 1000.0 * mach.period_s;
+			if (drv_actual[k] > 0.0) {
+				continue;
+			}
+			drv_actual[k] = offset;
+		} else if (method == 1) {
+			drv_sw[k] |= 0x2000; /* homing error */
+			drv_homing[k] = 0;
+			continue;
+		} else {
+			continue; /* never done: a timeout */
+		}
+		drv_sw[k] |= 0x1400;
+		drv_homing[k] = 0;
+	}
+}
+
+static void htick(int n)
+{
+	for (int i = 0; i < n; i++) {
+		dtick(1);
+		drive_model();
+	}
+}
+
+static int32_t hcmd(uint32_t op, int32_t arg)
+{
+	int32_t r = period_cmd(op, arg, 0);
+	drive_model();
+	return r;
+}
+
+static int setup_home(void **state)
+{
+	setup_drives(state);
+	memset(&home_cfg, 0, sizeof(home_cfg));
+	for (int k = 0; k < 2; k++) {
+		struct mlip_axis_home *h = &home_cfg.axis[k];
+		h->configured = 1;
+		h->method = k == 0 ? 35 : 17;
+		h->search_vel = 10.0;
+		h->latch_vel = 1.0;
+		h->accel = 100.0;
+		h->offset = k == 0 ? -2.5 : 1.25;
+		h->sequence = k == 0 ? 1 : 0; /* Y first */
+		h->timeout_s = 2.0;
+	}
+	home_cfg.required = 1;
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .home = &home_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	memset(&sdo_res, 0, sizeof(sdo_res));
+	memset(drv_obj, 0, sizeof(drv_obj));
+	drv_mode[0] = drv_mode[1] = 8;
+	drv_homing[0] = drv_homing[1] = 0;
+	drv_cw_prev[0] = drv_cw_prev[1] = 0x0F;
+	sdo_refuse = 0;
+	sdo_log_n = 0;
+	drv_actual[0] = 3.7; /* powered up anywhere */
+	drv_actual[1] = 5.0;
+	return 0;
+}
+
+/* In HOME_SEQUENCE order (Y, then X), every object written and read back,
+ * mode 6, bit 4, bits 10 and 12, back to mode 8: the positions are the home
+ * offsets to the count and the setpoint never steps away from the drive. */
+static void test_home_sequence(void **st)
+{
+	(void)st;
+	htick(5);
+	push(1, 2);
+	end(3);
+	htick(5);
+	assert_int_equal(status().state, MLIP_STATE_IDLE); /* HOMING_REQUIRED */
+	assert_int_equal(status().reason, MLIP_WHY_NOT_HOMED);
+	assert_true(status().pos[0] == 0.0); /* nothing moved */
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_HOMING);
+	int n = 0, prev_mode[2] = {8, 8}, back = 0;
+	while (status().state == MLIP_STATE_HOMING && n++ < 5000) {
+		htick(1);
+		for (int k = 0; k < 2; k++) {
+			if (drv_mode[k] == 8 && prev_mode[k] == 6) {
+				/* back in CSP: the target is the position actual, to the count */
+				assert_true(out.pos[k] == drv_actual[k]);
+				back++;
+			}
+			prev_mode[k] = drv_mode[k];
+		}
+	}
+	assert_int_equal(back, 2);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_HOMED);
+	assert_int_equal(status().homed, 3u);
+	assert_true(out.pos[0] == -2.5 && out.pos[1] == 1.25); /* the offsets, exactly */
+	assert_true(drv_mode[0] == 8 && drv_mode[1] == 8);
+	/* Y's objects first, then X's: 0x6098 0x6099 0x6099 0x609A 0x607C 0x6060 */
+	static const uint16_t want[6] = {0x6098, 0x6099, 0x6099, 0x609A, 0x607C, 0x6060};
+	assert_int_equal(sdo_log_n, 14);
+	for (int i = 0; i < 6; i++) {
+		assert_int_equal(sdo_log[i], want[i]);     /* Y's set-up */
+		assert_int_equal(sdo_log[7 + i], want[i]); /* X's, after Y's return to CSP */
+	}
+	assert_int_equal(sdo_log[6], 0x6060);
+	assert_int_equal(drv_obj[1][1], 10000); /* 10 mm/s in counts/s */
+	assert_int_equal((int32_t)drv_obj[0][4], -2500);
+	/* a program now runs, from the home position */
+	push(1, 2);
+	end(3);
+	for (int i = 0; i < 20000 && status().reason != MLIP_WHY_END; i++) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(out.pos[0] == 2.0);
+}
+
+/* A homing object the drive refuses (SDO abort): a fault naming the node
+ * and the object, every axis quick-stopped, the drive back in mode 8; a
+ * reset, then nothing homed. */
+static void test_home_sdo_refused(void **st)
+{
+	(void)st;
+	sdo_refuse = 0x6098;
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 1), MLIP_OK); /* X only */
+	for (int i = 0; i < 200 && status().state == MLIP_STATE_HOMING; i++) {
+		htick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_HOMING_SDO);
+	assert_int_equal(status().reason_node, 1);
+	assert_int_equal(status().reason_field, 0x609800u);
+	assert_true(status().reason_value == (double)0x06090030);
+	assert_int_equal(cw_of(0), 0x0002);
+	htick(10);
+	assert_int_equal(drv_mode[0], 8);
+	assert_int_equal(hcmd(MLIP_CMD_RESET, 0), MLIP_OK);
+	assert_int_equal(status().homed, 0u);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 4), MLIP_E_RANGE); /* no axis 2 */
+}
+
+/* Homing error (bit 13) and a timeout: a fault naming node, method and
+ * statusword, quick stop, CSP back. */
+static void test_home_error_and_timeout(void **st)
+{
+	(void)st;
+	home_cfg.axis[1].method = 1;
+	home_cfg.axis[0].method = 36;
+	home_cfg.axis[0].timeout_s = 0.5;
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .home = &home_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 2), MLIP_OK);
+	for (int i = 0; i < 500 && status().state == MLIP_STATE_HOMING; i++) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_HOMING_ERROR);
+	assert_int_equal(status().reason_node, 2);
+	assert_int_equal(status().reason_field, 1);
+	assert_true(((uint32_t)status().reason_value & 0x2000u) != 0);
+	assert_int_equal(cw_of(1), 0x0002);
+	htick(10);
+	assert_int_equal(drv_mode[1], 8);
+	assert_int_equal(hcmd(MLIP_CMD_RESET, 0), MLIP_OK);
+	until_power(MLIP_POWER_OFF, 50);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 1), MLIP_OK);
+	int n = 0;
+	while (status().state == MLIP_STATE_HOMING && n++ < 2000) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_HOMING_TIMEOUT);
+	assert_int_equal(status().reason_node, 1);
+	assert_int_equal(status().reason_field, 36);
+	assert_true(n > 500 && n < 600); /* 0.5 s after bit 4, plus the set-up */
+}
+
+#define T(f)   cmocka_unit_test_setup_teardown(f, setup, teardown)
+#define TD(f)  cmocka_unit_test_setup_teardown(f, setup_drives, teardown)
+#define TIO(f) cmocka_unit_test_setup_teardown(f, setup_io, teardown)
+#define TH(f)  cmocka_unit_test_setup_teardown(f, setup_home, teardown)
 
 int main(void)
 {
@@ -1270,6 +1952,22 @@ int main(void)
 	    TD(test_drives_pause_hold_then_disabled),
 	    TD(test_drives_beyond_limit_when_enabling),
 	    TD(test_drives_stop_while_enabling),
+	    TIO(test_estop_same_period),
+	    TIO(test_estop_reset),
+	    TIO(test_estop_wins),
+	    TIO(test_io_lost),
+	    TIO(test_limit),
+	    TIO(test_hold_cycle_start_inputs),
+	    TIO(test_limit_jog_away),
+	    TIO(test_estop_without_drives),
+	    T(test_jog_release),
+	    T(test_jog_deadman),
+	    T(test_jog_soft_limit),
+	    T(test_jog_refused),
+	    TD(test_jog_drives),
+	    TH(test_home_sequence),
+	    TH(test_home_sdo_refused),
+	    TH(test_home_error_and_timeout),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -69,6 +69,11 @@ static const struct expect table[] = {
     {"gcode-events-offsets.ngc", 9, 1, 15, 1,
      "missing feed: a change between G93 and G94 needs a new F", SYN, 1, 8,
      "control character 0x0D (a CR not followed by LF)"},
+    /* the machine's I/O words, good and bad: without a machine's I/O (here)
+     * G43 is refused and the rest are notices; with it (INV_IO, the replay)
+     * the events, the refusals and the change moves under the invariants */
+    {"gcode-io-words.ngc", 5, 6, 3, 7, "G43: a tool length offset needs the machine's config", 4, 1,
+     1, "expected KEY = VALUE, a [SECTION] or a comment, got '('"},
     {"gcode-exponent-forms.ngc", 0, 11, 1, 5, "malformed number '1.5e+2'", SYN, 1, 4,
      "expected '=' after key G1"},
     /* R 1e200, R 1e20 and I 1e200: rejected, nothing emitted. (The message
@@ -228,7 +233,8 @@ static void check_file(const char *name)
 	const char *w;
 	char *buf;
 	size_t len;
-	int rc, flags[3] = {INV_INITIAL_FEED, 0, INV_INITIAL_FEED | INV_REFUSE | (1 << 3)};
+	int rc, flags[5] = {INV_INITIAL_FEED, 0, INV_INITIAL_FEED | INV_REFUSE | (1 << 3),
+	                    INV_INITIAL_FEED | INV_IO, INV_IO | INV_REFUSE | (2 << 3)};
 	int k;
 
 	if (snprintf(path, sizeof path, "%s/%s", REGRESS_DIR, name) >= (int)sizeof path) {
@@ -247,7 +253,7 @@ static void check_file(const char *name)
 		fail_msg("%s: G-code on the mill: %s (%s)", path, w, g.why);
 		return;
 	}
-	for (k = 0; k < 3; k++) {
+	for (k = 0; k < 5; k++) {
 		w = inv_gcode_program(&rotary, buf, len, flags[k], &other);
 		if (!w && k > 0) {
 			w = inv_gcode_program(&mill, buf, len, flags[k], &other);

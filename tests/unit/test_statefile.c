@@ -159,17 +159,19 @@ static void test_offsets_round_trip(void **state)
 	o.g92[0] = 0.1;
 	o.g30[0] = 1.0 / 3;
 	o.coord[1][2] = -0.0;
+	o.tool = 7; /* the tool in the spindle (M6, M61) */
 	save(&m, &o);
 	assert_int_equal(load(&m, &back, msg, sizeof(msg)), 0);
 	o.coord[1][2] = 0.0;                       /* written "0" */
 	assert_memory_equal(&o, &back, sizeof(o)); /* exact: the shortest text that reads back */
 	mlip_offsets_describe(&m, &o, buf, sizeof(buf));
-	assert_string_equal(buf, "G59.2 X0 Y-12.5 Z0, G92 on X0.1 Y0 Z0");
+	assert_string_equal(buf, "G59.2 X0 Y-12.5 Z0, G92 on X0.1 Y0 Z0, tool 7 in the spindle");
 	const char *text = read_file(path, &len);
 	assert_non_null(strstr(text, "\nSELECT G59.2\nG92_ON 1\nG54 X0 Y0 Z0\n"));
 	assert_non_null(strstr(text, "\nG59.2 X0 Y-12.5 Z0\n"));
 	assert_non_null(strstr(text, "\nG30 X0.3333333333333333 Y20 Z30\n"));
-	assert_non_null(strstr(text, "\n# end 21 lines sha256 "));
+	assert_non_null(strstr(text, "\nG30 X0.3333333333333333 Y20 Z30\nTOOL 7\n"));
+	assert_non_null(strstr(text, "\n# end 22 lines sha256 "));
 	/* no temporary file left beside it */
 	DIR *d = opendir(dir);
 	struct dirent *e;

@@ -12,8 +12,10 @@
 #include "mlip/ipc/ring.h"
 #include "confload.h"
 #include "mlip/gcode/gcode.h"
+#include "mlip/ctl/state.h"
 #include "offsets.h"
 #include "program.h"
+#include "tooltable.h"
 
 int mlip_cli_number(const char *s, double *out)
 {
@@ -46,6 +48,18 @@ int mlip_cli_gcode_option(int c, const char *arg, struct mlip_cli_machine *o, co
 			        arg);
 			return -1;
 		}
+		return 1;
+	case MLIP_CLI_OPT_TOOLS:
+		o->tools = arg;
+		return 1;
+	case MLIP_CLI_OPT_IGNORE_SPINDLE:
+		o->ignore_spindle = 1;
+		return 1;
+	case MLIP_CLI_OPT_IGNORE_COOLANT:
+		o->ignore_coolant = 1;
+		return 1;
+	case MLIP_CLI_OPT_IGNORE_TOOLS:
+		o->ignore_tools = 1;
 		return 1;
 	default:
 		return 0;
@@ -257,8 +271,9 @@ int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
                           FILE *err)
 {
 	struct mlip_gcode_offsets off;
-	struct mlip_program_options opt = {o->strict, &off, o->default_feed};
-	if (mlip_cli_build_machine(o, path, cfg, prog, err) != 0) {
+	struct mlip_program_options opt = {o->strict, &off, o->default_feed, NULL};
+	if (mlip_cli_build_machine(o, path, cfg, prog, err) != 0 ||
+	    mlip_cli_io(o, cfg, &opt.io, prog, err) != 0) {
 		return -1;
 	}
 	if (o->offsets != NULL) {
@@ -280,6 +295,121 @@ int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
 		return -1;
 	}
 	return 0;
+}
+
+static struct mlip_tooltable cli_table;
+static int cli_table_loaded;
+
+int mlip_cli_io(const struct mlip_cli_machine *o, struct mlip_config *cfg,
+                const struct mlip_gcode_io **io, const char *prog, FILE *err)
+{
+	*io = NULL;
+	if (o->config == NULL) {
+		if (o->tools != NULL || o->ignore_spindle || o->ignore_coolant || o->ignore_tools) {
+			fprintf(err,
+			        "%s: --tools and --ignore-* describe a machine's I/O: give its "
+			        "--config\n",
+			        prog);
+			return -1;
+		}
+		return 0; /* a motion check: the I/O words are notices */
+	}
+	if (o->tools != NULL) {
+		if (cli_table_loaded) {
+			mlip_tooltable_free(&cli_table);
+			cli_table_loaded = 0;
+		}
+		if (mlip_tooltable_load(&cli_table, o->tools, 0, prog, err) != 0) {
+			return -1;
+		}
+		cli_table_loaded = 1;
+		cfg->io.tools = cli_table.tools;
+		cfg->io.n_tools = cli_table.n;
+	}
+	cfg->io.ignore_spindle = o->ignore_spindle;
+	cfg->io.ignore_coolant = o->ignore_coolant;
+	cfg->io.ignore_tools = o->ignore_tools;
+	*io = &cfg->io;
+	return 0;
+}
+
+void mlip_cli_io_to_ring(const struct mlip_gcode_io *io, const struct mlip_machine *m,
+                         struct mlip_ring_io *out)
+{
+	memset(out, 0, sizeof(*out));
+	out->spindle = (uint32_t)io->spindle;
+	out->tool_change = (uint32_t)io->tool_change;
+	out->coolant = (uint32_t)io->coolant;
+	out->change_mask = io->change_mask;
+	out->min_rpm = io->min_rpm;
+	out->max_rpm = io->max_rpm;
+	for (int i = 0; i < m->n_axes && i < MLIP_MAX_AXES; i++) {
+		out->change_pos[i] = io->change_pos[i];
+	}
+}
+
+int mlip_cli_io_from_ring(const struct mlip_ring_io *in, const struct mlip_machine *m,
+                          struct mlip_gcode_io *io)
+{
+	memset(io, 0, sizeof(*io));
+	if (in->spindle > MLIP_IO_MANUAL || in->tool_change > MLIP_IO_MANUAL ||
+	    in->coolant > MLIP_IO_MANUAL || (in->change_mask >> m->n_axes) != 0) {
+		return -1;
+	}
+	if (in->spindle != MLIP_IO_NONE && !(in->min_rpm >= 0 && in->max_rpm > 0 &&
+	                                     in->min_rpm <= in->max_rpm && in->max_rpm <= 1e6)) {
+		return -1;
+	}
+	io->spindle = (int)in->spindle;
+	io->tool_change = (int)in->tool_change;
+	io->coolant = (int)in->coolant;
+	io->change_mask = in->change_mask;
+	io->min_rpm = in->min_rpm;
+	io->max_rpm = in->max_rpm;
+	for (int i = 0; i < m->n_axes; i++) {
+		if ((in->change_mask >> i & 1u) && !(in->change_pos[i] >= m->axis[i].min_limit &&
+		                                     in->change_pos[i] <= m->axis[i].max_limit)) {
+			return -1;
+		}
+		io->change_pos[i] = in->change_pos[i];
+	}
+	return 0;
+}
+
+const struct mlip_tooltable *mlip_cli_tooltable(void)
+{
+	return cli_table_loaded ? &cli_table : NULL;
+}
+
+void mlip_cli_io_message(uint32_t why, double value, const struct mlip_tooltable *table, char *buf,
+                         size_t len)
+{
+	if (why == MLIP_WHY_SPINDLE) {
+		if (value == 0) {
+			snprintf(buf, len, "stop the spindle, then resume");
+		} else {
+			snprintf(buf, len, "start the spindle %s at %g rpm, then resume",
+			         value > 0 ? "clockwise" : "counter-clockwise", fabs(value));
+		}
+	} else if (why == MLIP_WHY_TOOL) {
+		const char *c = table ? mlip_tooltable_comment(table, (int32_t)value) : "";
+		if (value == 0) {
+			snprintf(buf, len, "take the tool out of the spindle, then resume");
+		} else {
+			snprintf(buf, len, "insert tool %.0f%s%s%s, then resume", value,
+			         *c ? " (" : "", c, *c ? ")" : "");
+		}
+	} else if (why == MLIP_WHY_COOLANT) {
+		unsigned b = (unsigned)value;
+		snprintf(buf, len, "%s, then resume",
+		         b == 0 ? "turn the coolant off"
+		         : b == (MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD)
+		             ? "turn mist and flood coolant on"
+		         : b == MLIP_COOLANT_MIST ? "turn the mist coolant on (flood off)"
+		                                  : "turn the flood coolant on (mist off)");
+	} else {
+		snprintf(buf, len, "resume");
+	}
 }
 
 /* SIGHUP too: a lost terminal or ssh session must never drop a moving

@@ -25,6 +25,9 @@ struct mlip_cli_machine {
 	double vmax_mm_s;    /* <= 0: unset */
 	double eps_mm;
 	double period_s;
+	/* the machine's I/O (issue 19), with a config only */
+	const char *tools; /* --tools FILE: the tool table (tooltable.h), or NULL */
+	int ignore_spindle, ignore_coolant, ignore_tools; /* --ignore-*: on purpose */
 };
 
 /* Build cfg from the options; the program at program_path (may be NULL)
@@ -34,24 +37,65 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
                            struct mlip_config *cfg, const char *prog, FILE *err);
 
 /* Build the machine (cli_build_machine), read the offsets file (o->offsets)
- * and check the program at path (mlip_program_open); on failure print why
- * (every error of the program) and return -1, with *program closed. cfg
- * must outlive *program. */
+ * and the tool table (o->tools), and check the program at path
+ * (mlip_program_open) against the machine's I/O (cfg->io: the config's
+ * [SPINDLE], [TOOL], [COOLANT], the table, the --ignore-* choices; without a
+ * config the I/O words are notices: nothing reaches a machine); on failure
+ * print why (every error of the program) and return -1, with *program
+ * closed. cfg must outlive *program. */
 int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
                           struct mlip_config *cfg, struct mlip_program *program, const char *prog,
                           FILE *err);
 
 /* The G-code options every tool that reads programs takes (struct option
  * entries for getopt_long; their values are above any letter). */
-#define MLIP_CLI_OPT_OFFSETS      0x100
-#define MLIP_CLI_OPT_STRICT       0x101
-#define MLIP_CLI_OPT_DEFAULT_FEED 0x102
+#define MLIP_CLI_OPT_OFFSETS        0x100
+#define MLIP_CLI_OPT_STRICT         0x101
+#define MLIP_CLI_OPT_DEFAULT_FEED   0x102
+#define MLIP_CLI_OPT_TOOLS          0x103
+#define MLIP_CLI_OPT_IGNORE_SPINDLE 0x104
+#define MLIP_CLI_OPT_IGNORE_COOLANT 0x105
+#define MLIP_CLI_OPT_IGNORE_TOOLS   0x106
 #define MLIP_CLI_GCODE_OPTIONS                                                                     \
 	{"offsets", required_argument, 0, MLIP_CLI_OPT_OFFSETS},                                   \
 	    {"strict", no_argument, 0, MLIP_CLI_OPT_STRICT},                                       \
+	    {"default-feed", required_argument, 0, MLIP_CLI_OPT_DEFAULT_FEED},                     \
+	    {"tools", required_argument, 0, MLIP_CLI_OPT_TOOLS},                                   \
+	    {"ignore-spindle", no_argument, 0, MLIP_CLI_OPT_IGNORE_SPINDLE},                       \
+	    {"ignore-coolant", no_argument, 0, MLIP_CLI_OPT_IGNORE_COOLANT},                       \
 	{                                                                                          \
-		"default-feed", required_argument, 0, MLIP_CLI_OPT_DEFAULT_FEED                    \
+		"ignore-tools", no_argument, 0, MLIP_CLI_OPT_IGNORE_TOOLS                          \
 	}
+/* Their help lines. */
+#define MLIP_CLI_IO_HELP                                                                           \
+	"  --tools FILE          the tool table (LinuxCNC's T P Z D format; mlip-tools)\n"         \
+	"  --ignore-spindle      run S/M3/M4/M5 as nothing, on purpose (no spindle driven)\n"      \
+	"  --ignore-coolant      run M7/M8/M9 as nothing, on purpose\n"                            \
+	"  --ignore-tools        run T/M6/M61/G43/G49 as nothing, on purpose (no length offset)\n"
+
+/* The machine's I/O for a program: cfg->io completed from o (the tool
+ * table loaded from o->tools into a table kept for the process, the
+ * --ignore-* choices); NULL without a config (the words are notices). 0,
+ * or -1 after printing why (the table's FILE:LINE:COL). */
+int mlip_cli_io(const struct mlip_cli_machine *o, struct mlip_config *cfg,
+                const struct mlip_gcode_io **io, const char *prog, FILE *err);
+/* The machine's I/O <-> the segment's io area (mlip/ipc/ring.h). */
+struct mlip_ring_io;
+void mlip_cli_io_to_ring(const struct mlip_gcode_io *io, const struct mlip_machine *m,
+                         struct mlip_ring_io *out);
+/* 0, or -1 when the area holds what no config gives (a speed not finite or
+ * out of order, a type unknown to this build, a change position beyond the
+ * soft limits of m): the segment is not trusted. */
+int mlip_cli_io_from_ring(const struct mlip_ring_io *in, const struct mlip_machine *m,
+                          struct mlip_gcode_io *io);
+
+/* The tool table the last mlip_cli_io loaded (NULL: none). */
+const struct mlip_tooltable *mlip_cli_tooltable(void);
+/* What the operator is to do at a manual pause (status reason SPINDLE, TOOL,
+ * COOLANT, with its value): "start the spindle clockwise at 12000 rpm",
+ * "insert tool 2 (6 mm flat)" (the comment from table, may be NULL), ... */
+void mlip_cli_io_message(uint32_t why, double value, const struct mlip_tooltable *table, char *buf,
+                         size_t len);
 
 /* Take getopt_long's c (with arg) when it is one of those: 1 taken, 0 not
  * one of them, -1 a bad value (message printed). */

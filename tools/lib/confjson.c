@@ -111,5 +111,52 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 	mlip_json_uint(&j, "boot_timeout_ms", d->boot_timeout_ms);
 	mlip_json_uint(&j, "state_timeout_ms", d->state_timeout_ms);
 	mlip_json_close(&j);
+	/* homing (issue 18): each axis with a HOME_METHOD */
+	mlip_json_object(&j, "home", 0);
+	mlip_json_bool(&j, "required", c->home.required);
+	mlip_json_array(&j, "axes", 0);
+	for (int k = 0; k < c->machine.n_axes; k++) {
+		const struct mlip_axis_home *h = &c->home.axis[k];
+		char l[2] = {c->machine.axis[k].letter, '\0'};
+		if (!h->configured) {
+			continue;
+		}
+		mlip_json_object(&j, NULL, 1);
+		mlip_json_string(&j, "axis", l);
+		mlip_json_int(&j, "method", h->method);
+		mlip_json_number(&j, "search_vel", G17, h->search_vel);
+		mlip_json_number(&j, "latch_vel", G17, h->latch_vel);
+		mlip_json_number(&j, "accel", G17, h->accel);
+		mlip_json_number(&j, "offset", G17, h->offset);
+		mlip_json_uint(&j, "sequence", (uint64_t)h->sequence);
+		mlip_json_number(&j, "timeout_s", G17, h->timeout_s);
+		mlip_json_close(&j);
+	}
+	mlip_json_close(&j);
+	mlip_json_close(&j);
+	/* the inputs on the bus (issue 18): the module's node, each function mapped */
+	mlip_json_object(&j, "inputs", 0);
+	mlip_json_uint(&j, "node", c->inputs.node);
+	mlip_json_uint(&j, "in_bytes", c->inputs.in_bytes);
+	mlip_json_array(&j, "functions", 0);
+	for (uint32_t fn = 0; fn < MLIP_IN_COUNT; fn++) {
+		const struct mlip_io_bit *b = &c->inputs.in[fn];
+		char name[24];
+		if (!(c->inputs.mapped & (1u << fn))) {
+			continue;
+		}
+		mlip_json_object(&j, NULL, 1);
+		mlip_json_string(&j, "function",
+		                 mlip_io_function_name(fn, &c->machine, name, sizeof name));
+		mlip_json_uint(&j, "index", fn);
+		mlip_json_uint(&j, "node", b->node);
+		mlip_json_uint(&j, "object", b->index);
+		mlip_json_uint(&j, "sub", b->sub);
+		mlip_json_uint(&j, "bit", b->bit);
+		mlip_json_bool(&j, "active_low", b->active_low);
+		mlip_json_close(&j);
+	}
+	mlip_json_close(&j);
+	mlip_json_close(&j);
 	mlip_json_end(&j);
 }

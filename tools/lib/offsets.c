@@ -194,9 +194,23 @@ static int canon(const void *ctx, const char *key, const char *value, char *out,
 		snprintf(out, out_len, "%s", value);
 		return 0;
 	}
+	if (strcmp(key, "TOOL") == 0) { /* the tool in the spindle: 0 none */
+		size_t n = strlen(value);
+		if (n == 0 || n > 10 || strspn(value, "0123456789") != n ||
+		    (n > 1 && value[0] == '0') || strtoll(value, NULL, 10) > 2147483647LL) {
+			snprintf(
+			    why, why_len,
+			    "TOOL must be the tool in the spindle, a whole number (0: none), got "
+			    "'%s'",
+			    value);
+			return -1;
+		}
+		snprintf(out, out_len, "%s", value);
+		return 0;
+	}
 	if (vec_key(key) < 0) {
 		snprintf(why, why_len,
-		         "unknown key '%s' (SELECT, G92_ON, G54..G59.3, G92, G28, G30)", key);
+		         "unknown key '%s' (SELECT, G92_ON, G54..G59.3, G92, G28, G30, TOOL)", key);
 		return -1;
 	}
 	if (c->axes[0] == '\0') {
@@ -255,6 +269,8 @@ int mlip_offsets_to_records(const struct mlip_machine *m, const struct mlip_gcod
 		format_axes(axes, key_values((struct mlip_gcode_offsets *)o, k), val, sizeof(val));
 		rc |= mlip_sf_put(sf, key_name(k), val);
 	}
+	snprintf(val, sizeof(val), "%d", (int)o->tool);
+	rc |= mlip_sf_put(sf, "TOOL", val);
 	return rc;
 }
 
@@ -274,6 +290,9 @@ void mlip_offsets_from_records(const struct mlip_machine *m, const struct mlip_s
 	}
 	if ((v = mlip_sf_get(sf, "G92_ON")) != NULL) {
 		o->g92_on = strcmp(v, "1") == 0;
+	}
+	if ((v = mlip_sf_get(sf, "TOOL")) != NULL) {
+		o->tool = (int32_t)strtol(v, NULL, 10);
 	}
 	for (int k = 0; k < N_VEC; k++) {
 		double x[MLIP_MAX_AXES];
@@ -510,5 +529,8 @@ void mlip_offsets_describe(const struct mlip_machine *m, const struct mlip_gcode
 	}
 	for (i = 0; o->g92_on && i < m->n_axes && n < len; i++) {
 		n += (size_t)snprintf(buf + n, len - n, " %c%g", m->axis[i].letter, o->g92[i]);
+	}
+	if (o->tool > 0 && n < len) {
+		snprintf(buf + n, len - n, ", tool %d in the spindle", (int)o->tool);
 	}
 }

@@ -16,6 +16,8 @@
  *   G92 X0 Y0 Z0
  *   G28 X0 Y0 Z50
  *   G30 X0 Y0 Z50
+ *   TOOL 2                 the tool in the spindle (0: none), left by M6/M61;
+ *                          optional (a file of an older mlip has none: 0)
  *   # end 21 lines sha256 3f2a9c5b1d7e0a42
  *
  * Every key once, every value named by its axis letter (each axis of the
@@ -63,7 +65,8 @@ int mlip_offsets_save(struct mlip_offsets_file *f, const struct mlip_machine *m,
 void mlip_offsets_file_free(struct mlip_offsets_file *f);
 
 /* One line for the operator: "G55 X10 Y20 Z-5, G92 off" (the selected
- * system's origin; the G92 offset when on). */
+ * system's origin; the G92 offset when on; ", tool 2 in the spindle" when
+ * one is). */
 void mlip_offsets_describe(const struct mlip_machine *m, const struct mlip_gcode_offsets *o,
                            char *buf, size_t len);
 

@@ -272,6 +272,7 @@ static void start_parser(struct mlip_program *p, struct mlip_gcode *g)
 	mlip_gcode_set_initial_feed(g, p->initial_feed_word);
 	mlip_gcode_set_strict(g, p->opt.strict);
 	mlip_gcode_set_offsets(g, &p->offsets_start);
+	mlip_gcode_set_io(g, p->opt.io);
 }
 
 /* First pass after the feed scan: every line through the parser, blocks

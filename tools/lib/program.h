@@ -53,7 +53,9 @@
 struct mlip_program_options {
 	int strict;                               /* mlip_gcode_set_strict */
 	const struct mlip_gcode_offsets *offsets; /* in force at the start; NULL: defaults */
-	double default_feed; /* F (units/min) for a program that sets none; 0: none */
+	double default_feed;            /* F (units/min) for a program that sets none; 0: none */
+	const struct mlip_gcode_io *io; /* the machine's I/O (mlip_gcode_set_io; kept, must
+	                                   outlive the program); NULL: its words are notices */
 };
 
 struct mlip_program {

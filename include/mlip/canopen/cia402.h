@@ -58,6 +58,7 @@ typedef enum {
 #define MLIP_402_CW_SWITCH_ON        0x0007u /* also "disable operation" from enabled */
 #define MLIP_402_CW_ENABLE_OPERATION 0x000Fu
 #define MLIP_402_CW_FAULT_RESET      0x0080u /* on its rising edge */
+#define MLIP_402_CW_QUICK_STOP       0x0002u /* operation enabled -> quick stop active */
 #define MLIP_402_MODE_CSP            8       /* 0x6060 / 0x6061 */
 
 /* The state a statusword shows (CiA 402 table of statusword bits 0-3, 5, 6). */
@@ -81,6 +82,9 @@ typedef enum {
 	MLIP_POWER_RESETTING,     /* fault reset: 0x0000, then 0x0080, until "switch on disabled" */
 	MLIP_POWER_VOLTAGE_OFF,   /* disable voltage (0x0000) until "switch on disabled" */
 	MLIP_POWER_WAITING,       /* not ready, fault reaction: nothing sent until it moves on */
+	MLIP_POWER_QUICK_STOP,    /* the controller's E-stop (or a limit): quick stop (0x0002) to
+	                             every drive, held until a reset; not a step of the sequencer,
+	                             which reads the drives' states again after it */
 	MLIP_POWER_COUNT
 } mlip_drive_power;
 

@@ -55,6 +55,20 @@
  *   any --a drive fault (in->drives.fault)--> FAULT (reason DRIVE: node, event,
  *             value; every axis stops on the path, nothing more is taken;
  *             the faulted drive's own fault reaction applies to it)
+ *   any --E-stop input, or the I/O module lost (in->io)--> ESTOP (reason
+ *             ESTOP or IO_LOST: quick stop 0x0002 to every drive in this
+ *             period, the program dropped, the planner at rest where the
+ *             drives are, every output off) --reset, input released--> IDLE
+ *             (or FAULT again when a drive fault came before or in it)
+ *   IDLE --jog command (MLIP_CMD_JOG: axis, direction, speed)--> JOGGING
+ *             (drives enabled first) toward the soft limit at that speed
+ *             through the planner; --released (speed 0), hold, or not renewed
+ *             within MLIP_JOG_DEADMAN_S--> braking at the acceleration limit
+ *             --at rest--> IDLE (reason JOG_RELEASED, JOG_DEADMAN, JOG_END)
+ *   RUNNING|HELD|STOPPING|... --a limit input while moving--> FAULT (reason
+ *             LIMIT: the axis and direction; quick stop as for an E-stop)
+ *             --reset, input released--> IDLE
+ *   HELD <--hold input (rising edge)-- ; cycle start input: resume
  *
  * With CiA 402 drives (opts.drives) the controller also decides their power
  * (mlip_drive_power, mlip/ipc/ring.h), sent as the RPDOs' controlword and
@@ -88,6 +102,7 @@
 #include "mlip/can/canenc.h"
 #include "mlip/canopen/cia402.h"
 #include "mlip/ctl/state.h"
+#include "mlip/machine/config.h"
 #include "mlip/motion/planner.h"
 #include "mlip/ipc/ring.h"
 #include "mlip/types.h"
@@ -152,7 +167,38 @@ struct mlip_ctl_drives {
 	uint16_t sw[MLIP_MAX_AXES];        /* statusword 0x6041 of drive k's last TPDO (0: none) */
 	struct mlip_ctl_drive_fault fault; /* the first new fault, if any */
 	uint32_t actual_mask;              /* bit k: pos_actual[k] is from drive k's TPDO */
-	double pos_actual[MLIP_MAX_AXES];  /* position actual 0x6064, joint units */
+	uint64_t tpdo_period[MLIP_MAX_AXES]; /* the period whose SYNC drive k's last TPDO
+	                                        answers (UINT64_MAX: none yet) */
+	double pos_actual[MLIP_MAX_AXES];    /* position actual 0x6064, joint units */
+};
+
+/* The inputs on the bus (issue 18): rt/drives.c reads the I/O module and the
+ * drives, mlip_io_eval (mlip/canopen/io401.h) maps them to functions. */
+struct mlip_ctl_io {
+	uint32_t active;                  /* bit f: function f (MLIP_IN_*) is on */
+	uint32_t known;                   /* bit f: its input has been read (else off) */
+	struct mlip_ctl_drive_fault lost; /* the I/O module failed (event: heartbeat lost,
+	                                     EMCY, left NMT operational; node; detail): an
+	                                     E-stop; 0: fine */
+};
+
+/* An SDO transfer the controller asks the CANopen master for (homing):
+ * rt/drives.c runs it over the next periods without waiting and reports its
+ * end in in->sdo. One at a time; seq 0: none. */
+struct mlip_ctl_sdo_req {
+	uint32_t seq; /* a new request when it changes */
+	uint8_t node;
+	uint8_t sub;
+	uint8_t size;   /* download: 1, 2 or 4 bytes */
+	uint8_t upload; /* 1: read */
+	uint16_t index;
+	uint32_t value; /* download */
+};
+
+struct mlip_ctl_sdo_res {
+	uint32_t seq;   /* the request it ends (0: none yet) */
+	uint32_t abort; /* 0: done; else the abort code (the drive's, or mlip's timeout) */
+	uint32_t value; /* upload: the value read */
 };
 
 struct mlip_ctl_in {
@@ -173,6 +219,8 @@ struct mlip_ctl_in {
 	int exit_request;                /* stop on the path, then report done */
 	struct mlip_ctl_bus bus;         /* as of the last send */
 	struct mlip_ctl_drives drives;   /* CiA 402 drives (opts.drives) */
+	struct mlip_ctl_io io;           /* the inputs on the bus (opts.io) */
+	struct mlip_ctl_sdo_res sdo;     /* the last SDO transfer done (out->sdo) */
 };
 
 /* The drives' power after the period (opts.drives; the sequencer's record). */
@@ -204,6 +252,12 @@ struct mlip_ctl_out {
 	struct mlip_ctl_power power;
 	struct mlip_ctl_counts counts;
 	int done; /* an exit request has completed: at rest */
+	/* the I/O module's outputs 0x6200:1..8 (mlip_ctl_set_output; all 0 in an
+	 * E-stop): rt/drives.c sends them in its RPDO when they change */
+	uint8_t outputs[MLIP_IO_IN_BYTES];
+	struct mlip_ctl_sdo_req sdo; /* an SDO transfer to run (homing) */
+	uint32_t homing;             /* bit k: drive k runs its homing mode: its following
+	                                error is its own business, not supervised */
 };
 
 struct mlip_ctl_opts {
@@ -216,6 +270,8 @@ struct mlip_ctl_opts {
 	                                      in->drives.mute */
 	uint32_t drive_state_periods;      /* a power step not confirmed this long: a timeout
 	                                      (0: 1000) */
+	const struct mlip_io_config *io;   /* the inputs' functions (NULL: none mapped) */
+	const struct mlip_home_config *home; /* homing (NULL: none configured) */
 };
 
 /* A record's place in the program: its seq (0: none) and source line. */
@@ -295,6 +351,50 @@ struct mlip_ctl {
 	uint64_t period, overruns;
 	struct mlip_ctl_counts counts;
 	double pos[MLIP_MAX_AXES];
+	/* the inputs on the bus and the E-stop (issue 18) */
+	struct {
+		struct mlip_io_config cfg;   /* what is mapped where */
+		uint32_t prev;               /* the functions on in the last period (edges) */
+		uint32_t limit_ignore;       /* limit inputs a jog away from them left on: they
+		                                do not trip until released */
+		int estop;                   /* in an E-stop: quick stop until a reset */
+		int fault_kept;              /* a drive fault came before (or in) it: it stays */
+		struct mlip_ctl_reason kept; /* that fault's reason */
+		uint8_t outputs[MLIP_IO_IN_BYTES];
+	} io;
+	/* a continuous jog (MLIP_CMD_JOG) */
+	struct {
+		int on;           /* jogging (or waiting for the drives to be enabled) */
+		int moving;       /* its block is in the planner */
+		int stopping;     /* released or not renewed: braking on the path */
+		uint32_t axis;    /* machine axis index */
+		int neg;          /* toward MIN_LIMIT */
+		double speed;     /* mm/s or deg/s */
+		uint64_t renewed; /* the period of its last command */
+		uint64_t deadman; /* periods without a renewal that stop it */
+		uint32_t end_why; /* the reason it stopped (mlip_state_why) */
+	} jog;
+	/* homing with the drives' homing mode (MLIP_CMD_HOME) */
+	struct {
+		struct mlip_home_config cfg;
+		uint32_t configured; /* bit k: axis k has a HOME_METHOD */
+		uint32_t homed;      /* bit k: axis k is homed */
+		int on;              /* homing (or restoring CSP after a failure) */
+		int failed;          /* the group failed: CSP restored, then FAULT stays */
+		uint32_t todo;       /* axes still to home */
+		uint32_t group;      /* the axes homing now (one HOME_SEQUENCE) */
+		uint32_t attained;   /* of those: homing attained */
+		int step;            /* the sequencer's step (controller.c) */
+		int axis;            /* the axis whose objects are being written */
+		int entry;           /* its object */
+		int readback;        /* 1: the object's read back is outstanding */
+		uint32_t sdo_seq;    /* the SDO request outstanding (0: none) */
+		uint32_t requests;   /* SDO requests so far (each a new seq) */
+		uint32_t stop_why;   /* a stop during homing: its reason, once CSP is back */
+		struct mlip_ctl_sdo_req req;
+		uint64_t t0; /* the group's homing move began (period) */
+		uint16_t cw; /* the group's controlword */
+	} home;
 	/* scratch for one period's blocks (no stack array of this size on RT) */
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];
 };
@@ -306,6 +406,12 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 
 /* One period. */
 void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out);
+
+/* Set (on != 0) or clear bit `bit` (0..7) of the I/O module's output byte
+ * 0x6200:sub (1..8), sent from the next period on (out->outputs). In an
+ * E-stop every output is off and this does nothing. MLIP_E_RANGE for a sub or
+ * bit out of range. For the controller's own use (M7/M8/M9, M64/M65). */
+mlip_status mlip_ctl_set_output(struct mlip_ctl *c, uint32_t sub, uint32_t bit, int on);
 
 /* Check one record as the controller does before taking it: MLIP_OK, or
  * MLIP_E_RANGE with *why (BAD_RECORD, field, seq, line, value). expect_seq 0:

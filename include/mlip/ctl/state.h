@@ -24,10 +24,19 @@ typedef enum {
 	MLIP_STATE_STARVED,  /* the program's blocks ran out before its END: at rest
 	                        at the end of the last block received (underrun);
 	                        continues when blocks come (mlip-feed --start-seq) */
-	MLIP_STATE_PAUSED,   /* M0/M60 (or M1 with optional stop on): at rest;
+	MLIP_STATE_PAUSED,   /* M0/M60 (or M1 with optional stop on), or the
+	                        operator's part of a manual spindle, tool change or
+	                        coolant (reason SPINDLE, TOOL, COOLANT): at rest;
 	                        mlip-ctl resume continues */
 	MLIP_STATE_DWELLING, /* G4: at rest for the dwell's periods */
 	MLIP_STATE_PREREAD,  /* taking a program's records before moving */
+	MLIP_STATE_ESTOP,    /* E-stop (issue 18): an E-stop input, or the I/O module lost
+	                        (heartbeat, fault): quick stop to every drive in that period,
+	                        the program dropped; left only by a reset (mlip-ctl reset)
+	                        once the input is released; wins over every other state */
+	MLIP_STATE_JOGGING,  /* a continuous jog (mlip-ctl jog): one axis toward its soft
+	                        limit at the jog's speed through the planner, while renewed */
+	MLIP_STATE_HOMING,   /* homing with the drives' homing mode (mlip-ctl home) */
 	MLIP_STATE_COUNT
 } mlip_ctl_state;
 
@@ -62,6 +71,36 @@ typedef enum {
 	MLIP_WHY_STOP_EARLY,     /* a stop came after the feeder began, before its program
 	                            started: the program is dropped unmoved (reason_seq, line:
 	                            its first record) */
+	MLIP_WHY_SPINDLE,        /* a manual spindle: start it (reason_value rpm, > 0
+	                            clockwise, < 0 counter-clockwise) or stop it (0), resume */
+	MLIP_WHY_TOOL,           /* a manual tool change: insert tool reason_value, resume */
+	MLIP_WHY_COOLANT,        /* manual coolant: switch it to reason_value (MLIP_COOLANT_*) */
+	MLIP_WHY_ESTOP,          /* an E-stop input (reason_field: the function MLIP_IN_ESTOP,
+	                            reason_node: its node, reason_value: the object's index) */
+	MLIP_WHY_IO_LOST,        /* the I/O module failed: reason_node, reason_field the event
+	                            (mlip_drive_fault: heartbeat lost, EMCY, not operational),
+	                            reason_value its detail */
+	MLIP_WHY_LIMIT,          /* a limit input while moving: state FAULT, reason_field the
+	                            function (MLIP_IN_LIMIT_NEG/POS(k): axis and direction),
+	                            reason_node its node */
+	MLIP_WHY_RESET,          /* mlip-ctl reset after an E-stop or a limit */
+	MLIP_WHY_JOG,            /* a jog started (reason_field: the axis, reason_value: the
+	                            speed, mm/s or deg/s, negative toward MIN_LIMIT) */
+	MLIP_WHY_JOG_RELEASED,   /* its client stopped it: at rest at the acceleration limit */
+	MLIP_WHY_JOG_DEADMAN,    /* its client stopped renewing it (MLIP_JOG_DEADMAN_S) */
+	MLIP_WHY_JOG_END,        /* at rest at the soft limit it was heading to */
+	MLIP_WHY_HOMING,         /* homing started (reason_field: the axes, a mask) */
+	MLIP_WHY_HOMED,          /* every axis asked for is homed, back in CSP */
+	MLIP_WHY_HOMING_ERROR,   /* a drive reported homing error (statusword bit 13):
+	                            reason_node, reason_field its method, reason_value the
+	                            statusword; state FAULT, quick stop */
+	MLIP_WHY_HOMING_TIMEOUT, /* homing not attained within HOME_TIMEOUT: reason_node,
+	                            reason_field its method, reason_value the statusword */
+	MLIP_WHY_HOMING_SDO,     /* the drive refused a homing object: reason_node,
+	                            reason_field index << 8 | sub, reason_value the abort
+	                            code (or the value read back when it differs) */
+	MLIP_WHY_NOT_HOMED,      /* HOMING_REQUIRED: a program refused before every axis
+	                            is homed (reason_seq, line: its first record) */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 

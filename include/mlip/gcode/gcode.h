@@ -19,9 +19,31 @@
  * any motion mode. Lines after M2/M30 are not read. G4, M0, M1 and M60
  * emit event blocks (kind DWELL, PAUSE, OPTIONAL_PAUSE) at the last point:
  * a line's dwell before its motion, its pause after.
- * Accepted without motion and reported once (see notices): S, M3/M4/M5,
- * M7/M8/M9, T, M6, G17-G19, G40, G49, G80 and other M codes that do not move.
- * Everything else is an error.
+ * Accepted without motion and reported once (see notices): G17-G19, G40,
+ * G80 and other M codes that do not move. Everything else is an error.
+ *
+ * The machine's I/O (mlip_gcode_set_io; issue 19): S, M3/M4/M5, T, M6, M61,
+ * G43 H / G43 / G43.1 Z / G49 and M7/M8/M9, checked against what the machine
+ * has ([SPINDLE], [TOOL], [COOLANT] of the config, the tool table) and
+ * executed in LinuxCNC's order (S, T, M6, M3/M4/M5, M7/M8/M9, then G4, the
+ * modes, G43/G49, the offsets, the motion). What the machine must do emits
+ * an event block at the last point: SPINDLE (M3/M4 with their S, an S
+ * change while the spindle turns, M5), TOOL (M6 to a tool other than the one
+ * in the spindle: the spindle stopped first, the axes of the change position
+ * moved there by rapids in machine coordinates, Z first), COOLANT; M2/M30
+ * stop the spindle and the coolant (LinuxCNC). A word the machine cannot
+ * execute is an error at its column: M3/M4/S on a machine without a spindle,
+ * S beyond MAX_RPM or (not 0) below MIN_RPM (refused, not clamped: the same
+ * feed at a lower speed overloads the cutter, and the program is the place
+ * to change it), M3/M4 with no S ever, M6 without a tool change or with no T,
+ * a T, H or Q naming a tool not in the table, G43 with no tool, M7/M8
+ * without coolant; unless the caller ignores that part on purpose (then a
+ * notice). The tool length offset (G43: the table's Z of the tool; G43.1 Z:
+ * the value) is added to Z in machine coordinates like a work offset (not to
+ * G53 moves, as LinuxCNC), and every target is checked against the soft
+ * limits with it. Without set_io (a pure motion check, a sender's stream) all
+ * of these words are notices as before: nothing reaches a machine.
+ *
  *
  * Coordinates: a program's X Y Z ... are in the selected work coordinate
  * system; targets are converted to machine coordinates (machine = program +
@@ -59,11 +81,46 @@ struct mlip_gcode_notice {
 	char word[8]; /* e.g. "M3", "S", "G54", "T" */
 	uint32_t first_line;
 	uint32_t count;
+	const char *text; /* what it means (static), or NULL: mlip_gcode_notice_text's */
 };
 
 /* Called for every block produced; return non-zero to abort parsing (the
  * line then fails with MLIP_E_FULL). */
 typedef int (*mlip_block_sink)(void *ctx, const struct mlip_block *b);
+
+/* What a spindle, a tool change or coolant is on this machine. */
+typedef enum {
+	MLIP_IO_NONE = 0, /* the machine has none: the words are refused */
+	MLIP_IO_MANUAL,   /* the operator does it: the program pauses at rest */
+	MLIP_IO_CIA402    /* a CiA 402 drive on the bus (spindle) */
+} mlip_io_type;
+
+/* One tool of the tool table (LinuxCNC's T P Z D columns), machine units. */
+struct mlip_tool {
+	int32_t number; /* T, 1.. (0 is "no tool", never in a table) */
+	int32_t pocket; /* P */
+	double z_mm;    /* Z: the length offset G43 applies */
+	double d_mm;    /* D: the diameter (0 when not given) */
+};
+
+/* The machine's I/O as a program meets it. The tool table is the caller's
+ * (kept alive while the reader is), sorted by number, numbers distinct. */
+struct mlip_gcode_io {
+	int spindle;             /* mlip_io_type */
+	double min_rpm, max_rpm; /* S of a turning spindle within these (0 < min <= max) */
+	int tool_change;         /* MLIP_IO_NONE or MLIP_IO_MANUAL */
+	uint32_t change_mask;    /* bit i: axis i (config order) goes to change_pos[i] for M6 */
+	double change_pos[MLIP_MAX_AXES]; /* machine coordinates */
+	int coolant;                      /* MLIP_IO_NONE or MLIP_IO_MANUAL */
+	const struct mlip_tool *tools;    /* the tool table; NULL: none given */
+	uint32_t n_tools;
+	/* on purpose (--ignore-spindle, --ignore-coolant, --ignore-tools): the
+	 * words are accepted and do nothing (a notice), G43 offsets are 0 */
+	int ignore_spindle, ignore_coolant, ignore_tools;
+};
+
+/* The tool numbered n in io's table, or NULL. */
+const struct mlip_tool *mlip_gcode_find_tool(const struct mlip_gcode_io *io, int32_t n);
 
 /* State that outlives a program (LinuxCNC keeps it in its parameter file,
  * #5161-#5386); all in machine units (mm, degrees), config axis order. */
@@ -74,6 +131,7 @@ struct mlip_gcode_offsets {
 	int select;                /* selected system, 0 = G54 .. 8 = G59.3 (#5220) */
 	double g28[MLIP_MAX_AXES]; /* G28 / G30 positions, machine coordinates */
 	double g30[MLIP_MAX_AXES];
+	int32_t tool; /* the tool in the spindle, 0: none (LinuxCNC #5400) */
 };
 
 /* Defaults: every offset zero, G54, G92 off, G28/G30 at each axis' HOME. */
@@ -108,6 +166,14 @@ struct mlip_gcode {
 	int strict;       /* refuse Grbl conveniences ($ lines, G0 default) */
 	uint32_t n_notices;
 	struct mlip_gcode_notice notices[MLIP_GCODE_MAX_NOTICES];
+	/* the machine's I/O (set_io); NULL: its words are notices */
+	const struct mlip_gcode_io *io;
+	double s_rpm;     /* S in force; < 0: never set */
+	int spindle;      /* 0 stopped, 3 clockwise (M3), 4 counter-clockwise (M4) */
+	unsigned coolant; /* MLIP_COOLANT_* on */
+	int32_t tool_sel; /* the last T (selected for M6); -1: none */
+	double tlo_mm;    /* tool length offset on Z in force (G43, G43.1); 0: G49 */
+	int tlo_mode;     /* 490 G49, 430 G43, 431 G43.1 */
 };
 
 /* Start a program at the machine's home position. */
@@ -136,6 +202,10 @@ void mlip_gcode_set_initial_feed(struct mlip_gcode *g, double f_word);
  * motion mode are errors, instead of a note ('$' line skipped; the axis words
  * move as G0, Grbl's start-up motion mode). */
 void mlip_gcode_set_strict(struct mlip_gcode *g, int on);
+
+/* The machine's I/O from the next line on (normally before the first);
+ * io is kept (not copied) and must outlive g. NULL: the words are notices. */
+void mlip_gcode_set_io(struct mlip_gcode *g, const struct mlip_gcode_io *io);
 
 /* Offsets in force from the next line on (normally before the first). */
 void mlip_gcode_set_offsets(struct mlip_gcode *g, const struct mlip_gcode_offsets *o);

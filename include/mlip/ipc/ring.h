@@ -20,7 +20,9 @@
  *                   word, written by mlip-ctl) and the stop counter
  *   704  machine    the controller's struct mlip_machine, so that a feeder
  *                   checks programs against exactly the limits in force
- *  1152  records    capacity x struct mlip_ring_rec (88 bytes each)
+ *  1152  io         the controller's machine I/O (struct mlip_ring_io: its
+ *                   spindle, tool change, coolant), for the same reason
+ *  1280  records    capacity x struct mlip_ring_rec (88 bytes each)
  *
  * The magic (offset 0) and the version (offset 8) keep their places in every
  * layout version, so any version can tell any other that they differ.
@@ -30,7 +32,8 @@
  *                                  the machine area included (read-only after).
  *   feeder (the single producer):  head, tail_cache, feeder area, records.
  *   controller (the single consumer, the RT thread): tail, head_cache,
- *                                  status area and command reply.
+ *                                  status area and command reply; mlip-rt
+ *                                  the io area, once, at its start.
  *   mlip-ctl: the command word (several mlip-ctl may race: a CAS decides);
  *   anyone attached (mlip-ctl stop, mlip-feed on a signal): the stop counter.
  *
@@ -83,7 +86,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION      6u         /* bump on any change to the layout below */
+#define MLIP_RING_VERSION      8u         /* bump on any change to the layout below */
 #define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -110,12 +113,18 @@ typedef enum {
 	MLIP_REC_DWELL,          /* G4 P: at rest, dwell_s seconds, to the period */
 	MLIP_REC_PAUSE,          /* M0/M60: at rest until mlip-ctl resume */
 	MLIP_REC_OPTIONAL_PAUSE, /* M1: as PAUSE when the optional-stop switch is on */
+	MLIP_REC_SPINDLE,        /* M3/M4/M5, S: at rest, dwell_s = rpm (> 0 clockwise,
+	                            < 0 counter-clockwise, 0 stop), |rpm| <= MLIP_REC_RPM_MAX */
+	MLIP_REC_TOOL,           /* M6: at rest, dwell_s = the tool to insert (0 none) */
+	MLIP_REC_COOLANT,        /* M7/M8/M9: at rest, dwell_s = MLIP_COOLANT_* bits on */
 	MLIP_REC_TYPES
 } mlip_rec_type;
 
-#define MLIP_REC_RAPID 0x1u /* MOVE, G0: runs at the machine's maximum feed */
-#define MLIP_REC_EXACT 0x2u /* MOVE, G61: the corner at its end is taken at rest */
-#define MLIP_REC_FLAGS (MLIP_REC_RAPID | MLIP_REC_EXACT) /* any other bit: a bad record */
+#define MLIP_REC_RAPID    0x1u /* MOVE, G0: runs at the machine's maximum feed */
+#define MLIP_REC_EXACT    0x2u /* MOVE, G61: the corner at its end is taken at rest */
+#define MLIP_REC_FLAGS    (MLIP_REC_RAPID | MLIP_REC_EXACT) /* any other bit: a bad record */
+#define MLIP_REC_RPM_MAX  1e6          /* a larger spindle speed is not one: a bad record */
+#define MLIP_REC_TOOL_MAX 2147483647.0 /* tool numbers: whole, 0..this */
 
 /* One block in the ring (POD, 88 bytes, no padding). Written by the feeder. */
 struct mlip_ring_rec {
@@ -126,7 +135,8 @@ struct mlip_ring_rec {
 	double target[MLIP_MAX_AXES]; /* MOVE: absolute, mm or deg, config axis order */
 	double feed_mm_s;             /* MOVE: programmed feed (ignored when RAPID) */
 	double tol_mm;                /* MOVE: contour budget at the end of the block */
-	double dwell_s;               /* DWELL: seconds, >= 0 */
+	double dwell_s;               /* DWELL: seconds, >= 0; SPINDLE, TOOL, COOLANT: the
+	                                 value the type says (the block's value) */
 };
 
 /* ---- status published by the controller ---------------------------- */
@@ -194,7 +204,12 @@ struct mlip_ring_status {
 	                                     --start-seq) is read from there */
 	/* layout version 6 */
 	uint32_t stop_seen; /* the stop counter's value the controller has applied */
-	uint32_t spare6;
+	/* layout version 8: operating the machine (issue 18) */
+	uint32_t io_inputs; /* bit f: input function f (MLIP_IN_*, mlip/machine/config.h) is on */
+	uint32_t io_mapped; /* bit f: function f is mapped in the configuration */
+	uint32_t io_known;  /* bit f: its input has been read from the bus */
+	uint32_t homed;     /* bit k: axis k is homed */
+	uint32_t spare7;
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */
@@ -219,13 +234,45 @@ typedef enum {
 	MLIP_CMD_STOP,          /* decelerate to rest and drop the rest of the program
 	                           (in the segment: the stop counter, mlip_ring_stop_post) */
 	MLIP_CMD_OPTIONAL_STOP, /* arg 1: M1 pauses; arg 0: M1 is ignored */
+	MLIP_CMD_RESET,         /* leave estop (or a limit fault) once its input is released */
+	MLIP_CMD_JOG,           /* continuous jog (issue 18): arg = MLIP_JOG_ARG(axis, neg,
+	                           mm/min); renewed at least every MLIP_JOG_DEADMAN_S by the
+	                           same command, else it stops; speed 0 stops it */
+	MLIP_CMD_HOME,          /* home (issue 18): arg = axis mask (bit k: axis k; 0: every
+	                           axis with a HOME_METHOD), in HOME_SEQUENCE order */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
+
+/* MLIP_CMD_JOG's argument: axis index (bits 0-2), negative direction (bit 3),
+ * speed in mm/min or deg/min (bits 4-23, 0..1048575; 0: stop the jog). */
+#define MLIP_JOG_ARG(axis, neg, mm_min)                                                            \
+	((int32_t)(((uint32_t)(axis)&7u) | ((neg) ? 8u : 0u) |                                     \
+	           (((uint32_t)(mm_min)&0xFFFFFu) << 4)))
+#define MLIP_JOG_SPEED_MAX 1048575u /* mm/min */
+#define MLIP_JOG_DEADMAN_S 0.25     /* a jog not renewed for this long stops */
 
 struct mlip_ring_cmd {
 	uint32_t seq; /* mailbox sequence number of this command (even, > 0) */
 	uint32_t op;  /* mlip_ring_cmd_op */
 	int32_t arg;  /* MLIP_CMD_OVERRIDE: percent; OPTIONAL_STOP: 0/1; else 0 */
+};
+
+/* ---- the machine's I/O (layout version 7) ----------------------------- */
+
+/* What mlip-rt's config says the machine has ([SPINDLE], [TOOL],
+ * [COOLANT]): a feeder checks a program's S, M3, M6, M8 ... against it, as
+ * against the machine area's limits. Written once by mlip-rt after the
+ * format (published last, release); a reader that finds it unpublished
+ * (mlip-rt starting) tries again. */
+struct mlip_ring_io {
+	uint32_t published;   /* 1 once written */
+	uint32_t spindle;     /* mlip_io_type (mlip/gcode/gcode.h) */
+	uint32_t tool_change; /* mlip_io_type */
+	uint32_t coolant;     /* mlip_io_type */
+	uint32_t change_mask; /* bit i: axis i has a tool change position */
+	uint32_t spare;
+	double min_rpm, max_rpm;
+	double change_pos[MLIP_MAX_AXES]; /* machine coordinates, config order */
 };
 
 /* ---- the segment header --------------------------------------------- */
@@ -273,6 +320,9 @@ struct mlip_ring {
 
 	/* machine: written by mlip_ring_format_machine before the magic */
 	struct mlip_machine machine MLIP_RING_ALIGNED;
+
+	/* io: mlip-rt, once (mlip_ring_io_publish) */
+	struct mlip_ring_io io MLIP_RING_ALIGNED;
 };
 
 /* Why an attach (or a format) was refused. */
@@ -324,6 +374,12 @@ mlip_status mlip_ring_format_machine(void *mem, size_t bytes, uint32_t capacity,
                                      const struct mlip_machine *m);
 /* The machine the controller published (zeroed if plain format was used). */
 void mlip_ring_machine(const struct mlip_ring *r, struct mlip_machine *out);
+
+/* The controller's process: publish the machine's I/O (once, at its start;
+ * io->published is ignored). */
+void mlip_ring_io_publish(struct mlip_ring *r, const struct mlip_ring_io *io);
+/* Any side: the machine's I/O; MLIP_E_EMPTY while unpublished. */
+mlip_status mlip_ring_io_read(const struct mlip_ring *r, struct mlip_ring_io *out);
 
 mlip_status mlip_ring_attach(void *mem, size_t bytes, int n_axes, struct mlip_ring **out,
                              struct mlip_ring_mismatch *why);

@@ -42,6 +42,19 @@
  *   SDO_TIMEOUT_MS = 200       ; one SDO answer
  *   BOOT_TIMEOUT_MS = 3000     ; boot-up after NMT reset communication
  *   STATE_TIMEOUT_MS = 1000    ; one CiA 402 transition confirmed by the statusword
+ *   [SPINDLE]                  ; optional (issue 19; docs/machine.md)
+ *   TYPE = manual              ; none (default: M3/M4/S refused) or manual (the
+ *                              ;   program pauses for the operator)
+ *   MIN_RPM = 6000             ; rpm, 0..MAX_RPM (optional, default 0)
+ *   MAX_RPM = 24000            ; rpm, > 0, required with manual; an S beyond is refused
+ *   [TOOL]                     ; optional
+ *   CHANGE = manual            ; none (default: M6 refused) or manual (pause: "insert
+ *                              ;   tool n"); the tool table is a file (--tools FILE)
+ *   CHANGE_Z = 50              ; optional change position, machine coordinates, per
+ *   CHANGE_X = 0               ;   axis of COORDINATES, inside its soft limits; M6
+ *                              ;   rapids there (Z first) before the pause
+ *   [COOLANT]                  ; optional
+ *   TYPE = manual              ; none (default: M7/M8 refused) or manual
  *
  * Syntax. Section names and keys are upper case and case-sensitive, as in
  * LinuxCNC; enumerated values are case-sensitive too. A line is blank, a
@@ -76,6 +89,7 @@
 #include <stdint.h>
 
 #include "mlip/can/canconf.h"
+#include "mlip/gcode/gcode.h"
 #include "mlip/types.h"
 
 #define MLIP_CONFIG_MSG          256
@@ -110,11 +124,96 @@ struct mlip_drives_config {
 	uint32_t state_timeout_ms;     /* STATE_TIMEOUT_MS: one CiA 402 transition, 1000 */
 };
 
+/* Digital inputs on the bus (issue 18; mlip-rt reads them, src/canopen/io401.c
+ * evaluates them). Each function is one bit of one object of one node,
+ * mapped in the INI as NODE INDEX:SUB BIT HIGH|LOW:
+ *   [IO]
+ *   NODE = 10                    ; the CiA 401 I/O module's node id (optional)
+ *   ESTOP = 10 0x6000:1 0 LOW    ; module input byte 1 bit 0, on when it reads 0
+ *   HOLD = 10 0x6000:1 1 HIGH    ; feed hold (as mlip-ctl hold), on its rising edge
+ *   CYCLE_START = 10 0x6000:1 2 HIGH  ; resume (as mlip-ctl resume), rising edge
+ *   PROBE = 10 0x6000:1 3 HIGH
+ *   [AXIS_X]
+ *   LIMIT_NEG = 1 0x60FD:0 0 HIGH   ; a drive's digital inputs 0x60FD (CiA 402:
+ *   LIMIT_POS = 1 0x60FD:0 1 HIGH   ; bit 0 negative limit, 1 positive, 2 home),
+ *   HOME_SWITCH = 1 0x60FD:0 2 HIGH ; or any bit of the module
+ * The module's inputs are 0x6000:1..8 (8 bits each), a drive's 0x60FD:0 (32
+ * bits). LOW (active low) suits a normally closed contact: a broken wire
+ * reads 0 and trips the function, as an E-stop circuit must. A node must be
+ * [IO] NODE or an axis' CAN_NODE; one bit carries one function. */
+enum {
+	MLIP_IN_ESTOP = 0,
+	MLIP_IN_HOLD,
+	MLIP_IN_CYCLE_START,
+	MLIP_IN_PROBE,
+	MLIP_IN_AXIS0 /* axis k (machine order): + 3k limit neg, + 3k + 1 limit pos, + 3k + 2 home
+	               */
+};
+#define MLIP_IN_LIMIT_NEG(k) (MLIP_IN_AXIS0 + 3 * (k))
+#define MLIP_IN_LIMIT_POS(k) (MLIP_IN_AXIS0 + 3 * (k) + 1)
+#define MLIP_IN_HOME_SW(k)   (MLIP_IN_AXIS0 + 3 * (k) + 2)
+#define MLIP_IN_COUNT        (MLIP_IN_AXIS0 + 3 * MLIP_MAX_AXES) /* 22: a bit each in a uint32_t */
+#define MLIP_IO_IN_BYTES     8                                   /* 0x6000:1..8 / 0x6200:1..8 */
+
+struct mlip_io_bit {
+	uint8_t node;       /* 0: not mapped */
+	uint8_t sub;        /* 0x6000:1..8, 0x60FD:0 */
+	uint16_t index;     /* 0x6000 (module inputs), 0x60FD (drive inputs) */
+	uint8_t bit;        /* 0..7 in a module byte, 0..31 in 0x60FD */
+	uint8_t active_low; /* LOW: on when the bit reads 0 */
+	uint32_t line;      /* where the INI maps it (0: not mapped) */
+};
+
+struct mlip_io_config {
+	uint8_t node;      /* [IO] NODE: the CiA 401 module; 0: none */
+	uint8_t in_bytes;  /* module input bytes the functions use (0x6000:1..n) */
+	uint8_t out_bytes; /* module output bytes mapped (0x6200:1..n; 0: none) */
+	uint32_t mapped;   /* bit f: function f is mapped */
+	struct mlip_io_bit in[MLIP_IN_COUNT]; /* by function (MLIP_IN_*) */
+};
+
+/* "estop", "hold", "cycle start", "probe", "X limit -", "X limit +", "X home
+ * switch" (the letter from m; NULL: the axis index), "?" out of range. Writes
+ * into buf (16 bytes suffice) and returns it. */
+const char *mlip_io_function_name(uint32_t f, const struct mlip_machine *m, char *buf, size_t n);
+
+/* Homing with the drives' own homing mode (issue 18; CiA 402 mode 6), per
+ * axis in [AXIS_L]:
+ *   HOME_METHOD = 35        ; 0x6098: any method the drive supports (35/37: the
+ *                           ; current position; 17/18: a limit switch; 19..30:
+ *                           ; a home switch); homing is configured by this key
+ *   HOME_SEARCH_VEL = 10    ; mm/s (deg/s): 0x6099:01, in counts/s
+ *   HOME_LATCH_VEL = 1      ; mm/s (deg/s): 0x6099:02
+ *   HOME_ACCEL = 100        ; mm/s^2: 0x609A (default MAX_ACCELERATION)
+ *   HOME_OFFSET = 0         ; mm: 0x607C, the position at home (inside the limits)
+ *   HOME_SEQUENCE = 1       ; 0..9: axes with the same number home together, lower
+ *                           ; first (default: Z 0, the others 1, as LinuxCNC)
+ *   HOME_TIMEOUT = 60       ; s: homing not done by then is a fault
+ * and [DRIVES] HOMING_REQUIRED = 1: programs are refused until every axis
+ * with a HOME_METHOD is homed (jogging stays allowed). */
+struct mlip_axis_home {
+	int configured;                              /* HOME_METHOD given */
+	int method;                                  /* 0x6098 */
+	double search_vel, latch_vel, accel, offset; /* axis units */
+	int sequence;
+	double timeout_s;
+};
+
+struct mlip_home_config {
+	int required;                              /* HOMING_REQUIRED */
+	struct mlip_axis_home axis[MLIP_MAX_AXES]; /* machine order */
+};
+
 struct mlip_config {
 	struct mlip_machine machine;
 	struct mlip_can_config can;
 	struct mlip_drives_config drives;
+	struct mlip_io_config inputs; /* the inputs on the bus (issue 18) */
+	struct mlip_home_config home;
 	uint32_t lookahead; /* [TRAJ] LOOKAHEAD blocks, default MLIP_LOOKAHEAD */
+	/* [SPINDLE], [TOOL], [COOLANT]: what the program's I/O words meet (the
+	 * tools add the tool table and the --ignore-* choices); default none */
+	struct mlip_gcode_io io;
 };
 
 /* Fill *c with defaults (no axes): MAX_ANGULAR_VELOCITY 360, PERIOD 0.001,

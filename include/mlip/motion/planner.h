@@ -229,6 +229,12 @@ void mlip_planner_rest_here(struct mlip_planner *p);
  * MLIP_E_INVALID when not idle or a coordinate is not finite. */
 mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos);
 
+/* Abort (an E-stop, issue 18: the drives stop by themselves in their quick
+ * stop, not on the path): drop every queued block at once, clear hold and
+ * stop, and rest at pos[] (where the drives are). MLIP_E_INVALID, nothing
+ * changed, when a coordinate is not finite. */
+mlip_status mlip_planner_abort(struct mlip_planner *p, const double *pos);
+
 /* Advance one period; writes the setpoint of every axis to pos_out[n].
  * Returns the run state after the period. */
 mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out);

@@ -1,0 +1,161 @@
+"""Homing with the drives' own homing mode (issue 18, CiA 402 mode 6) on a
+real vcan0, against the canopen package's drives with switches at given
+positions: the master writes 0x6098, 0x6099:1/2, 0x609A, 0x607C and 0x6060 by
+SDO in the loop (SYNC, heartbeats and supervision running), each read back,
+starts with controlword bit 4, waits for statusword bits 10 and 12, and
+returns the drive to mode 8 with the target equal to the position actual.
+Judged on what the drives recorded (events.jsonl: the SDO writes, the homing
+phases; sync.csv: the target and actual of every SYNC).
+
+Drives (one simulator): 1 at 12345 counts (method 35), 2 at 7000 with its
+negative limit switch at 2000 (method 17), 3 at 3000 with its home switch at
+5000 (method 19); 4 without switches (method 17: a homing error); 5 that
+never finishes (a timeout). Period 40 ms, as the other drive tests.
+"""
+
+import re
+import time
+
+import pytest
+
+from conftest import S
+from mlipcan import procs
+
+MILL = S.config_dir / "mill-3axis.ini"
+PERIOD_S = 0.04
+HOMES = {"X": (35, 0.0, 1), "Y": (17, -1.5, 1), "Z": (19, 10.0, 0)}  # method, offset, seq
+DRIVES = """
+[DRIVES]
+ENABLE = 1
+HEARTBEAT_MS = 100
+HEARTBEAT_TIMEOUT_MS = 4000
+FOLLOWING_ERROR = 2
+SDO_TIMEOUT_MS = 5000
+BOOT_TIMEOUT_MS = 8000
+STATE_TIMEOUT_MS = 10000
+HOMING_REQUIRED = 1
+"""
+
+
+def machine(tmp, nodes, homes=HOMES, timeout=30, name="home.ini"):
+    text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
+    text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
+    for axis, node in zip("XYZ", nodes):
+        sec = rf"(^\[AXIS_{axis}\]$(?:\n(?!\[).*)*?\n"
+        text = re.sub(sec + r"CAN_NODE = )\d+", rf"\g<1>{node}", text, count=1, flags=re.M)
+        method, offset, seq = homes[axis]
+        text = re.sub(rf"^\[AXIS_{axis}\]$",
+                      f"[AXIS_{axis}]\nHOME_METHOD = {method}\nHOME_OFFSET = {offset}\n"
+                      f"HOME_SEQUENCE = {seq}\nHOME_SEARCH_VEL = 5\nHOME_LATCH_VEL = 0.5\n"
+                      f"HOME_ACCEL = 20\n"
+                      f"HOME_TIMEOUT = {timeout}", text, count=1, flags=re.M)
+    path = tmp / name
+    path.write_text(text + DRIVES)
+    return path
+
+
+@pytest.fixture(scope="module")
+def sim(vcan, tmp_path_factory):
+    w = tmp_path_factory.mktemp("homesim")
+    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3, 4, 5],
+                           starts={1: 12345, 2: 7000, 3: 3000, 4: 100, 5: 200},
+                           args=["--switches", "2=neg:2000", "--switches", "3=home:5000",
+                                 "--switches", "5=neg:-100000"],
+                           inject=["5:homing-stall"])
+    yield s
+    s.stop()
+
+
+def homing_events(sim, t0):
+    out = {}
+    for e in sim.events("homing"):
+        if e["t"] >= t0:
+            out.setdefault(e["node"], []).append(e)
+    return out
+
+
+def test_homing_in_sequence(sim, tmp_path):
+    cfg = machine(tmp_path, [1, 2, 3])
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G21 G90\nG1 X5 Y5 Z12 F1200\nG1 X0 Y0 Z10\n")
+    t0 = time.time()
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        st = rig.status()
+        assert st["homed"] == {"X": False, "Y": False, "Z": False}, st
+        # HOMING_REQUIRED: a program before homing is refused, nothing moves
+        f = rig.feeder(ngc)
+        f.p.wait(timeout=300)
+        st = rig.wait_state("idle", timeout=60, pred=lambda s: s["reason"] == "not homed")
+        p = rig.ctl("home", check=False)
+        assert p.returncode == 0, p.stdout + p.stderr
+        assert "homed in" in p.stdout and "X 0.0000 Y -1.5000 Z 10.0000" in p.stdout, p.stdout
+        st = rig.status()
+        assert st["homed"] == {"X": True, "Y": True, "Z": True}, st
+        assert st["position_actual"] == {"X": 0.0, "Y": -1.5, "Z": 10.0}, st
+        assert st["position"] == st["position_actual"]
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err
+    ev = homing_events(sim, t0)
+    # Z (sequence 0) first, then X and Y together
+    start = {n: min(e["sync"] for e in ev[n] if e["phase"] == "start") for n in (1, 2, 3)}
+    done = {n: max(e["sync"] for e in ev[n] if e["phase"] == "done") for n in (1, 2, 3)}
+    assert done[3] < start[1] and done[3] < start[2], (start, done)
+    assert start[1] == start[2], start
+    # each drive's objects as configured, in counts, read back (no abort)
+    for n, (method, offset) in {1: (35, 0), 2: (17, -1500), 3: (19, 10000)}.items():
+        w = {(e["index"], e["sub"]): e.get("value") for e in sim.events("sdo_write", n)
+             if e["t"] >= t0 and not e.get("abort")}
+        assert w[("0x6098", 0)] == method and w[("0x607C", 0)] == offset, w
+        assert w[("0x6099", 1)] == 5000 and w[("0x6099", 2)] == 500, w
+        assert w[("0x6060", 0)] == 8  # the last mode written: back to CSP
+    rows = [r for r in sim.sync_rows() if r["t"] >= t0]
+    # Y searched at 5 mm/s (200 counts a SYNC), braked past the switch at
+    # HOME_ACCEL 20 mm/s^2 (32 counts less a SYNC), latched back at 0.5 mm/s
+    # (20 counts a SYNC) until it released
+    ys = [r["actual"] for r in rows if r["node"] == 2 and start[2] < r["sync"] <= done[2]]
+    steps = [b - a for a, b in zip(ys, ys[1:]) if b != a]
+    assert steps.count(-200) >= 20 and steps.count(20) >= 10, steps
+    assert all(s == 20 or -200 <= s < 0 for s in steps), steps
+    # no step at the return to CSP: the first target each drive applied after
+    # 0x6060 = 8 equals its position actual, the home offset, to the count
+    for n, off in ((1, 0), (2, -1500), (3, 10000)):
+        t_csp = max(e["t"] for e in sim.events("sdo_write", n)
+                    if e["t"] >= t0 and e["index"] == "0x6060" and e.get("value") == 8)
+        after = [r for r in rows if r["node"] == n and r["t"] > t_csp and r["target"] is not None]
+        assert after[0]["target"] == off and after[0]["actual"] == off, (n, after[:3])
+    per_s = {n: (done[n] - start[n]) * PERIOD_S for n in (1, 2, 3)}
+    print(f"\n[home] SYNCs from bit 4 to homing attained: {dict((n, done[n] - start[n]) for n in done)}"
+          f" = {per_s} s at 40 ms (X method 35, Y 17 from 7000 to the switch at 2000, "
+          f"Z 19 from 3000 to 5000)")
+
+
+@pytest.mark.parametrize("node,what,reason", [(4, "error", "homing error"),
+                                              (5, "timeout", "homing timeout")])
+def test_homing_fails(sim, tmp_path, node, what, reason):
+    homes = dict(HOMES, X=(17, 0.0, 0))
+    cfg = machine(tmp_path, [node, 2, 3], homes=homes, timeout=3)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        p = rig.ctl("home", "X", check=False)
+        assert p.returncode == 1, p.stdout
+        assert f"node {node}, method 17" in p.stderr, p.stderr
+        st = rig.status()
+        assert st["state"] == "fault" and st["reason"] == reason, st
+        assert st["drives"] == "quick stop" and st["homed"]["X"] is False, st
+        rig.wait_state("fault", timeout=60)
+        p = rig.ctl("reset", check=False)
+        assert p.returncode == 0, p.stderr
+        rig.wait_state("idle", timeout=60)
+    w = [e for e in sim.events("sdo_write", node) if e["index"] == "0x6060"]
+    assert w[-1]["value"] == 8, w[-3:]  # back to CSP after the failure
+    if what == "timeout":
+        sim.inject(f"{node}:homing-stall=off")
+
+
+def test_homing_method_refused(sim, tmp_path):
+    homes = dict(HOMES, X=(1, 0.0, 0))  # a method this drive does not have
+    cfg = machine(tmp_path, [1, 2, 3], homes=homes)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        p = rig.ctl("home", "X", check=False)
+        assert p.returncode == 1
+        assert "node 1 refused 0x6098:00" in p.stderr and "0x06090030" in p.stderr, p.stderr
+        assert rig.status()["reason"] == "homing object refused"

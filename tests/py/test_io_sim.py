@@ -1,0 +1,108 @@
+"""The simulated CiA 401 I/O module and the drive's homing mode (issue 18) on
+the host, without vcan: simulator and master are both the real `canopen`
+package, joined by python-can's in-process virtual bus. The bus version (with
+mlip-rt) is tests/can/test_io_vcan.py and tests/can/test_homing_vcan.py."""
+import time
+
+import can
+import canopen
+import pytest
+
+from mlipcan import drive as D
+from mlipcan import io401
+
+
+def wait(pred, timeout=5.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        v = pred()
+        if v:
+            return v
+        time.sleep(0.01)
+    return None
+
+
+@pytest.fixture
+def pair(tmp_path):
+    chan = f"io-{time.monotonic_ns()}"
+    rec = D.Recorder(tmp_path)
+    sim = D.DriveSim(chan, [dict(node_id=5, start_position=7000, heartbeat_ms=0, lag_alpha=1.0,
+                                 switches={"neg": 2000})], rec,
+                     bus=can.Bus(interface="virtual", channel=chan))
+    sim.add_module(10, 0)
+    net = canopen.Network(can.Bus(interface="virtual", channel=chan))
+    net.connect()
+    sim.start()
+    io = net.add_node(10, io401.build_od(10))
+    drive = net.add_node(5, D.build_od(5))
+    for n in (io, drive):
+        n.sdo.RESPONSE_TIMEOUT = 2.0
+    yield sim, net, io, drive
+    sim.stop()
+    net.disconnect()
+
+
+def test_module_inputs_outputs(pair):
+    sim, net, io, _ = pair
+    assert io.sdo[0x1000].raw & 0xFFFF == 401
+    got = []
+    net.subscribe(0x18A, lambda cob, data, t: got.append(bytes(data)))
+    # the master's mapping, as mlip writes it: two input bytes, on change
+    io.sdo[0x1800][1].raw = 0xC000018A
+    io.sdo[0x1A00][0].raw = 0
+    io.sdo[0x1A00][1].raw = 0x60000108
+    io.sdo[0x1A00][2].raw = 0x60000208
+    io.sdo[0x1A00][0].raw = 2
+    io.sdo[0x1800][1].raw = 0x4000018A
+    with pytest.raises(canopen.SdoAbortedError):
+        io.sdo[0x1A00][1].raw = 0x62000108  # mapping while valid: refused (CiA 301)
+    net.nmt.send_command(0x01)
+    assert wait(lambda: got), "no TPDO on entering operational"
+    assert got[-1] == b"\x00\x00"
+    sim.inject(10, "input", "2.3=1")
+    assert wait(lambda: got[-1] == b"\x00\x08"), got
+    assert io.sdo[0x6000][2].raw == 0x08
+    n = len(got)
+    sim.inject(10, "input", "2.3=1")  # no change: no TPDO
+    time.sleep(0.1)
+    assert len(got) == n
+    # outputs by RPDO (default mapping 0x6200:1), and off when the master's
+    # heartbeat is lost
+    io.sdo[0x1016][1].raw = (127 << 16) | 50
+    net.send_message(0x77F, b"\x05")
+    net.send_message(0x20A, b"\x81")
+    assert wait(lambda: io.sdo[0x6200][1].raw == 0x81)
+    time.sleep(0.2)
+    sim.tick()  # the consumer judged at the bus time
+    assert wait(lambda: sim.modules[10].outputs[0] == 0)
+    assert io.sdo[0x6200][1].raw == 0
+
+
+def test_drive_homing_limit_switch(pair):
+    sim, net, _, drive = pair
+    with pytest.raises(canopen.SdoAbortedError):
+        drive.sdo[0x6098].raw = 1  # not a method of this drive
+    drive.sdo[0x6098].raw = 17
+    drive.sdo[0x6099][1].raw = 50000  # counts/s: 500 a SYNC of 10 ms
+    drive.sdo[0x6099][2].raw = 1000
+    drive.sdo[0x609A].raw = 10**6
+    drive.sdo[0x607C].raw = -1500
+    drive.sdo[0x60C2][1].raw = 10  # 10 ms
+    drive.sdo[0x6060].raw = 6
+    assert drive.sdo[0x6061].raw == 6
+    for cw in (0x06, 0x07, 0x0F):
+        drive.sdo[0x6040].raw = cw
+    net.nmt.send_command(0x01)
+    d = sim.drives[5]
+    d.cw = 0x1F  # bit 4's rising edge, as an RPDO applied at a SYNC
+    for i in range(200):
+        net.sync.transmit()
+        time.sleep(0.002)
+        if d.home_phase in ("done", "error"):
+            break
+    assert d.home_phase == "done" and d.actual == -1500
+    sw = drive.sdo[0x6041].raw
+    assert sw & 0x1400 == 0x1400 and not sw & 0x2000, hex(sw)
+    # the switch is where it was, in the new reference: within a latch step
+    # (10 counts) beyond the home position
+    assert -1500 - 10 <= d.switches["neg"] < -1500, d.switches
