@@ -50,7 +50,7 @@ static void start_at(size_t i)
 	for (int k = 0; k < machine.n_axes; k++) {
 		start[k] = from ? from[k] : machine.axis[k].home;
 	}
-	mlip_planner_init(&P, &machine, MLIP_STRATEGY_MPCT, 0, start);
+	mlip_planner_init(&P, &machine, MLIP_STRATEGY_MPCT, 0, start, NULL);
 }
 
 /* Pre-read n blocks from offset i (the machine at rest). Named for

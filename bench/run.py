@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""make bench: the paper's Table 2 and Table 1, redone on real toolpaths.
+"""make bench: the paper's Table 2 and Table 1, redone on real toolpaths, and
+Table 2's jerk columns (a per-axis jerk limit, mlip/motion/jerk.h).
 
 Table 2: total machining time of mpct (the paper), bisector, stop and smooth
 (mpct on the path smoothed within the tolerance, beyond the paper) on
@@ -111,6 +112,89 @@ def table2(build):
     return res
 
 
+JERKS = [100000, 10000]  # 100 A and 10 A at A = 1000 mm/s^2 (mm/s^3)
+# LinuxCNC 2.10's S-curve planner as the issue measured it (master of 2026,
+# PLANNER_TYPE 1, MAX_LINEAR_JERK and per-joint MAX_JERK = J, G64 P0.01, 1 ms
+# servo, sim, A = 1000 mm/s^2): on a Lissajous of amplitudes 60 and 45 mm in
+# 0.018 mm segments and a random zigzag of 0.05-0.6 mm segments (its own).
+PEERS = {"Lissajous 60 x 45 mm, 0.018 mm": ("6.89 s", "52.1 s (max jerk 1.7 J)", "25.5 s"),
+         "random zigzag, 0.05-0.6 mm": ("547 s", "1848 s (contour 0.0127 mm, jerk 70 J at corners)",
+                                        "1209 s (contour 0.0126 mm)")}
+
+
+def sim_jerk(build, path, n_axes, strategy, jerk):
+    extra = ["--jerk", str(jerk)] if jerk else []
+    return json.loads(subprocess.run(
+        [os.path.join(build, "mlip-sim"), "-q", "--strategy", strategy, "--accel",
+         ",".join(["1000"] * n_axes), "--vmax", "200", "--feed", "200", "--eps", "0.01",
+         "--period", "0.001", *extra, "--summary", "-", path],
+        check=True, capture_output=True, text=True).stdout)
+
+
+def table2_jerk(build):
+    """Table 2's jerk columns: mpct and smooth under a per-axis jerk limit."""
+    gen = os.path.abspath(os.path.join(build, "curves"))
+    os.makedirs(gen, exist_ok=True)
+    for c in CURVES:
+        if not os.path.exists(os.path.join(gen, c + ".ngc")):
+            subprocess.run([sys.executable, os.path.join(ROOT, "tools", "gen_curves.py"), c,
+                            os.path.join(gen, c + ".ngc")], check=True)
+    zz = os.path.join(gen, "random-zigzag.ngc")
+    with open(zz, "w") as fh:
+        subprocess.run([sys.executable, os.path.join(ROOT, "tools", "gen_zigzag.py"), "--random", "1",
+                        "--segments", "4000"], check=True, stdout=fh)
+    files = [(os.path.join(TOOLPATHS, "MB-2.3_test.nc"), 3), (os.path.join(TOOLPATHS, "flower-spiral-2d.ngc"), 2)]
+    files += [(os.path.join(gen, c + ".ngc"), 3 if c == "spiral" else 2) for c in CURVES]
+    files += [(zz, 2)]
+    jobs = {}
+    with cf.ThreadPoolExecutor(max_workers=2) as ex:
+        for f, n in files:
+            jobs[(f, "smooth", 0)] = ex.submit(sim_jerk, build, f, n, "smooth", 0)
+            for j in JERKS:
+                for st in ("mpct", "smooth"):
+                    jobs[(f, st, j)] = ex.submit(sim_jerk, build, f, n, st, j)
+        res = {k: v.result() for k, v in jobs.items()}
+    print("## Table 2, jerk columns: a per-axis jerk limit J (A 1000 mm/s^2 per axis, 200 mm/s,"
+          " eps 0.01 mm, T 1 ms)\n")
+    print("Machining time and against smooth without a jerk limit; the worst axis's jerk over J and"
+          " acceleration over A at any sample (third and second differences of the setpoints /"
+          " T^3, T^2), the largest contour error against the original polyline.\n")
+    print("| file | smooth, no J | J | mpct | smooth | smooth vs no J | max jerk / J |"
+          " max accel / A | max contour (mm) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for f, n in files:
+        t0 = res[(f, "smooth", 0)]["total_time_s"]
+        for j in JERKS:
+            rm, rs = res[(f, "mpct", j)], res[(f, "smooth", j)]
+            jr = max(max(a / j for a in r["max_axis_jerk"]) for r in (rm, rs))
+            ar = max(max(a / 1000 for a in r["max_axis_accel"]) for r in (rm, rs))
+            ce = max(r["max_contour_error_mm"] for r in (rm, rs))
+            print(f"| {os.path.basename(f)} | {t0:.2f} s | {j:.0e} | {rm['total_time_s']:.2f} s |"
+                  f" {rs['total_time_s']:.2f} s | {rs['total_time_s'] / t0:.2f}x | {jr:.9f} |"
+                  f" {ar:.4f} | {ce:.5f} |")
+    print("\nThe generated curves' quasi-static bounds (bench/topp.py --jerk: the exact curve at the"
+          " largest steady speed its own acceleration and jerk allow, transitions ignored) against the"
+          " same bound without J: what the jerk limit costs there at the least.\n")
+    print("| curve | J | quasi-static, no J | with J | bound's ratio | smooth's ratio (above) |")
+    print("|---|---|---|---|---|---|")
+    for c in CURVES:
+        f = os.path.join(gen, c + ".ngc")
+        for j in JERKS:
+            q = topp.quasi_static_curve(c, [1000.0] * 6, [float(j)] * 6, 200.0, 0.02)
+            rs = res[(f, "smooth", j)]["total_time_s"] / res[(f, "smooth", 0)]["total_time_s"]
+            print(f"| {c} | {j:.0e} | {q['accel_s']:.3f} s | {q['jerk_s']:.3f} s |"
+                  f" {q['jerk_s'] / q['accel_s']:.3f}x | {rs:.2f}x |")
+    print("\nPeers, for context (the issue's measurements; their files, not these): LinuxCNC 2.10's"
+          " S-curve planner (PLANNER_TYPE 1, MAX_LINEAR_JERK = per-joint MAX_JERK = J, G64 P0.01,"
+          " 1 ms servo, A 1000 mm/s^2):\n")
+    print("| file | planner 0 (no jerk limit) | J = 1e4 | J = 1e5 |")
+    print("|---|---|---|---|")
+    for name, (t0, t4, t5) in PEERS.items():
+        print(f"| {name} | {t0} | {t4} | {t5} |")
+    print()
+    return res
+
+
 def callgrind(build, args, func):
     if shutil.which("valgrind") is None:
         return None
@@ -178,12 +262,14 @@ def sim_speed(build):
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
-    ap.add_argument("--only", choices=["table1", "table2", "speed"])
+    ap.add_argument("--only", choices=["table1", "table2", "jerk", "speed"])
     a = ap.parse_args()
     if not os.path.isdir(TOOLPATHS):
         sys.exit(f"bench: {TOOLPATHS} not found (set MLIP_SHARED)")
     if a.only in (None, "table2"):
         table2(a.build)
+    if a.only in (None, "table2", "jerk"):
+        table2_jerk(a.build)
     if a.only in (None, "table1"):
         table1(a.build)
     if a.only in (None, "speed"):

@@ -33,7 +33,22 @@ The rapid: every generated file starts with a G0 from the machine's start
 from rest to rest: the same for every path, and within ~10 ms of what a
 planner blending the corner at the curve's start (within eps) could gain.
 
+The jerk limit (--jerk J, every axis; mlip/motion/jerk.h): a quasi-static
+bound, the time along the exact curve at the largest speed its own
+acceleration and jerk allow at each point, transitions ignored (no
+tangential acceleration anywhere): at a steady speed v, x'' = K v^2 and
+x''' = K' v^3 (K = x''(s) the curvature vector, K' its derivative by arc
+length), so
+
+    v(s) = min(vmax, min_k sqrt(A_k / |K_k|), min_k (J_k / |K'_k|)^(1/3)).
+
+Without a jerk limit the same bound (its accelerations only) is printed
+beside it: their ratio is what the jerk limit costs on that curve at the
+least, the curve's own jerk alone. Not a ceiling for a planner (it ignores
+the time to change speed), a scale.
+
   bench/topp.py curve lissajous [--accel 1000,1000] [--vmax 200] [--ds 0.01]
+  bench/topp.py curve lissajous --jerk 10000     # the quasi-static bounds
   bench/topp.py poly smoothed.csv [--accel ...]
   bench/topp.py curve spiral --check      # ds 0.04, 0.02, 0.01, 0.005
 """
@@ -184,6 +199,30 @@ def poly_grid(pts, ds):
     return h, d1, d2, float(hs.sum())
 
 
+def quasi_static(h, d2, d3, accel, jerk, vmax):
+    # Time along a grid at the largest steady speed the path's own
+    # acceleration (and, with jerk, its jerk) allows at each point.
+    n_ax = d2.shape[1]
+    A = np.asarray(accel, float)[:n_ax]
+    with np.errstate(divide="ignore"):
+        v = np.min(np.sqrt(A / np.abs(d2)), axis=1)
+        if jerk is not None:
+            J = np.asarray(jerk, float)[:n_ax]
+            v = np.minimum(v, np.min(np.cbrt(J / np.abs(d3)), axis=1))
+    v = np.minimum(v, vmax)
+    return float(np.sum(2.0 * h / (v[:-1] + v[1:])))
+
+
+def quasi_static_curve(name, accel, jerk, vmax, ds):
+    # The quasi-static bounds of the exact curve without and with jerk.
+    h, d1, d2, p0, length = curve_grid(name, ds)
+    s = np.concatenate([[0.0], np.cumsum(h)])
+    d3 = np.gradient(d2, s, axis=0)  # K'(s), the curvature vector's derivative
+    return {"path": f"{name} (exact)", "length_mm": length, "ds_mm": ds,
+            "accel_s": quasi_static(h, d2, d3, accel, None, vmax),
+            "jerk_s": quasi_static(h, d2, d3, accel, jerk, vmax)}
+
+
 def ceiling_curve(name, accel, vmax, ds):
     h, d1, d2, p0, length = curve_grid(name, ds)
     n_ax = d1.shape[1]
@@ -213,9 +252,22 @@ def main():
     ap.add_argument("--vmax", type=float, default=200.0)
     ap.add_argument("--ds", type=float, default=0.01, help="grid step, mm")
     ap.add_argument("--check", action="store_true", help="the same at ds 0.04, 0.02, 0.01, 0.005")
+    ap.add_argument("--jerk", help="J or J1,J2,...: the quasi-static bounds with and without it")
     a = ap.parse_args()
     accel = [float(x) for x in a.accel.split(",")]
     accel += [accel[-1]] * (6 - len(accel))
+    if a.jerk is not None:
+        if a.kind != "curve":
+            ap.error("--jerk: the exact curves only")
+        jerk = [float(x) for x in a.jerk.split(",")]
+        jerk += [jerk[-1]] * (6 - len(jerk))
+        for ds in ([0.04, 0.02, 0.01, 0.005] if a.check else [a.ds]):
+            r = quasi_static_curve(a.what, accel, jerk, a.vmax, ds)
+            print(f"{r['path']}: quasi-static {r['accel_s']:.4f} s without a jerk limit, "
+                  f"{r['jerk_s']:.4f} s with J {a.jerk} (+{(r['jerk_s'] / r['accel_s'] - 1) * 100:.1f} %),"
+                  f" {r['length_mm']:.2f} mm, ds {ds} mm")
+            sys.stdout.flush()
+        return
     for ds in ([0.04, 0.02, 0.01, 0.005] if a.check else [a.ds]):
         r = (ceiling_curve if a.kind == "curve" else ceiling_poly)(a.what, accel, a.vmax, ds)
         print(f"{r['path']}: {r['total_s']:.4f} s (curve {r['curve_s']:.4f} s + rapid {r['rapid_s']:.4f} s),"

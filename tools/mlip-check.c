@@ -1,6 +1,7 @@
 /*
- * mlip-check - judge a setpoint trace by its physics alone: per-axis
- * acceleration (second differences), per-axis velocity and tool speed (first
+ * mlip-check - judge a setpoint trace by its physics alone: per-axis jerk
+ * (third differences, on axes with a limit), acceleration (second
+ * differences), per-axis velocity and tool speed (first
  * differences), contour error against the program's polyline, and whether it
  * ends on the program's last point. Reads the CSV that mlip-sim --trace
  * writes (t,x,y,...), or positions decoded from the CAN bus; t steps by one
@@ -28,11 +29,14 @@ static void usage(FILE *f)
 	        "Rows further apart in t than one period follow a hole (lost setpoints): no\n"
 	        "acceleration is taken across it, velocities are its mean.\n\n"
 	        "  --config FILE / --accel A[,A..] / --vmax MM_S / --eps MM / --period S\n"
-	        "                      the machine, as for mlip-sim\n"
+	        "  --jerk J            the machine, as for mlip-sim (--jerk: every axis's\n"
+	        "                      MAX_JERK, mm/s^3; a trace is judged on the third\n"
+	        "                      difference / T^3 of each axis that has one)\n"
 	        "  --offsets FILE / --strict / --default-feed F   as for mlip-sim\n"
 	        "  --quantum MM        position resolution of the trace (e.g. 0.001 for\n"
 	        "                      1000 counts/mm): adds 4 quantum / T^2 to the acceleration\n"
-	        "                      bound and quantum to the contour and end bounds\n"
+	        "                      bound, 8 quantum / T^3 to the jerk bound and quantum to\n"
+	        "                      the contour and end bounds\n"
 	        "  --rel R             relative tolerance on every limit (default 1e-9)\n"
 	        "  --no-end            the trace need not end on the program's last point\n"
 	        "                      (a run stopped by the operator)\n"
@@ -56,6 +60,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 	                                     {"vmax", required_argument, 0, 'v'},
 	                                     {"eps", required_argument, 0, 'e'},
 	                                     {"period", required_argument, 0, 'p'},
+	                                     {"jerk", required_argument, 0, 'J'},
 	                                     {"quantum", required_argument, 0, 'Q'},
 	                                     {"rel", required_argument, 0, 'r'},
 	                                     {"json", required_argument, 0, 'j'},
@@ -76,7 +81,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 			}
 			continue;
 		}
-		if (c > 0 && c < 128 && strchr("vepQr", c) &&
+		if (c > 0 && c < 128 && strchr("vepJQr", c) &&
 		    (mlip_cli_number(optarg, &v) != 0 || v < 0.0)) {
 			fprintf(stderr, PROG ": '%s' is not a non-negative number\n", optarg);
 			return 2;
@@ -96,6 +101,9 @@ static int parse_options(int argc, char **argv, struct options *o)
 			break;
 		case 'p':
 			o->mo.period_s = v;
+			break;
+		case 'J':
+			o->mo.jerk = v;
 			break;
 		case 'Q':
 			o->quantum = v;
@@ -243,6 +251,7 @@ static int write_json(const char *path, const struct mlip_check *chk, int n, int
 	mlip_json_begin(&j, jf);
 	mlip_json_uint(&j, "samples", chk->count);
 	mlip_json_numbers(&j, "max_axis_accel", "%.12g", chk->max_acc, n);
+	mlip_json_numbers(&j, "max_axis_jerk", "%.12g", chk->max_jerk, n);
 	mlip_json_numbers(&j, "max_axis_vel", "%.12g", chk->max_vel, n);
 	mlip_json_number(&j, "max_speed_mm_s", "%.12g", chk->max_speed_mm_s);
 	mlip_json_number(&j, "max_rot_speed_deg_s", "%.12g", chk->max_rot_speed_deg_s);

@@ -80,10 +80,11 @@ int main(int argc, char **argv)
 	       cfg.can.profile);
 	for (int i = 0; i < m->n_axes; i++) {
 		const struct mlip_axis *a = &m->axis[i];
-		printf("  %c %s: V %g, A %g, limits %g..%g, home %g, node %d, %g counts/unit\n",
-		       a->letter, a->kind == MLIP_AXIS_ROTARY ? "angular" : "linear", a->max_vel,
-		       a->max_accel, a->min_limit, a->max_limit, a->home, a->can_node,
-		       a->counts_per_unit);
+		printf(
+		    "  %c %s: V %g, A %g, J %g, limits %g..%g, home %g, node %d, %g counts/unit\n",
+		    a->letter, a->kind == MLIP_AXIS_ROTARY ? "angular" : "linear", a->max_vel,
+		    a->max_accel, a->max_jerk, a->min_limit, a->max_limit, a->home, a->can_node,
+		    a->counts_per_unit);
 	}
 	/* the machine's I/O: what a program's S, M3, M6, M8 meet */
 	const struct mlip_gcode_io *io = &cfg.io;

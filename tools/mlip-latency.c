@@ -54,6 +54,7 @@
 #include "latstats.h"
 #include "mlip/can/canenc.h"
 #include "mlip/ipc/ring.h"
+#include "mlip/motion/smooth.h"
 #include "program.h"
 #include "rt.h"
 
@@ -903,6 +904,7 @@ struct app {
 	struct mlip_program_list prog;
 	struct feeder feed;
 	void *ring_mem;
+	struct mlip_smooth_store *smooth; /* the smooth strategy's planner data, NULL otherwise */
 	int64_t period_ns;
 	mlip_can_profile prof;
 	pthread_attr_t small;
@@ -1017,8 +1019,15 @@ static int start_load(const struct opts *o, struct app *a)
 		return 1;
 	}
 	struct mlip_ring *ring = a->ring_mem;
+	/* the smooth strategy's planner data, as mlip-rt: only smooth has it */
+	if (o->strategy == MLIP_STRATEGY_SMOOTH &&
+	    (a->smooth = calloc(1, sizeof(*a->smooth))) == NULL) {
+		fprintf(stderr, PROG ": out of memory for the smooth strategy's look-ahead\n");
+		return 1;
+	}
 	/* the latency test counts missed periods; it does not hold on them */
 	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)o->strategy,
+	                           .smooth = a->smooth,
 	                           .lookahead = a->cfg.lookahead,
 	                           .stall_periods = UINT32_MAX,
 	                           .can = &a->cfg.can};
@@ -1036,6 +1045,9 @@ static int start_load(const struct opts *o, struct app *a)
 		R.encode = 1;
 	}
 	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead, as mlip-rt */
+	if (a->smooth != NULL) {
+		memset(a->smooth, 0, sizeof(*a->smooth));
+	}
 	R.ctl = &ctl;
 	R.io = o->mode == MODE_CAN ? &bus : NULL;
 	R.last_state = MLIP_STATE_IDLE;
@@ -1413,6 +1425,7 @@ static int report(const struct opts *o, struct app *a, int argc, char **argv)
 	if (o->mode != MODE_IDLE) {
 		mlip_program_list_free(&a->prog);
 		free(a->ring_mem);
+		free(a->smooth);
 	}
 	for (int k = 0; k < S_N; k++) {
 		free(R.s[k].bins);

@@ -17,6 +17,7 @@
 #include "cli.h"
 #include "confload.h"
 #include "mlip/can/canenc.h"
+#include "mlip/motion/smooth.h"
 #include "rt.h"
 #include "trace.h"
 
@@ -548,6 +549,7 @@ struct app {
 	struct mlip_shm shm;
 	struct monitor mon;
 	struct mlip_ctl_opts co;
+	struct mlip_smooth_store *smooth; /* the smooth strategy's planner data, NULL otherwise */
 };
 
 /* The bus, opened once: with CiA 402 drives it receives what they send. */
@@ -628,6 +630,8 @@ static void tear_down(struct app *a)
 	if (a->use_can) {
 		mlip_canbus_close(&bus);
 	}
+	free(a->smooth);
+	a->smooth = NULL;
 }
 
 /* Config, bus budget, bus, real-time preparation, drives, segment, record
@@ -715,7 +719,16 @@ static int set_up(const struct options *o, struct app *a)
 		}
 	}
 	mlip_trace_open(&a->mon.trace, a->mon.rec, &a->cfg.machine, NULL);
+	/* the smooth strategy's planner data: only smooth carries it (locked
+	 * with the rest, prefaulted below) */
+	if (a->strategy == MLIP_STRATEGY_SMOOTH &&
+	    (a->smooth = calloc(1, sizeof(*a->smooth))) == NULL) {
+		fprintf(stderr, PROG ": out of memory for the smooth strategy's look-ahead\n");
+		tear_down(a);
+		return 1;
+	}
 	a->co = (struct mlip_ctl_opts){.strategy = (mlip_strategy)a->strategy,
+	                               .smooth = a->smooth,
 	                               .lookahead = a->cfg.lookahead,
 	                               .stall_periods = (uint32_t)o->stall_periods,
 	                               .can = &a->cfg.can,
@@ -737,6 +750,9 @@ static int set_up(const struct options *o, struct app *a)
 		return 1;
 	}
 	memset(&planner.seg, 0, sizeof(planner.seg)); /* prefault the look-ahead */
+	if (a->smooth != NULL) {
+		memset(a->smooth, 0, sizeof(*a->smooth));
+	}
 	per.exit_request = got_exit; /* init cleared it: keep a stop asked during start-up */
 	fprintf(stderr, PROG ": ready on %s, segment %s, period %.3f ms, %s, priority %d%s\n",
 	        o->iface, o->shm_name, a->cfg.machine.period_s * 1e3,

@@ -24,6 +24,7 @@
 #include "mlip/ctl/controller.h"
 #include "mlip/gcode/gcode.h"
 #include "mlip/motion/planner.h"
+#include "mlip/motion/smooth.h"
 #include "mlip/ipc/ring.h"
 #include "offsets.h"
 #include "program.h"
@@ -32,7 +33,8 @@
 #define PROG        "mlip-sim"
 #define MAX_PERIODS 200000000ULL /* 55 h of machining at 1 ms: a runaway */
 
-static struct mlip_planner planner; /* ~2.6 MB: static, like on the controller */
+static struct mlip_planner planner;           /* ~1.1 MB: static, like on the controller */
+static struct mlip_smooth_store smooth_store; /* ~1.5 MB, touched only by smooth */
 static struct mlip_ctl ctl;
 
 static void usage(FILE *f)
@@ -46,6 +48,8 @@ static void usage(FILE *f)
 	    "                        the path smoothed within the tolerance, "
 	    "mlip/motion/smooth.h)\n"
 	    "  --accel A[,A...]      per-axis acceleration, mm/s^2 (one for all, or per axis)\n"
+	    "  --jerk J              every axis's jerk limit (MAX_JERK), mm/s^3: the motion keeps\n"
+	    "                        it at every sample (mlip/motion/jerk.h)\n"
 	    "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	    "  --eps MM              contour tolerance (default 0.01 without --config)\n"
 	    "  --period S            interpolation period T (default 0.001)\n"
@@ -237,6 +241,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 	static const struct option opts[] = {{"config", required_argument, 0, 'c'},
 	                                     {"strategy", required_argument, 0, 's'},
 	                                     {"accel", required_argument, 0, 'a'},
+	                                     {"jerk", required_argument, 0, 'J'},
 	                                     {"vmax", required_argument, 0, 'v'},
 	                                     {"eps", required_argument, 0, 'e'},
 	                                     {"period", required_argument, 0, 'p'},
@@ -285,6 +290,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 		case 'p':
 		case 'f':
 		case 'o':
+		case 'J':
 			if (mlip_cli_number(optarg, &v) != 0 ||
 			    !(v > 0.0 || (c == 'o' && v == 0.0))) {
 				fprintf(stderr, PROG ": --%s: '%s' is not a positive number\n",
@@ -292,11 +298,14 @@ static int parse_options(int argc, char **argv, struct options *o)
 				        : c == 'e' ? "eps"
 				        : c == 'p' ? "period"
 				        : c == 'f' ? "feed"
+				        : c == 'J' ? "jerk"
 				                   : "override",
 				        optarg);
 				return 2;
 			}
-			if (c == 'v') {
+			if (c == 'J') {
+				o->mo.jerk = v;
+			} else if (c == 'v') {
 				o->mo.vmax_mm_s = v;
 			} else if (c == 'e') {
 				o->mo.eps_mm = v;
@@ -423,6 +432,8 @@ static int set_up(const struct options *o, struct sim *s)
 		        o->mo.offsets ? o->mo.offsets : "no --offsets: defaults");
 	}
 	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)o->strategy,
+	                           .smooth =
+	                               o->strategy == MLIP_STRATEGY_SMOOTH ? &smooth_store : NULL,
 	                           .lookahead = (uint32_t)s->lookahead};
 	if (mlip_ctl_init(&ctl, &planner, m, &co) != MLIP_OK) {
 		fprintf(stderr, PROG ": look-ahead %lu must be a power of two in 2..%d\n",
@@ -564,12 +575,13 @@ static int write_summary(const struct options *o, const struct sim *s, int bad)
 	const struct mlip_check *chk = &s->chk;
 	const struct mlip_planner_stats *ps = mlip_planner_get_stats(&planner);
 	double visits = ps->pushes ? (double)ps->backward_visits / (double)ps->pushes : 0.0;
-	double acc_lim[MLIP_MAX_AXES], vel_lim[MLIP_MAX_AXES];
+	double acc_lim[MLIP_MAX_AXES], jerk_lim[MLIP_MAX_AXES], vel_lim[MLIP_MAX_AXES];
 	char axes[MLIP_MAX_AXES + 1];
 	int n = m->n_axes;
 	for (int a = 0; a < n; a++) {
 		axes[a] = m->axis[a].letter;
 		acc_lim[a] = m->axis[a].max_accel;
+		jerk_lim[a] = m->axis[a].max_jerk;
 		vel_lim[a] = m->axis[a].max_vel;
 	}
 	axes[n] = '\0';
@@ -593,6 +605,8 @@ static int write_summary(const struct options *o, const struct sim *s, int bad)
 	mlip_json_string(&j, "axes", axes);
 	mlip_json_numbers(&j, "max_axis_accel", "%.12g", chk->max_acc, n);
 	mlip_json_numbers(&j, "max_axis_vel", "%.12g", chk->max_vel, n);
+	mlip_json_numbers(&j, "max_axis_jerk", "%.12g", chk->max_jerk, n);
+	mlip_json_numbers(&j, "jerk_limit", "%.12g", jerk_lim, n);
 	mlip_json_numbers(&j, "accel_limit", "%.12g", acc_lim, n);
 	mlip_json_numbers(&j, "vel_limit", "%.12g", vel_lim, n);
 	mlip_json_number(&j, "max_contour_error_mm", "%.9g", chk->max_contour_mm);

@@ -43,6 +43,7 @@ struct mlip_axis {
 	/* dynamics */
 	double max_accel; /* A_k, mm/s^2 or deg/s^2, same in + and - */
 	double max_vel;   /* mm/s or deg/s */
+	double max_jerk;  /* J_k, mm/s^3 or deg/s^3; 0: none (mlip/motion/jerk.h) */
 	/* travel */
 	double min_limit; /* soft limits, mm or deg; checked on every target */
 	double max_limit;

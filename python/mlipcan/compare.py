@@ -132,7 +132,8 @@ def check_bounds(
     end-on-the-last-point condition (after a stop the machine rests elsewhere
     on the path): the bounds of tools/mlip-check.c and check.c exactly, with
     abs_acc = rounding floor (8 max|x| DBL_EPSILON / T^2) + 4 quantum / T^2:
-    acceleration <= A (1 + rel) + abs_acc, axis velocity and tool speed
+    acceleration <= A (1 + rel) + abs_acc, jerk (an axis with MAX_JERK)
+    <= J (1 + rel) + 2 abs_acc / T, axis velocity and tool speed
     <= limit (1 + rel) + abs_acc T, contour <= eps (1 + rel) + quantum, no
     sample out of order.
     Returns the violations (strings)."""
@@ -143,6 +144,11 @@ def check_bounds(
         lim = m.accel[k] * (1 + rel) + abs_acc
         if a > lim:
             bad.append(f"axis {m.axes[k]} acceleration {a:.12g} > {lim:.12g}")
+    for k, j in enumerate(js.get("max_axis_jerk", [])):
+        if m.jerk[k] > 0:
+            lim = m.jerk[k] * (1 + rel) + 2 * abs_acc / T
+            if j > lim:
+                bad.append(f"axis {m.axes[k]} jerk {j:.12g} > {lim:.12g}")
     for k, v in enumerate(js["max_axis_vel"]):
         lim = m.vel[k] * (1 + rel) + abs_acc * T
         if v > lim:

@@ -95,6 +95,7 @@ class MachineLimits:
         self.eps = float(machine["contour_tolerance"])
         self.period_s = float(machine["period"])
         self.accel = [float(a["max_acceleration"]) for a in axes]
+        self.jerk = [float(a.get("max_jerk", 0.0)) for a in axes]  # 0: no limit
         self.vel = [float(a["max_velocity"]) for a in axes]
         self.home = [float(a["home"]) for a in axes]
 

@@ -71,9 +71,12 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	for (int k = 0; k < m->n_axes; k++) {
 		c->pos[k] = c->prog.start[k] = m->axis[k].home;
 	}
-	if (mlip_planner_init(p, &c->m, o->strategy, o->lookahead, c->pos) != MLIP_OK) {
+	if (mlip_planner_init(p, &c->m, o->strategy, o->lookahead, c->pos, o->smooth) != MLIP_OK) {
 		return MLIP_E_INVALID;
 	}
+	/* the look-ahead's work a bounded amount a period (mlip_planner_work):
+	 * a period's cost does not grow with the look-ahead's depth */
+	mlip_planner_set_async(p, 1);
 	if (o->can != NULL) {
 		if (mlip_canenc_init(&c->enc, o->can, &c->m) != MLIP_OK) {
 			return MLIP_E_INVALID;
@@ -1362,7 +1365,8 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 		    ingest(c, out, room < MLIP_PREREAD_PER_PERIOD ? room : MLIP_PREREAD_PER_PERIOD);
 		if (ev && mlip_planner_queued(c->planner) == 0) {
 			start_event(c, out, in, &c->wait.event); /* nothing to move first */
-		} else if (c->state == MLIP_STATE_PREREAD && preread_done(c, in, ev)) {
+		} else if (c->state == MLIP_STATE_PREREAD && preread_done(c, in, ev) &&
+		           !mlip_planner_busy(c->planner)) { /* and all of it planned */
 			go(c, out, MLIP_STATE_RUNNING, reason(MLIP_WHY_PREREAD_DONE, 0, 0));
 		}
 		return;
@@ -1631,6 +1635,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	jog_period(c, out);
 	home_period(c, in, out);
 	blocks_in(c, in, out);
+	mlip_planner_work(p); /* the look-ahead's share of the period, bounded */
 	if (c->rx.corrupt && !c->prog.bad) {
 		struct mlip_ctl_reason r = reason(MLIP_WHY_RING_CORRUPT, c->prog.next_seq, 0);
 		r.field = MLIP_FIELD_HEAD;

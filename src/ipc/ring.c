@@ -37,8 +37,8 @@
 MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 88);
 MLIP_RING_CHECK(rec_align, sizeof(struct mlip_ring_rec) % 8 == 0);
 MLIP_RING_CHECK(rec_target, offsetof(struct mlip_ring_rec, target) == 16);
-MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1280);
-MLIP_RING_CHECK(off_io, offsetof(struct mlip_ring, io) == 1152);
+MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1344);
+MLIP_RING_CHECK(off_io, offsetof(struct mlip_ring, io) == 1216);
 MLIP_RING_CHECK(io_size, sizeof(struct mlip_ring_io) == 88);
 MLIP_RING_CHECK(hdr_lines, sizeof(struct mlip_ring) % MLIP_RING_LINE == 0);
 MLIP_RING_CHECK(line_pow2, MLIP_RING_IS_POW2(MLIP_RING_LINE));

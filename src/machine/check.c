@@ -205,6 +205,12 @@ mlip_status mlip_mc_check_machine(const struct mlip_machine *m, struct mlip_conf
 		    bad_max(&b, m, i, AK_ACC, a->max_accel, MLIP_CONFIG_ACCEL_MAX)) {
 			return MLIP_E_RANGE;
 		}
+		is->key = AK_JERK; /* 0: no jerk limit (mlip/motion/jerk.h) */
+		if (a->max_jerk != 0.0 &&
+		    (bad_pos(&b, m, i, AK_JERK, a->max_jerk) ||
+		     bad_max(&b, m, i, AK_JERK, a->max_jerk, MLIP_CONFIG_JERK_MAX))) {
+			return MLIP_E_RANGE;
+		}
 		is->key = AK_MIN;
 		if (bad_finite(&b, m, i, AK_MIN, a->min_limit) ||
 		    bad_abs(&b, m, i, AK_MIN, a->min_limit)) {

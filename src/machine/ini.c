@@ -683,6 +683,7 @@ static void fill_machine(const struct pstate *ps, struct mlip_config *c)
 		a->home = has(ps, sec, AK_HOME) ? st->num[AK_HOME] : 0.0;
 		a->can_node = has(ps, sec, AK_NODE) ? (int)st->ival[AK_NODE] : i + 1;
 		a->counts_per_unit = has(ps, sec, AK_CPU) ? st->num[AK_CPU] : 1000.0;
+		a->max_jerk = has(ps, sec, AK_JERK) ? st->num[AK_JERK] : 0.0; /* 0: none */
 	}
 	m->max_feed_mm_s = tr->num[TK_VLIN];
 	m->tolerance_mm = tr->num[TK_TOL];
@@ -711,7 +712,7 @@ static void fill_can(const struct pstate *ps, struct mlip_can_config *can)
 		memcpy(can->profile, name, strlen(name));
 	}
 	for (k = CK_BITRATE; k < NKEYS; k++) {
-		if (has(ps, SEC_CAN, k)) {
+		if (has(ps, SEC_CAN, k) && dst[k] != NULL) {
 			*dst[k] = (uint32_t)st->ival[k];
 		}
 	}

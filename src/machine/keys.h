@@ -60,7 +60,8 @@ enum {
 	AK_HOME_ACCEL,
 	AK_HOME_OFFSET,
 	AK_HOME_SEQUENCE,
-	AK_HOME_TIMEOUT
+	AK_HOME_TIMEOUT,
+	AK_JERK /* the jerk limit (mlip/motion/jerk.h) */
 };
 /* [CAN] keys in the order of enum mlip_can_key (mlip/can/canconf.h) */
 enum {

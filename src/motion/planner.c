@@ -31,29 +31,11 @@
 #include <math.h>
 #include <string.h>
 
-#include "mlip/motion/planner.h"
-#include "mlip/motion/smooth.h"
-
-static double sq(double x)
-{
-	return x * x;
-}
-
-/* fmin/fmax are out-of-line libm calls under strict IEEE flags; every
- * value here is finite, so plain comparisons do. */
-static double dmin(double a, double b)
-{
-	return a < b ? a : b;
-}
-
-static double dmax(double a, double b)
-{
-	return a > b ? a : b;
-}
+#include "mlip/motion/strategy.h"
 
 static struct mlip_seg *seg_at(struct mlip_planner *p, uint32_t i)
 {
-	return &p->seg[i & (p->cap - 1)];
+	return mlip_seg_at(p, i);
 }
 
 static const struct mlip_seg *cseg_at(const struct mlip_planner *p, uint32_t i)
@@ -61,29 +43,91 @@ static const struct mlip_seg *cseg_at(const struct mlip_planner *p, uint32_t i)
 	return &p->seg[i & (p->cap - 1)];
 }
 
+/* ---- the jerk limit's mean (mlip/motion/jerk.h) ---------------------------- */
+
+#define FIR_MASK (MLIP_JERK_MAX_TAPS - 1u)
+typedef char mlip_fir_pow2[(MLIP_JERK_MAX_TAPS & FIR_MASK) == 0 ? 1 : -1];
+
+/* The mark of the sample at the window's centre, (m - 1) / 2 periods ago:
+ * the setpoint is within E_f of the plan there (J5; m is odd). */
+static const struct mlip_exec_mark *centre_mark(const struct mlip_planner *p)
+{
+	return &p->mark[(p->fir_n - 1u - (uint32_t)(p->taps - 1) / 2u) & FIR_MASK];
+}
+
+/* The mean has come to rest: the plan stood still over the whole window. */
+static int settled(const struct mlip_planner *p)
+{
+	return p->still + 1u >= (uint32_t)p->taps;
+}
+
+/* Every sample of the window at p->pos, where the plan is now: at rest. */
+static void filter_reset(struct mlip_planner *p)
+{
+	struct mlip_exec_mark mk = {p->tail, p->in_corner, p->done_seq, p->done_line};
+	for (uint32_t i = 0; i < MLIP_JERK_MAX_TAPS; i++) {
+		memcpy(p->fir[i], p->pos, sizeof(p->fir[i]));
+		p->mark[i] = mk;
+	}
+	memcpy(p->out, p->pos, sizeof(p->out));
+	p->fir_n = MLIP_JERK_MAX_TAPS;
+	p->still = (uint32_t)p->taps;
+	p->dwell = 0;
+}
+
+/* Take this period's plan position: the setpoint is the mean of the last
+ * taps ones (J1), summed as offsets from the newest so that a window at
+ * rest gives exactly its point. */
+static void filter_step(struct mlip_planner *p, double *pos_out)
+{
+	const double *last = p->fir[(p->fir_n - 1u) & FIR_MASK];
+	int moved = memcmp(last, p->pos, sizeof(double) * (size_t)p->n) != 0;
+	p->still = moved ? 0u : p->still + 1u;
+	uint32_t i0 = p->fir_n & FIR_MASK;
+	memcpy(p->fir[i0], p->pos, sizeof(p->fir[i0]));
+	p->mark[i0] = (struct mlip_exec_mark){p->tail, p->in_corner, p->done_seq, p->done_line};
+	p->fir_n++;
+	for (int k = 0; k < p->n; k++) {
+		double sum = 0.0;
+		for (uint32_t j = 1; j < (uint32_t)p->taps; j++) {
+			sum += p->fir[(p->fir_n - 1u - j) & FIR_MASK][k] - p->pos[k];
+		}
+		p->out[k] = p->pos[k] + sum / (double)p->taps;
+	}
+	memcpy(pos_out, p->out, sizeof(double) * (size_t)p->n);
+}
+
 /* ---- initialisation ----------------------------------------------------- */
 
 mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine *m,
-                              mlip_strategy st, uint32_t cap, const double *start)
+                              mlip_strategy st, uint32_t cap, const double *start,
+                              struct mlip_smooth_store *store)
 {
 	if (cap == 0) {
 		cap = MLIP_LOOKAHEAD;
 	}
 	if (m->n_axes < 2 || m->n_axes > MLIP_MAX_AXES || cap < 2 || cap > MLIP_LOOKAHEAD ||
 	    (cap & (cap - 1)) != 0 || !(m->period_s > 0.0) || !(m->tolerance_mm > 0.0) ||
-	    !(m->max_feed_mm_s > 0.0) || st > MLIP_STRATEGY_SMOOTH) {
+	    !(m->max_feed_mm_s > 0.0) || (unsigned)st >= MLIP_STRATEGY_COUNT ||
+	    (mlip_strategies[st].needs_store && store == NULL)) {
 		return MLIP_E_INVALID;
 	}
 	/* the struct is large (the ring); clear only the header part */
 	memset(p, 0, offsetof(struct mlip_planner, seg));
 	p->n = m->n_axes;
 	p->strategy = st;
+	p->ops = &mlip_strategies[st];
+	p->sm = p->ops->needs_store ? store->seg : NULL;
+	struct mlip_jerk_plan jp;
+	mlip_jerk_plan(m, &jp);
+	p->taps = jp.taps;
+	p->filter_mm = jp.filter_mm;
 	for (int k = 0; k < p->n; k++) {
 		const struct mlip_axis *ax = &m->axis[k];
 		if (!(ax->max_accel > 0.0) || !(ax->max_vel > 0.0) || !isfinite(start[k])) {
 			return MLIP_E_INVALID;
 		}
-		p->accel[k] = ax->max_accel * (1.0 - MLIP_ACCEL_MARGIN);
+		p->accel[k] = jp.accel[k] * (1.0 - MLIP_ACCEL_MARGIN); /* A' (J4), A without */
 		p->vaxis[k] = ax->max_vel;
 		p->rotary[k] = ax->kind == MLIP_AXIS_ROTARY;
 		p->last_point[k] = start[k];
@@ -95,17 +139,43 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 	p->period_s = m->period_s;
 	p->cap = cap;
 	p->override = 1.0;
+	filter_reset(p);
 	return MLIP_OK;
+}
+
+/* Free slots of the segment ring. */
+static uint32_t ring_space(const struct mlip_planner *p)
+{
+	/* with a jerk limit, the segments the mean's centre is still on stay */
+	uint32_t keep = p->taps > 1 ? centre_mark(p)->tail : p->tail;
+	return p->cap - (p->head - keep);
 }
 
 uint32_t mlip_planner_space(const struct mlip_planner *p)
 {
-	return p->cap - (p->head - p->tail);
+	uint32_t ring = ring_space(p), inputs = p->in_head - p->in_tail;
+	if (!p->async) {
+		return ring;
+	}
+	ring = ring > inputs ? ring - inputs : 0u;
+	return ring < MLIP_INPUT_CAP - inputs ? ring : MLIP_INPUT_CAP - inputs;
 }
 
 uint32_t mlip_planner_queued(const struct mlip_planner *p)
 {
-	return p->head - p->tail;
+	uint32_t inputs = p->in_head - p->in_tail;
+	return p->head - p->tail + inputs +
+	       (p->head == p->tail && inputs == 0 && !settled(p) ? 1u : 0u);
+}
+
+void mlip_planner_set_async(struct mlip_planner *p, int on)
+{
+	p->async = on != 0;
+}
+
+int mlip_planner_busy(const struct mlip_planner *p)
+{
+	return p->pass.on || p->pending > 0 || p->in_head != p->in_tail;
 }
 
 /* ---- look-ahead --------------------------------------------------------- */
@@ -113,13 +183,6 @@ uint32_t mlip_planner_queued(const struct mlip_planner *p)
 static double effective_override(const struct mlip_planner *p)
 {
 	return p->hold ? 0.0 : p->override;
-}
-
-/* Speed the line of s aims at: programmed feed times override, never above
- * the hard caps. */
-static double line_target(const struct mlip_planner *p, const struct mlip_seg *s)
-{
-	return dmin(s->vfeed_mm_s * effective_override(p), s->vhard_mm_s);
 }
 
 /* Largest q corner pr (between pr and nx) may have under the override: v_s
@@ -131,87 +194,12 @@ static double corner_soft_cap(const struct mlip_planner *p, const struct mlip_se
 	/* a side whose speed is 0 at q = 1 (v_s or v_e of a sharp corner's
 	 * optimum, Theorem 2) is 0 for every q: it bounds nothing */
 	if (pr->inv_vs2 > 0.0) {
-		q = dmin(q, sq(line_target(p, pr)) * pr->inv_vs2);
+		q = mlip_dmin(q, mlip_sq(mlip_line_target(p, pr)) * pr->inv_vs2);
 	}
 	if (pr->inv_ve2 > 0.0) {
-		q = dmin(q, sq(line_target(p, nx)) * pr->inv_ve2);
+		q = mlip_dmin(q, mlip_sq(mlip_line_target(p, nx)) * pr->inv_ve2);
 	}
 	return q;
-}
-
-static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx);
-
-/*
- * The smooth strategy's shape choice (beyond the paper), inside backward
- * reachability: on a finely sampled curve corners abut and the speed can
- * only change inside them, where the constant acceleration a = alpha e_e -
- * beta e_s fixes v_e / v_s = alpha / beta. The plan's shape (shape0)
- * turns fastest at a steady speed; where braking to the next corner limits
- * it, a shape with v_e < v_s on the polygon's boundary brakes inside the
- * turn too (normal and tangential parts together, as a time-optimal
- * profile does). The measure is q B, the largest v^2 - 2 a l_s the line
- * before may arrive with (25), q as the pass computes it; a braking shape
- * only where its exit is at its bound (else it would leave slower than
- * allowed).
- *
- * What the machine may still carry into a corner is bounded by the plans
- * it followed, not only by this one (after an override cut or a hold it
- * brakes as it can, Sec. 3.2 case b, and relies on each corner taking the
- * speed the line cannot shed). So a corner changes shape only to a better
- * one (q B larger: sticky, so passes that change nothing keep it), that
- * takes every entry any plan promised it (B at q = 1 >= commit_in) and
- * then leaves no faster than promised or allowed now (commit_in / B C <=
- * max(commit_out, rhs)). Full passes (override, hold) only recompute q.
- */
-static void choose_shape(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx,
-                         double rhs)
-{
-	/* the plan's shape where braking does not limit it: nothing to gain
-	 * (and nothing to compute, the common case) */
-	if (pr->shape == 0 && !(pr->inv_brake_c > 0.0 && rhs * pr->inv_brake_c < pr->qcap)) {
-		return;
-	}
-	double ts2 = sq(line_target(p, pr)), te2 = sq(line_target(p, nx));
-	double val[MLIP_SMOOTH_SHAPES];
-	int lim[MLIP_SMOOTH_SHAPES];
-	for (int j = 0; j < pr->n_shapes; j++) {
-		const struct mlip_shape *h = &pr->shapes[j];
-		double q = 1.0;
-		if (h->inv_vs2 > 0.0) {
-			q = dmin(q, ts2 * h->inv_vs2);
-		}
-		if (h->inv_ve2 > 0.0) {
-			q = dmin(q, te2 * h->inv_ve2);
-		}
-		lim[j] = h->inv_c > 0.0 && rhs < q * h->c;
-		if (lim[j]) {
-			q = dmax(rhs * h->inv_c, 0.0);
-		}
-		val[j] = q * h->b;
-	}
-	int best = pr->shape;
-	double best_val = val[best];
-	for (int j = 0; j < pr->n_shapes; j++) {
-		const struct mlip_shape *h = &pr->shapes[j];
-		if (j == best || !(j == 0 || lim[j]) || !(val[j] > best_val * (1.0 + 1e-12)) ||
-		    !(h->b >= pr->commit_in) ||
-		    !(pr->commit_in / h->b * h->c <= dmax(pr->commit_out, rhs))) {
-			continue;
-		}
-		best = j;
-		best_val = val[j];
-	}
-	if (best != pr->shape) {
-		pr->shape = (uint8_t)best;
-		if (best == 0) {
-			pr->c = pr->shape0;
-		} else {
-			mlip_corner_smooth_w(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
-			                     pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s,
-			                     pr->shapes[best].w, &pr->c);
-		}
-		link_coeffs(p, pr, nx);
-	}
 }
 
 /* Oldest corner the look-ahead may still change: the executing segment's end
@@ -230,101 +218,136 @@ static uint32_t first_mutable(const struct mlip_planner *p)
  * 0) are always visited. (A fresh corner computes to exactly 0 only under a
  * hold, which a full pass follows; the guard keeps batches exact without
  * relying on that.)
+ *
+ * A pass may run in pieces (mlip_planner_work: a bounded amount of work a
+ * period): it keeps where it is (p->pass). Meanwhile the executor follows
+ * the values the pass has not reached yet, which the last complete pass
+ * left: a plan that brakes to rest where it was planned to, safe, only
+ * slower than the new one. A pass given up for another (an override change
+ * while a pass runs) leaves the corners below the point it reached stale:
+ * the next pass may not stop above that point (pass.reach).
  */
-static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
+static void pass_start(struct mlip_planner *p, int full, uint32_t fresh)
 {
-	uint32_t first = first_mutable(p);
-	if ((uint32_t)(p->head - first) < 2u) {
-		return; /* no mutable corner before the newest segment's end */
+	struct mlip_pass *ps = &p->pass;
+	if (ps->on) {
+		/* given up: what it left below i - 1 is stale */
+		if (!ps->has_reach || (int32_t)(ps->i - ps->reach) < 0) {
+			ps->reach = ps->i;
+		}
+		ps->has_reach = 1;
+		full |= ps->full;
+		fresh += ps->fresh; /* every corner linked since a pass completed */
 	}
-	uint32_t i = p->head - 1; /* newest: ends at rest, q = 0 */
-	uint32_t visits = 0;
-	double q_next = 0.0;
-	while (i != first) {
+	fresh += p->pending; /* appended while the last one ran: this one plans them */
+	p->pending = 0;
+	ps->on = 1;
+	ps->full = full;
+	ps->fresh = fresh;
+	ps->i = p->head - 1; /* newest: ends at rest, q = 0 */
+	ps->visits = 0;
+	ps->q_next = 0.0;
+}
+
+/* Run the pass until it ends or `budget` work units are spent (1 a corner,
+ * more with a strategy's choice); returns the units left. */
+static uint32_t pass_run(struct mlip_planner *p, uint32_t budget)
+{
+	struct mlip_pass *ps = &p->pass;
+	uint32_t unit = p->ops->choose != NULL ? MLIP_WORK_CHOOSE : 1u;
+	uint32_t first = first_mutable(p);
+	uint32_t i = ps->i, visits = 0;
+	double q_next = ps->q_next;
+	int full = ps->full, done = 0;
+	if ((uint32_t)(p->head - first) < 2u || (int32_t)(i - first) <= 0) {
+		done = 1; /* no mutable corner before (the executor passed it) */
+	}
+	while (!done && budget >= unit) {
 		const struct mlip_seg *s = seg_at(p, i);
 		struct mlip_seg *pr = seg_at(p, i - 1);
+		budget -= unit;
 		if (full) {
+			if (p->ops->commit != NULL) {
+				p->ops->commit(p, i - 1,
+				               pr); /* the plan in effect, before it goes */
+			}
 			pr->qcap = corner_soft_cap(p, pr, s);
 		}
 		/* (25)(26): q_{i-1} C <= q_i B + 2 a d */
 		double rhs = q_next * s->brake_b + s->two_a_d;
-		uint8_t shape = pr->shape;
-		if (!full && pr->n_shapes > 1 && pr->shape != MLIP_SHAPE_FIXED &&
-		    i - 1 != p->tail) {
-			choose_shape(p, pr, s, rhs);
+		int changed = 0; /* the strategy changed the corner */
+		if (!full && p->ops->choose != NULL && i - 1 != p->tail) {
+			changed = p->ops->choose(p, i - 1, pr, s, rhs);
 		}
 		double q = pr->qcap;
 		if (pr->inv_brake_c > 0.0) {
-			q = dmin(q, rhs * pr->inv_brake_c);
+			q = mlip_dmin(q, rhs * pr->inv_brake_c);
 		}
-		q = dmax(q, 0.0);
+		q = mlip_dmax(q, 0.0);
 		visits++;
-		if (!full && visits > fresh && q == pr->q && shape == pr->shape) {
-			break; /* termination condition: nothing older can change */
+		if (!full && ps->visits + visits > ps->fresh && q == pr->q && !changed &&
+		    (!ps->has_reach || (int32_t)(i - 1 - ps->reach) < 0)) {
+			done = 1; /* termination condition: nothing older can change */
+			break;
 		}
 		pr->q = q;
-		if (pr->n_shapes > 1) {
-			pr->commit_in = dmax(pr->commit_in, q * pr->brake_b);
-			if (pr->inv_brake_c > 0.0) {
-				pr->commit_out = dmax(pr->commit_out, q / pr->inv_brake_c);
-			}
-		}
 		q_next = q;
 		i--;
+		done = i == first;
 	}
 	p->stats.backward_visits += visits;
+	ps->i = i;
+	ps->q_next = q_next;
+	ps->visits += visits;
+	if (done) {
+		ps->on = 0;
+		ps->has_reach = 0; /* every corner consistent again */
+	}
+	return budget;
 }
 
-/* Precompute the corner between pr and nx and its look-ahead coefficients. */
-static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx)
+static void backward_pass(struct mlip_planner *p, int full, uint32_t fresh)
+{
+	pass_start(p, full, fresh);
+	if (!p->async) {
+		pass_run(p, UINT32_MAX);
+	}
+}
+
+/* Precompute the look-ahead coefficients of the corner between pr and nx. */
+void mlip_planner_link_coeffs(struct mlip_planner *p, struct mlip_seg *pr,
+                              const struct mlip_seg *nx)
 {
 	const struct mlip_corner *c = &pr->c;
-	pr->inv_vs2 = c->vs_mm_s > 0.0 ? 1.0 / sq(c->vs_mm_s) : 0.0;
-	pr->inv_ve2 = c->ve_mm_s > 0.0 ? 1.0 / sq(c->ve_mm_s) : 0.0;
-	pr->brake_b = sq(c->vs_mm_s) - 2.0 * pr->a_mm_s2 * c->ls_mm;
-	double brake_c = sq(c->ve_mm_s) + 2.0 * nx->a_mm_s2 * c->le_mm;
+	pr->inv_vs2 = c->vs_mm_s > 0.0 ? 1.0 / mlip_sq(c->vs_mm_s) : 0.0;
+	pr->inv_ve2 = c->ve_mm_s > 0.0 ? 1.0 / mlip_sq(c->ve_mm_s) : 0.0;
+	pr->brake_b = mlip_sq(c->vs_mm_s) - 2.0 * pr->a_mm_s2 * c->ls_mm;
+	double brake_c = mlip_sq(c->ve_mm_s) + 2.0 * nx->a_mm_s2 * c->le_mm;
 	/* C = 0 (the next line starts at rest whatever q is): no constraint */
 	pr->inv_brake_c = brake_c > 0.0 ? 1.0 / brake_c : 0.0;
 	pr->qcap = corner_soft_cap(p, pr, nx);
 }
 
-static void link_corner(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx)
+/* The corner at slot i's end (pr) towards nx: the strategy's, or at rest
+ * for an exact stop; then its look-ahead coefficients, planned to rest. */
+static void link_corner(struct mlip_planner *p, uint32_t i, struct mlip_seg *pr,
+                        const struct mlip_seg *nx)
 {
-	pr->n_shapes = 0;
-	pr->shape = 0;
-	pr->commit_in = 0.0;
-	pr->commit_out = 0.0;
-	if (pr->exact) {
+	if (p->ops->link != NULL) {
+		p->ops->link(p, i, pr, nx);
+	} else if (pr->exact) {
 		pr->c = (struct mlip_corner){0}; /* G61: as the stop strategy, at rest */
-	} else if (p->strategy == MLIP_STRATEGY_SMOOTH) {
-		struct mlip_corner c[MLIP_SMOOTH_SHAPES];
-		double w[MLIP_SMOOTH_SHAPES];
-		int m = mlip_corner_smooth_shapes(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
-		                                  pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, c, w);
-		for (int j = 0; j < m; j++) {
-			/* what link_coeffs computes, for each */
-			struct mlip_shape *h = &pr->shapes[j];
-			h->w = w[j];
-			h->inv_vs2 = c[j].vs_mm_s > 0.0 ? 1.0 / sq(c[j].vs_mm_s) : 0.0;
-			h->inv_ve2 = c[j].ve_mm_s > 0.0 ? 1.0 / sq(c[j].ve_mm_s) : 0.0;
-			h->b = sq(c[j].vs_mm_s) - 2.0 * pr->a_mm_s2 * c[j].ls_mm;
-			h->c = sq(c[j].ve_mm_s) + 2.0 * nx->a_mm_s2 * c[j].le_mm;
-			h->inv_c = h->c > 0.0 ? 1.0 / h->c : 0.0;
-		}
-		pr->n_shapes = (uint8_t)m;
-		pr->shape0 = c[0];
-		pr->c = c[0];
 	} else {
-		mlip_corner_plan(p->n, p->strategy, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel,
-		                 pr->tol_mm, pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
+		p->ops->corner(p->n, pr->e, nx->e, pr->d_mm, nx->d_mm, p->accel, pr->tol_mm,
+		               pr->vhard_mm_s, nx->vhard_mm_s, p->period_s, &pr->c);
 	}
-	link_coeffs(p, pr, nx);
+	mlip_planner_link_coeffs(p, pr, nx);
 	pr->q = 0.0;
 }
 
 static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 {
-	if (mlip_planner_space(p) == 0) {
+	if (ring_space(p) == 0) {
 		return MLIP_E_FULL;
 	}
 	if (p->stopping) {
@@ -362,8 +385,8 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 		s->e[k] = (b->target[k] - p->last_point[k]) / d;
 		double ek = fabs(s->e[k]);
 		if (ek > 0.0) {
-			a = dmin(a, p->accel[k] / ek); /* a_{i,m}, Sec. 2.1 */
-			vaxis = dmin(vaxis, p->vaxis[k] / ek);
+			a = mlip_dmin(a, p->accel[k] / ek); /* a_{i,m}, Sec. 2.1 */
+			vaxis = mlip_dmin(vaxis, p->vaxis[k] / ek);
 		}
 	}
 	/* F is the linear path speed when a linear axis moves, else the rotary
@@ -374,10 +397,18 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 	s->d_mm = d;
 	s->a_mm_s2 = a;
 	s->two_a_d = 2.0 * a * d;
-	s->vhard_mm_s = dmin(vmax_tool * joint_per_tool, vaxis);
+	s->vhard_mm_s = mlip_dmin(vmax_tool * joint_per_tool, vaxis);
 	s->vfeed_mm_s = b->rapid ? s->vhard_mm_s : b->feed_mm_s * joint_per_tool;
-	s->tol_mm = b->tol_mm > 0.0 ? dmin(b->tol_mm, p->eps_mm) : p->eps_mm;
+	s->tol_mm = b->tol_mm > 0.0 ? mlip_dmin(b->tol_mm, p->eps_mm) : p->eps_mm;
 	s->exact = b->exact_stop != 0;
+	if (p->taps > 1) {
+		/* the mean takes E_f of the budget (J5); none left: at rest, exactly */
+		s->tol_mm -= p->filter_mm;
+		if (!(s->tol_mm > 0.0)) {
+			s->tol_mm = 0.0;
+			s->exact = 1;
+		}
+	}
 	s->line = b->line;
 	s->seq = b->seq ? b->seq : p->seq + 1; /* the caller's number, if any */
 	p->seq = s->seq;
@@ -388,7 +419,7 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 	s->c = (struct mlip_corner){0};
 
 	if (p->head != p->tail) {
-		link_corner(p, seg_at(p, p->head - 1), s);
+		link_corner(p, p->head - 1, seg_at(p, p->head - 1), s);
 	}
 	p->head++;
 	memcpy(p->last_point, b->target, sizeof(double) * (size_t)p->n);
@@ -398,6 +429,11 @@ static mlip_status append(struct mlip_planner *p, const struct mlip_block *b)
 
 mlip_status mlip_planner_push(struct mlip_planner *p, const struct mlip_block *b)
 {
+	if (p->async) {
+		mlip_status err = MLIP_OK;
+		size_t got = mlip_planner_push_n(p, b, 1, &err);
+		return got == 1 ? MLIP_OK : err != MLIP_OK ? err : MLIP_E_FULL;
+	}
 	uint32_t before = p->head;
 	mlip_status st = append(p, b);
 	if (st == MLIP_OK && p->head != before) {
@@ -410,11 +446,41 @@ mlip_status mlip_planner_push(struct mlip_planner *p, const struct mlip_block *b
  * at the termination condition exactly as n single pushes would, so the
  * plan is the same, for a fraction of the visits (the pre-read, and each
  * period's ingest). */
+/* The checks append makes at once, for a block queued (async). */
+static mlip_status check_block(const struct mlip_planner *p, const struct mlip_block *b)
+{
+	if (p->stopping) {
+		return MLIP_E_INVALID;
+	}
+	for (int k = 0; k < p->n; k++) {
+		if (!isfinite(b->target[k])) {
+			return MLIP_E_RANGE;
+		}
+	}
+	return !b->rapid && !(b->feed_mm_s > 0.0) ? MLIP_E_RANGE : MLIP_OK;
+}
+
 size_t mlip_planner_push_n(struct mlip_planner *p, const struct mlip_block *b, size_t n,
                            mlip_status *err)
 {
 	size_t done = 0;
 	mlip_status st = MLIP_OK;
+	if (p->async) {
+		/* queued: mlip_planner_work appends them, a bounded amount a period */
+		while (done < n && mlip_planner_space(p) > 0) {
+			st = check_block(p, &b[done]);
+			if (st != MLIP_OK) {
+				break;
+			}
+			p->in[p->in_head & (MLIP_INPUT_CAP - 1u)] = b[done];
+			p->in_head++;
+			done++;
+		}
+		if (err != NULL) {
+			*err = st;
+		}
+		return done;
+	}
 	while (done < n && mlip_planner_space(p) > 0) {
 		st = append(p, &b[done]);
 		if (st != MLIP_OK) {
@@ -452,146 +518,81 @@ void mlip_planner_hold(struct mlip_planner *p, int on)
 void mlip_planner_stop(struct mlip_planner *p)
 {
 	p->stopping = 1;
+	p->in_tail = p->in_head; /* what was not appended yet goes too */
 	mlip_planner_hold(p, 1);
+}
+
+/*
+ * The look-ahead's work of one period (async): the pass in progress, then
+ * the queued blocks (appended and their corners planned, a batch at a
+ * time, each batch followed by its pass), until MLIP_WORK_PER_PERIOD units
+ * are spent. The plan a batch makes does not depend on how the blocks were
+ * batched, so work done in pieces ends in the plan push_n makes at once.
+ */
+void mlip_planner_work(struct mlip_planner *p)
+{
+	uint32_t budget = MLIP_WORK_PER_PERIOD;
+	uint32_t cost = p->ops->link != NULL ? MLIP_WORK_APPEND_SHAPES : MLIP_WORK_APPEND;
+	/* what the executor used up is replaced first, beyond the budget if need
+	 * be (at most the ingest's rate a period), so that the plan does not
+	 * fall behind */
+	uint32_t owed = p->retired - p->retired_seen;
+	if (owed > p->cap) {
+		p->retired_seen = p->retired - p->cap;
+		owed = p->cap;
+	}
+	uint32_t keep_up = owed < MLIP_INGEST_PER_PERIOD ? owed : MLIP_INGEST_PER_PERIOD;
+	while (keep_up > 0 && p->in_head != p->in_tail && ring_space(p) > 0) {
+		append(p, &p->in[p->in_tail & (MLIP_INPUT_CAP - 1u)]); /* checked at push */
+		p->in_tail++;
+		p->pending++;
+		p->retired_seen++;
+		keep_up--;
+		/* ... and counted: the passes then take longer, in larger batches,
+		 * but never less than a quarter of the units */
+		budget = budget >= MLIP_WORK_PER_PERIOD / 4u + cost ? budget - cost
+		                                                    : MLIP_WORK_PER_PERIOD / 4u;
+	}
+	/* then the budget's appends, half of it when a pass waits too (the
+	 * passes cost the braking distance's depth whatever the batch: the
+	 * pre-read appends while they run, not only between them) */
+	uint32_t share = p->pass.on || p->pending > 0 ? budget / 2u : budget;
+	while (p->in_head != p->in_tail && share >= cost && ring_space(p) > 0) {
+		append(p, &p->in[p->in_tail & (MLIP_INPUT_CAP - 1u)]); /* checked at push */
+		p->in_tail++;
+		p->pending++; /* merged blocks only add fewer */
+		share -= cost;
+		budget -= cost;
+	}
+	for (;;) {
+		if (p->pass.on) {
+			budget = pass_run(p, budget);
+			if (p->pass.on) {
+				return; /* the rest next period */
+			}
+		}
+		if (p->pending > 0) {
+			pass_start(p, 0, 0); /* for what was appended meanwhile */
+			continue;
+		}
+		while (p->in_head != p->in_tail && budget >= cost && ring_space(p) > 0) {
+			append(p, &p->in[p->in_tail & (MLIP_INPUT_CAP - 1u)]); /* checked at push */
+			p->in_tail++;
+			p->pending++; /* merged blocks only add fewer */
+			budget -= cost;
+		}
+		if (p->pending == 0) {
+			return;
+		}
+	}
 }
 
 /* ---- execution ---------------------------------------------------------- */
 
-/*
- * Where the executing line must end: the planned q of its end corner,
- * clamped to what the actual state allows (s along the line, speed v):
- *   the corner cannot start behind us      q l_s <= rem
- *   forward reachability (34)              q v_s^2 <= v^2 + 2a (rem - q l_s)
- *   the line can brake (Sec. 3.2 case b)   v^2 <= q v_s^2 + 2a (rem - q l_s)
- * with rem = distance from here to the corner point. When an override cut
- * leaves the line unable to brake to the plan, the corner keeps the speed it
- * can reach and the following segments brake instead: acceleration limits
- * are never exceeded to respond faster.
- */
-static inline double corner_q_at(const struct mlip_corner *c, double a, double q_plan, double rem,
-                                 double v, int *brakeable)
-{
-	double vs2 = sq(c->vs_mm_s), ls = c->ls_mm;
-	double geom = ls > 0.0 ? dmin(1.0, rem / ls) : 1.0;
-	double lo = 0.0, hi = geom;
-
-	double grow = vs2 + 2.0 * a * ls;
-	if (grow > 0.0) {
-		hi = dmin(hi, (v * v + 2.0 * a * rem) / grow);
-	}
-	/* k = 0 (beta equal to the line's a) is common and makes the brake
-	 * condition independent of q: do not let rounding turn it into a bound */
-	double k = vs2 - 2.0 * a * ls, need = v * v - 2.0 * a * rem;
-	if (k > 1e-12 * grow) {
-		lo = need / k;
-	} else if (k < -1e-12 * grow) {
-		hi = dmin(hi, need / k); /* bigger corners brake worse here */
-	}
-	double q = dmin(dmax(q_plan, lo), hi);
-	*brakeable = !(lo > hi);
-	if (lo > hi) {
-		q = dmin(lo, geom); /* only by rounding: keep the state brakeable */
-	}
-	return dmax(q, 0.0);
-}
-
 static double end_corner_q(const struct mlip_seg *s, double rem, double v)
 {
 	int ok;
-	return corner_q_at(&s->c, s->a_mm_s2, s->q, rem, v, &ok);
-}
-
-static void link_coeffs(struct mlip_planner *p, struct mlip_seg *pr, const struct mlip_seg *nx);
-
-/*
- * The smooth strategy (beyond the paper): when a line starts, choose its end
- * corner's acceleration again on the polygon's boundary, now knowing the
- * actual speed. The corner model has no tangential acceleration inside a
- * symmetric corner, and on finely sampled curves corners take nearly whole
- * segments (19), so the speed can only grow inside corners: where forward
- * reachability (34) caps the corner below its plan, a corner with v_e > v_s
- * leaves faster (elsewhere the plan stays, and costs nothing). Each candidate keeps every bound the
- * plan keeps: its q is within the override's caps, its exit can still brake to the next corner's
- * planned q (25)(26), and the line can reach or brake to its entry; the one
- * leaving fastest (then entering fastest) is taken.
- */
-#define SMOOTH_EXEC_W     16
-#define SMOOTH_EXEC_TILTS 9
-static void smooth_reshape(struct mlip_planner *p, struct mlip_seg *s, double rem, double v)
-{
-	struct mlip_seg *nx = seg_at(p, p->tail + 1);
-	if (s->c.t_s == 0.0) {
-		return; /* straight: nothing to shape */
-	}
-	double q_next = p->head - p->tail > 2 ? nx->q : 0.0;
-	double lim = q_next * nx->brake_b + nx->two_a_d;
-	int ok;
-	double q0 = corner_q_at(&s->c, s->a_mm_s2, s->q, rem, v, &ok);
-	if (q0 >= s->q || mlip_corner_smooth_sharp(p->n, s->e, nx->e)) {
-		return; /* the plan is reached, or a pinned corner: keep it */
-	}
-	double best_ve = sqrt(q0) * s->c.ve_mm_s, best_vs = sqrt(q0) * s->c.vs_mm_s;
-	struct mlip_corner best = s->c;
-	double best_plan = s->q;
-	int found = 0;
-	/* the w grid, then tilts from the plan's shape toward acceleration as
-	 * the braking shapes tilt the other way (mlip_corner_smooth_shapes) */
-	double w0 = s->n_shapes > 0 ? s->shapes[0].w : 0.5, th = 0.0;
-	for (int k = 0; k < p->n; k++) {
-		th += sq(nx->e[k] - s->e[k]);
-	}
-	double dw = sqrt(th) / 64.0;
-	for (int i = 1; i < SMOOTH_EXEC_W + SMOOTH_EXEC_TILTS; i++) {
-		struct mlip_corner c;
-		double w = (double)i / (double)SMOOTH_EXEC_W;
-		if (i >= SMOOTH_EXEC_W) {
-			w = w0 + dw;
-			dw *= 2.0;
-			if (!(w <= 1.0)) {
-				continue;
-			}
-		}
-		if (mlip_corner_smooth_w(p->n, s->e, nx->e, s->d_mm, nx->d_mm, p->accel, s->tol_mm,
-		                         s->vhard_mm_s, nx->vhard_mm_s, w, &c) != 0) {
-			continue;
-		}
-		if (!(c.beta_mm_s2 > s->a_mm_s2)) {
-			continue; /* B = v_s^2 - 2 a l_s > 0: after an override cut the
-			           * corner can still take the speed the line cannot shed
-			           * (end_corner_q), as the LP vertex's usually can */
-		}
-		double plan = 1.0;
-		if (c.vs_mm_s > 0.0) {
-			plan = dmin(plan, sq(line_target(p, s)) / sq(c.vs_mm_s));
-		}
-		if (c.ve_mm_s > 0.0) {
-			plan = dmin(plan, sq(line_target(p, nx)) / sq(c.ve_mm_s));
-		}
-		double cc = sq(c.ve_mm_s) + 2.0 * nx->a_mm_s2 * c.le_mm;
-		if (cc > 0.0) {
-			plan = dmin(plan, lim / cc);
-		}
-		plan = dmax(plan, 0.0);
-		double q = corner_q_at(&c, s->a_mm_s2, plan, rem, v, &ok);
-		if (!ok || q > plan) {
-			continue;
-		}
-		double ve = sqrt(q) * c.ve_mm_s, vs = sqrt(q) * c.vs_mm_s;
-		if (ve > best_ve * (1.0 + 1e-9) ||
-		    (ve >= best_ve * (1.0 - 1e-12) && vs > best_vs * (1.0 + 1e-9))) {
-			best_ve = ve;
-			best_vs = vs;
-			best = c;
-			best_plan = plan;
-			found = 1;
-		}
-	}
-	if (found) {
-		s->c = best;
-		link_coeffs(p, s, nx);
-		s->q = best_plan;
-		s->shape = MLIP_SHAPE_FIXED;
-	}
+	return mlip_corner_q_at(&s->c, s->a_mm_s2, s->q, rem, v, &ok);
 }
 
 /* A line profile from (speed v) over distance rem to speed v1: change to vc,
@@ -614,14 +615,15 @@ static void profile_make(struct mlip_profile *f, double v, double rem, double v1
 		a = need / (2.0 * rem);
 	}
 	double vc;
-	if (vtarget >= dmax(v, v1)) {
+	if (vtarget >= mlip_dmax(v, v1)) {
 		double vtri2 = 0.5 * (2.0 * a * rem + v * v + v1 * v1); /* (36) */
 		/* never below max(v, v1): only rounding could put vtri there */
-		vc = dmin(vtarget, dmax(sqrt(dmax(vtri2, 0.0)), dmax(v, v1))); /* (35) */
+		vc = mlip_dmin(vtarget,
+		               mlip_dmax(sqrt(mlip_dmax(vtri2, 0.0)), mlip_dmax(v, v1))); /* (35) */
 	} else {
 		/* above the target (override cut): come down as far as rem allows */
 		double vlo2 = 0.5 * (v * v + v1 * v1 - 2.0 * a * rem);
-		vc = dmax(vtarget, sqrt(dmax(vlo2, 0.0)));
+		vc = mlip_dmax(vtarget, sqrt(mlip_dmax(vlo2, 0.0)));
 	}
 	f->v0 = v;
 	f->vc = vc;
@@ -632,7 +634,7 @@ static void profile_make(struct mlip_profile *f, double v, double rem, double v1
 	f->t3 = fabs(v1 - vc) / a;
 	f->d1 = fabs(vc * vc - v * v) / (2.0 * a);
 	double d3 = fabs(vc * vc - v1 * v1) / (2.0 * a);
-	f->d2 = dmax(rem - f->d1 - d3, 0.0);
+	f->d2 = mlip_dmax(rem - f->d1 - d3, 0.0);
 	if (vc > 0.0) {
 		f->t2 = f->d2 / vc;
 	} else {
@@ -663,6 +665,7 @@ static void retire(struct mlip_planner *p)
 	p->done_seq = s->seq;
 	p->done_line = s->line;
 	p->tail++;
+	p->retired++;
 }
 
 static void line_position(const struct mlip_planner *p, const struct mlip_seg *s, double *out)
@@ -680,7 +683,7 @@ static void corner_position(const struct mlip_planner *p, const struct mlip_seg 
 	/* (14) rewritten: P - beta (t_m - t)^2 / 2 e_s + alpha t^2 / 2 e_e, which
 	 * is exact at both ends and free of cancellation */
 	double tm = sqrt(p->q_exec) * s->c.t_s, t = p->tc_s;
-	double ws = 0.5 * s->c.beta_mm_s2 * sq(tm - t);
+	double ws = 0.5 * s->c.beta_mm_s2 * mlip_sq(tm - t);
 	double we = 0.5 * s->c.alpha_mm_s2 * t * t;
 	for (int k = 0; k < p->n; k++) {
 		out[k] = s->end[k] - ws * s->e[k] + we * nx->e[k];
@@ -697,6 +700,11 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 		int has_next = p->head - p->tail > 1;
 
 		if (p->in_corner) {
+			if (p->dwell > 0) {
+				p->dwell--; /* at rest on an exact corner, for the mean (jerk.h) */
+				tau = 0.0;
+				break;
+			}
 			double tm = sqrt(p->q_exec) * s->c.t_s;
 			double left = tm - p->tc_s;
 			if (left > tau) {
@@ -704,7 +712,7 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 				tau = 0.0;
 				break;
 			}
-			tau -= dmax(left, 0.0);
+			tau -= mlip_dmax(left, 0.0);
 			/* onto the next line at E with speed v_e */
 			p->l_start_mm = p->q_exec * s->c.le_mm;
 			p->v_mm_s = sqrt(p->q_exec) * s->c.ve_mm_s;
@@ -715,17 +723,17 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 		}
 
 		double rem = s->d_mm - p->l_start_mm - p->s_mm; /* to the corner point */
-		if (p->strategy == MLIP_STRATEGY_SMOOTH && has_next && !p->prof_valid) {
-			smooth_reshape(p, s, rem, p->v_mm_s);
+		if (p->ops->line_start != NULL && has_next && !p->prof_valid) {
+			p->ops->line_start(p, s, rem, p->v_mm_s);
 		}
 		double q = has_next ? end_corner_q(s, rem, p->v_mm_s) : 0.0;
-		double vt = line_target(p, s);
+		double vt = mlip_line_target(p, s);
 		struct mlip_profile *f = &p->prof;
 		if (!p->prof_valid || q != p->prof_q || vt != p->prof_vt) {
 			/* re-plan from the actual state only when an input changed;
 			 * otherwise keep evaluating one profile in closed form, so
 			 * no rounding accumulates along a long line */
-			double left = dmax(rem - q * s->c.ls_mm, 0.0);
+			double left = mlip_dmax(rem - q * s->c.ls_mm, 0.0);
 			profile_make(f, p->v_mm_s, left, sqrt(q) * s->c.vs_mm_s, s->a_mm_s2, vt);
 			p->prof_valid = 1;
 			p->prof_q = q;
@@ -759,13 +767,25 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 		p->in_corner = 1;
 		p->q_exec = q;
 		p->tc_s = 0.0;
+		if (p->taps > 1 && s->exact) {
+			/* the corner point is this period's sample and the next
+			 * taps - 2 ones: no window then holds both legs (jerk.h) */
+			p->dwell = (uint32_t)p->taps - 2u;
+			tau = 0.0;
+			break;
+		}
 	}
 
-	/* controlled stop: once at rest on the path, drop what is queued */
-	if (p->stopping && p->v_mm_s == 0.0 && !p->in_corner) {
+	/* controlled stop: once at rest on the path (and the mean with it),
+	 * drop what is queued */
+	if (p->stopping && p->v_mm_s == 0.0 && !p->in_corner &&
+	    (p->taps <= 1 || p->still + 2u >= (uint32_t)p->taps)) {
 		if (p->head != p->tail) {
 			line_position(p, seg_at(p, p->tail), p->pos);
 			p->head = p->tail;
+			p->pass.on = 0; /* nothing left to plan */
+			p->pending = 0;
+			p->pass.has_reach = 0;
 			memcpy(p->last_point, p->pos, sizeof(double) * (size_t)p->n);
 			p->l_start_mm = 0.0;
 			p->s_mm = 0.0;
@@ -781,15 +801,18 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 	} else {
 		line_position(p, seg_at(p, p->tail), p->pos);
 	}
-	memcpy(pos_out, p->pos, sizeof(double) * (size_t)p->n);
-
+	mlip_run_state rs = MLIP_RUN_MOVING;
 	if (p->head == p->tail) {
-		return MLIP_RUN_IDLE;
+		rs = MLIP_RUN_IDLE;
+	} else if (effective_override(p) == 0.0 && p->v_mm_s == 0.0 && !p->in_corner) {
+		rs = MLIP_RUN_HELD;
 	}
-	if (effective_override(p) == 0.0 && p->v_mm_s == 0.0 && !p->in_corner) {
-		return MLIP_RUN_HELD;
+	if (p->taps <= 1) {
+		memcpy(pos_out, p->pos, sizeof(double) * (size_t)p->n);
+		return rs;
 	}
-	return MLIP_RUN_MOVING;
+	filter_step(p, pos_out);
+	return settled(p) ? rs : MLIP_RUN_MOVING; /* at rest once the mean is */
 }
 
 double mlip_planner_speed(const struct mlip_planner *p)
@@ -830,14 +853,15 @@ static double line_dist(int n, const double *x, const double *P, const double *e
 		along += (x[k] - P[k]) * e[k];
 	}
 	for (int k = 0; k < n; k++) {
-		d2 += sq(x[k] - P[k] - along * e[k]);
+		d2 += mlip_sq(x[k] - P[k] - along * e[k]);
 	}
 	return sqrt(d2);
 }
 
 mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
 {
-	if (p->head != p->tail || p->stopping || p->in_corner) {
+	if (p->head != p->tail || p->stopping || p->in_corner || !settled(p) ||
+	    mlip_planner_busy(p)) {
 		return MLIP_E_INVALID;
 	}
 	for (int k = 0; k < p->n; k++) {
@@ -848,6 +872,7 @@ mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
 	memcpy(p->last_point, pos, sizeof(double) * (size_t)p->n);
 	memcpy(p->pos, pos, sizeof(double) * (size_t)p->n);
 	p->v_mm_s = 0.0;
+	filter_reset(p);
 	return MLIP_OK;
 }
 
@@ -859,6 +884,10 @@ mlip_status mlip_planner_abort(struct mlip_planner *p, const double *pos)
 		}
 	}
 	p->head = p->tail;
+	p->in_tail = p->in_head; /* the blocks queued for the bounded work too */
+	p->pending = 0;
+	p->pass.on = 0;
+	p->pass.has_reach = 0;
 	p->in_corner = 0;
 	p->stopping = 0;
 	p->hold = 0;
@@ -869,11 +898,35 @@ mlip_status mlip_planner_abort(struct mlip_planner *p, const double *pos)
 	p->tc_s = 0.0;
 	memcpy(p->last_point, pos, sizeof(double) * (size_t)p->n);
 	memcpy(p->pos, pos, sizeof(double) * (size_t)p->n);
+	filter_reset(p); /* a jerk limit's mean rests at pos too, its window with it */
 	return MLIP_OK;
 }
 
 void mlip_planner_rest_here(struct mlip_planner *p)
 {
+	if (p->taps > 1) {
+		/* the last setpoint is the mean: within E_f of where the plan was
+		 * at the window's centre (J5, m odd), so the path goes on from
+		 * there, and a straight line from the setpoint to the end of that
+		 * segment stays within the corner's budget plus E_f (convexity) */
+		const struct mlip_exec_mark *mk = centre_mark(p);
+		p->tail = mk->tail;
+		p->in_corner = mk->in_corner;
+		p->done_seq = mk->done_seq;
+		p->done_line = mk->done_line;
+		p->dwell = 0;
+		if (p->head == p->tail && !p->stopping &&
+		    memcmp(p->out, p->last_point, sizeof(double) * (size_t)p->n) != 0) {
+			/* the plan had reached its last point, the mean not yet:
+			 * the rest of the last block, a straight line of at most E_f
+			 * from the setpoint (the centre sample is that point) */
+			struct mlip_block b = {.rapid = 1, .seq = p->seq, .line = p->done_line};
+			memcpy(b.target, p->last_point, sizeof(double) * (size_t)p->n);
+			memcpy(p->last_point, p->out, sizeof(double) * (size_t)p->n);
+			append(p, &b);
+		}
+		memcpy(p->pos, p->out, sizeof(p->pos));
+	}
 	if (p->in_corner) {
 		/* in a corner: on to whichever of its two segments is nearer (the
 		 * distance to one segment is convex along a straight line); to the
@@ -904,8 +957,8 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 		for (int k = 0; k < p->n; k++) {
 			e[k] /= d;
 			if (e[k] != 0.0) {
-				a = dmin(a, p->accel[k] / fabs(e[k]));
-				vaxis = dmin(vaxis, p->vaxis[k] / fabs(e[k]));
+				a = mlip_dmin(a, p->accel[k] / fabs(e[k]));
+				vaxis = mlip_dmin(vaxis, p->vaxis[k] / fabs(e[k]));
 			}
 		}
 		double jpt = joint_per_tool(p, e);
@@ -914,10 +967,10 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 		s->d_mm = d;
 		s->a_mm_s2 = a;
 		s->two_a_d = 2.0 * a * d;
-		s->vhard_mm_s = dmin(s->vhard_mm_s / jpt0 * jpt, vaxis);
+		s->vhard_mm_s = mlip_dmin(s->vhard_mm_s / jpt0 * jpt, vaxis);
 		s->vfeed_mm_s = rapid ? s->vhard_mm_s : s->vfeed_mm_s / jpt0 * jpt;
 		if (p->head - p->tail > 1) {
-			link_corner(p, s, seg_at(p, p->tail + 1));
+			link_corner(p, p->tail, s, seg_at(p, p->tail + 1));
 		}
 		break;
 	}
@@ -928,12 +981,13 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 	if (p->head == p->tail) {
 		memcpy(p->last_point, p->pos, sizeof(double) * (size_t)p->n);
 	}
+	filter_reset(p);         /* at rest on the last setpoint */
 	mlip_planner_hold(p, 1); /* full backward pass from the new geometry */
 }
 
 int mlip_planner_moving(const struct mlip_planner *p)
 {
-	return p->head != p->tail && (p->v_mm_s > 0.0 || p->in_corner);
+	return (p->head != p->tail && (p->v_mm_s > 0.0 || p->in_corner)) || !settled(p);
 }
 
 void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)

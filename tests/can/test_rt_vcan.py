@@ -164,6 +164,25 @@ def test_mb23_smooth_exact(vcan, tmp_path):
     exact_run(tmp_path, MILL, cut(MB23, MB23_LINES, tmp_path), "cia402", strategy="smooth")
 
 
+def test_mb23_jerk_exact(vcan, tmp_path):
+    """A jerk-limited program end to end: MAX_JERK = 1e5 mm/s^3 on every
+    axis of the mill, in the machine file mlip-rt, mlip-feed and mlip-sim
+    read; smooth (the strategy the limit costs least). The bus carries
+    mlip-sim's trace to the count, and that trace keeps the jerk limit in
+    double precision (third differences, tools/lib/check.c) and uses it."""
+    ini = MILL.read_text()
+    cfg = tmp_path / "mill-jerk.ini"
+    for axis in ("X", "Y", "Z"):
+        ini = ini.replace(f"[AXIS_{axis}]\n", f"[AXIS_{axis}]\nMAX_JERK = 100000\n")
+    cfg.write_text(ini)
+    ngc = cut(MB23, MB23_LINES, tmp_path)
+    _, summ = compare.simulate(S, cfg, ngc, tmp_path, "--strategy", "smooth")
+    assert summ["jerk_limit"] == [100000] * 3 and summ["violations"] == 0, summ
+    ratio = max(j / lim for j, lim in zip(summ["max_axis_jerk"], summ["jerk_limit"]))
+    assert 0.5 <= ratio <= 1 + 1e-6, summ["max_axis_jerk"]  # used, and kept
+    exact_run(tmp_path, cfg, ngc, "cia402", strategy="smooth")
+
+
 def test_demo_whole_exact(vcan, tmp_path):
     """One whole program: examples/demo.ngc (1819 blocks, 6.5 s, arcs and a
     helix). No shared toolpath runs in under a minute: the shortest, 4006.nc

@@ -125,7 +125,7 @@ def test_stall_holds_at_rest_without_jump(controller, tmp_path):
 
 # ---- records the controller did not expect --------------------------------
 
-REC = struct.Struct("<QIHH6dddd")  # include/mlip/ipc/ring.h, layout version 7
+REC = struct.Struct("<QIHH6dddd")  # include/mlip/ipc/ring.h, layout version 8
 HEAD, TAIL, CAPACITY, HDR_BYTES = 64, 128, 12, 24  # HDR_BYTES: where the records start
 
 

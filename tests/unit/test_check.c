@@ -377,7 +377,8 @@ static void test_planner_trace_on_zigzag(void **state)
 	struct mlip_check_limits lim = limits(2, 0.0);
 	struct src s = {.p = &p};
 	mlip_check_init_source(&chk, &lim, src_next, &s);
-	assert_int_equal(mlip_planner_init(&planner, &m, MLIP_STRATEGY_MPCT, 0, p.pts), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&planner, &m, MLIP_STRATEGY_MPCT, 0, p.pts, NULL),
+	                 MLIP_OK);
 	mlip_check_sample(&chk, p.pts);
 	size_t next = 1, samples = 1;
 	double x[MLIP_MAX_AXES];

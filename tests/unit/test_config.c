@@ -600,10 +600,14 @@ static void test_positive(void **state)
 	static const struct {
 		const char *key;
 		int field; /* which template line */
-	} keys[] = {{"MAX_LINEAR_VELOCITY", 0},  {"CONTOUR_TOLERANCE", 1},
-	            {"MAX_ANGULAR_VELOCITY", 2}, {"MAX_VELOCITY", 3},
-	            {"MAX_ACCELERATION", 4},     {"COUNTS_PER_UNIT", 5}};
-	static const uint32_t lines[] = {3, 4, 5, 7, 8, 9};
+	} keys[] = {{"MAX_LINEAR_VELOCITY", 0},
+	            {"CONTOUR_TOLERANCE", 1},
+	            {"MAX_ANGULAR_VELOCITY", 2},
+	            {"MAX_VELOCITY", 3},
+	            {"MAX_ACCELERATION", 4},
+	            {"COUNTS_PER_UNIT", 5},
+	            {"MAX_JERK", 5}};
+	static const uint32_t lines[] = {3, 4, 5, 7, 8, 9, 9};
 	static const char *const vals[] = {"0", "-0", "-5", "-1e-300", "0e5"};
 	char line[96], msg[160];
 	size_t i, j;
@@ -1640,6 +1644,14 @@ static void test_upper_bounds(void **state)
 	EXPECT_OK(CFG(.x = "COUNTS_PER_UNIT = 1e7"));
 	EXPECT(CFG(.x = "COUNTS_PER_UNIT = 1.5e7"), MLIP_E_RANGE, 9, 1,
 	       "AXIS_X COUNTS_PER_UNIT must be at most 10000000, got 15000000");
+	/* the jerk limit: absent, none (0); given, in the axis's units */
+	EXPECT_OK(CFG(.x = "HOME = 0"));
+	assert_true(cfg.machine.axis[0].max_jerk == 0.0);
+	EXPECT_OK(CFG(.x = "MAX_JERK = 1e9"));
+	assert_true(cfg.machine.axis[0].max_jerk == 1e9);
+	assert_true(cfg.machine.axis[1].max_jerk == 0.0);
+	EXPECT(CFG(.x = "MAX_JERK = 1.5e9"), MLIP_E_RANGE, 9, 1,
+	       "AXIS_X MAX_JERK must be at most 1e9, got 1.5e9");
 	EXPECT_OK(CFG(.x = "MIN_LIMIT = -1e9"));
 	EXPECT(CFG(.x = "MIN_LIMIT = -1.5e9"), MLIP_E_RANGE, 9, 1,
 	       "AXIS_X MIN_LIMIT must be within -1e9..1e9, got -1.5e9");

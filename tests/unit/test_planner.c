@@ -14,6 +14,7 @@
 
 #include <cmocka.h>
 
+#include "../../tools/lib/blockiter.h"
 #include "../../tools/lib/check.h"
 #include "mlip/motion/planner.h"
 #include "mlip/motion/smooth.h"
@@ -36,6 +37,7 @@
 	} while (0)
 
 static struct mlip_planner P;
+static struct mlip_smooth_store SM; /* the smooth strategy's planner data */
 
 static uint64_t rng = 88172645463325252ULL;
 static double urand(void)
@@ -325,6 +327,15 @@ struct run {
 	double hold_drift; /* largest movement while held and at rest */
 };
 
+/* run_path with bounded look-ahead work (mlip_planner_set_async): the
+ * pre-read as the controller's (push what fits, work, until the look-ahead
+ * is full or the path is in and the work done), then a period's pushes,
+ * its work, its step. */
+static int g_async;
+/* every setpoint run_path produced, when not NULL */
+static double *g_rows;
+static size_t g_nrows, g_maxrows;
+
 static void run_path(const struct mlip_machine *m, mlip_strategy st, const struct path *p,
                      int events, struct run *r)
 {
@@ -336,19 +347,41 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 	for (int k = 0; k < m->n_axes; k++) {
 		lim.accel[k] = m->axis[k].max_accel;
 		lim.vel[k] = m->axis[k].max_vel;
+		lim.jerk[k] = m->axis[k].max_jerk;
 	}
 	memset(r, 0, sizeof(*r));
 	mlip_check_init(&r->chk, &lim, p->pts, p->np);
-	assert_int_equal(mlip_planner_init(&P, m, st, 0, p->pts), MLIP_OK);
+	/* only smooth gets its storage: the others plan without it */
+	assert_int_equal(
+	    mlip_planner_init(&P, m, st, 0, p->pts, st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
+	    MLIP_OK);
 	mlip_check_sample(&r->chk, p->pts);
 	size_t next = 1;
 	int n = m->n_axes;
 	double x[MLIP_MAX_AXES], held_at[MLIP_MAX_AXES];
 	int held = 0;
 	uint64_t next_event = 20;
+	g_nrows = 0;
+	mlip_planner_set_async(&P, g_async);
+	while (g_async && events != EV_DRIP) {
+		/* the pre-read: no step until the look-ahead is full (or the path
+		 * is in) and planned */
+		for (uint32_t sp = mlip_planner_space(&P); sp > 0 && next < p->np; sp--) {
+			struct mlip_block b = {.feed_mm_s = m->max_feed_mm_s,
+			                       .tol_mm = m->tolerance_mm,
+			                       .line = (uint32_t)next};
+			memcpy(b.target, p->pts + next * (size_t)n, sizeof(double) * (size_t)n);
+			assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+			next++;
+		}
+		mlip_planner_work(&P);
+		if (!mlip_planner_busy(&P) && (next >= p->np || mlip_planner_space(&P) == 0)) {
+			break;
+		}
+	}
 	for (;;) {
 		int budget = events == EV_DRIP ? (r->periods % 7 == 0) : MLIP_INGEST_PER_PERIOD;
-		if (r->periods == 0 && events != EV_DRIP) {
+		if (r->periods == 0 && events != EV_DRIP && !g_async) {
 			budget = MLIP_LOOKAHEAD;
 		}
 		for (int i = 0; i < budget && next < p->np && mlip_planner_space(&P) > 0; i++) {
@@ -375,16 +408,23 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 				} else {
 					mlip_planner_set_override(&P, 200.0 * urand());
 				}
-			} else if (events == EV_HOLD_RESUME && r->periods < 20000) {
-				mlip_planner_hold(&P, !P.hold);
+			} else if (events == EV_HOLD_RESUME) {
+				/* toggles until 20,000 periods, then resumed for good
+				 * (an odd number of toggles left it held forever) */
+				mlip_planner_hold(&P, r->periods < 20000 ? !P.hold : 0);
 			} else if (events == EV_STOP && r->periods >= 1500 && !P.stopping) {
 				mlip_planner_stop(&P);
 				next = p->np; /* the operator's stop ends the program */
 			}
 		}
+		mlip_planner_work(&P);
 		mlip_run_state rs = mlip_planner_step(&P, x);
 		r->periods++;
 		mlip_check_sample(&r->chk, x);
+		if (g_rows != NULL && g_nrows < g_maxrows) {
+			memcpy(g_rows + g_nrows * (size_t)n, x, sizeof(double) * (size_t)n);
+			g_nrows++;
+		}
 		if (rs == MLIP_RUN_HELD) {
 			if (!held) {
 				memcpy(held_at, x, sizeof(held_at));
@@ -534,7 +574,9 @@ static int plan_equals_full_pass(const struct path *p, const struct mlip_machine
 	static double q[MLIP_LOOKAHEAD];
 	static uint8_t sh[MLIP_LOOKAHEAD];
 	int n = p->n, braking = 0;
-	assert_int_equal(mlip_planner_init(&P, m, st, cap, p->pts), MLIP_OK);
+	assert_int_equal(
+	    mlip_planner_init(&P, m, st, cap, p->pts, st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
+	    MLIP_OK);
 	double x[MLIP_MAX_AXES];
 	for (size_t i = 1; i < p->np; i++) {
 		struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
@@ -546,14 +588,16 @@ static int plan_equals_full_pass(const struct path *p, const struct mlip_machine
 		if (i % every == 0) {
 			for (uint32_t j = P.tail; j != P.head; j++) {
 				const struct mlip_seg *g = &P.seg[j & (P.cap - 1)];
+				uint8_t shape = P.sm != NULL ? P.sm[j & (P.cap - 1)].shape : 0;
 				q[j & (P.cap - 1)] = g->q;
-				sh[j & (P.cap - 1)] = g->shape;
-				braking += g->shape > 0 && g->shape != MLIP_SHAPE_FIXED;
+				sh[j & (P.cap - 1)] = shape;
+				braking += shape > 0 && shape != MLIP_SHAPE_FIXED;
 			}
 			mlip_planner_set_override(&P, 100.0); /* full pass */
 			for (uint32_t j = P.tail; j != P.head; j++) {
 				assert_true(q[j & (P.cap - 1)] == P.seg[j & (P.cap - 1)].q);
-				assert_int_equal(sh[j & (P.cap - 1)], P.seg[j & (P.cap - 1)].shape);
+				assert_int_equal(sh[j & (P.cap - 1)],
+				                 P.sm != NULL ? P.sm[j & (P.cap - 1)].shape : 0);
 			}
 		}
 	}
@@ -588,7 +632,7 @@ static void push_n_same_plan(int n, int kind, int zigzag)
 		b[i] = (struct mlip_block){.feed_mm_s = 150, .tol_mm = 0.01, .line = (uint32_t)i};
 		memcpy(b[i].target, p.pts + (i + 1) * (size_t)n, sizeof(double) * (size_t)n);
 	}
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts, NULL), MLIP_OK);
 	for (size_t i = 0; i < 3000; i++) {
 		assert_int_equal(mlip_planner_push(&P, &b[i]), MLIP_OK);
 	}
@@ -600,7 +644,7 @@ static void push_n_same_plan(int n, int kind, int zigzag)
 	for (uint32_t j = 0; j < P.head; j++) {
 		assert_true(q1[j] == P.seg[j].q);
 	}
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts, NULL), MLIP_OK);
 	size_t done = 0;
 	while (done < 3000) {
 		size_t k = 1 + (done * 7) % 23;
@@ -640,7 +684,7 @@ static void test_sharp_corner_zero_side_does_not_stop(void **state)
 	struct mlip_machine m = machine(2, 1000, 200, 0.01);
 	m.axis[1].max_accel = 1000;
 	double start[2] = {0, 0};
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, start), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, start, NULL), MLIP_OK);
 	struct mlip_block b1 = {
 	    .target = {es[0] * 20, es[1] * 20}, .feed_mm_s = 200, .tol_mm = 0.01};
 	struct mlip_block b2 = {.target = {es[0] * 20 + ee[0] * 20, es[1] * 20 + ee[1] * 20},
@@ -809,6 +853,386 @@ static struct path make_fine_curve(size_t segs)
 	return p;
 }
 
+/* The path mlip-feed sends with the smooth strategy: the filter's output
+ * (mlip_smooth_program) for p, from its first point. */
+static struct path smoothed_path(const struct path *p, const struct mlip_machine *m)
+{
+	size_t n = p->np - 1, nout = 0, w = (size_t)p->n;
+	struct mlip_machine mh = *m;
+	struct mlip_block *b = calloc(n, sizeof(*b)), *out = NULL;
+	for (int k = 0; k < p->n; k++) {
+		mh.axis[k].home = p->pts[k];
+	}
+	for (size_t i = 0; i < n; i++) {
+		b[i] = (struct mlip_block){.feed_mm_s = m->max_feed_mm_s,
+		                           .tol_mm = m->tolerance_mm,
+		                           .line = (uint32_t)i + 1};
+		memcpy(b[i].target, p->pts + (i + 1) * w, sizeof(double) * w);
+	}
+	assert_int_equal(mlip_smooth_program(&mh, b, n, &out, &nout), 0);
+	struct path q = {.n = p->n, .np = nout + 1};
+	q.pts = calloc(q.np * w, sizeof(double));
+	memcpy(q.pts, p->pts, sizeof(double) * w);
+	for (size_t i = 0; i < nout; i++) {
+		memcpy(q.pts + (i + 1) * w, out[i].target, sizeof(double) * w);
+	}
+	free(b);
+	free(out);
+	return q;
+}
+
+/*
+ * The motion depends on which blocks are queued when, never on how they
+ * were pushed: the same blocks per period, pushed as one batch, one by one
+ * or in random sub-batches (a feeder's timing: the controller takes what
+ * the ring holds, up to MLIP_PREREAD_PER_PERIOD or MLIP_INGEST_PER_PERIOD),
+ * give the same setpoints to the bit. The pre-read (everything until the
+ * look-ahead is full) is split the same ways. A smooth corner's shape once
+ * depended on the passes its batches made: a CAN run's bus differed from
+ * mlip-sim by one count (tests/can, test_mb23_smooth_exact).
+ */
+static size_t run_batched(const struct path *p, const struct mlip_machine *m, mlip_strategy st,
+                          uint32_t cap, int split, double *out, size_t max)
+{
+	int n = p->n;
+	uint64_t counts = 0x9E3779B97F4A7C15ULL, splits = 0xD1B54A32D192ED03ULL;
+	assert_int_equal(
+	    mlip_planner_init(&P, m, st, cap, p->pts, st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
+	    MLIP_OK);
+	static struct mlip_block b[40000];
+	assert_true(p->np - 1 <= 40000);
+	for (size_t i = 1; i < p->np; i++) {
+		b[i - 1] =
+		    (struct mlip_block){.feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)i};
+		memcpy(b[i - 1].target, p->pts + i * (size_t)n, sizeof(double) * (size_t)n);
+	}
+	size_t next = 0, total = p->np - 1, k = 0;
+	for (int pre = 1;; pre = 0) {
+		/* how many this period: the same in every run */
+		counts = counts * 6364136223846793005ULL + 1442695040888963407ULL;
+		size_t want = pre ? 4096 : (size_t)(counts >> 33) % 17;
+		want = want < total - next ? want : total - next;
+		want = want < mlip_planner_space(&P) ? want : mlip_planner_space(&P);
+		while (want > 0) {
+			size_t k1 = want;
+			if (split == 1) {
+				k1 = 1;
+			} else if (split == 2) {
+				splits = splits * 6364136223846793005ULL + 1442695040888963407ULL;
+				k1 = 1 + (size_t)(splits >> 33) % 97;
+				k1 = k1 < want ? k1 : want;
+			}
+			assert_int_equal(mlip_planner_push_n(&P, b + next, k1, NULL), k1);
+			next += k1;
+			want -= k1;
+		}
+		double x[MLIP_MAX_AXES];
+		mlip_run_state rs = mlip_planner_step(&P, x);
+		assert_true(k < max);
+		memcpy(out + k * (size_t)n, x, sizeof(double) * (size_t)n);
+		k++;
+		if (rs == MLIP_RUN_IDLE && next == total) {
+			return k;
+		}
+	}
+}
+
+static void test_batches_same_setpoints(void **state)
+{
+	(void)state;
+	struct path curve = make_fine_curve(6000);
+	struct path walk = make_path(3, 1, 3000);
+	const struct path *paths[2] = {&curve, &walk};
+	size_t max = 200000;
+	double *ref = malloc(max * 3 * sizeof(double)), *got = malloc(max * 3 * sizeof(double));
+	for (int pi = 0; pi < 2; pi++) {
+		const struct path *p = paths[pi];
+		struct mlip_machine m = machine(p->n, 1000, 200, 0.01);
+		for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+			for (uint32_t cap = 1024; cap <= 4096; cap *= 4) {
+				size_t n0 = run_batched(p, &m, (mlip_strategy)st, cap, 0, ref, max);
+				for (int split = 1; split <= 2; split++) {
+					size_t n1 = run_batched(p, &m, (mlip_strategy)st, cap,
+					                        split, got, max);
+					size_t bad = 0;
+					while (bad < n0 && bad < n1 &&
+					       memcmp(ref + bad * (size_t)p->n,
+					              got + bad * (size_t)p->n,
+					              sizeof(double) * (size_t)p->n) == 0) {
+						bad++;
+					}
+					if (n0 != n1 || bad != n0) {
+						fail_msg(
+						    "path %d, strategy %s, look-ahead %u, batches "
+						    "%d: "
+						    "%zu / %zu setpoints, the first differs at %zu",
+						    pi, mlip_strategy_name((mlip_strategy)st), cap,
+						    split, n0, n1, bad);
+					}
+				}
+			}
+		}
+	}
+	free(ref);
+	free(got);
+	free(curve.pts);
+	free(walk.pts);
+}
+
+/* ---- bounded work a period (mlip_planner_set_async) ----------------------- */
+
+/* The look-ahead's work done a bounded amount a period ends in the plan
+ * done at once: with every block at hand and no command, the same
+ * setpoints to the bit, every strategy, with and without a jerk limit, on
+ * a fine curve longer than the look-ahead (the plan keeps up with the
+ * motion) and a random walk; under override storms, holds, a stop and
+ * blocks dripping in (the work then lags the commands by periods) every
+ * limit holds. */
+static void test_bounded_work(void **state)
+{
+	(void)state;
+	/* the curve's 20,000 segments of 0.02 mm are five look-aheads, and
+	 * smoothed (as mlip-feed sends them to smooth) it is run at up to
+	 * 200 mm/s: the work has to keep up with 10 segments a period */
+	struct path walk = make_path(3, 1, 2500), curve = make_fine_curve(20000);
+	const struct path *paths[2] = {&walk, &curve};
+	g_maxrows = 400000;
+	double *ref = malloc(g_maxrows * 3 * sizeof(double));
+	double *got = malloc(g_maxrows * 3 * sizeof(double));
+	static const int events[] = {EV_STORM, EV_HOLD_RESUME, EV_STOP, EV_DRIP};
+	for (int pi = 0; pi < 2; pi++) {
+		const struct path *raw = paths[pi];
+		for (int jerk = 0; jerk < 2; jerk++) {
+			struct mlip_machine m = machine(raw->n, 1000, 200, 0.01);
+			for (int k = 0; jerk && k < raw->n; k++) {
+				m.axis[k].max_jerk = 1e5;
+			}
+			struct path sp = smoothed_path(raw, &m);
+			for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+				const struct path *p = st == MLIP_STRATEGY_SMOOTH ? &sp : raw;
+				struct run r;
+				g_async = 0;
+				g_rows = ref;
+				run_path(&m, (mlip_strategy)st, p, EV_NONE, &r);
+				size_t n0 = g_nrows;
+				g_async = 1;
+				g_rows = got;
+				run_path(&m, (mlip_strategy)st, p, EV_NONE, &r);
+				g_rows = NULL;
+				size_t same = 0;
+				while (same < n0 && same < g_nrows &&
+				       memcmp(ref + same * (size_t)p->n, got + same * (size_t)p->n,
+				              sizeof(double) * (size_t)p->n) == 0) {
+					same++;
+				}
+				if (same != n0 || n0 != g_nrows) {
+					fail_msg(
+					    "path %d, jerk %d, %s: %zu / %zu setpoints, the first "
+					    "differs at %zu",
+					    pi, jerk, mlip_strategy_name((mlip_strategy)st), n0,
+					    g_nrows, same);
+				}
+				assert_physics(&m, &r, jerk ? 0.01 : 0.5, 1);
+				for (int e = 0; e < 4; e++) {
+					run_path(&m, (mlip_strategy)st, p, events[e], &r);
+					char msg[1024];
+					if (mlip_check_verdict(
+					        &r.chk, REL, mlip_check_rounding_floor(&r.chk), 0.0,
+					        events[e] == EV_STOP ? INFINITY : 1e-9, msg,
+					        sizeof(msg))) {
+						fail_msg("path %d, jerk %d, %s, events %d: %s", pi,
+						         jerk,
+						         mlip_strategy_name((mlip_strategy)st),
+						         events[e], msg);
+					}
+				}
+				g_async = 0;
+			}
+			free(sp.pts);
+		}
+	}
+	free(ref);
+	free(got);
+	free(walk.pts);
+	free(curve.pts);
+}
+
+/* ---- the jerk limit (mlip/motion/jerk.h) ---------------------------------- */
+
+/* The mean's parameters (J4, J5): an odd window, the longest whose E_f
+ * takes at most half of eps; the plan's accelerations min(A, J m T / 2);
+ * nothing at all without a limit (the planner then is the paper's). */
+static void test_jerk_plan(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine(3, 1000, 200, 0.01);
+	struct mlip_jerk_plan jp;
+	assert_int_equal(mlip_jerk_plan(&m, &jp), 0);
+	assert_int_equal(jp.taps, 1);
+	assert_true(jp.filter_mm == 0.0);
+	for (int k = 0; k < 3; k++) {
+		assert_true(jp.accel[k] == m.axis[k].max_accel);
+	}
+	static const double jerks[] = {1e3, 1e4, 1e5, 1e6, 1e9};
+	for (int i = 0; i < 5; i++) {
+		for (int k = 0; k < 3; k++) {
+			m.axis[k].max_jerk = k == 2 ? 0.0 : jerks[i]; /* Z without a limit */
+		}
+		assert_int_equal(mlip_jerk_plan(&m, &jp), 1);
+		assert_true(jp.taps >= 1 && jp.taps < MLIP_JERK_MAX_TAPS && jp.taps % 2 == 1);
+		double a2 = 0.0, mt = (double)jp.taps;
+		for (int k = 0; k < 3; k++) {
+			double want = k == 2 ? m.axis[k].max_accel
+			                     : fmin(m.axis[k].max_accel,
+			                            0.5 * jerks[i] * mt * 1e-3 * (1.0 - 1e-6));
+			assert_near(jp.accel[k], want, 1e-12 * want);
+			a2 += jp.accel[k] * jp.accel[k];
+		}
+		double ef = sqrt(a2) * 1e-6 * (mt * mt - 1.0) / 24.0;
+		assert_near(jp.filter_mm, ef, 1e-15);
+		assert_le(jp.filter_mm, 0.5 * m.tolerance_mm);
+		/* the next window (2 more) would take more than half, or gain
+		 * nothing (every axis at A) */
+		if (jp.taps + 2 < MLIP_JERK_MAX_TAPS && jp.accel[0] < m.axis[0].max_accel) {
+			double a[MLIP_MAX_AXES];
+			for (int k = 0; k < 3; k++) {
+				a[k] = k == 2
+				           ? m.axis[k].max_accel
+				           : fmin(m.axis[k].max_accel,
+				                  0.5 * jerks[i] * (mt + 2) * 1e-3 * (1.0 - 1e-6));
+			}
+			assert_true(mlip_jerk_filter_mm(3, a, jp.taps + 2, 1e-3) >
+			            0.5 * m.tolerance_mm);
+		}
+		print_message("J %g: %d taps, A' %.1f, E_f %.5f mm\n", jerks[i], jp.taps,
+		              jp.accel[0], jp.filter_mm);
+	}
+}
+
+/* Every part of the motion keeps each axis's jerk limit at every sample
+ * (third difference / T^3 within J (1 + REL) + the rounding floor), with
+ * every other limit and the contour: lines, corners, the look-ahead's stops,
+ * override storms, hold and resume, a stop, blocks arriving too slowly, the
+ * start and the end, every strategy; and the limit is used (above half of J
+ * on some axis, with every block at hand: a bound asserted from both sides). */
+static void test_jerk_every_part(void **state)
+{
+	(void)state;
+	struct path walk = make_path(3, 1, 1500), curve = make_fine_curve(4000);
+	const struct path *paths[2] = {&walk, &curve};
+	static const int events[] = {EV_NONE, EV_STORM, EV_HOLD_RESUME, EV_STOP, EV_DRIP};
+	for (int pi = 0; pi < 2; pi++) {
+		const struct path *p = paths[pi];
+		for (int ji = 0; ji < 2; ji++) {
+			double J = ji == 0 ? 1e4 : 1e5;
+			struct mlip_machine m = machine(p->n, 1000, 200, 0.01);
+			for (int k = 0; k < p->n; k++) {
+				m.axis[k].max_jerk = J * (1.0 + 0.25 * k); /* unequal on purpose */
+			}
+			for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+				for (int e = 0; e < 5; e++) {
+					struct run r;
+					run_path(&m, (mlip_strategy)st, p, events[e], &r);
+					char msg[1024];
+					int bad = mlip_check_verdict(
+					    &r.chk, REL, mlip_check_rounding_floor(&r.chk), 0.0,
+					    events[e] == EV_STOP ? INFINITY : 1e-9, msg,
+					    sizeof(msg));
+					if (bad) {
+						fail_msg("path %d, J %g, %s, events %d: %s", pi, J,
+						         mlip_strategy_name((mlip_strategy)st),
+						         events[e], msg);
+					}
+					double used = 0.0;
+					for (int k = 0; k < p->n; k++) {
+						used = fmax(used,
+						            r.chk.max_jerk[k] / m.axis[k].max_jerk);
+					}
+					if (events[e] == EV_NONE || events[e] == EV_STORM) {
+						assert_true(used > 0.5); /* blocks dripping in
+						                            move gently */
+					}
+					if (e == 0) {
+						print_message(
+						    "path %d, J %g, %s: %.3f s, jerk used %.4f\n",
+						    pi, J, mlip_strategy_name((mlip_strategy)st),
+						    (double)r.periods * m.period_s, used);
+					}
+				}
+			}
+		}
+	}
+	free(walk.pts);
+	free(curve.pts);
+}
+
+/* A stall (the loop missed periods: the drives stood at the last setpoint,
+ * which is the mean) is a point of rest, and the motion goes on from it
+ * within every limit, the jerk's included, and within eps of the path: the
+ * plan goes back to where it was at the window's centre, within E_f of the
+ * setpoint (mlip_planner_rest_here). Stalls in lines, in corners, in a
+ * smooth run and while the mean settles at the end; every strategy. */
+static void test_jerk_stall(void **state)
+{
+	(void)state;
+	struct path p = make_path(2, 1, 600);
+	for (size_t i = 0; i < 2 * p.np; i++) {
+		p.pts[i] *= 5.0; /* 0.25-2.5 mm steps: fast, the mean lags by a segment */
+	}
+	struct mlip_machine m = machine(2, 1000, 200, 0.01);
+	for (int k = 0; k < 2; k++) {
+		m.axis[k].max_jerk = 1e5;
+	}
+	struct mlip_check_limits lim = {
+	    .n = 2, .vmax_mm_s = 200, .vmax_rot_deg_s = 360, .eps_mm = 0.01, .period_s = 0.001};
+	for (int k = 0; k < 2; k++) {
+		lim.accel[k] = m.axis[k].max_accel;
+		lim.vel[k] = m.axis[k].max_vel;
+		lim.jerk[k] = m.axis[k].max_jerk;
+	}
+	static struct mlip_check chk;
+	for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+		mlip_check_init(&chk, &lim, p.pts, p.np);
+		assert_int_equal(mlip_planner_init(&P, &m, (mlip_strategy)st, 0, p.pts,
+		                                   st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
+		                 MLIP_OK);
+		mlip_check_sample(&chk, p.pts);
+		size_t next = 1;
+		int stalls = 0, resume_at = -1;
+		for (int k = 0; k < 2000000; k++) {
+			for (int i = 0; i < 16 && next < p.np && mlip_planner_space(&P) > 0; i++) {
+				struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01};
+				memcpy(b.target, p.pts + next * 2, sizeof(double) * 2);
+				assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+				next++;
+			}
+			if (k % 61 == 30 && mlip_planner_moving(&P)) {
+				mlip_planner_rest_here(&P); /* 3 periods missed */
+				mlip_check_gap(&chk, 4);
+				stalls++;
+				resume_at = k + 5;
+			}
+			if (k == resume_at) {
+				mlip_planner_hold(&P, 0);
+			}
+			double x[2];
+			mlip_run_state rs = mlip_planner_step(&P, x);
+			mlip_check_sample(&chk, x);
+			if (rs == MLIP_RUN_IDLE && next >= p.np && k > resume_at) {
+				break;
+			}
+		}
+		char msg[1024];
+		if (mlip_check_verdict(&chk, REL, mlip_check_rounding_floor(&chk), 0.0, 1e-9, msg,
+		                       sizeof(msg))) {
+			fail_msg("%s, %d stalls: %s", mlip_strategy_name((mlip_strategy)st), stalls,
+			         msg);
+		}
+		assert_true(stalls > 100);
+	}
+	free(p.pts);
+}
+
 /* With shape choices the early-terminated passes leave the q a full pass
  * computes (a full pass keeps the shapes), braking shapes are chosen, and
  * the motion keeps every limit with override storms (several: a shape
@@ -838,21 +1262,83 @@ static void test_smooth_shapes_plan(void **state)
 	free(p.pts);
 }
 
+/* An abort (E-stop, mlip_planner_abort) mid-run with bounded work and a
+ * jerk limit drops everything, the blocks still queued for the work and the
+ * pass in progress too, and rests exactly at the given point (the mean's
+ * window with it); a block pushed then starts from there. */
+static void test_abort_drops_the_queue(void **state)
+{
+	(void)state;
+	struct path p = make_path(2, 1, 600);
+	struct mlip_machine m = machine(2, 1000, 200, 0.01);
+	m.axis[0].max_jerk = m.axis[1].max_jerk = 1e5;
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 0, p.pts, NULL), MLIP_OK);
+	mlip_planner_set_async(&P, 1);
+	size_t next = 1;
+	double x[MLIP_MAX_AXES];
+	for (int k = 0; k < 300; k++) {
+		for (; next < p.np && mlip_planner_space(&P) > 0; next++) {
+			struct mlip_block b = {
+			    .feed_mm_s = 200, .tol_mm = 0.01, .line = (uint32_t)next};
+			memcpy(b.target, p.pts + 2 * next, sizeof(double) * 2);
+			assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+		}
+		mlip_planner_work(&P);
+		mlip_planner_step(&P, x);
+	}
+	/* moving, and blocks queued that the work has not appended yet */
+	struct mlip_block more = {.feed_mm_s = 200, .tol_mm = 0.01, .line = 9999};
+	more.target[0] = p.pts[2 * (p.np - 1)] + 1.0;
+	more.target[1] = p.pts[2 * (p.np - 1) + 1];
+	assert_int_equal(mlip_planner_push(&P, &more), MLIP_OK);
+	assert_true(mlip_planner_busy(&P) && mlip_planner_queued(&P) > 0);
+	assert_true(x[0] != p.pts[0] || x[1] != p.pts[1]);
+	double at[2] = {x[0] + 0.5, x[1] - 0.25}; /* where the drives stopped */
+	assert_int_equal(mlip_planner_abort(&P, at), MLIP_OK);
+	assert_false(mlip_planner_busy(&P));
+	assert_int_equal(mlip_planner_queued(&P), 0);
+	for (int k = 0; k < 50; k++) {
+		mlip_planner_work(&P);
+		assert_int_equal(mlip_planner_step(&P, x), MLIP_RUN_IDLE);
+		assert_true(x[0] == at[0] && x[1] == at[1]);
+	}
+	struct mlip_block b = {.feed_mm_s = 100, .tol_mm = 0.01, .line = 1};
+	b.target[0] = at[0] + 1.0;
+	b.target[1] = at[1];
+	assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+	mlip_run_state rs;
+	int k = 0;
+	do {
+		mlip_planner_work(&P);
+		rs = mlip_planner_step(&P, x);
+		assert_true(fabs(x[1] - at[1]) < 1e-12 && x[0] >= at[0] - 1e-12);
+	} while (rs != MLIP_RUN_IDLE && ++k < 10000);
+	assert_true(x[0] == b.target[0] && x[1] == b.target[1]);
+	free(p.pts);
+}
+
 static void test_push_full_and_bad_input(void **state)
 {
 	(void)state;
 	struct mlip_machine m = machine(2, 1000, 200, 0.01);
 	double start[2] = {0, 0};
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start), MLIP_OK);
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 12, start), MLIP_E_INVALID);
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start, NULL), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 12, start, NULL),
+	                 MLIP_E_INVALID);
+	/* smooth keeps its own data beside the planner: not without it */
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_SMOOTH, 8, start, NULL),
+	                 MLIP_E_INVALID);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_SMOOTH, 8, start, &SM), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_COUNT, 8, start, &SM),
+	                 MLIP_E_INVALID);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start, NULL), MLIP_OK);
 	for (int i = 1; i <= 8; i++) {
 		struct mlip_block b = {.target = {i * 0.1, 0}, .feed_mm_s = 100, .tol_mm = 0.01};
 		assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
 	}
 	struct mlip_block b = {.target = {1, 1}, .feed_mm_s = 100, .tol_mm = 0.01};
 	assert_int_equal(mlip_planner_push(&P, &b), MLIP_E_FULL);
-	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start), MLIP_OK);
+	assert_int_equal(mlip_planner_init(&P, &m, MLIP_STRATEGY_MPCT, 8, start, NULL), MLIP_OK);
 	b.target[0] = NAN;
 	assert_int_equal(mlip_planner_push(&P, &b), MLIP_E_RANGE);
 	b.target[0] = 1;
@@ -868,29 +1354,44 @@ static void test_push_full_and_bad_input(void **state)
 	assert_int_equal(mlip_planner_queued(&P), 0);
 }
 
+/* run_path's switches back to their defaults (a failed test may leave them set) */
+static int reset(void **state)
+{
+	(void)state;
+	g_async = 0;
+	g_rows = NULL;
+	return 0;
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_lp_optimal_2axes),
-	    cmocka_unit_test(test_lp_optimal_3axes),
-	    cmocka_unit_test(test_lp_optimal_5axes),
-	    cmocka_unit_test(test_lp_paper_example),
-	    cmocka_unit_test(test_corner_collinear_and_reversal),
-	    cmocka_unit_test(test_corner_contour_and_peak_speed),
-	    cmocka_unit_test(test_corner_caps_19_20),
-	    cmocka_unit_test(test_run_all_strategies),
-	    cmocka_unit_test(test_mpct_faster_than_baselines),
-	    cmocka_unit_test(test_eps_binds_end_to_end),
-	    cmocka_unit_test(test_termination_condition_is_exact),
-	    cmocka_unit_test(test_push_n_same_plan),
-	    cmocka_unit_test(test_sharp_corner_zero_side_does_not_stop),
-	    cmocka_unit_test(test_override_storm),
-	    cmocka_unit_test(test_hold_resume_on_path),
-	    cmocka_unit_test(test_stop_is_controlled),
-	    cmocka_unit_test(test_running_dry_is_safe),
-	    cmocka_unit_test(test_smooth_shapes_keep_guarantees),
-	    cmocka_unit_test(test_smooth_shapes_plan),
-	    cmocka_unit_test(test_push_full_and_bad_input),
+	    cmocka_unit_test_setup(test_lp_optimal_2axes, reset),
+	    cmocka_unit_test_setup(test_lp_optimal_3axes, reset),
+	    cmocka_unit_test_setup(test_lp_optimal_5axes, reset),
+	    cmocka_unit_test_setup(test_lp_paper_example, reset),
+	    cmocka_unit_test_setup(test_corner_collinear_and_reversal, reset),
+	    cmocka_unit_test_setup(test_corner_contour_and_peak_speed, reset),
+	    cmocka_unit_test_setup(test_corner_caps_19_20, reset),
+	    cmocka_unit_test_setup(test_run_all_strategies, reset),
+	    cmocka_unit_test_setup(test_mpct_faster_than_baselines, reset),
+	    cmocka_unit_test_setup(test_eps_binds_end_to_end, reset),
+	    cmocka_unit_test_setup(test_termination_condition_is_exact, reset),
+	    cmocka_unit_test_setup(test_push_n_same_plan, reset),
+	    cmocka_unit_test_setup(test_batches_same_setpoints, reset),
+	    cmocka_unit_test_setup(test_sharp_corner_zero_side_does_not_stop, reset),
+	    cmocka_unit_test_setup(test_override_storm, reset),
+	    cmocka_unit_test_setup(test_hold_resume_on_path, reset),
+	    cmocka_unit_test_setup(test_stop_is_controlled, reset),
+	    cmocka_unit_test_setup(test_running_dry_is_safe, reset),
+	    cmocka_unit_test_setup(test_smooth_shapes_keep_guarantees, reset),
+	    cmocka_unit_test_setup(test_smooth_shapes_plan, reset),
+	    cmocka_unit_test_setup(test_bounded_work, reset),
+	    cmocka_unit_test_setup(test_jerk_plan, reset),
+	    cmocka_unit_test_setup(test_jerk_every_part, reset),
+	    cmocka_unit_test_setup(test_jerk_stall, reset),
+	    cmocka_unit_test_setup(test_abort_drops_the_queue, reset),
+	    cmocka_unit_test_setup(test_push_full_and_bad_input, reset),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

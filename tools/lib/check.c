@@ -565,6 +565,18 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 			c->max_rot_speed_deg_s = fmax(c->max_rot_speed_deg_s, sqrt(rot2) / dt);
 		}
 	}
+	if (c->run >= 3) {
+		for (int k = 0; k < n; k++) {
+			double jerk =
+			    fabs(x[k] - 3.0 * c->x1[k] + 3.0 * c->x2[k] - c->x3[k]) / (T * T * T);
+			if (jerk > c->max_jerk[k]) {
+				c->max_jerk[k] = jerk;
+				c->max_jerk_at[k] = c->count;
+				c->max_jerk_period[k] = c->periods;
+				c->max_jerk_line[k] = c->cur_line;
+			}
+		}
+	}
 	if (c->run >= 2) {
 		for (int k = 0; k < n; k++) {
 			double acc = fabs(x[k] - 2.0 * c->x1[k] + c->x2[k]) / (T * T);
@@ -581,6 +593,7 @@ void mlip_check_sample(struct mlip_check *c, const double *x)
 	}
 	c->gap = 1;
 	c->run++;
+	memcpy(c->x3, c->x2, sizeof(c->x2));
 	memcpy(c->x2, c->x1, sizeof(c->x1));
 	memcpy(c->x1, x, sizeof(double) * (size_t)n);
 	c->count++;
@@ -658,6 +671,15 @@ int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_ac
 			    "block of line %u",
 			    k, c->max_acc[k], l->accel[k], c->max_acc_at[k],
 			    (double)c->max_acc_period[k] * T, (unsigned)c->max_acc_line[k]);
+			add_msg(msg, len, &used, &bad, line);
+		}
+		if (l->jerk[k] > 0.0 &&
+		    c->max_jerk[k] > l->jerk[k] * (1.0 + rel_tol) + 2.0 * abs_acc / T) {
+			snprintf(line, sizeof(line),
+			         "axis %d: jerk %.12g exceeds %.12g at sample %zu (t = %.6f s), "
+			         "block of line %u",
+			         k, c->max_jerk[k], l->jerk[k], c->max_jerk_at[k],
+			         (double)c->max_jerk_period[k] * T, (unsigned)c->max_jerk_line[k]);
 			add_msg(msg, len, &used, &bad, line);
 		}
 		if (c->max_vel[k] > l->vel[k] * (1.0 + rel_tol) + abs_acc * T) {

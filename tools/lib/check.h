@@ -62,6 +62,7 @@ typedef int (*mlip_check_source_fn)(void *ctx, double *pt, uint32_t *line);
 struct mlip_check_limits {
 	int n;
 	double accel[MLIP_MAX_AXES]; /* A_k */
+	double jerk[MLIP_MAX_AXES];  /* J_k; 0: measured, not judged */
 	double vel[MLIP_MAX_AXES];   /* V_k */
 	uint8_t rotary[MLIP_MAX_AXES];
 	double vmax_mm_s;      /* tool speed (linear axes) */
@@ -103,9 +104,9 @@ struct mlip_check {
 	uint64_t good_period; /* time of the last sample within tol */
 	double near_mm;       /* path position of the last nearest point */
 	/* the samples */
-	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES]; /* last two samples */
-	size_t count;                                /* samples seen */
-	size_t run;       /* samples since the last gap (differences need 2, 3) */
+	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES], x3[MLIP_MAX_AXES]; /* last three samples */
+	size_t count;                                                   /* samples seen */
+	size_t run;       /* samples since the last gap (differences need 2, 3, 4) */
 	size_t gap;       /* periods between the last sample and the next (1: none) */
 	uint64_t periods; /* periods from the first sample to the last */
 	/* results */
@@ -114,6 +115,10 @@ struct mlip_check {
 	size_t max_acc_at[MLIP_MAX_AXES];
 	uint64_t max_acc_period[MLIP_MAX_AXES];
 	uint32_t max_acc_line[MLIP_MAX_AXES];
+	double max_jerk[MLIP_MAX_AXES]; /* max |third difference| / T^3 */
+	size_t max_jerk_at[MLIP_MAX_AXES];
+	uint64_t max_jerk_period[MLIP_MAX_AXES];
+	uint32_t max_jerk_line[MLIP_MAX_AXES];
 	double max_vel[MLIP_MAX_AXES]; /* max |first difference| / T */
 	size_t max_vel_at[MLIP_MAX_AXES];
 	double max_speed_mm_s; /* linear part of the path speed */
@@ -161,8 +166,11 @@ double mlip_check_rounding_floor(const struct mlip_check *c);
 
 /* Verdict with stated tolerances: acceleration and velocity within the limit
  * times (1 + rel_tol) + abs_acc (quantisation floor, 0 for double traces),
- * contour within eps (1 + rel_tol) + abs_mm, no sample out of order, end
- * within end_mm of the last point. Writes one line per violation (with its
+ * jerk (on axes with a limit) within it times (1 + rel_tol) + 2 abs_acc / T
+ * (a third difference weighs the samples 1, 3, 3, 1 where a second weighs
+ * them 1, 2, 1: twice the floor, over one more T), contour within eps (1 +
+ * rel_tol) + abs_mm, no sample out of order, end within end_mm of the last
+ * point. Writes one line per violation (with its
  * sample, time and source line) into msg (NUL-terminated, truncated to len)
  * and returns the number of violations. */
 int mlip_check_verdict(const struct mlip_check *c, double rel_tol, double abs_acc, double abs_mm,

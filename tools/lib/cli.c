@@ -68,34 +68,13 @@ int mlip_cli_gcode_option(int c, const char *arg, struct mlip_cli_machine *o, co
 
 int mlip_cli_strategy(const char *name)
 {
-	if (strcmp(name, "mpct") == 0) {
-		return MLIP_STRATEGY_MPCT;
-	}
-	if (strcmp(name, "bisector") == 0) {
-		return MLIP_STRATEGY_BISECTOR;
-	}
-	if (strcmp(name, "stop") == 0) {
-		return MLIP_STRATEGY_STOP;
-	}
-	if (strcmp(name, "smooth") == 0) {
-		return MLIP_STRATEGY_SMOOTH;
-	}
-	return -1;
+	return mlip_strategy_from_name(name); /* the table's names (mlip/motion/planner.h) */
 }
 
 const char *mlip_cli_strategy_name(mlip_strategy st)
 {
-	switch (st) {
-	case MLIP_STRATEGY_MPCT:
-		return "mpct";
-	case MLIP_STRATEGY_BISECTOR:
-		return "bisector";
-	case MLIP_STRATEGY_STOP:
-		return "stop";
-	case MLIP_STRATEGY_SMOOTH:
-		return "smooth";
-	}
-	return "?";
+	const char *name = mlip_strategy_name(st);
+	return name != NULL ? name : "?";
 }
 
 static int apply_accel(struct mlip_machine *m, const char *list, const char *prog, FILE *err)
@@ -199,6 +178,11 @@ int mlip_cli_build_machine(const struct mlip_cli_machine *o, const char *program
 	if (o->period_s > 0.0) {
 		m->period_s = o->period_s;
 	}
+	if (o->jerk > 0.0) {
+		for (int k = 0; k < m->n_axes; k++) {
+			m->axis[k].max_jerk = o->jerk;
+		}
+	}
 	struct mlip_config_error e;
 	if (mlip_machine_check(m, &e) != MLIP_OK) {
 		fprintf(err, "%s: machine: %s\n", prog, e.msg);
@@ -261,6 +245,7 @@ void mlip_cli_check_limits(const struct mlip_machine *m, struct mlip_check_limit
 	lim->period_s = m->period_s;
 	for (int k = 0; k < m->n_axes; k++) {
 		lim->accel[k] = m->axis[k].max_accel;
+		lim->jerk[k] = m->axis[k].max_jerk;
 		lim->vel[k] = m->axis[k].max_vel;
 		lim->rotary[k] = m->axis[k].kind == MLIP_AXIS_ROTARY;
 	}

@@ -25,6 +25,7 @@ struct mlip_cli_machine {
 	double vmax_mm_s;    /* <= 0: unset */
 	double eps_mm;
 	double period_s;
+	double jerk; /* > 0: every axis's MAX_JERK (--jerk), mm/s^3 or deg/s^3 */
 	/* the machine's I/O (issue 19), with a config only */
 	const char *tools; /* --tools FILE: the tool table (tooltable.h), or NULL */
 	int ignore_spindle, ignore_coolant, ignore_tools; /* --ignore-*: on purpose */

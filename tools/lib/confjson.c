@@ -80,6 +80,7 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 		mlip_json_string(&j, "type", a->kind == MLIP_AXIS_ROTARY ? "ANGULAR" : "LINEAR");
 		mlip_json_number(&j, "max_velocity", G17, a->max_vel);
 		mlip_json_number(&j, "max_acceleration", G17, a->max_accel);
+		mlip_json_number(&j, "max_jerk", G17, a->max_jerk); /* 0: none */
 		mlip_json_number(&j, "min_limit", G17, a->min_limit);
 		mlip_json_number(&j, "max_limit", G17, a->max_limit);
 		mlip_json_number(&j, "home", G17, a->home);

@@ -262,6 +262,8 @@ struct mlip_ctl_out {
 
 struct mlip_ctl_opts {
 	mlip_strategy strategy;
+	struct mlip_smooth_store *smooth;  /* the smooth strategy's planner data (required with
+	                                      it, NULL otherwise: mlip_planner_init) */
 	uint32_t lookahead;                /* 0: MLIP_LOOKAHEAD */
 	uint32_t stall_periods;            /* 0: MLIP_STALL_PERIODS_DEFAULT */
 	const struct mlip_can_config *can; /* NULL: no frames */

@@ -20,9 +20,10 @@
  *                   word, written by mlip-ctl) and the stop counter
  *   704  machine    the controller's struct mlip_machine, so that a feeder
  *                   checks programs against exactly the limits in force
- *  1152  io         the controller's machine I/O (struct mlip_ring_io: its
+ *                   (each axis's max_jerk, mlip/motion/jerk.h)
+ *  1216  io         the controller's machine I/O (struct mlip_ring_io: its
  *                   spindle, tool change, coolant), for the same reason
- *  1280  records    capacity x struct mlip_ring_rec (88 bytes each)
+ *  1344  records    capacity x struct mlip_ring_rec (88 bytes each)
  *
  * The magic (offset 0) and the version (offset 8) keep their places in every
  * layout version, so any version can tell any other that they differ.

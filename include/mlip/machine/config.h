@@ -24,6 +24,8 @@
  *   HOME = 0                   ; start position (optional, default 0)
  *   CAN_NODE = 1               ; CANopen node id 1..127 (optional, default index+1)
  *   COUNTS_PER_UNIT = 1000     ; drive counts per mm or degree (optional, default 1000)
+ *   MAX_JERK = 100000          ; mm/s^3 or deg/s^3 (optional, default none): every
+ *                              ;   sample keeps it (mlip/motion/jerk.h)
  *   [CAN]                      ; optional, read by rt/ (mlip/can/canconf.h)
  *   PROFILE = cia402           ; cia402, packed or fd
  *   BITRATE = 1000000          ; bit/s, 10000..1000000
@@ -100,6 +102,7 @@
  * machine, small enough that positions, speeds and drive counts computed
  * from them stay far from overflow and keep their precision in a double. */
 #define MLIP_CONFIG_ACCEL_MAX    1e6  /* MAX_ACCELERATION, mm/s^2 or deg/s^2 (100 g) */
+#define MLIP_CONFIG_JERK_MAX     1e9  /* MAX_JERK, mm/s^3 or deg/s^3 */
 #define MLIP_CONFIG_VEL_MAX      1e5  /* MAX_VELOCITY, MAX_*_VELOCITY: mm/s or deg/s */
 #define MLIP_CONFIG_LIMIT_MAX    1e9  /* |MIN_LIMIT|, |MAX_LIMIT|, |HOME|, mm or deg */
 #define MLIP_CONFIG_COUNTS_MAX   1e7  /* COUNTS_PER_UNIT (0.1 nm per count) */

@@ -18,6 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "mlip/motion/jerk.h"
 #include "mlip/types.h"
 
 /* MLIP_LOOKAHEAD (mlip/types.h): segments in the look-ahead ring; negative
@@ -39,9 +40,15 @@ typedef enum {
 	MLIP_STRATEGY_MPCT = 0, /* the paper: multi-period constant-acceleration corners */
 	MLIP_STRATEGY_BISECTOR, /* equal speeds, one period, a along e_e - e_s (eq 10) */
 	MLIP_STRATEGY_STOP,     /* speed 0 at every corner */
-	MLIP_STRATEGY_SMOOTH /* mpct's corners on the host's smoothed path (mlip/motion/smooth.h):
-	                        the planner treats it as MPCT */
+	MLIP_STRATEGY_SMOOTH,   /* the host's smoothed path (mlip/motion/smooth.h), corners chosen
+	                           on the acceleration polygon's boundary (smoothplan.c) */
+	MLIP_STRATEGY_COUNT
 } mlip_strategy;
+
+/* Command-line name of a strategy ("mpct", ...), NULL when st is none;
+ * the strategy of a name, -1 when none has it. */
+const char *mlip_strategy_name(mlip_strategy st);
+int mlip_strategy_from_name(const char *name);
 
 /* ---- corner planning, exposed for tests and benchmarks ---------------- */
 
@@ -71,23 +78,7 @@ void mlip_corner_plan(int n, mlip_strategy st, const double *e_s, const double *
                       double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
                       double vcap_e_mm_s, double period_s, struct mlip_corner *c);
 
-/* The smooth strategy's corner shapes (beyond the paper, corner.c): out[0]
- * is mlip_corner_plan's, then up to MLIP_SMOOTH_SHAPES - 1 braking shapes on
- * the acceleration polygon's boundary (v_e < v_s) that the backward pass
- * chooses where braking limits the corner, with their w (shapes 1..: the
- * corner is mlip_corner_smooth_w's at that w). Returns how many. */
-#define MLIP_SMOOTH_SHAPES 6
-int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, double ds_mm,
-                              double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
-                              double vcap_e_mm_s, struct mlip_corner *out, double *w_out);
 /* ---- the planner ------------------------------------------------------- */
-
-/* A corner shape as the backward pass weighs it (smooth): its w (for
- * mlip_corner_smooth_w) and, at q = 1, 1/v_s^2, 1/v_e^2, B = v_s^2 - 2 a l_s,
- * C = v_e^2 + 2 a' l_e and 1/C (0 when C is 0), as link_coeffs has them. */
-struct mlip_shape {
-	double w, inv_vs2, inv_ve2, b, c, inv_c;
-};
 
 /* One segment of the look-ahead: the line from the previous point to end[],
  * and the corner at end[] towards the next segment. Private to the planner;
@@ -113,14 +104,11 @@ struct mlip_seg {
 	double qcap;             /* largest q under the override (Sec. 3) */
 	/* look-ahead state */
 	double q; /* planned (t_m / t_g)^2 of the corner, in [0,1] */
-	/* smooth: the shapes c is chosen among (mlip_corner_smooth_shapes),
-	 * which one it is, or MLIP_SHAPE_FIXED once the executor chose c */
-	uint8_t n_shapes, shape;
-	double commit_in, commit_out; /* the largest q B and q C any plan gave it */
-	struct mlip_corner shape0;    /* shapes[0]'s corner; the others from w */
-	struct mlip_shape shapes[MLIP_SMOOTH_SHAPES];
 };
-#define MLIP_SHAPE_FIXED 255
+
+struct mlip_strategy_ops;
+struct mlip_smooth_seg;   /* smooth's own data of a segment (mlip/motion/smooth.h) */
+struct mlip_smooth_store; /* ... for every slot: storage only smooth needs */
 
 /* A line's speed profile (35)(36): from v0 to vc at a1, cruise, to v1 at a3. */
 struct mlip_profile {
@@ -129,6 +117,33 @@ struct mlip_profile {
 	double t1, t2, t3; /* s; t2 may be infinite (feed hold) */
 	double d1, d2;     /* mm */
 };
+
+/* A backward pass that may run in pieces (planner.c, mlip_planner_work). */
+struct mlip_pass {
+	int on, full;    /* running; a full pass (override, hold) */
+	uint32_t i;      /* it visits corner i - 1 next (segment i its successor) */
+	uint32_t visits; /* corners visited so far */
+	uint32_t fresh;  /* the newest corners linked since a pass completed */
+	double q_next;   /* q of corner i */
+	int has_reach;   /* a pass given up left the corners below reach - 1 stale: */
+	uint32_t reach;  /* no termination at a corner >= reach */
+};
+
+/* Bounded work (mlip_planner_set_async): units a period, and what things
+ * cost in them (a corner a pass visits: 1, about 6 ns on this host). Beyond
+ * them, a period appends as many queued blocks as the executor finished
+ * segments, at most MLIP_INGEST_PER_PERIOD, also while a pass runs (the
+ * next pass plans them all): the look-ahead keeps up with the motion. A
+ * batch's pass visits every corner within braking distance of the old end
+ * (at 200 mm/s and 1000 mm/s^2, 20 mm: 1000 corners of 0.02 mm, more than
+ * a period's units with smooth), so the passes run back to back, each for
+ * all that was appended during the one before. */
+#define MLIP_WORK_PER_PERIOD    1200u
+#define MLIP_WORK_CHOOSE        4u   /* a visit with smooth's shape choice */
+#define MLIP_WORK_APPEND        40u  /* a block appended and its corner planned */
+#define MLIP_WORK_APPEND_SHAPES 150u /* ... with smooth's six shapes */
+#define MLIP_INPUT_CAP          512u /* blocks pushed, not yet appended; power of two */
+typedef char mlip_input_pow2_check[(MLIP_INPUT_CAP & (MLIP_INPUT_CAP - 1)) == 0 ? 1 : -1];
 
 typedef enum {
 	MLIP_RUN_IDLE = 0, /* at rest on the last point, nothing queued */
@@ -151,6 +166,8 @@ struct mlip_planner {
 	double vaxis[MLIP_MAX_AXES]; /* per-axis velocity limits */
 	uint8_t rotary[MLIP_MAX_AXES];
 	double vmax_mm_s, vmax_rot_deg_s, eps_mm, period_s;
+	const struct mlip_strategy_ops *ops; /* the strategy's entry (mlip/motion/strategy.h) */
+	struct mlip_smooth_seg *sm;          /* smooth: its data, slot for slot with seg */
 	/* look-ahead ring: segments [tail, head) are queued, seg[tail] is the
 	 * one being executed (its line or its end corner) */
 	uint32_t head, tail;              /* free-running; index & (cap-1) */
@@ -160,6 +177,14 @@ struct mlip_planner {
 	int hold;                         /* feed hold: plan as if override were 0 */
 	int stopping;                     /* stop: hold, then drop the queue at rest */
 	double last_point[MLIP_MAX_AXES]; /* end of the newest segment (or start) */
+	/* the look-ahead's work, a bounded amount a period (async) */
+	int async;                      /* 0: push_n and the commands do all of it at once */
+	struct mlip_pass pass;          /* the backward pass in progress */
+	uint32_t in_head, in_tail;      /* input queue: blocks pushed, not yet appended */
+	uint32_t retired, retired_seen; /* segments finished (free-running), and those
+	                                   replaced by appends (mlip_planner_work) */
+	uint32_t pending;               /* blocks appended since the running pass started (async):
+	                                   the next pass plans them */
 	/* execution state */
 	int in_corner;            /* 0: on the line of seg[tail]; 1: in its end corner */
 	double l_start_mm;        /* line: where it starts along seg[tail] (l_e of
@@ -177,18 +202,39 @@ struct mlip_planner {
 	                                     rest sets it to that block's seq - 1) */
 	uint32_t done_line;
 	struct mlip_planner_stats stats;
+	/* the jerk limit (mlip/motion/jerk.h): the setpoint is the mean of the
+	 * plan's last `taps` positions (pos is the plan's; taps 1: no limit) */
+	int taps;
+	double filter_mm;          /* E_f (J5), taken from every corner's budget */
+	uint32_t dwell;            /* periods still to stand at an exact corner */
+	uint32_t still;            /* periods the plan has not moved */
+	uint32_t fir_n;            /* samples taken (free-running) */
+	double out[MLIP_MAX_AXES]; /* the setpoint: the mean */
+	double fir[MLIP_JERK_MAX_TAPS][MLIP_MAX_AXES]; /* the plan's last positions */
+	struct mlip_exec_mark {                        /* where each of them was on the path */
+		uint32_t tail;
+		int in_corner;
+		uint64_t done_seq;
+		uint32_t done_line;
+	} mark[MLIP_JERK_MAX_TAPS];
+	struct mlip_block in[MLIP_INPUT_CAP]; /* the input queue (async) */
 	struct mlip_seg seg[MLIP_LOOKAHEAD];
 };
 
 /* Initialise at rest at start[] (n joint coordinates). cap = look-ahead
  * capacity (0 means MLIP_LOOKAHEAD; else a power of two <= MLIP_LOOKAHEAD).
- * Returns MLIP_E_INVALID for an inconsistent machine or capacity. */
+ * store: the smooth strategy's data (mlip/motion/smooth.h), required with
+ * MLIP_STRATEGY_SMOOTH and ignored otherwise, so that the other strategies
+ * carry none of it. Returns MLIP_E_INVALID for an inconsistent machine or
+ * capacity, or smooth without store. */
 mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine *m,
-                              mlip_strategy st, uint32_t cap, const double *start);
+                              mlip_strategy st, uint32_t cap, const double *start,
+                              struct mlip_smooth_store *store);
 
 /* Free slots for push. */
 uint32_t mlip_planner_space(const struct mlip_planner *p);
-/* Queued blocks not yet completed (including the one executing). */
+/* Queued blocks not yet completed (including the one executing; with a
+ * jerk limit, the last one until the mean has come to rest on it). */
 uint32_t mlip_planner_queued(const struct mlip_planner *p);
 
 /* Append one block. MLIP_E_FULL when no slot is free. A block closer than
@@ -201,6 +247,21 @@ mlip_status mlip_planner_push(struct mlip_planner *p, const struct mlip_block *b
  * reason other than room. */
 size_t mlip_planner_push_n(struct mlip_planner *p, const struct mlip_block *b, size_t n,
                            mlip_status *err);
+
+/* Bounded work: with on = 1, push_n only queues the blocks (at most
+ * MLIP_INPUT_CAP waiting) and the commands only ask for their backward
+ * pass; mlip_planner_work does the look-ahead's work, at most
+ * MLIP_WORK_PER_PERIOD units of it a call, so that a period's cost does
+ * not grow with the look-ahead's depth (the pre-read's 4096 blocks, an
+ * override's pass over all of them). Until a pass has reached a corner the
+ * executor follows the plan it replaces, which brakes to rest where it was
+ * planned to: safe, and only slower. Off (0, the default): all of it at
+ * once, as push_n and the commands always did. */
+void mlip_planner_set_async(struct mlip_planner *p, int on);
+/* One period's look-ahead work (async; nothing otherwise). */
+void mlip_planner_work(struct mlip_planner *p);
+/* Look-ahead work is pending: blocks not yet appended, or a pass not done. */
+int mlip_planner_busy(const struct mlip_planner *p);
 
 /* Feed override, pct in [0, 200]; takes effect from the next step. 0 holds. */
 mlip_status mlip_planner_set_override(struct mlip_planner *p, double pct);
@@ -236,7 +297,8 @@ mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos);
 mlip_status mlip_planner_abort(struct mlip_planner *p, const double *pos);
 
 /* Advance one period; writes the setpoint of every axis to pos_out[n].
- * Returns the run state after the period. */
+ * Returns the run state after the period (with a jerk limit, IDLE and HELD
+ * once the mean has come to rest too). */
 mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out);
 
 /* Current speed along the path (joint units/s), for status displays. */

@@ -10,7 +10,9 @@
  * of the ORIGINAL polyline, and each output block's tol_mm is
  *     tol = budget - (largest dev of the two segments its end corner touches),
  * so a corner's deviation (17)(18) plus the smoothing's stays within the budget:
- * min(eps, the block's own tol_mm) of the original blocks around it.
+ * min(eps, the block's own tol_mm) of the original blocks around it. With a
+ * jerk limit the budget is that less E_f (mlip/motion/jerk.h, J5), and tol_mm
+ * carries E_f back, which the planner takes from every block.
  *
  * Fixed memory (the struct, owned by the caller) and bounded work per block:
  * a block adds at most MLIP_SMOOTH_MAX_PIECES samples, and each sample is
@@ -30,6 +32,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "mlip/motion/jerk.h"
 #include "mlip/motion/planner.h"
 #include "mlip/types.h"
 
@@ -43,6 +46,7 @@
 #define MLIP_SMOOTH_ITER   24   /* reweighting iterations per solve */
 #define MLIP_SMOOTH_POLISH 3    /* then solves holding the samples beyond their radius */
 #define MLIP_SMOOTH_RHO    0.95 /* share of the budget the smoothing may take */
+#define MLIP_SMOOTH_LONE   2    /* turns between two sharp ones that stay exact (smooth.c) */
 #define MLIP_SMOOTH_SHARP_COS                                                                      \
 	0.76604444311897804 /* cos 40 deg: a vertex turning more                                   \
 	       stays sharp (the filter pins it, the planner                                        \
@@ -68,6 +72,7 @@ struct mlip_smooth_sample {
 struct mlip_smooth {
 	int n;                      /* axes */
 	double eps_mm;              /* machine tolerance */
+	double filter_mm;           /* what a jerk limit's mean takes of it (E_f, jerk.h) */
 	double step_mm;             /* resampling step */
 	double sharp_cos;           /* cos of the turn above which a vertex stays sharp */
 	double gap_mm;              /* sub-samples this close to a sharp vertex are dropped */
@@ -88,11 +93,15 @@ struct mlip_smooth {
 	double jitter_min;             /* subdivide where jitter is above this */
 	int pin_clean;                 /* keep vertices exact where it is below jitter_pin */
 	double jitter_pin;
-	uint32_t run0;           /* index of the open run's start sample */
-	uint32_t frozen;         /* samples [0, frozen) are final */
-	uint32_t emit;           /* next sample to emit */
-	uint32_t count;          /* samples in the window */
-	double prev_dev, prev_b; /* last emitted sample of the run */
+	uint32_t run0;                   /* index of the open run's start sample */
+	int n_lone;                      /* turns below sharp_deg since the last sharp vertex
+	                                    or the run's start, up to MLIP_SMOOTH_LONE
+	                                    (more, or a clean one: -1) */
+	uint32_t lone[MLIP_SMOOTH_LONE]; /* their samples */
+	uint32_t frozen;                 /* samples [0, frozen) are final */
+	uint32_t emit;                   /* next sample to emit */
+	uint32_t count;                  /* samples in the window */
+	double prev_dev, prev_b;         /* last emitted sample of the run */
 	/* statistics */
 	uint64_t in_blocks, out_blocks, solves;
 	double max_dev;
@@ -118,14 +127,53 @@ void mlip_smooth_finish(struct mlip_smooth *sm);
 /* Next output block, or MLIP_E_EMPTY. */
 mlip_status mlip_smooth_pop(struct mlip_smooth *sm, struct mlip_block *out);
 
+/* ---- the smooth strategy's corners in the planner (smoothplan.c) -------- */
+
 /* The smooth strategy's corner with a = (w e_e - (1 - w) e_s) / g on the
  * acceleration polygon's boundary (g the largest |a_k| / A_k of the
- * unscaled vector), t from (18)(19)(20) (corner.c). -1 when a is 0. */
-/* 1 when the turn from e_s to e_e is sharper than MLIP_SMOOTH_SHARP_COS
- * (corner.c): the smooth strategy takes the paper's corner there. */
-int mlip_corner_smooth_sharp(int n, const double *e_s, const double *e_e);
+ * unscaled vector), t from (18)(19)(20). -1 when a is 0. */
 int mlip_corner_smooth_w(int n, const double *e_s, const double *e_e, double ds_mm, double de_mm,
                          const double *accel, double eps_mm, double vcap_s_mm_s, double vcap_e_mm_s,
                          double w, struct mlip_corner *c);
+/* 1 when the turn from e_s to e_e is sharper than MLIP_SMOOTH_SHARP_COS:
+ * the smooth strategy takes the paper's corner there. */
+int mlip_corner_smooth_sharp(int n, const double *e_s, const double *e_e);
+
+/* The smooth strategy's corner shapes: out[0] is mlip_corner_plan's, then
+ * up to MLIP_SMOOTH_SHAPES - 1 braking shapes on the acceleration polygon's
+ * boundary (v_e < v_s) that the backward pass chooses where braking limits
+ * the corner, with their w (shapes 1..: the corner is mlip_corner_smooth_w's
+ * at that w). Returns how many. */
+#define MLIP_SMOOTH_SHAPES 6
+int mlip_corner_smooth_shapes(int n, const double *e_s, const double *e_e, double ds_mm,
+                              double de_mm, const double *accel, double eps_mm, double vcap_s_mm_s,
+                              double vcap_e_mm_s, struct mlip_corner *out, double *w_out);
+
+/* A corner shape as the backward pass weighs it: its w (for
+ * mlip_corner_smooth_w) and, at q = 1, 1/v_s^2, 1/v_e^2, B = v_s^2 - 2 a l_s,
+ * C = v_e^2 + 2 a' l_e and 1/C (0 when C is 0), as the planner's
+ * look-ahead coefficients have them. */
+struct mlip_shape {
+	double w, inv_vs2, inv_ve2, b, c, inv_c;
+};
+
+/* What the smooth strategy keeps of a segment's end corner, beside the
+ * planner's struct mlip_seg: the shapes its corner is chosen among, which
+ * one it is (or MLIP_SHAPE_FIXED once the executor chose the corner), and
+ * what the plans a full pass replaced promised it: the largest q B and q C,
+ * and the shape the last one left (anchor). */
+struct mlip_smooth_seg {
+	uint8_t n_shapes, shape, anchor;
+	double commit_in, commit_out;
+	struct mlip_corner shape0; /* shapes[0]'s corner; the others from w */
+	struct mlip_shape shapes[MLIP_SMOOTH_SHAPES];
+};
+#define MLIP_SHAPE_FIXED 255
+
+/* The storage mlip_planner_init needs with MLIP_STRATEGY_SMOOTH (owned by
+ * the caller, like the planner: about 1.5 MB, only for smooth). */
+struct mlip_smooth_store {
+	struct mlip_smooth_seg seg[MLIP_LOOKAHEAD];
+};
 
 #endif
