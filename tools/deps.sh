@@ -19,7 +19,7 @@ python_part() {
 	# one pip at a time in a .venv (two make runs, or trees sharing it)
 	exec 9>.venv/.deps.lock
 	flock 9
-	if ! .venv/bin/python -c 'import pytest, numpy, cantools, matplotlib, canopen, can, mypy' \
+	if ! .venv/bin/python -c 'import pytest, numpy, cantools, matplotlib, canopen, can, mypy, serial, svgelements, shxparser' \
 		>/dev/null 2>&1 || [ ! -x .venv/bin/ruff ]; then
 		echo "deps: pip install -r tests/requirements.txt"
 		.venv/bin/pip install -q -r tests/requirements.txt
@@ -56,6 +56,9 @@ command -v candump >/dev/null 2>&1 || need="$need can-utils"
 command -v flock >/dev/null 2>&1 || need="$need util-linux"
 [ -x /usr/bin/time ] || need="$need time" # GNU time: peak RSS of a program (bench/rss.py)
 command -v strace >/dev/null 2>&1 || need="$need strace" # the state files' fsync order (tests)
+# CNCjs, a real sender, and its page in a real browser (tests/py/test_senders.py)
+command -v npm >/dev/null 2>&1 || need="$need nodejs npm"
+[ -x /usr/bin/chromium ] || need="$need chromium chromium-driver"
 python3 -c 'import venv, ensurepip' >/dev/null 2>&1 || need="$need python3-venv"
 if [ -n "$need" ]; then
 	echo "deps: apt-get install$need"
@@ -65,3 +68,17 @@ if [ -n "$need" ]; then
 fi
 
 python_part
+
+# CNCjs (npm, tests/cncjs/package-lock.json): its server, Grbl controller and page
+if [ ! -f tests/cncjs/node_modules/cncjs/package.json ] ||
+	[ ! -f tests/cncjs/node_modules/playwright-core/package.json ]; then
+	echo "deps: npm ci (tests/cncjs)"
+	(cd tests/cncjs && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+fi
+# bCNC, a real G-code sender for the Grbl front-end's tests (tests/py/test_senders.py):
+# its Sender and GRBL1 controller only, so not its camera's opencv (--no-deps; what
+# it imports is in tests/requirements.txt); tkinter comes with Python
+if ! .venv/bin/python -c 'import bCNC' >/dev/null 2>&1; then
+	echo "deps: pip install --no-deps bCNC==0.9.16"
+	.venv/bin/pip install -q --no-deps bCNC==0.9.16
+fi

@@ -32,12 +32,14 @@ static mlip_status jog_line(struct mlip_gcode *g, const char *t, size_t len, siz
 		has_f |= lx.w[k].letter == 'F';
 		g53 |= lx.w[k].letter == 'G' && c == 530;
 		g91 |= lx.w[k].letter == 'G' && c == 910;
+		/* N (a line number) is valid in a jog: Grbl 1.1 jogging.md */
 		if (!(mlip_gc_axis_slot(lx.w[k].letter) >= 0 || lx.w[k].letter == 'F' ||
+		      lx.w[k].letter == 'N' ||
 		      (lx.w[k].letter == 'G' &&
 		       (c == 200 || c == 210 || c == 900 || c == 910 || c == 530)))) {
 			return mlip_gc_fail(
 			    e, line, lx.w[k].col + (uint32_t)j, MLIP_E_UNSUPPORTED,
-			    "Grbl jog: only G20, G21, G90, G91, G53, axis words and F");
+			    "Grbl jog: only G20, G21, G90, G91, G53, axis words, F and N");
 		}
 	}
 	if (!has_f) {

@@ -24,34 +24,73 @@ struct mlip_block_iter mlip_array_iter(struct mlip_array_iter *a, const struct m
 	return (struct mlip_block_iter){array_next, a};
 }
 
-static int smooth_next(void *ctx, struct mlip_block *out)
+void mlip_smooth_stream_start(struct mlip_smooth_stream *ss, struct mlip_smooth *sm,
+                              const struct mlip_machine *m)
 {
-	struct mlip_smooth_iter *si = ctx;
-	int stuck = 0;
-	if (!si->started) {
-		int r = si->in.next(si->in.ctx, out);
-		if (r <= 0) {
-			return r;
-		}
-		if (out->kind == MLIP_BLOCK_MOVE) {
-			if (mlip_smooth_init(si->sm, si->m, out->target) != MLIP_OK) {
+	ss->sm = sm;
+	ss->m = m;
+	ss->has_pass = 0;
+	ss->started = 0;
+	ss->finished = 0;
+}
+
+int mlip_smooth_stream_push(struct mlip_smooth_stream *ss, const struct mlip_block *b)
+{
+	if (ss->finished) {
+		return -1;
+	}
+	if (ss->has_pass) {
+		return 0;
+	}
+	if (!ss->started) {
+		ss->pass = *b;
+		ss->has_pass = 1;
+		if (b->kind == MLIP_BLOCK_MOVE) {
+			if (mlip_smooth_init(ss->sm, ss->m, b->target) != MLIP_OK) {
+				ss->has_pass = 0;
 				return -1;
 			}
 			/* as the filter passes a rapid: the run that starts at its end
 			 * deviates at most rho b / 2 on the half of its first segment
 			 * next to it (smooth.c), so its corner keeps (1 - rho / 2) b */
-			double b = si->sm->eps_mm;
-			if (out->tol_mm > 0.0 && out->tol_mm < b) {
-				b = out->tol_mm;
+			double bud = ss->sm->eps_mm;
+			if (b->tol_mm > 0.0 && b->tol_mm < bud) {
+				bud = b->tol_mm;
 			}
-			out->tol_mm = (1.0 - 0.5 * si->sm->rho) * b;
-			si->sm->last_b = b;
-			si->started = 1;
+			ss->pass.tol_mm = (1.0 - 0.5 * ss->sm->rho) * bud;
+			ss->sm->last_b = bud;
+			ss->started = 1;
 		}
 		return 1; /* everything up to the first move passes unchanged */
 	}
+	mlip_status st = mlip_smooth_push(ss->sm, b);
+	return st == MLIP_OK ? 1 : st == MLIP_E_FULL ? 0 : -1;
+}
+
+int mlip_smooth_stream_pop(struct mlip_smooth_stream *ss, struct mlip_block *out)
+{
+	if (ss->has_pass) {
+		*out = ss->pass;
+		ss->has_pass = 0;
+		return 1;
+	}
+	return ss->started && mlip_smooth_pop(ss->sm, out) == MLIP_OK;
+}
+
+void mlip_smooth_stream_finish(struct mlip_smooth_stream *ss)
+{
+	if (ss->started && !ss->finished) {
+		mlip_smooth_finish(ss->sm);
+	}
+	ss->finished = 1;
+}
+
+static int smooth_next(void *ctx, struct mlip_block *out)
+{
+	struct mlip_smooth_iter *si = ctx;
+	int stuck = 0;
 	for (;;) {
-		if (mlip_smooth_pop(si->sm, out) == MLIP_OK) {
+		if (mlip_smooth_stream_pop(&si->ss, out)) {
 			return 1;
 		}
 		if (si->ended) {
@@ -63,17 +102,17 @@ static int smooth_next(void *ctx, struct mlip_block *out)
 				return r;
 			}
 			if (r == 0) {
-				mlip_smooth_finish(si->sm);
+				mlip_smooth_stream_finish(&si->ss);
 				si->ended = 1;
 				continue;
 			}
 			si->has_pending = 1;
 		}
-		mlip_status st = mlip_smooth_push(si->sm, &si->pending);
-		if (st == MLIP_OK) {
+		int st = mlip_smooth_stream_push(&si->ss, &si->pending);
+		if (st > 0) {
 			si->has_pending = 0;
 			stuck = 0;
-		} else if (st != MLIP_E_FULL || ++stuck > 2) {
+		} else if (st < 0 || ++stuck > 2) {
 			return -1; /* a non-finite target, or no progress (cannot happen) */
 		}
 	}
@@ -83,11 +122,9 @@ struct mlip_block_iter mlip_smooth_iter(struct mlip_smooth_iter *si, struct mlip
                                         const struct mlip_machine *m, struct mlip_block_iter in)
 {
 	si->in = in;
-	si->sm = sm;
-	si->m = m;
+	mlip_smooth_stream_start(&si->ss, sm, m);
 	si->has_pending = 0;
 	si->ended = 0;
-	si->started = 0;
 	return (struct mlip_block_iter){smooth_next, si};
 }
 

@@ -26,6 +26,27 @@ struct mlip_array_iter {
 struct mlip_block_iter mlip_array_iter(struct mlip_array_iter *a, const struct mlip_block *b,
                                        size_t n);
 
+/* The smoothing filter fed block by block (a stream whose end is not known
+ * ahead, mlip-grbl): push blocks in program order, pop after each push until
+ * it gives nothing, finish at the end (or at any point where the program is
+ * cut: the rest is a new stream), then pop the rest. The blocks up to and
+ * including the first move pass unchanged, and the filter starts at that
+ * move's target (see mlip_smooth_iter, which is this over an iterator). */
+struct mlip_smooth_stream {
+	struct mlip_smooth *sm;
+	const struct mlip_machine *m;
+	struct mlip_block pass; /* a block passed through unchanged, not popped yet */
+	int has_pass, started, finished;
+};
+void mlip_smooth_stream_start(struct mlip_smooth_stream *ss, struct mlip_smooth *sm,
+                              const struct mlip_machine *m);
+/* 1 taken; 0 pop first (nothing taken); < 0 a block the filter refuses (a
+ * non-finite target) or a push after finish. */
+int mlip_smooth_stream_push(struct mlip_smooth_stream *ss, const struct mlip_block *b);
+/* 1 and *out, or 0: nothing to give until the next push or finish. */
+int mlip_smooth_stream_pop(struct mlip_smooth_stream *ss, struct mlip_block *out);
+void mlip_smooth_stream_finish(struct mlip_smooth_stream *ss);
+
 /* The smoothing filter over another iterator for machine m; sm is large
  * (keep it static). The blocks up to and including the program's first move
  * pass unchanged, and the filter starts at that move's target: so the output
@@ -34,10 +55,9 @@ struct mlip_block_iter mlip_array_iter(struct mlip_array_iter *a, const struct m
  * the same number in every run, which --start-seq continuation needs. */
 struct mlip_smooth_iter {
 	struct mlip_block_iter in;
-	struct mlip_smooth *sm;
-	const struct mlip_machine *m;
+	struct mlip_smooth_stream ss;
 	struct mlip_block pending;
-	int has_pending, ended, started;
+	int has_pending, ended;
 };
 struct mlip_block_iter mlip_smooth_iter(struct mlip_smooth_iter *si, struct mlip_smooth *sm,
                                         const struct mlip_machine *m, struct mlip_block_iter in);

@@ -1,0 +1,149 @@
+// Drive CNCjs (npm cncjs: its server, its Grbl controller and sender) through
+// its own socket.io client API, as its web page does: open mlip-grbl's
+// pseudo-terminal as a Grbl port, read the DRO, jog as its axes widget does,
+// load a file, run it, hold and resume it, and print one JSON line per event.
+//
+//   node drive.js --cncjs-port N --tty PATH --file FILE --config FILE [--hold-at S]
+'use strict';
+const fs = require('fs');
+const http = require('http');
+const path = require('path');
+const { spawn } = require('child_process');
+const io = require('socket.io-client');
+
+const arg = (k, d) => { const i = process.argv.indexOf(k); return i > 0 ? process.argv[i + 1] : d; };
+const PORT = Number(arg('--cncjs-port'));
+const TTY = arg('--tty');
+const FILE = arg('--file');
+const CONFIG = arg('--config');
+const HOLD_AT = arg('--hold-at') ? Number(arg('--hold-at')) : null;
+const SHOT = arg('--shot'); // a PNG of CNCjs's page (Debian's chromium, headless)
+const T0 = Date.now();
+const say = (o) => process.stdout.write(JSON.stringify({ ...o, t: (Date.now() - T0) / 1000 }) + '\n');
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+function post(p, body) {
+  return new Promise((resolve, reject) => {
+    const data = JSON.stringify(body);
+    const req = http.request({ host: '127.0.0.1', port: PORT, path: p, method: 'POST',
+      headers: { 'Content-Type': 'application/json', 'Content-Length': Buffer.byteLength(data) } },
+    (res) => { let s = ''; res.on('data', (c) => { s += c; }); res.on('end', () => resolve(JSON.parse(s))); });
+    req.on('error', reject);
+    req.end(data);
+  });
+}
+
+// CNCjs's own page in headless Chromium: its Connection widget opens the port
+// (joining the controller this script opened) and its DRO shows where mlip
+// stands.
+async function screenshot(st) {
+  const { chromium } = require('playwright-core');
+  const browser = await chromium.launch({
+    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+      '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+  });
+  try {
+    const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
+    const url = `http://127.0.0.1:${PORT}/`;
+    await page.goto(url, { waitUntil: 'load' });
+    // the Connection widget, as a person uses it: the port, then Open
+    await page.click('text=Choose a port', { timeout: 30000 });
+    await page.getByText(TTY, { exact: true }).first().click({ timeout: 10000 });
+    await page.click('button:has-text("Open")', { timeout: 10000 });
+    const x = st.mpos[0].toFixed(3);
+    let shown = false;
+    for (let i = 0; i < 300 && !shown; i++) {
+      const text = await page.evaluate(() => document.body.innerText);
+      shown = text.includes(x) && text.includes('Idle');
+      if (!shown) await sleep(100);
+    }
+    await sleep(500);
+    await page.screenshot({ path: SHOT, fullPage: true });
+    say({ event: 'screenshot', path: SHOT, dro_shows_x: shown, x });
+  } finally {
+    await browser.close();
+  }
+}
+
+async function main() {
+  // CNCjs lists the ports its configuration names beside the system's serial
+  // ports ("ports" in ~/.cncrc): the way to offer it mlip-grbl's terminal
+  fs.writeFileSync(CONFIG, JSON.stringify({ ports: [{ path: TTY, manufacturer: 'mlip-grbl' }] }));
+  const bin = path.join(__dirname, 'node_modules', 'cncjs', 'bin', 'cncjs');
+  const server = spawn(process.execPath, [bin, '-p', String(PORT), '-H', '127.0.0.1', '-c', CONFIG],
+    { stdio: ['ignore', 'pipe', 'pipe'], env: { ...process.env, HOME: path.dirname(CONFIG) } });
+  let log = '';
+  server.stdout.on('data', (d) => { log += d; });
+  server.stderr.on('data', (d) => { log += d; });
+  const done = (code) => { server.kill('SIGTERM'); setTimeout(() => process.exit(code), 300); };
+  let token = null;
+  for (let i = 0; i < 300 && !token; i++) {
+    try { token = (await post('/api/signin', { token: '' })).token; } catch (e) { await sleep(100); }
+  }
+  if (!token) { say({ event: 'error', msg: 'cncjs did not start', log }); return done(1); }
+  say({ event: 'cncjs', version: require('./node_modules/cncjs/package.json').version });
+  const socket = io.connect(`http://127.0.0.1:${PORT}`, { query: `token=${token}` });
+  const st = { state: null, mpos: null, wpos: null, workflow: null, sender: null, lines: [] };
+  socket.on('controller:state', (type, state) => {
+    const s = state.status || {};
+    const a = s.activeState + (s.subState !== undefined && s.subState >= 0 && s.activeState === 'Hold' ? `:${s.subState}` : '');
+    const mpos = s.mpos && ['x', 'y', 'z'].map((k) => Number(s.mpos[k]));
+    if (a !== st.state) say({ event: 'state', state: a, mpos });
+    st.state = a; st.mpos = mpos; st.wpos = s.wpos;
+  });
+  socket.on('workflow:state', (w) => { st.workflow = w; });
+  socket.on('sender:status', (s) => { st.sender = s; });
+  socket.on('serialport:read', (line) => {
+    st.lines.push(line);
+    if (/^error|^\[MSG|^Grbl/.test(line)) say({ event: 'read', line });
+  });
+  const until = async (pred, ms, what) => {
+    const end = Date.now() + ms;
+    while (Date.now() < end) { if (pred()) return true; await sleep(20); }
+    say({ event: 'timeout', what, state: st.state, mpos: st.mpos, workflow: st.workflow });
+    return false;
+  };
+  const cmd = (...a) => socket.emit('command', TTY, ...a);
+  socket.emit('open', TTY, { controllerType: 'Grbl', baudrate: 115200 }, (err) => {
+    if (err) say({ event: 'error', msg: String(err) });
+  });
+  if (!await until(() => st.state === 'Idle', 20000, 'connect')) return done(1);
+  say({ event: 'connected', state: st.state, mpos: st.mpos });
+
+  // jog as the axes widget does: relative, rapid, then back to absolute
+  cmd('gcode', 'G91');
+  cmd('gcode', 'G0 X2 Y1');
+  cmd('gcode', 'G90');
+  await sleep(300);
+  if (!await until(() => st.state === 'Idle' && st.mpos && Math.abs(st.mpos[0] - 2) < 1e-3, 20000, 'jog')) return done(1);
+  say({ event: 'jogged', mpos: st.mpos });
+
+  const text = fs.readFileSync(FILE, 'utf8');
+  await new Promise((resolve) => cmd('gcode:load', path.basename(FILE), text, {}, () => resolve()));
+  const tRun = Date.now();
+  cmd('gcode:start');
+  say({ event: 'run' });
+  if (!await until(() => st.state === 'Run', 20000, 'run')) return done(1);
+  if (HOLD_AT !== null) {
+    await sleep(HOLD_AT * 1000);
+    cmd('gcode:pause');
+    if (!await until(() => st.state === 'Hold:0', 20000, 'hold')) return done(1);
+    const before = st.mpos;
+    await sleep(500);
+    say({ event: 'held', before, after: st.mpos, state: st.state });
+    cmd('gcode:resume');
+  }
+  await sleep(500);
+  const finished = () => st.state === 'Idle' && st.sender && st.sender.sent === st.sender.total &&
+    st.sender.received === st.sender.total;
+  if (!await until(finished, 600000, 'finish')) return done(1);
+  say({ event: 'done', seconds: (Date.now() - tRun) / 1000, state: st.state, mpos: st.mpos,
+    total: st.sender.total, errors: st.lines.filter((l) => /^error/.test(l)).length });
+  if (SHOT) await screenshot(st);
+  socket.emit('close', TTY);
+  await sleep(300);
+  return done(0);
+}
+
+main().catch((e) => { say({ event: 'error', msg: String(e && e.stack) }); process.exit(1); });

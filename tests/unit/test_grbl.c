@@ -1,0 +1,508 @@
+/*
+ * test_grbl.c - the Grbl 1.1 protocol (tools/lib/grbl.c) and the line stream
+ * (tools/lib/grblstream.c), pure: real-time bytes picked off anywhere, lines
+ * assembled, a receive-buffer overflow answered line for line, `$` lines
+ * classified as Grbl's system_execute_line does, status reports with
+ * report.c's refresh counts, settings, the error codes the reader's messages
+ * map to; a stream gives the records mlip-feed gives for the same program
+ * (smooth included), a refused line changes nothing, a long arc comes out in
+ * parts equal to the whole, M2 ends the program with Grbl's modal reset.
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "../../tools/lib/blockiter.h"
+#include "../../tools/lib/grbl.h"
+#include "../../tools/lib/grblstream.h"
+#include "../../tools/lib/program.h"
+
+static struct mlip_machine machine(void)
+{
+	struct mlip_machine m;
+	memset(&m, 0, sizeof m);
+	m.n_axes = 3;
+	for (int i = 0; i < 3; i++) {
+		m.axis[i].letter = "XYZ"[i];
+		m.axis[i].max_accel = 1000;
+		m.axis[i].max_vel = 200;
+		m.axis[i].min_limit = -1000;
+		m.axis[i].max_limit = 1000;
+		m.axis[i].counts_per_unit = 1000;
+	}
+	m.max_feed_mm_s = 200;
+	m.max_rot_feed_deg_s = 360;
+	m.tolerance_mm = 0.01;
+	m.period_s = 0.001;
+	return m;
+}
+
+/* ---- receiving ---- */
+
+static grbl_rt seen[64];
+static int n_seen;
+static void on_rt(void *ctx, grbl_rt c)
+{
+	(void)ctx;
+	if (n_seen < 64) {
+		seen[n_seen++] = c;
+	}
+}
+
+static void feed(struct grbl_rx *rx, const char *s, size_t n)
+{
+	grbl_rx_feed(rx, (const unsigned char *)s, n, on_rt, NULL);
+}
+
+static void next_line(struct grbl_rx *rx, const char *want)
+{
+	struct grbl_line l;
+	assert_true(grbl_rx_line(rx, &l));
+	assert_int_equal(l.kind, GRBL_LINE_TEXT);
+	assert_int_equal(l.len, strlen(want));
+	assert_memory_equal(l.text, want, l.len);
+	grbl_rx_done(rx);
+}
+
+static void test_realtime_bytes_anywhere(void **state)
+{
+	(void)state;
+	static struct grbl_rx rx;
+	grbl_rx_init(&rx);
+	n_seen = 0;
+	/* serial.c: every real-time byte acts and never reaches a line */
+	feed(&rx, "G1 X1?0\x91 Y2!\n~\x18", 17);
+	assert_int_equal(n_seen, 5);
+	assert_int_equal(seen[0], GRBL_RT_STATUS);
+	assert_int_equal(seen[1], GRBL_RT_FEED_PLUS_10);
+	assert_int_equal(seen[2], GRBL_RT_FEED_HOLD);
+	assert_int_equal(seen[3], GRBL_RT_CYCLE_START);
+	assert_int_equal(seen[4], GRBL_RT_RESET);
+	next_line(&rx, "G1 X10 Y2");
+	for (int c = 0; c < 256; c++) {
+		grbl_rt r = grbl_rt_of((unsigned char)c);
+		int want = c == 0x18 || c == '?' || c == '~' || c == '!' || c == 0x84 ||
+		           c == 0x85 || (c >= 0x90 && c <= 0x97) || (c >= 0x99 && c <= 0x9E) ||
+		           c == 0xA0 || c == 0xA1;
+		assert_int_equal(r != GRBL_RT_NONE, want);
+	}
+}
+
+static void test_lines_cr_lf_and_buffer(void **state)
+{
+	(void)state;
+	static struct grbl_rx rx;
+	grbl_rx_init(&rx);
+	feed(&rx, "G0 X1\r\nG0 X2\n", 13);
+	/* protocol.c: CR and LF each end a line; the empty one is answered too */
+	next_line(&rx, "G0 X1");
+	next_line(&rx, "");
+	next_line(&rx, "G0 X2");
+	struct grbl_line l;
+	assert_false(grbl_rx_line(&rx, &l));
+	assert_int_equal(grbl_rx_available(&rx), GRBL_RX_SIZE);
+	/* while a line waits, the rest counts against the 128 bytes */
+	feed(&rx, "G0 X3\nG0 X4\n", 12);
+	assert_int_equal(grbl_rx_available(&rx), GRBL_RX_SIZE - 6);
+	next_line(&rx, "G0 X3");
+	assert_int_equal(grbl_rx_available(&rx), GRBL_RX_SIZE);
+	next_line(&rx, "G0 X4");
+}
+
+static void test_too_long_line(void **state)
+{
+	(void)state;
+	static struct grbl_rx rx;
+	char big[400];
+	grbl_rx_init(&rx);
+	memset(big, 'X', sizeof big);
+	feed(&rx, big, sizeof big);
+	feed(&rx, "\nG0\n", 4);
+	struct grbl_line l;
+	assert_true(grbl_rx_line(&rx, &l));
+	assert_int_equal(l.kind, GRBL_LINE_TOO_LONG);
+	assert_int_equal(l.len, GRBL_LINE_MAX);
+	grbl_rx_done(&rx);
+	next_line(&rx, "G0");
+}
+
+static void test_overflow_answers_each_line(void **state)
+{
+	(void)state;
+	static struct grbl_rx rx;
+	char flood[2000];
+	size_t n = 0;
+	int lines = 0;
+	grbl_rx_init(&rx);
+	while (n + 12 < sizeof flood) {
+		n += (size_t)snprintf(flood + n, sizeof flood - n, "G0 X%d\n", lines % 100);
+		lines++;
+	}
+	feed(&rx, flood, n); /* never waiting for ok */
+	int answered = 0, lost = 0;
+	struct grbl_line l;
+	while (grbl_rx_line(&rx, &l)) {
+		if (l.kind == GRBL_LINE_LOST) {
+			lost += (int)l.lost;
+			answered += (int)l.lost;
+		} else {
+			/* every line kept is a line that was sent, whole */
+			assert_true(l.len >= 4 && memcmp(l.text, "G0 X", 4) == 0);
+			answered++;
+		}
+		grbl_rx_done(&rx);
+	}
+	assert_int_equal(answered, lines);
+	assert_true(lost > 0);
+	assert_true(rx.overflows > 0);
+	/* a line cut by the overflow in its middle is lost whole */
+	grbl_rx_init(&rx);
+	feed(&rx, "G0 X1\n", 6); /* waits: not answered */
+	char fill[GRBL_RX_SIZE];
+	memset(fill, ' ', sizeof fill);
+	memcpy(fill, "G0 X2\n", 6);
+	feed(&rx, fill, sizeof fill - 10);
+	feed(&rx, "G0 X12345678901234\nG0 X3\n", 25);
+	next_line(&rx, "G0 X1");
+	next_line(&rx, "G0 X2");
+	assert_true(grbl_rx_line(&rx, &l));
+	assert_int_equal(l.kind, GRBL_LINE_LOST);
+	assert_int_equal(l.lost, 1);
+	grbl_rx_done(&rx);
+	next_line(&rx, "G0 X3");
+}
+
+/* ---- system lines ---- */
+
+static grbl_sys_kind sys_kind(const char *s, int *code)
+{
+	struct grbl_sys c;
+	grbl_sys_parse(s, strlen(s), &c);
+	if (code) {
+		*code = c.code;
+	}
+	return c.kind;
+}
+
+static void test_system_lines(void **state)
+{
+	(void)state;
+	int code;
+	assert_int_equal(sys_kind("$", NULL), GRBL_SYS_HELP);
+	assert_int_equal(sys_kind("$$", NULL), GRBL_SYS_SETTINGS);
+	assert_int_equal(sys_kind(" $ # ", NULL), GRBL_SYS_PARAMS);
+	assert_int_equal(sys_kind("$g", NULL), GRBL_SYS_GCODE);
+	assert_int_equal(sys_kind("$C", NULL), GRBL_SYS_CHECK);
+	assert_int_equal(sys_kind("$X", NULL), GRBL_SYS_UNLOCK);
+	assert_int_equal(sys_kind("$H", NULL), GRBL_SYS_HOME);
+	assert_int_equal(sys_kind("$HZ", NULL), GRBL_SYS_HOME);
+	assert_int_equal(sys_kind("$I", NULL), GRBL_SYS_INFO);
+	assert_int_equal(sys_kind("$N", NULL), GRBL_SYS_STARTUP);
+	assert_int_equal(sys_kind("$N0=G54", NULL), GRBL_SYS_STARTUP_SET);
+	assert_int_equal(sys_kind("$SLP", NULL), GRBL_SYS_SLEEP);
+	assert_int_equal(sys_kind("$RST=$", NULL), GRBL_SYS_RESTORE);
+	assert_int_equal(sys_kind("$J=G91 X1 F100", NULL), GRBL_SYS_JOG);
+	struct grbl_sys c;
+	grbl_sys_parse("$110 = 500.5", 12, &c);
+	assert_int_equal(c.kind, GRBL_SYS_SET);
+	assert_int_equal(c.number, 110);
+	assert_true(c.value == 500.5);
+	/* system.c's answers to what it does not know */
+	assert_int_equal(sys_kind("$Q", &code), GRBL_SYS_BAD);
+	assert_int_equal(code, GRBL_E_BAD_NUMBER);
+	assert_int_equal(sys_kind("$GG", &code), GRBL_SYS_BAD);
+	assert_int_equal(code, GRBL_E_INVALID_STATEMENT);
+	assert_int_equal(sys_kind("$J", &code), GRBL_SYS_BAD);
+	assert_int_equal(code, GRBL_E_INVALID_STATEMENT);
+	assert_int_equal(sys_kind("$300=1", &code), GRBL_SYS_BAD);
+	assert_int_equal(code, GRBL_E_INVALID_STATEMENT);
+	assert_int_equal(sys_kind("$10=x", &code), GRBL_SYS_BAD);
+	assert_int_equal(code, GRBL_E_BAD_NUMBER);
+}
+
+/* ---- reports ---- */
+
+static void test_status_report_and_refresh(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine();
+	struct grbl_axes ax;
+	struct grbl_fmt fmt = {1, 0};
+	struct grbl_refresh rf = {0, 0};
+	struct grbl_status s;
+	char b[GRBL_MSG_BYTES];
+	grbl_axes_of(&m, &ax);
+	memset(&s, 0, sizeof s);
+	s.state = "Idle";
+	s.mpos[0] = 1.23456;
+	s.mpos[1] = -0.0001;
+	s.wco[0] = 1.0;
+	s.ov_feed = s.ov_rapid = s.ov_spindle = 100;
+	s.feed_mm_min = 499.6;
+	grbl_status_format(b, sizeof b, &s, &ax, &fmt, &rf);
+	assert_string_equal(b, "<Idle|MPos:1.235,0.000,0.000|FS:500,0|WCO:1.000,0.000,0.000>");
+	grbl_status_format(b, sizeof b, &s, &ax, &fmt, &rf);
+	assert_string_equal(b, "<Idle|MPos:1.235,0.000,0.000|FS:500,0|Ov:100,100,100>");
+	int wco = 0, ov = 0;
+	for (int i = 0; i < 30; i++) {
+		grbl_status_format(b, sizeof b, &s, &ax, &fmt, &rf);
+		wco += strstr(b, "WCO:") != NULL;
+		ov += strstr(b, "Ov:") != NULL;
+	}
+	assert_int_equal(wco, 3); /* every 10 idle */
+	assert_int_equal(ov, 3);
+	s.busy = 1;
+	s.state = "Run";
+	grbl_refresh_ovr(&rf);
+	grbl_status_format(b, sizeof b, &s, &ax, &fmt, &rf);
+	assert_non_null(strstr(b, "|Ov:"));
+	fmt.mask = 0; /* WPos = MPos - WCO */
+	fmt.inches = 1;
+	s.line = 42;
+	grbl_status_format(b, sizeof b, &s, &ax, &fmt, &rf);
+	assert_true(strncmp(b, "<Run|WPos:0.0092,0.0000,0.0000|Ln:42|FS:19.7,0", 46) == 0);
+}
+
+static void test_settings_and_params(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine();
+	struct grbl_fmt fmt = {1, 0};
+	char b[GRBL_MSG_BYTES];
+	int n = 0, found = 0;
+	for (; grbl_setting_line(b, sizeof b, &m, &fmt, n) > 0; n++) {
+		found += strcmp(b, "$11=0.010") == 0 || strcmp(b, "$110=12000.000") == 0 ||
+		         strcmp(b, "$122=1000.000") == 0 || strcmp(b, "$132=2000.000") == 0 ||
+		         strcmp(b, "$100=1000.000") == 0;
+	}
+	assert_int_equal(found, 5);
+	assert_int_equal(n, 7 + 4 * 3);
+	struct mlip_gcode g;
+	mlip_gcode_init(&g, &m);
+	grbl_gcode_state(b, sizeof b, &g, -1);
+	assert_string_equal(b, "[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]");
+	struct grbl_axes ax;
+	grbl_axes_of(&m, &ax);
+	grbl_param_line(b, sizeof b, &g.off, &ax, &fmt, 10);
+	assert_string_equal(b, "[PRB:0.000,0.000,0.000:0]");
+	assert_int_equal(grbl_param_line(b, sizeof b, &g.off, &ax, &fmt, 11), 0);
+	assert_int_equal(grbl_override_step(GRBL_RT_FEED_PLUS_10, 195), 200);
+	assert_int_equal(grbl_override_step(GRBL_RT_FEED_MINUS_1, 10), 10);
+	assert_int_equal(grbl_override_step(GRBL_RT_RAPID_25, 100), 25);
+}
+
+/* The reader's messages, as the stream gets them, and Grbl's codes. */
+static void test_error_codes(void **state)
+{
+	(void)state;
+	static const struct {
+		const char *line;
+		int code;
+	} cases[] = {{"G1 X10", GRBL_E_FEED},
+	             {"G0 X1 X2", GRBL_E_WORD_REPEATED},
+	             {"G0 G1 X1", GRBL_E_MODAL_GROUP},
+	             {"G0 X5000", GRBL_E_TARGET},
+	             {"G2 X10 F100", GRBL_E_NO_OFFSETS},
+	             {"G0 X", GRBL_E_BAD_NUMBER},
+	             {"G0 X1.2.3", GRBL_E_BAD_NUMBER},
+	             {"G4", GRBL_E_VALUE_MISSING},
+	             {"G4 P-1", GRBL_E_NEGATIVE},
+	             {"G0 X1 Q2", GRBL_E_UNUSED_WORDS},
+	             {"G5 X1", GRBL_E_UNSUPPORTED},
+	             {"G0 X1\x01", GRBL_E_EXPECTED_LETTER},
+	             {"G0 X1 \xc3\xa9", GRBL_E_EXPECTED_LETTER},
+	             {"G53 G2 X1 I1", GRBL_E_G53},
+	             {"$J=G91 X1", GRBL_E_FEED}, /* a jog's F is not modal */
+	             {"$J=G91 G1 X1 F100", GRBL_E_JOG},
+	             {"$J=G91 X1 S100 F100", GRBL_E_JOG}};
+	struct mlip_machine m = machine();
+	static struct grbl_stream st;
+	double zero[MLIP_MAX_AXES] = {0};
+	grbl_stream_init(&st, &m, zero, NULL);
+	for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+		struct mlip_gcode_error e;
+		mlip_status rc =
+		    grbl_stream_check(&st, cases[i].line, strlen(cases[i].line), 1, &e);
+		assert_int_not_equal(rc, MLIP_OK);
+		if (grbl_error_code(&e, 0) != cases[i].code) {
+			fail_msg("%s: '%s' -> error:%d, want %d", cases[i].line, e.msg,
+			         grbl_error_code(&e, 0), cases[i].code);
+		}
+	}
+	struct mlip_gcode_error e;
+	assert_int_not_equal(grbl_stream_check(&st, "G0 X5000", 8, 1, &e), MLIP_OK);
+	assert_int_equal(grbl_error_code(&e, 1), GRBL_E_TRAVEL);
+	assert_true(grbl_error_travel(&e)); /* a G-code line: ALARM:2 */
+	assert_int_not_equal(grbl_stream_check(&st, "G0 X", 4, 1, &e), MLIP_OK);
+	assert_false(grbl_error_travel(&e));
+	/* N is a jog's line number (jogging.md) */
+	assert_int_equal(grbl_stream_check(&st, "$J=N5 G91 X1 F100", 17, 1, &e), MLIP_OK);
+}
+
+/* ---- the stream ---- */
+
+static struct grbl_stream st;
+static struct mlip_smooth sm_mem;
+
+/* Every record the stream gives for lines (one program, END last). */
+static size_t stream_all(const char *text, const struct mlip_machine *m, int smooth,
+                         struct mlip_ring_rec *out, size_t cap, uint32_t stage_take)
+{
+	struct mlip_machine mm = *m;
+	double zero[MLIP_MAX_AXES] = {0};
+	size_t n = 0;
+	mm.smooth = (uint8_t)smooth;
+	grbl_stream_init(&st, &mm, zero, &sm_mem);
+	const char *p = text;
+	uint32_t lineno = 0;
+	while (*p) {
+		const char *e = strchr(p, '\n');
+		size_t len = (size_t)(e - p);
+		struct mlip_gcode_error err;
+		lineno++;
+		int rc = grbl_stream_line(&st, p, len, lineno, &err);
+		assert_true(rc >= 0);
+		while (rc == 0 || grbl_stream_staged(&st) > 0) {
+			uint32_t k = grbl_stream_staged(&st);
+			if (k > stage_take) {
+				k = stage_take; /* a slow ring */
+			}
+			assert_true(n + k <= cap);
+			memcpy(out + n, grbl_stream_peek(&st), k * sizeof(*out));
+			grbl_stream_take(&st, k);
+			n += k;
+			if (rc == 0) {
+				rc = grbl_stream_more(&st);
+			}
+		}
+		p = e + 1;
+	}
+	while (!grbl_stream_end(&st) || grbl_stream_staged(&st) > 0) {
+		uint32_t k = grbl_stream_staged(&st);
+		memcpy(out + n, grbl_stream_peek(&st), k * sizeof(*out));
+		grbl_stream_take(&st, k);
+		n += k;
+	}
+	return n;
+}
+
+static const char *PROG_TEXT = "G21 G90\n"
+                               "G0 X1 Y1\n"
+                               "G1 X2 Y1.1 F1200\n"
+                               "G2 X12 Y1.1 I5 J0\n"
+                               "G1 X12.1 Y1.3\n"
+                               "G1 X12.2 Y1.35\n"
+                               "G1 X12.3 Y1.38\n"
+                               "G4 P0.5\n"
+                               "G1 X20 Y5\n";
+
+static void same_as_feed(int smooth, uint32_t take)
+{
+	struct mlip_machine m = machine();
+	static struct mlip_ring_rec got[20000], want[20000];
+	struct mlip_program_list l;
+	m.smooth = (uint8_t)smooth;
+	size_t n = stream_all(PROG_TEXT, &m, smooth, got, 20000, take);
+	/* what mlip-feed sends: the program's blocks (through the filter), 1..n, END */
+	assert_int_equal(mlip_program_list_parse(PROG_TEXT, strlen(PROG_TEXT), &m, &l), 0);
+	struct mlip_block *blocks = l.blocks;
+	size_t nb = l.n;
+	if (smooth) {
+		assert_int_equal(mlip_smooth_program(&m, l.blocks, l.n, &blocks, &nb), 0);
+	}
+	for (size_t i = 0; i < nb; i++) {
+		mlip_ring_rec_from_block(&want[i], &blocks[i], i + 1);
+	}
+	mlip_ring_rec_end(&want[nb], nb + 1, 9);
+	assert_int_equal(n, nb + 1);
+	for (size_t i = 0; i < n; i++) {
+		if (memcmp(&got[i], &want[i], sizeof got[i]) != 0) {
+			fail_msg("record %zu differs (smooth %d)", i, smooth);
+		}
+	}
+	assert_true(nb > 50); /* the arc's chords */
+	if (smooth) {
+		free(blocks);
+	}
+	mlip_program_list_free(&l);
+}
+
+static void test_stream_equals_program(void **state)
+{
+	(void)state;
+	same_as_feed(0, GRBL_STAGE);
+	same_as_feed(0, 3); /* the arc in parts, parsed again each time */
+	same_as_feed(1, GRBL_STAGE);
+	same_as_feed(1, 7);
+}
+
+static void test_refused_line_changes_nothing(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine();
+	double zero[MLIP_MAX_AXES] = {0};
+	struct mlip_gcode_error e;
+	grbl_stream_init(&st, &m, zero, NULL);
+	assert_int_equal(grbl_stream_line(&st, "G91 G1 X1 F600", 14, 1, &e), 1);
+	struct mlip_gcode before = st.g;
+	uint32_t staged = grbl_stream_staged(&st);
+	assert_true(grbl_stream_line(&st, "G90 G0 X2 Y5000", 15, 2, &e) < 0);
+	assert_int_equal(e.line, 2);
+	assert_int_equal(e.col, 11);
+	assert_memory_equal(&before, &st.g, sizeof before); /* still G91, G1 */
+	assert_int_equal(grbl_stream_staged(&st), staged);
+	assert_int_equal(grbl_stream_line(&st, "X1", 2, 3, &e), 1);
+	assert_true(fabs(grbl_stream_pos(&st)[0] - 2.0) < 1e-12); /* relative, as before */
+}
+
+static void test_m2_ends_program_with_grbl_reset(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine();
+	double zero[MLIP_MAX_AXES] = {0};
+	struct mlip_gcode_error e;
+	grbl_stream_init(&st, &m, zero, NULL);
+	assert_int_equal(grbl_stream_line(&st, "G91 G0 X1", 9, 1, &e), 1);
+	assert_int_equal(grbl_stream_line(&st, "G55 M2", 6, 2, &e), 1);
+	assert_true(grbl_stream_ended(&st));
+	uint32_t n = grbl_stream_staged(&st);
+	const struct mlip_ring_rec *r = grbl_stream_peek(&st);
+	assert_int_equal(n, 2);
+	assert_int_equal(r[1].type, MLIP_REC_END);
+	assert_int_equal(r[1].seq, 2);
+	grbl_stream_take(&st, n);
+	/* gcode.c's program end: G1 G17 G90 G94 G54; the next line starts program 2 */
+	assert_int_equal(st.g.motion, 1);
+	assert_int_equal(st.g.absolute, 1);
+	assert_int_equal(st.g.off.select, 0);
+	assert_int_equal(grbl_stream_line(&st, "X5 F600", 7, 3, &e), 1);
+	assert_false(grbl_stream_ended(&st));
+	r = grbl_stream_peek(&st);
+	assert_int_equal(r[0].seq, 1);
+	assert_true(r[0].target[0] == 5.0 && !(r[0].flags & MLIP_REC_RAPID));
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test(test_realtime_bytes_anywhere),
+	    cmocka_unit_test(test_lines_cr_lf_and_buffer),
+	    cmocka_unit_test(test_too_long_line),
+	    cmocka_unit_test(test_overflow_answers_each_line),
+	    cmocka_unit_test(test_system_lines),
+	    cmocka_unit_test(test_status_report_and_refresh),
+	    cmocka_unit_test(test_settings_and_params),
+	    cmocka_unit_test(test_error_codes),
+	    cmocka_unit_test(test_stream_equals_program),
+	    cmocka_unit_test(test_refused_line_changes_nothing),
+	    cmocka_unit_test(test_m2_ends_program_with_grbl_reset),
+	};
+	return cmocka_run_group_tests_name("grbl", tests, NULL, NULL);
+}
