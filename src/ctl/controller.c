@@ -232,15 +232,43 @@ static int ring_dry(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 	return !in->feeder_alive && rx_count(c) == 0;
 }
 
-/* A bad record: take nothing more. The look-ahead already plans the last
- * good block to rest; the rest of the program is dropped. */
+/* Nothing has moved since the machine last came to rest: a pre-read (of a
+ * new program, or after an underrun or a wait) or a wait. The planner is
+ * not stepped in these states, so it rests at the last setpoint and what it
+ * holds has never run. */
+static int unmoved(const struct mlip_ctl *c)
+{
+	return c->state == MLIP_STATE_PREREAD || c->state == MLIP_STATE_DWELLING ||
+	       c->state == MLIP_STATE_PAUSED;
+}
+
+/* Stop the planner. Moving: on the path at the acceleration limit (the
+ * planner's stop). Unmoved: what it holds is dropped where it rests, and no
+ * setpoint changes. (The planner's stop would follow the plan in force until
+ * its backward pass, a bounded amount of work a period, had come back to the
+ * first corner: several periods at the look-ahead's depth, in which that
+ * plan accelerates from rest into the program's first block.) */
+static void planner_stop(struct mlip_ctl *c)
+{
+	if (unmoved(c)) {
+		mlip_planner_abort(c->planner, c->pos); /* finite: the last setpoint */
+	} else {
+		mlip_planner_stop(c->planner);
+	}
+}
+
+/* A bad record: take nothing more. Moving, the look-ahead already plans the
+ * last good block to rest (its newest block always ends at rest, so braking
+ * always makes it); the rest of the program is dropped. */
 static void fault(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl_reason r)
 {
 	c->prog.bad = 1;
 	c->prog.discard = 1;
 	if (c->state != MLIP_STATE_RUNNING && c->state != MLIP_STATE_HELD) {
-		/* not moving (pre-read, a wait): what was pre-read never starts */
-		mlip_planner_stop(c->planner);
+		/* not moving (pre-read, a wait): what was pre-read never starts;
+		 * a wait is not done (the block completed is the one before it) */
+		c->wait.stopped = c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED;
+		planner_stop(c);
 		c->wait.dwell_left = 0;
 	}
 	go(c, out, MLIP_STATE_FAULT, r);
@@ -251,12 +279,12 @@ static void fault(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl_
 static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 {
 	uint32_t n = 0;
-	int event_next = 0;
+	int event_next = 0, bad_next = 0;
 	struct mlip_ring_rec rec;
+	struct mlip_ctl_reason bad_why;
 	while (n < max && c->prog.end.seq == 0 && !c->prog.bad && rx_peek(c, &rec)) {
-		struct mlip_ctl_reason r;
-		if (mlip_ctl_check_record(&c->m, &rec, c->prog.next_seq, &r) != MLIP_OK) {
-			fault(c, out, r);
+		if (mlip_ctl_check_record(&c->m, &rec, c->prog.next_seq, &bad_why) != MLIP_OK) {
+			bad_next = 1; /* the fault after the good blocks before it are in */
 			break;
 		}
 		if (is_event(&rec)) {
@@ -289,6 +317,9 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 			r.value = (double)err;
 			fault(c, out, r);
 		}
+	}
+	if (bad_next) {
+		fault(c, out, bad_why);
 	}
 	return event_next;
 }
@@ -360,8 +391,11 @@ static void drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		}
 		return;
 	}
+	if (c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED) {
+		c->wait.stopped = 1; /* the wait is not done */
+	}
 	if (mlip_planner_queued(c->planner) > 0) {
-		mlip_planner_stop(c->planner);
+		planner_stop(c);
 		brake_begin(c);
 	}
 	c->wait.dwell_left = 0;
@@ -426,10 +460,23 @@ static void begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t wh
 		c->prog.discard_waiting = c->prog.discard;
 		return;
 	}
+	if (c->state == MLIP_STATE_PREREAD && !c->prog.refill && why == MLIP_WHY_STOP) {
+		/* the program's pre-read: it has not started, the stop is latched
+		 * for it as for one still being checked (STOP_EARLY): dropped
+		 * unmoved, its first record named (the reason of its pre-read) */
+		struct mlip_ctl_reason r = reason(MLIP_WHY_STOP_EARLY, c->why.seq, c->why.line);
+		planner_stop(c);
+		c->hold.op = 0; /* as the planner's stop ends a hold */
+		c->prog.discard = c->prog.end.seq == 0;
+		c->prog.end.seq = 0;
+		c->counts.refused++;
+		go(c, out, MLIP_STATE_IDLE, r);
+		return;
+	}
 	/* in a dwell or a pause the wait is not done: the block completed is
 	 * the one before it (the pre-read after it never moved) */
 	c->wait.stopped = c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED;
-	mlip_planner_stop(c->planner);
+	planner_stop(c);
 	c->wait.dwell_left = 0;
 	c->hold.op = 0; /* the planner's stop ends a hold too */
 	if (c->state == MLIP_STATE_FAULT) {
@@ -1011,7 +1058,7 @@ static void quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 	if (c->drives) {
 		follow_actual(c, in);
 	} else if (mlip_planner_queued(c->planner) > 0) {
-		mlip_planner_stop(c->planner);
+		planner_stop(c);
 	}
 	c->wait.dwell_left = 0;
 	c->wait.stopped = 0;
