@@ -222,7 +222,8 @@ struct mlip_ring_feeder {
 	int32_t pid;           /* feeder process id (0: no feeder) */
 	uint32_t stop_base;    /* the stop counter when this feeder began (layout 6): a
 	                          later stop refuses its program before it starts */
-	uint32_t spare;
+	uint32_t mdi;          /* 1: the program is MDI lines (mlip-ctl mdi); 0 in older
+	                          builds' segments */
 };
 
 /* ---- commands ------------------------------------------------------- */
