@@ -790,6 +790,19 @@ static int operator_stop(struct feed *f)
 		    f->path);
 		return EXIT_OPERATOR;
 	}
+	if (f->exec == 0 && f->st.reason == MLIP_WHY_NOT_HOMED) {
+		char axes[2 * MLIP_MAX_AXES + 1] = "";
+		for (int k = 0, n = 0; k < f->mp.n_axes; k++) {
+			if (!((f->st.homed >> k) & 1u)) {
+				n += snprintf(axes + n, sizeof(axes) - (size_t)n, "%s%c",
+				              n ? " " : "", f->mp.axis[k].letter);
+			}
+		}
+		say(": %s: refused by the controller: HOMING_REQUIRED and not every axis is "
+		    "homed (not homed: %s): mlip-ctl home first; nothing moved\n",
+		    f->path, axes);
+		return EXIT_FAIL;
+	}
 	uint64_t next = rest_seq(f);
 	say(": program stopped on the path at line %u (block %llu of %llu): mlip-ctl "
 	    "stop, or mlip-rt was told to exit\n",

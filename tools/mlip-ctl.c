@@ -49,10 +49,14 @@ static void usage(FILE *f)
 	    "  reset            leave an E-stop or a limit stop once its input is released\n"
 	    "  home [AXES]      home the axes (every one with a HOME_METHOD) with their\n"
 	    "                   drives' homing mode, in HOME_SEQUENCE order; waits for the end\n"
-	    "  jog AXIS+|AXIS- SPEED [SECONDS]  continuous jog at SPEED mm/min (deg/min),\n"
-	    "                   until SECONDS pass or a signal (Ctrl-C, a dropped session),\n"
-	    "                   then a stop at the acceleration limit; it stops by itself\n"
-	    "                   250 ms after mlip-ctl stops renewing it (killed)\n"
+	    "  jog AXIS+|AXIS-[DIST]... [--distance D] SPEED [SECONDS]  jog at SPEED mm/min\n"
+	    "                   (deg/min; several axes: along one line at that speed):\n"
+	    "                   continuous until SECONDS pass, a signal (Ctrl-C, a dropped\n"
+	    "                   session) or the soft limit, then a stop at the acceleration\n"
+	    "                   limit; incremental with a distance (X+1.5, or --distance D\n"
+	    "                   for every axis): refused when its target lies beyond a soft\n"
+	    "                   limit; it stops by itself 250 ms after mlip-ctl stops\n"
+	    "                   renewing it (killed)\n"
 	    "  mdi [OPTIONS] LINE...  MDI: run G-code lines (or `-`: from standard input)\n"
 	    "                   from where the machine stands, checked as a program is\n"
 	    "                   (mlip-feed's rules, soft limits, offsets file, tool table);\n"
@@ -704,29 +708,104 @@ static int post_wait(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg, int32
  * MLIP_JOG_DEADMAN_S) until SECONDS pass, a signal comes (SIGINT, SIGTERM,
  * SIGHUP: a dropped ssh session), or the axis reaches its soft limit; then
  * released: a stop on the path at the acceleration limit. */
-static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const char *secs)
+/* One axis of a jog: "X+", "z-", "X+1.5" (a distance: incremental). */
+struct jog_axis {
+	int axis, neg;
+	double dist; /* 0: continuous */
+};
+
+static int jog_axis_word(const struct mlip_machine *m, const char *w, struct jog_axis *j)
+{
+	size_t n = strlen(w);
+	j->axis = -1;
+	for (int k = 0; k < m->n_axes && n >= 2; k++) {
+		if (w[0] == m->axis[k].letter || w[0] == m->axis[k].letter + ('a' - 'A')) {
+			j->axis = k;
+		}
+	}
+	if (j->axis < 0 || (w[1] != '+' && w[1] != '-')) {
+		return -1;
+	}
+	j->neg = w[1] == '-';
+	j->dist = 0.0;
+	if (n > 2 && (mlip_cli_number(w + 2, &j->dist) != 0 || !(j->dist > 0.0) || w[2] == '+' ||
+	              w[2] == '-')) {
+		return -1;
+	}
+	return 0;
+}
+
+/* jog AXIS+|AXIS-[DIST]... [--distance D] SPEED [SECONDS]: one axis or
+ * several along one line, continuous (until SECONDS, a signal, or the soft
+ * limit) or incremental (each a distance), renewed every 100 ms (the
+ * controller's dead-man stops it 250 ms after the last renewal). */
+static int cmd_jog(struct mlip_shm *s, int argc, char **argv)
 {
 	struct mlip_machine m;
 	struct mlip_ring_status st;
-	double v = 0.0, dur = -1.0;
-	int axis = -1, neg;
+	struct jog_axis ax[MLIP_MAX_AXES];
+	double v = 0.0, dur = -1.0, dist = 0.0;
+	const char *speed = NULL, *secs = NULL;
+	char words[128] = "";
+	int n = 0, with = 0;
 	int32_t result;
-	size_t n = dir != NULL ? strlen(dir) : 0;
 
 	mlip_ring_machine(s->ring, &m);
-	for (int k = 0; k < m.n_axes && n == 2; k++) {
-		if (dir[0] == m.axis[k].letter || dir[0] == m.axis[k].letter + ('a' - 'A')) {
-			axis = k;
+	for (int i = 0; i < argc; i++) {
+		const char *w = argv[i];
+		if (strcmp(w, "--distance") == 0 || strncmp(w, "--distance=", 11) == 0) {
+			const char *d = w[10] == '=' ? w + 11 : i + 1 < argc ? argv[++i] : "";
+			if (mlip_cli_number(d, &dist) != 0 || !(dist > 0.0)) {
+				fprintf(stderr,
+				        PROG
+				        ": jog: --distance must be a positive number, got '%s'\n",
+				        d);
+				return EXIT_USAGE;
+			}
+		} else if (speed == NULL && n < MLIP_MAX_AXES &&
+		           jog_axis_word(&m, w, &ax[n]) == 0) {
+			for (int k = 0; k < n; k++) {
+				if (ax[k].axis == ax[n].axis) {
+					fprintf(stderr, PROG ": jog: axis %c given twice\n", w[0]);
+					return EXIT_USAGE;
+				}
+			}
+			snprintf(words + strlen(words), sizeof(words) - strlen(words), "%s%s",
+			         n ? " " : "", w);
+			n++;
+		} else if (n > 0 && speed == NULL) {
+			speed = w;
+		} else if (n > 0 && secs == NULL) {
+			secs = w;
+		} else {
+			fprintf(stderr,
+			        PROG
+			        ": jog: '%s' is not an axis of this machine and a direction, with "
+			        "a distance or not (e.g. X+, Z-, X+1.5)\n",
+			        w);
+			return EXIT_USAGE;
 		}
 	}
-	if (n != 2 || (dir[1] != '+' && dir[1] != '-') || axis < 0) {
-		fprintf(stderr,
-		        PROG ": jog: '%s' is not an axis of this machine and a direction "
-		             "(e.g. X+ or Z-)\n",
-		        dir != NULL ? dir : "");
+	if (n == 0) {
+		fprintf(stderr, PROG ": jog: expected AXIS+|AXIS-[DIST]... [--distance D] SPEED "
+		                     "[SECONDS]\n");
 		return EXIT_USAGE;
 	}
-	neg = dir[1] == '-';
+	for (int k = 0; k < n; k++) {
+		ax[k].dist = ax[k].dist > 0.0 ? ax[k].dist : dist;
+		with += ax[k].dist > 0.0;
+		if (ax[k].dist > 0.0 && !(ax[k].dist * 1e3 + 0.5 <= (double)MLIP_JOG_DIST_MAX &&
+		                          ax[k].dist * 1e3 >= 0.5)) {
+			fprintf(stderr, PROG ": jog: a distance is 0.001 .. %.6g (mm or deg)\n",
+			        MLIP_JOG_DIST_MAX * 1e-3);
+			return EXIT_USAGE;
+		}
+	}
+	if (with != 0 && with != n) {
+		fprintf(stderr,
+		        PROG ": jog: every axis a distance (incremental) or none (continuous)\n");
+		return EXIT_USAGE;
+	}
 	if (speed == NULL || mlip_cli_number(speed, &v) != 0 || !(v >= 1.0) ||
 	    v > (double)MLIP_JOG_SPEED_MAX) {
 		fprintf(stderr,
@@ -739,24 +818,62 @@ static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const
 		fprintf(stderr, PROG ": jog: SECONDS must be in (0, 86400], got '%s'\n", secs);
 		return EXIT_USAGE;
 	}
+	const char *dir = words;
+	int axis = ax[0].axis, neg = ax[0].neg;
 	int32_t arg = MLIP_JOG_ARG(axis, neg, (uint32_t)(v + 0.5)),
 	        stop = MLIP_JOG_ARG(axis, neg, 0);
 	mlip_cli_on_stop_signals(on_jog_signal);
-	if (post_wait(s, MLIP_CMD_JOG, arg, &result) != 0) {
+	/* the other axes (and the distances) first, then the jog itself */
+	int bad = 0;
+	for (int k = n - 1; k >= 0 && !bad; k--) {
+		if (k == 0 && ax[0].dist == 0.0) {
+			break;
+		}
+		int32_t a =
+		    MLIP_JOG_AXIS_ARG(ax[k].axis, ax[k].neg, (uint32_t)(ax[k].dist * 1e3 + 0.5));
+		bad = post_wait(s, MLIP_CMD_JOG_AXIS, a, &result) != 0 ? -1 : result != MLIP_OK;
+	}
+	if (bad < 0 || (!bad && post_wait(s, MLIP_CMD_JOG, arg, &result) != 0)) {
 		fprintf(stderr, PROG ": jog: no answer from the controller on %s within 1 s\n",
 		        s->name);
 		return EXIT_FAIL;
 	}
-	if (result != MLIP_OK) {
+	if (bad || result != MLIP_OK) {
 		read_status(s->ring, &st);
-		if (result == MLIP_E_RANGE) {
-			fprintf(
-			    stderr,
-			    PROG
-			    ": jog %s: refused: %c is at %.4f, at or beyond its soft limit %s %g "
-			    "(Grbl error 15: jog target exceeds machine travel)\n",
-			    dir, m.axis[axis].letter, st.pos[axis], neg ? "MIN_LIMIT" : "MAX_LIMIT",
-			    neg ? m.axis[axis].min_limit : m.axis[axis].max_limit);
+		if (!bad && result == MLIP_E_RANGE) {
+			/* the axis that leaves the travel */
+			int k0 = 0;
+			double t = st.pos[ax[0].axis];
+			for (int k = 0; k < n; k++) {
+				const struct mlip_axis *a = &m.axis[ax[k].axis];
+				double p = st.pos[ax[k].axis];
+				double tk = p + (ax[k].neg ? -ax[k].dist : ax[k].dist);
+				if (ax[k].neg ? tk <= a->min_limit : tk >= a->max_limit) {
+					k0 = k;
+					t = tk;
+					break;
+				}
+			}
+			const struct mlip_axis *a = &m.axis[ax[k0].axis];
+			fprintf(stderr,
+			        PROG
+			        ": jog %s: refused: %c is at %.4f%s, %s its soft limit %s %g (Grbl "
+			        "error 15: jog target exceeds machine travel)\n",
+			        dir, a->letter, st.pos[ax[k0].axis], with ? ", its target" : "",
+			        with ? "beyond" : "at or beyond",
+			        ax[k0].neg ? "MIN_LIMIT" : "MAX_LIMIT",
+			        ax[k0].neg ? a->min_limit : a->max_limit);
+			if (with) {
+				fprintf(stderr,
+				        PROG ": jog %s: the target %c %.4f; nothing moved\n", dir,
+				        a->letter, t);
+			}
+		} else if (!bad && result == MLIP_E_SYNTAX) {
+			fprintf(stderr,
+			        PROG
+			        ": jog %s: refused: the controller got other axes for this jog "
+			        "(another client jogging at the same moment?): try again\n",
+			        dir);
 		} else {
 			fprintf(stderr,
 			        PROG ": jog %s: refused: the controller is %s (%s), not idle\n",
@@ -774,7 +891,7 @@ static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const
 			break;
 		}
 		if (read_status(s->ring, &st) != 0 || st.state != MLIP_STATE_JOGGING) {
-			break; /* it ended (at the soft limit, a stop, an E-stop, a fault) */
+			break; /* it ended (its target, a soft limit, a stop, an E-stop, a fault) */
 		}
 		if (post_wait(s, MLIP_CMD_JOG, arg, &result) != 0 || result != MLIP_OK) {
 			break;
@@ -787,8 +904,11 @@ static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const
 		sleep_ns(5 * POLL_NS);
 	}
 	if (st.state == MLIP_STATE_IDLE) {
-		printf("jog %s: at rest at %c %.4f (%s%s)", dir, m.axis[axis].letter, st.pos[axis],
-		       mlip_state_why_name(st.reason), jog_signal ? ", on " : "");
+		printf("jog %s: at rest at", dir);
+		for (int k = 0; k < n; k++) {
+			printf(" %c %.4f", m.axis[ax[k].axis].letter, st.pos[ax[k].axis]);
+		}
+		printf(" (%s%s", mlip_state_why_name(st.reason), jog_signal ? ", on " : "");
 		if (jog_signal) {
 			printf("%s", mlip_cli_signal_name(jog_signal));
 		}
@@ -1232,7 +1352,8 @@ int main(int argc, char **argv)
 	const char *shm = MLIP_SHM_DEFAULT, *cmd, *jog_args[3] = {NULL, NULL, NULL};
 	mlip_ring_cmd_op op = MLIP_CMD_NONE;
 	int32_t arg = 0;
-	int json = 0, c, i, rc;
+	int json = 0, c, i, rc, jog_argc = 0;
+	char **jog_argv = NULL;
 	struct mlip_shm s;
 	char why[256];
 
@@ -1266,13 +1387,15 @@ int main(int argc, char **argv)
 		return cmd_mdi(shm, argc - optind + 1, argv + optind - 1);
 	}
 	if (strcmp(cmd, "jog") == 0) {
-		if (argc - optind < 2 || argc - optind > 3) {
-			fprintf(stderr, PROG ": jog: expected AXIS+|AXIS- SPEED [SECONDS]\n");
+		if (argc - optind < 2) {
+			fprintf(stderr,
+			        PROG ": jog: expected AXIS+|AXIS-[DIST]... [--distance D] SPEED "
+			             "[SECONDS]\n");
 			return EXIT_USAGE;
 		}
-		for (i = 0; i < 3 && optind < argc; i++) {
-			jog_args[i] = argv[optind++];
-		}
+		jog_argc = argc - optind;
+		jog_argv = argv + optind;
+		optind = argc;
 	} else if (strcmp(cmd, "home") == 0) {
 		if (argc - optind > 1) {
 			fprintf(stderr, PROG ": home: expected [AXES] (e.g. XZ)\n");
@@ -1317,7 +1440,7 @@ int main(int argc, char **argv)
 		return EXIT_USAGE;
 	}
 	if (strcmp(cmd, "jog") == 0) {
-		rc = cmd_jog(&s, jog_args[0], jog_args[1], jog_args[2]);
+		rc = cmd_jog(&s, jog_argc, jog_argv);
 	} else if (strcmp(cmd, "home") == 0) {
 		rc = cmd_home(&s, jog_args[0]);
 	} else if (strcmp(cmd, "-") == 0) {
