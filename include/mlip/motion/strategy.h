@@ -1,6 +1,7 @@
 /*
  * mlip/motion/strategy.h - the corner strategies behind one table, for the
- * motion folder's own files (corner.c, planner.c, smoothplan.c, strategy.c).
+ * motion folder's own files (corner.c, planner.c, interp.c, smoothplan.c,
+ * strategy.c).
  * Not an interface for other folders: they choose a strategy by its
  * mlip_strategy value and the planner looks its entry up.
  *
