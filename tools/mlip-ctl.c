@@ -193,6 +193,19 @@ static void json_axes(struct mlip_json *j, const char *key, const struct mlip_ma
 	mlip_json_close(j);
 }
 
+/* The jog in progress (mlip_ring_status.jog): "X+ Y-", "incremental X+". */
+static const char *jog_text(const struct mlip_machine *m, uint32_t jog, char *buf, size_t len)
+{
+	size_t n = (size_t)snprintf(buf, len, "%s", jog & (1u << 16) ? "incremental" : "");
+	for (int k = 0; k < m->n_axes && n < len; k++) {
+		if (jog & (1u << k)) {
+			n += (size_t)snprintf(buf + n, len - n, "%s%c%c", n ? " " : "",
+			                      m->axis[k].letter, jog & (1u << (8 + k)) ? '-' : '+');
+		}
+	}
+	return buf;
+}
+
 /* status --json: one object on stdout. */
 static void status_json(const struct mlip_shm *s, const struct mlip_ring_status *st,
                         const struct mlip_ring_feeder *fd, const struct mlip_machine *m,
@@ -237,6 +250,12 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 		mlip_json_string(&j, "reason_field", fname);
 	}
 	mlip_json_number(&j, "reason_value", "%.17g", st->reason_value);
+	if (st->jog != 0) {
+		char w[64];
+		mlip_json_string(&j, "jog", jog_text(m, st->jog, w, sizeof(w)));
+	} else {
+		mlip_json_null(&j, "jog");
+	}
 	json_axes(&j, "position", m, st->pos, all);
 	/* where the current (or last) program began: a continuation's origin */
 	json_axes(&j, "program_start", m, st->prog_start, all);
@@ -379,6 +398,9 @@ static int cmd_status(struct mlip_shm *s, int json)
 	int rest = st.state == MLIP_STATE_IDLE || st.state == MLIP_STATE_STARVED;
 	printf("%s block %llu, line %u\n", rest ? "completed  " : "executing  ",
 	       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
+	if (st.jog != 0 && st.state == MLIP_STATE_JOGGING) {
+		printf("jog         %s\n", jog_text(&m, st.jog, fname, sizeof(fname)));
+	}
 	printf("why         %s", mlip_state_why_name(st.reason));
 	if (st.reason == MLIP_WHY_DRIVE) {
 		mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,

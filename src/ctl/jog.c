@@ -231,6 +231,15 @@ int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_
 	return MLIP_OK;
 }
 
+uint32_t mlip_ct_jog_status(const struct mlip_ctl *c)
+{
+	if (!c->jog.on) {
+		return 0;
+	}
+	return (c->jog.axes & 0xFFu) | (c->jog.negs & 0xFFu) << 8 |
+	       (incremental(c) ? 1u << 16 : 0u);
+}
+
 /* Each period of a jog: start once the drives are enabled, stop when not
  * renewed. */
 void mlip_ct_jog_period(struct mlip_ctl *c, struct mlip_ctl_out *out)

@@ -210,7 +210,8 @@ struct mlip_ring_status {
 	uint32_t io_mapped; /* bit f: function f is mapped in the configuration */
 	uint32_t io_known;  /* bit f: its input has been read from the bus */
 	uint32_t homed;     /* bit k: axis k is homed */
-	uint32_t spare7;
+	uint32_t jog;       /* the jog in progress: bit k axis k moves, bit 8 + k toward
+	                       its MIN_LIMIT, bit 16 incremental; 0: none (older builds) */
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */
