@@ -1992,6 +1992,39 @@ static void test_jog_multi_axis(void **st)
 	until(MLIP_STATE_IDLE, 1000);
 }
 
+/* X+ Y- released at 100 mm/s along the line: braking on the line at the
+ * per-axis limit, A sqrt(2) along it: v^2 / (2 A sqrt(2)) to rest. */
+static void test_jog_multi_release(void **st)
+{
+	(void)st;
+	double v[2] = {0.0, 0.0}, p0[2] = {0.0, 0.0};
+	assert_int_equal(jog_axis(1, 1, 0), MLIP_OK);
+	assert_int_equal(jog(0, 0, 6000), MLIP_OK);
+	jog_v0(p0, v);
+	jog2_ticks(400, 0, 6000, v);
+	assert_true(fabs(hypot(v[0], v[1]) - 100.0) < 1e-6);
+	double x0 = out.pos[0], y0 = out.pos[1];
+	assert_int_equal(jog(0, 0, 0), MLIP_OK); /* released */
+	double v_rel[2];
+	p0[0] = x0;
+	p0[1] = y0;
+	jog_v0(p0, v_rel); /* the release period's speeds: braking from it on */
+	double amax = fmax(fabs(v_rel[0] - v[0]), fabs(v_rel[1] - v[1])) / mach.period_s;
+	v[0] = v_rel[0];
+	v[1] = v_rel[1];
+	amax = fmax(amax, jog2_ticks(300, 0, 0, v));
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_RELEASED);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	double d = hypot(out.pos[0] - x0, out.pos[1] - y0);
+	double want = 100.0 * 100.0 / (2.0 * 1000.0 * sqrt(2.0));
+	print_message(
+	    "jog X+ Y- released at 100 mm/s: %.4f mm to rest, v^2/(2 A sqrt 2) = %.4f mm\n", d,
+	    want);
+	assert_true(d >= want * 0.999 && d <= want * 1.03);
+	assert_true(out.pos[0] == -out.pos[1]); /* on the line */
+}
+
 /* Refused: an axis not in the machine, a jog during a program, a second
  * axis during a jog; a hold ends a jog. */
 static void test_jog_refused(void **st)
@@ -2414,6 +2447,7 @@ int main(void)
 	    T(test_jog_refused),
 	    T(test_jog_incremental),
 	    T(test_jog_multi_axis),
+	    T(test_jog_multi_release),
 	    TD(test_jog_drives),
 	    TH(test_home_sequence),
 	    TH(test_home_sdo_refused),
