@@ -306,7 +306,6 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->sdo = c->home.req;
 	out->homing = c->home.on && c->home.step >= HS_ARM ? c->home.group : 0;
 	out->status.homed = c->home.homed;
-	out->status.jog = mlip_ct_jog_status(c);
 	out->power.ok = c->power.seq.ok;
 	out->power.late_node =
 	    c->power.seq.late >= 0 ? (uint32_t)c->m.axis[c->power.seq.late].can_node : 0;

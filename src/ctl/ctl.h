@@ -103,7 +103,6 @@ void mlip_ct_io_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 void mlip_ct_jog_release(struct mlip_ctl *c, uint32_t why);
 int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
 int32_t mlip_ct_jog_axis_command(struct mlip_ctl *c, int32_t arg);
-uint32_t mlip_ct_jog_status(const struct mlip_ctl *c); /* mlip_ring_status.jog */
 void mlip_ct_jog_period(struct mlip_ctl *c, struct mlip_ctl_out *out);
 
 /* homing.c */

@@ -620,7 +620,6 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	ST(&d->io_mapped, s->io_mapped, REL);
 	ST(&d->io_known, s->io_known, REL);
 	ST(&d->homed, s->homed, REL);
-	ST(&d->jog, s->jog, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -677,7 +676,7 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		s->io_mapped = LD(&d->io_mapped, ACQ);
 		s->io_known = LD(&d->io_known, ACQ);
 		s->homed = LD(&d->homed, ACQ);
-		s->jog = LD(&d->jog, ACQ);
+		s->spare7 = 0;
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
