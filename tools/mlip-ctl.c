@@ -193,6 +193,29 @@ static void json_axes(struct mlip_json *j, const char *key, const struct mlip_ma
 	mlip_json_close(j);
 }
 
+/* The jog in progress (reason JOG: MLIP_JOG_FIELD in reason_field): "X+ Y-",
+ * "incremental X+"; NULL when none. */
+static const char *jog_text(const struct mlip_ring_status *st, const struct mlip_machine *m,
+                            char *buf, size_t len)
+{
+	uint32_t f = st->reason_field, axes = (f >> 8) & 0xFFu;
+	if (st->state != MLIP_STATE_JOGGING || st->reason != MLIP_WHY_JOG) {
+		return NULL;
+	}
+	if (axes == 0) {
+		axes = 1u << (f & 7u); /* one axis: its direction is the speed's sign */
+		f |= st->reason_value < 0 ? axes << 16 : 0u;
+	}
+	size_t n = (size_t)snprintf(buf, len, "%s", f & (1u << 24) ? "incremental" : "");
+	for (int k = 0; k < m->n_axes && n < len; k++) {
+		if (axes & (1u << k)) {
+			n += (size_t)snprintf(buf + n, len - n, "%s%c%c", n ? " " : "",
+			                      m->axis[k].letter, (f >> (16 + k)) & 1u ? '-' : '+');
+		}
+	}
+	return buf;
+}
+
 /* status --json: one object on stdout. */
 static void status_json(const struct mlip_shm *s, const struct mlip_ring_status *st,
                         const struct mlip_ring_feeder *fd, const struct mlip_machine *m,
@@ -230,13 +253,19 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 		                 mlip_drive_fault_name((mlip_drive_fault)st->reason_field));
 		mlip_json_uint(&j, "reason_node", st->reason_node);
 		mlip_json_string(&j, "reason_text", fname);
-	} else if (st->reason_field == MLIP_FIELD_NONE) {
-		mlip_json_null(&j, "reason_field");
+	} else if (st->reason_field == MLIP_FIELD_NONE || st->reason == MLIP_WHY_JOG) {
+		mlip_json_null(&j, "reason_field"); /* a jog's: "jog" below */
 	} else {
 		mlip_cli_field_name(m, st->reason_field, fname, sizeof(fname));
 		mlip_json_string(&j, "reason_field", fname);
 	}
 	mlip_json_number(&j, "reason_value", "%.17g", st->reason_value);
+	char jw[64];
+	if (jog_text(st, m, jw, sizeof(jw)) != NULL) {
+		mlip_json_string(&j, "jog", jw);
+	} else {
+		mlip_json_null(&j, "jog");
+	}
 	json_axes(&j, "position", m, st->pos, all);
 	/* where the current (or last) program began: a continuation's origin */
 	json_axes(&j, "program_start", m, st->prog_start, all);
@@ -379,6 +408,9 @@ static int cmd_status(struct mlip_shm *s, int json)
 	int rest = st.state == MLIP_STATE_IDLE || st.state == MLIP_STATE_STARVED;
 	printf("%s block %llu, line %u\n", rest ? "completed  " : "executing  ",
 	       (unsigned long long)st.exec_seq, (unsigned)st.exec_line);
+	if (jog_text(&st, &m, fname, sizeof(fname)) != NULL) {
+		printf("jog         %s\n", fname);
+	}
 	printf("why         %s", mlip_state_why_name(st.reason));
 	if (st.reason == MLIP_WHY_DRIVE) {
 		mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
@@ -386,6 +418,8 @@ static int cmd_status(struct mlip_shm *s, int json)
 		printf(": node %u, %s: %s, block %llu (line %u)", (unsigned)st.reason_node,
 		       mlip_drive_fault_name((mlip_drive_fault)st.reason_field), fname,
 		       (unsigned long long)st.reason_seq, (unsigned)st.reason_line);
+	} else if (st.reason == MLIP_WHY_JOG) {
+		printf(": %g mm/s (deg/s)", fabs(st.reason_value)); /* the axes: "jog" above */
 	} else if (st.reason_field != MLIP_FIELD_NONE) {
 		mlip_cli_field_name(&m, st.reason_field, fname, sizeof(fname));
 		printf(": record %llu (line %u), %s = %.17g", (unsigned long long)st.reason_seq,

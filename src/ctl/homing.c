@@ -267,11 +267,20 @@ void mlip_ct_home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 			uint16_t sw = in->drives.sw[k];
 			uint64_t when = in->drives.tpdo_period[k];
 			uint32_t bit = 1u << k;
-			if (!(c->home.group & bit) || (c->home.attained & bit)) {
-				continue;
-			}
 			/* only a TPDO that answers a SYNC after the start was applied */
 			int fresh = when != UINT64_MAX && when >= c->home.t0 + 1;
+			if (!(c->home.group & bit)) {
+				continue;
+			}
+			if (c->home.attained & bit) {
+				/* waiting for the rest of its group: a drive whose "homing
+				 * attained" (bit 12) drops has lost its home (it started
+				 * homing again, or lost its position): wait for it again */
+				if (fresh && !(sw & SW_HOMING_DONE)) {
+					c->home.attained &= ~bit;
+				}
+				continue;
+			}
 			if (fresh && (sw & SW_HOMING_ERROR)) {
 				home_fail(c, in, out, MLIP_WHY_HOMING_ERROR, k,
 				          (uint32_t)c->home.cfg.axis[k].method, (double)sw);

@@ -225,7 +225,7 @@ int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_
 	c->jog.renewed = c->period;
 	c->jog.end_why = incremental(c) ? MLIP_WHY_JOG_DONE : MLIP_WHY_JOG_END;
 	struct mlip_ctl_reason r = reason(MLIP_WHY_JOG, 0, 0);
-	r.field = axis;
+	r.field = MLIP_JOG_FIELD(axis, c->jog.axes, c->jog.negs, incremental(c));
 	r.value = neg ? -c->jog.speed : c->jog.speed;
 	go(c, out, MLIP_STATE_JOGGING, r);
 	return MLIP_OK;

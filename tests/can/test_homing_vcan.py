@@ -164,3 +164,20 @@ def test_homing_method_refused(sim, tmp_path):
         assert p.returncode == 1
         assert "node 1 refused 0x6098:00" in p.stderr and "0x06090030" in p.stderr, p.stderr
         assert rig.status()["reason"] == "homing object refused"
+
+
+def test_homed_lost_on_reboot(sim, tmp_path):
+    """A drive that reboots (gone from the bus, then back with its boot-up and
+    NMT pre-operational) has lost its home: its axis is no longer homed, the
+    others stay homed, the machine stops (a drive fault)."""
+    homes = {"X": (35, 0.0, 0), "Y": (35, -1.5, 0), "Z": (35, 10.0, 0)}
+    cfg = machine(tmp_path, [1, 2, 3], homes=homes)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        p = rig.ctl("home", check=False)
+        assert p.returncode == 0, p.stdout + p.stderr
+        assert rig.status()["homed"] == {"X": True, "Y": True, "Z": True}
+        sim.inject("2:absent")
+        sim.inject("2:present")
+        st = rig.wait_state("fault", timeout=60)
+        assert st["reason"] == "drive fault" and st["reason_node"] == 2, st
+        assert st["homed"] == {"X": True, "Y": False, "Z": True}, st

@@ -211,3 +211,21 @@ def test_jog_several_axes(controller, tmp_path):
     assert 20.0 * 0.99 <= v <= 20.0 * (1 + 1e-9)
     assert a <= A * (1 + 1e-6)
     assert rows[-1][1:] == (0.0, -5.0, 5.0)
+
+
+def test_jog_status(controller):
+    """Status shows the jog in progress, every axis with its direction."""
+    shm, rt = controller(MILL)
+    j = subprocess.Popen([tool("mlip-ctl"), "--shm", shm, "jog", "X+", "Y-", "600", "30"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        st = wait_for(lambda: (lambda s: s if s["state"] == "jog" else None)(status(shm)), 10)
+        assert st and st["jog"] == "X+ Y-", st
+        text = ctl(shm, "status").stdout
+        assert "jog         X+ Y-" in text, text
+    finally:
+        j.terminate()
+        j.wait(20)
+    st = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 10)
+    assert st and st["jog"] is None, st
+    assert st["position"]["X"] > 0 and st["position"]["Y"] == -st["position"]["X"], st

@@ -193,3 +193,23 @@ def test_mdi_bad_arguments(controller, tmp_path):
     p = ctl(shm, "mdi", "X" * 70000)
     assert p.returncode == 2 and "that is a program" in p.stderr
     assert position(shm)["X"] == 0.0
+
+
+def test_mdi_carries_tool_length_offset(controller, tmp_path):
+    """G43 H1 in one mdi, a move in the next: Z in machine coordinates is the
+    program's Z plus tool 1's length (the tool table's Z 10); G49 ends it."""
+    off = offsets_file(tmp_path / "off.txt")
+    tools = tmp_path / "tools.tbl"
+    tools.write_text("T1 P1 Z10 D6 ;6 mm flat\n")
+    subprocess.run([tool("mlip-tools"), "--accept", tools], check=True, capture_output=True)
+    shm, _ = controller(MILL)
+    p = ctl(shm, "mdi", "--offsets", off, "--tools", tools, "G43 H1")
+    assert p.returncode == 0, p.stderr
+    assert records(tmp_path / "off.txt.modal")["TOOL_OFFSET"] == "G43 10"
+    p = ctl(shm, "mdi", "--offsets", off, "--tools", tools, "G0 Z0")
+    assert p.returncode == 0, p.stderr
+    assert position(shm)["Z"] == 10.0
+    p = ctl(shm, "mdi", "--offsets", off, "--tools", tools, "G49", "G0 Z0")
+    assert p.returncode == 0, p.stderr
+    assert position(shm)["Z"] == 0.0
+    assert records(tmp_path / "off.txt.modal")["TOOL_OFFSET"] == "G49"

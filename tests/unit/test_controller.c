@@ -1992,6 +1992,39 @@ static void test_jog_multi_axis(void **st)
 	until(MLIP_STATE_IDLE, 1000);
 }
 
+/* X+ Y- released at 100 mm/s along the line: braking on the line at the
+ * per-axis limit, A sqrt(2) along it: v^2 / (2 A sqrt(2)) to rest. */
+static void test_jog_multi_release(void **st)
+{
+	(void)st;
+	double v[2] = {0.0, 0.0}, p0[2] = {0.0, 0.0};
+	assert_int_equal(jog_axis(1, 1, 0), MLIP_OK);
+	assert_int_equal(jog(0, 0, 6000), MLIP_OK);
+	jog_v0(p0, v);
+	jog2_ticks(400, 0, 6000, v);
+	assert_true(fabs(hypot(v[0], v[1]) - 100.0) < 1e-6);
+	double x0 = out.pos[0], y0 = out.pos[1];
+	assert_int_equal(jog(0, 0, 0), MLIP_OK); /* released */
+	double v_rel[2];
+	p0[0] = x0;
+	p0[1] = y0;
+	jog_v0(p0, v_rel); /* the release period's speeds: braking from it on */
+	double amax = fmax(fabs(v_rel[0] - v[0]), fabs(v_rel[1] - v[1])) / mach.period_s;
+	v[0] = v_rel[0];
+	v[1] = v_rel[1];
+	amax = fmax(amax, jog2_ticks(300, 0, 0, v));
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_RELEASED);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	double d = hypot(out.pos[0] - x0, out.pos[1] - y0);
+	double want = 100.0 * 100.0 / (2.0 * 1000.0 * sqrt(2.0));
+	print_message(
+	    "jog X+ Y- released at 100 mm/s: %.4f mm to rest, v^2/(2 A sqrt 2) = %.4f mm\n", d,
+	    want);
+	assert_true(d >= want * 0.999 && d <= want * 1.03);
+	assert_true(out.pos[0] == -out.pos[1]); /* on the line */
+}
+
 /* Refused: an axis not in the machine, a jog during a program, a second
  * axis during a jog; a hold ends a jog. */
 static void test_jog_refused(void **st)
@@ -2132,6 +2165,18 @@ static int32_t hcmd(uint32_t op, int32_t arg)
 	return r;
 }
 
+/* The controller started again on home_cfg, with two CiA 402 drives. */
+static void home_init(void)
+{
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .home = &home_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+}
+
 static int setup_home(void **state)
 {
 	setup_drives(state);
@@ -2148,13 +2193,7 @@ static int setup_home(void **state)
 		h->timeout_s = 2.0;
 	}
 	home_cfg.required = 1;
-	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
-	                          .lookahead = 16,
-	                          .can = &can_cia402,
-	                          .drives = 1,
-	                          .drive_state_periods = 50,
-	                          .home = &home_cfg};
-	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	home_init();
 	memset(&sdo_res, 0, sizeof(sdo_res));
 	memset(drv_obj, 0, sizeof(drv_obj));
 	drv_mode[0] = drv_mode[1] = 8;
@@ -2244,6 +2283,69 @@ static void test_home_sdo_refused(void **st)
 	assert_int_equal(hcmd(MLIP_CMD_HOME, 4), MLIP_E_RANGE); /* no axis 2 */
 }
 
+/* An axis is homed only while its drive keeps its home: "homing attained"
+ * (bit 12) dropping while its group waits makes it wait for that drive
+ * again (no return to CSP on a stale attained); a drive fault, and a reboot
+ * (its NMT state left operational: the boot-up), leave its axis not homed,
+ * the others homed. */
+static void test_home_lost(void **st)
+{
+	(void)st;
+	home_cfg.axis[0].sequence = 0; /* X (method 35: at once) with Y */
+	home_cfg.axis[1].method = 19;  /* the model never ends it: the test does */
+	home_init();
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_OK);
+	int i;
+	for (i = 0; i < 2000 && !drv_homing[1]; i++) {
+		htick(1); /* until bit 4's edge: Y searches, X (35) is home at once */
+	}
+	assert_true(i < 2000 && !drv_homing[0] && (drv_sw[0] & 0x1400) == 0x1400);
+	htick(20);
+	assert_true(drv_mode[0] == 6 && drv_mode[1] == 6); /* X waits for Y */
+	drv_sw[0] &= (uint16_t)~0x1000u;                   /* X's drive lost it */
+	htick(5);
+	drv_sw[1] |= 0x1400; /* Y attained */
+	drv_homing[1] = 0;
+	htick(50);
+	assert_int_equal(status().state, MLIP_STATE_HOMING); /* waiting for X again */
+	assert_true(drv_mode[0] == 6 && drv_mode[1] == 6);
+	assert_int_equal(status().homed, 0u);
+	drv_sw[0] |= 0x1000; /* attained again */
+	for (i = 0; i < 500 && status().state == MLIP_STATE_HOMING; i++) {
+		htick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_HOMED);
+	assert_int_equal(status().homed, 3u);
+	assert_true(drv_mode[0] == 8 && drv_mode[1] == 8);
+	/* X's drive reboots: its boot-up leaves NMT operational (rt/ reports it
+	 * as a drive fault) */
+	drv_fault.event = MLIP_DRIVE_NOT_OPERATIONAL;
+	drv_fault.node = 1;
+	drv_fault.value = 0; /* NMT boot-up */
+	htick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
+	assert_int_equal(status().homed, 2u); /* Y keeps its home */
+}
+
+/* A fault of Y's drive (statusword bit 3) after homing: Y not homed. */
+static void test_home_lost_fault(void **st)
+{
+	(void)st;
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_OK);
+	for (int i = 0; i < 5000 && status().state == MLIP_STATE_HOMING; i++) {
+		htick(1);
+	}
+	assert_int_equal(status().homed, 3u);
+	drv_fault.event = MLIP_DRIVE_FAULT_BIT;
+	drv_fault.node = 2;
+	drv_fault.value = 0x0218;
+	htick(1);
+	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
+	assert_int_equal(status().homed, 1u);
+}
+
 /* Homing error (bit 13) and a timeout: a fault naming node, method and
  * statusword, quick stop, CSP back. */
 static void test_home_error_and_timeout(void **st)
@@ -2252,13 +2354,7 @@ static void test_home_error_and_timeout(void **st)
 	home_cfg.axis[1].method = 1;
 	home_cfg.axis[0].method = 36;
 	home_cfg.axis[0].timeout_s = 0.5;
-	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
-	                          .lookahead = 16,
-	                          .can = &can_cia402,
-	                          .drives = 1,
-	                          .drive_state_periods = 50,
-	                          .home = &home_cfg};
-	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	home_init();
 	assert_int_equal(hcmd(MLIP_CMD_HOME, 2), MLIP_OK);
 	for (int i = 0; i < 500 && status().state == MLIP_STATE_HOMING; i++) {
 		htick(1);
@@ -2351,10 +2447,13 @@ int main(void)
 	    T(test_jog_refused),
 	    T(test_jog_incremental),
 	    T(test_jog_multi_axis),
+	    T(test_jog_multi_release),
 	    TD(test_jog_drives),
 	    TH(test_home_sequence),
 	    TH(test_home_sdo_refused),
 	    TH(test_home_error_and_timeout),
+	    TH(test_home_lost),
+	    TH(test_home_lost_fault),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

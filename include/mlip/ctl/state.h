@@ -85,7 +85,8 @@ typedef enum {
 	                            function (MLIP_IN_LIMIT_NEG/POS(k): axis and direction),
 	                            reason_node its node */
 	MLIP_WHY_RESET,          /* mlip-ctl reset after an E-stop or a limit */
-	MLIP_WHY_JOG,            /* a jog started (reason_field: the axis, reason_value: the
+	MLIP_WHY_JOG,            /* a jog started (reason_field: MLIP_JOG_FIELD, mlip/ipc/
+	                            ring.h: its axes and directions; reason_value: the
 	                            speed, mm/s or deg/s, negative toward MIN_LIMIT) */
 	MLIP_WHY_JOG_RELEASED,   /* its client stopped it: at rest at the acceleration limit */
 	MLIP_WHY_JOG_DEADMAN,    /* its client stopped renewing it (MLIP_JOG_DEADMAN_S) */

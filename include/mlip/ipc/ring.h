@@ -264,6 +264,12 @@ typedef enum {
 	((int32_t)(((uint32_t)(axis)&7u) | ((neg) ? 8u : 0u) | (((uint32_t)(um)&0xFFFFFu) << 4)))
 #define MLIP_JOG_DIST_MAX  1048575u /* um (1.048575 m) or millidegrees */
 #define MLIP_JOG_DEADMAN_S 0.25     /* a jog not renewed for this long stops */
+/* The status' reason_field while a jog runs (reason MLIP_WHY_JOG): its
+ * command's axis (bits 0-7), the axes that move (bits 8-15), those toward
+ * their MIN_LIMIT (bits 16-23), incremental (bit 24). */
+#define MLIP_JOG_FIELD(axis, axes, negs, inc)                                                      \
+	(((uint32_t)(axis)&0xFFu) | ((uint32_t)(axes)&0xFFu) << 8 |                                \
+	 ((uint32_t)(negs)&0xFFu) << 16 | ((inc) ? 1u << 24 : 0u))
 
 struct mlip_ring_cmd {
 	uint32_t seq; /* mailbox sequence number of this command (even, > 0) */
