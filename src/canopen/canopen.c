@@ -349,3 +349,30 @@ const char *mlip_sdo_abort_text(uint32_t code)
 	}
 	return "unknown abort code";
 }
+
+static void sdo_add(struct mlip_sdo_list *l, uint16_t index, uint8_t sub, uint8_t size,
+                    uint32_t value, uint8_t read_only, const char *what)
+{
+	if (l->n < l->cap) {
+		struct mlip_sdo_entry *e = &l->e[l->n];
+		e->index = index;
+		e->sub = sub;
+		e->size = size;
+		e->value = value;
+		e->read_only = read_only;
+		e->what = what;
+	}
+	l->n++;
+}
+
+void mlip_sdo_add(struct mlip_sdo_list *l, uint16_t index, uint8_t sub, uint8_t size,
+                  uint32_t value, const char *what)
+{
+	sdo_add(l, index, sub, size, value, 0, what);
+}
+
+void mlip_sdo_add_check(struct mlip_sdo_list *l, uint16_t index, uint8_t sub, uint8_t size,
+                        uint32_t value, const char *what)
+{
+	sdo_add(l, index, sub, size, value, 1, what);
+}

@@ -36,52 +36,38 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 	const uint32_t off = 0x80000000u, no_rtr = 0x40000000u;
 	uint8_t pv;
 	int8_t pi;
-	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
-	int n = 0;
+	struct mlip_sdo_list l = {out, cap, 0};
 
 	if (mlip_co_interp_period(d->period_s, &pv, &pi) != MLIP_OK) {
 		return -1;
 	}
-#define ADD(ix, sb, sz, val, w)                                                                    \
-	do {                                                                                       \
-		e[n].index = (ix);                                                                 \
-		e[n].sub = (sb);                                                                   \
-		e[n].size = (sz);                                                                  \
-		e[n].value = (val);                                                                \
-		e[n].read_only = 0;                                                                \
-		e[n].what = (w);                                                                   \
-		n++;                                                                               \
-	} while (0)
-	ADD(0x1400, 1, 4, off | d->rpdo_cob, "RPDO1 COB-ID (disabled while mapping)");
-	ADD(0x1400, 2, 1, 1, "RPDO1 transmission type (synchronous)");
-	ADD(0x1600, 0, 1, 0, "RPDO1 mapping count (cleared)");
-	ADD(0x1600, 1, 4, 0x60400010u, "RPDO1 mapping 1: controlword 0x6040");
-	ADD(0x1600, 2, 4, 0x607A0020u, "RPDO1 mapping 2: target position 0x607A");
-	ADD(0x1600, 0, 1, 2, "RPDO1 mapping count");
-	ADD(0x1400, 1, 4, d->rpdo_cob, "RPDO1 COB-ID");
-	ADD(0x1800, 1, 4, off | no_rtr | d->tpdo_cob, "TPDO1 COB-ID (disabled while mapping)");
-	ADD(0x1800, 2, 1, 1, "TPDO1 transmission type (synchronous, every SYNC)");
-	ADD(0x1A00, 0, 1, 0, "TPDO1 mapping count (cleared)");
-	ADD(0x1A00, 1, 4, 0x60410010u, "TPDO1 mapping 1: statusword 0x6041");
-	ADD(0x1A00, 2, 4, 0x60640020u, "TPDO1 mapping 2: position actual value 0x6064");
-	ADD(0x1A00, 0, 1, 2, "TPDO1 mapping count");
-	ADD(0x1800, 1, 4, no_rtr | d->tpdo_cob, "TPDO1 COB-ID");
-	ADD(0x1005, 0, 4, d->sync_id, "COB-ID SYNC (consumer)");
-	ADD(0x6060, 0, 1, MLIP_402_MODE_CSP, "modes of operation (8: cyclic synchronous position)");
-	ADD(0x6061, 0, 1, MLIP_402_MODE_CSP, "modes of operation display");
-	e[n - 1].read_only = 1;
-	ADD(0x60C2, 1, 1, pv, "interpolation time period value");
-	ADD(0x60C2, 2, 1, (uint8_t)pi, "interpolation time index");
-	ADD(0x6065, 0, 4, d->following_window_counts, "following error window");
-	ADD(0x1017, 0, 2, d->heartbeat_ms, "producer heartbeat time (ms)");
-	ADD(0x1016, 1, 4, ((uint32_t)d->master_node << 16) | d->master_timeout_ms,
-	    "consumer heartbeat time: the master's node and timeout (ms)");
-#undef ADD
-	if (n > cap) {
-		return -1;
-	}
-	memcpy(out, e, (size_t)n * sizeof(e[0]));
-	return n;
+	mlip_sdo_add(&l, 0x1400, 1, 4, off | d->rpdo_cob, "RPDO1 COB-ID (disabled while mapping)");
+	mlip_sdo_add(&l, 0x1400, 2, 1, 1, "RPDO1 transmission type (synchronous)");
+	mlip_sdo_add(&l, 0x1600, 0, 1, 0, "RPDO1 mapping count (cleared)");
+	mlip_sdo_add(&l, 0x1600, 1, 4, 0x60400010u, "RPDO1 mapping 1: controlword 0x6040");
+	mlip_sdo_add(&l, 0x1600, 2, 4, 0x607A0020u, "RPDO1 mapping 2: target position 0x607A");
+	mlip_sdo_add(&l, 0x1600, 0, 1, 2, "RPDO1 mapping count");
+	mlip_sdo_add(&l, 0x1400, 1, 4, d->rpdo_cob, "RPDO1 COB-ID");
+	mlip_sdo_add(&l, 0x1800, 1, 4, off | no_rtr | d->tpdo_cob,
+	             "TPDO1 COB-ID (disabled while mapping)");
+	mlip_sdo_add(&l, 0x1800, 2, 1, 1, "TPDO1 transmission type (synchronous, every SYNC)");
+	mlip_sdo_add(&l, 0x1A00, 0, 1, 0, "TPDO1 mapping count (cleared)");
+	mlip_sdo_add(&l, 0x1A00, 1, 4, 0x60410010u, "TPDO1 mapping 1: statusword 0x6041");
+	mlip_sdo_add(&l, 0x1A00, 2, 4, 0x60640020u,
+	             "TPDO1 mapping 2: position actual value 0x6064");
+	mlip_sdo_add(&l, 0x1A00, 0, 1, 2, "TPDO1 mapping count");
+	mlip_sdo_add(&l, 0x1800, 1, 4, no_rtr | d->tpdo_cob, "TPDO1 COB-ID");
+	mlip_sdo_add(&l, 0x1005, 0, 4, d->sync_id, "COB-ID SYNC (consumer)");
+	mlip_sdo_add(&l, 0x6060, 0, 1, MLIP_402_MODE_CSP,
+	             "modes of operation (8: cyclic synchronous position)");
+	mlip_sdo_add_check(&l, 0x6061, 0, 1, MLIP_402_MODE_CSP, "modes of operation display");
+	mlip_sdo_add(&l, 0x60C2, 1, 1, pv, "interpolation time period value");
+	mlip_sdo_add(&l, 0x60C2, 2, 1, (uint8_t)pi, "interpolation time index");
+	mlip_sdo_add(&l, 0x6065, 0, 4, d->following_window_counts, "following error window");
+	mlip_sdo_add(&l, 0x1017, 0, 2, d->heartbeat_ms, "producer heartbeat time (ms)");
+	mlip_sdo_add(&l, 0x1016, 1, 4, ((uint32_t)d->master_node << 16) | d->master_timeout_ms,
+	             "consumer heartbeat time: the master's node and timeout (ms)");
+	return l.n > cap ? -1 : l.n;
 }
 
 /* ---- supervision ------------------------------------------------------------------------ */

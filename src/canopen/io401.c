@@ -20,50 +20,36 @@ int mlip_io401_setup_entries(const struct mlip_io401_setup *s, struct mlip_sdo_e
 	    "RPDO1 mapping: digital outputs 0x6200:7", "RPDO1 mapping: digital outputs 0x6200:8"};
 	const uint32_t off = 0x80000000u, no_rtr = 0x40000000u;
 	const uint32_t tpdo = 0x180u + s->node, rpdo = 0x200u + s->node;
-	struct mlip_sdo_entry e[MLIP_IO401_SETUP_MAX];
-	int n = 0;
+	struct mlip_sdo_list l = {out, cap, 0};
 	uint32_t k;
 
 	if (s->in_bytes < 1 || s->in_bytes > MLIP_IO_IN_BYTES || s->out_bytes > MLIP_IO_IN_BYTES) {
 		return -1;
 	}
-#define ADD(ix, sb, sz, val, w)                                                                    \
-	do {                                                                                       \
-		e[n].index = (ix);                                                                 \
-		e[n].sub = (sb);                                                                   \
-		e[n].size = (sz);                                                                  \
-		e[n].value = (val);                                                                \
-		e[n].read_only = 0;                                                                \
-		e[n].what = (w);                                                                   \
-		n++;                                                                               \
-	} while (0)
-	ADD(0x1800, 1, 4, off | no_rtr | tpdo, "TPDO1 COB-ID (disabled while mapping)");
-	ADD(0x1800, 2, 1, 255, "TPDO1 transmission type (255: on change)");
-	ADD(0x1A00, 0, 1, 0, "TPDO1 mapping count (cleared)");
+	mlip_sdo_add(&l, 0x1800, 1, 4, off | no_rtr | tpdo,
+	             "TPDO1 COB-ID (disabled while mapping)");
+	mlip_sdo_add(&l, 0x1800, 2, 1, 255, "TPDO1 transmission type (255: on change)");
+	mlip_sdo_add(&l, 0x1A00, 0, 1, 0, "TPDO1 mapping count (cleared)");
 	for (k = 1; k <= s->in_bytes; k++) {
-		ADD(0x1A00, (uint8_t)k, 4, 0x60000008u | k << 8, in_map[k - 1]);
+		mlip_sdo_add(&l, 0x1A00, (uint8_t)k, 4, 0x60000008u | k << 8, in_map[k - 1]);
 	}
-	ADD(0x1A00, 0, 1, s->in_bytes, "TPDO1 mapping count");
-	ADD(0x1800, 1, 4, no_rtr | tpdo, "TPDO1 COB-ID");
+	mlip_sdo_add(&l, 0x1A00, 0, 1, s->in_bytes, "TPDO1 mapping count");
+	mlip_sdo_add(&l, 0x1800, 1, 4, no_rtr | tpdo, "TPDO1 COB-ID");
 	if (s->out_bytes > 0) {
-		ADD(0x1400, 1, 4, off | rpdo, "RPDO1 COB-ID (disabled while mapping)");
-		ADD(0x1400, 2, 1, 255, "RPDO1 transmission type (255: on reception)");
-		ADD(0x1600, 0, 1, 0, "RPDO1 mapping count (cleared)");
+		mlip_sdo_add(&l, 0x1400, 1, 4, off | rpdo, "RPDO1 COB-ID (disabled while mapping)");
+		mlip_sdo_add(&l, 0x1400, 2, 1, 255, "RPDO1 transmission type (255: on reception)");
+		mlip_sdo_add(&l, 0x1600, 0, 1, 0, "RPDO1 mapping count (cleared)");
 		for (k = 1; k <= s->out_bytes; k++) {
-			ADD(0x1600, (uint8_t)k, 4, 0x62000008u | k << 8, out_map[k - 1]);
+			mlip_sdo_add(&l, 0x1600, (uint8_t)k, 4, 0x62000008u | k << 8,
+			             out_map[k - 1]);
 		}
-		ADD(0x1600, 0, 1, s->out_bytes, "RPDO1 mapping count");
-		ADD(0x1400, 1, 4, rpdo, "RPDO1 COB-ID");
+		mlip_sdo_add(&l, 0x1600, 0, 1, s->out_bytes, "RPDO1 mapping count");
+		mlip_sdo_add(&l, 0x1400, 1, 4, rpdo, "RPDO1 COB-ID");
 	}
-	ADD(0x1017, 0, 2, s->heartbeat_ms, "producer heartbeat time (ms)");
-	ADD(0x1016, 1, 4, ((uint32_t)s->master_node << 16) | s->master_timeout_ms,
-	    "consumer heartbeat time: the master's node and timeout (ms)");
-#undef ADD
-	if (n > cap) {
-		return -1;
-	}
-	memcpy(out, e, (size_t)n * sizeof(e[0]));
-	return n;
+	mlip_sdo_add(&l, 0x1017, 0, 2, s->heartbeat_ms, "producer heartbeat time (ms)");
+	mlip_sdo_add(&l, 0x1016, 1, 4, ((uint32_t)s->master_node << 16) | s->master_timeout_ms,
+	             "consumer heartbeat time: the master's node and timeout (ms)");
+	return l.n > cap ? -1 : l.n;
 }
 
 uint32_t mlip_io_eval(const struct mlip_io_config *io, const struct mlip_machine *m,

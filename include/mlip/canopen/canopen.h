@@ -145,4 +145,31 @@ void mlip_sdo_abort_encode(uint8_t node, uint16_t index, uint8_t sub, uint32_t c
  * "unknown abort code" otherwise. */
 const char *mlip_sdo_abort_text(uint32_t code);
 
+/* ---- a node's set-up by SDO (a drive's, an I/O module's) ------------------- */
+
+/* One SDO step of the set-up: write then read back (or only read and compare). */
+struct mlip_sdo_entry {
+	uint16_t index;
+	uint8_t sub;
+	uint8_t size;      /* bytes: 1, 2 or 4 */
+	uint32_t value;    /* as written (an INTEGER8 as its two's complement byte) */
+	uint8_t read_only; /* 1: read and compare only (0x6061) */
+	const char *what;  /* "modes of operation", ... for messages and the README */
+};
+
+/* A set-up list being built in order into e[cap]: n counts every entry
+ * added, those past cap are not stored (n > cap: it did not fit). */
+struct mlip_sdo_list {
+	struct mlip_sdo_entry *e;
+	int cap;
+	int n;
+};
+
+/* The next entry: written, then read back. */
+void mlip_sdo_add(struct mlip_sdo_list *l, uint16_t index, uint8_t sub, uint8_t size,
+                  uint32_t value, const char *what);
+/* The next entry: only read, and compared with value. */
+void mlip_sdo_add_check(struct mlip_sdo_list *l, uint16_t index, uint8_t sub, uint8_t size,
+                        uint32_t value, const char *what);
+
 #endif

@@ -28,16 +28,6 @@ struct mlip_drive_setup {
 	uint16_t master_timeout_ms;
 };
 
-/* One SDO step of the set-up: write then read back (or only read and compare). */
-struct mlip_sdo_entry {
-	uint16_t index;
-	uint8_t sub;
-	uint8_t size;      /* bytes: 1, 2 or 4 */
-	uint32_t value;    /* as written (an INTEGER8 as its two's complement byte) */
-	uint8_t read_only; /* 1: read and compare only (0x6061) */
-	const char *what;  /* "modes of operation", ... for messages and the README */
-};
-
 #define MLIP_DRIVE_SETUP_MAX 24
 
 /* The interpolation time period 0x60C2 as value * 10^index s: value 1..255,
