@@ -15,6 +15,7 @@
 #include <stddef.h>
 #include <string.h>
 
+#include "machio.h"
 #include "mlip/canopen/drive.h"
 
 static void progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line);
@@ -56,6 +57,10 @@ static void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t state,
 	}
 	c->state = state;
 	c->why = r;
+	if (state == MLIP_STATE_IDLE || state == MLIP_STATE_STOPPING || state == MLIP_STATE_FAULT ||
+	    state == MLIP_STATE_ESTOP) {
+		mlip_mio_all_off(c); /* a program's end, a stop, a fault, an E-stop (issue 19) */
+	}
 	emit(c, out, MLIP_EV_STATE, from, &r);
 }
 
@@ -176,8 +181,8 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 	/* the rule set the G-code reader keeps too (mlip/types.h), on the
 	 * fields it reads (a whole mlip_ring_rec_to_block doubled the cost) */
 	struct mlip_block b;
-	b.kind = rec->type == MLIP_REC_MOVE    ? MLIP_BLOCK_MOVE
-	         : rec->type == MLIP_REC_DWELL ? MLIP_BLOCK_DWELL
+	b.kind = rec->type == MLIP_REC_MOVE || rec->type == MLIP_REC_PROBE ? MLIP_BLOCK_MOVE
+	         : rec->type == MLIP_REC_DWELL                             ? MLIP_BLOCK_DWELL
 	                                       : MLIP_BLOCK_PAUSE; /* END, pauses: no rule */
 	b.dwell_s = rec->dwell_s;
 	for (int k = 0; k < m->n_axes; k++) {
@@ -206,6 +211,16 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 	      rec->dwell_s == (MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD))) {
 		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
 	}
+	/* M64/M65: +-(n + 1) of an output n; G38: MLIP_PROBE_* bits (issue 19) */
+	if (rec->type == MLIP_REC_OUTPUT &&
+	    !(fabs(rec->dwell_s) >= 1.0 && fabs(rec->dwell_s) <= MLIP_DOUT_MAX &&
+	      rec->dwell_s == floor(rec->dwell_s))) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
+	if (rec->type == MLIP_REC_PROBE &&
+	    !(rec->dwell_s >= 0.0 && rec->dwell_s <= 3.0 && rec->dwell_s == floor(rec->dwell_s))) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
 	if (rule >= MLIP_RULE_TARGET && rule < MLIP_RULE_TARGET + MLIP_MAX_AXES) {
 		int k = rule - MLIP_RULE_TARGET;
 		return bad(why, rec, MLIP_FIELD_TARGET + (uint32_t)k, rec->target[k]);
@@ -223,7 +238,8 @@ static int is_event(const struct mlip_ring_rec *rec)
 {
 	return rec->type == MLIP_REC_DWELL || rec->type == MLIP_REC_PAUSE ||
 	       rec->type == MLIP_REC_OPTIONAL_PAUSE || rec->type == MLIP_REC_SPINDLE ||
-	       rec->type == MLIP_REC_TOOL || rec->type == MLIP_REC_COOLANT;
+	       rec->type == MLIP_REC_TOOL || rec->type == MLIP_REC_COOLANT ||
+	       rec->type == MLIP_REC_OUTPUT || rec->type == MLIP_REC_PROBE;
 }
 
 /* The ring is empty and nothing will fill it. */
@@ -1135,6 +1151,27 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		c->wait.dwell_left = (uint64_t)floor(rec->dwell_s / c->m.period_s + 0.5);
 		r.value = rec->dwell_s;
 		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_OUTPUT ||
+	           (rec->type == MLIP_REC_COOLANT && mlip_mio_coolant_io(c))) {
+		/* the module's outputs, at rest: a wait of no period (issue 19) */
+		struct mlip_ctl_reason w;
+		if (mlip_mio_switch(c, rec, &w) != MLIP_OK) {
+			fault(c, out, w);
+			return;
+		}
+		c->wait.dwell_left = 0;
+		r.why = MLIP_WHY_OUTPUT;
+		r.field = rec->type;
+		r.value = rec->dwell_s;
+		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_PROBE) {
+		/* G38: its move, watched by mlip_mio_period (issue 19) */
+		struct mlip_ctl_reason w;
+		if (mlip_mio_probe_start(c, rec, &w) != MLIP_OK) {
+			fault(c, out, w);
+			return;
+		}
+		go(c, out, MLIP_STATE_RUNNING, w);
 	} else if (rec->type == MLIP_REC_SPINDLE || rec->type == MLIP_REC_TOOL ||
 	           rec->type == MLIP_REC_COOLANT) {
 		/* a manual spindle, tool change or coolant: the operator does it
@@ -1379,6 +1416,9 @@ static void blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 	}
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD: {
+		if (c->mio.probe_on) {
+			return; /* a probe move: what follows is taken once it ended */
+		}
 		if (mlip_planner_queued(c->planner) == 0 && have && is_event(head) &&
 		    mlip_ctl_check_record(&c->m, head, c->prog.next_seq, NULL) == MLIP_OK) {
 			start_event(c, out, in, head);
@@ -1474,7 +1514,16 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 	switch (c->state) {
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD:
-		if (rs == MLIP_RUN_IDLE && c->prog.end.seq != 0) {
+		if (rs == MLIP_RUN_IDLE && c->mio.probe_on) {
+			/* the probe move at rest: its result, then the program goes on */
+			struct mlip_ctl_reason w;
+			c->prog.exec = c->wait.at;
+			if (mlip_mio_probe_end(c, &w) != MLIP_OK) {
+				fault(c, out, w);
+			} else {
+				end_wait(c, out, in, 0, MLIP_WHY_PROBED);
+			}
+		} else if (rs == MLIP_RUN_IDLE && c->prog.end.seq != 0) {
 			c->prog.exec = c->prog.end; /* the program is done, at rest */
 			c->prog.end.seq = 0;
 			go(c, out, MLIP_STATE_IDLE,
@@ -1638,6 +1687,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		drive_fault(c, out, &in->drives.fault);
 	}
 
+	mlip_mio_period(c, in); /* the probe's trip, before the records */
 	jog_period(c, out);
 	home_period(c, in, out);
 	blocks_in(c, in, out);
@@ -1703,6 +1753,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->sdo = c->home.req;
 	out->homing = c->home.on && c->home.step >= HS_ARM ? c->home.group : 0;
 	out->status.homed = c->home.homed;
+	mlip_mio_publish(c, &out->status);
 	out->power.ok = c->power.seq.ok;
 	out->power.late_node =
 	    c->power.seq.late >= 0 ? (uint32_t)c->m.axis[c->power.seq.late].can_node : 0;
