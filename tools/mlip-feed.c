@@ -116,7 +116,7 @@ static void usage(FILE *f)
 	        "errors, no controller, another feeder); 2 usage; 3 controller stopped\n"
 	        "responding; 4 stopped on the path (mlip-ctl stop, or mlip-rt told to exit by\n"
 	        "a signal), or mlip-ctl stop before the program started (nothing moved);\n"
-	        "5 controller fault;\n"
+	        "5 controller fault, or a probe error (G38: no trip, tripped at the start);\n"
 	        "128+N interrupted by signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP, 131\n"
 	        "SIGQUIT): the machine was stopped on the path\n");
 }
@@ -695,6 +695,11 @@ static void io_after_stop(struct feed *f, const struct mlip_machine *m)
 			        ": the spindle turns since line %u (%g rpm %s): the program did "
 			        "not stop it\n",
 			        line, fabs(v), v > 0 ? "clockwise" : "counter-clockwise");
+		} else if (kd == 2 && v != 0 && f->io.coolant == MLIP_IO_MODULE) {
+			/* the module's outputs: the controller switched them off */
+			fprintf(stderr,
+			        PROG ": coolant on since line %u: switched off by the stop\n",
+			        line);
 		} else if (kd == 2 && v != 0) {
 			fprintf(stderr,
 			        PROG ": coolant on since line %u: the program did not stop it\n",
@@ -834,6 +839,13 @@ static int operator_stop(struct feed *f)
 		             "dropped it, nothing moved\n",
 		        f->path);
 		return EXIT_OPERATOR;
+	}
+	if (f->st.reason == MLIP_WHY_PROBE_NO_TRIP || f->st.reason == MLIP_WHY_PROBE_AT_START ||
+	    f->st.reason == MLIP_WHY_PROBE_INPUT) {
+		/* a probe error ends the program at rest (LinuxCNC) */
+		fprintf(stderr, PROG ": %s:%u: %s: the program stopped there, at rest\n", f->path,
+		        (unsigned)f->st.reason_line, mlip_state_why_name(f->st.reason));
+		return EXIT_FAULT;
 	}
 	uint64_t next = rest_seq(f);
 	fprintf(stderr,

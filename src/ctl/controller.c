@@ -1136,6 +1136,21 @@ static void io_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 
 /* ---- waits: dwell, pause ------------------------------------------------- */
 
+/* A probe that cannot start or did not trip (G38.2/.4) stops the program
+ * at rest, as LinuxCNC's probe errors end theirs: the rest of it is
+ * dropped, the machine stays ready (idle, the reason named); a record the
+ * planner refused is a fault as any. */
+static void probe_abort(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl_reason r)
+{
+	if (r.why == MLIP_WHY_BAD_RECORD) {
+		fault(c, out, r);
+		return;
+	}
+	c->prog.discard = 1;
+	c->prog.end.seq = 0;
+	go(c, out, MLIP_STATE_IDLE, r);
+}
+
 /* At rest with an event record next: take it. */
 static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
                        const struct mlip_ring_rec *rec)
@@ -1168,7 +1183,7 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		/* G38: its move, watched by mlip_mio_period (issue 19) */
 		struct mlip_ctl_reason w;
 		if (mlip_mio_probe_start(c, rec, &w) != MLIP_OK) {
-			fault(c, out, w);
+			probe_abort(c, out, w);
 			return;
 		}
 		go(c, out, MLIP_STATE_RUNNING, w);
@@ -1519,7 +1534,7 @@ static void after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struc
 			struct mlip_ctl_reason w;
 			c->prog.exec = c->wait.at;
 			if (mlip_mio_probe_end(c, &w) != MLIP_OK) {
-				fault(c, out, w);
+				probe_abort(c, out, w);
 			} else {
 				end_wait(c, out, in, 0, MLIP_WHY_PROBED);
 			}

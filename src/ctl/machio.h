@@ -7,7 +7,9 @@
  *     (a program's end, a stop, a fault, an E-stop);
  *   - G38.2..G38.5: a move toward the target that stops on the path at the
  *     acceleration limit (mlip_planner_stop) in the period the probe input
- *     changes, the position of that period latched as the result.
+ *     changes, the position of that period latched as the result; a probe
+ *     error (no trip for G38.2/.4, tripped at the start, no input) stops the
+ *     program at rest (idle, the reason named).
  */
 #ifndef MLIP_CTL_MACHIO_H
 #define MLIP_CTL_MACHIO_H

@@ -592,19 +592,30 @@ static void test_probe_trips_and_stops_on_the_path(void **st)
 	              v * v / (2 * A) * 1e3);
 }
 
-/* G38.2 that reaches its target without a trip: a fault at the target;
- * G38.3 the same: the program goes on, #5070 = 0. */
+/* G38.2 that reaches its target without a trip: the program stops there
+ * (idle, the rest dropped, a new program runs); G38.3 the same: the
+ * program goes on, #5070 = 0. */
 static void test_probe_no_trip(void **st)
 {
 	(void)st;
 	push_block(1, MLIP_BLOCK_PROBE, 2, 0, 10, MLIP_PROBE_MUST_TRIP);
 	push_block(2, MLIP_BLOCK_MOVE, 0, 0, 100, 0);
 	end(3);
-	until(MLIP_STATE_FAULT, 5000);
+	until(MLIP_STATE_IDLE, 5000);
 	assert_int_equal(out.status.reason, MLIP_WHY_PROBE_NO_TRIP);
 	assert_int_equal(out.status.reason_line, 2);
 	assert_true(out.pos[0] == 2.0);
 	assert_int_equal(out.status.probe_tripped, 0);
+	tick(5);
+	assert_true(out.pos[0] == 2.0);               /* the rest never ran */
+	assert_int_equal(mlip_ring_count(ring), 0);   /* dropped */
+	push_block(1, MLIP_BLOCK_MOVE, 3, 0, 100, 0); /* the next program runs */
+	end(2);
+	for (int i = 0; i < 5000 && out.status.reason != MLIP_WHY_END; i++) {
+		tick(1);
+	}
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	assert_true(out.pos[0] == 3.0);
 	teardown(NULL);
 	setup(NULL);
 	push_block(1, MLIP_BLOCK_PROBE, 2, 0, 10, 0);
@@ -618,7 +629,7 @@ static void test_probe_no_trip(void **st)
 	assert_true(out.pos[0] == 0.0);
 }
 
-/* Tripped at the start (G38.2/.3): a fault, nothing moves; G38.4 (away)
+/* Tripped at the start (G38.2/.3): the program stops, nothing moves; G38.4 (away)
  * with the probe off at the start: the same. G38.4 with it on trips when
  * it goes off. */
 static void test_probe_at_start_and_away(void **st)
@@ -627,14 +638,14 @@ static void test_probe_at_start_and_away(void **st)
 	io_in.active |= BIT(MLIP_IN_PROBE);
 	push_block(1, MLIP_BLOCK_PROBE, 5, 0, 10, 0);
 	end(2);
-	until(MLIP_STATE_FAULT, 100);
+	until(MLIP_STATE_IDLE, 100);
 	assert_int_equal(out.status.reason, MLIP_WHY_PROBE_AT_START);
 	assert_true(out.pos[0] == 0.0);
 	teardown(NULL);
 	setup(NULL);
 	push_block(1, MLIP_BLOCK_PROBE, 5, 0, 10, MLIP_PROBE_AWAY | MLIP_PROBE_MUST_TRIP);
 	end(2);
-	until(MLIP_STATE_FAULT, 100);
+	until(MLIP_STATE_IDLE, 100);
 	assert_int_equal(out.status.reason, MLIP_WHY_PROBE_AT_START);
 	assert_true(out.pos[0] == 0.0);
 	teardown(NULL);
@@ -649,14 +660,14 @@ static void test_probe_at_start_and_away(void **st)
 	assert_true(out.status.probe_pos[0] >= 1.5 && out.status.probe_pos[0] <= 1.5 + 0.01);
 }
 
-/* No probe input read: a G38 faults before it moves. */
+/* No probe input read: a G38 stops the program before it moves. */
 static void test_probe_input_unread(void **st)
 {
 	(void)st;
 	io_in.known &= ~BIT(MLIP_IN_PROBE);
 	push_block(1, MLIP_BLOCK_PROBE, 5, 0, 10, 0);
 	end(2);
-	until(MLIP_STATE_FAULT, 100);
+	until(MLIP_STATE_IDLE, 100);
 	assert_int_equal(out.status.reason, MLIP_WHY_PROBE_INPUT);
 	assert_true(out.pos[0] == 0.0);
 }
