@@ -87,10 +87,22 @@ def test_coolant_and_output_follow_the_program(sim, tmp_path):
     ngc.write_text("G21 G90\nM8\nM64 P0\nG1 X20 F1200\nM65 P0\nG1 X0\nM2\n")
     t0 = time.time()
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        # mlip-feed checks against the running controller's outputs: refused
+        # at line:col, nothing sent
+        for text, where, what in (
+            ("G1 X1 F600\nM64 P1\n", "2:5", "digital output 1 is not mapped ([IO] OUTPUT_1)"),
+            ("G1 X1 F600\nM62 P0\n", "2:1", "synchronized with motion"),
+            ("G1 X1 F600\nG38.2 X1\n", "2:1", "to the current position"),
+        ):
+            bad = tmp_path / "bad.ngc"
+            bad.write_text(text)
+            rc, out, err = rig.feed(bad, timeout=120)
+            assert rc == 1 and f"bad.ngc:{where}: error:" in err and what in err, (rc, err)
         rc, out, err = rig.feed(ngc, timeout=600)
         assert rc == 0, err
         st = rig.status()
         assert st["coolant"] == {"mist": False, "flood": False} and st["outputs"] == {}, st
+        assert "outputs    coolant off, module outputs all off" in rig.ctl("status").stdout
     io = {r["sync"]: r["outputs"][0] for r in io_after(sim, t0)}
     xs = [(s, t) for s, t in targets(sim, 1, t0) if t is not None]
     out_moving = []  # the outputs at every SYNC X moved at, by direction
@@ -145,6 +157,8 @@ def test_outputs_off_on_stop_and_estop(sim, tmp_path):
         st = rig.status()
         assert st["coolant"] == {"mist": True, "flood": True}, st
         assert st["outputs"] == {"0x6200:1": 0x07}, st
+        text = rig.ctl("status").stdout
+        assert "outputs    coolant mist+flood, 0x6200:1 = 0x07" in text, text
         t_stop = time.time()
         rig.ctl("stop")
         rig.wait_state("idle", timeout=120)
