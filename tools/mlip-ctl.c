@@ -430,7 +430,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 		}
 		printf("\n");
 	}
-	mlip_iostatus_text(stdout, &m, &st); /* outputs, coolant, the last probe (issue 19) */
+	mlip_iostatus_text(stdout, &m, &st, s->ring); /* outputs, coolant, the last probe */
 	printf("position   ");
 	for (int k = 0; k < m.n_axes; k++) {
 		printf(" %c %.4f", m.axis[k].letter, st.pos[k]);

@@ -6,6 +6,8 @@
 
 #include <stdio.h>
 
+#include "mlip/gcode/gcode.h"
+
 /* LinuxCNC numbers the probe's parameters by axis X Y Z A B C U V W: #5061 + i. */
 static int param_of(char letter)
 {
@@ -63,7 +65,7 @@ void mlip_iostatus_json(struct mlip_json *j, const struct mlip_machine *m,
 	mlip_json_close(j);
 }
 
-void mlip_iostatus_text(FILE *f, const struct mlip_machine *m, const struct mlip_ring_status *st)
+static void outputs_line(FILE *f, const struct mlip_ring_status *st)
 {
 	fprintf(f, "outputs    coolant %s",
 	        st->coolant == 0                    ? "off"
@@ -80,6 +82,19 @@ void mlip_iostatus_text(FILE *f, const struct mlip_machine *m, const struct mlip
 		}
 	}
 	fprintf(f, "\n");
+}
+
+void mlip_iostatus_text(FILE *f, const struct mlip_machine *m, const struct mlip_ring_status *st,
+                        const struct mlip_ring *r)
+{
+	struct mlip_ring_io io;
+
+	/* a machine without outputs (none in the segment's I/O area) says nothing */
+	if ((mlip_ring_io_read(r, &io) == MLIP_OK &&
+	     (io.coolant == MLIP_IO_MODULE || (io.outputs & 0xFF00u) != 0)) ||
+	    st->outputs != 0 || st->coolant != 0) {
+		outputs_line(f, st);
+	}
 	if (st->probe_count == 0) {
 		return;
 	}

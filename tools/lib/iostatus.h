@@ -21,7 +21,9 @@
 void mlip_iostatus_json(struct mlip_json *j, const struct mlip_machine *m,
                         const struct mlip_ring_status *st);
 
-/* Two lines: "outputs    ..." and "probe      ...". */
-void mlip_iostatus_text(FILE *f, const struct mlip_machine *m, const struct mlip_ring_status *st);
+/* "outputs    ..." when the machine has outputs (the segment's I/O area
+ * says so) or one is on, "probe      ..." once a probe ended. */
+void mlip_iostatus_text(FILE *f, const struct mlip_machine *m, const struct mlip_ring_status *st,
+                        const struct mlip_ring *r);
 
 #endif
