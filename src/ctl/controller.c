@@ -241,6 +241,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		mlip_ct_drive_fault(c, out, &in->drives.fault);
 	}
 
+	mlip_mio_period(c, in); /* the probe's trip, before the records */
 	mlip_ct_jog_period(c, out);
 	mlip_ct_home_period(c, in, out);
 	mlip_ct_blocks_in(c, in, out);
@@ -306,6 +307,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->sdo = c->home.req;
 	out->homing = c->home.on && c->home.step >= HS_ARM ? c->home.group : 0;
 	out->status.homed = c->home.homed;
+	mlip_mio_publish(c, &out->status);
 	out->power.ok = c->power.seq.ok;
 	out->power.late_node =
 	    c->power.seq.late >= 0 ? (uint32_t)c->m.axis[c->power.seq.late].can_node : 0;

@@ -15,6 +15,8 @@
  *                 ingest), waits (dwell, pause, manual I/O), the
  *                 transitions the motion decides
  *   power.c       the drives' power (CiA 402 sequencer, all drives in step)
+ *   machio.c      the machine's outputs (coolant, M64/M65) and probing (G38),
+ *                 its own header machio.h (issue 19)
  * Functions of one part that another calls are mlip_ct_*, declared here.
  */
 #ifndef MLIP_CTL_CTL_H
@@ -22,6 +24,7 @@
 
 #include <stdint.h>
 
+#include "machio.h"
 #include "mlip/ctl/controller.h"
 
 /* homing.c's steps; the period reads them for the controlword */
@@ -66,6 +69,10 @@ static inline void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t sta
 	}
 	c->state = state;
 	c->why = r;
+	if (state == MLIP_STATE_IDLE || state == MLIP_STATE_STOPPING || state == MLIP_STATE_FAULT ||
+	    state == MLIP_STATE_ESTOP) {
+		mlip_mio_all_off(c); /* a program's end, a stop, a fault, an E-stop (issue 19) */
+	}
 	emit(c, out, MLIP_EV_STATE, from, &r);
 }
 

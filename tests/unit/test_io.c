@@ -466,7 +466,7 @@ static void test_config_sections(void **state)
 	cfg_err("[TOOL]\nCHANGE = manual\nCHANGE_A = 0\n", 18, 1, "axis A is not in COORDINATES");
 	cfg_err("[TOOL]\nCHANGE_Z = 10\n", 17, 1, "CHANGE = none has none");
 	cfg_err("[TOOL]\nCHANGE = manual\nCHANGE_W = 1\n", 18, 1, "unknown key CHANGE_W in [TOOL]");
-	cfg_err("[COOLANT]\nFLOOD = 1\n", 17, 1, "unknown key FLOOD in [COOLANT]");
+	cfg_err("[COOLANT]\nSPRAY = 1\n", 17, 1, "unknown key SPRAY in [COOLANT]");
 }
 
 /* ---- the tool table ----------------------------------------------------------- */
