@@ -1414,13 +1414,16 @@ static void read_peer(struct peer *p)
 		if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) {
 			return;
 		}
-		/* closed (or EIO: the pseudo-terminal's other side closed) */
+		/* closed (or EIO: the pseudo-terminal's other side closed); a
+		 * socket's peer is freed here (lose_controller, peer_close):
+		 * nothing of it is read after */
+		int pty = p->pty;
 		if (p == S.ctl) {
 			lose_controller("disconnected");
-		} else if (!p->pty) {
+		} else if (!pty) {
 			peer_close(p);
 		}
-		if (p->pty) {
+		if (pty) {
 			S.pty_open = 0;
 		}
 		return;
