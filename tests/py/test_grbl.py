@@ -21,6 +21,7 @@ from conftest import CONFIG, TOOLPATHS, status, tool, wait_for
 from grblclient import Grbl
 
 MILL = CONFIG / "mill-3axis.ini"
+MILL_IO = CONFIG / "mill-3axis-io.ini"   # a manual spindle (6000-24000 rpm) and coolant
 PAPER = CONFIG / "paper-2axis.ini"
 
 
@@ -182,8 +183,9 @@ def test_welcome_and_system_commands(grbl):
     assert g.cmd("$Q")[0] == "error:2"          # system.c: read_float fails, as Grbl
     ans, msgs = g.cmd("$110=5000")
     assert ans == "error:3" and "configuration file" in msgs[0]
-    ans, msgs = g.cmd("$H")
-    assert ans == "error:5" and "home" in msgs[0]           # homing not enabled (issue 18)
+    ans, msgs = g.cmd("$H")   # the controller's homing: no HOME_METHOD here (Grbl's $22=0)
+    assert ans == "error:5" and "homing is not configured" in msgs[0], msgs
+    assert g.status()["state"] == "Idle"
     assert g.cmd("$J=G91 X1 F600") == ("ok", [])           # a jog (jogging.md), and back
     idle_at(g, [1, 0, 0])
     assert g.cmd("$J=G91 X-1 F600") == ("ok", [])
@@ -756,3 +758,57 @@ def test_controller_gone_is_an_alarm(grbl):
     assert g.cmd("G0 X0")[0] == "error:9"
     assert srv.poll() is None
 
+
+# ---- spindle and coolant (the machine's [SPINDLE], [COOLANT]) ----------------
+
+
+def test_spindle_and_coolant_are_the_machines(grbl):
+    """M3/M4/M5/S and M7/M8/M9 from a sender go through mlip-feed's reader
+    with the controller's [SPINDLE]/[COOLANT]: a manual spindle pauses the
+    program at rest for the operator (Hold:0, what to do in a [MSG]) until
+    ~; A: and FS's speed show what the machine does once done; a speed
+    beyond MAX_RPM is refused as mlip-feed refuses it; M2 stops both (each
+    an operator's pause)."""
+    shm, rt, srv, port, _ = grbl(MILL_IO)
+    g = connect(port)
+    a, m = g.cmd("S30000 M3")
+    assert a == "error:3" or a.startswith("error:"), (a, m)
+    assert "beyond the spindle's MAX_RPM 24000" in m[0], m
+    assert g.cmd("G1 X5 F3000")[0] == "ok"
+    assert g.cmd("S12000 M3")[0] == "ok"
+    s = g.wait_state({"Hold:0"})
+    assert s["MPos"][0] == pytest.approx(5, abs=1e-3)          # at rest after the move
+    g.wait_line(lambda l: "start the spindle clockwise at 12000 rpm" in l and
+                "resume (~)" in l)
+    assert s.get("A", "") == "" and s["FS"][1] == 0            # not started yet
+    assert status(shm)["state"] == "paused"
+    g.send(b"~")
+    s = g.wait_status(lambda s: s["state"] == "Idle" and "A" in s)
+    assert s["A"] == "S" and s["FS"][1] == 12000, s
+    assert g.cmd("M8")[0] == "ok"
+    g.wait_state({"Hold:0"})
+    g.send(b"~")
+    s = g.wait_status(lambda s: s["state"] == "Idle" and s.get("A") == "SF")
+    assert s["FS"][1] == 12000
+    assert g.cmd("$G")[1][0].split()[6:8] == ["M3", "M8"]
+    # the real-time toggles: the operator's coolant, nothing switched, said so
+    g.send(b"\xa0")
+    g.wait_line(lambda l: "coolant is the operator's here" in l)
+    assert g.cmd("M2")[0] == "ok"             # program end: spindle and coolant off
+    for _ in range(2):
+        g.wait_state({"Hold:0"})
+        g.send(b"~")
+    s = g.wait_status(lambda s: s["state"] == "Idle" and "Ov" in s and "A" not in s)
+    assert s["FS"][1] == 0, s
+
+
+def test_spindle_refused_on_a_machine_without_one(grbl):
+    shm, rt, srv, port, _ = grbl(MILL)
+    g = connect(port)
+    a, m = g.cmd("M3 S1000")
+    assert a.startswith("error:") and "this machine has no spindle" in m[0], (a, m)
+    a, m = g.cmd("M8")
+    assert a.startswith("error:") and "this machine has no coolant" in m[0], (a, m)
+    assert g.cmd("M5")[0] == "ok"             # nothing to stop: noted, as mlip-feed
+    assert g.status()["state"] == "Idle"
+    assert status(shm)["blocks_consumed"] == 0
