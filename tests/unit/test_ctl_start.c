@@ -52,6 +52,7 @@ static struct mlip_ring_port rx;
 static void *mem;
 static uint64_t period;
 static uint32_t stop_count;
+static int exit_request; /* SIGTERM to mlip-rt */
 
 /* the program: n_moves blocks (with a dwell after block 1: wait = 1), END */
 static uint64_t n_moves, next_seq;
@@ -147,6 +148,7 @@ static void start(uint64_t moves, int wait)
 	assert_int_equal(mlip_ring_port_open(&rx, ring, 0), MLIP_OK);
 	period = 0;
 	stop_count = 0;
+	exit_request = 0;
 	feeder_alive = 1;
 	n_moves = moves;
 	wait_prog = wait;
@@ -160,7 +162,8 @@ static void step(struct run *r)
 	struct mlip_ctl_in in = {.period = period++,
 	                         .feeder_alive = feeder_alive,
 	                         .stop_requests = stop_count,
-	                         .feeder_stop_base = 0};
+	                         .feeder_stop_base = 0,
+	                         .exit_request = exit_request};
 	feed();
 	assert_int_equal(mlip_ring_port_view(&rx, &in.recs, &in.recs_corrupt), MLIP_OK);
 	mlip_ctl_period(&ctl, &in, &out);
@@ -350,6 +353,26 @@ static void test_stop_in_each_of_the_first_periods(void **st)
 	              p1, worst_lag + 1);
 }
 
+/* mlip-rt told to exit (SIGTERM) in each period of the pre-read, its first
+ * motion period included: nothing moves, and the exit completes (at rest). */
+static void test_exit_in_each_period_of_the_preread(void **st)
+{
+	(void)st;
+	reference(6000, 0);
+	int p1 = first(&ref, MLIP_STATE_RUNNING);
+	for (int n = 1; n <= p1; n++) {
+		run_to(6000, 0, n);
+		exit_request = 1;
+		for (int i = 0; i < 100 && !out.done; i++) {
+			step(&cur);
+		}
+		assert_true(out.done);
+		assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+		assert_int_equal(out.status.reason, MLIP_WHY_EXIT);
+		rests_at(&cur, 0, 0.0, 0.0);
+	}
+}
+
 /* ---- a bad record met in each of the program's first periods -------------- */
 
 /* The next record the controller takes is made bad (a NaN target) before
@@ -512,6 +535,7 @@ int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test_teardown(test_stop_in_each_of_the_first_periods, teardown),
+	    cmocka_unit_test_teardown(test_exit_in_each_period_of_the_preread, teardown),
 	    cmocka_unit_test_teardown(test_bad_record_in_each_of_the_first_periods, teardown),
 	    cmocka_unit_test_teardown(test_feeder_gone_in_each_of_the_first_periods, teardown),
 	    cmocka_unit_test_teardown(test_stop_or_bad_record_in_a_wait, teardown),
