@@ -92,6 +92,7 @@ void mlip_ct_drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
 void mlip_ct_brake_begin(struct mlip_ctl *c);
 void mlip_ct_brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state rs);
 void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why);
+void mlip_ct_planner_stop(struct mlip_ctl *c);
 
 /* estop.c */
 void mlip_ct_follow_actual(struct mlip_ctl *c, const struct mlip_ctl_in *in);
