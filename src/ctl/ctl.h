@@ -86,7 +86,6 @@ void mlip_ct_after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
                         mlip_run_state rs, int still);
 
 /* stop.c */
-void mlip_ct_planner_stop(struct mlip_ctl *c);
 void mlip_ct_drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
                          const struct mlip_ctl_drive_fault *f);
 void mlip_ct_brake_begin(struct mlip_ctl *c);
