@@ -6,7 +6,7 @@
 
 #include <math.h>
 
-/* A CiA 402 drive faulted (rt/drivehooks.c's supervision): never go on blind.
+/* A CiA 402 drive faulted (rt/drives.c's supervision): never go on blind.
  * Every axis stops on the path (the planner's stop: the other drives follow
  * it to rest; the faulted drive, muted by rt/, is in its own fault reaction),
  * nothing more of the program is taken, and the state says which node, which
