@@ -92,8 +92,13 @@ $(BUILD)/libmlip-rt.a: $(RT_OBJ)
 $(RT_TOOLS) $(RT_TESTS): RT_LINK := $(BUILD)/libmlip-rt.a $(RT_LIBS)
 $(RT_TOOLS) $(RT_TESTS): $(BUILD)/libmlip-rt.a
 
+# mlip-feed and mlip-ctl (mdi) share the feeder, tools/feed.c (uses rt/).
+FEED_TOOLS := $(BUILD)/mlip-feed $(BUILD)/mlip-ctl
+$(FEED_TOOLS): FEED_OBJ := $(BUILD)/obj/tools/feed.o
+$(FEED_TOOLS): $(BUILD)/obj/tools/feed.o
+
 $(BUILD)/mlip-%: $(BUILD)/obj/tools/mlip-%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a
-	$(CC) $(LDFLAGS) -o $@ $< $(BUILD)/libmlip-host.a $(RT_LINK) $(BUILD)/libmlip.a $(LDLIBS)
+	$(CC) $(LDFLAGS) -o $@ $< $(FEED_OBJ) $(BUILD)/libmlip-host.a $(RT_LINK) $(BUILD)/libmlip.a $(LDLIBS)
 
 $(BUILD)/tests/test_%: $(BUILD)/obj/tests/unit/test_%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a
 	@mkdir -p $(dir $@)

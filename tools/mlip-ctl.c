@@ -20,9 +20,11 @@
 #include <time.h>
 
 #include "cli.h"
+#include "feed.h"
 #include "json.h"
 #include "mlip/canopen/canopen.h"
 #include "mlip/ipc/ring.h"
+#include "modalfile.h"
 #include "rt.h"
 
 #define PROG     "mlip-ctl"
@@ -47,10 +49,20 @@ static void usage(FILE *f)
 	    "  reset            leave an E-stop or a limit stop once its input is released\n"
 	    "  home [AXES]      home the axes (every one with a HOME_METHOD) with their\n"
 	    "                   drives' homing mode, in HOME_SEQUENCE order; waits for the end\n"
-	    "  jog AXIS+|AXIS- SPEED [SECONDS]  continuous jog at SPEED mm/min (deg/min),\n"
-	    "                   until SECONDS pass or a signal (Ctrl-C, a dropped session),\n"
-	    "                   then a stop at the acceleration limit; it stops by itself\n"
-	    "                   250 ms after mlip-ctl stops renewing it (killed)\n"
+	    "  jog AXIS+|AXIS-[DIST]... [--distance D] SPEED [SECONDS]  jog at SPEED mm/min\n"
+	    "                   (deg/min; several axes: along one line at that speed):\n"
+	    "                   continuous until SECONDS pass, a signal (Ctrl-C, a dropped\n"
+	    "                   session) or the soft limit, then a stop at the acceleration\n"
+	    "                   limit; incremental with a distance (X+1.5, or --distance D\n"
+	    "                   for every axis): refused when its target lies beyond a soft\n"
+	    "                   limit; it stops by itself 250 ms after mlip-ctl stops\n"
+	    "                   renewing it (killed)\n"
+	    "  mdi [OPTIONS] LINE...  MDI: run G-code lines (or `-`: from standard input)\n"
+	    "                   from where the machine stands, checked as a program is\n"
+	    "                   (mlip-feed's rules, soft limits, offsets file, tool table);\n"
+	    "                   refused unless the machine is idle; the modal state (G90/G91,\n"
+	    "                   G20/G21, F, G43 ...) carries to the next mdi (mlip-ctl mdi\n"
+	    "                   --help)\n"
 	    "  status [--json]  controller and feeder state (--json: one object on stdout)\n"
 	    "  -                commands from standard input, one per line, each answered\n"
 	    "                   (on stdout, or stderr when refused) before the next is read\n\n"
@@ -296,6 +308,7 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 	mlip_json_uint(&j, "capacity", s->ring->capacity);
 	mlip_json_int(&j, "feeder_pid", fd->pid);
 	mlip_json_bool(&j, "feeder_alive", falive);
+	mlip_json_bool(&j, "mdi", fd->pid != 0 && falive && fd->mdi);
 	mlip_json_uint(&j, "total_blocks", fd->total_blocks);
 	mlip_json_bool(&j, "program_end", fd->program_end);
 	mlip_json_end(&j);
@@ -490,8 +503,8 @@ static int cmd_status(struct mlip_shm *s, int json)
 	if (fd.pid == 0) {
 		printf("feeder      none\n");
 	} else {
-		printf("feeder      pid %d, %s (heartbeat ", (int)fd.pid,
-		       falive ? "alive" : "gone");
+		printf("feeder      pid %d%s, %s (heartbeat ", (int)fd.pid,
+		       fd.mdi ? " (MDI: mlip-ctl mdi)" : "", falive ? "alive" : "gone");
 		print_age(stdout, fa);
 		printf("), ");
 		if (fd.total_blocks == 0) {
@@ -695,29 +708,104 @@ static int post_wait(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg, int32
  * MLIP_JOG_DEADMAN_S) until SECONDS pass, a signal comes (SIGINT, SIGTERM,
  * SIGHUP: a dropped ssh session), or the axis reaches its soft limit; then
  * released: a stop on the path at the acceleration limit. */
-static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const char *secs)
+/* One axis of a jog: "X+", "z-", "X+1.5" (a distance: incremental). */
+struct jog_axis {
+	int axis, neg;
+	double dist; /* 0: continuous */
+};
+
+static int jog_axis_word(const struct mlip_machine *m, const char *w, struct jog_axis *j)
+{
+	size_t n = strlen(w);
+	j->axis = -1;
+	for (int k = 0; k < m->n_axes && n >= 2; k++) {
+		if (w[0] == m->axis[k].letter || w[0] == m->axis[k].letter + ('a' - 'A')) {
+			j->axis = k;
+		}
+	}
+	if (j->axis < 0 || (w[1] != '+' && w[1] != '-')) {
+		return -1;
+	}
+	j->neg = w[1] == '-';
+	j->dist = 0.0;
+	if (n > 2 && (mlip_cli_number(w + 2, &j->dist) != 0 || !(j->dist > 0.0) || w[2] == '+' ||
+	              w[2] == '-')) {
+		return -1;
+	}
+	return 0;
+}
+
+/* jog AXIS+|AXIS-[DIST]... [--distance D] SPEED [SECONDS]: one axis or
+ * several along one line, continuous (until SECONDS, a signal, or the soft
+ * limit) or incremental (each a distance), renewed every 100 ms (the
+ * controller's dead-man stops it 250 ms after the last renewal). */
+static int cmd_jog(struct mlip_shm *s, int argc, char **argv)
 {
 	struct mlip_machine m;
 	struct mlip_ring_status st;
-	double v = 0.0, dur = -1.0;
-	int axis = -1, neg;
+	struct jog_axis ax[MLIP_MAX_AXES];
+	double v = 0.0, dur = -1.0, dist = 0.0;
+	const char *speed = NULL, *secs = NULL;
+	char words[128] = "";
+	int n = 0, with = 0;
 	int32_t result;
-	size_t n = dir != NULL ? strlen(dir) : 0;
 
 	mlip_ring_machine(s->ring, &m);
-	for (int k = 0; k < m.n_axes && n == 2; k++) {
-		if (dir[0] == m.axis[k].letter || dir[0] == m.axis[k].letter + ('a' - 'A')) {
-			axis = k;
+	for (int i = 0; i < argc; i++) {
+		const char *w = argv[i];
+		if (strcmp(w, "--distance") == 0 || strncmp(w, "--distance=", 11) == 0) {
+			const char *d = w[10] == '=' ? w + 11 : i + 1 < argc ? argv[++i] : "";
+			if (mlip_cli_number(d, &dist) != 0 || !(dist > 0.0)) {
+				fprintf(stderr,
+				        PROG
+				        ": jog: --distance must be a positive number, got '%s'\n",
+				        d);
+				return EXIT_USAGE;
+			}
+		} else if (speed == NULL && n < MLIP_MAX_AXES &&
+		           jog_axis_word(&m, w, &ax[n]) == 0) {
+			for (int k = 0; k < n; k++) {
+				if (ax[k].axis == ax[n].axis) {
+					fprintf(stderr, PROG ": jog: axis %c given twice\n", w[0]);
+					return EXIT_USAGE;
+				}
+			}
+			snprintf(words + strlen(words), sizeof(words) - strlen(words), "%s%s",
+			         n ? " " : "", w);
+			n++;
+		} else if (n > 0 && speed == NULL) {
+			speed = w;
+		} else if (n > 0 && secs == NULL) {
+			secs = w;
+		} else {
+			fprintf(stderr,
+			        PROG
+			        ": jog: '%s' is not an axis of this machine and a direction, with "
+			        "a distance or not (e.g. X+, Z-, X+1.5)\n",
+			        w);
+			return EXIT_USAGE;
 		}
 	}
-	if (n != 2 || (dir[1] != '+' && dir[1] != '-') || axis < 0) {
-		fprintf(stderr,
-		        PROG ": jog: '%s' is not an axis of this machine and a direction "
-		             "(e.g. X+ or Z-)\n",
-		        dir != NULL ? dir : "");
+	if (n == 0) {
+		fprintf(stderr, PROG ": jog: expected AXIS+|AXIS-[DIST]... [--distance D] SPEED "
+		                     "[SECONDS]\n");
 		return EXIT_USAGE;
 	}
-	neg = dir[1] == '-';
+	for (int k = 0; k < n; k++) {
+		ax[k].dist = ax[k].dist > 0.0 ? ax[k].dist : dist;
+		with += ax[k].dist > 0.0;
+		if (ax[k].dist > 0.0 && !(ax[k].dist * 1e3 + 0.5 <= (double)MLIP_JOG_DIST_MAX &&
+		                          ax[k].dist * 1e3 >= 0.5)) {
+			fprintf(stderr, PROG ": jog: a distance is 0.001 .. %.6g (mm or deg)\n",
+			        MLIP_JOG_DIST_MAX * 1e-3);
+			return EXIT_USAGE;
+		}
+	}
+	if (with != 0 && with != n) {
+		fprintf(stderr,
+		        PROG ": jog: every axis a distance (incremental) or none (continuous)\n");
+		return EXIT_USAGE;
+	}
 	if (speed == NULL || mlip_cli_number(speed, &v) != 0 || !(v >= 1.0) ||
 	    v > (double)MLIP_JOG_SPEED_MAX) {
 		fprintf(stderr,
@@ -730,24 +818,62 @@ static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const
 		fprintf(stderr, PROG ": jog: SECONDS must be in (0, 86400], got '%s'\n", secs);
 		return EXIT_USAGE;
 	}
+	const char *dir = words;
+	int axis = ax[0].axis, neg = ax[0].neg;
 	int32_t arg = MLIP_JOG_ARG(axis, neg, (uint32_t)(v + 0.5)),
 	        stop = MLIP_JOG_ARG(axis, neg, 0);
 	mlip_cli_on_stop_signals(on_jog_signal);
-	if (post_wait(s, MLIP_CMD_JOG, arg, &result) != 0) {
+	/* the other axes (and the distances) first, then the jog itself */
+	int bad = 0;
+	for (int k = n - 1; k >= 0 && !bad; k--) {
+		if (k == 0 && ax[0].dist == 0.0) {
+			break;
+		}
+		int32_t a =
+		    MLIP_JOG_AXIS_ARG(ax[k].axis, ax[k].neg, (uint32_t)(ax[k].dist * 1e3 + 0.5));
+		bad = post_wait(s, MLIP_CMD_JOG_AXIS, a, &result) != 0 ? -1 : result != MLIP_OK;
+	}
+	if (bad < 0 || (!bad && post_wait(s, MLIP_CMD_JOG, arg, &result) != 0)) {
 		fprintf(stderr, PROG ": jog: no answer from the controller on %s within 1 s\n",
 		        s->name);
 		return EXIT_FAIL;
 	}
-	if (result != MLIP_OK) {
+	if (bad || result != MLIP_OK) {
 		read_status(s->ring, &st);
-		if (result == MLIP_E_RANGE) {
-			fprintf(
-			    stderr,
-			    PROG
-			    ": jog %s: refused: %c is at %.4f, at or beyond its soft limit %s %g "
-			    "(Grbl error 15: jog target exceeds machine travel)\n",
-			    dir, m.axis[axis].letter, st.pos[axis], neg ? "MIN_LIMIT" : "MAX_LIMIT",
-			    neg ? m.axis[axis].min_limit : m.axis[axis].max_limit);
+		if (!bad && result == MLIP_E_RANGE) {
+			/* the axis that leaves the travel */
+			int k0 = 0;
+			double t = st.pos[ax[0].axis];
+			for (int k = 0; k < n; k++) {
+				const struct mlip_axis *a = &m.axis[ax[k].axis];
+				double p = st.pos[ax[k].axis];
+				double tk = p + (ax[k].neg ? -ax[k].dist : ax[k].dist);
+				if (ax[k].neg ? tk <= a->min_limit : tk >= a->max_limit) {
+					k0 = k;
+					t = tk;
+					break;
+				}
+			}
+			const struct mlip_axis *a = &m.axis[ax[k0].axis];
+			fprintf(stderr,
+			        PROG
+			        ": jog %s: refused: %c is at %.4f%s, %s its soft limit %s %g (Grbl "
+			        "error 15: jog target exceeds machine travel)\n",
+			        dir, a->letter, st.pos[ax[k0].axis], with ? ", its target" : "",
+			        with ? "beyond" : "at or beyond",
+			        ax[k0].neg ? "MIN_LIMIT" : "MAX_LIMIT",
+			        ax[k0].neg ? a->min_limit : a->max_limit);
+			if (with) {
+				fprintf(stderr,
+				        PROG ": jog %s: the target %c %.4f; nothing moved\n", dir,
+				        a->letter, t);
+			}
+		} else if (!bad && result == MLIP_E_SYNTAX) {
+			fprintf(stderr,
+			        PROG
+			        ": jog %s: refused: the controller got other axes for this jog "
+			        "(another client jogging at the same moment?): try again\n",
+			        dir);
 		} else {
 			fprintf(stderr,
 			        PROG ": jog %s: refused: the controller is %s (%s), not idle\n",
@@ -765,7 +891,7 @@ static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const
 			break;
 		}
 		if (read_status(s->ring, &st) != 0 || st.state != MLIP_STATE_JOGGING) {
-			break; /* it ended (at the soft limit, a stop, an E-stop, a fault) */
+			break; /* it ended (its target, a soft limit, a stop, an E-stop, a fault) */
 		}
 		if (post_wait(s, MLIP_CMD_JOG, arg, &result) != 0 || result != MLIP_OK) {
 			break;
@@ -778,8 +904,11 @@ static int cmd_jog(struct mlip_shm *s, const char *dir, const char *speed, const
 		sleep_ns(5 * POLL_NS);
 	}
 	if (st.state == MLIP_STATE_IDLE) {
-		printf("jog %s: at rest at %c %.4f (%s%s)", dir, m.axis[axis].letter, st.pos[axis],
-		       mlip_state_why_name(st.reason), jog_signal ? ", on " : "");
+		printf("jog %s: at rest at", dir);
+		for (int k = 0; k < n; k++) {
+			printf(" %c %.4f", m.axis[ax[k].axis].letter, st.pos[ax[k].axis]);
+		}
+		printf(" (%s%s", mlip_state_why_name(st.reason), jog_signal ? ", on " : "");
 		if (jog_signal) {
 			printf("%s", mlip_cli_signal_name(jog_signal));
 		}
@@ -1012,6 +1141,208 @@ static int cmd_stdin(struct mlip_shm *s)
 	return rc;
 }
 
+/* ---- mdi ---------------------------------------------------------------- */
+
+#define MDI_MAX_BYTES 65536 /* MDI lines at once: more is a program (mlip-feed) */
+
+static void mdi_usage(FILE *f)
+{
+	fprintf(
+	    f, "usage: " PROG " [--shm NAME] mdi [OPTIONS] LINE...\n"
+	       "       " PROG " [--shm NAME] mdi [OPTIONS] -      (the lines from standard input)\n"
+	       "       " PROG " mdi --accept FILE                 (seal a hand-edited modal file)\n"
+	       "Run G-code lines typed at the machine (MDI) on the running mlip-rt: checked\n"
+	       "together exactly as mlip-feed checks a program (every rule, the soft limits\n"
+	       "from where the machine stands, the offsets file, the tool table), then run\n"
+	       "through the same ring; refused unless the machine is idle (no program, jog or\n"
+	       "homing). Lines without motion are fine (G91, F600, G10 L20 P1 X0 Y0, G92).\n"
+	       "The modal state the lines leave (G0-G3, G17-G19, G90/G91, G20/G21, G93/G94,\n"
+	       "F, G61/G64 P, S, T, G43/G49) is where the next mdi starts, as in LinuxCNC;\n"
+	       "work offsets, G92 and the selected G54-G59.3 go to the offsets file.\n\n"
+	       "  --offsets FILE    the offsets file (read before, written when the lines\n"
+	       "                    complete: a touch-off is kept)\n"
+	       "  --modal FILE      the modal state file (default: OFFSETS.modal beside the\n"
+	       "                    offsets file; without either, every mdi starts from a\n"
+	       "                    program's defaults: G17 G90 G21 G94 G64, no F)\n"
+	       "  --tools FILE      the tool table (T6 M6, G43 H)\n"
+	       "  --strict          refuse Grbl '$' lines and axis words before G0/G1/G2/G3\n"
+	       "  --ignore-spindle, --ignore-coolant, --ignore-tools   as mlip-feed\n"
+	       "  -q, --quiet       errors only\n\n"
+	       "exit status: mlip-feed's (0 done, 1 refused or nothing sent, 2 usage, 3\n"
+	       "controller gone, 4 stopped, 5 fault)\n");
+}
+
+/* The lines of argv (joined by newlines), or of stdin for "-": into a
+ * malloc'ed buffer. 0, or an exit status after saying why. */
+static int mdi_text(int n, char **lines, char **text, size_t *len)
+{
+	char *b = malloc(MDI_MAX_BYTES + 2);
+	size_t k = 0;
+
+	if (b == NULL) {
+		fprintf(stderr, PROG ": mdi: out of memory\n");
+		return EXIT_FAIL;
+	}
+	if (n == 1 && strcmp(lines[0], "-") == 0) {
+		k = fread(b, 1, MDI_MAX_BYTES + 1, stdin);
+		if (ferror(stdin)) {
+			fprintf(stderr, PROG ": mdi: reading standard input: %s\n",
+			        strerror(errno));
+			free(b);
+			return EXIT_FAIL;
+		}
+	} else {
+		for (int i = 0; i < n && k <= MDI_MAX_BYTES; i++) {
+			size_t l = strlen(lines[i]);
+			if (k + l + 1 > MDI_MAX_BYTES + 1) {
+				k = MDI_MAX_BYTES + 1;
+				break;
+			}
+			memcpy(b + k, lines[i], l);
+			k += l;
+			b[k++] = '\n';
+		}
+	}
+	if (k > MDI_MAX_BYTES) {
+		fprintf(stderr,
+		        PROG ": mdi: more than %d bytes of lines: that is a program: save it to a "
+		             "file and run it with mlip-feed (nothing was sent)\n",
+		        MDI_MAX_BYTES);
+		free(b);
+		return EXIT_USAGE;
+	}
+	b[k] = '\0';
+	*text = b;
+	*len = k;
+	return 0;
+}
+
+static int cmd_mdi(const char *shm, int argc, char **argv)
+{
+	static const struct option opts[] = {MLIP_CLI_GCODE_OPTIONS,
+	                                     {"modal", required_argument, 0, 'M'},
+	                                     {"accept", required_argument, 0, 'A'},
+	                                     {"quiet", no_argument, 0, 'q'},
+	                                     {"help", no_argument, 0, 'h'},
+	                                     {0, 0, 0, 0}};
+	struct mlip_feed_opts o = {0};
+	struct mlip_modal_file mf = {0};
+	struct mlip_gcode_modal md;
+	struct mlip_machine m;
+	const char *modal = NULL, *accept = NULL;
+	char *modal_buf = NULL, *text = NULL;
+	size_t len = 0;
+	int c, rc, missing = 0;
+
+	o.prog = PROG " mdi";
+	o.shm = shm;
+	o.path = "mdi";
+	o.mdi = 1;
+	o.first_seq = 1;
+	optind = 0; /* glibc: a fresh scan of argv (argv[0] is "mdi") */
+	/* '+': a line may start with '-' only as "-" itself; "--" ends the options */
+	while ((c = getopt_long(argc, argv, "+qh", opts, NULL)) != -1) {
+		int taken = mlip_cli_gcode_option(c, optarg, &o.gc, PROG " mdi", stderr);
+		if (taken != 0) {
+			if (taken < 0) {
+				return EXIT_USAGE;
+			}
+			continue;
+		}
+		switch (c) {
+		case 'M':
+			modal = optarg;
+			break;
+		case 'A':
+			accept = optarg;
+			break;
+		case 'q':
+			o.quiet = 1;
+			break;
+		case 'h':
+			mdi_usage(stdout);
+			return EXIT_DONE;
+		default:
+			mdi_usage(stderr);
+			return EXIT_USAGE;
+		}
+	}
+	if (accept != NULL) {
+		if (optind != argc) {
+			fprintf(stderr, PROG ": mdi --accept FILE takes no lines\n");
+			return EXIT_USAGE;
+		}
+		if (mlip_modal_accept(accept, PROG " mdi", stderr) != 0) {
+			return EXIT_FAIL;
+		}
+		printf("%s: checked and sealed\n", accept);
+		return EXIT_DONE;
+	}
+	if (optind >= argc) {
+		fprintf(stderr, PROG ": mdi: no line given (mlip-ctl mdi 'G0 Z5', or - to read "
+		                     "them from standard input)\n");
+		return EXIT_USAGE;
+	}
+	if ((rc = mdi_text(argc - optind, argv + optind, &text, &len)) != 0) {
+		return rc;
+	}
+	if (modal == NULL && o.gc.offsets != NULL) {
+		size_t n = strlen(o.gc.offsets) + sizeof(".modal");
+		modal_buf = malloc(n);
+		if (modal_buf == NULL) {
+			free(text);
+			return EXIT_FAIL;
+		}
+		snprintf(modal_buf, n, "%s.modal", o.gc.offsets);
+		modal = modal_buf;
+	}
+	o.text = text;
+	o.text_len = len;
+	if (modal != NULL) {
+		/* the machine the controller publishes: the ranges the state must fit */
+		struct mlip_shm s;
+		char why[256];
+		if (mlip_shm_attach(&s, shm, why, sizeof(why)) != 0) {
+			fprintf(stderr, PROG " mdi: %s\n", why);
+			rc = EXIT_FAIL;
+			goto out;
+		}
+		mlip_ring_machine(s.ring, &m);
+		mlip_shm_close(&s);
+		if (mlip_modal_load(&mf, modal, &m, &md, &missing, PROG " mdi", stderr) != 0) {
+			rc = EXIT_FAIL;
+			goto out;
+		}
+		o.modal = &md;
+	}
+	rc = mlip_feed_run(&o);
+	if (o.checked && !o.quiet) {
+		char d[256];
+		mlip_modal_describe(&o.modal_end, d, sizeof(d));
+		fprintf(stderr, PROG " mdi: modal state: %s\n", d);
+	}
+	if (modal != NULL && o.checked && rc == EXIT_DONE) {
+		if (mlip_modal_save(&mf, &o.modal_end, PROG " mdi", stderr) != 0) {
+			rc = EXIT_FAIL;
+		} else if (missing && !o.quiet) {
+			fprintf(stderr, PROG " mdi: %s: the modal state file, made now\n", modal);
+		}
+	} else if (modal != NULL && o.checked) {
+		fprintf(stderr,
+		        PROG " mdi: the lines did not complete: the modal state in %s is left as "
+		             "it was\n",
+		        modal);
+	} else if (modal == NULL && o.checked && rc == EXIT_DONE && !o.quiet) {
+		fprintf(stderr, PROG " mdi: no --offsets or --modal: this modal state is not "
+		                     "kept for the next mdi\n");
+	}
+out:
+	mlip_modal_file_free(&mf);
+	free(modal_buf);
+	free(text);
+	return rc;
+}
+
 int main(int argc, char **argv)
 {
 	static const struct option opts[] = {{"shm", required_argument, 0, 's'},
@@ -1021,7 +1352,8 @@ int main(int argc, char **argv)
 	const char *shm = MLIP_SHM_DEFAULT, *cmd, *jog_args[3] = {NULL, NULL, NULL};
 	mlip_ring_cmd_op op = MLIP_CMD_NONE;
 	int32_t arg = 0;
-	int json = 0, c, i, rc;
+	int json = 0, c, i, rc, jog_argc = 0;
+	char **jog_argv = NULL;
 	struct mlip_shm s;
 	char why[256];
 
@@ -1047,14 +1379,23 @@ int main(int argc, char **argv)
 		return EXIT_USAGE;
 	}
 	cmd = argv[optind++];
-	if (strcmp(cmd, "jog") == 0) {
-		if (argc - optind < 2 || argc - optind > 3) {
-			fprintf(stderr, PROG ": jog: expected AXIS+|AXIS- SPEED [SECONDS]\n");
+	if (strcmp(cmd, "mdi") == 0) {
+		if (json) {
+			fprintf(stderr, PROG ": --json goes with status only\n");
 			return EXIT_USAGE;
 		}
-		for (i = 0; i < 3 && optind < argc; i++) {
-			jog_args[i] = argv[optind++];
+		return cmd_mdi(shm, argc - optind + 1, argv + optind - 1);
+	}
+	if (strcmp(cmd, "jog") == 0) {
+		if (argc - optind < 2) {
+			fprintf(stderr,
+			        PROG ": jog: expected AXIS+|AXIS-[DIST]... [--distance D] SPEED "
+			             "[SECONDS]\n");
+			return EXIT_USAGE;
 		}
+		jog_argc = argc - optind;
+		jog_argv = argv + optind;
+		optind = argc;
 	} else if (strcmp(cmd, "home") == 0) {
 		if (argc - optind > 1) {
 			fprintf(stderr, PROG ": home: expected [AXES] (e.g. XZ)\n");
@@ -1099,7 +1440,7 @@ int main(int argc, char **argv)
 		return EXIT_USAGE;
 	}
 	if (strcmp(cmd, "jog") == 0) {
-		rc = cmd_jog(&s, jog_args[0], jog_args[1], jog_args[2]);
+		rc = cmd_jog(&s, jog_argc, jog_argv);
 	} else if (strcmp(cmd, "home") == 0) {
 		rc = cmd_home(&s, jog_args[0]);
 	} else if (strcmp(cmd, "-") == 0) {

@@ -242,16 +242,22 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			 * pre-read): nothing pre-read starts, the machine stays at
 			 * the end of the block it rests after (e->exec_seq) */
 			int moving = e->from == MLIP_STATE_RUNNING || e->from == MLIP_STATE_HELD;
+			uint64_t at = moving ? (r->seq ? r->seq - 1 : 0) : e->exec_seq;
+			char where[64];
+			if (at == 0) {
+				snprintf(where, sizeof(where),
+				         "where the program started (nothing of it moved)");
+			} else {
+				snprintf(where, sizeof(where), "at the end of block %llu",
+				         (unsigned long long)at);
+			}
 			mlip_cli_field_name(mo->m, r->field, fld, sizeof(fld));
-			fprintf(
-			    stderr,
-			    PROG
-			    ": fault: bad record %llu (line %u): %s = %.17g; nothing after it "
-			    "is taken, the machine %s at rest at the end of block %llu; restart "
-			    "mlip-rt to clear\n",
-			    (unsigned long long)r->seq, r->line, fld, r->value,
-			    moving ? "stops" : "stays",
-			    (unsigned long long)(moving ? (r->seq ? r->seq - 1 : 0) : e->exec_seq));
+			fprintf(stderr,
+			        PROG
+			        ": fault: bad record %llu (line %u): %s = %.17g; nothing after it "
+			        "is taken, the machine %s at rest %s; restart mlip-rt to clear\n",
+			        (unsigned long long)r->seq, r->line, fld, r->value,
+			        moving ? "stops" : "stays", where);
 		} else {
 			fprintf(stderr,
 			        PROG ": fault: %s in block %llu (line %u); stopping on the path; "

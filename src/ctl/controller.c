@@ -66,6 +66,9 @@ int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	if (cmd->op == MLIP_CMD_JOG) {
 		return mlip_ct_jog_command(c, out, cmd->arg);
 	}
+	if (cmd->op == MLIP_CMD_JOG_AXIS) {
+		return mlip_ct_jog_axis_command(c, cmd->arg);
+	}
 	if (cmd->op == MLIP_CMD_HOME) {
 		return mlip_ct_home_command(c, out, cmd->arg);
 	}

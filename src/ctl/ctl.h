@@ -86,6 +86,7 @@ void mlip_ct_after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
                         mlip_run_state rs, int still);
 
 /* stop.c */
+void mlip_ct_planner_stop(struct mlip_ctl *c);
 void mlip_ct_drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
                          const struct mlip_ctl_drive_fault *f);
 void mlip_ct_brake_begin(struct mlip_ctl *c);
@@ -102,6 +103,7 @@ void mlip_ct_io_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 /* jog.c */
 void mlip_ct_jog_release(struct mlip_ctl *c, uint32_t why);
 int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
+int32_t mlip_ct_jog_axis_command(struct mlip_ctl *c, int32_t arg);
 void mlip_ct_jog_period(struct mlip_ctl *c, struct mlip_ctl_out *out);
 
 /* homing.c */

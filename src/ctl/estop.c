@@ -53,7 +53,7 @@ void mlip_ct_quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct
 	if (c->drives) {
 		mlip_ct_follow_actual(c, in);
 	} else if (mlip_planner_queued(c->planner) > 0) {
-		mlip_planner_stop(c->planner);
+		mlip_ct_planner_stop(c);
 	}
 	c->wait.dwell_left = 0;
 	c->wait.stopped = 0;

@@ -1,7 +1,8 @@
 /*
- * jog.c - the controller's continuous jog (ctl.h, issue 18): toward the
- * soft limit through the planner, renewed by its command, stopped by its
- * release or its dead-man.
+ * jog.c - the controller's jog (ctl.h, issue 18): one axis or several along
+ * one straight line, continuous (toward the soft limit) or incremental (a
+ * distance per axis), through the planner and its limits, renewed by its
+ * command, stopped by its release or its dead-man.
  */
 #include "ctl.h"
 
@@ -24,43 +25,143 @@ void mlip_ct_jog_release(struct mlip_ctl *c, uint32_t why)
 	mlip_ct_brake_begin(c);
 }
 
-/* The axis' end in the jog's direction: its soft limit, and never beyond
- * what the drives' int32 counts can carry. */
-static double jog_end(const struct mlip_ctl *c)
+/* Axis k's end toward neg: its soft limit, and never beyond what the
+ * drives' int32 counts can carry; an axis to be homed and not yet has no
+ * soft limit (machine zero is not known yet: LinuxCNC), only that range. */
+static double axis_end(const struct mlip_ctl *c, int k, int neg)
 {
-	const struct mlip_axis *a = &c->m.axis[c->jog.axis];
+	const struct mlip_axis *a = &c->m.axis[k];
 	double range = a->counts_per_unit > 0.0 ? 2147483000.0 / a->counts_per_unit : 1e9;
-	double end = c->jog.neg ? a->min_limit : a->max_limit;
-	if (unhomed(c, (int)c->jog.axis)) {
-		end = c->jog.neg ? -range : range; /* machine zero is not known yet (LinuxCNC) */
+	double end = neg ? a->min_limit : a->max_limit;
+	if (unhomed(c, k)) {
+		end = neg ? -range : range;
 	}
 	return end > range ? range : end < -range ? -range : end;
 }
 
-/* Drives enabled (or none): the jog's block, from where the machine is to the
- * soft limit, at the jog's speed: the planner plans it to rest there, so the
- * jog stops exactly at the limit. */
+static int incremental(const struct mlip_ctl *c)
+{
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if (c->jog.dist[k] > 0.0) {
+			return 1;
+		}
+	}
+	return 0;
+}
+
+/* The jog's target from where the machine is: each distance (incremental),
+ * or along the jog's line until its first axis reaches its end
+ * (continuous). 0, or -1 when it leaves the travel: an incremental target
+ * beyond a soft limit, an axis at its end that way already (Grbl's error
+ * 15: the jog target exceeds the machine's travel). */
+static int jog_target(const struct mlip_ctl *c, double *target)
+{
+	double room = 1e300;
+	int inc = incremental(c);
+	memcpy(target, c->pos, sizeof(c->pos));
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if (!(c->jog.axes & (1u << k))) {
+			continue;
+		}
+		int neg = (c->jog.negs >> k) & 1u;
+		double end = axis_end(c, k, neg), here = c->pos[k];
+		double left = neg ? here - end : end - here;
+		if (inc && !(c->jog.dist[k] <= left)) {
+			return -1;
+		}
+		if (!inc && !(left > 0.0)) {
+			return -1;
+		}
+		room = left < room ? left : room;
+	}
+	for (int k = 0; k < c->m.n_axes; k++) {
+		if (c->jog.axes & (1u << k)) {
+			double d = inc ? c->jog.dist[k] : room;
+			target[k] = c->pos[k] + ((c->jog.negs >> k) & 1u ? -d : d);
+		}
+	}
+	return 0;
+}
+
+/* Drives enabled (or none): the jog's block, from where the machine is to
+ * its target at the jog's speed (the path speed of the line): the planner
+ * plans it to rest there, so the jog stops exactly at the soft limit or
+ * the distance. */
 static void jog_start(struct mlip_ctl *c, struct mlip_ctl_out *out)
 {
 	struct mlip_block b;
 	memset(&b, 0, sizeof(b));
-	memcpy(b.target, c->pos, sizeof(b.target));
-	b.target[c->jog.axis] = jog_end(c);
 	b.feed_mm_s = c->jog.speed;
 	b.tol_mm = c->m.tolerance_mm;
 	b.kind = MLIP_BLOCK_MOVE;
-	if (mlip_planner_push(c->planner, &b) != MLIP_OK) {
-		c->jog.on = 0; /* the planner is not at rest: nothing moves */
-		go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_JOG_RELEASED, 0, 0));
+	if (jog_target(c, b.target) != 0 || mlip_planner_push(c->planner, &b) != MLIP_OK) {
+		/* the planner is not at rest, or the drives were enabled where the
+		 * target leaves the travel: nothing moves */
+		c->jog.on = 0;
+		go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_JOG_END, 0, 0));
 		return;
 	}
 	c->jog.moving = 1;
 }
 
+/* MLIP_CMD_JOG_AXIS: one more axis, or a distance, for the next jog. */
+int32_t mlip_ct_jog_axis_command(struct mlip_ctl *c, int32_t arg)
+{
+	uint32_t u = (uint32_t)arg, axis = u & 7u, um = (u >> 4) & 0xFFFFFu;
+	if ((int)axis >= c->m.n_axes) {
+		return MLIP_E_RANGE;
+	}
+	if (c->jog.on) {
+		return MLIP_E_INVALID; /* a jog's axes are set before it starts */
+	}
+	if (c->period - c->jog.pend_at > c->jog.deadman) {
+		c->jog.pend_axes = c->jog.pend_negs = 0; /* stale: another client's */
+	}
+	c->jog.pend_axes |= 1u << axis;
+	c->jog.pend_negs = (c->jog.pend_negs & ~(1u << axis)) | ((u & 8u) ? 1u << axis : 0u);
+	c->jog.pend_dist[axis] = (double)um * 1e-3;
+	c->jog.pend_at = c->period;
+	return MLIP_OK;
+}
+
+/* The next jog's axes: its own and the fresh JOG_AXIS ones. 0, or
+ * MLIP_E_SYNTAX (its axis given the other way, distances on some axes
+ * only). */
+static int32_t jog_axes(struct mlip_ctl *c, uint32_t axis, int neg)
+{
+	uint32_t axes = 0, negs = 0, with = 0, n = 0;
+	if (c->period - c->jog.pend_at <= c->jog.deadman) {
+		axes = c->jog.pend_axes;
+		negs = c->jog.pend_negs;
+	}
+	c->jog.pend_axes = c->jog.pend_negs = 0; /* taken, whatever happens */
+	if ((axes & (1u << axis)) && ((negs >> axis) & 1u) != (uint32_t)neg) {
+		return MLIP_E_SYNTAX;
+	}
+	if (!(axes & (1u << axis))) {
+		c->jog.pend_dist[axis] = 0.0;
+	}
+	axes |= 1u << axis;
+	negs |= neg ? 1u << axis : 0u;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		c->jog.dist[k] = (axes & (1u << k)) ? c->jog.pend_dist[k] : 0.0;
+		with += c->jog.dist[k] > 0.0;
+		n += (axes >> k) & 1u;
+	}
+	if (with != 0 && with != n) {
+		return MLIP_E_SYNTAX; /* continuous and incremental at once */
+	}
+	c->jog.axes = axes;
+	c->jog.negs = negs;
+	return MLIP_OK;
+}
+
 /* MLIP_CMD_JOG: start, renew or release. MLIP_E_RANGE: an axis not in the
- * machine, or no room toward the soft limit (Grbl's error 15: the jog
- * would leave the machine's travel); MLIP_E_INVALID: not at rest and idle
- * (a program, a stop, a fault, an E-stop), or another jog moving. */
+ * machine, or a target out of the travel (Grbl's error 15: an incremental
+ * target beyond a soft limit, an axis at its limit that way already);
+ * MLIP_E_SYNTAX: the JOG_AXIS before it disagree with it; MLIP_E_INVALID:
+ * not at rest and idle (a program, a stop, a fault, an E-stop), or another
+ * jog moving. */
 int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg)
 {
 	uint32_t u = (uint32_t)arg, axis = u & 7u, mm_min = (u >> 4) & 0xFFFFFu;
@@ -81,13 +182,18 @@ int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_
 		c->jog.renewed = c->period;
 		return MLIP_OK;
 	}
+	int32_t rc = jog_axes(c, axis, neg);
+	if (rc != MLIP_OK) {
+		return rc;
+	}
 	if (c->state == MLIP_STATE_FAULT && c->why.why == MLIP_WHY_LIMIT && c->io.estop &&
 	    !c->home.on) {
-		/* stopped on a limit switch: only a jog away from it, which leaves
-		 * the quick stop (the switch does not trip again until released) */
+		/* stopped on a limit switch: only a jog of that axis alone away
+		 * from it, which leaves the quick stop (the switch does not trip
+		 * again until released) */
 		uint32_t f = c->why.field, k = (f - MLIP_IN_AXIS0) / 3;
 		int away_neg = f == MLIP_IN_LIMIT_POS(k);
-		if (axis != k || neg != away_neg) {
+		if (axis != k || neg != away_neg || c->jog.axes != 1u << k) {
 			return MLIP_E_RANGE; /* toward the switch, or another axis */
 		}
 		c->io.limit_ignore |= 1u << f;
@@ -108,16 +214,16 @@ int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_
 	}
 	c->jog.axis = axis;
 	c->jog.neg = neg;
-	double end = jog_end(c), here = c->pos[axis];
-	if (neg ? !(end < here) : !(end > here)) {
-		return MLIP_E_RANGE; /* at (or beyond) the soft limit that way already */
+	double target[MLIP_MAX_AXES];
+	if (jog_target(c, target) != 0) {
+		return MLIP_E_RANGE;
 	}
 	c->jog.on = 1;
 	c->jog.moving = 0;
 	c->jog.stopping = 0;
 	c->jog.speed = (double)mm_min / 60.0;
 	c->jog.renewed = c->period;
-	c->jog.end_why = MLIP_WHY_JOG_END;
+	c->jog.end_why = incremental(c) ? MLIP_WHY_JOG_DONE : MLIP_WHY_JOG_END;
 	struct mlip_ctl_reason r = reason(MLIP_WHY_JOG, 0, 0);
 	r.field = axis;
 	r.value = neg ? -c->jog.speed : c->jog.speed;

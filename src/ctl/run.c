@@ -136,15 +136,18 @@ static int ring_dry(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 	return !in->feeder_alive && rx_count(c) == 0;
 }
 
-/* A bad record: take nothing more. The look-ahead already plans the last
- * good block to rest; the rest of the program is dropped. */
+/* A bad record: take nothing more. Moving, the look-ahead already plans the
+ * last good block to rest (its newest block always ends at rest, so braking
+ * always makes it); the rest of the program is dropped. */
 void mlip_ct_fault(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl_reason r)
 {
 	c->prog.bad = 1;
 	c->prog.discard = 1;
 	if (c->state != MLIP_STATE_RUNNING && c->state != MLIP_STATE_HELD) {
-		/* not moving (pre-read, a wait): what was pre-read never starts */
-		mlip_planner_stop(c->planner);
+		/* not moving (pre-read, a wait): what was pre-read never starts;
+		 * a wait is not done (the block completed is the one before it) */
+		c->wait.stopped = c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED;
+		mlip_ct_planner_stop(c);
 		c->wait.dwell_left = 0;
 	}
 	go(c, out, MLIP_STATE_FAULT, r);
@@ -155,12 +158,12 @@ void mlip_ct_fault(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl
 static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 {
 	uint32_t n = 0;
-	int event_next = 0;
+	int event_next = 0, bad_next = 0;
 	struct mlip_ring_rec rec;
+	struct mlip_ctl_reason bad_why;
 	while (n < max && c->prog.end.seq == 0 && !c->prog.bad && rx_peek(c, &rec)) {
-		struct mlip_ctl_reason r;
-		if (mlip_ctl_check_record(&c->m, &rec, c->prog.next_seq, &r) != MLIP_OK) {
-			mlip_ct_fault(c, out, r);
+		if (mlip_ctl_check_record(&c->m, &rec, c->prog.next_seq, &bad_why) != MLIP_OK) {
+			bad_next = 1; /* the fault after the good blocks before it are in */
 			break;
 		}
 		if (is_event(&rec)) {
@@ -193,6 +196,9 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 			r.value = (double)err;
 			mlip_ct_fault(c, out, r);
 		}
+	}
+	if (bad_next) {
+		mlip_ct_fault(c, out, bad_why);
 	}
 	return event_next;
 }

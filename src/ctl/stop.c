@@ -6,6 +6,31 @@
 
 #include <math.h>
 
+/* Nothing has moved since the machine last came to rest: a pre-read (of a
+ * new program, or after an underrun or a wait) or a wait. The planner is
+ * not stepped in these states, so it rests at the last setpoint and what it
+ * holds has never run. */
+static int unmoved(const struct mlip_ctl *c)
+{
+	return c->state == MLIP_STATE_PREREAD || c->state == MLIP_STATE_DWELLING ||
+	       c->state == MLIP_STATE_PAUSED;
+}
+
+/* Stop the planner. Moving: on the path at the acceleration limit (the
+ * planner's stop). Unmoved: what it holds is dropped where it rests, and no
+ * setpoint changes. (The planner's stop would follow the plan in force until
+ * its backward pass, a bounded amount of work a period, had come back to the
+ * first corner: several periods at the look-ahead's depth, in which that
+ * plan accelerates from rest into the program's first block.) */
+void mlip_ct_planner_stop(struct mlip_ctl *c)
+{
+	if (unmoved(c)) {
+		mlip_planner_abort(c->planner, c->pos); /* finite: the last setpoint */
+	} else {
+		mlip_planner_stop(c->planner);
+	}
+}
+
 /* A CiA 402 drive faulted (rt/drives.c's supervision): never go on blind.
  * Every axis stops on the path (the planner's stop: the other drives follow
  * it to rest; the faulted drive, muted by rt/, is in its own fault reaction),
@@ -36,8 +61,11 @@ void mlip_ct_drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		}
 		return;
 	}
+	if (c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED) {
+		c->wait.stopped = 1; /* the wait is not done */
+	}
 	if (mlip_planner_queued(c->planner) > 0) {
-		mlip_planner_stop(c->planner);
+		mlip_ct_planner_stop(c);
 		mlip_ct_brake_begin(c);
 	}
 	c->wait.dwell_left = 0;
@@ -102,10 +130,23 @@ void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t w
 		c->prog.discard_waiting = c->prog.discard;
 		return;
 	}
+	if (c->state == MLIP_STATE_PREREAD && !c->prog.refill && why == MLIP_WHY_STOP) {
+		/* the program's pre-read: it has not started, the stop is latched
+		 * for it as for one still being checked (STOP_EARLY): dropped
+		 * unmoved, its first record named (the reason of its pre-read) */
+		struct mlip_ctl_reason r = reason(MLIP_WHY_STOP_EARLY, c->why.seq, c->why.line);
+		mlip_ct_planner_stop(c);
+		c->hold.op = 0; /* as the planner's stop ends a hold */
+		c->prog.discard = c->prog.end.seq == 0;
+		c->prog.end.seq = 0;
+		c->counts.refused++;
+		go(c, out, MLIP_STATE_IDLE, r);
+		return;
+	}
 	/* in a dwell or a pause the wait is not done: the block completed is
 	 * the one before it (the pre-read after it never moved) */
 	c->wait.stopped = c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED;
-	mlip_planner_stop(c->planner);
+	mlip_ct_planner_stop(c);
 	c->wait.dwell_left = 0;
 	c->hold.op = 0; /* the planner's stop ends a hold too */
 	if (c->state == MLIP_STATE_FAULT) {

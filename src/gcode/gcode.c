@@ -335,12 +335,27 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 	return st;
 }
 
+/* The program's offsets differ from those it started with (compared value
+ * by value: the structs hold padding). */
+static int offsets_changed(const struct mlip_gcode_offsets *a, const struct mlip_gcode_offsets *b)
+{
+	int diff = a->g92_on != b->g92_on || a->select != b->select || a->tool != b->tool;
+
+	for (int i = 0; i < MLIP_MAX_AXES; i++) {
+		diff |= a->g92[i] != b->g92[i] || a->g28[i] != b->g28[i] || a->g30[i] != b->g30[i];
+		for (int k = 0; k < MLIP_GCODE_N_COORD; k++) {
+			diff |= a->coord[k][i] != b->coord[k][i];
+		}
+	}
+	return diff;
+}
+
 mlip_status mlip_gcode_finish(struct mlip_gcode *g, uint32_t last_line,
                               struct mlip_gcode_error *err)
 {
 	struct mlip_gcode_error dummy;
 
-	if (g->moves == 0) {
+	if (g->moves == 0 && !g->mdi && !offsets_changed(&g->off_start, &g->off)) {
 		return mlip_gc_fail(err ? err : &dummy, last_line ? last_line : 1, 0, MLIP_E_SYNTAX,
 		                    "empty program: no motion");
 	}

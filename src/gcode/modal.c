@@ -42,9 +42,89 @@ void mlip_gcode_init(struct mlip_gcode *g, const struct mlip_machine *m)
 		g->cur[i] = m->axis[i].home;
 	}
 	mlip_gcode_offsets_init(&g->off, m);
+	g->off_start = g->off;
 	g->s_rpm = -1;
 	g->tool_sel = -1;
 	g->tlo_mode = 490;
+}
+
+void mlip_gcode_modal_init(struct mlip_gcode_modal *md, const struct mlip_machine *m)
+{
+	memset(md, 0, sizeof *md);
+	md->motion = -1;
+	md->plane = 17;
+	md->absolute = 1;
+	md->tol_mm = m->tolerance_mm;
+	md->s_rpm = -1;
+	md->tool_sel = -1;
+	md->tlo_mode = 490;
+}
+
+void mlip_gcode_get_modal(const struct mlip_gcode *g, struct mlip_gcode_modal *md)
+{
+	md->motion = g->motion;
+	md->plane = g->plane;
+	md->absolute = g->absolute;
+	md->inches = g->inches;
+	md->inverse_time = g->inverse_time;
+	/* G93's F is per move (a new one on each line): never carried */
+	md->feed_word = !g->inverse_time && g->feed_mm_s > 0 ? g->feed_word : 0.0;
+	md->exact_stop = g->exact_stop;
+	md->tol_mm = g->tol_mm;
+	md->s_rpm = g->s_rpm;
+	md->tool_sel = g->tool_sel;
+	md->tlo_mode = g->tlo_mode;
+	md->tlo_mm = g->tlo_mode == 490 ? 0.0 : g->tlo_mm;
+}
+
+mlip_status mlip_gcode_set_modal(struct mlip_gcode *g, const struct mlip_gcode_modal *md)
+{
+	const struct mlip_machine *m = g->m;
+	double fmm = md->feed_word * (md->inches ? MM_PER_INCH : 1.0) / 60.0;
+
+	if (md->motion < -1 || md->motion > 3 || md->plane < 17 || md->plane > 19 ||
+	    (md->absolute != 0 && md->absolute != 1) || (md->inches != 0 && md->inches != 1) ||
+	    (md->inverse_time != 0 && md->inverse_time != 1) ||
+	    (md->exact_stop != 0 && md->exact_stop != 1)) {
+		return MLIP_E_RANGE;
+	}
+	if (!(md->feed_word == 0.0 ||
+	      (!md->inverse_time && fmm >= MLIP_FEED_MIN_MM_S && fmm <= MLIP_FEED_MAX_MM_S))) {
+		return MLIP_E_RANGE;
+	}
+	if (!(md->tol_mm > 0 && md->tol_mm <= m->tolerance_mm)) {
+		return MLIP_E_RANGE;
+	}
+	if (!(md->s_rpm == -1.0 || (md->s_rpm >= 0 && md->s_rpm <= 1e6))) {
+		return MLIP_E_RANGE;
+	}
+	if (md->tool_sel < -1) {
+		return MLIP_E_RANGE;
+	}
+	if ((md->tlo_mode != 490 && md->tlo_mode != 430 && md->tlo_mode != 431) ||
+	    !(fabs(md->tlo_mm) <= 1e6) || (md->tlo_mode == 490 && md->tlo_mm != 0.0)) {
+		return MLIP_E_RANGE;
+	}
+	g->motion = md->motion;
+	g->plane = md->plane;
+	g->absolute = md->absolute;
+	g->inches = md->inches;
+	g->inverse_time = md->inverse_time;
+	g->feed_word = md->feed_word;
+	g->feed_mm_s = md->feed_word > 0 ? fmm : 0.0;
+	g->feed_reset = 0;
+	g->exact_stop = md->exact_stop;
+	g->tol_mm = md->tol_mm;
+	g->s_rpm = md->s_rpm;
+	g->tool_sel = md->tool_sel;
+	g->tlo_mode = md->tlo_mode;
+	g->tlo_mm = md->tlo_mm;
+	return MLIP_OK;
+}
+
+void mlip_gcode_set_mdi(struct mlip_gcode *g, int on)
+{
+	g->mdi = on != 0;
 }
 
 void mlip_gcode_set_io(struct mlip_gcode *g, const struct mlip_gcode_io *io)
@@ -72,6 +152,7 @@ void mlip_gcode_set_offsets(struct mlip_gcode *g, const struct mlip_gcode_offset
 	if (g->off.tool < 0) {
 		g->off.tool = 0;
 	}
+	g->off_start = g->off;
 }
 
 void mlip_gc_notice(struct mlip_gcode *g, const char *word, uint32_t line)

@@ -697,6 +697,7 @@ void mlip_ring_feeder_write(struct mlip_ring *r, const struct mlip_ring_feeder *
 	ST(&d->program_end, f->program_end, REL);
 	ST(&d->pid, f->pid, REL);
 	ST(&d->stop_base, f->stop_base, REL);
+	ST(&d->mdi, f->mdi, REL);
 	ST(&r->feeder_gen, g + 2, REL);
 }
 
@@ -717,7 +718,7 @@ mlip_status mlip_ring_feeder_read(const struct mlip_ring *r, struct mlip_ring_fe
 		f->program_end = LD(&d->program_end, ACQ);
 		f->pid = LD(&d->pid, ACQ);
 		f->stop_base = LD(&d->stop_base, ACQ);
-		f->spare = 0;
+		f->mdi = LD(&d->mdi, ACQ);
 		g2 = LD(&r->feeder_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -832,8 +833,9 @@ int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
-	static const char *const names[] = {"none",          "override", "hold", "resume", "stop",
-	                                    "optional-stop", "reset",    "jog",  "home"};
+	static const char *const names[] = {"none", "override",      "hold",  "resume",
+	                                    "stop", "optional-stop", "reset", "jog",
+	                                    "home", "jog-axis"};
 
 	return NAME_OF(names, op);
 }

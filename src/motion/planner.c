@@ -1,6 +1,7 @@
 /*
- * planner.c - adaptive look-ahead (Sec. 2), feed override (Sec. 3) and
- * interpolation (Sec. 4) of Zhang, Sun, Gao, Li (2011).
+ * planner.c - adaptive look-ahead (Sec. 2) and feed override (Sec. 3) of
+ * Zhang, Sun, Gao, Li (2011), and the planner's commands (push, override,
+ * hold, stop, rest, abort); the interpolation (Sec. 4) is interp.c.
  *
  * The state of corner j is one number q_j = (t_m / t_g)^2 in [0, 1], where
  * t_g is the corner's largest admissible t_m from (18)-(20): with a fixed,
@@ -20,82 +21,12 @@
  * when a value equals the one the previous pass left (termination condition).
  * Forward reachability (34) and the cases of Sec. 3.2 are applied by the
  * executor to the segment it is on, from the actual state, every period.
- *
- * Interpolation samples one continuous C1 motion made of parabolic corners
- * (14) and trapezoidal lines (35)(36) at t = kT: any number of pieces may
- * fall in one period, and since each piece's acceleration is within the
- * per-axis limits, so is every second difference of the samples (a weighted
- * mean of the acceleration over two periods). That replaces the re-timing of
- * (37) exactly.
  */
 #include <math.h>
 #include <string.h>
 
+#include "interp.h"
 #include "mlip/motion/strategy.h"
-
-static struct mlip_seg *seg_at(struct mlip_planner *p, uint32_t i)
-{
-	return mlip_seg_at(p, i);
-}
-
-static const struct mlip_seg *cseg_at(const struct mlip_planner *p, uint32_t i)
-{
-	return &p->seg[i & (p->cap - 1)];
-}
-
-/* ---- the jerk limit's mean (mlip/motion/jerk.h) ---------------------------- */
-
-#define FIR_MASK (MLIP_JERK_MAX_TAPS - 1u)
-typedef char mlip_fir_pow2[(MLIP_JERK_MAX_TAPS & FIR_MASK) == 0 ? 1 : -1];
-
-/* The mark of the sample at the window's centre, (m - 1) / 2 periods ago:
- * the setpoint is within E_f of the plan there (J5; m is odd). */
-static const struct mlip_exec_mark *centre_mark(const struct mlip_planner *p)
-{
-	return &p->mark[(p->fir_n - 1u - (uint32_t)(p->taps - 1) / 2u) & FIR_MASK];
-}
-
-/* The mean has come to rest: the plan stood still over the whole window. */
-static int settled(const struct mlip_planner *p)
-{
-	return p->still + 1u >= (uint32_t)p->taps;
-}
-
-/* Every sample of the window at p->pos, where the plan is now: at rest. */
-static void filter_reset(struct mlip_planner *p)
-{
-	struct mlip_exec_mark mk = {p->tail, p->in_corner, p->done_seq, p->done_line};
-	for (uint32_t i = 0; i < MLIP_JERK_MAX_TAPS; i++) {
-		memcpy(p->fir[i], p->pos, sizeof(p->fir[i]));
-		p->mark[i] = mk;
-	}
-	memcpy(p->out, p->pos, sizeof(p->out));
-	p->fir_n = MLIP_JERK_MAX_TAPS;
-	p->still = (uint32_t)p->taps;
-	p->dwell = 0;
-}
-
-/* Take this period's plan position: the setpoint is the mean of the last
- * taps ones (J1), summed as offsets from the newest so that a window at
- * rest gives exactly its point. */
-static void filter_step(struct mlip_planner *p, double *pos_out)
-{
-	const double *last = p->fir[(p->fir_n - 1u) & FIR_MASK];
-	int moved = memcmp(last, p->pos, sizeof(double) * (size_t)p->n) != 0;
-	p->still = moved ? 0u : p->still + 1u;
-	uint32_t i0 = p->fir_n & FIR_MASK;
-	memcpy(p->fir[i0], p->pos, sizeof(p->fir[i0]));
-	p->mark[i0] = (struct mlip_exec_mark){p->tail, p->in_corner, p->done_seq, p->done_line};
-	p->fir_n++;
-	for (int k = 0; k < p->n; k++) {
-		double sum = 0.0;
-		for (uint32_t j = 1; j < (uint32_t)p->taps; j++) {
-			sum += p->fir[(p->fir_n - 1u - j) & FIR_MASK][k] - p->pos[k];
-		}
-		p->out[k] = p->pos[k] + sum / (double)p->taps;
-	}
-	memcpy(pos_out, p->out, sizeof(double) * (size_t)p->n);
-}
 
 /* ---- initialisation ----------------------------------------------------- */
 
@@ -139,7 +70,7 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 	p->period_s = m->period_s;
 	p->cap = cap;
 	p->override = 1.0;
-	filter_reset(p);
+	mlip_filter_reset(p);
 	return MLIP_OK;
 }
 
@@ -147,7 +78,7 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 static uint32_t ring_space(const struct mlip_planner *p)
 {
 	/* with a jerk limit, the segments the mean's centre is still on stay */
-	uint32_t keep = p->taps > 1 ? centre_mark(p)->tail : p->tail;
+	uint32_t keep = p->taps > 1 ? mlip_centre_mark(p)->tail : p->tail;
 	return p->cap - (p->head - keep);
 }
 
@@ -165,7 +96,7 @@ uint32_t mlip_planner_queued(const struct mlip_planner *p)
 {
 	uint32_t inputs = p->in_head - p->in_tail;
 	return p->head - p->tail + inputs +
-	       (p->head == p->tail && inputs == 0 && !settled(p) ? 1u : 0u);
+	       (p->head == p->tail && inputs == 0 && !mlip_settled(p) ? 1u : 0u);
 }
 
 void mlip_planner_set_async(struct mlip_planner *p, int on)
@@ -179,11 +110,6 @@ int mlip_planner_busy(const struct mlip_planner *p)
 }
 
 /* ---- look-ahead --------------------------------------------------------- */
-
-static double effective_override(const struct mlip_planner *p)
-{
-	return p->hold ? 0.0 : p->override;
-}
 
 /* Largest q corner pr (between pr and nx) may have under the override: v_s
  * within pr's target, v_e within nx's (Sec. 3). */
@@ -587,192 +513,6 @@ void mlip_planner_work(struct mlip_planner *p)
 	}
 }
 
-/* ---- execution ---------------------------------------------------------- */
-
-static double end_corner_q(const struct mlip_seg *s, double rem, double v)
-{
-	int ok;
-	return mlip_corner_q_at(&s->c, s->a_mm_s2, s->q, rem, v, &ok);
-}
-
-/* Segment tail is finished: account for it and free its slot. */
-static void retire(struct mlip_planner *p)
-{
-	struct mlip_seg *s = seg_at(p, p->tail);
-	p->done_seq = s->seq;
-	p->done_line = s->line;
-	p->tail++;
-	p->retired++;
-}
-
-static void line_position(const struct mlip_planner *p, const struct mlip_seg *s, double *out)
-{
-	/* anchored at the segment's end point so that arriving there is exact */
-	double back = s->d_mm - p->l_start_mm - p->s_mm;
-	for (int k = 0; k < p->n; k++) {
-		out[k] = s->end[k] - s->e[k] * back;
-	}
-}
-
-static void corner_position(const struct mlip_planner *p, const struct mlip_seg *s,
-                            const struct mlip_seg *nx, double *out)
-{
-	/* (14) rewritten: P - beta (t_m - t)^2 / 2 e_s + alpha t^2 / 2 e_e, which
-	 * is exact at both ends and free of cancellation */
-	double tm = sqrt(p->q_exec) * s->c.t_s, t = p->tc_s;
-	double ws = 0.5 * s->c.beta_mm_s2 * mlip_sq(tm - t);
-	double we = 0.5 * s->c.alpha_mm_s2 * t * t;
-	for (int k = 0; k < p->n; k++) {
-		out[k] = s->end[k] - ws * s->e[k] + we * nx->e[k];
-	}
-}
-
-mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
-{
-	double tau = p->period_s;
-	p->stats.periods++;
-
-	while (tau > 0.0 && p->head != p->tail) {
-		struct mlip_seg *s = seg_at(p, p->tail);
-		int has_next = p->head - p->tail > 1;
-
-		if (p->in_corner) {
-			if (p->dwell > 0) {
-				p->dwell--; /* at rest on an exact corner, for the mean (jerk.h) */
-				tau = 0.0;
-				break;
-			}
-			double tm = sqrt(p->q_exec) * s->c.t_s;
-			double left = tm - p->tc_s;
-			if (left > tau) {
-				p->tc_s += tau;
-				tau = 0.0;
-				break;
-			}
-			tau -= mlip_dmax(left, 0.0);
-			/* onto the next line at E with speed v_e */
-			p->l_start_mm = p->q_exec * s->c.le_mm;
-			p->v_mm_s = sqrt(p->q_exec) * s->c.ve_mm_s;
-			p->s_mm = 0.0;
-			p->in_corner = 0;
-			retire(p);
-			continue;
-		}
-
-		double rem = s->d_mm - p->l_start_mm - p->s_mm; /* to the corner point */
-		if (p->ops->line_start != NULL && has_next && !p->prof_valid) {
-			p->ops->line_start(p, s, rem, p->v_mm_s);
-		}
-		double q = has_next ? end_corner_q(s, rem, p->v_mm_s) : 0.0;
-		double vt = mlip_line_target(p, s);
-		struct mlip_profile *f = &p->prof;
-		if (!p->prof_valid || q != p->prof_q || vt != p->prof_vt) {
-			/* re-plan from the actual state only when an input changed;
-			 * otherwise keep evaluating one profile in closed form, so
-			 * no rounding accumulates along a long line */
-			double left = mlip_dmax(rem - q * s->c.ls_mm, 0.0);
-			mlip_profile_make(f, p->v_mm_s, left, sqrt(q) * s->c.vs_mm_s, s->a_mm_s2,
-			                  vt);
-			p->prof_valid = 1;
-			p->prof_q = q;
-			p->prof_vt = vt;
-			p->prof_t = 0.0;
-			p->prof_s0 = p->s_mm;
-			p->prof_len = left;
-		}
-		double total = f->t1 + f->t2 + f->t3;
-		if (total - p->prof_t > tau) {
-			double dist, v;
-			p->prof_t += tau;
-			mlip_profile_eval(f, p->prof_t, &dist, &v);
-			p->s_mm = p->prof_s0 + dist;
-			p->v_mm_s = v;
-			tau = 0.0;
-			break;
-		}
-		tau -= total - p->prof_t;
-		p->s_mm = p->prof_s0 + p->prof_len;
-		p->v_mm_s = f->v1;
-		p->prof_valid = 0;
-		if (!has_next) {
-			/* at rest on the newest point: nothing was queued behind it */
-			retire(p);
-			p->l_start_mm = 0.0;
-			p->s_mm = 0.0;
-			p->v_mm_s = 0.0;
-			continue;
-		}
-		p->in_corner = 1;
-		p->q_exec = q;
-		p->tc_s = 0.0;
-		if (p->taps > 1 && s->exact) {
-			/* the corner point is this period's sample and the next
-			 * taps - 2 ones: no window then holds both legs (jerk.h) */
-			p->dwell = (uint32_t)p->taps - 2u;
-			tau = 0.0;
-			break;
-		}
-	}
-
-	/* controlled stop: once at rest on the path (and the mean with it),
-	 * drop what is queued */
-	if (p->stopping && p->v_mm_s == 0.0 && !p->in_corner &&
-	    (p->taps <= 1 || p->still + 2u >= (uint32_t)p->taps)) {
-		if (p->head != p->tail) {
-			line_position(p, seg_at(p, p->tail), p->pos);
-			p->head = p->tail;
-			p->pass.on = 0; /* nothing left to plan */
-			p->pending = 0;
-			p->pass.has_reach = 0;
-			memcpy(p->last_point, p->pos, sizeof(double) * (size_t)p->n);
-			p->l_start_mm = 0.0;
-			p->s_mm = 0.0;
-		}
-		p->stopping = 0;
-		p->hold = 0;
-	}
-
-	if (p->head == p->tail) {
-		memcpy(p->pos, p->last_point, sizeof(double) * (size_t)p->n);
-	} else if (p->in_corner) {
-		corner_position(p, seg_at(p, p->tail), seg_at(p, p->tail + 1), p->pos);
-	} else {
-		line_position(p, seg_at(p, p->tail), p->pos);
-	}
-	mlip_run_state rs = MLIP_RUN_MOVING;
-	if (p->head == p->tail) {
-		rs = MLIP_RUN_IDLE;
-	} else if (effective_override(p) == 0.0 && p->v_mm_s == 0.0 && !p->in_corner) {
-		rs = MLIP_RUN_HELD;
-	}
-	if (p->taps <= 1) {
-		memcpy(pos_out, p->pos, sizeof(double) * (size_t)p->n);
-		return rs;
-	}
-	filter_step(p, pos_out);
-	return settled(p) ? rs : MLIP_RUN_MOVING; /* at rest once the mean is */
-}
-
-double mlip_planner_speed(const struct mlip_planner *p)
-{
-	if (p->head == p->tail) {
-		return 0.0;
-	}
-	if (!p->in_corner) {
-		return p->v_mm_s;
-	}
-	/* |v_s e_s + a t| in the corner */
-	const struct mlip_seg *s = cseg_at(p, p->tail);
-	const struct mlip_seg *nx = cseg_at(p, p->tail + 1);
-	double u = sqrt(p->q_exec), t = p->tc_s, v2 = 0.0;
-	for (int k = 0; k < p->n; k++) {
-		double vk = u * s->c.vs_mm_s * s->e[k] +
-		            (s->c.alpha_mm_s2 * nx->e[k] - s->c.beta_mm_s2 * s->e[k]) * t;
-		v2 += vk * vk;
-	}
-	return sqrt(v2);
-}
-
 /* 1 / |linear part of e|: joint length per tool length (G94 feed, append) */
 static double joint_per_tool(const struct mlip_planner *p, const double *e)
 {
@@ -798,7 +538,7 @@ static double line_dist(int n, const double *x, const double *P, const double *e
 
 mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
 {
-	if (p->head != p->tail || p->stopping || p->in_corner || !settled(p) ||
+	if (p->head != p->tail || p->stopping || p->in_corner || !mlip_settled(p) ||
 	    mlip_planner_busy(p)) {
 		return MLIP_E_INVALID;
 	}
@@ -810,7 +550,7 @@ mlip_status mlip_planner_rest_at(struct mlip_planner *p, const double *pos)
 	memcpy(p->last_point, pos, sizeof(double) * (size_t)p->n);
 	memcpy(p->pos, pos, sizeof(double) * (size_t)p->n);
 	p->v_mm_s = 0.0;
-	filter_reset(p);
+	mlip_filter_reset(p);
 	return MLIP_OK;
 }
 
@@ -836,7 +576,7 @@ mlip_status mlip_planner_abort(struct mlip_planner *p, const double *pos)
 	p->tc_s = 0.0;
 	memcpy(p->last_point, pos, sizeof(double) * (size_t)p->n);
 	memcpy(p->pos, pos, sizeof(double) * (size_t)p->n);
-	filter_reset(p); /* a jerk limit's mean rests at pos too, its window with it */
+	mlip_filter_reset(p); /* a jerk limit's mean rests at pos too, its window with it */
 	return MLIP_OK;
 }
 
@@ -847,7 +587,7 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 		 * at the window's centre (J5, m odd), so the path goes on from
 		 * there, and a straight line from the setpoint to the end of that
 		 * segment stays within the corner's budget plus E_f (convexity) */
-		const struct mlip_exec_mark *mk = centre_mark(p);
+		const struct mlip_exec_mark *mk = mlip_centre_mark(p);
 		p->tail = mk->tail;
 		p->in_corner = mk->in_corner;
 		p->done_seq = mk->done_seq;
@@ -873,7 +613,7 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 		const struct mlip_seg *nx = seg_at(p, p->tail + 1);
 		if (line_dist(p->n, p->pos, s->end, nx->e) <=
 		    line_dist(p->n, p->pos, s->end, s->e)) {
-			retire(p);
+			mlip_retire(p);
 		} else {
 			s->exact = 1;
 		}
@@ -888,7 +628,7 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 		}
 		double d = sqrt(d2);
 		if (d < MLIP_MERGE_MM) {
-			retire(p); /* at its end already */
+			mlip_retire(p); /* at its end already */
 			continue;
 		}
 		double a = INFINITY, vaxis = INFINITY, jpt0 = joint_per_tool(p, s->e);
@@ -919,13 +659,13 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 	if (p->head == p->tail) {
 		memcpy(p->last_point, p->pos, sizeof(double) * (size_t)p->n);
 	}
-	filter_reset(p);         /* at rest on the last setpoint */
+	mlip_filter_reset(p);    /* at rest on the last setpoint */
 	mlip_planner_hold(p, 1); /* full backward pass from the new geometry */
 }
 
 int mlip_planner_moving(const struct mlip_planner *p)
 {
-	return (p->head != p->tail && (p->v_mm_s > 0.0 || p->in_corner)) || !settled(p);
+	return (p->head != p->tail && (p->v_mm_s > 0.0 || p->in_corner)) || !mlip_settled(p);
 }
 
 void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)

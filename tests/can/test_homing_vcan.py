@@ -82,10 +82,15 @@ def test_homing_in_sequence(sim, tmp_path):
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         st = rig.status()
         assert st["homed"] == {"X": False, "Y": False, "Z": False}, st
-        # HOMING_REQUIRED: a program before homing is refused, nothing moves
-        f = rig.feeder(ngc)
-        f.p.wait(timeout=300)
+        # HOMING_REQUIRED: a program before homing is refused, nothing moves;
+        # so are MDI moves (a line of modes alone moves nothing: it runs)
+        rc, _, err = rig.feed(ngc, timeout=300)
+        assert rc == 1 and "HOMING_REQUIRED" in err and "not homed: X Y Z" in err, err
         st = rig.wait_state("idle", timeout=60, pred=lambda s: s["reason"] == "not homed")
+        p = rig.ctl("mdi", "G0 X1", check=False)
+        assert p.returncode == 1 and "HOMING_REQUIRED" in p.stderr, p.stderr
+        assert rig.ctl("mdi", "G91", check=False).returncode == 0
+        assert rig.status()["position"] == st["position"]
         p = rig.ctl("home", check=False)
         assert p.returncode == 0, p.stdout + p.stderr
         assert "homed in" in p.stdout and "X 0.0000 Y -1.5000 Z 10.0000" in p.stdout, p.stdout

@@ -1,7 +1,10 @@
 """Shared helpers for the system tests: where things are, how to run a tool."""
+import contextlib
 import json
+import mmap
 import os
 import signal
+import struct
 import subprocess
 import time
 from pathlib import Path
@@ -125,14 +128,67 @@ def status(shm):
     return json.loads(p.stdout) if p.stdout.strip() else None
 
 
-def wait_for(pred, timeout=10.0):
+def wait_for(pred, timeout=10.0, poll=0.02):
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         v = pred()
         if v:
             return v
-        time.sleep(0.02)
+        time.sleep(poll)
     return None
+
+
+@contextlib.contextmanager
+def frozen(proc):
+    """proc stopped (SIGSTOP, every thread of it seen stopped) for the block,
+    continued (SIGCONT) after it: what the block reads of its segment stays
+    put whatever the host's load (mlip-rt's heartbeat goes stale: late, not
+    dead, for the feeder and mlip-ctl)."""
+    proc.send_signal(signal.SIGSTOP)
+    try:
+        def stopped():
+            tasks = Path(f"/proc/{proc.pid}/task")
+            return all((t / "stat").read_text().rsplit(")", 1)[1].split()[0] in "tT"
+                       for t in tasks.iterdir())
+        assert wait_for(stopped, 10, 0.001), f"pid {proc.pid} did not stop"
+        yield
+    finally:
+        proc.send_signal(signal.SIGCONT)
+
+
+# The segment's record ring (include/mlip/ipc/ring.h, layout version 8): a
+# record, the producer's and the consumer's free-running indices, the
+# capacity, where the records start.
+REC = struct.Struct("<QIHH6dddd")
+HEAD, TAIL, CAPACITY, HDR_BYTES = 64, 128, 12, 24
+
+
+class Ring:
+    """The segment's record ring, read (and written behind the feeder's back,
+    as a hostile local user would) by the tests."""
+
+    def __init__(self, shm):
+        fd = os.open("/dev/shm" + shm, os.O_RDWR)
+        try:
+            self.mem = mmap.mmap(fd, 0)
+        finally:
+            os.close(fd)
+        self.cap = self.u32(CAPACITY)
+
+    def u32(self, off):
+        return struct.unpack_from("<I", self.mem, off)[0]
+
+    def count(self):
+        return (self.u32(HEAD) - self.u32(TAIL)) % 2**32
+
+    def _off(self, index):
+        return self.u32(HDR_BYTES) + (index % self.cap) * REC.size
+
+    def read(self, index):
+        return list(REC.unpack_from(self.mem, self._off(index)))
+
+    def write(self, index, rec):
+        REC.pack_into(self.mem, self._off(index), *rec)
 
 
 @pytest.fixture

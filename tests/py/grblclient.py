@@ -117,6 +117,17 @@ class Grbl:
         self.send(b"?")
         return parse_status(self.status_q.get(timeout=timeout or self.timeout))
 
+    def wait_status(self, pred, timeout=60.0, period=0.02):
+        """Poll '?' until a report for which pred is true; that report."""
+        end = time.monotonic() + timeout
+        last = None
+        while time.monotonic() < end:
+            last = self.status()
+            if pred(last):
+                return last
+            time.sleep(period)
+        raise AssertionError(f"no such report in {timeout} s: last {last}")
+
     def wait_state(self, states, timeout=30.0, period=0.05):
         end = time.monotonic() + timeout
         last = None

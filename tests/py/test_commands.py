@@ -14,7 +14,8 @@ import time
 
 import pytest
 
-from conftest import CONFIG, ROOT, TOOLPATHS, status, tool, wait_for
+from conftest import (CONFIG, HEAD, ROOT, TAIL, TOOLPATHS, Ring, frozen, status, tool,
+                      wait_for)
 
 MILL = CONFIG / "mill-3axis.ini"
 PAPER = CONFIG / "paper-2axis.ini"
@@ -48,6 +49,15 @@ def in_state(shm, state, timeout=10):
                     timeout)
 
 
+def long_program(tmp_path):
+    """20000 short moves at 50 mm/s (a check of some length; 4096 blocks
+    pre-read before the first motion period)."""
+    prog = tmp_path / "long.ngc"
+    prog.write_text("G21 G90 F3000\n" + "".join(f"G1 X{(k % 200) * 0.5:.1f} Y{k * 0.001:.3f}\n"
+                                                for k in range(20000)) + "M2\n")
+    return prog
+
+
 def holds_a_lock(pid):
     """pid holds a POSIX record lock (mlip-feed: the ring's producer line)."""
     with open("/proc/locks") as f:
@@ -63,9 +73,7 @@ def test_stop_during_the_check_prevents_the_program(controller, tmp_path):
     stop is given, then it runs on: the program never moves, the feeder
     says so (exit 4), mlip-ctl names it."""
     shm, rt = controller(MILL)
-    prog = tmp_path / "long.ngc"
-    prog.write_text("G21 G90 F3000\n" + "".join(f"G1 X{(k % 200) * 0.5:.1f} Y{k * 0.001:.3f}\n"
-                                                for k in range(20000)) + "M2\n")
+    prog = long_program(tmp_path)
     before = status(shm)
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, str(prog)], stderr=subprocess.PIPE,
                          text=True)
@@ -91,6 +99,41 @@ def test_stop_during_the_check_prevents_the_program(controller, tmp_path):
     assert f"program of mlip-feed pid {f.pid}, begun before this stop, will not start" \
         in c.stdout, c.stdout
     # the stop was for that program only: the next one runs
+    p = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", str(DEMO)], capture_output=True,
+                       text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert status(shm)["exec_seq"] == 1820
+
+
+def test_stop_in_the_preread_prevents_the_program(controller, tmp_path):
+    """A stop that comes once the controller has begun the program's
+    pre-read (its first 4096 blocks taken before the first motion period)
+    but before anything moved: the program never moves (it moved 1-4 um on
+    the path: the planner's stop followed the plan in force, which
+    accelerates from rest), as a stop during its check. mlip-rt is frozen
+    in its pre-read while mlip-ctl posts the stop (it cannot answer: exit
+    1, the stop posted), then goes on: it is dropped unmoved (stop before
+    the start: no stop on the path counted, the position to the last bit
+    where it stood); the next program runs."""
+    shm, rt = controller(MILL)
+    prog = long_program(tmp_path)
+    before = status(shm)
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, str(prog)], stderr=subprocess.PIPE,
+                         text=True)
+    ring = Ring(shm)
+    # the pre-read has begun (a record taken); it ends with the 4096th
+    assert wait_for(lambda: ring.u32(TAIL) > 0 or f.poll() is not None, 60, 0.001)
+    with frozen(rt):
+        assert 0 < ring.u32(TAIL) < 4096 and ring.u32(HEAD) > 0, ring.u32(TAIL)
+        c = ctl(shm, "stop")
+    assert c.returncode == 1 and "posted" in c.stderr, (c.stdout, c.stderr)
+    err = f.communicate(timeout=60)[1]
+    assert f.returncode == 4, err
+    assert "mlip-ctl stop came before the program started: the controller dropped it, " \
+        "nothing moved" in err, err
+    s = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 30)
+    assert s and s["reason"] == "stop before the start" and s["reason_seq"] == 1, s
+    assert s["position"] == before["position"] and s["exec_seq"] == 0 and s["stops"] == 0, s
     p = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", str(DEMO)], capture_output=True,
                        text=True, timeout=60)
     assert p.returncode == 0, p.stderr

@@ -15,7 +15,8 @@ import time
 
 import pytest
 
-from conftest import CONFIG, ROOT, TOOLPATHS, status, tool, wait_for
+from conftest import (CONFIG, HEAD, ROOT, TAIL, TOOLPATHS, Ring, frozen, record_checked,
+                      record_rows, status, tool, wait_for)
 
 DEMO = ROOT / "examples" / "demo.ngc"
 MILL = CONFIG / "mill-3axis.ini"
@@ -125,38 +126,6 @@ def test_stall_holds_at_rest_without_jump(controller, tmp_path):
 
 # ---- records the controller did not expect --------------------------------
 
-REC = struct.Struct("<QIHH6dddd")  # include/mlip/ipc/ring.h, layout version 8
-HEAD, TAIL, CAPACITY, HDR_BYTES = 64, 128, 12, 24  # HDR_BYTES: where the records start
-
-
-class Ring:
-    """The segment's record ring, written behind the feeder's back as a
-    hostile local user would."""
-
-    def __init__(self, shm):
-        fd = os.open("/dev/shm" + shm, os.O_RDWR)
-        try:
-            self.mem = mmap.mmap(fd, 0)
-        finally:
-            os.close(fd)
-        self.cap = self.u32(CAPACITY)
-
-    def u32(self, off):
-        return struct.unpack_from("<I", self.mem, off)[0]
-
-    def count(self):
-        return (self.u32(HEAD) - self.u32(TAIL)) % 2**32
-
-    def _off(self, index):
-        return self.u32(HDR_BYTES) + (index % self.cap) * REC.size
-
-    def read(self, index):
-        return list(REC.unpack_from(self.mem, self._off(index)))
-
-    def write(self, index, rec):
-        REC.pack_into(self.mem, self._off(index), *rec)
-
-
 def zigzag(tmp_path, rows=40, per_row=300):
     """0.1 mm segments at 200 mm/s, a turn every 30 mm: many blocks quickly."""
     lines = ["G21 G90 F12000"]
@@ -171,50 +140,95 @@ def zigzag(tmp_path, rows=40, per_row=300):
 
 
 def test_corrupt_record_is_a_fault_never_complete(controller, tmp_path):
-    """A local user writes a NaN target into a record already queued: the
-    controller takes nothing from it on, stops at rest at the end of the last
-    good block, says fault with the record, field and value; the feeder exits
-    5 and never says complete."""
+    """A local user writes a NaN target into a record already queued, once
+    the motion has begun: the controller takes nothing from it on and stops
+    at rest exactly at the end of the last good block (the look-ahead plans
+    its newest block to rest), says fault with the record, field and value;
+    the feeder exits 5 and never says complete. mlip-rt is frozen while the
+    record is written 1000 records ahead of what it took (it takes at most
+    16 a period while moving), so it meets the record after the write
+    whatever the host's load."""
     prog = zigzag(tmp_path)
-    shm, rt = controller(MILL)
-    home = status(shm)["position"]
+    rec_csv = tmp_path / "rt.csv"
+    shm, rt = controller(MILL, "--record", rec_csv)
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
                          text=True)
     ring = Ring(shm)
-    assert wait_for(lambda: ring.count() > 4000, 30)
-    # half way between what the controller took and what the feeder sent
-    index = ring.u32(TAIL) + ring.count() // 2
-    rec = ring.read(index)
-    seq, line = rec[0], rec[1]
-    assert rec[2] == 0  # a MOVE record
-    rec[4] = float("nan")  # target X
-    ring.write(index, rec)
+    assert wait_for(lambda: (lambda s: s["state"] == "running" and s["exec_seq"] > 0)(
+        status(shm)), 60), status(shm)
+    with frozen(rt):
+        index = ring.u32(TAIL) + 1000
+        assert wait_for(lambda: ring.u32(HEAD) > index, 30)  # the feeder runs on
+        rec = ring.read(index)
+        seq, line = rec[0], rec[1]
+        assert rec[2] == 0  # a MOVE record
+        good = ring.read(index - 1)[4:7]  # where the last good block ends: X Y Z
+        rec[4] = float("nan")  # target X
+        ring.write(index, rec)
     _, ferr = f.communicate(timeout=120)
     assert f.returncode == 5, ferr
     assert f"bad record {seq} (line {line}): target[0] = nan" in ferr, ferr
     assert "NOT complete" in ferr and "program complete" not in ferr
-    # at rest, and nothing of the bad record or after it run. Normally at the
-    # end of the last good block (seq - 1); when the bad record is read in
-    # the motion's first periods (a slow build: the sanitizers), the stop
-    # comes on the path inside the first block (exec_seq 0), short of it:
-    # a known gap, noted on issue 17
-    s = wait_for(lambda: (lambda s: s if s["speed_mm_s"] == 0.0 and s["exec_seq"] in (0, seq - 1)
-                          else None)(status(shm)), 30)
+    s = wait_for(lambda: (lambda s: s if s["speed_mm_s"] == 0.0 and s["state"] == "fault"
+                          and s["exec_seq"] == seq - 1 else None)(status(shm)), 30)
     assert s, status(shm)
-    if s["exec_seq"] == 0:
-        assert s["position"]["Y"] == home["Y"] and s["position"]["Z"] == home["Z"], s
-        assert 0 <= s["position"]["X"] - home["X"] < 0.1, s  # inside the first line (X0.1)
-    assert s["state"] == "fault" and s["reason"] == "bad record"
+    assert [s["position"][a] for a in "XYZ"] == good, (s, good)  # exactly its end
+    assert s["reason"] == "bad record"
     assert s["reason_seq"] == seq and s["reason_line"] == line
     assert s["reason_field"] == "target X" and s["reason_value"] is None  # NaN
-    time.sleep(0.2)
-    assert status(shm)["position"] == s["position"]  # at rest, nothing after it taken
     assert ctl(shm, "resume").returncode == 1  # a fault is not resumed
     st = ctl(shm, "status")
     assert st.returncode == 1 and "in fault (bad record)" in st.stderr  # failure, not done
     assert f"record {seq} (line {line}), target X = nan" in st.stdout
     err = stop(rt)
-    assert f"fault: bad record {seq} (line {line}): target X = nan" in err, err
+    assert (f"fault: bad record {seq} (line {line}): target X = nan; nothing after it is "
+            f"taken, the machine stops at rest at the end of block {seq - 1};") in err, err
+    # the setpoints sent: along the path (mlip-check, a stop allowed), the
+    # last one the end of block seq - 1, nothing after it
+    rows = record_rows(rec_csv)
+    assert rows[-1][1:] == good and rows[-2][1:] == good
+    record_checked(MILL, prog, rec_csv)
+
+
+def test_corrupt_record_in_the_preread_never_moves(controller, tmp_path):
+    """Issue 17: a bad record met while the controller still pre-reads (the
+    motion's first periods; seen under make sanitize's slow build) stopped
+    the machine on the path inside the first block: the planner's stop
+    followed the plan in force, which accelerates from rest. Now a program
+    refused before its first motion period never moves: every setpoint
+    mlip-rt sent is where the machine stood. Record 4000 is made bad while
+    mlip-rt is frozen before its pre-read reached it; the pre-read takes the
+    look-ahead's 4096 blocks before anything moves."""
+    prog = zigzag(tmp_path)
+    rec_csv = tmp_path / "rt.csv"
+    shm, rt = controller(MILL, "--record", rec_csv)
+    home = status(shm)["position"]
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
+                         text=True)
+    ring = Ring(shm)
+    assert wait_for(lambda: ring.u32(HEAD) > 0 or f.poll() is not None, 60, 0.001)
+    with frozen(rt):
+        assert ring.u32(TAIL) < 4000 - 16, ring.u32(TAIL)  # not reached (and not moved)
+        assert wait_for(lambda: ring.u32(HEAD) >= 4000, 30)  # the feeder runs on
+        rec = ring.read(3999)
+        assert rec[0] == 4000 and rec[2] == 0, rec  # seq 4000 (a fresh ring), a MOVE
+        line = rec[1]
+        rec[4] = float("nan")
+        ring.write(3999, rec)
+    _, ferr = f.communicate(timeout=120)
+    assert f.returncode == 5, ferr
+    assert f"bad record 4000 (line {line}): target[0] = nan" in ferr, ferr
+    s = wait_for(lambda: (lambda s: s if s["state"] == "fault" else None)(status(shm)), 30)
+    assert s and s["reason"] == "bad record" and s["reason_seq"] == 4000, s
+    assert s["exec_seq"] == 0 and s["position"] == home and s["speed_mm_s"] == 0.0, s
+    err = stop(rt)
+    assert ("fault: bad record 4000 (line %d): target X = nan; nothing after it is taken, the "
+            "machine stays at rest where the program started (nothing of it moved)" % line) \
+        in err, err
+    # mlip-rt's record begins when the controller leaves the pre-read (here
+    # for the fault): every setpoint where the machine stood
+    rows = record_rows(rec_csv)
+    assert rows and all(r[1:] == [home[a] for a in "XYZ"] for r in rows), rows
 
 
 def test_bad_record_met_in_a_dwell_names_where_the_machine_rests(controller, tmp_path):

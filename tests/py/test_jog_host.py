@@ -127,3 +127,87 @@ def test_jog_bad_arguments(controller):
         p = ctl(shm, "jog", *args)
         assert p.returncode == 2 and msg in p.stderr, (args, p.stderr)
     assert status(shm)["position"] == {"X": 0.0, "Y": 0.0, "Z": 0.0}
+
+
+def rows3(path):
+    """(t, x, y, z) per recorded period, on the controller's time."""
+    out = []
+    for line in path.read_text().splitlines()[1:]:
+        f = line.split(",")
+        out.append((len(out) * T, *map(float, f[1:4])))
+    return out
+
+
+def limits_of(rows):
+    """The largest path speed and per-axis |acceleration| of the rows."""
+    vs = [[(b[k] - a[k]) / T for k in (1, 2, 3)] for a, b in zip(rows, rows[1:])]
+    amax = max(abs(w[k] - v[k]) / T for v, w in zip(vs, vs[1:]) for k in range(3))
+    return max(sum(c * c for c in v) ** 0.5 for v in vs), amax
+
+
+def test_jog_incremental(controller, tmp_path):
+    """X+1.5 Y-2.5 at 1200 mm/min: one line, at rest exactly at its target
+    (reason "jog done"), within the speed and the acceleration limit."""
+    rec = tmp_path / "rt.csv"
+    shm, rt = controller(MILL, "--record", rec)
+    p = ctl(shm, "jog", "X+1.5", "Y-2.5", 1200, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert "at rest at X 1.5000 Y -2.5000 (jog done)" in p.stdout, p.stdout
+    st = status(shm)
+    assert st["reason"] == "jog done" and st["position"] == {"X": 1.5, "Y": -2.5, "Z": 0.0}, st
+    rt.terminate()
+    rt.communicate(timeout=20)
+    rows = rows3(rec)
+    assert rows[-1][1:] == (1.5, -2.5, 0.0), rows[-1]
+    v, a = limits_of(rows)
+    print(f"\n[jog] X+1.5 Y-2.5 at 20 mm/s: peak {v:.6f} mm/s, peak |a| {a:.3f} mm/s^2")
+    assert 20.0 * 0.99 <= v <= 20.0 * (1 + 1e-9)
+    assert a <= A * (1 + 1e-6)
+    for y0, y1 in zip(rows, rows[1:]):  # one straight line: Y = -5/3 X throughout
+        assert abs(y1[2] + y1[1] * 2.5 / 1.5) < 1e-9, y1
+
+
+def test_jog_incremental_soft_limit(controller, tmp_path):
+    """A target beyond the soft limit is refused whole (Grbl's error 15),
+    nothing moves; one that reaches it exactly runs."""
+    ini = tmp_path / "m.ini"
+    ini.write_text(MILL.read_text().replace("MAX_LIMIT = 500", "MAX_LIMIT = 5", 1))
+    shm, rt = controller(ini)
+    p = ctl(shm, "jog", "Z+", "--distance", 6, 600, timeout=60)
+    assert p.returncode == 1, p.stdout
+    assert "beyond its soft limit MAX_LIMIT 5" in p.stderr and "error 15" in p.stderr, p.stderr
+    assert "the target Z 6.0000; nothing moved" in p.stderr, p.stderr
+    assert status(shm)["position"]["Z"] == 0.0
+    p = ctl(shm, "jog", "Z+5", 1200, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert status(shm)["position"]["Z"] == 5.0
+    for args, msg in ((("X+1", "Y+", 100), "every axis a distance"),
+                      (("X+", "X-", 100), "axis X given twice"),
+                      (("X+0", 100), "'X+0' is not an axis"),
+                      (("X+", "--distance", "-1", 100), "--distance must be a positive"),
+                      (("X+2000", 100), "a distance is 0.001 .. 1048.58")):
+        p = ctl(shm, "jog", *args)
+        assert p.returncode == 2 and msg in p.stderr, (args, p.stderr)
+    assert status(shm)["position"] == {"X": 0.0, "Y": 0.0, "Z": 5.0}
+
+
+def test_jog_several_axes(controller, tmp_path):
+    """Z+ Y- continuously at 1200 mm/min: along one line at 20 mm/s, until
+    the first axis (Z, MAX_LIMIT 5) stops exactly at its soft limit."""
+    rec = tmp_path / "rt.csv"
+    ini = tmp_path / "m.ini"
+    ini.write_text(MILL.read_text().replace("MAX_LIMIT = 500", "MAX_LIMIT = 5", 1))
+    shm, rt = controller(ini, "--record", rec)
+    p = ctl(shm, "jog", "Z+", "Y-", 1200, 30, timeout=60)
+    assert p.returncode == 0, p.stderr
+    st = status(shm)
+    assert st["reason"] == "jog at the soft limit", st
+    assert st["position"] == {"X": 0.0, "Y": -5.0, "Z": 5.0}, st
+    rt.terminate()
+    rt.communicate(timeout=20)
+    rows = rows3(rec)
+    v, a = limits_of(rows)
+    print(f"\n[jog] Z+ Y- at 20 mm/s to Z's limit: peak {v:.6f} mm/s, peak |a| {a:.3f}")
+    assert 20.0 * 0.99 <= v <= 20.0 * (1 + 1e-9)
+    assert a <= A * (1 + 1e-6)
+    assert rows[-1][1:] == (0.0, -5.0, 5.0)

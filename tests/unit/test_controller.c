@@ -1864,6 +1864,134 @@ static void test_jog_soft_limit(void **st)
 	assert_true(out.pos[0] < 20.0);
 }
 
+static int32_t jog_axis(uint32_t axis, int neg, uint32_t um)
+{
+	return period_cmd(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(axis, neg, um), 0);
+}
+
+/* X's MAX_LIMIT 20 mm, the controller started again on it. */
+static void x_max_limit_20(void)
+{
+	mach.axis[0].max_limit = 20.0;
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+}
+
+/* The speeds of the period a jog started in, from p0 (where it stood). */
+static void jog_v0(const double *p0, double *v)
+{
+	for (int k = 0; k < 2; k++) {
+		v[k] = (out.pos[k] - p0[k]) / mach.period_s;
+	}
+}
+
+/* The largest |a| of each axis over n periods, renewing the jog (axis 0,
+ * neg, mm_min) every 100; v carries the speeds between calls. */
+static double jog2_ticks(int n, int neg, uint32_t mm_min, double *v)
+{
+	double amax = 0.0, prev[2] = {out.pos[0], out.pos[1]};
+	for (int i = 0; i < n; i++) {
+		if (i % 100 == 99 && status().state == MLIP_STATE_JOGGING) {
+			assert_int_equal(jog(0, neg, mm_min), MLIP_OK);
+		} else {
+			tick(1);
+		}
+		for (int k = 0; k < 2; k++) {
+			double v1 = (out.pos[k] - prev[k]) / mach.period_s;
+			amax = fmax(amax, fabs(v1 - v[k]) / mach.period_s);
+			v[k] = v1;
+			prev[k] = out.pos[k];
+		}
+	}
+	return amax;
+}
+
+/* Incremental: a distance per axis, at rest exactly there (reason "jog
+ * done"), within the acceleration limit; a target beyond a soft limit is
+ * refused whole (Grbl's error 15) and nothing moves. */
+static void test_jog_incremental(void **st)
+{
+	(void)st;
+	x_max_limit_20();
+	double v[2] = {0.0, 0.0};
+	double p0[2] = {0.0, 0.0};
+	assert_int_equal(jog_axis(0, 0, 1500), MLIP_OK); /* X+ 1.5 mm */
+	assert_int_equal(jog(0, 0, 600), MLIP_OK);       /* at 10 mm/s */
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	jog_v0(p0, v);
+	double amax = jog2_ticks(600, 0, 600, v);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_DONE);
+	assert_true(out.pos[0] == 1.5 && out.pos[1] == 0.0);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	/* X- 0.25 and Y+ 2 at once: one line, both exactly there */
+	assert_int_equal(jog_axis(1, 0, 2000), MLIP_OK);
+	assert_int_equal(jog_axis(0, 1, 250), MLIP_OK);
+	p0[0] = out.pos[0];
+	p0[1] = out.pos[1];
+	assert_int_equal(jog(0, 1, 1200), MLIP_OK);
+	jog_v0(p0, v);
+	amax = jog2_ticks(1000, 1, 1200, v);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_DONE);
+	assert_true(out.pos[0] == 1.25 && out.pos[1] == 2.0);
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	/* 1.25 + 18.75 = 20: to the limit exactly is fine; 1 um more is not */
+	assert_int_equal(jog_axis(0, 0, 18751), MLIP_OK);
+	assert_int_equal(jog(0, 0, 6000), MLIP_E_RANGE);
+	tick(10);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_true(out.pos[0] == 1.25);
+	assert_int_equal(jog_axis(0, 0, 18750), MLIP_OK);
+	assert_int_equal(jog(0, 0, 6000), MLIP_OK);
+	jog2_ticks(1000, 0, 6000, v);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_DONE);
+	assert_true(out.pos[0] == 20.0);
+	/* continuous and incremental at once, a direction that disagrees:
+	 * malformed; JOG_AXIS during a jog: not now */
+	assert_int_equal(jog_axis(1, 0, 1000), MLIP_OK);
+	assert_int_equal(jog(0, 1, 600), MLIP_E_SYNTAX);
+	assert_int_equal(jog_axis(0, 0, 1000), MLIP_OK);
+	assert_int_equal(jog(0, 1, 600), MLIP_E_SYNTAX);
+	assert_int_equal(jog(0, 1, 600), MLIP_OK); /* nothing pending: X- alone */
+	assert_int_equal(jog_axis(1, 0, 0), MLIP_E_INVALID);
+	assert_int_equal(jog(0, 1, 0), MLIP_OK);
+	until(MLIP_STATE_IDLE, 1000);
+}
+
+/* Several axes continuously: one line at the jog's speed (the path speed),
+ * until the first axis reaches its soft limit (exactly) or the release;
+ * a JOG_AXIS older than the dead-man is not taken. */
+static void test_jog_multi_axis(void **st)
+{
+	(void)st;
+	x_max_limit_20();
+	double v[2] = {0.0, 0.0};
+	double p0[2] = {0.0, 0.0};
+	assert_int_equal(jog_axis(1, 1, 0), MLIP_OK); /* Y- ... */
+	assert_int_equal(jog(0, 0, 6000), MLIP_OK);   /* ... with X+ at 100 mm/s */
+	jog_v0(p0, v);
+	double amax = jog2_ticks(150, 0, 6000, v);
+	double path = hypot(v[0], v[1]);
+	print_message("jog X+ Y- at 100 mm/s: %.6f mm/s along the line (%.6f, %.6f)\n", path, v[0],
+	              v[1]);
+	assert_true(fabs(path - 100.0) < 1e-6 && fabs(v[0] + v[1]) < 1e-9);
+	amax = fmax(amax, jog2_ticks(1000, 0, 6000, v));
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_END);
+	assert_true(out.pos[0] == 20.0 && out.pos[1] == -20.0); /* X's limit first */
+	assert_true(amax <= 1000.0 * (1.0 + 1e-9));
+	assert_int_equal(jog_axis(1, 1, 0), MLIP_OK);
+	assert_int_equal(jog(0, 0, 600), MLIP_E_RANGE); /* X at its limit that way */
+	/* a stale JOG_AXIS (another client's, older than 250 ms): X alone */
+	assert_int_equal(jog_axis(1, 0, 0), MLIP_OK);
+	tick(300);
+	assert_int_equal(jog(0, 1, 600), MLIP_OK);
+	jog2_ticks(300, 1, 600, v);
+	assert_true(out.pos[1] == -20.0 && out.pos[0] < 20.0);
+	assert_int_equal(jog(0, 1, 0), MLIP_OK);
+	until(MLIP_STATE_IDLE, 1000);
+}
+
 /* Refused: an axis not in the machine, a jog during a program, a second
  * axis during a jog; a hold ends a jog. */
 static void test_jog_refused(void **st)
@@ -2221,6 +2349,8 @@ int main(void)
 	    T(test_jog_deadman),
 	    T(test_jog_soft_limit),
 	    T(test_jog_refused),
+	    T(test_jog_incremental),
+	    T(test_jog_multi_axis),
 	    TD(test_jog_drives),
 	    TH(test_home_sequence),
 	    TH(test_home_sdo_refused),

@@ -664,7 +664,7 @@ static void test_home_codes(void **state)
 	{
 		struct mlip_program r;
 		struct mlip_gcode_offsets o;
-		struct mlip_program_options opt = {0, &o, 0, NULL};
+		struct mlip_program_options opt = {0, &o, 0, NULL, NULL, 0};
 		static const char t[] = "G0 X1\nG28 Y5\n";
 
 		mlip_gcode_offsets_init(&o, &m);
@@ -1331,7 +1331,7 @@ static void test_sheeptile_arcs(void **state)
 static void parse_off(const char *text, const struct mlip_machine *m,
                       const struct mlip_gcode_offsets *o, struct mlip_program_list *p)
 {
-	struct mlip_program_options opt = {0, o, 0, NULL};
+	struct mlip_program_options opt = {0, o, 0, NULL, NULL, 0};
 	struct mlip_block b;
 	int rc;
 
@@ -1634,7 +1634,7 @@ static void test_work_offsets(void **state)
 	/* soft limits are in machine coordinates */
 	{
 		struct mlip_program r;
-		struct mlip_program_options opt = {0, &o, 0, NULL};
+		struct mlip_program_options opt = {0, &o, 0, NULL, NULL, 0};
 		static const char t[] = "G55 G0 X995\n";
 
 		assert_int_equal(mlip_program_open_mem(&r, t, sizeof t - 1, &m, &opt), 1);
@@ -1876,6 +1876,129 @@ static void test_files(void **state)
 	rmdir(dir);
 }
 
+/* ---- MDI: the modal state carried, lines without motion (issue 18) ---- */
+
+/* A program whose only effect is an offsets change (a touch-off) is one;
+ * lines that change nothing still are "empty". */
+static void test_offsets_only_program(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+	struct mlip_gcode g;
+	struct mlip_gcode_error e;
+	struct cap c = {.limit = 64};
+
+	(void)state;
+	m.axis[0].home = 12.5; /* where the machine stands */
+	parse_ok("G10 L20 P1 X0 Y0\n", &m, &p);
+	assert_int_equal(p.n, 0);
+	assert_near(p.r.offsets_end.coord[0][0], 12.5, 0);
+	assert_near(p.r.offsets_end.coord[0][1], 0.0, 0);
+	mlip_program_list_free(&p);
+	parse_ok("G92 X0\n", &m, &p);
+	assert_int_equal(p.r.offsets_end.g92_on, 1);
+	assert_near(p.r.offsets_end.g92[0], 12.5, 0);
+	mlip_program_list_free(&p);
+	parse_ok("G10 L2 P2 Z-5\nM2\n", &m, &p);
+	assert_near(p.r.offsets_end.coord[1][2], -5.0, 0);
+	mlip_program_list_free(&p);
+	check_err("G21 G90\n", 1, 0, "empty program: no motion");
+	check_err("G10 L2 P1 X0\n", 1, 0, "empty program: no motion"); /* the same values */
+	check_err("G4 P1\n", 1, 0, "empty program: no motion");
+	/* MDI: modes alone are lines */
+	mlip_gcode_init(&g, &m);
+	mlip_gcode_set_mdi(&g, 1);
+	assert_int_equal(line(&g, "G91 F300", 1, &c, &e), MLIP_OK);
+	assert_int_equal(mlip_gcode_finish(&g, 1, &e), MLIP_OK);
+	assert_int_equal(c.n, 0);
+}
+
+/* The modal state one MDI leaves is where the next starts: G91, G20, F, G0
+ * motion, G64 P, G43.1; a state out of range is refused whole. */
+static void test_modal_carry(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_gcode g;
+	struct mlip_gcode_error e;
+	struct mlip_gcode_modal md, back, bad;
+	struct cap c = {.limit = 64};
+
+	(void)state;
+	mlip_gcode_init(&g, &m);
+	mlip_gcode_get_modal(&g, &md);
+	mlip_gcode_modal_init(&back, &m);
+	assert_int_equal(md.motion, back.motion);
+	assert_int_equal(md.absolute, 1);
+	assert_near(md.tol_mm, EPS, 0);
+	assert_near(md.feed_word, 0, 0);
+	/* first MDI (G43.1 needs the machine's I/O: without it, a notice) */
+	static const struct mlip_gcode_io io = {0};
+	mlip_gcode_set_io(&g, &io);
+	assert_int_equal(line(&g, "G20 G91 G1 F10 G64 P0.0001", 1, &c, &e), MLIP_OK);
+	if (line(&g, "G43.1 Z0.5", 2, &c, &e) != MLIP_OK) {
+		print_error("%s\n", e.msg);
+		fail();
+	}
+	mlip_gcode_get_modal(&g, &md);
+	assert_int_equal(md.inches, 1);
+	assert_int_equal(md.absolute, 0);
+	assert_int_equal(md.motion, 1);
+	assert_near(md.feed_word, 10, 0);
+	assert_near(md.tol_mm, 0.0001 * 25.4, 1e-15);
+	assert_int_equal(md.tlo_mode, 431);
+	assert_near(md.tlo_mm, 0.5 * 25.4, 1e-12);
+	/* the next: a fresh reader from that state; X1 is 1 inch more at 10 in/min */
+	mlip_gcode_init(&g, &m);
+	assert_int_equal(mlip_gcode_set_modal(&g, &md), MLIP_OK);
+	c.n = 0;
+	assert_int_equal(line(&g, "X1", 1, &c, &e), MLIP_OK);
+	assert_int_equal(c.n, 1);
+	assert_near(c.b[0].target[0], 25.4, 1e-12);
+	assert_int_equal(c.b[0].rapid, 0);
+	assert_near(c.b[0].feed_mm_s, 10 * 25.4 / 60, 1e-12);
+	assert_near(c.b[0].tol_mm, 0.0001 * 25.4, 1e-15);
+	mlip_gcode_get_modal(&g, &back);
+	assert_memory_equal(&back, &md, sizeof md);
+	/* out of range: each refused, g unchanged */
+	bad = md;
+	bad.tol_mm = 2 * EPS;
+	assert_int_equal(mlip_gcode_set_modal(&g, &bad), MLIP_E_RANGE);
+	bad = md;
+	bad.plane = 16;
+	assert_int_equal(mlip_gcode_set_modal(&g, &bad), MLIP_E_RANGE);
+	bad = md;
+	bad.feed_word = -1;
+	assert_int_equal(mlip_gcode_set_modal(&g, &bad), MLIP_E_RANGE);
+	bad = md;
+	bad.feed_word = NAN;
+	assert_int_equal(mlip_gcode_set_modal(&g, &bad), MLIP_E_RANGE);
+	bad = md;
+	bad.tlo_mode = 490; /* G49 with an offset */
+	assert_int_equal(mlip_gcode_set_modal(&g, &bad), MLIP_E_RANGE);
+	bad = md;
+	bad.inverse_time = 1; /* a G93 F is never carried */
+	assert_int_equal(mlip_gcode_set_modal(&g, &bad), MLIP_E_RANGE);
+	mlip_gcode_get_modal(&g, &back);
+	assert_memory_equal(&back, &md, sizeof md);
+	/* through the program reader, as mlip-ctl mdi reads lines */
+	{
+		struct mlip_program prog;
+		struct mlip_program_options opt = {0, NULL, 0, NULL, &md, 1};
+		const char *t = "G90\n";
+		assert_int_equal(mlip_program_open_mem(&prog, t, strlen(t), &m, &opt), 0);
+		assert_int_equal(prog.n, 0);
+		assert_int_equal(prog.modal_end.absolute, 1);
+		assert_int_equal(prog.modal_end.inches, 1);
+		assert_near(prog.modal_end.feed_word, 10, 0);
+		mlip_program_close(&prog);
+		bad = md;
+		bad.tol_mm = 1;
+		opt.modal = &bad;
+		assert_true(mlip_program_open_mem(&prog, t, strlen(t), &m, &opt) < 0);
+		mlip_program_close(&prog);
+	}
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1918,6 +2041,8 @@ int main(void)
 	    cmocka_unit_test(test_grbl_lines),
 	    cmocka_unit_test(test_line_ends_and_stream),
 	    cmocka_unit_test(test_files),
+	    cmocka_unit_test(test_offsets_only_program),
+	    cmocka_unit_test(test_modal_carry),
 	};
 
 	return cmocka_run_group_tests(tests, NULL, NULL);

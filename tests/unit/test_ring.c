@@ -454,7 +454,7 @@ static void test_status_feeder(void **state)
 	f.program_end = 1;
 	f.pid = 4242;
 	f.stop_base = 77;
-	f.spare = 0;
+	f.mdi = 0;
 	mlip_ring_feeder_write(r, &f);
 	assert_int_equal(mlip_ring_feeder_read(r, &fgot), MLIP_OK);
 	assert_memory_equal(&f, &fgot, sizeof(f));

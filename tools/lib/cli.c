@@ -256,7 +256,7 @@ int mlip_cli_open_program(const char *path, const struct mlip_cli_machine *o,
                           FILE *err)
 {
 	struct mlip_gcode_offsets off;
-	struct mlip_program_options opt = {o->strict, &off, o->default_feed, NULL};
+	struct mlip_program_options opt = {o->strict, &off, o->default_feed, NULL, NULL, 0};
 	if (mlip_cli_build_machine(o, path, cfg, prog, err) != 0 ||
 	    mlip_cli_io(o, cfg, &opt.io, prog, err) != 0) {
 		return -1;

@@ -472,37 +472,21 @@ int mlip_offsets_save(struct mlip_offsets_file *f, const struct mlip_machine *m,
 	struct mlip_offsets_kind_ctx ctx;
 	struct mlip_sf_kind k;
 	struct mlip_sf ours;
-	char axes[MLIP_MAX_AXES + 1], why[MLIP_SF_WHY], note[MLIP_SF_WHY / 2];
+	char axes[MLIP_MAX_AXES + 1];
 
 	machine_axes(m, axes);
 	mlip_offsets_kind(&ctx, axes, &k);
 	mlip_sf_init(&ours);
 	int rc = mlip_offsets_to_records(m, o, &ours);
 	if (rc == 0) {
-		rc = mlip_sf_save(f->path, &k, &ours, f->ok ? &f->loaded : NULL, note, sizeof(note),
-		                  why, sizeof(why));
+		rc = mlip_sf_save_told(f->path, &k, &ours, f->ok ? &f->loaded : NULL, "offsets",
+		                       "program", prog, err);
 	} else {
-		snprintf(why, sizeof(why), "%s: %s", f->path, strerror(ENOMEM));
+		fprintf(err, "%s: error: %s: %s\n", prog, f->path, strerror(ENOMEM));
 		rc = -1;
 	}
-	if (rc == 1 && strncmp(note, "the file was deleted", 20) == 0) {
-		fprintf(err, "%s: %s: deleted during the program: written again with its values\n",
-		        prog, f->path);
-	} else if (rc == 1) {
-		fprintf(err,
-		        "%s: %s: merged with a change made during the program: %s kept as the "
-		        "file had it\n",
-		        prog, f->path, note);
-	}
-	if (rc < 0) {
-		fprintf(err, "%s: error: %s\n%s: the offsets the program left, not written:\n",
-		        prog, why, prog);
-		for (size_t i = 0; i < ours.n; i++) {
-			fprintf(err, "%s:   %s %s\n", prog, ours.rec[i].key, ours.rec[i].value);
-		}
-	}
 	mlip_sf_free(&ours);
-	return rc < 0 ? -1 : 0;
+	return rc;
 }
 
 void mlip_offsets_file_free(struct mlip_offsets_file *f)

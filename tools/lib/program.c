@@ -273,6 +273,10 @@ static void start_parser(struct mlip_program *p, struct mlip_gcode *g)
 	mlip_gcode_set_strict(g, p->opt.strict);
 	mlip_gcode_set_offsets(g, &p->offsets_start);
 	mlip_gcode_set_io(g, p->opt.io);
+	mlip_gcode_set_mdi(g, p->opt.mdi);
+	if (p->has_modal) {
+		(void)mlip_gcode_set_modal(g, &p->modal_start); /* checked in open_common */
+	}
 }
 
 /* First pass after the feed scan: every line through the parser, blocks
@@ -321,6 +325,8 @@ static int check_all(struct mlip_program *p)
 	memcpy(p->notices, p->g.notices, sizeof p->notices);
 	p->n_notices = p->g.n_notices;
 	p->offsets_end = p->g.off;
+	mlip_gcode_get_modal(&p->g, &p->modal_end);
+	p->moves = p->g.moves;
 	return p->n_errors_total ? 1 : 0;
 }
 
@@ -337,6 +343,18 @@ static int open_common(struct mlip_program *p, const struct mlip_machine *m,
 		mlip_gcode_offsets_init(&p->offsets_start, m);
 	}
 	p->opt.offsets = NULL;
+	if (p->opt.modal) {
+		struct mlip_gcode g;
+		p->modal_start = *p->opt.modal;
+		p->has_modal = 1;
+		mlip_gcode_init(&g, m);
+		if (mlip_gcode_set_modal(&g, &p->modal_start) != MLIP_OK) {
+			snprintf(p->msg, sizeof p->msg,
+			         "the modal state to start from is out of range for this machine");
+			return -EINVAL;
+		}
+	}
+	p->opt.modal = NULL;
 	p->errors = malloc(MLIP_PROGRAM_MAX_ERRORS * sizeof *p->errors);
 	p->line = malloc(LINE_CAP);
 	p->batch = malloc(MLIP_PROGRAM_BATCH * sizeof *p->batch);

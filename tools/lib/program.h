@@ -56,6 +56,9 @@ struct mlip_program_options {
 	double default_feed;            /* F (units/min) for a program that sets none; 0: none */
 	const struct mlip_gcode_io *io; /* the machine's I/O (mlip_gcode_set_io; kept, must
 	                                   outlive the program); NULL: its words are notices */
+	const struct mlip_gcode_modal *modal; /* modal state at the start (MDI: the one the
+	                                         last MDI left; copied); NULL: a program's */
+	int mdi; /* lines typed at the machine: no motion is no error (mlip_gcode_set_mdi) */
 };
 
 struct mlip_program {
@@ -71,10 +74,14 @@ struct mlip_program {
 	uint32_t initial_feed_line;              /* line of that first F */
 	struct mlip_gcode_offsets offsets_start; /* in force at the first line */
 	struct mlip_gcode_offsets offsets_end;   /* left by the last line */
+	struct mlip_gcode_modal modal_end;       /* the modal state the last line left */
+	uint32_t moves;                          /* blocks that move (n counts events too) */
 	char msg[256];                           /* why open or next failed (return < 0) */
 	/* private */
 	const struct mlip_machine *m;
 	struct mlip_program_options opt;
+	struct mlip_gcode_modal modal_start; /* opt.modal's copy */
+	int has_modal;
 	int file, fd; /* a file (fd), else mem */
 	/* the pin: chunk hashes of the first pass (shared with readers) */
 	uint8_t (*pin)[MLIP_PROGRAM_PIN_BYTES];

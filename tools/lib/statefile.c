@@ -784,3 +784,29 @@ out:
 	close(dirfd); /* drops the lock */
 	return rc;
 }
+
+int mlip_sf_save_told(const char *path, const struct mlip_sf_kind *k, const struct mlip_sf *ours,
+                      const struct mlip_sf *base, const char *what, const char *run,
+                      const char *prog, FILE *err)
+{
+	char why[MLIP_SF_WHY], note[MLIP_SF_WHY / 2];
+	int rc = mlip_sf_save(path, k, ours, base, note, sizeof(note), why, sizeof(why));
+
+	if (rc == 1 && strncmp(note, "the file was deleted", 20) == 0) {
+		fprintf(err, "%s: %s: deleted during the %s: written again with its values\n", prog,
+		        path, run);
+	} else if (rc == 1) {
+		fprintf(
+		    err,
+		    "%s: %s: merged with a change made during the %s: %s kept as the file had it\n",
+		    prog, path, run, note);
+	}
+	if (rc < 0) {
+		fprintf(err, "%s: error: %s\n%s: the %s the %s left, not written:\n", prog, why,
+		        prog, what, run);
+		for (size_t i = 0; i < ours->n; i++) {
+			fprintf(err, "%s:   %s %s\n", prog, ours->rec[i].key, ours->rec[i].value);
+		}
+	}
+	return rc < 0 ? -1 : 0;
+}

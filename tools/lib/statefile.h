@@ -52,6 +52,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include "sha256.h"
 
@@ -123,6 +124,15 @@ int mlip_sf_load(struct mlip_sf *sf, const char *path, const struct mlip_sf_kind
 int mlip_sf_save(const char *path, const struct mlip_sf_kind *k, const struct mlip_sf *ours,
                  const struct mlip_sf *base, char *note, size_t note_len, char *why,
                  size_t why_len);
+
+/* mlip_sf_save, told to the operator on err: a merge ("PATH: merged with a
+ * change made during the RUN: KEYS kept as the file had it"), a file deleted
+ * meanwhile ("written again"), a failure (why, then "the WHAT the RUN left,
+ * not written:" and every record of ours). what: "offsets"; run: "program".
+ * 0 written, -1 not. */
+int mlip_sf_save_told(const char *path, const struct mlip_sf_kind *k, const struct mlip_sf *ours,
+                      const struct mlip_sf *base, const char *what, const char *run,
+                      const char *prog, FILE *err);
 
 /* What a path is when it is not a regular file, for messages ("a
  * directory", "a FIFO (pipe)", ...): the tools' one wording (program.c too). */

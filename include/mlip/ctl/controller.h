@@ -60,11 +60,15 @@
  *             period, the program dropped, the planner at rest where the
  *             drives are, every output off) --reset, input released--> IDLE
  *             (or FAULT again when a drive fault came before or in it)
- *   IDLE --jog command (MLIP_CMD_JOG: axis, direction, speed)--> JOGGING
- *             (drives enabled first) toward the soft limit at that speed
- *             through the planner; --released (speed 0), hold, or not renewed
- *             within MLIP_JOG_DEADMAN_S--> braking at the acceleration limit
- *             --at rest--> IDLE (reason JOG_RELEASED, JOG_DEADMAN, JOG_END)
+ *   IDLE --jog command (MLIP_CMD_JOG: axis, direction, speed; the axes and
+ *             distances of the MLIP_CMD_JOG_AXIS just before it)--> JOGGING
+ *             (drives enabled first) along one line at that speed through
+ *             the planner, toward the first soft limit (continuous) or each
+ *             distance (incremental; a target beyond a soft limit refused);
+ *             --released (speed 0), hold, or not renewed within
+ *             MLIP_JOG_DEADMAN_S--> braking at the acceleration limit
+ *             --at rest--> IDLE (reason JOG_RELEASED, JOG_DEADMAN, JOG_END,
+ *             JOG_DONE)
  *   RUNNING|HELD|STOPPING|... --a limit input while moving--> FAULT (reason
  *             LIMIT: the axis and direction; quick stop as for an E-stop)
  *             --reset, input released--> IDLE
@@ -364,13 +368,21 @@ struct mlip_ctl {
 		struct mlip_ctl_reason kept; /* that fault's reason */
 		uint8_t outputs[MLIP_IO_IN_BYTES];
 	} io;
-	/* a continuous jog (MLIP_CMD_JOG) */
+	/* a jog (MLIP_CMD_JOG, MLIP_CMD_JOG_AXIS): continuous or incremental,
+	 * one axis or several along one line */
 	struct {
-		int on;           /* jogging (or waiting for the drives to be enabled) */
-		int moving;       /* its block is in the planner */
-		int stopping;     /* released or not renewed: braking on the path */
-		uint32_t axis;    /* machine axis index */
-		int neg;          /* toward MIN_LIMIT */
+		int on;                     /* jogging (or waiting for the drives to be enabled) */
+		int moving;                 /* its block is in the planner */
+		int stopping;               /* released or not renewed: braking on the path */
+		uint32_t axis;              /* the axis of its MLIP_CMD_JOG (renewals name it) */
+		int neg;                    /* toward MIN_LIMIT */
+		uint32_t axes;              /* bit k: axis k moves */
+		uint32_t negs;              /* bit k: axis k toward MIN_LIMIT */
+		double dist[MLIP_MAX_AXES]; /* incremental: the distances; all 0: continuous */
+		/* MLIP_CMD_JOG_AXIS posted for the next jog */
+		uint32_t pend_axes, pend_negs;
+		double pend_dist[MLIP_MAX_AXES];
+		uint64_t pend_at; /* the period of the last one */
 		double speed;     /* mm/s or deg/s */
 		uint64_t renewed; /* the period of its last command */
 		uint64_t deadman; /* periods without a renewal that stop it */

@@ -34,8 +34,9 @@ typedef enum {
 	                        (heartbeat, fault): quick stop to every drive in that period,
 	                        the program dropped; left only by a reset (mlip-ctl reset)
 	                        once the input is released; wins over every other state */
-	MLIP_STATE_JOGGING,  /* a continuous jog (mlip-ctl jog): one axis toward its soft
-	                        limit at the jog's speed through the planner, while renewed */
+	MLIP_STATE_JOGGING,  /* a jog (mlip-ctl jog): one axis or several along one line,
+	                        toward the soft limit or a distance, at the jog's speed
+	                        through the planner, while renewed */
 	MLIP_STATE_HOMING,   /* homing with the drives' homing mode (mlip-ctl home) */
 	MLIP_STATE_COUNT
 } mlip_ctl_state;
@@ -101,6 +102,7 @@ typedef enum {
 	                            code (or the value read back when it differs) */
 	MLIP_WHY_NOT_HOMED,      /* HOMING_REQUIRED: a program refused before every axis
 	                            is homed (reason_seq, line: its first record) */
+	MLIP_WHY_JOG_DONE,       /* an incremental jog at rest at its target */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 

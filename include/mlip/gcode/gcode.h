@@ -183,7 +183,48 @@ struct mlip_gcode {
 	int32_t tool_sel; /* the last T (selected for M6); -1: none */
 	double tlo_mm;    /* tool length offset on Z in force (G43, G43.1); 0: G49 */
 	int tlo_mode;     /* 490 G49, 430 G43, 431 G43.1 */
+	/* what a program without motion may still be (mlip_gcode_finish) */
+	int mdi;                             /* lines typed at the machine (set_mdi) */
+	struct mlip_gcode_offsets off_start; /* the offsets at the first line */
 };
+
+/* The modal state one MDI command leaves for the next (LinuxCNC's
+ * interpreter keeps it between MDI commands): the modes and words a line
+ * sets for the lines after it. Not in it: the position (the machine's), the
+ * offsets and the selected system (struct mlip_gcode_offsets, the offsets
+ * file), and the spindle's and the coolant's on/off (the machine's state:
+ * every run starts with them off, as a program does). Machine units where a
+ * unit applies, except feed_word (as written, in the units of `inches`). */
+struct mlip_gcode_modal {
+	int motion;       /* G0..G3 as 0..3; -1: none yet */
+	int plane;        /* 17, 18, 19 */
+	int absolute;     /* G90 1, G91 0 */
+	int inches;       /* G20 1, G21 0 */
+	int inverse_time; /* G93 1, G94 0 */
+	double feed_word; /* F as written (units/min); 0: none (G93: never kept) */
+	int exact_stop;   /* G61/G61.1 1, G64 0 */
+	double tol_mm;    /* G64 P tolerance in force, mm (0 < tol <= CONTOUR_TOLERANCE) */
+	double s_rpm;     /* S; -1: none yet */
+	int32_t tool_sel; /* T selected for M6; -1: none */
+	int tlo_mode;     /* 490 G49, 430 G43, 431 G43.1 */
+	double tlo_mm;    /* the tool length offset of G43/G43.1 (0 for G49) */
+};
+
+/* A program's modal state at its first line (motion none, G17 G90 G21 G94
+ * G64 at the machine's tolerance, no F, S or T, G49). */
+void mlip_gcode_modal_init(struct mlip_gcode_modal *md, const struct mlip_machine *m);
+
+/* The modal state g has reached. */
+void mlip_gcode_get_modal(const struct mlip_gcode *g, struct mlip_gcode_modal *md);
+
+/* Continue from md (normally before the first line): MLIP_OK, or
+ * MLIP_E_RANGE when a field is out of its range for machine m (g unchanged;
+ * the state comes from a file). */
+mlip_status mlip_gcode_set_modal(struct mlip_gcode *g, const struct mlip_gcode_modal *md);
+
+/* Lines typed at the machine (MDI, on != 0): mlip_gcode_finish accepts
+ * lines without motion (a G91, an F, M3, a G4 dwell: LinuxCNC runs them). */
+void mlip_gcode_set_mdi(struct mlip_gcode *g, int on);
 
 /* Start a program at the machine's home position. */
 void mlip_gcode_init(struct mlip_gcode *g, const struct mlip_machine *m);
@@ -194,8 +235,10 @@ void mlip_gcode_init(struct mlip_gcode *g, const struct mlip_machine *m);
 mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, uint32_t lineno,
                             mlip_block_sink sink, void *ctx, struct mlip_gcode_error *err);
 
-/* End of program: MLIP_E_SYNTAX "empty program: no motion" when no block was
- * ever emitted. */
+/* End of program: MLIP_E_SYNTAX "empty program: no motion" when no move was
+ * ever emitted, unless the program changed the offsets (a touch-off, G10
+ * L20, G92: its only effect, which the caller keeps) or the lines are MDI
+ * (set_mdi). */
 mlip_status mlip_gcode_finish(struct mlip_gcode *g, uint32_t last_line,
                               struct mlip_gcode_error *err);
 

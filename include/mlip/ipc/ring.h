@@ -222,7 +222,8 @@ struct mlip_ring_feeder {
 	int32_t pid;           /* feeder process id (0: no feeder) */
 	uint32_t stop_base;    /* the stop counter when this feeder began (layout 6): a
 	                          later stop refuses its program before it starts */
-	uint32_t spare;
+	uint32_t mdi;          /* 1: the program is MDI lines (mlip-ctl mdi); 0 in older
+	                          builds' segments */
 };
 
 /* ---- commands ------------------------------------------------------- */
@@ -241,6 +242,9 @@ typedef enum {
 	                           same command, else it stops; speed 0 stops it */
 	MLIP_CMD_HOME,          /* home (issue 18): arg = axis mask (bit k: axis k; 0: every
 	                           axis with a HOME_METHOD), in HOME_SEQUENCE order */
+	MLIP_CMD_JOG_AXIS,      /* one more axis (or a distance) for the next MLIP_CMD_JOG
+	                           (issue 18): arg = MLIP_JOG_AXIS_ARG(axis, neg, um); posted
+	                           just before it (kept MLIP_JOG_DEADMAN_S) */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
 
@@ -250,6 +254,15 @@ typedef enum {
 	((int32_t)(((uint32_t)(axis)&7u) | ((neg) ? 8u : 0u) |                                     \
 	           (((uint32_t)(mm_min)&0xFFFFFu) << 4)))
 #define MLIP_JOG_SPEED_MAX 1048575u /* mm/min */
+/* MLIP_CMD_JOG_AXIS's argument: axis index (bits 0-2), negative direction
+ * (bit 3), distance in micrometres or millidegrees (bits 4-23, 0..1048575;
+ * 0: continuous, to the soft limit). The jog that follows moves the axes of
+ * the JOG_AXIS commands before it and its own axis together, along one
+ * straight line at its speed: every distance given (incremental) or none
+ * (continuous: until released, or the first axis at its soft limit). */
+#define MLIP_JOG_AXIS_ARG(axis, neg, um)                                                           \
+	((int32_t)(((uint32_t)(axis)&7u) | ((neg) ? 8u : 0u) | (((uint32_t)(um)&0xFFFFFu) << 4)))
+#define MLIP_JOG_DIST_MAX  1048575u /* um (1.048575 m) or millidegrees */
 #define MLIP_JOG_DEADMAN_S 0.25     /* a jog not renewed for this long stops */
 
 struct mlip_ring_cmd {

@@ -1,6 +1,6 @@
 /*
  * mlip/motion/strategy.h - the corner strategies behind one table, for the
- * motion folder's own files (corner.c, planner.c, profile.c, smoothplan.c,
+ * motion folder's own files (corner.c, planner.c, interp.c, smoothplan.c,
  * strategy.c).
  * Not an interface for other folders: they choose a strategy by its
  * mlip_strategy value and the planner looks its entry up.
@@ -111,13 +111,6 @@ static inline struct mlip_smooth_seg *mlip_smooth_at(struct mlip_planner *p, uin
 {
 	return &p->sm[i & (p->cap - 1)];
 }
-
-/* A line's profile (35)(36) from speed v over distance rem to speed v1 at
- * +-a, cruising at vtarget (profile.c); and where it is after t < its total
- * time: distance covered and speed. */
-void mlip_profile_make(struct mlip_profile *f, double v, double rem, double v1, double a,
-                       double vtarget);
-void mlip_profile_eval(const struct mlip_profile *f, double t, double *dist, double *v);
 
 /* Speed the line of s aims at: programmed feed times override, never above
  * the hard caps. */
