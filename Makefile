@@ -233,11 +233,7 @@ ubsan: deps
 	@$(MAKE) --no-print-directory BUILD=build-ubsan OPT=-O1 SAN="$(SAN_UNDEFINED)" unit pytest
 sanitize: deps
 	@$(MAKE) --no-print-directory BUILD=build-san OPT=-O1 SAN="$(SAN_ADDRESS) $(SAN_UNDEFINED)" \
-		PYTEST_ARGS="tests/py --ignore=tests/py/test_toolpaths.py $(SAN_SKIP)" unit pytest
-# the Grbl server's sender tests time a live stream (deadlines of seconds) and
-# failed under the sanitizers' slowdown on a loaded host; mlip-grbl's protocol
-# core runs under them in tests/unit/test_grbl, the servers' tests in make test
-SAN_SKIP := --ignore=tests/py/test_grbl.py --ignore=tests/py/test_senders.py
+		PYTEST_ARGS="tests/py --ignore=tests/py/test_toolpaths.py" unit pytest
 
 clean:
 	rm -rf build build-asan build-ubsan build-tsan build-san

@@ -55,6 +55,7 @@
 
 #include "cli.h"
 #include "grbl.h"
+#include "grblmach.h"
 #include "grblstream.h"
 #include "mlip/ctl/state.h"
 #include "mlip/ipc/ring.h"
@@ -151,6 +152,18 @@ struct srv {
 	struct cmd q[CMDQ];
 	int qn;
 	int ov_post; /* an override value waits for the mailbox (-1: none) */
+	/* the machine's I/O, as mlip-feed takes it from the controller */
+	struct mlip_gcode_io io;
+	struct grbl_acc acc;  /* what its manual spindle and coolant do now */
+	uint32_t acc_changes; /* acc.changes last shown */
+	uint32_t prev_state;  /* the controller's state before its current one */
+	/* a $H or $X waiting for the controller: Grbl answers it when done
+	 * and takes no line meanwhile */
+	uint32_t await_op;  /* MLIP_CMD_HOME, MLIP_CMD_RESET; 0: none */
+	int await_stage;    /* 0 to post, 1 posted (its result), 2 under way */
+	uint32_t await_seq; /* its mailbox ticket */
+	uint64_t await_hb;  /* the controller's period when it was accepted */
+	uint64_t await_ns;
 };
 
 static struct srv S;
@@ -244,6 +257,19 @@ static void poll_controller(void)
 {
 	struct mlip_ring_status st;
 	if (mlip_ring_status_read(S.r, &st) == MLIP_OK) {
+		if (S.cs_ok && st.state != S.cs.state) {
+			S.prev_state = S.cs.state;
+		}
+		grbl_acc_update(&S.acc, st.state, st.reason, st.reason_seq, st.reason_value);
+		if (st.state == MLIP_STATE_PAUSED && S.cs.state != MLIP_STATE_PAUSED && S.ctl &&
+		    (st.reason == MLIP_WHY_SPINDLE || st.reason == MLIP_WHY_COOLANT ||
+		     st.reason == MLIP_WHY_TOOL)) {
+			/* the operator's part (Hold:0 until ~) */
+			char what[200];
+			mlip_cli_io_message(st.reason, st.reason_value, NULL, what, sizeof(what));
+			send_msg(S.ctl, "line %u: %s, then resume (~)", (unsigned)st.reason_line,
+			         what);
+		}
 		S.cs = st;
 		S.cs_ok = 1;
 		if (st.heartbeat != S.cs_beat) {
@@ -269,8 +295,18 @@ static void poll_controller(void)
 
 static int at_rest_state(uint32_t s)
 {
-	return s == MLIP_STATE_IDLE || s == MLIP_STATE_STARVED || s == MLIP_STATE_FAULT;
+	return s == MLIP_STATE_IDLE || s == MLIP_STATE_STARVED || s == MLIP_STATE_FAULT ||
+	       s == MLIP_STATE_ESTOP;
 }
+
+/* The controller holds the machine until a reset or a restart. */
+static int locked_state(uint32_t s)
+{
+	return s == MLIP_STATE_FAULT || s == MLIP_STATE_ESTOP;
+}
+
+static void locked_why(char *why, size_t n);
+static void say_locked(void);
 
 /* Nothing of ours is queued or moving. */
 static int quiet_controller(void)
@@ -423,7 +459,10 @@ static const char *grbl_state(void)
 	/* a soft-limit alarm while what was acknowledged still runs: Alarm once
 	 * at rest (Grbl: Hold, then Alarm) */
 	int settling = S.critical && !quiet_controller();
-	if (S.dead || c->state == MLIP_STATE_FAULT || (S.alarm && !settling)) {
+	if (!S.dead && (c->state == MLIP_STATE_HOMING || S.await_op == MLIP_CMD_HOME)) {
+		return "Home"; /* $H (Grbl: also from Alarm) or mlip-ctl home */
+	}
+	if (S.dead || locked_state(c->state) || (S.alarm && !settling)) {
 		return "Alarm";
 	}
 	if (S.sleeping) {
@@ -493,7 +532,7 @@ static void status_report(void)
 		grbl_refresh_wco(&S.refresh);
 	}
 	s.feed_mm_min = S.cs.speed_mm_s * 60.0;
-	s.spindle_rpm = 0.0; /* no spindle yet (issue 19) */
+	s.spindle_rpm = fabs(S.acc.rpm); /* the manual spindle as the operator set it */
 	s.ov_feed = S.ov_feed;
 	s.ov_rapid = S.ov_rapid;
 	s.ov_spindle = S.ov_spindle;
@@ -502,8 +541,15 @@ static void status_report(void)
 	s.bf_bytes = (int)grbl_rx_available(&S.rx);
 	s.line =
 	    strcmp(s.state, "Run") == 0 || strncmp(s.state, "Hold", 4) == 0 ? S.cs.exec_line : 0;
-	s.pins = "";        /* no inputs yet (issue 18) */
-	s.accessories = ""; /* no spindle or coolant yet (issue 19) */
+	char pins[16], acc[8];
+	grbl_pins(pins, sizeof(pins), S.cs.io_inputs & S.cs.io_mapped, &S.m);
+	grbl_accessories(acc, sizeof(acc), S.acc.rpm, S.acc.coolant);
+	if (S.acc.changes != S.acc_changes) {
+		S.acc_changes = S.acc.changes;
+		grbl_refresh_ovr(&S.refresh); /* report.c: A: at once after a change */
+	}
+	s.pins = pins;
+	s.accessories = acc;
 	grbl_status_format(b, sizeof(b), &s, &S.ax, &S.fmt, &S.refresh);
 	send_line(S.ctl, b);
 }
@@ -516,7 +562,7 @@ static void welcome(void)
 	send_line(S.ctl, GRBL_WELCOME);
 	send_msg(S.ctl, "mlip-grbl: mlip on %s, %d axes, %s", S.shm.name, S.m.n_axes,
 	         S.m.smooth ? "strategy smooth" : "planner look-ahead");
-	if (S.dead || S.cs.state == MLIP_STATE_FAULT || S.alarm) {
+	if (S.dead || locked_state(S.cs.state) || S.alarm) {
 		send_msg(S.ctl, "'$H'|'$X' to unlock");
 	}
 	memset(&S.refresh, 0, sizeof(S.refresh));
@@ -524,9 +570,17 @@ static void welcome(void)
 }
 
 /* Where the machine stands, for a new program. */
+static void restart_at(const double *pos, int keep_modes)
+{
+	grbl_stream_restart(&S.st, pos, keep_modes);
+	/* what was queued and dropped never ran: the spindle and coolant are
+	 * what the machine does (an M5 then still asks the operator) */
+	grbl_stream_machine_io(&S.st, S.acc.rpm, S.acc.coolant);
+}
+
 static void resync(int keep_modes)
 {
-	grbl_stream_restart(&S.st, S.cs.pos, keep_modes);
+	restart_at(S.cs.pos, keep_modes);
 	S.partial = 0;
 	if (!keep_modes) {
 		memset(S.wco_last, 0, sizeof(S.wco_last));
@@ -557,10 +611,10 @@ static void soft_reset(void)
 		S.ov_post = 100;
 	}
 	S.ov_rapid = S.ov_spindle = 100;
-	if (!quiet_controller() && S.cs.state != MLIP_STATE_FAULT) {
+	if (!quiet_controller() && !locked_state(S.cs.state)) {
 		stop_post();
 		S.reset_wait = 1;
-		grbl_stream_restart(&S.st, S.cs.pos, 0);
+		restart_at(S.cs.pos, 0);
 		push_end_alone();
 		return;
 	}
@@ -593,7 +647,7 @@ static void jog_cancel(const char *why)
 		return; /* it has ended at rest already: jog_done says Idle */
 	}
 	stop_post();
-	grbl_stream_restart(&S.st, S.cs.pos, 1);
+	restart_at(S.cs.pos, 1);
 	S.partial = 0;
 	push_end_alone();
 }
@@ -721,10 +775,19 @@ static void rt_cmd(void *ctx, grbl_rt c)
 	case GRBL_RT_SPINDLE_STOP:
 	case GRBL_RT_FLOOD:
 	case GRBL_RT_MIST:
+		/* Grbl switches its own outputs; mlip's spindle and coolant are
+		 * the operator's (manual) or absent: say so, switch nothing */
 		if (S.ctl) {
-			send_msg(S.ctl,
-			         "%s: mlip drives no spindle or coolant yet: nothing switched",
-			         grbl_rt_name(c));
+			int sp = c == GRBL_RT_SPINDLE_STOP;
+			int type = sp ? S.io.spindle : S.io.coolant;
+			send_msg(
+			    S.ctl, "%s: %s: nothing switched", grbl_rt_name(c),
+			    type == MLIP_IO_NONE ? (sp ? "this machine has no spindle"
+			                               : "this machine has no coolant")
+			    : sp ? "the spindle is the operator's here (manual): stop it by hand, "
+			           "or M5 in the program"
+			         : "the coolant is the operator's here (manual): switch it by "
+			           "hand, or M7/M8/M9 in the program");
 		}
 		return;
 	default:
@@ -798,10 +861,9 @@ static int gcode_line(const char *t, size_t len)
 		answer(GRBL_E_LOCK);
 		return 1;
 	}
-	if (S.cs.state == MLIP_STATE_FAULT || S.alarm || S.sleeping) {
-		if (S.cs.state == MLIP_STATE_FAULT) {
-			send_msg(S.ctl, "mlip-rt is in fault (%s): restart it to clear",
-			         mlip_state_why_name(S.cs.reason));
+	if (locked_state(S.cs.state) || S.alarm || S.sleeping) {
+		if (locked_state(S.cs.state)) {
+			say_locked();
 		} else {
 			send_msg(S.ctl, "alarm: %s; reset (ctrl-x) or $X first",
 			         S.sleeping ? "sleeping" : S.alarm_why);
@@ -865,6 +927,124 @@ static int gcode_line(const char *t, size_t len)
 	}
 	answer(0);
 	return 1;
+}
+
+/* ---- $H and $X: the controller's homing and reset ----------------------------- */
+
+static void await_start(uint32_t op)
+{
+	S.await_op = op;
+	S.await_stage = 0;
+	S.await_ns = now_ns();
+}
+
+static void await_end(int code)
+{
+	S.await_op = 0;
+	answer(code);
+}
+
+/* Post the command, take its result, follow it to its end, answer. */
+static void await_pump(void)
+{
+	int32_t res = 0;
+	if (S.await_op == 0) {
+		return;
+	}
+	if (S.ctl == NULL) {
+		S.await_op = 0; /* its sender left: homing goes on, nobody to answer */
+		return;
+	}
+	if (S.await_stage == 0) {
+		if (S.qn > 0 || S.ov_post >= 0) {
+			return; /* real-time commands first: they came before */
+		}
+		if (mlip_ring_cmd_post(S.r, (mlip_ring_cmd_op)S.await_op, 0, &S.await_seq) ==
+		    MLIP_OK) {
+			S.await_stage = 1;
+			S.await_ns = now_ns();
+		} else if (now_ns() - S.await_ns > 5000000000ull) {
+			send_msg(S.ctl, "the controller's mailbox stayed busy for 5 s (another "
+			                "mlip-ctl?): try again");
+			await_end(S.await_op == MLIP_CMD_HOME ? GRBL_E_IDLE : GRBL_E_LOCK);
+		}
+		return;
+	}
+	if (S.await_stage == 1) {
+		mlip_status rc = mlip_ring_cmd_result(S.r, S.await_seq, &res);
+		if (rc == MLIP_E_EMPTY && !S.dead) {
+			return;
+		}
+		if (rc != MLIP_OK) {
+			send_msg(S.ctl, "the controller did not answer %s",
+			         S.await_op == MLIP_CMD_HOME ? "$H" : "$X");
+			await_end(S.await_op == MLIP_CMD_HOME ? GRBL_E_IDLE : GRBL_E_LOCK);
+			return;
+		}
+		if (S.await_op == MLIP_CMD_HOME && res == MLIP_E_RANGE) {
+			send_msg(S.ctl, "homing is not configured: no HOME_METHOD in the machine's "
+			                "configuration (or no CiA 402 drives: mlip-rt --drives)");
+			await_end(GRBL_E_SETTING_DISABLED);
+			return;
+		}
+		if (S.await_op == MLIP_CMD_HOME && res != MLIP_OK) {
+			char why[240] = "the controller is not idle";
+			if (locked_state(S.cs.state)) {
+				locked_why(why, sizeof(why));
+			}
+			send_msg(S.ctl, "$H refused: %s", why);
+			await_end(GRBL_E_IDLE);
+			return;
+		}
+		if (S.await_op == MLIP_CMD_RESET && res == MLIP_E_RANGE) {
+			send_msg(S.ctl,
+			         "$X refused: the input that stopped the machine is still on "
+			         "(release the E-stop, move the axis off its limit switch; a "
+			         "lost I/O module needs a restart of mlip-rt)");
+			await_end(GRBL_E_LOCK);
+			return;
+		}
+		S.await_stage = 2; /* accepted (or nothing left to reset) */
+		S.await_hb = S.cs.heartbeat;
+		return;
+	}
+	/* under way: the status of a later period says how it ended */
+	if (S.cs.heartbeat < S.await_hb + 2 && !S.dead) {
+		return;
+	}
+	if (S.await_op == MLIP_CMD_HOME) {
+		if (S.cs.state == MLIP_STATE_HOMING && !S.dead) {
+			return;
+		}
+		if (S.cs.state == MLIP_STATE_IDLE && S.cs.reason == MLIP_WHY_HOMED) {
+			S.alarm = 0; /* Grbl: homing unlocks */
+			S.critical = 0;
+			resync(1); /* where homing left the axes */
+		}
+		/* a failure was pushed as an alarm (follow_controller); Grbl
+		 * answers the line ok after its homing cycle either way */
+		await_end(0);
+		return;
+	}
+	if (locked_state(S.cs.state) && !S.dead) {
+		if (!grbl_resettable(S.cs.state, S.cs.reason)) {
+			/* reset into what came before it (a drive fault) */
+			say_locked();
+			await_end(GRBL_E_LOCK);
+			return;
+		}
+		if (now_ns() - S.await_ns > 5000000000ull) {
+			send_msg(S.ctl, "$X: the controller is still in %s",
+			         mlip_ctl_state_name(S.cs.state));
+			await_end(GRBL_E_LOCK);
+		}
+		return;
+	}
+	S.alarm = 0;
+	S.critical = 0;
+	resync(1);
+	send_msg(S.ctl, "Caution: Unlocked");
+	await_end(0);
 }
 
 static void settings_list(void)
@@ -970,11 +1150,16 @@ static int system_line(const char *t, size_t len)
 		answer(0);
 		return 1;
 	case GRBL_SYS_UNLOCK:
-		if (S.cs.state == MLIP_STATE_FAULT) {
-			send_msg(S.ctl,
-			         "mlip-rt is in fault (%s): only a restart of mlip-rt clears it",
-			         mlip_state_why_name(S.cs.reason));
-			answer(GRBL_E_LOCK);
+		if (locked_state(S.cs.state) && !S.dead) {
+			if (!grbl_resettable(S.cs.state, S.cs.reason)) {
+				say_locked();
+				answer(GRBL_E_LOCK);
+				return 1;
+			}
+			/* the controller's reset (mlip-ctl reset): answered once it
+			 * has left the E-stop or the limit (await_pump) */
+			S.err_hold = 0;
+			await_start(MLIP_CMD_RESET);
 			return 1;
 		}
 		if (S.alarm) {
@@ -1016,11 +1201,14 @@ static int system_line(const char *t, size_t len)
 		answer(0);
 		return 1;
 	case GRBL_SYS_HOME:
-		/* one mapping: switched on with the operate issue's homing (18) */
-		send_msg(S.ctl,
-		         "$H: mlip does not home yet; home the machine with the drives before "
-		         "starting mlip-rt");
-		answer(GRBL_E_SETTING_DISABLED);
+		if (S.dead) {
+			send_msg(S.ctl, "the controller on %s is not responding", S.shm.name);
+			answer(GRBL_E_IDLE);
+			return 1;
+		}
+		/* the drives' homing (mlip-ctl home): every axis with a
+		 * HOME_METHOD, in HOME_SEQUENCE order; answered at its end */
+		await_start(MLIP_CMD_HOME);
 		return 1;
 	case GRBL_SYS_SLEEP:
 		S.sleeping = 1;
@@ -1078,7 +1266,7 @@ static int is_query(const char *t, size_t len)
 static void process_lines(void)
 {
 	struct grbl_line l;
-	if (S.ctl == NULL || S.reset_wait || S.critical) {
+	if (S.ctl == NULL || S.reset_wait || S.critical || S.await_op) {
 		return;
 	}
 	if (S.partial) {
@@ -1197,6 +1385,51 @@ static void quiet_end(void)
 	}
 }
 
+/* Why the controller holds the machine (E-stop, a limit, a failed homing,
+ * a fault) and what clears it, in mlip's words. */
+static void locked_why(char *why, size_t n)
+{
+	char fn[32];
+	const struct mlip_ring_status *c = &S.cs;
+	mlip_io_function_name(c->reason_field, &S.m, fn, sizeof(fn));
+	if (c->state == MLIP_STATE_ESTOP && c->reason == MLIP_WHY_ESTOP) {
+		snprintf(why, n,
+		         "E-stop: input %s (node %u) at line %u: quick stop to every drive, the "
+		         "program dropped; release it, then $X",
+		         fn, (unsigned)c->reason_node, (unsigned)c->reason_line);
+	} else if (c->state == MLIP_STATE_ESTOP) {
+		snprintf(why, n,
+		         "E-stop: the I/O module (node %u) is lost (%s): quick stop to every "
+		         "drive; restart mlip-rt",
+		         (unsigned)c->reason_node, mlip_state_why_name(c->reason));
+	} else if (c->reason == MLIP_WHY_LIMIT) {
+		snprintf(why, n,
+		         "limit switch: %s (node %u) at line %u: quick stop to every drive; "
+		         "move the axis off the switch, then $X",
+		         fn, (unsigned)c->reason_node, (unsigned)c->reason_line);
+	} else if (grbl_resettable(c->state, c->reason)) {
+		snprintf(why, n,
+		         "homing failed: %s (node %u, statusword 0x%04X): every axis stopped; $X, "
+		         "then check the axis' HOME_* settings",
+		         mlip_state_why_name(c->reason), (unsigned)c->reason_node,
+		         (unsigned)c->reason_value);
+	} else {
+		/* Grbl has no code for a drive or bus fault: 3, "position not
+		 * guaranteed", is what a stop by a fault means */
+		snprintf(why, n,
+		         "mlip-rt fault: %s at line %u: every axis stopped; restart mlip-rt to "
+		         "clear",
+		         mlip_state_why_name(c->reason), (unsigned)c->reason_line);
+	}
+}
+
+static void say_locked(void)
+{
+	char why[240];
+	locked_why(why, sizeof(why));
+	send_msg(S.ctl, "%s", why);
+}
+
 /* What the controller did on its own (a stop by mlip-ctl, a fault), and
  * the end of a reset. */
 static void follow_controller(void)
@@ -1234,26 +1467,26 @@ static void follow_controller(void)
 			 * the position (a stop on the path) */
 			alarm_push(3, S.alarm_why);
 		}
-		grbl_stream_restart(&S.st, S.cs.pos, 1);
+		restart_at(S.cs.pos, 1);
 		S.partial = 0;
 		push_end_alone();
 		S.program_live = 0;
 	}
-	if (S.cs.state == MLIP_STATE_FAULT && !S.fault_told) {
+	int code = grbl_alarm_of(S.cs.state, S.cs.reason, S.prev_state);
+	if (code == 0) {
+		S.fault_told = 0;
+	} else if (!S.fault_told) {
 		S.fault_told = 1;
 		if (S.ctl) {
-			char why[200];
-			snprintf(
-			    why, sizeof(why),
-			    "mlip-rt fault: %s at line %u: every axis stopped; restart mlip-rt "
-			    "to clear",
-			    mlip_state_why_name(S.cs.reason), (unsigned)S.cs.reason_line);
-			/* Grbl has no code for a drive or bus fault: 3, "position not
-			 * guaranteed", is what a stop by a fault means */
-			alarm_push(3, why);
+			char why[240];
+			locked_why(why, sizeof(why));
+			alarm_push(code, why);
 		}
-		grbl_stream_restart(&S.st, S.cs.pos, 1);
+		/* the controller drops the rest of the program up to its END */
+		restart_at(S.cs.pos, 1);
 		S.partial = 0;
+		push_end_alone();
+		S.program_live = 0;
 	}
 }
 
@@ -1331,9 +1564,14 @@ static void take_control(struct peer *p)
 		if (quiet_controller() && !S.program_live) {
 			resync(0);
 		} else {
+			/* what is queued still runs: its spindle and coolant too */
 			double at[MLIP_MAX_AXES];
+			const struct mlip_gcode *g = &S.st.g;
+			double rpm = g->spindle == 3 ? g->s_rpm : g->spindle == 4 ? -g->s_rpm : 0.0;
+			unsigned cool = g->coolant;
 			memcpy(at, grbl_stream_pos(&S.st), sizeof(at));
 			grbl_stream_restart(&S.st, at, 0);
+			grbl_stream_machine_io(&S.st, rpm, cool);
 		}
 	}
 	welcome();
@@ -1414,13 +1652,16 @@ static void read_peer(struct peer *p)
 		if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) {
 			return;
 		}
-		/* closed (or EIO: the pseudo-terminal's other side closed) */
+		/* closed (or EIO: the pseudo-terminal's other side closed); a
+		 * socket's peer is freed here (lose_controller, peer_close):
+		 * nothing of it is read after */
+		int pty = p->pty;
 		if (p == S.ctl) {
 			lose_controller("disconnected");
-		} else if (!p->pty) {
+		} else if (!pty) {
 			peer_close(p);
 		}
-		if (p->pty) {
+		if (pty) {
 			S.pty_open = 0;
 		}
 		return;
@@ -1674,6 +1915,21 @@ int main(int argc, char **argv)
 		return 1;
 	}
 	grbl_stream_init(&S.st, &S.m, S.cs.pos, &smooth_mem);
+	{ /* the machine's I/O is the controller's ([SPINDLE], [TOOL], [COOLANT]) */
+		struct mlip_ring_io rio;
+		if (mlip_ring_io_read(S.r, &rio) != MLIP_OK) {
+			logf_("%s publishes no machine I/O yet (mlip-rt starting?): try again",
+			      shm);
+			return 1;
+		}
+		if (mlip_cli_io_from_ring(&rio, &S.m, &S.io) != 0) {
+			logf_(
+			    "%s publishes a machine I/O this mlip-grbl cannot use: restart mlip-rt",
+			    shm);
+			return 1;
+		}
+		grbl_stream_set_io(&S.st, &S.io);
+	}
 	if (S.default_feed > 0.0) {
 		mlip_gcode_set_initial_feed(&S.st.g, S.default_feed);
 	}
@@ -1729,6 +1985,7 @@ int main(int argc, char **argv)
 		poll_controller();
 		follow_controller();
 		cmd_pump();
+		await_pump();
 		/* a report after a command shows its effect: the controller applies
 		 * it in its next period (at most 50 ms waited) */
 		int applied = S.cs.heartbeat >= S.cmd_hb + 2 || now_ns() - S.cmd_ns > 50000000ull;

@@ -34,6 +34,7 @@ import canopen
 from canopen import objectdictionary as odm
 
 from . import cia402 as P
+from .device import PDO_INVALID, SimDevice, SimNode, new_od, od_identity, od_record, od_var
 
 # one drive at one SYNC (sync.csv): sync, node, t, state, controlword,
 # target applied (None: no RPDO), an RPDO arrived since the previous SYNC,
@@ -44,9 +45,6 @@ IoRow = tuple[int, int, float, str, str]
 
 U8, U16, U32 = odm.UNSIGNED8, odm.UNSIGNED16, odm.UNSIGNED32
 I8, I32 = odm.INTEGER8, odm.INTEGER32
-VENDOR_ID = 0x00000000  # none: a simulation
-PRODUCT_CODE = 0x4D4C4950  # "MLIP"
-PDO_INVALID = 0x80000000
 MODE_HOMING = 6  # 0x6060: homing mode
 # homing methods this drive runs (CiA 402): 17/18 the negative/positive limit
 # switch, 19/21 the home switch searched in the positive/negative direction,
@@ -55,23 +53,6 @@ HOMING_METHODS = (17, 18, 19, 21, 35, 37)
 SW_HOMING_ATTAINED = 1 << 12  # mode 6
 SW_HOMING_ERROR = 1 << 13  # mode 6
 FE_WINDOW_OFF = 0xFFFFFFFF  # 0x6065 = this: following error monitoring off (CiA 402)
-
-
-def _var(
-    name: str,
-    index: int,
-    sub: int,
-    dtype: int,
-    access: str,
-    default: int,
-    mappable: bool = False,
-    desc: str = "",
-) -> ODVariable:
-    v = ODVariable(name, index, sub)
-    v.data_type, v.access_type, v.default, v.value = dtype, access, default, default
-    v.pdo_mappable = mappable
-    v.description = desc
-    return v
 
 
 def build_od(
@@ -85,44 +66,26 @@ def build_od(
     objects for CSP). Defaults: RPDO1 = controlword + target position, TPDO1 =
     statusword + position actual value, both synchronous (type 1), COB-IDs of
     the pre-defined connection set; the master (mlip-rt) writes them again."""
-    od = odm.ObjectDictionary()
-    od.node_id = node_id
-    od.device_information.vendor_name = "mlip (simulated drive)"
-    od.device_information.product_name = "mlip-drive-sim CiA 402 CSP"
-    od.device_information.vendor_number = VENDOR_ID
-    od.device_information.product_number = PRODUCT_CODE
+    od = new_od(node_id, "mlip (simulated drive)", "mlip-drive-sim CiA 402 CSP")
 
     def add(v: ODVariable) -> None:
         od.add_object(v)
 
     def record(name: str, index: int, members: list[tuple[str, int, str, int]]) -> None:
-        r = ODRecord(name, index)
-        r.add_member(_var("Highest sub-index supported", index, 0, U8, "ro", len(members)))
-        for i, (mname, dtype, access, default) in enumerate(members, 1):
-            r.add_member(_var(mname, index, i, dtype, access, default))
-        od.add_object(r)
+        od_record(od, name, index, members)
 
-    add(_var("Device type", 0x1000, 0, U32, "ro", 0x00020192, desc="CiA 402 servo drive"))
-    add(_var("Error register", 0x1001, 0, U8, "ro", 0))
-    add(_var("COB-ID SYNC", 0x1005, 0, U32, "rw", 0x80))
-    add(_var("COB-ID EMCY", 0x1014, 0, U32, "rw", 0x80 + node_id))
+    add(od_var("Device type", 0x1000, 0, U32, "ro", 0x00020192, desc="CiA 402 servo drive"))
+    add(od_var("Error register", 0x1001, 0, U8, "ro", 0))
+    add(od_var("COB-ID SYNC", 0x1005, 0, U32, "rw", 0x80))
+    add(od_var("COB-ID EMCY", 0x1014, 0, U32, "rw", 0x80 + node_id))
     # consumer heartbeat: sub n = node id << 16 | time ms (0: not used)
     record(
         "Consumer heartbeat time",
         0x1016,
         [("Consumer heartbeat time 1", U32, "rw", 0), ("Consumer heartbeat time 2", U32, "rw", 0)],
     )
-    add(_var("Producer heartbeat time", 0x1017, 0, U16, "rw", heartbeat_ms))
-    record(
-        "Identity object",
-        0x1018,
-        [
-            ("Vendor-ID", U32, "ro", VENDOR_ID),
-            ("Product code", U32, "ro", PRODUCT_CODE),
-            ("Revision number", U32, "ro", 0x00010000),
-            ("Serial number", U32, "ro", node_id),
-        ],
-    )
+    add(od_var("Producer heartbeat time", 0x1017, 0, U16, "rw", heartbeat_ms))
+    od_identity(od, node_id)
 
     def pdo(kind: str, com: int, cob: int, entries: tuple[int, ...]) -> None:
         """PDO1: communication record (COB-ID, transmission type 1: synchronous)
@@ -133,23 +96,23 @@ def build_od(
             [(f"COB-ID used by {kind}", U32, "rw", cob), ("Transmission type", U8, "rw", 1)],
         )
         r = ODRecord(f"{kind}1 mapping parameter", com + 0x200)
-        r.add_member(_var("Number of mapped objects", com + 0x200, 0, U8, "rw", len(entries)))
+        r.add_member(od_var("Number of mapped objects", com + 0x200, 0, U8, "rw", len(entries)))
         for i, val in enumerate(entries + (0,) * (4 - len(entries)), 1):
-            r.add_member(_var(f"Mapped object {i}", com + 0x200, i, U32, "rw", val))
+            r.add_member(od_var(f"Mapped object {i}", com + 0x200, i, U32, "rw", val))
         od.add_object(r)
 
     pdo("RPDO", 0x1400, 0x200 + node_id, (0x60400010, 0x607A0020))
     pdo("TPDO", 0x1800, 0x180 + node_id, (0x60410010, 0x60640020))
 
-    add(_var("Controlword", 0x6040, 0, U16, "rw", 0, True))
-    add(_var("Statusword", 0x6041, 0, U16, "ro", 0x0250, True))
-    add(_var("Quick stop option code", 0x605A, 0, odm.INTEGER16, "rw", 2))
-    add(_var("Modes of operation", 0x6060, 0, I8, "rw", 0, True))
-    add(_var("Modes of operation display", 0x6061, 0, I8, "ro", 0, True))
-    add(_var("Position actual value", 0x6064, 0, I32, "ro", start_position, True))
-    add(_var("Following error window", 0x6065, 0, U32, "rw", fe_window))
-    add(_var("Following error time out", 0x6066, 0, U16, "rw", fe_time_ms))
-    add(_var("Target position", 0x607A, 0, I32, "rw", start_position, True))
+    add(od_var("Controlword", 0x6040, 0, U16, "rw", 0, True))
+    add(od_var("Statusword", 0x6041, 0, U16, "ro", 0x0250, True))
+    add(od_var("Quick stop option code", 0x605A, 0, odm.INTEGER16, "rw", 2))
+    add(od_var("Modes of operation", 0x6060, 0, I8, "rw", 0, True))
+    add(od_var("Modes of operation display", 0x6061, 0, I8, "ro", 0, True))
+    add(od_var("Position actual value", 0x6064, 0, I32, "ro", start_position, True))
+    add(od_var("Following error window", 0x6065, 0, U32, "rw", fe_window))
+    add(od_var("Following error time out", 0x6066, 0, U16, "rw", fe_time_ms))
+    add(od_var("Target position", 0x607A, 0, I32, "rw", start_position, True))
     record(
         "Interpolation time period",
         0x60C2,
@@ -158,9 +121,9 @@ def build_od(
             ("Interpolation time index", I8, "rw", -3),
         ],
     )
-    add(_var("Following error actual value", 0x60F4, 0, I32, "ro", 0, True))
+    add(od_var("Following error actual value", 0x60F4, 0, I32, "ro", 0, True))
     # homing mode (6): method, speeds (search, latch), acceleration, offset
-    add(_var("Homing method", 0x6098, 0, I8, "rw", 0))
+    add(od_var("Homing method", 0x6098, 0, I8, "rw", 0))
     record(
         "Homing speeds",
         0x6099,
@@ -169,10 +132,10 @@ def build_od(
             ("Speed during search for zero", U32, "rw", 100),
         ],
     )
-    add(_var("Homing acceleration", 0x609A, 0, U32, "rw", 10000))
-    add(_var("Home offset", 0x607C, 0, I32, "rw", 0))
+    add(od_var("Homing acceleration", 0x609A, 0, U32, "rw", 10000))
+    add(od_var("Home offset", 0x607C, 0, I32, "rw", 0))
     add(
-        _var(
+        od_var(
             "Supported drive modes",
             0x6502,
             0,
@@ -255,47 +218,7 @@ class Recorder:
                 fh.close()
 
 
-class DriveNode(canopen.LocalNode):
-    """canopen's LocalNode with every SDO write recorded, accepted or not."""
-
-    def __init__(self, drive: "Drive", node_id: int, od: odm.ObjectDictionary) -> None:
-        super().__init__(node_id, od)
-        self.drive = drive
-
-    def set_data(
-        self, index: int, subindex: int, data: bytes, check_writable: bool = False
-    ) -> None:
-        if not check_writable:  # our own writes (the drive's state), not an SDO download
-            super().set_data(index, subindex, data, check_writable)
-            return
-        d = self.drive
-        try:
-            with d.sim.lock:
-                super().set_data(index, subindex, data, check_writable)
-        except SdoAbortedError as e:
-            d.rec.event(
-                d.id,
-                "sdo_write",
-                index=f"0x{index:04X}",
-                sub=subindex,
-                data=bytes(data).hex(),
-                abort=f"0x{e.code:08X}",
-                meaning=P.ABORT.get(e.code, "?"),
-            )
-            raise
-        if index in PARAM_OBJECTS:
-            d.load_params()
-        d.rec.event(
-            d.id,
-            "sdo_write",
-            index=f"0x{index:04X}",
-            sub=subindex,
-            data=bytes(data).hex(),
-            value=d.value_of(index, subindex),
-        )
-
-
-class Drive:
+class Drive(SimDevice):
     """One simulated servo drive: node id, position (counts), power state."""
 
     def __init__(
@@ -308,27 +231,23 @@ class Drive:
         lag_alpha: float = 1.0,
         switches: dict[str, int] | None = None,
     ) -> None:
-        self.sim = sim
+        super().__init__(sim, node_id)
         # where the axis' switches are (counts): "neg", "pos" (limit switches,
         # on beyond them), "home" (on at and beyond it in +)
         self.switches = dict(switches or {})
-        self.rec = sim.rec
-        self.id = node_id
         self.start_position = start_position
         self.start_state = start_state
         self.heartbeat_ms = heartbeat_ms
         self.lag_alpha = lag_alpha
-        self.present = False
         self.state: str | None = None  # None until powered up
         # injected faults
         self.refuse: dict[tuple[int, int | None], int] = {}  # (index, sub or None) -> abort
         self.never_enable = False
         self.follow_error_rate = 0.0  # counts added to the lag per SYNC
-        self.hb_stopped = False
         self._pdo_live = False
         self._sync_cob = 0
         self._reset_application()
-        self.node = DriveNode(self, self.id, build_od(self.id, heartbeat_ms, start_position))
+        self.node = SimNode(self, self.id, build_od(self.id, heartbeat_ms, start_position))
         # canopen's LocalNode, untyped there (inherited: not excluded by name)
         self.node.add_write_callback(self._on_write)  # type: ignore[no-untyped-call]
         self.node.add_read_callback(self._on_read)  # type: ignore[no-untyped-call]
@@ -367,57 +286,24 @@ class Drive:
         self.p_period_ms = self.sim.period_ms(n)
         self.p_quick_stop = od(n, 0x605A, "<h")
 
-    def attach(self, network: canopen.Network) -> None:
-        """Power up on the bus: boot-up message, pre-operational, heartbeat."""
-        network.add_node(self.node)
-        # our NMT handler instead of canopen's: boot-up and pre-operational
-        # again after a reset, and the PDO maps read on entering operational
-        network.unsubscribe(0, self.node.nmt.on_command)
-        network.subscribe(0, self._on_nmt)
+    def written(self, index: int, sub: int, data: bytes) -> None:
+        if index in PARAM_OBJECTS:
+            self.load_params()
+
+    def _on_bus(self, network: canopen.Network) -> None:
         self._sync_cob = self.sim.od_u32(self.node, 0x1005) & 0x7FF
         network.subscribe(self._sync_cob, self._on_sync)
-        self.present = True
         self._set_state(self.start_state if self.state is None else self.state, "power on")
-        self._boot("power on")
 
-    def detach(self) -> None:
-        """Gone from the bus (injected): no SDO answers, no heartbeat, no PDOs."""
-        n = self.node
-        net = n.network
-        n.nmt.stop_heartbeat()
-        self._pdo_off()
-        net.unsubscribe(0, self._on_nmt)
-        net.unsubscribe(self._sync_cob, self._on_sync)
+    def _off_bus(self, network: canopen.Network) -> None:
+        network.unsubscribe(self._sync_cob, self._on_sync)
         for cob in list(self._hb_subs()):
-            net.unsubscribe(cob, self._on_heartbeat)
-        net.subscribe(0, n.nmt.on_command)  # remove_network() unsubscribes it
-        del net[self.id]  # remove_network(): the SDO server stops answering
-        self.present = False
-        self.rec.event(self.id, "absent")
+            network.unsubscribe(cob, self._on_heartbeat)
 
     def _hb_subs(self) -> list[int]:
         return [0x700 + p for p in self.hb_consumed]
 
-    def _boot(self, why: str) -> None:
-        """INITIALISING -> boot-up message -> PRE-OPERATIONAL (CiA 301)."""
-        nmt = self.node.nmt
-        nmt.stop_heartbeat()
-        self._pdo_off()
-        nmt.send_command(P.NMT_RESET_COMM)  # canopen: state 0 and the boot-up frame
-        self.rec.event(self.id, "nmt", to="INITIALISING", why=why)
-        nmt.send_command(P.NMT_PREOP)  # and the heartbeat producer (0x1017)
-        if self.hb_stopped:
-            nmt.stop_heartbeat()
-        self.rec.event(self.id, "nmt", to="PRE-OPERATIONAL", why="boot-up sent")
-
     # ------------------------------------------------------------ OD access
-    def value_of(self, index: int, sub: int) -> Any:
-        try:
-            obj = self.node._find_object(index, sub)  # type: ignore[no-untyped-call]
-            return obj.decode_raw(self.node.data_store[index][sub])
-        except Exception:
-            return None
-
     def _store(self, index: int, sub: int, fmt: str, value: int) -> None:
         self.node.data_store.setdefault(index, {})[sub] = struct.pack(fmt, value)
 
@@ -471,9 +357,7 @@ class Drive:
         elif index == 0x1016 and subindex >= 1:
             self._consumer(subindex, val)
         elif index in (0x1400, 0x1800) and subindex == 1:
-            old = self.sim.od_u32(self.node, index, 1)
-            if not old & PDO_INVALID and not val & PDO_INVALID and (old ^ val) & 0x7FF:
-                raise SdoAbortedError(0x06090030)  # CiA 301: change only while invalid
+            self.check_cob_id(index, val)
         elif index in (0x1600, 0x1A00):
             self._check_mapping(index, subindex, val)
 
@@ -538,11 +422,9 @@ class Drive:
         return self.node.nmt.state
 
     def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        if len(data) != 2:
+        if not self._for_me(data):
             return
-        cmd, target = data[0], data[1]
-        if target not in (0, self.id) or not self.present:
-            return
+        cmd = data[0]
         old = self.nmt_state()
         nmt = self.node.nmt
         if cmd in (P.NMT_RESET_NODE, P.NMT_RESET_COMM):
@@ -917,16 +799,10 @@ class Drive:
     def inject(self, what: str, arg: str | None = None) -> None:
         """Fault injection (at start or at run time), recorded as an event."""
         self.rec.event(self.id, "inject", what=what, arg=arg)
+        if self.inject_common(what, arg):
+            return
         if what == "fault":
             self.fault(int(arg, 0) if arg else 0x2310, "injected")
-        elif what == "heartbeat":
-            off = arg == "off"
-            self.hb_stopped = off
-            if self.present:
-                if off:
-                    self.node.nmt.stop_heartbeat()
-                else:
-                    self.node.nmt.start_heartbeat(self.sim.od_int(self.node, 0x1017, "<H"))
         elif what == "leave-enabled":
             if self.state in (P.OPERATION_ENABLED, P.SWITCHED_ON, P.READY, P.QUICK_STOP):
                 self._set_state(P.SWITCH_ON_DISABLED, "injected: voltage lost")
@@ -952,12 +828,6 @@ class Drive:
             self.home_stall = arg != "off"  # a homing that never ends (a timeout)
         elif what == "never-enable":
             self.never_enable = arg != "off"
-        elif what == "absent":
-            if self.present:
-                self.detach()
-        elif what == "present":
-            if not self.present:
-                self.attach(self.sim.network)
         else:
             raise ValueError(f"unknown injection '{what}'")
 

@@ -25,10 +25,10 @@ from typing import TYPE_CHECKING
 from canopen.objectdictionary import ODArray, ODRecord
 from canopen.sdo.exceptions import SdoAbortedError
 
-import canopen
 from canopen import objectdictionary as odm
 
-from .drive import PDO_INVALID, PRODUCT_CODE, VENDOR_ID, Recorder, _var
+from . import cia402 as P
+from .device import PDO_INVALID, SimDevice, SimNode, new_od, od_identity, od_record, od_var
 
 if TYPE_CHECKING:
     from .drive import DriveSim
@@ -36,48 +36,29 @@ if TYPE_CHECKING:
 U8, U16, U32 = odm.UNSIGNED8, odm.UNSIGNED16, odm.UNSIGNED32
 DEVICE_TYPE = 0x00030191  # CiA 401, digital inputs and outputs
 NBYTES = 8
-NMT_START, NMT_STOP, NMT_PREOP, NMT_RESET_NODE, NMT_RESET_COMM = 0x01, 0x02, 0x80, 0x81, 0x82
 
 
 def build_od(node_id: int, heartbeat_ms: int = 100) -> odm.ObjectDictionary:
     """CiA 301 communication area and CiA 401 digital I/O (8 bytes each way);
     default PDOs: TPDO1 = 0x6000:1, RPDO1 = 0x6200:1, type 255."""
-    od = odm.ObjectDictionary()
-    od.node_id = node_id
-    od.device_information.vendor_name = "mlip (simulated I/O module)"
-    od.device_information.product_name = "mlip-drive-sim CiA 401 digital I/O"
-    od.device_information.vendor_number = VENDOR_ID
-    od.device_information.product_number = PRODUCT_CODE
+    od = new_od(node_id, "mlip (simulated I/O module)", "mlip-drive-sim CiA 401 digital I/O")
 
     def record(name: str, index: int, members: list[tuple[str, int, str, int]]) -> None:
-        r = ODRecord(name, index)
-        r.add_member(_var("Highest sub-index supported", index, 0, U8, "ro", len(members)))
-        for i, (mname, dtype, access, default) in enumerate(members, 1):
-            r.add_member(_var(mname, index, i, dtype, access, default))
-        od.add_object(r)
+        od_record(od, name, index, members)
 
     def array(name: str, index: int, access: str) -> None:
         a = ODArray(name, index)
-        a.add_member(_var("Highest sub-index supported", index, 0, U8, "ro", NBYTES))
+        a.add_member(od_var("Highest sub-index supported", index, 0, U8, "ro", NBYTES))
         for i in range(1, NBYTES + 1):
-            a.add_member(_var(f"{name} {i}", index, i, U8, access, 0, True))
+            a.add_member(od_var(f"{name} {i}", index, i, U8, access, 0, True))
         od.add_object(a)
 
-    od.add_object(_var("Device type", 0x1000, 0, U32, "ro", DEVICE_TYPE))
-    od.add_object(_var("Error register", 0x1001, 0, U8, "ro", 0))
-    od.add_object(_var("COB-ID EMCY", 0x1014, 0, U32, "rw", 0x80 + node_id))
+    od.add_object(od_var("Device type", 0x1000, 0, U32, "ro", DEVICE_TYPE))
+    od.add_object(od_var("Error register", 0x1001, 0, U8, "ro", 0))
+    od.add_object(od_var("COB-ID EMCY", 0x1014, 0, U32, "rw", 0x80 + node_id))
     record("Consumer heartbeat time", 0x1016, [("Consumer heartbeat time 1", U32, "rw", 0)])
-    od.add_object(_var("Producer heartbeat time", 0x1017, 0, U16, "rw", heartbeat_ms))
-    record(
-        "Identity object",
-        0x1018,
-        [
-            ("Vendor-ID", U32, "ro", VENDOR_ID),
-            ("Product code", U32, "ro", PRODUCT_CODE),
-            ("Revision number", U32, "ro", 0x00010000),
-            ("Serial number", U32, "ro", node_id),
-        ],
-    )
+    od.add_object(od_var("Producer heartbeat time", 0x1017, 0, U16, "rw", heartbeat_ms))
+    od_identity(od, node_id)
     for kind, com, cob, first in (
         ("RPDO", 0x1400, 0x200 + node_id, 0x62000108),
         ("TPDO", 0x1800, 0x180 + node_id, 0x60000108),
@@ -88,10 +69,10 @@ def build_od(node_id: int, heartbeat_ms: int = 100) -> odm.ObjectDictionary:
             [(f"COB-ID used by {kind}", U32, "rw", cob), ("Transmission type", U8, "rw", 255)],
         )
         r = ODRecord(f"{kind}1 mapping parameter", com + 0x200)
-        r.add_member(_var("Number of mapped objects", com + 0x200, 0, U8, "rw", 1))
+        r.add_member(od_var("Number of mapped objects", com + 0x200, 0, U8, "rw", 1))
         for i in range(1, NBYTES + 1):
             r.add_member(
-                _var(f"Mapped object {i}", com + 0x200, i, U32, "rw", first if i == 1 else 0)
+                od_var(f"Mapped object {i}", com + 0x200, i, U32, "rw", first if i == 1 else 0)
             )
         od.add_object(r)
     array("Read input 8-bit", 0x6000, "ro")
@@ -99,61 +80,15 @@ def build_od(node_id: int, heartbeat_ms: int = 100) -> odm.ObjectDictionary:
     return od
 
 
-class IoNode(canopen.LocalNode):
-    """canopen's LocalNode with every SDO write recorded and checked."""
-
-    def __init__(self, mod: "IoModule", node_id: int, od: odm.ObjectDictionary) -> None:
-        super().__init__(node_id, od)
-        self.mod = mod
-
-    def set_data(
-        self, index: int, subindex: int, data: bytes, check_writable: bool = False
-    ) -> None:
-        if not check_writable:
-            super().set_data(index, subindex, data, check_writable)
-            return
-        m = self.mod
-        try:
-            m.check_write(index, subindex, data)
-            with m.sim.lock:
-                super().set_data(index, subindex, data, check_writable)
-        except SdoAbortedError as e:
-            m.rec.event(
-                m.id,
-                "sdo_write",
-                index=f"0x{index:04X}",
-                sub=subindex,
-                data=bytes(data).hex(),
-                abort=f"0x{e.code:08X}",
-            )
-            raise
-        m.rec.event(
-            m.id,
-            "sdo_write",
-            index=f"0x{index:04X}",
-            sub=subindex,
-            data=bytes(data).hex(),
-            value=int.from_bytes(bytes(data), "little"),
-        )
-        if index == 0x1016:
-            m.consumer(int.from_bytes(bytes(data), "little"))
-        elif index == 0x6200:
-            m.outputs[subindex - 1] = data[0]
-
-
-class IoModule:
+class IoModule(SimDevice):
     """One CiA 401 module: inputs (set by injection), outputs (from RPDO1)."""
 
     def __init__(self, sim: "DriveSim", node_id: int, heartbeat_ms: int = 100) -> None:
-        self.sim = sim
-        self.rec: Recorder = sim.rec
-        self.id = node_id
-        self.node = IoNode(self, node_id, build_od(node_id, heartbeat_ms))
+        super().__init__(sim, node_id)
+        self.node = SimNode(self, node_id, build_od(node_id, heartbeat_ms))
         self.inputs = bytearray(NBYTES)
         self.outputs = bytearray(NBYTES)
-        self.present = False
         self.operational = False
-        self.hb_stopped = False
         self.master: tuple[int, int] | None = None  # (producer node, ms)
         self.master_seen: float | None = None
         self.master_lost = False
@@ -161,19 +96,14 @@ class IoModule:
         # the probe's surface: (byte 1..8, bit, drive node, counts, below)
         self.probe: tuple[int, int, int, int, bool] | None = None
 
-    # ------------------------------------------------------------ OD
-    def od_u32(self, index: int, sub: int) -> int:
-        return self.sim.od_int(self.node, index, "<I", sub)
-
+    # ------------------------------------------------------------ SDO
     def check_write(self, index: int, sub: int, data: bytes) -> None:
         """CiA 301: a PDO's COB-ID changes only while it is invalid, its
         mapping only while invalid with sub 0 = 0; only 0x6000 / 0x6200 whole
         bytes map."""
         val = int.from_bytes(bytes(data), "little")
         if index in (0x1400, 0x1800) and sub == 1:
-            old = self.od_u32(index, 1)
-            if not old & PDO_INVALID and not val & PDO_INVALID and (old ^ val) & 0x7FF:
-                raise SdoAbortedError(0x06090030)
+            self.check_cob_id(index, val)
         elif index in (0x1600, 0x1A00):
             com = index - 0x200
             n_now = self.sim.od_int(self.node, index, "B", 0)
@@ -189,58 +119,35 @@ class IoModule:
             if sub == 0 and val > NBYTES:
                 raise SdoAbortedError(0x06090031)
 
+    def written(self, index: int, sub: int, data: bytes) -> None:
+        if index == 0x1016:
+            self.consumer(int.from_bytes(bytes(data), "little"))
+        elif index == 0x6200:
+            self.outputs[sub - 1] = data[0]
+
     # ------------------------------------------------------------ bus
-    def attach(self, network: canopen.Network) -> None:
-        network.add_node(self.node)
-        network.unsubscribe(0, self.node.nmt.on_command)
-        network.subscribe(0, self._on_nmt)
-        self.present = True
-        self._boot("power on")
-
-    def detach(self) -> None:
-        n = self.node
-        net = n.network
-        n.nmt.stop_heartbeat()
-        self._pdo_off()
-        net.unsubscribe(0, self._on_nmt)
-        net.subscribe(0, n.nmt.on_command)
-        del net[self.id]
-        self.present = False
-        self.rec.event(self.id, "absent")
-
-    def _boot(self, why: str) -> None:
-        nmt = self.node.nmt
-        nmt.stop_heartbeat()
-        self._pdo_off()
-        nmt.send_command(NMT_RESET_COMM)
-        self.rec.event(self.id, "nmt", to="INITIALISING", why=why)
-        nmt.send_command(NMT_PREOP)
-        if self.hb_stopped:
-            nmt.stop_heartbeat()
-        self.rec.event(self.id, "nmt", to="PRE-OPERATIONAL", why="boot-up sent")
-
     def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        if len(data) != 2 or data[1] not in (0, self.id) or not self.present:
+        if not self._for_me(data):
             return
         cmd = data[0]
         nmt = self.node.nmt
         with self.sim.lock:
-            if cmd in (NMT_RESET_NODE, NMT_RESET_COMM):
+            if cmd in (P.NMT_RESET_NODE, P.NMT_RESET_COMM):
                 # reset communication: the communication area to its defaults;
                 # reset node: everything but the inputs (they are physical)
                 ds = self.node.data_store
                 for k in list(ds):
-                    if k != 0x6000 and (cmd == NMT_RESET_NODE or 0x1000 <= k <= 0x1FFF):
+                    if k != 0x6000 and (cmd == P.NMT_RESET_NODE or 0x1000 <= k <= 0x1FFF):
                         del ds[k]
                 self._consumer_off()
-                if cmd == NMT_RESET_NODE:
+                if cmd == P.NMT_RESET_NODE:
                     self.outputs[:] = bytes(NBYTES)
                 self._boot("NMT reset")
                 return
-            if cmd == NMT_START:
+            if cmd == P.NMT_START:
                 nmt.send_command(cmd)
                 self._pdo_on()
-            elif cmd in (NMT_STOP, NMT_PREOP):
+            elif cmd in (P.NMT_STOP, P.NMT_PREOP):
                 nmt.send_command(cmd)
                 self._pdo_off()
             if self.hb_stopped:
@@ -369,6 +276,8 @@ class IoModule:
     # ------------------------------------------------------------ injections
     def inject(self, what: str, arg: str | None = None) -> None:
         self.rec.event(self.id, "inject", what=what, arg=arg)
+        if self.inject_common(what, arg):
+            return
         if what == "input":
             where, _, value = (arg or "").partition("=")
             byte, _, bit = where.partition(".")
@@ -395,25 +304,11 @@ class IoModule:
             d = self.sim.drives.get(node)
             if d is not None:
                 self.follow(node, d.actual, self.sim.sync_no)
-        elif what == "heartbeat":
-            self.hb_stopped = arg == "off"
-            if self.present:
-                if self.hb_stopped:
-                    self.node.nmt.stop_heartbeat()
-                else:
-                    ms = self.sim.od_int(self.node, 0x1017, "<H")
-                    self.node.nmt.start_heartbeat(ms)
         elif what == "fault":
             code = int(arg, 0) if arg else 0x5000
             if self.present:
                 self.node.emcy.send(code, 0x01)
             self.rec.event(self.id, "emcy", code=f"0x{code:04X}")
-        elif what == "absent":
-            if self.present:
-                self.detach()
-        elif what == "present":
-            if not self.present:
-                self.attach(self.sim.network)
         else:
             raise ValueError(f"unknown injection '{what}' for the I/O module")
 

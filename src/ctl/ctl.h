@@ -93,12 +93,12 @@ void mlip_ct_after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
                         mlip_run_state rs, int still);
 
 /* stop.c */
-void mlip_ct_planner_stop(struct mlip_ctl *c);
 void mlip_ct_drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
                          const struct mlip_ctl_drive_fault *f);
 void mlip_ct_brake_begin(struct mlip_ctl *c);
 void mlip_ct_brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state rs);
 void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why);
+void mlip_ct_planner_stop(struct mlip_ctl *c);
 
 /* estop.c */
 void mlip_ct_follow_actual(struct mlip_ctl *c, const struct mlip_ctl_in *in);

@@ -6,31 +6,6 @@
 
 #include <math.h>
 
-/* Nothing has moved since the machine last came to rest: a pre-read (of a
- * new program, or after an underrun or a wait) or a wait. The planner is
- * not stepped in these states, so it rests at the last setpoint and what it
- * holds has never run. */
-static int unmoved(const struct mlip_ctl *c)
-{
-	return c->state == MLIP_STATE_PREREAD || c->state == MLIP_STATE_DWELLING ||
-	       c->state == MLIP_STATE_PAUSED;
-}
-
-/* Stop the planner. Moving: on the path at the acceleration limit (the
- * planner's stop). Unmoved: what it holds is dropped where it rests, and no
- * setpoint changes. (The planner's stop would follow the plan in force until
- * its backward pass, a bounded amount of work a period, had come back to the
- * first corner: several periods at the look-ahead's depth, in which that
- * plan accelerates from rest into the program's first block.) */
-void mlip_ct_planner_stop(struct mlip_ctl *c)
-{
-	if (unmoved(c)) {
-		mlip_planner_abort(c->planner, c->pos); /* finite: the last setpoint */
-	} else {
-		mlip_planner_stop(c->planner);
-	}
-}
-
 /* A CiA 402 drive faulted (rt/drivehooks.c's supervision): never go on blind.
  * Every axis stops on the path (the planner's stop: the other drives follow
  * it to rest; the faulted drive, muted by rt/, is in its own fault reaction),
@@ -99,6 +74,31 @@ void mlip_ct_brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state r
 		c->brake.last_nm = (uint64_t)(c->brake.mm * 1e6 + 0.5);
 		c->brake.last_periods = c->brake.periods;
 		c->brake.count++;
+	}
+}
+
+/* Nothing has moved since the machine last came to rest: a pre-read (of a
+ * new program, or after an underrun or a wait) or a wait. The planner is
+ * not stepped in these states, so it rests at the last setpoint and what it
+ * holds has never run. */
+static int unmoved(const struct mlip_ctl *c)
+{
+	return c->state == MLIP_STATE_PREREAD || c->state == MLIP_STATE_DWELLING ||
+	       c->state == MLIP_STATE_PAUSED;
+}
+
+/* Stop the planner. Moving: on the path at the acceleration limit (the
+ * planner's stop). Unmoved: what it holds is dropped where it rests, and no
+ * setpoint changes. (The planner's stop would follow the plan in force until
+ * its backward pass, a bounded amount of work a period, had come back to the
+ * first corner: several periods at the look-ahead's depth, in which that
+ * plan accelerates from rest into the program's first block.) */
+void mlip_ct_planner_stop(struct mlip_ctl *c)
+{
+	if (unmoved(c)) {
+		mlip_planner_abort(c->planner, c->pos); /* finite: the last setpoint */
+	} else {
+		mlip_planner_stop(c->planner);
 	}
 }
 

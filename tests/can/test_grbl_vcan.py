@@ -69,3 +69,106 @@ def test_grbl_stream_on_the_bus(vcan, tmp_path):
     assert r["report"]["last"]["counts"] == dict(zip(setup.axes, trc[-1]))
     summary_line("grbl " + ngc.name, rig, r, f", trace {len(trc)} rows = bus cycles exactly, "
                  f"max contour {js['max_contour_error_mm']:.6f} mm")
+
+
+# ---- the machine's inputs and homing through Grbl (issue 18's controller) ----------
+# A CiA 401 I/O module (E-stop, hold, X's positive limit) and three CiA 402
+# drives homing by method 35 (the current position), all on the canopen
+# package (one simulator process), mlip-rt --drives: what a sender sees.
+
+IO = 10
+
+
+def io_machine(tmp):
+    import test_io_vcan
+    text = test_io_vcan.machine(tmp).read_text()
+    for axis in "XYZ":
+        text = text.replace(f"[AXIS_{axis}]\n", f"[AXIS_{axis}]\nHOME_METHOD = 35\n"
+                            f"HOME_OFFSET = {dict(X=1.0, Y=2.0, Z=3.0)[axis]}\n"
+                            "HOME_TIMEOUT = 600\n", 1)  # the emulated guest is slow
+    path = tmp / "grbl-io.ini"
+    path.write_text(text)
+    return path
+
+
+def told(g, rig, fn, *a):
+    """fn(*a), or what the sender and mlip-rt said when it fails."""
+    try:
+        return fn(*a)
+    except AssertionError as e:
+        raise AssertionError(f"{e}\nthe sender saw: {g.lines[-30:]}\nmlip-rt: {rig.status()}")
+
+
+def test_grbl_homing_estop_and_limit(vcan, tmp_path):
+    """$H is the drives' homing (Home while it runs, ok at its end, MPos the
+    home offsets); the E-stop input: ALARM:3 with its input named, Alarm,
+    Pn:R, G-code locked out (error:9), $X refused while pressed (error:9),
+    accepted once released (the controller's reset); X's limit switch while
+    moving: ALARM:1, Pn:X, $X once it is released."""
+    cfg = io_machine(tmp_path)
+    (tmp_path / "sim").mkdir()
+    sim = procs.DriveSimProc(S, tmp_path / "sim", nodes=[1, 2, 3], args=["--io", str(IO)],
+                             inject=[f"{IO}:input=1.0=1"])
+    try:
+        with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+            srv, port = start_grbl(rig)
+            try:
+                g = Grbl(port, timeout=300)
+                assert g.welcome() == "Grbl 1.1h ['$' for help]"
+                g.wait_line(lambda l: l.startswith("[MSG:mlip-grbl:"))
+                s = g.status()
+                assert s["state"] == "Idle" and "Pn" not in s, s
+                g.send("$H\n")
+                seen = []
+                end = time.monotonic() + 300
+                while g.answers.empty() and time.monotonic() < end:
+                    seen.append(g.status()["state"])
+                a = g.answer(timeout=300)
+                # ok after its homing cycle, as Grbl: an alarm before it is a failure
+                assert a[0] == "ok" and "Home" in seen, (a, seen)
+                assert not [l for l in g.lines if l.startswith("ALARM")], (g.lines[-20:],
+                                                                            rig.status())
+                s = told(g, rig, g.wait_state, {"Idle"}, 120)
+                home = s["MPos"]
+                assert home == [1.0, 2.0, 3.0], s
+                assert rig.status()["homed"] == {"X": True, "Y": True, "Z": True}
+                # the E-stop while a program runs
+                assert g.cmd("G1 X40 Y30 F600")[0] == "ok"
+                rig.wait_state("running", timeout=300, pred=lambda st: st["speed_mm_s"] > 1)
+                sim.inject(f"{IO}:input=1.0=0")          # the circuit opens
+                told(g, rig, g.wait_line, lambda l: l == "ALARM:3", 120)
+                told(g, rig, g.wait_line, lambda l: "E-stop: input estop (node 10)" in l, 60)
+                s = told(g, rig, g.wait_status,
+                         lambda s: s["state"] == "Alarm" and s.get("Pn") == "R", 120)
+                a, m = g.cmd("G0 X0")
+                assert a == "error:9" and "E-stop" in m[0], (a, m)
+                a, m = g.cmd("$X")
+                assert a == "error:9" and "still on" in m[0], (a, m)
+                sim.inject(f"{IO}:input=1.0=1")
+                told(g, rig, g.wait_status,
+                     lambda s: s["state"] == "Alarm" and "Pn" not in s, 120)
+                a = g.cmd("$X")
+                assert a == ("ok", ["[MSG:Caution: Unlocked]"]), (a, g.lines[-20:], rig.status())
+                s = told(g, rig, g.wait_state, {"Idle"}, 120)
+                assert rig.status()["state"] == "idle"
+                # X's limit switch while moving
+                assert g.cmd(f"G1 X{s['MPos'][0] + 30:.3f} F600")[0] == "ok"
+                rig.wait_state("running", timeout=300, pred=lambda st: st["speed_mm_s"] > 1)
+                sim.inject(f"{IO}:input=1.2=1")
+                told(g, rig, g.wait_line, lambda l: l == "ALARM:1", 120)
+                s = told(g, rig, g.wait_status,
+                         lambda s: s["state"] == "Alarm" and s.get("Pn") == "X", 120)
+                assert g.cmd("$X")[0] == "error:9"
+                sim.inject(f"{IO}:input=1.2=0")
+                told(g, rig, g.wait_status, lambda s: "Pn" not in s, 120)
+                a = g.cmd("$X")
+                assert a == ("ok", ["[MSG:Caution: Unlocked]"]), (a, g.lines[-20:], rig.status())
+                told(g, rig, g.wait_state, {"Idle"}, 120)
+                g.close()
+            finally:
+                srv.send_signal(signal.SIGTERM)
+                srv.wait(30)
+    finally:
+        sim.stop()
+    print(f"[grbl] $H homed to {home}; E-stop ALARM:3 Pn:R, limit ALARM:1 Pn:X, "
+          f"$X refused while on, accepted once released")

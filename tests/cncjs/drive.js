@@ -3,7 +3,11 @@
 // pseudo-terminal as a Grbl port, read the DRO, jog as its axes widget does,
 // load a file, run it, hold and resume it, and print one JSON line per event.
 //
-//   node drive.js --cncjs-port N --tty PATH --file FILE --config FILE [--hold-at S]
+//   node drive.js --cncjs-port N --tty PATH --file FILE --config FILE [--hold-after LINES]
+//
+// Every wait is on a condition (a state, a position, lines answered, status
+// reports counted) with a generous deadline (DEADLINE), never a fixed sleep:
+// the host is loaded.
 'use strict';
 const fs = require('fs');
 const http = require('http');
@@ -16,7 +20,8 @@ const PORT = Number(arg('--cncjs-port'));
 const TTY = arg('--tty');
 const FILE = arg('--file');
 const CONFIG = arg('--config');
-const HOLD_AT = arg('--hold-at') ? Number(arg('--hold-at')) : null;
+const HOLD_AFTER = arg('--hold-after') ? Number(arg('--hold-after')) : null;
+const DEADLINE = 60000; // ms, for any one condition
 const SHOT = arg('--shot'); // a PNG of CNCjs's page (Debian's chromium, headless)
 const T0 = Date.now();
 const say = (o) => process.stdout.write(JSON.stringify({ ...o, t: (Date.now() - T0) / 1000 }) + '\n');
@@ -53,12 +58,11 @@ async function screenshot(st) {
     await page.click('button:has-text("Open")', { timeout: 10000 });
     const x = st.mpos[0].toFixed(3);
     let shown = false;
-    for (let i = 0; i < 300 && !shown; i++) {
+    for (const end = Date.now() + DEADLINE; Date.now() < end && !shown;) {
       const text = await page.evaluate(() => document.body.innerText);
       shown = text.includes(x) && text.includes('Idle');
       if (!shown) await sleep(100);
     }
-    await sleep(500);
     await page.screenshot({ path: SHOT, fullPage: true });
     say({ event: 'screenshot', path: SHOT, dro_shows_x: shown, x });
   } finally {
@@ -78,13 +82,14 @@ async function main() {
   server.stderr.on('data', (d) => { log += d; });
   const done = (code) => { server.kill('SIGTERM'); setTimeout(() => process.exit(code), 300); };
   let token = null;
-  for (let i = 0; i < 300 && !token; i++) {
+  for (const end = Date.now() + DEADLINE; Date.now() < end && !token;) {
     try { token = (await post('/api/signin', { token: '' })).token; } catch (e) { await sleep(100); }
   }
   if (!token) { say({ event: 'error', msg: 'cncjs did not start', log }); return done(1); }
   say({ event: 'cncjs', version: require('./node_modules/cncjs/package.json').version });
   const socket = io.connect(`http://127.0.0.1:${PORT}`, { query: `token=${token}` });
-  const st = { state: null, mpos: null, wpos: null, workflow: null, sender: null, lines: [] };
+  const st = { state: null, mpos: null, wpos: null, workflow: null, sender: null, lines: [],
+    reports: 0, report: null };
   socket.on('controller:state', (type, state) => {
     const s = state.status || {};
     const a = s.activeState + (s.subState !== undefined && s.subState >= 0 && s.activeState === 'Hold' ? `:${s.subState}` : '');
@@ -96,6 +101,7 @@ async function main() {
   socket.on('sender:status', (s) => { st.sender = s; });
   socket.on('serialport:read', (line) => {
     st.lines.push(line);
+    if (line.startsWith('<')) { st.reports += 1; st.report = line; } // a `?` of ours answered
     if (/^error|^\[MSG|^Grbl/.test(line)) say({ event: 'read', line });
   });
   const until = async (pred, ms, what) => {
@@ -108,15 +114,15 @@ async function main() {
   socket.emit('open', TTY, { controllerType: 'Grbl', baudrate: 115200 }, (err) => {
     if (err) say({ event: 'error', msg: String(err) });
   });
-  if (!await until(() => st.state === 'Idle', 20000, 'connect')) return done(1);
+  if (!await until(() => st.state === 'Idle', DEADLINE, 'connect')) return done(1);
   say({ event: 'connected', state: st.state, mpos: st.mpos });
 
   // jog as the axes widget does: relative, rapid, then back to absolute
   cmd('gcode', 'G91');
   cmd('gcode', 'G0 X2 Y1');
   cmd('gcode', 'G90');
-  await sleep(300);
-  if (!await until(() => st.state === 'Idle' && st.mpos && Math.abs(st.mpos[0] - 2) < 1e-3, 20000, 'jog')) return done(1);
+  if (!await until(() => st.state === 'Idle' && st.mpos && Math.abs(st.mpos[0] - 2) < 1e-3 &&
+    Math.abs(st.mpos[1] - 1) < 1e-3, DEADLINE, 'jog')) return done(1);
   say({ event: 'jogged', mpos: st.mpos });
 
   const text = fs.readFileSync(FILE, 'utf8');
@@ -124,17 +130,24 @@ async function main() {
   const tRun = Date.now();
   cmd('gcode:start');
   say({ event: 'run' });
-  if (!await until(() => st.state === 'Run', 20000, 'run')) return done(1);
-  if (HOLD_AT !== null) {
-    await sleep(HOLD_AT * 1000);
+  if (!await until(() => st.state === 'Run', DEADLINE, 'run')) return done(1);
+  if (HOLD_AFTER !== null) {
+    if (!await until(() => st.sender && st.sender.received >= HOLD_AFTER && st.state === 'Run',
+      DEADLINE, 'lines before the hold')) return done(1);
     cmd('gcode:pause');
-    if (!await until(() => st.state === 'Hold:0', 20000, 'hold')) return done(1);
+    if (!await until(() => st.state === 'Hold:0', DEADLINE, 'hold')) return done(1);
     const before = st.mpos;
-    await sleep(500);
-    say({ event: 'held', before, after: st.mpos, state: st.state });
+    // held: where it stands in three more reports, asked for as its console's `?` does
+    for (let k = 0; k < 3; k++) {
+      const seen = st.reports;
+      socket.emit('write', TTY, '?');
+      if (!await until(() => st.reports > seen, DEADLINE, 'a report while held')) return done(1);
+    }
+    const m = /MPos:([-0-9.]+),([-0-9.]+),([-0-9.]+)/.exec(st.report);
+    say({ event: 'held', before, after: m && m.slice(1).map(Number), report: st.report,
+      state: st.state });
     cmd('gcode:resume');
   }
-  await sleep(500);
   const finished = () => st.state === 'Idle' && st.sender && st.sender.sent === st.sender.total &&
     st.sender.received === st.sender.total;
   if (!await until(finished, 600000, 'finish')) return done(1);

@@ -3,13 +3,17 @@ controller plugin, its G-code compiler) without its window: connect through
 pyserial's socket:// URL, read the DRO, jog, run a file, hold and resume it, and
 print one JSON line per event for the test to judge.
 
-    python bcnc_driver.py socket://127.0.0.1:PORT FILE [--hold-at SECONDS] [--jog X2Y1]
+    python bcnc_driver.py socket://127.0.0.1:PORT FILE [--hold-after LINES] [--jog X2Y1]
+
+Every wait is on a condition (a state, a position, status reports counted)
+with a generous deadline (DEADLINE), never a fixed sleep: the host is loaded.
 
 bCNC's modules import each other by their bare names (its __main__ puts its
 folder on the path): this driver does the same for the installed package.
 """
 import json
 import os
+import re
 import sys
 import time
 
@@ -23,8 +27,23 @@ import Helpers  # noqa: E402,F401  (bCNC's: installs gettext's _ first, as its m
 import Utils  # noqa: E402  (bCNC's)
 
 Utils.loadConfiguration()
+import GRBL1  # noqa: E402  (bCNC's Grbl 1.1 controller plugin)
 from CNC import CNC, WAIT  # noqa: E402
 from Sender import Sender  # noqa: E402
+
+DEADLINE = 60.0  # s, for any one condition
+
+# status reports bCNC has parsed (its plugin's handler, counted)
+REPORTS = [0]
+_parse = GRBL1.Controller.parseBracketAngle
+
+
+def _counted(self, line, cline):
+    _parse(self, line, cline)
+    REPORTS[0] += 1
+
+
+GRBL1.Controller.parseBracketAngle = _counted
 
 
 class Headless(Sender):
@@ -50,6 +69,21 @@ def dro():
             "wpos": [CNC.vars.get(k) for k in ("wx", "wy", "wz")]}
 
 
+def until(pred, timeout=DEADLINE, period=0.01):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(period)
+    return pred()
+
+
+def reports_pass(n):
+    """n more status reports parsed by bCNC (it polls `?` itself)."""
+    start = REPORTS[0]
+    return until(lambda: REPORTS[0] >= start + n)
+
+
 def drain(s):
     while not s.log.empty():
         kind, msg = s.log.get_nowait()
@@ -64,23 +98,23 @@ T0 = time.monotonic()
 
 def main():
     url, path = sys.argv[1], sys.argv[2]
-    hold_at = float(sys.argv[sys.argv.index("--hold-at") + 1]) if "--hold-at" in sys.argv else None
+    hold_after = (int(sys.argv[sys.argv.index("--hold-after") + 1])
+                  if "--hold-after" in sys.argv else None)
     s = Headless()
     s.open(url, 115200)
-    end = time.monotonic() + 10
-    while time.monotonic() < end and CNC.vars.get("state") not in ("Idle", "Alarm"):
-        time.sleep(0.05)
+    until(lambda: CNC.vars.get("state") in ("Idle", "Alarm"))
     say(event="connected", version=CNC.vars.get("version"), **dro())
     if "--jog" in sys.argv:
         # its jog pad's step, as its GRBL1 controller sends it ($J=G91 ... F100000)
-        s.mcontrol.jog(sys.argv[sys.argv.index("--jog") + 1])
-        end = time.monotonic() + 20
-        while time.monotonic() < end and CNC.vars.get("state") != "Jog":
-            time.sleep(0.01)
-        seen_jog = CNC.vars.get("state") == "Jog"
-        while time.monotonic() < end and CNC.vars.get("state") != "Idle":
-            time.sleep(0.05)
-        time.sleep(0.3)  # a status report after the move
+        step = sys.argv[sys.argv.index("--jog") + 1]
+        start = dro()["mpos"]
+        delta = {k.lower(): float(v) for k, v in re.findall(r"([XYZ])(-?[0-9.]+)", step)}
+        target = [p + delta.get(k, 0.0) for p, k in zip(start, "xyz")]
+        s.mcontrol.jog(step)
+        seen_jog = until(lambda: CNC.vars.get("state") == "Jog", period=0.002)
+        # at rest where the step ends, as its DRO shows it
+        until(lambda: CNC.vars.get("state") == "Idle" and
+              all(abs(a - b) < 1e-3 for a, b in zip(dro()["mpos"], target)))
         drain(s)
         say(event="jogged", seen_jog=seen_jog, **dro())
     s.load(path)
@@ -102,14 +136,12 @@ def main():
         if st not in seen:
             seen.add(st)
             say(event="state", **dro())
-        if hold_at is not None and not held and time.monotonic() - t_run > hold_at:
+        if hold_after is not None and not held and s._gcount >= hold_after and st == "Run":
             s.feedHold()
             held = True
-            end = time.monotonic() + 10
-            while time.monotonic() < end and not str(CNC.vars.get("state")).startswith("Hold:0"):
-                time.sleep(0.05)
+            until(lambda: str(CNC.vars.get("state")).startswith("Hold:0"))
             a = dro()
-            time.sleep(0.5)
+            reports_pass(3)  # held: where it stands over three more reports
             say(event="held", before=a, after=dro())
             s.resume()
         if s._gcount >= s._runLines and st == "Idle":

@@ -30,15 +30,18 @@ def parse_status(line):
 
 
 class Grbl:
-    def __init__(self, port=None, host="127.0.0.1", sock=None, timeout=10.0):
+    def __init__(self, port=None, host="127.0.0.1", sock=None, timeout=60.0):
         self.sock = sock or socket.create_connection((host, port), timeout=timeout)
         self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.sock.settimeout(None)  # the reader waits as long as the server is silent
         self.timeout = timeout
         self.status_q = queue.Queue()
         self.answers = queue.Queue()
         self.lines = []  # everything received, in order
         self.pending_msgs = []
         self.closed = threading.Event()
+        # what the reader sorts and what cmd()/status() mark as "from now on"
+        self._lock = threading.Lock()
         self._buf = b""
         self._t = threading.Thread(target=self._reader, daemon=True)
         self._t.start()
@@ -55,19 +58,23 @@ class Grbl:
                     line = raw.decode("ascii", "replace").rstrip("\r")
                     if line == "":
                         continue
-                    self.lines.append(line)
-                    if line.startswith("Grbl "):
-                        self.pending_msgs = []
-                    if line.startswith("<"):
-                        self.status_q.put(line)
-                    elif line == "ok" or line.startswith("error:"):
-                        self.answers.put((line, self.pending_msgs))
-                        self.pending_msgs = []
-                    else:
-                        self.pending_msgs.append(line)
+                    with self._lock:
+                        self._sort(line)
         except OSError:
             pass
         self.closed.set()
+
+    def _sort(self, line):
+        self.lines.append(line)
+        if line.startswith("Grbl "):
+            self.pending_msgs = []
+        if line.startswith("<"):
+            self.status_q.put(line)
+        elif line == "ok" or line.startswith("error:"):
+            self.answers.put((line, self.pending_msgs))
+            self.pending_msgs = []
+        else:
+            self.pending_msgs.append(line)
 
     def close(self):
         """Disconnect now: shutdown sends the FIN at once (a close alone
@@ -104,18 +111,30 @@ class Grbl:
         return self.answers.get(timeout=timeout or self.timeout)
 
     def cmd(self, line, timeout=None):
-        """Send one line, wait for its answer: (answer, messages)."""
-        time.sleep(0.01)  # what was pushed before (a welcome, a note) is not its answer's
-        self.pending_msgs = []
-        self.send(line + "\n")
+        """Send one line, wait for its answer: (answer, messages pushed
+        after it was sent). The messages received before (a welcome, a
+        note) are not its answer's."""
+        with self._lock:
+            self.pending_msgs = []
+            self.send(line + "\n")
         return self.answer(timeout)
 
     def status(self, timeout=None):
-        """Send '?' and return the next report, parsed."""
-        while not self.status_q.empty():
-            self.status_q.get_nowait()
-        self.send(b"?")
+        """Send '?' and return the first report received after it, parsed
+        (the server answers a '?' once it has applied the real-time
+        commands before it)."""
+        with self._lock:
+            while not self.status_q.empty():
+                self.status_q.get_nowait()
+            self.send(b"?")
         return parse_status(self.status_q.get(timeout=timeout or self.timeout))
+
+    def no_answer_yet(self):
+        """No line was answered up to a report asked for now: what the
+        server sent before that report (one TCP stream, in order) holds
+        every answer it had given."""
+        self.status()
+        return self.answers.empty()
 
     def wait_status(self, pred, timeout=60.0, period=0.02):
         """Poll '?' until a report for which pred is true; that report."""
@@ -128,7 +147,7 @@ class Grbl:
             time.sleep(period)
         raise AssertionError(f"no such report in {timeout} s: last {last}")
 
-    def wait_state(self, states, timeout=30.0, period=0.05):
+    def wait_state(self, states, timeout=60.0, period=0.05):
         end = time.monotonic() + timeout
         last = None
         while time.monotonic() < end:

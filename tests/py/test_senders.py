@@ -8,7 +8,6 @@ same, a jog as its axes widget sends it, and its page in headless Chromium
 showing mlip's position (build/cncjs-dro.png)."""
 import json
 import os
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -16,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from conftest import BUILD, TOOLPATHS, status, tool
-from test_grbl import MILL, grbl, trace_rows  # noqa: F401  (the fixture)
+from test_grbl import MILL, grbl, logged, stop_rt, trace_rows  # noqa: F401  (the fixture)
 
 DRIVER = Path(__file__).with_name("bcnc_driver.py")
 
@@ -31,7 +30,7 @@ def program(tmp_path, lines=3000):
 def bcnc(port, prog, tmp_path, *opts):
     env = dict(os.environ, HOME=str(tmp_path))  # bCNC keeps its settings in ~/.bCNC
     p = subprocess.run([sys.executable, str(DRIVER), f"socket://127.0.0.1:{port}", str(prog),
-                        *opts], capture_output=True, text=True, timeout=300, env=env)
+                        *opts], capture_output=True, text=True, timeout=900, env=env)
     events = [json.loads(l) for l in p.stdout.splitlines() if l.startswith("{")]
     assert p.returncode == 0, p.stderr[-2000:]
     return events
@@ -41,11 +40,11 @@ def test_bcnc_runs_a_file_as_mlip_feed(grbl, controller, tmp_path):
     prog = program(tmp_path)
     rec_feed = tmp_path / "feed.csv"
     shm, rt = controller(MILL, "--record", rec_feed)
+    logged(rt, "mlip-rt (mlip-feed)")
     f = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", str(prog)], capture_output=True,
-                       text=True, timeout=300)
+                       text=True, timeout=600)
     assert f.returncode == 0, f.stderr
-    rt.send_signal(signal.SIGTERM)
-    rt.wait(20)
+    stop_rt(rt)
 
     rec = tmp_path / "bcnc.csv"
     shm, rt, srv, port, _ = grbl(MILL, "--record", rec)
@@ -59,8 +58,7 @@ def test_bcnc_runs_a_file_as_mlip_feed(grbl, controller, tmp_path):
     c = status(shm)
     # bCNC's DRO shows where mlip-rt stands
     assert done["mpos"] == pytest.approx([c["position"][k] for k in "XYZ"], abs=1e-3)
-    rt.send_signal(signal.SIGTERM)
-    rt.wait(20)
+    stop_rt(rt)
     _, ta = trace_rows(rec_feed)
     _, tb = trace_rows(rec)
     print(f"bCNC: {tb} periods of motion, mlip-feed {ta}")
@@ -70,7 +68,7 @@ def test_bcnc_runs_a_file_as_mlip_feed(grbl, controller, tmp_path):
 def test_bcnc_hold_resume(grbl, tmp_path):
     prog = program(tmp_path, 3000)
     shm, rt, srv, port, _ = grbl(MILL)
-    ev = bcnc(port, prog, tmp_path, "--hold-at", "2", "--jog", "X2Y1")
+    ev = bcnc(port, prog, tmp_path, "--hold-after", "500", "--jog", "X2Y1")
     jog = next(e for e in ev if e["event"] == "jogged")
     assert jog["state"] == "Idle" and jog["mpos"] == [2, 1, 0], jog   # $J=G91 X2Y1 F100000
     assert not [e for e in ev if e["event"] == "error"], ev
@@ -106,8 +104,8 @@ def test_cncjs_through_the_pty(grbl, tmp_path):
     shot = BUILD / "cncjs-dro.png"  # kept: the page showing mlip's position
     p = subprocess.run(["node", str(CNCJS / "drive.js"), "--cncjs-port", str(free_port()),
                         "--tty", str(tty), "--file", str(prog),
-                        "--config", str(tmp_path / "cncrc.json"), "--hold-at", "1",
-                        "--shot", str(shot)], capture_output=True, text=True, timeout=400)
+                        "--config", str(tmp_path / "cncrc.json"), "--hold-after", "300",
+                        "--shot", str(shot)], capture_output=True, text=True, timeout=900)
     ev = [json.loads(l) for l in p.stdout.splitlines() if l.startswith("{")]
     assert p.returncode == 0, (ev, p.stderr[-2000:])
     kinds = [e["event"] for e in ev]

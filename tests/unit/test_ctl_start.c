@@ -52,13 +52,17 @@ static struct mlip_ring_port rx;
 static void *mem;
 static uint64_t period;
 static uint32_t stop_count;
+static int exit_request; /* SIGTERM to mlip-rt */
 
 /* the program: n_moves blocks (with a dwell after block 1: wait = 1), END */
 static uint64_t n_moves, next_seq;
 static int wait_prog;
-/* the feeder: records a period (0: as many as fit), and whether it is alive */
+/* the feeder: records a period (0: as many as fit), whether it is alive, and
+ * the last record it has (0: all of them; it lags behind, alive): set
+ * before start, reset by the teardown */
 static uint32_t feed_rate;
 static int feeder_alive;
+static uint64_t feed_upto;
 
 /* a run: the setpoint and the state after each period */
 struct run {
@@ -124,8 +128,9 @@ static void feed(void)
 {
 	uint64_t last = n_moves + (wait_prog ? 2u : 1u); /* the END */
 	struct mlip_ring_rec rec;
-	for (uint32_t k = 0; feeder_alive && next_seq <= last && mlip_ring_space(ring) > 0 &&
-	                     (feed_rate == 0 || k < feed_rate);
+	for (uint32_t k = 0;
+	     feeder_alive && next_seq <= last && mlip_ring_space(ring) > 0 &&
+	     (feed_rate == 0 || k < feed_rate) && (feed_upto == 0 || next_seq <= feed_upto);
 	     k++) {
 		record(next_seq, &rec);
 		assert_int_equal(mlip_ring_push(ring, &rec), MLIP_OK);
@@ -147,6 +152,7 @@ static void start(uint64_t moves, int wait)
 	assert_int_equal(mlip_ring_port_open(&rx, ring, 0), MLIP_OK);
 	period = 0;
 	stop_count = 0;
+	exit_request = 0;
 	feeder_alive = 1;
 	n_moves = moves;
 	wait_prog = wait;
@@ -160,7 +166,8 @@ static void step(struct run *r)
 	struct mlip_ctl_in in = {.period = period++,
 	                         .feeder_alive = feeder_alive,
 	                         .stop_requests = stop_count,
-	                         .feeder_stop_base = 0};
+	                         .feeder_stop_base = 0,
+	                         .exit_request = exit_request};
 	feed();
 	assert_int_equal(mlip_ring_port_view(&rx, &in.recs, &in.recs_corrupt), MLIP_OK);
 	mlip_ctl_period(&ctl, &in, &out);
@@ -350,6 +357,26 @@ static void test_stop_in_each_of_the_first_periods(void **st)
 	              p1, worst_lag + 1);
 }
 
+/* mlip-rt told to exit (SIGTERM) in each period of the pre-read, its first
+ * motion period included: nothing moves, and the exit completes (at rest). */
+static void test_exit_in_each_period_of_the_preread(void **st)
+{
+	(void)st;
+	reference(6000, 0);
+	int p1 = first(&ref, MLIP_STATE_RUNNING);
+	for (int n = 1; n <= p1; n++) {
+		run_to(6000, 0, n);
+		exit_request = 1;
+		for (int i = 0; i < 100 && !out.done; i++) {
+			step(&cur);
+		}
+		assert_true(out.done);
+		assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+		assert_int_equal(out.status.reason, MLIP_WHY_EXIT);
+		rests_at(&cur, 0, 0.0, 0.0);
+	}
+}
+
 /* ---- a bad record met in each of the program's first periods -------------- */
 
 /* The next record the controller takes is made bad (a NaN target) before
@@ -436,6 +463,54 @@ static void test_feeder_gone_in_each_of_the_first_periods(void **st)
 	feed_rate = 0;
 }
 
+/* ---- the pre-read after an underrun --------------------------------------- */
+
+/* The feeder lags (alive): the machine runs its first UPTO blocks to rest,
+ * starved; then the rest comes, pre-read again before it moves (CONTINUE).
+ * A stop in each period of that pre-read: nothing moves from the end of
+ * block UPTO, the status names it (the stop, block UPTO the last done). */
+#define UPTO 4500
+static void test_stop_in_the_preread_after_an_underrun(void **st)
+{
+	(void)st;
+	feed_upto = UPTO;
+	start(6000, 0);
+	cur.n = 0;
+	do {
+		step(&cur);
+	} while (out.status.state != MLIP_STATE_STARVED);
+	int s0 = cur.n;
+	feed_upto = 0;
+	ref = cur;
+	do {
+		step(&ref);
+	} while (ref.state[ref.n - 1] != MLIP_STATE_RUNNING);
+	int p1 = ref.n - 1; /* the motion's first period after the underrun */
+	double x, y;
+	target(UPTO, &x, &y);
+	print_message("underrun at %d, moving again at %d\n", s0, p1);
+	assert_true(p1 > s0 + 50 && ref.x[p1 - 1] == x && ref.y[p1 - 1] == y);
+	for (int n = s0; n <= p1; n++) {
+		feed_upto = UPTO;
+		start(6000, 0);
+		cur.n = 0;
+		while (cur.n < s0) {
+			step(&cur);
+		}
+		feed_upto = 0;
+		while (cur.n < n) {
+			step(&cur);
+		}
+		stop_count++;
+		settle(&cur);
+		within_limits(&cur);
+		rests_at(&cur, s0 - 1, x, y);
+		assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+		assert_int_equal(out.status.reason, MLIP_WHY_STOP);
+		assert_int_equal(out.status.exec_seq, UPTO);
+	}
+}
+
 /* ---- the pre-read during a wait --------------------------------------------- */
 
 /* Block 1, a dwell (the pre-read of what follows runs during it), the
@@ -505,6 +580,8 @@ static int teardown(void **st)
 	(void)st;
 	free(mem);
 	mem = NULL;
+	feed_upto = 0;
+	feed_rate = 0;
 	return 0;
 }
 
@@ -512,8 +589,10 @@ int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test_teardown(test_stop_in_each_of_the_first_periods, teardown),
+	    cmocka_unit_test_teardown(test_exit_in_each_period_of_the_preread, teardown),
 	    cmocka_unit_test_teardown(test_bad_record_in_each_of_the_first_periods, teardown),
 	    cmocka_unit_test_teardown(test_feeder_gone_in_each_of_the_first_periods, teardown),
+	    cmocka_unit_test_teardown(test_stop_in_the_preread_after_an_underrun, teardown),
 	    cmocka_unit_test_teardown(test_stop_or_bad_record_in_a_wait, teardown),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

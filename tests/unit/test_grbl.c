@@ -19,8 +19,12 @@
 
 #include <cmocka.h>
 
+#include "mlip/ctl/state.h"
+#include "mlip/machine/config.h"
+
 #include "../../tools/lib/blockiter.h"
 #include "../../tools/lib/grbl.h"
+#include "../../tools/lib/grblmach.h"
 #include "../../tools/lib/grblstream.h"
 #include "../../tools/lib/program.h"
 
@@ -490,6 +494,99 @@ static void test_m2_ends_program_with_grbl_reset(void **state)
 	assert_true(r[0].target[0] == 5.0 && !(r[0].flags & MLIP_REC_RAPID));
 }
 
+/* Pn: in Grbl's order (report.c: P, the axes, R, H, S); an axis shows for
+ * either limit or its home switch. */
+static void test_pins(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine();
+	char b[16];
+	grbl_pins(b, sizeof b, 0, &m);
+	assert_string_equal(b, "");
+	grbl_pins(b, sizeof b,
+	          (1u << MLIP_IN_ESTOP) | (1u << MLIP_IN_PROBE) | (1u << MLIP_IN_LIMIT_POS(0)) |
+	              (1u << MLIP_IN_HOME_SW(2)) | (1u << MLIP_IN_CYCLE_START) |
+	              (1u << MLIP_IN_HOLD),
+	          &m);
+	assert_string_equal(b, "PXZRHS");
+	grbl_pins(b, sizeof b, 1u << MLIP_IN_LIMIT_NEG(1), &m);
+	assert_string_equal(b, "Y");
+	grbl_pins(b, 3, (1u << MLIP_IN_PROBE) | (1u << MLIP_IN_ESTOP) | (1u << MLIP_IN_HOLD), &m);
+	assert_string_equal(b, "PR"); /* cut to the buffer, terminated */
+}
+
+static void test_accessories_and_alarms(void **state)
+{
+	(void)state;
+	char b[8];
+	grbl_accessories(b, sizeof b, 12000, MLIP_COOLANT_FLOOD | MLIP_COOLANT_MIST);
+	assert_string_equal(b, "SFM");
+	grbl_accessories(b, sizeof b, -500, 0);
+	assert_string_equal(b, "C");
+	grbl_accessories(b, sizeof b, 0, MLIP_COOLANT_MIST);
+	assert_string_equal(b, "M");
+	grbl_accessories(b, sizeof b, 0, 0);
+	assert_string_equal(b, "");
+	assert_int_equal(grbl_alarm_of(MLIP_STATE_IDLE, MLIP_WHY_END, MLIP_STATE_RUNNING), 0);
+	assert_int_equal(grbl_alarm_of(MLIP_STATE_ESTOP, MLIP_WHY_ESTOP, MLIP_STATE_RUNNING), 3);
+	assert_int_equal(grbl_alarm_of(MLIP_STATE_ESTOP, MLIP_WHY_ESTOP, MLIP_STATE_HOMING), 6);
+	assert_int_equal(grbl_alarm_of(MLIP_STATE_FAULT, MLIP_WHY_LIMIT, MLIP_STATE_RUNNING), 1);
+	assert_int_equal(
+	    grbl_alarm_of(MLIP_STATE_FAULT, MLIP_WHY_HOMING_TIMEOUT, MLIP_STATE_HOMING), 9);
+	assert_int_equal(grbl_alarm_of(MLIP_STATE_FAULT, MLIP_WHY_DRIVE, MLIP_STATE_RUNNING), 3);
+	assert_true(grbl_resettable(MLIP_STATE_ESTOP, MLIP_WHY_ESTOP));
+	assert_true(grbl_resettable(MLIP_STATE_FAULT, MLIP_WHY_LIMIT));
+	assert_true(grbl_resettable(MLIP_STATE_FAULT, MLIP_WHY_HOMING_ERROR));
+	assert_false(grbl_resettable(MLIP_STATE_FAULT, MLIP_WHY_BAD_RECORD));
+	assert_false(grbl_resettable(MLIP_STATE_IDLE, MLIP_WHY_NONE));
+}
+
+/* A manual spindle's or coolant's event is done when its pause is left by
+ * a resume, whatever follows; not when a stop or an E-stop ends it. */
+static void test_accessory_tracking(void **state)
+{
+	(void)state;
+	struct grbl_acc a;
+	memset(&a, 0, sizeof a);
+	grbl_acc_update(&a, MLIP_STATE_RUNNING, MLIP_WHY_START, 1, 0);
+	grbl_acc_update(&a, MLIP_STATE_PAUSED, MLIP_WHY_SPINDLE, 3, 12000);
+	grbl_acc_update(&a, MLIP_STATE_PAUSED, MLIP_WHY_SPINDLE, 3, 12000);
+	assert_true(a.rpm == 0.0 && a.changes == 0); /* waiting for the operator */
+	grbl_acc_update(&a, MLIP_STATE_RUNNING, MLIP_WHY_RESUME, 3, 0);
+	assert_true(a.rpm == 12000.0 && a.changes == 1);
+	/* two events in a row: the second pause means the first was resumed */
+	grbl_acc_update(&a, MLIP_STATE_PAUSED, MLIP_WHY_COOLANT, 5, MLIP_COOLANT_FLOOD);
+	grbl_acc_update(&a, MLIP_STATE_PAUSED, MLIP_WHY_SPINDLE, 6, -8000);
+	assert_int_equal(a.coolant, MLIP_COOLANT_FLOOD);
+	/* resumed, and the program's end came before the next status was read */
+	grbl_acc_update(&a, MLIP_STATE_IDLE, MLIP_WHY_END, 7, 0);
+	assert_true(a.rpm == -8000.0 && a.changes == 3);
+	/* a stop while paused: not done */
+	grbl_acc_update(&a, MLIP_STATE_PAUSED, MLIP_WHY_SPINDLE, 2, 0);
+	grbl_acc_update(&a, MLIP_STATE_IDLE, MLIP_WHY_STOP, 2, 0);
+	assert_true(a.rpm == -8000.0 && a.pending == 0);
+	grbl_acc_update(&a, MLIP_STATE_PAUSED, MLIP_WHY_COOLANT, 4, 0);
+	grbl_acc_update(&a, MLIP_STATE_ESTOP, MLIP_WHY_ESTOP, 4, 0);
+	assert_int_equal(a.coolant, MLIP_COOLANT_FLOOD);
+}
+
+/* $G shows the parser's spindle, coolant, tool and speed (report.c: M7 and
+ * M8 both when both are on). */
+static void test_gcode_state_io(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine();
+	struct mlip_gcode g;
+	char b[GRBL_MSG_BYTES];
+	mlip_gcode_init(&g, &m);
+	g.spindle = 4;
+	g.s_rpm = 9000;
+	g.coolant = MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD;
+	g.tool_sel = 2;
+	grbl_gcode_state(b, sizeof b, &g, -1);
+	assert_string_equal(b, "[GC:G0 G54 G17 G21 G90 G94 M4 M7 M8 T2 F0 S9000]");
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -504,6 +601,10 @@ int main(void)
 	    cmocka_unit_test(test_stream_equals_program),
 	    cmocka_unit_test(test_refused_line_changes_nothing),
 	    cmocka_unit_test(test_m2_ends_program_with_grbl_reset),
+	    cmocka_unit_test(test_pins),
+	    cmocka_unit_test(test_accessories_and_alarms),
+	    cmocka_unit_test(test_accessory_tracking),
+	    cmocka_unit_test(test_gcode_state_io),
 	};
 	return cmocka_run_group_tests_name("grbl", tests, NULL, NULL);
 }

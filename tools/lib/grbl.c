@@ -721,10 +721,24 @@ size_t grbl_gcode_state(char *buf, size_t len, const struct mlip_gcode *g, int p
 		put(&o, " M");
 		puti(&o, program);
 	}
-	/* no spindle, coolant or tool changer yet (issue 19): off, T0 */
-	put(&o, " M5 M9 T0 F");
+	/* report.c: M3/M4/M5, then M7 and M8 both when both are on (else M9) */
+	put(&o, g->spindle == 3 ? " M3" : g->spindle == 4 ? " M4" : " M5");
+	if (g->coolant & MLIP_COOLANT_MIST) {
+		put(&o, " M7");
+	}
+	if (g->coolant & MLIP_COOLANT_FLOOD) {
+		put(&o, " M8");
+	}
+	if (!(g->coolant & (MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD))) {
+		put(&o, " M9");
+	}
+	put(&o, " T");
+	puti(&o, g->tool_sel > 0 ? g->tool_sel : g->off.tool > 0 ? g->off.tool : 0);
+	put(&o, " F");
 	putf(&o, g->feed_word > 0.0 ? g->feed_word : 0.0, g->inches ? 1 : 0);
-	put(&o, " S0]");
+	put(&o, " S");
+	putf(&o, g->s_rpm > 0.0 ? g->s_rpm : 0.0, 0);
+	put(&o, "]");
 	return o.k;
 }
 

@@ -3,6 +3,7 @@
  */
 #include "grblstream.h"
 
+#include <math.h>
 #include <string.h>
 
 static void stage_compact(struct grbl_stream *st)
@@ -93,6 +94,7 @@ void grbl_stream_restart(struct grbl_stream *st, const double *pos, int keep_mod
 		/* Grbl's gc_init at a reset: the parser's defaults; the work
 		 * coordinate systems and G28/G30 stay (EEPROM), G92 does not */
 		mlip_gcode_init(&st->g, &st->m);
+		mlip_gcode_set_io(&st->g, old.io);
 		st->g.off = old.off;
 		st->g.off.select = 0;
 		st->g.off.g92_on = 0;
@@ -287,4 +289,18 @@ void grbl_stream_take(struct grbl_stream *st, uint32_t n)
 const double *grbl_stream_pos(const struct grbl_stream *st)
 {
 	return st->g.pos;
+}
+
+void grbl_stream_set_io(struct grbl_stream *st, const struct mlip_gcode_io *io)
+{
+	mlip_gcode_set_io(&st->g, io);
+}
+
+void grbl_stream_machine_io(struct grbl_stream *st, double rpm, unsigned coolant)
+{
+	st->g.spindle = rpm > 0.0 ? 3 : rpm < 0.0 ? 4 : 0;
+	if (rpm != 0.0) {
+		st->g.s_rpm = fabs(rpm);
+	}
+	st->g.coolant = coolant;
 }

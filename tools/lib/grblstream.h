@@ -109,6 +109,17 @@ uint32_t grbl_stream_staged(const struct grbl_stream *st);
 const struct mlip_ring_rec *grbl_stream_peek(const struct grbl_stream *st);
 void grbl_stream_take(struct grbl_stream *st, uint32_t n);
 
+/* The machine's I/O (mlip_gcode_set_io: [SPINDLE], [COOLANT], [TOOL] as
+ * mlip-feed takes them from the controller), kept through restarts; NULL:
+ * the words are notices. io must outlive st. */
+void grbl_stream_set_io(struct grbl_stream *st, const struct mlip_gcode_io *io);
+
+/* What the machine's spindle (rpm: > 0 clockwise, < 0 counter-clockwise, 0
+ * stopped) and coolant (MLIP_COOLANT_* bits) are doing now: the reader's
+ * state from the next line on, so that an M5 or M9 after a reset that
+ * dropped what was queued still asks for what the machine needs. */
+void grbl_stream_machine_io(struct grbl_stream *st, double rpm, unsigned coolant);
+
 /* Where the program given so far ends (the machine's rest point once it has
  * run everything), machine axis order. */
 const double *grbl_stream_pos(const struct grbl_stream *st);

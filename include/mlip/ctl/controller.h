@@ -49,8 +49,12 @@
  *   IDLE --a program whose feeder began before a stop seen--> IDLE (reason
  *             STOP_EARLY: the stop is latched for the program about to
  *             start; its records are dropped unmoved, its first one named)
- *   any --bad record--> FAULT (at rest at the end of the last good block:
- *             ingest stops, the look-ahead already plans it to rest)
+ *   PREREAD (a new program's) --stop--> IDLE (STOP_EARLY, as above)
+ *   any --bad record--> FAULT (moving: at rest at the end of the last good
+ *             block: ingest stops, the look-ahead already plans it to rest)
+ *   Nothing moved since the last rest (PREREAD, DWELLING, PAUSED: the
+ *   planner is not stepped there): a stop, exit, bad record, drive fault or
+ *   E-stop drops what the planner holds where it rests; no setpoint changes.
  *   any --position beyond the drives' range--> FAULT (stop on the path)
  *   any --a drive fault (in->drives.fault)--> FAULT (reason DRIVE: node, event,
  *             value; every axis stops on the path, nothing more is taken;
