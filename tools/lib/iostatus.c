@@ -23,7 +23,7 @@ static int param_of(char letter)
 void mlip_iostatus_json(struct mlip_json *j, const struct mlip_machine *m,
                         const struct mlip_ring_status *st)
 {
-	char key[16];
+	char key[24]; /* "0x6200:" and an int: -O1 cannot see k < MLIP_IO_BYTES_SHOWN */
 
 	mlip_json_object(j, "outputs", 1);
 	for (int k = 0; k < MLIP_IO_BYTES_SHOWN; k++) {
