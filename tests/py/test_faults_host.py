@@ -83,7 +83,7 @@ def test_slow_feeder_underruns_and_finishes(controller, tmp_path):
     at the end of what it has, so the motion slows to the feeder's pace.
     Judged by the setpoints sent: slower than mlip-sim's run of the same
     program, within every limit and on the path all along (mlip-check), to
-    the program's end; the controller is idle after it, and a "starved" (at rest, nothing to run) is always followed by motion.
+    the program's end; the controller is idle after it, and a "starved" (at rest, nothing to run) is always followed by motion (after the refill's pre-read).
     (The test once said "stops at rest, and picks up again" and collected
     the states without asserting them: the motion slows, it need not stop.)"""
     prog, n = flower(tmp_path, 4000)
@@ -101,7 +101,9 @@ def test_slow_feeder_underruns_and_finishes(controller, tmp_path):
     s = status(shm)
     assert s["underruns"] > 0 and s["exec_seq"] == n + 1  # slowed by it, and finished
     assert "running" in states and s["state"] == "idle", (states, s["state"])
-    assert all(b in ("running", "idle") for a, b in zip(states, states[1:]) if a == "starved")
+    # a refill's pre-read may show between them (sampled every 10 ms)
+    moved = [x for x in states if x != "pre-read"]
+    assert all(b in ("running", "idle") for a, b in zip(moved, moved[1:]) if a == "starved"), states
     rt.send_signal(signal.SIGTERM)
     assert rt.wait(10) == 0
     rows = record_rows(rec)
