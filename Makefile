@@ -162,7 +162,7 @@ pytest: all
 # Formatting: every C file as .clang-format says (Debian's clang-format 14);
 # a difference fails with the file and line (clang-format -i FILE mends it).
 C_FILES := $(shell git ls-files 'src/*.c' 'include/*.h' 'rt/*.c' 'rt/*.h' 'tools/*.c' \
-             'tools/*.h' 'tests/unit/*.c' 'tests/py/*.c' 'bench/*.c' 'fuzz/*.c' 'fuzz/*.h' \
+             'tools/*.h' 'tests/unit/*.c' 'tests/unit/*.h' 'tests/py/*.c' 'bench/*.c' 'fuzz/*.c' 'fuzz/*.h' \
              2>/dev/null)
 format-check:
 	@clang-format --dry-run -Werror $(C_FILES)

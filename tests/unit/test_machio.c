@@ -25,26 +25,10 @@
 
 /* ---- the reader ------------------------------------------------------------ */
 
-#define MAXB 256
-
-struct sink {
-	struct mlip_block b[MAXB];
-	int n;
-};
-
-static int put(void *ctx, const struct mlip_block *b)
-{
-	struct sink *s = ctx;
-
-	if (s->n == MAXB) {
-		return -1;
-	}
-	s->b[s->n++] = *b;
-	return 0;
-}
+#include "gcode_run.h"
 
 /* X Y Z (mm) and A (degrees), limits -500..500. */
-static struct mlip_machine machine4(void)
+static struct mlip_machine gr_machine(void)
 {
 	struct mlip_machine m;
 
@@ -77,57 +61,6 @@ static struct mlip_gcode_io io_module(void)
 	io.dout_mask = 0x9u;
 	io.probe = 1;
 	return io;
-}
-
-struct run {
-	struct mlip_machine m;
-	struct mlip_gcode g;
-	struct sink s;
-	struct mlip_gcode_error e;
-	int errors;
-	uint32_t first_line, first_col;
-	char first_msg[MLIP_GCODE_MSG];
-};
-
-static void run(struct run *r, const struct mlip_gcode_io *io, const char *text)
-{
-	const char *p = text;
-	uint32_t line = 0;
-
-	memset(r, 0, sizeof *r);
-	r->m = machine4();
-	mlip_gcode_init(&r->g, &r->m);
-	mlip_gcode_set_io(&r->g, io);
-	while (*p) {
-		const char *nl = strchr(p, '\n');
-		size_t n = nl ? (size_t)(nl - p) : strlen(p);
-		line++;
-		if (mlip_gcode_line(&r->g, p, n, line, put, &r->s, &r->e) != MLIP_OK) {
-			if (r->errors++ == 0) {
-				r->first_line = r->e.line;
-				r->first_col = r->e.col;
-				memcpy(r->first_msg, r->e.msg, sizeof r->first_msg);
-			}
-		}
-		p += n + (nl != NULL);
-	}
-}
-
-static void expect_err(const struct mlip_gcode_io *io, const char *text, uint32_t line,
-                       uint32_t col, const char *part)
-{
-	struct run *r = malloc(sizeof *r);
-
-	assert_non_null(r);
-	run(r, io, text);
-	if (r->errors == 0 || r->first_line != line || r->first_col != col ||
-	    strstr(r->first_msg, part) == NULL) {
-		fprintf(stderr,
-		        "for \"%s\": %d errors, first %u:%u \"%s\"; expected %u:%u \"%s\"\n", text,
-		        r->errors, r->first_line, r->first_col, r->first_msg, line, col, part);
-		fail();
-	}
-	free(r);
 }
 
 static void expect_ok(const struct mlip_gcode_io *io, const char *text, struct run *r)
