@@ -337,7 +337,7 @@ int mlip_cli_io_from_ring(const struct mlip_ring_io *in, const struct mlip_machi
                           struct mlip_gcode_io *io)
 {
 	memset(io, 0, sizeof(*io));
-	if (in->spindle > MLIP_IO_MANUAL || in->tool_change > MLIP_IO_MANUAL ||
+	if (in->spindle > MLIP_IO_CIA402 || in->tool_change > MLIP_IO_MANUAL ||
 	    in->coolant > MLIP_IO_MANUAL || (in->change_mask >> m->n_axes) != 0) {
 		return -1;
 	}

@@ -1,0 +1,115 @@
+/*
+ * spindle.c - the controller's CiA 402 spindle (mlip/ctl/spindle.h): the
+ * program's speed and the operator's override into the profile velocity
+ * phases of mlip/canopen/spindle.h, one period at a time.
+ */
+#include "mlip/ctl/spindle.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "mlip/canopen/drive.h"
+
+mlip_status mlip_ctl_spindle_init(struct mlip_ctl_spindle *s, const struct mlip_spindle_config *cfg,
+                                  double period_s)
+{
+	struct mlip_spindle_cfg dc;
+
+	memset(s, 0, sizeof(*s));
+	s->override_pct = 100;
+	if (cfg == NULL || cfg->node == 0) {
+		return MLIP_OK;
+	}
+	if (!(period_s > 0) || !(cfg->timeout_s > 0 && cfg->timeout_s <= 3600.0) ||
+	    !(cfg->band_time_s >= 0 && cfg->band_time_s <= 60.0) ||
+	    !(cfg->max_rpm > 0 && cfg->min_rpm >= 0 && cfg->min_rpm <= cfg->max_rpm)) {
+		return MLIP_E_INVALID;
+	}
+	dc.counts_per_rev = cfg->counts_per_rev;
+	dc.band_rpm = cfg->band_rpm;
+	dc.timeout_periods = (uint32_t)ceil(cfg->timeout_s / period_s - 1e-9);
+	dc.band_periods = (uint32_t)floor(cfg->band_time_s / period_s + 1e-9);
+	if (mlip_spindle_init(&s->drive, &dc) != MLIP_OK) {
+		return MLIP_E_INVALID;
+	}
+	s->on = 1;
+	s->node = cfg->node;
+	s->min_rpm = cfg->min_rpm;
+	s->max_rpm = cfg->max_rpm;
+	s->ready = 1; /* stopped, asked 0 */
+	return MLIP_OK;
+}
+
+/* The program's speed with the override, within what the spindle can do. */
+static void apply(struct mlip_ctl_spindle *s, uint64_t period)
+{
+	double rpm = s->program_rpm, mag = fabs(rpm) * s->override_pct / 100.0;
+	if (rpm != 0) {
+		mag = mag > s->max_rpm ? s->max_rpm : mag < s->min_rpm ? s->min_rpm : mag;
+		rpm = rpm > 0 ? mag : -mag;
+	}
+	if (rpm != s->drive.cmd_rpm) {
+		s->asked = period;
+	}
+	mlip_spindle_command(&s->drive, rpm, period);
+}
+
+void mlip_ctl_spindle_ask(struct mlip_ctl_spindle *s, double rpm, uint64_t period)
+{
+	if (!s->on) {
+		return;
+	}
+	s->program_rpm = rpm;
+	apply(s, period);
+}
+
+mlip_status mlip_ctl_spindle_override(struct mlip_ctl_spindle *s, int32_t pct, uint64_t period)
+{
+	if (!s->on) {
+		return MLIP_E_INVALID;
+	}
+	if (pct < MLIP_SPINDLE_OVERRIDE_MIN || pct > MLIP_SPINDLE_OVERRIDE_MAX) {
+		return MLIP_E_RANGE;
+	}
+	s->override_pct = (uint32_t)pct;
+	apply(s, period);
+	return MLIP_OK;
+}
+
+int mlip_ctl_spindle_step(struct mlip_ctl_spindle *s, uint16_t sw, int32_t vel_actual,
+                          uint64_t period, uint32_t *event, double *value)
+{
+	int was = s->ready, rc;
+
+	if (!s->on) {
+		return 1;
+	}
+	rc = mlip_spindle_step(&s->drive, sw, vel_actual, period, &s->target);
+	s->ready = rc;
+	if (rc == 1 && was == 0) {
+		s->ready_after = period - s->asked;
+	}
+	if (rc >= 0) {
+		return rc;
+	}
+	if (s->reported) {
+		return -2;
+	}
+	s->reported = 1;
+	*event = s->drive.fault == MLIP_SPINDLE_TIMEOUT       ? MLIP_DRIVE_SPINDLE_TIMEOUT
+	         : s->drive.fault == MLIP_SPINDLE_OUT_OF_BAND ? MLIP_DRIVE_SPINDLE_OUT_OF_BAND
+	                                                      : MLIP_DRIVE_FAULT_BIT;
+	*value = s->drive.fault_value;
+	return -1;
+}
+
+int mlip_ctl_spindle_at_rest(const struct mlip_ctl_spindle *s)
+{
+	return !s->on ||
+	       (s->drive.cmd_rpm == 0 && fabs(s->drive.actual_rpm) <= s->drive.cfg.band_rpm);
+}
+
+double mlip_ctl_spindle_cmd_rpm(const struct mlip_ctl_spindle *s)
+{
+	return s->on && s->drive.phase != MLIP_SPINDLE_FAULT ? s->drive.cmd_rpm : 0.0;
+}
