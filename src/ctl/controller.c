@@ -56,6 +56,10 @@ static void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t state,
 	}
 	c->state = state;
 	c->why = r;
+	if (state == MLIP_STATE_IDLE || state == MLIP_STATE_STOPPING || state == MLIP_STATE_FAULT ||
+	    state == MLIP_STATE_ESTOP) {
+		mlip_ctl_spindle_ask(&c->spindle, 0.0, c->period); /* every end stops it */
+	}
 	emit(c, out, MLIP_EV_STATE, from, &r);
 }
 
@@ -94,6 +98,10 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 		for (int k = 0; k < m->n_axes; k++) {
 			c->home.configured |= o->home->axis[k].configured ? 1u << k : 0u;
 		}
+	}
+	if (mlip_ctl_spindle_init(&c->spindle, o->spindle, m->period_s) != MLIP_OK ||
+	    (c->spindle.on && !o->drives)) {
+		return MLIP_E_INVALID; /* a spindle on the bus needs the drives' master */
 	}
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
 	c->jog.deadman = (uint64_t)floor(MLIP_JOG_DEADMAN_S / m->period_s + 1e-9);
@@ -338,7 +346,9 @@ static void home_abort(struct mlip_ctl *c);
 static void drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
                         const struct mlip_ctl_drive_fault *f)
 {
-	struct mlip_ctl_reason r = reason(MLIP_WHY_DRIVE, 0, 0);
+	struct mlip_ctl_reason r = reason(
+	    c->spindle.on && f->node == c->spindle.node ? MLIP_WHY_SPINDLE_FAULT : MLIP_WHY_DRIVE,
+	    0, 0);
 	progress(c, &r.seq, &r.line);
 	r.field = f->event;
 	r.node = f->node;
@@ -470,6 +480,8 @@ static int32_t apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	switch (cmd->op) {
 	case MLIP_CMD_OVERRIDE:
 		return mlip_planner_set_override(p, (double)cmd->arg);
+	case MLIP_CMD_SPINDLE_OVERRIDE:
+		return mlip_ctl_spindle_override(&c->spindle, cmd->arg, c->period);
 	case MLIP_CMD_HOLD:
 		mlip_planner_hold(p, 1);
 		c->hold.op = 1;
@@ -1135,6 +1147,14 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		c->wait.dwell_left = (uint64_t)floor(rec->dwell_s / c->m.period_s + 0.5);
 		r.value = rec->dwell_s;
 		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_SPINDLE && c->spindle.on) {
+		/* a spindle on the bus: at rest until it is at speed (or at
+		 * standstill); its timeout is a fault before this wait ends */
+		mlip_ctl_spindle_ask(&c->spindle, rec->dwell_s, c->period);
+		c->wait.dwell_left = (uint64_t)c->spindle.drive.cfg.timeout_periods + 2u;
+		r.why = MLIP_WHY_SPINDLE_WAIT;
+		r.value = rec->dwell_s;
+		go(c, out, MLIP_STATE_DWELLING, r);
 	} else if (rec->type == MLIP_REC_SPINDLE || rec->type == MLIP_REC_TOOL ||
 	           rec->type == MLIP_REC_COOLANT) {
 		/* a manual spindle, tool change or coolant: the operator does it
@@ -1198,11 +1218,18 @@ static int power_rest(const struct mlip_ctl *c)
 	/* the last setpoint sent twice: every drive has applied it at a SYNC
 	 * before it is told to disable operation */
 	if (mlip_planner_queued(c->planner) > 0 || mlip_planner_moving(c->planner) ||
-	    c->power.still_periods < 2) {
-		return 0;
+	    c->power.still_periods < 2 || !mlip_ctl_spindle_at_rest(&c->spindle)) {
+		return 0; /* and a spindle on the bus at standstill */
 	}
 	return c->state == MLIP_STATE_FAULT || c->op.exiting ||
 	       (c->state == MLIP_STATE_IDLE && c->why.why != MLIP_WHY_NONE);
+}
+
+/* The node of drive i of the power sequencer's group: the axes, then the
+ * spindle. */
+static uint32_t node_of(const struct mlip_ctl *c, int i)
+{
+	return i < c->m.n_axes ? (uint32_t)c->m.axis[i].can_node : c->spindle.node;
 }
 
 /* A step of the drives' power ended: the event, with the drive that did
@@ -1213,7 +1240,7 @@ static void power_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, ch->in_sequence, 0);
 	r.value = (double)ch->in_step;
 	if (ch->late >= 0) {
-		r.node = (uint32_t)c->m.axis[ch->late].can_node;
+		r.node = node_of(c, ch->late);
 		r.field = ch->late_sw;
 	}
 	if (out->n_events < MLIP_CTL_MAX_EVENTS) {
@@ -1264,17 +1291,27 @@ static void power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 	} else if (power == MLIP_POWER_ENABLED) {
 		want = !power_rest(c);
 	}
-	if (!mlip_402_seq_run(&c->power.seq, want ? MLIP_POWER_ENABLED : MLIP_POWER_OFF,
-	                      in->drives.sw, c->m.n_axes, in->drives.mute, c->period, &ch)) {
+	/* a spindle on the bus is one more drive of the group */
+	uint16_t sw[MLIP_MAX_AXES + 1];
+	uint32_t mute = in->drives.mute;
+	int n = c->m.n_axes;
+	memcpy(sw, in->drives.sw, sizeof(in->drives.sw));
+	if (c->spindle.on) {
+		sw[n] = in->spindle.sw;
+		mute |= in->spindle.mute ? 1u << n : 0u;
+		n++;
+	}
+	if (!mlip_402_seq_run(&c->power.seq, want ? MLIP_POWER_ENABLED : MLIP_POWER_OFF, sw, n,
+	                      mute, c->period, &ch)) {
 		return;
 	}
 	if (ch.failed) {
 		/* not switched on or not enabled in time: a fault, the program is
 		 * dropped, the drives go down again; nothing has moved */
-		struct mlip_ctl_drive_fault f = {
-		    ch.from == MLIP_POWER_SWITCHING_ON ? MLIP_DRIVE_NOT_SWITCHED_ON
-		                                       : MLIP_DRIVE_NOT_ENABLED,
-		    (uint32_t)c->m.axis[ch.late].can_node, (double)ch.late_sw};
+		struct mlip_ctl_drive_fault f = {ch.from == MLIP_POWER_SWITCHING_ON
+		                                     ? MLIP_DRIVE_NOT_SWITCHED_ON
+		                                     : MLIP_DRIVE_NOT_ENABLED,
+		                                 node_of(c, ch.late), (double)ch.late_sw};
 		drive_fault(c, out, &f);
 	}
 	power_event(c, out, &ch);
@@ -1565,6 +1602,48 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	s->io_mapped = c->io.cfg.mapped;
 }
 
+/* A CiA 402 spindle's period: its phase from its TPDO; a fault stops the
+ * feed on the path (state FAULT, the spindle named); a wait for it ends
+ * when it is at speed (or at rest). The output: its target and the group's
+ * controlword, sent by rt/ after the axes' frames. */
+static void spindle_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                           struct mlip_ctl_out *out)
+{
+	struct mlip_ctl_drive_fault f = {0, c->spindle.node, 0.0};
+	int rc;
+
+	if (!c->spindle.on) {
+		return;
+	}
+	rc = mlip_ctl_spindle_step(&c->spindle, in->spindle.sw, in->spindle.vel_counts, c->period,
+	                           &f.event, &f.value);
+	if (rc == -1 && !c->drive_faulted) {
+		drive_fault(c, out, &f);
+	} else if (rc == 1 && c->state == MLIP_STATE_DWELLING &&
+	           c->why.why == MLIP_WHY_SPINDLE_WAIT) {
+		c->wait.dwell_left = 0; /* at speed: the wait ends in blocks_in */
+	}
+}
+
+static void spindle_out(const struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                        struct mlip_ctl_out *out, struct mlip_ring_status *s)
+{
+	const struct mlip_ctl_spindle *sp = &c->spindle;
+	s->spindle_override = sp->override_pct;
+	if (!sp->on) {
+		return;
+	}
+	out->spindle.send = !in->spindle.mute && c->power.seq.cw >= 0;
+	out->spindle.cw =
+	    c->io.estop ? (uint16_t)MLIP_402_CW_QUICK_STOP : (uint16_t)c->power.seq.cw;
+	out->spindle.target = c->io.estop ? 0 : sp->target;
+	out->spindle.rpm_actual = sp->drive.actual_rpm;
+	s->spindle_state = sp->drive.phase + 1u;
+	s->spindle_cmd_rpm = mlip_ctl_spindle_cmd_rpm(sp);
+	s->spindle_actual_rpm = sp->drive.actual_rpm;
+	s->spindle_node = sp->node;
+}
+
 /* Still moving: a stall must freeze it. */
 static int moving(const struct mlip_ctl *c)
 {
@@ -1638,6 +1717,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		drive_fault(c, out, &in->drives.fault);
 	}
 
+	spindle_period(c, in, out);
 	jog_period(c, out);
 	home_period(c, in, out);
 	blocks_in(c, in, out);
@@ -1701,11 +1781,11 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->status.io_known = in->io.known & c->io.cfg.mapped;
 	memcpy(out->outputs, c->io.outputs, sizeof(out->outputs));
 	out->sdo = c->home.req;
+	spindle_out(c, in, out, &out->status);
 	out->homing = c->home.on && c->home.step >= HS_ARM ? c->home.group : 0;
 	out->status.homed = c->home.homed;
 	out->power.ok = c->power.seq.ok;
-	out->power.late_node =
-	    c->power.seq.late >= 0 ? (uint32_t)c->m.axis[c->power.seq.late].can_node : 0;
+	out->power.late_node = c->power.seq.late >= 0 ? node_of(c, c->power.seq.late) : 0;
 	out->power.late_sw = c->power.seq.late_sw;
 	out->power.late_step = c->power.seq.late_step;
 	out->status.actual_mask = in->drives.actual_mask;

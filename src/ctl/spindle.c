@@ -52,6 +52,11 @@ static void apply(struct mlip_ctl_spindle *s, uint64_t period)
 		s->asked = period;
 	}
 	mlip_spindle_command(&s->drive, rpm, period);
+	if (s->drive.phase != MLIP_SPINDLE_FAULT) {
+		/* sent from this period on (a stop's 0 at once, not a period late) */
+		double v = floor(mlip_spindle_counts(&s->drive.cfg, s->drive.target_rpm) + 0.5);
+		s->target = (int32_t)v; /* within INTEGER32: MAX_RPM was checked */
+	}
 }
 
 void mlip_ctl_spindle_ask(struct mlip_ctl_spindle *s, double rpm, uint64_t period)

@@ -60,7 +60,9 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "homing error",
 	                                    "homing timeout",
 	                                    "homing object refused",
-	                                    "not homed"};
+	                                    "not homed",
+	                                    "spindle to speed",
+	                                    "spindle fault"};
 
 	return NAME_OF(names, why);
 }

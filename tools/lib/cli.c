@@ -467,6 +467,17 @@ void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
 		    "bring it back within the limits by hand; nothing moves",
 		    (long long)v);
 		break;
+	case MLIP_DRIVE_SPINDLE_TIMEOUT:
+		snprintf(buf, len,
+		         "at %lld rpm when AT_SPEED_TIMEOUT ran out (a slow or stalled spindle)",
+		         (long long)v);
+		break;
+	case MLIP_DRIVE_SPINDLE_OUT_OF_BAND:
+		snprintf(
+		    buf, len,
+		    "at %lld rpm, out of AT_SPEED_BAND for longer than BAND_TIME while cutting",
+		    (long long)v);
+		break;
 	case MLIP_DRIVE_FAULT_BIT:
 	case MLIP_DRIVE_LEFT_ENABLED:
 		snprintf(buf, len, "statusword 0x%04llX (%s%s)", (unsigned long long)(v & 0xFFFF),
