@@ -2203,16 +2203,17 @@ static void spindle_drive(void)
 	uint16_t cw = out.spindle.cw;
 	int enabled = (spd.sw & 0x6F) == 0x27;
 	assert_true(out.spindle.send);
+	int st = spd.sw & 0x6F; /* CiA 402's transitions, from the state it is in */
 	if (spd.fault) {
 		spd.sw = 0x0218; /* fault */
-	} else if (cw == 0x0F && ((spd.sw & 0x6F) == 0x23 || enabled)) {
+	} else if (cw == 0x0F && (st == 0x21 || st == 0x23 || enabled)) {
 		spd.sw = 0x0237;
-	} else if (cw == 0x07) {
+	} else if (cw == 0x07 && (st == 0x21 || enabled)) {
 		spd.sw = 0x0233;
-	} else if (cw == 0x06) {
+	} else if (cw == 0x06 && (st == 0x40 || st == 0x23 || enabled)) {
 		spd.sw = 0x0231;
-	} else if (cw == 0x02 && enabled) {
-		spd.sw = 0x0250;
+	} else if (cw == 0x02 && st != 0x40) {
+		spd.sw = 0x0250; /* quick stop (option 2): then switch on disabled */
 	}
 	enabled = (spd.sw & 0x6F) == 0x27;
 	spd.target_rpm = enabled ? out.spindle.target * 60.0 / 4096.0 : 0.0;
@@ -2402,6 +2403,49 @@ static void test_spindle_band_and_timeout(void **st)
 	assert_true(out.pos[0] == 0.0); /* nothing moved */
 }
 
+/* E-stop mid-cut: quick stop (0x0002) to the spindle with the axes in the
+ * period of the input, its target 0; after the reset and standstill a new
+ * M3 waits for speed again. */
+static void test_spindle_estop(void **st)
+{
+	(void)st;
+	io_config();
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .io = &io_cfg,
+	                          .spindle = &sp_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	io_in.known = io_cfg.mapped;
+	start_cut();
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	stick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(out.spindle.cw, 0x0002);
+	assert_int_equal(cw_of(0), 0x0002);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	stick(1000); /* the drive brakes by itself */
+	assert_true(fabs(spd.rpm) <= 20);
+	io_in.active = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	/* OFF's controlword 0x0006 takes the drives out of "switch on disabled"
+	 * (a program in the very period after the reset would find them there:
+	 * the sequencer's OFF does not wait for "ready to switch on") */
+	stick(5);
+	assert_int_equal(status().drive_power, MLIP_POWER_OFF);
+	assert_int_equal(spd.sw, 0x0231);
+	spd.reached = 0;
+	event(1, MLIP_BLOCK_SPINDLE, 3000.0);
+	move(2, 5.0, 0.0);
+	end(3);
+	suntil(MLIP_STATE_RUNNING, 5000);
+	assert_true(spd.reached != 0 && fabs(spd.rpm - 3000) <= 20);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -2470,6 +2514,7 @@ int main(void)
 	    TS(test_spindle_feed_waits_for_speed),
 	    TS(test_spindle_stop_and_fault_mid_cut),
 	    TS(test_spindle_band_and_timeout),
+	    TS(test_spindle_estop),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
