@@ -10,6 +10,8 @@
 
 #include "mlip/canopen/drive.h"
 
+#include "ctl.h"
+
 mlip_status mlip_ctl_spindle_init(struct mlip_ctl_spindle *s, const struct mlip_spindle_config *cfg,
                                   double period_s)
 {
@@ -117,4 +119,49 @@ int mlip_ctl_spindle_at_rest(const struct mlip_ctl_spindle *s)
 double mlip_ctl_spindle_cmd_rpm(const struct mlip_ctl_spindle *s)
 {
 	return s->on && s->drive.phase != MLIP_SPINDLE_FAULT ? s->drive.cmd_rpm : 0.0;
+}
+
+/* ---- in the controller's period (ctl.h) ----------------------------------- */
+
+/* Its phase from its TPDO; a fault stops the feed on the path (state FAULT,
+ * the spindle named); a wait for it ends when it is at speed (or at rest). */
+void mlip_ct_spindle_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                            struct mlip_ctl_out *out)
+{
+	struct mlip_ctl_drive_fault f = {0, c->spindle.node, 0.0};
+	int rc;
+
+	if (!c->spindle.on) {
+		return;
+	}
+	rc = mlip_ctl_spindle_step(&c->spindle, in->spindle.sw, in->spindle.vel_counts, c->period,
+	                           &f.event, &f.value);
+	if (rc == -1 && !c->drive_faulted) {
+		mlip_ct_drive_fault(c, out, &f);
+	} else if (rc == 1 && c->state == MLIP_STATE_DWELLING &&
+	           c->why.why == MLIP_WHY_SPINDLE_WAIT) {
+		c->wait.dwell_left = 0; /* at speed: the wait ends in the records' part */
+	}
+}
+
+/* Its RPDO (the group's controlword, quick stop in an E-stop; its target),
+ * sent by rt/ after the axes' frames, and the status. */
+void mlip_ct_spindle_out(const struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                         struct mlip_ctl_out *out)
+{
+	const struct mlip_ctl_spindle *sp = &c->spindle;
+	struct mlip_ring_status *s = &out->status;
+	s->spindle_override = sp->override_pct;
+	if (!sp->on) {
+		return;
+	}
+	out->spindle.send = !in->spindle.mute && c->power.seq.cw >= 0;
+	out->spindle.cw =
+	    c->io.estop ? (uint16_t)MLIP_402_CW_QUICK_STOP : (uint16_t)c->power.seq.cw;
+	out->spindle.target = c->io.estop ? 0 : sp->target;
+	out->spindle.rpm_actual = sp->drive.actual_rpm;
+	s->spindle_state = sp->drive.phase + 1u;
+	s->spindle_cmd_rpm = mlip_ctl_spindle_cmd_rpm(sp);
+	s->spindle_actual_rpm = sp->drive.actual_rpm;
+	s->spindle_node = sp->node;
 }

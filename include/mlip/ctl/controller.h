@@ -408,7 +408,7 @@ struct mlip_ctl {
 		uint32_t todo;       /* axes still to home */
 		uint32_t group;      /* the axes homing now (one HOME_SEQUENCE) */
 		uint32_t attained;   /* of those: homing attained */
-		int step;            /* the sequencer's step (controller.c) */
+		int step;            /* the sequencer's step (homing.c) */
 		int axis;            /* the axis whose objects are being written */
 		int entry;           /* its object */
 		int readback;        /* 1: the object's read back is outstanding */

@@ -1,0 +1,135 @@
+/*
+ * ctl.h - private to src/ctl/: what the parts of the controller's period
+ * (mlip_ctl_period, mlip/ctl/controller.h) share. The controller is one
+ * state (struct mlip_ctl) and one entry point; its parts, by concern:
+ *   controller.c  init; the period in its order (stall, inputs, command,
+ *                 stop requests, bus, drive fault, jog, homing, records,
+ *                 one step, power, frames, status); the operator's commands
+ *   estop.c       the inputs on the bus (E-stop, limits, hold, cycle start),
+ *                 the quick stop, the reset, the outputs
+ *   stop.c        stops on the path: a stop request, a drive fault, the
+ *                 stop's measure (status stop_*)
+ *   jog.c         continuous jog, its dead-man
+ *   homing.c      homing with the drives' homing mode (SDO set-up, mode 6)
+ *   run.c         the program: records checked and taken (pre-read,
+ *                 ingest), waits (dwell, pause, manual I/O), the
+ *                 transitions the motion decides
+ *   power.c       the drives' power (CiA 402 sequencer, all drives in step)
+ *   spindle.c     a CiA 402 spindle (mlip/ctl/spindle.h): its decisions, and
+ *                 its part of the period (the wait for speed, its faults, its
+ *                 RPDO and status)
+ * Functions of one part that another calls are mlip_ct_*, declared here.
+ */
+#ifndef MLIP_CTL_CTL_H
+#define MLIP_CTL_CTL_H
+
+#include <stdint.h>
+
+#include "mlip/ctl/controller.h"
+
+/* homing.c's steps; the period reads them for the controlword */
+enum { HS_ENABLE = 1, HS_SETUP, HS_ARM, HS_RUN, HS_BACK, HS_NEXT };
+
+void mlip_ct_progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line);
+
+static inline void emit(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t kind, uint32_t from,
+                        const struct mlip_ctl_reason *r)
+{
+	if (out->n_events < MLIP_CTL_MAX_EVENTS) {
+		struct mlip_ctl_event *e = &out->events[out->n_events++];
+		e->kind = kind;
+		e->from = from;
+		e->state = c->state;
+		e->r = *r;
+		e->period = c->period;
+		mlip_ct_progress(c, &e->exec_seq, &e->exec_line);
+	}
+}
+
+static inline struct mlip_ctl_reason reason(uint32_t why, uint64_t seq, uint32_t line)
+{
+	struct mlip_ctl_reason r = {.why = why, .seq = seq, .line = line};
+	return r;
+}
+
+/* Axis k is to be homed (HOME_METHOD) and is not yet: its soft limits mean
+ * nothing so far. */
+static inline int unhomed(const struct mlip_ctl *c, int k)
+{
+	return ((c->home.configured & ~c->home.homed) >> k) & 1u;
+}
+
+/* Every change of state goes through here: named, with its reason. */
+static inline void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t state,
+                      struct mlip_ctl_reason r)
+{
+	uint32_t from = c->state;
+	if (from == state && c->why.why == r.why) {
+		return;
+	}
+	c->state = state;
+	c->why = r;
+	if (state == MLIP_STATE_IDLE || state == MLIP_STATE_STOPPING || state == MLIP_STATE_FAULT ||
+	    state == MLIP_STATE_ESTOP) {
+		mlip_ctl_spindle_ask(&c->spindle, 0.0, c->period); /* every end stops it */
+	}
+	emit(c, out, MLIP_EV_STATE, from, &r);
+}
+
+/* Records of this period not taken yet (in->recs). */
+static inline uint32_t rx_count(const struct mlip_ctl *c)
+{
+	return c->rx.corrupt ? 0 : c->rx.view->len[0] + c->rx.view->len[1] - c->rx.taken;
+}
+
+/* controller.c */
+int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
+                              const struct mlip_ctl_in *in, const struct mlip_ring_cmd *cmd);
+
+/* run.c */
+void mlip_ct_fault(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl_reason r);
+void mlip_ct_blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out);
+void mlip_ct_after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
+                        mlip_run_state rs, int still);
+
+/* stop.c */
+void mlip_ct_drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
+                         const struct mlip_ctl_drive_fault *f);
+void mlip_ct_brake_begin(struct mlip_ctl *c);
+void mlip_ct_brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state rs);
+void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why);
+
+/* estop.c */
+void mlip_ct_follow_actual(struct mlip_ctl *c, const struct mlip_ctl_in *in);
+void mlip_ct_quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
+                        uint32_t state, struct mlip_ctl_reason r);
+int32_t mlip_ct_reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in);
+void mlip_ct_io_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out);
+
+/* jog.c */
+void mlip_ct_jog_release(struct mlip_ctl *c, uint32_t why);
+int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
+void mlip_ct_jog_period(struct mlip_ctl *c, struct mlip_ctl_out *out);
+
+/* homing.c */
+void mlip_ct_home_abort(struct mlip_ctl *c);
+int32_t mlip_ct_home_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
+void mlip_ct_home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                         struct mlip_ctl_out *out);
+
+/* spindle.c: a CiA 402 spindle (mlip/ctl/spindle.h) in the period */
+void mlip_ct_spindle_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                            struct mlip_ctl_out *out);
+void mlip_ct_spindle_out(const struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                         struct mlip_ctl_out *out);
+/* the node of drive i of the power sequencer's group: the axes, then the spindle */
+static inline uint32_t mlip_ct_node_of(const struct mlip_ctl *c, int i)
+{
+	return i < c->m.n_axes ? (uint32_t)c->m.axis[i].can_node : c->spindle.node;
+}
+
+/* power.c */
+void mlip_ct_power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                          struct mlip_ctl_out *out);
+
+#endif
