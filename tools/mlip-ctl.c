@@ -491,7 +491,10 @@ static int cmd_status(struct mlip_shm *s, int json)
 		}
 		printf("\n");
 	}
-	if (st.state == MLIP_STATE_DWELLING) {
+	if (st.state == MLIP_STATE_DWELLING && st.reason == MLIP_WHY_SPINDLE_WAIT) {
+		printf("spindle     waiting for it at most %.3f s more (AT_SPEED_TIMEOUT)\n",
+		       (double)st.dwell_left * m.period_s);
+	} else if (st.state == MLIP_STATE_DWELLING) {
 		printf("dwell       %.3f s left\n", (double)st.dwell_left * m.period_s);
 	}
 	printf("override    %u %%, optional stop %s\n", (unsigned)st.override_pct,

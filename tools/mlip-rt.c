@@ -269,6 +269,17 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			        r->line, (unsigned long long)r->seq);
 			return;
 		}
+		if (r->why == MLIP_WHY_SPINDLE_WAIT) {
+			fprintf(stderr,
+			        PROG
+			        ": spindle to %g rpm%s at line %u (block %llu): at rest until it "
+			        "is %s\n",
+			        r->value < 0 ? -r->value : r->value,
+			        r->value < 0 ? " counter-clockwise" : "", r->line,
+			        (unsigned long long)r->seq,
+			        r->value == 0 ? "at standstill" : "at speed");
+			return;
+		}
 		fprintf(stderr, PROG ": dwell %.3f s at line %u (block %llu)\n", r->value, r->line,
 		        (unsigned long long)r->seq);
 		return;

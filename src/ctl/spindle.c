@@ -112,7 +112,9 @@ int mlip_ctl_spindle_step(struct mlip_ctl_spindle *s, uint16_t sw, int32_t vel_a
 
 int mlip_ctl_spindle_at_rest(const struct mlip_ctl_spindle *s)
 {
-	return !s->on ||
+	/* faulted (its own fault reaction, or not heard within the timeout):
+	 * nothing to wait for */
+	return !s->on || s->drive.phase == MLIP_SPINDLE_FAULT ||
 	       (s->drive.cmd_rpm == 0 && fabs(s->drive.actual_rpm) <= s->drive.cfg.band_rpm);
 }
 

@@ -2374,6 +2374,15 @@ static void test_spindle_stop_and_fault_mid_cut(void **st)
 	              dv_max);
 	assert_true(dv_max <= 1000.0 * mach.period_s * 1.001);
 	assert_int_equal(out.spindle.target, 0);
+	/* a faulted spindle stops by its own fault reaction: the axes are
+	 * disabled at rest without waiting for it (an exit would hang on a
+	 * spindle whose TPDOs stopped) */
+	int p;
+	for (p = 0; p < 500 && status().drive_power != MLIP_POWER_OFF; p++) {
+		stick(1);
+	}
+	assert_int_equal(status().drive_power, MLIP_POWER_OFF);
+	assert_int_equal(status().spindle_state, MLIP_SPINDLE_FAULT + 1u);
 }
 
 /* At speed, then a load it cannot hold: out of the band longer than

@@ -70,7 +70,9 @@ mlip_status mlip_ctl_spindle_override(struct mlip_ctl_spindle *s, int32_t pct, u
 int mlip_ctl_spindle_step(struct mlip_ctl_spindle *s, uint16_t sw, int32_t vel_actual,
                           uint64_t period, uint32_t *event, double *value);
 
-/* At standstill and asked 0 (or no spindle): the drives may be disabled. */
+/* At standstill and asked 0, faulted (its own fault reaction stops it; a
+ * spindle not heard from times out into a fault), or no spindle: the
+ * drives may be disabled. */
 int mlip_ctl_spindle_at_rest(const struct mlip_ctl_spindle *s);
 
 /* The commanded rpm (with the override; 0 when stopped or faulted) and the
