@@ -12,7 +12,9 @@ applied and its velocity actual and statusword sent; each axis' target.
   - a spindle fault mid-cut stops the feed on the path: state fault naming
     the spindle, every axis braking to rest, none accelerating after it.
 
-The period is 40 ms (the emulated VM): frame order, not timing, is judged.
+The period is 40 ms (the emulated VM): frame order, not timing, is judged;
+AT_SPEED_TIMEOUT is 60 s (a simulator starved of CPU in the VM answers SYNCs
+late: its ramp, counted in SYNCs, is not).
 Each test prints a [spindle] line with the measured figures.
 """
 
@@ -46,6 +48,7 @@ NODE = {SP}
 COUNTS_PER_REV = {CPR}
 ACCELERATION = {ACCEL}
 AT_SPEED_BAND = 100
+AT_SPEED_TIMEOUT = 60
 """
 START = """G21 G90
 G0 X5 Y2
