@@ -59,7 +59,8 @@ HOMING = (
 )
 # the spindle (issue 19): a CiA 402 drive in profile velocity mode on the
 # same bus, node 4, 6000 rpm in 1.2 s; the program starts it before its
-# first move and its end stops it
+# first move and its end stops it; a long AT_SPEED_TIMEOUT, as the other
+# timeouts: the simulated drive may answer its SYNCs late in the VM
 SPINDLE_NODE = 4
 SPINDLE = f"""
 [SPINDLE]
@@ -69,6 +70,7 @@ NODE = {SPINDLE_NODE}
 COUNTS_PER_REV = 4096
 ACCELERATION = 5000
 AT_SPEED_BAND = 100
+AT_SPEED_TIMEOUT = 30
 """
 # the spindle to speed, a rectangle at two depths and back to where the
 # drives stood
