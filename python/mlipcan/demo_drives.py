@@ -591,7 +591,9 @@ def run(
         f"{s_cmd}, target reached in its TPDO at SYNC {s_reach}, the axes' first move at SYNC "
         f"{s_move}: start-to-feed "
         + (f"{wait * period_s:.2f} s" if wait is not None else "-")
-        + " (its ramp 6000 / 5000 rpm/s = 1.20 s)"
+        + " (its ramp 6000 / 5000 rpm/s = 1.20 s; from its TPDO to the first move: the "
+        "TPDO read, the RPDO applied at the next SYNC, and how late the simulated drives "
+        "answer here)"
     )
     check(
         wait_ok,
