@@ -2385,6 +2385,35 @@ static void test_spindle_stop_and_fault_mid_cut(void **st)
 	assert_int_equal(status().spindle_state, MLIP_SPINDLE_FAULT + 1u);
 }
 
+/* The spindle drive's heartbeat lost mid-cut (rt/'s supervision reports it
+ * with its node): state FAULT naming the spindle, the feed stopped on the
+ * path, the spindle asked 0. */
+static void test_spindle_heartbeat_lost(void **st)
+{
+	(void)st;
+	start_cut();
+	double x0 = out.pos[0];
+	drv_fault = (struct mlip_ctl_drive_fault){MLIP_DRIVE_HEARTBEAT_LOST, 9, 310.0};
+	stick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_SPINDLE_FAULT);
+	assert_int_equal(status().reason_field, MLIP_DRIVE_HEARTBEAT_LOST);
+	assert_int_equal(status().reason_node, 9);
+	assert_int_equal(out.spindle.target, 0);
+	for (int k = 0; k < 500 && status().speed_mm_s > 0; k++) {
+		stick(1);
+	}
+	assert_true(status().speed_mm_s == 0 && out.pos[0] - x0 < 6.5 && out.pos[1] == 0.0);
+	/* an axis drive's fault stays a drive fault */
+	teardown(st);
+	setup_spindle(st);
+	start_cut();
+	drv_fault = (struct mlip_ctl_drive_fault){MLIP_DRIVE_FOLLOWING_ERROR, 2, 4000.0};
+	stick(1);
+	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
+	assert_int_equal(out.spindle.target, 0);
+}
+
 /* At speed, then a load it cannot hold: out of the band longer than
  * BAND_TIME (200 periods) is a fault; a spindle slower than the timeout
  * (3.4 s) is one too. */
@@ -2524,6 +2553,7 @@ int main(void)
 	    TS(test_spindle_stop_and_fault_mid_cut),
 	    TS(test_spindle_band_and_timeout),
 	    TS(test_spindle_estop),
+	    TS(test_spindle_heartbeat_lost),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
