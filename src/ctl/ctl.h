@@ -15,7 +15,7 @@
  *                 ingest), waits (dwell, pause, manual I/O), the
  *                 transitions the motion decides
  *   power.c       the drives' power (CiA 402 sequencer, all drives in step)
- *   spindle.c     a CiA 402 spindle (mlip/ctl/spindle.h): its decisions, and
+ *   spindlectl.c  a CiA 402 spindle (mlip/ctl/spindlectl.h): its decisions, and
  *                 its part of the period (the wait for speed, its faults, its
  *                 RPDO and status)
  * Functions of one part that another calls are mlip_ct_*, declared here.
@@ -117,7 +117,7 @@ int32_t mlip_ct_home_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32
 void mlip_ct_home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
                          struct mlip_ctl_out *out);
 
-/* spindle.c: a CiA 402 spindle (mlip/ctl/spindle.h) in the period */
+/* spindlectl.c: a CiA 402 spindle (mlip/ctl/spindlectl.h) in the period */
 void mlip_ct_spindle_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
                             struct mlip_ctl_out *out);
 void mlip_ct_spindle_out(const struct mlip_ctl *c, const struct mlip_ctl_in *in,

@@ -19,7 +19,7 @@
 #include "mlip/canopen/cia402.h"
 #include "mlip/canopen/drive.h"
 #include "mlip/canopen/spindle.h"
-#include "mlip/ctl/spindle.h"
+#include "mlip/ctl/spindlectl.h"
 
 #define T 0.001 /* s per period */
 

@@ -74,7 +74,7 @@ typedef enum {
 	MLIP_DRIVE_NOT_SWITCHED_ON, /* switch on (0x0007) not confirmed in time (statusword) */
 	MLIP_DRIVE_NOT_ENABLED,     /* enable operation (0x000F) not confirmed in time */
 	MLIP_DRIVE_BEYOND_LIMIT,    /* its position actual is beyond a soft limit (mm, deg) */
-	/* a spindle (issue 19, mlip/ctl/spindle.h): value its actual rpm */
+	/* a spindle (issue 19, mlip/ctl/spindlectl.h): value its actual rpm */
 	MLIP_DRIVE_SPINDLE_TIMEOUT,    /* not at speed (or at rest) within AT_SPEED_TIMEOUT */
 	MLIP_DRIVE_SPINDLE_OUT_OF_BAND /* at speed, then out of AT_SPEED_BAND for BAND_TIME */
 } mlip_drive_fault;

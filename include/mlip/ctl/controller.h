@@ -103,7 +103,7 @@
 
 #include "mlip/can/canenc.h"
 #include "mlip/canopen/cia402.h"
-#include "mlip/ctl/spindle.h"
+#include "mlip/ctl/spindlectl.h"
 #include "mlip/ctl/state.h"
 #include "mlip/machine/config.h"
 #include "mlip/motion/planner.h"
@@ -419,7 +419,7 @@ struct mlip_ctl {
 		uint64_t t0; /* the group's homing move began (period) */
 		uint16_t cw; /* the group's controlword */
 	} home;
-	/* a CiA 402 spindle (issue 19, mlip/ctl/spindle.h) */
+	/* a CiA 402 spindle (issue 19, mlip/ctl/spindlectl.h) */
 	struct mlip_ctl_spindle spindle;
 	/* scratch for one period's blocks (no stack array of this size on RT) */
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];

@@ -1,9 +1,9 @@
 /*
- * spindle.c - the controller's CiA 402 spindle (mlip/ctl/spindle.h): the
+ * spindlectl.c - the controller's CiA 402 spindle (mlip/ctl/spindlectl.h): the
  * program's speed and the operator's override into the profile velocity
  * phases of mlip/canopen/spindle.h, one period at a time.
  */
-#include "mlip/ctl/spindle.h"
+#include "mlip/ctl/spindlectl.h"
 
 #include <math.h>
 #include <string.h>

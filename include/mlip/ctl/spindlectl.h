@@ -1,5 +1,5 @@
 /*
- * mlip/ctl/spindle.h - the controller's CiA 402 spindle ([SPINDLE] TYPE =
+ * mlip/ctl/spindlectl.h - the controller's CiA 402 spindle ([SPINDLE] TYPE =
  * cia402, issue 19): what the program asked (M3/M4 S, S, M5), the operator's
  * spindle override, and the drive's periods decided by mlip/canopen/spindle.h.
  * Pure, on the period count; the controller (src/ctl/) glues it in:
@@ -24,8 +24,8 @@
  *                      spindle can do; a program's S beyond is refused at
  *                      its line instead, see src/gcode/io.c)
  */
-#ifndef MLIP_CTL_SPINDLE_H
-#define MLIP_CTL_SPINDLE_H
+#ifndef MLIP_CTL_SPINDLECTL_H
+#define MLIP_CTL_SPINDLECTL_H
 
 #include <stdint.h>
 
