@@ -61,7 +61,10 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "homing timeout",
 	                                    "homing object refused",
 	                                    "not homed",
-	                                    "jog done"};
+	                                    "jog done",
+
+	                                    "spindle to speed",
+	                                    "spindle fault"};
 
 	return NAME_OF(names, why);
 }

@@ -37,8 +37,8 @@
 MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 88);
 MLIP_RING_CHECK(rec_align, sizeof(struct mlip_ring_rec) % 8 == 0);
 MLIP_RING_CHECK(rec_target, offsetof(struct mlip_ring_rec, target) == 16);
-MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1344);
-MLIP_RING_CHECK(off_io, offsetof(struct mlip_ring, io) == 1216);
+MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1408);
+MLIP_RING_CHECK(off_io, offsetof(struct mlip_ring, io) == 1280);
 MLIP_RING_CHECK(io_size, sizeof(struct mlip_ring_io) == 88);
 MLIP_RING_CHECK(hdr_lines, sizeof(struct mlip_ring) % MLIP_RING_LINE == 0);
 MLIP_RING_CHECK(line_pow2, MLIP_RING_IS_POW2(MLIP_RING_LINE));
@@ -47,13 +47,13 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 336);
-MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 576);
-MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 584);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 360);
+MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 640);
+MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 648);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 40);
-MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_word) == 640);
-MLIP_RING_CHECK(off_stop, offsetof(struct mlip_ring, stop_req) == 648);
-MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 704);
+MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_word) == 704);
+MLIP_RING_CHECK(off_stop, offsetof(struct mlip_ring, stop_req) == 712);
+MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 768);
 
 /* shared-memory atomics must not fall back to a process-local lock */
 #if !defined(__GCC_ATOMIC_LLONG_LOCK_FREE) || __GCC_ATOMIC_LLONG_LOCK_FREE != 2 ||                 \
@@ -620,6 +620,11 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	ST(&d->io_mapped, s->io_mapped, REL);
 	ST(&d->io_known, s->io_known, REL);
 	ST(&d->homed, s->homed, REL);
+	ST(&d->spindle_state, s->spindle_state, REL);
+	STD(&d->spindle_cmd_rpm, &s->spindle_cmd_rpm);
+	STD(&d->spindle_actual_rpm, &s->spindle_actual_rpm);
+	ST(&d->spindle_override, s->spindle_override, REL);
+	ST(&d->spindle_node, s->spindle_node, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -676,7 +681,11 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		s->io_mapped = LD(&d->io_mapped, ACQ);
 		s->io_known = LD(&d->io_known, ACQ);
 		s->homed = LD(&d->homed, ACQ);
-		s->spare7 = 0;
+		s->spindle_state = LD(&d->spindle_state, ACQ);
+		LDD(&d->spindle_cmd_rpm, &s->spindle_cmd_rpm);
+		LDD(&d->spindle_actual_rpm, &s->spindle_actual_rpm);
+		s->spindle_override = LD(&d->spindle_override, ACQ);
+		s->spindle_node = LD(&d->spindle_node, ACQ);
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -833,9 +842,9 @@ int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
-	static const char *const names[] = {"none", "override",      "hold",  "resume",
-	                                    "stop", "optional-stop", "reset", "jog",
-	                                    "home", "jog-axis"};
+	static const char *const names[] = {
+	    "none", "override", "hold",     "resume",          "stop", "optional-stop", "reset",
+	    "jog",  "home",     "jog-axis", "spindle-override"};
 
 	return NAME_OF(names, op);
 }

@@ -104,6 +104,14 @@ typedef enum {
 	MLIP_WHY_NOT_HOMED,      /* HOMING_REQUIRED: a program refused before every axis
 	                            is homed (reason_seq, line: its first record) */
 	MLIP_WHY_JOG_DONE,       /* an incremental jog at rest at its target */
+	MLIP_WHY_SPINDLE_WAIT,   /* a CiA 402 spindle's M3/M4/S/M5: at rest (state DWELLING)
+	                            until it is at speed, or at standstill (reason_value:
+	                            the rpm asked) */
+	MLIP_WHY_SPINDLE_FAULT,  /* the spindle drive: state FAULT, the feed stopped on the
+	                            path; reason_node its node, reason_field the event
+	                            (mlip_drive_fault: fault bit, EMCY, heartbeat lost, ...,
+	                            SPINDLE_TIMEOUT, SPINDLE_OUT_OF_BAND), reason_value
+	                            its detail (statusword, code, ms, actual rpm) */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 
