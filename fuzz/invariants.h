@@ -149,7 +149,7 @@ struct inv_gcode {
 
 /* The machine's I/O of INV_IO: a manual spindle 1000..24000 rpm, a manual
  * tool change at Z100 (inside both machines' limits, axis index 2), manual
- * coolant, three tools (sorted). */
+ * coolant, three tools (sorted), digital outputs P0..P3, a probe. */
 static const struct mlip_tool inv_tools[] = {
     {1, 1, 10.0, 6.0}, {2, 2, 30.5, 3.0}, {7, 5, -2.0, 0.0}};
 static const struct mlip_gcode_io inv_io = {MLIP_IO_MANUAL,
@@ -163,7 +163,10 @@ static const struct mlip_gcode_io inv_io = {MLIP_IO_MANUAL,
                                             3,
                                             0,
                                             0,
-                                            0};
+                                            0,
+                                            0,
+                                            0x0Fu,
+                                            1};
 
 static void inv_gcode_init(struct inv_gcode *c, const struct mlip_machine *m)
 {
@@ -209,7 +212,7 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 		}
 		d2 += (t - c->prev[i]) * (t - c->prev[i]);
 	}
-	if (b->kind > MLIP_BLOCK_COOLANT) {
+	if (b->kind > MLIP_BLOCK_PROBE) {
 		return inv_gcode_fail(c, "unknown block kind", -1, b->kind);
 	}
 	/* the machine's I/O (INV_IO): a speed within the spindle's, a whole
@@ -227,10 +230,22 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 	    !(b->value >= 0 && b->value <= 3 && b->value == floor(b->value))) {
 		return inv_gcode_fail(c, "coolant bits not 0..3", -1, b->value);
 	}
+	if (b->kind == MLIP_BLOCK_OUTPUT &&
+	    !(fabs(b->value) >= 1 && fabs(b->value) <= MLIP_DOUT_MAX &&
+	      b->value == floor(b->value) &&
+	      ((inv_io.dout_mask >> (unsigned)(fabs(b->value) - 1)) & 1u))) {
+		return inv_gcode_fail(c, "output not +-(n + 1) of a mapped output n", -1, b->value);
+	}
+	if (b->kind == MLIP_BLOCK_PROBE &&
+	    !(b->value >= 0 && b->value <= 3 && b->value == floor(b->value) && b->exact_stop == 1 &&
+	      !b->rapid)) {
+		return inv_gcode_fail(c, "probe not a feed move with MLIP_PROBE_* bits", -1,
+		                      b->value);
+	}
 	if (b->kind < MLIP_BLOCK_SPINDLE && b->value != 0) {
 		return inv_gcode_fail(c, "a value on a block that carries none", -1, b->value);
 	}
-	if (b->kind != MLIP_BLOCK_MOVE) {
+	if (b->kind != MLIP_BLOCK_MOVE && b->kind != MLIP_BLOCK_PROBE) {
 		/* an event: at the last point, a finite dwell >= 0 (DWELL only) */
 		if (d2 != 0.0) {
 			return inv_gcode_fail(c, "event not at the last point", -1, sqrt(d2));
@@ -245,7 +260,7 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 	if (b->exact_stop > 1) {
 		return inv_gcode_fail(c, "exact_stop not 0 or 1", -1, b->exact_stop);
 	}
-	if (b->kind == MLIP_BLOCK_MOVE &&
+	if ((b->kind == MLIP_BLOCK_MOVE || b->kind == MLIP_BLOCK_PROBE) &&
 	    !(d2 >= MLIP_GCODE_MERGE_MM * MLIP_GCODE_MERGE_MM * (1 - 1e-9))) {
 		return inv_gcode_fail(c, "block shorter than MLIP_GCODE_MERGE_MM", -1, sqrt(d2));
 	}
@@ -299,7 +314,7 @@ static int inv_gcode_sink(void *ctx, const struct mlip_block *b)
 		c->prev[i] = b->target[i];
 	}
 	c->accepted++;
-	c->moves += b->kind == MLIP_BLOCK_MOVE;
+	c->moves += b->kind == MLIP_BLOCK_MOVE || b->kind == MLIP_BLOCK_PROBE;
 	c->line_blocks++;
 	return 0;
 }
@@ -366,15 +381,18 @@ static const char *inv_gcode_finish(struct inv_gcode *c, const struct mlip_gcode
 	/* a program opened by '%' and never closed (nor ended by M2/M30) is
 	 * refused however many blocks it had: the file may be cut short */
 	int unclosed = g->percent && !g->ended;
-	if ((st == MLIP_OK) != (c->moves > 0 && !unclosed)) {
+	/* a program without motion that sets offsets (G10, G92, G54..G59.3),
+	 * and any MDI command, is a program (mlip_gcode_finish) */
+	int runs = c->moves > 0 || g->mdi || mlip_gcode_offsets_changed(g);
+	if ((st == MLIP_OK) != (runs && !unclosed)) {
 		return inv_gcode_fail(c, "finish disagrees with the blocks taken", -1,
 		                      (double)c->accepted);
 	}
 	if (st != MLIP_OK) {
-		const char *want = c->moves == 0 ? "empty program: no motion"
-		                                 : "the program opens with '%' but ends without "
-		                                   "the closing '%' or M2/M30: the file may be cut "
-		                                   "short (LinuxCNC refuses it)";
+		const char *want = !runs ? "empty program: no motion"
+		                         : "the program opens with '%' but ends without "
+		                           "the closing '%' or M2/M30: the file may be cut "
+		                           "short (LinuxCNC refuses it)";
 		if (e->line != (last ? last : 1) || e->col != 0 || strcmp(e->msg, want) != 0) {
 			return inv_gcode_fail(c, "finish error not the expected one at the end", -1,
 			                      e->line);

@@ -659,6 +659,9 @@ static void io_after_stop(struct feed *f, const struct mlip_machine *m)
 			say(": the spindle turns since line %u (%g rpm %s): the program did "
 			    "not stop it\n",
 			    line, fabs(v), v > 0 ? "clockwise" : "counter-clockwise");
+		} else if (kd == 2 && v != 0 && f->io.coolant == MLIP_IO_MODULE) {
+			/* the module's outputs: the controller switched them off */
+			say(": coolant on since line %u: switched off by the stop\n", line);
 		} else if (kd == 2 && v != 0) {
 			say(": coolant on since line %u: the program did not stop it\n", line);
 		} else if (kd == 1) {
@@ -802,6 +805,13 @@ static int operator_stop(struct feed *f)
 		    "homed (not homed: %s): mlip-ctl home first; nothing moved\n",
 		    f->path, axes);
 		return EXIT_FAIL;
+	}
+	if (f->st.reason == MLIP_WHY_PROBE_NO_TRIP || f->st.reason == MLIP_WHY_PROBE_AT_START ||
+	    f->st.reason == MLIP_WHY_PROBE_INPUT) {
+		/* a probe error ends the program at rest (LinuxCNC) */
+		say(": %s:%u: %s: the program stopped there, at rest\n", f->path,
+		    (unsigned)f->st.reason_line, mlip_state_why_name(f->st.reason));
+		return EXIT_FAULT;
 	}
 	uint64_t next = rest_seq(f);
 	say(": program stopped on the path at line %u (block %llu of %llu): mlip-ctl "

@@ -111,6 +111,21 @@ int main(int argc, char **argv)
 		}
 		printf("%s\n", io->change_mask ? " (change position, machine coordinates)" : "");
 	}
-	printf("  coolant: %s\n", io->coolant == MLIP_IO_NONE ? "none (M7/M8 refused)" : "manual");
+	printf("  coolant: %s\n", io->coolant == MLIP_IO_NONE     ? "none (M7/M8 refused)"
+	                          : io->coolant == MLIP_IO_MODULE ? "io (the I/O module's outputs)"
+	                                                          : "manual");
+	for (uint32_t o = 0; o < MLIP_OUT_COUNT; o++) {
+		const struct mlip_io_out *x = &cfg.inputs.out[o];
+		if (cfg.inputs.out_mapped >> o & 1u) {
+			char name[16];
+			snprintf(name, sizeof(name), "%s",
+			         o == MLIP_OUT_MIST ? "mist (M7)" : "flood (M8)");
+			if (o >= MLIP_OUT_DOUT0) {
+				snprintf(name, sizeof(name), "M64 P%u", o - MLIP_OUT_DOUT0);
+			}
+			printf("  output %-10s node %u 0x6200:%u bit %u\n", name, cfg.inputs.node,
+			       x->sub, x->bit);
+		}
+	}
 	return 0;
 }

@@ -21,6 +21,7 @@
 
 #include "cli.h"
 #include "feed.h"
+#include "iostatus.h"
 #include "json.h"
 #include "mlip/canopen/canopen.h"
 #include "mlip/ipc/ring.h"
@@ -330,6 +331,7 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 		}
 	}
 	mlip_json_close(&j);
+	mlip_iostatus_json(&j, m, st); /* outputs, coolant, the last probe (issue 19) */
 	if (st->reason == MLIP_WHY_ESTOP || st->reason == MLIP_WHY_LIMIT) {
 		mlip_json_string(&j, "reason_input",
 		                 mlip_io_function_name(st->reason_field, m, fname, sizeof(fname)));
@@ -497,6 +499,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 		}
 		printf("\n");
 	}
+	mlip_iostatus_text(stdout, &m, &st, s->ring); /* outputs, coolant, the last probe */
 	printf("position   ");
 	for (int k = 0; k < m.n_axes; k++) {
 		printf(" %c %.4f", m.axis[k].letter, st.pos[k]);

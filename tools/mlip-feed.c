@@ -45,7 +45,7 @@ static void usage(FILE *f)
 	        "errors, no controller, another feeder); 2 usage; 3 controller stopped\n"
 	        "responding; 4 stopped on the path (mlip-ctl stop, or mlip-rt told to exit by\n"
 	        "a signal), or mlip-ctl stop before the program started (nothing moved);\n"
-	        "5 controller fault;\n"
+	        "5 controller fault, or a probe error (G38: no trip, tripped at the start);\n"
 	        "128+N interrupted by signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP, 131\n"
 	        "SIGQUIT): the machine was stopped on the path\n");
 }

@@ -269,6 +269,23 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		}
 		return;
 	case MLIP_STATE_DWELLING:
+		if (r->why == MLIP_WHY_OUTPUT) {
+			/* M7/M8/M9 (coolant io), M64/M65: switched at rest (issue 19) */
+			if (r->field == MLIP_REC_COOLANT) {
+				fprintf(stderr, PROG ": coolant %s at line %u (block %llu)\n",
+				        r->value == 0   ? "off"
+				        : r->value == 1 ? "mist"
+				        : r->value == 2 ? "flood"
+				                        : "mist+flood",
+				        r->line, (unsigned long long)r->seq);
+			} else {
+				fprintf(stderr, PROG ": output %d %s at line %u (block %llu)\n",
+				        (int)(r->value > 0 ? r->value : -r->value) - 1,
+				        r->value > 0 ? "on (M64)" : "off (M65)", r->line,
+				        (unsigned long long)r->seq);
+			}
+			return;
+		}
 		if (r->why == MLIP_WHY_OPTIONAL_PAUSE) {
 			fprintf(stderr,
 			        PROG ": M1 at line %u (block %llu) passed: optional stop off\n",
@@ -295,6 +312,15 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		        mlip_state_why_name(r->why), r->line, (unsigned long long)r->seq);
 		return;
 	case MLIP_STATE_IDLE:
+		if (r->why == MLIP_WHY_PROBE_NO_TRIP || r->why == MLIP_WHY_PROBE_AT_START ||
+		    r->why == MLIP_WHY_PROBE_INPUT) {
+			fprintf(stderr,
+			        PROG
+			        ": G38 at line %u (block %llu): %s: the program stopped at rest, "
+			        "the rest of it dropped\n",
+			        r->line, (unsigned long long)r->seq, mlip_state_why_name(r->why));
+			return;
+		}
 		if (r->why == MLIP_WHY_STOP_EARLY) {
 			fprintf(stderr,
 			        PROG
@@ -312,6 +338,20 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		if (r->why == MLIP_WHY_PREREAD_DONE || r->why == MLIP_WHY_CONTINUE ||
 		    r->why == MLIP_WHY_DWELL_DONE) {
 			return; /* implied by the line before (start, underrun, dwell) */
+		}
+		if (r->why == MLIP_WHY_PROBED) {
+			struct mlip_ring_status st;
+			if (mlip_ring_status_read(mo->ring, &st) == MLIP_OK && st.probe_count > 0) {
+				fprintf(stderr, PROG ": G38 at line %u (block %llu): %s at",
+				        r->line, (unsigned long long)r->seq,
+				        st.probe_tripped ? "tripped" : "not tripped, ended");
+				for (int k = 0; k < mo->m->n_axes; k++) {
+					fprintf(stderr, " %c %.4f", mo->m->axis[k].letter,
+					        st.probe_pos[k]);
+				}
+				fprintf(stderr, " (#5070 = %u)\n", st.probe_tripped ? 1u : 0u);
+				return;
+			}
 		}
 		fprintf(stderr, PROG ": %s -> %s (%s), block %llu (line %u)\n",
 		        mlip_ctl_state_name(e->from), mlip_ctl_state_name(e->state),

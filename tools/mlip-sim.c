@@ -434,7 +434,8 @@ static int set_up(const struct options *o, struct sim *s)
 	struct mlip_ctl_opts co = {.strategy = (mlip_strategy)o->strategy,
 	                           .smooth =
 	                               o->strategy == MLIP_STRATEGY_SMOOTH ? &smooth_store : NULL,
-	                           .lookahead = (uint32_t)s->lookahead};
+	                           .lookahead = (uint32_t)s->lookahead,
+	                           .io = &s->cfg.inputs}; /* outputs switch (M64, coolant io) */
 	if (mlip_ctl_init(&ctl, &planner, m, &co) != MLIP_OK) {
 		fprintf(stderr, PROG ": look-ahead %lu must be a power of two in 2..%d\n",
 		        s->lookahead, MLIP_LOOKAHEAD);
@@ -507,6 +508,10 @@ static int run(const struct options *o, struct sim *s)
 	for (uint64_t period = 0;; period++) {
 		struct mlip_ring_cmd cmd = {.seq = 2};
 		struct mlip_ctl_in in = {.period = period, .feeder_alive = 1};
+		/* the inputs read and all off: a probe never trips here (G38.2 and
+		 * G38.4 end in a fault at their target, as on a machine where it
+		 * touches nothing) */
+		in.io.known = s->cfg.inputs.mapped;
 		feed_step(&s->fdr, &s->q);
 		if (s->fdr.src.rc < 0) {
 			fprintf(stderr, PROG ": %s: %s\n", o->path, s->prog.msg);

@@ -78,9 +78,22 @@ typedef enum {
 	                              clockwise (M4), 0 stopped */
 	MLIP_BLOCK_TOOL,           /* M6: value = the tool to put in the spindle (0:
 	                              none), the spindle stopped by a SPINDLE before */
-	MLIP_BLOCK_COOLANT         /* M7/M8/M9, M2/M30: value = the outlets on, bits
+	MLIP_BLOCK_COOLANT,        /* M7/M8/M9, M2/M30: value = the outlets on, bits
 	                              MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD (0: off) */
+	MLIP_BLOCK_OUTPUT,         /* M64/M65 Pn: value = n + 1 to switch digital output n
+	                              on (M64), -(n + 1) off (M65); n < MLIP_DOUT_MAX */
+	MLIP_BLOCK_PROBE           /* G38.2..G38.5: a feed move toward target that stops
+	                              at the acceleration limit when the probe input
+	                              changes; value = MLIP_PROBE_* */
 } mlip_block_kind;
+
+#define MLIP_DOUT_MAX 8 /* digital outputs M64/M65 P0..P7 ([IO] OUTPUT_0..7) */
+
+/* A PROBE block's value: bit 0 the probe must trip (G38.2, G38.4: a move
+ * that ends without a trip is an error), bit 1 toward release (G38.4, G38.5:
+ * the probe must be on at the start and stops when it goes off). */
+#define MLIP_PROBE_MUST_TRIP 0x1u
+#define MLIP_PROBE_AWAY      0x2u
 
 #define MLIP_COOLANT_MIST  0x1u /* M7 */
 #define MLIP_COOLANT_FLOOD 0x2u /* M8 */
@@ -144,8 +157,8 @@ static inline int mlip_block_check(const struct mlip_machine *m, const struct ml
 	if (b->kind == MLIP_BLOCK_DWELL && !(b->dwell_s >= 0.0 && b->dwell_s <= MLIP_DWELL_MAX_S)) {
 		return MLIP_RULE_DWELL;
 	}
-	if (b->kind != MLIP_BLOCK_MOVE) {
-		return MLIP_RULE_OK;
+	if (b->kind != MLIP_BLOCK_MOVE && b->kind != MLIP_BLOCK_PROBE) {
+		return MLIP_RULE_OK; /* a probe move keeps a move's rules */
 	}
 	for (k = 0; k < m->n_axes; k++) {
 		/* the count as mlip_can_counts rounds it: within int32 (0x607A) */

@@ -39,6 +39,8 @@ from . import cia402 as P
 # target applied (None: no RPDO), an RPDO arrived since the previous SYNC,
 # position actual and statusword sent
 SyncRow = tuple[int, int, float, str | None, int, int | None, bool, int, int]
+# one I/O module at one SYNC (io.csv): sync, node, t, outputs hex, inputs hex
+IoRow = tuple[int, int, float, str, str]
 
 U8, U16, U32 = odm.UNSIGNED8, odm.UNSIGNED16, odm.UNSIGNED32
 I8, I32 = odm.INTEGER8, odm.INTEGER32
@@ -212,6 +214,8 @@ class Recorder:
         self.outdir = outdir
         self.lock = threading.Lock()
         self.rows: list[SyncRow] = []
+        self.io_rows: list[IoRow] = []
+        self.io_fh: IO[str] | None = None
         self.events_fh: IO[str] | None = None
         self.sync_fh: IO[str] | None = None
         if outdir is not None:
@@ -219,6 +223,8 @@ class Recorder:
             self.events_fh = open(outdir / "events.jsonl", "w", buffering=1)
             self.sync_fh = open(outdir / "sync.csv", "w")
             self.sync_fh.write(self.SYNC_HEADER)
+            self.io_fh = open(outdir / "io.csv", "w")
+            self.io_fh.write("sync,node,t,outputs,inputs\n")
 
     def event(self, node: int, kind: str, **kw: Any) -> None:
         e: dict[str, Any] = {"t": time.time(), "node": node, "kind": kind}
@@ -229,6 +235,10 @@ class Recorder:
 
     def sync(self, row: SyncRow) -> None:
         self.rows.append(row)  # list.append is atomic; flush() swaps the list
+
+    def io_row(self, row: IoRow) -> None:
+        """An I/O module at one SYNC (io.csv): sync, node, t, outputs, inputs."""
+        self.io_rows.append(row)
 
     def flush(self) -> None:
         if self.sync_fh is None:
@@ -241,10 +251,15 @@ class Recorder:
                 f"{int(fresh)},{actual},{sw}\n"
             )
         self.sync_fh.flush()
+        if self.io_fh is not None:
+            io_rows, self.io_rows = self.io_rows, []
+            for s, node, t, outs, ins in io_rows:
+                self.io_fh.write(f"{s},{node},{t:.6f},{outs},{ins}\n")
+            self.io_fh.flush()
 
     def close(self) -> None:
         self.flush()
-        for fh in (self.events_fh, self.sync_fh):
+        for fh in (self.events_fh, self.sync_fh, self.io_fh):
             if fh is not None:
                 fh.close()
 
@@ -1162,12 +1177,17 @@ class DriveSim:
             for m in self.modules.values():
                 if m.present:
                     m.check_heartbeats(timestamp)
+                    # the outputs in force at this SYNC (what the RPDOs before it set)
+                    self.rec.io_row((self.sync_no, m.id, timestamp, *m.outputs_row()))
 
     def on_sync(self, drive: Drive, t: float) -> None:
         """Called once per drive per SYNC (canopen calls each subscriber)."""
         with self.lock:
             c0 = time.thread_time()
             drive.cycle(self.sync_no, t)
+            for m in self.modules.values():
+                if m.present:
+                    m.follow(drive.id, drive.actual, self.sync_no)  # a probe on this axis
             self.cycle_cpu_s += time.thread_time() - c0
             self.cycles += 1
 

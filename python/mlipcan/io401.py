@@ -8,8 +8,15 @@ module's error behaviour) and EMCY 0x8130 is sent.
 
 It shares the drives' bus and recorder (mlipcan.drive.DriveSim): every
 input change is recorded with the SYNC count at which its TPDO went out, so
-a test can count the periods from the input frame to what the drives did.
-Inputs change by injection: N:input=BYTE.BIT=0|1 (BYTE 1..8, BIT 0..7)."""
+a test can count the periods from the input frame to what the drives did;
+the outputs in force are recorded at every SYNC (io.csv: sync, node, time,
+outputs 0x6200:1..8 and inputs 0x6000:1..8 as hex), so a test judges what
+the module did period by period (issue 19).
+Inputs change by injection: N:input=BYTE.BIT=0|1 (BYTE 1..8, BIT 0..7), or
+follow a simulated drive's position as a probe touching a surface:
+N:probe=BYTE.BIT,DRIVE,COUNTS,below|above (the input is 1 while the drive's
+position actual is at or below / at or above COUNTS, evaluated after that
+drive's move at every SYNC; off: N:probe=off)."""
 
 import struct
 import time
@@ -151,6 +158,8 @@ class IoModule:
         self.master_seen: float | None = None
         self.master_lost = False
         self._rpdo_cob: int | None = None
+        # the probe's surface: (byte 1..8, bit, drive node, counts, below)
+        self.probe: tuple[int, int, int, int, bool] | None = None
 
     # ------------------------------------------------------------ OD
     def od_u32(self, index: int, sub: int) -> int:
@@ -326,6 +335,37 @@ class IoModule:
             if self.present:
                 self.node.emcy.send(0x8130, 0x11)
 
+    # ------------------------------------------------------------ the probe
+    def _set_input(self, b: int, k: int, v: int, why: str) -> bool:
+        old = self.inputs[b - 1]
+        self.inputs[b - 1] = (old | 1 << k) if v else (old & ~(1 << k) & 0xFF)
+        if self.inputs[b - 1] != old:
+            self._send_inputs(why)
+            return True
+        return False
+
+    def follow(self, drive_id: int, actual: int, sync_no: int) -> None:
+        """After drive drive_id moved at this SYNC: the probe's input from
+        its position actual against the surface (a change goes out at once,
+        in this SYNC's period, as a module reading a touch plate would)."""
+        if self.probe is None or self.probe[2] != drive_id:
+            return
+        b, k, _, counts, below = self.probe
+        touch = actual <= counts if below else actual >= counts
+        if self._set_input(b, k, int(touch), f"probe {'on' if touch else 'off'}"):
+            self.rec.event(
+                self.id,
+                "probe",
+                on=touch,
+                sync=sync_no,
+                actual=actual,
+                surface=counts,
+                drive=drive_id,
+            )
+
+    def outputs_row(self) -> tuple[str, str]:
+        return bytes(self.outputs).hex(), bytes(self.inputs).hex()
+
     # ------------------------------------------------------------ injections
     def inject(self, what: str, arg: str | None = None) -> None:
         self.rec.event(self.id, "inject", what=what, arg=arg)
@@ -335,10 +375,26 @@ class IoModule:
             b, k, v = int(byte), int(bit), int(value)
             if not (1 <= b <= NBYTES and 0 <= k <= 7 and v in (0, 1)):
                 raise ValueError(f"input '{arg}': expected BYTE.BIT=0|1, byte 1..8, bit 0..7")
-            old = self.inputs[b - 1]
-            self.inputs[b - 1] = (old | 1 << k) if v else (old & ~(1 << k) & 0xFF)
-            if self.inputs[b - 1] != old:
-                self._send_inputs(f"input {b}.{k}={v}")
+            self._set_input(b, k, v, f"input {b}.{k}={v}")
+        elif what == "probe":
+            if arg == "off":
+                self.probe = None
+                return
+            f = (arg or "").split(",")
+            try:
+                byte, _, bit = f[0].partition(".")
+                b, k, node, counts = int(byte), int(bit), int(f[1]), int(f[2])
+                below = {"below": True, "above": False}[f[3]]
+            except (IndexError, KeyError, ValueError):
+                raise ValueError(
+                    f"probe '{arg}': expected BYTE.BIT,DRIVE,COUNTS,below|above"
+                ) from None
+            if not (1 <= b <= NBYTES and 0 <= k <= 7):
+                raise ValueError(f"probe '{arg}': byte 1..8, bit 0..7")
+            self.probe = (b, k, node, counts, below)
+            d = self.sim.drives.get(node)
+            if d is not None:
+                self.follow(node, d.actual, self.sim.sync_no)
         elif what == "heartbeat":
             self.hb_stopped = arg == "off"
             if self.present:

@@ -283,27 +283,47 @@ class DriveSimProc:
     def sync_rows(self) -> list[dict[str, Any]]:
         """sync.csv as dicts (written every few ms: a last partial line is skipped)."""
         rows = []
-        path = self.rec / "sync.csv"
-        with open(path) as fh:
+        for f in self._csv("sync.csv"):
+            rows.append(
+                {
+                    "sync": int(f[0]),
+                    "node": int(f[1]),
+                    "t": float(f[2]),
+                    "state": f[3],
+                    "cw": int(f[4]),
+                    "target": int(f[5]) if f[5] else None,
+                    "fresh": f[6] == "1",
+                    "actual": int(f[7]),
+                    "sw": int(f[8]),
+                }
+            )
+        return rows
+
+    def io_rows(self) -> list[dict[str, Any]]:
+        """io.csv as dicts: the I/O modules' outputs and inputs at every SYNC
+        (bytes 0x6200:1..8 / 0x6000:1..8); a last partial line is skipped."""
+        return [
+            {
+                "sync": int(f[0]),
+                "node": int(f[1]),
+                "t": float(f[2]),
+                "outputs": bytes.fromhex(f[3]),
+                "inputs": bytes.fromhex(f[4]),
+            }
+            for f in self._csv("io.csv")
+        ]
+
+    def _csv(self, name: str) -> list[list[str]]:
+        """A record file's rows as fields, its header skipped; a last partial
+        line (being written) is left out."""
+        out = []
+        with open(self.rec / name) as fh:
             fh.readline()
             for line in fh:
                 if not line.endswith("\n"):
                     break
-                f = line.rstrip("\n").split(",")
-                rows.append(
-                    {
-                        "sync": int(f[0]),
-                        "node": int(f[1]),
-                        "t": float(f[2]),
-                        "state": f[3],
-                        "cw": int(f[4]),
-                        "target": int(f[5]) if f[5] else None,
-                        "fresh": f[6] == "1",
-                        "actual": int(f[7]),
-                        "sw": int(f[8]),
-                    }
-                )
-        return rows
+                out.append(line.rstrip("\n").split(","))
+        return out
 
     def wait_sync_rows(
         self, pred: Callable[[list[dict[str, Any]]], bool], timeout: float | None = None

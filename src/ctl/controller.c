@@ -248,6 +248,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	}
 
 	mlip_ct_spindle_period(c, in, out);
+	mlip_mio_period(c, in); /* the probe's trip, before the records */
 	mlip_ct_jog_period(c, out);
 	mlip_ct_home_period(c, in, out);
 	mlip_ct_blocks_in(c, in, out);
@@ -314,6 +315,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	mlip_ct_spindle_out(c, in, out);
 	out->homing = c->home.on && c->home.step >= HS_ARM ? c->home.group : 0;
 	out->status.homed = c->home.homed;
+	mlip_mio_publish(c, &out->status);
 	out->power.ok = c->power.seq.ok;
 	out->power.late_node = c->power.seq.late >= 0 ? mlip_ct_node_of(c, c->power.seq.late) : 0;
 	out->power.late_sw = c->power.seq.late_sw;

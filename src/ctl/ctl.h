@@ -18,6 +18,8 @@
  *   spindlectl.c  a CiA 402 spindle (mlip/ctl/spindlectl.h): its decisions, and
  *                 its part of the period (the wait for speed, its faults, its
  *                 RPDO and status)
+ *   machio.c      the machine's outputs (coolant, M64/M65) and probing (G38),
+ *                 its own header machio.h (issue 19)
  * Functions of one part that another calls are mlip_ct_*, declared here.
  */
 #ifndef MLIP_CTL_CTL_H
@@ -25,6 +27,7 @@
 
 #include <stdint.h>
 
+#include "machio.h"
 #include "mlip/ctl/controller.h"
 
 /* homing.c's steps; the period reads them for the controlword */
@@ -71,6 +74,7 @@ static inline void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t sta
 	c->why = r;
 	if (state == MLIP_STATE_IDLE || state == MLIP_STATE_STOPPING || state == MLIP_STATE_FAULT ||
 	    state == MLIP_STATE_ESTOP) {
+		mlip_mio_all_off(c); /* a program's end, a stop, a fault, an E-stop (issue 19) */
 		mlip_ctl_spindle_ask(&c->spindle, 0.0, c->period); /* every end stops it */
 	}
 	emit(c, out, MLIP_EV_STATE, from, &r);

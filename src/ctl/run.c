@@ -80,8 +80,8 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 	/* the rule set the G-code reader keeps too (mlip/types.h), on the
 	 * fields it reads (a whole mlip_ring_rec_to_block doubled the cost) */
 	struct mlip_block b;
-	b.kind = rec->type == MLIP_REC_MOVE    ? MLIP_BLOCK_MOVE
-	         : rec->type == MLIP_REC_DWELL ? MLIP_BLOCK_DWELL
+	b.kind = rec->type == MLIP_REC_MOVE || rec->type == MLIP_REC_PROBE ? MLIP_BLOCK_MOVE
+	         : rec->type == MLIP_REC_DWELL                             ? MLIP_BLOCK_DWELL
 	                                       : MLIP_BLOCK_PAUSE; /* END, pauses: no rule */
 	b.dwell_s = rec->dwell_s;
 	for (int k = 0; k < m->n_axes; k++) {
@@ -110,6 +110,16 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 	      rec->dwell_s == (MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD))) {
 		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
 	}
+	/* M64/M65: +-(n + 1) of an output n; G38: MLIP_PROBE_* bits (issue 19) */
+	if (rec->type == MLIP_REC_OUTPUT &&
+	    !(fabs(rec->dwell_s) >= 1.0 && fabs(rec->dwell_s) <= MLIP_DOUT_MAX &&
+	      rec->dwell_s == floor(rec->dwell_s))) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
+	if (rec->type == MLIP_REC_PROBE &&
+	    !(rec->dwell_s >= 0.0 && rec->dwell_s <= 3.0 && rec->dwell_s == floor(rec->dwell_s))) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
 	if (rule >= MLIP_RULE_TARGET && rule < MLIP_RULE_TARGET + MLIP_MAX_AXES) {
 		int k = rule - MLIP_RULE_TARGET;
 		return bad(why, rec, MLIP_FIELD_TARGET + (uint32_t)k, rec->target[k]);
@@ -127,7 +137,8 @@ static int is_event(const struct mlip_ring_rec *rec)
 {
 	return rec->type == MLIP_REC_DWELL || rec->type == MLIP_REC_PAUSE ||
 	       rec->type == MLIP_REC_OPTIONAL_PAUSE || rec->type == MLIP_REC_SPINDLE ||
-	       rec->type == MLIP_REC_TOOL || rec->type == MLIP_REC_COOLANT;
+	       rec->type == MLIP_REC_TOOL || rec->type == MLIP_REC_COOLANT ||
+	       rec->type == MLIP_REC_OUTPUT || rec->type == MLIP_REC_PROBE;
 }
 
 /* The ring is empty and nothing will fill it. */
@@ -236,6 +247,21 @@ static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 
 /* ---- waits: dwell, pause ------------------------------------------------- */
 
+/* A probe that cannot start or did not trip (G38.2/.4) stops the program
+ * at rest, as LinuxCNC's probe errors end theirs: the rest of it is
+ * dropped, the machine stays ready (idle, the reason named); a record the
+ * planner refused is a fault as any. */
+static void probe_abort(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl_reason r)
+{
+	if (r.why == MLIP_WHY_BAD_RECORD) {
+		mlip_ct_fault(c, out, r);
+		return;
+	}
+	c->prog.discard = 1;
+	c->prog.end.seq = 0;
+	go(c, out, MLIP_STATE_IDLE, r);
+}
+
 /* At rest with an event record next: take it. */
 static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
                        const struct mlip_ring_rec *rec)
@@ -259,6 +285,27 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		r.why = MLIP_WHY_SPINDLE_WAIT;
 		r.value = rec->dwell_s;
 		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_OUTPUT ||
+	           (rec->type == MLIP_REC_COOLANT && mlip_mio_coolant_io(c))) {
+		/* the module's outputs, at rest: a wait of no period (issue 19) */
+		struct mlip_ctl_reason w;
+		if (mlip_mio_switch(c, rec, &w) != MLIP_OK) {
+			mlip_ct_fault(c, out, w);
+			return;
+		}
+		c->wait.dwell_left = 0;
+		r.why = MLIP_WHY_OUTPUT;
+		r.field = rec->type;
+		r.value = rec->dwell_s;
+		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_PROBE) {
+		/* G38: its move, watched by mlip_mio_period (issue 19) */
+		struct mlip_ctl_reason w;
+		if (mlip_mio_probe_start(c, rec, &w) != MLIP_OK) {
+			probe_abort(c, out, w);
+			return;
+		}
+		go(c, out, MLIP_STATE_RUNNING, w);
 	} else if (rec->type == MLIP_REC_SPINDLE || rec->type == MLIP_REC_TOOL ||
 	           rec->type == MLIP_REC_COOLANT) {
 		/* a manual spindle, tool change or coolant: the operator does it
@@ -396,6 +443,9 @@ void mlip_ct_blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 	}
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD: {
+		if (c->mio.probe_on) {
+			return; /* a probe move: what follows is taken once it ended */
+		}
 		if (mlip_planner_queued(c->planner) == 0 && have && is_event(head) &&
 		    mlip_ctl_check_record(&c->m, head, c->prog.next_seq, NULL) == MLIP_OK) {
 			start_event(c, out, in, head);
@@ -475,7 +525,16 @@ void mlip_ct_after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
 	switch (c->state) {
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD:
-		if (rs == MLIP_RUN_IDLE && c->prog.end.seq != 0) {
+		if (rs == MLIP_RUN_IDLE && c->mio.probe_on) {
+			/* the probe move at rest: its result, then the program goes on */
+			struct mlip_ctl_reason w;
+			c->prog.exec = c->wait.at;
+			if (mlip_mio_probe_end(c, &w) != MLIP_OK) {
+				probe_abort(c, out, w);
+			} else {
+				end_wait(c, out, in, 0, MLIP_WHY_PROBED);
+			}
+		} else if (rs == MLIP_RUN_IDLE && c->prog.end.seq != 0) {
 			c->prog.exec = c->prog.end; /* the program is done, at rest */
 			c->prog.end.seq = 0;
 			go(c, out, MLIP_STATE_IDLE,

@@ -101,8 +101,10 @@ struct blk {
 	int m6, m61;        /* M6, M61 on the line */
 	unsigned coolant_m; /* M7: MLIP_COOLANT_MIST, M8: MLIP_COOLANT_FLOOD */
 	int m9;
-	int g43; /* 430 G43, 431 G43.1, 490 G49, 0 none */
-	uint32_t spindle_col, m6_col, m61_col, coolant_col, m9_col, g43_col;
+	int g43;   /* 430 G43, 431 G43.1, 490 G49, 0 none */
+	int dout;  /* 64 M64, 65 M65 (output P on / off), 0 none */
+	int probe; /* 382..385 for G38.2..G38.5 (a motion: motion_col), 0 none */
+	uint32_t spindle_col, m6_col, m61_col, coolant_col, m9_col, g43_col, dout_col;
 	char io_notes[MAX_WORDS][8]; /* those words in order: notices without set_io */
 	int n_io_notes;
 };
@@ -121,6 +123,7 @@ struct plan {
 	int has_axes;   /* axis words on the line */
 	int axis_use;   /* they are not motion: G10, G92, G28/G30 */
 	int g0_default; /* they move as G0: no motion mode yet (Grbl) */
+	int probe;      /* G38.2..G38.5 (382..385): a probe move (motion 1), 0 none */
 	uint32_t mcol;  /* column to blame for the motion: its G word, else the line */
 };
 
@@ -218,6 +221,10 @@ int mlip_gc_flush_io(struct mlip_gcode *g, struct emit_ctx *ec);
 mlip_status mlip_gc_end_io(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, uint32_t line);
 /* Config index of Z, or -1. */
 int mlip_gc_z_index(const struct mlip_machine *m);
+/* G38.2..G38.5 (pl->probe): checked, then a PROBE block toward t. */
+mlip_status mlip_gc_probe(struct mlip_gcode *g, const struct blk *b, const struct plan *pl,
+                          struct emit_ctx *ec, const double *s, const double *t,
+                          const uint32_t *col_of, uint32_t line, struct mlip_gcode_error *e);
 
 /* ---- grblsys.c ---- */
 

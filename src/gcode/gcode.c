@@ -22,6 +22,108 @@
 
 #include "gc.h"
 
+/* G38.x's words: a probe input, axis words and nothing else that moves or
+ * uses them, a feed per minute (LinuxCNC's rules for G38). */
+static mlip_status check_probe(const struct mlip_gcode *g, const struct blk *b, int has_axes,
+                               uint32_t line, struct mlip_gcode_error *e)
+{
+	unsigned sub = (unsigned)(b->probe % 10);
+
+	if (g->io == NULL) {
+		return mlip_gc_fail(e, line, b->motion_col, MLIP_E_UNSUPPORTED,
+		                    "G38.%u: probing needs the machine's config (--config) with a "
+		                    "probe input ([IO] PROBE)",
+		                    sub);
+	}
+	if (!g->io->probe) {
+		return mlip_gc_fail(e, line, b->motion_col, MLIP_E_UNSUPPORTED,
+		                    "G38.%u: this machine has no probe input ([IO] PROBE)", sub);
+	}
+	if (!has_axes) {
+		return mlip_gc_fail(e, line, b->motion_col, MLIP_E_SYNTAX,
+		                    "G38.%u without axis words: give the point to probe toward, "
+		                    "e.g. G38.%u Z-10 F100",
+		                    sub, sub);
+	}
+	if (b->home || b->g10 || b->g92 == 920 || b->g43 == 431 || b->g53) {
+		return mlip_gc_fail(e, line, b->motion_col, MLIP_E_SYNTAX,
+		                    "G38.%u with %G on one line: put them on separate lines", sub,
+		                    b->home         ? b->home * 10
+		                    : b->g10        ? 100
+		                    : b->g53        ? 530
+		                    : b->g43 == 431 ? 431
+		                                    : 920);
+	}
+	if (b->feedmode == 93 || (!b->feedmode && g->inverse_time)) {
+		return mlip_gc_fail(e, line, b->motion_col, MLIP_E_SYNTAX,
+		                    "G38.%u in inverse time (G93): probe with a feed per minute "
+		                    "(G94)",
+		                    sub);
+	}
+	return MLIP_OK;
+}
+
+/* After a G38 the probed axes stand where the probe stopped them, known
+ * only when the program runs (the feeder checks it whole before): a line
+ * that would use that position is refused. A move (or a probe) must give
+ * every such axis in absolute coordinates (G90 or G53): its target is then
+ * known, and the straight line to it from anywhere on the probe's path
+ * stays inside the soft limits (a box). Arcs, G28/G30, G10 L20, G92 and a
+ * tool change's moves on such an axis are refused. */
+static mlip_status check_unknown(const struct mlip_gcode *g, const struct blk *b,
+                                 const struct plan *pl, uint32_t first_col, uint32_t line,
+                                 struct mlip_gcode_error *e)
+{
+	const struct mlip_machine *m = g->m;
+	int i, a;
+
+	for (i = 0; i < m->n_axes; i++) {
+		char L = mlip_upper(m->axis[i].letter);
+		uint32_t col;
+		if (!(g->unknown >> i & 1u)) {
+			continue;
+		}
+		a = mlip_gc_axis_slot(L);
+		col = b->has_ax[a] ? b->ax_col[a] : 0;
+		if (b->has_ax[a] && (b->g10 || b->g92 == 920)) {
+			return mlip_gc_fail(
+			    e, line, col, MLIP_E_UNSUPPORTED,
+			    "%s %c after the G38 of line %u: where the probe stopped "
+			    "%c is known only when the program runs; touch off by "
+			    "MDI after the probe",
+			    b->g10 ? "G10" : "G92", L, g->probe_line, L);
+		}
+		if ((pl->moves || pl->probe) && (!b->has_ax[a] || (!g->absolute && !b->g53))) {
+			return mlip_gc_fail(e, line,
+			                    col        ? col
+			                    : pl->mcol ? pl->mcol
+			                               : first_col,
+			                    MLIP_E_UNSUPPORTED,
+			                    "after the G38 of line %u this move must give %c in "
+			                    "absolute coordinates (G90 or G53): where the probe "
+			                    "stopped %c is known only when the program runs",
+			                    g->probe_line, L, L);
+		}
+	}
+	if (pl->moves && pl->motion >= 2) {
+		return mlip_gc_fail(e, line, pl->mcol, MLIP_E_UNSUPPORTED,
+		                    "an arc right after the G38 of line %u: its start is known "
+		                    "only when the program runs; move with G0/G1 first",
+		                    g->probe_line);
+	}
+	if (b->home || (b->m6 && g->io != NULL && g->io->change_mask != 0)) {
+		return mlip_gc_fail(e, line, b->home ? b->home_col : b->m6_col, MLIP_E_UNSUPPORTED,
+		                    "%s right after the G38 of line %u: the path from where the "
+		                    "probe stopped is known only when the program runs; move "
+		                    "with G0/G1 first",
+		                    b->home == 28 ? "G28"
+		                    : b->home     ? "G30"
+		                                  : "M6",
+		                    g->probe_line);
+	}
+	return MLIP_OK;
+}
+
 /* Words against the machine and the modal state. */
 static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
                               const struct lexed *lx, uint32_t line, struct plan *pl,
@@ -30,6 +132,7 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 	uint32_t first_ax = 0, c;
 	int a, i, has_axes = 0, arc_words, inverse;
 	char L = 'R';
+	mlip_status st;
 
 	for (a = 0; a < 6; a++) {
 		if (!b->has_ax[a]) {
@@ -78,6 +181,21 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 	}
 	pl->motion = b->motion >= 0 ? b->motion : g->motion;
 	pl->mcol = b->motion >= 0 ? b->motion_col : lx->first_col;
+	pl->probe = b->probe;
+	if (b->probe) {
+		st = check_probe(g, b, has_axes, line, e);
+		if (st != MLIP_OK) {
+			return st;
+		}
+		pl->motion = 1; /* a feed move toward the target */
+		pl->mcol = b->motion_col;
+	} else if (b->motion < 0 && g->probe_mode && has_axes && !pl->axis_use) {
+		/* LinuxCNC would probe again: say it on the line instead */
+		return mlip_gc_fail(e, line, first_ax, MLIP_E_SYNTAX,
+		                    "axis words after G38.%u with no motion code: write G0/G1 "
+		                    "to move, or G38.%u again to probe again",
+		                    (unsigned)(g->probe_mode % 10), (unsigned)(g->probe_mode % 10));
+	}
 	arc_words = b->has_ijk[0] || b->has_ijk[1] || b->has_ijk[2] || (b->has_r && !b->g10);
 	if (arc_words && (pl->motion < 2 || pl->axis_use)) {
 		c = b->has_r ? b->r_col : 0;
@@ -145,7 +263,7 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 	struct mlip_gcode_error dummy;
 	struct lexed lx;
 	struct blk b;
-	struct plan pl = {-1, 0, 0, 0, 0, 0};
+	struct plan pl = {-1, 0, 0, 0, 0, 0, 0};
 	struct emit_ctx ec;
 	struct arc arc;
 	double start[MLIP_MAX_AXES], t[MLIP_MAX_AXES], scale, k;
@@ -267,9 +385,13 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 	ec.feed_mm_s = m->max_feed_mm_s; /* rapids: informative, the planner ignores it */
 	ec.dwell_pending = b.g4;
 	ec.dwell_s = b.p;
-	st = MLIP_OK;
-	if (b.home) {
+	st = g->unknown ? check_unknown(g, &b, &pl, lx.first_col, lineno, err) : MLIP_OK;
+	if (st != MLIP_OK) {
+		/* the modes and offsets of the line are committed: as any motion error */
+	} else if (b.home) {
 		st = mlip_gc_go_home(g, &b, &pl, &ec, t, col_of, lineno, err);
+	} else if (pl.probe) {
+		st = mlip_gc_probe(g, &b, &pl, &ec, start, t, col_of, lineno, err);
 	} else if (pl.moves) {
 		st = pl.motion > 0 && !g->inverse_time
 		         ? mlip_gc_block_feed(g, &pl, start, t, lineno, &ec.feed_mm_s, err)
@@ -295,7 +417,11 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 		}
 		if (st == MLIP_OK) {
 			memcpy(g->cur, t, sizeof g->cur);
+			g->unknown = 0; /* every axis given absolutely (check_unknown) */
 		}
+	}
+	if (st == MLIP_OK && b.motion >= 0) {
+		g->probe_mode = 0;
 	}
 	if (st == MLIP_OK && mlip_gc_flush_dwell(g, &ec) != 0) {
 		st = MLIP_E_FULL;
@@ -335,10 +461,10 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 	return st;
 }
 
-/* The program's offsets differ from those it started with (compared value
- * by value: the structs hold padding). */
-static int offsets_changed(const struct mlip_gcode_offsets *a, const struct mlip_gcode_offsets *b)
+/* Compared value by value: the structs hold padding. */
+int mlip_gcode_offsets_changed(const struct mlip_gcode *g)
 {
+	const struct mlip_gcode_offsets *a = &g->off_start, *b = &g->off;
 	int diff = a->g92_on != b->g92_on || a->select != b->select || a->tool != b->tool;
 
 	for (int i = 0; i < MLIP_MAX_AXES; i++) {
@@ -355,7 +481,7 @@ mlip_status mlip_gcode_finish(struct mlip_gcode *g, uint32_t last_line,
 {
 	struct mlip_gcode_error dummy;
 
-	if (g->moves == 0 && !g->mdi && !offsets_changed(&g->off_start, &g->off)) {
+	if (g->moves == 0 && !g->mdi && !mlip_gcode_offsets_changed(g)) {
 		return mlip_gc_fail(err ? err : &dummy, last_line ? last_line : 1, 0, MLIP_E_SYNTAX,
 		                    "empty program: no motion");
 	}

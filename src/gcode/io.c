@@ -163,6 +163,21 @@ mlip_status mlip_gc_check_io(const struct mlip_gcode *g, const struct blk *b, ui
 		                    "--ignore-coolant runs the program without it",
 		                    b->coolant_m & MLIP_COOLANT_MIST ? 7u : 8u);
 	}
+	if (st == MLIP_OK && b->coolant_m && !io->ignore_coolant && io->coolant == MLIP_IO_MODULE &&
+	    (b->coolant_m & ~io->coolant_outlets) != 0) {
+		unsigned mist = (b->coolant_m & ~io->coolant_outlets) & MLIP_COOLANT_MIST;
+		return mlip_gc_fail(e, line, b->coolant_col, MLIP_E_UNSUPPORTED,
+		                    "M%u: this machine's coolant has no %s outlet ([COOLANT] %s is "
+		                    "not mapped)",
+		                    mist ? 7u : 8u, mist ? "mist" : "flood",
+		                    mist ? "MIST" : "FLOOD");
+	}
+	if (st == MLIP_OK && b->dout && !(io->dout_mask >> (unsigned)b->p & 1u)) {
+		return mlip_gc_fail(e, line, b->p_col, MLIP_E_UNSUPPORTED,
+		                    "M%u P%u: digital output %u is not mapped ([IO] OUTPUT_%u)",
+		                    (unsigned)b->dout, (unsigned)b->p, (unsigned)b->p,
+		                    (unsigned)b->p);
+	}
 	return st;
 }
 
@@ -468,7 +483,10 @@ void mlip_gc_exec_io(struct mlip_gcode *g, const struct blk *b, double scale, st
 	exec_tools(g, b, scale, ec, ec->line, 0);      /* T, M6, M61 */
 	exec_spindle(g, b, ec, ec->line, 0, s_before); /* M3, M4, M5 */
 	exec_coolant(g, b, ec, ec->line);              /* M7, M8, M9 */
-	exec_tools(g, b, scale, ec, ec->line, 1);      /* G43, G43.1, G49 */
+	if (b->dout) {                                 /* M64, M65 */
+		queue(ec, MLIP_BLOCK_OUTPUT, b->dout == 64 ? b->p + 1.0 : -(b->p + 1.0));
+	}
+	exec_tools(g, b, scale, ec, ec->line, 1); /* G43, G43.1, G49 */
 }
 
 mlip_status mlip_gc_end_io(struct mlip_gcode *g, mlip_block_sink sink, void *ctx, uint32_t line)
@@ -488,5 +506,85 @@ mlip_status mlip_gc_end_io(struct mlip_gcode *g, mlip_block_sink sink, void *ctx
 			return MLIP_E_FULL;
 		}
 	}
+	return MLIP_OK;
+}
+
+/* G38.2..G38.5: a feed move toward t that the controller stops at the
+ * acceleration limit when the probe input changes (issue 19). The feed is
+ * the program's own F (never the --default-feed: a probe runs at a speed the
+ * program chose); the move goes somewhere and moves no rotary axis
+ * (LinuxCNC). Afterwards the moved axes stand where the probe stopped them:
+ * unknown to the check (check_unknown in gcode.c). */
+mlip_status mlip_gc_probe(struct mlip_gcode *g, const struct blk *b, const struct plan *pl,
+                          struct emit_ctx *ec, const double *s, const double *t,
+                          const uint32_t *col_of, uint32_t line, struct mlip_gcode_error *e)
+{
+	const struct mlip_machine *m = g->m;
+	unsigned sub = (unsigned)(b->probe % 10);
+	struct mlip_block blk;
+	double d2 = 0;
+	uint32_t moved = 0;
+	mlip_status st;
+	int i;
+
+	if (!(g->feed_mm_s > 0)) {
+		return mlip_gc_fail(
+		    e, line, b->motion_col, MLIP_E_SYNTAX,
+		    "G38.%u with no F: give the probing feed, e.g. G38.%u Z-10 F100", sub, sub);
+	}
+	for (i = 0; i < m->n_axes; i++) {
+		if (fabs(t[i] - s[i]) < MLIP_GCODE_MERGE_MM) {
+			continue;
+		}
+		if (m->axis[i].kind == MLIP_AXIS_ROTARY) {
+			return mlip_gc_fail(e, line, col_of[i], MLIP_E_UNSUPPORTED,
+			                    "G38.%u moves %c: a probe moves linear axes only", sub,
+			                    mlip_upper(m->axis[i].letter));
+		}
+		moved |= 1u << i;
+		d2 += (t[i] - s[i]) * (t[i] - s[i]);
+	}
+	if (moved == 0) {
+		return mlip_gc_fail(e, line, b->motion_col, MLIP_E_RANGE,
+		                    "G38.%u to the current position: the probe would not move",
+		                    sub);
+	}
+	(void)d2;
+	st = mlip_gc_block_feed(g, pl, s, t, line, &ec->feed_mm_s, e);
+	if (st == MLIP_OK) {
+		st = mlip_gc_check_limits(g, t, col_of, line, 0, e);
+	}
+	if (st == MLIP_OK) {
+		st = mlip_gc_move_feed(g, b, pl, s, t, NULL, line, &ec->feed_mm_s, e);
+	}
+	if (st != MLIP_OK) {
+		return st;
+	}
+	if (mlip_gc_flush_dwell(g, ec) != 0) {
+		return MLIP_E_FULL;
+	}
+	memset(&blk, 0, sizeof blk);
+	for (i = 0; i < m->n_axes; i++) {
+		blk.target[i] = t[i];
+	}
+	blk.kind = MLIP_BLOCK_PROBE;
+	blk.value = (b->probe == 382 || b->probe == 384 ? MLIP_PROBE_MUST_TRIP : 0u) |
+	            (b->probe >= 384 ? MLIP_PROBE_AWAY : 0u);
+	blk.feed_mm_s = ec->feed_mm_s;
+	blk.tol_mm = g->tol_mm;
+	blk.line = line;
+	blk.exact_stop = 1; /* it starts and ends at rest */
+	g->broken_rule = mlip_block_check(m, &blk);
+	if (g->broken_rule != MLIP_RULE_OK || ec->sink(ec->ctx, &blk) != 0) {
+		return MLIP_E_FULL;
+	}
+	for (i = 0; i < m->n_axes; i++) {
+		g->pos[i] = g->cur[i] = t[i];
+	}
+	g->blocks++;
+	g->moves++;
+	g->unknown = moved; /* the others were given absolutely (check_unknown) */
+	g->probe_mode = b->probe;
+	g->probe_line = line;
 	return MLIP_OK;
 }

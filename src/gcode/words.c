@@ -23,6 +23,7 @@ enum gkind {
 	GK_G92,      /* G92, G92.1, G92.2, G92.3 */
 	GK_FEEDMODE, /* G93/G94 */
 	GK_TOOLLEN,  /* G43, G43.1, G49 */
+	GK_PROBE,    /* G38.2..G38.5 (io.c) */
 	GK_NOTICE,   /* accepted, no effect on motion */
 	GK_SILENT,   /* accepted, it is what mlip does anyway (G91.1) */
 	GK_UNSUP
@@ -84,7 +85,7 @@ static const struct gdef gtab[] = {
     {70, 80, GK_UNSUP, 0, "lathe diameter/radius mode"},
     {330, 331, GK_UNSUP, 0, "spindle-synchronized motion"},
     {760, 760, GK_UNSUP, 0, "threading cycle"},
-    {382, 385, GK_UNSUP, 0, "probing"},
+    {382, 385, GK_PROBE, GR_MOTION, 0},
     {410, 421, GK_UNSUP, 0, "cutter radius compensation"},
     {432, 432, GK_UNSUP, 0, "an additional tool length offset (G43.2)"},
     {520, 520, GK_UNSUP, 0, "local offsets (use G92 or G10 L2)"},
@@ -123,8 +124,12 @@ static const char *m_refused(int code10)
 	if (m == 98 || m == 99) {
 		return ": subprogram calls (have the CAM expand them)";
 	}
-	if (m >= 62 && m <= 68) {
-		return ": digital/analog I/O synchronized with motion or a wait for an input";
+	if (m == 62 || m == 63) {
+		return ": a digital output synchronized with motion (M64/M65 switch one with "
+		       "the machine at rest)";
+	}
+	if (m >= 66 && m <= 68) {
+		return ": a wait for an input, or an analog output";
 	}
 	if (m >= 70 && m <= 73) {
 		return ": saving and restoring the modal state";
@@ -255,6 +260,11 @@ static mlip_status classify_g(const struct word *w, uint32_t line, struct blk *b
 			note_io(b, 'G', c);
 		}
 		break;
+	case GK_PROBE:
+		b->probe = c;
+		b->motion_col = w->col;
+		note_io(b, 'G', c);
+		break;
 	case GK_NOTICE:
 		note_word(b, 'G', c);
 		break;
@@ -338,6 +348,17 @@ mlip_status mlip_gc_classify(const struct lexed *lx, uint32_t line, struct blk *
 				b->m6 = c == 60;
 				b->m61 = c == 610;
 				b->m6_col = b->m61_col = w->col;
+				note_io(b, 'M', c);
+			} else if (c == 640 || c == 650) {
+				/* M64/M65 Pn: one a line (they share the P word) */
+				if (b->dout) {
+					return mlip_gc_fail(e, line, w->col, MLIP_E_SYNTAX,
+					                    "M%u and M%u on one line: one output "
+					                    "word a line (they share P)",
+					                    (unsigned)b->dout, (unsigned)(c / 10));
+				}
+				b->dout = c / 10;
+				b->dout_col = w->col;
 				note_io(b, 'M', c);
 			} else if (c == 70 || c == 80 || c == 90) {
 				/* group 8: M7 and M8 together turn both on; M9 alone */
@@ -441,13 +462,23 @@ mlip_status mlip_gc_classify(const struct lexed *lx, uint32_t line, struct blk *
 /* P, Q, L and R words against the codes that take them (LinuxCNC's rules). */
 static mlip_status classify_params(const struct blk *b, uint32_t line, struct mlip_gcode_error *e)
 {
-	int n = (b->g4 != 0) + (b->g10 != 0) + (b->g64 != 0);
+	int n = (b->g4 != 0) + (b->g10 != 0) + (b->g64 != 0) + (b->dout != 0);
 
 	if (b->has_p && n != 1) {
 		return mlip_gc_fail(
 		    e, line, b->p_col, MLIP_E_SYNTAX,
-		    n ? "P word with two of G4, G10, G64: put them on separate lines"
-		      : "P word without G4, G10 or G64");
+		    n ? "P word with two of G4, G10, G64, M64/M65: put them on separate lines"
+		      : "P word without G4, G10, G64 or M64/M65");
+	}
+	if (b->dout && !b->has_p) {
+		return mlip_gc_fail(e, line, b->dout_col, MLIP_E_SYNTAX,
+		                    "M%u without P: give the output number, e.g. M%u P0",
+		                    (unsigned)b->dout, (unsigned)b->dout);
+	}
+	if (b->dout && !(b->p >= 0 && b->p < MLIP_DOUT_MAX && b->p == floor(b->p))) {
+		return mlip_gc_fail(e, line, b->p_col, MLIP_E_RANGE,
+		                    "M%u P%g: the output number is a whole number 0..%u",
+		                    (unsigned)b->dout, b->p, (unsigned)(MLIP_DOUT_MAX - 1));
 	}
 	if (b->has_q && !b->g64 && !b->m61) {
 		return mlip_gc_fail(e, line, b->q_col, MLIP_E_SYNTAX, "Q word without G64 or M61");

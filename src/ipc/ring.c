@@ -37,8 +37,8 @@
 MLIP_RING_CHECK(rec_size, sizeof(struct mlip_ring_rec) == 88);
 MLIP_RING_CHECK(rec_align, sizeof(struct mlip_ring_rec) % 8 == 0);
 MLIP_RING_CHECK(rec_target, offsetof(struct mlip_ring_rec, target) == 16);
-MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1408);
-MLIP_RING_CHECK(off_io, offsetof(struct mlip_ring, io) == 1280);
+MLIP_RING_CHECK(hdr_size, sizeof(struct mlip_ring) == 1472);
+MLIP_RING_CHECK(off_io, offsetof(struct mlip_ring, io) == 1344);
 MLIP_RING_CHECK(io_size, sizeof(struct mlip_ring_io) == 88);
 MLIP_RING_CHECK(hdr_lines, sizeof(struct mlip_ring) % MLIP_RING_LINE == 0);
 MLIP_RING_CHECK(line_pow2, MLIP_RING_IS_POW2(MLIP_RING_LINE));
@@ -47,13 +47,13 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 360);
-MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 640);
-MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 648);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 432);
+MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 704);
+MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 712);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 40);
-MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_word) == 704);
-MLIP_RING_CHECK(off_stop, offsetof(struct mlip_ring, stop_req) == 712);
-MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 768);
+MLIP_RING_CHECK(off_cmd, offsetof(struct mlip_ring, cmd_word) == 768);
+MLIP_RING_CHECK(off_stop, offsetof(struct mlip_ring, stop_req) == 776);
+MLIP_RING_CHECK(off_machine, offsetof(struct mlip_ring, machine) == 832);
 
 /* shared-memory atomics must not fall back to a process-local lock */
 #if !defined(__GCC_ATOMIC_LLONG_LOCK_FREE) || __GCC_ATOMIC_LLONG_LOCK_FREE != 2 ||                 \
@@ -179,6 +179,7 @@ void mlip_ring_io_publish(struct mlip_ring *r, const struct mlip_ring_io *io)
 	ST(&d->tool_change, io->tool_change, RLX);
 	ST(&d->coolant, io->coolant, RLX);
 	ST(&d->change_mask, io->change_mask, RLX);
+	ST(&d->outputs, io->outputs, RLX);
 	STD(&d->min_rpm, &io->min_rpm);
 	STD(&d->max_rpm, &io->max_rpm);
 	for (i = 0; i < MLIP_MAX_AXES; i++) {
@@ -201,6 +202,7 @@ mlip_status mlip_ring_io_read(const struct mlip_ring *r, struct mlip_ring_io *ou
 	out->tool_change = LD(&d->tool_change, RLX);
 	out->coolant = LD(&d->coolant, RLX);
 	out->change_mask = LD(&d->change_mask, RLX);
+	out->outputs = LD(&d->outputs, RLX);
 	LDD(&d->min_rpm, &out->min_rpm);
 	LDD(&d->max_rpm, &out->max_rpm);
 	for (i = 0; i < MLIP_MAX_AXES; i++) {
@@ -489,7 +491,7 @@ mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ri
 /* block kind <-> record type: the same events in both (types.h) */
 static const uint16_t kind_type[] = {MLIP_REC_MOVE,           MLIP_REC_DWELL,   MLIP_REC_PAUSE,
                                      MLIP_REC_OPTIONAL_PAUSE, MLIP_REC_SPINDLE, MLIP_REC_TOOL,
-                                     MLIP_REC_COOLANT};
+                                     MLIP_REC_COOLANT,        MLIP_REC_OUTPUT,  MLIP_REC_PROBE};
 
 void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b, uint64_t seq)
 {
@@ -547,6 +549,12 @@ mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_
 		break;
 	case MLIP_REC_COOLANT:
 		kind = MLIP_BLOCK_COOLANT;
+		break;
+	case MLIP_REC_OUTPUT:
+		kind = MLIP_BLOCK_OUTPUT;
+		break;
+	case MLIP_REC_PROBE:
+		kind = MLIP_BLOCK_PROBE;
 		break;
 	default:
 		return MLIP_E_INVALID;
@@ -620,6 +628,14 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	ST(&d->io_mapped, s->io_mapped, REL);
 	ST(&d->io_known, s->io_known, REL);
 	ST(&d->homed, s->homed, REL);
+	ST(&d->coolant, s->coolant, REL);
+	ST(&d->outputs, s->outputs, REL);
+	ST(&d->probe_count, s->probe_count, REL);
+	ST(&d->probe_tripped, s->probe_tripped, REL);
+	ST(&d->probe_line, s->probe_line, REL);
+	for (int k = 0; k < MLIP_MAX_AXES; k++) {
+		STD(&d->probe_pos[k], &s->probe_pos[k]);
+	}
 	ST(&d->spindle_state, s->spindle_state, REL);
 	STD(&d->spindle_cmd_rpm, &s->spindle_cmd_rpm);
 	STD(&d->spindle_actual_rpm, &s->spindle_actual_rpm);
@@ -681,6 +697,14 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		s->io_mapped = LD(&d->io_mapped, ACQ);
 		s->io_known = LD(&d->io_known, ACQ);
 		s->homed = LD(&d->homed, ACQ);
+		s->coolant = LD(&d->coolant, ACQ);
+		s->outputs = LD(&d->outputs, ACQ);
+		s->probe_count = LD(&d->probe_count, ACQ);
+		s->probe_tripped = LD(&d->probe_tripped, ACQ);
+		s->probe_line = LD(&d->probe_line, ACQ);
+		for (int k = 0; k < MLIP_MAX_AXES; k++) {
+			LDD(&d->probe_pos[k], &s->probe_pos[k]);
+		}
 		s->spindle_state = LD(&d->spindle_state, ACQ);
 		LDD(&d->spindle_cmd_rpm, &s->spindle_cmd_rpm);
 		LDD(&d->spindle_actual_rpm, &s->spindle_actual_rpm);
@@ -861,7 +885,8 @@ const char *mlip_rec_field_name(uint32_t field)
 const char *mlip_rec_type_name(uint32_t type)
 {
 	static const char *const names[] = {"move",           "end",     "dwell", "pause",
-	                                    "optional pause", "spindle", "tool",  "coolant"};
+	                                    "optional pause", "spindle", "tool",  "coolant",
+	                                    "output",         "probe"};
 
 	return NAME_OF(names, type);
 }

@@ -285,6 +285,10 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		return parse_coords(ps, v, nv, line, col, err);
 	case V_IOBIT:
 		return mlip_mc_parse_iobit(v, nv, line, col, kd->name, &st->ival[k], err);
+	case V_COOLANT:
+	case V_OUTBIT:
+		return mlip_mc_parse_output(kd->type, v, nv, line, col, kd->name, &st->ival[k],
+		                            err);
 	case V_POS:
 	case V_REAL:
 	case V_PERIOD:
@@ -876,6 +880,9 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
 	}
 	if (st == MLIP_OK) {
 		st = mlip_mc_fill_inputs(&ps, &out, err);
+	}
+	if (st == MLIP_OK) {
+		st = mlip_mc_fill_outputs(&ps, &out, err);
 	}
 	if (st == MLIP_OK) {
 		st = mlip_mc_fill_home(&ps, &out, err);

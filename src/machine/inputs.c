@@ -24,8 +24,7 @@ static struct mlip_io_bit unpack(int64_t v, uint32_t line)
 	return b;
 }
 
-/* The next blank-separated token of v[*p..nv): its start and length. */
-static size_t token(const char *v, size_t nv, size_t *p, size_t *start)
+size_t mlip_mc_token(const char *v, size_t nv, size_t *p, size_t *start)
 {
 	size_t q = *p;
 
@@ -40,8 +39,8 @@ static size_t token(const char *v, size_t nv, size_t *p, size_t *start)
 	return q - *start;
 }
 
-static mlip_status bad(struct mlip_config_error *err, uint32_t line, uint32_t col, const char *key,
-                       const char *what, const char *tok, size_t ntok)
+mlip_status mlip_mc_value_err(struct mlip_config_error *err, uint32_t line, uint32_t col,
+                              const char *key, const char *what, const char *tok, size_t ntok)
 {
 	struct mlip_tb b;
 
@@ -56,52 +55,69 @@ static mlip_status bad(struct mlip_config_error *err, uint32_t line, uint32_t co
 	return MLIP_E_SYNTAX;
 }
 
+mlip_status mlip_mc_node_object(const char *v, const size_t *t, const size_t *n, uint32_t line,
+                                uint32_t col, const char *key, int64_t *node, int64_t *index,
+                                int64_t *sub, struct mlip_config_error *err)
+{
+	size_t colon;
+
+	if (mlip_number_int(v + t[0], n[0], node) != 0 || *node < 1 || *node > 127) {
+		return mlip_mc_value_err(err, line, col + (uint32_t)t[0], key,
+		                         ": NODE must be a node id 1..127", v + t[0], n[0]);
+	}
+	for (colon = 0; colon < n[1] && v[t[1] + colon] != ':'; colon++) {
+	}
+	if (colon == n[1] || mlip_number_int(v + t[1], colon, index) != 0 || *index < 0 ||
+	    *index > 0xFFFF || mlip_number_int(v + t[1] + colon + 1, n[1] - colon - 1, sub) != 0 ||
+	    *sub < 0 || *sub > 0xFF) {
+		return mlip_mc_value_err(err, line, col + (uint32_t)t[1], key,
+		                         ": the object must be INDEX:SUB (e.g. 0x6000:1)", v + t[1],
+		                         n[1]);
+	}
+	return MLIP_OK;
+}
+
 mlip_status mlip_mc_parse_iobit(const char *v, size_t nv, uint32_t line, uint32_t col,
                                 const char *key, int64_t *packed, struct mlip_config_error *err)
 {
 	static const char *const form =
 	    " must be NODE INDEX:SUB BIT HIGH|LOW (e.g. 10 0x6000:1 0 LOW)";
-	size_t p = 0, t[4], n[4], colon;
-
+	size_t p = 0, t[4], n[4];
 	int64_t node, index, sub, bit, low;
+	mlip_status st;
 	int i;
 
 	for (i = 0; i < 4; i++) {
-		n[i] = token(v, nv, &p, &t[i]);
+		n[i] = mlip_mc_token(v, nv, &p, &t[i]);
 		if (n[i] == 0) {
-			return bad(err, line, col + (uint32_t)t[i], key, form, NULL, 0);
+			return mlip_mc_value_err(err, line, col + (uint32_t)t[i], key, form, NULL,
+			                         0);
 		}
 	}
 	{
-		size_t s5, n5 = token(v, nv, &p, &s5);
+		size_t s5, n5 = mlip_mc_token(v, nv, &p, &s5);
 		if (n5 != 0) {
-			return bad(err, line, col + (uint32_t)s5, key, form, v + s5, n5);
+			return mlip_mc_value_err(err, line, col + (uint32_t)s5, key, form, v + s5,
+			                         n5);
 		}
 	}
-	if (mlip_number_int(v + t[0], n[0], &node) != 0 || node < 1 || node > 127) {
-		return bad(err, line, col + (uint32_t)t[0], key, ": NODE must be a node id 1..127",
-		           v + t[0], n[0]);
-	}
-	for (colon = 0; colon < n[1] && v[t[1] + colon] != ':'; colon++) {
-	}
-	if (colon == n[1] || mlip_number_int(v + t[1], colon, &index) != 0 || index < 0 ||
-	    index > 0xFFFF || mlip_number_int(v + t[1] + colon + 1, n[1] - colon - 1, &sub) != 0 ||
-	    sub < 0 || sub > 0xFF) {
-		return bad(err, line, col + (uint32_t)t[1], key,
-		           ": the object must be INDEX:SUB (e.g. 0x6000:1)", v + t[1], n[1]);
+	st = mlip_mc_node_object(v, t, n, line, col, key, &node, &index, &sub, err);
+	if (st != MLIP_OK) {
+		return st;
 	}
 	if (mlip_number_int(v + t[2], n[2], &bit) != 0 || bit < 0 || bit > 31) {
-		return bad(err, line, col + (uint32_t)t[2], key, ": BIT must be 0..31", v + t[2],
-		           n[2]);
+		return mlip_mc_value_err(err, line, col + (uint32_t)t[2], key,
+		                         ": BIT must be 0..31", v + t[2], n[2]);
 	}
 	if (n[3] == 4 && memcmp(v + t[3], "HIGH", 4) == 0) {
 		low = 0;
 	} else if (n[3] == 3 && memcmp(v + t[3], "LOW", 3) == 0) {
 		low = 1;
 	} else {
-		return bad(err, line, col + (uint32_t)t[3], key,
-		           ": the polarity must be HIGH (on when the bit is 1) or LOW (on when 0)",
-		           v + t[3], n[3]);
+		return mlip_mc_value_err(
+		    err, line, col + (uint32_t)t[3], key,
+		    ": the polarity must be HIGH (on when the bit is 1) or LOW (on when 0)",
+		    v + t[3], n[3]);
 	}
 	*packed = node | index << 8 | sub << 24 | bit << 32 | low << 40;
 	return MLIP_OK;

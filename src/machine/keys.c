@@ -65,12 +65,20 @@ const struct keydef mlip_mc_keytab[N_KINDS][NKEYS] = {
                 {"CHANGE_A", V_REAL, 0},
                 {"CHANGE_B", V_REAL, 0},
                 {"CHANGE_C", V_REAL, 0}},
-    [K_COOLANT] = {{"TYPE", V_IO, 0}},
+    [K_COOLANT] = {{"TYPE", V_COOLANT, 0}, {"MIST", V_OUTBIT, 0}, {"FLOOD", V_OUTBIT, 0}},
     [K_IO] = {{"NODE", V_NODE, 0},
               {"ESTOP", V_IOBIT, 0},
               {"HOLD", V_IOBIT, 0},
               {"CYCLE_START", V_IOBIT, 0},
-              {"PROBE", V_IOBIT, 0}},
+              {"PROBE", V_IOBIT, 0},
+              {"OUTPUT_0", V_OUTBIT, 0},
+              {"OUTPUT_1", V_OUTBIT, 0},
+              {"OUTPUT_2", V_OUTBIT, 0},
+              {"OUTPUT_3", V_OUTBIT, 0},
+              {"OUTPUT_4", V_OUTBIT, 0},
+              {"OUTPUT_5", V_OUTBIT, 0},
+              {"OUTPUT_6", V_OUTBIT, 0},
+              {"OUTPUT_7", V_OUTBIT, 0}},
 };
 
 /* "TRAJ", "CAN", "AXIS_X", ... */

@@ -87,7 +87,7 @@ enum {
 	DK_HOMING_REQUIRED
 };
 /* [IO]: the CiA 401 module's node, then the inputs in the order of MLIP_IN_* */
-enum { IK_NODE, IK_ESTOP, IK_HOLD, IK_CYCLE_START, IK_PROBE };
+enum { IK_NODE, IK_ESTOP, IK_HOLD, IK_CYCLE_START, IK_PROBE, IK_OUT0 /* OUTPUT_0..7 */ };
 enum {
 	SK_TYPE,
 	SK_MIN_RPM,
@@ -101,7 +101,7 @@ enum {
 };
 /* [TOOL]: CHANGE, then CHANGE_X .. CHANGE_C in AXIS_LETTERS order */
 enum { OK_CHANGE, OK_POS0 };
-enum { QK_TYPE };
+enum { QK_TYPE, QK_MIST, QK_FLOOD };
 
 /* How a value is read and which single-value range it must meet. */
 enum vtype {
@@ -124,7 +124,9 @@ enum vtype {
 	V_RPM,       /* decimal >= 0 */
 	V_IOBIT,     /* NODE INDEX:SUB BIT HIGH|LOW (io.c) */
 	V_METHOD,    /* integer -128..127 (0x6098, INTEGER8) */
-	V_SEQUENCE   /* integer 0..9 (HOME_SEQUENCE) */
+	V_SEQUENCE,  /* integer 0..9 (HOME_SEQUENCE) */
+	V_COOLANT,   /* none | manual | io ([COOLANT] TYPE; outputs.c) */
+	V_OUTBIT     /* NODE 0x6200:SUB BIT [HIGH] (outputs.c) */
 };
 
 struct keydef {
@@ -242,6 +244,16 @@ mlip_status mlip_mc_check_io(const struct pstate *ps, const struct mlip_config *
 
 /* ---- inputs.c ---- */
 
+/* The next blank-separated token of v[*p..nv): its start and length. */
+size_t mlip_mc_token(const char *v, size_t nv, size_t *p, size_t *start);
+/* err at line, col: "KEY" what [", got 'TOK'"] (tok NULL: none); MLIP_E_SYNTAX. */
+mlip_status mlip_mc_value_err(struct mlip_config_error *err, uint32_t line, uint32_t col,
+                              const char *key, const char *what, const char *tok, size_t ntok);
+/* The tokens t[0] (NODE, 1..127) and t[1] (INDEX:SUB) of a value at line, col. */
+mlip_status mlip_mc_node_object(const char *v, const size_t *t, const size_t *n, uint32_t line,
+                                uint32_t col, const char *key, int64_t *node, int64_t *index,
+                                int64_t *sub, struct mlip_config_error *err);
+
 /* A V_IOBIT value "NODE INDEX:SUB BIT HIGH|LOW" into *packed (mlip_mc_iobit
  * unpacks it); errors at line, col + the token's offset. */
 mlip_status mlip_mc_parse_iobit(const char *v, size_t nv, uint32_t line, uint32_t col,
@@ -251,6 +263,18 @@ mlip_status mlip_mc_parse_iobit(const char *v, size_t nv, uint32_t line, uint32_
  * two functions. */
 mlip_status mlip_mc_fill_inputs(const struct pstate *ps, struct mlip_config *c,
                                 struct mlip_config_error *err);
+
+/* ---- outputs.c ---- */
+
+/* A V_COOLANT or V_OUTBIT value into st->ival[k] (V_OUTBIT packed as
+ * V_IOBIT's); errors at line, col + the token's offset. */
+mlip_status mlip_mc_parse_output(int type, const char *v, size_t nv, uint32_t line, uint32_t col,
+                                 const char *key, int64_t *val, struct mlip_config_error *err);
+/* [COOLANT] MIST / FLOOD and [IO] OUTPUT_n into c->inputs.out (and
+ * out_bytes, c->io's outlets and outputs), checked: the I/O module's node,
+ * 0x6200:1..8 bits 0..7, one function a bit, TYPE = io with an outlet. */
+mlip_status mlip_mc_fill_outputs(const struct pstate *ps, struct mlip_config *c,
+                                 struct mlip_config_error *err);
 
 /* ---- home.c ---- */
 

@@ -745,7 +745,8 @@ static mlip_status push_move(struct mlip_smooth *sm, const struct mlip_block *b)
 
 mlip_status mlip_smooth_push(struct mlip_smooth *sm, const struct mlip_block *b)
 {
-	int is_move = b->kind == MLIP_BLOCK_MOVE;
+	/* a probe move (G38) passes as a rapid does: exact, never smoothed */
+	int is_move = b->kind == MLIP_BLOCK_MOVE || b->kind == MLIP_BLOCK_PROBE;
 	if (is_move) {
 		for (int k = 0; k < sm->n; k++) {
 			if (!isfinite(b->target[k])) {
@@ -758,7 +759,7 @@ mlip_status mlip_smooth_push(struct mlip_smooth *sm, const struct mlip_block *b)
 		return st;
 	}
 	sm->in_blocks++;
-	if (is_move && !b->rapid) {
+	if (b->kind == MLIP_BLOCK_MOVE && !b->rapid) {
 		return push_move(sm, b);
 	}
 	/* pass through, exact: a rapid or a program event */

@@ -2,6 +2,8 @@
 the host, without vcan: simulator and master are both the real `canopen`
 package, joined by python-can's in-process virtual bus. The bus version (with
 mlip-rt) is tests/can/test_io_vcan.py and tests/can/test_homing_vcan.py."""
+
+import json
 import time
 
 import can
@@ -106,3 +108,47 @@ def test_drive_homing_limit_switch(pair):
     # the switch is where it was, in the new reference: within a latch step
     # (10 counts) beyond the home position
     assert -1500 - 10 <= d.switches["neg"] < -1500, d.switches
+
+
+def test_module_probe_surface_and_outputs_per_sync(pair, tmp_path):
+    """The probe input follows drive 5's position against a surface (on at
+    or below it), sent in the module's TPDO at once; the outputs in force
+    are recorded at every SYNC (io.csv)."""
+    sim, net, _, _ = pair
+    m = sim.modules[10]
+    got = []
+    net.subscribe(0x18A, lambda cob, data, t: got.append(bytes(data)))
+    net.nmt.send_command(0x01)  # default mapping: TPDO1 = 0x6000:1
+    assert wait(lambda: got), "no TPDO on entering operational"
+    with pytest.raises(ValueError):
+        sim.inject(10, "probe", "1.3,5,5000,sideways")
+    sim.inject(10, "probe", "1.3,5,5000,below")  # the drive stands at 7000: off
+    assert m.inputs[0] & 0x08 == 0
+    n = len(got)
+    m.follow(5, 5001, 7)
+    assert len(got) == n and m.inputs[0] == 0
+    m.follow(5, 5000, 8)  # on the surface: on, sent now
+    assert wait(lambda: got[-1] == b"\x08"), got
+    m.follow(4, 100, 9)  # another drive: nothing
+    assert m.inputs[0] == 0x08
+    m.follow(5, 5200, 10)
+    assert wait(lambda: got[-1] == b"\x00"), got
+    ev = [
+        e
+        for e in map(json.loads, (tmp_path / "events.jsonl").read_text().splitlines())
+        if e["kind"] == "probe"
+    ]
+    assert [(e["on"], e["sync"], e["actual"]) for e in ev] == [(True, 8, 5000), (False, 10, 5200)]
+    # the outputs as RPDO1 set them, at every SYNC after
+    net.send_message(0x20A, b"\x05")
+    assert wait(lambda: m.outputs[0] == 0x05)
+    s0 = sim.sync_no
+    for _ in range(3):
+        net.sync.transmit()
+    assert wait(lambda: sim.sync_no >= s0 + 3)
+    sim.tick()  # the records to disk
+    rows = (tmp_path / "io.csv").read_text().splitlines()
+    assert rows[0] == "sync,node,t,outputs,inputs"
+    last = rows[-1].split(",")
+    assert int(last[1]) == 10 and bytes.fromhex(last[3])[0] == 0x05, rows[-3:]
+    assert len(rows) >= 4

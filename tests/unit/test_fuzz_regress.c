@@ -108,6 +108,10 @@ static const struct expect table[] = {
      "expected '=' after key G21"},
     /* NUL after a word, inside a comment, alone */
     {"gcode-nul.ngc", 1, 3, 2, 6, "NUL byte in line", SYN, 1, 4, "expected '=' after key G1"},
+    /* no motion, but offsets set (G10 L2) and selected (G55): a program
+     * (mlip_gcode_finish), which the invariants once called empty */
+    {"gcode-offsets-only.ngc", 0, 0, 0, 0, NULL, SYN, 1, 1,
+     "expected KEY = VALUE, a [SECTION] or a comment, got '('"},
     /* a truncated 2-byte and 3-byte sequence, a surrogate, an overlong NUL in
      * comments; a byte >= 0x80 outside one; a valid comment with an emoji */
     {"gcode-utf8-truncated.ngc", 1, 5, 1, 16, "invalid UTF-8 in comment", SYN, 1, 16,

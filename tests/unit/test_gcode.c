@@ -270,7 +270,9 @@ static void test_unsupported_codes(void **state)
 	          "unsupported G code G41: cutter radius compensation");
 	check_err("G43 H1", 1, 1, "G43: a tool length offset needs the machine's config");
 	check_err("G43.2 H1", 1, 1, "unsupported G code G43.2: an additional tool length offset");
-	check_err("G38.2 Z-10 F10", 1, 1, "unsupported G code G38.2: probing");
+	check_err("G38.2 Z-10 F10", 1, 1,
+	          "G38.2: probing needs the machine's config (--config) with a probe input "
+	          "([IO] PROBE)");
 	check_err("G81 X1 Y1 Z-1 R1 F10", 1, 1, "unsupported G code G81: canned cycles");
 	check_err("G52 X1", 1, 1, "unsupported G code G52: local offsets (use G92 or G10 L2)");
 	check_err("G59.4", 1, 1, "unsupported G code G59.4");
@@ -298,14 +300,16 @@ static void test_unsupported_codes(void **state)
 	check_err("G1.5 X1 F10", 1, 1, "unsupported G code G1.5");
 	check_err("G1 X1 F10 M98 P100", 1, 11, "unsupported M code M98");
 	check_err("G1 X1 F10 M62.1", 1, 11, "unsupported M code M62.1");
-	check_err("G1 X1 F10 M66 P1", 1, 11, "unsupported M code M66: digital/analog I/O");
+	check_err("G1 X1 F10 M66 P1", 1, 11, "unsupported M code M66: a wait for an input");
+	check_err("G1 X1 F10 M62 P1", 1, 11,
+	          "unsupported M code M62: a digital output synchronized with motion");
 	check_err("M70\nG1 X1 F10", 1, 1, "unsupported M code M70: saving and restoring");
 	check_err("M200\nG1 X1 F10", 1, 1, "unsupported M code M200");
 	check_err("M99\nG1 X1 F10", 1, 1, "unsupported M code M99: subprogram calls");
 	check_err("G1 G2 X1 F10", 1, 4, "two motion codes on one line: G1 and G2");
 	check_err("G1 X1 F10 G0", 1, 11, "two motion codes on one line: G1 and G0");
 	check_err("G90 G91 G1 X1 F10", 1, 5, "G90 and G91 on one line: same modal group");
-	check_err("G1 X1 F10 P2", 1, 11, "P word without G4, G10 or G64");
+	check_err("G1 X1 F10 P2", 1, 11, "P word without G4, G10, G64 or M64/M65");
 	check_err("G53 G91 G0 X1", 1, 1, "G53 with G91");
 	check_err("G1 X1 F10\nG53 G2 X0 I-1", 2, 1, "G53 needs G0 or G1");
 }

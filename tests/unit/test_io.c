@@ -456,7 +456,8 @@ static void test_config_sections(void **state)
 	/* each at the key (line:col of the value or the key) */
 	cfg_err("[SPINDLE]\nTYPE = auto\n", 17, 8,
 	        "TYPE must be none, manual or cia402, got 'auto'");
-	cfg_err("[COOLANT]\nTYPE = cia402\n", 17, 8, "TYPE must be none or manual, got 'cia402'");
+	cfg_err("[COOLANT]\nTYPE = cia402\n", 17, 8,
+	        "TYPE must be none, manual or io (the I/O module's outputs), got 'cia402'");
 	/* a CiA 402 spindle drive on the bus: its keys, defaults from the speeds */
 	assert_int_equal(parse_cfg("[SPINDLE]\nTYPE = cia402\nMAX_RPM = 12000\nNODE = 9\n"
 	                           "COUNTS_PER_REV = 4096\nACCELERATION = 10000\n",
@@ -495,7 +496,7 @@ static void test_config_sections(void **state)
 	cfg_err("[TOOL]\nCHANGE = manual\nCHANGE_A = 0\n", 18, 1, "axis A is not in COORDINATES");
 	cfg_err("[TOOL]\nCHANGE_Z = 10\n", 17, 1, "CHANGE = none has none");
 	cfg_err("[TOOL]\nCHANGE = manual\nCHANGE_W = 1\n", 18, 1, "unknown key CHANGE_W in [TOOL]");
-	cfg_err("[COOLANT]\nFLOOD = 1\n", 17, 1, "unknown key FLOOD in [COOLANT]");
+	cfg_err("[COOLANT]\nSPRAY = 1\n", 17, 1, "unknown key SPRAY in [COOLANT]");
 }
 
 /* ---- the tool table ----------------------------------------------------------- */

@@ -45,7 +45,7 @@ int mlip_smooth_stream_push(struct mlip_smooth_stream *ss, const struct mlip_blo
 	if (!ss->started) {
 		ss->pass = *b;
 		ss->has_pass = 1;
-		if (b->kind == MLIP_BLOCK_MOVE) {
+		if (b->kind == MLIP_BLOCK_MOVE || b->kind == MLIP_BLOCK_PROBE) {
 			if (mlip_smooth_init(ss->sm, ss->m, b->target) != MLIP_OK) {
 				ss->has_pass = 0;
 				return -1;

@@ -215,8 +215,8 @@ int mlip_cli_path_next(void *ctx, double *pt, uint32_t *line)
 	}
 	while ((p->rc = mlip_program_next(p->program, &b)) > 0) {
 		double d2 = 0.0, lin = 0.0;
-		if (b.kind != MLIP_BLOCK_MOVE) {
-			continue;
+		if (b.kind != MLIP_BLOCK_MOVE && b.kind != MLIP_BLOCK_PROBE) {
+			continue; /* a probe's path: to its target (it trips nothing here) */
 		}
 		for (int k = 0; k < n; k++) {
 			double d = b.target[k] - p->last[k];
@@ -326,6 +326,8 @@ void mlip_cli_io_to_ring(const struct mlip_gcode_io *io, const struct mlip_machi
 	out->tool_change = (uint32_t)io->tool_change;
 	out->coolant = (uint32_t)io->coolant;
 	out->change_mask = io->change_mask;
+	out->outputs =
+	    (io->coolant_outlets & 3u) | (io->dout_mask & 0xFFu) << 8 | (io->probe ? 1u << 16 : 0u);
 	out->min_rpm = io->min_rpm;
 	out->max_rpm = io->max_rpm;
 	for (int i = 0; i < m->n_axes && i < MLIP_MAX_AXES; i++) {
@@ -337,8 +339,10 @@ int mlip_cli_io_from_ring(const struct mlip_ring_io *in, const struct mlip_machi
                           struct mlip_gcode_io *io)
 {
 	memset(io, 0, sizeof(*io));
-	if (in->spindle > MLIP_IO_CIA402 || in->tool_change > MLIP_IO_MANUAL ||
-	    in->coolant > MLIP_IO_MANUAL || (in->change_mask >> m->n_axes) != 0) {
+	if ((in->spindle > MLIP_IO_MANUAL && in->spindle != MLIP_IO_CIA402) ||
+	    in->tool_change > MLIP_IO_MANUAL ||
+	    (in->coolant > MLIP_IO_MANUAL && in->coolant != MLIP_IO_MODULE) ||
+	    (in->change_mask >> m->n_axes) != 0 || (in->outputs & ~0x1FF03u) != 0) {
 		return -1;
 	}
 	if (in->spindle != MLIP_IO_NONE && !(in->min_rpm >= 0 && in->max_rpm > 0 &&
@@ -349,6 +353,9 @@ int mlip_cli_io_from_ring(const struct mlip_ring_io *in, const struct mlip_machi
 	io->tool_change = (int)in->tool_change;
 	io->coolant = (int)in->coolant;
 	io->change_mask = in->change_mask;
+	io->coolant_outlets = in->outputs & 3u;
+	io->dout_mask = (in->outputs >> 8) & 0xFFu;
+	io->probe = (in->outputs >> 16) & 1u;
 	io->min_rpm = in->min_rpm;
 	io->max_rpm = in->max_rpm;
 	for (int i = 0; i < m->n_axes; i++) {

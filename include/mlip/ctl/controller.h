@@ -312,6 +312,19 @@ struct mlip_ctl_mark {
 	uint32_t line;
 };
 
+/* The last G38's result, LinuxCNC's #5061..#5069 and #5070 (issue 19). */
+struct mlip_ctl_probe_result {
+	uint32_t count;   /* probe moves completed since init (0: none yet) */
+	uint32_t tripped; /* #5070: 1 the probe tripped, 0 it did not (G38.3/.5) */
+	uint64_t seq;     /* the G38's record, and its line */
+	uint32_t line;
+	double pos[MLIP_MAX_AXES]; /* #5061..: where the probe tripped (machine
+	                              coordinates): the position in the period its
+	                              input frame arrived, the drives' positions
+	                              actual when they report them (else the
+	                              setpoint); the target when it did not trip */
+};
+
 /* The controller's own state: read it through out, never here. */
 struct mlip_ctl {
 	/* set at init */
@@ -435,6 +448,19 @@ struct mlip_ctl {
 		uint64_t t0; /* the group's homing move began (period) */
 		uint16_t cw; /* the group's controlword */
 	} home;
+	/* the machine's outputs and probing (issue 19; src/ctl/machio.c) */
+	struct {
+		uint32_t coolant; /* MLIP_COOLANT_* on ([COOLANT] TYPE = io) */
+		uint32_t active;  /* this period's input functions on (in->io.active) */
+		uint32_t known;   /* ... and read (in->io.known) */
+		int probe_on;     /* a G38 move is executing */
+		int probe_tripped;
+		uint32_t probe_flags;         /* MLIP_PROBE_* */
+		struct mlip_ctl_mark probe;   /* its record */
+		double actual[MLIP_MAX_AXES]; /* this period's positions actual (drives) */
+		uint32_t actual_mask;
+		struct mlip_ctl_probe_result result; /* the last probe's */
+	} mio;
 	/* a CiA 402 spindle (issue 19, mlip/ctl/spindlectl.h) */
 	struct mlip_ctl_spindle spindle;
 	/* scratch for one period's blocks (no stack array of this size on RT) */

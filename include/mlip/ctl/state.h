@@ -104,6 +104,18 @@ typedef enum {
 	MLIP_WHY_NOT_HOMED,      /* HOMING_REQUIRED: a program refused before every axis
 	                            is homed (reason_seq, line: its first record) */
 	MLIP_WHY_JOG_DONE,       /* an incremental jog at rest at its target */
+	/* the machine's outputs and probing (issue 19) */
+	MLIP_WHY_OUTPUT, /* M7/M8/M9 ([COOLANT] TYPE = io) or M64/M65 switched the
+	                    I/O module's outputs at rest (reason_field: the record
+	                    type, reason_value its value) */
+	MLIP_WHY_PROBE,  /* a G38 move started (reason_value: MLIP_PROBE_* bits) */
+	MLIP_WHY_PROBED, /* it ended at rest (reason_value 1: the probe tripped,
+	                    0: G38.3/G38.5 reached the target without a trip) */
+	/* a probe error stops the program at rest (IDLE, the rest dropped): */
+	MLIP_WHY_PROBE_NO_TRIP,  /* G38.2/G38.4 reached its target without a trip */
+	MLIP_WHY_PROBE_AT_START, /* the probe was already tripped (G38.2/.3), or not on
+	                            (G38.4/.5), when the move was to start */
+	MLIP_WHY_PROBE_INPUT,    /* a G38 with no probe input mapped or read */
 	MLIP_WHY_SPINDLE_WAIT,   /* a CiA 402 spindle's M3/M4/S/M5: at rest (state DWELLING)
 	                            until it is at speed, or at standstill (reason_value:
 	                            the rpm asked) */

@@ -98,6 +98,7 @@ typedef int (*mlip_block_sink)(void *ctx, const struct mlip_block *b);
 typedef enum {
 	MLIP_IO_NONE = 0, /* the machine has none: the words are refused */
 	MLIP_IO_MANUAL,   /* the operator does it: the program pauses at rest */
+	MLIP_IO_MODULE,   /* outputs of the CiA 401 I/O module (coolant: [COOLANT] TYPE = io) */
 	MLIP_IO_CIA402    /* a CiA 402 drive on the bus (spindle) */
 } mlip_io_type;
 
@@ -117,12 +118,16 @@ struct mlip_gcode_io {
 	int tool_change;         /* MLIP_IO_NONE or MLIP_IO_MANUAL */
 	uint32_t change_mask;    /* bit i: axis i (config order) goes to change_pos[i] for M6 */
 	double change_pos[MLIP_MAX_AXES]; /* machine coordinates */
-	int coolant;                      /* MLIP_IO_NONE or MLIP_IO_MANUAL */
+	int coolant;                      /* MLIP_IO_NONE, MLIP_IO_MANUAL or MLIP_IO_MODULE */
 	const struct mlip_tool *tools;    /* the tool table; NULL: none given */
 	uint32_t n_tools;
 	/* on purpose (--ignore-spindle, --ignore-coolant, --ignore-tools): the
 	 * words are accepted and do nothing (a notice), G43 offsets are 0 */
 	int ignore_spindle, ignore_coolant, ignore_tools;
+	unsigned coolant_outlets; /* MODULE: the MLIP_COOLANT_* outlets mapped (M7 needs
+	                             MIST, M8 FLOOD); ignored otherwise */
+	uint32_t dout_mask;       /* bit n: digital output n (M64/M65 Pn) is mapped */
+	int probe;                /* a probe input is mapped: G38.2..G38.5 run */
 };
 
 /* The tool numbered n in io's table, or NULL. */
@@ -186,6 +191,13 @@ struct mlip_gcode {
 	/* what a program without motion may still be (mlip_gcode_finish) */
 	int mdi;                             /* lines typed at the machine (set_mdi) */
 	struct mlip_gcode_offsets off_start; /* the offsets at the first line */
+	/* probing (G38.2..G38.5) */
+	uint32_t unknown;    /* bit i: axis i stands where a probe stopped it, known only
+	                        when the program runs: every move must give it in
+	                        absolute coordinates until one does */
+	int probe_mode;      /* the motion mode is a G38 (382..385): axis words alone are
+	                        refused */
+	uint32_t probe_line; /* the line of the last G38 */
 };
 
 /* The modal state one MDI command leaves for the next (LinuxCNC's
@@ -241,6 +253,10 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
  * (set_mdi). */
 mlip_status mlip_gcode_finish(struct mlip_gcode *g, uint32_t last_line,
                               struct mlip_gcode_error *err);
+
+/* 1 when the program's offsets differ from those it started with (G10, G92,
+ * G54..G59.3, a touch-off): such a program without motion still runs. */
+int mlip_gcode_offsets_changed(const struct mlip_gcode *g);
 
 /* Let feed moves before the program's first F run at f_word (an F value, in
  * the units in effect at the move) instead of failing with "missing feed";

@@ -13,18 +13,19 @@
  *    64  producer   head (free-running), feeder's cached copy of tail
  *   128  consumer   tail (free-running), controller's cached copy of head
  *   192  status     seqlock generation, command reply, struct mlip_ring_status
- *                   (seven lines: state, reason, position of every axis,
- *                   the drives' positions actual, the program's start, the
- *                   spindle)
- *   640  feeder     seqlock generation, struct mlip_ring_feeder
- *   704  mailbox    the command word (sequence, op, argument in one 64-bit
+ *                   (eight lines: state, reason, position of every axis,
+ *                   the drives' positions actual, the program's start,
+ *                   the outputs and the last probe, the spindle)
+ *   704  feeder     seqlock generation, struct mlip_ring_feeder
+ *   768  mailbox    the command word (sequence, op, argument in one 64-bit
  *                   word, written by mlip-ctl) and the stop counter
- *   768  machine    the controller's struct mlip_machine, so that a feeder
+ *   832  machine    the controller's struct mlip_machine, so that a feeder
  *                   checks programs against exactly the limits in force
  *                   (each axis's max_jerk, mlip/motion/jerk.h)
- *  1280  io         the controller's machine I/O (struct mlip_ring_io: its
- *                   spindle, tool change, coolant), for the same reason
- *  1408  records    capacity x struct mlip_ring_rec (88 bytes each)
+ *  1344  io         the controller's machine I/O (struct mlip_ring_io: its
+ *                   spindle, tool change, coolant, outputs, probe), for the
+ *                   same reason
+ *  1472  records    capacity x struct mlip_ring_rec (88 bytes each)
  *
  * The magic (offset 0) and the version (offset 8) keep their places in every
  * layout version, so any version can tell any other that they differ.
@@ -88,7 +89,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION      9u         /* bump on any change to the layout below */
+#define MLIP_RING_VERSION      10u        /* bump on any change to the layout below */
 #define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -119,6 +120,10 @@ typedef enum {
 	                            < 0 counter-clockwise, 0 stop), |rpm| <= MLIP_REC_RPM_MAX */
 	MLIP_REC_TOOL,           /* M6: at rest, dwell_s = the tool to insert (0 none) */
 	MLIP_REC_COOLANT,        /* M7/M8/M9: at rest, dwell_s = MLIP_COOLANT_* bits on */
+	MLIP_REC_OUTPUT,         /* M64/M65: at rest, dwell_s = n + 1 (output n on) or
+	                            -(n + 1) (off), n < MLIP_DOUT_MAX */
+	MLIP_REC_PROBE,          /* G38.x: a MOVE from rest to rest that stops when the
+	                            probe input changes; dwell_s = MLIP_PROBE_* bits */
 	MLIP_REC_TYPES
 } mlip_rec_type;
 
@@ -211,12 +216,19 @@ struct mlip_ring_status {
 	uint32_t io_mapped; /* bit f: function f is mapped in the configuration */
 	uint32_t io_known;  /* bit f: its input has been read from the bus */
 	uint32_t homed;     /* bit k: axis k is homed */
-	/* layout version 9: a CiA 402 spindle (issue 19) */
-	uint32_t spindle_state;    /* mlip_spindle_phase + 1 (0: no spindle on the bus) */
-	double spindle_cmd_rpm;    /* commanded, the override in (> 0 clockwise) */
-	double spindle_actual_rpm; /* velocity actual 0x606C */
-	uint32_t spindle_override; /* percent */
-	uint32_t spindle_node;     /* its node id */
+	uint32_t coolant;   /* layout version 9: MLIP_COOLANT_* on ([COOLANT] TYPE = io) */
+	/* layout version 9: the machine's outputs and the last probe (issue 19) */
+	uint64_t outputs;       /* the I/O module's outputs 0x6200:1..8, sub k in byte k-1 */
+	uint32_t probe_count;   /* G38 moves completed since start (0: no result yet) */
+	uint32_t probe_tripped; /* #5070: 1 the last one tripped, 0 it did not */
+	uint32_t probe_line;    /* its source line */
+	/* layout version 10: a CiA 402 spindle (issue 19) */
+	uint32_t spindle_state;          /* mlip_spindle_phase + 1 (0: no spindle on the bus) */
+	double probe_pos[MLIP_MAX_AXES]; /* #5061..: where it tripped, machine coordinates */
+	double spindle_cmd_rpm;          /* commanded, the override in (> 0 clockwise) */
+	double spindle_actual_rpm;       /* velocity actual 0x606C */
+	uint32_t spindle_override;       /* percent */
+	uint32_t spindle_node;           /* its node id */
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */
@@ -297,7 +309,10 @@ struct mlip_ring_io {
 	uint32_t tool_change; /* mlip_io_type */
 	uint32_t coolant;     /* mlip_io_type */
 	uint32_t change_mask; /* bit i: axis i has a tool change position */
-	uint32_t spare;
+	uint32_t outputs;     /* issue 19 (0 in older builds): bits 0-1 the coolant
+	                         outlets (MLIP_COOLANT_*, coolant io), bits 8-15
+	                         the digital outputs mapped (M64/M65 P0..7), bit
+	                         16 a probe input (G38) */
 	double min_rpm, max_rpm;
 	double change_pos[MLIP_MAX_AXES]; /* machine coordinates, config order */
 };

@@ -64,7 +64,8 @@
  *   CHANGE_X = 0               ;   axis of COORDINATES, inside its soft limits; M6
  *                              ;   rapids there (Z first) before the pause
  *   [COOLANT]                  ; optional
- *   TYPE = manual              ; none (default: M7/M8 refused) or manual
+ *   TYPE = manual              ; none (default: M7/M8 refused), manual, or io (the
+ *                              ;   I/O module's outputs MIST / FLOOD, below)
  *
  * Syntax. Section names and keys are upper case and case-sensitive, as in
  * LinuxCNC; enumerated values are case-sensitive too. A line is blank, a
@@ -180,12 +181,37 @@ struct mlip_io_bit {
 	uint32_t line;      /* where the INI maps it (0: not mapped) */
 };
 
+/* The module's outputs (issue 19), each one bit of 0x6200:1..8, active high
+ * (an output the module switches off by itself, at power-up or when it
+ * loses the master, is off):
+ *   [COOLANT]
+ *   TYPE = io                    ; M7/M8/M9 switch the outlets below
+ *   MIST = 10 0x6200:1 0         ; M7: NODE INDEX:SUB BIT ([HIGH])
+ *   FLOOD = 10 0x6200:1 1        ; M8
+ *   [IO]
+ *   OUTPUT_0 = 10 0x6200:1 2     ; M64 P0 / M65 P0 .. OUTPUT_7
+ * NODE must be [IO] NODE; one bit carries one output (or input function). */
+enum {
+	MLIP_OUT_MIST = 0,
+	MLIP_OUT_FLOOD,
+	MLIP_OUT_DOUT0, /* + n: OUTPUT_n (M64/M65 Pn) */
+	MLIP_OUT_COUNT = MLIP_OUT_DOUT0 + MLIP_DOUT_MAX
+};
+
+struct mlip_io_out {
+	uint8_t sub;   /* 0x6200:1..8 */
+	uint8_t bit;   /* 0..7 */
+	uint32_t line; /* where the INI maps it (0: not mapped) */
+};
+
 struct mlip_io_config {
 	uint8_t node;      /* [IO] NODE: the CiA 401 module; 0: none */
 	uint8_t in_bytes;  /* module input bytes the functions use (0x6000:1..n) */
 	uint8_t out_bytes; /* module output bytes mapped (0x6200:1..n; 0: none) */
 	uint32_t mapped;   /* bit f: function f is mapped */
 	struct mlip_io_bit in[MLIP_IN_COUNT]; /* by function (MLIP_IN_*) */
+	uint32_t out_mapped;                  /* bit o: output o (MLIP_OUT_*) is mapped */
+	struct mlip_io_out out[MLIP_OUT_COUNT];
 };
 
 /* "estop", "hold", "cycle start", "probe", "X limit -", "X limit +", "X home

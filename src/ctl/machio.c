@@ -1,0 +1,158 @@
+/*
+ * machio.c - the machine's outputs and probing in the controller (issue 19;
+ * see machio.h). Pure, bounded: a few comparisons an output or an axis.
+ */
+#include "machio.h"
+
+#include <math.h>
+#include <string.h>
+
+static void set_bit(struct mlip_ctl *c, uint32_t o, int on)
+{
+	const struct mlip_io_out *x = &c->io.cfg.out[o];
+	(void)mlip_ctl_set_output(c, x->sub, x->bit, on);
+}
+
+int mlip_mio_coolant_io(const struct mlip_ctl *c)
+{
+	return (c->io.cfg.out_mapped & (1u << MLIP_OUT_MIST | 1u << MLIP_OUT_FLOOD)) != 0;
+}
+
+void mlip_mio_all_off(struct mlip_ctl *c)
+{
+	memset(c->io.outputs, 0, sizeof(c->io.outputs));
+	c->mio.coolant = 0;
+	c->mio.probe_on = 0;
+}
+
+void mlip_mio_period(struct mlip_ctl *c, const struct mlip_ctl_in *in)
+{
+	uint32_t bit = 1u << MLIP_IN_PROBE;
+	int on;
+
+	c->mio.active = in->io.active & c->io.cfg.mapped;
+	c->mio.known = in->io.known & c->io.cfg.mapped;
+	c->mio.actual_mask = in->drives.actual_mask;
+	memcpy(c->mio.actual, in->drives.pos_actual, sizeof(c->mio.actual));
+	if (!c->mio.probe_on || c->mio.probe_tripped) {
+		return;
+	}
+	on = (c->mio.active & bit) != 0;
+	if (!(c->mio.known & bit) || on == ((c->mio.probe_flags & MLIP_PROBE_AWAY) != 0)) {
+		return; /* not yet (an unread input trips nothing: the module lost is an E-stop) */
+	}
+	/* the position of the period the input's frame arrived in: the drives'
+	 * positions actual when each reports one, else the setpoint sent last */
+	uint32_t all = (1u << c->m.n_axes) - 1u;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		c->mio.result.pos[k] =
+		    (c->mio.actual_mask & all) == all ? c->mio.actual[k] : c->pos[k];
+	}
+	c->mio.probe_tripped = 1;
+	mlip_planner_stop(c->planner); /* on the path, at the acceleration limit */
+}
+
+mlip_status mlip_mio_switch(struct mlip_ctl *c, const struct mlip_ring_rec *rec,
+                            struct mlip_ctl_reason *why)
+{
+	memset(why, 0, sizeof(*why));
+	why->why = MLIP_WHY_BAD_RECORD;
+	why->field = MLIP_FIELD_DWELL;
+	why->seq = rec->seq;
+	why->line = rec->line;
+	why->value = rec->dwell_s;
+	if (rec->type == MLIP_REC_COOLANT) {
+		uint32_t want = (uint32_t)rec->dwell_s; /* 0..3: checked with the record */
+		if ((want & ~c->io.cfg.out_mapped & 3u) != 0) {
+			return MLIP_E_RANGE; /* an outlet that is not there */
+		}
+		for (uint32_t o = MLIP_OUT_MIST; o <= MLIP_OUT_FLOOD; o++) {
+			if (c->io.cfg.out_mapped >> o & 1u) {
+				set_bit(c, o, (want >> o) & 1u);
+			}
+		}
+		c->mio.coolant = want;
+		return MLIP_OK;
+	}
+	/* OUTPUT: +-(n + 1), a whole number checked with the record */
+	uint32_t n = (uint32_t)fabs(rec->dwell_s) - 1u, o = MLIP_OUT_DOUT0 + n;
+	if (n >= MLIP_DOUT_MAX || !(c->io.cfg.out_mapped >> o & 1u)) {
+		return MLIP_E_RANGE;
+	}
+	set_bit(c, o, rec->dwell_s > 0);
+	return MLIP_OK;
+}
+
+mlip_status mlip_mio_probe_start(struct mlip_ctl *c, const struct mlip_ring_rec *rec,
+                                 struct mlip_ctl_reason *why)
+{
+	uint32_t bit = 1u << MLIP_IN_PROBE, flags = (uint32_t)rec->dwell_s;
+	struct mlip_block b;
+
+	memset(why, 0, sizeof(*why));
+	why->seq = rec->seq;
+	why->line = rec->line;
+	if (!(c->io.cfg.mapped & bit) || !(c->mio.known & bit)) {
+		why->why = MLIP_WHY_PROBE_INPUT;
+		return MLIP_E_RANGE;
+	}
+	if (((c->mio.active & bit) != 0) != ((flags & MLIP_PROBE_AWAY) != 0)) {
+		/* G38.2/.3 with the probe already on, G38.4/.5 with it off */
+		why->why = MLIP_WHY_PROBE_AT_START;
+		why->value = (c->mio.active & bit) ? 1.0 : 0.0;
+		return MLIP_E_RANGE;
+	}
+	(void)mlip_ring_rec_to_block(rec, &b);
+	b.kind = MLIP_BLOCK_MOVE;
+	b.exact_stop = 1;
+	if (mlip_planner_push(c->planner, &b) != MLIP_OK) {
+		why->why = MLIP_WHY_BAD_RECORD;
+		return MLIP_E_RANGE;
+	}
+	c->mio.probe_on = 1;
+	c->mio.probe_tripped = 0;
+	c->mio.probe_flags = flags;
+	c->mio.probe.seq = rec->seq;
+	c->mio.probe.line = rec->line;
+	why->why = MLIP_WHY_PROBE;
+	why->value = (double)flags;
+	return MLIP_OK;
+}
+
+mlip_status mlip_mio_probe_end(struct mlip_ctl *c, struct mlip_ctl_reason *why)
+{
+	struct mlip_ctl_probe_result *r = &c->mio.result;
+
+	c->mio.probe_on = 0;
+	memset(why, 0, sizeof(*why));
+	why->seq = c->mio.probe.seq;
+	why->line = c->mio.probe.line;
+	r->count++;
+	r->seq = c->mio.probe.seq;
+	r->line = c->mio.probe.line;
+	r->tripped = (uint32_t)c->mio.probe_tripped;
+	if (!c->mio.probe_tripped) {
+		memcpy(r->pos, c->pos, sizeof(r->pos)); /* LinuxCNC: the target */
+		if (c->mio.probe_flags & MLIP_PROBE_MUST_TRIP) {
+			why->why = MLIP_WHY_PROBE_NO_TRIP;
+			return MLIP_E_RANGE;
+		}
+	}
+	why->why = MLIP_WHY_PROBED;
+	why->value = (double)r->tripped;
+	return MLIP_OK;
+}
+
+void mlip_mio_publish(const struct mlip_ctl *c, struct mlip_ring_status *s)
+{
+	uint64_t o = 0;
+	for (int k = MLIP_IO_IN_BYTES - 1; k >= 0; k--) {
+		o = o << 8 | c->io.outputs[k];
+	}
+	s->outputs = o;
+	s->coolant = c->mio.coolant;
+	s->probe_count = c->mio.result.count;
+	s->probe_tripped = c->mio.result.tripped;
+	s->probe_line = c->mio.result.line;
+	memcpy(s->probe_pos, c->mio.result.pos, sizeof(s->probe_pos));
+}

@@ -1,0 +1,282 @@
+"""The machine's outputs and probing (issue 19) on a real vcan0: a CiA 401 I/O
+module and three CiA 402 drives, all on the canopen package (one simulator
+process), mlip-rt --drives sending the module's outputs in its RPDO1 and
+reading its probe input. Judged on what the devices recorded: the module's
+outputs in force at every SYNC (io.csv), the drives' targets and controlwords
+at every SYNC (sync.csv), the probe's trips (events.jsonl).
+
+  - coolant (M8) and a digital output (M64/M65) on while the program asks,
+    every output off once it ends;
+  - a stop and an E-stop: the outputs off in the period the machine starts
+    to brake (a stop) or quick stops (the E-stop);
+  - G38.2 toward a surface the simulated Z drive crosses: the latched
+    position against the surface (counts), the stop inside the acceleration
+    limit, the program going on.
+
+The period is 40 ms and the timeouts long (the emulated VM). Each test prints
+an [outputs] or [probe] line with the measured figures.
+"""
+
+import re
+import time
+
+import pytest
+
+from conftest import S
+from mlipcan import procs
+
+MILL = S.config_dir / "mill-3axis.ini"
+PERIOD_S = 0.04
+IO = 10
+CPU = 1000  # counts per mm (mill-3axis)
+CONFIG_TAIL = f"""
+[DRIVES]
+ENABLE = 1
+HEARTBEAT_MS = 100
+HEARTBEAT_TIMEOUT_MS = 4000
+FOLLOWING_ERROR = 2
+SDO_TIMEOUT_MS = 5000
+BOOT_TIMEOUT_MS = 8000
+STATE_TIMEOUT_MS = 10000
+
+[IO]
+NODE = {IO}
+ESTOP = {IO} 0x6000:1 0 LOW
+PROBE = {IO} 0x6000:1 3 HIGH
+OUTPUT_0 = {IO} 0x6200:1 2
+
+[COOLANT]
+TYPE = io
+MIST = {IO} 0x6200:1 0
+FLOOD = {IO} 0x6200:1 1
+"""
+FLOOD, P0 = 0x02, 0x04
+
+
+def machine(tmp):
+    text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
+    text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
+    assert re.search(r"^\[AXIS_Z\]$", text, flags=re.M)
+    path = tmp / "io.ini"
+    path.write_text(text + CONFIG_TAIL)
+    return path
+
+
+@pytest.fixture(scope="module")
+def sim(vcan, tmp_path_factory):
+    w = tmp_path_factory.mktemp("outsim")
+    # the E-stop circuit closed (bit 0 = 1) from power-up
+    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3], args=["--io", IO], inject=[f"{IO}:input=1.0=1"])
+    yield s
+    s.stop()
+
+
+def io_after(sim, t0):
+    """The module's rows (outputs byte 1) from the first SYNC after time t0."""
+    return [r for r in sim.io_rows() if r["node"] == IO and r["t"] >= t0]
+
+
+def targets(sim, node, t0):
+    """Drive node's (sync, target applied) from time t0 (None: no RPDO)."""
+    return [(r["sync"], r["target"]) for r in sim.sync_rows() if r["node"] == node and r["t"] >= t0]
+
+
+def test_coolant_and_output_follow_the_program(sim, tmp_path):
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G21 G90\nM8\nM64 P0\nG1 X20 F1200\nM65 P0\nG1 X0\nM2\n")
+    t0 = time.time()
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        # mlip-feed checks against the running controller's outputs: refused
+        # at line:col, nothing sent
+        for text, where, what in (
+            ("G1 X1 F600\nM64 P1\n", "2:5", "digital output 1 is not mapped ([IO] OUTPUT_1)"),
+            ("G1 X1 F600\nM62 P0\n", "2:1", "synchronized with motion"),
+            ("G1 X1 F600\nG38.2 X1\n", "2:1", "to the current position"),
+        ):
+            bad = tmp_path / "bad.ngc"
+            bad.write_text(text)
+            rc, out, err = rig.feed(bad, timeout=120)
+            assert rc == 1 and f"bad.ngc:{where}: error:" in err and what in err, (rc, err)
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err
+        st = rig.status()
+        assert st["coolant"] == {"mist": False, "flood": False} and st["outputs"] == {}, st
+        assert "outputs    coolant off, module outputs all off" in rig.ctl("status").stdout
+    io = {r["sync"]: r["outputs"][0] for r in io_after(sim, t0)}
+    xs = [(s, t) for s, t in targets(sim, 1, t0) if t is not None]
+    out_moving = []  # the outputs at every SYNC X moved at, by direction
+    for (s0, a), (s1, b) in zip(xs, xs[1:]):
+        if b != a and s1 in io:
+            out_moving.append(("+" if b > a else "-", io[s1]))
+    plus = {o for d, o in out_moving if d == "+"}
+    minus = {o for d, o in out_moving if d == "-"}
+    # flood and P0 on through the first move, flood alone through the second
+    assert plus == {FLOOD | P0}, out_moving
+    assert minus == {FLOOD}, out_moving
+    # off once the program ended: after X's last move, within a few periods
+    last_move = max(s1 for (s0, a), (s1, b) in zip(xs, xs[1:]) if b != a)
+    off = [s for s, o in sorted(io.items()) if s > last_move and o == 0]
+    assert off, sorted(io.items())[-10:]
+    seq = []
+    for s, o in sorted(io.items()):
+        if not seq or seq[-1] != o:
+            seq.append(o)
+    print(
+        f"[outputs] program: outputs byte 1 over the SYNCs {[hex(o) for o in seq]}, "
+        f"{len(out_moving)} SYNCs of motion judged, off {off[0] - last_move} SYNCs after "
+        f"the last target change"
+    )
+    assert seq[-1] == 0 and FLOOD | P0 in seq, seq
+
+
+def brake_sync(sim, node, t0, cruise):
+    """The first SYNC from t0 at which drive node's target advanced less
+    than 90 % of cruise counts after advancing at cruise."""
+    xs = [(s, t) for s, t in targets(sim, node, t0) if t is not None]
+    at_speed = False
+    for (s0, a), (s1, b) in zip(xs, xs[1:]):
+        d = abs(b - a)
+        if d >= 0.99 * cruise:
+            at_speed = True
+        elif at_speed and d < 0.9 * cruise:
+            return s1
+    return None
+
+
+def test_outputs_off_on_stop_and_estop(sim, tmp_path):
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "p.ngc"
+    # 20 mm/s: 0.8 mm (800 counts) a period; the brake takes one period at 1000 mm/s^2
+    ngc.write_text("G21 G90\nM7 M8\nM64 P0\nG1 X400 F1200\nM2\n")
+    cruise = 20.0 * PERIOD_S * CPU
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        t0 = time.time()
+        feed = rig.feeder(ngc)
+        rig.wait_state("running", timeout=180, pred=lambda st: st["speed_mm_s"] > 19.0)
+        st = rig.status()
+        assert st["coolant"] == {"mist": True, "flood": True}, st
+        assert st["outputs"] == {"0x6200:1": 0x07}, st
+        text = rig.ctl("status").stdout
+        assert "outputs    coolant mist+flood, 0x6200:1 = 0x07" in text, text
+        t_stop = time.time()
+        rig.ctl("stop")
+        rig.wait_state("idle", timeout=120)
+        feed.p.wait(timeout=120)
+        assert rig.status()["outputs"] == {}
+        # the E-stop: a second program, its outputs on, the circuit opened
+        t1 = time.time()
+        feed = rig.feeder(ngc)
+        rig.wait_state("running", timeout=180, pred=lambda st: st["speed_mm_s"] > 19.0)
+        t_estop = time.time()
+        sim.inject(f"{IO}:input=1.0=0")
+        rig.wait_state("estop", timeout=60)
+        feed.p.wait(timeout=120)
+        sim.inject(f"{IO}:input=1.0=1")
+        rig.wait_state("estop", timeout=60, pred=lambda s: s["inputs"]["estop"] is False)
+        rig.ctl("reset")
+        rig.wait_state("idle", timeout=60)
+    sim.wait_sync_rows(lambda rs: True)
+    # the stop: the module's outputs off against the drive's first braking target
+    io = [(r["sync"], r["outputs"][0]) for r in io_after(sim, t0) if r["t"] < t1]
+    on = [s for s, o in io if o == 0x07]
+    assert on, io[:20]
+    s_brake = brake_sync(sim, 1, t0, cruise)
+    assert s_brake is not None
+    s_off = min(s for s, o in io if s > on[0] and o == 0)
+    s_req = min(r["sync"] for r in sim.sync_rows() if r["node"] == 1 and r["t"] >= t_stop)
+    print(
+        f"[outputs] stop: requested before SYNC {s_req}, first braking target at SYNC "
+        f"{s_brake}, outputs off at SYNC {s_off} ({s_off - s_brake:+d} SYNCs)"
+    )
+    # the same controller period sends both: the module applies its RPDO on
+    # reception, the drive its target at the next SYNC
+    assert -1 <= s_off - s_brake <= 1, (s_off, s_brake)
+    # the E-stop: off with the quick stop
+    qs = min(
+        r["sync"]
+        for r in sim.sync_rows()
+        if r["node"] == 1 and r["t"] >= t_estop and r["cw"] == 0x0002
+    )
+    io2 = [(r["sync"], r["outputs"][0]) for r in io_after(sim, t1)]
+    on2 = [s for s, o in io2 if o == 0x07]
+    assert on2, io2[:20]
+    s_off2 = min(s for s, o in io2 if s > on2[0] and o == 0)
+    print(
+        f"[outputs] E-stop: quick stop applied at SYNC {qs}, outputs off at SYNC {s_off2} "
+        f"({s_off2 - qs:+d} SYNCs)"
+    )
+    assert -1 <= s_off2 - qs <= 1, (s_off2, qs)
+
+
+def test_probe_latches_the_surface(sim, tmp_path):
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "p.ngc"
+    surface = -5000  # counts: Z -5 mm
+    feed_mm_min = 120.0  # 2 mm/s: 80 counts a period
+    ngc.write_text(f"G21 G90\nG0 Z0\nG38.2 Z-10 F{feed_mm_min:g}\nG0 Z5\nM2\n")
+    sim.inject(f"{IO}:probe=1.3,3,{surface},below")
+    try:
+        t0 = time.time()
+        with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+            rc, out, err = rig.feed(ngc, timeout=600)
+            assert rc == 0, err
+            st = rig.status()
+    finally:
+        sim.inject(f"{IO}:probe=off")
+    pr = st["probe"]
+    assert pr is not None and pr["tripped"] is True and pr["line"] == 3, st
+    assert pr["parameters"]["5070"] == 1 and pr["parameters"]["5063"] == pr["position"]["Z"]
+    assert abs(st["position"]["Z"] - 5.0) < 1e-9, st  # the program went on
+    latched = round(pr["position"]["Z"] * CPU)
+    err_counts = latched - surface
+    per_period = feed_mm_min / 60.0 * PERIOD_S * CPU
+    trips = sim.wait_event(lambda e: e["kind"] == "probe" and e["on"] and e["t"] >= t0, "a trip")
+    sim.wait_sync_rows(lambda rs: True)
+    zs = [(s, t) for s, t in targets(sim, 3, t0) if t is not None]
+    s_trip = trips[0]["sync"]
+    # from the trip to rest: the targets brake inside the acceleration limit
+    # (second difference <= A T^2 + 2 counts of rounding), and rest beyond
+    # the surface by at most v^2/2A plus the periods of the loop
+    after = [t for s, t in zs if s >= s_trip - 1]
+    acc = (
+        max((abs(c - 2 * b + a) for a, b, c in zip(after, after[1:], after[2:])), default=0)
+        / (PERIOD_S**2)
+        / CPU
+    )
+    rest = min(t for s, t in zs if s >= s_trip and t <= -4000)
+    # the first SYNC from the trip whose target no longer goes down: the
+    # stop as the drive saw it (the simulator's SYNC count, which lags the
+    # bus in the emulated VM: mlip-rt is that many periods further)
+    s_stop = min(s1 for (s0, a), (s1, b) in zip(zs, zs[1:]) if s1 > s_trip and b >= a)
+    # the SYNC before the probe's TPDO by the bus's clock (the SYNCs' receive
+    # times against the frame's send time, as tests/can/test_io_vcan.py)
+    tp = sim.wait_event(
+        lambda e: (
+            e["kind"] == "tpdo" and e["node"] == IO and e["t"] >= t0 and e["why"] == "probe on"
+        ),
+        "the probe's TPDO",
+    )
+    s_bus = max(r["sync"] for r in sim.sync_rows() if r["t"] < tp[0]["t_bus"])
+    v = feed_mm_min / 60.0
+    print(
+        f"[probe] surface Z {surface} counts, latched {latched} counts (error {err_counts:+d} "
+        f"counts, {err_counts / per_period:+.2f} periods of travel at {v:g} mm/s, "
+        f"{per_period:.0f} counts a period), tripped at SYNC {s_trip} (drive at "
+        f"{trips[0]['actual']}), came to rest at {rest} counts by SYNC {s_stop} "
+        f"({s_stop - s_trip} SYNCs of the simulator after the trip, {s_stop - s_bus} after "
+        f"the SYNC before its frame by the bus's clock), max braking "
+        f"{acc:.1f} mm/s^2"
+    )
+    assert acc <= 1000.0 * (1 + 1e-9) + 2 / (PERIOD_S**2) / CPU, acc
+    # the latched position: where the drive was in the period the input's
+    # frame arrived, within a few periods of travel beyond the surface
+    # (the module reads the drive one period after its move, mlip reads
+    # the module's frame in the period after that)
+    # (the drive's position actual of that period: at or past the trip, or
+    # the sample before it when its TPDO and the module's came together)
+    assert -3 * per_period <= err_counts <= per_period, err_counts
+    # on the path: the axis never went back up before the stop, and came to
+    # rest no further than the periods it took to react plus v^2/2A
+    assert rest >= latched - (s_stop - s_trip + 2) * per_period - v * v / 2000.0 * CPU, rest
+    assert all(b <= a for (s0, a), (s1, b) in zip(zs, zs[1:]) if s_trip - 5 <= s1 < s_stop)
