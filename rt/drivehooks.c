@@ -17,7 +17,7 @@
 
 int mlip_drives_find_node(const struct mlip_drives *ds, uint8_t node)
 {
-	for (int i = 0; i < ds->n; i++) {
+	for (int i = 0; i < ds->n + ds->sp; i++) {
 		if (ds->d[i].node == node) {
 			return i;
 		}
@@ -170,7 +170,7 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 	x.hb_timeout_ns = (uint64_t)ds->cfg.heartbeat_timeout_ms * 1000000u;
 	x.tpdo_timeout = (uint32_t)(x.hb_timeout_ns / period_ns); /* as long as a heartbeat */
 	x.any_state = any_state;
-	for (int i = 0; i < ds->n; i++) {
+	for (int i = 0; i < ds->n + ds->sp; i++) {
 		struct mlip_drive *d = &ds->d[i];
 		int64_t detail;
 		if (ds->mute & (1u << i)) {
@@ -180,8 +180,9 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 		/* the newest TPDO answers SYNC j = tpdo_count, sent in period j */
 		uint64_t j = d->obs.tpdo_count;
 		x.following_counts = -1;
-		if (!any_state && !(ds->homing & (1u << i)) && d->obs.tpdo_cycle == cycle &&
-		    j >= 1 && cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
+		if (i < ds->n && !any_state && !(ds->homing & (1u << i)) &&
+		    d->obs.tpdo_cycle == cycle && j >= 1 &&
+		    cycle - j + MLIP_DRIVE_LAG < MLIP_DRIVE_HIST) {
 			int32_t t[MLIP_DRIVE_LAG];
 			for (int k = 0; k < MLIP_DRIVE_LAG; k++) {
 				t[k] = d->targets[(j - 1 - (uint64_t)k + MLIP_DRIVE_HIST) %
@@ -254,8 +255,14 @@ static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl
 	struct mlip_drives *ds = ctx;
 	io_before(ds, now, in);
 	supervise(ds, cycle + 1, now, ds->power != MLIP_POWER_ENABLED, in);
-	in->drives.mute = ds->mute;
+	in->drives.mute = ds->mute & ((1u << ds->n) - 1u);
 	in->drives.actual_mask = 0;
+	if (ds->sp) {
+		const struct mlip_drive *d = &ds->d[ds->n];
+		in->spindle.sw = d->obs.tpdo_cycle != 0 ? d->obs.statusword : 0;
+		in->spindle.vel_counts = d->obs.tpdo_count > 0 ? d->obs.position_counts : 0;
+		in->spindle.mute = (ds->mute >> ds->n) & 1u;
+	}
 	for (int i = 0; i < ds->n; i++) {
 		const struct mlip_drive *d = &ds->d[i];
 		int32_t v = d->obs.tpdo_count > 0 ? d->obs.position_counts : d->start_counts;
@@ -281,6 +288,13 @@ static void hook_after(void *ctx, uint64_t cycle, uint64_t now, const struct mli
 		int32_t counts;
 		mlip_can_counts(out->pos[i], d->counts_per_unit, &counts);
 		d->targets[(cycle + 1) % MLIP_DRIVE_HIST] = counts;
+	}
+	if (ds->sp && out->spindle.send) {
+		/* after the SYNC and the axes' RPDOs: applied at the next SYNC */
+		struct mlip_can_frame f;
+		mlip_co_pdo_encode(ds->d[ds->n].setup.rpdo_cob, out->spindle.cw,
+		                   out->spindle.target, &f);
+		ds->port.send(ds->port.ctx, &f);
 	}
 	ds->power = out->power.state;
 	ds->homing = out->homing;

@@ -82,6 +82,8 @@ static const char *axis_of(const struct mlip_drives *ds, int i, char *buf, size_
 {
 	if (i < 0) {
 		snprintf(buf, n, "node %u (I/O module)", ds->io.node);
+	} else if (i == ds->n) {
+		snprintf(buf, n, "node %u (spindle)", ds->d[i].node);
 	} else {
 		snprintf(buf, n, "node %u (axis %c)", ds->d[i].node, ds->d[i].letter);
 	}
@@ -241,6 +243,31 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 		ds->io.setup.master_node = cfg->drives.master_node;
 		ds->io.setup.master_timeout_ms = (uint16_t)cfg->drives.heartbeat_timeout_ms;
 	}
+	if (cfg->io.spindle == MLIP_IO_CIA402) {
+		/* the spindle: d[n], one more drive of the group (issue 19) */
+		const struct mlip_spindle_config *sc = &cfg->spindle;
+		struct mlip_drive *d = &ds->d[m->n_axes];
+		double acc = sc->accel_rpm_s * sc->counts_per_rev / 60.0;
+		ds->sp = 1;
+		d->node = sc->node;
+		d->letter = 'S';
+		d->counts_per_unit = sc->counts_per_rev / 60.0; /* counts/s per rpm */
+		d->setup.node = d->node;
+		d->setup.sync_id = cfg->can.sync_id;
+		d->setup.rpdo_cob = cfg->can.rpdo_base + d->node;
+		d->setup.tpdo_cob = MLIP_CO_TPDO1_BASE + d->node;
+		d->setup.period_s = m->period_s;
+		d->setup.heartbeat_ms = (uint16_t)ds->cfg.heartbeat_ms;
+		d->setup.master_node = ds->cfg.master_node;
+		d->setup.master_timeout_ms = (uint16_t)ds->cfg.heartbeat_timeout_ms;
+		d->setup.velocity = 1;
+		d->setup.accel_counts_s2 = acc > 4294967295.0 ? 4294967295u : (uint32_t)(acc + 0.5);
+		if (sc->node == ds->cfg.master_node) {
+			snprintf(why, why_len, "[DRIVES] MASTER_NODE %u is also the spindle's NODE",
+			         ds->cfg.master_node);
+			return -EINVAL;
+		}
+	}
 	if (strcmp(cfg->can.profile, "cia402") != 0) {
 		snprintf(why, why_len, "CiA 402 drives need [CAN] PROFILE = cia402, not %s",
 		         cfg->can.profile);
@@ -396,12 +423,13 @@ static int power_to(struct mlip_drives *ds, int i, mlip_drive_power want, int lo
 static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, const char *what,
                         char *why, size_t why_len)
 {
-	uint32_t seen = 0, all = (1u << ds->n) - 1u;
+	int n_all = ds->n + ds->sp;
+	uint32_t seen = 0, all = (1u << n_all) - 1u;
 	struct mlip_can_frame f;
 	struct mlip_co_msg m;
 	uint64_t t0 = ds->port.now_ns(ds->port.ctx);
 	uint64_t deadline = t0 + (uint64_t)ds->cfg.boot_timeout_ms * 1000000u;
-	for (int i = 0; i < ds->n; i++) {
+	for (int i = 0; i < n_all; i++) {
 		mlip_nmt_encode(cmd, ds->d[i].node, &f);
 		if (ds->port.send(ds->port.ctx, &f) != 0) {
 			snprintf(why, why_len, "cannot send the NMT command 0x%02X", cmd);
@@ -417,15 +445,16 @@ static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, cons
 		if (r == 0) {
 			char list[96] = "";
 			size_t k = 0;
-			for (int i = 0; i < ds->n; i++) {
+			for (int i = 0; i < n_all; i++) {
+				char who[32];
 				if (!(seen & (1u << i)) && k < sizeof(list)) {
-					k += (size_t)snprintf(list + k, sizeof(list) - k,
-					                      "%s%u (axis %c)", k ? ", " : "",
-					                      ds->d[i].node, ds->d[i].letter);
+					k += (size_t)snprintf(list + k, sizeof(list) - k, "%s%s",
+					                      k ? ", " : "",
+					                      axis_of(ds, i, who, sizeof(who)));
 				}
 			}
 			snprintf(why, why_len,
-			         "node %s: no %s within %u ms (powered? node id? bit rate? "
+			         "%s: no %s within %u ms (powered? node id? bit rate? "
 			         "wiring and termination?)",
 			         list, what, (unsigned)ds->cfg.boot_timeout_ms);
 			return -ETIMEDOUT;
@@ -433,10 +462,10 @@ static int nmt_wait_all(struct mlip_drives *ds, uint8_t cmd, uint8_t state, cons
 		if (m.kind == MLIP_CO_HEARTBEAT && m.nmt_state == state) {
 			int i = mlip_drives_find_node(ds, m.node);
 			if (i >= 0 && !(seen & (1u << i))) {
+				char who[32];
 				seen |= 1u << i;
-				say(ds, "node %u (axis %c): %s after %.1f ms", m.node,
-				    ds->d[i].letter, what,
-				    (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
+				say(ds, "%s: %s after %.1f ms", axis_of(ds, i, who, sizeof(who)),
+				    what, (double)(ds->port.now_ns(ds->port.ctx) - t0) * 1e-6);
 			}
 		}
 	}
@@ -449,7 +478,7 @@ static int all_drives_to(struct mlip_drives *ds, mlip_drive_power want, int32_t 
                          size_t why_len)
 {
 	int rc;
-	for (int i = 0; i < ds->n; i++) {
+	for (int i = 0; i < ds->n + ds->sp; i++) {
 		rc = power_to(ds, i, want, want == MLIP_POWER_SWITCHED_ON, why, why_len);
 		if (rc != 0) {
 			return rc;
@@ -581,7 +610,7 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 	if (rc != 0) {
 		return rc;
 	}
-	for (int i = 0; i < ds->n; i++) {
+	for (int i = 0; i < ds->n + ds->sp; i++) {
 		uint32_t type = 0;
 		rc = sdo(ds, i, 1, 0x1000, 0, 0, 0, "device type", &type, why, why_len);
 		if (rc != 0) {
@@ -601,6 +630,17 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 			if (rc != 0) {
 				goto fail;
 			}
+		}
+		if (ds->d[i].setup.velocity) {
+			say(ds,
+			    "%s: CiA 402 drive (0x1000 = 0x%08X), %d objects written and read "
+			    "back: "
+			    "profile velocity, RPDO 0x%03X (0x6040, 0x60FF), TPDO 0x%03X (0x6041, "
+			    "0x606C), 0x6083/0x6084 %u counts/s^2, heartbeat %u ms",
+			    axis_of(ds, i, who, sizeof(who)), type, n, ds->d[i].setup.rpdo_cob,
+			    ds->d[i].setup.tpdo_cob, ds->d[i].setup.accel_counts_s2,
+			    ds->d[i].setup.heartbeat_ms);
+			continue;
 		}
 		say(ds,
 		    "%s: CiA 402 drive (0x1000 = 0x%08X), %d objects written and read back: "
@@ -672,6 +712,14 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		    axis_of(ds, i, who, sizeof(who)), start_pos[i],
 		    a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", v);
 	}
+	if (ds->sp) {
+		struct mlip_drive *d = &ds->d[ds->n];
+		d->obs.nmt_state = MLIP_NMT_OPERATIONAL;
+		d->obs.hb_ns = ds->port.now_ns(ds->port.ctx);
+		d->obs.tpdo_count = 0;
+		say(ds, "%s: operation enabled, target velocity 0",
+		    axis_of(ds, ds->n, who, sizeof(who)));
+	}
 	ds->phase = MLIP_DRIVES_RUN;
 	ds->power = MLIP_POWER_ENABLED;
 	return 0;
@@ -684,7 +732,7 @@ void mlip_drives_disable(struct mlip_drives *ds)
 {
 	char why[256];
 	uint16_t sw;
-	for (int i = 0; i < ds->n; i++) {
+	for (int i = ds->n + ds->sp - 1; i >= 0; i--) {           /* the spindle first */
 		if (read_sw(ds, i, &sw, why, sizeof(why)) == 0) { /* else gone or never there */
 			power_to(ds, i, MLIP_POWER_OFF, 0, why, sizeof(why));
 		}
@@ -706,13 +754,16 @@ void mlip_drives_shutdown_text(const struct mlip_drives *ds, char *buf, size_t l
 	}
 }
 
-int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint32_t *ids, int cap)
+int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint8_t spindle_node,
+                       uint32_t *ids, int cap)
 {
 	static const uint32_t bases[4] = {MLIP_CO_SDO_TX_BASE, MLIP_CO_HB_BASE, MLIP_CO_EMCY_BASE,
 	                                  MLIP_CO_TPDO1_BASE};
 	int n = 0;
-	for (int i = 0; i <= m->n_axes; i++) {
-		uint32_t node = i < m->n_axes ? (uint32_t)m->axis[i].can_node : io_node;
+	for (int i = 0; i <= m->n_axes + 1; i++) {
+		uint32_t node = i < m->n_axes    ? (uint32_t)m->axis[i].can_node
+		                : i == m->n_axes ? io_node
+		                                 : spindle_node;
 		for (int b = 0; b < 4 && n < cap && node != 0; b++) {
 			ids[n++] = bases[b] + node;
 		}
@@ -765,7 +816,7 @@ void mlip_drives_release(struct mlip_drives *ds)
 {
 	char why[256];
 	struct mlip_can_frame f;
-	for (int i = 0; i < ds->n; i++) {
+	for (int i = 0; i < ds->n + ds->sp; i++) {
 		if (sdo(ds, i, 0, 0x1016, 1, 0, 4, "consumer heartbeat time (off)", NULL, why,
 		        sizeof(why)) != 0) {
 			say(ds, "%s", why);

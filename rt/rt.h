@@ -280,7 +280,9 @@ struct mlip_drives {
 	struct mlip_drives_config cfg;
 	const struct mlip_machine *m;
 	int n;
-	struct mlip_drive d[MLIP_MAX_AXES];
+	int sp; /* 1: d[n] is a CiA 402 spindle in profile velocity mode ([SPINDLE] TYPE =
+	           cia402): brought up, supervised and shut down with the axes */
+	struct mlip_drive d[MLIP_MAX_AXES + 1];
 	uint64_t hb_next_ns;                      /* the master's next heartbeat */
 	void (*log)(void *ctx, const char *line); /* bring-up and shut-down (outside the loop) */
 	void *log_ctx;
@@ -334,7 +336,8 @@ struct mlip_drives {
 /* The identifiers the master receives from the drives of m (SDO answers,
  * heartbeats, EMCY, TPDO1) and from the I/O module io_node (0: none): the
  * bus' receive filter; returns how many. */
-int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint32_t *ids, int cap);
+int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint8_t spindle_node,
+                       uint32_t *ids, int cap);
 /* Check the [DRIVES] settings against the machine (master node, following
  * window in counts, period) and fill ds; log gets one line per step. */
 int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,

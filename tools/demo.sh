@@ -16,7 +16,9 @@
 #      mlip-check's physics (acceleration, speed, contour) on them;
 #   then the drives stage, in the same place (mlipcan.demo_drives):
 #      three simulated CiA 402 drives (mlip-drive-sim, the canopen
-#      package) powered up away from HOME, one in fault; mlip-rt --drives
+#      package) powered up away from HOME, one in fault, and a spindle drive
+#      in profile velocity mode ([SPINDLE] TYPE = cia402, node 4: the program's
+#      M3 waits for it at speed, the start-to-feed wait printed); mlip-rt --drives
 #      (config/mill-3axis-drives.ini at a 40 ms period) brings them up, runs a
 #      short program, shuts them down; prints each bring-up step as the
 #      drives saw it, what they reported, homing with the drives' own homing

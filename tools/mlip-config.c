@@ -90,8 +90,15 @@ int main(int argc, char **argv)
 	const struct mlip_gcode_io *io = &cfg.io;
 	if (io->spindle == MLIP_IO_NONE) {
 		printf("  spindle: none (M3/M4/S refused)\n");
-	} else {
+	} else if (io->spindle == MLIP_IO_MANUAL) {
 		printf("  spindle: manual, %g..%g rpm\n", io->min_rpm, io->max_rpm);
+	} else {
+		const struct mlip_spindle_config *sp = &cfg.spindle;
+		printf("  spindle: CiA 402 drive, node %u, profile velocity, %g..%g rpm, %g "
+		       "counts/rev, "
+		       "%g rpm/s, at speed within %g rpm (timeout %g s, out of band %g s)\n",
+		       (unsigned)sp->node, io->min_rpm, io->max_rpm, sp->counts_per_rev,
+		       sp->accel_rpm_s, sp->band_rpm, sp->timeout_s, sp->band_time_s);
 	}
 	if (io->tool_change == MLIP_IO_NONE) {
 		printf("  tool change: none (M6 refused)\n");

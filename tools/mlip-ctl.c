@@ -43,6 +43,8 @@ static void usage(FILE *f)
 	    "Send a command to the mlip-rt controller, or show its status.\n\n"
 	    "commands:\n"
 	    "  override PCT     feed override, percent, integer 0..200 (0 stops the feed)\n"
+	    "  spindle-override PCT  spindle override, percent, 50..200 (a CiA 402 spindle;\n"
+	    "                   within MIN_RPM..MAX_RPM)\n"
 	    "  hold             feed hold: decelerate to rest on the path, keep the program\n"
 	    "  resume           leave a feed hold, a stall hold or a pause (M0, M1, M60)\n"
 	    "  stop             decelerate to rest on the path, drop the rest of the program\n"
@@ -85,6 +87,14 @@ static void sleep_ns(long ns)
 }
 
 /* Strict percentage: decimal digits only, 0..200 (no sign, no spaces, no '%'). */
+/* status.spindle_state (mlip_spindle_phase + 1) */
+static const char *spindle_state_name(uint32_t v)
+{
+	static const char *const names[] = {"none",     "stopped", "to speed",
+	                                    "at speed", "braking", "fault"};
+	return v < sizeof(names) / sizeof(names[0]) ? names[v] : "?";
+}
+
 static int parse_pct(const char *s, int32_t *out)
 {
 	long v = 0;
@@ -246,7 +256,7 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 		mlip_cli_io_message(st->reason, st->reason_value, NULL, what, sizeof(what));
 		mlip_json_string(&j, "operator", what);
 	}
-	if (st->reason == MLIP_WHY_DRIVE) {
+	if (st->reason == MLIP_WHY_DRIVE || st->reason == MLIP_WHY_SPINDLE_FAULT) {
 		/* a drive fault: the field is the event, with the drive's node */
 		mlip_cli_drive_fault_text(st->reason_field, (int64_t)st->reason_value, fname,
 		                          sizeof(fname));
@@ -289,6 +299,18 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 		mlip_json_string(&j, "drives", mlip_drive_power_name(st->drive_power));
 	}
 	mlip_json_uint(&j, "drives_last_change_periods", st->drive_power_periods);
+	/* a CiA 402 spindle (issue 19): null without one */
+	if (st->spindle_state == 0) {
+		mlip_json_null(&j, "spindle");
+	} else {
+		mlip_json_object(&j, "spindle", 0);
+		mlip_json_string(&j, "state", spindle_state_name(st->spindle_state));
+		mlip_json_number(&j, "commanded_rpm", "%.1f", st->spindle_cmd_rpm);
+		mlip_json_number(&j, "actual_rpm", "%.1f", st->spindle_actual_rpm);
+		mlip_json_uint(&j, "override_pct", st->spindle_override);
+		mlip_json_uint(&j, "node", st->spindle_node);
+		mlip_json_close(&j);
+	}
 	mlip_json_object(&j, "homed", 1);
 	for (int k = 0; k < m->n_axes; k++) {
 		char l[2] = {m->axis[k].letter, '\0'};
@@ -414,7 +436,7 @@ static int cmd_status(struct mlip_shm *s, int json)
 		printf("jog         %s\n", fname);
 	}
 	printf("why         %s", mlip_state_why_name(st.reason));
-	if (st.reason == MLIP_WHY_DRIVE) {
+	if (st.reason == MLIP_WHY_DRIVE || st.reason == MLIP_WHY_SPINDLE_FAULT) {
 		mlip_cli_drive_fault_text(st.reason_field, (int64_t)st.reason_value, fname,
 		                          sizeof(fname));
 		printf(": node %u, %s: %s, block %llu (line %u)", (unsigned)st.reason_node,
@@ -519,11 +541,21 @@ static int cmd_status(struct mlip_shm *s, int json)
 		}
 		printf("\n");
 	}
-	if (st.state == MLIP_STATE_DWELLING) {
+	if (st.state == MLIP_STATE_DWELLING && st.reason == MLIP_WHY_SPINDLE_WAIT) {
+		printf("spindle     waiting for it at most %.3f s more (AT_SPEED_TIMEOUT)\n",
+		       (double)st.dwell_left * m.period_s);
+	} else if (st.state == MLIP_STATE_DWELLING) {
 		printf("dwell       %.3f s left\n", (double)st.dwell_left * m.period_s);
 	}
 	printf("override    %u %%, optional stop %s\n", (unsigned)st.override_pct,
 	       st.optional_stop ? "on" : "off");
+	if (st.spindle_state != 0) {
+		printf("spindle     %s: commanded %.0f rpm, actual %.0f rpm, override %u %% (node "
+		       "%u)\n",
+		       spindle_state_name(st.spindle_state), st.spindle_cmd_rpm,
+		       st.spindle_actual_rpm, (unsigned)st.spindle_override,
+		       (unsigned)st.spindle_node);
+	}
 	if (st.stops > 0) {
 		printf(
 		    "last stop   %.3f mm on the path in %u periods, request to rest (%u so far)\n",
@@ -569,8 +601,9 @@ static int cmd_status(struct mlip_shm *s, int json)
 
 static void describe(char *buf, size_t len, mlip_ring_cmd_op op, int32_t arg)
 {
-	if (op == MLIP_CMD_OVERRIDE) {
-		snprintf(buf, len, "override %d %%", (int)arg);
+	if (op == MLIP_CMD_OVERRIDE || op == MLIP_CMD_SPINDLE_OVERRIDE) {
+		snprintf(buf, len, "%s %d %%",
+		         op == MLIP_CMD_OVERRIDE ? "override" : "spindle-override", (int)arg);
 	} else if (op == MLIP_CMD_OPTIONAL_STOP) {
 		snprintf(buf, len, "optional-stop %s", arg ? "on" : "off");
 	} else {
@@ -1058,7 +1091,8 @@ static int cmd_home(struct mlip_shm *s, const char *axes)
 
 static int op_takes_arg(const char *cmd)
 {
-	return strcmp(cmd, "override") == 0 || strcmp(cmd, "optional-stop") == 0;
+	return strcmp(cmd, "override") == 0 || strcmp(cmd, "optional-stop") == 0 ||
+	       strcmp(cmd, "spindle-override") == 0;
 }
 
 /* One command word (and PCT for override) -> op, arg; EXIT_USAGE with a
@@ -1075,6 +1109,15 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 		if (parse_pct(pct, arg) != 0) {
 			fprintf(stderr,
 			        PROG ": override: '%s' is not a whole percentage in 0..200\n", pct);
+			return EXIT_USAGE;
+		}
+	} else if (strcmp(cmd, "spindle-override") == 0) {
+		*op = MLIP_CMD_SPINDLE_OVERRIDE;
+		if (parse_pct(pct, arg) != 0 || *arg < 50) {
+			fprintf(stderr,
+			        PROG
+			        ": spindle-override: '%s' is not a whole percentage in 50..200\n",
+			        pct == NULL ? "" : pct);
 			return EXIT_USAGE;
 		}
 	} else if (strcmp(cmd, "hold") == 0) {
@@ -1094,8 +1137,8 @@ static int parse_command(const char *cmd, const char *pct, mlip_ring_cmd_op *op,
 		*arg = strcmp(pct, "on") == 0;
 	} else {
 		fprintf(stderr,
-		        PROG ": unknown command '%s' (override, hold, resume, stop, optional-stop, "
-		             "reset, status, -)\n",
+		        PROG ": unknown command '%s' (override, spindle-override, hold, resume, "
+		             "stop, optional-stop, reset, status, -)\n",
 		        cmd);
 		return EXIT_USAGE;
 	}

@@ -82,10 +82,12 @@ static void report_drive_fault(const struct monitor *mo, const struct mlip_ctl_e
 	char axis = '?';
 	const struct mlip_drives *ds = mo->ds;
 	const struct mlip_drive *d = NULL;
-	for (int i = 0; ds != NULL && i < ds->n; i++) {
+	char who[16] = "axis ?";
+	for (int i = 0; ds != NULL && i < ds->n + ds->sp; i++) {
 		if (ds->d[i].node == r->node) {
 			d = &ds->d[i];
 			axis = d->letter;
+			snprintf(who, sizeof(who), i == ds->n ? "spindle" : "axis %c", axis);
 		}
 	}
 	mlip_cli_drive_fault_text(r->field, (int64_t)r->value, what, sizeof(what));
@@ -101,9 +103,10 @@ static void report_drive_fault(const struct monitor *mo, const struct mlip_ctl_e
 		snprintf(what + n, sizeof(what) - n, ", error register 0x%02X", d->obs.emcy.reg);
 	}
 	fprintf(stderr,
-	        PROG ": drive fault: node %u (axis %c): %s: %s, period %llu, block %llu (line %u): "
+	        PROG ": %s fault: node %u (%s): %s: %s, period %llu, block %llu (line %u): "
 	             "every axis stops on the path; state fault until mlip-rt restarts\n",
-	        (unsigned)r->node, axis, mlip_drive_fault_name((mlip_drive_fault)r->field), what,
+	        r->why == MLIP_WHY_SPINDLE_FAULT ? "spindle" : "drive", (unsigned)r->node, who,
+	        mlip_drive_fault_name((mlip_drive_fault)r->field), what,
 	        (unsigned long long)e->period, (unsigned long long)r->seq, (unsigned)r->line);
 }
 
@@ -234,7 +237,7 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			        "then mlip-ctl reset\n",
 			        mlip_io_function_name(r->field, mo->m, fld, sizeof(fld)),
 			        (unsigned)r->node, (unsigned long long)e->period, seq, line);
-		} else if (r->why == MLIP_WHY_DRIVE) {
+		} else if (r->why == MLIP_WHY_DRIVE || r->why == MLIP_WHY_SPINDLE_FAULT) {
 			report_drive_fault(mo, e);
 		} else if (r->why == MLIP_WHY_BAD_RECORD) {
 			/* moving: what was taken runs to rest, up to the record
@@ -287,6 +290,17 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			fprintf(stderr,
 			        PROG ": M1 at line %u (block %llu) passed: optional stop off\n",
 			        r->line, (unsigned long long)r->seq);
+			return;
+		}
+		if (r->why == MLIP_WHY_SPINDLE_WAIT) {
+			fprintf(stderr,
+			        PROG
+			        ": spindle to %g rpm%s at line %u (block %llu): at rest until it "
+			        "is %s\n",
+			        r->value < 0 ? -r->value : r->value,
+			        r->value < 0 ? " counter-clockwise" : "", r->line,
+			        (unsigned long long)r->seq,
+			        r->value == 0 ? "at standstill" : "at speed");
 			return;
 		}
 		fprintf(stderr, PROG ": dwell %.3f s at line %u (block %llu)\n", r->value, r->line,
@@ -616,8 +630,10 @@ static int open_bus(struct app *a, const char *iface)
 	}
 	fprintf(stderr, PROG ": %s\n", info);
 	if (a->cfg.drives.enable) {
-		n_ids = mlip_drives_rx_ids(&a->cfg.machine, a->cfg.inputs.node, ids,
-		                           MLIP_CANBUS_MAX_IDS);
+		n_ids = mlip_drives_rx_ids(&a->cfg.machine, a->cfg.inputs.node,
+		                           a->cfg.io.spindle == MLIP_IO_CIA402 ? a->cfg.spindle.node
+		                                                               : 0,
+		                           ids, MLIP_CANBUS_MAX_IDS);
 	}
 	if (mlip_canbus_open(&bus, iface, a->prof == MLIP_CAN_FD, ids, n_ids, info, sizeof(info)) !=
 	    0) {
@@ -719,6 +735,13 @@ static int set_up(const struct options *o, struct app *a)
 		        PROG ": CiA 402 drives need a CAN interface and the cia402 profile\n");
 		return 2;
 	}
+	if (a->cfg.io.spindle == MLIP_IO_CIA402 && !a->cfg.drives.enable) {
+		/* a spindle that is not driven must never look like one that is */
+		fprintf(stderr,
+		        PROG ": [SPINDLE] TYPE = cia402 needs the CANopen master ([DRIVES] "
+		             "ENABLE = 1 or --drives): the spindle drive is brought up by it\n");
+		return 2;
+	}
 	if ((a->cfg.inputs.node != 0 || a->cfg.inputs.mapped != 0) && !a->cfg.drives.enable) {
 		/* an E-stop that is not read must never look like one that is */
 		fprintf(stderr, PROG ": [IO] needs the CANopen master ([DRIVES] ENABLE = 1 or "
@@ -779,14 +802,16 @@ static int set_up(const struct options *o, struct app *a)
 		tear_down(a);
 		return 1;
 	}
-	a->co = (struct mlip_ctl_opts){.strategy = (mlip_strategy)a->strategy,
-	                               .smooth = a->smooth,
-	                               .lookahead = a->cfg.lookahead,
-	                               .stall_periods = (uint32_t)o->stall_periods,
-	                               .can = &a->cfg.can,
-	                               .drives = a->cfg.drives.enable,
-	                               .io = &a->cfg.inputs,
-	                               .home = &a->cfg.home};
+	a->co = (struct mlip_ctl_opts){
+	    .strategy = (mlip_strategy)a->strategy,
+	    .smooth = a->smooth,
+	    .lookahead = a->cfg.lookahead,
+	    .stall_periods = (uint32_t)o->stall_periods,
+	    .can = &a->cfg.can,
+	    .drives = a->cfg.drives.enable,
+	    .io = &a->cfg.inputs,
+	    .home = &a->cfg.home,
+	    .spindle = a->cfg.io.spindle == MLIP_IO_CIA402 ? &a->cfg.spindle : NULL};
 	/* each power step in the loop is given STATE_TIMEOUT_MS, in periods */
 	a->co.drive_state_periods =
 	    (uint32_t)(a->cfg.drives.state_timeout_ms * 1e-3 / a->cfg.machine.period_s + 0.999);

@@ -537,10 +537,30 @@ static int run(const struct options *o, struct sim *s)
 				char what[200];
 				mlip_cli_io_message(ev->r.why, ev->r.value, mlip_cli_tooltable(),
 				                    what, sizeof(what));
+				const char *label = mlip_state_why_name(ev->r.why);
+				if (ev->r.why == MLIP_WHY_SPINDLE &&
+				    s->cfg.io.spindle == MLIP_IO_CIA402) {
+					/* no drive here: mlip-rt waits at rest until it is
+					 * at speed (the ramp from rest is the least that
+					 * takes) or stands still */
+					label = "spindle (CiA 402, not simulated)";
+					if (ev->r.value == 0) {
+						snprintf(what, sizeof(what),
+						         "stop: mlip-rt waits here until it stands "
+						         "still");
+					} else {
+						snprintf(what, sizeof(what),
+						         "to %g rpm: mlip-rt waits here until it "
+						         "is at speed "
+						         "(%.2f s from rest at ACCELERATION)",
+						         ev->r.value,
+						         fabs(ev->r.value) /
+						             s->cfg.spindle.accel_rpm_s);
+					}
+				}
 				fprintf(stderr, PROG ": %s:%u: t = %.3f s, %s: %s\n", o->path,
 				        (unsigned)ev->r.line,
-				        (double)period * s->cfg.machine.period_s,
-				        mlip_state_why_name(ev->r.why), what);
+				        (double)period * s->cfg.machine.period_s, label, what);
 			}
 			s->dwells += out.events[i].kind == MLIP_EV_STATE &&
 			             out.events[i].state == MLIP_STATE_DWELLING;

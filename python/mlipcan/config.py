@@ -53,6 +53,7 @@ class Setup:
         self.status_id = 0x180
         self.drives = False  # [DRIVES] ENABLE: CiA 402 bring-up, 6-byte RPDOs
         self.master_node = 127  # [DRIVES] MASTER_NODE (heartbeat 0x700 + it)
+        self.spindle_node = 0  # [SPINDLE] TYPE = cia402: its drive's node (0: none)
         self.source = "defaults (X Y Z, nodes 1..3, 1000 counts/unit)"
 
     @classmethod
@@ -75,6 +76,7 @@ class Setup:
         st.status_id = can["status_id"]
         st.drives = bool(c["drives"]["enable"])
         st.master_node = c["drives"]["master_node"]
+        st.spindle_node = int(c.get("spindle", {}).get("node", 0))
         st.source = str(path)
         return st
 

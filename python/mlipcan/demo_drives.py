@@ -57,9 +57,26 @@ HOMING = (
     (17, -1.0, 1, ("neg", -3000)),
     (19, 0.0, 0, ("home", 1500)),
 )
-# a rectangle at two depths and back to where the drives stood
+# the spindle (issue 19): a CiA 402 drive in profile velocity mode on the
+# same bus, node 4, 6000 rpm in 1.2 s; the program starts it before its
+# first move and its end stops it; a long AT_SPEED_TIMEOUT, as the other
+# timeouts: the simulated drive may answer its SYNCs late in the VM
+SPINDLE_NODE = 4
+SPINDLE = f"""
+[SPINDLE]
+TYPE = cia402
+MAX_RPM = 6000
+NODE = {SPINDLE_NODE}
+COUNTS_PER_REV = 4096
+ACCELERATION = 5000
+AT_SPEED_BAND = 100
+AT_SPEED_TIMEOUT = 30
+"""
+# the spindle to speed, a rectangle at two depths and back to where the
+# drives stood
 PROGRAM = """(mlip demo, drives stage: a 10 x 10 mm outline, then back to the start)
 G21 G90 G17
+M3 S6000
 G1 X20 Y0 Z5 F900
 G1 X30 Y0
 G1 X30 Y10 Z4
@@ -173,7 +190,7 @@ def run(
         if sw is not None:
             switches += ["--switches", f"{nodes[i]}={sw[0]}:{starts[nodes[i]] + sw[1]}"]
     cfg = out / "machine.ini"
-    cfg.write_text(text)
+    cfg.write_text(text + SPINDLE)
     lim = MachineLimits.of(s, cfg)  # mlip-config accepts it, or this raises with its message
     print(
         f"drives: {Path(config).name} (PERIOD {base.period_s:g} s, the starting point for a real "
@@ -205,7 +222,7 @@ def run(
     # mlip-sim on the same machine from where the drives stand: the reference
     home = {ax_of[n]: starts[n] / c for n, c in zip(nodes, cpu, strict=True)}
     sim_cfg = out / "machine-sim.ini"
-    sim_cfg.write_text(demo_machine(s, config, period_s, home)[0])
+    sim_cfg.write_text(demo_machine(s, config, period_s, home)[0] + SPINDLE)
     trc, summ = simulate(s, sim_cfg, prog, work)
     want = trim(trace_counts(trc, cpu))
     print(
@@ -226,8 +243,15 @@ def run(
     )
     t_boot = time.monotonic()
     sim = DriveSimProc(
-        s, work, nodes=nodes, starts=starts, states=states, name="drivesim", args=switches
+        s,
+        work,
+        nodes=[*nodes, SPINDLE_NODE],
+        starts=starts,
+        states=states,
+        name="drivesim",
+        args=switches,
     )
+    ax_of[SPINDLE_NODE] = "spindle"
     print(
         f"drives: drives up after {time.monotonic() - t_boot:.1f} s; mlip-rt --drives, then "
         f"mlip-feed {prog.name}, then SIGTERM (a controlled stop) ...",
@@ -542,6 +566,43 @@ def run(
         f"no drive fault after the bring-up (fault state, EMCY, statusword bit 3, mlip-rt's "
         f"'drive fault'): {len(faults)} seen",
     )
+    # the spindle: no axis moves before its TPDO said target reached at speed
+    sp = [x for x in sim.sync_rows() if x["node"] == SPINDLE_NODE and x["t"] >= t0]
+    s_cmd = next((x["sync"] for x in sp if x["target"]), None)
+    s_reach = next(
+        (
+            x["sync"]
+            for x in sp
+            if s_cmd is not None
+            and x["sync"] > s_cmd
+            and x["sw"] & P.SW_TARGET_REACHED
+            and abs(x["actual"] * 60.0 / 4096 - 6000) <= 100
+        ),
+        None,
+    )
+    moved = [x["sync"] for x in rows if x["target"] is not None and x["target"] != first[x["node"]]]
+    s_move = min(moved, default=None)
+    wait = None
+    if s_cmd is not None and s_reach is not None and s_move is not None:
+        wait = s_move - s_cmd if s_cmd < s_reach < s_move else None
+    wait_ok = wait is not None
+    print(
+        f"\nspindle (node {SPINDLE_NODE}, profile velocity): target 6000 rpm applied at SYNC "
+        f"{s_cmd}, target reached in its TPDO at SYNC {s_reach}, the axes' first move at SYNC "
+        f"{s_move}: start-to-feed "
+        + (f"{wait * period_s:.2f} s" if wait is not None else "-")
+        + " (its ramp 6000 / 5000 rpm/s = 1.20 s; from its TPDO to the first move: the "
+        "TPDO read, the RPDO applied at the next SYNC, and how late the simulated drives "
+        "answer here)"
+    )
+    check(
+        wait_ok,
+        "the spindle (CiA 402, profile velocity) at speed before any axis moved: M3 S6000 at "
+        f"SYNC {s_cmd}, at speed at {s_reach}, first move at {s_move}",
+    )
+    last = [x for x in sp if x["target"] is not None]
+    stopped = bool(last) and last[-1]["target"] == 0 and abs(last[-1]["actual"]) <= 1000
+    check(stopped, "the spindle stopped at the program's end (target 0, at standstill)")
     cpu_line = [x for x in sim.proc.stderr().splitlines() if "CPU per drive cycle" in x]
     if cpu_line:
         print(f"\n{cpu_line[-1]} (why the long period)")

@@ -53,6 +53,9 @@ HOMING_METHODS = (17, 18, 19, 21, 35, 37)
 SW_HOMING_ATTAINED = 1 << 12  # mode 6
 SW_HOMING_ERROR = 1 << 13  # mode 6
 FE_WINDOW_OFF = 0xFFFFFFFF  # 0x6065 = this: following error monitoring off (CiA 402)
+MODE_PV = 3  # 0x6060: profile velocity mode (a spindle drive, issue 19)
+SW_SPEED_ZERO = 1 << 12  # mode 3: |velocity actual| within the velocity window
+PV_WINDOW_DEFAULT = 1000  # 0x606D, counts/s
 
 
 def build_od(
@@ -122,6 +125,12 @@ def build_od(
         ],
     )
     add(od_var("Following error actual value", 0x60F4, 0, I32, "ro", 0, True))
+    # profile velocity mode (3, a spindle): counts/s, counts/s^2
+    add(od_var("Velocity actual value", 0x606C, 0, I32, "ro", 0, True))
+    add(od_var("Velocity window", 0x606D, 0, U16, "rw", PV_WINDOW_DEFAULT))
+    add(od_var("Profile acceleration", 0x6083, 0, U32, "rw", 100000))
+    add(od_var("Profile deceleration", 0x6084, 0, U32, "rw", 100000))
+    add(od_var("Target velocity", 0x60FF, 0, I32, "rw", 0, True))
     # homing mode (6): method, speeds (search, latch), acceleration, offset
     add(od_var("Homing method", 0x6098, 0, I8, "rw", 0))
     record(
@@ -141,16 +150,16 @@ def build_od(
             0,
             U32,
             "ro",
-            1 << (P.MODE_CSP - 1) | 1 << (MODE_HOMING - 1),
+            1 << (P.MODE_CSP - 1) | 1 << (MODE_HOMING - 1) | 1 << (MODE_PV - 1),
         )
     )
     return od
 
 
 # objects the cycle reads, cached in Drive.load_params() after each write
-PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A)
-MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0)}
-MAPPABLE_TX = {(0x6041, 0), (0x6064, 0), (0x6061, 0), (0x60F4, 0)}
+PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A, 0x606D, 0x6083, 0x6084)
+MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0), (0x60FF, 0)}
+MAPPABLE_TX = {(0x6041, 0), (0x6064, 0), (0x6061, 0), (0x60F4, 0), (0x606C, 0)}
 
 
 class Recorder:
@@ -269,6 +278,11 @@ class Drive(SimDevice):
         self.pending_target: int | None = None  # from the RPDO since the last SYNC
         self.pending_cw: int | None = None
         self.cw = 0
+        # profile velocity mode (a spindle): counts/s
+        self.vel_f = 0.0
+        self.vel_target = 0
+        self.pending_vel: int | None = None
+        self.load_drop = 0.0  # injected: a load the spindle cannot hold (counts/s lost)
         self.fe_extra = 0.0
         self.fe_cycles = 0
         self.error_register = 0
@@ -285,6 +299,9 @@ class Drive(SimDevice):
         self.p_fe_ms = od(n, 0x6066, "<H")
         self.p_period_ms = self.sim.period_ms(n)
         self.p_quick_stop = od(n, 0x605A, "<h")
+        self.p_pv_window = od(n, 0x606D, "<H")
+        self.p_pv_acc = od(n, 0x6083, "<I")
+        self.p_pv_dec = od(n, 0x6084, "<I")
 
     def written(self, index: int, sub: int, data: bytes) -> None:
         if index in PARAM_OBJECTS:
@@ -313,10 +330,11 @@ class Drive(SimDevice):
         self._store(0x6064, 0, "<i", self.actual)
         self._store(0x60F4, 0, "<i", self.target - self.actual)
         self._store(0x6061, 0, "<b", self.mode_display())
+        self._store(0x606C, 0, "<i", self.vel_actual())
         self._store(0x1001, 0, "B", self.error_register)
 
     def _on_read(self, index: int, subindex: int, od: ODVariable) -> None:
-        if index in (0x6041, 0x6064, 0x60F4, 0x6061, 0x1001):
+        if index in (0x6041, 0x6064, 0x60F4, 0x6061, 0x1001, 0x606C):
             self._publish()
         # then the stored data
 
@@ -338,7 +356,7 @@ class Drive(SimDevice):
             return  # no such object here: every one the drive acts on is an integer
         val = raw
         if index == 0x6060:
-            if val not in (0, P.MODE_CSP, MODE_HOMING):
+            if val not in (0, P.MODE_CSP, MODE_HOMING, MODE_PV):
                 raise SdoAbortedError(0x06090030)
         elif index == 0x6098:
             if val not in HOMING_METHODS:
@@ -347,6 +365,8 @@ class Drive(SimDevice):
             self._controlword(val, "SDO")
         elif index == 0x607A:
             self.pending_target = val
+        elif index == 0x60FF:
+            self.pending_vel = val
         elif index == 0x1005:
             if val & 0x40000000:  # this device does not generate SYNC
                 raise SdoAbortedError(0x06090030)
@@ -534,7 +554,7 @@ class Drive(SimDevice):
                 net.unsubscribe(self.rpdo.cob_id, self.rpdo.on_message)
             self.rpdo.callbacks.clear()
         self._pdo_live = False
-        self.pending_target = self.pending_cw = None
+        self.pending_target = self.pending_cw = self.pending_vel = None
 
     def _on_rpdo(self, m: PdoMap) -> None:
         """An RPDO: latched, applied at the next SYNC (synchronous types)."""
@@ -549,6 +569,8 @@ class Drive(SimDevice):
             val = st.unpack_from(data, off)[0]
             if index == 0x607A:
                 self.pending_target = val
+            elif index == 0x60FF:
+                self.pending_vel = val
             elif index == 0x6040:
                 self.pending_cw = val
             elif index == 0x6060:
@@ -565,6 +587,12 @@ class Drive(SimDevice):
         tgt, self.pending_target = self.pending_target, None
         if tgt is not None:
             self._store(0x607A, 0, "<i", tgt)
+        vel, self.pending_vel = self.pending_vel, None
+        if vel is not None:
+            self._store(0x60FF, 0, "<i", vel)
+            self.vel_target = vel
+            if self.mode() == MODE_PV:
+                return vel  # what sync.csv records for a drive in pv mode
         return tgt
 
     # ------------------------------------------------------------ CiA 402
@@ -581,6 +609,12 @@ class Drive(SimDevice):
             sw |= P.SW_CSP_FOLLOWING
         if self.fe_cycles and self.mode() == P.MODE_CSP:
             sw |= P.SW_FOLLOWING_ERROR
+        if self.mode() == MODE_PV and self.state == P.OPERATION_ENABLED:
+            # bit 10 target reached, bit 12 speed zero (within 0x606D)
+            if abs(self.vel_target - self.vel_actual()) <= self.p_pv_window:
+                sw |= P.SW_TARGET_REACHED
+            if abs(self.vel_actual()) <= self.p_pv_window:
+                sw |= SW_SPEED_ZERO
         if self.mode() == MODE_HOMING:
             # bit 10 target reached (at rest: done or halted), 12 homing
             # attained, 13 homing error
@@ -684,9 +718,16 @@ class Drive(SimDevice):
         if not self._pdo_live:
             return
         sw, sent = self.statusword(), self.actual
+        vel = self.vel_actual()
         if self.tpdo.enabled and sync_no % self.tpdo_every == 0:
             tp = self.tpdo
-            now = {0x6041: sw, 0x6064: sent, 0x6061: self.p_mode, 0x60F4: self.target - sent}
+            now = {
+                0x6041: sw,
+                0x6064: sent,
+                0x6061: self.p_mode,
+                0x60F4: self.target - sent,
+                0x606C: vel,
+            }
             for index, off, st in self._tx:
                 st.pack_into(tp.data, off, now[index])
             tp.transmit()
@@ -704,7 +745,29 @@ class Drive(SimDevice):
             self.actual_f += self.lag_alpha * (self.target - self.actual_f)
             self.actual = int(round(self.actual_f - self.fe_extra))
             self._following(self.target - self.actual)
+        if self.mode() == MODE_PV:
+            fresh = tgt is not None
+            self._velocity()
+            sent = vel  # a pv drive's row: target and actual velocities, counts/s
         self.rec.sync((sync_no, self.id, t, self.state, self.cw, tgt, fresh, sent, sw))
+
+    def vel_actual(self) -> int:
+        return int(round(self.vel_f - self.load_drop))
+
+    def _velocity(self) -> None:
+        """Profile velocity mode, one SYNC: the velocity ramps toward the target
+        velocity 0x60FF at the profile acceleration 0x6083 (speeding up) or
+        deceleration 0x6084 (slowing down); not in operation enabled (disabled,
+        quick stop, fault) toward 0 at the deceleration (the drive brakes the
+        spindle by itself). The position turns with it."""
+        per_s = self.p_period_ms / 1000.0
+        want = float(self.vel_target) if self.state == P.OPERATION_ENABLED else 0.0
+        up = abs(want) > abs(self.vel_f) and want * self.vel_f >= 0
+        step = (self.p_pv_acc if up else self.p_pv_dec) * per_s
+        err = want - self.vel_f
+        self.vel_f += err if abs(err) <= step else (step if err > 0 else -step)
+        self.actual_f += self.vel_f * per_s
+        self.actual = int(round(self.actual_f))
 
     def _switch_on(self, which: str, pos: int) -> bool:
         at = self.switches.get(which)
@@ -824,6 +887,10 @@ class Drive(SimDevice):
                 self.target = self.actual
                 self._publish()
                 self.rec.event(self.id, "moved", to=self.actual, state=self.state)
+        elif what == "load":
+            # a spindle drive: ARG counts/s of its velocity lost to a load it cannot
+            # hold (0: none); the ramp goes on, what it reports drops
+            self.load_drop = float(arg or "0")
         elif what == "homing-stall":
             self.home_stall = arg != "off"  # a homing that never ends (a timeout)
         elif what == "never-enable":

@@ -14,9 +14,10 @@ maps) with the CiA 402 drive profile on top (mlipcan.drive):
            pre-operational, operational (PDOs on), stopped
   SDO      the object dictionary: 0x1000 0x1001 0x1005 0x1014 0x1016 0x1017
            0x1018 0x1400 0x1600 0x1800 0x1A00 0x6040 0x6041 0x605A 0x6060
-           0x6061 0x6064 0x6065 0x6066 0x607A 0x60C2 0x60F4 0x6502
+           0x6061 0x6064 0x6065 0x6066 0x606C 0x606D 0x607A 0x6083 0x6084
+           0x60C2 0x60F4 0x60FF 0x6502
            (--write-eds exports it); PDO mapping changes only as CiA 301
-           says (PDO invalid, sub 0 = 0 first), modes of operation 0 or 8
+           says (PDO invalid, sub 0 = 0 first), modes of operation 0, 3, 6 or 8
   CiA 402  the power state machine on the controlword (SDO or RPDO), the
            statusword per the standard; in operation enabled and mode 8
            (CSP), at each SYNC: the TPDO (statusword, position actual value)
@@ -24,7 +25,12 @@ maps) with the CiA 402 drive profile on top (mlipcan.drive):
            the position follows the target: actual += ALPHA (target -
            actual) (ALPHA 1: the target of one SYNC is the actual value at
            the next); following error beyond 0x6065 for 0x6066 ms: fault
-           (EMCY 0x8611); a consumed heartbeat (0x1016) lost: fault (0x8130)
+           (EMCY 0x8611); a consumed heartbeat (0x1016) lost: fault (0x8130);
+           in mode 3 (profile velocity, a spindle): the velocity ramps to the
+           target velocity 0x60FF at 0x6083 (up) / 0x6084 (down), statusword
+           bit 10 target reached and bit 12 speed zero within 0x606D, the TPDO
+           carries velocity actual 0x606C; not enabled: it brakes to 0 at 0x6084
+           (--config: the [SPINDLE] NODE of TYPE = cia402 is one of the drives)
 
 Fault injection (--inject at start, or a line "N:WHAT[=ARG]" appended to the
 --control file at run time, read within 20 ms):
@@ -38,6 +44,8 @@ Fault injection (--inject at start, or a line "N:WHAT[=ARG]" appended to the
   N:move=COUNTS           a disabled drive's axis moved by hand: position
                           actual + COUNTS (refused in "operation enabled")
   N:absent / N:present    gone from the bus (no boot-up, SDO, heartbeat) / back
+  N:load=COUNTS_S         a spindle (mode 3) loses COUNTS_S of its velocity to a load
+                          it cannot hold (0: none)
 
 Records (--record DIR): events.jsonl (every SDO write with its value or abort
 code, NMT and power state transitions, EMCYs, injections, heartbeat losses;
@@ -45,7 +53,9 @@ one JSON object a line, written at once) and sync.csv (per drive per SYNC in
 NMT operational: sync,node,t,state,controlword,target,fresh,actual,
 statusword; target = the RPDO's target applied at that SYNC, empty without
 one; fresh = an RPDO arrived since the previous SYNC; actual and statusword
-as sent in the TPDO at that SYNC; sync counts SYNCs from 1 since start).
+as sent in the TPDO at that SYNC; sync counts SYNCs from 1 since start; a
+drive in mode 3: target = the target velocity applied, actual = the velocity
+actual sent, counts/s).
 
 Frames are read by python-can's Notifier (canopen's own way), or in the
 software-emulated test VM (MLIP_IN_VM=1, --receive fast) with the listener's
@@ -204,7 +214,8 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
     a = ap.parse_args(argv)
     try:
         if a.config:
-            nodes = Setup.from_ini(a.config, st.build).nodes
+            cs = Setup.from_ini(a.config, st.build)
+            nodes = cs.nodes + ([cs.spindle_node] if cs.spindle_node else [])
         elif a.nodes:
             nodes = [int(v) for v in a.nodes.split(",")]
         else:

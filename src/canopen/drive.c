@@ -45,7 +45,13 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 	mlip_sdo_add(&l, 0x1400, 2, 1, 1, "RPDO1 transmission type (synchronous)");
 	mlip_sdo_add(&l, 0x1600, 0, 1, 0, "RPDO1 mapping count (cleared)");
 	mlip_sdo_add(&l, 0x1600, 1, 4, 0x60400010u, "RPDO1 mapping 1: controlword 0x6040");
-	mlip_sdo_add(&l, 0x1600, 2, 4, 0x607A0020u, "RPDO1 mapping 2: target position 0x607A");
+	if (d->velocity) {
+		mlip_sdo_add(&l, 0x1600, 2, 4, 0x60FF0020u,
+		             "RPDO1 mapping 2: target velocity 0x60FF");
+	} else {
+		mlip_sdo_add(&l, 0x1600, 2, 4, 0x607A0020u,
+		             "RPDO1 mapping 2: target position 0x607A");
+	}
 	mlip_sdo_add(&l, 0x1600, 0, 1, 2, "RPDO1 mapping count");
 	mlip_sdo_add(&l, 0x1400, 1, 4, d->rpdo_cob, "RPDO1 COB-ID");
 	mlip_sdo_add(&l, 0x1800, 1, 4, off | no_rtr | d->tpdo_cob,
@@ -53,17 +59,41 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 	mlip_sdo_add(&l, 0x1800, 2, 1, 1, "TPDO1 transmission type (synchronous, every SYNC)");
 	mlip_sdo_add(&l, 0x1A00, 0, 1, 0, "TPDO1 mapping count (cleared)");
 	mlip_sdo_add(&l, 0x1A00, 1, 4, 0x60410010u, "TPDO1 mapping 1: statusword 0x6041");
-	mlip_sdo_add(&l, 0x1A00, 2, 4, 0x60640020u,
-	             "TPDO1 mapping 2: position actual value 0x6064");
+	if (d->velocity) {
+		mlip_sdo_add(&l, 0x1A00, 2, 4, 0x606C0020u,
+		             "TPDO1 mapping 2: velocity actual value 0x606C");
+	} else {
+		mlip_sdo_add(&l, 0x1A00, 2, 4, 0x60640020u,
+		             "TPDO1 mapping 2: position actual value 0x6064");
+	}
 	mlip_sdo_add(&l, 0x1A00, 0, 1, 2, "TPDO1 mapping count");
 	mlip_sdo_add(&l, 0x1800, 1, 4, no_rtr | d->tpdo_cob, "TPDO1 COB-ID");
 	mlip_sdo_add(&l, 0x1005, 0, 4, d->sync_id, "COB-ID SYNC (consumer)");
-	mlip_sdo_add(&l, 0x6060, 0, 1, MLIP_402_MODE_CSP,
-	             "modes of operation (8: cyclic synchronous position)");
-	mlip_sdo_add_check(&l, 0x6061, 0, 1, MLIP_402_MODE_CSP, "modes of operation display");
+	if (d->velocity) {
+		mlip_sdo_add(&l, 0x6060, 0, 1, MLIP_402_MODE_PV,
+		             "modes of operation (3: profile velocity)");
+		mlip_sdo_add_check(&l, 0x6061, 0, 1, MLIP_402_MODE_PV,
+		                   "modes of operation display");
+		mlip_sdo_add(&l, 0x60FF, 0, 4, 0,
+		             "target velocity (0 until the spindle is asked to turn)");
+		mlip_sdo_add(&l, 0x6083, 0, 4, d->accel_counts_s2,
+		             "profile acceleration (counts/s^2)");
+		mlip_sdo_add(&l, 0x6084, 0, 4, d->accel_counts_s2,
+		             "profile deceleration (counts/s^2)");
+	} else {
+		mlip_sdo_add(&l, 0x6060, 0, 1, MLIP_402_MODE_CSP,
+		             "modes of operation (8: cyclic synchronous position)");
+		mlip_sdo_add_check(&l, 0x6061, 0, 1, MLIP_402_MODE_CSP,
+		                   "modes of operation display");
+	}
+	/* the SYNC period (a spindle's ramp is its own, but its TPDO timing is
+	 * the SYNC's) */
 	mlip_sdo_add(&l, 0x60C2, 1, 1, pv, "interpolation time period value");
 	mlip_sdo_add(&l, 0x60C2, 2, 1, (uint8_t)pi, "interpolation time index");
-	mlip_sdo_add(&l, 0x6065, 0, 4, d->following_window_counts, "following error window");
+	if (!d->velocity) {
+		mlip_sdo_add(&l, 0x6065, 0, 4, d->following_window_counts,
+		             "following error window");
+	}
 	mlip_sdo_add(&l, 0x1017, 0, 2, d->heartbeat_ms, "producer heartbeat time (ms)");
 	mlip_sdo_add(&l, 0x1016, 1, 4, ((uint32_t)d->master_node << 16) | d->master_timeout_ms,
 	             "consumer heartbeat time: the master's node and timeout (ms)");
@@ -127,8 +157,10 @@ const char *mlip_drive_fault_name(mlip_drive_fault f)
 	                                    "TPDOs lost or late",
 	                                    "not switched on",
 	                                    "not enabled",
-	                                    "beyond a soft limit"};
-	return (int)f >= 0 && f <= MLIP_DRIVE_BEYOND_LIMIT ? names[f] : "?";
+	                                    "beyond a soft limit",
+	                                    "spindle not at speed in time",
+	                                    "spindle speed out of its band"};
+	return (int)f >= 0 && f <= MLIP_DRIVE_SPINDLE_OUT_OF_BAND ? names[f] : "?";
 }
 
 int64_t mlip_drive_following_error(const int32_t *targets, int n, int32_t actual)

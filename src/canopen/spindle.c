@@ -68,11 +68,11 @@ int mlip_spindle_step(struct mlip_spindle *s, uint16_t statusword, int32_t vel_a
 	int standstill, at_speed;
 	double v;
 
+	s->actual_rpm = mlip_spindle_rpm(c, (double)vel_actual); /* faulted too: shown */
 	if (s->phase == MLIP_SPINDLE_FAULT) {
 		*target = 0;
 		return -1;
 	}
-	s->actual_rpm = mlip_spindle_rpm(c, (double)vel_actual);
 	if (statusword & MLIP_402_SW_FAULT) {
 		return fail(s, MLIP_SPINDLE_DRIVE_FAULT, (double)statusword, target);
 	}

@@ -46,6 +46,10 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 			c->home.configured |= o->home->axis[k].configured ? 1u << k : 0u;
 		}
 	}
+	if (mlip_ctl_spindle_init(&c->spindle, o->spindle, m->period_s) != MLIP_OK ||
+	    (c->spindle.on && !o->drives)) {
+		return MLIP_E_INVALID; /* a spindle on the bus needs the drives' master */
+	}
 	c->stall_periods = o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT;
 	c->jog.deadman = (uint64_t)floor(MLIP_JOG_DEADMAN_S / m->period_s + 1e-9);
 	c->state = MLIP_STATE_IDLE;
@@ -82,6 +86,8 @@ int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	switch (cmd->op) {
 	case MLIP_CMD_OVERRIDE:
 		return mlip_planner_set_override(p, (double)cmd->arg);
+	case MLIP_CMD_SPINDLE_OVERRIDE:
+		return mlip_ctl_spindle_override(&c->spindle, cmd->arg, c->period);
 	case MLIP_CMD_HOLD:
 		mlip_planner_hold(p, 1);
 		c->hold.op = 1;
@@ -241,6 +247,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		mlip_ct_drive_fault(c, out, &in->drives.fault);
 	}
 
+	mlip_ct_spindle_period(c, in, out);
 	mlip_mio_period(c, in); /* the probe's trip, before the records */
 	mlip_ct_jog_period(c, out);
 	mlip_ct_home_period(c, in, out);
@@ -305,12 +312,12 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	out->status.io_known = in->io.known & c->io.cfg.mapped;
 	memcpy(out->outputs, c->io.outputs, sizeof(out->outputs));
 	out->sdo = c->home.req;
+	mlip_ct_spindle_out(c, in, out);
 	out->homing = c->home.on && c->home.step >= HS_ARM ? c->home.group : 0;
 	out->status.homed = c->home.homed;
 	mlip_mio_publish(c, &out->status);
 	out->power.ok = c->power.seq.ok;
-	out->power.late_node =
-	    c->power.seq.late >= 0 ? (uint32_t)c->m.axis[c->power.seq.late].can_node : 0;
+	out->power.late_node = c->power.seq.late >= 0 ? mlip_ct_node_of(c, c->power.seq.late) : 0;
 	out->power.late_sw = c->power.seq.late_sw;
 	out->power.late_step = c->power.seq.late_step;
 	out->status.actual_mask = in->drives.actual_mask;

@@ -15,6 +15,9 @@
  *                 ingest), waits (dwell, pause, manual I/O), the
  *                 transitions the motion decides
  *   power.c       the drives' power (CiA 402 sequencer, all drives in step)
+ *   spindlectl.c  a CiA 402 spindle (mlip/ctl/spindlectl.h): its decisions, and
+ *                 its part of the period (the wait for speed, its faults, its
+ *                 RPDO and status)
  *   machio.c      the machine's outputs (coolant, M64/M65) and probing (G38),
  *                 its own header machio.h (issue 19)
  * Functions of one part that another calls are mlip_ct_*, declared here.
@@ -72,6 +75,7 @@ static inline void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t sta
 	if (state == MLIP_STATE_IDLE || state == MLIP_STATE_STOPPING || state == MLIP_STATE_FAULT ||
 	    state == MLIP_STATE_ESTOP) {
 		mlip_mio_all_off(c); /* a program's end, a stop, a fault, an E-stop (issue 19) */
+		mlip_ctl_spindle_ask(&c->spindle, 0.0, c->period); /* every end stops it */
 	}
 	emit(c, out, MLIP_EV_STATE, from, &r);
 }
@@ -118,6 +122,17 @@ void mlip_ct_home_abort(struct mlip_ctl *c);
 int32_t mlip_ct_home_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_t arg);
 void mlip_ct_home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
                          struct mlip_ctl_out *out);
+
+/* spindlectl.c: a CiA 402 spindle (mlip/ctl/spindlectl.h) in the period */
+void mlip_ct_spindle_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                            struct mlip_ctl_out *out);
+void mlip_ct_spindle_out(const struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                         struct mlip_ctl_out *out);
+/* the node of drive i of the power sequencer's group: the axes, then the spindle */
+static inline uint32_t mlip_ct_node_of(const struct mlip_ctl *c, int i)
+{
+	return i < c->m.n_axes ? (uint32_t)c->m.axis[i].can_node : c->spindle.node;
+}
 
 /* power.c */
 void mlip_ct_power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,

@@ -3,6 +3,8 @@
  * program or a jog, disabled at rest after it, never out of ENABLED while
  * the planner moves.
  */
+#include <string.h>
+
 #include "ctl.h"
 
 #include "mlip/canopen/drive.h"
@@ -28,8 +30,8 @@ static int power_rest(const struct mlip_ctl *c)
 	/* the last setpoint sent twice: every drive has applied it at a SYNC
 	 * before it is told to disable operation */
 	if (mlip_planner_queued(c->planner) > 0 || mlip_planner_moving(c->planner) ||
-	    c->power.still_periods < 2) {
-		return 0;
+	    c->power.still_periods < 2 || !mlip_ctl_spindle_at_rest(&c->spindle)) {
+		return 0; /* and a spindle on the bus at standstill */
 	}
 	return c->state == MLIP_STATE_FAULT || c->op.exiting ||
 	       (c->state == MLIP_STATE_IDLE && c->why.why != MLIP_WHY_NONE);
@@ -43,7 +45,7 @@ static void power_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, ch->in_sequence, 0);
 	r.value = (double)ch->in_step;
 	if (ch->late >= 0) {
-		r.node = (uint32_t)c->m.axis[ch->late].can_node;
+		r.node = mlip_ct_node_of(c, ch->late);
 		r.field = ch->late_sw;
 	}
 	if (out->n_events < MLIP_CTL_MAX_EVENTS) {
@@ -95,17 +97,27 @@ void mlip_ct_power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
 	} else if (power == MLIP_POWER_ENABLED) {
 		want = !power_rest(c);
 	}
-	if (!mlip_402_seq_run(&c->power.seq, want ? MLIP_POWER_ENABLED : MLIP_POWER_OFF,
-	                      in->drives.sw, c->m.n_axes, in->drives.mute, c->period, &ch)) {
+	/* a spindle on the bus is one more drive of the group */
+	uint16_t sw[MLIP_MAX_AXES + 1];
+	uint32_t mute = in->drives.mute;
+	int n = c->m.n_axes;
+	memcpy(sw, in->drives.sw, sizeof(in->drives.sw));
+	if (c->spindle.on) {
+		sw[n] = in->spindle.sw;
+		mute |= in->spindle.mute ? 1u << n : 0u;
+		n++;
+	}
+	if (!mlip_402_seq_run(&c->power.seq, want ? MLIP_POWER_ENABLED : MLIP_POWER_OFF, sw, n,
+	                      mute, c->period, &ch)) {
 		return;
 	}
 	if (ch.failed) {
 		/* not switched on or not enabled in time: a fault, the program is
 		 * dropped, the drives go down again; nothing has moved */
-		struct mlip_ctl_drive_fault f = {
-		    ch.from == MLIP_POWER_SWITCHING_ON ? MLIP_DRIVE_NOT_SWITCHED_ON
-		                                       : MLIP_DRIVE_NOT_ENABLED,
-		    (uint32_t)c->m.axis[ch.late].can_node, (double)ch.late_sw};
+		struct mlip_ctl_drive_fault f = {ch.from == MLIP_POWER_SWITCHING_ON
+		                                     ? MLIP_DRIVE_NOT_SWITCHED_ON
+		                                     : MLIP_DRIVE_NOT_ENABLED,
+		                                 mlip_ct_node_of(c, ch.late), (double)ch.late_sw};
 		mlip_ct_drive_fault(c, out, &f);
 	}
 	power_event(c, out, &ch);

@@ -277,6 +277,14 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		c->wait.dwell_left = (uint64_t)floor(rec->dwell_s / c->m.period_s + 0.5);
 		r.value = rec->dwell_s;
 		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_SPINDLE && c->spindle.on) {
+		/* a spindle on the bus: at rest until it is at speed (or at
+		 * standstill); its timeout is a fault before this wait ends */
+		mlip_ctl_spindle_ask(&c->spindle, rec->dwell_s, c->period);
+		c->wait.dwell_left = (uint64_t)c->spindle.drive.cfg.timeout_periods + 2u;
+		r.why = MLIP_WHY_SPINDLE_WAIT;
+		r.value = rec->dwell_s;
+		go(c, out, MLIP_STATE_DWELLING, r);
 	} else if (rec->type == MLIP_REC_OUTPUT ||
 	           (rec->type == MLIP_REC_COOLANT && mlip_mio_coolant_io(c))) {
 		/* the module's outputs, at rest: a wait of no period (issue 19) */

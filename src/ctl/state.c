@@ -62,13 +62,14 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "homing object refused",
 	                                    "not homed",
 	                                    "jog done",
-
 	                                    "outputs switched",
 	                                    "probing (G38)",
 	                                    "probe move done",
 	                                    "probe not tripped (G38.2/G38.4)",
 	                                    "probe already tripped at the start",
-	                                    "no probe input"};
+	                                    "no probe input",
+	                                    "spindle to speed",
+	                                    "spindle fault"};
 
 	return NAME_OF(names, why);
 }

@@ -14,7 +14,9 @@
 void mlip_ct_drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
                          const struct mlip_ctl_drive_fault *f)
 {
-	struct mlip_ctl_reason r = reason(MLIP_WHY_DRIVE, 0, 0);
+	struct mlip_ctl_reason r = reason(
+	    c->spindle.on && f->node == c->spindle.node ? MLIP_WHY_SPINDLE_FAULT : MLIP_WHY_DRIVE,
+	    0, 0);
 	mlip_ct_progress(c, &r.seq, &r.line);
 	r.field = f->event;
 	r.node = f->node;

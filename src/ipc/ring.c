@@ -47,7 +47,7 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 408);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 432);
 MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 704);
 MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 712);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 40);
@@ -636,6 +636,11 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	for (int k = 0; k < MLIP_MAX_AXES; k++) {
 		STD(&d->probe_pos[k], &s->probe_pos[k]);
 	}
+	ST(&d->spindle_state, s->spindle_state, REL);
+	STD(&d->spindle_cmd_rpm, &s->spindle_cmd_rpm);
+	STD(&d->spindle_actual_rpm, &s->spindle_actual_rpm);
+	ST(&d->spindle_override, s->spindle_override, REL);
+	ST(&d->spindle_node, s->spindle_node, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -697,10 +702,14 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		s->probe_count = LD(&d->probe_count, ACQ);
 		s->probe_tripped = LD(&d->probe_tripped, ACQ);
 		s->probe_line = LD(&d->probe_line, ACQ);
-		s->spare9 = 0;
 		for (int k = 0; k < MLIP_MAX_AXES; k++) {
 			LDD(&d->probe_pos[k], &s->probe_pos[k]);
 		}
+		s->spindle_state = LD(&d->spindle_state, ACQ);
+		LDD(&d->spindle_cmd_rpm, &s->spindle_cmd_rpm);
+		LDD(&d->spindle_actual_rpm, &s->spindle_actual_rpm);
+		s->spindle_override = LD(&d->spindle_override, ACQ);
+		s->spindle_node = LD(&d->spindle_node, ACQ);
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;
@@ -857,9 +866,9 @@ int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
-	static const char *const names[] = {"none", "override",      "hold",  "resume",
-	                                    "stop", "optional-stop", "reset", "jog",
-	                                    "home", "jog-axis"};
+	static const char *const names[] = {
+	    "none", "override", "hold",     "resume",          "stop", "optional-stop", "reset",
+	    "jog",  "home",     "jog-axis", "spindle-override"};
 
 	return NAME_OF(names, op);
 }

@@ -352,18 +352,18 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		mlip_tb_putc(&b, '\'');
 		return MLIP_E_SYNTAX;
 	case V_IO:
-		i = tok_is(v, nv, "none")     ? MLIP_IO_NONE
-		    : tok_is(v, nv, "manual") ? MLIP_IO_MANUAL
-		                              : -1;
+		i = tok_is(v, nv, "none")                           ? MLIP_IO_NONE
+		    : tok_is(v, nv, "manual")                       ? MLIP_IO_MANUAL
+		    : sec == SEC_SPINDLE && tok_is(v, nv, "cia402") ? MLIP_IO_CIA402
+		                                                    : -1;
 		if (i < 0) {
 			err_at(err, &b, line, col);
 			mlip_tb_puts(&b, kd->name);
-			mlip_tb_puts(&b, " must be none or manual, got '");
+			mlip_tb_puts(&b, sec == SEC_SPINDLE
+			                     ? " must be none, manual or cia402, got '"
+			                     : " must be none or manual, got '");
 			mlip_tb_token(&b, v, nv);
 			mlip_tb_putc(&b, '\'');
-			if (sec == SEC_SPINDLE && tok_is(v, nv, "cia402")) {
-				mlip_tb_puts(&b, " (a CiA 402 spindle drive is not supported yet)");
-			}
 			return MLIP_E_SYNTAX;
 		}
 		st->ival[k] = i;

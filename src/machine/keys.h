@@ -88,7 +88,17 @@ enum {
 };
 /* [IO]: the CiA 401 module's node, then the inputs in the order of MLIP_IN_* */
 enum { IK_NODE, IK_ESTOP, IK_HOLD, IK_CYCLE_START, IK_PROBE, IK_OUT0 /* OUTPUT_0..7 */ };
-enum { SK_TYPE, SK_MIN_RPM, SK_MAX_RPM };
+enum {
+	SK_TYPE,
+	SK_MIN_RPM,
+	SK_MAX_RPM,
+	SK_NODE, /* TYPE = cia402 (issue 19): the drive on the bus */
+	SK_CPR,
+	SK_ACCEL,
+	SK_BAND,
+	SK_TIMEOUT,
+	SK_BAND_TIME
+};
 /* [TOOL]: CHANGE, then CHANGE_X .. CHANGE_C in AXIS_LETTERS order */
 enum { OK_CHANGE, OK_POS0 };
 enum { QK_TYPE, QK_MIST, QK_FLOOD };
@@ -110,7 +120,7 @@ enum vtype {
 	V_ID,        /* integer 0..0x7FF */
 	V_BOOL,      /* 0 | 1 */
 	V_MS,        /* integer 1..65535 (CiA 301 heartbeat times are 16-bit ms) */
-	V_IO,        /* none | manual (a spindle, a tool change, coolant) */
+	V_IO,        /* none | manual (a spindle, a tool change, coolant); cia402 (a spindle) */
 	V_RPM,       /* decimal >= 0 */
 	V_IOBIT,     /* NODE INDEX:SUB BIT HIGH|LOW (io.c) */
 	V_METHOD,    /* integer -128..127 (0x6098, INTEGER8) */

@@ -156,7 +156,7 @@ def frozen(proc):
         proc.send_signal(signal.SIGCONT)
 
 
-# The segment's record ring (include/mlip/ipc/ring.h, layout version 8): a
+# The segment's record ring (include/mlip/ipc/ring.h, layout version 10): a
 # record, the producer's and the consumer's free-running indices, the
 # capacity, where the records start.
 REC = struct.Struct("<QIHH6dddd")

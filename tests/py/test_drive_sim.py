@@ -104,3 +104,43 @@ def test_move_by_hand_only_while_disabled(pair):
     ev = [ln for ln in (rec / "events.jsonl").read_text().splitlines()
           if '"moved"' in ln or '"move_refused"' in ln]
     assert len(ev) == 3 and '"move_refused"' in ev[-1], ev
+
+
+def test_profile_velocity_ramps_to_target(pair):
+    """Mode 3 (a spindle, issue 19): enabled, the velocity actual 0x606C ramps
+    to the target velocity 0x60FF at 0x6083 per SYNC (0x60C2: 1 ms), with
+    statusword bit 10 (target reached) only within 0x606D of it and bit 12
+    (speed zero) only near 0; a quick stop brakes it to 0 at 0x6084."""
+    sim, node, rec = pair
+    node.sdo[0x6060].raw = 3
+    node.sdo[0x6083].raw = 200000  # counts/s^2: 200 counts/s per 1 ms SYNC
+    node.sdo[0x6084].raw = 400000
+    node.sdo[0x606D].raw = 100
+    for cw in (0x06, 0x07, 0x0F):
+        node.sdo[0x6040].raw = cw
+    assert state(node) == P.OPERATION_ENABLED
+    node.nmt.state = "OPERATIONAL"
+    deadline = time.monotonic() + 10
+    while sim.drives[5].nmt_state() != "OPERATIONAL" and time.monotonic() < deadline:
+        time.sleep(0.01)
+    node.sdo[0x60FF].raw = 10000  # applied at the next SYNC, as an RPDO's
+    assert node.sdo[0x6041].raw & D.SW_SPEED_ZERO
+    seen = []
+    for k in range(80):  # 10000 / 200 = 50 SYNCs of ramp
+        node.network.sync.transmit()
+        while sim.sync_no < k + 1 and time.monotonic() < deadline:
+            time.sleep(0.001)
+        seen.append((node.sdo[0x606C].raw, node.sdo[0x6041].raw))
+    v = [a for a, _ in seen]
+    assert v[0] == 200 and v[1] == 400, v[:5]  # the ramp, to the count
+    assert v[49] == 10000 and v[-1] == 10000
+    reached = [k for k, (a, s) in enumerate(seen) if s & P.SW_TARGET_REACHED]
+    assert reached == list(range(49, 80)), reached[:3]  # 9800 is not within 100, 10000 is
+    assert seen[48][0] == 9800
+    assert not any(s & D.SW_SPEED_ZERO for _, s in seen[1:])
+    node.sdo[0x6040].raw = 0x02  # quick stop: switch on disabled, braking at 0x6084
+    for k in range(80, 120):
+        node.network.sync.transmit()
+        while sim.sync_no < k + 1 and time.monotonic() < deadline:
+            time.sleep(0.001)
+    assert node.sdo[0x606C].raw == 0

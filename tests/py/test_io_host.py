@@ -209,3 +209,33 @@ def test_shipped_demo_io():
                         root / "examples" / "tool.tbl", "--summary", "-",
                         root / "examples" / "demo-io.ngc"]).stdout)
     assert s["pauses"] == 8 and s["violations"] == 0 and s["order_errors"] == 0
+
+
+def test_cia402_spindle_config_and_sim(tmp_path):
+    """[SPINDLE] TYPE = cia402: mlip-config shows the drive; mlip-sim (no
+    drive there) says what mlip-rt waits for at each spindle event; an S
+    beyond MAX_RPM and M3 without S are refused at their line and column;
+    mlip-rt refuses it without the CANopen master."""
+    cfg = tmp_path / "sp.ini"
+    cfg.write_text((CONFIG / "mill-3axis.ini").read_text()
+                   + "\n[SPINDLE]\nTYPE = cia402\nMAX_RPM = 12000\nNODE = 5\n"
+                   "COUNTS_PER_REV = 4096\nACCELERATION = 10000\n")
+    p = run(["mlip-config", cfg])
+    assert ("spindle: CiA 402 drive, node 5, profile velocity, 0..12000 rpm, 4096 counts/rev, "
+            "10000 rpm/s, at speed within 240 rpm (timeout 3.4 s") in p.stdout, p.stdout
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90\nM3 S6000\nG1 X5 F600\nM2\n")
+    p = run(["mlip-sim", "--config", cfg, prog])
+    assert ("p.ngc:2: t = 0.000 s, spindle (CiA 402, not simulated): to 6000 rpm: mlip-rt "
+            "waits here until it is at speed (0.60 s from rest at ACCELERATION)") in p.stderr
+    assert "spindle (CiA 402, not simulated): stop: mlip-rt waits here until it stands still" \
+        in p.stderr
+    prog.write_text("G21 G90\nG0 X1\nM3 S12001\nM3\n")
+    p = run(["mlip-sim", "--config", cfg, prog], check=False)
+    assert p.returncode == 1
+    assert f"{prog}:3:4: error: S12001 beyond the spindle's MAX_RPM 12000: refused" in p.stderr
+    prog.write_text("G21 G90\nM3\n")
+    p = run(["mlip-sim", "--config", cfg, prog], check=False)
+    assert f"{prog}:2:1: error: M3 with no S: the spindle speed was never set" in p.stderr
+    p = run(["mlip-rt", "--config", cfg, "--can", "none"], check=False)
+    assert p.returncode == 2 and "TYPE = cia402 needs the CANopen master" in p.stderr, p.stderr

@@ -39,6 +39,7 @@ static uint16_t drv_sw[MLIP_MAX_AXES]; /* the statusword of each drive's TPDO */
 /* the inputs on the bus of the next period (issue 18) */
 static struct mlip_ctl_io io_in;
 static struct mlip_ctl_sdo_res sdo_res_in; /* the drives' SDO answer (homing) */
+static struct mlip_ctl_spindle_in sp_in;   /* the spindle drive's TPDO (issue 19) */
 /* the segment's stop counter and the feeder's stop_base (mlip/ipc/ring.h) */
 static uint32_t stop_count, feeder_base;
 /* every transition seen since setup: state entered and why */
@@ -84,6 +85,7 @@ static int setup(void **state)
 	n_seen = 0;
 	memset(&drv_fault, 0, sizeof(drv_fault));
 	memset(&io_in, 0, sizeof(io_in));
+	memset(&sp_in, 0, sizeof(sp_in));
 	drv_actual_mask = 0;
 	return 0;
 }
@@ -124,6 +126,7 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	}
 	in.sdo = sdo_res_in;
 	in.io = io_in;
+	in.spindle = sp_in;
 	memset(&drv_fault, 0, sizeof(drv_fault));
 	run_period(&in);
 	for (uint32_t i = 0; i < out.n_events; i++) {
@@ -199,7 +202,8 @@ static void end(uint64_t seq)
 
 static void event(uint64_t seq, uint8_t kind, double dwell_s)
 {
-	struct mlip_block b = {.kind = kind, .dwell_s = dwell_s, .line = (uint32_t)seq + 1};
+	struct mlip_block b = {
+	    .kind = kind, .dwell_s = dwell_s, .value = dwell_s, .line = (uint32_t)seq + 1};
 	struct mlip_ring_rec rec;
 	mlip_ring_rec_from_block(&rec, &b, seq);
 	push_rec(&rec);
@@ -2383,6 +2387,326 @@ static void test_home_error_and_timeout(void **st)
 #define TD(f)  cmocka_unit_test_setup_teardown(f, setup_drives, teardown)
 #define TIO(f) cmocka_unit_test_setup_teardown(f, setup_io, teardown)
 #define TH(f)  cmocka_unit_test_setup_teardown(f, setup_home, teardown)
+#define TS(f)  cmocka_unit_test_setup_teardown(f, setup_spindle, teardown)
+
+/* ---- a CiA 402 spindle on the bus (issue 19) ------------------------------ */
+
+/* The spindle drive of these tests: node 9, 4096 counts/rev; it follows the
+ * group's controlword as the axes' drives do, and in "operation enabled"
+ * ramps its velocity to the target at its own acceleration (10000 rpm/s),
+ * target reached (bit 10) within 20 rpm; not enabled it brakes at the same
+ * rate. Its TPDO of the next period shows it. */
+static struct mlip_spindle_config sp_cfg = {9, 0, 12000, 4096, 10000, 240, 3.4, 0.2};
+static struct {
+	double rpm, target_rpm, accel, load;
+	int fault;
+	uint16_t sw;
+	uint64_t reached; /* the first period its TPDO said target reached (0: not yet) */
+} spd;
+
+static int setup_spindle(void **state)
+{
+	setup_drives(state);
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .spindle = &sp_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	memset(&spd, 0, sizeof(spd));
+	spd.accel = 10000;
+	spd.sw = 0x0237;
+	sp_in.sw = spd.sw;
+	return 0;
+}
+
+static void spindle_drive(void)
+{
+	double step = spd.accel * mach.period_s, err;
+	uint16_t cw = out.spindle.cw;
+	int enabled = (spd.sw & 0x6F) == 0x27;
+	assert_true(out.spindle.send);
+	int st = spd.sw & 0x6F; /* CiA 402's transitions, from the state it is in */
+	if (spd.fault) {
+		spd.sw = 0x0218; /* fault */
+	} else if (cw == 0x0F && (st == 0x21 || st == 0x23 || enabled)) {
+		spd.sw = 0x0237;
+	} else if (cw == 0x07 && (st == 0x21 || enabled)) {
+		spd.sw = 0x0233;
+	} else if (cw == 0x06 && (st == 0x40 || st == 0x23 || enabled)) {
+		spd.sw = 0x0231;
+	} else if (cw == 0x02 && st != 0x40) {
+		spd.sw = 0x0250; /* quick stop (option 2): then switch on disabled */
+	}
+	enabled = (spd.sw & 0x6F) == 0x27;
+	spd.target_rpm = enabled ? out.spindle.target * 60.0 / 4096.0 : 0.0;
+	err = spd.target_rpm - spd.rpm;
+	spd.rpm += fabs(err) <= step ? err : err > 0 ? step : -step;
+	if (enabled && fabs(spd.target_rpm - spd.rpm) <= 20) {
+		spd.sw |= 0x0400;
+	}
+	sp_in.sw = spd.sw;
+	/* a load slows it, whichever way it turns */
+	double rpm = spd.rpm - (spd.rpm < 0 ? -spd.load : spd.load);
+	sp_in.vel_counts = (int32_t)floor(rpm * 4096.0 / 60.0 + 0.5);
+	if ((spd.sw & 0x0400) && spd.target_rpm != 0 && spd.reached == 0) {
+		spd.reached = period; /* the period that reads this TPDO */
+	}
+}
+
+static void stick(int n)
+{
+	for (int i = 0; i < n; i++) {
+		dtick(1);
+		spindle_drive();
+	}
+}
+
+/* stick until the state is st (at most n periods): the periods it took */
+static int suntil(uint32_t st, int n)
+{
+	for (int i = 1; i <= n; i++) {
+		stick(1);
+		if (status().state == st) {
+			return i;
+		}
+	}
+	fail_msg("state %s not reached (now %s)", mlip_ctl_state_name(st),
+	         mlip_ctl_state_name(status().state));
+	return -1;
+}
+
+/* G0 X5, M3 S12000, G1 along X to 40: nothing moves from the M3 until the
+ * drive's TPDO said target reached and its speed is in the band; the wait is
+ * the ramp (1.2 s at 10000 rpm/s) plus the bus' periods; the program's end
+ * stops it (target 0 in the period after) and the drives are disabled only at
+ * its standstill. */
+static void test_spindle_feed_waits_for_speed(void **st)
+{
+	(void)st;
+	stick(5);
+	move(1, 5.0, 0.0);
+	event(2, MLIP_BLOCK_SPINDLE, 12000.0);
+	for (uint64_t k = 3; k <= 10; k++) {
+		move(k, 5.0 * (double)k, 0.0);
+	}
+	end(11);
+	suntil(MLIP_STATE_DWELLING, 5000);
+	assert_int_equal(status().reason, MLIP_WHY_SPINDLE_WAIT);
+	assert_true(out.pos[0] == 5.0);
+	uint64_t asked = period;
+	double x = out.pos[0];
+	uint64_t moved = 0;
+	for (int i = 0; i < 3000 && moved == 0; i++) {
+		stick(1);
+		if (out.pos[0] != x) {
+			moved = period;
+		}
+		assert_true(status().spindle_state != 0);
+	}
+	assert_true(moved != 0 && spd.reached != 0);
+	assert_true(moved > spd.reached); /* never before the drive said so */
+	assert_true(fabs(spd.rpm - 12000) <= 20);
+	/* the ramp into the drive's 20 rpm window: 1198 periods; the bus: its
+	 * RPDO and its TPDO a period each (the first TPDO read counts from the
+	 * ask's period) */
+	uint64_t wait = moved - asked;
+	print_message("spindle start to feed: %llu periods (ramp 1198)\n",
+	              (unsigned long long)wait);
+	assert_true(wait >= 1198 && wait <= 1202);
+	assert_true(status().spindle_cmd_rpm == 12000 &&
+	            fabs(status().spindle_actual_rpm - 12000) <= 20);
+	assert_true(out.spindle.target == 819200);
+	/* the spindle override: 150 % is clamped to MAX_RPM 12000, 50 % halves it */
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_OVERRIDE, 40, 0), MLIP_E_RANGE);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_OVERRIDE, 50, 0), MLIP_OK);
+	spindle_drive();
+	assert_true(status().spindle_override == 50 && status().spindle_cmd_rpm == 6000);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_OVERRIDE, 100, 0), MLIP_OK);
+	spindle_drive();
+	/* the end: target 0 in the period after it, the drives held until standstill */
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(spd.rpm > 1000);
+	int k = 0;
+	while (status().drive_power == MLIP_POWER_ENABLED && k < 3000) {
+		stick(1);
+		k++;
+		assert_int_equal(out.spindle.target, 0);
+	}
+	assert_true(fabs(spd.rpm) <= 240); /* disabled at standstill (the band), not before */
+	assert_int_equal(status().drive_power, MLIP_POWER_DISABLING);
+}
+
+/* A stop mid-cut: target 0 in the period after the stop; a fault of the
+ * spindle drive mid-cut: the feed stops on the path (no jump: each period's
+ * step within the acceleration), state FAULT naming the spindle. */
+static void start_cut(void)
+{
+	stick(5);
+	event(1, MLIP_BLOCK_SPINDLE, -6000.0); /* M4 */
+	for (uint64_t k = 2; k <= 40; k++) {
+		move(k, 10.0 * (double)k, 0.0);
+	}
+	end(41);
+	suntil(MLIP_STATE_RUNNING, 5000);
+	assert_true(spd.rpm < -5970);
+	stick(100);
+	assert_int_equal(status().state, MLIP_STATE_RUNNING);
+}
+
+static void test_spindle_stop_and_fault_mid_cut(void **st)
+{
+	(void)st;
+	start_cut();
+	stop_count++;
+	stick(1);
+	assert_int_equal(status().state, MLIP_STATE_STOPPING);
+	assert_int_equal(out.spindle.target, 0);
+	suntil(MLIP_STATE_IDLE, 5000);
+	/* again, and the drive faults */
+	stick(3000);
+	teardown(st);
+	setup_spindle(st);
+	start_cut();
+	double x0 = out.pos[0], prev = out.pos[0], dv_max = 0;
+	double v_prev;
+	stick(1);
+	v_prev = (out.pos[0] - prev) / mach.period_s; /* at feed: 100 mm/s */
+	prev = out.pos[0];
+	spd.fault = 1;
+	int k;
+	for (k = 0; k < 2000; k++) {
+		stick(1);
+		double v = (out.pos[0] - prev) / mach.period_s;
+		dv_max = fabs(v - v_prev) > dv_max ? fabs(v - v_prev) : dv_max;
+		v_prev = v;
+		if (out.pos[0] == prev) {
+			break;
+		}
+		prev = out.pos[0];
+	}
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_SPINDLE_FAULT);
+	assert_int_equal(status().reason_node, 9);
+	assert_int_equal(status().reason_field, MLIP_DRIVE_FAULT_BIT);
+	/* on the path, 100 mm/s braked at 1000 mm/s^2: about 5 mm, 100 periods */
+	assert_true(out.pos[0] - x0 > 4.0 && out.pos[0] - x0 < 6.5 && k >= 100 && k <= 104);
+	print_message("spindle fault mid-cut: %d periods to rest, largest speed step %g mm/s\n", k,
+	              dv_max);
+	assert_true(dv_max <= 1000.0 * mach.period_s * 1.001);
+	assert_int_equal(out.spindle.target, 0);
+	/* a faulted spindle stops by its own fault reaction: the axes are
+	 * disabled at rest without waiting for it (an exit would hang on a
+	 * spindle whose TPDOs stopped) */
+	int p;
+	for (p = 0; p < 500 && status().drive_power != MLIP_POWER_OFF; p++) {
+		stick(1);
+	}
+	assert_int_equal(status().drive_power, MLIP_POWER_OFF);
+	assert_int_equal(status().spindle_state, MLIP_SPINDLE_FAULT + 1u);
+}
+
+/* The spindle drive's heartbeat lost mid-cut (rt/'s supervision reports it
+ * with its node): state FAULT naming the spindle, the feed stopped on the
+ * path, the spindle asked 0. */
+static void test_spindle_heartbeat_lost(void **st)
+{
+	(void)st;
+	start_cut();
+	double x0 = out.pos[0];
+	drv_fault = (struct mlip_ctl_drive_fault){MLIP_DRIVE_HEARTBEAT_LOST, 9, 310.0};
+	stick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_SPINDLE_FAULT);
+	assert_int_equal(status().reason_field, MLIP_DRIVE_HEARTBEAT_LOST);
+	assert_int_equal(status().reason_node, 9);
+	assert_int_equal(out.spindle.target, 0);
+	for (int k = 0; k < 500 && status().speed_mm_s > 0; k++) {
+		stick(1);
+	}
+	assert_true(status().speed_mm_s == 0 && out.pos[0] - x0 < 6.5 && out.pos[1] == 0.0);
+	/* an axis drive's fault stays a drive fault */
+	teardown(st);
+	setup_spindle(st);
+	start_cut();
+	drv_fault = (struct mlip_ctl_drive_fault){MLIP_DRIVE_FOLLOWING_ERROR, 2, 4000.0};
+	stick(1);
+	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
+	assert_int_equal(out.spindle.target, 0);
+}
+
+/* At speed, then a load it cannot hold: out of the band longer than
+ * BAND_TIME (200 periods) is a fault; a spindle slower than the timeout
+ * (3.4 s) is one too. */
+static void test_spindle_band_and_timeout(void **st)
+{
+	(void)st;
+	start_cut();
+	spd.load = 500; /* rpm */
+	int k = suntil(MLIP_STATE_FAULT, 1000);
+	assert_true(k >= 200 && k <= 203);
+	assert_int_equal(status().reason, MLIP_WHY_SPINDLE_FAULT);
+	assert_int_equal(status().reason_field, MLIP_DRIVE_SPINDLE_OUT_OF_BAND);
+	assert_true(fabs(status().reason_value + 5500) < 1); /* the actual rpm, M4 */
+	teardown(st);
+	setup_spindle(st);
+	spd.accel = 3000; /* 12000 rpm takes 4 s */
+	stick(5);
+	event(1, MLIP_BLOCK_SPINDLE, 12000.0);
+	move(2, 5.0, 0.0);
+	end(3);
+	suntil(MLIP_STATE_DWELLING, 100);
+	k = suntil(MLIP_STATE_FAULT, 5000);
+	assert_true(k >= 3399 && k <= 3403);
+	assert_int_equal(status().reason_field, MLIP_DRIVE_SPINDLE_TIMEOUT);
+	assert_true(out.pos[0] == 0.0); /* nothing moved */
+}
+
+/* E-stop mid-cut: quick stop (0x0002) to the spindle with the axes in the
+ * period of the input, its target 0; after the reset and standstill a new
+ * M3 waits for speed again. */
+static void test_spindle_estop(void **st)
+{
+	(void)st;
+	io_config();
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .can = &can_cia402,
+	                          .drives = 1,
+	                          .drive_state_periods = 50,
+	                          .io = &io_cfg,
+	                          .spindle = &sp_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	io_in.known = io_cfg.mapped;
+	start_cut();
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	stick(1);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(out.spindle.cw, 0x0002);
+	assert_int_equal(cw_of(0), 0x0002);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	stick(1000); /* the drive brakes by itself */
+	assert_true(fabs(spd.rpm) <= 20);
+	io_in.active = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	/* OFF's controlword 0x0006 takes the drives out of "switch on disabled"
+	 * (a program in the very period after the reset would find them there:
+	 * the sequencer's OFF does not wait for "ready to switch on") */
+	stick(5);
+	assert_int_equal(status().drive_power, MLIP_POWER_OFF);
+	assert_int_equal(spd.sw, 0x0231);
+	spd.reached = 0;
+	event(1, MLIP_BLOCK_SPINDLE, 3000.0);
+	move(2, 5.0, 0.0);
+	end(3);
+	suntil(MLIP_STATE_RUNNING, 5000);
+	assert_true(spd.reached != 0 && fabs(spd.rpm - 3000) <= 20);
+}
 
 int main(void)
 {
@@ -2454,6 +2778,11 @@ int main(void)
 	    TH(test_home_error_and_timeout),
 	    TH(test_home_lost),
 	    TH(test_home_lost_fault),
+	    TS(test_spindle_feed_waits_for_speed),
+	    TS(test_spindle_stop_and_fault_mid_cut),
+	    TS(test_spindle_band_and_timeout),
+	    TS(test_spindle_estop),
+	    TS(test_spindle_heartbeat_lost),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -55,7 +55,7 @@ struct peer {
 };
 
 #define NP 3
-static struct peer peers[NP];
+static struct peer peers[NP + 1]; /* [NP]: a spindle drive, in its tests only */
 static struct mlip_can_frame q[256];
 static unsigned q_head, q_tail;
 static uint64_t now_ns;
@@ -227,7 +227,7 @@ static void peer_hb(struct peer *p)
 static int port_send(void *ctx, const struct mlip_can_frame *f)
 {
 	(void)ctx;
-	for (int i = 0; i < NP; i++) {
+	for (int i = 0; i < NP + 1; i++) {
 		struct peer *p = &peers[i];
 		if (!p->present) {
 			continue;
@@ -314,6 +314,7 @@ static int setup(void **state)
 	peer_init(&peers[1], 2, P_FAULT, -500);
 	peer_init(&peers[2], 3, P_OE, 0);
 	peers[2].ever_enabled = 0;
+	memset(&peers[NP], 0, sizeof(peers[NP])); /* no spindle */
 	q_head = q_tail = 0;
 	now_ns = 1000000000u;
 	logbuf[0] = '\0';
@@ -393,6 +394,69 @@ static void test_bringup_three(void **state)
 	    strstr(logbuf, "node 2 (axis Y): fault reset (0x0080): switch on disabled"));
 	assert_non_null(strstr(logbuf, "node 3 (axis Z): disable operation (0x0007): switched on"));
 	assert_non_null(strstr(logbuf, "node 1 (axis X): operation enabled at 1.2340 mm"));
+}
+
+/* [SPINDLE] TYPE = cia402: the spindle's drive is brought up with the axes
+ * in profile velocity mode (its own set-up list, read back), enabled with
+ * target velocity 0; a spindle node that does not answer is named. */
+static void test_bringup_spindle(void **state)
+{
+	double start[NP];
+	struct peer *sp = &peers[NP];
+	static const uint16_t extra[] = {0x60FF, 0x606C, 0x6083, 0x6084};
+	(void)state;
+	cfg.io.spindle = MLIP_IO_CIA402;
+	cfg.io.max_rpm = cfg.spindle.max_rpm = 12000;
+	cfg.spindle.node = 5;
+	cfg.spindle.counts_per_rev = 4096;
+	cfg.spindle.accel_rpm_s = 10000;
+	cfg.spindle.band_rpm = 240;
+	cfg.spindle.timeout_s = 3.4;
+	cfg.spindle.band_time_s = 0.2;
+	peer_init(sp, 5, P_FAULT, 0);
+	for (size_t k = 0; k < sizeof(extra) / sizeof(extra[0]); k++) {
+		od_add(sp, extra[k], 0, 4, 77);
+	}
+	int rc = bringup(start);
+	if (rc != 0) {
+		print_error("%s\n%s", why, logbuf);
+	}
+	assert_int_equal(rc, 0);
+	assert_int_equal(ds.sp, 1);
+	assert_int_equal(sp->state, P_OE);
+	assert_int_equal(sp->nmt, MLIP_NMT_OPERATIONAL);
+	assert_int_equal(od_find(sp, 0x6060, 0)->value, 3);
+	assert_int_equal(od_find(sp, 0x1600, 2)->value, 0x60FF0020u);
+	assert_int_equal(od_find(sp, 0x1A00, 2)->value, 0x606C0020u);
+	assert_int_equal(od_find(sp, 0x60FF, 0)->value, 0);
+	assert_int_equal(od_find(sp, 0x6083, 0)->value, 682667); /* 10000 rpm/s x 4096 / 60 */
+	assert_int_equal(od_find(sp, 0x6084, 0)->value, 682667);
+	assert_int_equal(od_find(sp, 0x6065, 0)->value, 0); /* no following error window */
+	assert_int_equal(od_find(sp, 0x607A, 0)->value, 0); /* no target position */
+	assert_non_null(strstr(logbuf, "node 5 (spindle): CiA 402 drive"));
+	assert_non_null(strstr(logbuf, "node 5 (spindle): fault reset (0x0080)"));
+	assert_non_null(strstr(logbuf, "node 5 (spindle): operation enabled, target velocity 0"));
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].state, P_OE);
+	}
+	uint32_t ids[MLIP_CANBUS_MAX_IDS];
+	int n = mlip_drives_rx_ids(&cfg.machine, 0, 5, ids, MLIP_CANBUS_MAX_IDS);
+	assert_int_equal(n, 16);
+	assert_int_equal(ids[12], 0x585u);
+	assert_int_equal(ids[15], 0x185u);
+	/* the shut-down takes the spindle down first */
+	mlip_drives_disable(&ds);
+	assert_int_equal(sp->state, P_RTSO);
+	/* absent: named as the spindle */
+	setup(state);
+	cfg.io.spindle = MLIP_IO_CIA402;
+	cfg.io.max_rpm = cfg.spindle.max_rpm = 12000;
+	cfg.spindle.node = 5;
+	cfg.spindle.counts_per_rev = 4096;
+	cfg.spindle.accel_rpm_s = 10000;
+	assert_int_equal(bringup(start), -ETIMEDOUT);
+	assert_non_null(strstr(why, "node 5 (spindle): no boot-up"));
+	cfg.io.spindle = MLIP_IO_NONE;
 }
 
 static void assert_nothing_enabled(void)
@@ -996,6 +1060,7 @@ int main(void)
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test_setup(test_bringup_three, setup),
 	    cmocka_unit_test_setup(test_refused_sdo, setup),
+	    cmocka_unit_test_setup(test_bringup_spindle, setup),
 	    cmocka_unit_test_setup(test_missing_drive, setup),
 	    cmocka_unit_test_setup(test_never_enabled, setup),
 	    cmocka_unit_test_setup(test_beyond_limit, setup),

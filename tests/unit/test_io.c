@@ -385,8 +385,38 @@ static void test_config_sections(void **state)
 	assert_true(c.io.change_pos[2] == 140 && c.io.change_pos[0] == -5);
 	assert_int_equal(c.io.coolant, MLIP_IO_MANUAL);
 	/* each at the key (line:col of the value or the key) */
-	cfg_err("[SPINDLE]\nTYPE = auto\n", 17, 8, "TYPE must be none or manual, got 'auto'");
-	cfg_err("[SPINDLE]\nTYPE = cia402\n", 17, 8, "not supported yet");
+	cfg_err("[SPINDLE]\nTYPE = auto\n", 17, 8,
+	        "TYPE must be none, manual or cia402, got 'auto'");
+	cfg_err("[COOLANT]\nTYPE = cia402\n", 17, 8,
+	        "TYPE must be none, manual or io (the I/O module's outputs), got 'cia402'");
+	/* a CiA 402 spindle drive on the bus: its keys, defaults from the speeds */
+	assert_int_equal(parse_cfg("[SPINDLE]\nTYPE = cia402\nMAX_RPM = 12000\nNODE = 9\n"
+	                           "COUNTS_PER_REV = 4096\nACCELERATION = 10000\n",
+	                           &c, &e),
+	                 MLIP_OK);
+	assert_int_equal(c.io.spindle, MLIP_IO_CIA402);
+	assert_int_equal(c.spindle.node, 9);
+	assert_true(c.spindle.counts_per_rev == 4096 && c.spindle.accel_rpm_s == 10000);
+	assert_true(fabs(c.spindle.band_rpm - 240) < 1e-9);  /* 2 % of MAX_RPM */
+	assert_true(fabs(c.spindle.timeout_s - 3.4) < 1e-9); /* 2 x 1.2 s + 1 s */
+	assert_true(fabs(c.spindle.band_time_s - 0.2) < 1e-9);
+	assert_true(c.spindle.max_rpm == 12000 && c.spindle.min_rpm == 0);
+	cfg_err("[SPINDLE]\nTYPE = cia402\nMAX_RPM = 12000\nCOUNTS_PER_REV = 4096\n"
+	        "ACCELERATION = 10000\n",
+	        16, 0, "missing NODE in [SPINDLE]");
+	cfg_err("[SPINDLE]\nTYPE = cia402\nMAX_RPM = 12000\nNODE = 9\nACCELERATION = 10000\n", 16,
+	        0, "missing COUNTS_PER_REV");
+	cfg_err("[SPINDLE]\nTYPE = cia402\nMAX_RPM = 12000\nNODE = 127\nCOUNTS_PER_REV = 4096\n"
+	        "ACCELERATION = 10000\n",
+	        19, 1, "NODE 127 is also [DRIVES] MASTER_NODE");
+	cfg_err("[SPINDLE]\nTYPE = cia402\nMAX_RPM = 12000\nNODE = 9\nCOUNTS_PER_REV = 4096\n"
+	        "ACCELERATION = 10000\nAT_SPEED_TIMEOUT = 2\n",
+	        22, 1, "shorter than a reversal at full speed");
+	cfg_err("[SPINDLE]\nTYPE = cia402\nMAX_RPM = 12000\nNODE = 9\nCOUNTS_PER_REV = 1e9\n"
+	        "ACCELERATION = 10000\n",
+	        20, 1, "beyond the drive's 0x60FF");
+	cfg_err("[SPINDLE]\nTYPE = manual\nMAX_RPM = 12000\nACCELERATION = 10000\n", 19, 1,
+	        "ACCELERATION is for a spindle drive on the bus");
 	cfg_err("[SPINDLE]\nTYPE = manual\n", 16, 0, "missing MAX_RPM in [SPINDLE]");
 	cfg_err("[SPINDLE]\nTYPE = manual\nMAX_RPM = 1000\nMIN_RPM = 2000\n", 19, 1,
 	        "MIN_RPM must be <= MAX_RPM");

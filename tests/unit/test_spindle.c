@@ -17,7 +17,9 @@
 #include <cmocka.h>
 
 #include "mlip/canopen/cia402.h"
+#include "mlip/canopen/drive.h"
 #include "mlip/canopen/spindle.h"
+#include "mlip/ctl/spindlectl.h"
 
 #define T 0.001 /* s per period */
 
@@ -207,6 +209,56 @@ static void test_bad_config(void **state)
 	assert_int_equal(mlip_spindle_init(&s, &c), MLIP_E_INVALID);
 }
 
+/* The controller's part: the override within 50..200 % and within MIN_RPM ..
+ * MAX_RPM (the program's S was checked at its line; the operator's choice is
+ * clamped), the direction kept; a fault reported once, as the event the
+ * controller names; the wait measured. */
+static void test_ctl_override_and_fault(void **state)
+{
+	struct mlip_spindle_config cfg = {9, 1000, 12000, 4096, 10000, 240, 3.4, 0.2};
+	struct mlip_ctl_spindle s;
+	struct drive d = {4096, 10000, 20, 0, 0, 0x0027, 0, 0};
+	uint32_t ev = 0;
+	double val = 0;
+	uint64_t k;
+	int rc = 0;
+
+	(void)state;
+	assert_int_equal(mlip_ctl_spindle_init(&s, NULL, 0.001), MLIP_OK);
+	assert_false(s.on);
+	assert_int_equal(mlip_ctl_spindle_override(&s, 100, 0), MLIP_E_INVALID);
+	assert_int_equal(mlip_ctl_spindle_init(&s, &cfg, 0.001), MLIP_OK);
+	assert_true(s.on && s.drive.cfg.timeout_periods == 3400 && s.drive.cfg.band_periods == 200);
+	assert_true(mlip_ctl_spindle_at_rest(&s));
+	mlip_ctl_spindle_ask(&s, -8000, 0); /* M4 S8000 */
+	assert_true(mlip_ctl_spindle_cmd_rpm(&s) == -8000);
+	assert_int_equal(mlip_ctl_spindle_override(&s, 49, 0), MLIP_E_RANGE);
+	assert_int_equal(mlip_ctl_spindle_override(&s, 201, 0), MLIP_E_RANGE);
+	assert_int_equal(mlip_ctl_spindle_override(&s, 200, 0), MLIP_OK);
+	assert_true(mlip_ctl_spindle_cmd_rpm(&s) == -12000); /* 16000 clamped to MAX_RPM */
+	assert_int_equal(mlip_ctl_spindle_override(&s, 50, 0), MLIP_OK);
+	assert_true(mlip_ctl_spindle_cmd_rpm(&s) == -4000);
+	mlip_ctl_spindle_ask(&s, 1500, 0);
+	assert_true(mlip_ctl_spindle_cmd_rpm(&s) == 1000); /* 750 raised to MIN_RPM */
+	assert_int_equal(mlip_ctl_spindle_override(&s, 100, 0), MLIP_OK);
+	for (k = 0; k < 1000 && rc != 1; k++) {
+		rc = mlip_ctl_spindle_step(&s, d.sw, actual_counts(&d), k, &ev, &val);
+		drive_step(&d, s.target);
+	}
+	assert_int_equal(rc, 1);
+	/* 1500 rpm at 10000 rpm/s: 150 periods, then the window (20 rpm) */
+	assert_true(s.ready_after >= 147 && s.ready_after <= 152);
+	d.fault = 1;
+	drive_step(&d, s.target);
+	assert_int_equal(mlip_ctl_spindle_step(&s, d.sw, actual_counts(&d), k, &ev, &val), -1);
+	assert_int_equal(ev, MLIP_DRIVE_FAULT_BIT);
+	assert_int_equal(mlip_ctl_spindle_step(&s, d.sw, actual_counts(&d), k + 1, &ev, &val), -2);
+	assert_int_equal(s.target, 0);
+	assert_true(mlip_ctl_spindle_cmd_rpm(&s) == 0);
+	assert_string_equal(mlip_drive_fault_name(MLIP_DRIVE_SPINDLE_OUT_OF_BAND),
+	                    "spindle speed out of its band");
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -214,6 +266,7 @@ int main(void)
 	    cmocka_unit_test(test_stop_and_reversal_wait_for_standstill),
 	    cmocka_unit_test(test_faults),
 	    cmocka_unit_test(test_bad_config),
+	    cmocka_unit_test(test_ctl_override_and_fault),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -339,7 +339,8 @@ int mlip_cli_io_from_ring(const struct mlip_ring_io *in, const struct mlip_machi
                           struct mlip_gcode_io *io)
 {
 	memset(io, 0, sizeof(*io));
-	if (in->spindle > MLIP_IO_MANUAL || in->tool_change > MLIP_IO_MANUAL ||
+	if ((in->spindle > MLIP_IO_MANUAL && in->spindle != MLIP_IO_CIA402) ||
+	    in->tool_change > MLIP_IO_MANUAL ||
 	    (in->coolant > MLIP_IO_MANUAL && in->coolant != MLIP_IO_MODULE) ||
 	    (in->change_mask >> m->n_axes) != 0 || (in->outputs & ~0x1FF03u) != 0) {
 		return -1;
@@ -471,6 +472,17 @@ void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
 		    buf, len,
 		    "position actual %lld counts is beyond a soft limit (moved while disabled?): "
 		    "bring it back within the limits by hand; nothing moves",
+		    (long long)v);
+		break;
+	case MLIP_DRIVE_SPINDLE_TIMEOUT:
+		snprintf(buf, len,
+		         "at %lld rpm when AT_SPEED_TIMEOUT ran out (a slow or stalled spindle)",
+		         (long long)v);
+		break;
+	case MLIP_DRIVE_SPINDLE_OUT_OF_BAND:
+		snprintf(
+		    buf, len,
+		    "at %lld rpm, out of AT_SPEED_BAND for longer than BAND_TIME while cutting",
 		    (long long)v);
 		break;
 	case MLIP_DRIVE_FAULT_BIT:

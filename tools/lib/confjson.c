@@ -135,6 +135,24 @@ void mlip_config_print_json(FILE *f, const char *path, const struct mlip_config 
 	}
 	mlip_json_close(&j);
 	mlip_json_close(&j);
+	/* the spindle (issue 19): none, manual, or a CiA 402 drive on the bus */
+	mlip_json_object(&j, "spindle", 0);
+	mlip_json_string(&j, "type",
+	                 c->io.spindle == MLIP_IO_CIA402   ? "cia402"
+	                 : c->io.spindle == MLIP_IO_MANUAL ? "manual"
+	                                                   : "none");
+	mlip_json_number(&j, "min_rpm", G17, c->io.min_rpm);
+	mlip_json_number(&j, "max_rpm", G17, c->io.max_rpm);
+	if (c->io.spindle == MLIP_IO_CIA402) {
+		const struct mlip_spindle_config *sp = &c->spindle;
+		mlip_json_uint(&j, "node", sp->node);
+		mlip_json_number(&j, "counts_per_rev", G17, sp->counts_per_rev);
+		mlip_json_number(&j, "acceleration", G17, sp->accel_rpm_s);
+		mlip_json_number(&j, "at_speed_band", G17, sp->band_rpm);
+		mlip_json_number(&j, "at_speed_timeout", G17, sp->timeout_s);
+		mlip_json_number(&j, "band_time", G17, sp->band_time_s);
+	}
+	mlip_json_close(&j);
 	/* the inputs on the bus (issue 18): the module's node, each function mapped */
 	mlip_json_object(&j, "inputs", 0);
 	mlip_json_uint(&j, "node", c->inputs.node);

@@ -60,6 +60,7 @@ typedef enum {
 #define MLIP_402_CW_FAULT_RESET      0x0080u /* on its rising edge */
 #define MLIP_402_CW_QUICK_STOP       0x0002u /* operation enabled -> quick stop active */
 #define MLIP_402_MODE_CSP            8       /* 0x6060 / 0x6061 */
+#define MLIP_402_MODE_PV             3       /* profile velocity (a spindle) */
 
 /* The state a statusword shows (CiA 402 table of statusword bits 0-3, 5, 6). */
 mlip_402_state mlip_402_state_of(uint16_t statusword);

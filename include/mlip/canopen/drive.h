@@ -26,6 +26,12 @@ struct mlip_drive_setup {
 	uint16_t heartbeat_ms;            /* 0x1017, the drive's producer time */
 	uint8_t master_node;              /* 0x1016:01: the drive watches the master's heartbeat */
 	uint16_t master_timeout_ms;
+	/* a spindle (issue 19): profile velocity mode (3) instead of CSP: the
+	 * RPDO carries target velocity 0x60FF, the TPDO velocity actual 0x606C,
+	 * 0x6083/0x6084 its ramp, 0x60FF = 0 before it is enabled; no 0x60C2,
+	 * no 0x6065 */
+	int velocity;
+	uint32_t accel_counts_s2; /* 0x6083 profile acceleration = 0x6084 deceleration */
 };
 
 #define MLIP_DRIVE_SETUP_MAX 24
@@ -57,7 +63,10 @@ typedef enum {
 	/* re-enabling for the next program (the controller, src/ctl/controller.c) */
 	MLIP_DRIVE_NOT_SWITCHED_ON, /* switch on (0x0007) not confirmed in time (statusword) */
 	MLIP_DRIVE_NOT_ENABLED,     /* enable operation (0x000F) not confirmed in time */
-	MLIP_DRIVE_BEYOND_LIMIT     /* its position actual is beyond a soft limit (mm, deg) */
+	MLIP_DRIVE_BEYOND_LIMIT,    /* its position actual is beyond a soft limit (mm, deg) */
+	/* a spindle (issue 19, mlip/ctl/spindlectl.h): value its actual rpm */
+	MLIP_DRIVE_SPINDLE_TIMEOUT,    /* not at speed (or at rest) within AT_SPEED_TIMEOUT */
+	MLIP_DRIVE_SPINDLE_OUT_OF_BAND /* at speed, then out of AT_SPEED_BAND for BAND_TIME */
 } mlip_drive_fault;
 
 /* What the bus last said about one drive (filled from mlip_co_classify). */

@@ -111,6 +111,7 @@
 
 #include "mlip/can/canenc.h"
 #include "mlip/canopen/cia402.h"
+#include "mlip/ctl/spindlectl.h"
 #include "mlip/ctl/state.h"
 #include "mlip/machine/config.h"
 #include "mlip/motion/planner.h"
@@ -209,26 +210,44 @@ struct mlip_ctl_sdo_res {
 	uint32_t value; /* upload: the value read */
 };
 
+/* The spindle drive's TPDO as of this period (opts.spindle; rt/drives.c).
+ * Its bus faults (heartbeat, EMCY, NMT) come in drives.fault with its node. */
+struct mlip_ctl_spindle_in {
+	uint16_t sw;        /* statusword 0x6041 (0: none yet) */
+	int32_t vel_counts; /* velocity actual 0x606C, counts/s */
+	int mute;           /* it faulted: it is sent nothing */
+};
+
+/* What the spindle drive is sent after this period's frames (an RPDO:
+ * controlword 0x6040, target velocity 0x60FF). */
+struct mlip_ctl_spindle_out {
+	int send;          /* 1: send it (a spindle on the bus, not muted) */
+	uint16_t cw;       /* the axes' power sequencer's controlword (quick stop in an E-stop) */
+	int32_t target;    /* counts/s */
+	double rpm_actual; /* for the log */
+};
+
 struct mlip_ctl_in {
-	uint64_t period;                 /* 0, 1, 2, ... one per call */
-	uint32_t missed;                 /* deadlines the loop missed before this period */
-	struct mlip_rec_view recs;       /* the records it may take, oldest first (copied
-	                                    before they are checked; out->taken: popped) */
-	uint32_t recs_corrupt;           /* the queue's indices are this far apart, more than
-	                                    its capacity (a corrupted segment); 0: fine */
-	const struct mlip_ring_cmd *cmd; /* this period's command; NULL: none */
-	uint32_t stop_requests;          /* the stop counter (mlip_ring_stop_count): each
-	                                    change is a stop (never lost behind a command) */
-	uint32_t feeder_stop_base;       /* the feeder's stop_base: a program whose feeder
-	                                    began before a stop seen never starts */
-	int feeder_unread;               /* the feeder area was mid-update: whose program it
-	                                    is is not known, none starts this period */
-	int feeder_alive;                /* a feeder is attached and beating */
-	int exit_request;                /* stop on the path, then report done */
-	struct mlip_ctl_bus bus;         /* as of the last send */
-	struct mlip_ctl_drives drives;   /* CiA 402 drives (opts.drives) */
-	struct mlip_ctl_io io;           /* the inputs on the bus (opts.io) */
-	struct mlip_ctl_sdo_res sdo;     /* the last SDO transfer done (out->sdo) */
+	uint64_t period;                    /* 0, 1, 2, ... one per call */
+	uint32_t missed;                    /* deadlines the loop missed before this period */
+	struct mlip_rec_view recs;          /* the records it may take, oldest first (copied
+	                                       before they are checked; out->taken: popped) */
+	uint32_t recs_corrupt;              /* the queue's indices are this far apart, more than
+	                                       its capacity (a corrupted segment); 0: fine */
+	const struct mlip_ring_cmd *cmd;    /* this period's command; NULL: none */
+	uint32_t stop_requests;             /* the stop counter (mlip_ring_stop_count): each
+	                                       change is a stop (never lost behind a command) */
+	uint32_t feeder_stop_base;          /* the feeder's stop_base: a program whose feeder
+	                                       began before a stop seen never starts */
+	int feeder_unread;                  /* the feeder area was mid-update: whose program it
+	                                       is is not known, none starts this period */
+	int feeder_alive;                   /* a feeder is attached and beating */
+	int exit_request;                   /* stop on the path, then report done */
+	struct mlip_ctl_bus bus;            /* as of the last send */
+	struct mlip_ctl_drives drives;      /* CiA 402 drives (opts.drives) */
+	struct mlip_ctl_io io;              /* the inputs on the bus (opts.io) */
+	struct mlip_ctl_sdo_res sdo;        /* the last SDO transfer done (out->sdo) */
+	struct mlip_ctl_spindle_in spindle; /* opts.spindle */
 };
 
 /* The drives' power after the period (opts.drives; the sequencer's record). */
@@ -263,9 +282,10 @@ struct mlip_ctl_out {
 	/* the I/O module's outputs 0x6200:1..8 (mlip_ctl_set_output; all 0 in an
 	 * E-stop): rt/drives.c sends them in its RPDO when they change */
 	uint8_t outputs[MLIP_IO_IN_BYTES];
-	struct mlip_ctl_sdo_req sdo; /* an SDO transfer to run (homing) */
-	uint32_t homing;             /* bit k: drive k runs its homing mode: its following
-	                                error is its own business, not supervised */
+	struct mlip_ctl_sdo_req sdo;         /* an SDO transfer to run (homing) */
+	uint32_t homing;                     /* bit k: drive k runs its homing mode: its following
+	                                        error is its own business, not supervised */
+	struct mlip_ctl_spindle_out spindle; /* opts.spindle */
 };
 
 struct mlip_ctl_opts {
@@ -281,7 +301,9 @@ struct mlip_ctl_opts {
 	uint32_t drive_state_periods;      /* a power step not confirmed this long: a timeout
 	                                      (0: 1000) */
 	const struct mlip_io_config *io;   /* the inputs' functions (NULL: none mapped) */
-	const struct mlip_home_config *home; /* homing (NULL: none configured) */
+	const struct mlip_home_config *home;       /* homing (NULL: none configured) */
+	const struct mlip_spindle_config *spindle; /* a CiA 402 spindle on the bus (with drives;
+	                                              NULL: none) */
 };
 
 /* A record's place in the program: its seq (0: none) and source line. */
@@ -439,6 +461,8 @@ struct mlip_ctl {
 		uint32_t actual_mask;
 		struct mlip_ctl_probe_result result; /* the last probe's */
 	} mio;
+	/* a CiA 402 spindle (issue 19, mlip/ctl/spindlectl.h) */
+	struct mlip_ctl_spindle spindle;
 	/* scratch for one period's blocks (no stack array of this size on RT) */
 	struct mlip_block blocks[MLIP_PREREAD_PER_PERIOD];
 };

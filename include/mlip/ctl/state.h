@@ -116,6 +116,14 @@ typedef enum {
 	MLIP_WHY_PROBE_AT_START, /* the probe was already tripped (G38.2/.3), or not on
 	                            (G38.4/.5), when the move was to start */
 	MLIP_WHY_PROBE_INPUT,    /* a G38 with no probe input mapped or read */
+	MLIP_WHY_SPINDLE_WAIT,   /* a CiA 402 spindle's M3/M4/S/M5: at rest (state DWELLING)
+	                            until it is at speed, or at standstill (reason_value:
+	                            the rpm asked) */
+	MLIP_WHY_SPINDLE_FAULT,  /* the spindle drive: state FAULT, the feed stopped on the
+	                            path; reason_node its node, reason_field the event
+	                            (mlip_drive_fault: fault bit, EMCY, heartbeat lost, ...,
+	                            SPINDLE_TIMEOUT, SPINDLE_OUT_OF_BAND), reason_value
+	                            its detail (statusword, code, ms, actual rpm) */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 

@@ -98,8 +98,8 @@ typedef int (*mlip_block_sink)(void *ctx, const struct mlip_block *b);
 typedef enum {
 	MLIP_IO_NONE = 0, /* the machine has none: the words are refused */
 	MLIP_IO_MANUAL,   /* the operator does it: the program pauses at rest */
-	MLIP_IO_CIA402,   /* a CiA 402 drive on the bus (spindle) */
-	MLIP_IO_MODULE    /* outputs of the CiA 401 I/O module (coolant: [COOLANT] TYPE = io) */
+	MLIP_IO_MODULE,   /* outputs of the CiA 401 I/O module (coolant: [COOLANT] TYPE = io) */
+	MLIP_IO_CIA402    /* a CiA 402 drive on the bus (spindle) */
 } mlip_io_type;
 
 /* One tool of the tool table (LinuxCNC's T P Z D columns), machine units. */

@@ -15,7 +15,7 @@
  *   192  status     seqlock generation, command reply, struct mlip_ring_status
  *                   (eight lines: state, reason, position of every axis,
  *                   the drives' positions actual, the program's start,
- *                   the outputs and the last probe)
+ *                   the outputs and the last probe, the spindle)
  *   704  feeder     seqlock generation, struct mlip_ring_feeder
  *   768  mailbox    the command word (sequence, op, argument in one 64-bit
  *                   word, written by mlip-ctl) and the stop counter
@@ -89,7 +89,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION      9u         /* bump on any change to the layout below */
+#define MLIP_RING_VERSION      10u        /* bump on any change to the layout below */
 #define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -222,8 +222,13 @@ struct mlip_ring_status {
 	uint32_t probe_count;   /* G38 moves completed since start (0: no result yet) */
 	uint32_t probe_tripped; /* #5070: 1 the last one tripped, 0 it did not */
 	uint32_t probe_line;    /* its source line */
-	uint32_t spare9;
+	/* layout version 10: a CiA 402 spindle (issue 19) */
+	uint32_t spindle_state;          /* mlip_spindle_phase + 1 (0: no spindle on the bus) */
 	double probe_pos[MLIP_MAX_AXES]; /* #5061..: where it tripped, machine coordinates */
+	double spindle_cmd_rpm;          /* commanded, the override in (> 0 clockwise) */
+	double spindle_actual_rpm;       /* velocity actual 0x606C */
+	uint32_t spindle_override;       /* percent */
+	uint32_t spindle_node;           /* its node id */
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */
@@ -243,21 +248,22 @@ struct mlip_ring_feeder {
 
 typedef enum {
 	MLIP_CMD_NONE = 0,
-	MLIP_CMD_OVERRIDE,      /* arg: feed override, percent */
-	MLIP_CMD_HOLD,          /* feed hold: decelerate to rest, keep the program */
-	MLIP_CMD_RESUME,        /* leave a hold */
-	MLIP_CMD_STOP,          /* decelerate to rest and drop the rest of the program
-	                           (in the segment: the stop counter, mlip_ring_stop_post) */
-	MLIP_CMD_OPTIONAL_STOP, /* arg 1: M1 pauses; arg 0: M1 is ignored */
-	MLIP_CMD_RESET,         /* leave estop (or a limit fault) once its input is released */
-	MLIP_CMD_JOG,           /* continuous jog (issue 18): arg = MLIP_JOG_ARG(axis, neg,
-	                           mm/min); renewed at least every MLIP_JOG_DEADMAN_S by the
-	                           same command, else it stops; speed 0 stops it */
-	MLIP_CMD_HOME,          /* home (issue 18): arg = axis mask (bit k: axis k; 0: every
-	                           axis with a HOME_METHOD), in HOME_SEQUENCE order */
-	MLIP_CMD_JOG_AXIS,      /* one more axis (or a distance) for the next MLIP_CMD_JOG
-	                           (issue 18): arg = MLIP_JOG_AXIS_ARG(axis, neg, um); posted
-	                           just before it (kept MLIP_JOG_DEADMAN_S) */
+	MLIP_CMD_OVERRIDE,         /* arg: feed override, percent */
+	MLIP_CMD_HOLD,             /* feed hold: decelerate to rest, keep the program */
+	MLIP_CMD_RESUME,           /* leave a hold */
+	MLIP_CMD_STOP,             /* decelerate to rest and drop the rest of the program
+	                              (in the segment: the stop counter, mlip_ring_stop_post) */
+	MLIP_CMD_OPTIONAL_STOP,    /* arg 1: M1 pauses; arg 0: M1 is ignored */
+	MLIP_CMD_RESET,            /* leave estop (or a limit fault) once its input is released */
+	MLIP_CMD_JOG,              /* continuous jog (issue 18): arg = MLIP_JOG_ARG(axis, neg,
+	                              mm/min); renewed at least every MLIP_JOG_DEADMAN_S by the
+	                              same command, else it stops; speed 0 stops it */
+	MLIP_CMD_HOME,             /* home (issue 18): arg = axis mask (bit k: axis k; 0: every
+	                              axis with a HOME_METHOD), in HOME_SEQUENCE order */
+	MLIP_CMD_JOG_AXIS,         /* one more axis (or a distance) for the next MLIP_CMD_JOG
+	                              (issue 18): arg = MLIP_JOG_AXIS_ARG(axis, neg, um); posted
+	                              just before it (kept MLIP_JOG_DEADMAN_S) */
+	MLIP_CMD_SPINDLE_OVERRIDE, /* arg: spindle override, percent (50..200; issue 19) */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
 

@@ -49,6 +49,14 @@
  *                              ;   program pauses for the operator)
  *   MIN_RPM = 6000             ; rpm, 0..MAX_RPM (optional, default 0)
  *   MAX_RPM = 24000            ; rpm, > 0, required with manual; an S beyond is refused
+ *   ; TYPE = cia402: a CiA 402 drive on the bus, profile velocity mode (3), with
+ *   NODE = 5                   ; its node id, none of the axes', [IO] NODE, MASTER_NODE
+ *   COUNTS_PER_REV = 4096      ; > 0: 0x60FF/0x606C counts per revolution
+ *   ACCELERATION = 10000       ; rpm/s > 0: 0x6083/0x6084
+ *   AT_SPEED_BAND = 480        ; rpm: at speed within this (default 2 % of MAX_RPM)
+ *   AT_SPEED_TIMEOUT = 6       ; s: not at speed (or at rest) by then: a fault
+ *                              ;   (default 2 MAX_RPM / ACCELERATION + 1; no shorter)
+ *   BAND_TIME = 0.2            ; s: out of the band this long while cutting: a fault
  *   [TOOL]                     ; optional
  *   CHANGE = manual            ; none (default: M6 refused) or manual (pause: "insert
  *                              ;   tool n"); the tool table is a file (--tools FILE)
@@ -238,6 +246,23 @@ struct mlip_home_config {
 	struct mlip_axis_home axis[MLIP_MAX_AXES]; /* machine order */
 };
 
+/* [SPINDLE] TYPE = cia402 (issue 19): a CiA 402 drive (or a VFD with a CiA 402
+ * profile) on the bus in profile velocity mode; src/canopen/spindle.c decides
+ * its periods. Speeds in rpm, the drive's in counts/s at counts_per_rev. */
+struct mlip_spindle_config {
+	uint8_t node;            /* NODE: its CANopen node id (none of the others) */
+	double min_rpm, max_rpm; /* MIN_RPM, MAX_RPM (as io.min_rpm, io.max_rpm) */
+	double counts_per_rev;   /* COUNTS_PER_REV: 0x60FF / 0x606C counts a revolution */
+	double accel_rpm_s;      /* ACCELERATION: rpm/s, 0x6083 and 0x6084 */
+	double band_rpm;         /* AT_SPEED_BAND: |actual - target| <= this is at speed;
+	                            default 2 % of MAX_RPM */
+	double timeout_s;        /* AT_SPEED_TIMEOUT: a change reaches its target within
+	                            this or it is a fault; default 2 MAX_RPM / ACCELERATION
+	                            + 1 s (a reversal at full speed, and a margin) */
+	double band_time_s;      /* BAND_TIME: at speed, then outside the band this long
+	                            while cutting is a fault; default 0.2 s */
+};
+
 struct mlip_config {
 	struct mlip_machine machine;
 	struct mlip_can_config can;
@@ -248,6 +273,7 @@ struct mlip_config {
 	/* [SPINDLE], [TOOL], [COOLANT]: what the program's I/O words meet (the
 	 * tools add the tool table and the --ignore-* choices); default none */
 	struct mlip_gcode_io io;
+	struct mlip_spindle_config spindle; /* io.spindle == MLIP_IO_CIA402 */
 };
 
 /* Fill *c with defaults (no axes): MAX_ANGULAR_VELOCITY 360, PERIOD 0.001,

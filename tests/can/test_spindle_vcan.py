@@ -1,0 +1,225 @@
+"""A CiA 402 spindle on the bus (issue 19, [SPINDLE] TYPE = cia402) on a real
+vcan0: three axis drives in CSP and a spindle drive in profile velocity
+mode (node 5), all simulated on the canopen package (one simulator
+process); mlip-rt --drives brings the spindle up with the axes (0x6060 = 3,
+RPDO 0x6040 + 0x60FF, TPDO 0x6041 + 0x606C). Judged on what the simulated
+drives recorded in sync.csv at each SYNC: the spindle's target velocity
+applied and its velocity actual and statusword sent; each axis' target.
+
+  - no axis moves at feed before the spindle reported target reached
+    (statusword bit 10 in its TPDO), and its speed is within the band then;
+  - the spindle's target velocity is 0 in the period after a stop;
+  - a spindle fault mid-cut stops the feed on the path: state fault naming
+    the spindle, every axis braking to rest, none accelerating after it.
+
+The period is 40 ms (the emulated VM): frame order, not timing, is judged;
+AT_SPEED_TIMEOUT is 60 s (a simulator starved of CPU in the VM answers SYNCs
+late: its ramp, counted in SYNCs, is not).
+Each test prints a [spindle] line with the measured figures.
+"""
+
+import re
+
+import pytest
+
+from conftest import S
+from mlipcan import procs
+
+MILL = S.config_dir / "mill-3axis.ini"
+PERIOD_S = 0.04
+SP = 5  # the spindle drive's node
+CPR = 4096
+MAX_RPM = 6000
+ACCEL = 5000  # rpm/s: 1.2 s (30 periods) from rest to 6000 rpm
+CONFIG_TAIL = f"""
+[DRIVES]
+ENABLE = 1
+HEARTBEAT_MS = 100
+HEARTBEAT_TIMEOUT_MS = 4000
+FOLLOWING_ERROR = 2
+SDO_TIMEOUT_MS = 5000
+BOOT_TIMEOUT_MS = 8000
+STATE_TIMEOUT_MS = 10000
+
+[SPINDLE]
+TYPE = cia402
+MAX_RPM = {MAX_RPM}
+NODE = {SP}
+COUNTS_PER_REV = {CPR}
+ACCELERATION = {ACCEL}
+AT_SPEED_BAND = 100
+AT_SPEED_TIMEOUT = 60
+"""
+START = """G21 G90
+G0 X5 Y2
+M3 S6000
+G1 X25 Y10 F1200
+G1 X5 Y15 Z5
+M5
+G0 X0 Y0 Z0
+M2
+"""
+LONG = """G21 G90
+M4 S4500
+G1 X120 F600
+M2
+"""
+
+
+def machine(tmp):
+    text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
+    text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
+    text = re.sub(r"^\[SPINDLE\].*", "", text, flags=re.M | re.S)  # none in it; ours below
+    path = tmp / "spindle.ini"
+    path.write_text(text + CONFIG_TAIL)
+    return path
+
+
+@pytest.fixture(scope="module")
+def sim(vcan, tmp_path_factory):
+    w = tmp_path_factory.mktemp("spsim")
+    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3, SP])
+    yield s
+    s.stop()
+
+
+def rows_by(rows, node, after=0):
+    return [r for r in rows if r["node"] == node and r["sync"] > after]
+
+
+def axis_targets(rows, after=0):
+    """sync -> (x, y, z) targets applied (the last one kept where none came)."""
+    last = {}
+    out = {}
+    syncs = sorted({r["sync"] for r in rows if r["sync"] > after})
+    by = {(r["node"], r["sync"]): r for r in rows}
+    for s in syncs:
+        for n in (1, 2, 3):
+            r = by.get((n, s))
+            if r is not None and r["target"] is not None:
+                last[n] = r["target"]
+        if len(last) == 3:
+            out[s] = (last[1], last[2], last[3])
+    return out
+
+
+def rpm(counts_s):
+    return counts_s * 60.0 / CPR
+
+
+def test_feed_waits_for_spindle_at_speed(sim, tmp_path):
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "start.ngc"
+    ngc.write_text(START)
+    sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        st = rig.status()
+        assert st["spindle"]["state"] == "stopped" and st["spindle"]["node"] == SP, st
+        feed = rig.feeder(ngc)
+        st = rig.wait_state(
+            "dwelling", timeout=300, pred=lambda s: s["reason"] == "spindle to speed"
+        )
+        assert st["spindle"]["commanded_rpm"] == 6000, st
+        st = rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] > 1.0)
+        assert abs(st["spindle"]["actual_rpm"] - 6000) <= 100, st
+        assert st["spindle"]["state"] == "at speed", st
+        assert feed.p.wait(timeout=600) == 0, feed.stderr()
+        rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
+    rows = sim.wait_sync_rows(lambda r: True)
+    sp = rows_by(rows, SP, sync0)
+    # the first SYNC at which the spindle was told to turn, and its first TPDO
+    # saying target reached at that speed (bit 10; sent at the SYNC of its row)
+    s_cmd = min(r["sync"] for r in sp if r["target"])
+    assert rpm(next(r["target"] for r in sp if r["target"])) == pytest.approx(6000, abs=0.1)
+    reached = [r for r in sp if r["sync"] > s_cmd and r["sw"] & 0x0400 and
+               abs(rpm(r["actual"]) - 6000) <= 100]
+    s_reach = reached[0]["sync"]
+    # the axes: at rest at the end of G0 before the M3; the first SYNC whose
+    # target differs from the last one before s_cmd is the feed's first
+    tg = axis_targets(rows, sync0)
+    before = tg[max(s for s in tg if s <= s_cmd)]
+    s_move = min(s for s in tg if s > s_cmd and tg[s] != before)
+    assert before[0] == 5000 and before[1] == 2000, before  # X5 Y2: the G0 done first
+    assert s_move > s_reach, (s_cmd, s_reach, s_move)
+    ramp = (6000 / ACCEL) / PERIOD_S
+    wait = s_move - s_cmd
+    print(f"[spindle] M3 S6000 at {ACCEL} rpm/s: target applied at SYNC {s_cmd}, target reached "
+          f"in its TPDO at SYNC {s_reach}, first feed target at SYNC {s_move}: start-to-feed "
+          f"{wait} periods ({wait * PERIOD_S:.2f} s; the ramp alone {ramp:.0f})")
+    # the ramp, then the TPDO read and the RPDO applied: a few periods more, never less
+    assert ramp - 1 <= wait <= ramp + 4, (wait, ramp)
+    # M5 waits for standstill: the G0 back moves only after the spindle reported ~0
+    s_stop = min(r["sync"] for r in sp if r["sync"] > s_reach and r["target"] == 0)
+    still = [r["sync"] for r in sp if r["sync"] > s_stop and abs(rpm(r["actual"])) <= 100]
+    tg_after = {s: v for s, v in tg.items() if s > s_stop}
+    at_stop = tg[max(s for s in tg if s <= s_stop)]
+    s_back = min(s for s, v in tg_after.items() if v != at_stop)
+    assert s_back > still[0], (s_stop, still[0], s_back)
+    print(f"[spindle] M5: target 0 at SYNC {s_stop}, standstill reported at SYNC {still[0]}, "
+          f"next move at SYNC {s_back}")
+    # the spindle's drive left "operation enabled" only at standstill (disabled with the axes)
+    off = [r for r in sp if r["sync"] > s_back and r["state"] != "operation enabled"]
+    assert off and abs(rpm(off[0]["actual"])) <= 100, off[:1]
+
+
+def test_stop_zeroes_target_and_fault_stops_on_path(sim, tmp_path):
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "long.ngc"
+    ngc.write_text(LONG)
+    sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        feed = rig.feeder(ngc)
+        st = rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] > 5.0)
+        assert st["spindle"]["commanded_rpm"] == -4500, st
+        rig.ctl("spindle-override", "120")
+        st = rig.wait_state(
+            "running", timeout=60, pred=lambda s: s["spindle"]["override_pct"] == 120
+        )
+        assert st["spindle"]["commanded_rpm"] == -5400, st
+        rig.ctl("stop")
+        rig.wait_state("idle", timeout=300)
+        feed.p.wait(timeout=300)
+    rows = sim.wait_sync_rows(lambda r: True)
+    sp = rows_by(rows, SP, sync0)
+    tg = axis_targets(rows, sync0)
+    # the stop: the first SYNC at which X is braking (its step shrinks) and
+    # the spindle's first target 0: the same controller period
+    xs = sorted(tg)
+    steps = {s: tg[s][0] - tg[p][0] for p, s in zip(xs, xs[1:])}
+    vmax = max(steps.values())
+    s_dec = min(s for s in steps if steps[s] < vmax - 1 and s > min(
+        s2 for s2 in steps if steps[s2] == vmax))
+    s_zero = min(r["sync"] for r in sp if r["target"] == 0 and r["sync"] > s_dec - 5)
+    print(f"[spindle] stop: X brakes from SYNC {s_dec}, the spindle's target is 0 from SYNC "
+          f"{s_zero} ({s_zero - s_dec:+d} periods)")
+    assert -1 <= s_zero - s_dec <= 1, (s_dec, s_zero)
+    assert all(r["target"] in (0, None) for r in sp if r["sync"] >= s_zero)
+
+    # again, and the spindle drive faults mid-cut
+    sync1 = max(r["sync"] for r in rows)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        feed = rig.feeder(ngc)
+        rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] > 5.0)
+        sim.inject(f"{SP}:fault=0x2310")
+        st = rig.wait_state("fault", timeout=120)
+        assert st["reason"] == "spindle fault" and st["reason_node"] == SP, st
+        rig.wait_state("fault", timeout=120, pred=lambda s: s["speed_mm_s"] == 0.0)
+        feed.p.wait(timeout=300)
+        assert "spindle" in feed.stderr() or feed.p.returncode != 0, feed.stderr()
+    assert "spindle fault: node 5 (spindle)" in rig.result["rt_stderr"], rig.result["rt_stderr"]
+    rows = sim.wait_sync_rows(lambda r: True)
+    t_fault = sim.events("emcy", SP)[-1]["t"]
+    tg = {s: v for s, v in axis_targets(rows, sync1).items()}
+    s_fault = max(r["sync"] for r in rows if r["node"] == SP and r["t"] <= t_fault)
+    xs = sorted(s for s in tg if s >= s_fault)
+    steps = [tg[b][0] - tg[a][0] for a, b in zip(xs, xs[1:])]
+    # on the path (a line along X: Y and Z never change), braking only: no step
+    # larger than the one before by more than the counts' rounding, then rest
+    assert all(tg[s][1:] == tg[xs[0]][1:] for s in xs), "left the path"
+    assert all(b <= a + 1 for a, b in zip(steps, steps[1:])), steps[:40]
+    assert steps[-1] == 0
+    a_max = max(a - b for a, b in zip(steps, steps[1:])) / 1000.0 / PERIOD_S**2  # mm/s^2
+    n_brake = next(i for i, d in enumerate(steps) if d == 0)
+    print(f"[spindle] fault mid-cut at SYNC {s_fault}: X at rest {n_brake} periods later, "
+          f"largest deceleration {a_max:.0f} mm/s^2 (limit 1000)")
+    assert a_max <= 1000 * 1.02 + 1e-9
