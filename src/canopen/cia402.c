@@ -118,6 +118,9 @@ static uint32_t choose(mlip_402_state x, uint32_t want)
 		case MLIP_402_OPERATION_ENABLED:
 			return MLIP_POWER_DISABLING;
 		case MLIP_402_SWITCHED_ON:
+		case MLIP_402_SWITCH_ON_DISABLED:
+			/* OFF is "ready to switch on", confirmed: a program coming
+			 * next switches on from there */
 			return MLIP_POWER_SHUTTING_DOWN;
 		case MLIP_402_QUICK_STOP_ACTIVE:
 			return MLIP_POWER_VOLTAGE_OFF;
@@ -141,6 +144,71 @@ static uint32_t choose(mlip_402_state x, uint32_t want)
 	default:
 		return MLIP_POWER_WAITING;
 	}
+}
+
+/* The state that decides the group's next step (all drives get the same
+ * controlword, so it must be a valid command for each of them): toward
+ * power the one furthest behind (a transient state, fault, quick stop
+ * active, switch on disabled, ready, switched on, enabled); toward OFF the
+ * one with the most power (operation enabled only when all are switched on
+ * or enabled: 0x0007 would switch on a drive that is not; then quick stop
+ * active, whose only way out is 0x0000; then switched on or switch on
+ * disabled, both taken to "ready" by 0x0006). UNKNOWN: no drive followed. */
+static mlip_402_state group_state(const uint16_t *sw, int n, uint32_t mute, uint32_t want)
+{
+	static const int rank[MLIP_402_UNKNOWN + 1] = {[MLIP_402_NOT_READY] = 0,
+	                                               [MLIP_402_FAULT_REACTION_ACTIVE] = 0,
+	                                               [MLIP_402_UNKNOWN] = 0,
+	                                               [MLIP_402_FAULT] = 1,
+	                                               [MLIP_402_QUICK_STOP_ACTIVE] = 2,
+	                                               [MLIP_402_SWITCH_ON_DISABLED] = 3,
+	                                               [MLIP_402_READY_TO_SWITCH_ON] = 4,
+	                                               [MLIP_402_SWITCHED_ON] = 5,
+	                                               [MLIP_402_OPERATION_ENABLED] = 6};
+	uint32_t seen = 0;
+	mlip_402_state low = MLIP_402_UNKNOWN;
+	for (int k = 0; k < n; k++) {
+		if (mute & (1u << k)) {
+			continue;
+		}
+		mlip_402_state x = mlip_402_state_of(sw[k]);
+		if (seen == 0 || rank[x] < rank[low]) {
+			low = x;
+		}
+		seen |= 1u << x;
+	}
+	if (want != MLIP_POWER_OFF || seen == 0) {
+		return low;
+	}
+	uint32_t up = (1u << MLIP_402_OPERATION_ENABLED) | (1u << MLIP_402_SWITCHED_ON);
+	if ((seen & (1u << MLIP_402_OPERATION_ENABLED)) && (seen & ~up) == 0) {
+		return MLIP_402_OPERATION_ENABLED;
+	}
+	if (seen & (1u << MLIP_402_QUICK_STOP_ACTIVE)) {
+		return MLIP_402_QUICK_STOP_ACTIVE;
+	}
+	if (seen & (up | (1u << MLIP_402_SWITCH_ON_DISABLED))) {
+		return MLIP_402_SWITCH_ON_DISABLED; /* 0x0006 for each */
+	}
+	return low;
+}
+
+/* The next step of the group from the states its drives show. */
+static uint32_t choose_group(const uint16_t *sw, int n, uint32_t mute, uint32_t want,
+                             mlip_402_state *x)
+{
+	*x = group_state(sw, n, mute, want);
+	uint32_t to = choose(*x, want);
+	if (to == MLIP_POWER_SWITCHED_ON) {
+		/* the furthest behind is switched on: any drive enabled goes back */
+		for (int k = 0; k < n; k++) {
+			if (!(mute & (1u << k)) &&
+			    mlip_402_state_of(sw[k]) == MLIP_402_OPERATION_ENABLED) {
+				return MLIP_POWER_DISABLING;
+			}
+		}
+	}
+	return to;
 }
 
 /* The state of a rest, as the drives show it. */
@@ -187,17 +255,6 @@ static int first_late(const struct mlip_402_seq *s, const uint16_t *sw, int n, u
 	return -1;
 }
 
-/* The state of the first drive followed (what NONE and WAITING go by). */
-static mlip_402_state first_state(const uint16_t *sw, int n, uint32_t mute)
-{
-	for (int k = 0; k < n; k++) {
-		if (!(mute & (1u << k))) {
-			return mlip_402_state_of(sw[k]);
-		}
-	}
-	return MLIP_402_UNKNOWN;
-}
-
 static int go(struct mlip_402_seq *s, uint32_t to, uint32_t want, uint64_t now,
               struct mlip_402_change *ch)
 {
@@ -240,25 +297,41 @@ int mlip_402_seq_run(struct mlip_402_seq *s, mlip_drive_power want, const uint16
 	ch->failed = 0;
 	ch->reached = MLIP_402_UNKNOWN;
 	if (s->step == MLIP_POWER_NONE) {
-		ch->reached = first_state(sw, n, mute);
-		return go(s, choose(ch->reached, want), want, now, ch);
+		return go(s, choose_group(sw, n, mute, want, &ch->reached), want, now, ch);
 	}
 	if (mlip_402_power_is_rest(s->step)) {
 		if (want == s->step) {
 			return 0;
 		}
-		ch->reached = rest_state(s->step);
-		uint32_t to = choose(ch->reached, want);
+		uint32_t to;
+		if (s->step == MLIP_POWER_OFF) {
+			/* no torque at OFF: a drive may have left "ready" by itself
+			 * (its safe torque off, its DC bus): from what they show */
+			to = choose_group(sw, n, mute, want, &ch->reached);
+		} else {
+			ch->reached = rest_state(s->step);
+			to = choose(ch->reached, want);
+		}
 		return to == s->step ? 0 : go(s, to, want, now, ch);
 	}
 	if (s->want != MLIP_POWER_OFF && want == MLIP_POWER_OFF) {
-		/* given up on the way to power: down at once */
-		return go(s, MLIP_POWER_DISABLING, want, now, ch);
+		/* given up on the way to power: down at once; a step that cannot
+		 * have switched anything on (shutdown, disable voltage, fault
+		 * reset, waiting) leads toward OFF too and goes on */
+		if (s->step == MLIP_POWER_SWITCHING_ON || s->step == MLIP_POWER_ENABLING) {
+			return go(s, MLIP_POWER_DISABLING, want, now, ch);
+		}
+		s->want = want;
+		s->t0 = now;
+		s->ok = 1;
 	}
 	int late = first_late(s, sw, n, mute);
 	if (late < 0) {
-		ch->reached = s->step == MLIP_POWER_WAITING ? first_state(sw, n, mute)
-		                                            : mlip_402_step_expects(s->step);
+		if (s->step == MLIP_POWER_WAITING) {
+			return go(s, choose_group(sw, n, mute, s->want, &ch->reached), s->want, now,
+			          ch);
+		}
+		ch->reached = mlip_402_step_expects(s->step);
 		return go(s, choose(ch->reached, s->want), s->want, now, ch);
 	}
 	if (s->step == MLIP_POWER_RESETTING && s->cw == (int32_t)MLIP_402_CW_DISABLE_VOLTAGE) {
@@ -277,5 +350,11 @@ int mlip_402_seq_run(struct mlip_402_seq *s, mlip_drive_power want, const uint16
 	}
 	ch->failed = 1;
 	ch->reached = mlip_402_step_expects(s->step);
-	return go(s, MLIP_POWER_DISABLING, MLIP_POWER_OFF, now, ch);
+	if (s->step == MLIP_POWER_SWITCHING_ON || s->step == MLIP_POWER_ENABLING) {
+		return go(s, MLIP_POWER_DISABLING, MLIP_POWER_OFF, now, ch);
+	}
+	/* nothing was switched on: down from what the drives show (0x0007
+	 * would switch on a drive that is "ready") */
+	mlip_402_state x;
+	return go(s, choose_group(sw, n, mute, MLIP_POWER_OFF, &x), MLIP_POWER_OFF, now, ch);
 }

@@ -159,8 +159,9 @@ const char *mlip_drive_fault_name(mlip_drive_fault f)
 	                                    "not enabled",
 	                                    "beyond a soft limit",
 	                                    "spindle not at speed in time",
-	                                    "spindle speed out of its band"};
-	return (int)f >= 0 && f <= MLIP_DRIVE_SPINDLE_OUT_OF_BAND ? names[f] : "?";
+	                                    "spindle speed out of its band",
+	                                    "power step not confirmed"};
+	return (int)f >= 0 && f <= MLIP_DRIVE_POWER_STEP ? names[f] : "?";
 }
 
 int64_t mlip_drive_following_error(const int32_t *targets, int n, int32_t actual)

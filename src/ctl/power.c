@@ -112,12 +112,17 @@ void mlip_ct_power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
 		return;
 	}
 	if (ch.failed) {
-		/* not switched on or not enabled in time: a fault, the program is
-		 * dropped, the drives go down again; nothing has moved */
-		struct mlip_ctl_drive_fault f = {ch.from == MLIP_POWER_SWITCHING_ON
-		                                     ? MLIP_DRIVE_NOT_SWITCHED_ON
-		                                     : MLIP_DRIVE_NOT_ENABLED,
-		                                 mlip_ct_node_of(c, ch.late), (double)ch.late_sw};
+		/* a step toward power not confirmed in time: a fault naming the
+		 * drive, the step and its statusword, the program is dropped, the
+		 * drives go down again; nothing has moved */
+		struct mlip_ctl_drive_fault f = {
+		    ch.from == MLIP_POWER_SWITCHING_ON ? MLIP_DRIVE_NOT_SWITCHED_ON
+		    : ch.from == MLIP_POWER_ENABLING   ? MLIP_DRIVE_NOT_ENABLED
+		                                       : MLIP_DRIVE_POWER_STEP,
+		    mlip_ct_node_of(c, ch.late),
+		    ch.from == MLIP_POWER_SWITCHING_ON || ch.from == MLIP_POWER_ENABLING
+		        ? (double)ch.late_sw
+		        : (double)ch.from * 65536.0 + (double)ch.late_sw};
 		mlip_ct_drive_fault(c, out, &f);
 	}
 	power_event(c, out, &ch);

@@ -123,11 +123,22 @@ def test_estop_quick_stop_and_reset(sim, tmp_path):
         sim.inject(f"{IO}:input=1.0=1")
         rig.wait_state("estop", timeout=60, pred=lambda s: s["inputs"]["estop"] is False)
         rig.ctl("reset")
-        st = rig.wait_state("idle", timeout=60)
-        assert st["reason"] == "reset", st
-        # the drives are enabled again from where they stopped: a program runs
+        t_reset = time.time()
+        # the drives are enabled again from where they stopped: a program
+        # fed at once (no wait for idle, the drives still being brought
+        # back from "switch on disabled") waits for them and runs
         rc, out, err = rig.feed(short, timeout=600)
         assert rc == 0, err
+        assert rig.status()["reason"] == "program end", rig.status()
+    # after the reset each drive was taken by valid CiA 402 commands only:
+    # never switch on (0x0007) or enable operation (0x000F) while "switch
+    # on disabled" (the drive ignores it), shutdown (0x0006) first
+    for n in (1, 2, 3):
+        rows = [r for r in sim.sync_rows() if r["node"] == n and r["t"] >= t_reset]
+        bad = [r for r in rows if r["state"] == "switch on disabled" and r["cw"] in (0x07, 0x0F)]
+        assert not bad, (n, bad[:3])
+        path = [e["to"] for e in sim.events("state", n) if e["t"] >= t_reset]
+        assert path[:3] == ["ready to switch on", "switched on", "operation enabled"], (n, path)
     s_in = input_sync(sim, t0, "00")
     qs = quick_stop_syncs(sim, s_in - 1)
     assert set(qs) == {1, 2, 3}, qs

@@ -392,6 +392,74 @@ static void test_want_changes(void **state)
 	assert_int_equal(seq.step, MLIP_POWER_SWITCHING_ON);
 }
 
+/* After a quick stop the group shows mixed states (one drive already
+ * "switch on disabled", one still in "quick stop active", one "ready"):
+ * toward OFF each step is a command valid for all and confirmed by all
+ * (0x0000, then 0x0006 to "ready": OFF is "ready to switch on", never
+ * assumed); from there switch on is valid for each. Toward power from the
+ * same states: the same way up, never 0x0007 to a drive that is not
+ * "ready". */
+static void test_mixed_after_quick_stop(void **state)
+{
+	(void)state;
+	reset(N, D_SOD);
+	dv[1].state = D_QSA;
+	dv[2].state = D_RTSO;
+	mlip_402_seq_init(&seq, MLIP_POWER_NONE, 100, now);
+	run_to_rest(N, MLIP_POWER_OFF, 0, 50);
+	assert_int_equal(seq.step, MLIP_POWER_OFF);
+	assert_int_equal(seq.ok, 1);
+	for (int i = 0; i < N; i++) {
+		assert_int_equal(dv[i].state, D_RTSO);
+	}
+	run_to_rest(N, MLIP_POWER_ENABLED, 0, 50);
+	assert_int_equal(seq.step, MLIP_POWER_ENABLED);
+	static const int32_t down_up[] = {0x0000, 0x0006, 0x0007, 0x000F};
+	assert_sent(down_up, 4);
+
+	reset(N, D_SOD);
+	dv[1].state = D_QSA;
+	mlip_402_seq_init(&seq, MLIP_POWER_NONE, 100, now);
+	run_to_rest(N, MLIP_POWER_ENABLED, 0, 50);
+	assert_sent(down_up, 4);
+	for (int i = 0; i < N; i++) {
+		assert_int_equal(dv[i].state, D_OE);
+	}
+	/* at OFF a drive dropped to "switch on disabled" by itself: the way up
+	 * starts with shutdown again */
+	run_to_rest(N, MLIP_POWER_OFF, 0, 50);
+	dv[0].state = D_SOD;
+	n_sent = 0;
+	run_to_rest(N, MLIP_POWER_ENABLED, 0, 50);
+	static const int32_t up[] = {0x0006, 0x0007, 0x000F};
+	assert_sent(up, 3);
+}
+
+/* Toward power a drive that never leaves "switch on disabled": shutdown
+ * fails naming it and its statusword; nothing was switched on, so the way
+ * down sends no 0x0007 (it would switch on the drives that are "ready"). */
+static void test_up_stuck_disabled(void **state)
+{
+	(void)state;
+	reset(N, D_SOD);
+	dv[1].stubborn = 1;
+	mlip_402_seq_init(&seq, MLIP_POWER_NONE, 40, now);
+	for (int k = 0; k < 100 && (n_changes == 0 || !changes[n_changes - 1].failed); k++) {
+		tick(N, MLIP_POWER_ENABLED, 0);
+	}
+	const struct mlip_402_change *f = &changes[n_changes - 1];
+	assert_int_equal(f->failed, 1);
+	assert_int_equal(f->from, MLIP_POWER_SHUTTING_DOWN);
+	assert_int_equal(f->late, 1);
+	assert_int_equal(f->late_sw, d_sw[D_SOD]);
+	assert_int_equal(f->in_step, 40);
+	run_to_rest(N, MLIP_POWER_OFF, 0, 100);
+	for (int i = 0; i < n_sent; i++) {
+		assert_int_not_equal(sent[i], 0x0007);
+	}
+	assert_int_equal(dv[0].state, D_RTSO);
+}
+
 static void test_names(void **state)
 {
 	(void)state;
@@ -418,6 +486,8 @@ int main(void)
 	    cmocka_unit_test(test_up_fails),
 	    cmocka_unit_test(test_muted),
 	    cmocka_unit_test(test_want_changes),
+	    cmocka_unit_test(test_mixed_after_quick_stop),
+	    cmocka_unit_test(test_up_stuck_disabled),
 	    cmocka_unit_test(test_names),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

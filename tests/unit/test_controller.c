@@ -18,6 +18,7 @@
 #include "mlip/canopen/drive.h"
 #include "mlip/machine/config.h"
 #include "mlip/ctl/controller.h"
+#include "cli.h"
 
 #define CAP 64u
 
@@ -1319,6 +1320,8 @@ static void test_drive_fault_idle_and_actual_positions(void **st)
 static struct mlip_can_config can_cia402 = {"cia402", 1000000, 5000000, 0x080,
                                             0x200,    0x300,   0x400,   0x180};
 static int drv_deaf; /* bit k: drive k ignores enable operation (stays "switched on") */
+static int lag[2], qs_stay[2], sod_stuck; /* ltick's drives */
+static uint64_t lt_start;                 /* ltick's first period */
 
 static int setup_drives(void **state)
 {
@@ -1333,6 +1336,8 @@ static int setup_drives(void **state)
 	drv_actual[0] = drv_actual[1] = 0.0;
 	drv_sw[0] = drv_sw[1] = 0x0237; /* enabled by the bring-up */
 	drv_deaf = 0;
+	lag[0] = lag[1] = qs_stay[0] = qs_stay[1] = sod_stuck = 0;
+	lt_start = UINT64_MAX;
 	return 0;
 }
 
@@ -1609,6 +1614,152 @@ static void test_estop_reset(void **st)
 	assert_int_equal(status().reason, MLIP_WHY_END);
 	assert_true(out.pos[0] == 130.0);
 	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_INVALID); /* nothing to reset */
+}
+
+/* Drives that answer late: drive k applies the controlword it was sent
+ * lag[k] periods before (0: as dtick, seen in the next period's TPDO), by
+ * CiA 402-2's transitions; on quick stop, option code qs_stay[k] ? 6 (stays
+ * in "quick stop active") : 2 (then "switch on disabled"); bit k of
+ * sod_stuck: never leaves "switch on disabled" (its safe torque off still
+ * on). cws[] records every controlword drive 0 was sent, changes only. */
+static uint16_t cw_hist[2][8];
+static uint16_t cws[32];
+static int n_cws;
+
+static void cia402_apply(int k, uint16_t cw)
+{
+	uint16_t s = drv_sw[k];
+	int sod = s == 0x0250, rtso = s == 0x0231, so = s == 0x0233, oe = s == 0x0237,
+	    qsa = s == 0x0217;
+	if ((cw & 0x02) == 0) { /* disable voltage */
+		if (rtso || so || oe || qsa) {
+			drv_sw[k] = 0x0250;
+		}
+	} else if ((cw & 0x07) == 0x02) { /* quick stop */
+		if (oe) {
+			drv_sw[k] = qs_stay[k] ? 0x0217 : 0x0250;
+		} else if (rtso || so) {
+			drv_sw[k] = 0x0250;
+		}
+	} else if ((cw & 0x0F) == 0x06) { /* shutdown */
+		if ((sod && !(sod_stuck & (1 << k))) || so || oe) {
+			drv_sw[k] = 0x0231;
+		}
+	} else if ((cw & 0x0F) == 0x07) { /* switch on, disable operation */
+		if (rtso || oe) {
+			drv_sw[k] = 0x0233;
+		}
+	} else if ((cw & 0x0F) == 0x0F) { /* enable operation */
+		if (so) {
+			drv_sw[k] = 0x0237;
+		}
+	}
+	if (drv_sw[k] == 0x0237) {
+		drv_actual[k] = out.pos[k];
+	}
+}
+
+static void ltick(int n)
+{
+	for (int i = 0; i < n; i++) {
+		uint64_t p = period;
+		if (lt_start == UINT64_MAX) {
+			lt_start = p; /* before it: dtick's drives, the history unknown */
+		}
+		tick(1);
+		for (int k = 0; k < 2; k++) {
+			uint16_t cw = cw_of(k);
+			assert_int_equal(cw, cw_of(0)); /* all in step */
+			cw_hist[k][p % 8] = cw;
+			if (p >= lt_start + (uint64_t)lag[k]) {
+				cia402_apply(k, cw_hist[k][(p - (uint64_t)lag[k]) % 8]);
+			}
+		}
+		if ((n_cws == 0 || cws[n_cws - 1] != cw_of(0)) && n_cws < 32) {
+			cws[n_cws++] = cw_of(0);
+		}
+	}
+}
+
+/* E-stop, quick stop: X's drive then "switch on disabled", Y's stays in
+ * "quick stop active"; released, reset, and a program in the very next
+ * period. The drives answer 1 and 3 periods late: every step is confirmed
+ * by both statuswords before the next (0x0000 out of quick stop, 0x0006 to
+ * "ready", 0x0007, 0x000F), the program waits for them and runs to its
+ * end. */
+static void test_estop_reset_program_next_period(void **st)
+{
+	(void)st;
+	lag[0] = 1;
+	lag[1] = 3;
+	qs_stay[1] = 1;
+	run_long();
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	ltick(20);
+	assert_int_equal(drv_sw[0], 0x0250);
+	assert_int_equal(drv_sw[1], 0x0217);
+	double x = drv_actual[0];
+	io_in.active = 0;
+	n_cws = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	move(1, x + 5.0, 0.0);
+	move(2, x + 5.0, 3.0);
+	end(3);
+	for (int i = 0;
+	     i < 20000 && !(status().state == MLIP_STATE_IDLE && status().reason == MLIP_WHY_END);
+	     i++) {
+		ltick(1);
+		assert_int_not_equal(status().state, MLIP_STATE_FAULT);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(out.pos[0] == x + 5.0 && out.pos[1] == 3.0);
+	/* the controlwords since the reset, in order (then the rest after
+	 * the program: disable operation, shutdown) */
+	static const uint16_t want[] = {0x0000, 0x0006, 0x0007, 0x000F, 0x0007, 0x0006};
+	ltick(20);
+	assert_int_equal(n_cws, 6);
+	for (int i = 0; i < 6; i++) {
+		assert_int_equal(cws[i], want[i]);
+	}
+	assert_int_equal(status().drive_power, MLIP_POWER_OFF);
+}
+
+/* A drive that never leaves "switch on disabled" after the reset (its safe
+ * torque off still on): the program waits, then a fault naming its node,
+ * the step (shutdown) and its statusword; nothing moves. */
+static void test_estop_reset_drive_stays_disabled(void **st)
+{
+	(void)st;
+	run_long();
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	ltick(20);
+	double x = drv_actual[0];
+	io_in.active = 0;
+	sod_stuck = 2;
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	move(1, x + 5.0, 0.0);
+	end(2);
+	int k;
+	for (k = 1; k <= 500 && status().state != MLIP_STATE_FAULT; k++) {
+		ltick(1);
+		assert_true(status().drive_power != MLIP_POWER_SWITCHING_ON);
+	}
+	/* shutdown late toward OFF (noted, 50 periods), then toward power:
+	 * failed after 50 more */
+	assert_true(k >= 99 && k <= 104);
+	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
+	assert_int_equal(status().reason_node, 2);
+	assert_int_equal(status().reason_field, MLIP_DRIVE_POWER_STEP);
+	assert_true(status().reason_value == MLIP_POWER_SHUTTING_DOWN * 65536.0 + 0x0250);
+	char text[160];
+	mlip_cli_drive_fault_text(status().reason_field, (int64_t)status().reason_value, text,
+	                          sizeof(text));
+	assert_non_null(strstr(text, "shutdown (controlword 0x0006) not confirmed"));
+	assert_non_null(strstr(text, "0x0250 (switch on disabled)"));
+	ltick(200);
+	assert_true(out.pos[0] == x);
+	assert_int_equal(drv_sw[1], 0x0250);
 }
 
 /* E-stop wins over every state: a hold, a pause, a drive fault (which comes
@@ -2694,12 +2845,9 @@ static void test_spindle_estop(void **st)
 	io_in.active = 0;
 	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
 	assert_int_equal(status().state, MLIP_STATE_IDLE);
-	/* OFF's controlword 0x0006 takes the drives out of "switch on disabled"
-	 * (a program in the very period after the reset would find them there:
-	 * the sequencer's OFF does not wait for "ready to switch on") */
-	stick(5);
-	assert_int_equal(status().drive_power, MLIP_POWER_OFF);
-	assert_int_equal(spd.sw, 0x0231);
+	/* the program in the very period after the reset: it waits until the
+	 * drives (the spindle's too) are out of "switch on disabled", "ready"
+	 * confirmed, then switched on and enabled */
 	spd.reached = 0;
 	event(1, MLIP_BLOCK_SPINDLE, 3000.0);
 	move(2, 5.0, 0.0);
@@ -2759,6 +2907,8 @@ int main(void)
 	    TD(test_drives_stop_while_enabling),
 	    TIO(test_estop_same_period),
 	    TIO(test_estop_reset),
+	    TIO(test_estop_reset_program_next_period),
+	    TIO(test_estop_reset_drive_stays_disabled),
 	    TIO(test_estop_wins),
 	    TIO(test_io_lost),
 	    TIO(test_limit),

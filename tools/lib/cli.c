@@ -467,6 +467,21 @@ void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
 		    (unsigned long long)(v & 0xFFFF),
 		    mlip_402_state_name(mlip_402_state_of((uint16_t)v)));
 		break;
+	case MLIP_DRIVE_POWER_STEP: {
+		uint32_t step = (uint32_t)((v >> 16) & 0xFF);
+		uint16_t sw = (uint16_t)(v & 0xFFFF);
+		snprintf(
+		    buf, len,
+		    "%s (controlword 0x%04X) not confirmed within STATE_TIMEOUT_MS: statusword "
+		    "0x%04X (%s), expected \"%s\"; nothing moves",
+		    *mlip_402_step_command(step) ? mlip_402_step_command(step)
+		                                 : "waiting for the drive",
+		    (unsigned)(mlip_402_step_cw(step) & 0xFFFF), (unsigned)sw,
+		    mlip_402_state_name(mlip_402_state_of(sw)),
+		    step == MLIP_POWER_WAITING ? "a state the master can leave"
+		                               : mlip_402_state_name(mlip_402_step_expects(step)));
+		break;
+	}
 	case MLIP_DRIVE_BEYOND_LIMIT:
 		snprintf(
 		    buf, len,

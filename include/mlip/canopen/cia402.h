@@ -17,18 +17,28 @@
  *   quick stop active  VOLTAGE_OFF 0x0000 -> switch on disabled  VOLTAGE_OFF
  *   not ready, fault   WAITING (nothing sent: the drive goes   OFF
  *   reaction           on by itself)
- *   switch on disabled SHUTTING_DOWN 0x0006 -> ready          OFF
+ *   switch on disabled SHUTTING_DOWN 0x0006 -> ready          SHUTTING_DOWN
  *   ready to switch on SWITCHING_ON 0x0007 -> switched on     OFF (rest, 0x0006)
  *   switched on        ENABLING 0x000F -> operation enabled   SHUTTING_DOWN 0x0006
  *                      (SWITCHED_ON: rest, 0x0007)
  *   operation enabled  ENABLED (rest, 0x000F)                 DISABLING 0x0007 ->
  *                      (SWITCHED_ON: DISABLING)               switched on
  *
+ * OFF is "ready to switch on" confirmed by every drive followed, so that
+ * switch on from it is a valid command. The drives of a group may show
+ * different states (one still in quick stop, another already switch on
+ * disabled): each step is chosen from all of them, a command valid for each
+ * (toward power the one furthest behind, toward OFF the one with the most
+ * power), and confirmed only when every drive followed shows its state.
+ * Leaving OFF reads the drives again (at rest without torque a drive may
+ * drop to "switch on disabled" by itself).
+ *
  * A step not confirmed within the timeout: toward OFF the sequence goes on
  * as if it had been (the late drive is noted: nothing is gained by holding
  * power on), toward power it has failed: reported, and the group goes back
  * down (DISABLING). A sequence toward power is given up when the want drops
- * to OFF (DISABLING at once); one toward OFF always ends at OFF first.
+ * to OFF (from switching on or enabling DISABLING at once, else the step
+ * goes on toward OFF); one toward OFF always ends at OFF first.
  */
 #ifndef MLIP_CIA402_H
 #define MLIP_CIA402_H

@@ -65,8 +65,11 @@ typedef enum {
 	MLIP_DRIVE_NOT_ENABLED,     /* enable operation (0x000F) not confirmed in time */
 	MLIP_DRIVE_BEYOND_LIMIT,    /* its position actual is beyond a soft limit (mm, deg) */
 	/* a spindle (issue 19, mlip/ctl/spindlectl.h): value its actual rpm */
-	MLIP_DRIVE_SPINDLE_TIMEOUT,    /* not at speed (or at rest) within AT_SPEED_TIMEOUT */
-	MLIP_DRIVE_SPINDLE_OUT_OF_BAND /* at speed, then out of AT_SPEED_BAND for BAND_TIME */
+	MLIP_DRIVE_SPINDLE_TIMEOUT,     /* not at speed (or at rest) within AT_SPEED_TIMEOUT */
+	MLIP_DRIVE_SPINDLE_OUT_OF_BAND, /* at speed, then out of AT_SPEED_BAND for BAND_TIME */
+	MLIP_DRIVE_POWER_STEP /* another step toward power (shutdown, disable voltage, fault
+	                         reset, waiting) not confirmed in time; value step
+	                         (mlip_drive_power) * 65536 + statusword */
 } mlip_drive_fault;
 
 /* What the bus last said about one drive (filled from mlip_co_classify). */

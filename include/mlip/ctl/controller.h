@@ -89,6 +89,11 @@
  *     "switched on"--> ENABLING (0x0F) --all "operation enabled"--> ENABLED
  *     (a timeout: FAULT, reason DRIVE: not switched on / not enabled, node,
  *     statusword; the drives are shut down again and nothing moves)
+ *   after an E-stop's reset: from what every drive's statusword shows,
+ *     VOLTAGE_OFF (0x00) --all "switch on disabled"--> SHUTTING_DOWN (0x06)
+ *     --all "ready to switch on"--> OFF; a program arriving meanwhile waits
+ *     (toward power a step not confirmed: FAULT, DRIVE, POWER_STEP, value
+ *     step * 65536 + statusword)
  * Records are taken (IDLE -> PREREAD) only with the drives ENABLED, so the
  * planner never moves otherwise; pause, dwell, hold and starved keep them
  * enabled, holding position. From OFF to ENABLING the commanded position
