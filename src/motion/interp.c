@@ -68,10 +68,28 @@ static void filter_step(struct mlip_planner *p, double *pos_out)
 
 /* ---- execution ---------------------------------------------------------- */
 
-static double end_corner_q(const struct mlip_seg *s, double rem, double v)
+/*
+ * The executing line's end corner. Held (a hold, a stop, override 0), every
+ * corner with a speed is planned to rest: the full backward pass the hold
+ * started sets q = 0 (its soft cap, Sec. 3) on each, but with bounded work
+ * a period (mlip_planner_set_async) it starts from the newest block and
+ * reaches this corner only periods later, which the executor would spend
+ * still following the plan being replaced (on 0.02 mm blocks at 200 mm/s,
+ * 4 periods and 1 mm past v^2 / 2a). Taking the pass's value here at once
+ * brakes from the next period: q then is the least the state allows (the
+ * line brakes at a to the corner, (34) and Sec. 3.2 case b), never below
+ * what the old plan could brake to, so the corners after it stay reachable
+ * and brakeable with the values they hold.
+ */
+static double end_corner_q(const struct mlip_planner *p, const struct mlip_seg *s, double rem,
+                           double v)
 {
 	int ok;
-	return mlip_corner_q_at(&s->c, s->a_mm_s2, s->q, rem, v, &ok);
+	double q_plan = s->q;
+	if (effective_override(p) == 0.0 && (s->inv_vs2 > 0.0 || s->inv_ve2 > 0.0)) {
+		q_plan = 0.0;
+	}
+	return mlip_corner_q_at(&s->c, s->a_mm_s2, q_plan, rem, v, &ok);
 }
 
 /* A line profile from (speed v) over distance rem to speed v1: change to vc,
@@ -204,7 +222,7 @@ mlip_run_state mlip_planner_step(struct mlip_planner *p, double *pos_out)
 		if (p->ops->line_start != NULL && has_next && !p->prof_valid) {
 			p->ops->line_start(p, s, rem, p->v_mm_s);
 		}
-		double q = has_next ? end_corner_q(s, rem, p->v_mm_s) : 0.0;
+		double q = has_next ? end_corner_q(p, s, rem, p->v_mm_s) : 0.0;
 		double vt = mlip_line_target(p, s);
 		struct mlip_profile *f = &p->prof;
 		if (!p->prof_valid || q != p->prof_q || vt != p->prof_vt) {

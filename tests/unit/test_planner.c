@@ -4,11 +4,13 @@
  * Every physical bound is asserted on both sides, with its tolerance.
  */
 #include <float.h>
+#include <inttypes.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -336,8 +338,8 @@ static int g_async;
 static double *g_rows;
 static size_t g_nrows, g_maxrows;
 
-static void run_path(const struct mlip_machine *m, mlip_strategy st, const struct path *p,
-                     int events, struct run *r)
+/* A check of p against m's limits. */
+static void check_begin(struct mlip_check *c, const struct mlip_machine *m, const struct path *p)
 {
 	struct mlip_check_limits lim = {.n = m->n_axes,
 	                                .vmax_mm_s = m->max_feed_mm_s,
@@ -349,8 +351,41 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 		lim.vel[k] = m->axis[k].max_vel;
 		lim.jerk[k] = m->axis[k].max_jerk;
 	}
+	mlip_check_init(c, &lim, p->pts, p->np);
+}
+
+/* Point i of p as a block at the machine's feed and tolerance. */
+static struct mlip_block path_block(const struct mlip_machine *m, const struct path *p, size_t i)
+{
+	struct mlip_block b = {
+	    .feed_mm_s = m->max_feed_mm_s, .tol_mm = m->tolerance_mm, .line = (uint32_t)i};
+	memcpy(b.target, p->pts + i * (size_t)p->n, sizeof(double) * (size_t)p->n);
+	return b;
+}
+
+/* The pre-read, as the controller's: no step until the look-ahead is full
+ * (or the path is in) and planned. Returns the next point to push. */
+static size_t preread(const struct mlip_machine *m, const struct path *p)
+{
+	size_t next = 1;
+	for (;;) {
+		for (uint32_t sp = mlip_planner_space(&P); sp > 0 && next < p->np; sp--) {
+			struct mlip_block b = path_block(m, p, next);
+			assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+			next++;
+		}
+		mlip_planner_work(&P);
+		if (!mlip_planner_busy(&P) && (next >= p->np || mlip_planner_space(&P) == 0)) {
+			return next;
+		}
+	}
+}
+
+static void run_path(const struct mlip_machine *m, mlip_strategy st, const struct path *p,
+                     int events, struct run *r)
+{
 	memset(r, 0, sizeof(*r));
-	mlip_check_init(&r->chk, &lim, p->pts, p->np);
+	check_begin(&r->chk, m, p);
 	/* only smooth gets its storage: the others plan without it */
 	assert_int_equal(
 	    mlip_planner_init(&P, m, st, 0, p->pts, st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
@@ -363,21 +398,8 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 	uint64_t next_event = 20;
 	g_nrows = 0;
 	mlip_planner_set_async(&P, g_async);
-	while (g_async && events != EV_DRIP) {
-		/* the pre-read: no step until the look-ahead is full (or the path
-		 * is in) and planned */
-		for (uint32_t sp = mlip_planner_space(&P); sp > 0 && next < p->np; sp--) {
-			struct mlip_block b = {.feed_mm_s = m->max_feed_mm_s,
-			                       .tol_mm = m->tolerance_mm,
-			                       .line = (uint32_t)next};
-			memcpy(b.target, p->pts + next * (size_t)n, sizeof(double) * (size_t)n);
-			assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
-			next++;
-		}
-		mlip_planner_work(&P);
-		if (!mlip_planner_busy(&P) && (next >= p->np || mlip_planner_space(&P) == 0)) {
-			break;
-		}
+	if (g_async && events != EV_DRIP) {
+		next = preread(m, p);
 	}
 	for (;;) {
 		int budget = events == EV_DRIP ? (r->periods % 7 == 0) : MLIP_INGEST_PER_PERIOD;
@@ -385,10 +407,7 @@ static void run_path(const struct mlip_machine *m, mlip_strategy st, const struc
 			budget = MLIP_LOOKAHEAD;
 		}
 		for (int i = 0; i < budget && next < p->np && mlip_planner_space(&P) > 0; i++) {
-			struct mlip_block b = {.feed_mm_s = m->max_feed_mm_s,
-			                       .tol_mm = m->tolerance_mm,
-			                       .line = (uint32_t)next};
-			memcpy(b.target, p->pts + next * (size_t)n, sizeof(double) * (size_t)n);
+			struct mlip_block b = path_block(m, p, next);
 			if (mlip_planner_push(&P, &b) == MLIP_E_INVALID) {
 				break; /* stopping */
 			}
@@ -1363,6 +1382,225 @@ static int reset(void **state)
 	return 0;
 }
 
+/* ---- a stop acts in the next period (issue 21) ----------------------------- */
+
+/* One stop, requested before period k (0-based) of a run with bounded work
+ * a period (the controller's async look-ahead, pre-read full): what the
+ * plan did from then on. */
+struct stop_at {
+	uint64_t first_brake; /* first period whose plan speed fell by a T / 2 */
+	double v_req;         /* plan speed at the request */
+	double a_req;         /* the executing line's acceleration a then */
+	double d_plan;        /* plan's path length from the request to rest */
+	int bad;              /* a limit or the contour broken */
+	char msg[512];
+};
+
+/* bounded work (1) or all of it at once (0); every setpoint when rows */
+static int g_stop_async = 1;
+static double *g_stop_rows;
+static size_t g_stop_n, g_stop_max;
+
+static void stop_run(const struct mlip_machine *m, mlip_strategy st, const struct path *p,
+                     uint64_t k, double a_line, struct stop_at *out)
+{
+	static struct mlip_check chk;
+	check_begin(&chk, m, p);
+	assert_int_equal(
+	    mlip_planner_init(&P, m, st, 0, p->pts, st == MLIP_STRATEGY_SMOOTH ? &SM : NULL),
+	    MLIP_OK);
+	mlip_planner_set_async(&P, g_stop_async);
+	mlip_check_sample(&chk, p->pts);
+	int n = m->n_axes;
+	size_t next = preread(m, p);
+	memset(out, 0, sizeof(*out));
+	out->first_brake = UINT64_MAX;
+	g_stop_n = 0;
+	double x[MLIP_MAX_AXES], prev[MLIP_MAX_AXES], v_prev = 0.0;
+	for (uint64_t t = 0;; t++) {
+		for (int i = 0; i < MLIP_INGEST_PER_PERIOD && t < k && next < p->np &&
+		                mlip_planner_space(&P) > 0;
+		     i++) {
+			struct mlip_block b = path_block(m, p, next);
+			assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
+			next++;
+		}
+		if (t == k) {
+			out->v_req = mlip_planner_speed(&P);
+			out->a_req = P.seg[P.tail & (P.cap - 1u)].a_mm_s2;
+			memcpy(prev, P.pos, sizeof(prev));
+			mlip_planner_stop(&P);
+		}
+		mlip_planner_work(&P);
+		mlip_run_state rs = mlip_planner_step(&P, x);
+		mlip_check_sample(&chk, x);
+		if (g_stop_rows != NULL && g_stop_n < g_stop_max) {
+			memcpy(g_stop_rows + g_stop_n * (size_t)n, x, sizeof(double) * (size_t)n);
+			g_stop_n++;
+		}
+		double v = mlip_planner_speed(&P);
+		if (t >= k) {
+			double d2 = 0.0;
+			for (int j = 0; j < n; j++) {
+				d2 += (P.pos[j] - prev[j]) * (P.pos[j] - prev[j]);
+			}
+			out->d_plan += sqrt(d2);
+			memcpy(prev, P.pos, sizeof(prev));
+			if (out->first_brake == UINT64_MAX &&
+			    v <= fmax(v_prev - 0.5 * a_line * m->period_s, 0.0)) {
+				out->first_brake = t;
+			}
+			if (rs == MLIP_RUN_IDLE) {
+				break;
+			}
+		}
+		v_prev = v;
+		assert_true(t < k + 100000);
+	}
+	out->bad = mlip_check_verdict(&chk, REL, mlip_check_rounding_floor(&chk), 0.0, INFINITY,
+	                              out->msg, sizeof(out->msg));
+}
+
+/* A straight line of `segs` pieces of `seg_mm` along a fixed skew direction,
+ * the first piece `first_mm` long. */
+static struct path make_line(size_t segs, double first_mm, double seg_mm)
+{
+	static const double dir[3] = {0.48, -0.64, 0.6};
+	struct path p = {.n = 3, .np = segs + 1};
+	p.pts = calloc(p.np * 3, sizeof(double));
+	double s = 0.0;
+	for (size_t i = 1; i < p.np; i++) {
+		s += i == 1 ? first_mm : seg_mm;
+		for (int j = 0; j < 3; j++) {
+			p.pts[3 * i + (size_t)j] = s * dir[j];
+		}
+	}
+	return p;
+}
+
+/*
+ * Issue 21: a stop (a hold with it) acts within one period, however deep
+ * the look-ahead (4096) and however far the bounded backward pass
+ * (mlip_planner_set_async) is from the executing corner. A stop is
+ * requested before every period of the acceleration ramp and of 40 periods
+ * of cruise, every strategy, with and without a jerk limit:
+ *  - on a long straight (a 300 mm block, then 0.02 mm ones) and a dense
+ *    polyline (0.02 mm blocks, ten a period at 200 mm/s) along one line:
+ *    the plan's speed falls from the first period after the request (by at
+ *    least a_lo T / 2, a_lo the least line acceleration: A' (J4) with a
+ *    jerk limit), and it comes to rest within one period's travel of
+ *    v^2 / 2a past where it was, v its speed at the request and a the
+ *    line's acceleration, and not before v^2 / 2a (the limit);
+ *  - on a fine curve (0.02 mm blocks, every 4th period; smooth on its
+ *    smoothed path), where
+ *    the corners' geometry sets how fast the plan can brake: the setpoints
+ *    are, to the bit, those of the planner doing all its work at once (the
+ *    hold's full pass done before the next period);
+ * and every setpoint keeps every limit, the jerk's included, and the path.
+ */
+static void test_stop_within_a_period(void **state)
+{
+	(void)state;
+	struct path straight = make_line(6000, 300.0, 0.02), dense = make_line(12000, 0.02, 0.02);
+	struct path curve = make_fine_curve(20000);
+	const struct path *paths[3] = {&straight, &dense, &curve};
+	char fails[512] = ""; /* the first failure; reported after every figure */
+	g_stop_max = 4000;
+	double *ref = malloc(g_stop_max * 3 * sizeof(double));
+	double *got = malloc(g_stop_max * 3 * sizeof(double));
+	for (int pi = 0; pi < 3; pi++) {
+		int n = paths[pi]->n;
+		for (int jerk = 0; jerk < 2; jerk++) {
+			struct mlip_machine m = machine(n, 1000, 200, 0.01);
+			for (int j = 0; jerk && j < n; j++) {
+				m.axis[j].max_jerk = 1e5;
+			}
+			struct mlip_jerk_plan jp;
+			mlip_jerk_plan(&m, &jp);
+			double a_lo = INFINITY;
+			for (int j = 0; j < n; j++) {
+				a_lo = fmin(a_lo, jp.accel[j] * (1.0 - MLIP_ACCEL_MARGIN));
+			}
+			/* the ramp to 200 mm/s and the mean's window, then cruise */
+			uint64_t ramp =
+			    (uint64_t)ceil(200.0 / (a_lo * m.period_s)) + (uint64_t)jp.taps;
+			struct path sp = smoothed_path(paths[pi], &m);
+			for (int st = 0; st < MLIP_STRATEGY_COUNT; st++) {
+				const char *name = mlip_strategy_name((mlip_strategy)st);
+				const struct path *p = st == MLIP_STRATEGY_SMOOTH ? &sp : paths[pi];
+				double late = 0.0, over_hi = -INFINITY, over_lo = INFINITY;
+				/* every period on the lines; every 4th on the curve,
+				 * run twice */
+				for (uint64_t k = 1; k < ramp + 40; k += pi == 2 ? 4u : 1u) {
+					struct stop_at r, r0;
+					if (pi == 2) {
+						g_stop_async = 0;
+						g_stop_rows = ref;
+						stop_run(&m, (mlip_strategy)st, p, k, a_lo, &r0);
+						g_stop_async = 1;
+						g_stop_rows = got;
+					}
+					size_t n0 = g_stop_n;
+					stop_run(&m, (mlip_strategy)st, p, k, a_lo, &r);
+					g_stop_rows = NULL;
+					if (r.bad) {
+						fail_msg("path %d, jerk %d, %s, stop before period "
+						         "%" PRIu64 ": %s",
+						         pi, jerk, name, k, r.msg);
+					}
+					double ideal = r.v_req * r.v_req / (2.0 * r.a_req);
+					double over = r.d_plan - ideal,
+					       travel = r.v_req * m.period_s;
+					late = fmax(late, (double)(r.first_brake - k));
+					over_hi = fmax(over_hi, over);
+					over_lo = fmin(over_lo, over);
+					if (fails[0]) {
+						continue;
+					}
+					if (pi == 2 &&
+					    (n0 != g_stop_n ||
+					     memcmp(ref, got, n0 * (size_t)n * sizeof(double)) !=
+					         0)) {
+						snprintf(
+						    fails, sizeof(fails),
+						    "curve, jerk %d, %s, stop before period "
+						    "%" PRIu64
+						    ": the setpoints differ from those of the work "
+						    "done at once",
+						    jerk, name, k);
+					} else if (pi < 2 && (r.first_brake != k ||
+					                      !(over <= travel + 1e-9) ||
+					                      !(over >= -1e-9 * (1.0 + ideal)))) {
+						snprintf(
+						    fails, sizeof(fails),
+						    "path %d, jerk %d, %s, stop before period "
+						    "%" PRIu64
+						    " at %.3f mm/s: braking from period %" PRIu64
+						    ", %.6f mm to rest, v^2/2a %.6f mm, one period "
+						    "%.6f mm",
+						    pi, jerk, name, k, r.v_req, r.first_brake,
+						    r.d_plan, ideal, travel);
+					}
+				}
+				print_message(
+				    "path %d, jerk %d, %s: stops before periods 1-%" PRIu64
+				    ": braking %g periods late at most, distance - v^2/2a "
+				    "in [%.3g, %.3g] mm\n",
+				    pi, jerk, name, ramp + 39, late, over_lo, over_hi);
+			}
+			free(sp.pts);
+		}
+	}
+	free(ref);
+	free(got);
+	free(straight.pts);
+	free(dense.pts);
+	free(curve.pts);
+	if (fails[0]) {
+		fail_msg("%s", fails);
+	}
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1392,6 +1630,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_jerk_stall, reset),
 	    cmocka_unit_test_setup(test_abort_drops_the_queue, reset),
 	    cmocka_unit_test_setup(test_push_full_and_bad_input, reset),
+	    cmocka_unit_test_setup(test_stop_within_a_period, reset),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
