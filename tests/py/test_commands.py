@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from conftest import (CONFIG, HEAD, ROOT, TAIL, TOOLPATHS, Ring, frozen, status, tool,
+from conftest import (CONFIG, HEAD, ROOT, TAIL, TOOLPATHS, Proc, Ring, frozen, status, tool,
                       wait_for)
 
 MILL = CONFIG / "mill-3axis.ini"
@@ -38,8 +38,8 @@ def flower(tmp_path, lines=6000):
 def moving(controller, tmp_path):
     """The flower on the paper's machine, running."""
     shm, rt = controller(PAPER)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, str(flower(tmp_path))],
-                         stderr=subprocess.PIPE, text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, str(flower(tmp_path))],
+             stderr=subprocess.PIPE, text=True)
     assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50, 30), "did not start"
     return shm, rt, f
 
@@ -75,8 +75,8 @@ def test_stop_during_the_check_prevents_the_program(controller, tmp_path):
     shm, rt = controller(MILL)
     prog = long_program(tmp_path)
     before = status(shm)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, str(prog)], stderr=subprocess.PIPE,
-                         text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, str(prog)], stderr=subprocess.PIPE,
+             text=True)
     try:
         assert wait_for(lambda: holds_a_lock(f.pid) or f.poll() is not None, 30)
         f.send_signal(signal.SIGSTOP)
@@ -118,8 +118,8 @@ def test_stop_in_the_preread_prevents_the_program(controller, tmp_path):
     shm, rt = controller(MILL)
     prog = long_program(tmp_path)
     before = status(shm)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, str(prog)], stderr=subprocess.PIPE,
-                         text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, str(prog)], stderr=subprocess.PIPE,
+             text=True)
     ring = Ring(shm)
     # the pre-read has begun (a record taken); it ends with the 4096th
     assert wait_for(lambda: ring.u32(TAIL) > 0 or f.poll() is not None, 60, 0.001)
@@ -266,8 +266,8 @@ def test_stop_in_a_wait_names_the_block_before_it(controller, tmp_path, wait, ho
     shm, rt = controller(MILL)
     prog = tmp_path / "wait.ngc"
     prog.write_text(WAIT_PROGRAM.format(wait=wait))
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, str(prog)], stderr=subprocess.PIPE,
-                         text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, str(prog)], stderr=subprocess.PIPE,
+             text=True)
     assert in_state(shm, "dwelling" if wait.startswith("G4") else "paused", 30)
     if how == "stop":
         assert ctl(shm, "stop").returncode == 0

@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from conftest import CONFIG, TOOLPATHS, offsets_file, run, tool
+from conftest import CONFIG, TOOLPATHS, Proc, offsets_file, run, tool
 
 MILL = CONFIG / "mill-3axis.ini"
 SENDERS = TOOLPATHS / "senders"
@@ -323,8 +323,8 @@ def test_feed_dwell_pause_offsets_end_to_end(tmp_path, controller):
     prog.write_text("G1 X10 F6000\nG4 P0.25\nG1 X20 M0\nG1 X30\n")
     rec = tmp_path / "rt.csv"
     shm, rt = controller(MILL, "--record", rec)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--offsets", str(off), str(prog)],
-                         stderr=subprocess.PIPE, text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, "--offsets", str(off), str(prog)],
+             stderr=subprocess.PIPE, text=True)
     paused = None
     for _ in range(600):
         st = subprocess.run([tool("mlip-ctl"), "--shm", shm, "status", "--json"],

@@ -8,7 +8,7 @@ import signal
 import subprocess
 import time
 
-from conftest import CONFIG, status, tool, wait_for
+from conftest import CONFIG, Proc, status, tool, wait_for
 
 MILL = CONFIG / "mill-3axis.ini"
 A = 1000.0  # mm/s^2, every axis of mill-3axis
@@ -79,8 +79,8 @@ def test_jog_client_killed(controller, tmp_path):
     acceleration limit."""
     rec = tmp_path / "rt.csv"
     shm, rt = controller(MILL, "--record", rec)
-    j = subprocess.Popen([tool("mlip-ctl"), "--shm", shm, "jog", "Y-", "3000"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    j = Proc([tool("mlip-ctl"), "--shm", shm, "jog", "Y-", "3000"],
+             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert wait_for(lambda: (status(shm) or {}).get("state") == "jog", 10)
     time.sleep(0.5)
     j.kill()
@@ -216,8 +216,8 @@ def test_jog_several_axes(controller, tmp_path):
 def test_jog_status(controller):
     """Status shows the jog in progress, every axis with its direction."""
     shm, rt = controller(MILL)
-    j = subprocess.Popen([tool("mlip-ctl"), "--shm", shm, "jog", "X+", "Y-", "600", "30"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    j = Proc([tool("mlip-ctl"), "--shm", shm, "jog", "X+", "Y-", "600", "30"],
+             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         st = wait_for(lambda: (lambda s: s if s["state"] == "jog" else None)(status(shm)), 10)
         assert st and st["jog"] == "X+ Y-", st

@@ -8,7 +8,7 @@ import signal
 import subprocess
 import time
 
-from conftest import (CONFIG, ROOT, TOOLPATHS, longest_rest, program_end, record_checked,
+from conftest import (CONFIG, ROOT, TOOLPATHS, Proc, longest_rest, program_end, record_checked,
                       record_rows, shm_name, status, tool, wait_for)
 
 DEMO = ROOT / "examples" / "demo.ngc"
@@ -92,8 +92,8 @@ def test_override_hold_resume_stop(controller, tmp_path):
     cfg = CONFIG / "paper-2axis.ini"
     rec = tmp_path / "rt.csv"
     shm, rt = controller(cfg, "--record", rec)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
-                         stderr=subprocess.PIPE, text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
+             stderr=subprocess.PIPE, text=True)
     assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50)
     ctl = lambda *a: subprocess.run([tool("mlip-ctl"), "--shm", shm, *a], capture_output=True,
                                     text=True)
@@ -111,7 +111,7 @@ def test_override_hold_resume_stop(controller, tmp_path):
     assert wait_for(lambda: status(shm)["position"] != held["position"], 5)
     assert ctl("stop").returncode == 0
     f.wait(10)
-    assert f.returncode == 4, f.stderr.read()
+    assert f.returncode == 4, f.said()
     assert wait_for(lambda: status(shm)["state"] == "idle", 5)
     rt.send_signal(signal.SIGTERM)
     assert rt.wait(10) == 0
@@ -156,8 +156,8 @@ def test_sigterm_is_a_controlled_stop(controller, tmp_path):
     cfg = CONFIG / "paper-2axis.ini"
     rec = tmp_path / "rt.csv"
     shm, rt = controller(cfg, "--record", rec)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
-                         stderr=subprocess.PIPE, text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
+             stderr=subprocess.PIPE, text=True)
     assert wait_for(lambda: (status(shm) or {}).get("speed_mm_s", 0) > 10)
     rt.send_signal(signal.SIGTERM)
     _, err = rt.communicate(timeout=10)
@@ -204,8 +204,8 @@ def test_start_seq_must_continue_the_last_block(controller, tmp_path):
     p = feed(shm, prog, "--start-seq", "100", timeout=30)
     assert p.returncode == 1 and "has run no block of a program" in p.stderr, p.stderr
     assert status(shm)["blocks_consumed"] == 0
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
-                         stderr=subprocess.PIPE, text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
+             stderr=subprocess.PIPE, text=True)
     assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 300)
     f.send_signal(signal.SIGTERM)  # the controller stops on the path
     err = f.communicate(timeout=30)[1]
@@ -239,8 +239,8 @@ def test_smooth_start_seq_continues_the_smoothed_records(controller, tmp_path):
     n = sim["blocks_run"]
     assert n > sim["blocks"]  # pieces: more records than the program's blocks
     shm, _ = controller(CONFIG / "paper-2axis.ini", "--strategy", "smooth")
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
-                         stderr=subprocess.PIPE, text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
+             stderr=subprocess.PIPE, text=True)
     assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > n // 3)
     mid = status(shm)
     assert 1 <= mid["exec_line"] <= 3000 and mid["total_blocks"] <= n + 1
