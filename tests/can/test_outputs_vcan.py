@@ -22,27 +22,11 @@ import time
 
 import pytest
 
-from conftest import S
+from conftest import IO, IO_PERIOD_S, S, io_machine
 from mlipcan import procs
 
-MILL = S.config_dir / "mill-3axis.ini"
-PERIOD_S = 0.04
-IO = 10
 CPU = 1000  # counts per mm (mill-3axis)
-CONFIG_TAIL = f"""
-[DRIVES]
-ENABLE = 1
-HEARTBEAT_MS = 100
-HEARTBEAT_TIMEOUT_MS = 4000
-FOLLOWING_ERROR = 2
-SDO_TIMEOUT_MS = 5000
-BOOT_TIMEOUT_MS = 8000
-STATE_TIMEOUT_MS = 10000
-
-[IO]
-NODE = {IO}
-ESTOP = {IO} 0x6000:1 0 LOW
-PROBE = {IO} 0x6000:1 3 HIGH
+CONFIG_TAIL = f"""PROBE = {IO} 0x6000:1 3 HIGH
 OUTPUT_0 = {IO} 0x6200:1 2
 
 [COOLANT]
@@ -54,21 +38,16 @@ FLOOD, P0 = 0x02, 0x04
 
 
 def machine(tmp):
-    text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
-    text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
-    assert re.search(r"^\[AXIS_Z\]$", text, flags=re.M)
-    path = tmp / "io.ini"
-    path.write_text(text + CONFIG_TAIL)
-    return path
+    """io_machine with the probe on input bit 3, output 0 and coolant."""
+    def has_z(text):
+        assert re.search(r"^\[AXIS_Z\]$", text, flags=re.M)
+        return text
+    return io_machine(tmp, CONFIG_TAIL, has_z)
 
 
 @pytest.fixture(scope="module")
-def sim(vcan, tmp_path_factory):
-    w = tmp_path_factory.mktemp("outsim")
-    # the E-stop circuit closed (bit 0 = 1) from power-up
-    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3], args=["--io", IO], inject=[f"{IO}:input=1.0=1"])
-    yield s
-    s.stop()
+def sim(io_sim):
+    return io_sim
 
 
 def io_after(sim, t0):
@@ -149,7 +128,7 @@ def test_outputs_off_on_stop_and_estop(sim, tmp_path):
     ngc = tmp_path / "p.ngc"
     # 20 mm/s: 0.8 mm (800 counts) a period; the brake takes one period at 1000 mm/s^2
     ngc.write_text("G21 G90\nM7 M8\nM64 P0\nG1 X400 F1200\nM2\n")
-    cruise = 20.0 * PERIOD_S * CPU
+    cruise = 20.0 * IO_PERIOD_S * CPU
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         t0 = time.time()
         feed = rig.feeder(ngc)
@@ -230,7 +209,7 @@ def test_probe_latches_the_surface(sim, tmp_path):
     assert abs(st["position"]["Z"] - 5.0) < 1e-9, st  # the program went on
     latched = round(pr["position"]["Z"] * CPU)
     err_counts = latched - surface
-    per_period = feed_mm_min / 60.0 * PERIOD_S * CPU
+    per_period = feed_mm_min / 60.0 * IO_PERIOD_S * CPU
     trips = sim.wait_event(lambda e: e["kind"] == "probe" and e["on"] and e["t"] >= t0, "a trip")
     sim.wait_sync_rows(lambda rs: True)
     zs = [(s, t) for s, t in targets(sim, 3, t0) if t is not None]
@@ -241,7 +220,7 @@ def test_probe_latches_the_surface(sim, tmp_path):
     after = [t for s, t in zs if s >= s_trip - 1]
     acc = (
         max((abs(c - 2 * b + a) for a, b, c in zip(after, after[1:], after[2:])), default=0)
-        / (PERIOD_S**2)
+        / (IO_PERIOD_S**2)
         / CPU
     )
     rest = min(t for s, t in zs if s >= s_trip and t <= -4000)
@@ -268,7 +247,7 @@ def test_probe_latches_the_surface(sim, tmp_path):
         f"the SYNC before its frame by the bus's clock), max braking "
         f"{acc:.1f} mm/s^2"
     )
-    assert acc <= 1000.0 * (1 + 1e-9) + 2 / (PERIOD_S**2) / CPU, acc
+    assert acc <= 1000.0 * (1 + 1e-9) + 2 / (IO_PERIOD_S**2) / CPU, acc
     # the latched position: where the drive was in the period the input's
     # frame arrived, within a few periods of travel beyond the surface
     # (the module reads the drive one period after its move, mlip reads
