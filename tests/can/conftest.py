@@ -56,9 +56,9 @@ def fd_mtu(vcan):
 # CiA 402 drives (nodes 1..3) and a CiA 401 I/O module (node IO) at 40 ms,
 # the timeouts long (the emulated VM)
 
-IO = 10
-IO_PERIOD_S = 0.04
-IO_DRIVES = f"""
+# CiA 402 drives on the bus, the timeouts long for the emulated VM (the
+# drive, homing and I/O tests' [DRIVES] section)
+DRIVES_VM = """
 [DRIVES]
 ENABLE = 1
 HEARTBEAT_MS = 100
@@ -67,7 +67,10 @@ FOLLOWING_ERROR = 2
 SDO_TIMEOUT_MS = 5000
 BOOT_TIMEOUT_MS = 8000
 STATE_TIMEOUT_MS = 10000
-
+"""
+IO = 10
+IO_PERIOD_S = 0.04
+IO_DRIVES = DRIVES_VM + f"""
 [IO]
 NODE = {IO}
 ESTOP = {IO} 0x6000:1 0 LOW
