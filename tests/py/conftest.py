@@ -139,6 +139,16 @@ def wait_for(pred, timeout=10.0, poll=0.02):
     return None
 
 
+def periods_on(shm, n, timeout=60.0):
+    """The status once the controller has run n more periods (its
+    heartbeat): "nothing moves meanwhile" checked over the loop's own
+    periods, not over a sleep a loaded host may spend elsewhere."""
+    s0 = status(shm)
+    assert s0 and s0["alive"], s0
+    return wait_for(lambda: (lambda s: s if s and s["heartbeat"] >= s0["heartbeat"] + n
+                             else None)(status(shm)), timeout)
+
+
 @contextlib.contextmanager
 def frozen(proc):
     """proc stopped (SIGSTOP, every thread of it seen stopped) for the block,

@@ -10,12 +10,11 @@ import os
 import signal
 import struct
 import subprocess
-import time
 
 import pytest
 
-from conftest import (CONFIG, HEAD, ROOT, TAIL, TOOLPATHS, Proc, Ring, frozen, status, tool,
-                      wait_for)
+from conftest import (CONFIG, HEAD, ROOT, TAIL, TOOLPATHS, Proc, Ring, frozen, periods_on,
+                      status, tool, wait_for)
 
 MILL = CONFIG / "mill-3axis.ini"
 PAPER = CONFIG / "paper-2axis.ini"
@@ -170,8 +169,7 @@ def test_ctl_stdin_never_splits_a_long_line(controller, tmp_path):
     assert p.returncode == 2 and "stdin:1: line longer than 255 bytes: not a command" \
         in p.stderr, p.stderr
     assert p.stdout == ""
-    time.sleep(0.3)  # nothing may move while held: give it time to
-    s = status(shm)
+    s = periods_on(shm, 300)  # nothing may move while held: 300 periods to
     assert s["state"] == "held" and s["reason"] == "hold" and s["override_pct"] == 100, s
     assert s["position"] == held["position"] and s["exec_seq"] == held["exec_seq"]
     assert ctl(shm, "stop").returncode == 0
@@ -237,8 +235,7 @@ def test_reason_follows_the_state(controller, tmp_path):
     assert ctl(shm, "hold").returncode == 0
     assert wait_for(lambda: status(shm)["reason"] == "hold", 5), status(shm)
     assert ctl(shm, "override", "100").returncode == 0
-    time.sleep(0.2)  # a held machine must not move on with the override
-    s = status(shm)
+    s = periods_on(shm, 200)  # a held machine must not move on with the override
     assert s["state"] == "held" and s["reason"] == "hold" and s["override_pct"] == 100, s
     text = ctl(shm, "status").stdout
     assert "why         hold\n" in text and "to continue mlip-ctl resume" in text, text

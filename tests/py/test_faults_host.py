@@ -5,8 +5,8 @@ import signal
 import subprocess
 import time
 
-from conftest import (CONFIG, TOOLPATHS, Proc, program_end, record_checked, record_rows,
-                      sim_summary, status, tool, wait_for)
+from conftest import (CONFIG, TOOLPATHS, Proc, periods_on, program_end, record_checked,
+                      record_rows, sim_summary, status, tool, wait_for)
 
 PAPER = CONFIG / "paper-2axis.ini"
 
@@ -39,8 +39,8 @@ def test_feeder_killed_then_continued(controller, tmp_path):
     assert s, status(shm)
     assert s["underruns"] > 0 and s["exec_line"] > 0
     executed = s["exec_seq"]
-    time.sleep(0.2)
-    assert status(shm)["position"] == s["position"] and s["speed_mm_s"] == 0.0  # at rest
+    later = periods_on(shm, 200)
+    assert later and later["position"] == s["position"] and s["speed_mm_s"] == 0.0  # at rest
     # a new feeder continues from the next block and finishes the program
     p = subprocess.run([tool("mlip-feed"), "--shm", shm, "--quiet", "--start-seq",
                         str(executed + 1), str(prog)], capture_output=True, text=True, timeout=60)
@@ -123,9 +123,9 @@ def test_stalled_feeder_stops_and_picks_up(controller, tmp_path):
     f.send_signal(signal.SIGSTOP)  # the feeder stalls (swapped out, stopped...)
     s = wait_for(lambda: (lambda s: s if s["state"] == "starved" else None)(status(shm)), 20)
     assert s, status(shm)
-    time.sleep(0.3)
     # at rest at the end of what it had: the setpoint stands still
-    assert status(shm)["position"] == s["position"] and s["speed_mm_s"] == 0.0
+    later = periods_on(shm, 300)
+    assert later and later["position"] == s["position"] and s["speed_mm_s"] == 0.0, later
     f.send_signal(signal.SIGCONT)
     assert f.wait(60) == 0  # picked up again and finished
     assert status(shm)["exec_seq"] == n + 1

@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from conftest import CONFIG, TOOLPATHS, Proc, offsets_file, run, tool
+from conftest import CONFIG, TOOLPATHS, Proc, offsets_file, periods_on, run, tool
 
 MILL = CONFIG / "mill-3axis.ini"
 SENDERS = TOOLPATHS / "senders"
@@ -337,7 +337,8 @@ def test_feed_dwell_pause_offsets_end_to_end(tmp_path, controller):
     assert paused, "the controller never paused at the M0"
     # X20 in G55 is machine X30; Y, never programmed, stays where it was (LinuxCNC)
     assert paused["position"] == {"X": 30.0, "Y": 0.0, "Z": 0.0}
-    time.sleep(0.2)
+    later = periods_on(shm, 200)  # a pause waits for resume, however long
+    assert later and later["state"] == "paused" and later["position"] == paused["position"], later
     assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "resume"]).returncode == 0
     _, ferr = f.communicate(timeout=60)
     assert f.returncode == 0, ferr

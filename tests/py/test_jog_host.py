@@ -6,7 +6,6 @@ stops exactly at it and one beyond it is refused (Grbl's error 15); bad
 arguments are refused before anything moves."""
 import signal
 import subprocess
-import time
 
 from conftest import CONFIG, Proc, status, tool, wait_for
 
@@ -81,8 +80,9 @@ def test_jog_client_killed(controller, tmp_path):
     shm, rt = controller(MILL, "--record", rec)
     j = Proc([tool("mlip-ctl"), "--shm", shm, "jog", "Y-", "3000"],
              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert wait_for(lambda: (status(shm) or {}).get("state") == "jog", 10)
-    time.sleep(0.5)
+    # at the jog's speed (3000 mm/min) before the kill: the stop then brakes from it
+    assert wait_for(lambda: (lambda s: s.get("state") == "jog" and s["speed_mm_s"] >= 50.0 *
+                             (1 - 1e-9))(status(shm) or {}), 60), status(shm)
     j.kill()
     j.wait(10)
     y_kill = status(shm)["position"]["Y"]
