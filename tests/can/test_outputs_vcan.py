@@ -22,7 +22,8 @@ import time
 
 import pytest
 
-from conftest import IO, IO_PERIOD_S, S, io_machine
+from conftest import IO, S, io_machine
+from conftest import IO_PERIOD_S as PERIOD_S
 from mlipcan import procs
 
 CPU = 1000  # counts per mm (mill-3axis)
@@ -128,7 +129,7 @@ def test_outputs_off_on_stop_and_estop(sim, tmp_path):
     ngc = tmp_path / "p.ngc"
     # 20 mm/s: 0.8 mm (800 counts) a period; the brake takes one period at 1000 mm/s^2
     ngc.write_text("G21 G90\nM7 M8\nM64 P0\nG1 X400 F1200\nM2\n")
-    cruise = 20.0 * IO_PERIOD_S * CPU
+    cruise = 20.0 * PERIOD_S * CPU
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         t0 = time.time()
         feed = rig.feeder(ngc)
@@ -209,7 +210,7 @@ def test_probe_latches_the_surface(sim, tmp_path):
     assert abs(st["position"]["Z"] - 5.0) < 1e-9, st  # the program went on
     latched = round(pr["position"]["Z"] * CPU)
     err_counts = latched - surface
-    per_period = feed_mm_min / 60.0 * IO_PERIOD_S * CPU
+    per_period = feed_mm_min / 60.0 * PERIOD_S * CPU
     trips = sim.wait_event(lambda e: e["kind"] == "probe" and e["on"] and e["t"] >= t0, "a trip")
     sim.wait_sync_rows(lambda rs: True)
     zs = [(s, t) for s, t in targets(sim, 3, t0) if t is not None]
@@ -220,7 +221,7 @@ def test_probe_latches_the_surface(sim, tmp_path):
     after = [t for s, t in zs if s >= s_trip - 1]
     acc = (
         max((abs(c - 2 * b + a) for a, b, c in zip(after, after[1:], after[2:])), default=0)
-        / (IO_PERIOD_S**2)
+        / (PERIOD_S**2)
         / CPU
     )
     rest = min(t for s, t in zs if s >= s_trip and t <= -4000)
@@ -247,7 +248,7 @@ def test_probe_latches_the_surface(sim, tmp_path):
         f"the SYNC before its frame by the bus's clock), max braking "
         f"{acc:.1f} mm/s^2"
     )
-    assert acc <= 1000.0 * (1 + 1e-9) + 2 / (IO_PERIOD_S**2) / CPU, acc
+    assert acc <= 1000.0 * (1 + 1e-9) + 2 / (PERIOD_S**2) / CPU, acc
     # the latched position: where the drive was in the period the input's
     # frame arrived, within a few periods of travel beyond the surface
     # (the module reads the drive one period after its move, mlip reads
