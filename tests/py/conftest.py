@@ -129,7 +129,9 @@ def status(shm):
     return json.loads(p.stdout) if p.stdout.strip() else None
 
 
-def wait_for(pred, timeout=10.0, poll=0.02):
+def wait_for(pred, timeout=60.0, poll=0.02):
+    """pred()'s first true value, polled until timeout s (None then): generous,
+    a loaded host may be slow; a wait that succeeds costs no more."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         v = pred()

@@ -293,7 +293,7 @@ def test_status_json_position_and_reason(controller, tmp_path):
     assert ctl(shm, "optional-stop", "maybe").returncode == 2
     prog = zigzag(tmp_path, rows=4)
     f = Proc([tool("mlip-feed"), "--shm", shm, "--quiet", prog])
-    moving = wait_for(lambda: (lambda s: s if s["speed_mm_s"] > 100 else None)(status(shm)), 20)
+    moving = wait_for(lambda: (lambda s: s if s["speed_mm_s"] > 100 else None)(status(shm)), 60)
     assert moving and moving["state"] == "running"
     assert 0.0 <= moving["position"]["X"] <= 30.0 and moving["speed_mm_s"] <= 200.0 * (1 + 1e-9)
     assert f.wait(60) == 0

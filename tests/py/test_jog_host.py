@@ -86,7 +86,7 @@ def test_jog_client_killed(controller, tmp_path):
     j.kill()
     j.wait(10)
     y_kill = status(shm)["position"]["Y"]
-    st = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 10)
+    st = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 60)
     assert st and st["reason"] == "jog not renewed", st
     rt.send_signal(signal.SIGTERM)
     rt.communicate(timeout=20)
@@ -219,13 +219,13 @@ def test_jog_status(controller):
     j = Proc([tool("mlip-ctl"), "--shm", shm, "jog", "X+", "Y-", "600", "30"],
              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        st = wait_for(lambda: (lambda s: s if s["state"] == "jog" else None)(status(shm)), 10)
+        st = wait_for(lambda: (lambda s: s if s["state"] == "jog" else None)(status(shm)), 60)
         assert st and st["jog"] == "X+ Y-", st
         text = ctl(shm, "status").stdout
         assert "jog         X+ Y-" in text, text
     finally:
         j.terminate()
         j.wait(20)
-    st = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 10)
+    st = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 60)
     assert st and st["jog"] is None, st
     assert st["position"]["X"] > 0 and st["position"]["Y"] == -st["position"]["X"], st

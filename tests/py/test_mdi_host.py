@@ -173,14 +173,14 @@ def test_mdi_refused_while_busy(controller, tmp_path):
     j = Proc([tool("mlip-ctl"), "--shm", shm, "jog", "Y+", "600", "30"],
              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        assert wait_for(lambda: (status(shm) or {}).get("state") == "jog", 10)
+        assert wait_for(lambda: (status(shm) or {}).get("state") == "jog", 60)
         p = mdi(shm, off, "G0 X50")
         assert p.returncode == 1
         assert "refused: the controller on" in p.stderr and "is jog" in p.stderr, p.stderr
     finally:
         j.terminate()
         j.wait(20)
-    assert wait_for(lambda: (status(shm) or {}).get("state") == "idle", 10)
+    assert wait_for(lambda: (status(shm) or {}).get("state") == "idle", 60)
     assert position(shm)["X"] == 0.0
 
 

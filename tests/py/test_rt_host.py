@@ -112,7 +112,7 @@ def test_override_hold_resume_stop(controller, tmp_path):
     assert ctl("stop").returncode == 0
     f.wait(10)
     assert f.returncode == 4, f.said()
-    assert wait_for(lambda: status(shm)["state"] == "idle", 5)
+    assert wait_for(lambda: status(shm)["state"] == "idle", 60)
     rt.send_signal(signal.SIGTERM)
     assert rt.wait(10) == 0
     rows = record_rows(rec)
@@ -210,7 +210,7 @@ def test_start_seq_must_continue_the_last_block(controller, tmp_path):
     f.send_signal(signal.SIGTERM)  # the controller stops on the path
     err = f.communicate(timeout=30)[1]
     assert f.returncode == 143, err
-    s = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 10)
+    s = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 60)
     done = s["exec_seq"]
     hint = int(err.split("resume with --start-seq ")[1].split()[0])
     assert hint == done + 1, err
@@ -247,7 +247,7 @@ def test_smooth_start_seq_continues_the_smoothed_records(controller, tmp_path):
     f.send_signal(signal.SIGTERM)
     err = f.communicate(timeout=30)[1]
     assert f.returncode == 143, err
-    s = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 10)
+    s = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 60)
     done = s["exec_seq"]
     assert n // 3 < done < n
     hint = int(err.split("resume with --start-seq ")[1].split()[0])

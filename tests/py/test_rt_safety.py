@@ -166,7 +166,7 @@ def test_sighup_to_the_feeder_is_sigterm(controller, flower, sig, tmp_path):
     name = signal.Signals(sig).name
     assert f"mlip-feed: {name}: stopping the machine on the path" in ferr
     assert "interrupted: machine stopped on the path at line" in ferr, ferr
-    s = wait_for(lambda: (lambda s: s if s and s["state"] == "idle" else None)(status(shm)), 10)
+    s = wait_for(lambda: (lambda s: s if s and s["state"] == "idle" else None)(status(shm)), 60)
     assert s, status(shm)
     assert s["stops"] >= 1 and s["stop_mm"] > 0.001 and s["stop_periods"] > 1, s
     assert rt.poll() is None  # the controller itself goes on
