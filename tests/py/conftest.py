@@ -278,6 +278,18 @@ class Proc(subprocess.Popen):
         return self.log.text() if self.log is not None else ""
 
 
+def terminate(p, timeout=30):
+    """SIGTERM (a controlled stop for mlip-rt), SIGKILL after timeout s;
+    its exit code."""
+    if p.poll() is None:
+        p.send_signal(signal.SIGTERM)
+        try:
+            return p.wait(timeout)
+        except subprocess.TimeoutExpired:
+            p.kill()
+    return p.wait()
+
+
 @pytest.fixture(autouse=True)
 def reap_procs():
     """No process a test started (Proc) outlives it, whatever failed."""
@@ -311,12 +323,6 @@ def controller():
 
     yield start
     for p in procs:
-        if p.poll() is None:
-            p.send_signal(signal.SIGTERM)
-            try:
-                p.wait(30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        terminate(p)
         # pytest shows this with a failing test only
         print(f"---- mlip-rt {' '.join(p.args[1:])} (exit {p.returncode}):\n{p.said()}")

@@ -16,7 +16,7 @@ import time
 
 import pytest
 
-from conftest import CONFIG, TOOLPATHS, Log, status, tool, wait_for
+from conftest import CONFIG, TOOLPATHS, Log, status, terminate, tool, wait_for
 from grblclient import Grbl
 
 MILL = CONFIG / "mill-3axis.ini"
@@ -66,13 +66,7 @@ def grbl(controller, tmp_path):
 
     yield start
     for p in reversed(procs):       # the servers first, then their controllers
-        if p.poll() is None:
-            p.send_signal(signal.SIGTERM)
-            try:
-                p.wait(30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(10)
+        terminate(p)
     for p in procs:
         print(f"---- {p.log.name} (exit {p.returncode}):\n{p.log.text()}")
 

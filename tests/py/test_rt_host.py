@@ -82,11 +82,9 @@ def test_bad_program_sends_nothing(controller, tmp_path):
     assert status(shm)["blocks_consumed"] == 0  # a rejected program never starts moving
 
 
-def test_override_hold_resume_stop(controller, tmp_path):
-    """Override, hold, resume and stop, judged by the setpoints the
-    controller sent (--record): at rest at the held point while held, and
-    after the stop at rest short of the program's end, every limit kept
-    along the way (mlip-check)."""
+def flower_fed(controller, tmp_path):
+    """mlip-rt (paper-2axis, --record) fed 6000 blocks of the flower spiral:
+    (program, config, record, segment, mlip-rt, mlip-feed)."""
     prog = tmp_path / "flower.ngc"
     prog.write_text("".join((TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:6000]))
     cfg = CONFIG / "paper-2axis.ini"
@@ -94,6 +92,15 @@ def test_override_hold_resume_stop(controller, tmp_path):
     shm, rt = controller(cfg, "--record", rec)
     f = Proc([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
              stderr=subprocess.PIPE, text=True)
+    return prog, cfg, rec, shm, rt, f
+
+
+def test_override_hold_resume_stop(controller, tmp_path):
+    """Override, hold, resume and stop, judged by the setpoints the
+    controller sent (--record): at rest at the held point while held, and
+    after the stop at rest short of the program's end, every limit kept
+    along the way (mlip-check)."""
+    prog, cfg, rec, shm, rt, f = flower_fed(controller, tmp_path)
     assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 50)
     ctl = lambda *a: subprocess.run([tool("mlip-ctl"), "--shm", shm, *a], capture_output=True,
                                     text=True)
@@ -151,13 +158,7 @@ def test_sigterm_is_a_controlled_stop(controller, tmp_path):
     """SIGTERM mid-program: mlip-rt brakes on the path and exits 0, judged by
     the setpoints it sent (--record): moving, then a deceleration to rest
     short of the program's end within every limit (mlip-check), no drop."""
-    prog = tmp_path / "flower.ngc"
-    prog.write_text("".join((TOOLPATHS / "flower-spiral-2d.ngc").read_text().splitlines(True)[:6000]))
-    cfg = CONFIG / "paper-2axis.ini"
-    rec = tmp_path / "rt.csv"
-    shm, rt = controller(cfg, "--record", rec)
-    f = Proc([tool("mlip-feed"), "--shm", shm, "--quiet", str(prog)],
-             stderr=subprocess.PIPE, text=True)
+    prog, cfg, rec, shm, rt, f = flower_fed(controller, tmp_path)
     assert wait_for(lambda: (status(shm) or {}).get("speed_mm_s", 0) > 10)
     rt.send_signal(signal.SIGTERM)
     _, err = rt.communicate(timeout=10)
