@@ -9,6 +9,7 @@ test_senders.py: the VM's time is the CAN suite's budget.)"""
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -28,6 +29,10 @@ def start_grbl(rig, *opts):
     while time.monotonic() < end:
         line = p.stderr.readline()
         if "listening on" in line:
+            # the rest read as it comes (p.said): a pipe nobody reads fills
+            # (64 KB) and blocks the server
+            p.said = [line]
+            threading.Thread(target=lambda: p.said.extend(p.stderr), daemon=True).start()
             return p, int(line.rsplit(":", 1)[1])
     p.kill()
     raise AssertionError("mlip-grbl did not listen")

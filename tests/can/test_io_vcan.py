@@ -20,12 +20,9 @@ import time
 
 import pytest
 
-from conftest import S
+from conftest import IO, S, io_machine
 from mlipcan import procs
 
-MILL = S.config_dir / "mill-3axis.ini"
-PERIOD_S = 0.04
-IO = 10
 PROGRAM = """G21 G90
 G1 X20 Y10 F1200
 G1 X0 Y15 Z5
@@ -33,41 +30,17 @@ G1 X25 Y0 Z10
 G1 X0 Y0 Z0
 """
 PROGRAM_LONG = PROGRAM + "".join(PROGRAM.splitlines(True)[1:]) * 4
-CONFIG_TAIL = f"""
-[DRIVES]
-ENABLE = 1
-HEARTBEAT_MS = 100
-HEARTBEAT_TIMEOUT_MS = 4000
-FOLLOWING_ERROR = 2
-SDO_TIMEOUT_MS = 5000
-BOOT_TIMEOUT_MS = 8000
-STATE_TIMEOUT_MS = 10000
-
-[IO]
-NODE = {IO}
-ESTOP = {IO} 0x6000:1 0 LOW
-HOLD = {IO} 0x6000:1 1 HIGH
-"""
 
 
 def machine(tmp):
-    """mill-3axis at 40 ms on nodes 1..3, the I/O module's E-stop (active
-    low: a normally closed contact), hold, and X's positive limit."""
-    text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
-    text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
-    text = re.sub(r"^\[AXIS_X\]$", f"[AXIS_X]\nLIMIT_POS = {IO} 0x6000:1 2 HIGH", text, flags=re.M)
-    path = tmp / "io.ini"
-    path.write_text(text + CONFIG_TAIL)
-    return path
+    """io_machine with hold on input bit 1 and X's positive limit on bit 2."""
+    return io_machine(tmp, f"HOLD = {IO} 0x6000:1 1 HIGH\n", lambda text: re.sub(
+        r"^\[AXIS_X\]$", f"[AXIS_X]\nLIMIT_POS = {IO} 0x6000:1 2 HIGH", text, flags=re.M))
 
 
 @pytest.fixture(scope="module")
-def sim(vcan, tmp_path_factory):
-    w = tmp_path_factory.mktemp("iosim")
-    # the E-stop circuit closed (bit 0 = 1) from power-up
-    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3], args=["--io", IO], inject=[f"{IO}:input=1.0=1"])
-    yield s
-    s.stop()
+def sim(io_sim):
+    return io_sim
 
 
 def running(rig):

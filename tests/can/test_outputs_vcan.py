@@ -22,27 +22,12 @@ import time
 
 import pytest
 
-from conftest import S
+from conftest import IO, S, io_machine
+from conftest import IO_PERIOD_S as PERIOD_S
 from mlipcan import procs
 
-MILL = S.config_dir / "mill-3axis.ini"
-PERIOD_S = 0.04
-IO = 10
 CPU = 1000  # counts per mm (mill-3axis)
-CONFIG_TAIL = f"""
-[DRIVES]
-ENABLE = 1
-HEARTBEAT_MS = 100
-HEARTBEAT_TIMEOUT_MS = 4000
-FOLLOWING_ERROR = 2
-SDO_TIMEOUT_MS = 5000
-BOOT_TIMEOUT_MS = 8000
-STATE_TIMEOUT_MS = 10000
-
-[IO]
-NODE = {IO}
-ESTOP = {IO} 0x6000:1 0 LOW
-PROBE = {IO} 0x6000:1 3 HIGH
+CONFIG_TAIL = f"""PROBE = {IO} 0x6000:1 3 HIGH
 OUTPUT_0 = {IO} 0x6200:1 2
 
 [COOLANT]
@@ -54,21 +39,16 @@ FLOOD, P0 = 0x02, 0x04
 
 
 def machine(tmp):
-    text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
-    text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
-    assert re.search(r"^\[AXIS_Z\]$", text, flags=re.M)
-    path = tmp / "io.ini"
-    path.write_text(text + CONFIG_TAIL)
-    return path
+    """io_machine with the probe on input bit 3, output 0 and coolant."""
+    def has_z(text):
+        assert re.search(r"^\[AXIS_Z\]$", text, flags=re.M)
+        return text
+    return io_machine(tmp, CONFIG_TAIL, has_z)
 
 
 @pytest.fixture(scope="module")
-def sim(vcan, tmp_path_factory):
-    w = tmp_path_factory.mktemp("outsim")
-    # the E-stop circuit closed (bit 0 = 1) from power-up
-    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3], args=["--io", IO], inject=[f"{IO}:input=1.0=1"])
-    yield s
-    s.stop()
+def sim(io_sim):
+    return io_sim
 
 
 def io_after(sim, t0):

@@ -12,12 +12,11 @@ import select
 import signal
 import socket
 import subprocess
-import threading
 import time
 
 import pytest
 
-from conftest import CONFIG, TOOLPATHS, status, tool, wait_for
+from conftest import CONFIG, TOOLPATHS, Log, status, terminate, tool, wait_for
 from grblclient import Grbl
 
 MILL = CONFIG / "mill-3axis.ini"
@@ -25,37 +24,12 @@ MILL_IO = CONFIG / "mill-3axis-io.ini"   # a manual spindle (6000-24000 rpm) and
 PAPER = CONFIG / "paper-2axis.ini"
 
 
-class Log:
-    """A process's stderr, read to its end by a thread as it comes. A pipe
-    nobody reads fills (64 KB) and blocks its writer: mlip-rt's monitor
-    thread, which also drains the --record queue (a record then loses its
-    setpoints), or the server's loop. Printed at the fixture's teardown:
-    pytest shows it with a failing test."""
-
-    def __init__(self, proc, name):
-        self.proc, self.name, self.lines = proc, name, []
-        self._t = threading.Thread(target=self._read, daemon=True)
-        self._t.start()
-
-    def _read(self):
-        for line in self.proc.stderr:
-            self.lines.append(line.rstrip("\n"))
-
-    def wait(self, pred, timeout=60):
-        """The first line for which pred is true (None at the deadline)."""
-        def first():
-            return next((l for l in list(self.lines) if pred(l)), None)
-        return wait_for(first, timeout) if timeout > 0 else first()
-
-    def text(self):
-        """Everything so far; all of it once the process has exited."""
-        if self.proc.poll() is not None:
-            self._t.join(10)
-        return "\n".join(self.lines)
-
-
 def logged(proc, name):
-    proc.log = Log(proc, name)
+    """proc with its stderr drained (the controller fixture's Proc drains it
+    already: named only)."""
+    if getattr(proc, "log", None) is None:
+        proc.log = Log(proc, name)
+    proc.log.name = name
     return proc
 
 
@@ -92,13 +66,7 @@ def grbl(controller, tmp_path):
 
     yield start
     for p in reversed(procs):       # the servers first, then their controllers
-        if p.poll() is None:
-            p.send_signal(signal.SIGTERM)
-            try:
-                p.wait(30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(10)
+        terminate(p)
     for p in procs:
         print(f"---- {p.log.name} (exit {p.returncode}):\n{p.log.text()}")
 
