@@ -156,7 +156,17 @@ struct srv {
 	struct mlip_gcode_io io;
 	struct grbl_acc acc;  /* what its manual spindle and coolant do now */
 	uint32_t acc_changes; /* acc.changes last shown */
-	uint32_t prev_state;  /* the controller's state before its current one */
+	/* the controller's own spindle ([SPINDLE] TYPE = cia402): the status is
+	 * the source of truth for A:, FS and Ov; 0x99..0x9D go to its override */
+	int sp_bus;
+	double sp_rpm;       /* commanded, the override in (the last valid status) */
+	int sp_ov;           /* its override, percent (idem) */
+	int sp_bad;          /* an invalid spindle status was told (once until valid) */
+	int sp_post;         /* a spindle override waits for the mailbox (-1: none) */
+	uint64_t sp_hb;      /* the controller's period when it was posted */
+	char acc_last[8];    /* A: last shown */
+	int ovs_last;        /* Ov's spindle value last shown */
+	uint32_t prev_state; /* the controller's state before its current one */
 	/* a $H or $X waiting for the controller: Grbl answers it when done
 	 * and takes no line meanwhile */
 	uint32_t await_op;  /* MLIP_CMD_HOME, MLIP_CMD_RESET; 0: none */
@@ -272,6 +282,34 @@ static void poll_controller(void)
 		}
 		S.cs = st;
 		S.cs_ok = 1;
+		if (S.sp_bus) {
+			double rpm;
+			int ov;
+			if (grbl_spindle_of(st.spindle_state, st.spindle_cmd_rpm,
+			                    st.spindle_override, S.io.max_rpm, &rpm, &ov) == 0) {
+				S.sp_rpm = rpm;
+				S.sp_ov = ov;
+				S.sp_bad = 0;
+			} else if (!S.sp_bad) {
+				/* keep what was last valid; say it once */
+				S.sp_bad = 1;
+				logf_("%s publishes a spindle status no controller of this layout "
+				      "can "
+				      "(state %u, %g rpm, override %u %%): ignored",
+				      S.shm.name, (unsigned)st.spindle_state, st.spindle_cmd_rpm,
+				      (unsigned)st.spindle_override);
+				if (S.ctl) {
+					send_msg(
+					    S.ctl,
+					    "the controller's spindle status is not valid (state "
+					    "%u, "
+					    "%g rpm, override %u %%): A:, FS and Ov show the last "
+					    "valid one",
+					    (unsigned)st.spindle_state, st.spindle_cmd_rpm,
+					    (unsigned)st.spindle_override);
+				}
+			}
+		}
 		if (st.heartbeat != S.cs_beat) {
 			S.cs_beat = st.heartbeat;
 			S.cs_beat_ns = now_ns();
@@ -328,6 +366,19 @@ static void cmd_pump(void)
 		cmd_push(MLIP_CMD_OVERRIDE, S.ov_post);
 		S.ov_post = -1;
 	}
+	if (S.sp_post >= 0 && S.qn < CMDQ) {
+		cmd_push(MLIP_CMD_SPINDLE_OVERRIDE, S.sp_post);
+		S.sp_post = -1;
+	}
+	int sp_queued = 0;
+	for (int i = 0; i < S.qn; i++) {
+		sp_queued |= S.q[i].op == MLIP_CMD_SPINDLE_OVERRIDE;
+	}
+	if (S.sp_bus && !sp_queued && S.sp_post < 0 && S.cs.heartbeat >= S.sp_hb + 2) {
+		/* the controller's value (mlip-ctl spindle-override too) is what
+		 * the next step starts from */
+		S.ov_spindle = S.sp_ov;
+	}
 	if (S.qn == 0) {
 		return;
 	}
@@ -338,6 +389,8 @@ static void cmd_pump(void)
 			S.hold_req = 1;
 		} else if (S.q[0].op == MLIP_CMD_RESUME) {
 			S.hold_req = 0;
+		} else if (S.q[0].op == MLIP_CMD_SPINDLE_OVERRIDE) {
+			S.sp_hb = S.cs.heartbeat;
 		}
 		memmove(S.q, S.q + 1, (size_t)(S.qn - 1) * sizeof(S.q[0]));
 		S.qn--;
@@ -532,10 +585,16 @@ static void status_report(void)
 		grbl_refresh_wco(&S.refresh);
 	}
 	s.feed_mm_min = S.cs.speed_mm_s * 60.0;
-	s.spindle_rpm = fabs(S.acc.rpm); /* the manual spindle as the operator set it */
+	/* a spindle on the bus: what the controller commands (Grbl's FS shows
+	 * the speed set, override in); a manual one: as the operator set it */
+	double rpm = S.sp_bus ? S.sp_rpm : S.acc.rpm;
+	uint32_t coolant = S.io.coolant == MLIP_IO_MODULE
+	                       ? S.cs.coolant & (MLIP_COOLANT_FLOOD | MLIP_COOLANT_MIST)
+	                       : S.acc.coolant;
+	s.spindle_rpm = fabs(rpm);
 	s.ov_feed = S.ov_feed;
 	s.ov_rapid = S.ov_rapid;
-	s.ov_spindle = S.ov_spindle;
+	s.ov_spindle = S.sp_bus ? S.sp_ov : S.ov_spindle;
 	s.busy = busy_state(s.state);
 	s.bf_blocks = (int)mlip_ring_space(S.r);
 	s.bf_bytes = (int)grbl_rx_available(&S.rx);
@@ -543,9 +602,12 @@ static void status_report(void)
 	    strcmp(s.state, "Run") == 0 || strncmp(s.state, "Hold", 4) == 0 ? S.cs.exec_line : 0;
 	char pins[16], acc[8];
 	grbl_pins(pins, sizeof(pins), S.cs.io_inputs & S.cs.io_mapped, &S.m);
-	grbl_accessories(acc, sizeof(acc), S.acc.rpm, S.acc.coolant);
-	if (S.acc.changes != S.acc_changes) {
+	grbl_accessories(acc, sizeof(acc), rpm, coolant);
+	if (S.acc.changes != S.acc_changes || strcmp(acc, S.acc_last) != 0 ||
+	    s.ov_spindle != S.ovs_last) {
 		S.acc_changes = S.acc.changes;
+		snprintf(S.acc_last, sizeof(S.acc_last), "%s", acc);
+		S.ovs_last = s.ov_spindle;
 		grbl_refresh_ovr(&S.refresh); /* report.c: A: at once after a change */
 	}
 	s.pins = pins;
@@ -611,6 +673,9 @@ static void soft_reset(void)
 		S.ov_post = 100;
 	}
 	S.ov_rapid = S.ov_spindle = 100;
+	if (S.sp_bus && S.sp_ov != 100) {
+		S.sp_post = 100; /* the controller's spindle override too */
+	}
 	if (!quiet_controller() && !locked_state(S.cs.state)) {
 		stop_post();
 		S.reset_wait = 1;
@@ -763,8 +828,18 @@ static void rt_cmd(void *ctx, grbl_rt c)
 	case GRBL_RT_SPINDLE_MINUS_10:
 	case GRBL_RT_SPINDLE_PLUS_1:
 	case GRBL_RT_SPINDLE_MINUS_1: {
-		/* kept and shown as Grbl does with the spindle off; applied once
-		 * mlip drives a spindle (issue 19) */
+		if (S.sp_bus) {
+			/* the controller's spindle override (50..200 %), stepped from
+			 * what was last asked so a burst of bytes adds up */
+			int v = grbl_spindle_ov_step(c, S.ov_spindle);
+			if (v != S.ov_spindle) {
+				S.ov_spindle = v;
+				S.sp_post = v;
+			}
+			return;
+		}
+		/* a manual spindle's speed is the operator's: kept and shown as
+		 * Grbl does with the spindle off, applied to nothing */
 		int v = grbl_override_step(c, S.ov_spindle);
 		if (v != S.ov_spindle) {
 			S.ov_spindle = v;
@@ -776,7 +851,8 @@ static void rt_cmd(void *ctx, grbl_rt c)
 	case GRBL_RT_FLOOD:
 	case GRBL_RT_MIST:
 		/* Grbl switches its own outputs; mlip's spindle and coolant are
-		 * the operator's (manual) or absent: say so, switch nothing */
+		 * the program's (on the bus: no command switches them outside
+		 * it), the operator's (manual) or absent: say so, switch nothing */
 		if (S.ctl) {
 			int sp = c == GRBL_RT_SPINDLE_STOP;
 			int type = sp ? S.io.spindle : S.io.coolant;
@@ -784,6 +860,11 @@ static void rt_cmd(void *ctx, grbl_rt c)
 			    S.ctl, "%s: %s: nothing switched", grbl_rt_name(c),
 			    type == MLIP_IO_NONE ? (sp ? "this machine has no spindle"
 			                               : "this machine has no coolant")
+			    : type != MLIP_IO_MANUAL
+			        ? (sp ? "the spindle on the bus follows the program: M5, or a stop "
+			                "(ctrl-x) stops it"
+			              : "the coolant follows the program: M9, or a stop (ctrl-x) "
+			                "switches it off")
 			    : sp ? "the spindle is the operator's here (manual): stop it by hand, "
 			           "or M5 in the program"
 			         : "the coolant is the operator's here (manual): switch it by "
@@ -956,7 +1037,7 @@ static void await_pump(void)
 		return;
 	}
 	if (S.await_stage == 0) {
-		if (S.qn > 0 || S.ov_post >= 0) {
+		if (S.qn > 0 || S.ov_post >= 0 || S.sp_post >= 0) {
 			return; /* real-time commands first: they came before */
 		}
 		if (mlip_ring_cmd_post(S.r, (mlip_ring_cmd_op)S.await_op, 0, &S.await_seq) ==
@@ -1894,6 +1975,8 @@ int main(int argc, char **argv)
 	S.listen_fd = S.pty_fd = -1;
 	S.ov_feed = S.ov_rapid = S.ov_spindle = 100;
 	S.ov_post = -1;
+	S.sp_post = -1;
+	S.ovs_last = 100;
 	S.fmt.mask = 1; /* Grbl's default $10=1: MPos */
 	grbl_rx_init(&S.rx);
 
@@ -1929,6 +2012,8 @@ int main(int argc, char **argv)
 			return 1;
 		}
 		grbl_stream_set_io(&S.st, &S.io);
+		S.sp_bus = S.io.spindle == MLIP_IO_CIA402;
+		S.sp_ov = 100;
 	}
 	if (S.default_feed > 0.0) {
 		mlip_gcode_set_initial_feed(&S.st.g, S.default_feed);
@@ -1966,9 +2051,10 @@ int main(int argc, char **argv)
 			    (struct pollfd){p->fd, (short)(POLLIN | (p->tx_len ? POLLOUT : 0)), 0};
 			who[n++] = p;
 		}
-		int busy = S.ctl != NULL &&
-		           (grbl_rx_pending(&S.rx) || S.st.open || grbl_stream_staged(&S.st) > 0 ||
-		            S.qn > 0 || S.ov_post >= 0 || S.reset_wait || S.program_live);
+		int busy =
+		    S.ctl != NULL && (grbl_rx_pending(&S.rx) || S.st.open ||
+		                      grbl_stream_staged(&S.st) > 0 || S.qn > 0 || S.ov_post >= 0 ||
+		                      S.sp_post >= 0 || S.reset_wait || S.program_live);
 		(void)poll(pf, (nfds_t)n, busy ? 1 : 10);
 		if (pf[0].revents & POLLIN) {
 			accept_peer();
@@ -1989,7 +2075,8 @@ int main(int argc, char **argv)
 		/* a report after a command shows its effect: the controller applies
 		 * it in its next period (at most 50 ms waited) */
 		int applied = S.cs.heartbeat >= S.cmd_hb + 2 || now_ns() - S.cmd_ns > 50000000ull;
-		if (S.status_req && S.ctl != NULL && S.qn == 0 && S.ov_post < 0 && applied) {
+		if (S.status_req && S.ctl != NULL && S.qn == 0 && S.ov_post < 0 && S.sp_post < 0 &&
+		    applied) {
 			S.status_req = 0;
 			status_report();
 		}

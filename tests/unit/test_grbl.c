@@ -19,6 +19,7 @@
 
 #include <cmocka.h>
 
+#include "mlip/canopen/spindle.h"
 #include "mlip/ctl/state.h"
 #include "mlip/machine/config.h"
 
@@ -570,6 +571,45 @@ static void test_accessory_tracking(void **state)
 	assert_int_equal(a.coolant, MLIP_COOLANT_FLOOD);
 }
 
+/* The controller's spindle (status layout 10) as A:, FS and Ov take it:
+ * only values the controller can publish; the override bytes step within
+ * its 50..200 %. */
+static void test_bus_spindle(void **state)
+{
+	(void)state;
+	double rpm = 1;
+	int ov = 0;
+	char b[8];
+	assert_int_equal(grbl_spindle_of(MLIP_SPINDLE_AT_SPEED + 1, -6600, 110, 24000, &rpm, &ov),
+	                 0);
+	assert_true(rpm == -6600 && ov == 110);
+	grbl_accessories(b, sizeof b, rpm, 0);
+	assert_string_equal(b, "C");
+	assert_int_equal(grbl_spindle_of(MLIP_SPINDLE_STOPPED + 1, 0, 100, 24000, &rpm, &ov), 0);
+	assert_true(rpm == 0 && ov == 100);
+	/* refused, nothing taken: no phase, a phase beyond FAULT, a speed
+	 * beyond MAX_RPM or not a number, an override outside 50..200 */
+	rpm = 7;
+	ov = 7;
+	assert_int_equal(grbl_spindle_of(0, 0, 100, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(MLIP_SPINDLE_FAULT + 2, 0, 100, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(3, 24000.1, 100, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(3, NAN, 100, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(3, 1000, 49, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(3, 1000, 201, 24000, &rpm, &ov), -1);
+	assert_true(rpm == 7 && ov == 7);
+	/* commands.md: 0x99 100 %, 0x9A +10, 0x9B -10, 0x9C +1, 0x9D -1 */
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9A), 100), 110);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9B), 100), 90);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9C), 100), 101);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9D), 100), 99);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x99), 170), 100);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9B), 55), 50); /* not Grbl's 10 */
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9D), 50), 50);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9A), 195), 200);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x91), 120), 120); /* a feed byte */
+}
+
 /* $G shows the parser's spindle, coolant, tool and speed (report.c: M7 and
  * M8 both when both are on). */
 static void test_gcode_state_io(void **state)
@@ -604,6 +644,7 @@ int main(void)
 	    cmocka_unit_test(test_pins),
 	    cmocka_unit_test(test_accessories_and_alarms),
 	    cmocka_unit_test(test_accessory_tracking),
+	    cmocka_unit_test(test_bus_spindle),
 	    cmocka_unit_test(test_gcode_state_io),
 	};
 	return cmocka_run_group_tests_name("grbl", tests, NULL, NULL);

@@ -1,8 +1,12 @@
 /* grblmach.c - see grblmach.h */
 #include "grblmach.h"
 
+#include <math.h>
 #include <string.h>
 
+#include "grbl.h"
+#include "mlip/canopen/spindle.h"
+#include "mlip/ctl/spindlectl.h"
 #include "mlip/ctl/state.h"
 #include "mlip/machine/config.h"
 
@@ -128,4 +132,30 @@ void grbl_acc_update(struct grbl_acc *a, uint32_t state, uint32_t reason, uint64
 		a->seq = seq;
 		a->value = value;
 	}
+}
+
+int grbl_spindle_of(uint32_t spindle_state, double cmd_rpm, uint32_t override_pct, double max_rpm,
+                    double *rpm, int *ov)
+{
+	/* max_rpm is the machine's (mlip_ring_io, checked by the caller); the
+	 * commanded speed never exceeds it: the controller clamps the override */
+	if (spindle_state < 1 || spindle_state > MLIP_SPINDLE_FAULT + 1u || !isfinite(cmd_rpm) ||
+	    fabs(cmd_rpm) > max_rpm * (1.0 + 1e-9) || override_pct < MLIP_SPINDLE_OVERRIDE_MIN ||
+	    override_pct > MLIP_SPINDLE_OVERRIDE_MAX) {
+		return -1;
+	}
+	*rpm = cmd_rpm;
+	*ov = (int)override_pct;
+	return 0;
+}
+
+int grbl_spindle_ov_step(int rt, int pct)
+{
+	if (rt < GRBL_RT_SPINDLE_100 || rt > GRBL_RT_SPINDLE_MINUS_1) {
+		return pct;
+	}
+	int v = grbl_override_step((grbl_rt)rt, pct);
+	return v < MLIP_SPINDLE_OVERRIDE_MIN   ? MLIP_SPINDLE_OVERRIDE_MIN
+	       : v > MLIP_SPINDLE_OVERRIDE_MAX ? MLIP_SPINDLE_OVERRIDE_MAX
+	                                       : v;
 }

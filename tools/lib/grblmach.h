@@ -65,4 +65,18 @@ struct grbl_acc {
 void grbl_acc_update(struct grbl_acc *a, uint32_t state, uint32_t reason, uint64_t seq,
                      double value);
 
+/* The controller's own spindle ([SPINDLE] TYPE = cia402, status layout 10)
+ * as A:, FS and Ov show it, checked as anything read from another process:
+ * the phase (spindle_state: mlip_spindle_phase + 1, 1..5), the commanded
+ * rpm (the override in, within the spindle's MAX_RPM: the controller clamps
+ * it there) and the override (50..200 %). 0 and *rpm (> 0 clockwise, < 0
+ * counter-clockwise, 0 stopped) and *ov, or -1: a value this controller
+ * cannot publish (nothing is taken from it). */
+int grbl_spindle_of(uint32_t spindle_state, double cmd_rpm, uint32_t override_pct, double max_rpm,
+                    double *rpm, int *ov);
+
+/* An override byte applied to the controller's spindle override: Grbl's
+ * steps (grbl_override_step), within the controller's 50..200 %. */
+int grbl_spindle_ov_step(int rt, int pct);
+
 #endif
