@@ -54,6 +54,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "confload.h"
 #include "grbl.h"
 #include "grblmach.h"
 #include "grblstream.h"
@@ -61,6 +62,7 @@
 #include "mlip/ipc/ring.h"
 #include "mlip/machine/config.h"
 #include "rt.h"
+#include "tooltable.h"
 
 #define PROG          "mlip-grbl"
 #define TX_CAP        65536        /* bytes waiting for a client that reads slowly */
@@ -154,8 +156,12 @@ struct srv {
 	int ov_post; /* an override value waits for the mailbox (-1: none) */
 	/* the machine's I/O, as mlip-feed takes it from the controller */
 	struct mlip_gcode_io io;
-	struct grbl_acc acc;  /* what its manual spindle and coolant do now */
-	uint32_t acc_changes; /* acc.changes last shown */
+	struct mlip_tooltable table; /* --tools: M6, M61, G43 (as mlip-feed --tools) */
+	int have_table;
+	int z_index;               /* the machine's Z (the tool length offset's axis), or -1 */
+	struct grbl_homing homing; /* $22..$25 from --config's HOME_* */
+	struct grbl_acc acc;       /* what its manual spindle and coolant do now */
+	uint32_t acc_changes;      /* acc.changes last shown */
 	/* the controller's own spindle ([SPINDLE] TYPE = cia402): the status is
 	 * the source of truth for A:, FS and Ov; 0x99..0x9D go to its override */
 	int sp_bus;
@@ -276,9 +282,9 @@ static void poll_controller(void)
 		     st.reason == MLIP_WHY_TOOL)) {
 			/* the operator's part (Hold:0 until ~) */
 			char what[200];
-			mlip_cli_io_message(st.reason, st.reason_value, NULL, what, sizeof(what));
-			send_msg(S.ctl, "line %u: %s, then resume (~)", (unsigned)st.reason_line,
-			         what);
+			mlip_cli_io_message(st.reason, st.reason_value,
+			                    S.have_table ? &S.table : NULL, what, sizeof(what));
+			send_msg(S.ctl, "line %u: %s (~)", (unsigned)st.reason_line, what);
 		}
 		S.cs = st;
 		S.cs_ok = 1;
@@ -579,7 +585,7 @@ static void status_report(void)
 	memset(&s, 0, sizeof(s));
 	s.state = grbl_state();
 	memcpy(s.mpos, S.cs.pos, sizeof(s.mpos));
-	grbl_wco(&S.st.g.off, S.m.n_axes, s.wco);
+	grbl_wco(&S.st.g.off, S.m.n_axes, S.z_index, S.st.g.tlo_mm, s.wco);
 	if (memcmp(s.wco, S.wco_last, sizeof(s.wco)) != 0) {
 		memcpy(S.wco_last, s.wco, sizeof(s.wco));
 		grbl_refresh_wco(&S.refresh);
@@ -1131,7 +1137,12 @@ static void await_pump(void)
 static void settings_list(void)
 {
 	char b[GRBL_MSG_BYTES];
-	for (int i = 0; grbl_setting_line(b, sizeof(b), &S.m, &S.fmt, i) > 0; i++) {
+	uint32_t limits = 0;
+	for (int a = 0; a < S.m.n_axes; a++) {
+		limits |= (1u << MLIP_IN_LIMIT_NEG(a)) | (1u << MLIP_IN_LIMIT_POS(a));
+	}
+	S.homing.hard_limits = (S.cs.io_mapped & limits) != 0; /* the controller's inputs */
+	for (int i = 0; grbl_setting_line(b, sizeof(b), &S.m, &S.fmt, &S.homing, i) > 0; i++) {
 		send_line(S.ctl, b);
 	}
 }
@@ -1262,7 +1273,8 @@ static int system_line(const char *t, size_t len)
 	}
 	switch (c.kind) {
 	case GRBL_SYS_PARAMS:
-		for (int i = 0; grbl_param_line(b, sizeof(b), &S.st.g.off, &S.ax, &S.fmt, i) > 0;
+		for (int i = 0; grbl_param_line(b, sizeof(b), &S.st.g.off, S.st.g.tlo_mm, &S.ax,
+		                                &S.fmt, i) > 0;
 		     i++) {
 			send_line(S.ctl, b);
 		}
@@ -1905,6 +1917,9 @@ static void usage(FILE *f)
 	    "  --quiet-ms N        a sender quiet this long while the controller waits ends\n"
 	    "                      the program there, so it runs (default %d)\n"
 	    "  --default-feed F    feed (units/min) for feed moves before any F\n"
+	    "  --config FILE       the machine's INI (the one mlip-rt runs): $22..$25 from\n"
+	    "                      its homing (HOME_METHOD, HOME_*_VEL of each axis)\n"
+	    "  --tools FILE        the tool table (as mlip-feed --tools): T, M6, M61, G43\n"
 	    "  -v, --verbose       log each connection's lines to stderr\n"
 	    "  -h, --help          this help\n",
 	    DEFAULT_QUIET);
@@ -1917,11 +1932,13 @@ int main(int argc, char **argv)
 	                                     {"pty", required_argument, 0, 'p'},
 	                                     {"quiet-ms", required_argument, 0, 'Q'},
 	                                     {"default-feed", required_argument, 0, 'D'},
+	                                     {"config", required_argument, 0, 'C'},
+	                                     {"tools", required_argument, 0, 'T'},
 	                                     {"verbose", no_argument, 0, 'v'},
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
 	const char *shm = MLIP_SHM_DEFAULT, *listen_spec = "127.0.0.1:" DEFAULT_PORT;
-	const char *pty = NULL;
+	const char *pty = NULL, *config = NULL, *tools = NULL;
 	char why[256], pty_default[200];
 	struct mlip_config_error cerr;
 	int c, quiet_ms = DEFAULT_QUIET;
@@ -1956,6 +1973,12 @@ int main(int argc, char **argv)
 			}
 			break;
 		}
+		case 'C':
+			config = optarg;
+			break;
+		case 'T':
+			tools = optarg;
+			break;
 		case 'v':
 			S.verbose = 1;
 			break;
@@ -1991,6 +2014,25 @@ int main(int argc, char **argv)
 		return 1;
 	}
 	grbl_axes_of(&S.m, &S.ax);
+	S.z_index = -1;
+	for (int k = 0; k < S.m.n_axes; k++) {
+		S.z_index = S.m.axis[k].letter == 'Z' ? k : S.z_index;
+	}
+	if (config != NULL) {
+		static struct mlip_config cfg; /* large: not on the stack */
+		char diff[160];
+		if (mlip_config_load(config, &cfg, stderr) != 0) {
+			return 1;
+		}
+		if (grbl_machine_differs(&cfg.machine, &S.m, diff, sizeof(diff))) {
+			logf_(
+			    "--config %s is not the machine mlip-rt runs on %s (%s): give the INI "
+			    "mlip-rt was started with",
+			    config, shm, diff);
+			return 1;
+		}
+		grbl_homing_of(&cfg, &S.homing);
+	}
 	poll_controller();
 	S.stop_seen = S.cs.stop_seen;
 	if (!S.cs_ok || S.cs.heartbeat == 0) {
@@ -2010,6 +2052,14 @@ int main(int argc, char **argv)
 			    "%s publishes a machine I/O this mlip-grbl cannot use: restart mlip-rt",
 			    shm);
 			return 1;
+		}
+		if (tools != NULL) {
+			if (mlip_tooltable_load(&S.table, tools, 0, PROG, stderr) != 0) {
+				return 1;
+			}
+			S.have_table = 1;
+			S.io.tools = S.table.tools;
+			S.io.n_tools = S.table.n;
 		}
 		grbl_stream_set_io(&S.st, &S.io);
 		S.sp_bus = S.io.spindle == MLIP_IO_CIA402;
@@ -2112,5 +2162,8 @@ int main(int argc, char **argv)
 		unlink(S.pty_link);
 	}
 	mlip_shm_close(&S.shm);
+	if (S.have_table) {
+		mlip_tooltable_free(&S.table);
+	}
 	return 0;
 }

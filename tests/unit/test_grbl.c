@@ -283,7 +283,7 @@ static void test_settings_and_params(void **state)
 	struct grbl_fmt fmt = {1, 0};
 	char b[GRBL_MSG_BYTES];
 	int n = 0, found = 0;
-	for (; grbl_setting_line(b, sizeof b, &m, &fmt, n) > 0; n++) {
+	for (; grbl_setting_line(b, sizeof b, &m, &fmt, NULL, n) > 0; n++) {
 		found += strcmp(b, "$11=0.010") == 0 || strcmp(b, "$110=12000.000") == 0 ||
 		         strcmp(b, "$122=1000.000") == 0 || strcmp(b, "$132=2000.000") == 0 ||
 		         strcmp(b, "$100=1000.000") == 0;
@@ -296,9 +296,14 @@ static void test_settings_and_params(void **state)
 	assert_string_equal(b, "[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]");
 	struct grbl_axes ax;
 	grbl_axes_of(&m, &ax);
-	grbl_param_line(b, sizeof b, &g.off, &ax, &fmt, 10);
+	grbl_param_line(b, sizeof b, &g.off, 0.0, &ax, &fmt, 10);
 	assert_string_equal(b, "[PRB:0.000,0.000,0.000:0]");
-	assert_int_equal(grbl_param_line(b, sizeof b, &g.off, &ax, &fmt, 11), 0);
+	assert_int_equal(grbl_param_line(b, sizeof b, &g.off, 0.0, &ax, &fmt, 11), 0);
+	grbl_param_line(b, sizeof b, &g.off, 38.1, &ax, &fmt, 9);
+	assert_string_equal(b, "[TLO:38.100]");
+	double wco[MLIP_MAX_AXES];
+	grbl_wco(&g.off, 3, 2, 38.1, wco);
+	assert_true(wco[0] == 0.0 && wco[2] == 38.1);
 	assert_int_equal(grbl_override_step(GRBL_RT_FEED_PLUS_10, 195), 200);
 	assert_int_equal(grbl_override_step(GRBL_RT_FEED_MINUS_1, 10), 10);
 	assert_int_equal(grbl_override_step(GRBL_RT_RAPID_25, 100), 25);
@@ -610,6 +615,53 @@ static void test_bus_spindle(void **state)
 	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x91), 120), 120); /* a feed byte */
 }
 
+/* $21..$25 from the machine: homing directions from the CiA 402 methods,
+ * the slowest axis' speeds, listed only where homing is configured. */
+static void test_homing_settings(void **state)
+{
+	(void)state;
+	static struct mlip_config c;
+	memset(&c, 0, sizeof c);
+	c.machine = machine();
+	assert_int_equal(grbl_home_negative(17), 1); /* negative limit switch */
+	assert_int_equal(grbl_home_negative(18), 0);
+	assert_int_equal(grbl_home_negative(1), 1);
+	assert_int_equal(grbl_home_negative(21), 1); /* negative home switch */
+	assert_int_equal(grbl_home_negative(19), 0);
+	assert_int_equal(grbl_home_negative(27), 1);
+	assert_int_equal(grbl_home_negative(33), 1);
+	assert_int_equal(grbl_home_negative(34), 0);
+	assert_int_equal(grbl_home_negative(35), -1); /* the current position */
+	assert_int_equal(grbl_home_negative(37), -1);
+	struct grbl_homing h;
+	grbl_homing_of(&c, &h);
+	assert_false(h.enabled);
+	c.home.axis[0] = (struct mlip_axis_home){1, 17, 10, 1, 100, 0, 1, 60};
+	c.home.axis[2] = (struct mlip_axis_home){1, 18, 5, 2, 100, 0, 0, 60};
+	grbl_homing_of(&c, &h);
+	assert_true(h.enabled && h.dir_mask == 1);
+	assert_true(h.feed_mm_min == 60.0 && h.seek_mm_min == 300.0);
+	h.hard_limits = 1;
+	struct grbl_fmt fmt = {1, 0};
+	char b[GRBL_MSG_BYTES];
+	const char *want[] = {"$21=1",      "$22=1",       "$23=1",
+	                      "$24=60.000", "$25=300.000", "$100=1000.000"};
+	int n = 0, at = 0;
+	for (; grbl_setting_line(b, sizeof b, &c.machine, &fmt, &h, n) > 0; n++) {
+		if (at < 6 && strcmp(b, want[at]) == 0) {
+			at++;
+		}
+	}
+	assert_int_equal(at, 6);
+	assert_int_equal(n, 10 + 4 * 3);
+	/* a --config that is not the controller's machine */
+	struct mlip_machine m2 = c.machine;
+	assert_false(grbl_machine_differs(&c.machine, &m2, b, sizeof b));
+	m2.axis[1].max_accel = 999;
+	assert_true(grbl_machine_differs(&c.machine, &m2, b, sizeof b));
+	assert_non_null(strstr(b, "axis 1"));
+}
+
 /* $G shows the parser's spindle, coolant, tool and speed (report.c: M7 and
  * M8 both when both are on). */
 static void test_gcode_state_io(void **state)
@@ -645,6 +697,7 @@ int main(void)
 	    cmocka_unit_test(test_accessories_and_alarms),
 	    cmocka_unit_test(test_accessory_tracking),
 	    cmocka_unit_test(test_bus_spindle),
+	    cmocka_unit_test(test_homing_settings),
 	    cmocka_unit_test(test_gcode_state_io),
 	};
 	return cmocka_run_group_tests_name("grbl", tests, NULL, NULL);
