@@ -95,7 +95,7 @@ static void producer_unlock(void)
 }
 
 /* Take the producer side for a line that moves: 0, or a refusal said. */
-int take_producer(void)
+static int take_producer(void)
 {
 	int32_t holder = 0;
 	struct mlip_ring_feeder other;
@@ -555,6 +555,7 @@ int main(int argc, char **argv)
 		return 1;
 	}
 	S.r = seg.ring;
+	S.take_producer = take_producer;
 	S.shm_name = seg.name;
 	mlip_ring_machine(S.r, &S.m);
 	if (mlip_machine_check(&S.m, &cerr) != MLIP_OK) {

@@ -291,7 +291,7 @@ int gcode_line(const char *t, size_t len)
 		refuse_hold();
 		return 1;
 	}
-	if (take_producer() != 0) {
+	if (S.take_producer() != 0) {
 		answer(GRBL_E_LOCK);
 		return 1;
 	}
@@ -344,7 +344,7 @@ int jog_line(const char *t, size_t len, const char *state)
 		say_error(&e, grbl_error_code(&e, 1));
 		return 1;
 	}
-	if (take_producer() != 0) {
+	if (S.take_producer() != 0) {
 		answer(GRBL_E_IDLE);
 		return 1;
 	}

@@ -91,8 +91,10 @@ struct srv {
 	int fault_told;
 	/* the stream and the controller */
 	struct grbl_stream st;
-	uint64_t pushed_seq; /* last record of the open program in the ring */
-	int program_live;    /* records of ours in the ring or the controller's hands */
+	uint64_t pushed_seq;        /* last record of the open program in the ring */
+	int (*take_producer)(void); /* the producer side's lock on the segment (rt/:
+	                               mlip-grbl.c): 0, or a refusal said */
+	int program_live;           /* records of ours in the ring or the controller's hands */
 	struct mlip_ring_feeder fa;
 	struct mlip_ring_status cs; /* the controller's last status */
 	int cs_ok;
@@ -178,8 +180,5 @@ void notices_since(uint32_t before);
 int gcode_line(const char *t, size_t len);
 int jog_line(const char *t, size_t len, const char *state);
 void quiet_end(void);
-
-/* mlip-grbl.c: the producer side's lock on the segment (rt/) */
-int take_producer(void);
 
 #endif
