@@ -6,7 +6,9 @@
  * report.c's refresh counts, settings, the error codes the reader's messages
  * map to; a stream gives the records mlip-feed gives for the same program
  * (smooth included), a refused line changes nothing, a long arc comes out in
- * parts equal to the whole, M2 ends the program with Grbl's modal reset.
+ * parts equal to the whole, M2 ends the program with Grbl's modal reset;
+ * the controller's spindle and the homing settings as reports show them; the
+ * server's reset against a controller whose status lags its ring.
  */
 #include <math.h>
 #include <setjmp.h>
@@ -21,11 +23,13 @@
 
 #include "mlip/canopen/spindle.h"
 #include "mlip/ctl/state.h"
+#include "mlip/ipc/ring.h"
 #include "mlip/machine/config.h"
 
 #include "../../tools/lib/blockiter.h"
 #include "../../tools/lib/grbl.h"
 #include "../../tools/lib/grblmach.h"
+#include "../../tools/lib/grblsrv.h"
 #include "../../tools/lib/grblstream.h"
 #include "../../tools/lib/program.h"
 
@@ -679,6 +683,90 @@ static void test_gcode_state_io(void **state)
 	assert_string_equal(b, "[GC:G0 G54 G17 G21 G90 G94 M4 M7 M8 T2 F0 S9000]");
 }
 
+/* ---- the server's parts (tools/lib/grblsrv.h) on a ring in memory, the
+ * controller played by the test: what a reset (0x18) does when the
+ * controller has taken the queued records but its last status still says
+ * idle (it publishes its status at the end of the period that took them) */
+
+/* mlip-grbl.c's lock on the segment (rt/): the test owns the ring */
+static int take_producer(void)
+{
+	return 0;
+}
+
+#define CAP 64
+static unsigned char mem[1 << 16] MLIP_RING_ALIGNED;
+
+static void serve(void)
+{
+	struct mlip_machine m = machine();
+	double home[MLIP_MAX_AXES] = {0};
+	memset(&S, 0, sizeof S);
+	assert_true(mlip_ring_bytes(CAP) <= sizeof mem);
+	assert_int_equal(mlip_ring_format_machine(mem, sizeof mem, CAP, &m), MLIP_OK);
+	S.r = (struct mlip_ring *)mem;
+	S.m = m;
+	S.shm_name = "/test";
+	S.take_producer = take_producer;
+	S.ov_feed = S.ov_rapid = S.ov_spindle = 100;
+	S.ov_post = S.sp_post = -1;
+	assert_int_equal(mlip_ring_port_open(&S.tx, S.r, 1), MLIP_OK);
+	S.port_open = S.locked = 1;
+	grbl_stream_init(&S.st, &m, home, NULL);
+	S.cs.state = MLIP_STATE_IDLE;
+	S.cs.heartbeat = 100;
+	S.cs_ok = 1;
+}
+
+/* A line is queued (its program open: the sender sends on); the controller
+ * takes its records (pre-read) and, before its status says so, the sender
+ * resets: the reset must stop what the controller holds (the stop counter)
+ * and end its program (an END), or the controller pre-reads it for ever
+ * (Run until the sender gives up: the race seen in test_grbl.py's
+ * test_jog_moves_without_touching_the_modal_state). */
+static void test_reset_stops_records_the_status_does_not_show_yet(void **state)
+{
+	(void)state;
+	struct mlip_gcode_error e;
+	struct mlip_ring_rec rec;
+	serve();
+	assert_int_equal(grbl_stream_line(&S.st, "G1 X100 F600", 12, 1, &e), 1);
+	push_records();
+	uint32_t queued = mlip_ring_count(S.r);
+	assert_true(queued > 0);
+	for (uint32_t k = 0; k < queued; k++) {
+		assert_int_equal(mlip_ring_pop(S.r, &rec), MLIP_OK); /* the controller's period */
+	}
+	uint32_t stops = mlip_ring_stop_count(S.r);
+	soft_reset();
+	assert_int_equal(mlip_ring_stop_count(S.r), stops + 1);
+	assert_true(S.reset_wait); /* the welcome once the controller is at rest */
+	assert_int_equal(mlip_ring_pop(S.r, &rec), MLIP_OK);
+	assert_int_equal(rec.type, MLIP_REC_END);
+}
+
+/* Once a status of a later period says idle with nothing queued, the
+ * machine is at rest: a reset then posts no stop and welcomes at once. */
+static void test_reset_of_an_idle_machine_posts_nothing(void **state)
+{
+	(void)state;
+	struct mlip_gcode_error e;
+	struct mlip_ring_rec rec;
+	serve();
+	assert_int_equal(grbl_stream_line(&S.st, "G1 X1 F600", 10, 1, &e), 1);
+	assert_int_equal(grbl_stream_end(&S.st), 1);
+	push_records();
+	while (mlip_ring_pop(S.r, &rec) == MLIP_OK) {
+	}
+	S.cs.heartbeat += 2; /* run and ended: its status is from after the push */
+	S.program_live = 0;
+	uint32_t stops = mlip_ring_stop_count(S.r);
+	soft_reset();
+	assert_int_equal(mlip_ring_stop_count(S.r), stops);
+	assert_false(S.reset_wait);
+	assert_int_equal(mlip_ring_count(S.r), 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -698,6 +786,8 @@ int main(void)
 	    cmocka_unit_test(test_accessory_tracking),
 	    cmocka_unit_test(test_bus_spindle),
 	    cmocka_unit_test(test_homing_settings),
+	    cmocka_unit_test(test_reset_stops_records_the_status_does_not_show_yet),
+	    cmocka_unit_test(test_reset_of_an_idle_machine_posts_nothing),
 	    cmocka_unit_test(test_gcode_state_io),
 	};
 	return cmocka_run_group_tests_name("grbl", tests, NULL, NULL);

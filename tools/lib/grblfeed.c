@@ -47,6 +47,7 @@ void push_records(void)
 			S.pushed_seq = recs[i].type == MLIP_REC_END ? 0 : recs[i].seq;
 		}
 		S.program_live = 1;
+		S.push_hb = S.cs.heartbeat;
 		grbl_stream_take(&S.st, got);
 	}
 }
@@ -64,6 +65,7 @@ void push_end_alone(void)
 	mlip_ring_port_push_n(&S.tx, &rec, 1, &got);
 	if (got == 1) {
 		S.pushed_seq = 0;
+		S.push_hb = S.cs.heartbeat;
 	}
 }
 

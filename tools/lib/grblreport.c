@@ -104,11 +104,16 @@ int locked_state(uint32_t s)
 	return s == MLIP_STATE_FAULT || s == MLIP_STATE_ESTOP;
 }
 
-/* Nothing of ours is queued or moving. */
+/* Nothing of ours is queued or moving. The controller publishes its status
+ * at the end of the period that took our records from the ring: an empty
+ * ring with the status of a period before it says idle while it pre-reads
+ * them, so only a status at least two periods after the last push counts
+ * (a dead controller's, or a restarted one's, counts: nothing will come). */
 int quiet_controller(void)
 {
 	return at_rest_state(S.cs.state) && mlip_ring_count(S.r) == 0 &&
-	       grbl_stream_staged(&S.st) == 0 && !S.st.end_pending;
+	       grbl_stream_staged(&S.st) == 0 && !S.st.end_pending &&
+	       (S.dead || S.cs.heartbeat >= S.push_hb + 2 || S.cs.heartbeat < S.push_hb);
 }
 
 /* ---- state ---------------------------------------------------------------- */

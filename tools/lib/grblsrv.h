@@ -94,6 +94,7 @@ struct srv {
 	uint64_t pushed_seq;        /* last record of the open program in the ring */
 	int (*take_producer)(void); /* the producer side's lock on the segment (rt/:
 	                               mlip-grbl.c): 0, or a refusal said */
+	uint64_t push_hb;           /* the controller's period (its last status) at our last push */
 	int program_live;           /* records of ours in the ring or the controller's hands */
 	struct mlip_ring_feeder fa;
 	struct mlip_ring_status cs; /* the controller's last status */
