@@ -213,6 +213,14 @@ def test_grbl_bus_spindle(vcan, tmp_path):
         return max(r["sync"] for r in rows)
 
     seen = []
+
+    def spun(g, rig, pred, timeout):
+        """The first report for which pred holds; an alarm (the spindle's
+        fault, say) fails at once with the controller's reason."""
+        s = told(g, rig, g.wait_status, lambda s: s["state"] == "Alarm" or pred(s), timeout)
+        assert s["state"] != "Alarm", (s, rig.status(), g.lines[-20:])
+        return s
+
     try:
         with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
             # a sender quiet this long would end the program, and every end
@@ -225,8 +233,8 @@ def test_grbl_bus_spindle(vcan, tmp_path):
                 assert "A" not in s and s["FS"][1] == 0 and s["Ov"][2] == 100, s
                 sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
                 assert g.cmd("M3 S3000")[0] == "ok"
-                s = told(g, rig, g.wait_status,
-                         lambda s: "Ov" in s and s.get("A") == "S" and s["FS"][1] == 3000, 300)
+                s = spun(g, rig, lambda s: "Ov" in s and s.get("A") == "S" and s["FS"][1] == 3000,
+                         300)
                 seen.append(("M3 S3000", s["raw"]))
                 sync0 = drive_at(3000, sync0)
                 # the override: + 10, - 10 twice, - 1: 89 %
@@ -234,20 +242,18 @@ def test_grbl_bus_spindle(vcan, tmp_path):
                          (b"\x99", 100)]
                 for byte, pct in steps:
                     g.send(byte)
-                    s = told(g, rig, g.wait_status, lambda s: "Ov" in s and s["Ov"][2] == pct, 120)
-                    assert s["FS"][1] == 3000 * pct / 100, s
-                    assert s.get("A") == "S", s
+                    s = spun(g, rig, lambda s: "Ov" in s and s["Ov"][2] == pct and
+                             s["FS"][1] == 3000 * pct / 100 and s.get("A") == "S", 120)
                     assert rig.status()["spindle"]["override_pct"] == pct
                     sync0 = drive_at(3000 * pct / 100, sync0)
                     seen.append((f"0x{byte[0]:02X}", s["raw"]))
                 assert g.cmd("M4 S2000")[0] == "ok"
-                s = told(g, rig, g.wait_status,
-                         lambda s: "Ov" in s and s.get("A") == "C" and s["FS"][1] == 2000, 300)
+                s = spun(g, rig, lambda s: "Ov" in s and s.get("A") == "C" and s["FS"][1] == 2000,
+                         300)
                 sync0 = drive_at(-2000, sync0)
                 seen.append(("M4 S2000", s["raw"]))
                 assert g.cmd("M5")[0] == "ok"
-                s = told(g, rig, g.wait_status,
-                         lambda s: "Ov" in s and "A" not in s and s["FS"][1] == 0, 300)
+                s = spun(g, rig, lambda s: "Ov" in s and "A" not in s and s["FS"][1] == 0, 300)
                 drive_at(0, sync0)
                 seen.append(("M5", s["raw"]))
                 g.close()
