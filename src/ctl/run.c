@@ -421,6 +421,7 @@ void mlip_ct_blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 		if (!c->prog.refill) {
 			c->prog.exec.seq = 0; /* a new program (a starved one is given up) */
 			c->prog.exec.line = 0;
+			c->prog.mdi = in->feeder_mdi;
 			memcpy(c->prog.start, c->pos, sizeof(c->prog.start));
 		}
 		c->prog.next_seq = head->seq;
@@ -526,8 +527,16 @@ void mlip_ct_after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD:
 		if (rs == MLIP_RUN_IDLE && c->mio.probe_on) {
-			/* the probe move at rest: its result, then the program goes on */
+			/* the probe move at rest: its result, then the program goes on
+			 * (the drives' touch probe: armed first) */
 			struct mlip_ctl_reason w;
+			int arming = mlip_mio_probe_arming(c, in, &w);
+			if (arming != 0) {
+				if (arming < 0) {
+					probe_abort(c, out, w);
+				}
+				return;
+			}
 			c->prog.exec = c->wait.at;
 			if (mlip_mio_probe_end(c, &w) != MLIP_OK) {
 				probe_abort(c, out, w);
