@@ -272,6 +272,11 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		double prev[MLIP_MAX_AXES];
 		memcpy(prev, c->pos, sizeof(prev));
 		mlip_run_state rs = mlip_planner_step(p, c->pos);
+		struct mlip_ctl_reason sw;
+		if (mlip_mio_sync_step(c, &sw) != MLIP_OK) {
+			mlip_ct_fault(c, out,
+			              sw); /* an output the machine has not (checked before) */
+		}
 		if (c->brake.on) {
 			mlip_ct_brake_step(c, prev, rs);
 		}

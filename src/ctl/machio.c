@@ -78,6 +78,7 @@ void mlip_mio_all_off(struct mlip_ctl *c)
 	c->mio.probe_on = 0;
 	c->mio.tp_phase = TP_NONE;
 	c->mio.tp_fn = 0;
+	c->mio.n_sync = 0;
 }
 
 void mlip_mio_period(struct mlip_ctl *c, const struct mlip_ctl_in *in)
@@ -139,6 +140,43 @@ mlip_status mlip_mio_switch(struct mlip_ctl *c, const struct mlip_ring_rec *rec,
 		return MLIP_E_RANGE;
 	}
 	set_bit(c, o, rec->dwell_s > 0);
+	return MLIP_OK;
+}
+
+mlip_status mlip_mio_sync_add(struct mlip_ctl *c, const struct mlip_ring_rec *rec)
+{
+	if (c->mio.n_sync >= MLIP_SYNC_OUT_MAX) {
+		return MLIP_E_FULL;
+	}
+	c->mio.sync_after[c->mio.n_sync] = rec->seq;
+	c->mio.sync_value[c->mio.n_sync] = rec->dwell_s;
+	c->mio.n_sync++;
+	return MLIP_OK;
+}
+
+mlip_status mlip_mio_sync_step(struct mlip_ctl *c, struct mlip_ctl_reason *why)
+{
+	uint32_t k = 0, left = 0;
+	int moving = mlip_planner_queued(c->planner) > 0;
+	if (c->mio.n_sync == 0) {
+		return MLIP_OK;
+	}
+	uint64_t seq = moving ? mlip_planner_motion_seq(c->planner) : 0;
+	for (; k < c->mio.n_sync; k++) {
+		if (moving && seq <= c->mio.sync_after[k]) {
+			c->mio.sync_after[left] = c->mio.sync_after[k]; /* its move not yet */
+			c->mio.sync_value[left++] = c->mio.sync_value[k];
+			continue;
+		}
+		struct mlip_ring_rec r = {.type = MLIP_REC_OUTPUT, .seq = c->mio.sync_after[k]};
+		double v = c->mio.sync_value[k];
+		r.dwell_s = v > 0 ? v - MLIP_DOUT_SYNC : v + MLIP_DOUT_SYNC;
+		if (mlip_mio_switch(c, &r, why) != MLIP_OK) {
+			c->mio.n_sync = 0;
+			return MLIP_E_RANGE;
+		}
+	}
+	c->mio.n_sync = left;
 	return MLIP_OK;
 }
 

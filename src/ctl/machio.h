@@ -53,6 +53,17 @@ int mlip_mio_probe_arming(struct mlip_ctl *c, const struct mlip_ctl_in *in,
  * with *why when it had to trip and did not. */
 mlip_status mlip_mio_probe_end(struct mlip_ctl *c, struct mlip_ctl_reason *why);
 
+/* An M62/M63 record (an OUTPUT beyond MLIP_DOUT_SYNC) taken by the
+ * ingest: switched in the period the move after it starts (MLIP_E_FULL:
+ * MLIP_SYNC_OUT_MAX wait already, take it later). */
+mlip_status mlip_mio_sync_add(struct mlip_ctl *c, const struct mlip_ring_rec *rec);
+
+/* After the period's step: the M62/M63 whose move produced this setpoint
+ * (the planner executes a block after theirs), or all at rest with nothing
+ * queued, switched now; a switch the machine cannot do: MLIP_E_RANGE with
+ * *why. */
+mlip_status mlip_mio_sync_step(struct mlip_ctl *c, struct mlip_ctl_reason *why);
+
 /* The status fields: outputs, coolant, the last probe. */
 void mlip_mio_publish(const struct mlip_ctl *c, struct mlip_ring_status *s);
 

@@ -91,7 +91,7 @@ def test_coolant_and_output_follow_the_program(sim, tmp_path):
         # at line:col, nothing sent
         for text, where, what in (
             ("G1 X1 F600\nM64 P1\n", "2:5", "digital output 1 is not mapped ([IO] OUTPUT_1)"),
-            ("G1 X1 F600\nM62 P0\n", "2:1", "synchronized with motion"),
+            ("G1 X1 F600\nM62 P1\n", "2:5", "digital output 1 is not mapped ([IO] OUTPUT_1)"),
             ("G1 X1 F600\nG38.2 X1\n", "2:1", "to the current position"),
         ):
             bad = tmp_path / "bad.ngc"

@@ -111,8 +111,13 @@ static void test_outputs_words(void **state)
 	expect_err(&io, "G1 X1 F100\nM64\n", 2, 1, "M64 without P");
 	expect_err(&io, "G1 X1 F100\nM64 P8\n", 2, 5, "a whole number 0..7");
 	expect_err(&io, "G1 X1 F100\nM64 P0.5\n", 2, 5, "a whole number 0..7");
-	expect_err(&io, "G1 X1 F100\nM62 P0\n", 2, 1, "synchronized with motion");
-	expect_err(&io, "G1 X1 F100\nM63 P0\n", 2, 1, "synchronized with motion");
+	/* M62/M63: with the next move, an OUTPUT beyond MLIP_DOUT_SYNC */
+	expect_ok(&io, "G1 X1 F100\nM62 P0\nG1 X2\nM63 P3\nG1 X3\nM2\n", r);
+	events(r, ev, sizeof ev);
+	assert_string_equal(ev, "m O+17 m O-20 m");
+	expect_err(&io, "G1 X1 F100\nM62 P1\n", 2, 5,
+	           "digital output 1 is not mapped ([IO] OUTPUT_1)");
+	expect_err(&io, "G1 X1 F100\nM63\n", 2, 1, "M63 without P");
 	expect_err(&io, "G1 X1 F100\nM7\n", 2, 1, "no mist outlet ([COOLANT] MIST is not mapped)");
 	io.coolant_outlets = MLIP_COOLANT_MIST;
 	expect_err(&io, "G1 X1 F100\nM8\n", 2, 1, "no flood outlet");
@@ -587,6 +592,47 @@ static void test_mdi_outputs_stay_on(void **st)
 	assert_int_equal(out.status.coolant, 0);
 }
 
+/* M62 P0 between two moves with a stop between them, M63 P3 between two
+ * moves through a corner: each output switches in the period whose
+ * setpoint is the first of the move after it (not at rest before it). */
+static void test_sync_outputs_with_the_next_move(void **st)
+{
+	(void)st;
+	push_block(1, MLIP_BLOCK_MOVE, 5, 0, 50, 0);
+	push_block(2, MLIP_BLOCK_OUTPUT, 0, 0, 0, 1 + MLIP_DOUT_SYNC); /* M62 P0 */
+	push_block(3, MLIP_BLOCK_MOVE, 5, 5, 50, 0);
+	push_block(4, MLIP_BLOCK_OUTPUT, 0, 0, 0, -(1 + MLIP_DOUT_SYNC)); /* M63 P0 */
+	push_block(5, MLIP_BLOCK_MOVE, 10, 5, 50, 0);
+	end(6);
+	int on = -1, off = -1, y_moves = -1, x_moves = -1, idle = -1;
+	for (int i = 0; i < 5000 && idle < 0; i++) {
+		tick(1);
+		if (y_moves < 0 && out.pos[1] > 0.0) {
+			y_moves = i; /* the first setpoint with block 3's motion in it */
+		}
+		if (x_moves < 0 && out.pos[0] > 5.0) {
+			x_moves = i; /* ... block 5's */
+		}
+		if (on < 0 && (out.outputs[0] & 0x04)) {
+			on = i;
+		}
+		if (on >= 0 && off < 0 && !(out.outputs[0] & 0x04)) {
+			off = i;
+		}
+		if (out.status.state == MLIP_STATE_IDLE && out.status.reason == MLIP_WHY_END) {
+			idle = i;
+		}
+	}
+	print_message("[machio] M62 P0: on in period %d (block 3's first setpoint: %d), M63 P0 "
+	              "off in %d (block 5's first: %d), end %d\n",
+	              on, y_moves, off, x_moves, idle);
+	/* through the corners (blended, never at rest): in the period of the
+	 * first setpoint with the next block's motion in it */
+	assert_int_equal(on, y_moves);
+	assert_int_equal(off, x_moves);
+	assert_true(off < idle);
+}
+
 /* The largest |second difference| / T^2 of X and Y over the trace. */
 static double max_accel(int from)
 {
@@ -865,6 +911,7 @@ int main(void)
 	    cmocka_unit_test_setup_teardown(test_drive_probe_latched_position, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_drive_probe_errors, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_mdi_outputs_stay_on, setup, teardown),
+	    cmocka_unit_test_setup_teardown(test_sync_outputs_with_the_next_move, setup, teardown),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

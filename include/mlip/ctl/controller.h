@@ -127,6 +127,7 @@
 #define MLIP_BUS_CLEAN_PERIODS     100 /* after a CAN fault, resume needs a clean bus this long */
 #define MLIP_STALL_PERIODS_DEFAULT 3   /* more missed periods than this: a stall */
 #define MLIP_CTL_MAX_EVENTS        8   /* events one period can report */
+#define MLIP_SYNC_OUT_MAX          16  /* M62/M63 waiting for their move */
 
 typedef enum {
 	MLIP_EV_STATE = 1, /* a transition: from -> state, with its reason */
@@ -484,6 +485,11 @@ struct mlip_ctl {
 		uint16_t tp_fn;             /* 0x60B8 sent to every axis drive */
 		uint64_t tp_t0;             /* the period the phase began */
 		struct mlip_block tp_block; /* the G38's move, pushed once armed */
+		/* M62/M63 waiting for the next move (issue 19): its record's seq,
+		 * the OUTPUT value */
+		uint32_t n_sync;
+		uint64_t sync_after[MLIP_SYNC_OUT_MAX];
+		double sync_value[MLIP_SYNC_OUT_MAX];
 	} mio;
 	/* a CiA 402 spindle (issue 19, mlip/ctl/spindlectl.h) */
 	struct mlip_ctl_spindle spindle;
