@@ -13,7 +13,7 @@
 
 #include "drives.h"
 
-#define RX_PER_PERIOD(n) (4 * (n) + 16) /* TPDO + heartbeat + EMCY per drive, and margin */
+#define RX_PER_PERIOD(n) (5 * (n) + 16) /* TPDOs + heartbeat + EMCY per drive, and margin */
 
 int mlip_drives_find_node(const struct mlip_drives *ds, uint8_t node)
 {
@@ -80,6 +80,12 @@ void mlip_drives_observe(struct mlip_drives *ds, const struct mlip_can_frame *f,
 		o->position_counts = m->position_counts;
 		o->tpdo_cycle = cycle;
 		o->tpdo_count++;
+		o->probe_status = m->has_probe ? m->probe_status : 0;
+		break;
+	case MLIP_CO_TPDO2:
+		o->probe_pos = m->probe_pos;
+		o->probe_neg = m->probe_neg;
+		o->tpdo2_count++;
 		break;
 	default:
 		break;
@@ -273,6 +279,11 @@ static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl
 		 * period tpdo_count - 1 */
 		in->drives.tpdo_period[i] =
 		    d->obs.tpdo_count > 0 ? d->obs.tpdo_count - 1 : UINT64_MAX;
+		in->drives.tp_status[i] = d->obs.tpdo_count > 0 ? d->obs.probe_status : 0;
+		in->drives.tp_latch_period[i] =
+		    d->obs.tpdo2_count > 0 ? d->obs.tpdo2_count - 1 : UINT64_MAX;
+		in->drives.tp_pos[i] = d->obs.probe_pos / d->counts_per_unit;
+		in->drives.tp_neg[i] = d->obs.probe_neg / d->counts_per_unit;
 	}
 	in->sdo = ds->sdo.res;
 }

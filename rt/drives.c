@@ -299,6 +299,8 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 		d->setup.tpdo_cob = MLIP_CO_TPDO1_BASE + d->node;
 		d->setup.period_s = m->period_s;
 		d->setup.following_window_counts = (uint32_t)(w + 0.5);
+		d->setup.touch_probe = cfg->inputs.probe_source == MLIP_PROBE_SRC_DRIVE;
+		d->setup.tpdo2_cob = MLIP_CO_TPDO2_BASE + d->node;
 		d->setup.heartbeat_ms = (uint16_t)ds->cfg.heartbeat_ms;
 		d->setup.master_node = ds->cfg.master_node;
 		d->setup.master_timeout_ms = (uint16_t)ds->cfg.heartbeat_timeout_ms;
@@ -644,10 +646,14 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		}
 		say(ds,
 		    "%s: CiA 402 drive (0x1000 = 0x%08X), %d objects written and read back: "
-		    "CSP, RPDO 0x%03X, TPDO 0x%03X, 0x60C2 %g s, 0x6065 %u counts, heartbeat %u ms",
+		    "CSP, RPDO 0x%03X, TPDO 0x%03X, 0x60C2 %g s, 0x6065 %u counts, heartbeat %u "
+		    "ms%s",
 		    axis_of(ds, i, who, sizeof(who)), type, n, ds->d[i].setup.rpdo_cob,
 		    ds->d[i].setup.tpdo_cob, ds->d[i].setup.period_s,
-		    ds->d[i].setup.following_window_counts, ds->d[i].setup.heartbeat_ms);
+		    ds->d[i].setup.following_window_counts, ds->d[i].setup.heartbeat_ms,
+		    ds->d[i].setup.touch_probe ? ", touch probe (0x60B8 in the RPDO, 0x60B9 in the "
+		                                 "TPDO, TPDO2 0x60BA/0x60BB)"
+		                               : "");
 	}
 	rc = nmt_wait_all(ds, MLIP_NMT_START, MLIP_NMT_OPERATIONAL, "operational after NMT start",
 	                  why, why_len);
@@ -708,6 +714,7 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 			ds->d[i].targets[k] = v; /* before the first period: here */
 		}
 		ds->d[i].obs.tpdo_count = 0;
+		ds->d[i].obs.tpdo2_count = 0;
 		say(ds, "%s: operation enabled at %.4f %s (%d counts): the planner starts there",
 		    axis_of(ds, i, who, sizeof(who)), start_pos[i],
 		    a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", v);
@@ -755,7 +762,7 @@ void mlip_drives_shutdown_text(const struct mlip_drives *ds, char *buf, size_t l
 }
 
 int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint8_t spindle_node,
-                       uint32_t *ids, int cap)
+                       int touch_probe, uint32_t *ids, int cap)
 {
 	static const uint32_t bases[4] = {MLIP_CO_SDO_TX_BASE, MLIP_CO_HB_BASE, MLIP_CO_EMCY_BASE,
 	                                  MLIP_CO_TPDO1_BASE};
@@ -766,6 +773,9 @@ int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint8_t sp
 		                                 : spindle_node;
 		for (int b = 0; b < 4 && n < cap && node != 0; b++) {
 			ids[n++] = bases[b] + node;
+		}
+		if (touch_probe && i < m->n_axes && n < cap) {
+			ids[n++] = MLIP_CO_TPDO2_BASE + node; /* the latched positions */
 		}
 	}
 	return n;

@@ -100,7 +100,7 @@ struct mlip_can_port {
 	uint64_t (*now_ns)(void *ctx);
 };
 
-#define MLIP_CANBUS_MAX_IDS (4 * MLIP_MAX_AXES + 8) /* identifiers a socket receives */
+#define MLIP_CANBUS_MAX_IDS (5 * MLIP_MAX_AXES + 8) /* identifiers a socket receives */
 
 struct mlip_canbus {
 	int fd;
@@ -334,10 +334,10 @@ struct mlip_drives {
 };
 
 /* The identifiers the master receives from the drives of m (SDO answers,
- * heartbeats, EMCY, TPDO1) and from the I/O module io_node (0: none): the
- * bus' receive filter; returns how many. */
+ * heartbeats, EMCY, TPDO1; TPDO2 of the axes with touch_probe) and from the
+ * I/O module io_node (0: none): the bus' receive filter; returns how many. */
 int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint8_t spindle_node,
-                       uint32_t *ids, int cap);
+                       int touch_probe, uint32_t *ids, int cap);
 /* Check the [DRIVES] settings against the machine (master node, following
  * window in counts, period) and fill ds; log gets one line per step. */
 int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,

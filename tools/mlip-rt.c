@@ -455,15 +455,20 @@ static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 	if (cfg->drives.enable) {
 		/* RPDOs of 6 bytes (controlword), a 6-byte TPDO back from each drive,
 		 * heartbeats of the drives and the master (1 byte each) */
+		/* the touch probe ([PROBE] SOURCE = drive): RPDO and TPDO of 8 bytes,
+		 * a second 8-byte TPDO (the latched positions) */
 		int n = cfg->machine.n_axes;
+		int tp = cfg->inputs.probe_source == MLIP_PROBE_SRC_DRIVE;
+		uint8_t pdo = tp ? 8 : 6;
 		double hb = cfg->machine.period_s / (cfg->drives.heartbeat_ms * 1e-3);
 		double bits =
-		    n * ((double)mlip_can_frame_bits(0, 6).nominal -
-		         mlip_can_frame_bits(0, 4).nominal + mlip_can_frame_bits(0, 6).nominal) +
+		    n * ((double)mlip_can_frame_bits(0, pdo).nominal -
+		         mlip_can_frame_bits(0, 4).nominal + mlip_can_frame_bits(0, pdo).nominal +
+		         (tp ? mlip_can_frame_bits(0, 8).nominal : 0.0)) +
 		    (n + 1) * hb * mlip_can_frame_bits(0, 1).nominal;
 		l.busy_s += bits / cfg->can.bitrate;
 		l.load = l.busy_s / cfg->machine.period_s;
-		l.frames += n;
+		l.frames += tp ? 2 * n : n;
 	}
 	fprintf(stderr,
 	        PROG ": bus load %.1f %% (%s, %d frames per %.3f ms period, %.0f us of %u bit/s)\n",
@@ -630,10 +635,10 @@ static int open_bus(struct app *a, const char *iface)
 	}
 	fprintf(stderr, PROG ": %s\n", info);
 	if (a->cfg.drives.enable) {
-		n_ids = mlip_drives_rx_ids(&a->cfg.machine, a->cfg.inputs.node,
-		                           a->cfg.io.spindle == MLIP_IO_CIA402 ? a->cfg.spindle.node
-		                                                               : 0,
-		                           ids, MLIP_CANBUS_MAX_IDS);
+		n_ids = mlip_drives_rx_ids(
+		    &a->cfg.machine, a->cfg.inputs.node,
+		    a->cfg.io.spindle == MLIP_IO_CIA402 ? a->cfg.spindle.node : 0,
+		    a->cfg.inputs.probe_source == MLIP_PROBE_SRC_DRIVE, ids, MLIP_CANBUS_MAX_IDS);
 	}
 	if (mlip_canbus_open(&bus, iface, a->prof == MLIP_CAN_FD, ids, n_ids, info, sizeof(info)) !=
 	    0) {
@@ -740,6 +745,12 @@ static int set_up(const struct options *o, struct app *a)
 		fprintf(stderr,
 		        PROG ": [SPINDLE] TYPE = cia402 needs the CANopen master ([DRIVES] "
 		             "ENABLE = 1 or --drives): the spindle drive is brought up by it\n");
+		return 2;
+	}
+	if (a->cfg.inputs.probe_source == MLIP_PROBE_SRC_DRIVE && !a->cfg.drives.enable) {
+		fprintf(stderr, PROG ": [PROBE] SOURCE = drive needs the CANopen master ([DRIVES] "
+		                     "ENABLE = 1 or --drives): the drives' touch probe is set up "
+		                     "and read by it\n");
 		return 2;
 	}
 	if ((a->cfg.inputs.node != 0 || a->cfg.inputs.mapped != 0) && !a->cfg.drives.enable) {

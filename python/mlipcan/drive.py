@@ -91,14 +91,15 @@ def build_od(
     od_identity(od, node_id)
 
     def pdo(kind: str, com: int, cob: int, entries: tuple[int, ...]) -> None:
-        """PDO1: communication record (COB-ID, transmission type 1: synchronous)
+        """PDO n: communication record (COB-ID, transmission type 1: synchronous)
         and mapping record (sub 0 = number of entries, 4 entries)."""
+        num = (com & 0xFF) + 1
         record(
-            f"{kind}1 communication parameter",
+            f"{kind}{num} communication parameter",
             com,
             [(f"COB-ID used by {kind}", U32, "rw", cob), ("Transmission type", U8, "rw", 1)],
         )
-        r = ODRecord(f"{kind}1 mapping parameter", com + 0x200)
+        r = ODRecord(f"{kind}{num} mapping parameter", com + 0x200)
         r.add_member(od_var("Number of mapped objects", com + 0x200, 0, U8, "rw", len(entries)))
         for i, val in enumerate(entries + (0,) * (4 - len(entries)), 1):
             r.add_member(od_var(f"Mapped object {i}", com + 0x200, i, U32, "rw", val))
@@ -106,6 +107,8 @@ def build_od(
 
     pdo("RPDO", 0x1400, 0x200 + node_id, (0x60400010, 0x607A0020))
     pdo("TPDO", 0x1800, 0x180 + node_id, (0x60410010, 0x60640020))
+    # TPDO2 (touch probe 1's latched positions), not valid until the master maps it
+    pdo("TPDO", 0x1801, PDO_INVALID | 0x280 + node_id, (0x60BA0020, 0x60BB0020))
 
     add(od_var("Controlword", 0x6040, 0, U16, "rw", 0, True))
     add(od_var("Statusword", 0x6041, 0, U16, "ro", 0x0250, True))
@@ -125,6 +128,11 @@ def build_od(
         ],
     )
     add(od_var("Following error actual value", 0x60F4, 0, I32, "ro", 0, True))
+    # touch probe 1 (CiA 402): function, status, positions latched at its edges
+    add(od_var("Touch probe function", 0x60B8, 0, U16, "rw", 0, True))
+    add(od_var("Touch probe status", 0x60B9, 0, U16, "ro", 0, True))
+    add(od_var("Touch probe pos1 pos value", 0x60BA, 0, I32, "ro", 0, True))
+    add(od_var("Touch probe pos1 neg value", 0x60BB, 0, I32, "ro", 0, True))
     # profile velocity mode (3, a spindle): counts/s, counts/s^2
     add(od_var("Velocity actual value", 0x606C, 0, I32, "ro", 0, True))
     add(od_var("Velocity window", 0x606D, 0, U16, "rw", PV_WINDOW_DEFAULT))
@@ -158,8 +166,24 @@ def build_od(
 
 # objects the cycle reads, cached in Drive.load_params() after each write
 PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A, 0x606D, 0x6083, 0x6084)
-MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0), (0x60FF, 0)}
-MAPPABLE_TX = {(0x6041, 0), (0x6064, 0), (0x6061, 0), (0x60F4, 0), (0x606C, 0)}
+MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0), (0x60FF, 0), (0x60B8, 0)}
+MAPPABLE_TX = {
+    (0x6041, 0),
+    (0x6064, 0),
+    (0x6061, 0),
+    (0x60F4, 0),
+    (0x606C, 0),
+    (0x60B9, 0),
+    (0x60BA, 0),
+    (0x60BB, 0),
+}
+# 0x60B8 touch probe function / 0x60B9 status, touch probe 1 (CiA 402)
+TP_ENABLE = 0x0001  # function and status bit 0: switched on
+TP_CONTINUOUS = 0x0002  # function bit 1: every event (0: the first one only)
+TP_POS_EDGE = 0x0010  # function bit 4: latch at the positive edge
+TP_NEG_EDGE = 0x0020  # function bit 5: latch at the negative edge
+TP_POS_STORED = 0x0002  # status bit 1: 0x60BA holds a positive edge's position
+TP_NEG_STORED = 0x0004  # status bit 2: 0x60BB holds a negative edge's position
 
 
 class Recorder:
@@ -286,6 +310,17 @@ class Drive(SimDevice):
         self.fe_extra = 0.0
         self.fe_cycles = 0
         self.error_register = 0
+        # touch probe 1: function in force, status, latched positions; the
+        # move of the last SYNC (for a latch between two SYNCs)
+        self.tp_fn = 0
+        self.tp_status = 0
+        self.tp_pos = 0
+        self.tp_neg = 0
+        self.pending_tp: int | None = None
+        self.move_sync = -1
+        self.move_from = 0.0
+        self.move_to = 0.0
+        self.edge_seen = 0
         # producer node -> [time ms, last seen (receive time, s) or None]
         self.hb_consumed: dict[int, tuple[int, float | None]] = {}
         self.hb_lost: set[int] = set()
@@ -332,9 +367,12 @@ class Drive(SimDevice):
         self._store(0x6061, 0, "<b", self.mode_display())
         self._store(0x606C, 0, "<i", self.vel_actual())
         self._store(0x1001, 0, "B", self.error_register)
+        self._store(0x60B9, 0, "<H", self.tp_status)
+        self._store(0x60BA, 0, "<i", self.tp_pos)
+        self._store(0x60BB, 0, "<i", self.tp_neg)
 
     def _on_read(self, index: int, subindex: int, od: ODVariable) -> None:
-        if index in (0x6041, 0x6064, 0x60F4, 0x6061, 0x1001, 0x606C):
+        if index in (0x6041, 0x6064, 0x60F4, 0x6061, 0x1001, 0x606C, 0x60B9, 0x60BA, 0x60BB):
             self._publish()
         # then the stored data
 
@@ -367,6 +405,8 @@ class Drive(SimDevice):
             self.pending_target = val
         elif index == 0x60FF:
             self.pending_vel = val
+        elif index == 0x60B8:
+            self._touch_probe_fn(val, "SDO")
         elif index == 0x1005:
             if val & 0x40000000:  # this device does not generate SYNC
                 raise SdoAbortedError(0x06090030)
@@ -376,13 +416,13 @@ class Drive(SimDevice):
             net.subscribe(self._sync_cob, self._on_sync)
         elif index == 0x1016 and subindex >= 1:
             self._consumer(subindex, val)
-        elif index in (0x1400, 0x1800) and subindex == 1:
+        elif index in (0x1400, 0x1800, 0x1801) and subindex == 1:
             self.check_cob_id(index, val)
-        elif index in (0x1600, 0x1A00):
+        elif index in (0x1600, 0x1A00, 0x1A01):
             self._check_mapping(index, subindex, val)
 
     def _check_mapping(self, index: int, sub: int, val: int) -> None:
-        com = 0x1400 if index == 0x1600 else 0x1800
+        com = index - 0x200
         valid = not self.sim.od_u32(self.node, com, 1) & PDO_INVALID
         n_now = self.sim.od_int(self.node, index, "B", 0)
         if valid or (sub >= 1 and n_now != 0):
@@ -504,12 +544,17 @@ class Drive(SimDevice):
         self._pdo_off()
         self.rpdo = self.node.rpdo[1]
         self.tpdo = self.node.tpdo[1]
+        self.tpdo2 = self.node.tpdo[2]
         self.rpdo.read()  # subscribes the RPDO when valid
         self.tpdo.read()
         self.tpdo.pdo_node.network.unsubscribe(self.tpdo.cob_id)  # read() subscribes TPDOs too
+        self.tpdo2.read()
+        if self.tpdo2.enabled:
+            self.tpdo2.pdo_node.network.unsubscribe(self.tpdo2.cob_id)
         self.rpdo.add_callback(self._on_rpdo)
         self._rx = self._codec(self.rpdo)
         self._tx = self._codec(self.tpdo)
+        self._tx2 = self._codec(self.tpdo2) if self.tpdo2.enabled else []
         self.tpdo_every = self.tpdo.trans_type if 1 <= (self.tpdo.trans_type or 0) <= 240 else 1
         self.rec.event(
             self.id,
@@ -525,6 +570,12 @@ class Drive(SimDevice):
                 "valid": self.tpdo.enabled,
                 "type": self.tpdo.trans_type,
                 "map": [f"0x{v.index:04X}:{v.subindex}/{v.length}" for v in self.tpdo.map],
+            },
+            tpdo2={
+                "cob_id": f"0x{self.tpdo2.cob_id:03X}",
+                "valid": self.tpdo2.enabled,
+                "type": self.tpdo2.trans_type,
+                "map": [f"0x{v.index:04X}:{v.subindex}/{v.length}" for v in self.tpdo2.map],
             },
         )
         self._pdo_live = True
@@ -554,7 +605,7 @@ class Drive(SimDevice):
                 net.unsubscribe(self.rpdo.cob_id, self.rpdo.on_message)
             self.rpdo.callbacks.clear()
         self._pdo_live = False
-        self.pending_target = self.pending_cw = self.pending_vel = None
+        self.pending_target = self.pending_cw = self.pending_vel = self.pending_tp = None
 
     def _on_rpdo(self, m: PdoMap) -> None:
         """An RPDO: latched, applied at the next SYNC (synchronous types)."""
@@ -573,6 +624,8 @@ class Drive(SimDevice):
                 self.pending_vel = val
             elif index == 0x6040:
                 self.pending_cw = val
+            elif index == 0x60B8:
+                self.pending_tp = val
             elif index == 0x6060:
                 self._store(0x6060, 0, "<b", val)
                 self.load_params()
@@ -584,6 +637,10 @@ class Drive(SimDevice):
         if cw is not None:
             self._store(0x6040, 0, "<H", cw)
             self._controlword(cw, "RPDO")
+        tp, self.pending_tp = self.pending_tp, None
+        if tp is not None:
+            self._store(0x60B8, 0, "<H", tp)
+            self._touch_probe_fn(tp, "RPDO")
         tgt, self.pending_target = self.pending_target, None
         if tgt is not None:
             self._store(0x607A, 0, "<i", tgt)
@@ -685,6 +742,51 @@ class Drive(SimDevice):
                 else:
                     self._set_state(P.OPERATION_ENABLED, why)  # 4, 16
 
+    # ------------------------------------------------------------ touch probe 1
+    def _touch_probe_fn(self, fn: int, via: str) -> None:
+        """0x60B8 applied (at a SYNC from the RPDO, at once by SDO): bit 0
+        switching on clears what was stored and arms the latch; off clears
+        the status (CiA 402)."""
+        old, self.tp_fn = self.tp_fn, fn
+        if not fn & TP_ENABLE:
+            self.tp_status = 0
+        elif not old & TP_ENABLE:
+            self.tp_status = TP_ENABLE
+        if fn != old:
+            self._publish()
+            self.rec.event(self.id, "touch_probe_fn", fn=f"0x{fn:04X}", via=via)
+
+    def touch_probe_edge(self, frac: float, positive: bool, sync_no: int, edge: int) -> None:
+        """The probe's input changed at frac (0..1) of this SYNC's move: the
+        position there is latched (not the position at a SYNC), at the edge
+        the function enables, the first one only unless continuous."""
+        if edge == self.edge_seen or self.move_sync != sync_no:
+            return
+        self.edge_seen = edge
+        fn = self.tp_fn
+        stored = TP_POS_STORED if positive else TP_NEG_STORED
+        if not fn & TP_ENABLE or not fn & (TP_POS_EDGE if positive else TP_NEG_EDGE):
+            return
+        if self.tp_status & stored and not fn & TP_CONTINUOUS:
+            return  # first event only: re-armed by switching the function on again
+        at = int(round(self.move_from + frac * (self.move_to - self.move_from)))
+        if positive:
+            self.tp_pos = at
+        else:
+            self.tp_neg = at
+        self.tp_status |= stored
+        self._publish()
+        self.rec.event(
+            self.id,
+            "touch_probe",
+            edge="positive" if positive else "negative",
+            latched=at,
+            sync=sync_no,
+            frac=round(frac, 6),
+            from_=round(self.move_from, 3),
+            to=round(self.move_to, 3),
+        )
+
     def fault(self, code: int, why: str) -> None:
         """Fault reaction (CiA 402 transitions 13, 14): statusword fault bit,
         EMCY with the error code, error register bit 0 (generic)."""
@@ -727,10 +829,17 @@ class Drive(SimDevice):
                 0x6061: self.p_mode,
                 0x60F4: self.target - sent,
                 0x606C: vel,
+                0x60B9: self.tp_status,
+                0x60BA: self.tp_pos,
+                0x60BB: self.tp_neg,
             }
             for index, off, st in self._tx:
                 st.pack_into(tp.data, off, now[index])
             tp.transmit()
+            if self._tx2:  # sampled at the same SYNC
+                for index, off, st in self._tx2:
+                    st.pack_into(self.tpdo2.data, off, now[index])
+                self.tpdo2.transmit()
         fresh = self.pending_target is not None
         if self.rpdo.trans_type is None or self.rpdo.trans_type <= 240:
             tgt = self._apply_rpdo()
@@ -738,6 +847,7 @@ class Drive(SimDevice):
             tgt = None
         if self.state == P.OPERATION_ENABLED and self.mode() == MODE_HOMING:
             self._homing(sync_no)
+        pos_from = self.actual_f - self.fe_extra
         if self.state == P.OPERATION_ENABLED and self.mode() == P.MODE_CSP:
             if tgt is not None:
                 self.target = tgt
@@ -745,6 +855,13 @@ class Drive(SimDevice):
             self.actual_f += self.lag_alpha * (self.target - self.actual_f)
             self.actual = int(round(self.actual_f - self.fe_extra))
             self._following(self.target - self.actual)
+        # the move from this SYNC to the next, for the touch probe's latch
+        self.move_sync, self.move_from, self.move_to = (
+            sync_no,
+            pos_from,
+            self.actual_f - self.fe_extra,
+        )
+        self.sim.touch_probe_moved(self, sync_no)
         if self.mode() == MODE_PV:
             fresh = tgt is not None
             self._velocity()
@@ -891,6 +1008,10 @@ class Drive(SimDevice):
             # a spindle drive: ARG counts/s of its velocity lost to a load it cannot
             # hold (0: none); the ramp goes on, what it reports drops
             self.load_drop = float(arg or "0")
+        elif what == "touch-probe":
+            # the touch probe wired to every drive's input 1 touches a surface
+            # at COUNTS of this drive's position: on at and below (or above) it
+            self.sim.set_touch_surface(self.id, arg)
         elif what == "homing-stall":
             self.home_stall = arg != "off"  # a homing that never ends (a timeout)
         elif what == "never-enable":
@@ -927,6 +1048,11 @@ class DriveSim:
         self._pump: threading.Thread | None = None
         self.pump_errors = 0
         self.socket_drops: int | None = None  # fast receive: the kernel's frames dropped
+        # the touch probe's surface: (drive node, counts, on below it), its input, edges
+        self.touch: tuple[int, int, bool] | None = None
+        self.touch_on = False
+        self.touch_edges = 0
+        self.touch_edge: tuple[int, float, bool, int] | None = None  # sync, frac, positive, n
         for spec in drives:
             d = Drive(self, **spec)
             self.drives[d.id] = d
@@ -1060,6 +1186,45 @@ class DriveSim:
                     m.follow(drive.id, drive.actual, self.sync_no)  # a probe on this axis
             self.cycle_cpu_s += time.thread_time() - c0
             self.cycles += 1
+
+    def set_touch_surface(self, node: int, arg: str | None) -> None:
+        """touch-probe=COUNTS,below|above on drive NODE (off: none)."""
+        if arg in (None, "off"):
+            self.touch = None
+            return
+        counts, _, side = (arg or "").partition(",")
+        if side not in ("below", "above"):
+            raise ValueError(f"touch-probe '{arg}': expected COUNTS,below|above or off")
+        self.touch = (node, int(counts, 0), side == "below")
+        d = self.drives[node]
+        self.touch_on = self._touching(d.actual_f - d.fe_extra)
+
+    def _touching(self, pos: float) -> bool:
+        assert self.touch is not None
+        _, s, below = self.touch
+        return pos <= s if below else pos >= s
+
+    def touch_probe_moved(self, drive: "Drive", sync_no: int) -> None:
+        """After a drive's move at this SYNC: the surface drive's move may
+        cross the surface (an edge at a fraction of the period, the same
+        instant for every drive: one wire to every touch probe input); each
+        drive latches where its own move is at that instant (a drive that
+        moves later in this SYNC's handling latches when it has)."""
+        if self.touch is not None and drive.id == self.touch[0]:
+            on = self._touching(drive.move_to)
+            if on != self.touch_on:
+                self.touch_on = on
+                s, a, b = self.touch[1], drive.move_from, drive.move_to
+                frac = (s - a) / (b - a) if b != a else 1.0
+                self.touch_edges += 1
+                self.touch_edge = (sync_no, min(1.0, max(0.0, frac)), on, self.touch_edges)
+                self.rec.event(drive.id, "touch_input", on=on, sync=sync_no, frac=round(frac, 6))
+                for d in self.drives.values():
+                    d.touch_probe_edge(frac, on, sync_no, self.touch_edges)
+                return
+        e = self.touch_edge
+        if e is not None and e[0] == sync_no:
+            drive.touch_probe_edge(e[1], e[2], sync_no, e[3])
 
     def inject(self, node: int, what: str, arg: str | None = None) -> None:
         with self.lock:

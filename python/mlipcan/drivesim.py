@@ -46,6 +46,13 @@ Fault injection (--inject at start, or a line "N:WHAT[=ARG]" appended to the
   N:absent / N:present    gone from the bus (no boot-up, SDO, heartbeat) / back
   N:load=COUNTS_S         a spindle (mode 3) loses COUNTS_S of its velocity to a load
                           it cannot hold (0: none)
+  N:touch-probe=COUNTS,below|above   a touch probe wired to every drive's touch
+                          probe input 1 is on while drive N's position is at or
+                          below (above) COUNTS (off: none); each drive with 0x60B8
+                          armed latches its own position at the instant drive N's
+                          move between two SYNCs crosses COUNTS (0x60BA positive
+                          edge, 0x60BB negative; status 0x60B9; events.jsonl
+                          "touch_probe": latched, sync, frac of the period)
 
 Records (--record DIR): events.jsonl (every SDO write with its value or abort
 code, NMT and power state transitions, EMCYs, injections, heartbeat losses;

@@ -52,7 +52,11 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 		mlip_sdo_add(&l, 0x1600, 2, 4, 0x607A0020u,
 		             "RPDO1 mapping 2: target position 0x607A");
 	}
-	mlip_sdo_add(&l, 0x1600, 0, 1, 2, "RPDO1 mapping count");
+	if (d->touch_probe) {
+		mlip_sdo_add(&l, 0x1600, 3, 4, 0x60B80010u,
+		             "RPDO1 mapping 3: touch probe function 0x60B8");
+	}
+	mlip_sdo_add(&l, 0x1600, 0, 1, d->touch_probe ? 3 : 2, "RPDO1 mapping count");
 	mlip_sdo_add(&l, 0x1400, 1, 4, d->rpdo_cob, "RPDO1 COB-ID");
 	mlip_sdo_add(&l, 0x1800, 1, 4, off | no_rtr | d->tpdo_cob,
 	             "TPDO1 COB-ID (disabled while mapping)");
@@ -66,8 +70,27 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 		mlip_sdo_add(&l, 0x1A00, 2, 4, 0x60640020u,
 		             "TPDO1 mapping 2: position actual value 0x6064");
 	}
-	mlip_sdo_add(&l, 0x1A00, 0, 1, 2, "TPDO1 mapping count");
+	if (d->touch_probe) {
+		mlip_sdo_add(&l, 0x1A00, 3, 4, 0x60B90010u,
+		             "TPDO1 mapping 3: touch probe status 0x60B9");
+	}
+	mlip_sdo_add(&l, 0x1A00, 0, 1, d->touch_probe ? 3 : 2, "TPDO1 mapping count");
 	mlip_sdo_add(&l, 0x1800, 1, 4, no_rtr | d->tpdo_cob, "TPDO1 COB-ID");
+	if (d->touch_probe) {
+		/* the latched positions, sampled at the same SYNC as TPDO1 */
+		mlip_sdo_add(&l, 0x1801, 1, 4, off | no_rtr | d->tpdo2_cob,
+		             "TPDO2 COB-ID (disabled while mapping)");
+		mlip_sdo_add(&l, 0x1801, 2, 1, 1,
+		             "TPDO2 transmission type (synchronous, every SYNC)");
+		mlip_sdo_add(&l, 0x1A01, 0, 1, 0, "TPDO2 mapping count (cleared)");
+		mlip_sdo_add(&l, 0x1A01, 1, 4, 0x60BA0020u,
+		             "TPDO2 mapping 1: touch probe 1 positive edge position 0x60BA");
+		mlip_sdo_add(&l, 0x1A01, 2, 4, 0x60BB0020u,
+		             "TPDO2 mapping 2: touch probe 1 negative edge position 0x60BB");
+		mlip_sdo_add(&l, 0x1A01, 0, 1, 2, "TPDO2 mapping count");
+		mlip_sdo_add(&l, 0x1801, 1, 4, no_rtr | d->tpdo2_cob, "TPDO2 COB-ID");
+		mlip_sdo_add(&l, 0x60B8, 0, 2, 0, "touch probe function (off until a G38)");
+	}
 	mlip_sdo_add(&l, 0x1005, 0, 4, d->sync_id, "COB-ID SYNC (consumer)");
 	if (d->velocity) {
 		mlip_sdo_add(&l, 0x6060, 0, 1, MLIP_402_MODE_PV,

@@ -71,7 +71,7 @@ def test_coolant_and_output_follow_the_program(sim, tmp_path):
         # at line:col, nothing sent
         for text, where, what in (
             ("G1 X1 F600\nM64 P1\n", "2:5", "digital output 1 is not mapped ([IO] OUTPUT_1)"),
-            ("G1 X1 F600\nM62 P0\n", "2:1", "synchronized with motion"),
+            ("G1 X1 F600\nM62 P1\n", "2:5", "digital output 1 is not mapped ([IO] OUTPUT_1)"),
             ("G1 X1 F600\nG38.2 X1\n", "2:1", "to the current position"),
         ):
             bad = tmp_path / "bad.ngc"
@@ -260,3 +260,74 @@ def test_probe_latches_the_surface(sim, tmp_path):
     # rest no further than the periods it took to react plus v^2/2A
     assert rest >= latched - (s_stop - s_trip + 2) * per_period - v * v / 2000.0 * CPU, rest
     assert all(b <= a for (s0, a), (s1, b) in zip(zs, zs[1:]) if s_trip - 5 <= s1 < s_stop)
+
+
+def test_drive_touch_probe_latch(sim, tmp_path):
+    """[PROBE] SOURCE = drive: every axis drive's touch probe 1 (CiA 402
+    0x60B8 in RPDO1, 0x60B9 in TPDO1, TPDO2 = 0x60BA + 0x60BB) mapped at
+    bring-up and read back; G38.2 switches the latch off, on (enable, first
+    event, positive edge), watches 0x60B9 and takes the position each drive
+    LATCHED at the instant Z crossed the surface between two SYNCs: equal to
+    the surface to the count, not where Z came to rest."""
+    text = machine(tmp_path).read_text()
+    text = text.replace(f"PROBE = {IO} 0x6000:1 3 HIGH\n", "") + "\n[PROBE]\nSOURCE = drive\n"
+    cfg = tmp_path / "tp.ini"
+    cfg.write_text(text)
+    ngc = tmp_path / "p.ngc"
+    surface = -4987  # counts: not a multiple of the 80 counts a period at the feed
+    feed_mm_min = 120.0
+    ngc.write_text(f"G21 G90\nG0 X1 Y2 Z0\nG38.2 Z-10 F{feed_mm_min:g}\nG0 Z5\nM2\n")
+    sim.inject(f"3:touch-probe={surface},below")
+    try:
+        t0 = time.time()
+        with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+            rc, out, err = rig.feed(ngc, timeout=600)
+            if rc != 0:
+                sim.wait_sync_rows(lambda rs: True)
+                ev = [e for e in sim.events() if e["t"] >= t0 and e["kind"] != "sdo"]
+                rt = rig._rt().stderr()
+                pytest.fail(f"{err}\n{ev[-40:]}\n{rt[-3000:]}")
+            st = rig.status()
+    finally:
+        sim.inject("3:touch-probe=off")
+    pr = st["probe"]
+    assert pr is not None and pr["tripped"] is True and pr["line"] == 3, st
+    assert abs(st["position"]["Z"] - 5.0) < 1e-9, st  # the program went on
+    latched = pr["position"]["Z"] * CPU
+    # the drives' records: their touch probe latches, the PDO maps of the bring-up
+    tps = sim.wait_event(lambda e: e["kind"] == "touch_probe" and e["t"] >= t0, "a latch")
+    maps = [e for e in sim.events() if e["kind"] == "pdo_maps" and e["t"] >= t0]
+    fns = [
+        (e["node"], e["fn"], e["via"])
+        for e in sim.events()
+        if e["kind"] == "touch_probe_fn" and e["t"] >= t0
+    ]
+    sim.wait_sync_rows(lambda rs: True)
+    zs = [(s, t) for s, t in targets(sim, 3, t0) if t is not None]
+    actual = [r["actual"] for r in sim.sync_rows() if r["node"] == 3 and r["t"] >= t0]
+    z = {e["node"]: e for e in tps}
+    assert z[3]["latched"] == surface and 0 < z[3]["frac"] < 1, tps
+    assert round(latched) == surface, (latched, surface)  # the latch, to the count
+    assert abs(pr["position"]["X"] - 1.0) < 1e-9 and abs(pr["position"]["Y"] - 2.0) < 1e-9
+    assert surface not in actual  # between two SYNCs' positions
+    rest = min(t for s, t in zs)
+    assert rest < surface - 40, (rest, surface)  # at rest beyond it, braking on the path
+    for node in (1, 2, 3):
+        m = [e for e in maps if e["node"] == node][-1]
+        assert "0x60B8:0/16" in m["rpdo"]["map"] and "0x60B9:0/16" in m["tpdo"]["map"], m
+        assert m["tpdo2"]["valid"] and m["tpdo2"]["map"] == ["0x60BA:0/32", "0x60BB:0/32"], m
+        seq = [f for n, f, v in fns if n == node]
+        assert "0x0011" in seq and seq[-1] == "0x0000", seq  # on for the move, off after it
+    after = [t for s, t in zs if s >= z[3]["sync"] - 1]
+    acc = (
+        max((abs(c - 2 * b + a) for a, b, c in zip(after, after[1:], after[2:])), default=0)
+        / (PERIOD_S**2)
+        / CPU
+    )
+    assert acc <= 1000.0 * (1 + 1e-9) + 2 / (PERIOD_S**2) / CPU, acc
+    print(
+        f"[probe] drive touch probe: surface Z {surface} counts, latched {round(latched)} "
+        f"counts at {z[3]['frac']:.3f} of the period after SYNC {z[3]['sync']} (X, Y latched "
+        f"{pr['position']['X']:.4f}, {pr['position']['Y']:.4f}), at rest at {rest} counts "
+        f"({surface - rest} counts beyond), max braking {acc:.1f} mm/s^2"
+    )

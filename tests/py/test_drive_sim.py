@@ -144,3 +144,84 @@ def test_profile_velocity_ramps_to_target(pair):
         while sim.sync_no < k + 1 and time.monotonic() < deadline:
             time.sleep(0.001)
     assert node.sdo[0x606C].raw == 0
+
+
+@pytest.fixture
+def two(tmp_path):
+    chan = f"drive-{time.monotonic_ns()}"
+    rec = D.Recorder(tmp_path)
+    sim = D.DriveSim(
+        chan,
+        [
+            dict(node_id=5, start_position=0, heartbeat_ms=0),
+            dict(node_id=6, start_position=100, heartbeat_ms=0),
+        ],
+        rec,
+        bus=can.Bus(interface="virtual", channel=chan),
+    )
+    net = canopen.Network(can.Bus(interface="virtual", channel=chan))
+    net.connect()
+    sim.start()
+    nodes = [net.add_node(n, D.build_od(n)) for n in (5, 6)]
+    for node in nodes:
+        node.sdo.RESPONSE_TIMEOUT = 2.0
+    yield sim, nodes, net, tmp_path
+    sim.stop()
+    net.disconnect()
+
+
+def test_touch_probe_latches_between_syncs(two):
+    """Touch probe 1 (CiA 402 0x60B8..0x60BB, issue 19): armed for its positive
+    edge, each drive latches its own position at the instant drive 5's move
+    crosses the surface (a third of the way between two SYNCs here), not a
+    position of a SYNC; the first event only, until switched on again; off
+    clears the status; the negative edge latches 0x60BB."""
+    sim, (a, b), net, rec = two
+    for node in (a, b):
+        node.sdo[0x6060].raw = P.MODE_CSP
+        for cw in (0x06, 0x07, 0x0F):
+            node.sdo[0x6040].raw = cw
+        assert state(node) == P.OPERATION_ENABLED
+        node.nmt.state = "OPERATIONAL"
+    deadline = time.monotonic() + 10
+    while any(d.nmt_state() != "OPERATIONAL" for d in sim.drives.values()):
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    sim.inject(5, "touch-probe", "-1000,below")
+    for node in (a, b):
+        node.sdo[0x60B8].raw = D.TP_ENABLE | D.TP_POS_EDGE
+        assert node.sdo[0x60B9].raw == D.TP_ENABLE  # on, nothing stored
+
+    def sync_to(ta, tb):
+        a.sdo[0x607A].raw = ta  # applied at the next SYNC, as an RPDO's
+        b.sdo[0x607A].raw = tb
+        n = sim.sync_no
+        net.sync.transmit()
+        while sim.sync_no < n + 1:
+            assert time.monotonic() < deadline
+            time.sleep(0.001)
+        return a.sdo[0x6064].raw, b.sdo[0x6064].raw
+
+    rows = [sync_to(-300 * k, 100 + 30 * k) for k in range(1, 5)]
+    assert rows[-1] == (-1200, 220)  # the last SYNC's move crossed -1000 at 1/3 of it
+    for node in (a, b):
+        assert node.sdo[0x60B9].raw == D.TP_ENABLE | D.TP_POS_STORED
+    assert a.sdo[0x60BA].raw == -1000  # where it crossed, to the count
+    assert b.sdo[0x60BA].raw == 190 + 10  # 190 -> 220 at 1/3: 200, no SYNC's position
+    assert 200 not in [r[1] for r in rows]
+    # further, back off and on again: the first event stays (not continuous)
+    sync_to(-1500, 220)
+    sync_to(-500, 220)
+    sync_to(-1300, 220)
+    assert a.sdo[0x60BA].raw == -1000 and b.sdo[0x60BA].raw == 200
+    # off: status cleared; on for the negative edge: the way off the surface
+    for node in (a, b):
+        node.sdo[0x60B8].raw = 0
+        assert node.sdo[0x60B9].raw == 0
+        node.sdo[0x60B8].raw = D.TP_ENABLE | D.TP_NEG_EDGE
+    sync_to(-700, 220)  # -1300 -> -700 crosses -1000 at half of the move
+    assert a.sdo[0x60B9].raw == D.TP_ENABLE | D.TP_NEG_STORED
+    assert a.sdo[0x60BB].raw == -1000 and b.sdo[0x60BB].raw == 220
+    sim.tick()
+    ev = [ln for ln in (rec / "events.jsonl").read_text().splitlines() if '"touch_probe"' in ln]
+    assert len(ev) == 4, ev  # two drives, two edges

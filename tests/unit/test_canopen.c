@@ -206,7 +206,8 @@ static void test_interp_period(void **state)
 	assert_int_equal(mlip_co_interp_period(0.0, &v, &ix), MLIP_E_RANGE);
 }
 
-static void test_setup_entries(void **state)
+/* Node 2 at 1 ms, the pre-defined connection set's COB-IDs. */
+static struct mlip_drive_setup drive2(void)
 {
 	struct mlip_drive_setup d = {.node = 2,
 	                             .sync_id = 0x080,
@@ -217,6 +218,12 @@ static void test_setup_entries(void **state)
 	                             .heartbeat_ms = 100,
 	                             .master_node = 127,
 	                             .master_timeout_ms = 300};
+	return d;
+}
+
+static void test_setup_entries(void **state)
+{
+	struct mlip_drive_setup d = drive2();
 	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
 	int n, i, found = 0;
 	(void)state;
@@ -369,13 +376,88 @@ static void test_following_error(void **state)
 	assert_true(mlip_drive_following_error(w, 1, INT32_MAX) == 4294967295LL);
 }
 
+/* The touch probe ([PROBE] SOURCE = drive): 0x60B8 the third object of
+ * RPDO1, 0x60B9 of TPDO1, TPDO2 = 0x60BA + 0x60BB (written while invalid,
+ * synchronous), 0x60B8 = 0; the 8-byte TPDO1 and the TPDO2 classified. */
+static void test_touch_probe_setup_and_pdos(void **state)
+{
+	struct mlip_drive_setup d = drive2();
+	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
+	uint32_t want[][2] = {{0x160003, 0x60B80010u}, {0x160000, 3},
+	                      {0x1A0003, 0x60B90010u}, {0x1A0000, 3},
+	                      {0x180101, 0xC0000282u}, {0x180102, 1},
+	                      {0x1A0101, 0x60BA0020u}, {0x1A0102, 0x60BB0020u},
+	                      {0x1A0100, 2},           {0x60B800, 0}};
+	int n, found = 0, last_cob = -1, last_map = -1;
+	struct mlip_can_frame f;
+	struct mlip_co_msg m;
+	(void)state;
+	d.touch_probe = 1;
+	d.tpdo2_cob = 0x282;
+	n = mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX);
+	assert_true(n > 0 && n <= MLIP_DRIVE_SETUP_MAX);
+	for (int i = 0; i < n; i++) {
+		uint32_t key = (uint32_t)e[i].index << 8 | e[i].sub;
+		for (size_t w = 0; w < sizeof(want) / sizeof(want[0]); w++) {
+			if (key == want[w][0] && e[i].value == want[w][1]) {
+				found |= 1 << w;
+			}
+		}
+		if (key == 0x180101 && e[i].value == 0x40000282u) {
+			last_cob = i; /* valid again: after its mapping */
+		}
+		if (e[i].index == 0x1A01) {
+			last_map = i;
+		}
+	}
+	assert_int_equal(found, (1 << 10) - 1);
+	assert_true(last_cob > last_map && last_map > 0);
+	/* TPDO1 of 8 bytes: statusword, position, touch probe status */
+	memset(&f, 0, sizeof(f));
+	f.id = 0x182;
+	f.len = 8;
+	f.data[0] = 0x37;
+	f.data[2] = 0xFB;
+	f.data[3] = f.data[4] = f.data[5] = 0xFF;
+	f.data[6] = 0x03;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_OK);
+	assert_int_equal(m.kind, MLIP_CO_TPDO);
+	assert_int_equal(m.position_counts, -5);
+	assert_int_equal(m.has_probe, 1);
+	assert_int_equal(m.probe_status, 0x0003);
+	f.len = 7;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_E_SYNTAX);
+	/* TPDO2: 0x60BA = -1000, 0x60BB = 70000 */
+	f.id = 0x282;
+	f.len = 8;
+	f.data[0] = 0x18;
+	f.data[1] = 0xFC;
+	f.data[2] = f.data[3] = 0xFF;
+	f.data[4] = 0x70;
+	f.data[5] = 0x11;
+	f.data[6] = 0x01;
+	f.data[7] = 0x00;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_OK);
+	assert_int_equal(m.kind, MLIP_CO_TPDO2);
+	assert_int_equal(m.node, 2);
+	assert_int_equal(m.probe_pos, -1000);
+	assert_int_equal(m.probe_neg, 70000);
+	f.len = 6;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_E_SYNTAX);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_nmt_heartbeat), cmocka_unit_test(test_classify),
-	    cmocka_unit_test(test_sdo_download),  cmocka_unit_test(test_sdo_upload),
-	    cmocka_unit_test(test_interp_period), cmocka_unit_test(test_setup_entries),
-	    cmocka_unit_test(test_supervise),     cmocka_unit_test(test_following_error),
+	    cmocka_unit_test(test_nmt_heartbeat),
+	    cmocka_unit_test(test_classify),
+	    cmocka_unit_test(test_sdo_download),
+	    cmocka_unit_test(test_sdo_upload),
+	    cmocka_unit_test(test_interp_period),
+	    cmocka_unit_test(test_setup_entries),
+	    cmocka_unit_test(test_touch_probe_setup_and_pdos),
+	    cmocka_unit_test(test_supervise),
+	    cmocka_unit_test(test_following_error),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

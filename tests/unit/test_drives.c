@@ -440,10 +440,15 @@ static void test_bringup_spindle(void **state)
 		assert_int_equal(peers[i].state, P_OE);
 	}
 	uint32_t ids[MLIP_CANBUS_MAX_IDS];
-	int n = mlip_drives_rx_ids(&cfg.machine, 0, 5, ids, MLIP_CANBUS_MAX_IDS);
+	int n = mlip_drives_rx_ids(&cfg.machine, 0, 5, 0, ids, MLIP_CANBUS_MAX_IDS);
 	assert_int_equal(n, 16);
 	assert_int_equal(ids[12], 0x585u);
 	assert_int_equal(ids[15], 0x185u);
+	/* the touch probe: each axis drive's TPDO2 too (not the spindle's) */
+	n = mlip_drives_rx_ids(&cfg.machine, 0, 5, 1, ids, MLIP_CANBUS_MAX_IDS);
+	assert_int_equal(n, 16 + cfg.machine.n_axes);
+	assert_int_equal(ids[4], 0x281u);
+	assert_int_equal(ids[15], 0x585u);
 	/* the shut-down takes the spindle down first */
 	mlip_drives_disable(&ds);
 	assert_int_equal(sp->state, P_RTSO);

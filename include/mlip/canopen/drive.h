@@ -32,9 +32,23 @@ struct mlip_drive_setup {
 	 * no 0x6065 */
 	int velocity;
 	uint32_t accel_counts_s2; /* 0x6083 profile acceleration = 0x6084 deceleration */
+	/* the touch probe ([PROBE] SOURCE = drive, issue 19): RPDO1 also carries
+	 * the touch probe function 0x60B8, TPDO1 the touch probe status 0x60B9,
+	 * TPDO2 (synchronous, every SYNC) the positions latched at touch probe
+	 * 1's positive and negative edges 0x60BA, 0x60BB; 0x60B8 = 0 (off) */
+	int touch_probe;
+	uint32_t tpdo2_cob; /* TPDO2 COB-ID, 0x1801:01 */
 };
 
-#define MLIP_DRIVE_SETUP_MAX 24
+/* 0x60B8 touch probe function / 0x60B9 status, touch probe 1 (CiA 402) */
+#define MLIP_TP_ENABLE     0x0001u /* function bit 0: switch touch probe 1 on; status bit 0 */
+#define MLIP_TP_CONTINUOUS 0x0002u /* function bit 1: every event (0: the first only) */
+#define MLIP_TP_POS_EDGE   0x0010u /* function bit 4: latch at the positive edge */
+#define MLIP_TP_NEG_EDGE   0x0020u /* function bit 5: latch at the negative edge */
+#define MLIP_TP_POS_STORED 0x0002u /* status bit 1: a positive edge position is stored */
+#define MLIP_TP_NEG_STORED 0x0004u /* status bit 2: a negative edge position is stored */
+
+#define MLIP_DRIVE_SETUP_MAX 40
 
 /* The interpolation time period 0x60C2 as value * 10^index s: value 1..255,
  * index -6..0, exact to 1e-9 relative. MLIP_E_RANGE when no such pair. */
@@ -44,7 +58,8 @@ mlip_status mlip_co_interp_period(double period_s, uint8_t *value, int8_t *index
  * transmission type, mapping 0x6040 + 0x607A, enabled), TPDO1 (disabled,
  * synchronous every SYNC, mapping 0x6041 + 0x6064, enabled), SYNC COB-ID,
  * modes of operation = CSP and its display, interpolation period, following
- * error window, heartbeat producer and consumer. Returns the count, or -1
+ * error window, heartbeat producer and consumer; with touch_probe also
+ * 0x60B8 in RPDO1, 0x60B9 in TPDO1, TPDO2 = 0x60BA + 0x60BB, 0x60B8 = 0. Returns the count, or -1
  * when cap is too small or the period cannot be written. */
 int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out, int cap);
 
@@ -82,6 +97,12 @@ struct mlip_drive_obs {
 	uint64_t hb_ns; /* time of the last heartbeat */
 	struct mlip_emcy emcy;
 	uint32_t emcy_count; /* EMCYs with a non-zero code */
+	/* the touch probe (setup.touch_probe): 0x60B9 of the last TPDO1, the
+	 * latched positions 0x60BA/0x60BB of the last TPDO2, TPDO2s since the
+	 * first SYNC (the n-th answers SYNC n) */
+	uint16_t probe_status;
+	int32_t probe_pos, probe_neg;
+	uint64_t tpdo2_count;
 };
 
 /* What the drive must be doing now. */
