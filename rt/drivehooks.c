@@ -53,6 +53,22 @@ void mlip_drives_observe(struct mlip_drives *ds, const struct mlip_can_frame *f,
 		ds->io.rx_frames++;
 		return;
 	}
+	if (ds->di_axes != 0 && (f->id & 0x780u) == MLIP_CO_TPDO2_BASE) {
+		/* a drive's digital inputs 0x60FD (TPDO2): 4 bytes, or not trusted */
+		int i = mlip_drives_find_node(ds, (uint8_t)(f->id & 0x7Fu));
+		if (i >= 0 && i < ds->n && (ds->di_axes & (1u << i))) {
+			m->kind = MLIP_CO_OTHER;
+			if (f->len != 4 || (f->flags & (MLIP_CAN_FLAG_EFF | MLIP_CAN_FLAG_FD))) {
+				ds->rx_malformed++;
+				return;
+			}
+			ds->io.img.di[i] = (uint32_t)f->data[0] | (uint32_t)f->data[1] << 8 |
+			                   (uint32_t)f->data[2] << 16 | (uint32_t)f->data[3] << 24;
+			ds->io.img.drives_read |= 1u << i;
+			ds->d[i].obs.di_ns = now;
+			return;
+		}
+	}
 	if (mlip_co_classify(f, m) != MLIP_OK) {
 		ds->rx_malformed++;
 		m->kind = MLIP_CO_OTHER;
@@ -177,6 +193,7 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 			continue;
 		}
 		x.window_counts = d->setup.following_window_counts;
+		x.di_timeout_ns = i < ds->n && (ds->di_axes & (1u << i)) ? x.hb_timeout_ns : 0;
 		/* the newest TPDO answers SYNC j = tpdo_count, sent in period j */
 		uint64_t j = d->obs.tpdo_count;
 		x.following_counts = -1;
@@ -200,7 +217,7 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 		 * keeps getting the stop on the path with the others, then the
 		 * disable, instead of stopping dead at once (issue 18) */
 		if (f != MLIP_DRIVE_FOLLOWING_ERROR && f != MLIP_DRIVE_TPDO_LOST &&
-		    f != MLIP_DRIVE_HEARTBEAT_LOST) {
+		    f != MLIP_DRIVE_HEARTBEAT_LOST && f != MLIP_DRIVE_INPUTS_LOST) {
 			ds->mute |= 1u << i;
 		}
 		if (!__atomic_load_n(&ds->fault, __ATOMIC_ACQUIRE)) {
@@ -218,16 +235,22 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 	}
 }
 
-/* Before the controller: supervision against the power its last period
- * left, then its inputs from the drives: the faulted ones (no RPDO),
- * statuswords (its power steps are confirmed by them), positions actual. */
 /* The I/O module's supervision (its heartbeat, NMT state, EMCY: any failure
- * is an E-stop, for good) and the input functions of this period. */
+ * is an E-stop, for good) and the input functions of this period: a drive's
+ * inputs not read within the heartbeat timeout are unknown (its supervision
+ * makes that a fault). */
 static void io_before(struct mlip_drives *ds, uint64_t now, struct mlip_ctl_in *in)
 {
 	const struct mlip_drive_obs *o = &ds->io.obs;
 	uint64_t timeout = (uint64_t)ds->cfg.heartbeat_timeout_ms * 1000000u;
+	for (int i = 0; i < ds->n; i++) {
+		uint64_t at = ds->d[i].obs.di_ns;
+		if ((ds->di_axes & (1u << i)) && now > at && now - at > timeout) {
+			ds->io.img.drives_read &= ~(1u << i);
+		}
+	}
 	if (ds->io.node == 0) {
+		in->io.active = mlip_io_eval(&ds->io_cfg, ds->m, &ds->io.img, &in->io.known);
 		return;
 	}
 	if (ds->io.lost == 0) {
@@ -250,6 +273,9 @@ static void io_before(struct mlip_drives *ds, uint64_t now, struct mlip_ctl_in *
 	in->io.active = mlip_io_eval(&ds->io_cfg, ds->m, &ds->io.img, &in->io.known);
 }
 
+/* Before the controller: supervision against the power its last period
+ * left, then its inputs from the drives: the faulted ones (no RPDO),
+ * statuswords (its power steps are confirmed by them), positions actual. */
 static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl_in *in)
 {
 	struct mlip_drives *ds = ctx;

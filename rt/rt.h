@@ -100,7 +100,7 @@ struct mlip_can_port {
 	uint64_t (*now_ns)(void *ctx);
 };
 
-#define MLIP_CANBUS_MAX_IDS (4 * MLIP_MAX_AXES + 8) /* identifiers a socket receives */
+#define MLIP_CANBUS_MAX_IDS (5 * MLIP_MAX_AXES + 8) /* identifiers a socket receives */
 
 struct mlip_canbus {
 	int fd;
@@ -303,8 +303,10 @@ struct mlip_drives {
 	int shutdown_ok;                /* the last disable in order within the timeouts */
 	struct mlip_ctl_power shutdown; /* which drive did not confirm which step */
 	/* the inputs (issue 18): the CiA 401 I/O module ([IO] NODE; node 0: none)
-	 * and the functions mapped on it */
+	 * and the functions mapped on it or on the drives' 0x60FD */
 	struct mlip_io_config io_cfg;
+	uint32_t di_axes; /* bit k: drive k's digital inputs 0x60FD carry a function:
+	                     read in its TPDO2 (io.img.di[k]) */
 	/* SDO transfers the controller asks for in the loop (homing): one at a
 	 * time, never waited for: the request sent in a period's after hook,
 	 * the answers fed as they come, the result to the next period */
@@ -334,10 +336,13 @@ struct mlip_drives {
 };
 
 /* The identifiers the master receives from the drives of m (SDO answers,
- * heartbeats, EMCY, TPDO1) and from the I/O module io_node (0: none): the
- * bus' receive filter; returns how many. */
+ * heartbeats, EMCY, TPDO1, and TPDO2 of the axes in di_axes) and from the
+ * I/O module io_node (0: none): the bus' receive filter; returns how many. */
 int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint8_t spindle_node,
-                       uint32_t *ids, int cap);
+                       uint32_t di_axes, uint32_t *ids, int cap);
+/* The axes whose drive's digital inputs 0x60FD carry an input function of
+ * cfg (bit k: axis k). */
+uint32_t mlip_drives_di_axes(const struct mlip_config *cfg);
 /* Check the [DRIVES] settings against the machine (master node, following
  * window in counts, period) and fill ds; log gets one line per step. */
 int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,

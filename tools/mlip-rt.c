@@ -633,7 +633,7 @@ static int open_bus(struct app *a, const char *iface)
 		n_ids = mlip_drives_rx_ids(&a->cfg.machine, a->cfg.inputs.node,
 		                           a->cfg.io.spindle == MLIP_IO_CIA402 ? a->cfg.spindle.node
 		                                                               : 0,
-		                           ids, MLIP_CANBUS_MAX_IDS);
+		                           mlip_drives_di_axes(&a->cfg), ids, MLIP_CANBUS_MAX_IDS);
 	}
 	if (mlip_canbus_open(&bus, iface, a->prof == MLIP_CAN_FD, ids, n_ids, info, sizeof(info)) !=
 	    0) {

@@ -106,6 +106,24 @@ def build_od(
 
     pdo("RPDO", 0x1400, 0x200 + node_id, (0x60400010, 0x607A0020))
     pdo("TPDO", 0x1800, 0x180 + node_id, (0x60410010, 0x60640020))
+    # TPDO2: the digital inputs 0x60FD, event driven (on change, and every
+    # event timer ms), invalid until the master enables it
+    record(
+        "TPDO2 communication parameter",
+        0x1801,
+        [
+            ("COB-ID used by TPDO", U32, "rw", PDO_INVALID | 0x280 + node_id),
+            ("Transmission type", U8, "rw", 255),
+            ("Inhibit time", U16, "rw", 0),
+            ("Compatibility entry", U8, "rw", 0),
+            ("Event timer", U16, "rw", 0),
+        ],
+    )
+    r2 = ODRecord("TPDO2 mapping parameter", 0x1A01)
+    r2.add_member(od_var("Number of mapped objects", 0x1A01, 0, U8, "rw", 1))
+    for i, val in enumerate((0x60FD0020, 0, 0, 0), 1):
+        r2.add_member(od_var(f"Mapped object {i}", 0x1A01, i, U32, "rw", val))
+    od.add_object(r2)
 
     add(od_var("Controlword", 0x6040, 0, U16, "rw", 0, True))
     add(od_var("Statusword", 0x6041, 0, U16, "ro", 0x0250, True))
@@ -130,6 +148,10 @@ def build_od(
     add(od_var("Velocity window", 0x606D, 0, U16, "rw", PV_WINDOW_DEFAULT))
     add(od_var("Profile acceleration", 0x6083, 0, U32, "rw", 100000))
     add(od_var("Profile deceleration", 0x6084, 0, U32, "rw", 100000))
+    add(od_var("Quick stop deceleration", 0x6085, 0, U32, "rw", 100000))
+    # bit 0 negative limit switch, 1 positive limit switch, 2 home switch
+    # (from the switches' positions), 16..31 manufacturer specific
+    add(od_var("Digital inputs", 0x60FD, 0, U32, "ro", 0, True))
     add(od_var("Target velocity", 0x60FF, 0, I32, "rw", 0, True))
     # homing mode (6): method, speeds (search, latch), acceleration, offset
     add(od_var("Homing method", 0x6098, 0, I8, "rw", 0))
@@ -157,9 +179,10 @@ def build_od(
 
 
 # objects the cycle reads, cached in Drive.load_params() after each write
-PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A, 0x606D, 0x6083, 0x6084)
+PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A, 0x606D, 0x6083, 0x6084, 0x6085)
 MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0), (0x60FF, 0)}
-MAPPABLE_TX = {(0x6041, 0), (0x6064, 0), (0x6061, 0), (0x60F4, 0), (0x606C, 0)}
+MAPPABLE_TX = {(0x6041, 0), (0x6064, 0), (0x6061, 0), (0x60F4, 0), (0x606C, 0), (0x60FD, 0)}
+MAPPABLE_TX2 = {(0x60FD, 0)}  # TPDO2: the digital inputs only
 
 
 class Recorder:
@@ -253,6 +276,13 @@ class Drive(SimDevice):
         self.refuse: dict[tuple[int, int | None], int] = {}  # (index, sub or None) -> abort
         self.never_enable = False
         self.follow_error_rate = 0.0  # counts added to the lag per SYNC
+        # digital inputs 0x60FD: bits forced by injection (bit -> 0/1), the
+        # TPDO2 silenced (injected), the last sent (value, bus time)
+        self.di_force: dict[int, int] = {}
+        self.di_silent = False
+        self.di_sent: tuple[int, float] | None = None
+        self.di_cob: int | None = None  # TPDO2's COB-ID while operational and valid
+        self.di_event_s = 0.0
         self._pdo_live = False
         self._sync_cob = 0
         self._reset_application()
@@ -280,6 +310,7 @@ class Drive(SimDevice):
         self.cw = 0
         # profile velocity mode (a spindle): counts/s
         self.vel_f = 0.0
+        self.csp_v = 0.0  # CSP: counts/s of the last SYNC's move (a quick stop ramps it down)
         self.vel_target = 0
         self.pending_vel: int | None = None
         self.load_drop = 0.0  # injected: a load the spindle cannot hold (counts/s lost)
@@ -302,6 +333,7 @@ class Drive(SimDevice):
         self.p_pv_window = od(n, 0x606D, "<H")
         self.p_pv_acc = od(n, 0x6083, "<I")
         self.p_pv_dec = od(n, 0x6084, "<I")
+        self.p_qs_dec = od(n, 0x6085, "<I")
 
     def written(self, index: int, sub: int, data: bytes) -> None:
         if index in PARAM_OBJECTS:
@@ -331,10 +363,60 @@ class Drive(SimDevice):
         self._store(0x60F4, 0, "<i", self.target - self.actual)
         self._store(0x6061, 0, "<b", self.mode_display())
         self._store(0x606C, 0, "<i", self.vel_actual())
+        self._store(0x60FD, 0, "<I", self.digital_inputs())
         self._store(0x1001, 0, "B", self.error_register)
 
+    def digital_inputs(self) -> int:
+        """0x60FD: the switches at the position actual, then the forced bits."""
+        v = 0
+        for bit, which in ((0, "neg"), (1, "pos"), (2, "home")):
+            if self._switch_on(which, self.actual):
+                v |= 1 << bit
+        for bit, on in self.di_force.items():
+            v = v | 1 << bit if on else v & ~(1 << bit)
+        return v & 0xFFFFFFFF
+
+    def _send_garbled(self, value: int) -> None:
+        """A TPDO2 one byte short of its mapping (the first 3 bytes of value):
+        what a master must not take."""
+        if self.di_cob is None or not self._pdo_live:
+            raise ValueError("di-garbled: TPDO2 is not configured and operational")
+        data = struct.pack("<I", value & 0xFFFFFFFF)[:3]
+        self.node.network.send_message(self.di_cob, data)
+        self._di_event(value, data, "injected: garbled")
+
+    def _di_event(self, value: int, data: bytes, why: str) -> None:
+        """A TPDO2 sent (events.jsonl "di"): its bus time orders it among the
+        SYNCs' receive times in sync.csv, whatever this simulator's own lag."""
+        self.rec.event(
+            self.id,
+            "di",
+            value=f"0x{value & 0xFFFFFFFF:08X}",
+            data=data.hex(),
+            sync=self.sim.sync_no,
+            t_bus=time.time(),
+            actual=self.actual,
+            why=why,
+        )
+
+    def _send_inputs(self, t: float, why: str) -> None:
+        """TPDO2 (0x60FD) when it is valid and the drive operational: on
+        change, or when the event timer 0x1801:05 ran out since the last."""
+        if not self._pdo_live or self.di_silent or self.di_cob is None:
+            return
+        v = self.digital_inputs()
+        last = self.di_sent
+        ev = self.di_event_s
+        if not (last is None or v != last[0] or (ev > 0 and t - last[1] >= ev)):
+            return
+        data = struct.pack("<I", v)
+        self.node.network.send_message(self.di_cob, data)
+        self.di_sent = (v, t)
+        if last is None or v != last[0]:
+            self._di_event(v, data, why)
+
     def _on_read(self, index: int, subindex: int, od: ODVariable) -> None:
-        if index in (0x6041, 0x6064, 0x60F4, 0x6061, 0x1001, 0x606C):
+        if index in (0x6041, 0x6064, 0x60F4, 0x6061, 0x1001, 0x606C, 0x60FD):
             self._publish()
         # then the stored data
 
@@ -376,19 +458,19 @@ class Drive(SimDevice):
             net.subscribe(self._sync_cob, self._on_sync)
         elif index == 0x1016 and subindex >= 1:
             self._consumer(subindex, val)
-        elif index in (0x1400, 0x1800) and subindex == 1:
+        elif index in (0x1400, 0x1800, 0x1801) and subindex == 1:
             self.check_cob_id(index, val)
-        elif index in (0x1600, 0x1A00):
+        elif index in (0x1600, 0x1A00, 0x1A01):
             self._check_mapping(index, subindex, val)
 
     def _check_mapping(self, index: int, sub: int, val: int) -> None:
-        com = 0x1400 if index == 0x1600 else 0x1800
+        com = {0x1600: 0x1400, 0x1A00: 0x1800, 0x1A01: 0x1801}[index]
         valid = not self.sim.od_u32(self.node, com, 1) & PDO_INVALID
         n_now = self.sim.od_int(self.node, index, "B", 0)
         if valid or (sub >= 1 and n_now != 0):
             # CiA 301: disable the PDO, set sub 0 to 0, write the entries, set sub 0
             raise SdoAbortedError(0x06010000)
-        allowed = MAPPABLE_RX if index == 0x1600 else MAPPABLE_TX
+        allowed = {0x1600: MAPPABLE_RX, 0x1A00: MAPPABLE_TX, 0x1A01: MAPPABLE_TX2}[index]
         if sub >= 1:
             if val and ((val >> 16, (val >> 8) & 0xFF) not in allowed):
                 if (val >> 16) not in self.node.object_dictionary:
@@ -528,6 +610,15 @@ class Drive(SimDevice):
             },
         )
         self._pdo_live = True
+        self.di_sent = None
+        # TPDO2 as the master configured it: valid and mapping 0x60FD alone
+        # (the only mapping it takes), read once here, not per SYNC
+        cob2 = self.od_u32(0x1801, 1)
+        n2 = self.sim.od_int(self.node, 0x1A01, "B", 0)
+        ok = not cob2 & PDO_INVALID and n2 == 1 and self.od_u32(0x1A01, 1) == 0x60FD0020
+        self.di_cob = cob2 & 0x7FF if ok else None
+        self.di_event_s = self.sim.od_int(self.node, 0x1801, "<H", 5) / 1000.0
+        self._send_inputs(time.time(), "operational")  # the inputs once on entering it
 
     @staticmethod
     def _codec(pdo: PdoMap) -> list[tuple[int, int, struct.Struct]]:
@@ -554,6 +645,7 @@ class Drive(SimDevice):
                 net.unsubscribe(self.rpdo.cob_id, self.rpdo.on_message)
             self.rpdo.callbacks.clear()
         self._pdo_live = False
+        self.di_sent = None
         self.pending_target = self.pending_cw = self.pending_vel = None
 
     def _on_rpdo(self, m: PdoMap) -> None:
@@ -665,7 +757,10 @@ class Drive(SimDevice):
                 self._set_state(P.SWITCH_ON_DISABLED, why)  # 7, 10
             elif s == P.OPERATION_ENABLED:
                 self._set_state(P.QUICK_STOP, why)  # 11
-                if self.p_quick_stop in (1, 2, 3, 4):
+                moving = self.csp_v != 0.0
+                if moving and self.mode() == P.MODE_CSP and self.p_quick_stop in (1, 2, 5, 6):
+                    pass  # brakes on its ramp at the SYNCs (_quick_stop_ramp), then 12
+                elif self.p_quick_stop in (1, 2, 3, 4):
                     self._set_state(P.SWITCH_ON_DISABLED, "quick stop done")  # 12
         elif cmd == "shutdown":
             if s in (P.SWITCH_ON_DISABLED, P.SWITCHED_ON, P.OPERATION_ENABLED):
@@ -742,14 +837,37 @@ class Drive(SimDevice):
             if tgt is not None:
                 self.target = tgt
             self.fe_extra += self.follow_error_rate
+            before = self.actual_f
             self.actual_f += self.lag_alpha * (self.target - self.actual_f)
+            self.csp_v = (self.actual_f - before) / (self.p_period_ms / 1000.0)
             self.actual = int(round(self.actual_f - self.fe_extra))
             self._following(self.target - self.actual)
+        elif self.state == P.QUICK_STOP and self.mode() == P.MODE_CSP:
+            self._quick_stop_ramp()
+        else:
+            self.csp_v = 0.0
+        self._send_inputs(t, "change")
         if self.mode() == MODE_PV:
             fresh = tgt is not None
             self._velocity()
             sent = vel  # a pv drive's row: target and actual velocities, counts/s
         self.rec.sync((sync_no, self.id, t, self.state, self.cw, tgt, fresh, sent, sw))
+
+    def _quick_stop_ramp(self) -> None:
+        """CSP quick stop (0x605A 1/2: the profile deceleration 0x6084 /
+        the quick stop deceleration 0x6085, then switch on disabled; 5/6:
+        the same, staying in quick stop active): the axis brakes from its
+        speed on the drive's own ramp, whatever the master sends."""
+        per_s = self.p_period_ms / 1000.0
+        dec = self.p_pv_dec if self.p_quick_stop in (1, 5) else self.p_qs_dec
+        v = self.csp_v
+        step = dec * per_s
+        v = 0.0 if abs(v) <= step else v - step * (1 if v > 0 else -1)
+        self.actual_f += v * per_s
+        self.actual = int(round(self.actual_f - self.fe_extra))
+        self.csp_v = v
+        if v == 0.0 and self.p_quick_stop in (1, 2):
+            self._set_state(P.SWITCH_ON_DISABLED, "quick stop done")  # 12
 
     def vel_actual(self) -> int:
         return int(round(self.vel_f - self.load_drop))
@@ -891,6 +1009,23 @@ class Drive(SimDevice):
             # a spindle drive: ARG counts/s of its velocity lost to a load it cannot
             # hold (0: none); the ramp goes on, what it reports drops
             self.load_drop = float(arg or "0")
+        elif what == "di":
+            # the digital input BIT of 0x60FD forced to 0 or 1 (auto: from the
+            # switches again): BIT=0|1|auto
+            bit_s, _, val = (arg or "").partition("=")
+            bit = int(bit_s, 0)
+            if not 0 <= bit <= 31 or val not in ("0", "1", "auto"):
+                raise ValueError(f"di '{arg}': expected BIT=0|1|auto, BIT 0..31")
+            if val == "auto":
+                self.di_force.pop(bit, None)
+            else:
+                self.di_force[bit] = int(val)
+            self._publish()
+            self._send_inputs(time.time(), f"injected di {arg}")
+        elif what == "di-silent":
+            self.di_silent = arg != "off"  # TPDO2 no longer sent (stale inputs)
+        elif what == "di-garbled":
+            self._send_garbled(int(arg, 0) if arg else self.digital_inputs())
         elif what == "homing-stall":
             self.home_stall = arg != "off"  # a homing that never ends (a timeout)
         elif what == "never-enable":

@@ -89,7 +89,7 @@ static void peer_init(struct peer *p, uint8_t node, int state, int32_t pos)
 	            {0x1800, 1, 4}, {0x1800, 2, 1}, {0x1A00, 0, 1}, {0x1A00, 1, 4}, {0x1A00, 2, 4},
 	            {0x1005, 0, 4}, {0x6060, 0, 1}, {0x6061, 0, 1}, {0x60C2, 1, 1}, {0x60C2, 2, 1},
 	            {0x6065, 0, 4}, {0x1017, 0, 2}, {0x1016, 1, 4}, {0x6040, 0, 2}, {0x6041, 0, 2},
-	            {0x6064, 0, 4}, {0x607A, 0, 4}};
+	            {0x6064, 0, 4}, {0x607A, 0, 4}, {0x6085, 0, 4}};
 	memset(p, 0, sizeof(*p));
 	p->node = node;
 	p->present = 1;
@@ -279,6 +279,7 @@ static const struct mlip_can_port port = {NULL, port_send, port_recv, port_now};
 /* ---- fixtures ------------------------------------------------------------------- */
 
 static struct mlip_config cfg;
+static uint32_t di_send, di_val[NP]; /* drives sending TPDO2 (0x60FD) every 100 ms */
 static struct mlip_drives ds;
 static char why[320];
 static char logbuf[8192];
@@ -316,6 +317,8 @@ static int setup(void **state)
 	peers[2].ever_enabled = 0;
 	memset(&peers[NP], 0, sizeof(peers[NP])); /* no spindle */
 	q_head = q_tail = 0;
+	di_send = 0;
+	memset(di_val, 0, sizeof(di_val));
 	now_ns = 1000000000u;
 	logbuf[0] = '\0';
 	why[0] = '\0';
@@ -373,6 +376,8 @@ static void test_bringup_three(void **state)
 		assert_int_equal(od_find(p, 0x60C2, 1)->value, 1);
 		assert_int_equal(od_find(p, 0x60C2, 2)->value, 0xFD);
 		assert_int_equal(od_find(p, 0x6065, 0)->value, 1000);
+		/* quick stop on the drive's ramp at the axis' 1000 mm/s^2 */
+		assert_int_equal(od_find(p, 0x6085, 0)->value, 1000000);
 		assert_int_equal(od_find(p, 0x1017, 0)->value, 100);
 		assert_int_equal(od_find(p, 0x1016, 1)->value, (127u << 16) | 300u);
 		/* the target was set to the position before operation was enabled */
@@ -440,7 +445,7 @@ static void test_bringup_spindle(void **state)
 		assert_int_equal(peers[i].state, P_OE);
 	}
 	uint32_t ids[MLIP_CANBUS_MAX_IDS];
-	int n = mlip_drives_rx_ids(&cfg.machine, 0, 5, ids, MLIP_CANBUS_MAX_IDS);
+	int n = mlip_drives_rx_ids(&cfg.machine, 0, 5, 0, ids, MLIP_CANBUS_MAX_IDS);
 	assert_int_equal(n, 16);
 	assert_int_equal(ids[12], 0x585u);
 	assert_int_equal(ids[15], 0x185u);
@@ -560,7 +565,8 @@ static void loop_setup(double *start)
 	                          .lookahead = 16,
 	                          .can = &cfg.can,
 	                          .drives = 1,
-	                          .drive_state_periods = 1000};
+	                          .drive_state_periods = 1000,
+	                          .io = &cfg.inputs};
 	struct mlip_period_hooks hooks;
 	mlip_drives_hooks(&ds, &hooks);
 	assert_int_equal(mlip_period_init(&ctl, &planner, &m, &o, ring, &port, &hooks), 0);
@@ -617,6 +623,13 @@ static int period(void)
 		push(&f);
 		if (cycle % 100 == 0 && !(silent & (1u << i))) {
 			peer_hb(p);
+		}
+		if (cycle % 100 == 0 && (di_send & (1u << i))) {
+			memset(&f, 0, sizeof(f));
+			f.id = 0x280u + p->node;
+			f.len = 4;
+			memcpy(f.data, &di_val[i], 4); /* little-endian host, as CANopen */
+			push(&f);
 		}
 	}
 	struct mlip_rt_tick t = {.cycle = cycle++};
@@ -1055,6 +1068,99 @@ static void test_loop_enable_fails(void **state)
 	free(mem);
 }
 
+/* Switches on the drives (issue 18): X's positive limit on drive 1's 0x60FD
+ * bit 1, Y's negative on drive 2's bit 0, no I/O module. At bring-up TPDO2
+ * is mapped (each write read back) and 0x60FD read once by SDO; in the loop
+ * a TPDO2 sets the input in the period it is read; a garbled one (3 bytes)
+ * is counted and changes nothing; a drive whose TPDO2 stops is a fault
+ * after the heartbeat timeout, its inputs unknown. */
+static void test_loop_drive_inputs(void **state)
+{
+	double start[NP];
+	(void)state;
+	cfg.inputs.in[MLIP_IN_LIMIT_POS(0)] = (struct mlip_io_bit){1, 0, 0x60FD, 1, 0, 10};
+	cfg.inputs.in[MLIP_IN_LIMIT_NEG(1)] = (struct mlip_io_bit){2, 0, 0x60FD, 0, 0, 11};
+	cfg.inputs.mapped = 1u << MLIP_IN_LIMIT_POS(0) | 1u << MLIP_IN_LIMIT_NEG(1);
+	for (int i = 0; i < 2; i++) {
+		static const struct {
+			uint16_t i;
+			uint8_t s, n;
+		} objs[] = {{0x1801, 1, 4}, {0x1801, 2, 1}, {0x1801, 5, 2},
+		            {0x1A01, 0, 1}, {0x1A01, 1, 4}, {0x60FD, 0, 4}};
+		for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
+			od_add(&peers[i], objs[k].i, objs[k].s, objs[k].n, 0);
+		}
+	}
+	od_find(&peers[1], 0x60FD, 0)->value = 0x00010001u; /* Y- on at power-up, a mfr bit */
+	assert_int_equal(mlip_drives_di_axes(&cfg), 3u);
+	loop_setup(start);
+	for (int i = 0; i < 2; i++) {
+		struct peer *p = &peers[i];
+		assert_int_equal(od_find(p, 0x1801, 1)->value, 0x40000280u + p->node);
+		assert_int_equal(od_find(p, 0x1801, 2)->value, 255);
+		assert_int_equal(od_find(p, 0x1801, 5)->value, 100);
+		assert_int_equal(od_find(p, 0x1A01, 0)->value, 1);
+		assert_int_equal(od_find(p, 0x1A01, 1)->value, 0x60FD0020u);
+	}
+	uint32_t v = 0;
+	assert_int_equal(writes_of(&peers[2], 0x1801, 1, &v), 0); /* Z: no switches on it */
+	assert_non_null(strstr(logbuf, "node 2 (axis Y): digital inputs 0x60FD = 0x00010001"));
+	uint32_t ids[MLIP_CANBUS_MAX_IDS];
+	int n = mlip_drives_rx_ids(&cfg.machine, 0, 0, 3u, ids, MLIP_CANBUS_MAX_IDS);
+	assert_int_equal(n, 14);
+	assert_int_equal(ids[4], 0x281u);
+	assert_int_equal(ids[9], 0x282u);
+	di_send = 3u;
+	di_val[1] = 0x00010001u;
+	period();
+	const struct mlip_ring_status *st = &ctl.out.status;
+	uint32_t xpos = 1u << MLIP_IN_LIMIT_POS(0), yneg = 1u << MLIP_IN_LIMIT_NEG(1);
+	assert_int_equal(st->io_known, xpos | yneg);
+	assert_int_equal(st->io_inputs, yneg); /* from the SDO read: at rest, no stop */
+	for (int k = 0; k < 150; k++) {
+		period();
+	}
+	di_val[1] = 0;
+	di_val[0] = 0x2u;
+	/* a TPDO2 read in this period: its input in this period's status */
+	struct mlip_can_frame f;
+	memset(&f, 0, sizeof(f));
+	f.id = 0x281;
+	f.len = 4;
+	f.data[0] = 0x2;
+	push(&f);
+	period();
+	assert_int_equal(st->io_inputs & xpos, xpos);
+	uint64_t bad = ds.rx_malformed;
+	f.len = 3;
+	f.data[0] = 0x0; /* garbled: would release it */
+	push(&f);
+	period();
+	assert_int_equal(ds.rx_malformed, bad + 1);
+	assert_int_equal(st->io_inputs & xpos, xpos);
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
+	/* Y's drive stops sending its inputs */
+	di_send = 1u;
+	uint64_t last = ds.d[1].obs.di_ns;
+	int k;
+	for (k = 0; k < 1000 && !__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE); k++) {
+		period();
+	}
+	assert_int_equal(ds.fault_reason, MLIP_DRIVE_INPUTS_LOST);
+	assert_int_equal(ds.fault_drive, 1);
+	assert_true(now_ns - last > 300000000u && now_ns - last <= 302000000u);
+	assert_int_equal(st->state, MLIP_STATE_FAULT);
+	assert_int_equal(st->reason, MLIP_WHY_DRIVE);
+	assert_int_equal(st->reason_node, 2);
+	assert_int_equal(st->reason_field, MLIP_DRIVE_INPUTS_LOST);
+	assert_int_equal(st->io_known, xpos); /* Y's limit: unknown now */
+	/* it still gets targets (the stop on the path): not muted */
+	uint16_t cw;
+	int32_t t;
+	assert_int_equal(rpdo_of(1, &cw, &t), 1);
+	free(mem);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1065,6 +1171,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_never_enabled, setup),
 	    cmocka_unit_test_setup(test_beyond_limit, setup),
 	    cmocka_unit_test_setup(test_loop_shutdown, setup),
+	    cmocka_unit_test_setup(test_loop_drive_inputs, setup),
 	    cmocka_unit_test_setup(test_loop_fault_bit, setup),
 	    cmocka_unit_test_setup(test_loop_following_error, setup),
 	    cmocka_unit_test_setup(test_loop_heartbeat_and_emcy, setup),

@@ -32,9 +32,19 @@ struct mlip_drive_setup {
 	 * no 0x6065 */
 	int velocity;
 	uint32_t accel_counts_s2; /* 0x6083 profile acceleration = 0x6084 deceleration */
+	/* an axis: 0x6085 quick stop deceleration (counts/s^2, the axis'
+	 * MAX_ACCELERATION): an E-stop or a limit brakes each axis within its
+	 * acceleration limit on the drive's own ramp; 0: not written */
+	uint32_t quick_stop_counts_s2;
+	/* the drive's digital inputs 0x60FD (issue 18: limit and home switches
+	 * wired to the drive) in TPDO2 on change, and at least every di_event_ms
+	 * (event timer 0x1801:05: a silent TPDO2 is a lost one); 0: no TPDO2 */
+	uint32_t di_tpdo_cob;
+	uint16_t di_event_ms;
 };
 
-#define MLIP_DRIVE_SETUP_MAX 24
+#define MLIP_DRIVE_SETUP_MAX 32
+#define MLIP_CO_TPDO2_BASE   0x280u /* the pre-defined connection set's TPDO2 */
 
 /* The interpolation time period 0x60C2 as value * 10^index s: value 1..255,
  * index -6..0, exact to 1e-9 relative. MLIP_E_RANGE when no such pair. */
@@ -42,9 +52,11 @@ mlip_status mlip_co_interp_period(double period_s, uint8_t *value, int8_t *index
 
 /* The set-up of one drive, in the order it is written: RPDO1 (disabled,
  * transmission type, mapping 0x6040 + 0x607A, enabled), TPDO1 (disabled,
- * synchronous every SYNC, mapping 0x6041 + 0x6064, enabled), SYNC COB-ID,
- * modes of operation = CSP and its display, interpolation period, following
- * error window, heartbeat producer and consumer. Returns the count, or -1
+ * synchronous every SYNC, mapping 0x6041 + 0x6064, enabled), with
+ * di_tpdo_cob TPDO2 (disabled, type 255 on change, event timer, mapping
+ * 0x60FD, enabled), SYNC COB-ID, modes of operation = CSP and its display,
+ * interpolation period, following error window, quick stop deceleration
+ * (when set), heartbeat producer and consumer. Returns the count, or -1
  * when cap is too small or the period cannot be written. */
 int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out, int cap);
 
@@ -67,9 +79,11 @@ typedef enum {
 	/* a spindle (issue 19, mlip/ctl/spindlectl.h): value its actual rpm */
 	MLIP_DRIVE_SPINDLE_TIMEOUT,     /* not at speed (or at rest) within AT_SPEED_TIMEOUT */
 	MLIP_DRIVE_SPINDLE_OUT_OF_BAND, /* at speed, then out of AT_SPEED_BAND for BAND_TIME */
-	MLIP_DRIVE_POWER_STEP /* another step toward power (shutdown, disable voltage, fault
-	                         reset, waiting) not confirmed in time; value step
-	                         (mlip_drive_power) * 65536 + statusword */
+	MLIP_DRIVE_POWER_STEP, /* another step toward power (shutdown, disable voltage, fault
+	                          reset, waiting) not confirmed in time; value step
+	                          (mlip_drive_power) * 65536 + statusword */
+	MLIP_DRIVE_INPUTS_LOST /* no TPDO2 (digital inputs 0x60FD) within the heartbeat
+	                          timeout: its limit switches cannot be read; value ms */
 } mlip_drive_fault;
 
 /* What the bus last said about one drive (filled from mlip_co_classify). */
@@ -82,6 +96,7 @@ struct mlip_drive_obs {
 	uint64_t hb_ns; /* time of the last heartbeat */
 	struct mlip_emcy emcy;
 	uint32_t emcy_count; /* EMCYs with a non-zero code */
+	uint64_t di_ns;      /* time its digital inputs 0x60FD were last read (TPDO2) */
 };
 
 /* What the drive must be doing now. */
@@ -89,6 +104,7 @@ struct mlip_drive_expect {
 	uint64_t now_ns;
 	uint64_t cycle;           /* this period */
 	uint64_t hb_timeout_ns;   /* 0: heartbeat not watched */
+	uint64_t di_timeout_ns;   /* 0: its digital inputs not read (no TPDO2) */
 	uint32_t tpdo_timeout;    /* periods without a TPDO that make it lost */
 	uint32_t window_counts;   /* 0x6065 */
 	int64_t following_counts; /* mlip_drive_following_error, or -1: unknown */
