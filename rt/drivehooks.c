@@ -44,6 +44,9 @@ void mlip_drives_observe(struct mlip_drives *ds, const struct mlip_can_frame *f,
 	if (ds->io.node != 0 && f->id == MLIP_CO_TPDO1_BASE + ds->io.node) {
 		/* the module's inputs, on change: its own length (not a drive's) */
 		m->kind = MLIP_CO_OTHER;
+		if (ds->io.lost != 0 && ds->io.re.phase != MLIP_IO_RE_START) {
+			return; /* lost: not trusted until it is configured again */
+		}
 		if (f->len != ds->io.setup.in_bytes) {
 			ds->rx_malformed++;
 			return;
@@ -84,6 +87,9 @@ void mlip_drives_observe(struct mlip_drives *ds, const struct mlip_can_frame *f,
 	case MLIP_CO_HEARTBEAT:
 		o->nmt_state = m->nmt_state;
 		o->hb_ns = now;
+		if (i < 0 && m->nmt_state == MLIP_NMT_BOOTUP) {
+			ds->io.bootup_ns = now; /* the module (re)booted */
+		}
 		break;
 	case MLIP_CO_EMCY:
 		if (m->emcy.code != 0) {
@@ -119,6 +125,10 @@ static void hook_rx(void *ctx, const struct mlip_can_frame *f, uint64_t cycle, u
 	struct mlip_can_frame req;
 	ds->rx_frames++;
 	mlip_drives_observe(ds, f, now, cycle + 1, &m);
+	if (m.kind == MLIP_CO_SDO && ds->io.node != 0 && m.node == ds->io.node) {
+		mlip_io_module_sdo(ds, f, now); /* its reconfiguration's transfer */
+		return;
+	}
 	if (m.kind != MLIP_CO_SDO || !ds->sdo.busy || m.node != ds->sdo.s.node) {
 		return;
 	}
@@ -236,12 +246,12 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 }
 
 /* The I/O module's supervision (its heartbeat, NMT state, EMCY: any failure
- * is an E-stop, for good) and the input functions of this period: a drive's
+ * is an E-stop until it is reconfigured, rt/iomodule.c) and the input
+ * functions of this period: a drive's
  * inputs not read within the heartbeat timeout are unknown (its supervision
  * makes that a fault). */
 static void io_before(struct mlip_drives *ds, uint64_t now, struct mlip_ctl_in *in)
 {
-	const struct mlip_drive_obs *o = &ds->io.obs;
 	uint64_t timeout = (uint64_t)ds->cfg.heartbeat_timeout_ms * 1000000u;
 	for (int i = 0; i < ds->n; i++) {
 		uint64_t at = ds->d[i].obs.di_ns;
@@ -253,18 +263,7 @@ static void io_before(struct mlip_drives *ds, uint64_t now, struct mlip_ctl_in *
 		in->io.active = mlip_io_eval(&ds->io_cfg, ds->m, &ds->io.img, &in->io.known);
 		return;
 	}
-	if (ds->io.lost == 0) {
-		if (now > o->hb_ns && now - o->hb_ns > timeout) {
-			ds->io.lost = MLIP_DRIVE_HEARTBEAT_LOST;
-			ds->io.lost_value = (double)(now - o->hb_ns) * 1e-6;
-		} else if (o->nmt_state != MLIP_NMT_OPERATIONAL) {
-			ds->io.lost = MLIP_DRIVE_NOT_OPERATIONAL;
-			ds->io.lost_value = o->nmt_state;
-		} else if (o->emcy_count > 0) {
-			ds->io.lost = MLIP_DRIVE_EMCY;
-			ds->io.lost_value = o->emcy.code;
-		}
-	}
+	mlip_io_module_period(ds, now);
 	if (ds->io.lost != 0) {
 		in->io.lost.event = ds->io.lost;
 		in->io.lost.node = ds->io.node;
@@ -327,7 +326,7 @@ static void hook_after(void *ctx, uint64_t cycle, uint64_t now, const struct mli
 	sdo_after(ds, now, out);
 	/* the module's outputs: when they change, and every 100 ms (a module that
 	 * missed one frame catches up) */
-	if (ds->io.node != 0 && ds->io.setup.out_bytes > 0 &&
+	if (ds->io.node != 0 && ds->io.setup.out_bytes > 0 && ds->io.lost == 0 &&
 	    (ds->io.sent_ns == 0 || now - ds->io.sent_ns >= 100000000u ||
 	     memcmp(ds->io.sent, out->outputs, ds->io.setup.out_bytes) != 0)) {
 		struct mlip_can_frame f;

@@ -225,6 +225,15 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 		ds->io.setup.heartbeat_ms = (uint16_t)cfg->drives.heartbeat_ms;
 		ds->io.setup.master_node = cfg->drives.master_node;
 		ds->io.setup.master_timeout_ms = (uint16_t)cfg->drives.heartbeat_timeout_ms;
+		/* what a reconfiguration writes after a loss (rt/iomodule.c) */
+		ds->io.re.n =
+		    mlip_io401_setup_entries(&ds->io.setup, ds->io.re.e, MLIP_IO401_SETUP_MAX);
+		if (ds->io.re.n < 0) {
+			snprintf(why, why_len,
+			         "[IO]: %u input and %u output bytes: not 1..8 and 0..8",
+			         ds->io.setup.in_bytes, ds->io.setup.out_bytes);
+			return -EINVAL;
+		}
 	}
 	if (cfg->io.spindle == MLIP_IO_CIA402) {
 		/* the spindle: d[n], one more drive of the group (issue 19) */

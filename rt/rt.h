@@ -328,12 +328,44 @@ struct mlip_drives {
 		struct mlip_io_image img;       /* what the bus said of the inputs */
 		uint8_t sent[MLIP_IO_IN_BYTES]; /* the outputs last sent */
 		uint64_t sent_ns;               /* when (0: never) */
-		uint32_t lost;                  /* mlip_drive_fault: the module failed (for good:
-		                                   it reboots unconfigured; restart mlip-rt) */
+		uint32_t lost; /* mlip_drive_fault: the module failed (an E-stop); its inputs
+		                  are unknown and its TPDOs ignored until it is reconfigured */
 		double lost_value;
+		uint64_t lost_ns;   /* when (or when a reconfiguration last failed) */
+		uint64_t bootup_ns; /* its last boot-up message */
 		uint64_t rx_frames;
+		/* the module back after a loss (a heartbeat newer than it): NMT
+		 * reset communication, its boot-up, the set-up entries written and
+		 * read back, its inputs read, NMT start, operational: then `lost` is
+		 * cleared (rt/iomodule.c). One SDO at a time, never waited for */
+		struct {
+			int phase; /* MLIP_IO_RE_*; 0: none */
+			int k;     /* the entry (or input byte) being run */
+			int readback;
+			int busy, done; /* an SDO answer awaited / come */
+			struct mlip_sdo s;
+			uint32_t abort, value;
+			uint64_t t0_ns, deadline_ns;
+			struct mlip_sdo_entry e[MLIP_IO401_SETUP_MAX];
+			int n;
+			uint32_t count, failed; /* reconfigurations done / attempts failed */
+			uint32_t fail_abort;    /* the last failed one: abort code (0: timeout) */
+			uint16_t fail_index;    /* and object */
+			uint8_t fail_sub;
+		} re;
 	} io;
 };
+
+/* The steps of the I/O module's reconfiguration after a loss (io.re.phase) */
+enum { MLIP_IO_RE_NONE, MLIP_IO_RE_BOOT, MLIP_IO_RE_SDO, MLIP_IO_RE_INPUTS, MLIP_IO_RE_START };
+
+/* The I/O module after a loss (rt/iomodule.c), in the loop's before hook:
+ * its reconfiguration stepped on (one frame out at most), then whether it
+ * is lost. */
+void mlip_io_module_period(struct mlip_drives *ds, uint64_t now);
+/* An SDO answer from the module, in the loop's receive hook: fed to the
+ * reconfiguration's transfer. */
+void mlip_io_module_sdo(struct mlip_drives *ds, const struct mlip_can_frame *f, uint64_t now);
 
 /* The identifiers the master receives from the drives of m (SDO answers,
  * heartbeats, EMCY, TPDO1, and TPDO2 of the axes in di_axes) and from the

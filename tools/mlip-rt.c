@@ -215,7 +215,8 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			    stderr,
 			    PROG ": E-stop: the I/O module (node %u) is lost: %s: %s, period %llu, "
 			         "block %llu (line %u): quick stop to every drive, the program "
-			         "dropped; restart mlip-rt (the module reboots unconfigured)\n",
+			         "dropped; once it is heard again mlip configures it anew, then "
+			         "mlip-ctl reset\n",
 			    (unsigned)r->node, mlip_drive_fault_name((mlip_drive_fault)r->field),
 			    what, (unsigned long long)e->period, seq, line);
 		} else {
@@ -885,6 +886,17 @@ static void drives_report(void)
 		fprintf(stderr,
 		        PROG ": drives: node%s faulted: left in the drive's own fault reaction\n",
 		        faulted);
+	}
+	if (drives.io.re.count > 0 || drives.io.re.failed > 0) {
+		fprintf(stderr,
+		        PROG ": I/O module node %u: reconfigured %u time(s) after a loss, %u "
+		             "attempt(s) failed (last: 0x%04X:%02X, %s)\n",
+		        drives.io.node, drives.io.re.count, drives.io.re.failed,
+		        drives.io.re.fail_index, drives.io.re.fail_sub,
+		        drives.io.re.failed == 0 ? "-"
+		        : drives.io.re.fail_abort == 0
+		            ? "no answer in time"
+		            : mlip_sdo_abort_text(drives.io.re.fail_abort));
 	}
 	if (drives.shutdown_ok) {
 		fprintf(stderr, PROG ": drives disabled in order (disable operation, shutdown) "

@@ -217,7 +217,8 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
         help="a CiA 401 I/O module at NODE on the same bus (mlipcan.io401; injections "
         "NODE:input=BYTE.BIT=0|1, probe=BYTE.BIT,DRIVE,COUNTS,below|above (the input "
         "follows that drive's position against a surface; probe=off), heartbeat=off|on, "
-        "fault[=CODE], absent, present); its outputs at every SYNC in RECORD/io.csv",
+        "fault[=CODE], reboot (a power cycle: defaults, outputs off, boot-up), absent, "
+        "present); its outputs at every SYNC in RECORD/io.csv",
     )
     ap.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     ap.add_argument("--write-eds", metavar="FILE", help="export a drive's object dictionary, exit")

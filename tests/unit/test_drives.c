@@ -224,9 +224,16 @@ static void peer_hb(struct peer *p)
 
 /* ---- the port --------------------------------------------------------------- */
 
+static struct mlip_can_frame module_out; /* the last RPDO to node 10 (the module) */
+static int n_module_out;
+
 static int port_send(void *ctx, const struct mlip_can_frame *f)
 {
 	(void)ctx;
+	if (f->id == 0x20Au) {
+		module_out = *f;
+		n_module_out++;
+	}
 	for (int i = 0; i < NP + 1; i++) {
 		struct peer *p = &peers[i];
 		if (!p->present) {
@@ -279,6 +286,7 @@ static const struct mlip_can_port port = {NULL, port_send, port_recv, port_now};
 /* ---- fixtures ------------------------------------------------------------------- */
 
 static struct mlip_config cfg;
+static int keep_queue;               /* answers sent in a period's hooks are read in the next */
 static uint32_t di_send, di_val[NP]; /* drives sending TPDO2 (0x60FD) every 100 ms */
 static struct mlip_drives ds;
 static char why[320];
@@ -318,6 +326,8 @@ static int setup(void **state)
 	memset(&peers[NP], 0, sizeof(peers[NP])); /* no spindle */
 	q_head = q_tail = 0;
 	di_send = 0;
+	keep_queue = 0;
+	n_module_out = 0;
 	memset(di_val, 0, sizeof(di_val));
 	now_ns = 1000000000u;
 	logbuf[0] = '\0';
@@ -632,10 +642,15 @@ static int period(void)
 			push(&f);
 		}
 	}
+	if (peers[NP].present && peers[NP].node == 10 && cycle % 100 == 0) {
+		peer_hb(&peers[NP]); /* the I/O module's heartbeat */
+	}
 	struct mlip_rt_tick t = {.cycle = cycle++};
 	now_ns += 1000000;
 	int r = mlip_period_tick(&ctl, &t);
-	q_head = q_tail; /* what the master did not read is gone */
+	if (!keep_queue) {
+		q_head = q_tail; /* what the master did not read is gone */
+	}
 	return r;
 }
 
@@ -1161,6 +1176,132 @@ static void test_loop_drive_inputs(void **state)
 	free(mem);
 }
 
+/* A CiA 401 module as node 10 in peers[NP]: inputs byte 1 (bit 0: the
+ * E-stop circuit, closed), outputs byte 1, its default PDOs. */
+static void module_init(struct peer *p, int with_defaults)
+{
+	static const struct {
+		uint16_t i;
+		uint8_t s, n;
+		uint32_t v;
+	} objs[] = {
+	    {0x1000, 0, 4, 0x00030191u}, {0x1400, 1, 4, 0x20Au},      {0x1400, 2, 1, 255},
+	    {0x1600, 0, 1, 1},           {0x1600, 1, 4, 0x62000108u}, {0x1800, 1, 4, 0x18Au},
+	    {0x1800, 2, 1, 255},         {0x1A00, 0, 1, 1},           {0x1A00, 1, 4, 0x60000108u},
+	    {0x1017, 0, 2, 0},           {0x1016, 1, 4, 0},           {0x6000, 1, 1, 1}};
+	if (with_defaults) {
+		memset(p, 0, sizeof(*p));
+		p->node = 10;
+		p->present = 1;
+		p->nmt = MLIP_NMT_PREOPERATIONAL;
+		for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
+			od_add(p, objs[k].i, objs[k].s, objs[k].n, objs[k].v);
+		}
+		return;
+	}
+	for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
+		od_find(p, objs[k].i, objs[k].s)->value = objs[k].v; /* power-up defaults */
+	}
+}
+
+static int32_t post(mlip_ring_cmd_op op)
+{
+	uint32_t seq = 0;
+	int32_t res = 0;
+	assert_int_equal(mlip_ring_cmd_post(ctl.ring, op, 0, &seq), MLIP_OK);
+	period();
+	assert_int_equal(mlip_ring_cmd_result(ctl.ring, seq, &res), MLIP_OK);
+	return res;
+}
+
+/* The I/O module reboots (its boot-up message, then pre-operational with
+ * its default PDOs and no heartbeat consumer): an E-stop in that period,
+ * its inputs no longer trusted (unknown), no RPDO sent to it; at its next
+ * heartbeat mlip resets its communication, writes and reads back its
+ * set-up again, reads its inputs and starts it; then its inputs are known
+ * again, its outputs are sent (off) and mlip-ctl reset leaves the E-stop.
+ * An SDO refused during the reconfiguration fails it; it is tried again at
+ * the module's next heartbeat. */
+static void test_loop_module_reboot(void **state)
+{
+	double start[NP];
+	(void)state;
+	cfg.inputs.node = 10;
+	cfg.inputs.in_bytes = 1;
+	cfg.inputs.out_bytes = 1;
+	cfg.inputs.in[MLIP_IN_ESTOP] = (struct mlip_io_bit){10, 1, 0x6000, 0, 1, 10};
+	cfg.inputs.mapped = 1u << MLIP_IN_ESTOP;
+	cfg.inputs.out[MLIP_OUT_DOUT0] = (struct mlip_io_out){1, 0, 11};
+	cfg.inputs.out_mapped = 1u << MLIP_OUT_DOUT0;
+	module_init(&peers[NP], 1);
+	struct peer *mod = &peers[NP];
+	loop_setup(start);
+	keep_queue = 1;
+	const struct mlip_ring_status *st = &ctl.out.status;
+	uint32_t estop = 1u << MLIP_IN_ESTOP;
+	for (int k = 0; k < 120; k++) {
+		period();
+	}
+	assert_int_equal(st->state, MLIP_STATE_IDLE);
+	assert_int_equal(st->io_known & estop, estop);
+	assert_int_equal(st->io_inputs & estop, 0);
+	assert_true(n_module_out > 0);
+	assert_int_equal(od_find(mod, 0x1016, 1)->value, (127u << 16) | 300u);
+	/* it reboots: defaults, boot-up message, pre-operational */
+	module_init(mod, 0);
+	mod->nmt = MLIP_NMT_BOOTUP;
+	peer_hb(mod);
+	mod->nmt = MLIP_NMT_PREOPERATIONAL;
+	period();
+	assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	assert_int_equal(st->reason, MLIP_WHY_IO_LOST);
+	assert_int_equal(st->reason_node, 10);
+	assert_int_equal(st->reason_field, MLIP_DRIVE_NOT_OPERATIONAL);
+	assert_int_equal(st->io_known & estop, 0); /* not trusted */
+	int sent_before = n_module_out;
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_E_RANGE);
+	/* an SDO refused: the attempt fails, nothing is trusted */
+	mod->refuse_index = 0x1A00;
+	mod->refuse_code = 0x06010000u;
+	int k;
+	for (k = 0; k < 300 && ds.io.re.failed == 0; k++) {
+		period();
+	}
+	assert_int_equal(ds.io.re.failed, 1);
+	assert_int_equal(ds.io.re.fail_abort, 0x06010000u);
+	assert_int_equal(ds.io.re.fail_index, 0x1A00);
+	assert_int_equal(ds.io.lost, MLIP_DRIVE_NOT_OPERATIONAL);
+	assert_int_equal(st->io_known & estop, 0);
+	mod->refuse_index = 0;
+	mod->refuse_code = 0;
+	for (k = 0; k < 300 && ds.io.re.count == 0; k++) {
+		period();
+		if (ds.io.re.count == 0) {
+			assert_int_equal(n_module_out, sent_before); /* none to it meanwhile */
+			assert_int_equal(st->io_known & estop, 0);
+		}
+		assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	}
+	assert_int_equal(ds.io.re.count, 1);
+	/* configured again, as at bring-up: its PDO mapping and heartbeats */
+	assert_int_equal(mod->nmt, MLIP_NMT_OPERATIONAL);
+	assert_int_equal(od_find(mod, 0x1016, 1)->value, (127u << 16) | 300u);
+	assert_int_equal(od_find(mod, 0x1017, 0)->value, 100);
+	assert_int_equal(od_find(mod, 0x1800, 1)->value, 0x4000018Au);
+	assert_int_equal(od_find(mod, 0x1A00, 1)->value, 0x60000108u);
+	assert_int_equal(od_find(mod, 0x1600, 1)->value, 0x62000108u);
+	period();
+	assert_int_equal(st->io_known & estop, estop);
+	assert_int_equal(st->io_inputs & estop, 0);
+	/* its outputs at once, off */
+	assert_true(n_module_out > sent_before);
+	assert_int_equal(module_out.len, 1);
+	assert_int_equal(module_out.data[0], 0);
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_OK);
+	assert_int_equal(st->state, MLIP_STATE_IDLE);
+	free(mem);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1172,6 +1313,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_beyond_limit, setup),
 	    cmocka_unit_test_setup(test_loop_shutdown, setup),
 	    cmocka_unit_test_setup(test_loop_drive_inputs, setup),
+	    cmocka_unit_test_setup(test_loop_module_reboot, setup),
 	    cmocka_unit_test_setup(test_loop_fault_bit, setup),
 	    cmocka_unit_test_setup(test_loop_following_error, setup),
 	    cmocka_unit_test_setup(test_loop_heartbeat_and_emcy, setup),
