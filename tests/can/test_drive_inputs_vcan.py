@@ -68,8 +68,9 @@ def machine(tmp):
     return path
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def sim(vcan, tmp_path_factory):
+    """Per test: each starts with X at 0, off its switches."""
     w = tmp_path_factory.mktemp("disim")
     s = procs.DriveSimProc(
         S, w, nodes=[1, 2, 3],
@@ -105,9 +106,16 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
         p = rig.ctl("jog", "X+5", "600", check=False)
         assert p.returncode != 0, p.stdout
         # a jog away from it leaves the stop; off the switch it releases
-        rig.ctl("jog", "X-40", "1200")
-        st = rig.wait_state("idle", timeout=300,
-                            pred=lambda s: s["inputs"]["X limit +"] is False)
+        j = rig.ctl("jog", "X-40", "1200", check=False)
+        try:
+            rig.wait_state("idle", timeout=300, pred=lambda s: s["inputs"]["X limit +"] is False)
+            off = True
+        except AssertionError:
+            off = False
+    if not off:
+        log = rig.result["rt_stderr"]
+        raise AssertionError(f"jog away: {j.returncode} {j.stdout} {j.stderr}\n"
+                             f"{rig.status_log[-1]}\n{log[-4000:]}")
     # the drives' records: the TPDO2 with the switch on, then the quick stop
     on = sim.wait_event(lambda e: e["kind"] == "di" and e["node"] == 1 and e["t"] >= t0
                         and int(e["value"], 16) & 2, "X+ on")[0]

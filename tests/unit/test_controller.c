@@ -1853,10 +1853,25 @@ static void test_limit_drive_input(void **st)
 	assert_true(status().reason_value >= x0);
 	assert_int_equal(cw_of(0), 0x0002);
 	assert_int_equal(cw_of(1), 0x0002);
-	/* only a jog of X away from it (negative) leaves the stop */
+	/* only a jog of X away from it (negative) leaves the stop: an
+	 * incremental one, renewed as mlip-ctl does, runs its distance once the
+	 * drives are enabled again */
+	dtick(5);
+	double x1 = out.pos[0];
 	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 600), 0), MLIP_E_RANGE);
-	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 600), 0), MLIP_OK);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 1, 5000), 0), MLIP_OK);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 1200), 0), MLIP_OK);
 	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	for (int i = 0; i < 2000 && status().state == MLIP_STATE_JOGGING; i++) {
+		dtick(1);
+		if (i % 100 == 99 && status().state == MLIP_STATE_JOGGING) {
+			assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 1200), 0),
+			                 MLIP_OK);
+		}
+	}
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_DONE);
+	assert_true(fabs(out.pos[0] - (x1 - 5.0)) < 1e-9);
 }
 
 /* Stopped on a limit switch that stays on: a jog toward it (or another
