@@ -1855,13 +1855,33 @@ static void test_limit_drive_input(void **st)
 	assert_int_equal(cw_of(1), 0x0002);
 	/* only a jog of X away from it (negative) leaves the stop: an
 	 * incremental one, renewed as mlip-ctl does, runs its distance once the
-	 * drives are enabled again */
-	dtick(5);
-	double x1 = out.pos[0];
+	 * drives are enabled again. Posted while the drives still brake on
+	 * their quick stop ramp ("quick stop active", X still moving) */
+	for (int k = 0; k < 2; k++) {
+		drv_sw[k] = 0x0217;
+	}
+	for (int i = 0; i < 3; i++) {
+		tick(1);
+		drv_actual[0] += 0.05;
+	}
 	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 600), 0), MLIP_E_RANGE);
 	assert_int_equal(period_cmd(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 1, 5000), 0), MLIP_OK);
 	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 1200), 0), MLIP_OK);
 	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	for (int i = 0; i < 5; i++) {
+		tick(1);
+		drv_actual[0] += 0.05; /* braking on */
+		for (int k = 0; k < 2; k++) {
+			if (cw_of(k) == 0x0000) {
+				drv_sw[k] = 0x0250; /* disable voltage */
+			}
+		}
+	}
+	for (int k = 0; k < 2; k++) {
+		drv_sw[k] = 0x0250; /* at rest: switch on disabled */
+	}
+	tick(1);
+	double x1 = drv_actual[0];
 	for (int i = 0; i < 2000 && status().state == MLIP_STATE_JOGGING; i++) {
 		dtick(1);
 		if (i % 100 == 99 && status().state == MLIP_STATE_JOGGING) {

@@ -26,8 +26,9 @@
 
 /* ---- the peer: one CiA 402 drive -------------------------------------------- */
 
-enum { P_SOD, P_RTSO, P_SO, P_OE, P_FAULT }; /* switch on disabled .. fault */
-static const uint16_t p_sw[] = {0x0250, 0x0231, 0x0233, 0x1237, 0x0218};
+enum { P_SOD, P_RTSO, P_SO, P_OE, P_FAULT, P_QS }; /* switch on disabled .. quick stop */
+static const uint16_t p_sw[] = {0x0250, 0x0231, 0x0233, 0x1237, 0x0218, 0x0217};
+static int qs_periods; /* > 0: a quick stop brakes that many periods in P_QS */
 
 struct od {
 	uint16_t index;
@@ -43,7 +44,7 @@ struct wr {
 
 struct peer {
 	uint8_t node;
-	int present, nmt, state, ever_enabled, no_enable;
+	int present, nmt, state, ever_enabled, no_enable, qs_left;
 	uint16_t cw;
 	int32_t pos;
 	struct od od[32];
@@ -136,8 +137,19 @@ static void peer_cw(struct peer *p, uint16_t cw)
 			p->state = P_SOD;
 		}
 		break;
+	case P_QS:
+		if ((cw & 0x02) == 0) {
+			p->state = P_SOD; /* disable voltage (12) */
+		} else if ((cw & 0x8F) == 0x0F) {
+			p->state = P_OE; /* enable operation (16) */
+		}
+		break;
 	case P_OE:
-		if ((cw & 0x8F) == 0x07) {
+		if ((cw & 0x87) == 0x02) {
+			/* quick stop, option code 2: braking, then switch on disabled */
+			p->state = qs_periods > 0 ? P_QS : P_SOD;
+			p->qs_left = qs_periods;
+		} else if ((cw & 0x8F) == 0x07) {
 			p->state = P_SO;
 		} else if ((cw & 0x87) == 0x06) {
 			p->state = P_RTSO;
@@ -327,6 +339,7 @@ static int setup(void **state)
 	q_head = q_tail = 0;
 	di_send = 0;
 	keep_queue = 0;
+	qs_periods = 0;
 	n_module_out = 0;
 	memset(di_val, 0, sizeof(di_val));
 	now_ns = 1000000000u;
@@ -623,6 +636,12 @@ static int period(void)
 		struct peer *p = &peers[i];
 		uint16_t cw;
 		int32_t c;
+		if (p->state == P_QS) {
+			p->pos += 1000; /* still braking */
+			if (--p->qs_left <= 0) {
+				p->state = P_SOD;
+			}
+		}
 		if (cycle > 0 && rpdo_of(i, &cw, &c)) {
 			peer_cw(p, cw);
 			if (p->state == P_OE) { /* a disabled drive follows no target */
@@ -1302,6 +1321,99 @@ static void test_loop_module_reboot(void **state)
 	free(mem);
 }
 
+static int32_t post_arg(mlip_ring_cmd_op op, int32_t arg)
+{
+	uint32_t seq = 0;
+	int32_t res = 0;
+	assert_int_equal(mlip_ring_cmd_post(ctl.ring, op, arg, &seq), MLIP_OK);
+	period();
+	assert_int_equal(mlip_ring_cmd_result(ctl.ring, seq, &res), MLIP_OK);
+	return res;
+}
+
+/* Through the master's hooks: X jogging toward +, its drive's 0x60FD bit 1
+ * comes in a TPDO2: quick stop to every drive in that period, fault naming
+ * node 1 and X limit +; an incremental jog away (renewed as mlip-ctl does)
+ * enables the drives again and runs its distance while the switch is
+ * still on. */
+static void test_loop_drive_limit_jog_away(void **state)
+{
+	double start[NP];
+	(void)state;
+	cfg.inputs.in[MLIP_IN_LIMIT_POS(0)] = (struct mlip_io_bit){1, 0, 0x60FD, 1, 0, 10};
+	cfg.inputs.mapped = 1u << MLIP_IN_LIMIT_POS(0);
+	static const struct {
+		uint16_t i;
+		uint8_t s, n;
+	} objs[] = {{0x1801, 1, 4}, {0x1801, 2, 1}, {0x1801, 5, 2},
+	            {0x1A01, 0, 1}, {0x1A01, 1, 4}, {0x60FD, 0, 4}};
+	for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
+		od_add(&peers[0], objs[k].i, objs[k].s, objs[k].n, 0);
+	}
+	loop_setup(start);
+	keep_queue = 1;
+	di_send = 1u;
+	qs_periods = 30;
+	const struct mlip_ring_status *st = &ctl.out.status;
+	int32_t jog = MLIP_JOG_ARG(0, 0, 6000);
+	assert_int_equal(post_arg(MLIP_CMD_JOG, jog), MLIP_OK);
+	for (int k = 0; k < 300; k++) {
+		period();
+		if (k % 50 == 0) {
+			assert_int_equal(post_arg(MLIP_CMD_JOG, jog), MLIP_OK);
+		}
+	}
+	assert_int_equal(st->state, MLIP_STATE_JOGGING);
+	assert_true(st->speed_mm_s > 99.0);
+	di_val[0] = 0x2u; /* the switch */
+	struct mlip_can_frame f;
+	memset(&f, 0, sizeof(f));
+	f.id = 0x281;
+	f.len = 4;
+	f.data[0] = 0x2;
+	push(&f);
+	period();
+	assert_int_equal(st->state, MLIP_STATE_FAULT);
+	assert_int_equal(st->reason, MLIP_WHY_LIMIT);
+	assert_int_equal(st->reason_node, 1);
+	assert_int_equal(st->reason_field, MLIP_IN_LIMIT_POS(0));
+	uint16_t cw;
+	int32_t t;
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(rpdo_of(i, &cw, &t), 1);
+		assert_int_equal(cw, 0x0002);
+	}
+	for (int k = 0; k < 2; k++) {
+		period();
+	}
+	assert_int_equal(peers[0].state, P_QS); /* still braking */
+	assert_int_equal(post_arg(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 1200)), MLIP_E_RANGE);
+	assert_int_equal(post_arg(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 1, 40000)), MLIP_OK);
+	int32_t away = MLIP_JOG_ARG(0, 1, 1200);
+	assert_int_equal(post_arg(MLIP_CMD_JOG, away), MLIP_OK);
+	int32_t x0 = 0;
+	for (int k = 0; k < 200 && x0 == 0; k++) { /* where it was when enabled */
+		if (peers[0].state == P_OE) {
+			x0 = peers[0].pos;
+		} else {
+			period();
+		}
+	}
+	int k;
+	for (k = 0; k < 10000 && st->state == MLIP_STATE_JOGGING; k++) {
+		period();
+		if (k % 100 == 99 && st->state == MLIP_STATE_JOGGING) {
+			assert_int_equal(post_arg(MLIP_CMD_JOG, away), MLIP_OK);
+		}
+	}
+	if (st->state != MLIP_STATE_IDLE || st->reason != MLIP_WHY_JOG_DONE ||
+	    peers[0].pos != x0 - 40000) {
+		fail_msg("state %u reason %u, X %d counts (from %d), power %u", st->state,
+		         st->reason, peers[0].pos, x0, st->drive_power);
+	}
+	free(mem);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1314,6 +1426,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_loop_shutdown, setup),
 	    cmocka_unit_test_setup(test_loop_drive_inputs, setup),
 	    cmocka_unit_test_setup(test_loop_module_reboot, setup),
+	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away, setup),
 	    cmocka_unit_test_setup(test_loop_fault_bit, setup),
 	    cmocka_unit_test_setup(test_loop_following_error, setup),
 	    cmocka_unit_test_setup(test_loop_heartbeat_and_emcy, setup),
