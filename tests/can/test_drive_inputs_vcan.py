@@ -95,7 +95,9 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
         t0 = time.time()
         feed = rig.feeder(ngc)
         st = rig.wait_state("fault", timeout=300)
-        assert st["reason"] == "limit switch" and st["reason_input"] == "X limit +", st
+        why = {k: st.get(k) for k in ("reason", "reason_field", "reason_node", "reason_text",
+                                      "reason_input", "position", "position_actual")}
+        assert st["reason"] == "limit switch" and st["reason_input"] == "X limit +", why
         assert st["reason_node"] == 1 and st["drives"] == "quick stop", st
         assert st["inputs"]["X limit +"] is True, st
         feed.p.wait(timeout=120)

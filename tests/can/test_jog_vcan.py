@@ -47,8 +47,9 @@ def machine(tmp, x_max=1000):
     return path
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def sim(vcan, tmp_path_factory):
+    """Per test: each starts with every axis at 0."""
     w = tmp_path_factory.mktemp("jogsim")
     s = procs.DriveSimProc(S, w, nodes=[1, 2, 3])
     yield s
