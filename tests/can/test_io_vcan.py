@@ -248,6 +248,7 @@ def test_module_reboot(sim, tmp_path):
     wrote = {}
     for e in writes:  # the reconfiguration's (mlip-rt's exit writes 0x1016:1 = 0 later)
         wrote.setdefault((e["index"], e["sub"]), e["value"])
+    # the set-up of bring-up again: TPDO1 and RPDO1 (6 writes each), the heartbeats (2)
     assert wrote[("0x1A00", 1)] == 0x60000108 and wrote[("0x1600", 1)] == 0x62000108, wrote
     assert wrote[("0x1016", 1)] >> 16 == 127, wrote  # it watches the master again
     # NMT reset communication from mlip after the reboot, then the writes,
@@ -255,12 +256,20 @@ def test_module_reboot(sim, tmp_path):
     resets = [i for i, e in enumerate(ev) if e["kind"] == "nmt" and e["why"] == "NMT reset"]
     assert resets and resets[0] > boot, kinds
     start = [i for i, e in enumerate(ev) if e["kind"] == "nmt" and e["to"] == "OPERATIONAL"]
-    last_write = max(i for i, e in enumerate(ev) if e["kind"] == "sdo_write")
-    assert start and start[0] > last_write > resets[0], kinds
+    assert start and start[0] > resets[0], kinds
+    # every write between the reset and the start; none before the reset
+    # (nothing touched the module unconfigured); after the start only the
+    # exit's (heartbeat consumer off)
+    reconf = [e for i, e in enumerate(ev) if e["kind"] == "sdo_write" and resets[0] < i < start[0]]
+    assert len(reconf) == 14, reconf
+    assert not [e for i, e in enumerate(ev) if e["kind"] == "sdo_write" and i < resets[0]]
+    after = [(e["index"], e["sub"]) for i, e in enumerate(ev)
+             if e["kind"] == "sdo_write" and i > start[0]]
+    assert after in ([], [("0x1016", 1)]), after
     # its outputs never came back on
     outs = [e["data"] for e in ev if e["kind"] == "outputs"]
     assert all(int(d[:2], 16) & 0x08 == 0 for d in outs), outs
     t_op = ev[start[0]]["t"]
-    print(f"[io] module rebooted: E-stop, reconfigured ({len(writes)} SDO writes read back) "
+    print(f"[io] module rebooted: E-stop, reconfigured ({len(reconf)} SDO writes read back) "
           f"and operational {t_op - t0:.2f} s after the reboot; inputs trusted again "
           f"{t_back - t0:.2f} s after it (status); outputs stayed off: {sorted(set(outs))}")
