@@ -1336,10 +1336,14 @@ static int32_t post_arg(mlip_ring_cmd_op op, int32_t arg)
  * node 1 and X limit +; an incremental jog away (renewed as mlip-ctl does)
  * enables the drives again and runs its distance while the switch is
  * still on. */
-static void test_loop_drive_limit_jog_away(void **state)
+static void drive_limit_jog_away(double period_s)
 {
 	double start[NP];
-	(void)state;
+	if (period_s != 0.001) { /* as the VM test: 40 ms, X at 200 mm/s^2 */
+		cfg.machine.period_s = period_s;
+		cfg.machine.tolerance_mm = 0.5;
+		cfg.machine.axis[0].max_accel = 200.0;
+	}
 	cfg.inputs.in[MLIP_IN_LIMIT_POS(0)] = (struct mlip_io_bit){1, 0, 0x60FD, 1, 0, 10};
 	cfg.inputs.mapped = 1u << MLIP_IN_LIMIT_POS(0);
 	static const struct {
@@ -1356,11 +1360,16 @@ static void test_loop_drive_limit_jog_away(void **state)
 	qs_periods = 30;
 	const struct mlip_ring_status *st = &ctl.out.status;
 	int32_t jog = MLIP_JOG_ARG(0, 0, 6000);
+	int every = (int)(0.1 / cfg.machine.period_s + 0.5); /* mlip-ctl renews every 100 ms */
 	assert_int_equal(post_arg(MLIP_CMD_JOG, jog), MLIP_OK);
-	for (int k = 0; k < 300; k++) {
+	int n_jog = (int)(1.5 / cfg.machine.period_s); /* 1.5 s: at speed, far from the limit */
+	for (int k = 0; k < n_jog; k++) {
 		period();
-		if (k % 50 == 0) {
-			assert_int_equal(post_arg(MLIP_CMD_JOG, jog), MLIP_OK);
+		if (k % every == 0 && post_arg(MLIP_CMD_JOG, jog) != MLIP_OK) {
+			fail_msg(
+			    "renewal refused at %d: state %u reason %u field %u node %u value %g",
+			    k, st->state, st->reason, st->reason_field, st->reason_node,
+			    st->reason_value);
 		}
 	}
 	assert_int_equal(st->state, MLIP_STATE_JOGGING);
@@ -1395,23 +1404,47 @@ static void test_loop_drive_limit_jog_away(void **state)
 	for (int k = 0; k < 200 && x0 == 0; k++) { /* where it was when enabled */
 		if (peers[0].state == P_OE) {
 			x0 = peers[0].pos;
+		} else if (k % every == every - 1) {
+			assert_int_equal(post_arg(MLIP_CMD_JOG, away), MLIP_OK); /* a period too */
 		} else {
 			period();
 		}
 	}
 	int k;
-	for (k = 0; k < 10000 && st->state == MLIP_STATE_JOGGING; k++) {
+	for (k = 0; k < 10000 && (st->state == MLIP_STATE_JOGGING ||
+	                          st->drive_power != MLIP_POWER_OFF); /* disabled at rest */
+	     k++) {
 		period();
-		if (k % 100 == 99 && st->state == MLIP_STATE_JOGGING) {
-			assert_int_equal(post_arg(MLIP_CMD_JOG, away), MLIP_OK);
+		if (k % every == every - 1 && st->state == MLIP_STATE_JOGGING) {
+			int32_t r = post_arg(MLIP_CMD_JOG, away);
+			if (r != MLIP_OK) {
+				fail_msg(
+				    "renewal %d refused (%d): state %u reason %u, X %d counts, "
+				    "power %u",
+				    k, r, st->state, st->reason, peers[0].pos, st->drive_power);
+			}
 		}
 	}
 	if (st->state != MLIP_STATE_IDLE || st->reason != MLIP_WHY_JOG_DONE ||
 	    peers[0].pos != x0 - 40000) {
-		fail_msg("state %u reason %u, X %d counts (from %d), power %u", st->state,
-		         st->reason, peers[0].pos, x0, st->drive_power);
+		fail_msg("state %u reason %u, X %d counts (from %d), setpoint %.4f, power %u",
+		         st->state, st->reason, peers[0].pos, x0, st->pos[0], st->drive_power);
 	}
 	free(mem);
+}
+
+static void test_loop_drive_limit_jog_away(void **state)
+{
+	(void)state;
+	drive_limit_jog_away(0.001);
+}
+
+/* The same at the VM tests' 40 ms period (the dead-man is 6 periods there,
+ * the renewals every 2 or 3). */
+static void test_loop_drive_limit_jog_away_40ms(void **state)
+{
+	(void)state;
+	drive_limit_jog_away(0.04);
 }
 
 int main(void)
@@ -1427,6 +1460,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_loop_drive_inputs, setup),
 	    cmocka_unit_test_setup(test_loop_module_reboot, setup),
 	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away, setup),
+	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away_40ms, setup),
 	    cmocka_unit_test_setup(test_loop_fault_bit, setup),
 	    cmocka_unit_test_setup(test_loop_following_error, setup),
 	    cmocka_unit_test_setup(test_loop_heartbeat_and_emcy, setup),
