@@ -30,6 +30,7 @@
 #define MLIP_CO_EMCY_BASE   0x080u
 #define MLIP_CO_TPDO1_BASE  0x180u
 #define MLIP_CO_TPDO2_BASE  0x280u
+#define MLIP_CO_TPDO3_BASE  0x380u /* a drive's digital inputs 0x60FD (issue 18) */
 #define MLIP_CO_SDO_TX_BASE 0x580u /* server (drive) -> client (mlip) */
 #define MLIP_CO_SDO_RX_BASE 0x600u /* client -> server */
 #define MLIP_CO_HB_BASE     0x700u

@@ -38,6 +38,16 @@ struct mlip_drive_setup {
 	 * 1's positive and negative edges 0x60BA, 0x60BB; 0x60B8 = 0 (off) */
 	int touch_probe;
 	uint32_t tpdo2_cob; /* TPDO2 COB-ID, 0x1801:01 */
+	/* an axis: 0x6085 quick stop deceleration (counts/s^2, the axis'
+	 * MAX_ACCELERATION): an E-stop or a limit brakes each axis within its
+	 * acceleration limit on the drive's own ramp; 0: not written */
+	uint32_t quick_stop_counts_s2;
+	/* the drive's digital inputs 0x60FD (issue 18: limit and home switches
+	 * wired to the drive) in TPDO3 on change, and at least every di_event_ms
+	 * (event timer 0x1802:05: a silent TPDO3 is a lost one); 0: no TPDO3.
+	 * TPDO3, not TPDO2: a drive may carry the touch probe's TPDO2 as well */
+	uint32_t di_tpdo_cob;
+	uint16_t di_event_ms;
 };
 
 /* 0x60B8 touch probe function / 0x60B9 status, touch probe 1 (CiA 402) */
@@ -48,7 +58,7 @@ struct mlip_drive_setup {
 #define MLIP_TP_POS_STORED 0x0002u /* status bit 1: a positive edge position is stored */
 #define MLIP_TP_NEG_STORED 0x0004u /* status bit 2: a negative edge position is stored */
 
-#define MLIP_DRIVE_SETUP_MAX 40
+#define MLIP_DRIVE_SETUP_MAX 48
 
 /* The interpolation time period 0x60C2 as value * 10^index s: value 1..255,
  * index -6..0, exact to 1e-9 relative. MLIP_E_RANGE when no such pair. */
@@ -56,10 +66,13 @@ mlip_status mlip_co_interp_period(double period_s, uint8_t *value, int8_t *index
 
 /* The set-up of one drive, in the order it is written: RPDO1 (disabled,
  * transmission type, mapping 0x6040 + 0x607A, enabled), TPDO1 (disabled,
- * synchronous every SYNC, mapping 0x6041 + 0x6064, enabled), SYNC COB-ID,
- * modes of operation = CSP and its display, interpolation period, following
- * error window, heartbeat producer and consumer; with touch_probe also
- * 0x60B8 in RPDO1, 0x60B9 in TPDO1, TPDO2 = 0x60BA + 0x60BB, 0x60B8 = 0. Returns the count, or -1
+ * synchronous every SYNC, mapping 0x6041 + 0x6064, enabled), with touch_probe
+ * TPDO2 (synchronous, mapping 0x60BA + 0x60BB, enabled), with di_tpdo_cob
+ * TPDO3 (disabled, type 255 on change, event timer, mapping 0x60FD,
+ * enabled), SYNC COB-ID, modes of operation = CSP and its display,
+ * interpolation period, following error window, quick stop deceleration
+ * (when set), heartbeat producer and consumer; with touch_probe also 0x60B8
+ * in RPDO1, 0x60B9 in TPDO1 and 0x60B8 = 0. Returns the count, or -1
  * when cap is too small or the period cannot be written. */
 int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out, int cap);
 
@@ -82,9 +95,11 @@ typedef enum {
 	/* a spindle (issue 19, mlip/ctl/spindlectl.h): value its actual rpm */
 	MLIP_DRIVE_SPINDLE_TIMEOUT,     /* not at speed (or at rest) within AT_SPEED_TIMEOUT */
 	MLIP_DRIVE_SPINDLE_OUT_OF_BAND, /* at speed, then out of AT_SPEED_BAND for BAND_TIME */
-	MLIP_DRIVE_POWER_STEP /* another step toward power (shutdown, disable voltage, fault
-	                         reset, waiting) not confirmed in time; value step
-	                         (mlip_drive_power) * 65536 + statusword */
+	MLIP_DRIVE_POWER_STEP, /* another step toward power (shutdown, disable voltage, fault
+	                          reset, waiting) not confirmed in time; value step
+	                          (mlip_drive_power) * 65536 + statusword */
+	MLIP_DRIVE_INPUTS_LOST /* no TPDO3 (digital inputs 0x60FD) within the heartbeat
+	                          timeout: its limit switches cannot be read; value ms */
 } mlip_drive_fault;
 
 /* What the bus last said about one drive (filled from mlip_co_classify). */
@@ -103,6 +118,7 @@ struct mlip_drive_obs {
 	uint16_t probe_status;
 	int32_t probe_pos, probe_neg;
 	uint64_t tpdo2_count;
+	uint64_t di_ns; /* time its digital inputs 0x60FD were last read (TPDO3) */
 };
 
 /* What the drive must be doing now. */
@@ -110,6 +126,7 @@ struct mlip_drive_expect {
 	uint64_t now_ns;
 	uint64_t cycle;           /* this period */
 	uint64_t hb_timeout_ns;   /* 0: heartbeat not watched */
+	uint64_t di_timeout_ns;   /* 0: its digital inputs not read (no TPDO3) */
 	uint32_t tpdo_timeout;    /* periods without a TPDO that make it lost */
 	uint32_t window_counts;   /* 0x6065 */
 	int64_t following_counts; /* mlip_drive_following_error, or -1: unknown */
