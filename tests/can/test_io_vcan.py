@@ -100,8 +100,10 @@ def test_estop_quick_stop_and_reset(sim, tmp_path):
         assert rig.status()["state"] == "estop"
         sim.inject(f"{IO}:input=1.0=1")
         rig.wait_state("estop", timeout=60, pred=lambda s: s["inputs"]["estop"] is False)
-        rig.ctl("reset")
+        # taken before the command: the drives may begin their way back (and
+        # the simulator log it) before mlip-ctl has returned on a loaded host
         t_reset = time.time()
+        rig.ctl("reset")
         # the drives are enabled again from where they stopped: a program
         # fed at once (no wait for idle, the drives still being brought
         # back from "switch on disabled") waits for them and runs

@@ -51,11 +51,11 @@ async function screenshot(st) {
   try {
     const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
     const url = `http://127.0.0.1:${PORT}/`;
-    await page.goto(url, { waitUntil: 'load' });
+    await page.goto(url, { waitUntil: 'load', timeout: DEADLINE });
     // the Connection widget, as a person uses it: the port, then Open
-    await page.click('text=Choose a port', { timeout: 30000 });
-    await page.getByText(TTY, { exact: true }).first().click({ timeout: 10000 });
-    await page.click('button:has-text("Open")', { timeout: 10000 });
+    await page.click('text=Choose a port', { timeout: DEADLINE });
+    await page.getByText(TTY, { exact: true }).first().click({ timeout: DEADLINE });
+    await page.click('button:has-text("Open")', { timeout: DEADLINE });
     const x = st.mpos[0].toFixed(3);
     let shown = false;
     for (const end = Date.now() + DEADLINE; Date.now() < end && !shown;) {
