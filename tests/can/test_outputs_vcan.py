@@ -110,6 +110,39 @@ def test_coolant_and_output_follow_the_program(sim, tmp_path):
     assert seq[-1] == 0 and FLOOD | P0 in seq, seq
 
 
+def test_m62_switches_with_the_next_move(sim, tmp_path):
+    """M62/M63 (with the next move): the module's output bit flips at the same
+    SYNC as the first target of the move after it (io.csv against sync.csv:
+    both applied at that SYNC), through a corner, without a stop."""
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G21 G90\nG1 X5 F1200\nM62 P0\nG1 X5 Y5\nM63 P0\nG1 X10 Y5\nM2\n")
+    t0 = time.time()
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err
+    sim.wait_sync_rows(lambda rs: True)
+    io = {r["sync"]: r["outputs"][0] for r in io_after(sim, t0)}
+    ys = [(s, t) for s, t in targets(sim, 2, t0) if t is not None]
+    xs = [(s, t) for s, t in targets(sim, 1, t0) if t is not None]
+    y_first = min(s for s, t in ys if t > 0)  # block 4's first target
+    x_first = min(s for s, t in xs if t > 5000)  # block 6's first target
+    on = min(s for s, o in io.items() if o & P0)
+    off = min(s for s, o in io.items() if s > on and not o & P0)
+    # no stop at the corners: X (or Y) moved at every SYNC between the first
+    # move's start and the last's end
+    x0 = min(s for s, t in xs if t > 0)
+    moving = {s for (s0, a), (s, b) in zip(xs, xs[1:]) if b != a}
+    moving |= {s for (s0, a), (s, b) in zip(ys, ys[1:]) if b != a}
+    gaps = [s for s in range(x0 + 1, x_first) if s not in moving]
+    print(
+        f"[outputs] M62 P0 on at SYNC {on} (Y's first target {y_first}), M63 P0 off at "
+        f"SYNC {off} (X's first target past 5 mm {x_first}); SYNCs at rest between: {gaps}"
+    )
+    assert on == y_first and off == x_first, (on, y_first, off, x_first)
+    assert gaps == [], gaps
+
+
 def brake_sync(sim, node, t0, cruise):
     """The first SYNC from t0 at which drive node's target advanced less
     than 90 % of cruise counts after advancing at cruise."""
