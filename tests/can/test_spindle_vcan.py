@@ -22,7 +22,7 @@ import re
 
 import pytest
 
-from conftest import S
+from conftest import DRIVES_VM, S
 from mlipcan import procs
 
 MILL = S.config_dir / "mill-3axis.ini"
@@ -31,16 +31,7 @@ SP = 5  # the spindle drive's node
 CPR = 4096
 MAX_RPM = 6000
 ACCEL = 5000  # rpm/s: 1.2 s (30 periods) from rest to 6000 rpm
-CONFIG_TAIL = f"""
-[DRIVES]
-ENABLE = 1
-HEARTBEAT_MS = 100
-HEARTBEAT_TIMEOUT_MS = 4000
-FOLLOWING_ERROR = 2
-SDO_TIMEOUT_MS = 5000
-BOOT_TIMEOUT_MS = 8000
-STATE_TIMEOUT_MS = 10000
-
+CONFIG_TAIL = f"""{DRIVES_VM}
 [SPINDLE]
 TYPE = cia402
 MAX_RPM = {MAX_RPM}
