@@ -77,16 +77,24 @@ ESTOP = {IO} 0x6000:1 0 LOW
 """
 
 
-def io_machine(tmp: Path, tail: str, edit: Callable[[str], str] = lambda t: t) -> Path:
-    """mill-3axis at 40 ms (contour tolerance 0.5 mm) with IO_DRIVES: the
-    module's E-stop active low (a normally closed contact) on input bit 0;
-    edit(text) changes the axes, tail adds to [IO] and further sections."""
+def drives_machine(tmp: Path, edit: Callable[[str], str] = lambda t: t, tail: str = "",
+                   name: str = "drives.ini") -> Path:
+    """mill-3axis at 40 ms (contour tolerance 0.5 mm) on CiA 402 drives
+    (nodes 1..3, DRIVES_VM); edit(text) changes the axes, tail adds
+    sections after [DRIVES]."""
     text = (S.config_dir / "mill-3axis.ini").read_text()
     text = text.replace("PERIOD = 0.001", f"PERIOD = {IO_PERIOD_S}")
     text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
-    path = tmp / "io.ini"
-    path.write_text(edit(text) + IO_DRIVES + tail)
+    path = tmp / name
+    path.write_text(edit(text) + DRIVES_VM + tail)
     return path
+
+
+def io_machine(tmp: Path, tail: str, edit: Callable[[str], str] = lambda t: t) -> Path:
+    """drives_machine with IO_DRIVES: the module's E-stop active low (a
+    normally closed contact) on input bit 0; edit(text) changes the axes,
+    tail adds to [IO] and further sections."""
+    return drives_machine(tmp, edit, IO_DRIVES[len(DRIVES_VM):] + tail, "io.ini")
 
 
 @pytest.fixture(scope="module")

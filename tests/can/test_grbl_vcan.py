@@ -23,9 +23,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "py"))  # the Grbl 
 from grblclient import Grbl  # noqa: E402
 
 
-def start_grbl(rig, *opts):
+def start_grbl(rig, *opts, pty="none"):
     p = subprocess.Popen([S.tool("mlip-grbl"), "--shm", rig.shm, "--listen", "127.0.0.1:0",
-                          "--pty", "none", *opts], stderr=subprocess.PIPE, text=True)
+                          "--pty", str(pty), *opts], stderr=subprocess.PIPE, text=True)
     end = time.monotonic() + 30
     while time.monotonic() < end:
         line = p.stderr.readline()
@@ -40,9 +40,10 @@ def start_grbl(rig, *opts):
 
 
 @contextlib.contextmanager
-def served(rig, *opts):
-    """mlip-grbl on rig's segment for the block: its port; SIGTERM after."""
-    srv, port = start_grbl(rig, *opts)
+def served(rig, *opts, pty="none"):
+    """mlip-grbl on rig's segment for the block (its terminal linked at pty):
+    its port; SIGTERM after."""
+    srv, port = start_grbl(rig, *opts, pty=pty)
     try:
         yield port
     finally:
