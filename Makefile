@@ -94,7 +94,7 @@ $(RT_TOOLS) $(RT_TESTS): $(BUILD)/libmlip-rt.a
 
 # Parts of a tool in tools/ beside it (they use rt/, so not in tools/lib/,
 # which every binary and the fuzz targets may link): mlip-feed and mlip-ctl
-# (mdi) share the feeder, tools/feed.c; mlip-ctl's own parts
+# (mdi) share the feeder, tools/feed*.c (feedstate.h); mlip-ctl's own parts
 # are tools/ctl*.c (ctltool.h).
 FEED_OBJ  := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tools/feed*.c))
 CTL_OBJ   := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tools/ctl*.c))
