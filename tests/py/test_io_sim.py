@@ -10,18 +10,9 @@ import can
 import canopen
 import pytest
 
+from conftest import wait_for as wait
 from mlipcan import drive as D
 from mlipcan import io401
-
-
-def wait(pred, timeout=5.0):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        v = pred()
-        if v:
-            return v
-        time.sleep(0.01)
-    return None
 
 
 @pytest.fixture
@@ -66,17 +57,21 @@ def test_module_inputs_outputs(pair):
     assert io.sdo[0x6000][2].raw == 0x08
     n = len(got)
     sim.inject(10, "input", "2.3=1")  # no change: no TPDO
-    time.sleep(0.1)
-    assert len(got) == n
+    sim.inject(10, "input", "2.4=1")  # a change: its TPDO, the first after n
+    assert wait(lambda: len(got) > n)
+    assert got[n:] == [b"\x00\x18"], got[n:]
     # outputs by RPDO (default mapping 0x6200:1), and off when the master's
     # heartbeat is lost
-    io.sdo[0x1016][1].raw = (127 << 16) | 50
-    net.send_message(0x77F, b"\x05")
-    net.send_message(0x20A, b"\x81")
-    assert wait(lambda: io.sdo[0x6200][1].raw == 0x81)
-    time.sleep(0.2)
-    sim.tick()  # the consumer judged at the bus time
-    assert wait(lambda: sim.modules[10].outputs[0] == 0)
+    io.sdo[0x1016][1].raw = (127 << 16) | 300
+    hb = net.send_periodic(0x77F, b"\x05", 0.02)  # the master's heartbeat while it runs
+    try:
+        net.send_message(0x20A, b"\x81")
+        assert wait(lambda: io.sdo[0x6200][1].raw == 0x81)
+    finally:
+        hb.stop()
+    # no more heartbeat: once the consumer time has passed, the module (judged
+    # at the bus time by sim.tick, the simulator's main loop) switches them off
+    assert wait(lambda: sim.tick() or sim.modules[10].outputs[0] == 0)
     assert io.sdo[0x6200][1].raw == 0
 
 
@@ -97,9 +92,12 @@ def test_drive_homing_limit_switch(pair):
     net.nmt.send_command(0x01)
     d = sim.drives[5]
     d.cw = 0x1F  # bit 4's rising edge, as an RPDO applied at a SYNC
+    # SYNCs in lockstep with the drive (each taken before the next is sent):
+    # homing's length is a count of SYNCs, whatever the host's load
     for i in range(200):
+        s0 = sim.sync_no
         net.sync.transmit()
-        time.sleep(0.002)
+        assert wait(lambda: sim.sync_no > s0), f"SYNC {i} not taken"
         if d.home_phase in ("done", "error"):
             break
     assert d.home_phase == "done" and d.actual == -1500
