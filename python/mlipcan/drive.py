@@ -16,6 +16,7 @@ The object dictionary is built in code (build_od); `mlip-drive-sim
 a person to read."""
 
 import json
+import math
 import select
 import socket
 import struct
@@ -47,10 +48,33 @@ IoRow = tuple[int, int, float, str, str]
 U8, U16, U32 = odm.UNSIGNED8, odm.UNSIGNED16, odm.UNSIGNED32
 I8, I32 = odm.INTEGER8, odm.INTEGER32
 MODE_HOMING = 6  # 0x6060: homing mode
-# homing methods this drive runs (CiA 402): 17/18 the negative/positive limit
-# switch, 19/21 the home switch searched in the positive/negative direction,
-# 35/37 the current position
-HOMING_METHODS = (17, 18, 19, 21, 35, 37)
+# homing methods this drive runs (CiA 402-2: 0x6098), each as (the switch
+# searched, the direction toward it, then the encoder's index pulse): the
+# switch's edge is found at the search speed 0x6099:1 toward it, braking at
+# 0x609A past it, then back at the latch speed 0x6099:2 until it releases;
+# that edge is home, or (index) the first index pulse beyond it in that
+# direction. 1/2 the negative/positive limit switch and the index pulse;
+# 3 the positive home switch (on at and above its edge) and the index pulse
+# on its negative side, 5 the negative home switch (on at and below) and the
+# index pulse on its positive side; 17/18/19/21 the same without the index
+# (the edge is home); 33/34 the first index pulse in the negative/positive
+# direction (at the latch speed); 35/37 the current position (37: CiA
+# 402-2016's number for it, 35 obsolete). A drive already on the switch at
+# the start moves off it at the latch speed (the edge it finds is the same).
+HOMING_METHODS: dict[int, tuple[str | None, int, bool]] = {
+    1: ("neg", -1, True),
+    2: ("pos", 1, True),
+    3: ("home", 1, True),
+    5: ("nhome", -1, True),
+    17: ("neg", -1, False),
+    18: ("pos", 1, False),
+    19: ("home", 1, False),
+    21: ("nhome", -1, False),
+    33: (None, -1, True),
+    34: (None, 1, True),
+    35: (None, 0, False),
+    37: (None, 0, False),
+}
 SW_HOMING_ATTAINED = 1 << 12  # mode 6
 SW_HOMING_ERROR = 1 << 13  # mode 6
 FE_WINDOW_OFF = 0xFFFFFFFF  # 0x6065 = this: following error monitoring off (CiA 402)
@@ -291,8 +315,13 @@ class Drive(SimDevice):
     ) -> None:
         super().__init__(sim, node_id)
         # where the axis' switches are (counts): "neg", "pos" (limit switches,
-        # on beyond them), "home" (on at and beyond it in +)
+        # on beyond them), "home" (a positive home switch: on at and beyond
+        # it in +), "nhome" (a negative one: on at and below it); "index": the
+        # encoder's index pulse once every that many counts (one revolution),
+        # at the multiples of it in the power-up reference
         self.switches = dict(switches or {})
+        self.index_rev = self.switches.pop("index", 0)
+        self.index_at = 0.0  # where one index pulse is, in the current reference
         self.start_position = start_position
         self.start_state = start_state
         self.heartbeat_ms = heartbeat_ms
@@ -320,9 +349,11 @@ class Drive(SimDevice):
 
     # ------------------------------------------------------------ set-up
     def _reset_application(self) -> None:
-        self.home_phase = "idle"  # idle, search, latch, done, error
+        # idle, search, brake, latch, index, return, done, error
+        self.home_phase = "idle"
         self.home_attained = False
         self.home_dir = 1
+        self.home_index = False  # the index pulse after the switch (or alone)
         self.home_stall = getattr(self, "home_stall", False)
         self.home_method = 0
         self.home_switch = "home"
@@ -409,7 +440,7 @@ class Drive(SimDevice):
     def digital_inputs(self) -> int:
         """0x60FD: the switches at the position actual, then the forced bits."""
         v = 0
-        for bit, which in ((0, "neg"), (1, "pos"), (2, "home")):
+        for bit, which in ((0, "neg"), (1, "pos"), (2, "home"), (2, "nhome")):
             if self._switch_on(which, self.actual):
                 v |= 1 << bit
         for bit, on in self.di_force.items():
@@ -787,7 +818,10 @@ class Drive(SimDevice):
             # attained, 13 homing error
             if self.home_phase in ("done", "error", "idle"):
                 sw |= P.SW_TARGET_REACHED
-            if self.home_phase == "done" and self.home_attained:
+            # attained, still moving back onto the home position (after an
+            # index pulse): 12 without 10 (CiA 402: "homing attained, target
+            # not reached")
+            if self.home_phase in ("done", "return") and self.home_attained:
                 sw |= SW_HOMING_ATTAINED
             if self.home_phase == "error":
                 sw |= SW_HOMING_ERROR
@@ -1028,14 +1062,12 @@ class Drive(SimDevice):
         at = self.switches.get(which)
         if at is None:
             return False
-        return pos <= at if which == "neg" else pos >= at
+        return pos <= at if which in ("neg", "nhome") else pos >= at
 
     def _homing(self, sync_no: int) -> None:
         """CiA 402 homing mode, one SYNC: started by controlword bit 4's
-        rising edge; moves at the search speed (0x6099:1) toward the switch of
-        its method, then back at the latch speed (0x6099:2) until the switch
-        releases; that edge is the home: position actual := home offset
-        (0x607C), homing attained. 35/37: the current position is home."""
+        rising edge, the method's moves (HOMING_METHODS); at the home
+        position, position actual := home offset (0x607C), homing attained."""
         od = self.sim.od_int
         n = self.node
         start = bool(self.cw & 0x10) and not (self._cw_prev_home & 0x10)
@@ -1047,26 +1079,33 @@ class Drive(SimDevice):
             self.rec.event(
                 self.id, "homing", phase="start", method=method, at=self.actual, sync=sync_no
             )
-            if method in (35, 37):
-                self._home_here(sync_no)
+            which, toward, index = HOMING_METHODS[method]
+            if toward == 0:
+                self._home_here(sync_no, self.actual_f)
                 return
-            which = {17: "neg", 18: "pos", 19: "home", 21: "home"}[method]
-            if which not in self.switches:
+            why = None
+            if which is not None and which not in self.switches:
+                why = f"no {which} switch"
+            elif index and self.index_rev <= 0:
+                why = "no index pulse"
+            if why is not None:
                 self.home_phase = "error"
-                self.rec.event(
-                    self.id, "homing", phase="error", why=f"no {which} switch", sync=sync_no
-                )
+                self.rec.event(self.id, "homing", phase="error", why=why, sync=sync_no)
                 return
-            self.home_switch = which
-            # toward the switch: 17 and 21 negative, 18 and 19 positive
-            self.home_dir = -1 if method in (17, 21) else 1
-            if which == "home" and self._switch_on("home", self.actual) and self.home_dir > 0:
-                self.home_dir = -1  # on it already: off it first (simplified)
-            self.home_phase = "search"
+            self.home_index = index
+            self.home_dir = toward
+            if which is None:
+                self.home_phase = "index"  # 33/34: toward the first index pulse
+            else:
+                self.home_switch = which
+                # on it already: off it at the latch speed (the same edge)
+                on = self._switch_on(which, self.actual)
+                self.home_phase = "latch" if on else "search"
             return
-        if self.home_phase not in ("search", "brake", "latch") or self.home_stall:
+        if self.home_phase in ("idle", "done", "error") or self.home_stall:
             return
         per_s = self.p_period_ms / 1000.0
+        frm = self.actual_f
         if self.home_phase == "search":
             v = od(n, 0x6099, "<I", 1)
             self.home_v = float(v)
@@ -1082,23 +1121,76 @@ class Drive(SimDevice):
             self.actual = int(round(self.actual_f))
             if self.home_v == 0.0:
                 self.home_phase = "latch"
-        else:
+        elif self.home_phase == "latch":
             v = od(n, 0x6099, "<I", 2)
             self.actual_f -= self.home_dir * v * per_s
             self.actual = int(round(self.actual_f))
             if not self._switch_on(self.home_switch, self.actual):
-                self._home_here(sync_no)
+                if not self.home_index:
+                    self._home_here(sync_no, self.actual_f)
+                    return
+                # on to the first index pulse beyond the edge, this way
+                self.rec.event(self.id, "homing", phase="edge", at=self.actual, sync=sync_no)
+                self.home_phase = "index"
+                self.home_dir = -self.home_dir
+                frm = self.actual_f  # a pulse from the edge on
+                self._index_step(sync_no, frm, frm)
+        elif self.home_phase == "index":
+            v = od(n, 0x6099, "<I", 2)
+            self.actual_f += self.home_dir * v * per_s
+            self.actual = int(round(self.actual_f))
+            self._index_step(sync_no, frm, self.actual_f)
+        else:  # return: back onto the home position at the latch speed
+            off = float(od(n, 0x607C, "<i"))
+            step = od(n, 0x6099, "<I", 2) * per_s
+            d = off - self.actual_f
+            self.actual_f = off if abs(d) <= step else self.actual_f + step * (1 if d > 0 else -1)
+            self.actual = int(round(self.actual_f))
+            if self.actual_f == off:
+                self.home_phase = "done"
+                self.rec.event(self.id, "homing", phase="done", at=self.actual, sync=sync_no)
 
-    def _home_here(self, sync_no: int) -> None:
+    def _index_step(self, sync_no: int, a: float, b: float) -> None:
+        """An index pulse passed between a and b (moving home_dir, a
+        excluded unless a == b): the drive latches the pulse's position (its
+        encoder's own capture, not where the SYNC finds it), that is home;
+        it goes on moving back onto it (homing attained, target not reached
+        until it stands there)."""
+        rev, ph = float(self.index_rev), self.index_at
+        k = (a - ph) / rev
+        if self.home_dir > 0:
+            q = ph + (math.floor(k) + (0 if a == b else 1)) * rev
+            hit = a <= q <= b if a == b else a < q <= b
+        else:
+            q = ph + (math.ceil(k) - (0 if a == b else 1)) * rev
+            hit = b <= q <= a if a == b else b <= q < a
+        if hit:
+            self._home_here(sync_no, q, done=False)
+
+    def _home_here(self, sync_no: int, at: float, done: bool = True) -> None:
+        """The home position is at (counts, the current reference): it
+        becomes the home offset 0x607C; done: the axis stands there."""
         offset = self.sim.od_int(self.node, 0x607C, "<i")
-        self.rec.event(self.id, "homing", phase="done", at=self.actual, offset=offset, sync=sync_no)
-        # the reference moves, not the axis: the switches move with it
-        shift = offset - self.actual
-        self.switches = {k: v + shift for k, v in self.switches.items()}
-        self.actual = self.target = offset
-        self.actual_f = float(offset)
-        self.home_phase = "done"
+        self.rec.event(
+            self.id,
+            "homing",
+            phase="done" if done else "index",
+            at=self.actual,
+            home=round(at, 3),
+            offset=offset,
+            sync=sync_no,
+        )
+        # the reference moves, not the axis: the switches and the index
+        # pulses move with it
+        shift = offset - at
+        self.switches = {k: int(round(v + shift)) for k, v in self.switches.items()}
+        if self.index_rev > 0:
+            self.index_at = math.fmod(self.index_at + shift, float(self.index_rev))
+        self.actual_f += shift
+        self.actual = int(round(self.actual_f))
+        self.target = self.actual
         self.home_attained = True
+        self.home_phase = "done" if done else "return"
 
     def _following(self, fe: int) -> None:
         """CiA 402: statusword bit 13 while |following error| > 0x6065 for

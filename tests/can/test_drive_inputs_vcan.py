@@ -125,9 +125,12 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
     x = {r["sync"]: r for r in rows_of(sim, 1, t0)}
     s_q = qs[1]
     v0 = (x[s_q]["actual"] - x[s_q - 1]["actual"]) / PERIOD_S / CPU  # mm/s
-    rest = [s for s in sorted(x) if s > s_q and x[s]["state"] == "switch on disabled"]
+    # at rest: the first SYNC from which its position no longer changes; held
+    # there in "quick stop active" (0x605A = 6: the ramp, then hold)
+    rest = [s for s in sorted(x) if s > s_q and s + 1 in x and x[s + 1]["actual"] == x[s]["actual"]]
     assert rest, "X never came to rest"
     s_end = rest[0]
+    assert x[s_end]["state"] == "quick stop active", x[s_end]
     dist = (x[s_end]["actual"] - x[s_q]["actual"]) / CPU
     want = v0 * v0 / (2 * A_X)
     dec = [

@@ -10,19 +10,14 @@ import can  # the package's dependencies, installed by tools/deps.sh
 import canopen
 import pytest
 
+from conftest import virtual_bus_sim
 from mlipcan import cia402 as P
 from mlipcan import drive as D
 
 
 @pytest.fixture
 def pair(tmp_path):
-    chan = f"drive-{time.monotonic_ns()}"
-    rec = D.Recorder(tmp_path)
-    sim = D.DriveSim(chan, [dict(node_id=5, start_position=-777, heartbeat_ms=0)], rec,
-                     bus=can.Bus(interface="virtual", channel=chan))
-    net = canopen.Network(can.Bus(interface="virtual", channel=chan))
-    net.connect()
-    sim.start()
+    sim, net = virtual_bus_sim(tmp_path, [dict(node_id=5, start_position=-777, heartbeat_ms=0)])
     node = net.add_node(5, D.build_od(5))
     node.sdo.RESPONSE_TIMEOUT = 2.0
     yield sim, node, tmp_path
