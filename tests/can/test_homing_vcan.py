@@ -10,11 +10,12 @@ phases; sync.csv: the target and actual of every SYNC).
 Drives (one simulator): 1 at 12345 counts (method 35), 2 at 7000 with its
 negative limit switch at 2000 (method 17), 3 at 3000 with its home switch at
 5000 (method 19); 4 without switches (method 17: a homing error); 5 that
-never finishes (a timeout); 6 at 4321 (method 37, CiA 402-2016's current
-position), 7 at 9000 with its negative limit switch at 1000 and an encoder
-index pulse every 2000 counts (method 1: the first index pulse past the
-switch's edge, at 2000), 8 at 2300 with the same index (method 33: the first
-index pulse in -, at 2000). Period 40 ms, as the other drive tests.
+never finishes (a timeout). The index pulse methods and 37 (the listener
+knows nodes 1-6): X on 1 again (method 37, CiA 402-2016's current
+position), Y on 6 at 9000 with its negative limit switch at 1000 and an
+encoder index pulse every 2000 counts (method 1: the first index pulse past
+the switch's edge, at 2000), Z on 4 with the same index (method 33: the
+first index pulse in -, at 0). Period 40 ms, as the other drive tests.
 """
 
 import re
@@ -28,7 +29,7 @@ from mlipcan import procs
 MILL = S.config_dir / "mill-3axis.ini"
 PERIOD_S = 0.04
 HOMES = {"X": (35, 0.0, 1), "Y": (17, -1.5, 1), "Z": (19, 10.0, 0)}  # method, offset, seq
-# the index pulse methods and 37 (nodes 6, 7, 8)
+# the index pulse methods and 37 (nodes 1, 6, 4)
 HOMES_37_1_33 = {"X": (37, 2.0, 1), "Y": (1, -1.5, 1), "Z": (33, 10.0, 0)}
 DRIVES = DRIVES_VM + "HOMING_REQUIRED = 1\n"
 LIMITS = {"X": (-5.0, 20.0), "Y": (-5.0, 20.0), "Z": (0.0, 20.0)}  # mm, the program's box
@@ -58,13 +59,11 @@ def machine(tmp, nodes, homes=HOMES, timeout=30, name="home.ini", limits=None):
 @pytest.fixture(scope="module")
 def sim(vcan, tmp_path_factory):
     w = tmp_path_factory.mktemp("homesim")
-    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3, 4, 5, 6, 7, 8],
-                           starts={1: 12345, 2: 7000, 3: 3000, 4: 100, 5: 200, 6: 4321,
-                                   7: 9000, 8: 2300},
+    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3, 4, 5, 6],
+                           starts={1: 12345, 2: 7000, 3: 3000, 4: 100, 5: 200, 6: 9000},
                            args=["--switches", "2=neg:2000", "--switches", "3=home:5000",
-                                 "--switches", "5=neg:-100000",
-                                 "--switches", "7=neg:1000,index:2000",
-                                 "--switches", "8=index:2000"],
+                                 "--switches", "4=index:2000", "--switches", "5=neg:-100000",
+                                 "--switches", "6=neg:1000,index:2000"],
                            inject=["5:homing-stall"])
     yield s
     s.stop()
@@ -78,7 +77,7 @@ def homing_events(sim, t0):
     return out
 
 
-@pytest.mark.parametrize("nodes,homes", [((1, 2, 3), HOMES), ((6, 7, 8), HOMES_37_1_33)],
+@pytest.mark.parametrize("nodes,homes", [((1, 2, 3), HOMES), ((1, 6, 4), HOMES_37_1_33)],
                          ids=["35-17-19", "37-1-33"])
 def test_homing_in_sequence(sim, tmp_path, nodes, homes):
     cfg = machine(tmp_path, nodes, homes=homes, limits=LIMITS)
