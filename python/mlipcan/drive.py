@@ -598,8 +598,18 @@ class Drive(SimDevice):
                 continue  # CiA 301: monitoring starts with the first heartbeat
             if now - seen > ms / 1000.0:
                 self.hb_lost.add(p)
+                prev = self.sim.prev_sync_t
                 self.rec.event(
-                    self.id, "heartbeat_lost", producer=p, ms=ms, late_s=round(now - seen, 4)
+                    self.id,
+                    "heartbeat_lost",
+                    producer=p,
+                    ms=ms,
+                    late_s=round(now - seen, 4),
+                    # how it was judged (a SYNC's receive time, the newest
+                    # frame's, or the wall clock on a silent bus), and the
+                    # bus's own silence before it: the SYNCs' gap
+                    via=self.sim.judge_via,
+                    sync_gap_s=None if prev is None else round(now - prev, 4),
                 )
                 self.fault(0x8130, f"heartbeat of node {p} lost")
 
@@ -1287,6 +1297,8 @@ class DriveSim:
         self.network = canopen.Network(bus)
         self.sync_no = 0
         self.t_last_sync: float | None = None
+        self.prev_sync_t: float | None = None  # the SYNC before the last one
+        self.judge_via = "sync"  # what the heartbeat consumers are judged at now
         self.cycle_cpu_s = 0.0
         self.cycles = 0
         self.last_rx_mono = time.monotonic()  # when the last frame was taken off the bus
@@ -1380,7 +1392,8 @@ class DriveSim:
 
         assert self.network.bus is not None
         sock = bus_socket(self.network.bus)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, struct.pack("ll", 0, 100000))
+        # 20 ms without a frame: a silent bus (judged below)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, struct.pack("ll", 0, 20000))
         # a simulator running behind the bus must not lose frames: a large
         # buffer, and the kernel's drop counter (reported at exit)
         tune_socket(sock, self.channel, 16 << 20, False, {})
@@ -1390,6 +1403,10 @@ class DriveSim:
             self.rx_busy = False
             k = mm.recv()
             if not k:
+                # nothing for 20 ms and every frame before handled (by this
+                # thread, in order): the wall clock is the bus time now
+                if self.last_rx_t > 0.0:
+                    self._judge(max(self.last_rx_t, time.time()), "silent bus")
                 continue
             self.rx_busy = True
             B = Batch(mm, k, 1)
@@ -1411,20 +1428,33 @@ class DriveSim:
                             file=sys.stderr,
                             flush=True,
                         )
+            # judged at the newest frame's receive time, every frame before
+            # it handled: frame order, whatever this thread's own lateness
+            self._judge(self.last_rx_t, "bus")
 
     def _count_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.lock:
             self.sync_no += 1
+            self.prev_sync_t = self.t_last_sync
             self.t_last_sync = timestamp
             self.last_rx_mono = time.monotonic()
-            for d in self.drives.values():
-                if d.present:
-                    d.check_heartbeats(timestamp)
+            self._judge(timestamp, "sync")
             for m in self.modules.values():
                 if m.present:
-                    m.check_heartbeats(timestamp)
                     # the outputs in force at this SYNC (what the RPDOs before it set)
                     self.rec.io_row((self.sync_no, m.id, timestamp, *m.outputs_row()))
+
+    def _judge(self, now: float, via: str) -> None:
+        """Every consumed heartbeat judged at bus time now (CiA 301: the
+        consumer time counted from the last heartbeat received before it)."""
+        with self.lock:
+            self.judge_via = via
+            for d in self.drives.values():
+                if d.present:
+                    d.check_heartbeats(now)
+            for m in self.modules.values():
+                if m.present:
+                    m.check_heartbeats(now)
 
     def on_sync(self, drive: Drive, t: float) -> None:
         """Called once per drive per SYNC (canopen calls each subscriber)."""
@@ -1486,24 +1516,26 @@ class DriveSim:
             self.drives[node].inject(what, arg)
 
     def tick(self) -> None:
-        """Main thread, every few ms: records to disk; heartbeat consumers
-        judged at the receive time of the newest frame taken off the bus (frame
-        order: a simulator running behind the bus does not blame the producer
-        for its own lateness), or by the wall clock once nothing has been taken
-        off the bus for 50 ms and nothing waits to be (a silent bus). Without
-        SYNCs other frames (the drives' own heartbeats, sent by the kernel's
-        timer) still flow, so the bus time must come from them too."""
+        """Main thread, every few ms: records to disk. Fast receive: the
+        heartbeat consumers are judged by the receiving thread itself (at
+        each SYNC, after each batch at its newest frame's receive time, and
+        at the wall clock when a receive found the bus silent for 20 ms), so
+        never at a bus time whose frames are not all handled yet. python-can's
+        receive (its Notifier's thread): judged here at the receive time of
+        the newest frame taken off the bus (frame order: a simulator running
+        behind the bus does not blame the producer for its own lateness), or
+        by the wall clock once nothing has been taken off the bus for 50 ms
+        and nothing waits to be (a silent bus). Without SYNCs other frames
+        (the drives' own heartbeats, sent by the kernel's timer) still flow,
+        so the bus time must come from them too."""
+        if self._pump is not None:
+            self.rec.flush()
+            return
         now = self.last_rx_t
         if time.monotonic() - self.last_rx_mono > 0.05 and self._rx_drained():
             now = max(now, time.time())
         if now > 0.0:
-            with self.lock:
-                for d in self.drives.values():
-                    if d.present:
-                        d.check_heartbeats(now)
-                for m in self.modules.values():
-                    if m.present:
-                        m.check_heartbeats(now)
+            self._judge(now, "tick")
         self.rec.flush()
 
     def _rx_drained(self) -> bool:

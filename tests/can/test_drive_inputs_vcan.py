@@ -106,9 +106,14 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
                                pred=lambda s: s["inputs"]["X limit +"] is False)
             except AssertionError:
                 bad = {"jog away": (j.returncode, j.stdout, j.stderr), **rig.status_log[-1]}
+    # the bus's silences: the longest gap between two SYNCs (their receive
+    # times): a stalled producer (or emulator) shows here
+    ts = sorted(r["t"] for r in sim.sync_rows() if r["node"] == 1 and r["t"] >= t0)
+    sync_gap = max((b - a for a, b in zip(ts, ts[1:])), default=0.0)
     if bad is not None:
         seen = [e for e in sim.events() if e["kind"] in ("emcy", "heartbeat_lost", "di")]
-        raise AssertionError(f"{bad}\n{seen[-12:]}\n{rig.result['rt_stderr'][-3000:]}")
+        raise AssertionError(f"{bad}\nlongest SYNC gap {sync_gap:.3f} s\n{seen[-12:]}\n"
+                             f"{rig.result['rt_stderr'][-3000:]}")
     # the drives' records: the TPDO3 with the switch on, then the quick stop
     on = sim.wait_event(lambda e: e["kind"] == "di" and e["node"] == 1 and e["t"] >= t0
                         and int(e["value"], 16) & 2, "X+ on")[0]
@@ -141,7 +146,8 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
     print(f"[di] X limit + (drive 1 0x60FD bit 1) at {on['actual'] / CPU:.3f} mm: TPDO3 after "
           f"SYNC {s_in}, quick stop applied by all 3 drives at SYNC {s_q} ({delay} SYNCs); "
           f"X from {v0:.1f} mm/s stopped in {dist:.3f} mm over {s_end - s_q} periods "
-          f"(v^2/2A = {want:.3f} mm), deceleration max {max(dec):.1f} mm/s^2 (A = {A_X:g})")
+          f"(v^2/2A = {want:.3f} mm), deceleration max {max(dec):.1f} mm/s^2 (A = {A_X:g}); "
+          f"longest SYNC gap {sync_gap * 1000:.0f} ms")
     assert 90.0 <= v0 <= 101.0, v0  # at the programmed feed when it tripped
     # the discrete ramp stops half a period's travel short of v^2/2A
     assert abs(dist - want) <= v0 * PERIOD_S, (dist, want)
