@@ -36,13 +36,14 @@ PROGRAM = "G21 G90\nG1 X150 F6000\n"  # 100 mm/s through the switch at 60 mm
 
 
 def machine(tmp, tail=""):
-    """mill-3axis at 40 ms, X at A = 200 mm/s^2 with both limit switches on
-    its drive's 0x60FD, Y's negative one on drive 2; tail: more sections."""
+    """mill-3axis at 40 ms, X at A = 200 mm/s^2 with its drive's own switches
+    (LIMIT_INPUTS = drive: 0x60FD bits 0, 1, 2), Y's negative limit on drive
+    2 by its bit; tail: more sections."""
     text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
     text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
     text = re.sub(
         r"^\[AXIS_X\]$",
-        "[AXIS_X]\nLIMIT_NEG = 1 0x60FD:0 0 HIGH\nLIMIT_POS = 1 0x60FD:0 1 HIGH",
+        "[AXIS_X]\nLIMIT_INPUTS = drive",
         text,
         count=1,
         flags=re.M,
@@ -82,7 +83,8 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
     bad = None
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         st = rig.status()
-        assert st["inputs"] == {"X limit -": False, "X limit +": False, "Y limit -": False}, st
+        assert st["inputs"] == {"X limit -": False, "X limit +": False, "X home switch": False,
+                                "Y limit -": False}, st
         t0 = time.time()
         feed = rig.feeder(ngc)
         st = rig.wait_state("fault", timeout=300)
