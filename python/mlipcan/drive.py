@@ -211,6 +211,9 @@ def build_od(
     return od
 
 
+# the receiving thread this long (s) not running between two receives, its
+# 20 ms receive timeout aside (DriveSim.own_stall)
+OWN_STALL_S = 0.25
 # objects the cycle reads, cached in Drive.load_params() after each write
 PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A, 0x606D, 0x6083, 0x6084, 0x6085)
 MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0), (0x60FF, 0), (0x60B8, 0)}
@@ -585,8 +588,17 @@ class Drive(SimDevice):
         p = can_id - 0x700
         e = self.hb_consumed.get(p)
         if e is not None:
-            self.hb_consumed[p] = (e[0], timestamp)  # the frame's receive time (kernel), s
+            # the frame's receive time (kernel), s; never back: a stall of the
+            # simulator itself may have moved it on (DriveSim.own_stall)
+            self.hb_consumed[p] = (e[0], max(timestamp, e[1] or 0.0))
             self.hb_lost.discard(p)
+
+    def stalled(self, s: float) -> None:
+        """The simulator was not running for s seconds: not counted against
+        the producers (their heartbeats' consumer time moves on by s)."""
+        for p, (ms, seen) in list(self.hb_consumed.items()):
+            if seen is not None:
+                self.hb_consumed[p] = (ms, seen + s)
 
     def check_heartbeats(self, now: float) -> None:
         """A consumed heartbeat overdue at bus time `now` (the receive time of
@@ -1299,6 +1311,8 @@ class DriveSim:
         self.t_last_sync: float | None = None
         self.prev_sync_t: float | None = None  # the SYNC before the last one
         self.judge_via = "sync"  # what the heartbeat consumers are judged at now
+        self.stalls = 0  # this simulator not running (own_stall): how often, longest (s)
+        self.stall_s = 0.0
         self.cycle_cpu_s = 0.0
         self.cycles = 0
         self.last_rx_mono = time.monotonic()  # when the last frame was taken off the bus
@@ -1399,9 +1413,19 @@ class DriveSim:
         tune_socket(sock, self.channel, 16 << 20, False, {})
         mm = MMsg(sock)
         notify = self.network.notify
+        m0, c0 = time.monotonic(), time.thread_time()
         while not self._stopping:
             self.rx_busy = False
             k = mm.recv()
+            # the time since the last receive returned that this thread did
+            # not run (not its CPU time, not the receive's 20 ms timeout):
+            # beyond OWN_STALL_S it was not running (starved, or its emulator
+            # descheduled by the host: every process in it stopped at once)
+            m1, c1 = time.monotonic(), time.thread_time()
+            late = (m1 - m0) - (c1 - c0) - 0.02
+            m0, c0 = m1, c1
+            if late > OWN_STALL_S:
+                self.own_stall(late)
             if not k:
                 # nothing for 20 ms and every frame before handled (by this
                 # thread, in order): the wall clock is the bus time now
@@ -1443,6 +1467,24 @@ class DriveSim:
                 if m.present:
                     # the outputs in force at this SYNC (what the RPDOs before it set)
                     self.rec.io_row((self.sync_no, m.id, timestamp, *m.outputs_row()))
+
+    def own_stall(self, s: float) -> None:
+        """This simulator was not running for s seconds. A drive's consumer
+        counts the time the drive listens: a stall of the whole emulated host
+        stops the producer too, and the kernel's timers (the drives' own
+        heartbeats) then put frames stamped after the stall on the bus before
+        the producer runs again, so frame order alone would blame it for the
+        simulator's own stall (EMCY 0x8130 with the master's heartbeat the
+        next frame). A producer that is really gone is still judged, s later."""
+        with self.lock:
+            self.stalls += 1
+            self.stall_s = max(self.stall_s, s)
+            for d in self.drives.values():
+                d.stalled(s)
+            for m in self.modules.values():
+                if m.master_seen is not None:
+                    m.master_seen += s
+        self.rec.event(0, "own_stall", s=round(s, 3), sync=self.sync_no)
 
     def _judge(self, now: float, via: str) -> None:
         """Every consumed heartbeat judged at bus time now (CiA 301: the

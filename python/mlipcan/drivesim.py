@@ -341,7 +341,8 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
     print(
         f"{PROG}: {sim.sync_no} SYNCs, {sim.cycles} drive cycles, "
         f"{per:.0f} us CPU per drive cycle (handler only), socket drops "
-        f"{'n/a' if sim.socket_drops is None else sim.socket_drops}, process CPU "
+        f"{'n/a' if sim.socket_drops is None else sim.socket_drops}, stalls of its own "
+        f"{sim.stalls} (longest {sim.stall_s:.2f} s), process CPU "
         f"{cpu1.user + cpu1.system - cpu0.user - cpu0.system:.2f} s",
         file=sys.stderr,
         flush=True,

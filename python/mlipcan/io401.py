@@ -227,7 +227,8 @@ class IoModule(SimDevice):
         self.master_seen = None
 
     def _on_master_hb(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        self.master_seen = timestamp
+        # never back: a stall of the simulator itself moved it on (DriveSim)
+        self.master_seen = max(timestamp, self.master_seen or 0.0)
         self.master_lost = False
 
     def check_heartbeats(self, now: float) -> None:
