@@ -83,8 +83,11 @@ software-emulated test VM (MLIP_IN_VM=1, --receive fast) with the listener's
 recvmmsg batches from the same socket, handed to canopen's Network.notify:
 python-can's Bus.recv costs 1-2.6 ms a frame there, and three drives at a
 4 ms SYNC would fall behind the bus. A consumed heartbeat is judged by the
-receive time of the SYNCs after it (frame order), so a simulator running
-late does not see a heartbeat lost that was not.
+receive time of the frames after it (frame order), so a simulator running
+late does not see a heartbeat lost that was not; and the time the simulator
+itself did not run (its emulator descheduled by the host: the drives' own
+kernel-timed heartbeats then come stamped after the stall, before the
+producer has run again) is not counted against the producer.
 
 stderr: "mlip-drive-sim: ... ready" once every drive has sent its boot-up.
 SIGTERM/SIGINT: records written, a summary line (SYNCs, CPU per cycle),
