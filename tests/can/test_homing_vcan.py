@@ -128,16 +128,24 @@ def test_homing_in_sequence(sim, tmp_path, nodes, homes):
     # HOME_ACCEL 20 mm/s^2 (32 counts less a SYNC), latched back at 0.5 mm/s
     # (20 counts a SYNC) until it released (method 1: and on to the index
     # pulse, then back onto it, less than a latch step)
-    ys = [r["actual"] for r in rows if r["node"] == ny and start[ny] < r["sync"] <= done[ny]]
+    # (the rows' actual is sampled at each SYNC before that SYNC's move: up
+    # to the SYNC of the home event, in the power-up reference)
+    idx = [e for e in ev[ny] if e["phase"] == "index"]
+    end = idx[0]["sync"] if idx else done[ny]
+    ys = [r["actual"] for r in rows if r["node"] == ny and start[ny] < r["sync"] <= end]
     steps = [b - a for a, b in zip(ys, ys[1:]) if b != a]
     assert steps.count(-200) >= 20 and steps.count(20) >= 10, steps
     assert all(s == 20 or -200 <= s < 0 for s in steps), steps
     if homes["Y"][0] == 1:
         # the pulse at 2000 counts of the power-up reference is home: the
         # index event there, 1000 counts (50 latch steps) past the switch
-        idx = [e for e in ev[ny] if e["phase"] == "index"]
         assert len(idx) == 1 and idx[0]["home"] == 2000.0, idx
         assert steps.count(20) >= 50, steps
+        # then in the new reference: less than a latch step past the home
+        # position, back onto it (its offset) at the latch speed, at rest
+        off = round(offs["Y"] * 1000)
+        back = [r["actual"] for r in rows if r["node"] == ny and end < r["sync"] <= done[ny] + 1]
+        assert back and back[-1] == off and all(off <= a < off + 20 for a in back), back
         # homing attained (bit 12) before it stood on the home position (bit 10)
         sw = [r["statusword"] for r in rows if r["node"] == ny and r["sync"] <= done[ny] + 1]
         assert any(s & 0x1400 == 0x1000 for s in sw), [hex(s) for s in sw]
