@@ -147,7 +147,7 @@ def test_homing_in_sequence(sim, tmp_path, nodes, homes):
         back = [r["actual"] for r in rows if r["node"] == ny and end < r["sync"] <= done[ny] + 1]
         assert back and back[-1] == off and all(off <= a < off + 20 for a in back), back
         # homing attained (bit 12) before it stood on the home position (bit 10)
-        sw = [r["statusword"] for r in rows if r["node"] == ny and r["sync"] <= done[ny] + 1]
+        sw = [r["sw"] for r in rows if r["node"] == ny and r["sync"] <= done[ny] + 1]
         assert any(s & 0x1400 == 0x1000 for s in sw), [hex(s) for s in sw]
     # no step at the return to CSP: the first target each drive applied after
     # 0x6060 = 8 equals its position actual, the home offset, to the count
