@@ -135,6 +135,11 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 	if (d->quick_stop_counts_s2 != 0) {
 		mlip_sdo_add(&l, 0x6085, 0, 4, d->quick_stop_counts_s2,
 		             "quick stop deceleration (counts/s^2)");
+		/* the ramp is the drive's only with option 2 or 6; 6 also holds the
+		 * axis under position control at rest (docs/cia402.md) */
+		mlip_sdo_add(&l, 0x605A, 0, 2, MLIP_DRIVE_QUICK_STOP_OPTION,
+		             "quick stop option code (6: the quick stop ramp, then hold in "
+		             "quick stop active)");
 	}
 	mlip_sdo_add(&l, 0x1017, 0, 2, d->heartbeat_ms, "producer heartbeat time (ms)");
 	mlip_sdo_add(&l, 0x1016, 1, 4, ((uint32_t)d->master_node << 16) | d->master_timeout_ms,
@@ -210,8 +215,9 @@ const char *mlip_drive_fault_name(mlip_drive_fault f)
 	                                    "spindle not at speed in time",
 	                                    "spindle speed out of its band",
 	                                    "power step not confirmed",
-	                                    "digital inputs lost"};
-	return (int)f >= 0 && f <= MLIP_DRIVE_INPUTS_LOST ? names[f] : "?";
+	                                    "digital inputs lost",
+	                                    "not the same device"};
+	return (int)f >= 0 && f <= MLIP_DRIVE_WRONG_DEVICE ? names[f] : "?";
 }
 
 int64_t mlip_drive_following_error(const int32_t *targets, int n, int32_t actual)

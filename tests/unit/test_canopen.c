@@ -338,9 +338,14 @@ static void test_setup_entries_inputs(void **state)
 		} else if (key == 0x608500) {
 			assert_int_equal(e[i].value, 1000000);
 			qs++;
+		} else if (key == 0x605A00) {
+			/* the ramp, then held in quick stop active (INTEGER16) */
+			assert_int_equal(e[i].value, 6);
+			assert_int_equal(e[i].size, 2);
+			qs += 10;
 		}
 	}
-	assert_int_equal(qs, 1);
+	assert_int_equal(qs, 11);
 	assert_true(first >= 0 && first < map && map < count && count < last);
 	assert_int_equal(e[first].value, 0xC0000382u); /* invalid while mapped */
 	assert_int_equal(e[count].value, 1);
@@ -369,14 +374,15 @@ static void test_setup_entries_inputs(void **state)
 	assert_int_equal(tp2_maps, 2);
 	assert_int_equal(tp3_maps, 1);
 	assert_true(tp2_on > 0 && tp3_on > 0);
-	/* none of them without switches on the drive (nor 0x6085 unset) */
+	/* none of them without switches on the drive (nor 0x6085/0x605A unset) */
 	d.touch_probe = 0;
 	d.di_tpdo_cob = 0;
 	d.quick_stop_counts_s2 = 0;
 	int m = mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX);
-	assert_int_equal(m, n - 8);
+	assert_int_equal(m, n - 9);
 	for (i = 0; i < m; i++) {
-		assert_true(e[i].index != 0x1802 && e[i].index != 0x1A02 && e[i].index != 0x6085);
+		assert_true(e[i].index != 0x1802 && e[i].index != 0x1A02 && e[i].index != 0x6085 &&
+		            e[i].index != 0x605A);
 	}
 }
 
