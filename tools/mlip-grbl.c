@@ -611,7 +611,12 @@ static void soft_reset(void)
 		S.ov_post = 100;
 	}
 	S.ov_rapid = S.ov_spindle = 100;
-	if (!quiet_controller() && !locked_state(S.cs.state)) {
+	/* a program of ours in the ring and not ended (pushed_seq, the stream
+	 * open) is stopped too, even if the status read last still says idle:
+	 * the controller may have taken its first records since. Without the
+	 * stop it would wait for the rest of that program for ever. */
+	int ours_open = S.pushed_seq != 0 || S.st.open;
+	if ((!quiet_controller() || ours_open) && !locked_state(S.cs.state)) {
 		stop_post();
 		S.reset_wait = 1;
 		restart_at(S.cs.pos, 0);

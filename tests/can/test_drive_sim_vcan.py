@@ -191,12 +191,13 @@ def test_sdo_configuration_read_back(bench):
         assert r.sdo[0x1400][1].raw == 0x200 + n and r.sdo[0x1800][1].raw == 0x180 + n
         assert r.sdo[0x1800][2].raw == 1
     r = b.nodes[1]
-    # CiA 301: a mapping entry of a valid PDO cannot change; a mode other than 0/8 is refused
+    # CiA 301: a mapping entry of a valid PDO cannot change; a mode the drive lacks
+    # (1, profile position: it has 0, 3, 6 and 8) is refused
     with pytest.raises(b.canopen.SdoAbortedError) as e:
         r.sdo[0x1600][1].raw = 0x60410010
     assert e.value.code == 0x06010000
     with pytest.raises(b.canopen.SdoAbortedError) as e:
-        r.sdo[0x6060].raw = 3
+        r.sdo[0x6060].raw = 1
     assert e.value.code == 0x06090030
     with pytest.raises(b.canopen.SdoAbortedError) as e:
         b.nodes[4].sdo[0x6060].raw = 8

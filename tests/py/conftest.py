@@ -128,7 +128,9 @@ def status(shm):
     return json.loads(p.stdout) if p.stdout.strip() else None
 
 
-def wait_for(pred, timeout=10.0, poll=0.02):
+def wait_for(pred, timeout=60.0, poll=0.02):
+    # a generous deadline: it costs nothing when pred comes true, and a shared
+    # 2-core host under a VM and builds took over 10 s to start mlip-rt
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         v = pred()
