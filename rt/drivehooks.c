@@ -13,7 +13,9 @@
 
 #include "drives.h"
 
-#define RX_PER_PERIOD(n) (4 * (n) + 16) /* TPDO + heartbeat + EMCY per drive, and margin */
+/* per drive TPDO1, TPDO2 (touch probe), TPDO3 (digital inputs), heartbeat,
+ * EMCY, an SDO answer; and margin */
+#define RX_PER_PERIOD(n) (6 * (n) + 16)
 
 int mlip_drives_find_node(const struct mlip_drives *ds, uint8_t node)
 {
@@ -44,6 +46,9 @@ void mlip_drives_observe(struct mlip_drives *ds, const struct mlip_can_frame *f,
 	if (ds->io.node != 0 && f->id == MLIP_CO_TPDO1_BASE + ds->io.node) {
 		/* the module's inputs, on change: its own length (not a drive's) */
 		m->kind = MLIP_CO_OTHER;
+		if (ds->io.lost != 0 && ds->io.re.phase != MLIP_IO_RE_START) {
+			return; /* lost: not trusted until it is configured again */
+		}
 		if (f->len != ds->io.setup.in_bytes) {
 			ds->rx_malformed++;
 			return;
@@ -52,6 +57,22 @@ void mlip_drives_observe(struct mlip_drives *ds, const struct mlip_can_frame *f,
 		ds->io.img.module_read = 1;
 		ds->io.rx_frames++;
 		return;
+	}
+	if (ds->di_axes != 0 && (f->id & 0x780u) == MLIP_CO_TPDO3_BASE) {
+		/* a drive's digital inputs 0x60FD (TPDO3): 4 bytes, or not trusted */
+		int i = mlip_drives_find_node(ds, (uint8_t)(f->id & 0x7Fu));
+		if (i >= 0 && i < ds->n && (ds->di_axes & (1u << i))) {
+			m->kind = MLIP_CO_OTHER;
+			if (f->len != 4 || (f->flags & (MLIP_CAN_FLAG_EFF | MLIP_CAN_FLAG_FD))) {
+				ds->rx_malformed++;
+				return;
+			}
+			ds->io.img.di[i] = (uint32_t)f->data[0] | (uint32_t)f->data[1] << 8 |
+			                   (uint32_t)f->data[2] << 16 | (uint32_t)f->data[3] << 24;
+			ds->io.img.drives_read |= 1u << i;
+			ds->d[i].obs.di_ns = now;
+			return;
+		}
 	}
 	if (mlip_co_classify(f, m) != MLIP_OK) {
 		ds->rx_malformed++;
@@ -68,6 +89,9 @@ void mlip_drives_observe(struct mlip_drives *ds, const struct mlip_can_frame *f,
 	case MLIP_CO_HEARTBEAT:
 		o->nmt_state = m->nmt_state;
 		o->hb_ns = now;
+		if (i < 0 && m->nmt_state == MLIP_NMT_BOOTUP) {
+			ds->io.bootup_ns = now; /* the module (re)booted */
+		}
 		break;
 	case MLIP_CO_EMCY:
 		if (m->emcy.code != 0) {
@@ -80,6 +104,12 @@ void mlip_drives_observe(struct mlip_drives *ds, const struct mlip_can_frame *f,
 		o->position_counts = m->position_counts;
 		o->tpdo_cycle = cycle;
 		o->tpdo_count++;
+		o->probe_status = m->has_probe ? m->probe_status : 0;
+		break;
+	case MLIP_CO_TPDO2:
+		o->probe_pos = m->probe_pos;
+		o->probe_neg = m->probe_neg;
+		o->tpdo2_count++;
 		break;
 	default:
 		break;
@@ -103,6 +133,10 @@ static void hook_rx(void *ctx, const struct mlip_can_frame *f, uint64_t cycle, u
 	struct mlip_can_frame req;
 	ds->rx_frames++;
 	mlip_drives_observe(ds, f, now, cycle + 1, &m);
+	if (m.kind == MLIP_CO_SDO && ds->io.node != 0 && m.node == ds->io.node) {
+		mlip_io_module_sdo(ds, f, now); /* its reconfiguration's transfer */
+		return;
+	}
 	if (m.kind != MLIP_CO_SDO || !ds->sdo.busy || m.node != ds->sdo.s.node) {
 		return;
 	}
@@ -177,6 +211,7 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 			continue;
 		}
 		x.window_counts = d->setup.following_window_counts;
+		x.di_timeout_ns = i < ds->n && (ds->di_axes & (1u << i)) ? x.hb_timeout_ns : 0;
 		/* the newest TPDO answers SYNC j = tpdo_count, sent in period j */
 		uint64_t j = d->obs.tpdo_count;
 		x.following_counts = -1;
@@ -200,7 +235,7 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 		 * keeps getting the stop on the path with the others, then the
 		 * disable, instead of stopping dead at once (issue 18) */
 		if (f != MLIP_DRIVE_FOLLOWING_ERROR && f != MLIP_DRIVE_TPDO_LOST &&
-		    f != MLIP_DRIVE_HEARTBEAT_LOST) {
+		    f != MLIP_DRIVE_HEARTBEAT_LOST && f != MLIP_DRIVE_INPUTS_LOST) {
 			ds->mute |= 1u << i;
 		}
 		if (!__atomic_load_n(&ds->fault, __ATOMIC_ACQUIRE)) {
@@ -218,30 +253,25 @@ static void supervise(struct mlip_drives *ds, uint64_t cycle, uint64_t now, int 
 	}
 }
 
-/* Before the controller: supervision against the power its last period
- * left, then its inputs from the drives: the faulted ones (no RPDO),
- * statuswords (its power steps are confirmed by them), positions actual. */
 /* The I/O module's supervision (its heartbeat, NMT state, EMCY: any failure
- * is an E-stop, for good) and the input functions of this period. */
+ * is an E-stop until it is reconfigured, rt/iomodule.c) and the input
+ * functions of this period: a drive's
+ * inputs not read within the heartbeat timeout are unknown (its supervision
+ * makes that a fault). */
 static void io_before(struct mlip_drives *ds, uint64_t now, struct mlip_ctl_in *in)
 {
-	const struct mlip_drive_obs *o = &ds->io.obs;
 	uint64_t timeout = (uint64_t)ds->cfg.heartbeat_timeout_ms * 1000000u;
-	if (ds->io.node == 0) {
-		return;
-	}
-	if (ds->io.lost == 0) {
-		if (now > o->hb_ns && now - o->hb_ns > timeout) {
-			ds->io.lost = MLIP_DRIVE_HEARTBEAT_LOST;
-			ds->io.lost_value = (double)(now - o->hb_ns) * 1e-6;
-		} else if (o->nmt_state != MLIP_NMT_OPERATIONAL) {
-			ds->io.lost = MLIP_DRIVE_NOT_OPERATIONAL;
-			ds->io.lost_value = o->nmt_state;
-		} else if (o->emcy_count > 0) {
-			ds->io.lost = MLIP_DRIVE_EMCY;
-			ds->io.lost_value = o->emcy.code;
+	for (int i = 0; i < ds->n; i++) {
+		uint64_t at = ds->d[i].obs.di_ns;
+		if ((ds->di_axes & (1u << i)) && now > at && now - at > timeout) {
+			ds->io.img.drives_read &= ~(1u << i);
 		}
 	}
+	if (ds->io.node == 0) {
+		in->io.active = mlip_io_eval(&ds->io_cfg, ds->m, &ds->io.img, &in->io.known);
+		return;
+	}
+	mlip_io_module_period(ds, now);
 	if (ds->io.lost != 0) {
 		in->io.lost.event = ds->io.lost;
 		in->io.lost.node = ds->io.node;
@@ -250,6 +280,9 @@ static void io_before(struct mlip_drives *ds, uint64_t now, struct mlip_ctl_in *
 	in->io.active = mlip_io_eval(&ds->io_cfg, ds->m, &ds->io.img, &in->io.known);
 }
 
+/* Before the controller: supervision against the power its last period
+ * left, then its inputs from the drives: the faulted ones (no RPDO),
+ * statuswords (its power steps are confirmed by them), positions actual. */
 static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl_in *in)
 {
 	struct mlip_drives *ds = ctx;
@@ -273,6 +306,11 @@ static void hook_before(void *ctx, uint64_t cycle, uint64_t now, struct mlip_ctl
 		 * period tpdo_count - 1 */
 		in->drives.tpdo_period[i] =
 		    d->obs.tpdo_count > 0 ? d->obs.tpdo_count - 1 : UINT64_MAX;
+		in->drives.tp_status[i] = d->obs.tpdo_count > 0 ? d->obs.probe_status : 0;
+		in->drives.tp_latch_period[i] =
+		    d->obs.tpdo2_count > 0 ? d->obs.tpdo2_count - 1 : UINT64_MAX;
+		in->drives.tp_pos[i] = d->obs.probe_pos / d->counts_per_unit;
+		in->drives.tp_neg[i] = d->obs.probe_neg / d->counts_per_unit;
 	}
 	in->sdo = ds->sdo.res;
 }
@@ -301,7 +339,7 @@ static void hook_after(void *ctx, uint64_t cycle, uint64_t now, const struct mli
 	sdo_after(ds, now, out);
 	/* the module's outputs: when they change, and every 100 ms (a module that
 	 * missed one frame catches up) */
-	if (ds->io.node != 0 && ds->io.setup.out_bytes > 0 &&
+	if (ds->io.node != 0 && ds->io.setup.out_bytes > 0 && ds->io.lost == 0 &&
 	    (ds->io.sent_ns == 0 || now - ds->io.sent_ns >= 100000000u ||
 	     memcmp(ds->io.sent, out->outputs, ds->io.setup.out_bytes) != 0)) {
 		struct mlip_can_frame f;

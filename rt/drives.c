@@ -215,26 +215,9 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 	for (int k = 0; k < m->n_axes; k++) {
 		ds->home_axes |= cfg->home.axis[k].configured ? 1u << k : 0u;
 	}
-	if (cfg->inputs.mapped & ~((1u << MLIP_IN_AXIS0) - 1u)) {
-		for (uint32_t f = MLIP_IN_AXIS0; f < MLIP_IN_COUNT; f++) {
-			if ((cfg->inputs.mapped & (1u << f)) &&
-			    cfg->inputs.in[f].node != cfg->inputs.node) {
-				char name[24];
-				snprintf(why, why_len,
-				         "%s is mapped on node %u's 0x60FD: a drive's digital "
-				         "inputs are "
-				         "not read yet; wire it to the I/O module ([IO] NODE)",
-				         mlip_io_function_name(f, m, name, sizeof(name)),
-				         cfg->inputs.in[f].node);
-				return -EINVAL;
-			}
-		}
-	}
-	if (cfg->inputs.mapped != 0 && cfg->inputs.node == 0) {
-		snprintf(why, why_len,
-		         "inputs are mapped but [IO] NODE (the I/O module) is not set");
-		return -EINVAL;
-	}
+	/* every input function is on the module or on an axis' drive (the
+	 * config's check): the drives' are read from their TPDO3 */
+	ds->di_axes = mlip_drives_di_axes(cfg);
 	if (ds->io.node != 0) {
 		ds->io.setup.node = ds->io.node;
 		ds->io.setup.in_bytes = cfg->inputs.in_bytes ? cfg->inputs.in_bytes : 1;
@@ -242,6 +225,15 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 		ds->io.setup.heartbeat_ms = (uint16_t)cfg->drives.heartbeat_ms;
 		ds->io.setup.master_node = cfg->drives.master_node;
 		ds->io.setup.master_timeout_ms = (uint16_t)cfg->drives.heartbeat_timeout_ms;
+		/* what a reconfiguration writes after a loss (rt/iomodule.c) */
+		ds->io.re.n =
+		    mlip_io401_setup_entries(&ds->io.setup, ds->io.re.e, MLIP_IO401_SETUP_MAX);
+		if (ds->io.re.n < 0) {
+			snprintf(why, why_len,
+			         "[IO]: %u input and %u output bytes: not 1..8 and 0..8",
+			         ds->io.setup.in_bytes, ds->io.setup.out_bytes);
+			return -EINVAL;
+		}
 	}
 	if (cfg->io.spindle == MLIP_IO_CIA402) {
 		/* the spindle: d[n], one more drive of the group (issue 19) */
@@ -299,9 +291,36 @@ int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,
 		d->setup.tpdo_cob = MLIP_CO_TPDO1_BASE + d->node;
 		d->setup.period_s = m->period_s;
 		d->setup.following_window_counts = (uint32_t)(w + 0.5);
+		d->setup.touch_probe = cfg->inputs.probe_source == MLIP_PROBE_SRC_DRIVE;
+		d->setup.tpdo2_cob = MLIP_CO_TPDO2_BASE + d->node;
 		d->setup.heartbeat_ms = (uint16_t)ds->cfg.heartbeat_ms;
 		d->setup.master_node = ds->cfg.master_node;
 		d->setup.master_timeout_ms = (uint16_t)ds->cfg.heartbeat_timeout_ms;
+		double qs = a->max_accel * a->counts_per_unit;
+		d->setup.quick_stop_counts_s2 = qs >= 4294967295.0 ? 4294967295u
+		                                : qs < 1.0         ? 1u
+		                                                   : (uint32_t)(qs + 0.5);
+		if (ds->di_axes & (1u << i)) {
+			uint32_t id = MLIP_CO_TPDO3_BASE + d->node;
+			if (id == cfg->can.sync_id || id == cfg->can.status_id) {
+				snprintf(why, why_len,
+				         "AXIS_%c's drive inputs: its TPDO3 0x%03X is also the %s",
+				         a->letter, (unsigned)id,
+				         id == cfg->can.sync_id ? "SYNC_ID" : "STATUS_ID");
+				return -EINVAL;
+			}
+			for (int j = 0; j < m->n_axes; j++) {
+				if (cfg->can.rpdo_base + (uint32_t)m->axis[j].can_node == id) {
+					snprintf(why, why_len,
+					         "AXIS_%c's drive inputs: its TPDO3 0x%03X is also "
+					         "AXIS_%c's RPDO (RPDO_BASE + CAN_NODE)",
+					         a->letter, (unsigned)id, m->axis[j].letter);
+					return -EINVAL;
+				}
+			}
+			d->setup.di_tpdo_cob = id;
+			d->setup.di_event_ms = (uint16_t)ds->cfg.heartbeat_ms;
+		}
 		struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
 		if (mlip_drive_setup_entries(&d->setup, e, MLIP_DRIVE_SETUP_MAX) < 0) {
 			snprintf(
@@ -644,10 +663,30 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		}
 		say(ds,
 		    "%s: CiA 402 drive (0x1000 = 0x%08X), %d objects written and read back: "
-		    "CSP, RPDO 0x%03X, TPDO 0x%03X, 0x60C2 %g s, 0x6065 %u counts, heartbeat %u ms",
+		    "CSP, RPDO 0x%03X, TPDO 0x%03X, 0x60C2 %g s, 0x6065 %u counts, 0x6085 %u "
+		    "counts/s^2, heartbeat %u ms%s",
 		    axis_of(ds, i, who, sizeof(who)), type, n, ds->d[i].setup.rpdo_cob,
 		    ds->d[i].setup.tpdo_cob, ds->d[i].setup.period_s,
-		    ds->d[i].setup.following_window_counts, ds->d[i].setup.heartbeat_ms);
+		    ds->d[i].setup.following_window_counts, ds->d[i].setup.quick_stop_counts_s2,
+		    ds->d[i].setup.heartbeat_ms,
+		    ds->d[i].setup.touch_probe ? ", touch probe (0x60B8 in the RPDO, 0x60B9 in the "
+		                                 "TPDO, TPDO2 0x60BA/0x60BB)"
+		                               : "");
+		if (ds->di_axes & (1u << i)) {
+			/* the switches once by SDO (as the module's inputs), then TPDO3 */
+			uint32_t v = 0;
+			rc = sdo(ds, i, 1, 0x60FD, 0, 0, 0, "digital inputs", &v, why, why_len);
+			if (rc != 0) {
+				goto fail;
+			}
+			ds->io.img.di[i] = v;
+			ds->io.img.drives_read |= 1u << i;
+			say(ds,
+			    "%s: digital inputs 0x60FD = 0x%08X, TPDO3 0x%03X on change, at least "
+			    "every %u ms",
+			    axis_of(ds, i, who, sizeof(who)), v, ds->d[i].setup.di_tpdo_cob,
+			    ds->d[i].setup.di_event_ms);
+		}
 	}
 	rc = nmt_wait_all(ds, MLIP_NMT_START, MLIP_NMT_OPERATIONAL, "operational after NMT start",
 	                  why, why_len);
@@ -704,10 +743,12 @@ int mlip_drives_bringup(struct mlip_drives *ds, double *start_pos, char *why, si
 		start_pos[i] = v / ds->d[i].counts_per_unit;
 		ds->d[i].obs.nmt_state = MLIP_NMT_OPERATIONAL;
 		ds->d[i].obs.hb_ns = ds->port.now_ns(ds->port.ctx);
+		ds->d[i].obs.di_ns = ds->d[i].obs.hb_ns; /* read by SDO, TPDO3s since */
 		for (int k = 0; k < MLIP_DRIVE_HIST; k++) {
 			ds->d[i].targets[k] = v; /* before the first period: here */
 		}
 		ds->d[i].obs.tpdo_count = 0;
+		ds->d[i].obs.tpdo2_count = 0;
 		say(ds, "%s: operation enabled at %.4f %s (%d counts): the planner starts there",
 		    axis_of(ds, i, who, sizeof(who)), start_pos[i],
 		    a->kind == MLIP_AXIS_ROTARY ? "deg" : "mm", v);
@@ -754,8 +795,25 @@ void mlip_drives_shutdown_text(const struct mlip_drives *ds, char *buf, size_t l
 	}
 }
 
+uint32_t mlip_drives_di_axes(const struct mlip_config *cfg)
+{
+	uint32_t axes = 0;
+	for (uint32_t f = 0; f < MLIP_IN_COUNT; f++) {
+		const struct mlip_io_bit *b = &cfg->inputs.in[f];
+		if (!(cfg->inputs.mapped & (1u << f)) || b->index != 0x60FD) {
+			continue;
+		}
+		for (int k = 0; k < cfg->machine.n_axes; k++) {
+			if (cfg->machine.axis[k].can_node == b->node) {
+				axes |= 1u << k;
+			}
+		}
+	}
+	return axes;
+}
+
 int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint8_t spindle_node,
-                       uint32_t *ids, int cap)
+                       int touch_probe, uint32_t di_axes, uint32_t *ids, int cap)
 {
 	static const uint32_t bases[4] = {MLIP_CO_SDO_TX_BASE, MLIP_CO_HB_BASE, MLIP_CO_EMCY_BASE,
 	                                  MLIP_CO_TPDO1_BASE};
@@ -766,6 +824,12 @@ int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint8_t sp
 		                                 : spindle_node;
 		for (int b = 0; b < 4 && n < cap && node != 0; b++) {
 			ids[n++] = bases[b] + node;
+		}
+		if (touch_probe && i < m->n_axes && n < cap) {
+			ids[n++] = MLIP_CO_TPDO2_BASE + node; /* the latched positions */
+		}
+		if (i < m->n_axes && (di_axes & (1u << i)) && n < cap) {
+			ids[n++] = MLIP_CO_TPDO3_BASE + node; /* the digital inputs 0x60FD */
 		}
 	}
 	return n;

@@ -58,6 +58,7 @@ static void feeder_in(const struct mlip_ring *r, struct mlip_ctl_in *in)
 	                           -1}; /* pid 0: it left */
 	in->feeder_alive = mlip_peer_judge(&s, NULL, mlip_now_ns(), NULL) == MLIP_PEER_ALIVE;
 	in->feeder_stop_base = f.stop_base;
+	in->feeder_mdi = f.mdi != 0;
 }
 
 static void log_push(struct mlip_period *p, const struct mlip_ctl_event *ev)

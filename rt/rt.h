@@ -100,7 +100,10 @@ struct mlip_can_port {
 	uint64_t (*now_ns)(void *ctx);
 };
 
-#define MLIP_CANBUS_MAX_IDS (4 * MLIP_MAX_AXES + 8) /* identifiers a socket receives */
+/* identifiers a socket receives: per axis SDO answer, heartbeat, EMCY,
+ * TPDO1, TPDO2 (touch probe), TPDO3 (digital inputs); the I/O module's and
+ * the spindle drive's 4 each */
+#define MLIP_CANBUS_MAX_IDS (6 * MLIP_MAX_AXES + 8)
 
 struct mlip_canbus {
 	int fd;
@@ -303,8 +306,10 @@ struct mlip_drives {
 	int shutdown_ok;                /* the last disable in order within the timeouts */
 	struct mlip_ctl_power shutdown; /* which drive did not confirm which step */
 	/* the inputs (issue 18): the CiA 401 I/O module ([IO] NODE; node 0: none)
-	 * and the functions mapped on it */
+	 * and the functions mapped on it or on the drives' 0x60FD */
 	struct mlip_io_config io_cfg;
+	uint32_t di_axes; /* bit k: drive k's digital inputs 0x60FD carry a function:
+	                     read in its TPDO3 (io.img.di[k]) */
 	/* SDO transfers the controller asks for in the loop (homing): one at a
 	 * time, never waited for: the request sent in a period's after hook,
 	 * the answers fed as they come, the result to the next period */
@@ -326,18 +331,54 @@ struct mlip_drives {
 		struct mlip_io_image img;       /* what the bus said of the inputs */
 		uint8_t sent[MLIP_IO_IN_BYTES]; /* the outputs last sent */
 		uint64_t sent_ns;               /* when (0: never) */
-		uint32_t lost;                  /* mlip_drive_fault: the module failed (for good:
-		                                   it reboots unconfigured; restart mlip-rt) */
+		uint32_t lost; /* mlip_drive_fault: the module failed (an E-stop); its inputs
+		                  are unknown and its TPDOs ignored until it is reconfigured */
 		double lost_value;
+		uint64_t lost_ns;   /* when (or when a reconfiguration last failed) */
+		uint64_t bootup_ns; /* its last boot-up message */
 		uint64_t rx_frames;
+		/* the module back after a loss (a heartbeat newer than it): NMT
+		 * reset communication, its boot-up, the set-up entries written and
+		 * read back, its inputs read, NMT start, operational: then `lost` is
+		 * cleared (rt/iomodule.c). One SDO at a time, never waited for */
+		struct {
+			int phase; /* MLIP_IO_RE_*; 0: none */
+			int k;     /* the entry (or input byte) being run */
+			int readback;
+			int busy, done; /* an SDO answer awaited / come */
+			struct mlip_sdo s;
+			uint32_t abort, value;
+			uint64_t t0_ns, deadline_ns;
+			struct mlip_sdo_entry e[MLIP_IO401_SETUP_MAX];
+			int n;
+			uint32_t count, failed; /* reconfigurations done / attempts failed */
+			uint32_t fail_abort;    /* the last failed one: abort code (0: timeout) */
+			uint16_t fail_index;    /* and object */
+			uint8_t fail_sub;
+		} re;
 	} io;
 };
 
+/* The steps of the I/O module's reconfiguration after a loss (io.re.phase) */
+enum { MLIP_IO_RE_NONE, MLIP_IO_RE_BOOT, MLIP_IO_RE_SDO, MLIP_IO_RE_INPUTS, MLIP_IO_RE_START };
+
+/* The I/O module after a loss (rt/iomodule.c), in the loop's before hook:
+ * its reconfiguration stepped on (one frame out at most), then whether it
+ * is lost. */
+void mlip_io_module_period(struct mlip_drives *ds, uint64_t now);
+/* An SDO answer from the module, in the loop's receive hook: fed to the
+ * reconfiguration's transfer. */
+void mlip_io_module_sdo(struct mlip_drives *ds, const struct mlip_can_frame *f, uint64_t now);
+
 /* The identifiers the master receives from the drives of m (SDO answers,
- * heartbeats, EMCY, TPDO1) and from the I/O module io_node (0: none): the
- * bus' receive filter; returns how many. */
+ * heartbeats, EMCY, TPDO1; TPDO2 of the axes with touch_probe, TPDO3 of the
+ * axes in di_axes) and from the I/O module io_node (0: none): the bus'
+ * receive filter; returns how many. */
 int mlip_drives_rx_ids(const struct mlip_machine *m, uint8_t io_node, uint8_t spindle_node,
-                       uint32_t *ids, int cap);
+                       int touch_probe, uint32_t di_axes, uint32_t *ids, int cap);
+/* The axes whose drive's digital inputs 0x60FD carry an input function of
+ * cfg (bit k: axis k). */
+uint32_t mlip_drives_di_axes(const struct mlip_config *cfg);
 /* Check the [DRIVES] settings against the machine (master node, following
  * window in counts, period) and fill ds; log gets one line per step. */
 int mlip_drives_init(struct mlip_drives *ds, const struct mlip_config *cfg,

@@ -331,7 +331,7 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 		}
 	}
 	mlip_json_close(&j);
-	mlip_iostatus_json(&j, m, st); /* outputs, coolant, the last probe (issue 19) */
+	mlip_iostatus_json(&j, m, st, s->ring); /* outputs, coolant, the last probe (issue 19) */
 	if (st->reason == MLIP_WHY_ESTOP || st->reason == MLIP_WHY_LIMIT) {
 		mlip_json_string(&j, "reason_input",
 		                 mlip_io_function_name(st->reason_field, m, fname, sizeof(fname)));

@@ -3,8 +3,11 @@
  * (CNCjs, bCNC, UGS, gSender, ...) drive mlip over TCP or a pseudo-terminal
  * as they drive a Grbl board. The protocol is tools/lib/grbl.h (pure); the
  * lines become the ring's records as mlip-feed makes them
- * (tools/lib/grblstream.h); this file owns the sockets, the ring's producer
- * side, the command mailbox and the time.
+ * (tools/lib/grblstream.h); the server's parts share one state
+ * (tools/lib/grblsrv.h: grblproto.c the protocol and flow control,
+ * grblreport.c the status, grblsetting.c the `$` lines, grblfeed.c the
+ * streaming); this file owns the sockets, the pseudo-terminal, the
+ * segment's producer lock (rt/) and the loop.
  *
  * One loop, never blocking: poll the sockets (1 ms while anything is under
  * way), take real-time bytes at once (commands posted to the mailbox in the
@@ -54,22 +57,18 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "confload.h"
 #include "grbl.h"
 #include "grblmach.h"
+#include "grblsrv.h"
 #include "grblstream.h"
 #include "mlip/ctl/state.h"
 #include "mlip/ipc/ring.h"
 #include "mlip/machine/config.h"
 #include "rt.h"
+#include "tooltable.h"
 
-#define PROG          "mlip-grbl"
-#define TX_CAP        65536        /* bytes waiting for a client that reads slowly */
-#define TX_STATUS_MIN 1024         /* a status report needs this much room (else skipped) */
-#define MAX_PEERS     8            /* connections at once (the others are refused) */
-#define DEAD_NS       500000000ull /* no controller beat this long: not responding */
-#define PTY_CHECK_NS  20000000ull  /* look for a sender on the pseudo-terminal */
-#define CMDQ          32           /* real-time commands waiting for the mailbox */
-#define DEFAULT_QUIET 100          /* ms */
+#define DEFAULT_QUIET 100 /* ms */
 #define DEFAULT_PORT  "2323"
 
 static volatile sig_atomic_t got_signal;
@@ -77,281 +76,8 @@ static void on_signal(int sig)
 {
 	got_signal = sig;
 }
-
-struct peer {
-	int fd;
-	int pty;
-	char name[80];
-	char tx[TX_CAP];
-	size_t tx_len;
-};
-
-/* A command for the controller's mailbox. */
-struct cmd {
-	uint32_t op;
-	int32_t arg;
-};
-
-struct srv {
-	/* wiring */
-	struct mlip_shm shm;
-	struct mlip_ring *r;
-	struct mlip_ring_port tx;
-	int port_open, locked;
-	struct mlip_machine m;
-	struct grbl_axes ax;
-	struct grbl_fmt fmt;
-	struct grbl_refresh refresh;
-	int listen_fd;
-	int pty_fd;
-	char pty_link[256];
-	char pty_name[64];
-	int pty_open; /* a process has the pseudo-terminal's other side open */
-	uint64_t pty_checked;
-	struct peer *peers[MAX_PEERS];
-	struct peer *ctl; /* the controlling client */
-	uint64_t quiet_ns;
-	double default_feed;
-	int verbose;
-	/* protocol */
-	struct grbl_rx rx;
-	uint32_t lineno;     /* lines received since the welcome */
-	uint64_t last_rx_ns; /* last line byte received */
-	int status_req;
-	int check_mode;
-	int err_hold;  /* a refused line: nothing more taken until ~ or reset */
-	int hold_idle; /* ! while idle: Hold:0 until ~ */
-	int door;      /* 0x84: a safety-door hold (Door:2 stopping, Door:0 until ~) */
-	int sleeping;  /* $SLP: until reset */
-	int alarm;     /* our own alarm latch (a stop by someone else, a soft limit):
-	                  kept through a reset, cleared by $X, as Grbl's */
-	int critical;  /* ALARM:2 (a soft limit): no line taken until a reset */
-	char alarm_why[200];
-	int reset_wait;  /* a reset waits for rest before the welcome */
-	int hold_req;    /* we asked for a feed hold (the controller says held only at rest) */
-	int jog;         /* a jog ($J=) is queued or moving: Grbl's Jog state */
-	int jog_cancel;  /* a jog cancel is stopping it: Jog until at rest */
-	uint64_t cmd_hb; /* the controller's period when we last posted a command */
-	uint64_t cmd_ns;
-	int stop_ours;        /* we posted a stop (a reset) */
-	uint32_t stop_ticket; /* its ticket (mlip_ring_stop_post) */
-	uint32_t stop_seen;   /* the controller's stop_seen when we last looked */
-	int partial;          /* the current line's blocks are not all staged */
-	int ov_feed, ov_rapid, ov_spindle;
-	double wco_last[MLIP_MAX_AXES];
-	int fault_told;
-	/* the stream and the controller */
-	struct grbl_stream st;
-	uint64_t pushed_seq; /* last record of the open program in the ring */
-	int program_live;    /* records of ours in the ring or the controller's hands */
-	struct mlip_ring_feeder fa;
-	struct mlip_ring_status cs; /* the controller's last status */
-	int cs_ok;
-	uint64_t cs_beat, cs_beat_ns;
-	int dead;
-	struct cmd q[CMDQ];
-	int qn;
-	int ov_post; /* an override value waits for the mailbox (-1: none) */
-	/* the machine's I/O, as mlip-feed takes it from the controller */
-	struct mlip_gcode_io io;
-	struct grbl_acc acc;  /* what its manual spindle and coolant do now */
-	uint32_t acc_changes; /* acc.changes last shown */
-	uint32_t prev_state;  /* the controller's state before its current one */
-	/* a $H or $X waiting for the controller: Grbl answers it when done
-	 * and takes no line meanwhile */
-	uint32_t await_op;  /* MLIP_CMD_HOME, MLIP_CMD_RESET; 0: none */
-	int await_stage;    /* 0 to post, 1 posted (its result), 2 under way */
-	uint32_t await_seq; /* its mailbox ticket */
-	uint64_t await_hb;  /* the controller's period when it was accepted */
-	uint64_t await_ns;
-};
-
-static struct srv S;
+static struct mlip_shm seg;           /* the controller's segment */
 static struct mlip_smooth smooth_mem; /* ~1 MB: the smoothing filter's window */
-
-static uint64_t now_ns(void)
-{
-	return mlip_now_ns();
-}
-
-/* ---- output -------------------------------------------------------------- */
-
-static void send_raw(struct peer *p, const char *s, size_t n)
-{
-	if (p == NULL || p->fd < 0) {
-		return;
-	}
-	if (p->tx_len + n > TX_CAP) {
-		return; /* the client does not read: drop (bounded memory) */
-	}
-	memcpy(p->tx + p->tx_len, s, n);
-	p->tx_len += n;
-}
-
-static void send_line(struct peer *p, const char *s)
-{
-	send_raw(p, s, strlen(s));
-	send_raw(p, "\r\n", 2);
-}
-
-static void send_msg(struct peer *p, const char *fmt, ...)
-{
-	char m[GRBL_MSG_BYTES], l[GRBL_MSG_BYTES + 8];
-	va_list ap;
-	va_start(ap, fmt);
-	vsnprintf(m, sizeof(m), fmt, ap);
-	va_end(ap);
-	grbl_msg_clean(m);
-	snprintf(l, sizeof(l), "[MSG:%s]", m);
-	send_line(p, l);
-}
-
-static void answer(int code)
-{
-	char b[32];
-	if (code == 0) {
-		send_line(S.ctl, "ok");
-	} else {
-		snprintf(b, sizeof(b), "error:%d", code);
-		send_line(S.ctl, b);
-	}
-}
-
-/* Grbl's alarm push (interface.md: ALARM:x; the codes of doc/csv/
- * alarm_codes_en_US.csv), then why, in mlip's words. */
-static void alarm_push(int code, const char *why)
-{
-	char b[16];
-	snprintf(b, sizeof(b), "ALARM:%d", code);
-	send_line(S.ctl, b);
-	if (why != NULL) {
-		send_msg(S.ctl, "%s", why);
-	}
-}
-
-static void flush_peer(struct peer *p)
-{
-	while (p->tx_len > 0) {
-		ssize_t n = write(p->fd, p->tx, p->tx_len);
-		if (n <= 0) {
-			return; /* EAGAIN: later; an error shows at the next read */
-		}
-		memmove(p->tx, p->tx + n, p->tx_len - (size_t)n);
-		p->tx_len -= (size_t)n;
-	}
-}
-
-static void logf_(const char *fmt, ...)
-{
-	va_list ap;
-	fputs(PROG ": ", stderr);
-	va_start(ap, fmt);
-	vfprintf(stderr, fmt, ap);
-	va_end(ap);
-	fputc('\n', stderr);
-}
-
-/* ---- the controller -------------------------------------------------------- */
-
-static void poll_controller(void)
-{
-	struct mlip_ring_status st;
-	if (mlip_ring_status_read(S.r, &st) == MLIP_OK) {
-		if (S.cs_ok && st.state != S.cs.state) {
-			S.prev_state = S.cs.state;
-		}
-		grbl_acc_update(&S.acc, st.state, st.reason, st.reason_seq, st.reason_value);
-		if (st.state == MLIP_STATE_PAUSED && S.cs.state != MLIP_STATE_PAUSED && S.ctl &&
-		    (st.reason == MLIP_WHY_SPINDLE || st.reason == MLIP_WHY_COOLANT ||
-		     st.reason == MLIP_WHY_TOOL)) {
-			/* the operator's part (Hold:0 until ~) */
-			char what[200];
-			mlip_cli_io_message(st.reason, st.reason_value, NULL, what, sizeof(what));
-			send_msg(S.ctl, "line %u: %s, then resume (~)", (unsigned)st.reason_line,
-			         what);
-		}
-		S.cs = st;
-		S.cs_ok = 1;
-		if (st.heartbeat != S.cs_beat) {
-			S.cs_beat = st.heartbeat;
-			S.cs_beat_ns = now_ns();
-		}
-	}
-	int dead = S.cs_beat_ns == 0 || now_ns() - S.cs_beat_ns > DEAD_NS;
-	if (dead && !S.dead && S.cs_beat_ns != 0) {
-		logf_("the controller on %s stopped responding", S.shm.name);
-		if (S.ctl) {
-			char why[160];
-			snprintf(
-			    why, sizeof(why),
-			    "the controller on %s stopped responding (mlip-rt gone or stalled): "
-			    "nothing runs",
-			    S.shm.name);
-			alarm_push(3, why); /* what it did last is not known */
-		}
-	}
-	S.dead = dead;
-}
-
-static int at_rest_state(uint32_t s)
-{
-	return s == MLIP_STATE_IDLE || s == MLIP_STATE_STARVED || s == MLIP_STATE_FAULT ||
-	       s == MLIP_STATE_ESTOP;
-}
-
-/* The controller holds the machine until a reset or a restart. */
-static int locked_state(uint32_t s)
-{
-	return s == MLIP_STATE_FAULT || s == MLIP_STATE_ESTOP;
-}
-
-static void locked_why(char *why, size_t n);
-static void say_locked(void);
-
-/* Nothing of ours is queued or moving. */
-static int quiet_controller(void)
-{
-	return at_rest_state(S.cs.state) && mlip_ring_count(S.r) == 0 &&
-	       grbl_stream_staged(&S.st) == 0 && !S.st.end_pending;
-}
-
-static void cmd_push(uint32_t op, int32_t arg)
-{
-	if (S.qn < CMDQ) {
-		S.q[S.qn++] = (struct cmd){op, arg};
-	}
-}
-
-static void cmd_pump(void)
-{
-	if (S.ov_post >= 0 && S.qn < CMDQ) {
-		cmd_push(MLIP_CMD_OVERRIDE, S.ov_post);
-		S.ov_post = -1;
-	}
-	if (S.qn == 0) {
-		return;
-	}
-	if (mlip_ring_cmd_post(S.r, (mlip_ring_cmd_op)S.q[0].op, S.q[0].arg, NULL) == MLIP_OK) {
-		S.cmd_hb = S.cs.heartbeat;
-		S.cmd_ns = now_ns();
-		if (S.q[0].op == MLIP_CMD_HOLD) {
-			S.hold_req = 1;
-		} else if (S.q[0].op == MLIP_CMD_RESUME) {
-			S.hold_req = 0;
-		}
-		memmove(S.q, S.q + 1, (size_t)(S.qn - 1) * sizeof(S.q[0]));
-		S.qn--;
-	}
-}
-
-/* A controlled stop on the path (the stop counter: never refused, never
- * behind the mailbox); the controller drops what is queued. */
-static void stop_post(void)
-{
-	S.stop_ticket = mlip_ring_stop_post(S.r);
-	S.stop_ours = 1;
-	S.hold_req = 0;
-}
 
 /* ---- the ring's producer side ------------------------------------------------ */
 
@@ -363,16 +89,9 @@ static void producer_unlock(void)
 	fl.l_whence = SEEK_SET;
 	fl.l_start = (off_t)offsetof(struct mlip_ring, head);
 	fl.l_len = MLIP_RING_LINE;
-	(void)fcntl(S.shm.fd, F_SETLK, &fl);
+	(void)fcntl(seg.fd, F_SETLK, &fl);
 	S.locked = 0;
 	S.port_open = 0;
-}
-
-static void beat(void)
-{
-	S.fa.heartbeat++;
-	S.fa.heartbeat_ns = now_ns();
-	mlip_ring_feeder_write(S.r, &S.fa);
 }
 
 /* Take the producer side for a line that moves: 0, or a refusal said. */
@@ -383,22 +102,22 @@ static int take_producer(void)
 	if (S.locked) {
 		return 0;
 	}
-	if (mlip_shm_feeder_lock(&S.shm, &holder) != 0) {
+	if (mlip_shm_feeder_lock(&seg, &holder) != 0) {
 		send_msg(S.ctl,
 		         "another feeder (pid %d) is feeding %s: wait for it to finish, or stop "
 		         "it (mlip-ctl stop)",
-		         (int)holder, S.shm.name);
+		         (int)holder, S.shm_name);
 		return -1;
 	}
 	if (mlip_ring_feeder_read(S.r, &other) == MLIP_OK && other.pid != 0 &&
 	    other.pid != (int32_t)getpid() && mlip_peer_feeder(&other) == MLIP_PEER_ALIVE) {
 		send_msg(S.ctl, "another feeder (pid %d) is feeding %s", (int)other.pid,
-		         S.shm.name);
+		         S.shm_name);
 		producer_unlock();
 		return -1;
 	}
 	if (mlip_ring_port_open(&S.tx, S.r, 1) != MLIP_OK) {
-		send_msg(S.ctl, "%s: the ring's header is not valid: restart mlip-rt", S.shm.name);
+		send_msg(S.ctl, "%s: the ring's header is not valid: restart mlip-rt", S.shm_name);
 		producer_unlock();
 		return -1;
 	}
@@ -409,1090 +128,6 @@ static int take_producer(void)
 	S.fa.program_end = 0;
 	beat();
 	return 0;
-}
-
-/* Staged records into the ring, as many as fit. */
-static void push_records(void)
-{
-	if (S.port_open && grbl_stream_staged(&S.st) > 0 && S.fa.pid == 0) {
-		S.fa.pid = (int32_t)getpid(); /* feeding again (after a quiet pre-read) */
-		beat();
-	}
-	while (S.port_open && grbl_stream_staged(&S.st) > 0) {
-		uint32_t n = grbl_stream_staged(&S.st), got = 0;
-		const struct mlip_ring_rec *recs = grbl_stream_peek(&S.st);
-		if (mlip_ring_port_push_n(&S.tx, recs, n, &got) != MLIP_OK || got == 0) {
-			return;
-		}
-		for (uint32_t i = 0; i < got; i++) {
-			S.pushed_seq = recs[i].type == MLIP_REC_END ? 0 : recs[i].seq;
-		}
-		S.program_live = 1;
-		grbl_stream_take(&S.st, got);
-	}
-}
-
-/* An END alone (after a stop: the controller drops the stopped program's
- * records up to it). */
-static void push_end_alone(void)
-{
-	struct mlip_ring_rec rec;
-	uint32_t got = 0;
-	if (!S.port_open || S.pushed_seq == 0) {
-		return;
-	}
-	mlip_ring_rec_end(&rec, S.pushed_seq + 1, S.lineno);
-	mlip_ring_port_push_n(&S.tx, &rec, 1, &got);
-	if (got == 1) {
-		S.pushed_seq = 0;
-	}
-}
-
-/* ---- state ---------------------------------------------------------------- */
-
-static const char *grbl_state(void)
-{
-	const struct mlip_ring_status *c = &S.cs;
-	int ours_queued = grbl_stream_staged(&S.st) > 0 || mlip_ring_count(S.r) > 0 || S.st.open ||
-	                  S.st.end_pending;
-	int moving = c->speed_mm_s > 0.0;
-	/* a soft-limit alarm while what was acknowledged still runs: Alarm once
-	 * at rest (Grbl: Hold, then Alarm) */
-	int settling = S.critical && !quiet_controller();
-	if (!S.dead && (c->state == MLIP_STATE_HOMING || S.await_op == MLIP_CMD_HOME)) {
-		return "Home"; /* $H (Grbl: also from Alarm) or mlip-ctl home */
-	}
-	if (S.dead || locked_state(c->state) || (S.alarm && !settling)) {
-		return "Alarm";
-	}
-	if (S.sleeping) {
-		return "Sleep";
-	}
-	if (S.check_mode) {
-		return "Check";
-	}
-	if (S.door) {
-		/* mlip has no door switch: the door reads closed once at rest */
-		return moving || c->state == MLIP_STATE_STOPPING ? "Door:2" : "Door:0";
-	}
-	if (S.jog) {
-		return "Jog"; /* Grbl: Jog also while a jog cancel decelerates */
-	}
-	switch (c->state) {
-	case MLIP_STATE_HELD:
-		return moving ? "Hold:1" : "Hold:0";
-	case MLIP_STATE_STOPPING:
-		return "Hold:1";
-	case MLIP_STATE_PAUSED:
-		return "Hold:0";
-	case MLIP_STATE_RUNNING:
-	case MLIP_STATE_PREREAD:
-	case MLIP_STATE_DWELLING:
-		/* a hold decelerates in RUNNING: Grbl's Hold:1 */
-		return S.hold_req ? (moving ? "Hold:1" : "Hold:0") : "Run";
-	case MLIP_STATE_IDLE:
-	case MLIP_STATE_STARVED:
-		if (S.hold_req || S.hold_idle) {
-			return "Hold:0";
-		}
-		if (S.err_hold) {
-			int ring = mlip_ring_count(S.r) > 0 || grbl_stream_staged(&S.st) > 0;
-			return ring || moving ? "Run" : "Hold:0";
-		}
-		return ours_queued ? "Run" : "Idle";
-	case MLIP_STATE_JOGGING:
-		return "Jog"; /* mlip-ctl jog (a continuous jog, issue 18) */
-	case MLIP_STATE_HOMING:
-		return "Home"; /* mlip-ctl home */
-	default:
-		/* E-stop, and a state this build does not know: never "Idle" */
-		return "Alarm";
-	}
-}
-
-static int busy_state(const char *s)
-{
-	return strcmp(s, "Idle") != 0 && strcmp(s, "Alarm") != 0 && strcmp(s, "Check") != 0 &&
-	       strcmp(s, "Sleep") != 0;
-}
-
-static void status_report(void)
-{
-	struct grbl_status s;
-	char b[GRBL_MSG_BYTES];
-	if (S.ctl == NULL || TX_CAP - S.ctl->tx_len < TX_STATUS_MIN) {
-		return; /* the sender does not read: a report is not owed (interface.md) */
-	}
-	memset(&s, 0, sizeof(s));
-	s.state = grbl_state();
-	memcpy(s.mpos, S.cs.pos, sizeof(s.mpos));
-	grbl_wco(&S.st.g.off, S.m.n_axes, s.wco);
-	if (memcmp(s.wco, S.wco_last, sizeof(s.wco)) != 0) {
-		memcpy(S.wco_last, s.wco, sizeof(s.wco));
-		grbl_refresh_wco(&S.refresh);
-	}
-	s.feed_mm_min = S.cs.speed_mm_s * 60.0;
-	s.spindle_rpm = fabs(S.acc.rpm); /* the manual spindle as the operator set it */
-	s.ov_feed = S.ov_feed;
-	s.ov_rapid = S.ov_rapid;
-	s.ov_spindle = S.ov_spindle;
-	s.busy = busy_state(s.state);
-	s.bf_blocks = (int)mlip_ring_space(S.r);
-	s.bf_bytes = (int)grbl_rx_available(&S.rx);
-	s.line =
-	    strcmp(s.state, "Run") == 0 || strncmp(s.state, "Hold", 4) == 0 ? S.cs.exec_line : 0;
-	char pins[16], acc[8];
-	grbl_pins(pins, sizeof(pins), S.cs.io_inputs & S.cs.io_mapped, &S.m);
-	grbl_accessories(acc, sizeof(acc), S.acc.rpm, S.acc.coolant);
-	if (S.acc.changes != S.acc_changes) {
-		S.acc_changes = S.acc.changes;
-		grbl_refresh_ovr(&S.refresh); /* report.c: A: at once after a change */
-	}
-	s.pins = pins;
-	s.accessories = acc;
-	grbl_status_format(b, sizeof(b), &s, &S.ax, &S.fmt, &S.refresh);
-	send_line(S.ctl, b);
-}
-
-/* ---- resets and welcome -------------------------------------------------------- */
-
-static void welcome(void)
-{
-	send_raw(S.ctl, "\r\n", 2);
-	send_line(S.ctl, GRBL_WELCOME);
-	send_msg(S.ctl, "mlip-grbl: mlip on %s, %d axes, %s", S.shm.name, S.m.n_axes,
-	         S.m.smooth ? "strategy smooth" : "planner look-ahead");
-	if (S.dead || locked_state(S.cs.state) || S.alarm) {
-		send_msg(S.ctl, "'$H'|'$X' to unlock");
-	}
-	memset(&S.refresh, 0, sizeof(S.refresh));
-	S.lineno = 0;
-}
-
-/* Where the machine stands, for a new program. */
-static void restart_at(const double *pos, int keep_modes)
-{
-	grbl_stream_restart(&S.st, pos, keep_modes);
-	/* what was queued and dropped never ran: the spindle and coolant are
-	 * what the machine does (an M5 then still asks the operator) */
-	grbl_stream_machine_io(&S.st, S.acc.rpm, S.acc.coolant);
-}
-
-static void resync(int keep_modes)
-{
-	restart_at(S.cs.pos, keep_modes);
-	S.partial = 0;
-	if (!keep_modes) {
-		memset(S.wco_last, 0, sizeof(S.wco_last));
-	}
-}
-
-static void soft_reset(void)
-{
-	grbl_rx_reset(&S.rx);
-	S.status_req = 0;
-	S.check_mode = 0;
-	S.err_hold = 0;
-	S.hold_idle = 0;
-	S.hold_req = 0;
-	S.door = 0;
-	S.jog = 0;
-	S.jog_cancel = 0;
-	S.critical = 0;
-	if (S.sleeping) {
-		S.alarm = 1; /* Grbl: out of sleep into alarm */
-		snprintf(S.alarm_why, sizeof(S.alarm_why), "after sleep ($SLP)");
-	}
-	S.sleeping = 0;
-	S.partial = 0;
-	/* overrides back to 100 % (Grbl's reset) */
-	if (S.ov_feed != 100) {
-		S.ov_feed = 100;
-		S.ov_post = 100;
-	}
-	S.ov_rapid = S.ov_spindle = 100;
-	/* a program of ours in the ring and not ended (pushed_seq, the stream
-	 * open) is stopped too, even if the status read last still says idle:
-	 * the controller may have taken its first records since. Without the
-	 * stop it would wait for the rest of that program for ever. */
-	int ours_open = S.pushed_seq != 0 || S.st.open;
-	if ((!quiet_controller() || ours_open) && !locked_state(S.cs.state)) {
-		stop_post();
-		S.reset_wait = 1;
-		restart_at(S.cs.pos, 0);
-		push_end_alone();
-		return;
-	}
-	resync(0);
-	welcome();
-}
-
-/* ---- jogging -------------------------------------------------------------------- */
-
-/* Grbl's jog ($J=, jogging.md) as a program of its own: each $J= line is a
- * G1 move at its own F through the same planner and limits as a program
- * (the G-code reader runs it with the modal state left as it was), queued
- * behind the last, and given to the controller at once (no waiting for more
- * look-ahead); the program ends as soon as the controller has run it. A
- * cancel (0x85, a feed hold, the sender gone) is the controller's stop on
- * the path: it decelerates at the acceleration limit and drops what is
- * queued. This is the one mapping to move onto the controller's own jog
- * (issue 18: a continuous jog with a dead-man) when it lands: jog_line,
- * jog_cancel and jog_done are all that know how a jog runs. */
-static void jog_cancel(const char *why)
-{
-	if (!S.jog || S.jog_cancel) {
-		return;
-	}
-	if (S.verbose) {
-		logf_("jog cancelled (%s)", why);
-	}
-	S.jog_cancel = 1;
-	if (quiet_controller() && !S.st.open) {
-		return; /* it has ended at rest already: jog_done says Idle */
-	}
-	stop_post();
-	restart_at(S.cs.pos, 1);
-	S.partial = 0;
-	push_end_alone();
-}
-
-/* The jog has ended (run to its end, or cancelled and at rest). */
-static void jog_done(void)
-{
-	if (!S.jog || S.st.open || S.st.end_pending || grbl_stream_staged(&S.st) > 0 ||
-	    !quiet_controller() || S.cs.state == MLIP_STATE_STOPPING) {
-		return;
-	}
-	if (S.jog_cancel && S.stop_ours && !mlip_ring_stop_applied(S.cs.stop_seen, S.stop_ticket)) {
-		return;
-	}
-	if (S.jog_cancel) {
-		S.stop_ours = 0;
-		resync(1); /* where it stopped, on the jog's path */
-	}
-	S.jog = 0;
-	S.jog_cancel = 0;
-	S.program_live = 0;
-}
-
-/* ---- real-time commands -------------------------------------------------------- */
-
-static void rt_cmd(void *ctx, grbl_rt c)
-{
-	(void)ctx;
-	const struct mlip_ring_status *cs = &S.cs;
-	switch (c) {
-	case GRBL_RT_STATUS:
-		S.status_req = 1;
-		return;
-	case GRBL_RT_RESET:
-		soft_reset();
-		return;
-	case GRBL_RT_FEED_HOLD:
-		if (S.check_mode || S.alarm || S.sleeping) {
-			return;
-		}
-		if (S.jog) {
-			jog_cancel("feed hold"); /* Grbl: any hold cancels a jog */
-			return;
-		}
-		if (at_rest_state(cs->state) && quiet_controller()) {
-			S.hold_idle = 1; /* Grbl: a hold while idle suspends too */
-		}
-		cmd_push(MLIP_CMD_HOLD, 0);
-		return;
-	case GRBL_RT_CYCLE_START:
-		if (S.door) {
-			S.door = 0; /* the door is closed (no switch says otherwise) */
-			if (S.hold_req || cs->state == MLIP_STATE_HELD) {
-				cmd_push(MLIP_CMD_RESUME, 0);
-			}
-			S.hold_idle = 0;
-			return;
-		}
-		if (S.jog) {
-			return; /* nothing to resume: a jog is cancelled, not held */
-		}
-		if (S.err_hold) {
-			S.err_hold = 0; /* the sender goes on after a refused line */
-		}
-		if (S.hold_idle || S.hold_req || cs->state == MLIP_STATE_HELD ||
-		    cs->state == MLIP_STATE_PAUSED) {
-			cmd_push(MLIP_CMD_RESUME, 0);
-		}
-		S.hold_idle = 0;
-		return;
-	case GRBL_RT_JOG_CANCEL:
-		jog_cancel("jog cancel"); /* outside the Jog state: ignored, as Grbl */
-		return;
-	case GRBL_RT_SAFETY_DOOR:
-		/* Grbl's door as a command: a feed hold (a jog is cancelled), Door
-		 * until ~; mlip has no door switch and no spindle to stop yet */
-		if (S.check_mode || S.alarm || S.sleeping || S.door) {
-			return;
-		}
-		S.door = 1;
-		if (S.jog) {
-			jog_cancel("safety door");
-			return;
-		}
-		if (at_rest_state(cs->state) && quiet_controller()) {
-			S.hold_idle = 1;
-		}
-		cmd_push(MLIP_CMD_HOLD, 0);
-		return;
-	case GRBL_RT_FEED_100:
-	case GRBL_RT_FEED_PLUS_10:
-	case GRBL_RT_FEED_MINUS_10:
-	case GRBL_RT_FEED_PLUS_1:
-	case GRBL_RT_FEED_MINUS_1: {
-		int v = grbl_override_step(c, S.ov_feed);
-		if (v != S.ov_feed) {
-			S.ov_feed = v;
-			S.ov_post = v;
-			grbl_refresh_ovr(&S.refresh);
-		}
-		return;
-	}
-	case GRBL_RT_RAPID_100:
-	case GRBL_RT_RAPID_50:
-	case GRBL_RT_RAPID_25:
-		if (c != GRBL_RT_RAPID_100 && S.ctl) {
-			send_msg(S.ctl, "rapid override: mlip has one override, the feed override, "
-			                "which scales rapids too; rapids stay at 100 %%");
-		}
-		return;
-	case GRBL_RT_SPINDLE_100:
-	case GRBL_RT_SPINDLE_PLUS_10:
-	case GRBL_RT_SPINDLE_MINUS_10:
-	case GRBL_RT_SPINDLE_PLUS_1:
-	case GRBL_RT_SPINDLE_MINUS_1: {
-		/* kept and shown as Grbl does with the spindle off; applied once
-		 * mlip drives a spindle (issue 19) */
-		int v = grbl_override_step(c, S.ov_spindle);
-		if (v != S.ov_spindle) {
-			S.ov_spindle = v;
-			grbl_refresh_ovr(&S.refresh);
-		}
-		return;
-	}
-	case GRBL_RT_SPINDLE_STOP:
-	case GRBL_RT_FLOOD:
-	case GRBL_RT_MIST:
-		/* Grbl switches its own outputs; mlip's spindle and coolant are
-		 * the operator's (manual) or absent: say so, switch nothing */
-		if (S.ctl) {
-			int sp = c == GRBL_RT_SPINDLE_STOP;
-			int type = sp ? S.io.spindle : S.io.coolant;
-			send_msg(
-			    S.ctl, "%s: %s: nothing switched", grbl_rt_name(c),
-			    type == MLIP_IO_NONE ? (sp ? "this machine has no spindle"
-			                               : "this machine has no coolant")
-			    : sp ? "the spindle is the operator's here (manual): stop it by hand, "
-			           "or M5 in the program"
-			         : "the coolant is the operator's here (manual): switch it by "
-			           "hand, or M7/M8/M9 in the program");
-		}
-		return;
-	default:
-		return;
-	}
-}
-
-/* ---- lines ------------------------------------------------------------------- */
-
-static int idle_or_alarm(void)
-{
-	const char *s = grbl_state();
-	return strcmp(s, "Idle") == 0 || strcmp(s, "Alarm") == 0;
-}
-
-/* A target beyond the soft limits: Grbl's ALARM:2 (limits.c: the line is
- * not run, not answered, and nothing is taken until a reset; after it the
- * alarm stays until $X). The machine runs what was acknowledged and stops
- * at rest there. */
-static void soft_limit_alarm(const struct mlip_gcode_error *e)
-{
-	send_msg(S.ctl, "line %u col %u: %s", (unsigned)e->line, (unsigned)e->col, e->msg);
-	S.alarm = 1;
-	S.critical = 1;
-	snprintf(S.alarm_why, sizeof(S.alarm_why), "soft limit (line %u)", (unsigned)e->line);
-	alarm_push(2, NULL);
-	send_msg(S.ctl, "Reset to continue");
-}
-
-static void say_error(const struct mlip_gcode_error *e, int code)
-{
-	if (e->col) {
-		send_msg(S.ctl, "line %u col %u: %s", (unsigned)e->line, (unsigned)e->col, e->msg);
-	} else {
-		send_msg(S.ctl, "line %u: %s", (unsigned)e->line, e->msg);
-	}
-	answer(code);
-}
-
-/* A refused line in a stream: the machine runs what was acknowledged and
- * stops at rest there; nothing more is taken until ~ or reset. A line
- * refused with nothing of ours queued and no line behind it (typed in a
- * console: the sender waits for its answer) holds nothing: the next line
- * is taken, as Grbl takes it. */
-static void refuse_hold(void)
-{
-	if (S.st.open || S.program_live || grbl_stream_staged(&S.st) > 0 || S.rx.bytes > 0 ||
-	    S.rx.marks > 0) {
-		S.err_hold = 1;
-	}
-	grbl_stream_end(&S.st);
-}
-
-static void notices_since(uint32_t before)
-{
-	for (uint32_t k = before; k < S.st.g.n_notices; k++) {
-		const struct mlip_gcode_notice *n = &S.st.g.notices[k];
-		send_msg(S.ctl, "line %u: %s %s", (unsigned)n->first_line, n->word,
-		         mlip_gcode_notice_text(n));
-	}
-}
-
-/* A G-code line: 1 answered, 0 waits (its records do not fit yet, or the
- * controller is being reset). */
-static int gcode_line(const char *t, size_t len)
-{
-	struct mlip_gcode_error e;
-	uint32_t nn = S.st.g.n_notices;
-	if (S.dead) {
-		send_msg(S.ctl, "the controller on %s is not responding: nothing runs", S.shm.name);
-		answer(GRBL_E_LOCK);
-		return 1;
-	}
-	if (locked_state(S.cs.state) || S.alarm || S.sleeping) {
-		if (locked_state(S.cs.state)) {
-			say_locked();
-		} else {
-			send_msg(S.ctl, "alarm: %s; reset (ctrl-x) or $X first",
-			         S.sleeping ? "sleeping" : S.alarm_why);
-		}
-		answer(GRBL_E_LOCK);
-		return 1;
-	}
-	if (S.jog) {
-		send_msg(S.ctl,
-		         "jogging: G-code waits until the jog has ended (or 0x85 cancels it)");
-		answer(GRBL_E_LOCK);
-		return 1;
-	}
-	if (S.check_mode) {
-		if (grbl_stream_dry(&S.st, t, len, S.lineno, &e) != MLIP_OK) {
-			if (grbl_error_travel(&e)) {
-				soft_limit_alarm(&e); /* "soft limits still work" in check mode */
-				return 1;
-			}
-			say_error(&e, grbl_error_code(&e, 0));
-			return 1;
-		}
-		notices_since(nn);
-		answer(0);
-		return 1;
-	}
-	if (!S.st.open && grbl_stream_staged(&S.st) == 0) {
-		/* a new program: a stop from now on is meant for it (the
-		 * controller refuses it, were it still to start) */
-		S.fa.stop_base = mlip_ring_stop_count(S.r);
-		if (quiet_controller() && !S.program_live) {
-			resync(1); /* it starts where the machine stands now */
-		}
-	}
-	if (grbl_stream_check(&S.st, t, len, S.lineno, &e) != MLIP_OK) {
-		if (grbl_error_travel(&e)) {
-			soft_limit_alarm(&e);
-		} else {
-			say_error(&e, grbl_error_code(&e, 0));
-		}
-		refuse_hold();
-		return 1;
-	}
-	if (take_producer() != 0) {
-		answer(GRBL_E_LOCK);
-		return 1;
-	}
-	int rc = grbl_stream_line(&S.st, t, len, S.lineno, &e);
-	if (rc < 0) { /* cannot happen: checked above */
-		say_error(&e, grbl_error_code(&e, 0));
-		refuse_hold();
-		return 1;
-	}
-	notices_since(nn);
-	if (rc == 0) {
-		S.partial = 1;
-		return 0;
-	}
-	if (grbl_stream_ended(&S.st)) {
-		send_msg(S.ctl, "Pgm End");
-	}
-	answer(0);
-	return 1;
-}
-
-/* ---- $H and $X: the controller's homing and reset ----------------------------- */
-
-static void await_start(uint32_t op)
-{
-	S.await_op = op;
-	S.await_stage = 0;
-	S.await_ns = now_ns();
-}
-
-static void await_end(int code)
-{
-	S.await_op = 0;
-	answer(code);
-}
-
-/* Post the command, take its result, follow it to its end, answer. */
-static void await_pump(void)
-{
-	int32_t res = 0;
-	if (S.await_op == 0) {
-		return;
-	}
-	if (S.ctl == NULL) {
-		S.await_op = 0; /* its sender left: homing goes on, nobody to answer */
-		return;
-	}
-	if (S.await_stage == 0) {
-		if (S.qn > 0 || S.ov_post >= 0) {
-			return; /* real-time commands first: they came before */
-		}
-		if (mlip_ring_cmd_post(S.r, (mlip_ring_cmd_op)S.await_op, 0, &S.await_seq) ==
-		    MLIP_OK) {
-			S.await_stage = 1;
-			S.await_ns = now_ns();
-		} else if (now_ns() - S.await_ns > 5000000000ull) {
-			send_msg(S.ctl, "the controller's mailbox stayed busy for 5 s (another "
-			                "mlip-ctl?): try again");
-			await_end(S.await_op == MLIP_CMD_HOME ? GRBL_E_IDLE : GRBL_E_LOCK);
-		}
-		return;
-	}
-	if (S.await_stage == 1) {
-		mlip_status rc = mlip_ring_cmd_result(S.r, S.await_seq, &res);
-		if (rc == MLIP_E_EMPTY && !S.dead) {
-			return;
-		}
-		if (rc != MLIP_OK) {
-			send_msg(S.ctl, "the controller did not answer %s",
-			         S.await_op == MLIP_CMD_HOME ? "$H" : "$X");
-			await_end(S.await_op == MLIP_CMD_HOME ? GRBL_E_IDLE : GRBL_E_LOCK);
-			return;
-		}
-		if (S.await_op == MLIP_CMD_HOME && res == MLIP_E_RANGE) {
-			send_msg(S.ctl, "homing is not configured: no HOME_METHOD in the machine's "
-			                "configuration (or no CiA 402 drives: mlip-rt --drives)");
-			await_end(GRBL_E_SETTING_DISABLED);
-			return;
-		}
-		if (S.await_op == MLIP_CMD_HOME && res != MLIP_OK) {
-			char why[240] = "the controller is not idle";
-			if (locked_state(S.cs.state)) {
-				locked_why(why, sizeof(why));
-			}
-			send_msg(S.ctl, "$H refused: %s", why);
-			await_end(GRBL_E_IDLE);
-			return;
-		}
-		if (S.await_op == MLIP_CMD_RESET && res == MLIP_E_RANGE) {
-			send_msg(S.ctl,
-			         "$X refused: the input that stopped the machine is still on "
-			         "(release the E-stop, move the axis off its limit switch; a "
-			         "lost I/O module needs a restart of mlip-rt)");
-			await_end(GRBL_E_LOCK);
-			return;
-		}
-		S.await_stage = 2; /* accepted (or nothing left to reset) */
-		S.await_hb = S.cs.heartbeat;
-		return;
-	}
-	/* under way: the status of a later period says how it ended */
-	if (S.cs.heartbeat < S.await_hb + 2 && !S.dead) {
-		return;
-	}
-	if (S.await_op == MLIP_CMD_HOME) {
-		if (S.cs.state == MLIP_STATE_HOMING && !S.dead) {
-			return;
-		}
-		if (S.cs.state == MLIP_STATE_IDLE && S.cs.reason == MLIP_WHY_HOMED) {
-			S.alarm = 0; /* Grbl: homing unlocks */
-			S.critical = 0;
-			resync(1); /* where homing left the axes */
-		}
-		/* a failure was pushed as an alarm (follow_controller); Grbl
-		 * answers the line ok after its homing cycle either way */
-		await_end(0);
-		return;
-	}
-	if (locked_state(S.cs.state) && !S.dead) {
-		if (!grbl_resettable(S.cs.state, S.cs.reason)) {
-			/* reset into what came before it (a drive fault) */
-			say_locked();
-			await_end(GRBL_E_LOCK);
-			return;
-		}
-		if (now_ns() - S.await_ns > 5000000000ull) {
-			send_msg(S.ctl, "$X: the controller is still in %s",
-			         mlip_ctl_state_name(S.cs.state));
-			await_end(GRBL_E_LOCK);
-		}
-		return;
-	}
-	S.alarm = 0;
-	S.critical = 0;
-	resync(1);
-	send_msg(S.ctl, "Caution: Unlocked");
-	await_end(0);
-}
-
-static void settings_list(void)
-{
-	char b[GRBL_MSG_BYTES];
-	for (int i = 0; grbl_setting_line(b, sizeof(b), &S.m, &S.fmt, i) > 0; i++) {
-		send_line(S.ctl, b);
-	}
-}
-
-/* A $J= line: 1 answered, 0 waits (a cancel still decelerating). */
-static int jog_line(const char *t, size_t len, const char *state)
-{
-	struct mlip_gcode_error e;
-	if (S.jog_cancel) {
-		return 0; /* Grbl takes no line until the cancel has ended */
-	}
-	if (S.dead) {
-		send_msg(S.ctl, "the controller on %s is not responding: nothing runs", S.shm.name);
-		answer(GRBL_E_IDLE);
-		return 1;
-	}
-	if (strcmp(state, "Idle") != 0 && strcmp(state, "Jog") != 0) {
-		if (strcmp(state, "Alarm") == 0) {
-			send_msg(S.ctl, "alarm: no jog until it is cleared ($X, or a restart of "
-			                "mlip-rt for a fault)");
-		}
-		answer(GRBL_E_IDLE); /* jogging.md: only in Idle or Jog */
-		return 1;
-	}
-	int first = !S.jog;
-	if (first) {
-		/* a jog program of its own, from where the machine stands */
-		S.fa.stop_base = mlip_ring_stop_count(S.r);
-		resync(1);
-	}
-	if (grbl_stream_check(&S.st, t, len, S.lineno, &e) != MLIP_OK) {
-		/* not run, and nothing else changes (no hold: jogging.md) */
-		say_error(&e, grbl_error_code(&e, 1));
-		return 1;
-	}
-	if (take_producer() != 0) {
-		answer(GRBL_E_IDLE);
-		return 1;
-	}
-	S.jog = 1;
-	int rc = grbl_stream_line(&S.st, t, len, S.lineno, &e);
-	if (rc < 0) { /* cannot happen: checked above */
-		say_error(&e, grbl_error_code(&e, 1));
-		return 1;
-	}
-	if (rc == 0) {
-		S.partial = 1;
-		return 0;
-	}
-	/* at once: the smoothing filter's rest, and the controller told to
-	 * start with what it has (quiet_end) */
-	grbl_stream_flush(&S.st, 0);
-	answer(0);
-	return 1;
-}
-
-/* A `$` line: 1 answered. */
-static int system_line(const char *t, size_t len)
-{
-	struct grbl_sys c;
-	char b[GRBL_MSG_BYTES];
-	grbl_sys_parse(t, len, &c);
-	const char *state = grbl_state();
-	switch (c.kind) {
-	case GRBL_SYS_HELP:
-		send_line(S.ctl, "[HLP:$$ $# $G $I $N $x=val $Nx=line $J=line $SLP $C $X $H ~ ! ? "
-		                 "ctrl-x]");
-		answer(0);
-		return 1;
-	case GRBL_SYS_SETTINGS:
-		/* system.c: not during a cycle or a hold (it takes too long to print) */
-		if (strcmp(state, "Run") == 0 || strncmp(state, "Hold", 4) == 0) {
-			answer(GRBL_E_IDLE);
-			return 1;
-		}
-		settings_list();
-		answer(0);
-		return 1;
-	case GRBL_SYS_GCODE:
-		grbl_gcode_state(b, sizeof(b), &S.st.g, -1);
-		send_line(S.ctl, b);
-		answer(0);
-		return 1;
-	case GRBL_SYS_CHECK:
-		if (S.check_mode) {
-			send_msg(S.ctl, "Disabled");
-			answer(0);
-			soft_reset(); /* Grbl resets when check mode ends */
-			return 1;
-		}
-		if (strcmp(state, "Idle") != 0) {
-			answer(GRBL_E_IDLE);
-			return 1;
-		}
-		S.check_mode = 1;
-		send_msg(S.ctl, "Enabled");
-		answer(0);
-		return 1;
-	case GRBL_SYS_UNLOCK:
-		if (locked_state(S.cs.state) && !S.dead) {
-			if (!grbl_resettable(S.cs.state, S.cs.reason)) {
-				say_locked();
-				answer(GRBL_E_LOCK);
-				return 1;
-			}
-			/* the controller's reset (mlip-ctl reset): answered once it
-			 * has left the E-stop or the limit (await_pump) */
-			S.err_hold = 0;
-			await_start(MLIP_CMD_RESET);
-			return 1;
-		}
-		if (S.alarm) {
-			S.alarm = 0;
-			send_msg(S.ctl, "Caution: Unlocked");
-		}
-		S.err_hold = 0; /* and a refused line's hold */
-		answer(0);
-		return 1;
-	case GRBL_SYS_JOG:
-		return jog_line(t, len, state);
-	default:
-		break;
-	}
-	/* the rest: Idle or Alarm only (system.c) */
-	if (!idle_or_alarm()) {
-		answer(c.kind == GRBL_SYS_BAD ? c.code : GRBL_E_IDLE);
-		return 1;
-	}
-	switch (c.kind) {
-	case GRBL_SYS_PARAMS:
-		for (int i = 0; grbl_param_line(b, sizeof(b), &S.st.g.off, &S.ax, &S.fmt, i) > 0;
-		     i++) {
-			send_line(S.ctl, b);
-		}
-		answer(0);
-		return 1;
-	case GRBL_SYS_INFO:
-		snprintf(b, sizeof(b), "[VER:%s.%s:mlip-grbl on %s]", GRBL_VERSION, GRBL_BUILD,
-		         S.shm.name);
-		send_line(S.ctl, b);
-		snprintf(b, sizeof(b), "[OPT:N,%u,%d]", (unsigned)S.r->capacity, GRBL_RX_SIZE);
-		send_line(S.ctl, b);
-		answer(0);
-		return 1;
-	case GRBL_SYS_STARTUP:
-		send_line(S.ctl, "$N0=");
-		send_line(S.ctl, "$N1=");
-		answer(0);
-		return 1;
-	case GRBL_SYS_HOME:
-		if (S.dead) {
-			send_msg(S.ctl, "the controller on %s is not responding", S.shm.name);
-			answer(GRBL_E_IDLE);
-			return 1;
-		}
-		/* the drives' homing (mlip-ctl home): every axis with a
-		 * HOME_METHOD, in HOME_SEQUENCE order; answered at its end */
-		await_start(MLIP_CMD_HOME);
-		return 1;
-	case GRBL_SYS_SLEEP:
-		S.sleeping = 1;
-		send_msg(S.ctl, "Sleeping");
-		answer(0);
-		return 1;
-	case GRBL_SYS_SET:
-		if (c.number == 10 && c.value >= 0 && c.value <= 255 && c.value == floor(c.value)) {
-			S.fmt.mask =
-			    (int)c.value; /* how reports look: this server's, not the machine's */
-			answer(0);
-			return 1;
-		}
-		if (c.number == 13 && (c.value == 0 || c.value == 1)) {
-			S.fmt.inches = (int)c.value;
-			grbl_refresh_wco(&S.refresh);
-			answer(0);
-			return 1;
-		}
-		/* fall through */
-	case GRBL_SYS_STARTUP_SET:
-	case GRBL_SYS_INFO_SET:
-	case GRBL_SYS_RESTORE:
-		send_msg(S.ctl,
-		         "settings live in the machine configuration file (mlip-rt --config); "
-		         "mlip never writes it from the network ($10 and $13, how reports "
-		         "look, are the only ones set here)");
-		answer(GRBL_E_INVALID_STATEMENT);
-		return 1;
-	default:
-		answer(c.code);
-		return 1;
-	}
-}
-
-/* A `$` line that moves nothing and changes no program: answered even while
- * a refused line holds the stream ($X also releases that hold). */
-static int is_query(const char *t, size_t len)
-{
-	struct grbl_sys c;
-	size_t i = 0;
-	while (i < len && (unsigned char)t[i] <= ' ') {
-		i++;
-	}
-	if (i == len || t[i] != '$') {
-		return 0;
-	}
-	grbl_sys_parse(t, len, &c);
-	return c.kind == GRBL_SYS_HELP || c.kind == GRBL_SYS_SETTINGS ||
-	       c.kind == GRBL_SYS_PARAMS || c.kind == GRBL_SYS_GCODE || c.kind == GRBL_SYS_INFO ||
-	       c.kind == GRBL_SYS_STARTUP || c.kind == GRBL_SYS_UNLOCK;
-}
-
-/* The next complete line, if nothing holds it back. */
-static void process_lines(void)
-{
-	struct grbl_line l;
-	if (S.ctl == NULL || S.reset_wait || S.critical || S.await_op) {
-		return;
-	}
-	if (S.partial) {
-		if (!grbl_stream_more(&S.st)) {
-			return;
-		}
-		S.partial = 0;
-		if (grbl_stream_ended(&S.st)) {
-			send_msg(S.ctl, "Pgm End");
-		}
-		answer(0);
-		grbl_rx_done(&S.rx);
-	}
-	while (grbl_rx_line(&S.rx, &l)) {
-		int sys_query = l.kind == GRBL_LINE_TEXT && is_query(l.text, l.len);
-		if ((S.err_hold && !sys_query) || S.st.end_pending ||
-		    TX_CAP - S.ctl->tx_len < 2 * GRBL_MSG_BYTES) {
-			if (S.st.end_pending) {
-				grbl_stream_flush(&S.st, 0);
-			}
-			return;
-		}
-		S.lineno++;
-		if (l.kind == GRBL_LINE_LOST) {
-			send_msg(S.ctl,
-			         "receive buffer overflow: the sender sent more than %d bytes "
-			         "without waiting for ok; %u line(s) lost (%u bytes): not run",
-			         GRBL_RX_SIZE, (unsigned)l.lost, (unsigned)l.overflow);
-			for (uint32_t k = 0; k < l.lost; k++) {
-				answer(GRBL_E_OVERFLOW);
-			}
-			S.lineno += l.lost - 1;
-			refuse_hold();
-			S.err_hold = 1; /* lines were lost: always */
-			grbl_rx_done(&S.rx);
-			continue;
-		}
-		if (l.kind == GRBL_LINE_TOO_LONG) {
-			send_msg(S.ctl, "line %u: longer than %d bytes: not run",
-			         (unsigned)S.lineno, GRBL_LINE_MAX);
-			answer(GRBL_E_OVERFLOW);
-			if (!S.check_mode) {
-				refuse_hold();
-			}
-			grbl_rx_done(&S.rx);
-			continue;
-		}
-		/* what Grbl would see: empty after its pre-parse -> ok */
-		size_t i = 0;
-		while (i < l.len && ((unsigned char)l.text[i] <= ' ')) {
-			i++;
-		}
-		int done;
-		if (i < l.len && l.text[i] == '$') {
-			done = system_line(l.text, l.len);
-		} else {
-			done = gcode_line(l.text, l.len);
-		}
-		if (!done) {
-			return; /* its records wait for room */
-		}
-		grbl_rx_done(&S.rx);
-	}
-}
-
-/* The sender went quiet: what it sent must not wait for lines that may not
- * come. The smoothing filter gives what it holds (the program goes on).
- * A controller still pre-reading is told "nothing more for now" (the
- * feeder area's pid 0, as a feeder that left): it starts with what it has,
- * and lines that come later continue the same program, so a sender that
- * pauses for a while (CNCjs does, while it draws) costs no stop. A program
- * whose controller is at rest waiting for more ends there (END): it is
- * complete, the controller idle. A file streamed without pauses is one
- * program, as mlip-feed runs it. */
-static void quiet_end(void)
-{
-	if (S.partial) {
-		return;
-	}
-	if (S.st.end_pending) {
-		grbl_stream_flush(&S.st, 0);
-		return;
-	}
-	if (S.err_hold && S.st.open) {
-		grbl_stream_end(&S.st);
-		return;
-	}
-	if (grbl_rx_pending(&S.rx) || (!S.jog && now_ns() - S.last_rx_ns < S.quiet_ns)) {
-		return; /* a jog runs at once (jogging.md's joystick: no waiting for more) */
-	}
-	if (grbl_stream_holding(&S.st)) {
-		if (S.verbose) {
-			logf_("quiet: the smoothing filter gives its rest (line %u)",
-			      (unsigned)S.lineno);
-		}
-		grbl_stream_flush(&S.st, 0);
-	}
-	if (!S.st.open || S.st.end_pending || grbl_stream_staged(&S.st) > 0) {
-		return;
-	}
-	if (S.cs.state == MLIP_STATE_PREREAD && S.fa.pid != 0) {
-		if (S.verbose) {
-			logf_("quiet, controller pre-reading: it starts with what it has (line %u)",
-			      (unsigned)S.lineno);
-		}
-		S.fa.pid = 0; /* beat() publishes it */
-	} else if ((S.cs.state == MLIP_STATE_STARVED || S.cs.state == MLIP_STATE_IDLE) &&
-	           (!S.jog || mlip_ring_count(S.r) == 0)) {
-		/* (a jog's records just pushed may not be taken yet: the
-		 * controller is idle until its next period) */
-		if (S.verbose) {
-			logf_("quiet, controller %s: program ends at line %u",
-			      mlip_ctl_state_name(S.cs.state), (unsigned)S.lineno);
-		}
-		grbl_stream_end(&S.st);
-	}
-}
-
-/* Why the controller holds the machine (E-stop, a limit, a failed homing,
- * a fault) and what clears it, in mlip's words. */
-static void locked_why(char *why, size_t n)
-{
-	char fn[32];
-	const struct mlip_ring_status *c = &S.cs;
-	mlip_io_function_name(c->reason_field, &S.m, fn, sizeof(fn));
-	if (c->state == MLIP_STATE_ESTOP && c->reason == MLIP_WHY_ESTOP) {
-		snprintf(why, n,
-		         "E-stop: input %s (node %u) at line %u: quick stop to every drive, the "
-		         "program dropped; release it, then $X",
-		         fn, (unsigned)c->reason_node, (unsigned)c->reason_line);
-	} else if (c->state == MLIP_STATE_ESTOP) {
-		snprintf(why, n,
-		         "E-stop: the I/O module (node %u) is lost (%s): quick stop to every "
-		         "drive; restart mlip-rt",
-		         (unsigned)c->reason_node, mlip_state_why_name(c->reason));
-	} else if (c->reason == MLIP_WHY_LIMIT) {
-		snprintf(why, n,
-		         "limit switch: %s (node %u) at line %u: quick stop to every drive; "
-		         "move the axis off the switch, then $X",
-		         fn, (unsigned)c->reason_node, (unsigned)c->reason_line);
-	} else if (grbl_resettable(c->state, c->reason)) {
-		snprintf(why, n,
-		         "homing failed: %s (node %u, statusword 0x%04X): every axis stopped; $X, "
-		         "then check the axis' HOME_* settings",
-		         mlip_state_why_name(c->reason), (unsigned)c->reason_node,
-		         (unsigned)c->reason_value);
-	} else {
-		/* Grbl has no code for a drive or bus fault: 3, "position not
-		 * guaranteed", is what a stop by a fault means */
-		snprintf(why, n,
-		         "mlip-rt fault: %s at line %u: every axis stopped; restart mlip-rt to "
-		         "clear",
-		         mlip_state_why_name(c->reason), (unsigned)c->reason_line);
-	}
-}
-
-static void say_locked(void)
-{
-	char why[240];
-	locked_why(why, sizeof(why));
-	send_msg(S.ctl, "%s", why);
-}
-
-/* What the controller did on its own (a stop by mlip-ctl, a fault), and
- * the end of a reset. */
-static void follow_controller(void)
-{
-	int stop_done = !S.stop_ours || mlip_ring_stop_applied(S.cs.stop_seen, S.stop_ticket);
-	/* a stop the controller applied that is not ours (mlip-ctl stop) */
-	int foreign =
-	    S.cs.stop_seen != S.stop_seen && !(S.stop_ours && S.cs.stop_seen == S.stop_ticket);
-	S.stop_seen = S.cs.stop_seen;
-	if (S.reset_wait && stop_done && quiet_controller() && S.cs.state != MLIP_STATE_STOPPING) {
-		S.reset_wait = 0;
-		S.stop_ours = 0;
-		S.program_live = 0;
-		resync(0);
-		welcome();
-	}
-	jog_done();
-	if (S.program_live && quiet_controller()) {
-		S.program_live = 0;
-	}
-	if (S.hold_req && S.cs.state == MLIP_STATE_HELD) {
-		S.hold_req = 0; /* the controller says held itself from now on */
-	}
-	if ((foreign || (!S.stop_ours && S.cs.state == MLIP_STATE_STOPPING)) &&
-	    (S.st.open || S.program_live || grbl_stream_staged(&S.st) > 0)) {
-		/* stopped by someone else (mlip-ctl stop, a signal to mlip-rt) */
-		S.alarm = 1;
-		snprintf(
-		    S.alarm_why, sizeof(S.alarm_why),
-		    "stopped by mlip-ctl stop (or mlip-rt exiting) at line %u: the rest of the "
-		    "program was dropped",
-		    (unsigned)S.cs.exec_line);
-		if (S.ctl) {
-			/* Grbl's nearest: an abort in motion (a reset); mlip kept
-			 * the position (a stop on the path) */
-			alarm_push(3, S.alarm_why);
-		}
-		restart_at(S.cs.pos, 1);
-		S.partial = 0;
-		push_end_alone();
-		S.program_live = 0;
-	}
-	int code = grbl_alarm_of(S.cs.state, S.cs.reason, S.prev_state);
-	if (code == 0) {
-		S.fault_told = 0;
-	} else if (!S.fault_told) {
-		S.fault_told = 1;
-		if (S.ctl) {
-			char why[240];
-			locked_why(why, sizeof(why));
-			alarm_push(code, why);
-		}
-		/* the controller drops the rest of the program up to its END */
-		restart_at(S.cs.pos, 1);
-		S.partial = 0;
-		push_end_alone();
-		S.program_live = 0;
-	}
 }
 
 /* ---- connections -------------------------------------------------------------- */
@@ -1829,6 +464,9 @@ static void usage(FILE *f)
 	    "  --quiet-ms N        a sender quiet this long while the controller waits ends\n"
 	    "                      the program there, so it runs (default %d)\n"
 	    "  --default-feed F    feed (units/min) for feed moves before any F\n"
+	    "  --config FILE       the machine's INI (the one mlip-rt runs): $22..$25 from\n"
+	    "                      its homing (HOME_METHOD, HOME_*_VEL of each axis)\n"
+	    "  --tools FILE        the tool table (as mlip-feed --tools): T, M6, M61, G43\n"
 	    "  -v, --verbose       log each connection's lines to stderr\n"
 	    "  -h, --help          this help\n",
 	    DEFAULT_QUIET);
@@ -1841,11 +479,13 @@ int main(int argc, char **argv)
 	                                     {"pty", required_argument, 0, 'p'},
 	                                     {"quiet-ms", required_argument, 0, 'Q'},
 	                                     {"default-feed", required_argument, 0, 'D'},
+	                                     {"config", required_argument, 0, 'C'},
+	                                     {"tools", required_argument, 0, 'T'},
 	                                     {"verbose", no_argument, 0, 'v'},
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
 	const char *shm = MLIP_SHM_DEFAULT, *listen_spec = "127.0.0.1:" DEFAULT_PORT;
-	const char *pty = NULL;
+	const char *pty = NULL, *config = NULL, *tools = NULL;
 	char why[256], pty_default[200];
 	struct mlip_config_error cerr;
 	int c, quiet_ms = DEFAULT_QUIET;
@@ -1880,6 +520,12 @@ int main(int argc, char **argv)
 			}
 			break;
 		}
+		case 'C':
+			config = optarg;
+			break;
+		case 'T':
+			tools = optarg;
+			break;
 		case 'v':
 			S.verbose = 1;
 			break;
@@ -1899,20 +545,43 @@ int main(int argc, char **argv)
 	S.listen_fd = S.pty_fd = -1;
 	S.ov_feed = S.ov_rapid = S.ov_spindle = 100;
 	S.ov_post = -1;
+	S.sp_post = -1;
+	S.ovs_last = 100;
 	S.fmt.mask = 1; /* Grbl's default $10=1: MPos */
 	grbl_rx_init(&S.rx);
 
-	if (mlip_shm_attach(&S.shm, shm, why, sizeof(why)) != 0) {
+	if (mlip_shm_attach(&seg, shm, why, sizeof(why)) != 0) {
 		logf_("%s", why);
 		return 1;
 	}
-	S.r = S.shm.ring;
+	S.r = seg.ring;
+	S.take_producer = take_producer;
+	S.shm_name = seg.name;
 	mlip_ring_machine(S.r, &S.m);
 	if (mlip_machine_check(&S.m, &cerr) != MLIP_OK) {
 		logf_("%s publishes no usable machine (%s): restart mlip-rt", shm, cerr.msg);
 		return 1;
 	}
 	grbl_axes_of(&S.m, &S.ax);
+	S.z_index = -1;
+	for (int k = 0; k < S.m.n_axes; k++) {
+		S.z_index = S.m.axis[k].letter == 'Z' ? k : S.z_index;
+	}
+	if (config != NULL) {
+		static struct mlip_config cfg; /* large: not on the stack */
+		char diff[160];
+		if (mlip_config_load(config, &cfg, stderr) != 0) {
+			return 1;
+		}
+		if (grbl_machine_differs(&cfg.machine, &S.m, diff, sizeof(diff))) {
+			logf_(
+			    "--config %s is not the machine mlip-rt runs on %s (%s): give the INI "
+			    "mlip-rt was started with",
+			    config, shm, diff);
+			return 1;
+		}
+		grbl_homing_of(&cfg, &S.homing);
+	}
 	poll_controller();
 	S.stop_seen = S.cs.stop_seen;
 	if (!S.cs_ok || S.cs.heartbeat == 0) {
@@ -1933,7 +602,17 @@ int main(int argc, char **argv)
 			    shm);
 			return 1;
 		}
+		if (tools != NULL) {
+			if (mlip_tooltable_load(&S.table, tools, 0, PROG, stderr) != 0) {
+				return 1;
+			}
+			S.have_table = 1;
+			S.io.tools = S.table.tools;
+			S.io.n_tools = S.table.n;
+		}
 		grbl_stream_set_io(&S.st, &S.io);
+		S.sp_bus = S.io.spindle == MLIP_IO_CIA402;
+		S.sp_ov = 100;
 	}
 	if (S.default_feed > 0.0) {
 		mlip_gcode_set_initial_feed(&S.st.g, S.default_feed);
@@ -1971,9 +650,10 @@ int main(int argc, char **argv)
 			    (struct pollfd){p->fd, (short)(POLLIN | (p->tx_len ? POLLOUT : 0)), 0};
 			who[n++] = p;
 		}
-		int busy = S.ctl != NULL &&
-		           (grbl_rx_pending(&S.rx) || S.st.open || grbl_stream_staged(&S.st) > 0 ||
-		            S.qn > 0 || S.ov_post >= 0 || S.reset_wait || S.program_live);
+		int busy =
+		    S.ctl != NULL && (grbl_rx_pending(&S.rx) || S.st.open ||
+		                      grbl_stream_staged(&S.st) > 0 || S.qn > 0 || S.ov_post >= 0 ||
+		                      S.sp_post >= 0 || S.reset_wait || S.program_live);
 		(void)poll(pf, (nfds_t)n, busy ? 1 : 10);
 		if (pf[0].revents & POLLIN) {
 			accept_peer();
@@ -1994,7 +674,8 @@ int main(int argc, char **argv)
 		/* a report after a command shows its effect: the controller applies
 		 * it in its next period (at most 50 ms waited) */
 		int applied = S.cs.heartbeat >= S.cmd_hb + 2 || now_ns() - S.cmd_ns > 50000000ull;
-		if (S.status_req && S.ctl != NULL && S.qn == 0 && S.ov_post < 0 && applied) {
+		if (S.status_req && S.ctl != NULL && S.qn == 0 && S.ov_post < 0 && S.sp_post < 0 &&
+		    applied) {
 			S.status_req = 0;
 			status_report();
 		}
@@ -2029,6 +710,9 @@ int main(int argc, char **argv)
 	if (S.pty_link[0]) {
 		unlink(S.pty_link);
 	}
-	mlip_shm_close(&S.shm);
+	mlip_shm_close(&seg);
+	if (S.have_table) {
+		mlip_tooltable_free(&S.table);
+	}
 	return 0;
 }

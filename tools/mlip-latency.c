@@ -51,6 +51,9 @@
 #include "cli.h"
 #include "confload.h"
 #include "json.h"
+#include "latcyclic.h"
+#include "latopts.h"
+#include "latreport.h"
 #include "latstats.h"
 #include "mlip/can/canenc.h"
 #include "mlip/ipc/ring.h"
@@ -58,22 +61,13 @@
 #include "program.h"
 #include "rt.h"
 
-#define PROG                "mlip-latency"
-#define VERSION             "1"
-#define DEFAULT_CONFIG      "config/mill-3axis.ini"
-#define DEFAULT_CAN_PROGRAM "examples/demo.ngc" /* --can without --plan */
-#define DEFAULT_PRIORITY    80                  /* mlip-rt's */
-#define DEFAULT_INTERVAL_US 1000                /* --idle without -i */
-#define DEFAULT_HIST_US     10000               /* histogram shown: 0..10 ms */
-#define KEEP_HIST_US        100000      /* histogram kept for percentiles: 0..100 ms at least */
-#define MAX_HIST_US         10000000    /* -h at most 10 s */
-#define BIN_NS              1000        /* 1 us bins */
-#define FEED_BATCH          256u        /* records per push */
-#define FEED_SLEEP_NS       1000000L    /* feeder: ring full, look again in 1 ms */
-#define LIVE_NS             1000000000L /* live line refresh */
-#define MAX_BUS_LOAD        0.70        /* mlip-rt's budget */
+#define VERSION       "1"
+#define KEEP_HIST_US  100000      /* histogram kept for percentiles: 0..100 ms at least */
+#define FEED_BATCH    256u        /* records per push */
+#define FEED_SLEEP_NS 1000000L    /* feeder: ring full, look again in 1 ms */
+#define LIVE_NS       1000000000L /* live line refresh */
+#define MAX_BUS_LOAD  0.70        /* mlip-rt's budget */
 
-enum { MODE_IDLE, MODE_PLAN, MODE_CAN };
 static const char *const mode_name[] = {"idle", "plan", "can"};
 
 enum { S_LAT, S_JIT, S_COMP, S_SEND, S_N };
@@ -257,610 +251,7 @@ static void on_signal(int sig)
 	mlip_rt_request_stop(); /* async-signal-safe: the loop ends after this period */
 }
 
-/* ---- options ------------------------------------------------------------- */
-
-struct opts {
-	int mode;
-	const char *program, *iface, *config, *json;
-	int config_given;
-	int priority, cpu, lock_memory, quiet, compare;
-	int64_t interval_us; /* 0: the config's PERIOD (plan, can) or 1000 */
-	double duration_s;   /* 0: none */
-	const char *duration_arg;
-	uint64_t loops;
-	uint32_t hist_us;
-	int hist_given;
-	int strategy; /* mlip_strategy for --plan/--can */
-};
-
-static void usage(FILE *f)
-{
-	fprintf(
-	    f,
-	    "usage: " PROG " [--idle | --plan FILE.ngc | --can IFACE] [options]\n"
-	    "Latency test of the controller's own periodic loop (mlip_rt_run: same thread,\n"
-	    "priority and memory set-up as mlip-rt), idle or under the real per-period work.\n\n"
-	    "Load (one; default --idle):\n"
-	    "  --idle              wake up and sleep only, like cyclictest\n"
-	    "  --plan FILE         the real controller tick on this program (as mlip-rt\n"
-	    "                      --can none), frames encoded and discarded; restarts\n"
-	    "                      the program whenever it ends\n"
-	    "  --can IFACE         the same and the frames sent on IFACE, the send timed\n"
-	    "                      apart; the program is --plan's (default " DEFAULT_CAN_PROGRAM
-	    ")\n"
-	    "  --config FILE       machine INI for --plan/--can (default " DEFAULT_CONFIG ")\n"
-	    "  --strategy NAME     mpct (default), bisector, stop or smooth (the program\n"
-	    "                      smoothed first, as mlip-feed sends it)\n\n"
-	    "Loop (cyclictest's letters):\n"
-	    "  -p, --priority N    SCHED_FIFO priority 1..99 (default %d, mlip-rt's;\n"
-	    "                      0: SCHED_OTHER)\n"
-	    "  -i, --interval US   period in microseconds (default: the config's PERIOD\n"
-	    "                      for --plan/--can, which it then replaces; %d for --idle)\n"
-	    "  -D, --duration T    run time: 10 or 10s (seconds), 1m, 2h, 1d (default: until\n"
-	    "                      Ctrl-C or -l)\n"
-	    "  -l, --loops N       stop after N periods (default: no limit)\n"
-	    "  -a, --affinity CPU  pin the loop to this CPU (also --cpu; default: no pinning)\n"
-	    "  -m, --mlockall      lock memory (the default, as mlip-rt does)\n"
-	    "      --no-mlockall   do not lock memory\n"
-	    "  -h, --histogram US  print 1 us histograms up to US (overflow above) on stdout,\n"
-	    "                      and keep that range in the JSON (default %d)\n"
-	    "  -q, --quiet         no live line, only the results\n"
-	    "      --json FILE     results as JSON (a superset of cyclictest's --json)\n"
-	    "      --compare-cyclictest\n"
-	    "                      then run rt-tests' cyclictest with the same interval,\n"
-	    "                      priority, affinity, memory locking and duration, and\n"
-	    "                      print both in one table\n"
-	    "      --help\n\n"
-	    "Per period: wake-up latency (wake - scheduled, us), period jitter (|interval -\n"
-	    "period|, us), compute time of the period's work (us), the send time (--can),\n"
-	    "overruns (deadlines missed). Exit 0 when the test ran, 1 when it could not, 2 on\n"
-	    "usage errors.\n",
-	    DEFAULT_PRIORITY, DEFAULT_INTERVAL_US, DEFAULT_HIST_US);
-}
-
-/* cyclictest's -D forms: N (seconds), Ns, Nm, Nh, Nd. 0 or -1. */
-static int parse_duration(const char *s, double *out)
-{
-	char *end;
-	errno = 0;
-	double v = strtod(s, &end);
-	if (end == s || errno != 0 || !isfinite(v) || v <= 0) {
-		return -1;
-	}
-	double mul = 1;
-	if (*end != '\0') {
-		switch (*end) {
-		case 's':
-			mul = 1;
-			break;
-		case 'm':
-			mul = 60;
-			break;
-		case 'h':
-			mul = 3600;
-			break;
-		case 'd':
-			mul = 86400;
-			break;
-		default:
-			return -1;
-		}
-		if (end[1] != '\0') {
-			return -1;
-		}
-	}
-	*out = v * mul;
-	return *out < 1e9 ? 0 : -1;
-}
-
-static int parse_uint(const char *s, uint64_t max, uint64_t *out)
-{
-	char *end;
-	if (*s == '\0' || *s == '-' || *s == '+') {
-		return -1;
-	}
-	errno = 0;
-	unsigned long long v = strtoull(s, &end, 10);
-	if (*end != '\0' || errno != 0 || v > max) {
-		return -1;
-	}
-	*out = v;
-	return 0;
-}
-
-static int parse_opts(int argc, char **argv, struct opts *o)
-{
-	enum {
-		O_IDLE = 256,
-		O_PLAN,
-		O_CAN,
-		O_CONFIG,
-		O_JSON,
-		O_COMPARE,
-		O_NOLOCK,
-		O_HELP,
-		O_STRATEGY
-	};
-	static const struct option lo[] = {
-	    {"idle", no_argument, 0, O_IDLE},
-	    {"plan", required_argument, 0, O_PLAN},
-	    {"can", required_argument, 0, O_CAN},
-	    {"config", required_argument, 0, O_CONFIG},
-	    {"strategy", required_argument, 0, O_STRATEGY},
-	    {"priority", required_argument, 0, 'p'},
-	    {"interval", required_argument, 0, 'i'},
-	    {"duration", required_argument, 0, 'D'},
-	    {"loops", required_argument, 0, 'l'},
-	    {"affinity", required_argument, 0, 'a'},
-	    {"cpu", required_argument, 0, 'a'}, /* mlip-rt's name, which its warnings use */
-	    {"mlockall", no_argument, 0, 'm'},
-	    {"no-mlockall", no_argument, 0, O_NOLOCK},
-	    {"histogram", required_argument, 0, 'h'},
-	    {"quiet", no_argument, 0, 'q'},
-	    {"json", required_argument, 0, O_JSON},
-	    {"compare-cyclictest", no_argument, 0, O_COMPARE},
-	    {"help", no_argument, 0, O_HELP},
-	    {0, 0, 0, 0}};
-	int c, idle = 0;
-	uint64_t u;
-
-	memset(o, 0, sizeof(*o));
-	o->config = DEFAULT_CONFIG;
-	o->priority = DEFAULT_PRIORITY;
-	o->cpu = -1;
-	o->lock_memory = 1;
-	o->hist_us = DEFAULT_HIST_US;
-	while ((c = getopt_long(argc, argv, "p:i:D:l:a:mh:q", lo, NULL)) != -1) {
-		switch (c) {
-		case O_IDLE:
-			idle = 1;
-			break;
-		case O_PLAN:
-			o->program = optarg;
-			break;
-		case O_STRATEGY:
-			o->strategy = mlip_cli_strategy(optarg);
-			if (o->strategy < 0) {
-				fprintf(stderr,
-				        PROG ": --strategy: '%s' is not one of mpct, bisector, "
-				             "stop, smooth\n",
-				        optarg);
-				return 2;
-			}
-			break;
-		case O_CAN:
-			o->iface = optarg;
-			break;
-		case O_CONFIG:
-			o->config = optarg;
-			o->config_given = 1;
-			break;
-		case 'p':
-			if (parse_uint(optarg, 99, &u) != 0) {
-				fprintf(stderr, PROG ": -p/--priority: '%s' is not 0..99\n",
-				        optarg);
-				return 2;
-			}
-			o->priority = (int)u;
-			break;
-		case 'i':
-			if (parse_uint(optarg, 100000, &u) != 0 || u < 100) {
-				fprintf(stderr,
-				        PROG ": -i/--interval: '%s' is not 100..100000 us\n",
-				        optarg);
-				return 2;
-			}
-			o->interval_us = (int64_t)u;
-			break;
-		case 'D':
-			if (parse_duration(optarg, &o->duration_s) != 0) {
-				fprintf(
-				    stderr,
-				    PROG
-				    ": -D/--duration: '%s' is not a duration such as 10, 10s, 1m, "
-				    "2h or 1d\n",
-				    optarg);
-				return 2;
-			}
-			o->duration_arg = optarg;
-			break;
-		case 'l':
-			if (parse_uint(optarg, UINT64_MAX / 2, &u) != 0 || u == 0) {
-				fprintf(stderr, PROG ": -l/--loops: '%s' is not a positive count\n",
-				        optarg);
-				return 2;
-			}
-			o->loops = u;
-			break;
-		case 'a':
-			if (parse_uint(optarg, 4095, &u) != 0) {
-				fprintf(stderr,
-				        PROG
-				        ": -a/--affinity: '%s' is not one CPU number (e.g. -a 1)\n",
-				        optarg);
-				return 2;
-			}
-			o->cpu = (int)u;
-			break;
-		case 'm':
-			o->lock_memory = 1;
-			break;
-		case O_NOLOCK:
-			o->lock_memory = 0;
-			break;
-		case 'h':
-			if (parse_uint(optarg, MAX_HIST_US, &u) != 0 || u == 0) {
-				fprintf(stderr, PROG ": -h/--histogram: '%s' is not 1..%d us\n",
-				        optarg, MAX_HIST_US);
-				return 2;
-			}
-			o->hist_us = (uint32_t)u;
-			o->hist_given = 1;
-			break;
-		case 'q':
-			o->quiet = 1;
-			break;
-		case O_JSON:
-			o->json = optarg;
-			break;
-		case O_COMPARE:
-			o->compare = 1;
-			break;
-		case O_HELP:
-			usage(stdout);
-			return -1;
-		default:
-			usage(stderr);
-			return 2;
-		}
-	}
-	if (optind != argc) {
-		fprintf(stderr, PROG ": unexpected argument '%s' (a program goes after --plan)\n",
-		        argv[optind]);
-		return 2;
-	}
-	if (idle && (o->program != NULL || o->iface != NULL)) {
-		fprintf(stderr, PROG ": --idle is a load of its own: not with --plan or --can\n");
-		return 2;
-	}
-	o->mode = o->iface != NULL ? MODE_CAN : o->program != NULL ? MODE_PLAN : MODE_IDLE;
-	if (o->mode == MODE_CAN && o->program == NULL) {
-		o->program = DEFAULT_CAN_PROGRAM;
-	}
-	if (o->mode == MODE_IDLE && o->config_given) {
-		fprintf(stderr, PROG ": note: --config is not used with --idle\n");
-	}
-	return 0;
-}
-
-/* ---- the system ------------------------------------------------------------ */
-
-struct sysinfo_rt {
-	struct utsname u;
-	int preempt_rt;     /* uname says PREEMPT_RT, or /sys/kernel/realtime is 1 */
-	int sys_realtime;   /* /sys/kernel/realtime (cyclictest's sysinfo.realtime) */
-	char isolated[128]; /* /sys/devices/system/cpu/isolated, "" when none */
-	long ncpu;
-};
-
-static void read_line(const char *path, char *buf, size_t len)
-{
-	buf[0] = '\0';
-	FILE *f = fopen(path, "r");
-	if (f == NULL) {
-		return;
-	}
-	if (fgets(buf, (int)len, f) == NULL) {
-		buf[0] = '\0';
-	}
-	fclose(f);
-	buf[strcspn(buf, "\r\n")] = '\0';
-}
-
-static void sys_probe(struct sysinfo_rt *s)
-{
-	char buf[16];
-	memset(s, 0, sizeof(*s));
-	if (uname(&s->u) != 0) {
-		memset(&s->u, 0, sizeof(s->u));
-	}
-	read_line("/sys/kernel/realtime", buf, sizeof(buf));
-	s->sys_realtime = buf[0] == '1';
-	s->preempt_rt = s->sys_realtime || strstr(s->u.version, "PREEMPT_RT") != NULL;
-	read_line("/sys/devices/system/cpu/isolated", s->isolated, sizeof(s->isolated));
-	s->ncpu = sysconf(_SC_NPROCESSORS_ONLN);
-}
-
-/* ---- JSON ------------------------------------------------------------------- */
-
-static const double pcts[] = {50.0, 99.0, 99.9, 99.99};
-static const char *const pct_key[] = {"p50", "p99", "p99_9", "p99_99"};
-#define NPCT 4
-
-static double us(int64_t ns)
-{
-	return (double)ns / 1e3;
-}
-
-/* Sparse histogram of bins [0, hist_us): {"us": count, ...}, like cyclictest. */
-static void json_hist(struct mlip_json *j, const char *key, const struct mlip_latstats *s,
-                      uint32_t hist_us)
-{
-	char bin[16];
-	uint32_t end = hist_us < s->nbins ? hist_us : s->nbins;
-	mlip_json_object(j, key, 1);
-	for (uint32_t b = 0; b < end; b++) {
-		if (s->bins[b] != 0) {
-			snprintf(bin, sizeof(bin), "%u", b);
-			mlip_json_uint(j, bin, s->bins[b]);
-		}
-	}
-	mlip_json_close(j);
-}
-
-/* max_at: the period of the max (-1: not known) */
-static void json_series(struct mlip_json *j, const char *key, const struct mlip_latstats *s,
-                        long long max_at, uint32_t hist_us)
-{
-	int capped = 0;
-	mlip_json_object(j, key, 0);
-	mlip_json_string(j, "unit", "us");
-	mlip_json_uint(j, "samples", s->count);
-	mlip_json_number(j, "min", "%.3f", us(mlip_latstats_min_ns(s)));
-	mlip_json_number(j, "avg", "%.3f", mlip_latstats_mean_ns(s) / 1e3);
-	mlip_json_number(j, "max", "%.3f", us(s->max_ns));
-	for (int k = 0; k < NPCT; k++) {
-		int ov;
-		mlip_json_number(j, pct_key[k], "%.3f",
-		                 us(mlip_latstats_percentile_ns(s, pcts[k], &ov)));
-		capped |= ov;
-	}
-	mlip_json_bool(j, "percentiles_in_overflow", capped);
-	if (max_at >= 0) {
-		mlip_json_int(j, "max_at_period", max_at);
-	}
-	mlip_json_uint(j, "histogram_us", hist_us);
-	json_hist(j, "histogram", s, hist_us);
-	mlip_json_uint(j, "overflow", s->count - mlip_latstats_count_below(s, hist_us));
-	mlip_json_close(j);
-}
-
-/* One string per line of w. */
-static void json_warnings(struct mlip_json *j, const char *key, const char *w)
-{
-	mlip_json_array(j, key, 0);
-	while (*w) {
-		size_t n = strcspn(w, "\n");
-		char line[512];
-		snprintf(line, sizeof(line), "%.*s", (int)n, w);
-		if (n > 0) {
-			mlip_json_string(j, NULL, line);
-		}
-		w += n + (w[n] == '\n');
-	}
-	mlip_json_close(j);
-}
-
-/* ---- cyclictest, side by side ---------------------------------------------- */
-
-struct ct_result {
-	int ran;
-	char cmd[512];
-	struct mlip_latstats s;
-	uint64_t *bins;
-	double avg_us; /* cyclictest's own average (its JSON), -1: not read */
-	char *json;    /* its --json file, verbatim (NULL: none) */
-};
-
-static char *slurp(const char *path)
-{
-	FILE *f = fopen(path, "r");
-	if (f == NULL) {
-		return NULL;
-	}
-	size_t cap = 4096, n = 0;
-	char *buf = malloc(cap);
-	while (buf != NULL) {
-		size_t got = fread(buf + n, 1, cap - n - 1, f);
-		n += got;
-		if (got == 0) {
-			break;
-		}
-		if (cap - n - 1 == 0) {
-			char *nb = realloc(buf, cap * 2);
-			if (nb == NULL) {
-				free(buf);
-				buf = NULL;
-				break;
-			}
-			buf = nb;
-			cap *= 2;
-		}
-	}
-	fclose(f);
-	if (buf != NULL) {
-		buf[n] = '\0';
-	}
-	return buf;
-}
-
-/* Run cyclictest with our settings; its -h histogram (stdout) becomes a
- * latstats series like ours, overflow samples at its max. 0 or -1. */
-static int run_cyclictest(const struct opts *o, int64_t period_ns, double elapsed_s,
-                          uint32_t hist_us, struct ct_result *ct)
-{
-	char a_i[32], a_p[32], a_a[32], a_h[32], a_d[32], a_l[32],
-	    json_path[] = "/tmp/mlip-latency-ctXXXXXX";
-	const char *argv[32];
-	int n = 0;
-	memset(ct, 0, sizeof(*ct));
-	ct->avg_us = -1;
-	int jfd = mkstemp(json_path);
-	if (jfd >= 0) {
-		close(jfd);
-	}
-	argv[n++] = "cyclictest";
-	argv[n++] = "-q";
-	snprintf(a_i, sizeof(a_i), "-i%lld", (long long)(period_ns / 1000));
-	argv[n++] = a_i;
-	if (o->priority > 0) {
-		snprintf(a_p, sizeof(a_p), "-p%d", o->priority);
-		argv[n++] = a_p;
-	}
-	if (o->lock_memory) {
-		argv[n++] = "-m";
-	}
-	if (o->cpu >= 0) {
-		snprintf(a_a, sizeof(a_a), "-a%d", o->cpu);
-		argv[n++] = a_a;
-	}
-	snprintf(a_h, sizeof(a_h), "-h%u", hist_us);
-	argv[n++] = a_h;
-	if (o->loops != 0) {
-		snprintf(a_l, sizeof(a_l), "-l%llu", (unsigned long long)o->loops);
-		argv[n++] = a_l;
-	}
-	if (o->duration_s > 0 || o->loops == 0) {
-		/* cyclictest takes whole seconds; an open-ended run of ours lasted elapsed_s */
-		double d = o->duration_s > 0 ? o->duration_s : elapsed_s;
-		snprintf(a_d, sizeof(a_d), "-D%.0f", ceil(d) < 1 ? 1 : ceil(d));
-		argv[n++] = a_d;
-	}
-	size_t used = 0; /* the command as shown: without the temporary --json file */
-	for (int k = 0; k < n && used < sizeof(ct->cmd); k++) {
-		used += (size_t)snprintf(ct->cmd + used, sizeof(ct->cmd) - used, "%s%s",
-		                         k ? " " : "", argv[k]);
-	}
-	if (jfd >= 0) {
-		argv[n++] = "--json";
-		argv[n++] = json_path;
-	}
-	argv[n] = NULL;
-
-	int pfd[2];
-	if (pipe(pfd) != 0) {
-		perror(PROG ": pipe");
-		unlink(json_path);
-		return -1;
-	}
-	fflush(NULL);
-	pid_t pid = fork();
-	if (pid < 0) {
-		perror(PROG ": fork");
-		close(pfd[0]);
-		close(pfd[1]);
-		unlink(json_path);
-		return -1;
-	}
-	if (pid == 0) {
-		dup2(pfd[1], STDOUT_FILENO);
-		close(pfd[0]);
-		close(pfd[1]);
-		execvp("cyclictest", (char *const *)argv);
-		fprintf(stderr,
-		        PROG ": cannot run cyclictest: %s (Debian: apt-get install rt-tests)\n",
-		        strerror(errno));
-		_exit(127);
-	}
-	close(pfd[1]);
-	ct->bins = calloc(hist_us, sizeof(uint64_t));
-	if (ct->bins == NULL) {
-		fprintf(stderr, PROG ": out of memory\n");
-		close(pfd[0]);
-		waitpid(pid, NULL, 0);
-		unlink(json_path);
-		return -1;
-	}
-	mlip_latstats_init(&ct->s, ct->bins, hist_us, BIN_NS);
-	FILE *f = fdopen(pfd[0], "r");
-	char line[256];
-	unsigned long long overflow = 0, maxv = 0, minv = 0, b, cnt;
-	int have_max = 0, have_min = 0;
-	while (f != NULL && fgets(line, sizeof(line), f) != NULL) {
-		if (sscanf(line, "%llu %llu", &b, &cnt) == 2 && line[0] != '#') {
-			if (cnt > 0) {
-				mlip_latstats_add_n(&ct->s, (int64_t)b * BIN_NS, cnt);
-			}
-		} else if (sscanf(line, "# Histogram Overflows: %llu", &overflow) == 1) {
-		} else if (sscanf(line, "# Max Latencies: %llu", &maxv) == 1) {
-			have_max = 1;
-		} else if (sscanf(line, "# Min Latencies: %llu", &minv) == 1) {
-			have_min = 1;
-		}
-	}
-	if (f != NULL) {
-		fclose(f);
-	} else {
-		close(pfd[0]);
-	}
-	int status = 0;
-	waitpid(pid, &status, 0);
-	if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || !have_max) {
-		fprintf(stderr, PROG ": cyclictest did not complete (%s)\n",
-		        WIFEXITED(status) ? "exit status" : "killed");
-		unlink(json_path);
-		return -1;
-	}
-	/* the overflow samples lie above the histogram: at most its max */
-	mlip_latstats_add_n(&ct->s, (int64_t)maxv * BIN_NS, overflow);
-	if (have_min && ct->s.count > 0) {
-		ct->s.min_ns = (int64_t)minv * BIN_NS;
-	}
-	if (jfd >= 0) {
-		ct->json = slurp(json_path);
-		unlink(json_path);
-		const char *a = ct->json ? strstr(ct->json, "\"avg\":") : NULL;
-		if (a != NULL) {
-			ct->avg_us = strtod(a + 6, NULL);
-		}
-	}
-	ct->ran = 1;
-	return 0;
-}
-
 /* ---- report ---------------------------------------------------------------- */
-
-static void fmt_time(char *buf, size_t len, time_t t)
-{
-	struct tm tm;
-	localtime_r(&t, &tm);
-	strftime(buf, len, "%a, %d %b %Y %H:%M:%S %z", &tm);
-}
-
-static const char *jitter_grade(double max_us)
-{
-	/* LinuxCNC's reading of latency-test's max jitter */
-	if (max_us < 20) {
-		return "very good";
-	}
-	if (max_us <= 50) {
-		return "good";
-	}
-	if (max_us <= 100) {
-		return "fair";
-	}
-	return "poor";
-}
-
-static void print_table(FILE *f, const char *name, const struct mlip_latstats *s, long long max_at)
-{
-	char at[24] = "";
-	if (max_at >= 0) {
-		snprintf(at, sizeof(at), " %10lld", max_at);
-	}
-	fprintf(f, "  %-20s %10llu %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f%s\n", name,
-	        (unsigned long long)s->count, us(mlip_latstats_min_ns(s)),
-	        mlip_latstats_mean_ns(s) / 1e3, us(mlip_latstats_percentile_ns(s, 50, NULL)),
-	        us(mlip_latstats_percentile_ns(s, 99, NULL)),
-	        us(mlip_latstats_percentile_ns(s, 99.9, NULL)),
-	        us(mlip_latstats_percentile_ns(s, 99.99, NULL)), us(s->max_ns), at);
-}
-
-static void print_table_head(FILE *f, const char *what, int with_at)
-{
-	fprintf(f, "  %-20s %10s %8s %8s %8s %8s %8s %8s %8s%s\n", what, "samples", "min", "avg",
-	        "p50", "p99", "p99.9", "p99.99", "max", with_at ? "     max at" : "");
-}
 
 /* cyclictest's -h output, one column per series. */
 static void print_histogram(FILE *f, int nseries, uint32_t hist_us)
@@ -916,15 +307,15 @@ struct app {
 	char warnings[256 + 2 * sizeof(struct mlip_rt_report)]; /* every warning, for the JSON */
 	time_t t_start, t_end;
 	uint64_t t0_ns, t1_ns;
-	struct sysinfo_rt sys;
+	struct lat_sysinfo sys;
 	char summary[768];
-	struct ct_result ct;
+	struct lat_ct_result ct;
 };
 
 /* The load: config (its period, or -i's), program (smoothed with
  * --strategy smooth, as mlip-feed sends it), the CAN interface. 0, or the
  * exit status. */
-static int load(const struct opts *o, struct app *a)
+static int load(const struct lat_opts *o, struct app *a)
 {
 	char info[256];
 	if (mlip_config_load(o->config, &a->cfg, stderr) != 0) {
@@ -1005,7 +396,7 @@ static int load(const struct opts *o, struct app *a)
 
 /* The controller's period on a private ring, filled by a feeder thread
  * (what mlip-feed does through shared memory). 0, or the exit status. */
-static int start_load(const struct opts *o, struct app *a)
+static int start_load(const struct lat_opts *o, struct app *a)
 {
 	uint32_t cap = MLIP_RING_CAPACITY;
 	size_t bytes = mlip_ring_bytes(cap);
@@ -1067,7 +458,7 @@ static int start_load(const struct opts *o, struct app *a)
 /* The load, the histograms, the real-time set-up as mlip-rt's (after every
  * allocation, so that mlip_rt_prepare's memlock check sees what is really
  * locked), the warnings. 0, or the exit status. */
-static int set_up(const struct opts *o, struct app *a)
+static int set_up(const struct lat_opts *o, struct app *a)
 {
 	a->t_start = time(NULL);
 	a->period_ns = (o->interval_us ? o->interval_us : DEFAULT_INTERVAL_US) * 1000;
@@ -1141,7 +532,7 @@ static int set_up(const struct opts *o, struct app *a)
 /* ---- run -------------------------------------------------------------------------- */
 
 /* The loop (and the live line on a terminal); 0, or 1 when it did not start. */
-static int run(const struct opts *o, struct app *a)
+static int run(const struct lat_opts *o, struct app *a)
 {
 	if (!o->quiet && isatty(STDERR_FILENO)) {
 		a->live_started = pthread_create(&a->live_th, &a->small, live_main, NULL) == 0;
@@ -1168,14 +559,14 @@ static int run(const struct opts *o, struct app *a)
 	}
 	snprintf(a->warnings, sizeof(a->warnings), "%s%s%s", a->chosen, a->rep.warnings,
 	         a->run.warnings);
-	sys_probe(&a->sys);
+	lat_sys_probe(&a->sys);
 	return 0;
 }
 
 /* ---- report ----------------------------------------------------------------------- */
 
 /* The tables, the load and the summary line (on out). */
-static void print_results(const struct opts *o, struct app *a, FILE *out)
+static void print_results(const struct lat_opts *o, struct app *a, FILE *out)
 {
 	char info[64], where[32] = "";
 	int nseries = o->mode == MODE_CAN ? S_N : S_SEND;
@@ -1198,9 +589,9 @@ static void print_results(const struct opts *o, struct app *a, FILE *out)
 	        a->rep.locked ? "locked" : "not locked", a->sys.u.release,
 	        a->sys.preempt_rt ? "PREEMPT_RT" : "(not PREEMPT_RT)",
 	        a->sys.isolated[0] ? a->sys.isolated : "none");
-	print_table_head(out, "us", 1);
+	lat_print_table_head(out, "us", 1);
 	for (int k = 0; k < nseries; k++) {
-		print_table(out, series_label[k], &R.s[k], (long long)R.max_at[k]);
+		lat_print_table(out, series_label[k], &R.s[k], (long long)R.max_at[k]);
 	}
 	if (o->mode != MODE_IDLE) {
 		const struct mlip_ctl_counts *n = &ctl.out.counts;
@@ -1228,19 +619,19 @@ static void print_results(const struct opts *o, struct app *a, FILE *out)
 	}
 	/* the summary line: the figures a person looks at */
 	const struct mlip_latstats *L = &R.s[S_LAT], *J = &R.s[S_JIT], *C = &R.s[S_COMP];
-	double worst_us = us(L->max_ns) + us(C->max_ns);
+	double worst_us = lat_us(L->max_ns) + lat_us(C->max_ns);
 	char *sm = a->summary;
 	size_t cap = sizeof(a->summary);
 	int sl = snprintf(sm, cap,
 	                  PROG " %s: wake-up p99 %.0f us, p99.99 %.0f us, max %.0f us | jitter max "
 	                       "%.0f us (%s) | compute p99 %.0f us, max %.0f us",
-	                  mode_name[o->mode], us(mlip_latstats_percentile_ns(L, 99, NULL)),
-	                  us(mlip_latstats_percentile_ns(L, 99.99, NULL)), us(L->max_ns),
-	                  us(J->max_ns), jitter_grade(us(J->max_ns)),
-	                  us(mlip_latstats_percentile_ns(C, 99, NULL)), us(C->max_ns));
+	                  mode_name[o->mode], lat_us(mlip_latstats_percentile_ns(L, 99, NULL)),
+	                  lat_us(mlip_latstats_percentile_ns(L, 99.99, NULL)), lat_us(L->max_ns),
+	                  lat_us(J->max_ns), lat_jitter_grade(lat_us(J->max_ns)),
+	                  lat_us(mlip_latstats_percentile_ns(C, 99, NULL)), lat_us(C->max_ns));
 	if (o->mode == MODE_CAN && sl > 0 && (size_t)sl < cap) {
 		sl += snprintf(sm + sl, cap - (size_t)sl, " | send max %.0f us",
-		               us(R.s[S_SEND].max_ns));
+		               lat_us(R.s[S_SEND].max_ns));
 	}
 	if (sl > 0 && (size_t)sl < cap) {
 		int nw = 0;
@@ -1257,7 +648,7 @@ static void print_results(const struct opts *o, struct app *a, FILE *out)
 }
 
 /* cyclictest with the same settings, after us, in one table with ours. */
-static void compare(const struct opts *o, struct app *a, FILE *out)
+static void compare(const struct lat_opts *o, struct app *a, FILE *out)
 {
 	uint32_t ct_hist = o->hist_us > DEFAULT_HIST_US ? o->hist_us : DEFAULT_HIST_US;
 	double elapsed_s = R.periods ? (double)(a->t1_ns - a->t0_ns) / 1e9 : 0.0;
@@ -1265,14 +656,14 @@ static void compare(const struct opts *o, struct app *a, FILE *out)
 	if (!o->quiet) {
 		fprintf(stderr, PROG ": now cyclictest with the same settings...\n");
 	}
-	if (run_cyclictest(o, a->period_ns, elapsed_s, ct_hist, &a->ct) != 0) {
+	if (lat_run_cyclictest(o, a->period_ns, elapsed_s, ct_hist, &a->ct) != 0) {
 		return;
 	}
 	fprintf(out, "\nwake-up latency, us (the same loop settings, one run after the other)\n");
-	print_table_head(out, "", 0);
+	lat_print_table_head(out, "", 0);
 	snprintf(name, sizeof(name), "mlip-latency %s", mode_name[o->mode]);
-	print_table(out, name, &R.s[S_LAT], -1);
-	print_table(out, "cyclictest", &a->ct.s, -1);
+	lat_print_table(out, name, &R.s[S_LAT], -1);
+	lat_print_table(out, "cyclictest", &a->ct.s, -1);
 	fprintf(out, "  cyclictest: %s\n", a->ct.cmd);
 	fprintf(out,
 	        "  (cyclictest whole us, its avg %.2f; percentiles from its histogram, same rule "
@@ -1282,7 +673,7 @@ static void compare(const struct opts *o, struct app *a, FILE *out)
 
 /* The results as JSON: cyclictest's keys first (its "cmdline:" and
  * "rt_test_version:" keep their colon), then ours under "mlip". */
-static int write_json(const struct opts *o, struct app *a, int argc, char **argv)
+static int write_json(const struct lat_opts *o, struct app *a, int argc, char **argv)
 {
 	FILE *f = strcmp(o->json, "-") == 0 ? stdout : fopen(o->json, "w");
 	if (f == NULL) {
@@ -1298,8 +689,8 @@ static int write_json(const struct opts *o, struct app *a, int argc, char **argv
 		used += (size_t)snprintf(cmdline + used, sizeof(cmdline) - used, "%s%s",
 		                         k ? " " : "", argv[k]);
 	}
-	fmt_time(ts0, sizeof(ts0), a->t_start);
-	fmt_time(ts1, sizeof(ts1), a->t_end);
+	lat_fmt_time(ts0, sizeof(ts0), a->t_start);
+	lat_fmt_time(ts1, sizeof(ts1), a->t_end);
 	struct timespec res;
 	clock_getres(CLOCK_MONOTONIC, &res);
 	struct mlip_json j;
@@ -1322,7 +713,7 @@ static int write_json(const struct opts *o, struct app *a, int argc, char **argv
 	mlip_json_int(&j, "resolution_in_ns", (int64_t)res.tv_sec * 1000000000 + res.tv_nsec);
 	mlip_json_object(&j, "thread", 0);
 	mlip_json_object(&j, "0", 0);
-	json_hist(&j, "histogram", L, o->hist_us);
+	lat_json_hist(&j, "histogram", L, o->hist_us);
 	mlip_json_uint(&j, "cycles", L->count);
 	mlip_json_int(&j, "min", mlip_latstats_min_ns(L) / 1000);
 	mlip_json_int(&j, "max", L->max_ns / 1000);
@@ -1330,9 +721,9 @@ static int write_json(const struct opts *o, struct app *a, int argc, char **argv
 	mlip_json_int(&j, "cpu", a->run.pinned ? o->cpu : -1);
 	mlip_json_int(&j, "node", 0);
 	mlip_json_uint(&j, "overflow", L->count - mlip_latstats_count_below(L, o->hist_us));
-	for (int k = 0; k < NPCT; k++) {
-		mlip_json_number(&j, pct_key[k], "%.3f",
-		                 us(mlip_latstats_percentile_ns(L, pcts[k], NULL)));
+	for (int k = 0; k < LAT_NPCT; k++) {
+		mlip_json_number(&j, lat_pct_key[k], "%.3f",
+		                 lat_us(mlip_latstats_percentile_ns(L, lat_pcts[k], NULL)));
 	}
 	mlip_json_close(&j);
 	mlip_json_close(&j);
@@ -1367,10 +758,10 @@ static int write_json(const struct opts *o, struct app *a, int argc, char **argv
 	mlip_json_bool(&j, "preempt_rt", a->sys.preempt_rt);
 	mlip_json_string(&j, "isolated_cpus", a->sys.isolated);
 	mlip_json_int(&j, "cpus", a->sys.ncpu);
-	json_warnings(&j, "warnings", a->warnings);
+	lat_json_warnings(&j, "warnings", a->warnings);
 	mlip_json_close(&j);
 	for (int k = 0; k < nseries; k++) {
-		json_series(&j, series_key[k], &R.s[k], (long long)R.max_at[k], o->hist_us);
+		lat_json_series(&j, series_key[k], &R.s[k], (long long)R.max_at[k], o->hist_us);
 	}
 	if (o->mode != MODE_IDLE) {
 		const struct mlip_ctl_counts *n = &ctl.out.counts;
@@ -1394,7 +785,7 @@ static int write_json(const struct opts *o, struct app *a, int argc, char **argv
 	if (a->ct.ran) {
 		mlip_json_object(&j, "cyclictest", 0);
 		mlip_json_string(&j, "cmdline", a->ct.cmd);
-		json_series(&j, "wakeup_latency", &a->ct.s, -1, a->ct.s.nbins);
+		lat_json_series(&j, "wakeup_latency", &a->ct.s, -1, a->ct.s.nbins);
 		mlip_json_raw(&j, "json", a->ct.json != NULL ? a->ct.json : "null");
 		mlip_json_close(&j);
 	}
@@ -1409,7 +800,7 @@ static int write_json(const struct opts *o, struct app *a, int argc, char **argv
 }
 
 /* Tables, the comparison, the JSON; then everything freed. The exit status. */
-static int report(const struct opts *o, struct app *a, int argc, char **argv)
+static int report(const struct lat_opts *o, struct app *a, int argc, char **argv)
 {
 	/* results on stdout, unless the JSON goes there */
 	FILE *out = o->json != NULL && strcmp(o->json, "-") == 0 ? stderr : stdout;
@@ -1437,9 +828,9 @@ static int report(const struct opts *o, struct app *a, int argc, char **argv)
 
 int main(int argc, char **argv)
 {
-	static struct opts o;
+	static struct lat_opts o;
 	static struct app a;
-	int rc = parse_opts(argc, argv, &o);
+	int rc = lat_parse_opts(argc, argv, &o);
 	if (rc != 0) {
 		return rc < 0 ? 0 : rc;
 	}

@@ -215,7 +215,8 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 			    stderr,
 			    PROG ": E-stop: the I/O module (node %u) is lost: %s: %s, period %llu, "
 			         "block %llu (line %u): quick stop to every drive, the program "
-			         "dropped; restart mlip-rt (the module reboots unconfigured)\n",
+			         "dropped; once it is heard again mlip configures it anew, then "
+			         "mlip-ctl reset\n",
 			    (unsigned)r->node, mlip_drive_fault_name((mlip_drive_fault)r->field),
 			    what, (unsigned long long)e->period, seq, line);
 		} else {
@@ -455,15 +456,26 @@ static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 	if (cfg->drives.enable) {
 		/* RPDOs of 6 bytes (controlword), a 6-byte TPDO back from each drive,
 		 * heartbeats of the drives and the master (1 byte each) */
+		/* the touch probe ([PROBE] SOURCE = drive): RPDO and TPDO of 8 bytes,
+		 * a second 8-byte TPDO (the latched positions); the drives' digital
+		 * inputs: a 4-byte TPDO3 at least every heartbeat (its event timer) */
 		int n = cfg->machine.n_axes;
+		int tp = cfg->inputs.probe_source == MLIP_PROBE_SRC_DRIVE;
+		int n_di = 0;
+		for (uint32_t di = mlip_drives_di_axes(cfg); di != 0; di &= di - 1) {
+			n_di++;
+		}
+		uint8_t pdo = tp ? 8 : 6;
 		double hb = cfg->machine.period_s / (cfg->drives.heartbeat_ms * 1e-3);
 		double bits =
-		    n * ((double)mlip_can_frame_bits(0, 6).nominal -
-		         mlip_can_frame_bits(0, 4).nominal + mlip_can_frame_bits(0, 6).nominal) +
-		    (n + 1) * hb * mlip_can_frame_bits(0, 1).nominal;
+		    n * ((double)mlip_can_frame_bits(0, pdo).nominal -
+		         mlip_can_frame_bits(0, 4).nominal + mlip_can_frame_bits(0, pdo).nominal +
+		         (tp ? mlip_can_frame_bits(0, 8).nominal : 0.0)) +
+		    (n + 1) * hb * mlip_can_frame_bits(0, 1).nominal +
+		    n_di * hb * mlip_can_frame_bits(0, 4).nominal;
 		l.busy_s += bits / cfg->can.bitrate;
 		l.load = l.busy_s / cfg->machine.period_s;
-		l.frames += n;
+		l.frames += tp ? 2 * n : n;
 	}
 	fprintf(stderr,
 	        PROG ": bus load %.1f %% (%s, %d frames per %.3f ms period, %.0f us of %u bit/s)\n",
@@ -633,7 +645,8 @@ static int open_bus(struct app *a, const char *iface)
 		n_ids = mlip_drives_rx_ids(&a->cfg.machine, a->cfg.inputs.node,
 		                           a->cfg.io.spindle == MLIP_IO_CIA402 ? a->cfg.spindle.node
 		                                                               : 0,
-		                           ids, MLIP_CANBUS_MAX_IDS);
+		                           a->cfg.inputs.probe_source == MLIP_PROBE_SRC_DRIVE,
+		                           mlip_drives_di_axes(&a->cfg), ids, MLIP_CANBUS_MAX_IDS);
 	}
 	if (mlip_canbus_open(&bus, iface, a->prof == MLIP_CAN_FD, ids, n_ids, info, sizeof(info)) !=
 	    0) {
@@ -740,6 +753,12 @@ static int set_up(const struct options *o, struct app *a)
 		fprintf(stderr,
 		        PROG ": [SPINDLE] TYPE = cia402 needs the CANopen master ([DRIVES] "
 		             "ENABLE = 1 or --drives): the spindle drive is brought up by it\n");
+		return 2;
+	}
+	if (a->cfg.inputs.probe_source == MLIP_PROBE_SRC_DRIVE && !a->cfg.drives.enable) {
+		fprintf(stderr, PROG ": [PROBE] SOURCE = drive needs the CANopen master ([DRIVES] "
+		                     "ENABLE = 1 or --drives): the drives' touch probe is set up "
+		                     "and read by it\n");
 		return 2;
 	}
 	if ((a->cfg.inputs.node != 0 || a->cfg.inputs.mapped != 0) && !a->cfg.drives.enable) {
@@ -885,6 +904,17 @@ static void drives_report(void)
 		fprintf(stderr,
 		        PROG ": drives: node%s faulted: left in the drive's own fault reaction\n",
 		        faulted);
+	}
+	if (drives.io.re.count > 0 || drives.io.re.failed > 0) {
+		fprintf(stderr,
+		        PROG ": I/O module node %u: reconfigured %u time(s) after a loss, %u "
+		             "attempt(s) failed (last: 0x%04X:%02X, %s)\n",
+		        drives.io.node, drives.io.re.count, drives.io.re.failed,
+		        drives.io.re.fail_index, drives.io.re.fail_sub,
+		        drives.io.re.failed == 0 ? "-"
+		        : drives.io.re.fail_abort == 0
+		            ? "no answer in time"
+		            : mlip_sdo_abort_text(drives.io.re.fail_abort));
 	}
 	if (drives.shutdown_ok) {
 		fprintf(stderr, PROG ": drives disabled in order (disable operation, shutdown) "

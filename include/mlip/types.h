@@ -81,13 +81,15 @@ typedef enum {
 	MLIP_BLOCK_COOLANT,        /* M7/M8/M9, M2/M30: value = the outlets on, bits
 	                              MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD (0: off) */
 	MLIP_BLOCK_OUTPUT,         /* M64/M65 Pn: value = n + 1 to switch digital output n
-	                              on (M64), -(n + 1) off (M65); n < MLIP_DOUT_MAX */
+	                              on (M64), -(n + 1) off (M65); n < MLIP_DOUT_MAX; M62/M63
+	                              (with the next move): +-(n + 1 + MLIP_DOUT_SYNC) */
 	MLIP_BLOCK_PROBE           /* G38.2..G38.5: a feed move toward target that stops
 	                              at the acceleration limit when the probe input
 	                              changes; value = MLIP_PROBE_* */
 } mlip_block_kind;
 
-#define MLIP_DOUT_MAX 8 /* digital outputs M64/M65 P0..P7 ([IO] OUTPUT_0..7) */
+#define MLIP_DOUT_MAX  8  /* digital outputs M64/M65 P0..P7 ([IO] OUTPUT_0..7) */
+#define MLIP_DOUT_SYNC 16 /* an OUTPUT value beyond it: M62/M63, switched with the next move */
 
 /* A PROBE block's value: bit 0 the probe must trip (G38.2, G38.4: a move
  * that ends without a trip is an error), bit 1 toward release (G38.4, G38.5:

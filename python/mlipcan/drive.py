@@ -16,6 +16,7 @@ The object dictionary is built in code (build_od); `mlip-drive-sim
 a person to read."""
 
 import json
+import select
 import socket
 import struct
 import sys
@@ -91,14 +92,15 @@ def build_od(
     od_identity(od, node_id)
 
     def pdo(kind: str, com: int, cob: int, entries: tuple[int, ...]) -> None:
-        """PDO1: communication record (COB-ID, transmission type 1: synchronous)
+        """PDO n: communication record (COB-ID, transmission type 1: synchronous)
         and mapping record (sub 0 = number of entries, 4 entries)."""
+        num = (com & 0xFF) + 1
         record(
-            f"{kind}1 communication parameter",
+            f"{kind}{num} communication parameter",
             com,
             [(f"COB-ID used by {kind}", U32, "rw", cob), ("Transmission type", U8, "rw", 1)],
         )
-        r = ODRecord(f"{kind}1 mapping parameter", com + 0x200)
+        r = ODRecord(f"{kind}{num} mapping parameter", com + 0x200)
         r.add_member(od_var("Number of mapped objects", com + 0x200, 0, U8, "rw", len(entries)))
         for i, val in enumerate(entries + (0,) * (4 - len(entries)), 1):
             r.add_member(od_var(f"Mapped object {i}", com + 0x200, i, U32, "rw", val))
@@ -106,6 +108,26 @@ def build_od(
 
     pdo("RPDO", 0x1400, 0x200 + node_id, (0x60400010, 0x607A0020))
     pdo("TPDO", 0x1800, 0x180 + node_id, (0x60410010, 0x60640020))
+    # TPDO2 (touch probe 1's latched positions), not valid until the master maps it
+    pdo("TPDO", 0x1801, PDO_INVALID | 0x280 + node_id, (0x60BA0020, 0x60BB0020))
+    # TPDO3: the digital inputs 0x60FD, event driven (on change, and every
+    # event timer ms), invalid until the master enables it
+    record(
+        "TPDO3 communication parameter",
+        0x1802,
+        [
+            ("COB-ID used by TPDO", U32, "rw", PDO_INVALID | 0x380 + node_id),
+            ("Transmission type", U8, "rw", 255),
+            ("Inhibit time", U16, "rw", 0),
+            ("Compatibility entry", U8, "rw", 0),
+            ("Event timer", U16, "rw", 0),
+        ],
+    )
+    r3 = ODRecord("TPDO3 mapping parameter", 0x1A02)
+    r3.add_member(od_var("Number of mapped objects", 0x1A02, 0, U8, "rw", 1))
+    for i, val in enumerate((0x60FD0020, 0, 0, 0), 1):
+        r3.add_member(od_var(f"Mapped object {i}", 0x1A02, i, U32, "rw", val))
+    od.add_object(r3)
 
     add(od_var("Controlword", 0x6040, 0, U16, "rw", 0, True))
     add(od_var("Statusword", 0x6041, 0, U16, "ro", 0x0250, True))
@@ -125,11 +147,20 @@ def build_od(
         ],
     )
     add(od_var("Following error actual value", 0x60F4, 0, I32, "ro", 0, True))
+    # touch probe 1 (CiA 402): function, status, positions latched at its edges
+    add(od_var("Touch probe function", 0x60B8, 0, U16, "rw", 0, True))
+    add(od_var("Touch probe status", 0x60B9, 0, U16, "ro", 0, True))
+    add(od_var("Touch probe pos1 pos value", 0x60BA, 0, I32, "ro", 0, True))
+    add(od_var("Touch probe pos1 neg value", 0x60BB, 0, I32, "ro", 0, True))
     # profile velocity mode (3, a spindle): counts/s, counts/s^2
     add(od_var("Velocity actual value", 0x606C, 0, I32, "ro", 0, True))
     add(od_var("Velocity window", 0x606D, 0, U16, "rw", PV_WINDOW_DEFAULT))
     add(od_var("Profile acceleration", 0x6083, 0, U32, "rw", 100000))
     add(od_var("Profile deceleration", 0x6084, 0, U32, "rw", 100000))
+    add(od_var("Quick stop deceleration", 0x6085, 0, U32, "rw", 100000))
+    # bit 0 negative limit switch, 1 positive limit switch, 2 home switch
+    # (from the switches' positions), 16..31 manufacturer specific
+    add(od_var("Digital inputs", 0x60FD, 0, U32, "ro", 0, True))
     add(od_var("Target velocity", 0x60FF, 0, I32, "rw", 0, True))
     # homing mode (6): method, speeds (search, latch), acceleration, offset
     add(od_var("Homing method", 0x6098, 0, I8, "rw", 0))
@@ -157,9 +188,27 @@ def build_od(
 
 
 # objects the cycle reads, cached in Drive.load_params() after each write
-PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A, 0x606D, 0x6083, 0x6084)
-MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0), (0x60FF, 0)}
-MAPPABLE_TX = {(0x6041, 0), (0x6064, 0), (0x6061, 0), (0x60F4, 0), (0x606C, 0)}
+PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A, 0x606D, 0x6083, 0x6084, 0x6085)
+MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0), (0x60FF, 0), (0x60B8, 0)}
+MAPPABLE_TX = {
+    (0x6041, 0),
+    (0x6064, 0),
+    (0x6061, 0),
+    (0x60F4, 0),
+    (0x606C, 0),
+    (0x60B9, 0),
+    (0x60BA, 0),
+    (0x60BB, 0),
+    (0x60FD, 0),
+}
+MAPPABLE_TX3 = {(0x60FD, 0)}  # TPDO3 (event driven): the digital inputs only
+# 0x60B8 touch probe function / 0x60B9 status, touch probe 1 (CiA 402)
+TP_ENABLE = 0x0001  # function and status bit 0: switched on
+TP_CONTINUOUS = 0x0002  # function bit 1: every event (0: the first one only)
+TP_POS_EDGE = 0x0010  # function bit 4: latch at the positive edge
+TP_NEG_EDGE = 0x0020  # function bit 5: latch at the negative edge
+TP_POS_STORED = 0x0002  # status bit 1: 0x60BA holds a positive edge's position
+TP_NEG_STORED = 0x0004  # status bit 2: 0x60BB holds a negative edge's position
 
 
 class Recorder:
@@ -253,6 +302,13 @@ class Drive(SimDevice):
         self.refuse: dict[tuple[int, int | None], int] = {}  # (index, sub or None) -> abort
         self.never_enable = False
         self.follow_error_rate = 0.0  # counts added to the lag per SYNC
+        # digital inputs 0x60FD: bits forced by injection (bit -> 0/1), the
+        # TPDO3 silenced (injected), the last sent (value, bus time)
+        self.di_force: dict[int, int] = {}
+        self.di_silent = False
+        self.di_sent: tuple[int, float] | None = None
+        self.di_cob: int | None = None  # TPDO3's COB-ID while operational and valid
+        self.di_event_s = 0.0
         self._pdo_live = False
         self._sync_cob = 0
         self._reset_application()
@@ -280,12 +336,24 @@ class Drive(SimDevice):
         self.cw = 0
         # profile velocity mode (a spindle): counts/s
         self.vel_f = 0.0
+        self.csp_v = 0.0  # CSP: counts/s of the last SYNC's move (a quick stop ramps it down)
         self.vel_target = 0
         self.pending_vel: int | None = None
         self.load_drop = 0.0  # injected: a load the spindle cannot hold (counts/s lost)
         self.fe_extra = 0.0
         self.fe_cycles = 0
         self.error_register = 0
+        # touch probe 1: function in force, status, latched positions; the
+        # move of the last SYNC (for a latch between two SYNCs)
+        self.tp_fn = 0
+        self.tp_status = 0
+        self.tp_pos = 0
+        self.tp_neg = 0
+        self.pending_tp: int | None = None
+        self.move_sync = -1
+        self.move_from = 0.0
+        self.move_to = 0.0
+        self.edge_seen = 0
         # producer node -> [time ms, last seen (receive time, s) or None]
         self.hb_consumed: dict[int, tuple[int, float | None]] = {}
         self.hb_lost: set[int] = set()
@@ -302,6 +370,7 @@ class Drive(SimDevice):
         self.p_pv_window = od(n, 0x606D, "<H")
         self.p_pv_acc = od(n, 0x6083, "<I")
         self.p_pv_dec = od(n, 0x6084, "<I")
+        self.p_qs_dec = od(n, 0x6085, "<I")
 
     def written(self, index: int, sub: int, data: bytes) -> None:
         if index in PARAM_OBJECTS:
@@ -331,10 +400,74 @@ class Drive(SimDevice):
         self._store(0x60F4, 0, "<i", self.target - self.actual)
         self._store(0x6061, 0, "<b", self.mode_display())
         self._store(0x606C, 0, "<i", self.vel_actual())
+        self._store(0x60FD, 0, "<I", self.digital_inputs())
         self._store(0x1001, 0, "B", self.error_register)
+        self._store(0x60B9, 0, "<H", self.tp_status)
+        self._store(0x60BA, 0, "<i", self.tp_pos)
+        self._store(0x60BB, 0, "<i", self.tp_neg)
+
+    def digital_inputs(self) -> int:
+        """0x60FD: the switches at the position actual, then the forced bits."""
+        v = 0
+        for bit, which in ((0, "neg"), (1, "pos"), (2, "home")):
+            if self._switch_on(which, self.actual):
+                v |= 1 << bit
+        for bit, on in self.di_force.items():
+            v = v | 1 << bit if on else v & ~(1 << bit)
+        return v & 0xFFFFFFFF
+
+    def _send_garbled(self, value: int) -> None:
+        """A TPDO3 one byte short of its mapping (the first 3 bytes of value):
+        what a master must not take."""
+        if self.di_cob is None or not self._pdo_live:
+            raise ValueError("di-garbled: TPDO3 is not configured and operational")
+        data = struct.pack("<I", value & 0xFFFFFFFF)[:3]
+        self.node.network.send_message(self.di_cob, data)
+        self._di_event(value, data, "injected: garbled")
+
+    def _di_event(self, value: int, data: bytes, why: str) -> None:
+        """A TPDO3 sent (events.jsonl "di"): its bus time orders it among the
+        SYNCs' receive times in sync.csv, whatever this simulator's own lag."""
+        self.rec.event(
+            self.id,
+            "di",
+            value=f"0x{value & 0xFFFFFFFF:08X}",
+            data=data.hex(),
+            sync=self.sim.sync_no,
+            t_bus=time.time(),
+            actual=self.actual,
+            why=why,
+        )
+
+    def _send_inputs(self, t: float, why: str) -> None:
+        """TPDO3 (0x60FD) when it is valid and the drive operational: on
+        change, or when the event timer 0x1802:05 ran out since the last."""
+        if not self._pdo_live or self.di_silent or self.di_cob is None:
+            return
+        v = self.digital_inputs()
+        last = self.di_sent
+        ev = self.di_event_s
+        if not (last is None or v != last[0] or (ev > 0 and t - last[1] >= ev)):
+            return
+        data = struct.pack("<I", v)
+        self.node.network.send_message(self.di_cob, data)
+        self.di_sent = (v, t)
+        if last is None or v != last[0]:
+            self._di_event(v, data, why)
 
     def _on_read(self, index: int, subindex: int, od: ODVariable) -> None:
-        if index in (0x6041, 0x6064, 0x60F4, 0x6061, 0x1001, 0x606C):
+        if index in (
+            0x6041,
+            0x6064,
+            0x60F4,
+            0x6061,
+            0x1001,
+            0x606C,
+            0x60B9,
+            0x60BA,
+            0x60BB,
+            0x60FD,
+        ):
             self._publish()
         # then the stored data
 
@@ -367,6 +500,8 @@ class Drive(SimDevice):
             self.pending_target = val
         elif index == 0x60FF:
             self.pending_vel = val
+        elif index == 0x60B8:
+            self._touch_probe_fn(val, "SDO")
         elif index == 0x1005:
             if val & 0x40000000:  # this device does not generate SYNC
                 raise SdoAbortedError(0x06090030)
@@ -376,19 +511,19 @@ class Drive(SimDevice):
             net.subscribe(self._sync_cob, self._on_sync)
         elif index == 0x1016 and subindex >= 1:
             self._consumer(subindex, val)
-        elif index in (0x1400, 0x1800) and subindex == 1:
+        elif index in (0x1400, 0x1800, 0x1801, 0x1802) and subindex == 1:
             self.check_cob_id(index, val)
-        elif index in (0x1600, 0x1A00):
+        elif index in (0x1600, 0x1A00, 0x1A01, 0x1A02):
             self._check_mapping(index, subindex, val)
 
     def _check_mapping(self, index: int, sub: int, val: int) -> None:
-        com = 0x1400 if index == 0x1600 else 0x1800
+        com = index - 0x200
         valid = not self.sim.od_u32(self.node, com, 1) & PDO_INVALID
         n_now = self.sim.od_int(self.node, index, "B", 0)
         if valid or (sub >= 1 and n_now != 0):
             # CiA 301: disable the PDO, set sub 0 to 0, write the entries, set sub 0
             raise SdoAbortedError(0x06010000)
-        allowed = MAPPABLE_RX if index == 0x1600 else MAPPABLE_TX
+        allowed = {0x1600: MAPPABLE_RX, 0x1A02: MAPPABLE_TX3}.get(index, MAPPABLE_TX)
         if sub >= 1:
             if val and ((val >> 16, (val >> 8) & 0xFF) not in allowed):
                 if (val >> 16) not in self.node.object_dictionary:
@@ -504,13 +639,25 @@ class Drive(SimDevice):
         self._pdo_off()
         self.rpdo = self.node.rpdo[1]
         self.tpdo = self.node.tpdo[1]
+        self.tpdo2 = self.node.tpdo[2]
         self.rpdo.read()  # subscribes the RPDO when valid
         self.tpdo.read()
         self.tpdo.pdo_node.network.unsubscribe(self.tpdo.cob_id)  # read() subscribes TPDOs too
+        self.tpdo2.read()
+        if self.tpdo2.enabled:
+            self.tpdo2.pdo_node.network.unsubscribe(self.tpdo2.cob_id)
         self.rpdo.add_callback(self._on_rpdo)
         self._rx = self._codec(self.rpdo)
         self._tx = self._codec(self.tpdo)
+        self._tx2 = self._codec(self.tpdo2) if self.tpdo2.enabled else []
         self.tpdo_every = self.tpdo.trans_type if 1 <= (self.tpdo.trans_type or 0) <= 240 else 1
+        # TPDO3 as the master configured it: valid and mapping 0x60FD alone
+        # (the only mapping it takes), read once here, not per SYNC
+        cob3 = self.od_u32(0x1802, 1)
+        n3 = self.sim.od_int(self.node, 0x1A02, "B", 0)
+        ok = not cob3 & PDO_INVALID and n3 == 1 and self.od_u32(0x1A02, 1) == 0x60FD0020
+        self.di_cob = cob3 & 0x7FF if ok else None
+        self.di_event_s = self.sim.od_int(self.node, 0x1802, "<H", 5) / 1000.0
         self.rec.event(
             self.id,
             "pdo_maps",
@@ -526,8 +673,21 @@ class Drive(SimDevice):
                 "type": self.tpdo.trans_type,
                 "map": [f"0x{v.index:04X}:{v.subindex}/{v.length}" for v in self.tpdo.map],
             },
+            tpdo2={
+                "cob_id": f"0x{self.tpdo2.cob_id:03X}",
+                "valid": self.tpdo2.enabled,
+                "type": self.tpdo2.trans_type,
+                "map": [f"0x{v.index:04X}:{v.subindex}/{v.length}" for v in self.tpdo2.map],
+            },
+            tpdo3={  # the digital inputs 0x60FD, on change and every event timer
+                "cob_id": f"0x{cob3 & 0x7FF:03X}",
+                "valid": self.di_cob is not None,
+                "event_ms": round(self.di_event_s * 1000),
+            },
         )
         self._pdo_live = True
+        self.di_sent = None
+        self._send_inputs(time.time(), "operational")  # the inputs once on entering it
 
     @staticmethod
     def _codec(pdo: PdoMap) -> list[tuple[int, int, struct.Struct]]:
@@ -554,7 +714,8 @@ class Drive(SimDevice):
                 net.unsubscribe(self.rpdo.cob_id, self.rpdo.on_message)
             self.rpdo.callbacks.clear()
         self._pdo_live = False
-        self.pending_target = self.pending_cw = self.pending_vel = None
+        self.di_sent = None
+        self.pending_target = self.pending_cw = self.pending_vel = self.pending_tp = None
 
     def _on_rpdo(self, m: PdoMap) -> None:
         """An RPDO: latched, applied at the next SYNC (synchronous types)."""
@@ -573,6 +734,8 @@ class Drive(SimDevice):
                 self.pending_vel = val
             elif index == 0x6040:
                 self.pending_cw = val
+            elif index == 0x60B8:
+                self.pending_tp = val
             elif index == 0x6060:
                 self._store(0x6060, 0, "<b", val)
                 self.load_params()
@@ -584,6 +747,10 @@ class Drive(SimDevice):
         if cw is not None:
             self._store(0x6040, 0, "<H", cw)
             self._controlword(cw, "RPDO")
+        tp, self.pending_tp = self.pending_tp, None
+        if tp is not None:
+            self._store(0x60B8, 0, "<H", tp)
+            self._touch_probe_fn(tp, "RPDO")
         tgt, self.pending_target = self.pending_target, None
         if tgt is not None:
             self._store(0x607A, 0, "<i", tgt)
@@ -665,7 +832,10 @@ class Drive(SimDevice):
                 self._set_state(P.SWITCH_ON_DISABLED, why)  # 7, 10
             elif s == P.OPERATION_ENABLED:
                 self._set_state(P.QUICK_STOP, why)  # 11
-                if self.p_quick_stop in (1, 2, 3, 4):
+                moving = self.csp_v != 0.0
+                if moving and self.mode() == P.MODE_CSP and self.p_quick_stop in (1, 2, 5, 6):
+                    pass  # brakes on its ramp at the SYNCs (_quick_stop_ramp), then 12
+                elif self.p_quick_stop in (1, 2, 3, 4):
                     self._set_state(P.SWITCH_ON_DISABLED, "quick stop done")  # 12
         elif cmd == "shutdown":
             if s in (P.SWITCH_ON_DISABLED, P.SWITCHED_ON, P.OPERATION_ENABLED):
@@ -684,6 +854,51 @@ class Drive(SimDevice):
                     self.rec.event(self.id, "refused_enable", why="injected never-enable")
                 else:
                     self._set_state(P.OPERATION_ENABLED, why)  # 4, 16
+
+    # ------------------------------------------------------------ touch probe 1
+    def _touch_probe_fn(self, fn: int, via: str) -> None:
+        """0x60B8 applied (at a SYNC from the RPDO, at once by SDO): bit 0
+        switching on clears what was stored and arms the latch; off clears
+        the status (CiA 402)."""
+        old, self.tp_fn = self.tp_fn, fn
+        if not fn & TP_ENABLE:
+            self.tp_status = 0
+        elif not old & TP_ENABLE:
+            self.tp_status = TP_ENABLE
+        if fn != old:
+            self._publish()
+            self.rec.event(self.id, "touch_probe_fn", fn=f"0x{fn:04X}", via=via)
+
+    def touch_probe_edge(self, frac: float, positive: bool, sync_no: int, edge: int) -> None:
+        """The probe's input changed at frac (0..1) of this SYNC's move: the
+        position there is latched (not the position at a SYNC), at the edge
+        the function enables, the first one only unless continuous."""
+        if edge == self.edge_seen or self.move_sync != sync_no:
+            return
+        self.edge_seen = edge
+        fn = self.tp_fn
+        stored = TP_POS_STORED if positive else TP_NEG_STORED
+        if not fn & TP_ENABLE or not fn & (TP_POS_EDGE if positive else TP_NEG_EDGE):
+            return
+        if self.tp_status & stored and not fn & TP_CONTINUOUS:
+            return  # first event only: re-armed by switching the function on again
+        at = int(round(self.move_from + frac * (self.move_to - self.move_from)))
+        if positive:
+            self.tp_pos = at
+        else:
+            self.tp_neg = at
+        self.tp_status |= stored
+        self._publish()
+        self.rec.event(
+            self.id,
+            "touch_probe",
+            edge="positive" if positive else "negative",
+            latched=at,
+            sync=sync_no,
+            frac=round(frac, 6),
+            from_=round(self.move_from, 3),
+            to=round(self.move_to, 3),
+        )
 
     def fault(self, code: int, why: str) -> None:
         """Fault reaction (CiA 402 transitions 13, 14): statusword fault bit,
@@ -727,10 +942,18 @@ class Drive(SimDevice):
                 0x6061: self.p_mode,
                 0x60F4: self.target - sent,
                 0x606C: vel,
+                0x60B9: self.tp_status,
+                0x60BA: self.tp_pos,
+                0x60BB: self.tp_neg,
+                0x60FD: self.digital_inputs(),
             }
             for index, off, st in self._tx:
                 st.pack_into(tp.data, off, now[index])
             tp.transmit()
+            if self._tx2:  # sampled at the same SYNC
+                for index, off, st in self._tx2:
+                    st.pack_into(self.tpdo2.data, off, now[index])
+                self.tpdo2.transmit()
         fresh = self.pending_target is not None
         if self.rpdo.trans_type is None or self.rpdo.trans_type <= 240:
             tgt = self._apply_rpdo()
@@ -738,18 +961,50 @@ class Drive(SimDevice):
             tgt = None
         if self.state == P.OPERATION_ENABLED and self.mode() == MODE_HOMING:
             self._homing(sync_no)
+        pos_from = self.actual_f - self.fe_extra
         if self.state == P.OPERATION_ENABLED and self.mode() == P.MODE_CSP:
             if tgt is not None:
                 self.target = tgt
             self.fe_extra += self.follow_error_rate
+            before = self.actual_f
             self.actual_f += self.lag_alpha * (self.target - self.actual_f)
+            self.csp_v = (self.actual_f - before) / (self.p_period_ms / 1000.0)
             self.actual = int(round(self.actual_f - self.fe_extra))
             self._following(self.target - self.actual)
+        elif self.state == P.QUICK_STOP and self.mode() == P.MODE_CSP:
+            self._quick_stop_ramp()
+        else:
+            self.csp_v = 0.0
+        # the move from this SYNC to the next (a quick stop's ramp too), for
+        # the touch probe's latch
+        self.move_sync, self.move_from, self.move_to = (
+            sync_no,
+            pos_from,
+            self.actual_f - self.fe_extra,
+        )
+        self.sim.touch_probe_moved(self, sync_no)
+        self._send_inputs(t, "change")
         if self.mode() == MODE_PV:
             fresh = tgt is not None
             self._velocity()
             sent = vel  # a pv drive's row: target and actual velocities, counts/s
         self.rec.sync((sync_no, self.id, t, self.state, self.cw, tgt, fresh, sent, sw))
+
+    def _quick_stop_ramp(self) -> None:
+        """CSP quick stop (0x605A 1/2: the profile deceleration 0x6084 /
+        the quick stop deceleration 0x6085, then switch on disabled; 5/6:
+        the same, staying in quick stop active): the axis brakes from its
+        speed on the drive's own ramp, whatever the master sends."""
+        per_s = self.p_period_ms / 1000.0
+        dec = self.p_pv_dec if self.p_quick_stop in (1, 5) else self.p_qs_dec
+        v = self.csp_v
+        step = dec * per_s
+        v = 0.0 if abs(v) <= step else v - step * (1 if v > 0 else -1)
+        self.actual_f += v * per_s
+        self.actual = int(round(self.actual_f - self.fe_extra))
+        self.csp_v = v
+        if v == 0.0 and self.p_quick_stop in (1, 2):
+            self._set_state(P.SWITCH_ON_DISABLED, "quick stop done")  # 12
 
     def vel_actual(self) -> int:
         return int(round(self.vel_f - self.load_drop))
@@ -891,6 +1146,27 @@ class Drive(SimDevice):
             # a spindle drive: ARG counts/s of its velocity lost to a load it cannot
             # hold (0: none); the ramp goes on, what it reports drops
             self.load_drop = float(arg or "0")
+        elif what == "touch-probe":
+            # the touch probe wired to every drive's input 1 touches a surface
+            # at COUNTS of this drive's position: on at and below (or above) it
+            self.sim.set_touch_surface(self.id, arg)
+        elif what == "di":
+            # the digital input BIT of 0x60FD forced to 0 or 1 (auto: from the
+            # switches again): BIT=0|1|auto
+            bit_s, _, val = (arg or "").partition("=")
+            bit = int(bit_s, 0)
+            if not 0 <= bit <= 31 or val not in ("0", "1", "auto"):
+                raise ValueError(f"di '{arg}': expected BIT=0|1|auto, BIT 0..31")
+            if val == "auto":
+                self.di_force.pop(bit, None)
+            else:
+                self.di_force[bit] = int(val)
+            self._publish()
+            self._send_inputs(time.time(), f"injected di {arg}")
+        elif what == "di-silent":
+            self.di_silent = arg != "off"  # TPDO3 no longer sent (stale inputs)
+        elif what == "di-garbled":
+            self._send_garbled(int(arg, 0) if arg else self.digital_inputs())
         elif what == "homing-stall":
             self.home_stall = arg != "off"  # a homing that never ends (a timeout)
         elif what == "never-enable":
@@ -923,10 +1199,16 @@ class DriveSim:
         self.cycles = 0
         self.last_rx_mono = time.monotonic()  # when the last frame was taken off the bus
         self.last_rx_t = 0.0  # its receive time (kernel clock, s): the bus time reached
+        self.rx_busy = False  # fast receive: a batch taken off the socket, not all handled
         self._stopping = False
         self._pump: threading.Thread | None = None
         self.pump_errors = 0
         self.socket_drops: int | None = None  # fast receive: the kernel's frames dropped
+        # the touch probe's surface: (drive node, counts, on below it), its input, edges
+        self.touch: tuple[int, int, bool] | None = None
+        self.touch_on = False
+        self.touch_edges = 0
+        self.touch_edge: tuple[int, float, bool, int] | None = None  # sync, frac, positive, n
         for spec in drives:
             d = Drive(self, **spec)
             self.drives[d.id] = d
@@ -1013,9 +1295,11 @@ class DriveSim:
         mm = MMsg(sock)
         notify = self.network.notify
         while not self._stopping:
+            self.rx_busy = False
             k = mm.recv()
             if not k:
                 continue
+            self.rx_busy = True
             B = Batch(mm, k, 1)
             if B.drops is not None:
                 self.socket_drops = B.drops
@@ -1061,6 +1345,45 @@ class DriveSim:
             self.cycle_cpu_s += time.thread_time() - c0
             self.cycles += 1
 
+    def set_touch_surface(self, node: int, arg: str | None) -> None:
+        """touch-probe=COUNTS,below|above on drive NODE (off: none)."""
+        if arg in (None, "off"):
+            self.touch = None
+            return
+        counts, _, side = (arg or "").partition(",")
+        if side not in ("below", "above"):
+            raise ValueError(f"touch-probe '{arg}': expected COUNTS,below|above or off")
+        self.touch = (node, int(counts, 0), side == "below")
+        d = self.drives[node]
+        self.touch_on = self._touching(d.actual_f - d.fe_extra)
+
+    def _touching(self, pos: float) -> bool:
+        assert self.touch is not None
+        _, s, below = self.touch
+        return pos <= s if below else pos >= s
+
+    def touch_probe_moved(self, drive: "Drive", sync_no: int) -> None:
+        """After a drive's move at this SYNC: the surface drive's move may
+        cross the surface (an edge at a fraction of the period, the same
+        instant for every drive: one wire to every touch probe input); each
+        drive latches where its own move is at that instant (a drive that
+        moves later in this SYNC's handling latches when it has)."""
+        if self.touch is not None and drive.id == self.touch[0]:
+            on = self._touching(drive.move_to)
+            if on != self.touch_on:
+                self.touch_on = on
+                s, a, b = self.touch[1], drive.move_from, drive.move_to
+                frac = (s - a) / (b - a) if b != a else 1.0
+                self.touch_edges += 1
+                self.touch_edge = (sync_no, min(1.0, max(0.0, frac)), on, self.touch_edges)
+                self.rec.event(drive.id, "touch_input", on=on, sync=sync_no, frac=round(frac, 6))
+                for d in self.drives.values():
+                    d.touch_probe_edge(frac, on, sync_no, self.touch_edges)
+                return
+        e = self.touch_edge
+        if e is not None and e[0] == sync_no:
+            drive.touch_probe_edge(e[1], e[2], sync_no, e[3])
+
     def inject(self, node: int, what: str, arg: str | None = None) -> None:
         with self.lock:
             if node in self.modules:
@@ -1075,11 +1398,11 @@ class DriveSim:
         judged at the receive time of the newest frame taken off the bus (frame
         order: a simulator running behind the bus does not blame the producer
         for its own lateness), or by the wall clock once nothing has been taken
-        off the bus for 50 ms (a silent bus). Without SYNCs other frames (the
-        drives' own heartbeats, sent by the kernel's timer) still flow, so the
-        bus time must come from them too."""
+        off the bus for 50 ms and nothing waits to be (a silent bus). Without
+        SYNCs other frames (the drives' own heartbeats, sent by the kernel's
+        timer) still flow, so the bus time must come from them too."""
         now = self.last_rx_t
-        if time.monotonic() - self.last_rx_mono > 0.05:
+        if time.monotonic() - self.last_rx_mono > 0.05 and self._rx_drained():
             now = max(now, time.time())
         if now > 0.0:
             with self.lock:
@@ -1090,6 +1413,24 @@ class DriveSim:
                     if m.present:
                         m.check_heartbeats(now)
         self.rec.flush()
+
+    def _rx_drained(self) -> bool:
+        """Every frame on the bus so far handled: no batch being handled and
+        none queued in the socket. A receive thread stalled for longer than
+        the 50 ms (a loaded VM: a descheduled process, a slow disk write of
+        the records) is behind, not on a silent bus: the wall clock would
+        judge its backlog's heartbeats lost before it reads them (EMCY 0x8130
+        with the master's heartbeat on the bus all along)."""
+        if self.rx_busy:
+            return False
+        sock = getattr(self.network.bus, "socket", None)
+        if not isinstance(sock, socket.socket):
+            return True  # python-can's virtual bus (host tests): nothing to ask
+        try:
+            readable, _, _ = select.select([sock], [], [], 0)
+        except (OSError, ValueError):
+            return True  # closed
+        return not readable
 
     def stop(self) -> None:
         with self.lock:

@@ -13,9 +13,10 @@ maps) with the CiA 402 drive profile on top (mlipcan.drive):
   NMT      boot-up message at start and after a reset (node / communication),
            pre-operational, operational (PDOs on), stopped
   SDO      the object dictionary: 0x1000 0x1001 0x1005 0x1014 0x1016 0x1017
-           0x1018 0x1400 0x1600 0x1800 0x1A00 0x6040 0x6041 0x605A 0x6060
-           0x6061 0x6064 0x6065 0x6066 0x606C 0x606D 0x607A 0x6083 0x6084
-           0x60C2 0x60F4 0x60FF 0x6502
+           0x1018 0x1400 0x1600 0x1800 0x1801 0x1802 0x1A00 0x1A01 0x1A02
+           0x6040 0x6041 0x605A 0x6060 0x6061 0x6064 0x6065 0x6066 0x606C
+           0x606D 0x607A 0x6083 0x6084 0x6085 0x60B8 0x60B9 0x60BA 0x60BB
+           0x60C2 0x60F4 0x60FD 0x60FF 0x6502
            (--write-eds exports it); PDO mapping changes only as CiA 301
            says (PDO invalid, sub 0 = 0 first), modes of operation 0, 3, 6 or 8
   CiA 402  the power state machine on the controlword (SDO or RPDO), the
@@ -31,6 +32,13 @@ maps) with the CiA 402 drive profile on top (mlipcan.drive):
            bit 10 target reached and bit 12 speed zero within 0x606D, the TPDO
            carries velocity actual 0x606C; not enabled: it brakes to 0 at 0x6084
            (--config: the [SPINDLE] NODE of TYPE = cia402 is one of the drives)
+           quick stop (0x605A 1/2/5/6) while moving in CSP: the axis brakes
+           on the drive's own ramp (0x6085, or 0x6084 for 1/5), then switch
+           on disabled (1/2); digital inputs 0x60FD (bit 0/1/2: the neg/pos
+           limit and home switches of --switches at the position actual) in
+           TPDO3 when the master maps it: on change and every event timer
+           0x1802:05 ms; touch probe 1 (0x60B8..0x60BB, TPDO2 when the
+           master maps 0x60BA/0x60BB there)
 
 Fault injection (--inject at start, or a line "N:WHAT[=ARG]" appended to the
 --control file at run time, read within 20 ms):
@@ -46,6 +54,17 @@ Fault injection (--inject at start, or a line "N:WHAT[=ARG]" appended to the
   N:absent / N:present    gone from the bus (no boot-up, SDO, heartbeat) / back
   N:load=COUNTS_S         a spindle (mode 3) loses COUNTS_S of its velocity to a load
                           it cannot hold (0: none)
+  N:touch-probe=COUNTS,below|above   a touch probe wired to every drive's touch
+                          probe input 1 is on while drive N's position is at or
+                          below (above) COUNTS (off: none); each drive with 0x60B8
+                          armed latches its own position at the instant drive N's
+                          move between two SYNCs crosses COUNTS (0x60BA positive
+                          edge, 0x60BB negative; status 0x60B9; events.jsonl
+                          "touch_probe": latched, sync, frac of the period)
+  N:di=BIT=0|1|auto       digital input BIT of 0x60FD forced (auto: from the
+                          switches again; bits 0/1/2 follow --switches neg/pos/home)
+  N:di-silent[=off]       TPDO3 (0x60FD) no longer sent: the inputs go stale
+  N:di-garbled[=VALUE]    one TPDO3 a byte short (VALUE's first 3 bytes)
 
 Records (--record DIR): events.jsonl (every SDO write with its value or abort
 code, NMT and power state transitions, EMCYs, injections, heartbeat losses;
@@ -207,7 +226,8 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
         help="a CiA 401 I/O module at NODE on the same bus (mlipcan.io401; injections "
         "NODE:input=BYTE.BIT=0|1, probe=BYTE.BIT,DRIVE,COUNTS,below|above (the input "
         "follows that drive's position against a surface; probe=off), heartbeat=off|on, "
-        "fault[=CODE], absent, present); its outputs at every SYNC in RECORD/io.csv",
+        "fault[=CODE], reboot (a power cycle: defaults, outputs off, boot-up), absent, "
+        "present); its outputs at every SYNC in RECORD/io.csv",
     )
     ap.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     ap.add_argument("--write-eds", metavar="FILE", help="export a drive's object dictionary, exit")

@@ -12,6 +12,7 @@ a test can count the periods from the input frame to what the drives did;
 the outputs in force are recorded at every SYNC (io.csv: sync, node, time,
 outputs 0x6200:1..8 and inputs 0x6000:1..8 as hex), so a test judges what
 the module did period by period (issue 19).
+A power cycle by injection: N:reboot (defaults, outputs off, boot-up).
 Inputs change by injection: N:input=BYTE.BIT=0|1 (BYTE 1..8, BIT 0..7), or
 follow a simulated drive's position as a probe touching a surface:
 N:probe=BYTE.BIT,DRIVE,COUNTS,below|above (the input is 1 while the drive's
@@ -304,6 +305,19 @@ class IoModule(SimDevice):
             d = self.sim.drives.get(node)
             if d is not None:
                 self.follow(node, d.actual, self.sim.sync_no)
+        elif what == "reboot":
+            # a power cycle: every object to its default but the inputs (they
+            # are physical), outputs off, no heartbeat consumed, boot-up sent
+            with self.sim.lock:
+                ds = self.node.data_store
+                for k in list(ds):
+                    if k != 0x6000:
+                        del ds[k]
+                self._consumer_off()
+                self.master_lost = False
+                self.outputs[:] = bytes(NBYTES)
+                self.rec.event(self.id, "outputs", data=bytes(self.outputs).hex(), why="reboot")
+                self._boot("power cycle (injected)")
         elif what == "fault":
             code = int(arg, 0) if arg else 0x5000
             if self.present:

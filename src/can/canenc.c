@@ -232,6 +232,11 @@ mlip_status mlip_canenc_encode(const struct mlip_canenc *e, uint32_t cycle, cons
 				out[1 + i].data[0] = (uint8_t)(e->controlword[i] & 0xFFu);
 				out[1 + i].data[1] = (uint8_t)(e->controlword[i] >> 8);
 				put_i32(out[1 + i].data + 2, counts[i]);
+				if (e->rpdo_probe) {
+					out[1 + i].len = 8;
+					out[1 + i].data[6] = (uint8_t)(e->probe_fn[i] & 0xFFu);
+					out[1 + i].data[7] = (uint8_t)(e->probe_fn[i] >> 8);
+				}
 			} else {
 				put_i32(out[1 + i].data, counts[i]);
 			}
@@ -334,7 +339,7 @@ static mlip_status feed_cia402(struct mlip_candec *d, const struct mlip_can_fram
 		d->foreign++;
 		return MLIP_E_EMPTY;
 	}
-	if (f->len != (e->rpdo_controlword ? 6 : 4) || f->flags != 0) {
+	if (f->len != (e->rpdo_controlword ? (e->rpdo_probe ? 8 : 6) : 4) || f->flags != 0) {
 		d->malformed++;
 		return MLIP_E_SYNTAX;
 	}

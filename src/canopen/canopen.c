@@ -152,12 +152,24 @@ mlip_status mlip_co_classify(const struct mlip_can_frame *f, struct mlip_co_msg 
 		memcpy(m->emcy.vendor, f->data + 3, 5);
 		return MLIP_OK;
 	case MLIP_CO_TPDO1_BASE:
-		if (f->len != 6) {
+		if (f->len != 6 && f->len != 8) {
 			return MLIP_E_SYNTAX;
 		}
 		m->kind = MLIP_CO_TPDO;
 		m->statusword = get_u16(f->data);
 		m->position_counts = (int32_t)get_u32(f->data + 2);
+		if (f->len == 8) {
+			m->has_probe = 1;
+			m->probe_status = get_u16(f->data + 6);
+		}
+		return MLIP_OK;
+	case MLIP_CO_TPDO2_BASE:
+		if (f->len != 8) {
+			return MLIP_E_SYNTAX;
+		}
+		m->kind = MLIP_CO_TPDO2;
+		m->probe_pos = (int32_t)get_u32(f->data);
+		m->probe_neg = (int32_t)get_u32(f->data + 4);
 		return MLIP_OK;
 	case MLIP_CO_SDO_TX_BASE:
 		if (f->len != 8) {

@@ -52,7 +52,11 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 		mlip_sdo_add(&l, 0x1600, 2, 4, 0x607A0020u,
 		             "RPDO1 mapping 2: target position 0x607A");
 	}
-	mlip_sdo_add(&l, 0x1600, 0, 1, 2, "RPDO1 mapping count");
+	if (d->touch_probe) {
+		mlip_sdo_add(&l, 0x1600, 3, 4, 0x60B80010u,
+		             "RPDO1 mapping 3: touch probe function 0x60B8");
+	}
+	mlip_sdo_add(&l, 0x1600, 0, 1, d->touch_probe ? 3 : 2, "RPDO1 mapping count");
 	mlip_sdo_add(&l, 0x1400, 1, 4, d->rpdo_cob, "RPDO1 COB-ID");
 	mlip_sdo_add(&l, 0x1800, 1, 4, off | no_rtr | d->tpdo_cob,
 	             "TPDO1 COB-ID (disabled while mapping)");
@@ -66,8 +70,40 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 		mlip_sdo_add(&l, 0x1A00, 2, 4, 0x60640020u,
 		             "TPDO1 mapping 2: position actual value 0x6064");
 	}
-	mlip_sdo_add(&l, 0x1A00, 0, 1, 2, "TPDO1 mapping count");
+	if (d->touch_probe) {
+		mlip_sdo_add(&l, 0x1A00, 3, 4, 0x60B90010u,
+		             "TPDO1 mapping 3: touch probe status 0x60B9");
+	}
+	mlip_sdo_add(&l, 0x1A00, 0, 1, d->touch_probe ? 3 : 2, "TPDO1 mapping count");
 	mlip_sdo_add(&l, 0x1800, 1, 4, no_rtr | d->tpdo_cob, "TPDO1 COB-ID");
+	if (d->touch_probe) {
+		/* the latched positions, sampled at the same SYNC as TPDO1 */
+		mlip_sdo_add(&l, 0x1801, 1, 4, off | no_rtr | d->tpdo2_cob,
+		             "TPDO2 COB-ID (disabled while mapping)");
+		mlip_sdo_add(&l, 0x1801, 2, 1, 1,
+		             "TPDO2 transmission type (synchronous, every SYNC)");
+		mlip_sdo_add(&l, 0x1A01, 0, 1, 0, "TPDO2 mapping count (cleared)");
+		mlip_sdo_add(&l, 0x1A01, 1, 4, 0x60BA0020u,
+		             "TPDO2 mapping 1: touch probe 1 positive edge position 0x60BA");
+		mlip_sdo_add(&l, 0x1A01, 2, 4, 0x60BB0020u,
+		             "TPDO2 mapping 2: touch probe 1 negative edge position 0x60BB");
+		mlip_sdo_add(&l, 0x1A01, 0, 1, 2, "TPDO2 mapping count");
+		mlip_sdo_add(&l, 0x1801, 1, 4, no_rtr | d->tpdo2_cob, "TPDO2 COB-ID");
+		mlip_sdo_add(&l, 0x60B8, 0, 2, 0, "touch probe function (off until a G38)");
+	}
+	if (d->di_tpdo_cob != 0) {
+		/* TPDO3: TPDO2 may be the touch probe's */
+		mlip_sdo_add(&l, 0x1802, 1, 4, off | no_rtr | d->di_tpdo_cob,
+		             "TPDO3 COB-ID (disabled while mapping)");
+		mlip_sdo_add(&l, 0x1802, 2, 1, 255, "TPDO3 transmission type (255: on change)");
+		mlip_sdo_add(&l, 0x1802, 5, 2, d->di_event_ms,
+		             "TPDO3 event timer (ms): the inputs at least this often");
+		mlip_sdo_add(&l, 0x1A02, 0, 1, 0, "TPDO3 mapping count (cleared)");
+		mlip_sdo_add(&l, 0x1A02, 1, 4, 0x60FD0020u,
+		             "TPDO3 mapping 1: digital inputs 0x60FD");
+		mlip_sdo_add(&l, 0x1A02, 0, 1, 1, "TPDO3 mapping count");
+		mlip_sdo_add(&l, 0x1802, 1, 4, no_rtr | d->di_tpdo_cob, "TPDO3 COB-ID");
+	}
 	mlip_sdo_add(&l, 0x1005, 0, 4, d->sync_id, "COB-ID SYNC (consumer)");
 	if (d->velocity) {
 		mlip_sdo_add(&l, 0x6060, 0, 1, MLIP_402_MODE_PV,
@@ -93,6 +129,10 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 	if (!d->velocity) {
 		mlip_sdo_add(&l, 0x6065, 0, 4, d->following_window_counts,
 		             "following error window");
+	}
+	if (d->quick_stop_counts_s2 != 0) {
+		mlip_sdo_add(&l, 0x6085, 0, 4, d->quick_stop_counts_s2,
+		             "quick stop deceleration (counts/s^2)");
 	}
 	mlip_sdo_add(&l, 0x1017, 0, 2, d->heartbeat_ms, "producer heartbeat time (ms)");
 	mlip_sdo_add(&l, 0x1016, 1, 4, ((uint32_t)d->master_node << 16) | d->master_timeout_ms,
@@ -142,6 +182,13 @@ mlip_drive_fault mlip_drive_supervise(const struct mlip_drive_obs *o,
 		*detail = (int64_t)(x->cycle - o->tpdo_count);
 		return MLIP_DRIVE_TPDO_LOST;
 	}
+	/* its limit switches unread for longer than a heartbeat: moving on
+	 * would be moving blind */
+	if (x->di_timeout_ns > 0 && x->now_ns > o->di_ns &&
+	    x->now_ns - o->di_ns > x->di_timeout_ns) {
+		*detail = (int64_t)((x->now_ns - o->di_ns) / 1000000u);
+		return MLIP_DRIVE_INPUTS_LOST;
+	}
 	return MLIP_DRIVE_OK;
 }
 
@@ -160,8 +207,9 @@ const char *mlip_drive_fault_name(mlip_drive_fault f)
 	                                    "beyond a soft limit",
 	                                    "spindle not at speed in time",
 	                                    "spindle speed out of its band",
-	                                    "power step not confirmed"};
-	return (int)f >= 0 && f <= MLIP_DRIVE_POWER_STEP ? names[f] : "?";
+	                                    "power step not confirmed",
+	                                    "digital inputs lost"};
+	return (int)f >= 0 && f <= MLIP_DRIVE_INPUTS_LOST ? names[f] : "?";
 }
 
 int64_t mlip_drive_following_error(const int32_t *targets, int n, int32_t actual)

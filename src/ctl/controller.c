@@ -39,6 +39,8 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	}
 	if (o->io != NULL) {
 		c->io.cfg = *o->io;
+		/* the drives' touch probe: 0x60B8 in every RPDO */
+		c->enc.rpdo_probe = o->drives && o->io->probe_source == MLIP_PROBE_SRC_DRIVE;
 	}
 	if (o->home != NULL) {
 		c->home.cfg = *o->home;
@@ -270,6 +272,11 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		double prev[MLIP_MAX_AXES];
 		memcpy(prev, c->pos, sizeof(prev));
 		mlip_run_state rs = mlip_planner_step(p, c->pos);
+		struct mlip_ctl_reason sw;
+		if (mlip_mio_sync_step(c, &sw) != MLIP_OK) {
+			mlip_ct_fault(c, out,
+			              sw); /* an output the machine has not (checked before) */
+		}
 		if (c->brake.on) {
 			mlip_ct_brake_step(c, prev, rs);
 		}
@@ -293,6 +300,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 			}
 		}
 		c->enc.rpdo_mute = in->drives.mute;
+		for (int k = 0; k < MLIP_MAX_AXES; k++) {
+			c->enc.probe_fn[k] = c->mio.tp_fn;
+		}
 		if (mlip_canenc_encode(&c->enc, (uint32_t)c->period, c->pos, out->frames,
 		                       MLIP_CAN_MAX_FRAMES, &out->n_frames, &sat) != MLIP_OK) {
 			/* a position beyond the drive's int32 range: never send it */

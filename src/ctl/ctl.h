@@ -72,8 +72,12 @@ static inline void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t sta
 	}
 	c->state = state;
 	c->why = r;
-	if (state == MLIP_STATE_IDLE || state == MLIP_STATE_STOPPING || state == MLIP_STATE_FAULT ||
-	    state == MLIP_STATE_ESTOP) {
+	if (state == MLIP_STATE_IDLE && r.why == MLIP_WHY_END && c->prog.mdi) {
+		/* MDI lines done: what the operator switched stays (LinuxCNC: an
+		 * MDI M8 or M64 stays on until M9/M65, a program's end, a stop) */
+		mlip_ctl_spindle_ask(&c->spindle, 0.0, c->period);
+	} else if (state == MLIP_STATE_IDLE || state == MLIP_STATE_STOPPING ||
+	           state == MLIP_STATE_FAULT || state == MLIP_STATE_ESTOP) {
 		mlip_mio_all_off(c); /* a program's end, a stop, a fault, an E-stop (issue 19) */
 		mlip_ctl_spindle_ask(&c->spindle, 0.0, c->period); /* every end stops it */
 	}

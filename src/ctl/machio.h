@@ -7,7 +7,9 @@
  *     (a program's end, a stop, a fault, an E-stop);
  *   - G38.2..G38.5: a move toward the target that stops on the path at the
  *     acceleration limit (mlip_planner_stop) in the period the probe input
- *     changes, the position of that period latched as the result; a probe
+ *     changes, the position of that period latched as the result; or, with
+ *     [PROBE] SOURCE = drive, in the period the first drive's TPDOs report
+ *     its touch probe latched, each drive's latched position the result; a probe
  *     error (no trip for G38.2/.4, tripped at the start, no input) stops the
  *     program at rest (idle, the reason named).
  */
@@ -39,9 +41,28 @@ mlip_status mlip_mio_switch(struct mlip_ctl *c, const struct mlip_ring_rec *rec,
 mlip_status mlip_mio_probe_start(struct mlip_ctl *c, const struct mlip_ring_rec *rec,
                                  struct mlip_ctl_reason *why);
 
+/* The drives' touch probe being switched off, then on, before a G38's move
+ * ([PROBE] SOURCE = drive; called each period while the probe move is at
+ * rest): 1 still arming (or its move pushed this period), 0 not arming (the
+ * move is over), -1 with *why (a drive did not confirm in time, or latched
+ * an edge while armed at rest). */
+int mlip_mio_probe_arming(struct mlip_ctl *c, const struct mlip_ctl_in *in,
+                          struct mlip_ctl_reason *why);
+
 /* The probe move is at rest: the result recorded; MLIP_OK, or MLIP_E_RANGE
  * with *why when it had to trip and did not. */
 mlip_status mlip_mio_probe_end(struct mlip_ctl *c, struct mlip_ctl_reason *why);
+
+/* An M62/M63 record (an OUTPUT beyond MLIP_DOUT_SYNC) taken by the
+ * ingest: switched in the period the move after it starts (MLIP_E_FULL:
+ * MLIP_SYNC_OUT_MAX wait already, take it later). */
+mlip_status mlip_mio_sync_add(struct mlip_ctl *c, const struct mlip_ring_rec *rec);
+
+/* After the period's step: the M62/M63 whose move produced this setpoint
+ * (the planner executes a block after theirs), or all at rest with nothing
+ * queued, switched now; a switch the machine cannot do: MLIP_E_RANGE with
+ * *why. */
+mlip_status mlip_mio_sync_step(struct mlip_ctl *c, struct mlip_ctl_reason *why);
 
 /* The status fields: outputs, coolant, the last probe. */
 void mlip_mio_publish(const struct mlip_ctl *c, struct mlip_ring_status *s);

@@ -111,9 +111,10 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
 	}
 	/* M64/M65: +-(n + 1) of an output n; G38: MLIP_PROBE_* bits (issue 19) */
+	double dout = fabs(rec->dwell_s);
+	dout -= dout > MLIP_DOUT_SYNC ? MLIP_DOUT_SYNC : 0; /* M62/M63 */
 	if (rec->type == MLIP_REC_OUTPUT &&
-	    !(fabs(rec->dwell_s) >= 1.0 && fabs(rec->dwell_s) <= MLIP_DOUT_MAX &&
-	      rec->dwell_s == floor(rec->dwell_s))) {
+	    !(dout >= 1.0 && dout <= MLIP_DOUT_MAX && rec->dwell_s == floor(rec->dwell_s))) {
 		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
 	}
 	if (rec->type == MLIP_REC_PROBE &&
@@ -135,6 +136,9 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 
 static int is_event(const struct mlip_ring_rec *rec)
 {
+	if (rec->type == MLIP_REC_OUTPUT && fabs(rec->dwell_s) > MLIP_DOUT_SYNC) {
+		return 0; /* M62/M63: with the motion, not at rest */
+	}
 	return rec->type == MLIP_REC_DWELL || rec->type == MLIP_REC_PAUSE ||
 	       rec->type == MLIP_REC_OPTIONAL_PAUSE || rec->type == MLIP_REC_SPINDLE ||
 	       rec->type == MLIP_REC_TOOL || rec->type == MLIP_REC_COOLANT ||
@@ -176,6 +180,15 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 		if (mlip_ctl_check_record(&c->m, &rec, c->prog.next_seq, &bad_why) != MLIP_OK) {
 			bad_next = 1; /* the fault after the good blocks before it are in */
 			break;
+		}
+		if (rec.type == MLIP_REC_OUTPUT && fabs(rec.dwell_s) > MLIP_DOUT_SYNC) {
+			/* M62/M63: switched in the period the next move starts */
+			if (mlip_mio_sync_add(c, &rec) != MLIP_OK) {
+				break; /* as many waiting as there is room for: later */
+			}
+			rx_pop(c);
+			c->prog.next_seq++;
+			continue;
 		}
 		if (is_event(&rec)) {
 			if (rec.type == MLIP_REC_OPTIONAL_PAUSE && !c->op.optional_stop) {
@@ -421,6 +434,7 @@ void mlip_ct_blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 		if (!c->prog.refill) {
 			c->prog.exec.seq = 0; /* a new program (a starved one is given up) */
 			c->prog.exec.line = 0;
+			c->prog.mdi = in->feeder_mdi;
 			memcpy(c->prog.start, c->pos, sizeof(c->prog.start));
 		}
 		c->prog.next_seq = head->seq;
@@ -526,8 +540,16 @@ void mlip_ct_after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD:
 		if (rs == MLIP_RUN_IDLE && c->mio.probe_on) {
-			/* the probe move at rest: its result, then the program goes on */
+			/* the probe move at rest: its result, then the program goes on
+			 * (the drives' touch probe: armed first) */
 			struct mlip_ctl_reason w;
+			int arming = mlip_mio_probe_arming(c, in, &w);
+			if (arming != 0) {
+				if (arming < 0) {
+					probe_abort(c, out, w);
+				}
+				return;
+			}
 			c->prog.exec = c->wait.at;
 			if (mlip_mio_probe_end(c, &w) != MLIP_OK) {
 				probe_abort(c, out, w);

@@ -483,8 +483,9 @@ void mlip_gc_exec_io(struct mlip_gcode *g, const struct blk *b, double scale, st
 	exec_tools(g, b, scale, ec, ec->line, 0);      /* T, M6, M61 */
 	exec_spindle(g, b, ec, ec->line, 0, s_before); /* M3, M4, M5 */
 	exec_coolant(g, b, ec, ec->line);              /* M7, M8, M9 */
-	if (b->dout) {                                 /* M64, M65 */
-		queue(ec, MLIP_BLOCK_OUTPUT, b->dout == 64 ? b->p + 1.0 : -(b->p + 1.0));
+	if (b->dout) {                                 /* M64, M65; M62, M63 with the next move */
+		double v = b->p + 1.0 + (b->dout <= 63 ? MLIP_DOUT_SYNC : 0);
+		queue(ec, MLIP_BLOCK_OUTPUT, b->dout == 64 || b->dout == 62 ? v : -v);
 	}
 	exec_tools(g, b, scale, ec, ec->line, 1); /* G43, G43.1, G49 */
 }

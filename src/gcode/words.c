@@ -124,10 +124,6 @@ static const char *m_refused(int code10)
 	if (m == 98 || m == 99) {
 		return ": subprogram calls (have the CAM expand them)";
 	}
-	if (m == 62 || m == 63) {
-		return ": a digital output synchronized with motion (M64/M65 switch one with "
-		       "the machine at rest)";
-	}
 	if (m >= 66 && m <= 68) {
 		return ": a wait for an input, or an analog output";
 	}
@@ -349,8 +345,8 @@ mlip_status mlip_gc_classify(const struct lexed *lx, uint32_t line, struct blk *
 				b->m61 = c == 610;
 				b->m6_col = b->m61_col = w->col;
 				note_io(b, 'M', c);
-			} else if (c == 640 || c == 650) {
-				/* M64/M65 Pn: one a line (they share the P word) */
+			} else if (c == 620 || c == 630 || c == 640 || c == 650) {
+				/* M62/M63/M64/M65 Pn: one a line (they share the P word) */
 				if (b->dout) {
 					return mlip_gc_fail(e, line, w->col, MLIP_E_SYNTAX,
 					                    "M%u and M%u on one line: one output "

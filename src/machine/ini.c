@@ -119,7 +119,7 @@ static mlip_status parse_header(struct pstate *ps, const char *s, size_t n, size
 {
 	static const char *const names[] = {"TRAJ",   "AXIS_X",  "AXIS_Y", "AXIS_Z", "AXIS_A",
 	                                    "AXIS_B", "AXIS_C",  "CAN",    "DRIVES", "SPINDLE",
-	                                    "TOOL",   "COOLANT", "IO"};
+	                                    "TOOL",   "COOLANT", "IO",     "PROBE"};
 	size_t q = p + 1, r, a, z;
 	struct mlip_tb b;
 	int sec;
@@ -362,6 +362,21 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 			mlip_tb_puts(&b, sec == SEC_SPINDLE
 			                     ? " must be none, manual or cia402, got '"
 			                     : " must be none or manual, got '");
+			mlip_tb_token(&b, v, nv);
+			mlip_tb_putc(&b, '\'');
+			return MLIP_E_SYNTAX;
+		}
+		st->ival[k] = i;
+		return MLIP_OK;
+	case V_PSOURCE:
+		i = tok_is(v, nv, "io")      ? MLIP_PROBE_SRC_IO
+		    : tok_is(v, nv, "drive") ? MLIP_PROBE_SRC_DRIVE
+		                             : -1;
+		if (i < 0) {
+			err_at(err, &b, line, col);
+			mlip_tb_puts(
+			    &b, "SOURCE must be io (the [IO] PROBE input) or drive (the drives' "
+			        "touch probe 0x60B8..0x60BB), got '");
 			mlip_tb_token(&b, v, nv);
 			mlip_tb_putc(&b, '\'');
 			return MLIP_E_SYNTAX;

@@ -193,6 +193,9 @@ mlip_status mlip_mc_fill_inputs(const struct pstate *ps, struct mlip_config *c,
 	int i, sec, key;
 
 	memset(io, 0, sizeof *io);
+	io->probe_source = has(ps, SEC_PROBE, PK_SOURCE)
+	                       ? (uint8_t)ps->sec[SEC_PROBE].ival[PK_SOURCE]
+	                       : MLIP_PROBE_SRC_IO;
 	if (has(ps, SEC_IO, IK_NODE)) {
 		io->node = (uint8_t)ps->sec[SEC_IO].ival[IK_NODE];
 	}

@@ -79,6 +79,7 @@ const struct keydef mlip_mc_keytab[N_KINDS][NKEYS] = {
               {"OUTPUT_5", V_OUTBIT, 0},
               {"OUTPUT_6", V_OUTBIT, 0},
               {"OUTPUT_7", V_OUTBIT, 0}},
+    [K_PROBE] = {{"SOURCE", V_PSOURCE, 0}},
 };
 
 /* "TRAJ", "CAN", "AXIS_X", ... */
@@ -98,6 +99,8 @@ void mlip_mc_secname(struct mlip_tb *b, int sec)
 		mlip_tb_puts(b, "COOLANT");
 	} else if (sec == SEC_IO) {
 		mlip_tb_puts(b, "IO");
+	} else if (sec == SEC_PROBE) {
+		mlip_tb_puts(b, "PROBE");
 	} else {
 		mlip_tb_puts(b, "AXIS_");
 		mlip_tb_putc(b, AXIS_LETTERS[sec - SEC_AXIS0]);

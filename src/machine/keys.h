@@ -28,7 +28,7 @@
 #define AXIS_LETTERS     "XYZABC"
 
 /* Sections by index: TRAJ, one per axis letter (XYZABC order), CAN, DRIVES, SPINDLE,
- * TOOL, COOLANT, IO. */
+ * TOOL, COOLANT, IO, PROBE. */
 enum {
 	SEC_TRAJ = 0,
 	SEC_AXIS0 = 1,
@@ -38,9 +38,10 @@ enum {
 	SEC_TOOL,
 	SEC_COOLANT,
 	SEC_IO,
+	SEC_PROBE,
 	N_SEC
 };
-enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, K_SPINDLE, K_TOOL, K_COOLANT, K_IO, N_KINDS };
+enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, K_SPINDLE, K_TOOL, K_COOLANT, K_IO, K_PROBE, N_KINDS };
 
 enum { TK_COORDS, TK_VLIN, TK_VANG, TK_TOL, TK_PERIOD, TK_LUNITS, TK_AUNITS, TK_LOOKAHEAD };
 enum {
@@ -102,6 +103,7 @@ enum {
 /* [TOOL]: CHANGE, then CHANGE_X .. CHANGE_C in AXIS_LETTERS order */
 enum { OK_CHANGE, OK_POS0 };
 enum { QK_TYPE, QK_MIST, QK_FLOOD };
+enum { PK_SOURCE };
 
 /* How a value is read and which single-value range it must meet. */
 enum vtype {
@@ -126,7 +128,8 @@ enum vtype {
 	V_METHOD,    /* integer -128..127 (0x6098, INTEGER8) */
 	V_SEQUENCE,  /* integer 0..9 (HOME_SEQUENCE) */
 	V_COOLANT,   /* none | manual | io ([COOLANT] TYPE; outputs.c) */
-	V_OUTBIT     /* NODE 0x6200:SUB BIT [HIGH] (outputs.c) */
+	V_OUTBIT,    /* NODE 0x6200:SUB BIT [HIGH] (outputs.c) */
+	V_PSOURCE    /* io | drive ([PROBE] SOURCE) */
 };
 
 struct keydef {
@@ -146,6 +149,7 @@ static inline int sec_kind(int sec)
 	       : sec == SEC_TOOL    ? K_TOOL
 	       : sec == SEC_COOLANT ? K_COOLANT
 	       : sec == SEC_IO      ? K_IO
+	       : sec == SEC_PROBE   ? K_PROBE
 	                            : K_AXIS;
 }
 

@@ -198,6 +198,9 @@ mlip_status mlip_mc_fill_outputs(const struct pstate *ps, struct mlip_config *c,
 	                            ? io->out_mapped & (MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD)
 	                            : MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD;
 	c->io.dout_mask = (io->out_mapped >> MLIP_OUT_DOUT0) & ((1u << MLIP_DOUT_MAX) - 1u);
-	c->io.probe = (io->mapped >> MLIP_IN_PROBE) & 1u;
+	/* G38 runs with a probe input, or with the drives' touch probe (mlip-rt
+	 * checks there are drives) */
+	c->io.probe =
+	    ((io->mapped >> MLIP_IN_PROBE) & 1u) || io->probe_source == MLIP_PROBE_SRC_DRIVE;
 	return MLIP_OK;
 }

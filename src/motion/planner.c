@@ -675,6 +675,17 @@ void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_
 	*line = p->head != p->tail ? s->line : 0;
 }
 
+uint64_t mlip_planner_motion_seq(const struct mlip_planner *p)
+{
+	if (p->head == p->tail) {
+		return 0;
+	}
+	if (p->in_corner && p->tail + 1u != p->head) {
+		return cseg_at(p, p->tail + 1u)->seq;
+	}
+	return cseg_at(p, p->tail)->seq;
+}
+
 void mlip_planner_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)
 {
 	*seq = p->done_seq;

@@ -20,7 +20,7 @@ import time
 
 import pytest
 
-from conftest import S
+from conftest import DRIVES_VM, S
 from mlipcan import compare, procs
 from mlipcan.compare import targets_by_sync, trim  # shared with the demo (demo_drives.py)
 from mlipcan.config import MachineLimits
@@ -37,16 +37,7 @@ G1 X1.234 Y-5 Z250.5
 """
 # for the injections: long enough that a heartbeat timeout falls inside it
 PROGRAM_LONG = PROGRAM + "".join(PROGRAM.splitlines(True)[1:]) * 3
-DRIVES = """
-[DRIVES]
-ENABLE = 1
-HEARTBEAT_MS = 100
-HEARTBEAT_TIMEOUT_MS = 4000
-FOLLOWING_ERROR = 2
-SDO_TIMEOUT_MS = 5000
-BOOT_TIMEOUT_MS = 8000
-STATE_TIMEOUT_MS = 10000
-"""
+DRIVES = DRIVES_VM
 
 
 def machine(tmp, nodes, home=None, name="m.ini"):
@@ -161,7 +152,7 @@ def test_bringup_program_shutdown(sim, tmp_path):
     # bring-up: every step on every node, start where the drives are
     for n, a in ((1, "X"), (2, "Y"), (3, "Z")):
         assert f"node {n} (axis {a}): boot-up after NMT reset communication" in log
-        assert f"node {n} (axis {a}): CiA 402 drive (0x1000 = 0x00020192), 22 objects" in log
+        assert f"node {n} (axis {a}): CiA 402 drive (0x1000 = 0x00020192), 23 objects" in log  # 0x6085 too
         assert f"node {n} (axis {a}): operational after NMT start" in log
         assert f"node {n} (axis {a}): enable operation (0x000F): operation enabled" in log
     assert "start position X 1.2340 Y -5.0000 Z 250.5000 (position actual" in log, log

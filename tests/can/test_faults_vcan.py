@@ -543,8 +543,11 @@ def test_override_storm_with_holds(vcan, tmp_path):
 
     def actions(rig):
         rig.wait_state("running", pred=lambda s: s["exec_seq"] > 20)
-        ctl = subprocess.Popen([S.tool("mlip-ctl"), "--shm", rig.shm, "-"], stdin=subprocess.PIPE,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        # its answers (a line a command) to files: a pipe read only at the
+        # end fills (64 KB) and blocks mlip-ctl, then our writes to it
+        with open(tmp_path / "ctl.out", "w") as out_f, open(tmp_path / "ctl.err", "w") as err_f:
+            ctl = subprocess.Popen([S.tool("mlip-ctl"), "--shm", rig.shm, "-"],
+                                   stdin=subprocess.PIPE, stdout=out_f, stderr=err_f, text=True)
         try:
             t_status = 0.0
             while True:
@@ -569,7 +572,8 @@ def test_override_storm_with_holds(vcan, tmp_path):
             ctl.stdin.write("resume\noverride 100\n")
             m["sent"] += 2
         finally:
-            out, err = ctl.communicate(timeout=120)
+            ctl.communicate(timeout=120)
+        out, err = (tmp_path / "ctl.out").read_text(), (tmp_path / "ctl.err").read_text()
         m["rc"], m["done"], m["err"] = ctl.returncode, out.count(": done"), err
 
     with procs.Rig(S, MILL, "cia402", tmp_path) as rig:

@@ -6,9 +6,11 @@ trace for the same program row for row, mlip-check passes on them, and the
 machine ends idle at rest on the program's last point. (Hold, resume, reset
 and overrides are judged on the host, tests/py/test_grbl.py and
 test_senders.py: the VM's time is the CAN suite's budget.)"""
+import contextlib
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -21,16 +23,32 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "py"))  # the Grbl 
 from grblclient import Grbl  # noqa: E402
 
 
-def start_grbl(rig, *opts):
+def start_grbl(rig, *opts, pty="none"):
     p = subprocess.Popen([S.tool("mlip-grbl"), "--shm", rig.shm, "--listen", "127.0.0.1:0",
-                          "--pty", "none", *opts], stderr=subprocess.PIPE, text=True)
+                          "--pty", str(pty), *opts], stderr=subprocess.PIPE, text=True)
     end = time.monotonic() + 30
     while time.monotonic() < end:
         line = p.stderr.readline()
         if "listening on" in line:
+            # the rest read as it comes (p.said): a pipe nobody reads fills
+            # (64 KB) and blocks the server
+            p.said = [line]
+            threading.Thread(target=lambda: p.said.extend(p.stderr), daemon=True).start()
             return p, int(line.rsplit(":", 1)[1])
     p.kill()
     raise AssertionError("mlip-grbl did not listen")
+
+
+@contextlib.contextmanager
+def served(rig, *opts, pty="none"):
+    """mlip-grbl on rig's segment for the block (its terminal linked at pty):
+    its port; SIGTERM after."""
+    srv, port = start_grbl(rig, *opts, pty=pty)
+    try:
+        yield port
+    finally:
+        srv.send_signal(signal.SIGTERM)
+        srv.wait(30)
 
 
 def test_grbl_stream_on_the_bus(vcan, tmp_path):
@@ -111,8 +129,7 @@ def test_grbl_homing_estop_and_limit(vcan, tmp_path):
                              inject=[f"{IO}:input=1.0=1"])
     try:
         with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
-            srv, port = start_grbl(rig)
-            try:
+            with served(rig) as port:
                 g = Grbl(port, timeout=300)
                 assert g.welcome() == "Grbl 1.1h ['$' for help]"
                 g.wait_line(lambda l: l.startswith("[MSG:mlip-grbl:"))
@@ -165,10 +182,88 @@ def test_grbl_homing_estop_and_limit(vcan, tmp_path):
                 assert a == ("ok", ["[MSG:Caution: Unlocked]"]), (a, g.lines[-20:], rig.status())
                 told(g, rig, g.wait_state, {"Idle"}, 120)
                 g.close()
-            finally:
-                srv.send_signal(signal.SIGTERM)
-                srv.wait(30)
     finally:
         sim.stop()
     print(f"[grbl] $H homed to {home}; E-stop ALARM:3 Pn:R, limit ALARM:1 Pn:X, "
           f"$X refused while on, accepted once released")
+
+
+# ---- the controller's CiA 402 spindle through Grbl (issue 19's spindle) --------------
+# test_spindle_vcan's machine: three axis drives and a spindle drive in profile
+# velocity mode (node 5), all on the canopen package; what the sender sees in
+# A:, FS and Ov is the controller's, and its override bytes reach the drive.
+
+def test_grbl_bus_spindle(vcan, tmp_path):
+    """M3 S3000 from a sender: A:S and FS's 3000 rpm once the controller
+    commands it, the drive's target velocity 3000 rpm; 0x9A (+10 %), 0x9B
+    (-10 %) twice, 0x9D (-1 %): Ov's third field and FS follow the
+    controller, the drive's target follows within one count per second
+    (0.015 rpm); 0x99 back to 100 %; M4: A:C; M5: A: gone, target 0."""
+    import test_spindle_vcan as sp
+    cfg = sp.machine(tmp_path)
+    (tmp_path / "sim").mkdir()
+    sim = procs.DriveSimProc(S, tmp_path / "sim", nodes=[1, 2, 3, sp.SP])
+    tol = 60.0 / sp.CPR  # rpm: the target is whole counts per second
+
+    def target_rpm(rows, after):
+        t = [r["target"] for r in rows if r["node"] == sp.SP and r["sync"] > after and
+             r["target"] is not None]
+        return sp.rpm(t[-1]) if t else None
+
+    def drive_at(rpm_, after):
+        rows = sim.wait_sync_rows(
+            lambda rs: (target_rpm(rs, after) is not None and
+                        abs(target_rpm(rs, after) - rpm_) <= tol), timeout=300)
+        got = target_rpm(rows, after)
+        assert got is not None and abs(got - rpm_) <= tol, (rpm_, got)
+        return max(r["sync"] for r in rows)
+
+    seen = []
+
+    def spun(g, rig, pred, timeout):
+        """The first report for which pred holds; an alarm (the spindle's
+        fault, say) fails at once with the controller's reason."""
+        s = told(g, rig, g.wait_status, lambda s: s["state"] == "Alarm" or pred(s), timeout)
+        assert s["state"] != "Alarm", (s, rig.status(), g.lines[-20:])
+        return s
+
+    try:
+        with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+            # a sender quiet this long would end the program, and every end
+            # stops the spindle: long enough for this slow guest
+            with served(rig, "--quiet-ms", "60000") as port:
+                g = Grbl(port, timeout=300)
+                assert g.welcome() == "Grbl 1.1h ['$' for help]"
+                # A: comes with Ov (report.c: every 10-20 reports, at once after a change)
+                s = told(g, rig, g.wait_status, lambda s: "Ov" in s, 120)
+                assert "A" not in s and s["FS"][1] == 0 and s["Ov"][2] == 100, s
+                sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
+                assert g.cmd("M3 S3000")[0] == "ok"
+                s = spun(g, rig, lambda s: "Ov" in s and s.get("A") == "S" and s["FS"][1] == 3000,
+                         300)
+                seen.append(("M3 S3000", s["raw"]))
+                sync0 = drive_at(3000, sync0)
+                # the override: + 10, - 10 twice, - 1: 89 %
+                steps = [(b"\x9a", 110), (b"\x9b", 100), (b"\x9b", 90), (b"\x9d", 89),
+                         (b"\x99", 100)]
+                for byte, pct in steps:
+                    g.send(byte)
+                    s = spun(g, rig, lambda s: "Ov" in s and s["Ov"][2] == pct and
+                             s["FS"][1] == 3000 * pct / 100 and s.get("A") == "S", 120)
+                    assert rig.status()["spindle"]["override_pct"] == pct
+                    sync0 = drive_at(3000 * pct / 100, sync0)
+                    seen.append((f"0x{byte[0]:02X}", s["raw"]))
+                assert g.cmd("M4 S2000")[0] == "ok"
+                s = spun(g, rig, lambda s: "Ov" in s and s.get("A") == "C" and s["FS"][1] == 2000,
+                         300)
+                sync0 = drive_at(-2000, sync0)
+                seen.append(("M4 S2000", s["raw"]))
+                assert g.cmd("M5")[0] == "ok"
+                s = spun(g, rig, lambda s: "Ov" in s and "A" not in s and s["FS"][1] == 0, 300)
+                drive_at(0, sync0)
+                seen.append(("M5", s["raw"]))
+                g.close()
+    finally:
+        sim.stop()
+    for what, raw in seen:
+        print(f"[grbl] spindle {what}: {raw}")

@@ -18,23 +18,13 @@ import time
 
 import pytest
 
-from conftest import S
+from conftest import DRIVES_VM, S
 from mlipcan import procs
 
 MILL = S.config_dir / "mill-3axis.ini"
 PERIOD_S = 0.04
 HOMES = {"X": (35, 0.0, 1), "Y": (17, -1.5, 1), "Z": (19, 10.0, 0)}  # method, offset, seq
-DRIVES = """
-[DRIVES]
-ENABLE = 1
-HEARTBEAT_MS = 100
-HEARTBEAT_TIMEOUT_MS = 4000
-FOLLOWING_ERROR = 2
-SDO_TIMEOUT_MS = 5000
-BOOT_TIMEOUT_MS = 8000
-STATE_TIMEOUT_MS = 10000
-HOMING_REQUIRED = 1
-"""
+DRIVES = DRIVES_VM + "HOMING_REQUIRED = 1\n"
 
 
 def machine(tmp, nodes, homes=HOMES, timeout=30, name="home.ini"):

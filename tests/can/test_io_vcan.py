@@ -9,6 +9,10 @@ recorded: the SYNC at which the module sent its input change (events.jsonl,
     accepted once released; a program runs again afterwards.
   - the module's heartbeat lost: E-stop (fail-safe), not resettable.
   - a limit input while moving: quick stop, fault naming axis and direction.
+  - the module reboots mid-program (power cycle: default PDOs, outputs off,
+    boot-up message): E-stop at once, the program dropped; mlip resets its
+    communication and configures it again (each SDO read back) before it
+    trusts its inputs; its outputs stay off; reset, then a program runs.
 
 The period is 40 ms and the timeouts long (the emulated VM); frame order,
 not timing, is what the checks judge. Each test prints an [io] line with
@@ -20,12 +24,9 @@ import time
 
 import pytest
 
-from conftest import S
+from conftest import IO, S, io_machine
 from mlipcan import procs
 
-MILL = S.config_dir / "mill-3axis.ini"
-PERIOD_S = 0.04
-IO = 10
 PROGRAM = """G21 G90
 G1 X20 Y10 F1200
 G1 X0 Y15 Z5
@@ -33,41 +34,18 @@ G1 X25 Y0 Z10
 G1 X0 Y0 Z0
 """
 PROGRAM_LONG = PROGRAM + "".join(PROGRAM.splitlines(True)[1:]) * 4
-CONFIG_TAIL = f"""
-[DRIVES]
-ENABLE = 1
-HEARTBEAT_MS = 100
-HEARTBEAT_TIMEOUT_MS = 4000
-FOLLOWING_ERROR = 2
-SDO_TIMEOUT_MS = 5000
-BOOT_TIMEOUT_MS = 8000
-STATE_TIMEOUT_MS = 10000
-
-[IO]
-NODE = {IO}
-ESTOP = {IO} 0x6000:1 0 LOW
-HOLD = {IO} 0x6000:1 1 HIGH
-"""
 
 
-def machine(tmp):
-    """mill-3axis at 40 ms on nodes 1..3, the I/O module's E-stop (active
-    low: a normally closed contact), hold, and X's positive limit."""
-    text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
-    text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
-    text = re.sub(r"^\[AXIS_X\]$", f"[AXIS_X]\nLIMIT_POS = {IO} 0x6000:1 2 HIGH", text, flags=re.M)
-    path = tmp / "io.ini"
-    path.write_text(text + CONFIG_TAIL)
-    return path
+def machine(tmp, tail=""):
+    """io_machine with hold on input bit 1 and X's positive limit on bit 2;
+    tail adds to [IO]."""
+    return io_machine(tmp, f"HOLD = {IO} 0x6000:1 1 HIGH\n" + tail, lambda text: re.sub(
+        r"^\[AXIS_X\]$", f"[AXIS_X]\nLIMIT_POS = {IO} 0x6000:1 2 HIGH", text, flags=re.M))
 
 
 @pytest.fixture(scope="module")
-def sim(vcan, tmp_path_factory):
-    w = tmp_path_factory.mktemp("iosim")
-    # the E-stop circuit closed (bit 0 = 1) from power-up
-    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3], args=["--io", IO], inject=[f"{IO}:input=1.0=1"])
-    yield s
-    s.stop()
+def sim(io_sim):
+    return io_sim
 
 
 def running(rig):
@@ -122,8 +100,10 @@ def test_estop_quick_stop_and_reset(sim, tmp_path):
         assert rig.status()["state"] == "estop"
         sim.inject(f"{IO}:input=1.0=1")
         rig.wait_state("estop", timeout=60, pred=lambda s: s["inputs"]["estop"] is False)
-        rig.ctl("reset")
+        # taken before the command: the drives may begin their way back (and
+        # the simulator log it) before mlip-ctl has returned on a loaded host
         t_reset = time.time()
+        rig.ctl("reset")
         # the drives are enabled again from where they stopped: a program
         # fed at once (no wait for idle, the drives still being brought
         # back from "switch on disabled") waits for them and runs
@@ -209,3 +189,63 @@ def test_limit_switch(sim, tmp_path):
     assert set(qs) == {1, 2, 3} and len(set(qs.values())) == 1, qs
     print(f"[io] limit X+: input after SYNC {s_in}, quick stop at SYNC {qs[1]}")
     assert 1 <= qs[1] - s_in <= 2, qs
+
+
+def test_module_reboot(sim, tmp_path):
+    cfg = machine(tmp_path, f"OUTPUT_0 = {IO} 0x6200:1 3\n")
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G21 G90\nM64 P0\n" + "".join(PROGRAM_LONG.splitlines(True)[1:]))
+    short = tmp_path / "short.ngc"
+    short.write_text(PROGRAM)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        feed = rig.feeder(ngc)
+        running(rig)
+        sim.wait_event(lambda e: e["kind"] == "outputs" and e["node"] == IO
+                       and e["data"].startswith("08"), "output 0 on")
+        t0 = time.time()
+        sim.inject(f"{IO}:reboot")
+        st = rig.wait_state("estop", timeout=120)
+        assert st["reason"] == "I/O module lost" and st["reason_node"] == IO, st
+        assert st["reason_input"] == "left NMT operational", st
+        rc = feed.p.wait(timeout=120)
+        assert rc == 5, (rc, feed.stderr())
+        # configured again and its E-stop input read: released, so reset works
+        st = rig.wait_state("estop", timeout=300, pred=lambda s: s["inputs"]["estop"] is False)
+        t_back = time.time()
+        rig.ctl("reset")
+        rc, out, err = rig.feed(short, timeout=600)
+        assert rc == 0, err
+    ev = [e for e in sim.events(node=IO) if e["t"] >= t0]
+    kinds = [e["kind"] for e in ev]
+    boot = kinds.index("nmt")  # the reboot's INITIALISING
+    assert ev[boot]["why"] == "power cycle (injected)", ev[boot]
+    writes = [e for e in ev if e["kind"] == "sdo_write"]
+    assert writes and all("abort" not in e for e in writes), writes
+    wrote = {}
+    for e in writes:  # the reconfiguration's (mlip-rt's exit writes 0x1016:1 = 0 later)
+        wrote.setdefault((e["index"], e["sub"]), e["value"])
+    # the set-up of bring-up again: TPDO1 and RPDO1 (6 writes each), the heartbeats (2)
+    assert wrote[("0x1A00", 1)] == 0x60000108 and wrote[("0x1600", 1)] == 0x62000108, wrote
+    assert wrote[("0x1016", 1)] >> 16 == 127, wrote  # it watches the master again
+    # NMT reset communication from mlip after the reboot, then the writes,
+    # then operational (its PDOs on) after the last write
+    resets = [i for i, e in enumerate(ev) if e["kind"] == "nmt" and e["why"] == "NMT reset"]
+    assert resets and resets[0] > boot, kinds
+    start = [i for i, e in enumerate(ev) if e["kind"] == "nmt" and e["to"] == "OPERATIONAL"]
+    assert start and start[0] > resets[0], kinds
+    # every write between the reset and the start; none before the reset
+    # (nothing touched the module unconfigured); after the start only the
+    # exit's (heartbeat consumer off)
+    reconf = [e for i, e in enumerate(ev) if e["kind"] == "sdo_write" and resets[0] < i < start[0]]
+    assert len(reconf) == 14, reconf
+    assert not [e for i, e in enumerate(ev) if e["kind"] == "sdo_write" and i < resets[0]]
+    after = [(e["index"], e["sub"]) for i, e in enumerate(ev)
+             if e["kind"] == "sdo_write" and i > start[0]]
+    assert after in ([], [("0x1016", 1)]), after
+    # its outputs never came back on
+    outs = [e["data"] for e in ev if e["kind"] == "outputs"]
+    assert all(int(d[:2], 16) & 0x08 == 0 for d in outs), outs
+    t_op = ev[start[0]]["t"]
+    print(f"[io] module rebooted: E-stop, reconfigured ({len(reconf)} SDO writes read back) "
+          f"and operational {t_op - t0:.2f} s after the reboot; inputs trusted again "
+          f"{t_back - t0:.2f} s after it (status); outputs stayed off: {sorted(set(outs))}")

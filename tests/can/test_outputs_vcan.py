@@ -22,27 +22,12 @@ import time
 
 import pytest
 
-from conftest import S
+from conftest import IO, S, io_machine
+from conftest import IO_PERIOD_S as PERIOD_S
 from mlipcan import procs
 
-MILL = S.config_dir / "mill-3axis.ini"
-PERIOD_S = 0.04
-IO = 10
 CPU = 1000  # counts per mm (mill-3axis)
-CONFIG_TAIL = f"""
-[DRIVES]
-ENABLE = 1
-HEARTBEAT_MS = 100
-HEARTBEAT_TIMEOUT_MS = 4000
-FOLLOWING_ERROR = 2
-SDO_TIMEOUT_MS = 5000
-BOOT_TIMEOUT_MS = 8000
-STATE_TIMEOUT_MS = 10000
-
-[IO]
-NODE = {IO}
-ESTOP = {IO} 0x6000:1 0 LOW
-PROBE = {IO} 0x6000:1 3 HIGH
+CONFIG_TAIL = f"""PROBE = {IO} 0x6000:1 3 HIGH
 OUTPUT_0 = {IO} 0x6200:1 2
 
 [COOLANT]
@@ -54,21 +39,16 @@ FLOOD, P0 = 0x02, 0x04
 
 
 def machine(tmp):
-    text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
-    text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
-    assert re.search(r"^\[AXIS_Z\]$", text, flags=re.M)
-    path = tmp / "io.ini"
-    path.write_text(text + CONFIG_TAIL)
-    return path
+    """io_machine with the probe on input bit 3, output 0 and coolant."""
+    def has_z(text):
+        assert re.search(r"^\[AXIS_Z\]$", text, flags=re.M)
+        return text
+    return io_machine(tmp, CONFIG_TAIL, has_z)
 
 
 @pytest.fixture(scope="module")
-def sim(vcan, tmp_path_factory):
-    w = tmp_path_factory.mktemp("outsim")
-    # the E-stop circuit closed (bit 0 = 1) from power-up
-    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3], args=["--io", IO], inject=[f"{IO}:input=1.0=1"])
-    yield s
-    s.stop()
+def sim(io_sim):
+    return io_sim
 
 
 def io_after(sim, t0):
@@ -91,7 +71,7 @@ def test_coolant_and_output_follow_the_program(sim, tmp_path):
         # at line:col, nothing sent
         for text, where, what in (
             ("G1 X1 F600\nM64 P1\n", "2:5", "digital output 1 is not mapped ([IO] OUTPUT_1)"),
-            ("G1 X1 F600\nM62 P0\n", "2:1", "synchronized with motion"),
+            ("G1 X1 F600\nM62 P1\n", "2:5", "digital output 1 is not mapped ([IO] OUTPUT_1)"),
             ("G1 X1 F600\nG38.2 X1\n", "2:1", "to the current position"),
         ):
             bad = tmp_path / "bad.ngc"
@@ -128,6 +108,39 @@ def test_coolant_and_output_follow_the_program(sim, tmp_path):
         f"the last target change"
     )
     assert seq[-1] == 0 and FLOOD | P0 in seq, seq
+
+
+def test_m62_switches_with_the_next_move(sim, tmp_path):
+    """M62/M63 (with the next move): the module's output bit flips at the same
+    SYNC as the first target of the move after it (io.csv against sync.csv:
+    both applied at that SYNC), through a corner, without a stop."""
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G21 G90\nG1 X5 F1200\nM62 P0\nG1 X5 Y5\nM63 P0\nG1 X10 Y5\nM2\n")
+    t0 = time.time()
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err
+    sim.wait_sync_rows(lambda rs: True)
+    io = {r["sync"]: r["outputs"][0] for r in io_after(sim, t0)}
+    ys = [(s, t) for s, t in targets(sim, 2, t0) if t is not None]
+    xs = [(s, t) for s, t in targets(sim, 1, t0) if t is not None]
+    y_first = min(s for s, t in ys if t > 0)  # block 4's first target
+    x_first = min(s for s, t in xs if t > 5000)  # block 6's first target
+    on = min(s for s, o in io.items() if o & P0)
+    off = min(s for s, o in io.items() if s > on and not o & P0)
+    # no stop at the corners: X (or Y) moved at every SYNC between the first
+    # move's start and the last's end
+    x0 = min(s for s, t in xs if t > 0)
+    moving = {s for (s0, a), (s, b) in zip(xs, xs[1:]) if b != a}
+    moving |= {s for (s0, a), (s, b) in zip(ys, ys[1:]) if b != a}
+    gaps = [s for s in range(x0 + 1, x_first) if s not in moving]
+    print(
+        f"[outputs] M62 P0 on at SYNC {on} (Y's first target {y_first}), M63 P0 off at "
+        f"SYNC {off} (X's first target past 5 mm {x_first}); SYNCs at rest between: {gaps}"
+    )
+    assert on == y_first and off == x_first, (on, y_first, off, x_first)
+    assert gaps == [], gaps
 
 
 def brake_sync(sim, node, t0, cruise):
@@ -280,3 +293,74 @@ def test_probe_latches_the_surface(sim, tmp_path):
     # rest no further than the periods it took to react plus v^2/2A
     assert rest >= latched - (s_stop - s_trip + 2) * per_period - v * v / 2000.0 * CPU, rest
     assert all(b <= a for (s0, a), (s1, b) in zip(zs, zs[1:]) if s_trip - 5 <= s1 < s_stop)
+
+
+def test_drive_touch_probe_latch(sim, tmp_path):
+    """[PROBE] SOURCE = drive: every axis drive's touch probe 1 (CiA 402
+    0x60B8 in RPDO1, 0x60B9 in TPDO1, TPDO2 = 0x60BA + 0x60BB) mapped at
+    bring-up and read back; G38.2 switches the latch off, on (enable, first
+    event, positive edge), watches 0x60B9 and takes the position each drive
+    LATCHED at the instant Z crossed the surface between two SYNCs: equal to
+    the surface to the count, not where Z came to rest."""
+    text = machine(tmp_path).read_text()
+    text = text.replace(f"PROBE = {IO} 0x6000:1 3 HIGH\n", "") + "\n[PROBE]\nSOURCE = drive\n"
+    cfg = tmp_path / "tp.ini"
+    cfg.write_text(text)
+    ngc = tmp_path / "p.ngc"
+    surface = -4987  # counts: not a multiple of the 80 counts a period at the feed
+    feed_mm_min = 120.0
+    ngc.write_text(f"G21 G90\nG0 X1 Y2 Z0\nG38.2 Z-10 F{feed_mm_min:g}\nG0 Z5\nM2\n")
+    sim.inject(f"3:touch-probe={surface},below")
+    try:
+        t0 = time.time()
+        with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+            rc, out, err = rig.feed(ngc, timeout=600)
+            if rc != 0:
+                sim.wait_sync_rows(lambda rs: True)
+                ev = [e for e in sim.events() if e["t"] >= t0 and e["kind"] != "sdo"]
+                rt = rig._rt().stderr()
+                pytest.fail(f"{err}\n{ev[-40:]}\n{rt[-3000:]}")
+            st = rig.status()
+    finally:
+        sim.inject("3:touch-probe=off")
+    pr = st["probe"]
+    assert pr is not None and pr["tripped"] is True and pr["line"] == 3, st
+    assert abs(st["position"]["Z"] - 5.0) < 1e-9, st  # the program went on
+    latched = pr["position"]["Z"] * CPU
+    # the drives' records: their touch probe latches, the PDO maps of the bring-up
+    tps = sim.wait_event(lambda e: e["kind"] == "touch_probe" and e["t"] >= t0, "a latch")
+    maps = [e for e in sim.events() if e["kind"] == "pdo_maps" and e["t"] >= t0]
+    fns = [
+        (e["node"], e["fn"], e["via"])
+        for e in sim.events()
+        if e["kind"] == "touch_probe_fn" and e["t"] >= t0
+    ]
+    sim.wait_sync_rows(lambda rs: True)
+    zs = [(s, t) for s, t in targets(sim, 3, t0) if t is not None]
+    actual = [r["actual"] for r in sim.sync_rows() if r["node"] == 3 and r["t"] >= t0]
+    z = {e["node"]: e for e in tps}
+    assert z[3]["latched"] == surface and 0 < z[3]["frac"] < 1, tps
+    assert round(latched) == surface, (latched, surface)  # the latch, to the count
+    assert abs(pr["position"]["X"] - 1.0) < 1e-9 and abs(pr["position"]["Y"] - 2.0) < 1e-9
+    assert surface not in actual  # between two SYNCs' positions
+    rest = min(t for s, t in zs)
+    assert rest < surface - 40, (rest, surface)  # at rest beyond it, braking on the path
+    for node in (1, 2, 3):
+        m = [e for e in maps if e["node"] == node][-1]
+        assert "0x60B8:0/16" in m["rpdo"]["map"] and "0x60B9:0/16" in m["tpdo"]["map"], m
+        assert m["tpdo2"]["valid"] and m["tpdo2"]["map"] == ["0x60BA:0/32", "0x60BB:0/32"], m
+        seq = [f for n, f, v in fns if n == node]
+        assert "0x0011" in seq and seq[-1] == "0x0000", seq  # on for the move, off after it
+    after = [t for s, t in zs if s >= z[3]["sync"] - 1]
+    acc = (
+        max((abs(c - 2 * b + a) for a, b, c in zip(after, after[1:], after[2:])), default=0)
+        / (PERIOD_S**2)
+        / CPU
+    )
+    assert acc <= 1000.0 * (1 + 1e-9) + 2 / (PERIOD_S**2) / CPU, acc
+    print(
+        f"[probe] drive touch probe: surface Z {surface} counts, latched {round(latched)} "
+        f"counts at {z[3]['frac']:.3f} of the period after SYNC {z[3]['sync']} (X, Y latched "
+        f"{pr['position']['X']:.4f}, {pr['position']['Y']:.4f}), at rest at {rest} counts "
+        f"({surface - rest} counts beyond), max braking {acc:.1f} mm/s^2"
+    )

@@ -22,7 +22,7 @@ import re
 
 import pytest
 
-from conftest import S
+from conftest import DRIVES_VM, S
 from mlipcan import procs
 
 MILL = S.config_dir / "mill-3axis.ini"
@@ -31,16 +31,7 @@ SP = 5  # the spindle drive's node
 CPR = 4096
 MAX_RPM = 6000
 ACCEL = 5000  # rpm/s: 1.2 s (30 periods) from rest to 6000 rpm
-CONFIG_TAIL = f"""
-[DRIVES]
-ENABLE = 1
-HEARTBEAT_MS = 100
-HEARTBEAT_TIMEOUT_MS = 4000
-FOLLOWING_ERROR = 2
-SDO_TIMEOUT_MS = 5000
-BOOT_TIMEOUT_MS = 8000
-STATE_TIMEOUT_MS = 10000
-
+CONFIG_TAIL = f"""{DRIVES_VM}
 [SPINDLE]
 TYPE = cia402
 MAX_RPM = {MAX_RPM}
@@ -146,8 +137,10 @@ def test_feed_waits_for_spindle_at_speed(sim, tmp_path):
     print(f"[spindle] M3 S6000 at {ACCEL} rpm/s: target applied at SYNC {s_cmd}, target reached "
           f"in its TPDO at SYNC {s_reach}, first feed target at SYNC {s_move}: start-to-feed "
           f"{wait} periods ({wait * PERIOD_S:.2f} s; the ramp alone {ramp:.0f})")
-    # the ramp, then the TPDO read and the RPDO applied: a few periods more, never less
-    assert ramp - 1 <= wait <= ramp + 4, (wait, ramp)
+    # the ramp, then the TPDO read and the RPDO applied: a few periods more, never
+    # less; in the emulated VM the simulator's TPDO for a SYNC may itself come
+    # several periods late (seen: 9 periods after "reached" at a load of 7)
+    assert ramp - 1 <= wait <= ramp + (15 if S.in_vm else 4), (wait, ramp)
     # M5 waits for standstill: the G0 back moves only after the spindle reported ~0
     s_stop = min(r["sync"] for r in sp if r["sync"] > s_reach and r["target"] == 0)
     still = [r["sync"] for r in sp if r["sync"] > s_stop and abs(rpm(r["actual"])) <= 100]

@@ -3,11 +3,17 @@
 // pseudo-terminal as a Grbl port, read the DRO, jog as its axes widget does,
 // load a file, run it, hold and resume it, and print one JSON line per event.
 //
-//   node drive.js --cncjs-port N --tty PATH --file FILE --config FILE [--hold-after LINES]
+//   node drive.js --cncjs-port N --tty PATH --file FILE --config FILE [--jog]
+//                 [--hold-after LINES | --hold-at-line N] [--shot PNG] [--deadline S]
+//
+// --hold-after: hold once its sender has LINES answered; --hold-at-line: once
+// the status report's Ln is N lines past the first Ln of the run and the
+// machine moves (a file whose lines are all answered before it moves).
+// Every event carries `wall` (the wall clock, s) besides `t`.
 //
 // Every wait is on a condition (a state, a position, lines answered, status
-// reports counted) with a generous deadline (DEADLINE), never a fixed sleep:
-// the host is loaded.
+// reports counted) with a generous deadline (DEADLINE, --deadline), never a
+// fixed sleep: the host is loaded, the emulated VM slower still.
 'use strict';
 const fs = require('fs');
 const http = require('http');
@@ -21,10 +27,13 @@ const TTY = arg('--tty');
 const FILE = arg('--file');
 const CONFIG = arg('--config');
 const HOLD_AFTER = arg('--hold-after') ? Number(arg('--hold-after')) : null;
-const DEADLINE = 60000; // ms, for any one condition
+const HOLD_AT_LINE = arg('--hold-at-line') ? Number(arg('--hold-at-line')) : null;
+const JOG = process.argv.includes('--jog');
+const DEADLINE = Number(arg('--deadline', 60)) * 1000; // ms, for any one condition
 const SHOT = arg('--shot'); // a PNG of CNCjs's page (Debian's chromium, headless)
 const T0 = Date.now();
-const say = (o) => process.stdout.write(JSON.stringify({ ...o, t: (Date.now() - T0) / 1000 }) + '\n');
+const say = (o) => process.stdout.write(JSON.stringify({ ...o, t: (Date.now() - T0) / 1000,
+  wall: Date.now() / 1000 }) + '\n');
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 function post(p, body) {
@@ -51,11 +60,11 @@ async function screenshot(st) {
   try {
     const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
     const url = `http://127.0.0.1:${PORT}/`;
-    await page.goto(url, { waitUntil: 'load' });
+    await page.goto(url, { waitUntil: 'load', timeout: DEADLINE });
     // the Connection widget, as a person uses it: the port, then Open
-    await page.click('text=Choose a port', { timeout: 30000 });
-    await page.getByText(TTY, { exact: true }).first().click({ timeout: 10000 });
-    await page.click('button:has-text("Open")', { timeout: 10000 });
+    await page.click('text=Choose a port', { timeout: DEADLINE });
+    await page.getByText(TTY, { exact: true }).first().click({ timeout: DEADLINE });
+    await page.click('button:has-text("Open")', { timeout: DEADLINE });
     const x = st.mpos[0].toFixed(3);
     let shown = false;
     for (const end = Date.now() + DEADLINE; Date.now() < end && !shown;) {
@@ -94,8 +103,8 @@ async function main() {
     const s = state.status || {};
     const a = s.activeState + (s.subState !== undefined && s.subState >= 0 && s.activeState === 'Hold' ? `:${s.subState}` : '');
     const mpos = s.mpos && ['x', 'y', 'z'].map((k) => Number(s.mpos[k]));
-    if (a !== st.state) say({ event: 'state', state: a, mpos });
-    st.state = a; st.mpos = mpos; st.wpos = s.wpos;
+    if (a !== st.state) say({ event: 'state', state: a, mpos, ln: s.ln });
+    st.state = a; st.mpos = mpos; st.wpos = s.wpos; st.ln = s.ln; st.feed = Number(s.feedrate);
   });
   socket.on('workflow:state', (w) => { st.workflow = w; });
   socket.on('sender:status', (s) => { st.sender = s; });
@@ -117,13 +126,15 @@ async function main() {
   if (!await until(() => st.state === 'Idle', DEADLINE, 'connect')) return done(1);
   say({ event: 'connected', state: st.state, mpos: st.mpos });
 
-  // jog as the axes widget does: relative, rapid, then back to absolute
-  cmd('gcode', 'G91');
-  cmd('gcode', 'G0 X2 Y1');
-  cmd('gcode', 'G90');
-  if (!await until(() => st.state === 'Idle' && st.mpos && Math.abs(st.mpos[0] - 2) < 1e-3 &&
-    Math.abs(st.mpos[1] - 1) < 1e-3, DEADLINE, 'jog')) return done(1);
-  say({ event: 'jogged', mpos: st.mpos });
+  if (JOG) {
+    // jog as the axes widget does: relative, rapid, then back to absolute
+    cmd('gcode', 'G91');
+    cmd('gcode', 'G0 X2 Y1');
+    cmd('gcode', 'G90');
+    if (!await until(() => st.state === 'Idle' && st.mpos && Math.abs(st.mpos[0] - 2) < 1e-3 &&
+      Math.abs(st.mpos[1] - 1) < 1e-3, DEADLINE, 'jog')) return done(1);
+    say({ event: 'jogged', mpos: st.mpos });
+  }
 
   const text = fs.readFileSync(FILE, 'utf8');
   await new Promise((resolve) => cmd('gcode:load', path.basename(FILE), text, {}, () => resolve()));
@@ -131,22 +142,57 @@ async function main() {
   cmd('gcode:start');
   say({ event: 'run' });
   if (!await until(() => st.state === 'Run', DEADLINE, 'run')) return done(1);
-  if (HOLD_AFTER !== null) {
-    if (!await until(() => st.sender && st.sender.received >= HOLD_AFTER && st.state === 'Run',
-      DEADLINE, 'lines before the hold')) return done(1);
+  // Within one report: `?` written right behind the real-time byte, as its
+  // console sends it, answered in order; a report CNCjs asked for itself
+  // before the byte may come first (then one more `?`). The reports read.
+  const reportsAfter = async (what, want) => {
+    const seen = [];
+    for (let k = 0; k < 2 && !(seen.length && want(seen[seen.length - 1])); k++) {
+      const n = st.reports;
+      socket.emit('write', TTY, '?');
+      if (!await until(() => st.reports > n, DEADLINE, what)) return null;
+      seen.push(st.report);
+    }
+    return seen;
+  };
+  // its pause and resume buttons: `!`, then `~`
+  const holdResume = async () => {
+    const sent = Date.now() / 1000;
     cmd('gcode:pause');
-    if (!await until(() => st.state === 'Hold:0', DEADLINE, 'hold')) return done(1);
+    const seen = await reportsAfter('a report after the hold', (r) => r.startsWith('<Hold'));
+    if (!seen) return false;
+    say({ event: 'hold', sent, reports: seen });
+    if (!await until(() => st.state === 'Hold:0', DEADLINE, 'hold')) return false;
     const before = st.mpos;
+    const atRest = Date.now() / 1000;
     // held: where it stands in three more reports, asked for as its console's `?` does
     for (let k = 0; k < 3; k++) {
-      const seen = st.reports;
+      const n = st.reports;
       socket.emit('write', TTY, '?');
-      if (!await until(() => st.reports > seen, DEADLINE, 'a report while held')) return done(1);
+      if (!await until(() => st.reports > n, DEADLINE, 'a report while held')) return false;
     }
     const m = /MPos:([-0-9.]+),([-0-9.]+),([-0-9.]+)/.exec(st.report);
     say({ event: 'held', before, after: m && m.slice(1).map(Number), report: st.report,
-      state: st.state });
+      state: st.state, at_rest: atRest });
+    const resumed = Date.now() / 1000;
     cmd('gcode:resume');
+    const again = await reportsAfter('a report after the resume', (r) => r.startsWith('<Run'));
+    if (!again) return false;
+    say({ event: 'resumed', sent: resumed, reports: again });
+    return true;
+  };
+  if (HOLD_AFTER !== null) {
+    if (!await until(() => st.sender && st.sender.received >= HOLD_AFTER && st.state === 'Run',
+      DEADLINE, 'lines before the hold')) return done(1);
+    if (!await holdResume()) return done(1);
+  } else if (HOLD_AT_LINE !== null) {
+    let ln0 = null;
+    const there = () => {
+      if (ln0 === null && st.state === 'Run' && st.ln !== undefined) ln0 = st.ln;
+      return ln0 !== null && st.state === 'Run' && st.ln >= ln0 + HOLD_AT_LINE && st.feed > 0;
+    };
+    if (!await until(there, 600000, 'the line to hold at')) return done(1);
+    if (!await holdResume()) return done(1);
   }
   const finished = () => st.state === 'Idle' && st.sender && st.sender.sent === st.sender.total &&
     st.sender.received === st.sender.total;

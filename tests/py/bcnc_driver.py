@@ -4,9 +4,16 @@ pyserial's socket:// URL, read the DRO, jog, run a file, hold and resume it, and
 print one JSON line per event for the test to judge.
 
     python bcnc_driver.py socket://127.0.0.1:PORT FILE [--hold-after LINES] [--jog X2Y1]
+                          [--deadline S] [--sent OUT]
 
-Every wait is on a condition (a state, a position, status reports counted)
-with a generous deadline (DEADLINE), never a fixed sleep: the host is loaded.
+--sent OUT: the G-code lines bCNC sends, as its compiler made them (it
+rewrites every coordinate with its `round` digits, 4 by default), written
+to OUT when the run ends.
+
+Every event carries `wall` (the wall clock, s) besides `t`. Every wait is on
+a condition (a state, a position, status reports counted) with a generous
+deadline (DEADLINE, --deadline S), never a fixed sleep: the host is loaded,
+the emulated VM slower still.
 
 bCNC's modules import each other by their bare names (its __main__ puts its
 folder on the path): this driver does the same for the installed package.
@@ -31,7 +38,8 @@ import GRBL1  # noqa: E402  (bCNC's Grbl 1.1 controller plugin)
 from CNC import CNC, WAIT  # noqa: E402
 from Sender import Sender  # noqa: E402
 
-DEADLINE = 60.0  # s, for any one condition
+# s, for any one condition
+DEADLINE = float(sys.argv[sys.argv.index("--deadline") + 1]) if "--deadline" in sys.argv else 60.0
 
 # status reports bCNC has parsed (its plugin's handler, counted)
 REPORTS = [0]
@@ -59,8 +67,21 @@ class Headless(Sender):
         return self._stop  # what bCNC's window's checkStop answers, without its events
 
 
+class Recorded:
+    """bCNC's send queue, the lines put on it kept (its compiler's output)."""
+
+    def __init__(self, q):
+        self.q, self.lines = q, []
+
+    def put(self, item):
+        if isinstance(item, str):
+            self.lines.append(item)
+        self.q.put(item)
+
+
 def say(**kw):
     kw["t"] = round(time.monotonic() - T0, 3)
+    kw["wall"] = time.time()
     print(json.dumps(kw), flush=True)
 
 
@@ -123,7 +144,8 @@ def main():
     s._runLines = sys.maxsize
     s._gcount = 0
     CNC.vars["running"] = True
-    paths = s.gcode.compile(s.queue, s.checkStop)
+    sent = Recorded(s.queue)
+    paths = s.gcode.compile(sent, s.checkStop)
     s._runLines = len(paths) + 1
     s.queue.put((WAIT,))
     t_run = time.monotonic()
@@ -152,6 +174,9 @@ def main():
             break
         time.sleep(0.05)
     say(event="done", seconds=round(time.monotonic() - t_run, 3), gcount=s._gcount, **dro())
+    if "--sent" in sys.argv:
+        with open(sys.argv[sys.argv.index("--sent") + 1], "w") as fh:
+            fh.write("".join(sent.lines))
     s.close()
     os._exit(0)
 

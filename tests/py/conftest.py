@@ -6,6 +6,7 @@ import os
 import signal
 import struct
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -129,8 +130,8 @@ def status(shm):
 
 
 def wait_for(pred, timeout=60.0, poll=0.02):
-    # a generous deadline: it costs nothing when pred comes true, and a shared
-    # 2-core host under a VM and builds took over 10 s to start mlip-rt
+    """pred()'s first true value, polled until timeout s (None then): generous,
+    a loaded host may be slow; a wait that succeeds costs no more."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         v = pred()
@@ -138,6 +139,16 @@ def wait_for(pred, timeout=60.0, poll=0.02):
             return v
         time.sleep(poll)
     return None
+
+
+def periods_on(shm, n, timeout=60.0):
+    """The status once the controller has run n more periods (its
+    heartbeat): "nothing moves meanwhile" checked over the loop's own
+    periods, not over a sleep a loaded host may spend elsewhere."""
+    s0 = status(shm)
+    assert s0 and s0["alive"], s0
+    return wait_for(lambda: (lambda s: s if s and s["heartbeat"] >= s0["heartbeat"] + n
+                             else None)(status(shm)), timeout)
 
 
 @contextlib.contextmanager
@@ -193,6 +204,103 @@ class Ring:
         REC.pack_into(self.mem, self._off(index), *rec)
 
 
+class Log:
+    """A process's output stream, read to its end by a thread as it comes. A
+    pipe nobody reads fills (64 KB) and blocks its writer: mlip-rt's monitor
+    thread, which also drains the --record queue (a record then loses its
+    setpoints), a feeder, or a server's loop. Kept for failure messages."""
+
+    def __init__(self, proc, name, stream=None):
+        self.proc, self.name = proc, name
+        self.stream = proc.stderr if stream is None else stream
+        self.chunks = []
+        self._t = threading.Thread(target=self._read, daemon=True)
+        self._t.start()
+
+    def _read(self):
+        for line in self.stream:
+            self.chunks.append(line)
+
+    @property
+    def lines(self):
+        return "".join(self._text(list(self.chunks))).splitlines()
+
+    def _text(self, chunks):
+        return [c.decode(errors="replace") if isinstance(c, bytes) else c for c in chunks]
+
+    def wait(self, pred, timeout=60):
+        """The first line for which pred is true (None at the deadline)."""
+        def first():
+            return next((l for l in self.lines if pred(l)), None)
+        return wait_for(first, timeout) if timeout > 0 else first()
+
+    def join(self, timeout=30):
+        self._t.join(timeout)
+
+    def text(self):
+        """Everything so far; all of it once the process has exited."""
+        if self.proc.poll() is not None:
+            self.join()
+        return "".join(self._text(list(self.chunks)))
+
+
+class Proc(subprocess.Popen):
+    """subprocess.Popen whose piped stdout and stderr are drained as they come
+    (.log: stderr, .out: stdout, each a Log), so a long-running tool never
+    blocks on a full pipe; communicate() waits for the exit and returns the
+    whole of both (str when text=True, as Popen's)."""
+
+    live = []  # started by the running test: killed after it if still running
+
+    def __init__(self, args, **kw):
+        super().__init__([str(a) for a in args], **kw)
+        Proc.live.append(self)
+        name = Path(str(args[0])).name
+        self.log = Log(self, name) if self.stderr is not None else None
+        self.out = Log(self, name, self.stdout) if self.stdout is not None else None
+
+    def communicate(self, input=None, timeout=None):
+        if self.stdin is not None:
+            if input is not None:
+                self.stdin.write(input)
+            self.stdin.close()
+        self.wait(timeout)
+
+        def whole(log):
+            if log is None:
+                return None
+            text = log.text()
+            return text if self.text_mode else text.encode()
+        return whole(self.out), whole(self.log)
+
+    def said(self):
+        """Its stderr so far (for failure messages)."""
+        return self.log.text() if self.log is not None else ""
+
+
+def terminate(p, timeout=30):
+    """SIGTERM (a controlled stop for mlip-rt), SIGKILL after timeout s;
+    its exit code."""
+    if p.poll() is None:
+        p.send_signal(signal.SIGTERM)
+        try:
+            return p.wait(timeout)
+        except subprocess.TimeoutExpired:
+            p.kill()
+    return p.wait()
+
+
+@pytest.fixture(autouse=True)
+def reap_procs():
+    """No process a test started (Proc) outlives it, whatever failed."""
+    yield
+    for p in Proc.live:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    Proc.live.clear()
+
+
 @pytest.fixture
 def controller():
     """Start mlip-rt --can none on a fresh segment; stop it (SIGTERM) after."""
@@ -205,17 +313,16 @@ def controller():
         # the stall tests give their own limit
         if "--stall-periods" not in extra:
             extra = ("--stall-periods", "100000", *extra)
-        p = subprocess.Popen([tool("mlip-rt"), "--config", str(config), "--can", "none", "--shm", shm,
-                              *extra], stderr=subprocess.PIPE, text=True)
+        p = Proc([tool("mlip-rt"), "--config", config, "--can", "none", "--shm", shm, *extra],
+                 stderr=subprocess.PIPE, text=True)
         procs.append(p)
-        assert wait_for(lambda: (status(shm) or {}).get("alive")), "controller did not come up"
+        assert wait_for(lambda: (status(shm) or {}).get("alive") or p.poll() is not None, 60), \
+            f"controller did not come up: {p.said()}"
+        assert p.poll() is None, f"mlip-rt exited {p.returncode}: {p.said()}"
         return shm, p
 
     yield start
     for p in procs:
-        if p.poll() is None:
-            p.send_signal(signal.SIGTERM)
-            try:
-                p.wait(10)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        terminate(p)
+        # pytest shows this with a failing test only
+        print(f"---- mlip-rt {' '.join(p.args[1:])} (exit {p.returncode}):\n{p.said()}")

@@ -6,17 +6,15 @@ record in the ring is a fault named by record, field and value, and the
 feeder reports failure, never "complete"."""
 import json
 import math
-import mmap
 import os
 import signal
-import struct
 import subprocess
 import time
 
 import pytest
 
-from conftest import (CONFIG, HEAD, ROOT, TAIL, TOOLPATHS, Ring, frozen, record_checked,
-                      record_rows, status, tool, wait_for)
+from conftest import (CONFIG, HEAD, ROOT, TAIL, TOOLPATHS, Proc, Ring, frozen, periods_on,
+                      record_checked, record_rows, status, tool, wait_for)
 
 DEMO = ROOT / "examples" / "demo.ngc"
 MILL = CONFIG / "mill-3axis.ini"
@@ -78,30 +76,46 @@ def test_stall_holds_at_rest_without_jump(controller, tmp_path):
     motion passes mlip-check (acceleration, speed, contour): no jump."""
     prog = flower(tmp_path)
     rec = tmp_path / "rt.csv"
-    shm, rt = controller(PAPER, "--stall-periods", "20", "--record", rec)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
-                         text=True)
-    assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 1500, 30)
-    rt.send_signal(signal.SIGSTOP)
-    time.sleep(0.5)
-    rt.send_signal(signal.SIGCONT)
-    s = wait_for(lambda: (lambda s: s if s["state"] == "held" else None)(status(shm)), 5)
-    assert s and s["reason"] == "stall", s
-    assert s["reason_value"] >= 400  # about 500 periods missed
-    assert s["speed_mm_s"] == 0.0
-    time.sleep(0.3)
-    later = status(shm)
-    assert later["state"] == "held" and later["position"] == s["position"]  # nothing moves
-    text = ctl(shm, "status").stdout
-    assert "stall" in text and "to continue mlip-ctl resume" in text
-    # resume (again after any stall this non-real-time VM adds by itself)
-    deadline = time.monotonic() + 120
-    while f.poll() is None and time.monotonic() < deadline:
+    # a stall is more than 100 missed periods: the SIGSTOP's 500 are. This
+    # non-real-time VM misses tens of periods by itself under load, now and
+    # then more: a stall hold it adds is resumed, as an operator would
+    shm, rt = controller(PAPER, "--stall-periods", "100", "--record", rec)
+    f = Proc([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE, text=True)
+
+    def resumed():
         st = status(shm) or {}
         if st.get("state") == "held" and st.get("reason") == "stall":
             assert ctl(shm, "resume").returncode == 0
-        time.sleep(0.05)
-    _, ferr = f.communicate(timeout=10)
+        return st
+
+    def held():
+        st = status(shm) or {}
+        return st if st.get("state") == "held" else None
+
+    for _ in range(3):
+        assert wait_for(lambda: (lambda st: st.get("state") == "running" and
+                                 st["exec_seq"] > 1500 and st["speed_mm_s"] > 50)(resumed()),
+                        60), f"not running at speed: {status(shm)}\n{rt.said()}"
+        with frozen(rt):  # every thread stopped: 500 periods the loop does not run
+            time.sleep(0.5)
+        s = wait_for(held, 60)
+        assert s and s["reason"] == "stall", f"{s}\n{rt.said()}"
+        if s["reason_value"] >= 499:
+            break  # this SIGSTOP's stall (at least 499 deadlines passed in it)
+        # the VM's own stall held it just before the SIGSTOP: again
+        assert ctl(shm, "resume").returncode == 0
+    else:
+        pytest.fail(f"no stall of the SIGSTOP's size in 3 tries: {s}\n{rt.said()}")
+    assert s["speed_mm_s"] == 0.0
+    # 300 periods on (the loop's count, not the host's clock): nothing moves
+    later = periods_on(shm, 300)
+    assert later and later["state"] == "held" and later["position"] == s["position"], later
+    text = ctl(shm, "status").stdout
+    assert "stall" in text and "to continue mlip-ctl resume" in text
+    # resume (again after any stall this non-real-time VM adds by itself)
+    assert wait_for(lambda: resumed() and f.poll() is not None, 120), \
+        f"the feeder did not finish: {status(shm)}\n{f.said()}"
+    _, ferr = f.communicate(timeout=60)
     assert f.returncode == 0, ferr
     assert "stall: the controller missed" in ferr and "mlip-ctl resume" in ferr
     err = stop(rt)
@@ -110,14 +124,17 @@ def test_stall_holds_at_rest_without_jump(controller, tmp_path):
                          text=True)
     assert chk.returncode == 0, chk.stdout + chk.stderr
     # the record has a hole where the deadlines were missed (the drives got
-    # nothing): after it the setpoints start from rest, not at speed
+    # nothing): after it the setpoints start from rest, not at speed. The
+    # SIGSTOP's hole is the one that ends held where the status said
     rows = [list(map(float, r.split(","))) for r in rec.read_text().splitlines()[1:]]
     T = 0.001
-    gaps = [(rows[i][0] - rows[i - 1][0], i) for i in range(1, len(rows))]
-    gap, i = max(gaps)
-    assert gap > 0.4, gap  # the 0.5 s SIGSTOP
+    at = [s["position"][a] for a in ("X", "Y")]
+    gaps = [(rows[i][0] - rows[i - 1][0], i) for i in range(1, len(rows))
+            if math.dist(rows[i - 1][1:], at) < 1e-9]
+    gap, i = max(gaps, default=(0.0, 0))
+    assert gap > 0.4, (gap, at)  # the 0.5 s SIGSTOP
     before = math.dist(rows[i - 1][1:], rows[i - 2][1:]) / T
-    assert before > 10.0  # it was moving when stopped
+    assert before > 50.0, before  # it was moving when stopped
     assert rows[i][1:] == rows[i - 1][1:] and rows[i + 1][1:] == rows[i][1:]  # held there
     k = next(j for j in range(i, len(rows)) if rows[j][1:] != rows[i][1:])  # resumed
     v = math.dist(rows[k][1:], rows[k - 1][1:]) / T
@@ -151,8 +168,8 @@ def test_corrupt_record_is_a_fault_never_complete(controller, tmp_path):
     prog = zigzag(tmp_path)
     rec_csv = tmp_path / "rt.csv"
     shm, rt = controller(MILL, "--record", rec_csv)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
-                         text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
+             text=True)
     ring = Ring(shm)
     assert wait_for(lambda: (lambda s: s["state"] == "running" and s["exec_seq"] > 0)(
         status(shm)), 60), status(shm)
@@ -203,8 +220,8 @@ def test_corrupt_record_in_the_preread_never_moves(controller, tmp_path):
     rec_csv = tmp_path / "rt.csv"
     shm, rt = controller(MILL, "--record", rec_csv)
     home = status(shm)["position"]
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
-                         text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
+             text=True)
     ring = Ring(shm)
     assert wait_for(lambda: ring.u32(HEAD) > 0 or f.poll() is not None, 60, 0.001)
     with frozen(rt):
@@ -242,8 +259,8 @@ def test_bad_record_met_in_a_dwell_names_where_the_machine_rests(controller, tmp
     prog.write_text("G21 G90 G1 X200 F6000\nG4 P0.5\nG1 X250\nG4 P1\nG1 X300\nM2\n")
     rec_csv = tmp_path / "rt.csv"
     shm, rt = controller(MILL, "--record", rec_csv)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
-                         text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
+             text=True)
     ring = Ring(shm)
     # the whole program in the ring while block 1 (2 s) still runs
     assert wait_for(lambda: ring.u32(HEAD) >= 6, 30)
@@ -275,8 +292,8 @@ def test_status_json_position_and_reason(controller, tmp_path):
     assert status(shm)["optional_stop"] is True
     assert ctl(shm, "optional-stop", "maybe").returncode == 2
     prog = zigzag(tmp_path, rows=4)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--quiet", prog])
-    moving = wait_for(lambda: (lambda s: s if s["speed_mm_s"] > 100 else None)(status(shm)), 20)
+    f = Proc([tool("mlip-feed"), "--shm", shm, "--quiet", prog])
+    moving = wait_for(lambda: (lambda s: s if s["speed_mm_s"] > 100 else None)(status(shm)), 60)
     assert moving and moving["state"] == "running"
     assert 0.0 <= moving["position"]["X"] <= 30.0 and moving["speed_mm_s"] <= 200.0 * (1 + 1e-9)
     assert f.wait(60) == 0
@@ -331,24 +348,27 @@ def test_status_liveness_alive_late_dead(controller):
     shm, rt = controller(MILL)
     s = status(shm)
     assert s["alive"] is True and s["liveness"] == "alive"
-    rt.send_signal(signal.SIGSTOP)
-    try:
-        time.sleep(0.3)  # > MLIP_PEER_TIMEOUT_NS (100 ms), and mlip-ctl's second look
-        p = ctl(shm, "status", "--json")
-        s = json.loads(p.stdout)
-        assert p.returncode == 1 and s["alive"] is False and s["liveness"] == "late", p.stdout
-        assert s["heartbeat_age_ms"] >= 300.0, s
+    with frozen(rt):  # late once the beat is older than MLIP_PEER_TIMEOUT_NS (100 ms)
+        def late():
+            p = ctl(shm, "status", "--json")
+            return (p, json.loads(p.stdout)) if '"liveness": "late"' in p.stdout else None
+        got = wait_for(late, 60)
+        assert got, ctl(shm, "status", "--json").stdout
+        p, s = got
+        assert p.returncode == 1 and s["alive"] is False, p.stdout
+        assert s["heartbeat_age_ms"] >= 100.0, s
         p = ctl(shm, "status")
         assert p.returncode == 1 and "NOT RESPONDING" in p.stdout
         assert f"its process (pid {rt.pid}) is there: stopped or starved of CPU" in p.stderr
-    finally:
-        rt.send_signal(signal.SIGCONT)
-    assert wait_for(lambda: (status(shm) or {}).get("liveness") == "alive", 5)
+    assert wait_for(lambda: (status(shm) or {}).get("liveness") == "alive", 60)
     rt.kill()
     rt.wait(10)
     try:
-        time.sleep(0.2)
-        p = ctl(shm, "status", "--json")
+        def dead():
+            p = ctl(shm, "status", "--json")
+            return p if '"liveness": "dead"' in p.stdout else None
+        p = wait_for(dead, 60)
+        assert p, ctl(shm, "status", "--json").stdout
         s = json.loads(p.stdout)
         assert p.returncode == 1 and s["alive"] is False and s["liveness"] == "dead", p.stdout
         assert "is not running: start mlip-rt" in ctl(shm, "status").stderr

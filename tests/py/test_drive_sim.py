@@ -144,3 +144,172 @@ def test_profile_velocity_ramps_to_target(pair):
         while sim.sync_no < k + 1 and time.monotonic() < deadline:
             time.sleep(0.001)
     assert node.sdo[0x606C].raw == 0
+
+
+@pytest.fixture
+def two(tmp_path):
+    chan = f"drive-{time.monotonic_ns()}"
+    rec = D.Recorder(tmp_path)
+    sim = D.DriveSim(
+        chan,
+        [
+            dict(node_id=5, start_position=0, heartbeat_ms=0),
+            dict(node_id=6, start_position=100, heartbeat_ms=0),
+        ],
+        rec,
+        bus=can.Bus(interface="virtual", channel=chan),
+    )
+    net = canopen.Network(can.Bus(interface="virtual", channel=chan))
+    net.connect()
+    sim.start()
+    nodes = [net.add_node(n, D.build_od(n)) for n in (5, 6)]
+    for node in nodes:
+        node.sdo.RESPONSE_TIMEOUT = 2.0
+    yield sim, nodes, net, tmp_path
+    sim.stop()
+    net.disconnect()
+
+
+@pytest.fixture
+def sw_pair(tmp_path):
+    """Drive 5 at 0 with its positive limit switch at 1500 counts."""
+    chan = f"drive-{time.monotonic_ns()}"
+    rec = D.Recorder(tmp_path)
+    sim = D.DriveSim(chan, [dict(node_id=5, start_position=0, heartbeat_ms=0,
+                                 switches={"pos": 1500})], rec,
+                     bus=can.Bus(interface="virtual", channel=chan))
+    net = canopen.Network(can.Bus(interface="virtual", channel=chan))
+    net.connect()
+    sim.start()
+    node = net.add_node(5, D.build_od(5))
+    node.sdo.RESPONSE_TIMEOUT = 2.0
+    yield sim, node, net
+    sim.stop()
+    net.disconnect()
+
+
+def test_touch_probe_latches_between_syncs(two):
+    """Touch probe 1 (CiA 402 0x60B8..0x60BB, issue 19): armed for its positive
+    edge, each drive latches its own position at the instant drive 5's move
+    crosses the surface (a third of the way between two SYNCs here), not a
+    position of a SYNC; the first event only, until switched on again; off
+    clears the status; the negative edge latches 0x60BB."""
+    sim, (a, b), net, rec = two
+    for node in (a, b):
+        node.sdo[0x6060].raw = P.MODE_CSP
+        for cw in (0x06, 0x07, 0x0F):
+            node.sdo[0x6040].raw = cw
+        assert state(node) == P.OPERATION_ENABLED
+        node.nmt.state = "OPERATIONAL"
+    deadline = time.monotonic() + 10
+    while any(d.nmt_state() != "OPERATIONAL" for d in sim.drives.values()):
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    sim.inject(5, "touch-probe", "-1000,below")
+    for node in (a, b):
+        node.sdo[0x60B8].raw = D.TP_ENABLE | D.TP_POS_EDGE
+        assert node.sdo[0x60B9].raw == D.TP_ENABLE  # on, nothing stored
+
+    def sync_to(ta, tb):
+        a.sdo[0x607A].raw = ta  # applied at the next SYNC, as an RPDO's
+        b.sdo[0x607A].raw = tb
+        n = sim.sync_no
+        net.sync.transmit()
+        while sim.sync_no < n + 1:
+            assert time.monotonic() < deadline
+            time.sleep(0.001)
+        return a.sdo[0x6064].raw, b.sdo[0x6064].raw
+
+    rows = [sync_to(-300 * k, 100 + 30 * k) for k in range(1, 5)]
+    assert rows[-1] == (-1200, 220)  # the last SYNC's move crossed -1000 at 1/3 of it
+    for node in (a, b):
+        assert node.sdo[0x60B9].raw == D.TP_ENABLE | D.TP_POS_STORED
+    assert a.sdo[0x60BA].raw == -1000  # where it crossed, to the count
+    assert b.sdo[0x60BA].raw == 190 + 10  # 190 -> 220 at 1/3: 200, no SYNC's position
+    assert 200 not in [r[1] for r in rows]
+    # further, back off and on again: the first event stays (not continuous)
+    sync_to(-1500, 220)
+    sync_to(-500, 220)
+    sync_to(-1300, 220)
+    assert a.sdo[0x60BA].raw == -1000 and b.sdo[0x60BA].raw == 200
+    # off: status cleared; on for the negative edge: the way off the surface
+    for node in (a, b):
+        node.sdo[0x60B8].raw = 0
+        assert node.sdo[0x60B9].raw == 0
+        node.sdo[0x60B8].raw = D.TP_ENABLE | D.TP_NEG_EDGE
+    sync_to(-700, 220)  # -1300 -> -700 crosses -1000 at half of the move
+    assert a.sdo[0x60B9].raw == D.TP_ENABLE | D.TP_NEG_STORED
+    assert a.sdo[0x60BB].raw == -1000 and b.sdo[0x60BB].raw == 220
+    sim.tick()
+    ev = [ln for ln in (rec / "events.jsonl").read_text().splitlines() if '"touch_probe"' in ln]
+    assert len(ev) == 4, ev  # two drives, two edges
+
+
+def test_csp_quick_stop_ramp_and_digital_inputs(sw_pair):
+    """CSP (issue 18): 0x60FD from the switch positions, sent in TPDO3 when
+    the master maps it (on change; a garbled one by injection), while TPDO2
+    carries the touch probe's positions at every SYNC (both on one drive);
+    a quick stop while moving brakes on 0x6085, the distance that of the
+    discrete ramp, then switch on disabled (0x605A = 2)."""
+    sim, node, net = sw_pair
+    got, tp2 = [], []
+    net.subscribe(0x385, lambda cob, data, ts: got.append(bytes(data)))
+    net.subscribe(0x285, lambda cob, data, ts: tp2.append(bytes(data)))
+    node.sdo[0x6060].raw = 8
+    node.sdo[0x6085].raw = 10_000_000  # counts/s^2: 10000 counts/s less per 1 ms SYNC
+    assert node.sdo[0x60FD].raw == 0
+    node.sdo[0x1802][1].raw = 0x80000385
+    node.sdo[0x1A02][0].raw = 0
+    node.sdo[0x1A02][1].raw = 0x60FD0020
+    node.sdo[0x1A02][0].raw = 1
+    node.sdo[0x1802][1].raw = 0x40000385
+    node.sdo[0x1801][1].raw = 0x80000285  # TPDO2: the touch probe's, as mlip maps it
+    node.sdo[0x1A01][0].raw = 0
+    node.sdo[0x1A01][1].raw = 0x60BA0020
+    node.sdo[0x1A01][2].raw = 0x60BB0020
+    node.sdo[0x1A01][0].raw = 2
+    node.sdo[0x1801][1].raw = 0x40000285
+    for cw in (0x06, 0x07, 0x0F):
+        node.sdo[0x6040].raw = cw
+    assert state(node) == P.OPERATION_ENABLED
+    node.nmt.state = "OPERATIONAL"
+    deadline = time.monotonic() + 20
+
+    def until(cond):
+        while not cond():
+            assert time.monotonic() < deadline, "timed out"
+            time.sleep(0.001)
+
+    until(lambda: got)  # the inputs once on entering operational
+    assert got[0] == bytes(4)
+    pos = []
+    for k in range(1, 21):  # 100 counts a SYNC: 100000 counts/s, over the switch at 1500
+        node.sdo[0x607A].raw = 100 * k  # applied at the next SYNC, as an RPDO's
+        node.network.sync.transmit()
+        until(lambda: sim.sync_no >= k)
+        pos.append(node.sdo[0x6064].raw)
+    assert pos[-1] == 2000, pos
+    until(lambda: len(got) >= 2)
+    assert got[1] == bytes([2, 0, 0, 0]), got  # bit 1: the positive limit switch
+    assert len(got) == 2, got  # TPDO3 on change only, not per SYNC
+    until(lambda: len(tp2) >= 20)
+    assert len(tp2) == 20 and tp2[0] == bytes(8), tp2  # TPDO2 at every SYNC
+    x0 = pos[-1]
+    node.sdo[0x6040].raw = 0x02
+    assert state(node) == P.QUICK_STOP  # braking
+    for k in range(21, 41):
+        node.network.sync.transmit()
+        until(lambda: sim.sync_no >= k)
+        pos.append(node.sdo[0x6064].raw)
+    steps = [b - a for a, b in zip(pos[19:], pos[20:])]
+    # 100000 counts/s less 10000 each SYNC: 90, 80, .. 10 counts, then at rest
+    assert steps[:10] == [90, 80, 70, 60, 50, 40, 30, 20, 10, 0], steps
+    assert pos[-1] - x0 == 450  # v^2/2a - vT/2 = 500 - 50
+    assert state(node) == P.SWITCH_ON_DISABLED
+    n = len(got)
+    sim.inject(5, "di-garbled", "0x4")
+    until(lambda: len(got) > n)
+    assert got[n] == bytes([4, 0, 0]), got  # a frame one byte short
+    sim.inject(5, "di", "1=0")  # forced off on the switch
+    until(lambda: len(got) > n + 1)
+    assert got[n + 1] == bytes(4) and node.sdo[0x60FD].raw == 0

@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from conftest import CONFIG, TOOLPATHS, offsets_file, run, tool
+from conftest import CONFIG, TOOLPATHS, Proc, offsets_file, periods_on, run, tool
 
 MILL = CONFIG / "mill-3axis.ini"
 SENDERS = TOOLPATHS / "senders"
@@ -323,8 +323,8 @@ def test_feed_dwell_pause_offsets_end_to_end(tmp_path, controller):
     prog.write_text("G1 X10 F6000\nG4 P0.25\nG1 X20 M0\nG1 X30\n")
     rec = tmp_path / "rt.csv"
     shm, rt = controller(MILL, "--record", rec)
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--offsets", str(off), str(prog)],
-                         stderr=subprocess.PIPE, text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, "--offsets", str(off), str(prog)],
+             stderr=subprocess.PIPE, text=True)
     paused = None
     for _ in range(600):
         st = subprocess.run([tool("mlip-ctl"), "--shm", shm, "status", "--json"],
@@ -337,7 +337,8 @@ def test_feed_dwell_pause_offsets_end_to_end(tmp_path, controller):
     assert paused, "the controller never paused at the M0"
     # X20 in G55 is machine X30; Y, never programmed, stays where it was (LinuxCNC)
     assert paused["position"] == {"X": 30.0, "Y": 0.0, "Z": 0.0}
-    time.sleep(0.2)
+    later = periods_on(shm, 200)  # a pause waits for resume, however long
+    assert later and later["state"] == "paused" and later["position"] == paused["position"], later
     assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "resume"]).returncode == 0
     _, ferr = f.communicate(timeout=60)
     assert f.returncode == 0, ferr

@@ -12,12 +12,11 @@ import select
 import signal
 import socket
 import subprocess
-import threading
 import time
 
 import pytest
 
-from conftest import CONFIG, TOOLPATHS, status, tool, wait_for
+from conftest import CONFIG, TOOLPATHS, Log, status, terminate, tool, wait_for
 from grblclient import Grbl
 
 MILL = CONFIG / "mill-3axis.ini"
@@ -25,37 +24,12 @@ MILL_IO = CONFIG / "mill-3axis-io.ini"   # a manual spindle (6000-24000 rpm) and
 PAPER = CONFIG / "paper-2axis.ini"
 
 
-class Log:
-    """A process's stderr, read to its end by a thread as it comes. A pipe
-    nobody reads fills (64 KB) and blocks its writer: mlip-rt's monitor
-    thread, which also drains the --record queue (a record then loses its
-    setpoints), or the server's loop. Printed at the fixture's teardown:
-    pytest shows it with a failing test."""
-
-    def __init__(self, proc, name):
-        self.proc, self.name, self.lines = proc, name, []
-        self._t = threading.Thread(target=self._read, daemon=True)
-        self._t.start()
-
-    def _read(self):
-        for line in self.proc.stderr:
-            self.lines.append(line.rstrip("\n"))
-
-    def wait(self, pred, timeout=60):
-        """The first line for which pred is true (None at the deadline)."""
-        def first():
-            return next((l for l in list(self.lines) if pred(l)), None)
-        return wait_for(first, timeout) if timeout > 0 else first()
-
-    def text(self):
-        """Everything so far; all of it once the process has exited."""
-        if self.proc.poll() is not None:
-            self._t.join(10)
-        return "\n".join(self.lines)
-
-
 def logged(proc, name):
-    proc.log = Log(proc, name)
+    """proc with its stderr drained (the controller fixture's Proc drains it
+    already: named only)."""
+    if getattr(proc, "log", None) is None:
+        proc.log = Log(proc, name)
+    proc.log.name = name
     return proc
 
 
@@ -92,13 +66,7 @@ def grbl(controller, tmp_path):
 
     yield start
     for p in reversed(procs):       # the servers first, then their controllers
-        if p.poll() is None:
-            p.send_signal(signal.SIGTERM)
-            try:
-                p.wait(30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(10)
+        terminate(p)
     for p in procs:
         print(f"---- {p.log.name} (exit {p.returncode}):\n{p.log.text()}")
 
@@ -167,7 +135,7 @@ def test_welcome_and_system_commands(grbl):
     kv = dict(s[1:].split("=") for s in settings)
     # mill-3axis.ini: what maps, as Grbl's units say (settings.md)
     assert kv["11"] == "0.010"                   # junction deviation: the contour tolerance
-    assert kv["20"] == "1" and kv["22"] == "0"   # soft limits always, no homing yet
+    assert kv["20"] == "1" and kv["22"] == "0"   # soft limits always; homing needs --config
     assert float(kv["110"]) == pytest.approx(200 * 60)  # X max rate mm/min
     assert float(kv["120"]) == pytest.approx(1000)      # X acceleration mm/s^2
     assert all(re.fullmatch(r"\$\d+=-?\d+(\.\d+)?", s) for s in settings), settings
@@ -812,3 +780,55 @@ def test_spindle_refused_on_a_machine_without_one(grbl):
     assert g.cmd("M5")[0] == "ok"             # nothing to stop: noted, as mlip-feed
     assert g.status()["state"] == "Idle"
     assert status(shm)["blocks_consumed"] == 0
+
+
+# ---- homing settings and tools from the machine (--config, --tools) -------------------
+
+
+def test_homing_settings_and_tool_change_from_the_machine(grbl, tmp_path):
+    """--config: $21/$22..$25 from the machine's limit inputs and HOME_*
+    (X homes to its negative limit switch, method 17; Z to its positive
+    one, 18: $23 = 1, X's bit), not a fixed 0; a --config that is not the
+    machine mlip-rt runs is refused. --tools: T/M6/M61/G43 as mlip-feed
+    --tools runs them: M6 pauses the machine at rest (Hold:0) with the tool
+    named in a [MSG:] (its comment from the table), ~ goes on, $G shows
+    the tool, G43 applies its length ($# TLO)."""
+    text = MILL_IO.read_text()
+    text = text.replace("[AXIS_X]\n", "[AXIS_X]\nHOME_METHOD = 17\nHOME_SEARCH_VEL = 10\n"
+                        "HOME_LATCH_VEL = 1\n", 1)
+    text = text.replace("[AXIS_Z]\n", "[AXIS_Z]\nHOME_METHOD = 18\nHOME_SEARCH_VEL = 5\n"
+                        "HOME_LATCH_VEL = 2\n", 1)
+    cfg = tmp_path / "homing.ini"
+    cfg.write_text(text)
+    table = CONFIG.parent / "examples" / "tool.tbl"
+    shm, rt, srv, port, _ = grbl(cfg, grbl_opts=("--config", str(cfg), "--tools", str(table)))
+    g = connect(port)
+    ans, settings = g.cmd("$$")
+    kv = dict(s[1:].split("=") for s in settings)
+    assert ans == "ok" and kv["21"] == "0" and kv["22"] == "1", settings  # no limit inputs
+    assert kv["23"] == "1" and float(kv["24"]) == 60 and float(kv["25"]) == 300, settings
+    # a tool change: at rest after the move, the tool named, until ~
+    assert g.cmd("G1 X5 F3000")[0] == "ok"
+    assert g.cmd("T2 M6")[0] == "ok"
+    g.wait_line(lambda l: l.startswith("[MSG:line") and "insert tool 2 (1/8 in ball end mill)"
+                in l and l.endswith("resume (~)]"))
+    s = g.wait_state({"Hold:0"})
+    assert status(shm)["state"] == "paused"
+    g.send(b"~")
+    g.wait_state({"Idle", "Run"})
+    assert "T2" in g.cmd("$G")[1][0].split()
+    assert g.cmd("G43")[0] == "ok"
+    g.wait_state({"Idle"})                 # $# in Idle only (system.c)
+    ans, params = g.cmd("$#")
+    assert ans == "ok" and "[TLO:38.100]" in params, params
+    s = g.wait_status(lambda s: "WCO" in s)   # report.c: WCO has the TLO on Z
+    assert s["WCO"] == pytest.approx([0, 0, 38.1]), s
+    a, m = g.cmd("T9 M6")                  # not in the table: refused at its line
+    assert a.startswith("error:") and "tool 9 is not in the tool table" in m[0], (a, m)
+    srv.send_signal(signal.SIGTERM)
+    srv.wait(30)
+    # a --config that is not the controller's machine: refused, named
+    other = subprocess.run([tool("mlip-grbl"), "--shm", shm, "--listen", "127.0.0.1:0",
+                            "--pty", "none", "--config", str(PAPER)], capture_output=True,
+                           text=True, timeout=DEADLINE)
+    assert other.returncode == 1 and "is not the machine mlip-rt runs" in other.stderr, other

@@ -239,3 +239,42 @@ def test_cia402_spindle_config_and_sim(tmp_path):
     assert f"{prog}:2:1: error: M3 with no S: the spindle speed was never set" in p.stderr
     p = run(["mlip-rt", "--config", cfg, "--can", "none"], check=False)
     assert p.returncode == 2 and "TYPE = cia402 needs the CANopen master" in p.stderr, p.stderr
+
+
+def test_sim_probe_surface(tmp_path):
+    """mlip-sim --probe-surface: G38 checked off-line with the machine's
+    result. [PROBE] SOURCE = drive: the drives' touch probe latches the
+    crossing itself: #5063 is the surface exactly (not a setpoint of the
+    1 ms grid); io: the position of the period after the setpoint reached
+    it, within a period's travel past it; without a surface G38.2 stops the
+    program (exit 5, as mlip-feed); G38.3 goes on (#5070 = 0); mlip-rt
+    refuses SOURCE = drive without the CANopen master."""
+    base = (CONFIG / "mill-3axis.ini").read_text()
+    drv = tmp_path / "drv.ini"
+    drv.write_text(base + "\n[PROBE]\nSOURCE = drive\n")
+    io = tmp_path / "io.ini"
+    io.write_text(base + "\n[IO]\nNODE = 10\nPROBE = 10 0x6000:1 3 HIGH\n")
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90\nG0 X1 Y2 Z0\nG38.2 Z-10 F120\nG0 Z5\nM2\n")
+    pat = re.compile(r"p\.ngc:3: t = [0-9.]+ s, G38 tripped at X(\S+) Y(\S+) Z(\S+) \(#5070 = 1")
+    got = {}
+    for name, cfg in (("drive", drv), ("io", io)):
+        p = run(["mlip-sim", "--config", cfg, "--probe-surface", "Z=-4.987", prog])
+        m = pat.search(p.stderr)
+        assert m, p.stderr
+        got[name] = [float(v) for v in m.groups()]
+        assert "order, contour and end not judged" in p.stderr
+    assert got["drive"] == [1.0, 2.0, -4.987], got  # the latch: the crossing itself
+    v_t = 120 / 60 * 0.001  # mm a period at the probe's feed
+    assert -4.987 - v_t - 1e-9 <= got["io"][2] < -4.987, got  # the period after
+    p = run(["mlip-sim", "--config", drv, prog], check=False)
+    assert p.returncode == 5 and "G38 probe not tripped (G38.2/G38.4)" in p.stderr, p.stderr
+    prog.write_text("G21 G90\nG0 X1 Y2 Z0\nG38.3 Z-10 F120\nG0 Z5\nM2\n")
+    p = run(["mlip-sim", "--config", drv, prog])
+    assert "G38 not tripped, at X1.000000 Y2.000000 Z-10.000000 (#5070 = 0" in p.stderr
+    for bad, why in (("Q=1", "expected AXIS=POS"), ("Z=x", "POS must be a number"),
+                     ("Z=1,left", "the side must be below")):
+        p = run(["mlip-sim", "--config", drv, "--probe-surface", bad, prog], check=False)
+        assert p.returncode == 2 and why in p.stderr, p.stderr
+    p = run(["mlip-rt", "--config", drv, "--can", "none"], check=False)
+    assert p.returncode == 2 and "[PROBE] SOURCE = drive needs the CANopen master" in p.stderr

@@ -6,9 +6,8 @@ stops exactly at it and one beyond it is refused (Grbl's error 15); bad
 arguments are refused before anything moves."""
 import signal
 import subprocess
-import time
 
-from conftest import CONFIG, status, tool, wait_for
+from conftest import CONFIG, Proc, status, tool, wait_for
 
 MILL = CONFIG / "mill-3axis.ini"
 A = 1000.0  # mm/s^2, every axis of mill-3axis
@@ -79,14 +78,15 @@ def test_jog_client_killed(controller, tmp_path):
     acceleration limit."""
     rec = tmp_path / "rt.csv"
     shm, rt = controller(MILL, "--record", rec)
-    j = subprocess.Popen([tool("mlip-ctl"), "--shm", shm, "jog", "Y-", "3000"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert wait_for(lambda: (status(shm) or {}).get("state") == "jog", 10)
-    time.sleep(0.5)
+    j = Proc([tool("mlip-ctl"), "--shm", shm, "jog", "Y-", "3000"],
+             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # at the jog's speed (3000 mm/min) before the kill: the stop then brakes from it
+    assert wait_for(lambda: (lambda s: s.get("state") == "jog" and s["speed_mm_s"] >= 50.0 *
+                             (1 - 1e-9))(status(shm) or {}), 60), status(shm)
     j.kill()
     j.wait(10)
     y_kill = status(shm)["position"]["Y"]
-    st = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 10)
+    st = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 60)
     assert st and st["reason"] == "jog not renewed", st
     rt.send_signal(signal.SIGTERM)
     rt.communicate(timeout=20)
@@ -216,16 +216,16 @@ def test_jog_several_axes(controller, tmp_path):
 def test_jog_status(controller):
     """Status shows the jog in progress, every axis with its direction."""
     shm, rt = controller(MILL)
-    j = subprocess.Popen([tool("mlip-ctl"), "--shm", shm, "jog", "X+", "Y-", "600", "30"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    j = Proc([tool("mlip-ctl"), "--shm", shm, "jog", "X+", "Y-", "600", "30"],
+             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        st = wait_for(lambda: (lambda s: s if s["state"] == "jog" else None)(status(shm)), 10)
+        st = wait_for(lambda: (lambda s: s if s["state"] == "jog" else None)(status(shm)), 60)
         assert st and st["jog"] == "X+ Y-", st
         text = ctl(shm, "status").stdout
         assert "jog         X+ Y-" in text, text
     finally:
         j.terminate()
         j.wait(20)
-    st = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 10)
+    st = wait_for(lambda: (lambda s: s if s["state"] == "idle" else None)(status(shm)), 60)
     assert st and st["jog"] is None, st
     assert st["position"]["X"] > 0 and st["position"]["Y"] == -st["position"]["X"], st

@@ -7,7 +7,7 @@ program run afterwards moves in the new work coordinates. Judged on the
 setpoints mlip-rt records (--record) and on the files written."""
 import subprocess
 
-from conftest import CONFIG, offsets_file, record_rows, status, tool, wait_for
+from conftest import CONFIG, Proc, offsets_file, record_rows, status, tool, wait_for
 
 MILL = CONFIG / "mill-3axis.ini"
 T = 0.001  # s, mill-3axis' period
@@ -150,9 +150,9 @@ def test_mdi_stdin_and_status(controller, tmp_path):
     progress (text and JSON)."""
     off = offsets_file(tmp_path / "off.txt")
     shm, _ = controller(MILL)
-    m = subprocess.Popen([tool("mlip-ctl"), "--shm", shm, "mdi", "--offsets", off, "-"],
-                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True)
+    m = Proc([tool("mlip-ctl"), "--shm", shm, "mdi", "--offsets", off, "-"],
+             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+             text=True)
     m.stdin.write("G21 G90\nG1 X40 F600 ; 4 s\n")
     m.stdin.close()
     st = wait_for(lambda: (lambda s: s if s.get("mdi") and s["state"] == "running" else None)(
@@ -160,7 +160,7 @@ def test_mdi_stdin_and_status(controller, tmp_path):
     assert st, status(shm)
     text = ctl(shm, "status").stdout
     assert "(MDI: mlip-ctl mdi)" in text, text
-    assert m.wait(60) == 0, m.stderr.read()
+    assert m.wait(60) == 0, m.said()
     assert position(shm)["X"] == 40.0
     assert status(shm)["mdi"] is False
 
@@ -170,17 +170,17 @@ def test_mdi_refused_while_busy(controller, tmp_path):
     afterwards."""
     off = offsets_file(tmp_path / "off.txt")
     shm, _ = controller(MILL)
-    j = subprocess.Popen([tool("mlip-ctl"), "--shm", shm, "jog", "Y+", "600", "30"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    j = Proc([tool("mlip-ctl"), "--shm", shm, "jog", "Y+", "600", "30"],
+             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        assert wait_for(lambda: (status(shm) or {}).get("state") == "jog", 10)
+        assert wait_for(lambda: (status(shm) or {}).get("state") == "jog", 60)
         p = mdi(shm, off, "G0 X50")
         assert p.returncode == 1
         assert "refused: the controller on" in p.stderr and "is jog" in p.stderr, p.stderr
     finally:
         j.terminate()
         j.wait(20)
-    assert wait_for(lambda: (status(shm) or {}).get("state") == "idle", 10)
+    assert wait_for(lambda: (status(shm) or {}).get("state") == "idle", 60)
     assert position(shm)["X"] == 0.0
 
 

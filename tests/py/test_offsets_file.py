@@ -15,7 +15,7 @@ import tempfile
 
 import pytest
 
-from conftest import CONFIG, offsets_file, run, status, tool, wait_for
+from conftest import CONFIG, Proc, offsets_file, run, status, tool, wait_for
 
 MILL = CONFIG / "mill-3axis.ini"
 ROOT_ONLY = pytest.mark.skipif(os.geteuid() != 0, reason="needs root (another user)")
@@ -185,8 +185,8 @@ def test_offsets_entered_during_a_run_survive(tmp_path, controller):
 
     def run_with_edit(g55_x, edit):
         prog = program(tmp_path, f"G10 L2 P2 X{g55_x}\nG1 X10 F6000\nM0\nG1 X20\nM2\n")
-        f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--offsets", str(off),
-                              str(prog)], stderr=subprocess.PIPE, text=True)
+        f = Proc([tool("mlip-feed"), "--shm", shm, "--offsets", str(off),
+                  str(prog)], stderr=subprocess.PIPE, text=True)
         assert wait_for(lambda: (status(shm) or {}).get("state") == "paused", 30)
         run(["mlip-offsets", "--set", edit, off])
         assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "resume"],

@@ -8,7 +8,7 @@ says "the file changed after it was checked" (mlip-sim's second reader:
 tests/unit/test_program_pin.c)."""
 import subprocess
 
-from conftest import CONFIG, status, tool, wait_for
+from conftest import CONFIG, Proc, status, tool, wait_for
 
 MILL = CONFIG / "mill-3axis.ini"
 LINE = 12  # bytes of each "X1xx.xxx Y0\n"
@@ -31,13 +31,10 @@ def started_feeder(shm, prog):
     """mlip-feed at 1000 blocks/s, once it has checked the program (its note
     on the offsets ends the check): the first chunk's 5461 blocks take it
     5.5 s, so the second chunk is read seconds after this returns."""
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "--rate", "1000", str(prog)],
-                         stderr=subprocess.PIPE, text=True)
-    f.said = ""
-    while "mlip-feed: offsets:" not in f.said:
-        line = f.stderr.readline()
-        assert line, f.said  # the feeder ended before it streamed
-        f.said += line
+    f = Proc([tool("mlip-feed"), "--shm", shm, "--rate", "1000", str(prog)],
+             stderr=subprocess.PIPE, text=True)
+    checked = lambda: "mlip-feed: offsets:" in f.said()  # noqa: E731
+    assert wait_for(lambda: checked() or f.poll() is not None, 60) and checked(), f.said()
     return f
 
 
@@ -61,7 +58,7 @@ def test_program_rewritten_while_it_streams(controller, tmp_path):
     s = status(shm)
     # the second chunk begins in line 5462: still far ahead of what was sent
     assert s["blocks_consumed"] + s["queued"] < 5000, s
-    err = f.said + f.communicate(timeout=120)[1]
+    err = f.communicate(timeout=120)[1]
     assert f.returncode == 1, err
     assert f"{prog}: the file changed after it was checked (bytes 65536 to 71999 differ " \
            "from the ones checked, line 5462): the rest is not run; the machine stops at " \
@@ -88,7 +85,7 @@ def test_copy_over_the_program_while_it_streams(controller, tmp_path):
     subprocess.run(["cp", str(other), str(prog)], check=True)
     s = status(shm)
     assert s["blocks_consumed"] + s["queued"] < 5000, s
-    err = f.said + f.communicate(timeout=120)[1]
+    err = f.communicate(timeout=120)[1]
     assert f.returncode == 1 and "the file changed after it was checked" in err, err
     s = wait_for(lambda: (lambda s: s if s["speed_mm_s"] == 0.0 and s["state"] in
                           ("starved", "idle") else None)(status(shm)), 30)

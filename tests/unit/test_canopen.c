@@ -15,6 +15,7 @@
 #include <cmocka.h>
 
 #include "mlip/canopen/drive.h"
+#include "mlip/canopen/io401.h"
 
 static void answer(struct mlip_can_frame *f, uint8_t node, const uint8_t b[8])
 {
@@ -206,7 +207,8 @@ static void test_interp_period(void **state)
 	assert_int_equal(mlip_co_interp_period(0.0, &v, &ix), MLIP_E_RANGE);
 }
 
-static void test_setup_entries(void **state)
+/* Node 2 at 1 ms, the pre-defined connection set's COB-IDs. */
+static struct mlip_drive_setup drive2(void)
 {
 	struct mlip_drive_setup d = {.node = 2,
 	                             .sync_id = 0x080,
@@ -217,6 +219,12 @@ static void test_setup_entries(void **state)
 	                             .heartbeat_ms = 100,
 	                             .master_node = 127,
 	                             .master_timeout_ms = 300};
+	return d;
+}
+
+static void test_setup_entries(void **state)
+{
+	struct mlip_drive_setup d = drive2();
 	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
 	int n, i, found = 0;
 	(void)state;
@@ -286,6 +294,140 @@ static void test_setup_entries(void **state)
 	assert_int_equal(mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX), -1);
 }
 
+/* An axis with its switches on the drive (issue 18): TPDO3 carries 0x60FD on
+ * change with an event timer, mapped while invalid, then enabled; the quick
+ * stop deceleration 0x6085 is the axis' acceleration limit. With the touch
+ * probe too, TPDO2 keeps its latched positions and TPDO3 the inputs. */
+static void test_setup_entries_inputs(void **state)
+{
+	struct mlip_drive_setup d = {.node = 2,
+	                             .sync_id = 0x080,
+	                             .rpdo_cob = 0x202,
+	                             .tpdo_cob = 0x182,
+	                             .period_s = 0.001,
+	                             .following_window_counts = 1000,
+	                             .heartbeat_ms = 100,
+	                             .master_node = 127,
+	                             .master_timeout_ms = 300,
+	                             .quick_stop_counts_s2 = 1000000,
+	                             .di_tpdo_cob = 0x382,
+	                             .di_event_ms = 100};
+	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
+	int n, i, first = -1, last = -1, map = -1, count = -1, qs = 0;
+	(void)state;
+	n = mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX);
+	assert_true(n > 0 && n <= MLIP_DRIVE_SETUP_MAX);
+	for (i = 0; i < n; i++) {
+		uint32_t key = (uint32_t)e[i].index << 8 | e[i].sub;
+		assert_true(e[i].index != 0x1801 && e[i].index != 0x1A01); /* TPDO2 untouched */
+		if (key == 0x180201) {
+			if (first < 0) {
+				first = i;
+			}
+			last = i;
+		} else if (key == 0x1A0201) {
+			map = i;
+			assert_int_equal(e[i].value, 0x60FD0020u);
+		} else if (key == 0x1A0200) {
+			count = i;
+		} else if (key == 0x180202) {
+			assert_int_equal(e[i].value, 255);
+		} else if (key == 0x180205) {
+			assert_int_equal(e[i].value, 100);
+			assert_int_equal(e[i].size, 2);
+		} else if (key == 0x608500) {
+			assert_int_equal(e[i].value, 1000000);
+			qs++;
+		}
+	}
+	assert_int_equal(qs, 1);
+	assert_true(first >= 0 && first < map && map < count && count < last);
+	assert_int_equal(e[first].value, 0xC0000382u); /* invalid while mapped */
+	assert_int_equal(e[count].value, 1);
+	assert_int_equal(e[last].value, 0x40000382u);
+	/* the touch probe as well: 10 more entries, TPDO2 = 0x60BA + 0x60BB and
+	 * TPDO3 = 0x60FD alone, each enabled after its own mapping */
+	d.touch_probe = 1;
+	d.tpdo2_cob = 0x282;
+	int b = mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX);
+	assert_int_equal(b, n + 10);
+	int tp2_on = -1, tp3_on = -1, tp2_maps = 0, tp3_maps = 0;
+	for (i = 0; i < b; i++) {
+		uint32_t key = (uint32_t)e[i].index << 8 | e[i].sub;
+		if (e[i].index == 0x1A01 && e[i].sub >= 1) {
+			assert_true(e[i].value == 0x60BA0020u || e[i].value == 0x60BB0020u);
+			tp2_maps++;
+		} else if (e[i].index == 0x1A02 && e[i].sub >= 1) {
+			assert_int_equal(e[i].value, 0x60FD0020u);
+			tp3_maps++;
+		} else if (key == 0x180101 && e[i].value == 0x40000282u) {
+			tp2_on = i;
+		} else if (key == 0x180201 && e[i].value == 0x40000382u) {
+			tp3_on = i;
+		}
+	}
+	assert_int_equal(tp2_maps, 2);
+	assert_int_equal(tp3_maps, 1);
+	assert_true(tp2_on > 0 && tp3_on > 0);
+	/* none of them without switches on the drive (nor 0x6085 unset) */
+	d.touch_probe = 0;
+	d.di_tpdo_cob = 0;
+	d.quick_stop_counts_s2 = 0;
+	int m = mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX);
+	assert_int_equal(m, n - 8);
+	for (i = 0; i < m; i++) {
+		assert_true(e[i].index != 0x1802 && e[i].index != 0x1A02 && e[i].index != 0x6085);
+	}
+}
+
+/* The input functions from what the bus said: a module byte's bit and a
+ * drive's 0x60FD bit, each with its polarity; unread ones are neither on nor
+ * known. */
+static void test_io_eval_drive_inputs(void **state)
+{
+	struct mlip_machine m;
+	struct mlip_io_config io;
+	struct mlip_io_image img;
+	uint32_t known = 0, on;
+	(void)state;
+	memset(&m, 0, sizeof(m));
+	memset(&io, 0, sizeof(io));
+	memset(&img, 0, sizeof(img));
+	m.n_axes = 2;
+	m.axis[0].can_node = 1;
+	m.axis[1].can_node = 2;
+	io.node = 10;
+	io.in[MLIP_IN_ESTOP] = (struct mlip_io_bit){10, 1, 0x6000, 0, 1, 3};
+	io.in[MLIP_IN_LIMIT_NEG(0)] = (struct mlip_io_bit){1, 0, 0x60FD, 0, 0, 4};
+	io.in[MLIP_IN_LIMIT_POS(0)] = (struct mlip_io_bit){1, 0, 0x60FD, 1, 0, 5};
+	io.in[MLIP_IN_HOME_SW(1)] = (struct mlip_io_bit){2, 0, 0x60FD, 2, 0, 6};
+	io.in[MLIP_IN_LIMIT_POS(1)] = (struct mlip_io_bit){2, 0, 0x60FD, 17, 1, 7}; /* mfr, LOW */
+	io.mapped = 1u << MLIP_IN_ESTOP | 1u << MLIP_IN_LIMIT_NEG(0) | 1u << MLIP_IN_LIMIT_POS(0) |
+	            1u << MLIP_IN_HOME_SW(1) | 1u << MLIP_IN_LIMIT_POS(1);
+	/* nothing read yet: nothing on, nothing known (a broken wire is not
+	 * assumed before the first frame) */
+	assert_int_equal(mlip_io_eval(&io, &m, &img, &known), 0);
+	assert_int_equal(known, 0);
+	img.drives_read = 1u; /* drive 1 read: 0x60FD bit 1, the positive limit */
+	img.di[0] = 0x2u;
+	img.di[1] = 0xFFFFFFFFu; /* not read: ignored */
+	on = mlip_io_eval(&io, &m, &img, &known);
+	assert_int_equal(on, 1u << MLIP_IN_LIMIT_POS(0));
+	assert_int_equal(known, 1u << MLIP_IN_LIMIT_NEG(0) | 1u << MLIP_IN_LIMIT_POS(0));
+	img.drives_read = 3u;
+	img.di[1] = 0x4u; /* home switch on, bit 17 = 0: the LOW limit is on */
+	img.module_read = 1;
+	img.in[0] = 0x1u; /* E-stop circuit closed: off */
+	on = mlip_io_eval(&io, &m, &img, &known);
+	assert_int_equal(known, io.mapped);
+	assert_int_equal(on, 1u << MLIP_IN_LIMIT_POS(0) | 1u << MLIP_IN_HOME_SW(1) |
+	                         1u << MLIP_IN_LIMIT_POS(1));
+	img.di[1] = 1u << 17;
+	img.di[0] = 0x1u;
+	on = mlip_io_eval(&io, &m, &img, &known);
+	assert_int_equal(on, 1u << MLIP_IN_LIMIT_NEG(0));
+}
+
 static void test_supervise(void **state)
 {
 	struct mlip_drive_obs o;
@@ -352,6 +494,23 @@ static void test_supervise(void **state)
 	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_EMCY);
 	assert_int_equal(det, 0x2310);
 	assert_string_equal(mlip_drive_fault_name(MLIP_DRIVE_EMCY), "emergency");
+	/* its digital inputs (TPDO3) unread for longer than the timeout; a
+	 * drive's own failures come first */
+	o.emcy_count = 0;
+	o.di_ns = 1000000000u;
+	x.di_timeout_ns = 300000000u;
+	x.now_ns = o.di_ns + 300000000u;
+	o.hb_ns = x.now_ns;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_OK);
+	x.now_ns += 1000000u;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_INPUTS_LOST);
+	assert_int_equal(det, 301);
+	assert_string_equal(mlip_drive_fault_name(MLIP_DRIVE_INPUTS_LOST), "digital inputs lost");
+	o.nmt_state = MLIP_NMT_PREOPERATIONAL;
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_NOT_OPERATIONAL);
+	o.nmt_state = MLIP_NMT_OPERATIONAL;
+	x.di_timeout_ns = 0; /* no inputs on it: not watched */
+	assert_int_equal(mlip_drive_supervise(&o, &x, &det), MLIP_DRIVE_OK);
 }
 
 static void test_following_error(void **state)
@@ -369,13 +528,90 @@ static void test_following_error(void **state)
 	assert_true(mlip_drive_following_error(w, 1, INT32_MAX) == 4294967295LL);
 }
 
+/* The touch probe ([PROBE] SOURCE = drive): 0x60B8 the third object of
+ * RPDO1, 0x60B9 of TPDO1, TPDO2 = 0x60BA + 0x60BB (written while invalid,
+ * synchronous), 0x60B8 = 0; the 8-byte TPDO1 and the TPDO2 classified. */
+static void test_touch_probe_setup_and_pdos(void **state)
+{
+	struct mlip_drive_setup d = drive2();
+	struct mlip_sdo_entry e[MLIP_DRIVE_SETUP_MAX];
+	uint32_t want[][2] = {{0x160003, 0x60B80010u}, {0x160000, 3},
+	                      {0x1A0003, 0x60B90010u}, {0x1A0000, 3},
+	                      {0x180101, 0xC0000282u}, {0x180102, 1},
+	                      {0x1A0101, 0x60BA0020u}, {0x1A0102, 0x60BB0020u},
+	                      {0x1A0100, 2},           {0x60B800, 0}};
+	int n, found = 0, last_cob = -1, last_map = -1;
+	struct mlip_can_frame f;
+	struct mlip_co_msg m;
+	(void)state;
+	d.touch_probe = 1;
+	d.tpdo2_cob = 0x282;
+	n = mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX);
+	assert_true(n > 0 && n <= MLIP_DRIVE_SETUP_MAX);
+	for (int i = 0; i < n; i++) {
+		uint32_t key = (uint32_t)e[i].index << 8 | e[i].sub;
+		for (size_t w = 0; w < sizeof(want) / sizeof(want[0]); w++) {
+			if (key == want[w][0] && e[i].value == want[w][1]) {
+				found |= 1 << w;
+			}
+		}
+		if (key == 0x180101 && e[i].value == 0x40000282u) {
+			last_cob = i; /* valid again: after its mapping */
+		}
+		if (e[i].index == 0x1A01) {
+			last_map = i;
+		}
+	}
+	assert_int_equal(found, (1 << 10) - 1);
+	assert_true(last_cob > last_map && last_map > 0);
+	/* TPDO1 of 8 bytes: statusword, position, touch probe status */
+	memset(&f, 0, sizeof(f));
+	f.id = 0x182;
+	f.len = 8;
+	f.data[0] = 0x37;
+	f.data[2] = 0xFB;
+	f.data[3] = f.data[4] = f.data[5] = 0xFF;
+	f.data[6] = 0x03;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_OK);
+	assert_int_equal(m.kind, MLIP_CO_TPDO);
+	assert_int_equal(m.position_counts, -5);
+	assert_int_equal(m.has_probe, 1);
+	assert_int_equal(m.probe_status, 0x0003);
+	f.len = 7;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_E_SYNTAX);
+	/* TPDO2: 0x60BA = -1000, 0x60BB = 70000 */
+	f.id = 0x282;
+	f.len = 8;
+	f.data[0] = 0x18;
+	f.data[1] = 0xFC;
+	f.data[2] = f.data[3] = 0xFF;
+	f.data[4] = 0x70;
+	f.data[5] = 0x11;
+	f.data[6] = 0x01;
+	f.data[7] = 0x00;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_OK);
+	assert_int_equal(m.kind, MLIP_CO_TPDO2);
+	assert_int_equal(m.node, 2);
+	assert_int_equal(m.probe_pos, -1000);
+	assert_int_equal(m.probe_neg, 70000);
+	f.len = 6;
+	assert_int_equal(mlip_co_classify(&f, &m), MLIP_E_SYNTAX);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_nmt_heartbeat), cmocka_unit_test(test_classify),
-	    cmocka_unit_test(test_sdo_download),  cmocka_unit_test(test_sdo_upload),
-	    cmocka_unit_test(test_interp_period), cmocka_unit_test(test_setup_entries),
-	    cmocka_unit_test(test_supervise),     cmocka_unit_test(test_following_error),
+	    cmocka_unit_test(test_nmt_heartbeat),
+	    cmocka_unit_test(test_classify),
+	    cmocka_unit_test(test_sdo_download),
+	    cmocka_unit_test(test_sdo_upload),
+	    cmocka_unit_test(test_interp_period),
+	    cmocka_unit_test(test_setup_entries),
+	    cmocka_unit_test(test_touch_probe_setup_and_pdos),
+	    cmocka_unit_test(test_supervise),
+	    cmocka_unit_test(test_setup_entries_inputs),
+	    cmocka_unit_test(test_io_eval_drive_inputs),
+	    cmocka_unit_test(test_following_error),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1520,10 +1520,17 @@ static void io_config(void)
 	}
 }
 
+static int drive_limits; /* setup_io: X's limits on drive 1's 0x60FD (bits 0, 1) */
+
 static int setup_io(void **state)
 {
 	setup_drives(state);
 	io_config();
+	for (int i = 0; i < 2 && drive_limits; i++) {
+		struct mlip_io_bit *b = &io_cfg.in[MLIP_IN_LIMIT_NEG(0) + (uint32_t)i];
+		*b = (struct mlip_io_bit){
+		    (uint8_t)mach.axis[0].can_node, 0, 0x60FD, (uint8_t)i, 0, 0};
+	}
 	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
 	                          .lookahead = 16,
 	                          .can = &can_cia402,
@@ -1820,6 +1827,71 @@ static void test_limit(void **st)
 	io_in.active = 0;
 	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
 	assert_int_equal(status().state, MLIP_STATE_IDLE);
+}
+
+/* The same with X's switches wired to its drive (0x60FD): the controller
+ * decides alike, the reason names the drive's node. */
+static int setup_io_drive(void **state)
+{
+	drive_limits = 1;
+	int r = setup_io(state);
+	drive_limits = 0;
+	return r;
+}
+
+static void test_limit_drive_input(void **st)
+{
+	(void)st;
+	run_long();
+	double x0 = out.pos[0];
+	io_in.active = BIT(MLIP_IN_LIMIT_POS(0));
+	dtick(1);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(status().reason, MLIP_WHY_LIMIT);
+	assert_int_equal(status().reason_field, MLIP_IN_LIMIT_POS(0));
+	assert_int_equal(status().reason_node, mach.axis[0].can_node);
+	assert_true(status().reason_value >= x0);
+	assert_int_equal(cw_of(0), 0x0002);
+	assert_int_equal(cw_of(1), 0x0002);
+	/* only a jog of X away from it (negative) leaves the stop: an
+	 * incremental one, renewed as mlip-ctl does, runs its distance once the
+	 * drives are enabled again. Posted while the drives still brake on
+	 * their quick stop ramp ("quick stop active", X still moving) */
+	for (int k = 0; k < 2; k++) {
+		drv_sw[k] = 0x0217;
+	}
+	for (int i = 0; i < 3; i++) {
+		tick(1);
+		drv_actual[0] += 0.05;
+	}
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 600), 0), MLIP_E_RANGE);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 1, 5000), 0), MLIP_OK);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 1200), 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_JOGGING);
+	for (int i = 0; i < 5; i++) {
+		tick(1);
+		drv_actual[0] += 0.05; /* braking on */
+		for (int k = 0; k < 2; k++) {
+			if (cw_of(k) == 0x0000) {
+				drv_sw[k] = 0x0250; /* disable voltage */
+			}
+		}
+	}
+	for (int k = 0; k < 2; k++) {
+		drv_sw[k] = 0x0250; /* at rest: switch on disabled */
+	}
+	tick(1);
+	double x1 = drv_actual[0];
+	for (int i = 0; i < 2000 && status().state == MLIP_STATE_JOGGING; i++) {
+		dtick(1);
+		if (i % 100 == 99 && status().state == MLIP_STATE_JOGGING) {
+			assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 1200), 0),
+			                 MLIP_OK);
+		}
+	}
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().reason, MLIP_WHY_JOG_DONE);
+	assert_true(fabs(out.pos[0] - (x1 - 5.0)) < 1e-9);
 }
 
 /* Stopped on a limit switch that stays on: a jog toward it (or another
@@ -2912,6 +2984,7 @@ int main(void)
 	    TIO(test_estop_wins),
 	    TIO(test_io_lost),
 	    TIO(test_limit),
+	    cmocka_unit_test_setup_teardown(test_limit_drive_input, setup_io_drive, teardown),
 	    TIO(test_hold_cycle_start_inputs),
 	    TIO(test_limit_jog_away),
 	    TIO(test_estop_without_drives),

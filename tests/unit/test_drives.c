@@ -26,8 +26,9 @@
 
 /* ---- the peer: one CiA 402 drive -------------------------------------------- */
 
-enum { P_SOD, P_RTSO, P_SO, P_OE, P_FAULT }; /* switch on disabled .. fault */
-static const uint16_t p_sw[] = {0x0250, 0x0231, 0x0233, 0x1237, 0x0218};
+enum { P_SOD, P_RTSO, P_SO, P_OE, P_FAULT, P_QS }; /* switch on disabled .. quick stop */
+static const uint16_t p_sw[] = {0x0250, 0x0231, 0x0233, 0x1237, 0x0218, 0x0217};
+static int qs_periods; /* > 0: a quick stop brakes that many periods in P_QS */
 
 struct od {
 	uint16_t index;
@@ -43,7 +44,7 @@ struct wr {
 
 struct peer {
 	uint8_t node;
-	int present, nmt, state, ever_enabled, no_enable;
+	int present, nmt, state, ever_enabled, no_enable, qs_left;
 	uint16_t cw;
 	int32_t pos;
 	struct od od[32];
@@ -89,7 +90,7 @@ static void peer_init(struct peer *p, uint8_t node, int state, int32_t pos)
 	            {0x1800, 1, 4}, {0x1800, 2, 1}, {0x1A00, 0, 1}, {0x1A00, 1, 4}, {0x1A00, 2, 4},
 	            {0x1005, 0, 4}, {0x6060, 0, 1}, {0x6061, 0, 1}, {0x60C2, 1, 1}, {0x60C2, 2, 1},
 	            {0x6065, 0, 4}, {0x1017, 0, 2}, {0x1016, 1, 4}, {0x6040, 0, 2}, {0x6041, 0, 2},
-	            {0x6064, 0, 4}, {0x607A, 0, 4}};
+	            {0x6064, 0, 4}, {0x607A, 0, 4}, {0x6085, 0, 4}};
 	memset(p, 0, sizeof(*p));
 	p->node = node;
 	p->present = 1;
@@ -136,8 +137,19 @@ static void peer_cw(struct peer *p, uint16_t cw)
 			p->state = P_SOD;
 		}
 		break;
+	case P_QS:
+		if ((cw & 0x02) == 0) {
+			p->state = P_SOD; /* disable voltage (12) */
+		} else if ((cw & 0x8F) == 0x0F) {
+			p->state = P_OE; /* enable operation (16) */
+		}
+		break;
 	case P_OE:
-		if ((cw & 0x8F) == 0x07) {
+		if ((cw & 0x87) == 0x02) {
+			/* quick stop, option code 2: braking, then switch on disabled */
+			p->state = qs_periods > 0 ? P_QS : P_SOD;
+			p->qs_left = qs_periods;
+		} else if ((cw & 0x8F) == 0x07) {
 			p->state = P_SO;
 		} else if ((cw & 0x87) == 0x06) {
 			p->state = P_RTSO;
@@ -224,9 +236,16 @@ static void peer_hb(struct peer *p)
 
 /* ---- the port --------------------------------------------------------------- */
 
+static struct mlip_can_frame module_out; /* the last RPDO to node 10 (the module) */
+static int n_module_out;
+
 static int port_send(void *ctx, const struct mlip_can_frame *f)
 {
 	(void)ctx;
+	if (f->id == 0x20Au) {
+		module_out = *f;
+		n_module_out++;
+	}
 	for (int i = 0; i < NP + 1; i++) {
 		struct peer *p = &peers[i];
 		if (!p->present) {
@@ -279,6 +298,8 @@ static const struct mlip_can_port port = {NULL, port_send, port_recv, port_now};
 /* ---- fixtures ------------------------------------------------------------------- */
 
 static struct mlip_config cfg;
+static int keep_queue;               /* answers sent in a period's hooks are read in the next */
+static uint32_t di_send, di_val[NP]; /* drives sending TPDO3 (0x60FD) every 100 ms */
 static struct mlip_drives ds;
 static char why[320];
 static char logbuf[8192];
@@ -316,6 +337,11 @@ static int setup(void **state)
 	peers[2].ever_enabled = 0;
 	memset(&peers[NP], 0, sizeof(peers[NP])); /* no spindle */
 	q_head = q_tail = 0;
+	di_send = 0;
+	keep_queue = 0;
+	qs_periods = 0;
+	n_module_out = 0;
+	memset(di_val, 0, sizeof(di_val));
 	now_ns = 1000000000u;
 	logbuf[0] = '\0';
 	why[0] = '\0';
@@ -373,6 +399,8 @@ static void test_bringup_three(void **state)
 		assert_int_equal(od_find(p, 0x60C2, 1)->value, 1);
 		assert_int_equal(od_find(p, 0x60C2, 2)->value, 0xFD);
 		assert_int_equal(od_find(p, 0x6065, 0)->value, 1000);
+		/* quick stop on the drive's ramp at the axis' 1000 mm/s^2 */
+		assert_int_equal(od_find(p, 0x6085, 0)->value, 1000000);
 		assert_int_equal(od_find(p, 0x1017, 0)->value, 100);
 		assert_int_equal(od_find(p, 0x1016, 1)->value, (127u << 16) | 300u);
 		/* the target was set to the position before operation was enabled */
@@ -440,10 +468,33 @@ static void test_bringup_spindle(void **state)
 		assert_int_equal(peers[i].state, P_OE);
 	}
 	uint32_t ids[MLIP_CANBUS_MAX_IDS];
-	int n = mlip_drives_rx_ids(&cfg.machine, 0, 5, ids, MLIP_CANBUS_MAX_IDS);
+	int n = mlip_drives_rx_ids(&cfg.machine, 0, 5, 0, 0, ids, MLIP_CANBUS_MAX_IDS);
 	assert_int_equal(n, 16);
 	assert_int_equal(ids[12], 0x585u);
 	assert_int_equal(ids[15], 0x185u);
+	/* the touch probe: each axis drive's TPDO2 too (not the spindle's) */
+	n = mlip_drives_rx_ids(&cfg.machine, 0, 5, 1, 0, ids, MLIP_CANBUS_MAX_IDS);
+	assert_int_equal(n, 16 + cfg.machine.n_axes);
+	assert_int_equal(ids[4], 0x281u);
+	assert_int_equal(ids[15], 0x585u);
+	/* and switches on X's and Z's drives: their TPDO3 besides TPDO2 */
+	n = mlip_drives_rx_ids(&cfg.machine, 0, 5, 1, 5u, ids, MLIP_CANBUS_MAX_IDS);
+	assert_int_equal(n, 16 + cfg.machine.n_axes + 2);
+	assert_int_equal(ids[4], 0x281u);
+	assert_int_equal(ids[5], 0x381u);
+	assert_int_equal(ids[10], 0x282u);
+	assert_int_equal(ids[15], 0x283u);
+	assert_int_equal(ids[16], 0x383u);
+	/* the filter's size: every axis with both, the I/O module, the spindle */
+	struct mlip_machine big = cfg.machine;
+	uint32_t many[MLIP_CANBUS_MAX_IDS + 1];
+	big.n_axes = MLIP_MAX_AXES;
+	for (int k = 0; k < MLIP_MAX_AXES; k++) {
+		big.axis[k].can_node = (uint8_t)(20 + k);
+	}
+	n = mlip_drives_rx_ids(&big, 10, 5, 1, (1u << MLIP_MAX_AXES) - 1u, many,
+	                       MLIP_CANBUS_MAX_IDS + 1);
+	assert_int_equal(n, MLIP_CANBUS_MAX_IDS);
 	/* the shut-down takes the spindle down first */
 	mlip_drives_disable(&ds);
 	assert_int_equal(sp->state, P_RTSO);
@@ -560,7 +611,8 @@ static void loop_setup(double *start)
 	                          .lookahead = 16,
 	                          .can = &cfg.can,
 	                          .drives = 1,
-	                          .drive_state_periods = 1000};
+	                          .drive_state_periods = 1000,
+	                          .io = &cfg.inputs};
 	struct mlip_period_hooks hooks;
 	mlip_drives_hooks(&ds, &hooks);
 	assert_int_equal(mlip_period_init(&ctl, &planner, &m, &o, ring, &port, &hooks), 0);
@@ -607,6 +659,12 @@ static int period(void)
 		struct peer *p = &peers[i];
 		uint16_t cw;
 		int32_t c;
+		if (p->state == P_QS) {
+			p->pos += 1000; /* still braking */
+			if (--p->qs_left <= 0) {
+				p->state = P_SOD;
+			}
+		}
 		if (cycle > 0 && rpdo_of(i, &cw, &c)) {
 			peer_cw(p, cw);
 			if (p->state == P_OE) { /* a disabled drive follows no target */
@@ -618,11 +676,23 @@ static int period(void)
 		if (cycle % 100 == 0 && !(silent & (1u << i))) {
 			peer_hb(p);
 		}
+		if (cycle % 100 == 0 && (di_send & (1u << i))) {
+			memset(&f, 0, sizeof(f));
+			f.id = 0x380u + p->node;
+			f.len = 4;
+			memcpy(f.data, &di_val[i], 4); /* little-endian host, as CANopen */
+			push(&f);
+		}
+	}
+	if (peers[NP].present && peers[NP].node == 10 && cycle % 100 == 0) {
+		peer_hb(&peers[NP]); /* the I/O module's heartbeat */
 	}
 	struct mlip_rt_tick t = {.cycle = cycle++};
 	now_ns += 1000000;
 	int r = mlip_period_tick(&ctl, &t);
-	q_head = q_tail; /* what the master did not read is gone */
+	if (!keep_queue) {
+		q_head = q_tail; /* what the master did not read is gone */
+	}
 	return r;
 }
 
@@ -1055,6 +1125,351 @@ static void test_loop_enable_fails(void **state)
 	free(mem);
 }
 
+/* Switches on the drives (issue 18): X's positive limit on drive 1's 0x60FD
+ * bit 1, Y's negative on drive 2's bit 0, no I/O module. At bring-up TPDO3
+ * is mapped (each write read back) and 0x60FD read once by SDO; in the loop
+ * a TPDO3 sets the input in the period it is read; a garbled one (3 bytes)
+ * is counted and changes nothing; a drive whose TPDO3 stops is a fault
+ * after the heartbeat timeout, its inputs unknown. */
+static void test_loop_drive_inputs(void **state)
+{
+	double start[NP];
+	(void)state;
+	cfg.inputs.in[MLIP_IN_LIMIT_POS(0)] = (struct mlip_io_bit){1, 0, 0x60FD, 1, 0, 10};
+	cfg.inputs.in[MLIP_IN_LIMIT_NEG(1)] = (struct mlip_io_bit){2, 0, 0x60FD, 0, 0, 11};
+	cfg.inputs.mapped = 1u << MLIP_IN_LIMIT_POS(0) | 1u << MLIP_IN_LIMIT_NEG(1);
+	for (int i = 0; i < 2; i++) {
+		static const struct {
+			uint16_t i;
+			uint8_t s, n;
+		} objs[] = {{0x1802, 1, 4}, {0x1802, 2, 1}, {0x1802, 5, 2},
+		            {0x1A02, 0, 1}, {0x1A02, 1, 4}, {0x60FD, 0, 4}};
+		for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
+			od_add(&peers[i], objs[k].i, objs[k].s, objs[k].n, 0);
+		}
+	}
+	od_find(&peers[1], 0x60FD, 0)->value = 0x00010001u; /* Y- on at power-up, a mfr bit */
+	assert_int_equal(mlip_drives_di_axes(&cfg), 3u);
+	loop_setup(start);
+	for (int i = 0; i < 2; i++) {
+		struct peer *p = &peers[i];
+		assert_int_equal(od_find(p, 0x1802, 1)->value, 0x40000380u + p->node);
+		assert_int_equal(od_find(p, 0x1802, 2)->value, 255);
+		assert_int_equal(od_find(p, 0x1802, 5)->value, 100);
+		assert_int_equal(od_find(p, 0x1A02, 0)->value, 1);
+		assert_int_equal(od_find(p, 0x1A02, 1)->value, 0x60FD0020u);
+	}
+	uint32_t v = 0;
+	assert_int_equal(writes_of(&peers[2], 0x1802, 1, &v), 0); /* Z: no switches on it */
+	assert_non_null(strstr(logbuf, "node 2 (axis Y): digital inputs 0x60FD = 0x00010001"));
+	uint32_t ids[MLIP_CANBUS_MAX_IDS];
+	int n = mlip_drives_rx_ids(&cfg.machine, 0, 0, 0, 3u, ids, MLIP_CANBUS_MAX_IDS);
+	assert_int_equal(n, 14);
+	assert_int_equal(ids[4], 0x381u);
+	assert_int_equal(ids[9], 0x382u);
+	di_send = 3u;
+	di_val[1] = 0x00010001u;
+	period();
+	const struct mlip_ring_status *st = &ctl.out.status;
+	uint32_t xpos = 1u << MLIP_IN_LIMIT_POS(0), yneg = 1u << MLIP_IN_LIMIT_NEG(1);
+	assert_int_equal(st->io_known, xpos | yneg);
+	assert_int_equal(st->io_inputs, yneg); /* from the SDO read: at rest, no stop */
+	for (int k = 0; k < 150; k++) {
+		period();
+	}
+	di_val[1] = 0;
+	di_val[0] = 0x2u;
+	/* a TPDO3 read in this period: its input in this period's status */
+	struct mlip_can_frame f;
+	memset(&f, 0, sizeof(f));
+	f.id = 0x381;
+	f.len = 4;
+	f.data[0] = 0x2;
+	push(&f);
+	period();
+	assert_int_equal(st->io_inputs & xpos, xpos);
+	uint64_t bad = ds.rx_malformed;
+	f.len = 3;
+	f.data[0] = 0x0; /* garbled: would release it */
+	push(&f);
+	period();
+	assert_int_equal(ds.rx_malformed, bad + 1);
+	assert_int_equal(st->io_inputs & xpos, xpos);
+	assert_int_equal(__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE), 0);
+	/* Y's drive stops sending its inputs */
+	di_send = 1u;
+	uint64_t last = ds.d[1].obs.di_ns;
+	int k;
+	for (k = 0; k < 1000 && !__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE); k++) {
+		period();
+	}
+	assert_int_equal(ds.fault_reason, MLIP_DRIVE_INPUTS_LOST);
+	assert_int_equal(ds.fault_drive, 1);
+	assert_true(now_ns - last > 300000000u && now_ns - last <= 302000000u);
+	assert_int_equal(st->state, MLIP_STATE_FAULT);
+	assert_int_equal(st->reason, MLIP_WHY_DRIVE);
+	assert_int_equal(st->reason_node, 2);
+	assert_int_equal(st->reason_field, MLIP_DRIVE_INPUTS_LOST);
+	assert_int_equal(st->io_known, xpos); /* Y's limit: unknown now */
+	/* it still gets targets (the stop on the path): not muted */
+	uint16_t cw;
+	int32_t t;
+	assert_int_equal(rpdo_of(1, &cw, &t), 1);
+	free(mem);
+}
+
+/* A CiA 401 module as node 10 in peers[NP]: inputs byte 1 (bit 0: the
+ * E-stop circuit, closed), outputs byte 1, its default PDOs. */
+static void module_init(struct peer *p, int with_defaults)
+{
+	static const struct {
+		uint16_t i;
+		uint8_t s, n;
+		uint32_t v;
+	} objs[] = {
+	    {0x1000, 0, 4, 0x00030191u}, {0x1400, 1, 4, 0x20Au},      {0x1400, 2, 1, 255},
+	    {0x1600, 0, 1, 1},           {0x1600, 1, 4, 0x62000108u}, {0x1800, 1, 4, 0x18Au},
+	    {0x1800, 2, 1, 255},         {0x1A00, 0, 1, 1},           {0x1A00, 1, 4, 0x60000108u},
+	    {0x1017, 0, 2, 0},           {0x1016, 1, 4, 0},           {0x6000, 1, 1, 1}};
+	if (with_defaults) {
+		memset(p, 0, sizeof(*p));
+		p->node = 10;
+		p->present = 1;
+		p->nmt = MLIP_NMT_PREOPERATIONAL;
+		for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
+			od_add(p, objs[k].i, objs[k].s, objs[k].n, objs[k].v);
+		}
+		return;
+	}
+	for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
+		od_find(p, objs[k].i, objs[k].s)->value = objs[k].v; /* power-up defaults */
+	}
+}
+
+static int32_t post(mlip_ring_cmd_op op)
+{
+	uint32_t seq = 0;
+	int32_t res = 0;
+	assert_int_equal(mlip_ring_cmd_post(ctl.ring, op, 0, &seq), MLIP_OK);
+	period();
+	assert_int_equal(mlip_ring_cmd_result(ctl.ring, seq, &res), MLIP_OK);
+	return res;
+}
+
+/* The I/O module reboots (its boot-up message, then pre-operational with
+ * its default PDOs and no heartbeat consumer): an E-stop in that period,
+ * its inputs no longer trusted (unknown), no RPDO sent to it; at its next
+ * heartbeat mlip resets its communication, writes and reads back its
+ * set-up again, reads its inputs and starts it; then its inputs are known
+ * again, its outputs are sent (off) and mlip-ctl reset leaves the E-stop.
+ * An SDO refused during the reconfiguration fails it; it is tried again at
+ * the module's next heartbeat. */
+static void test_loop_module_reboot(void **state)
+{
+	double start[NP];
+	(void)state;
+	cfg.inputs.node = 10;
+	cfg.inputs.in_bytes = 1;
+	cfg.inputs.out_bytes = 1;
+	cfg.inputs.in[MLIP_IN_ESTOP] = (struct mlip_io_bit){10, 1, 0x6000, 0, 1, 10};
+	cfg.inputs.mapped = 1u << MLIP_IN_ESTOP;
+	cfg.inputs.out[MLIP_OUT_DOUT0] = (struct mlip_io_out){1, 0, 11};
+	cfg.inputs.out_mapped = 1u << MLIP_OUT_DOUT0;
+	module_init(&peers[NP], 1);
+	struct peer *mod = &peers[NP];
+	loop_setup(start);
+	keep_queue = 1;
+	const struct mlip_ring_status *st = &ctl.out.status;
+	uint32_t estop = 1u << MLIP_IN_ESTOP;
+	for (int k = 0; k < 120; k++) {
+		period();
+	}
+	assert_int_equal(st->state, MLIP_STATE_IDLE);
+	assert_int_equal(st->io_known & estop, estop);
+	assert_int_equal(st->io_inputs & estop, 0);
+	assert_true(n_module_out > 0);
+	assert_int_equal(od_find(mod, 0x1016, 1)->value, (127u << 16) | 300u);
+	/* it reboots: defaults, boot-up message, pre-operational */
+	module_init(mod, 0);
+	mod->nmt = MLIP_NMT_BOOTUP;
+	peer_hb(mod);
+	mod->nmt = MLIP_NMT_PREOPERATIONAL;
+	period();
+	assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	assert_int_equal(st->reason, MLIP_WHY_IO_LOST);
+	assert_int_equal(st->reason_node, 10);
+	assert_int_equal(st->reason_field, MLIP_DRIVE_NOT_OPERATIONAL);
+	assert_int_equal(st->io_known & estop, 0); /* not trusted */
+	int sent_before = n_module_out;
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_E_RANGE);
+	/* an SDO refused: the attempt fails, nothing is trusted */
+	mod->refuse_index = 0x1A00;
+	mod->refuse_code = 0x06010000u;
+	int k;
+	for (k = 0; k < 300 && ds.io.re.failed == 0; k++) {
+		period();
+	}
+	assert_int_equal(ds.io.re.failed, 1);
+	assert_int_equal(ds.io.re.fail_abort, 0x06010000u);
+	assert_int_equal(ds.io.re.fail_index, 0x1A00);
+	assert_int_equal(ds.io.lost, MLIP_DRIVE_NOT_OPERATIONAL);
+	assert_int_equal(st->io_known & estop, 0);
+	mod->refuse_index = 0;
+	mod->refuse_code = 0;
+	for (k = 0; k < 300 && ds.io.re.count == 0; k++) {
+		period();
+		if (ds.io.re.count == 0) {
+			assert_int_equal(n_module_out, sent_before); /* none to it meanwhile */
+			assert_int_equal(st->io_known & estop, 0);
+		}
+		assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	}
+	assert_int_equal(ds.io.re.count, 1);
+	/* configured again, as at bring-up: its PDO mapping and heartbeats */
+	assert_int_equal(mod->nmt, MLIP_NMT_OPERATIONAL);
+	assert_int_equal(od_find(mod, 0x1016, 1)->value, (127u << 16) | 300u);
+	assert_int_equal(od_find(mod, 0x1017, 0)->value, 100);
+	assert_int_equal(od_find(mod, 0x1800, 1)->value, 0x4000018Au);
+	assert_int_equal(od_find(mod, 0x1A00, 1)->value, 0x60000108u);
+	assert_int_equal(od_find(mod, 0x1600, 1)->value, 0x62000108u);
+	period();
+	assert_int_equal(st->io_known & estop, estop);
+	assert_int_equal(st->io_inputs & estop, 0);
+	/* its outputs at once, off */
+	assert_true(n_module_out > sent_before);
+	assert_int_equal(module_out.len, 1);
+	assert_int_equal(module_out.data[0], 0);
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_OK);
+	assert_int_equal(st->state, MLIP_STATE_IDLE);
+	free(mem);
+}
+
+static int32_t post_arg(mlip_ring_cmd_op op, int32_t arg)
+{
+	uint32_t seq = 0;
+	int32_t res = 0;
+	assert_int_equal(mlip_ring_cmd_post(ctl.ring, op, arg, &seq), MLIP_OK);
+	period();
+	assert_int_equal(mlip_ring_cmd_result(ctl.ring, seq, &res), MLIP_OK);
+	return res;
+}
+
+/* Through the master's hooks: X jogging toward +, its drive's 0x60FD bit 1
+ * comes in a TPDO3: quick stop to every drive in that period, fault naming
+ * node 1 and X limit +; an incremental jog away (renewed as mlip-ctl does)
+ * enables the drives again and runs its distance while the switch is
+ * still on. */
+static void drive_limit_jog_away(double period_s)
+{
+	double start[NP];
+	if (period_s != 0.001) { /* as the VM test: 40 ms, X at 200 mm/s^2 */
+		cfg.machine.period_s = period_s;
+		cfg.machine.tolerance_mm = 0.5;
+		cfg.machine.axis[0].max_accel = 200.0;
+	}
+	cfg.inputs.in[MLIP_IN_LIMIT_POS(0)] = (struct mlip_io_bit){1, 0, 0x60FD, 1, 0, 10};
+	cfg.inputs.mapped = 1u << MLIP_IN_LIMIT_POS(0);
+	static const struct {
+		uint16_t i;
+		uint8_t s, n;
+	} objs[] = {{0x1802, 1, 4}, {0x1802, 2, 1}, {0x1802, 5, 2},
+	            {0x1A02, 0, 1}, {0x1A02, 1, 4}, {0x60FD, 0, 4}};
+	for (size_t k = 0; k < sizeof(objs) / sizeof(objs[0]); k++) {
+		od_add(&peers[0], objs[k].i, objs[k].s, objs[k].n, 0);
+	}
+	loop_setup(start);
+	keep_queue = 1;
+	di_send = 1u;
+	qs_periods = 30;
+	const struct mlip_ring_status *st = &ctl.out.status;
+	int32_t jog = MLIP_JOG_ARG(0, 0, 6000);
+	int every = (int)(0.1 / cfg.machine.period_s + 0.5); /* mlip-ctl renews every 100 ms */
+	assert_int_equal(post_arg(MLIP_CMD_JOG, jog), MLIP_OK);
+	int n_jog = (int)(1.5 / cfg.machine.period_s); /* 1.5 s: at speed, far from the limit */
+	for (int k = 0; k < n_jog; k++) {
+		period();
+		if (k % every == 0 && post_arg(MLIP_CMD_JOG, jog) != MLIP_OK) {
+			fail_msg(
+			    "renewal refused at %d: state %u reason %u field %u node %u value %g",
+			    k, st->state, st->reason, st->reason_field, st->reason_node,
+			    st->reason_value);
+		}
+	}
+	assert_int_equal(st->state, MLIP_STATE_JOGGING);
+	assert_true(st->speed_mm_s > 99.0);
+	di_val[0] = 0x2u; /* the switch */
+	struct mlip_can_frame f;
+	memset(&f, 0, sizeof(f));
+	f.id = 0x381;
+	f.len = 4;
+	f.data[0] = 0x2;
+	push(&f);
+	period();
+	assert_int_equal(st->state, MLIP_STATE_FAULT);
+	assert_int_equal(st->reason, MLIP_WHY_LIMIT);
+	assert_int_equal(st->reason_node, 1);
+	assert_int_equal(st->reason_field, MLIP_IN_LIMIT_POS(0));
+	uint16_t cw;
+	int32_t t;
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(rpdo_of(i, &cw, &t), 1);
+		assert_int_equal(cw, 0x0002);
+	}
+	for (int k = 0; k < 2; k++) {
+		period();
+	}
+	assert_int_equal(peers[0].state, P_QS); /* still braking */
+	assert_int_equal(post_arg(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 1200)), MLIP_E_RANGE);
+	assert_int_equal(post_arg(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 1, 40000)), MLIP_OK);
+	int32_t away = MLIP_JOG_ARG(0, 1, 1200);
+	assert_int_equal(post_arg(MLIP_CMD_JOG, away), MLIP_OK);
+	int32_t x0 = 0;
+	for (int k = 0; k < 200 && x0 == 0; k++) { /* where it was when enabled */
+		if (peers[0].state == P_OE) {
+			x0 = peers[0].pos;
+		} else if (k % every == every - 1) {
+			assert_int_equal(post_arg(MLIP_CMD_JOG, away), MLIP_OK); /* a period too */
+		} else {
+			period();
+		}
+	}
+	int k;
+	for (k = 0; k < 10000 && (st->state == MLIP_STATE_JOGGING ||
+	                          st->drive_power != MLIP_POWER_OFF); /* disabled at rest */
+	     k++) {
+		period();
+		if (k % every == every - 1 && st->state == MLIP_STATE_JOGGING) {
+			int32_t r = post_arg(MLIP_CMD_JOG, away);
+			if (r != MLIP_OK) {
+				fail_msg(
+				    "renewal %d refused (%d): state %u reason %u, X %d counts, "
+				    "power %u",
+				    k, r, st->state, st->reason, peers[0].pos, st->drive_power);
+			}
+		}
+	}
+	if (st->state != MLIP_STATE_IDLE || st->reason != MLIP_WHY_JOG_DONE ||
+	    peers[0].pos != x0 - 40000) {
+		fail_msg("state %u reason %u, X %d counts (from %d), setpoint %.4f, power %u",
+		         st->state, st->reason, peers[0].pos, x0, st->pos[0], st->drive_power);
+	}
+	free(mem);
+}
+
+static void test_loop_drive_limit_jog_away(void **state)
+{
+	(void)state;
+	drive_limit_jog_away(0.001);
+}
+
+/* The same at the VM tests' 40 ms period (the dead-man is 6 periods there,
+ * the renewals every 2 or 3). */
+static void test_loop_drive_limit_jog_away_40ms(void **state)
+{
+	(void)state;
+	drive_limit_jog_away(0.04);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1065,6 +1480,10 @@ int main(void)
 	    cmocka_unit_test_setup(test_never_enabled, setup),
 	    cmocka_unit_test_setup(test_beyond_limit, setup),
 	    cmocka_unit_test_setup(test_loop_shutdown, setup),
+	    cmocka_unit_test_setup(test_loop_drive_inputs, setup),
+	    cmocka_unit_test_setup(test_loop_module_reboot, setup),
+	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away, setup),
+	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away_40ms, setup),
 	    cmocka_unit_test_setup(test_loop_fault_bit, setup),
 	    cmocka_unit_test_setup(test_loop_following_error, setup),
 	    cmocka_unit_test_setup(test_loop_heartbeat_and_emcy, setup),

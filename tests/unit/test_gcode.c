@@ -301,8 +301,7 @@ static void test_unsupported_codes(void **state)
 	check_err("G1 X1 F10 M98 P100", 1, 11, "unsupported M code M98");
 	check_err("G1 X1 F10 M62.1", 1, 11, "unsupported M code M62.1");
 	check_err("G1 X1 F10 M66 P1", 1, 11, "unsupported M code M66: a wait for an input");
-	check_err("G1 X1 F10 M62 P1", 1, 11,
-	          "unsupported M code M62: a digital output synchronized with motion");
+	check_err("G1 X1 F10 M67 E1", 1, 11, "unsupported M code M67: a wait for an input");
 	check_err("M70\nG1 X1 F10", 1, 1, "unsupported M code M70: saving and restoring");
 	check_err("M200\nG1 X1 F10", 1, 1, "unsupported M code M200");
 	check_err("M99\nG1 X1 F10", 1, 1, "unsupported M code M99: subprogram calls");

@@ -6,7 +6,9 @@
  * report.c's refresh counts, settings, the error codes the reader's messages
  * map to; a stream gives the records mlip-feed gives for the same program
  * (smooth included), a refused line changes nothing, a long arc comes out in
- * parts equal to the whole, M2 ends the program with Grbl's modal reset.
+ * parts equal to the whole, M2 ends the program with Grbl's modal reset;
+ * the controller's spindle and the homing settings as reports show them; the
+ * server's reset against a controller whose status lags its ring.
  */
 #include <math.h>
 #include <setjmp.h>
@@ -19,12 +21,15 @@
 
 #include <cmocka.h>
 
+#include "mlip/canopen/spindle.h"
 #include "mlip/ctl/state.h"
+#include "mlip/ipc/ring.h"
 #include "mlip/machine/config.h"
 
 #include "../../tools/lib/blockiter.h"
 #include "../../tools/lib/grbl.h"
 #include "../../tools/lib/grblmach.h"
+#include "../../tools/lib/grblsrv.h"
 #include "../../tools/lib/grblstream.h"
 #include "../../tools/lib/program.h"
 
@@ -282,7 +287,7 @@ static void test_settings_and_params(void **state)
 	struct grbl_fmt fmt = {1, 0};
 	char b[GRBL_MSG_BYTES];
 	int n = 0, found = 0;
-	for (; grbl_setting_line(b, sizeof b, &m, &fmt, n) > 0; n++) {
+	for (; grbl_setting_line(b, sizeof b, &m, &fmt, NULL, n) > 0; n++) {
 		found += strcmp(b, "$11=0.010") == 0 || strcmp(b, "$110=12000.000") == 0 ||
 		         strcmp(b, "$122=1000.000") == 0 || strcmp(b, "$132=2000.000") == 0 ||
 		         strcmp(b, "$100=1000.000") == 0;
@@ -295,9 +300,14 @@ static void test_settings_and_params(void **state)
 	assert_string_equal(b, "[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]");
 	struct grbl_axes ax;
 	grbl_axes_of(&m, &ax);
-	grbl_param_line(b, sizeof b, &g.off, &ax, &fmt, 10);
+	grbl_param_line(b, sizeof b, &g.off, 0.0, &ax, &fmt, 10);
 	assert_string_equal(b, "[PRB:0.000,0.000,0.000:0]");
-	assert_int_equal(grbl_param_line(b, sizeof b, &g.off, &ax, &fmt, 11), 0);
+	assert_int_equal(grbl_param_line(b, sizeof b, &g.off, 0.0, &ax, &fmt, 11), 0);
+	grbl_param_line(b, sizeof b, &g.off, 38.1, &ax, &fmt, 9);
+	assert_string_equal(b, "[TLO:38.100]");
+	double wco[MLIP_MAX_AXES];
+	grbl_wco(&g.off, 3, 2, 38.1, wco);
+	assert_true(wco[0] == 0.0 && wco[2] == 38.1);
 	assert_int_equal(grbl_override_step(GRBL_RT_FEED_PLUS_10, 195), 200);
 	assert_int_equal(grbl_override_step(GRBL_RT_FEED_MINUS_1, 10), 10);
 	assert_int_equal(grbl_override_step(GRBL_RT_RAPID_25, 100), 25);
@@ -570,6 +580,92 @@ static void test_accessory_tracking(void **state)
 	assert_int_equal(a.coolant, MLIP_COOLANT_FLOOD);
 }
 
+/* The controller's spindle (status layout 10) as A:, FS and Ov take it:
+ * only values the controller can publish; the override bytes step within
+ * its 50..200 %. */
+static void test_bus_spindle(void **state)
+{
+	(void)state;
+	double rpm = 1;
+	int ov = 0;
+	char b[8];
+	assert_int_equal(grbl_spindle_of(MLIP_SPINDLE_AT_SPEED + 1, -6600, 110, 24000, &rpm, &ov),
+	                 0);
+	assert_true(rpm == -6600 && ov == 110);
+	grbl_accessories(b, sizeof b, rpm, 0);
+	assert_string_equal(b, "C");
+	assert_int_equal(grbl_spindle_of(MLIP_SPINDLE_STOPPED + 1, 0, 100, 24000, &rpm, &ov), 0);
+	assert_true(rpm == 0 && ov == 100);
+	/* refused, nothing taken: no phase, a phase beyond FAULT, a speed
+	 * beyond MAX_RPM or not a number, an override outside 50..200 */
+	rpm = 7;
+	ov = 7;
+	assert_int_equal(grbl_spindle_of(0, 0, 100, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(MLIP_SPINDLE_FAULT + 2, 0, 100, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(3, 24000.1, 100, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(3, NAN, 100, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(3, 1000, 49, 24000, &rpm, &ov), -1);
+	assert_int_equal(grbl_spindle_of(3, 1000, 201, 24000, &rpm, &ov), -1);
+	assert_true(rpm == 7 && ov == 7);
+	/* commands.md: 0x99 100 %, 0x9A +10, 0x9B -10, 0x9C +1, 0x9D -1 */
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9A), 100), 110);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9B), 100), 90);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9C), 100), 101);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9D), 100), 99);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x99), 170), 100);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9B), 55), 50); /* not Grbl's 10 */
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9D), 50), 50);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x9A), 195), 200);
+	assert_int_equal(grbl_spindle_ov_step(grbl_rt_of(0x91), 120), 120); /* a feed byte */
+}
+
+/* $21..$25 from the machine: homing directions from the CiA 402 methods,
+ * the slowest axis' speeds, listed only where homing is configured. */
+static void test_homing_settings(void **state)
+{
+	(void)state;
+	static struct mlip_config c;
+	memset(&c, 0, sizeof c);
+	c.machine = machine();
+	assert_int_equal(grbl_home_negative(17), 1); /* negative limit switch */
+	assert_int_equal(grbl_home_negative(18), 0);
+	assert_int_equal(grbl_home_negative(1), 1);
+	assert_int_equal(grbl_home_negative(21), 1); /* negative home switch */
+	assert_int_equal(grbl_home_negative(19), 0);
+	assert_int_equal(grbl_home_negative(27), 1);
+	assert_int_equal(grbl_home_negative(33), 1);
+	assert_int_equal(grbl_home_negative(34), 0);
+	assert_int_equal(grbl_home_negative(35), -1); /* the current position */
+	assert_int_equal(grbl_home_negative(37), -1);
+	struct grbl_homing h;
+	grbl_homing_of(&c, &h);
+	assert_false(h.enabled);
+	c.home.axis[0] = (struct mlip_axis_home){1, 17, 10, 1, 100, 0, 1, 60};
+	c.home.axis[2] = (struct mlip_axis_home){1, 18, 5, 2, 100, 0, 0, 60};
+	grbl_homing_of(&c, &h);
+	assert_true(h.enabled && h.dir_mask == 1);
+	assert_true(h.feed_mm_min == 60.0 && h.seek_mm_min == 300.0);
+	h.hard_limits = 1;
+	struct grbl_fmt fmt = {1, 0};
+	char b[GRBL_MSG_BYTES];
+	const char *want[] = {"$21=1",      "$22=1",       "$23=1",
+	                      "$24=60.000", "$25=300.000", "$100=1000.000"};
+	int n = 0, at = 0;
+	for (; grbl_setting_line(b, sizeof b, &c.machine, &fmt, &h, n) > 0; n++) {
+		if (at < 6 && strcmp(b, want[at]) == 0) {
+			at++;
+		}
+	}
+	assert_int_equal(at, 6);
+	assert_int_equal(n, 10 + 4 * 3);
+	/* a --config that is not the controller's machine */
+	struct mlip_machine m2 = c.machine;
+	assert_false(grbl_machine_differs(&c.machine, &m2, b, sizeof b));
+	m2.axis[1].max_accel = 999;
+	assert_true(grbl_machine_differs(&c.machine, &m2, b, sizeof b));
+	assert_non_null(strstr(b, "axis 1"));
+}
+
 /* $G shows the parser's spindle, coolant, tool and speed (report.c: M7 and
  * M8 both when both are on). */
 static void test_gcode_state_io(void **state)
@@ -585,6 +681,90 @@ static void test_gcode_state_io(void **state)
 	g.tool_sel = 2;
 	grbl_gcode_state(b, sizeof b, &g, -1);
 	assert_string_equal(b, "[GC:G0 G54 G17 G21 G90 G94 M4 M7 M8 T2 F0 S9000]");
+}
+
+/* ---- the server's parts (tools/lib/grblsrv.h) on a ring in memory, the
+ * controller played by the test: what a reset (0x18) does when the
+ * controller has taken the queued records but its last status still says
+ * idle (it publishes its status at the end of the period that took them) */
+
+/* mlip-grbl.c's lock on the segment (rt/): the test owns the ring */
+static int take_producer(void)
+{
+	return 0;
+}
+
+#define CAP 64
+static unsigned char mem[1 << 16] MLIP_RING_ALIGNED;
+
+static void serve(void)
+{
+	struct mlip_machine m = machine();
+	double home[MLIP_MAX_AXES] = {0};
+	memset(&S, 0, sizeof S);
+	assert_true(mlip_ring_bytes(CAP) <= sizeof mem);
+	assert_int_equal(mlip_ring_format_machine(mem, sizeof mem, CAP, &m), MLIP_OK);
+	S.r = (struct mlip_ring *)mem;
+	S.m = m;
+	S.shm_name = "/test";
+	S.take_producer = take_producer;
+	S.ov_feed = S.ov_rapid = S.ov_spindle = 100;
+	S.ov_post = S.sp_post = -1;
+	assert_int_equal(mlip_ring_port_open(&S.tx, S.r, 1), MLIP_OK);
+	S.port_open = S.locked = 1;
+	grbl_stream_init(&S.st, &m, home, NULL);
+	S.cs.state = MLIP_STATE_IDLE;
+	S.cs.heartbeat = 100;
+	S.cs_ok = 1;
+}
+
+/* A line is queued (its program open: the sender sends on); the controller
+ * takes its records (pre-read) and, before its status says so, the sender
+ * resets: the reset must stop what the controller holds (the stop counter)
+ * and end its program (an END), or the controller pre-reads it for ever
+ * (Run until the sender gives up: the race seen in test_grbl.py's
+ * test_jog_moves_without_touching_the_modal_state). */
+static void test_reset_stops_records_the_status_does_not_show_yet(void **state)
+{
+	(void)state;
+	struct mlip_gcode_error e;
+	struct mlip_ring_rec rec;
+	serve();
+	assert_int_equal(grbl_stream_line(&S.st, "G1 X100 F600", 12, 1, &e), 1);
+	push_records();
+	uint32_t queued = mlip_ring_count(S.r);
+	assert_true(queued > 0);
+	for (uint32_t k = 0; k < queued; k++) {
+		assert_int_equal(mlip_ring_pop(S.r, &rec), MLIP_OK); /* the controller's period */
+	}
+	uint32_t stops = mlip_ring_stop_count(S.r);
+	soft_reset();
+	assert_int_equal(mlip_ring_stop_count(S.r), stops + 1);
+	assert_true(S.reset_wait); /* the welcome once the controller is at rest */
+	assert_int_equal(mlip_ring_pop(S.r, &rec), MLIP_OK);
+	assert_int_equal(rec.type, MLIP_REC_END);
+}
+
+/* Once a status of a later period says idle with nothing queued, the
+ * machine is at rest: a reset then posts no stop and welcomes at once. */
+static void test_reset_of_an_idle_machine_posts_nothing(void **state)
+{
+	(void)state;
+	struct mlip_gcode_error e;
+	struct mlip_ring_rec rec;
+	serve();
+	assert_int_equal(grbl_stream_line(&S.st, "G1 X1 F600", 10, 1, &e), 1);
+	assert_int_equal(grbl_stream_end(&S.st), 1);
+	push_records();
+	while (mlip_ring_pop(S.r, &rec) == MLIP_OK) {
+	}
+	S.cs.heartbeat += 2; /* run and ended: its status is from after the push */
+	S.program_live = 0;
+	uint32_t stops = mlip_ring_stop_count(S.r);
+	soft_reset();
+	assert_int_equal(mlip_ring_stop_count(S.r), stops);
+	assert_false(S.reset_wait);
+	assert_int_equal(mlip_ring_count(S.r), 0);
 }
 
 int main(void)
@@ -604,6 +784,10 @@ int main(void)
 	    cmocka_unit_test(test_pins),
 	    cmocka_unit_test(test_accessories_and_alarms),
 	    cmocka_unit_test(test_accessory_tracking),
+	    cmocka_unit_test(test_bus_spindle),
+	    cmocka_unit_test(test_homing_settings),
+	    cmocka_unit_test(test_reset_stops_records_the_status_does_not_show_yet),
+	    cmocka_unit_test(test_reset_of_an_idle_machine_posts_nothing),
 	    cmocka_unit_test(test_gcode_state_io),
 	};
 	return cmocka_run_group_tests_name("grbl", tests, NULL, NULL);

@@ -111,8 +111,13 @@ static void test_outputs_words(void **state)
 	expect_err(&io, "G1 X1 F100\nM64\n", 2, 1, "M64 without P");
 	expect_err(&io, "G1 X1 F100\nM64 P8\n", 2, 5, "a whole number 0..7");
 	expect_err(&io, "G1 X1 F100\nM64 P0.5\n", 2, 5, "a whole number 0..7");
-	expect_err(&io, "G1 X1 F100\nM62 P0\n", 2, 1, "synchronized with motion");
-	expect_err(&io, "G1 X1 F100\nM63 P0\n", 2, 1, "synchronized with motion");
+	/* M62/M63: with the next move, an OUTPUT beyond MLIP_DOUT_SYNC */
+	expect_ok(&io, "G1 X1 F100\nM62 P0\nG1 X2\nM63 P3\nG1 X3\nM2\n", r);
+	events(r, ev, sizeof ev);
+	assert_string_equal(ev, "m O+17 m O-20 m");
+	expect_err(&io, "G1 X1 F100\nM62 P1\n", 2, 5,
+	           "digital output 1 is not mapped ([IO] OUTPUT_1)");
+	expect_err(&io, "G1 X1 F100\nM63\n", 2, 1, "M63 without P");
 	expect_err(&io, "G1 X1 F100\nM7\n", 2, 1, "no mist outlet ([COOLANT] MIST is not mapped)");
 	io.coolant_outlets = MLIP_COOLANT_MIST;
 	expect_err(&io, "G1 X1 F100\nM8\n", 2, 1, "no flood outlet");
@@ -231,6 +236,14 @@ static void test_config_outputs(void **state)
 	cfg_err("[COOLANT]\nTYPE = manual\nMIST = 10 0x6200:1 0\n", 19, 1,
 	        "switches coolant only with [COOLANT] TYPE = io");
 	cfg_err("[COOLANT]\nTYPE = pump\n", 18, 8, "must be none, manual or io");
+	/* [PROBE] SOURCE: the module's input (default) or the drives' touch probe */
+	assert_int_equal(parse_cfg("", &c, &e), MLIP_OK);
+	assert_int_equal(c.inputs.probe_source, MLIP_PROBE_SRC_IO);
+	assert_int_equal(parse_cfg("[PROBE]\nSOURCE = drive\n", &c, &e), MLIP_OK);
+	assert_int_equal(c.inputs.probe_source, MLIP_PROBE_SRC_DRIVE);
+	assert_int_equal(c.io.probe, 1);
+	cfg_err("[PROBE]\nSOURCE = laser\n", 18, 10, "SOURCE must be io");
+	cfg_err("[PROBE]\nEDGE = 1\n", 18, 1, "unknown key EDGE in [PROBE]");
 }
 
 /* ---- the controller on the virtual clock ------------------------------------- */
@@ -257,6 +270,21 @@ static int surface_away; /* the input is on below the surface (G38.4/.5) */
 /* every setpoint since the last reset, for the acceleration check */
 static double trace_x[20000], trace_y[20000];
 static int n_trace;
+/* [PROBE] SOURCE = drive: two drives with touch probe 1 wired to the probe
+ * that touches surface_x, modelled with CiA 402's timing: the RPDO of
+ * period j (0x60B8, target) applied at the SYNC of period j + 1, the TPDOs
+ * of that SYNC sampled before it; each drive moves linearly from one target
+ * to the next between SYNCs and latches where it is at the instant X
+ * crosses the surface (not a position of a SYNC) */
+static int feeder_mdi;       /* the records are MDI lines (mlip-ctl mdi) */
+static uint32_t feeder_base; /* the stop counter when the feeder began */
+static int tp_model;
+static int tp_deaf;             /* the drives never answer (a timeout) */
+static int tp_edge_at_arm;      /* the probe switches as the latch is switched on */
+static uint16_t fn_hist[20000]; /* 0x60B8 sent in each period */
+static uint16_t tp_fn, tp_st;   /* in force, status */
+static double tp_lat[2];        /* latched (the edge the function enables) */
+static uint32_t tp_latches;
 
 static int setup(void **state)
 {
@@ -303,7 +331,63 @@ static int setup(void **state)
 	surface_x = NAN;
 	surface_away = 0;
 	n_trace = 0;
+	tp_model = tp_deaf = tp_edge_at_arm = 0;
+	feeder_mdi = 0;
+	tp_fn = tp_st = 0;
+	tp_latches = 0;
 	return 0;
+}
+
+/* The drives' touch probe instead of the module's input. */
+static void use_drive_probe(void)
+{
+	io_cfg.probe_source = MLIP_PROBE_SRC_DRIVE;
+	io_cfg.mapped &= ~BIT(MLIP_IN_PROBE);
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .io = &io_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	io_in.known = io_cfg.mapped;
+	tp_model = 1;
+}
+
+/* Before period q: the TPDOs answering the SYNC of period q - 1, which
+ * applied the RPDO of period q - 3 at the SYNC of q - 2 and moved to it. */
+static void tp_drives(uint64_t q, struct mlip_ctl_in *in)
+{
+	for (int k = 0; k < 2; k++) {
+		in->drives.tpdo_period[k] = UINT64_MAX;
+		in->drives.tp_latch_period[k] = UINT64_MAX;
+	}
+	if (q < 4 || tp_deaf) {
+		return;
+	}
+	uint16_t fn = fn_hist[q - 3];
+	if (!(fn & 1u)) {
+		tp_st = 0;
+	} else if (!(tp_fn & 1u)) {
+		tp_st = tp_edge_at_arm ? 3 : 1; /* switched on: armed, nothing stored */
+	}
+	tp_fn = fn;
+	/* the move from the target of q - 4 to that of q - 3 */
+	double a[2] = {trace_x[q - 4], trace_y[q - 4]}, b[2] = {trace_x[q - 3], trace_y[q - 3]};
+	if (!isnan(surface_x) && (a[0] < surface_x) != (b[0] < surface_x) && b[0] != a[0]) {
+		int positive = (b[0] >= surface_x) != surface_away; /* the probe goes on */
+		uint16_t edge = positive ? 0x10 : 0x20, stored = positive ? 2 : 4;
+		if ((fn & 1u) && (fn & edge) && !(tp_st & stored)) {
+			double f = (surface_x - a[0]) / (b[0] - a[0]);
+			for (int k = 0; k < 2; k++) {
+				tp_lat[k] = a[k] + f * (b[k] - a[k]);
+			}
+			tp_st |= stored;
+			tp_latches++;
+		}
+	}
+	for (int k = 0; k < 2; k++) {
+		in->drives.tpdo_period[k] = q - 1;
+		in->drives.tp_latch_period[k] = q - 1;
+		in->drives.tp_status[k] = tp_st;
+		in->drives.tp_pos[k] = tp_lat[k];
+		in->drives.tp_neg[k] = tp_lat[k];
+	}
 }
 
 static int teardown(void **state)
@@ -316,9 +400,14 @@ static int teardown(void **state)
 static void tick(int n)
 {
 	for (int i = 0; i < n; i++) {
-		struct mlip_ctl_in in = {
-		    .period = period++, .feeder_alive = 1, .stop_requests = stop_count};
-		if (!isnan(surface_x)) {
+		struct mlip_ctl_in in = {.period = period++,
+		                         .feeder_alive = 1,
+		                         .stop_requests = stop_count,
+		                         .feeder_mdi = feeder_mdi,
+		                         .feeder_stop_base = feeder_base};
+		if (tp_model) {
+			tp_drives(in.period, &in);
+		} else if (!isnan(surface_x)) {
 			int past = out.pos[0] >= surface_x;
 			io_in.active = (io_in.active & ~BIT(MLIP_IN_PROBE)) |
 			               (past != surface_away ? BIT(MLIP_IN_PROBE) : 0u);
@@ -330,6 +419,7 @@ static void tick(int n)
 		mlip_ctl_period(&ctl, &in, &out);
 		assert_int_equal(mlip_ring_port_pop_n(&rx, out.taken), MLIP_OK);
 		if (n_trace < 20000) {
+			fn_hist[n_trace] = ctl.mio.tp_fn; /* what the RPDOs carry (out.frames) */
 			trace_x[n_trace] = out.pos[0];
 			trace_y[n_trace++] = out.pos[1];
 		}
@@ -462,6 +552,85 @@ static void test_outputs_off_on_fault_and_estop(void **st)
 	tick(1);
 	assert_int_equal(out.status.state, MLIP_STATE_ESTOP);
 	assert_int_equal(out.outputs[0], 0);
+}
+
+/* MDI lines (mlip-ctl mdi: the feeder says so): M8 and M64 P0 stay on when
+ * the lines are done (LinuxCNC: until M9/M65, a program's end, a stop); the
+ * next MDI M9 switches the coolant off; a stop at rest switches everything
+ * off; a program's end (not MDI) too. */
+static void test_mdi_outputs_stay_on(void **st)
+{
+	(void)st;
+	feeder_mdi = 1;
+	push_block(1, MLIP_BLOCK_COOLANT, 0, 0, 0, MLIP_COOLANT_FLOOD);
+	push_block(2, MLIP_BLOCK_OUTPUT, 0, 0, 0, 1);
+	end(3);
+	tick(1);
+	until(MLIP_STATE_IDLE, 100);
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	tick(10);
+	assert_int_equal(out.status.coolant, MLIP_COOLANT_FLOOD);
+	assert_int_equal(out.outputs[0], 0x06);        /* flood (bit 1) and P0 (bit 2) */
+	push_block(1, MLIP_BLOCK_COOLANT, 0, 0, 0, 0); /* M9 */
+	end(2);
+	tick(1);
+	until(MLIP_STATE_IDLE, 100);
+	tick(2);
+	assert_int_equal(out.status.coolant, 0);
+	assert_int_equal(out.outputs[0], 0x04); /* P0 stays */
+	stop_count++;
+	tick(2);
+	assert_int_equal(out.outputs[0], 0); /* a stop: everything off */
+	push_block(1, MLIP_BLOCK_COOLANT, 0, 0, 0, MLIP_COOLANT_FLOOD);
+	end(2);
+	feeder_mdi = 0; /* a program, begun after the stop */
+	feeder_base = stop_count;
+	tick(1);
+	until(MLIP_STATE_IDLE, 100);
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	assert_int_equal(out.outputs[0], 0);
+	assert_int_equal(out.status.coolant, 0);
+}
+
+/* M62 P0 between two moves with a stop between them, M63 P3 between two
+ * moves through a corner: each output switches in the period whose
+ * setpoint is the first of the move after it (not at rest before it). */
+static void test_sync_outputs_with_the_next_move(void **st)
+{
+	(void)st;
+	push_block(1, MLIP_BLOCK_MOVE, 5, 0, 50, 0);
+	push_block(2, MLIP_BLOCK_OUTPUT, 0, 0, 0, 1 + MLIP_DOUT_SYNC); /* M62 P0 */
+	push_block(3, MLIP_BLOCK_MOVE, 5, 5, 50, 0);
+	push_block(4, MLIP_BLOCK_OUTPUT, 0, 0, 0, -(1 + MLIP_DOUT_SYNC)); /* M63 P0 */
+	push_block(5, MLIP_BLOCK_MOVE, 10, 5, 50, 0);
+	end(6);
+	int on = -1, off = -1, y_moves = -1, x_moves = -1, idle = -1;
+	for (int i = 0; i < 5000 && idle < 0; i++) {
+		tick(1);
+		if (y_moves < 0 && out.pos[1] > 0.0) {
+			y_moves = i; /* the first setpoint with block 3's motion in it */
+		}
+		if (x_moves < 0 && out.pos[0] > 5.0) {
+			x_moves = i; /* ... block 5's */
+		}
+		if (on < 0 && (out.outputs[0] & 0x04)) {
+			on = i;
+		}
+		if (on >= 0 && off < 0 && !(out.outputs[0] & 0x04)) {
+			off = i;
+		}
+		if (out.status.state == MLIP_STATE_IDLE && out.status.reason == MLIP_WHY_END) {
+			idle = i;
+		}
+	}
+	print_message("[machio] M62 P0: on in period %d (block 3's first setpoint: %d), M63 P0 "
+	              "off in %d (block 5's first: %d), end %d\n",
+	              on, y_moves, off, x_moves, idle);
+	/* through the corners (blended, never at rest): in the period of the
+	 * first setpoint with the next block's motion in it */
+	assert_int_equal(on, y_moves);
+	assert_int_equal(off, x_moves);
+	assert_true(off < idle);
 }
 
 /* The largest |second difference| / T^2 of X and Y over the trace. */
@@ -621,6 +790,109 @@ static void test_probe_stopped(void **st)
 	assert_true(max_accel(0) <= 1000.0 * (1 + 1e-6));
 }
 
+/* [PROBE] SOURCE = drive: G38.2 along X and Y toward (20, 2) at 600
+ * mm/min, the surface at X = 7.3: the result is the position each drive
+ * latched at the instant of the trip (X exactly on the surface, Y where the
+ * line is there), not a setpoint of the 1 ms grid nor where the machine
+ * came to rest (stopped on the path at the acceleration limit); the latch
+ * is switched off, then on before the move, and off after it. */
+static void test_drive_probe_latched_position(void **st)
+{
+	(void)st;
+	use_drive_probe();
+	double v = 10.0, A = 1000.0, s = 7.3;
+	surface_x = s;
+	push_block(1, MLIP_BLOCK_MOVE, 0, 0, 100, 0);
+	push_block(2, MLIP_BLOCK_PROBE, 20, 2, v, MLIP_PROBE_MUST_TRIP);
+	push_block(3, MLIP_BLOCK_MOVE, 0, 0, 100, 0);
+	end(4);
+	int trip_at = -1, armed_at = -1, moved_at = -1;
+	double rest[2] = {NAN, NAN};
+	for (int i = 0; i < 20000; i++) {
+		tick(1);
+		if (armed_at < 0 && ctl.mio.tp_fn != 0) {
+			armed_at = n_trace - 1;
+		}
+		if (armed_at >= 0 && moved_at < 0 && out.pos[0] != 0.0) {
+			moved_at = n_trace - 1;
+		}
+		if (trip_at < 0 && out.status.probe_count == 1) {
+			trip_at = i;
+			rest[0] = out.pos[0];
+			rest[1] = out.pos[1];
+			assert_int_equal(ctl.mio.tp_fn, 0); /* off again at its end */
+		}
+		if (out.status.state == MLIP_STATE_IDLE && out.status.reason == MLIP_WHY_END) {
+			break;
+		}
+	}
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	assert_int_equal(fn_hist[armed_at], 0x0011); /* on, first event, positive edge */
+	/* the move began only once both drives reported the latch on */
+	assert_true(moved_at >= armed_at + 3);
+	assert_int_equal(tp_latches, 1);
+	assert_int_equal(out.status.probe_tripped, 1);
+	assert_int_equal(ctl.mio.result.latched, 3u);
+	double x = out.status.probe_pos[0], y = out.status.probe_pos[1];
+	assert_true(fabs(x - s) <= 1e-9);              /* the latch, exactly */
+	assert_true(fabs(y - s * 2.0 / 20.0) <= 1e-9); /* the same instant on Y */
+	int on_grid = 0;
+	for (int i = 0; i < n_trace; i++) {
+		on_grid |= trace_x[i] == x;
+	}
+	assert_false(on_grid); /* between two setpoints */
+	double d = hypot(rest[0] - x, rest[1] - y);
+	/* at rest past the latch: the drives reported it 3 periods on, then
+	 * braking at the acceleration limit on the path */
+	assert_true(rest[0] > x && d <= v * v / (2 * A) + 4 * v * 1e-3 + 1e-9);
+	assert_true(max_accel(0) <= A * (1 + 1e-6) * sqrt(2.0));
+	print_message("[machio] drive probe: surface X %.4f, latched (%.6f, %.6f), rest (%.6f, "
+	              "%.6f), %.1f um past it\n",
+	              s, x, y, rest[0], rest[1], d * 1e3);
+}
+
+/* The drives' touch probe: G38.3 without a trip goes on (#5070 = 0), G38.2
+ * errs; an edge stored while armed at rest is "tripped at the start"; drives
+ * that never report the latch on: "no probe input" after the timeout,
+ * nothing moved. */
+static void test_drive_probe_errors(void **st)
+{
+	(void)st;
+	use_drive_probe();
+	push_block(1, MLIP_BLOCK_PROBE, 2, 0, 10, 0);
+	end(2);
+	until(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	assert_int_equal(out.status.probe_tripped, 0);
+	assert_true(out.status.probe_pos[0] == 2.0);
+	push_block(1, MLIP_BLOCK_PROBE, 3, 0, 10, MLIP_PROBE_MUST_TRIP);
+	end(2);
+	until(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(out.status.reason, MLIP_WHY_PROBE_NO_TRIP);
+	teardown(NULL);
+	setup(NULL);
+	use_drive_probe();
+	tp_deaf = 1;
+	push_block(1, MLIP_BLOCK_PROBE, 2, 0, 10, MLIP_PROBE_MUST_TRIP);
+	end(2);
+	int n = until(MLIP_STATE_IDLE, 2000);
+	assert_int_equal(out.status.reason, MLIP_WHY_PROBE_INPUT);
+	assert_true(n > 500 && n < 520);
+	assert_true(out.pos[0] == 0.0);
+	assert_int_equal(ctl.mio.tp_fn, 0);
+	teardown(NULL);
+	setup(NULL);
+	use_drive_probe();
+	tp_st = 3; /* a latch left on from before: switched off first */
+	tp_fn = 1;
+	tp_edge_at_arm = 1;
+	push_block(1, MLIP_BLOCK_PROBE, 2, 0, 10, 0);
+	end(2);
+	until(MLIP_STATE_IDLE, 100);
+	assert_int_equal(out.status.reason, MLIP_WHY_PROBE_AT_START);
+	assert_true(out.pos[0] == 0.0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -636,6 +908,10 @@ int main(void)
 	    cmocka_unit_test_setup_teardown(test_probe_at_start_and_away, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_probe_input_unread, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_probe_stopped, setup, teardown),
+	    cmocka_unit_test_setup_teardown(test_drive_probe_latched_position, setup, teardown),
+	    cmocka_unit_test_setup_teardown(test_drive_probe_errors, setup, teardown),
+	    cmocka_unit_test_setup_teardown(test_mdi_outputs_stay_on, setup, teardown),
+	    cmocka_unit_test_setup_teardown(test_sync_outputs_with_the_next_move, setup, teardown),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

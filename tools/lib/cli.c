@@ -523,6 +523,12 @@ void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
 	case MLIP_DRIVE_TPDO_LOST:
 		snprintf(buf, len, "no TPDO for %lld periods", (long long)v);
 		break;
+	case MLIP_DRIVE_INPUTS_LOST:
+		snprintf(buf, len,
+		         "no digital inputs 0x60FD (TPDO3) for %lld ms: its limit switches cannot "
+		         "be read",
+		         (long long)v);
+		break;
 	default:
 		snprintf(buf, len, "event %u, value %lld", (unsigned)event, (long long)v);
 	}

@@ -609,28 +609,35 @@ size_t grbl_status_format(char *buf, size_t len, const struct grbl_status *s,
 	return o.k;
 }
 
-void grbl_wco(const struct mlip_gcode_offsets *o, int n_axes, double *wco)
+void grbl_wco(const struct mlip_gcode_offsets *o, int n_axes, int z, double tlo_mm, double *wco)
 {
 	int sel = o->select >= 0 && o->select < MLIP_GCODE_N_COORD ? o->select : 0;
 	for (int k = 0; k < MLIP_MAX_AXES; k++) {
 		wco[k] = 0.0;
 		if (k < n_axes) {
-			wco[k] = o->coord[sel][k] + (o->g92_on ? o->g92[k] : 0.0);
+			wco[k] = o->coord[sel][k] + (o->g92_on ? o->g92[k] : 0.0) +
+			         (k == z ? tlo_mm : 0.0);
 		}
 	}
 }
 
 /* $$: Grbl's numbered settings that mlip's machine answers (settings.md):
- * the rest (step pulses, inversions, homing, spindle) have no meaning for
- * CiA 402 servo drives or do not exist in mlip yet, and are not listed. */
+ * the rest (step pulses, inversions, debounce, pull-off, spindle PWM) have
+ * no meaning for CiA 402 servo drives (their homing is the drive's own) and
+ * are not listed. */
 size_t grbl_setting_line(char *buf, size_t len, const struct mlip_machine *m,
-                         const struct grbl_fmt *fmt, int index)
+                         const struct grbl_fmt *fmt, const struct grbl_homing *h, int index)
 {
 	static const char letters[] = "XYZABC";
+	static const struct grbl_homing none;
 	struct out o = {buf, len, 0};
 	if (len) {
 		buf[0] = '\0';
 	}
+	if (h == NULL) {
+		h = &none;
+	}
+	int homing = h->enabled ? 3 : 0; /* $23..$25 */
 	switch (index) {
 	case 0:
 		put(&o, "$10=");
@@ -651,17 +658,34 @@ size_t grbl_setting_line(char *buf, size_t len, const struct mlip_machine *m,
 	case 4: /* every target is checked against the soft limits */
 		put(&o, "$20=1");
 		return o.k;
-	case 5: /* no limit inputs yet (issue 18) */
-		put(&o, "$21=0");
+	case 5: /* a limit switch stops the machine (ALARM:1) */
+		put(&o, h->hard_limits ? "$21=1" : "$21=0");
 		return o.k;
-	case 6: /* no homing yet (issue 18) */
-		put(&o, "$22=0");
+	case 6: /* $H runs the drives' homing */
+		put(&o, h->enabled ? "$22=1" : "$22=0");
 		return o.k;
 	default:
 		break;
 	}
+	if (index < 7 + homing) {
+		switch (index) {
+		case 7:
+			put(&o, "$23=");
+			puti(&o, h->dir_mask);
+			break;
+		case 8:
+			put(&o, "$24=");
+			putf(&o, h->feed_mm_min, 3);
+			break;
+		default:
+			put(&o, "$25=");
+			putf(&o, h->seek_mm_min, 3);
+			break;
+		}
+		return o.k;
+	}
 	/* per axis, in X Y Z A B C order, numbered by letter (grblHAL's A = 3) */
-	int i = index - 7, group = 0;
+	int i = index - 7 - homing, group = 0;
 	for (; group < 4; group++) {
 		for (int k = 0; k < MLIP_MAX_AXES; k++) {
 			int a = -1;
@@ -742,7 +766,7 @@ size_t grbl_gcode_state(char *buf, size_t len, const struct mlip_gcode *g, int p
 	return o.k;
 }
 
-size_t grbl_param_line(char *buf, size_t len, const struct mlip_gcode_offsets *o,
+size_t grbl_param_line(char *buf, size_t len, const struct mlip_gcode_offsets *o, double tlo_mm,
                        const struct grbl_axes *ax, const struct grbl_fmt *fmt, int index)
 {
 	static const char *const names[] = {"G54", "G55", "G56", "G57", "G58", "G59"};
@@ -765,7 +789,7 @@ size_t grbl_param_line(char *buf, size_t len, const struct mlip_gcode_offsets *o
 		grbl_axis_values(v, sizeof(v), o->g92_on ? o->g92 : z, ax, fmt);
 	} else if (index == 9) {
 		put(&w, "[TLO:");
-		put_num(v, sizeof(v), 0.0, fmt->inches ? 4 : 3); /* no tool length yet (19) */
+		put_num(v, sizeof(v), fmt->inches ? tlo_mm / 25.4 : tlo_mm, fmt->inches ? 4 : 3);
 	} else if (index == 10) {
 		double z[MLIP_MAX_AXES] = {0};
 		put(&w, "[PRB:");

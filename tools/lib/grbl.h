@@ -240,22 +240,35 @@ size_t grbl_status_format(char *buf, size_t len, const struct grbl_status *s,
 size_t grbl_axis_values(char *buf, size_t len, const double *v, const struct grbl_axes *ax,
                         const struct grbl_fmt *fmt);
 
+/* The limit switches and homing, as the machine has them (settings.md
+ * $21..$25): from the controller's status (limit inputs mapped) and the
+ * machine's configuration (HOME_* of each axis, mlip-grbl --config). */
+struct grbl_homing {
+	int hard_limits; /* $21: a limit switch input is mapped */
+	int enabled;     /* $22: an axis has a HOME_METHOD ($23..$25 listed then) */
+	int dir_mask;    /* $23: bit k of Grbl's X Y Z A B C: homes toward negative */
+	double feed_mm_min, seek_mm_min; /* $24 (latch), $25 (search): the slowest axis' */
+};
+
 /* The `$$` lines for machine m, one "$n=v" per call: index 0, 1, ... ;
- * returns the line's length, 0 after the last. */
+ * returns the line's length, 0 after the last. h: NULL, no limits nor
+ * homing. */
 size_t grbl_setting_line(char *buf, size_t len, const struct mlip_machine *m,
-                         const struct grbl_fmt *fmt, int index);
+                         const struct grbl_fmt *fmt, const struct grbl_homing *h, int index);
 
 /* The `$G` line "[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]" of parser g;
  * program: 0 none, or 0/2/30 for M0/M2/M30 when active (-1: none). */
 size_t grbl_gcode_state(char *buf, size_t len, const struct mlip_gcode *g, int program);
 
-/* The `$#` lines, index 0, 1, ...; 0 after the last. */
-size_t grbl_param_line(char *buf, size_t len, const struct mlip_gcode_offsets *o,
+/* The `$#` lines, index 0, 1, ...; 0 after the last. tlo_mm: the tool
+ * length offset in force (G43, G43.1; 0 with G49). */
+size_t grbl_param_line(char *buf, size_t len, const struct mlip_gcode_offsets *o, double tlo_mm,
                        const struct grbl_axes *ax, const struct grbl_fmt *fmt, int index);
 
-/* The work coordinate offset in force (coordinate system + G92), machine
+/* The work coordinate offset in force (coordinate system + G92, and on
+ * axis z the tool length offset, as report.c adds it; z < 0: none), machine
  * axis order: WPos = MPos - WCO. */
-void grbl_wco(const struct mlip_gcode_offsets *o, int n_axes, double *wco);
+void grbl_wco(const struct mlip_gcode_offsets *o, int n_axes, int z, double tlo_mm, double *wco);
 
 /* The Grbl error code for a G-code reader error (by what it says: the
  * reader's messages are the contract, tests/unit/test_grbl.c checks each

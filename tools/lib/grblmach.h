@@ -65,4 +65,35 @@ struct grbl_acc {
 void grbl_acc_update(struct grbl_acc *a, uint32_t state, uint32_t reason, uint64_t seq,
                      double value);
 
+/* CiA 402 homing method (0x6098) m's search direction: 1 toward negative
+ * (a negative limit or home switch, the negative index pulse), 0 toward
+ * positive, -1 none (35, 37: the current position; a manufacturer's). */
+int grbl_home_negative(int method);
+
+struct grbl_homing;
+struct mlip_config;
+/* 1 with what differs in why when machine a is not b (axes, limits,
+ * speeds, period, tolerance): a --config that is not the controller's. */
+int grbl_machine_differs(const struct mlip_machine *a, const struct mlip_machine *b, char *why,
+                         size_t n);
+
+/* $22..$25 of configuration c (homing configured, the axes homing toward
+ * negative in Grbl's X Y Z A B C bits, the slowest latch and search speeds
+ * in mm/min); $21 is the caller's (the limit inputs mapped). */
+void grbl_homing_of(const struct mlip_config *c, struct grbl_homing *h);
+
+/* The controller's own spindle ([SPINDLE] TYPE = cia402, status layout 10)
+ * as A:, FS and Ov show it, checked as anything read from another process:
+ * the phase (spindle_state: mlip_spindle_phase + 1, 1..5), the commanded
+ * rpm (the override in, within the spindle's MAX_RPM: the controller clamps
+ * it there) and the override (50..200 %). 0 and *rpm (> 0 clockwise, < 0
+ * counter-clockwise, 0 stopped) and *ov, or -1: a value this controller
+ * cannot publish (nothing is taken from it). */
+int grbl_spindle_of(uint32_t spindle_state, double cmd_rpm, uint32_t override_pct, double max_rpm,
+                    double *rpm, int *ov);
+
+/* An override byte applied to the controller's spindle override: Grbl's
+ * steps (grbl_override_step), within the controller's 50..200 %. */
+int grbl_spindle_ov_step(int rt, int pct);
+
 #endif

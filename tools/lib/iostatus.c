@@ -21,8 +21,9 @@ static int param_of(char letter)
 }
 
 void mlip_iostatus_json(struct mlip_json *j, const struct mlip_machine *m,
-                        const struct mlip_ring_status *st)
+                        const struct mlip_ring_status *st, const struct mlip_ring *r)
 {
+	struct mlip_ring_io io;
 	char key[24]; /* "0x6200:" and an int: -O1 cannot see k < MLIP_IO_BYTES_SHOWN */
 
 	mlip_json_object(j, "outputs", 1);
@@ -34,10 +35,17 @@ void mlip_iostatus_json(struct mlip_json *j, const struct mlip_machine *m,
 		}
 	}
 	mlip_json_close(j);
-	mlip_json_object(j, "coolant", 1);
-	mlip_json_bool(j, "mist", (st->coolant & MLIP_COOLANT_MIST) != 0);
-	mlip_json_bool(j, "flood", (st->coolant & MLIP_COOLANT_FLOOD) != 0);
-	mlip_json_close(j);
+	if (mlip_ring_io_read(r, &io) == MLIP_OK && io.coolant != MLIP_IO_MODULE &&
+	    st->coolant == 0) {
+		/* no outlet the controller switches ([COOLANT] TYPE none or manual):
+		 * nothing it could report */
+		mlip_json_string(j, "coolant", "none");
+	} else {
+		mlip_json_object(j, "coolant", 1);
+		mlip_json_bool(j, "mist", (st->coolant & MLIP_COOLANT_MIST) != 0);
+		mlip_json_bool(j, "flood", (st->coolant & MLIP_COOLANT_FLOOD) != 0);
+		mlip_json_close(j);
+	}
 	if (st->probe_count == 0) {
 		mlip_json_null(j, "probe");
 		return;

@@ -112,6 +112,10 @@ struct mlip_canenc {
 	 * period), [2..5] target position 0x607A. 0: the 4-byte RPDO above. */
 	uint8_t rpdo_controlword;
 	uint16_t controlword[MLIP_MAX_AXES];
+	/* with rpdo_controlword and a touch probe on the drives ([PROBE] SOURCE
+	 * = drive): each RPDO is 8 bytes, [6..7] touch probe function 0x60B8 */
+	uint8_t rpdo_probe;
+	uint16_t probe_fn[MLIP_MAX_AXES];
 	uint32_t rpdo_mute; /* cia402: bit i set, no RPDO for axis i (a drive not
 	                       in "operation enabled" is sent no target) */
 };

@@ -29,6 +29,8 @@
 #define MLIP_CO_NMT_ID      0x000u
 #define MLIP_CO_EMCY_BASE   0x080u
 #define MLIP_CO_TPDO1_BASE  0x180u
+#define MLIP_CO_TPDO2_BASE  0x280u
+#define MLIP_CO_TPDO3_BASE  0x380u /* a drive's digital inputs 0x60FD (issue 18) */
 #define MLIP_CO_SDO_TX_BASE 0x580u /* server (drive) -> client (mlip) */
 #define MLIP_CO_SDO_RX_BASE 0x600u /* client -> server */
 #define MLIP_CO_HB_BASE     0x700u
@@ -75,8 +77,9 @@ typedef enum {
 	MLIP_CO_OTHER = 0, /* not for the master (or malformed: counted by the caller) */
 	MLIP_CO_HEARTBEAT, /* node, nmt_state (0: boot-up) */
 	MLIP_CO_EMCY,      /* node, emcy */
-	MLIP_CO_TPDO,      /* node, statusword, position_counts */
-	MLIP_CO_SDO        /* node: an SDO answer, for mlip_sdo_feed */
+	MLIP_CO_TPDO,      /* node, statusword, position_counts (8 bytes: probe_status too) */
+	MLIP_CO_SDO,       /* node: an SDO answer, for mlip_sdo_feed */
+	MLIP_CO_TPDO2      /* node, probe_pos, probe_neg (a drive's touch probe) */
 } mlip_co_kind;
 
 struct mlip_co_msg {
@@ -86,10 +89,16 @@ struct mlip_co_msg {
 	uint16_t statusword;
 	int32_t position_counts;
 	struct mlip_emcy emcy;
+	/* a drive's touch probe 1 (CiA 402; [PROBE] SOURCE = drive) */
+	uint8_t has_probe;     /* TPDO1 was 8 bytes: probe_status follows the position */
+	uint16_t probe_status; /* 0x60B9 */
+	int32_t probe_pos;     /* TPDO2: 0x60BA, positive edge position (counts) */
+	int32_t probe_neg;     /* TPDO2: 0x60BB, negative edge position */
 };
 
-/* Classify a frame by its identifier and check its length (a TPDO must be 6
- * bytes: the mapping mlip writes). Nodes outside 1..127 are OTHER; so are
+/* Classify a frame by its identifier and check its length (a TPDO1 must be 6
+ * bytes, or 8 with the touch probe status; a TPDO2 8: the mappings mlip
+ * writes). Nodes outside 1..127 are OTHER; so are
  * frames with the wrong length (MLIP_E_SYNTAX then, else MLIP_OK). */
 mlip_status mlip_co_classify(const struct mlip_can_frame *f, struct mlip_co_msg *m);
 

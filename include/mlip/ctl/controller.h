@@ -127,6 +127,7 @@
 #define MLIP_BUS_CLEAN_PERIODS     100 /* after a CAN fault, resume needs a clean bus this long */
 #define MLIP_STALL_PERIODS_DEFAULT 3   /* more missed periods than this: a stall */
 #define MLIP_CTL_MAX_EVENTS        8   /* events one period can report */
+#define MLIP_SYNC_OUT_MAX          16  /* M62/M63 waiting for their move */
 
 typedef enum {
 	MLIP_EV_STATE = 1, /* a transition: from -> state, with its reason */
@@ -184,6 +185,14 @@ struct mlip_ctl_drives {
 	uint64_t tpdo_period[MLIP_MAX_AXES]; /* the period whose SYNC drive k's last TPDO
 	                                        answers (UINT64_MAX: none yet) */
 	double pos_actual[MLIP_MAX_AXES];    /* position actual 0x6064, joint units */
+	/* the touch probe ([PROBE] SOURCE = drive): 0x60B9 of drive k's last
+	 * TPDO1 (answering tpdo_period[k]), the positions latched at touch probe
+	 * 1's positive / negative edge 0x60BA / 0x60BB (joint units) of its last
+	 * TPDO2, and the period whose SYNC that TPDO2 answers (UINT64_MAX: none) */
+	uint16_t tp_status[MLIP_MAX_AXES];
+	uint64_t tp_latch_period[MLIP_MAX_AXES];
+	double tp_pos[MLIP_MAX_AXES];
+	double tp_neg[MLIP_MAX_AXES];
 };
 
 /* The inputs on the bus (issue 18): rt/drives.c reads the I/O module and the
@@ -247,6 +256,8 @@ struct mlip_ctl_in {
 	int feeder_unread;                  /* the feeder area was mid-update: whose program it
 	                                       is is not known, none starts this period */
 	int feeder_alive;                   /* a feeder is attached and beating */
+	int feeder_mdi;                     /* the feeder's program is MDI lines (mlip-ctl mdi):
+	                                       its end leaves the outputs as they are */
 	int exit_request;                   /* stop on the path, then report done */
 	struct mlip_ctl_bus bus;            /* as of the last send */
 	struct mlip_ctl_drives drives;      /* CiA 402 drives (opts.drives) */
@@ -324,10 +335,13 @@ struct mlip_ctl_probe_result {
 	uint64_t seq;     /* the G38's record, and its line */
 	uint32_t line;
 	double pos[MLIP_MAX_AXES]; /* #5061..: where the probe tripped (machine
-	                              coordinates): the position in the period its
-	                              input frame arrived, the drives' positions
-	                              actual when they report them (else the
-	                              setpoint); the target when it did not trip */
+	                              coordinates): [PROBE] SOURCE = drive: the
+	                              position each drive latched at the edge; io:
+	                              the position in the period its input frame
+	                              arrived, the drives' positions actual when
+	                              they report them (else the setpoint); the
+	                              target when it did not trip */
+	uint32_t latched;          /* bit k: pos[k] is drive k's touch probe latch */
 };
 
 /* The controller's own state: read it through out, never here. */
@@ -367,6 +381,7 @@ struct mlip_ctl {
 		int bad;                     /* a bad record: nothing more is taken */
 		int discard;                 /* dropping a stopped (or faulted) program's records */
 		int discard_waiting;         /* ... a waiting one's, its first record (seq 1) too */
+		int mdi;                     /* it is MDI lines (in->feeder_mdi at its start) */
 		double start[MLIP_MAX_AXES]; /* pos when its first record was taken */
 	} prog;
 	/* a dwell or a pause */
@@ -465,6 +480,16 @@ struct mlip_ctl {
 		double actual[MLIP_MAX_AXES]; /* this period's positions actual (drives) */
 		uint32_t actual_mask;
 		struct mlip_ctl_probe_result result; /* the last probe's */
+		/* the drives' touch probe ([PROBE] SOURCE = drive) */
+		int tp_phase;               /* MLIP_TP_PHASE_* (machio.c) */
+		uint16_t tp_fn;             /* 0x60B8 sent to every axis drive */
+		uint64_t tp_t0;             /* the period the phase began */
+		struct mlip_block tp_block; /* the G38's move, pushed once armed */
+		/* M62/M63 waiting for the next move (issue 19): its record's seq,
+		 * the OUTPUT value */
+		uint32_t n_sync;
+		uint64_t sync_after[MLIP_SYNC_OUT_MAX];
+		double sync_value[MLIP_SYNC_OUT_MAX];
 	} mio;
 	/* a CiA 402 spindle (issue 19, mlip/ctl/spindlectl.h) */
 	struct mlip_ctl_spindle spindle;

@@ -115,7 +115,9 @@ typedef enum {
 	MLIP_WHY_PROBE_NO_TRIP,  /* G38.2/G38.4 reached its target without a trip */
 	MLIP_WHY_PROBE_AT_START, /* the probe was already tripped (G38.2/.3), or not on
 	                            (G38.4/.5), when the move was to start */
-	MLIP_WHY_PROBE_INPUT,    /* a G38 with no probe input mapped or read */
+	MLIP_WHY_PROBE_INPUT,    /* a G38 with no probe input mapped or read, or the drives'
+	                            touch probe not switched on/off in time (reason_node:
+	                            the drive, reason_value: its 0x60B9) */
 	MLIP_WHY_SPINDLE_WAIT,   /* a CiA 402 spindle's M3/M4/S/M5: at rest (state DWELLING)
 	                            until it is at speed, or at standstill (reason_value:
 	                            the rpm asked) */

@@ -212,7 +212,21 @@ struct mlip_io_config {
 	struct mlip_io_bit in[MLIP_IN_COUNT]; /* by function (MLIP_IN_*) */
 	uint32_t out_mapped;                  /* bit o: output o (MLIP_OUT_*) is mapped */
 	struct mlip_io_out out[MLIP_OUT_COUNT];
+	uint8_t probe_source; /* [PROBE] SOURCE: MLIP_PROBE_SRC_* */
 };
+
+/* Where G38's trip and position come from (issue 19):
+ *   [PROBE]
+ *   SOURCE = io       ; default: the [IO] PROBE input; the position of the
+ *                     ; period its frame arrived
+ *   SOURCE = drive    ; every axis drive's touch probe 1 (CiA 402 0x60B8
+ *                     ; function in RPDO1, 0x60B9 status in TPDO1, 0x60BA /
+ *                     ; 0x60BB positive / negative edge position in TPDO2):
+ *                     ; the position each drive latched at the edge
+ * With SOURCE = drive an [IO] PROBE input, when mapped too (the same switch),
+ * gives the level for "already tripped at the start". */
+#define MLIP_PROBE_SRC_IO    0
+#define MLIP_PROBE_SRC_DRIVE 1
 
 /* "estop", "hold", "cycle start", "probe", "X limit -", "X limit +", "X home
  * switch" (the letter from m; NULL: the axis index), "?" out of range. Writes

@@ -309,6 +309,10 @@ double mlip_planner_speed(const struct mlip_planner *p);
 int mlip_planner_moving(const struct mlip_planner *p);
 /* The block being executed (seq 0, line 0: none queued). */
 void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
+/* The newest block whose motion the last setpoint contains: in a corner
+ * the block after it (its motion has begun), else the one executing (0:
+ * none queued). M62/M63 switch with it (issue 19). */
+uint64_t mlip_planner_motion_seq(const struct mlip_planner *p);
 /* The last block completed (or, pushed at rest, the block before it). */
 void mlip_planner_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
 /* Feed override in effect, percent. */

@@ -1,0 +1,227 @@
+/*
+ * iomodule.c - the CiA 401 I/O module in the loop (issue 18): its loss
+ * (heartbeat lost, left NMT operational - a reboot's boot-up message says
+ * so -, an EMCY) is an E-stop; once it is heard again it is reconfigured
+ * before anything it says is trusted: a module that rebooted has its
+ * default PDO mapping and consumes no heartbeat, one that was cut off may
+ * have rebooted unseen. The steps, one SDO or NMT frame at a time, each
+ * answered within its timeout or the attempt fails (and is tried again at
+ * the module's next heartbeat):
+ *   1. NMT reset communication, its boot-up message (BOOT_TIMEOUT_MS)
+ *   2. the set-up entries of bring-up (mlip_io401_setup_entries), each
+ *      written and read back (SDO_TIMEOUT_MS each)
+ *   3. its inputs 0x6000:1..n read by SDO
+ *   4. NMT start, its heartbeat saying operational
+ * Then it is back: `lost` cleared, its inputs known (the E-stop input read
+ * again decides whether mlip-ctl reset may leave the E-stop), its outputs
+ * sent at once: off, as every output is in an E-stop (the program running
+ * when it was lost was dropped by the E-stop). Until then its TPDOs are
+ * ignored and no RPDO is sent to it.
+ *
+ * In the loop: no wait, no print, no allocation.
+ */
+#include <string.h>
+
+#include "drives.h"
+
+static uint32_t mask_of(uint8_t size)
+{
+	return size >= 4 ? 0xFFFFFFFFu : (1u << (8 * size)) - 1u;
+}
+
+static void nmt(struct mlip_drives *ds, uint8_t cmd)
+{
+	struct mlip_can_frame f;
+	mlip_nmt_encode(cmd, ds->io.node, &f);
+	ds->port.send(ds->port.ctx, &f);
+}
+
+static void fail(struct mlip_drives *ds, uint64_t now, uint32_t abort, uint16_t index, uint8_t sub)
+{
+	ds->io.re.phase = MLIP_IO_RE_NONE;
+	ds->io.re.busy = ds->io.re.done = 0;
+	ds->io.re.failed++;
+	ds->io.re.fail_abort = abort;
+	ds->io.re.fail_index = index;
+	ds->io.re.fail_sub = sub;
+	ds->io.lost_ns = now; /* tried again at a heartbeat after this */
+}
+
+static void sdo_start(struct mlip_drives *ds, uint64_t now, int upload, uint16_t index, uint8_t sub,
+                      uint32_t value, uint8_t size)
+{
+	struct mlip_can_frame req;
+	if (upload) {
+		mlip_sdo_upload_begin(&ds->io.re.s, ds->io.node, index, sub, &req);
+	} else {
+		mlip_sdo_download_begin(&ds->io.re.s, ds->io.node, index, sub, value, size, &req);
+	}
+	ds->io.re.busy = 1;
+	ds->io.re.done = 0;
+	ds->io.re.deadline_ns = now + (uint64_t)ds->cfg.sdo_timeout_ms * 1000000u;
+	if (ds->port.send(ds->port.ctx, &req) != 0) {
+		fail(ds, now, MLIP_SDO_ABORT_GENERAL, index, sub);
+	}
+}
+
+/* Entry k of the set-up: written (or, read-only, read), then read back. */
+static void entry_start(struct mlip_drives *ds, uint64_t now)
+{
+	const struct mlip_sdo_entry *e = &ds->io.re.e[ds->io.re.k];
+	ds->io.re.readback = e->read_only;
+	sdo_start(ds, now, e->read_only, e->index, e->sub, e->value, e->size);
+}
+
+/* An SDO answer came: the next step. */
+static void sdo_done(struct mlip_drives *ds, uint64_t now)
+{
+	uint32_t v = ds->io.re.value;
+	ds->io.re.done = 0;
+	if (ds->io.re.abort != 0) {
+		fail(ds, now, ds->io.re.abort, ds->io.re.s.index, ds->io.re.s.sub);
+		return;
+	}
+	if (ds->io.re.phase == MLIP_IO_RE_SDO) {
+		const struct mlip_sdo_entry *e = &ds->io.re.e[ds->io.re.k];
+		if (!ds->io.re.readback) {
+			ds->io.re.readback = 1;
+			sdo_start(ds, now, 1, e->index, e->sub, 0, 0);
+			return;
+		}
+		if ((v & mask_of(e->size)) != (e->value & mask_of(e->size))) {
+			fail(ds, now, MLIP_SDO_ABORT_GENERAL, e->index, e->sub);
+			return;
+		}
+		if (++ds->io.re.k < ds->io.re.n) {
+			entry_start(ds, now);
+			return;
+		}
+		ds->io.re.phase = MLIP_IO_RE_INPUTS;
+		ds->io.re.k = 1;
+		sdo_start(ds, now, 1, 0x6000, 1, 0, 0);
+		return;
+	}
+	if (ds->io.re.phase == MLIP_IO_RE_INPUTS) {
+		ds->io.img.in[ds->io.re.k - 1] = (uint8_t)v;
+		if (++ds->io.re.k <= ds->io.setup.in_bytes) {
+			sdo_start(ds, now, 1, 0x6000, (uint8_t)ds->io.re.k, 0, 0);
+			return;
+		}
+		ds->io.re.phase = MLIP_IO_RE_START;
+		ds->io.re.t0_ns = now;
+		ds->io.re.deadline_ns = now + (uint64_t)ds->cfg.boot_timeout_ms * 1000000u;
+		nmt(ds, MLIP_NMT_START);
+	}
+}
+
+void mlip_io_module_sdo(struct mlip_drives *ds, const struct mlip_can_frame *f, uint64_t now)
+{
+	struct mlip_can_frame req;
+	if (!ds->io.re.busy) {
+		return;
+	}
+	switch (mlip_sdo_feed(&ds->io.re.s, f, &req)) {
+	case MLIP_SDO_DONE:
+		ds->io.re.value = ds->io.re.s.value;
+		ds->io.re.abort = 0;
+		break;
+	case MLIP_SDO_SEND:
+		ds->port.send(ds->port.ctx, &req);
+		ds->io.re.deadline_ns = now + (uint64_t)ds->cfg.sdo_timeout_ms * 1000000u;
+		return;
+	case MLIP_SDO_PROTOCOL:
+		ds->port.send(ds->port.ctx, &req);
+		ds->io.re.abort =
+		    ds->io.re.s.abort_code ? ds->io.re.s.abort_code : MLIP_SDO_ABORT_GENERAL;
+		break;
+	case MLIP_SDO_ABORTED:
+		ds->io.re.abort =
+		    ds->io.re.s.abort_code ? ds->io.re.s.abort_code : MLIP_SDO_ABORT_GENERAL;
+		break;
+	default:
+		return;
+	}
+	ds->io.re.busy = 0;
+	ds->io.re.done = 1;
+}
+
+/* The module back: trusted again. */
+static void back(struct mlip_drives *ds, uint64_t now)
+{
+	ds->io.re.phase = MLIP_IO_RE_NONE;
+	ds->io.re.count++;
+	ds->io.lost = 0;
+	ds->io.lost_value = 0.0;
+	ds->io.obs.emcy_count = 0; /* before the reset; a fault that stays is sent again */
+	ds->io.obs.hb_ns = now;
+	ds->io.img.module_read = 1; /* 0x6000:1..n just read */
+	ds->io.sent_ns = 0;         /* the outputs at once (off in the E-stop) */
+}
+
+/* The reconfiguration, one step a period at most. */
+static void reconfigure(struct mlip_drives *ds, uint64_t now)
+{
+	const struct mlip_drive_obs *o = &ds->io.obs;
+	switch (ds->io.re.phase) {
+	case MLIP_IO_RE_NONE:
+		if (ds->io.re.n > 0 && o->hb_ns > ds->io.lost_ns) {
+			/* heard again: from a known state, whatever it did meanwhile */
+			ds->io.re.phase = MLIP_IO_RE_BOOT;
+			ds->io.re.t0_ns = now;
+			ds->io.re.deadline_ns = now + (uint64_t)ds->cfg.boot_timeout_ms * 1000000u;
+			nmt(ds, MLIP_NMT_RESET_COMM);
+		}
+		return;
+	case MLIP_IO_RE_BOOT:
+		if (ds->io.bootup_ns > ds->io.re.t0_ns) {
+			ds->io.re.phase = MLIP_IO_RE_SDO;
+			ds->io.re.k = 0;
+			entry_start(ds, now);
+		} else if (now >= ds->io.re.deadline_ns) {
+			fail(ds, now, 0, 0, 0);
+		}
+		return;
+	case MLIP_IO_RE_START:
+		if (o->nmt_state == MLIP_NMT_OPERATIONAL && o->hb_ns > ds->io.re.t0_ns) {
+			back(ds, now);
+		} else if (now >= ds->io.re.deadline_ns) {
+			fail(ds, now, 0, 0, 0);
+		}
+		return;
+	default: /* an SDO transfer */
+		if (ds->io.re.done) {
+			sdo_done(ds, now);
+		} else if (ds->io.re.busy && now >= ds->io.re.deadline_ns) {
+			struct mlip_can_frame req;
+			mlip_sdo_abort_encode(ds->io.node, ds->io.re.s.index, ds->io.re.s.sub,
+			                      MLIP_SDO_ABORT_TIMEOUT, &req);
+			ds->port.send(ds->port.ctx, &req);
+			fail(ds, now, 0, ds->io.re.s.index, ds->io.re.s.sub);
+		}
+	}
+}
+
+void mlip_io_module_period(struct mlip_drives *ds, uint64_t now)
+{
+	const struct mlip_drive_obs *o = &ds->io.obs;
+	uint64_t timeout = (uint64_t)ds->cfg.heartbeat_timeout_ms * 1000000u;
+	if (ds->io.lost != 0) {
+		reconfigure(ds, now);
+		return;
+	}
+	if (now > o->hb_ns && now - o->hb_ns > timeout) {
+		ds->io.lost = MLIP_DRIVE_HEARTBEAT_LOST;
+		ds->io.lost_value = (double)(now - o->hb_ns) * 1e-6;
+	} else if (o->nmt_state != MLIP_NMT_OPERATIONAL) {
+		ds->io.lost = MLIP_DRIVE_NOT_OPERATIONAL;
+		ds->io.lost_value = o->nmt_state;
+	} else if (o->emcy_count > 0) {
+		ds->io.lost = MLIP_DRIVE_EMCY;
+		ds->io.lost_value = o->emcy.code;
+	} else {
+		return;
+	}
+	/* nothing it said is trusted until it is configured again */
+	ds->io.lost_ns = now;
+	ds->io.img.module_read = 0;
+}
