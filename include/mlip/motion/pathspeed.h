@@ -1,0 +1,74 @@
+/*
+ * mlip/motion/pathspeed.h - the per-axis limits of a path-speed plan along a
+ * curve (issue 21): the pieces a planner that moves along `smooth`'s curve at
+ * a jerk-limited path speed is built from (docs/benchmarks.md, "The jerk
+ * limit": bench/pathspeed.py is the modelled plan). Not yet used by the
+ * planner: no trace changes.
+ *
+ * A point moves along x(s) (s the arc length, |x'| = 1) at path speed v,
+ * path acceleration a and path jerk j. Per axis k (the chain rule):
+ *
+ *     acceleration   x'_k a + x''_k v^2                               (P1)
+ *     jerk           x'_k j + 3 x''_k v a + x'''_k v^3                (P2)
+ *
+ * The plan keeps |P1| <= A_k and |P2| <= J_k on every axis jointly (no fixed
+ * share between the tangential and the normal terms). For a given v, (P1) is
+ * linear in a: one interval per axis, the allowed a their intersection; for
+ * given v and a, (P2) is linear in j the same way. An axis the path does not
+ * move along (x'_k = 0) allows every a (every j) or none.
+ *
+ * The quasi-static speed (a = j = 0 held: the steady speed the curve's own
+ * acceleration and jerk allow at a point, bench/topp.py's bound):
+ *
+ *     v_q = min(vmax, min_k sqrt(A_k / |x''_k|), min_k cbrt(J_k / |x'''_k|))   (P3)
+ *
+ * The curve from a polyline (`smooth`'s output, or any sampled curve): the
+ * cubic x(t) through four consecutive points, t their cumulative chord
+ * length, and its derivatives turned into arc-length ones (sigma = |x_t|):
+ *
+ *     x'   = x_t / sigma
+ *     x''  = x_tt / sigma^2 - x_t sigma_t / sigma^3                     (P4)
+ *     x''' = (x_ttt / sigma^2 - 3 x_tt sigma_t / sigma^3 - x_t sigma_tt / sigma^3
+ *             + 3 x_t sigma_t^2 / sigma^4) / sigma
+ *
+ * with sigma_t = x_t . x_tt / sigma and sigma_tt = (|x_tt|^2 + x_t . x_ttt) / sigma
+ * - sigma_t^2 / sigma. On a curve sampled every h the error is O(h^2) in x''
+ * and O(h) in x''' (the cubic's third derivative is constant between the
+ * points): x''' read from a polyline is only as smooth as its samples are.
+ *
+ * Pure C, no allocation, bounded work (O(n^2) at most per call, n <= MLIP_MAX_AXES).
+ */
+#ifndef MLIP_PATHSPEED_H
+#define MLIP_PATHSPEED_H
+
+#include "mlip/types.h"
+
+/* The curve's arc-length derivatives at one point. */
+struct mlip_path_point {
+	double d1[MLIP_MAX_AXES]; /* x'   (unit) */
+	double d2[MLIP_MAX_AXES]; /* x''  (the curvature vector) */
+	double d3[MLIP_MAX_AXES]; /* x''' */
+};
+
+/* (P1): the path accelerations a in [*lo, *hi] that keep every axis within
+ * accel[k] at speed v. 0 when none does (the speed alone exceeds a limit). */
+int mlip_path_accel_range(int n, const struct mlip_path_point *c, const double *accel, double v,
+                          double *lo, double *hi);
+
+/* (P2): the path jerks j in [*lo, *hi] that keep every axis within jerk[k]
+ * at speed v and path acceleration a. 0 when none does. */
+int mlip_path_jerk_range(int n, const struct mlip_path_point *c, const double *jerk, double v,
+                         double a, double *lo, double *hi);
+
+/* (P3): the quasi-static speed; jerk NULL: the acceleration alone. */
+double mlip_path_vmax(int n, const struct mlip_path_point *c, const double *accel,
+                      const double *jerk, double vmax);
+
+/* (P4): the derivatives at chord parameter t (0 at p[0]; t between the
+ * middle two points for the best estimate) of the cubic through the four
+ * points p[0..3] (each n coordinates). -1 when two consecutive points
+ * coincide or the cubic stops there (sigma = 0). */
+int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
+                          struct mlip_path_point *out);
+
+#endif

@@ -1,0 +1,132 @@
+/*
+ * pathspeed.c - the per-axis limits of a path-speed plan along a curve
+ * (mlip/motion/pathspeed.h: P1-P4).
+ */
+#include "mlip/motion/pathspeed.h"
+
+#include <math.h>
+
+/* The x with |p x + c| <= lim for every axis (p, c per axis): an
+ * intersection of one interval per axis. 0 when empty. */
+static int intersect(int n, const double *p, const double *c, const double *lim, double *lo,
+                     double *hi)
+{
+	double l = -INFINITY, h = INFINITY;
+	for (int k = 0; k < n; k++) {
+		if (p[k] == 0.0) {
+			if (!(fabs(c[k]) <= lim[k])) {
+				return 0; /* this axis alone exceeds its limit, whatever x */
+			}
+			continue;
+		}
+		double x1 = (-lim[k] - c[k]) / p[k], x2 = (lim[k] - c[k]) / p[k];
+		if (x1 > x2) {
+			double t = x1;
+			x1 = x2;
+			x2 = t;
+		}
+		l = x1 > l ? x1 : l;
+		h = x2 < h ? x2 : h;
+	}
+	*lo = l;
+	*hi = h;
+	return l <= h;
+}
+
+int mlip_path_accel_range(int n, const struct mlip_path_point *c, const double *accel, double v,
+                          double *lo, double *hi)
+{
+	double q[MLIP_MAX_AXES];
+	for (int k = 0; k < n; k++) {
+		q[k] = c->d2[k] * v * v; /* (P1): the normal term */
+	}
+	return intersect(n, c->d1, q, accel, lo, hi);
+}
+
+int mlip_path_jerk_range(int n, const struct mlip_path_point *c, const double *jerk, double v,
+                         double a, double *lo, double *hi)
+{
+	double q[MLIP_MAX_AXES];
+	for (int k = 0; k < n; k++) {
+		q[k] = 3.0 * c->d2[k] * v * a + c->d3[k] * v * v * v; /* (P2) but x'_k j */
+	}
+	return intersect(n, c->d1, q, jerk, lo, hi);
+}
+
+double mlip_path_vmax(int n, const struct mlip_path_point *c, const double *accel,
+                      const double *jerk, double vmax)
+{
+	double v = vmax;
+	for (int k = 0; k < n; k++) {
+		double q = fabs(c->d2[k]);
+		if (q * v * v > accel[k]) {
+			v = sqrt(accel[k] / q); /* (P3) */
+		}
+		if (jerk) {
+			double r = fabs(c->d3[k]);
+			if (r * v * v * v > jerk[k]) {
+				v = cbrt(jerk[k] / r);
+			}
+		}
+	}
+	return v;
+}
+
+static double dot(int n, const double *x, const double *y)
+{
+	double s = 0.0;
+	for (int k = 0; k < n; k++) {
+		s += x[k] * y[k];
+	}
+	return s;
+}
+
+int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
+                          struct mlip_path_point *out)
+{
+	double s[4] = {0.0, 0.0, 0.0, 0.0};
+	for (int i = 1; i < 4; i++) {
+		double d2 = 0.0;
+		for (int k = 0; k < n; k++) {
+			double d = p[i][k] - p[i - 1][k];
+			d2 += d * d;
+		}
+		if (!(d2 > 0.0)) {
+			return -1;
+		}
+		s[i] = s[i - 1] + sqrt(d2);
+	}
+	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES], x3[MLIP_MAX_AXES];
+	for (int k = 0; k < n; k++) {
+		/* Newton's divided differences: x = c0 + c1 (t - s0) + c2 (t - s0)(t - s1)
+		 * + c3 (t - s0)(t - s1)(t - s2) */
+		double f01 = (p[1][k] - p[0][k]) / (s[1] - s[0]);
+		double f12 = (p[2][k] - p[1][k]) / (s[2] - s[1]);
+		double f23 = (p[3][k] - p[2][k]) / (s[3] - s[2]);
+		double f012 = (f12 - f01) / (s[2] - s[0]);
+		double f123 = (f23 - f12) / (s[3] - s[1]);
+		double c3 = (f123 - f012) / (s[3] - s[0]);
+		double u0 = t - s[0], u1 = t - s[1], u2 = t - s[2];
+		x1[k] = f01 + f012 * (u0 + u1) + c3 * (u0 * u1 + u0 * u2 + u1 * u2);
+		x2[k] = 2.0 * f012 + 2.0 * c3 * (u0 + u1 + u2);
+		x3[k] = 6.0 * c3;
+	}
+	double sg = sqrt(dot(n, x1, x1));
+	if (!(sg > 0.0)) {
+		return -1;
+	}
+	double st = dot(n, x1, x2) / sg;
+	double stt = (dot(n, x2, x2) + dot(n, x1, x3)) / sg - st * st / sg;
+	double s2 = sg * sg, s3 = s2 * sg, s4 = s3 * sg;
+	for (int k = 0; k < n; k++) { /* (P4) */
+		out->d1[k] = x1[k] / sg;
+		out->d2[k] = x2[k] / s2 - x1[k] * st / s3;
+		out->d3[k] = (x3[k] / s2 - 3.0 * x2[k] * st / s3 - x1[k] * stt / s3 +
+		              3.0 * x1[k] * st * st / s4) /
+		             sg;
+	}
+	for (int k = n; k < MLIP_MAX_AXES; k++) {
+		out->d1[k] = out->d2[k] = out->d3[k] = 0.0;
+	}
+	return 0;
+}
