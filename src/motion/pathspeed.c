@@ -81,6 +81,31 @@ static double dot(int n, const double *x, const double *y)
 	return s;
 }
 
+/* (P4): derivatives by a parameter t (x_t, x_tt, x_ttt) turned into
+ * derivatives by arc length. -1 where the curve stops (sigma = 0). */
+static int to_arc(int n, const double *x1, const double *x2, const double *x3,
+                  struct mlip_path_point *out)
+{
+	double sg = sqrt(dot(n, x1, x1));
+	if (!(sg > 0.0)) {
+		return -1;
+	}
+	double st = dot(n, x1, x2) / sg;
+	double stt = (dot(n, x2, x2) + dot(n, x1, x3)) / sg - st * st / sg;
+	double s2 = sg * sg, s3 = s2 * sg, s4 = s3 * sg;
+	for (int k = 0; k < n; k++) { /* (P4) */
+		out->d1[k] = x1[k] / sg;
+		out->d2[k] = x2[k] / s2 - x1[k] * st / s3;
+		out->d3[k] = (x3[k] / s2 - 3.0 * x2[k] * st / s3 - x1[k] * stt / s3 +
+		              3.0 * x1[k] * st * st / s4) /
+		             sg;
+	}
+	for (int k = n; k < MLIP_MAX_AXES; k++) {
+		out->d1[k] = out->d2[k] = out->d3[k] = 0.0;
+	}
+	return 0;
+}
+
 int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
                           struct mlip_path_point *out)
 {
@@ -111,22 +136,89 @@ int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
 		x2[k] = 2.0 * f012 + 2.0 * c3 * (u0 + u1 + u2);
 		x3[k] = 6.0 * c3;
 	}
-	double sg = sqrt(dot(n, x1, x1));
-	if (!(sg > 0.0)) {
+	return to_arc(n, x1, x2, x3, out);
+}
+
+int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][MLIP_MAX_AXES],
+                         int count)
+{
+	if (count < 2 || count > MLIP_PATH_WIN || n < 1 || n > MLIP_MAX_AXES) {
 		return -1;
 	}
-	double st = dot(n, x1, x2) / sg;
-	double stt = (dot(n, x2, x2) + dot(n, x1, x3)) / sg - st * st / sg;
-	double s2 = sg * sg, s3 = s2 * sg, s4 = s3 * sg;
-	for (int k = 0; k < n; k++) { /* (P4) */
-		out->d1[k] = x1[k] / sg;
-		out->d2[k] = x2[k] / s2 - x1[k] * st / s3;
-		out->d3[k] = (x3[k] / s2 - 3.0 * x2[k] * st / s3 - x1[k] * stt / s3 +
-		              3.0 * x1[k] * st * st / s4) /
-		             sg;
+	sp->n = n;
+	sp->count = count;
+	sp->s[0] = 0.0;
+	for (int i = 0; i < count; i++) {
+		for (int k = 0; k < n; k++) {
+			if (!isfinite(pts[i][k])) {
+				return -1;
+			}
+			sp->p[i][k] = pts[i][k];
+		}
+		if (i > 0) {
+			double d2 = 0.0;
+			for (int k = 0; k < n; k++) {
+				double d = pts[i][k] - pts[i - 1][k];
+				d2 += d * d;
+			}
+			if (!(d2 > 0.0)) {
+				return -1;
+			}
+			sp->s[i] = sp->s[i - 1] + sqrt(d2);
+		}
 	}
-	for (int k = n; k < MLIP_MAX_AXES; k++) {
-		out->d1[k] = out->d2[k] = out->d3[k] = 0.0;
+	/* (P5) by Thomas' algorithm: forward elimination into c (the
+	 * super-diagonal over the pivot) and m (the right-hand side), rows 0
+	 * and count - 1 the natural ends (M = 0) */
+	int last = count - 1;
+	sp->c[0] = 0.0;
+	for (int k = 0; k < n; k++) {
+		sp->m[0][k] = 0.0;
+		sp->m[last][k] = 0.0;
+	}
+	for (int i = 1; i < last; i++) {
+		double hl = sp->s[i] - sp->s[i - 1], hr = sp->s[i + 1] - sp->s[i];
+		double piv = 2.0 * (hl + hr) - hl * sp->c[i - 1];
+		sp->c[i] = hr / piv;
+		for (int k = 0; k < n; k++) {
+			double r = 6.0 * ((sp->p[i + 1][k] - sp->p[i][k]) / hr -
+			                  (sp->p[i][k] - sp->p[i - 1][k]) / hl);
+			sp->m[i][k] = (r - hl * sp->m[i - 1][k]) / piv;
+		}
+	}
+	for (int i = last - 1; i >= 1; i--) { /* back substitution */
+		for (int k = 0; k < n; k++) {
+			sp->m[i][k] -= sp->c[i] * sp->m[i + 1][k];
+		}
 	}
 	return 0;
+}
+
+int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, double *x,
+                          struct mlip_path_point *d)
+{
+	int last = sp->count - 1, n = sp->n;
+	s = s < 0.0 ? 0.0 : (s > sp->s[last] ? sp->s[last] : s);
+	int lo = 0, hi = last; /* the segment [s_lo, s_lo+1] holding s */
+	while (hi - lo > 1) {
+		int mid = (lo + hi) / 2;
+		if (sp->s[mid] <= s) {
+			lo = mid;
+		} else {
+			hi = mid;
+		}
+	}
+	double h = sp->s[lo + 1] - sp->s[lo], u = s - sp->s[lo];
+	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES], x3[MLIP_MAX_AXES];
+	for (int k = 0; k < n; k++) {
+		double m0 = sp->m[lo][k], m1 = sp->m[lo + 1][k];
+		double b = (sp->p[lo + 1][k] - sp->p[lo][k]) / h - h * (2.0 * m0 + m1) / 6.0;
+		x3[k] = (m1 - m0) / h;
+		x2[k] = m0 + x3[k] * u;
+		x1[k] = b + m0 * u + 0.5 * x3[k] * u * u;
+		if (x) {
+			x[k] = sp->p[lo][k] + b * u + 0.5 * m0 * u * u + x3[k] * u * u * u / 6.0;
+		}
+	}
+	return to_arc(n, x1, x2, x3, d);
 }

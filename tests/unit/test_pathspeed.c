@@ -255,13 +255,118 @@ static void test_from_points(void **state)
 	assert_int_equal(mlip_path_from_points(2, (const double(*)[MLIP_MAX_AXES])p, 0.2, &c), -1);
 }
 
+/* Points on the helix from arc length s0, steps h (1 +- 30 % random). */
+static void helix_points(double s0, double h, int count, double pts[][MLIP_MAX_AXES], double *sp)
+{
+	double s = s0;
+	for (int i = 0; i < count; i++) {
+		for (int k = 0; k < MLIP_MAX_AXES; k++) {
+			pts[i][k] = 0.0;
+		}
+		helix(s, pts[i], NULL);
+		sp[i] = s;
+		s += h * uni(0.7, 1.3);
+	}
+}
+
+/* (P5): the spline passes through its points, is C2 at them, reads the
+ * helix to the orders of a cubic spline in the window's middle, and a window
+ * moved along the stream gives the same spline in its middle (the ends'
+ * influence, 0.268^k). */
+static struct mlip_path_spline spa, spb;
+static double pts[MLIP_PATH_WIN + 16][MLIP_MAX_AXES], arc[MLIP_PATH_WIN + 16];
+
+static void spline_errors(double h, double *err)
+{
+	helix_points(1.0, h, MLIP_PATH_WIN, pts, arc);
+	assert_int_equal(
+	    mlip_path_spline_fit(&spa, 3, (const double(*)[MLIP_MAX_AXES])pts, MLIP_PATH_WIN), 0);
+	err[0] = err[1] = err[2] = 0.0;
+	for (int i = 20; i < MLIP_PATH_WIN - 20; i++) {
+		for (int q = 0; q < 4; q++) { /* at the knot and inside the segment */
+			double f = q / 4.0, x[MLIP_MAX_AXES], ex[3];
+			struct mlip_path_point d, e;
+			double u = spa.s[i] + f * (spa.s[i + 1] - spa.s[i]);
+			assert_int_equal(mlip_path_spline_eval(&spa, u, x, &d), 0);
+			/* chord and arc length differ by O(h^3): compare at the arc
+			 * length of the same fraction */
+			helix(arc[i] + f * (arc[i + 1] - arc[i]), ex, &e);
+			for (int k = 0; k < 3; k++) {
+				err[0] = fmax(err[0], fabs(d.d1[k] - e.d1[k]));
+				err[1] = fmax(err[1], fabs(d.d2[k] - e.d2[k]));
+				err[2] = fmax(err[2], fabs(d.d3[k] - e.d3[k]));
+			}
+		}
+	}
+}
+
+static void test_spline(void **state)
+{
+	(void)state;
+	double e1[3], e2[3];
+	spline_errors(0.05, e1);
+	spline_errors(0.025, e2);
+	/* |x''| = 0.219 / mm, |x'''| = 0.0512 / mm^2 */
+	assert_true(e1[0] < 1e-4 && e1[1] < 1e-3 && e1[2] < 0.03);
+	assert_true(e2[0] < e1[0] && e2[1] < e1[1] && e2[2] < e1[2]);
+	assert_true(e2[2] > 0.0);
+
+	helix_points(0.0, 0.05, MLIP_PATH_WIN + 16, pts, arc);
+	assert_int_equal(
+	    mlip_path_spline_fit(&spa, 3, (const double(*)[MLIP_MAX_AXES])pts, MLIP_PATH_WIN), 0);
+	assert_int_equal(mlip_path_spline_fit(&spb, 3, (const double(*)[MLIP_MAX_AXES])(pts + 16),
+	                                      MLIP_PATH_WIN),
+	                 0);
+	double jump = 0.0;
+	for (int i = 1; i < MLIP_PATH_WIN - 1; i++) {
+		double x[MLIP_MAX_AXES], xl[MLIP_MAX_AXES], xr[MLIP_MAX_AXES];
+		struct mlip_path_point l, r;
+		assert_int_equal(mlip_path_spline_eval(&spa, spa.s[i], x, &l), 0);
+		for (int k = 0; k < 3; k++) {
+			assert_true(fabs(x[k] - pts[i][k]) < 1e-12); /* through the points */
+		}
+		/* C2: either side of a knot by 1e-7 mm, x' and x'' continuous (the local
+		 * cubics of P4 meet with a kink) */
+		assert_int_equal(mlip_path_spline_eval(&spa, spa.s[i] - 1e-7, xl, &l), 0);
+		assert_int_equal(mlip_path_spline_eval(&spa, spa.s[i] + 1e-7, xr, &r), 0);
+		for (int k = 0; k < 3; k++) {
+			assert_true(fabs(l.d1[k] - r.d1[k]) < 1e-7); /* |x"| 2e-7 = 4.4e-8 */
+			assert_true(fabs(l.d2[k] - r.d2[k]) < 1e-6);
+			jump = fmax(jump, fabs(l.d3[k] - r.d3[k]));
+		}
+	}
+	assert_true(jump > 0.0); /* the third derivative is piecewise constant */
+	/* the window moved by 16 points: the same spline 16 points from every end */
+	for (int i = 32; i < MLIP_PATH_WIN - 16; i++) {
+		double xa[MLIP_MAX_AXES], xb[MLIP_MAX_AXES];
+		struct mlip_path_point a, b;
+		double u = spa.s[i] + 0.3 * (spa.s[i + 1] - spa.s[i]);
+		assert_int_equal(mlip_path_spline_eval(&spa, u, xa, &a), 0);
+		assert_int_equal(mlip_path_spline_eval(&spb, u - spa.s[16], xb, &b), 0);
+		for (int k = 0; k < 3; k++) {
+			assert_true(fabs(xa[k] - xb[k]) < 1e-12);
+			assert_true(fabs(a.d2[k] - b.d2[k]) < 1e-8);
+			assert_true(fabs(a.d3[k] - b.d3[k]) < 1e-6);
+		}
+	}
+	/* refused: too few points, coincident points, a non-finite one */
+	assert_int_equal(mlip_path_spline_fit(&spa, 3, (const double(*)[MLIP_MAX_AXES])pts, 1), -1);
+	pts[5][0] = pts[4][0];
+	pts[5][1] = pts[4][1];
+	pts[5][2] = pts[4][2];
+	assert_int_equal(mlip_path_spline_fit(&spa, 3, (const double(*)[MLIP_MAX_AXES])pts, 10),
+	                 -1);
+	pts[5][0] = NAN;
+	assert_int_equal(mlip_path_spline_fit(&spa, 3, (const double(*)[MLIP_MAX_AXES])pts, 10),
+	                 -1);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_chain_rule),
-	    cmocka_unit_test(test_ranges_tight),
-	    cmocka_unit_test(test_vmax_circle),
-	    cmocka_unit_test(test_from_points),
+	    cmocka_unit_test(test_chain_rule),  cmocka_unit_test(test_ranges_tight),
+	    cmocka_unit_test(test_vmax_circle), cmocka_unit_test(test_from_points),
+	    cmocka_unit_test(test_spline),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

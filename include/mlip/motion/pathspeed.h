@@ -36,6 +36,24 @@
  * and O(h) in x''' (the cubic's third derivative is constant between the
  * points): x''' read from a polyline is only as smooth as its samples are.
  *
+ * Positions need more than (P4): the cubics of consecutive windows meet with
+ * a kink (C0 only), which a plan passing it at speed v shows as a jerk of
+ * about v |kink| / T^2 (bench/pathspeed.py --poly on trochoid, whose
+ * smoothed start turns by 0.07 rad at one point: 1.01 J at 7 mm/s; 0.99 J
+ * with the spline). The plan's positions and derivatives come instead from the
+ * natural cubic spline through the points by chord length (C2), its second
+ * derivatives M_i (per axis) from
+ *
+ *     h_{i-1} M_{i-1} + 2 (h_{i-1} + h_i) M_i + h_i M_{i+1}
+ *         = 6 ((p_{i+1} - p_i) / h_i - (p_i - p_{i-1}) / h_{i-1}),  M at the ends 0   (P5)
+ *
+ * solved over a window of points (tridiagonal, Thomas' algorithm). The
+ * window's ends move the spline inside it by about (2 - sqrt 3)^k, k the
+ * points between (0.268^k: 1e-9 at 16 points), so a stream fitted over
+ * sliding windows and read only in their middle is the spline of the whole
+ * stream to that accuracy; the same (P4) conversion gives its arc-length
+ * derivatives.
+ *
  * Pure C, no allocation, bounded work (O(n^2) at most per call, n <= MLIP_MAX_AXES).
  */
 #ifndef MLIP_PATHSPEED_H
@@ -70,5 +88,28 @@ double mlip_path_vmax(int n, const struct mlip_path_point *c, const double *acce
  * coincide or the cubic stops there (sigma = 0). */
 int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
                           struct mlip_path_point *out);
+
+/* (P5) The natural cubic spline through up to MLIP_PATH_WIN points. */
+#define MLIP_PATH_WIN 64
+struct mlip_path_spline {
+	int n;                                  /* axes */
+	int count;                              /* points */
+	double s[MLIP_PATH_WIN];                /* chord length from the first point */
+	double p[MLIP_PATH_WIN][MLIP_MAX_AXES]; /* the points */
+	double m[MLIP_PATH_WIN][MLIP_MAX_AXES]; /* second derivatives by chord length */
+	double c[MLIP_PATH_WIN];                /* the solve's scratch */
+};
+
+/* Fit the spline through pts[0..count-1] (2 <= count <= MLIP_PATH_WIN).
+ * -1 when count is out of range, a point is not finite or two consecutive
+ * points coincide. */
+int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][MLIP_MAX_AXES],
+                         int count);
+
+/* The spline at chord length s (clamped to its span): position x[n] (may be
+ * NULL) and arc-length derivatives (P4's conversion). -1 where the spline
+ * stops (sigma = 0). */
+int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, double *x,
+                          struct mlip_path_point *d);
 
 #endif
