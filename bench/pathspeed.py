@@ -34,7 +34,9 @@ natural cubic spline through its points by chord length (C2: its positions'
 own jerk is bounded; a cubic through each four points, as P4 of
 mlip/motion/pathspeed.h reads derivatives, is only C0 where the windows
 meet, and its kinks show as jerk at low speed). The positions are the
-spline's; the trace is judged by mlip-check --jerk against the shifted
+spline's at the planned s, its own parameter (chord length), so (P1)(P2)
+take its derivatives by that parameter (they hold for any), not by arc
+length; the trace is judged by mlip-check --jerk against the shifted
 program (its original polyline: contour, acceleration, jerk, velocity), and
 mlip-sim's smooth runs the same program without and with J for the ratios.
 
@@ -163,12 +165,10 @@ if args.poly:
     n = int(math.ceil(L / ds)) + 1
     sg = np.linspace(0.0, L, n)
     _, x1, x2, x3 = cubic(sg)
-    sgm = np.linalg.norm(x1, axis=1)[:, None]  # (P4)
-    st = np.sum(x1 * x2, axis=1)[:, None] / sgm
-    stt = (np.sum(x2 * x2, axis=1) + np.sum(x1 * x3, axis=1))[:, None] / sgm - st * st / sgm
-    d1 = x1 / sgm
-    d2 = x2 / sgm**2 - x1 * st / sgm**3
-    d3 = (x3 / sgm**2 - 3 * x2 * st / sgm**3 - x1 * stt / sgm**3 + 3 * x1 * st * st / sgm**4) / sgm
+    # (P1)(P2) hold for any parameter: the plan advances the spline's own
+    # (chord length), so its derivatives by it, unconverted (converted by
+    # P4 they are by arc length, which the positions are not evaluated at)
+    d1, d2, d3 = x1, x2, x3 * np.ones_like(x1)
 else:
     gc = tp.gen_curves()
     f, t_end, n_ax = gc.CURVES[name]
@@ -235,6 +235,18 @@ def jlim(s, v, a):
     return lo, hi
 
 
+def inside(s, v, a, j):
+    """j within the jerk limits at every grid point the step crosses"""
+    i0, i1 = ix(s), ix(step(s, v, a, j)[0])
+    for i in range(i0, i1 + 1):
+        h = T * (i - i0) / max(i1 - i0, 1)
+        si, vi, ai = step(s, v, a, j, h)
+        jl, jh = jlim(i * ds, vi, ai)
+        if not (jl <= j <= jh):
+            return False
+    return True
+
+
 def step(s, v, a, j, h=T):
     return s + v * h + a * h * h / 2 + j * h**3 / 6, v + a * h + j * h * h / 2, a + j * h
 
@@ -287,7 +299,10 @@ while L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out
         for w in (1.0, 0.75, 0.5, 0.25, 0.0):
             j = jl + w * (jh - jl)
             s2, v2, a2 = step(s, v, a, j)
-            if safe(s2, v2, a2):
+            # j holds for the whole period: within the limits at every grid
+            # point it crosses (on a spline read from points x''' changes from
+            # segment to segment), at the state there (s, v, a by the step)
+            if inside(s, v, a, j) and safe(s2, v2, a2):
                 moved = True
                 break
     if not moved:

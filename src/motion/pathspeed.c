@@ -194,7 +194,7 @@ int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][
 	return 0;
 }
 
-int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, double *x,
+int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_arc, double *x,
                           struct mlip_path_point *d)
 {
 	int last = sp->count - 1, n = sp->n;
@@ -220,5 +220,13 @@ int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, double *x
 			x[k] = sp->p[lo][k] + b * u + 0.5 * m0 * u * u + x3[k] * u * u * u / 6.0;
 		}
 	}
-	return to_arc(n, x1, x2, x3, d);
+	if (by_arc) {
+		return to_arc(n, x1, x2, x3, d);
+	}
+	for (int k = 0; k < MLIP_MAX_AXES; k++) {
+		d->d1[k] = k < n ? x1[k] : 0.0;
+		d->d2[k] = k < n ? x2[k] : 0.0;
+		d->d3[k] = k < n ? x3[k] : 0.0;
+	}
+	return 0;
 }

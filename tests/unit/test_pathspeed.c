@@ -287,7 +287,7 @@ static void spline_errors(double h, double *err)
 			double f = q / 4.0, x[MLIP_MAX_AXES], ex[3];
 			struct mlip_path_point d, e;
 			double u = spa.s[i] + f * (spa.s[i + 1] - spa.s[i]);
-			assert_int_equal(mlip_path_spline_eval(&spa, u, x, &d), 0);
+			assert_int_equal(mlip_path_spline_eval(&spa, u, 1, x, &d), 0);
 			/* chord and arc length differ by O(h^3): compare at the arc
 			 * length of the same fraction */
 			helix(arc[i] + f * (arc[i + 1] - arc[i]), ex, &e);
@@ -321,14 +321,14 @@ static void test_spline(void **state)
 	for (int i = 1; i < MLIP_PATH_WIN - 1; i++) {
 		double x[MLIP_MAX_AXES], xl[MLIP_MAX_AXES], xr[MLIP_MAX_AXES];
 		struct mlip_path_point l, r;
-		assert_int_equal(mlip_path_spline_eval(&spa, spa.s[i], x, &l), 0);
+		assert_int_equal(mlip_path_spline_eval(&spa, spa.s[i], 1, x, &l), 0);
 		for (int k = 0; k < 3; k++) {
 			assert_true(fabs(x[k] - pts[i][k]) < 1e-12); /* through the points */
 		}
 		/* C2: either side of a knot by 1e-7 mm, x' and x'' continuous (the local
 		 * cubics of P4 meet with a kink) */
-		assert_int_equal(mlip_path_spline_eval(&spa, spa.s[i] - 1e-7, xl, &l), 0);
-		assert_int_equal(mlip_path_spline_eval(&spa, spa.s[i] + 1e-7, xr, &r), 0);
+		assert_int_equal(mlip_path_spline_eval(&spa, spa.s[i] - 1e-7, 1, xl, &l), 0);
+		assert_int_equal(mlip_path_spline_eval(&spa, spa.s[i] + 1e-7, 1, xr, &r), 0);
 		for (int k = 0; k < 3; k++) {
 			assert_true(fabs(l.d1[k] - r.d1[k]) < 1e-7); /* |x"| 2e-7 = 4.4e-8 */
 			assert_true(fabs(l.d2[k] - r.d2[k]) < 1e-6);
@@ -341,12 +341,29 @@ static void test_spline(void **state)
 		double xa[MLIP_MAX_AXES], xb[MLIP_MAX_AXES];
 		struct mlip_path_point a, b;
 		double u = spa.s[i] + 0.3 * (spa.s[i + 1] - spa.s[i]);
-		assert_int_equal(mlip_path_spline_eval(&spa, u, xa, &a), 0);
-		assert_int_equal(mlip_path_spline_eval(&spb, u - spa.s[16], xb, &b), 0);
+		assert_int_equal(mlip_path_spline_eval(&spa, u, 1, xa, &a), 0);
+		assert_int_equal(mlip_path_spline_eval(&spb, u - spa.s[16], 1, xb, &b), 0);
 		for (int k = 0; k < 3; k++) {
 			assert_true(fabs(xa[k] - xb[k]) < 1e-12);
 			assert_true(fabs(a.d2[k] - b.d2[k]) < 1e-8);
 			assert_true(fabs(a.d3[k] - b.d3[k]) < 1e-6);
+		}
+	}
+	/* by the parameter: the position's own derivatives (central differences
+	 * by 1e-4 mm inside a segment: x' within 1e-9, x'' within 1e-6) */
+	for (int i = 10; i < 20; i++) {
+		double u = spa.s[i] + 0.4 * (spa.s[i + 1] - spa.s[i]), x0[MLIP_MAX_AXES];
+		double xm[MLIP_MAX_AXES], xp[MLIP_MAX_AXES], e = 1e-4;
+		struct mlip_path_point d;
+		assert_int_equal(mlip_path_spline_eval(&spa, u, 0, x0, &d), 0);
+		assert_int_equal(mlip_path_spline_eval(&spa, u - e, 0, xm, &d), 0);
+		assert_int_equal(mlip_path_spline_eval(&spa, u + e, 0, xp, &d), 0);
+		struct mlip_path_point c0;
+		assert_int_equal(mlip_path_spline_eval(&spa, u, 0, x0, &c0), 0);
+		for (int k = 0; k < 3; k++) {
+			assert_true(fabs((xp[k] - xm[k]) / (2.0 * e) - c0.d1[k]) < 1e-9);
+			assert_true(fabs((xp[k] - 2.0 * x0[k] + xm[k]) / (e * e) - c0.d2[k]) <
+			            1e-6);
 		}
 	}
 	/* refused: too few points, coincident points, a non-finite one */

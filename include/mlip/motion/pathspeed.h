@@ -39,7 +39,7 @@
  * Positions need more than (P4): the cubics of consecutive windows meet with
  * a kink (C0 only), which a plan passing it at speed v shows as a jerk of
  * about v |kink| / T^2 (bench/pathspeed.py --poly on trochoid, whose
- * smoothed start turns by 0.07 rad at one point: 1.01 J at 7 mm/s; 0.99 J
+ * smoothed start turns by 0.07 rad at one point: 1.01 J at 7 mm/s; 0.97 J
  * with the spline). The plan's positions and derivatives come instead from the
  * natural cubic spline through the points by chord length (C2), its second
  * derivatives M_i (per axis) from
@@ -107,9 +107,11 @@ int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][
                          int count);
 
 /* The spline at chord length s (clamped to its span): position x[n] (may be
- * NULL) and arc-length derivatives (P4's conversion). -1 where the spline
- * stops (sigma = 0). */
-int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, double *x,
+ * NULL) and derivatives, by arc length (by_arc 1: P4's conversion, for speed
+ * caps in mm/s) or by the spline's own parameter (by_arc 0: what a plan that
+ * advances s takes in (P1)(P2), which hold for any parameter; its speed is
+ * then v |x_t|). -1 where the spline stops (sigma = 0). */
+int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_arc, double *x,
                           struct mlip_path_point *d);
 
 #endif
