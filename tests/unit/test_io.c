@@ -422,6 +422,9 @@ static void test_config_sections(void **state)
 	        "MIN_RPM must be <= MAX_RPM");
 	cfg_err("[SPINDLE]\nMAX_RPM = 1000\n", 17, 1, "TYPE = none has none");
 	cfg_err("[SPINDLE]\nTYPE = manual\nMAX_RPM = -3\n", 18, 11, "within 0..1000000 rpm");
+	/* in range but not > 0: placed on MAX_RPM alone (no second key: UBSan
+	 * caught a shift by -1 here, found by fuzz_config) */
+	cfg_err("[SPINDLE]\nTYPE = manual\nMAX_RPM = 0\n", 18, 1, "MAX_RPM must be > 0");
 	cfg_err("[TOOL]\nCHANGE = manual\nCHANGE_Z = 151\n", 18, 1,
 	        "CHANGE_Z 151 is beyond the soft limits of AXIS_Z");
 	cfg_err("[TOOL]\nCHANGE = manual\nCHANGE_A = 0\n", 18, 1, "axis A is not in COORDINATES");
