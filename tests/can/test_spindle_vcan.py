@@ -19,6 +19,7 @@ Each test prints a [spindle] line with the measured figures.
 """
 
 import re
+import time
 
 import pytest
 
@@ -216,3 +217,51 @@ def test_stop_zeroes_target_and_fault_stops_on_path(sim, tmp_path):
     print(f"[spindle] fault mid-cut at SYNC {s_fault}: X at rest {n_brake} periods later, "
           f"largest deceleration {a_max:.0f} mm/s^2 (limit 1000)")
     assert a_max <= 1000 * 1.02 + 1e-9
+
+
+def test_mdi_spindle_stays_on(sim, tmp_path):
+    """MDI M3 S3000 (mlip-ctl mdi): the spindle keeps turning once the line
+    is done (LinuxCNC: the operator starts it, then jogs and touches off),
+    through a jog and an MDI move; MDI M5 stops it; MDI M4 again, then a stop
+    (mlip-ctl stop) at rest zeroes its target. Judged on the spindle
+    drive's target and velocity actual at every SYNC."""
+    cfg = machine(tmp_path)
+    on = round(3000 * CPR / 60)  # counts/s
+    t0 = time.time()
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        rig.ctl("mdi", "G21 G90 M3 S3000")
+        st = rig.wait_state("idle", timeout=300,
+                            pred=lambda s: s["spindle"]["state"] == "at speed")
+        t_done = time.time()
+        rig.ctl("jog", "X+", "--distance", 2, 600)
+        rig.ctl("mdi", "G1 X4 F600")
+        st = rig.wait_state("idle", timeout=300)
+        assert st["spindle"]["state"] == "at speed" and st["spindle"]["commanded_rpm"] == 3000, st
+        assert abs(st["position"]["X"] - 4.0) < 1e-9 and st["drives"] == "on", st
+        t_m5 = time.time()
+        rig.ctl("mdi", "M5")
+        st = rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
+        assert st["spindle"]["commanded_rpm"] == 0, st
+        rig.ctl("mdi", "M4 S2000")
+        rig.wait_state("idle", timeout=300, pred=lambda s: s["spindle"]["state"] == "at speed")
+        t_stop = time.time()
+        rig.ctl("stop")
+        st = rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
+        assert st["spindle"]["commanded_rpm"] == 0, st
+    rows = sim.wait_sync_rows(lambda r: True)
+    sp = [r for r in rows if r["node"] == SP and r["t"] >= t0]
+    held = [r for r in sp if t_done <= r["t"] < t_m5]
+    # every SYNC from the line's end to the M5: target 3000 rpm, turning at it
+    assert len(held) >= 10 and all(r["target"] in (on, None) for r in held), held[:5]
+    assert all(abs(rpm(r["actual"]) - 3000) <= 100 for r in held), held[:5]
+    x = [r["target"] for r in rows if r["node"] == 1 and t_done <= r["t"] < t_m5 and r["target"]]
+    assert x and max(x) == 4000, x[-3:]  # the jog and the MDI move ran meanwhile
+    s_m5 = min(r["sync"] for r in sp if r["t"] >= t_m5 and r["target"] == 0)
+    m4 = [r for r in sp if r["t"] >= t_m5 and r["target"] and r["target"] < 0]
+    s_zero = min(r["sync"] for r in sp if r["sync"] > m4[0]["sync"] and r["target"] == 0)
+    s_req = min(r["sync"] for r in sp if r["t"] >= t_stop)
+    print(f"[spindle] MDI M3 S3000: target {on} counts/s held over {len(held)} SYNCs at rest, "
+          f"through a jog and an MDI move (X to 4 mm); MDI M5 target 0 at SYNC {s_m5}; "
+          f"MDI M4 S2000 then mlip-ctl stop: target 0 at SYNC {s_zero}, {s_zero - s_req} "
+          f"SYNCs after the first SYNC following the request")
+    assert 0 <= s_zero - s_req <= (25 if S.in_vm else 3), (s_req, s_zero)

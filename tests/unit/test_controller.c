@@ -43,6 +43,7 @@ static struct mlip_ctl_sdo_res sdo_res_in; /* the drives' SDO answer (homing) */
 static struct mlip_ctl_spindle_in sp_in;   /* the spindle drive's TPDO (issue 19) */
 /* the segment's stop counter and the feeder's stop_base (mlip/ipc/ring.h) */
 static uint32_t stop_count, feeder_base;
+static int feeder_mdi; /* the records are MDI lines (mlip-ctl mdi) */
 /* every transition seen since setup: state entered and why */
 static uint32_t seen_state[256], seen_why[256];
 static int n_seen;
@@ -69,6 +70,7 @@ static void machine(void)
 
 static int setup(void **state)
 {
+	feeder_mdi = 0;
 	(void)state;
 	machine();
 	size_t bytes = mlip_ring_bytes(CAP);
@@ -115,6 +117,7 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	struct mlip_ctl_in in = {.period = period++,
 	                         .missed = missed,
 	                         .feeder_alive = feeder_alive,
+	                         .feeder_mdi = feeder_mdi,
 	                         .stop_requests = stop_count,
 	                         .feeder_stop_base = feeder_base};
 	in.cmd = op ? &cmd : NULL;
@@ -2928,6 +2931,78 @@ static void test_spindle_estop(void **st)
 	assert_true(spd.reached != 0 && fabs(spd.rpm - 3000) <= 20);
 }
 
+/* MDI M3 S (mlip-ctl mdi: the feeder says so): the spindle stays on at
+ * speed when the line is done, the drives enabled for it, through an
+ * incremental jog (LinuxCNC: the operator starts it, then jogs and touches
+ * off); MDI M5 stops it (the drives disabled at its standstill); a stop at
+ * rest stops it in the same period; a program's end (not MDI) too. */
+static void mdi_m3(double rpm)
+{
+	feeder_mdi = 1;
+	event(1, MLIP_BLOCK_SPINDLE, rpm);
+	end(2);
+	suntil(MLIP_STATE_DWELLING, 100);
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+}
+
+static void test_spindle_mdi_stays_on(void **st)
+{
+	(void)st;
+	stick(5);
+	mdi_m3(6000.0);
+	stick(500);
+	assert_true(status().spindle_cmd_rpm == 6000 && fabs(spd.rpm - 6000) <= 20);
+	assert_int_equal(out.spindle.target, 409600);
+	assert_int_equal(status().drive_power, MLIP_POWER_ENABLED);
+	/* a 5 mm jog along X, renewed as mlip-ctl does: the spindle turns on */
+	assert_int_equal(period_cmd(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 0, 5000), 0), MLIP_OK);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 1200), 0), MLIP_OK);
+	for (int i = 0; i < 3000 && status().state == MLIP_STATE_JOGGING; i++) {
+		stick(1);
+		if (i % 100 == 99 && status().state == MLIP_STATE_JOGGING) {
+			assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 1200), 0),
+			                 MLIP_OK);
+			spindle_drive();
+		}
+		assert_int_equal(out.spindle.target, 409600);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_JOG_DONE);
+	assert_true(fabs(out.pos[0] - 5.0) < 1e-9);
+	stick(100);
+	assert_true(status().spindle_cmd_rpm == 6000 && fabs(spd.rpm - 6000) <= 20);
+	assert_int_equal(status().drive_power, MLIP_POWER_ENABLED);
+	/* MDI M5: it stops; the drives are disabled once it stands still */
+	event(1, MLIP_BLOCK_SPINDLE, 0.0);
+	end(2);
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(fabs(spd.rpm) <= 240);
+	for (int i = 0; i < 100 && status().drive_power == MLIP_POWER_ENABLED; i++) {
+		stick(1);
+	}
+	assert_true(status().drive_power != MLIP_POWER_ENABLED);
+	/* again; a stop at rest: target 0 in the stop's own period */
+	mdi_m3(-3000.0);
+	stick(10);
+	assert_int_equal(out.spindle.target, -204800);
+	stop_count++;
+	stick(1);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	/* again; then a program: its end stops it */
+	feeder_base = stop_count;
+	mdi_m3(3000.0);
+	feeder_mdi = 0;
+	move(1, 10.0, 0.0);
+	end(2);
+	suntil(MLIP_STATE_RUNNING, 100);
+	assert_int_equal(out.spindle.target, 204800); /* it turned through the program */
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_int_equal(out.spindle.target, 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -3005,6 +3080,7 @@ int main(void)
 	    TS(test_spindle_stop_and_fault_mid_cut),
 	    TS(test_spindle_band_and_timeout),
 	    TS(test_spindle_estop),
+	    TS(test_spindle_mdi_stays_on),
 	    TS(test_spindle_heartbeat_lost),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
