@@ -364,3 +364,53 @@ def test_drive_touch_probe_latch(sim, tmp_path):
         f"{pr['position']['X']:.4f}, {pr['position']['Y']:.4f}), at rest at {rest} counts "
         f"({surface - rest} counts beyond), max braking {acc:.1f} mm/s^2"
     )
+
+
+def test_drive_probe_on_at_start(sim, tmp_path):
+    """[PROBE] SOURCE = drive with the probe's level read from the drives'
+    own digital inputs ([IO] PROBE = 3 0x60FD:0 16: CiA 402's 0x60B9 has no
+    level, drives show the probe input among 0x60FD's manufacturer bits):
+    G38.2 with the probe already on is refused at its line before anything
+    moves or a latch is armed (exit 5); once it is off, the same G38.2 runs
+    and the latch, not the level, is the result."""
+    text = machine(tmp_path).read_text()
+    text = text.replace(f"PROBE = {IO} 0x6000:1 3 HIGH\n", "PROBE = 3 0x60FD:0 16 HIGH\n")
+    cfg = tmp_path / "tplevel.ini"
+    cfg.write_text(text + "\n[PROBE]\nSOURCE = drive\n")
+    home = tmp_path / "home.ngc"
+    home.write_text("G21 G90\nG0 X0 Y0 Z0\nM2\n")
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G21 G90\nG38.2 Z-10 F120\nG0 Z5\nM2\n")
+    surface = -3013  # counts
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        rc, out, err = rig.feed(home, timeout=600)
+        assert rc == 0, err
+        # the probe on from Z 0 down (a surface above the tool: pressed)
+        sim.inject("3:touch-probe=1000,below")
+        try:
+            rig.wait_state("idle", timeout=60, pred=lambda s: s["inputs"].get("probe") is True)
+            t0 = time.time()
+            rc, out, err = rig.feed(ngc, timeout=600)
+            assert rc == 5 and "probe already tripped at the start" in err, (rc, err)
+            assert rig.status()["probe"]["count"] == 0
+            sim.wait_sync_rows(lambda rs: True)
+            fns = [e for e in sim.events("touch_probe_fn") if e["t"] >= t0]
+            zs = {t for s, t in targets(sim, 3, t0) if t is not None}
+            t1 = time.time()
+            sim.inject(f"3:touch-probe={surface},below")
+            rig.wait_state("idle", timeout=60, pred=lambda s: s["inputs"].get("probe") is False)
+            rc, out, err = rig.feed(ngc, timeout=600)
+            assert rc == 0, err
+            st = rig.status()
+        finally:
+            sim.inject("3:touch-probe=off")
+    assert zs == {0}, zs  # nothing moved on the bus
+    assert all(e["fn"] == "0x0000" for e in fns), fns  # the latch never armed
+    pr = st["probe"]
+    assert pr["tripped"] is True and round(pr["position"]["Z"] * CPU) == surface, pr
+    armed = [e for e in sim.events("touch_probe_fn") if e["t"] >= t1 and e["fn"] == "0x0011"]
+    assert armed
+    print(f"[probe] drive touch probe, level on 0x60FD bit 16: G38.2 with the probe on refused "
+          f"('probe already tripped at the start', exit 5), Z held at {sorted(zs)} counts, "
+          f"0x60B8 never armed; then off: latched {round(pr['position']['Z'] * CPU)} counts "
+          f"against the surface {surface}")
