@@ -754,9 +754,9 @@ def io_report(
         and s_last is not None
         and on < s_move
         and off is not None
-        and off > s_last,
+        and off >= s_last,
         f"flood coolant on at the module before the first move (SYNC {on} < {s_move}) and off "
-        f"after the last (SYNC {off} > {s_last})",
+        f"at rest after the last (SYNC {off} >= {s_last})",
     )
     length = next(
         float(w[1:])

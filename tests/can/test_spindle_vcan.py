@@ -237,7 +237,7 @@ def test_mdi_spindle_stays_on(sim, tmp_path):
         rig.ctl("mdi", "G1 X4 F600")
         st = rig.wait_state("idle", timeout=300)
         assert st["spindle"]["state"] == "at speed" and st["spindle"]["commanded_rpm"] == 3000, st
-        assert abs(st["position"]["X"] - 4.0) < 1e-9 and st["drives"] == "on", st
+        assert abs(st["position"]["X"] - 4.0) < 1e-9 and st["drives"] == "enabled", st
         t_m5 = time.time()
         rig.ctl("mdi", "M5")
         st = rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
@@ -264,4 +264,7 @@ def test_mdi_spindle_stays_on(sim, tmp_path):
           f"through a jog and an MDI move (X to 4 mm); MDI M5 target 0 at SYNC {s_m5}; "
           f"MDI M4 S2000 then mlip-ctl stop: target 0 at SYNC {s_zero}, {s_zero - s_req} "
           f"SYNCs after the first SYNC following the request")
-    assert 0 <= s_zero - s_req <= (25 if S.in_vm else 3), (s_req, s_zero)
+    # from the first SYNC after mlip-ctl was started (its process start in the
+    # emulated VM takes up to seconds), then 0 at every SYNC
+    assert 0 <= s_zero - s_req <= (75 if S.in_vm else 5), (s_req, s_zero)
+    assert all(r["target"] in (0, None) for r in sp if r["sync"] >= s_zero)
