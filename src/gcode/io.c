@@ -365,8 +365,11 @@ static void exec_spindle(struct mlip_gcode *g, const struct blk *b, struct emit_
 		return;
 	}
 	g->spindle = b->spindle_m == 5 ? 0 : b->spindle_m;
-	/* a new state, or M3/M4 repeated with a new S on this line */
-	if (g->spindle != was || (g->spindle && g->s_rpm != s_before)) {
+	/* a new state, or M3/M4 repeated with a new S on this line; an MDI M5
+	 * always: an earlier MDI line's M3 still turns it (the controller keeps
+	 * it), whatever this reader's fresh state says */
+	if (g->spindle != was || (g->spindle && g->s_rpm != s_before) ||
+	    (g->mdi && b->spindle_m == 5)) {
 		queue(ec, MLIP_BLOCK_SPINDLE, spindle_value(g));
 	}
 }
@@ -465,7 +468,8 @@ static void exec_coolant(struct mlip_gcode *g, const struct blk *b, struct emit_
 		return;
 	}
 	want = b->m9 ? 0u : g->coolant | b->coolant_m;
-	if (want != g->coolant) {
+	/* an MDI M9 always (an earlier MDI line's M7/M8 stays on) */
+	if (want != g->coolant || (g->mdi && b->m9 && io->coolant != MLIP_IO_NONE)) {
 		g->coolant = want;
 		queue(ec, MLIP_BLOCK_COOLANT, (double)want);
 	}

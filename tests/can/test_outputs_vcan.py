@@ -378,7 +378,7 @@ def test_drive_probe_on_at_start(sim, tmp_path):
     cfg = tmp_path / "tplevel.ini"
     cfg.write_text(text + "\n[PROBE]\nSOURCE = drive\n")
     home = tmp_path / "home.ngc"
-    home.write_text("G21 G90\nG0 X0 Y0 Z0\nM2\n")
+    home.write_text("G21 G90\nG0 X0 Y0 Z1\nG0 Z0\nM2\n")  # a move, wherever it stands
     ngc = tmp_path / "p.ngc"
     ngc.write_text("G21 G90\nG38.2 Z-10 F120\nG0 Z5\nM2\n")
     surface = -3013  # counts

@@ -228,7 +228,10 @@ def test_spindle_none_and_bad_inputs_refused(drives_sim, tmp_path):
                     continue
                 prog.write_text(text)
                 rc, out, err = rig.feed(prog, timeout=300, args=args)
-                assert rc != 0 and f"{where}: error: " in err and why in err, (text, rc, err)
+                # a program's error: FILE:LINE:COL: error: ...; the table's:
+                # mlip-feed: error: TABLE:LINE:COL: ...
+                said_where = f"{where}: error: " in err or ("error: " in err and f"/{where}: " in err)
+                assert rc != 0 and said_where and why in err, (text, rc, err)
                 said.append(f"{where}: {why}")
             assert rig.status()["state"] == "idle"
             axes = still(sim, t0, machine.stem)  # nothing moved on the bus

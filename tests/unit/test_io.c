@@ -164,6 +164,36 @@ static void test_spindle_manual(void **state)
 	free(r);
 }
 
+/* MDI lines (each mdi a fresh reader): M5 and M9 always reach the
+ * controller, which keeps an earlier line's M3/M8 on; a program's redundant
+ * M5 stays nothing (a manual spindle would pause for it). */
+static void test_mdi_stop_words(void **state)
+{
+	struct mlip_gcode_io io = io_manual();
+	struct run *r = malloc(sizeof *r);
+	char ev[256];
+
+	(void)state;
+	gr_mdi = 1;
+	run(r, &io, "M5\n");
+	events(r, ev, sizeof ev);
+	assert_int_equal(r->errors, 0);
+	assert_string_equal(ev, "S0");
+	run(r, &io, "M9\n");
+	events(r, ev, sizeof ev);
+	assert_string_equal(ev, "C0");
+	io.coolant = MLIP_IO_NONE;
+	run(r, &io, "M9\n");
+	events(r, ev, sizeof ev);
+	assert_string_equal(ev, "");
+	gr_mdi = 0;
+	io = io_manual();
+	run(r, &io, "M5 M9\nG1 X1 F100\n");
+	events(r, ev, sizeof ev);
+	assert_string_equal(ev, "m");
+	free(r);
+}
+
 static void test_spindle_bad(void **state)
 {
 	struct mlip_gcode_io io = io_manual();
@@ -554,6 +584,7 @@ int main(void)
 	    cmocka_unit_test(test_spindle_none),
 	    cmocka_unit_test(test_spindle_manual),
 	    cmocka_unit_test(test_spindle_bad),
+	    cmocka_unit_test(test_mdi_stop_words),
 	    cmocka_unit_test(test_tool_change),
 	    cmocka_unit_test(test_tool_bad),
 	    cmocka_unit_test(test_length_offset),
