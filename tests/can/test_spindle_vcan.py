@@ -222,7 +222,8 @@ def test_stop_zeroes_target_and_fault_stops_on_path(sim, tmp_path):
 def test_mdi_spindle_stays_on(sim, tmp_path):
     """MDI M3 S3000 (mlip-ctl mdi): the spindle keeps turning once the line
     is done (LinuxCNC: the operator starts it, then jogs and touches off),
-    through a jog and an MDI move; MDI M5 stops it; MDI M4 again, then a stop
+    through a jog and an MDI move; MDI M5 stops it; MDI M4 again, an MDI S
+    alone changes its speed (still counter-clockwise), then a stop
     (mlip-ctl stop) at rest zeroes its target. Judged on the spindle
     drive's target and velocity actual at every SYNC."""
     cfg = machine(tmp_path)
@@ -244,6 +245,12 @@ def test_mdi_spindle_stays_on(sim, tmp_path):
         assert st["spindle"]["commanded_rpm"] == 0, st
         rig.ctl("mdi", "M4 S2000")
         rig.wait_state("idle", timeout=300, pred=lambda s: s["spindle"]["state"] == "at speed")
+        # an S alone: the new speed, still counter-clockwise (not ignored)
+        rig.ctl("mdi", "S2500")
+        st = rig.wait_state("idle", timeout=300,
+                            pred=lambda s: s["spindle"]["state"] == "at speed"
+                            and abs(s["spindle"]["commanded_rpm"]) == 2500)
+        assert st["spindle"]["commanded_rpm"] == -2500, st
         t_stop = time.time()
         rig.ctl("stop")
         st = rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
@@ -259,6 +266,10 @@ def test_mdi_spindle_stays_on(sim, tmp_path):
     s_m5 = min(r["sync"] for r in sp if r["t"] >= t_m5 and r["target"] == 0)
     m4 = [r for r in sp if r["t"] >= t_m5 and r["target"] and r["target"] < 0]
     s_zero = min(r["sync"] for r in sp if r["sync"] > m4[0]["sync"] and r["target"] == 0)
+    # the S alone: from -2000 rpm to -2500 rpm with no zero between
+    s2 = [r["target"] for r in sp if r["sync"] >= m4[0]["sync"] and r["sync"] < s_zero
+          and r["target"] is not None]
+    assert set(s2) == {round(-2000 * CPR / 60), round(-2500 * CPR / 60)}, sorted(set(s2))
     s_req = min(r["sync"] for r in sp if r["t"] >= t_stop)
     print(f"[spindle] MDI M3 S3000: target {on} counts/s held over {len(held)} SYNCs at rest, "
           f"through a jog and an MDI move (X to 4 mm); MDI M5 target 0 at SYNC {s_m5}; "

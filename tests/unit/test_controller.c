@@ -959,6 +959,30 @@ static void test_bad_spindle_speed(void **st)
 	assert_int_equal(io_record(MLIP_REC_SPINDLE, -nextafter(MLIP_REC_RPM_MAX, INFINITY)),
 	                 MLIP_E_RANGE);
 	assert_int_equal(io_record(MLIP_REC_SPINDLE, NAN), MLIP_E_RANGE);
+	/* an MDI S alone: a speed, no direction */
+	assert_int_equal(io_record(MLIP_REC_SPEED, 0.0), MLIP_OK);
+	assert_int_equal(io_record(MLIP_REC_SPEED, MLIP_REC_RPM_MAX), MLIP_OK);
+	assert_int_equal(io_record(MLIP_REC_SPEED, -1.0), MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_SPEED, nextafter(MLIP_REC_RPM_MAX, INFINITY)),
+	                 MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_SPEED, NAN), MLIP_E_RANGE);
+}
+
+/* An MDI S alone on a machine whose controller drives no spindle: not a
+ * record mlip's reader sends (it refuses the line): a bad record, nothing
+ * after it runs. */
+static void test_speed_without_spindle(void **st)
+{
+	(void)st;
+	event(1, MLIP_BLOCK_SPEED, 3000.0);
+	move(2, 5.0, 0.0);
+	end(3);
+	until(MLIP_STATE_FAULT, 100);
+	assert_int_equal(status().reason, MLIP_WHY_BAD_RECORD);
+	assert_int_equal(status().reason_field, MLIP_FIELD_TYPE);
+	assert_true(status().reason_value == MLIP_REC_SPEED);
+	tick(200);
+	assert_true(out.pos[0] == 0.0); /* the move after it never ran */
 }
 
 static void test_bad_tool_number(void **st)
@@ -1175,7 +1199,12 @@ static void test_record_roundtrip(void **st)
 	b.kind = MLIP_BLOCK_OPTIONAL_PAUSE;
 	mlip_ring_rec_from_block(&rec, &b, 6);
 	assert_int_equal(rec.type, MLIP_REC_OPTIONAL_PAUSE);
-	b.kind = 9; /* unknown: stays unknown, refused by the controller */
+	b = (struct mlip_block){.kind = MLIP_BLOCK_SPEED, .value = 4500.0};
+	mlip_ring_rec_from_block(&rec, &b, 6);
+	assert_int_equal(rec.type, MLIP_REC_SPEED);
+	assert_int_equal(mlip_ring_rec_to_block(&rec, &c), MLIP_OK);
+	assert_true(c.kind == MLIP_BLOCK_SPEED && c.value == 4500.0);
+	b.kind = MLIP_BLOCK_SPEED + 1; /* unknown: stays unknown, refused by the controller */
 	mlip_ring_rec_from_block(&rec, &b, 6);
 	assert_int_equal(mlip_ring_rec_to_block(&rec, &c), MLIP_E_INVALID);
 	mlip_ring_rec_end(&rec, 7, 8);
@@ -3041,6 +3070,39 @@ static void test_spindle_mdi_stays_on(void **st)
 	assert_int_equal(out.spindle.target, 0);
 }
 
+/* MDI S alone (SPEED): the speed of the spindle an earlier MDI M4 keeps
+ * turning, in its direction, at rest until it is at the new speed; once M5
+ * stopped it, an S leaves it stopped (the S is for the next M3/M4). */
+static void test_spindle_mdi_speed(void **st)
+{
+	(void)st;
+	stick(5);
+	mdi_m3(-3000.0);
+	stick(100);
+	assert_int_equal(out.spindle.target, -204800);
+	feeder_base = stop_count;
+	event(1, MLIP_BLOCK_SPEED, 4500.0);
+	end(2);
+	suntil(MLIP_STATE_DWELLING, 100);
+	assert_int_equal(status().reason, MLIP_WHY_SPINDLE_WAIT);
+	assert_true(status().reason_value == -4500.0);
+	assert_int_equal(out.spindle.target, -307200); /* 4500 rpm * 4096 / 60, reversed */
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(status().spindle_cmd_rpm == -4500 && fabs(spd.rpm + 4500) <= 20);
+	/* M5, then an S alone: it stays stopped */
+	event(1, MLIP_BLOCK_SPINDLE, 0.0);
+	end(2);
+	suntil(MLIP_STATE_IDLE, 5000);
+	event(1, MLIP_BLOCK_SPEED, 2000.0);
+	end(2);
+	suntil(MLIP_STATE_DWELLING, 100);
+	suntil(MLIP_STATE_IDLE, 100);
+	stick(100);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -3075,6 +3137,7 @@ int main(void)
 	    T(test_record_bounds_accepted),
 	    T(test_bad_beyond_drive_count),
 	    T(test_bad_spindle_speed),
+	    T(test_speed_without_spindle),
 	    T(test_bad_tool_number),
 	    T(test_bad_coolant_bits),
 	    T(test_bad_record_in_dwell_rests_before_it),
@@ -3120,6 +3183,7 @@ int main(void)
 	    TS(test_spindle_band_and_timeout),
 	    TS(test_spindle_estop),
 	    TS(test_spindle_mdi_stays_on),
+	    TS(test_spindle_mdi_speed),
 	    TS(test_spindle_heartbeat_lost),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
