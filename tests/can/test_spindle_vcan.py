@@ -255,7 +255,9 @@ def test_mdi_spindle_stays_on(sim, tmp_path):
         rig.ctl("stop")
         st = rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
         assert st["spindle"]["commanded_rpm"] == 0, st
-    rows = sim.wait_sync_rows(lambda r: True)
+    # the simulator's records lag the bus in the emulated VM: to the stop's 0
+    rows = sim.wait_sync_rows(lambda rs: any(
+        r["node"] == SP and r["target"] == 0 and r["t"] >= t_stop for r in rs), timeout=120)
     sp = [r for r in rows if r["node"] == SP and r["t"] >= t0]
     held = [r for r in sp if t_done <= r["t"] < t_m5]
     # every SYNC from the line's end to the M5: target 3000 rpm, turning at it
