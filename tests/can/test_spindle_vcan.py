@@ -156,6 +156,45 @@ def test_feed_waits_for_spindle_at_speed(sim, tmp_path):
     assert off and abs(rpm(off[0]["actual"])) <= 100, off[:1]
 
 
+def test_reversal_waits_for_standstill(sim, tmp_path):
+    """M3 S3000, a cut, M4 S3000, a cut: at the M4 the spindle's target goes
+    to 0 first and turns negative only after its TPDO reported standstill
+    (never reversed through 0 while turning the other way); no axis moves
+    from the M4 until the spindle reported target reached counter-clockwise."""
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "rev.ngc"
+    ngc.write_text("G21 G90\nG0 X5\nM3 S3000\nG1 X10 F600\nM4 S3000\nG1 X15\nM2\n")
+    sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err
+        rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
+        t_end = rig.t_feed_end
+    # the simulator's records lag the bus in the emulated VM: to M2's stop
+    rows = sim.wait_sync_rows(lambda rs: any(
+        r["node"] == SP and r["target"] == 0 and r["t"] >= t_end for r in rs), timeout=120)
+    sp = rows_by(rows, SP, sync0)
+    on = round(3000 * CPR / 60)
+    s_cw = min(r["sync"] for r in sp if r["target"] == on)
+    s_rev = min(r["sync"] for r in sp if r["sync"] > s_cw and r["target"] == 0)
+    s_ccw = min(r["sync"] for r in sp if r["sync"] > s_rev and r["target"] == -on)
+    still = [r["sync"] for r in sp if s_rev <= r["sync"] < s_ccw and abs(rpm(r["actual"])) <= 100]
+    assert still, [(r["sync"], r["target"], r["actual"]) for r in sp if r["sync"] >= s_rev][:10]
+    # nothing between the standstill and -on, and no negative target before it
+    assert all(r["target"] in (0, None) for r in sp if s_rev <= r["sync"] < s_ccw)
+    assert all(rpm(r["actual"]) <= 100 for r in sp if r["sync"] >= s_ccw)
+    reached = [r["sync"] for r in sp if r["sync"] > s_ccw and r["sw"] & 0x0400 and
+               abs(rpm(r["actual"]) + 3000) <= 100]
+    tg = axis_targets(rows, sync0)
+    at_rev = tg[max(s for s in tg if s <= s_rev)]
+    s_move = min(s for s in tg if s > s_rev and tg[s] != at_rev)
+    assert at_rev[0] == 10000, at_rev  # X10: the first cut done before the M4
+    assert reached and s_move > reached[0], (s_rev, still[0], s_ccw, reached[:1], s_move)
+    print(f"[spindle] M3 -> M4 S3000: target 0 at SYNC {s_rev}, standstill reported at SYNC "
+          f"{still[0]}, target -{on} counts/s at SYNC {s_ccw}, reached at SYNC {reached[0]}, "
+          f"next feed at SYNC {s_move}")
+
+
 def test_stop_zeroes_target_and_fault_stops_on_path(sim, tmp_path):
     cfg = machine(tmp_path)
     ngc = tmp_path / "long.ngc"
