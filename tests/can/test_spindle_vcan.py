@@ -157,13 +157,15 @@ def test_feed_waits_for_spindle_at_speed(sim, tmp_path):
 
 
 def test_reversal_waits_for_standstill(sim, tmp_path):
-    """M3 S3000, a cut, M4 S3000, a cut: at the M4 the spindle's target goes
-    to 0 first and turns negative only after its TPDO reported standstill
-    (never reversed through 0 while turning the other way); no axis moves
-    from the M4 until the spindle reported target reached counter-clockwise."""
+    """M3 S3000, a cut, M4 S3000, a cut, S2000 alone, a cut: at the M4 the
+    spindle's target goes to 0 first and turns negative only after its TPDO
+    reported standstill (never reversed through 0 while turning the other
+    way); no axis moves from the M4 until the spindle reported target
+    reached counter-clockwise; the S alone changes the speed the same way
+    round (no 0 between), the feed waiting for it too."""
     cfg = machine(tmp_path)
     ngc = tmp_path / "rev.ngc"
-    ngc.write_text("G21 G90\nG0 X5\nM3 S3000\nG1 X10 F600\nM4 S3000\nG1 X15\nM2\n")
+    ngc.write_text("G21 G90\nG0 X5\nM3 S3000\nG1 X10 F600\nM4 S3000\nG1 X15\nS2000\nG1 X20\nM2\n")
     sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         rc, out, err = rig.feed(ngc, timeout=600)
@@ -183,6 +185,9 @@ def test_reversal_waits_for_standstill(sim, tmp_path):
     # nothing between the standstill and -on, and no negative target before it
     assert all(r["target"] in (0, None) for r in sp if s_rev <= r["sync"] < s_ccw)
     assert all(rpm(r["actual"]) <= 100 for r in sp if r["sync"] >= s_ccw)
+    slow = round(2000 * CPR / 60)
+    s_slow = min(r["sync"] for r in sp if r["sync"] > s_ccw and r["target"] == -slow)
+    assert all(r["target"] in (-on, None) for r in sp if s_ccw <= r["sync"] < s_slow)
     reached = [r["sync"] for r in sp if r["sync"] > s_ccw and r["sw"] & 0x0400 and
                abs(rpm(r["actual"]) + 3000) <= 100]
     tg = axis_targets(rows, sync0)
@@ -190,9 +195,16 @@ def test_reversal_waits_for_standstill(sim, tmp_path):
     s_move = min(s for s in tg if s > s_rev and tg[s] != at_rev)
     assert at_rev[0] == 10000, at_rev  # X10: the first cut done before the M4
     assert reached and s_move > reached[0], (s_rev, still[0], s_ccw, reached[:1], s_move)
+    slowed = [r["sync"] for r in sp if r["sync"] > s_slow and r["sw"] & 0x0400 and
+              abs(rpm(r["actual"]) + 2000) <= 100]
+    at_slow = tg[max(s for s in tg if s <= s_slow)]
+    s_move2 = min(s for s in tg if s > s_slow and tg[s] != at_slow)
+    assert at_slow[0] == 15000, at_slow  # X15: the second cut done before the S
+    assert slowed and s_move2 > slowed[0], (s_slow, slowed[:1], s_move2)
     print(f"[spindle] M3 -> M4 S3000: target 0 at SYNC {s_rev}, standstill reported at SYNC "
           f"{still[0]}, target -{on} counts/s at SYNC {s_ccw}, reached at SYNC {reached[0]}, "
-          f"next feed at SYNC {s_move}")
+          f"next feed at SYNC {s_move}; S2000 alone: target -{slow} at SYNC {s_slow}, "
+          f"reached at SYNC {slowed[0]}, next feed at SYNC {s_move2}")
 
 
 def test_stop_zeroes_target_and_fault_stops_on_path(sim, tmp_path):
