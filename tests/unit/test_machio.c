@@ -555,9 +555,9 @@ static void test_outputs_off_on_fault_and_estop(void **st)
 }
 
 /* MDI lines (mlip-ctl mdi: the feeder says so): M8 and M64 P0 stay on when
- * the lines are done (LinuxCNC: until M9/M65, a program's end, a stop); the
- * next MDI M9 switches the coolant off; a stop at rest switches everything
- * off; a program's end (not MDI) too. */
+ * the lines are done (LinuxCNC: until M9/M65, a program's end, a stop); a
+ * next MDI M7 adds mist to the flood; the next MDI M9 switches both off; a
+ * stop at rest switches everything off; a program's end (not MDI) too. */
 static void test_mdi_outputs_stay_on(void **st)
 {
 	(void)st;
@@ -570,7 +570,15 @@ static void test_mdi_outputs_stay_on(void **st)
 	assert_int_equal(out.status.reason, MLIP_WHY_END);
 	tick(10);
 	assert_int_equal(out.status.coolant, MLIP_COOLANT_FLOOD);
-	assert_int_equal(out.outputs[0], 0x06);        /* flood (bit 1) and P0 (bit 2) */
+	assert_int_equal(out.outputs[0], 0x06); /* flood (bit 1) and P0 (bit 2) */
+	/* the next MDI M7 (its reader knows no flood): mist joins flood */
+	push_block(1, MLIP_BLOCK_COOLANT, 0, 0, 0, MLIP_COOLANT_MIST);
+	end(2);
+	tick(1);
+	until(MLIP_STATE_IDLE, 100);
+	tick(2);
+	assert_int_equal(out.status.coolant, MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD);
+	assert_int_equal(out.outputs[0], 0x07);
 	push_block(1, MLIP_BLOCK_COOLANT, 0, 0, 0, 0); /* M9 */
 	end(2);
 	tick(1);
