@@ -129,7 +129,7 @@ const char *mlip_io_probe_warning(const struct mlip_io_config *io)
 		return NULL;
 	}
 	return "[PROBE] SOURCE = drive without [IO] PROBE: the touch probe's status 0x60B9 has no "
-	       "level, so a probe already on when a G38.2/G38.3 starts (a plate touching, a "
+	       "level, so a probe that is on when a G38.2/G38.3 starts (a plate touching, a "
 	       "stuck switch) gives no edge and nothing stops the move toward its target; map "
 	       "the probe's level, e.g. PROBE = 3 0x60FD:0 16 HIGH (the drive's digital input "
 	       "bit, see its manual), and mlip refuses such a G38 before anything moves";

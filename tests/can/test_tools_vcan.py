@@ -110,8 +110,9 @@ def turning_points(values):
 def still(sim, t0, what):
     """The SYNCs between t0 and now: at least two recorded (the simulator
     writes each SYNC's row), every axis' target one value in them."""
-    n0 = len(sim.sync_rows())
-    sim.wait_sync_rows(lambda rs: len({r["sync"] for r in rs[n0:]}) >= 2, timeout=120)
+    # two SYNCs with targets from t0 (the simulator's records lag the bus)
+    sim.wait_sync_rows(lambda rs: len({r["sync"] for r in rs if r["t"] >= t0
+                                       and r["target"] is not None}) >= 2, timeout=120)
     tg = targets(sim, t0)
     per = {n: {v[n] for v in tg.values() if n in v} for n in (1, 2, 3)}
     assert len(tg) >= 2 and all(len(v) == 1 for v in per.values()), (what, per)
