@@ -734,6 +734,10 @@ static int set_up(const struct options *o, struct app *a)
 	if (mlip_config_load(o->config, &a->cfg, stderr) != 0) {
 		return 1;
 	}
+	const char *warn = mlip_io_probe_warning(&a->cfg.inputs);
+	if (warn != NULL) {
+		fprintf(stderr, PROG ": %s: warning: %s\n", o->config, warn);
+	}
 	int rc = mlip_cli_can_override(&a->cfg, o->config, o->profile, o->bitrate, &a->prof, PROG,
 	                               stderr);
 	if (rc != 0) {
