@@ -1,0 +1,214 @@
+/*
+ * test_pathplan.c - one period of the path-speed plan along a spline
+ * (src/motion/pathplan.c, Q1-Q4): the whole-period jerk interval (Q2) holds
+ * every axis within J over the whole period and is tight on both sides;
+ * the greedy plan along a helix keeps J and A at every sample (third and
+ * second differences of the positions), never leaves the certified states,
+ * and uses them (0.95 J planned is reached), its peak speed at least 0.8 of
+ * the quasi-static speed (P3).
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cmocka.h>
+
+#include "mlip/motion/pathplan.h"
+
+static uint64_t rng = 0x2545F4914F6CDD1Dull;
+
+static double uni(double lo, double hi)
+{
+	rng ^= rng << 13;
+	rng ^= rng >> 7;
+	rng ^= rng << 17;
+	return lo + (hi - lo) * (double)(rng >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/* A helix of radius R, rising c a radian, sampled every `step` mm of arc:
+ * a spline of MLIP_PATH_WIN points. */
+static const double HR = 4.0, HC = 0.5;
+
+static void helix_spline(struct mlip_path_spline *sp, double step)
+{
+	double pts[MLIP_PATH_WIN][MLIP_MAX_AXES] = {{0}};
+	double L = sqrt(HR * HR + HC * HC);
+	for (int i = 0; i < MLIP_PATH_WIN; i++) {
+		double th = i * step / L;
+		pts[i][0] = HR * cos(th);
+		pts[i][1] = HR * sin(th);
+		pts[i][2] = HC * th;
+	}
+	assert_int_equal(
+	    mlip_path_spline_fit(sp, 3, (const double(*)[MLIP_MAX_AXES])pts, MLIP_PATH_WIN), 0);
+}
+
+static void limits(struct mlip_path_limits *lim, double J)
+{
+	*lim = (struct mlip_path_limits){0};
+	lim->n = 3;
+	for (int k = 0; k < 3; k++) {
+		lim->accel[k] = 0.98 * 1000.0; /* the model's margins */
+		lim->jerk[k] = 0.95 * J;
+	}
+	lim->vmax = 0.995 * 200.0;
+	lim->a_brake = 300.0;
+	lim->v_crawl = 2.0;
+	lim->period = 1e-3;
+}
+
+/* The worst |P2| / J over the step of jerk j from st, at 400 instants. */
+static double worst_jerk(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                         struct mlip_path_state st, double j)
+{
+	double w = 0.0;
+	for (int i = 0; i <= 400; i++) {
+		struct mlip_path_state at = mlip_path_advance(st, j, lim->period * i / 400.0);
+		struct mlip_path_point d;
+		mlip_path_spline_eval(sp, at.s, 0, NULL, &d);
+		for (int k = 0; k < lim->n; k++) {
+			double p2 = d.d1[k] * j + 3.0 * d.d2[k] * at.v * at.a +
+			            d.d3[k] * at.v * at.v * at.v; /* (P2) */
+			w = fmax(w, fabs(p2) / lim->jerk[k]);
+		}
+	}
+	return w;
+}
+
+/* (Q2): a jerk in the interval keeps every axis within J over the whole
+ * period (the checkpoints suffice to 0.2 %, at 400 instants); a little
+ * outside either end, some instant exceeds it. The start's interval alone
+ * is not enough: some of its ends break J within the period. */
+static void test_period_range(void **state)
+{
+	(void)state;
+	struct mlip_path_spline sp;
+	struct mlip_path_limits lim;
+	helix_spline(&sp, 0.1);
+	limits(&lim, 1e4);
+	int checked = 0, start_only_breaks = 0;
+	for (int it = 0; it < 3000; it++) {
+		struct mlip_path_state st = {uni(0.5, 5.5), uni(0.0, 60.0), uni(-300.0, 300.0)};
+		double lo, hi, jl, jh;
+		struct mlip_path_point d;
+		mlip_path_spline_eval(&sp, st.s, 0, NULL, &d);
+		if (!mlip_path_jerk_range(3, &d, lim.jerk, st.v, st.a, &jl, &jh)) {
+			continue;
+		}
+		for (int e = 0; e < 2; e++) {
+			if (worst_jerk(&sp, &lim, st, e ? jh : jl) > 1.0 + 1e-6) {
+				start_only_breaks++;
+			}
+		}
+		double j = jl + uni(0.0, 1.0) * (jh - jl);
+		if (!mlip_path_period_range(&sp, &lim, st, j, &lo, &hi) || !(lo <= j && j <= hi)) {
+			continue;
+		}
+		/* each end of the interval, as the end of its own step's interval
+		 * (the interval moves with the jerk through Q1: a fixed point, a
+		 * few rounds), a hair in and a little out */
+		for (int e = 0; e < 2; e++) {
+			double x = e ? hi : lo, l2 = lo, h2 = hi;
+			int ok = 1;
+			for (int r = 0; r < 8 && ok; r++) {
+				ok = mlip_path_period_range(&sp, &lim, st, x, &l2, &h2);
+				x = e ? h2 : l2;
+			}
+			if (!ok || !mlip_path_period_range(&sp, &lim, st, x, &l2, &h2) ||
+			    fabs((e ? h2 : l2) - x) > 1e-6 * (1.0 + fabs(x))) {
+				continue;
+			}
+			double span = h2 - l2;
+			double in = x + (e ? -1.0 : 1.0) * 1e-9 * span;
+			double out = x + (e ? 1.0 : -1.0) * 0.01 * (span + 1.0);
+			assert_true(worst_jerk(&sp, &lim, st, in) <= 1.002);
+			assert_true(worst_jerk(&sp, &lim, st, out) > 1.0);
+			checked++;
+		}
+	}
+	print_message("%d ends checked; %d ends of the start's interval break J\n", checked,
+	              start_only_breaks);
+	assert_true(checked > 1000);
+	assert_true(start_only_breaks > 0);
+}
+
+/* The plan along a helix from rest: every sample's jerk (third difference /
+ * T^3) within J and acceleration (second difference / T^2) within A on
+ * every axis, the plan within the certified states (the fallback always
+ * has a jerk), at the crawl near the end; its peak speed at least 0.8 of
+ * the quasi-static speed (P3) at the planned limits (not at most: with a
+ * path acceleration the per-axis box lets the plan pass it for a while). */
+static void plan_helix(double J)
+{
+	struct mlip_path_spline sp;
+	struct mlip_path_limits lim;
+	helix_spline(&sp, 0.4);
+	limits(&lim, J);
+	double end = sp.s[MLIP_PATH_WIN - 1];
+	struct mlip_path_state st = {0.0, 0.0, 0.0};
+	static double x[40000][3];
+	int n = 0, moved = 0;
+	long work = 0;
+	double vpeak = 0.0;
+	struct mlip_path_point d0;
+	mlip_path_spline_eval(&sp, 0.0, 0, x[n++], &d0);
+	while (!(st.v <= lim.v_crawl && fabs(st.a) < 1.0 && end - st.s < 1.0 && n > 10)) {
+		int r = mlip_path_plan_period(&sp, &lim, &st, end, 3000, &work);
+		assert_true(r >= 0);
+		moved += r;
+		vpeak = fmax(vpeak, st.v);
+		struct mlip_path_point d;
+		mlip_path_spline_eval(&sp, st.s, 0, x[n++], &d);
+		assert_true(n < 40000);
+	}
+	double T = lim.period, wj = 0.0, wa = 0.0;
+	for (int i = 3; i < n; i++) {
+		for (int k = 0; k < 3; k++) {
+			double j3 =
+			    (x[i][k] - 3.0 * x[i - 1][k] + 3.0 * x[i - 2][k] - x[i - 3][k]) /
+			    (T * T * T);
+			double a2 = (x[i][k] - 2.0 * x[i - 1][k] + x[i - 2][k]) / (T * T);
+			wj = fmax(wj, fabs(j3) / J);
+			wa = fmax(wa, fabs(a2) / 1000.0);
+		}
+	}
+	/* the quasi-static speed of the spline's middle (P3), by its parameter */
+	double vq = INFINITY;
+	for (double s = 0.25 * end; s <= 0.75 * end; s += 0.01) {
+		struct mlip_path_point d;
+		mlip_path_spline_eval(&sp, s, 0, NULL, &d);
+		vq = fmin(vq, mlip_path_vmax(3, &d, lim.accel, lim.jerk, lim.vmax));
+	}
+	print_message("J %g: %d periods, %d faster than braking, %ld run periods; "
+	              "jerk %.3f J, accel %.3f A, peak %.2f of vq %.2f\n",
+	              J, n, moved, work, wj, wa, vpeak, vq);
+	assert_true(wj <= 1.0);
+	assert_true(wj >= 0.9); /* the plan uses the limit (0.95 J planned) */
+	assert_true(wa <= 1.0);
+	assert_true(vpeak >= 0.8 * vq);
+	assert_true(end - st.s < 1.0 && st.v <= lim.v_crawl);
+}
+
+static void test_plan_helix_1e4(void **state)
+{
+	(void)state;
+	plan_helix(1e4);
+}
+
+static void test_plan_helix_1e5(void **state)
+{
+	(void)state;
+	plan_helix(1e5);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test(test_period_range),
+	    cmocka_unit_test(test_plan_helix_1e4),
+	    cmocka_unit_test(test_plan_helix_1e5),
+	};
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}
