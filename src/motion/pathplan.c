@@ -23,22 +23,30 @@ struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, do
 	return r;
 }
 
-/* The (P2) interval at parameter s, at the speed and acceleration the step
- * of jerk j from st has at time h, intersected into [*lo, *hi]. */
-static void cut(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                struct mlip_path_state st, double j, double h, double s, double *lo, double *hi)
+/* The (P2) interval where the curve's derivatives are d, at the speed and
+ * acceleration the step of jerk j from st has at time h, intersected into
+ * [*lo, *hi]. */
+static void cut_at(const struct mlip_path_limits *lim, const struct mlip_path_point *d,
+                   struct mlip_path_state st, double j, double h, double *lo, double *hi)
 {
-	struct mlip_path_point d;
 	struct mlip_path_state at = mlip_path_advance(st, j, h);
 	double l, u;
-	mlip_path_spline_eval(sp, s, 0, NULL, &d);
-	if (!mlip_path_jerk_range(lim->n, &d, lim->jerk, at.v, at.a, &l, &u)) {
+	if (!mlip_path_jerk_range(lim->n, d, lim->jerk, at.v, at.a, &l, &u)) {
 		*lo = 1.0; /* no jerk at all here */
 		*hi = -1.0;
 		return;
 	}
 	*lo = l > *lo ? l : *lo;
 	*hi = u < *hi ? u : *hi;
+}
+
+/* The same at parameter s. */
+static void cut(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                struct mlip_path_state st, double j, double h, double s, double *lo, double *hi)
+{
+	struct mlip_path_point d;
+	mlip_path_spline_eval(sp, s, 0, NULL, &d);
+	cut_at(lim, &d, st, j, h, lo, hi);
 }
 
 /* The time in [0, T] at which the step reaches parameter x (s(0) < x <=
@@ -57,12 +65,15 @@ static double time_at(struct mlip_path_state st, double j, double T, double x)
 	return 0.5 * (lo + hi);
 }
 
-int mlip_path_period_range(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                           struct mlip_path_state st, double j, double *lo, double *hi)
+/* (Q2), d0 the derivatives at st.s (each evaluated once a step: the policy,
+ * the pick and the state check share it). */
+static int range_d(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                   struct mlip_path_state st, const struct mlip_path_point *d0, double j,
+                   double *lo, double *hi)
 {
 	double T = lim->period, l = -INFINITY, u = INFINITY;
 	double s1 = mlip_path_advance(st, j, T).s, last = sp->s[sp->count - 1];
-	cut(sp, lim, st, j, 0.0, st.s, &l, &u);
+	cut_at(lim, d0, st, j, 0.0, &l, &u);
 	/* the knots the step crosses, both sides, and the middle of every
 	 * stretch between checkpoints (Q2) */
 	int k = 0;
@@ -86,23 +97,29 @@ int mlip_path_period_range(const struct mlip_path_spline *sp, const struct mlip_
 	return l <= u;
 }
 
+int mlip_path_period_range(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                           struct mlip_path_state st, double j, double *lo, double *hi)
+{
+	struct mlip_path_point d0;
+	mlip_path_spline_eval(sp, st.s, 0, NULL, &d0);
+	return range_d(sp, lim, st, &d0, j, lo, hi);
+}
+
 static double clamp(double x, double lo, double hi)
 {
 	return x < lo ? lo : (x > hi ? hi : x);
 }
 
-int mlip_path_pick(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                   struct mlip_path_state st, double jt, double *j)
+static int pick_d(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                  struct mlip_path_state st, const struct mlip_path_point *d0, double jt, double *j)
 {
-	struct mlip_path_point d;
 	double lo, hi;
-	mlip_path_spline_eval(sp, st.s, 0, NULL, &d);
-	if (!mlip_path_jerk_range(lim->n, &d, lim->jerk, st.v, st.a, &lo, &hi)) {
+	if (!mlip_path_jerk_range(lim->n, d0, lim->jerk, st.v, st.a, &lo, &hi)) {
 		return 0;
 	}
 	double x = clamp(jt, lo, hi);
 	for (int i = 0; i < 4; i++) { /* (Q2) depends on x weakly: a few rounds */
-		if (!mlip_path_period_range(sp, lim, st, x, &lo, &hi)) {
+		if (!range_d(sp, lim, st, d0, x, &lo, &hi)) {
 			return 0;
 		}
 		if (lo <= x && x <= hi) {
@@ -114,45 +131,57 @@ int mlip_path_pick(const struct mlip_path_spline *sp, const struct mlip_path_lim
 	return 0;
 }
 
-int mlip_path_brake(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                    struct mlip_path_state st, double *j)
+int mlip_path_pick(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                   struct mlip_path_state st, double jt, double *j)
 {
-	struct mlip_path_point d;
+	struct mlip_path_point d0;
+	mlip_path_spline_eval(sp, st.s, 0, NULL, &d0);
+	return pick_d(sp, lim, st, &d0, jt, j);
+}
+
+static int brake_d(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                   struct mlip_path_state st, const struct mlip_path_point *d, double *j)
+{
 	double jl, jh, alo, ahi, T = lim->period;
-	mlip_path_spline_eval(sp, st.s, 0, NULL, &d);
-	if (!mlip_path_jerk_range(lim->n, &d, lim->jerk, st.v, st.a, &jl, &jh)) {
+	if (!mlip_path_jerk_range(lim->n, d, lim->jerk, st.v, st.a, &jl, &jh)) {
 		return 0;
 	}
 	if (st.v <= lim->v_crawl ||
 	    (st.a < 0.0 && jh > 0.0 &&
 	     st.v - lim->v_crawl <= st.a * st.a / (2.0 * RELEASE_SHARE * jh))) {
-		return mlip_path_pick(sp, lim, st, -st.a / T, j); /* (Q3) release */
+		return pick_d(sp, lim, st, d, -st.a / T, j); /* (Q3) release */
 	}
-	if (!mlip_path_accel_range(lim->n, &d, lim->accel, st.v, &alo, &ahi)) {
+	if (!mlip_path_accel_range(lim->n, d, lim->accel, st.v, &alo, &ahi)) {
 		return 0;
 	}
 	double target = alo > -lim->a_brake ? alo : -lim->a_brake, jt = jl;
 	if (st.a + jl * T < target) {
 		jt = (target - st.a) / T; /* (Q3) reach the target, not past it */
 	}
-	return mlip_path_pick(sp, lim, st, jt, j);
+	return pick_d(sp, lim, st, d, jt, j);
+}
+
+int mlip_path_brake(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                    struct mlip_path_state st, double *j)
+{
+	struct mlip_path_point d;
+	mlip_path_spline_eval(sp, st.s, 0, NULL, &d);
+	return brake_d(sp, lim, st, &d, j);
 }
 
 /* Within the speed cap, (P1), a non-empty (P2) interval, before the end. */
-static int inside(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+static int inside(const struct mlip_path_limits *lim, const struct mlip_path_point *d,
                   struct mlip_path_state st, double end)
 {
-	struct mlip_path_point d;
 	double lo, hi;
 	if (!(st.v >= 0.0 && st.v <= lim->vmax && st.s <= end + 1e-9)) {
 		return 0;
 	}
-	mlip_path_spline_eval(sp, st.s, 0, NULL, &d);
-	if (!mlip_path_accel_range(lim->n, &d, lim->accel, st.v, &lo, &hi) ||
+	if (!mlip_path_accel_range(lim->n, d, lim->accel, st.v, &lo, &hi) ||
 	    !(lo - 1e-9 <= st.a && st.a <= hi + 1e-9)) {
 		return 0;
 	}
-	return mlip_path_jerk_range(lim->n, &d, lim->jerk, st.v, st.a, &lo, &hi);
+	return mlip_path_jerk_range(lim->n, d, lim->jerk, st.v, st.a, &lo, &hi);
 }
 
 int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
@@ -162,7 +191,9 @@ int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_pat
 		if (work) {
 			(*work)++;
 		}
-		if (!inside(sp, lim, st, end)) {
+		struct mlip_path_point d;
+		mlip_path_spline_eval(sp, st.s, 0, NULL, &d);
+		if (!inside(lim, &d, st, end)) {
 			return 0;
 		}
 		if (st.v <= lim->v_crawl && fabs(st.a) < 1.0) {
@@ -172,7 +203,7 @@ int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_pat
 			return 0;
 		}
 		double j;
-		if (!mlip_path_brake(sp, lim, st, &j)) {
+		if (!brake_d(sp, lim, st, &d, &j)) {
 			return 0;
 		}
 		st = mlip_path_advance(st, j, lim->period);
@@ -189,7 +220,7 @@ int mlip_path_plan_period(const struct mlip_path_spline *sp, const struct mlip_p
 	mlip_path_spline_eval(sp, st->s, 0, NULL, &d);
 	if (mlip_path_jerk_range(lim->n, &d, lim->jerk, st->v, st->a, &jl, &jh)) {
 		for (int i = 0; i < 5; i++) {
-			if (!mlip_path_pick(sp, lim, *st, jl + share[i] * (jh - jl), &j)) {
+			if (!pick_d(sp, lim, *st, &d, jl + share[i] * (jh - jl), &j)) {
 				break;
 			}
 			struct mlip_path_state nx = mlip_path_advance(*st, j, lim->period);
@@ -200,7 +231,7 @@ int mlip_path_plan_period(const struct mlip_path_spline *sp, const struct mlip_p
 		}
 	}
 	/* the braking run's first step: st's run was certified (Q4) */
-	if (!mlip_path_brake(sp, lim, *st, &j)) {
+	if (!brake_d(sp, lim, *st, &d, &j)) {
 		return -1;
 	}
 	struct mlip_path_state nx = mlip_path_advance(*st, j, lim->period);
