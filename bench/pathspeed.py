@@ -14,13 +14,19 @@ and tangential terms):
     acceleration  x'_k a + x''_k v^2                          within A_k
     jerk          x'''_k v^3 + 3 x''_k v a + x'_k j           within J_k
 
-(at the planning margin: --margin of J, 0.98 of A). Each step takes the
-largest j (of five in [j_lo, j_hi]) whose next state still has a safe
-braking run: the policy "brake toward max(a_lo, -BRAKE), release so that a
-is back to 0 when v reaches a crawl of 2 mm/s", simulated under the same
-limits until the crawl (where the rest of the curve is slow enough) and
-before the end; when none is, the braking run's own first step (that
-state's run was checked, so the plan never leaves the safe states). The end:
+(at the planning margin: --margin of J, 0.98 of A). A jerk is admissible
+for a period only if it lies in the jerk interval at every grid point the
+step crosses, each at the step's own (v, a) there (jrange, pick): the
+interval's ends move within a period (x''' from spline piece to piece, and
+3 x'' v a with a), and a jerk at an end of the start's interval broke J by
+3.6 % on the trochoid at 1e4. Each step takes the largest admissible j (of
+five across [j_lo, j_hi]) whose next state still has a safe braking run:
+the policy "brake toward max(a_lo, -BRAKE), release so that a is back to 0
+when v reaches a crawl of 2 mm/s", each of its jerks admissible for its
+whole period too, simulated until the crawl (where the rest of the curve is
+slow enough) and before the end; when none is, the braking run's own first
+step (that state's run was checked, period by period, so the plan never
+leaves the safe states and that step exists). The end:
 the crawl, then a jerk-limited stop at the curve's end exactly. The
 positions are the exact curve's at the planned s (no contour error against
 the curve); their third and second differences / T^3, T^2 are measured.
@@ -44,7 +50,9 @@ A greedy, not time-optimal: BRAKE is a knob (300 at J 1e5, 100 at J 1e4
 measured best of a few), and the crawl at the end costs up to ~0.3 s. What a
 real planner must add: the look-ahead over the block stream (here the whole
 curve is known), the spline over a sliding window, sharp corners (the mean),
-and bounded work a period (the braking runs are simulated here).
+and the work outside the period (docs/algorithm.md, "The path-speed plan";
+the braking-run periods simulated per planned period are printed: the
+plan's cost; src/motion/pathplan.c is this plan's period in C).
 
     bench/pathspeed.py lissajous --jerk 1e5 [--brake 300] [--margin 0.95]
     bench/pathspeed.py trochoid --jerk 1e5 --poly build/curves/trochoid.ngc
@@ -197,6 +205,11 @@ else:
 
 
 D1, D2, D3 = d1.tolist(), d2.tolist(), d3.tolist()
+# the same as arrays, for a period's many grid points at once (jrange)
+D2a, D3a = np.asarray(d2, float), np.asarray(d3, float) * np.ones_like(d1)
+ZEROa = np.abs(d1) < 1e-9
+P1a = np.where(ZEROa, 1.0, d1)
+NIDX = np.arange(n, dtype=float)
 
 
 def ix(s):
@@ -219,9 +232,9 @@ def alim(s, v):
     return lo, hi
 
 
-def jlim(s, v, a):
-    i = ix(s)
-    lo, hi = -1e18, 1e18
+def jlim_at(i, v, a, lo=-1e18, hi=1e18):
+    """(P2): the path jerks every axis allows at grid point i, at speed v
+    and path acceleration a, intersected into [lo, hi]"""
     for p, q, r in zip(D1[i], D2[i], D3[i], strict=True):
         c = r * v**3 + 3 * q * v * a
         if abs(p) < 1e-9:
@@ -235,16 +248,57 @@ def jlim(s, v, a):
     return lo, hi
 
 
-def inside(s, v, a, j):
-    """j within the jerk limits at every grid point the step crosses"""
+def jlim(s, v, a):
+    return jlim_at(ix(s), v, a)
+
+
+def jrange(s, v, a, j):
+    """The path jerks every axis allows at every grid point that the step of
+    constant jerk j from (s, v, a) crosses, each at the step's own state
+    there: the interval a jerk must lie in for the whole period. On a spline
+    read from points x''' changes from segment to segment, and the bounds of
+    (P2) move with v and a within the period: an end of the interval at the
+    period's start can be outside it at the period's end."""
     i0, i1 = ix(s), ix(step(s, v, a, j)[0])
-    for i in range(i0, i1 + 1):
-        h = T * (i - i0) / max(i1 - i0, 1)
-        si, vi, ai = step(s, v, a, j, h)
-        jl, jh = jlim(i * ds, vi, ai)
-        if not (jl <= j <= jh):
-            return False
-    return True
+    if i1 - i0 < 6:  # a few points: the loop is the faster
+        lo, hi = -1e18, 1e18
+        for i in range(i0, i1 + 1):
+            h = T * (i - i0) / max(i1 - i0, 1)
+            lo, hi = jlim_at(i, v + a * h + j * h * h / 2, a + j * h, lo, hi)
+            if lo > hi:
+                break
+        return lo, hi
+    # the same intersection over the points at once (numpy)
+    h = T * (NIDX[: i1 - i0 + 1]) / (i1 - i0)
+    vi, ai = v + a * h + j * h * h / 2, a + j * h
+    c = D3a[i0 : i1 + 1] * (vi**3)[:, None] + 3 * D2a[i0 : i1 + 1] * (vi * ai)[:, None]
+    z = ZEROa[i0 : i1 + 1]
+    if z.any() and bool((np.abs(c[z]) > J).any()):
+        return 1.0, -1.0
+    p = P1a[i0 : i1 + 1]
+    j1, j2 = (-J - c) / p, (J - c) / p
+    lo_, hi_ = np.where(z, -1e18, np.minimum(j1, j2)), np.where(z, 1e18, np.maximum(j1, j2))
+    return max(float(lo_.max()), -1e18), min(float(hi_.min()), 1e18)
+
+
+def pick(s, v, a, jt):
+    """The jerk nearest jt that stays inside the limits for the whole period
+    (jrange of the step it makes), or None. The interval depends on j itself
+    (through v and a within the period, weakly: 3 x'' v T per unit of j), so
+    clamp jt into the interval of the last choice's step, a few times, and
+    accept only a j inside the interval of its own step."""
+    jl, jh = jlim(s, v, a)
+    if jl > jh:
+        return None
+    j = min(max(jt, jl), jh)
+    for _ in range(4):
+        lo, hi = jrange(s, v, a, j)
+        if lo > hi:
+            return None
+        if lo <= j <= hi:
+            return j
+        j = min(max(jt, lo), hi)
+    return None
 
 
 def step(s, v, a, j, h=T):
@@ -262,22 +316,30 @@ def ok(s, v, a):
 
 
 def brake_j(s, v, a):
-    """the braking policy: as hard as the limits allow, toward the lowest a"""
+    """The braking policy: as hard as the limits allow, toward the lowest a;
+    its jerk inside the limits for the whole period (pick), or None when no
+    jerk is (the state is then not safe)."""
     jl, jh = jlim(s, v, a)
+    if jl > jh:
+        return None
     alo, ahi = alim(s, v)
     target = max(alo, -ABR) if v > VC else 0.0
     if v <= VC:  # crawl: release toward zero acceleration
-        return min(max((0.0 - a) / T, jl), jh)
+        return pick(s, v, a, (0.0 - a) / T)
     if a < 0 and jh > 0 and v - VC <= a * a / (2 * 0.8 * jh):
-        return min(max((0.0 - a) / T, jl), jh)  # release: a back to 0 as v reaches VC
+        return pick(s, v, a, (0.0 - a) / T)  # release: a back to 0 as v reaches VC
     j = jl
     if a + j * T < target:
-        j = min(max((target - a) / T, jl), jh)
-    return j
+        j = (target - a) / T
+    return pick(s, v, a, j)
+
+
+WORK = [0]  # braking-run periods simulated (the plan's cost: the C planner's)
 
 
 def safe(s, v, a):
     for _ in range(3000):
+        WORK[0] += 1
         if not ok(s, v, a):
             return False
         if v <= VC and abs(a) < 1.0:
@@ -286,33 +348,47 @@ def safe(s, v, a):
         # the path's end: stop before it (the crawl's own small stop)
         if L - s < v * v / (2 * 200.0) + v * 0.05:
             return False
-        s, v, a = step(s, v, a, brake_j(s, v, a))
+        jb = brake_j(s, v, a)
+        if jb is None:
+            return False
+        s, v, a = step(s, v, a, jb)
     return False
 
 
 s = v = a = 0.0
 out = [0.0]
+PER, sum_w = [], 0  # braking-run periods simulated for each planned period
 while L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10):
     jl, jh = jlim(s, v, a)
     moved = False
     if jl <= jh:
         for w in (1.0, 0.75, 0.5, 0.25, 0.0):
-            j = jl + w * (jh - jl)
+            # j holds for the whole period (pick: within the limits at every
+            # grid point it crosses, at the state there), and the next state
+            # has a braking run each of whose periods is inside them too
+            j = pick(s, v, a, jl + w * (jh - jl))
+            if j is None:
+                break
             s2, v2, a2 = step(s, v, a, j)
-            # j holds for the whole period: within the limits at every grid
-            # point it crosses (on a spline read from points x''' changes from
-            # segment to segment), at the state there (s, v, a by the step)
-            if inside(s, v, a, j) and safe(s2, v2, a2):
+            if safe(s2, v2, a2):
                 moved = True
                 break
     if not moved:
-        s2, v2, a2 = step(s, v, a, brake_j(s, v, a))
+        # the braking run's first step: this state's run was checked, period
+        # by period, when the state was chosen, so the plan never leaves the
+        # safe states and this jerk exists
+        jb = brake_j(s, v, a)
+        if jb is None:
+            raise SystemExit(f"no braking jerk at s={s} v={v} a={a}: the invariant broke")
+        s2, v2, a2 = step(s, v, a, jb)
         if v2 < 0:
             s2, v2, a2 = s, 0.0, 0.0
     if not moved and v2 <= 0.0 and L - s2 > 1.0:
         raise SystemExit(f"stopped at s={s2} of {L}")
     s, v, a = s2, v2, a2
     out.append(min(s, L))
+    PER.append(WORK[0] - sum_w)
+    sum_w = WORK[0]
     if len(out) > 200000:
         raise SystemExit(f"too long at s={s}")
 # the end: cruise at the crawl speed, then a jerk-limited stop at L exactly
@@ -356,6 +432,11 @@ print(
     f" max jerk/J {j3.max() / Jr:.3f}, max accel/A {a2_.max() / A:.3f}"
 )
 w = j3.max(axis=1)
+per = np.array(PER)
+print(
+    f"braking-run periods simulated a planned period: median {np.median(per):.0f},"
+    f" p99 {np.percentile(per, 99):.0f}, max {per.max()}, mean {per.mean():.0f}"
+)
 print(
     f"samples above J: {int(np.sum(w > Jr))}; the worst at sample {int(np.argmax(w))} of {len(w)}"
 )
