@@ -59,9 +59,11 @@ plan's cost; src/motion/pathplan.c is this plan's period in C).
 """
 
 import argparse
+import atexit
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -119,6 +121,7 @@ if args.poly:
     # left out), read as a curve by (P4): positions and derivatives of the
     # cubic through the four points around each segment, by chord length
     tmp = tempfile.mkdtemp(prefix="pathspeed-")
+    atexit.register(shutil.rmtree, tmp, True)  # the shifted program and the trace
     prog = os.path.join(tmp, "shifted.ngc")
     shift_program(args.poly, prog)
     csv = subprocess.run(
