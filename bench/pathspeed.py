@@ -208,6 +208,7 @@ else:
 
 
 D1, D2, D3 = d1.tolist(), d2.tolist(), d3.tolist()
+KNOTS = cum[1:-1] if args.poly else None  # the spline's inner knots
 # the same as arrays, for a period's many grid points at once (jrange)
 D2a, D3a = np.asarray(d2, float), np.asarray(d3, float) * np.ones_like(d1)
 ZEROa = np.abs(d1) < 1e-9
@@ -256,17 +257,45 @@ def jlim(s, v, a):
 
 
 def jrange(s, v, a, j):
-    """The path jerks every axis allows at every grid point that the step of
-    constant jerk j from (s, v, a) crosses, each at the step's own state
-    there: the interval a jerk must lie in for the whole period. On a spline
-    read from points x''' changes from segment to segment, and the bounds of
-    (P2) move with v and a within the period: an end of the interval at the
-    period's start can be outside it at the period's end."""
-    i0, i1 = ix(s), ix(step(s, v, a, j)[0])
+    """The path jerks every axis allows throughout the step of constant jerk
+    j from (s, v, a): the interval a jerk must lie in for the whole period.
+    On a spline read from points x''' changes from piece to piece, and the
+    bounds of (P2) move with v and a within the period: an end of the
+    interval at the period's start can be outside it at the period's end.
+    --poly: at the checkpoints of src/motion/pathplan.c (Q2): the step's
+    start and end, every knot it crosses on both sides, the middle of each
+    stretch between, the spline's exact derivatives there (grid points
+    rounded to the nearest missed a knot within ds / 2 of the step's end at
+    low speed: 1.004 J at the spiral's start at 1e4); each at the step's
+    state there (the time at a knot by linear interpolation). The exact
+    curve: every grid point the step crosses."""
+    s1 = step(s, v, a, j)[0]
+    if KNOTS is not None:
+        kn = KNOTS[np.searchsorted(KNOTS, s, side="right") : np.searchsorted(KNOTS, s1)]
+        hk = T * (kn - s) / (s1 - s) if len(kn) else kn
+        hp = np.concatenate([[0.0], hk, [T]])
+        hm = 0.5 * (hp[:-1] + hp[1:])
+        e = 1e-12 * (1.0 + kn)
+        H = np.concatenate([[0.0], hm, hk, hk, [T]])
+        S = np.concatenate([[s], step(s, v, a, j, hm)[0], kn - e, kn + e, [s1]])
+        _, x1, x2, x3 = cubic(S)
+        vi, ai = v + a * H + j * H * H / 2, a + j * H
+        c = x3 * (vi**3)[:, None] + 3 * x2 * (vi * ai)[:, None]
+        z = np.abs(x1) < 1e-9
+        if z.any() and bool((np.abs(c[z]) > J).any()):
+            return 1.0, -1.0
+        p = np.where(z, 1.0, x1)
+        j1, j2 = (-J - c) / p, (J - c) / p
+        lo_, hi_ = np.where(z, -1e18, np.minimum(j1, j2)), np.where(z, 1e18, np.maximum(j1, j2))
+        return max(float(lo_.max()), -1e18), min(float(hi_.min()), 1e18)
+    i0, i1 = ix(s), ix(s1)
+    if i1 <= i0:  # within one grid point (or back): its start and end state
+        lo, hi = jlim_at(i0, v, a)
+        return jlim_at(i0, v + a * T + j * T * T / 2, a + j * T, lo, hi)
     if i1 - i0 < 6:  # a few points: the loop is the faster
         lo, hi = -1e18, 1e18
         for i in range(i0, i1 + 1):
-            h = T * (i - i0) / max(i1 - i0, 1)
+            h = T * (i - i0) / (i1 - i0)
             lo, hi = jlim_at(i, v + a * h + j * h * h / 2, a + j * h, lo, hi)
             if lo > hi:
                 break
