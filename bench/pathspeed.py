@@ -15,8 +15,9 @@ and tangential terms):
     jerk          x'''_k v^3 + 3 x''_k v a + x'_k j           within J_k
 
 (at the planning margin: --margin of J, 0.98 of A). A jerk is admissible
-for a period only if it lies in the jerk interval at every grid point the
-step crosses, each at the step's own (v, a) there (jrange, pick): the
+for a period only if it lies in the jerk interval throughout the step, each
+checkpoint at the step's own (v, a) there (jrange, pick; --poly: the
+checkpoints of src/motion/pathplan.c, the exact curve: its grid points): the
 interval's ends move within a period (x''' from spline piece to piece, and
 3 x'' v a with a), and a jerk at an end of the start's interval broke J by
 3.6 % on the trochoid at 1e4. Each step takes the largest admissible j (of
