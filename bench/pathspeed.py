@@ -221,36 +221,34 @@ def ix(s):
     return min(max(int(s / ds + 0.5), 0), n - 1)
 
 
-def alim(s, v):
-    i = ix(s)
-    lo, hi = -1e18, 1e18
-    for p, q in zip(D1[i], D2[i], strict=True):
-        c = q * v * v
+def interval(ps, cs, lim, lo=-1e18, hi=1e18):
+    """The x with |p x + c| <= lim for every axis (p, c per axis), intersected
+    into [lo, hi]: (P1) with x = a, (P2) with x = j (intersect() in
+    src/motion/pathspeed.c). An axis the path does not move along allows
+    every x or none; (1, -1) when none does."""
+    for p, c in zip(ps, cs, strict=True):
         if abs(p) < 1e-9:
-            if abs(c) > Aplan:
+            if abs(c) > lim:
                 return 1.0, -1.0
             continue
-        a1, a2 = (-Aplan - c) / p, (Aplan - c) / p
-        if a1 > a2:
-            a1, a2 = a2, a1
-        lo, hi = max(lo, a1), min(hi, a2)
+        x1, x2 = (-lim - c) / p, (lim - c) / p
+        if x1 > x2:
+            x1, x2 = x2, x1
+        lo, hi = max(lo, x1), min(hi, x2)
     return lo, hi
+
+
+def alim(s, v):
+    """(P1): the path accelerations every axis allows at s, at speed v"""
+    i = ix(s)
+    return interval(D1[i], [q * v * v for q in D2[i]], Aplan)
 
 
 def jlim_at(i, v, a, lo=-1e18, hi=1e18):
     """(P2): the path jerks every axis allows at grid point i, at speed v
     and path acceleration a, intersected into [lo, hi]"""
-    for p, q, r in zip(D1[i], D2[i], D3[i], strict=True):
-        c = r * v**3 + 3 * q * v * a
-        if abs(p) < 1e-9:
-            if abs(c) > J:
-                return 1.0, -1.0
-            continue
-        j1, j2 = (-J - c) / p, (J - c) / p
-        if j1 > j2:
-            j1, j2 = j2, j1
-        lo, hi = max(lo, j1), min(hi, j2)
-    return lo, hi
+    cs = [r * v**3 + 3 * q * v * a for q, r in zip(D2[i], D3[i], strict=True)]
+    return interval(D1[i], cs, J, lo, hi)
 
 
 def jlim(s, v, a):

@@ -23,30 +23,51 @@ struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, do
 	return r;
 }
 
-/* The (P2) interval where the curve's derivatives are d, at the speed and
- * acceleration the step of jerk j from st has at time h, intersected into
- * [*lo, *hi]. */
-static void cut_at(const struct mlip_path_limits *lim, const struct mlip_path_point *d,
-                   struct mlip_path_state st, double j, double h, double *lo, double *hi)
+/* A state with what every step from it reads there: the piece holding
+ * st.s, the curve's derivatives at st.s and the (P2) interval at (v, a)
+ * (ok 0: empty). A step's end is the next state's point, so a run
+ * evaluates each point once (Q2's end checkpoint is the next start). */
+struct at {
+	struct mlip_path_state st;
+	struct mlip_path_point d;
+	int piece, ok;
+	double jl, jh;
+};
+
+static void at_make(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                    struct at *a, struct mlip_path_state st, int hint)
+{
+	a->st = st;
+	a->piece = mlip_path_spline_piece(sp, st.s, hint);
+	mlip_path_spline_eval_piece(sp, a->piece, st.s, NULL, &a->d);
+	a->ok = mlip_path_jerk_range(lim->n, &a->d, lim->jerk, st.v, st.a, &a->jl, &a->jh);
+}
+
+/* The (P2) interval at the point d (on piece *piece, searched from it), at
+ * the speed and acceleration the step of jerk j from st has at time h,
+ * intersected into [*lo, *hi]; the point's own interval in *own (may be
+ * NULL). */
+static void cut(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                struct mlip_path_state st, double j, double h, double s, int *piece,
+                struct mlip_path_point *d, double *lo, double *hi, struct at *own)
 {
 	struct mlip_path_state at = mlip_path_advance(st, j, h);
 	double l, u;
-	if (!mlip_path_jerk_range(lim->n, d, lim->jerk, at.v, at.a, &l, &u)) {
+	*piece = mlip_path_spline_piece(sp, s, *piece);
+	mlip_path_spline_eval_piece(sp, *piece, s, NULL, d);
+	int ok = mlip_path_jerk_range(lim->n, d, lim->jerk, at.v, at.a, &l, &u);
+	if (own) {
+		own->ok = ok;
+		own->jl = l;
+		own->jh = u;
+	}
+	if (!ok) {
 		*lo = 1.0; /* no jerk at all here */
 		*hi = -1.0;
 		return;
 	}
 	*lo = l > *lo ? l : *lo;
 	*hi = u < *hi ? u : *hi;
-}
-
-/* The same at parameter s. */
-static void cut(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                struct mlip_path_state st, double j, double h, double s, double *lo, double *hi)
-{
-	struct mlip_path_point d;
-	mlip_path_spline_eval(sp, s, 0, NULL, &d);
-	cut_at(lim, &d, st, j, h, lo, hi);
 }
 
 /* The time in [0, T] at which the step reaches parameter x (s(0) < x <=
@@ -65,18 +86,22 @@ static double time_at(struct mlip_path_state st, double j, double T, double x)
 	return 0.5 * (lo + hi);
 }
 
-/* (Q2), d0 the derivatives at st.s (each evaluated once a step: the policy,
- * the pick and the state check share it). */
-static int range_d(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                   struct mlip_path_state st, const struct mlip_path_point *d0, double j,
-                   double *lo, double *hi)
+/* (Q2) from the state a; the step's end (the next state, its point and
+ * interval) in *next when next is not NULL. */
+static int range_at(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                    const struct at *a, double j, double *lo, double *hi, struct at *next)
 {
-	double T = lim->period, l = -INFINITY, u = INFINITY;
-	double s1 = mlip_path_advance(st, j, T).s, last = sp->s[sp->count - 1];
-	cut_at(lim, d0, st, j, 0.0, &l, &u);
+	double T = lim->period, l = a->jl, u = a->jh;
+	struct mlip_path_state st = a->st, end = mlip_path_advance(st, j, T);
+	double s1 = end.s, last = sp->s[sp->count - 1];
+	struct mlip_path_point d;
+	if (!a->ok) {
+		l = 1.0;
+		u = -1.0;
+	}
 	/* the knots the step crosses, both sides, and the middle of every
 	 * stretch between checkpoints (Q2) */
-	int k = 0;
+	int k = a->piece, piece = a->piece;
 	while (k < sp->count && sp->s[k] <= st.s) {
 		k++;
 	}
@@ -84,14 +109,17 @@ static int range_d(const struct mlip_path_spline *sp, const struct mlip_path_lim
 	for (; k < sp->count - 1 && sp->s[k] < s1 && l <= u; k++) {
 		double hk = time_at(st, j, T, sp->s[k]), eps = 1e-12 * (1.0 + sp->s[k]);
 		double hm = 0.5 * (hp + hk);
-		cut(sp, lim, st, j, hm, mlip_path_advance(st, j, hm).s, &l, &u);
-		cut(sp, lim, st, j, hk, sp->s[k] - eps, &l, &u);
-		cut(sp, lim, st, j, hk, sp->s[k] + eps, &l, &u);
+		cut(sp, lim, st, j, hm, mlip_path_advance(st, j, hm).s, &piece, &d, &l, &u, NULL);
+		cut(sp, lim, st, j, hk, sp->s[k] - eps, &piece, &d, &l, &u, NULL);
+		cut(sp, lim, st, j, hk, sp->s[k] + eps, &piece, &d, &l, &u, NULL);
 		hp = hk;
 	}
 	double hm = 0.5 * (hp + T);
-	cut(sp, lim, st, j, hm, mlip_path_advance(st, j, hm).s, &l, &u);
-	cut(sp, lim, st, j, T, s1 < last ? s1 : last, &l, &u);
+	cut(sp, lim, st, j, hm, mlip_path_advance(st, j, hm).s, &piece, &d, &l, &u, NULL);
+	struct at scratch, *e = next ? next : &scratch;
+	cut(sp, lim, st, j, T, s1 < last ? s1 : last, &piece, &e->d, &l, &u, e);
+	e->st = end;
+	e->piece = mlip_path_spline_piece(sp, end.s, piece);
 	*lo = l;
 	*hi = u;
 	return l <= u;
@@ -100,9 +128,9 @@ static int range_d(const struct mlip_path_spline *sp, const struct mlip_path_lim
 int mlip_path_period_range(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
                            struct mlip_path_state st, double j, double *lo, double *hi)
 {
-	struct mlip_path_point d0;
-	mlip_path_spline_eval(sp, st.s, 0, NULL, &d0);
-	return range_d(sp, lim, st, &d0, j, lo, hi);
+	struct at a;
+	at_make(sp, lim, &a, st, 0);
+	return range_at(sp, lim, &a, j, lo, hi, NULL);
 }
 
 static double clamp(double x, double lo, double hi)
@@ -110,16 +138,17 @@ static double clamp(double x, double lo, double hi)
 	return x < lo ? lo : (x > hi ? hi : x);
 }
 
-static int pick_d(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                  struct mlip_path_state st, const struct mlip_path_point *d0, double jt, double *j)
+/* The admissible jerk nearest jt from a (Q2); its step's end in *next. */
+static int pick_at(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                   const struct at *a, double jt, double *j, struct at *next)
 {
 	double lo, hi;
-	if (!mlip_path_jerk_range(lim->n, d0, lim->jerk, st.v, st.a, &lo, &hi)) {
+	if (!a->ok) {
 		return 0;
 	}
-	double x = clamp(jt, lo, hi);
+	double x = clamp(jt, a->jl, a->jh);
 	for (int i = 0; i < 4; i++) { /* (Q2) depends on x weakly: a few rounds */
-		if (!range_d(sp, lim, st, d0, x, &lo, &hi)) {
+		if (!range_at(sp, lim, a, x, &lo, &hi, next)) {
 			return 0;
 		}
 		if (lo <= x && x <= hi) {
@@ -134,66 +163,73 @@ static int pick_d(const struct mlip_path_spline *sp, const struct mlip_path_limi
 int mlip_path_pick(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
                    struct mlip_path_state st, double jt, double *j)
 {
-	struct mlip_path_point d0;
-	mlip_path_spline_eval(sp, st.s, 0, NULL, &d0);
-	return pick_d(sp, lim, st, &d0, jt, j);
+	struct at a, next;
+	at_make(sp, lim, &a, st, 0);
+	return pick_at(sp, lim, &a, jt, j, &next);
 }
 
-static int brake_d(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                   struct mlip_path_state st, const struct mlip_path_point *d, double *j)
+/* (Q3) from a, alo the low end of the (P1) interval at its point and speed
+ * (NAN: not yet computed); the step's end in *next. */
+static int brake_at(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                    const struct at *a, double alo, double *j, struct at *next)
 {
-	double jl, jh, alo, ahi, T = lim->period;
-	if (!mlip_path_jerk_range(lim->n, d, lim->jerk, st.v, st.a, &jl, &jh)) {
+	double T = lim->period, jh = a->jh;
+	struct mlip_path_state st = a->st;
+	if (!a->ok) {
 		return 0;
 	}
 	if (st.v <= lim->v_crawl ||
 	    (st.a < 0.0 && jh > 0.0 &&
 	     st.v - lim->v_crawl <= st.a * st.a / (2.0 * RELEASE_SHARE * jh))) {
-		return pick_d(sp, lim, st, d, -st.a / T, j); /* (Q3) release */
+		return pick_at(sp, lim, a, -st.a / T, j, next); /* (Q3) release */
 	}
-	if (!mlip_path_accel_range(lim->n, d, lim->accel, st.v, &alo, &ahi)) {
+	double ahi;
+	if (isnan(alo) && !mlip_path_accel_range(lim->n, &a->d, lim->accel, st.v, &alo, &ahi)) {
 		return 0;
 	}
-	double target = alo > -lim->a_brake ? alo : -lim->a_brake, jt = jl;
-	if (st.a + jl * T < target) {
+	double target = alo > -lim->a_brake ? alo : -lim->a_brake, jt = a->jl;
+	if (st.a + a->jl * T < target) {
 		jt = (target - st.a) / T; /* (Q3) reach the target, not past it */
 	}
-	return pick_d(sp, lim, st, d, jt, j);
+	return pick_at(sp, lim, a, jt, j, next);
 }
 
 int mlip_path_brake(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
                     struct mlip_path_state st, double *j)
 {
-	struct mlip_path_point d;
-	mlip_path_spline_eval(sp, st.s, 0, NULL, &d);
-	return brake_d(sp, lim, st, &d, j);
+	struct at a, next;
+	at_make(sp, lim, &a, st, 0);
+	return brake_at(sp, lim, &a, NAN, j, &next);
 }
 
-/* Within the speed cap, (P1), a non-empty (P2) interval, before the end. */
-static int inside(const struct mlip_path_limits *lim, const struct mlip_path_point *d,
-                  struct mlip_path_state st, double end)
+/* Within the speed cap, (P1) (its interval's low end in *alo), a non-empty
+ * (P2) interval, before the end. */
+static int inside(const struct mlip_path_limits *lim, const struct at *a, double end, double *alo)
 {
-	double lo, hi;
+	double hi;
+	struct mlip_path_state st = a->st;
 	if (!(st.v >= 0.0 && st.v <= lim->vmax && st.s <= end + 1e-9)) {
 		return 0;
 	}
-	if (!mlip_path_accel_range(lim->n, d, lim->accel, st.v, &lo, &hi) ||
-	    !(lo - 1e-9 <= st.a && st.a <= hi + 1e-9)) {
+	if (!mlip_path_accel_range(lim->n, &a->d, lim->accel, st.v, alo, &hi) ||
+	    !(*alo - 1e-9 <= st.a && st.a <= hi + 1e-9)) {
 		return 0;
 	}
-	return mlip_path_jerk_range(lim->n, d, lim->jerk, st.v, st.a, &lo, &hi);
+	return a->ok;
 }
 
-int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                        struct mlip_path_state st, double end, int max_periods, long *work)
+static int certified_at(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                        const struct at *start, double end, int max_periods, long *work)
 {
+	struct at buf[2];
+	const struct at *a = start;
 	for (int i = 0; i < max_periods; i++) {
 		if (work) {
 			(*work)++;
 		}
-		struct mlip_path_point d;
-		mlip_path_spline_eval(sp, st.s, 0, NULL, &d);
-		if (!inside(lim, &d, st, end)) {
+		double alo, j;
+		struct mlip_path_state st = a->st;
+		if (!inside(lim, a, end, &alo)) {
 			return 0;
 		}
 		if (st.v <= lim->v_crawl && fabs(st.a) < 1.0) {
@@ -202,44 +238,51 @@ int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_pat
 		if (end - st.s < st.v * st.v / (2.0 * END_DECEL) + st.v * END_TIME) {
 			return 0;
 		}
-		double j;
-		if (!brake_d(sp, lim, st, &d, &j)) {
+		struct at *next = &buf[i & 1];
+		if (!brake_at(sp, lim, a, alo, &j, next)) {
 			return 0;
 		}
-		st = mlip_path_advance(st, j, lim->period);
+		a = next;
 	}
 	return 0;
+}
+
+int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                        struct mlip_path_state st, double end, int max_periods, long *work)
+{
+	struct at a;
+	at_make(sp, lim, &a, st, 0);
+	return certified_at(sp, lim, &a, end, max_periods, work);
 }
 
 int mlip_path_plan_period(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
                           struct mlip_path_state *st, double end, int max_periods, long *work)
 {
 	static const double share[5] = {1.0, 0.75, 0.5, 0.25, 0.0};
-	struct mlip_path_point d;
-	double jl, jh, j;
-	mlip_path_spline_eval(sp, st->s, 0, NULL, &d);
-	if (mlip_path_jerk_range(lim->n, &d, lim->jerk, st->v, st->a, &jl, &jh)) {
+	struct at a, nx;
+	double j;
+	at_make(sp, lim, &a, *st, 0);
+	if (a.ok) {
 		for (int i = 0; i < 5; i++) {
-			if (!pick_d(sp, lim, *st, &d, jl + share[i] * (jh - jl), &j)) {
+			if (!pick_at(sp, lim, &a, a.jl + share[i] * (a.jh - a.jl), &j, &nx)) {
 				break;
 			}
-			struct mlip_path_state nx = mlip_path_advance(*st, j, lim->period);
-			if (mlip_path_certified(sp, lim, nx, end, max_periods, work)) {
-				*st = nx;
+			if (certified_at(sp, lim, &nx, end, max_periods, work)) {
+				*st = nx.st;
 				return 1;
 			}
 		}
 	}
 	/* the braking run's first step: st's run was certified (Q4) */
-	if (!brake_d(sp, lim, *st, &d, &j)) {
+	if (!brake_at(sp, lim, &a, NAN, &j, &nx)) {
 		return -1;
 	}
-	struct mlip_path_state nx = mlip_path_advance(*st, j, lim->period);
-	if (nx.v < 0.0) {
-		nx.s = st->s;
-		nx.v = 0.0;
-		nx.a = 0.0;
+	struct mlip_path_state n = nx.st;
+	if (n.v < 0.0) {
+		n.s = st->s;
+		n.v = 0.0;
+		n.a = 0.0;
 	}
-	*st = nx;
+	*st = n;
 	return 0;
 }

@@ -191,7 +191,47 @@ int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][
 			sp->m[i][k] -= sp->c[i] * sp->m[i + 1][k];
 		}
 	}
+	/* each piece's cubic p + b u + m0 u^2 / 2 + t3 u^3 / 6 (u from its start) */
+	for (int i = 0; i < last; i++) {
+		double h = sp->s[i + 1] - sp->s[i];
+		for (int k = 0; k < n; k++) {
+			double m0 = sp->m[i][k], m1 = sp->m[i + 1][k];
+			sp->b[i][k] =
+			    (sp->p[i + 1][k] - sp->p[i][k]) / h - h * (2.0 * m0 + m1) / 6.0;
+			sp->t3[i][k] = (m1 - m0) / h;
+		}
+	}
 	return 0;
+}
+
+int mlip_path_spline_piece(const struct mlip_path_spline *sp, double s, int hint)
+{
+	int last = sp->count - 1, i = hint < 0 ? 0 : (hint > last - 1 ? last - 1 : hint);
+	while (i < last - 1 && sp->s[i + 1] <= s) {
+		i++;
+	}
+	while (i > 0 && sp->s[i] > s) {
+		i--;
+	}
+	return i;
+}
+
+void mlip_path_spline_eval_piece(const struct mlip_path_spline *sp, int i, double s, double *x,
+                                 struct mlip_path_point *d)
+{
+	int last = sp->count - 1, n = sp->n;
+	s = s < 0.0 ? 0.0 : (s > sp->s[last] ? sp->s[last] : s);
+	double u = s - sp->s[i];
+	for (int k = 0; k < n; k++) {
+		double m0 = sp->m[i][k], t3 = sp->t3[i][k];
+		d->d3[k] = t3;
+		d->d2[k] = m0 + t3 * u;
+		d->d1[k] = sp->b[i][k] + m0 * u + 0.5 * t3 * u * u;
+		if (x) {
+			x[k] =
+			    sp->p[i][k] + sp->b[i][k] * u + 0.5 * m0 * u * u + t3 * u * u * u / 6.0;
+		}
+	}
 }
 
 int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_arc, double *x,
@@ -208,25 +248,13 @@ int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_ar
 			hi = mid;
 		}
 	}
-	double h = sp->s[lo + 1] - sp->s[lo], u = s - sp->s[lo];
-	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES], x3[MLIP_MAX_AXES];
-	for (int k = 0; k < n; k++) {
-		double m0 = sp->m[lo][k], m1 = sp->m[lo + 1][k];
-		double b = (sp->p[lo + 1][k] - sp->p[lo][k]) / h - h * (2.0 * m0 + m1) / 6.0;
-		x3[k] = (m1 - m0) / h;
-		x2[k] = m0 + x3[k] * u;
-		x1[k] = b + m0 * u + 0.5 * x3[k] * u * u;
-		if (x) {
-			x[k] = sp->p[lo][k] + b * u + 0.5 * m0 * u * u + x3[k] * u * u * u / 6.0;
-		}
-	}
+	struct mlip_path_point raw;
+	mlip_path_spline_eval_piece(sp, lo, s, x, by_arc ? &raw : d);
 	if (by_arc) {
-		return to_arc(n, x1, x2, x3, d);
+		return to_arc(n, raw.d1, raw.d2, raw.d3, d);
 	}
-	for (int k = 0; k < MLIP_MAX_AXES; k++) {
-		d->d1[k] = k < n ? x1[k] : 0.0;
-		d->d2[k] = k < n ? x2[k] : 0.0;
-		d->d3[k] = k < n ? x3[k] : 0.0;
+	for (int k = n; k < MLIP_MAX_AXES; k++) {
+		d->d1[k] = d->d2[k] = d->d3[k] = 0.0;
 	}
 	return 0;
 }

@@ -17,15 +17,8 @@
 
 #include "mlip/motion/pathplan.h"
 
-static uint64_t rng = 0x2545F4914F6CDD1Dull;
-
-static double uni(double lo, double hi)
-{
-	rng ^= rng << 13;
-	rng ^= rng >> 7;
-	rng ^= rng << 17;
-	return lo + (hi - lo) * (double)(rng >> 11) * (1.0 / 9007199254740992.0);
-}
+#define XORSHIFT_SEED 0x2545F4914F6CDD1Dull
+#include "xorshift.h"
 
 /* A helix of radius R, rising c a radian, sampled every `step` mm of arc:
  * a spline of MLIP_PATH_WIN points. */

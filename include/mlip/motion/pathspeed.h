@@ -92,12 +92,14 @@ int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
 /* (P5) The natural cubic spline through up to MLIP_PATH_WIN points. */
 #define MLIP_PATH_WIN 64
 struct mlip_path_spline {
-	int n;                                  /* axes */
-	int count;                              /* points */
-	double s[MLIP_PATH_WIN];                /* chord length from the first point */
-	double p[MLIP_PATH_WIN][MLIP_MAX_AXES]; /* the points */
-	double m[MLIP_PATH_WIN][MLIP_MAX_AXES]; /* second derivatives by chord length */
-	double c[MLIP_PATH_WIN];                /* the solve's scratch */
+	int n;                                   /* axes */
+	int count;                               /* points */
+	double s[MLIP_PATH_WIN];                 /* chord length from the first point */
+	double p[MLIP_PATH_WIN][MLIP_MAX_AXES];  /* the points */
+	double m[MLIP_PATH_WIN][MLIP_MAX_AXES];  /* second derivatives by chord length */
+	double b[MLIP_PATH_WIN][MLIP_MAX_AXES];  /* x_t at each piece's start */
+	double t3[MLIP_PATH_WIN][MLIP_MAX_AXES]; /* x_ttt on each piece (constant) */
+	double c[MLIP_PATH_WIN];                 /* the solve's scratch */
 };
 
 /* Fit the spline through pts[0..count-1] (2 <= count <= MLIP_PATH_WIN).
@@ -113,5 +115,18 @@ int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][
  * then v |x_t|). -1 where the spline stops (sigma = 0). */
 int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_arc, double *x,
                           struct mlip_path_point *d);
+
+/* The piece i holding chord length s (s_i <= s < s_i+1, the last piece for
+ * s at or past the end, 0 before the start: what mlip_path_spline_eval
+ * reads), searched from piece `hint` (a plan moves forward piece by piece:
+ * O(1) steps, no binary search). */
+int mlip_path_spline_piece(const struct mlip_path_spline *sp, double s, int hint);
+
+/* mlip_path_spline_eval by the spline's own parameter (by_arc 0) on piece
+ * i (from mlip_path_spline_piece; s clamped as there): the same values,
+ * from the piece's coefficients kept by the fit; axes n and beyond are left
+ * as they are (the plan's hot path reads only the first n). */
+void mlip_path_spline_eval_piece(const struct mlip_path_spline *sp, int i, double s, double *x,
+                                 struct mlip_path_point *d);
 
 #endif
