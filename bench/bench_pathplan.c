@@ -12,6 +12,13 @@
  *       build/bench_pathplan 1e4 0.4
  *
  *   build/bench_pathplan J [STEP]     (STEP default 0.4)
+ *
+ * --points CSV: the plan along the natural spline through the points (one
+ * a line, the axes' coordinates; bench/pathspeed.py --c writes `smooth`'s
+ * output there) at J exactly (the caller's margin applied), the braking
+ * policy's deceleration --brake (300); --out FILE: each planned period's
+ * path position and its braking-run periods, for the model to finish the
+ * stop, sample the positions and have mlip-check judge them.
  */
 #include <math.h>
 #include <stdint.h>
@@ -22,6 +29,7 @@
 #include "mlip/motion/pathplan.h"
 
 static struct mlip_path_spline sp;
+static struct mlip_path_curve cv;
 
 /* FNV-1a over the states' bits: two builds plan the same periods exactly
  * when their hashes agree (a cheaper period must not change the plan). */
@@ -41,60 +49,165 @@ __attribute__((noinline)) int bench_plan_period(const struct mlip_path_limits *l
 int bench_plan_period(const struct mlip_path_limits *lim, struct mlip_path_state *st, double end,
                       long *work)
 {
-	return mlip_path_plan_period(&sp, lim, st, end, 3000, work);
+	return mlip_path_plan_period(&cv, lim, st, end, 3000, work);
+}
+
+/* --points: the whole curve's spline, in the caller's (host) memory. */
+static int fit_points(const char *path, int *n_axes)
+{
+	FILE *f = fopen(path, "r");
+	if (!f) {
+		perror(path);
+		return -1;
+	}
+	int cap = 1024, count = 0, n = 0;
+	double(*pts)[MLIP_MAX_AXES] = malloc(sizeof(*pts) * (size_t)cap);
+	char line[512];
+	while (pts && fgets(line, sizeof line, f)) {
+		double row[MLIP_MAX_AXES];
+		int k = 0;
+		char *c = line, *e;
+		while (k < MLIP_MAX_AXES) {
+			row[k] = strtod(c, &e);
+			if (e == c) {
+				break;
+			}
+			k++;
+			c = e + strspn(e, ", \t");
+		}
+		if (k == 0) {
+			continue;
+		}
+		if (n == 0) {
+			n = k;
+		}
+		if (k != n) {
+			fprintf(stderr, "%s:%d: %d coordinates, the first line had %d\n", path,
+			        count + 1, k, n);
+			fclose(f);
+			free(pts);
+			return -1;
+		}
+		if (count == cap) {
+			cap *= 2;
+			void *q = realloc(pts, sizeof(*pts) * (size_t)cap);
+			if (!q) {
+				free(pts);
+				pts = NULL;
+				break;
+			}
+			pts = q;
+		}
+		memcpy(pts[count++], row, sizeof row);
+	}
+	fclose(f);
+	size_t z = sizeof(double) * (size_t)(count > 0 ? count : 1);
+	double *s = malloc(z), *c = malloc(z);
+	double(*p)[MLIP_MAX_AXES] = malloc(z * MLIP_MAX_AXES),
+	(*m)[MLIP_MAX_AXES] = malloc(z * MLIP_MAX_AXES);
+	double(*b)[MLIP_MAX_AXES] = malloc(z * MLIP_MAX_AXES),
+	(*t3)[MLIP_MAX_AXES] = malloc(z * MLIP_MAX_AXES);
+	if (!pts || !s || !c || !p || !m || !b || !t3 ||
+	    mlip_path_fit(n, (const double(*)[MLIP_MAX_AXES])pts, count, s, p, m, b, t3, c, &cv) !=
+	        0) {
+		fprintf(stderr, "%s: no spline through its %d points\n", path, count);
+		return -1; /* a benchmark: the process ends here */
+	}
+	free(pts);
+	*n_axes = n;
+	return 0; /* the arrays live as long as the process */
 }
 
 int main(int argc, char **argv)
 {
-	if (argc < 2 || argc > 3) {
-		fprintf(stderr, "usage: bench_pathplan J [STEP]\n");
+	const char *points = NULL, *out = NULL;
+	double J = 0.0, step = 0.4, brake = 300.0;
+	for (int i = 1; i < argc; i++) {
+		if (!strcmp(argv[i], "--points") && i + 1 < argc) {
+			points = argv[++i];
+		} else if (!strcmp(argv[i], "--out") && i + 1 < argc) {
+			out = argv[++i];
+		} else if (!strcmp(argv[i], "--brake") && i + 1 < argc) {
+			brake = atof(argv[++i]);
+		} else if (J == 0.0) {
+			J = atof(argv[i]);
+		} else {
+			step = atof(argv[i]);
+		}
+	}
+	if (!(J > 0.0) || !(step > 0.0) || !(brake > 0.0)) {
+		fprintf(stderr, "usage: bench_pathplan J [STEP]\n"
+		                "       bench_pathplan J --points CSV [--brake B] [--out FILE]\n");
 		return 2;
 	}
-	double J = atof(argv[1]), step = argc > 2 ? atof(argv[2]) : 0.4;
-	if (!(J > 0.0) || !(step > 0.0)) {
-		fprintf(stderr, "bench_pathplan: J and STEP must be > 0\n");
-		return 2;
+	int n = 3;
+	if (points) {
+		if (fit_points(points, &n) != 0) {
+			return 1;
+		}
+	} else {
+		static double pts[MLIP_PATH_WIN][MLIP_MAX_AXES];
+		double R = 4.0, c = 0.5, L = sqrt(R * R + c * c);
+		for (int i = 0; i < MLIP_PATH_WIN; i++) {
+			double th = i * step / L;
+			pts[i][0] = R * cos(th);
+			pts[i][1] = R * sin(th);
+			pts[i][2] = c * th;
+		}
+		if (mlip_path_spline_fit(&sp, 3, (const double(*)[MLIP_MAX_AXES])pts,
+		                         MLIP_PATH_WIN) != 0) {
+			fprintf(stderr, "bench_pathplan: the spline does not fit\n");
+			return 1;
+		}
+		mlip_path_spline_curve(&sp, &cv);
 	}
-	static double pts[MLIP_PATH_WIN][MLIP_MAX_AXES];
-	double R = 4.0, c = 0.5, L = sqrt(R * R + c * c);
-	for (int i = 0; i < MLIP_PATH_WIN; i++) {
-		double th = i * step / L;
-		pts[i][0] = R * cos(th);
-		pts[i][1] = R * sin(th);
-		pts[i][2] = c * th;
-	}
-	if (mlip_path_spline_fit(&sp, 3, (const double(*)[MLIP_MAX_AXES])pts, MLIP_PATH_WIN) != 0) {
-		fprintf(stderr, "bench_pathplan: the spline does not fit\n");
-		return 1;
-	}
+	/* the model's settings (bench/pathspeed.py): J as given (the caller
+	 * applies its margin), 0.98 A, 0.995 vmax, the crawl 2 mm/s */
 	struct mlip_path_limits lim = {0};
-	lim.n = 3;
-	for (int k = 0; k < 3; k++) {
+	lim.n = n;
+	for (int k = 0; k < n; k++) {
 		lim.accel[k] = 0.98 * 1000.0;
-		lim.jerk[k] = 0.95 * J;
+		lim.jerk[k] = points ? J : 0.95 * J;
 	}
 	lim.vmax = 0.995 * 200.0;
-	lim.a_brake = 300.0;
+	lim.a_brake = brake;
 	lim.v_crawl = 2.0;
 	lim.period = 1e-3;
-	double end = sp.s[MLIP_PATH_WIN - 1], vpeak = 0.0;
+	double end = cv.s[cv.count - 1], vpeak = 0.0;
 	struct mlip_path_state st = {0.0, 0.0, 0.0};
 	long work = 0, periods = 0, moved = 0;
 	uint64_t hash = 14695981039346656037ull;
-	while (!(st.v <= lim.v_crawl && fabs(st.a) < 1.0 && end - st.s < 1.0 && periods > 10)) {
+	FILE *fo = out ? fopen(out, "w") : NULL;
+	if (out && !fo) {
+		perror(out);
+		return 1;
+	}
+	/* the model's loop: until crawling within 1 mm of the end */
+	while (end - st.s > 1e-3 &&
+	       !(st.v <= lim.v_crawl && fabs(st.a) < 1.0 && end - st.s < 1.0 && periods + 1 > 10)) {
+		long w0 = work;
 		int r = bench_plan_period(&lim, &st, end, &work);
-		if (r < 0 || periods > 1000000) {
-			fprintf(stderr, "bench_pathplan: the plan left the certified states\n");
+		if (r < 0 || periods > 1000000 || (r == 0 && st.v <= 0.0 && end - st.s > 1.0)) {
+			fprintf(stderr, "bench_pathplan: the plan %s at s %.6f of %.6f\n",
+			        r < 0 ? "left the certified states" : "stopped", st.s, end);
 			return 1;
 		}
 		moved += r;
 		periods++;
 		vpeak = fmax(vpeak, st.v);
 		hash = fnv(fnv(fnv(hash, st.s), st.v), st.a);
+		if (fo) {
+			fprintf(fo, "%.17g,%ld\n", st.s, work - w0);
+		}
 	}
-	printf(
-	    "{\"jerk\": %g, \"step\": %g, \"periods\": %ld, \"faster\": %ld, "
-	    "\"run_periods\": %ld, \"peak_speed\": %.3f, \"s\": %.6f, \"states\": \"%016llx\"}\n",
-	    J, step, periods, moved, work, vpeak, st.s, (unsigned long long)hash);
+	if (fo && fclose(fo) != 0) {
+		perror(out);
+		return 1;
+	}
+	printf("{\"jerk\": %g, \"step\": %g, \"periods\": %ld, \"faster\": %ld, "
+	       "\"run_periods\": %ld, \"peak_speed\": %.3f, \"s\": %.17g, \"v\": %.17g, "
+	       "\"a\": %.17g, \"length\": %.17g, \"states\": \"%016llx\"}\n",
+	       J, points ? 0.0 : step, periods, moved, work, vpeak, st.s, st.v, st.a, end,
+	       (unsigned long long)hash);
 	return 0;
 }

@@ -55,8 +55,13 @@ and the work outside the period (docs/algorithm.md, "The path-speed plan";
 the braking-run periods simulated per planned period are printed: the
 plan's cost; src/motion/pathplan.c is this plan's period in C).
 
+--c (with --poly): the plan by its C period instead (build/bench_pathplan
+--points: src/motion/pathplan.c over the same spline, its checkpoints exact),
+the rest as above; --keep keeps the temporary files (the points, for
+callgrind on bench_pathplan).
+
     bench/pathspeed.py lissajous --jerk 1e5 [--brake 300] [--margin 0.95]
-    bench/pathspeed.py trochoid --jerk 1e5 --poly build/curves/trochoid.ngc
+    bench/pathspeed.py trochoid --jerk 1e5 --poly build/curves/trochoid.ngc [--c]
 """
 
 import argparse
@@ -106,9 +111,17 @@ ap.add_argument(
     "--poly", metavar="NGC", help="plan along smooth's output for this program (see above)"
 )
 ap.add_argument(
+    "--c",
+    action="store_true",
+    help="with --poly: plan with the C period (build/bench_pathplan, src/motion/pathplan.c)",
+)
+ap.add_argument("--keep", action="store_true", help="with --poly: keep the temporary files")
+ap.add_argument(
     "--build", default=os.path.join(ROOT, "build"), help="where bench_smoothdump and mlip-check are"
 )
 args = ap.parse_args()
+if args.c and not args.poly:
+    ap.error("--c plans along smooth's output: give --poly")
 name = args.curve
 J = args.jerk * args.margin
 A = 1000.0
@@ -122,7 +135,10 @@ if args.poly:
     # left out), read as a curve by (P4): positions and derivatives of the
     # cubic through the four points around each segment, by chord length
     tmp = tempfile.mkdtemp(prefix="pathspeed-")
-    atexit.register(shutil.rmtree, tmp, True)  # the shifted program and the trace
+    if args.keep:
+        print(f"kept: {tmp} (shifted.ngc, points.csv with --c, trace.csv)")
+    else:
+        atexit.register(shutil.rmtree, tmp, True)  # the shifted program and the trace
     prog = os.path.join(tmp, "shifted.ngc")
     shift_program(args.poly, prog)
     csv = subprocess.run(
@@ -389,7 +405,27 @@ def safe(s, v, a):
 s = v = a = 0.0
 out = [0.0]
 PER, sum_w = [], 0  # braking-run periods simulated for each planned period
-while L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10):
+if args.c:
+    # the same plan by the C period over the same spline (its checkpoints:
+    # the knots' times by bisection, not by linear interpolation); the end
+    # stop, the samples and the checks below as for the model
+    ptsf = os.path.join(tmp, "points.csv")
+    np.savetxt(ptsf, pts, delimiter=",", fmt="%.17g")
+    plan = os.path.join(tmp, "plan.csv")
+    r = subprocess.run(
+        [os.path.join(args.build, "bench_pathplan"), f"{J!r}", "--points", ptsf]
+        + ["--brake", f"{ABR!r}", "--out", plan],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    res = json.loads(r.stdout)
+    rows = np.loadtxt(plan, delimiter=",", ndmin=2)
+    out += [min(float(x), L) for x in rows[:, 0]]
+    PER = [int(x) for x in rows[:, 1]]
+    s, v, a = res["s"], res["v"], res["a"]
+    print(f"C plan: length {res['length']:.6f} (model {L:.6f}), {res['periods']} periods")
+while not args.c and L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10):
     jl, jh = jlim(s, v, a)
     moved = False
     if jl <= jh:

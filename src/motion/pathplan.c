@@ -34,7 +34,7 @@ struct at {
 	double jl, jh;
 };
 
-static void at_make(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+static void at_make(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                     struct at *a, struct mlip_path_state st, int hint)
 {
 	a->st = st;
@@ -47,7 +47,7 @@ static void at_make(const struct mlip_path_spline *sp, const struct mlip_path_li
  * the speed and acceleration the step of jerk j from st has at time h,
  * intersected into [*lo, *hi]; the point's own interval in *own (may be
  * NULL). */
-static void cut(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+static void cut(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                 struct mlip_path_state st, double j, double h, double s, int *piece,
                 struct mlip_path_point *d, double *lo, double *hi, struct at *own)
 {
@@ -71,24 +71,43 @@ static void cut(const struct mlip_path_spline *sp, const struct mlip_path_limits
 }
 
 /* The time in [0, T] at which the step reaches parameter x (s(0) < x <=
- * s(T), s increasing over the step): bisection, bounded work. */
-static double time_at(struct mlip_path_state st, double j, double T, double x)
+ * s(T) = s1, s increasing over the step): Newton's steps on s(h) - x from
+ * the chord's estimate, kept inside the bracket that every evaluation
+ * narrows (a bisection step when Newton's would leave it), until s(h) is
+ * within 1e-15 of x's scale or the bracket is an ulp: a few evaluations
+ * where a bisection to 1e-15 s took 40. */
+static double time_at(struct mlip_path_state st, double j, double T, double x, double s1)
 {
-	double lo = 0.0, hi = T;
-	for (int i = 0; i < 40; i++) {
-		double mid = 0.5 * (lo + hi);
-		if (mlip_path_advance(st, j, mid).s < x) {
-			lo = mid;
-		} else {
-			hi = mid;
-		}
+	double lo = 0.0, hi = T, h = T * (x - st.s) / (s1 - st.s);
+	if (!(h > lo && h < hi)) {
+		h = 0.5 * T;
 	}
-	return 0.5 * (lo + hi);
+	for (int i = 0; i < 60; i++) {
+		struct mlip_path_state r = mlip_path_advance(st, j, h);
+		double f = r.s - x;
+		if (fabs(f) <= 1e-15 * (1.0 + fabs(x))) {
+			break;
+		}
+		if (f < 0.0) {
+			lo = h;
+		} else {
+			hi = h;
+		}
+		double nh = r.v > 0.0 ? h - f / r.v : -1.0;
+		if (!(nh > lo && nh < hi)) {
+			nh = 0.5 * (lo + hi);
+		}
+		if (nh == h || hi - lo <= 1e-16 * T) {
+			break;
+		}
+		h = nh;
+	}
+	return h;
 }
 
 /* (Q2) from the state a; the step's end (the next state, its point and
  * interval) in *next when next is not NULL. */
-static int range_at(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                     const struct at *a, double j, double *lo, double *hi, struct at *next)
 {
 	double T = lim->period, l = a->jl, u = a->jh;
@@ -107,7 +126,7 @@ static int range_at(const struct mlip_path_spline *sp, const struct mlip_path_li
 	}
 	double hp = 0.0;
 	for (; k < sp->count - 1 && sp->s[k] < s1 && l <= u; k++) {
-		double hk = time_at(st, j, T, sp->s[k]), eps = 1e-12 * (1.0 + sp->s[k]);
+		double hk = time_at(st, j, T, sp->s[k], s1), eps = 1e-12 * (1.0 + sp->s[k]);
 		double hm = 0.5 * (hp + hk);
 		cut(sp, lim, st, j, hm, mlip_path_advance(st, j, hm).s, &piece, &d, &l, &u, NULL);
 		cut(sp, lim, st, j, hk, sp->s[k] - eps, &piece, &d, &l, &u, NULL);
@@ -125,7 +144,7 @@ static int range_at(const struct mlip_path_spline *sp, const struct mlip_path_li
 	return l <= u;
 }
 
-int mlip_path_period_range(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_period_range(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                            struct mlip_path_state st, double j, double *lo, double *hi)
 {
 	struct at a;
@@ -139,7 +158,7 @@ static double clamp(double x, double lo, double hi)
 }
 
 /* The admissible jerk nearest jt from a (Q2); its step's end in *next. */
-static int pick_at(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+static int pick_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                    const struct at *a, double jt, double *j, struct at *next)
 {
 	double lo, hi;
@@ -160,7 +179,7 @@ static int pick_at(const struct mlip_path_spline *sp, const struct mlip_path_lim
 	return 0;
 }
 
-int mlip_path_pick(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_pick(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                    struct mlip_path_state st, double jt, double *j)
 {
 	struct at a, next;
@@ -170,7 +189,7 @@ int mlip_path_pick(const struct mlip_path_spline *sp, const struct mlip_path_lim
 
 /* (Q3) from a, alo the low end of the (P1) interval at its point and speed
  * (NAN: not yet computed); the step's end in *next. */
-static int brake_at(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+static int brake_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                     const struct at *a, double alo, double *j, struct at *next)
 {
 	double T = lim->period, jh = a->jh;
@@ -194,7 +213,7 @@ static int brake_at(const struct mlip_path_spline *sp, const struct mlip_path_li
 	return pick_at(sp, lim, a, jt, j, next);
 }
 
-int mlip_path_brake(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_brake(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                     struct mlip_path_state st, double *j)
 {
 	struct at a, next;
@@ -218,7 +237,7 @@ static int inside(const struct mlip_path_limits *lim, const struct at *a, double
 	return a->ok;
 }
 
-static int certified_at(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+static int certified_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                         const struct at *start, double end, int max_periods, long *work)
 {
 	struct at buf[2];
@@ -247,7 +266,7 @@ static int certified_at(const struct mlip_path_spline *sp, const struct mlip_pat
 	return 0;
 }
 
-int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                         struct mlip_path_state st, double end, int max_periods, long *work)
 {
 	struct at a;
@@ -255,7 +274,7 @@ int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_pat
 	return certified_at(sp, lim, &a, end, max_periods, work);
 }
 
-int mlip_path_plan_period(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                           struct mlip_path_state *st, double end, int max_periods, long *work)
 {
 	static const double share[5] = {1.0, 0.75, 0.5, 0.25, 0.0};

@@ -5,7 +5,8 @@
  * the greedy plan along a helix keeps J and A at every sample (third and
  * second differences of the positions), never leaves the certified states,
  * and uses them (0.95 J planned is reached), its peak speed at least 0.8 of
- * the quasi-static speed (P3).
+ * the quasi-static speed (P3); the same along 80 mm of it in 0.05 mm pieces
+ * (one spline in the caller's arrays, several pieces crossed a period).
  */
 #include <math.h>
 #include <setjmp.h>
@@ -24,7 +25,7 @@
  * a spline of MLIP_PATH_WIN points. */
 static const double HR = 4.0, HC = 0.5;
 
-static void helix_spline(struct mlip_path_spline *sp, double step)
+static void helix_spline(struct mlip_path_spline *sp, struct mlip_path_curve *cv, double step)
 {
 	double pts[MLIP_PATH_WIN][MLIP_MAX_AXES] = {{0}};
 	double L = sqrt(HR * HR + HC * HC);
@@ -36,6 +37,7 @@ static void helix_spline(struct mlip_path_spline *sp, double step)
 	}
 	assert_int_equal(
 	    mlip_path_spline_fit(sp, 3, (const double(*)[MLIP_MAX_AXES])pts, MLIP_PATH_WIN), 0);
+	mlip_path_spline_curve(sp, cv);
 }
 
 static void limits(struct mlip_path_limits *lim, double J)
@@ -78,8 +80,9 @@ static void test_period_range(void **state)
 {
 	(void)state;
 	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
 	struct mlip_path_limits lim;
-	helix_spline(&sp, 0.1);
+	helix_spline(&sp, &cv, 0.1);
 	limits(&lim, 1e4);
 	int checked = 0, start_only_breaks = 0;
 	for (int it = 0; it < 3000; it++) {
@@ -96,7 +99,7 @@ static void test_period_range(void **state)
 			}
 		}
 		double j = jl + uni(0.0, 1.0) * (jh - jl);
-		if (!mlip_path_period_range(&sp, &lim, st, j, &lo, &hi) || !(lo <= j && j <= hi)) {
+		if (!mlip_path_period_range(&cv, &lim, st, j, &lo, &hi) || !(lo <= j && j <= hi)) {
 			continue;
 		}
 		/* each end of the interval, as the end of its own step's interval
@@ -106,10 +109,10 @@ static void test_period_range(void **state)
 			double x = e ? hi : lo, l2 = lo, h2 = hi;
 			int ok = 1;
 			for (int r = 0; r < 8 && ok; r++) {
-				ok = mlip_path_period_range(&sp, &lim, st, x, &l2, &h2);
+				ok = mlip_path_period_range(&cv, &lim, st, x, &l2, &h2);
 				x = e ? h2 : l2;
 			}
-			if (!ok || !mlip_path_period_range(&sp, &lim, st, x, &l2, &h2) ||
+			if (!ok || !mlip_path_period_range(&cv, &lim, st, x, &l2, &h2) ||
 			    fabs((e ? h2 : l2) - x) > 1e-6 * (1.0 + fabs(x))) {
 				continue;
 			}
@@ -127,33 +130,36 @@ static void test_period_range(void **state)
 	assert_true(start_only_breaks > 0);
 }
 
-/* The plan along a helix from rest: every sample's jerk (third difference /
+/* The curve's position and derivatives at s (by its own parameter). */
+static void at_s(const struct mlip_path_curve *cv, double s, double *x, struct mlip_path_point *d)
+{
+	mlip_path_spline_eval_piece(cv, mlip_path_spline_piece(cv, s, 0), s, x, d);
+}
+
+/* The plan along a curve from rest: every sample's jerk (third difference /
  * T^3) within J and acceleration (second difference / T^2) within A on
  * every axis, the plan within the certified states (the fallback always
  * has a jerk), at the crawl near the end; its peak speed at least 0.8 of
  * the quasi-static speed (P3) at the planned limits (not at most: with a
  * path acceleration the per-axis box lets the plan pass it for a while). */
-static void plan_helix(double J)
+static void plan_curve(const struct mlip_path_curve *cv, double J)
 {
-	struct mlip_path_spline sp;
 	struct mlip_path_limits lim;
-	helix_spline(&sp, 0.4);
 	limits(&lim, J);
-	double end = sp.s[MLIP_PATH_WIN - 1];
+	double end = cv->s[cv->count - 1];
 	struct mlip_path_state st = {0.0, 0.0, 0.0};
-	static double x[40000][3];
+	static double x[40000][MLIP_MAX_AXES];
 	int n = 0, moved = 0;
 	long work = 0;
 	double vpeak = 0.0;
-	struct mlip_path_point d0;
-	mlip_path_spline_eval(&sp, 0.0, 0, x[n++], &d0);
+	struct mlip_path_point d;
+	at_s(cv, 0.0, x[n++], &d);
 	while (!(st.v <= lim.v_crawl && fabs(st.a) < 1.0 && end - st.s < 1.0 && n > 10)) {
-		int r = mlip_path_plan_period(&sp, &lim, &st, end, 3000, &work);
+		int r = mlip_path_plan_period(cv, &lim, &st, end, 3000, &work);
 		assert_true(r >= 0);
 		moved += r;
 		vpeak = fmax(vpeak, st.v);
-		struct mlip_path_point d;
-		mlip_path_spline_eval(&sp, st.s, 0, x[n++], &d);
+		at_s(cv, st.s, x[n++], &d);
 		assert_true(n < 40000);
 	}
 	double T = lim.period, wj = 0.0, wa = 0.0;
@@ -167,21 +173,28 @@ static void plan_helix(double J)
 			wa = fmax(wa, fabs(a2) / 1000.0);
 		}
 	}
-	/* the quasi-static speed of the spline's middle (P3), by its parameter */
+	/* the quasi-static speed of the curve's middle (P3), by its parameter */
 	double vq = INFINITY;
 	for (double s = 0.25 * end; s <= 0.75 * end; s += 0.01) {
-		struct mlip_path_point d;
-		mlip_path_spline_eval(&sp, s, 0, NULL, &d);
+		at_s(cv, s, NULL, &d);
 		vq = fmin(vq, mlip_path_vmax(3, &d, lim.accel, lim.jerk, lim.vmax));
 	}
-	print_message("J %g: %d periods, %d faster than braking, %ld run periods; "
+	print_message("J %g, %d points: %d periods, %d faster than braking, %ld run periods; "
 	              "jerk %.3f J, accel %.3f A, peak %.2f of vq %.2f\n",
-	              J, n, moved, work, wj, wa, vpeak, vq);
+	              J, cv->count, n, moved, work, wj, wa, vpeak, vq);
 	assert_true(wj <= 1.0);
 	assert_true(wj >= 0.9); /* the plan uses the limit (0.95 J planned) */
 	assert_true(wa <= 1.0);
 	assert_true(vpeak >= 0.8 * vq);
 	assert_true(end - st.s < 1.0 && st.v <= lim.v_crawl);
+}
+
+static void plan_helix(double J)
+{
+	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
+	helix_spline(&sp, &cv, 0.4);
+	plan_curve(&cv, J);
 }
 
 static void test_plan_helix_1e4(void **state)
@@ -196,12 +209,40 @@ static void test_plan_helix_1e5(void **state)
 	plan_helix(1e5);
 }
 
+/* A long curve in fine pieces, as `smooth` hands them (0.05 mm, several
+ * crossed a period at speed): the same helix over 1,600 points fitted as one
+ * spline in the caller's arrays (mlip_path_fit), planned at J = 1e5 from
+ * rest to rest with the same checks. */
+#define LONG_N 1600
+static double lp[LONG_N][MLIP_MAX_AXES], ls[LONG_N], lpp[LONG_N][MLIP_MAX_AXES];
+static double lm[LONG_N][MLIP_MAX_AXES], lb[LONG_N][MLIP_MAX_AXES], lt[LONG_N][MLIP_MAX_AXES],
+    lc[LONG_N];
+
+static void test_plan_long_fine_helix(void **state)
+{
+	(void)state;
+	double L = sqrt(HR * HR + HC * HC);
+	for (int i = 0; i < LONG_N; i++) {
+		double th = i * 0.05 / L;
+		lp[i][0] = HR * cos(th);
+		lp[i][1] = HR * sin(th);
+		lp[i][2] = HC * th;
+	}
+	struct mlip_path_curve cv;
+	assert_int_equal(mlip_path_fit(3, (const double(*)[MLIP_MAX_AXES])lp, LONG_N, ls, lpp, lm,
+	                               lb, lt, lc, &cv),
+	                 0);
+	assert_int_equal(cv.count, LONG_N);
+	plan_curve(&cv, 1e5);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test(test_period_range),
 	    cmocka_unit_test(test_plan_helix_1e4),
 	    cmocka_unit_test(test_plan_helix_1e5),
+	    cmocka_unit_test(test_plan_long_fine_helix),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -380,6 +380,8 @@ static void test_spline_piece(void **state)
 	helix_points(0.0, 0.05, MLIP_PATH_WIN, pts, arc);
 	assert_int_equal(
 	    mlip_path_spline_fit(&spa, 3, (const double(*)[MLIP_MAX_AXES])pts, MLIP_PATH_WIN), 0);
+	struct mlip_path_curve cv;
+	mlip_path_spline_curve(&spa, &cv);
 	int last = MLIP_PATH_WIN - 1, checked = 0;
 	for (int it = 0; it < 20000; it++) {
 		double s = uni(-0.1, spa.s[last] + 0.1);
@@ -390,11 +392,11 @@ static void test_spline_piece(void **state)
 		while (want < last - 1 && spa.s[want + 1] <= s) {
 			want++;
 		}
-		int i = mlip_path_spline_piece(&spa, s, hint);
+		int i = mlip_path_spline_piece(&cv, s, hint);
 		assert_int_equal(i, want);
 		double xa[MLIP_MAX_AXES], xb[MLIP_MAX_AXES];
 		struct mlip_path_point a, b;
-		mlip_path_spline_eval_piece(&spa, i, s, xa, &a);
+		mlip_path_spline_eval_piece(&cv, i, s, xa, &a);
 		assert_int_equal(mlip_path_spline_eval(&spa, s, 0, xb, &b), 0);
 		for (int k = 0; k < 3; k++) {
 			assert_true(xa[k] == xb[k] && a.d1[k] == b.d1[k] && a.d2[k] == b.d2[k] &&

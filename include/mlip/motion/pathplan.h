@@ -62,21 +62,21 @@ struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, do
 /* (Q2): the path jerks admissible at every checkpoint of the step of jerk j
  * from st (each at that step's own state). 0 when none is, or the spline
  * stops (sigma = 0) at a checkpoint. */
-int mlip_path_period_range(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_period_range(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                            struct mlip_path_state st, double j, double *lo, double *hi);
 
 /* The admissible jerk nearest jt (Q2), in *j; 0 when none was found. */
-int mlip_path_pick(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_pick(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                    struct mlip_path_state st, double jt, double *j);
 
 /* (Q3): the braking policy's jerk at st, admissible for its period; 0 when
  * there is none. */
-int mlip_path_brake(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_brake(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                     struct mlip_path_state st, double *j);
 
 /* (Q4): 1 when st is certified within max_periods policy steps, the path
  * ending at `end`; *work (may be NULL) grows by the steps simulated. */
-int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                         struct mlip_path_state st, double end, int max_periods, long *work);
 
 /* One period of the greedy plan from the certified state *st: the largest
@@ -84,7 +84,7 @@ int mlip_path_certified(const struct mlip_path_spline *sp, const struct mlip_pat
  * and leads to a certified state, else the braking policy's step. 1 when
  * it moved faster than braking, 0 when it braked, -1 when the policy had
  * no jerk (st was not certified). */
-int mlip_path_plan_period(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                           struct mlip_path_state *st, double end, int max_periods, long *work);
 
 #endif

@@ -116,17 +116,42 @@ int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][
 int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_arc, double *x,
                           struct mlip_path_point *d);
 
+/* A piecewise cubic by chord length as the plan reads it: a view of a
+ * fitted spline's arrays (count points, count - 1 pieces), whoever holds
+ * them (a struct mlip_path_spline, or a caller's own arrays fitted by
+ * mlip_path_fit). */
+struct mlip_path_curve {
+	int n, count;
+	const double *s;
+	const double (*p)[MLIP_MAX_AXES];
+	const double (*m)[MLIP_MAX_AXES];
+	const double (*b)[MLIP_MAX_AXES];
+	const double (*t3)[MLIP_MAX_AXES];
+};
+
+/* The view of sp. */
+void mlip_path_spline_curve(const struct mlip_path_spline *sp, struct mlip_path_curve *cv);
+
+/* (P5) over the caller's arrays of count entries each (count >= 2; c is
+ * scratch): what mlip_path_spline_fit does for its window, for a curve of
+ * any length (the benchmarks fit a whole program's `smooth` output);
+ * fills *cv with the view. -1 as mlip_path_spline_fit. */
+int mlip_path_fit(int n, const double pts[][MLIP_MAX_AXES], int count, double *s,
+                  double (*p)[MLIP_MAX_AXES], double (*m)[MLIP_MAX_AXES],
+                  double (*b)[MLIP_MAX_AXES], double (*t3)[MLIP_MAX_AXES], double *c,
+                  struct mlip_path_curve *cv);
+
 /* The piece i holding chord length s (s_i <= s < s_i+1, the last piece for
  * s at or past the end, 0 before the start: what mlip_path_spline_eval
  * reads), searched from piece `hint` (a plan moves forward piece by piece:
  * O(1) steps, no binary search). */
-int mlip_path_spline_piece(const struct mlip_path_spline *sp, double s, int hint);
+int mlip_path_spline_piece(const struct mlip_path_curve *cv, double s, int hint);
 
 /* mlip_path_spline_eval by the spline's own parameter (by_arc 0) on piece
  * i (from mlip_path_spline_piece; s clamped as there): the same values,
  * from the piece's coefficients kept by the fit; axes n and beyond are left
  * as they are (the plan's hot path reads only the first n). */
-void mlip_path_spline_eval_piece(const struct mlip_path_spline *sp, int i, double s, double *x,
+void mlip_path_spline_eval_piece(const struct mlip_path_curve *cv, int i, double s, double *x,
                                  struct mlip_path_point *d);
 
 #endif
