@@ -13,6 +13,9 @@
  *
  *   build/bench_pathplan J [STEP]     (STEP default 0.4)
  *
+ * --band B: count the pieces whose (P6) bound on the distance from their
+ * chord exceeds B mm (default 0.001); the JSON gives it and the largest.
+ *
  * --points CSV: the plan along the natural spline through the points (one
  * a line, the axes' coordinates; bench/pathspeed.py --c writes `smooth`'s
  * output there) at J exactly (the caller's margin applied), the braking
@@ -121,12 +124,14 @@ static int fit_points(const char *path, int *n_axes)
 int main(int argc, char **argv)
 {
 	const char *points = NULL, *out = NULL;
-	double J = 0.0, step = 0.4, brake = 300.0;
+	double J = 0.0, step = 0.4, brake = 300.0, band = 0.001;
 	for (int i = 1; i < argc; i++) {
 		if (!strcmp(argv[i], "--points") && i + 1 < argc) {
 			points = argv[++i];
 		} else if (!strcmp(argv[i], "--out") && i + 1 < argc) {
 			out = argv[++i];
+		} else if (!strcmp(argv[i], "--band") && i + 1 < argc) {
+			band = atof(argv[++i]);
 		} else if (!strcmp(argv[i], "--brake") && i + 1 < argc) {
 			brake = atof(argv[++i]);
 		} else if (J == 0.0) {
@@ -136,8 +141,10 @@ int main(int argc, char **argv)
 		}
 	}
 	if (!(J > 0.0) || !(step > 0.0) || !(brake > 0.0)) {
-		fprintf(stderr, "usage: bench_pathplan J [STEP]\n"
-		                "       bench_pathplan J --points CSV [--brake B] [--out FILE]\n");
+		fprintf(
+		    stderr,
+		    "usage: bench_pathplan J [STEP]\n"
+		    "       bench_pathplan J --points CSV [--brake B] [--out FILE] [--band B]\n");
 		return 2;
 	}
 	int n = 3;
@@ -173,6 +180,14 @@ int main(int argc, char **argv)
 	lim.a_brake = brake;
 	lim.v_crawl = 2.0;
 	lim.period = 1e-3;
+	/* (P6): how far the spline strays from the polyline it was fitted to */
+	double max_sag = 0.0;
+	long over = 0;
+	for (int i = 0; i + 1 < cv.count; i++) {
+		double g = mlip_path_piece_sag(&cv, i);
+		max_sag = fmax(max_sag, g);
+		over += g > band;
+	}
 	double end = cv.s[cv.count - 1], vpeak = 0.0;
 	struct mlip_path_state st = {0.0, 0.0, 0.0};
 	long work = 0, periods = 0, moved = 0;
@@ -204,10 +219,12 @@ int main(int argc, char **argv)
 		perror(out);
 		return 1;
 	}
-	printf("{\"jerk\": %g, \"step\": %g, \"periods\": %ld, \"faster\": %ld, "
-	       "\"run_periods\": %ld, \"peak_speed\": %.3f, \"s\": %.17g, \"v\": %.17g, "
-	       "\"a\": %.17g, \"length\": %.17g, \"states\": \"%016llx\"}\n",
-	       J, points ? 0.0 : step, periods, moved, work, vpeak, st.s, st.v, st.a, end,
-	       (unsigned long long)hash);
+	printf(
+	    "{\"jerk\": %g, \"step\": %g, \"periods\": %ld, \"faster\": %ld, "
+	    "\"run_periods\": %ld, \"peak_speed\": %.3f, \"s\": %.17g, \"v\": %.17g, "
+	    "\"a\": %.17g, \"length\": %.17g, \"states\": \"%016llx\", "
+	    "\"pieces\": %d, \"max_sag_mm\": %.3g, \"band_mm\": %g, \"pieces_over_band\": %ld}\n",
+	    J, points ? 0.0 : step, periods, moved, work, vpeak, st.s, st.v, st.a, end,
+	    (unsigned long long)hash, cv.count - 1, max_sag, band, over);
 	return 0;
 }

@@ -270,6 +270,16 @@ void mlip_path_spline_eval_piece(const struct mlip_path_curve *cv, int i, double
 	}
 }
 
+double mlip_path_piece_sag(const struct mlip_path_curve *cv, int i)
+{
+	double h = cv->s[i + 1] - cv->s[i], q0 = 0.0, q1 = 0.0;
+	for (int k = 0; k < cv->n; k++) {
+		q0 += cv->m[i][k] * cv->m[i][k];
+		q1 += cv->m[i + 1][k] * cv->m[i + 1][k];
+	}
+	return h * h / 8.0 * sqrt(q0 > q1 ? q0 : q1); /* (P6) */
+}
+
 int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_arc, double *x,
                           struct mlip_path_point *d)
 {

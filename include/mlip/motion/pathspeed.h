@@ -147,6 +147,18 @@ int mlip_path_fit(int n, const double pts[][MLIP_MAX_AXES], int count, double *s
  * O(1) steps, no binary search). */
 int mlip_path_spline_piece(const struct mlip_path_curve *cv, double s, int hint);
 
+/* How far piece i of the spline may stray from its chord (the straight
+ * segment between its points), a bound: |x(u) - chord(u)| <= u (h - u) / 2
+ * max |x''| on the piece (the interpolation error of a line through the
+ * ends, x'' linear so its norm is largest at an end), so at most
+ *
+ *     sag_i = h_i^2 / 8 max(|M_i|, |M_i+1|)                              (P6)
+ *
+ * The plan may take the spline only where this stays within what the
+ * block's tolerance leaves (docs/algorithm.md, the hand-over): a natural
+ * spline through a sharp vertex overshoots by far more. */
+double mlip_path_piece_sag(const struct mlip_path_curve *cv, int i);
+
 /* mlip_path_spline_eval by the spline's own parameter (by_arc 0) on piece
  * i (from mlip_path_spline_piece; s clamped as there): the same values,
  * from the piece's coefficients kept by the fit; axes n and beyond are left
