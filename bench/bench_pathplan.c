@@ -55,6 +55,19 @@ int bench_plan_period(const struct mlip_path_limits *lim, struct mlip_path_state
 	return mlip_path_plan_period(&cv, lim, st, end, 3000, work);
 }
 
+/* The model's tail from a crawl (bench/pathspeed.py): the acceleration
+ * ramped to 0 at the path jerk jr, then a cruise and a triangle of jerk
+ * jr to rest; 1 when its ramp and stop fit in `room` and the ramp keeps a
+ * speed (a planned state near the end still braking need not wait for
+ * |a| < 1 there: that wait crept at v ~ room / 0.05 s for 0.2 s). */
+static int tail_fits(struct mlip_path_state st, double room, double jr)
+{
+	double ta = fabs(st.a) / jr, j0 = st.a > 0.0 ? -jr : jr;
+	double v1 = st.v + st.a * ta + j0 * ta * ta / 2.0;
+	double d0 = st.v * ta + st.a * ta * ta / 2.0 + j0 * ta * ta * ta / 6.0;
+	return v1 > 0.0 && d0 + v1 * sqrt(v1 / jr) <= room;
+}
+
 /* --points: the whole curve's spline, in the caller's (host) memory. */
 static int fit_points(const char *path, int *n_axes)
 {
@@ -197,9 +210,10 @@ int main(int argc, char **argv)
 		perror(out);
 		return 1;
 	}
-	/* the model's loop: until crawling within 1 mm of the end */
-	while (end - st.s > 1e-3 &&
-	       !(st.v <= lim.v_crawl && fabs(st.a) < 1.0 && end - st.s < 1.0 && periods + 1 > 10)) {
+	/* the model's loop: until crawling within 1 mm of the end with room
+	 * for the model's tail */
+	while (end - st.s > 1e-3 && !(st.v <= lim.v_crawl && end - st.s < 1.0 && periods + 1 > 10 &&
+	                              tail_fits(st, end - st.s, 0.5 * lim.jerk[0]))) {
 		long w0 = work;
 		int r = bench_plan_period(&lim, &st, end, &work);
 		if (r < 0 || periods > 1000000 || (r == 0 && st.v <= 0.0 && end - st.s > 1.0)) {

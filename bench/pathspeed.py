@@ -460,18 +460,25 @@ while not args.c and L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 
         raise SystemExit(f"too long at s={s}")
 # the end: cruise at the crawl speed, then a jerk-limited stop at L exactly
 # (a triangle of jerk: v = jr t^2 ... over 2 sqrt(v / jr), distance v sqrt(v / jr))
+# (--c: the plan may end still braking at the crawl: the acceleration is
+# first ramped to 0 at jr, bench_pathplan's tail_fits)
 if L - s > 1e-9 and v > 0:
     jr = 0.5 * J
-    tb = 2 * math.sqrt(v / jr)
-    db = v * tb / 2
-    tc = max(L - s - db, 0.0) / v
-    t0 = len(out) * T - T
+    ta = abs(a) / jr
+    j0 = -jr if a > 0 else jr
+    va = v + a * ta + j0 * ta * ta / 2
+    sa = s + v * ta + a * ta * ta / 2 + j0 * ta**3 / 6
+    tb = 2 * math.sqrt(va / jr)
+    db = va * tb / 2
+    tc = ta + max(L - sa - db, 0.0) / va
     tt_ = 0.0
-    s0 = s
-    v0 = v
+    s0 = sa - va * ta  # the cruise's line, extended back to the tail's start
+    v0 = va
     while True:
         tt_ += T
-        if tt_ <= tc:
+        if tt_ <= ta:
+            x = s + v * tt_ + a * tt_ * tt_ / 2 + j0 * tt_**3 / 6
+        elif tt_ <= tc:
             x = s0 + v0 * tt_
         elif tt_ <= tc + tb:
             u = tt_ - tc
