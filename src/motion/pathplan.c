@@ -47,8 +47,8 @@ static void at_make(const struct mlip_path_curve *sp, const struct mlip_path_lim
 
 /* The (P2) interval at the point d (on piece *piece, searched from it), at
  * the speed and acceleration the step of jerk j from st has at time h,
- * intersected into [*lo, *hi]; the point's own interval in *own (may be
- * NULL). */
+ * intersected into [*lo, *hi]; the point's own interval in *own: the step's
+ * end, whose point and interval the next state keeps. */
 static void cut(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                 struct mlip_path_state st, double j, double h, double s, int *piece,
                 struct mlip_path_point *d, double *lo, double *hi, struct at *own)
@@ -58,11 +58,9 @@ static void cut(const struct mlip_path_curve *sp, const struct mlip_path_limits 
 	*piece = mlip_path_spline_piece(sp, s, *piece);
 	mlip_path_spline_eval_piece(sp, *piece, s, NULL, d);
 	int ok = mlip_path_jerk_range(lim->n, d, lim->jerk, at.v, at.a, &l, &u);
-	if (own) {
-		own->ok = ok;
-		own->jl = l;
-		own->jh = u;
-	}
+	own->ok = ok;
+	own->jl = l;
+	own->jh = u;
 	if (!ok) {
 		*lo = 1.0; /* no jerk at all here */
 		*hi = -1.0;
@@ -70,6 +68,31 @@ static void cut(const struct mlip_path_curve *sp, const struct mlip_path_limits 
 	}
 	*lo = l > *lo ? l : *lo;
 	*hi = u < *hi ? u : *hi;
+}
+
+/* cut() at an inner checkpoint, whose derivatives nobody keeps: the
+ * piece's cubic (mlip_path_spline_eval_piece), (P2) (mlip_path_jerk_range)
+ * and the intersection fused into one pass over the axes, the same
+ * arithmetic in the same order (the same interval to the bit), straight
+ * into [*lo, *hi]. 0 when the interval is empty. */
+static int cut_inner(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim, int i,
+                     double s, double v, double a, double *lo, double *hi)
+{
+	int last = sp->count - 1;
+	s = s < 0.0 ? 0.0 : (s > sp->s[last] ? sp->s[last] : s);
+	double w = s - sp->s[i], l = *lo, h = *hi;
+	for (int k = 0; k < lim->n; k++) {
+		double m0 = sp->m[i][k], t3 = sp->t3[i][k];
+		double d2 = m0 + t3 * w;
+		double d1 = sp->b[i][k] + m0 * w + 0.5 * t3 * w * w;
+		double c = 3.0 * d2 * v * a + t3 * v * v * v; /* (P2) but x'_k j */
+		if (!mlip_path_axis_cut(d1, c, lim->jerk[k], &l, &h)) {
+			return 0;
+		}
+	}
+	*lo = l;
+	*hi = h;
+	return l <= h;
 }
 
 /* The time in [0, T] at which the step reaches parameter x (s(0) < x <=
@@ -115,28 +138,42 @@ static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_lim
 	double T = lim->period, l = a->jl, u = a->jh;
 	struct mlip_path_state st = a->st, end = mlip_path_advance(st, j, T);
 	double s1 = end.s, last = sp->s[sp->count - 1];
-	struct mlip_path_point d;
+	*lo = 1.0; /* until the whole step is checked: empty */
+	*hi = -1.0;
 	if (!a->ok) {
-		l = 1.0;
-		u = -1.0;
+		return 0;
 	}
 	/* the knots the step crosses, both sides, and the middle of every
-	 * stretch between checkpoints (Q2) */
+	 * stretch between checkpoints (Q2); the state at a knot serves both
+	 * its sides. Empty: the rest cannot widen it, and nobody reads it. */
 	int k = a->piece, piece = a->piece;
 	while (k < sp->count && sp->s[k] <= st.s) {
 		k++;
 	}
 	double hp = 0.0;
-	for (; k < sp->count - 1 && sp->s[k] < s1 && l <= u; k++) {
+	for (; k < sp->count - 1 && sp->s[k] < s1; k++) {
 		double hk = time_at(st, j, T, sp->s[k], s1), eps = 1e-12 * (1.0 + sp->s[k]);
-		double hm = 0.5 * (hp + hk);
-		cut(sp, lim, st, j, hm, mlip_path_advance(st, j, hm).s, &piece, &d, &l, &u, NULL);
-		cut(sp, lim, st, j, hk, sp->s[k] - eps, &piece, &d, &l, &u, NULL);
-		cut(sp, lim, st, j, hk, sp->s[k] + eps, &piece, &d, &l, &u, NULL);
+		struct mlip_path_state m = mlip_path_advance(st, j, 0.5 * (hp + hk));
+		struct mlip_path_state at = mlip_path_advance(st, j, hk);
+		piece = mlip_path_spline_piece(sp, m.s, piece);
+		if (!cut_inner(sp, lim, piece, m.s, m.v, m.a, &l, &u)) {
+			return 0;
+		}
+		piece = mlip_path_spline_piece(sp, sp->s[k] - eps, piece);
+		if (!cut_inner(sp, lim, piece, sp->s[k] - eps, at.v, at.a, &l, &u)) {
+			return 0;
+		}
+		piece = mlip_path_spline_piece(sp, sp->s[k] + eps, piece);
+		if (!cut_inner(sp, lim, piece, sp->s[k] + eps, at.v, at.a, &l, &u)) {
+			return 0;
+		}
 		hp = hk;
 	}
-	double hm = 0.5 * (hp + T);
-	cut(sp, lim, st, j, hm, mlip_path_advance(st, j, hm).s, &piece, &d, &l, &u, NULL);
+	struct mlip_path_state m = mlip_path_advance(st, j, 0.5 * (hp + T));
+	piece = mlip_path_spline_piece(sp, m.s, piece);
+	if (!cut_inner(sp, lim, piece, m.s, m.v, m.a, &l, &u)) {
+		return 0;
+	}
 	struct at scratch, *e = next ? next : &scratch;
 	cut(sp, lim, st, j, T, s1 < last ? s1 : last, &piece, &e->d, &l, &u, e);
 	e->st = end;

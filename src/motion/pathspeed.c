@@ -13,20 +13,9 @@ static int intersect(int n, const double *p, const double *c, const double *lim,
 {
 	double l = -INFINITY, h = INFINITY;
 	for (int k = 0; k < n; k++) {
-		if (p[k] == 0.0) {
-			if (!(fabs(c[k]) <= lim[k])) {
-				return 0; /* this axis alone exceeds its limit, whatever x */
-			}
-			continue;
+		if (!mlip_path_axis_cut(p[k], c[k], lim[k], &l, &h)) {
+			return 0; /* this axis alone exceeds its limit, whatever x */
 		}
-		double x1 = (-lim[k] - c[k]) / p[k], x2 = (lim[k] - c[k]) / p[k];
-		if (x1 > x2) {
-			double t = x1;
-			x1 = x2;
-			x2 = t;
-		}
-		l = x1 > l ? x1 : l;
-		h = x2 < h ? x2 : h;
 	}
 	*lo = l;
 	*hi = h;

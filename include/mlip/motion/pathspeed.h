@@ -59,6 +59,8 @@
 #ifndef MLIP_PATHSPEED_H
 #define MLIP_PATHSPEED_H
 
+#include <math.h>
+
 #include "mlip/types.h"
 
 /* The curve's arc-length derivatives at one point. */
@@ -67,6 +69,26 @@ struct mlip_path_point {
 	double d2[MLIP_MAX_AXES]; /* x''  (the curvature vector) */
 	double d3[MLIP_MAX_AXES]; /* x''' */
 };
+
+/* One axis of (P1)(P2): [*l, *h] narrowed to the x with |p x + c| <= lim
+ * (p = 0: every x, or none). 0 when this axis alone exceeds lim whatever x
+ * (then [*l, *h] is as it was). Inline: the plan's inner checkpoints call it
+ * per axis. */
+static inline int mlip_path_axis_cut(double p, double c, double lim, double *l, double *h)
+{
+	if (p == 0.0) {
+		return fabs(c) <= lim;
+	}
+	double x1 = (-lim - c) / p, x2 = (lim - c) / p;
+	if (x1 > x2) {
+		double t = x1;
+		x1 = x2;
+		x2 = t;
+	}
+	*l = x1 > *l ? x1 : *l;
+	*h = x2 < *h ? x2 : *h;
+	return 1;
+}
 
 /* (P1): the path accelerations a in [*lo, *hi] that keep every axis within
  * accel[k] at speed v. 0 when none does (the speed alone exceeds a limit). */
