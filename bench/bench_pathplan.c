@@ -19,7 +19,8 @@
  * --points CSV: the plan along the natural spline through the points (one
  * a line, the axes' coordinates; bench/pathspeed.py --c writes `smooth`'s
  * output there) at J exactly (the caller's margin applied), the braking
- * policy's deceleration --brake (300); --out FILE: each planned period's
+ * policies' decelerations --brake B[,B2...] (300; a state is certified by
+ * any of their runs, Q4); --out FILE: each planned period's
  * path position and its braking-run periods, for the model to finish the
  * stop, sample the positions and have mlip-check judge them.
  */
@@ -137,7 +138,8 @@ static int fit_points(const char *path, int *n_axes)
 int main(int argc, char **argv)
 {
 	const char *points = NULL, *out = NULL;
-	double J = 0.0, step = 0.4, brake = 300.0, band = 0.001;
+	double J = 0.0, step = 0.4, brake = 300.0, band = 0.001, brakes[MLIP_PATH_BRAKES] = {300.0};
+	int nbrake = 1;
 	for (int i = 1; i < argc; i++) {
 		if (!strcmp(argv[i], "--points") && i + 1 < argc) {
 			points = argv[++i];
@@ -146,7 +148,21 @@ int main(int argc, char **argv)
 		} else if (!strcmp(argv[i], "--band") && i + 1 < argc) {
 			band = atof(argv[++i]);
 		} else if (!strcmp(argv[i], "--brake") && i + 1 < argc) {
-			brake = atof(argv[++i]);
+			/* B[,B2...]: the policies' decelerations (Q3) */
+			char *c = argv[++i], *e;
+			nbrake = 0;
+			while (nbrake < MLIP_PATH_BRAKES) {
+				brakes[nbrake] = strtod(c, &e);
+				if (e == c || !(brakes[nbrake] > 0.0)) {
+					brake = -1.0; /* usage */
+					break;
+				}
+				nbrake++;
+				if (*e != ',') {
+					break;
+				}
+				c = e + 1;
+			}
 		} else if (J == 0.0) {
 			J = atof(argv[i]);
 		} else {
@@ -154,10 +170,9 @@ int main(int argc, char **argv)
 		}
 	}
 	if (!(J > 0.0) || !(step > 0.0) || !(brake > 0.0)) {
-		fprintf(
-		    stderr,
-		    "usage: bench_pathplan J [STEP]\n"
-		    "       bench_pathplan J --points CSV [--brake B] [--out FILE] [--band B]\n");
+		fprintf(stderr, "usage: bench_pathplan J [STEP]\n"
+		                "       bench_pathplan J --points CSV [--brake B[,B2..]] [--out "
+		                "FILE] [--band B]\n");
 		return 2;
 	}
 	int n = 3;
@@ -190,7 +205,10 @@ int main(int argc, char **argv)
 		lim.jerk[k] = points ? J : 0.95 * J;
 	}
 	lim.vmax = 0.995 * 200.0;
-	lim.a_brake = brake;
+	for (int i = 0; i < nbrake; i++) {
+		lim.a_brake[i] = brakes[i];
+	}
+	lim.n_brake = nbrake;
 	lim.v_crawl = 2.0;
 	lim.period = 1e-3;
 	/* (P6): how far the spline strays from the polyline it was fitted to */
@@ -202,7 +220,7 @@ int main(int argc, char **argv)
 		over += g > band;
 	}
 	double end = cv.s[cv.count - 1], vpeak = 0.0;
-	struct mlip_path_state st = {0.0, 0.0, 0.0};
+	struct mlip_path_state st = {0.0, 0.0, 0.0, 0};
 	long work = 0, periods = 0, moved = 0;
 	uint64_t hash = 14695981039346656037ull;
 	FILE *fo = out ? fopen(out, "w") : NULL;

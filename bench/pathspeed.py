@@ -56,7 +56,9 @@ the braking-run periods simulated per planned period are printed: the
 plan's cost; src/motion/pathplan.c is this plan's period in C).
 
 --c (with --poly): the plan by its C period instead (build/bench_pathplan
---points: src/motion/pathplan.c over the same spline, its checkpoints exact),
+--points: src/motion/pathplan.c over the same spline, its checkpoints exact;
+--brake B,B2,...: several policies, a state certified by any of their runs;
+docs/benchmarks.md uses 900,300 at 1e5 and 900,300,100 at 1e4),
 the rest as above; --keep keeps the temporary files (the points, for
 callgrind on bench_pathplan).
 
@@ -106,7 +108,12 @@ ap = argparse.ArgumentParser(description="A path-speed plan under a per-axis jer
 ap.add_argument("curve")
 ap.add_argument("--jerk", type=float, required=True)
 ap.add_argument("--margin", type=float, default=0.95, help="share of J planned")
-ap.add_argument("--brake", type=float, default=300.0, help="the braking policy's deceleration")
+ap.add_argument(
+    "--brake",
+    default="300",
+    help="the braking policy's deceleration; --c: B[,B2...], a state certified by any of"
+    " their runs (the model takes the first)",
+)
 ap.add_argument(
     "--poly", metavar="NGC", help="plan along smooth's output for this program (see above)"
 )
@@ -129,7 +136,8 @@ Aplan = 0.98 * A
 vmax = 200.0
 T = 1e-3
 VC = 2.0
-ABR = args.brake
+BRAKES = [float(b) for b in args.brake.split(",")]
+ABR = BRAKES[0]
 if args.poly:
     # smooth's output for the program shifted to start at the origin (its G0
     # left out), read as a curve by (P4): positions and derivatives of the
@@ -414,7 +422,7 @@ if args.c:
     plan = os.path.join(tmp, "plan.csv")
     r = subprocess.run(
         [os.path.join(args.build, "bench_pathplan"), f"{J!r}", "--points", ptsf]
-        + ["--brake", f"{ABR!r}", "--out", plan],
+        + ["--brake", ",".join(f"{b!r}" for b in BRAKES), "--out", plan],
         check=True,
         capture_output=True,
         text=True,

@@ -22,6 +22,7 @@ struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, do
 	r.s = st.s + st.v * h + st.a * h * h / 2.0 + j * h * h * h / 6.0;
 	r.v = st.v + st.a * h + j * h * h / 2.0;
 	r.a = st.a + j * h;
+	r.brake = st.brake;
 	return r;
 }
 
@@ -226,6 +227,15 @@ int mlip_path_pick(const struct mlip_path_curve *sp, const struct mlip_path_limi
 	return pick_at(sp, lim, &a, jt, j, &next);
 }
 
+/* The policy i, within the limits' (0 when out of range). */
+static int policy(const struct mlip_path_limits *lim, int i)
+{
+	int n = lim->n_brake < 1
+	            ? 1
+	            : (lim->n_brake > MLIP_PATH_BRAKES ? MLIP_PATH_BRAKES : lim->n_brake);
+	return i >= 0 && i < n ? i : 0;
+}
+
 /* (Q3) from a, alo the low end of the (P1) interval at its point and speed
  * (NAN: not yet computed); the step's end in *next. */
 static int brake_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
@@ -245,7 +255,8 @@ static int brake_at(const struct mlip_path_curve *sp, const struct mlip_path_lim
 	if (isnan(alo) && !mlip_path_accel_range(lim->n, &a->d, lim->accel, st.v, &alo, &ahi)) {
 		return 0;
 	}
-	double target = alo > -lim->a_brake ? alo : -lim->a_brake, jt = a->jl;
+	double ab = lim->a_brake[policy(lim, st.brake)];
+	double target = alo > -ab ? alo : -ab, jt = a->jl;
 	if (st.a + a->jl * T < target) {
 		jt = (target - st.a) / T; /* (Q3) reach the target, not past it */
 	}
@@ -322,9 +333,15 @@ int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_pa
 			if (!pick_at(sp, lim, &a, a.jl + share[i] * (a.jh - a.jl), &j, &nx)) {
 				break;
 			}
-			if (certified_at(sp, lim, &nx, end, max_periods, work)) {
-				*st = nx.st;
-				return 1;
+			/* st's own policy first, then the others (Q4) */
+			int own = policy(lim, st->brake), nb = lim->n_brake < 1 ? 1 : lim->n_brake;
+			nb = nb > MLIP_PATH_BRAKES ? MLIP_PATH_BRAKES : nb;
+			for (int q = 0; q < nb; q++) {
+				nx.st.brake = q == 0 ? own : (q <= own ? q - 1 : q);
+				if (certified_at(sp, lim, &nx, end, max_periods, work)) {
+					*st = nx.st;
+					return 1;
+				}
 			}
 		}
 	}

@@ -6,7 +6,8 @@
  * second differences of the positions), never leaves the certified states,
  * and uses them (0.95 J planned is reached), its peak speed at least 0.8 of
  * the quasi-static speed (P3); the same along 80 mm of it in 0.05 mm pieces
- * (one spline in the caller's arrays, several pieces crossed a period).
+ * (one spline in the caller's arrays, several pieces crossed a period);
+ * with two braking policies, both used and the plan not slower.
  */
 #include <math.h>
 #include <setjmp.h>
@@ -49,7 +50,8 @@ static void limits(struct mlip_path_limits *lim, double J)
 		lim->jerk[k] = 0.95 * J;
 	}
 	lim->vmax = 0.995 * 200.0;
-	lim->a_brake = 300.0;
+	lim->a_brake[0] = 300.0;
+	lim->n_brake = 1;
 	lim->v_crawl = 2.0;
 	lim->period = 1e-3;
 }
@@ -86,7 +88,7 @@ static void test_period_range(void **state)
 	limits(&lim, 1e4);
 	int checked = 0, start_only_breaks = 0;
 	for (int it = 0; it < 3000; it++) {
-		struct mlip_path_state st = {uni(0.5, 5.5), uni(0.0, 60.0), uni(-300.0, 300.0)};
+		struct mlip_path_state st = {uni(0.5, 5.5), uni(0.0, 60.0), uni(-300.0, 300.0), 0};
 		double lo, hi, jl, jh;
 		struct mlip_path_point d;
 		mlip_path_spline_eval(&sp, st.s, 0, NULL, &d);
@@ -142,12 +144,12 @@ static void at_s(const struct mlip_path_curve *cv, double s, double *x, struct m
  * has a jerk), at the crawl near the end; its peak speed at least 0.8 of
  * the quasi-static speed (P3) at the planned limits (not at most: with a
  * path acceleration the per-axis box lets the plan pass it for a while). */
-static void plan_curve(const struct mlip_path_curve *cv, double J)
+static int plan_curve_lim(const struct mlip_path_curve *cv, double J,
+                          const struct mlip_path_limits *limp, int *policies)
 {
-	struct mlip_path_limits lim;
-	limits(&lim, J);
+	struct mlip_path_limits lim = *limp;
 	double end = cv->s[cv->count - 1];
-	struct mlip_path_state st = {0.0, 0.0, 0.0};
+	struct mlip_path_state st = {0.0, 0.0, 0.0, 0};
 	static double x[40000][MLIP_MAX_AXES];
 	int n = 0, moved = 0;
 	long work = 0;
@@ -159,6 +161,7 @@ static void plan_curve(const struct mlip_path_curve *cv, double J)
 		assert_true(r >= 0);
 		moved += r;
 		vpeak = fmax(vpeak, st.v);
+		*policies |= 1 << st.brake;
 		at_s(cv, st.s, x[n++], &d);
 		assert_true(n < 40000);
 	}
@@ -187,6 +190,16 @@ static void plan_curve(const struct mlip_path_curve *cv, double J)
 	assert_true(wa <= 1.0);
 	assert_true(vpeak >= 0.8 * vq);
 	assert_true(end - st.s < 1.0 && st.v <= lim.v_crawl);
+	return n;
+}
+
+static void plan_curve(const struct mlip_path_curve *cv, double J)
+{
+	struct mlip_path_limits lim;
+	int policies = 0;
+	limits(&lim, J);
+	plan_curve_lim(cv, J, &lim, &policies);
+	assert_int_equal(policies, 1);
 }
 
 static void plan_helix(double J)
@@ -236,6 +249,30 @@ static void test_plan_long_fine_helix(void **state)
 	plan_curve(&cv, 1e5);
 }
 
+/* Two braking policies (Q3, Q4: a state certified by either's run, the
+ * fallback following the one that certified it): the same checks, both
+ * policies used, and the plan not slower than with the gentle one alone
+ * on this helix (the hard one certifies states the gentle one cannot). */
+static void test_plan_helix_two_policies(void **state)
+{
+	(void)state;
+	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
+	struct mlip_path_limits lim;
+	helix_spline(&sp, &cv, 0.4);
+	limits(&lim, 1e5);
+	int one = 0, two = 0;
+	int n1 = plan_curve_lim(&cv, 1e5, &lim, &one);
+	lim.a_brake[0] = 900.0;
+	lim.a_brake[1] = 300.0;
+	lim.n_brake = 2;
+	int n2 = plan_curve_lim(&cv, 1e5, &lim, &two);
+	print_message("periods: %d with 300 mm/s^2, %d with 900 and 300\n", n1, n2);
+	assert_int_equal(one, 1);
+	assert_int_equal(two, 3);
+	assert_true(n2 <= n1);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -243,6 +280,7 @@ int main(void)
 	    cmocka_unit_test(test_plan_helix_1e4),
 	    cmocka_unit_test(test_plan_helix_1e5),
 	    cmocka_unit_test(test_plan_long_fine_helix),
+	    cmocka_unit_test(test_plan_helix_two_policies),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
