@@ -163,8 +163,13 @@ int cmd_jog(struct mlip_shm *s, int argc, char **argv)
 	int32_t arg = MLIP_JOG_ARG(axis, neg, (uint32_t)(v + 0.5)),
 	        stop = MLIP_JOG_ARG(axis, neg, 0);
 	mlip_cli_on_stop_signals(on_jog_signal);
-	/* the other axes (and the distances) first, then the jog itself */
-	int bad = 0;
+	/* the other axes (and the distances) first, then the jog itself; a jog
+	 * away from a limit switch waits (REST_WAIT_S) while the axes still
+	 * brake on their drives' quick stop ramps */
+	uint64_t t_rest = mlip_now_ns();
+	int bad, told = 0;
+again:
+	bad = 0;
 	for (int k = n - 1; k >= 0 && !bad; k--) {
 		if (k == 0 && ax[0].dist == 0.0) {
 			break;
@@ -177,6 +182,15 @@ int cmd_jog(struct mlip_shm *s, int argc, char **argv)
 		fprintf(stderr, PROG ": jog: no answer from the controller on %s within 1 s\n",
 		        s->name);
 		return EXIT_FAIL;
+	}
+	if (!bad && result == MLIP_E_FULL &&
+	    mlip_now_ns() - t_rest < REST_WAIT_S * (uint64_t)WAIT_NS) {
+		if (!told) {
+			fprintf(stderr, "jog %s: waiting for the axes to stand still\n", dir);
+			told = 1;
+		}
+		sleep_ns(20 * POLL_NS);
+		goto again;
 	}
 	if (bad || result != MLIP_OK) {
 		read_status(s->ring, &st);
@@ -208,6 +222,14 @@ int cmd_jog(struct mlip_shm *s, int argc, char **argv)
 				        PROG ": jog %s: the target %c %.4f; nothing moved\n", dir,
 				        a->letter, t);
 			}
+		} else if (!bad && result == MLIP_E_FULL) {
+			fprintf(
+			    stderr,
+			    PROG
+			    ": jog %s: refused: the axes are still braking on their drives' quick "
+			    "stop ramps after the limit switch (leaving the quick stop disables "
+			    "the drives): jog again once they stand still\n",
+			    dir);
 		} else if (!bad && result == MLIP_E_SYNTAX) {
 			fprintf(stderr,
 			        PROG

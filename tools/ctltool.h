@@ -13,10 +13,11 @@
 #include "mlip/ipc/ring.h"
 #include "rt.h"
 
-#define PROG     "mlip-ctl"
-#define WAIT_NS  1000000000LL /* post retries and answer wait: 1 s each */
-#define POLL_NS  1000000L     /* poll the mailbox every 1 ms */
-#define LINE_MAX 256          /* `-`: a longer command line is refused whole */
+#define PROG        "mlip-ctl"
+#define WAIT_NS     1000000000LL /* post retries and answer wait: 1 s each */
+#define POLL_NS     1000000L     /* poll the mailbox every 1 ms */
+#define REST_WAIT_S 30u          /* a reset / jog away waits for the axes to stop braking */
+#define LINE_MAX    256          /* `-`: a longer command line is refused whole */
 
 enum { EXIT_DONE = 0, EXIT_FAIL = 1, EXIT_USAGE = 2 };
 

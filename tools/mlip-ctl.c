@@ -203,6 +203,9 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 		        s->name);
 		return EXIT_FAIL;
 	}
+	uint64_t t_rest = mlip_now_ns();
+	int told = 0;
+again:
 	t0 = mlip_now_ns();
 	while ((rc = mlip_ring_cmd_post(s->ring, op, arg, &seq)) == MLIP_E_FULL &&
 	       mlip_now_ns() - t0 < (uint64_t)WAIT_NS) {
@@ -235,13 +238,28 @@ static int cmd_send(struct mlip_shm *s, mlip_ring_cmd_op op, int32_t arg)
 		}
 		sleep_ns(POLL_NS);
 	}
+	if (result == MLIP_E_FULL && op == MLIP_CMD_RESET &&
+	    mlip_now_ns() - t_rest < REST_WAIT_S * (uint64_t)WAIT_NS) {
+		/* the axes still brake on their drives' quick stop ramps: the
+		 * controller leaves the quick stop only at rest */
+		if (!told) {
+			fprintf(stderr, "%s: waiting for the axes to stand still\n", what);
+			told = 1;
+		}
+		sleep_ns(20 * POLL_NS);
+		goto again;
+	}
 	if (result != MLIP_OK && op == MLIP_CMD_RESET) {
-		fprintf(stderr, PROG ": reset: refused by the controller: %s",
-		        result == MLIP_E_RANGE
-		            ? "the input that stopped the machine is still on (release the E-stop, "
-		              "move the axis off its limit switch; a lost I/O module needs a "
-		              "restart of mlip-rt)"
-		            : "nothing to reset (no E-stop, no limit)");
+		fprintf(
+		    stderr, PROG ": reset: refused by the controller: %s",
+		    result == MLIP_E_RANGE
+		        ? "the input that stopped the machine is still on (release the E-stop, "
+		          "move the axis off its limit switch, or wait for a lost I/O module "
+		          "to come back: mlip-rt configures it again)"
+		    : result == MLIP_E_FULL
+		        ? "the axes are still braking on their drives' quick stop ramps (leaving "
+		          "the quick stop disables the drives): reset again once they stand still"
+		        : "nothing to reset (no E-stop, no limit)");
 		if (read_status(s->ring, &st) == 0) {
 			fprintf(stderr, " (state %s)", mlip_ctl_state_name(st.state));
 		}

@@ -221,6 +221,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	}
 	/* the inputs first: an E-stop wins over every command of this period */
 	mlip_ct_io_period(c, in, out);
+	if (c->io.estop && c->drives) {
+		mlip_ct_estop_rest(c, in); /* this period's TPDOs judged before a reset */
+	}
 	if (in->cmd != NULL) {
 		out->cmd_result = mlip_ct_apply_command(c, out, in, in->cmd);
 	}

@@ -110,6 +110,8 @@ void mlip_ct_planner_stop(struct mlip_ctl *c);
 
 /* estop.c */
 void mlip_ct_follow_actual(struct mlip_ctl *c, const struct mlip_ctl_in *in);
+void mlip_ct_estop_rest(struct mlip_ctl *c, const struct mlip_ctl_in *in);
+int mlip_ct_estop_at_rest(const struct mlip_ctl *c);
 void mlip_ct_quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out,
                         uint32_t state, struct mlip_ctl_reason r);
 int32_t mlip_ct_reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in);

@@ -4,6 +4,7 @@
  */
 #include "ctl.h"
 
+#include <math.h>
 #include <string.h>
 
 #include "mlip/canopen/drive.h"
@@ -36,6 +37,67 @@ void mlip_ct_follow_actual(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 	mlip_planner_abort(c->planner, c->pos);
 }
 
+/* Rest after a quick stop: a drive moving less than this per period (0.5 %
+ * of the axis's MAX_VELOCITY, at least 2 counts of position noise) ... */
+#define REST_VEL_FRAC 0.005
+#define REST_COUNTS   2.0
+/* ... in this many fresh TPDOs in a row of every drive (a TPDO late or
+ * lost repeats the last position: it proves nothing) */
+#define REST_SAMPLES  3u
+
+/* The first sample of the rest judgement: the positions at the quick stop. */
+static void rest_begin(struct mlip_ctl *c, const struct mlip_ctl_in *in)
+{
+	c->io.rest = 0;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		c->io.rest_pos[k] = in->drives.pos_actual[k];
+		c->io.rest_tpdo[k] = in->drives.tpdo_period[k];
+	}
+}
+
+/* Each period of an E-stop with drives, before following them: whether they
+ * have come to rest on their quick stop ramps (0x6085). Leaving the quick
+ * stop (a reset, a jog away from a limit) disables them on the way back to
+ * operation (CiA 402 transition 12: quick stop active -> switch on disabled,
+ * no torque): taken at speed, the axis would coast. */
+void mlip_ct_estop_rest(struct mlip_ctl *c, const struct mlip_ctl_in *in)
+{
+	int fresh = 1, moved = 0;
+	for (int k = 0; k < c->m.n_axes; k++) {
+		uint64_t tp = in->drives.tpdo_period[k];
+		if (in->drives.mute & (1u << k)) {
+			continue; /* faulted: sent nothing, the quick stop's end changes nothing */
+		}
+		if (!(in->drives.actual_mask & (1u << k)) || tp == UINT64_MAX ||
+		    tp == c->io.rest_tpdo[k]) {
+			fresh = 0; /* no new TPDO of this drive in this period */
+			continue;
+		}
+		const struct mlip_axis *a = &c->m.axis[k];
+		double tol = a->max_vel * REST_VEL_FRAC * c->m.period_s;
+		if (a->counts_per_unit > 0.0 && tol < REST_COUNTS / a->counts_per_unit) {
+			tol = REST_COUNTS / a->counts_per_unit;
+		}
+		if (fabs(in->drives.pos_actual[k] - c->io.rest_pos[k]) > tol) {
+			moved = 1;
+		}
+		c->io.rest_pos[k] = in->drives.pos_actual[k];
+		c->io.rest_tpdo[k] = tp;
+	}
+	if (moved) {
+		c->io.rest = 0;
+	} else if (fresh && c->io.rest < REST_SAMPLES) {
+		c->io.rest++;
+	}
+}
+
+/* The drives (and a spindle on the bus) stand still: the quick stop may be
+ * left. Without drives the planner stops on the path by itself. */
+int mlip_ct_estop_at_rest(const struct mlip_ctl *c)
+{
+	return !c->drives || (c->io.rest >= REST_SAMPLES && mlip_ctl_spindle_at_rest(&c->spindle));
+}
+
 /* Quick stop (E-stop, limit): with drives, controlword 0x0002 to every drive
  * in this very period (power_period) and the planner dropped at once where
  * they are (each drive brakes on its own quick stop ramp, 0x6085); without
@@ -50,6 +112,7 @@ void mlip_ct_quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct
 		c->io.kept = c->why;
 	}
 	c->io.estop = 1;
+	rest_begin(c, in);
 	c->jog.on = 0;
 	mlip_ct_home_abort(c);
 	if (c->drives) {
@@ -89,6 +152,9 @@ int32_t mlip_ct_reset(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct
 	}
 	if (c->why.why == MLIP_WHY_LIMIT && (in->io.active & limits)) {
 		return MLIP_E_RANGE; /* still on the limit switch */
+	}
+	if (!mlip_ct_estop_at_rest(c)) {
+		return MLIP_E_FULL; /* still braking on the drives' ramps */
 	}
 	c->io.estop = 0;
 	c->io.prev = in->io.active; /* a hold still pressed is not a new edge */

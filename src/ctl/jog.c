@@ -196,6 +196,9 @@ int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_
 		if (axis != k || neg != away_neg || c->jog.axes != 1u << k) {
 			return MLIP_E_RANGE; /* toward the switch, or another axis */
 		}
+		if (!mlip_ct_estop_at_rest(c)) {
+			return MLIP_E_FULL; /* still braking on the drives' ramps */
+		}
 		c->io.limit_ignore |= 1u << f;
 		c->io.estop = 0;
 		c->prog.bad = 0;

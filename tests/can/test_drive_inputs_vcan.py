@@ -10,7 +10,8 @@ from the TPDO3s in the loop.
     braking on its drive's own ramp (0x6085, written from X's
     MAX_ACCELERATION): stop distance v^2 / 2A within one period's travel,
     deceleration never beyond A; state fault, reason naming the axis, the
-    drive's node and the switch; only a jog away leaves it.
+    drive's node and the switch; only a jog away leaves it, and only once the
+    axes stand still (leaving the quick stop disables the drives).
   - a garbled TPDO3 (3 bytes, the positive limit bit set) is ignored: the
     program runs on; a drive whose TPDO3 stops (its inputs stale) is a
     drive fault after HEARTBEAT_TIMEOUT_MS naming it ("digital inputs lost").
@@ -101,7 +102,8 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
             assert p.returncode == 1 and "still on" in p.stderr, p.stderr
             p = rig.ctl("jog", "X+5", "600", check=False)
             assert p.returncode != 0, p.stdout
-            # a jog away from it leaves the stop; off the switch it releases
+            # a jog away from it leaves the stop once X stands still (mlip-ctl
+            # waits for that); off the switch it releases
             j = rig.ctl("jog", "X-40", "1200", check=False)
             try:
                 rig.wait_state("idle", timeout=300,
@@ -138,6 +140,10 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
     assert rest, "X never came to rest"
     s_end = rest[0]
     assert x[s_end]["state"] == "quick stop active", x[s_end]
+    # the jog away, posted while X still braked, left the quick stop (CiA 402
+    # transition 12: switch on disabled, no torque) only once X stood still
+    out = [s for s in sorted(x) if s > s_q and x[s]["state"] != "quick stop active"]
+    assert out and out[0] > s_end, (s_q, s_end, out[:1], [x[s]["state"] for s in out[:1]])
     dist = (x[s_end]["actual"] - x[s_q]["actual"]) / CPU
     want = v0 * v0 / (2 * A_X)
     dec = [

@@ -1785,6 +1785,7 @@ static void test_estop_wins(void **st)
 	assert_int_equal(status().state, MLIP_STATE_ESTOP);
 	assert_int_equal(cw_of(0), 0x0002);
 	io_in.active = 0;
+	dtick(3); /* at rest: 3 TPDOs of every drive at the same place */
 	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
 	assert_int_equal(status().state, MLIP_STATE_FAULT);
 	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
@@ -1825,6 +1826,16 @@ static void test_limit(void **st)
 	assert_int_equal(cw_of(1), 0x0002);
 	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_RANGE);
 	io_in.active = 0;
+	/* released, but X still brakes on its drive's ramp: leaving the quick
+	 * stop would disable it at speed (CiA 402 transition 12) */
+	for (int i = 0; i < 4; i++) {
+		drv_actual[0] += 0.05;
+		assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_FULL);
+		assert_int_equal(cw_of(0), 0x0002);
+	}
+	/* at rest: refused until 3 fresh TPDOs of every drive show it */
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_FULL);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_E_FULL);
 	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
 	assert_int_equal(status().state, MLIP_STATE_IDLE);
 }
@@ -1856,7 +1867,8 @@ static void test_limit_drive_input(void **st)
 	/* only a jog of X away from it (negative) leaves the stop: an
 	 * incremental one, renewed as mlip-ctl does, runs its distance once the
 	 * drives are enabled again. Posted while the drives still brake on
-	 * their quick stop ramp ("quick stop active", X still moving) */
+	 * their quick stop ramp ("quick stop active", X still moving): refused,
+	 * as leaving the quick stop disables them (transition 12) */
 	for (int k = 0; k < 2; k++) {
 		drv_sw[k] = 0x0217;
 	}
@@ -1865,12 +1877,18 @@ static void test_limit_drive_input(void **st)
 		drv_actual[0] += 0.05;
 	}
 	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 600), 0), MLIP_E_RANGE);
+	drv_actual[0] += 0.05;
+	assert_int_equal(period_cmd(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 1, 5000), 0), MLIP_OK);
+	drv_actual[0] += 0.05;
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 1200), 0), MLIP_E_FULL);
+	assert_int_equal(status().state, MLIP_STATE_FAULT);
+	assert_int_equal(cw_of(0), 0x0002);
+	tick(3); /* at rest */
 	assert_int_equal(period_cmd(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 1, 5000), 0), MLIP_OK);
 	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 1, 1200), 0), MLIP_OK);
 	assert_int_equal(status().state, MLIP_STATE_JOGGING);
 	for (int i = 0; i < 5; i++) {
 		tick(1);
-		drv_actual[0] += 0.05; /* braking on */
 		for (int k = 0; k < 2; k++) {
 			if (cw_of(k) == 0x0000) {
 				drv_sw[k] = 0x0250; /* disable voltage */

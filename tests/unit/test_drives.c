@@ -1505,9 +1505,28 @@ static void drive_limit_jog_away(double period_s)
 	}
 	assert_int_equal(peers[0].state, P_QS); /* still braking */
 	assert_int_equal(post_arg(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 1200)), MLIP_E_RANGE);
-	assert_int_equal(post_arg(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 1, 40000)), MLIP_OK);
+	/* away, but X still brakes on its drive's ramp: leaving the quick stop
+	 * now would disable it at speed (transition 12): refused until at rest */
 	int32_t away = MLIP_JOG_ARG(0, 1, 1200);
-	assert_int_equal(post_arg(MLIP_CMD_JOG, away), MLIP_OK);
+	int tries = 0;
+	for (;;) {
+		assert_int_equal(post_arg(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 1, 40000)),
+		                 MLIP_OK);
+		int32_t r = post_arg(MLIP_CMD_JOG, away);
+		if (r == MLIP_OK) {
+			break;
+		}
+		assert_int_equal(r, MLIP_E_FULL);
+		assert_int_equal(peers[0].state, P_QS);
+		for (int i = 0; i < NP; i++) {
+			assert_int_equal(rpdo_of(i, &cw, &t), 1);
+			assert_int_equal(cw, 0x0002); /* still told to quick stop */
+		}
+		assert_true(++tries < 100);
+	}
+	/* accepted 3 TPDOs after the ramp's end (its 30 periods), not before */
+	assert_int_equal(peers[0].qs_left, 0);
+	assert_true(tries >= 30 / 2 - 2 && tries <= 30 / 2 + 4);
 	int32_t x0 = 0;
 	for (int k = 0; k < 200 && x0 == 0; k++) { /* where it was when enabled */
 		if (peers[0].state == P_OE) {

@@ -29,6 +29,7 @@ void await_start(uint32_t op)
 	S.await_op = op;
 	S.await_stage = 0;
 	S.await_ns = now_ns();
+	S.await_t0 = S.await_ns;
 }
 
 void await_end(int code)
@@ -92,8 +93,21 @@ void await_pump(void)
 		if (S.await_op == MLIP_CMD_RESET && res == MLIP_E_RANGE) {
 			send_msg(S.ctl,
 			         "$X refused: the input that stopped the machine is still on "
-			         "(release the E-stop, move the axis off its limit switch; a "
-			         "lost I/O module needs a restart of mlip-rt)");
+			         "(release the E-stop, move the axis off its limit switch, or "
+			         "wait for a lost I/O module to come back)");
+			await_end(GRBL_E_LOCK);
+			return;
+		}
+		if (S.await_op == MLIP_CMD_RESET && res == MLIP_E_FULL &&
+		    now_ns() - S.await_t0 < 30000000000ull) {
+			S.await_stage = 0; /* the axes still brake: posted again, at rest taken */
+			S.await_ns = now_ns();
+			return;
+		}
+		if (S.await_op == MLIP_CMD_RESET && res == MLIP_E_FULL) {
+			send_msg(S.ctl,
+			         "$X refused: the axes are still braking on their drives' "
+			         "quick stop ramps for 30 s: unlock again once they stand still");
 			await_end(GRBL_E_LOCK);
 			return;
 		}

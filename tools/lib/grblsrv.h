@@ -130,6 +130,7 @@ struct srv {
 	uint32_t await_seq; /* its mailbox ticket */
 	uint64_t await_hb;  /* the controller's period when it was accepted */
 	uint64_t await_ns;
+	uint64_t await_t0; /* await_start: a $X waits this long for the axes to stop */
 };
 
 extern struct srv S;

@@ -418,11 +418,15 @@ struct mlip_ctl {
 	double pos[MLIP_MAX_AXES];
 	/* the inputs on the bus and the E-stop (issue 18) */
 	struct {
-		struct mlip_io_config cfg;   /* what is mapped where */
-		uint32_t prev;               /* the functions on in the last period (edges) */
-		uint32_t limit_ignore;       /* limit inputs a jog away from them left on: they
-		                                do not trip until released */
-		int estop;                   /* in an E-stop: quick stop until a reset */
+		struct mlip_io_config cfg;      /* what is mapped where */
+		uint32_t prev;                  /* the functions on in the last period (edges) */
+		uint32_t limit_ignore;          /* limit inputs a jog away from them left on: they
+		                                   do not trip until released */
+		int estop;                      /* in an E-stop: quick stop until a reset */
+		uint32_t rest;                  /* E-stop: fresh TPDOs in a row of every drive at
+		                                   rest (a reset leaves the quick stop only then) */
+		double rest_pos[MLIP_MAX_AXES]; /* each drive's last position judged */
+		uint64_t rest_tpdo[MLIP_MAX_AXES]; /* and its TPDO (tpdo_period) */
 		int fault_kept;              /* a drive fault came before (or in) it: it stays */
 		struct mlip_ctl_reason kept; /* that fault's reason */
 		uint8_t outputs[MLIP_IO_IN_BYTES];
