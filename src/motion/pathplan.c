@@ -16,6 +16,10 @@
 #define RELEASE_SHARE 0.8
 #define END_TIME      0.05
 
+/* (Q2) rounds of pick_at's search for a jerk inside its own step's
+ * interval. */
+#define PICK_ROUNDS 4
+
 struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, double h)
 {
 	struct mlip_path_state r; /* (Q1) */
@@ -197,16 +201,24 @@ static double clamp(double x, double lo, double hi)
 	return x < lo ? lo : (x > hi ? hi : x);
 }
 
-/* The admissible jerk nearest jt from a (Q2); its step's end in *next. */
+/* The admissible jerk nearest jt from a (Q2); its step's end in *next.
+ * The interval's end e(x) moves with the step's own jerk x (Q1), with a
+ * slope s below 1 near the end jt is clamped to, so x = e(x) is reached
+ * from outside the interval geometrically (x - x* shrinks by s a round)
+ * and a round limit rejected jerks that exist: with 4 rounds of plain
+ * clamping, lissajous at J 1e4 took 7.7 s, with 8 rounds 5.0 s. From the
+ * second round the clamp takes a secant step to the fixed point of e
+ * through the last two rounds, a hair inside the interval; a jerk is still
+ * accepted only inside its own step's interval. */
 static int pick_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                    const struct at *a, double jt, double *j, struct at *next)
 {
-	double lo, hi;
+	double lo, hi, px = 0.0, pe = 0.0;
 	if (!a->ok) {
 		return 0;
 	}
 	double x = clamp(jt, a->jl, a->jh);
-	for (int i = 0; i < 4; i++) { /* (Q2) depends on x weakly: a few rounds */
+	for (int i = 0; i < PICK_ROUNDS; i++) {
 		if (!range_at(sp, lim, a, x, &lo, &hi, next)) {
 			return 0;
 		}
@@ -214,7 +226,17 @@ static int pick_at(const struct mlip_path_curve *sp, const struct mlip_path_limi
 			*j = x;
 			return 1;
 		}
-		x = clamp(jt, lo, hi);
+		double e = clamp(jt, lo, hi), y = e;
+		if (i > 0 && x != px) {
+			double s = (e - pe) / (x - px);
+			if (s < 0.9) { /* the fixed point of e(x) = pe + s (x - px) */
+				double f = (e - s * x) / (1.0 - s);
+				y = f + (e < x ? -1.0 : 1.0) * 1e-7 * (fabs(f) + 1.0);
+			}
+		}
+		px = x;
+		pe = e;
+		x = y;
 	}
 	return 0;
 }
