@@ -74,6 +74,20 @@ static double worst_jerk(const struct mlip_path_spline *sp, const struct mlip_pa
 	return w;
 }
 
+/* A random state on the helix (s 0.5-5.5 mm, v 0-60 mm/s, a within 300
+ * mm/s^2) and its (P2) interval in [*jl, *jh]; 0 when that is empty. */
+static int random_state(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                        struct mlip_path_state *st, double *jl, double *jh)
+{
+	struct mlip_path_point d;
+	st->s = uni(0.5, 5.5);
+	st->v = uni(0.0, 60.0);
+	st->a = uni(-300.0, 300.0);
+	st->brake = 0;
+	mlip_path_spline_eval(sp, st->s, 0, NULL, &d);
+	return mlip_path_jerk_range(lim->n, &d, lim->jerk, st->v, st->a, jl, jh);
+}
+
 /* (Q2): a jerk in the interval keeps every axis within J over the whole
  * period (the checkpoints suffice to 0.2 %, at 400 instants); a little
  * outside either end, some instant exceeds it. The start's interval alone
@@ -88,11 +102,9 @@ static void test_period_range(void **state)
 	limits(&lim, 1e4);
 	int checked = 0, start_only_breaks = 0;
 	for (int it = 0; it < 3000; it++) {
-		struct mlip_path_state st = {uni(0.5, 5.5), uni(0.0, 60.0), uni(-300.0, 300.0), 0};
+		struct mlip_path_state st;
 		double lo, hi, jl, jh;
-		struct mlip_path_point d;
-		mlip_path_spline_eval(&sp, st.s, 0, NULL, &d);
-		if (!mlip_path_jerk_range(3, &d, lim.jerk, st.v, st.a, &jl, &jh)) {
+		if (!random_state(&sp, &lim, &st, &jl, &jh)) {
 			continue;
 		}
 		for (int e = 0; e < 2; e++) {
@@ -130,6 +142,51 @@ static void test_period_range(void **state)
 	              start_only_breaks);
 	assert_true(checked > 1000);
 	assert_true(start_only_breaks > 0);
+}
+
+/* (Q2) pick toward a target beyond either end: the interval's end moves
+ * with the step's own jerk, so the jerk wanted is its fixed point. Pick
+ * finds an admissible jerk wherever the step at the start's end has an
+ * interval at all (four rounds of plain clamping often did not: it nears
+ * the fixed point from outside), and mostly at the end: within 0.1 % of
+ * the interval's span (a jerk that far further out is outside its own
+ * step's interval) in at least 90 % of the cases (where the binding
+ * checkpoint changes with the jerk, its secant step lands further in). */
+static void test_pick_at_the_end(void **state)
+{
+	(void)state;
+	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
+	struct mlip_path_limits lim;
+	helix_spline(&sp, &cv, 0.1);
+	limits(&lim, 1e4);
+	int tried = 0, found = 0, at_end = 0;
+	for (int it = 0; it < 2000; it++) {
+		struct mlip_path_state st;
+		double lo, hi, jl, jh, j;
+		if (!random_state(&sp, &lim, &st, &jl, &jh)) {
+			continue;
+		}
+		int up = it & 1;
+		if (!mlip_path_period_range(&cv, &lim, st, up ? jh : jl, &lo, &hi)) {
+			continue;
+		}
+		tried++;
+		if (!mlip_path_pick(&cv, &lim, st, up ? 1e9 : -1e9, &j)) {
+			continue;
+		}
+		found++;
+		assert_true(mlip_path_period_range(&cv, &lim, st, j, &lo, &hi));
+		assert_true(lo <= j && j <= hi);
+		double out = j + (up ? 1.0 : -1.0) * 1e-3 * (hi - lo + 1.0), l2 = 0.0, h2 = 0.0;
+		int ok = mlip_path_period_range(&cv, &lim, st, out, &l2, &h2);
+		at_end += !ok || out < l2 || out > h2;
+	}
+	print_message("pick at an end: %d of %d found, %d within 0.1 %% of it\n", found, tried,
+	              at_end);
+	assert_true(tried > 500);
+	assert_true(found >= tried * 99 / 100);
+	assert_true(at_end >= found * 9 / 10);
 }
 
 /* The curve's position and derivatives at s (by its own parameter). */
@@ -277,6 +334,7 @@ int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test(test_period_range),
+	    cmocka_unit_test(test_pick_at_the_end),
 	    cmocka_unit_test(test_plan_helix_1e4),
 	    cmocka_unit_test(test_plan_helix_1e5),
 	    cmocka_unit_test(test_plan_long_fine_helix),
