@@ -58,7 +58,7 @@ plan's cost; src/motion/pathplan.c is this plan's period in C).
 --c (with --poly): the plan by its C period instead (build/bench_pathplan
 --points: src/motion/pathplan.c over the same spline, its checkpoints exact;
 --brake B,B2,...: several policies, a state certified by any of their runs;
-docs/benchmarks.md uses 900,300 at 1e5 and 900,300,100 at 1e4),
+docs/benchmarks.md uses 900,300),
 the rest as above; --keep keeps the temporary files (the points, for
 callgrind on bench_pathplan).
 
