@@ -14,13 +14,20 @@ and tangential terms):
     acceleration  x'_k a + x''_k v^2                          within A_k
     jerk          x'''_k v^3 + 3 x''_k v a + x'_k j           within J_k
 
-(at the planning margin: --margin of J, 0.98 of A). Each step takes the
-largest j (of five in [j_lo, j_hi]) whose next state still has a safe
-braking run: the policy "brake toward max(a_lo, -BRAKE), release so that a
-is back to 0 when v reaches a crawl of 2 mm/s", simulated under the same
-limits until the crawl (where the rest of the curve is slow enough) and
-before the end; when none is, the braking run's own first step (that
-state's run was checked, so the plan never leaves the safe states). The end:
+(at the planning margin: --margin of J, 0.98 of A). A jerk is admissible
+for a period only if it lies in the jerk interval throughout the step, each
+checkpoint at the step's own (v, a) there (jrange, pick; --poly: the
+checkpoints of src/motion/pathplan.c, the exact curve: its grid points): the
+interval's ends move within a period (x''' from spline piece to piece, and
+3 x'' v a with a), and a jerk at an end of the start's interval broke J by
+3.6 % on the trochoid at 1e4. Each step takes the largest admissible j (of
+five across [j_lo, j_hi]) whose next state still has a safe braking run:
+the policy "brake toward max(a_lo, -BRAKE), release so that a is back to 0
+when v reaches a crawl of 2 mm/s", each of its jerks admissible for its
+whole period too, simulated until the crawl (where the rest of the curve is
+slow enough) and before the end; when none is, the braking run's own first
+step (that state's run was checked, period by period, so the plan never
+leaves the safe states and that step exists). The end:
 the crawl, then a jerk-limited stop at the curve's end exactly. The
 positions are the exact curve's at the planned s (no contour error against
 the curve); their third and second differences / T^3, T^2 are measured.
@@ -44,16 +51,27 @@ A greedy, not time-optimal: BRAKE is a knob (300 at J 1e5, 100 at J 1e4
 measured best of a few), and the crawl at the end costs up to ~0.3 s. What a
 real planner must add: the look-ahead over the block stream (here the whole
 curve is known), the spline over a sliding window, sharp corners (the mean),
-and bounded work a period (the braking runs are simulated here).
+and the work outside the period (docs/algorithm.md, "The path-speed plan";
+the braking-run periods simulated per planned period are printed: the
+plan's cost; src/motion/pathplan.c is this plan's period in C).
+
+--c (with --poly): the plan by its C period instead (build/bench_pathplan
+--points: src/motion/pathplan.c over the same spline, its checkpoints exact;
+--brake B,B2,...: several policies, a state certified by any of their runs;
+docs/benchmarks.md uses 900,300),
+the rest as above; --keep keeps the temporary files (the points, for
+callgrind on bench_pathplan).
 
     bench/pathspeed.py lissajous --jerk 1e5 [--brake 300] [--margin 0.95]
-    bench/pathspeed.py trochoid --jerk 1e5 --poly build/curves/trochoid.ngc
+    bench/pathspeed.py trochoid --jerk 1e5 --poly build/curves/trochoid.ngc [--c]
 """
 
 import argparse
+import atexit
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -90,14 +108,27 @@ ap = argparse.ArgumentParser(description="A path-speed plan under a per-axis jer
 ap.add_argument("curve")
 ap.add_argument("--jerk", type=float, required=True)
 ap.add_argument("--margin", type=float, default=0.95, help="share of J planned")
-ap.add_argument("--brake", type=float, default=300.0, help="the braking policy's deceleration")
+ap.add_argument(
+    "--brake",
+    default="300",
+    help="the braking policy's deceleration; --c: B[,B2...], a state certified by any of"
+    " their runs (the model takes the first)",
+)
 ap.add_argument(
     "--poly", metavar="NGC", help="plan along smooth's output for this program (see above)"
 )
 ap.add_argument(
+    "--c",
+    action="store_true",
+    help="with --poly: plan with the C period (build/bench_pathplan, src/motion/pathplan.c)",
+)
+ap.add_argument("--keep", action="store_true", help="with --poly: keep the temporary files")
+ap.add_argument(
     "--build", default=os.path.join(ROOT, "build"), help="where bench_smoothdump and mlip-check are"
 )
 args = ap.parse_args()
+if args.c and not args.poly:
+    ap.error("--c plans along smooth's output: give --poly")
 name = args.curve
 J = args.jerk * args.margin
 A = 1000.0
@@ -105,12 +136,17 @@ Aplan = 0.98 * A
 vmax = 200.0
 T = 1e-3
 VC = 2.0
-ABR = args.brake
+BRAKES = [float(b) for b in args.brake.split(",")]
+ABR = BRAKES[0]
 if args.poly:
     # smooth's output for the program shifted to start at the origin (its G0
     # left out), read as a curve by (P4): positions and derivatives of the
     # cubic through the four points around each segment, by chord length
     tmp = tempfile.mkdtemp(prefix="pathspeed-")
+    if args.keep:
+        print(f"kept: {tmp} (shifted.ngc, points.csv with --c, trace.csv)")
+    else:
+        atexit.register(shutil.rmtree, tmp, True)  # the shifted program and the trace
     prog = os.path.join(tmp, "shifted.ngc")
     shift_program(args.poly, prog)
     csv = subprocess.run(
@@ -197,54 +233,127 @@ else:
 
 
 D1, D2, D3 = d1.tolist(), d2.tolist(), d3.tolist()
+KNOTS = cum[1:-1] if args.poly else None  # the spline's inner knots
+# the same as arrays, for a period's many grid points at once (jrange)
+D2a, D3a = np.asarray(d2, float), np.asarray(d3, float) * np.ones_like(d1)
+ZEROa = np.abs(d1) < 1e-9
+P1a = np.where(ZEROa, 1.0, d1)
+NIDX = np.arange(n, dtype=float)
 
 
 def ix(s):
     return min(max(int(s / ds + 0.5), 0), n - 1)
 
 
-def alim(s, v):
-    i = ix(s)
-    lo, hi = -1e18, 1e18
-    for p, q in zip(D1[i], D2[i], strict=True):
-        c = q * v * v
+def interval(ps, cs, lim, lo=-1e18, hi=1e18):
+    """The x with |p x + c| <= lim for every axis (p, c per axis), intersected
+    into [lo, hi]: (P1) with x = a, (P2) with x = j (intersect() in
+    src/motion/pathspeed.c). An axis the path does not move along allows
+    every x or none; (1, -1) when none does."""
+    for p, c in zip(ps, cs, strict=True):
         if abs(p) < 1e-9:
-            if abs(c) > Aplan:
+            if abs(c) > lim:
                 return 1.0, -1.0
             continue
-        a1, a2 = (-Aplan - c) / p, (Aplan - c) / p
-        if a1 > a2:
-            a1, a2 = a2, a1
-        lo, hi = max(lo, a1), min(hi, a2)
+        x1, x2 = (-lim - c) / p, (lim - c) / p
+        if x1 > x2:
+            x1, x2 = x2, x1
+        lo, hi = max(lo, x1), min(hi, x2)
     return lo, hi
+
+
+def alim(s, v):
+    """(P1): the path accelerations every axis allows at s, at speed v"""
+    i = ix(s)
+    return interval(D1[i], [q * v * v for q in D2[i]], Aplan)
+
+
+def jlim_at(i, v, a, lo=-1e18, hi=1e18):
+    """(P2): the path jerks every axis allows at grid point i, at speed v
+    and path acceleration a, intersected into [lo, hi]"""
+    cs = [r * v**3 + 3 * q * v * a for q, r in zip(D2[i], D3[i], strict=True)]
+    return interval(D1[i], cs, J, lo, hi)
 
 
 def jlim(s, v, a):
-    i = ix(s)
-    lo, hi = -1e18, 1e18
-    for p, q, r in zip(D1[i], D2[i], D3[i], strict=True):
-        c = r * v**3 + 3 * q * v * a
-        if abs(p) < 1e-9:
-            if abs(c) > J:
-                return 1.0, -1.0
-            continue
+    return jlim_at(ix(s), v, a)
+
+
+def jrange(s, v, a, j):
+    """The path jerks every axis allows throughout the step of constant jerk
+    j from (s, v, a): the interval a jerk must lie in for the whole period.
+    On a spline read from points x''' changes from piece to piece, and the
+    bounds of (P2) move with v and a within the period: an end of the
+    interval at the period's start can be outside it at the period's end.
+    --poly: at the checkpoints of src/motion/pathplan.c (Q2): the step's
+    start and end, every knot it crosses on both sides, the middle of each
+    stretch between, the spline's exact derivatives there (grid points
+    rounded to the nearest missed a knot within ds / 2 of the step's end at
+    low speed: 1.004 J at the spiral's start at 1e4); each at the step's
+    state there (the time at a knot by linear interpolation). The exact
+    curve: every grid point the step crosses."""
+    s1 = step(s, v, a, j)[0]
+    if KNOTS is not None:
+        kn = KNOTS[np.searchsorted(KNOTS, s, side="right") : np.searchsorted(KNOTS, s1)]
+        hk = T * (kn - s) / (s1 - s) if len(kn) else kn
+        hp = np.concatenate([[0.0], hk, [T]])
+        hm = 0.5 * (hp[:-1] + hp[1:])
+        e = 1e-12 * (1.0 + kn)
+        H = np.concatenate([[0.0], hm, hk, hk, [T]])
+        S = np.concatenate([[s], step(s, v, a, j, hm)[0], kn - e, kn + e, [s1]])
+        _, x1, x2, x3 = cubic(S)
+        vi, ai = v + a * H + j * H * H / 2, a + j * H
+        c = x3 * (vi**3)[:, None] + 3 * x2 * (vi * ai)[:, None]
+        z = np.abs(x1) < 1e-9
+        if z.any() and bool((np.abs(c[z]) > J).any()):
+            return 1.0, -1.0
+        p = np.where(z, 1.0, x1)
         j1, j2 = (-J - c) / p, (J - c) / p
-        if j1 > j2:
-            j1, j2 = j2, j1
-        lo, hi = max(lo, j1), min(hi, j2)
-    return lo, hi
+        lo_, hi_ = np.where(z, -1e18, np.minimum(j1, j2)), np.where(z, 1e18, np.maximum(j1, j2))
+        return max(float(lo_.max()), -1e18), min(float(hi_.min()), 1e18)
+    i0, i1 = ix(s), ix(s1)
+    if i1 <= i0:  # within one grid point (or back): its start and end state
+        lo, hi = jlim_at(i0, v, a)
+        return jlim_at(i0, v + a * T + j * T * T / 2, a + j * T, lo, hi)
+    if i1 - i0 < 6:  # a few points: the loop is the faster
+        lo, hi = -1e18, 1e18
+        for i in range(i0, i1 + 1):
+            h = T * (i - i0) / (i1 - i0)
+            lo, hi = jlim_at(i, v + a * h + j * h * h / 2, a + j * h, lo, hi)
+            if lo > hi:
+                break
+        return lo, hi
+    # the same intersection over the points at once (numpy)
+    h = T * (NIDX[: i1 - i0 + 1]) / (i1 - i0)
+    vi, ai = v + a * h + j * h * h / 2, a + j * h
+    c = D3a[i0 : i1 + 1] * (vi**3)[:, None] + 3 * D2a[i0 : i1 + 1] * (vi * ai)[:, None]
+    z = ZEROa[i0 : i1 + 1]
+    if z.any() and bool((np.abs(c[z]) > J).any()):
+        return 1.0, -1.0
+    p = P1a[i0 : i1 + 1]
+    j1, j2 = (-J - c) / p, (J - c) / p
+    lo_, hi_ = np.where(z, -1e18, np.minimum(j1, j2)), np.where(z, 1e18, np.maximum(j1, j2))
+    return max(float(lo_.max()), -1e18), min(float(hi_.min()), 1e18)
 
 
-def inside(s, v, a, j):
-    """j within the jerk limits at every grid point the step crosses"""
-    i0, i1 = ix(s), ix(step(s, v, a, j)[0])
-    for i in range(i0, i1 + 1):
-        h = T * (i - i0) / max(i1 - i0, 1)
-        si, vi, ai = step(s, v, a, j, h)
-        jl, jh = jlim(i * ds, vi, ai)
-        if not (jl <= j <= jh):
-            return False
-    return True
+def pick(s, v, a, jt):
+    """The jerk nearest jt that stays inside the limits for the whole period
+    (jrange of the step it makes), or None. The interval depends on j itself
+    (through v and a within the period, weakly: 3 x'' v T per unit of j), so
+    clamp jt into the interval of the last choice's step, a few times, and
+    accept only a j inside the interval of its own step."""
+    jl, jh = jlim(s, v, a)
+    if jl > jh:
+        return None
+    j = min(max(jt, jl), jh)
+    for _ in range(4):
+        lo, hi = jrange(s, v, a, j)
+        if lo > hi:
+            return None
+        if lo <= j <= hi:
+            return j
+        j = min(max(jt, lo), hi)
+    return None
 
 
 def step(s, v, a, j, h=T):
@@ -262,22 +371,30 @@ def ok(s, v, a):
 
 
 def brake_j(s, v, a):
-    """the braking policy: as hard as the limits allow, toward the lowest a"""
+    """The braking policy: as hard as the limits allow, toward the lowest a;
+    its jerk inside the limits for the whole period (pick), or None when no
+    jerk is (the state is then not safe)."""
     jl, jh = jlim(s, v, a)
+    if jl > jh:
+        return None
     alo, ahi = alim(s, v)
     target = max(alo, -ABR) if v > VC else 0.0
     if v <= VC:  # crawl: release toward zero acceleration
-        return min(max((0.0 - a) / T, jl), jh)
+        return pick(s, v, a, (0.0 - a) / T)
     if a < 0 and jh > 0 and v - VC <= a * a / (2 * 0.8 * jh):
-        return min(max((0.0 - a) / T, jl), jh)  # release: a back to 0 as v reaches VC
+        return pick(s, v, a, (0.0 - a) / T)  # release: a back to 0 as v reaches VC
     j = jl
     if a + j * T < target:
-        j = min(max((target - a) / T, jl), jh)
-    return j
+        j = (target - a) / T
+    return pick(s, v, a, j)
+
+
+WORK = [0]  # braking-run periods simulated (the plan's cost: the C planner's)
 
 
 def safe(s, v, a):
     for _ in range(3000):
+        WORK[0] += 1
         if not ok(s, v, a):
             return False
         if v <= VC and abs(a) < 1.0:
@@ -286,49 +403,90 @@ def safe(s, v, a):
         # the path's end: stop before it (the crawl's own small stop)
         if L - s < v * v / (2 * 200.0) + v * 0.05:
             return False
-        s, v, a = step(s, v, a, brake_j(s, v, a))
+        jb = brake_j(s, v, a)
+        if jb is None:
+            return False
+        s, v, a = step(s, v, a, jb)
     return False
 
 
 s = v = a = 0.0
 out = [0.0]
-while L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10):
+PER, sum_w = [], 0  # braking-run periods simulated for each planned period
+if args.c:
+    # the same plan by the C period over the same spline (its checkpoints:
+    # the knots' times by bisection, not by linear interpolation); the end
+    # stop, the samples and the checks below as for the model
+    ptsf = os.path.join(tmp, "points.csv")
+    np.savetxt(ptsf, pts, delimiter=",", fmt="%.17g")
+    plan = os.path.join(tmp, "plan.csv")
+    r = subprocess.run(
+        [os.path.join(args.build, "bench_pathplan"), f"{J!r}", "--points", ptsf]
+        + ["--brake", ",".join(f"{b!r}" for b in BRAKES), "--out", plan],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    res = json.loads(r.stdout)
+    rows = np.loadtxt(plan, delimiter=",", ndmin=2)
+    out += [min(float(x), L) for x in rows[:, 0]]
+    PER = [int(x) for x in rows[:, 1]]
+    s, v, a = res["s"], res["v"], res["a"]
+    print(f"C plan: length {res['length']:.6f} (model {L:.6f}), {res['periods']} periods")
+while not args.c and L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10):
     jl, jh = jlim(s, v, a)
     moved = False
     if jl <= jh:
         for w in (1.0, 0.75, 0.5, 0.25, 0.0):
-            j = jl + w * (jh - jl)
+            # j holds for the whole period (pick: within the limits at every
+            # grid point it crosses, at the state there), and the next state
+            # has a braking run each of whose periods is inside them too
+            j = pick(s, v, a, jl + w * (jh - jl))
+            if j is None:
+                break
             s2, v2, a2 = step(s, v, a, j)
-            # j holds for the whole period: within the limits at every grid
-            # point it crosses (on a spline read from points x''' changes from
-            # segment to segment), at the state there (s, v, a by the step)
-            if inside(s, v, a, j) and safe(s2, v2, a2):
+            if safe(s2, v2, a2):
                 moved = True
                 break
     if not moved:
-        s2, v2, a2 = step(s, v, a, brake_j(s, v, a))
+        # the braking run's first step: this state's run was checked, period
+        # by period, when the state was chosen, so the plan never leaves the
+        # safe states and this jerk exists
+        jb = brake_j(s, v, a)
+        if jb is None:
+            raise SystemExit(f"no braking jerk at s={s} v={v} a={a}: the invariant broke")
+        s2, v2, a2 = step(s, v, a, jb)
         if v2 < 0:
             s2, v2, a2 = s, 0.0, 0.0
     if not moved and v2 <= 0.0 and L - s2 > 1.0:
         raise SystemExit(f"stopped at s={s2} of {L}")
     s, v, a = s2, v2, a2
     out.append(min(s, L))
+    PER.append(WORK[0] - sum_w)
+    sum_w = WORK[0]
     if len(out) > 200000:
         raise SystemExit(f"too long at s={s}")
 # the end: cruise at the crawl speed, then a jerk-limited stop at L exactly
 # (a triangle of jerk: v = jr t^2 ... over 2 sqrt(v / jr), distance v sqrt(v / jr))
+# (--c: the plan may end still braking at the crawl: the acceleration is
+# first ramped to 0 at jr, bench_pathplan's tail_fits)
 if L - s > 1e-9 and v > 0:
     jr = 0.5 * J
-    tb = 2 * math.sqrt(v / jr)
-    db = v * tb / 2
-    tc = max(L - s - db, 0.0) / v
-    t0 = len(out) * T - T
+    ta = abs(a) / jr
+    j0 = -jr if a > 0 else jr
+    va = v + a * ta + j0 * ta * ta / 2
+    sa = s + v * ta + a * ta * ta / 2 + j0 * ta**3 / 6
+    tb = 2 * math.sqrt(va / jr)
+    db = va * tb / 2
+    tc = ta + max(L - sa - db, 0.0) / va
     tt_ = 0.0
-    s0 = s
-    v0 = v
+    s0 = sa - va * ta  # the cruise's line, extended back to the tail's start
+    v0 = va
     while True:
         tt_ += T
-        if tt_ <= tc:
+        if tt_ <= ta:
+            x = s + v * tt_ + a * tt_ * tt_ / 2 + j0 * tt_**3 / 6
+        elif tt_ <= tc:
             x = s0 + v0 * tt_
         elif tt_ <= tc + tb:
             u = tt_ - tc
@@ -356,6 +514,11 @@ print(
     f" max jerk/J {j3.max() / Jr:.3f}, max accel/A {a2_.max() / A:.3f}"
 )
 w = j3.max(axis=1)
+per = np.array(PER)
+print(
+    f"braking-run periods simulated a planned period: median {np.median(per):.0f},"
+    f" p99 {np.percentile(per, 99):.0f}, max {per.max()}, mean {per.mean():.0f}"
+)
 print(
     f"samples above J: {int(np.sum(w > Jr))}; the worst at sample {int(np.argmax(w))} of {len(w)}"
 )

@@ -13,20 +13,9 @@ static int intersect(int n, const double *p, const double *c, const double *lim,
 {
 	double l = -INFINITY, h = INFINITY;
 	for (int k = 0; k < n; k++) {
-		if (p[k] == 0.0) {
-			if (!(fabs(c[k]) <= lim[k])) {
-				return 0; /* this axis alone exceeds its limit, whatever x */
-			}
-			continue;
+		if (!mlip_path_axis_cut(p[k], c[k], lim[k], &l, &h)) {
+			return 0; /* this axis alone exceeds its limit, whatever x */
 		}
-		double x1 = (-lim[k] - c[k]) / p[k], x2 = (lim[k] - c[k]) / p[k];
-		if (x1 > x2) {
-			double t = x1;
-			x1 = x2;
-			x2 = t;
-		}
-		l = x1 > l ? x1 : l;
-		h = x2 < h ? x2 : h;
 	}
 	*lo = l;
 	*hi = h;
@@ -139,21 +128,21 @@ int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
 	return to_arc(n, x1, x2, x3, out);
 }
 
-int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][MLIP_MAX_AXES],
-                         int count)
+int mlip_path_fit(int n, const double pts[][MLIP_MAX_AXES], int count, double *s,
+                  double (*p)[MLIP_MAX_AXES], double (*m)[MLIP_MAX_AXES],
+                  double (*b)[MLIP_MAX_AXES], double (*t3)[MLIP_MAX_AXES], double *c,
+                  struct mlip_path_curve *cv)
 {
-	if (count < 2 || count > MLIP_PATH_WIN || n < 1 || n > MLIP_MAX_AXES) {
+	if (count < 2 || n < 1 || n > MLIP_MAX_AXES) {
 		return -1;
 	}
-	sp->n = n;
-	sp->count = count;
-	sp->s[0] = 0.0;
+	s[0] = 0.0;
 	for (int i = 0; i < count; i++) {
 		for (int k = 0; k < n; k++) {
 			if (!isfinite(pts[i][k])) {
 				return -1;
 			}
-			sp->p[i][k] = pts[i][k];
+			p[i][k] = pts[i][k];
 		}
 		if (i > 0) {
 			double d2 = 0.0;
@@ -164,69 +153,136 @@ int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][
 			if (!(d2 > 0.0)) {
 				return -1;
 			}
-			sp->s[i] = sp->s[i - 1] + sqrt(d2);
+			s[i] = s[i - 1] + sqrt(d2);
 		}
 	}
 	/* (P5) by Thomas' algorithm: forward elimination into c (the
 	 * super-diagonal over the pivot) and m (the right-hand side), rows 0
 	 * and count - 1 the natural ends (M = 0) */
 	int last = count - 1;
-	sp->c[0] = 0.0;
+	c[0] = 0.0;
 	for (int k = 0; k < n; k++) {
-		sp->m[0][k] = 0.0;
-		sp->m[last][k] = 0.0;
+		m[0][k] = 0.0;
+		m[last][k] = 0.0;
 	}
 	for (int i = 1; i < last; i++) {
-		double hl = sp->s[i] - sp->s[i - 1], hr = sp->s[i + 1] - sp->s[i];
-		double piv = 2.0 * (hl + hr) - hl * sp->c[i - 1];
-		sp->c[i] = hr / piv;
+		double hl = s[i] - s[i - 1], hr = s[i + 1] - s[i];
+		double piv = 2.0 * (hl + hr) - hl * c[i - 1];
+		c[i] = hr / piv;
 		for (int k = 0; k < n; k++) {
-			double r = 6.0 * ((sp->p[i + 1][k] - sp->p[i][k]) / hr -
-			                  (sp->p[i][k] - sp->p[i - 1][k]) / hl);
-			sp->m[i][k] = (r - hl * sp->m[i - 1][k]) / piv;
+			double r =
+			    6.0 * ((p[i + 1][k] - p[i][k]) / hr - (p[i][k] - p[i - 1][k]) / hl);
+			m[i][k] = (r - hl * m[i - 1][k]) / piv;
 		}
 	}
 	for (int i = last - 1; i >= 1; i--) { /* back substitution */
 		for (int k = 0; k < n; k++) {
-			sp->m[i][k] -= sp->c[i] * sp->m[i + 1][k];
+			m[i][k] -= c[i] * m[i + 1][k];
 		}
 	}
+	/* each piece's cubic p + b u + m0 u^2 / 2 + t3 u^3 / 6 (u from its start) */
+	for (int i = 0; i < last; i++) {
+		double h = s[i + 1] - s[i];
+		for (int k = 0; k < n; k++) {
+			double m0 = m[i][k], m1 = m[i + 1][k];
+			b[i][k] = (p[i + 1][k] - p[i][k]) / h - h * (2.0 * m0 + m1) / 6.0;
+			t3[i][k] = (m1 - m0) / h;
+		}
+	}
+	typedef const double(*row)[MLIP_MAX_AXES];
+	*cv = (struct mlip_path_curve){n, count, s, (row)p, (row)m, (row)b, (row)t3};
 	return 0;
 }
 
-int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_arc, double *x,
-                          struct mlip_path_point *d)
+void mlip_path_spline_curve(const struct mlip_path_spline *sp, struct mlip_path_curve *cv)
 {
-	int last = sp->count - 1, n = sp->n;
-	s = s < 0.0 ? 0.0 : (s > sp->s[last] ? sp->s[last] : s);
-	int lo = 0, hi = last; /* the segment [s_lo, s_lo+1] holding s */
+	*cv = (struct mlip_path_curve){sp->n, sp->count, sp->s, sp->p, sp->m, sp->b, sp->t3};
+}
+
+int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][MLIP_MAX_AXES],
+                         int count)
+{
+	struct mlip_path_curve cv;
+	if (count > MLIP_PATH_WIN ||
+	    mlip_path_fit(n, pts, count, sp->s, sp->p, sp->m, sp->b, sp->t3, sp->c, &cv) != 0) {
+		return -1;
+	}
+	sp->n = n;
+	sp->count = count;
+	return 0;
+}
+
+int mlip_path_spline_piece(const struct mlip_path_curve *cv, double s, int hint)
+{
+	int last = cv->count - 1, i = hint < 0 ? 0 : (hint > last - 1 ? last - 1 : hint);
+	for (int step = 0; step < 4; step++) { /* near the hint: a few steps */
+		if (i < last - 1 && cv->s[i + 1] <= s) {
+			i++;
+		} else if (i > 0 && cv->s[i] > s) {
+			i--;
+		} else {
+			return i;
+		}
+	}
+	int lo = 0, hi = last; /* far from it: bisection, s_lo <= s < s_hi */
+	if (cv->s[i] <= s) {
+		lo = i;
+	} else {
+		hi = i;
+	}
 	while (hi - lo > 1) {
 		int mid = (lo + hi) / 2;
-		if (sp->s[mid] <= s) {
+		if (cv->s[mid] <= s) {
 			lo = mid;
 		} else {
 			hi = mid;
 		}
 	}
-	double h = sp->s[lo + 1] - sp->s[lo], u = s - sp->s[lo];
-	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES], x3[MLIP_MAX_AXES];
+	return lo;
+}
+
+void mlip_path_spline_eval_piece(const struct mlip_path_curve *cv, int i, double s, double *x,
+                                 struct mlip_path_point *d)
+{
+	int last = cv->count - 1, n = cv->n;
+	s = s < 0.0 ? 0.0 : (s > cv->s[last] ? cv->s[last] : s);
+	double u = s - cv->s[i];
 	for (int k = 0; k < n; k++) {
-		double m0 = sp->m[lo][k], m1 = sp->m[lo + 1][k];
-		double b = (sp->p[lo + 1][k] - sp->p[lo][k]) / h - h * (2.0 * m0 + m1) / 6.0;
-		x3[k] = (m1 - m0) / h;
-		x2[k] = m0 + x3[k] * u;
-		x1[k] = b + m0 * u + 0.5 * x3[k] * u * u;
+		double m0 = cv->m[i][k], t3 = cv->t3[i][k];
+		d->d3[k] = t3;
+		d->d2[k] = m0 + t3 * u;
+		d->d1[k] = cv->b[i][k] + m0 * u + 0.5 * t3 * u * u;
 		if (x) {
-			x[k] = sp->p[lo][k] + b * u + 0.5 * m0 * u * u + x3[k] * u * u * u / 6.0;
+			x[k] =
+			    cv->p[i][k] + cv->b[i][k] * u + 0.5 * m0 * u * u + t3 * u * u * u / 6.0;
 		}
 	}
-	if (by_arc) {
-		return to_arc(n, x1, x2, x3, d);
+}
+
+double mlip_path_piece_sag(const struct mlip_path_curve *cv, int i)
+{
+	double h = cv->s[i + 1] - cv->s[i], q0 = 0.0, q1 = 0.0;
+	for (int k = 0; k < cv->n; k++) {
+		q0 += cv->m[i][k] * cv->m[i][k];
+		q1 += cv->m[i + 1][k] * cv->m[i + 1][k];
 	}
-	for (int k = 0; k < MLIP_MAX_AXES; k++) {
-		d->d1[k] = k < n ? x1[k] : 0.0;
-		d->d2[k] = k < n ? x2[k] : 0.0;
-		d->d3[k] = k < n ? x3[k] : 0.0;
+	return h * h / 8.0 * sqrt(q0 > q1 ? q0 : q1); /* (P6) */
+}
+
+int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_arc, double *x,
+                          struct mlip_path_point *d)
+{
+	int n = sp->n;
+	struct mlip_path_point raw;
+	struct mlip_path_curve cv;
+	mlip_path_spline_curve(sp, &cv);
+	mlip_path_spline_eval_piece(&cv, mlip_path_spline_piece(&cv, s, 0), s, x,
+	                            by_arc ? &raw : d);
+	if (by_arc) {
+		return to_arc(n, raw.d1, raw.d2, raw.d3, d);
+	}
+	for (int k = n; k < MLIP_MAX_AXES; k++) {
+		d->d1[k] = d->d2[k] = d->d3[k] = 0.0;
 	}
 	return 0;
 }

@@ -15,15 +15,8 @@
 
 #include "mlip/motion/pathspeed.h"
 
-static uint64_t rng = 0x9E3779B97F4A7C15ull;
-
-static double uni(double lo, double hi)
-{
-	rng ^= rng << 13;
-	rng ^= rng >> 7;
-	rng ^= rng << 17;
-	return lo + (hi - lo) * (double)(rng >> 11) * (1.0 / 9007199254740992.0);
-}
+#define XORSHIFT_SEED 0x9E3779B97F4A7C15ull
+#include "xorshift.h"
 
 /* A helix of radius R and pitch c per radian, by arc length: x(s) and its
  * derivatives (theta = s / L, L = sqrt(R^2 + c^2)). */
@@ -378,12 +371,105 @@ static void test_spline(void **state)
 	                 -1);
 }
 
+/* The piece holding s, searched from any hint (the plan's walk), is the one
+ * a scan finds (s_i <= s < s_i+1; the first before the start, the last at or
+ * past the end), and reading it there gives mlip_path_spline_eval's values. */
+static void test_spline_piece(void **state)
+{
+	(void)state;
+	helix_points(0.0, 0.05, MLIP_PATH_WIN, pts, arc);
+	assert_int_equal(
+	    mlip_path_spline_fit(&spa, 3, (const double(*)[MLIP_MAX_AXES])pts, MLIP_PATH_WIN), 0);
+	struct mlip_path_curve cv;
+	mlip_path_spline_curve(&spa, &cv);
+	int last = MLIP_PATH_WIN - 1, checked = 0;
+	for (int it = 0; it < 20000; it++) {
+		double s = uni(-0.1, spa.s[last] + 0.1);
+		if (it % 4 == 0) {
+			s = spa.s[(int)uni(0.0, MLIP_PATH_WIN)]; /* exactly at a knot */
+		}
+		int hint = (int)uni(-3.0, MLIP_PATH_WIN + 3.0), want = 0;
+		while (want < last - 1 && spa.s[want + 1] <= s) {
+			want++;
+		}
+		int i = mlip_path_spline_piece(&cv, s, hint);
+		assert_int_equal(i, want);
+		double xa[MLIP_MAX_AXES], xb[MLIP_MAX_AXES];
+		struct mlip_path_point a, b;
+		mlip_path_spline_eval_piece(&cv, i, s, xa, &a);
+		assert_int_equal(mlip_path_spline_eval(&spa, s, 0, xb, &b), 0);
+		for (int k = 0; k < 3; k++) {
+			assert_true(xa[k] == xb[k] && a.d1[k] == b.d1[k] && a.d2[k] == b.d2[k] &&
+			            a.d3[k] == b.d3[k]);
+		}
+		checked++;
+	}
+	assert_int_equal(checked, 20000);
+}
+
+/* (P6): no sample of a piece strays from its chord by more than the bound,
+ * on splines through noisy points (a helix moved by up to 0.02 mm, 0.05 mm
+ * apart), and on a circle (x'' nearly constant) the bound is tight. */
+static void test_piece_sag(void **state)
+{
+	(void)state;
+	double worst_ratio = 0.0, circle_ratio = 1.0;
+	for (int rep = 0; rep < 40; rep++) {
+		int circle = rep == 0;
+		helix_points(0.0, 0.05, MLIP_PATH_WIN, pts, arc);
+		for (int i = 0; i < MLIP_PATH_WIN; i++) {
+			for (int k = 0; k < 3; k++) {
+				pts[i][k] += circle ? 0.0 : uni(-0.02, 0.02);
+			}
+			if (circle) {
+				double th = i * 0.05;
+				pts[i][0] = cos(th);
+				pts[i][1] = sin(th);
+				pts[i][2] = 0.0;
+			}
+		}
+		assert_int_equal(mlip_path_spline_fit(&spa, 3, (const double(*)[MLIP_MAX_AXES])pts,
+		                                      MLIP_PATH_WIN),
+		                 0);
+		struct mlip_path_curve cv;
+		mlip_path_spline_curve(&spa, &cv);
+		for (int i = 0; i < MLIP_PATH_WIN - 1; i++) {
+			double sag = mlip_path_piece_sag(&cv, i), h = cv.s[i + 1] - cv.s[i],
+			       dev = 0.0;
+			assert_true(sag >= 0.0);
+			for (int q = 1; q < 200; q++) {
+				double u = h * q / 200.0, x[MLIP_MAX_AXES], d2 = 0.0;
+				struct mlip_path_point d;
+				mlip_path_spline_eval_piece(&cv, i, cv.s[i] + u, x, &d);
+				for (int k = 0; k < 3; k++) {
+					double c =
+					    cv.p[i][k] + (cv.p[i + 1][k] - cv.p[i][k]) * u / h;
+					d2 += (x[k] - c) * (x[k] - c);
+				}
+				dev = fmax(dev, sqrt(d2));
+			}
+			assert_true(dev <= sag * (1.0 + 1e-9) + 1e-15);
+			if (sag > 0.0) {
+				worst_ratio = fmax(worst_ratio, dev / sag);
+				if (circle && i > 8 && i < MLIP_PATH_WIN - 9) {
+					circle_ratio = fmin(circle_ratio, dev / sag);
+				}
+			}
+		}
+	}
+	print_message("deviation / bound: at most %.4f; on the circle at least %.4f\n", worst_ratio,
+	              circle_ratio);
+	assert_true(worst_ratio <= 1.0 + 1e-9);
+	assert_true(circle_ratio > 0.99); /* tight where x'' is nearly constant */
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test(test_chain_rule),  cmocka_unit_test(test_ranges_tight),
 	    cmocka_unit_test(test_vmax_circle), cmocka_unit_test(test_from_points),
-	    cmocka_unit_test(test_spline),
+	    cmocka_unit_test(test_spline),      cmocka_unit_test(test_spline_piece),
+	    cmocka_unit_test(test_piece_sag),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -14,15 +14,8 @@
 
 #include "mlip/motion/scurve.h"
 
-static uint64_t rng = 88172645463325252ull;
-
-static double uni(double lo, double hi)
-{
-	rng ^= rng << 13;
-	rng ^= rng >> 7;
-	rng ^= rng << 17;
-	return lo + (hi - lo) * (double)(rng >> 11) * (1.0 / 9007199254740992.0);
-}
+#define XORSHIFT_SEED 88172645463325252ull
+#include "xorshift.h"
 
 static const double AJ[][2] = {{1000.0, 1e5}, {1000.0, 1e4}, {300.0, 1e6}, {6000.0, 2e4}};
 

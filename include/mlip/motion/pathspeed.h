@@ -59,6 +59,8 @@
 #ifndef MLIP_PATHSPEED_H
 #define MLIP_PATHSPEED_H
 
+#include <math.h>
+
 #include "mlip/types.h"
 
 /* The curve's arc-length derivatives at one point. */
@@ -67,6 +69,26 @@ struct mlip_path_point {
 	double d2[MLIP_MAX_AXES]; /* x''  (the curvature vector) */
 	double d3[MLIP_MAX_AXES]; /* x''' */
 };
+
+/* One axis of (P1)(P2): [*l, *h] narrowed to the x with |p x + c| <= lim
+ * (p = 0: every x, or none). 0 when this axis alone exceeds lim whatever x
+ * (then [*l, *h] is as it was). Inline: the plan's inner checkpoints call it
+ * per axis. */
+static inline int mlip_path_axis_cut(double p, double c, double lim, double *l, double *h)
+{
+	if (p == 0.0) {
+		return fabs(c) <= lim;
+	}
+	double x1 = (-lim - c) / p, x2 = (lim - c) / p;
+	if (x1 > x2) {
+		double t = x1;
+		x1 = x2;
+		x2 = t;
+	}
+	*l = x1 > *l ? x1 : *l;
+	*h = x2 < *h ? x2 : *h;
+	return 1;
+}
 
 /* (P1): the path accelerations a in [*lo, *hi] that keep every axis within
  * accel[k] at speed v. 0 when none does (the speed alone exceeds a limit). */
@@ -92,12 +114,14 @@ int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
 /* (P5) The natural cubic spline through up to MLIP_PATH_WIN points. */
 #define MLIP_PATH_WIN 64
 struct mlip_path_spline {
-	int n;                                  /* axes */
-	int count;                              /* points */
-	double s[MLIP_PATH_WIN];                /* chord length from the first point */
-	double p[MLIP_PATH_WIN][MLIP_MAX_AXES]; /* the points */
-	double m[MLIP_PATH_WIN][MLIP_MAX_AXES]; /* second derivatives by chord length */
-	double c[MLIP_PATH_WIN];                /* the solve's scratch */
+	int n;                                   /* axes */
+	int count;                               /* points */
+	double s[MLIP_PATH_WIN];                 /* chord length from the first point */
+	double p[MLIP_PATH_WIN][MLIP_MAX_AXES];  /* the points */
+	double m[MLIP_PATH_WIN][MLIP_MAX_AXES];  /* second derivatives by chord length */
+	double b[MLIP_PATH_WIN][MLIP_MAX_AXES];  /* x_t at each piece's start */
+	double t3[MLIP_PATH_WIN][MLIP_MAX_AXES]; /* x_ttt on each piece (constant) */
+	double c[MLIP_PATH_WIN];                 /* the solve's scratch */
 };
 
 /* Fit the spline through pts[0..count-1] (2 <= count <= MLIP_PATH_WIN).
@@ -113,5 +137,55 @@ int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][
  * then v |x_t|). -1 where the spline stops (sigma = 0). */
 int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_arc, double *x,
                           struct mlip_path_point *d);
+
+/* A piecewise cubic by chord length as the plan reads it: a view of a
+ * fitted spline's arrays (count points, count - 1 pieces), whoever holds
+ * them (a struct mlip_path_spline, or a caller's own arrays fitted by
+ * mlip_path_fit). */
+struct mlip_path_curve {
+	int n, count;
+	const double *s;
+	const double (*p)[MLIP_MAX_AXES];
+	const double (*m)[MLIP_MAX_AXES];
+	const double (*b)[MLIP_MAX_AXES];
+	const double (*t3)[MLIP_MAX_AXES];
+};
+
+/* The view of sp. */
+void mlip_path_spline_curve(const struct mlip_path_spline *sp, struct mlip_path_curve *cv);
+
+/* (P5) over the caller's arrays of count entries each (count >= 2; c is
+ * scratch): what mlip_path_spline_fit does for its window, for a curve of
+ * any length (the benchmarks fit a whole program's `smooth` output);
+ * fills *cv with the view. -1 as mlip_path_spline_fit. */
+int mlip_path_fit(int n, const double pts[][MLIP_MAX_AXES], int count, double *s,
+                  double (*p)[MLIP_MAX_AXES], double (*m)[MLIP_MAX_AXES],
+                  double (*b)[MLIP_MAX_AXES], double (*t3)[MLIP_MAX_AXES], double *c,
+                  struct mlip_path_curve *cv);
+
+/* The piece i holding chord length s (s_i <= s < s_i+1, the last piece for
+ * s at or past the end, 0 before the start: what mlip_path_spline_eval
+ * reads), searched from piece `hint` (a plan moves forward piece by piece:
+ * O(1) steps, no binary search). */
+int mlip_path_spline_piece(const struct mlip_path_curve *cv, double s, int hint);
+
+/* How far piece i of the spline may stray from its chord (the straight
+ * segment between its points), a bound: |x(u) - chord(u)| <= u (h - u) / 2
+ * max |x''| on the piece (the interpolation error of a line through the
+ * ends, x'' linear so its norm is largest at an end), so at most
+ *
+ *     sag_i = h_i^2 / 8 max(|M_i|, |M_i+1|)                              (P6)
+ *
+ * The plan may take the spline only where this stays within what the
+ * block's tolerance leaves (docs/algorithm.md, the hand-over): a natural
+ * spline through a sharp vertex overshoots by far more. */
+double mlip_path_piece_sag(const struct mlip_path_curve *cv, int i);
+
+/* mlip_path_spline_eval by the spline's own parameter (by_arc 0) on piece
+ * i (from mlip_path_spline_piece; s clamped as there): the same values,
+ * from the piece's coefficients kept by the fit; axes n and beyond are left
+ * as they are (the plan's hot path reads only the first n). */
+void mlip_path_spline_eval_piece(const struct mlip_path_curve *cv, int i, double s, double *x,
+                                 struct mlip_path_point *d);
 
 #endif

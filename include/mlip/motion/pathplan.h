@@ -1,0 +1,104 @@
+/*
+ * mlip/motion/pathplan.h - one period of the path-speed plan along a spline
+ * (issue 21; the design: docs/algorithm.md "The path-speed plan"; the model
+ * it follows: bench/pathspeed.py). Not yet used by the planner: no trace
+ * changes.
+ *
+ * The plan advances the spline's own parameter s (P5: chord length; P1 and
+ * P2 hold for any parameter) with a constant path jerk j a period from the
+ * state (s, v, a):
+ *
+ *     s(h) = s + v h + a h^2 / 2 + j h^3 / 6,  v(h) = v + a h + j h^2 / 2,
+ *     a(h) = a + j h,  0 <= h <= T                                      (Q1)
+ *
+ * j is admissible for the period when it lies in the (P2) interval at every
+ * checkpoint of the step, each at the step's own (v(h), a(h)) there: its
+ * start and end, every knot it crosses (on both sides: x''' jumps there)
+ * and the middle of every stretch between (Q2). The interval at the start
+ * alone is not enough: its ends move within the period (3 x'' v j T through
+ * a, and x''' from piece to piece): the model's trochoid reached 1.036 J at
+ * J = 1e4 with it. The interval depends on j only through (Q1), weakly, so
+ * `mlip_path_pick` clamps into the interval of its last choice's step a few
+ * times and accepts only a j inside its own step's interval.
+ *
+ * A braking policy (Q3): brake as hard as the limits allow toward
+ * max(the (P1) floor, -a_brake[i]); release (toward a = 0) once
+ * v - v_crawl <= a^2 / (2 0.8 j_hi); at or below the crawl, release. Its
+ * jerk is admissible for its whole period (Q2) or the state is not safe.
+ *
+ * A state is certified (Q4) when its braking run, simulated period by
+ * period, stays within every limit (speed cap, (P1), a non-empty (P2)
+ * interval, each jerk admissible) until it crawls (v <= v_crawl, |a| < 1)
+ * before `end` with room for the crawl's stop. The policy depends on the
+ * state alone, so the first step of a certified run leads to a state that
+ * the same policy certifies: the plan that only enters certified states,
+ * each with the policy that certified it, always has a way to brake (a
+ * hold or a stop takes it), and its fallback step exists. Several policies
+ * (a gentle one for tight curves, where 3 x'' v a takes the jerk budget, a
+ * hard one for straight stretches and the end) certify more states than
+ * any one of them.
+ *
+ * Pure C, no allocation; a certification is at most max_periods policy
+ * steps (the caller bounds the work; it runs outside the 1 ms period).
+ */
+#ifndef MLIP_PATHPLAN_H
+#define MLIP_PATHPLAN_H
+
+#include "mlip/motion/pathspeed.h"
+
+/* (Q3) braking policies at most. */
+#define MLIP_PATH_BRAKES 4
+
+struct mlip_path_limits {
+	int n;                       /* axes */
+	double accel[MLIP_MAX_AXES]; /* planned per-axis limits (margins applied) */
+	double jerk[MLIP_MAX_AXES];
+	double vmax; /* the path speed's cap (the spline's parameter a second) */
+	/* (Q3) the policies' decelerations, each > 0: a state is certified by
+	 * the run of any of the first n_brake (0 counts as 1) */
+	double a_brake[MLIP_PATH_BRAKES];
+	int n_brake;
+	double v_crawl; /* (Q3) the crawl, > 0 */
+	double period;  /* T, s */
+};
+
+struct mlip_path_state {
+	double s, v, a;
+	int brake; /* (Q4) the policy whose run certified it (a_brake[brake]) */
+};
+
+/* (Q1): the state h after st under jerk j (its policy kept). */
+struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, double h);
+
+/* (Q2): the path jerks admissible at every checkpoint of the step of jerk j
+ * from st (each at that step's own state). 0 when none is, or the spline
+ * stops (sigma = 0) at a checkpoint. */
+int mlip_path_period_range(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                           struct mlip_path_state st, double j, double *lo, double *hi);
+
+/* The admissible jerk nearest jt (Q2), in *j; 0 when none was found. */
+int mlip_path_pick(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                   struct mlip_path_state st, double jt, double *j);
+
+/* (Q3): the jerk of st's braking policy (st.brake) at st, admissible for
+ * its period; 0 when there is none. */
+int mlip_path_brake(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                    struct mlip_path_state st, double *j);
+
+/* (Q4): 1 when st is certified by its policy's run (st.brake) within
+ * max_periods policy steps, the path ending at `end`; *work (may be NULL)
+ * grows by the steps simulated. */
+int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                        struct mlip_path_state st, double end, int max_periods, long *work);
+
+/* One period of the greedy plan from the certified state *st: the largest
+ * of five jerks across the start's (P2) interval that is admissible (Q2)
+ * and leads to a state certified by some policy (st's own tried first; the
+ * new state keeps the one that certified it), else the step of st's own
+ * policy (the rest of its certified run). 1 when it moved faster than
+ * braking, 0 when it braked, -1 when the policy had no jerk (st was not
+ * certified). */
+int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                          struct mlip_path_state *st, double end, int max_periods, long *work);
+
+#endif

@@ -1,0 +1,382 @@
+/*
+ * pathplan.c - one period of the path-speed plan along a spline
+ * (mlip/motion/pathplan.h: Q1-Q4; the model: bench/pathspeed.py).
+ */
+#include "mlip/motion/pathplan.h"
+
+#include <math.h>
+#include <stddef.h>
+
+/* The policy's release: a back to 0 as v reaches the crawl, at this share
+ * of the jerk the start allows (Q3); the crawl's own stop needs END_TIME of
+ * its speed as room. The model's values. A run that passes the end fails
+ * (inside()): the run itself proves it stops before it, where the model
+ * also cut every run whose speed needed more than v^2 / 400 + 0.05 v mm
+ * (braking at 200 mm/s^2, slower than the policy's). */
+#define RELEASE_SHARE 0.8
+#define END_TIME      0.05
+
+/* (Q2) rounds of pick_at's search for a jerk inside its own step's
+ * interval. */
+#define PICK_ROUNDS 4
+
+struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, double h)
+{
+	struct mlip_path_state r; /* (Q1) */
+	r.s = st.s + st.v * h + st.a * h * h / 2.0 + j * h * h * h / 6.0;
+	r.v = st.v + st.a * h + j * h * h / 2.0;
+	r.a = st.a + j * h;
+	r.brake = st.brake;
+	return r;
+}
+
+/* A state with what every step from it reads there: the piece holding
+ * st.s, the curve's derivatives at st.s and the (P2) interval at (v, a)
+ * (ok 0: empty). A step's end is the next state's point, so a run
+ * evaluates each point once (Q2's end checkpoint is the next start). */
+struct at {
+	struct mlip_path_state st;
+	struct mlip_path_point d;
+	int piece, ok;
+	double jl, jh;
+};
+
+static void at_make(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                    struct at *a, struct mlip_path_state st, int hint)
+{
+	a->st = st;
+	a->piece = mlip_path_spline_piece(sp, st.s, hint);
+	mlip_path_spline_eval_piece(sp, a->piece, st.s, NULL, &a->d);
+	a->ok = mlip_path_jerk_range(lim->n, &a->d, lim->jerk, st.v, st.a, &a->jl, &a->jh);
+}
+
+/* The (P2) interval at the point d (on piece *piece, searched from it), at
+ * the speed and acceleration the step of jerk j from st has at time h,
+ * intersected into [*lo, *hi]; the point's own interval in *own: the step's
+ * end, whose point and interval the next state keeps. */
+static void cut(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                struct mlip_path_state st, double j, double h, double s, int *piece,
+                struct mlip_path_point *d, double *lo, double *hi, struct at *own)
+{
+	struct mlip_path_state at = mlip_path_advance(st, j, h);
+	double l, u;
+	*piece = mlip_path_spline_piece(sp, s, *piece);
+	mlip_path_spline_eval_piece(sp, *piece, s, NULL, d);
+	int ok = mlip_path_jerk_range(lim->n, d, lim->jerk, at.v, at.a, &l, &u);
+	own->ok = ok;
+	own->jl = l;
+	own->jh = u;
+	if (!ok) {
+		*lo = 1.0; /* no jerk at all here */
+		*hi = -1.0;
+		return;
+	}
+	*lo = l > *lo ? l : *lo;
+	*hi = u < *hi ? u : *hi;
+}
+
+/* cut() at an inner checkpoint, whose derivatives nobody keeps: the
+ * piece's cubic (mlip_path_spline_eval_piece), (P2) (mlip_path_jerk_range)
+ * and the intersection fused into one pass over the axes, the same
+ * arithmetic in the same order (the same interval to the bit), straight
+ * into [*lo, *hi]. 0 when the interval is empty. */
+static int cut_inner(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim, int i,
+                     double s, double v, double a, double *lo, double *hi)
+{
+	int last = sp->count - 1;
+	s = s < 0.0 ? 0.0 : (s > sp->s[last] ? sp->s[last] : s);
+	double w = s - sp->s[i], l = *lo, h = *hi;
+	for (int k = 0; k < lim->n; k++) {
+		double m0 = sp->m[i][k], t3 = sp->t3[i][k];
+		double d2 = m0 + t3 * w;
+		double d1 = sp->b[i][k] + m0 * w + 0.5 * t3 * w * w;
+		double c = 3.0 * d2 * v * a + t3 * v * v * v; /* (P2) but x'_k j */
+		if (!mlip_path_axis_cut(d1, c, lim->jerk[k], &l, &h)) {
+			return 0;
+		}
+	}
+	*lo = l;
+	*hi = h;
+	return l <= h;
+}
+
+/* The time in [0, T] at which the step reaches parameter x (s(0) < x <=
+ * s(T) = s1, s increasing over the step): Newton's steps on s(h) - x from
+ * the chord's estimate, kept inside the bracket that every evaluation
+ * narrows (a bisection step when Newton's would leave it), until s(h) is
+ * within 1e-15 of x's scale or the bracket is an ulp: a few evaluations
+ * where a bisection to 1e-15 s took 40. */
+static double time_at(struct mlip_path_state st, double j, double T, double x, double s1)
+{
+	double lo = 0.0, hi = T, h = T * (x - st.s) / (s1 - st.s);
+	if (!(h > lo && h < hi)) {
+		h = 0.5 * T;
+	}
+	for (int i = 0; i < 60; i++) {
+		struct mlip_path_state r = mlip_path_advance(st, j, h);
+		double f = r.s - x;
+		if (fabs(f) <= 1e-15 * (1.0 + fabs(x))) {
+			break;
+		}
+		if (f < 0.0) {
+			lo = h;
+		} else {
+			hi = h;
+		}
+		double nh = r.v > 0.0 ? h - f / r.v : -1.0;
+		if (!(nh > lo && nh < hi)) {
+			nh = 0.5 * (lo + hi);
+		}
+		if (nh == h || hi - lo <= 1e-16 * T) {
+			break;
+		}
+		h = nh;
+	}
+	return h;
+}
+
+/* (Q2) from the state a; the step's end (the next state, its point and
+ * interval) in *next when next is not NULL. */
+static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                    const struct at *a, double j, double *lo, double *hi, struct at *next)
+{
+	double T = lim->period, l = a->jl, u = a->jh;
+	struct mlip_path_state st = a->st, end = mlip_path_advance(st, j, T);
+	double s1 = end.s, last = sp->s[sp->count - 1];
+	*lo = 1.0; /* until the whole step is checked: empty */
+	*hi = -1.0;
+	if (!a->ok) {
+		return 0;
+	}
+	/* the knots the step crosses, both sides, and the middle of every
+	 * stretch between checkpoints (Q2); the state at a knot serves both
+	 * its sides. Empty: the rest cannot widen it, and nobody reads it. */
+	int k = a->piece, piece = a->piece;
+	while (k < sp->count && sp->s[k] <= st.s) {
+		k++;
+	}
+	double hp = 0.0;
+	for (; k < sp->count - 1 && sp->s[k] < s1; k++) {
+		double hk = time_at(st, j, T, sp->s[k], s1), eps = 1e-12 * (1.0 + sp->s[k]);
+		struct mlip_path_state m = mlip_path_advance(st, j, 0.5 * (hp + hk));
+		struct mlip_path_state at = mlip_path_advance(st, j, hk);
+		piece = mlip_path_spline_piece(sp, m.s, piece);
+		if (!cut_inner(sp, lim, piece, m.s, m.v, m.a, &l, &u)) {
+			return 0;
+		}
+		piece = mlip_path_spline_piece(sp, sp->s[k] - eps, piece);
+		if (!cut_inner(sp, lim, piece, sp->s[k] - eps, at.v, at.a, &l, &u)) {
+			return 0;
+		}
+		piece = mlip_path_spline_piece(sp, sp->s[k] + eps, piece);
+		if (!cut_inner(sp, lim, piece, sp->s[k] + eps, at.v, at.a, &l, &u)) {
+			return 0;
+		}
+		hp = hk;
+	}
+	struct mlip_path_state m = mlip_path_advance(st, j, 0.5 * (hp + T));
+	piece = mlip_path_spline_piece(sp, m.s, piece);
+	if (!cut_inner(sp, lim, piece, m.s, m.v, m.a, &l, &u)) {
+		return 0;
+	}
+	struct at scratch, *e = next ? next : &scratch;
+	cut(sp, lim, st, j, T, s1 < last ? s1 : last, &piece, &e->d, &l, &u, e);
+	e->st = end;
+	e->piece = mlip_path_spline_piece(sp, end.s, piece);
+	*lo = l;
+	*hi = u;
+	return l <= u;
+}
+
+int mlip_path_period_range(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                           struct mlip_path_state st, double j, double *lo, double *hi)
+{
+	struct at a;
+	at_make(sp, lim, &a, st, 0);
+	return range_at(sp, lim, &a, j, lo, hi, NULL);
+}
+
+static double clamp(double x, double lo, double hi)
+{
+	return x < lo ? lo : (x > hi ? hi : x);
+}
+
+/* The admissible jerk nearest jt from a (Q2); its step's end in *next.
+ * The interval's end e(x) moves with the step's own jerk x (Q1), with a
+ * slope s below 1 near the end jt is clamped to, so x = e(x) is reached
+ * from outside the interval geometrically (x - x* shrinks by s a round)
+ * and a round limit rejected jerks that exist: with 4 rounds of plain
+ * clamping, lissajous at J 1e4 took 7.7 s, with 8 rounds 5.0 s. From the
+ * second round the clamp takes a secant step to the fixed point of e
+ * through the last two rounds, a hair inside the interval; a jerk is still
+ * accepted only inside its own step's interval. */
+static int pick_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                   const struct at *a, double jt, double *j, struct at *next)
+{
+	double lo, hi, px = 0.0, pe = 0.0;
+	if (!a->ok) {
+		return 0;
+	}
+	double x = clamp(jt, a->jl, a->jh);
+	for (int i = 0; i < PICK_ROUNDS; i++) {
+		if (!range_at(sp, lim, a, x, &lo, &hi, next)) {
+			return 0;
+		}
+		if (lo <= x && x <= hi) {
+			*j = x;
+			return 1;
+		}
+		double e = clamp(jt, lo, hi), y = e;
+		if (i > 0 && x != px) {
+			double s = (e - pe) / (x - px);
+			if (s < 0.9) { /* the fixed point of e(x) = pe + s (x - px) */
+				double f = (e - s * x) / (1.0 - s);
+				y = f + (e < x ? -1.0 : 1.0) * 1e-7 * (fabs(f) + 1.0);
+			}
+		}
+		px = x;
+		pe = e;
+		x = y;
+	}
+	return 0;
+}
+
+int mlip_path_pick(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                   struct mlip_path_state st, double jt, double *j)
+{
+	struct at a, next;
+	at_make(sp, lim, &a, st, 0);
+	return pick_at(sp, lim, &a, jt, j, &next);
+}
+
+/* The policy i, within the limits' (0 when out of range). */
+static int policy(const struct mlip_path_limits *lim, int i)
+{
+	int n = lim->n_brake < 1
+	            ? 1
+	            : (lim->n_brake > MLIP_PATH_BRAKES ? MLIP_PATH_BRAKES : lim->n_brake);
+	return i >= 0 && i < n ? i : 0;
+}
+
+/* (Q3) from a, alo the low end of the (P1) interval at its point and speed
+ * (NAN: not yet computed); the step's end in *next. */
+static int brake_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                    const struct at *a, double alo, double *j, struct at *next)
+{
+	double T = lim->period, jh = a->jh;
+	struct mlip_path_state st = a->st;
+	if (!a->ok) {
+		return 0;
+	}
+	if (st.v <= lim->v_crawl ||
+	    (st.a < 0.0 && jh > 0.0 &&
+	     st.v - lim->v_crawl <= st.a * st.a / (2.0 * RELEASE_SHARE * jh))) {
+		return pick_at(sp, lim, a, -st.a / T, j, next); /* (Q3) release */
+	}
+	double ahi;
+	if (isnan(alo) && !mlip_path_accel_range(lim->n, &a->d, lim->accel, st.v, &alo, &ahi)) {
+		return 0;
+	}
+	double ab = lim->a_brake[policy(lim, st.brake)];
+	double target = alo > -ab ? alo : -ab, jt = a->jl;
+	if (st.a + a->jl * T < target) {
+		jt = (target - st.a) / T; /* (Q3) reach the target, not past it */
+	}
+	return pick_at(sp, lim, a, jt, j, next);
+}
+
+int mlip_path_brake(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                    struct mlip_path_state st, double *j)
+{
+	struct at a, next;
+	at_make(sp, lim, &a, st, 0);
+	return brake_at(sp, lim, &a, NAN, j, &next);
+}
+
+/* Within the speed cap, (P1) (its interval's low end in *alo), a non-empty
+ * (P2) interval, before the end. */
+static int inside(const struct mlip_path_limits *lim, const struct at *a, double end, double *alo)
+{
+	double hi;
+	struct mlip_path_state st = a->st;
+	if (!(st.v >= 0.0 && st.v <= lim->vmax && st.s <= end + 1e-9)) {
+		return 0;
+	}
+	if (!mlip_path_accel_range(lim->n, &a->d, lim->accel, st.v, alo, &hi) ||
+	    !(*alo - 1e-9 <= st.a && st.a <= hi + 1e-9)) {
+		return 0;
+	}
+	return a->ok;
+}
+
+static int certified_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                        const struct at *start, double end, int max_periods, long *work)
+{
+	struct at buf[2];
+	const struct at *a = start;
+	for (int i = 0; i < max_periods; i++) {
+		if (work) {
+			(*work)++;
+		}
+		double alo, j;
+		struct mlip_path_state st = a->st;
+		if (!inside(lim, a, end, &alo)) {
+			return 0;
+		}
+		if (st.v <= lim->v_crawl && fabs(st.a) < 1.0) {
+			return end - st.s >= st.v * END_TIME; /* (Q4) crawling, room to stop */
+		}
+		struct at *next = &buf[i & 1];
+		if (!brake_at(sp, lim, a, alo, &j, next)) {
+			return 0;
+		}
+		a = next;
+	}
+	return 0;
+}
+
+int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                        struct mlip_path_state st, double end, int max_periods, long *work)
+{
+	struct at a;
+	at_make(sp, lim, &a, st, 0);
+	return certified_at(sp, lim, &a, end, max_periods, work);
+}
+
+int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                          struct mlip_path_state *st, double end, int max_periods, long *work)
+{
+	static const double share[5] = {1.0, 0.75, 0.5, 0.25, 0.0};
+	struct at a, nx;
+	double j;
+	at_make(sp, lim, &a, *st, 0);
+	if (a.ok) {
+		for (int i = 0; i < 5; i++) {
+			if (!pick_at(sp, lim, &a, a.jl + share[i] * (a.jh - a.jl), &j, &nx)) {
+				break;
+			}
+			/* st's own policy first, then the others (Q4) */
+			int own = policy(lim, st->brake), nb = lim->n_brake < 1 ? 1 : lim->n_brake;
+			nb = nb > MLIP_PATH_BRAKES ? MLIP_PATH_BRAKES : nb;
+			for (int q = 0; q < nb; q++) {
+				nx.st.brake = q == 0 ? own : (q <= own ? q - 1 : q);
+				if (certified_at(sp, lim, &nx, end, max_periods, work)) {
+					*st = nx.st;
+					return 1;
+				}
+			}
+		}
+	}
+	/* the braking run's first step: st's run was certified (Q4) */
+	if (!brake_at(sp, lim, &a, NAN, &j, &nx)) {
+		return -1;
+	}
+	struct mlip_path_state n = nx.st;
+	if (n.v < 0.0) {
+		n.s = st->s;
+		n.v = 0.0;
+		n.a = 0.0;
+	}
+	*st = n;
+	return 0;
+}

@@ -1,0 +1,344 @@
+/*
+ * test_pathplan.c - one period of the path-speed plan along a spline
+ * (src/motion/pathplan.c, Q1-Q4): the whole-period jerk interval (Q2) holds
+ * every axis within J over the whole period and is tight on both sides;
+ * the greedy plan along a helix keeps J and A at every sample (third and
+ * second differences of the positions), never leaves the certified states,
+ * and uses them (0.95 J planned is reached), its peak speed at least 0.8 of
+ * the quasi-static speed (P3); the same along 80 mm of it in 0.05 mm pieces
+ * (one spline in the caller's arrays, several pieces crossed a period);
+ * with two braking policies, both used and the plan not slower.
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cmocka.h>
+
+#include "mlip/motion/pathplan.h"
+
+#define XORSHIFT_SEED 0x2545F4914F6CDD1Dull
+#include "xorshift.h"
+
+/* A helix of radius R, rising c a radian, sampled every `step` mm of arc:
+ * a spline of MLIP_PATH_WIN points. */
+static const double HR = 4.0, HC = 0.5;
+
+static void helix_spline(struct mlip_path_spline *sp, struct mlip_path_curve *cv, double step)
+{
+	double pts[MLIP_PATH_WIN][MLIP_MAX_AXES] = {{0}};
+	double L = sqrt(HR * HR + HC * HC);
+	for (int i = 0; i < MLIP_PATH_WIN; i++) {
+		double th = i * step / L;
+		pts[i][0] = HR * cos(th);
+		pts[i][1] = HR * sin(th);
+		pts[i][2] = HC * th;
+	}
+	assert_int_equal(
+	    mlip_path_spline_fit(sp, 3, (const double(*)[MLIP_MAX_AXES])pts, MLIP_PATH_WIN), 0);
+	mlip_path_spline_curve(sp, cv);
+}
+
+static void limits(struct mlip_path_limits *lim, double J)
+{
+	*lim = (struct mlip_path_limits){0};
+	lim->n = 3;
+	for (int k = 0; k < 3; k++) {
+		lim->accel[k] = 0.98 * 1000.0; /* the model's margins */
+		lim->jerk[k] = 0.95 * J;
+	}
+	lim->vmax = 0.995 * 200.0;
+	lim->a_brake[0] = 300.0;
+	lim->n_brake = 1;
+	lim->v_crawl = 2.0;
+	lim->period = 1e-3;
+}
+
+/* The worst |P2| / J over the step of jerk j from st, at 400 instants. */
+static double worst_jerk(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                         struct mlip_path_state st, double j)
+{
+	double w = 0.0;
+	for (int i = 0; i <= 400; i++) {
+		struct mlip_path_state at = mlip_path_advance(st, j, lim->period * i / 400.0);
+		struct mlip_path_point d;
+		mlip_path_spline_eval(sp, at.s, 0, NULL, &d);
+		for (int k = 0; k < lim->n; k++) {
+			double p2 = d.d1[k] * j + 3.0 * d.d2[k] * at.v * at.a +
+			            d.d3[k] * at.v * at.v * at.v; /* (P2) */
+			w = fmax(w, fabs(p2) / lim->jerk[k]);
+		}
+	}
+	return w;
+}
+
+/* A random state on the helix (s 0.5-5.5 mm, v 0-60 mm/s, a within 300
+ * mm/s^2) and its (P2) interval in [*jl, *jh]; 0 when that is empty. */
+static int random_state(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                        struct mlip_path_state *st, double *jl, double *jh)
+{
+	struct mlip_path_point d;
+	st->s = uni(0.5, 5.5);
+	st->v = uni(0.0, 60.0);
+	st->a = uni(-300.0, 300.0);
+	st->brake = 0;
+	mlip_path_spline_eval(sp, st->s, 0, NULL, &d);
+	return mlip_path_jerk_range(lim->n, &d, lim->jerk, st->v, st->a, jl, jh);
+}
+
+/* (Q2): a jerk in the interval keeps every axis within J over the whole
+ * period (the checkpoints suffice to 0.2 %, at 400 instants); a little
+ * outside either end, some instant exceeds it. The start's interval alone
+ * is not enough: some of its ends break J within the period. */
+static void test_period_range(void **state)
+{
+	(void)state;
+	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
+	struct mlip_path_limits lim;
+	helix_spline(&sp, &cv, 0.1);
+	limits(&lim, 1e4);
+	int checked = 0, start_only_breaks = 0;
+	for (int it = 0; it < 3000; it++) {
+		struct mlip_path_state st;
+		double lo, hi, jl, jh;
+		if (!random_state(&sp, &lim, &st, &jl, &jh)) {
+			continue;
+		}
+		for (int e = 0; e < 2; e++) {
+			if (worst_jerk(&sp, &lim, st, e ? jh : jl) > 1.0 + 1e-6) {
+				start_only_breaks++;
+			}
+		}
+		double j = jl + uni(0.0, 1.0) * (jh - jl);
+		if (!mlip_path_period_range(&cv, &lim, st, j, &lo, &hi) || !(lo <= j && j <= hi)) {
+			continue;
+		}
+		/* each end of the interval, as the end of its own step's interval
+		 * (the interval moves with the jerk through Q1: a fixed point, a
+		 * few rounds), a hair in and a little out */
+		for (int e = 0; e < 2; e++) {
+			double x = e ? hi : lo, l2 = lo, h2 = hi;
+			int ok = 1;
+			for (int r = 0; r < 8 && ok; r++) {
+				ok = mlip_path_period_range(&cv, &lim, st, x, &l2, &h2);
+				x = e ? h2 : l2;
+			}
+			if (!ok || !mlip_path_period_range(&cv, &lim, st, x, &l2, &h2) ||
+			    fabs((e ? h2 : l2) - x) > 1e-6 * (1.0 + fabs(x))) {
+				continue;
+			}
+			double span = h2 - l2;
+			double in = x + (e ? -1.0 : 1.0) * 1e-9 * span;
+			double out = x + (e ? 1.0 : -1.0) * 0.01 * (span + 1.0);
+			assert_true(worst_jerk(&sp, &lim, st, in) <= 1.002);
+			assert_true(worst_jerk(&sp, &lim, st, out) > 1.0);
+			checked++;
+		}
+	}
+	print_message("%d ends checked; %d ends of the start's interval break J\n", checked,
+	              start_only_breaks);
+	assert_true(checked > 1000);
+	assert_true(start_only_breaks > 0);
+}
+
+/* (Q2) pick toward a target beyond either end: the interval's end moves
+ * with the step's own jerk, so the jerk wanted is its fixed point. Pick
+ * finds an admissible jerk wherever the step at the start's end has an
+ * interval at all (four rounds of plain clamping often did not: it nears
+ * the fixed point from outside), and mostly at the end: within 0.1 % of
+ * the interval's span (a jerk that far further out is outside its own
+ * step's interval) in at least 90 % of the cases (where the binding
+ * checkpoint changes with the jerk, its secant step lands further in). */
+static void test_pick_at_the_end(void **state)
+{
+	(void)state;
+	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
+	struct mlip_path_limits lim;
+	helix_spline(&sp, &cv, 0.1);
+	limits(&lim, 1e4);
+	int tried = 0, found = 0, at_end = 0;
+	for (int it = 0; it < 2000; it++) {
+		struct mlip_path_state st;
+		double lo, hi, jl, jh, j;
+		if (!random_state(&sp, &lim, &st, &jl, &jh)) {
+			continue;
+		}
+		int up = it & 1;
+		if (!mlip_path_period_range(&cv, &lim, st, up ? jh : jl, &lo, &hi)) {
+			continue;
+		}
+		tried++;
+		if (!mlip_path_pick(&cv, &lim, st, up ? 1e9 : -1e9, &j)) {
+			continue;
+		}
+		found++;
+		assert_true(mlip_path_period_range(&cv, &lim, st, j, &lo, &hi));
+		assert_true(lo <= j && j <= hi);
+		double out = j + (up ? 1.0 : -1.0) * 1e-3 * (hi - lo + 1.0), l2 = 0.0, h2 = 0.0;
+		int ok = mlip_path_period_range(&cv, &lim, st, out, &l2, &h2);
+		at_end += !ok || out < l2 || out > h2;
+	}
+	print_message("pick at an end: %d of %d found, %d within 0.1 %% of it\n", found, tried,
+	              at_end);
+	assert_true(tried > 500);
+	assert_true(found >= tried * 99 / 100);
+	assert_true(at_end >= found * 9 / 10);
+}
+
+/* The curve's position and derivatives at s (by its own parameter). */
+static void at_s(const struct mlip_path_curve *cv, double s, double *x, struct mlip_path_point *d)
+{
+	mlip_path_spline_eval_piece(cv, mlip_path_spline_piece(cv, s, 0), s, x, d);
+}
+
+/* The plan along a curve from rest: every sample's jerk (third difference /
+ * T^3) within J and acceleration (second difference / T^2) within A on
+ * every axis, the plan within the certified states (the fallback always
+ * has a jerk), at the crawl near the end; its peak speed at least 0.8 of
+ * the quasi-static speed (P3) at the planned limits (not at most: with a
+ * path acceleration the per-axis box lets the plan pass it for a while). */
+static int plan_curve_lim(const struct mlip_path_curve *cv, double J,
+                          const struct mlip_path_limits *limp, int *policies)
+{
+	struct mlip_path_limits lim = *limp;
+	double end = cv->s[cv->count - 1];
+	struct mlip_path_state st = {0.0, 0.0, 0.0, 0};
+	static double x[40000][MLIP_MAX_AXES];
+	int n = 0, moved = 0;
+	long work = 0;
+	double vpeak = 0.0;
+	struct mlip_path_point d;
+	at_s(cv, 0.0, x[n++], &d);
+	while (!(st.v <= lim.v_crawl && fabs(st.a) < 1.0 && end - st.s < 1.0 && n > 10)) {
+		int r = mlip_path_plan_period(cv, &lim, &st, end, 3000, &work);
+		assert_true(r >= 0);
+		moved += r;
+		vpeak = fmax(vpeak, st.v);
+		*policies |= 1 << st.brake;
+		at_s(cv, st.s, x[n++], &d);
+		assert_true(n < 40000);
+	}
+	double T = lim.period, wj = 0.0, wa = 0.0;
+	for (int i = 3; i < n; i++) {
+		for (int k = 0; k < 3; k++) {
+			double j3 =
+			    (x[i][k] - 3.0 * x[i - 1][k] + 3.0 * x[i - 2][k] - x[i - 3][k]) /
+			    (T * T * T);
+			double a2 = (x[i][k] - 2.0 * x[i - 1][k] + x[i - 2][k]) / (T * T);
+			wj = fmax(wj, fabs(j3) / J);
+			wa = fmax(wa, fabs(a2) / 1000.0);
+		}
+	}
+	/* the quasi-static speed of the curve's middle (P3), by its parameter */
+	double vq = INFINITY;
+	for (double s = 0.25 * end; s <= 0.75 * end; s += 0.01) {
+		at_s(cv, s, NULL, &d);
+		vq = fmin(vq, mlip_path_vmax(3, &d, lim.accel, lim.jerk, lim.vmax));
+	}
+	print_message("J %g, %d points: %d periods, %d faster than braking, %ld run periods; "
+	              "jerk %.3f J, accel %.3f A, peak %.2f of vq %.2f\n",
+	              J, cv->count, n, moved, work, wj, wa, vpeak, vq);
+	assert_true(wj <= 1.0);
+	assert_true(wj >= 0.9); /* the plan uses the limit (0.95 J planned) */
+	assert_true(wa <= 1.0);
+	assert_true(vpeak >= 0.8 * vq);
+	assert_true(end - st.s < 1.0 && st.v <= lim.v_crawl);
+	return n;
+}
+
+static void plan_curve(const struct mlip_path_curve *cv, double J)
+{
+	struct mlip_path_limits lim;
+	int policies = 0;
+	limits(&lim, J);
+	plan_curve_lim(cv, J, &lim, &policies);
+	assert_int_equal(policies, 1);
+}
+
+static void plan_helix(double J)
+{
+	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
+	helix_spline(&sp, &cv, 0.4);
+	plan_curve(&cv, J);
+}
+
+static void test_plan_helix_1e4(void **state)
+{
+	(void)state;
+	plan_helix(1e4);
+}
+
+static void test_plan_helix_1e5(void **state)
+{
+	(void)state;
+	plan_helix(1e5);
+}
+
+/* A long curve in fine pieces, as `smooth` hands them (0.05 mm, several
+ * crossed a period at speed): the same helix over 1,600 points fitted as one
+ * spline in the caller's arrays (mlip_path_fit), planned at J = 1e5 from
+ * rest to rest with the same checks. */
+#define LONG_N 1600
+static double lp[LONG_N][MLIP_MAX_AXES], ls[LONG_N], lpp[LONG_N][MLIP_MAX_AXES];
+static double lm[LONG_N][MLIP_MAX_AXES], lb[LONG_N][MLIP_MAX_AXES], lt[LONG_N][MLIP_MAX_AXES],
+    lc[LONG_N];
+
+static void test_plan_long_fine_helix(void **state)
+{
+	(void)state;
+	double L = sqrt(HR * HR + HC * HC);
+	for (int i = 0; i < LONG_N; i++) {
+		double th = i * 0.05 / L;
+		lp[i][0] = HR * cos(th);
+		lp[i][1] = HR * sin(th);
+		lp[i][2] = HC * th;
+	}
+	struct mlip_path_curve cv;
+	assert_int_equal(mlip_path_fit(3, (const double(*)[MLIP_MAX_AXES])lp, LONG_N, ls, lpp, lm,
+	                               lb, lt, lc, &cv),
+	                 0);
+	assert_int_equal(cv.count, LONG_N);
+	plan_curve(&cv, 1e5);
+}
+
+/* Two braking policies (Q3, Q4: a state certified by either's run, the
+ * fallback following the one that certified it): the same checks, both
+ * policies used, and the plan not slower than with the gentle one alone
+ * on this helix (the hard one certifies states the gentle one cannot). */
+static void test_plan_helix_two_policies(void **state)
+{
+	(void)state;
+	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
+	struct mlip_path_limits lim;
+	helix_spline(&sp, &cv, 0.4);
+	limits(&lim, 1e5);
+	int one = 0, two = 0;
+	int n1 = plan_curve_lim(&cv, 1e5, &lim, &one);
+	lim.a_brake[0] = 900.0;
+	lim.a_brake[1] = 300.0;
+	lim.n_brake = 2;
+	int n2 = plan_curve_lim(&cv, 1e5, &lim, &two);
+	print_message("periods: %d with 300 mm/s^2, %d with 900 and 300\n", n1, n2);
+	assert_int_equal(one, 1);
+	assert_int_equal(two, 3);
+	assert_true(n2 <= n1);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test(test_period_range),
+	    cmocka_unit_test(test_pick_at_the_end),
+	    cmocka_unit_test(test_plan_helix_1e4),
+	    cmocka_unit_test(test_plan_helix_1e5),
+	    cmocka_unit_test(test_plan_long_fine_helix),
+	    cmocka_unit_test(test_plan_helix_two_policies),
+	};
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}
