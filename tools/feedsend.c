@@ -146,7 +146,7 @@ static int operator_stop(struct feed *f)
 		return EXIT_FAIL;
 	}
 	if (f->st.reason == MLIP_WHY_PROBE_NO_TRIP || f->st.reason == MLIP_WHY_PROBE_AT_START ||
-	    f->st.reason == MLIP_WHY_PROBE_INPUT) {
+	    f->st.reason == MLIP_WHY_PROBE_OFF_AT_START || f->st.reason == MLIP_WHY_PROBE_INPUT) {
 		/* a probe error ends the program at rest (LinuxCNC) */
 		say(": %s:%u: %s: the program stopped there, at rest\n", f->path,
 		    (unsigned)f->st.reason_line, mlip_state_why_name(f->st.reason));

@@ -314,7 +314,7 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		return;
 	case MLIP_STATE_IDLE:
 		if (r->why == MLIP_WHY_PROBE_NO_TRIP || r->why == MLIP_WHY_PROBE_AT_START ||
-		    r->why == MLIP_WHY_PROBE_INPUT) {
+		    r->why == MLIP_WHY_PROBE_OFF_AT_START || r->why == MLIP_WHY_PROBE_INPUT) {
 			fprintf(stderr,
 			        PROG
 			        ": G38 at line %u (block %llu): %s: the program stopped at rest, "

@@ -624,6 +624,7 @@ static int run(const struct options *o, struct sim *s)
 			                  ev->state == MLIP_STATE_IDLE &&
 			                  (ev->r.why == MLIP_WHY_PROBE_NO_TRIP ||
 			                   ev->r.why == MLIP_WHY_PROBE_AT_START ||
+			                   ev->r.why == MLIP_WHY_PROBE_OFF_AT_START ||
 			                   ev->r.why == MLIP_WHY_PROBE_INPUT);
 			if (ev->kind == MLIP_EV_STATE && ev->r.why == MLIP_WHY_PROBED &&
 			    out.status.probe_tripped && s->probe_trips++ == 0) {
@@ -632,6 +633,7 @@ static int run(const struct options *o, struct sim *s)
 			if (ev->kind == MLIP_EV_STATE && !o->quiet &&
 			    (ev->r.why == MLIP_WHY_PROBED || ev->r.why == MLIP_WHY_PROBE_NO_TRIP ||
 			     ev->r.why == MLIP_WHY_PROBE_AT_START ||
+			     ev->r.why == MLIP_WHY_PROBE_OFF_AT_START ||
 			     ev->r.why == MLIP_WHY_PROBE_INPUT)) {
 				print_probe(o, s, &out, ev, period);
 			}

@@ -202,7 +202,8 @@ mlip_status mlip_mio_probe_start(struct mlip_ctl *c, const struct mlip_ring_rec 
 		return MLIP_E_RANGE;
 	} else if (((c->mio.active & bit) != 0) != ((flags & MLIP_PROBE_AWAY) != 0)) {
 		/* G38.2/.3 with the probe already on, G38.4/.5 with it off */
-		why->why = MLIP_WHY_PROBE_AT_START;
+		why->why = (flags & MLIP_PROBE_AWAY) ? MLIP_WHY_PROBE_OFF_AT_START
+		                                     : MLIP_WHY_PROBE_AT_START;
 		why->value = (c->mio.active & bit) ? 1.0 : 0.0;
 		return MLIP_E_RANGE;
 	}
@@ -244,8 +245,11 @@ int mlip_mio_probe_arming(struct mlip_ctl *c, const struct mlip_ctl_in *in,
 		uint16_t st = in->drives.tp_status[k];
 		if (phase == TP_ARM && tp_fresh(c, in, k) &&
 		    (st & (MLIP_TP_POS_STORED | MLIP_TP_NEG_STORED) & tp_stored_bit(c))) {
-			/* an edge while armed at rest: the probe switched already */
-			why->why = MLIP_WHY_PROBE_AT_START;
+			/* an edge while armed at rest: the probe switched already
+			 * (G38.4/.5: it lost contact) */
+			why->why = (c->mio.probe_flags & MLIP_PROBE_AWAY)
+			               ? MLIP_WHY_PROBE_OFF_AT_START
+			               : MLIP_WHY_PROBE_AT_START;
 			why->node = (uint32_t)c->m.axis[k].can_node;
 			why->value = st;
 			return -1;

@@ -69,7 +69,8 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "probe already tripped at the start",
 	                                    "no probe input",
 	                                    "spindle to speed",
-	                                    "spindle fault"};
+	                                    "spindle fault",
+	                                    "probe not in contact at the start (G38.4/G38.5)"};
 
 	return NAME_OF(names, why);
 }

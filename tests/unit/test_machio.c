@@ -740,8 +740,9 @@ static void test_probe_no_trip(void **st)
 }
 
 /* Tripped at the start (G38.2/.3): the program stops, nothing moves; G38.4 (away)
- * with the probe off at the start: the same. G38.4 with it on trips when
- * it goes off. */
+ * with the probe off at the start: the same, the reason saying so (not
+ * "already tripped": the operator would look for a stuck probe). G38.4 with
+ * it on trips when it goes off. */
 static void test_probe_at_start_and_away(void **st)
 {
 	(void)st;
@@ -756,7 +757,16 @@ static void test_probe_at_start_and_away(void **st)
 	push_block(1, MLIP_BLOCK_PROBE, 5, 0, 10, MLIP_PROBE_AWAY | MLIP_PROBE_MUST_TRIP);
 	end(2);
 	until(MLIP_STATE_IDLE, 100);
-	assert_int_equal(out.status.reason, MLIP_WHY_PROBE_AT_START);
+	assert_string_equal(mlip_state_why_name(out.status.reason),
+	                    "probe not in contact at the start (G38.4/G38.5)");
+	assert_true(out.pos[0] == 0.0);
+	teardown(NULL);
+	setup(NULL);
+	push_block(1, MLIP_BLOCK_PROBE, 5, 0, 10, MLIP_PROBE_AWAY); /* G38.5: the same */
+	end(2);
+	until(MLIP_STATE_IDLE, 100);
+	assert_string_equal(mlip_state_why_name(out.status.reason),
+	                    "probe not in contact at the start (G38.4/G38.5)");
 	assert_true(out.pos[0] == 0.0);
 	teardown(NULL);
 	setup(NULL);

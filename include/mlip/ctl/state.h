@@ -112,20 +112,24 @@ typedef enum {
 	MLIP_WHY_PROBED, /* it ended at rest (reason_value 1: the probe tripped,
 	                    0: G38.3/G38.5 reached the target without a trip) */
 	/* a probe error stops the program at rest (IDLE, the rest dropped): */
-	MLIP_WHY_PROBE_NO_TRIP,  /* G38.2/G38.4 reached its target without a trip */
-	MLIP_WHY_PROBE_AT_START, /* the probe was already tripped (G38.2/.3), or not on
-	                            (G38.4/.5), when the move was to start */
-	MLIP_WHY_PROBE_INPUT,    /* a G38 with no probe input mapped or read, or the drives'
-	                            touch probe not switched on/off in time (reason_node:
-	                            the drive, reason_value: its 0x60B9) */
-	MLIP_WHY_SPINDLE_WAIT,   /* a CiA 402 spindle's M3/M4/S/M5: at rest (state DWELLING)
-	                            until it is at speed, or at standstill (reason_value:
-	                            the rpm asked) */
-	MLIP_WHY_SPINDLE_FAULT,  /* the spindle drive: state FAULT, the feed stopped on the
-	                            path; reason_node its node, reason_field the event
-	                            (mlip_drive_fault: fault bit, EMCY, heartbeat lost, ...,
-	                            SPINDLE_TIMEOUT, SPINDLE_OUT_OF_BAND), reason_value
-	                            its detail (statusword, code, ms, actual rpm) */
+	MLIP_WHY_PROBE_NO_TRIP,      /* G38.2/G38.4 reached its target without a trip */
+	MLIP_WHY_PROBE_AT_START,     /* the probe was already tripped (G38.2/.3) when the
+	                                move was to start (G38.4/.5: PROBE_OFF_AT_START) */
+	MLIP_WHY_PROBE_INPUT,        /* a G38 with no probe input mapped or read, or the drives'
+	                                touch probe not switched on/off in time (reason_node:
+	                                the drive, reason_value: its 0x60B9) */
+	MLIP_WHY_SPINDLE_WAIT,       /* a CiA 402 spindle's M3/M4/S/M5: at rest (state DWELLING)
+	                                until it is at speed, or at standstill (reason_value:
+	                                the rpm asked) */
+	MLIP_WHY_SPINDLE_FAULT,      /* the spindle drive: state FAULT, the feed stopped on the
+	                                path; reason_node its node, reason_field the event
+	                                (mlip_drive_fault: fault bit, EMCY, heartbeat lost, ...,
+	                                SPINDLE_TIMEOUT, SPINDLE_OUT_OF_BAND), reason_value
+	                                its detail (statusword, code, ms, actual rpm) */
+	MLIP_WHY_PROBE_OFF_AT_START, /* G38.4/.5 (away): the probe was not in contact
+	                                when the move was to start (a probe error
+	                                as PROBE_AT_START; last, so the numbers of
+	                                the reasons before it stay) */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 
