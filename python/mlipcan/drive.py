@@ -1070,7 +1070,9 @@ class Drive(SimDevice):
             self._set_state(P.SWITCH_ON_DISABLED, "quick stop done")  # 12
 
     def vel_actual(self) -> int:
-        return int(round(self.vel_f - self.load_drop))
+        # a load slows the spindle toward rest, never turns it the other way
+        mag = max(0.0, abs(self.vel_f) - self.load_drop)
+        return int(round(mag if self.vel_f >= 0 else -mag))
 
     def _velocity(self) -> None:
         """Profile velocity mode, one SYNC: the velocity ramps toward the target
@@ -1265,7 +1267,7 @@ class Drive(SimDevice):
                 self.rec.event(self.id, "moved", to=self.actual, state=self.state)
         elif what == "load":
             # a spindle drive: ARG counts/s of its velocity lost to a load it cannot
-            # hold (0: none); the ramp goes on, what it reports drops
+            # hold (0: none); the ramp goes on, what it reports drops (to 0 at most)
             self.load_drop = float(arg or "0")
         elif what == "touch-probe":
             # the touch probe wired to every drive's input 1 touches a surface

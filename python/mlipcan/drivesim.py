@@ -55,7 +55,7 @@ Fault injection (--inject at start, or a line "N:WHAT[=ARG]" appended to the
                           actual + COUNTS (refused in "operation enabled")
   N:absent / N:present    gone from the bus (no boot-up, SDO, heartbeat) / back
   N:load=COUNTS_S         a spindle (mode 3) loses COUNTS_S of its velocity to a load
-                          it cannot hold (0: none)
+                          it cannot hold, down to rest at most (0: none)
   N:touch-probe=COUNTS,below|above   a touch probe wired to every drive's touch
                           probe input 1 is on while drive N's position is at or
                           below (above) COUNTS (off: none); each drive with 0x60B8

@@ -79,11 +79,16 @@ def test_coolant_and_output_follow_the_program(sim, tmp_path):
             bad.write_text(text)
             rc, out, err = rig.feed(bad, timeout=120)
             assert rc == 1 and f"bad.ngc:{where}: error:" in err and what in err, (rc, err)
+        t_good = time.time()
         rc, out, err = rig.feed(ngc, timeout=600)
         assert rc == 0, err
         st = rig.status()
         assert st["coolant"] == {"mist": False, "flood": False} and st["outputs"] == {}, st
         assert "outputs    coolant off, module outputs all off" in rig.ctl("status").stdout
+    # the refused programs (their line 1 a move): nothing on the bus moved
+    refused = {(r["node"], r["target"]) for r in sim.sync_rows()
+               if t0 <= r["t"] < t_good and r["target"] is not None}
+    assert len(refused) <= 3 and len({n for n, t in refused}) == len(refused), refused
     io = {r["sync"]: r["outputs"][0] for r in io_after(sim, t0)}
     xs = [(s, t) for s, t in targets(sim, 1, t0) if t is not None]
     out_moving = []  # the outputs at every SYNC X moved at, by direction
@@ -103,6 +108,10 @@ def test_coolant_and_output_follow_the_program(sim, tmp_path):
     for s, o in sorted(io.items()):
         if not seq or seq[-1] != o:
             seq.append(o)
+    print(
+        f"[outputs] refused programs (M64/M62 P1 unmapped, G38.2 to the current position): "
+        f"targets on the bus meanwhile {sorted(refused)} (one per node: nothing moved)"
+    )
     print(
         f"[outputs] program: outputs byte 1 over the SYNCs {[hex(o) for o in seq]}, "
         f"{len(out_moving)} SYNCs of motion judged, off {off[0] - last_move} SYNCs after "
@@ -479,3 +488,156 @@ def test_probe_no_trip_and_touch_off(sim, tmp_path):
     assert abs(st["position"]["Z"] - latched) < 1e-9, st
     assert z3 and z3[-1] == want, (z3[-3:], want)
     assert -3 * 80 <= want - surface <= 80, (want, surface)  # the trip: near the surface
+
+
+def home_z0(rig, tmp_path):
+    """A move, wherever Z stands, to X0 Y0 Z0 (the program ends there)."""
+    home = tmp_path / "home.ngc"
+    home.write_text("G21 G90\nG0 X0 Y0 Z1\nG0 Z0\nM2\n")
+    rc, out, err = rig.feed(home, timeout=600)
+    assert rc == 0, err
+    return rig.wait_state("idle", timeout=300)
+
+
+def probe_level(rig, on):
+    """The controller sees the module's probe input at `on`."""
+    return rig.wait_state("idle", timeout=60, pred=lambda s: s["inputs"].get("probe") is on)
+
+
+def test_module_probe_on_at_start(sim, tmp_path):
+    """The probe on the I/O module (input bit 3) already on where Z stands:
+    G38.2 and G38.3 are refused at their line (exit 5, "probe already
+    tripped at the start") with nothing moving: Z's target on the bus stays
+    at 0, the move after the G38 never on the bus, no G38 result."""
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "p.ngc"
+    surface = 1000  # counts: the probe is on at and below Z 1 mm, so at Z0
+    results = []
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        home_z0(rig, tmp_path)
+        sim.inject(f"{IO}:probe=1.3,3,{surface},below")
+        try:
+            probe_level(rig, True)
+            t0 = time.time()
+            for code in ("G38.2", "G38.3"):
+                ngc.write_text(f"G21 G90\n{code} Z-5 F120\nG0 X3 Z5\nM2\n")
+                rc, out, err = rig.feed(ngc, timeout=600)
+                results.append((code, rc))
+                assert rc == 5 and "p.ngc:2: probe already tripped at the start" in err, (
+                    code, rc, err)
+                st = rig.wait_state("idle", timeout=300)
+                assert st["probe"] is None, st  # no G38 result: it never started
+                assert abs(st["position"]["Z"]) < 1e-9 and abs(st["position"]["X"]) < 1e-9, st
+            t1 = time.time()
+        finally:
+            sim.inject(f"{IO}:probe=off")
+            sim.inject(f"{IO}:input=1.3=0")
+    # the records lag the bus in the emulated VM: to the SYNCs after the refusals
+    sim.wait_sync_rows(lambda rs: any(r["node"] == 3 and r["t"] >= t1 for r in rs), timeout=120)
+    zs = {t for s, t in targets(sim, 3, t0) if t is not None and s <= max_sync(sim, t1)}
+    xs = {t for s, t in targets(sim, 1, t0) if t is not None and s <= max_sync(sim, t1)}
+    print(f"[probe] module probe on at Z0 (surface {surface} counts): {results} "
+          f"(exit codes), Z's targets on the bus meanwhile {sorted(zs)}, X's {sorted(xs)}")
+    assert zs <= {0} and xs <= {0}, (zs, xs)
+
+
+def max_sync(sim, t):
+    """The last SYNC the simulator recorded before time t."""
+    return max(r["sync"] for r in sim.sync_rows() if r["t"] <= t)
+
+
+def test_probe_away_g38_4_g38_5(sim, tmp_path):
+    """G38.4 / G38.5, probing away from the workpiece with the probe on the
+    I/O module: from Z0 in contact (the probe on at and below Z 1 mm), the
+    move up trips on losing contact: the latched Z against the surface, Z
+    braking inside its acceleration well short of the target, the program
+    going on. G38.5 the same; G38.5 that never loses contact reaches its
+    target and the program goes on (#5070 = 0); G38.4 that never loses it
+    stops the program there (exit 5, the move after it never on the bus);
+    G38.4 with the probe not in contact at the start is refused, nothing
+    moving."""
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "p.ngc"
+    surface = 1000  # counts
+    feed_mm_min = 120.0  # 2 mm/s: 80 counts a period
+    per_period = feed_mm_min / 60.0 * PERIOD_S * CPU
+    got = {}
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        home_z0(rig, tmp_path)
+        sim.inject(f"{IO}:probe=1.3,3,{surface},below")
+        try:
+            probe_level(rig, True)
+            for code in ("G38.4", "G38.5"):
+                t0 = time.time()
+                ngc.write_text(f"G21 G90\n{code} Z5 F{feed_mm_min:g}\nG0 Z0\nM2\n")
+                rc, out, err = rig.feed(ngc, timeout=600)
+                assert rc == 0, (code, err)
+                st = rig.wait_state("idle", timeout=300)
+                pr = st["probe"]
+                assert pr["tripped"] is True and pr["line"] == 2, (code, st)
+                assert pr["parameters"]["5070"] == 1 and pr["parameters"]["5063"] == pr[
+                    "position"]["Z"], pr
+                assert abs(st["position"]["Z"]) < 1e-9, st  # the program went on: G0 Z0
+                probe_level(rig, True)  # back in contact at Z0
+                got[code] = (t0, time.time(), round(pr["position"]["Z"] * CPU))
+            # in contact up to Z 10 mm: G38.5 to Z3 reaches it, G38.4 stops there
+            sim.inject(f"{IO}:probe=1.3,3,10000,below")
+            ngc.write_text("G21 G90\nG38.5 Z3 F300\nG0 Z0\nM2\n")
+            rc, out, err = rig.feed(ngc, timeout=600)
+            assert rc == 0, err
+            st = rig.wait_state("idle", timeout=300)
+            pr = st["probe"]
+            assert pr["tripped"] is False and pr["parameters"]["5070"] == 0, st
+            assert abs(pr["position"]["Z"] - 3.0) < 1e-9 and abs(st["position"]["Z"]) < 1e-9, st
+            t_g384 = time.time()
+            ngc.write_text("G21 G90\nG38.4 Z3 F300\nG0 Z0\nM2\n")
+            rc, out, err = rig.feed(ngc, timeout=600)
+            assert rc == 5 and "p.ngc:2: probe not tripped (G38.2/G38.4)" in err, (rc, err)
+            st = rig.wait_state("idle", timeout=300)
+            assert abs(st["position"]["Z"] - 3.0) < 1e-9, st  # at rest at its target
+            # out of contact (the probe lifted off): G38.4 refused at its line
+            sim.inject(f"{IO}:probe=off")
+            sim.inject(f"{IO}:input=1.3=0")
+            probe_level(rig, False)
+            t_off = time.time()
+            ngc.write_text("G21 G90\nG38.4 Z5 F300\nG0 Z0\nM2\n")
+            rc, out, err = rig.feed(ngc, timeout=600)
+            assert rc == 5 and "p.ngc:2: probe not in contact at the start" in err, (rc, err)
+            st = rig.wait_state("idle", timeout=300)
+            assert abs(st["position"]["Z"] - 3.0) < 1e-9, st
+            t_end = time.time()
+        finally:
+            sim.inject(f"{IO}:probe=off")
+            sim.inject(f"{IO}:input=1.3=0")
+    sim.wait_sync_rows(lambda rs: any(r["node"] == 3 and r["t"] >= t_end for r in rs),
+                       timeout=120)
+    line = []
+    for code, (t0, t1, latched) in got.items():
+        zs = [t for s, t in targets(sim, 3, t0) if t is not None and s <= max_sync(sim, t1)]
+        top = max(zs)
+        i_top = zs.index(top)
+        up = zs[: i_top + 1]
+        acc = (max((abs(c - 2 * b + a) for a, b, c in zip(up, up[1:], up[2:])), default=0)
+               / (PERIOD_S**2) / CPU)
+        err_counts = latched - surface
+        line.append(f"{code}: latched {latched} counts (error {err_counts:+d}, "
+                    f"{err_counts / per_period:+.2f} periods of travel), at rest at {top} "
+                    f"counts, max acceleration on the way up {acc:.1f} mm/s^2")
+        # lost contact above the surface: the drive's position in the period
+        # the module's frame arrived (at most a period before it is read,
+        # up to three periods of travel beyond)
+        assert -per_period <= err_counts <= 3 * per_period, (code, err_counts)
+        # stopped by the trip: well short of Z5, beyond the latch by at most
+        # a few periods of reaction and v^2/2A
+        v = feed_mm_min / 60.0
+        react = (10 if S.in_vm else 4) * per_period
+        assert latched <= top <= latched + react + v * v / 2000.0 * CPU, (code, top)
+        assert acc <= 1000.0 * (1 + 1e-9) + 2 / (PERIOD_S**2) / CPU, (code, acc)
+    z4 = [t for s, t in targets(sim, 3, t_g384) if t is not None and s <= max_sync(sim, t_off)]
+    z_off = {t for s, t in targets(sim, 3, t_off) if t is not None}
+    print(f"[probe] away, surface {surface} counts: " + "; ".join(line) +
+          f"; G38.5 in contact to Z3: untripped, went on; G38.4 in contact to Z3: exit 5, "
+          f"Z at {z4[-1]} counts (max {max(z4)}); G38.4 out of contact: exit 5, Z's targets "
+          f"{sorted(z_off)}")
+    assert z4[-1] == 3000 and max(z4) == 3000, z4[-5:]  # the G0 Z0 never on the bus
+    assert z_off <= {3000}, z_off  # nothing moved

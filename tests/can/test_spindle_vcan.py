@@ -23,7 +23,7 @@ import time
 
 import pytest
 
-from conftest import DRIVES_VM, S
+from conftest import DRIVES_VM, IO, S
 from mlipcan import procs
 
 MILL = S.config_dir / "mill-3axis.ini"
@@ -58,19 +58,40 @@ M2
 """
 
 
-def machine(tmp):
+# the I/O module (node IO): the E-stop circuit (input bit 0, a normally
+# closed contact) and the coolant, for the tests of a spindle with them
+IO_TAIL = f"""
+[IO]
+NODE = {IO}
+ESTOP = {IO} 0x6000:1 0 LOW
+
+[COOLANT]
+TYPE = io
+MIST = {IO} 0x6200:1 0
+FLOOD = {IO} 0x6200:1 1
+"""
+FLOOD = 0x02
+
+
+def machine(tmp, tail="", spindle=CONFIG_TAIL):
+    """mill-3axis at 40 ms with the spindle (spindle: DRIVES_VM and
+    [SPINDLE]), tail: further sections (IO_TAIL)."""
     text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
     text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
     text = re.sub(r"^\[SPINDLE\].*", "", text, flags=re.M | re.S)  # none in it; ours below
     path = tmp / "spindle.ini"
-    path.write_text(text + CONFIG_TAIL)
+    path.write_text(text + spindle + tail)
     return path
 
 
 @pytest.fixture(scope="module")
 def sim(vcan, tmp_path_factory):
+    """The axis drives, the spindle drive and an I/O module (its E-stop
+    circuit closed from power-up; only the tests whose config has [IO]
+    bring it up, the others leave it pre-operational) in one simulator."""
     w = tmp_path_factory.mktemp("spsim")
-    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3, SP])
+    s = procs.DriveSimProc(S, w, nodes=[1, 2, 3, SP], args=["--io", IO],
+                           inject=[f"{IO}:input=1.0=1"])
     yield s
     s.stop()
 
@@ -254,20 +275,38 @@ def test_stop_zeroes_target_and_fault_stops_on_path(sim, tmp_path):
     assert "spindle fault: node 5 (spindle)" in rig.result["rt_stderr"], rig.result["rt_stderr"]
     rows = sim.wait_sync_rows(lambda r: True)
     t_fault = sim.events("emcy", SP)[-1]["t"]
-    tg = {s: v for s, v in axis_targets(rows, sync1).items()}
     s_fault = max(r["sync"] for r in rows if r["node"] == SP and r["t"] <= t_fault)
-    xs = sorted(s for s in tg if s >= s_fault)
-    steps = [tg[b][0] - tg[a][0] for a, b in zip(xs, xs[1:])]
-    # on the path (a line along X: Y and Z never change), braking only: no step
-    # larger than the one before by more than the counts' rounding, then rest
-    assert all(tg[s][1:] == tg[xs[0]][1:] for s in xs), "left the path"
-    assert all(b <= a + 1 for a, b in zip(steps, steps[1:])), steps[:40]
-    assert steps[-1] == 0
-    a_max = max(a - b for a, b in zip(steps, steps[1:])) / 1000.0 / PERIOD_S**2  # mm/s^2
-    n_brake = next(i for i, d in enumerate(steps) if d == 0)
+    n_brake, a_max = braked_on_path(axis_targets(rows, sync1), s_fault)
     print(f"[spindle] fault mid-cut at SYNC {s_fault}: X at rest {n_brake} periods later, "
           f"largest deceleration {a_max:.0f} mm/s^2 (limit 1000)")
-    assert a_max <= 1000 * 1.02 + 1e-9
+
+
+def braked_on_path(tg, s_from):
+    """From SYNC s_from on, a cut along X (tg: axis_targets) went on at its
+    speed, then braked to rest on the path: Y and Z never change, no step
+    of X larger than the one before by more than the counts' rounding, at
+    rest at the end, the deceleration within X's limit (1000 mm/s^2, 2 %).
+    Returns (periods from s_from to rest, the largest deceleration mm/s^2)."""
+    xs = sorted(s for s in tg if s >= s_from)
+    steps = [tg[b][0] - tg[a][0] for a, b in zip(xs, xs[1:])]
+    assert all(tg[s][1:] == tg[xs[0]][1:] for s in xs), "left the path"
+    assert all(b <= a + 1 for a, b in zip(steps, steps[1:])), steps[:40]
+    assert steps and steps[-1] == 0, steps[-5:]
+    a_max = max(a - b for a, b in zip(steps, steps[1:])) / 1000.0 / PERIOD_S**2  # mm/s^2
+    assert a_max <= 1000 * 1.02 + 1e-9, a_max
+    return next(i for i, d in enumerate(steps) if d == 0), a_max
+
+
+def x_brake_sync(tg, after):
+    """The first SYNC after `after` at which X, having cut at its largest
+    step, steps less (the first braking target); None if it never did."""
+    xs = sorted(s for s in tg if s > after)
+    steps = {b: tg[b][0] - tg[a][0] for a, b in zip(xs, xs[1:])}
+    if not steps:
+        return None
+    vmax = max(steps.values())
+    s_cruise = min(s for s in steps if steps[s] == vmax)
+    return min((s for s in steps if s > s_cruise and steps[s] < vmax - 1), default=None)
 
 
 def test_mdi_spindle_stays_on(sim, tmp_path):
@@ -334,3 +373,236 @@ def test_mdi_spindle_stays_on(sim, tmp_path):
     # emulated VM takes up to seconds), then 0 at every SYNC
     assert 0 <= s_zero - s_req <= (75 if S.in_vm else 5), (s_req, s_zero)
     assert all(r["target"] in (0, None) for r in sp if r["sync"] >= s_zero)
+
+
+# a cut along X after the spindle is at speed: 10 mm/s (400 counts a period)
+# for up to 12 s from X0, time for a heartbeat timeout (4 s) within it
+CUT = """G21 G90
+G0 X0 Y0 Z0
+{io}M3 S4500
+G1 X120 F600
+M2
+"""
+
+
+def counts(rpm_):
+    return round(rpm_ * CPR / 60)
+
+
+def cutting_with_flood(rig, ngc):
+    """mlip-feed on ngc (CUT with M8), started; returns once X cuts with the
+    spindle at speed and the flood on."""
+    feed = rig.feeder(ngc)
+    st = rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] > 5.0)
+    assert st["coolant"]["flood"] is True and st["spindle"]["state"] == "at speed", st
+    return feed
+
+
+def test_at_speed_timeout_is_a_fault(sim, tmp_path):
+    """A spindle that never gets to speed (a load it cannot hold takes 1000
+    rpm off its 6000): AT_SPEED_TIMEOUT (3 s, 75 periods) ends the wait in
+    a fault naming the spindle, its target 0 on the bus after the timeout
+    (never before), and no axis ever moved from where the M3 found it."""
+    timeout_s = 3.0
+    cfg = machine(tmp_path, spindle=CONFIG_TAIL.replace("AT_SPEED_TIMEOUT = 60",
+                                                        f"AT_SPEED_TIMEOUT = {timeout_s:g}"))
+    ngc = tmp_path / "start.ngc"
+    ngc.write_text("G21 G90\nG0 X5 Y2\nM3 S6000\nG1 X25 Y10 F1200\nM2\n")
+    sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
+    load = counts(1000)
+    sim.inject(f"{SP}:load={load}")
+    try:
+        with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+            feed = rig.feeder(ngc)
+            st = rig.wait_state("fault", timeout=300)
+            assert st["reason"] == "spindle fault" and st["reason_node"] == SP, st
+            assert st["reason_field"] == "spindle not at speed in time", st
+            assert abs(st["reason_value"] - 5000) <= 100, st  # 6000 rpm less the load
+            assert feed.p.wait(timeout=300) != 0, feed.stderr()
+            t_end = time.time()
+    finally:
+        sim.inject(f"{SP}:load=0")
+    assert "spindle fault: node 5 (spindle): spindle not at speed in time: at " in rig.result[
+        "rt_stderr"], rig.result["rt_stderr"][-2000:]
+    rows = sim.wait_sync_rows(lambda rs: any(
+        r["node"] == SP and r["target"] == 0 and r["t"] >= t_end for r in rs), timeout=120)
+    sp = rows_by(rows, SP, sync0)
+    on = counts(6000)
+    s_cmd = min(r["sync"] for r in sp if r["target"] == on)
+    s_zero = min(r["sync"] for r in sp if r["sync"] > s_cmd and r["target"] == 0)
+    turning = [r for r in sp if s_cmd <= r["sync"] < s_zero]
+    top = max(rpm(r["actual"]) for r in turning)
+    # never at speed: neither target reached nor within the band
+    assert not any(r["sw"] & 0x0400 for r in turning), [hex(r["sw"]) for r in turning][-5:]
+    assert top < 6000 - 100, top
+    # the axes: at X5 Y2 from the M3 to the end (the feed never started)
+    tg = axis_targets(rows, sync0)
+    held = {v for s, v in tg.items() if s >= s_cmd}
+    assert len(held) == 1 and next(iter(held))[:2] == (5000, 2000), held
+    periods = round(timeout_s / PERIOD_S)
+    wait = s_zero - s_cmd
+    print(f"[spindle] at-speed timeout {timeout_s:g} s ({periods} periods), 1000 rpm of load: "
+          f"target {on} counts/s applied at SYNC {s_cmd}, at most {top:.0f} rpm reported, "
+          f"target 0 (fault) at SYNC {s_zero}: {wait} periods; axes held at X5 Y2 over "
+          f"{len([s for s in tg if s >= s_cmd])} SYNCs")
+    # the fault when the timeout ran out: not before (a SYNC of the records'
+    # jitter), a few periods of reading and sending after it
+    assert periods - 1 <= wait <= periods + (15 if S.in_vm else 4), (wait, periods)
+
+
+def test_heartbeat_lost_mid_cut(sim, tmp_path):
+    """The spindle drive's heartbeat stops while X cuts: after
+    HEARTBEAT_TIMEOUT_MS (4 s) a fault naming the spindle ("heartbeat
+    lost"), X braking to rest on the path within its acceleration, the
+    spindle told 0 (a drive whose heartbeat is lost may still listen)."""
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "cut.ngc"
+    ngc.write_text(CUT.format(io=""))
+    sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        feed = rig.feeder(ngc)
+        rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] > 5.0)
+        t_inj = time.time()
+        sim.inject(f"{SP}:heartbeat=off")
+        try:
+            st = rig.wait_state("fault", timeout=120)
+            t_fault = time.time()
+            assert st["reason"] == "spindle fault" and st["reason_node"] == SP, st
+            assert st["reason_field"] == "heartbeat lost", st
+            rig.wait_state("fault", timeout=120, pred=lambda s: s["speed_mm_s"] == 0.0)
+            assert feed.p.wait(timeout=300) != 0, feed.stderr()
+            t_end = time.time()
+        finally:
+            sim.inject(f"{SP}:heartbeat=on")
+    m = re.search(r"spindle fault: node 5 \(spindle\): heartbeat lost: no heartbeat for (\d+) ms",
+                  rig.result["rt_stderr"])
+    assert m, rig.result["rt_stderr"][-2000:]
+    silent_ms = int(m.group(1))
+    rows = sim.wait_sync_rows(lambda rs: any(
+        r["node"] == 1 and r["t"] >= t_end for r in rs), timeout=120)
+    s_inj = max(r["sync"] for r in rows if r["node"] == SP and r["t"] <= t_inj)
+    tg = axis_targets(rows, sync0)
+    s_brake = x_brake_sync(tg, s_inj)
+    assert s_brake is not None, sorted(tg.items())[-5:]
+    n_brake, a_max = braked_on_path(tg, s_inj)
+    sp = rows_by(rows, SP, s_inj)
+    s_zero = min((r["sync"] for r in sp if r["target"] == 0), default=None)
+    x_at = tg[s_brake][0]
+    print(f"[spindle] heartbeat off at SYNC {s_inj}: fault after {silent_ms} ms without one "
+          f"(timeout 4000 ms), seen {t_fault - t_inj:.1f} s after the injection, X braking "
+          f"from SYNC {s_brake} ({(s_brake - s_inj) * PERIOD_S:.2f} s "
+          f"of SYNCs) at {x_at} counts, at rest {n_brake} periods after the injection, "
+          f"largest deceleration {a_max:.0f} mm/s^2; spindle target 0 at SYNC {s_zero}")
+    # the heartbeat timeout: not before 4 s without one (its last came at most
+    # a heartbeat period, 100 ms, before the injection), X still cutting till
+    # then, well short of X120
+    assert 4000 <= silent_ms <= 4000 + (2000 if S.in_vm else 200), silent_ms
+    assert t_fault - t_inj >= 4.0 - 0.1 - 0.05, t_fault - t_inj
+    assert s_brake - s_inj >= 10 and x_at < 110000, (s_inj, s_brake, x_at)
+    assert s_zero is not None and -1 <= s_zero - s_brake <= 1, (s_brake, s_zero)
+    assert all(r["target"] in (0, None) for r in sp if r["sync"] >= s_zero)
+
+
+def test_out_of_band_mid_cut_stops_feed_and_outputs(sim, tmp_path):
+    """At speed and cutting with the flood coolant on, the spindle loses 500
+    rpm to a load (band 100 rpm, BAND_TIME 0.2 s = 5 periods): a fault
+    naming the spindle ("speed out of its band") after the band time, not
+    at the first sample out of it; X brakes to rest on the path; the spindle
+    told 0 and the module's outputs off in the period X starts braking."""
+    cfg = machine(tmp_path, IO_TAIL)
+    ngc = tmp_path / "cut.ngc"
+    ngc.write_text(CUT.format(io="M8\n"))
+    sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
+    t0 = time.time()
+    drop = 500
+    try:
+        with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+            feed = cutting_with_flood(rig, ngc)
+            t_inj = time.time()
+            sim.inject(f"{SP}:load={counts(drop)}")
+            st = rig.wait_state("fault", timeout=120)
+            assert st["reason"] == "spindle fault" and st["reason_node"] == SP, st
+            assert st["reason_field"] == "spindle speed out of its band", st
+            # the speed reported when the band time ran out: what the load left
+            assert abs(st["reason_value"] - (4500 - drop)) <= 100, st
+            st = rig.wait_state("fault", timeout=120, pred=lambda s: s["speed_mm_s"] == 0.0)
+            assert st["coolant"] == {"mist": False, "flood": False}, st
+            assert feed.p.wait(timeout=300) != 0, feed.stderr()
+            t_end = time.time()
+    finally:
+        sim.inject(f"{SP}:load=0")
+    assert "out of AT_SPEED_BAND" in rig.result["rt_stderr"], rig.result["rt_stderr"][-2000:]
+    rows = sim.wait_sync_rows(lambda rs: any(
+        r["node"] == 1 and r["t"] >= t_end for r in rs), timeout=120)
+    sp = rows_by(rows, SP, sync0)
+    s_inj = max(r["sync"] for r in sp if r["t"] <= t_inj)
+    # the first SYNC whose TPDO reported the speed out of the band
+    s_out = min(r["sync"] for r in sp if r["sync"] >= s_inj and abs(rpm(r["actual"]) - 4500) > 100)
+    tg = axis_targets(rows, sync0)
+    s_brake = x_brake_sync(tg, s_inj)
+    assert s_brake is not None, sorted(tg.items())[-5:]
+    n_brake, a_max = braked_on_path(tg, s_inj)
+    s_zero = min(r["sync"] for r in sp if r["sync"] >= s_inj and r["target"] == 0)
+    io = [(r["sync"], r["outputs"][0]) for r in sim.io_rows() if r["node"] == IO and r["t"] >= t0]
+    on = [s for s, o in io if o & FLOOD]
+    assert on and min(on) < s_inj, io[:10]
+    s_off = min(s for s, o in io if s > s_inj and not o & FLOOD)
+    band_periods = round(0.2 / PERIOD_S)
+    print(f"[spindle] load {drop} rpm at SYNC {s_inj}: out of the band in the TPDO of SYNC "
+          f"{s_out}, X braking from SYNC {s_brake} ({s_brake - s_out} periods; BAND_TIME "
+          f"{band_periods} periods), at rest {n_brake} periods after the load, largest "
+          f"deceleration {a_max:.0f} mm/s^2; spindle target 0 at SYNC {s_zero}, flood off "
+          f"at SYNC {s_off}")
+    # after the band time, not at the first sample out of it; then a few
+    # periods of reading and sending (many more in the emulated VM)
+    assert band_periods <= s_brake - s_out <= band_periods + (15 if S.in_vm else 4)
+    assert -1 <= s_zero - s_brake <= 1, (s_brake, s_zero)
+    assert -1 <= s_off - s_brake <= 1, (s_brake, s_off)
+
+
+def test_estop_stops_spindle_and_outputs(sim, tmp_path):
+    """The E-stop circuit opens while X cuts with the spindle at 4500 rpm and
+    the flood on: the spindle's controlword is the quick stop and its
+    target 0 in the period the axes' quick stop goes out, the module's
+    outputs off with it; every target 0 after it, through the reset (which
+    waits for the spindle at rest)."""
+    cfg = machine(tmp_path, IO_TAIL)
+    ngc = tmp_path / "cut.ngc"
+    ngc.write_text(CUT.format(io="M8\n"))
+    t0 = time.time()
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        feed = cutting_with_flood(rig, ngc)
+        t_estop = time.time()
+        sim.inject(f"{IO}:input=1.0=0")
+        st = rig.wait_state("estop", timeout=60)
+        assert st["spindle"]["commanded_rpm"] == 0, st
+        feed.p.wait(timeout=120)
+        sim.inject(f"{IO}:input=1.0=1")
+        rig.wait_state("estop", timeout=60, pred=lambda s: s["inputs"]["estop"] is False)
+        rig.ctl("reset")
+        st = rig.wait_state("idle", timeout=120)
+        assert st["spindle"]["commanded_rpm"] == 0 and abs(st["spindle"]["actual_rpm"]) <= 100
+        t_end = time.time()
+    rows = sim.wait_sync_rows(lambda rs: any(
+        r["node"] == SP and r["t"] >= t_end for r in rs), timeout=120)
+    qs = min(r["sync"] for r in rows if r["node"] == 1 and r["t"] >= t_estop and r["cw"] == 0x0002)
+    sp = [r for r in rows if r["node"] == SP and r["t"] >= t0]
+    assert any(r["target"] == counts(4500) for r in sp if r["sync"] < qs), sp[-3:]
+    s_zero = min(r["sync"] for r in sp if r["t"] >= t_estop and r["target"] == 0)
+    sp_qs = min(r["sync"] for r in sp if r["t"] >= t_estop and r["cw"] == 0x0002)
+    io = [(r["sync"], r["outputs"][0]) for r in sim.io_rows() if r["node"] == IO and r["t"] >= t0]
+    on = [s for s, o in io if o & FLOOD]
+    assert on and min(on) < qs, io[:10]
+    s_off = min(s for s, o in io if s > min(on) and not o & FLOOD)
+    at = next(r for r in sp if r["sync"] == s_zero)
+    still = min((r["sync"] for r in sp if r["sync"] > s_zero and abs(rpm(r["actual"])) <= 100),
+                default=None)
+    print(f"[spindle] E-stop: axes' quick stop at SYNC {qs}, spindle's quick stop at SYNC "
+          f"{sp_qs} and target 0 at SYNC {s_zero} ({s_zero - qs:+d}; turning at "
+          f"{rpm(at['actual']):.0f} rpm), at rest by SYNC {still}, flood off at SYNC {s_off} "
+          f"({s_off - qs:+d})")
+    assert -1 <= s_zero - qs <= 1 and -1 <= sp_qs - qs <= 1, (qs, s_zero, sp_qs)
+    assert -1 <= s_off - qs <= 1, (qs, s_off)
+    assert abs(rpm(at["actual"])) > 1000, at  # it was turning: the stop was the E-stop's
+    assert all(r["target"] in (0, None) for r in sp if r["sync"] >= s_zero)
+    assert still is not None
