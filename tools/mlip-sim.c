@@ -471,8 +471,12 @@ static int set_up(const struct options *o, struct sim *s)
 			return 2;
 		}
 	}
+	double at[MLIP_MAX_AXES] = {0};
+	for (int k = 0; k < m->n_axes; k++) {
+		at[k] = m->axis[k].home; /* where the controller starts */
+	}
 	mlip_probesim_start(&s->probe, s->cfg.inputs.probe_source == MLIP_PROBE_SRC_DRIVE,
-	                    m->n_axes);
+	                    m->n_axes, at);
 	s->fdr =
 	    (struct feeder){.src = {.p = &s->prog, .feed = o->feed}, .end_line = s->prog.lines};
 
@@ -646,8 +650,8 @@ static int run(const struct options *o, struct sim *s)
 			mlip_check_sample(&s->chk, out.pos);
 			s->rows = s->trace.rows;
 		}
-		if (s->trace.ended) {
-			return 0;
+		if (s->trace.ended || (s->probe_error && out.status.state == MLIP_STATE_IDLE)) {
+			return 0; /* a probe error before any motion (G38 first) ends it too */
 		}
 		if (out.status.state == MLIP_STATE_FAULT) {
 			fprintf(stderr, PROG ": controller fault (%s) at record %llu (line %u)\n",

@@ -281,6 +281,31 @@ def test_sim_probe_surface(tmp_path):
     assert f"{drv}: warning: [PROBE] SOURCE = drive without [IO] PROBE" in p.stderr, p.stderr
 
 
+def test_sim_probe_state_at_the_start(tmp_path):
+    """mlip-sim --probe-surface with the probe on the I/O module: its input
+    in the first period reads where the axes stand (HOME): G38.2 with Z0 on
+    a surface at Z1 (below: on at and below it) is "already tripped at the
+    start"; G38.4 from there probes away and trips at Z1 within a period's
+    travel; G38.4 where the probe touches nothing is "not in contact at the
+    start". A program stopped by its first G38 ends (exit 5), at once."""
+    base = (CONFIG / "mill-3axis.ini").read_text()
+    io = tmp_path / "io.ini"
+    io.write_text(base + "\n[IO]\nNODE = 10\nPROBE = 10 0x6000:1 3 HIGH\n")
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90\nG38.2 Z-5 F120\nG0 Z5\nM2\n")
+    p = run(["mlip-sim", "--config", io, "--probe-surface", "Z=1", prog], check=False,
+            timeout=60)
+    assert p.returncode == 5 and "p.ngc:2: t = 0.000 s, G38 probe already tripped at the start" \
+        in p.stderr, p.stderr
+    prog.write_text("G21 G90\nG38.4 Z5 F120\nG0 Z0\nM2\n")
+    p = run(["mlip-sim", "--config", io, "--probe-surface", "Z=1", prog], timeout=60)
+    m = re.search(r"p\.ngc:2: t = [0-9.]+ s, G38 tripped at X\S+ Y\S+ Z(\S+) \(#5070 = 1", p.stderr)
+    assert m and 1.0 < float(m.group(1)) <= 1.0 + 120 / 60 * 0.001 + 1e-9, p.stderr
+    p = run(["mlip-sim", "--config", io, prog], check=False, timeout=60)
+    assert p.returncode == 5 and ("p.ngc:2: t = 0.000 s, G38 probe not in contact at the start "
+                                  "(G38.4/G38.5)") in p.stderr, p.stderr
+
+
 def test_probe_config_check(tmp_path):
     """mlip-config says where G38's trip comes from, and warns (exit 0: the
     setup is valid) when SOURCE = drive has no probe level mapped: 0x60B9

@@ -35,7 +35,7 @@ int mlip_probesim_parse(struct mlip_probesim *p, const char *arg, const char *le
 	return 0;
 }
 
-void mlip_probesim_start(struct mlip_probesim *p, int drive, int n_axes)
+void mlip_probesim_start(struct mlip_probesim *p, int drive, int n_axes, const double *start)
 {
 	p->drive = drive;
 	p->n_axes = n_axes;
@@ -44,6 +44,11 @@ void mlip_probesim_start(struct mlip_probesim *p, int drive, int n_axes)
 	p->latches = 0;
 	memset(p->fn, 0, sizeof(p->fn));
 	memset(p->pos, 0, sizeof(p->pos));
+	if (!drive) {
+		/* the module: period q reads the position of slot q - 1 */
+		memcpy(p->pos[0], start, sizeof(double) * (size_t)n_axes);
+		p->n = 1;
+	}
 }
 
 static int touching(const struct mlip_probesim *p, double x)
@@ -98,10 +103,11 @@ void mlip_probesim_in(struct mlip_probesim *p, struct mlip_ctl_in *in)
 		drives_in(p, in);
 		return;
 	}
-	/* the module: on from the period after the setpoint reached it */
+	/* the module: on from the period after the setpoint reached it (the
+	 * first period: where the axes stood) */
 	uint32_t bit = 1u << MLIP_IN_PROBE;
 	in->io.active &= ~bit;
-	if (p->axis >= 0 && p->n >= 1 && touching(p, p->pos[(p->n - 1) % 4][p->axis])) {
+	if (p->axis >= 0 && touching(p, p->pos[(p->n - 1) % 4][p->axis])) {
 		in->io.active |= bit;
 	}
 }

@@ -41,8 +41,10 @@ struct mlip_probesim {
 int mlip_probesim_parse(struct mlip_probesim *p, const char *arg, const char *letters,
                         const char **why);
 
-/* Before the first period: the source, the axes. */
-void mlip_probesim_start(struct mlip_probesim *p, int drive, int n_axes);
+/* Before the first period: the source, the axes, where they stand (the
+ * module's input of the first period reads it: a probe already on there is
+ * on from the start, as the module's first TPDO says on the machine). */
+void mlip_probesim_start(struct mlip_probesim *p, int drive, int n_axes, const double *start);
 
 /* The probe's inputs of this period into *in (its io.active probe bit,
  * or its drives' touch probe fields), from the periods before it. */
