@@ -534,8 +534,9 @@ def test_module_probe_on_at_start(sim, tmp_path):
             sim.inject(f"{IO}:input=1.3=0")
     # the records lag the bus in the emulated VM: to the SYNCs after the refusals
     sim.wait_sync_rows(lambda rs: any(r["node"] == 3 and r["t"] >= t1 for r in rs), timeout=120)
-    zs = {t for s, t in targets(sim, 3, t0) if t is not None and s <= max_sync(sim, t1)}
-    xs = {t for s, t in targets(sim, 1, t0) if t is not None and s <= max_sync(sim, t1)}
+    s1 = max_sync(sim, t1)
+    zs = {t for s, t in targets(sim, 3, t0) if t is not None and s <= s1}
+    xs = {t for s, t in targets(sim, 1, t0) if t is not None and s <= s1}
     print(f"[probe] module probe on at Z0 (surface {surface} counts): {results} "
           f"(exit codes), Z's targets on the bus meanwhile {sorted(zs)}, X's {sorted(xs)}")
     assert zs <= {0} and xs <= {0}, (zs, xs)
@@ -613,7 +614,8 @@ def test_probe_away_g38_4_g38_5(sim, tmp_path):
                        timeout=120)
     line = []
     for code, (t0, t1, latched) in got.items():
-        zs = [t for s, t in targets(sim, 3, t0) if t is not None and s <= max_sync(sim, t1)]
+        s1 = max_sync(sim, t1)
+        zs = [t for s, t in targets(sim, 3, t0) if t is not None and s <= s1]
         top = max(zs)
         i_top = zs.index(top)
         up = zs[: i_top + 1]
@@ -633,7 +635,8 @@ def test_probe_away_g38_4_g38_5(sim, tmp_path):
         react = (10 if S.in_vm else 4) * per_period
         assert latched <= top <= latched + react + v * v / 2000.0 * CPU, (code, top)
         assert acc <= 1000.0 * (1 + 1e-9) + 2 / (PERIOD_S**2) / CPU, (code, acc)
-    z4 = [t for s, t in targets(sim, 3, t_g384) if t is not None and s <= max_sync(sim, t_off)]
+    s_off = max_sync(sim, t_off)
+    z4 = [t for s, t in targets(sim, 3, t_g384) if t is not None and s <= s_off]
     z_off = {t for s, t in targets(sim, 3, t_off) if t is not None}
     print(f"[probe] away, surface {surface} counts: " + "; ".join(line) +
           f"; G38.5 in contact to Z3: untripped, went on; G38.4 in contact to Z3: exit 5, "

@@ -376,11 +376,11 @@ def test_mdi_spindle_stays_on(sim, tmp_path):
 
 
 # a cut along X after the spindle is at speed: 10 mm/s (400 counts a period)
-# for up to 12 s from X0, time for a heartbeat timeout (4 s) within it
+# for up to 20 s from X0, time for a heartbeat timeout (4 s) within it
 CUT = """G21 G90
 G0 X0 Y0 Z0
 {io}M3 S4500
-G1 X120 F600
+G1 X200 F600
 M2
 """
 
@@ -425,7 +425,7 @@ def test_at_speed_timeout_is_a_fault(sim, tmp_path):
     assert "spindle fault: node 5 (spindle): spindle not at speed in time: at " in rig.result[
         "rt_stderr"], rig.result["rt_stderr"][-2000:]
     rows = sim.wait_sync_rows(lambda rs: any(
-        r["node"] == SP and r["target"] == 0 and r["t"] >= t_end for r in rs), timeout=120)
+        r["node"] == SP and r["t"] >= t_end for r in rs), timeout=120)
     sp = rows_by(rows, SP, sync0)
     on = counts(6000)
     s_cmd = min(r["sync"] for r in sp if r["target"] == on)
@@ -495,10 +495,10 @@ def test_heartbeat_lost_mid_cut(sim, tmp_path):
           f"largest deceleration {a_max:.0f} mm/s^2; spindle target 0 at SYNC {s_zero}")
     # the heartbeat timeout: not before 4 s without one (its last came at most
     # a heartbeat period, 100 ms, before the injection), X still cutting till
-    # then, well short of X120
+    # then, well short of X200
     assert 4000 <= silent_ms <= 4000 + (2000 if S.in_vm else 200), silent_ms
     assert t_fault - t_inj >= 4.0 - 0.1 - 0.05, t_fault - t_inj
-    assert s_brake - s_inj >= 10 and x_at < 110000, (s_inj, s_brake, x_at)
+    assert s_brake - s_inj >= 10 and x_at < 190000, (s_inj, s_brake, x_at)
     assert s_zero is not None and -1 <= s_zero - s_brake <= 1, (s_brake, s_zero)
     assert all(r["target"] in (0, None) for r in sp if r["sync"] >= s_zero)
 
