@@ -389,12 +389,13 @@ def counts(rpm_):
     return round(rpm_ * CPR / 60)
 
 
-def cutting_with_flood(rig, ngc):
-    """mlip-feed on ngc (CUT with M8), started; returns once X cuts with the
-    spindle at speed and the flood on."""
+def cutting(rig, ngc, flood=True):
+    """mlip-feed on ngc (CUT, with M8 if flood), started; returns once X
+    cuts with the spindle at speed (and the flood on): not in CUT's G0 to
+    X0, before the M3."""
     feed = rig.feeder(ngc)
-    st = rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] > 5.0)
-    assert st["coolant"]["flood"] is True and st["spindle"]["state"] == "at speed", st
+    rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] > 5.0 and s[
+        "spindle"]["state"] == "at speed" and (not flood or s["coolant"]["flood"] is True))
     return feed
 
 
@@ -430,7 +431,8 @@ def test_at_speed_timeout_is_a_fault(sim, tmp_path):
     on = counts(6000)
     s_cmd = min(r["sync"] for r in sp if r["target"] == on)
     s_zero = min(r["sync"] for r in sp if r["sync"] > s_cmd and r["target"] == 0)
-    turning = [r for r in sp if s_cmd <= r["sync"] < s_zero]
+    # the TPDOs from the one after s_cmd's (that one answered the target before)
+    turning = [r for r in sp if s_cmd < r["sync"] < s_zero]
     top = max(rpm(r["actual"]) for r in turning)
     # never at speed: neither target reached nor within the band
     assert not any(r["sw"] & 0x0400 for r in turning), [hex(r["sw"]) for r in turning][-5:]
@@ -460,8 +462,7 @@ def test_heartbeat_lost_mid_cut(sim, tmp_path):
     ngc.write_text(CUT.format(io=""))
     sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
-        feed = rig.feeder(ngc)
-        rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] > 5.0)
+        feed = cutting(rig, ngc, flood=False)
         t_inj = time.time()
         sim.inject(f"{SP}:heartbeat=off")
         try:
@@ -517,7 +518,7 @@ def test_out_of_band_mid_cut_stops_feed_and_outputs(sim, tmp_path):
     drop = 500
     try:
         with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
-            feed = cutting_with_flood(rig, ngc)
+            feed = cutting(rig, ngc)
             t_inj = time.time()
             sim.inject(f"{SP}:load={counts(drop)}")
             st = rig.wait_state("fault", timeout=120)
@@ -571,7 +572,7 @@ def test_estop_stops_spindle_and_outputs(sim, tmp_path):
     ngc.write_text(CUT.format(io="M8\n"))
     t0 = time.time()
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
-        feed = cutting_with_flood(rig, ngc)
+        feed = cutting(rig, ngc)
         t_estop = time.time()
         sim.inject(f"{IO}:input=1.0=0")
         st = rig.wait_state("estop", timeout=60)
