@@ -284,6 +284,41 @@ def test_stream_equals_mlip_feed(grbl, controller, tmp_path, strategy):
           f"(6000 lines streamed in {t_stream:.2f} s)")
 
 
+def test_line_numbers_and_blocks_as_mlip_feed(grbl, controller, tmp_path):
+    """Ln and the records' lines count a program's lines as mlip-feed counts
+    its file's, and the blocks run are mlip-feed's: a sender's `$` lines
+    ($$, $G, $I when it connects, a $G poll mid-file) are not program lines
+    (they numbered the file from 4: a CNCjs run reported its file's first
+    line as Ln:3), and a second run of the file in the same connection
+    numbers from 1 again (the machine came to rest between)."""
+    lines = flower(60)
+    prog = tmp_path / "flower60.ngc"
+    prog.write_text("\n".join(lines) + "\n")
+    shm, rt = controller(MILL)
+    f = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", str(prog)], capture_output=True,
+                       text=True, timeout=300)
+    assert f.returncode == 0, f.stderr
+    c = status(shm)
+    want = (c["exec_seq"], c["exec_line"])
+    assert want[1] == len(lines), c
+    stop_rt(rt)
+    shm, rt, srv, port, _ = grbl(MILL, grbl_opts=("--quiet-ms", "1000"))
+    g = connect(port)
+    for q in ("$$", "$G", "$I"):
+        assert g.cmd(q)[0] == "ok"
+    for run in range(2):
+        seen = []
+        answers = g.stream(lines[:30] + ["$G"] + lines[30:], poll_hz=20,
+                           on_status=lambda s: seen.append(s.get("Ln", [0])[0]))
+        assert [a for a, _ in answers] == ["ok"] * (len(lines) + 1), answers
+        assert wait_for(lambda: status(shm)["state"] == "idle" and
+                        status(shm)["exec_seq"] >= want[0], DEADLINE), status(shm)
+        c = status(shm)
+        assert (c["exec_seq"], c["exec_line"]) == want, (run, c)
+        assert seen and max(seen) <= len(lines), (run, seen)
+        assert g.status().get("Ln", [len(lines)])[0] == len(lines)
+
+
 def test_refused_line_holds_at_the_last_good_block(grbl):
     shm, rt, srv, port, _ = grbl()
     g = connect(port)
@@ -762,6 +797,19 @@ def test_spindle_and_coolant_are_the_machines(grbl):
     # the real-time toggles: the operator's coolant, nothing switched, said so
     g.send(b"\xa0")
     g.wait_line(lambda l: "coolant is the operator's here" in l)
+    # 0x9E (spindle stop): outside Hold ignored, as Grbl (protocol.c); in
+    # Hold a manual spindle is the operator's: said, nothing switched
+    n = len(g.lines)
+    g.send(b"\x9e")
+    s = g.status()                             # answered after the byte
+    assert not [l for l in g.lines[n:] if l.startswith("[MSG")], g.lines[n:]
+    assert s["state"] == "Idle" and s.get("A", "S").startswith("S")
+    g.send(b"!")
+    g.wait_state({"Hold:0"})
+    g.send(b"\x9e")
+    g.wait_line(lambda l: l.startswith("[MSG:spindle stop:") and "operator's here" in l)
+    g.send(b"~")
+    g.wait_state({"Idle"})
     assert g.cmd("M2")[0] == "ok"             # program end: spindle and coolant off
     for _ in range(2):
         g.wait_state({"Hold:0"})

@@ -2832,6 +2832,83 @@ static void test_spindle_stop_and_fault_mid_cut(void **st)
 	assert_int_equal(status().spindle_state, MLIP_SPINDLE_FAULT + 1u);
 }
 
+/* Grbl's spindle stop (0x9E) in an operator's hold: refused outside one;
+ * asked while the hold brakes it waits for rest (the tool is still in the
+ * cut), then the spindle's target is 0, the axes still; a resume restores
+ * the program's speed and the axes move only once the drive said it is at
+ * speed again. The second time the restore comes first (a second 0x9E),
+ * the resume follows while it still ramps: the same wait. */
+static void resume_waits_for_speed(const char *what)
+{
+	double x = out.pos[0];
+	uint64_t moved = 0;
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	for (int i = 0; i < 5000 && moved == 0; i++) {
+		stick(1);
+		if (out.pos[0] != x) {
+			moved = period;
+		} else if (spd.reached == 0) {
+			assert_int_equal(status().state, MLIP_STATE_HELD);
+			assert_int_equal(status().reason, MLIP_WHY_SPINDLE_WAIT);
+		}
+	}
+	assert_true(moved != 0 && spd.reached != 0);
+	assert_true(moved > spd.reached);
+	assert_true(fabs(spd.rpm + 6000) <= 20);
+	print_message("%s: the feed %llu periods after target reached\n", what,
+	              (unsigned long long)(moved - spd.reached));
+}
+
+static void test_spindle_stop_in_a_hold(void **st)
+{
+	(void)st;
+	start_cut(); /* M4 S6000, cutting */
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_E_INVALID);
+	spindle_drive();
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	spindle_drive();
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 2, 0), MLIP_E_RANGE);
+	spindle_drive();
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	int k = 0;
+	while (status().state != MLIP_STATE_HELD && k++ < 2000) {
+		assert_true(out.spindle.target == -409600); /* braking: still turning */
+		stick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	stick(1);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	double x = out.pos[0];
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20 && out.pos[0] == x);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	/* the resume: restored, then the wait */
+	spd.reached = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	spindle_drive();
+	assert_true(out.spindle.target == -409600 && status().spindle_cmd_rpm == -6000);
+	resume_waits_for_speed("0x9E, resume");
+	/* again: 0x9E twice in the hold, the resume while it ramps */
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	spindle_drive();
+	suntil(MLIP_STATE_HELD, 2000);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 0, 0), MLIP_OK);
+	spindle_drive();
+	stick(2);
+	assert_true(out.spindle.target == -409600);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	spd.reached = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	spindle_drive();
+	resume_waits_for_speed("0x9E twice, resume while ramping");
+}
+
 /* The spindle drive's heartbeat lost mid-cut (rt/'s supervision reports it
  * with its node): state FAULT naming the spindle, the feed stopped on the
  * path, the spindle asked 0. */
@@ -3003,6 +3080,7 @@ int main(void)
 	    TH(test_home_lost_fault),
 	    TS(test_spindle_feed_waits_for_speed),
 	    TS(test_spindle_stop_and_fault_mid_cut),
+	    TS(test_spindle_stop_in_a_hold),
 	    TS(test_spindle_band_and_timeout),
 	    TS(test_spindle_estop),
 	    TS(test_spindle_heartbeat_lost),

@@ -82,6 +82,7 @@ void welcome(void)
 	}
 	memset(&S.refresh, 0, sizeof(S.refresh));
 	S.lineno = 0;
+	S.ln_programs = S.st.programs;
 }
 
 /* Where the machine stands, for a new program. */
@@ -110,6 +111,7 @@ void soft_reset(void)
 	S.err_hold = 0;
 	S.hold_idle = 0;
 	S.hold_req = 0;
+	S.sp_stopped = 0;
 	S.door = 0;
 	S.jog = 0;
 	S.jog_cancel = 0;
