@@ -92,13 +92,19 @@ $(BUILD)/libmlip-rt.a: $(RT_OBJ)
 $(RT_TOOLS) $(RT_TESTS): RT_LINK := $(BUILD)/libmlip-rt.a $(RT_LIBS)
 $(RT_TOOLS) $(RT_TESTS): $(BUILD)/libmlip-rt.a
 
-# mlip-feed and mlip-ctl (mdi) share the feeder, tools/feed.c (uses rt/).
-FEED_TOOLS := $(BUILD)/mlip-feed $(BUILD)/mlip-ctl
-$(FEED_TOOLS): FEED_OBJ := $(BUILD)/obj/tools/feed.o
-$(FEED_TOOLS): $(BUILD)/obj/tools/feed.o
+# Parts of a tool in tools/ beside it (they use rt/, so not in tools/lib/,
+# which every binary and the fuzz targets may link): mlip-feed and mlip-ctl
+# (mdi) share the feeder, tools/feed*.c (feedstate.h); mlip-ctl's own parts
+# are tools/ctl*.c (ctltool.h).
+FEED_OBJ  := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tools/feed*.c))
+CTL_OBJ   := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tools/ctl*.c))
+$(BUILD)/mlip-feed: PART_OBJ := $(FEED_OBJ)
+$(BUILD)/mlip-feed: $(FEED_OBJ)
+$(BUILD)/mlip-ctl: PART_OBJ := $(CTL_OBJ) $(FEED_OBJ)
+$(BUILD)/mlip-ctl: $(CTL_OBJ) $(FEED_OBJ)
 
 $(BUILD)/mlip-%: $(BUILD)/obj/tools/mlip-%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a
-	$(CC) $(LDFLAGS) -o $@ $< $(FEED_OBJ) $(BUILD)/libmlip-host.a $(RT_LINK) $(BUILD)/libmlip.a $(LDLIBS)
+	$(CC) $(LDFLAGS) -o $@ $< $(PART_OBJ) $(BUILD)/libmlip-host.a $(RT_LINK) $(BUILD)/libmlip.a $(LDLIBS)
 
 $(BUILD)/tests/test_%: $(BUILD)/obj/tests/unit/test_%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a
 	@mkdir -p $(dir $@)

@@ -50,6 +50,7 @@ the time to change speed), a scale.
   bench/topp.py curve lissajous [--accel 1000,1000] [--vmax 200] [--ds 0.01]
   bench/topp.py curve lissajous --jerk 10000     # the quasi-static bounds
   bench/topp.py poly smoothed.csv [--accel ...]
+  bench/topp.py poly smoothed.csv --jerk 1e4   # the same bounds on a polyline read by (P4)
   bench/topp.py curve spiral --check      # ds 0.04, 0.02, 0.01, 0.005
 """
 import argparse
@@ -213,6 +214,56 @@ def quasi_static(h, d2, d3, accel, jerk, vmax):
     return float(np.sum(2.0 * h / (v[:-1] + v[1:])))
 
 
+def poly_derivs(pts):
+    """x', x'', x''' at the middle of every segment of a polyline: the cubic
+    through the four points around it by chord length, its derivatives by arc
+    length (mlip/motion/pathspeed.h, P4; the ends take the nearest four).
+    Returns the lengths of the segments and the three (segment, axis) arrays."""
+    hs = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    pts = pts[np.concatenate([[True], hs > 1e-9])]
+    hs = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    m = len(hs)
+    if m < 3:
+        raise SystemExit("poly --jerk: fewer than four distinct points")
+    i = np.clip(np.arange(m) - 1, 0, m - 3)  # the window p[i..i+3] around segment j
+    p0, p1, p2, p3 = (pts[i + r] for r in range(4))
+    c = np.concatenate([[0.0], np.cumsum(hs)])
+    t = (0.5 * (c[:-1] + c[1:]) - c[i])[:, None]  # chord parameter of the middle of segment j
+    s1 = hs[i][:, None]
+    s2 = s1 + hs[i + 1][:, None]
+    s3 = s2 + hs[i + 2][:, None]
+    f01, f12, f23 = (p1 - p0) / s1, (p2 - p1) / (s2 - s1), (p3 - p2) / (s3 - s2)
+    f012, f123 = (f12 - f01) / s2, (f23 - f12) / (s3 - s1)
+    c3 = (f123 - f012) / s3
+    u0, u1, u2 = t, t - s1, t - s2
+    x1 = f01 + f012 * (u0 + u1) + c3 * (u0 * u1 + u0 * u2 + u1 * u2)
+    x2 = 2 * f012 + 2 * c3 * (u0 + u1 + u2)
+    x3 = 6 * c3
+    sg = np.linalg.norm(x1, axis=1)[:, None]
+    st = np.sum(x1 * x2, axis=1)[:, None] / sg
+    stt = (np.sum(x2 * x2, axis=1)[:, None] + np.sum(x1 * x3, axis=1)[:, None]) / sg - st * st / sg
+    d1 = x1 / sg
+    d2 = x2 / sg**2 - x1 * st / sg**3
+    d3 = (x3 / sg**2 - 3 * x2 * st / sg**3 - x1 * stt / sg**3 + 3 * x1 * st * st / sg**4) / sg
+    return hs, d1, d2, d3
+
+
+def quasi_static_poly(path, accel, jerk, vmax):
+    # The quasi-static bounds of a polyline read as a curve by (P4), each
+    # segment at the speed of its middle; the first move (the rapid) left out.
+    data = np.loadtxt(path, delimiter=",", ndmin=2)
+    pts = data[1:, :-1]
+    hs, d1, d2, d3 = poly_derivs(pts)
+    n_ax = pts.shape[1]
+    A = np.asarray(accel, float)[:n_ax]
+    J = np.asarray(jerk, float)[:n_ax]
+    with np.errstate(divide="ignore"):
+        va = np.minimum(np.min(np.sqrt(A / np.abs(d2)), axis=1), vmax)
+        vj = np.minimum(va, np.min(np.cbrt(J / np.abs(d3)), axis=1))
+    return {"path": os.path.basename(path), "length_mm": float(hs.sum()),
+            "accel_s": float(np.sum(hs / va)), "jerk_s": float(np.sum(hs / vj))}
+
+
 def quasi_static_curve(name, accel, jerk, vmax, ds):
     # The quasi-static bounds of the exact curve without and with jerk.
     h, d1, d2, p0, length = curve_grid(name, ds)
@@ -257,10 +308,14 @@ def main():
     accel = [float(x) for x in a.accel.split(",")]
     accel += [accel[-1]] * (6 - len(accel))
     if a.jerk is not None:
-        if a.kind != "curve":
-            ap.error("--jerk: the exact curves only")
         jerk = [float(x) for x in a.jerk.split(",")]
         jerk += [jerk[-1]] * (6 - len(jerk))
+        if a.kind == "poly":
+            r = quasi_static_poly(a.what, accel, jerk, a.vmax)
+            print(f"{r['path']} (P4): quasi-static {r['accel_s']:.4f} s without a jerk limit, "
+                  f"{r['jerk_s']:.4f} s with J {a.jerk} (+{(r['jerk_s'] / r['accel_s'] - 1) * 100:.1f} %),"
+                  f" {r['length_mm']:.2f} mm")
+            return
         for ds in ([0.04, 0.02, 0.01, 0.005] if a.check else [a.ds]):
             r = quasi_static_curve(a.what, accel, jerk, a.vmax, ds)
             print(f"{r['path']}: quasi-static {r['accel_s']:.4f} s without a jerk limit, "

@@ -551,6 +551,23 @@ static int io_bringup(struct mlip_drives *ds, char *why, size_t why_len)
 				    who, v);
 				return -EPROTO;
 			}
+			/* what it is: a module that comes back after a loss must be
+			 * this one (rt/iomodule.c). The product code is optional
+			 * (CiA 301): refused, it is not compared */
+			ds->io.id.type = v;
+			rc = sdo(ds, -1, 1, 0x1018, 1, 0, 0, "identity: vendor-ID",
+			         &ds->io.id.vendor, why, why_len);
+			if (rc != 0) {
+				return rc;
+			}
+			rc = sdo(ds, -1, 1, 0x1018, 2, 0, 0, "identity: product code",
+			         &ds->io.id.product, why, why_len);
+			if (rc != 0 && rc != -EPROTO) {
+				return rc;
+			}
+			ds->io.id.has_product = rc == 0;
+			say(ds, "%s: vendor-ID 0x%08X, product code %s0x%08X", who,
+			    ds->io.id.vendor, rc == 0 ? "" : "(none) ", ds->io.id.product);
 			n = mlip_io401_setup_entries(&ds->io.setup, e, MLIP_IO401_SETUP_MAX);
 			for (int k = 0; k < n; k++) {
 				rc = sdo_entry(ds, -1, &e[k], why, why_len);

@@ -8,6 +8,11 @@
  * answered within its timeout or the attempt fails (and is tried again at
  * the module's next heartbeat):
  *   1. NMT reset communication, its boot-up message (BOOT_TIMEOUT_MS)
+ *   1b. the same device: its 0x1000 device type and 0x1018 vendor-ID and
+ *      product code read and compared with bring-up's; another module on
+ *      that node (swapped, or a wrong node id set) is never configured nor
+ *      trusted: the E-stop stays, its reason names node and object
+ *      (MLIP_DRIVE_WRONG_DEVICE) until mlip-rt is restarted
  *   2. the set-up entries of bring-up (mlip_io401_setup_entries), each
  *      written and read back (SDO_TIMEOUT_MS each)
  *   3. its inputs 0x6000:1..n read by SDO
@@ -72,6 +77,29 @@ static void entry_start(struct mlip_drives *ds, uint64_t now)
 	sdo_start(ds, now, e->read_only, e->index, e->sub, e->value, e->size);
 }
 
+/* The identity objects compared after the boot-up: k = 0 device type, 1
+ * vendor-ID, 2 product code (when it had one at bring-up). */
+static void ident_start(struct mlip_drives *ds, uint64_t now)
+{
+	static const uint16_t index[3] = {0x1000, 0x1018, 0x1018};
+	static const uint8_t sub[3] = {0, 1, 2};
+	int k = ds->io.re.k;
+	sdo_start(ds, now, 1, index[k], sub[k], 0, 0);
+}
+
+/* Not the module of bring-up: the E-stop stays, naming the object. */
+static void wrong(struct mlip_drives *ds, uint32_t got, uint32_t want)
+{
+	ds->io.re.phase = MLIP_IO_RE_NONE;
+	ds->io.re.wrong = 1;
+	ds->io.re.wrong_index = ds->io.re.s.index;
+	ds->io.re.wrong_sub = ds->io.re.s.sub;
+	ds->io.re.wrong_got = got;
+	ds->io.re.wrong_want = want;
+	ds->io.lost = MLIP_DRIVE_WRONG_DEVICE;
+	ds->io.lost_value = (double)((uint32_t)ds->io.re.s.index << 8 | ds->io.re.s.sub);
+}
+
 /* An SDO answer came: the next step. */
 static void sdo_done(struct mlip_drives *ds, uint64_t now)
 {
@@ -79,6 +107,21 @@ static void sdo_done(struct mlip_drives *ds, uint64_t now)
 	ds->io.re.done = 0;
 	if (ds->io.re.abort != 0) {
 		fail(ds, now, ds->io.re.abort, ds->io.re.s.index, ds->io.re.s.sub);
+		return;
+	}
+	if (ds->io.re.phase == MLIP_IO_RE_IDENT) {
+		const uint32_t want[3] = {ds->io.id.type, ds->io.id.vendor, ds->io.id.product};
+		if (v != want[ds->io.re.k]) {
+			wrong(ds, v, want[ds->io.re.k]);
+			return;
+		}
+		if (++ds->io.re.k < (ds->io.id.has_product ? 3 : 2)) {
+			ident_start(ds, now);
+			return;
+		}
+		ds->io.re.phase = MLIP_IO_RE_SDO;
+		ds->io.re.k = 0;
+		entry_start(ds, now);
 		return;
 	}
 	if (ds->io.re.phase == MLIP_IO_RE_SDO) {
@@ -164,7 +207,7 @@ static void reconfigure(struct mlip_drives *ds, uint64_t now)
 	const struct mlip_drive_obs *o = &ds->io.obs;
 	switch (ds->io.re.phase) {
 	case MLIP_IO_RE_NONE:
-		if (ds->io.re.n > 0 && o->hb_ns > ds->io.lost_ns) {
+		if (ds->io.re.n > 0 && !ds->io.re.wrong && o->hb_ns > ds->io.lost_ns) {
 			/* heard again: from a known state, whatever it did meanwhile */
 			ds->io.re.phase = MLIP_IO_RE_BOOT;
 			ds->io.re.t0_ns = now;
@@ -174,9 +217,9 @@ static void reconfigure(struct mlip_drives *ds, uint64_t now)
 		return;
 	case MLIP_IO_RE_BOOT:
 		if (ds->io.bootup_ns > ds->io.re.t0_ns) {
-			ds->io.re.phase = MLIP_IO_RE_SDO;
+			ds->io.re.phase = MLIP_IO_RE_IDENT;
 			ds->io.re.k = 0;
-			entry_start(ds, now);
+			ident_start(ds, now);
 		} else if (now >= ds->io.re.deadline_ns) {
 			fail(ds, now, 0, 0, 0);
 		}

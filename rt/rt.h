@@ -337,6 +337,14 @@ struct mlip_drives {
 		uint64_t lost_ns;   /* when (or when a reconfiguration last failed) */
 		uint64_t bootup_ns; /* its last boot-up message */
 		uint64_t rx_frames;
+		/* what it is, as read at bring-up: device type 0x1000, vendor-ID
+		 * 0x1018:01, product code 0x1018:02 (optional in CiA 301:
+		 * has_product 0 when the module has none). A module that comes
+		 * back must be this one (rt/iomodule.c) */
+		struct {
+			uint32_t type, vendor, product;
+			int has_product;
+		} id;
 		/* the module back after a loss (a heartbeat newer than it): NMT
 		 * reset communication, its boot-up, the set-up entries written and
 		 * read back, its inputs read, NMT start, operational: then `lost` is
@@ -355,12 +363,25 @@ struct mlip_drives {
 			uint32_t fail_abort;    /* the last failed one: abort code (0: timeout) */
 			uint16_t fail_index;    /* and object */
 			uint8_t fail_sub;
+			/* not the module of bring-up: the object that differs, what it
+			 * read and what it read at bring-up; never configured again */
+			int wrong;
+			uint16_t wrong_index;
+			uint8_t wrong_sub;
+			uint32_t wrong_got, wrong_want;
 		} re;
 	} io;
 };
 
 /* The steps of the I/O module's reconfiguration after a loss (io.re.phase) */
-enum { MLIP_IO_RE_NONE, MLIP_IO_RE_BOOT, MLIP_IO_RE_SDO, MLIP_IO_RE_INPUTS, MLIP_IO_RE_START };
+enum {
+	MLIP_IO_RE_NONE,
+	MLIP_IO_RE_BOOT,
+	MLIP_IO_RE_IDENT,
+	MLIP_IO_RE_SDO,
+	MLIP_IO_RE_INPUTS,
+	MLIP_IO_RE_START
+};
 
 /* The I/O module after a loss (rt/iomodule.c), in the loop's before hook:
  * its reconfiguration stepped on (one frame out at most), then whether it

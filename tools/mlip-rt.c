@@ -916,6 +916,13 @@ static void drives_report(void)
 		            ? "no answer in time"
 		            : mlip_sdo_abort_text(drives.io.re.fail_abort));
 	}
+	if (drives.io.re.wrong) {
+		fprintf(stderr,
+		        PROG ": I/O module node %u: came back as another device: 0x%04X:%02X reads "
+		             "0x%08X, 0x%08X at bring-up; left unconfigured, in the E-stop\n",
+		        drives.io.node, drives.io.re.wrong_index, drives.io.re.wrong_sub,
+		        drives.io.re.wrong_got, drives.io.re.wrong_want);
+	}
 	if (drives.shutdown_ok) {
 		fprintf(stderr, PROG ": drives disabled in order (disable operation, shutdown) "
 		                     "with the SYNC running, then the SYNC stopped\n");

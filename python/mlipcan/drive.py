@@ -16,6 +16,7 @@ The object dictionary is built in code (build_od); `mlip-drive-sim
 a person to read."""
 
 import json
+import math
 import select
 import socket
 import struct
@@ -47,10 +48,33 @@ IoRow = tuple[int, int, float, str, str]
 U8, U16, U32 = odm.UNSIGNED8, odm.UNSIGNED16, odm.UNSIGNED32
 I8, I32 = odm.INTEGER8, odm.INTEGER32
 MODE_HOMING = 6  # 0x6060: homing mode
-# homing methods this drive runs (CiA 402): 17/18 the negative/positive limit
-# switch, 19/21 the home switch searched in the positive/negative direction,
-# 35/37 the current position
-HOMING_METHODS = (17, 18, 19, 21, 35, 37)
+# homing methods this drive runs (CiA 402-2: 0x6098), each as (the switch
+# searched, the direction toward it, then the encoder's index pulse): the
+# switch's edge is found at the search speed 0x6099:1 toward it, braking at
+# 0x609A past it, then back at the latch speed 0x6099:2 until it releases;
+# that edge is home, or (index) the first index pulse beyond it in that
+# direction. 1/2 the negative/positive limit switch and the index pulse;
+# 3 the positive home switch (on at and above its edge) and the index pulse
+# on its negative side, 5 the negative home switch (on at and below) and the
+# index pulse on its positive side; 17/18/19/21 the same without the index
+# (the edge is home); 33/34 the first index pulse in the negative/positive
+# direction (at the latch speed); 35/37 the current position (37: CiA
+# 402-2016's number for it, 35 obsolete). A drive already on the switch at
+# the start moves off it at the latch speed (the edge it finds is the same).
+HOMING_METHODS: dict[int, tuple[str | None, int, bool]] = {
+    1: ("neg", -1, True),
+    2: ("pos", 1, True),
+    3: ("home", 1, True),
+    5: ("nhome", -1, True),
+    17: ("neg", -1, False),
+    18: ("pos", 1, False),
+    19: ("home", 1, False),
+    21: ("nhome", -1, False),
+    33: (None, -1, True),
+    34: (None, 1, True),
+    35: (None, 0, False),
+    37: (None, 0, False),
+}
 SW_HOMING_ATTAINED = 1 << 12  # mode 6
 SW_HOMING_ERROR = 1 << 13  # mode 6
 FE_WINDOW_OFF = 0xFFFFFFFF  # 0x6065 = this: following error monitoring off (CiA 402)
@@ -187,6 +211,9 @@ def build_od(
     return od
 
 
+# the receiving thread this long (s) not running between two receives, its
+# 20 ms receive timeout aside (DriveSim.own_stall)
+OWN_STALL_S = 0.25
 # objects the cycle reads, cached in Drive.load_params() after each write
 PARAM_OBJECTS = (0x6060, 0x6065, 0x6066, 0x60C2, 0x605A, 0x606D, 0x6083, 0x6084, 0x6085)
 MAPPABLE_RX = {(0x6040, 0), (0x607A, 0), (0x6060, 0), (0x60FF, 0), (0x60B8, 0)}
@@ -291,8 +318,13 @@ class Drive(SimDevice):
     ) -> None:
         super().__init__(sim, node_id)
         # where the axis' switches are (counts): "neg", "pos" (limit switches,
-        # on beyond them), "home" (on at and beyond it in +)
+        # on beyond them), "home" (a positive home switch: on at and beyond
+        # it in +), "nhome" (a negative one: on at and below it); "index": the
+        # encoder's index pulse once every that many counts (one revolution),
+        # at the multiples of it in the power-up reference
         self.switches = dict(switches or {})
+        self.index_rev = self.switches.pop("index", 0)
+        self.index_at = 0.0  # where one index pulse is, in the current reference
         self.start_position = start_position
         self.start_state = start_state
         self.heartbeat_ms = heartbeat_ms
@@ -320,9 +352,11 @@ class Drive(SimDevice):
 
     # ------------------------------------------------------------ set-up
     def _reset_application(self) -> None:
-        self.home_phase = "idle"  # idle, search, latch, done, error
+        # idle, search, brake, latch, index, return, done, error
+        self.home_phase = "idle"
         self.home_attained = False
         self.home_dir = 1
+        self.home_index = False  # the index pulse after the switch (or alone)
         self.home_stall = getattr(self, "home_stall", False)
         self.home_method = 0
         self.home_switch = "home"
@@ -409,7 +443,7 @@ class Drive(SimDevice):
     def digital_inputs(self) -> int:
         """0x60FD: the switches at the position actual, then the forced bits."""
         v = 0
-        for bit, which in ((0, "neg"), (1, "pos"), (2, "home")):
+        for bit, which in ((0, "neg"), (1, "pos"), (2, "home"), (2, "nhome")):
             if self._switch_on(which, self.actual):
                 v |= 1 << bit
         for bit, on in self.di_force.items():
@@ -554,8 +588,17 @@ class Drive(SimDevice):
         p = can_id - 0x700
         e = self.hb_consumed.get(p)
         if e is not None:
-            self.hb_consumed[p] = (e[0], timestamp)  # the frame's receive time (kernel), s
+            # the frame's receive time (kernel), s; never back: a stall of the
+            # simulator itself may have moved it on (DriveSim.own_stall)
+            self.hb_consumed[p] = (e[0], max(timestamp, e[1] or 0.0))
             self.hb_lost.discard(p)
+
+    def stalled(self, s: float) -> None:
+        """The simulator was not running for s seconds: not counted against
+        the producers (their heartbeats' consumer time moves on by s)."""
+        for p, (ms, seen) in list(self.hb_consumed.items()):
+            if seen is not None:
+                self.hb_consumed[p] = (ms, seen + s)
 
     def check_heartbeats(self, now: float) -> None:
         """A consumed heartbeat overdue at bus time `now` (the receive time of
@@ -567,8 +610,18 @@ class Drive(SimDevice):
                 continue  # CiA 301: monitoring starts with the first heartbeat
             if now - seen > ms / 1000.0:
                 self.hb_lost.add(p)
+                prev = self.sim.prev_sync_t
                 self.rec.event(
-                    self.id, "heartbeat_lost", producer=p, ms=ms, late_s=round(now - seen, 4)
+                    self.id,
+                    "heartbeat_lost",
+                    producer=p,
+                    ms=ms,
+                    late_s=round(now - seen, 4),
+                    # how it was judged (a SYNC's receive time, the newest
+                    # frame's, or the wall clock on a silent bus), and the
+                    # bus's own silence before it: the SYNCs' gap
+                    via=self.sim.judge_via,
+                    sync_gap_s=None if prev is None else round(now - prev, 4),
                 )
                 self.fault(0x8130, f"heartbeat of node {p} lost")
 
@@ -787,7 +840,10 @@ class Drive(SimDevice):
             # attained, 13 homing error
             if self.home_phase in ("done", "error", "idle"):
                 sw |= P.SW_TARGET_REACHED
-            if self.home_phase == "done" and self.home_attained:
+            # attained, still moving back onto the home position (after an
+            # index pulse): 12 without 10 (CiA 402: "homing attained, target
+            # not reached")
+            if self.home_phase in ("done", "return") and self.home_attained:
                 sw |= SW_HOMING_ATTAINED
             if self.home_phase == "error":
                 sw |= SW_HOMING_ERROR
@@ -1028,14 +1084,12 @@ class Drive(SimDevice):
         at = self.switches.get(which)
         if at is None:
             return False
-        return pos <= at if which == "neg" else pos >= at
+        return pos <= at if which in ("neg", "nhome") else pos >= at
 
     def _homing(self, sync_no: int) -> None:
         """CiA 402 homing mode, one SYNC: started by controlword bit 4's
-        rising edge; moves at the search speed (0x6099:1) toward the switch of
-        its method, then back at the latch speed (0x6099:2) until the switch
-        releases; that edge is the home: position actual := home offset
-        (0x607C), homing attained. 35/37: the current position is home."""
+        rising edge, the method's moves (HOMING_METHODS); at the home
+        position, position actual := home offset (0x607C), homing attained."""
         od = self.sim.od_int
         n = self.node
         start = bool(self.cw & 0x10) and not (self._cw_prev_home & 0x10)
@@ -1047,26 +1101,33 @@ class Drive(SimDevice):
             self.rec.event(
                 self.id, "homing", phase="start", method=method, at=self.actual, sync=sync_no
             )
-            if method in (35, 37):
-                self._home_here(sync_no)
+            which, toward, index = HOMING_METHODS[method]
+            if toward == 0:
+                self._home_here(sync_no, self.actual_f)
                 return
-            which = {17: "neg", 18: "pos", 19: "home", 21: "home"}[method]
-            if which not in self.switches:
+            why = None
+            if which is not None and which not in self.switches:
+                why = f"no {which} switch"
+            elif index and self.index_rev <= 0:
+                why = "no index pulse"
+            if why is not None:
                 self.home_phase = "error"
-                self.rec.event(
-                    self.id, "homing", phase="error", why=f"no {which} switch", sync=sync_no
-                )
+                self.rec.event(self.id, "homing", phase="error", why=why, sync=sync_no)
                 return
-            self.home_switch = which
-            # toward the switch: 17 and 21 negative, 18 and 19 positive
-            self.home_dir = -1 if method in (17, 21) else 1
-            if which == "home" and self._switch_on("home", self.actual) and self.home_dir > 0:
-                self.home_dir = -1  # on it already: off it first (simplified)
-            self.home_phase = "search"
+            self.home_index = index
+            self.home_dir = toward
+            if which is None:
+                self.home_phase = "index"  # 33/34: toward the first index pulse
+            else:
+                self.home_switch = which
+                # on it already: off it at the latch speed (the same edge)
+                on = self._switch_on(which, self.actual)
+                self.home_phase = "latch" if on else "search"
             return
-        if self.home_phase not in ("search", "brake", "latch") or self.home_stall:
+        if self.home_phase in ("idle", "done", "error") or self.home_stall:
             return
         per_s = self.p_period_ms / 1000.0
+        frm = self.actual_f
         if self.home_phase == "search":
             v = od(n, 0x6099, "<I", 1)
             self.home_v = float(v)
@@ -1082,23 +1143,76 @@ class Drive(SimDevice):
             self.actual = int(round(self.actual_f))
             if self.home_v == 0.0:
                 self.home_phase = "latch"
-        else:
+        elif self.home_phase == "latch":
             v = od(n, 0x6099, "<I", 2)
             self.actual_f -= self.home_dir * v * per_s
             self.actual = int(round(self.actual_f))
             if not self._switch_on(self.home_switch, self.actual):
-                self._home_here(sync_no)
+                if not self.home_index:
+                    self._home_here(sync_no, self.actual_f)
+                    return
+                # on to the first index pulse beyond the edge, this way
+                self.rec.event(self.id, "homing", phase="edge", at=self.actual, sync=sync_no)
+                self.home_phase = "index"
+                self.home_dir = -self.home_dir
+                frm = self.actual_f  # a pulse from the edge on
+                self._index_step(sync_no, frm, frm)
+        elif self.home_phase == "index":
+            v = od(n, 0x6099, "<I", 2)
+            self.actual_f += self.home_dir * v * per_s
+            self.actual = int(round(self.actual_f))
+            self._index_step(sync_no, frm, self.actual_f)
+        else:  # return: back onto the home position at the latch speed
+            off = float(od(n, 0x607C, "<i"))
+            step = od(n, 0x6099, "<I", 2) * per_s
+            d = off - self.actual_f
+            self.actual_f = off if abs(d) <= step else self.actual_f + step * (1 if d > 0 else -1)
+            self.actual = int(round(self.actual_f))
+            if self.actual_f == off:
+                self.home_phase = "done"
+                self.rec.event(self.id, "homing", phase="done", at=self.actual, sync=sync_no)
 
-    def _home_here(self, sync_no: int) -> None:
+    def _index_step(self, sync_no: int, a: float, b: float) -> None:
+        """An index pulse passed between a and b (moving home_dir, a
+        excluded unless a == b): the drive latches the pulse's position (its
+        encoder's own capture, not where the SYNC finds it), that is home;
+        it goes on moving back onto it (homing attained, target not reached
+        until it stands there)."""
+        rev, ph = float(self.index_rev), self.index_at
+        k = (a - ph) / rev
+        if self.home_dir > 0:
+            q = ph + (math.floor(k) + (0 if a == b else 1)) * rev
+            hit = a <= q <= b if a == b else a < q <= b
+        else:
+            q = ph + (math.ceil(k) - (0 if a == b else 1)) * rev
+            hit = b <= q <= a if a == b else b <= q < a
+        if hit:
+            self._home_here(sync_no, q, done=False)
+
+    def _home_here(self, sync_no: int, at: float, done: bool = True) -> None:
+        """The home position is at (counts, the current reference): it
+        becomes the home offset 0x607C; done: the axis stands there."""
         offset = self.sim.od_int(self.node, 0x607C, "<i")
-        self.rec.event(self.id, "homing", phase="done", at=self.actual, offset=offset, sync=sync_no)
-        # the reference moves, not the axis: the switches move with it
-        shift = offset - self.actual
-        self.switches = {k: v + shift for k, v in self.switches.items()}
-        self.actual = self.target = offset
-        self.actual_f = float(offset)
-        self.home_phase = "done"
+        self.rec.event(
+            self.id,
+            "homing",
+            phase="done" if done else "index",
+            at=self.actual,
+            home=round(at, 3),
+            offset=offset,
+            sync=sync_no,
+        )
+        # the reference moves, not the axis: the switches and the index
+        # pulses move with it
+        shift = offset - at
+        self.switches = {k: int(round(v + shift)) for k, v in self.switches.items()}
+        if self.index_rev > 0:
+            self.index_at = math.fmod(self.index_at + shift, float(self.index_rev))
+        self.actual_f += shift
+        self.actual = int(round(self.actual_f))
+        self.target = self.actual
         self.home_attained = True
+        self.home_phase = "done" if done else "return"
 
     def _following(self, fe: int) -> None:
         """CiA 402: statusword bit 13 while |following error| > 0x6065 for
@@ -1195,6 +1309,10 @@ class DriveSim:
         self.network = canopen.Network(bus)
         self.sync_no = 0
         self.t_last_sync: float | None = None
+        self.prev_sync_t: float | None = None  # the SYNC before the last one
+        self.judge_via = "sync"  # what the heartbeat consumers are judged at now
+        self.stalls = 0  # this simulator not running (own_stall): how often, longest (s)
+        self.stall_s = 0.0
         self.cycle_cpu_s = 0.0
         self.cycles = 0
         self.last_rx_mono = time.monotonic()  # when the last frame was taken off the bus
@@ -1288,16 +1406,31 @@ class DriveSim:
 
         assert self.network.bus is not None
         sock = bus_socket(self.network.bus)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, struct.pack("ll", 0, 100000))
+        # 20 ms without a frame: a silent bus (judged below)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, struct.pack("ll", 0, 20000))
         # a simulator running behind the bus must not lose frames: a large
         # buffer, and the kernel's drop counter (reported at exit)
         tune_socket(sock, self.channel, 16 << 20, False, {})
         mm = MMsg(sock)
         notify = self.network.notify
+        m0, c0 = time.monotonic(), time.thread_time()
         while not self._stopping:
             self.rx_busy = False
             k = mm.recv()
+            # the time since the last receive returned that this thread did
+            # not run (not its CPU time, not the receive's 20 ms timeout):
+            # beyond OWN_STALL_S it was not running (starved, or its emulator
+            # descheduled by the host: every process in it stopped at once)
+            m1, c1 = time.monotonic(), time.thread_time()
+            late = (m1 - m0) - (c1 - c0) - 0.02
+            m0, c0 = m1, c1
+            if late > OWN_STALL_S:
+                self.own_stall(late)
             if not k:
+                # nothing for 20 ms and every frame before handled (by this
+                # thread, in order): the wall clock is the bus time now
+                if self.last_rx_t > 0.0:
+                    self._judge(max(self.last_rx_t, time.time()), "silent bus")
                 continue
             self.rx_busy = True
             B = Batch(mm, k, 1)
@@ -1319,20 +1452,51 @@ class DriveSim:
                             file=sys.stderr,
                             flush=True,
                         )
+            # judged at the newest frame's receive time, every frame before
+            # it handled: frame order, whatever this thread's own lateness
+            self._judge(self.last_rx_t, "bus")
 
     def _count_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.lock:
             self.sync_no += 1
+            self.prev_sync_t = self.t_last_sync
             self.t_last_sync = timestamp
             self.last_rx_mono = time.monotonic()
-            for d in self.drives.values():
-                if d.present:
-                    d.check_heartbeats(timestamp)
+            self._judge(timestamp, "sync")
             for m in self.modules.values():
                 if m.present:
-                    m.check_heartbeats(timestamp)
                     # the outputs in force at this SYNC (what the RPDOs before it set)
                     self.rec.io_row((self.sync_no, m.id, timestamp, *m.outputs_row()))
+
+    def own_stall(self, s: float) -> None:
+        """This simulator was not running for s seconds. A drive's consumer
+        counts the time the drive listens: a stall of the whole emulated host
+        stops the producer too, and the kernel's timers (the drives' own
+        heartbeats) then put frames stamped after the stall on the bus before
+        the producer runs again, so frame order alone would blame it for the
+        simulator's own stall (EMCY 0x8130 with the master's heartbeat the
+        next frame). A producer that is really gone is still judged, s later."""
+        with self.lock:
+            self.stalls += 1
+            self.stall_s = max(self.stall_s, s)
+            for d in self.drives.values():
+                d.stalled(s)
+            for m in self.modules.values():
+                if m.master_seen is not None:
+                    m.master_seen += s
+        self.rec.event(0, "own_stall", s=round(s, 3), sync=self.sync_no)
+
+    def _judge(self, now: float, via: str) -> None:
+        """Every consumed heartbeat judged at bus time now (CiA 301: the
+        consumer time counted from the last heartbeat received before it)."""
+        with self.lock:
+            self.judge_via = via
+            for d in self.drives.values():
+                if d.present:
+                    d.check_heartbeats(now)
+            for m in self.modules.values():
+                if m.present:
+                    m.check_heartbeats(now)
 
     def on_sync(self, drive: Drive, t: float) -> None:
         """Called once per drive per SYNC (canopen calls each subscriber)."""
@@ -1394,24 +1558,26 @@ class DriveSim:
             self.drives[node].inject(what, arg)
 
     def tick(self) -> None:
-        """Main thread, every few ms: records to disk; heartbeat consumers
-        judged at the receive time of the newest frame taken off the bus (frame
-        order: a simulator running behind the bus does not blame the producer
-        for its own lateness), or by the wall clock once nothing has been taken
-        off the bus for 50 ms and nothing waits to be (a silent bus). Without
-        SYNCs other frames (the drives' own heartbeats, sent by the kernel's
-        timer) still flow, so the bus time must come from them too."""
+        """Main thread, every few ms: records to disk. Fast receive: the
+        heartbeat consumers are judged by the receiving thread itself (at
+        each SYNC, after each batch at its newest frame's receive time, and
+        at the wall clock when a receive found the bus silent for 20 ms), so
+        never at a bus time whose frames are not all handled yet. python-can's
+        receive (its Notifier's thread): judged here at the receive time of
+        the newest frame taken off the bus (frame order: a simulator running
+        behind the bus does not blame the producer for its own lateness), or
+        by the wall clock once nothing has been taken off the bus for 50 ms
+        and nothing waits to be (a silent bus). Without SYNCs other frames
+        (the drives' own heartbeats, sent by the kernel's timer) still flow,
+        so the bus time must come from them too."""
+        if self._pump is not None:
+            self.rec.flush()
+            return
         now = self.last_rx_t
         if time.monotonic() - self.last_rx_mono > 0.05 and self._rx_drained():
             now = max(now, time.time())
         if now > 0.0:
-            with self.lock:
-                for d in self.drives.values():
-                    if d.present:
-                        d.check_heartbeats(now)
-                for m in self.modules.values():
-                    if m.present:
-                        m.check_heartbeats(now)
+            self._judge(now, "tick")
         self.rec.flush()
 
     def _rx_drained(self) -> bool:

@@ -38,7 +38,9 @@ maps) with the CiA 402 drive profile on top (mlipcan.drive):
            limit and home switches of --switches at the position actual) in
            TPDO3 when the master maps it: on change and every event timer
            0x1802:05 ms; touch probe 1 (0x60B8..0x60BB, TPDO2 when the
-           master maps 0x60BA/0x60BB there)
+           master maps 0x60BA/0x60BB there); homing mode (6, 0x6098
+           methods 1 2 3 5 17 18 19 21 33 34 35 37 on the switches and the
+           index pulse of --switches; statusword bits 10, 12, 13)
 
 Fault injection (--inject at start, or a line "N:WHAT[=ARG]" appended to the
 --control file at run time, read within 20 ms):
@@ -81,8 +83,11 @@ software-emulated test VM (MLIP_IN_VM=1, --receive fast) with the listener's
 recvmmsg batches from the same socket, handed to canopen's Network.notify:
 python-can's Bus.recv costs 1-2.6 ms a frame there, and three drives at a
 4 ms SYNC would fall behind the bus. A consumed heartbeat is judged by the
-receive time of the SYNCs after it (frame order), so a simulator running
-late does not see a heartbeat lost that was not.
+receive time of the frames after it (frame order), so a simulator running
+late does not see a heartbeat lost that was not; and the time the simulator
+itself did not run (its emulator descheduled by the host: the drives' own
+kernel-timed heartbeats then come stamped after the stall, before the
+producer has run again) is not counted against the producer.
 
 stderr: "mlip-drive-sim: ... ready" once every drive has sent its boot-up.
 SIGTERM/SIGINT: records written, a summary line (SYNCs, CPU per cycle),
@@ -128,13 +133,17 @@ def parse_injection(text: str) -> tuple[int, str, str | None]:
 
 
 def parse_switches(text: str) -> dict[str, int]:
-    """'neg:-5000,home:200' -> {'neg': -5000, 'home': 200}."""
+    """'neg:-5000,home:200,index:4000' -> {'neg': -5000, 'home': 200, 'index': 4000}."""
     out: dict[str, int] = {}
     for item in text.split(","):
         kind, _, counts = item.partition(":")
-        if kind not in ("neg", "pos", "home"):
-            raise ValueError(f"switch kind '{kind}' (neg, pos or home)")
+        if kind not in ("neg", "pos", "home", "nhome", "index"):
+            raise ValueError(f"switch kind '{kind}' (neg, pos, home, nhome or index)")
         out[kind] = int(counts, 0)
+    if "home" in out and "nhome" in out:
+        raise ValueError("one home switch: home (on in +) or nhome (on in -)")
+    if out.get("index", 1) <= 0:
+        raise ValueError("index: counts per revolution > 0")
     return out
 
 
@@ -215,7 +224,9 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
         metavar="N=KIND:COUNTS,...",
         action="append",
         help="where node N's switches are, for its homing mode (counts): neg and pos "
-        "(limit switches, on beyond them), home (on from it in +), e.g. 1=neg:-5000,home:200",
+        "(limit switches, on beyond them), home (on from it in +) or nhome (on from it in "
+        "-), and index: its encoder's index pulse every that many counts (at the multiples "
+        "of it from power-up), e.g. 1=neg:-5000,home:200,index:4096",
     )
     ap.add_argument(
         "--io",
@@ -226,7 +237,8 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
         help="a CiA 401 I/O module at NODE on the same bus (mlipcan.io401; injections "
         "NODE:input=BYTE.BIT=0|1, probe=BYTE.BIT,DRIVE,COUNTS,below|above (the input "
         "follows that drive's position against a surface; probe=off), heartbeat=off|on, "
-        "fault[=CODE], reboot (a power cycle: defaults, outputs off, boot-up), absent, "
+        "fault[=CODE], reboot[=PRODUCT] (a power cycle: defaults, outputs off, boot-up; "
+        "PRODUCT: another module in its place, that product code 0x1018:02), absent, "
         "present); its outputs at every SYNC in RECORD/io.csv",
     )
     ap.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
@@ -332,7 +344,8 @@ def main(argv: Sequence[str] | None = None, settings: Settings | None = None) ->
     print(
         f"{PROG}: {sim.sync_no} SYNCs, {sim.cycles} drive cycles, "
         f"{per:.0f} us CPU per drive cycle (handler only), socket drops "
-        f"{'n/a' if sim.socket_drops is None else sim.socket_drops}, process CPU "
+        f"{'n/a' if sim.socket_drops is None else sim.socket_drops}, stalls of its own "
+        f"{sim.stalls} (longest {sim.stall_s:.2f} s), process CPU "
         f"{cpu1.user + cpu1.system - cpu0.user - cpu0.system:.2f} s",
         file=sys.stderr,
         flush=True,

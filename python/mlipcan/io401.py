@@ -12,7 +12,8 @@ a test can count the periods from the input frame to what the drives did;
 the outputs in force are recorded at every SYNC (io.csv: sync, node, time,
 outputs 0x6200:1..8 and inputs 0x6000:1..8 as hex), so a test judges what
 the module did period by period (issue 19).
-A power cycle by injection: N:reboot (defaults, outputs off, boot-up).
+A power cycle by injection: N:reboot (defaults, outputs off, boot-up);
+N:reboot=PRODUCT: another module in its place (product code 0x1018:02 PRODUCT).
 Inputs change by injection: N:input=BYTE.BIT=0|1 (BYTE 1..8, BIT 0..7), or
 follow a simulated drive's position as a probe touching a surface:
 N:probe=BYTE.BIT,DRIVE,COUNTS,below|above (the input is 1 while the drive's
@@ -226,7 +227,8 @@ class IoModule(SimDevice):
         self.master_seen = None
 
     def _on_master_hb(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        self.master_seen = timestamp
+        # never back: a stall of the simulator itself moved it on (DriveSim)
+        self.master_seen = max(timestamp, self.master_seen or 0.0)
         self.master_lost = False
 
     def check_heartbeats(self, now: float) -> None:
@@ -307,8 +309,13 @@ class IoModule(SimDevice):
                 self.follow(node, d.actual, self.sim.sync_no)
         elif what == "reboot":
             # a power cycle: every object to its default but the inputs (they
-            # are physical), outputs off, no heartbeat consumed, boot-up sent
+            # are physical), outputs off, no heartbeat consumed, boot-up sent;
+            # reboot=PRODUCT: another module took its place (its product
+            # code 0x1018:02 PRODUCT from then on), the inputs wired as before
             with self.sim.lock:
+                ident = self.node.object_dictionary[0x1018]
+                if arg and isinstance(ident, ODRecord):  # the new module's own identity
+                    ident[2].default = ident[2].value = int(arg, 0) & 0xFFFFFFFF
                 ds = self.node.data_store
                 for k in list(ds):
                     if k != 0x6000:

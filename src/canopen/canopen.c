@@ -388,3 +388,43 @@ void mlip_sdo_add_check(struct mlip_sdo_list *l, uint16_t index, uint8_t sub, ui
 {
 	sdo_add(l, index, sub, size, value, 1, what);
 }
+
+/* "RPDOn ..." / "TPDOn ..." for the steps every PDO takes (entries keep the
+ * pointer: static text) */
+#define PDO_TEXTS(P)                                                                               \
+	{                                                                                          \
+		P " COB-ID (disabled while mapping)", P " mapping count (cleared)",                \
+		    P " mapping count", P " COB-ID"                                                \
+	}
+static const char *const pdo_texts[2][4][4] = {
+    {PDO_TEXTS("RPDO1"), PDO_TEXTS("RPDO2"), PDO_TEXTS("RPDO3"), PDO_TEXTS("RPDO4")},
+    {PDO_TEXTS("TPDO1"), PDO_TEXTS("TPDO2"), PDO_TEXTS("TPDO3"), PDO_TEXTS("TPDO4")}};
+
+mlip_status mlip_sdo_add_pdo(struct mlip_sdo_list *l, const struct mlip_pdo_map *p)
+{
+	/* COB-ID bit 31: PDO not valid (disabled while it is mapped); bit 30 of
+	 * a TPDO: no RTR allowed */
+	const uint32_t off = 0x80000000u, no_rtr = p->tpdo ? 0x40000000u : 0u;
+	const char *const *t;
+	uint16_t comm, map;
+	uint8_t k;
+
+	if (p->num < 1 || p->num > 4 || p->n < 1 || p->n > 8) {
+		return MLIP_E_RANGE;
+	}
+	t = pdo_texts[p->tpdo ? 1 : 0][p->num - 1];
+	comm = (uint16_t)((p->tpdo ? 0x1800u : 0x1400u) + p->num - 1u);
+	map = (uint16_t)(comm + 0x200u);
+	mlip_sdo_add(l, comm, 1, 4, off | no_rtr | p->cob_id, t[0]);
+	mlip_sdo_add(l, comm, 2, 1, p->type, p->type_what);
+	if (p->event_what != NULL) {
+		mlip_sdo_add(l, comm, 5, 2, p->event_ms, p->event_what);
+	}
+	mlip_sdo_add(l, map, 0, 1, 0, t[1]);
+	for (k = 0; k < p->n; k++) {
+		mlip_sdo_add(l, map, (uint8_t)(k + 1u), 4, p->map[k], p->what[k]);
+	}
+	mlip_sdo_add(l, map, 0, 1, p->n, t[2]);
+	mlip_sdo_add(l, comm, 1, 4, no_rtr | p->cob_id, t[3]);
+	return MLIP_OK;
+}

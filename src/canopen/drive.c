@@ -31,9 +31,62 @@ mlip_status mlip_co_interp_period(double period_s, uint8_t *value, int8_t *index
 
 int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out, int cap)
 {
-	/* COB-ID bit 31: PDO not valid (disabled while it is mapped); bit 30 of
-	 * a TPDO: no RTR allowed */
-	const uint32_t off = 0x80000000u, no_rtr = 0x40000000u;
+	/* RPDO1: controlword, the target, the touch probe function */
+	const uint32_t rx[3] = {0x60400010u, d->velocity ? 0x60FF0020u : 0x607A0020u, 0x60B80010u};
+	const char *const rx_what[3] = {"RPDO1 mapping 1: controlword 0x6040",
+	                                d->velocity ? "RPDO1 mapping 2: target velocity 0x60FF"
+	                                            : "RPDO1 mapping 2: target position 0x607A",
+	                                "RPDO1 mapping 3: touch probe function 0x60B8"};
+	/* TPDO1: statusword, the actual value, the touch probe status */
+	const uint32_t tx[3] = {0x60410010u, d->velocity ? 0x606C0020u : 0x60640020u, 0x60B90010u};
+	const char *const tx_what[3] = {"TPDO1 mapping 1: statusword 0x6041",
+	                                d->velocity
+	                                    ? "TPDO1 mapping 2: velocity actual value 0x606C"
+	                                    : "TPDO1 mapping 2: position actual value 0x6064",
+	                                "TPDO1 mapping 3: touch probe status 0x60B9"};
+	/* TPDO2: the latched positions, sampled at the same SYNC as TPDO1 */
+	static const uint32_t tp[2] = {0x60BA0020u, 0x60BB0020u};
+	static const char *const tp_what[2] = {
+	    "TPDO2 mapping 1: touch probe 1 positive edge position 0x60BA",
+	    "TPDO2 mapping 2: touch probe 1 negative edge position 0x60BB"};
+	/* TPDO3 (TPDO2 may be the touch probe's): the digital inputs */
+	static const uint32_t di[1] = {0x60FD0020u};
+	static const char *const di_what[1] = {"TPDO3 mapping 1: digital inputs 0x60FD"};
+	const uint8_t n1 = d->touch_probe ? 3 : 2;
+	const struct mlip_pdo_map pdo[4] = {
+	    {.num = 1,
+	     .cob_id = d->rpdo_cob,
+	     .type = 1,
+	     .type_what = "RPDO1 transmission type (synchronous)",
+	     .n = n1,
+	     .map = rx,
+	     .what = rx_what},
+	    {.tpdo = 1,
+	     .num = 1,
+	     .cob_id = d->tpdo_cob,
+	     .type = 1,
+	     .type_what = "TPDO1 transmission type (synchronous, every SYNC)",
+	     .n = n1,
+	     .map = tx,
+	     .what = tx_what},
+	    {.tpdo = 1,
+	     .num = 2,
+	     .cob_id = d->tpdo2_cob,
+	     .type = 1,
+	     .type_what = "TPDO2 transmission type (synchronous, every SYNC)",
+	     .n = 2,
+	     .map = tp,
+	     .what = tp_what},
+	    {.tpdo = 1,
+	     .num = 3,
+	     .cob_id = d->di_tpdo_cob,
+	     .type = 255,
+	     .type_what = "TPDO3 transmission type (255: on change)",
+	     .event_what = "TPDO3 event timer (ms): the inputs at least this often",
+	     .event_ms = d->di_event_ms,
+	     .n = 1,
+	     .map = di,
+	     .what = di_what}};
 	uint8_t pv;
 	int8_t pi;
 	struct mlip_sdo_list l = {out, cap, 0};
@@ -41,68 +94,17 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 	if (mlip_co_interp_period(d->period_s, &pv, &pi) != MLIP_OK) {
 		return -1;
 	}
-	mlip_sdo_add(&l, 0x1400, 1, 4, off | d->rpdo_cob, "RPDO1 COB-ID (disabled while mapping)");
-	mlip_sdo_add(&l, 0x1400, 2, 1, 1, "RPDO1 transmission type (synchronous)");
-	mlip_sdo_add(&l, 0x1600, 0, 1, 0, "RPDO1 mapping count (cleared)");
-	mlip_sdo_add(&l, 0x1600, 1, 4, 0x60400010u, "RPDO1 mapping 1: controlword 0x6040");
-	if (d->velocity) {
-		mlip_sdo_add(&l, 0x1600, 2, 4, 0x60FF0020u,
-		             "RPDO1 mapping 2: target velocity 0x60FF");
-	} else {
-		mlip_sdo_add(&l, 0x1600, 2, 4, 0x607A0020u,
-		             "RPDO1 mapping 2: target position 0x607A");
+	if (mlip_sdo_add_pdo(&l, &pdo[0]) != MLIP_OK || mlip_sdo_add_pdo(&l, &pdo[1]) != MLIP_OK) {
+		return -1;
 	}
 	if (d->touch_probe) {
-		mlip_sdo_add(&l, 0x1600, 3, 4, 0x60B80010u,
-		             "RPDO1 mapping 3: touch probe function 0x60B8");
-	}
-	mlip_sdo_add(&l, 0x1600, 0, 1, d->touch_probe ? 3 : 2, "RPDO1 mapping count");
-	mlip_sdo_add(&l, 0x1400, 1, 4, d->rpdo_cob, "RPDO1 COB-ID");
-	mlip_sdo_add(&l, 0x1800, 1, 4, off | no_rtr | d->tpdo_cob,
-	             "TPDO1 COB-ID (disabled while mapping)");
-	mlip_sdo_add(&l, 0x1800, 2, 1, 1, "TPDO1 transmission type (synchronous, every SYNC)");
-	mlip_sdo_add(&l, 0x1A00, 0, 1, 0, "TPDO1 mapping count (cleared)");
-	mlip_sdo_add(&l, 0x1A00, 1, 4, 0x60410010u, "TPDO1 mapping 1: statusword 0x6041");
-	if (d->velocity) {
-		mlip_sdo_add(&l, 0x1A00, 2, 4, 0x606C0020u,
-		             "TPDO1 mapping 2: velocity actual value 0x606C");
-	} else {
-		mlip_sdo_add(&l, 0x1A00, 2, 4, 0x60640020u,
-		             "TPDO1 mapping 2: position actual value 0x6064");
-	}
-	if (d->touch_probe) {
-		mlip_sdo_add(&l, 0x1A00, 3, 4, 0x60B90010u,
-		             "TPDO1 mapping 3: touch probe status 0x60B9");
-	}
-	mlip_sdo_add(&l, 0x1A00, 0, 1, d->touch_probe ? 3 : 2, "TPDO1 mapping count");
-	mlip_sdo_add(&l, 0x1800, 1, 4, no_rtr | d->tpdo_cob, "TPDO1 COB-ID");
-	if (d->touch_probe) {
-		/* the latched positions, sampled at the same SYNC as TPDO1 */
-		mlip_sdo_add(&l, 0x1801, 1, 4, off | no_rtr | d->tpdo2_cob,
-		             "TPDO2 COB-ID (disabled while mapping)");
-		mlip_sdo_add(&l, 0x1801, 2, 1, 1,
-		             "TPDO2 transmission type (synchronous, every SYNC)");
-		mlip_sdo_add(&l, 0x1A01, 0, 1, 0, "TPDO2 mapping count (cleared)");
-		mlip_sdo_add(&l, 0x1A01, 1, 4, 0x60BA0020u,
-		             "TPDO2 mapping 1: touch probe 1 positive edge position 0x60BA");
-		mlip_sdo_add(&l, 0x1A01, 2, 4, 0x60BB0020u,
-		             "TPDO2 mapping 2: touch probe 1 negative edge position 0x60BB");
-		mlip_sdo_add(&l, 0x1A01, 0, 1, 2, "TPDO2 mapping count");
-		mlip_sdo_add(&l, 0x1801, 1, 4, no_rtr | d->tpdo2_cob, "TPDO2 COB-ID");
+		if (mlip_sdo_add_pdo(&l, &pdo[2]) != MLIP_OK) {
+			return -1;
+		}
 		mlip_sdo_add(&l, 0x60B8, 0, 2, 0, "touch probe function (off until a G38)");
 	}
-	if (d->di_tpdo_cob != 0) {
-		/* TPDO3: TPDO2 may be the touch probe's */
-		mlip_sdo_add(&l, 0x1802, 1, 4, off | no_rtr | d->di_tpdo_cob,
-		             "TPDO3 COB-ID (disabled while mapping)");
-		mlip_sdo_add(&l, 0x1802, 2, 1, 255, "TPDO3 transmission type (255: on change)");
-		mlip_sdo_add(&l, 0x1802, 5, 2, d->di_event_ms,
-		             "TPDO3 event timer (ms): the inputs at least this often");
-		mlip_sdo_add(&l, 0x1A02, 0, 1, 0, "TPDO3 mapping count (cleared)");
-		mlip_sdo_add(&l, 0x1A02, 1, 4, 0x60FD0020u,
-		             "TPDO3 mapping 1: digital inputs 0x60FD");
-		mlip_sdo_add(&l, 0x1A02, 0, 1, 1, "TPDO3 mapping count");
-		mlip_sdo_add(&l, 0x1802, 1, 4, no_rtr | d->di_tpdo_cob, "TPDO3 COB-ID");
+	if (d->di_tpdo_cob != 0 && mlip_sdo_add_pdo(&l, &pdo[3]) != MLIP_OK) {
+		return -1;
 	}
 	mlip_sdo_add(&l, 0x1005, 0, 4, d->sync_id, "COB-ID SYNC (consumer)");
 	if (d->velocity) {
@@ -133,6 +135,11 @@ int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_e
 	if (d->quick_stop_counts_s2 != 0) {
 		mlip_sdo_add(&l, 0x6085, 0, 4, d->quick_stop_counts_s2,
 		             "quick stop deceleration (counts/s^2)");
+		/* the ramp is the drive's only with option 2 or 6; 6 also holds the
+		 * axis under position control at rest (docs/cia402.md) */
+		mlip_sdo_add(&l, 0x605A, 0, 2, MLIP_DRIVE_QUICK_STOP_OPTION,
+		             "quick stop option code (6: the quick stop ramp, then hold in "
+		             "quick stop active)");
 	}
 	mlip_sdo_add(&l, 0x1017, 0, 2, d->heartbeat_ms, "producer heartbeat time (ms)");
 	mlip_sdo_add(&l, 0x1016, 1, 4, ((uint32_t)d->master_node << 16) | d->master_timeout_ms,
@@ -208,8 +215,9 @@ const char *mlip_drive_fault_name(mlip_drive_fault f)
 	                                    "spindle not at speed in time",
 	                                    "spindle speed out of its band",
 	                                    "power step not confirmed",
-	                                    "digital inputs lost"};
-	return (int)f >= 0 && f <= MLIP_DRIVE_INPUTS_LOST ? names[f] : "?";
+	                                    "digital inputs lost",
+	                                    "not the same device"};
+	return (int)f >= 0 && f <= MLIP_DRIVE_WRONG_DEVICE ? names[f] : "?";
 }
 
 int64_t mlip_drive_following_error(const int32_t *targets, int n, int32_t actual)

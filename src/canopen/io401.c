@@ -18,33 +18,37 @@ int mlip_io401_setup_entries(const struct mlip_io401_setup *s, struct mlip_sdo_e
 	    "RPDO1 mapping: digital outputs 0x6200:3", "RPDO1 mapping: digital outputs 0x6200:4",
 	    "RPDO1 mapping: digital outputs 0x6200:5", "RPDO1 mapping: digital outputs 0x6200:6",
 	    "RPDO1 mapping: digital outputs 0x6200:7", "RPDO1 mapping: digital outputs 0x6200:8"};
-	const uint32_t off = 0x80000000u, no_rtr = 0x40000000u;
-	const uint32_t tpdo = 0x180u + s->node, rpdo = 0x200u + s->node;
+	uint32_t in[MLIP_IO_IN_BYTES], outs[MLIP_IO_IN_BYTES];
+	const struct mlip_pdo_map tpdo = {.tpdo = 1,
+	                                  .num = 1,
+	                                  .cob_id = 0x180u + s->node,
+	                                  .type = 255,
+	                                  .type_what = "TPDO1 transmission type (255: on change)",
+	                                  .n = s->in_bytes,
+	                                  .map = in,
+	                                  .what = in_map};
+	const struct mlip_pdo_map rpdo = {.num = 1,
+	                                  .cob_id = 0x200u + s->node,
+	                                  .type = 255,
+	                                  .type_what =
+	                                      "RPDO1 transmission type (255: on reception)",
+	                                  .n = s->out_bytes,
+	                                  .map = outs,
+	                                  .what = out_map};
 	struct mlip_sdo_list l = {out, cap, 0};
 	uint32_t k;
 
 	if (s->in_bytes < 1 || s->in_bytes > MLIP_IO_IN_BYTES || s->out_bytes > MLIP_IO_IN_BYTES) {
 		return -1;
 	}
-	mlip_sdo_add(&l, 0x1800, 1, 4, off | no_rtr | tpdo,
-	             "TPDO1 COB-ID (disabled while mapping)");
-	mlip_sdo_add(&l, 0x1800, 2, 1, 255, "TPDO1 transmission type (255: on change)");
-	mlip_sdo_add(&l, 0x1A00, 0, 1, 0, "TPDO1 mapping count (cleared)");
-	for (k = 1; k <= s->in_bytes; k++) {
-		mlip_sdo_add(&l, 0x1A00, (uint8_t)k, 4, 0x60000008u | k << 8, in_map[k - 1]);
+	/* 0x6000:k, 0x6200:k: 8 bits each */
+	for (k = 1; k <= MLIP_IO_IN_BYTES; k++) {
+		in[k - 1] = 0x60000008u | k << 8;
+		outs[k - 1] = 0x62000008u | k << 8;
 	}
-	mlip_sdo_add(&l, 0x1A00, 0, 1, s->in_bytes, "TPDO1 mapping count");
-	mlip_sdo_add(&l, 0x1800, 1, 4, no_rtr | tpdo, "TPDO1 COB-ID");
-	if (s->out_bytes > 0) {
-		mlip_sdo_add(&l, 0x1400, 1, 4, off | rpdo, "RPDO1 COB-ID (disabled while mapping)");
-		mlip_sdo_add(&l, 0x1400, 2, 1, 255, "RPDO1 transmission type (255: on reception)");
-		mlip_sdo_add(&l, 0x1600, 0, 1, 0, "RPDO1 mapping count (cleared)");
-		for (k = 1; k <= s->out_bytes; k++) {
-			mlip_sdo_add(&l, 0x1600, (uint8_t)k, 4, 0x62000008u | k << 8,
-			             out_map[k - 1]);
-		}
-		mlip_sdo_add(&l, 0x1600, 0, 1, s->out_bytes, "RPDO1 mapping count");
-		mlip_sdo_add(&l, 0x1400, 1, 4, rpdo, "RPDO1 COB-ID");
+	if (mlip_sdo_add_pdo(&l, &tpdo) != MLIP_OK ||
+	    (s->out_bytes > 0 && mlip_sdo_add_pdo(&l, &rpdo) != MLIP_OK)) {
+		return -1;
 	}
 	mlip_sdo_add(&l, 0x1017, 0, 2, s->heartbeat_ms, "producer heartbeat time (ms)");
 	mlip_sdo_add(&l, 0x1016, 1, 4, ((uint32_t)s->master_node << 16) | s->master_timeout_ms,

@@ -6,6 +6,8 @@
 
 #include <string.h>
 
+#include "mlip/canopen/drive.h"
+
 mlip_status mlip_ctl_set_output(struct mlip_ctl *c, uint32_t sub, uint32_t bit, int on)
 {
 	if (sub < 1 || sub > MLIP_IO_IN_BYTES || bit > 7) {
@@ -121,6 +123,18 @@ void mlip_ct_io_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 		r.node = in->io.lost.node;
 		r.value = in->io.lost.value;
 		mlip_ct_quick_stop(c, in, out, MLIP_STATE_ESTOP, r);
+		return;
+	}
+	if (in->io.lost.event == MLIP_DRIVE_WRONG_DEVICE && c->state == MLIP_STATE_ESTOP &&
+	    !(c->why.why == MLIP_WHY_IO_LOST && c->why.field == MLIP_DRIVE_WRONG_DEVICE)) {
+		/* the module came back as another device: the E-stop that its
+		 * loss (or the button) began now says so (an event: the logs) */
+		r.why = MLIP_WHY_IO_LOST;
+		r.field = MLIP_DRIVE_WRONG_DEVICE;
+		r.node = in->io.lost.node;
+		r.value = in->io.lost.value;
+		c->why = r;
+		emit(c, out, MLIP_EV_STATE, c->state, &r);
 		return;
 	}
 	if ((on & (1u << MLIP_IN_ESTOP)) && c->state != MLIP_STATE_ESTOP) {

@@ -267,8 +267,13 @@ void mlip_ct_home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struc
 			uint16_t sw = in->drives.sw[k];
 			uint64_t when = in->drives.tpdo_period[k];
 			uint32_t bit = 1u << k;
-			/* only a TPDO that answers a SYNC after the start was applied */
-			int fresh = when != UINT64_MAX && when >= c->home.t0 + 1;
+			/* only a TPDO that answers a SYNC after the start was applied:
+			 * bit 4's rise goes in period t0's RPDO, applied at the SYNC of
+			 * t0 + 1, whose TPDO the drive sampled before applying it (CiA
+			 * 301); the first that can show the start answers the SYNC of
+			 * t0 + 2. Before it a drive homed earlier still shows that
+			 * homing's bits 10 and 12 (or 13) */
+			int fresh = when != UINT64_MAX && when >= c->home.t0 + 2;
 			if (!(c->home.group & bit)) {
 				continue;
 			}

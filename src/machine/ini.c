@@ -368,6 +368,19 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		}
 		st->ival[k] = i;
 		return MLIP_OK;
+	case V_LINPUTS:
+		if (!tok_is(v, nv, "drive")) {
+			err_at(err, &b, line, col);
+			mlip_tb_puts(&b,
+			             "LIMIT_INPUTS must be drive (the axis drive's digital inputs "
+			             "0x60FD: bit 0 negative limit, 1 positive limit, 2 home "
+			             "switch), got '");
+			mlip_tb_token(&b, v, nv);
+			mlip_tb_putc(&b, '\'');
+			return MLIP_E_SYNTAX;
+		}
+		st->ival[k] = 1;
+		return MLIP_OK;
 	case V_PSOURCE:
 		i = tok_is(v, nv, "io")      ? MLIP_PROBE_SRC_IO
 		    : tok_is(v, nv, "drive") ? MLIP_PROBE_SRC_DRIVE

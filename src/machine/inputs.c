@@ -148,8 +148,10 @@ const char *mlip_io_function_name(uint32_t f, const struct mlip_machine *m, char
 	return buf;
 }
 
-/* Where function f is mapped: its section and key. */
-static void key_of(const struct mlip_config *c, uint32_t f, int *sec, int *key)
+/* Where function f is mapped: its section and key (an axis' LIMIT_INPUTS
+ * = drive when that maps it). */
+static void key_of(const struct pstate *ps, const struct mlip_config *c, uint32_t f, int *sec,
+                   int *key)
 {
 	if (f < MLIP_IN_AXIS0) {
 		*sec = SEC_IO;
@@ -158,6 +160,9 @@ static void key_of(const struct mlip_config *c, uint32_t f, int *sec, int *key)
 		uint32_t k = (f - MLIP_IN_AXIS0) / 3;
 		*sec = SEC_AXIS0 + letter_index(c->machine.axis[k].letter);
 		*key = AK_LIMIT_NEG + (int)((f - MLIP_IN_AXIS0) % 3);
+		if (!has(ps, *sec, *key) && has(ps, *sec, AK_LIMIT_INPUTS)) {
+			*key = AK_LIMIT_INPUTS;
+		}
 	}
 }
 
@@ -166,17 +171,18 @@ static mlip_status io_err(const struct pstate *ps, const struct mlip_config *c, 
 {
 	int sec, key;
 
-	key_of(c, f, &sec, &key);
+	key_of(ps, c, f, &sec, &key);
 	mlip_mc_place(ps, err, sec, key, -1, 0, -1, 0);
 	(void)b;
 	return MLIP_E_RANGE;
 }
 
-static void say_key(struct mlip_tb *b, const struct mlip_config *c, uint32_t f)
+static void say_key(const struct pstate *ps, struct mlip_tb *b, const struct mlip_config *c,
+                    uint32_t f)
 {
 	int sec, key;
 
-	key_of(c, f, &sec, &key);
+	key_of(ps, c, f, &sec, &key);
 	mlip_tb_putc(b, '[');
 	mlip_mc_secname(b, sec);
 	mlip_tb_puts(b, "] ");
@@ -203,8 +209,34 @@ mlip_status mlip_mc_fill_inputs(const struct pstate *ps, struct mlip_config *c,
 		if (f >= MLIP_IN_AXIS0 && (int)((f - MLIP_IN_AXIS0) / 3) >= m->n_axes) {
 			break;
 		}
-		key_of(c, f, &sec, &key);
-		if (has(ps, sec, key)) {
+		key_of(ps, c, f, &sec, &key);
+		if (key == AK_LIMIT_INPUTS) {
+			/* the switches on the axis' drive (CAN_NODE, CiA 402 0x60FD:
+			 * bit 0 negative limit, 1 positive limit, 2 home switch), on
+			 * when set */
+			const struct mlip_axis *a = &m->axis[(f - MLIP_IN_AXIS0) / 3];
+			int fk = (int)((f - MLIP_IN_AXIS0) % 3);
+			for (i = AK_LIMIT_NEG; i <= AK_HOME_SW; i++) {
+				if (has(ps, sec, i)) {
+					err_at(err, &b, 0, 0);
+					mlip_tb_puts(&b, "AXIS_");
+					mlip_tb_putc(&b, a->letter);
+					mlip_tb_putc(&b, ' ');
+					mlip_tb_puts(&b, mlip_mc_keytab[K_AXIS][i].name);
+					mlip_tb_puts(&b, " and LIMIT_INPUTS = drive map the same "
+					                 "switch: one or the other");
+					mlip_mc_place(ps, err, sec, i, sec, AK_LIMIT_INPUTS, -1, 0);
+					return MLIP_E_RANGE;
+				}
+			}
+			io->in[f] = (struct mlip_io_bit){.node = a->can_node,
+			                                 .index = 0x60FD,
+			                                 .sub = 0,
+			                                 .bit = (uint8_t)fk,
+			                                 .active_low = 0,
+			                                 .line = ps->sec[sec].key[key].line};
+			io->mapped |= 1u << f;
+		} else if (has(ps, sec, key)) {
 			io->in[f] = unpack(ps->sec[sec].ival[key], ps->sec[sec].key[key].line);
 			io->mapped |= 1u << f;
 		}
@@ -245,7 +277,7 @@ mlip_status mlip_mc_fill_inputs(const struct pstate *ps, struct mlip_config *c,
 		}
 		if (x->node != io->node && drive < 0) {
 			err_at(err, &b, 0, 0);
-			say_key(&b, c, f);
+			say_key(ps, &b, c, f);
 			mlip_tb_puts(&b, ": node ");
 			mlip_tb_uint(&b, x->node);
 			mlip_tb_puts(&b, " is neither the I/O module ([IO] NODE");
@@ -261,13 +293,13 @@ mlip_status mlip_mc_fill_inputs(const struct pstate *ps, struct mlip_config *c,
 		if (drive < 0 && !(x->index == 0x6000 && x->sub >= 1 &&
 		                   x->sub <= MLIP_IO_IN_BYTES && x->bit <= 7)) {
 			err_at(err, &b, 0, 0);
-			say_key(&b, c, f);
+			say_key(ps, &b, c, f);
 			mlip_tb_puts(&b, ": the I/O module's inputs are 0x6000:1..8, bits 0..7");
 			return io_err(ps, c, f, err, &b);
 		}
 		if (drive >= 0 && !(x->index == 0x60FD && x->sub == 0)) {
 			err_at(err, &b, 0, 0);
-			say_key(&b, c, f);
+			say_key(ps, &b, c, f);
 			mlip_tb_puts(
 			    &b, ": a drive's inputs are 0x60FD:0 (digital inputs), bits 0..31");
 			return io_err(ps, c, f, err, &b);
@@ -283,18 +315,18 @@ mlip_status mlip_mc_fill_inputs(const struct pstate *ps, struct mlip_config *c,
 				uint32_t later = y->line > x->line ? g : f,
 				         first = later == f ? g : f;
 				err_at(err, &b, 0, 0);
-				say_key(&b, c, later);
+				say_key(ps, &b, c, later);
 				mlip_tb_puts(&b, ": node ");
 				mlip_tb_uint(&b, x->node);
 				mlip_tb_puts(&b, " bit ");
 				mlip_tb_uint(&b, x->bit);
 				mlip_tb_puts(&b, " of its inputs already carries ");
-				say_key(&b, c, first);
+				say_key(ps, &b, c, first);
 				mlip_tb_puts(&b, " (one function a bit)");
 				{
 					int s1, k1, s2, k2;
-					key_of(c, f, &s1, &k1);
-					key_of(c, g, &s2, &k2);
+					key_of(ps, c, f, &s1, &k1);
+					key_of(ps, c, g, &s2, &k2);
 					mlip_mc_place(ps, err, s1, k1, s2, k2, -1, 0);
 				}
 				return MLIP_E_RANGE;

@@ -63,7 +63,8 @@ enum {
 	AK_HOME_OFFSET,
 	AK_HOME_SEQUENCE,
 	AK_HOME_TIMEOUT,
-	AK_JERK /* the jerk limit (mlip/motion/jerk.h) */
+	AK_JERK,        /* the jerk limit (mlip/motion/jerk.h) */
+	AK_LIMIT_INPUTS /* drive: LIMIT_NEG/LIMIT_POS/HOME_SWITCH = the drive's 0x60FD bits 0/1/2 */
 };
 /* [CAN] keys in the order of enum mlip_can_key (mlip/can/canconf.h) */
 enum {
@@ -129,7 +130,8 @@ enum vtype {
 	V_SEQUENCE,  /* integer 0..9 (HOME_SEQUENCE) */
 	V_COOLANT,   /* none | manual | io ([COOLANT] TYPE; outputs.c) */
 	V_OUTBIT,    /* NODE 0x6200:SUB BIT [HIGH] (outputs.c) */
-	V_PSOURCE    /* io | drive ([PROBE] SOURCE) */
+	V_PSOURCE,   /* io | drive ([PROBE] SOURCE) */
+	V_LINPUTS    /* drive ([AXIS_L] LIMIT_INPUTS) */
 };
 
 struct keydef {

@@ -36,13 +36,14 @@ PROGRAM = "G21 G90\nG1 X150 F6000\n"  # 100 mm/s through the switch at 60 mm
 
 
 def machine(tmp, tail=""):
-    """mill-3axis at 40 ms, X at A = 200 mm/s^2 with both limit switches on
-    its drive's 0x60FD, Y's negative one on drive 2; tail: more sections."""
+    """mill-3axis at 40 ms, X at A = 200 mm/s^2 with its drive's own switches
+    (LIMIT_INPUTS = drive: 0x60FD bits 0, 1, 2), Y's negative limit on drive
+    2 by its bit; tail: more sections."""
     text = MILL.read_text().replace("PERIOD = 0.001", f"PERIOD = {PERIOD_S}")
     text = text.replace("CONTOUR_TOLERANCE = 0.01", "CONTOUR_TOLERANCE = 0.5")
     text = re.sub(
         r"^\[AXIS_X\]$",
-        "[AXIS_X]\nLIMIT_NEG = 1 0x60FD:0 0 HIGH\nLIMIT_POS = 1 0x60FD:0 1 HIGH",
+        "[AXIS_X]\nLIMIT_INPUTS = drive",
         text,
         count=1,
         flags=re.M,
@@ -82,7 +83,8 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
     bad = None
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         st = rig.status()
-        assert st["inputs"] == {"X limit -": False, "X limit +": False, "Y limit -": False}, st
+        assert st["inputs"] == {"X limit -": False, "X limit +": False, "X home switch": False,
+                                "Y limit -": False}, st
         t0 = time.time()
         feed = rig.feeder(ngc)
         st = rig.wait_state("fault", timeout=300)
@@ -106,9 +108,14 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
                                pred=lambda s: s["inputs"]["X limit +"] is False)
             except AssertionError:
                 bad = {"jog away": (j.returncode, j.stdout, j.stderr), **rig.status_log[-1]}
+    # the bus's silences: the longest gap between two SYNCs (their receive
+    # times): a stalled producer (or emulator) shows here
+    ts = sorted(r["t"] for r in sim.sync_rows() if r["node"] == 1 and r["t"] >= t0)
+    sync_gap = max((b - a for a, b in zip(ts, ts[1:])), default=0.0)
     if bad is not None:
         seen = [e for e in sim.events() if e["kind"] in ("emcy", "heartbeat_lost", "di")]
-        raise AssertionError(f"{bad}\n{seen[-12:]}\n{rig.result['rt_stderr'][-3000:]}")
+        raise AssertionError(f"{bad}\nlongest SYNC gap {sync_gap:.3f} s\n{seen[-12:]}\n"
+                             f"{rig.result['rt_stderr'][-3000:]}")
     # the drives' records: the TPDO3 with the switch on, then the quick stop
     on = sim.wait_event(lambda e: e["kind"] == "di" and e["node"] == 1 and e["t"] >= t0
                         and int(e["value"], 16) & 2, "X+ on")[0]
@@ -125,9 +132,12 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
     x = {r["sync"]: r for r in rows_of(sim, 1, t0)}
     s_q = qs[1]
     v0 = (x[s_q]["actual"] - x[s_q - 1]["actual"]) / PERIOD_S / CPU  # mm/s
-    rest = [s for s in sorted(x) if s > s_q and x[s]["state"] == "switch on disabled"]
+    # at rest: the first SYNC from which its position no longer changes; held
+    # there in "quick stop active" (0x605A = 6: the ramp, then hold)
+    rest = [s for s in sorted(x) if s > s_q and s + 1 in x and x[s + 1]["actual"] == x[s]["actual"]]
     assert rest, "X never came to rest"
     s_end = rest[0]
+    assert x[s_end]["state"] == "quick stop active", x[s_end]
     dist = (x[s_end]["actual"] - x[s_q]["actual"]) / CPU
     want = v0 * v0 / (2 * A_X)
     dec = [
@@ -138,7 +148,8 @@ def test_drive_limit_trips_mid_move(sim, tmp_path):
     print(f"[di] X limit + (drive 1 0x60FD bit 1) at {on['actual'] / CPU:.3f} mm: TPDO3 after "
           f"SYNC {s_in}, quick stop applied by all 3 drives at SYNC {s_q} ({delay} SYNCs); "
           f"X from {v0:.1f} mm/s stopped in {dist:.3f} mm over {s_end - s_q} periods "
-          f"(v^2/2A = {want:.3f} mm), deceleration max {max(dec):.1f} mm/s^2 (A = {A_X:g})")
+          f"(v^2/2A = {want:.3f} mm), deceleration max {max(dec):.1f} mm/s^2 (A = {A_X:g}); "
+          f"longest SYNC gap {sync_gap * 1000:.0f} ms")
     assert 90.0 <= v0 <= 101.0, v0  # at the programmed feed when it tripped
     # the discrete ramp stops half a period's travel short of v^2/2A
     assert abs(dist - want) <= v0 * PERIOD_S, (dist, want)

@@ -152,7 +152,7 @@ def test_bringup_program_shutdown(sim, tmp_path):
     # bring-up: every step on every node, start where the drives are
     for n, a in ((1, "X"), (2, "Y"), (3, "Z")):
         assert f"node {n} (axis {a}): boot-up after NMT reset communication" in log
-        assert f"node {n} (axis {a}): CiA 402 drive (0x1000 = 0x00020192), 23 objects" in log  # 0x6085 too
+        assert f"node {n} (axis {a}): CiA 402 drive (0x1000 = 0x00020192), 24 objects" in log  # 0x6085, 0x605A too
         assert f"node {n} (axis {a}): operational after NMT start" in log
         assert f"node {n} (axis {a}): enable operation (0x000F): operation enabled" in log
     assert "start position X 1.2340 Y -5.0000 Z 250.5000 (position actual" in log, log

@@ -280,7 +280,11 @@ def test_csp_follows_targets_on_sync(bench):
             tg = {n: START[n] + 37 * j * (1 if n != 2 else -1) for n in HEALTHY}
             got.append(b.cycle(tg))
             sent.append(tg)
-        time.sleep(0.5)
+        # a frame after our last RPDOs (a drive's heartbeat): the bus has
+        # delivered them to every socket, the listener's too, whose SIGTERM
+        # reads what is queued
+        m = b.frames.mark()
+        b.frames.wait(lambda: b.frames.since(m), what="a frame after the last RPDOs")
     finally:
         assert lis.terminate() == 0, lis.stderr()
     for n in HEALTHY:
@@ -353,10 +357,12 @@ def test_inject_heartbeat_stop(bench):
     b = bench
     b.inject("3:heartbeat=off")
     b.wait_event(lambda e: e["kind"] == "inject" and e["node"] == 3, "heartbeat=off")
-    time.sleep(2 * HB_MS / 1e3)
+    # the time on the bus, counted in node 2's heartbeats (the kernel's timer):
+    # two for one of node 3 already on its way, then ten of silence
     m = b.frames.mark()
-    time.sleep(10 * HB_MS / 1e3)
-    b.frames.wait(lambda: len(b.frames.since(m, 0x702)) >= 5, what="node 2 heartbeats")
+    b.frames.wait(lambda: len(b.frames.since(m, 0x702)) >= 2, what="node 2 heartbeats")
+    m = b.frames.mark()
+    b.frames.wait(lambda: len(b.frames.since(m, 0x702)) >= 10, what="node 2 heartbeats")
     assert not b.frames.since(m, 0x703)
     b.inject("3:heartbeat=on")
     b.frames.wait_for(m, 0x703)
@@ -421,12 +427,17 @@ def test_consumer_heartbeat_lost(bench):
     assert r.sdo[0x1016][1].raw == (127 << 16) | 300
     task = b.net.send_periodic(0x77F, b"\x05", 0.05)
     try:
-        time.sleep(1.0)
+        # a second on the bus (20 of node 2's heartbeats, the kernel's timer
+        # as ours): over three consumer times
+        m = b.frames.mark()
+        b.frames.wait(lambda: len(b.frames.since(m, 0x702)) >= 20, what="node 2 heartbeats")
         assert not b.events("heartbeat_lost", 1) and sdo_state(r) == P.SWITCH_ON_DISABLED
         m = b.frames.mark()
     finally:
+        # before the stop: our last heartbeat went out at most one period
+        # (50 ms) before it, however late this thread runs
+        t_stop = time.monotonic()
         task.stop()
-    t_stop = time.monotonic()
     t, _, d = b.frames.wait_for(m, 0x81)
     assert struct.unpack_from("<H", d)[0] == 0x8130
     assert t - t_stop > 0.2, "EMCY before the consumer time ran out"
@@ -453,9 +464,12 @@ def test_nmt_reset_communication_and_absent(bench):
     m = b.frames.mark()
     b.inject("3:absent")
     b.wait_event(lambda e: e["kind"] == "absent" and e["node"] == 3, "absent")
-    time.sleep(0.2)
+    # counted in node 2's heartbeats: two for a frame of node 3 on its way,
+    # then ten (0.5 s) without one
     m = b.frames.mark()
-    time.sleep(0.5)
+    b.frames.wait(lambda: len(b.frames.since(m, 0x702)) >= 2, what="node 2 heartbeats")
+    m = b.frames.mark()
+    b.frames.wait(lambda: len(b.frames.since(m, 0x702)) >= 10, what="node 2 heartbeats")
     assert not b.frames.since(m, 0x703)
     b.nodes[3].sdo.RESPONSE_TIMEOUT = 1.0
     with pytest.raises(b.canopen.SdoCommunicationError):

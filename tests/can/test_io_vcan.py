@@ -13,6 +13,8 @@ recorded: the SYNC at which the module sent its input change (events.jsonl,
     boot-up message): E-stop at once, the program dropped; mlip resets its
     communication and configures it again (each SDO read back) before it
     trusts its inputs; its outputs stay off; reset, then a program runs.
+  - another module boots on its node (another product code): never
+    configured nor trusted, the E-stop stays naming node and object.
 
 The period is 40 ms and the timeouts long (the emulated VM); frame order,
 not timing, is what the checks judge. Each test prints an [io] line with
@@ -106,7 +108,7 @@ def test_estop_quick_stop_and_reset(sim, tmp_path):
         rig.ctl("reset")
         # the drives are enabled again from where they stopped: a program
         # fed at once (no wait for idle, the drives still being brought
-        # back from "switch on disabled") waits for them and runs
+        # back from "quick stop active") waits for them and runs
         rc, out, err = rig.feed(short, timeout=600)
         assert rc == 0, err
         assert rig.status()["reason"] == "program end", rig.status()
@@ -117,8 +119,13 @@ def test_estop_quick_stop_and_reset(sim, tmp_path):
         rows = [r for r in sim.sync_rows() if r["node"] == n and r["t"] >= t_reset]
         bad = [r for r in rows if r["state"] == "switch on disabled" and r["cw"] in (0x07, 0x0F)]
         assert not bad, (n, bad[:3])
+        # held in "quick stop active" until the reset (0x605A = 6), then
+        # disable voltage (0x0000), shutdown, switch on, enable operation
+        held = [e["to"] for e in sim.events("state", n) if t0 <= e["t"] < t_reset]
+        assert held and held[-1] == "quick stop active", (n, held)
         path = [e["to"] for e in sim.events("state", n) if e["t"] >= t_reset]
-        assert path[:3] == ["ready to switch on", "switched on", "operation enabled"], (n, path)
+        assert path[:4] == ["switch on disabled", "ready to switch on", "switched on",
+                            "operation enabled"], (n, path)
     s_in = input_sync(sim, t0, "00")
     qs = quick_stop_syncs(sim, s_in - 1)
     assert set(qs) == {1, 2, 3}, qs
@@ -249,3 +256,41 @@ def test_module_reboot(sim, tmp_path):
     print(f"[io] module rebooted: E-stop, reconfigured ({len(reconf)} SDO writes read back) "
           f"and operational {t_op - t0:.2f} s after the reboot; inputs trusted again "
           f"{t_back - t0:.2f} s after it (status); outputs stayed off: {sorted(set(outs))}")
+
+
+def test_module_swapped(sim, tmp_path):
+    """Another module boots on the I/O module's node (a swap: its product
+    code 0x1018:02 differs from bring-up's): mlip reads its identity after
+    the boot-up, never configures it (no SDO write, no NMT start, its
+    outputs untouched) nor trusts its inputs: the E-stop stays, its reason
+    names the node and the object, and reset is refused."""
+    cfg = machine(tmp_path)
+    try:
+        with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+            assert rig.status()["state"] == "idle"
+            t0 = time.time()
+            sim.inject(f"{IO}:reboot=0x4D4C4951")  # product code "MLIQ"
+            st = rig.wait_state("estop", timeout=300,
+                                pred=lambda s: s["reason_input"] == "not the same device")
+            waited = time.time() - t0
+            assert st["reason"] == "I/O module lost" and st["reason_node"] == IO, st
+            assert st["inputs"]["estop"] is None, st  # unknown: not trusted
+            p = rig.ctl("reset", check=False)
+            assert p.returncode == 1, p.stderr
+            text = rig.ctl("status").stdout
+            assert f"node {IO}, not the same device: its 0x1018:02 (product code) differs" \
+                in text, text
+            assert rig.status()["state"] == "estop"
+    finally:
+        sim.inject(f"{IO}:reboot=0x4D4C4950")  # the module of the other tests back
+    log = rig.result["rt_stderr"]
+    assert (f"I/O module node {IO}: came back as another device: 0x1018:02 reads 0x4D4C4951, "
+            f"0x4D4C4950 at bring-up") in log, log
+    ev = [e for e in sim.events(node=IO) if t0 <= e["t"]]
+    # after its boot-up: mlip's NMT reset communication, then reads only
+    resets = [e for e in ev if e["kind"] == "nmt" and e["why"] == "NMT reset"]
+    assert resets, ev
+    assert not [e for e in ev if e["kind"] == "sdo_write"], ev  # nor at mlip-rt's exit
+    assert not [e for e in ev if e["kind"] == "nmt" and e["to"] == "OPERATIONAL"], ev
+    print(f"[io] module swapped (0x1018:02 0x4D4C4951, was 0x4D4C4950): E-stop reason "
+          f"'not the same device' {waited:.2f} s after its boot-up, never configured")

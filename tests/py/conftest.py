@@ -326,3 +326,24 @@ def controller():
         terminate(p)
         # pytest shows this with a failing test only
         print(f"---- mlip-rt {' '.join(p.args[1:])} (exit {p.returncode}):\n{p.said()}")
+
+
+def virtual_bus_sim(tmp_path, specs, module=None):
+    """Simulated drives (specs: Drive keyword arguments, node 5 in the
+    tests) and an optional CiA 401 module (node id) in one DriveSim on
+    python-can's in-process virtual bus, and a canopen master Network on the
+    same channel: (sim, net), both started; sim.stop(), net.disconnect()."""
+    import can
+    import canopen
+
+    from mlipcan import drive as D
+
+    chan = f"vbus-{time.monotonic_ns()}"
+    sim = D.DriveSim(chan, specs, D.Recorder(tmp_path),
+                     bus=can.Bus(interface="virtual", channel=chan))
+    if module is not None:
+        sim.add_module(module, 0)
+    net = canopen.Network(can.Bus(interface="virtual", channel=chan))
+    net.connect()
+    sim.start()
+    return sim, net

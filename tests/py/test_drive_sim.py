@@ -10,19 +10,14 @@ import can  # the package's dependencies, installed by tools/deps.sh
 import canopen
 import pytest
 
+from conftest import virtual_bus_sim
 from mlipcan import cia402 as P
 from mlipcan import drive as D
 
 
 @pytest.fixture
 def pair(tmp_path):
-    chan = f"drive-{time.monotonic_ns()}"
-    rec = D.Recorder(tmp_path)
-    sim = D.DriveSim(chan, [dict(node_id=5, start_position=-777, heartbeat_ms=0)], rec,
-                     bus=can.Bus(interface="virtual", channel=chan))
-    net = canopen.Network(can.Bus(interface="virtual", channel=chan))
-    net.connect()
-    sim.start()
+    sim, net = virtual_bus_sim(tmp_path, [dict(node_id=5, start_position=-777, heartbeat_ms=0)])
     node = net.add_node(5, D.build_od(5))
     node.sdo.RESPONSE_TIMEOUT = 2.0
     yield sim, node, tmp_path
@@ -313,3 +308,28 @@ def test_csp_quick_stop_ramp_and_digital_inputs(sw_pair):
     sim.inject(5, "di", "1=0")  # forced off on the switch
     until(lambda: len(got) > n + 1)
     assert got[n + 1] == bytes(4) and node.sdo[0x60FD].raw == 0
+
+
+def test_consumer_not_blamed_for_own_stall(pair):
+    """The consumer counts the time the drive listens (mlipcan.drive
+    DriveSim.own_stall): a stall of the simulator itself moves the master's
+    last heartbeat on by its length, and a heartbeat frame received later
+    but stamped before that never moves it back; a master that stays silent
+    is still judged lost, the stall's length later."""
+    sim, node, _ = pair
+    node.sdo[0x1016][1].raw = (127 << 16) | 300  # master 127, 300 ms
+    node.network.send_message(0x77F, b"\x05")
+    d = sim.drives[5]
+    end = time.monotonic() + 5
+    while d.hb_consumed[127][1] is None:
+        assert time.monotonic() < end, "the heartbeat never seen"
+        time.sleep(0.01)
+    seen = d.hb_consumed[127][1]
+    sim.own_stall(1.0)
+    assert d.hb_consumed[127][1] == seen + 1.0
+    d._on_heartbeat(0x77F, bytearray(b"\x05"), seen + 0.1)  # stamped before the stall's end
+    assert d.hb_consumed[127][1] == seen + 1.0
+    sim._judge(seen + 1.25, "bus")
+    assert not d.hb_lost and d.state != P.FAULT
+    sim._judge(seen + 1.31, "bus")
+    assert d.hb_lost == {127} and d.state == P.FAULT

@@ -338,9 +338,14 @@ static void test_setup_entries_inputs(void **state)
 		} else if (key == 0x608500) {
 			assert_int_equal(e[i].value, 1000000);
 			qs++;
+		} else if (key == 0x605A00) {
+			/* the ramp, then held in quick stop active (INTEGER16) */
+			assert_int_equal(e[i].value, 6);
+			assert_int_equal(e[i].size, 2);
+			qs += 10;
 		}
 	}
-	assert_int_equal(qs, 1);
+	assert_int_equal(qs, 11);
 	assert_true(first >= 0 && first < map && map < count && count < last);
 	assert_int_equal(e[first].value, 0xC0000382u); /* invalid while mapped */
 	assert_int_equal(e[count].value, 1);
@@ -369,14 +374,15 @@ static void test_setup_entries_inputs(void **state)
 	assert_int_equal(tp2_maps, 2);
 	assert_int_equal(tp3_maps, 1);
 	assert_true(tp2_on > 0 && tp3_on > 0);
-	/* none of them without switches on the drive (nor 0x6085 unset) */
+	/* none of them without switches on the drive (nor 0x6085/0x605A unset) */
 	d.touch_probe = 0;
 	d.di_tpdo_cob = 0;
 	d.quick_stop_counts_s2 = 0;
 	int m = mlip_drive_setup_entries(&d, e, MLIP_DRIVE_SETUP_MAX);
-	assert_int_equal(m, n - 8);
+	assert_int_equal(m, n - 9);
 	for (i = 0; i < m; i++) {
-		assert_true(e[i].index != 0x1802 && e[i].index != 0x1A02 && e[i].index != 0x6085);
+		assert_true(e[i].index != 0x1802 && e[i].index != 0x1A02 && e[i].index != 0x6085 &&
+		            e[i].index != 0x605A);
 	}
 }
 
@@ -598,6 +604,76 @@ static void test_touch_probe_setup_and_pdos(void **state)
 	assert_int_equal(mlip_co_classify(&f, &m), MLIP_E_SYNTAX);
 }
 
+/* One PDO's mapping sequence (CiA 301: changed only while not valid): a
+ * TPDO (bit 30: no RTR) with its event timer, an RPDO without; the indices
+ * follow the PDO's number; out-of-range numbers and counts add nothing. */
+static void test_sdo_add_pdo(void **state)
+{
+	static const uint32_t map[2] = {0x60000108u, 0x60FD0020u};
+	static const char *const what[2] = {"in 1", "inputs"};
+	struct mlip_sdo_entry e[16];
+	struct mlip_sdo_list l = {e, 16, 0};
+	struct mlip_pdo_map p = {.tpdo = 1,
+	                         .num = 4,
+	                         .cob_id = 0x485,
+	                         .type = 254,
+	                         .type_what = "type",
+	                         .event_what = "timer",
+	                         .event_ms = 50,
+	                         .n = 2,
+	                         .map = map,
+	                         .what = what};
+	static const struct {
+		uint16_t index;
+		uint8_t sub, size;
+		uint32_t value;
+		const char *what;
+	} want[] = {{0x1803, 1, 4, 0xC0000485u, "TPDO4 COB-ID (disabled while mapping)"},
+	            {0x1803, 2, 1, 254, "type"},
+	            {0x1803, 5, 2, 50, "timer"},
+	            {0x1A03, 0, 1, 0, "TPDO4 mapping count (cleared)"},
+	            {0x1A03, 1, 4, 0x60000108u, "in 1"},
+	            {0x1A03, 2, 4, 0x60FD0020u, "inputs"},
+	            {0x1A03, 0, 1, 2, "TPDO4 mapping count"},
+	            {0x1803, 1, 4, 0x40000485u, "TPDO4 COB-ID"},
+	            {0x1401, 1, 4, 0x80000305u, "RPDO2 COB-ID (disabled while mapping)"},
+	            {0x1401, 2, 1, 1, "type"},
+	            {0x1601, 0, 1, 0, "RPDO2 mapping count (cleared)"},
+	            {0x1601, 1, 4, 0x60000108u, "in 1"},
+	            {0x1601, 0, 1, 1, "RPDO2 mapping count"},
+	            {0x1401, 1, 4, 0x305u, "RPDO2 COB-ID"}};
+	int i;
+	(void)state;
+	assert_int_equal(mlip_sdo_add_pdo(&l, &p), MLIP_OK);
+	p = (struct mlip_pdo_map){.num = 2,
+	                          .cob_id = 0x305,
+	                          .type = 1,
+	                          .type_what = "type",
+	                          .n = 1,
+	                          .map = map,
+	                          .what = what};
+	assert_int_equal(mlip_sdo_add_pdo(&l, &p), MLIP_OK);
+	assert_int_equal(l.n, 14);
+	for (i = 0; i < 14; i++) {
+		assert_int_equal(e[i].index, want[i].index);
+		assert_int_equal(e[i].sub, want[i].sub);
+		assert_int_equal(e[i].size, want[i].size);
+		assert_int_equal(e[i].value, want[i].value);
+		assert_int_equal(e[i].read_only, 0);
+		assert_string_equal(e[i].what, want[i].what);
+	}
+	p.num = 0;
+	assert_int_equal(mlip_sdo_add_pdo(&l, &p), MLIP_E_RANGE);
+	p.num = 5;
+	assert_int_equal(mlip_sdo_add_pdo(&l, &p), MLIP_E_RANGE);
+	p.num = 1;
+	p.n = 0;
+	assert_int_equal(mlip_sdo_add_pdo(&l, &p), MLIP_E_RANGE);
+	p.n = 9;
+	assert_int_equal(mlip_sdo_add_pdo(&l, &p), MLIP_E_RANGE);
+	assert_int_equal(l.n, 14);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -607,6 +683,7 @@ int main(void)
 	    cmocka_unit_test(test_sdo_upload),
 	    cmocka_unit_test(test_interp_period),
 	    cmocka_unit_test(test_setup_entries),
+	    cmocka_unit_test(test_sdo_add_pdo),
 	    cmocka_unit_test(test_touch_probe_setup_and_pdos),
 	    cmocka_unit_test(test_supervise),
 	    cmocka_unit_test(test_setup_entries_inputs),

@@ -918,6 +918,27 @@ static void test_io(void **state)
 	       "unknown key ESTOPP in [IO] (did you mean ESTOP?)");
 	EXPECT(CFG(.tail = "[IO]\nLIMIT_NEG = 10 0x6000:1 3 HIGH"), MLIP_E_SYNTAX, 15, 1,
 	       "unknown key LIMIT_NEG in [IO] (it belongs in an [AXIS_*] section)");
+	/* LIMIT_INPUTS = drive: the axis drive's 0x60FD bits 0, 1, 2 (CiA 402) */
+	EXPECT_OK(CFG(.y = "CAN_NODE = 7\nLIMIT_INPUTS = drive"));
+	assert_int_equal(cfg.inputs.mapped, (1u << MLIP_IN_LIMIT_NEG(1)) |
+	                                        (1u << MLIP_IN_LIMIT_POS(1)) |
+	                                        (1u << MLIP_IN_HOME_SW(1)));
+	for (int k = 0; k < 3; k++) {
+		e = &cfg.inputs.in[MLIP_IN_LIMIT_NEG(1) + (uint32_t)k];
+		assert_true(e->node == 7 && e->index == 0x60FD && e->sub == 0 && e->bit == k &&
+		            e->active_low == 0 && e->line == 14);
+	}
+	EXPECT(CFG(.y = "LIMIT_INPUTS = module"), MLIP_E_SYNTAX, 13, 16,
+	       "LIMIT_INPUTS must be drive (the axis drive's digital inputs 0x60FD: bit 0 "
+	       "negative limit, 1 positive limit, 2 home switch), got 'module'");
+	EXPECT(CFG(.y = "HOME_SWITCH = 2 0x60FD:0 5 HIGH\nLIMIT_INPUTS = drive"), MLIP_E_RANGE, 14,
+	       1,
+	       "AXIS_Y HOME_SWITCH and LIMIT_INPUTS = drive map the same switch: one or the other");
+	/* its bits are taken like any other: one function a bit */
+	EXPECT(CFG(.x = "LIMIT_NEG = 2 0x60FD:0 1 HIGH", .y = "LIMIT_INPUTS = drive"), MLIP_E_RANGE,
+	       13, 1,
+	       "[AXIS_Y] LIMIT_INPUTS: node 2 bit 1 of its inputs already carries [AXIS_X] "
+	       "LIMIT_NEG (one function a bit)");
 }
 
 /* Homing keys (issue 18): defaults, the drive's units, each error on its key. */

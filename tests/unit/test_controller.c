@@ -2306,6 +2306,10 @@ static uint32_t sdo_refuse; /* an index the drives refuse to write (0: none) */
 static int drv_mode[2] = {8, 8};
 static int drv_homing[2];
 static uint16_t drv_cw_prev[2];
+/* 1: bit 4's rise is applied a period late (as a drive whose TPDO at the
+ * SYNC that applies the RPDO was sampled before it) */
+static int drv_start_late;
+static int drv_start_pending[2];
 static uint32_t drv_obj[2][8]; /* 0x6098, 0x6099:1, 0x6099:2, 0x609A, 0x607C */
 static int sdo_log_n;
 static uint16_t sdo_log[64];
@@ -2346,8 +2350,12 @@ static void drive_model(void)
 	for (int k = 0; k < 2; k++) {
 		uint16_t cw = cw_of(k);
 		int8_t method = (int8_t)drv_obj[k][0];
-		if (drv_mode[k] == 6 && drv_sw[k] & 0x0004 && (cw & 0x10) &&
-		    !(drv_cw_prev[k] & 0x10)) {
+		int rise = drv_mode[k] == 6 && drv_sw[k] & 0x0004 && (cw & 0x10) &&
+		           !(drv_cw_prev[k] & 0x10);
+		if (rise && drv_start_late) {
+			drv_start_pending[k] = 1; /* the statusword of now is still the old */
+		} else if (rise || drv_start_pending[k]) {
+			drv_start_pending[k] = 0;
 			drv_homing[k] = 1; /* bit 4's rising edge */
 			drv_sw[k] &= (uint16_t)~0x3400u;
 		}
@@ -2426,6 +2434,8 @@ static int setup_home(void **state)
 	drv_mode[0] = drv_mode[1] = 8;
 	drv_homing[0] = drv_homing[1] = 0;
 	drv_cw_prev[0] = drv_cw_prev[1] = 0x0F;
+	drv_start_late = 0;
+	drv_start_pending[0] = drv_start_pending[1] = 0;
 	sdo_refuse = 0;
 	sdo_log_n = 0;
 	drv_actual[0] = 3.7; /* powered up anywhere */
@@ -2554,6 +2564,34 @@ static void test_home_lost(void **st)
 	assert_int_equal(status().state, MLIP_STATE_FAULT);
 	assert_int_equal(status().reason, MLIP_WHY_DRIVE);
 	assert_int_equal(status().homed, 2u); /* Y keeps its home */
+}
+
+/* Homing again a drive homed before, whose TPDO at the SYNC that applies
+ * bit 4's rise still shows the last homing's bits 10 and 12 (sampled before
+ * it, CiA 301): not taken as homed; this homing's result decides (here a
+ * homing error, method 1 in the model). */
+static void test_home_again_stale_attained(void **st)
+{
+	(void)st;
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 1), MLIP_OK); /* X (35) */
+	for (int i = 0; i < 2000 && status().state == MLIP_STATE_HOMING; i++) {
+		htick(1);
+	}
+	assert_int_equal(status().homed, 1u);
+	home_cfg.axis[0].method = 1; /* the model: a homing error */
+	home_init();
+	htick(5);
+	drv_sw[0] |= 0x1400; /* in mode 6 again it shows the last homing's bits */
+	drv_start_late = 1;
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 1), MLIP_OK);
+	for (int i = 0; i < 2000 && status().state == MLIP_STATE_HOMING; i++) {
+		htick(1);
+	}
+	if (status().state != MLIP_STATE_FAULT || status().reason != MLIP_WHY_HOMING_ERROR ||
+	    (status().homed & 1u) != 0) {
+		fail_msg("state %u reason %u homed %u sw 0x%04X mode %d", status().state,
+		         status().reason, status().homed, drv_sw[0], drv_mode[0]);
+	}
 }
 
 /* A fault of Y's drive (statusword bit 3) after homing: Y not homed. */
@@ -3078,6 +3116,7 @@ int main(void)
 	    TH(test_home_error_and_timeout),
 	    TH(test_home_lost),
 	    TH(test_home_lost_fault),
+	    TH(test_home_again_stale_attained),
 	    TS(test_spindle_feed_waits_for_speed),
 	    TS(test_spindle_stop_and_fault_mid_cut),
 	    TS(test_spindle_stop_in_a_hold),

@@ -76,6 +76,15 @@ static struct od *od_find(struct peer *p, uint16_t index, uint8_t sub)
 	return NULL;
 }
 
+/* The quick stop option code written (0x605A): 5..8 stay in quick stop
+ * active at rest; 0..4 (or unwritten: this peer's default 2) go on to
+ * switch on disabled. */
+static int qs_holds(struct peer *p)
+{
+	struct od *o = od_find(p, 0x605A, 0);
+	return o != NULL && o->value >= 5 && o->value <= 8;
+}
+
 static void od_add(struct peer *p, uint16_t index, uint8_t sub, uint8_t size, uint32_t v)
 {
 	p->od[p->n_od++] = (struct od){index, sub, size, v};
@@ -90,7 +99,7 @@ static void peer_init(struct peer *p, uint8_t node, int state, int32_t pos)
 	            {0x1800, 1, 4}, {0x1800, 2, 1}, {0x1A00, 0, 1}, {0x1A00, 1, 4}, {0x1A00, 2, 4},
 	            {0x1005, 0, 4}, {0x6060, 0, 1}, {0x6061, 0, 1}, {0x60C2, 1, 1}, {0x60C2, 2, 1},
 	            {0x6065, 0, 4}, {0x1017, 0, 2}, {0x1016, 1, 4}, {0x6040, 0, 2}, {0x6041, 0, 2},
-	            {0x6064, 0, 4}, {0x607A, 0, 4}, {0x6085, 0, 4}};
+	            {0x6064, 0, 4}, {0x607A, 0, 4}, {0x6085, 0, 4}, {0x605A, 0, 2}};
 	memset(p, 0, sizeof(*p));
 	p->node = node;
 	p->present = 1;
@@ -146,8 +155,9 @@ static void peer_cw(struct peer *p, uint16_t cw)
 		break;
 	case P_OE:
 		if ((cw & 0x87) == 0x02) {
-			/* quick stop, option code 2: braking, then switch on disabled */
-			p->state = qs_periods > 0 ? P_QS : P_SOD;
+			/* quick stop: braking, then (option code 2) switch on disabled
+			 * or (5..8, what mlip writes) held in quick stop active */
+			p->state = qs_periods > 0 || qs_holds(p) ? P_QS : P_SOD;
 			p->qs_left = qs_periods;
 		} else if ((cw & 0x8F) == 0x07) {
 			p->state = P_SO;
@@ -401,6 +411,8 @@ static void test_bringup_three(void **state)
 		assert_int_equal(od_find(p, 0x6065, 0)->value, 1000);
 		/* quick stop on the drive's ramp at the axis' 1000 mm/s^2 */
 		assert_int_equal(od_find(p, 0x6085, 0)->value, 1000000);
+		/* and held there at rest (quick stop option code 6) */
+		assert_int_equal(od_find(p, 0x605A, 0)->value, 6);
 		assert_int_equal(od_find(p, 0x1017, 0)->value, 100);
 		assert_int_equal(od_find(p, 0x1016, 1)->value, (127u << 16) | 300u);
 		/* the target was set to the position before operation was enabled */
@@ -659,9 +671,9 @@ static int period(void)
 		struct peer *p = &peers[i];
 		uint16_t cw;
 		int32_t c;
-		if (p->state == P_QS) {
+		if (p->state == P_QS && p->qs_left > 0) {
 			p->pos += 1000; /* still braking */
-			if (--p->qs_left <= 0) {
+			if (--p->qs_left <= 0 && !qs_holds(p)) {
 				p->state = P_SOD;
 			}
 		}
@@ -1230,7 +1242,8 @@ static void module_init(struct peer *p, int with_defaults)
 	    {0x1000, 0, 4, 0x00030191u}, {0x1400, 1, 4, 0x20Au},      {0x1400, 2, 1, 255},
 	    {0x1600, 0, 1, 1},           {0x1600, 1, 4, 0x62000108u}, {0x1800, 1, 4, 0x18Au},
 	    {0x1800, 2, 1, 255},         {0x1A00, 0, 1, 1},           {0x1A00, 1, 4, 0x60000108u},
-	    {0x1017, 0, 2, 0},           {0x1016, 1, 4, 0},           {0x6000, 1, 1, 1}};
+	    {0x1017, 0, 2, 0},           {0x1016, 1, 4, 0},           {0x6000, 1, 1, 1},
+	    {0x1018, 1, 4, 0x0000ABCDu}, {0x1018, 2, 4, 0x00000401u}};
 	if (with_defaults) {
 		memset(p, 0, sizeof(*p));
 		p->node = 10;
@@ -1256,6 +1269,30 @@ static int32_t post(mlip_ring_cmd_op op)
 	return res;
 }
 
+/* The loop with the I/O module as node 10 (E-stop input bit 0, output
+ * bit 0), run `periods` periods: idle, the E-stop input read and released. */
+static struct peer *module_loop(double *start, int periods)
+{
+	uint32_t estop = 1u << MLIP_IN_ESTOP;
+	cfg.inputs.node = 10;
+	cfg.inputs.in_bytes = 1;
+	cfg.inputs.out_bytes = 1;
+	cfg.inputs.in[MLIP_IN_ESTOP] = (struct mlip_io_bit){10, 1, 0x6000, 0, 1, 10};
+	cfg.inputs.mapped = 1u << MLIP_IN_ESTOP;
+	cfg.inputs.out[MLIP_OUT_DOUT0] = (struct mlip_io_out){1, 0, 11};
+	cfg.inputs.out_mapped = 1u << MLIP_OUT_DOUT0;
+	module_init(&peers[NP], 1);
+	loop_setup(start);
+	keep_queue = 1;
+	for (int k = 0; k < periods; k++) {
+		period();
+	}
+	assert_int_equal(ctl.out.status.state, MLIP_STATE_IDLE);
+	assert_int_equal(ctl.out.status.io_known & estop, estop);
+	assert_int_equal(ctl.out.status.io_inputs & estop, 0);
+	return &peers[NP];
+}
+
 /* The I/O module reboots (its boot-up message, then pre-operational with
  * its default PDOs and no heartbeat consumer): an E-stop in that period,
  * its inputs no longer trusted (unknown), no RPDO sent to it; at its next
@@ -1268,25 +1305,9 @@ static void test_loop_module_reboot(void **state)
 {
 	double start[NP];
 	(void)state;
-	cfg.inputs.node = 10;
-	cfg.inputs.in_bytes = 1;
-	cfg.inputs.out_bytes = 1;
-	cfg.inputs.in[MLIP_IN_ESTOP] = (struct mlip_io_bit){10, 1, 0x6000, 0, 1, 10};
-	cfg.inputs.mapped = 1u << MLIP_IN_ESTOP;
-	cfg.inputs.out[MLIP_OUT_DOUT0] = (struct mlip_io_out){1, 0, 11};
-	cfg.inputs.out_mapped = 1u << MLIP_OUT_DOUT0;
-	module_init(&peers[NP], 1);
-	struct peer *mod = &peers[NP];
-	loop_setup(start);
-	keep_queue = 1;
+	struct peer *mod = module_loop(start, 120);
 	const struct mlip_ring_status *st = &ctl.out.status;
 	uint32_t estop = 1u << MLIP_IN_ESTOP;
-	for (int k = 0; k < 120; k++) {
-		period();
-	}
-	assert_int_equal(st->state, MLIP_STATE_IDLE);
-	assert_int_equal(st->io_known & estop, estop);
-	assert_int_equal(st->io_inputs & estop, 0);
 	assert_true(n_module_out > 0);
 	assert_int_equal(od_find(mod, 0x1016, 1)->value, (127u << 16) | 300u);
 	/* it reboots: defaults, boot-up message, pre-operational */
@@ -1342,6 +1363,70 @@ static void test_loop_module_reboot(void **state)
 	assert_int_equal(post(MLIP_CMD_RESET), MLIP_OK);
 	assert_int_equal(st->state, MLIP_STATE_IDLE);
 	free(mem);
+}
+
+/* The I/O module reboots as another device (swapped: another product code
+ * in 0x1018:02, or another device type 0x1000): its identity is read after
+ * the boot-up and compared with bring-up's; it is never configured (no SDO
+ * write, no NMT start, no RPDO), its inputs never trusted, the E-stop stays
+ * with the reason naming node and object, and mlip-ctl reset is refused. */
+static void module_swapped(uint16_t index, uint8_t sub, uint32_t other)
+{
+	double start[NP];
+	struct peer *mod = module_loop(start, 60);
+	const struct mlip_ring_status *st = &ctl.out.status;
+	uint32_t estop = 1u << MLIP_IN_ESTOP;
+	assert_int_equal(ds.io.id.type, 0x00030191u);
+	assert_int_equal(ds.io.id.vendor, 0xABCDu);
+	assert_int_equal(ds.io.id.product, 0x401u);
+	assert_int_equal(ds.io.id.has_product, 1);
+	/* another module boots on its node */
+	module_init(mod, 0);
+	od_find(mod, index, sub)->value = other;
+	mod->nmt = MLIP_NMT_BOOTUP;
+	peer_hb(mod);
+	mod->nmt = MLIP_NMT_PREOPERATIONAL;
+	period();
+	assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	int writes = mod->n_wr, out_before = n_module_out;
+	for (int k = 0; k < 300 && !ds.io.re.wrong; k++) {
+		period();
+	}
+	assert_int_equal(ds.io.re.wrong, 1);
+	assert_int_equal(ds.io.re.wrong_index, index);
+	assert_int_equal(ds.io.re.wrong_sub, sub);
+	assert_int_equal(ds.io.re.wrong_got, other);
+	for (int k = 0; k < 100; k++) { /* its heartbeats go on: never again */
+		period();
+		if (k % 10 == 0) {
+			peer_hb(mod);
+		}
+	}
+	assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	assert_int_equal(st->reason, MLIP_WHY_IO_LOST);
+	assert_int_equal(st->reason_node, 10);
+	assert_int_equal(st->reason_field, MLIP_DRIVE_WRONG_DEVICE);
+	assert_int_equal((uint32_t)st->reason_value, (uint32_t)index << 8 | sub);
+	assert_int_equal(st->io_known & estop, 0);
+	assert_int_equal(mod->n_wr, writes); /* nothing written to it */
+	assert_int_equal(mod->nmt, MLIP_NMT_PREOPERATIONAL);
+	assert_int_equal(n_module_out, out_before);
+	assert_int_equal(ds.io.re.count, 0);
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_E_RANGE);
+	assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	free(mem);
+}
+
+static void test_loop_module_swapped_product(void **state)
+{
+	(void)state;
+	module_swapped(0x1018, 2, 0x00000402u);
+}
+
+static void test_loop_module_swapped_type(void **state)
+{
+	(void)state;
+	module_swapped(0x1000, 0, 0x00020192u); /* a CiA 402 drive on the module's node */
 }
 
 static int32_t post_arg(mlip_ring_cmd_op op, int32_t arg)
@@ -1482,6 +1567,8 @@ int main(void)
 	    cmocka_unit_test_setup(test_loop_shutdown, setup),
 	    cmocka_unit_test_setup(test_loop_drive_inputs, setup),
 	    cmocka_unit_test_setup(test_loop_module_reboot, setup),
+	    cmocka_unit_test_setup(test_loop_module_swapped_product, setup),
+	    cmocka_unit_test_setup(test_loop_module_swapped_type, setup),
 	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away, setup),
 	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away_40ms, setup),
 	    cmocka_unit_test_setup(test_loop_fault_bit, setup),

@@ -529,6 +529,17 @@ void mlip_cli_drive_fault_text(uint32_t event, int64_t v, char *buf, size_t len)
 		         "be read",
 		         (long long)v);
 		break;
+	case MLIP_DRIVE_WRONG_DEVICE:
+		snprintf(
+		    buf, len,
+		    "its 0x%04llX:%02llX (%s) differs from what it read at bring-up: another "
+		    "device on that node, never configured nor trusted; fit the right one, then "
+		    "restart mlip-rt",
+		    (unsigned long long)((v >> 8) & 0xFFFF), (unsigned long long)(v & 0xFF),
+		    (v >> 8) == 0x1000 ? "device type"
+		    : (v & 0xFF) == 1  ? "vendor-ID"
+		                       : "product code");
+		break;
 	default:
 		snprintf(buf, len, "event %u, value %lld", (unsigned)event, (long long)v);
 	}

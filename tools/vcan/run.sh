@@ -17,7 +17,7 @@
 #
 # Environment:
 #   MLIP_VCAN_FORCE_VM=1   same as --force-vm
-#   MLIP_VM_TIMEOUT=900    seconds before a hung VM is killed (exit code 124)
+#   MLIP_VM_TIMEOUT=3600   seconds before a hung VM is killed (exit code 124): the whole CAN suite in one software-emulated boot takes 15-25 min
 #   MLIP_VM_KVM=auto|0|1   use KVM: auto probes it once per host kernel (cached)
 #   MLIP_VM_MEMORY=1G      guest memory;  MLIP_VM_CPUS=2 guest CPUs
 #   MLIP_VM_VERBOSE=1      show the guest's boot console
@@ -43,7 +43,7 @@ done
 CMD="$*"
 
 VM_DIR=${MLIP_VM_DIR:-$ROOT/build/vm}
-TIMEOUT=${MLIP_VM_TIMEOUT:-900}
+TIMEOUT=${MLIP_VM_TIMEOUT:-3600}
 say() { echo "[vcan] $*" >&2; }
 
 SUDO=""

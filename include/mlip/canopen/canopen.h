@@ -181,4 +181,26 @@ void mlip_sdo_add(struct mlip_sdo_list *l, uint16_t index, uint8_t sub, uint8_t 
 void mlip_sdo_add_check(struct mlip_sdo_list *l, uint16_t index, uint8_t sub, uint8_t size,
                         uint32_t value, const char *what);
 
+/* One PDO's mapping for a set-up list (CiA 301: a PDO is changed only while
+ * not valid). RPDOn/TPDOn: communication 0x1400/0x1800 + n - 1, mapping
+ * 0x1600/0x1A00 + n - 1. */
+struct mlip_pdo_map {
+	uint8_t tpdo;            /* 1: a TPDO (the node sends it; bit 30: no RTR), 0: an RPDO */
+	uint8_t num;             /* n: 1..4 */
+	uint32_t cob_id;         /* its COB-ID (bits 0..10) */
+	uint8_t type;            /* transmission type, sub 2 */
+	const char *type_what;   /* e.g. "TPDO1 transmission type (synchronous, every SYNC)" */
+	const char *event_what;  /* a TPDO's event timer (sub 5), NULL: not written */
+	uint16_t event_ms;       /* idem, ms */
+	uint8_t n;               /* mapped objects, 1..8 */
+	const uint32_t *map;     /* each: index << 16 | sub << 8 | length in bits */
+	const char *const *what; /* each entry's text */
+};
+
+/* The next entries: the PDO disabled (COB-ID bit 31), its transmission type
+ * (and event timer), the mapping count cleared, each mapping entry, the count,
+ * the PDO enabled; each written and read back. MLIP_E_RANGE (nothing added)
+ * when num or n is out of range. */
+mlip_status mlip_sdo_add_pdo(struct mlip_sdo_list *l, const struct mlip_pdo_map *p);
+
 #endif

@@ -40,7 +40,8 @@ struct mlip_drive_setup {
 	uint32_t tpdo2_cob; /* TPDO2 COB-ID, 0x1801:01 */
 	/* an axis: 0x6085 quick stop deceleration (counts/s^2, the axis'
 	 * MAX_ACCELERATION): an E-stop or a limit brakes each axis within its
-	 * acceleration limit on the drive's own ramp; 0: not written */
+	 * acceleration limit on the drive's own ramp, with 0x605A quick stop
+	 * option code MLIP_DRIVE_QUICK_STOP_OPTION; 0: neither written */
 	uint32_t quick_stop_counts_s2;
 	/* the drive's digital inputs 0x60FD (issue 18: limit and home switches
 	 * wired to the drive) in TPDO3 on change, and at least every di_event_ms
@@ -58,6 +59,11 @@ struct mlip_drive_setup {
 #define MLIP_TP_POS_STORED 0x0002u /* status bit 1: a positive edge position is stored */
 #define MLIP_TP_NEG_STORED 0x0004u /* status bit 2: a negative edge position is stored */
 
+/* 0x605A quick stop option code (CiA 402): 6 = slow down on the quick stop
+ * ramp (0x6085) and stay in "quick stop active": at rest the axis is held
+ * in position until the master's "disable voltage" after the reset */
+#define MLIP_DRIVE_QUICK_STOP_OPTION 6
+
 #define MLIP_DRIVE_SETUP_MAX 48
 
 /* The interpolation time period 0x60C2 as value * 10^index s: value 1..255,
@@ -71,7 +77,7 @@ mlip_status mlip_co_interp_period(double period_s, uint8_t *value, int8_t *index
  * TPDO3 (disabled, type 255 on change, event timer, mapping 0x60FD,
  * enabled), SYNC COB-ID, modes of operation = CSP and its display,
  * interpolation period, following error window, quick stop deceleration
- * (when set), heartbeat producer and consumer; with touch_probe also 0x60B8
+ * and option code (when set), heartbeat producer and consumer; with touch_probe also 0x60B8
  * in RPDO1, 0x60B9 in TPDO1 and 0x60B8 = 0. Returns the count, or -1
  * when cap is too small or the period cannot be written. */
 int mlip_drive_setup_entries(const struct mlip_drive_setup *d, struct mlip_sdo_entry *out, int cap);
@@ -95,11 +101,13 @@ typedef enum {
 	/* a spindle (issue 19, mlip/ctl/spindlectl.h): value its actual rpm */
 	MLIP_DRIVE_SPINDLE_TIMEOUT,     /* not at speed (or at rest) within AT_SPEED_TIMEOUT */
 	MLIP_DRIVE_SPINDLE_OUT_OF_BAND, /* at speed, then out of AT_SPEED_BAND for BAND_TIME */
-	MLIP_DRIVE_POWER_STEP, /* another step toward power (shutdown, disable voltage, fault
-	                          reset, waiting) not confirmed in time; value step
-	                          (mlip_drive_power) * 65536 + statusword */
-	MLIP_DRIVE_INPUTS_LOST /* no TPDO3 (digital inputs 0x60FD) within the heartbeat
-	                          timeout: its limit switches cannot be read; value ms */
+	MLIP_DRIVE_POWER_STEP,  /* another step toward power (shutdown, disable voltage, fault
+	                           reset, waiting) not confirmed in time; value step
+	                           (mlip_drive_power) * 65536 + statusword */
+	MLIP_DRIVE_INPUTS_LOST, /* no TPDO3 (digital inputs 0x60FD) within the heartbeat
+	                           timeout: its limit switches cannot be read; value ms */
+	MLIP_DRIVE_WRONG_DEVICE /* back after a loss as another device: its 0x1000 or
+	                           0x1018 differs from bring-up; value index * 256 + sub */
 } mlip_drive_fault;
 
 /* What the bus last said about one drive (filled from mlip_co_classify). */

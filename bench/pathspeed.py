@@ -1,0 +1,410 @@
+#!/usr/bin/env python3
+"""A path-speed plan along a curve under the per-axis jerk limit: a design
+study for issue 21 (not the planner; mlip's planner today uses the moving
+mean of mlip/motion/jerk.h). It answers one question: on smooth curves, can a
+plan that moves along the curve at a jerk-limited path speed meet the
+targets (1.10x at J 1e5, 1.5x at J 1e4) where the mean cannot?
+
+The path x(s) is the EXACT curve of tools/gen_curves.py by arc length (the
+curve only, from rest to rest, no rapid). The state is (s, v, a): arc
+length, path speed, path acceleration; a step of T = 1 ms applies a constant
+path jerk j. Every axis k keeps, jointly (no fixed shares between the normal
+and tangential terms):
+
+    acceleration  x'_k a + x''_k v^2                          within A_k
+    jerk          x'''_k v^3 + 3 x''_k v a + x'_k j           within J_k
+
+(at the planning margin: --margin of J, 0.98 of A). Each step takes the
+largest j (of five in [j_lo, j_hi]) whose next state still has a safe
+braking run: the policy "brake toward max(a_lo, -BRAKE), release so that a
+is back to 0 when v reaches a crawl of 2 mm/s", simulated under the same
+limits until the crawl (where the rest of the curve is slow enough) and
+before the end; when none is, the braking run's own first step (that
+state's run was checked, so the plan never leaves the safe states). The end:
+the crawl, then a jerk-limited stop at the curve's end exactly. The
+positions are the exact curve's at the planned s (no contour error against
+the curve); their third and second differences / T^3, T^2 are measured.
+
+The path speed stays within 0.995 vmax (the samples, judged, differ a hair).
+
+--poly NGC: the same plan along the path the product's `smooth` hands its
+planner instead: the program shifted to start at the origin (its G0 left
+out), through bench_smoothdump, and that polyline read as a curve by a
+natural cubic spline through its points by chord length (C2: its positions'
+own jerk is bounded; a cubic through each four points, as P4 of
+mlip/motion/pathspeed.h reads derivatives, is only C0 where the windows
+meet, and its kinks show as jerk at low speed). The positions are the
+spline's at the planned s, its own parameter (chord length), so (P1)(P2)
+take its derivatives by that parameter (they hold for any), not by arc
+length; the trace is judged by mlip-check --jerk against the shifted
+program (its original polyline: contour, acceleration, jerk, velocity), and
+mlip-sim's smooth runs the same program without and with J for the ratios.
+
+A greedy, not time-optimal: BRAKE is a knob (300 at J 1e5, 100 at J 1e4
+measured best of a few), and the crawl at the end costs up to ~0.3 s. What a
+real planner must add: the look-ahead over the block stream (here the whole
+curve is known), the spline over a sliding window, sharp corners (the mean),
+and bounded work a period (the braking runs are simulated here).
+
+    bench/pathspeed.py lissajous --jerk 1e5 [--brake 300] [--margin 0.95]
+    bench/pathspeed.py trochoid --jerk 1e5 --poly build/curves/trochoid.ngc
+"""
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+import topp as tp  # noqa: E402
+
+
+def shift_program(src_path, dst_path):
+    """The program's feed moves, shifted so that its first point (the G0's
+    target) is the origin, the machine's start; the G0 left out."""
+    first = None
+    with open(src_path) as fi, open(dst_path, "w") as fo:
+        fo.write("G21 G90\nG1 F12000\n")
+        for line in fi:
+            w = line.split()
+            if not w or w[0] not in ("G0", "G1") or len(w) < 2:
+                continue
+            xyz = {t[0]: float(t[1:]) for t in w[1:] if t[0] in "XYZ"}
+            if not xyz:
+                continue
+            if first is None:
+                first = xyz
+                continue
+            fo.write(
+                "G1 " + " ".join(f"{k}{v - first.get(k, 0.0):.4f}" for k, v in xyz.items()) + "\n"
+            )
+
+
+ap = argparse.ArgumentParser(description="A path-speed plan under a per-axis jerk limit")
+ap.add_argument("curve")
+ap.add_argument("--jerk", type=float, required=True)
+ap.add_argument("--margin", type=float, default=0.95, help="share of J planned")
+ap.add_argument("--brake", type=float, default=300.0, help="the braking policy's deceleration")
+ap.add_argument(
+    "--poly", metavar="NGC", help="plan along smooth's output for this program (see above)"
+)
+ap.add_argument(
+    "--build", default=os.path.join(ROOT, "build"), help="where bench_smoothdump and mlip-check are"
+)
+args = ap.parse_args()
+name = args.curve
+J = args.jerk * args.margin
+A = 1000.0
+Aplan = 0.98 * A
+vmax = 200.0
+T = 1e-3
+VC = 2.0
+ABR = args.brake
+if args.poly:
+    # smooth's output for the program shifted to start at the origin (its G0
+    # left out), read as a curve by (P4): positions and derivatives of the
+    # cubic through the four points around each segment, by chord length
+    tmp = tempfile.mkdtemp(prefix="pathspeed-")
+    prog = os.path.join(tmp, "shifted.ngc")
+    shift_program(args.poly, prog)
+    csv = subprocess.run(
+        [os.path.join(args.build, "bench_smoothdump"), prog],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    pts = np.loadtxt(csv.splitlines(), delimiter=",", ndmin=2)[:, :-1]
+    n_ax = pts.shape[1]
+    hs = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    pts = pts[np.concatenate([[True], hs > 1e-9])]
+    hs = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    m_seg = len(hs)
+    cum = np.concatenate([[0.0], np.cumsum(hs)])
+    L = float(cum[-1])
+    # a natural cubic spline through the points by chord length: C2, so
+    # that the positions' own jerk is bounded (a cubic through each four
+    # points, as P4 reads derivatives, is only C0 where the windows meet)
+    hh = hs[:, None]
+    rhs = np.zeros_like(pts)
+    rhs[1:-1] = 6 * ((pts[2:] - pts[1:-1]) / hh[1:] - (pts[1:-1] - pts[:-2]) / hh[:-1])
+    dia = np.ones(m_seg + 1)
+    dia[1:-1] = 2 * (hs[:-1] + hs[1:])
+    lo_ = np.concatenate([hs[:-1], [0.0]])  # sub-diagonal (row i: h_{i-1})
+    up_ = np.concatenate([[0.0], hs[1:]])  # super-diagonal (row i: h_i)
+    cp = np.zeros(m_seg + 1)
+    dp = np.zeros_like(pts)
+    cp[0], dp[0] = 0.0, 0.0
+    for i in range(1, m_seg + 1):  # Thomas; rows 0 and m_seg: M = 0
+        sub = lo_[i - 1] if i < m_seg else 0.0
+        den = dia[i] - sub * cp[i - 1]
+        cp[i] = (up_[i] if i < m_seg else 0.0) / den
+        dp[i] = (rhs[i] - sub * dp[i - 1]) / den
+    M = np.zeros_like(pts)
+    for i in range(m_seg - 1, 0, -1):
+        M[i] = dp[i] - cp[i] * M[i + 1]
+    bb = (pts[1:] - pts[:-1]) / hh - hh * (2 * M[:-1] + M[1:]) / 6
+
+    def cubic(s):
+        s = np.clip(np.asarray(s, float), 0.0, L)
+        j = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, m_seg - 1)
+        u = (s - cum[j])[:, None]
+        dm = (M[j + 1] - M[j]) / hh[j]
+        x = pts[j] + bb[j] * u + M[j] * u * u / 2 + dm * u**3 / 6
+        return x, bb[j] + M[j] * u + dm * u * u / 2, M[j] + dm * u, dm
+
+    def positions(s_arr):
+        return cubic(s_arr)[0]
+
+    ds = 0.005
+    n = int(math.ceil(L / ds)) + 1
+    sg = np.linspace(0.0, L, n)
+    _, x1, x2, x3 = cubic(sg)
+    # (P1)(P2) hold for any parameter: the plan advances the spline's own
+    # (chord length), so its derivatives by it, unconverted (converted by
+    # P4 they are by arc length, which the positions are not evaluated at)
+    d1, d2, d3 = x1, x2, x3 * np.ones_like(x1)
+else:
+    gc = tp.gen_curves()
+    f, t_end, n_ax = gc.CURVES[name]
+    tt = np.linspace(0.0, t_end, 2_000_001)
+    dt = 1e-6
+    fp = (np.array(f(tt + dt, np)) - np.array(f(tt - dt, np))) / (2 * dt)
+    sp = np.linalg.norm(fp[:n_ax], axis=0)
+    s_all = np.concatenate([[0.0], np.cumsum(0.5 * (sp[1:] + sp[:-1]) * np.diff(tt))])
+    L = s_all[-1]
+    ds = 0.005
+    n = int(math.ceil(L / ds)) + 1
+    sg = np.linspace(0.0, L, n)
+    par = np.interp(sg, s_all, tt)
+    e = 1e-4
+    F1 = ((np.array(f(par + e, np)) - np.array(f(par - e, np))) / (2 * e))[:n_ax].T
+    F2 = (
+        (np.array(f(par + e, np)) - 2 * np.array(f(par, np)) + np.array(f(par - e, np))) / (e * e)
+    )[:n_ax].T
+    spd = np.linalg.norm(F1, axis=1)[:, None]
+    d1 = F1 / spd
+    d2 = (F2 - np.sum(F2 * d1, axis=1)[:, None] * d1) / (spd * spd)
+    d3 = np.gradient(d2, sg, axis=0)
+
+    def positions(s_arr):
+        return np.array(f(np.interp(s_arr, s_all, tt), np))[:n_ax].T
+
+
+D1, D2, D3 = d1.tolist(), d2.tolist(), d3.tolist()
+
+
+def ix(s):
+    return min(max(int(s / ds + 0.5), 0), n - 1)
+
+
+def alim(s, v):
+    i = ix(s)
+    lo, hi = -1e18, 1e18
+    for p, q in zip(D1[i], D2[i], strict=True):
+        c = q * v * v
+        if abs(p) < 1e-9:
+            if abs(c) > Aplan:
+                return 1.0, -1.0
+            continue
+        a1, a2 = (-Aplan - c) / p, (Aplan - c) / p
+        if a1 > a2:
+            a1, a2 = a2, a1
+        lo, hi = max(lo, a1), min(hi, a2)
+    return lo, hi
+
+
+def jlim(s, v, a):
+    i = ix(s)
+    lo, hi = -1e18, 1e18
+    for p, q, r in zip(D1[i], D2[i], D3[i], strict=True):
+        c = r * v**3 + 3 * q * v * a
+        if abs(p) < 1e-9:
+            if abs(c) > J:
+                return 1.0, -1.0
+            continue
+        j1, j2 = (-J - c) / p, (J - c) / p
+        if j1 > j2:
+            j1, j2 = j2, j1
+        lo, hi = max(lo, j1), min(hi, j2)
+    return lo, hi
+
+
+def inside(s, v, a, j):
+    """j within the jerk limits at every grid point the step crosses"""
+    i0, i1 = ix(s), ix(step(s, v, a, j)[0])
+    for i in range(i0, i1 + 1):
+        h = T * (i - i0) / max(i1 - i0, 1)
+        si, vi, ai = step(s, v, a, j, h)
+        jl, jh = jlim(i * ds, vi, ai)
+        if not (jl <= j <= jh):
+            return False
+    return True
+
+
+def step(s, v, a, j, h=T):
+    return s + v * h + a * h * h / 2 + j * h**3 / 6, v + a * h + j * h * h / 2, a + j * h
+
+
+def ok(s, v, a):
+    if v < 0 or v > 0.995 * vmax or s > L + 1e-9:  # the samples, not v, are judged
+        return False
+    lo, hi = alim(s, v)
+    if not (lo - 1e-9 <= a <= hi + 1e-9):
+        return False
+    jl, jh = jlim(s, v, a)
+    return jl <= jh
+
+
+def brake_j(s, v, a):
+    """the braking policy: as hard as the limits allow, toward the lowest a"""
+    jl, jh = jlim(s, v, a)
+    alo, ahi = alim(s, v)
+    target = max(alo, -ABR) if v > VC else 0.0
+    if v <= VC:  # crawl: release toward zero acceleration
+        return min(max((0.0 - a) / T, jl), jh)
+    if a < 0 and jh > 0 and v - VC <= a * a / (2 * 0.8 * jh):
+        return min(max((0.0 - a) / T, jl), jh)  # release: a back to 0 as v reaches VC
+    j = jl
+    if a + j * T < target:
+        j = min(max((target - a) / T, jl), jh)
+    return j
+
+
+def safe(s, v, a):
+    for _ in range(3000):
+        if not ok(s, v, a):
+            return False
+        if v <= VC and abs(a) < 1.0:
+            # crawl: at VC the rest of the path is slow enough; the end: room to stop
+            return L - s >= v * 0.05
+        # the path's end: stop before it (the crawl's own small stop)
+        if L - s < v * v / (2 * 200.0) + v * 0.05:
+            return False
+        s, v, a = step(s, v, a, brake_j(s, v, a))
+    return False
+
+
+s = v = a = 0.0
+out = [0.0]
+while L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10):
+    jl, jh = jlim(s, v, a)
+    moved = False
+    if jl <= jh:
+        for w in (1.0, 0.75, 0.5, 0.25, 0.0):
+            j = jl + w * (jh - jl)
+            s2, v2, a2 = step(s, v, a, j)
+            # j holds for the whole period: within the limits at every grid
+            # point it crosses (on a spline read from points x''' changes from
+            # segment to segment), at the state there (s, v, a by the step)
+            if inside(s, v, a, j) and safe(s2, v2, a2):
+                moved = True
+                break
+    if not moved:
+        s2, v2, a2 = step(s, v, a, brake_j(s, v, a))
+        if v2 < 0:
+            s2, v2, a2 = s, 0.0, 0.0
+    if not moved and v2 <= 0.0 and L - s2 > 1.0:
+        raise SystemExit(f"stopped at s={s2} of {L}")
+    s, v, a = s2, v2, a2
+    out.append(min(s, L))
+    if len(out) > 200000:
+        raise SystemExit(f"too long at s={s}")
+# the end: cruise at the crawl speed, then a jerk-limited stop at L exactly
+# (a triangle of jerk: v = jr t^2 ... over 2 sqrt(v / jr), distance v sqrt(v / jr))
+if L - s > 1e-9 and v > 0:
+    jr = 0.5 * J
+    tb = 2 * math.sqrt(v / jr)
+    db = v * tb / 2
+    tc = max(L - s - db, 0.0) / v
+    t0 = len(out) * T - T
+    tt_ = 0.0
+    s0 = s
+    v0 = v
+    while True:
+        tt_ += T
+        if tt_ <= tc:
+            x = s0 + v0 * tt_
+        elif tt_ <= tc + tb:
+            u = tt_ - tc
+            h = tb / 2
+            if u <= h:
+                x = s0 + v0 * tc + v0 * u - jr * u**3 / 6
+            else:
+                xm = s0 + v0 * tc + v0 * h - jr * h**3 / 6
+                vm = v0 - jr * h * h / 2
+                w = u - h
+                x = xm + vm * w - jr * h * w * w / 2 + jr * w**3 / 6
+        else:
+            x = L
+            out.append(x)
+            break
+        out.append(min(x, L))
+    out += [L] * 3
+ss = np.array(out)
+P = positions(ss)
+j3 = np.abs(np.diff(P, 3, axis=0)) / T**3
+a2_ = np.abs(np.diff(P, 2, axis=0)) / T**2
+Jr = args.jerk
+print(
+    f"{name} J={Jr:g} (plan {J:g}, A {Aplan:g}): {len(ss) * T:.3f} s (curve only),"
+    f" max jerk/J {j3.max() / Jr:.3f}, max accel/A {a2_.max() / A:.3f}"
+)
+w = j3.max(axis=1)
+print(
+    f"samples above J: {int(np.sum(w > Jr))}; the worst at sample {int(np.argmax(w))} of {len(w)}"
+)
+if args.poly:
+    # the trace, judged by mlip-check against the shifted program (its
+    # original polyline), and mlip-sim's smooth on the same program
+    trace = os.path.join(tmp, "trace.csv")
+    with open(trace, "w") as fh:
+        for i, row in enumerate(P):
+            fh.write(f"{i * T:.6f}," + ",".join(f"{x:.9f}" for x in row) + "\n")
+    mach = [
+        "--accel",
+        ",".join(["1000"] * n_ax),
+        "--vmax",
+        "200",
+        "--eps",
+        "0.01",
+        "--period",
+        "0.001",
+        "--jerk",
+        f"{Jr:g}",
+    ]
+    chk = subprocess.run(
+        [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, trace],
+        capture_output=True,
+        text=True,
+    )
+    print(f"mlip-check --jerk {Jr:g}: exit {chk.returncode}; {chk.stdout.strip()}")
+    for jerk in (None, Jr):
+        extra = ["--jerk", f"{jerk:g}"] if jerk else []
+        r = subprocess.run(
+            [
+                os.path.join(args.build, "mlip-sim"),
+                "-q",
+                "--strategy",
+                "smooth",
+                *mach[:8],
+                "--feed",
+                "200",
+                *extra,
+                "--summary",
+                "-",
+                prog,
+            ],
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout
+        print(
+            f"mlip-sim smooth {'J ' + format(jerk, 'g') if jerk else 'no J'}: "
+            f"{json.loads(r)['total_time_s']:.3f} s"
+        )
