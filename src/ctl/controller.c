@@ -123,10 +123,12 @@ int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		c->hold.stall = 0;
 		c->hold.op = 0;
 		c->spindle.stop_req = -1;
-		if (held && (c->spindle.stopped || c->spindle.drive.phase == MLIP_SPINDLE_RAMPING ||
-		             c->spindle.drive.phase == MLIP_SPINDLE_BRAKING)) {
-			/* Grbl: a resume restores the spindle it stopped; the
-			 * motion goes on once it is at speed (mlip_ct_spindle_period) */
+		if (c->spindle.on && (c->spindle.stopped ||
+		                      (held && (c->spindle.drive.phase == MLIP_SPINDLE_RAMPING ||
+		                                c->spindle.drive.phase == MLIP_SPINDLE_BRAKING)))) {
+			/* Grbl: a resume restores the spindle it stopped (wherever
+			 * the program stands: lines taken in the hold move it on);
+			 * the motion goes on once it is at speed (mlip_ct_spindle_period) */
 			mlip_ctl_spindle_stop(&c->spindle, 0, c->period);
 			c->hold.spindle = 1;
 			return MLIP_OK;

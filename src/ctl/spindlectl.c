@@ -137,11 +137,14 @@ double mlip_ctl_spindle_cmd_rpm(const struct mlip_ctl_spindle *s)
 
 /* ---- in the controller's period (ctl.h) ----------------------------------- */
 
-/* An operator's hold at rest (held mid-program, or asked while idle as Grbl
- * holds): where Grbl's spindle stop acts. */
+/* An operator's hold at rest (held mid-program; starved, a sender's open
+ * program waiting for its next line, as an M3 typed in mlip-grbl's console
+ * leaves it; or asked while idle as Grbl holds): where Grbl's spindle stop
+ * acts. */
 int mlip_ct_spindle_held(const struct mlip_ctl *c)
 {
-	return c->hold.op && (c->state == MLIP_STATE_HELD || c->state == MLIP_STATE_IDLE);
+	return c->hold.op && (c->state == MLIP_STATE_HELD || c->state == MLIP_STATE_STARVED ||
+	                      c->state == MLIP_STATE_IDLE);
 }
 
 /* Its phase from its TPDO; a fault stops the feed on the path (state FAULT,

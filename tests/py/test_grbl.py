@@ -368,6 +368,34 @@ def test_hold_resume_override_reset(grbl):
     idle_at(g, [0, 0, 0])
 
 
+def test_hold_between_lines_keeps_the_program_open(grbl):
+    """A `!` at rest between a sender's lines (the controller starved, the
+    program open: Run) holds it open however long the hold lasts: the quiet
+    that ends a program (--quiet-ms) counts from the `~` (an M3 typed before
+    the `!` keeps the spindle for 0x9E to stop and restore)."""
+    quiet = 3.0  # s
+    shm, rt, srv, port, _ = grbl(MILL, grbl_opts=("--quiet-ms", str(int(quiet * 1000))))
+    g = connect(port)
+    assert g.cmd("G4 P0.01")[0] == "ok"      # runs at once: the controller starves after it
+    assert wait_for(lambda: status(shm)["state"] == "starved", DEADLINE), status(shm)
+    g.send(b"!")
+    s = g.status()
+    assert s["state"] == "Hold:0", s
+    c = status(shm)
+    assert c["state"] == "starved", ("the quiet ended the program before the `!`: the test "
+                                     "needs it within --quiet-ms of the line", c)
+    t_hold = time.monotonic()
+    periods_pass(shm, int(1.5 * quiet / 0.001))  # held longer than the quiet, and then some
+    assert time.monotonic() - t_hold > quiet
+    assert status(shm)["state"] == "starved" and g.status()["state"] == "Hold:0"
+    t_resume = time.monotonic()
+    g.send(b"~")
+    assert g.status()["state"] == "Run"
+    s = g.wait_state({"Idle"}, DEADLINE)      # the quiet, from the `~`, ends it
+    assert time.monotonic() - t_resume >= quiet * 0.9, s
+    assert status(shm)["state"] == "idle"
+
+
 def test_m0_pause_and_dwell(grbl):
     shm, rt, srv, port, _ = grbl()
     g = connect(port)

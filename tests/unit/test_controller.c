@@ -2947,6 +2947,67 @@ static void test_spindle_stop_in_a_hold(void **st)
 	resume_waits_for_speed("0x9E twice, resume while ramping");
 }
 
+/* The same between a sender's lines (mlip-grbl: an M3 typed in its console
+ * is a program left open, the controller starved at rest waiting for the
+ * next line): the hold at rest there is where 0x9E acts too. Lines that come
+ * in the hold are taken (held, the spindle kept stopped); the resume
+ * restores the spindle wherever the program stands, and the axes move only
+ * once it is at speed again. */
+static void test_spindle_stop_in_a_hold_between_lines(void **st)
+{
+	(void)st;
+	stick(5);
+	event(1, MLIP_BLOCK_SPINDLE, -6000.0); /* M4 S6000, and no end */
+	suntil(MLIP_STATE_STARVED, 5000);
+	assert_true(fabs(spd.rpm + 6000) <= 20);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	spindle_drive();
+	stick(2);
+	assert_int_equal(status().state, MLIP_STATE_STARVED);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	stick(1);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20);
+	/* a second 0x9E restores it, a third stops it again */
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 0, 0), MLIP_OK);
+	spindle_drive();
+	stick(1);
+	assert_true(out.spindle.target == -409600 && status().spindle_cmd_rpm == -6000);
+	stick(1500);
+	assert_true(fabs(spd.rpm + 6000) <= 20);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20 && out.spindle.target == 0);
+	/* the sender's next lines, taken in the hold: nothing moves, the
+	 * spindle stays stopped */
+	double x = out.pos[0];
+	for (uint64_t k = 2; k <= 10; k++) {
+		move(k, 5.0 * (double)k, 0.0);
+	}
+	end(11);
+	stick(200);
+	assert_true(out.pos[0] == x && out.spindle.target == 0);
+	/* the resume: restored, the feed once at speed */
+	spd.reached = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	spindle_drive();
+	assert_true(out.spindle.target == -409600 && status().spindle_cmd_rpm == -6000);
+	uint64_t moved = 0;
+	for (int i = 0; i < 5000 && moved == 0; i++) {
+		stick(1);
+		if (out.pos[0] != x) {
+			moved = period;
+		}
+	}
+	assert_true(moved != 0 && spd.reached != 0 && moved > spd.reached);
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_true(out.pos[0] == 50.0);
+}
+
 /* The spindle drive's heartbeat lost mid-cut (rt/'s supervision reports it
  * with its node): state FAULT naming the spindle, the feed stopped on the
  * path, the spindle asked 0. */
@@ -3120,6 +3181,7 @@ int main(void)
 	    TS(test_spindle_feed_waits_for_speed),
 	    TS(test_spindle_stop_and_fault_mid_cut),
 	    TS(test_spindle_stop_in_a_hold),
+	    TS(test_spindle_stop_in_a_hold_between_lines),
 	    TS(test_spindle_band_and_timeout),
 	    TS(test_spindle_estop),
 	    TS(test_spindle_heartbeat_lost),

@@ -189,7 +189,7 @@ static void not_switched(grbl_rt c)
 }
 
 /* Grbl's Hold: asked (a `!` just before, still in the mailbox queue, too) or held */
-static int in_hold(void)
+int in_hold(void)
 {
 	int queued = 0;
 	for (int i = 0; i < S.qn; i++) {

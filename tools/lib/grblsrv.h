@@ -67,6 +67,7 @@ struct srv {
 	uint32_t lineno;      /* the program's lines received (count_line) */
 	uint64_t ln_programs; /* S.st.programs when lineno last restarted */
 	uint64_t last_rx_ns;  /* last line byte received */
+	uint64_t held_ns;     /* an operator's hold last seen (quiet_end) */
 	int status_req;
 	int check_mode;
 	int err_hold;  /* a refused line: nothing more taken until ~ or reset */
@@ -149,6 +150,7 @@ void cmd_push(uint32_t op, int32_t arg);
 void cmd_pump(void);
 void stop_post(void);
 void rt_cmd(void *ctx, grbl_rt c);
+int in_hold(void);
 int is_query(const char *t, size_t len);
 void process_lines(void);
 void poll_controller(void);
