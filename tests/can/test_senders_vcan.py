@@ -183,6 +183,9 @@ def cncjs_run(drives, tmp_path_factory):
         tty, KB4, tmp, "--hold-at-line", "70", "--override-at-lines", "90,103",
         "--jog-cancel", ",".join(map(str, JOG)), "--deadline", DEADLINE,
         timeout=SENDER_TIMEOUT), edit=slow_soft)
+    # where the emulated VM's time goes (CNCjs's start, the file, the jog)
+    print("\n[CNCjs events] " + ", ".join(f"{e['event']} {e['t']:.1f} s" for e in ev
+                                          if e["event"] != "read"))
     return ev, rig, ref, tmp
 
 

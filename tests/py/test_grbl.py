@@ -372,12 +372,18 @@ def test_hold_between_lines_keeps_the_program_open(grbl):
     """A `!` at rest between a sender's lines (the controller starved, the
     program open: Run) holds it open however long the hold lasts: the quiet
     that ends a program (--quiet-ms) counts from the `~` (an M3 typed before
-    the `!` keeps the spindle for 0x9E to stop and restore)."""
+    the `!` keeps the spindle for 0x9E to stop and restore). mlip-rt's log
+    says the program waits for its feeder, mlip-grbl (not "mlip-feed
+    --start-seq": no other feeder could take the ring)."""
     quiet = 3.0  # s
     shm, rt, srv, port, _ = grbl(MILL, grbl_opts=("--quiet-ms", str(int(quiet * 1000))))
     g = connect(port)
     assert g.cmd("G4 P0.01")[0] == "ok"      # runs at once: the controller starves after it
     assert wait_for(lambda: status(shm)["state"] == "starved", DEADLINE), status(shm)
+    said = rt.log.wait(lambda l: "underrun: no block came after block" in l)
+    assert said and said.endswith(f"the program open: its feeder (mlip-grbl, pid {srv.pid}) "
+                                  "continues it or ends it"), rt.log.lines[-5:]
+    assert "--start-seq" not in said
     g.send(b"!")
     s = g.status()
     assert s["state"] == "Hold:0", s
