@@ -262,7 +262,10 @@ def test_grbl_bus_spindle(vcan, tmp_path):
                 # 0x9E (Grbl's spindle stop): ignored outside Hold; in Hold
                 # (a `!` at rest between lines) it stops the spindle, the
                 # next restores it ([MSG:Restoring spindle]), as ~ does (Run
-                # again, the M3's program still open, the spindle at speed)
+                # again, the M3's program still open, the spindle at speed).
+                # A line first: the quiet that would end the program (and
+                # stop the spindle) counts from it again
+                assert g.cmd("G4 P0")[0] == "ok"
                 g.send(b"\x9e")
                 s = g.status()
                 assert s["state"] == "Run" and s.get("A") == "S" and s["FS"][1] == 3000, s
