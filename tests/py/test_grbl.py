@@ -864,6 +864,55 @@ def test_spindle_refused_on_a_machine_without_one(grbl):
     assert status(shm)["blocks_consumed"] == 0
 
 
+def test_offsets_and_tool_kept_across_a_restart(grbl, tmp_path):
+    """--offsets FILE (mlip-offsets --init's): the tool M61 put in the
+    spindle and a G10 L2 origin are written back once at rest, and a
+    restarted mlip-grbl starts with them ($G's T2, $#'s G55); a second
+    change is written over the first (the write-back's merge base is the
+    file as last written); SELECT stays the file's (Grbl starts in G54)."""
+    offsets = tmp_path / "offsets.txt"
+    assert subprocess.run([tool("mlip-offsets"), "--config", str(MILL_IO), "--init",
+                           str(offsets)], capture_output=True).returncode == 0
+    assert subprocess.run([tool("mlip-offsets"), "--set", "SELECT G56", str(offsets)],
+                          capture_output=True).returncode == 0
+    table = CONFIG.parent / "examples" / "tool.tbl"
+    opts = ("--tools", str(table), "--offsets", str(offsets))
+    shm, rt, srv, port, _ = grbl(MILL_IO, grbl_opts=opts)
+    g = connect(port)
+    assert "G54" in g.cmd("$G")[1][0].split()         # Grbl's start, not the file's G56
+    assert g.cmd("M61 Q2")[0] == "ok"
+    assert g.cmd("G10 L2 P2 X7 Y-3")[0] == "ok"
+    g.wait_state({"Idle"})
+    assert wait_for(lambda: "TOOL 2" in offsets.read_text().splitlines(), DEADLINE), \
+        offsets.read_text()
+    text = offsets.read_text().splitlines()
+    assert "G55 X7 Y-3 Z0" in text and "SELECT G56" in text, text
+    g.close()
+    terminate(srv)
+
+    def restarted():
+        p = logged(subprocess.Popen([tool("mlip-grbl"), "--shm", shm, "--listen", "127.0.0.1:0",
+                                     "--pty", "none", *opts], stderr=subprocess.PIPE, text=True),
+                   "mlip-grbl (again)")
+        line = p.log.wait(lambda l: "listening on" in l, DEADLINE)
+        assert line, p.log.text()
+        return p, connect(int(line.rsplit(":", 1)[1]))
+
+    srv, g = restarted()
+    try:
+        assert "T2" in g.cmd("$G")[1][0].split()
+        g.wait_state({"Idle"})
+        ans, params = g.cmd("$#")
+        assert ans == "ok" and "[G55:7.000,-3.000,0.000]" in params, params
+        assert g.cmd("M61 Q3")[0] == "ok"               # a second change: written too
+        g.wait_state({"Idle"})
+        assert wait_for(lambda: "TOOL 3" in offsets.read_text().splitlines(), DEADLINE), \
+            offsets.read_text()
+        g.close()
+    finally:
+        terminate(srv)
+
+
 # ---- homing settings and tools from the machine (--config, --tools) -------------------
 
 
