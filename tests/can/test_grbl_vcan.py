@@ -268,7 +268,9 @@ def test_grbl_bus_spindle(vcan, tmp_path):
                 assert g.cmd("G4 P0")[0] == "ok"
                 g.send(b"\x9e")
                 s = g.status()
-                assert s["state"] == "Run" and s.get("A") == "S" and s["FS"][1] == 3000, s
+                # (A: comes with Ov only: not in every report)
+                assert s["state"] == "Run" and s.get("A") in ("S", None) and \
+                    s["FS"][1] == 3000, s
                 assert rig.status()["spindle"]["commanded_rpm"] == 3000
 
                 def restoring(n):

@@ -88,7 +88,9 @@ def run_sender(drives, tmp, name, go, program=KB4, edit=slow):
             except Exception as e:
                 raise AssertionError(f"{name}: {e}\nmlip-grbl: {''.join(srv.said)[-3000:]}\n"
                                      f"mlip-rt: {rig.status()}") from e
-            rig.wait_state("idle", timeout=300, pred=lambda s: s["exec_seq"] > 1)
+            # idle after what the sender ran (blocks taken: a jog after the
+            # file, cancelled, is a stop that leaves exec_seq 0)
+            rig.wait_state("idle", timeout=300, pred=lambda s: s["blocks_consumed"] > 1)
         finally:
             srv.send_signal(signal.SIGTERM)
             srv.wait(60)
