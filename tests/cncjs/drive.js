@@ -113,12 +113,18 @@ async function main() {
     const mpos = s.mpos && ['x', 'y', 'z'].map((k) => Number(s.mpos[k]));
     if (a !== st.state) say({ event: 'state', state: a, mpos, ln: s.ln });
     st.state = a; st.mpos = mpos; st.wpos = s.wpos; st.ln = s.ln; st.feed = Number(s.feedrate);
+    // Ov comes in the first report after a change (report.c), whoever asked
+    // for it: CNCjs's own 4 Hz polls are parsed into its state, not echoed
+    const ov = s.ov && s.ov.length ? Number(s.ov[0]) : null;
+    if (ov !== null && ov !== st.ovFeed) { st.ovFeed = ov; st.ovWall = Date.now() / 1000; }
   });
   socket.on('workflow:state', (w) => { st.workflow = w; });
   socket.on('sender:status', (s) => { st.sender = s; });
   socket.on('serialport:read', (line) => {
     st.lines.push(line);
-    if (line.startsWith('<')) { st.reports += 1; st.report = line; } // a `?` of ours answered
+    if (line.startsWith('<')) { // a `?` of ours answered
+      st.reports += 1; st.report = line; st.reportWall = Date.now() / 1000;
+    }
     if (/^error|^\[MSG|^Grbl/.test(line)) say({ event: 'read', line });
   });
   const until = async (pred, ms, what) => {
@@ -155,11 +161,13 @@ async function main() {
   // before the byte may come first (then one more `?`). The reports read.
   const reportsAfter = async (what, want) => {
     const seen = [];
+    seen.walls = []; // when each came (not in its JSON)
     for (let k = 0; k < 2 && !(seen.length && want(seen[seen.length - 1])); k++) {
       const n = st.reports;
       socket.emit('write', TTY, '?');
       if (!await until(() => st.reports > n, DEADLINE, what)) return null;
       seen.push(st.report);
+      seen.walls.push(st.reportWall);
     }
     return seen;
   };
@@ -195,13 +203,22 @@ async function main() {
     if (ln0 === null && st.state === 'Run' && st.ln !== undefined) ln0 = st.ln;
     return ln0 !== null && st.state === 'Run' && st.ln >= ln0 + n && st.feed > 0;
   };
-  // its feed override button: the byte, then reports until one carries Ov
+  // its feed override button: the byte, then reports until one carries the
+  // new Ov. ov_wall: when that report came; when CNCjs's own poll took it
+  // (its reports are parsed, not echoed: Ov is in the first report after a
+  // change only), when CNCjs's state showed it (at most its 250 ms emit
+  // period after that report)
   const override = async (kind, value, pct) => {
     const sent = Date.now() / 1000;
+    const has = (r) => r.includes(`|Ov:${pct},`);
     cmd('feedOverride', value);
-    const seen = await reportsAfter(kind, (r) => r.includes(`|Ov:${pct},`));
+    const seen = await reportsAfter(kind, (r) => has(r) || (st.ovFeed === pct && st.ovWall >= sent));
     if (!seen) return false;
-    say({ event: kind, sent, reports: seen });
+    const k = seen.findIndex(has);
+    if (k < 0 && !await until(() => st.ovFeed === pct && st.ovWall >= sent, DEADLINE,
+      `${kind}: Ov in CNCjs's state`)) return false;
+    say({ event: kind, sent, reports: seen, ov_wall: k >= 0 ? seen.walls[k] : st.ovWall,
+      ov_in: k >= 0 ? 'our report' : "CNCjs's state" });
     return true;
   };
   if (HOLD_AFTER !== null) {
