@@ -63,7 +63,8 @@ struct monitor {
 	uint32_t stall_periods;
 	struct mlip_trace trace; /* --record */
 	FILE *rec;
-	struct mlip_drives *ds; /* NULL: no drives brought up */
+	struct mlip_drives *ds;     /* NULL: no drives brought up */
+	const struct mlip_shm *shm; /* the segment: who holds its producer side */
 	volatile int done;
 };
 
@@ -149,6 +150,24 @@ static void report(const struct mlip_ring_status *a, const struct mlip_ring_stat
 	}
 }
 
+/* Process pid's name (/proc/PID/comm), or "?" */
+static void process_name(int32_t pid, char *out, size_t n)
+{
+	char path[40];
+	FILE *f;
+	snprintf(path, sizeof(path), "/proc/%d/comm", (int)pid);
+	snprintf(out, n, "?");
+	f = fopen(path, "r");
+	if (f == NULL) {
+		return;
+	}
+	if (fgets(out, (int)n, f) == NULL) {
+		snprintf(out, n, "?");
+	}
+	out[strcspn(out, "\n")] = '\0';
+	fclose(f);
+}
+
 /* One line per event of the loop (its log queue), with the reason. */
 static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 {
@@ -172,13 +191,29 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		return;
 	}
 	switch (e->state) {
-	case MLIP_STATE_STARVED:
+	case MLIP_STATE_STARVED: {
+		/* a feeder that still holds the ring (mlip-feed behind, mlip-grbl
+		 * between a sender's lines) continues the program or ends it: a
+		 * new mlip-feed could not take the ring; only once none holds it
+		 * is --start-seq the way on */
+		int32_t holder = mo->shm != NULL ? mlip_shm_feeder_holder(mo->shm) : 0;
+		char name[32];
+		if (holder > 0) {
+			process_name(holder, name, sizeof(name));
+			fprintf(stderr,
+			        PROG ": underrun: no block came after block %llu (line %u) yet; at "
+			             "rest at its end, the program open: its feeder (%s, pid %d) "
+			             "continues it or ends it\n",
+			        seq, line, name, (int)holder);
+			return;
+		}
 		fprintf(stderr,
 		        PROG
 		        ": underrun: no block came after block %llu (line %u); at rest at its end; "
 		        "to continue: mlip-feed --start-seq %llu\n",
 		        seq, line, seq + 1);
 		return;
+	}
 	case MLIP_STATE_HELD:
 		if (r->why == MLIP_WHY_STALL) {
 			fprintf(
@@ -878,6 +913,7 @@ static int run(const struct options *o, struct app *a)
 	a->mon.can = a->use_can ? &per.can : NULL;
 	a->mon.ring = a->shm.ring;
 	a->mon.ds = a->drives_up ? &drives : NULL;
+	a->mon.shm = &a->shm;
 	pthread_attr_init(&attr);
 	pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
 	int mon_ok = pthread_create(&mon_th, &attr, monitor, &a->mon) == 0;
