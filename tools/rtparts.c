@@ -63,7 +63,6 @@ int mlip_rt_bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 	return 0;
 }
 
-
 /* Process pid's name (/proc/PID/comm), or "?" */
 void mlip_rt_process_name(int32_t pid, char *out, size_t n)
 {
