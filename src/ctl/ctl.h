@@ -142,6 +142,7 @@ void mlip_ct_home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
                          struct mlip_ctl_out *out);
 
 /* spindlectl.c: a CiA 402 spindle (mlip/ctl/spindlectl.h) in the period */
+int mlip_ct_spindle_held(const struct mlip_ctl *c);
 void mlip_ct_spindle_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
                             struct mlip_ctl_out *out);
 void mlip_ct_spindle_out(const struct mlip_ctl *c, const struct mlip_ctl_in *in,

@@ -525,6 +525,9 @@ static uint32_t held_why(const struct mlip_ctl *c)
 	if (c->hold.op) {
 		return MLIP_WHY_HOLD;
 	}
+	if (c->hold.spindle) {
+		return MLIP_WHY_SPINDLE_WAIT;
+	}
 	if (mlip_planner_override_pct(c->planner) == 0.0) {
 		return MLIP_WHY_OVERRIDE_ZERO;
 	}

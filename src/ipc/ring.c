@@ -869,9 +869,18 @@ int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
-	static const char *const names[] = {
-	    "none", "override", "hold",     "resume",          "stop", "optional-stop", "reset",
-	    "jog",  "home",     "jog-axis", "spindle-override"};
+	static const char *const names[] = {"none",
+	                                    "override",
+	                                    "hold",
+	                                    "resume",
+	                                    "stop",
+	                                    "optional-stop",
+	                                    "reset",
+	                                    "jog",
+	                                    "home",
+	                                    "jog-axis",
+	                                    "spindle-override",
+	                                    "spindle-stop"};
 
 	return NAME_OF(names, op);
 }

@@ -2920,6 +2920,144 @@ static void test_spindle_stop_and_fault_mid_cut(void **st)
 	assert_int_equal(status().spindle_state, MLIP_SPINDLE_FAULT + 1u);
 }
 
+/* Grbl's spindle stop (0x9E) in an operator's hold: refused outside one;
+ * asked while the hold brakes it waits for rest (the tool is still in the
+ * cut), then the spindle's target is 0, the axes still; a resume restores
+ * the program's speed and the axes move only once the drive said it is at
+ * speed again. The second time the restore comes first (a second 0x9E),
+ * the resume follows while it still ramps: the same wait. */
+static void resume_waits_for_speed(const char *what)
+{
+	double x = out.pos[0];
+	uint64_t moved = 0;
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	for (int i = 0; i < 5000 && moved == 0; i++) {
+		stick(1);
+		if (out.pos[0] != x) {
+			moved = period;
+		} else if (spd.reached == 0) {
+			assert_int_equal(status().state, MLIP_STATE_HELD);
+			assert_int_equal(status().reason, MLIP_WHY_SPINDLE_WAIT);
+		}
+	}
+	assert_true(moved != 0 && spd.reached != 0);
+	assert_true(moved > spd.reached);
+	assert_true(fabs(spd.rpm + 6000) <= 20);
+	print_message("%s: the feed %llu periods after target reached\n", what,
+	              (unsigned long long)(moved - spd.reached));
+}
+
+static void test_spindle_stop_in_a_hold(void **st)
+{
+	(void)st;
+	start_cut(); /* M4 S6000, cutting */
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_E_INVALID);
+	spindle_drive();
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	spindle_drive();
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 2, 0), MLIP_E_RANGE);
+	spindle_drive();
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	int k = 0;
+	while (status().state != MLIP_STATE_HELD && k++ < 2000) {
+		assert_true(out.spindle.target == -409600); /* braking: still turning */
+		stick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	stick(1);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	double x = out.pos[0];
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20 && out.pos[0] == x);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	/* the resume: restored, then the wait */
+	spd.reached = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	spindle_drive();
+	assert_true(out.spindle.target == -409600 && status().spindle_cmd_rpm == -6000);
+	resume_waits_for_speed("0x9E, resume");
+	/* again: 0x9E twice in the hold, the resume while it ramps */
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	spindle_drive();
+	suntil(MLIP_STATE_HELD, 2000);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 0, 0), MLIP_OK);
+	spindle_drive();
+	stick(2);
+	assert_true(out.spindle.target == -409600);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	spd.reached = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	spindle_drive();
+	resume_waits_for_speed("0x9E twice, resume while ramping");
+}
+
+/* The same between a sender's lines (mlip-grbl: an M3 typed in its console
+ * is a program left open, the controller starved at rest waiting for the
+ * next line): the hold at rest there is where 0x9E acts too. Lines that come
+ * in the hold are taken (held, the spindle kept stopped); the resume
+ * restores the spindle wherever the program stands, and the axes move only
+ * once it is at speed again. */
+static void test_spindle_stop_in_a_hold_between_lines(void **st)
+{
+	(void)st;
+	stick(5);
+	event(1, MLIP_BLOCK_SPINDLE, -6000.0); /* M4 S6000, and no end */
+	suntil(MLIP_STATE_STARVED, 5000);
+	assert_true(fabs(spd.rpm + 6000) <= 20);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	spindle_drive();
+	stick(2);
+	assert_int_equal(status().state, MLIP_STATE_STARVED);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	stick(1);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20);
+	/* a second 0x9E restores it, a third stops it again */
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 0, 0), MLIP_OK);
+	spindle_drive();
+	stick(1);
+	assert_true(out.spindle.target == -409600 && status().spindle_cmd_rpm == -6000);
+	stick(1500);
+	assert_true(fabs(spd.rpm + 6000) <= 20);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20 && out.spindle.target == 0);
+	/* the sender's next lines, taken in the hold: nothing moves, the
+	 * spindle stays stopped */
+	double x = out.pos[0];
+	for (uint64_t k = 2; k <= 10; k++) {
+		move(k, 5.0 * (double)k, 0.0);
+	}
+	end(11);
+	stick(200);
+	assert_true(out.pos[0] == x && out.spindle.target == 0);
+	/* the resume: restored, the feed once at speed */
+	spd.reached = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	spindle_drive();
+	assert_true(out.spindle.target == -409600 && status().spindle_cmd_rpm == -6000);
+	uint64_t moved = 0;
+	for (int i = 0; i < 5000 && moved == 0; i++) {
+		stick(1);
+		if (out.pos[0] != x) {
+			moved = period;
+		}
+	}
+	assert_true(moved != 0 && spd.reached != 0 && moved > spd.reached);
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_true(out.pos[0] == 50.0);
+}
+
 /* The spindle drive's heartbeat lost mid-cut (rt/'s supervision reports it
  * with its node): state FAULT naming the spindle, the feed stopped on the
  * path, the spindle asked 0. */
@@ -3198,6 +3336,8 @@ int main(void)
 	    TH(test_home_again_stale_attained),
 	    TS(test_spindle_feed_waits_for_speed),
 	    TS(test_spindle_stop_and_fault_mid_cut),
+	    TS(test_spindle_stop_in_a_hold),
+	    TS(test_spindle_stop_in_a_hold_between_lines),
 	    TS(test_spindle_band_and_timeout),
 	    TS(test_spindle_estop),
 	    TS(test_spindle_mdi_stays_on),

@@ -267,6 +267,9 @@ typedef enum {
 	                              (issue 18): arg = MLIP_JOG_AXIS_ARG(axis, neg, um); posted
 	                              just before it (kept MLIP_JOG_DEADMAN_S) */
 	MLIP_CMD_SPINDLE_OVERRIDE, /* arg: spindle override, percent (50..200; issue 19) */
+	MLIP_CMD_SPINDLE_STOP,     /* arg 1: stop the spindle in a hold (Grbl's 0x9E), once at
+	                              rest; arg 0: restore it; a resume restores it too and
+	                              moves on once it is at speed */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
 
