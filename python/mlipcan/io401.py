@@ -209,7 +209,15 @@ class IoModule(SimDevice):
                 self.outputs[:] = new
                 for i in range(NBYTES):
                     self.node.data_store.setdefault(0x6200, {})[i + 1] = bytes([new[i]])
-                self.rec.event(self.id, "outputs", data=bytes(new).hex(), sync=self.sim.sync_no)
+                # t_bus: the frame's bus time (a test orders it against the
+                # SYNCs' when the emulated VM delivers frames out of order)
+                self.rec.event(
+                    self.id,
+                    "outputs",
+                    data=bytes(new).hex(),
+                    sync=self.sim.sync_no,
+                    t_bus=timestamp,
+                )
 
     # ------------------------------------------------------------ the master's heartbeat
     def consumer(self, val: int) -> None:

@@ -62,6 +62,25 @@ def targets(sim, node, t0):
     return [(r["sync"], r["target"]) for r in sim.sync_rows() if r["node"] == node and r["t"] >= t0]
 
 
+def switch_context(sim, t0, xs, io):
+    """What a failed ordering check needs: the SYNCs around X's reversal
+    (X's target and RPDO freshness, the outputs in force, the SYNC's bus
+    time) and the module's output frames (the SYNC count they were taken
+    at, their bus time)."""
+    turn = next((s1 for (s0, a), (s1, b) in zip(xs, xs[1:]) if b < a), None)
+    if turn is None:
+        return "no reversal"
+    rows = {r["sync"]: r for r in sim.sync_rows() if r["node"] == 1 and r["t"] >= t0}
+    t_io = {r["sync"]: r["t"] for r in io_after(sim, t0)}
+    around = []
+    for s in range(turn - 3, turn + 3):
+        r = rows.get(s, {})
+        around.append((s, r.get("target"), r.get("fresh"), hex(io.get(s, -1)), t_io.get(s)))
+    frames = [(e["sync"], e.get("t_bus"), e["data"])
+              for e in sim.events("outputs", IO) if e["t"] >= t0]
+    return f"(sync, X target, fresh, outputs, t) {around}; module frames {frames}"
+
+
 def test_coolant_and_output_follow_the_program(sim, tmp_path):
     cfg = machine(tmp_path)
     ngc = tmp_path / "p.ngc"
@@ -99,7 +118,7 @@ def test_coolant_and_output_follow_the_program(sim, tmp_path):
     minus = {o for d, o in out_moving if d == "-"}
     # flood and P0 on through the first move, flood alone through the second
     assert plus == {FLOOD | P0}, out_moving
-    assert minus == {FLOOD}, out_moving
+    assert minus == {FLOOD}, (out_moving, switch_context(sim, t0, xs, io))
     # off once the program ended: after X's last move, within a few periods
     last_move = max(s1 for (s0, a), (s1, b) in zip(xs, xs[1:]) if b != a)
     off = [s for s, o in sorted(io.items()) if s > last_move and o == 0]
