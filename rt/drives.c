@@ -568,6 +568,18 @@ static int io_bringup(struct mlip_drives *ds, char *why, size_t why_len)
 			ds->io.id.has_product = rc == 0;
 			say(ds, "%s: vendor-ID 0x%08X, product code %s0x%08X", who,
 			    ds->io.id.vendor, rc == 0 ? "" : "(none) ", ds->io.id.product);
+			/* a module that reports a fault is an E-stop: never started */
+			rc = sdo(ds, -1, 1, 0x1001, 0, 0, 0, "error register", &v, why, why_len);
+			if (rc != 0) {
+				return rc;
+			}
+			if ((v & 0xFFu) != 0) {
+				snprintf(why, why_len,
+				         "%s: its error register 0x1001 reads 0x%02X: the module "
+				         "reports a fault (CiA 301); clear it before starting",
+				         who, v & 0xFFu);
+				return -EPROTO;
+			}
 			n = mlip_io401_setup_entries(&ds->io.setup, e, MLIP_IO401_SETUP_MAX);
 			for (int k = 0; k < n; k++) {
 				rc = sdo_entry(ds, -1, &e[k], why, why_len);

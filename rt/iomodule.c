@@ -13,6 +13,9 @@
  *      that node (swapped, or a wrong node id set) is never configured nor
  *      trusted: the E-stop stays, its reason names node and object
  *      (MLIP_DRIVE_WRONG_DEVICE) until mlip-rt is restarted
+ *   1c. its error register 0x1001 read: non-zero, the module still reports
+ *      a fault (CiA 301: an EMCY told of it; a reset communication need not
+ *      clear it nor send the EMCY again): the attempt fails, the E-stop stays
  *   2. the set-up entries of bring-up (mlip_io401_setup_entries), each
  *      written and read back (SDO_TIMEOUT_MS each)
  *   3. its inputs 0x6000:1..n read by SDO
@@ -49,6 +52,7 @@ static void fail(struct mlip_drives *ds, uint64_t now, uint32_t abort, uint16_t 
 	ds->io.re.fail_abort = abort;
 	ds->io.re.fail_index = index;
 	ds->io.re.fail_sub = sub;
+	ds->io.re.fail_reg = 0;
 	ds->io.lost_ns = now; /* tried again at a heartbeat after this */
 }
 
@@ -117,6 +121,16 @@ static void sdo_done(struct mlip_drives *ds, uint64_t now)
 		}
 		if (++ds->io.re.k < (ds->io.id.has_product ? 3 : 2)) {
 			ident_start(ds, now);
+			return;
+		}
+		ds->io.re.phase = MLIP_IO_RE_ERRREG;
+		sdo_start(ds, now, 1, 0x1001, 0, 0, 0);
+		return;
+	}
+	if (ds->io.re.phase == MLIP_IO_RE_ERRREG) {
+		if ((v & 0xFFu) != 0) {
+			fail(ds, now, 0, 0x1001, 0);
+			ds->io.re.fail_reg = (uint8_t)v;
 			return;
 		}
 		ds->io.re.phase = MLIP_IO_RE_SDO;

@@ -363,6 +363,8 @@ struct mlip_drives {
 			uint32_t fail_abort;    /* the last failed one: abort code (0: timeout) */
 			uint16_t fail_index;    /* and object */
 			uint8_t fail_sub;
+			uint8_t fail_reg; /* its error register 0x1001 when that failed it
+			                     (a fault it still reports), else 0 */
 			/* not the module of bring-up: the object that differs, what it
 			 * read and what it read at bring-up; never configured again */
 			int wrong;
@@ -378,6 +380,7 @@ enum {
 	MLIP_IO_RE_NONE,
 	MLIP_IO_RE_BOOT,
 	MLIP_IO_RE_IDENT,
+	MLIP_IO_RE_ERRREG,
 	MLIP_IO_RE_SDO,
 	MLIP_IO_RE_INPUTS,
 	MLIP_IO_RE_START

@@ -886,7 +886,8 @@ static void drives_report(void)
 		             "attempt(s) failed (last: 0x%04X:%02X, %s)\n",
 		        drives.io.node, drives.io.re.count, drives.io.re.failed,
 		        drives.io.re.fail_index, drives.io.re.fail_sub,
-		        drives.io.re.failed == 0 ? "-"
+		        drives.io.re.failed == 0     ? "-"
+		        : drives.io.re.fail_reg != 0 ? "non-zero: the module still reports a fault"
 		        : drives.io.re.fail_abort == 0
 		            ? "no answer in time"
 		            : mlip_sdo_abort_text(drives.io.re.fail_abort));

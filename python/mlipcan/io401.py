@@ -14,6 +14,10 @@ outputs 0x6200:1..8 and inputs 0x6000:1..8 as hex), so a test judges what
 the module did period by period (issue 19).
 A power cycle by injection: N:reboot (defaults, outputs off, boot-up);
 N:reboot=PRODUCT: another module in its place (product code 0x1018:02 PRODUCT).
+A fault by injection: N:fault=CODE sends EMCY CODE (default 0x5000, device
+hardware) and sets the error register 0x1001 to 0x01 (generic error) until
+N:fault=off (EMCY 0x0000, error reset; 0x1001 back to 0): the fault is the
+hardware's, so it stays through an NMT reset or a power cycle.
 Inputs change by injection: N:input=BYTE.BIT=0|1 (BYTE 1..8, BIT 0..7), or
 follow a simulated drive's position as a probe touching a surface:
 N:probe=BYTE.BIT,DRIVE,COUNTS,below|above (the input is 1 while the drive's
@@ -97,6 +101,7 @@ class IoModule(SimDevice):
         self._rpdo_cob: int | None = None
         # the probe's surface: (byte 1..8, bit, drive node, counts, below)
         self.probe: tuple[int, int, int, int, bool] | None = None
+        self.error_reg = 0  # 0x1001 while a fault is injected
 
     # ------------------------------------------------------------ SDO
     def check_write(self, index: int, sub: int, data: bytes) -> None:
@@ -142,6 +147,7 @@ class IoModule(SimDevice):
                     if k != 0x6000 and (cmd == P.NMT_RESET_NODE or 0x1000 <= k <= 0x1FFF):
                         del ds[k]
                 self._consumer_off()
+                self._error_reg()
                 if cmd == P.NMT_RESET_NODE:
                     self.outputs[:] = bytes(NBYTES)
                 self._boot("NMT reset")
@@ -329,17 +335,29 @@ class IoModule(SimDevice):
                     if k != 0x6000:
                         del ds[k]
                 self._consumer_off()
+                self._error_reg()
                 self.master_lost = False
                 self.outputs[:] = bytes(NBYTES)
                 self.rec.event(self.id, "outputs", data=bytes(self.outputs).hex(), why="reboot")
                 self._boot("power cycle (injected)")
         elif what == "fault":
-            code = int(arg, 0) if arg else 0x5000
+            code = 0 if arg == "off" else int(arg, 0) if arg else 0x5000
+            with self.sim.lock:
+                self.error_reg = 0x01 if code else 0
+                self._error_reg()
             if self.present:
-                self.node.emcy.send(code, 0x01)
-            self.rec.event(self.id, "emcy", code=f"0x{code:04X}")
+                self.node.emcy.send(code, self.error_reg)
+            # on the bus now: orders it among the SYNCs' receive times (as a TPDO's)
+            t_bus = time.time()
+            self.rec.event(
+                self.id, "emcy", code=f"0x{code:04X}", register=self.error_reg, t_bus=t_bus
+            )
         else:
             raise ValueError(f"unknown injection '{what}' for the I/O module")
+
+    def _error_reg(self) -> None:
+        """0x1001 as the injected fault says (a reset's defaults would clear it)."""
+        self.node.data_store.setdefault(0x1001, {})[0] = bytes([self.error_reg])
 
     def outputs_hex(self) -> str:
         return struct.pack(f"{NBYTES}B", *self.outputs).hex()

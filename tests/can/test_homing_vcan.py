@@ -89,6 +89,7 @@ def test_homing_in_sequence(sim, tmp_path, nodes, homes):
     with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
         st = rig.status()
         assert st["homed"] == {"X": False, "Y": False, "Z": False}, st
+        assert "homed       X no Y no Z no\n" in rig.ctl("status").stdout
         # HOMING_REQUIRED: a program before homing is refused, nothing moves;
         # so are MDI moves (a line of modes alone moves nothing: it runs)
         rc, _, err = rig.feed(ngc, timeout=300)
@@ -104,6 +105,7 @@ def test_homing_in_sequence(sim, tmp_path, nodes, homes):
         assert "homed in" in p.stdout and want in p.stdout, p.stdout
         st = rig.status()
         assert st["homed"] == {"X": True, "Y": True, "Z": True}, st
+        assert "homed       X yes Y yes Z yes\n" in rig.ctl("status").stdout
         assert st["position_actual"] == offs, st
         assert st["position"] == st["position_actual"]
         t_prog = time.time()
@@ -151,12 +153,14 @@ def test_homing_in_sequence(sim, tmp_path, nodes, homes):
         assert any(s & 0x1400 == 0x1000 for s in sw), [hex(s) for s in sw]
     # no step at the return to CSP: the first target each drive applied after
     # 0x6060 = 8 equals its position actual, the home offset, to the count
+    csp = {}
     for n, ax in zip(nodes, "XYZ"):
         off = round(offs[ax] * 1000)
         t_csp = max(e["t"] for e in sim.events("sdo_write", n)
                     if e["t"] >= t0 and e["index"] == "0x6060" and e.get("value") == 8)
         after = [r for r in rows if r["node"] == n and r["t"] > t_csp and r["target"] is not None]
         assert after[0]["target"] == off and after[0]["actual"] == off, (n, after[:3])
+        csp[ax] = (off, after[0]["actual"], after[0]["target"] - after[0]["actual"])
         # the program after homing: every target applied inside the soft limits
         lo, hi = LIMITS[ax]
         prog = [r["target"] for r in after if r["t"] >= t_prog]
@@ -165,7 +169,8 @@ def test_homing_in_sequence(sim, tmp_path, nodes, homes):
     per_s = {n: round((done[n] - start[n]) * PERIOD_S, 2) for n in nodes}
     print(f"\n[home] methods X {homes['X'][0]} Y {homes['Y'][0]} Z {homes['Z'][0]}: SYNCs from "
           f"bit 4 to bits 10+12: {dict((n, done[n] - start[n]) for n in nodes)} = {per_s} s at "
-          f"40 ms (search 5 mm/s, latch 0.5 mm/s, accel 20 mm/s^2)")
+          f"40 ms (search 5 mm/s, latch 0.5 mm/s, accel 20 mm/s^2); per axis (offset, actual "
+          f"at CSP, first CSP target - actual) in counts: {csp}")
 
 
 @pytest.mark.parametrize("node,what,reason", [(4, "error", "homing error"),

@@ -8,6 +8,9 @@ recorded: the SYNC at which the module sent its input change (events.jsonl,
     period, state estop naming the input; reset refused while it is on,
     accepted once released; a program runs again afterwards.
   - the module's heartbeat lost: E-stop (fail-safe), not resettable.
+  - the module's fault (its EMCY): E-stop in the same period; reset refused
+    while its error register 0x1001 says the fault is still there, nothing
+    written to it; once cleared it is configured again and reset works.
   - a limit input while moving: quick stop, fault naming axis and direction.
   - the module reboots mid-program (power cycle: default PDOs, outputs off,
     boot-up message): E-stop at once, the program dropped; mlip resets its
@@ -94,6 +97,9 @@ def test_estop_quick_stop_and_reset(sim, tmp_path):
         assert st["reason"] == "E-stop input" and st["reason_input"] == "estop", st
         assert st["reason_node"] == IO and st["drives"] == "quick stop", st
         assert st["inputs"]["estop"] is True
+        text = rig.ctl("status").stdout
+        line = [ln for ln in text.splitlines() if ln.startswith("inputs")]
+        assert line and "estop ON" in line[0] and "hold off" in line[0], text
         rc = feed.p.wait(timeout=120)
         assert rc == 5 and "E-stop (estop, node 10)" in feed.stderr(), (rc, feed.stderr())
         # reset refused while the button is pressed
@@ -169,6 +175,71 @@ def test_module_heartbeat_lost(sim, tmp_path):
         assert "quick stop active" in st, (n, st)
         assert st[-1] != "operation enabled", (n, st)
     print(f"[io] module heartbeat lost: E-stop, drives {[sim.events('state', n)[-1]['to'] for n in (1, 2, 3)]}")
+
+
+def emcy_sync(sim, t0, code):
+    """The last SYNC on the bus before the module's EMCY with this code, sent
+    after t0 (by the frames' times, as input_sync)."""
+    ev = sim.wait_event(
+        lambda e: e["kind"] == "emcy" and e["node"] == IO and e["t"] >= t0 and e["code"] == code,
+        f"EMCY {code}",
+    )
+    return max(r["sync"] for r in sim.sync_rows() if r["t"] < ev[0]["t_bus"])
+
+
+def test_module_fault(sim, tmp_path):
+    """The module's fault (fail-safe): its EMCY is an E-stop, every drive
+    quick-stopped in one period, the program dropped; while its error
+    register 0x1001 stays non-zero mlip never configures it again (each
+    attempt at its heartbeat stops at that read) and reset is refused; once
+    the fault is cleared it is configured again, its inputs read, and reset
+    leaves the E-stop."""
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text(PROGRAM_LONG)
+    try:
+        with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+            feed = rig.feeder(ngc)
+            running(rig)
+            t0 = time.time()
+            sim.inject(f"{IO}:fault=0x5000")
+            st = rig.wait_state("estop", timeout=120)
+            assert st["reason"] == "I/O module lost" and st["reason_node"] == IO, st
+            assert st["reason_input"] == "emergency" and st["inputs"]["estop"] is None, st
+            text = rig.ctl("status").stdout
+            assert f"node {IO}, emergency: EMCY 0x5000" in text, text
+            rc = feed.p.wait(timeout=120)
+            assert rc == 5, (rc, feed.stderr())
+            # attempts at its heartbeats, each stopped at 0x1001: two NMT resets
+            def resets():
+                return [e for e in sim.events(node=IO)
+                        if e["kind"] == "nmt" and e["t"] >= t0 and e["why"] == "NMT reset"]
+            t_end = time.monotonic() + 300
+            while len(resets()) < 2:
+                assert time.monotonic() < t_end, resets()
+                time.sleep(0.05)  # polled: the condition is the events file's
+            p = rig.ctl("reset", check=False)
+            assert p.returncode == 1, p.stderr
+            assert rig.status()["state"] == "estop"
+            t_off = time.time()
+            sim.inject(f"{IO}:fault=off")
+            rig.wait_state("estop", timeout=300, pred=lambda s: s["inputs"]["estop"] is False)
+            rig.ctl("reset")
+            rig.wait_state("idle", timeout=120)
+    finally:
+        sim.inject(f"{IO}:fault=off")  # the module of the other tests back
+    log = rig.result["rt_stderr"]
+    assert "0x1001:00, non-zero: the module still reports a fault" in log, log
+    ev = [e for e in sim.events(node=IO) if t0 <= e["t"] < t_off]
+    assert not [e for e in ev if e["kind"] == "sdo_write"], ev  # a faulted module untouched
+    assert not [e for e in ev if e["kind"] == "nmt" and e["to"] == "OPERATIONAL"], ev
+    s_in = emcy_sync(sim, t0, "0x5000")
+    qs = quick_stop_syncs(sim, s_in - 1)
+    assert set(qs) == {1, 2, 3} and len(set(qs.values())) == 1, qs
+    print(f"[io] module fault: EMCY 0x5000 after SYNC {s_in}, quick stop applied by all 3 "
+          f"drives at SYNC {qs[1]} ({qs[1] - s_in} SYNCs); reconfigured after the fault "
+          f"was cleared")
+    assert 1 <= qs[1] - s_in <= 2, qs
 
 
 def test_limit_switch(sim, tmp_path):

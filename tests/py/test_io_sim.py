@@ -266,3 +266,24 @@ def test_module_reboot_as_another(pair):
     assert wait(lambda: sim.modules[10].node.nmt.state == "PRE-OPERATIONAL")
     assert io.sdo[0x1018][2].raw == 0x4D4C4951
     assert io.sdo[0x1000].raw & 0xFFFF == 401
+
+
+def test_module_fault_error_register(pair):
+    """fault=CODE: EMCY CODE with error register 0x01, and 0x1001 reads 0x01
+    through an NMT reset communication (the fault is the hardware's);
+    fault=off: EMCY 0x0000 (error reset), 0x1001 back to 0."""
+    sim, net, io, _ = pair
+    got = []
+    net.subscribe(0x08A, lambda cob, data, t: got.append(bytes(data)))
+    assert io.sdo[0x1001].raw == 0
+    sim.inject(10, "fault", "0x5000")
+    assert wait(lambda: got), "no EMCY"
+    assert got[-1][:3] == b"\x00\x50\x01", got
+    assert io.sdo[0x1001].raw == 0x01
+    net.nmt.send_command(0x82)  # reset communication
+    assert wait(lambda: sim.modules[10].node.nmt.state == "PRE-OPERATIONAL")
+    assert io.sdo[0x1001].raw == 0x01
+    sim.inject(10, "fault", "off")
+    assert wait(lambda: len(got) == 2), got
+    assert got[-1][:3] == b"\x00\x00\x00", got
+    assert io.sdo[0x1001].raw == 0

@@ -1243,7 +1243,7 @@ static void module_init(struct peer *p, int with_defaults)
 	    {0x1600, 0, 1, 1},           {0x1600, 1, 4, 0x62000108u}, {0x1800, 1, 4, 0x18Au},
 	    {0x1800, 2, 1, 255},         {0x1A00, 0, 1, 1},           {0x1A00, 1, 4, 0x60000108u},
 	    {0x1017, 0, 2, 0},           {0x1016, 1, 4, 0},           {0x6000, 1, 1, 1},
-	    {0x1018, 1, 4, 0x0000ABCDu}, {0x1018, 2, 4, 0x00000401u}};
+	    {0x1018, 1, 4, 0x0000ABCDu}, {0x1018, 2, 4, 0x00000401u}, {0x1001, 0, 1, 0}};
 	if (with_defaults) {
 		memset(p, 0, sizeof(*p));
 		p->node = 10;
@@ -1417,6 +1417,80 @@ static void module_swapped(uint16_t index, uint8_t sub, uint32_t other)
 	free(mem);
 }
 
+/* The I/O module's fault (issue 18: fail-safe): its EMCY is an E-stop in
+ * that period, its inputs unknown; at its next heartbeat mlip resets its
+ * communication and reads its error register 0x1001 after its identity:
+ * non-zero (the fault still there) the attempt fails before any write and
+ * the E-stop stays, reset refused; once the fault is cleared the module is
+ * configured and trusted again and reset leaves the E-stop. */
+static void test_loop_module_fault(void **state)
+{
+	double start[NP];
+	(void)state;
+	struct peer *mod = module_loop(start, 60);
+	const struct mlip_ring_status *st = &ctl.out.status;
+	uint32_t estop = 1u << MLIP_IN_ESTOP;
+	struct mlip_can_frame f;
+	memset(&f, 0, sizeof(f));
+	f.id = 0x08A; /* EMCY of node 10: 0x5000 device hardware, error register 0x01 */
+	f.len = 8;
+	f.data[1] = 0x50;
+	f.data[2] = 0x01;
+	od_find(mod, 0x1001, 0)->value = 0x01;
+	push(&f);
+	period();
+	assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	assert_int_equal(st->reason, MLIP_WHY_IO_LOST);
+	assert_int_equal(st->reason_node, 10);
+	assert_int_equal(st->reason_field, MLIP_DRIVE_EMCY);
+	assert_int_equal(st->io_known & estop, 0);
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_E_RANGE);
+	int k, writes = mod->n_wr;
+	for (k = 0; k < 300 && ds.io.re.failed < 2; k++) {
+		period();
+		assert_int_equal(st->state, MLIP_STATE_ESTOP);
+		assert_int_equal(st->io_known & estop, 0);
+	}
+	assert_int_equal(ds.io.re.failed, 2); /* tried again at a later heartbeat */
+	assert_int_equal(ds.io.re.fail_index, 0x1001);
+	assert_int_equal(ds.io.re.fail_reg, 0x01);
+	assert_int_equal(ds.io.re.count, 0);
+	assert_int_equal(mod->n_wr, writes); /* nothing written to a faulted module */
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_E_RANGE);
+	od_find(mod, 0x1001, 0)->value = 0; /* the fault cleared */
+	for (k = 0; k < 300 && ds.io.re.count == 0; k++) {
+		period();
+	}
+	assert_int_equal(ds.io.re.count, 1);
+	assert_int_equal(ds.io.lost, 0);
+	period();
+	assert_int_equal(st->io_known & estop, estop);
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_OK);
+	assert_int_equal(st->state, MLIP_STATE_IDLE);
+	free(mem);
+}
+
+/* A module that reports a fault at bring-up (0x1001 non-zero): mlip-rt
+ * does not start, naming node and object; no drive is ever enabled. */
+static void test_module_fault_at_bringup(void **state)
+{
+	double start[NP];
+	(void)state;
+	cfg.inputs.node = 10;
+	cfg.inputs.in_bytes = 1;
+	cfg.inputs.in[MLIP_IN_ESTOP] = (struct mlip_io_bit){10, 1, 0x6000, 0, 1, 10};
+	cfg.inputs.mapped = 1u << MLIP_IN_ESTOP;
+	module_init(&peers[NP], 1);
+	od_find(&peers[NP], 0x1001, 0)->value = 0x11;
+	assert_int_equal(bringup(start), -EPROTO);
+	assert_non_null(strstr(why, "its error register 0x1001 reads 0x11: the module reports a "
+	                            "fault (CiA 301); clear it before starting"));
+	for (int i = 0; i < NP; i++) {
+		assert_int_equal(peers[i].ever_enabled, 0);
+	}
+	assert_int_equal(peers[NP].nmt, MLIP_NMT_PREOPERATIONAL); /* never started */
+}
+
 static void test_loop_module_swapped_product(void **state)
 {
 	(void)state;
@@ -1588,6 +1662,8 @@ int main(void)
 	    cmocka_unit_test_setup(test_loop_module_reboot, setup),
 	    cmocka_unit_test_setup(test_loop_module_swapped_product, setup),
 	    cmocka_unit_test_setup(test_loop_module_swapped_type, setup),
+	    cmocka_unit_test_setup(test_loop_module_fault, setup),
+	    cmocka_unit_test_setup(test_module_fault_at_bringup, setup),
 	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away, setup),
 	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away_40ms, setup),
 	    cmocka_unit_test_setup(test_loop_fault_bit, setup),
