@@ -75,109 +75,119 @@ static void cut(const struct mlip_path_curve *sp, const struct mlip_path_limits 
 	*hi = u < *hi ? u : *hi;
 }
 
-/* cut() at an inner checkpoint, whose derivatives nobody keeps: the
- * piece's cubic (mlip_path_spline_eval_piece), (P2) (mlip_path_jerk_range)
- * and the intersection fused into one pass over the axes, the same
- * arithmetic in the same order (the same interval to the bit), straight
- * into [*lo, *hi]. 0 when the interval is empty. */
-static int cut_inner(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim, int i,
-                     double s, double v, double a, double *lo, double *hi)
+/* The speed's range over [h0, h1] of the step of jerk j from st (its ends,
+ * and its extremum where a + j h = 0 inside). */
+static void speed_range(struct mlip_path_state st, double j, double h0, double h1, double *lo,
+                        double *hi)
 {
-	int last = sp->count - 1;
-	s = s < 0.0 ? 0.0 : (s > sp->s[last] ? sp->s[last] : s);
-	double w = s - sp->s[i], l = *lo, h = *hi;
+	double v0 = st.v + st.a * h0 + j * h0 * h0 / 2.0, v1 = st.v + st.a * h1 + j * h1 * h1 / 2.0;
+	*lo = v0 < v1 ? v0 : v1;
+	*hi = v0 < v1 ? v1 : v0;
+	if (j != 0.0) {
+		double hs = -st.a / j;
+		if (hs > h0 && hs < h1) {
+			double vs = st.v + st.a * hs + j * hs * hs / 2.0;
+			*lo = vs < *lo ? vs : *lo;
+			*hi = vs > *hi ? vs : *hi;
+		}
+	}
+}
+
+/* The range of a product of two ranges. */
+static void mul_range(double al, double ah, double bl, double bh, double *lo, double *hi)
+{
+	double p[4] = {al * bl, al * bh, ah * bl, ah * bh};
+	*lo = *hi = p[0];
+	for (int i = 1; i < 4; i++) {
+		*lo = p[i] < *lo ? p[i] : *lo;
+		*hi = p[i] > *hi ? p[i] : *hi;
+	}
+}
+
+/* (Q2) on piece i over parameters [ua, ub], passed within [ha, hb] of the
+ * step of jerk j from st, a bound: per axis x' (quadratic on the piece)
+ * within [pl, ph], x'' (linear) within its ends, x''' constant, v and a
+ * within their ranges over [ha, hb], so (P2) is p j + c with p in [pl, ph]
+ * and c in [cm - cr, cm + cr]: a j with |p j + cm| <= J - cr at both ends
+ * of p's range holds J at every point of the piece the step passes (affine
+ * in p and c: the box's corners bound it). Into [*lo, *hi]; 0 when empty. */
+static int piece_cut(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim, int i,
+                     double ua, double ub, struct mlip_path_state st, double j, double ha,
+                     double hb, double *lo, double *hi)
+{
+	double vl, vh, al = st.a + j * ha, ah = st.a + j * hb, val, vah;
+	if (al > ah) {
+		double t = al;
+		al = ah;
+		ah = t;
+	}
+	speed_range(st, j, ha, hb, &vl, &vh);
+	mul_range(vl, vh, al, ah, &val, &vah);
+	double v3l = vl * vl * vl, v3h = vh * vh * vh, wa = ua - sp->s[i], wb = ub - sp->s[i];
 	for (int k = 0; k < lim->n; k++) {
-		double m0 = sp->m[i][k], t3 = sp->t3[i][k];
-		double d2 = m0 + t3 * w;
-		double d1 = sp->b[i][k] + m0 * w + 0.5 * t3 * w * w;
-		double c = 3.0 * d2 * v * a + t3 * v * v * v; /* (P2) but x'_k j */
-		if (!mlip_path_axis_cut(d1, c, lim->jerk[k], &l, &h)) {
+		double m0 = sp->m[i][k], t3 = sp->t3[i][k], b = sp->b[i][k];
+		double pa = b + m0 * wa + 0.5 * t3 * wa * wa, pb = b + m0 * wb + 0.5 * t3 * wb * wb;
+		double pl = pa < pb ? pa : pb, ph = pa < pb ? pb : pa;
+		if (t3 != 0.0) {
+			double ws = -m0 / t3; /* where x'' = 0: x' at its extremum */
+			if (ws > wa && ws < wb) {
+				double ps = b + m0 * ws + 0.5 * t3 * ws * ws;
+				pl = ps < pl ? ps : pl;
+				ph = ps > ph ? ps : ph;
+			}
+		}
+		double qa = 3.0 * (m0 + t3 * wa), qb = 3.0 * (m0 + t3 * wb), ql, qh;
+		mul_range(qa < qb ? qa : qb, qa < qb ? qb : qa, val, vah, &ql, &qh);
+		double cl = ql + (t3 >= 0.0 ? t3 * v3l : t3 * v3h);
+		double ch = qh + (t3 >= 0.0 ? t3 * v3h : t3 * v3l);
+		double cm = 0.5 * (cl + ch), J = lim->jerk[k] - 0.5 * (ch - cl);
+		if (!(J >= 0.0) || !mlip_path_axis_cut(pl, cm, J, lo, hi) ||
+		    !mlip_path_axis_cut(ph, cm, J, lo, hi)) {
 			return 0;
 		}
 	}
-	*lo = l;
-	*hi = h;
-	return l <= h;
-}
-
-/* The time in [0, T] at which the step reaches parameter x (s(0) < x <=
- * s(T) = s1, s increasing over the step): Newton's steps on s(h) - x from
- * the chord's estimate, kept inside the bracket that every evaluation
- * narrows (a bisection step when Newton's would leave it), until s(h) is
- * within 1e-15 of x's scale or the bracket is an ulp: a few evaluations
- * where a bisection to 1e-15 s took 40. */
-static double time_at(struct mlip_path_state st, double j, double T, double x, double s1)
-{
-	double lo = 0.0, hi = T, h = T * (x - st.s) / (s1 - st.s);
-	if (!(h > lo && h < hi)) {
-		h = 0.5 * T;
-	}
-	for (int i = 0; i < 60; i++) {
-		struct mlip_path_state r = mlip_path_advance(st, j, h);
-		double f = r.s - x;
-		if (fabs(f) <= 1e-15 * (1.0 + fabs(x))) {
-			break;
-		}
-		if (f < 0.0) {
-			lo = h;
-		} else {
-			hi = h;
-		}
-		double nh = r.v > 0.0 ? h - f / r.v : -1.0;
-		if (!(nh > lo && nh < hi)) {
-			nh = 0.5 * (lo + hi);
-		}
-		if (nh == h || hi - lo <= 1e-16 * T) {
-			break;
-		}
-		h = nh;
-	}
-	return h;
+	return *lo <= *hi;
 }
 
 /* (Q2) from the state a; the step's end (the next state, its point and
- * interval) in *next when next is not NULL. */
+ * interval) in *next when next is not NULL. Every point of the step lies
+ * on a piece it crosses, passed at a time h with (u - s) / vmax <= h <=
+ * (u - s) / vmin (v within [vmin, vmax] over the step), so a bound per
+ * piece over those times (piece_cut) holds the whole step: no knot's time,
+ * one bound a piece where three checkpoints a knot sampled it. */
 static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                     const struct at *a, double j, double *lo, double *hi, struct at *next)
 {
 	double T = lim->period, l = a->jl, u = a->jh;
 	struct mlip_path_state st = a->st, end = mlip_path_advance(st, j, T);
-	double s1 = end.s, last = sp->s[sp->count - 1];
+	double s1 = end.s, last = sp->s[sp->count - 1], vmin, vmax;
 	*lo = 1.0; /* until the whole step is checked: empty */
 	*hi = -1.0;
 	if (!a->ok) {
 		return 0;
 	}
-	/* the knots the step crosses, both sides, and the middle of every
-	 * stretch between checkpoints (Q2); the state at a knot serves both
-	 * its sides. Empty: the rest cannot widen it, and nobody reads it. */
-	int k = a->piece, piece = a->piece;
-	while (k < sp->count && sp->s[k] <= st.s) {
-		k++;
+	speed_range(st, j, 0.0, T, &vmin, &vmax);
+	double slo = st.s, shi = s1;
+	if (!(vmin > 0.0)) { /* s need not be monotone: what v allows */
+		slo = st.s + (vmin < 0.0 ? vmin * T : 0.0);
+		shi = st.s + (vmax > 0.0 ? vmax * T : 0.0);
 	}
-	double hp = 0.0;
-	for (; k < sp->count - 1 && sp->s[k] < s1; k++) {
-		double hk = time_at(st, j, T, sp->s[k], s1), eps = 1e-12 * (1.0 + sp->s[k]);
-		struct mlip_path_state m = mlip_path_advance(st, j, 0.5 * (hp + hk));
-		struct mlip_path_state at = mlip_path_advance(st, j, hk);
-		piece = mlip_path_spline_piece(sp, m.s, piece);
-		if (!cut_inner(sp, lim, piece, m.s, m.v, m.a, &l, &u)) {
+	slo = slo < 0.0 ? 0.0 : slo;
+	shi = shi > last ? last : shi;
+	int piece = mlip_path_spline_piece(sp, slo, a->piece);
+	for (int i = piece; i < sp->count - 1 && sp->s[i] <= shi; i++) {
+		double ua = sp->s[i] > slo ? sp->s[i] : slo;
+		double ub = sp->s[i + 1] < shi ? sp->s[i + 1] : shi, ha = 0.0, hb = T;
+		if (vmin > 0.0) {
+			ha = (ua - st.s) / vmax;
+			hb = (ub - st.s) / vmin;
+			ha = ha < 0.0 ? 0.0 : (ha > T ? T : ha);
+			hb = hb < ha ? ha : (hb > T ? T : hb);
+		}
+		if (!piece_cut(sp, lim, i, ua, ub, st, j, ha, hb, &l, &u)) {
 			return 0;
 		}
-		piece = mlip_path_spline_piece(sp, sp->s[k] - eps, piece);
-		if (!cut_inner(sp, lim, piece, sp->s[k] - eps, at.v, at.a, &l, &u)) {
-			return 0;
-		}
-		piece = mlip_path_spline_piece(sp, sp->s[k] + eps, piece);
-		if (!cut_inner(sp, lim, piece, sp->s[k] + eps, at.v, at.a, &l, &u)) {
-			return 0;
-		}
-		hp = hk;
-	}
-	struct mlip_path_state m = mlip_path_advance(st, j, 0.5 * (hp + T));
-	piece = mlip_path_spline_piece(sp, m.s, piece);
-	if (!cut_inner(sp, lim, piece, m.s, m.v, m.a, &l, &u)) {
-		return 0;
+		piece = i;
 	}
 	struct at scratch, *e = next ? next : &scratch;
 	cut(sp, lim, st, j, T, s1 < last ? s1 : last, &piece, &e->d, &l, &u, e);

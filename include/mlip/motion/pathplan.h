@@ -11,15 +11,18 @@
  *     s(h) = s + v h + a h^2 / 2 + j h^3 / 6,  v(h) = v + a h + j h^2 / 2,
  *     a(h) = a + j h,  0 <= h <= T                                      (Q1)
  *
- * j is admissible for the period when it lies in the (P2) interval at every
- * checkpoint of the step, each at the step's own (v(h), a(h)) there: its
- * start and end, every knot it crosses (on both sides: x''' jumps there)
- * and the middle of every stretch between (Q2). The interval at the start
- * alone is not enough: its ends move within the period (3 x'' v j T through
- * a, and x''' from piece to piece): the model's trochoid reached 1.036 J at
- * J = 1e4 with it. The interval depends on j only through (Q1), weakly, so
- * `mlip_path_pick` clamps into the interval of its last choice's step a few
- * times and accepts only a j inside its own step's interval.
+ * j is admissible for the period when every point of the step keeps (P2)
+ * at the step's own (v(h), a(h)) there (Q2): at its start and end exactly,
+ * and over each piece it crosses by a bound from the piece's coefficients
+ * (x' quadratic, x'' linear, x''' constant on a piece; v and a within their
+ * ranges over the times the step can be on the piece: (u - s) / vmax <= h
+ * <= (u - s) / vmin), so no instant of the period exceeds J. The interval
+ * at the start alone is not enough: its ends move within the period (3 x''
+ * v j T through a, and x''' from piece to piece): the model's trochoid
+ * reached 1.036 J at J = 1e4 with it. The interval depends on j only
+ * through (Q1), weakly, so `mlip_path_pick` clamps into the interval of
+ * its last choice's step (from the second round by a secant step to the
+ * end's fixed point) and accepts only a j inside its own step's interval.
  *
  * A braking policy (Q3): brake as hard as the limits allow toward
  * max(the (P1) floor, -a_brake[i]); release (toward a = 0) once
@@ -70,9 +73,9 @@ struct mlip_path_state {
 /* (Q1): the state h after st under jerk j (its policy kept). */
 struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, double h);
 
-/* (Q2): the path jerks admissible at every checkpoint of the step of jerk j
- * from st (each at that step's own state). 0 when none is, or the spline
- * stops (sigma = 0) at a checkpoint. */
+/* (Q2): the path jerks admissible at every point of the step of jerk j
+ * from st (each at that step's own state; a bound per piece crossed). 0
+ * when none is. */
 int mlip_path_period_range(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                            struct mlip_path_state st, double j, double *lo, double *hi);
 
