@@ -27,6 +27,7 @@ struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, do
 	r.v = st.v + st.a * h + j * h * h / 2.0;
 	r.a = st.a + j * h;
 	r.brake = st.brake;
+	r.share = st.share;
 	return r;
 }
 
@@ -361,7 +362,8 @@ int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_pa
 	double j;
 	at_make(sp, lim, &a, *st, 0);
 	if (a.ok) {
-		for (int i = 0; i < 5; i++) {
+		int i0 = st->share > 0 && st->share < 5 ? st->share - 1 : 0;
+		for (int i = i0; i < 5; i++) {
 			if (!pick_at(sp, lim, &a, a.jl + share[i] * (a.jh - a.jl), &j, &nx)) {
 				break;
 			}
@@ -371,6 +373,7 @@ int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_pa
 			for (int q = 0; q < nb; q++) {
 				nx.st.brake = q == 0 ? own : (q <= own ? q - 1 : q);
 				if (certified_at(sp, lim, &nx, end, max_periods, work)) {
+					nx.st.share = i;
 					*st = nx.st;
 					return 1;
 				}
@@ -387,6 +390,7 @@ int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_pa
 		n.v = 0.0;
 		n.a = 0.0;
 	}
+	n.share = 0; /* after braking: every candidate again */
 	*st = n;
 	return 0;
 }

@@ -68,6 +68,7 @@ struct mlip_path_limits {
 struct mlip_path_state {
 	double s, v, a;
 	int brake; /* (Q4) the policy whose run certified it (a_brake[brake]) */
+	int share; /* the plan's last candidate taken (0 the largest jerk) */
 };
 
 /* (Q1): the state h after st under jerk j (its policy kept). */
@@ -95,7 +96,9 @@ int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path
                         struct mlip_path_state st, double end, int max_periods, long *work);
 
 /* One period of the greedy plan from the certified state *st: the largest
- * of five jerks across the start's (P2) interval that is admissible (Q2)
+ * of five jerks across the start's (P2) interval, from one above the last
+ * period's (st->share: the candidates above it mostly fail, and their runs
+ * were most of the work), that is admissible (Q2)
  * and leads to a state certified by some policy (st's own tried first; the
  * new state keeps the one that certified it), else the step of st's own
  * policy (the rest of its certified run). 1 when it moved faster than
