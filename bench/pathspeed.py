@@ -58,7 +58,7 @@ plan's cost; src/motion/pathplan.c is this plan's period in C).
 --c (with --poly): the plan by its C period instead (build/bench_pathplan
 --points: src/motion/pathplan.c over the same spline, its checkpoints exact;
 --brake B,B2,...: several policies, a state certified by any of their runs;
-docs/benchmarks.md uses 900,300),
+default 900,300, as docs/benchmarks.md),
 the rest as above; --keep keeps the temporary files (the points, for
 callgrind on bench_pathplan).
 
@@ -110,9 +110,9 @@ ap.add_argument("--jerk", type=float, required=True)
 ap.add_argument("--margin", type=float, default=0.95, help="share of J planned")
 ap.add_argument(
     "--brake",
-    default="300",
-    help="the braking policy's deceleration; --c: B[,B2...], a state certified by any of"
-    " their runs (the model takes the first)",
+    default=None,
+    help="the braking policy's deceleration (300); --c: B[,B2...], a state certified by"
+    " any of their runs (900,300; the model takes the first)",
 )
 ap.add_argument(
     "--poly", metavar="NGC", help="plan along smooth's output for this program (see above)"
@@ -136,7 +136,7 @@ Aplan = 0.98 * A
 vmax = 200.0
 T = 1e-3
 VC = 2.0
-BRAKES = [float(b) for b in args.brake.split(",")]
+BRAKES = [float(b) for b in (args.brake or ("900,300" if args.c else "300")).split(",")]
 ABR = BRAKES[0]
 if args.poly:
     # smooth's output for the program shifted to start at the origin (its G0
