@@ -124,11 +124,24 @@ ap.add_argument(
 )
 ap.add_argument("--keep", action="store_true", help="with --poly: keep the temporary files")
 ap.add_argument(
+    "--hand-over",
+    action="store_true",
+    help="with --c: the product's choice between the path plan and the mean (see above)",
+)
+ap.add_argument(
+    "--band",
+    type=float,
+    default=0.001,
+    help="--hand-over: the (P6) bound a piece may stray from its chord, mm (0.001)",
+)
+ap.add_argument(
     "--build", default=os.path.join(ROOT, "build"), help="where bench_smoothdump and mlip-check are"
 )
 args = ap.parse_args()
 if args.c and not args.poly:
     ap.error("--c plans along smooth's output: give --poly")
+if args.hand_over and not args.c:
+    ap.error("--hand-over chooses between the C plan and the mean: give --c")
 name = args.curve
 J = args.jerk * args.margin
 A = 1000.0
@@ -413,7 +426,21 @@ def safe(s, v, a):
 s = v = a = 0.0
 out = [0.0]
 PER, sum_w = [], 0  # braking-run periods simulated for each planned period
-if args.c:
+GATE = True  # --hand-over: may the path plan run on this stretch (P6)?
+if args.hand_over:
+    # (P6), mlip_path_piece_sag: a piece strays from its chord by at most
+    # h^2 / 8 max(|M_i|, |M_i+1|); the path plan may run only on a stretch
+    # whose every piece keeps that within the band (the spline through a
+    # sharp vertex overshoots: 6.4 mm on the random zigzag)
+    Mn = np.linalg.norm(M, axis=1)
+    SAG = hs * hs / 8.0 * np.maximum(Mn[:-1], Mn[1:])
+    N_OVER = int(np.sum(SAG > args.band))
+    GATE = N_OVER == 0
+    print(
+        f"(P6): {N_OVER} of {m_seg} pieces over {args.band:g} mm (largest {SAG.max():.3g} mm):"
+        f" the path plan {'may run' if GATE else 'may not run'} from rest to rest"
+    )
+if args.c and GATE:
     # the same plan by the C period over the same spline (its checkpoints:
     # the knots' times by bisection, not by linear interpolation); the end
     # stop, the samples and the checks below as for the model
@@ -433,7 +460,9 @@ if args.c:
     PER = [int(x) for x in rows[:, 1]]
     s, v, a = res["s"], res["v"], res["a"]
     print(f"C plan: length {res['length']:.6f} (model {L:.6f}), {res['periods']} periods")
-while not args.c and L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10):
+while (
+    not args.c and L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10)
+):
     jl, jh = jlim(s, v, a)
     moved = False
     if jl <= jh:
@@ -504,30 +533,106 @@ if L - s > 1e-9 and v > 0:
             break
         out.append(min(x, L))
     out += [L] * 3
-ss = np.array(out)
-P = positions(ss)
-j3 = np.abs(np.diff(P, 3, axis=0)) / T**3
-a2_ = np.abs(np.diff(P, 2, axis=0)) / T**2
+
+
+def cruise_points(X, taps):
+    """The samples of the mean's trace X (rows: positions) that a path plan
+    could take over at or hand back to: the trace moves on a line at one
+    speed, acceleration 0, for taps - 1 periods either side (there the
+    mean's output is the plan's cruise delayed, J1, so both traces share
+    position, velocity, zero acceleration and zero jerk). A list of
+    (first, last) sample ranges of such points."""
+    w = taps - 1
+    acc = np.abs(np.diff(X, 2, axis=0)).max(axis=1) / T**2  # at sample i + 1
+    spd = np.linalg.norm(np.diff(X, axis=0), axis=1) / T
+    flat = np.concatenate([[False], acc < 1e-3, [False]])  # 1e-3 mm/s^2: the rounding's
+    flat &= np.concatenate([[False], spd > VC]) & np.concatenate([spd > VC, [False]])
+    # a point needs flat samples w either side: a run of flat samples
+    # [r0, r1] gives the points [r0 + w, r1 - w]
+    runs, i, n_ = [], 0, len(flat)
+    while i < n_:
+        if flat[i]:
+            k = i
+            while k + 1 < n_ and flat[k + 1]:
+                k += 1
+            if k - i >= 2 * w:
+                runs.append((i + w, k - w))
+            i = k + 1
+        else:
+            i += 1
+    return runs
+
+
+def hand_over(plan_trace, mean_trace, prog, mach, plan_ok):
+    """The product's choice (docs/algorithm.md, "The hand-over to the
+    mean"): between shared states the faster of the path plan (only where
+    (P6) lets it run) and the mean; so never slower than the mean. The
+    shared states used here are the program's start and end (rests); the
+    mean's cruise points, where a stretch could change hands mid-program,
+    are counted (the C plan does not yet start or end at a cruise)."""
+    Xm = np.loadtxt(mean_trace, delimiter=",", ndmin=2, comments=("t", "#"))[:, 1:]
+    t_mean = len(Xm) * T
+    jmax = max(float(v) for v in mach[mach.index("--jerk") + 1].split(","))
+    amax = np.abs(np.diff(Xm, 2, axis=0)).max() / T**2
+    taps = min(int(round(2 * amax / (jmax * T))) + 2, 63)  # A' = J m T / 2 (J4), and a margin
+    runs = cruise_points(Xm, taps)
+    t_plan = len(ss) * T if GATE else math.inf
+    take_plan = GATE and plan_ok and t_plan < t_mean
+    chosen = plan_trace if take_plan else mean_trace
+    t_take = t_plan if take_plan else t_mean
+    chk2 = subprocess.run(
+        [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, chosen],
+        capture_output=True,
+        text=True,
+    )
+    ok_ = chk2.returncode == 0
+    try:
+        cj = json.loads(chk2.stdout)
+        what = (
+            f"jerk/J {max(cj['max_axis_jerk']) / jmax:.3f},"
+            f" contour {cj['max_contour_error_mm']:.5f} mm"
+        )
+    except (ValueError, KeyError, TypeError):
+        what = chk2.stdout.strip()[:200]
+    print(
+        f"hand-over: the mean {t_mean:.3f} s, the path plan "
+        + (f"{t_plan:.3f} s{'' if plan_ok else ' (failed mlip-check)'}" if GATE else "not run (P6)")
+        + f"; the mean's cruise points (window {taps}): {len(runs)} stretches,"
+        f" {sum(b - a + 1 for a, b in runs)} samples;"
+        f" chosen: {'path plan' if take_plan else 'mean'}, {t_take:.3f} s"
+        f" ({t_take / t_mean:.3f}x of the mean);"
+        f" mlip-check --jerk: exit {chk2.returncode} ({'pass' if ok_ else 'FAIL'}; {what})"
+    )
+    if not ok_:
+        raise SystemExit("hand-over: the chosen trace breaks a limit")
+
+
 Jr = args.jerk
-print(
-    f"{name} J={Jr:g} (plan {J:g}, A {Aplan:g}): {len(ss) * T:.3f} s (curve only),"
-    f" max jerk/J {j3.max() / Jr:.3f}, max accel/A {a2_.max() / A:.3f}"
-)
-w = j3.max(axis=1)
-per = np.array(PER)
-print(
-    f"braking-run periods simulated a planned period: median {np.median(per):.0f},"
-    f" p99 {np.percentile(per, 99):.0f}, max {per.max()}, mean {per.mean():.0f}"
-)
-print(
-    f"samples above J: {int(np.sum(w > Jr))}; the worst at sample {int(np.argmax(w))} of {len(w)}"
-)
+ss = np.array(out)
+if GATE:  # planned (--hand-over: not where P6 refuses)
+    P = positions(ss)
+    j3 = np.abs(np.diff(P, 3, axis=0)) / T**3
+    a2_ = np.abs(np.diff(P, 2, axis=0)) / T**2
+    print(
+        f"{name} J={Jr:g} (plan {J:g}, A {Aplan:g}): {len(ss) * T:.3f} s (curve only),"
+        f" max jerk/J {j3.max() / Jr:.3f}, max accel/A {a2_.max() / A:.3f}"
+    )
+    w = j3.max(axis=1)
+    per = np.array(PER)
+    print(
+        f"braking-run periods simulated a planned period: median {np.median(per):.0f},"
+        f" p99 {np.percentile(per, 99):.0f}, max {per.max()}, mean {per.mean():.0f}"
+    )
+    print(
+        f"samples above J: {int(np.sum(w > Jr))};"
+        f" the worst at sample {int(np.argmax(w))} of {len(w)}"
+    )
 if args.poly:
     # the trace, judged by mlip-check against the shifted program (its
     # original polyline), and mlip-sim's smooth on the same program
     trace = os.path.join(tmp, "trace.csv")
     with open(trace, "w") as fh:
-        for i, row in enumerate(P):
+        for i, row in enumerate(P if GATE else []):
             fh.write(f"{i * T:.6f}," + ",".join(f"{x:.9f}" for x in row) + "\n")
     mach = [
         "--accel",
@@ -541,14 +646,18 @@ if args.poly:
         "--jerk",
         f"{Jr:g}",
     ]
-    chk = subprocess.run(
-        [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, trace],
-        capture_output=True,
-        text=True,
-    )
-    print(f"mlip-check --jerk {Jr:g}: exit {chk.returncode}; {chk.stdout.strip()}")
+    if GATE:
+        chk = subprocess.run(
+            [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, trace],
+            capture_output=True,
+            text=True,
+        )
+        print(f"mlip-check --jerk {Jr:g}: exit {chk.returncode}; {chk.stdout.strip()}")
+    mean_trace = os.path.join(tmp, "mean.csv")
     for jerk in (None, Jr):
         extra = ["--jerk", f"{jerk:g}"] if jerk else []
+        if jerk and args.hand_over:
+            extra += ["--trace", mean_trace]
         r = subprocess.run(
             [
                 os.path.join(args.build, "mlip-sim"),
@@ -571,3 +680,5 @@ if args.poly:
             f"mlip-sim smooth {'J ' + format(jerk, 'g') if jerk else 'no J'}: "
             f"{json.loads(r)['total_time_s']:.3f} s"
         )
+    if args.hand_over:
+        hand_over(trace, mean_trace, prog, mach, GATE and chk.returncode == 0)
