@@ -62,6 +62,14 @@ default 900,300, as docs/benchmarks.md),
 the rest as above; --keep keeps the temporary files (the points, for
 callgrind on bench_pathplan).
 
+--hand-over (with --c): the product's choice between the path plan and the
+mean (docs/algorithm.md, "The hand-over to the mean"): the path plan runs
+only if (P6) keeps every spline piece within its band (smooth's tol_mm at
+either end; --band B: B mm), the faster trace between the states both share
+(the program's start and end) is taken and judged by mlip-check --jerk (the
+script fails otherwise), and the mean's cruise points, where a stretch could
+change hands mid-program, and the stretches between them are counted.
+
     bench/pathspeed.py lissajous --jerk 1e5 [--brake 300] [--margin 0.95]
     bench/pathspeed.py trochoid --jerk 1e5 --poly build/curves/trochoid.ngc [--c]
 """
@@ -131,8 +139,9 @@ ap.add_argument(
 ap.add_argument(
     "--band",
     type=float,
-    default=0.001,
-    help="--hand-over: the (P6) bound a piece may stray from its chord, mm (0.001)",
+    default=None,
+    help="--hand-over: the (P6) bound a piece may stray from its chord, mm"
+    " (default: smooth's tol_mm at either end of the piece, less 1e-6 mm)",
 )
 ap.add_argument(
     "--build", default=os.path.join(ROOT, "build"), help="where bench_smoothdump and mlip-check are"
@@ -168,10 +177,11 @@ if args.poly:
         capture_output=True,
         text=True,
     ).stdout
-    pts = np.loadtxt(csv.splitlines(), delimiter=",", ndmin=2)[:, :-1]
+    dump = np.loadtxt(csv.splitlines(), delimiter=",", ndmin=2)
+    pts, TOL = dump[:, :-1], dump[:, -1]  # TOL: each point's tol_mm (smooth.h)
     n_ax = pts.shape[1]
     hs = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    pts = pts[np.concatenate([[True], hs > 1e-9])]
+    pts, TOL = pts[np.concatenate([[True], hs > 1e-9])], TOL[np.concatenate([[True], hs > 1e-9])]
     hs = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     m_seg = len(hs)
     cum = np.concatenate([[0.0], np.cumsum(hs)])
@@ -432,13 +442,21 @@ if args.hand_over:
     # h^2 / 8 max(|M_i|, |M_i+1|); the path plan may run only on a stretch
     # whose every piece keeps that within the band (the spline through a
     # sharp vertex overshoots: 6.4 mm on the random zigzag)
+    # The band of a piece (a segment of smooth's output): what smooth left
+    # of its budget, tol_mm at either end (smooth.h: tol = budget - the
+    # largest deviation of the two segments its corner touches, so a point
+    # within tol of the chord is within the budget of the original
+    # polyline); --band B: a fixed B mm instead
     Mn = np.linalg.norm(M, axis=1)
     SAG = hs * hs / 8.0 * np.maximum(Mn[:-1], Mn[1:])
-    N_OVER = int(np.sum(SAG > args.band))
+    BAND = np.maximum(TOL[:-1], TOL[1:]) - 1e-6 if args.band is None else args.band
+    N_OVER = int(np.sum(SAG > BAND))
     GATE = N_OVER == 0
     print(
-        f"(P6): {N_OVER} of {m_seg} pieces over {args.band:g} mm (largest {SAG.max():.3g} mm):"
-        f" the path plan {'may run' if GATE else 'may not run'} from rest to rest"
+        f"(P6): {N_OVER} of {m_seg} pieces over"
+        f" {'their tol_mm' if args.band is None else format(args.band, 'g') + ' mm'}"
+        f" (largest {SAG.max():.3g} mm): the path plan"
+        f" {'may run' if GATE else 'may not run'} from rest to rest"
     )
 if args.c and GATE:
     # the same plan by the C period over the same spline (its checkpoints:
@@ -563,6 +581,32 @@ def cruise_points(X, taps):
     return runs
 
 
+def stretches(Xm, runs):
+    """The stretches between consecutive shared states (the start, the
+    middle of each cruise run, the end) and whether (P6) lets the path plan
+    run on each: a list of (mean's samples, accepted). A cruise point is
+    located on smooth's polyline at the first segment, at or after the
+    last one found, within 1e-3 mm of it (the path may come back near
+    itself)."""
+    over = SAG > BAND
+    bnd, prev = [(0, 0)], 0
+    for a, b in runs:
+        c = (a + b) // 2
+        p0, d = pts[prev:-1], np.diff(pts[prev:], axis=0)
+        u = np.clip(
+            np.sum((Xm[c] - p0) * d, axis=1) / np.maximum(np.sum(d * d, axis=1), 1e-30), 0, 1
+        )
+        near = np.nonzero(np.linalg.norm(p0 + u[:, None] * d - Xm[c], axis=1) < 1e-3)[0]
+        if len(near):
+            prev = prev + int(near[0])
+            bnd.append((prev, c))
+    bnd.append((m_seg, len(Xm) - 1))
+    return [
+        (t1 - t0, not over[j0:j1].any())
+        for (j0, t0), (j1, t1) in zip(bnd[:-1], bnd[1:], strict=True)
+    ]
+
+
 def hand_over(plan_trace, mean_trace, prog, mach, plan_ok):
     """The product's choice (docs/algorithm.md, "The hand-over to the
     mean"): between shared states the faster of the path plan (only where
@@ -576,6 +620,8 @@ def hand_over(plan_trace, mean_trace, prog, mach, plan_ok):
     amax = np.abs(np.diff(Xm, 2, axis=0)).max() / T**2
     taps = min(int(round(2 * amax / (jmax * T))) + 2, 63)  # A' = J m T / 2 (J4), and a margin
     runs = cruise_points(Xm, taps)
+    st = stretches(Xm, runs)
+    acc_ = [n for n, ok in st if ok]
     t_plan = len(ss) * T if GATE else math.inf
     take_plan = GATE and plan_ok and t_plan < t_mean
     chosen = plan_trace if take_plan else mean_trace
@@ -597,8 +643,9 @@ def hand_over(plan_trace, mean_trace, prog, mach, plan_ok):
     print(
         f"hand-over: the mean {t_mean:.3f} s, the path plan "
         + (f"{t_plan:.3f} s{'' if plan_ok else ' (failed mlip-check)'}" if GATE else "not run (P6)")
-        + f"; the mean's cruise points (window {taps}): {len(runs)} stretches,"
-        f" {sum(b - a + 1 for a, b in runs)} samples;"
+        + f"; the mean's cruise points (window {taps}): {len(runs)} runs,"
+        f" {sum(b - a + 1 for a, b in runs)} samples; stretches between shared states"
+        f" {len(st)}, (P6) accepts {len(acc_)} ({sum(acc_) * T:.3f} s of the mean's);"
         f" chosen: {'path plan' if take_plan else 'mean'}, {t_take:.3f} s"
         f" ({t_take / t_mean:.3f}x of the mean);"
         f" mlip-check --jerk: exit {chk2.returncode} ({'pass' if ok_ else 'FAIL'}; {what})"
