@@ -69,6 +69,8 @@ either end; --band B: B mm), the faster trace between the states both share
 (the program's start and end) is taken and judged by mlip-check --jerk (the
 script fails otherwise), and the mean's cruise points, where a stretch could
 change hands mid-program, and the stretches between them are counted.
+--rests: a third candidate, the path plan at rest at breaks where (P6)
+refuses a piece (rest_plan; chosen only if its trace passes mlip-check).
 
     bench/pathspeed.py lissajous --jerk 1e5 [--brake 300] [--margin 0.95]
     bench/pathspeed.py trochoid --jerk 1e5 --poly build/curves/trochoid.ngc [--c]
@@ -112,6 +114,31 @@ def shift_program(src_path, dst_path):
             )
 
 
+def natural_m(P, hs):
+    """The natural cubic spline through the points P by chord length (hs):
+    its second derivatives M at the points (P5), by Thomas' algorithm."""
+    m_seg = len(hs)
+    hh = hs[:, None]
+    rhs = np.zeros_like(P)
+    rhs[1:-1] = 6 * ((P[2:] - P[1:-1]) / hh[1:] - (P[1:-1] - P[:-2]) / hh[:-1])
+    dia = np.ones(m_seg + 1)
+    dia[1:-1] = 2 * (hs[:-1] + hs[1:])
+    lo_ = np.concatenate([hs[:-1], [0.0]])  # sub-diagonal (row i: h_{i-1})
+    up_ = np.concatenate([[0.0], hs[1:]])  # super-diagonal (row i: h_i)
+    cp = np.zeros(m_seg + 1)
+    dp = np.zeros_like(P)
+    cp[0], dp[0] = 0.0, 0.0
+    for i in range(1, m_seg + 1):  # Thomas; rows 0 and m_seg: M = 0
+        sub = lo_[i - 1] if i < m_seg else 0.0
+        den = dia[i] - sub * cp[i - 1]
+        cp[i] = (up_[i] if i < m_seg else 0.0) / den
+        dp[i] = (rhs[i] - sub * dp[i - 1]) / den
+    M = np.zeros_like(P)
+    for i in range(m_seg - 1, 0, -1):
+        M[i] = dp[i] - cp[i] * M[i + 1]
+    return M
+
+
 ap = argparse.ArgumentParser(description="A path-speed plan under a per-axis jerk limit")
 ap.add_argument("curve")
 ap.add_argument("--jerk", type=float, required=True)
@@ -137,6 +164,11 @@ ap.add_argument(
     help="with --c: the product's choice between the path plan and the mean (see above)",
 )
 ap.add_argument(
+    "--rests",
+    action="store_true",
+    help="--hand-over: also the path plan broken at the pieces (P6) refuses, at rest there",
+)
+ap.add_argument(
     "--band",
     type=float,
     default=None,
@@ -151,6 +183,8 @@ if args.c and not args.poly:
     ap.error("--c plans along smooth's output: give --poly")
 if args.hand_over and not args.c:
     ap.error("--hand-over chooses between the C plan and the mean: give --c")
+if args.rests and not args.hand_over:
+    ap.error("--rests is a candidate of --hand-over")
 name = args.curve
 J = args.jerk * args.margin
 A = 1000.0
@@ -190,23 +224,7 @@ if args.poly:
     # that the positions' own jerk is bounded (a cubic through each four
     # points, as P4 reads derivatives, is only C0 where the windows meet)
     hh = hs[:, None]
-    rhs = np.zeros_like(pts)
-    rhs[1:-1] = 6 * ((pts[2:] - pts[1:-1]) / hh[1:] - (pts[1:-1] - pts[:-2]) / hh[:-1])
-    dia = np.ones(m_seg + 1)
-    dia[1:-1] = 2 * (hs[:-1] + hs[1:])
-    lo_ = np.concatenate([hs[:-1], [0.0]])  # sub-diagonal (row i: h_{i-1})
-    up_ = np.concatenate([[0.0], hs[1:]])  # super-diagonal (row i: h_i)
-    cp = np.zeros(m_seg + 1)
-    dp = np.zeros_like(pts)
-    cp[0], dp[0] = 0.0, 0.0
-    for i in range(1, m_seg + 1):  # Thomas; rows 0 and m_seg: M = 0
-        sub = lo_[i - 1] if i < m_seg else 0.0
-        den = dia[i] - sub * cp[i - 1]
-        cp[i] = (up_[i] if i < m_seg else 0.0) / den
-        dp[i] = (rhs[i] - sub * dp[i - 1]) / den
-    M = np.zeros_like(pts)
-    for i in range(m_seg - 1, 0, -1):
-        M[i] = dp[i] - cp[i] * M[i + 1]
+    M = natural_m(pts, hs)
     bb = (pts[1:] - pts[:-1]) / hh - hh * (2 * M[:-1] + M[1:]) / 6
 
     def cubic(s):
@@ -433,6 +451,47 @@ def safe(s, v, a):
     return False
 
 
+def tail(s, v, a, L):
+    """The path positions after a plan that ends at (s, v, a) short of L:
+    the end below, sampled every T (none when it is at L or at rest)."""
+    if not (L - s > 1e-9 and v > 0):
+        return []
+    jr = 0.5 * J
+    xs = []
+    ta = abs(a) / jr
+    j0 = -jr if a > 0 else jr
+    va = v + a * ta + j0 * ta * ta / 2
+    sa = s + v * ta + a * ta * ta / 2 + j0 * ta**3 / 6
+    tb = 2 * math.sqrt(va / jr)
+    db = va * tb / 2
+    tc = ta + max(L - sa - db, 0.0) / va
+    tt_ = 0.0
+    s0 = sa - va * ta  # the cruise's line, extended back to the tail's start
+    v0 = va
+    while True:
+        tt_ += T
+        if tt_ <= ta:
+            x = s + v * tt_ + a * tt_ * tt_ / 2 + j0 * tt_**3 / 6
+        elif tt_ <= tc:
+            x = s0 + v0 * tt_
+        elif tt_ <= tc + tb:
+            u = tt_ - tc
+            h = tb / 2
+            if u <= h:
+                x = s0 + v0 * tc + v0 * u - jr * u**3 / 6
+            else:
+                xm = s0 + v0 * tc + v0 * h - jr * h**3 / 6
+                vm = v0 - jr * h * h / 2
+                w = u - h
+                x = xm + vm * w - jr * h * w * w / 2 + jr * w**3 / 6
+        else:
+            x = L
+            xs.append(x)
+            break
+        xs.append(min(x, L))
+    return xs + [L] * 3
+
+
 s = v = a = 0.0
 out = [0.0]
 PER, sum_w = [], 0  # braking-run periods simulated for each planned period
@@ -517,40 +576,7 @@ while (
 # (a triangle of jerk: v = jr t^2 ... over 2 sqrt(v / jr), distance v sqrt(v / jr))
 # (--c: the plan may end still braking at the crawl: the acceleration is
 # first ramped to 0 at jr, bench_pathplan's tail_fits)
-if L - s > 1e-9 and v > 0:
-    jr = 0.5 * J
-    ta = abs(a) / jr
-    j0 = -jr if a > 0 else jr
-    va = v + a * ta + j0 * ta * ta / 2
-    sa = s + v * ta + a * ta * ta / 2 + j0 * ta**3 / 6
-    tb = 2 * math.sqrt(va / jr)
-    db = va * tb / 2
-    tc = ta + max(L - sa - db, 0.0) / va
-    tt_ = 0.0
-    s0 = sa - va * ta  # the cruise's line, extended back to the tail's start
-    v0 = va
-    while True:
-        tt_ += T
-        if tt_ <= ta:
-            x = s + v * tt_ + a * tt_ * tt_ / 2 + j0 * tt_**3 / 6
-        elif tt_ <= tc:
-            x = s0 + v0 * tt_
-        elif tt_ <= tc + tb:
-            u = tt_ - tc
-            h = tb / 2
-            if u <= h:
-                x = s0 + v0 * tc + v0 * u - jr * u**3 / 6
-            else:
-                xm = s0 + v0 * tc + v0 * h - jr * h**3 / 6
-                vm = v0 - jr * h * h / 2
-                w = u - h
-                x = xm + vm * w - jr * h * w * w / 2 + jr * w**3 / 6
-        else:
-            x = L
-            out.append(x)
-            break
-        out.append(min(x, L))
-    out += [L] * 3
+out += tail(s, v, a, L)
 
 
 def cruise_points(X, taps):
@@ -607,6 +633,88 @@ def stretches(Xm, runs):
     ]
 
 
+def rest_plan(prog, mach):
+    """A third candidate from rest to rest: the path plan along smooth's
+    output broken into natural splines at stations where (P6) refuses a
+    piece (the largest turn of each run of refused pieces, one round after
+    another until every piece of every part is within its band), each part
+    planned by the C period from rest to rest, so the machine stops at each
+    break (a rest: the parts share it). Returns (trace, time, breaks,
+    mlip-check's exit) or None when no set of breaks was found."""
+    n_pts = len(pts)
+    d_ = np.diff(pts, axis=0)
+    u_ = d_ / np.linalg.norm(d_, axis=1)[:, None]
+    turn = np.zeros(n_pts)
+    turn[1:-1] = np.arccos(np.clip(np.sum(u_[1:] * u_[:-1], axis=1), -1.0, 1.0))
+    breaks = {0, n_pts - 1}
+    for _ in range(40):
+        bs, more = sorted(breaks), []
+        for a0, b0 in zip(bs[:-1], bs[1:], strict=True):
+            h_ = np.linalg.norm(np.diff(pts[a0 : b0 + 1], axis=0), axis=1)
+            mn = np.linalg.norm(natural_m(pts[a0 : b0 + 1], h_), axis=1)
+            sag = h_ * h_ / 8.0 * np.maximum(mn[:-1], mn[1:])
+            band = np.maximum(TOL[a0:b0], TOL[a0 + 1 : b0 + 1]) - 1e-6
+            bad = np.nonzero(sag > (band if args.band is None else args.band))[0]
+            i = 0
+            while i < len(bad):
+                k = i
+                while k + 1 < len(bad) and bad[k + 1] - bad[k] <= 1:
+                    k += 1
+                # the stations of the run, inside the part
+                cand = range(max(a0 + bad[i], a0 + 1), min(a0 + bad[k] + 1, b0 - 1) + 1)
+                if cand:
+                    more.append(max(cand, key=lambda c: turn[c]))
+                i = k + 1
+        if not more:
+            break
+        breaks |= set(more)
+    else:
+        print("rests: pieces still refused after 40 rounds of breaks")
+        return None
+    bs = sorted(breaks)
+    X = [pts[:1]]
+    for a0, b0 in zip(bs[:-1], bs[1:], strict=True):
+        P_ = pts[a0 : b0 + 1]
+        h_ = np.linalg.norm(np.diff(P_, axis=0), axis=1)
+        M_ = natural_m(P_, h_)
+        c_ = np.concatenate([[0.0], np.cumsum(h_)])
+        L_ = float(c_[-1])
+        f_ = os.path.join(tmp, "part.csv")
+        np.savetxt(f_, P_, delimiter=",", fmt="%.17g")
+        r_ = subprocess.run(
+            [os.path.join(args.build, "bench_pathplan"), f"{J!r}", "--points", f_]
+            + ["--brake", ",".join(f"{b!r}" for b in BRAKES), "--out", f_ + ".out"],
+            capture_output=True,
+            text=True,
+        )
+        if r_.returncode != 0:
+            print(f"rests: the part of stations {a0}-{b0} not planned: {r_.stderr.strip()}")
+            return None
+        res_ = json.loads(r_.stdout)
+        rows_ = np.loadtxt(f_ + ".out", delimiter=",", ndmin=2)
+        sq = [min(float(x), L_) for x in rows_.reshape(-1, 2)[:, 0]]
+        sq += tail(res_["s"], res_["v"], res_["a"], L_) or [L_] * 3
+        sq = np.clip(np.array(sq), 0.0, L_)
+        j_ = np.clip(np.searchsorted(c_, sq, side="right") - 1, 0, len(h_) - 1)
+        w_ = (sq - c_[j_])[:, None]
+        hj = h_[j_][:, None]
+        b_ = (P_[1:] - P_[:-1]) / h_[:, None] - h_[:, None] * (2 * M_[:-1] + M_[1:]) / 6
+        X.append(
+            P_[j_] + b_[j_] * w_ + M_[j_] * w_ * w_ / 2 + (M_[j_ + 1] - M_[j_]) / hj * w_**3 / 6
+        )
+    Xa = np.concatenate(X)
+    path = os.path.join(tmp, "rests.csv")
+    with open(path, "w") as fh:
+        for i, row in enumerate(Xa):
+            fh.write(f"{i * T:.6f}," + ",".join(f"{x:.9f}" for x in row) + "\n")
+    c = subprocess.run(
+        [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, path],
+        capture_output=True,
+        text=True,
+    )
+    return path, len(Xa) * T, len(bs) - 2, c.returncode
+
+
 def hand_over(plan_trace, mean_trace, prog, mach, plan_ok):
     """The product's choice (docs/algorithm.md, "The hand-over to the
     mean"): between shared states the faster of the path plan (only where
@@ -626,6 +734,16 @@ def hand_over(plan_trace, mean_trace, prog, mach, plan_ok):
     take_plan = GATE and plan_ok and t_plan < t_mean
     chosen = plan_trace if take_plan else mean_trace
     t_take = t_plan if take_plan else t_mean
+    if args.rests and not GATE:
+        rp = rest_plan(prog, mach)
+        if rp is not None:  # else it said why
+            print(
+                f"rests: the path plan at rest at {rp[2]} breaks: {rp[1]:.3f} s,"
+                f" mlip-check --jerk exit {rp[3]}"
+            )
+            if rp[3] == 0 and rp[1] < t_take:
+                chosen, t_take, take_plan = rp[0], rp[1], True
+    which = "mean" if chosen == mean_trace else "path plan" if chosen == plan_trace else "rests"
     chk2 = subprocess.run(
         [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, chosen],
         capture_output=True,
@@ -646,7 +764,7 @@ def hand_over(plan_trace, mean_trace, prog, mach, plan_ok):
         + f"; the mean's cruise points (window {taps}): {len(runs)} runs,"
         f" {sum(b - a + 1 for a, b in runs)} samples; stretches between shared states"
         f" {len(st)}, (P6) accepts {len(acc_)} ({sum(acc_) * T:.3f} s of the mean's);"
-        f" chosen: {'path plan' if take_plan else 'mean'}, {t_take:.3f} s"
+        f" chosen: {which}, {t_take:.3f} s"
         f" ({t_take / t_mean:.3f}x of the mean);"
         f" mlip-check --jerk: exit {chk2.returncode} ({'pass' if ok_ else 'FAIL'}; {what})"
     )

@@ -138,19 +138,22 @@ def test_max_jerk_in_the_machine_file(tmp_path):
     assert traces["file"] == traces["option"] != traces["none"]
 
 
-def hand_over(tmp_path, program, jerk):
-    """bench/pathspeed.py --c --hand-over on PROGRAM: (P6 pieces over the
-    band, the mean's time, what was chosen, its time); the script itself
-    exits non-zero when the chosen trace fails mlip-check --jerk."""
+def hand_over(tmp_path, program, jerk, *extra):
+    """bench/pathspeed.py --c --hand-over on PROGRAM: (P6 pieces over their
+    band, the mean's time, what was chosen, its time, the rests line or
+    None); the script itself exits non-zero when the chosen trace fails
+    mlip-check --jerk."""
     p = subprocess.run([sys.executable, str(ROOT / "bench" / "pathspeed.py"), "x", "--jerk",
                         str(jerk), "--poly", str(program), "--c", "--hand-over", "--build",
-                        str(BUILD)], capture_output=True, text=True, timeout=600)
+                        str(BUILD), *extra], capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     over = int(re.search(r"^\(P6\): (\d+) of", p.stdout, re.M).group(1))
-    m = re.search(r"^hand-over: the mean ([\d.]+) s.*chosen: (path plan|mean), ([\d.]+) s.*"
+    m = re.search(r"^hand-over: the mean ([\d.]+) s.*chosen: (path plan|mean|rests), ([\d.]+) s.*"
                   r"mlip-check --jerk: exit 0 \(pass", p.stdout, re.M)
     assert m, p.stdout[-2000:]
-    return over, float(m.group(1)), m.group(2), float(m.group(3))
+    rests = re.search(r"^rests: the path plan at rest at (\d+) breaks: ([\d.]+) s, "
+                      r"mlip-check --jerk exit (\d+)", p.stdout, re.M)
+    return over, float(m.group(1)), m.group(2), float(m.group(3)), rests
 
 
 @pytest.mark.parametrize("jerk", [1e5, 1e4])
@@ -160,18 +163,23 @@ def test_hand_over_never_slower_than_the_mean(tmp_path, jerk):
     (P6) band) the path plan runs and is faster than the mean, and no faster
     than the circle at vmax; on a random zigzag (the spline through its sharp
     vertices strays by up to 0.7 mm) it may not run and the mean's trace is
-    the result, to the period. Both pass mlip-check --jerk."""
+    the result unless the path plan at rest at its sharp vertices (--rests)
+    is faster. Every candidate passes mlip-check --jerk."""
     circle = tmp_path / "circle.ngc"
     n, r = 2 * 2513, 20.0  # two laps of 0.05 mm chords
     circle.write_text("G21 G90\nG1 F12000\n" + "".join(
         f"G1 X{r * math.cos(i * 2 * math.pi / 2513):.4f} Y{r * math.sin(i * 2 * math.pi / 2513):.4f}\n"
         for i in range(n + 1)))
-    over, t_mean, chosen, t = hand_over(tmp_path, circle, jerk)
+    over, t_mean, chosen, t, _ = hand_over(tmp_path, circle, jerk)
     assert over == 0 and chosen == "path plan"
     assert 2 * 2 * math.pi * r / 200.0 <= t < t_mean
     zigzag = tmp_path / "zigzag.ngc"
     zigzag.write_text(subprocess.run(
         [sys.executable, str(ROOT / "tools" / "gen_zigzag.py"), "--random", "2", "--segments",
          "300"], capture_output=True, text=True, check=True).stdout)
-    over, t_mean, chosen, t = hand_over(tmp_path, zigzag, jerk)
-    assert over > 0 and chosen == "mean" and t == t_mean
+    over, t_mean, chosen, t, rests = hand_over(tmp_path, zigzag, jerk, "--rests")
+    assert over > 0 and chosen in ("mean", "rests") and t <= t_mean
+    # the third candidate, the path plan at rest at breaks where P6 refused
+    # a piece, keeps every limit too (its trace judged like the others)
+    assert rests and int(rests.group(1)) > 0 and rests.group(3) == "0"
+    assert (chosen == "mean") == (float(rests.group(2)) >= t_mean)
