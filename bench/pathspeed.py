@@ -247,26 +247,10 @@ if args.poly:
     # P4 they are by arc length, which the positions are not evaluated at)
     d1, d2, d3 = x1, x2, x3 * np.ones_like(x1)
 else:
-    gc = tp.gen_curves()
-    f, t_end, n_ax = gc.CURVES[name]
-    tt = np.linspace(0.0, t_end, 2_000_001)
-    dt = 1e-6
-    fp = (np.array(f(tt + dt, np)) - np.array(f(tt - dt, np))) / (2 * dt)
-    sp = np.linalg.norm(fp[:n_ax], axis=0)
-    s_all = np.concatenate([[0.0], np.cumsum(0.5 * (sp[1:] + sp[:-1]) * np.diff(tt))])
-    L = s_all[-1]
+    # the exact curve by arc length, as topp.py's TOPP reads it
     ds = 0.005
-    n = int(math.ceil(L / ds)) + 1
-    sg = np.linspace(0.0, L, n)
-    par = np.interp(sg, s_all, tt)
-    e = 1e-4
-    F1 = ((np.array(f(par + e, np)) - np.array(f(par - e, np))) / (2 * e))[:n_ax].T
-    F2 = (
-        (np.array(f(par + e, np)) - 2 * np.array(f(par, np)) + np.array(f(par - e, np))) / (e * e)
-    )[:n_ax].T
-    spd = np.linalg.norm(F1, axis=1)[:, None]
-    d1 = F1 / spd
-    d2 = (F2 - np.sum(F2 * d1, axis=1)[:, None] * d1) / (spd * spd)
+    f, n_ax, tt, s_all, sg, _, d1, d2 = tp.arc_frame(name, ds)
+    L, n = float(s_all[-1]), len(sg)
     d3 = np.gradient(d2, sg, axis=0)
 
     def positions(s_arr):
