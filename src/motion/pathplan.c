@@ -112,10 +112,12 @@ static void mul_range(double al, double ah, double bl, double bh, double *lo, do
  * within their ranges over [ha, hb], so (P2) is p j + c with p in [pl, ph]
  * and c in [cm - cr, cm + cr]: a j with |p j + cm| <= J - cr at both ends
  * of p's range holds J at every point of the piece the step passes (affine
- * in p and c: the box's corners bound it). Into [*lo, *hi]; 0 when empty. */
+ * in p and c: the box's corners bound it). Into [*lo, *hi]; 0 when empty.
+ * The range of (P2) at j itself widens [pm[k], pM[k]] per axis: the rate
+ * of the axis's acceleration (P1) over the step (accel_over). */
 static int piece_cut(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim, int i,
                      double ua, double ub, struct mlip_path_state st, double j, double ha,
-                     double hb, double *lo, double *hi)
+                     double hb, double *lo, double *hi, double *pm, double *pM)
 {
 	double vl, vh, al = st.a + j * ha, ah = st.a + j * hb, val, vah;
 	if (al > ah) {
@@ -143,12 +145,50 @@ static int piece_cut(const struct mlip_path_curve *sp, const struct mlip_path_li
 		double cl = ql + (t3 >= 0.0 ? t3 * v3l : t3 * v3h);
 		double ch = qh + (t3 >= 0.0 ? t3 * v3h : t3 * v3l);
 		double cm = 0.5 * (cl + ch), J = lim->jerk[k] - 0.5 * (ch - cl);
+		double jl = pl * j < ph * j ? pl * j : ph * j,
+		       jh = pl * j < ph * j ? ph * j : pl * j;
+		pm[k] = jl + cl < pm[k] ? jl + cl : pm[k];
+		pM[k] = jh + ch > pM[k] ? jh + ch : pM[k];
 		if (!(J >= 0.0) || !mlip_path_axis_cut(pl, cm, J, lo, hi) ||
 		    !mlip_path_axis_cut(ph, cm, J, lo, hi)) {
 			return 0;
 		}
 	}
 	return *lo <= *hi;
+}
+
+static double clamp(double x, double lo, double hi)
+{
+	return x < lo ? lo : (x > hi ? hi : x);
+}
+
+/* (P1) at every instant of a step of T: per axis the acceleration f(h) =
+ * x' a + x'' v^2 goes from f0 to fT with its rate f' = (P2) within [m, M]
+ * (the pieces' bounds), so f(h) <= min(f0 + M h, fT - m (T - h)) and f(h)
+ * >= max(f0 + m h, fT - M (T - h)): their extremes at h = 0, T or where the
+ * two lines meet. The states alone let 1.0006 A through between two ends
+ * within it (test_pathplan). 1 when every axis keeps A. */
+static int accel_over(const struct mlip_path_limits *lim, const struct at *a, const struct at *e,
+                      double T, const double *pm, const double *pM)
+{
+	struct mlip_path_state s0 = a->st, s1 = e->st;
+	for (int k = 0; k < lim->n; k++) {
+		double f0 = a->d.d1[k] * s0.a + a->d.d2[k] * s0.v * s0.v;
+		double f1 = e->d.d1[k] * s1.a + e->d.d2[k] * s1.v * s1.v, m = pm[k], M = pM[k];
+		double up = f0 > f1 ? f0 : f1, dn = f0 < f1 ? f0 : f1;
+		if (M > m) {
+			double h = clamp((f1 - f0 - m * T) / (M - m), 0.0, T), x = f0 + M * h;
+			x = x < f1 - m * (T - h) ? x : f1 - m * (T - h);
+			up = x > up ? x : up;
+			h = clamp((f0 - f1 + M * T) / (M - m), 0.0, T);
+			x = f0 + m * h > f1 - M * (T - h) ? f0 + m * h : f1 - M * (T - h);
+			dn = x < dn ? x : dn;
+		}
+		if (!(up <= lim->accel[k] + 1e-9 && dn >= -lim->accel[k] - 1e-9)) {
+			return 0;
+		}
+	}
+	return 1;
 }
 
 /* (Q2) from the state a over a step of T (the period, or a stop's part of
@@ -161,8 +201,12 @@ static int piece_cut(const struct mlip_path_curve *sp, const struct mlip_path_li
 static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                     const struct at *a, double j, double T, double *lo, double *hi, struct at *next)
 {
-	double l = a->jl, u = a->jh;
+	double l = a->jl, u = a->jh, pm[MLIP_MAX_AXES], pM[MLIP_MAX_AXES];
 	struct mlip_path_state st = a->st, end = mlip_path_advance(st, j, T);
+	for (int k = 0; k < lim->n; k++) {
+		pm[k] = INFINITY;
+		pM[k] = -INFINITY;
+	}
 	double s1 = end.s, last = sp->s[sp->count - 1], vmin, vmax;
 	*lo = 1.0; /* until the whole step is checked: empty */
 	*hi = -1.0;
@@ -187,7 +231,7 @@ static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_lim
 			ha = ha < 0.0 ? 0.0 : (ha > T ? T : ha);
 			hb = hb < ha ? ha : (hb > T ? T : hb);
 		}
-		if (!piece_cut(sp, lim, i, ua, ub, st, j, ha, hb, &l, &u)) {
+		if (!piece_cut(sp, lim, i, ua, ub, st, j, ha, hb, &l, &u, pm, pM)) {
 			return 0;
 		}
 		piece = i;
@@ -196,6 +240,9 @@ static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_lim
 	cut(sp, lim, st, j, T, s1 < last ? s1 : last, &piece, &e->d, &l, &u, e);
 	e->st = end;
 	e->piece = mlip_path_spline_piece(sp, end.s, piece);
+	if (!accel_over(lim, a, e, T, pm, pM)) {
+		return 0; /* (P1) broken within the step: no jerk near j keeps it */
+	}
 	*lo = l;
 	*hi = u;
 	return l <= u;
@@ -207,11 +254,6 @@ int mlip_path_period_range(const struct mlip_path_curve *sp, const struct mlip_p
 	struct at a;
 	at_make(sp, lim, &a, st, 0);
 	return range_at(sp, lim, &a, j, lim->period, lo, hi, NULL);
-}
-
-static double clamp(double x, double lo, double hi)
-{
-	return x < lo ? lo : (x > hi ? hi : x);
 }
 
 /* The admissible jerk nearest jt from a (Q2); its step's end in *next.

@@ -56,9 +56,10 @@ static void limits(struct mlip_path_limits *lim, double J)
 	lim->period = 1e-3;
 }
 
-/* The worst |P2| / J over the step of jerk j from st, at 400 instants. */
-static double worst_jerk(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
-                         struct mlip_path_state st, double j)
+/* The worst |P2| / J (accel 0) or |P1| / A (accel 1) over the step of
+ * jerk j from st, at 400 instants. */
+static double worst_of(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                       struct mlip_path_state st, double j, int accel)
 {
 	double w = 0.0;
 	for (int i = 0; i <= 400; i++) {
@@ -66,12 +67,25 @@ static double worst_jerk(const struct mlip_path_spline *sp, const struct mlip_pa
 		struct mlip_path_point d;
 		mlip_path_spline_eval(sp, at.s, 0, NULL, &d);
 		for (int k = 0; k < lim->n; k++) {
-			double p2 = d.d1[k] * j + 3.0 * d.d2[k] * at.v * at.a +
-			            d.d3[k] * at.v * at.v * at.v; /* (P2) */
-			w = fmax(w, fabs(p2) / lim->jerk[k]);
+			double p = accel ? d.d1[k] * at.a + d.d2[k] * at.v * at.v /* (P1) */
+			                 : d.d1[k] * j + 3.0 * d.d2[k] * at.v * at.a +
+			                       d.d3[k] * at.v * at.v * at.v; /* (P2) */
+			w = fmax(w, fabs(p) / (accel ? lim->accel[k] : lim->jerk[k]));
 		}
 	}
 	return w;
+}
+
+static double worst_jerk(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                         struct mlip_path_state st, double j)
+{
+	return worst_of(sp, lim, st, j, 0);
+}
+
+static double worst_accel(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
+                          struct mlip_path_state st, double j)
+{
+	return worst_of(sp, lim, st, j, 1);
 }
 
 /* A random state on the helix (s 0.5-5.5 mm, v 0-60 mm/s, a within 300
@@ -149,6 +163,84 @@ static void test_period_range(void **state)
 	assert_true(tight1 >= checked * 9 / 10);
 	assert_true(tight10 >= checked * 99 / 100);
 	assert_true(start_only_breaks > 0);
+}
+
+/* (Q2) the acceleration over the step: a jerk the period's interval
+ * admits keeps every axis within A at every instant (400), not only at the
+ * states: near the (P1) bound (v about the helix's sqrt(A / |x''|), a of
+ * either sign) the speed and the curve's terms peak inside the period,
+ * where steps whose both ends are within A broke it. The bound is not
+ * loose: of the steps whose every instant keeps 0.99 A, at least 90 % are
+ * admitted. */
+static void test_period_accel(void **state)
+{
+	(void)state;
+	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
+	struct mlip_path_limits lim;
+	helix_spline(&sp, &cv, 0.1);
+	limits(&lim, 1e5);
+	int admitted = 0, well_inside = 0, well_inside_admitted = 0, mid_only = 0, end_out = 0;
+	double worst_mid = 0.0;
+	for (int it = 0; it < 20000; it++) {
+		struct mlip_path_state st;
+		double lo, hi, jl, jh;
+		if (!random_state(&sp, &lim, &st, &jl, &jh)) {
+			continue;
+		}
+		st.v = uni(55.0, 66.0); /* around the helix's (P1) speed, 63 mm/s */
+		struct mlip_path_point d;
+		mlip_path_spline_eval(&sp, st.s, 0, NULL, &d);
+		double al, ah;
+		if (!mlip_path_accel_range(lim.n, &d, lim.accel, st.v, &al, &ah) ||
+		    !mlip_path_jerk_range(lim.n, &d, lim.jerk, st.v, st.a, &jl, &jh)) {
+			continue;
+		}
+		/* the state within A; every other one on its bound, with a jerk
+		 * that turns the bound axis's acceleration outward (P2 > 0 at
+		 * +A) by up to 3 % of J at the start: the curve's terms may turn
+		 * it back within the period (the end within A) */
+		int edge = it & 1;
+		st.a = edge ? (it & 2 ? ah : al) : uni(al, ah);
+		if (!mlip_path_jerk_range(lim.n, &d, lim.jerk, st.v, st.a, &jl, &jh)) {
+			continue;
+		}
+		double j = uni(jl, jh);
+		for (int k = 0; edge && k < lim.n; k++) {
+			double p1 = d.d1[k] * st.a + d.d2[k] * st.v * st.v;
+			if (fabs(fabs(p1) - lim.accel[k]) < 1e-6 && d.d1[k] != 0.0) {
+				double c =
+				    3.0 * d.d2[k] * st.v * st.a + d.d3[k] * st.v * st.v * st.v;
+				double out = (p1 > 0.0 ? 1.0 : -1.0) * uni(0.0, 0.03 * lim.jerk[k]);
+				j = (out - c) / d.d1[k]; /* P2_k = out at the start */
+			}
+		}
+		double w = worst_accel(&sp, &lim, st, j);
+		int ok = mlip_path_period_range(&cv, &lim, st, j, &lo, &hi) && lo <= j && j <= hi;
+		/* the states' check: both ends within A (the end's own (P1)) */
+		struct mlip_path_state e = mlip_path_advance(st, j, lim.period);
+		mlip_path_spline_eval(&sp, e.s, 0, NULL, &d);
+		int ends_in = mlip_path_accel_range(lim.n, &d, lim.accel, e.v, &al, &ah) &&
+		              al - 1e-9 <= e.a && e.a <= ah + 1e-9;
+		mid_only += ok && ends_in && w > 1.0 + 1e-9;
+		if (ok && ends_in) {
+			assert_true(w <= 1.0 + 1e-9); /* no instant between them over A */
+		}
+		worst_mid = fmax(worst_mid, ok && ends_in ? w : 0.0);
+		admitted += ok;
+		end_out += ok && !ends_in;
+		if (w <= 0.99 && worst_jerk(&sp, &lim, st, j) <= 0.99) {
+			well_inside++;
+			well_inside_admitted += ok;
+		}
+	}
+	print_message("accel over the step: %d admitted (%d over A between ends within it, "
+	              "worst %.6f A; %d with an end over A); of %d steps within 0.99 A and 0.99 J "
+	              "at every instant, %d admitted\n",
+	              admitted, mid_only, worst_mid, end_out, well_inside, well_inside_admitted);
+	assert_int_equal(end_out, 0); /* the end's (P1) is the step's too */
+	assert_true(admitted > 1000);
+	assert_true(well_inside_admitted >= well_inside * 9 / 10);
 }
 
 /* (Q2) pick toward a target beyond either end: the interval's end moves
@@ -393,6 +485,7 @@ int main(void)
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test(test_period_range),
 	    cmocka_unit_test(test_pick_at_the_end),
+	    cmocka_unit_test(test_period_accel),
 	    cmocka_unit_test(test_plan_helix_1e4),
 	    cmocka_unit_test(test_plan_helix_1e5),
 	    cmocka_unit_test(test_plan_long_fine_helix),

@@ -19,7 +19,11 @@
  * <= (u - s) / vmin), so no instant of the period exceeds J. The interval
  * at the start alone is not enough: its ends move within the period (3 x''
  * v j T through a, and x''' from piece to piece): the model's trochoid
- * reached 1.036 J at J = 1e4 with it. The interval depends on j only
+ * reached 1.036 J at J = 1e4 with it. The step is admissible only if (P1)
+ * holds at every instant too: per axis the acceleration moves at the rate
+ * (P2), within the pieces' bounds, from its value at the start to its value
+ * at the end, which bounds it in between (the states alone let 1.0006 A
+ * through). The interval depends on j only
  * through (Q1), weakly, so `mlip_path_pick` clamps into the interval of
  * its last choice's step (from the second round by a secant step to the
  * end's fixed point) and accepts only a j inside its own step's interval.
