@@ -58,15 +58,19 @@ int bench_plan_period(const struct mlip_path_limits *lim, struct mlip_path_state
 
 /* The model's tail from a crawl (bench/pathspeed.py): the acceleration
  * ramped to 0 at the path jerk jr, then a cruise and a triangle of jerk
- * jr to rest; 1 when its ramp and stop fit in `room` and the ramp keeps a
- * speed (a planned state near the end still braking need not wait for
- * |a| < 1 there: that wait crept at v ~ room / 0.05 s for 0.2 s). */
+ * jr to rest; 1 when its ramp and stop fit in `room`, the ramp keeps a
+ * speed and the cruise takes at most TAIL_CRUISE (a planned state near the
+ * end still braking need not wait for |a| < 1 there: that wait crept at v
+ * ~ room / 0.05 s for 0.2 s; nor may the ramp leave a crawl of 0.004 mm/s
+ * for the last 0.07 mm: 16 s, the spiral at 1e5 once). */
+#define TAIL_CRUISE 0.1
 static int tail_fits(struct mlip_path_state st, double room, double jr)
 {
 	double ta = fabs(st.a) / jr, j0 = st.a > 0.0 ? -jr : jr;
 	double v1 = st.v + st.a * ta + j0 * ta * ta / 2.0;
 	double d0 = st.v * ta + st.a * ta * ta / 2.0 + j0 * ta * ta * ta / 6.0;
-	return v1 > 0.0 && d0 + v1 * sqrt(v1 / jr) <= room;
+	double stop = v1 > 0.0 ? v1 * sqrt(v1 / jr) : 0.0;
+	return v1 > 0.0 && d0 + stop <= room && room - d0 - stop <= TAIL_CRUISE * v1;
 }
 
 /* --points: the whole curve's spline, in the caller's (host) memory. */
@@ -220,7 +224,7 @@ int main(int argc, char **argv)
 		over += g > band;
 	}
 	double end = cv.s[cv.count - 1], vpeak = 0.0;
-	struct mlip_path_state st = {0.0, 0.0, 0.0, 0};
+	struct mlip_path_state st = {0.0, 0.0, 0.0, 0, 0};
 	long work = 0, periods = 0, moved = 0;
 	uint64_t hash = 14695981039346656037ull;
 	FILE *fo = out ? fopen(out, "w") : NULL;

@@ -58,9 +58,19 @@ plan's cost; src/motion/pathplan.c is this plan's period in C).
 --c (with --poly): the plan by its C period instead (build/bench_pathplan
 --points: src/motion/pathplan.c over the same spline, its checkpoints exact;
 --brake B,B2,...: several policies, a state certified by any of their runs;
-docs/benchmarks.md uses 900,300),
+default 900,300, as docs/benchmarks.md),
 the rest as above; --keep keeps the temporary files (the points, for
 callgrind on bench_pathplan).
+
+--hand-over (with --c): the product's choice between the path plan and the
+mean (docs/algorithm.md, "The hand-over to the mean"): the path plan runs
+only if (P6) keeps every spline piece within its band (smooth's tol_mm at
+either end; --band B: B mm), the faster trace between the states both share
+(the program's start and end) is taken and judged by mlip-check --jerk (the
+script fails otherwise), and the mean's cruise points, where a stretch could
+change hands mid-program, and the stretches between them are counted.
+--rests: a third candidate, the path plan at rest at breaks where (P6)
+refuses a piece (rest_plan; chosen only if its trace passes mlip-check).
 
     bench/pathspeed.py lissajous --jerk 1e5 [--brake 300] [--margin 0.95]
     bench/pathspeed.py trochoid --jerk 1e5 --poly build/curves/trochoid.ngc [--c]
@@ -104,15 +114,40 @@ def shift_program(src_path, dst_path):
             )
 
 
+def natural_m(P, hs):
+    """The natural cubic spline through the points P by chord length (hs):
+    its second derivatives M at the points (P5), by Thomas' algorithm."""
+    m_seg = len(hs)
+    hh = hs[:, None]
+    rhs = np.zeros_like(P)
+    rhs[1:-1] = 6 * ((P[2:] - P[1:-1]) / hh[1:] - (P[1:-1] - P[:-2]) / hh[:-1])
+    dia = np.ones(m_seg + 1)
+    dia[1:-1] = 2 * (hs[:-1] + hs[1:])
+    lo_ = np.concatenate([hs[:-1], [0.0]])  # sub-diagonal (row i: h_{i-1})
+    up_ = np.concatenate([[0.0], hs[1:]])  # super-diagonal (row i: h_i)
+    cp = np.zeros(m_seg + 1)
+    dp = np.zeros_like(P)
+    cp[0], dp[0] = 0.0, 0.0
+    for i in range(1, m_seg + 1):  # Thomas; rows 0 and m_seg: M = 0
+        sub = lo_[i - 1] if i < m_seg else 0.0
+        den = dia[i] - sub * cp[i - 1]
+        cp[i] = (up_[i] if i < m_seg else 0.0) / den
+        dp[i] = (rhs[i] - sub * dp[i - 1]) / den
+    M = np.zeros_like(P)
+    for i in range(m_seg - 1, 0, -1):
+        M[i] = dp[i] - cp[i] * M[i + 1]
+    return M
+
+
 ap = argparse.ArgumentParser(description="A path-speed plan under a per-axis jerk limit")
 ap.add_argument("curve")
 ap.add_argument("--jerk", type=float, required=True)
 ap.add_argument("--margin", type=float, default=0.95, help="share of J planned")
 ap.add_argument(
     "--brake",
-    default="300",
-    help="the braking policy's deceleration; --c: B[,B2...], a state certified by any of"
-    " their runs (the model takes the first)",
+    default=None,
+    help="the braking policy's deceleration (300); --c: B[,B2...], a state certified by"
+    " any of their runs (900,300; the model takes the first)",
 )
 ap.add_argument(
     "--poly", metavar="NGC", help="plan along smooth's output for this program (see above)"
@@ -124,11 +159,32 @@ ap.add_argument(
 )
 ap.add_argument("--keep", action="store_true", help="with --poly: keep the temporary files")
 ap.add_argument(
+    "--hand-over",
+    action="store_true",
+    help="with --c: the product's choice between the path plan and the mean (see above)",
+)
+ap.add_argument(
+    "--rests",
+    action="store_true",
+    help="--hand-over: also the path plan broken at the pieces (P6) refuses, at rest there",
+)
+ap.add_argument(
+    "--band",
+    type=float,
+    default=None,
+    help="--hand-over: the (P6) bound a piece may stray from its chord, mm"
+    " (default: smooth's tol_mm at either end of the piece, less 1e-6 mm)",
+)
+ap.add_argument(
     "--build", default=os.path.join(ROOT, "build"), help="where bench_smoothdump and mlip-check are"
 )
 args = ap.parse_args()
 if args.c and not args.poly:
     ap.error("--c plans along smooth's output: give --poly")
+if args.hand_over and not args.c:
+    ap.error("--hand-over chooses between the C plan and the mean: give --c")
+if args.rests and not args.hand_over:
+    ap.error("--rests is a candidate of --hand-over")
 name = args.curve
 J = args.jerk * args.margin
 A = 1000.0
@@ -136,7 +192,7 @@ Aplan = 0.98 * A
 vmax = 200.0
 T = 1e-3
 VC = 2.0
-BRAKES = [float(b) for b in args.brake.split(",")]
+BRAKES = [float(b) for b in (args.brake or ("900,300" if args.c else "300")).split(",")]
 ABR = BRAKES[0]
 if args.poly:
     # smooth's output for the program shifted to start at the origin (its G0
@@ -155,10 +211,11 @@ if args.poly:
         capture_output=True,
         text=True,
     ).stdout
-    pts = np.loadtxt(csv.splitlines(), delimiter=",", ndmin=2)[:, :-1]
+    dump = np.loadtxt(csv.splitlines(), delimiter=",", ndmin=2)
+    pts, TOL = dump[:, :-1], dump[:, -1]  # TOL: each point's tol_mm (smooth.h)
     n_ax = pts.shape[1]
     hs = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    pts = pts[np.concatenate([[True], hs > 1e-9])]
+    pts, TOL = pts[np.concatenate([[True], hs > 1e-9])], TOL[np.concatenate([[True], hs > 1e-9])]
     hs = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     m_seg = len(hs)
     cum = np.concatenate([[0.0], np.cumsum(hs)])
@@ -167,23 +224,7 @@ if args.poly:
     # that the positions' own jerk is bounded (a cubic through each four
     # points, as P4 reads derivatives, is only C0 where the windows meet)
     hh = hs[:, None]
-    rhs = np.zeros_like(pts)
-    rhs[1:-1] = 6 * ((pts[2:] - pts[1:-1]) / hh[1:] - (pts[1:-1] - pts[:-2]) / hh[:-1])
-    dia = np.ones(m_seg + 1)
-    dia[1:-1] = 2 * (hs[:-1] + hs[1:])
-    lo_ = np.concatenate([hs[:-1], [0.0]])  # sub-diagonal (row i: h_{i-1})
-    up_ = np.concatenate([[0.0], hs[1:]])  # super-diagonal (row i: h_i)
-    cp = np.zeros(m_seg + 1)
-    dp = np.zeros_like(pts)
-    cp[0], dp[0] = 0.0, 0.0
-    for i in range(1, m_seg + 1):  # Thomas; rows 0 and m_seg: M = 0
-        sub = lo_[i - 1] if i < m_seg else 0.0
-        den = dia[i] - sub * cp[i - 1]
-        cp[i] = (up_[i] if i < m_seg else 0.0) / den
-        dp[i] = (rhs[i] - sub * dp[i - 1]) / den
-    M = np.zeros_like(pts)
-    for i in range(m_seg - 1, 0, -1):
-        M[i] = dp[i] - cp[i] * M[i + 1]
+    M = natural_m(pts, hs)
     bb = (pts[1:] - pts[:-1]) / hh - hh * (2 * M[:-1] + M[1:]) / 6
 
     def cubic(s):
@@ -206,26 +247,10 @@ if args.poly:
     # P4 they are by arc length, which the positions are not evaluated at)
     d1, d2, d3 = x1, x2, x3 * np.ones_like(x1)
 else:
-    gc = tp.gen_curves()
-    f, t_end, n_ax = gc.CURVES[name]
-    tt = np.linspace(0.0, t_end, 2_000_001)
-    dt = 1e-6
-    fp = (np.array(f(tt + dt, np)) - np.array(f(tt - dt, np))) / (2 * dt)
-    sp = np.linalg.norm(fp[:n_ax], axis=0)
-    s_all = np.concatenate([[0.0], np.cumsum(0.5 * (sp[1:] + sp[:-1]) * np.diff(tt))])
-    L = s_all[-1]
+    # the exact curve by arc length, as topp.py's TOPP reads it
     ds = 0.005
-    n = int(math.ceil(L / ds)) + 1
-    sg = np.linspace(0.0, L, n)
-    par = np.interp(sg, s_all, tt)
-    e = 1e-4
-    F1 = ((np.array(f(par + e, np)) - np.array(f(par - e, np))) / (2 * e))[:n_ax].T
-    F2 = (
-        (np.array(f(par + e, np)) - 2 * np.array(f(par, np)) + np.array(f(par - e, np))) / (e * e)
-    )[:n_ax].T
-    spd = np.linalg.norm(F1, axis=1)[:, None]
-    d1 = F1 / spd
-    d2 = (F2 - np.sum(F2 * d1, axis=1)[:, None] * d1) / (spd * spd)
+    f, n_ax, tt, s_all, sg, _, d1, d2 = tp.arc_frame(name, ds)
+    L, n = float(s_all[-1]), len(sg)
     d3 = np.gradient(d2, sg, axis=0)
 
     def positions(s_arr):
@@ -410,10 +435,73 @@ def safe(s, v, a):
     return False
 
 
+def tail(s, v, a, L):
+    """The path positions after a plan that ends at (s, v, a) short of L:
+    the end below, sampled every T (none when it is at L or at rest)."""
+    if not (L - s > 1e-9 and v > 0):
+        return []
+    jr = 0.5 * J
+    xs = []
+    ta = abs(a) / jr
+    j0 = -jr if a > 0 else jr
+    va = v + a * ta + j0 * ta * ta / 2
+    sa = s + v * ta + a * ta * ta / 2 + j0 * ta**3 / 6
+    tb = 2 * math.sqrt(va / jr)
+    db = va * tb / 2
+    tc = ta + max(L - sa - db, 0.0) / va
+    tt_ = 0.0
+    s0 = sa - va * ta  # the cruise's line, extended back to the tail's start
+    v0 = va
+    while True:
+        tt_ += T
+        if tt_ <= ta:
+            x = s + v * tt_ + a * tt_ * tt_ / 2 + j0 * tt_**3 / 6
+        elif tt_ <= tc:
+            x = s0 + v0 * tt_
+        elif tt_ <= tc + tb:
+            u = tt_ - tc
+            h = tb / 2
+            if u <= h:
+                x = s0 + v0 * tc + v0 * u - jr * u**3 / 6
+            else:
+                xm = s0 + v0 * tc + v0 * h - jr * h**3 / 6
+                vm = v0 - jr * h * h / 2
+                w = u - h
+                x = xm + vm * w - jr * h * w * w / 2 + jr * w**3 / 6
+        else:
+            x = L
+            xs.append(x)
+            break
+        xs.append(min(x, L))
+    return xs + [L] * 3
+
+
 s = v = a = 0.0
 out = [0.0]
 PER, sum_w = [], 0  # braking-run periods simulated for each planned period
-if args.c:
+GATE = True  # --hand-over: may the path plan run on this stretch (P6)?
+if args.hand_over:
+    # (P6), mlip_path_piece_sag: a piece strays from its chord by at most
+    # h^2 / 8 max(|M_i|, |M_i+1|); the path plan may run only on a stretch
+    # whose every piece keeps that within the band (the spline through a
+    # sharp vertex overshoots: 6.4 mm on the random zigzag)
+    # The band of a piece (a segment of smooth's output): what smooth left
+    # of its budget, tol_mm at either end (smooth.h: tol = budget - the
+    # largest deviation of the two segments its corner touches, so a point
+    # within tol of the chord is within the budget of the original
+    # polyline); --band B: a fixed B mm instead
+    Mn = np.linalg.norm(M, axis=1)
+    SAG = hs * hs / 8.0 * np.maximum(Mn[:-1], Mn[1:])
+    BAND = np.maximum(TOL[:-1], TOL[1:]) - 1e-6 if args.band is None else args.band
+    N_OVER = int(np.sum(SAG > BAND))
+    GATE = N_OVER == 0
+    print(
+        f"(P6): {N_OVER} of {m_seg} pieces over"
+        f" {'their tol_mm' if args.band is None else format(args.band, 'g') + ' mm'}"
+        f" (largest {SAG.max():.3g} mm): the path plan"
+        f" {'may run' if GATE else 'may not run'} from rest to rest"
+    )
+if args.c and GATE:
     # the same plan by the C period over the same spline (its checkpoints:
     # the knots' times by bisection, not by linear interpolation); the end
     # stop, the samples and the checks below as for the model
@@ -433,7 +521,9 @@ if args.c:
     PER = [int(x) for x in rows[:, 1]]
     s, v, a = res["s"], res["v"], res["a"]
     print(f"C plan: length {res['length']:.6f} (model {L:.6f}), {res['periods']} periods")
-while not args.c and L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10):
+while (
+    not args.c and L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 1.0 and len(out) > 10)
+):
     jl, jh = jlim(s, v, a)
     moved = False
     if jl <= jh:
@@ -470,64 +560,228 @@ while not args.c and L - s > 1e-3 and not (v <= VC and abs(a) < 1.0 and L - s < 
 # (a triangle of jerk: v = jr t^2 ... over 2 sqrt(v / jr), distance v sqrt(v / jr))
 # (--c: the plan may end still braking at the crawl: the acceleration is
 # first ramped to 0 at jr, bench_pathplan's tail_fits)
-if L - s > 1e-9 and v > 0:
-    jr = 0.5 * J
-    ta = abs(a) / jr
-    j0 = -jr if a > 0 else jr
-    va = v + a * ta + j0 * ta * ta / 2
-    sa = s + v * ta + a * ta * ta / 2 + j0 * ta**3 / 6
-    tb = 2 * math.sqrt(va / jr)
-    db = va * tb / 2
-    tc = ta + max(L - sa - db, 0.0) / va
-    tt_ = 0.0
-    s0 = sa - va * ta  # the cruise's line, extended back to the tail's start
-    v0 = va
-    while True:
-        tt_ += T
-        if tt_ <= ta:
-            x = s + v * tt_ + a * tt_ * tt_ / 2 + j0 * tt_**3 / 6
-        elif tt_ <= tc:
-            x = s0 + v0 * tt_
-        elif tt_ <= tc + tb:
-            u = tt_ - tc
-            h = tb / 2
-            if u <= h:
-                x = s0 + v0 * tc + v0 * u - jr * u**3 / 6
-            else:
-                xm = s0 + v0 * tc + v0 * h - jr * h**3 / 6
-                vm = v0 - jr * h * h / 2
-                w = u - h
-                x = xm + vm * w - jr * h * w * w / 2 + jr * w**3 / 6
+out += tail(s, v, a, L)
+
+
+def cruise_points(X, taps):
+    """The samples of the mean's trace X (rows: positions) that a path plan
+    could take over at or hand back to: the trace moves on a line at one
+    speed, acceleration 0, for taps - 1 periods either side (there the
+    mean's output is the plan's cruise delayed, J1, so both traces share
+    position, velocity, zero acceleration and zero jerk). A list of
+    (first, last) sample ranges of such points."""
+    w = taps - 1
+    acc = np.abs(np.diff(X, 2, axis=0)).max(axis=1) / T**2  # at sample i + 1
+    spd = np.linalg.norm(np.diff(X, axis=0), axis=1) / T
+    flat = np.concatenate([[False], acc < 1e-3, [False]])  # 1e-3 mm/s^2: the rounding's
+    flat &= np.concatenate([[False], spd > VC]) & np.concatenate([spd > VC, [False]])
+    # a point needs flat samples w either side: a run of flat samples
+    # [r0, r1] gives the points [r0 + w, r1 - w]
+    runs, i, n_ = [], 0, len(flat)
+    while i < n_:
+        if flat[i]:
+            k = i
+            while k + 1 < n_ and flat[k + 1]:
+                k += 1
+            if k - i >= 2 * w:
+                runs.append((i + w, k - w))
+            i = k + 1
         else:
-            x = L
-            out.append(x)
+            i += 1
+    return runs
+
+
+def stretches(Xm, runs):
+    """The stretches between consecutive shared states (the start, the
+    middle of each cruise run, the end) and whether (P6) lets the path plan
+    run on each: a list of (mean's samples, accepted). A cruise point is
+    located on smooth's polyline at the first segment, at or after the
+    last one found, within 1e-3 mm of it (the path may come back near
+    itself)."""
+    over = SAG > BAND
+    bnd, prev = [(0, 0)], 0
+    for a, b in runs:
+        c = (a + b) // 2
+        p0, d = pts[prev:-1], np.diff(pts[prev:], axis=0)
+        u = np.clip(
+            np.sum((Xm[c] - p0) * d, axis=1) / np.maximum(np.sum(d * d, axis=1), 1e-30), 0, 1
+        )
+        near = np.nonzero(np.linalg.norm(p0 + u[:, None] * d - Xm[c], axis=1) < 1e-3)[0]
+        if len(near):
+            prev = prev + int(near[0])
+            bnd.append((prev, c))
+    bnd.append((m_seg, len(Xm) - 1))
+    return [
+        (t1 - t0, not over[j0:j1].any())
+        for (j0, t0), (j1, t1) in zip(bnd[:-1], bnd[1:], strict=True)
+    ]
+
+
+def rest_plan(prog, mach):
+    """A third candidate from rest to rest: the path plan along smooth's
+    output broken into natural splines at stations where (P6) refuses a
+    piece (the largest turn of each run of refused pieces, one round after
+    another until every piece of every part is within its band), each part
+    planned by the C period from rest to rest, so the machine stops at each
+    break (a rest: the parts share it). Returns (trace, time, breaks,
+    mlip-check's exit) or None when no set of breaks was found."""
+    n_pts = len(pts)
+    d_ = np.diff(pts, axis=0)
+    u_ = d_ / np.linalg.norm(d_, axis=1)[:, None]
+    turn = np.zeros(n_pts)
+    turn[1:-1] = np.arccos(np.clip(np.sum(u_[1:] * u_[:-1], axis=1), -1.0, 1.0))
+    breaks = {0, n_pts - 1}
+    for _ in range(40):
+        bs, more = sorted(breaks), []
+        for a0, b0 in zip(bs[:-1], bs[1:], strict=True):
+            h_ = np.linalg.norm(np.diff(pts[a0 : b0 + 1], axis=0), axis=1)
+            mn = np.linalg.norm(natural_m(pts[a0 : b0 + 1], h_), axis=1)
+            sag = h_ * h_ / 8.0 * np.maximum(mn[:-1], mn[1:])
+            band = np.maximum(TOL[a0:b0], TOL[a0 + 1 : b0 + 1]) - 1e-6
+            bad = np.nonzero(sag > (band if args.band is None else args.band))[0]
+            i = 0
+            while i < len(bad):
+                k = i
+                while k + 1 < len(bad) and bad[k + 1] - bad[k] <= 1:
+                    k += 1
+                # the stations of the run, inside the part
+                cand = range(max(a0 + bad[i], a0 + 1), min(a0 + bad[k] + 1, b0 - 1) + 1)
+                if cand:
+                    more.append(max(cand, key=lambda c: turn[c]))
+                i = k + 1
+        if not more:
             break
-        out.append(min(x, L))
-    out += [L] * 3
-ss = np.array(out)
-P = positions(ss)
-j3 = np.abs(np.diff(P, 3, axis=0)) / T**3
-a2_ = np.abs(np.diff(P, 2, axis=0)) / T**2
+        breaks |= set(more)
+    else:
+        print("rests: pieces still refused after 40 rounds of breaks")
+        return None
+    bs = sorted(breaks)
+    X = [pts[:1]]
+    for a0, b0 in zip(bs[:-1], bs[1:], strict=True):
+        P_ = pts[a0 : b0 + 1]
+        h_ = np.linalg.norm(np.diff(P_, axis=0), axis=1)
+        M_ = natural_m(P_, h_)
+        c_ = np.concatenate([[0.0], np.cumsum(h_)])
+        L_ = float(c_[-1])
+        f_ = os.path.join(tmp, "part.csv")
+        np.savetxt(f_, P_, delimiter=",", fmt="%.17g")
+        r_ = subprocess.run(
+            [os.path.join(args.build, "bench_pathplan"), f"{J!r}", "--points", f_]
+            + ["--brake", ",".join(f"{b!r}" for b in BRAKES), "--out", f_ + ".out"],
+            capture_output=True,
+            text=True,
+        )
+        if r_.returncode != 0:
+            print(f"rests: the part of stations {a0}-{b0} not planned: {r_.stderr.strip()}")
+            return None
+        res_ = json.loads(r_.stdout)
+        rows_ = np.loadtxt(f_ + ".out", delimiter=",", ndmin=2)
+        sq = [min(float(x), L_) for x in rows_.reshape(-1, 2)[:, 0]]
+        sq += tail(res_["s"], res_["v"], res_["a"], L_) or [L_] * 3
+        sq = np.clip(np.array(sq), 0.0, L_)
+        j_ = np.clip(np.searchsorted(c_, sq, side="right") - 1, 0, len(h_) - 1)
+        w_ = (sq - c_[j_])[:, None]
+        hj = h_[j_][:, None]
+        b_ = (P_[1:] - P_[:-1]) / h_[:, None] - h_[:, None] * (2 * M_[:-1] + M_[1:]) / 6
+        X.append(
+            P_[j_] + b_[j_] * w_ + M_[j_] * w_ * w_ / 2 + (M_[j_ + 1] - M_[j_]) / hj * w_**3 / 6
+        )
+    Xa = np.concatenate(X)
+    path = os.path.join(tmp, "rests.csv")
+    with open(path, "w") as fh:
+        for i, row in enumerate(Xa):
+            fh.write(f"{i * T:.6f}," + ",".join(f"{x:.9f}" for x in row) + "\n")
+    c = subprocess.run(
+        [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, path],
+        capture_output=True,
+        text=True,
+    )
+    return path, len(Xa) * T, len(bs) - 2, c.returncode
+
+
+def hand_over(plan_trace, mean_trace, prog, mach, plan_ok):
+    """The product's choice (docs/algorithm.md, "The hand-over to the
+    mean"): between shared states the faster of the path plan (only where
+    (P6) lets it run) and the mean; so never slower than the mean. The
+    shared states used here are the program's start and end (rests); the
+    mean's cruise points, where a stretch could change hands mid-program,
+    are counted (the C plan does not yet start or end at a cruise)."""
+    Xm = np.loadtxt(mean_trace, delimiter=",", ndmin=2, comments=("t", "#"))[:, 1:]
+    t_mean = len(Xm) * T
+    jmax = max(float(v) for v in mach[mach.index("--jerk") + 1].split(","))
+    amax = np.abs(np.diff(Xm, 2, axis=0)).max() / T**2
+    taps = min(int(round(2 * amax / (jmax * T))) + 2, 63)  # A' = J m T / 2 (J4), and a margin
+    runs = cruise_points(Xm, taps)
+    st = stretches(Xm, runs)
+    acc_ = [n for n, ok in st if ok]
+    t_plan = len(ss) * T if GATE else math.inf
+    take_plan = GATE and plan_ok and t_plan < t_mean
+    chosen = plan_trace if take_plan else mean_trace
+    t_take = t_plan if take_plan else t_mean
+    if args.rests and not GATE:
+        rp = rest_plan(prog, mach)
+        if rp is not None:  # else it said why
+            print(
+                f"rests: the path plan at rest at {rp[2]} breaks: {rp[1]:.3f} s,"
+                f" mlip-check --jerk exit {rp[3]}"
+            )
+            if rp[3] == 0 and rp[1] < t_take:
+                chosen, t_take, take_plan = rp[0], rp[1], True
+    which = "mean" if chosen == mean_trace else "path plan" if chosen == plan_trace else "rests"
+    chk2 = subprocess.run(
+        [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, chosen],
+        capture_output=True,
+        text=True,
+    )
+    ok_ = chk2.returncode == 0
+    try:
+        cj = json.loads(chk2.stdout)
+        what = (
+            f"jerk/J {max(cj['max_axis_jerk']) / jmax:.3f},"
+            f" contour {cj['max_contour_error_mm']:.5f} mm"
+        )
+    except (ValueError, KeyError, TypeError):
+        what = chk2.stdout.strip()[:200]
+    print(
+        f"hand-over: the mean {t_mean:.3f} s, the path plan "
+        + (f"{t_plan:.3f} s{'' if plan_ok else ' (failed mlip-check)'}" if GATE else "not run (P6)")
+        + f"; the mean's cruise points (window {taps}): {len(runs)} runs,"
+        f" {sum(b - a + 1 for a, b in runs)} samples; stretches between shared states"
+        f" {len(st)}, (P6) accepts {len(acc_)} ({sum(acc_) * T:.3f} s of the mean's);"
+        f" chosen: {which}, {t_take:.3f} s"
+        f" ({t_take / t_mean:.3f}x of the mean);"
+        f" mlip-check --jerk: exit {chk2.returncode} ({'pass' if ok_ else 'FAIL'}; {what})"
+    )
+    if not ok_:
+        raise SystemExit("hand-over: the chosen trace breaks a limit")
+
+
 Jr = args.jerk
-print(
-    f"{name} J={Jr:g} (plan {J:g}, A {Aplan:g}): {len(ss) * T:.3f} s (curve only),"
-    f" max jerk/J {j3.max() / Jr:.3f}, max accel/A {a2_.max() / A:.3f}"
-)
-w = j3.max(axis=1)
-per = np.array(PER)
-print(
-    f"braking-run periods simulated a planned period: median {np.median(per):.0f},"
-    f" p99 {np.percentile(per, 99):.0f}, max {per.max()}, mean {per.mean():.0f}"
-)
-print(
-    f"samples above J: {int(np.sum(w > Jr))}; the worst at sample {int(np.argmax(w))} of {len(w)}"
-)
+ss = np.array(out)
+if GATE:  # planned (--hand-over: not where P6 refuses)
+    P = positions(ss)
+    j3 = np.abs(np.diff(P, 3, axis=0)) / T**3
+    a2_ = np.abs(np.diff(P, 2, axis=0)) / T**2
+    print(
+        f"{name} J={Jr:g} (plan {J:g}, A {Aplan:g}): {len(ss) * T:.3f} s (curve only),"
+        f" max jerk/J {j3.max() / Jr:.3f}, max accel/A {a2_.max() / A:.3f}"
+    )
+    w = j3.max(axis=1)
+    per = np.array(PER)
+    print(
+        f"braking-run periods simulated a planned period: median {np.median(per):.0f},"
+        f" p99 {np.percentile(per, 99):.0f}, max {per.max()}, mean {per.mean():.0f}"
+    )
+    print(
+        f"samples above J: {int(np.sum(w > Jr))};"
+        f" the worst at sample {int(np.argmax(w))} of {len(w)}"
+    )
 if args.poly:
     # the trace, judged by mlip-check against the shifted program (its
     # original polyline), and mlip-sim's smooth on the same program
     trace = os.path.join(tmp, "trace.csv")
     with open(trace, "w") as fh:
-        for i, row in enumerate(P):
+        for i, row in enumerate(P if GATE else []):
             fh.write(f"{i * T:.6f}," + ",".join(f"{x:.9f}" for x in row) + "\n")
     mach = [
         "--accel",
@@ -541,14 +795,18 @@ if args.poly:
         "--jerk",
         f"{Jr:g}",
     ]
-    chk = subprocess.run(
-        [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, trace],
-        capture_output=True,
-        text=True,
-    )
-    print(f"mlip-check --jerk {Jr:g}: exit {chk.returncode}; {chk.stdout.strip()}")
+    if GATE:
+        chk = subprocess.run(
+            [os.path.join(args.build, "mlip-check"), *mach, "--json", "-", prog, trace],
+            capture_output=True,
+            text=True,
+        )
+        print(f"mlip-check --jerk {Jr:g}: exit {chk.returncode}; {chk.stdout.strip()}")
+    mean_trace = os.path.join(tmp, "mean.csv")
     for jerk in (None, Jr):
         extra = ["--jerk", f"{jerk:g}"] if jerk else []
+        if jerk and args.hand_over:
+            extra += ["--trace", mean_trace]
         r = subprocess.run(
             [
                 os.path.join(args.build, "mlip-sim"),
@@ -571,3 +829,5 @@ if args.poly:
             f"mlip-sim smooth {'J ' + format(jerk, 'g') if jerk else 'no J'}: "
             f"{json.loads(r)['total_time_s']:.3f} s"
         )
+    if args.hand_over:
+        hand_over(trace, mean_trace, prog, mach, GATE and chk.returncode == 0)

@@ -144,8 +144,10 @@ def rapid_time(p0, p1, accel, vmax):
     return 2.0 * math.sqrt(d / a)
 
 
-def curve_grid(name, ds):
-    """The exact curve of gen_curves.py by arc length: steps h, x'(s), x''(s)."""
+def arc_frame(name, ds):
+    """The exact curve of gen_curves.py by arc length: the curve f and its
+    axes, the parameter-to-arc table (tt, s), a grid of steps ~ds of arc
+    length (sg, its parameters t), the unit tangent x'(s) and x''(s) there."""
     gc = gen_curves()
     f, t_end, n_ax = gc.CURVES[name]
     # |f'(t)| on a fine parameter grid: arc length by the trapezoid rule,
@@ -156,14 +158,21 @@ def curve_grid(name, ds):
     speed = np.linalg.norm(fp[:n_ax], axis=0)
     s = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(tt))])
     n = int(math.ceil(s[-1] / ds)) + 1
-    t = np.interp(np.linspace(0.0, s[-1], n), s, tt)
+    sg = np.linspace(0.0, s[-1], n)
+    t = np.interp(sg, s, tt)
     e = 1e-4
-    f0 = np.array(f(t, np))[:n_ax].T
     fp = ((np.array(f(t + e, np)) - np.array(f(t - e, np))) / (2 * e))[:n_ax].T
     fpp = ((np.array(f(t + e, np)) - 2 * np.array(f(t, np)) + np.array(f(t - e, np))) / (e * e))[:n_ax].T
     sp = np.linalg.norm(fp, axis=1)[:, None]
     T = fp / sp
     N = (fpp - np.sum(fpp * T, axis=1)[:, None] * T) / (sp * sp)  # x''(s)
+    return f, n_ax, tt, s, sg, t, T, N
+
+
+def curve_grid(name, ds):
+    """The exact curve of gen_curves.py by arc length: steps h, x'(s), x''(s)."""
+    f, n_ax, _, s, _, t, T, N = arc_frame(name, ds)
+    f0 = np.array(f(t, np))[:n_ax].T
     h = np.linalg.norm(np.diff(f0, axis=0), axis=1)
     return h, T, N, f0[0], float(s[-1])
 

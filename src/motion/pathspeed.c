@@ -95,20 +95,27 @@ static int to_arc(int n, const double *x1, const double *x2, const double *x3,
 	return 0;
 }
 
+/* |b - a| over n axes: a chord, the parameter step between two points. */
+static double chord(int n, const double *a, const double *b)
+{
+	double d2 = 0.0;
+	for (int k = 0; k < n; k++) {
+		double d = b[k] - a[k];
+		d2 += d * d;
+	}
+	return sqrt(d2);
+}
+
 int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
                           struct mlip_path_point *out)
 {
 	double s[4] = {0.0, 0.0, 0.0, 0.0};
 	for (int i = 1; i < 4; i++) {
-		double d2 = 0.0;
-		for (int k = 0; k < n; k++) {
-			double d = p[i][k] - p[i - 1][k];
-			d2 += d * d;
-		}
-		if (!(d2 > 0.0)) {
+		double h = chord(n, p[i - 1], p[i]);
+		if (!(h > 0.0)) {
 			return -1;
 		}
-		s[i] = s[i - 1] + sqrt(d2);
+		s[i] = s[i - 1] + h;
 	}
 	double x1[MLIP_MAX_AXES], x2[MLIP_MAX_AXES], x3[MLIP_MAX_AXES];
 	for (int k = 0; k < n; k++) {
@@ -145,15 +152,11 @@ int mlip_path_fit(int n, const double pts[][MLIP_MAX_AXES], int count, double *s
 			p[i][k] = pts[i][k];
 		}
 		if (i > 0) {
-			double d2 = 0.0;
-			for (int k = 0; k < n; k++) {
-				double d = pts[i][k] - pts[i - 1][k];
-				d2 += d * d;
-			}
-			if (!(d2 > 0.0)) {
+			double h = chord(n, pts[i - 1], pts[i]);
+			if (!(h > 0.0)) {
 				return -1;
 			}
-			s[i] = s[i - 1] + sqrt(d2);
+			s[i] = s[i - 1] + h;
 		}
 	}
 	/* (P5) by Thomas' algorithm: forward elimination into c (the

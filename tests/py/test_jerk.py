@@ -12,10 +12,14 @@ and without a jerk limit the traces carry the jerk the issue measured
 (mlip-sim --strategy smooth on examples/demo.ngc: about 1.5e6 mm/s^3).
 """
 import json
+import math
+import re
+import subprocess
+import sys
 
 import pytest
 
-from conftest import REL, ROOT, TOOLPATHS, run, sim_summary
+from conftest import BUILD, REL, ROOT, TOOLPATHS, run, sim_summary
 from test_toolpaths import FILES, SENDERS
 
 STRATEGIES = ["mpct", "bisector", "stop", "smooth"]
@@ -132,3 +136,50 @@ def test_max_jerk_in_the_machine_file(tmp_path):
             assert s["jerk_limit"] == [100000] * 3
             assert_jerk_physics(s)
     assert traces["file"] == traces["option"] != traces["none"]
+
+
+def hand_over(tmp_path, program, jerk, *extra):
+    """bench/pathspeed.py --c --hand-over on PROGRAM: (P6 pieces over their
+    band, the mean's time, what was chosen, its time, the rests line or
+    None); the script itself exits non-zero when the chosen trace fails
+    mlip-check --jerk."""
+    p = subprocess.run([sys.executable, str(ROOT / "bench" / "pathspeed.py"), "x", "--jerk",
+                        str(jerk), "--poly", str(program), "--c", "--hand-over", "--build",
+                        str(BUILD), *extra], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    over = int(re.search(r"^\(P6\): (\d+) of", p.stdout, re.M).group(1))
+    m = re.search(r"^hand-over: the mean ([\d.]+) s.*chosen: (path plan|mean|rests), ([\d.]+) s.*"
+                  r"mlip-check --jerk: exit 0 \(pass", p.stdout, re.M)
+    assert m, p.stdout[-2000:]
+    rests = re.search(r"^rests: the path plan at rest at (\d+) breaks: ([\d.]+) s, "
+                      r"mlip-check --jerk exit (\d+)", p.stdout, re.M)
+    return over, float(m.group(1)), m.group(2), float(m.group(3)), rests
+
+
+@pytest.mark.parametrize("jerk", [1e5, 1e4])
+def test_hand_over_never_slower_than_the_mean(tmp_path, jerk):
+    """The choice between the path-speed plan and the mean (docs/algorithm.md,
+    "The hand-over to the mean"): on a circle (every spline piece within the
+    (P6) band) the path plan runs and is faster than the mean, and no faster
+    than the circle at vmax; on a random zigzag (the spline through its sharp
+    vertices strays by up to 0.7 mm) it may not run and the mean's trace is
+    the result unless the path plan at rest at its sharp vertices (--rests)
+    is faster. Every candidate passes mlip-check --jerk."""
+    circle = tmp_path / "circle.ngc"
+    n, r = 2 * 2513, 20.0  # two laps of 0.05 mm chords
+    circle.write_text("G21 G90\nG1 F12000\n" + "".join(
+        f"G1 X{r * math.cos(i * 2 * math.pi / 2513):.4f} Y{r * math.sin(i * 2 * math.pi / 2513):.4f}\n"
+        for i in range(n + 1)))
+    over, t_mean, chosen, t, _ = hand_over(tmp_path, circle, jerk)
+    assert over == 0 and chosen == "path plan"
+    assert 2 * 2 * math.pi * r / 200.0 <= t < t_mean
+    zigzag = tmp_path / "zigzag.ngc"
+    zigzag.write_text(subprocess.run(
+        [sys.executable, str(ROOT / "tools" / "gen_zigzag.py"), "--random", "2", "--segments",
+         "300"], capture_output=True, text=True, check=True).stdout)
+    over, t_mean, chosen, t, rests = hand_over(tmp_path, zigzag, jerk, "--rests")
+    assert over > 0 and chosen in ("mean", "rests") and t <= t_mean
+    # the third candidate, the path plan at rest at breaks where P6 refused
+    # a piece, keeps every limit too (its trace judged like the others)
+    assert rests and int(rests.group(1)) > 0 and rests.group(3) == "0"
+    assert (chosen == "mean") == (float(rests.group(2)) >= t_mean)

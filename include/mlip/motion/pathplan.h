@@ -11,25 +11,35 @@
  *     s(h) = s + v h + a h^2 / 2 + j h^3 / 6,  v(h) = v + a h + j h^2 / 2,
  *     a(h) = a + j h,  0 <= h <= T                                      (Q1)
  *
- * j is admissible for the period when it lies in the (P2) interval at every
- * checkpoint of the step, each at the step's own (v(h), a(h)) there: its
- * start and end, every knot it crosses (on both sides: x''' jumps there)
- * and the middle of every stretch between (Q2). The interval at the start
- * alone is not enough: its ends move within the period (3 x'' v j T through
- * a, and x''' from piece to piece): the model's trochoid reached 1.036 J at
- * J = 1e4 with it. The interval depends on j only through (Q1), weakly, so
- * `mlip_path_pick` clamps into the interval of its last choice's step a few
- * times and accepts only a j inside its own step's interval.
+ * j is admissible for the period when every point of the step keeps (P2)
+ * at the step's own (v(h), a(h)) there (Q2): at its start and end exactly,
+ * and over each piece it crosses by a bound from the piece's coefficients
+ * (x' quadratic, x'' linear, x''' constant on a piece; v and a within their
+ * ranges over the times the step can be on the piece: (u - s) / vmax <= h
+ * <= (u - s) / vmin), so no instant of the period exceeds J. The interval
+ * at the start alone is not enough: its ends move within the period (3 x''
+ * v j T through a, and x''' from piece to piece): the model's trochoid
+ * reached 1.036 J at J = 1e4 with it. The step is admissible only if (P1)
+ * holds at every instant too: per axis the acceleration moves at the rate
+ * (P2), within the pieces' bounds, from its value at the start to its value
+ * at the end, which bounds it in between (the states alone let 1.0006 A
+ * through). The interval depends on j only
+ * through (Q1), weakly, so `mlip_path_pick` clamps into the interval of
+ * its last choice's step (from the second round by a secant step to the
+ * end's fixed point) and accepts only a j inside its own step's interval.
  *
  * A braking policy (Q3): brake as hard as the limits allow toward
- * max(the (P1) floor, -a_brake[i]); release (toward a = 0) once
- * v - v_crawl <= a^2 / (2 0.8 j_hi); at or below the crawl, release. Its
- * jerk is admissible for its whole period (Q2) or the state is not safe.
+ * max(the (P1) floor, -a_brake[i]), but no harder than leaves the next
+ * state its stop at the release jerk jr = 0.8 j_hi (v >= a^2 / (2 jr)
+ * where a < 0: a and v reach 0 together); once that stop fits in the
+ * period (h = -2 v / a <= T) its jerk a^2 / (2 v) over h, then rest. Its
+ * jerk is admissible for its whole step (Q2) or the state is not safe.
  *
  * A state is certified (Q4) when its braking run, simulated period by
  * period, stays within every limit (speed cap, (P1), a non-empty (P2)
- * interval, each jerk admissible) until it crawls (v <= v_crawl, |a| < 1)
- * before `end` with room for the crawl's stop. The policy depends on the
+ * interval, each jerk admissible) until it is at rest (v = a = 0, the one
+ * state safe on any curve: a crawl is not, where a hook of 0.0002 mm allows
+ * no jerk at 1 mm/s) at or before `end`. The policy depends on the
  * state alone, so the first step of a certified run leads to a state that
  * the same policy certifies: the plan that only enters certified states,
  * each with the policy that certified it, always has a way to brake (a
@@ -58,21 +68,22 @@ struct mlip_path_limits {
 	 * the run of any of the first n_brake (0 counts as 1) */
 	double a_brake[MLIP_PATH_BRAKES];
 	int n_brake;
-	double v_crawl; /* (Q3) the crawl, > 0 */
+	double v_crawl; /* not read: the runs end at rest (Q4) */
 	double period;  /* T, s */
 };
 
 struct mlip_path_state {
 	double s, v, a;
 	int brake; /* (Q4) the policy whose run certified it (a_brake[brake]) */
+	int share; /* the plan's last candidate taken (0 the largest jerk) */
 };
 
 /* (Q1): the state h after st under jerk j (its policy kept). */
 struct mlip_path_state mlip_path_advance(struct mlip_path_state st, double j, double h);
 
-/* (Q2): the path jerks admissible at every checkpoint of the step of jerk j
- * from st (each at that step's own state). 0 when none is, or the spline
- * stops (sigma = 0) at a checkpoint. */
+/* (Q2): the path jerks admissible at every point of the step of jerk j
+ * from st (each at that step's own state; a bound per piece crossed). 0
+ * when none is. */
 int mlip_path_period_range(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                            struct mlip_path_state st, double j, double *lo, double *hi);
 
@@ -91,13 +102,18 @@ int mlip_path_brake(const struct mlip_path_curve *sp, const struct mlip_path_lim
 int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                         struct mlip_path_state st, double end, int max_periods, long *work);
 
-/* One period of the greedy plan from the certified state *st: the largest
- * of five jerks across the start's (P2) interval that is admissible (Q2)
+/* One period of the greedy plan from the certified state *st (the start:
+ * at rest): the largest
+ * of five jerks across the start's (P2) interval, from one above the last
+ * period's (st->share: the candidates above it mostly fail, and their runs
+ * were most of the work), that is admissible (Q2)
  * and leads to a state certified by some policy (st's own tried first; the
  * new state keeps the one that certified it), else the step of st's own
  * policy (the rest of its certified run). 1 when it moved faster than
  * braking, 0 when it braked, -1 when the policy had no jerk (st was not
- * certified). */
+ * certified). At rest the candidates are the start's largest jerk halved
+ * up to 40 times (near the end only a small move stops before it), so
+ * the plan reaches `end` at rest itself; within 1e-9 of it, it stays. */
 int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                           struct mlip_path_state *st, double end, int max_periods, long *work);
 
