@@ -95,13 +95,16 @@ $(RT_TOOLS) $(RT_TESTS): $(BUILD)/libmlip-rt.a
 # Parts of a tool in tools/ beside it (they use rt/, so not in tools/lib/,
 # which every binary and the fuzz targets may link): mlip-feed and mlip-ctl
 # (mdi) share the feeder, tools/feed*.c (feedstate.h); mlip-ctl's own parts
-# are tools/ctl*.c (ctltool.h).
+# are tools/ctl*.c (ctltool.h); mlip-rt's tools/rtparts.c (rtparts.h).
 FEED_OBJ  := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tools/feed*.c))
 CTL_OBJ   := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tools/ctl*.c))
 $(BUILD)/mlip-feed: PART_OBJ := $(FEED_OBJ)
 $(BUILD)/mlip-feed: $(FEED_OBJ)
 $(BUILD)/mlip-ctl: PART_OBJ := $(CTL_OBJ) $(FEED_OBJ)
 $(BUILD)/mlip-ctl: $(CTL_OBJ) $(FEED_OBJ)
+RT_OBJ    := $(BUILD)/obj/tools/rtparts.o
+$(BUILD)/mlip-rt: PART_OBJ := $(RT_OBJ)
+$(BUILD)/mlip-rt: $(RT_OBJ)
 
 $(BUILD)/mlip-%: $(BUILD)/obj/tools/mlip-%.o $(BUILD)/libmlip-host.a $(BUILD)/libmlip.a
 	$(CC) $(LDFLAGS) -o $@ $< $(PART_OBJ) $(BUILD)/libmlip-host.a $(RT_LINK) $(BUILD)/libmlip.a $(LDLIBS)

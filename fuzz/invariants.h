@@ -212,7 +212,7 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 		}
 		d2 += (t - c->prev[i]) * (t - c->prev[i]);
 	}
-	if (b->kind > MLIP_BLOCK_PROBE) {
+	if (b->kind > MLIP_BLOCK_SPEED) {
 		return inv_gcode_fail(c, "unknown block kind", -1, b->kind);
 	}
 	/* the machine's I/O (INV_IO): a speed within the spindle's, a whole
@@ -221,6 +221,10 @@ static const char *inv_gcode_block(struct inv_gcode *c, const struct mlip_block 
 	    !(fabs(b->value) <= inv_io.max_rpm &&
 	      (b->value == 0 || fabs(b->value) >= inv_io.min_rpm))) {
 		return inv_gcode_fail(c, "spindle speed outside MIN_RPM..MAX_RPM", -1, b->value);
+	}
+	if (b->kind == MLIP_BLOCK_SPEED && !(b->value >= 0 && b->value <= inv_io.max_rpm &&
+	                                     (b->value == 0 || b->value >= inv_io.min_rpm))) {
+		return inv_gcode_fail(c, "MDI speed outside 0, MIN_RPM..MAX_RPM", -1, b->value);
 	}
 	if (b->kind == MLIP_BLOCK_TOOL &&
 	    !(b->value == 0 || mlip_gcode_find_tool(&inv_io, (int32_t)b->value) != NULL)) {

@@ -18,9 +18,13 @@
 #      three simulated CiA 402 drives (mlip-drive-sim, the canopen
 #      package) powered up away from HOME, one in fault, and a spindle drive
 #      in profile velocity mode ([SPINDLE] TYPE = cia402, node 4: the program's
-#      M3 waits for it at speed, the start-to-feed wait printed); mlip-rt --drives
+#      M3 waits for it at speed, the start-to-feed wait printed) and a CiA 401
+#      I/O module (node 10: M8/M9 flood coolant); mlip-rt --drives
 #      (config/mill-3axis-drives.ini at a 40 ms period) brings them up, runs a
-#      short program, shuts them down; prints each bring-up step as the
+#      short program (T1 M6, the operator resuming through mlip-ctl, G43 H1 from
+#      examples/tool.tbl, M3, M8 ... G49, M9), shuts them down; prints the tool
+#      change, the module's output bits and Z with the tool's length as the
+#      devices saw them, each bring-up step as the
 #      drives saw it, what they reported, homing with the drives' own homing
 #      mode (Z first, then X and Y), the shut-down, and the checks
 #      (first target = start position, the drives' targets = mlip-sim's

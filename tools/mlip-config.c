@@ -63,6 +63,10 @@ int main(int argc, char **argv)
 	if (mlip_config_load(argv[optind], &cfg, stderr) != 0) {
 		return 1;
 	}
+	const char *warn = mlip_io_probe_warning(&cfg.inputs);
+	if (warn != NULL) {
+		fprintf(stderr, "%s: warning: %s\n", argv[optind], warn);
+	}
 	if (profile != NULL) {
 		mlip_can_profile p;
 		int rc = mlip_cli_can_override(&cfg, argv[optind], profile, 0.0, &p, PROG, stderr);
@@ -110,6 +114,25 @@ int main(int argc, char **argv)
 			}
 		}
 		printf("%s\n", io->change_mask ? " (change position, machine coordinates)" : "");
+	}
+	const struct mlip_io_config *in = &cfg.inputs;
+	if (in->probe_source == MLIP_PROBE_SRC_DRIVE) {
+		const struct mlip_io_bit *p = &in->in[MLIP_IN_PROBE];
+		printf("  probe: the axis drives' touch probe 1 (0x60B8..0x60BB)");
+		if (in->mapped >> MLIP_IN_PROBE & 1u) {
+			printf(", level node %u 0x%04X:%u bit %u%s\n", (unsigned)p->node,
+			       (unsigned)p->index, (unsigned)p->sub, (unsigned)p->bit,
+			       p->active_low ? " LOW" : "");
+		} else {
+			printf(", no level mapped\n");
+		}
+	} else if (in->mapped >> MLIP_IN_PROBE & 1u) {
+		const struct mlip_io_bit *p = &in->in[MLIP_IN_PROBE];
+		printf("  probe: input node %u 0x%04X:%u bit %u%s\n", (unsigned)p->node,
+		       (unsigned)p->index, (unsigned)p->sub, (unsigned)p->bit,
+		       p->active_low ? " LOW" : "");
+	} else {
+		printf("  probe: none (G38 refused)\n");
 	}
 	printf("  coolant: %s\n", io->coolant == MLIP_IO_NONE     ? "none (M7/M8 refused)"
 	                          : io->coolant == MLIP_IO_MODULE ? "io (the I/O module's outputs)"

@@ -65,6 +65,7 @@
 #include "mlip/ctl/state.h"
 #include "mlip/ipc/ring.h"
 #include "mlip/machine/config.h"
+#include "offsetfile.h"
 #include "rt.h"
 #include "tooltable.h"
 
@@ -78,6 +79,58 @@ static void on_signal(int sig)
 }
 static struct mlip_shm seg;           /* the controller's segment */
 static struct mlip_smooth smooth_mem; /* ~1 MB: the smoothing filter's window */
+
+/* ---- --offsets FILE: what Grbl keeps in its EEPROM ------------------------------ */
+
+/* The systems G54..G59.3, the G28/G30 positions and the tool in the spindle
+ * (M6, M61): what a restart of mlip-grbl keeps. SELECT and G92 are not
+ * (Grbl starts in G54 without G92): the file's stay as they are. */
+static struct {
+	const char *path;
+	struct mlip_offsets_file file;  /* as last read: the write-back's merge base */
+	struct mlip_gcode_offsets kept; /* the file's values, ours written over them */
+} offs;
+
+static int offsets_same(const struct mlip_gcode_offsets *a, const struct mlip_gcode_offsets *b)
+{
+	return memcmp(a->coord, b->coord, sizeof(a->coord)) == 0 &&
+	       memcmp(a->g28, b->g28, sizeof(a->g28)) == 0 &&
+	       memcmp(a->g30, b->g30, sizeof(a->g30)) == 0 && a->tool == b->tool;
+}
+
+static void offsets_take(struct mlip_gcode_offsets *to, const struct mlip_gcode_offsets *from)
+{
+	memcpy(to->coord, from->coord, sizeof(to->coord));
+	memcpy(to->g28, from->g28, sizeof(to->g28));
+	memcpy(to->g30, from->g30, sizeof(to->g30));
+	to->tool = from->tool;
+}
+
+static int offsets_read(void)
+{
+	mlip_offsets_file_free(&offs.file);
+	return mlip_offsets_load(&offs.file, offs.path, &S.m, &offs.kept, PROG, stderr);
+}
+
+/* At rest, nothing of a program open: what the lines taken changed, written
+ * back (merged with a change made to the file meanwhile, as mlip-feed
+ * does); a refused write is said once per change. */
+static void offsets_keep(void)
+{
+	if (offs.path == NULL || S.st.open || !quiet_controller() ||
+	    offsets_same(&S.st.g.off, &offs.kept)) {
+		return;
+	}
+	struct mlip_gcode_offsets o = offs.kept;
+	offsets_take(&o, &S.st.g.off);
+	if (mlip_offsets_save(&offs.file, &S.m, &o, PROG, stderr) != 0 || offsets_read() != 0) {
+		if (S.ctl) {
+			send_msg(S.ctl, "--offsets %s: not written (mlip-grbl's log says why)",
+			         offs.path);
+		}
+		offsets_take(&offs.kept, &S.st.g.off); /* not tried again until the next change */
+	}
+}
 
 /* ---- the ring's producer side ------------------------------------------------ */
 
@@ -467,6 +520,10 @@ static void usage(FILE *f)
 	    "  --config FILE       the machine's INI (the one mlip-rt runs): $22..$25 from\n"
 	    "                      its homing (HOME_METHOD, HOME_*_VEL of each axis)\n"
 	    "  --tools FILE        the tool table (as mlip-feed --tools): T, M6, M61, G43\n"
+	    "  --offsets FILE      the offsets file (mlip-offsets): G54..G59.3, G28/G30 and\n"
+	    "                      the tool in the spindle read at the start, written back\n"
+	    "                      at rest when a line changed them (SELECT, G92: Grbl's\n"
+	    "                      defaults at each start, the file's kept)\n"
 	    "  -v, --verbose       log each connection's lines to stderr\n"
 	    "  -h, --help          this help\n",
 	    DEFAULT_QUIET);
@@ -481,6 +538,7 @@ int main(int argc, char **argv)
 	                                     {"default-feed", required_argument, 0, 'D'},
 	                                     {"config", required_argument, 0, 'C'},
 	                                     {"tools", required_argument, 0, 'T'},
+	                                     {"offsets", required_argument, 0, 'O'},
 	                                     {"verbose", no_argument, 0, 'v'},
 	                                     {"help", no_argument, 0, 'h'},
 	                                     {0, 0, 0, 0}};
@@ -525,6 +583,9 @@ int main(int argc, char **argv)
 			break;
 		case 'T':
 			tools = optarg;
+			break;
+		case 'O':
+			offs.path = optarg;
 			break;
 		case 'v':
 			S.verbose = 1;
@@ -617,6 +678,12 @@ int main(int argc, char **argv)
 	if (S.default_feed > 0.0) {
 		mlip_gcode_set_initial_feed(&S.st.g, S.default_feed);
 	}
+	if (offs.path != NULL) {
+		if (offsets_read() != 0) {
+			return 1;
+		}
+		offsets_take(&S.st.g.off, &offs.kept);
+	}
 	if (listen_on(listen_spec) != 0) {
 		return 1;
 	}
@@ -682,6 +749,7 @@ int main(int argc, char **argv)
 		process_lines();
 		quiet_end();
 		push_records();
+		offsets_keep();
 		if (S.locked) {
 			if (S.ctl == NULL && !S.program_live && !S.st.open &&
 			    grbl_stream_staged(&S.st) == 0) {

@@ -19,10 +19,10 @@
 #include "mlip/can/canenc.h"
 #include "mlip/motion/smooth.h"
 #include "rt.h"
+#include "rtparts.h"
 #include "trace.h"
 
-#define PROG         "mlip-rt"
-#define MAX_BUS_LOAD 0.70
+#define PROG "mlip-rt"
 
 static struct mlip_planner planner; /* static: locked and prefaulted with the rest */
 static struct mlip_period per;
@@ -63,7 +63,8 @@ struct monitor {
 	uint32_t stall_periods;
 	struct mlip_trace trace; /* --record */
 	FILE *rec;
-	struct mlip_drives *ds; /* NULL: no drives brought up */
+	struct mlip_drives *ds;     /* NULL: no drives brought up */
+	const struct mlip_shm *shm; /* the segment: who holds its producer side */
 	volatile int done;
 };
 
@@ -172,13 +173,29 @@ static void log_event(const struct monitor *mo, const struct mlip_ctl_event *e)
 		return;
 	}
 	switch (e->state) {
-	case MLIP_STATE_STARVED:
+	case MLIP_STATE_STARVED: {
+		/* a feeder that still holds the ring (mlip-feed behind, mlip-grbl
+		 * between a sender's lines) continues the program or ends it: a
+		 * new mlip-feed could not take the ring; only once none holds it
+		 * is --start-seq the way on */
+		int32_t holder = mo->shm != NULL ? mlip_shm_feeder_holder(mo->shm) : 0;
+		char name[32];
+		if (holder > 0) {
+			mlip_rt_process_name(holder, name, sizeof(name));
+			fprintf(stderr,
+			        PROG ": underrun: no block came after block %llu (line %u) yet; at "
+			             "rest at its end, the program open: its feeder (%s, pid %d) "
+			             "continues it or ends it\n",
+			        seq, line, name, (int)holder);
+			return;
+		}
 		fprintf(stderr,
 		        PROG
 		        ": underrun: no block came after block %llu (line %u); at rest at its end; "
 		        "to continue: mlip-feed --start-seq %llu\n",
 		        seq, line, seq + 1);
 		return;
+	}
 	case MLIP_STATE_HELD:
 		if (r->why == MLIP_WHY_STALL) {
 			fprintf(
@@ -445,53 +462,6 @@ static void usage(FILE *f)
 	    MLIP_SHM_DEFAULT, MLIP_RING_CAPACITY, MLIP_STALL_PERIODS_DEFAULT);
 }
 
-static int bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
-{
-	struct mlip_can_load l;
-	if (mlip_can_load_breakdown(prof, cfg->machine.n_axes, cfg->can.bitrate,
-	                            cfg->can.data_bitrate, cfg->machine.period_s, &l) != MLIP_OK) {
-		fprintf(stderr, PROG ": cannot compute the bus load for this profile\n");
-		return -1;
-	}
-	if (cfg->drives.enable) {
-		/* RPDOs of 6 bytes (controlword), a 6-byte TPDO back from each drive,
-		 * heartbeats of the drives and the master (1 byte each) */
-		/* the touch probe ([PROBE] SOURCE = drive): RPDO and TPDO of 8 bytes,
-		 * a second 8-byte TPDO (the latched positions); the drives' digital
-		 * inputs: a 4-byte TPDO3 at least every heartbeat (its event timer) */
-		int n = cfg->machine.n_axes;
-		int tp = cfg->inputs.probe_source == MLIP_PROBE_SRC_DRIVE;
-		int n_di = 0;
-		for (uint32_t di = mlip_drives_di_axes(cfg); di != 0; di &= di - 1) {
-			n_di++;
-		}
-		uint8_t pdo = tp ? 8 : 6;
-		double hb = cfg->machine.period_s / (cfg->drives.heartbeat_ms * 1e-3);
-		double bits =
-		    n * ((double)mlip_can_frame_bits(0, pdo).nominal -
-		         mlip_can_frame_bits(0, 4).nominal + mlip_can_frame_bits(0, pdo).nominal +
-		         (tp ? mlip_can_frame_bits(0, 8).nominal : 0.0)) +
-		    (n + 1) * hb * mlip_can_frame_bits(0, 1).nominal +
-		    n_di * hb * mlip_can_frame_bits(0, 4).nominal;
-		l.busy_s += bits / cfg->can.bitrate;
-		l.load = l.busy_s / cfg->machine.period_s;
-		l.frames += tp ? 2 * n : n;
-	}
-	fprintf(stderr,
-	        PROG ": bus load %.1f %% (%s, %d frames per %.3f ms period, %.0f us of %u bit/s)\n",
-	        l.load * 100.0, mlip_can_profile_name(prof), l.frames, cfg->machine.period_s * 1e3,
-	        l.busy_s * 1e6, cfg->can.bitrate);
-	if (l.load > MAX_BUS_LOAD) {
-		fprintf(stderr,
-		        PROG
-		        ": refusing: %.1f %% is above the %.0f %% budget; use a faster bit rate, "
-		        "the packed or fd profile, or a longer period\n",
-		        l.load * 100.0, MAX_BUS_LOAD * 100.0);
-		return -1;
-	}
-	return 0;
-}
-
 /* ---- parse -------------------------------------------------------------------- */
 
 struct options {
@@ -734,6 +704,10 @@ static int set_up(const struct options *o, struct app *a)
 	if (mlip_config_load(o->config, &a->cfg, stderr) != 0) {
 		return 1;
 	}
+	const char *warn = mlip_io_probe_warning(&a->cfg.inputs);
+	if (warn != NULL) {
+		fprintf(stderr, PROG ": %s: warning: %s\n", o->config, warn);
+	}
 	int rc = mlip_cli_can_override(&a->cfg, o->config, o->profile, o->bitrate, &a->prof, PROG,
 	                               stderr);
 	if (rc != 0) {
@@ -767,7 +741,7 @@ static int set_up(const struct options *o, struct app *a)
 		                     "--drives): the inputs are read by it\n");
 		return 2;
 	}
-	if (use_can && bus_budget(&a->cfg, a->prof) != 0) {
+	if (use_can && mlip_rt_bus_budget(&a->cfg, a->prof) != 0) {
 		return 1;
 	}
 	if (use_can && open_bus(a, o->iface) != 0) {
@@ -874,6 +848,7 @@ static int run(const struct options *o, struct app *a)
 	a->mon.can = a->use_can ? &per.can : NULL;
 	a->mon.ring = a->shm.ring;
 	a->mon.ds = a->drives_up ? &drives : NULL;
+	a->mon.shm = &a->shm;
 	pthread_attr_init(&attr);
 	pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
 	int mon_ok = pthread_create(&mon_th, &attr, monitor, &a->mon) == 0;

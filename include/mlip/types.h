@@ -83,9 +83,13 @@ typedef enum {
 	MLIP_BLOCK_OUTPUT,         /* M64/M65 Pn: value = n + 1 to switch digital output n
 	                              on (M64), -(n + 1) off (M65); n < MLIP_DOUT_MAX; M62/M63
 	                              (with the next move): +-(n + 1 + MLIP_DOUT_SYNC) */
-	MLIP_BLOCK_PROBE           /* G38.2..G38.5: a feed move toward target that stops
+	MLIP_BLOCK_PROBE,          /* G38.2..G38.5: a feed move toward target that stops
 	                              at the acceleration limit when the probe input
 	                              changes; value = MLIP_PROBE_* */
+	MLIP_BLOCK_SPEED           /* an MDI S alone (no M3/M4/M5): value = rpm >= 0 for
+	                              the spindle the controller keeps turning, in its
+	                              direction; a stopped one stays stopped (the reader of
+	                              an MDI line cannot know whether it turns) */
 } mlip_block_kind;
 
 #define MLIP_DOUT_MAX  8  /* digital outputs M64/M65 P0..P7 ([IO] OUTPUT_0..7) */

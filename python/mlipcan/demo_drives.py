@@ -72,18 +72,42 @@ ACCELERATION = 5000
 AT_SPEED_BAND = 100
 AT_SPEED_TIMEOUT = 30
 """
-# the spindle to speed, a rectangle at two depths and back to where the
-# drives stood
-PROGRAM = """(mlip demo, drives stage: a 10 x 10 mm outline, then back to the start)
+# the rest of the machine's I/O (issue 19): flood coolant on a simulated
+# CiA 401 module's output (node 10, 0x6200:1 bit 1), a manual tool change
+# (the demo's operator resumes at once through mlip-ctl), the shipped tool
+# table (examples/tool.tbl: T1 is 42.5 mm long)
+IO_NODE = 10
+FLOOD_BIT = 0x02
+TOOL_TABLE = "tool.tbl"
+MACHINE_IO = f"""
+[IO]
+NODE = {IO_NODE}
+
+[COOLANT]
+TYPE = io
+FLOOD = {IO_NODE} 0x6200:1 {FLOOD_BIT.bit_length() - 1}
+
+[TOOL]
+CHANGE = manual
+"""
+# tool 1 and its length, the spindle to speed, flood coolant, a rectangle at
+# two depths, the length offset off and back to where the drives stood
+PROGRAM = """(mlip demo, drives stage: tool 1, a 10 x 10 mm outline, then back to the start)
 G21 G90 G17
+T1 M6
+G43 H1
 M3 S6000
-G1 X20 Y0 Z5 F900
-G1 X30 Y0
+M8
+G0 X20 Y0 Z5
+G1 X30 Y0 F900
 G1 X30 Y10 Z4
 G1 X20 Y10
 G1 X20 Y0 Z5
-G1 X12.345 Y-5 Z2.5
+G49
+G0 X12.345 Y-5 Z2.5
+M9
 """
+PROGRAM_Z_TOP = 5.0  # the program's highest Z under G43 H1
 SHORT = {
     P.SWITCH_ON_DISABLED: "disabled",
     P.READY: "ready",
@@ -190,7 +214,8 @@ def run(
         if sw is not None:
             switches += ["--switches", f"{nodes[i]}={sw[0]}:{starts[nodes[i]] + sw[1]}"]
     cfg = out / "machine.ini"
-    cfg.write_text(text + SPINDLE)
+    cfg.write_text(text + SPINDLE + MACHINE_IO)
+    tbl = s.root / "examples" / TOOL_TABLE
     lim = MachineLimits.of(s, cfg)  # mlip-config accepts it, or this raises with its message
     print(
         f"drives: {Path(config).name} (PERIOD {base.period_s:g} s, the starting point for a real "
@@ -222,8 +247,8 @@ def run(
     # mlip-sim on the same machine from where the drives stand: the reference
     home = {ax_of[n]: starts[n] / c for n, c in zip(nodes, cpu, strict=True)}
     sim_cfg = out / "machine-sim.ini"
-    sim_cfg.write_text(demo_machine(s, config, period_s, home)[0] + SPINDLE)
-    trc, summ = simulate(s, sim_cfg, prog, work)
+    sim_cfg.write_text(demo_machine(s, config, period_s, home)[0] + SPINDLE + MACHINE_IO)
+    trc, summ = simulate(s, sim_cfg, prog, work, "--tools", tbl)
     want = trim(trace_counts(trc, cpu))
     print(
         f"drives: program {shown_path(prog, vm_out)} ({summ['blocks']} blocks, "
@@ -249,9 +274,10 @@ def run(
         starts=starts,
         states=states,
         name="drivesim",
-        args=switches,
+        args=[*switches, "--io", IO_NODE],
     )
     ax_of[SPINDLE_NODE] = "spindle"
+    ax_of[IO_NODE] = "I/O module"
     print(
         f"drives: drives up after {time.monotonic() - t_boot:.1f} s; mlip-rt --drives, then "
         f"mlip-feed {prog.name}, then SIGTERM (a controlled stop) ...",
@@ -263,9 +289,10 @@ def run(
     t_home0 = t_home1 = float("inf")
     home_out = ("", "", -1)
     home_st: dict[str, Any] = {}
+    pauses: list[tuple[float, dict[str, Any]]] = []  # (resumed at, status when paused)
     try:
         with rig:
-            feed = rig.feed(prog, timeout=900)
+            feed = operate(rig, prog, ["--tools", tbl], pauses)
             # then homing, with the drives' own homing mode (mlip-ctl home)
             t_home0 = time.time()
             hp = rig.ctl("home", check=False)
@@ -600,9 +627,18 @@ def run(
         "the spindle (CiA 402, profile velocity) at speed before any axis moved: M3 S6000 at "
         f"SYNC {s_cmd}, at speed at {s_reach}, first move at {s_move}",
     )
+    at_move = next((x for x in sp if s_move is not None and x["sync"] >= s_move), None)
+    if at_move is not None:
+        print(
+            f"  its velocity actual (0x606C) at the first move: "
+            f"{at_move['actual'] * 60.0 / 4096:.0f} rpm ({at_move['actual']} counts/s)"
+        )
     last = [x for x in sp if x["target"] is not None]
     stopped = bool(last) and last[-1]["target"] == 0 and abs(last[-1]["actual"]) <= 1000
     check(stopped, "the spindle stopped at the program's end (target 0, at standstill)")
+    if ngc is None:
+        run_rows = [x for x in rows if x["t"] < t_home0]  # the program's, not homing's
+        io_report(s, sim, t0, t_ref, pauses, run_rows, nodes, cpu, s_move, tbl, check)
     cpu_line = [x for x in sim.proc.stderr().splitlines() if "CPU per drive cycle" in x]
     if cpu_line:
         print(f"\n{cpu_line[-1]} (why the long period)")
@@ -633,6 +669,113 @@ def run(
         if (work / "drives" / name).exists():
             (out / name).write_text((work / "drives" / name).read_text())
     return failed
+
+
+def operate(
+    rig: Rig, prog: StrPath, args: list[object], pauses: list[tuple[float, dict[str, Any]]]
+) -> tuple[int | None, str, str]:
+    """mlip-feed prog to its end, the operator resuming each pause (a manual
+    tool change) at once through mlip-ctl; pauses gets (time resumed, the
+    status that said what to do). Returns (exit code, stdout, stderr)."""
+    f = rig.feeder(prog, *args)
+    rig.t_feed = time.time()
+    last = None
+    t_end = time.monotonic() + 900
+    while f.p.poll() is None and time.monotonic() < t_end:
+        st = rig.status()
+        if st["state"] == "paused" and st["reason_seq"] != last:
+            last = st["reason_seq"]
+            rig.ctl("resume")
+            pauses.append((time.time(), st))
+        time.sleep(0.05)
+    if f.p.poll() is None:
+        f.kill()
+    rig.t_feed_end = time.time()
+    rc = f.p.wait(timeout=60)
+    out, err = f.stdout(), f.stderr()
+    f.close_files()
+    return rc, out, err
+
+
+def io_report(
+    s: Settings,
+    sim: DriveSimProc,
+    t0: float,
+    t_ref: float,
+    pauses: list[tuple[float, dict[str, Any]]],
+    rows: list[dict[str, Any]],
+    nodes: list[int],
+    cpu: list[float],
+    s_move: int | None,
+    tbl: Path,
+    check: Any,
+) -> None:
+    """The tool change, the coolant and the tool's length as the devices
+    saw them: the pause and its resume, the module's output bits at every
+    SYNC against the axes' motion, Z's targets with the length."""
+    for t, st in pauses:
+        print(
+            f"\ntool change: paused at line {st['reason_line']} ({st['reason']}, at rest, speed "
+            f"{st['speed_mm_s']:g} mm/s): {st['operator']}; the demo's operator resumed "
+            f"({t - t_ref:.3f} s)"
+        )
+    check(
+        [(st["reason_line"], st["reason"]) for t, st in pauses] == [(3, "tool change (manual)")],
+        "T1 M6 paused the program at rest for the operator, once, and resume went on",
+    )
+    io = [(x["sync"], x["outputs"][0]) for x in sim.io_rows() if x["node"] == IO_NODE]
+    io = [(sy, o) for sy, o in io if sy >= min((x["sync"] for x in rows), default=0)]
+    seq: list[tuple[int, int]] = []
+    for sy, o in io:
+        if not seq or seq[-1][1] != o:
+            seq.append((sy, o))
+    moving = [
+        x["sync"] for x in rows if x["target"] is not None and x["node"] in nodes
+    ]  # every SYNC with a target: the motion's span is its changes
+    by_node: dict[int, list[tuple[int, int]]] = {}
+    for x in rows:
+        if x["target"] is not None:
+            by_node.setdefault(x["node"], []).append((x["sync"], x["target"]))
+    changes = [
+        b[0] for v in by_node.values() for a, b in zip(v, v[1:], strict=False) if b[1] != a[1]
+    ]
+    s_last = max(changes, default=None)
+    on = next((sy for sy, o in seq if o & FLOOD_BIT), None)
+    off = next((sy for sy, o in seq if on is not None and sy > on and not o & FLOOD_BIT), None)
+    print(
+        f"coolant (M8 ... M9 on the CiA 401 module, node {IO_NODE}, 0x6200:1 bit "
+        f"{FLOOD_BIT.bit_length() - 1}): its outputs byte as it applied it, by SYNC: "
+        + ", ".join(f"SYNC {sy} 0x{o:02X}" for sy, o in seq)
+        + f"; the axes moved from SYNC {s_move} to {s_last} ({len(set(moving))} SYNCs seen)"
+    )
+    check(
+        on is not None
+        and s_move is not None
+        and s_last is not None
+        and on < s_move
+        and off is not None
+        and off >= s_last,
+        f"flood coolant on at the module before the first move (SYNC {on} < {s_move}) and off "
+        f"at rest after the last (SYNC {off} >= {s_last})",
+    )
+    length = next(
+        float(w[1:])
+        for line in tbl.read_text().splitlines()
+        if line.startswith("T1 ")
+        for w in line.split(";")[0].split()
+        if w.startswith("Z")
+    )
+    z = [t for sy, t in by_node.get(nodes[2], [])]
+    want = round((PROGRAM_Z_TOP + length) * cpu[2])
+    print(
+        f"tool length (G43 H1, tool 1 {length:g} mm in {tbl.name}): Z's targets on its drive "
+        f"reached {max(z, default=0)} counts = program Z{PROGRAM_Z_TOP:g} + {length:g} mm; after "
+        f"G49 the last {z[-1] if z else '-'} counts (Z2.5, no offset)"
+    )
+    check(
+        max(z, default=0) == want and bool(z) and z[-1] == round(2.5 * cpu[2]),
+        f"Z on the bus carries the tool's length: {max(z, default=0)} = {want} counts",
+    )
 
 
 def sdo_value(ev: list[dict[str, Any]], node: int, index: str, sub: int = 0) -> Any:

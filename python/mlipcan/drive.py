@@ -228,6 +228,10 @@ MAPPABLE_TX = {
     (0x60BB, 0),
     (0x60FD, 0),
 }
+# the touch probe input's level in 0x60FD: CiA 402's 0x60B9 has none (bits
+# 3..7 reserved), drives show their probe input among 0x60FD's manufacturer
+# bits 16..31; this simulator's is bit 16 ([IO] PROBE = N 0x60FD:0 16 HIGH)
+TOUCH_DI_BIT = 16
 MAPPABLE_TX3 = {(0x60FD, 0)}  # TPDO3 (event driven): the digital inputs only
 # 0x60B8 touch probe function / 0x60B9 status, touch probe 1 (CiA 402)
 TP_ENABLE = 0x0001  # function and status bit 0: switched on
@@ -441,11 +445,14 @@ class Drive(SimDevice):
         self._store(0x60BB, 0, "<i", self.tp_neg)
 
     def digital_inputs(self) -> int:
-        """0x60FD: the switches at the position actual, then the forced bits."""
+        """0x60FD: the switches at the position actual, the touch probe's
+        input level (TOUCH_DI_BIT), then the forced bits."""
         v = 0
         for bit, which in ((0, "neg"), (1, "pos"), (2, "home"), (2, "nhome")):
             if self._switch_on(which, self.actual):
                 v |= 1 << bit
+        if self.sim.touch is not None and self.sim.touch_on:
+            v |= 1 << TOUCH_DI_BIT
         for bit, on in self.di_force.items():
             v = v | 1 << bit if on else v & ~(1 << bit)
         return v & 0xFFFFFFFF

@@ -62,7 +62,8 @@ Fault injection (--inject at start, or a line "N:WHAT[=ARG]" appended to the
                           armed latches its own position at the instant drive N's
                           move between two SYNCs crosses COUNTS (0x60BA positive
                           edge, 0x60BB negative; status 0x60B9; events.jsonl
-                          "touch_probe": latched, sync, frac of the period)
+                          "touch_probe": latched, sync, frac of the period);
+                          its level also in every drive's 0x60FD bit 16
   N:di=BIT=0|1|auto       digital input BIT of 0x60FD forced (auto: from the
                           switches again; bits 0/1/2 follow --switches neg/pos/home)
   N:di-silent[=off]       TPDO3 (0x60FD) no longer sent: the inputs go stale

@@ -206,9 +206,11 @@ def run_python_can(
     finally:
         # what is already queued in the socket is still read (a stop loses
         # nothing already here): until a frame received after the stop, or
-        # 0.3 s without any (at most 60 s)
-        t_stop, t_end = time.time(), mono() + 60
-        while dl.last_ts < t_stop and mono() - dl.last_mono < 0.3 and mono() < t_end:
+        # 0.3 s without any, counted from the stop at the earliest (a
+        # notifier thread behind, descheduled in a loaded VM, catches up;
+        # at most 60 s)
+        t_stop, m_stop, t_end = time.time(), mono(), mono() + 60
+        while dl.last_ts < t_stop and mono() - max(dl.last_mono, m_stop) < 0.3 and mono() < t_end:
             time.sleep(0.02)
         notifier.stop(timeout=5)  # stops the listeners too: the logger is closed
     if notifier.exception is not None:

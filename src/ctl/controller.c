@@ -66,6 +66,7 @@ int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
                               const struct mlip_ctl_in *in, const struct mlip_ring_cmd *cmd)
 {
 	struct mlip_planner *p = c->planner;
+	int held;
 	if (cmd->op == MLIP_CMD_RESET) {
 		return mlip_ct_reset(c, out, in);
 	}
@@ -90,9 +91,21 @@ int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		return mlip_planner_set_override(p, (double)cmd->arg);
 	case MLIP_CMD_SPINDLE_OVERRIDE:
 		return mlip_ctl_spindle_override(&c->spindle, cmd->arg, c->period);
+	case MLIP_CMD_SPINDLE_STOP:
+		/* Grbl's 0x9E: in an operator's hold only (Grbl ignores it
+		 * elsewhere); applied once the hold is at rest */
+		if (cmd->arg != 0 && cmd->arg != 1) {
+			return MLIP_E_RANGE;
+		}
+		if (!c->spindle.on || !c->hold.op) {
+			return MLIP_E_INVALID;
+		}
+		c->spindle.stop_req = cmd->arg;
+		return MLIP_OK;
 	case MLIP_CMD_HOLD:
 		mlip_planner_hold(p, 1);
 		c->hold.op = 1;
+		c->hold.spindle = 0;
 		mlip_ct_brake_begin(c);
 		return MLIP_OK;
 	case MLIP_CMD_RESUME:
@@ -106,8 +119,20 @@ int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 			}
 			c->hold.bus = 0;
 		}
+		held = c->spindle.on && mlip_ct_spindle_held(c);
 		c->hold.stall = 0;
 		c->hold.op = 0;
+		c->spindle.stop_req = -1;
+		if (c->spindle.on && (c->spindle.stopped ||
+		                      (held && (c->spindle.drive.phase == MLIP_SPINDLE_RAMPING ||
+		                                c->spindle.drive.phase == MLIP_SPINDLE_BRAKING)))) {
+			/* Grbl: a resume restores the spindle it stopped (wherever
+			 * the program stands: lines taken in the hold move it on);
+			 * the motion goes on once it is at speed (mlip_ct_spindle_period) */
+			mlip_ctl_spindle_stop(&c->spindle, 0, c->period);
+			c->hold.spindle = 1;
+			return MLIP_OK;
+		}
 		mlip_planner_hold(p, 0);
 		c->brake.on = 0; /* resumed before rest: no stop to measure */
 		c->wait.resume = c->state == MLIP_STATE_PAUSED; /* and a pause ends */

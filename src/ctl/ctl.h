@@ -62,6 +62,23 @@ static inline int unhomed(const struct mlip_ctl *c, int k)
 	return ((c->home.configured & ~c->home.homed) >> k) & 1u;
 }
 
+/* Everything switched off: the outputs, the coolant, the spindle. */
+static inline void all_off(struct mlip_ctl *c)
+{
+	mlip_mio_all_off(c);
+	mlip_ctl_spindle_ask(&c->spindle, 0.0, c->period);
+}
+
+/* At rest for this reason, what the operator switched stays on: MDI lines
+ * done, a jog or homing done (LinuxCNC: an MDI M3, M8 or M64 stays on while
+ * the operator jogs and touches off, until M5/M9/M65, a program's end, a
+ * stop, a fault, an E-stop). Every other end switches it all off. */
+static inline int keeps_on(const struct mlip_ctl *c, uint32_t why)
+{
+	return (why == MLIP_WHY_END && c->prog.mdi) || why == MLIP_WHY_JOG_RELEASED ||
+	       why == MLIP_WHY_JOG_END || why == MLIP_WHY_JOG_DONE || why == MLIP_WHY_HOMED;
+}
+
 /* Every change of state goes through here: named, with its reason. */
 static inline void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t state,
                       struct mlip_ctl_reason r)
@@ -72,14 +89,9 @@ static inline void go(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t sta
 	}
 	c->state = state;
 	c->why = r;
-	if (state == MLIP_STATE_IDLE && r.why == MLIP_WHY_END && c->prog.mdi) {
-		/* MDI lines done: what the operator switched stays (LinuxCNC: an
-		 * MDI M8 or M64 stays on until M9/M65, a program's end, a stop) */
-		mlip_ctl_spindle_ask(&c->spindle, 0.0, c->period);
-	} else if (state == MLIP_STATE_IDLE || state == MLIP_STATE_STOPPING ||
-	           state == MLIP_STATE_FAULT || state == MLIP_STATE_ESTOP) {
-		mlip_mio_all_off(c); /* a program's end, a stop, a fault, an E-stop (issue 19) */
-		mlip_ctl_spindle_ask(&c->spindle, 0.0, c->period); /* every end stops it */
+	if ((state == MLIP_STATE_IDLE && !keeps_on(c, r.why)) || state == MLIP_STATE_STOPPING ||
+	    state == MLIP_STATE_FAULT || state == MLIP_STATE_ESTOP) {
+		all_off(c); /* a program's end, a stop, a fault, an E-stop (issue 19) */
 	}
 	emit(c, out, MLIP_EV_STATE, from, &r);
 }
@@ -130,6 +142,7 @@ void mlip_ct_home_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
                          struct mlip_ctl_out *out);
 
 /* spindlectl.c: a CiA 402 spindle (mlip/ctl/spindlectl.h) in the period */
+int mlip_ct_spindle_held(const struct mlip_ctl *c);
 void mlip_ct_spindle_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
                             struct mlip_ctl_out *out);
 void mlip_ct_spindle_out(const struct mlip_ctl *c, const struct mlip_ctl_in *in,

@@ -126,6 +126,11 @@ mlip_status mlip_mio_switch(struct mlip_ctl *c, const struct mlip_ring_rec *rec,
 		if ((want & ~c->io.cfg.out_mapped & 3u) != 0) {
 			return MLIP_E_RANGE; /* an outlet that is not there */
 		}
+		if (c->prog.mdi && want != 0) {
+			/* MDI M7/M8: a fresh reader that cannot see an earlier MDI's
+			 * outlet, which stays on (LinuxCNC: M7 and M8 both on) */
+			want |= c->mio.coolant;
+		}
 		for (uint32_t o = MLIP_OUT_MIST; o <= MLIP_OUT_FLOOD; o++) {
 			if (c->io.cfg.out_mapped >> o & 1u) {
 				set_bit(c, o, (want >> o) & 1u);

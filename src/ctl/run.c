@@ -99,6 +99,10 @@ mlip_status mlip_ctl_check_record(const struct mlip_machine *m, const struct mli
 	    !(rec->dwell_s >= -MLIP_REC_RPM_MAX && rec->dwell_s <= MLIP_REC_RPM_MAX)) {
 		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
 	}
+	if (rec->type == MLIP_REC_SPEED &&
+	    !(rec->dwell_s >= 0 && rec->dwell_s <= MLIP_REC_RPM_MAX)) {
+		return bad(why, rec, MLIP_FIELD_DWELL, rec->dwell_s);
+	}
 	if (rec->type == MLIP_REC_TOOL &&
 	    !(rec->dwell_s >= 0.0 && rec->dwell_s <= MLIP_REC_TOOL_MAX &&
 	      rec->dwell_s == floor(rec->dwell_s))) {
@@ -142,7 +146,8 @@ static int is_event(const struct mlip_ring_rec *rec)
 	return rec->type == MLIP_REC_DWELL || rec->type == MLIP_REC_PAUSE ||
 	       rec->type == MLIP_REC_OPTIONAL_PAUSE || rec->type == MLIP_REC_SPINDLE ||
 	       rec->type == MLIP_REC_TOOL || rec->type == MLIP_REC_COOLANT ||
-	       rec->type == MLIP_REC_OUTPUT || rec->type == MLIP_REC_PROBE;
+	       rec->type == MLIP_REC_OUTPUT || rec->type == MLIP_REC_PROBE ||
+	       rec->type == MLIP_REC_SPEED;
 }
 
 /* The ring is empty and nothing will fill it. */
@@ -290,14 +295,28 @@ static void take_event(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		c->wait.dwell_left = (uint64_t)floor(rec->dwell_s / c->m.period_s + 0.5);
 		r.value = rec->dwell_s;
 		go(c, out, MLIP_STATE_DWELLING, r);
-	} else if (rec->type == MLIP_REC_SPINDLE && c->spindle.on) {
+	} else if ((rec->type == MLIP_REC_SPINDLE || rec->type == MLIP_REC_SPEED) &&
+	           c->spindle.on) {
 		/* a spindle on the bus: at rest until it is at speed (or at
-		 * standstill); its timeout is a fault before this wait ends */
-		mlip_ctl_spindle_ask(&c->spindle, rec->dwell_s, c->period);
+		 * standstill); its timeout is a fault before this wait ends. An
+		 * MDI S alone: the new speed in the direction it turns (0: it is
+		 * stopped and stays so, the S waits for the next M3/M4) */
+		double rpm = rec->dwell_s, was = c->spindle.program_rpm;
+		if (rec->type == MLIP_REC_SPEED) {
+			rpm = was > 0 ? rec->dwell_s : was < 0 ? -rec->dwell_s : 0.0;
+		}
+		mlip_ctl_spindle_ask(&c->spindle, rpm, c->period);
 		c->wait.dwell_left = (uint64_t)c->spindle.drive.cfg.timeout_periods + 2u;
 		r.why = MLIP_WHY_SPINDLE_WAIT;
-		r.value = rec->dwell_s;
+		r.value = rpm;
 		go(c, out, MLIP_STATE_DWELLING, r);
+	} else if (rec->type == MLIP_REC_SPEED) {
+		/* no spindle on the bus: the reader refuses an MDI S alone on
+		 * such a machine, so this record is not one of ours */
+		struct mlip_ctl_reason w;
+		(void)bad(&w, rec, MLIP_FIELD_TYPE, (double)rec->type);
+		mlip_ct_fault(c, out, w);
+		return;
 	} else if (rec->type == MLIP_REC_OUTPUT ||
 	           (rec->type == MLIP_REC_COOLANT && mlip_mio_coolant_io(c))) {
 		/* the module's outputs, at rest: a wait of no period (issue 19) */
@@ -505,6 +524,9 @@ static uint32_t held_why(const struct mlip_ctl *c)
 	}
 	if (c->hold.op) {
 		return MLIP_WHY_HOLD;
+	}
+	if (c->hold.spindle) {
+		return MLIP_WHY_SPINDLE_WAIT;
 	}
 	if (mlip_planner_override_pct(c->planner) == 0.0) {
 		return MLIP_WHY_OVERRIDE_ZERO;

@@ -19,6 +19,7 @@ mlip_status mlip_ctl_spindle_init(struct mlip_ctl_spindle *s, const struct mlip_
 
 	memset(s, 0, sizeof(*s));
 	s->override_pct = 100;
+	s->stop_req = -1;
 	if (cfg == NULL || cfg->node == 0) {
 		return MLIP_OK;
 	}
@@ -45,7 +46,7 @@ mlip_status mlip_ctl_spindle_init(struct mlip_ctl_spindle *s, const struct mlip_
 /* The program's speed with the override, within what the spindle can do. */
 static void apply(struct mlip_ctl_spindle *s, uint64_t period)
 {
-	double rpm = s->program_rpm, mag = fabs(rpm) * s->override_pct / 100.0;
+	double rpm = s->stopped ? 0.0 : s->program_rpm, mag = fabs(rpm) * s->override_pct / 100.0;
 	if (rpm != 0) {
 		mag = mag > s->max_rpm ? s->max_rpm : mag < s->min_rpm ? s->min_rpm : mag;
 		rpm = rpm > 0 ? mag : -mag;
@@ -67,6 +68,17 @@ void mlip_ctl_spindle_ask(struct mlip_ctl_spindle *s, double rpm, uint64_t perio
 		return;
 	}
 	s->program_rpm = rpm;
+	s->stopped = 0; /* a program's word: its hold has ended */
+	s->stop_req = -1;
+	apply(s, period);
+}
+
+void mlip_ctl_spindle_stop(struct mlip_ctl_spindle *s, int on, uint64_t period)
+{
+	if (!s->on) {
+		return;
+	}
+	s->stopped = on != 0;
 	apply(s, period);
 }
 
@@ -125,6 +137,16 @@ double mlip_ctl_spindle_cmd_rpm(const struct mlip_ctl_spindle *s)
 
 /* ---- in the controller's period (ctl.h) ----------------------------------- */
 
+/* An operator's hold at rest (held mid-program; starved, a sender's open
+ * program waiting for its next line, as an M3 typed in mlip-grbl's console
+ * leaves it; or asked while idle as Grbl holds): where Grbl's spindle stop
+ * acts. */
+int mlip_ct_spindle_held(const struct mlip_ctl *c)
+{
+	return c->hold.op && (c->state == MLIP_STATE_HELD || c->state == MLIP_STATE_STARVED ||
+	                      c->state == MLIP_STATE_IDLE);
+}
+
 /* Its phase from its TPDO; a fault stops the feed on the path (state FAULT,
  * the spindle named); a wait for it ends when it is at speed (or at rest). */
 void mlip_ct_spindle_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
@@ -138,8 +160,19 @@ void mlip_ct_spindle_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,
 	}
 	rc = mlip_ctl_spindle_step(&c->spindle, in->spindle.sw, in->spindle.vel_counts, c->period,
 	                           &f.event, &f.value);
+	if (c->spindle.stop_req >= 0 && mlip_ct_spindle_held(c)) {
+		/* Grbl's spindle stop: once the hold is at rest */
+		mlip_ctl_spindle_stop(&c->spindle, c->spindle.stop_req, c->period);
+		c->spindle.stop_req = -1;
+	}
 	if (rc == -1 && !c->drive_faulted) {
 		mlip_ct_drive_fault(c, out, &f);
+	} else if (rc == 1 && c->hold.spindle) {
+		/* resumed with the spindle restored: on once it is at speed */
+		c->hold.spindle = 0;
+		if (!c->hold.op && !c->hold.stall && !c->hold.bus) {
+			mlip_planner_hold(c->planner, 0);
+		}
 	} else if (rc == 1 && c->state == MLIP_STATE_DWELLING &&
 	           c->why.why == MLIP_WHY_SPINDLE_WAIT) {
 		c->wait.dwell_left = 0; /* at speed: the wait ends in the records' part */

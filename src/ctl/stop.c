@@ -121,6 +121,7 @@ void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t w
 	}
 	if (c->jog.on) {
 		mlip_ct_jog_release(c, MLIP_WHY_JOG_RELEASED); /* a stop ends a jog on the path */
+		all_off(c);                                    /* and what an MDI line left on */
 		if (why != MLIP_WHY_EXIT) {
 			return;
 		}
@@ -130,7 +131,7 @@ void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t w
 		 * drives to be enabled) is dropped, its first record too */
 		c->prog.discard = rx_count(c) > 0;
 		c->prog.discard_waiting = c->prog.discard;
-		mlip_mio_all_off(c); /* what an MDI line left on (issue 19) */
+		all_off(c); /* what an MDI line left on (issue 19) */
 		return;
 	}
 	if (c->state == MLIP_STATE_PREREAD && !c->prog.refill && why == MLIP_WHY_STOP) {

@@ -125,6 +125,16 @@ static mlip_status check_spindle(const struct mlip_gcode *g, const struct blk *b
 		                    "slowly; change S in the program",
 		                    b->s, io->min_rpm);
 	}
+	if (g->mdi && io->spindle == MLIP_IO_MANUAL && b->has_s && !b->spindle_m &&
+	    !g->spindle_said) {
+		/* it may turn since an earlier MDI M3 (the operator's hand, which
+		 * mlip cannot see): a silent S would leave it at the old speed */
+		return mlip_gc_fail(
+		    e, line, b->s_col, MLIP_E_UNSUPPORTED,
+		    "S%g alone in MDI with a manual spindle: mlip cannot tell whether "
+		    "it turns; give it with M3, M4 or M5 (e.g. M3 S%g)",
+		    b->s, b->s);
+	}
 	if ((b->spindle_m == 3 || b->spindle_m == 4) && !b->has_s && g->s_rpm < 0) {
 		return mlip_gc_fail(e, line, b->spindle_col, MLIP_E_SYNTAX,
 		                    "M%u with no S: the spindle speed was never set (e.g. S12000 "
@@ -268,6 +278,16 @@ static void queue(struct emit_ctx *ec, int kind, double value)
 	}
 }
 
+/* The spindle may turn: this reader started it, or MDI lines that have not
+ * said yet what it does (an earlier MDI M3 leaves it turning). */
+static int may_turn(const struct mlip_gcode *g)
+{
+	const struct mlip_gcode_io *io = g->io;
+
+	return g->spindle ||
+	       (g->mdi && !g->spindle_said && !io->ignore_spindle && io->spindle != MLIP_IO_NONE);
+}
+
 static double spindle_value(const struct mlip_gcode *g)
 {
 	return g->spindle == 3 ? g->s_rpm : g->spindle == 4 ? -g->s_rpm : 0.0;
@@ -353,6 +373,12 @@ static void exec_spindle(struct mlip_gcode *g, const struct blk *b, struct emit_
 			g->s_rpm = b->s;
 			if (g->spindle && !b->spindle_m && old != b->s) {
 				queue(ec, MLIP_BLOCK_SPINDLE, spindle_value(g));
+			} else if (g->mdi && !g->spindle_said && !b->spindle_m &&
+			           io->spindle == MLIP_IO_CIA402) {
+				/* MDI: an earlier MDI M3/M4 may keep it turning; the
+				 * controller, which knows, applies the speed in its
+				 * direction (a stopped spindle stays stopped) */
+				queue(ec, MLIP_BLOCK_SPEED, b->s);
 			}
 		}
 		return;
@@ -365,8 +391,12 @@ static void exec_spindle(struct mlip_gcode *g, const struct blk *b, struct emit_
 		return;
 	}
 	g->spindle = b->spindle_m == 5 ? 0 : b->spindle_m;
-	/* a new state, or M3/M4 repeated with a new S on this line */
-	if (g->spindle != was || (g->spindle && g->s_rpm != s_before)) {
+	g->spindle_said = 1;
+	/* a new state, or M3/M4 repeated with a new S on this line; an MDI M5
+	 * always: an earlier MDI line's M3 still turns it (the controller keeps
+	 * it), whatever this reader's fresh state says */
+	if (g->spindle != was || (g->spindle && g->s_rpm != s_before) ||
+	    (g->mdi && b->spindle_m == 5)) {
 		queue(ec, MLIP_BLOCK_SPINDLE, spindle_value(g));
 	}
 }
@@ -426,9 +456,11 @@ static void exec_tools(struct mlip_gcode *g, const struct blk *b, double scale, 
 		mlip_gc_notice_text(g, "M6", SAME_TOOL, line);
 		return;
 	}
-	/* LinuxCNC: after M6 the spindle is stopped */
-	if (g->spindle) {
+	/* LinuxCNC: after M6 the spindle is stopped (first: never a change
+	 * beside a spindle an earlier MDI M3 left turning) */
+	if (may_turn(g)) {
 		g->spindle = 0;
+		g->spindle_said = 1;
 		queue(ec, MLIP_BLOCK_SPINDLE, 0.0);
 	}
 	if (io->change_mask != 0) { /* the line's motion starts there */
@@ -465,7 +497,8 @@ static void exec_coolant(struct mlip_gcode *g, const struct blk *b, struct emit_
 		return;
 	}
 	want = b->m9 ? 0u : g->coolant | b->coolant_m;
-	if (want != g->coolant) {
+	/* an MDI M9 always (an earlier MDI line's M7/M8 stays on) */
+	if (want != g->coolant || (g->mdi && b->m9 && io->coolant != MLIP_IO_NONE)) {
 		g->coolant = want;
 		queue(ec, MLIP_BLOCK_COOLANT, (double)want);
 	}
@@ -495,14 +528,15 @@ mlip_status mlip_gc_end_io(struct mlip_gcode *g, mlip_block_sink sink, void *ctx
 	if (g->io == NULL) {
 		return MLIP_OK;
 	}
-	if (g->spindle) {
+	if (may_turn(g)) {
 		g->spindle = 0;
+		g->spindle_said = 1;
 		if (mlip_gc_emit_event(g, sink, ctx, line, MLIP_BLOCK_SPINDLE, 0.0) != 0) {
 			return MLIP_E_FULL;
 		}
 	}
-	if (g->coolant) {
-		g->coolant = 0;
+	if (g->coolant || (g->mdi && !g->io->ignore_coolant && g->io->coolant != MLIP_IO_NONE)) {
+		g->coolant = 0; /* MDI M2: an earlier MDI M7/M8 may have left it on */
 		if (mlip_gc_emit_event(g, sink, ctx, line, MLIP_BLOCK_COOLANT, 0.0) != 0) {
 			return MLIP_E_FULL;
 		}

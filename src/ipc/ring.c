@@ -489,9 +489,9 @@ mlip_status mlip_ring_port_push_n(struct mlip_ring_port *p, const struct mlip_ri
 }
 
 /* block kind <-> record type: the same events in both (types.h) */
-static const uint16_t kind_type[] = {MLIP_REC_MOVE,           MLIP_REC_DWELL,   MLIP_REC_PAUSE,
-                                     MLIP_REC_OPTIONAL_PAUSE, MLIP_REC_SPINDLE, MLIP_REC_TOOL,
-                                     MLIP_REC_COOLANT,        MLIP_REC_OUTPUT,  MLIP_REC_PROBE};
+static const uint16_t kind_type[] = {
+    MLIP_REC_MOVE, MLIP_REC_DWELL,   MLIP_REC_PAUSE,  MLIP_REC_OPTIONAL_PAUSE, MLIP_REC_SPINDLE,
+    MLIP_REC_TOOL, MLIP_REC_COOLANT, MLIP_REC_OUTPUT, MLIP_REC_PROBE,          MLIP_REC_SPEED};
 
 void mlip_ring_rec_from_block(struct mlip_ring_rec *rec, const struct mlip_block *b, uint64_t seq)
 {
@@ -555,6 +555,9 @@ mlip_status mlip_ring_rec_to_block(const struct mlip_ring_rec *rec, struct mlip_
 		break;
 	case MLIP_REC_PROBE:
 		kind = MLIP_BLOCK_PROBE;
+		break;
+	case MLIP_REC_SPEED:
+		kind = MLIP_BLOCK_SPEED;
 		break;
 	default:
 		return MLIP_E_INVALID;
@@ -866,9 +869,18 @@ int mlip_ring_stop_after(uint32_t seen, uint32_t stop_base)
 
 const char *mlip_ring_cmd_name(uint32_t op)
 {
-	static const char *const names[] = {
-	    "none", "override", "hold",     "resume",          "stop", "optional-stop", "reset",
-	    "jog",  "home",     "jog-axis", "spindle-override"};
+	static const char *const names[] = {"none",
+	                                    "override",
+	                                    "hold",
+	                                    "resume",
+	                                    "stop",
+	                                    "optional-stop",
+	                                    "reset",
+	                                    "jog",
+	                                    "home",
+	                                    "jog-axis",
+	                                    "spindle-override",
+	                                    "spindle-stop"};
 
 	return NAME_OF(names, op);
 }
@@ -886,7 +898,7 @@ const char *mlip_rec_type_name(uint32_t type)
 {
 	static const char *const names[] = {"move",           "end",     "dwell", "pause",
 	                                    "optional pause", "spindle", "tool",  "coolant",
-	                                    "output",         "probe"};
+	                                    "output",         "probe",   "speed"};
 
 	return NAME_OF(names, type);
 }

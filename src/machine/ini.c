@@ -588,7 +588,7 @@ static mlip_status parse_line(struct pstate *ps, const char *s, size_t n, uint32
 
 /* ---- the second pass --------------------------------------------------- */
 
-/* Place err on the latest given of up to three keys (sec < 0: unused):
+/* Place err on the latest given of up to three keys (sec or key < 0: unused):
  * the value a user changed last is the one to look at. When none was
  * given (the values are defaults), on the first section's header, column 0. */
 void mlip_mc_place(const struct pstate *ps, struct mlip_config_error *err, int s1, int k1, int s2,
@@ -599,7 +599,7 @@ void mlip_mc_place(const struct pstate *ps, struct mlip_config_error *err, int s
 	int i;
 
 	for (i = 0; i < 3; i++) {
-		if (sec[i] >= 0 && has(ps, sec[i], key[i])) {
+		if (sec[i] >= 0 && key[i] >= 0 && has(ps, sec[i], key[i])) {
 			struct pos p = ps->sec[sec[i]].key[key[i]];
 			if (p.line > best.line || (p.line == best.line && p.col > best.col)) {
 				best = p;

@@ -123,6 +123,18 @@ mlip_status mlip_mc_parse_iobit(const char *v, size_t nv, uint32_t line, uint32_
 	return MLIP_OK;
 }
 
+const char *mlip_io_probe_warning(const struct mlip_io_config *io)
+{
+	if (io->probe_source != MLIP_PROBE_SRC_DRIVE || (io->mapped >> MLIP_IN_PROBE & 1u)) {
+		return NULL;
+	}
+	return "[PROBE] SOURCE = drive without [IO] PROBE: the touch probe's status 0x60B9 has no "
+	       "level, so a probe that is on when a G38.2/G38.3 starts (a plate touching, a "
+	       "stuck switch) gives no edge and nothing stops the move toward its target; map "
+	       "the probe's level, e.g. PROBE = 3 0x60FD:0 16 HIGH (the drive's digital input "
+	       "bit, see its manual), and mlip refuses such a G38 before anything moves";
+}
+
 const char *mlip_io_function_name(uint32_t f, const struct mlip_machine *m, char *buf, size_t n)
 {
 	static const char *const fixed[MLIP_IN_AXIS0] = {"estop", "hold", "cycle start", "probe"};

@@ -105,3 +105,11 @@ def io_sim(vcan, tmp_path_factory):
                            args=["--io", IO], inject=[f"{IO}:input=1.0=1"])
     yield s
     s.stop()
+
+
+@pytest.fixture(scope="module")
+def drives_sim(vcan, tmp_path_factory):
+    """Three simulated CiA 402 drives (nodes 1..3, drives_machine's axes)."""
+    s = procs.DriveSimProc(S, tmp_path_factory.mktemp("drives"), nodes=[1, 2, 3])
+    yield s
+    s.stop()

@@ -305,7 +305,9 @@ def test_csp_follows_targets_on_sync(bench):
     # the listener: n_cyc cycles of 6-byte RPDOs carrying what was sent, and
     # every TPDO the master received, in order
     rep = json.loads((w / "can.json").read_text())
-    assert rep["receive"].startswith("python-can") and rep["cycles"] == n_cyc, rep["receive"]
+    assert rep["receive"].startswith("python-can") and rep["cycles"] == n_cyc, (
+        {k: rep.get(k) for k in ("receive", "cycles", "frames", "frames_ours", "first_cycle",
+                                 "last_cycle", "incomplete", "wall_s")}, lis.stderr()[-2000:])
     assert rep["incomplete"] == 0 and rep["malformed"] == 0
     assert rep["last"]["counts"] == {a: sent[-1][n] for a, n in zip("XYZ", HEALTHY)}
     tp = [ln.split(",") for ln in (w / "tpdo.csv").read_text().splitlines()[1:]]

@@ -198,7 +198,13 @@ def test_grbl_bus_spindle(vcan, tmp_path):
     commands it, the drive's target velocity 3000 rpm; 0x9A (+10 %), 0x9B
     (-10 %) twice, 0x9D (-1 %): Ov's third field and FS follow the
     controller, the drive's target follows within one count per second
-    (0.015 rpm); 0x99 back to 100 %; M4: A:C; M5: A: gone, target 0."""
+    (0.015 rpm); 0x99 back to 100 %; 0x9E: ignored outside Hold; in Hold (a
+    `!` at rest between the sender's lines: the M3's program is open, Run)
+    it stops the spindle (A: gone, FS 0, the drive's target 0), again
+    restores it ([MSG:Restoring spindle]), again stops it, ~ restores it
+    (Run again, A:S, the drive's target 3000 rpm); M4: A:C; M5: A: gone,
+    target 0. (A hold keeps the program open however long it lasts: the
+    quiet that ends it counts from the `~`.)"""
     import test_spindle_vcan as sp
     cfg = sp.machine(tmp_path)
     (tmp_path / "sim").mkdir()
@@ -253,6 +259,45 @@ def test_grbl_bus_spindle(vcan, tmp_path):
                     assert rig.status()["spindle"]["override_pct"] == pct
                     sync0 = drive_at(3000 * pct / 100, sync0)
                     seen.append((f"0x{byte[0]:02X}", s["raw"]))
+                # 0x9E (Grbl's spindle stop): ignored outside Hold; in Hold
+                # (a `!` at rest between lines) it stops the spindle, the
+                # next restores it ([MSG:Restoring spindle]), as ~ does (Run
+                # again, the M3's program still open, the spindle at speed).
+                # A line first: the quiet that would end the program (and
+                # stop the spindle) counts from it again
+                assert g.cmd("G4 P0")[0] == "ok"
+                g.send(b"\x9e")
+                s = g.status()
+                # (A: comes with Ov only: not in every report)
+                assert s["state"] == "Run" and s.get("A") in ("S", None) and \
+                    s["FS"][1] == 3000, s
+                assert rig.status()["spindle"]["commanded_rpm"] == 3000
+
+                def restoring(n):
+                    """[MSG:Restoring spindle] among the lines from the nth on."""
+                    end = time.monotonic() + 60
+                    while "[MSG:Restoring spindle]" not in g.lines[n:]:
+                        assert time.monotonic() < end, (g.lines[n:], rig.status())
+                        time.sleep(0.02)
+
+                g.send(b"!")
+                told(g, rig, g.wait_state, {"Hold:0"}, 120)
+                for k, (rpm_, a) in enumerate([(0, None), (3000, "S"), (0, None)]):
+                    n = len(g.lines)
+                    g.send(b"\x9e")
+                    s = spun(g, rig, lambda s: "Ov" in s and s.get("A") == a and
+                             s["FS"][1] == rpm_ and s["state"] == "Hold:0", 300)
+                    sync0 = drive_at(rpm_, sync0)
+                    if rpm_:
+                        restoring(n)
+                    seen.append((f"0x9E in Hold ({k + 1})", s["raw"]))
+                n = len(g.lines)
+                g.send(b"~")
+                s = spun(g, rig, lambda s: "Ov" in s and s.get("A") == "S" and
+                         s["FS"][1] == 3000 and s["state"] == "Run", 300)
+                restoring(n)
+                sync0 = drive_at(3000, sync0)
+                seen.append(("~ after 0x9E", s["raw"]))
                 assert g.cmd("M4 S2000")[0] == "ok"
                 s = spun(g, rig, lambda s: "Ov" in s and s.get("A") == "C" and s["FS"][1] == 2000,
                          300)

@@ -18,6 +18,7 @@ an [outputs] or [probe] line with the measured figures.
 """
 
 import re
+import subprocess
 import time
 
 import pytest
@@ -364,3 +365,117 @@ def test_drive_touch_probe_latch(sim, tmp_path):
         f"{pr['position']['X']:.4f}, {pr['position']['Y']:.4f}), at rest at {rest} counts "
         f"({surface - rest} counts beyond), max braking {acc:.1f} mm/s^2"
     )
+
+
+def test_drive_probe_on_at_start(sim, tmp_path):
+    """[PROBE] SOURCE = drive with the probe's level read from the drives'
+    own digital inputs ([IO] PROBE = 3 0x60FD:0 16: CiA 402's 0x60B9 has no
+    level, drives show the probe input among 0x60FD's manufacturer bits):
+    G38.2 with the probe already on is refused at its line before anything
+    moves or a latch is armed (exit 5); once it is off, the same G38.2 runs
+    and the latch, not the level, is the result."""
+    text = machine(tmp_path).read_text()
+    text = text.replace(f"PROBE = {IO} 0x6000:1 3 HIGH\n", "PROBE = 3 0x60FD:0 16 HIGH\n")
+    cfg = tmp_path / "tplevel.ini"
+    cfg.write_text(text + "\n[PROBE]\nSOURCE = drive\n")
+    home = tmp_path / "home.ngc"
+    home.write_text("G21 G90\nG0 X0 Y0 Z1\nG0 Z0\nM2\n")  # a move, wherever it stands
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G21 G90\nG38.2 Z-10 F120\nG0 Z5\nM2\n")
+    surface = -3013  # counts
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        rc, out, err = rig.feed(home, timeout=600)
+        assert rc == 0, err
+        # the probe on from Z 0 down (a surface above the tool: pressed)
+        sim.inject("3:touch-probe=1000,below")
+        try:
+            rig.wait_state("idle", timeout=60, pred=lambda s: s["inputs"].get("probe") is True)
+            t0 = time.time()
+            rc, out, err = rig.feed(ngc, timeout=600)
+            assert rc == 5 and "probe already tripped at the start" in err, (rc, err)
+            assert rig.status()["probe"] is None  # no G38 result: it never started
+            sim.wait_sync_rows(lambda rs: True)
+            fns = [e for e in sim.events("touch_probe_fn") if e["t"] >= t0]
+            zs = {t for s, t in targets(sim, 3, t0) if t is not None}
+            t1 = time.time()
+            sim.inject(f"3:touch-probe={surface},below")
+            rig.wait_state("idle", timeout=60, pred=lambda s: s["inputs"].get("probe") is False)
+            rc, out, err = rig.feed(ngc, timeout=600)
+            assert rc == 0, err
+            st = rig.status()
+        finally:
+            sim.inject("3:touch-probe=off")
+    assert zs == {0}, zs  # nothing moved on the bus
+    assert all(e["fn"] == "0x0000" for e in fns), fns  # the latch never armed
+    pr = st["probe"]
+    assert pr["tripped"] is True and round(pr["position"]["Z"] * CPU) == surface, pr
+    armed = [e for e in sim.events("touch_probe_fn") if e["t"] >= t1 and e["fn"] == "0x0011"]
+    assert armed
+    print(f"[probe] drive touch probe, level on 0x60FD bit 16: G38.2 with the probe on refused "
+          f"('probe already tripped at the start', exit 5), Z held at {sorted(zs)} counts, "
+          f"0x60B8 never armed; then off: latched {round(pr['position']['Z'] * CPU)} counts "
+          f"against the surface {surface}")
+
+
+def test_probe_no_trip_and_touch_off(sim, tmp_path):
+    """The G38 cases without a surface, and the result put to use: G38.3
+    reaches its target and the program goes on (#5070 = 0, the result the
+    target); G38.2 reaching its target stops the program there (exit 5
+    naming the line, the move after it never on the bus); then G38.2 trips on
+    a surface and an MDI G10 L20 P1 Z makes the latched #5063 Z0 of G54 (the
+    touch-off after the probe): an MDI G0 Z0 puts Z's target on the bus at
+    the latched position, to the count."""
+    cfg = machine(tmp_path)
+    offs = tmp_path / "offsets"
+    subprocess.run([S.tool("mlip-offsets"), "--init", "--config", cfg, offs], check=True,
+                   capture_output=True)
+    ngc = tmp_path / "p.ngc"
+    surface = -3000  # counts: Z -3 mm
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        ngc.write_text("G21 G90\nG0 Z0\nG38.3 Z-2 F300\nG0 Z1\nM2\n")
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err
+        st = rig.wait_state("idle", timeout=300)
+        pr = st["probe"]
+        assert pr is not None and pr["tripped"] is False and pr["line"] == 3, st
+        assert pr["parameters"]["5070"] == 0 and abs(pr["position"]["Z"] + 2.0) < 1e-9, pr
+        assert abs(st["position"]["Z"] - 1.0) < 1e-9, st  # the program went on
+        t1 = time.time()
+        ngc.write_text("G21 G90\nG0 Z0\nG38.2 Z-2 F300\nG0 Z5\nM2\n")
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 5 and "p.ngc:3: probe not tripped (G38.2/G38.4)" in err, (rc, err)
+        st = rig.wait_state("idle", timeout=300)
+        assert st["probe"]["tripped"] is False and st["probe"]["line"] == 3, st
+        assert abs(st["position"]["Z"] + 2.0) < 1e-9, st  # at rest at its target
+        # the simulator's records lag the bus in the emulated VM
+        sim.wait_sync_rows(lambda rs: any(
+            r["node"] == 3 and r["target"] == -2000 and r["t"] >= t1 for r in rs), timeout=120)
+        z2 = [t for s, t in targets(sim, 3, t1) if t is not None]
+        assert min(z2) == -2000 and max(z2) <= 1000 and z2[-1] == -2000, z2[-5:]
+        sim.inject(f"{IO}:probe=1.3,3,{surface},below")
+        try:
+            ngc.write_text("G21 G90\nG0 Z0\nG38.2 Z-10 F120\nG0 Z-1\nM2\n")
+            rc, out, err = rig.feed(ngc, timeout=600)
+            assert rc == 0, err
+            st = rig.wait_state("idle", timeout=300)
+            pr = st["probe"]
+            assert pr["tripped"] is True and pr["line"] == 3, st
+            latched = pr["parameters"]["5063"]
+            assert abs(st["position"]["Z"] + 1.0) < 1e-9, st
+            # the current point (Z-1) reads -1 - #5063: the latched point is Z0
+            rig.ctl("mdi", "--offsets", offs, f"G10 L20 P1 Z{-1.0 - latched:.6f}")
+            t2 = time.time()
+            rig.ctl("mdi", "--offsets", offs, "G0 Z0")
+            st = rig.wait_state("idle", timeout=300)
+        finally:
+            sim.inject(f"{IO}:probe=off")
+    want = round(latched * CPU)
+    sim.wait_sync_rows(lambda rs: any(
+        r["node"] == 3 and r["target"] == want and r["t"] >= t2 for r in rs), timeout=120)
+    z3 = [t for s, t in targets(sim, 3, t2) if t is not None]
+    print(f"[probe] G38.3 to Z-2 untripped (#5070 = 0), G38.2 to Z-2 untripped: exit 5 at "
+          f"line 3, Z held at {z2[-1]} counts; surface {surface} counts, #5063 = {latched:g} "
+          f"mm; after MDI G10 L20 P1 Z{-1.0 - latched:g} and G0 Z0 Z's target {z3[-1]} counts")
+    assert abs(st["position"]["Z"] - latched) < 1e-9, st
+    assert z3 and z3[-1] == want, (z3[-3:], want)
+    assert -3 * 80 <= want - surface <= 80, (want, surface)  # the trip: near the surface

@@ -21,6 +21,7 @@ the emulated VM), tolerance 0.5 mm, 25 mm/s (one period of travel, 1 mm,
 inside the drives' 2 mm following error window). The senders' deadlines are
 long: CNCjs's server and bCNC's imports take minutes under TCG."""
 import signal
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -62,13 +63,15 @@ def drives(vcan, tmp_path_factory):
     s.stop()
 
 
-def run_sender(drives, tmp, name, go, program=KB4):
+def run_sender(drives, tmp, name, go, program=KB4, edit=slow):
     """mlip-rt --drives, the listener and mlip-grbl (its terminal at
-    tmp/grbl.tty); go(port, tty) runs the sender and returns its events.
-    Returns (events, rig, reference): mlip-sim's trace (counts) of program
-    (the lines the sender sent: written by go) from where the drives stood,
-    its summary and machine."""
-    cfg = drives_machine(tmp, slow)
+    tmp/grbl.tty) on drives_machine(edit); go(port, tty) runs the sender and
+    returns its events. Returns (events, rig, reference): mlip-sim's trace
+    (counts) of program (the lines the sender sent: written by go) from
+    where the drives stood, its summary and machine. The machine ends at
+    rest on the program's last point (at the sender's `done`: a jog may
+    follow)."""
+    cfg = drives_machine(tmp, edit)
     setup = setup_of(S, cfg)
     tty = tmp / "grbl.tty"
     t0 = time.time()
@@ -85,7 +88,9 @@ def run_sender(drives, tmp, name, go, program=KB4):
             except Exception as e:
                 raise AssertionError(f"{name}: {e}\nmlip-grbl: {''.join(srv.said)[-3000:]}\n"
                                      f"mlip-rt: {rig.status()}") from e
-            rig.wait_state("idle", timeout=300, pred=lambda s: s["exec_seq"] > 1)
+            # idle after what the sender ran (blocks taken: a jog after the
+            # file, cancelled, is a stop that leaves exec_seq 0)
+            rig.wait_state("idle", timeout=300, pred=lambda s: s["blocks_consumed"] > 1)
         finally:
             srv.send_signal(signal.SIGTERM)
             srv.wait(60)
@@ -106,7 +111,10 @@ def run_sender(drives, tmp, name, go, program=KB4):
     ref.write_text(text)
     rows, summ = compare.simulate(S, ref, program, tmp)
     trc = compare.trace_counts(rows, setup.cpu)
-    assert r["counts"][-1] == trc[-1], "not at rest on the program's last point"
+    done = next((e for e in ev if e["event"] == "done"), None)
+    end = (len(r["counts"]) - 1 if done is None else
+           max(i for i, t in enumerate(r["t"]) if t <= done["wall"]))
+    assert r["counts"][end] == trc[-1], "not at rest on the program's last point"
     return ev, rig, SimpleNamespace(trc=trc, summ=summ, config=ref, setup=setup, program=program)
 
 
@@ -154,20 +162,56 @@ def test_bcnc_on_the_bus(drives, tmp_path):
                  f"bCNC {done['seconds']} s from run to done")
 
 
-def test_cncjs_hold_resume_on_the_bus(drives, tmp_path):
+# CNCjs's run: its pause and resume at Ln 70, its feed override buttons
+# (-10 %, then 100 %) at Ln 90 and 103 (KB-4's F30 arc, lines 85-116: 12.7
+# mm/s, no Z move), and after the file a jog at 25 mm/s cancelled once past 10 mm.
+# The axes' acceleration is cut to JOG_A for this run: at 1000 mm/s^2 a
+# 25 mm/s jog stops within one 40 ms period, too short a brake to judge.
+JOG_A = 100.0  # mm/s^2
+JOG = (40, VMAX * 60, 10)  # mm, mm/min, mm along before the cancel
+F_ARC = 30 * 25.4 / 60  # mm/s: KB-4's F30.0 (inches/min)
+
+
+def slow_soft(text):
+    text = slow(text)
+    assert text.count("MAX_ACCELERATION = 1000") == 3
+    return text.replace("MAX_ACCELERATION = 1000", f"MAX_ACCELERATION = {JOG_A:g}")
+
+
+@pytest.fixture(scope="module")
+def cncjs_run(drives, tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("cncjs")
+    ev, rig, ref = run_sender(drives, tmp, "CNCjs", lambda port, tty: cncjs(
+        tty, KB4, tmp, "--hold-at-line", "70", "--override-at-lines", "90,103",
+        "--jog-cancel", ",".join(map(str, JOG)), "--deadline", DEADLINE,
+        timeout=SENDER_TIMEOUT), edit=slow_soft)
+    # where the emulated VM's time goes (CNCjs's start, the file, the jog)
+    print("\n[CNCjs events] " + ", ".join(f"{e['event']} {e['t']:.1f} s" for e in ev
+                                          if e["event"] != "read"))
+    return ev, rig, ref, tmp
+
+
+def path_speeds(counts, setup):
+    """mm/s of the tool in each cycle (from cycle i to i + 1)."""
+    T = setup.period_s
+    return [sum(((b - a) / c) ** 2 for a, b, c in zip(p, q, setup.cpu)) ** 0.5 / T
+            for p, q in zip(counts, counts[1:])]
+
+
+def test_cncjs_hold_resume_on_the_bus(cncjs_run):
     """CNCjs's file runner, its pause button mid-cut, its resume: the bus
     carries mlip-sim's trace until the `!`; the first setpoint off it (the
     brake) is on the bus before the first report asked for after the `!`
     (which says Hold: at most one asked for before it comes first); still
     from the report of rest to the `~`, moving again before the report
     after it (Run); then on the path to the program's last point."""
-    ev, rig, ref = run_sender(drives, tmp_path, "CNCjs", lambda port, tty: cncjs(
-        tty, KB4, tmp_path, "--hold-at-line", "70", "--deadline", DEADLINE,
-        timeout=SENDER_TIMEOUT))
+    ev, rig, ref, tmp_path = cncjs_run
     done = event(ev, "done")
     assert done["state"] == "Idle" and done["errors"] == 0, done
-    final = rig.final_status["position"]
-    assert done["mpos"] == pytest.approx([final[k] for k in "XYZ"], abs=1e-3)  # its DRO
+    # its DRO at the file's end: the program's last point (the jog after it
+    # moves X on: mlip-rt's final position is the jog's)
+    last = [c / cpu for c, cpu in zip(ref.trc[-1], ref.setup.cpu)]
+    assert done["mpos"] == pytest.approx(last, abs=1e-3), (done, last)
     hold, held, resumed = event(ev, "hold"), event(ev, "held"), event(ev, "resumed")
     # in the reports: at most one asked for before the `!` comes first
     assert len(hold["reports"]) <= 2 and hold["reports"][-1].startswith("<Hold:"), hold
@@ -200,11 +244,109 @@ def test_cncjs_hold_resume_on_the_bus(drives, tmp_path):
         (f"moving again at cycle {again}, {t[again] - resumed['sent']:+.3f} s from the resume, "
          f"the report saying Run {resumed['wall'] - resumed['sent']:+.3f} s: {resumed}")
     start, _ = moving_span(can)
-    err = on_path(rig, ref, can[start:], tmp_path)
+    end = max(i for i, x in enumerate(t) if x <= event(ev, "done")["wall"])  # the jog after
+    err = on_path(rig, ref, can[start:end + 1], tmp_path)
     ms = lambda a, b: f"{1e3 * (a - b):.0f} ms"  # noqa: E731
     summary_line("CNCjs " + KB4.name, rig, r, f", mlip-sim's trace for {j} rows, the brake at "
                  f"cycle {brake} {ms(t[brake], hold['sent'])} after the pause (the report saying "
                  f"Hold {ms(hold['wall'], hold['sent'])}: {hold['reports']}), still {len(still)}+ "
                  f"cycles, moving {ms(t[again], resumed['sent'])} after the resume (Run reported "
-                 f"{ms(resumed['wall'], resumed['sent'])}); motion {motion_periods(can)} periods "
+                 f"{ms(resumed['wall'], resumed['sent'])}); motion {motion_periods(can[:end + 1])} "
+                 f"periods "
                  f"(mlip-sim {motion_periods(trc)} without the hold), max contour {err:.6f} mm")
+
+
+def test_cncjs_feed_override_on_the_bus(cncjs_run):
+    """CNCjs's feed override buttons mid-cut on KB-4's F30 arc: -10 % (0x92)
+    then 100 % (0x90). Each acts on the bus (the drives' targets: they
+    applied what it carried, SYNC for SYNC) before the first report that
+    carries the new Ov (CNCjs's own 4 Hz polls may take it: their reports
+    are parsed into its state, not echoed; by the second one asked for
+    after the byte at the latest): after 0x92 the path speed drops below F (2 %:
+    its cycles along a 0.5 mm tolerance arc vary less) in a cycle between
+    the byte and that report, and holds at 0.9 F (median within 2 %) until
+    0x90; after 0x90 it rises above 0.9 F by 2 % likewise, and runs at F
+    (median within 2 %) over the next second."""
+    ev, rig, ref, _ = cncjs_run
+    r = rig.result
+    can, t = r["counts"], r["t"]
+    v = path_speeds(can, ref.setup)
+    down, reset = event(ev, "override-down"), event(ev, "override-reset")
+    # the new Ov in a report (CNCjs's own polls' reports are parsed, not
+    # echoed: ov_wall is when its state showed it) by the second one asked
+    # for after the byte
+    for e in (down, reset):
+        assert e["ov_wall"] is not None and e["sent"] <= e["ov_wall"] <= e["wall"], e
+    # cycle i's speed is on the bus at cycle i + 1
+    within = lambda e: [i for i in range(len(v)) if e["sent"] <= t[i + 1] <= e["ov_wall"]]  # noqa
+    between = lambda a, b: [v[i] for i in range(len(v)) if a <= t[i + 1] <= b]  # noqa
+    ms = lambda e: f"{1e3 * (e['ov_wall'] - e['sent']):.0f} ms"  # noqa: E731
+    # cruising at F before the byte
+    before = between(down["sent"] - 0.5, down["sent"])
+    assert before and statistics.median(before) == pytest.approx(F_ARC, rel=0.02), before
+    cut = [i for i in within(down) if v[i] < F_ARC * 0.98]
+    assert cut, (f"-10 %: no cycle below F between the byte and the report ({ms(down)}): "
+                 f"{[round(v[i], 3) for i in within(down)]}")
+    held = between(down["ov_wall"], reset["sent"])
+    assert len(held) >= 10 and statistics.median(held) == pytest.approx(0.9 * F_ARC, rel=0.02), \
+        held
+    up = [i for i in within(reset) if v[i] > 0.9 * F_ARC * 1.02]
+    assert up, (f"100 %: no cycle above 0.9 F between the byte and the report ({ms(reset)}): "
+                f"{[round(v[i], 3) for i in within(reset)]}")
+    after = between(reset["ov_wall"], reset["ov_wall"] + 1.0)
+    assert after and statistics.median(after) == pytest.approx(F_ARC, rel=0.02), after
+    T = ref.setup.period_s
+    print(f"\n[CNCjs feed override] F {F_ARC:.3f} mm/s; 0x92: below F "
+          f"{1e3 * (t[cut[0] + 1] - down['sent']):.0f} ms after the byte, the report with Ov:90 "
+          f"{ms(down)} ({(down['ov_wall'] - down['sent']) / T:.1f} periods), held at "
+          f"{statistics.median(held):.3f} mm/s; 0x90: above 0.9 F "
+          f"{1e3 * (t[up[0] + 1] - reset['sent']):.0f} ms after, Ov:100 reported {ms(reset)}, "
+          f"then {statistics.median(after):.3f} mm/s")
+
+
+def test_cncjs_jog_cancel_on_the_bus(cncjs_run):
+    """After the file, a $J= jog at 25 mm/s along X from CNCjs's console,
+    its jogCancel (0x85) once 10 mm along: on the bus (the drives' targets)
+    every period's deceleration is within A (the counts' quantum: a 1 um
+    count over a 40 ms period squared, twice, 1.25 mm/s^2); the stop
+    distance, from the last period at full speed to rest, is v^2/2A within
+    one period's travel at v either way (where in a period the ramp begins);
+    the time to rest v/A within two periods; the brake after the byte (how
+    long after is printed: jogging.md asks no latency, the state stays Jog
+    while it brakes); Y and Z still; CNCjs's DRO shows where it stopped."""
+    ev, rig, ref, _ = cncjs_run
+    r = rig.result
+    can, t = r["counts"], r["t"]
+    setup = ref.setup
+    T, cpu = setup.period_s, setup.cpu[0]
+    cancel, stopped = event(ev, "jog-cancel"), event(ev, "jog-stopped")
+    v_jog = JOG[1] / 60
+    first = max(i for i, x in enumerate(t) if x <= event(ev, "done")["wall"])
+    x = [c[0] / cpu for c in can[first:]]
+    assert all(c[1:] == can[first][1:] for c in can[first:]), "Y or Z moved in the jog"
+    v = [(b - a) / T for a, b in zip(x, x[1:])]
+    acc = [(b - a) / T for a, b in zip(v, v[1:])]
+    q = 2 / (cpu * T * T)  # mm/s^2: one count over T^2, twice
+    what = (f"jog from X {x[0]:.3f} to {x[-1]:.3f}, peak {max(v):.3f} mm/s, cancel {cancel}, "
+            f"stopped {stopped}")
+    assert max(abs(a) for a in acc) <= JOG_A + q, what
+    full = [i for i, s in enumerate(v) if abs(s - v_jog) <= 1 / (cpu * T)]
+    assert full and max(v) <= v_jog + 1 / (cpu * T), what
+    last_full = full[-1]
+    rest = next(i for i in range(last_full, len(v)) if v[i] == 0)
+    brake_t = [t[first + i + 1] for i in range(last_full + 1, rest + 1)]
+    # the first slower setpoint is on the bus after the byte
+    assert cancel["sent"] <= brake_t[0], \
+        f"the brake at {brake_t[0] - cancel['sent']:+.3f} s from the cancel: {what}"
+    braking = x[rest] - x[last_full + 1]
+    ideal = v_jog ** 2 / (2 * JOG_A)
+    assert ideal - v_jog * T <= braking <= ideal + v_jog * T, (braking, ideal, what)
+    assert abs((rest - last_full) * T - v_jog / JOG_A) <= 2 * T, what
+    assert stopped["mpos"][0] == pytest.approx(x[rest], abs=1e-3), what
+    decel = -min(acc)
+    print(f"\n[CNCjs jog cancel] {v_jog:.1f} mm/s, A {JOG_A:g} mm/s^2: {braking:.4f} mm in "
+          f"{rest - last_full} periods (v^2/2A {ideal:.4f} mm, v/A {v_jog / JOG_A / T:.2f} "
+          f"periods), max decel {decel:.2f} mm/s^2, the brake "
+          f"{1e3 * (brake_t[0] - cancel['sent']):.0f} ms after the byte "
+          f"({(brake_t[0] - cancel['sent']) / T:.1f} periods), the first report after it "
+          f"{1e3 * (cancel['wall'] - cancel['sent']):.0f} ms: {cancel['reports'][-1]}")

@@ -19,6 +19,7 @@ Each test prints a [spindle] line with the measured figures.
 """
 
 import re
+import time
 
 import pytest
 
@@ -155,6 +156,57 @@ def test_feed_waits_for_spindle_at_speed(sim, tmp_path):
     assert off and abs(rpm(off[0]["actual"])) <= 100, off[:1]
 
 
+def test_reversal_waits_for_standstill(sim, tmp_path):
+    """M3 S3000, a cut, M4 S3000, a cut, S2000 alone, a cut: at the M4 the
+    spindle's target goes to 0 first and turns negative only after its TPDO
+    reported standstill (never reversed through 0 while turning the other
+    way); no axis moves from the M4 until the spindle reported target
+    reached counter-clockwise; the S alone changes the speed the same way
+    round (no 0 between), the feed waiting for it too."""
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "rev.ngc"
+    ngc.write_text("G21 G90\nG0 X5\nM3 S3000\nG1 X10 F600\nM4 S3000\nG1 X15\nS2000\nG1 X20\nM2\n")
+    sync0 = max((r["sync"] for r in sim.sync_rows()), default=0)
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err
+        rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
+        t_end = rig.t_feed_end
+    # the simulator's records lag the bus in the emulated VM: to M2's stop
+    rows = sim.wait_sync_rows(lambda rs: any(
+        r["node"] == SP and r["target"] == 0 and r["t"] >= t_end for r in rs), timeout=120)
+    sp = rows_by(rows, SP, sync0)
+    on = round(3000 * CPR / 60)
+    s_cw = min(r["sync"] for r in sp if r["target"] == on)
+    s_rev = min(r["sync"] for r in sp if r["sync"] > s_cw and r["target"] == 0)
+    s_ccw = min(r["sync"] for r in sp if r["sync"] > s_rev and r["target"] == -on)
+    still = [r["sync"] for r in sp if s_rev <= r["sync"] < s_ccw and abs(rpm(r["actual"])) <= 100]
+    assert still, [(r["sync"], r["target"], r["actual"]) for r in sp if r["sync"] >= s_rev][:10]
+    # nothing between the standstill and -on, and no negative target before it
+    assert all(r["target"] in (0, None) for r in sp if s_rev <= r["sync"] < s_ccw)
+    assert all(rpm(r["actual"]) <= 100 for r in sp if r["sync"] >= s_ccw)
+    slow = round(2000 * CPR / 60)
+    s_slow = min(r["sync"] for r in sp if r["sync"] > s_ccw and r["target"] == -slow)
+    assert all(r["target"] in (-on, None) for r in sp if s_ccw <= r["sync"] < s_slow)
+    reached = [r["sync"] for r in sp if r["sync"] > s_ccw and r["sw"] & 0x0400 and
+               abs(rpm(r["actual"]) + 3000) <= 100]
+    tg = axis_targets(rows, sync0)
+    at_rev = tg[max(s for s in tg if s <= s_rev)]
+    s_move = min(s for s in tg if s > s_rev and tg[s] != at_rev)
+    assert at_rev[0] == 10000, at_rev  # X10: the first cut done before the M4
+    assert reached and s_move > reached[0], (s_rev, still[0], s_ccw, reached[:1], s_move)
+    slowed = [r["sync"] for r in sp if r["sync"] > s_slow and r["sw"] & 0x0400 and
+              abs(rpm(r["actual"]) + 2000) <= 100]
+    at_slow = tg[max(s for s in tg if s <= s_slow)]
+    s_move2 = min(s for s in tg if s > s_slow and tg[s] != at_slow)
+    assert at_slow[0] == 15000, at_slow  # X15: the second cut done before the S
+    assert slowed and s_move2 > slowed[0], (s_slow, slowed[:1], s_move2)
+    print(f"[spindle] M3 -> M4 S3000: target 0 at SYNC {s_rev}, standstill reported at SYNC "
+          f"{still[0]}, target -{on} counts/s at SYNC {s_ccw}, reached at SYNC {reached[0]}, "
+          f"next feed at SYNC {s_move}; S2000 alone: target -{slow} at SYNC {s_slow}, "
+          f"reached at SYNC {slowed[0]}, next feed at SYNC {s_move2}")
+
+
 def test_stop_zeroes_target_and_fault_stops_on_path(sim, tmp_path):
     cfg = machine(tmp_path)
     ngc = tmp_path / "long.ngc"
@@ -216,3 +268,69 @@ def test_stop_zeroes_target_and_fault_stops_on_path(sim, tmp_path):
     print(f"[spindle] fault mid-cut at SYNC {s_fault}: X at rest {n_brake} periods later, "
           f"largest deceleration {a_max:.0f} mm/s^2 (limit 1000)")
     assert a_max <= 1000 * 1.02 + 1e-9
+
+
+def test_mdi_spindle_stays_on(sim, tmp_path):
+    """MDI M3 S3000 (mlip-ctl mdi): the spindle keeps turning once the line
+    is done (LinuxCNC: the operator starts it, then jogs and touches off),
+    through a jog and an MDI move; MDI M5 stops it; MDI M4 again, an MDI S
+    alone changes its speed (still counter-clockwise), then a stop
+    (mlip-ctl stop) at rest zeroes its target. Judged on the spindle
+    drive's target and velocity actual at every SYNC."""
+    cfg = machine(tmp_path)
+    on = round(3000 * CPR / 60)  # counts/s
+    t0 = time.time()
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        rig.ctl("mdi", "G21 G90 M3 S3000")
+        st = rig.wait_state("idle", timeout=300,
+                            pred=lambda s: s["spindle"]["state"] == "at speed")
+        t_done = time.time()
+        rig.ctl("jog", "X+", "--distance", 2, 600)
+        rig.ctl("mdi", "G1 X4 F600")
+        st = rig.wait_state("idle", timeout=300)
+        assert st["spindle"]["state"] == "at speed" and st["spindle"]["commanded_rpm"] == 3000, st
+        assert abs(st["position"]["X"] - 4.0) < 1e-9 and st["drives"] == "enabled", st
+        t_m5 = time.time()
+        rig.ctl("mdi", "M5")
+        st = rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
+        assert st["spindle"]["commanded_rpm"] == 0, st
+        rig.ctl("mdi", "M4 S2000")
+        rig.wait_state("idle", timeout=300, pred=lambda s: s["spindle"]["state"] == "at speed")
+        # an S alone: the new speed, still counter-clockwise (not ignored)
+        rig.ctl("mdi", "S2500")
+        st = rig.wait_state("idle", timeout=300,
+                            pred=lambda s: s["spindle"]["state"] == "at speed"
+                            and abs(s["spindle"]["commanded_rpm"]) == 2500)
+        assert st["spindle"]["commanded_rpm"] == -2500, st
+        t_stop = time.time()
+        rig.ctl("stop")
+        st = rig.wait_state("idle", timeout=300, pred=lambda s: s["drives"] == "off")
+        assert st["spindle"]["commanded_rpm"] == 0, st
+    # the simulator's records lag the bus in the emulated VM: to the stop's 0
+    rows = sim.wait_sync_rows(lambda rs: any(
+        r["node"] == SP and r["target"] == 0 and r["t"] >= t_stop for r in rs), timeout=120)
+    sp = [r for r in rows if r["node"] == SP and r["t"] >= t0]
+    held = [r for r in sp if t_done <= r["t"] < t_m5]
+    # every SYNC from the line's end to the M5: target 3000 rpm, turning at it
+    assert len(held) >= 10 and all(r["target"] in (on, None) for r in held), held[:5]
+    assert all(abs(rpm(r["actual"]) - 3000) <= 100 for r in held), held[:5]
+    x = [r["target"] for r in rows if r["node"] == 1 and t_done <= r["t"] < t_m5 and r["target"]]
+    # the jog and the MDI move ran meanwhile (X from wherever an earlier
+    # test of this module's simulator left it)
+    assert x and x[-1] == 4000 and len(set(x)) > 1, x[-3:]
+    s_m5 = min(r["sync"] for r in sp if r["t"] >= t_m5 and r["target"] == 0)
+    m4 = [r for r in sp if r["t"] >= t_m5 and r["target"] and r["target"] < 0]
+    s_zero = min(r["sync"] for r in sp if r["sync"] > m4[0]["sync"] and r["target"] == 0)
+    # the S alone: from -2000 rpm to -2500 rpm with no zero between
+    s2 = [r["target"] for r in sp if r["sync"] >= m4[0]["sync"] and r["sync"] < s_zero
+          and r["target"] is not None]
+    assert set(s2) == {round(-2000 * CPR / 60), round(-2500 * CPR / 60)}, sorted(set(s2))
+    s_req = min(r["sync"] for r in sp if r["t"] >= t_stop)
+    print(f"[spindle] MDI M3 S3000: target {on} counts/s held over {len(held)} SYNCs at rest, "
+          f"through a jog and an MDI move (X to 4 mm); MDI M5 target 0 at SYNC {s_m5}; "
+          f"MDI M4 S2000 then mlip-ctl stop: target 0 at SYNC {s_zero}, {s_zero - s_req} "
+          f"SYNCs after the first SYNC following the request")
+    # from the first SYNC after mlip-ctl was started (its process start in the
+    # emulated VM takes up to seconds), then 0 at every SYNC
+    assert 0 <= s_zero - s_req <= (75 if S.in_vm else 5), (s_req, s_zero)
+    assert all(r["target"] in (0, None) for r in sp if r["sync"] >= s_zero)

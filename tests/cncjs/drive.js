@@ -4,11 +4,17 @@
 // load a file, run it, hold and resume it, and print one JSON line per event.
 //
 //   node drive.js --cncjs-port N --tty PATH --file FILE --config FILE [--jog]
-//                 [--hold-after LINES | --hold-at-line N] [--shot PNG] [--deadline S]
+//                 [--hold-after LINES | --hold-at-line N] [--override-at-lines N,M]
+//                 [--jog-cancel DIST,FEED,AFTER] [--shot PNG] [--deadline S]
 //
 // --hold-after: hold once its sender has LINES answered; --hold-at-line: once
 // the status report's Ln is N lines past the first Ln of the run and the
 // machine moves (a file whose lines are all answered before it moves).
+// --override-at-lines N,M: its feed override buttons (-10 %: 0x92; then
+// 100 %: 0x90) at Ln N and M past the first Ln of the run, as --hold-at-line
+// counts. --jog-cancel DIST,FEED,AFTER: once the file is done, a jog
+// ($J=G21 G91 X<DIST> F<FEED>) cancelled by its jogCancel (0x85) once the
+// reports show it at FEED and AFTER mm along.
 // Every event carries `wall` (the wall clock, s) besides `t`.
 //
 // Every wait is on a condition (a state, a position, lines answered, status
@@ -29,6 +35,8 @@ const CONFIG = arg('--config');
 const HOLD_AFTER = arg('--hold-after') ? Number(arg('--hold-after')) : null;
 const HOLD_AT_LINE = arg('--hold-at-line') ? Number(arg('--hold-at-line')) : null;
 const JOG = process.argv.includes('--jog');
+const OVERRIDE_AT = arg('--override-at-lines') ? arg('--override-at-lines').split(',').map(Number) : null;
+const JOG_CANCEL = arg('--jog-cancel') ? arg('--jog-cancel').split(',').map(Number) : null;
 const DEADLINE = Number(arg('--deadline', 60)) * 1000; // ms, for any one condition
 const SHOT = arg('--shot'); // a PNG of CNCjs's page (Debian's chromium, headless)
 const T0 = Date.now();
@@ -105,12 +113,18 @@ async function main() {
     const mpos = s.mpos && ['x', 'y', 'z'].map((k) => Number(s.mpos[k]));
     if (a !== st.state) say({ event: 'state', state: a, mpos, ln: s.ln });
     st.state = a; st.mpos = mpos; st.wpos = s.wpos; st.ln = s.ln; st.feed = Number(s.feedrate);
+    // Ov comes in the first report after a change (report.c), whoever asked
+    // for it: CNCjs's own 4 Hz polls are parsed into its state, not echoed
+    const ov = s.ov && s.ov.length ? Number(s.ov[0]) : null;
+    if (ov !== null && ov !== st.ovFeed) { st.ovFeed = ov; st.ovWall = Date.now() / 1000; }
   });
   socket.on('workflow:state', (w) => { st.workflow = w; });
   socket.on('sender:status', (s) => { st.sender = s; });
   socket.on('serialport:read', (line) => {
     st.lines.push(line);
-    if (line.startsWith('<')) { st.reports += 1; st.report = line; } // a `?` of ours answered
+    if (line.startsWith('<')) { // a `?` of ours answered
+      st.reports += 1; st.report = line; st.reportWall = Date.now() / 1000;
+    }
     if (/^error|^\[MSG|^Grbl/.test(line)) say({ event: 'read', line });
   });
   const until = async (pred, ms, what) => {
@@ -147,11 +161,13 @@ async function main() {
   // before the byte may come first (then one more `?`). The reports read.
   const reportsAfter = async (what, want) => {
     const seen = [];
+    seen.walls = []; // when each came (not in its JSON)
     for (let k = 0; k < 2 && !(seen.length && want(seen[seen.length - 1])); k++) {
       const n = st.reports;
       socket.emit('write', TTY, '?');
       if (!await until(() => st.reports > n, DEADLINE, what)) return null;
       seen.push(st.report);
+      seen.walls.push(st.reportWall);
     }
     return seen;
   };
@@ -181,24 +197,64 @@ async function main() {
     say({ event: 'resumed', sent: resumed, reports: again });
     return true;
   };
+  // Ln n lines past the first Ln of the run, moving
+  let ln0 = null;
+  const atLine = (n) => () => {
+    if (ln0 === null && st.state === 'Run' && st.ln !== undefined) ln0 = st.ln;
+    return ln0 !== null && st.state === 'Run' && st.ln >= ln0 + n && st.feed > 0;
+  };
+  // its feed override button: the byte, then reports until one carries the
+  // new Ov. ov_wall: when that report came; when CNCjs's own poll took it
+  // (its reports are parsed, not echoed: Ov is in the first report after a
+  // change only), when CNCjs's state showed it (at most its 250 ms emit
+  // period after that report)
+  const override = async (kind, value, pct) => {
+    const sent = Date.now() / 1000;
+    const has = (r) => r.includes(`|Ov:${pct},`);
+    cmd('feedOverride', value);
+    const seen = await reportsAfter(kind, (r) => has(r) || (st.ovFeed === pct && st.ovWall >= sent));
+    if (!seen) return false;
+    const k = seen.findIndex(has);
+    if (k < 0 && !await until(() => st.ovFeed === pct && st.ovWall >= sent, DEADLINE,
+      `${kind}: Ov in CNCjs's state`)) return false;
+    say({ event: kind, sent, reports: seen, ov_wall: k >= 0 ? seen.walls[k] : st.ovWall,
+      ov_in: k >= 0 ? 'our report' : "CNCjs's state" });
+    return true;
+  };
   if (HOLD_AFTER !== null) {
     if (!await until(() => st.sender && st.sender.received >= HOLD_AFTER && st.state === 'Run',
       DEADLINE, 'lines before the hold')) return done(1);
     if (!await holdResume()) return done(1);
   } else if (HOLD_AT_LINE !== null) {
-    let ln0 = null;
-    const there = () => {
-      if (ln0 === null && st.state === 'Run' && st.ln !== undefined) ln0 = st.ln;
-      return ln0 !== null && st.state === 'Run' && st.ln >= ln0 + HOLD_AT_LINE && st.feed > 0;
-    };
-    if (!await until(there, 600000, 'the line to hold at')) return done(1);
+    if (!await until(atLine(HOLD_AT_LINE), 600000, 'the line to hold at')) return done(1);
     if (!await holdResume()) return done(1);
+  }
+  if (OVERRIDE_AT !== null) {
+    if (!await until(atLine(OVERRIDE_AT[0]), 600000, 'the line of the override')) return done(1);
+    if (!await override('override-down', -10, 90)) return done(1);
+    if (!await until(atLine(OVERRIDE_AT[1]), 600000, 'the line of the reset')) return done(1);
+    if (!await override('override-reset', 0, 100)) return done(1);
   }
   const finished = () => st.state === 'Idle' && st.sender && st.sender.sent === st.sender.total &&
     st.sender.received === st.sender.total;
   if (!await until(finished, 600000, 'finish')) return done(1);
   say({ event: 'done', seconds: (Date.now() - tRun) / 1000, state: st.state, mpos: st.mpos,
     total: st.sender.total, errors: st.lines.filter((l) => /^error/.test(l)).length });
+  if (JOG_CANCEL !== null) {
+    const [dist, feed, after] = JOG_CANCEL;
+    const x0 = st.mpos[0];
+    cmd('gcode', `$J=G21 G91 X${dist} F${feed}`);
+    if (!await until(() => st.state === 'Jog' && st.feed === feed && st.mpos[0] >= x0 + after,
+      DEADLINE, 'the jog at its feed')) return done(1);
+    const sent = Date.now() / 1000;
+    cmd('jogCancel');
+    // the first report after it (Grbl: Jog while it brakes, then Idle)
+    const seen = await reportsAfter('a report after the jog cancel', () => true);
+    if (!seen) return done(1);
+    say({ event: 'jog-cancel', sent, reports: seen });
+    if (!await until(() => st.state === 'Idle', DEADLINE, 'rest after the cancel')) return done(1);
+    say({ event: 'jog-stopped', mpos: st.mpos, x0 });
+  }
   if (SHOT) await screenshot(st);
   socket.emit('close', TTY);
   await sleep(300);

@@ -28,7 +28,7 @@ def test_feeder_killed_then_continued(controller, tmp_path):
     # throttled feeder is thousands of blocks from the END (a full 4096
     # look-ahead left it a second from it, which a slow run could use up)
     prog, n = flower(tmp_path)
-    shm, _ = controller(short_lookahead(tmp_path, 256))
+    shm, rt = controller(short_lookahead(tmp_path, 256))
     f = Proc([tool("mlip-feed"), "--shm", shm, "--quiet", "--rate", "1500", str(prog)])
     assert wait_for(lambda: (status(shm) or {}).get("exec_seq", 0) > 500)
     f.kill()  # SIGKILL: no goodbye
@@ -39,6 +39,10 @@ def test_feeder_killed_then_continued(controller, tmp_path):
     assert s, status(shm)
     assert s["underruns"] > 0 and s["exec_line"] > 0
     executed = s["exec_seq"]
+    # no feeder holds the ring any more: mlip-rt says how to continue
+    assert rt.log.wait(lambda l: "underrun: no block came after block" in l and
+                       l.endswith(f"to continue: mlip-feed --start-seq {executed + 1}")), \
+        rt.log.lines[-5:]
     later = periods_on(shm, 200)
     assert later and later["position"] == s["position"] and s["speed_mm_s"] == 0.0  # at rest
     # a new feeder continues from the next block and finishes the program

@@ -284,6 +284,41 @@ def test_stream_equals_mlip_feed(grbl, controller, tmp_path, strategy):
           f"(6000 lines streamed in {t_stream:.2f} s)")
 
 
+def test_line_numbers_and_blocks_as_mlip_feed(grbl, controller, tmp_path):
+    """Ln and the records' lines count a program's lines as mlip-feed counts
+    its file's, and the blocks run are mlip-feed's: a sender's `$` lines
+    ($$, $G, $I when it connects, a $G poll mid-file) are not program lines
+    (they numbered the file from 4: a CNCjs run reported its file's first
+    line as Ln:3), and a second run of the file in the same connection
+    numbers from 1 again (the machine came to rest between)."""
+    lines = flower(60)
+    prog = tmp_path / "flower60.ngc"
+    prog.write_text("\n".join(lines) + "\n")
+    shm, rt = controller(MILL)
+    f = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", str(prog)], capture_output=True,
+                       text=True, timeout=300)
+    assert f.returncode == 0, f.stderr
+    c = status(shm)
+    want = (c["exec_seq"], c["exec_line"])
+    assert want[1] == len(lines), c
+    stop_rt(rt)
+    shm, rt, srv, port, _ = grbl(MILL, grbl_opts=("--quiet-ms", "1000"))
+    g = connect(port)
+    for q in ("$$", "$G", "$I"):
+        assert g.cmd(q)[0] == "ok"
+    for run in range(2):
+        seen = []
+        answers = g.stream(lines[:30] + ["$G"] + lines[30:], poll_hz=20,
+                           on_status=lambda s: seen.append(s.get("Ln", [0])[0]))
+        assert [a for a, _ in answers] == ["ok"] * (len(lines) + 1), answers
+        assert wait_for(lambda: status(shm)["state"] == "idle" and
+                        status(shm)["exec_seq"] >= want[0], DEADLINE), status(shm)
+        c = status(shm)
+        assert (c["exec_seq"], c["exec_line"]) == want, (run, c)
+        assert seen and max(seen) <= len(lines), (run, seen)
+        assert g.status().get("Ln", [len(lines)])[0] == len(lines)
+
+
 def test_refused_line_holds_at_the_last_good_block(grbl):
     shm, rt, srv, port, _ = grbl()
     g = connect(port)
@@ -331,6 +366,40 @@ def test_hold_resume_override_reset(grbl):
     assert g.wait_status(lambda s: "Ov" in s)["Ov"] == [100, 100, 100]  # Grbl's reset
     assert g.cmd("G0 X0")[0] == "ok"                   # and runs again from there
     idle_at(g, [0, 0, 0])
+
+
+def test_hold_between_lines_keeps_the_program_open(grbl):
+    """A `!` at rest between a sender's lines (the controller starved, the
+    program open: Run) holds it open however long the hold lasts: the quiet
+    that ends a program (--quiet-ms) counts from the `~` (an M3 typed before
+    the `!` keeps the spindle for 0x9E to stop and restore). mlip-rt's log
+    says the program waits for its feeder, mlip-grbl (not "mlip-feed
+    --start-seq": no other feeder could take the ring)."""
+    quiet = 3.0  # s
+    shm, rt, srv, port, _ = grbl(MILL, grbl_opts=("--quiet-ms", str(int(quiet * 1000))))
+    g = connect(port)
+    assert g.cmd("G4 P0.01")[0] == "ok"      # runs at once: the controller starves after it
+    assert wait_for(lambda: status(shm)["state"] == "starved", DEADLINE), status(shm)
+    said = rt.log.wait(lambda l: "underrun: no block came after block" in l)
+    assert said and said.endswith(f"the program open: its feeder (mlip-grbl, pid {srv.pid}) "
+                                  "continues it or ends it"), rt.log.lines[-5:]
+    assert "--start-seq" not in said
+    g.send(b"!")
+    s = g.status()
+    assert s["state"] == "Hold:0", s
+    c = status(shm)
+    assert c["state"] == "starved", ("the quiet ended the program before the `!`: the test "
+                                     "needs it within --quiet-ms of the line", c)
+    t_hold = time.monotonic()
+    periods_pass(shm, int(1.5 * quiet / 0.001))  # held longer than the quiet, and then some
+    assert time.monotonic() - t_hold > quiet
+    assert status(shm)["state"] == "starved" and g.status()["state"] == "Hold:0"
+    t_resume = time.monotonic()
+    g.send(b"~")
+    assert g.status()["state"] == "Run"
+    s = g.wait_state({"Idle"}, DEADLINE)      # the quiet, from the `~`, ends it
+    assert time.monotonic() - t_resume >= quiet * 0.9, s
+    assert status(shm)["state"] == "idle"
 
 
 def test_m0_pause_and_dwell(grbl):
@@ -762,6 +831,19 @@ def test_spindle_and_coolant_are_the_machines(grbl):
     # the real-time toggles: the operator's coolant, nothing switched, said so
     g.send(b"\xa0")
     g.wait_line(lambda l: "coolant is the operator's here" in l)
+    # 0x9E (spindle stop): outside Hold ignored, as Grbl (protocol.c); in
+    # Hold a manual spindle is the operator's: said, nothing switched
+    n = len(g.lines)
+    g.send(b"\x9e")
+    s = g.status()                             # answered after the byte
+    assert not [l for l in g.lines[n:] if l.startswith("[MSG")], g.lines[n:]
+    assert s["state"] == "Idle" and s.get("A", "S").startswith("S")
+    g.send(b"!")
+    g.wait_state({"Hold:0"})
+    g.send(b"\x9e")
+    g.wait_line(lambda l: l.startswith("[MSG:spindle stop:") and "operator's here" in l)
+    g.send(b"~")
+    g.wait_state({"Idle"})
     assert g.cmd("M2")[0] == "ok"             # program end: spindle and coolant off
     for _ in range(2):
         g.wait_state({"Hold:0"})
@@ -780,6 +862,55 @@ def test_spindle_refused_on_a_machine_without_one(grbl):
     assert g.cmd("M5")[0] == "ok"             # nothing to stop: noted, as mlip-feed
     assert g.status()["state"] == "Idle"
     assert status(shm)["blocks_consumed"] == 0
+
+
+def test_offsets_and_tool_kept_across_a_restart(grbl, tmp_path):
+    """--offsets FILE (mlip-offsets --init's): the tool M61 put in the
+    spindle and a G10 L2 origin are written back once at rest, and a
+    restarted mlip-grbl starts with them ($G's T2, $#'s G55); a second
+    change is written over the first (the write-back's merge base is the
+    file as last written); SELECT stays the file's (Grbl starts in G54)."""
+    offsets = tmp_path / "offsets.txt"
+    assert subprocess.run([tool("mlip-offsets"), "--config", str(MILL_IO), "--init",
+                           str(offsets)], capture_output=True).returncode == 0
+    assert subprocess.run([tool("mlip-offsets"), "--set", "SELECT G56", str(offsets)],
+                          capture_output=True).returncode == 0
+    table = CONFIG.parent / "examples" / "tool.tbl"
+    opts = ("--tools", str(table), "--offsets", str(offsets))
+    shm, rt, srv, port, _ = grbl(MILL_IO, grbl_opts=opts)
+    g = connect(port)
+    assert "G54" in g.cmd("$G")[1][0].split()         # Grbl's start, not the file's G56
+    assert g.cmd("M61 Q2")[0] == "ok"
+    assert g.cmd("G10 L2 P2 X7 Y-3")[0] == "ok"
+    g.wait_state({"Idle"})
+    assert wait_for(lambda: "TOOL 2" in offsets.read_text().splitlines(), DEADLINE), \
+        offsets.read_text()
+    text = offsets.read_text().splitlines()
+    assert "G55 X7 Y-3 Z0" in text and "SELECT G56" in text, text
+    g.close()
+    terminate(srv)
+
+    def restarted():
+        p = logged(subprocess.Popen([tool("mlip-grbl"), "--shm", shm, "--listen", "127.0.0.1:0",
+                                     "--pty", "none", *opts], stderr=subprocess.PIPE, text=True),
+                   "mlip-grbl (again)")
+        line = p.log.wait(lambda l: "listening on" in l, DEADLINE)
+        assert line, p.log.text()
+        return p, connect(int(line.rsplit(":", 1)[1]))
+
+    srv, g = restarted()
+    try:
+        assert "T2" in g.cmd("$G")[1][0].split()
+        g.wait_state({"Idle"})
+        ans, params = g.cmd("$#")
+        assert ans == "ok" and "[G55:7.000,-3.000,0.000]" in params, params
+        assert g.cmd("M61 Q3")[0] == "ok"               # a second change: written too
+        g.wait_state({"Idle"})
+        assert wait_for(lambda: "TOOL 3" in offsets.read_text().splitlines(), DEADLINE), \
+            offsets.read_text()
+        g.close()
+    finally:
+        terminate(srv)
 
 
 # ---- homing settings and tools from the machine (--config, --tools) -------------------

@@ -278,3 +278,31 @@ def test_sim_probe_surface(tmp_path):
         assert p.returncode == 2 and why in p.stderr, p.stderr
     p = run(["mlip-rt", "--config", drv, "--can", "none"], check=False)
     assert p.returncode == 2 and "[PROBE] SOURCE = drive needs the CANopen master" in p.stderr
+    assert f"{drv}: warning: [PROBE] SOURCE = drive without [IO] PROBE" in p.stderr, p.stderr
+
+
+def test_probe_config_check(tmp_path):
+    """mlip-config says where G38's trip comes from, and warns (exit 0: the
+    setup is valid) when SOURCE = drive has no probe level mapped: 0x60B9
+    has no level, so a probe already on at a G38's start gives no edge;
+    mapped (the drive's 0x60FD bit), no warning."""
+    base = (CONFIG / "mill-3axis.ini").read_text()
+    cfg = tmp_path / "m.ini"
+    cases = (
+        ("", "probe: none (G38 refused)", False),
+        ("\n[IO]\nNODE = 10\nPROBE = 10 0x6000:1 3 HIGH\n",
+         "probe: input node 10 0x6000:1 bit 3", False),
+        ("\n[PROBE]\nSOURCE = drive\n",
+         "probe: the axis drives' touch probe 1 (0x60B8..0x60BB), no level mapped", True),
+        ("\n[PROBE]\nSOURCE = drive\n[IO]\nPROBE = 3 0x60FD:0 16 HIGH\n",
+         "probe: the axis drives' touch probe 1 (0x60B8..0x60BB), level node 3 0x60FD:0 bit 16",
+         False),
+    )
+    for extra, line, warned in cases:
+        cfg.write_text(base + extra)
+        p = run(["mlip-config", cfg])
+        assert line in p.stdout, p.stdout
+        assert (f"{cfg}: warning: [PROBE] SOURCE = drive without [IO] PROBE" in p.stderr) == warned, \
+            p.stderr
+        if warned:
+            assert "gives no edge and nothing stops the move" in p.stderr

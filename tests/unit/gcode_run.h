@@ -43,6 +43,8 @@ struct run {
 	char first_msg[MLIP_GCODE_MSG];
 };
 
+static int gr_mdi; /* run() parses MDI lines (mlip_gcode_set_mdi) */
+
 /* Parse text line by line with io (NULL: none set); every error counted,
  * the first kept. */
 static void run(struct run *r, const struct mlip_gcode_io *io, const char *text)
@@ -54,6 +56,7 @@ static void run(struct run *r, const struct mlip_gcode_io *io, const char *text)
 	r->m = gr_machine();
 	mlip_gcode_init(&r->g, &r->m);
 	mlip_gcode_set_io(&r->g, io);
+	mlip_gcode_set_mdi(&r->g, gr_mdi);
 	while (*p) {
 		const char *nl = strchr(p, '\n');
 		size_t n = nl ? (size_t)(nl - p) : strlen(p);

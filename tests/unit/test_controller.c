@@ -43,6 +43,7 @@ static struct mlip_ctl_sdo_res sdo_res_in; /* the drives' SDO answer (homing) */
 static struct mlip_ctl_spindle_in sp_in;   /* the spindle drive's TPDO (issue 19) */
 /* the segment's stop counter and the feeder's stop_base (mlip/ipc/ring.h) */
 static uint32_t stop_count, feeder_base;
+static int feeder_mdi; /* the records are MDI lines (mlip-ctl mdi) */
 /* every transition seen since setup: state entered and why */
 static uint32_t seen_state[256], seen_why[256];
 static int n_seen;
@@ -69,6 +70,7 @@ static void machine(void)
 
 static int setup(void **state)
 {
+	feeder_mdi = 0;
 	(void)state;
 	machine();
 	size_t bytes = mlip_ring_bytes(CAP);
@@ -115,6 +117,7 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	struct mlip_ctl_in in = {.period = period++,
 	                         .missed = missed,
 	                         .feeder_alive = feeder_alive,
+	                         .feeder_mdi = feeder_mdi,
 	                         .stop_requests = stop_count,
 	                         .feeder_stop_base = feeder_base};
 	in.cmd = op ? &cmd : NULL;
@@ -956,6 +959,30 @@ static void test_bad_spindle_speed(void **st)
 	assert_int_equal(io_record(MLIP_REC_SPINDLE, -nextafter(MLIP_REC_RPM_MAX, INFINITY)),
 	                 MLIP_E_RANGE);
 	assert_int_equal(io_record(MLIP_REC_SPINDLE, NAN), MLIP_E_RANGE);
+	/* an MDI S alone: a speed, no direction */
+	assert_int_equal(io_record(MLIP_REC_SPEED, 0.0), MLIP_OK);
+	assert_int_equal(io_record(MLIP_REC_SPEED, MLIP_REC_RPM_MAX), MLIP_OK);
+	assert_int_equal(io_record(MLIP_REC_SPEED, -1.0), MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_SPEED, nextafter(MLIP_REC_RPM_MAX, INFINITY)),
+	                 MLIP_E_RANGE);
+	assert_int_equal(io_record(MLIP_REC_SPEED, NAN), MLIP_E_RANGE);
+}
+
+/* An MDI S alone on a machine whose controller drives no spindle: not a
+ * record mlip's reader sends (it refuses the line): a bad record, nothing
+ * after it runs. */
+static void test_speed_without_spindle(void **st)
+{
+	(void)st;
+	event(1, MLIP_BLOCK_SPEED, 3000.0);
+	move(2, 5.0, 0.0);
+	end(3);
+	until(MLIP_STATE_FAULT, 100);
+	assert_int_equal(status().reason, MLIP_WHY_BAD_RECORD);
+	assert_int_equal(status().reason_field, MLIP_FIELD_TYPE);
+	assert_true(status().reason_value == MLIP_REC_SPEED);
+	tick(200);
+	assert_true(out.pos[0] == 0.0); /* the move after it never ran */
 }
 
 static void test_bad_tool_number(void **st)
@@ -1172,7 +1199,12 @@ static void test_record_roundtrip(void **st)
 	b.kind = MLIP_BLOCK_OPTIONAL_PAUSE;
 	mlip_ring_rec_from_block(&rec, &b, 6);
 	assert_int_equal(rec.type, MLIP_REC_OPTIONAL_PAUSE);
-	b.kind = 9; /* unknown: stays unknown, refused by the controller */
+	b = (struct mlip_block){.kind = MLIP_BLOCK_SPEED, .value = 4500.0};
+	mlip_ring_rec_from_block(&rec, &b, 6);
+	assert_int_equal(rec.type, MLIP_REC_SPEED);
+	assert_int_equal(mlip_ring_rec_to_block(&rec, &c), MLIP_OK);
+	assert_true(c.kind == MLIP_BLOCK_SPEED && c.value == 4500.0);
+	b.kind = MLIP_BLOCK_SPEED + 1; /* unknown: stays unknown, refused by the controller */
 	mlip_ring_rec_from_block(&rec, &b, 6);
 	assert_int_equal(mlip_ring_rec_to_block(&rec, &c), MLIP_E_INVALID);
 	mlip_ring_rec_end(&rec, 7, 8);
@@ -2888,6 +2920,144 @@ static void test_spindle_stop_and_fault_mid_cut(void **st)
 	assert_int_equal(status().spindle_state, MLIP_SPINDLE_FAULT + 1u);
 }
 
+/* Grbl's spindle stop (0x9E) in an operator's hold: refused outside one;
+ * asked while the hold brakes it waits for rest (the tool is still in the
+ * cut), then the spindle's target is 0, the axes still; a resume restores
+ * the program's speed and the axes move only once the drive said it is at
+ * speed again. The second time the restore comes first (a second 0x9E),
+ * the resume follows while it still ramps: the same wait. */
+static void resume_waits_for_speed(const char *what)
+{
+	double x = out.pos[0];
+	uint64_t moved = 0;
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	for (int i = 0; i < 5000 && moved == 0; i++) {
+		stick(1);
+		if (out.pos[0] != x) {
+			moved = period;
+		} else if (spd.reached == 0) {
+			assert_int_equal(status().state, MLIP_STATE_HELD);
+			assert_int_equal(status().reason, MLIP_WHY_SPINDLE_WAIT);
+		}
+	}
+	assert_true(moved != 0 && spd.reached != 0);
+	assert_true(moved > spd.reached);
+	assert_true(fabs(spd.rpm + 6000) <= 20);
+	print_message("%s: the feed %llu periods after target reached\n", what,
+	              (unsigned long long)(moved - spd.reached));
+}
+
+static void test_spindle_stop_in_a_hold(void **st)
+{
+	(void)st;
+	start_cut(); /* M4 S6000, cutting */
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_E_INVALID);
+	spindle_drive();
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	spindle_drive();
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 2, 0), MLIP_E_RANGE);
+	spindle_drive();
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	int k = 0;
+	while (status().state != MLIP_STATE_HELD && k++ < 2000) {
+		assert_true(out.spindle.target == -409600); /* braking: still turning */
+		stick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	stick(1);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	double x = out.pos[0];
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20 && out.pos[0] == x);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	/* the resume: restored, then the wait */
+	spd.reached = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	spindle_drive();
+	assert_true(out.spindle.target == -409600 && status().spindle_cmd_rpm == -6000);
+	resume_waits_for_speed("0x9E, resume");
+	/* again: 0x9E twice in the hold, the resume while it ramps */
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	spindle_drive();
+	suntil(MLIP_STATE_HELD, 2000);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 0, 0), MLIP_OK);
+	spindle_drive();
+	stick(2);
+	assert_true(out.spindle.target == -409600);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	spd.reached = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	spindle_drive();
+	resume_waits_for_speed("0x9E twice, resume while ramping");
+}
+
+/* The same between a sender's lines (mlip-grbl: an M3 typed in its console
+ * is a program left open, the controller starved at rest waiting for the
+ * next line): the hold at rest there is where 0x9E acts too. Lines that come
+ * in the hold are taken (held, the spindle kept stopped); the resume
+ * restores the spindle wherever the program stands, and the axes move only
+ * once it is at speed again. */
+static void test_spindle_stop_in_a_hold_between_lines(void **st)
+{
+	(void)st;
+	stick(5);
+	event(1, MLIP_BLOCK_SPINDLE, -6000.0); /* M4 S6000, and no end */
+	suntil(MLIP_STATE_STARVED, 5000);
+	assert_true(fabs(spd.rpm + 6000) <= 20);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	spindle_drive();
+	stick(2);
+	assert_int_equal(status().state, MLIP_STATE_STARVED);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	stick(1);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20);
+	/* a second 0x9E restores it, a third stops it again */
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 0, 0), MLIP_OK);
+	spindle_drive();
+	stick(1);
+	assert_true(out.spindle.target == -409600 && status().spindle_cmd_rpm == -6000);
+	stick(1500);
+	assert_true(fabs(spd.rpm + 6000) <= 20);
+	assert_int_equal(period_cmd(MLIP_CMD_SPINDLE_STOP, 1, 0), MLIP_OK);
+	spindle_drive();
+	stick(1500);
+	assert_true(fabs(spd.rpm) <= 20 && out.spindle.target == 0);
+	/* the sender's next lines, taken in the hold: nothing moves, the
+	 * spindle stays stopped */
+	double x = out.pos[0];
+	for (uint64_t k = 2; k <= 10; k++) {
+		move(k, 5.0 * (double)k, 0.0);
+	}
+	end(11);
+	stick(200);
+	assert_true(out.pos[0] == x && out.spindle.target == 0);
+	/* the resume: restored, the feed once at speed */
+	spd.reached = 0;
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	spindle_drive();
+	assert_true(out.spindle.target == -409600 && status().spindle_cmd_rpm == -6000);
+	uint64_t moved = 0;
+	for (int i = 0; i < 5000 && moved == 0; i++) {
+		stick(1);
+		if (out.pos[0] != x) {
+			moved = period;
+		}
+	}
+	assert_true(moved != 0 && spd.reached != 0 && moved > spd.reached);
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_true(out.pos[0] == 50.0);
+}
+
 /* The spindle drive's heartbeat lost mid-cut (rt/'s supervision reports it
  * with its node): state FAULT naming the spindle, the feed stopped on the
  * path, the spindle asked 0. */
@@ -2984,6 +3154,111 @@ static void test_spindle_estop(void **st)
 	assert_true(spd.reached != 0 && fabs(spd.rpm - 3000) <= 20);
 }
 
+/* MDI M3 S (mlip-ctl mdi: the feeder says so): the spindle stays on at
+ * speed when the line is done, the drives enabled for it, through an
+ * incremental jog (LinuxCNC: the operator starts it, then jogs and touches
+ * off); MDI M5 stops it (the drives disabled at its standstill); a stop at
+ * rest stops it in the same period; a program's end (not MDI) too. */
+static void mdi_m3(double rpm)
+{
+	feeder_mdi = 1;
+	event(1, MLIP_BLOCK_SPINDLE, rpm);
+	end(2);
+	suntil(MLIP_STATE_DWELLING, 100);
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+}
+
+static void test_spindle_mdi_stays_on(void **st)
+{
+	(void)st;
+	stick(5);
+	mdi_m3(6000.0);
+	stick(500);
+	assert_true(status().spindle_cmd_rpm == 6000 && fabs(spd.rpm - 6000) <= 20);
+	assert_int_equal(out.spindle.target, 409600);
+	assert_int_equal(status().drive_power, MLIP_POWER_ENABLED);
+	/* a 5 mm jog along X, renewed as mlip-ctl does: the spindle turns on */
+	assert_int_equal(period_cmd(MLIP_CMD_JOG_AXIS, MLIP_JOG_AXIS_ARG(0, 0, 5000), 0), MLIP_OK);
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 1200), 0), MLIP_OK);
+	for (int i = 0; i < 3000 && status().state == MLIP_STATE_JOGGING; i++) {
+		stick(1);
+		if (i % 100 == 99 && status().state == MLIP_STATE_JOGGING) {
+			assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 1200), 0),
+			                 MLIP_OK);
+			spindle_drive();
+		}
+		assert_int_equal(out.spindle.target, 409600);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_JOG_DONE);
+	assert_true(fabs(out.pos[0] - 5.0) < 1e-9);
+	stick(100);
+	assert_true(status().spindle_cmd_rpm == 6000 && fabs(spd.rpm - 6000) <= 20);
+	assert_int_equal(status().drive_power, MLIP_POWER_ENABLED);
+	/* MDI M5: it stops; the drives are disabled once it stands still */
+	event(1, MLIP_BLOCK_SPINDLE, 0.0);
+	end(2);
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(fabs(spd.rpm) <= 240);
+	for (int i = 0; i < 100 && status().drive_power == MLIP_POWER_ENABLED; i++) {
+		stick(1);
+	}
+	assert_true(status().drive_power != MLIP_POWER_ENABLED);
+	/* again; a stop at rest: target 0 in the stop's own period */
+	mdi_m3(-3000.0);
+	stick(10);
+	assert_int_equal(out.spindle.target, -204800);
+	stop_count++;
+	stick(1);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+	/* again; then a program: its end stops it */
+	feeder_base = stop_count;
+	mdi_m3(3000.0);
+	feeder_mdi = 0;
+	move(1, 10.0, 0.0);
+	end(2);
+	suntil(MLIP_STATE_RUNNING, 100);
+	assert_int_equal(out.spindle.target, 204800); /* it turned through the program */
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_int_equal(out.spindle.target, 0);
+}
+
+/* MDI S alone (SPEED): the speed of the spindle an earlier MDI M4 keeps
+ * turning, in its direction, at rest until it is at the new speed; once M5
+ * stopped it, an S leaves it stopped (the S is for the next M3/M4). */
+static void test_spindle_mdi_speed(void **st)
+{
+	(void)st;
+	stick(5);
+	mdi_m3(-3000.0);
+	stick(100);
+	assert_int_equal(out.spindle.target, -204800);
+	feeder_base = stop_count;
+	event(1, MLIP_BLOCK_SPEED, 4500.0);
+	end(2);
+	suntil(MLIP_STATE_DWELLING, 100);
+	assert_int_equal(status().reason, MLIP_WHY_SPINDLE_WAIT);
+	assert_true(status().reason_value == -4500.0);
+	assert_int_equal(out.spindle.target, -307200); /* 4500 rpm * 4096 / 60, reversed */
+	suntil(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(status().spindle_cmd_rpm == -4500 && fabs(spd.rpm + 4500) <= 20);
+	/* M5, then an S alone: it stays stopped */
+	event(1, MLIP_BLOCK_SPINDLE, 0.0);
+	end(2);
+	suntil(MLIP_STATE_IDLE, 5000);
+	event(1, MLIP_BLOCK_SPEED, 2000.0);
+	end(2);
+	suntil(MLIP_STATE_DWELLING, 100);
+	suntil(MLIP_STATE_IDLE, 100);
+	stick(100);
+	assert_int_equal(out.spindle.target, 0);
+	assert_true(status().spindle_cmd_rpm == 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -3018,6 +3293,7 @@ int main(void)
 	    T(test_record_bounds_accepted),
 	    T(test_bad_beyond_drive_count),
 	    T(test_bad_spindle_speed),
+	    T(test_speed_without_spindle),
 	    T(test_bad_tool_number),
 	    T(test_bad_coolant_bits),
 	    T(test_bad_record_in_dwell_rests_before_it),
@@ -3060,8 +3336,12 @@ int main(void)
 	    TH(test_home_again_stale_attained),
 	    TS(test_spindle_feed_waits_for_speed),
 	    TS(test_spindle_stop_and_fault_mid_cut),
+	    TS(test_spindle_stop_in_a_hold),
+	    TS(test_spindle_stop_in_a_hold_between_lines),
 	    TS(test_spindle_band_and_timeout),
 	    TS(test_spindle_estop),
+	    TS(test_spindle_mdi_stays_on),
+	    TS(test_spindle_mdi_speed),
 	    TS(test_spindle_heartbeat_lost),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

@@ -105,6 +105,32 @@ static void test_realtime_bytes_anywhere(void **state)
 	}
 }
 
+static void test_utf8_realtime_bytes(void **state)
+{
+	(void)state;
+	static struct grbl_rx rx;
+	grbl_rx_init(&rx);
+	n_seen = 0;
+	/* CNCjs writes 0x92 as the JavaScript string '\x92': UTF-8 C2 92, here
+	 * split across two reads and inside a line; the C2 is dropped as Grbl
+	 * drops every unknown byte above 0x7F, the 0x92 acts. A C2 before
+	 * another byte (the degree sign C2 B0 in a comment) is line data. */
+	feed(&rx, "G1 X1\xc2", 6);
+	feed(&rx, "\x92 Y2 (5\xc2\xb0)\xc2\x85\n", 13);
+	assert_int_equal(n_seen, 2);
+	assert_int_equal(seen[0], GRBL_RT_FEED_MINUS_10);
+	assert_int_equal(seen[1], GRBL_RT_JOG_CANCEL);
+	next_line(&rx, "G1 X1 Y2 (5\xc2\xb0)");
+	/* a C2 at a line end is data, the end still ends it */
+	feed(&rx, "X\xc2\n", 3);
+	next_line(&rx, "X\xc2");
+	assert_false(grbl_rx_pending(&rx));
+	feed(&rx, "\xc2", 1);
+	assert_true(grbl_rx_pending(&rx));
+	grbl_rx_reset(&rx);
+	assert_false(grbl_rx_pending(&rx));
+}
+
 static void test_lines_cr_lf_and_buffer(void **state)
 {
 	(void)state;
@@ -771,6 +797,7 @@ int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test(test_realtime_bytes_anywhere),
+	    cmocka_unit_test(test_utf8_realtime_bytes),
 	    cmocka_unit_test(test_lines_cr_lf_and_buffer),
 	    cmocka_unit_test(test_too_long_line),
 	    cmocka_unit_test(test_overflow_answers_each_line),

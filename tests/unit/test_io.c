@@ -87,6 +87,8 @@ static void events(const struct run *r, char *out, size_t len)
 			n += (size_t)snprintf(out + n, len - n, "%sT%g", n ? " " : "", b->value);
 		} else if (b->kind == MLIP_BLOCK_COOLANT) {
 			n += (size_t)snprintf(out + n, len - n, "%sC%g", n ? " " : "", b->value);
+		} else if (b->kind == MLIP_BLOCK_SPEED) {
+			n += (size_t)snprintf(out + n, len - n, "%sV%g", n ? " " : "", b->value);
 		} else if (b->kind == MLIP_BLOCK_MOVE) {
 			n += (size_t)snprintf(out + n, len - n, "%sm", n ? " " : "");
 		}
@@ -162,6 +164,71 @@ static void test_spindle_manual(void **state)
 	assert_int_equal(r->s.b[1].kind, MLIP_BLOCK_DWELL);
 	assert_int_equal(r->s.b[2].kind, MLIP_BLOCK_MOVE);
 	free(r);
+}
+
+/* text runs without an error and emits the events want (events()). */
+static void expect_events(const struct mlip_gcode_io *io, const char *text, const char *want)
+{
+	struct run *r = malloc(sizeof *r);
+	char ev[256];
+
+	assert_non_null(r);
+	run(r, io, text);
+	events(r, ev, sizeof ev);
+	if (r->errors != 0 || strcmp(ev, want) != 0) {
+		fprintf(stderr, "for \"%s\": %d errors (%s), events \"%s\"; expected \"%s\"\n",
+		        text, r->errors, r->first_msg, ev, want);
+		fail();
+	}
+	free(r);
+}
+
+/* MDI lines (each mdi a fresh reader): M5 and M9 always reach the
+ * controller, which keeps an earlier line's M3/M8 on; a program's redundant
+ * M5 stays nothing (a manual spindle would pause for it). */
+static void test_mdi_stop_words(void **state)
+{
+	struct mlip_gcode_io io = io_manual();
+
+	(void)state;
+	gr_mdi = 1;
+	expect_events(&io, "M5\n", "S0");
+	expect_events(&io, "M9\n", "C0");
+	io.coolant = MLIP_IO_NONE;
+	expect_events(&io, "M9\n", "");
+	gr_mdi = 0;
+	io = io_manual();
+	expect_events(&io, "M5 M9\nG1 X1 F100\n", "m");
+}
+
+/* An MDI S alone (a fresh reader: an earlier MDI M3 may keep it turning):
+ * a CiA 402 spindle gets a SPEED event (the controller keeps its direction);
+ * a manual one is refused (mlip cannot see it); once the lines said M3/M4/M5
+ * the reader knows, as in a program. M6 and M2 in MDI stop it first. */
+static void test_mdi_speed(void **state)
+{
+	struct mlip_gcode_io io = io_manual();
+
+	(void)state;
+	gr_mdi = 1;
+	io.spindle = MLIP_IO_CIA402;
+	expect_events(&io, "S8000\n", "V8000");
+	expect_events(&io, "S0\nS9000 G1 X1 F100\n", "V0 V9000 m");
+	expect_events(&io, "M4 S2000\nS3000\nM5\nS4000\n", "S-2000 S-3000 S0");
+	expect_events(&io, "T2 M6\n", "S0 m T2");
+	expect_events(&io, "M2\n", "S0 C0");
+	expect_err(&io, "S30000\n", 1, 1, "S30000 beyond the spindle's MAX_RPM 24000");
+	io.ignore_spindle = 1;
+	expect_events(&io, "S8000\nT2 M6\n", "m T2");
+	io = io_manual();
+	expect_err(&io, "G0 X1\nS8000\n", 2, 1,
+	           "S8000 alone in MDI with a manual spindle: mlip cannot tell whether it turns");
+	expect_events(&io, "M5\nS8000\n", "S0");
+	gr_mdi = 0; /* a program: the reader knows the spindle from its start */
+	io.spindle = MLIP_IO_CIA402;
+	expect_events(&io, "S8000\nG1 X1 F100\nT2 M6\nM2\n", "m m T2");
+	io = io_manual();
+	expect_events(&io, "S8000\nG1 X1 F100\n", "m");
 }
 
 static void test_spindle_bad(void **state)
@@ -422,6 +489,9 @@ static void test_config_sections(void **state)
 	        "MIN_RPM must be <= MAX_RPM");
 	cfg_err("[SPINDLE]\nMAX_RPM = 1000\n", 17, 1, "TYPE = none has none");
 	cfg_err("[SPINDLE]\nTYPE = manual\nMAX_RPM = -3\n", 18, 11, "within 0..1000000 rpm");
+	/* in range but not > 0: placed on MAX_RPM alone (no second key: UBSan
+	 * caught a shift by -1 here, found by fuzz_config) */
+	cfg_err("[SPINDLE]\nTYPE = manual\nMAX_RPM = 0\n", 18, 1, "MAX_RPM must be > 0");
 	cfg_err("[TOOL]\nCHANGE = manual\nCHANGE_Z = 151\n", 18, 1,
 	        "CHANGE_Z 151 is beyond the soft limits of AXIS_Z");
 	cfg_err("[TOOL]\nCHANGE = manual\nCHANGE_A = 0\n", 18, 1, "axis A is not in COORDINATES");
@@ -554,6 +624,8 @@ int main(void)
 	    cmocka_unit_test(test_spindle_none),
 	    cmocka_unit_test(test_spindle_manual),
 	    cmocka_unit_test(test_spindle_bad),
+	    cmocka_unit_test(test_mdi_stop_words),
+	    cmocka_unit_test(test_mdi_speed),
 	    cmocka_unit_test(test_tool_change),
 	    cmocka_unit_test(test_tool_bad),
 	    cmocka_unit_test(test_length_offset),

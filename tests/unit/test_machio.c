@@ -555,9 +555,9 @@ static void test_outputs_off_on_fault_and_estop(void **st)
 }
 
 /* MDI lines (mlip-ctl mdi: the feeder says so): M8 and M64 P0 stay on when
- * the lines are done (LinuxCNC: until M9/M65, a program's end, a stop); the
- * next MDI M9 switches the coolant off; a stop at rest switches everything
- * off; a program's end (not MDI) too. */
+ * the lines are done (LinuxCNC: until M9/M65, a program's end, a stop); a
+ * next MDI M7 adds mist to the flood; the next MDI M9 switches both off; a
+ * stop at rest switches everything off; a program's end (not MDI) too. */
 static void test_mdi_outputs_stay_on(void **st)
 {
 	(void)st;
@@ -570,7 +570,15 @@ static void test_mdi_outputs_stay_on(void **st)
 	assert_int_equal(out.status.reason, MLIP_WHY_END);
 	tick(10);
 	assert_int_equal(out.status.coolant, MLIP_COOLANT_FLOOD);
-	assert_int_equal(out.outputs[0], 0x06);        /* flood (bit 1) and P0 (bit 2) */
+	assert_int_equal(out.outputs[0], 0x06); /* flood (bit 1) and P0 (bit 2) */
+	/* the next MDI M7 (its reader knows no flood): mist joins flood */
+	push_block(1, MLIP_BLOCK_COOLANT, 0, 0, 0, MLIP_COOLANT_MIST);
+	end(2);
+	tick(1);
+	until(MLIP_STATE_IDLE, 100);
+	tick(2);
+	assert_int_equal(out.status.coolant, MLIP_COOLANT_MIST | MLIP_COOLANT_FLOOD);
+	assert_int_equal(out.outputs[0], 0x07);
 	push_block(1, MLIP_BLOCK_COOLANT, 0, 0, 0, 0); /* M9 */
 	end(2);
 	tick(1);
@@ -893,6 +901,41 @@ static void test_drive_probe_errors(void **st)
 	assert_true(out.pos[0] == 0.0);
 }
 
+/* [PROBE] SOURCE = drive with the probe's level mapped too ([IO] PROBE on a
+ * drive's digital inputs 0x60FD, a manufacturer bit: CiA 402's 0x60B9 has no
+ * level, only the latch's state): a probe already on at the start of G38.2
+ * is refused before anything moves or the latch is armed; off, the move
+ * runs and the latch (not the level) gives the result. */
+static void test_drive_probe_level_at_start(void **st)
+{
+	(void)st;
+	use_drive_probe();
+	io_cfg.in[MLIP_IN_PROBE] = (struct mlip_io_bit){1, 0, 0x60FD, 16, 0, 1};
+	io_cfg.mapped |= BIT(MLIP_IN_PROBE);
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .io = &io_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	io_in.known = io_cfg.mapped;
+	io_in.active |= BIT(MLIP_IN_PROBE);
+	push_block(1, MLIP_BLOCK_PROBE, 5, 0, 10, MLIP_PROBE_MUST_TRIP);
+	end(2);
+	until(MLIP_STATE_IDLE, 100);
+	assert_int_equal(out.status.reason, MLIP_WHY_PROBE_AT_START);
+	assert_true(out.pos[0] == 0.0);
+	for (int i = 0; i < n_trace; i++) {
+		assert_int_equal(fn_hist[i], 0); /* never armed */
+	}
+	/* off: the latch gives the result, the level no trip of its own */
+	io_in.active &= ~BIT(MLIP_IN_PROBE);
+	surface_x = 2.25;
+	push_block(1, MLIP_BLOCK_PROBE, 5, 0, 10, MLIP_PROBE_MUST_TRIP);
+	end(2);
+	tick(1);
+	until(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	assert_int_equal(out.status.probe_tripped, 1);
+	assert_true(fabs(out.status.probe_pos[0] - 2.25) <= 1e-9);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -907,6 +950,7 @@ int main(void)
 	    cmocka_unit_test_setup_teardown(test_probe_no_trip, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_probe_at_start_and_away, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_probe_input_unread, setup, teardown),
+	    cmocka_unit_test_setup_teardown(test_drive_probe_level_at_start, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_probe_stopped, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_drive_probe_latched_position, setup, teardown),
 	    cmocka_unit_test_setup_teardown(test_drive_probe_errors, setup, teardown),

@@ -224,22 +224,37 @@ static void pull(struct grbl_rx *rx)
 	}
 }
 
+static void line_byte(struct grbl_rx *rx, unsigned char c)
+{
+	if (!rx->ready && rx_count(rx) == 0) {
+		assemble(rx, c); /* straight into the line */
+	} else {
+		store(rx, c);
+	}
+}
+
 void grbl_rx_feed(struct grbl_rx *rx, const unsigned char *b, size_t n,
                   void (*rt)(void *ctx, grbl_rt cmd), void *ctx)
 {
 	for (size_t i = 0; i < n; i++) {
 		grbl_rt cmd = grbl_rt_of(b[i]);
+		if (rx->lead) {
+			rx->lead = 0;
+			if (!(cmd != GRBL_RT_NONE && b[i] > 0x7F)) {
+				line_byte(rx, 0xC2); /* not a UTF-8 real-time byte: data */
+			}
+		}
 		if (cmd != GRBL_RT_NONE) {
 			if (rt != NULL) {
 				rt(ctx, cmd);
 			}
 			continue;
 		}
-		if (!rx->ready && rx_count(rx) == 0) {
-			assemble(rx, b[i]); /* straight into the line */
-		} else {
-			store(rx, b[i]);
+		if (b[i] == 0xC2) {
+			rx->lead = 1;
+			continue;
 		}
+		line_byte(rx, b[i]);
 	}
 }
 
@@ -273,7 +288,7 @@ uint32_t grbl_rx_available(const struct grbl_rx *rx)
 
 int grbl_rx_pending(const struct grbl_rx *rx)
 {
-	return rx->ready || rx->len > 0 || rx->over || rx_count(rx) > 0 || rx->dropping;
+	return rx->ready || rx->len > 0 || rx->over || rx_count(rx) > 0 || rx->dropping || rx->lead;
 }
 
 /* ---- system lines ------------------------------------------------------ */

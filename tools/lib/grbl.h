@@ -131,11 +131,15 @@ struct grbl_rx {
 	int dropping;        /* dropping the rest of an overflowed line */
 	uint32_t drop_bytes; /* bytes dropped since the mark was made */
 	uint64_t overflows;  /* bytes ever dropped */
+	int lead;            /* a UTF-8 lead byte 0xC2 waits for the next byte */
 };
 
 void grbl_rx_init(struct grbl_rx *rx);
 /* Take n bytes; each real-time command is passed to rt(ctx, cmd) in the
- * order it came, before the next byte is looked at. */
+ * order it came, before the next byte is looked at. A real-time byte above
+ * 0x7F written as UTF-8 text (0xC2 then the byte: CNCjs's JavaScript
+ * strings) is that command, the 0xC2 dropped as Grbl drops every unknown
+ * byte above 0x7F (serial.c); a 0xC2 before anything else is line data. */
 void grbl_rx_feed(struct grbl_rx *rx, const unsigned char *b, size_t n,
                   void (*rt)(void *ctx, grbl_rt cmd), void *ctx);
 /* The complete line waiting to be processed: 1 and *out, or 0. */

@@ -82,6 +82,7 @@ void welcome(void)
 	}
 	memset(&S.refresh, 0, sizeof(S.refresh));
 	S.lineno = 0;
+	S.ln_programs = S.st.programs;
 }
 
 /* Where the machine stands, for a new program. */
@@ -110,6 +111,7 @@ void soft_reset(void)
 	S.err_hold = 0;
 	S.hold_idle = 0;
 	S.hold_req = 0;
+	S.sp_stopped = 0;
 	S.door = 0;
 	S.jog = 0;
 	S.jog_cancel = 0;
@@ -379,10 +381,18 @@ int jog_line(const char *t, size_t len, const char *state)
  * and lines that come later continue the same program, so a sender that
  * pauses for a while (CNCjs does, while it draws) costs no stop. A program
  * whose controller is at rest waiting for more ends there (END): it is
- * complete, the controller idle. A file streamed without pauses is one
- * program, as mlip-feed runs it. */
+ * complete, the controller idle; not in an operator's hold, whose end the
+ * quiet counts from. A file streamed without pauses is one program, as
+ * mlip-feed runs it. */
 void quiet_end(void)
 {
+	if (in_hold()) {
+		/* the operator's hold (`!`): the controller waits for the
+		 * operator, not for the sender, and the program stays open (an
+		 * M3 typed before it keeps turning, for 0x9E to stop and
+		 * restore); the quiet that ends it counts from the hold's end */
+		S.held_ns = now_ns();
+	}
 	if (S.partial) {
 		return;
 	}
@@ -414,7 +424,7 @@ void quiet_end(void)
 		}
 		S.fa.pid = 0; /* beat() publishes it */
 	} else if ((S.cs.state == MLIP_STATE_STARVED || S.cs.state == MLIP_STATE_IDLE) &&
-	           (!S.jog || mlip_ring_count(S.r) == 0)) {
+	           (!S.jog || mlip_ring_count(S.r) == 0) && now_ns() - S.held_ns >= S.quiet_ns) {
 		/* (a jog's records just pushed may not be taken yet: the
 		 * controller is idle until its next period) */
 		if (S.verbose) {

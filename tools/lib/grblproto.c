@@ -164,6 +164,40 @@ void stop_post(void)
 
 /* ---- real-time commands -------------------------------------------------------- */
 
+/* Grbl switches its own outputs; mlip's spindle and coolant are the
+ * program's (on the bus: no command switches them outside it; the spindle
+ * stop in a hold excepted), the operator's (manual) or absent: say so,
+ * switch nothing */
+static void not_switched(grbl_rt c)
+{
+	if (S.ctl) {
+		int sp = c == GRBL_RT_SPINDLE_STOP;
+		int type = sp ? S.io.spindle : S.io.coolant;
+		send_msg(S.ctl, "%s: %s: nothing switched", grbl_rt_name(c),
+		         type == MLIP_IO_NONE
+		             ? (sp ? "this machine has no spindle" : "this machine has no coolant")
+		         : type != MLIP_IO_MANUAL
+		             ? (sp ? "the spindle on the bus follows the program: M5, or a stop "
+		                     "(ctrl-x) stops it"
+		                   : "the coolant follows the program: M9, or a stop (ctrl-x) "
+		                     "switches it off")
+		         : sp ? "the spindle is the operator's here (manual): stop it by hand, "
+		                "or M5 in the program"
+		              : "the coolant is the operator's here (manual): switch it by "
+		                "hand, or M7/M8/M9 in the program");
+	}
+}
+
+/* Grbl's Hold: asked (a `!` just before, still in the mailbox queue, too) or held */
+int in_hold(void)
+{
+	int queued = 0;
+	for (int i = 0; i < S.qn; i++) {
+		queued |= S.q[i].op == MLIP_CMD_HOLD;
+	}
+	return queued || S.hold_req || S.hold_idle || S.cs.state == MLIP_STATE_HELD;
+}
+
 void rt_cmd(void *ctx, grbl_rt c)
 {
 	(void)ctx;
@@ -205,6 +239,11 @@ void rt_cmd(void *ctx, grbl_rt c)
 		}
 		if (S.hold_idle || S.hold_req || cs->state == MLIP_STATE_HELD ||
 		    cs->state == MLIP_STATE_PAUSED) {
+			if (S.sp_stopped && S.ctl) {
+				/* the controller restores it and goes on at speed */
+				send_msg(S.ctl, "Restoring spindle");
+			}
+			S.sp_stopped = 0;
 			cmd_push(MLIP_CMD_RESUME, 0);
 		}
 		S.hold_idle = 0;
@@ -274,28 +313,26 @@ void rt_cmd(void *ctx, grbl_rt c)
 		return;
 	}
 	case GRBL_RT_SPINDLE_STOP:
+		/* Grbl (protocol.c): in Hold only, elsewhere ignored; the first
+		 * stops the spindle once the hold is at rest, the next restores
+		 * it ([MSG:Restoring spindle]), as does ~ (the motion then waits
+		 * until it is at speed: the controller's) */
+		if (!in_hold() || S.door || S.jog || S.alarm) {
+			return;
+		}
+		if (S.sp_bus) {
+			S.sp_stopped = !S.sp_stopped;
+			cmd_push(MLIP_CMD_SPINDLE_STOP, S.sp_stopped);
+			if (!S.sp_stopped && S.ctl) {
+				send_msg(S.ctl, "Restoring spindle");
+			}
+			return;
+		}
+		not_switched(c); /* a manual spindle or none: said */
+		return;
 	case GRBL_RT_FLOOD:
 	case GRBL_RT_MIST:
-		/* Grbl switches its own outputs; mlip's spindle and coolant are
-		 * the program's (on the bus: no command switches them outside
-		 * it), the operator's (manual) or absent: say so, switch nothing */
-		if (S.ctl) {
-			int sp = c == GRBL_RT_SPINDLE_STOP;
-			int type = sp ? S.io.spindle : S.io.coolant;
-			send_msg(
-			    S.ctl, "%s: %s: nothing switched", grbl_rt_name(c),
-			    type == MLIP_IO_NONE ? (sp ? "this machine has no spindle"
-			                               : "this machine has no coolant")
-			    : type != MLIP_IO_MANUAL
-			        ? (sp ? "the spindle on the bus follows the program: M5, or a stop "
-			                "(ctrl-x) stops it"
-			              : "the coolant follows the program: M9, or a stop (ctrl-x) "
-			                "switches it off")
-			    : sp ? "the spindle is the operator's here (manual): stop it by hand, "
-			           "or M5 in the program"
-			         : "the coolant is the operator's here (manual): switch it by "
-			           "hand, or M7/M8/M9 in the program");
-		}
+		not_switched(c);
 		return;
 	default:
 		return;
@@ -318,6 +355,31 @@ int is_query(const char *t, size_t len)
 	return c.kind == GRBL_SYS_HELP || c.kind == GRBL_SYS_SETTINGS ||
 	       c.kind == GRBL_SYS_PARAMS || c.kind == GRBL_SYS_GCODE || c.kind == GRBL_SYS_INFO ||
 	       c.kind == GRBL_SYS_STARTUP || c.kind == GRBL_SYS_UNLOCK;
+}
+
+static int is_system(const char *t, size_t len)
+{
+	size_t i = 0;
+	while (i < len && (unsigned char)t[i] <= ' ') {
+		i++;
+	}
+	return i < len && t[i] == '$';
+}
+
+/* Ln and the records' line numbers count a program's lines as mlip-feed
+ * counts its file's: `$` lines (a sender's $$, $G polls, $J= jogs) are not
+ * program lines, and a new program numbers from 1: the first line after a
+ * program ended (its END given) once it ended by M2/M30 or the machine came
+ * to rest (a sender's next file; a sender that merely paused mid-file while
+ * the machine still runs keeps counting). */
+static void count_line(void)
+{
+	if (!S.st.open && S.st.programs != S.ln_programs &&
+	    (grbl_stream_ended(&S.st) || S.cs.state == MLIP_STATE_IDLE)) {
+		S.lineno = 0;
+		S.ln_programs = S.st.programs;
+	}
+	S.lineno++;
 }
 
 /* The next complete line, if nothing holds it back. */
@@ -347,7 +409,9 @@ void process_lines(void)
 			}
 			return;
 		}
-		S.lineno++;
+		if (!is_system(l.text, l.len)) {
+			count_line();
+		}
 		if (l.kind == GRBL_LINE_LOST) {
 			send_msg(S.ctl,
 			         "receive buffer overflow: the sender sent more than %d bytes "

@@ -64,8 +64,10 @@ struct srv {
 	int verbose;
 	/* protocol */
 	struct grbl_rx rx;
-	uint32_t lineno;     /* lines received since the welcome */
-	uint64_t last_rx_ns; /* last line byte received */
+	uint32_t lineno;      /* the program's lines received (count_line) */
+	uint64_t ln_programs; /* S.st.programs when lineno last restarted */
+	uint64_t last_rx_ns;  /* last line byte received */
+	uint64_t held_ns;     /* an operator's hold last seen (quiet_end) */
 	int status_req;
 	int check_mode;
 	int err_hold;  /* a refused line: nothing more taken until ~ or reset */
@@ -119,6 +121,7 @@ struct srv {
 	int sp_ov;           /* its override, percent (idem) */
 	int sp_bad;          /* an invalid spindle status was told (once until valid) */
 	int sp_post;         /* a spindle override waits for the mailbox (-1: none) */
+	int sp_stopped;      /* 0x9E stopped the controller's spindle in this hold */
 	uint64_t sp_hb;      /* the controller's period when it was posted */
 	char acc_last[8];    /* A: last shown */
 	int ovs_last;        /* Ov's spindle value last shown */
@@ -148,6 +151,7 @@ void cmd_push(uint32_t op, int32_t arg);
 void cmd_pump(void);
 void stop_post(void);
 void rt_cmd(void *ctx, grbl_rt c);
+int in_hold(void);
 int is_query(const char *t, size_t len);
 void process_lines(void);
 void poll_controller(void);

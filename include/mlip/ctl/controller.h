@@ -365,6 +365,7 @@ struct mlip_ctl {
 		uint32_t bus_why;        /* BUS_TX or BUS_ERROR */
 		uint64_t bus_bad_period; /* the last period the bus was bad */
 		uint64_t tx_seen;        /* in->bus.tx_refused as last seen */
+		int spindle;             /* a resume waits for the restored spindle at speed */
 	} hold;
 	/* the operator */
 	struct {

@@ -48,6 +48,8 @@ struct mlip_ctl_spindle {
 	int reported;              /* its fault went to the controller */
 	uint64_t asked;            /* the period of the last command */
 	uint64_t ready_after;      /* periods the last wait took (asked -> ready) */
+	int stopped;               /* the operator's stop in a hold (Grbl 0x9E): 0 rpm */
+	int stop_req;              /* asked in a hold not yet at rest: 1 stop, 0 restore, -1 none */
 };
 
 /* Off when cfg is NULL or has no node; MLIP_E_INVALID for a config out of
@@ -57,6 +59,10 @@ mlip_status mlip_ctl_spindle_init(struct mlip_ctl_spindle *s, const struct mlip_
 
 /* The program's speed (rpm, > 0 clockwise, 0 stop) from period on. */
 void mlip_ctl_spindle_ask(struct mlip_ctl_spindle *s, double rpm, uint64_t period);
+
+/* The operator's spindle stop (on 1) or its restore (on 0), from period on;
+ * the program's speed and override are kept for the restore. */
+void mlip_ctl_spindle_stop(struct mlip_ctl_spindle *s, int on, uint64_t period);
 
 /* The operator's override, percent: MLIP_E_RANGE outside 50..200, MLIP_E_INVALID
  * without a spindle. Applied at once (the drive ramps). */

@@ -184,6 +184,8 @@ struct mlip_gcode {
 	const struct mlip_gcode_io *io;
 	double s_rpm;     /* S in force; < 0: never set */
 	int spindle;      /* 0 stopped, 3 clockwise (M3), 4 counter-clockwise (M4) */
+	int spindle_said; /* an M3/M4/M5 was read: `spindle` is the machine's (MDI lines:
+	                     before one, an earlier MDI may have left it turning) */
 	unsigned coolant; /* MLIP_COOLANT_* on */
 	int32_t tool_sel; /* the last T (selected for M6); -1: none */
 	double tlo_mm;    /* tool length offset on Z in force (G43, G43.1); 0: G49 */

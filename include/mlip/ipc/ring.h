@@ -89,7 +89,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION      10u        /* bump on any change to the layout below */
+#define MLIP_RING_VERSION      11u        /* bump on any change to the layout below */
 #define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -124,6 +124,9 @@ typedef enum {
 	                            -(n + 1) (off), n < MLIP_DOUT_MAX */
 	MLIP_REC_PROBE,          /* G38.x: a MOVE from rest to rest that stops when the
 	                            probe input changes; dwell_s = MLIP_PROBE_* bits */
+	MLIP_REC_SPEED,          /* MDI S alone: at rest, dwell_s = rpm (0..MLIP_REC_RPM_MAX)
+	                            for a turning spindle, its direction kept (a CiA 402
+	                            spindle only: on another machine a bad record) */
 	MLIP_REC_TYPES
 } mlip_rec_type;
 
@@ -264,6 +267,9 @@ typedef enum {
 	                              (issue 18): arg = MLIP_JOG_AXIS_ARG(axis, neg, um); posted
 	                              just before it (kept MLIP_JOG_DEADMAN_S) */
 	MLIP_CMD_SPINDLE_OVERRIDE, /* arg: spindle override, percent (50..200; issue 19) */
+	MLIP_CMD_SPINDLE_STOP,     /* arg 1: stop the spindle in a hold (Grbl's 0x9E), once at
+	                              rest; arg 0: restore it; a resume restores it too and
+	                              moves on once it is at speed */
 	MLIP_CMD_COUNT
 } mlip_ring_cmd_op;
 

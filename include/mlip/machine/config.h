@@ -233,6 +233,11 @@ struct mlip_io_config {
  * into buf (16 bytes suffice) and returns it. */
 const char *mlip_io_function_name(uint32_t f, const struct mlip_machine *m, char *buf, size_t n);
 
+/* A warning for a valid but risky probe setup, or NULL: [PROBE] SOURCE = drive
+ * with no [IO] PROBE level mapped (0x60B9 has no level: a probe already on when
+ * a G38 starts gives no edge, so nothing stops the move). Static text. */
+const char *mlip_io_probe_warning(const struct mlip_io_config *io);
+
 /* Homing with the drives' own homing mode (issue 18; CiA 402 mode 6), per
  * axis in [AXIS_L]:
  *   HOME_METHOD = 35        ; 0x6098: any method the drive supports (35/37: the
