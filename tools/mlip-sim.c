@@ -29,6 +29,7 @@
 #include "offsetfile.h"
 #include "probesim.h"
 #include "program.h"
+#include "simpath.h"
 #include "trace.h"
 
 #define PROG        "mlip-sim"
@@ -51,6 +52,11 @@ static void usage(FILE *f)
 	    "  --accel A[,A...]      per-axis acceleration, mm/s^2 (one for all, or per axis)\n"
 	    "  --jerk J              every axis's jerk limit (MAX_JERK), mm/s^3: the motion keeps\n"
 	    "                        it at every sample (mlip/motion/jerk.h)\n"
+	    "  --jerk-plan mean|path how the jerk limit is kept: mean (default), the moving\n"
+	    "                        mean of the setpoints; path, smooth's setpoints without\n"
+	    "                        it re-timed along a spline by the path-speed plan\n"
+	    "                        (mlip/motion/pathrun.h; --strategy smooth and --feed,\n"
+	    "                        no override, pause or dwell)\n"
 	    "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	    "  --eps MM              contour tolerance (default 0.01 without --config)\n"
 	    "  --period S            interpolation period T (default 0.001)\n"
@@ -242,6 +248,7 @@ struct options {
 	long long storm_seed;
 	unsigned long lookahead;
 	int quiet, notes, optional_stop, save_offsets;
+	int jerk_plan; /* 1: --jerk-plan path */
 };
 
 /* 0, or the exit status (-1: --help, exit 0). */
@@ -267,6 +274,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 	                                     {"optional-stop", no_argument, 0, 'O'},
 	                                     {"save-offsets", no_argument, 0, 'W'},
 	                                     {"probe-surface", required_argument, 0, 'P'},
+	                                     {"jerk-plan", required_argument, 0, 'K'},
 	                                     MLIP_CLI_GCODE_OPTIONS,
 	                                     {0, 0, 0, 0}};
 	int c;
@@ -364,6 +372,14 @@ static int parse_options(int argc, char **argv, struct options *o)
 		case 'P':
 			o->probe_surface = optarg;
 			break;
+		case 'K':
+			if (strcmp(optarg, "mean") != 0 && strcmp(optarg, "path") != 0) {
+				fprintf(stderr, PROG ": --jerk-plan: '%s' is not mean or path\n",
+				        optarg);
+				return 2;
+			}
+			o->jerk_plan = strcmp(optarg, "path") == 0;
+			break;
 		case 'h':
 			usage(stdout);
 			return -1;
@@ -386,6 +402,14 @@ static int parse_options(int argc, char **argv, struct options *o)
 	}
 	if (o->override > 200.0) {
 		fprintf(stderr, PROG ": --override: %g is above 200 %%\n", o->override);
+		return 2;
+	}
+	if (o->jerk_plan && (o->strategy != MLIP_STRATEGY_SMOOTH || !(o->feed > 0.0) ||
+	                     o->override != 100.0 || o->storm_seed >= 0 || o->probe_surface)) {
+		/* the plan re-times smooth's path under one speed cap; an
+		 * override or a probe would change the motion it does not see */
+		fprintf(stderr, PROG ": --jerk-plan path needs --strategy smooth and --feed, and "
+		                     "takes no --override, --storm or --probe-surface (yet)\n");
 		return 2;
 	}
 	if (o->save_offsets && o->mo.offsets == NULL) {
@@ -419,6 +443,13 @@ struct sim {
 	uint64_t probe_trips;          /* G38s that tripped: stopped short of their target */
 	uint32_t probe_trip_line;      /* the first one's */
 	int probe_error;               /* a G38 ended the program (not tripped, at start) */
+	/* --jerk-plan path: the controller's machine (no J, eps less the
+	 * band), its setpoints' trace (not written) and the plan */
+	struct mlip_machine plan_m;
+	struct mlip_trace ctl_trace;
+	struct mlip_path_limits plim;
+	double band_mm;
+	struct mlip_simpath path;
 };
 
 static void close_trace(struct sim *s)
@@ -436,7 +467,20 @@ static int set_up(const struct options *o, struct sim *s)
 	if (mlip_cli_open_program(o->path, &o->mo, &s->cfg, &s->prog, PROG, stderr) != 0) {
 		return 1;
 	}
-	const struct mlip_machine *m = &s->cfg.machine;
+	const struct mlip_machine *m = &s->cfg.machine, *cm = m; /* cm: the controller's */
+	if (o->jerk_plan) {
+		const char *why = NULL;
+		if (mlip_simpath_limits(m, o->feed, &s->plim, &s->band_mm, &why) != 0) {
+			fprintf(stderr, PROG ": --jerk-plan path: %s\n", why);
+			return 2;
+		}
+		s->plan_m = *m;
+		for (int k = 0; k < m->n_axes; k++) {
+			s->plan_m.axis[k].max_jerk = 0.0;
+		}
+		s->plan_m.tolerance_mm -= s->band_mm; /* the band: the spline's (P6) */
+		cm = &s->plan_m;
+	}
 	s->lookahead = o->lookahead       ? o->lookahead
 	               : s->cfg.lookahead ? s->cfg.lookahead
 	                                  : MLIP_LOOKAHEAD;
@@ -453,7 +497,7 @@ static int set_up(const struct options *o, struct sim *s)
 	                               o->strategy == MLIP_STRATEGY_SMOOTH ? &smooth_store : NULL,
 	                           .lookahead = (uint32_t)s->lookahead,
 	                           .io = &s->cfg.inputs}; /* outputs switch (M64, coolant io) */
-	if (mlip_ctl_init(&ctl, &planner, m, &co) != MLIP_OK) {
+	if (mlip_ctl_init(&ctl, &planner, cm, &co) != MLIP_OK) {
 		fprintf(stderr, PROG ": look-ahead %lu must be a power of two in 2..%d\n",
 		        s->lookahead, MLIP_LOOKAHEAD);
 		return 1;
@@ -491,7 +535,7 @@ static int set_up(const struct options *o, struct sim *s)
 		return 1;
 	}
 	mlip_cli_path_start(&s->csrc, &s->cprog, m);
-	source_init(&s->fdr.src, m, o->strategy == MLIP_STRATEGY_SMOOTH);
+	source_init(&s->fdr.src, cm, o->strategy == MLIP_STRATEGY_SMOOTH);
 	struct mlip_check_limits lim;
 	mlip_cli_check_limits(m, &lim);
 	mlip_check_init_source(&s->chk, &lim, mlip_cli_path_next, &s->csrc);
@@ -509,6 +553,7 @@ static int set_up(const struct options *o, struct sim *s)
 		home[k] = m->axis[k].home; /* where the controller starts */
 	}
 	mlip_trace_open(&s->trace, s->tf, m, home);
+	mlip_trace_open(&s->ctl_trace, NULL, m, home);
 	s->storm = (struct storm){.state = (uint64_t)o->storm_seed * 0x9E3779B97F4A7C15ULL + 1,
 	                          .next_at = 1,
 	                          .active = o->storm_seed >= 0};
@@ -555,6 +600,45 @@ static void print_probe(const struct options *o, const struct sim *s,
 		        s->probe.drive ? "the drives' touch probe latch" : "the probe input");
 	}
 	fputc('\n', stderr);
+}
+
+/* --jerk-plan path: the controller's setpoint pos after this period into
+ * the plan (from its start to its end at rest): 1 go on, 0 the trace has
+ * ended, -1 an error (the exit status 1). */
+static int path_period(const struct options *o, struct sim *s, uint32_t state, const double *pos)
+{
+	const double *start;
+	if (!mlip_trace_sample(&s->ctl_trace, state, pos, &start)) {
+		return 1;
+	}
+	if (start != NULL) {
+		memcpy(s->trace.pending, start, sizeof(double) * (size_t)s->trace.n);
+		s->trace.have_pending = 1;
+		if (mlip_simpath_begin(&s->path, &s->plim, s->band_mm, &s->trace, &s->chk, start) !=
+		    0) {
+			fprintf(stderr, PROG ": --jerk-plan path: the limits are not positive\n");
+			return -1;
+		}
+	}
+	if (state != MLIP_STATE_RUNNING && state != MLIP_STATE_IDLE) {
+		fprintf(stderr,
+		        PROG ": %s: --jerk-plan path: the program %s at t = %.3f s: the plan "
+		             "takes no pause, dwell or hold yet\n",
+		        o->path, mlip_ctl_state_name(state),
+		        (double)s->ctl_trace.rows * s->cfg.machine.period_s);
+		return -1;
+	}
+	if (mlip_simpath_sample(&s->path, pos, PROG, o->path, stderr) != 0) {
+		return -1;
+	}
+	if (!s->ctl_trace.ended) {
+		return 1;
+	}
+	if (mlip_simpath_end(&s->path, PROG, o->path, stderr) != 0) {
+		return -1;
+	}
+	s->rows = s->trace.rows;
+	return 0;
 }
 
 /* Period by period until the trace ends at rest: 0, or the exit status. */
@@ -643,7 +727,12 @@ static int run(const struct options *o, struct sim *s)
 			}
 		}
 		const double *start;
-		if (mlip_trace_sample(&s->trace, out.status.state, out.pos, &start)) {
+		if (o->jerk_plan) {
+			int r = path_period(o, s, out.status.state, out.pos);
+			if (r <= 0) {
+				return -r;
+			}
+		} else if (mlip_trace_sample(&s->trace, out.status.state, out.pos, &start)) {
 			if (start != NULL) {
 				mlip_check_sample(&s->chk, start);
 			}
@@ -723,6 +812,16 @@ static int write_summary(const struct options *o, const struct sim *s, int bad)
 	mlip_json_uint(&j, "dwells", s->dwells);
 	mlip_json_uint(&j, "pauses", s->pauses);
 	mlip_json_uint(&j, "order_errors", chk->order_errors);
+	if (o->jerk_plan) {
+		/* the streaming plan's window (points, of MLIP_PATHRUN_CAP), the
+		 * largest (P6) bound of its pieces, its braking-run periods */
+		const struct mlip_pathrun *pr = &s->path.run;
+		mlip_json_uint(&j, "path_window_peak", (uint64_t)pr->peak_count);
+		mlip_json_uint(&j, "path_window_bytes", sizeof(*pr));
+		mlip_json_number(&j, "path_max_sag_mm", "%.3g", pr->max_sag_mm);
+		mlip_json_number(&j, "path_band_mm", "%.3g", pr->band_mm);
+		mlip_json_uint(&j, "path_run_periods", (uint64_t)pr->work);
+	}
 	mlip_json_int(&j, "violations", bad);
 	int rc = mlip_json_end(&j);
 	if (sf != stdout && fclose(sf) != 0) {

@@ -1,0 +1,108 @@
+/*
+ * mlip/motion/pathrun.h - the path-speed plan (mlip/motion/pathplan.h) run
+ * over a stream of setpoints in fixed memory (issue 21): it takes the
+ * setpoints of `smooth` without a jerk limit one at a time, keeps a window
+ * of them, and gives the jerk-limited setpoints, period by period: the
+ * positions along a spline through the window at the planned s.
+ *
+ * The spline (P5 of pathspeed.h, by chord length) is built piece by piece
+ * and a piece, once fixed, never changes: each new point refits the pieces
+ * not yet fixed, from the last fixed knot (its position and x', the fixed
+ * piece's, as the clamped end) to the newest point (a natural end), and
+ * fixes the pieces at least MLIP_PATHRUN_SETTLE knots behind the newest
+ * point. The fit's natural end moves a knot K behind it by at most 2^-K of
+ * its own value (the tridiagonal's rows are diagonally dominant by 2; 0.268
+ * a knot on even spacing), so a fixed piece meets the next one with the
+ * same position and x' and an x'' that differs by ~2^-K of |x''|
+ * (1e-12 at K = 40): no jerk a sample shows.
+ *
+ * The plan sees only the fixed pieces, and their far end is its `end`: a
+ * state it certifies (Q4: a braking run to a crawl before `end`) stays
+ * certified when more pieces are fixed (the run and the pieces it crossed
+ * are the same; the room only grows). That is pathplan.h's invariant
+ * across the window's growth. At the program's end (mlip_pathrun_finish)
+ * every piece is fixed and the plan comes to rest exactly on the last
+ * point: from its crawl, a jerk-limited tail (acceleration ramped to 0,
+ * a cruise, a triangle of jerk to rest).
+ *
+ * Each fixed piece is checked by (P6) against the band the caller gives
+ * (what the tolerance leaves after the setpoints' own contour error: the
+ * caller runs `smooth` with eps less the band): a piece that strays from
+ * its chord by more is refused (the spline through a sharp turn or a
+ * reversal; the mean must take such a stretch: the hand-over is not yet
+ * in the product).
+ *
+ * Memory: one struct, MLIP_PATHRUN_CAP points (~210 KB at 6 axes),
+ * whatever the program's length. No allocation, no I/O. A period's work is
+ * bounded by the plan's max_periods (pathplan.h); it is not for the 1 ms
+ * thread itself (a planning thread ahead of it: not yet built).
+ */
+#ifndef MLIP_PATHRUN_H
+#define MLIP_PATHRUN_H
+
+#include "mlip/motion/pathplan.h"
+
+/* Points in the window (the look-ahead is at least 3/4 of it less
+ * MLIP_PATHRUN_SETTLE input periods: 128 mm at 200 mm/s, more than a stop
+ * from 200 mm/s at 300 mm/s^2 takes) and the knots behind the newest point
+ * before a piece is fixed. */
+#define MLIP_PATHRUN_CAP      1024
+#define MLIP_PATHRUN_SETTLE   40
+/* Input points nearer than this (mm of chord) to the last one kept are
+ * skipped (a setpoint at rest repeats; a piece of 1e-9 mm would make
+ * x'' of the positions' rounding) */
+#define MLIP_PATHRUN_MIN_STEP 1e-6
+
+struct mlip_pathrun {
+	struct mlip_path_limits lim;
+	double band_mm;   /* (P6): a fixed piece's bound on its chord distance */
+	int max_periods;  /* (Q4) a certification's braking-run periods at most */
+	int count, fixed; /* points in the window; pieces fixed (knots 0..fixed) */
+	int finished;     /* no more input: every piece fixed */
+	int hint;         /* the plan's piece */
+	/* the pieces: s global (chord length from the program's start) */
+	double s[MLIP_PATHRUN_CAP];
+	double p[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
+	double m[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
+	double b[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
+	double t3[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
+	double c[MLIP_PATHRUN_CAP];    /* the fit's scratch */
+	double last_in[MLIP_MAX_AXES]; /* the last input point (maybe skipped) */
+	struct mlip_path_state st;
+	/* the end's tail (after finish, from a crawl): Q1's segments */
+	int tail;
+	double tt, ta, tb, tc, j0, jr, s0, v0, ts, tv, tacc;
+	/* figures */
+	long periods, work, dropped;
+	int peak_count;
+	double max_sag_mm;
+	/* the refusal, for the caller's message: the piece's start (mm of
+	 * chord from the program's start) and its (P6) bound */
+	const char *why;
+	double why_s, why_mm;
+};
+
+/* Start at `start` (the program's start, at rest). lim as for
+ * mlip_path_plan_period; band_mm > 0. -1 when a limit is not positive or
+ * start not finite. */
+int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *lim, double band_mm,
+                      int max_periods, const double *start);
+
+/* The next input setpoint: 0 taken, 1 the window is full (step first, then
+ * push it again), -1 refused (pr->why). */
+int mlip_pathrun_push(struct mlip_pathrun *pr, const double *pos);
+
+/* No more input: the remaining pieces fixed (the last on the last input
+ * point). 0, or -1 refused (pr->why). */
+int mlip_pathrun_finish(struct mlip_pathrun *pr);
+
+/* One period of the plan: 1 its setpoint in x (n axes), 0 it needs more
+ * input first (the window is not full and not finished: nothing moved),
+ * 2 the last setpoint (at rest on the last point), -1 refused (pr->why:
+ * the plan left its certified states, or it stopped short of the end). */
+int mlip_pathrun_step(struct mlip_pathrun *pr, double *x);
+
+/* The fixed pieces as the plan reads them (count = fixed + 1 knots). */
+void mlip_pathrun_curve(const struct mlip_pathrun *pr, struct mlip_path_curve *cv);
+
+#endif

@@ -1,0 +1,311 @@
+/*
+ * pathrun.c - the path-speed plan over a stream of setpoints (see
+ * mlip/motion/pathrun.h).
+ */
+#include "mlip/motion/pathrun.h"
+
+#include <math.h>
+#include <string.h>
+
+static double chord(int n, const double *a, const double *b)
+{
+	double q = 0.0;
+	for (int k = 0; k < n; k++) {
+		q += (b[k] - a[k]) * (b[k] - a[k]);
+	}
+	return sqrt(q);
+}
+
+void mlip_pathrun_curve(const struct mlip_pathrun *pr, struct mlip_path_curve *cv)
+{
+	typedef const double(*row)[MLIP_MAX_AXES];
+	*cv = (struct mlip_path_curve){pr->lim.n,  pr->fixed + 1, pr->s,      (row)pr->p,
+	                               (row)pr->m, (row)pr->b,    (row)pr->t3};
+}
+
+int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *lim, double band_mm,
+                      int max_periods, const double *start)
+{
+	int n = lim->n;
+	if (n < 1 || n > MLIP_MAX_AXES || !(band_mm > 0.0) || !(lim->period > 0.0) ||
+	    !(lim->vmax > 0.0) || !(lim->v_crawl > 0.0) || max_periods < 1) {
+		return -1;
+	}
+	for (int k = 0; k < n; k++) {
+		if (!(lim->accel[k] > 0.0) || !(lim->jerk[k] > 0.0) || !isfinite(start[k])) {
+			return -1;
+		}
+	}
+	memset(pr, 0, sizeof(*pr));
+	pr->lim = *lim;
+	pr->band_mm = band_mm;
+	pr->max_periods = max_periods;
+	memcpy(pr->p[0], start, sizeof(double) * (size_t)n);
+	memcpy(pr->last_in, start, sizeof(double) * (size_t)n);
+	pr->count = 1;
+	pr->peak_count = 1;
+	pr->jr = INFINITY;
+	for (int k = 0; k < n; k++) {
+		/* the tail's path jerk: half the least J, the rest for the curve's
+		 * own terms (P2) at the crawl (bench/pathspeed.py's tail) */
+		pr->jr = fmin(pr->jr, 0.5 * lim->jerk[k]);
+	}
+	return 0;
+}
+
+/* (P5) over knots fixed..count-1, clamped at `fixed` to the fixed piece's
+ * x' there (natural at the program's start), natural at the newest point;
+ * then fix the pieces up to `upto` (their b, t3; the knots' m) and check
+ * each by (P6). */
+static int settle(struct mlip_pathrun *pr, int upto)
+{
+	int n = pr->lim.n, f = pr->fixed, last = pr->count - 1;
+	double *c = pr->c, (*m)[MLIP_MAX_AXES] = pr->m;
+	const double *s = pr->s;
+	const double(*p)[MLIP_MAX_AXES] = (const double(*)[MLIP_MAX_AXES])pr->p;
+	/* row f */
+	double h0 = s[f + 1] - s[f];
+	if (f == 0) {
+		c[f] = 0.0;
+		for (int k = 0; k < n; k++) {
+			m[f][k] = 0.0;
+		}
+	} else {
+		/* 2 h M_f + h M_f+1 = 6 ((p_f+1 - p_f) / h - x'_f), x'_f the fixed
+		 * piece f - 1's at its end */
+		double hl = s[f] - s[f - 1];
+		c[f] = 0.5;
+		for (int k = 0; k < n; k++) {
+			double d = pr->b[f - 1][k] + pr->m[f - 1][k] * hl +
+			           0.5 * pr->t3[f - 1][k] * hl * hl;
+			m[f][k] = 6.0 * ((p[f + 1][k] - p[f][k]) / h0 - d) / (2.0 * h0);
+		}
+	}
+	for (int i = f + 1; i < last; i++) { /* Thomas' forward elimination */
+		double hl = s[i] - s[i - 1], hr = s[i + 1] - s[i];
+		double piv = 2.0 * (hl + hr) - hl * c[i - 1];
+		c[i] = hr / piv;
+		for (int k = 0; k < n; k++) {
+			double r =
+			    6.0 * ((p[i + 1][k] - p[i][k]) / hr - (p[i][k] - p[i - 1][k]) / hl);
+			m[i][k] = (r - hl * m[i - 1][k]) / piv;
+		}
+	}
+	for (int k = 0; k < n; k++) {
+		m[last][k] = 0.0;
+	}
+	for (int i = last - 1; i >= f; i--) {
+		for (int k = 0; k < n; k++) {
+			m[i][k] -= c[i] * m[i + 1][k];
+		}
+	}
+	struct mlip_path_curve cv;
+	for (int i = f; i < upto; i++) {
+		double h = s[i + 1] - s[i];
+		for (int k = 0; k < n; k++) {
+			pr->b[i][k] =
+			    (p[i + 1][k] - p[i][k]) / h - h * (2.0 * m[i][k] + m[i + 1][k]) / 6.0;
+			pr->t3[i][k] = (m[i + 1][k] - m[i][k]) / h;
+		}
+		pr->fixed = i + 1;
+		mlip_pathrun_curve(pr, &cv);
+		double g = mlip_path_piece_sag(&cv, i);
+		pr->max_sag_mm = fmax(pr->max_sag_mm, g);
+		if (!(g <= pr->band_mm)) {
+			pr->fixed = i; /* not taken */
+			pr->why = "a spline piece strays from its chord by more than the band (P6)";
+			pr->why_s = s[i];
+			pr->why_mm = g;
+			return -1;
+		}
+	}
+	return 0;
+}
+
+/* Drop the pieces the plan has passed when it is a quarter of the window
+ * in: 1 when room was made. s stays global: the plan's state is unmoved. */
+static int compact(struct mlip_pathrun *pr)
+{
+	struct mlip_path_curve cv;
+	mlip_pathrun_curve(pr, &cv);
+	int i = pr->fixed > 0 ? mlip_path_spline_piece(&cv, pr->st.s, pr->hint) : 0;
+	if (i < MLIP_PATHRUN_CAP / 4) {
+		return 0;
+	}
+	int keep = pr->count - i;
+	size_t row = sizeof(pr->p[0]);
+	memmove(pr->s, pr->s + i, sizeof(double) * (size_t)keep);
+	memmove(pr->p, pr->p + i, row * (size_t)keep);
+	memmove(pr->m, pr->m + i, row * (size_t)keep);
+	memmove(pr->b, pr->b + i, row * (size_t)keep);
+	memmove(pr->t3, pr->t3 + i, row * (size_t)keep);
+	pr->count = keep;
+	pr->fixed -= i;
+	pr->hint = 0;
+	pr->dropped += i;
+	return 1;
+}
+
+int mlip_pathrun_push(struct mlip_pathrun *pr, const double *pos)
+{
+	int n = pr->lim.n;
+	if (pr->finished) {
+		pr->why = "a setpoint after the end";
+		return -1;
+	}
+	for (int k = 0; k < n; k++) {
+		if (!isfinite(pos[k])) {
+			pr->why = "a setpoint not finite";
+			return -1;
+		}
+	}
+	memcpy(pr->last_in, pos, sizeof(double) * (size_t)n);
+	double h = chord(n, pr->p[pr->count - 1], pos);
+	if (h < MLIP_PATHRUN_MIN_STEP) {
+		return 0; /* at rest, or nearly: finish takes the last one */
+	}
+	if (pr->count == MLIP_PATHRUN_CAP && !compact(pr)) {
+		return 1;
+	}
+	int i = pr->count++;
+	memcpy(pr->p[i], pos, sizeof(double) * (size_t)n);
+	pr->s[i] = pr->s[i - 1] + h;
+	pr->peak_count = pr->count > pr->peak_count ? pr->count : pr->peak_count;
+	int upto = pr->count - 1 - MLIP_PATHRUN_SETTLE;
+	return upto > pr->fixed ? settle(pr, upto) : 0;
+}
+
+int mlip_pathrun_finish(struct mlip_pathrun *pr)
+{
+	int n = pr->lim.n, last = pr->count - 1;
+	if (pr->finished) {
+		return 0;
+	}
+	pr->finished = 1;
+	if (chord(n, pr->p[last], pr->last_in) > 0.0) {
+		/* the last input was skipped (within MIN_STEP of the last point):
+		 * end on it exactly, the last point moved there (not yet fixed) */
+		if (last > pr->fixed) {
+			double h = chord(n, pr->p[last - 1], pr->last_in);
+			if (h > 0.0) {
+				memcpy(pr->p[last], pr->last_in, sizeof(double) * (size_t)n);
+				pr->s[last] = pr->s[last - 1] + h;
+			}
+		} else if (pr->count < MLIP_PATHRUN_CAP || compact(pr)) {
+			last = pr->count++;
+			memcpy(pr->p[last], pr->last_in, sizeof(double) * (size_t)n);
+			pr->s[last] = pr->s[last - 1] + chord(n, pr->p[last - 1], pr->last_in);
+		}
+	}
+	return last > pr->fixed ? settle(pr, last) : 0;
+}
+
+/* bench_pathplan's tail_fits: from the crawl st, the acceleration ramped to
+ * 0 at jr, then a cruise and a triangle of jerk to rest fit in `room`, the
+ * ramp keeps a speed and the cruise takes at most 0.1 s (no creeping). */
+static int tail_fits(struct mlip_path_state st, double room, double jr)
+{
+	double ta = fabs(st.a) / jr, j0 = st.a > 0.0 ? -jr : jr;
+	double v1 = st.v + st.a * ta + j0 * ta * ta / 2.0;
+	double d0 = st.v * ta + st.a * ta * ta / 2.0 + j0 * ta * ta * ta / 6.0;
+	double stop = v1 > 0.0 ? v1 * sqrt(v1 / jr) : 0.0;
+	return v1 > 0.0 && d0 + stop <= room && room - d0 - stop <= 0.1 * v1;
+}
+
+static void tail_start(struct mlip_pathrun *pr, double end)
+{
+	struct mlip_path_state st = pr->st;
+	double jr = pr->jr;
+	pr->tail = 1;
+	pr->tt = 0.0;
+	pr->ts = st.s;
+	pr->tv = st.v;
+	pr->tacc = st.a;
+	pr->ta = fabs(st.a) / jr;
+	pr->j0 = st.a > 0.0 ? -jr : jr;
+	double ta = pr->ta;
+	double va = st.v + st.a * ta + pr->j0 * ta * ta / 2.0;
+	double sa = st.s + st.v * ta + st.a * ta * ta / 2.0 + pr->j0 * ta * ta * ta / 6.0;
+	pr->tb = 2.0 * sqrt(va / jr);
+	double db = va * pr->tb / 2.0;
+	pr->tc = ta + fmax(end - sa - db, 0.0) / va;
+	pr->s0 = sa - va * ta; /* the cruise's line, back to the tail's start */
+	pr->v0 = va;
+}
+
+/* The tail's path position after tt; 1 at its end. */
+static int tail_s(const struct mlip_pathrun *pr, double t, double end, double *s)
+{
+	double jr = pr->jr, v0 = pr->v0;
+	if (t <= pr->ta) {
+		*s = pr->ts + pr->tv * t + pr->tacc * t * t / 2.0 + pr->j0 * t * t * t / 6.0;
+	} else if (t <= pr->tc) {
+		*s = pr->s0 + v0 * t;
+	} else if (t < pr->tc + pr->tb) {
+		double u = t - pr->tc, h = pr->tb / 2.0, base = pr->s0 + v0 * pr->tc;
+		if (u <= h) {
+			*s = base + v0 * u - jr * u * u * u / 6.0;
+		} else {
+			double w = u - h, vm = v0 - jr * h * h / 2.0;
+			*s = base + v0 * h - jr * h * h * h / 6.0 + vm * w - jr * h * w * w / 2.0 +
+			     jr * w * w * w / 6.0;
+		}
+	} else {
+		*s = end;
+		return 1;
+	}
+	*s = *s < end ? *s : end;
+	return 0;
+}
+
+int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
+{
+	struct mlip_path_curve cv;
+	if (!pr->finished && pr->count < MLIP_PATHRUN_CAP) {
+		return 0; /* the look-ahead is not yet full */
+	}
+	if (pr->fixed < 1) {
+		/* a program of one point, or of pieces all refused before */
+		memcpy(x, pr->p[0], sizeof(double) * (size_t)pr->lim.n);
+		return pr->finished ? 2 : 0;
+	}
+	mlip_pathrun_curve(pr, &cv);
+	double end = pr->s[pr->fixed];
+	struct mlip_path_state st = pr->st;
+	int at_end = 0;
+	if (!pr->tail && pr->finished && end - st.s <= 1e-9) {
+		at_end = 1;
+	} else if (!pr->tail && pr->finished && st.v <= pr->lim.v_crawl && end - st.s < 1.0 &&
+	           pr->periods >= 10 && tail_fits(st, end - st.s, pr->jr)) {
+		tail_start(pr, end);
+	}
+	if (pr->tail) {
+		pr->tt += pr->lim.period;
+		at_end = tail_s(pr, pr->tt, end, &st.s);
+		st.v = st.a = 0.0;
+	} else if (!at_end) {
+		int r = mlip_path_plan_period(&cv, &pr->lim, &st, end, pr->max_periods, &pr->work);
+		if (r < 0) {
+			pr->why = "the plan left its certified states";
+			pr->why_s = st.s;
+			return -1;
+		}
+		if (r == 0 && st.v <= 0.0 && (pr->finished ? end - st.s > 1.0 : 1)) {
+			pr->why = "the plan stopped short of the window's end";
+			pr->why_s = st.s;
+			return -1;
+		}
+	}
+	pr->periods++;
+	if (at_end) {
+		memcpy(x, pr->p[pr->fixed], sizeof(double) * (size_t)pr->lim.n);
+		pr->st.s = end;
+		pr->st.v = pr->st.a = 0.0;
+		return 2;
+	}
+	pr->st = st;
+	struct mlip_path_point d;
+	pr->hint = mlip_path_spline_piece(&cv, st.s, pr->hint);
+	mlip_path_spline_eval_piece(&cv, pr->hint, st.s, x, &d);
+	return 1;
+}

@@ -1,0 +1,310 @@
+/*
+ * test_pathrun.c - the path-speed plan over a stream of setpoints
+ * (src/motion/pathrun.c): a piece, once fixed, never changes while points
+ * are appended and the window is compacted (bit for bit); fixed pieces
+ * meet with the same position and x' and an x'' within 1e-9 of |x''|;
+ * every state the plan enters is certified on the pieces fixed then, and
+ * stays certified after the next points are appended (the window's end
+ * acts as a stop point); the output keeps J and A (third and second
+ * differences) and uses them, and comes to rest exactly on the last point;
+ * a sharp reversal is refused by (P6); a setpoint at rest is skipped.
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "mlip/motion/pathrun.h"
+
+#define T    1e-3
+#define JERK 1e4
+#define ACC  1000.0
+
+/* The setpoints of a move along a helix (radius 10 mm, rising 1 mm a
+ * radian) from rest to rest at up to V mm/s, 1000 mm/s^2 (a trapezoid in
+ * arc length, sampled every T): what `smooth` without J would give. */
+#define HR 10.0
+#define HC 1.0
+#define V  60.0
+
+static double arc_at(double t, double len)
+{
+	double ta = V / ACC, da = 0.5 * V * ta, tc = (len - 2.0 * da) / V;
+	if (t <= ta) {
+		return 0.5 * ACC * t * t;
+	}
+	if (t <= ta + tc) {
+		return da + V * (t - ta);
+	}
+	double u = t - ta - tc;
+	if (u >= ta) {
+		return len;
+	}
+	return da + V * tc + V * u - 0.5 * ACC * u * u;
+}
+
+static void helix_at(double s, double *x)
+{
+	double L = sqrt(HR * HR + HC * HC), th = s / L;
+	x[0] = HR * cos(th);
+	x[1] = HR * sin(th);
+	x[2] = HC * th;
+}
+
+static void limits(struct mlip_path_limits *lim)
+{
+	*lim = (struct mlip_path_limits){0};
+	lim->n = 3;
+	for (int k = 0; k < 3; k++) {
+		lim->accel[k] = 0.98 * ACC;
+		lim->jerk[k] = 0.95 * JERK;
+	}
+	lim->vmax = 0.995 * 200.0;
+	lim->a_brake[0] = 900.0;
+	lim->a_brake[1] = 300.0;
+	lim->n_brake = 2;
+	lim->v_crawl = 2.0;
+	lim->period = T;
+}
+
+/* Every fixed piece ever seen, by its index from the program's start. */
+#define HIST 8000
+struct piece {
+	double s, s1, p[3], b[3], m[3], t3[3];
+};
+static struct piece hist[HIST];
+static long n_hist;
+
+static void piece_of(const struct mlip_pathrun *pr, int i, struct piece *q)
+{
+	memset(q, 0, sizeof(*q));
+	q->s = pr->s[i];
+	q->s1 = pr->s[i + 1];
+	for (int k = 0; k < 3; k++) {
+		q->p[k] = pr->p[i][k];
+		q->b[k] = pr->b[i][k];
+		q->m[k] = pr->m[i][k];
+		q->t3[k] = pr->t3[i][k];
+	}
+}
+
+/* The fixed pieces against their first sight: the same bits. */
+static void check_fixed(const struct mlip_pathrun *pr)
+{
+	for (int i = 0; i < pr->fixed; i++) {
+		long g = pr->dropped + i;
+		assert_true(g < HIST);
+		struct piece q;
+		piece_of(pr, i, &q);
+		if (g < n_hist) {
+			assert_memory_equal(&q, &hist[g], sizeof(q));
+		} else {
+			assert_int_equal(g, n_hist); /* fixed in order, none skipped */
+			hist[n_hist++] = q;
+		}
+	}
+}
+
+static struct mlip_pathrun pr;
+
+static void test_stream_helix(void **state)
+{
+	(void)state;
+	struct mlip_path_limits lim;
+	limits(&lim);
+	lim.vmax = 0.995 * V; /* the feed the input ran at (the plan's cap) */
+	double len = 400.0, x[3], start[3];
+	helix_at(0.0, start);
+	assert_int_equal(mlip_pathrun_init(&pr, &lim, 1e-3, 3000, start), 0);
+	n_hist = 0;
+	double out[4][3];
+	memcpy(out[0], start, sizeof(start));
+	long n_out = 1, uncertified = 0, lost = 0, checked = 0;
+	double max_j = 0.0, max_a = 0.0, end_pt[3];
+	int done = 0;
+	/* the input every period, and a rest of 5 periods at the end (repeats) */
+	for (long k = 1; !done; k++) {
+		double t = (double)k * T, in[3];
+		int last = arc_at(t - 5 * T, len) >= len;
+		helix_at(arc_at(t, len), in);
+		memcpy(end_pt, in, sizeof(in));
+		int r;
+		struct mlip_path_state before = pr.st;
+		double end_before = pr.s[pr.fixed];
+		while (!done && (r = mlip_pathrun_push(&pr, in)) == 1) {
+			int q = mlip_pathrun_step(&pr, x);
+			assert_int_equal(q, 1);
+			check_fixed(&pr);
+			struct mlip_path_curve cv;
+			mlip_pathrun_curve(&pr, &cv);
+			if (n_out % 5 == 0) {
+				checked++;
+				uncertified += !mlip_path_certified(&cv, &lim, pr.st,
+				                                    pr.s[pr.fixed], 3000, NULL);
+			}
+			memmove(out[1], out[0], sizeof(out[0]) * 3);
+			memcpy(out[0], x, sizeof(x));
+			if (++n_out >= 4) {
+				for (int a = 0; a < 3; a++) {
+					double j = fabs(out[0][a] - 3 * out[1][a] + 3 * out[2][a] -
+					                out[3][a]);
+					double ac = fabs(out[0][a] - 2 * out[1][a] + out[2][a]);
+					max_j = fmax(max_j, j / (T * T * T));
+					max_a = fmax(max_a, ac / (T * T));
+				}
+			}
+			before = pr.st;
+			end_before = pr.s[pr.fixed];
+		}
+		assert_int_equal(r, 0);
+		check_fixed(&pr);
+		if (pr.s[pr.fixed] > end_before && k % 7 == 0) {
+			/* the window grew: the state certified before still is */
+			struct mlip_path_curve cv;
+			mlip_pathrun_curve(&pr, &cv);
+			lost += !mlip_path_certified(&cv, &lim, before, pr.s[pr.fixed], 3000, NULL);
+		}
+		done = last;
+	}
+	assert_int_equal(mlip_pathrun_finish(&pr), 0);
+	check_fixed(&pr);
+	assert_true(pr.dropped > 0); /* the window was compacted */
+	assert_true(pr.peak_count <= MLIP_PATHRUN_CAP);
+	int q;
+	while ((q = mlip_pathrun_step(&pr, x)) >= 1) {
+		check_fixed(&pr);
+		memmove(out[1], out[0], sizeof(out[0]) * 3);
+		memcpy(out[0], x, sizeof(x));
+		n_out++;
+		for (int a = 0; a < 3; a++) {
+			double j = fabs(out[0][a] - 3 * out[1][a] + 3 * out[2][a] - out[3][a]);
+			max_j = fmax(max_j, j / (T * T * T));
+			max_a = fmax(max_a, fabs(out[0][a] - 2 * out[1][a] + out[2][a]) / (T * T));
+		}
+		if (q == 2) {
+			break;
+		}
+	}
+	assert_int_equal(q, 2);
+	assert_memory_equal(x, end_pt, sizeof(end_pt)); /* at rest on the last point exactly */
+	assert_int_equal(uncertified, 0);
+	assert_true(checked > 100);
+	assert_int_equal(lost, 0);
+	/* J and A kept, and used: 0.95 J planned */
+	assert_true(max_j <= JERK * (1.0 + 1e-6));
+	assert_true(max_j >= 0.8 * JERK);
+	assert_true(max_a <= ACC * (1.0 + 1e-6));
+	assert_true(max_a >= 0.3 * ACC);
+	/* (P6): the longest piece (V T) on the helix's curvature, h^2 / 8 kappa */
+	double sag = (V * T) * (V * T) / 8.0 * HR / (HR * HR + HC * HC);
+	assert_true(fabs(pr.max_sag_mm / sag - 1.0) < 0.02);
+	/* time: the trapezoid takes len / V + V / A = 6.73 s; the plan under
+	 * J, from rest to rest, a little more, and not far */
+	double t_in = len / V + V / ACC, t_out = (double)n_out * T;
+	assert_true(t_out > t_in && t_out < 1.15 * t_in);
+}
+
+/* Fixed pieces meet with the same position and x', x'' within 1e-9 of
+ * its size (the fits' natural ends, SETTLE knots away). */
+static void test_joins(void **state)
+{
+	(void)state;
+	struct mlip_path_limits lim;
+	limits(&lim);
+	double p[3];
+	helix_at(0.0, p);
+	assert_int_equal(mlip_pathrun_init(&pr, &lim, 1e-3, 3000, p), 0);
+	for (int i = 1; i < 600; i++) {
+		/* uneven spacing: 0.01 .. 0.19 mm */
+		helix_at(0.1 * i + 0.09 * sin(0.7 * i), p);
+		assert_int_equal(mlip_pathrun_push(&pr, p), 0);
+	}
+	assert_true(pr.fixed == 599 - MLIP_PATHRUN_SETTLE);
+	double worst_d1 = 0.0, worst_d2 = 0.0;
+	for (int i = 1; i < pr.fixed; i++) {
+		double h = pr.s[i] - pr.s[i - 1];
+		for (int k = 0; k < 3; k++) {
+			double d1 =
+			    pr.b[i - 1][k] + pr.m[i - 1][k] * h + 0.5 * pr.t3[i - 1][k] * h * h;
+			double d2 = pr.m[i - 1][k] + pr.t3[i - 1][k] * h;
+			double x = pr.p[i - 1][k] + pr.b[i - 1][k] * h +
+			           0.5 * pr.m[i - 1][k] * h * h + pr.t3[i - 1][k] * h * h * h / 6.0;
+			assert_true(fabs(x - pr.p[i][k]) < 1e-12);
+			worst_d1 = fmax(worst_d1, fabs(d1 - pr.b[i][k]));
+			worst_d2 = fmax(worst_d2, fabs(d2 - pr.m[i][k]));
+		}
+	}
+	assert_true(worst_d1 < 1e-12);
+	assert_true(worst_d2 < 1e-9 * (1.0 / HR)); /* |x''| ~ 1 / R */
+	/* and the curvature is the helix's: R / (R^2 + c^2) */
+	double kap = sqrt(pr.m[300][0] * pr.m[300][0] + pr.m[300][1] * pr.m[300][1] +
+	                  pr.m[300][2] * pr.m[300][2]);
+	assert_true(fabs(kap - HR / (HR * HR + HC * HC)) < 1e-4);
+}
+
+/* A reversal (the path turns back on itself) is refused: the spline there
+ * strays far from its chords. */
+static void test_reversal_refused(void **state)
+{
+	(void)state;
+	struct mlip_path_limits lim;
+	limits(&lim);
+	double p[3] = {0, 0, 0};
+	assert_int_equal(mlip_pathrun_init(&pr, &lim, 1e-3, 3000, p), 0);
+	int r = 0;
+	for (int i = 1; i < 200 && r == 0; i++) {
+		p[0] = i < 100 ? 0.1 * i : 0.1 * (200 - i); /* out and back */
+		p[1] = i < 100 ? 0.0 : 0.001 * (i - 100);
+		r = mlip_pathrun_push(&pr, p);
+	}
+	assert_int_equal(r, -1);
+	assert_non_null(pr.why);
+	assert_non_null(strstr(pr.why, "(P6)"));
+	assert_true(pr.why_mm > 1e-3);
+	assert_true(pr.why_s > 9.0 && pr.why_s < 10.1); /* at the turn (10 mm) */
+}
+
+/* A setpoint at rest (repeated) adds no piece; the last input, within
+ * MIN_STEP of the last point kept, is where the plan ends. */
+static void test_rest_skipped(void **state)
+{
+	(void)state;
+	struct mlip_path_limits lim;
+	limits(&lim);
+	double p[3] = {0, 0, 0}, x[3];
+	assert_int_equal(mlip_pathrun_init(&pr, &lim, 1e-3, 3000, p), 0);
+	for (int i = 1; i <= 100; i++) {
+		p[0] = 0.05 * i;
+		assert_int_equal(mlip_pathrun_push(&pr, p), 0);
+		assert_int_equal(mlip_pathrun_push(&pr, p), 0); /* the same again */
+	}
+	assert_int_equal(pr.count, 101);
+	p[0] += 0.5 * MLIP_PATHRUN_MIN_STEP;
+	assert_int_equal(mlip_pathrun_push(&pr, p), 0);
+	assert_int_equal(pr.count, 101);
+	assert_int_equal(mlip_pathrun_finish(&pr), 0);
+	assert_int_equal(pr.fixed, 100);
+	int q, steps = 0;
+	while ((q = mlip_pathrun_step(&pr, x)) == 1 && steps < 100000) {
+		steps++;
+	}
+	assert_int_equal(q, 2);
+	assert_memory_equal(x, p, sizeof(p));
+	/* 5 mm on a line from rest to rest under J 1e4, A 1000: ~0.1 s at least */
+	assert_true(steps > 100 && steps < 1000);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test(test_stream_helix),
+	    cmocka_unit_test(test_joins),
+	    cmocka_unit_test(test_reversal_refused),
+	    cmocka_unit_test(test_rest_skipped),
+	};
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,131 @@
+/* simpath.c - see simpath.h */
+#include "simpath.h"
+
+#include <math.h>
+
+#include "mlip/ctl/state.h"
+
+int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_path_limits *lim,
+                        double *band_mm, const char **why)
+{
+	*lim = (struct mlip_path_limits){0};
+	lim->n = m->n_axes;
+	double cap = m->max_feed_mm_s;
+	if (feed > 0.0 && feed < cap) {
+		cap = feed;
+	}
+	for (int k = 0; k < m->n_axes; k++) {
+		const struct mlip_axis *ax = &m->axis[k];
+		if (!(ax->max_jerk > 0.0)) {
+			*why = "every axis needs a jerk limit (MAX_JERK, --jerk)";
+			return -1;
+		}
+		lim->accel[k] = 0.98 * ax->max_accel;
+		lim->jerk[k] = 0.95 * ax->max_jerk;
+		if (ax->max_vel > 0.0 && ax->max_vel < cap) {
+			cap = ax->max_vel; /* |x'| <= 1 by chord length: each axis within */
+		}
+	}
+	lim->vmax = 0.995 * cap;
+	lim->a_brake[0] = 900.0;
+	lim->a_brake[1] = 300.0;
+	lim->n_brake = 2;
+	lim->v_crawl = 2.0;
+	lim->period = m->period_s;
+	*band_mm = 0.1 * m->tolerance_mm;
+	return 0;
+}
+
+/* The plan's braking runs: up to 3,000 periods each (3 s: a stop from
+ * 200 mm/s at 300 mm/s^2 and its jerk ramps take ~0.8 s). */
+#define SIM_RUN_PERIODS 3000
+
+int mlip_simpath_begin(struct mlip_simpath *sp, const struct mlip_path_limits *lim, double band_mm,
+                       struct mlip_trace *trace, struct mlip_check *chk, const double *start)
+{
+	sp->trace = trace;
+	sp->chk = chk;
+	sp->k = 0;
+	sp->started = 1;
+	sp->done = 0;
+	return mlip_pathrun_init(&sp->run, lim, band_mm, SIM_RUN_PERIODS, start);
+}
+
+static void emit(struct mlip_simpath *sp, const double *x, int last)
+{
+	const double *start;
+	if (mlip_trace_sample_at(sp->trace, ++sp->k, last ? MLIP_STATE_IDLE : MLIP_STATE_RUNNING, x,
+	                         &start)) {
+		if (start != NULL) {
+			mlip_check_sample(sp->chk, start);
+		}
+		mlip_check_sample(sp->chk, x);
+	}
+	sp->done = last;
+}
+
+static int refused(const struct mlip_simpath *sp, const char *prog, const char *file, FILE *err)
+{
+	const struct mlip_pathrun *r = &sp->run;
+	fprintf(err, "%s: %s: --jerk-plan path: %s at %.6f mm of the path", prog, file,
+	        r->why ? r->why : "refused", r->why_s);
+	if (r->why_mm > 0.0) {
+		fprintf(err, " (%.6f mm, the band %.6f mm)", r->why_mm, r->band_mm);
+	}
+	fputc('\n', err);
+	return -1;
+}
+
+/* Plan periods while the plan has what it needs: 0, or -1. */
+static int drain(struct mlip_simpath *sp, const char *prog, const char *file, FILE *err)
+{
+	double x[MLIP_MAX_AXES];
+	for (;;) {
+		int r = mlip_pathrun_step(&sp->run, x);
+		if (r < 0) {
+			return refused(sp, prog, file, err);
+		}
+		if (r == 0) {
+			return 0;
+		}
+		emit(sp, x, r == 2);
+		if (r == 2) {
+			return 0;
+		}
+	}
+}
+
+int mlip_simpath_sample(struct mlip_simpath *sp, const double *pos, const char *prog,
+                        const char *file, FILE *err)
+{
+	int r;
+	double x[MLIP_MAX_AXES];
+	while ((r = mlip_pathrun_push(&sp->run, pos)) == 1) {
+		/* the window is full: one period makes room */
+		int q = mlip_pathrun_step(&sp->run, x);
+		if (q < 0) {
+			return refused(sp, prog, file, err);
+		}
+		if (q == 0 || q == 2) {
+			sp->run.why = "the plan ended with its window full";
+			return refused(sp, prog, file, err);
+		}
+		emit(sp, x, 0);
+	}
+	return r < 0 ? refused(sp, prog, file, err) : 0;
+}
+
+int mlip_simpath_end(struct mlip_simpath *sp, const char *prog, const char *file, FILE *err)
+{
+	if (mlip_pathrun_finish(&sp->run) != 0) {
+		return refused(sp, prog, file, err);
+	}
+	if (drain(sp, prog, file, err) != 0) {
+		return -1;
+	}
+	if (!sp->done) {
+		sp->run.why = "the plan did not come to rest at the end";
+		return refused(sp, prog, file, err);
+	}
+	return 0;
+}

@@ -1,0 +1,48 @@
+/*
+ * simpath.h - mlip-sim's --jerk-plan path (issue 21): the controller runs
+ * `smooth` without the jerk limit (eps less the plan's band), and its
+ * setpoints, from the program's start to its end at rest, go through the
+ * streaming path-speed plan (mlip/motion/pathrun.h); the plan's setpoints
+ * are the trace, judged by the check with the machine's J. Fixed memory.
+ */
+#ifndef MLIP_TOOLS_SIMPATH_H
+#define MLIP_TOOLS_SIMPATH_H
+
+#include <stdio.h>
+
+#include "check.h"
+#include "mlip/motion/pathrun.h"
+#include "trace.h"
+
+struct mlip_simpath {
+	struct mlip_pathrun run;
+	struct mlip_trace *trace; /* the output trace (the plan's setpoints) */
+	struct mlip_check *chk;
+	uint64_t k; /* output periods after t = 0 */
+	int started, done;
+};
+
+/* The plan's margins on machine m (which has J): 0.98 A, 0.95 J, 0.995 of
+ * the path speed cap min(vmax, feed (> 0), each axis's max_vel), the
+ * policies 900 and 300 mm/s^2 (bench/pathspeed.py --c's), crawl 2 mm/s;
+ * the band 0.1 eps. -1 when an axis has no jerk limit (the plan needs J
+ * on every axis), with the reason in *why. */
+int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_path_limits *lim,
+                        double *band_mm, const char **why);
+
+/* Begin: trace and chk opened by the caller (the trace's start: `start`).
+ * -1 on bad limits. */
+int mlip_simpath_begin(struct mlip_simpath *sp, const struct mlip_path_limits *lim, double band_mm,
+                       struct mlip_trace *trace, struct mlip_check *chk, const double *start);
+
+/* The controller's next setpoint (no J): periods planned as the window
+ * fills, each written to the trace and the check. 0, or -1 (a message on
+ * err naming the file, prog). */
+int mlip_simpath_sample(struct mlip_simpath *sp, const double *pos, const char *prog,
+                        const char *file, FILE *err);
+
+/* The controller is at rest at the program's end: the plan to its end. 0,
+ * or -1 (a message on err). */
+int mlip_simpath_end(struct mlip_simpath *sp, const char *prog, const char *file, FILE *err);
+
+#endif
