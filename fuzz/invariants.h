@@ -166,7 +166,8 @@ static const struct mlip_gcode_io inv_io = {MLIP_IO_MANUAL,
                                             0,
                                             0,
                                             0x0Fu,
-                                            1};
+                                            1,
+                                            0};
 
 static void inv_gcode_init(struct inv_gcode *c, const struct mlip_machine *m)
 {

@@ -340,6 +340,9 @@ int mlip_feed_run(struct mlip_feed_opts *o)
 			    shm);
 			goto out;
 		}
+		/* a running controller's: its spindle may turn before the
+		 * program says (mlip-grbl hands the state over line by line) */
+		f.io.live = 1;
 		f.io.ignore_spindle = ig[0];
 		f.io.ignore_coolant = ig[1];
 		f.io.ignore_tools = ig[2];

@@ -44,9 +44,30 @@ int mlip_rt_bus_budget(const struct mlip_config *cfg, mlip_can_profile prof)
 		         (tp ? mlip_can_frame_bits(0, 8).nominal : 0.0)) +
 		    (n + 1) * hb * mlip_can_frame_bits(0, 1).nominal +
 		    n_di * hb * mlip_can_frame_bits(0, 4).nominal;
+		/* a CiA 402 spindle: one more drive, a 6-byte RPDO (controlword,
+		 * target velocity) and TPDO (statusword, velocity actual) every
+		 * SYNC and its heartbeat */
+		int sp = cfg->io.spindle == MLIP_IO_CIA402;
+		if (sp) {
+			bits += 2.0 * mlip_can_frame_bits(0, 6).nominal +
+			        hb * mlip_can_frame_bits(0, 1).nominal;
+		}
+		/* the I/O module (issue 18/19): its heartbeat, its inputs' TPDO
+		 * (on a change, counted once a heartbeat as the drives' TPDO3)
+		 * and its outputs' RPDO (on a change and every 100 ms) */
+		if (cfg->inputs.node != 0) {
+			uint8_t in_b = cfg->inputs.in_bytes ? (uint8_t)cfg->inputs.in_bytes : 1;
+			bits += hb * (mlip_can_frame_bits(0, 1).nominal +
+			              mlip_can_frame_bits(0, in_b).nominal);
+			if (cfg->inputs.out_bytes > 0) {
+				bits +=
+				    cfg->machine.period_s / 0.1 *
+				    mlip_can_frame_bits(0, (uint8_t)cfg->inputs.out_bytes).nominal;
+			}
+		}
 		l.busy_s += bits / cfg->can.bitrate;
 		l.load = l.busy_s / cfg->machine.period_s;
-		l.frames += tp ? 2 * n : n;
+		l.frames += (tp ? 2 * n : n) + 2 * sp;
 	}
 	fprintf(stderr,
 	        PROG ": bus load %.1f %% (%s, %d frames per %.3f ms period, %.0f us of %u bit/s)\n",

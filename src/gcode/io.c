@@ -278,14 +278,22 @@ static void queue(struct emit_ctx *ec, int kind, double value)
 	}
 }
 
-/* The spindle may turn: this reader started it, or MDI lines that have not
- * said yet what it does (an earlier MDI M3 leaves it turning). */
-static int may_turn(const struct mlip_gcode *g)
+/* Lines that have not said yet what the spindle does, where an earlier MDI
+ * M3/M4 may keep it turning: MDI lines, or a program read for a running
+ * controller with a CiA 402 spindle (a manual one: mlip cannot tell, and
+ * a program says M3/M4/M5 before it matters). */
+static int unsaid(const struct mlip_gcode *g)
 {
 	const struct mlip_gcode_io *io = g->io;
 
-	return g->spindle ||
-	       (g->mdi && !g->spindle_said && !io->ignore_spindle && io->spindle != MLIP_IO_NONE);
+	return !g->spindle_said && !io->ignore_spindle &&
+	       (g->mdi ? io->spindle != MLIP_IO_NONE : io->live && io->spindle == MLIP_IO_CIA402);
+}
+
+/* The spindle may turn: this reader started it, or an earlier MDI line. */
+static int may_turn(const struct mlip_gcode *g)
+{
+	return g->spindle || unsaid(g);
 }
 
 static double spindle_value(const struct mlip_gcode *g)
@@ -373,9 +381,9 @@ static void exec_spindle(struct mlip_gcode *g, const struct blk *b, struct emit_
 			g->s_rpm = b->s;
 			if (g->spindle && !b->spindle_m && old != b->s) {
 				queue(ec, MLIP_BLOCK_SPINDLE, spindle_value(g));
-			} else if (g->mdi && !g->spindle_said && !b->spindle_m &&
-			           io->spindle == MLIP_IO_CIA402) {
-				/* MDI: an earlier MDI M3/M4 may keep it turning; the
+			} else if (unsaid(g) && !b->spindle_m && io->spindle == MLIP_IO_CIA402) {
+				/* MDI, or a program's S before its M3/M4/M5: an
+				 * earlier MDI M3/M4 may keep it turning; the
 				 * controller, which knows, applies the speed in its
 				 * direction (a stopped spindle stays stopped) */
 				queue(ec, MLIP_BLOCK_SPEED, b->s);
@@ -528,7 +536,7 @@ mlip_status mlip_gc_end_io(struct mlip_gcode *g, mlip_block_sink sink, void *ctx
 	if (g->io == NULL) {
 		return MLIP_OK;
 	}
-	if (may_turn(g)) {
+	if (g->spindle || (g->mdi && unsaid(g))) { /* a program's end: the controller's */
 		g->spindle = 0;
 		g->spindle_said = 1;
 		if (mlip_gc_emit_event(g, sink, ctx, line, MLIP_BLOCK_SPINDLE, 0.0) != 0) {

@@ -375,6 +375,44 @@ def test_mdi_spindle_stays_on(sim, tmp_path):
     assert all(r["target"] in (0, None) for r in sp if r["sync"] >= s_zero)
 
 
+def test_program_s_reaches_mdi_spindle(sim, tmp_path):
+    """A program started while an MDI M4 keeps the spindle turning
+    (LinuxCNC: the spindle is modal): its S before any M3/M4/M5 of its own
+    changes the speed at once, in the direction it turns, before its first
+    move; its end stops the spindle. Judged on the spindle drive's targets
+    and X's at every SYNC."""
+    cfg = machine(tmp_path)
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G21 G90\nS2800\nG1 X1 F600\nM2\n")
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        rig.ctl("mdi", "G21 G90 G0 X0 M4 S2000")
+        rig.wait_state("idle", timeout=300, pred=lambda s: s["spindle"]["state"] == "at speed")
+        t_prog = time.time()
+        rc, out, err = rig.feed(ngc, timeout=600)
+        assert rc == 0, err
+        st = rig.wait_state("idle", timeout=300,
+                            pred=lambda s: s["spindle"]["commanded_rpm"] == 0)
+        assert st["spindle"]["commanded_rpm"] == 0 and abs(st["position"]["X"] - 1) < 1e-9, st
+    rows = sim.wait_sync_rows(lambda rs: any(
+        r["node"] == SP and r["target"] == 0 and r["t"] >= t_prog for r in rs), timeout=120)
+    sp = [r for r in rows if r["node"] == SP and r["t"] >= t_prog and r["target"] is not None]
+    s_zero = min(r["sync"] for r in sp if r["target"] == 0)
+    before = [r for r in sp if r["sync"] < s_zero]
+    # -2000 rpm, then the program's S2800, counter-clockwise, no stop between
+    assert {r["target"] for r in before} == {counts(-2000), counts(-2800)}, before[-3:]
+    s_new = min(r["sync"] for r in before if r["target"] == counts(-2800))
+    at = min((r["sync"] for r in rows if r["node"] == SP and r["sync"] >= s_new
+              and abs(rpm(r["actual"]) + 2800) <= 100), default=None)
+    xs = [(r["sync"], r["target"]) for r in rows
+          if r["node"] == 1 and r["t"] >= t_prog and r["target"] is not None]
+    x_first = min(s for (s0, a), (s, b) in zip(xs, xs[1:]) if b != a)
+    # the move after the S waits for the new speed (the S is taken at rest)
+    assert at is not None and s_new < x_first and at <= x_first, (s_new, at, x_first)
+    print(f"[spindle] program S2800 after MDI M4 S2000: target {counts(-2800)} counts/s "
+          f"at SYNC {s_new}, at speed by SYNC {at}, X's first move at SYNC {x_first}, "
+          f"target 0 at the program's end (SYNC {s_zero})")
+
+
 # a cut along X after the spindle is at speed: 10 mm/s (400 counts a period)
 # for up to 20 s from X0, time for a heartbeat timeout (4 s) within it
 CUT = """G21 G90

@@ -224,10 +224,20 @@ static void test_mdi_speed(void **state)
 	expect_err(&io, "G0 X1\nS8000\n", 2, 1,
 	           "S8000 alone in MDI with a manual spindle: mlip cannot tell whether it turns");
 	expect_events(&io, "M5\nS8000\n", "S0");
-	gr_mdi = 0; /* a program: the reader knows the spindle from its start */
+	gr_mdi = 0; /* a program (mlip-sim: no MDI before it, none turns) */
 	io.spindle = MLIP_IO_CIA402;
 	expect_events(&io, "S8000\nG1 X1 F100\nT2 M6\nM2\n", "m m T2");
+	/* a program for a running controller (mlip-feed): an MDI M3/M4 may keep
+	 * the spindle turning into it (LinuxCNC: modal), so its S before its own
+	 * M3 reaches the spindle in the direction it turns and its M6 stops it
+	 * first; once it said M3/M4/M5 it knows */
+	io.live = 1;
+	expect_events(&io, "S8000\nG1 X1 F100\nT2 M6\nM2\n", "V8000 m S0 m T2");
+	expect_events(&io, "S8000\nS9000 M3\nS10000\nM5\nS11000\nM2\n", "V8000 S9000 S10000 S0");
+	io.ignore_spindle = 1;
+	expect_events(&io, "S8000\nT2 M6\n", "m T2");
 	io = io_manual();
+	io.live = 1; /* a manual spindle: a program says M3 before it matters */
 	expect_events(&io, "S8000\nG1 X1 F100\n", "m");
 }
 

@@ -128,6 +128,11 @@ struct mlip_gcode_io {
 	                             MIST, M8 FLOOD); ignored otherwise */
 	uint32_t dout_mask;       /* bit n: digital output n (M64/M65 Pn) is mapped */
 	int probe;                /* a probe input is mapped: G38.2..G38.5 run */
+	/* read for a running controller (mlip-feed): a program may begin with a
+	 * CiA 402 spindle an earlier MDI M3/M4 keeps turning (LinuxCNC: the
+	 * spindle is modal); before its own M3/M4/M5 an S reaches it and an M6
+	 * stops it, through the controller, which knows (mlip-sim: none turns) */
+	int live;
 };
 
 /* The tool numbered n in io's table, or NULL. */
