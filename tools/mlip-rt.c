@@ -881,13 +881,16 @@ static void drives_report(void)
 		        faulted);
 	}
 	if (drives.io.re.count > 0 || drives.io.re.failed > 0) {
+		char reg[64];
+		snprintf(reg, sizeof(reg), "reads 0x%02X: the module still reports a fault",
+		         drives.io.re.fail_reg);
 		fprintf(stderr,
 		        PROG ": I/O module node %u: reconfigured %u time(s) after a loss, %u "
 		             "attempt(s) failed (last: 0x%04X:%02X, %s)\n",
 		        drives.io.node, drives.io.re.count, drives.io.re.failed,
 		        drives.io.re.fail_index, drives.io.re.fail_sub,
 		        drives.io.re.failed == 0     ? "-"
-		        : drives.io.re.fail_reg != 0 ? "non-zero: the module still reports a fault"
+		        : drives.io.re.fail_reg != 0 ? reg
 		        : drives.io.re.fail_abort == 0
 		            ? "no answer in time"
 		            : mlip_sdo_abort_text(drives.io.re.fail_abort));

@@ -100,6 +100,7 @@ def test_homing_in_sequence(sim, tmp_path, nodes, homes):
         assert rig.ctl("mdi", "G91", check=False).returncode == 0
         assert rig.status()["position"] == st["position"]
         p = rig.ctl("home", check=False)
+        home_said = p.stdout.strip()
         assert p.returncode == 0, p.stdout + p.stderr
         want = " ".join(f"{ax} {offs[ax]:.4f}" for ax in "XYZ")
         assert "homed in" in p.stdout and want in p.stdout, p.stdout
@@ -170,7 +171,8 @@ def test_homing_in_sequence(sim, tmp_path, nodes, homes):
     print(f"\n[home] methods X {homes['X'][0]} Y {homes['Y'][0]} Z {homes['Z'][0]}: SYNCs from "
           f"bit 4 to bits 10+12: {dict((n, done[n] - start[n]) for n in nodes)} = {per_s} s at "
           f"40 ms (search 5 mm/s, latch 0.5 mm/s, accel 20 mm/s^2); per axis (offset, actual "
-          f"at CSP, first CSP target - actual) in counts: {csp}")
+          f"at CSP, first CSP target - actual) in counts: {csp}; mlip-ctl home (set-up by "
+          f"SDO, homing, back to CSP, whole machine): {home_said!r}")
 
 
 @pytest.mark.parametrize("node,what,reason", [(4, "error", "homing error"),

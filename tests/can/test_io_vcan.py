@@ -229,7 +229,7 @@ def test_module_fault(sim, tmp_path):
     finally:
         sim.inject(f"{IO}:fault=off")  # the module of the other tests back
     log = rig.result["rt_stderr"]
-    assert "0x1001:00, non-zero: the module still reports a fault" in log, log
+    assert "(last: 0x1001:00, reads 0x01: the module still reports a fault)" in log, log
     ev = [e for e in sim.events(node=IO) if t0 <= e["t"] < t_off]
     assert not [e for e in ev if e["kind"] == "sdo_write"], ev  # a faulted module untouched
     assert not [e for e in ev if e["kind"] == "nmt" and e["to"] == "OPERATIONAL"], ev
