@@ -288,6 +288,8 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
 		if (r < 0) {
 			pr->why = "the plan left its certified states";
 			pr->why_s = st.s;
+			pr->why_v = st.v;
+			pr->why_a = st.a;
 			return -1;
 		}
 		if (r == 0 && st.v <= 0.0 && (pr->finished ? end - st.s > 1.0 : 1)) {

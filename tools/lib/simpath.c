@@ -71,6 +71,8 @@ static int refused(const struct mlip_simpath *sp, const char *prog, const char *
 	        r->why ? r->why : "refused", r->why_s);
 	if (r->why_mm > 0.0) {
 		fprintf(err, " (%.6f mm, the band %.6f mm)", r->why_mm, r->band_mm);
+	} else if (r->why_v > 0.0 || r->why_a != 0.0) {
+		fprintf(err, " (speed %.6g, acceleration %.6g)", r->why_v, r->why_a);
 	}
 	fputc('\n', err);
 	return -1;

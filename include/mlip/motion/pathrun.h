@@ -80,6 +80,7 @@ struct mlip_pathrun {
 	 * chord from the program's start) and its (P6) bound */
 	const char *why;
 	double why_s, why_mm;
+	double why_v, why_a; /* the plan's state there (speed, acceleration) */
 };
 
 /* Start at `start` (the program's start, at rest). lim as for
