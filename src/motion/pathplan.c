@@ -7,14 +7,15 @@
 #include <math.h>
 #include <stddef.h>
 
-/* The policy's release: a back to 0 as v reaches the crawl, at this share
- * of the jerk the start allows (Q3); the crawl's own stop needs END_TIME of
- * its speed as room. The model's values. A run that passes the end fails
- * (inside()): the run itself proves it stops before it, where the model
- * also cut every run whose speed needed more than v^2 / 400 + 0.05 v mm
- * (braking at 200 mm/s^2, slower than the policy's). */
+/* The policy's release: a back to 0 as v reaches 0, at this share of the
+ * jerk the start allows (Q3). A run ends at rest (v = a = 0), the one
+ * state that is safe on any curve: a run that ended at a crawl assumed the
+ * rest of the curve allowed it, and a hook of 0.0002 mm (tball-pocket's
+ * stations 5,316-5,340) allows no jerk at 1.2 mm/s (x''' v^3 alone
+ * exceeds J), so the crawl it certified had no next step. A run that
+ * passes the end fails (inside()): the run itself proves it stops before
+ * it. */
 #define RELEASE_SHARE 0.8
-#define END_TIME      0.05
 
 /* (Q2) rounds of pick_at's search for a jerk inside its own step's
  * interval. */
@@ -111,10 +112,12 @@ static void mul_range(double al, double ah, double bl, double bh, double *lo, do
  * within their ranges over [ha, hb], so (P2) is p j + c with p in [pl, ph]
  * and c in [cm - cr, cm + cr]: a j with |p j + cm| <= J - cr at both ends
  * of p's range holds J at every point of the piece the step passes (affine
- * in p and c: the box's corners bound it). Into [*lo, *hi]; 0 when empty. */
+ * in p and c: the box's corners bound it). Into [*lo, *hi]; 0 when empty.
+ * The range of (P2) at j itself widens [pm[k], pM[k]] per axis: the rate
+ * of the axis's acceleration (P1) over the step (accel_over). */
 static int piece_cut(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim, int i,
                      double ua, double ub, struct mlip_path_state st, double j, double ha,
-                     double hb, double *lo, double *hi)
+                     double hb, double *lo, double *hi, double *pm, double *pM)
 {
 	double vl, vh, al = st.a + j * ha, ah = st.a + j * hb, val, vah;
 	if (al > ah) {
@@ -142,6 +145,10 @@ static int piece_cut(const struct mlip_path_curve *sp, const struct mlip_path_li
 		double cl = ql + (t3 >= 0.0 ? t3 * v3l : t3 * v3h);
 		double ch = qh + (t3 >= 0.0 ? t3 * v3h : t3 * v3l);
 		double cm = 0.5 * (cl + ch), J = lim->jerk[k] - 0.5 * (ch - cl);
+		double jl = pl * j < ph * j ? pl * j : ph * j,
+		       jh = pl * j < ph * j ? ph * j : pl * j;
+		pm[k] = jl + cl < pm[k] ? jl + cl : pm[k];
+		pM[k] = jh + ch > pM[k] ? jh + ch : pM[k];
 		if (!(J >= 0.0) || !mlip_path_axis_cut(pl, cm, J, lo, hi) ||
 		    !mlip_path_axis_cut(ph, cm, J, lo, hi)) {
 			return 0;
@@ -150,17 +157,56 @@ static int piece_cut(const struct mlip_path_curve *sp, const struct mlip_path_li
 	return *lo <= *hi;
 }
 
-/* (Q2) from the state a; the step's end (the next state, its point and
- * interval) in *next when next is not NULL. Every point of the step lies
+static double clamp(double x, double lo, double hi)
+{
+	return x < lo ? lo : (x > hi ? hi : x);
+}
+
+/* (P1) at every instant of a step of T: per axis the acceleration f(h) =
+ * x' a + x'' v^2 goes from f0 to fT with its rate f' = (P2) within [m, M]
+ * (the pieces' bounds), so f(h) <= min(f0 + M h, fT - m (T - h)) and f(h)
+ * >= max(f0 + m h, fT - M (T - h)): their extremes at h = 0, T or where the
+ * two lines meet. The states alone let 1.0006 A through between two ends
+ * within it (test_pathplan). 1 when every axis keeps A. */
+static int accel_over(const struct mlip_path_limits *lim, const struct at *a, const struct at *e,
+                      double T, const double *pm, const double *pM)
+{
+	struct mlip_path_state s0 = a->st, s1 = e->st;
+	for (int k = 0; k < lim->n; k++) {
+		double f0 = a->d.d1[k] * s0.a + a->d.d2[k] * s0.v * s0.v;
+		double f1 = e->d.d1[k] * s1.a + e->d.d2[k] * s1.v * s1.v, m = pm[k], M = pM[k];
+		double up = f0 > f1 ? f0 : f1, dn = f0 < f1 ? f0 : f1;
+		if (M > m) {
+			double h = clamp((f1 - f0 - m * T) / (M - m), 0.0, T), x = f0 + M * h;
+			x = x < f1 - m * (T - h) ? x : f1 - m * (T - h);
+			up = x > up ? x : up;
+			h = clamp((f0 - f1 + M * T) / (M - m), 0.0, T);
+			x = f0 + m * h > f1 - M * (T - h) ? f0 + m * h : f1 - M * (T - h);
+			dn = x < dn ? x : dn;
+		}
+		if (!(up <= lim->accel[k] + 1e-9 && dn >= -lim->accel[k] - 1e-9)) {
+			return 0;
+		}
+	}
+	return 1;
+}
+
+/* (Q2) from the state a over a step of T (the period, or a stop's part of
+ * it); the step's end (the next state, its point and interval) in *next
+ * when next is not NULL. Every point of the step lies
  * on a piece it crosses, passed at a time h with (u - s) / vmax <= h <=
  * (u - s) / vmin (v within [vmin, vmax] over the step), so a bound per
  * piece over those times (piece_cut) holds the whole step: no knot's time,
  * one bound a piece where three checkpoints a knot sampled it. */
 static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
-                    const struct at *a, double j, double *lo, double *hi, struct at *next)
+                    const struct at *a, double j, double T, double *lo, double *hi, struct at *next)
 {
-	double T = lim->period, l = a->jl, u = a->jh;
+	double l = a->jl, u = a->jh, pm[MLIP_MAX_AXES], pM[MLIP_MAX_AXES];
 	struct mlip_path_state st = a->st, end = mlip_path_advance(st, j, T);
+	for (int k = 0; k < lim->n; k++) {
+		pm[k] = INFINITY;
+		pM[k] = -INFINITY;
+	}
 	double s1 = end.s, last = sp->s[sp->count - 1], vmin, vmax;
 	*lo = 1.0; /* until the whole step is checked: empty */
 	*hi = -1.0;
@@ -185,7 +231,7 @@ static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_lim
 			ha = ha < 0.0 ? 0.0 : (ha > T ? T : ha);
 			hb = hb < ha ? ha : (hb > T ? T : hb);
 		}
-		if (!piece_cut(sp, lim, i, ua, ub, st, j, ha, hb, &l, &u)) {
+		if (!piece_cut(sp, lim, i, ua, ub, st, j, ha, hb, &l, &u, pm, pM)) {
 			return 0;
 		}
 		piece = i;
@@ -194,6 +240,9 @@ static int range_at(const struct mlip_path_curve *sp, const struct mlip_path_lim
 	cut(sp, lim, st, j, T, s1 < last ? s1 : last, &piece, &e->d, &l, &u, e);
 	e->st = end;
 	e->piece = mlip_path_spline_piece(sp, end.s, piece);
+	if (!accel_over(lim, a, e, T, pm, pM)) {
+		return 0; /* (P1) broken within the step: no jerk near j keeps it */
+	}
 	*lo = l;
 	*hi = u;
 	return l <= u;
@@ -204,12 +253,7 @@ int mlip_path_period_range(const struct mlip_path_curve *sp, const struct mlip_p
 {
 	struct at a;
 	at_make(sp, lim, &a, st, 0);
-	return range_at(sp, lim, &a, j, lo, hi, NULL);
-}
-
-static double clamp(double x, double lo, double hi)
-{
-	return x < lo ? lo : (x > hi ? hi : x);
+	return range_at(sp, lim, &a, j, lim->period, lo, hi, NULL);
 }
 
 /* The admissible jerk nearest jt from a (Q2); its step's end in *next.
@@ -230,7 +274,7 @@ static int pick_at(const struct mlip_path_curve *sp, const struct mlip_path_limi
 	}
 	double x = clamp(jt, a->jl, a->jh);
 	for (int i = 0; i < PICK_ROUNDS; i++) {
-		if (!range_at(sp, lim, a, x, &lo, &hi, next)) {
+		if (!range_at(sp, lim, a, x, lim->period, &lo, &hi, next)) {
 			return 0;
 		}
 		if (lo <= x && x <= hi) {
@@ -269,6 +313,25 @@ static int policy(const struct mlip_path_limits *lim, int i)
 	return i >= 0 && i < n ? i : 0;
 }
 
+/* (Q3) the stop: from v > 0, a < 0 the jerk a^2 / (2 v) brings v and a to
+ * 0 together after h = -2 v / a; when that is within the period and the
+ * jerk admissible over [0, h] (Q2), *next is that rest (the period's
+ * remainder held there). 0 otherwise. */
+static int stop_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                   const struct at *a, double *j, struct at *next)
+{
+	struct mlip_path_state st = a->st;
+	double lo, hi, h = -2.0 * st.v / st.a, js = st.a * st.a / (2.0 * st.v);
+	if (!(h > 0.0 && h <= lim->period) || !range_at(sp, lim, a, js, h, &lo, &hi, next) ||
+	    !(lo <= js && js <= hi)) {
+		return 0;
+	}
+	next->st.v = 0.0;
+	next->st.a = 0.0;
+	*j = js;
+	return 1;
+}
+
 /* (Q3) from a, alo the low end of the (P1) interval at its point and speed
  * (NAN: not yet computed); the step's end in *next. */
 static int brake_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
@@ -279,10 +342,11 @@ static int brake_at(const struct mlip_path_curve *sp, const struct mlip_path_lim
 	if (!a->ok) {
 		return 0;
 	}
-	if (st.v <= lim->v_crawl ||
-	    (st.a < 0.0 && jh > 0.0 &&
-	     st.v - lim->v_crawl <= st.a * st.a / (2.0 * RELEASE_SHARE * jh))) {
-		return pick_at(sp, lim, a, -st.a / T, j, next); /* (Q3) release */
+	if (st.v <= 0.0 && st.a == 0.0) {
+		return pick_at(sp, lim, a, 0.0, j, next); /* at rest: stay */
+	}
+	if (st.a < 0.0 && st.v > 0.0 && stop_at(sp, lim, a, j, next)) {
+		return 1;
 	}
 	double ahi;
 	if (isnan(alo) && !mlip_path_accel_range(lim->n, &a->d, lim->accel, st.v, &alo, &ahi)) {
@@ -292,6 +356,16 @@ static int brake_at(const struct mlip_path_curve *sp, const struct mlip_path_lim
 	double target = alo > -ab ? alo : -ab, jt = a->jl;
 	if (st.a + a->jl * T < target) {
 		jt = (target - st.a) / T; /* (Q3) reach the target, not past it */
+	}
+	/* (Q3) release: brake no harder than leaves the next state (v1, a1) its
+	 * stop at the release jerk jr (v1 >= a1^2 / (2 jr) where a1 < 0; the
+	 * triangle a1 -> 0 as v1 -> 0, which keeps the bound with equality):
+	 * with v1 = v + (a + a1) T / 2, a1 >= (jr T - sqrt(jr^2 T^2 + 8 jr (v
+	 * + a T / 2))) / 2 */
+	double jr = RELEASE_SHARE * jh, q = jr * jr * T * T + 8.0 * jr * (st.v + st.a * T / 2.0);
+	if (jr > 0.0 && q >= 0.0) {
+		double jmin = ((jr * T - sqrt(q)) / 2.0 - st.a) / T;
+		jt = jt > jmin ? jt : jmin;
 	}
 	return pick_at(sp, lim, a, jt, j, next);
 }
@@ -334,8 +408,8 @@ static int certified_at(const struct mlip_path_curve *sp, const struct mlip_path
 		if (!inside(lim, a, end, &alo)) {
 			return 0;
 		}
-		if (st.v <= lim->v_crawl && fabs(st.a) < 1.0) {
-			return end - st.s >= st.v * END_TIME; /* (Q4) crawling, room to stop */
+		if (st.v == 0.0 && st.a == 0.0) {
+			return 1; /* (Q4) at rest before the end */
 		}
 		struct at *next = &buf[i & 1];
 		if (!brake_at(sp, lim, a, alo, &j, next)) {
@@ -354,6 +428,41 @@ int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path
 	return certified_at(sp, lim, &a, end, max_periods, work);
 }
 
+/* The step of the jerk nearest jt from a (Q2) into *st when some policy
+ * certifies its end (st's own first, then the others, Q4); the new state
+ * keeps the policy and the candidate i. */
+static int take(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                const struct at *a, double jt, int i, struct mlip_path_state *st, double end,
+                int max_periods, long *work)
+{
+	struct at nx;
+	double j;
+	if (!pick_at(sp, lim, a, jt, &j, &nx)) {
+		return -1;
+	}
+	int own = policy(lim, st->brake), nb = lim->n_brake < 1 ? 1 : lim->n_brake;
+	nb = nb > MLIP_PATH_BRAKES ? MLIP_PATH_BRAKES : nb;
+	for (int q = 0; q < nb; q++) {
+		nx.st.brake = q == 0 ? own : (q <= own ? q - 1 : q);
+		if (certified_at(sp, lim, &nx, end, max_periods, work)) {
+			nx.st.share = i;
+			*st = nx.st;
+			return 1;
+		}
+	}
+	return 0;
+}
+
+/* From rest the plan tries the jerk the start allows halved up to this many
+ * times: near the end only a small move still stops before it, and each
+ * such move (its run to rest certified) closes at least part of the gap,
+ * so the plan reaches the end itself (no crawl, no tail). */
+#define REST_HALVINGS 40
+
+/* At rest this close to the end (mm, or the curve's own parameter) the plan
+ * has arrived: it stays (a machine's resolution is far coarser). */
+#define END_REACHED 1e-9
+
 int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                           struct mlip_path_state *st, double end, int max_periods, long *work)
 {
@@ -361,22 +470,26 @@ int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_pa
 	struct at a, nx;
 	double j;
 	at_make(sp, lim, &a, *st, 0);
-	if (a.ok) {
+	if (a.ok && st->v == 0.0 && st->a == 0.0) {
+		if (end - st->s <= END_REACHED) {
+			return brake_at(sp, lim, &a, NAN, &j, &nx) ? 0 : -1; /* arrived: stay */
+		}
+		double jt = a.jh; /* at rest: a jerk below 0 would go back, 0 stays */
+		for (int i = 0; i <= REST_HALVINGS && jt > 0.0; i++, jt *= 0.5) {
+			if (take(sp, lim, &a, jt, 0, st, end, max_periods, work) == 1) {
+				return 1;
+			}
+		}
+	} else if (a.ok) {
 		int i0 = st->share > 0 && st->share < 5 ? st->share - 1 : 0;
 		for (int i = i0; i < 5; i++) {
-			if (!pick_at(sp, lim, &a, a.jl + share[i] * (a.jh - a.jl), &j, &nx)) {
-				break;
-			}
-			/* st's own policy first, then the others (Q4) */
-			int own = policy(lim, st->brake), nb = lim->n_brake < 1 ? 1 : lim->n_brake;
-			nb = nb > MLIP_PATH_BRAKES ? MLIP_PATH_BRAKES : nb;
-			for (int q = 0; q < nb; q++) {
-				nx.st.brake = q == 0 ? own : (q <= own ? q - 1 : q);
-				if (certified_at(sp, lim, &nx, end, max_periods, work)) {
-					nx.st.share = i;
-					*st = nx.st;
+			int r = take(sp, lim, &a, a.jl + share[i] * (a.jh - a.jl), i, st, end,
+			             max_periods, work);
+			if (r != 0) {
+				if (r == 1) {
 					return 1;
 				}
+				break;
 			}
 		}
 	}

@@ -19,20 +19,27 @@
  * <= (u - s) / vmin), so no instant of the period exceeds J. The interval
  * at the start alone is not enough: its ends move within the period (3 x''
  * v j T through a, and x''' from piece to piece): the model's trochoid
- * reached 1.036 J at J = 1e4 with it. The interval depends on j only
+ * reached 1.036 J at J = 1e4 with it. The step is admissible only if (P1)
+ * holds at every instant too: per axis the acceleration moves at the rate
+ * (P2), within the pieces' bounds, from its value at the start to its value
+ * at the end, which bounds it in between (the states alone let 1.0006 A
+ * through). The interval depends on j only
  * through (Q1), weakly, so `mlip_path_pick` clamps into the interval of
  * its last choice's step (from the second round by a secant step to the
  * end's fixed point) and accepts only a j inside its own step's interval.
  *
  * A braking policy (Q3): brake as hard as the limits allow toward
- * max(the (P1) floor, -a_brake[i]); release (toward a = 0) once
- * v - v_crawl <= a^2 / (2 0.8 j_hi); at or below the crawl, release. Its
- * jerk is admissible for its whole period (Q2) or the state is not safe.
+ * max(the (P1) floor, -a_brake[i]), but no harder than leaves the next
+ * state its stop at the release jerk jr = 0.8 j_hi (v >= a^2 / (2 jr)
+ * where a < 0: a and v reach 0 together); once that stop fits in the
+ * period (h = -2 v / a <= T) its jerk a^2 / (2 v) over h, then rest. Its
+ * jerk is admissible for its whole step (Q2) or the state is not safe.
  *
  * A state is certified (Q4) when its braking run, simulated period by
  * period, stays within every limit (speed cap, (P1), a non-empty (P2)
- * interval, each jerk admissible) until it crawls (v <= v_crawl, |a| < 1)
- * before `end` with room for the crawl's stop. The policy depends on the
+ * interval, each jerk admissible) until it is at rest (v = a = 0, the one
+ * state safe on any curve: a crawl is not, where a hook of 0.0002 mm allows
+ * no jerk at 1 mm/s) at or before `end`. The policy depends on the
  * state alone, so the first step of a certified run leads to a state that
  * the same policy certifies: the plan that only enters certified states,
  * each with the policy that certified it, always has a way to brake (a
@@ -61,7 +68,7 @@ struct mlip_path_limits {
 	 * the run of any of the first n_brake (0 counts as 1) */
 	double a_brake[MLIP_PATH_BRAKES];
 	int n_brake;
-	double v_crawl; /* (Q3) the crawl, > 0 */
+	double v_crawl; /* not read: the runs end at rest (Q4) */
 	double period;  /* T, s */
 };
 
@@ -95,7 +102,8 @@ int mlip_path_brake(const struct mlip_path_curve *sp, const struct mlip_path_lim
 int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                         struct mlip_path_state st, double end, int max_periods, long *work);
 
-/* One period of the greedy plan from the certified state *st: the largest
+/* One period of the greedy plan from the certified state *st (the start:
+ * at rest): the largest
  * of five jerks across the start's (P2) interval, from one above the last
  * period's (st->share: the candidates above it mostly fail, and their runs
  * were most of the work), that is admissible (Q2)
@@ -103,7 +111,9 @@ int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path
  * new state keeps the one that certified it), else the step of st's own
  * policy (the rest of its certified run). 1 when it moved faster than
  * braking, 0 when it braked, -1 when the policy had no jerk (st was not
- * certified). */
+ * certified). At rest the candidates are the start's largest jerk halved
+ * up to 40 times (near the end only a small move stops before it), so
+ * the plan reaches `end` at rest itself; within 1e-9 of it, it stays. */
 int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                           struct mlip_path_state *st, double end, int max_periods, long *work);
 
