@@ -30,7 +30,6 @@ int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_p
 	lim->a_brake[0] = 900.0;
 	lim->a_brake[1] = 300.0;
 	lim->n_brake = 2;
-	lim->v_crawl = 2.0;
 	lim->period = m->period_s;
 	*band_mm = 0.1 * m->tolerance_mm;
 	return 0;
