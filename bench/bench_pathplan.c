@@ -21,8 +21,10 @@
  * output there) at J exactly (the caller's margin applied), the braking
  * policies' decelerations --brake B[,B2...] (300; a state is certified by
  * any of their runs, Q4); --out FILE: each planned period's
- * path position and its braking-run periods, for the model to finish the
- * stop, sample the positions and have mlip-check judge them.
+ * path position and its braking-run periods, for the model to sample the
+ * positions and have mlip-check judge them. The plan runs from rest to rest
+ * at the end (within 1e-8 of it, pathplan.h; fails if it stops short or leaves the
+ * certified states).
  */
 #include <math.h>
 #include <stdint.h>
@@ -54,23 +56,6 @@ int bench_plan_period(const struct mlip_path_limits *lim, struct mlip_path_state
                       long *work)
 {
 	return mlip_path_plan_period(&cv, lim, st, end, 3000, work);
-}
-
-/* The model's tail from a crawl (bench/pathspeed.py): the acceleration
- * ramped to 0 at the path jerk jr, then a cruise and a triangle of jerk
- * jr to rest; 1 when its ramp and stop fit in `room`, the ramp keeps a
- * speed and the cruise takes at most TAIL_CRUISE (a planned state near the
- * end still braking need not wait for |a| < 1 there: that wait crept at v
- * ~ room / 0.05 s for 0.2 s; nor may the ramp leave a crawl of 0.004 mm/s
- * for the last 0.07 mm: 16 s, the spiral at 1e5 once). */
-#define TAIL_CRUISE 0.1
-static int tail_fits(struct mlip_path_state st, double room, double jr)
-{
-	double ta = fabs(st.a) / jr, j0 = st.a > 0.0 ? -jr : jr;
-	double v1 = st.v + st.a * ta + j0 * ta * ta / 2.0;
-	double d0 = st.v * ta + st.a * ta * ta / 2.0 + j0 * ta * ta * ta / 6.0;
-	double stop = v1 > 0.0 ? v1 * sqrt(v1 / jr) : 0.0;
-	return v1 > 0.0 && d0 + stop <= room && room - d0 - stop <= TAIL_CRUISE * v1;
 }
 
 /* --points: the whole curve's spline, in the caller's (host) memory. */
@@ -232,15 +217,17 @@ int main(int argc, char **argv)
 		perror(out);
 		return 1;
 	}
-	/* the model's loop: until crawling within 1 mm of the end with room
-	 * for the model's tail */
-	while (end - st.s > 1e-3 && !(st.v <= lim.v_crawl && end - st.s < 1.0 && periods + 1 > 10 &&
-	                              tail_fits(st, end - st.s, 0.5 * lim.jerk[0]))) {
+	/* to the end: the plan's own last state is at rest there (no tail) */
+	while (!(st.v == 0.0 && st.a == 0.0 && end - st.s <= 1e-8 && periods > 0)) {
 		long w0 = work;
+		struct mlip_path_state s0 = st;
 		int r = bench_plan_period(&lim, &st, end, &work);
-		if (r < 0 || periods > 1000000 || (r == 0 && st.v <= 0.0 && end - st.s > 1.0)) {
-			fprintf(stderr, "bench_pathplan: the plan %s at s %.6f of %.6f\n",
-			        r < 0 ? "left the certified states" : "stopped", st.s, end);
+		/* at rest a whole period short of the end: stopped */
+		int stalled = s0.v == 0.0 && s0.a == 0.0 && st.v == 0.0 && st.a == 0.0 &&
+		              st.s == s0.s && periods > 0;
+		if (r < 0 || periods > 1000000 || stalled) {
+			fprintf(stderr, "bench_pathplan: the plan %s at s %.9f of %.9f\n",
+			        r < 0 ? "left the certified states" : "stopped short", st.s, end);
 			return 1;
 		}
 		moved += r;

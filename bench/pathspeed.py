@@ -58,8 +58,9 @@ plan's cost; src/motion/pathplan.c is this plan's period in C).
 --c (with --poly): the plan by its C period instead (build/bench_pathplan
 --points: src/motion/pathplan.c over the same spline, its checkpoints exact;
 --brake B,B2,...: several policies, a state certified by any of their runs;
-default 900,300, as docs/benchmarks.md),
-the rest as above; --keep keeps the temporary files (the points, for
+default 900,300, as docs/benchmarks.md): its runs end at rest, not at a
+crawl, and it plans to the curve's end at rest itself (no tail), the rest
+as above; --keep keeps the temporary files (the points, for
 callgrind on bench_pathplan).
 
 --hand-over (with --c): the product's choice between the path plan and the
@@ -556,11 +557,11 @@ while (
     sum_w = WORK[0]
     if len(out) > 200000:
         raise SystemExit(f"too long at s={s}")
-# the end: cruise at the crawl speed, then a jerk-limited stop at L exactly
-# (a triangle of jerk: v = jr t^2 ... over 2 sqrt(v / jr), distance v sqrt(v / jr))
-# (--c: the plan may end still braking at the crawl: the acceleration is
-# first ramped to 0 at jr, bench_pathplan's tail_fits)
-out += tail(s, v, a, L)
+# the end: the model cruises at the crawl speed, then stops at L exactly by
+# a jerk-limited tail (a triangle of jerk: v = jr t^2 ... over 2 sqrt(v /
+# jr), distance v sqrt(v / jr)); --c: the C plan ends at rest at L itself
+# (bench_pathplan fails otherwise), held there a few samples
+out += [L] * 3 if args.c else tail(s, v, a, L)
 
 
 def cruise_points(X, taps):
@@ -677,7 +678,7 @@ def rest_plan(prog, mach):
         res_ = json.loads(r_.stdout)
         rows_ = np.loadtxt(f_ + ".out", delimiter=",", ndmin=2)
         sq = [min(float(x), L_) for x in rows_.reshape(-1, 2)[:, 0]]
-        sq += tail(res_["s"], res_["v"], res_["a"], L_) or [L_] * 3
+        sq += [L_] * 3  # the C plan ends at rest at L_ (bench_pathplan)
         sq = np.clip(np.array(sq), 0.0, L_)
         j_ = np.clip(np.searchsorted(c_, sq, side="right") - 1, 0, len(h_) - 1)
         w_ = (sq - c_[j_])[:, None]
