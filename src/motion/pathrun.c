@@ -197,7 +197,9 @@ int mlip_pathrun_finish(struct mlip_pathrun *pr)
 /* Periods at rest in a row after which the plan is taken as stuck (it
  * starts from rest with its largest jerk halved up to 40 times: one of
  * them moves unless the window ends where it stands). */
-#define STUCK_PERIODS 100000
+#define STUCK_PERIODS  100000
+/* mlip_path_plan_period stays at rest within this of `end` (pathplan.h) */
+#define END_REACHED_MM 1e-8
 
 int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
 {
@@ -213,9 +215,10 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
 	mlip_pathrun_curve(pr, &cv);
 	double end = pr->s[pr->fixed];
 	struct mlip_path_state st = pr->st;
-	if (pr->finished && end - st.s <= 1e-9 && st.v == 0.0 && st.a == 0.0) {
+	if (pr->finished && end - st.s <= END_REACHED_MM && st.v == 0.0 && st.a == 0.0) {
 		/* at rest on the last point (the plan brakes to rest at `end`
-		 * itself, Q4): the point exactly */
+		 * itself, Q4, and stays within END_REACHED_MM of it): the point
+		 * exactly */
 		memcpy(x, pr->p[pr->fixed], sizeof(double) * (size_t)pr->lim.n);
 		pr->st.s = end;
 		pr->periods++;

@@ -8,7 +8,7 @@ bench's settings (A 1000 mm/s^2, 200 mm/s, eps 0.01 mm, T 1 ms): the trace
 keeps J, A, the speed and the contour (mlip-sim's own check and
 mlip-check --jerk on the written trace), its time is within 0.97..1.05 of
 the whole-output plan (bench/pathspeed.py --c: one spline through all of
-smooth's output; measured 1.029 at 1e4, 1.003 at 1e5) and meets the issue's
+smooth's output; measured 1.027 at 1e4, 1.000 at 1e5) and meets the issue's
 targets against smooth without J (<= 1.5x at 1e4, <= 1.10x at 1e5; a jerk
 limit never makes it faster: >= 1x). Bad use is refused with a reason.
 """
