@@ -28,7 +28,7 @@ int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *li
 {
 	int n = lim->n;
 	if (n < 1 || n > MLIP_MAX_AXES || !(band_mm > 0.0) || !(lim->period > 0.0) ||
-	    !(lim->vmax > 0.0) || !(lim->v_crawl > 0.0) || max_periods < 1) {
+	    !(lim->vmax > 0.0) || max_periods < 1) {
 		return -1;
 	}
 	for (int k = 0; k < n; k++) {
@@ -44,12 +44,6 @@ int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *li
 	memcpy(pr->last_in, start, sizeof(double) * (size_t)n);
 	pr->count = 1;
 	pr->peak_count = 1;
-	pr->jr = INFINITY;
-	for (int k = 0; k < n; k++) {
-		/* the tail's path jerk: half the least J, the rest for the curve's
-		 * own terms (P2) at the crawl (bench/pathspeed.py's tail) */
-		pr->jr = fmin(pr->jr, 0.5 * lim->jerk[k]);
-	}
 	return 0;
 }
 
@@ -200,63 +194,12 @@ int mlip_pathrun_finish(struct mlip_pathrun *pr)
 	return last > pr->fixed ? settle(pr, last) : 0;
 }
 
-/* bench_pathplan's tail_fits: from the crawl st, the acceleration ramped to
- * 0 at jr, then a cruise and a triangle of jerk to rest fit in `room`, the
- * ramp keeps a speed and the cruise takes at most 0.1 s (no creeping). */
-static int tail_fits(struct mlip_path_state st, double room, double jr)
-{
-	double ta = fabs(st.a) / jr, j0 = st.a > 0.0 ? -jr : jr;
-	double v1 = st.v + st.a * ta + j0 * ta * ta / 2.0;
-	double d0 = st.v * ta + st.a * ta * ta / 2.0 + j0 * ta * ta * ta / 6.0;
-	double stop = v1 > 0.0 ? v1 * sqrt(v1 / jr) : 0.0;
-	return v1 > 0.0 && d0 + stop <= room && room - d0 - stop <= 0.1 * v1;
-}
-
-static void tail_start(struct mlip_pathrun *pr, double end)
-{
-	struct mlip_path_state st = pr->st;
-	double jr = pr->jr;
-	pr->tail = 1;
-	pr->tt = 0.0;
-	pr->ts = st.s;
-	pr->tv = st.v;
-	pr->tacc = st.a;
-	pr->ta = fabs(st.a) / jr;
-	pr->j0 = st.a > 0.0 ? -jr : jr;
-	double ta = pr->ta;
-	double va = st.v + st.a * ta + pr->j0 * ta * ta / 2.0;
-	double sa = st.s + st.v * ta + st.a * ta * ta / 2.0 + pr->j0 * ta * ta * ta / 6.0;
-	pr->tb = 2.0 * sqrt(va / jr);
-	double db = va * pr->tb / 2.0;
-	pr->tc = ta + fmax(end - sa - db, 0.0) / va;
-	pr->s0 = sa - va * ta; /* the cruise's line, back to the tail's start */
-	pr->v0 = va;
-}
-
-/* The tail's path position after tt; 1 at its end. */
-static int tail_s(const struct mlip_pathrun *pr, double t, double end, double *s)
-{
-	double jr = pr->jr, v0 = pr->v0;
-	if (t <= pr->ta) {
-		*s = pr->ts + pr->tv * t + pr->tacc * t * t / 2.0 + pr->j0 * t * t * t / 6.0;
-	} else if (t <= pr->tc) {
-		*s = pr->s0 + v0 * t;
-	} else if (t < pr->tc + pr->tb) {
-		double u = t - pr->tc, h = pr->tb / 2.0, base = pr->s0 + v0 * pr->tc;
-		if (u <= h) {
-			*s = base + v0 * u - jr * u * u * u / 6.0;
-		} else {
-			double w = u - h, vm = v0 - jr * h * h / 2.0;
-			*s = base + v0 * h - jr * h * h * h / 6.0 + vm * w - jr * h * w * w / 2.0 +
-			     jr * w * w * w / 6.0;
-		}
-	} else {
-		*s = end;
-		return 1;
-	}
-	*s = *s < end ? *s : end;
-	return 0;
-}
+/* Periods at rest in a row after which the plan is taken as stuck (it
+ * starts from rest with its largest jerk halved up to 40 times: one of
+ * them moves unless the window ends where it stands). */
+#define STUCK_PERIODS  100000
+/* mlip_path_plan_period stays at rest within this of `end` (pathplan.h) */
+#define END_REACHED_MM 1e-8
 
 int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
 {
@@ -272,37 +215,30 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
 	mlip_pathrun_curve(pr, &cv);
 	double end = pr->s[pr->fixed];
 	struct mlip_path_state st = pr->st;
-	int at_end = 0;
-	if (!pr->tail && pr->finished && end - st.s <= 1e-9) {
-		at_end = 1;
-	} else if (!pr->tail && pr->finished && st.v <= pr->lim.v_crawl && end - st.s < 1.0 &&
-	           pr->periods >= 10 && tail_fits(st, end - st.s, pr->jr)) {
-		tail_start(pr, end);
-	}
-	if (pr->tail) {
-		pr->tt += pr->lim.period;
-		at_end = tail_s(pr, pr->tt, end, &st.s);
-		st.v = st.a = 0.0;
-	} else if (!at_end) {
-		int r = mlip_path_plan_period(&cv, &pr->lim, &st, end, pr->max_periods, &pr->work);
-		if (r < 0) {
-			pr->why = "the plan left its certified states";
-			pr->why_s = st.s;
-			return -1;
-		}
-		if (r == 0 && st.v <= 0.0 && (pr->finished ? end - st.s > 1.0 : 1)) {
-			pr->why = "the plan stopped short of the window's end";
-			pr->why_s = st.s;
-			return -1;
-		}
-	}
-	pr->periods++;
-	if (at_end) {
+	if (pr->finished && end - st.s <= END_REACHED_MM && st.v == 0.0 && st.a == 0.0) {
+		/* at rest on the last point (the plan brakes to rest at `end`
+		 * itself, Q4, and stays within END_REACHED_MM of it): the point
+		 * exactly */
 		memcpy(x, pr->p[pr->fixed], sizeof(double) * (size_t)pr->lim.n);
 		pr->st.s = end;
-		pr->st.v = pr->st.a = 0.0;
+		pr->periods++;
 		return 2;
 	}
+	int r = mlip_path_plan_period(&cv, &pr->lim, &st, end, pr->max_periods, &pr->work);
+	if (r < 0) {
+		pr->why = "the plan left its certified states";
+		pr->why_s = st.s;
+		pr->why_v = st.v;
+		pr->why_a = st.a;
+		return -1;
+	}
+	pr->rested = st.v == 0.0 && st.a == 0.0 ? pr->rested + 1 : 0;
+	if (pr->rested > STUCK_PERIODS) {
+		pr->why = "the plan stays at rest short of the end";
+		pr->why_s = st.s;
+		return -1;
+	}
+	pr->periods++;
 	pr->st = st;
 	struct mlip_path_point d;
 	pr->hint = mlip_path_spline_piece(&cv, st.s, pr->hint);

@@ -67,7 +67,6 @@ static void limits(struct mlip_path_limits *lim)
 	lim->a_brake[0] = 900.0;
 	lim->a_brake[1] = 300.0;
 	lim->n_brake = 2;
-	lim->v_crawl = 2.0;
 	lim->period = T;
 }
 

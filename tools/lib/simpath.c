@@ -30,7 +30,6 @@ int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_p
 	lim->a_brake[0] = 900.0;
 	lim->a_brake[1] = 300.0;
 	lim->n_brake = 2;
-	lim->v_crawl = 2.0;
 	lim->period = m->period_s;
 	*band_mm = 0.1 * m->tolerance_mm;
 	return 0;
@@ -71,6 +70,8 @@ static int refused(const struct mlip_simpath *sp, const char *prog, const char *
 	        r->why ? r->why : "refused", r->why_s);
 	if (r->why_mm > 0.0) {
 		fprintf(err, " (%.6f mm, the band %.6f mm)", r->why_mm, r->band_mm);
+	} else if (r->why_v > 0.0 || r->why_a != 0.0) {
+		fprintf(err, " (speed %.6g, acceleration %.6g)", r->why_v, r->why_a);
 	}
 	fputc('\n', err);
 	return -1;

@@ -24,7 +24,7 @@ struct mlip_simpath {
 
 /* The plan's margins on machine m (which has J): 0.98 A, 0.95 J, 0.995 of
  * the path speed cap min(vmax, feed (> 0), each axis's max_vel), the
- * policies 900 and 300 mm/s^2 (bench/pathspeed.py --c's), crawl 2 mm/s;
+ * policies 900 and 300 mm/s^2 (bench/pathspeed.py --c's);
  * the band 0.1 eps. -1 when an axis has no jerk limit (the plan needs J
  * on every axis), with the reason in *why. */
 int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_path_limits *lim,

@@ -17,13 +17,12 @@
  * (1e-12 at K = 40): no jerk a sample shows.
  *
  * The plan sees only the fixed pieces, and their far end is its `end`: a
- * state it certifies (Q4: a braking run to a crawl before `end`) stays
- * certified when more pieces are fixed (the run and the pieces it crossed
- * are the same; the room only grows). That is pathplan.h's invariant
- * across the window's growth. At the program's end (mlip_pathrun_finish)
- * every piece is fixed and the plan comes to rest exactly on the last
- * point: from its crawl, a jerk-limited tail (acceleration ramped to 0,
- * a cruise, a triangle of jerk to rest).
+ * state it certifies (Q4: a braking run to rest at or before `end`)
+ * stays certified when more pieces are fixed (the run and the pieces it
+ * crossed are the same; the room only grows). That is pathplan.h's
+ * invariant across the window's growth. At the program's end
+ * (mlip_pathrun_finish) every piece is fixed, the plan brakes to rest at
+ * `end` itself, and the last setpoint is the last point exactly.
  *
  * Each fixed piece is checked by (P6) against the band the caller gives
  * (what the tolerance leaves after the setpoints' own contour error: the
@@ -69,9 +68,7 @@ struct mlip_pathrun {
 	double c[MLIP_PATHRUN_CAP];    /* the fit's scratch */
 	double last_in[MLIP_MAX_AXES]; /* the last input point (maybe skipped) */
 	struct mlip_path_state st;
-	/* the end's tail (after finish, from a crawl): Q1's segments */
-	int tail;
-	double tt, ta, tb, tc, j0, jr, s0, v0, ts, tv, tacc;
+	long rested; /* periods at rest in a row */
 	/* figures */
 	long periods, work, dropped;
 	int peak_count;
@@ -80,6 +77,7 @@ struct mlip_pathrun {
 	 * chord from the program's start) and its (P6) bound */
 	const char *why;
 	double why_s, why_mm;
+	double why_v, why_a; /* the plan's state there (speed, acceleration) */
 };
 
 /* Start at `start` (the program's start, at rest). lim as for
