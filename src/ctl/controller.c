@@ -106,7 +106,9 @@ int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		mlip_planner_hold(p, 1);
 		c->hold.op = 1;
 		c->hold.spindle = 0;
-		mlip_ct_brake_begin(c);
+		if (mlip_planner_moving(p)) {
+			mlip_ct_brake_begin(c); /* at rest: no stop on the path to count */
+		}
 		return MLIP_OK;
 	case MLIP_CMD_RESUME:
 		if (c->state == MLIP_STATE_FAULT) {

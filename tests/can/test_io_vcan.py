@@ -24,13 +24,15 @@ not timing, is what the checks judge. Each test prints an [io] line with
 the measured periods.
 """
 
+import math
 import re
 import time
 
 import pytest
 
-from conftest import IO, S, io_machine
-from mlipcan import procs
+from conftest import IO, IO_PERIOD_S, S, io_machine
+from mlipcan import compare, procs
+from mlipcan.compare import trim
 
 PROGRAM = """G21 G90
 G1 X20 Y10 F1200
@@ -365,3 +367,176 @@ def test_module_swapped(sim, tmp_path):
     assert not [e for e in ev if e["kind"] == "nmt" and e["to"] == "OPERATIONAL"], ev
     print(f"[io] module swapped (0x1018:02 0x4D4C4951, was 0x4D4C4950): E-stop reason "
           f"'not the same device' {waited:.2f} s after its boot-up, never configured")
+
+
+# the hold test's program: after a first move from wherever the drives stand,
+# every point lies on one line through the origin, direction (5, 2.5, 1): out
+# to X600 and back to X100 (a reversal: a stop at the corner, on the line)
+HOLD_PROGRAM = """G21 G90
+G1 X-20 Y-10 Z-4 F6000
+G1 X600 Y300 Z120
+G1 X100 Y50 Z20
+"""
+HOLD_A = 250.0  # mm/s^2 per axis: a braking of several 40 ms periods at 100 mm/s
+HOLD_END = (100000, 50000, 20000)  # counts (1000 per mm)
+
+
+def hold_machine(tmp, home=None):
+    """machine() with CYCLE_START on input bit 3 and every axis' acceleration
+    HOLD_A; home: the start position for mlip-sim (mm per axis)."""
+    def edit(text):
+        text = text.replace("MAX_ACCELERATION = 1000", f"MAX_ACCELERATION = {HOLD_A:g}")
+        for ax, h in (home or {}).items():
+            text = re.sub(rf"(\[AXIS_{ax}\][^\[]*?)HOME = 0\b", rf"\g<1>HOME = {h!r}", text)
+        return re.sub(r"^\[AXIS_X\]$", f"[AXIS_X]\nLIMIT_POS = {IO} 0x6000:1 2 HIGH", text,
+                      flags=re.M)
+    return io_machine(tmp, f"HOLD = {IO} 0x6000:1 1 HIGH\nCYCLE_START = {IO} 0x6000:1 3 HIGH\n",
+                      edit)
+
+
+def fresh_targets(sim, t0):
+    """[(sync, (x, y, z) counts)] for every SYNC after t0 at which all three
+    drives applied a fresh target: one entry per controller period."""
+    by = {}
+    for r in sim.sync_rows():
+        if r["t"] >= t0 and r["node"] in (1, 2, 3) and r["target"] is not None and r["fresh"]:
+            by.setdefault(r["sync"], {})[r["node"]] = r["target"]
+    return [(s, (d[1], d[2], d[3])) for s, d in sorted(by.items()) if len(d) == 3]
+
+
+def test_hold_and_cycle_start(sim, tmp_path):
+    """The module's hold and cycle-start inputs (rising edges, as mlip-ctl
+    hold / resume). Idle: cycle start, then hold do nothing (no motion, no
+    fault; a hold taken at rest stays latched, as Grbl's Hold:0, so cycle
+    start releases it before the program). Running: cycle start changes nothing; hold brakes on the
+    line within the acceleration limit to rest, state held; releasing the
+    button does nothing; cycle start resumes and the program ends at its end
+    to the count. The motion before the hold is mlip-sim's to the count."""
+    cfg = hold_machine(tmp_path)
+    ngc = tmp_path / "line.ngc"
+    ngc.write_text(HOLD_PROGRAM)
+    T = IO_PERIOD_S
+    u = (5.0, 2.5, 1.0)
+    nu = math.sqrt(sum(c * c for c in u))
+    u = tuple(c / nu for c in u)
+    a_path = min(HOLD_A / abs(c) for c in u)  # the path's limit on this line: X's
+
+    def button(bit, on, key):
+        """Press or release; the status once the controller has read it."""
+        sim.inject(f"{IO}:input=1.{bit}={int(on)}")
+        t_end = time.monotonic() + 60
+        while (st := rig.status())["inputs"][key] is not on:
+            assert time.monotonic() < t_end, st
+            time.sleep(0.05)  # polled: the condition is the controller's status
+        return st
+
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0, rt_args=["--drives"]) as rig:
+        st = rig.wait_state("idle", timeout=120)
+        assert st["inputs"] == {"estop": False, "hold": False, "cycle start": False,
+                                "X limit +": False}, st
+        t_idle = time.time()
+        for bit, key in ((3, "cycle start"), (1, "hold")):
+            button(bit, True, key)
+            button(bit, False, key)
+            st = rig.status()
+            assert st["state"] == "idle" and st["reason"] not in ("hold", "resume"), st
+        button(3, True, "cycle start")  # releases the latched hold
+        button(3, False, "cycle start")
+        assert rig.status()["state"] == "idle"
+        t0 = time.time()
+        feed = rig.feeder(ngc)
+        # cruising on the long line: cycle start changes nothing
+        rig.wait_state("running", timeout=180,
+                       pred=lambda s: s["exec_line"] == 3 and s["speed_mm_s"] > 99.0)
+        t_cs1 = time.time()
+        st = button(3, True, "cycle start")
+        assert st["state"] == "running", st
+        button(3, False, "cycle start")
+        t_hold = time.time()
+        sim.inject(f"{IO}:input=1.1=1")
+        st = rig.wait_state("held", timeout=60, pred=lambda s: s["speed_mm_s"] == 0.0)
+        assert st["reason"] == "hold" and st["exec_line"] == 3, st
+        button(1, False, "hold")
+        # at rest since the hold: a few more SYNCs, still held, nothing moved
+        s_rel = input_sync(sim, t_hold, "01")
+        sim.wait_sync_rows(lambda rows: max(r["sync"] for r in rows) >= s_rel + 10, timeout=120)
+        assert rig.status()["state"] == "held", rig.status()
+        t_cs2 = time.time()
+        sim.inject(f"{IO}:input=1.3=1")
+        rig.wait_state("running", timeout=60)
+        button(3, False, "cycle start")
+        rc = feed.p.wait(timeout=600)
+        assert rc == 0, feed.stderr()
+        st = rig.wait_state("idle", timeout=120)
+        assert st["reason"] == "program end", st
+    assert rig.result["rt_rc"] == 0, rig.result["rt_stderr"]
+
+    # idle: the presses moved nothing (each drive's actual position the same)
+    idle = {(r["node"], r["actual"]) for r in sim.sync_rows() if t_idle <= r["t"] < t0}
+    assert len(idle) == 3, idle
+    rows = fresh_targets(sim, t0)
+    start = rows[0][1]  # the first target: where the drives stood
+    assert {(n, start[n - 1]) for n in (1, 2, 3)} == idle, (start, idle)
+
+    s_cs1 = input_sync(sim, t_cs1, "09")
+    s_hold = input_sync(sim, t_hold, "03")
+    s_cs2 = input_sync(sim, t_cs2, "09")
+    syncs = [s for s, _ in rows]
+    P = [tuple(c / 1000.0 for c in p) for _, p in rows]
+    step = [0.0] + [math.dist(P[k], P[k - 1]) for k in range(1, len(P))]
+    i_cs1 = syncs.index(next(s for s in syncs if s > s_cs1))
+    i_hold = syncs.index(next(s for s in syncs if s > s_hold))
+    i_cs2 = syncs.index(next(s for s in syncs if s > s_cs2))
+    # the braking: the first period whose step is shorter than the one before
+    # (by more than the counts' rounding), the rest: the first step of 0 after
+    q = 0.002  # mm: two counts' rounding on a step
+    i_b = next(k for k in range(i_hold, len(P)) if step[k] < step[k - 1] - q)
+    i_r = next(k for k in range(i_b, len(P)) if step[k] == 0.0)
+    i_go = next(k for k in range(i_cs2, len(P)) if step[k] > 0.0)
+    v0 = step[i_b - 1] / T
+    d_stop = math.dist(P[i_r], P[i_b - 1])
+    d_model = v0 * v0 / (2 * a_path)
+    decel = [(step[k - 1] - step[k]) / T**2 for k in range(i_b, i_r + 1)]
+    # per axis second differences over the braking: within each axis' A
+    acc = [max(abs(P[k][i] - 2 * P[k - 1][i] + P[k - 2][i]) / T**2 for i in range(3))
+           for k in range(i_b, i_r + 1)]
+    tol_a = 2 * 0.001 / T**2  # two counts' rounding in a second difference: 1.25 mm/s^2
+    def off(p):  # distance from the program's line through the origin
+        along = sum(a * b for a, b in zip(p, u, strict=True))
+        return math.dist(p, tuple(along * c for c in u))
+    off_line = max(off(p) for p in P[i_cs1:])
+    print(f"[io] hold: input TPDO after SYNC {s_hold}, braking from SYNC {syncs[i_b]} "
+          f"({syncs[i_b] - s_hold} SYNCs) at {v0:.3f} mm/s, at rest at SYNC {syncs[i_r]} "
+          f"({i_r - i_b + 1} periods); stop distance {d_stop:.4f} mm vs v^2/2A {d_model:.4f} mm "
+          f"(A on the path {a_path:.1f} mm/s^2, v T {v0 * T:.3f} mm); largest deceleration "
+          f"{max(decel):.2f} mm/s^2 on the path, {max(acc):.2f} per axis (A {HOLD_A:g}, "
+          f"tolerance {tol_a:.2f}); off the line at most {off_line * 1000:.2f} um; "
+          f"cycle start while running: after SYNC {s_cs1}, the step {step[i_cs1 - 1]:.4f} -> "
+          f"{min(step[i_cs1:i_b]):.4f}..{max(step[i_cs1:i_b]):.4f} mm; resume: cycle start "
+          f"after SYNC {s_cs2}, moving at SYNC {syncs[i_go]} ({syncs[i_go] - s_cs2} SYNCs); "
+          f"end {rows[-1][1]} counts")
+    # cycle start while running: cruise unchanged until the hold
+    assert i_cs1 < i_hold and all(abs(step[k] - v0 * T) <= q for k in range(i_cs1, i_b)), \
+        step[i_cs1:i_b]
+    # the hold: taken in the period that read the frame (as the E-stop)
+    assert 1 <= syncs[i_b] - s_hold <= 2, (s_hold, syncs[i_b])
+    assert abs(v0 - 100.0) <= q / T, v0  # from cruise: F6000
+    assert max(acc) <= HOLD_A + tol_a and max(decel) <= a_path + tol_a, (acc, decel)
+    # at the acceleration limit: no shorter than braking by A T every period
+    # from the last full step (v^2/2A - v T/2), no longer than v^2/2A and one
+    # period's travel (where the hold falls in its period)
+    assert d_model - v0 * T / 2 <= d_stop <= d_model + v0 * T, (d_stop, d_model)
+    assert off_line <= 0.001, off_line  # every axis rounded to the count: < 0.9 um
+    # at rest from the stop until cycle start: the button's release moved nothing
+    assert all(p == rows[i_r][1] for _, p in rows[i_r:i_go]), rows[i_r:i_go]
+    assert s_rel < s_cs2 and 1 <= syncs[i_go] - s_cs2 <= 2, (s_cs2, syncs[i_go])
+    assert rows[-1][1] == HOLD_END, rows[-1]
+    # before the hold the bus carried mlip-sim's trace to the count (its
+    # start where the drives stood), and mlip-sim ends where the bus did
+    home = dict(zip("XYZ", (c / 1000.0 for c in start), strict=True))
+    (tmp_path / "sim").mkdir()
+    trc, _ = compare.simulate(S, hold_machine(tmp_path / "sim", home), ngc, tmp_path / "sim")
+    want = trim(compare.trace_counts(trc, [1000.0] * 3))
+    got = trim([p for _, p in rows[:i_b]])
+    assert list(got) == list(want[:len(got)]), (len(got), len(want))
+    assert want[-1] == HOLD_END, want[-1]

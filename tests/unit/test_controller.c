@@ -314,6 +314,46 @@ static void test_stop_distance_published(void **st)
 	assert_true(out.pos[0] < 100.0);
 }
 
+/* A hold at rest (idle: the I/O module's hold button, mlip-ctl hold)
+ * brakes nothing: no stop is counted and the last stop's figures stay in
+ * the status; the hold is latched for the next program (Grbl's Hold:0),
+ * which starts held, unmoved, until a resume. */
+static void test_hold_at_rest_counts_no_stop(void **st)
+{
+	(void)st;
+	move(1, 100.0, 0.0);
+	end(2);
+	tick(400);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	until(MLIP_STATE_HELD, 300);
+	tick(300);
+	struct mlip_ring_status s = status();
+	assert_int_equal(s.stops, 1);
+	uint64_t nm = s.stop_nm;
+	uint32_t periods = s.stop_periods;
+	assert_true(nm > 4000000); /* about v^2/2A = 5 mm */
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 100.0);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK); /* at rest */
+	tick(10);
+	s = status();
+	assert_int_equal(s.state, MLIP_STATE_IDLE);
+	assert_int_equal(s.stops, 1);
+	assert_true(s.stop_nm == nm && s.stop_periods == periods);
+	move(1, 110.0, 0.0); /* the next program */
+	end(2);
+	until(MLIP_STATE_HELD, 3000);
+	tick(100);
+	assert_true(out.pos[0] == 100.0);
+	assert_int_equal(status().reason, MLIP_WHY_HOLD);
+	assert_int_equal(status().stops, 1);
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	until(MLIP_STATE_IDLE, 3000);
+	assert_true(out.pos[0] == 110.0);
+	assert_int_equal(status().stops, 1);
+}
+
 /* A program stopped before its first block ends has completed nothing: the
  * status must not show the previous program's last block. */
 static void test_stop_before_first_block_completes(void **st)
@@ -3265,6 +3305,7 @@ int main(void)
 	    T(test_feeder_dead_in_preread_runs_what_came),
 	    T(test_starved_takes_only_the_next_block),
 	    T(test_stop_distance_published),
+	    T(test_hold_at_rest_counts_no_stop),
 	    T(test_stop_before_first_block_completes),
 	    T(test_override_zero_and_exit),
 	    T(test_stop_latched_for_the_program_about_to_start),
