@@ -11,7 +11,7 @@
  * mlip-latency measures). The first period (the pre-read's first batch and
  * the look-ahead's first work) is reported apart.
  *
- *   build/bench_period CONFIG PROGRAM STRATEGY [PERIODS [RUNS [JERK [sync]]]]
+ *   build/bench_period CONFIG PROGRAM STRATEGY [PERIODS [RUNS [JERK [FLAGS [LOOKAHEAD]]]]]
  *   e.g. build/bench_period config/mill-3axis.ini \
  *            ../shared/toolpaths/MB-2.3_test.nc smooth 60000 5 1e5
  *
@@ -27,6 +27,16 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#if defined(__has_include)
+#if __has_include(<valgrind/callgrind.h>)
+#include <valgrind/callgrind.h>
+#endif
+#endif
+#ifndef CALLGRIND_TOGGLE_COLLECT /* no valgrind headers: `insns` counts nothing */
+#define CALLGRIND_TOGGLE_COLLECT
+#define CALLGRIND_DUMP_STATS_AT(s) ((void)(s))
+#endif
 
 #include "blockiter.h"
 #include "cli.h"
@@ -55,7 +65,7 @@ static int cmp_double(const void *a, const void *b)
 /* One run from the start: the least time of each period into best[]. */
 static int run(const struct mlip_machine *m, mlip_strategy st, uint32_t lookahead,
                const struct mlip_block *prog, size_t n, double *best, size_t periods, int sync,
-               size_t *moved)
+               int insns, size_t *moved)
 {
 	size_t bytes = mlip_ring_bytes(MLIP_RING_CAPACITY);
 	void *mem = NULL;
@@ -92,6 +102,7 @@ static int run(const struct mlip_machine *m, mlip_strategy st, uint32_t lookahea
 			mlip_ring_push_n(ring, &rec, 1);
 		}
 		struct mlip_ctl_in in = {.period = k, .feeder_alive = 1};
+		CALLGRIND_TOGGLE_COLLECT;
 		double t0 = now_us();
 		if (mlip_ring_port_view(&rx, &in.recs, &in.recs_corrupt) == MLIP_OK) {
 			in.recs_corrupt = 0;
@@ -99,6 +110,10 @@ static int run(const struct mlip_machine *m, mlip_strategy st, uint32_t lookahea
 		mlip_ctl_period(&ctl, &in, &out);
 		mlip_ring_port_pop_n(&rx, out.taken);
 		double dt = now_us() - t0;
+		CALLGRIND_TOGGLE_COLLECT;
+		if (insns) {
+			CALLGRIND_DUMP_STATS_AT("period"); /* one part a period: its instructions */
+		}
 		best[k] = dt < best[k] ? dt : best[k];
 		moving += memcmp(out.pos, last, sizeof(last)) != 0;
 		memcpy(last, out.pos, sizeof(last));
@@ -118,7 +133,9 @@ int main(int argc, char **argv)
 	size_t periods = argc > 4 ? strtoul(argv[4], NULL, 0) : 60000;
 	int runs = argc > 5 ? atoi(argv[5]) : 5;
 	double jerk = argc > 6 ? strtod(argv[6], NULL) : 0.0;
-	int sync = argc > 7 && strcmp(argv[7], "sync") == 0;
+	const char *flags = argc > 7 ? argv[7] : "";
+
+	int sync = strstr(flags, "sync") != NULL, insns = strstr(flags, "insns") != NULL;
 	int st = mlip_cli_strategy(argv[3]);
 	static struct mlip_config cfg;
 	static struct mlip_program_list prog;
@@ -128,6 +145,9 @@ int main(int argc, char **argv)
 	}
 	for (int k = 0; jerk > 0.0 && k < cfg.machine.n_axes; k++) {
 		cfg.machine.axis[k].max_jerk = jerk;
+	}
+	if (argc > 8) {
+		cfg.lookahead = (uint32_t)strtoul(argv[8], NULL, 0); /* a power of two */
 	}
 	if (mlip_program_list_load(argv[2], &cfg.machine, &prog) != 0 || prog.n == 0) {
 		fprintf(stderr, "bench_period: %s: no program\n", argv[2]);
@@ -153,7 +173,7 @@ int main(int argc, char **argv)
 	size_t moved = 0;
 	for (int r = 0; r < runs; r++) {
 		if (run(&cfg.machine, (mlip_strategy)st, cfg.lookahead, prog.blocks, prog.n, best,
-		        periods, sync, &moved) != 0) {
+		        periods, sync, insns, &moved) != 0) {
 			fprintf(stderr, "bench_period: the controller refused the machine\n");
 			return 1;
 		}

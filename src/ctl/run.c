@@ -249,7 +249,7 @@ static void discard(struct mlip_ctl *c, const struct mlip_ctl_in *in)
 		c->prog.discard = 0; /* the stopped program's feeder is gone */
 		return;
 	}
-	for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && rx_peek(c, &rec); i++) {
+	for (int i = 0; i < MLIP_DROP_PER_PERIOD && rx_peek(c, &rec); i++) {
 		if (rec.seq == 1 && !c->prog.bad && !c->prog.discard_waiting) {
 			c->prog.discard = 0;
 			break;
@@ -386,7 +386,7 @@ void mlip_ct_blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 
 	if (c->io.estop) {
 		/* E-stop or limit: every program is dropped unmoved until the reset */
-		for (int i = 0; i < MLIP_PREREAD_PER_PERIOD && rx_peek(c, head); i++) {
+		for (int i = 0; i < MLIP_DROP_PER_PERIOD && rx_peek(c, head); i++) {
 			rx_pop(c);
 		}
 		return;

@@ -33,6 +33,7 @@
 
 #include "mlip/ctl/controller.h"
 #include "mlip/machine/config.h"
+#include "mlip/motion/smooth.h"
 
 #define RING_CAP 8192u
 #define ROW      300 /* 0.1 mm segments a row, then a 0.5 mm step in Y */
@@ -63,6 +64,12 @@ static int wait_prog;
 static uint32_t feed_rate;
 static int feeder_alive;
 static uint64_t feed_upto;
+/* the controller: strategy, look-ahead depth (0: 4096) and every axis's
+ * MAX_JERK (0: none); set before start, reset by the teardown */
+static mlip_strategy strategy = MLIP_STRATEGY_MPCT;
+static uint32_t lookahead;
+static double jerk;
+static struct mlip_smooth_store store;
 
 /* a run: the setpoint and the state after each period */
 struct run {
@@ -89,6 +96,7 @@ static void machine(void)
 		mach.axis[k].max_limit = 1000.0;
 		mach.axis[k].can_node = k + 1;
 		mach.axis[k].counts_per_unit = 1000.0;
+		mach.axis[k].max_jerk = jerk;
 	}
 }
 
@@ -147,7 +155,9 @@ static void start(uint64_t moves, int wait)
 	}
 	assert_int_equal(mlip_ring_format_machine(mem, bytes, RING_CAP, &mach), MLIP_OK);
 	assert_int_equal(mlip_ring_attach(mem, bytes, 2, &ring, NULL), MLIP_OK);
-	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT}; /* look-ahead 4096 */
+	struct mlip_ctl_opts o = {.strategy = strategy,
+	                          .smooth = strategy == MLIP_STRATEGY_SMOOTH ? &store : NULL,
+	                          .lookahead = lookahead}; /* 0: 4096 */
 	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
 	assert_int_equal(mlip_ring_port_open(&rx, ring, 0), MLIP_OK);
 	period = 0;
@@ -575,6 +585,94 @@ static void test_stop_or_bad_record_in_a_wait(void **st)
 	assert_true(in_wait > 50 && moving > 10);
 }
 
+/* ---- the work of every period is bounded ------------------------------- */
+
+/*
+ * What a period does beyond its fixed work, counted, in every period of a
+ * whole program (the pre-read, the first motion, a dwell's refill, the
+ * end), for every strategy, with and without a jerk limit, at look-ahead
+ * depths 256 to 4096: records taken and checked (about 500 instructions
+ * each), blocks appended with their corner (40 units of the look-ahead's
+ * work, smooth's 150), corners visited by the backward passes (1 unit,
+ * smooth's 4). The bounds are constants, not the depth: a depth's pre-read
+ * spreads over more periods, each no dearer. The pre-read's first period
+ * once took 512 records at once (242,000 instructions on MB-2.3, 44,000 in
+ * any other period: bench/period_insns.py), and before the bounded work
+ * the first look-ahead pass visited every block of the depth.
+ */
+#define TAKEN_MAX   64u /* x 500 instructions: about a period's look-ahead units */
+#define APPENDS_MAX (MLIP_INGEST_PER_PERIOD + MLIP_WORK_PER_PERIOD / MLIP_WORK_APPEND)
+#define VISITS_MAX  MLIP_WORK_PER_PERIOD
+
+static void test_work_bounded_every_period(void **st)
+{
+	(void)st;
+	static const mlip_strategy sts[] = {MLIP_STRATEGY_MPCT, MLIP_STRATEGY_BISECTOR,
+	                                    MLIP_STRATEGY_STOP, MLIP_STRATEGY_SMOOTH};
+	static const uint32_t depths[] = {256u, 1024u, 4096u};
+	static const double jerks[] = {0.0, 1e5};
+	for (size_t si = 0; si < sizeof(sts) / sizeof(sts[0]); si++) {
+		for (size_t di = 0; di < sizeof(depths) / sizeof(depths[0]); di++) {
+			for (size_t ji = 0; ji < sizeof(jerks) / sizeof(jerks[0]); ji++) {
+				strategy = sts[si];
+				lookahead = depths[di];
+				jerk = jerks[ji];
+				/* blocks of 0.1 mm, a dwell after the first (stop: at rest
+				 * at every corner, 20 ms a block) */
+				uint32_t moves = strategy == MLIP_STRATEGY_STOP ? 1000u : 6000u;
+				start(moves, 1);
+				uint32_t taken_max = 0, appends_max = 0, visits_max = 0, total = 0;
+				uint64_t pushes = 0, visits = 0;
+				cur.n = 0;
+				do {
+					step(&cur);
+					const struct mlip_planner_stats *s =
+					    mlip_planner_get_stats(&planner);
+					uint32_t a = (uint32_t)(s->pushes - pushes);
+					uint32_t v = (uint32_t)(s->backward_visits - visits);
+					pushes = s->pushes;
+					visits = s->backward_visits;
+					total += out.taken;
+					if (out.taken > TAKEN_MAX || a > APPENDS_MAX ||
+					    v > VISITS_MAX) {
+						fail_msg("%s, depth %u, J %g, period %d: %u "
+						         "records taken "
+						         "(<= %u), %u appended (<= %u), %u corners "
+						         "visited "
+						         "(<= %u)",
+						         mlip_strategy_name(strategy), lookahead,
+						         jerk, cur.n - 1, out.taken, TAKEN_MAX, a,
+						         (uint32_t)APPENDS_MAX, v, VISITS_MAX);
+					}
+					taken_max = out.taken > taken_max ? out.taken : taken_max;
+					appends_max = a > appends_max ? a : appends_max;
+					visits_max = v > visits_max ? v : visits_max;
+				} while (!ended() && cur.n < MAXP);
+				/* the program ran to its end: every record taken, and the
+				 * bounds were reached (the counts are real work) */
+				if (!ended()) {
+					fail_msg("%s, depth %u, J %g: state %u reason %u after %d "
+					         "periods at "
+					         "(%g, %g)",
+					         mlip_strategy_name(strategy), lookahead, jerk,
+					         out.status.state, out.status.reason, cur.n,
+					         out.pos[0], out.pos[1]);
+				}
+				assert_int_equal(out.status.reason, MLIP_WHY_END);
+				assert_int_equal(total, moves + 2u);
+				assert_true(taken_max >= MLIP_INGEST_PER_PERIOD);
+				if (appends_max < 8u || visits_max < 50u) {
+					fail_msg(
+					    "%s, depth %u, J %g: at most %u appended, %u visited a "
+					    "period",
+					    mlip_strategy_name(strategy), lookahead, jerk,
+					    appends_max, visits_max);
+				}
+			}
+		}
+	}
+}
+
 static int teardown(void **st)
 {
 	(void)st;
@@ -582,6 +680,9 @@ static int teardown(void **st)
 	mem = NULL;
 	feed_upto = 0;
 	feed_rate = 0;
+	strategy = MLIP_STRATEGY_MPCT;
+	lookahead = 0;
+	jerk = 0.0;
 	return 0;
 }
 
@@ -594,6 +695,7 @@ int main(void)
 	    cmocka_unit_test_teardown(test_feeder_gone_in_each_of_the_first_periods, teardown),
 	    cmocka_unit_test_teardown(test_stop_in_the_preread_after_an_underrun, teardown),
 	    cmocka_unit_test_teardown(test_stop_or_bad_record_in_a_wait, teardown),
+	    cmocka_unit_test_teardown(test_work_bounded_every_period, teardown),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -35,7 +35,7 @@
  *
  *   IDLE --record seq 1 (or the one after the last completed)--> PREREAD
  *   PREREAD --look-ahead full | END in | event next | refill and ring empty
- *             | feeder gone--> RUNNING            (up to 512 records a period)
+ *             | feeder gone--> RUNNING            (up to 64 records a period)
  *   RUNNING --at rest, END executed--> IDLE       (up to 16 records a period)
  *   RUNNING --at rest, nothing came--> STARVED --next record--> PREREAD
  *   RUNNING --hold | override 0 | CAN fault, at rest--> HELD --resume--> RUNNING
@@ -123,7 +123,11 @@
 #include "mlip/ipc/ring.h"
 #include "mlip/types.h"
 
-#define MLIP_PREREAD_PER_PERIOD    512 /* records a period while not moving */
+/* records a period while not moving: what the look-ahead's queue has room
+ * for (a record checked costs about 500 instructions; the pre-read's first
+ * period once took 512); a dropped program's records (not checked), more */
+#define MLIP_PREREAD_PER_PERIOD    MLIP_INPUT_CAP
+#define MLIP_DROP_PER_PERIOD       512
 #define MLIP_BUS_CLEAN_PERIODS     100 /* after a CAN fault, resume needs a clean bus this long */
 #define MLIP_STALL_PERIODS_DEFAULT 3   /* more missed periods than this: a stall */
 #define MLIP_CTL_MAX_EVENTS        8   /* events one period can report */

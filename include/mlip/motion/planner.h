@@ -142,8 +142,16 @@ struct mlip_pass {
 #define MLIP_WORK_CHOOSE        4u   /* a visit with smooth's shape choice */
 #define MLIP_WORK_APPEND        40u  /* a block appended and its corner planned */
 #define MLIP_WORK_APPEND_SHAPES 150u /* ... with smooth's six shapes */
-#define MLIP_INPUT_CAP          512u /* blocks pushed, not yet appended; power of two */
+/* Blocks pushed, not yet appended (a power of two): what a driver takes
+ * in a period is what this queue has room for, so it bounds the records
+ * checked and queued a period (the pre-read's first period took 512, 5x
+ * any other period's work). At least what a period can append (the keep-up
+ * and the units' appends), so the queue never makes the work wait: the
+ * appends, hence the plan, are those of a deeper queue. */
+#define MLIP_INPUT_CAP          64u
 typedef char mlip_input_pow2_check[(MLIP_INPUT_CAP & (MLIP_INPUT_CAP - 1)) == 0 ? 1 : -1];
+typedef char mlip_input_cap_check
+    [MLIP_INPUT_CAP >= MLIP_INGEST_PER_PERIOD + MLIP_WORK_PER_PERIOD / MLIP_WORK_APPEND ? 1 : -1];
 
 typedef enum {
 	MLIP_RUN_IDLE = 0, /* at rest on the last point, nothing queued */
