@@ -30,10 +30,13 @@
 #include "probesim.h"
 #include "program.h"
 #include "simpath.h"
+#include "simstorm.h"
 #include "trace.h"
 
 #define PROG        "mlip-sim"
 #define MAX_PERIODS 200000000ULL /* 55 h of machining at 1 ms: a runaway */
+#define OVER_BUDGET 99           /* run(): auto's plan scout took as long as the mean */
+enum { JERK_MEAN, JERK_PATH, JERK_AUTO };
 
 static struct mlip_planner planner;           /* ~1.1 MB: static, like on the controller */
 static struct mlip_smooth_store smooth_store; /* ~1.5 MB, touched only by smooth */
@@ -52,11 +55,12 @@ static void usage(FILE *f)
 	    "  --accel A[,A...]      per-axis acceleration, mm/s^2 (one for all, or per axis)\n"
 	    "  --jerk J              every axis's jerk limit (MAX_JERK), mm/s^3: the motion keeps\n"
 	    "                        it at every sample (mlip/motion/jerk.h)\n"
-	    "  --jerk-plan mean|path how the jerk limit is kept: mean (default), the moving\n"
-	    "                        mean of the setpoints; path, smooth's setpoints without\n"
-	    "                        it re-timed along a spline by the path-speed plan\n"
-	    "                        (mlip/motion/pathrun.h; --strategy smooth and --feed,\n"
-	    "                        no override, pause or dwell)\n"
+	    "  --jerk-plan mean|path|auto  how the jerk limit is kept: mean (default), the\n"
+	    "                        moving mean of the setpoints; path, smooth's setpoints\n"
+	    "                        without it re-timed along a spline by the path-speed\n"
+	    "                        plan (mlip/motion/pathrun.h; --strategy smooth and\n"
+	    "                        --feed, no override, pause or dwell); auto, the path\n"
+	    "                        plan where it ends the program sooner, else the mean\n"
 	    "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	    "  --eps MM              contour tolerance (default 0.01 without --config)\n"
 	    "  --period S            interpolation period T (default 0.001)\n"
@@ -88,60 +92,6 @@ static void usage(FILE *f)
 	    "4 the trace breaks a limit (its own check, as mlip-check's: which, where),\n"
 	    "5 a probe error stopped the program (G38.2/.4 without a trip, tripped at the start)\n",
 	    MLIP_LOOKAHEAD);
-}
-
-/* xorshift64*: a seeded, portable stream for --storm */
-static uint64_t rng_next(uint64_t *s)
-{
-	*s ^= *s >> 12;
-	*s ^= *s << 25;
-	*s ^= *s >> 27;
-	return *s * 2685821657736338717ULL;
-}
-
-static double rng_unit(uint64_t *s)
-{
-	return (double)(rng_next(s) >> 11) * (1.0 / 9007199254740992.0);
-}
-
-struct storm {
-	uint64_t state;
-	uint64_t next_at;
-	int active;
-	int held, zero; /* what the storm has done */
-	uint64_t events;
-};
-
-/* Change the override or hold state at random periods, through the
- * controller's commands; never leaves the machine stopped for more than one
- * event, so every program finishes. Returns 1 with *cmd set, or 0. */
-static int storm_tick(struct storm *st, uint64_t period, struct mlip_ring_cmd *cmd)
-{
-	if (!st->active || period < st->next_at) {
-		return 0;
-	}
-	st->next_at = period + 5 + rng_next(&st->state) % 196;
-	st->events++;
-	double r = rng_unit(&st->state);
-	cmd->arg = 0;
-	if (st->held) {
-		cmd->op = MLIP_CMD_RESUME;
-		st->held = 0;
-	} else if (st->zero) {
-		cmd->op = MLIP_CMD_OVERRIDE;
-		cmd->arg = (int32_t)(10.0 + 190.0 * rng_unit(&st->state));
-		st->zero = 0;
-	} else if (r < 0.1) {
-		cmd->op = MLIP_CMD_HOLD;
-		st->held = 1;
-	} else if (r < 0.2) {
-		cmd->op = MLIP_CMD_OVERRIDE;
-		st->zero = 1;
-	} else {
-		cmd->op = MLIP_CMD_OVERRIDE;
-		cmd->arg = (int32_t)(10.0 + 190.0 * rng_unit(&st->state));
-	}
-	return 1;
 }
 
 /* Where the blocks come from: the checked program, streamed (never held,
@@ -248,8 +198,16 @@ struct options {
 	long long storm_seed;
 	unsigned long lookahead;
 	int quiet, notes, optional_stop, save_offsets;
-	int jerk_plan; /* 1: --jerk-plan path */
+	int jerk_plan; /* JERK_MEAN, JERK_PATH, JERK_AUTO */
 };
+
+/* The path plan re-times smooth's path under one speed cap; an override
+ * or a probe would change the motion it does not see. */
+static int path_runs(const struct options *o)
+{
+	return o->strategy == MLIP_STRATEGY_SMOOTH && o->feed > 0.0 && o->override == 100.0 &&
+	       o->storm_seed < 0 && !o->probe_surface;
+}
 
 /* 0, or the exit status (-1: --help, exit 0). */
 static int parse_options(int argc, char **argv, struct options *o)
@@ -373,12 +331,16 @@ static int parse_options(int argc, char **argv, struct options *o)
 			o->probe_surface = optarg;
 			break;
 		case 'K':
-			if (strcmp(optarg, "mean") != 0 && strcmp(optarg, "path") != 0) {
-				fprintf(stderr, PROG ": --jerk-plan: '%s' is not mean or path\n",
+			o->jerk_plan = strcmp(optarg, "mean") == 0   ? JERK_MEAN
+			               : strcmp(optarg, "path") == 0 ? JERK_PATH
+			               : strcmp(optarg, "auto") == 0 ? JERK_AUTO
+			                                             : -1;
+			if (o->jerk_plan < 0) {
+				fprintf(stderr,
+				        PROG ": --jerk-plan: '%s' is not mean, path or auto\n",
 				        optarg);
 				return 2;
 			}
-			o->jerk_plan = strcmp(optarg, "path") == 0;
 			break;
 		case 'h':
 			usage(stdout);
@@ -404,10 +366,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 		fprintf(stderr, PROG ": --override: %g is above 200 %%\n", o->override);
 		return 2;
 	}
-	if (o->jerk_plan && (o->strategy != MLIP_STRATEGY_SMOOTH || !(o->feed > 0.0) ||
-	                     o->override != 100.0 || o->storm_seed >= 0 || o->probe_surface)) {
-		/* the plan re-times smooth's path under one speed cap; an
-		 * override or a probe would change the motion it does not see */
+	if (o->jerk_plan == JERK_PATH && !path_runs(o)) {
 		fprintf(stderr, PROG ": --jerk-plan path needs --strategy smooth and --feed, and "
 		                     "takes no --override, --storm or --probe-surface (yet)\n");
 		return 2;
@@ -437,7 +396,7 @@ struct sim {
 	FILE *tf;
 	char tbuf[1 << 20];
 	struct mlip_trace trace;
-	struct storm storm;
+	struct mlip_simstorm storm;
 	uint64_t rows, pauses, dwells; /* trace rows after t = 0 */
 	struct mlip_probesim probe;    /* --probe-surface */
 	uint64_t probe_trips;          /* G38s that tripped: stopped short of their target */
@@ -450,6 +409,10 @@ struct sim {
 	struct mlip_path_limits plim;
 	double band_mm;
 	struct mlip_simpath path;
+	FILE *err;       /* the plan's refusals (stderr, but for a quiet auto scout) */
+	uint64_t budget; /* auto's plan scout: stop at this many rows (0: none) */
+	uint64_t auto_mean_rows, auto_path_rows; /* auto: the candidates' rows */
+	const char *auto_path;                   /* auto: what became of the plan */
 };
 
 static void close_trace(struct sim *s)
@@ -468,7 +431,8 @@ static int set_up(const struct options *o, struct sim *s)
 		return 1;
 	}
 	const struct mlip_machine *m = &s->cfg.machine, *cm = m; /* cm: the controller's */
-	if (o->jerk_plan) {
+	s->err = s->err != NULL ? s->err : stderr;
+	if (o->jerk_plan == JERK_PATH) {
 		const char *why = NULL;
 		if (mlip_simpath_limits(m, o->feed, &s->plim, &s->band_mm, &why) != 0) {
 			fprintf(stderr, PROG ": --jerk-plan path: %s\n", why);
@@ -554,9 +518,10 @@ static int set_up(const struct options *o, struct sim *s)
 	}
 	mlip_trace_open(&s->trace, s->tf, m, home);
 	mlip_trace_open(&s->ctl_trace, NULL, m, home);
-	s->storm = (struct storm){.state = (uint64_t)o->storm_seed * 0x9E3779B97F4A7C15ULL + 1,
-	                          .next_at = 1,
-	                          .active = o->storm_seed >= 0};
+	s->storm =
+	    (struct mlip_simstorm){.state = (uint64_t)o->storm_seed * 0x9E3779B97F4A7C15ULL + 1,
+	                           .next_at = 1,
+	                           .active = o->storm_seed >= 0};
 	return 0;
 }
 
@@ -577,7 +542,7 @@ static int operator_command(const struct options *o, struct sim *s, uint64_t per
 		cmd->op = MLIP_CMD_RESUME; /* --resume-after: the operator's resume */
 		return 1;
 	}
-	return s->rows > 0 && storm_tick(&s->storm, s->rows, cmd);
+	return s->rows > 0 && mlip_simstorm_tick(&s->storm, s->rows, cmd);
 }
 
 /* A G38's end, as mlip-rt logs it: where it tripped (#5061..), or why not. */
@@ -616,25 +581,25 @@ static int path_period(const struct options *o, struct sim *s, uint32_t state, c
 		s->trace.have_pending = 1;
 		if (mlip_simpath_begin(&s->path, &s->plim, s->band_mm, &s->trace, &s->chk, start) !=
 		    0) {
-			fprintf(stderr, PROG ": --jerk-plan path: the limits are not positive\n");
+			fprintf(s->err, PROG ": --jerk-plan path: the limits are not positive\n");
 			return -1;
 		}
 	}
 	if (state != MLIP_STATE_RUNNING && state != MLIP_STATE_IDLE) {
-		fprintf(stderr,
+		fprintf(s->err,
 		        PROG ": %s: --jerk-plan path: the program %s at t = %.3f s: the plan "
 		             "takes no pause, dwell or hold yet\n",
 		        o->path, mlip_ctl_state_name(state),
 		        (double)s->ctl_trace.rows * s->cfg.machine.period_s);
 		return -1;
 	}
-	if (mlip_simpath_sample(&s->path, pos, PROG, o->path, stderr) != 0) {
+	if (mlip_simpath_sample(&s->path, pos, PROG, o->path, s->err) != 0) {
 		return -1;
 	}
 	if (!s->ctl_trace.ended) {
 		return 1;
 	}
-	if (mlip_simpath_end(&s->path, PROG, o->path, stderr) != 0) {
+	if (mlip_simpath_end(&s->path, PROG, o->path, s->err) != 0) {
 		return -1;
 	}
 	s->rows = s->trace.rows;
@@ -645,6 +610,7 @@ static int path_period(const struct options *o, struct sim *s, uint32_t state, c
 static int run(const struct options *o, struct sim *s)
 {
 	static struct mlip_ctl_out out; /* the last period's: IDLE before the first */
+	memset(&out, 0, sizeof(out));   /* a run after a run (--jerk-plan auto) */
 	uint64_t paused = 0;
 	for (uint64_t period = 0;; period++) {
 		struct mlip_ring_cmd cmd = {.seq = 2};
@@ -727,10 +693,13 @@ static int run(const struct options *o, struct sim *s)
 			}
 		}
 		const double *start;
-		if (o->jerk_plan) {
+		if (o->jerk_plan == JERK_PATH) {
 			int r = path_period(o, s, out.status.state, out.pos);
 			if (r <= 0) {
 				return -r;
+			}
+			if (s->budget > 0 && s->trace.rows >= s->budget) {
+				return OVER_BUDGET; /* --jerk-plan auto: not sooner than the mean */
 			}
 		} else if (mlip_trace_sample(&s->trace, out.status.state, out.pos, &start)) {
 			if (start != NULL) {
@@ -812,7 +781,19 @@ static int write_summary(const struct options *o, const struct sim *s, int bad)
 	mlip_json_uint(&j, "dwells", s->dwells);
 	mlip_json_uint(&j, "pauses", s->pauses);
 	mlip_json_uint(&j, "order_errors", chk->order_errors);
-	if (o->jerk_plan) {
+	if (s->auto_mean_rows > 0) {
+		/* --jerk-plan auto: the one taken, the candidates' times (the
+		 * path plan's when it ended the program sooner; else why not) */
+		mlip_json_string(&j, "jerk_plan", o->jerk_plan == JERK_PATH ? "path" : "mean");
+		mlip_json_number(&j, "auto_mean_s", "%.6f",
+		                 (double)s->auto_mean_rows * m->period_s);
+		mlip_json_string(&j, "auto_path", s->auto_path);
+		if (s->auto_path_rows > 0) {
+			mlip_json_number(&j, "auto_path_s", "%.6f",
+			                 (double)s->auto_path_rows * m->period_s);
+		}
+	}
+	if (o->jerk_plan == JERK_PATH) {
 		/* the streaming plan's window (points, of MLIP_PATHRUN_CAP), the
 		 * largest (P6) bound of its pieces, its braking-run periods */
 		const struct mlip_pathrun *pr = &s->path.run;
@@ -911,6 +892,84 @@ static int report(const struct options *o, struct sim *s, int rc)
 	return 0;
 }
 
+/* One run counted, not written (trace, summary, offsets): 0 and its rows
+ * in *rows, or its exit status (OVER_BUDGET: stopped at s->budget rows). */
+static int scout(const struct options *o, struct sim *s, uint64_t *rows)
+{
+	int rc = set_up(o, s);
+	if (rc == 0) {
+		rc = run(o, s);
+		*rows = s->rows;
+		mlip_program_close(&s->cprog);
+		mlip_program_close(&s->prog);
+	}
+	return rc;
+}
+
+/* --jerk-plan auto: the program's start and end are rests both plans
+ * share, and both are deterministic functions of the program: the mean is
+ * run counted, then the path plan counted up to the mean's rows (stopped
+ * there, or at a refusal, a pause, a dwell); the one that ends sooner
+ * (the mean on a tie) is run again, written and checked. Never slower than
+ * the mean, in the memory of one run: no window of setpoints is kept. */
+static int choose(struct options *o, struct sim *s)
+{
+	static struct sim sc;
+	static FILE *quiet;
+	struct options q = *o;
+	q.trace_path = q.summary_path = NULL;
+	q.quiet = 1;
+	q.notes = q.save_offsets = 0;
+	q.jerk_plan = JERK_MEAN;
+	uint64_t mean_rows = 0, path_rows = 0;
+	int rc = scout(&q, &sc, &mean_rows);
+	const char *why = NULL;
+	struct mlip_path_limits lim;
+	double band;
+	if (rc != 0) {
+		return rc; /* the mean's run fails: as --jerk-plan mean would */
+	}
+	s->auto_path = "not a candidate (--strategy smooth, --feed, a jerk limit)";
+	o->jerk_plan = JERK_MEAN;
+	if (path_runs(o) && mlip_simpath_limits(&sc.cfg.machine, o->feed, &lim, &band, &why) == 0) {
+		quiet = quiet != NULL || !o->quiet ? quiet : fopen("/dev/null", "w");
+		memset(&sc, 0, sizeof(sc));
+		sc.err = o->quiet ? quiet : stderr;
+		sc.budget = mean_rows;
+		q.jerk_plan = JERK_PATH;
+		rc = scout(&q, &sc, &path_rows);
+		s->auto_path = rc == 0             ? "sooner"
+		               : rc == OVER_BUDGET ? "not sooner than the mean"
+		                                   : "refused";
+		o->jerk_plan = rc == 0 ? JERK_PATH : JERK_MEAN;
+		path_rows = rc == 0 ? path_rows : 0;
+	}
+	s->auto_mean_rows = mean_rows;
+	s->auto_path_rows = path_rows;
+	if (!o->quiet) {
+		double t = sc.cfg.machine.period_s;
+		fprintf(stderr, PROG ": %s: --jerk-plan auto: %s (the mean %.3f s, the path plan ",
+		        o->path, o->jerk_plan == JERK_PATH ? "path" : "mean",
+		        (double)mean_rows * t);
+		if (path_rows > 0) {
+			fprintf(stderr, "%.3f s)\n", (double)path_rows * t);
+		} else {
+			fprintf(stderr, "%s)\n", s->auto_path);
+		}
+	}
+	rc = set_up(o, s);
+	if (rc != 0) {
+		return rc;
+	}
+	rc = run(o, s);
+	if (rc == 0 && s->rows != (o->jerk_plan == JERK_PATH ? path_rows : mean_rows)) {
+		fprintf(stderr, PROG ": %s: --jerk-plan auto: the run differs from its count\n",
+		        o->path);
+		rc = 1;
+	}
+	return report(o, s, rc);
+}
+
 int main(int argc, char **argv)
 {
 	static struct options o;
@@ -920,6 +979,9 @@ int main(int argc, char **argv)
 		return rc < 0 ? 0 : rc;
 	}
 	o.mo.offsets_file = &s.offsets_file;
+	if (o.jerk_plan == JERK_AUTO) {
+		return choose(&o, &s);
+	}
 	rc = set_up(&o, &s);
 	if (rc != 0) {
 		return rc;

@@ -89,7 +89,7 @@ def test_mean_stays_the_default(tmp_path, lissajous):
 
 
 @pytest.mark.parametrize("extra,why", [
-    (["--jerk", "1e5", "--jerk-plan", "fast"], "is not mean or path"),
+    (["--jerk", "1e5", "--jerk-plan", "fast"], "is not mean, path or auto"),
     (["--jerk-plan", "path"], "every axis needs a jerk limit"),
     (["--jerk", "1e5", "--jerk-plan", "path", "--override", "50"], "takes no --override"),
     (["--jerk", "1e5", "--jerk-plan", "path", "--strategy", "mpct"], "needs --strategy smooth"),
