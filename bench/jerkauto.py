@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
-"""mlip-sim --jerk-plan auto against the mean (--jerk alone) and the path
-plan (--jerk-plan path), smooth without J as the scale: the generated curves
+"""mlip-sim --jerk-plan auto against the mean (--jerk alone), the path
+plan (--jerk-plan path) and the plan over the mean (--jerk-plan path-mean),
+smooth without J as the scale: the generated curves
 of make bench (tools/gen_curves.py, unshifted: their G0 from the origin
 first), the shared CAM files and a random sharp zigzag
 (tools/gen_zigzag.py --random 1 --segments 4000). A 1000 mm/s^2, 200 mm/s,
-eps 0.01 mm, feed 200, T 1 ms. Every trace (mean, path, auto) is judged by
-mlip-check --jerk; auto must take no period more than the mean.
+eps 0.01 mm, feed 200, T 1 ms. Every trace (mean, path, path-mean, auto) is
+judged by mlip-check --jerk; auto must take no period more than the mean,
+nor more than any candidate whose trace passes.
 
     bench/jerkauto.py [--build build] [--files a,b] [--jerks 1e4,1e5] [--out DIR]
 """
@@ -46,6 +48,12 @@ def check(build, prog, trace, jerk):
     return r.returncode, (json.loads(r.stdout) if r.stdout.strip() else {})
 
 
+def ratios(s):
+    """The largest axis jerk / J and acceleration / A of a summary."""
+    return (max(x / y for x, y in zip(s["max_axis_jerk"], s["jerk_limit"], strict=True)),
+            max(x / y for x, y in zip(s["max_axis_accel"], s["accel_limit"], strict=True)))
+
+
 def programs(build, names, tmp):
     for name in names:
         if name in CURVES:
@@ -74,9 +82,11 @@ def main():
     args = ap.parse_args()
     tmp = args.out or tempfile.mkdtemp(prefix="jerkauto-")
     os.makedirs(tmp, exist_ok=True)
-    print("| file | J | no J (s) | mean (s) | path (s) | auto (s) | taken | auto / mean |"
-          " auto / no J | jerk / J | accel / A | contour (mm) | mlip-check mean, path, auto |")
-    print("|---" * 13 + "|")
+    print("| file | J | no J (s) | mean (s) | path (s) | path-mean (s) | auto (s) | taken |"
+          " auto / mean | path-mean / mean | path-mean / path | auto / no J | jerk / J |"
+          " accel / A | contour (mm) | path-mean jerk / J, accel / A, contour |"
+          " mlip-check mean, path, path-mean, auto |")
+    print("|---" * 17 + "|")
     bad = 0
     for name, prog in programs(args.build, args.files.split(","), tmp):
         tag = os.path.splitext(os.path.basename(prog))[0]
@@ -84,7 +94,7 @@ def main():
         for js in args.jerks.split(","):
             j = float(js)
             runs, verdicts = {}, []
-            for plan in ("mean", "path", "auto"):
+            for plan in ("mean", "path", "path-mean", "auto"):
                 tr = os.path.join(tmp, f"{tag}-{js}-{plan}.csv")
                 runs[plan] = sim(args.build, prog, tr, j, plan)
                 if "error" in runs[plan]:
@@ -92,23 +102,31 @@ def main():
                     continue
                 rc, _ = check(args.build, prog, tr, j)
                 verdicts.append("pass" if rc == 0 else f"FAIL {rc}")
-                bad += rc != 0 and plan != "path"
-            m, p, a = runs["mean"], runs["path"], runs["auto"]
+                if not args.out:
+                    os.remove(tr)
+                bad += rc != 0 and plan in ("mean", "auto")
+            m, p, a, pm = runs["mean"], runs["path"], runs["auto"], runs["path-mean"]
             pt = f"{p['total_time_s']:.3f}" if "error" not in p else "refused"
+            pmt = f"{pm['total_time_s']:.3f}" if "error" not in pm else "refused"
             if "error" in a or "error" in m:
                 print(f"| {name} | {js} | | {m.get('total_time_s', m.get('error'))} | {pt} |"
-                      f" {a.get('error')} |", flush=True)
+                      f" {pmt} | {a.get('error')} |", flush=True)
                 bad += 1
                 continue
-            slower = a["periods"] - m["periods"]
-            bad += slower > 0
-            jr = max(x / y for x, y in zip(a["max_axis_jerk"], a["jerk_limit"], strict=True))
-            ar = max(x / y for x, y in zip(a["max_axis_accel"], a["accel_limit"], strict=True))
+            # never slower than the mean, nor than a candidate whose trace passes
+            passing = [runs[k]["periods"] for k, v in zip(("mean", "path", "path-mean"), verdicts)
+                       if v == "pass"]
+            bad += a["periods"] > min(passing)
+            jr, ar = ratios(a)
+            pmr = ("-" if "error" in pm else
+                   "%.4f, %.4f, %.5f" % (*ratios(pm), pm["max_contour_error_mm"]))
+            rel = (lambda x, y: f"{x['total_time_s'] / y['total_time_s']:.3f}x"
+                   if "error" not in x and "error" not in y else "-")
             print(f"| {name} | {js} | {base['total_time_s']:.3f} | {m['total_time_s']:.3f} |"
-                  f" {pt} | {a['total_time_s']:.3f} | {a['jerk_plan']} |"
-                  f" {a['total_time_s'] / m['total_time_s']:.3f}x |"
-                  f" {a['total_time_s'] / base['total_time_s']:.3f}x | {jr:.4f} | {ar:.4f} |"
-                  f" {a['max_contour_error_mm']:.5f} | {', '.join(verdicts)} |", flush=True)
+                  f" {pt} | {pmt} | {a['total_time_s']:.3f} | {a['jerk_plan']} |"
+                  f" {rel(a, m)} | {rel(pm, m)} | {rel(pm, p)} | {rel(a, base)} |"
+                  f" {jr:.4f} | {ar:.4f} | {a['max_contour_error_mm']:.5f} | {pmr} |"
+                  f" {', '.join(verdicts)} |", flush=True)
     return 1 if bad else 0
 
 

@@ -29,6 +29,7 @@
 #include "offsetfile.h"
 #include "probesim.h"
 #include "program.h"
+#include "simfeed.h"
 #include "simpath.h"
 #include "simstorm.h"
 #include "trace.h"
@@ -36,7 +37,8 @@
 #define PROG        "mlip-sim"
 #define MAX_PERIODS 200000000ULL /* 55 h of machining at 1 ms: a runaway */
 #define OVER_BUDGET 99           /* run(): auto's plan scout took as long as the mean */
-enum { JERK_MEAN, JERK_PATH, JERK_AUTO };
+enum { JERK_MEAN, JERK_PATH, JERK_PATH_MEAN, JERK_AUTO };
+static const char *const plan_name[] = {"mean", "path", "path-mean"};
 
 static struct mlip_planner planner;           /* ~1.1 MB: static, like on the controller */
 static struct mlip_smooth_store smooth_store; /* ~1.5 MB, touched only by smooth */
@@ -55,12 +57,13 @@ static void usage(FILE *f)
 	    "  --accel A[,A...]      per-axis acceleration, mm/s^2 (one for all, or per axis)\n"
 	    "  --jerk J              every axis's jerk limit (MAX_JERK), mm/s^3: the motion keeps\n"
 	    "                        it at every sample (mlip/motion/jerk.h)\n"
-	    "  --jerk-plan mean|path|auto  how the jerk limit is kept: mean (default), the\n"
-	    "                        moving mean of the setpoints; path, smooth's setpoints\n"
-	    "                        without it re-timed along a spline by the path-speed\n"
-	    "                        plan (mlip/motion/pathrun.h; --strategy smooth and\n"
-	    "                        --feed, no override, pause or dwell); auto, the path\n"
-	    "                        plan where it ends the program sooner, else the mean\n"
+	    "  --jerk-plan mean|path|path-mean|auto  how the jerk limit is kept: mean\n"
+	    "                        (default), the moving mean of the setpoints; path,\n"
+	    "                        smooth's setpoints without it re-timed along a spline\n"
+	    "                        by the path-speed plan (mlip/motion/pathrun.h;\n"
+	    "                        --strategy smooth and --feed, no override, pause or\n"
+	    "                        dwell); path-mean, the mean's setpoints re-timed so;\n"
+	    "                        auto, whichever of the three ends the program soonest\n"
 	    "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	    "  --eps MM              contour tolerance (default 0.01 without --config)\n"
 	    "  --period S            interpolation period T (default 0.001)\n"
@@ -94,100 +97,6 @@ static void usage(FILE *f)
 	    MLIP_LOOKAHEAD);
 }
 
-/* Where the blocks come from: the checked program, streamed (never held,
- * program.h), through the smoothing filter with --strategy smooth (fixed
- * memory, blockiter.h). 1 with the next block in *b, 0 at the end or on an
- * error of the stream (rc < 0, the program's msg says why). */
-struct source {
-	struct mlip_program *p;
-	int rc;
-	double feed;               /* --feed: > 0 replaces every F and G0 */
-	struct mlip_block_iter it; /* the program's blocks, or smooth's over them */
-	struct mlip_smooth_iter si;
-};
-
-static int program_next(void *ctx, struct mlip_block *b)
-{
-	struct source *src = ctx;
-	if (src->rc < 0 || (src->rc = mlip_program_next(src->p, b)) <= 0) {
-		return src->rc;
-	}
-	if (src->feed > 0.0 && b->kind == MLIP_BLOCK_MOVE) {
-		b->feed_mm_s = src->feed;
-		b->rapid = 0;
-	}
-	return 1;
-}
-
-static void source_init(struct source *src, const struct mlip_machine *m, int smooth)
-{
-	static struct mlip_smooth sm; /* ~1 MB */
-	src->it = (struct mlip_block_iter){program_next, src};
-	if (smooth) {
-		src->it = mlip_smooth_iter(&src->si, &sm, m, src->it);
-	}
-}
-
-static int source_next(struct source *src, struct mlip_block *b)
-{
-	int r = src->it.next(src->it.ctx, b);
-	if (r < 0 && src->rc >= 0) {
-		src->rc = -1; /* the filter refused a block (a non-finite target) */
-		snprintf(src->p->msg, sizeof(src->p->msg), "the smoothing filter refused a block");
-	}
-	return r > 0;
-}
-
-/* The records between the feeder and the controller: a FIFO of the ring's
- * capacity, shown to the controller as the ring shows itself (two spans). */
-#define QUEUE_CAP MLIP_RING_CAPACITY
-
-struct queue {
-	struct mlip_ring_rec rec[QUEUE_CAP];
-	uint32_t head, tail; /* free-running */
-};
-
-static uint32_t queue_space(const struct queue *q)
-{
-	return QUEUE_CAP - (q->head - q->tail);
-}
-
-static void queue_view(const struct queue *q, struct mlip_rec_view *v)
-{
-	uint32_t n = q->head - q->tail, at = q->tail & (QUEUE_CAP - 1u);
-	v->span[0] = q->rec + at;
-	v->len[0] = n < QUEUE_CAP - at ? n : QUEUE_CAP - at;
-	v->span[1] = q->rec;
-	v->len[1] = n - v->len[0];
-}
-
-/* The feeder's step before each period: the queue filled as far as it
- * goes, records numbered as mlip-feed numbers them (blocks 1..n, then END;
- * with smooth, the filter's output blocks 1..n, each with its source line). */
-struct feeder {
-	struct source src;
-	uint64_t seq; /* last record pushed */
-	uint32_t end_line;
-	int end_pushed;
-};
-
-static void feed_step(struct feeder *f, struct queue *q)
-{
-	struct mlip_block b;
-	while (!f->end_pushed && queue_space(q) > 0) {
-		struct mlip_ring_rec *rec = &q->rec[q->head & (QUEUE_CAP - 1u)];
-		if (source_next(&f->src, &b)) {
-			mlip_ring_rec_from_block(rec, &b, ++f->seq);
-		} else if (f->src.rc < 0) {
-			return; /* no END: the run stops, the caller says why */
-		} else {
-			mlip_ring_rec_end(rec, ++f->seq, f->end_line);
-			f->end_pushed = 1;
-		}
-		q->head++;
-	}
-}
-
 /* ---- parse -------------------------------------------------------------------- */
 
 struct options {
@@ -198,7 +107,7 @@ struct options {
 	long long storm_seed;
 	unsigned long lookahead;
 	int quiet, notes, optional_stop, save_offsets;
-	int jerk_plan; /* JERK_MEAN, JERK_PATH, JERK_AUTO */
+	int jerk_plan; /* JERK_MEAN, JERK_PATH, JERK_PATH_MEAN, JERK_AUTO */
 };
 
 /* The path plan re-times smooth's path under one speed cap; an override
@@ -207,6 +116,13 @@ static int path_runs(const struct options *o)
 {
 	return o->strategy == MLIP_STRATEGY_SMOOTH && o->feed > 0.0 && o->override == 100.0 &&
 	       o->storm_seed < 0 && !o->probe_surface;
+}
+
+/* --jerk-plan path or path-mean: the path plan re-times the controller's
+ * setpoints */
+static int plans(const struct options *o)
+{
+	return o->jerk_plan == JERK_PATH || o->jerk_plan == JERK_PATH_MEAN;
 }
 
 /* 0, or the exit status (-1: --help, exit 0). */
@@ -331,14 +247,17 @@ static int parse_options(int argc, char **argv, struct options *o)
 			o->probe_surface = optarg;
 			break;
 		case 'K':
-			o->jerk_plan = strcmp(optarg, "mean") == 0   ? JERK_MEAN
-			               : strcmp(optarg, "path") == 0 ? JERK_PATH
-			               : strcmp(optarg, "auto") == 0 ? JERK_AUTO
-			                                             : -1;
+			o->jerk_plan = strcmp(optarg, "mean") == 0        ? JERK_MEAN
+			               : strcmp(optarg, "path") == 0      ? JERK_PATH
+			               : strcmp(optarg, "path-mean") == 0 ? JERK_PATH_MEAN
+			               : strcmp(optarg, "auto") == 0      ? JERK_AUTO
+			                                                  : -1;
 			if (o->jerk_plan < 0) {
-				fprintf(stderr,
-				        PROG ": --jerk-plan: '%s' is not mean, path or auto\n",
-				        optarg);
+				fprintf(
+				    stderr,
+				    PROG
+				    ": --jerk-plan: '%s' is not mean, path, path-mean or auto\n",
+				    optarg);
 				return 2;
 			}
 			break;
@@ -366,9 +285,10 @@ static int parse_options(int argc, char **argv, struct options *o)
 		fprintf(stderr, PROG ": --override: %g is above 200 %%\n", o->override);
 		return 2;
 	}
-	if (o->jerk_plan == JERK_PATH && !path_runs(o)) {
-		fprintf(stderr, PROG ": --jerk-plan path needs --strategy smooth and --feed, and "
-		                     "takes no --override, --storm or --probe-surface (yet)\n");
+	if (plans(o) && !path_runs(o)) {
+		fprintf(stderr, PROG
+		        ": --jerk-plan path and path-mean need --strategy smooth and --feed, and "
+		        "takes no --override, --storm or --probe-surface (yet)\n");
 		return 2;
 	}
 	if (o->save_offsets && o->mo.offsets == NULL) {
@@ -411,8 +331,8 @@ struct sim {
 	struct mlip_simpath path;
 	FILE *err;       /* the plan's refusals (stderr, but for a quiet auto scout) */
 	uint64_t budget; /* auto's plan scout: stop at this many rows (0: none) */
-	uint64_t auto_mean_rows, auto_path_rows; /* auto: the candidates' rows */
-	const char *auto_path;                   /* auto: what became of the plan */
+	uint64_t auto_rows[JERK_AUTO];   /* auto: a candidate's rows, when the soonest so far */
+	const char *auto_why[JERK_AUTO]; /* auto: what became of each plan */
 };
 
 static void close_trace(struct sim *s)
@@ -432,14 +352,14 @@ static int set_up(const struct options *o, struct sim *s)
 	}
 	const struct mlip_machine *m = &s->cfg.machine, *cm = m; /* cm: the controller's */
 	s->err = s->err != NULL ? s->err : stderr;
-	if (o->jerk_plan == JERK_PATH) {
+	if (plans(o)) {
 		const char *why = NULL;
 		if (mlip_simpath_limits(m, o->feed, &s->plim, &s->band_mm, &why) != 0) {
 			fprintf(stderr, PROG ": --jerk-plan path: %s\n", why);
 			return 2;
 		}
-		s->plan_m = *m;
-		for (int k = 0; k < m->n_axes; k++) {
+		s->plan_m = *m; /* path: smooth without J; path-mean: with the mean */
+		for (int k = 0; k < m->n_axes && o->jerk_plan == JERK_PATH; k++) {
 			s->plan_m.axis[k].max_jerk = 0.0;
 		}
 		s->plan_m.tolerance_mm -= s->band_mm; /* the band: the spline's (P6) */
@@ -693,7 +613,7 @@ static int run(const struct options *o, struct sim *s)
 			}
 		}
 		const double *start;
-		if (o->jerk_plan == JERK_PATH) {
+		if (plans(o)) {
 			int r = path_period(o, s, out.status.state, out.pos);
 			if (r <= 0) {
 				return -r;
@@ -781,19 +701,23 @@ static int write_summary(const struct options *o, const struct sim *s, int bad)
 	mlip_json_uint(&j, "dwells", s->dwells);
 	mlip_json_uint(&j, "pauses", s->pauses);
 	mlip_json_uint(&j, "order_errors", chk->order_errors);
-	if (s->auto_mean_rows > 0) {
-		/* --jerk-plan auto: the one taken, the candidates' times (the
-		 * path plan's when it ended the program sooner; else why not) */
-		mlip_json_string(&j, "jerk_plan", o->jerk_plan == JERK_PATH ? "path" : "mean");
+	if (s->auto_rows[JERK_MEAN] > 0) {
+		/* --jerk-plan auto: the one taken, the candidates' times (a
+		 * plan's when it ended the program sooner; else why not) */
+		static const char *const key[][2] = {
+		    {0, 0}, {"auto_path", "auto_path_s"}, {"auto_path_mean", "auto_path_mean_s"}};
+		mlip_json_string(&j, "jerk_plan", plan_name[o->jerk_plan]);
 		mlip_json_number(&j, "auto_mean_s", "%.6f",
-		                 (double)s->auto_mean_rows * m->period_s);
-		mlip_json_string(&j, "auto_path", s->auto_path);
-		if (s->auto_path_rows > 0) {
-			mlip_json_number(&j, "auto_path_s", "%.6f",
-			                 (double)s->auto_path_rows * m->period_s);
+		                 (double)s->auto_rows[JERK_MEAN] * m->period_s);
+		for (int p = JERK_PATH; p <= JERK_PATH_MEAN; p++) {
+			mlip_json_string(&j, key[p][0], s->auto_why[p]);
+			if (s->auto_rows[p] > 0) {
+				mlip_json_number(&j, key[p][1], "%.6f",
+				                 (double)s->auto_rows[p] * m->period_s);
+			}
 		}
 	}
-	if (o->jerk_plan == JERK_PATH) {
+	if (plans(o)) {
 		/* the streaming plan's window (points, of MLIP_PATHRUN_CAP), the
 		 * largest (P6) bound of its pieces, its braking-run periods */
 		const struct mlip_pathrun *pr = &s->path.run;
@@ -906,63 +830,77 @@ static int scout(const struct options *o, struct sim *s, uint64_t *rows)
 	return rc;
 }
 
-/* --jerk-plan auto: the program's start and end are rests both plans
- * share, and both are deterministic functions of the program: the mean is
- * run counted, then the path plan counted up to the mean's rows (stopped
- * there, or at a refusal, a pause, a dwell); the one that ends sooner
- * (the mean on a tie) is run again, written and checked. Never slower than
- * the mean, in the memory of one run: no window of setpoints is kept. */
+/* --jerk-plan auto: the program's start and end are rests every plan
+ * shares, and each is a deterministic function of the program: the mean is
+ * run counted, then each plan counted up to the fewest rows so far
+ * (abandoned there, or at a refusal, a pause, a dwell: path-mean first,
+ * the likelier winner, so path's budget is the tighter); the one that ends
+ * soonest (the earlier on a tie, the mean first) is run again, written and
+ * checked. Never slower than the mean, in the memory of one run: no window
+ * of setpoints is kept. */
 static int choose(struct options *o, struct sim *s)
 {
 	static struct sim sc;
 	static FILE *quiet;
+	static const int order[] = {JERK_PATH_MEAN, JERK_PATH};
 	struct options q = *o;
 	q.trace_path = q.summary_path = NULL;
 	q.quiet = 1;
 	q.notes = q.save_offsets = 0;
 	q.jerk_plan = JERK_MEAN;
-	uint64_t mean_rows = 0, path_rows = 0;
-	int rc = scout(&q, &sc, &mean_rows);
+	uint64_t best = 0;
+	int rc = scout(&q, &sc, &best);
 	const char *why = NULL;
 	struct mlip_path_limits lim;
-	double band;
+	double band, t = sc.cfg.machine.period_s;
 	if (rc != 0) {
 		return rc; /* the mean's run fails: as --jerk-plan mean would */
 	}
-	s->auto_path = "not a candidate (--strategy smooth, --feed, a jerk limit)";
+	s->auto_rows[JERK_MEAN] = best;
 	o->jerk_plan = JERK_MEAN;
-	if (path_runs(o) && mlip_simpath_limits(&sc.cfg.machine, o->feed, &lim, &band, &why) == 0) {
+	int cand =
+	    path_runs(o) && mlip_simpath_limits(&sc.cfg.machine, o->feed, &lim, &band, &why) == 0;
+	for (int i = 0; i < 2; i++) {
+		int p = order[i];
+		uint64_t rows = 0;
+		s->auto_why[p] = "not a candidate (--strategy smooth, --feed, a jerk limit)";
+		if (!cand) {
+			continue;
+		}
 		quiet = quiet != NULL || !o->quiet ? quiet : fopen("/dev/null", "w");
 		memset(&sc, 0, sizeof(sc));
 		sc.err = o->quiet ? quiet : stderr;
-		sc.budget = mean_rows;
-		q.jerk_plan = JERK_PATH;
-		rc = scout(&q, &sc, &path_rows);
-		s->auto_path = rc == 0             ? "sooner"
-		               : rc == OVER_BUDGET ? "not sooner than the mean"
-		                                   : "refused";
-		o->jerk_plan = rc == 0 ? JERK_PATH : JERK_MEAN;
-		path_rows = rc == 0 ? path_rows : 0;
-	}
-	s->auto_mean_rows = mean_rows;
-	s->auto_path_rows = path_rows;
-	if (!o->quiet) {
-		double t = sc.cfg.machine.period_s;
-		fprintf(stderr, PROG ": %s: --jerk-plan auto: %s (the mean %.3f s, the path plan ",
-		        o->path, o->jerk_plan == JERK_PATH ? "path" : "mean",
-		        (double)mean_rows * t);
-		if (path_rows > 0) {
-			fprintf(stderr, "%.3f s)\n", (double)path_rows * t);
-		} else {
-			fprintf(stderr, "%s)\n", s->auto_path);
+		sc.budget = best;
+		q.jerk_plan = p;
+		rc = scout(&q, &sc, &rows);
+		s->auto_why[p] = rc == 0 && rows < best         ? "sooner"
+		                 : rc != 0 && rc != OVER_BUDGET ? "refused"
+		                 : o->jerk_plan == JERK_MEAN    ? "not sooner than the mean"
+		                                                : "not sooner than path-mean";
+		if (rc == 0 && rows < best) {
+			s->auto_rows[p] = best = rows;
+			o->jerk_plan = p;
 		}
+	}
+	if (!o->quiet) {
+		fprintf(stderr, PROG ": %s: --jerk-plan auto: %s (the mean %.3f s", o->path,
+		        plan_name[o->jerk_plan], (double)s->auto_rows[JERK_MEAN] * t);
+		for (int p = JERK_PATH; p <= JERK_PATH_MEAN; p++) {
+			if (s->auto_rows[p] > 0) {
+				fprintf(stderr, ", %s %.3f s", plan_name[p],
+				        (double)s->auto_rows[p] * t);
+			} else {
+				fprintf(stderr, ", %s %s", plan_name[p], s->auto_why[p]);
+			}
+		}
+		fprintf(stderr, ")\n");
 	}
 	rc = set_up(o, s);
 	if (rc != 0) {
 		return rc;
 	}
 	rc = run(o, s);
-	if (rc == 0 && s->rows != (o->jerk_plan == JERK_PATH ? path_rows : mean_rows)) {
+	if (rc == 0 && s->rows != best) {
 		fprintf(stderr, PROG ": %s: --jerk-plan auto: the run differs from its count\n",
 		        o->path);
 		rc = 1;
