@@ -288,7 +288,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 	if (plans(o) && !path_runs(o)) {
 		fprintf(stderr, PROG
 		        ": --jerk-plan path and path-mean need --strategy smooth and --feed, and "
-		        "takes no --override, --storm or --probe-surface (yet)\n");
+		        "take no --override, --storm or --probe-surface (yet)\n");
 		return 2;
 	}
 	if (o->save_offsets && o->mo.offsets == NULL) {

@@ -89,10 +89,10 @@ def test_mean_stays_the_default(tmp_path, lissajous):
 
 
 @pytest.mark.parametrize("extra,why", [
-    (["--jerk", "1e5", "--jerk-plan", "fast"], "is not mean, path or auto"),
+    (["--jerk", "1e5", "--jerk-plan", "fast"], "is not mean, path, path-mean or auto"),
     (["--jerk-plan", "path"], "every axis needs a jerk limit"),
-    (["--jerk", "1e5", "--jerk-plan", "path", "--override", "50"], "takes no --override"),
-    (["--jerk", "1e5", "--jerk-plan", "path", "--strategy", "mpct"], "needs --strategy smooth"),
+    (["--jerk", "1e5", "--jerk-plan", "path", "--override", "50"], "take no --override"),
+    (["--jerk", "1e5", "--jerk-plan", "path", "--strategy", "mpct"], "need --strategy smooth"),
 ])
 def test_bad_use_refused(lissajous, extra, why):
     _, prog = lissajous
