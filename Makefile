@@ -139,12 +139,13 @@ purity: $(BUILD)/libmlip.a $(PURE_BINS)
 # TSan's shadow memory must not be locked).
 tsan:
 	@$(MAKE) --no-print-directory BUILD=build-tsan OPT=-O1 SAN="-fsanitize=thread" \
-		build-tsan/tests/test_ring build-tsan/mlip-latency
+		build-tsan/tests/test_ring build-tsan/tests/test_planq build-tsan/mlip-latency
 	TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/tests/test_ring
+	TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/tests/test_planq
 	@TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/mlip-latency --plan examples/demo.ngc \
 		-D 3 -p 0 --no-mlockall -q >/dev/null 2>build-tsan/latency.err || \
 		{ cat build-tsan/latency.err; exit 1; }
-	@echo "tsan: no data race in the ring tests or the controller/feeder threads"
+	@echo "tsan: no data race in the ring and planned-queue tests or the controller/feeder threads"
 
 # The main job on its bundled default: examples/demo.ngc on the 3-axis mill.
 # demo, run and bench install what they need first, as test does.

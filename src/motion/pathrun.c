@@ -44,6 +44,7 @@ int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *li
 	memcpy(pr->last_in, start, sizeof(double) * (size_t)n);
 	pr->count = 1;
 	pr->peak_count = 1;
+	pr->keep_s = INFINITY;
 	return 0;
 }
 
@@ -122,7 +123,9 @@ static int compact(struct mlip_pathrun *pr)
 {
 	struct mlip_path_curve cv;
 	mlip_pathrun_curve(pr, &cv);
-	int i = pr->fixed > 0 ? mlip_path_spline_piece(&cv, pr->st.s, pr->hint) : 0;
+	/* keep_s: a planned queue's consumer may still brake there (planq.h) */
+	double from = pr->st.s < pr->keep_s ? pr->st.s : pr->keep_s;
+	int i = pr->fixed > 0 ? mlip_path_spline_piece(&cv, from, pr->hint) : 0;
 	if (i < MLIP_PATHRUN_CAP / 4) {
 		return 0;
 	}

@@ -68,6 +68,10 @@ struct mlip_pathrun {
 	double c[MLIP_PATHRUN_CAP];    /* the fit's scratch */
 	double last_in[MLIP_MAX_AXES]; /* the last input point (maybe skipped) */
 	struct mlip_path_state st;
+	/* compaction keeps the pieces from min(st.s, keep_s) on (INFINITY
+	 * from init: st.s alone); a planned queue's producer holds it at
+	 * its consumer's oldest knot, whence it may restart the plan */
+	double keep_s;
 	long rested; /* periods at rest in a row */
 	/* figures */
 	long periods, work, dropped;

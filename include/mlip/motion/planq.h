@@ -1,0 +1,127 @@
+/*
+ * mlip/motion/planq.h - the path-speed plan run ahead of the 1 ms period
+ * (issue 21; the design: docs/algorithm.md "The planning thread and its
+ * queue"). A prototype: not yet used by mlip-rt.
+ *
+ * The plan (mlip/motion/pathrun.h) costs ~1e6 instructions a planned
+ * period: a planning thread (the producer) runs it ahead and fills a
+ * fixed-memory single-producer single-consumer queue of planned periods;
+ * the period (the consumer) pops one a period. Each entry is a state the
+ * plan certified (Q4: its policy's braking run reaches rest inside every
+ * limit before the `end` the plan saw), its setpoint, and that `end` (a
+ * knot). Beside the entries the producer publishes the fixed spline
+ * pieces (knots) into a second ring, which the consumer frees behind
+ * itself. So the consumer always holds what its state's braking run reads
+ * (the pieces from its own to that `end`), and it leaves the queue for
+ * that run, one policy step a period (mlip_path_brake_step, the same
+ * arithmetic the certification ran):
+ *   - on a hold or a stop (this period's setpoint is already the run's);
+ *   - when the queue is empty (the thread fell behind).
+ * It never enters a period whose braking run it does not hold: an entry
+ * is pushed only after the knots to its `end`.
+ *
+ * At rest (the one state certified on any curve, Q4) the consumer asks
+ * for a new plan from its point: a new generation, which the producer
+ * takes before its next period (the pathrun's state reset to that rest;
+ * the entries of the old generation are dropped, at most one a period).
+ * At rest time does not matter, so the hand-over needs no clock.
+ *
+ * Lock-free as mlip/ipc/ring.h: free-running indices, the writer stores
+ * its index with release after the data, the reader loads it with
+ * acquire; every shared index and the request are accessed with __atomic
+ * builtins. The knots are stored twice (slot g & mask and + MLIP_PLANQ_KNOTS)
+ * so that any run of up to MLIP_PLANQ_KNOTS consecutive knots is one
+ * contiguous struct mlip_path_curve (no copy, no wrap in the period).
+ *
+ * Memory: one struct, 846 KB at 6 axes (819 KB the mirrored knots),
+ * whatever the program's length. The consumer's step: a pop (O(1)) or one braking
+ * step (a pick over the pieces a period crosses, as each certification
+ * period; measured in docs/algorithm.md). No allocation, no I/O, no lock.
+ */
+#ifndef MLIP_PLANQ_H
+#define MLIP_PLANQ_H
+
+#include <stdint.h>
+
+#include "mlip/motion/pathrun.h"
+
+/* Planned periods queued (a power of two): 256 ms ahead at 1 ms. */
+#define MLIP_PLANQ_LEN    256
+/* Knots held (a power of two): the pathrun's window (1,024) plus the
+ * queue's span (a knot a period at most where `smooth` feeds one point a
+ * period) with room. */
+#define MLIP_PLANQ_KNOTS  2048
+/* Knots kept behind the consumer's piece: a step whose speed crosses 0
+ * reads pieces behind its start (pathplan.c range_at). */
+#define MLIP_PLANQ_BEHIND 8
+
+struct mlip_planq_entry {
+	struct mlip_path_state st; /* at the period's end: certified (st.brake) */
+	double x[MLIP_MAX_AXES];   /* its setpoint */
+	uint64_t end;              /* the knot that was `end` when st was certified */
+	uint64_t piece;            /* the knot starting st's piece */
+	uint32_t gen;              /* the plan it belongs to */
+	int last;                  /* the program's last setpoint (at rest on its point) */
+};
+
+/* The consumer's mode. */
+enum mlip_planq_mode {
+	MLIP_PLANQ_WAIT,  /* at rest, waiting for its plan's first entry */
+	MLIP_PLANQ_PLAN,  /* popping the plan */
+	MLIP_PLANQ_BRAKE, /* the braking run of its last state */
+	MLIP_PLANQ_DONE,  /* at rest on the program's last point */
+};
+
+struct mlip_planq {
+	struct mlip_path_limits lim;
+	int n;
+	/* producer's line: entries and knots published (free-running) */
+	uint32_t head __attribute__((aligned(64)));
+	uint64_t knots;  /* knots 0..knots-1 published (the last: s and p only) */
+	uint32_t p_gen;  /* producer only: the generation it plans */
+	int p_done;      /* producer only: the last entry queued */
+	uint64_t p_tail; /* producer only: its copy of `freed` */
+	/* consumer's line */
+	uint32_t tail __attribute__((aligned(64)));
+	uint64_t freed; /* knots below this are no longer read by the consumer */
+	/* the request (consumer writes, release on want_gen) */
+	uint32_t want_gen __attribute__((aligned(64)));
+	double rest_s;
+	/* consumer only */
+	struct {
+		enum mlip_planq_mode mode;
+		struct mlip_path_state st;
+		uint64_t end, piece;
+		uint32_t gen;
+		double x[MLIP_MAX_AXES];
+		long starved, brakes, periods; /* figures */
+	} c __attribute__((aligned(64)));
+	struct mlip_planq_entry e[MLIP_PLANQ_LEN];
+	/* knots g at g & mask and (g & mask) + MLIP_PLANQ_KNOTS */
+	double s[2 * MLIP_PLANQ_KNOTS];
+	double p[2 * MLIP_PLANQ_KNOTS][MLIP_MAX_AXES];
+	double m[2 * MLIP_PLANQ_KNOTS][MLIP_MAX_AXES];
+	double b[2 * MLIP_PLANQ_KNOTS][MLIP_MAX_AXES];
+	double t3[2 * MLIP_PLANQ_KNOTS][MLIP_MAX_AXES];
+};
+
+/* Before either side runs: empty, the consumer at rest at pr's start
+ * (WAIT, generation 0, which the producer plans first). pr as after
+ * mlip_pathrun_init. */
+void mlip_planq_init(struct mlip_planq *q, const struct mlip_pathrun *pr);
+
+/* The producer (the planning thread): one planned period from pr into
+ * the queue. 1 queued, 2 the last is queued (nothing more until a new
+ * request), 0 no room (queue or knots full: try later), 3 pr needs input
+ * first (push, or finish), -1 refused (pr->why). It takes the consumer's
+ * request first (a new plan from rest at its point). */
+int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr);
+
+/* The consumer (the period): this period's setpoint in x (n axes); hold
+ * non-zero: leave the plan for the braking run now, stay at rest while it
+ * holds. Returns the mode after the step. Pure apart from the queue: O(1)
+ * in the plan, one braking step when braking. -1 when the braking policy
+ * has no jerk (a state not certified: a defect; the setpoint held). */
+int mlip_planq_step(struct mlip_planq *q, int hold, double *x);
+
+#endif

@@ -1,0 +1,220 @@
+/*
+ * planq.c - the path-speed plan run ahead of the period through a
+ * single-producer single-consumer queue (see mlip/motion/planq.h).
+ */
+#include "mlip/motion/planq.h"
+
+#include <math.h>
+#include <string.h>
+
+#define EMASK ((uint32_t)MLIP_PLANQ_LEN - 1u)
+#define KMASK ((uint64_t)MLIP_PLANQ_KNOTS - 1u)
+
+/* Entries of an old generation the consumer drops a period at most: after
+ * its flush the producer pushes at most one it planned before it saw the
+ * request. */
+#define DROPS 2
+
+void mlip_planq_init(struct mlip_planq *q, const struct mlip_pathrun *pr)
+{
+	memset(q, 0, sizeof(*q));
+	q->lim = pr->lim;
+	q->n = pr->lim.n;
+	q->c.mode = MLIP_PLANQ_WAIT;
+	q->c.st = (struct mlip_path_state){pr->s[0], 0.0, 0.0, 0, 0};
+	q->rest_s = pr->s[0];
+	memcpy(q->c.x, pr->p[0], sizeof(double) * (size_t)q->n);
+}
+
+/* Knot g (global) from pr's window into both its slots: s and p (its
+ * point), or its piece's m, b, t3 (once the piece is fixed). */
+static void put_knot(struct mlip_planq *q, const struct mlip_pathrun *pr, uint64_t g, int piece)
+{
+	int i = (int)(g - (uint64_t)pr->dropped);
+	size_t n = sizeof(double) * (size_t)q->n;
+	uint64_t a = g & KMASK, b = a + MLIP_PLANQ_KNOTS;
+	if (!piece) {
+		q->s[a] = q->s[b] = pr->s[i];
+		memcpy(q->p[a], pr->p[i], n);
+		memcpy(q->p[b], pr->p[i], n);
+		return;
+	}
+	memcpy(q->m[a], pr->m[i], n);
+	memcpy(q->m[b], pr->m[i], n);
+	memcpy(q->b[a], pr->b[i], n);
+	memcpy(q->b[b], pr->b[i], n);
+	memcpy(q->t3[a], pr->t3[i], n);
+	memcpy(q->t3[b], pr->t3[i], n);
+}
+
+/* The consumer's request: a new plan from rest at rest_s. */
+static void take_request(struct mlip_planq *q, struct mlip_pathrun *pr)
+{
+	uint32_t g = __atomic_load_n(&q->want_gen, __ATOMIC_ACQUIRE);
+	if (g == q->p_gen) {
+		return;
+	}
+	double rs;
+	__atomic_load(&q->rest_s, &rs, __ATOMIC_RELAXED);
+	struct mlip_path_curve cv;
+	mlip_pathrun_curve(pr, &cv);
+	pr->st = (struct mlip_path_state){rs, 0.0, 0.0, 0, 0};
+	pr->rested = 0;
+	pr->hint = mlip_path_spline_piece(&cv, rs, 0);
+	q->p_gen = g;
+	q->p_done = 0;
+}
+
+int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr)
+{
+	take_request(q, pr);
+	if (q->p_done) {
+		return 2;
+	}
+	uint32_t head = q->head;
+	if (head - (uint32_t)q->p_tail >= MLIP_PLANQ_LEN) {
+		q->p_tail = __atomic_load_n(&q->tail, __ATOMIC_ACQUIRE);
+		if (head - (uint32_t)q->p_tail >= MLIP_PLANQ_LEN) {
+			return 0; /* the queue is full */
+		}
+	}
+	uint64_t freed = __atomic_load_n(&q->freed, __ATOMIC_ACQUIRE);
+	uint64_t end = (uint64_t)pr->dropped + (uint64_t)pr->fixed, old = q->knots;
+	if (end + 1 - freed > MLIP_PLANQ_KNOTS) {
+		return 0; /* the consumer still reads the slots the next knots take */
+	}
+	if (old > 0 && old - 1 < (uint64_t)pr->dropped) {
+		pr->why = "a fixed piece was dropped before the queue had it";
+		return -1;
+	}
+	for (uint64_t g = old > 0 ? old - 1 : 0; g <= end; g++) {
+		if (g >= old) {
+			put_knot(q, pr, g, 0);
+		}
+		if (g < end) {
+			put_knot(q, pr, g, 1);
+		}
+	}
+	__atomic_store_n(&q->knots, end + 1, __ATOMIC_RELEASE);
+	if (freed < end + 1) { /* compaction keeps what the consumer may brake on */
+		pr->keep_s = q->s[freed & KMASK];
+	}
+	struct mlip_planq_entry *e = &q->e[head & EMASK];
+	int r = mlip_pathrun_step(pr, e->x);
+	if (r == 0) {
+		return 3;
+	}
+	if (r < 0) {
+		return -1;
+	}
+	e->st = pr->st;
+	e->end = end;
+	e->piece = (uint64_t)pr->dropped + (uint64_t)pr->hint;
+	e->gen = q->p_gen;
+	e->last = r == 2;
+	q->p_done = e->last;
+	__atomic_store_n(&q->head, head + 1, __ATOMIC_RELEASE);
+	return e->last ? 2 : 1;
+}
+
+/* The consumer: knots below piece - BEHIND are free. */
+static void release_knots(struct mlip_planq *q)
+{
+	uint64_t piece = q->c.piece, f = q->freed;
+	if (piece > MLIP_PLANQ_BEHIND && piece - MLIP_PLANQ_BEHIND > f) {
+		__atomic_store_n(&q->freed, piece - MLIP_PLANQ_BEHIND, __ATOMIC_RELEASE);
+	}
+}
+
+/* The next entry of the consumer's generation (others dropped, DROPS at
+ * most), copied out and its slot released; 0 when there is none. */
+static int pop(struct mlip_planq *q)
+{
+	uint32_t tail = q->tail, head = __atomic_load_n(&q->head, __ATOMIC_ACQUIRE);
+	for (int d = 0; d <= DROPS && tail != head; d++) {
+		const struct mlip_planq_entry *e = &q->e[tail & EMASK];
+		int mine = e->gen == q->c.gen;
+		if (mine) {
+			q->c.st = e->st;
+			q->c.end = e->end;
+			q->c.piece = e->piece;
+			memcpy(q->c.x, e->x, sizeof(double) * (size_t)q->n);
+			q->c.mode = e->last ? MLIP_PLANQ_DONE : MLIP_PLANQ_PLAN;
+		}
+		__atomic_store_n(&q->tail, ++tail, __ATOMIC_RELEASE);
+		if (mine) {
+			release_knots(q);
+			return 1;
+		}
+	}
+	return 0;
+}
+
+/* At rest: ask for a plan from here (a new generation), the queue
+ * flushed (what is in it continues a plan the consumer left). */
+static void request(struct mlip_planq *q)
+{
+	uint32_t head = __atomic_load_n(&q->head, __ATOMIC_ACQUIRE);
+	__atomic_store_n(&q->tail, head, __ATOMIC_RELEASE);
+	q->c.gen++;
+	__atomic_store(&q->rest_s, &q->c.st.s, __ATOMIC_RELAXED);
+	__atomic_store_n(&q->want_gen, q->c.gen, __ATOMIC_RELEASE);
+	q->c.mode = MLIP_PLANQ_WAIT;
+}
+
+/* One step of the consumer's braking run on the knots freed..end. */
+static int brake(struct mlip_planq *q)
+{
+	typedef const double(*row)[MLIP_MAX_AXES];
+	uint64_t base = q->freed, a = base & KMASK;
+	struct mlip_path_curve cv = {.n = q->n,
+	                             .count = (int)(q->c.end - base + 1),
+	                             .s = &q->s[a],
+	                             .p = (row)q->p[a],
+	                             .m = (row)q->m[a],
+	                             .b = (row)q->b[a],
+	                             .t3 = (row)q->t3[a]};
+	if (!mlip_path_brake_step(&cv, &q->lim, &q->c.st, NULL)) {
+		return -1;
+	}
+	int i = mlip_path_spline_piece(&cv, q->c.st.s, (int)(q->c.piece - base));
+	struct mlip_path_point d;
+	mlip_path_spline_eval_piece(&cv, i, q->c.st.s, q->c.x, &d);
+	q->c.piece = base + (uint64_t)i;
+	release_knots(q);
+	if (q->c.st.v == 0.0 && q->c.st.a == 0.0) {
+		request(q);
+	}
+	return 0;
+}
+
+int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
+{
+	int r = 0;
+	q->c.periods++;
+	switch (q->c.mode) {
+	case MLIP_PLANQ_WAIT:
+		if (!hold) {
+			pop(q);
+		}
+		break;
+	case MLIP_PLANQ_PLAN:
+		if (!hold && pop(q)) {
+			break;
+		}
+		if (!hold) {
+			q->c.starved++;
+		}
+		q->c.brakes++;
+		q->c.mode = MLIP_PLANQ_BRAKE;
+		r = brake(q);
+		break;
+	case MLIP_PLANQ_BRAKE:
+		r = brake(q);
+		break;
+	case MLIP_PLANQ_DONE:
+		break;
+	}
+	memcpy(x, q->c.x, sizeof(double) * (size_t)q->n);
+	return r < 0 ? -1 : (int)q->c.mode;
+}

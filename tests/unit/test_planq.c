@@ -1,0 +1,359 @@
+/*
+ * test_planq.c - the path-speed plan run ahead of the period through its
+ * queue (src/motion/planq.c): the consumer, fed by a producer that stalls
+ * at random, keeps A and J at every sample (second and third differences
+ * of its setpoints over T^2, T^3, within 1e-6 relative, and uses them),
+ * stays on the path (within 1e-4 mm of the input curve), brakes to rest
+ * whenever the queue runs dry, plans again from that rest and ends exactly
+ * on the last point; a hold at a random period brakes the same way from
+ * that very period and holds the point; a producer thread beside the
+ * consumer (make tsan: no data race) gives the same guarantees.
+ */
+#include <math.h>
+#include <pthread.h>
+#include <sched.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "mlip/motion/planq.h"
+
+#define XORSHIFT_SEED 0x2545f4914f6cdd1dull
+#include "xorshift.h"
+
+#define T        1e-3
+#define JERK     1e4
+#define ACC      1000.0
+#define V        60.0
+/* the input curve: x = R cos u, y = R sin(2u) / 2, z = H u (its curvature
+ * varies: 0.05 .. 0.5 / mm) */
+#define R        10.0
+#define H        1.0
+/* on the path: the spline through the input points, sampled every V T at
+ * most, stays this close to the curve (its own error is ~h^4 |x''''|) */
+#define PATH_TOL 1e-4
+
+static void curve_at(double u, double *x)
+{
+	x[0] = R * cos(u);
+	x[1] = R * sin(2.0 * u) / 2.0;
+	x[2] = H * u;
+}
+
+static double curve_speed(double u) /* |dx/du| */
+{
+	double a = R * sin(u), b = R * cos(2.0 * u);
+	return sqrt(a * a + b * b + H * H);
+}
+
+static void limits(struct mlip_path_limits *lim)
+{
+	*lim = (struct mlip_path_limits){0};
+	lim->n = 3;
+	for (int k = 0; k < 3; k++) {
+		lim->accel[k] = 0.98 * ACC;
+		lim->jerk[k] = 0.95 * JERK;
+	}
+	lim->vmax = 0.995 * V;
+	lim->a_brake[0] = 900.0;
+	lim->a_brake[1] = 300.0;
+	lim->n_brake = 2;
+	lim->period = T;
+}
+
+static struct mlip_pathrun pr;
+static struct mlip_planq q;
+
+/* The producer's input: the curve from u = 0 to u_end in steps of v T
+ * (v ramping from rest at ACC to V: what `smooth` without J gives, near
+ * enough), then the end. */
+struct feed {
+	double u, u_end, t, in[3], last[3];
+	int pending, finished;
+	int fail; /* a thread's failure (no cmocka outside the main thread) */
+};
+
+static void feed_init(struct feed *f, double u_end)
+{
+	memset(f, 0, sizeof(*f));
+	f->u_end = u_end;
+	struct mlip_path_limits lim;
+	limits(&lim);
+	double start[3];
+	curve_at(0.0, start);
+	f->fail |= mlip_pathrun_init(&pr, &lim, 1e-3, 3000, start) != 0;
+	mlip_planq_init(&q, &pr);
+}
+
+/* One unit of the producer's work: an input point, or the end, or one
+ * planned period. What mlip_planq_produce returned (1, 2, 0 no room), or
+ * 4 for input. */
+static int unit(struct feed *f)
+{
+	if (f->pending) {
+		int r = mlip_pathrun_push(&pr, f->in);
+		f->fail |= r < 0;
+		if (r != 1) {
+			f->pending = 0;
+			return 4;
+		}
+	} else if (!f->finished) {
+		if (f->u >= f->u_end) {
+			f->fail |= mlip_pathrun_finish(&pr) != 0;
+			f->finished = 1;
+			return 4;
+		}
+		f->t += T;
+		double v = fmin(V, ACC * f->t);
+		f->u = fmin(f->u_end, f->u + v * T / curve_speed(f->u));
+		curve_at(f->u, f->in);
+		memcpy(f->last, f->in, sizeof(f->in));
+		f->pending = 1;
+		return 4;
+	}
+	int r = mlip_planq_produce(&q, &pr);
+	f->fail |= r < 0 || r == 3;
+	return r;
+}
+
+/* The producer's share of one consumer period: up to two planned periods
+ * (it runs ahead and fills the queue), the input they need in between
+ * (after a compaction of the window, a quarter of it: pushes are cheap). */
+static void produce_some(struct feed *f)
+{
+	int planned = 0;
+	for (int i = 0; i < 2 * MLIP_PATHRUN_CAP && planned < 2 && !f->fail; i++) {
+		int r = unit(f);
+		if (r == 0 || r == 2) {
+			break;
+		}
+		planned += r == 1;
+	}
+}
+
+/* The setpoints' physics: A and J per axis by differences; on the path. */
+struct check {
+	double out[4][3];
+	long n;
+	double max_j, max_a, max_off;
+};
+
+static void check_point(struct check *c, const double *x)
+{
+	memmove(c->out[1], c->out[0], sizeof(c->out[0]) * 3);
+	memcpy(c->out[0], x, sizeof(c->out[0]));
+	if (++c->n >= 4) {
+		for (int k = 0; k < 3; k++) {
+			double j =
+			    c->out[0][k] - 3 * c->out[1][k] + 3 * c->out[2][k] - c->out[3][k];
+			double a = c->out[0][k] - 2 * c->out[1][k] + c->out[2][k];
+			c->max_j = fmax(c->max_j, fabs(j) / (T * T * T));
+			c->max_a = fmax(c->max_a, fabs(a) / (T * T));
+		}
+	}
+	double on[3];
+	curve_at(x[2] / H, on); /* z = H u: the curve's point at this height */
+	c->max_off = fmax(c->max_off, fmax(fabs(x[0] - on[0]), fabs(x[1] - on[1])));
+}
+
+static void check_init(struct check *c)
+{
+	memset(c, 0, sizeof(*c));
+	curve_at(0.0, c->out[0]);
+	memcpy(c->out[1], c->out[0], sizeof(c->out[0]));
+	memcpy(c->out[2], c->out[0], sizeof(c->out[0]));
+	c->n = 3; /* at rest before the start */
+}
+
+static void check_physics(const struct check *c)
+{
+	assert_true(c->max_j <= JERK * (1.0 + 1e-6));
+	assert_true(c->max_j >= 0.5 * JERK); /* and used */
+	assert_true(c->max_a <= ACC * (1.0 + 1e-6));
+	assert_true(c->max_a >= 0.3 * ACC);
+	assert_true(c->max_off <= PATH_TOL);
+}
+
+/* A stop from V at 300 mm/s^2 with its jerk ramps takes well under this. */
+#define STOP_PERIODS 600
+
+/* The producer stalls at random (20..700 periods; the queue holds 256):
+ * short stalls are absorbed, long ones brake to rest on the path and the
+ * plan starts again from there; the end is the last point exactly. */
+static void test_stalls(void **state)
+{
+	(void)state;
+	struct feed f;
+	struct check c;
+	feed_init(&f, 16.0);
+	assert_int_equal(f.fail, 0);
+	check_init(&c);
+	long stall = 0, stalls = 0, braking = 0, max_braking = 0, rests = 0;
+	double x[3];
+	int mode = MLIP_PLANQ_WAIT;
+	for (long k = 0; k < 200000 && mode != MLIP_PLANQ_DONE; k++) {
+		if (stall > 0) {
+			stall--;
+		} else if (uni(0.0, 1.0) < 1.0 / 150.0) {
+			stall = (long)uni(20.0, 700.0);
+			stalls++;
+		} else {
+			produce_some(&f);
+			assert_int_equal(f.fail, 0);
+		}
+		int prev = mode;
+		mode = mlip_planq_step(&q, 0, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+		braking = mode == MLIP_PLANQ_BRAKE ? braking + 1 : 0;
+		max_braking = braking > max_braking ? braking : max_braking;
+		rests += prev == MLIP_PLANQ_BRAKE && mode == MLIP_PLANQ_WAIT;
+	}
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, f.last, sizeof(x)); /* at rest on the last point */
+	check_physics(&c);
+	/* the stalls starved it, not every one, and each starving ended at rest */
+	assert_true(q.c.starved >= 2);
+	assert_true(q.c.starved < stalls);
+	assert_int_equal(rests, q.c.brakes);
+	assert_true(max_braking > 10 && max_braking < STOP_PERIODS);
+	print_message("stalls %ld, starved %ld, longest run %ld, periods %ld, J %.4f, A %.4f, "
+	              "off %.2e mm\n",
+	              stalls, q.c.starved, max_braking, c.n, c.max_j / JERK, c.max_a / ACC,
+	              c.max_off);
+}
+
+/* A hold at random periods: the braking run starts in that very period (its
+ * setpoint already the run's), comes to rest within STOP_PERIODS, the point
+ * stays while held; released, the plan goes on and ends on the last point. */
+static void test_hold(void **state)
+{
+	(void)state;
+	struct feed f;
+	struct check c;
+	feed_init(&f, 16.0);
+	check_init(&c);
+	double x[3], held[3];
+	int mode = MLIP_PLANQ_WAIT, holds = 0;
+	long hold_at = (long)uni(200.0, 600.0), hold_len = 0, rest_at = -1;
+	for (long k = 0; k < 200000 && mode != MLIP_PLANQ_DONE; k++) {
+		produce_some(&f);
+		assert_int_equal(f.fail, 0);
+		int hold = 0;
+		if (k == hold_at) {
+			hold_len = (long)uni(STOP_PERIODS, 2000.0);
+			rest_at = -1;
+			holds++;
+		}
+		if (hold_len > 0) {
+			hold = 1;
+			hold_len--;
+		}
+		int prev = mode;
+		mode = mlip_planq_step(&q, hold, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+		if (k == hold_at) {
+			assert_int_equal(prev, MLIP_PLANQ_PLAN);
+			assert_int_equal(mode, MLIP_PLANQ_BRAKE);
+		}
+		if (hold && mode == MLIP_PLANQ_WAIT) {
+			if (rest_at < 0) {
+				rest_at = k;
+				memcpy(held, x, sizeof(x));
+				assert_true(rest_at - hold_at < STOP_PERIODS);
+			}
+			assert_memory_equal(x, held, sizeof(x)); /* held there */
+		}
+		if (hold && hold_len == 0) {
+			assert_true(rest_at >= 0); /* at rest before the hold's end */
+		}
+		if (hold_len == 0 && k > hold_at && holds < 4) {
+			hold_at = k + (long)uni(100.0, 800.0);
+		}
+	}
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_true(holds >= 2);
+	assert_memory_equal(x, f.last, sizeof(x));
+	check_physics(&c);
+	assert_int_equal(q.c.starved, 0); /* only the holds braked */
+	assert_int_equal(q.c.brakes, holds);
+}
+
+/* A producer thread beside the consumer (make tsan checks the queue's
+ * accesses): the consumer steps as soon as an entry is there, and now and
+ * then without waiting (it starves) or with a hold. */
+static struct feed tf;
+static int consumer_done, producer_failed;
+
+static void *producer(void *arg)
+{
+	(void)arg;
+	while (!__atomic_load_n(&consumer_done, __ATOMIC_ACQUIRE) && !tf.fail) {
+		int r = unit(&tf);
+		if (r == 0 || r == 2) {
+			sched_yield();
+		}
+	}
+	__atomic_store_n(&producer_failed, tf.fail, __ATOMIC_RELEASE);
+	return NULL;
+}
+
+static void test_thread(void **state)
+{
+	(void)state;
+	struct check c;
+	feed_init(&tf, 4.0);
+	check_init(&c);
+	consumer_done = 0;
+	producer_failed = 0;
+	pthread_t th;
+	assert_int_equal(pthread_create(&th, NULL, producer, NULL), 0);
+	double x[3];
+	int mode = MLIP_PLANQ_WAIT;
+	long hold = 0, k;
+	for (k = 0; k < 1000000 && mode != MLIP_PLANQ_DONE &&
+	            !__atomic_load_n(&producer_failed, __ATOMIC_ACQUIRE);
+	     k++) {
+		int eager = uni(0.0, 1.0) < 0.01;
+		/* wait for an entry (a generous bound: the producer is slow under tsan) */
+		for (long spin = 0; !eager && mode != MLIP_PLANQ_BRAKE && spin < 100000000;
+		     spin++) {
+			if (__atomic_load_n(&q.head, __ATOMIC_ACQUIRE) != q.tail) {
+				break;
+			}
+			sched_yield();
+		}
+		if (hold == 0 && uni(0.0, 1.0) < 0.005) {
+			hold = (long)uni(1.0, 300.0);
+		}
+		mode = mlip_planq_step(&q, hold > 0, x);
+		hold -= hold > 0;
+		assert_true(mode >= 0);
+		check_point(&c, x);
+	}
+	__atomic_store_n(&consumer_done, 1, __ATOMIC_RELEASE);
+	pthread_join(th, NULL);
+	assert_int_equal(tf.fail, 0);
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, tf.last, sizeof(x));
+	assert_true(c.max_j <= JERK * (1.0 + 1e-6));
+	assert_true(c.max_a <= ACC * (1.0 + 1e-6));
+	assert_true(c.max_off <= PATH_TOL);
+	print_message("thread: %ld periods, %ld brakes (%ld starved)\n", k, q.c.brakes,
+	              q.c.starved);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test(test_stalls),
+	    cmocka_unit_test(test_hold),
+	    cmocka_unit_test(test_thread),
+	};
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}
