@@ -22,7 +22,7 @@ void mlip_planq_init(struct mlip_planq *q, const struct mlip_pathrun *pr)
 	q->n = pr->lim.n;
 	q->c.mode = MLIP_PLANQ_WAIT;
 	q->c.st = (struct mlip_path_state){pr->s[0], 0.0, 0.0, 0, 0};
-	q->rest_s = pr->s[0];
+	q->c.vmax = q->c.want_vmax = pr->lim.vmax;
 	memcpy(q->c.x, pr->p[0], sizeof(double) * (size_t)q->n);
 }
 
@@ -47,22 +47,41 @@ static void put_knot(struct mlip_planq *q, const struct mlip_pathrun *pr, uint64
 	memcpy(q->t3[b], pr->t3[i], n);
 }
 
-/* The consumer's request: a new plan from rest at rest_s. */
+/* The consumer's request: a plan from its state (after req_lead steps of
+ * that state's braking run, on the pieces to its end) at its cap. A run
+ * that fails leaves the generation without entries: the consumer brakes
+ * to rest and asks again from there. */
 static void take_request(struct mlip_planq *q, struct mlip_pathrun *pr)
 {
 	uint32_t g = __atomic_load_n(&q->want_gen, __ATOMIC_ACQUIRE);
 	if (g == q->p_gen) {
 		return;
 	}
-	double rs;
-	__atomic_load(&q->rest_s, &rs, __ATOMIC_RELAXED);
+	struct mlip_path_state st = q->req_st;
+	uint64_t idx = q->req_period, end = q->req_end;
+	int lead = q->req_lead, ok = 1;
+	pr->lim.vmax = q->req_vmax;
+	__atomic_store_n(&q->ack, g, __ATOMIC_RELEASE);
 	struct mlip_path_curve cv;
 	mlip_pathrun_curve(pr, &cv);
-	pr->st = (struct mlip_path_state){rs, 0.0, 0.0, 0, 0};
+	if (lead > 0) {
+		/* the consumer's run on the same pieces and the same end */
+		ok = end >= (uint64_t)pr->dropped && end <= (uint64_t)(pr->dropped + pr->fixed);
+		if (ok) {
+			cv.count = (int)(end - (uint64_t)pr->dropped) + 1;
+		}
+		for (int i = 0; ok && i < lead && !(st.v == 0.0 && st.a == 0.0); i++) {
+			ok = mlip_path_brake_step(&cv, &pr->lim, &st, NULL);
+			idx++;
+		}
+		mlip_pathrun_curve(pr, &cv);
+	}
+	pr->st = st;
 	pr->rested = 0;
-	pr->hint = mlip_path_spline_piece(&cv, rs, 0);
+	pr->hint = mlip_path_spline_piece(&cv, st.s, 0);
 	q->p_gen = g;
-	q->p_done = 0;
+	q->p_period = idx;
+	q->p_done = !ok;
 }
 
 int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr)
@@ -100,6 +119,9 @@ int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr)
 		pr->keep_s = q->s[freed & KMASK];
 	}
 	struct mlip_planq_entry *e = &q->e[head & EMASK];
+	e->from[0] = pr->st.s;
+	e->from[1] = pr->st.v;
+	e->from[2] = pr->st.a;
 	int r = mlip_pathrun_step(pr, e->x);
 	if (r == 0) {
 		return 3;
@@ -111,6 +133,7 @@ int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr)
 	e->end = end;
 	e->piece = (uint64_t)pr->dropped + (uint64_t)pr->hint;
 	e->gen = q->p_gen;
+	e->period = ++q->p_period;
 	e->last = r == 2;
 	q->p_done = e->last;
 	__atomic_store_n(&q->head, head + 1, __ATOMIC_RELEASE);
@@ -126,18 +149,34 @@ static void release_knots(struct mlip_planq *q)
 	}
 }
 
-/* The next entry of the consumer's generation (others dropped, DROPS at
- * most), copied out and its slot released; 0 when there is none. */
+/* The entry continues the consumer's state: from it bit for bit, at the
+ * next period (at rest any period: time does not matter there). */
+static int continues(const struct mlip_planq *q, const struct mlip_planq_entry *e)
+{
+	const struct mlip_path_state *st = &q->c.st;
+	int rest = st->v == 0.0 && st->a == 0.0;
+	return e->from[0] == st->s && e->from[1] == st->v && e->from[2] == st->a &&
+	       (rest || e->period == q->c.pidx + 1);
+}
+
+/* The next entry of the consumer's generation that continues its state,
+ * copied out and its slot released; others of old generations, or of its
+ * own behind its clock, dropped (DROPS at most). 0 when there is none (an
+ * entry ahead of its clock stays). */
 static int pop(struct mlip_planq *q)
 {
 	uint32_t tail = q->tail, head = __atomic_load_n(&q->head, __ATOMIC_ACQUIRE);
 	for (int d = 0; d <= DROPS && tail != head; d++) {
 		const struct mlip_planq_entry *e = &q->e[tail & EMASK];
-		int mine = e->gen == q->c.gen;
+		int mine = e->gen == q->c.gen && continues(q, e);
+		if (!mine && e->gen == q->c.gen && e->period > q->c.pidx) {
+			return 0; /* its plan, not yet its period */
+		}
 		if (mine) {
 			q->c.st = e->st;
 			q->c.end = e->end;
 			q->c.piece = e->piece;
+			q->c.pidx = e->period;
 			memcpy(q->c.x, e->x, sizeof(double) * (size_t)q->n);
 			q->c.mode = e->last ? MLIP_PLANQ_DONE : MLIP_PLANQ_PLAN;
 		}
@@ -150,16 +189,26 @@ static int pop(struct mlip_planq *q)
 	return 0;
 }
 
-/* At rest: ask for a plan from here (a new generation), the queue
- * flushed (what is in it continues a plan the consumer left). */
-static void request(struct mlip_planq *q)
+/* Ask for a plan from the consumer's state (lead: after that many steps
+ * of its braking run; 0 at rest) at its cap, the queue flushed (what is in
+ * it continues a plan the consumer left). Only once the last request was
+ * read: else asked again next period (to_ask). */
+static void request(struct mlip_planq *q, int lead)
 {
+	if (__atomic_load_n(&q->ack, __ATOMIC_ACQUIRE) != q->c.gen) {
+		q->c.to_ask = 1;
+		return;
+	}
 	uint32_t head = __atomic_load_n(&q->head, __ATOMIC_ACQUIRE);
 	__atomic_store_n(&q->tail, head, __ATOMIC_RELEASE);
 	q->c.gen++;
-	__atomic_store(&q->rest_s, &q->c.st.s, __ATOMIC_RELAXED);
+	q->c.to_ask = 0;
+	q->req_st = q->c.st;
+	q->req_period = q->c.pidx;
+	q->req_end = q->c.end;
+	q->req_lead = lead;
+	q->req_vmax = q->c.vmax;
 	__atomic_store_n(&q->want_gen, q->c.gen, __ATOMIC_RELEASE);
-	q->c.mode = MLIP_PLANQ_WAIT;
 }
 
 /* One step of the consumer's braking run on the knots freed..end. */
@@ -181,16 +230,23 @@ static int brake(struct mlip_planq *q)
 	struct mlip_path_point d;
 	mlip_path_spline_eval_piece(&cv, i, q->c.st.s, q->c.x, &d);
 	q->c.piece = base + (uint64_t)i;
+	q->c.pidx++;
 	release_knots(q);
 	if (q->c.st.v == 0.0 && q->c.st.a == 0.0) {
-		request(q);
+		request(q, 0); /* at rest: a plan from here */
+		q->c.mode = q->c.to_ask ? MLIP_PLANQ_BRAKE : MLIP_PLANQ_WAIT;
 	}
 	return 0;
 }
 
+void mlip_planq_feed(struct mlip_planq *q, double vmax)
+{
+	q->c.want_vmax = vmax;
+}
+
 int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 {
-	int r = 0;
+	int r = 0, lower = q->c.want_vmax < q->c.vmax;
 	q->c.periods++;
 	switch (q->c.mode) {
 	case MLIP_PLANQ_WAIT:
@@ -199,21 +255,36 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 		}
 		break;
 	case MLIP_PLANQ_PLAN:
-		if (!hold && pop(q)) {
+		if (!hold && !lower && pop(q)) {
 			break;
 		}
-		if (!hold) {
-			q->c.starved++;
-		}
+		q->c.starved += !hold && !lower;
 		q->c.brakes++;
 		q->c.mode = MLIP_PLANQ_BRAKE;
 		r = brake(q);
 		break;
 	case MLIP_PLANQ_BRAKE:
-		r = brake(q);
+		/* a plan that continues the run (a lower feed's) takes over */
+		if (hold || lower || !pop(q)) {
+			r = brake(q);
+		}
 		break;
 	case MLIP_PLANQ_DONE:
 		break;
+	}
+	int waits = q->c.mode == MLIP_PLANQ_WAIT, brakes = q->c.mode == MLIP_PLANQ_BRAKE;
+	if (r == 0 && (waits || brakes) &&
+	    (lower || q->c.to_ask || (waits && q->c.want_vmax != q->c.vmax))) {
+		/* a plan at the cap (lower: now; higher: from rest), from rest
+		 * or from the run's state MLIP_PLANQ_LEAD periods on */
+		int rest = q->c.st.v == 0.0 && q->c.st.a == 0.0;
+		if (lower || waits) {
+			q->c.vmax = q->c.want_vmax;
+		}
+		request(q, rest ? 0 : MLIP_PLANQ_LEAD);
+		if (rest && !q->c.to_ask) {
+			q->c.mode = MLIP_PLANQ_WAIT;
+		}
 	}
 	memcpy(x, q->c.x, sizeof(double) * (size_t)q->n);
 	return r < 0 ? -1 : (int)q->c.mode;

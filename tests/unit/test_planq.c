@@ -284,9 +284,100 @@ static void test_hold(void **state)
 	assert_int_equal(q.c.brakes, holds);
 }
 
+/* A lower feed at a random period: the braking run starts in that period
+ * and the plan at the new cap takes over MLIP_PLANQ_LEAD periods later,
+ * continuing the run bit for bit (no stop); the speed then stays within
+ * the cap. When the producer stalls past the whole run, the run ends at
+ * rest and the plan starts again from there, at the new cap. (A plan a
+ * little late is still taken where it continues the run: while it brakes
+ * on the same policy, its states are the run's.) */
+static void run_override(int stall_after)
+{
+	struct feed f;
+	struct check c;
+	feed_init(&f, 16.0);
+	check_init(&c);
+	double x[3], prev[3], caps[2] = {0.7 * 0.995 * V, 0.4 * 0.995 * V};
+	int mode = MLIP_PLANQ_WAIT, n_cap = 0, rests = 0;
+	long at = (long)uni(300.0, 600.0), stall = 0, took = -1, settled = -1;
+	double cap = 0.995 * V, max_v_after = 0.0;
+	memcpy(prev, f.last, sizeof(prev));
+	curve_at(0.0, prev);
+	for (long k = 0; k < 200000 && mode != MLIP_PLANQ_DONE; k++) {
+		if (stall > 0) {
+			stall--;
+		} else {
+			produce_some(&f);
+			assert_int_equal(f.fail, 0);
+		}
+		if (k == at) {
+			cap = caps[n_cap++];
+			mlip_planq_feed(&q, cap);
+			stall = stall_after ? STOP_PERIODS : 0;
+			took = -1;
+		}
+		int before = mode;
+		mode = mlip_planq_step(&q, 0, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+		rests += before == MLIP_PLANQ_BRAKE && mode == MLIP_PLANQ_WAIT;
+		if (k == at) {
+			assert_int_equal(before, MLIP_PLANQ_PLAN);
+			assert_int_equal(mode, MLIP_PLANQ_BRAKE); /* in that period */
+		}
+		if (k > at && took < 0 && before == MLIP_PLANQ_BRAKE && mode == MLIP_PLANQ_PLAN) {
+			took = k; /* the new plan continued the run */
+			if (!stall_after) {
+				assert_int_equal(took - at, MLIP_PLANQ_LEAD + 1);
+			}
+		}
+		if (k > at && took < 0 && mode == MLIP_PLANQ_WAIT) {
+			took = k; /* at rest: the plan from there */
+		}
+		if (n_cap == 2 && took > 0 && k > took + 400) {
+			settled = k;
+			double d = 0.0;
+			for (int a = 0; a < 3; a++) {
+				d += (x[a] - prev[a]) * (x[a] - prev[a]);
+			}
+			max_v_after = fmax(max_v_after, sqrt(d) / T);
+		}
+		if (n_cap == 1 && took > 0 && k == took + 600) {
+			at = k + (long)uni(1.0, 300.0); /* the second, lower still */
+		}
+		memcpy(prev, x, sizeof(x));
+	}
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, f.last, sizeof(x));
+	check_physics(&c);
+	assert_int_equal(n_cap, 2);
+	assert_true(settled > 0);
+	assert_int_equal(q.c.starved, 0);
+	assert_int_equal(q.c.brakes, 2);
+	assert_int_equal(rests, stall_after ? 2 : 0); /* stopped only when late */
+	/* the last cap kept (the chord's speed, the spline's parameter within
+	 * 1 % of the arc's) and reached */
+	assert_true(max_v_after <= 1.01 * caps[1]);
+	assert_true(max_v_after >= 0.8 * caps[1]);
+	print_message("override%s: speed after %.3f of the cap\n", stall_after ? " (late)" : "",
+	              max_v_after / caps[1]);
+}
+
+static void test_override(void **state)
+{
+	(void)state;
+	run_override(0);
+}
+
+static void test_override_late(void **state)
+{
+	(void)state;
+	run_override(1);
+}
+
 /* A producer thread beside the consumer (make tsan checks the queue's
  * accesses): the consumer steps as soon as an entry is there, and now and
- * then without waiting (it starves) or with a hold. */
+ * then without waiting (it starves), with a hold or a new feed. */
 static struct feed tf;
 static int consumer_done, producer_failed;
 
@@ -331,6 +422,9 @@ static void test_thread(void **state)
 		if (hold == 0 && uni(0.0, 1.0) < 0.005) {
 			hold = (long)uni(1.0, 300.0);
 		}
+		if (uni(0.0, 1.0) < 0.005) { /* a feed override, lower or higher */
+			mlip_planq_feed(&q, uni(0.3, 1.0) * 0.995 * V);
+		}
 		mode = mlip_planq_step(&q, hold > 0, x);
 		hold -= hold > 0;
 		assert_true(mode >= 0);
@@ -351,8 +445,8 @@ static void test_thread(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_stalls),
-	    cmocka_unit_test(test_hold),
+	    cmocka_unit_test(test_stalls),   cmocka_unit_test(test_hold),
+	    cmocka_unit_test(test_override), cmocka_unit_test(test_override_late),
 	    cmocka_unit_test(test_thread),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

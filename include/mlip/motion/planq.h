@@ -26,6 +26,18 @@
  * the entries of the old generation are dropped, at most one a period).
  * At rest time does not matter, so the hand-over needs no clock.
  *
+ * A lower feed (mlip_planq_feed) leaves the plan for the braking run at
+ * once and asks for a plan at the new cap from the state that run reaches
+ * MLIP_PLANQ_LEAD periods later: the run is deterministic (the same
+ * policy step on the same pieces), so the producer computes that state
+ * itself. The consumer takes an entry only when it continues its own
+ * state bit for bit (the entry's `from`) at the next period index (or
+ * from rest); a differing plan is not taken and the run goes on to rest,
+ * where the plan starts again from rest (a late one is taken where it
+ * still continues the run: its first states brake on the same policy
+ * while above the new cap). A higher feed takes
+ * effect with the next plan (a hold, a dry queue or a lower feed).
+ *
  * Lock-free as mlip/ipc/ring.h: free-running indices, the writer stores
  * its index with release after the data, the reader loads it with
  * acquire; every shared index and the request are accessed with __atomic
@@ -33,10 +45,11 @@
  * so that any run of up to MLIP_PLANQ_KNOTS consecutive knots is one
  * contiguous struct mlip_path_curve (no copy, no wrap in the period).
  *
- * Memory: one struct, 846 KB at 6 axes (819 KB the mirrored knots),
- * whatever the program's length. The consumer's step: a pop (O(1)) or one braking
- * step (a pick over the pieces a period crosses, as each certification
- * period; measured in docs/algorithm.md). No allocation, no I/O, no lock.
+ * Memory: one struct, 855 KB at 6 axes (819 KB the mirrored knots),
+ * whatever the program's length. The consumer's step: a pop (O(1)) or
+ * one braking step (a pick over the pieces a period crosses, as each
+ * certification period; measured in docs/algorithm.md). No allocation,
+ * no I/O, no lock.
  */
 #ifndef MLIP_PLANQ_H
 #define MLIP_PLANQ_H
@@ -51,13 +64,19 @@
  * queue's span (a knot a period at most where `smooth` feeds one point a
  * period) with room. */
 #define MLIP_PLANQ_KNOTS  2048
+/* Periods between a lower feed and the state its new plan starts from:
+ * the producer's latency (a request read before its next period, one
+ * planned period) with room. */
+#define MLIP_PLANQ_LEAD   16
 /* Knots kept behind the consumer's piece: a step whose speed crosses 0
  * reads pieces behind its start (pathplan.c range_at). */
 #define MLIP_PLANQ_BEHIND 8
 
 struct mlip_planq_entry {
 	struct mlip_path_state st; /* at the period's end: certified (st.brake) */
+	double from[3];            /* s, v, a at the period's start (the last state) */
 	double x[MLIP_MAX_AXES];   /* its setpoint */
+	uint64_t period;           /* the period's index (the consumer's clock) */
 	uint64_t end;              /* the knot that was `end` when st was certified */
 	uint64_t piece;            /* the knot starting st's piece */
 	uint32_t gen;              /* the plan it belongs to */
@@ -77,22 +96,34 @@ struct mlip_planq {
 	int n;
 	/* producer's line: entries and knots published (free-running) */
 	uint32_t head __attribute__((aligned(64)));
-	uint64_t knots;  /* knots 0..knots-1 published (the last: s and p only) */
-	uint32_t p_gen;  /* producer only: the generation it plans */
-	int p_done;      /* producer only: the last entry queued */
-	uint64_t p_tail; /* producer only: its copy of `freed` */
+	uint64_t knots;    /* knots 0..knots-1 published (the last: s and p only) */
+	uint32_t p_gen;    /* producer only: the generation it plans */
+	uint64_t p_period; /* producer only: the index of its last period */
+	int p_done;        /* producer only: the last entry queued */
+	uint64_t p_tail;   /* producer only: its copy of `tail` */
 	/* consumer's line */
 	uint32_t tail __attribute__((aligned(64)));
 	uint64_t freed; /* knots below this are no longer read by the consumer */
-	/* the request (consumer writes, release on want_gen) */
+	/* the request: the consumer writes the fields, then want_gen with
+	 * release; the producer reads them after want_gen (acquire), then
+	 * stores ack (release): the consumer writes a new request only once
+	 * ack is its generation (the fields are never written while read) */
 	uint32_t want_gen __attribute__((aligned(64)));
-	double rest_s;
+	uint32_t ack;
+	struct mlip_path_state req_st; /* the state to plan from ... */
+	uint64_t req_period;           /* ... its period's index ... */
+	uint64_t req_end;              /* ... its braking run's end (knot) */
+	int req_lead;                  /* its braking steps first (0: at rest) */
+	double req_vmax;               /* the plan's speed cap */
 	/* consumer only */
 	struct {
 		enum mlip_planq_mode mode;
 		struct mlip_path_state st;
 		uint64_t end, piece;
+		uint64_t pidx; /* the index of the period of st */
 		uint32_t gen;
+		double vmax, want_vmax; /* the cap planned, the cap asked */
+		int to_ask;             /* a plan is to be asked (the last unread) */
 		double x[MLIP_MAX_AXES];
 		long starved, brakes, periods; /* figures */
 	} c __attribute__((aligned(64)));
@@ -116,6 +147,11 @@ void mlip_planq_init(struct mlip_planq *q, const struct mlip_pathrun *pr);
  * first (push, or finish), -1 refused (pr->why). It takes the consumer's
  * request first (a new plan from rest at its point). */
 int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr);
+
+/* The consumer: a new speed cap (the feed override's; > 0). A lower one
+ * acts in the next step (the braking run, then the plan at that cap); a
+ * higher one with the next plan. */
+void mlip_planq_feed(struct mlip_planq *q, double vmax);
 
 /* The consumer (the period): this period's setpoint in x (n axes); hold
  * non-zero: leave the plan for the braking run now, stay at rest while it
