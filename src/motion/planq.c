@@ -22,7 +22,7 @@ void mlip_planq_init(struct mlip_planq *q, const struct mlip_pathrun *pr)
 	q->n = pr->lim.n;
 	q->c.mode = MLIP_PLANQ_WAIT;
 	q->c.st = (struct mlip_path_state){pr->s[0], 0.0, 0.0, 0, 0};
-	q->c.vmax = q->c.want_vmax = pr->lim.vmax;
+	q->c.vmax = q->c.want_vmax = q->cap = pr->lim.vmax;
 	memcpy(q->c.x, pr->p[0], sizeof(double) * (size_t)q->n);
 }
 
@@ -60,7 +60,6 @@ static void take_request(struct mlip_planq *q, struct mlip_pathrun *pr)
 	struct mlip_path_state st = q->req_st;
 	uint64_t idx = q->req_period, end = q->req_end;
 	int lead = q->req_lead, ok = 1;
-	pr->lim.vmax = q->req_vmax;
 	__atomic_store_n(&q->ack, g, __ATOMIC_RELEASE);
 	struct mlip_path_curve cv;
 	mlip_pathrun_curve(pr, &cv);
@@ -87,6 +86,7 @@ static void take_request(struct mlip_planq *q, struct mlip_pathrun *pr)
 int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr)
 {
 	take_request(q, pr);
+	__atomic_load(&q->cap, &pr->lim.vmax, __ATOMIC_RELAXED);
 	if (q->p_done) {
 		return 2;
 	}
@@ -207,7 +207,6 @@ static void request(struct mlip_planq *q, int lead)
 	q->req_period = q->c.pidx;
 	q->req_end = q->c.end;
 	q->req_lead = lead;
-	q->req_vmax = q->c.vmax;
 	__atomic_store_n(&q->want_gen, q->c.gen, __ATOMIC_RELEASE);
 }
 
@@ -248,6 +247,10 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 {
 	int r = 0, lower = q->c.want_vmax < q->c.vmax;
 	q->c.periods++;
+	if (q->c.want_vmax != q->c.vmax) { /* the producer's from its next period */
+		__atomic_store(&q->cap, &q->c.want_vmax, __ATOMIC_RELAXED);
+		q->c.vmax = q->c.want_vmax;
+	}
 	switch (q->c.mode) {
 	case MLIP_PLANQ_WAIT:
 		if (!hold) {
@@ -273,14 +276,10 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 		break;
 	}
 	int waits = q->c.mode == MLIP_PLANQ_WAIT, brakes = q->c.mode == MLIP_PLANQ_BRAKE;
-	if (r == 0 && (waits || brakes) &&
-	    (lower || q->c.to_ask || (waits && q->c.want_vmax != q->c.vmax))) {
-		/* a plan at the cap (lower: now; higher: from rest), from rest
-		 * or from the run's state MLIP_PLANQ_LEAD periods on */
+	if (r == 0 && (waits || brakes) && (lower || q->c.to_ask)) {
+		/* a plan at the lower cap: from rest, or from the run's state
+		 * MLIP_PLANQ_LEAD periods on */
 		int rest = q->c.st.v == 0.0 && q->c.st.a == 0.0;
-		if (lower || waits) {
-			q->c.vmax = q->c.want_vmax;
-		}
 		request(q, rest ? 0 : MLIP_PLANQ_LEAD);
 		if (rest && !q->c.to_ask) {
 			q->c.mode = MLIP_PLANQ_WAIT;

@@ -287,7 +287,8 @@ static void test_hold(void **state)
 /* A lower feed at a random period: the braking run starts in that period
  * and the plan at the new cap takes over MLIP_PLANQ_LEAD periods later,
  * continuing the run bit for bit (no stop); the speed then stays within
- * the cap. When the producer stalls past the whole run, the run ends at
+ * the cap; a higher feed then needs no stop either and takes effect
+ * within the queue's length. When the producer stalls past the whole run, the run ends at
  * rest and the plan starts again from there, at the new cap. (A plan a
  * little late is still taken where it continues the run: while it brakes
  * on the same policy, its states are the run's.) */
@@ -299,8 +300,9 @@ static void run_override(int stall_after)
 	check_init(&c);
 	double x[3], prev[3], caps[2] = {0.7 * 0.995 * V, 0.4 * 0.995 * V};
 	int mode = MLIP_PLANQ_WAIT, n_cap = 0, rests = 0;
-	long at = (long)uni(300.0, 600.0), stall = 0, took = -1, settled = -1;
-	double cap = 0.995 * V, max_v_after = 0.0;
+	long at = (long)uni(300.0, 600.0), stall = 0, took = -1, settled = -1, raised = -1,
+	     faster = -1;
+	double cap = 0.995 * V, max_v_after = 0.0, max_v_raised = 0.0;
 	memcpy(prev, f.last, sizeof(prev));
 	curve_at(0.0, prev);
 	for (long k = 0; k < 200000 && mode != MLIP_PLANQ_DONE; k++) {
@@ -334,13 +336,23 @@ static void run_override(int stall_after)
 		if (k > at && took < 0 && mode == MLIP_PLANQ_WAIT) {
 			took = k; /* at rest: the plan from there */
 		}
-		if (n_cap == 2 && took > 0 && k > took + 400) {
+		double d = 0.0;
+		for (int a = 0; a < 3; a++) {
+			d += (x[a] - prev[a]) * (x[a] - prev[a]);
+		}
+		if (n_cap == 2 && took > 0 && k > took + 400 && raised < 0) {
 			settled = k;
-			double d = 0.0;
-			for (int a = 0; a < 3; a++) {
-				d += (x[a] - prev[a]) * (x[a] - prev[a]);
-			}
 			max_v_after = fmax(max_v_after, sqrt(d) / T);
+		}
+		if (n_cap == 2 && took > 0 && k == took + 700) {
+			raised = k; /* the feed back up: no stop, faster within the queue */
+			mlip_planq_feed(&q, 0.995 * V);
+		}
+		if (raised > 0 && k <= raised + MLIP_PLANQ_LEN + 200) {
+			max_v_raised = fmax(max_v_raised, sqrt(d) / T);
+			if (faster < 0 && sqrt(d) / T > 1.01 * caps[1]) {
+				faster = k - raised;
+			}
 		}
 		if (n_cap == 1 && took > 0 && k == took + 600) {
 			at = k + (long)uni(1.0, 300.0); /* the second, lower still */
@@ -359,8 +371,13 @@ static void run_override(int stall_after)
 	 * 1 % of the arc's) and reached */
 	assert_true(max_v_after <= 1.01 * caps[1]);
 	assert_true(max_v_after >= 0.8 * caps[1]);
-	print_message("override%s: speed after %.3f of the cap\n", stall_after ? " (late)" : "",
-	              max_v_after / caps[1]);
+	assert_true(raised > 0);
+	assert_true(max_v_raised >= 1.3 * caps[1]);
+	assert_true(faster > 0 && faster <= MLIP_PLANQ_LEN + 50);
+	print_message("override%s: speed after %.3f of the cap; raised: %.3f, above the cap after "
+	              "%ld periods\n",
+	              stall_after ? " (late)" : "", max_v_after / caps[1], max_v_raised / caps[1],
+	              faster);
 }
 
 static void test_override(void **state)

@@ -35,8 +35,9 @@
  * from rest); a differing plan is not taken and the run goes on to rest,
  * where the plan starts again from rest (a late one is taken where it
  * still continues the run: its first states brake on the same policy
- * while above the new cap). A higher feed takes
- * effect with the next plan (a hold, a dry queue or a lower feed).
+ * while above the new cap). A higher feed needs no hand-over: the
+ * producer plans at it from its next period, so it takes effect once the
+ * entries queued before it are used (MLIP_PLANQ_LEN periods at most).
  *
  * Lock-free as mlip/ipc/ring.h: free-running indices, the writer stores
  * its index with release after the data, the reader loads it with
@@ -114,7 +115,10 @@ struct mlip_planq {
 	uint64_t req_period;           /* ... its period's index ... */
 	uint64_t req_end;              /* ... its braking run's end (knot) */
 	int req_lead;                  /* its braking steps first (0: at rest) */
-	double req_vmax;               /* the plan's speed cap */
+	/* the consumer's speed cap (atomic): the producer plans at it from
+	 * its next period (a higher cap needs no hand-over: the states it
+	 * certified stay certified) */
+	double cap;
 	/* consumer only */
 	struct {
 		enum mlip_planq_mode mode;
@@ -150,7 +154,7 @@ int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr);
 
 /* The consumer: a new speed cap (the feed override's; > 0). A lower one
  * acts in the next step (the braking run, then the plan at that cap); a
- * higher one with the next plan. */
+ * higher one from the producer's next period (after the queued ones). */
 void mlip_planq_feed(struct mlip_planq *q, double vmax);
 
 /* The consumer (the period): this period's setpoint in x (n axes); hold
