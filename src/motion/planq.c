@@ -60,9 +60,24 @@ static void take_request(struct mlip_planq *q, struct mlip_pathrun *pr)
 	struct mlip_path_state st = q->req_st;
 	uint64_t idx = q->req_period, end = q->req_end;
 	int lead = q->req_lead, ok = 1;
-	__atomic_store_n(&q->ack, g, __ATOMIC_RELEASE);
 	struct mlip_path_curve cv;
 	mlip_pathrun_curve(pr, &cv);
+	if (lead < 0) {
+		/* a higher cap: from the state queued for idx (at least LEAD
+		 * periods ahead of the consumer now), if it is kept; else from
+		 * the producer's own last (already queued) */
+		uint64_t now = __atomic_load_n(&q->pidx, __ATOMIC_RELAXED) + MLIP_PLANQ_LEAD;
+		idx = idx > now ? idx : now;
+		if (idx <= q->p_period && q->p_period - idx < MLIP_PLANQ_LEN &&
+		    q->p_hist[idx & (MLIP_PLANQ_LEN - 1)].period == idx) {
+			st = q->p_hist[idx & (MLIP_PLANQ_LEN - 1)].st;
+		} else {
+			st = pr->st;
+			idx = q->p_period;
+		}
+		q->sw_period = idx;
+		q->sw_head = q->head;
+	}
 	if (lead > 0) {
 		/* the consumer's run on the same pieces and the same end */
 		ok = end >= (uint64_t)pr->dropped && end <= (uint64_t)(pr->dropped + pr->fixed);
@@ -81,6 +96,7 @@ static void take_request(struct mlip_planq *q, struct mlip_pathrun *pr)
 	q->p_gen = g;
 	q->p_period = idx;
 	q->p_done = !ok;
+	__atomic_store_n(&q->ack, g, __ATOMIC_RELEASE);
 }
 
 int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr)
@@ -134,6 +150,8 @@ int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr)
 	e->piece = (uint64_t)pr->dropped + (uint64_t)pr->hint;
 	e->gen = q->p_gen;
 	e->period = ++q->p_period;
+	q->p_hist[e->period & (MLIP_PLANQ_LEN - 1)].st = e->st;
+	q->p_hist[e->period & (MLIP_PLANQ_LEN - 1)].period = e->period;
 	e->last = r == 2;
 	q->p_done = e->last;
 	__atomic_store_n(&q->head, head + 1, __ATOMIC_RELEASE);
@@ -168,7 +186,10 @@ static int pop(struct mlip_planq *q)
 	uint32_t tail = q->tail, head = __atomic_load_n(&q->head, __ATOMIC_ACQUIRE);
 	for (int d = 0; d <= DROPS && tail != head; d++) {
 		const struct mlip_planq_entry *e = &q->e[tail & EMASK];
-		int mine = e->gen == q->c.gen && continues(q, e);
+		/* during a queued switch the old plan's entries up to its period */
+		int old = q->c.sw && e->gen == q->c.gen - 1 &&
+		          (q->c.sw == 1 || e->period <= q->c.sw_period);
+		int mine = (e->gen == q->c.gen || old) && continues(q, e);
 		if (!mine && e->gen == q->c.gen && e->period > q->c.pidx) {
 			return 0; /* its plan, not yet its period */
 		}
@@ -196,18 +217,43 @@ static int pop(struct mlip_planq *q)
 static void request(struct mlip_planq *q, int lead)
 {
 	if (__atomic_load_n(&q->ack, __ATOMIC_ACQUIRE) != q->c.gen) {
-		q->c.to_ask = 1;
+		q->c.to_ask = lead >= 0;
 		return;
 	}
-	uint32_t head = __atomic_load_n(&q->head, __ATOMIC_ACQUIRE);
-	__atomic_store_n(&q->tail, head, __ATOMIC_RELEASE);
+	if (lead >= 0) {
+		uint32_t head = __atomic_load_n(&q->head, __ATOMIC_ACQUIRE);
+		__atomic_store_n(&q->tail, head, __ATOMIC_RELEASE);
+		q->c.sw = 0;
+	} else {
+		q->c.sw = 1; /* the queue kept: the plan goes on to the switch */
+	}
 	q->c.gen++;
 	q->c.to_ask = 0;
 	q->req_st = q->c.st;
-	q->req_period = q->c.pidx;
+	q->req_period = lead < 0 ? q->c.pidx + MLIP_PLANQ_LEAD : q->c.pidx;
 	q->req_end = q->c.end;
 	q->req_lead = lead;
 	__atomic_store_n(&q->want_gen, q->c.gen, __ATOMIC_RELEASE);
+}
+
+/* A queued switch: the producer's reply read once it is there; at its
+ * period the old plan's entries beyond it are skipped (they stand before
+ * the new plan's in the queue). Late: the switch is given up (the old
+ * plan's entries are dropped, the queue runs dry, the run brakes). */
+static void switch_over(struct mlip_planq *q)
+{
+	if (q->c.sw == 1 && __atomic_load_n(&q->ack, __ATOMIC_ACQUIRE) == q->c.gen) {
+		q->c.sw_period = q->sw_period;
+		q->c.sw_head = q->sw_head;
+		q->c.sw = 2;
+	}
+	if (q->c.sw == 2 && q->c.pidx >= q->c.sw_period) {
+		if (q->c.pidx == q->c.sw_period && q->c.mode == MLIP_PLANQ_PLAN &&
+		    (int32_t)(q->c.sw_head - q->tail) >= 0) {
+			__atomic_store_n(&q->tail, q->c.sw_head, __ATOMIC_RELEASE);
+		}
+		q->c.sw = 0;
+	}
 }
 
 /* One step of the consumer's braking run on the knots freed..end. */
@@ -215,6 +261,11 @@ static int brake(struct mlip_planq *q)
 {
 	typedef const double(*row)[MLIP_MAX_AXES];
 	uint64_t base = q->freed, a = base & KMASK;
+	if (q->c.st.v == 0.0 && q->c.st.a == 0.0) {
+		request(q, 0); /* at rest already (the last request unread) */
+		q->c.mode = q->c.to_ask ? MLIP_PLANQ_BRAKE : MLIP_PLANQ_WAIT;
+		return 0;
+	}
 	struct mlip_path_curve cv = {.n = q->n,
 	                             .count = (int)(q->c.end - base + 1),
 	                             .s = &q->s[a],
@@ -249,8 +300,12 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 	q->c.periods++;
 	if (q->c.want_vmax != q->c.vmax) { /* the producer's from its next period */
 		__atomic_store(&q->cap, &q->c.want_vmax, __ATOMIC_RELAXED);
+		if (!lower && q->c.mode == MLIP_PLANQ_PLAN) {
+			request(q, -1); /* higher: from the queued state LEAD on */
+		}
 		q->c.vmax = q->c.want_vmax;
 	}
+	switch_over(q);
 	switch (q->c.mode) {
 	case MLIP_PLANQ_WAIT:
 		if (!hold) {
@@ -285,6 +340,7 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 			q->c.mode = MLIP_PLANQ_WAIT;
 		}
 	}
+	__atomic_store_n(&q->pidx, q->c.pidx, __ATOMIC_RELAXED);
 	memcpy(x, q->c.x, sizeof(double) * (size_t)q->n);
 	return r < 0 ? -1 : (int)q->c.mode;
 }

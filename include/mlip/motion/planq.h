@@ -35,9 +35,16 @@
  * from rest); a differing plan is not taken and the run goes on to rest,
  * where the plan starts again from rest (a late one is taken where it
  * still continues the run: its first states brake on the same policy
- * while above the new cap). A higher feed needs no hand-over: the
- * producer plans at it from its next period, so it takes effect once the
- * entries queued before it are used (MLIP_PLANQ_LEN periods at most).
+ * while above the new cap). A higher feed keeps the plan and asks for a
+ * plan at the new cap from the queued state MLIP_PLANQ_LEAD periods on
+ * (the producer keeps the states it queued): the consumer takes the old
+ * plan's entries up to that period and skips to the new plan's (the
+ * producer's reply: the period and the queue index it starts at; at least
+ * MLIP_PLANQ_LEAD periods after the consumer's index when it reads the
+ * request, so a late producer moves the switch, not misses it). A reply
+ * read after its period leaves the old plan's queued entries, then a dry
+ * queue (the braking run); the cap word also makes the producer plan at
+ * the new cap from its next period.
  *
  * Lock-free as mlip/ipc/ring.h: free-running indices, the writer stores
  * its index with release after the data, the reader loads it with
@@ -101,10 +108,17 @@ struct mlip_planq {
 	uint32_t p_gen;    /* producer only: the generation it plans */
 	uint64_t p_period; /* producer only: the index of its last period */
 	int p_done;        /* producer only: the last entry queued */
-	uint64_t p_tail;   /* producer only: its copy of `tail` */
+	/* producer only: the states it queued, by period (a higher cap's
+	 * plan starts from one of them) */
+	struct {
+		struct mlip_path_state st;
+		uint64_t period;
+	} p_hist[MLIP_PLANQ_LEN];
+	uint64_t p_tail; /* producer only: its copy of `tail` */
 	/* consumer's line */
 	uint32_t tail __attribute__((aligned(64)));
 	uint64_t freed; /* knots below this are no longer read by the consumer */
+	uint64_t pidx;  /* its period's index (atomic, a hint for a switch) */
 	/* the request: the consumer writes the fields, then want_gen with
 	 * release; the producer reads them after want_gen (acquire), then
 	 * stores ack (release): the consumer writes a new request only once
@@ -114,7 +128,12 @@ struct mlip_planq {
 	struct mlip_path_state req_st; /* the state to plan from ... */
 	uint64_t req_period;           /* ... its period's index ... */
 	uint64_t req_end;              /* ... its braking run's end (knot) */
-	int req_lead;                  /* its braking steps first (0: at rest) */
+	int req_lead;                  /* its braking steps first (0: at rest;
+	                                * -1: the queued state of req_period) */
+	/* the producer's reply (before ack): its new plan follows the queued
+	 * period sw_period, its entries from queue index sw_head on */
+	uint64_t sw_period;
+	uint32_t sw_head;
 	/* the consumer's speed cap (atomic): the producer plans at it from
 	 * its next period (a higher cap needs no hand-over: the states it
 	 * certified stay certified) */
@@ -128,6 +147,9 @@ struct mlip_planq {
 		uint32_t gen;
 		double vmax, want_vmax; /* the cap planned, the cap asked */
 		int to_ask;             /* a plan is to be asked (the last unread) */
+		int sw;                 /* a queued switch: 1 asked, 2 its reply read */
+		uint64_t sw_period;
+		uint32_t sw_head;
 		double x[MLIP_MAX_AXES];
 		long starved, brakes, periods; /* figures */
 	} c __attribute__((aligned(64)));
