@@ -289,9 +289,13 @@ static int brake(struct mlip_planq *q)
 	return 0;
 }
 
-void mlip_planq_feed(struct mlip_planq *q, double vmax)
+int mlip_planq_feed(struct mlip_planq *q, double vmax)
 {
+	if (!(vmax > 0.0) || !isfinite(vmax)) {
+		return -1; /* a zero feed is a hold */
+	}
 	q->c.want_vmax = vmax;
+	return 0;
 }
 
 int mlip_planq_step(struct mlip_planq *q, int hold, double *x)

@@ -314,7 +314,9 @@ static void run_override(int stall_after)
 		}
 		if (k == at) {
 			cap = caps[n_cap++];
-			mlip_planq_feed(&q, cap);
+			assert_int_equal(mlip_planq_feed(&q, cap), 0);
+			assert_int_equal(mlip_planq_feed(&q, 0.0), -1); /* ignored */
+			assert_int_equal(mlip_planq_feed(&q, NAN), -1);
 			stall = stall_after ? STOP_PERIODS : 0;
 			took = -1;
 		}

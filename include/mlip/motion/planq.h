@@ -174,10 +174,11 @@ void mlip_planq_init(struct mlip_planq *q, const struct mlip_pathrun *pr);
  * request first (a new plan from rest at its point). */
 int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr);
 
-/* The consumer: a new speed cap (the feed override's; > 0). A lower one
- * acts in the next step (the braking run, then the plan at that cap); a
- * higher one from the producer's next period (after the queued ones). */
-void mlip_planq_feed(struct mlip_planq *q, double vmax);
+/* The consumer: a new speed cap (the feed override's). A lower one acts
+ * in the next step (the braking run, then the plan at that cap); a higher
+ * one from the queued state MLIP_PLANQ_LEAD periods on. -1 (ignored) when
+ * not positive and finite (a zero feed is a hold). */
+int mlip_planq_feed(struct mlip_planq *q, double vmax);
 
 /* The consumer (the period): this period's setpoint in x (n axes); hold
  * non-zero: leave the plan for the braking run now, stay at rest while it
