@@ -120,6 +120,7 @@ static int fit_points(const char *path, int *n_axes)
 		return -1; /* a benchmark: the process ends here */
 	}
 	free(pts);
+	free(c); /* scratch of the fit; the others are the curve's */
 	*n_axes = n;
 	return 0; /* the arrays live as long as the process */
 }

@@ -468,6 +468,15 @@ static int take(const struct mlip_path_curve *sp, const struct mlip_path_limits 
 	if (!pick_at(sp, lim, a, jt, &j, &nx)) {
 		return -1;
 	}
+	if (a->st.v == 0.0 && a->st.a == 0.0 && nx.st.v == 0.0 && nx.st.a == 0.0) {
+		/* from rest a jerk whose step ends at rest (REST_V, REST_A) does
+		 * not move: pick_at clamps to the interval of the larger jerk it
+		 * tried first, whose step reaches pieces that allow only j near 0
+		 * (a random zigzag's 0.2 um piece, x''' 2.6e7: [-194514, 3.8e-5]
+		 * at 118482). Taken, it was a move that stayed, for ever; the
+		 * halved jerk next moves. */
+		return -1;
+	}
 	int own = policy(lim, st->brake), nb = lim->n_brake < 1 ? 1 : lim->n_brake;
 	nb = nb > MLIP_PATH_BRAKES ? MLIP_PATH_BRAKES : nb;
 	for (int q = 0; q < nb; q++) {

@@ -76,24 +76,7 @@ static int settle(struct mlip_pathrun *pr, int upto)
 			m[f][k] = 6.0 * ((p[f + 1][k] - p[f][k]) / h0 - d) / (2.0 * h0);
 		}
 	}
-	for (int i = f + 1; i < last; i++) { /* Thomas' forward elimination */
-		double hl = s[i] - s[i - 1], hr = s[i + 1] - s[i];
-		double piv = 2.0 * (hl + hr) - hl * c[i - 1];
-		c[i] = hr / piv;
-		for (int k = 0; k < n; k++) {
-			double r =
-			    6.0 * ((p[i + 1][k] - p[i][k]) / hr - (p[i][k] - p[i - 1][k]) / hl);
-			m[i][k] = (r - hl * m[i - 1][k]) / piv;
-		}
-	}
-	for (int k = 0; k < n; k++) {
-		m[last][k] = 0.0;
-	}
-	for (int i = last - 1; i >= f; i--) {
-		for (int k = 0; k < n; k++) {
-			m[i][k] -= c[i] * m[i + 1][k];
-		}
-	}
+	mlip_path_tridiag(n, s, p, c, m, f, last);
 	struct mlip_path_curve cv;
 	for (int i = f; i < upto; i++) {
 		double h = s[i + 1] - s[i];

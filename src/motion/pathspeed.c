@@ -135,6 +135,29 @@ int mlip_path_from_points(int n, const double p[4][MLIP_MAX_AXES], double t,
 	return to_arc(n, x1, x2, x3, out);
 }
 
+void mlip_path_tridiag(int n, const double *s, const double p[][MLIP_MAX_AXES], double *c,
+                       double (*m)[MLIP_MAX_AXES], int f, int last)
+{
+	for (int i = f + 1; i < last; i++) { /* Thomas' forward elimination */
+		double hl = s[i] - s[i - 1], hr = s[i + 1] - s[i];
+		double piv = 2.0 * (hl + hr) - hl * c[i - 1];
+		c[i] = hr / piv;
+		for (int k = 0; k < n; k++) {
+			double r =
+			    6.0 * ((p[i + 1][k] - p[i][k]) / hr - (p[i][k] - p[i - 1][k]) / hl);
+			m[i][k] = (r - hl * m[i - 1][k]) / piv;
+		}
+	}
+	for (int k = 0; k < n; k++) {
+		m[last][k] = 0.0; /* natural at the last knot */
+	}
+	for (int i = last - 1; i >= f; i--) { /* back substitution */
+		for (int k = 0; k < n; k++) {
+			m[i][k] -= c[i] * m[i + 1][k];
+		}
+	}
+}
+
 int mlip_path_fit(int n, const double pts[][MLIP_MAX_AXES], int count, double *s,
                   double (*p)[MLIP_MAX_AXES], double (*m)[MLIP_MAX_AXES],
                   double (*b)[MLIP_MAX_AXES], double (*t3)[MLIP_MAX_AXES], double *c,
@@ -166,23 +189,8 @@ int mlip_path_fit(int n, const double pts[][MLIP_MAX_AXES], int count, double *s
 	c[0] = 0.0;
 	for (int k = 0; k < n; k++) {
 		m[0][k] = 0.0;
-		m[last][k] = 0.0;
 	}
-	for (int i = 1; i < last; i++) {
-		double hl = s[i] - s[i - 1], hr = s[i + 1] - s[i];
-		double piv = 2.0 * (hl + hr) - hl * c[i - 1];
-		c[i] = hr / piv;
-		for (int k = 0; k < n; k++) {
-			double r =
-			    6.0 * ((p[i + 1][k] - p[i][k]) / hr - (p[i][k] - p[i - 1][k]) / hl);
-			m[i][k] = (r - hl * m[i - 1][k]) / piv;
-		}
-	}
-	for (int i = last - 1; i >= 1; i--) { /* back substitution */
-		for (int k = 0; k < n; k++) {
-			m[i][k] -= c[i] * m[i + 1][k];
-		}
-	}
+	mlip_path_tridiag(n, s, (const double(*)[MLIP_MAX_AXES])p, c, m, 0, last);
 	/* each piece's cubic p + b u + m0 u^2 / 2 + t3 u^3 / 6 (u from its start) */
 	for (int i = 0; i < last; i++) {
 		double h = s[i + 1] - s[i];

@@ -504,6 +504,84 @@ static void test_plan_short_line(void **state)
 	plan_curve_lim(&cv, 1e5, &lim, &policies);
 }
 
+/* The plan from rest at s0 on cv to its end: each move from rest leaves
+ * it, the end is reached at rest; the worst jerk / J and acceleration / A
+ * of its samples (third and second differences) in *wj, *wa. */
+static void plan_from(const struct mlip_path_curve *cv, const struct mlip_path_limits *lim,
+                      double s0, double *wj, double *wa)
+{
+	static double x[20000][MLIP_MAX_AXES];
+	double end = cv->s[cv->count - 1], T = lim->period;
+	struct mlip_path_state st = {s0, 0.0, 0.0, 1, 0};
+	struct mlip_path_point d;
+	long work = 0;
+	int n = 0;
+	at_s(cv, st.s, x[n++], &d);
+	while (n < 20000 && !(st.v == 0.0 && st.a == 0.0 && end - st.s <= 1e-8)) {
+		struct mlip_path_state was = st;
+		int r = mlip_path_plan_period(cv, lim, &st, end, 3000, &work);
+		assert_true(r >= 0);
+		if (was.v == 0.0 && was.a == 0.0 && r == 1) {
+			assert_true(st.s > was.s); /* a move from rest moves */
+		}
+		at_s(cv, st.s, x[n++], &d);
+	}
+	assert_true(fabs(end - st.s) <= 1e-8); /* at rest at the end */
+	assert_true(st.v == 0.0 && st.a == 0.0);
+	for (int i = 3; i < n; i++) {
+		for (int k = 0; k < lim->n; k++) {
+			double j3 =
+			    (x[i][k] - 3.0 * x[i - 1][k] + 3.0 * x[i - 2][k] - x[i - 3][k]) /
+			    (T * T * T);
+			double a2 = (x[i][k] - 2.0 * x[i - 1][k] + x[i - 2][k]) / (T * T);
+			*wj = fmax(*wj, fabs(j3) / (lim->jerk[k] / 0.95));
+			*wa = fmax(*wa, fabs(a2) / (lim->accel[k] / 0.98));
+		}
+	}
+}
+
+/* A near-cusp, as the random zigzag (seed 1) has at 118.6 mm: smooth's
+ * setpoints into a vertex and out of it at y'' -1000 mm/s^2 (y's speed 0
+ * at the vertex, 0.68 of a period after sample 8), along x = 0.4738 y in
+ * and x = -0.2665 y out, so the spline's pieces there are of 0.2-0.9 um
+ * (x''' up to 2.6e7). At rest 0.12 um past the short piece the first jerk
+ * the plan tried from rest (its largest, halved once) let only [-194514,
+ * 3.8e-5] over its own step; pick_at clamped to 3.8e-5, whose step ends
+ * at rest (REST_V, REST_A): a move that stayed, for ever. From rest at
+ * points around the vertex the plan must move and reach the end at rest,
+ * within J and A. */
+static void test_plan_from_rest_at_cusp(void **state)
+{
+	(void)state;
+	enum { N = 22 };
+	static double pts[N][MLIP_MAX_AXES], s[N], p[N][MLIP_MAX_AXES], m[N][MLIP_MAX_AXES],
+	    b[N][MLIP_MAX_AXES], t3[N][MLIP_MAX_AXES], c[N];
+	const double tv = 8.678822303;
+	for (int k = 0; k < N; k++) {
+		double y = -0.0005 * (k - tv) * (k - tv);
+		pts[k][0] = (k < tv ? 0.473804100 : -0.266534653) * y;
+		pts[k][1] = y;
+	}
+	struct mlip_path_curve cv;
+	assert_int_equal(
+	    mlip_path_fit(2, (const double(*)[MLIP_MAX_AXES])pts, N, s, p, m, b, t3, c, &cv), 0);
+	struct mlip_path_limits lim;
+	limits(&lim, 1e5);
+	lim.n = 2;
+	lim.a_brake[0] = 900.0; /* the benchmark's policies */
+	lim.a_brake[1] = 300.0;
+	lim.n_brake = 2;
+	double wj = 0.0, wa = 0.0;
+	for (int q = -40; q <= 40; q++) {
+		plan_from(&cv, &lim, s[9] + q * 0.01e-3, &wj, &wa);
+	}
+	print_message("cusp: pieces %.2g, %.2g um; jerk %.3f J, accel %.3f A\n",
+	              (s[9] - s[8]) * 1e3, (s[10] - s[9]) * 1e3, wj, wa);
+	assert_true(wj <= 1.0);
+	assert_true(wj >= 0.5); /* it moved under the limit, not at a creep */
+	assert_true(wa <= 1.0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -516,6 +594,7 @@ int main(void)
 	    cmocka_unit_test(test_plan_helix_two_policies),
 	    cmocka_unit_test(test_plan_hook),
 	    cmocka_unit_test(test_plan_short_line),
+	    cmocka_unit_test(test_plan_from_rest_at_cusp),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -120,8 +120,9 @@ int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path
  * policy (the rest of its certified run). 1 when it moved faster than
  * braking, 0 when it braked, -1 when the policy had no jerk (st was not
  * certified). At rest the candidates are the start's largest jerk halved
- * up to 40 times (near the end only a small move stops before it), so
- * the plan reaches `end` at rest itself; within 1e-8 of it, it stays. */
+ * up to 40 times (near the end only a small move stops before it; one
+ * whose step ends at rest again is no move), so the plan reaches `end`
+ * at rest itself; within 1e-8 of it, it stays. */
 int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                           struct mlip_path_state *st, double end, int max_periods, long *work);
 

@@ -154,6 +154,12 @@ struct mlip_path_curve {
 /* The view of sp. */
 void mlip_path_spline_curve(const struct mlip_path_spline *sp, struct mlip_path_curve *cv);
 
+/* (P5)'s tridiagonal system by Thomas' algorithm over knots f..last, row
+ * f already in c[f] and m[f] (the caller's end condition), natural (M = 0)
+ * at `last`: forward elimination, then back substitution into m. */
+void mlip_path_tridiag(int n, const double *s, const double p[][MLIP_MAX_AXES], double *c,
+                       double (*m)[MLIP_MAX_AXES], int f, int last);
+
 /* (P5) over the caller's arrays of count entries each (count >= 2; c is
  * scratch): what mlip_path_spline_fit does for its window, for a curve of
  * any length (the benchmarks fit a whole program's `smooth` output);
