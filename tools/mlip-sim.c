@@ -55,8 +55,10 @@ static void usage(FILE *f)
 	    "  --jerk-plan mean|path how the jerk limit is kept: mean (default), the moving\n"
 	    "                        mean of the setpoints; path, smooth's setpoints without\n"
 	    "                        it re-timed along a spline by the path-speed plan\n"
-	    "                        (mlip/motion/pathrun.h; --strategy smooth and --feed,\n"
-	    "                        no override, pause or dwell)\n"
+	    "                        (mlip/motion/pathrun.h; --strategy smooth, no override;\n"
+	    "                        refused before anything moves: events at rest (G4, M0,\n"
+	    "                        M1, M3..M9, M62..M65, G38), G61, and without --feed a\n"
+	    "                        G0 or a second F). Default: [TRAJ] JERK_PLAN\n"
 	    "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	    "  --eps MM              contour tolerance (default 0.01 without --config)\n"
 	    "  --period S            interpolation period T (default 0.001)\n"
@@ -248,7 +250,7 @@ struct options {
 	long long storm_seed;
 	unsigned long lookahead;
 	int quiet, notes, optional_stop, save_offsets;
-	int jerk_plan; /* 1: --jerk-plan path */
+	int jerk_plan; /* 1: path (--jerk-plan, else [TRAJ] JERK_PLAN); -1 not given */
 };
 
 /* 0, or the exit status (-1: --help, exit 0). */
@@ -284,6 +286,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 	o->override = 100.0;
 	o->storm_seed = -1;
 	o->notes = 1;
+	o->jerk_plan = -1;
 	while ((c = getopt_long(argc, argv, "qh", opts, NULL)) != -1) {
 		double v;
 		int g = mlip_cli_gcode_option(c, optarg, &o->mo, PROG, stderr);
@@ -404,14 +407,6 @@ static int parse_options(int argc, char **argv, struct options *o)
 		fprintf(stderr, PROG ": --override: %g is above 200 %%\n", o->override);
 		return 2;
 	}
-	if (o->jerk_plan && (o->strategy != MLIP_STRATEGY_SMOOTH || !(o->feed > 0.0) ||
-	                     o->override != 100.0 || o->storm_seed >= 0 || o->probe_surface)) {
-		/* the plan re-times smooth's path under one speed cap; an
-		 * override or a probe would change the motion it does not see */
-		fprintf(stderr, PROG ": --jerk-plan path needs --strategy smooth and --feed, and "
-		                     "takes no --override, --storm or --probe-surface (yet)\n");
-		return 2;
-	}
 	if (o->save_offsets && o->mo.offsets == NULL) {
 		fprintf(stderr, PROG ": --save-offsets needs --offsets FILE\n");
 		return 2;
@@ -461,17 +456,41 @@ static void close_trace(struct sim *s)
 }
 
 /* 0, or the exit status. */
-static int set_up(const struct options *o, struct sim *s)
+static int set_up(struct options *o, struct sim *s)
 {
 	/* the whole program is checked before anything moves, then streamed */
 	if (mlip_cli_open_program(o->path, &o->mo, &s->cfg, &s->prog, PROG, stderr) != 0) {
 		return 1;
 	}
 	const struct mlip_machine *m = &s->cfg.machine, *cm = m; /* cm: the controller's */
+	int from_cfg = o->jerk_plan < 0; /* --jerk-plan overrides the machine's */
+	if (from_cfg) {
+		o->jerk_plan = s->cfg.jerk_plan == MLIP_JERK_PLAN_PATH;
+	}
 	if (o->jerk_plan) {
 		const char *why = NULL;
-		if (mlip_simpath_limits(m, o->feed, &s->plim, &s->band_mm, &why) != 0) {
-			fprintf(stderr, PROG ": --jerk-plan path: %s\n", why);
+		char how[600] = "--jerk-plan path";
+		double feed;
+		if (from_cfg) {
+			snprintf(how, sizeof(how), "%s:%u: JERK_PLAN = path", o->mo.config,
+			         (unsigned)s->cfg.jerk_plan_line);
+		}
+		if (o->strategy != MLIP_STRATEGY_SMOOTH || o->override != 100.0 ||
+		    o->storm_seed >= 0 || o->probe_surface) {
+			/* the plan re-times smooth's path under one speed cap; an
+			 * override or a probe would change the motion it does not see */
+			fprintf(stderr,
+			        PROG ": %s needs --strategy smooth, and takes no --override, "
+			             "--storm or --probe-surface (yet)\n",
+			        how);
+			return 2;
+		}
+		if (mlip_simpath_prescan(&s->prog, o->feed, &feed, PROG, o->path, how, stderr) !=
+		    0) {
+			return 2;
+		}
+		if (mlip_simpath_limits(m, feed, &s->plim, &s->band_mm, &why) != 0) {
+			fprintf(stderr, PROG ": %s: %s\n", how, why);
 			return 2;
 		}
 		s->plan_m = *m;

@@ -104,6 +104,16 @@ int mlip_pathrun_finish(struct mlip_pathrun *pr);
  * the plan left its certified states, or it stopped short of the end). */
 int mlip_pathrun_step(struct mlip_pathrun *pr, double *x);
 
+/* What the plan cannot run yet, asked of each block of a program before
+ * anything moves (mlip-sim, mlip-feed with [TRAJ] JERK_PLAN = path): it
+ * re-times one path from rest to rest under one speed cap, so an event
+ * taken at rest (a dwell, M0/M1, spindle, tool, coolant, output, probe),
+ * an exact stop (G61) and, unless the caller replaces every feed (feed
+ * NULL: mlip-sim --feed), a rapid or a second feed are refused. NULL: b is
+ * taken; else why (a phrase for "LINE: ..."). *feed: 0 before the first
+ * move, then the program's one feed (mm/s). */
+const char *mlip_pathrun_refusal(const struct mlip_block *b, double *feed);
+
 /* The fixed pieces as the plan reads them (count = fixed + 1 knots). */
 void mlip_pathrun_curve(const struct mlip_pathrun *pr, struct mlip_path_curve *cv);
 
