@@ -14,8 +14,9 @@
  * runs on a 1 ms clock (clock_nanosleep, SCHED_OTHER: no real-time claim)
  * and a dry queue brakes, as mlip-rt's period would. Prints JSON: periods,
  * the planning thread's CPU per planned period (median, p99, max, us:
- * CLOCK_THREAD_CPUTIME_ID from one entry to the next, the controller
- * periods and pushes before it included), the queue's low-water mark after
+ * CLOCK_THREAD_CPUTIME_ID around mlip_planfeed_work, the controller
+ * periods and pushes before the entry included; the program's reading and
+ * smoothing, mlip-feed's share in mlip-rt, not), the queue's low-water mark after
  * its first fill, brakes and starvings.
  */
 #include <errno.h>
@@ -69,7 +70,7 @@ static void *producer(void *arg)
 	struct mlip_block_iter it = *(struct mlip_block_iter *)arg;
 	uint64_t seq = 0;
 	int in_done = 0;
-	double t0 = thread_cpu_us();
+	double acc = 0.0; /* the work's CPU since the last planned period */
 	for (;;) {
 		while (!in_done && mlip_planfeed_room(&pf) > 0) {
 			struct mlip_block b;
@@ -88,11 +89,12 @@ static void *producer(void *arg)
 			mlip_planfeed_offer(&pf, &rec);
 		}
 		uint64_t before = pf.planned;
+		double w0 = thread_cpu_us();
 		int r = mlip_planfeed_work(&pf);
+		acc += thread_cpu_us() - w0;
 		if (pf.planned != before && n_cpu < MAX_SAMPLES) {
-			double t = thread_cpu_us();
-			cpu_us[n_cpu++] = (float)(t - t0);
-			t0 = t;
+			cpu_us[n_cpu++] = (float)acc;
+			acc = 0.0;
 		}
 		if (r < 0 || r == 2) {
 			producer_rc = r;
