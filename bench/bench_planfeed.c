@@ -194,7 +194,7 @@ int main(int argc, char **argv)
 	long period_ns = (long)(m->period_s * 1e9 + 0.5), k = 0, brakes = 0;
 	uint32_t low = MLIP_PLANQ_LEN, filled = 0;
 	int mode = MLIP_PLANQ_WAIT;
-	while (mode != MLIP_PLANQ_DONE && pf.started) {
+	while (mode != MLIP_PLANQ_DONE && __atomic_load_n(&pf.started, __ATOMIC_ACQUIRE)) {
 		if (paced) {
 			sleep_until(&clk, period_ns);
 		} else {
@@ -205,8 +205,8 @@ int main(int argc, char **argv)
 		}
 		uint32_t fill = __atomic_load_n(&queue.head, __ATOMIC_ACQUIRE) - queue.tail;
 		filled |= fill == MLIP_PLANQ_LEN;
-		if (filled && !queue.p_done && fill < low) {
-			low = fill; /* the producer's p_done is read racily: a figure only */
+		if (filled && !__atomic_load_n(&producer_done, __ATOMIC_ACQUIRE) && fill < low) {
+			low = fill; /* until the last entry is queued (the queue then drains) */
 		}
 		mode = mlip_planq_step(&queue, 0, x);
 		if (mode < 0 || (!paced && mode == MLIP_PLANQ_BRAKE)) {
