@@ -139,12 +139,19 @@ purity: $(BUILD)/libmlip.a $(PURE_BINS)
 # TSan's shadow memory must not be locked).
 tsan:
 	@$(MAKE) --no-print-directory BUILD=build-tsan OPT=-O1 SAN="-fsanitize=thread" \
-		build-tsan/tests/test_ring build-tsan/mlip-latency
+		build-tsan/tests/test_ring build-tsan/tests/test_planq build-tsan/mlip-latency \
+		build-tsan/bench_planfeed
 	TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/tests/test_ring
+	TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/tests/test_planq
+	@sed -e 's/^\[TRAJ\]$$/[TRAJ]\nJERK_PLAN = path/' -e 's/^\(\[AXIS_.\]\)$$/\1\nMAX_JERK = 100000/' \
+		config/mill-3axis.ini > build-tsan/planfeed.ini
+	@printf 'G21 G90\nG1 F12000\nG1 X20\nG1 Y20\nG1 X0\nG1 Y0\n' > build-tsan/planfeed.ngc
+	TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/bench_planfeed --paced \
+		--config build-tsan/planfeed.ini build-tsan/planfeed.ngc >/dev/null
 	@TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/mlip-latency --plan examples/demo.ngc \
 		-D 3 -p 0 --no-mlockall -q >/dev/null 2>build-tsan/latency.err || \
 		{ cat build-tsan/latency.err; exit 1; }
-	@echo "tsan: no data race in the ring tests or the controller/feeder threads"
+	@echo "tsan: no data race in the ring and planned-queue tests, the planning thread or the controller/feeder threads"
 
 # The main job on its bundled default: examples/demo.ngc on the 3-axis mill.
 # demo, run and bench install what they need first, as test does.

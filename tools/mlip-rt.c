@@ -704,6 +704,16 @@ static int set_up(const struct options *o, struct app *a)
 	if (mlip_config_load(o->config, &a->cfg, stderr) != 0) {
 		return 1;
 	}
+	if (a->cfg.jerk_plan == MLIP_JERK_PLAN_PATH) {
+		/* the path plan runs in mlip-sim; its planning thread and queue
+		 * (mlip/motion/planq.h) are not wired here yet: refused rather
+		 * than run with the mean (a motion the file did not ask for) */
+		fprintf(stderr,
+		        PROG ": %s:%u: JERK_PLAN = path is not supported by mlip-rt yet "
+		             "(mlip-sim runs it); use mean\n",
+		        o->config, (unsigned)a->cfg.jerk_plan_line);
+		return 2;
+	}
 	const char *warn = mlip_io_probe_warning(&a->cfg.inputs);
 	if (warn != NULL) {
 		fprintf(stderr, PROG ": %s: warning: %s\n", o->config, warn);

@@ -61,9 +61,12 @@ static void usage(FILE *f)
 	    "                        (default), the moving mean of the setpoints; path,\n"
 	    "                        smooth's setpoints without it re-timed along a spline\n"
 	    "                        by the path-speed plan (mlip/motion/pathrun.h;\n"
-	    "                        --strategy smooth and --feed, no override, pause or\n"
-	    "                        dwell); path-mean, the mean's setpoints re-timed so;\n"
-	    "                        auto, whichever of the three ends the program soonest\n"
+	    "                        --strategy smooth, no override; refused before\n"
+	    "                        anything moves: events at rest (G4, M0, M1, M3..M9,\n"
+	    "                        M62..M65, G38), G61, and without --feed a G0 or a\n"
+	    "                        second F); path-mean, the mean's setpoints re-timed\n"
+	    "                        so; auto, whichever of the three ends the program\n"
+	    "                        soonest. Default: [TRAJ] JERK_PLAN (mean or path)\n"
 	    "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	    "  --eps MM              contour tolerance (default 0.01 without --config)\n"
 	    "  --period S            interpolation period T (default 0.001)\n"
@@ -107,15 +110,17 @@ struct options {
 	long long storm_seed;
 	unsigned long lookahead;
 	int quiet, notes, optional_stop, save_offsets;
-	int jerk_plan; /* JERK_MEAN, JERK_PATH, JERK_PATH_MEAN, JERK_AUTO */
+	int jerk_plan; /* JERK_MEAN, JERK_PATH, JERK_PATH_MEAN, JERK_AUTO; -1: not given
+	                * (then [TRAJ] JERK_PLAN) */
 };
 
-/* The path plan re-times smooth's path under one speed cap; an override
- * or a probe would change the motion it does not see. */
+/* The path plan re-times smooth's path under one speed cap (--feed, else
+ * the program's one F); an override or a probe would change the motion it
+ * does not see. */
 static int path_runs(const struct options *o)
 {
-	return o->strategy == MLIP_STRATEGY_SMOOTH && o->feed > 0.0 && o->override == 100.0 &&
-	       o->storm_seed < 0 && !o->probe_surface;
+	return o->strategy == MLIP_STRATEGY_SMOOTH && o->override == 100.0 && o->storm_seed < 0 &&
+	       !o->probe_surface;
 }
 
 /* --jerk-plan path or path-mean: the path plan re-times the controller's
@@ -158,6 +163,7 @@ static int parse_options(int argc, char **argv, struct options *o)
 	o->override = 100.0;
 	o->storm_seed = -1;
 	o->notes = 1;
+	o->jerk_plan = -1;
 	while ((c = getopt_long(argc, argv, "qh", opts, NULL)) != -1) {
 		double v;
 		int g = mlip_cli_gcode_option(c, optarg, &o->mo, PROG, stderr);
@@ -285,12 +291,6 @@ static int parse_options(int argc, char **argv, struct options *o)
 		fprintf(stderr, PROG ": --override: %g is above 200 %%\n", o->override);
 		return 2;
 	}
-	if (plans(o) && !path_runs(o)) {
-		fprintf(stderr, PROG
-		        ": --jerk-plan path and path-mean need --strategy smooth and --feed, and "
-		        "take no --override, --storm or --probe-surface (yet)\n");
-		return 2;
-	}
 	if (o->save_offsets && o->mo.offsets == NULL) {
 		fprintf(stderr, PROG ": --save-offsets needs --offsets FILE\n");
 		return 2;
@@ -344,7 +344,7 @@ static void close_trace(struct sim *s)
 }
 
 /* 0, or the exit status. */
-static int set_up(const struct options *o, struct sim *s)
+static int set_up(struct options *o, struct sim *s)
 {
 	/* the whole program is checked before anything moves, then streamed */
 	if (mlip_cli_open_program(o->path, &o->mo, &s->cfg, &s->prog, PROG, stderr) != 0) {
@@ -352,10 +352,32 @@ static int set_up(const struct options *o, struct sim *s)
 	}
 	const struct mlip_machine *m = &s->cfg.machine, *cm = m; /* cm: the controller's */
 	s->err = s->err != NULL ? s->err : stderr;
+	int from_cfg = o->jerk_plan < 0; /* --jerk-plan overrides the machine's */
+	if (from_cfg) {
+		o->jerk_plan = s->cfg.jerk_plan == MLIP_JERK_PLAN_PATH ? JERK_PATH : JERK_MEAN;
+	}
 	if (plans(o)) {
 		const char *why = NULL;
-		if (mlip_simpath_limits(m, o->feed, &s->plim, &s->band_mm, &why) != 0) {
-			fprintf(stderr, PROG ": --jerk-plan path: %s\n", why);
+		char how[600];
+		double feed;
+		snprintf(how, sizeof(how), "--jerk-plan %s", plan_name[o->jerk_plan]);
+		if (from_cfg) {
+			snprintf(how, sizeof(how), "%s:%u: JERK_PLAN = path", o->mo.config,
+			         (unsigned)s->cfg.jerk_plan_line);
+		}
+		if (!path_runs(o)) {
+			fprintf(s->err,
+			        PROG ": %s needs --strategy smooth, and takes no --override, "
+			             "--storm or --probe-surface (yet)\n",
+			        how);
+			return 2;
+		}
+		if (mlip_simpath_prescan(&s->prog, o->feed, &feed, PROG, o->path, how, s->err) !=
+		    0) {
+			return 2;
+		}
+		if (mlip_simpath_limits(m, feed, &s->plim, &s->band_mm, &why) != 0) {
+			fprintf(s->err, PROG ": %s: %s\n", how, why);
 			return 2;
 		}
 		s->plan_m = *m; /* path: smooth without J; path-mean: with the mean */
@@ -858,6 +880,8 @@ static int choose(struct options *o, struct sim *s)
 	}
 	s->auto_rows[JERK_MEAN] = best;
 	o->jerk_plan = JERK_MEAN;
+	/* without --feed the cap is the program's one F: a scout's prescan
+	 * refuses a program that has none */
 	int cand =
 	    path_runs(o) && mlip_simpath_limits(&sc.cfg.machine, o->feed, &lim, &band, &why) == 0;
 	for (int i = 0; i < 2; i++) {

@@ -381,6 +381,19 @@ static mlip_status parse_value(struct pstate *ps, int sec, int k, const char *v,
 		}
 		st->ival[k] = 1;
 		return MLIP_OK;
+	case V_JPLAN:
+		i = tok_is(v, nv, "mean")   ? MLIP_JERK_PLAN_MEAN
+		    : tok_is(v, nv, "path") ? MLIP_JERK_PLAN_PATH
+		                            : -1;
+		if (i < 0) {
+			err_at(err, &b, line, col);
+			mlip_tb_puts(&b, "JERK_PLAN must be mean or path, got '");
+			mlip_tb_token(&b, v, nv);
+			mlip_tb_putc(&b, '\'');
+			return MLIP_E_SYNTAX;
+		}
+		st->ival[k] = i;
+		return MLIP_OK;
 	case V_PSOURCE:
 		i = tok_is(v, nv, "io")      ? MLIP_PROBE_SRC_IO
 		    : tok_is(v, nv, "drive") ? MLIP_PROBE_SRC_DRIVE
@@ -728,6 +741,32 @@ static void fill_machine(const struct pstate *ps, struct mlip_config *c)
 	if (has(ps, SEC_TRAJ, TK_LOOKAHEAD)) {
 		c->lookahead = (uint32_t)tr->ival[TK_LOOKAHEAD];
 	}
+	if (has(ps, SEC_TRAJ, TK_JERK_PLAN)) {
+		c->jerk_plan = (uint8_t)tr->ival[TK_JERK_PLAN];
+		c->jerk_plan_line = tr->key[TK_JERK_PLAN].line;
+	}
+}
+
+/* JERK_PLAN = path plans with every axis's jerk limit: one without is
+ * refused at the key. */
+static mlip_status check_jerk_plan(const struct pstate *ps, const struct mlip_config *c,
+                                   struct mlip_config_error *err)
+{
+	struct mlip_tb b;
+	if (c->jerk_plan != MLIP_JERK_PLAN_PATH) {
+		return MLIP_OK;
+	}
+	for (int i = 0; i < c->machine.n_axes; i++) {
+		if (!(c->machine.axis[i].max_jerk > 0.0)) {
+			err_at(err, &b, 0, 0);
+			mlip_tb_puts(&b, "JERK_PLAN = path needs MAX_JERK on every axis; [AXIS_");
+			mlip_tb_putc(&b, c->machine.axis[i].letter);
+			mlip_tb_puts(&b, "] has none");
+			mlip_mc_place(ps, err, SEC_TRAJ, TK_JERK_PLAN, -1, 0, -1, 0);
+			return MLIP_E_RANGE;
+		}
+	}
+	return MLIP_OK;
 }
 
 static void fill_can(const struct pstate *ps, struct mlip_can_config *can)
@@ -899,6 +938,9 @@ mlip_status mlip_config_parse(struct mlip_config *c, const char *text, size_t le
 		return st;
 	}
 	st = check_can(&ps, &out, err);
+	if (st == MLIP_OK) {
+		st = check_jerk_plan(&ps, &out, err);
+	}
 	if (st == MLIP_OK) {
 		st = mlip_mc_check_drives(&ps, &out, err);
 	}

@@ -43,7 +43,7 @@ enum {
 };
 enum { K_TRAJ, K_AXIS, K_CAN, K_DRIVES, K_SPINDLE, K_TOOL, K_COOLANT, K_IO, K_PROBE, N_KINDS };
 
-enum { TK_COORDS, TK_VLIN, TK_VANG, TK_TOL, TK_PERIOD, TK_LUNITS, TK_AUNITS, TK_LOOKAHEAD };
+enum { TK_COORDS, TK_VLIN, TK_VANG, TK_TOL, TK_PERIOD, TK_LUNITS, TK_AUNITS, TK_LOOKAHEAD, TK_JERK_PLAN };
 enum {
 	AK_TYPE,
 	AK_VEL,
@@ -131,7 +131,8 @@ enum vtype {
 	V_COOLANT,   /* none | manual | io ([COOLANT] TYPE; outputs.c) */
 	V_OUTBIT,    /* NODE 0x6200:SUB BIT [HIGH] (outputs.c) */
 	V_PSOURCE,   /* io | drive ([PROBE] SOURCE) */
-	V_LINPUTS    /* drive ([AXIS_L] LIMIT_INPUTS) */
+	V_LINPUTS,   /* drive ([AXIS_L] LIMIT_INPUTS) */
+	V_JPLAN      /* mean | path ([TRAJ] JERK_PLAN) */
 };
 
 struct keydef {

@@ -390,6 +390,22 @@ int mlip_path_brake(const struct mlip_path_curve *sp, const struct mlip_path_lim
 	return brake_at(sp, lim, &a, NAN, j, &next);
 }
 
+int mlip_path_brake_step(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                         struct mlip_path_state *st, double *j)
+{
+	struct at a, next;
+	double jj;
+	at_make(sp, lim, &a, *st, 0);
+	if (!brake_at(sp, lim, &a, NAN, &jj, &next)) {
+		return 0;
+	}
+	*st = next.st;
+	if (j) {
+		*j = jj;
+	}
+	return 1;
+}
+
 /* Within the speed cap, (P1) (its interval's low end in *alo), a non-empty
  * (P2) interval, before the end. */
 static int inside(const struct mlip_path_limits *lim, const struct at *a, double end, double *alo)

@@ -44,6 +44,7 @@ int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *li
 	memcpy(pr->last_in, start, sizeof(double) * (size_t)n);
 	pr->count = 1;
 	pr->peak_count = 1;
+	pr->keep_s = INFINITY;
 	return 0;
 }
 
@@ -105,7 +106,9 @@ static int compact(struct mlip_pathrun *pr)
 {
 	struct mlip_path_curve cv;
 	mlip_pathrun_curve(pr, &cv);
-	int i = pr->fixed > 0 ? mlip_path_spline_piece(&cv, pr->st.s, pr->hint) : 0;
+	/* keep_s: a planned queue's consumer may still brake there (planq.h) */
+	double from = pr->st.s < pr->keep_s ? pr->st.s : pr->keep_s;
+	int i = pr->fixed > 0 ? mlip_path_spline_piece(&cv, from, pr->hint) : 0;
 	if (i < MLIP_PATHRUN_CAP / 4) {
 		return 0;
 	}
@@ -227,4 +230,38 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
 	pr->hint = mlip_path_spline_piece(&cv, st.s, pr->hint);
 	mlip_path_spline_eval_piece(&cv, pr->hint, st.s, x, &d);
 	return 1;
+}
+
+const char *mlip_pathrun_refusal(const struct mlip_block *b, double *feed)
+{
+	static const char *const at_rest[] = {
+	    [MLIP_BLOCK_DWELL] = "a dwell (G4)",
+	    [MLIP_BLOCK_PAUSE] = "a pause (M0/M60)",
+	    [MLIP_BLOCK_OPTIONAL_PAUSE] = "an optional pause (M1)",
+	    [MLIP_BLOCK_SPINDLE] = "a spindle change (M3/M4/M5, S)",
+	    [MLIP_BLOCK_TOOL] = "a tool change (M6)",
+	    [MLIP_BLOCK_COOLANT] = "a coolant change (M7/M8/M9)",
+	    [MLIP_BLOCK_OUTPUT] = "an output (M62..M65)",
+	    [MLIP_BLOCK_PROBE] = "a probe move (G38)",
+	    [MLIP_BLOCK_SPEED] = "a spindle speed (S)"};
+	if (b->kind != MLIP_BLOCK_MOVE) {
+		return b->kind < sizeof(at_rest) / sizeof(at_rest[0]) && at_rest[b->kind]
+		           ? at_rest[b->kind]
+		           : "an event the plan does not know";
+	}
+	if (b->exact_stop) {
+		return "an exact stop (G61)";
+	}
+	if (feed == NULL) {
+		return NULL; /* the caller runs every move at its own feed */
+	}
+	if (b->rapid) {
+		return "a rapid (G0 runs at the machine's maximum feed; the plan runs one feed)";
+	}
+	if (*feed == 0.0) {
+		*feed = b->feed_mm_s;
+	} else if (b->feed_mm_s != *feed) {
+		return "a second feed (the plan runs the program's first F under one speed cap)";
+	}
+	return NULL;
 }

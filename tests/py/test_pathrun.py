@@ -115,3 +115,103 @@ def test_square_corners(tmp_path, jerk):
     assert_jerk_physics(s)
     assert s["path_max_sag_mm"] <= s["path_band_mm"]
     assert 80 / 200 < s["total_time_s"] < 10
+
+
+# -- [TRAJ] JERK_PLAN: the machine file asks for the plan (mlip-rt reads the
+#    same file); --jerk-plan overrides it
+
+MACHINE = """[TRAJ]
+COORDINATES = X Y
+MAX_LINEAR_VELOCITY = 200
+CONTOUR_TOLERANCE = 0.01
+{plan}
+[AXIS_X]
+MAX_VELOCITY = 200
+MAX_ACCELERATION = 1000
+MAX_JERK = 100000
+[AXIS_Y]
+MAX_VELOCITY = 200
+MAX_ACCELERATION = 1000
+MAX_JERK = 100000
+"""
+SQUARE = "G21 G90\nG1 F12000\nG1 X20\nG1 Y20\nG1 X0\nG1 Y0\n"
+
+
+def run_sim(*args):
+    return subprocess.run([str(BUILD / "mlip-sim"), "-q", *map(str, args)], capture_output=True,
+                          text=True, timeout=120)
+
+
+def machine(tmp_path, plan):
+    f = tmp_path / f"m-{plan or 'none'}.ini"
+    f.write_text(MACHINE.format(plan=f"JERK_PLAN = {plan}" if plan else ""))
+    return f
+
+
+def test_config_key_is_the_option(tmp_path):
+    """JERK_PLAN = path runs the plan as --jerk-plan path does, byte for
+    byte; --jerk-plan mean overrides it back to the mean (as the machine
+    without the key); a program with one F runs under that feed as
+    --feed does."""
+    sq = tmp_path / "square.ngc"
+    sq.write_text(SQUARE)
+    traces = {}
+    for label, cfg, extra in [("key", "path", []), ("option", None, ["--jerk-plan", "path"]),
+                              ("feed", "path", ["--feed", "200"]),
+                              ("override", "path", ["--jerk-plan", "mean"]),
+                              ("mean", None, []), ("mean-key", "mean", [])]:
+        t = tmp_path / f"{label}.csv"
+        p = run_sim("--config", machine(tmp_path, cfg), "--strategy", "smooth", *extra,
+                    "--trace", t, sq)
+        assert p.returncode == 0, (label, p.stderr)
+        traces[label] = t.read_bytes()
+    assert traces["key"] == traces["option"] == traces["feed"]
+    assert traces["override"] == traces["mean"] == traces["mean-key"] != traces["key"]
+
+
+@pytest.mark.parametrize("body,line,what", [
+    ("G1 X20\nG4 P0.5\nG1 Y20\n", 4, "a dwell (G4)"),
+    ("G1 X20\nM0\nG1 Y20\n", 4, "a pause (M0/M60)"),
+    ("G1 X20\nM1\nG1 Y20\n", 4, "an optional pause (M1)"),
+    ("G1 X20\nG61\nG1 Y20\nG1 X0\n", 5, "an exact stop (G61)"),
+    ("G1 X20\nG0 Y20\n", 4, "a rapid (G0"),
+    ("G1 X20\nG1 Y20 F6000\n", 4, "a second feed"),
+])
+def test_what_the_plan_cannot_run_is_refused(tmp_path, body, line, what):
+    """Refused before anything moves (no trace row written), naming the
+    line and what asked for the plan: the key (file:line) or the option."""
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90\nG1 F12000\n" + body)
+    for cfg, extra, how in [("path", [], "m-path.ini:5: JERK_PLAN = path"),
+                            (None, ["--jerk-plan", "path"], "--jerk-plan path")]:
+        t = tmp_path / "t.csv"
+        p = run_sim("--config", machine(tmp_path, cfg), "--strategy", "smooth", *extra,
+                    "--trace", t, prog)
+        assert p.returncode == 2, p.stderr
+        assert f"p.ngc:{line}: {what}" in p.stderr and "cannot run it yet (" in p.stderr \
+            and f"{how})" in p.stderr, p.stderr
+        assert not t.exists() or t.read_text() == ""
+    # the mean runs it
+    p = run_sim("--config", machine(tmp_path, None), "--strategy", "smooth", prog)
+    assert p.returncode == 0, p.stderr
+
+
+def test_config_key_refused_without_jerk(tmp_path):
+    """JERK_PLAN = path on a machine without MAX_JERK on an axis: the file
+    is refused at the key's line, by mlip-sim and mlip-rt alike; mlip-rt,
+    which cannot run the plan yet, refuses a good one too (rather than run
+    the mean the file did not ask for)."""
+    bad = tmp_path / "bad.ini"
+    bad.write_text(MACHINE.format(plan="JERK_PLAN = path").replace("MAX_JERK = 100000\n[AXIS_Y]",
+                                                                   "[AXIS_Y]"))
+    sq = tmp_path / "square.ngc"
+    sq.write_text(SQUARE)
+    p = run_sim("--config", bad, "--strategy", "smooth", sq)
+    assert p.returncode != 0 and "bad.ini:5" in p.stderr and \
+        "JERK_PLAN = path needs MAX_JERK on every axis; [AXIS_X] has none" in p.stderr, p.stderr
+    for cfg, msg in [(bad, "[AXIS_X] has none"),
+                     (machine(tmp_path, "path"), "JERK_PLAN = path is not supported by mlip-rt")]:
+        p = subprocess.run([str(BUILD / "mlip-rt"), "--config", str(cfg), "--can", "none",
+                            "--shm", f"/mlip-test-jp-{id(cfg)}"], capture_output=True, text=True,
+                           timeout=30)
+        assert p.returncode != 0 and msg in p.stderr and f"{cfg.name}:5" in p.stderr, p.stderr

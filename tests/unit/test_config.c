@@ -694,6 +694,24 @@ static void test_traj_ranges(void **state)
 	EXPECT(CFG(.traj = "LOOKAHEAD = 4096.0"), MLIP_E_SYNTAX, 5, 13,
 	       "malformed integer '4096.0' for LOOKAHEAD (decimal digits or 0x hex)");
 
+	/* JERK_PLAN: mean by default; path needs MAX_JERK on every axis */
+	EXPECT_OK(CFG(.traj = ""));
+	assert_int_equal(cfg.jerk_plan, MLIP_JERK_PLAN_MEAN);
+	assert_int_equal(cfg.jerk_plan_line, 0);
+	EXPECT_OK(CFG(.traj = "JERK_PLAN = mean"));
+	assert_int_equal(cfg.jerk_plan, MLIP_JERK_PLAN_MEAN);
+	EXPECT_OK(CFG(.traj = "JERK_PLAN = path", .x = "MAX_JERK = 1e5", .y = "MAX_JERK = 2e5"));
+	assert_int_equal(cfg.jerk_plan, MLIP_JERK_PLAN_PATH);
+	assert_int_equal(cfg.jerk_plan_line, 5);
+	EXPECT(CFG(.traj = "JERK_PLAN = path", .x = "MAX_JERK = 1e5"), MLIP_E_RANGE, 5, 1,
+	       "JERK_PLAN = path needs MAX_JERK on every axis; [AXIS_Y] has none");
+	EXPECT(CFG(.traj = "JERK_PLAN = path"), MLIP_E_RANGE, 5, 1,
+	       "JERK_PLAN = path needs MAX_JERK on every axis; [AXIS_X] has none");
+	EXPECT(CFG(.traj = "JERK_PLAN = fast"), MLIP_E_SYNTAX, 5, 13,
+	       "JERK_PLAN must be mean or path, got 'fast'");
+	EXPECT(CFG(.traj = "JERK_PLAN = Path"), MLIP_E_SYNTAX, 5, 13,
+	       "JERK_PLAN must be mean or path, got 'Path'");
+
 	EXPECT_OK(CFG(.traj = "LINEAR_UNITS = mm"));
 	EXPECT(CFG(.traj = "LINEAR_UNITS = inch"), MLIP_E_UNSUPPORTED, 5, 16,
 	       "LINEAR_UNITS inch is not supported: convert every length to mm (1 inch = 25.4 mm)");

@@ -35,6 +35,30 @@ int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_p
 	return 0;
 }
 
+int mlip_simpath_prescan(struct mlip_program *p, double fixed, double *feed, const char *prog,
+                         const char *file, const char *how, FILE *err)
+{
+	struct mlip_block b;
+	int r;
+	*feed = fixed > 0.0 ? fixed : 0.0;
+	mlip_program_rewind(p);
+	while ((r = mlip_program_next(p, &b)) > 0) {
+		const char *why = mlip_pathrun_refusal(&b, fixed > 0.0 ? NULL : feed);
+		if (why != NULL) {
+			fprintf(err, "%s: %s:%u: %s: the path plan cannot run it yet (%s)\n", prog,
+			        file, (unsigned)b.line, why, how);
+			mlip_program_rewind(p);
+			return -1;
+		}
+	}
+	mlip_program_rewind(p);
+	if (r < 0) {
+		fprintf(err, "%s: %s: %s\n", prog, file, p->msg);
+		return -1;
+	}
+	return 0;
+}
+
 /* The plan's braking runs: up to 3,000 periods each (3 s: a stop from
  * 200 mm/s at 300 mm/s^2 and its jerk ramps take ~0.8 s). */
 #define SIM_RUN_PERIODS 3000

@@ -11,6 +11,7 @@
 #include <stdio.h>
 
 #include "check.h"
+#include "program.h"
 #include "mlip/motion/pathrun.h"
 #include "trace.h"
 
@@ -29,6 +30,15 @@ struct mlip_simpath {
  * on every axis), with the reason in *why. */
 int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_path_limits *lim,
                         double *band_mm, const char **why);
+
+/* Before anything moves: every block of prog is one the plan can run
+ * (mlip_pathrun_refusal); prog is rewound after. fixed > 0 (mlip-sim
+ * --feed) replaces every feed, rapids too; else the program's one feed is
+ * the plan's, in *feed. how names what asked for the plan ("--jerk-plan
+ * path", "CFG:LINE: JERK_PLAN = path"). 0, or -1 with a message on err:
+ * "prog: file:line: WHAT: the path plan cannot run it yet (how)". */
+int mlip_simpath_prescan(struct mlip_program *p, double fixed, double *feed, const char *prog,
+                         const char *file, const char *how, FILE *err);
 
 /* Begin: trace and chk opened by the caller (the trace's start: `start`).
  * -1 on bad limits. */

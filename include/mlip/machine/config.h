@@ -15,6 +15,11 @@
  *   LINEAR_UNITS = mm          ; optional, only mm ("inch" is refused)
  *   ANGULAR_UNITS = degree     ; optional, only degree
  *   LOOKAHEAD = 4096           ; blocks, power of two 2..MLIP_LOOKAHEAD (optional)
+ *   JERK_PLAN = mean           ; how MAX_JERK is kept (optional, default mean): mean
+ *                              ;   (the moving mean, in the period) or path (the
+ *                              ;   path-speed plan, mlip/motion/pathrun.h: needs
+ *                              ;   MAX_JERK on every axis; the tools refuse what it
+ *                              ;   cannot run yet)
  *   [AXIS_X]                   ; one per letter of COORDINATES, no other
  *   TYPE = LINEAR              ; LINEAR or ANGULAR (optional: XYZ linear, ABC angular)
  *   MAX_VELOCITY = 200         ; mm/s or deg/s
@@ -282,13 +287,18 @@ struct mlip_spindle_config {
 	                            while cutting is a fault; default 0.2 s */
 };
 
+/* [TRAJ] JERK_PLAN */
+enum { MLIP_JERK_PLAN_MEAN = 0, MLIP_JERK_PLAN_PATH = 1 };
+
 struct mlip_config {
 	struct mlip_machine machine;
 	struct mlip_can_config can;
 	struct mlip_drives_config drives;
 	struct mlip_io_config inputs; /* the inputs on the bus (issue 18) */
 	struct mlip_home_config home;
-	uint32_t lookahead; /* [TRAJ] LOOKAHEAD blocks, default MLIP_LOOKAHEAD */
+	uint32_t lookahead;      /* [TRAJ] LOOKAHEAD blocks, default MLIP_LOOKAHEAD */
+	uint8_t jerk_plan;       /* [TRAJ] JERK_PLAN: MLIP_JERK_PLAN_*, default mean */
+	uint32_t jerk_plan_line; /* where the file sets it (0: not set), for messages */
 	/* [SPINDLE], [TOOL], [COOLANT]: what the program's I/O words meet (the
 	 * tools add the tool table and the --ignore-* choices); default none */
 	struct mlip_gcode_io io;

@@ -96,6 +96,14 @@ int mlip_path_pick(const struct mlip_path_curve *sp, const struct mlip_path_limi
 int mlip_path_brake(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                     struct mlip_path_state st, double *j);
 
+/* (Q3) one period of st's braking run: *st becomes the next state exactly
+ * as mlip_path_certified's run has it (a stop inside the period lands at
+ * rest), its jerk in *j (may be NULL). 0 when the policy has no jerk (st
+ * was not certified on this curve). What the 1 ms period runs when it
+ * leaves a planned queue (mlip/motion/planq.h). */
+int mlip_path_brake_step(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                         struct mlip_path_state *st, double *j);
+
 /* (Q4): 1 when st is certified by its policy's run (st.brake) within
  * max_periods policy steps, the path ending at `end`; *work (may be NULL)
  * grows by the steps simulated. */

@@ -68,6 +68,10 @@ struct mlip_pathrun {
 	double c[MLIP_PATHRUN_CAP];    /* the fit's scratch */
 	double last_in[MLIP_MAX_AXES]; /* the last input point (maybe skipped) */
 	struct mlip_path_state st;
+	/* compaction keeps the pieces from min(st.s, keep_s) on (INFINITY
+	 * from init: st.s alone); a planned queue's producer holds it at
+	 * its consumer's oldest knot, whence it may restart the plan */
+	double keep_s;
 	long rested; /* periods at rest in a row */
 	/* figures */
 	long periods, work, dropped;
@@ -99,6 +103,16 @@ int mlip_pathrun_finish(struct mlip_pathrun *pr);
  * 2 the last setpoint (at rest on the last point), -1 refused (pr->why:
  * the plan left its certified states, or it stopped short of the end). */
 int mlip_pathrun_step(struct mlip_pathrun *pr, double *x);
+
+/* What the plan cannot run yet, asked of each block of a program before
+ * anything moves (mlip-sim, mlip-feed with [TRAJ] JERK_PLAN = path): it
+ * re-times one path from rest to rest under one speed cap, so an event
+ * taken at rest (a dwell, M0/M1, spindle, tool, coolant, output, probe),
+ * an exact stop (G61) and, unless the caller replaces every feed (feed
+ * NULL: mlip-sim --feed), a rapid or a second feed are refused. NULL: b is
+ * taken; else why (a phrase for "LINE: ..."). *feed: 0 before the first
+ * move, then the program's one feed (mm/s). */
+const char *mlip_pathrun_refusal(const struct mlip_block *b, double *feed);
 
 /* The fixed pieces as the plan reads them (count = fixed + 1 knots). */
 void mlip_pathrun_curve(const struct mlip_pathrun *pr, struct mlip_path_curve *cv);

@@ -1,0 +1,555 @@
+/*
+ * test_planq.c - the path-speed plan run ahead of the period through its
+ * queue (src/motion/planq.c): the consumer, fed by a producer that stalls
+ * at random, keeps A and J at every sample (second and third differences
+ * of its setpoints over T^2, T^3, within 1e-6 relative, and uses them),
+ * stays on the path (within 1e-4 mm of the input curve), brakes to rest
+ * whenever the queue runs dry, plans again from that rest and ends exactly
+ * on the last point; a hold at a random period brakes the same way from
+ * that very period and holds the point; a producer thread beside the
+ * consumer (make tsan: no data race) gives the same guarantees.
+ */
+#include <math.h>
+#include <pthread.h>
+#include <sched.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "mlip/motion/planq.h"
+
+#define XORSHIFT_SEED 0x2545f4914f6cdd1dull
+#include "xorshift.h"
+
+#define T        1e-3
+#define JERK     1e4
+#define ACC      1000.0
+#define V        60.0
+/* the input curve: x = R cos u, y = R sin(2u) / 2, z = H u (its curvature
+ * varies: 0.05 .. 0.5 / mm) */
+#define R        10.0
+#define H        1.0
+/* on the path: the spline through the input points, sampled every V T at
+ * most, stays this close to the curve (its own error is ~h^4 |x''''|) */
+#define PATH_TOL 1e-4
+
+static void curve_at(double u, double *x)
+{
+	x[0] = R * cos(u);
+	x[1] = R * sin(2.0 * u) / 2.0;
+	x[2] = H * u;
+}
+
+static double curve_speed(double u) /* |dx/du| */
+{
+	double a = R * sin(u), b = R * cos(2.0 * u);
+	return sqrt(a * a + b * b + H * H);
+}
+
+static void limits(struct mlip_path_limits *lim)
+{
+	*lim = (struct mlip_path_limits){0};
+	lim->n = 3;
+	for (int k = 0; k < 3; k++) {
+		lim->accel[k] = 0.98 * ACC;
+		lim->jerk[k] = 0.95 * JERK;
+	}
+	lim->vmax = 0.995 * V;
+	lim->a_brake[0] = 900.0;
+	lim->a_brake[1] = 300.0;
+	lim->n_brake = 2;
+	lim->period = T;
+}
+
+static struct mlip_pathrun pr;
+static struct mlip_planq q;
+
+/* The producer's input: the curve from u = 0 to u_end in steps of v T
+ * (v ramping from rest at ACC to V: what `smooth` without J gives, near
+ * enough), then the end. */
+struct feed {
+	double u, u_end, t, in[3], last[3];
+	int pending, finished;
+	int fail; /* a thread's failure (no cmocka outside the main thread) */
+};
+
+static void feed_init(struct feed *f, double u_end)
+{
+	memset(f, 0, sizeof(*f));
+	f->u_end = u_end;
+	struct mlip_path_limits lim;
+	limits(&lim);
+	double start[3];
+	curve_at(0.0, start);
+	f->fail |= mlip_pathrun_init(&pr, &lim, 1e-3, 3000, start) != 0;
+	mlip_planq_init(&q, &pr);
+}
+
+/* One unit of the producer's work: an input point, or the end, or one
+ * planned period. What mlip_planq_produce returned (1, 2, 0 no room), or
+ * 4 for input. */
+static int unit(struct feed *f)
+{
+	if (f->pending) {
+		int r = mlip_pathrun_push(&pr, f->in);
+		f->fail |= r < 0;
+		if (r != 1) {
+			f->pending = 0;
+			return 4;
+		}
+	} else if (!f->finished) {
+		if (f->u >= f->u_end) {
+			f->fail |= mlip_pathrun_finish(&pr) != 0;
+			f->finished = 1;
+			return 4;
+		}
+		f->t += T;
+		double v = fmin(V, ACC * f->t);
+		f->u = fmin(f->u_end, f->u + v * T / curve_speed(f->u));
+		curve_at(f->u, f->in);
+		memcpy(f->last, f->in, sizeof(f->in));
+		f->pending = 1;
+		return 4;
+	}
+	int r = mlip_planq_produce(&q, &pr);
+	f->fail |= r < 0 || r == 3;
+	return r;
+}
+
+/* The producer's share of one consumer period: up to two planned periods
+ * (it runs ahead and fills the queue), the input they need in between
+ * (after a compaction of the window, a quarter of it: pushes are cheap). */
+static void produce_some(struct feed *f)
+{
+	int planned = 0;
+	for (int i = 0; i < 2 * MLIP_PATHRUN_CAP && planned < 2 && !f->fail; i++) {
+		int r = unit(f);
+		if (r == 0 || r == 2) {
+			break;
+		}
+		planned += r == 1;
+	}
+}
+
+/* The setpoints' physics: A and J per axis by differences; on the path. */
+struct check {
+	double out[4][3];
+	long n;
+	double max_j, max_a, max_off;
+};
+
+static void check_point(struct check *c, const double *x)
+{
+	memmove(c->out[1], c->out[0], sizeof(c->out[0]) * 3);
+	memcpy(c->out[0], x, sizeof(c->out[0]));
+	if (++c->n >= 4) {
+		for (int k = 0; k < 3; k++) {
+			double j =
+			    c->out[0][k] - 3 * c->out[1][k] + 3 * c->out[2][k] - c->out[3][k];
+			double a = c->out[0][k] - 2 * c->out[1][k] + c->out[2][k];
+			c->max_j = fmax(c->max_j, fabs(j) / (T * T * T));
+			c->max_a = fmax(c->max_a, fabs(a) / (T * T));
+		}
+	}
+	double on[3];
+	curve_at(x[2] / H, on); /* z = H u: the curve's point at this height */
+	c->max_off = fmax(c->max_off, fmax(fabs(x[0] - on[0]), fabs(x[1] - on[1])));
+}
+
+static void check_init(struct check *c)
+{
+	memset(c, 0, sizeof(*c));
+	curve_at(0.0, c->out[0]);
+	memcpy(c->out[1], c->out[0], sizeof(c->out[0]));
+	memcpy(c->out[2], c->out[0], sizeof(c->out[0]));
+	c->n = 3; /* at rest before the start */
+}
+
+static void check_physics(const struct check *c)
+{
+	assert_true(c->max_j <= JERK * (1.0 + 1e-6));
+	assert_true(c->max_j >= 0.5 * JERK); /* and used */
+	assert_true(c->max_a <= ACC * (1.0 + 1e-6));
+	assert_true(c->max_a >= 0.3 * ACC);
+	assert_true(c->max_off <= PATH_TOL);
+}
+
+/* A stop from V at 300 mm/s^2 with its jerk ramps takes well under this. */
+#define STOP_PERIODS 600
+
+/* The producer stalls at random (20..700 periods; the queue holds 256):
+ * short stalls are absorbed, long ones brake to rest on the path and the
+ * plan starts again from there; the end is the last point exactly. */
+static void test_stalls(void **state)
+{
+	(void)state;
+	struct feed f;
+	struct check c;
+	feed_init(&f, 16.0);
+	assert_int_equal(f.fail, 0);
+	check_init(&c);
+	long stall = 0, stalls = 0, braking = 0, max_braking = 0, rests = 0;
+	double x[3];
+	int mode = MLIP_PLANQ_WAIT;
+	for (long k = 0; k < 200000 && mode != MLIP_PLANQ_DONE; k++) {
+		if (stall > 0) {
+			stall--;
+		} else if (uni(0.0, 1.0) < 1.0 / 150.0) {
+			stall = (long)uni(20.0, 700.0);
+			stalls++;
+		} else {
+			produce_some(&f);
+			assert_int_equal(f.fail, 0);
+		}
+		int prev = mode;
+		mode = mlip_planq_step(&q, 0, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+		braking = mode == MLIP_PLANQ_BRAKE ? braking + 1 : 0;
+		max_braking = braking > max_braking ? braking : max_braking;
+		rests += prev == MLIP_PLANQ_BRAKE && mode == MLIP_PLANQ_WAIT;
+	}
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, f.last, sizeof(x)); /* at rest on the last point */
+	check_physics(&c);
+	/* the stalls starved it, not every one, and each starving ended at rest */
+	assert_true(q.c.starved >= 2);
+	assert_true(q.c.starved < stalls);
+	assert_int_equal(rests, q.c.brakes);
+	assert_true(max_braking > 10 && max_braking < STOP_PERIODS);
+	print_message("stalls %ld, starved %ld, longest run %ld, periods %ld, J %.4f, A %.4f, "
+	              "off %.2e mm\n",
+	              stalls, q.c.starved, max_braking, c.n, c.max_j / JERK, c.max_a / ACC,
+	              c.max_off);
+}
+
+/* A hold at random periods: the braking run starts in that very period (its
+ * setpoint already the run's), comes to rest within STOP_PERIODS, the point
+ * stays while held; released, the plan goes on and ends on the last point. */
+static void test_hold(void **state)
+{
+	(void)state;
+	struct feed f;
+	struct check c;
+	feed_init(&f, 16.0);
+	check_init(&c);
+	double x[3], held[3];
+	int mode = MLIP_PLANQ_WAIT, holds = 0;
+	long hold_at = (long)uni(200.0, 600.0), hold_len = 0, rest_at = -1;
+	for (long k = 0; k < 200000 && mode != MLIP_PLANQ_DONE; k++) {
+		produce_some(&f);
+		assert_int_equal(f.fail, 0);
+		int hold = 0;
+		if (k == hold_at) {
+			hold_len = (long)uni(STOP_PERIODS, 2000.0);
+			rest_at = -1;
+			holds++;
+		}
+		if (hold_len > 0) {
+			hold = 1;
+			hold_len--;
+		}
+		int prev = mode;
+		mode = mlip_planq_step(&q, hold, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+		if (k == hold_at) {
+			assert_int_equal(prev, MLIP_PLANQ_PLAN);
+			assert_int_equal(mode, MLIP_PLANQ_BRAKE);
+		}
+		if (hold && mode == MLIP_PLANQ_WAIT) {
+			if (rest_at < 0) {
+				rest_at = k;
+				memcpy(held, x, sizeof(x));
+				assert_true(rest_at - hold_at < STOP_PERIODS);
+			}
+			assert_memory_equal(x, held, sizeof(x)); /* held there */
+		}
+		if (hold && hold_len == 0) {
+			assert_true(rest_at >= 0); /* at rest before the hold's end */
+		}
+		if (hold_len == 0 && k > hold_at && holds < 4) {
+			hold_at = k + (long)uni(100.0, 800.0);
+		}
+	}
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_true(holds >= 2);
+	assert_memory_equal(x, f.last, sizeof(x));
+	check_physics(&c);
+	assert_int_equal(q.c.starved, 0); /* only the holds braked */
+	assert_int_equal(q.c.brakes, holds);
+}
+
+/* A lower feed at a random period: the braking run starts in that period
+ * and the plan at the new cap takes over MLIP_PLANQ_LEAD periods later,
+ * continuing the run bit for bit (no stop); the speed then stays within
+ * the cap; a higher feed then keeps the plan up to the queued state
+ * MLIP_PLANQ_LEAD periods on, the plan at the new cap from there. When the producer stalls past the
+ * whole run, the run ends at rest and the plan starts again from there, at the new cap. (A plan a
+ * little late is still taken where it continues the run: while it brakes
+ * on the same policy, its states are the run's.) */
+static void run_override(int stall_after)
+{
+	struct feed f;
+	struct check c;
+	feed_init(&f, 16.0);
+	check_init(&c);
+	double x[3], prev[3], caps[2] = {0.7 * 0.995 * V, 0.4 * 0.995 * V};
+	int mode = MLIP_PLANQ_WAIT, n_cap = 0, rests = 0;
+	long at = (long)uni(300.0, 600.0), stall = 0, took = -1, settled = -1, raised = -1,
+	     faster = -1;
+	double cap = 0.995 * V, max_v_after = 0.0, max_v_raised = 0.0;
+	memcpy(prev, f.last, sizeof(prev));
+	curve_at(0.0, prev);
+	for (long k = 0; k < 200000 && mode != MLIP_PLANQ_DONE; k++) {
+		if (stall > 0) {
+			stall--;
+		} else {
+			produce_some(&f);
+			assert_int_equal(f.fail, 0);
+		}
+		if (k == at) {
+			cap = caps[n_cap++];
+			assert_int_equal(mlip_planq_feed(&q, cap), 0);
+			assert_int_equal(mlip_planq_feed(&q, 0.0), -1); /* ignored */
+			assert_int_equal(mlip_planq_feed(&q, NAN), -1);
+			stall = stall_after ? STOP_PERIODS : 0;
+			took = -1;
+		}
+		int before = mode;
+		mode = mlip_planq_step(&q, 0, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+		rests += before == MLIP_PLANQ_BRAKE && mode == MLIP_PLANQ_WAIT;
+		if (k == at) {
+			assert_int_equal(before, MLIP_PLANQ_PLAN);
+			assert_int_equal(mode, MLIP_PLANQ_BRAKE); /* in that period */
+		}
+		if (k > at && took < 0 && before == MLIP_PLANQ_BRAKE && mode == MLIP_PLANQ_PLAN) {
+			took = k; /* the new plan continued the run */
+			if (!stall_after) {
+				assert_int_equal(took - at, MLIP_PLANQ_LEAD + 1);
+			}
+		}
+		if (k > at && took < 0 && mode == MLIP_PLANQ_WAIT) {
+			took = k; /* at rest: the plan from there */
+		}
+		double d = 0.0;
+		for (int a = 0; a < 3; a++) {
+			d += (x[a] - prev[a]) * (x[a] - prev[a]);
+		}
+		if (n_cap == 2 && took > 0 && k > took + 400 && raised < 0) {
+			settled = k;
+			max_v_after = fmax(max_v_after, sqrt(d) / T);
+		}
+		if (n_cap == 2 && took > 0 && k == took + 700) {
+			raised = k; /* the feed back up: no stop, faster within the queue */
+			mlip_planq_feed(&q, 0.995 * V);
+		}
+		if (raised > 0 && k <= raised + MLIP_PLANQ_LEN + 200) {
+			max_v_raised = fmax(max_v_raised, sqrt(d) / T);
+			if (faster < 0 && sqrt(d) / T > 1.01 * caps[1]) {
+				faster = k - raised;
+			}
+		}
+		if (n_cap == 1 && took > 0 && k == took + 600) {
+			at = k + (long)uni(1.0, 300.0); /* the second, lower still */
+		}
+		memcpy(prev, x, sizeof(x));
+	}
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, f.last, sizeof(x));
+	check_physics(&c);
+	assert_int_equal(n_cap, 2);
+	assert_true(settled > 0);
+	assert_int_equal(q.c.starved, 0);
+	assert_int_equal(q.c.brakes, 2);
+	assert_int_equal(rests, stall_after ? 2 : 0); /* stopped only when late */
+	/* the last cap kept (the chord's speed, the spline's parameter within
+	 * 1 % of the arc's) and reached */
+	assert_true(max_v_after <= 1.01 * caps[1]);
+	assert_true(max_v_after >= 0.8 * caps[1]);
+	assert_true(raised > 0);
+	assert_true(max_v_raised >= 1.3 * caps[1]);
+	/* from the queued state LEAD periods on, then the ramp */
+	assert_true(faster > MLIP_PLANQ_LEAD && faster <= MLIP_PLANQ_LEAD + 20);
+	print_message("override%s: speed after %.3f of the cap; raised: %.3f, above the cap after "
+	              "%ld periods\n",
+	              stall_after ? " (late)" : "", max_v_after / caps[1], max_v_raised / caps[1],
+	              faster);
+}
+
+static void test_override(void **state)
+{
+	(void)state;
+	run_override(0);
+}
+
+static void test_override_late(void **state)
+{
+	(void)state;
+	run_override(1);
+}
+
+/* A producer thread beside the consumer (make tsan checks the queue's
+ * accesses): the consumer steps as soon as an entry is there, and now and
+ * then without waiting (it starves), with a hold or a new feed. */
+static struct feed tf;
+static int consumer_done, producer_failed;
+
+static void *producer(void *arg)
+{
+	(void)arg;
+	while (!__atomic_load_n(&consumer_done, __ATOMIC_ACQUIRE) && !tf.fail) {
+		int r = unit(&tf);
+		if (r == 0 || r == 2) {
+			sched_yield();
+		}
+	}
+	__atomic_store_n(&producer_failed, tf.fail, __ATOMIC_RELEASE);
+	return NULL;
+}
+
+static void test_thread(void **state)
+{
+	(void)state;
+	struct check c;
+	feed_init(&tf, 4.0);
+	check_init(&c);
+	consumer_done = 0;
+	producer_failed = 0;
+	pthread_t th;
+	assert_int_equal(pthread_create(&th, NULL, producer, NULL), 0);
+	double x[3];
+	int mode = MLIP_PLANQ_WAIT;
+	long hold = 0, k;
+	for (k = 0; k < 1000000 && mode != MLIP_PLANQ_DONE &&
+	            !__atomic_load_n(&producer_failed, __ATOMIC_ACQUIRE);
+	     k++) {
+		int eager = uni(0.0, 1.0) < 0.01;
+		/* wait for an entry (a generous bound: the producer is slow under tsan) */
+		for (long spin = 0; !eager && mode != MLIP_PLANQ_BRAKE && spin < 100000000;
+		     spin++) {
+			if (__atomic_load_n(&q.head, __ATOMIC_ACQUIRE) != q.tail) {
+				break;
+			}
+			sched_yield();
+		}
+		if (hold == 0 && uni(0.0, 1.0) < 0.005) {
+			hold = (long)uni(1.0, 300.0);
+		}
+		if (uni(0.0, 1.0) < 0.005) { /* a feed override, lower or higher */
+			mlip_planq_feed(&q, uni(0.3, 1.0) * 0.995 * V);
+		}
+		mode = mlip_planq_step(&q, hold > 0, x);
+		hold -= hold > 0;
+		assert_true(mode >= 0);
+		check_point(&c, x);
+	}
+	__atomic_store_n(&consumer_done, 1, __ATOMIC_RELEASE);
+	pthread_join(th, NULL);
+	assert_int_equal(tf.fail, 0);
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, tf.last, sizeof(x));
+	assert_true(c.max_j <= JERK * (1.0 + 1e-6));
+	assert_true(c.max_a <= ACC * (1.0 + 1e-6));
+	assert_true(c.max_off <= PATH_TOL);
+	print_message("thread: %ld periods, %ld brakes (%ld starved)\n", k, q.c.brakes,
+	              q.c.starved);
+}
+
+/* Deterministic: the consumer's setpoints, when the queue never runs dry
+ * and nothing holds, are the plan's own (mlip_pathrun_step alone, as
+ * mlip-sim --jerk-plan path runs it) bit for bit, whether the consumer
+ * follows the producer closely or a whole queue behind: what the
+ * compaction of the window keeps must not depend on the consumer. */
+#define LAG_MAX 20000
+static double lag_ref[LAG_MAX][3], lag_got[LAG_MAX][3];
+
+static long lag_run(int lag, double (*out)[3])
+{
+	struct feed f;
+	feed_init(&f, 16.0);
+	long n = 0;
+	int mode = MLIP_PLANQ_WAIT;
+	while (mode != MLIP_PLANQ_DONE && n < LAG_MAX && !f.fail) {
+		/* fill the queue to `lag` entries ahead of the consumer (the last
+		 * may come sooner) */
+		for (long i = 0; i < 1000000 && !f.fail; i++) {
+			uint32_t ahead = __atomic_load_n(&q.head, __ATOMIC_ACQUIRE) - q.tail;
+			if ((int)ahead >= lag || q.p_done) {
+				break;
+			}
+			int r = unit(&f);
+			if (r == 0 || r == 2) {
+				break;
+			}
+		}
+		mode = mlip_planq_step(&q, 0, out[n]);
+		n += mode == MLIP_PLANQ_PLAN || mode == MLIP_PLANQ_DONE;
+		assert_true(mode != MLIP_PLANQ_BRAKE);
+	}
+	assert_int_equal(f.fail, 0);
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	return n;
+}
+
+static void test_lag_independent(void **state)
+{
+	(void)state;
+	struct feed f;
+	feed_init(&f, 16.0);
+	long n = 0;
+	for (long i = 0; n < LAG_MAX && !f.fail; i++) {
+		/* the reference: input until the window is full, then a period */
+		if (f.pending || !f.finished) {
+			if (f.pending) {
+				int r = mlip_pathrun_push(&pr, f.in);
+				f.fail |= r < 0;
+				if (r != 1) {
+					f.pending = 0;
+					continue;
+				}
+			} else {
+				(void)unit(&f); /* the next input point, or the end */
+				continue;
+			}
+		}
+		int r = mlip_pathrun_step(&pr, lag_ref[n]);
+		assert_true(r >= 0);
+		n += r > 0;
+		if (r == 2) {
+			break;
+		}
+	}
+	assert_int_equal(f.fail, 0);
+	static const int lags[] = {1, 4, 16, 64, MLIP_PLANQ_LEN};
+	for (size_t li = 0; li < sizeof(lags) / sizeof(lags[0]); li++) {
+		int lag = lags[li];
+		long m = lag_run(lag, lag_got);
+		long first = -1;
+		for (long k = 0; k < (m < n ? m : n) && first < 0; k++) {
+			if (memcmp(lag_ref[k], lag_got[k], sizeof(lag_ref[k])) != 0) {
+				first = k;
+			}
+		}
+		print_message("lag %d: %ld periods (alone %ld), first differing %ld\n", lag, m, n,
+		              first);
+		assert_int_equal(m, n);
+		assert_int_equal(first, -1);
+	}
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+	    cmocka_unit_test(test_stalls),   cmocka_unit_test(test_hold),
+	    cmocka_unit_test(test_override), cmocka_unit_test(test_override_late),
+	    cmocka_unit_test(test_thread),   cmocka_unit_test(test_lag_independent),
+	};
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}
