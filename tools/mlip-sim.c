@@ -840,7 +840,7 @@ static int report(const struct options *o, struct sim *s, int rc)
 
 /* One run counted, not written (trace, summary, offsets): 0 and its rows
  * in *rows, or its exit status (OVER_BUDGET: stopped at s->budget rows). */
-static int scout(const struct options *o, struct sim *s, uint64_t *rows)
+static int scout(struct options *o, struct sim *s, uint64_t *rows)
 {
 	int rc = set_up(o, s);
 	if (rc == 0) {
