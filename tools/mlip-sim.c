@@ -367,8 +367,8 @@ static int set_up(struct options *o, struct sim *s)
 		}
 		if (!path_runs(o)) {
 			fprintf(s->err,
-			        PROG ": %s needs --strategy smooth, and takes no --override, "
-			             "--storm or --probe-surface (yet)\n",
+			        PROG ": %s: the path plans need --strategy smooth and take no "
+			             "--override, --storm or --probe-surface (yet)\n",
 			        how);
 			return 2;
 		}
