@@ -18,6 +18,7 @@
 
 #include <cmocka.h>
 
+#include "mlip/canopen/drive.h"
 #include "mlip/ctl/controller.h"
 #include "mlip/motion/planq.h"
 
@@ -44,6 +45,13 @@ static struct mlip_io_config io_cfg;
 static struct mlip_ctl_io io_in;
 static uint64_t period;
 static uint32_t prog = 1;
+/* CiA 402 drives (setup_drives): enabled, following each setpoint at once;
+ * a fault reported for one period; the exit request (a signal) */
+static int drives;
+static struct mlip_ctl_drive_fault fault_next;
+static int exit_req;
+static struct mlip_can_config can_cia402 = {"cia402", 1000000, 5000000, 0x080,
+                                            0x200,    0x300,   0x400,   0x180};
 
 static void curve_at(double u, double *x)
 {
@@ -185,8 +193,18 @@ static int setup_opts(const struct mlip_io_config *io)
 		mach.axis[k].max_vel = 200.0;
 		mach.axis[k].min_limit = -1000.0;
 		mach.axis[k].max_limit = 1000.0;
+		mach.axis[k].can_node = drives ? k + 1 : 0;
+		mach.axis[k].counts_per_unit = drives ? 1000.0 : 0.0;
 	}
-	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .io = io};
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT,
+	                          .lookahead = 16,
+	                          .io = io,
+	                          .can = drives ? &can_cia402 : NULL,
+	                          .drives = drives,
+	                          .drive_state_periods = 50};
+	memset(&fault_next, 0, sizeof(fault_next));
+	memset(&out, 0, sizeof(out));
+	exit_req = 0;
 	if (mlip_ctl_init(&ctl, &planner, &mach, &o) != MLIP_OK) {
 		return -1;
 	}
@@ -202,6 +220,14 @@ static int setup_opts(const struct mlip_io_config *io)
 static int setup(void **state)
 {
 	(void)state;
+	drives = 0;
+	return setup_opts(NULL);
+}
+
+static int setup_drives(void **state)
+{
+	(void)state;
+	drives = 1;
 	return setup_opts(NULL);
 }
 
@@ -232,6 +258,16 @@ static int32_t tick(uint32_t op, int32_t arg)
 	struct mlip_ctl_in in = {
 	    .period = period++, .feeder_alive = 1, .plan = &q, .plan_prog = prog, .io = io_in};
 	in.cmd = op ? &cmd : NULL;
+	in.exit_request = exit_req;
+	for (int k = 0; k < 2 && drives; k++) {
+		/* enabled (quick stop active in an E-stop), at the last setpoint */
+		in.drives.sw[k] = out.status.drive_power == MLIP_POWER_QUICK_STOP ? 0x0217 : 0x0237;
+		in.drives.pos_actual[k] = out.pos[k];
+		in.drives.tpdo_period[k] = period > 1 ? period - 2 : UINT64_MAX;
+	}
+	in.drives.actual_mask = drives ? 3u : 0u;
+	in.drives.fault = fault_next;
+	memset(&fault_next, 0, sizeof(fault_next));
 	mlip_ctl_period(&ctl, &in, &out);
 	check_point(out.pos);
 	return out.cmd_result;
@@ -336,6 +372,21 @@ static void stays(int n, uint32_t s, double *at)
 	assert_true(fabs(hypot(at[0], at[1] - R) - R) <= PATH_TOL); /* on the path */
 }
 
+/* The braking run of a fault or an E-stop, to rest where the program is
+ * dropped: inside A and J (its samples alone); the periods it took. */
+static long brake_dropped(void)
+{
+	check_reset();
+	long k = 0;
+	for (; ctl.ext.q != NULL && k < STOP_PERIODS; k++) {
+		tick(0, 0);
+	}
+	assert_null(ctl.ext.q);
+	assert_true(k > 10);
+	check_limits();
+	return k;
+}
+
 /* A hold mid-move: the braking run from that period, inside A and J, to
  * rest (HELD, HOLD) within STOP_PERIODS; the point stays while held;
  * resumed, the program ends on its last point. */
@@ -394,14 +445,7 @@ static void test_estop_wins(void **state)
 	assert_int_not_equal(tick(MLIP_CMD_RESUME, 0), MLIP_OK);
 	assert_int_equal(out.status.state, MLIP_STATE_ESTOP);
 	assert_int_equal(out.status.reason, MLIP_WHY_ESTOP);
-	check_reset();
-	long k = 0;
-	for (; ctl.ext.q != NULL && k < STOP_PERIODS; k++) {
-		tick(0, 0);
-	}
-	assert_null(ctl.ext.q);
-	assert_true(k > 10);
-	check_limits();
+	long k = brake_dropped();
 	assert_true(chk.max_j >= 0.5 * JERK);
 	io_in.active = 0;
 	double rest[2];
@@ -429,14 +473,79 @@ static void test_override(void **state)
 	assert_memory_equal(out.pos, f.last, sizeof(f.last));
 }
 
+/* A drive fault mid-move: FAULT (DRIVE) in that period, every axis on the
+ * queue's braking run inside A and J, the program dropped at rest. */
+static void test_drive_fault(void **state)
+{
+	(void)state;
+	until_speed(0.9 * V);
+	fault_next = (struct mlip_ctl_drive_fault){.event = MLIP_DRIVE_FAULT_BIT, .node = 2};
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
+	assert_int_equal(out.status.reason, MLIP_WHY_DRIVE);
+	assert_int_equal(out.status.reason_node, 2);
+	long k = brake_dropped();
+	assert_true(chk.max_j >= 0.5 * JERK && chk.max_a >= 0.3 * ACC);
+	double rest[2];
+	stays(100, MLIP_STATE_FAULT, rest);
+	print_message("drive fault: rest after %ld periods\n", k);
+}
+
+/* The E-stop with drives: quick stop in that very period, the program
+ * dropped at once, the setpoint where the drives are (as today). */
+static void test_estop_drives(void **state)
+{
+	(void)state;
+	until_speed(0.9 * V);
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_ESTOP);
+	assert_int_equal(out.status.drive_power, MLIP_POWER_QUICK_STOP);
+	assert_null(ctl.ext.q);
+}
+
+/* An exit request (a signal to mlip-rt) mid-move: STOPPING (EXIT), the
+ * braking run, IDLE at rest, then done once the drives are disabled. */
+static void test_exit(void **state)
+{
+	(void)state;
+	until_speed(0.9 * V);
+	exit_req = 1;
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
+	assert_int_equal(out.status.reason, MLIP_WHY_EXIT);
+	brake_to(MLIP_STATE_IDLE);
+	assert_false(out.done);
+	for (long k = 0; k < 2000 && !out.done; k++) {
+		tick(0, 0);
+	}
+	assert_true(out.done);
+	assert_int_equal(out.status.drive_power, MLIP_POWER_OFF);
+}
+
+static int setup_io_drives(void **state)
+{
+	drives = 1;
+	return setup_io(state);
+}
+
+static int setup_io_alone(void **state)
+{
+	drives = 0;
+	return setup_io(state);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 	    cmocka_unit_test_setup(test_runs_to_end, setup),
 	    cmocka_unit_test_setup(test_hold, setup),
 	    cmocka_unit_test_setup(test_stop, setup),
-	    cmocka_unit_test_setup(test_estop_wins, setup_io),
+	    cmocka_unit_test_setup(test_estop_wins, setup_io_alone),
 	    cmocka_unit_test_setup(test_override, setup),
+	    cmocka_unit_test_setup(test_drive_fault, setup_drives),
+	    cmocka_unit_test_setup(test_estop_drives, setup_io_drives),
+	    cmocka_unit_test_setup(test_exit, setup_drives),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
