@@ -240,11 +240,14 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	 * ran on. Never jump: that setpoint becomes a point of rest, and motion
 	 * continues from it only on the operator's resume. */
 	if (in->missed > c->stall_periods && moving(c) && c->ext.q != NULL) {
-		/* the queue's state cannot be made a rest: its braking run */
-		c->hold.stall = 1;
-		struct mlip_ctl_reason r = reason(MLIP_WHY_STALL, 0, 0);
-		r.value = (double)in->missed;
-		go(c, out, MLIP_STATE_HELD, r);
+		/* the queue's state cannot be made a rest: its braking run (a
+		 * stop, a fault or an E-stop's already is) */
+		if (c->state == MLIP_STATE_RUNNING || c->state == MLIP_STATE_HELD) {
+			c->hold.stall = 1;
+			struct mlip_ctl_reason r = reason(MLIP_WHY_STALL, 0, 0);
+			r.value = (double)in->missed;
+			go(c, out, MLIP_STATE_HELD, r);
+		}
 	} else if (in->missed > c->stall_periods && moving(c)) {
 		mlip_planner_rest_here(p);
 		if (c->state == MLIP_STATE_FAULT || c->state == MLIP_STATE_STOPPING) {

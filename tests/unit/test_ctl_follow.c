@@ -50,6 +50,7 @@ static uint32_t prog = 1;
 static int drives;
 static struct mlip_ctl_drive_fault fault_next;
 static int exit_req;
+static uint32_t missed_next; /* deadlines missed before the next period */
 static struct mlip_can_config can_cia402 = {"cia402", 1000000, 5000000, 0x080,
                                             0x200,    0x300,   0x400,   0x180};
 
@@ -203,6 +204,7 @@ static int setup_opts(const struct mlip_io_config *io)
 	                          .drives = drives,
 	                          .drive_state_periods = 50};
 	memset(&fault_next, 0, sizeof(fault_next));
+	missed_next = 0;
 	memset(&out, 0, sizeof(out));
 	exit_req = 0;
 	if (mlip_ctl_init(&ctl, &planner, &mach, &o) != MLIP_OK) {
@@ -259,6 +261,8 @@ static int32_t tick(uint32_t op, int32_t arg)
 	    .period = period++, .feeder_alive = 1, .plan = &q, .plan_prog = prog, .io = io_in};
 	in.cmd = op ? &cmd : NULL;
 	in.exit_request = exit_req;
+	in.missed = missed_next;
+	missed_next = 0;
 	for (int k = 0; k < 2 && drives; k++) {
 		/* enabled (quick stop active in an E-stop), at the last setpoint */
 		in.drives.sw[k] = out.status.drive_power == MLIP_POWER_QUICK_STOP ? 0x0217 : 0x0237;
@@ -523,6 +527,37 @@ static void test_exit(void **state)
 	assert_int_equal(out.status.drive_power, MLIP_POWER_OFF);
 }
 
+/* A stall (more missed periods than allowed) mid-move: HELD (STALL) in
+ * that period, the queue's braking run inside A and J to rest (the drives
+ * stood meanwhile: the run continues the plan's state, see follow.c), held
+ * until resumed; then the program ends on its last point. During a stop a
+ * stall leaves the stop alone. */
+static void test_stall(void **state)
+{
+	(void)state;
+	until_speed(0.9 * V);
+	missed_next = 10;
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_HELD);
+	assert_int_equal(out.status.reason, MLIP_WHY_STALL);
+	check_reset();
+	for (long k = 0; k < STOP_PERIODS && out.status.speed_mm_s > 0.0; k++) {
+		tick(0, 0);
+	}
+	check_limits();
+	double held[2];
+	stays(100, MLIP_STATE_HELD, held);
+	assert_int_equal(tick(MLIP_CMD_RESUME, 0), MLIP_OK);
+	until(MLIP_STATE_RUNNING, 50);
+	until_speed(0.9 * V);
+	tick(MLIP_CMD_STOP, 0);
+	missed_next = 10;
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
+	until(MLIP_STATE_IDLE, STOP_PERIODS);
+	assert_int_equal(out.status.reason, MLIP_WHY_STOP);
+}
+
 static int setup_io_drives(void **state)
 {
 	drives = 1;
@@ -546,6 +581,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_drive_fault, setup_drives),
 	    cmocka_unit_test_setup(test_estop_drives, setup_io_drives),
 	    cmocka_unit_test_setup(test_exit, setup_drives),
+	    cmocka_unit_test_setup(test_stall, setup),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
