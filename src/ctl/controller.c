@@ -88,7 +88,11 @@ int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 	}
 	switch (cmd->op) {
 	case MLIP_CMD_OVERRIDE:
-		return mlip_planner_set_override(p, (double)cmd->arg);
+		held = mlip_planner_set_override(p, (double)cmd->arg);
+		if (held == MLIP_OK) {
+			mlip_ct_ext_override(c, (double)cmd->arg);
+		}
+		return held;
 	case MLIP_CMD_SPINDLE_OVERRIDE:
 		return mlip_ctl_spindle_override(&c->spindle, cmd->arg, c->period);
 	case MLIP_CMD_SPINDLE_STOP:
@@ -106,7 +110,7 @@ int32_t mlip_ct_apply_command(struct mlip_ctl *c, struct mlip_ctl_out *out,
 		mlip_planner_hold(p, 1);
 		c->hold.op = 1;
 		c->hold.spindle = 0;
-		if (mlip_planner_moving(p)) {
+		if (mlip_planner_moving(p) || c->ext.q != NULL) {
 			mlip_ct_brake_begin(c); /* at rest: no stop on the path to count */
 		}
 		return MLIP_OK;
@@ -192,7 +196,7 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	s->reason_node = c->why.node;
 	s->optional_stop = (uint32_t)c->op.optional_stop;
 	memcpy(s->pos, c->pos, sizeof(s->pos));
-	s->speed_mm_s = mlip_planner_speed(p);
+	s->speed_mm_s = c->ext.q != NULL ? c->ext.q->c.st.v : mlip_planner_speed(p);
 	s->dwell_left = c->state == MLIP_STATE_DWELLING ? c->wait.dwell_left : 0;
 	s->drive_power = c->drives && c->io.estop ? MLIP_POWER_QUICK_STOP : c->power.seq.step;
 	s->drive_power_periods = (uint32_t)c->power.seq.took;
@@ -204,6 +208,9 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 /* Still moving: a stall must freeze it. */
 static int moving(const struct mlip_ctl *c)
 {
+	if (c->ext.q != NULL) {
+		return c->ext.q->c.mode == MLIP_PLANQ_PLAN || c->ext.q->c.st.v != 0.0;
+	}
 	return mlip_planner_moving(c->planner) && c->state != MLIP_STATE_PREREAD &&
 	       c->state != MLIP_STATE_DWELLING && c->state != MLIP_STATE_PAUSED;
 }
@@ -232,7 +239,16 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	/* a stall: the drives stood at the last setpoint while the plan's clock
 	 * ran on. Never jump: that setpoint becomes a point of rest, and motion
 	 * continues from it only on the operator's resume. */
-	if (in->missed > c->stall_periods && moving(c)) {
+	if (in->missed > c->stall_periods && moving(c) && c->ext.q != NULL) {
+		/* the queue's state cannot be made a rest: its braking run (a
+		 * stop, a fault or an E-stop's already is) */
+		if (c->state == MLIP_STATE_RUNNING || c->state == MLIP_STATE_HELD) {
+			c->hold.stall = 1;
+			struct mlip_ctl_reason r = reason(MLIP_WHY_STALL, 0, 0);
+			r.value = (double)in->missed;
+			go(c, out, MLIP_STATE_HELD, r);
+		}
+	} else if (in->missed > c->stall_periods && moving(c)) {
 		mlip_planner_rest_here(p);
 		if (c->state == MLIP_STATE_FAULT || c->state == MLIP_STATE_STOPPING) {
 			mlip_planner_stop(p); /* a stop in progress ends here */
@@ -283,7 +299,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	mlip_mio_period(c, in); /* the probe's trip, before the records */
 	mlip_ct_jog_period(c, out);
 	mlip_ct_home_period(c, in, out);
-	mlip_ct_blocks_in(c, in, out);
+	if (!mlip_ct_ext_start(c, in, out)) {
+		mlip_ct_blocks_in(c, in, out); /* no record while the queue runs */
+	}
 	mlip_planner_work(p); /* the look-ahead's share of the period, bounded */
 	if (c->rx.corrupt && !c->prog.bad) {
 		struct mlip_ctl_reason r = reason(MLIP_WHY_RING_CORRUPT, c->prog.next_seq, 0);
@@ -296,6 +314,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	/* one step; a pre-read or a wait does not move, nor the stall's period */
 	if (c->io.estop && c->drives) {
 		mlip_ct_follow_actual(c, in); /* the drives brake by themselves */
+		mlip_ct_ext_drop(c);          /* the queue's plan is left behind */
+	} else if (c->ext.q != NULL) {
+		mlip_ct_ext_step(c, out);
 	} else if (c->state == MLIP_STATE_DWELLING) {
 		c->wait.dwell_left--; /* >= 1 here: a wait of 0 ended in blocks_in */
 	} else if (c->state != MLIP_STATE_PREREAD && c->state != MLIP_STATE_PAUSED && !stalled) {
@@ -371,7 +392,8 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	} else {
 		out->done = c->op.exiting && !c->prog.discard &&
 		            (c->state == MLIP_STATE_IDLE ||
-		             (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0)) &&
+		             (c->state == MLIP_STATE_FAULT && mlip_planner_queued(p) == 0 &&
+		              c->ext.q == NULL)) &&
 		            (!c->drives ||
 		             c->power.seq.step == MLIP_POWER_OFF); /* and the drives disabled */
 	}

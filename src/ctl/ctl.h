@@ -18,6 +18,8 @@
  *   spindlectl.c  a CiA 402 spindle (mlip/ctl/spindlectl.h): its decisions, and
  *                 its part of the period (the wait for speed, its faults, its
  *                 RPDO and status)
+ *   follow.c      JERK_PLAN = path: a program's setpoints from the planned
+ *                 queue (hold, stop, override, its end)
  *   machio.c      the machine's outputs (coolant, M64/M65) and probing (G38),
  *                 its own header machio.h (issue 19)
  * Functions of one part that another calls are mlip_ct_*, declared here.
@@ -152,6 +154,13 @@ static inline uint32_t mlip_ct_node_of(const struct mlip_ctl *c, int i)
 {
 	return i < c->m.n_axes ? (uint32_t)c->m.axis[i].can_node : c->spindle.node;
 }
+
+/* follow.c: JERK_PLAN = path, the setpoints from the planned queue */
+void mlip_ct_ext_drop(struct mlip_ctl *c);
+void mlip_ct_ext_override(struct mlip_ctl *c, double pct);
+int mlip_ct_ext_start(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out);
+void mlip_ct_ext_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why);
+void mlip_ct_ext_step(struct mlip_ctl *c, struct mlip_ctl_out *out);
 
 /* power.c */
 void mlip_ct_power_period(struct mlip_ctl *c, const struct mlip_ctl_in *in,

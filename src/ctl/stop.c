@@ -119,6 +119,10 @@ void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t w
 		}
 		return;
 	}
+	if (c->ext.q != NULL) {
+		mlip_ct_ext_stop(c, out, why); /* the queue's braking run */
+		return;
+	}
 	if (c->jog.on) {
 		mlip_ct_jog_release(c, MLIP_WHY_JOG_RELEASED); /* a stop ends a jog on the path */
 		all_off(c);                                    /* and what an MDI line left on */

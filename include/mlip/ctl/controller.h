@@ -77,6 +77,11 @@
  *             LIMIT: the axis and direction; quick stop as for an E-stop)
  *             --reset, input released--> IDLE
  *   HELD <--hold input (rising edge)-- ; cycle start input: resume
+ *   IDLE --in->plan, a new in->plan_prog ([TRAJ] JERK_PLAN = path)-->
+ *             RUNNING: the setpoints are the planned queue's (no record is
+ *             taken; src/ctl/follow.c): hold, stop, exit, a fault, an
+ *             E-stop without drives as its braking run, END at its last
+ *             entry at rest, the override on its cap
  *
  * With CiA 402 drives (opts.drives) the controller also decides their power
  * (mlip_drive_power, mlip/ipc/ring.h), sent as the RPDOs' controlword and
@@ -120,6 +125,7 @@
 #include "mlip/ctl/state.h"
 #include "mlip/machine/config.h"
 #include "mlip/motion/planner.h"
+#include "mlip/motion/planq.h"
 #include "mlip/ipc/ring.h"
 #include "mlip/types.h"
 
@@ -268,6 +274,13 @@ struct mlip_ctl_in {
 	struct mlip_ctl_io io;              /* the inputs on the bus (opts.io) */
 	struct mlip_ctl_sdo_res sdo;        /* the last SDO transfer done (out->sdo) */
 	struct mlip_ctl_spindle_in spindle; /* opts.spindle */
+	/* [TRAJ] JERK_PLAN = path (issue 21): the planned queue of the program
+	 * the planning thread runs (NULL: none; mlip/motion/planq.h), and its
+	 * number (a new one starts a program once, at rest in IDLE): while it
+	 * runs the setpoints are the queue's (src/ctl/follow.c), no record is
+	 * taken from recs */
+	struct mlip_planq *plan;
+	uint32_t plan_prog;
 };
 
 /* The drives' power after the period (opts.drives; the sequencer's record). */
@@ -397,6 +410,13 @@ struct mlip_ctl {
 		int resume;                 /* resume came during a pause */
 		int stopped;                /* a stop came in it: the wait is not done */
 	} wait;
+	/* the planned queue followed (in->plan; src/ctl/follow.c) */
+	struct {
+		struct mlip_planq *q; /* the program's, while it runs (NULL: none) */
+		uint32_t prog, last;  /* its number, the last one started */
+		double vmax;          /* its plan's cap at override 100 */
+		int stopping;         /* a stop (or fault): the braking run, then dropped */
+	} ext;
 	/* the drives' power (opts.drives) */
 	struct {
 		struct mlip_402_seq seq; /* on the period count */
