@@ -30,7 +30,7 @@ import time
 
 import pytest
 
-from conftest import HEARTBEAT_MS, IO, IO_PERIOD_S, S, io_machine
+from conftest import DRIVES_VM, IO, IO_PERIOD_S, S, io_machine
 from mlipcan import compare, procs
 from mlipcan.compare import trim
 
@@ -49,6 +49,11 @@ def machine(tmp, tail=""):
     return io_machine(tmp, f"HOLD = {IO} 0x6000:1 1 HIGH\n" + tail, lambda text: re.sub(
         r"^\[AXIS_X\]$", f"[AXIS_X]\nLIMIT_POS = {IO} 0x6000:1 2 HIGH", text, flags=re.M))
 
+
+# the module's producer heartbeat time: mlip writes [DRIVES] HEARTBEAT_MS to its 0x1017
+_hb = re.search(r"^HEARTBEAT_MS = (\d+)$", DRIVES_VM, re.M)
+assert _hb, DRIVES_VM
+HEARTBEAT_MS = int(_hb.group(1))
 
 @pytest.fixture(scope="module")
 def sim(io_sim):
