@@ -199,8 +199,9 @@ def test_module_fault(sim, tmp_path):
     quick-stopped in one period, the program dropped; while its error
     register 0x1001 stays non-zero mlip never configures it again (each
     attempt stops at that read) and reset is refused; the attempts back off,
-    1, 2, 4 heartbeats apart (not one a heartbeat: a reset communication and
-    its SDOs every 100 ms); once the fault is cleared (its EMCY 0000h) it is
+    1, 2, 4 heartbeats after each failure (not one a heartbeat: a reset
+    communication and its SDOs every 100 ms); once the fault is cleared (its
+    EMCY 0000h, tried at once) it is
     configured again, its inputs read, and reset leaves the E-stop."""
     cfg = machine(tmp_path)
     ngc = tmp_path / "p.ngc"
@@ -231,8 +232,14 @@ def test_module_fault(sim, tmp_path):
             gaps = [(b - a) * 1000.0 / HEARTBEAT_MS for a, b in zip(ts, ts[1:])]
             print(f"[io] module fault: attempts {', '.join(f'{g:.2f}' for g in gaps)} "
                   f"heartbeats apart")
-            # each within 0.6 of a heartbeat (its timing on a loaded VM)
-            assert all(abs(g - w) <= 0.6 for g, w in zip(gaps, (1, 2, 4))), gaps
+            # reset to reset: the attempt (its boot-up and 4 SDOs: 1.3-1.6
+            # heartbeats in the emulated VM), then 1, 2, 4 heartbeats from its
+            # failure: the gaps grow by 1 and 2 heartbeats (one a heartbeat
+            # before: equal gaps), each within 0.6 (the attempt's own time
+            # varies that much on a loaded VM)
+            grow = [b - a for a, b in zip(gaps, gaps[1:])]
+            assert all(abs(g - w) <= 0.6 for g, w in zip(grow, (1, 2))), gaps
+            assert 1.0 <= gaps[0] <= 3.0, gaps
             p = rig.ctl("reset", check=False)
             assert p.returncode == 1, p.stderr
             assert rig.status()["state"] == "estop"
@@ -400,7 +407,10 @@ def hold_machine(tmp, home=None):
     def edit(text):
         text = text.replace("MAX_ACCELERATION = 1000", f"MAX_ACCELERATION = {HOLD_A:g}")
         for ax, h in (home or {}).items():
-            text = re.sub(rf"(\[AXIS_{ax}\][^\[]*?)HOME = 0\b", rf"\g<1>HOME = {h!r}", text)
+            # in that section: from its header line over lines that start no
+            # other (Y's comment names [AXIS_X]: an unanchored match took Y's)
+            text = re.sub(rf"(^\[AXIS_{ax}\]\n(?:(?!\[).*\n)*?)HOME = 0\b",
+                          rf"\g<1>HOME = {h!r}", text, flags=re.M)
         return re.sub(r"^\[AXIS_X\]$", f"[AXIS_X]\nLIMIT_POS = {IO} 0x6000:1 2 HIGH", text,
                       flags=re.M)
     return io_machine(tmp, f"HOLD = {IO} 0x6000:1 1 HIGH\nCYCLE_START = {IO} 0x6000:1 3 HIGH\n",
