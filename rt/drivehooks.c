@@ -89,14 +89,19 @@ void mlip_drives_observe(struct mlip_drives *ds, const struct mlip_can_frame *f,
 	case MLIP_CO_HEARTBEAT:
 		o->nmt_state = m->nmt_state;
 		o->hb_ns = now;
-		if (i < 0 && m->nmt_state == MLIP_NMT_BOOTUP) {
-			ds->io.bootup_ns = now; /* the module (re)booted */
+		if (i < 0) {
+			ds->io.hb_count++;
+			if (m->nmt_state == MLIP_NMT_BOOTUP) {
+				ds->io.bootup_ns = now; /* the module (re)booted */
+			}
 		}
 		break;
 	case MLIP_CO_EMCY:
 		if (m->emcy.code != 0) {
 			o->emcy = m->emcy;
 			o->emcy_count++;
+		} else if (i < 0) {
+			ds->io.ereset_ns = now; /* CiA 301: its error has gone */
 		}
 		break;
 	case MLIP_CO_TPDO:

@@ -5,8 +5,8 @@
  * before anything it says is trusted: a module that rebooted has its
  * default PDO mapping and consumes no heartbeat, one that was cut off may
  * have rebooted unseen. The steps, one SDO or NMT frame at a time, each
- * answered within its timeout or the attempt fails (and is tried again at
- * the module's next heartbeat):
+ * answered within its timeout or the attempt fails (and is tried again,
+ * backing off: below):
  *   1. NMT reset communication, its boot-up message (BOOT_TIMEOUT_MS)
  *   1b. the same device: its 0x1000 device type and 0x1018 vendor-ID and
  *      product code read and compared with bring-up's; another module on
@@ -26,11 +26,26 @@
  * when it was lost was dropped by the E-stop). Until then its TPDOs are
  * ignored and no RPDO is sent to it.
  *
+ * A failed attempt is tried again after 1, 2, 4 ... IO_RE_BACKOFF_MAX of
+ * the module's heartbeats (each failure in a row doubles the wait), or at
+ * once when the module says it changed: a boot-up message (it rebooted:
+ * its fault may have gone with it) or an EMCY 0000h ("error reset or no
+ * error", CiA 301: what a module sends when its error has gone). A module
+ * that keeps reporting a fault (0x1001 non-zero) was reset and queried at
+ * each of its heartbeats before: a reset communication and 3-4 SDOs every
+ * producer time, for as long as the fault lasted. The back-off keeps the
+ * bus quiet (at 100 ms heartbeats one attempt every 3.2 s at most) yet
+ * retries on its own, bounded, for a module whose fault clears without
+ * the EMCY (not every module sends it; 0x1015's inhibit time may hold it
+ * back); the E-stop stays until an attempt succeeds.
+ *
  * In the loop: no wait, no print, no allocation.
  */
 #include <string.h>
 
 #include "drives.h"
+
+#define IO_RE_BACKOFF_MAX 32u /* heartbeats between two attempts at most */
 
 static uint32_t mask_of(uint8_t size)
 {
@@ -53,7 +68,10 @@ static void fail(struct mlip_drives *ds, uint64_t now, uint32_t abort, uint16_t 
 	ds->io.re.fail_index = index;
 	ds->io.re.fail_sub = sub;
 	ds->io.re.fail_reg = 0;
-	ds->io.lost_ns = now; /* tried again at a heartbeat after this */
+	ds->io.lost_ns = now; /* a boot-up or an error reset after this: tried again */
+	uint32_t wait = ds->io.re.streak < 5 ? 1u << ds->io.re.streak : IO_RE_BACKOFF_MAX;
+	ds->io.re.streak++;
+	ds->io.re.retry_hb = ds->io.hb_count + wait;
 }
 
 static void sdo_start(struct mlip_drives *ds, uint64_t now, int upload, uint16_t index, uint8_t sub,
@@ -207,6 +225,7 @@ static void back(struct mlip_drives *ds, uint64_t now)
 {
 	ds->io.re.phase = MLIP_IO_RE_NONE;
 	ds->io.re.count++;
+	ds->io.re.streak = 0;
 	ds->io.lost = 0;
 	ds->io.lost_value = 0.0;
 	ds->io.obs.emcy_count = 0; /* before the reset; a fault that stays is sent again */
@@ -221,7 +240,9 @@ static void reconfigure(struct mlip_drives *ds, uint64_t now)
 	const struct mlip_drive_obs *o = &ds->io.obs;
 	switch (ds->io.re.phase) {
 	case MLIP_IO_RE_NONE:
-		if (ds->io.re.n > 0 && !ds->io.re.wrong && o->hb_ns > ds->io.lost_ns) {
+		if (ds->io.re.n > 0 && !ds->io.re.wrong &&
+		    (ds->io.hb_count >= ds->io.re.retry_hb || ds->io.bootup_ns > ds->io.lost_ns ||
+		     ds->io.ereset_ns > ds->io.lost_ns)) {
 			/* heard again: from a known state, whatever it did meanwhile */
 			ds->io.re.phase = MLIP_IO_RE_BOOT;
 			ds->io.re.t0_ns = now;
@@ -278,7 +299,9 @@ void mlip_io_module_period(struct mlip_drives *ds, uint64_t now)
 	} else {
 		return;
 	}
-	/* nothing it said is trusted until it is configured again */
+	/* nothing it said is trusted until it is configured again, from its
+	 * next heartbeat on */
 	ds->io.lost_ns = now;
+	ds->io.re.retry_hb = ds->io.hb_count + 1;
 	ds->io.img.module_read = 0;
 }

@@ -336,6 +336,8 @@ struct mlip_drives {
 		double lost_value;
 		uint64_t lost_ns;   /* when (or when a reconfiguration last failed) */
 		uint64_t bootup_ns; /* its last boot-up message */
+		uint64_t ereset_ns; /* its last EMCY 0000h (error reset: a fault gone) */
+		uint64_t hb_count;  /* its heartbeats heard (boot-up messages too) */
 		uint64_t rx_frames;
 		/* what it is, as read at bring-up: device type 0x1000, vendor-ID
 		 * 0x1018:01, product code 0x1018:02 (optional in CiA 301:
@@ -360,8 +362,12 @@ struct mlip_drives {
 			struct mlip_sdo_entry e[MLIP_IO401_SETUP_MAX];
 			int n;
 			uint32_t count, failed; /* reconfigurations done / attempts failed */
-			uint32_t fail_abort;    /* the last failed one: abort code (0: timeout) */
-			uint16_t fail_index;    /* and object */
+			/* back-off: attempts failed in a row, and the heartbeat
+			 * (hb_count) the next one waits for */
+			uint32_t streak;
+			uint64_t retry_hb;
+			uint32_t fail_abort; /* the last failed one: abort code (0: timeout) */
+			uint16_t fail_index; /* and object */
 			uint8_t fail_sub;
 			uint8_t fail_reg; /* its error register 0x1001 when that failed it
 			                     (a fault it still reports), else 0 */

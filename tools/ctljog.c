@@ -236,6 +236,13 @@ again:
 			        ": jog %s: refused: the controller got other axes for this jog "
 			        "(another client jogging at the same moment?): try again\n",
 			        dir);
+		} else if (st.state == MLIP_STATE_IDLE && st.held_by != 0) {
+			fprintf(stderr,
+			        PROG
+			        ": jog %s: refused: the controller is idle with a hold latched "
+			        "(%s; Grbl's Hold:0): mlip-ctl resume releases it, moving "
+			        "nothing\n",
+			        dir, mlip_state_why_name(st.held_by));
 		} else {
 			fprintf(stderr,
 			        PROG ": jog %s: refused: the controller is %s (%s), not idle\n",

@@ -113,6 +113,27 @@ static const char *jog_text(const struct mlip_ring_status *st, const struct mlip
 	return buf;
 }
 
+/* A hold latched at rest (Grbl 1.1's Hold:0 from Idle): the next program
+ * waits for a resume, which moves nothing by itself. "" when none. */
+static const char *latched_text(const struct mlip_ring_status *st, char *buf, size_t len)
+{
+	uint32_t why = mlip_state_held_by(st->held_by);
+	const char *go = st->state == MLIP_STATE_IDLE ? "start" : "go on";
+	if (!mlip_state_hold_latched(st->state, st->held_by)) {
+		return "";
+	}
+	if (why == MLIP_WHY_HOLD) {
+		snprintf(buf, len, " (hold latched: resume to %s)", go);
+	} else if (why == MLIP_WHY_BUS_TX || why == MLIP_WHY_BUS_ERROR) {
+		snprintf(buf, len, " (held latched: %s; resume to %s once the bus is clean)",
+		         mlip_state_why_name(why), go);
+	} else {
+		snprintf(buf, len, " (held latched: %s; resume to %s)", mlip_state_why_name(why),
+		         go);
+	}
+	return buf;
+}
+
 /* status --json: one object on stdout. */
 static void status_json(const struct mlip_shm *s, const struct mlip_ring_status *st,
                         const struct mlip_ring_feeder *fd, const struct mlip_machine *m,
@@ -129,6 +150,14 @@ static void status_json(const struct mlip_shm *s, const struct mlip_ring_status 
 	 * with the one it last published beside */
 	mlip_json_string(&j, "state", alive ? mlip_ctl_state_name(st->state) : dead_name(v));
 	mlip_json_string(&j, "last_state", mlip_ctl_state_name(st->state));
+	/* the hold in force (null: none); latched: at rest, the next program
+	 * starts held until a resume */
+	if (mlip_state_held_by(st->held_by) != 0) {
+		mlip_json_string(&j, "held_by", mlip_state_why_name(st->held_by));
+	} else {
+		mlip_json_null(&j, "held_by");
+	}
+	mlip_json_bool(&j, "hold_latched", mlip_state_hold_latched(st->state, st->held_by));
 	mlip_json_bool(&j, "alive", alive);
 	mlip_json_string(&j, "liveness", mlip_peer_verdict_name(v));
 	mlip_json_uint(&j, "heartbeat", st->heartbeat);
@@ -303,9 +332,10 @@ int cmd_status(struct mlip_shm *s, int json)
 		return alive && st.state != MLIP_STATE_FAULT ? EXIT_DONE : EXIT_FAIL;
 	}
 
+	char latched[120];
 	if (alive) {
-		printf("controller  %s: %s, alive (heartbeat ", s->name,
-		       mlip_ctl_state_name(st.state));
+		printf("controller  %s: %s%s, alive (heartbeat ", s->name,
+		       mlip_ctl_state_name(st.state), latched_text(&st, latched, sizeof(latched)));
 	} else {
 		printf("controller  %s: %s, last state %s (heartbeat ", s->name,
 		       v == MLIP_PEER_LATE ? "NOT RESPONDING" : "NOT RUNNING",
@@ -360,6 +390,9 @@ int cmd_status(struct mlip_shm *s, int json)
 	if (st.state == MLIP_STATE_PAUSED ||
 	    (st.state == MLIP_STATE_HELD && st.reason != MLIP_WHY_OVERRIDE_ZERO)) {
 		printf("to continue mlip-ctl resume\n");
+	} else if (alive && mlip_state_hold_latched(st.state, st.held_by)) {
+		printf("to continue mlip-ctl resume (or cycle start) releases the hold, moving "
+		       "nothing; a program sent meanwhile waits held; stop clears it too\n");
 	} else if (st.state == MLIP_STATE_ESTOP ||
 	           (st.state == MLIP_STATE_FAULT && st.reason == MLIP_WHY_LIMIT)) {
 		printf("to continue release the input, then mlip-ctl reset\n");

@@ -80,6 +80,17 @@ int controller_fault(struct feed *f)
 	return EXIT_FAULT;
 }
 
+/* Held where the program's first record was taken: it never moved. */
+static int unmoved(const struct feed *f)
+{
+	for (int k = 0; k < f->mp.n_axes; k++) {
+		if (f->st.pos[k] != f->st.prog_start[k]) {
+			return 0;
+		}
+	}
+	return f->st.exec_seq == f->first_seq;
+}
+
 /* Tell the operator once per state what the machine waits for and how to
  * continue: the same words as mlip-rt's log and mlip-ctl status. */
 void explain(struct feed *f)
@@ -114,6 +125,18 @@ void explain(struct feed *f)
 		close_line(f);
 		say(": paused (%s) at line %u: mlip-ctl resume continues\n",
 		    mlip_state_why_name(st->reason), (unsigned)st->reason_line);
+	} else if (st->state == MLIP_STATE_HELD && st->reason == MLIP_WHY_HOLD && unmoved(f)) {
+		/* never moved: a hold latched at rest before it came (Grbl 1.1's
+		 * Hold:0 from Idle), not a program that is stuck */
+		close_line(f);
+		say(": held before its first move: a hold was latched while the machine was idle "
+		    "(mlip-ctl hold, the hold input, Grbl's !); to start: mlip-ctl resume (or "
+		    "cycle "
+		    "start)\n");
+	} else if (st->state == MLIP_STATE_HELD && st->reason == MLIP_WHY_HOLD) {
+		close_line(f);
+		say(": held (feed hold) at line %u: mlip-ctl resume (or cycle start) continues\n",
+		    (unsigned)st->exec_line);
 	} else if (st->state == MLIP_STATE_HELD && st->reason == MLIP_WHY_STALL) {
 		close_line(f);
 		say(": stall: the controller missed %.0f periods; held at rest at the last "

@@ -148,6 +148,16 @@ static void report(const struct mlip_ring_status *a, const struct mlip_ring_stat
 		             "rest\n",
 		        (double)b->stop_nm * 1e-6, (unsigned)b->stop_periods);
 	}
+	int la = mlip_state_hold_latched(a->state, a->held_by);
+	if (mlip_state_hold_latched(b->state, b->held_by) && !la) {
+		fprintf(stderr,
+		        PROG
+		        ": a hold at rest while %s (%s): latched, the next program starts held "
+		        "until mlip-ctl resume (cycle start)\n",
+		        mlip_ctl_state_name(b->state), mlip_state_why_name(b->held_by));
+	} else if (la && b->held_by == 0 && b->state == a->state) {
+		fprintf(stderr, PROG ": the hold latched at rest ended (resume, stop or E-stop)\n");
+	}
 }
 
 /* One line per event of the loop (its log queue), with the reason. */

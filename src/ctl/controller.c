@@ -203,6 +203,7 @@ static void publish(const struct mlip_ctl *c, struct mlip_ctl_out *out)
 	memcpy(s->prog_start, c->prog.start, sizeof(s->prog_start));
 	s->stop_seen = c->op.stop_seen;
 	s->io_mapped = c->io.cfg.mapped;
+	s->held_by = mlip_ct_held_by(c); /* at rest: latched for the next program */
 }
 
 /* Still moving: a stall must freeze it. */

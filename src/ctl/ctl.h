@@ -113,6 +113,7 @@ void mlip_ct_fault(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl
 void mlip_ct_blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out);
 void mlip_ct_after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const struct mlip_ctl_in *in,
                         mlip_run_state rs, int still);
+uint32_t mlip_ct_held_by(const struct mlip_ctl *c);
 
 /* stop.c */
 void mlip_ct_drive_fault(struct mlip_ctl *c, struct mlip_ctl_out *out,
@@ -121,6 +122,7 @@ void mlip_ct_brake_begin(struct mlip_ctl *c);
 void mlip_ct_brake_step(struct mlip_ctl *c, const double *prev, mlip_run_state rs);
 void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why);
 void mlip_ct_planner_stop(struct mlip_ctl *c);
+void mlip_ct_hold_clear(struct mlip_ctl *c);
 
 /* estop.c */
 void mlip_ct_follow_actual(struct mlip_ctl *c, const struct mlip_ctl_in *in);

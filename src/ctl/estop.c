@@ -119,6 +119,8 @@ void mlip_ct_quick_stop(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct
 		mlip_ct_follow_actual(c, in);
 	} else if (mlip_planner_queued(c->planner) > 0) {
 		mlip_ct_planner_stop(c);
+	} else {
+		mlip_ct_hold_clear(c); /* a hold latched at rest ends, as with drives */
 	}
 	c->wait.dwell_left = 0;
 	c->wait.stopped = 0;

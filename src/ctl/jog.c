@@ -212,7 +212,9 @@ int32_t mlip_ct_jog_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32_
 		go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_RESET, 0, 0));
 	}
 	if (c->state != MLIP_STATE_IDLE || c->io.estop || mlip_planner_queued(c->planner) > 0 ||
-	    rx_count(c) > 0) {
+	    rx_count(c) > 0 || mlip_planner_held(c->planner)) {
+		/* a hold latched at rest too: Grbl 1.1 refuses $J in Hold (error
+		 * 8); a resume releases it, moving nothing */
 		return MLIP_E_INVALID;
 	}
 	c->jog.axis = axis;

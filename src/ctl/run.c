@@ -534,6 +534,17 @@ static uint32_t held_why(const struct mlip_ctl *c)
 	return MLIP_WHY_HOLD;
 }
 
+/* The hold in force (status held_by): what holds the path, 0 none. An
+ * override of 0 is not a hold: it ends with a higher override. */
+uint32_t mlip_ct_held_by(const struct mlip_ctl *c)
+{
+	if (!mlip_planner_held(c->planner)) {
+		return 0;
+	}
+	uint32_t why = held_why(c);
+	return why == MLIP_WHY_OVERRIDE_ZERO ? MLIP_WHY_HOLD : why;
+}
+
 /* The planner's last completed block into exec_seq/line. At rest with
  * nothing queued the planner knows a new block's predecessor by its number
  * only (line 0): that is the block the controller already names. */

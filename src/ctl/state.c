@@ -74,3 +74,24 @@ const char *mlip_state_why_name(uint32_t why)
 
 	return NAME_OF(names, why);
 }
+
+uint32_t mlip_state_held_by(uint32_t held_by)
+{
+	switch (held_by) {
+	case MLIP_WHY_HOLD:
+	case MLIP_WHY_STALL:
+	case MLIP_WHY_BUS_TX:
+	case MLIP_WHY_BUS_ERROR:
+	case MLIP_WHY_SPINDLE_WAIT:
+		return held_by;
+	default:
+		return 0;
+	}
+}
+
+int mlip_state_hold_latched(uint32_t state, uint32_t held_by)
+{
+	uint32_t why = mlip_state_held_by(held_by);
+	return (state == MLIP_STATE_IDLE || state == MLIP_STATE_STARVED) && why != 0 &&
+	       why != MLIP_WHY_SPINDLE_WAIT;
+}

@@ -104,6 +104,16 @@ void mlip_ct_planner_stop(struct mlip_ctl *c)
 	}
 }
 
+/* A hold latched at rest ends (a stop at rest, an E-stop): Grbl 1.1's
+ * reset leaves Hold for Idle. A bus still bad holds again next period. */
+void mlip_ct_hold_clear(struct mlip_ctl *c)
+{
+	c->hold.op = 0;
+	c->hold.stall = 0;
+	c->hold.bus = 0;
+	mlip_planner_hold(c->planner, 0);
+}
+
 /* Stop: decelerate on the path and drop the rest of the program. */
 void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t why)
 {
@@ -136,6 +146,7 @@ void mlip_ct_begin_stop(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t w
 		c->prog.discard = rx_count(c) > 0;
 		c->prog.discard_waiting = c->prog.discard;
 		all_off(c); /* what an MDI line left on (issue 19) */
+		mlip_ct_hold_clear(c);
 		return;
 	}
 	if (c->state == MLIP_STATE_PREREAD && !c->prog.refill && why == MLIP_WHY_STOP) {

@@ -47,7 +47,7 @@ MLIP_RING_CHECK(off_head, offsetof(struct mlip_ring, head) == 64);
 MLIP_RING_CHECK(off_tail, offsetof(struct mlip_ring, tail) == 128);
 MLIP_RING_CHECK(off_status_gen, offsetof(struct mlip_ring, status_gen) == 192);
 MLIP_RING_CHECK(off_status, offsetof(struct mlip_ring, status) == 208);
-MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 432);
+MLIP_RING_CHECK(status_size, sizeof(struct mlip_ring_status) == 440);
 MLIP_RING_CHECK(off_feeder_gen, offsetof(struct mlip_ring, feeder_gen) == 704);
 MLIP_RING_CHECK(off_feeder, offsetof(struct mlip_ring, feeder) == 712);
 MLIP_RING_CHECK(feeder_size, sizeof(struct mlip_ring_feeder) == 40);
@@ -644,6 +644,8 @@ void mlip_ring_status_write(struct mlip_ring *r, const struct mlip_ring_status *
 	STD(&d->spindle_actual_rpm, &s->spindle_actual_rpm);
 	ST(&d->spindle_override, s->spindle_override, REL);
 	ST(&d->spindle_node, s->spindle_node, REL);
+	ST(&d->held_by, s->held_by, REL);
+	ST(&d->spare12, s->spare12, REL);
 	ST(&r->status_gen, g + 2, REL);
 }
 
@@ -713,6 +715,8 @@ mlip_status mlip_ring_status_read(const struct mlip_ring *r, struct mlip_ring_st
 		LDD(&d->spindle_actual_rpm, &s->spindle_actual_rpm);
 		s->spindle_override = LD(&d->spindle_override, ACQ);
 		s->spindle_node = LD(&d->spindle_node, ACQ);
+		s->held_by = LD(&d->held_by, ACQ);
+		s->spare12 = LD(&d->spare12, ACQ);
 		g2 = LD(&r->status_gen, RLX);
 		if (g1 == g2) {
 			return MLIP_OK;

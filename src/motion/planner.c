@@ -668,6 +668,11 @@ int mlip_planner_moving(const struct mlip_planner *p)
 	return (p->head != p->tail && (p->v_mm_s > 0.0 || p->in_corner)) || !mlip_settled(p);
 }
 
+int mlip_planner_held(const struct mlip_planner *p)
+{
+	return p->hold && !p->stopping;
+}
+
 void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)
 {
 	const struct mlip_seg *s = cseg_at(p, p->tail);

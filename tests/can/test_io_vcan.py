@@ -30,7 +30,7 @@ import time
 
 import pytest
 
-from conftest import IO, IO_PERIOD_S, S, io_machine
+from conftest import DRIVES_VM, IO, IO_PERIOD_S, S, io_machine
 from mlipcan import compare, procs
 from mlipcan.compare import trim
 
@@ -49,6 +49,11 @@ def machine(tmp, tail=""):
     return io_machine(tmp, f"HOLD = {IO} 0x6000:1 1 HIGH\n" + tail, lambda text: re.sub(
         r"^\[AXIS_X\]$", f"[AXIS_X]\nLIMIT_POS = {IO} 0x6000:1 2 HIGH", text, flags=re.M))
 
+
+# the module's producer heartbeat time: mlip writes [DRIVES] HEARTBEAT_MS to its 0x1017
+_hb = re.search(r"^HEARTBEAT_MS = (\d+)$", DRIVES_VM, re.M)
+assert _hb, DRIVES_VM
+HEARTBEAT_MS = int(_hb.group(1))
 
 @pytest.fixture(scope="module")
 def sim(io_sim):
@@ -193,9 +198,11 @@ def test_module_fault(sim, tmp_path):
     """The module's fault (fail-safe): its EMCY is an E-stop, every drive
     quick-stopped in one period, the program dropped; while its error
     register 0x1001 stays non-zero mlip never configures it again (each
-    attempt at its heartbeat stops at that read) and reset is refused; once
-    the fault is cleared it is configured again, its inputs read, and reset
-    leaves the E-stop."""
+    attempt stops at that read) and reset is refused; the attempts back off,
+    1, 2, 4 heartbeats after each failure (not one a heartbeat: a reset
+    communication and its SDOs every 100 ms); once the fault is cleared (its
+    EMCY 0000h, tried at once) it is
+    configured again, its inputs read, and reset leaves the E-stop."""
     cfg = machine(tmp_path)
     ngc = tmp_path / "p.ngc"
     ngc.write_text(PROGRAM_LONG)
@@ -212,14 +219,27 @@ def test_module_fault(sim, tmp_path):
             assert f"node {IO}, emergency: EMCY 0x5000" in text, text
             rc = feed.p.wait(timeout=120)
             assert rc == 5, (rc, feed.stderr())
-            # attempts at its heartbeats, each stopped at 0x1001: two NMT resets
+            # attempts at its heartbeats, each stopped at 0x1001, backing
+            # off: four NMT resets, 1, 2 and 4 heartbeats apart
             def resets():
                 return [e for e in sim.events(node=IO)
                         if e["kind"] == "nmt" and e["t"] >= t0 and e["why"] == "NMT reset"]
             t_end = time.monotonic() + 300
-            while len(resets()) < 2:
+            while len(resets()) < 4:
                 assert time.monotonic() < t_end, resets()
                 time.sleep(0.05)  # polled: the condition is the events file's
+            ts = [e["t"] for e in resets()[:4]]
+            gaps = [(b - a) * 1000.0 / HEARTBEAT_MS for a, b in zip(ts, ts[1:])]
+            print(f"[io] module fault: attempts {', '.join(f'{g:.2f}' for g in gaps)} "
+                  f"heartbeats apart")
+            # reset to reset: the attempt (its boot-up and 4 SDOs: 1.3-1.6
+            # heartbeats in the emulated VM), then 1, 2, 4 heartbeats from its
+            # failure: the gaps grow by 1 and 2 heartbeats (one a heartbeat
+            # before: equal gaps), each within 0.6 (the attempt's own time
+            # varies that much on a loaded VM)
+            grow = [b - a for a, b in zip(gaps, gaps[1:])]
+            assert all(abs(g - w) <= 0.6 for g, w in zip(grow, (1, 2))), gaps
+            assert 1.0 <= gaps[0] <= 3.0, gaps
             p = rig.ctl("reset", check=False)
             assert p.returncode == 1, p.stderr
             assert rig.status()["state"] == "estop"
@@ -387,7 +407,10 @@ def hold_machine(tmp, home=None):
     def edit(text):
         text = text.replace("MAX_ACCELERATION = 1000", f"MAX_ACCELERATION = {HOLD_A:g}")
         for ax, h in (home or {}).items():
-            text = re.sub(rf"(\[AXIS_{ax}\][^\[]*?)HOME = 0\b", rf"\g<1>HOME = {h!r}", text)
+            # in that section: from its header line over lines that start no
+            # other (Y's comment names [AXIS_X]: an unanchored match took Y's)
+            text = re.sub(rf"(^\[AXIS_{ax}\]\n(?:(?!\[).*\n)*?)HOME = 0\b",
+                          rf"\g<1>HOME = {h!r}", text, flags=re.M)
         return re.sub(r"^\[AXIS_X\]$", f"[AXIS_X]\nLIMIT_POS = {IO} 0x6000:1 2 HIGH", text,
                       flags=re.M)
     return io_machine(tmp, f"HOLD = {IO} 0x6000:1 1 HIGH\nCYCLE_START = {IO} 0x6000:1 3 HIGH\n",
@@ -407,8 +430,8 @@ def fresh_targets(sim, t0):
 def test_hold_and_cycle_start(sim, tmp_path):
     """The module's hold and cycle-start inputs (rising edges, as mlip-ctl
     hold / resume). Idle: cycle start, then hold do nothing (no motion, no
-    fault; a hold taken at rest stays latched, as Grbl's Hold:0, so cycle
-    start releases it before the program). Running: cycle start changes nothing; hold brakes on the
+    fault; a hold taken at rest stays latched, as Grbl's Hold:0, the status
+    says so, and cycle start releases it before the program). Running: cycle start changes nothing; hold brakes on the
     line within the acceleration limit to rest, state held; releasing the
     button does nothing; cycle start resumes and the program ends at its end
     to the count. The motion before the hold is mlip-sim's to the count."""
@@ -440,9 +463,15 @@ def test_hold_and_cycle_start(sim, tmp_path):
             button(bit, False, key)
             st = rig.status()
             assert st["state"] == "idle" and st["reason"] not in ("hold", "resume"), st
+        # the latched hold is said: the next program would wait for cycle start
+        assert st["hold_latched"] is True and st["held_by"] == "hold", st
+        text = rig.ctl("status").stdout
+        assert "idle (hold latched: resume to start)" in text, text
         button(3, True, "cycle start")  # releases the latched hold
         button(3, False, "cycle start")
-        assert rig.status()["state"] == "idle"
+        st = rig.status()
+        assert st["state"] == "idle" and st["hold_latched"] is False, st
+        assert st["held_by"] is None, st
         t0 = time.time()
         feed = rig.feeder(ngc)
         # cruising on the long line: cycle start changes nothing

@@ -377,3 +377,66 @@ def test_status_liveness_alive_late_dead(controller):
             os.unlink("/dev/shm" + shm)  # a killed controller leaves its segment
         except FileNotFoundError:
             pass
+
+
+def test_hold_latched_at_rest_is_said(controller, tmp_path):
+    """A hold at rest stays latched (Grbl 1.1's Hold:0 from Idle): mlip-ctl
+    status says so (`idle (hold latched: resume to start)`, JSON hold_latched
+    and held_by) instead of a bare idle; a jog is refused, naming it; a
+    program sent then waits held, unmoved, and mlip-feed says why instead of
+    seeming stuck; resume starts it. A resume at rest clears the latch
+    moving nothing; so does a stop."""
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90 G94\nG1 X5 F600\nM2\n")
+    shm, rt = controller(PAPER)
+    latched = "a hold at rest while idle (hold): latched, the next program starts held until " \
+        "mlip-ctl resume"
+
+    def logged(text, n):
+        """mlip-rt's monitor (a status sampled every 50 ms) logged text n times."""
+        return wait_for(lambda: rt.said().count(text) >= n, 60), rt.said()
+    assert wait_for(lambda: (status(shm) or {}).get("state") == "idle", 60)
+    st = status(shm)
+    assert st["hold_latched"] is False and st["held_by"] is None, st
+    assert ctl(shm, "hold").returncode == 0
+    st = wait_for(lambda: (lambda s: s if s["hold_latched"] else None)(status(shm)), 60)
+    assert st and st["state"] == "idle" and st["held_by"] == "hold", status(shm)
+    text = ctl(shm, "status").stdout
+    assert ": idle (hold latched: resume to start), alive" in text, text
+    assert "to continue mlip-ctl resume (or cycle start)" in text, text
+    assert logged(latched, 1)
+    j = ctl(shm, "jog", "X+", "600", "0.2")
+    assert j.returncode != 0 and "a hold latched" in j.stderr, j.stderr
+    # resumed at rest: cleared, nothing moved
+    x0 = st["position"]
+    assert ctl(shm, "resume").returncode == 0
+    st = wait_for(lambda: (lambda s: s if not s["hold_latched"] else None)(status(shm)), 60)
+    assert st and st["state"] == "idle" and st["held_by"] is None, status(shm)
+    assert st["position"] == x0, st
+    assert logged("the hold latched at rest ended", 1)
+    # latched again, then a stop at rest: cleared too
+    assert ctl(shm, "hold").returncode == 0
+    assert wait_for(lambda: status(shm)["hold_latched"], 60), status(shm)
+    assert logged(latched, 2)
+    assert ctl(shm, "stop").returncode == 0
+    assert wait_for(lambda: not status(shm)["hold_latched"], 60), status(shm)
+    assert logged("the hold latched at rest ended", 2)
+    # latched, then a program: held before its first move, and said so
+    assert ctl(shm, "hold").returncode == 0
+    assert wait_for(lambda: status(shm)["hold_latched"], 60), status(shm)
+    f = Proc([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE, text=True)
+    held = wait_for(lambda: (lambda s: s if s["state"] == "held" else None)(status(shm)), 60)
+    assert held and held["reason"] == "hold" and held["held_by"] == "hold", status(shm)
+    assert held["hold_latched"] is False, held  # held: the state says it now
+    assert wait_for(lambda: "held before its first move" in f.said(), 60), f.said()
+    later = periods_on(shm, 200)
+    assert later and later["state"] == "held" and later["position"] == x0, later
+    assert f.poll() is None  # waiting, not failed
+    assert ctl(shm, "resume").returncode == 0
+    _, ferr = f.communicate(timeout=60)
+    assert f.returncode == 0, ferr
+    assert "a hold was latched while the machine was idle" in ferr and "resume" in ferr, ferr
+    st = status(shm)
+    assert st["state"] == "idle" and st["position"]["X"] == 5.0, st
+    err = stop(rt)
+    assert "held (hold): at rest in block 1 (line 2); mlip-ctl resume continues" in err, err

@@ -368,6 +368,51 @@ def test_hold_resume_override_reset(grbl):
     idle_at(g, [0, 0, 0])
 
 
+def test_hold_latched_at_rest(grbl):
+    """A hold at rest, whoever asked (mlip-ctl hold, the hold input, `!`),
+    stays latched in the controller (Grbl 1.1: Hold:0 from Idle): `?` says
+    Hold:0, not Idle; a line sent then waits held, `?` Hold:0 all along
+    (never Run), unmoved; `~` starts it. `~` at rest ends the latch moving
+    nothing; a soft reset (ctrl-x) ends it too (Grbl's reset leaves Hold for
+    Idle)."""
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    ctl = lambda *a: subprocess.run([tool("mlip-ctl"), "--shm", shm, *a], capture_output=True,
+                                    text=True)
+    g.wait_state({"Idle"})
+    # mlip-ctl's hold, not the sender's: the report follows the controller
+    assert ctl("hold").returncode == 0
+    assert wait_for(lambda: status(shm)["hold_latched"], DEADLINE), status(shm)
+    s = g.wait_state({"Hold:0"})
+    assert s["MPos"] == [0, 0, 0], s
+    g.send(b"~")
+    g.wait_state({"Idle"})
+    assert wait_for(lambda: not status(shm)["hold_latched"], DEADLINE), status(shm)
+    assert status(shm)["position"]["X"] == 0.0
+    # `!` at rest, then a line: held before it moves, Hold:0 until `~`
+    g.send(b"!")
+    assert g.status()["state"] == "Hold:0"
+    assert wait_for(lambda: status(shm)["hold_latched"], DEADLINE), status(shm)
+    assert g.cmd("G1 X5 F3000")[0] == "ok"
+    assert wait_for(lambda: status(shm)["state"] == "held", DEADLINE), status(shm)
+    periods_pass(shm, 200)
+    s = g.status()
+    assert s["state"] == "Hold:0" and s["MPos"][0] == 0, s
+    assert status(shm)["reason"] == "hold"
+    g.send(b"~")
+    idle_at(g, [5, 0, 0])
+    # latched by mlip-ctl, then a soft reset: Idle, the latch gone
+    assert ctl("hold").returncode == 0
+    assert wait_for(lambda: status(shm)["hold_latched"], DEADLINE), status(shm)
+    g.wait_state({"Hold:0"})
+    g.send(b"\x18")
+    welcomed(g, 2)
+    g.wait_state({"Idle"})
+    assert wait_for(lambda: not status(shm)["hold_latched"], DEADLINE), status(shm)
+    assert g.cmd("G1 X0 F3000")[0] == "ok"             # runs unheld
+    idle_at(g, [0, 0, 0])
+
+
 def test_hold_between_lines_keeps_the_program_open(grbl):
     """A `!` at rest between a sender's lines (the controller starved, the
     program open: Run) holds it open however long the hold lasts: the quiet

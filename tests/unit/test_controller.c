@@ -339,6 +339,7 @@ static void test_hold_at_rest_counts_no_stop(void **st)
 	tick(10);
 	s = status();
 	assert_int_equal(s.state, MLIP_STATE_IDLE);
+	assert_int_equal(s.held_by, MLIP_WHY_HOLD); /* latched, and said so */
 	assert_int_equal(s.stops, 1);
 	assert_true(s.stop_nm == nm && s.stop_periods == periods);
 	move(1, 110.0, 0.0); /* the next program */
@@ -352,6 +353,83 @@ static void test_hold_at_rest_counts_no_stop(void **st)
 	until(MLIP_STATE_IDLE, 3000);
 	assert_true(out.pos[0] == 110.0);
 	assert_int_equal(status().stops, 1);
+}
+
+/* A one-line program to X = x: it runs to its end, no hold in force. */
+static void line_unheld(double x)
+{
+	move(1, x, 0.0);
+	end(2);
+	until(MLIP_STATE_RUNNING, 3000);
+	while (status().state != MLIP_STATE_IDLE) {
+		assert_int_equal(status().held_by, 0);
+		assert_true(period < 1000000);
+		tick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(out.pos[0] == x);
+}
+
+/* A hold latched at rest is in the status (held_by, issue 18's left-over:
+ * idle read "idle" while the next program would wait held); a resume at
+ * rest ends it moving nothing; the next program then runs; a stop at rest
+ * ends it too (Grbl 1.1's reset leaves Hold for Idle); a jog is refused
+ * while it lasts (Grbl refuses $J in Hold, error 8). */
+static void test_hold_latched_at_rest(void **st)
+{
+	(void)st;
+	tick(5);
+	assert_int_equal(status().held_by, 0);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	tick(5);
+	struct mlip_ring_status s = status();
+	assert_int_equal(s.state, MLIP_STATE_IDLE);
+	assert_int_equal(s.held_by, MLIP_WHY_HOLD);
+	assert_true(mlip_state_hold_latched(s.state, s.held_by));
+	assert_int_equal(period_cmd(MLIP_CMD_JOG, MLIP_JOG_ARG(0, 0, 600), 0), MLIP_E_INVALID);
+	tick(50);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_true(out.pos[0] == 0.0);
+	/* resumed at rest: no latch, nothing moved, no stop counted */
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	tick(20);
+	s = status();
+	assert_int_equal(s.state, MLIP_STATE_IDLE);
+	assert_int_equal(s.held_by, 0);
+	assert_false(mlip_state_hold_latched(s.state, s.held_by));
+	assert_true(out.pos[0] == 0.0 && out.pos[1] == 0.0);
+	assert_int_equal(s.stops, 0);
+	line_unheld(5.0);
+	/* latched again, then a stop at rest clears it: the next program runs */
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	tick(5);
+	assert_int_equal(status().held_by, MLIP_WHY_HOLD);
+	stop_count++;
+	tick(5);
+	assert_int_equal(status().stop_seen, stop_count);
+	s = status();
+	assert_int_equal(s.state, MLIP_STATE_IDLE);
+	assert_int_equal(s.held_by, 0);
+	feeder_base = stop_count; /* the next feeder began after that stop */
+	line_unheld(10.0);
+	/* latched, the next program pre-reads and waits held, unmoved, the
+	 * hold in the status all along; a resume starts it */
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	move(1, 12.0, 0.0);
+	end(2);
+	for (int k = 0; k < 300; k++) {
+		tick(1);
+		assert_int_equal(status().held_by, MLIP_WHY_HOLD);
+		assert_true(out.pos[0] == 10.0);
+	}
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	assert_int_equal(status().reason, MLIP_WHY_HOLD);
+	assert_false(
+	    mlip_state_hold_latched(MLIP_STATE_HELD, MLIP_WHY_HOLD)); /* held: its reason */
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	until(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(status().held_by, 0);
+	assert_true(out.pos[0] == 12.0);
 }
 
 /* A program stopped before its first block ends has completed nothing: the
@@ -2042,15 +2120,44 @@ static void test_hold_cycle_start_inputs(void **st)
 	assert_int_equal(status().reason, MLIP_WHY_END);
 }
 
+/* The inputs on the bus, no drives: nothing to quick stop. */
+static void io_without_drives(void)
+{
+	io_config();
+	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .io = &io_cfg};
+	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
+	io_in.known = io_cfg.mapped;
+}
+
+/* An E-stop ends a hold latched at rest (a reset in Grbl 1.1's words):
+ * after the reset the next program runs unheld. Without drives the planner
+ * had nothing queued to stop, so only the E-stop's clearing ends it. */
+static void test_estop_clears_latched_hold(void **st)
+{
+	(void)st;
+	io_without_drives();
+	tick(5);
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	tick(5);
+	assert_int_equal(status().held_by, MLIP_WHY_HOLD);
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	tick(2);
+	assert_int_equal(status().state, MLIP_STATE_ESTOP);
+	assert_int_equal(status().held_by, 0);
+	io_in.active = 0;
+	tick(2);
+	assert_int_equal(period_cmd(MLIP_CMD_RESET, 0, 0), MLIP_OK);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().held_by, 0);
+	line_unheld(5.0);
+}
+
 /* Without drives (nothing to quick stop) the planner stops on the path at
  * the acceleration limit: never faster. */
 static void test_estop_without_drives(void **st)
 {
 	(void)st;
-	io_config();
-	struct mlip_ctl_opts o = {.strategy = MLIP_STRATEGY_MPCT, .lookahead = 16, .io = &io_cfg};
-	assert_int_equal(mlip_ctl_init(&ctl, &planner, &mach, &o), MLIP_OK);
-	io_in.known = io_cfg.mapped;
+	io_without_drives();
 	for (uint64_t k = 1; k <= 40; k++) {
 		move(k, 10.0 * (double)k, 0.0);
 	}
@@ -3306,6 +3413,7 @@ int main(void)
 	    T(test_starved_takes_only_the_next_block),
 	    T(test_stop_distance_published),
 	    T(test_hold_at_rest_counts_no_stop),
+	    T(test_hold_latched_at_rest),
 	    T(test_stop_before_first_block_completes),
 	    T(test_override_zero_and_exit),
 	    T(test_stop_latched_for_the_program_about_to_start),
@@ -3361,6 +3469,7 @@ int main(void)
 	    TIO(test_hold_cycle_start_inputs),
 	    TIO(test_limit_jog_away),
 	    TIO(test_estop_without_drives),
+	    TIO(test_estop_clears_latched_hold),
 	    T(test_jog_release),
 	    T(test_jog_deadman),
 	    T(test_jog_soft_limit),

@@ -248,6 +248,7 @@ static void peer_hb(struct peer *p)
 
 static struct mlip_can_frame module_out; /* the last RPDO to node 10 (the module) */
 static int n_module_out;
+static int n_module_reset, n_module_sdo; /* NMT reset communication / SDO requests to it */
 
 static int port_send(void *ctx, const struct mlip_can_frame *f)
 {
@@ -255,6 +256,11 @@ static int port_send(void *ctx, const struct mlip_can_frame *f)
 	if (f->id == 0x20Au) {
 		module_out = *f;
 		n_module_out++;
+	}
+	if (f->id == 0 && f->data[0] == MLIP_NMT_RESET_COMM && f->data[1] == 10) {
+		n_module_reset++;
+	} else if (f->id == 0x60Au) {
+		n_module_sdo++;
 	}
 	for (int i = 0; i < NP + 1; i++) {
 		struct peer *p = &peers[i];
@@ -1417,6 +1423,19 @@ static void module_swapped(uint16_t index, uint8_t sub, uint32_t other)
 	free(mem);
 }
 
+/* An EMCY of the module (node 10): code, error register. */
+static void module_emcy(uint16_t code, uint8_t reg)
+{
+	struct mlip_can_frame f;
+	memset(&f, 0, sizeof(f));
+	f.id = 0x08A;
+	f.len = 8;
+	f.data[0] = (uint8_t)code;
+	f.data[1] = (uint8_t)(code >> 8);
+	f.data[2] = reg;
+	push(&f);
+}
+
 /* The I/O module's fault (issue 18: fail-safe): its EMCY is an E-stop in
  * that period, its inputs unknown; at its next heartbeat mlip resets its
  * communication and reads its error register 0x1001 after its identity:
@@ -1430,14 +1449,8 @@ static void test_loop_module_fault(void **state)
 	struct peer *mod = module_loop(start, 60);
 	const struct mlip_ring_status *st = &ctl.out.status;
 	uint32_t estop = 1u << MLIP_IN_ESTOP;
-	struct mlip_can_frame f;
-	memset(&f, 0, sizeof(f));
-	f.id = 0x08A; /* EMCY of node 10: 0x5000 device hardware, error register 0x01 */
-	f.len = 8;
-	f.data[1] = 0x50;
-	f.data[2] = 0x01;
+	module_emcy(0x5000, 0x01); /* device hardware */
 	od_find(mod, 0x1001, 0)->value = 0x01;
-	push(&f);
 	period();
 	assert_int_equal(st->state, MLIP_STATE_ESTOP);
 	assert_int_equal(st->reason, MLIP_WHY_IO_LOST);
@@ -1465,6 +1478,59 @@ static void test_loop_module_fault(void **state)
 	assert_int_equal(ds.io.lost, 0);
 	period();
 	assert_int_equal(st->io_known & estop, estop);
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_OK);
+	assert_int_equal(st->state, MLIP_STATE_IDLE);
+	free(mem);
+}
+
+/* A module whose fault stays (0x1001 non-zero) is not reset and queried at
+ * every heartbeat: attempts back off, 1, 2, 4 ... 32 heartbeats apart
+ * (rt/iomodule.c), the E-stop kept all along; its EMCY 0000h (error reset,
+ * CiA 301) is tried at once, between two heartbeats. Over 64 heartbeats
+ * (100 periods apart): attempts at the 1st, 2nd, 4th, 8th, 16th, 32nd and
+ * 64th, 7 (it was 64), each a reset and its identity and 0x1001 read. */
+static void test_loop_module_fault_backoff(void **state)
+{
+	double start[NP];
+	(void)state;
+	struct peer *mod = module_loop(start, 60);
+	const struct mlip_ring_status *st = &ctl.out.status;
+	while (cycle % 100 != 50) {
+		period();
+	}
+	module_emcy(0x5000, 0x01);
+	od_find(mod, 0x1001, 0)->value = 0x01;
+	period();
+	assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	n_module_reset = n_module_sdo = 0;
+	for (int k = 0; k < 64 * 100; k++) { /* 64 of its heartbeats */
+		period();
+		assert_int_equal(st->state, MLIP_STATE_ESTOP);
+	}
+	print_message("[io] fault for 64 heartbeats: %d NMT resets, %d SDO requests, %u attempts "
+	              "failed\n",
+	              n_module_reset, n_module_sdo, (unsigned)ds.io.re.failed);
+	assert_int_equal(n_module_reset, 7);
+	assert_int_equal(ds.io.re.failed, 7);
+	assert_int_equal(n_module_sdo, 7 * 4); /* 0x1000, 0x1018:01, :02, 0x1001 */
+	assert_int_equal(ds.io.re.fail_index, 0x1001);
+	assert_int_equal(ds.io.re.count, 0);
+	assert_int_equal(post(MLIP_CMD_RESET), MLIP_E_RANGE);
+	/* the fault gone, said by its EMCY 0000h just after a heartbeat: the
+	 * attempt at once, not at the heartbeat 32 further on */
+	while (cycle % 100 != 2) {
+		period();
+	}
+	od_find(mod, 0x1001, 0)->value = 0;
+	module_emcy(0x0000, 0x00);
+	int k;
+	for (k = 0; k < 50 && ds.io.re.count == 0; k++) {
+		period();
+	}
+	assert_int_equal(ds.io.re.count, 1);
+	assert_int_equal(n_module_reset, 8);
+	assert_int_equal(ds.io.lost, 0);
+	period();
 	assert_int_equal(post(MLIP_CMD_RESET), MLIP_OK);
 	assert_int_equal(st->state, MLIP_STATE_IDLE);
 	free(mem);
@@ -1663,6 +1729,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_loop_module_swapped_product, setup),
 	    cmocka_unit_test_setup(test_loop_module_swapped_type, setup),
 	    cmocka_unit_test_setup(test_loop_module_fault, setup),
+	    cmocka_unit_test_setup(test_loop_module_fault_backoff, setup),
 	    cmocka_unit_test_setup(test_module_fault_at_bringup, setup),
 	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away, setup),
 	    cmocka_unit_test_setup(test_loop_drive_limit_jog_away_40ms, setup),

@@ -440,6 +440,7 @@ static void test_status_feeder(void **state)
 	s.prog_start[0] = -12.5;
 	s.prog_start[MLIP_MAX_AXES - 1] = 7.25;
 	s.stop_seen = 0xfffffffeu;
+	s.held_by = MLIP_WHY_HOLD; /* the last field, carried too */
 	mlip_ring_status_write(r, &s);
 	assert_int_equal(r->status_gen, 2);
 	assert_int_equal(mlip_ring_status_read(r, &got), MLIP_OK);

@@ -143,6 +143,11 @@ void soft_reset(void)
 		push_end_alone();
 		return;
 	}
+	if (ctl_holds() && !locked_state(S.cs.state)) {
+		/* Grbl 1.1's reset leaves Hold:0 for Idle: the hold latched at
+		 * rest ends (a resume at rest moves nothing) */
+		cmd_push(MLIP_CMD_RESUME, 0);
+	}
 	resync(0);
 	welcome();
 }

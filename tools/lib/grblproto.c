@@ -195,7 +195,7 @@ int in_hold(void)
 	for (int i = 0; i < S.qn; i++) {
 		queued |= S.q[i].op == MLIP_CMD_HOLD;
 	}
-	return queued || S.hold_req || S.hold_idle || S.cs.state == MLIP_STATE_HELD;
+	return queued || S.hold_req || S.hold_idle || S.cs.state == MLIP_STATE_HELD || ctl_holds();
 }
 
 void rt_cmd(void *ctx, grbl_rt c)
@@ -225,7 +225,8 @@ void rt_cmd(void *ctx, grbl_rt c)
 	case GRBL_RT_CYCLE_START:
 		if (S.door) {
 			S.door = 0; /* the door is closed (no switch says otherwise) */
-			if (S.hold_req || cs->state == MLIP_STATE_HELD) {
+			if (S.hold_req || S.hold_idle || cs->state == MLIP_STATE_HELD ||
+			    ctl_holds()) {
 				cmd_push(MLIP_CMD_RESUME, 0);
 			}
 			S.hold_idle = 0;
@@ -238,7 +239,9 @@ void rt_cmd(void *ctx, grbl_rt c)
 			S.err_hold = 0; /* the sender goes on after a refused line */
 		}
 		if (S.hold_idle || S.hold_req || cs->state == MLIP_STATE_HELD ||
-		    cs->state == MLIP_STATE_PAUSED) {
+		    cs->state == MLIP_STATE_PAUSED || ctl_holds()) {
+			/* a hold latched at rest (mlip-ctl hold, the hold input
+			 * too): the resume ends it, moving nothing */
 			if (S.sp_stopped && S.ctl) {
 				/* the controller restores it and goes on at speed */
 				send_msg(S.ctl, "Restoring spindle");

@@ -92,6 +92,16 @@ void poll_controller(void)
 	S.dead = dead;
 }
 
+/* The controller's hold in force (status held_by, whoever asked: `!`,
+ * mlip-ctl hold, the hold input; a stall, the bus): at rest it is latched
+ * for the next program (Grbl's Hold:0) and only a resume (~) ends it. The
+ * spindle coming to speed after a resume is not one. */
+int ctl_holds(void)
+{
+	uint32_t why = mlip_state_held_by(S.cs.held_by);
+	return why != 0 && why != MLIP_WHY_SPINDLE_WAIT;
+}
+
 int at_rest_state(uint32_t s)
 {
 	return s == MLIP_STATE_IDLE || s == MLIP_STATE_STARVED || s == MLIP_STATE_FAULT ||
@@ -156,11 +166,13 @@ const char *grbl_state(void)
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_PREREAD:
 	case MLIP_STATE_DWELLING:
-		/* a hold decelerates in RUNNING: Grbl's Hold:1 */
-		return S.hold_req ? (moving ? "Hold:1" : "Hold:0") : "Run";
+		/* a hold decelerates in RUNNING: Grbl's Hold:1; a program sent
+		 * with a hold latched pre-reads held: Hold:0 until ~ */
+		return S.hold_req || ctl_holds() ? (moving ? "Hold:1" : "Hold:0") : "Run";
 	case MLIP_STATE_IDLE:
 	case MLIP_STATE_STARVED:
-		if (S.hold_req || S.hold_idle) {
+		/* a hold at rest stays latched (Grbl 1.1: Hold:0 from Idle) */
+		if (S.hold_req || S.hold_idle || ctl_holds()) {
 			return "Hold:0";
 		}
 		if (S.err_hold) {
@@ -298,6 +310,9 @@ void follow_controller(void)
 	}
 	if (S.hold_req && S.cs.state == MLIP_STATE_HELD) {
 		S.hold_req = 0; /* the controller says held itself from now on */
+	}
+	if (S.hold_idle && mlip_state_held_by(S.cs.held_by) == MLIP_WHY_HOLD) {
+		S.hold_idle = 0; /* so does a latched one: a resume by anyone ends it */
 	}
 	if ((foreign || (!S.stop_ours && S.cs.state == MLIP_STATE_STOPPING)) &&
 	    (S.st.open || S.program_live || grbl_stream_staged(&S.st) > 0)) {

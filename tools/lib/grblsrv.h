@@ -71,7 +71,7 @@ struct srv {
 	int status_req;
 	int check_mode;
 	int err_hold;  /* a refused line: nothing more taken until ~ or reset */
-	int hold_idle; /* ! while idle: Hold:0 until ~ */
+	int hold_idle; /* ! while idle: Hold:0 until the controller says it (held_by) */
 	int door;      /* 0x84: a safety-door hold (Door:2 stopping, Door:0 until ~) */
 	int sleeping;  /* $SLP: until reset */
 	int alarm;     /* our own alarm latch (a stop by someone else, a soft limit):
@@ -152,6 +152,7 @@ void cmd_pump(void);
 void stop_post(void);
 void rt_cmd(void *ctx, grbl_rt c);
 int in_hold(void);
+int ctl_holds(void);
 int is_query(const char *t, size_t len);
 void process_lines(void);
 void poll_controller(void);

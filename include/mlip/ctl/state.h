@@ -138,4 +138,14 @@ typedef enum {
 const char *mlip_ctl_state_name(uint32_t state);
 const char *mlip_state_why_name(uint32_t why);
 
+/* The status' held_by (mlip/ipc/ring.h) as a reader trusts it: the cause
+ * when it is one that holds the path (hold, stall, CAN tx refused, CAN
+ * error frames, the spindle coming to speed), else 0 (none, or a value no
+ * controller of this layout writes). */
+uint32_t mlip_state_held_by(uint32_t held_by);
+/* A hold latched at rest: idle or starved with a hold in force (held_by,
+ * as above), the spindle's wait excepted; the next records start held
+ * until a resume (Grbl 1.1's Hold:0 from Idle). */
+int mlip_state_hold_latched(uint32_t state, uint32_t held_by);
+
 #endif

@@ -15,7 +15,8 @@
  *   192  status     seqlock generation, command reply, struct mlip_ring_status
  *                   (eight lines: state, reason, position of every axis,
  *                   the drives' positions actual, the program's start,
- *                   the outputs and the last probe, the spindle)
+ *                   the outputs and the last probe, the spindle, the
+ *                   hold in force)
  *   704  feeder     seqlock generation, struct mlip_ring_feeder
  *   768  mailbox    the command word (sequence, op, argument in one 64-bit
  *                   word, written by mlip-ctl) and the stop counter
@@ -89,7 +90,7 @@
 #include "mlip/types.h"
 
 #define MLIP_RING_MAGIC        "MLIPRING" /* first 8 bytes of the segment */
-#define MLIP_RING_VERSION      11u        /* bump on any change to the layout below */
+#define MLIP_RING_VERSION      12u        /* bump on any change to the layout below */
 #define MLIP_RING_LINE         64         /* bytes: cache line of every area */
 #define MLIP_RING_MAX_CAPACITY (1u << 24) /* records; keeps sizes far from overflow */
 #ifndef MLIP_RING_CAPACITY
@@ -232,6 +233,13 @@ struct mlip_ring_status {
 	double spindle_actual_rpm;       /* velocity actual 0x606C */
 	uint32_t spindle_override;       /* percent */
 	uint32_t spindle_node;           /* its node id */
+	/* layout version 12: the hold in force, whatever the state: the
+	 * mlip_state_why that holds the path (MLIP_WHY_HOLD an operator's hold,
+	 * MLIP_WHY_STALL, MLIP_WHY_BUS_TX, MLIP_WHY_BUS_ERROR; 0: none). At rest
+	 * without a program (idle, starved) it is latched, as Grbl 1.1's Hold:0:
+	 * the next records start held until a resume; a stop or an E-stop ends it */
+	uint32_t held_by;
+	uint32_t spare12; /* 0 */
 };
 
 /* Feeder status (plain value). All written by mlip-feed. */

@@ -315,6 +315,9 @@ double mlip_planner_speed(const struct mlip_planner *p);
 /* What others read; the struct's fields are the planner's own. */
 /* Not at rest: a block queued and a speed, or inside a corner. */
 int mlip_planner_moving(const struct mlip_planner *p);
+/* The feed hold is on (mlip_planner_hold, a stall's rest), not a stop's:
+ * at rest with nothing queued it holds the next block pushed. */
+int mlip_planner_held(const struct mlip_planner *p);
 /* The block being executed (seq 0, line 0: none queued). */
 void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
 /* The newest block whose motion the last setpoint contains: in a corner
