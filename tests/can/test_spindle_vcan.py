@@ -429,10 +429,12 @@ def counts(rpm_):
 
 def cutting(rig, ngc, flood=True):
     """mlip-feed on ngc (CUT, with M8 if flood), started; returns once X
-    cuts with the spindle at speed (and the flood on): not in CUT's G0 to
-    X0, before the M3."""
+    cuts at its feed (F600: 10 mm/s, 1 % below for the status's rounding)
+    with the spindle at speed (and the flood on): not in CUT's G0 to X0,
+    before the M3, nor on the ramp up to the feed (the tests judge a brake
+    from the injection on: a ramp still rising there is not one)."""
     feed = rig.feeder(ngc)
-    rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] > 5.0 and s[
+    rig.wait_state("running", timeout=300, pred=lambda s: s["speed_mm_s"] >= 9.9 and s[
         "spindle"]["state"] == "at speed" and (not flood or s["coolant"]["flood"] is True))
     return feed
 

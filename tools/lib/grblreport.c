@@ -176,8 +176,10 @@ const char *grbl_state(void)
 			return "Hold:0";
 		}
 		if (S.err_hold) {
-			int ring = mlip_ring_count(S.r) > 0 || grbl_stream_staged(&S.st) > 0;
-			return ring || moving ? "Run" : "Hold:0";
+			/* at rest past what was acknowledged: judged on a status at
+			 * least two periods after our last push (an empty ring with an
+			 * older status's idle is a pre-read not yet reported) */
+			return quiet_controller() && !moving ? "Hold:0" : "Run";
 		}
 		return ours_queued ? "Run" : "Idle";
 	case MLIP_STATE_JOGGING:
