@@ -1,0 +1,108 @@
+"""mlip-rt with [TRAJ] JERK_PLAN = path on this host (--can none): its
+planning thread (tools/rtplan.c) takes the ring's records, the period
+follows the planned queue; mlip-feed smooths on the plan's controller's
+machine and refuses what the plan cannot run, as mlip-sim does."""
+import re
+import signal
+import subprocess
+
+from conftest import TOOLPATHS, periods_on, record_checked, record_rows, status, tool, wait_for
+from test_planfeed import SQUARE, machine, one_feed
+
+
+def feed(shm, program, timeout=120):
+    return subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", str(program)],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def sim_trace(cfg, program, trace):
+    p = subprocess.run([tool("mlip-sim"), "-q", "--config", cfg, "--strategy", "smooth", "--trace",
+                        trace, program],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    return trace.read_text()
+
+
+def test_path_plan_runs_as_mlip_sim(controller, tmp_path):
+    """The setpoints mlip-rt sent (--record) are mlip-sim --config's, byte
+    for byte and to the count (the plan's start, every period, the end at
+    rest); the status
+    counts the program's records; a second program runs after it."""
+    cfg = machine(tmp_path)
+    progs = [tmp_path / "square.ngc"]
+    progs[0].write_text(SQUARE)
+    if (TOOLPATHS / "MB-2.3_test.nc").exists():
+        progs.append(one_feed(TOOLPATHS / "MB-2.3_test.nc", 400, tmp_path / "mb.ngc"))
+    for k, prog in enumerate(progs):
+        rec = tmp_path / f"rt{k}.csv"
+        shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec)
+        p = feed(shm, prog)
+        assert p.returncode == 0, p.stderr
+        s = status(shm)
+        assert s["state"] == "idle" and s["exec_seq"] == s["blocks_consumed"] > 1, s
+        p = feed(shm, progs[0])  # the thread starts afresh for the next program
+        assert p.returncode == 0, p.stderr
+        rt.send_signal(signal.SIGTERM)
+        _, err = rt.communicate(timeout=10)
+        assert rt.returncode == 0, err
+        sim = sim_trace(cfg, prog, tmp_path / f"sim{k}.csv")
+        assert len(sim.splitlines()) > 1000
+        # the positions to the byte, row by row (t: the record's counts the
+        # deadlines, with a hole where this non-real-time host missed one)
+        pos = lambda text: [r.split(",", 1)[1] for r in text.splitlines()[1:]]
+        got, want = pos(rec.read_text()), pos(sim)
+        assert len(got) == len(want) and got == want, (len(got), len(want))
+
+
+def test_feed_refuses_what_the_plan_cannot_run(controller, tmp_path):
+    """A G0 and a second F: refused by mlip-feed at their lines, as mlip-sim
+    refuses them, before anything is sent."""
+    cfg = machine(tmp_path)
+    shm, _ = controller(cfg, "--strategy", "smooth")
+    for body, line in (("G21 G90\nG1 F600 X1\nG0 X5\n", 3), ("G21 G90\nG1 F600 X1\nG1 F900 X2\n", 3)):
+        prog = tmp_path / "bad.ngc"
+        prog.write_text(body)
+        p = feed(shm, prog)
+        sim = subprocess.run([tool("mlip-sim"), "-q", "--config", cfg, "--strategy", "smooth", prog], capture_output=True,
+                             text=True)
+        assert p.returncode == 1 and sim.returncode == 2, (p.stderr, sim.stderr)
+        what = re.search(rf"bad.ngc:{line}: (.*): the path plan cannot run it yet", sim.stderr)
+        assert what, sim.stderr
+        assert (f"bad.ngc:{line}: {what.group(1)}: the path plan cannot run it yet "
+                "(the controller's JERK_PLAN = path)") in p.stderr, p.stderr
+        assert status(shm)["blocks_consumed"] == 0
+
+
+def test_path_plan_needs_smooth(tmp_path):
+    p = subprocess.run([tool("mlip-rt"), "--config", machine(tmp_path), "--can", "none", "--shm",
+                        "/mlip-rtplan-refused"], capture_output=True, text=True, timeout=30)
+    assert p.returncode == 2 and "JERK_PLAN = path needs --strategy smooth" in p.stderr, p.stderr
+
+
+def test_hold_mid_move(controller, tmp_path):
+    """A hold at speed: the queue's braking run to rest, the point held for
+    300 periods, resumed to the end; the record within every limit, J
+    included (mlip-check with the machine's MAX_JERK)."""
+    cfg = machine(tmp_path)
+    prog = tmp_path / "line.ngc"
+    prog.write_text("G21 G90\nG1 F6000\nG1 X300\nG1 X300 Y300\nG1 X0 Y0\n")
+    rec = tmp_path / "rt.csv"
+    shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec)
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    assert wait_for(lambda: (status(shm) or {}).get("speed_mm_s", 0) > 50, 60), status(shm)
+    ctl = lambda *a: subprocess.run([tool("mlip-ctl"), "--shm", shm, *a], capture_output=True,
+                                    text=True)
+    assert ctl("hold").returncode == 0
+    held = wait_for(lambda: (lambda s: s if s["state"] == "held" and s["speed_mm_s"] == 0.0
+                             else None)(status(shm)), 60)
+    assert held, status(shm)
+    later = periods_on(shm, 300)
+    assert later and later["position"] == held["position"], later
+    assert ctl("resume").returncode == 0
+    assert f.wait(120) == 0, f.stderr.read()
+    rt.send_signal(signal.SIGTERM)
+    assert rt.wait(10) == 0
+    rows = record_rows(rec)
+    assert rows[-1][1:3] == [0.0, 0.0]
+    record_checked(cfg, prog, rec)
