@@ -106,3 +106,46 @@ def test_hold_mid_move(controller, tmp_path):
     rows = record_rows(rec)
     assert rows[-1][1:3] == [0.0, 0.0]
     record_checked(cfg, prog, rec)
+
+
+def test_stop_then_next_program(controller, tmp_path):
+    """mlip-ctl stop mid-move: the queue's braking run to rest (the feeder
+    told, 4), the rest of the program dropped by the planning thread; the
+    next program then runs from where the machine stands to its end."""
+    cfg = machine(tmp_path)
+    prog = tmp_path / "line.ngc"
+    prog.write_text("G21 G90\nG1 F6000\nG1 X300\nG1 X300 Y300\nG1 X0 Y0\n")
+    shm, rt = controller(cfg, "--strategy", "smooth")
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    assert wait_for(lambda: (status(shm) or {}).get("speed_mm_s", 0) > 50, 60), status(shm)
+    assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "stop"]).returncode == 0
+    assert f.wait(60) == 4, f.stderr.read()
+    s = status(shm)
+    assert s["state"] == "idle" and s["speed_mm_s"] == 0.0, s
+    assert 0.0 < s["position"]["X"] < 300.0, s  # stopped short of the first corner
+    sq = tmp_path / "square.ngc"
+    sq.write_text(SQUARE)
+    p = feed(shm, sq)
+    assert p.returncode == 0, p.stderr
+    s = status(shm)
+    assert s["state"] == "idle" and s["position"]["X"] == 0.0 and s["position"]["Y"] == 0.0, s
+
+
+def test_stop_before_the_queue_starts(controller, tmp_path):
+    """A stop while the thread still fills the queue (a feeder throttled to
+    100 records/s: no END, no full queue for ~1 s): the program never
+    starts (stop before the start), nothing moves, the feeder told (4)."""
+    cfg = machine(tmp_path)
+    prog = tmp_path / "steps.ngc"
+    prog.write_text("G21 G90\nG1 F600\n" + "".join(f"G1 X{k} Y{k % 2}\n" for k in range(1, 101)))
+    shm, rt = controller(cfg, "--strategy", "smooth")
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", "--rate", "100", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    # sending (its area carries its pid from its first record on)
+    assert wait_for(lambda: (status(shm) or {}).get("feeder_pid") == f.pid, 30), status(shm)
+    assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "stop"]).returncode == 0
+    assert f.wait(60) == 4, f.stderr.read()
+    s = status(shm)
+    assert s["state"] == "idle" and s["reason"] == "stop before the start", s
+    assert all(v == 0.0 for v in s["position"].values()), s
