@@ -27,8 +27,10 @@ struct mlip_rtplan {
 	int running, quit; /* quit: atomic */
 	int phase;         /* waiting for a program, planning it, dropping its rest, refused */
 	int published, queued_all;
-	uint32_t prog;  /* programs published */
-	uint64_t taken; /* records taken from the ring */
+	uint32_t prog;      /* programs published */
+	uint64_t taken;     /* records taken from the ring */
+	uint64_t last_seq;  /* the last record offered to the plan */
+	uint64_t looked_ns; /* the feeder's liveness last read */
 };
 
 /* Start the thread on ring (cfg: the machine file's, kept): -1 on failure. */

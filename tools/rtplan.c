@@ -94,6 +94,22 @@ static void refuse(struct mlip_rtplan *t)
 	ST(&t->pp.fault, 1u);
 }
 
+/* The feeder gone (killed, or left without its END: a file that changed)
+ * before the program's END: looked at every 50 ms while the ring is dry. */
+static int feeder_gone(struct mlip_rtplan *t)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	uint64_t now = (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
+	if (now - t->looked_ns < 50000000u) {
+		return 0;
+	}
+	t->looked_ns = now;
+	struct mlip_ring_feeder f;
+	return mlip_ring_feeder_read(t->ring, &f) == MLIP_OK &&
+	       mlip_peer_feeder(&f) != MLIP_PEER_ALIVE;
+}
+
 /* One round of the plan: records offered, one unit of work. 1: busy. */
 static int plan(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n)
 {
@@ -101,6 +117,7 @@ static int plan(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n
 	for (; k < n && k < room; k++) {
 		const struct mlip_ring_rec *r = rec_at(v, k);
 		mlip_planfeed_offer(&pf, r);
+		t->last_seq = r->seq;
 		if (r->type == MLIP_REC_END) {
 			ST(&t->pp.end_seq, r->seq);
 			k++;
@@ -108,6 +125,14 @@ static int plan(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n
 		}
 	}
 	take(t, k);
+	if (n == 0 && !pf.end_in && room > 0 && feeder_gone(t)) {
+		/* the END it never sent: the plan ends at rest on the last point
+		 * sent, as a program of records stops after its last record */
+		struct mlip_ring_rec end;
+		mlip_ring_rec_end(&end, t->last_seq + 1, 0);
+		mlip_planfeed_offer(&pf, &end);
+		ST(&t->pp.end_seq, end.seq);
+	}
 	int r = t->queued_all ? 0 : mlip_planfeed_work(&pf);
 	if (r < 0) {
 		refuse(t);

@@ -132,20 +132,46 @@ def test_stop_then_next_program(controller, tmp_path):
     assert s["state"] == "idle" and s["position"]["X"] == 0.0 and s["position"]["Y"] == 0.0, s
 
 
-def test_stop_before_the_queue_starts(controller, tmp_path):
-    """A stop while the thread still fills the queue (a feeder throttled to
-    100 records/s: no END, no full queue for ~1 s): the program never
-    starts (stop before the start), nothing moves, the feeder told (4)."""
-    cfg = machine(tmp_path)
+def throttled(controller, tmp_path, steps):
+    """mlip-rt on the path machine and a feeder sending `steps` 1 mm moves
+    at 100 records/s (no END for steps/100 s: the thread's FIFO neither
+    full nor ended), once it is sending: (segment, feeder)."""
     prog = tmp_path / "steps.ngc"
-    prog.write_text("G21 G90\nG1 F600\n" + "".join(f"G1 X{k} Y{k % 2}\n" for k in range(1, 101)))
-    shm, rt = controller(cfg, "--strategy", "smooth")
+    prog.write_text("G21 G90\nG1 F600\n" + "".join(f"G1 X{k} Y{k % 2}\n"
+                                                   for k in range(1, steps + 1)))
+    shm, _ = controller(machine(tmp_path), "--strategy", "smooth")
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", "--rate", "100", str(prog)],
                          stderr=subprocess.PIPE, text=True)
     # sending (its area carries its pid from its first record on)
     assert wait_for(lambda: (status(shm) or {}).get("feeder_pid") == f.pid, 30), status(shm)
+    return shm, f
+
+
+def test_stop_before_the_queue_starts(controller, tmp_path):
+    """A stop while the thread still fills the queue (a feeder throttled to
+    100 records/s: no END, no full queue for ~1 s): the program never
+    starts (stop before the start), nothing moves, the feeder told (4)."""
+    shm, f = throttled(controller, tmp_path, 100)
     assert subprocess.run([tool("mlip-ctl"), "--shm", shm, "stop"]).returncode == 0
     assert f.wait(60) == 4, f.stderr.read()
     s = status(shm)
     assert s["state"] == "idle" and s["reason"] == "stop before the start", s
     assert all(v == 0.0 for v in s["position"].values()), s
+
+
+def test_feeder_killed_before_its_end(controller, tmp_path):
+    """The feeder killed before it sent its END (throttled to 100 records/s):
+    the planning thread ends the plan at rest on the last point sent
+    (idle, program end); the next program then runs to its end."""
+    shm, f = throttled(controller, tmp_path, 1000)
+    assert periods_on(shm, 300)  # some records sent (at most 1000 by 10 s)
+    f.kill()
+    f.wait(10)
+    s = wait_for(lambda: (lambda s: s if s["state"] == "idle" and s["reason"] == "program end"
+                          else None)(status(shm)), 60)
+    assert s, status(shm)
+    assert 0.0 < s["position"]["X"] < 1000.0 and s["speed_mm_s"] == 0.0, s
+    sq = tmp_path / "square.ngc"
+    sq.write_text(SQUARE)
+    p = feed(shm, sq)
+    assert p.returncode == 0, p.stderr
