@@ -11,6 +11,7 @@
  * stop) the rest of its records is dropped and the plan starts afresh.
  */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
@@ -22,16 +23,17 @@
 #define LD(p)    __atomic_load_n((p), __ATOMIC_ACQUIRE)
 #define ST(p, v) __atomic_store_n((p), (v), __ATOMIC_RELEASE)
 
-/* the plan's controller and plan: large, fixed, the thread's alone */
-static struct {
+/* the plan's controller and plan: large (4.4 MB), fixed, the thread's
+ * alone; allocated only with the key (locked with the rest) */
+static struct plan_mem {
 	struct mlip_planner planner;
 	struct mlip_smooth_store store;
 	struct mlip_ctl ctl;
 	struct mlip_pathrun run;
 	struct mlip_planq queue;
 	struct mlip_config cfg; /* the machine's, HOME where the controller stands */
-} W;
-static struct mlip_planfeed pf;
+	struct mlip_planfeed pf;
+} * M;
 
 enum { WAIT, PLAN, DROP, DEAD };
 
@@ -62,15 +64,15 @@ static int begin(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t 
 	if (feed < 0.0 || mlip_ring_status_read(t->ring, &st) != MLIP_OK) {
 		return -1;
 	}
-	W.cfg = *t->cfg;
-	for (int k = 0; k < W.cfg.machine.n_axes; k++) {
-		W.cfg.machine.axis[k].home = st.pos[k];
+	M->cfg = *t->cfg;
+	for (int k = 0; k < M->cfg.machine.n_axes; k++) {
+		M->cfg.machine.axis[k].home = st.pos[k];
 	}
-	uint32_t la = W.cfg.lookahead ? W.cfg.lookahead : MLIP_LOOKAHEAD; /* as mlip-sim */
+	uint32_t la = M->cfg.lookahead ? M->cfg.lookahead : MLIP_LOOKAHEAD; /* as mlip-sim */
 	const char *why = NULL;
-	if (mlip_planfeed_init(&pf, &W.cfg, feed, la, &W.ctl, &W.planner, &W.store, &W.run,
-	                       &W.queue, &why) != 0) {
-		pf.why = why;
+	if (mlip_planfeed_init(&M->pf, &M->cfg, feed, la, &M->ctl, &M->planner, &M->store, &M->run,
+	                       &M->queue, &why) != 0) {
+		M->pf.why = why;
 	}
 	t->published = 0;
 	t->queued_all = 0;
@@ -90,7 +92,7 @@ static void refuse(struct mlip_rtplan *t)
 	fprintf(stderr,
 	        "mlip-rt: JERK_PLAN = path: the plan refused the program (t = %.3f s of "
 	        "its controller): %s\n",
-	        pf.why_t, pf.why ? pf.why : "?");
+	        M->pf.why_t, M->pf.why ? M->pf.why : "?");
 	ST(&t->pp.fault, 1u);
 }
 
@@ -113,10 +115,10 @@ static int feeder_gone(struct mlip_rtplan *t)
 /* One round of the plan: records offered, one unit of work. 1: busy. */
 static int plan(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n)
 {
-	uint32_t k = 0, room = mlip_planfeed_room(&pf);
+	uint32_t k = 0, room = mlip_planfeed_room(&M->pf);
 	for (; k < n && k < room; k++) {
 		const struct mlip_ring_rec *r = rec_at(v, k);
-		mlip_planfeed_offer(&pf, r);
+		mlip_planfeed_offer(&M->pf, r);
 		t->last_seq = r->seq;
 		if (r->type == MLIP_REC_END) {
 			ST(&t->pp.end_seq, r->seq);
@@ -125,15 +127,15 @@ static int plan(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n
 		}
 	}
 	take(t, k);
-	if (n == 0 && !pf.end_in && room > 0 && feeder_gone(t)) {
+	if (n == 0 && !M->pf.end_in && room > 0 && feeder_gone(t)) {
 		/* the END it never sent: the plan ends at rest on the last point
 		 * sent, as a program of records stops after its last record */
 		struct mlip_ring_rec end;
 		mlip_ring_rec_end(&end, t->last_seq + 1, 0);
-		mlip_planfeed_offer(&pf, &end);
+		mlip_planfeed_offer(&M->pf, &end);
 		ST(&t->pp.end_seq, end.seq);
 	}
-	int r = t->queued_all ? 0 : mlip_planfeed_work(&pf);
+	int r = t->queued_all ? 0 : mlip_planfeed_work(&M->pf);
 	if (r < 0) {
 		refuse(t);
 		t->phase = DEAD;
@@ -142,13 +144,13 @@ static int plan(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n
 	t->queued_all |= r == 2;
 	/* published once the queue is full (or holds the whole program): the
 	 * period's first pop finds its entry, and the queue its cushion */
-	if (!t->published && (pf.planned >= MLIP_PLANQ_LEN || t->queued_all)) {
+	if (!t->published && (M->pf.planned >= MLIP_PLANQ_LEN || t->queued_all)) {
 		t->published = 1;
 		ST(&t->pp.prog, ++t->prog);
 	}
 	if (t->published && LD(&t->pp.done) == t->prog) {
-		t->phase = pf.end_in ? WAIT : DROP;
-		if (pf.end_in) {
+		t->phase = M->pf.end_in ? WAIT : DROP;
+		if (M->pf.end_in) {
 			reset(t);
 		}
 		return 1;
@@ -186,7 +188,7 @@ static void *thread(void *arg)
 		uint32_t apart = 0, n;
 		int busy = 0;
 		if (mlip_ring_port_view(&t->rx, &v, &apart) != MLIP_OK && t->phase != DEAD) {
-			pf.why = "the ring is corrupt (its indices more than a capacity apart)";
+			M->pf.why = "the ring is corrupt (its indices more than a capacity apart)";
 			refuse(t);
 			t->phase = DEAD;
 		}
@@ -222,11 +224,21 @@ static void *thread(void *arg)
 int mlip_rtplan_start(struct mlip_rtplan *t, const struct mlip_config *cfg, struct mlip_ring *ring)
 {
 	memset(t, 0, sizeof(*t));
+	if (M == NULL && (M = calloc(1, sizeof(*M))) == NULL) {
+		return -1;
+	}
 	t->cfg = cfg;
 	t->ring = ring;
-	t->pp.q = &W.queue;
-	if (mlip_ring_port_open(&t->rx, ring, 0) != MLIP_OK ||
-	    pthread_create(&t->th, NULL, thread, t) != 0) {
+	t->pp.q = &M->queue;
+	pthread_attr_t attr;
+	pthread_attr_init(&attr);
+	pthread_attr_setstacksize(&attr, 512 * 1024); /* memory is locked: not 8 MB */
+	int rc = mlip_ring_port_open(&t->rx, ring, 0) == MLIP_OK &&
+	                 pthread_create(&t->th, &attr, thread, t) == 0
+	             ? 0
+	             : -1;
+	pthread_attr_destroy(&attr);
+	if (rc != 0) {
 		return -1;
 	}
 	t->running = 1;
