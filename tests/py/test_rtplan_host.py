@@ -3,8 +3,11 @@ planning thread (tools/rtplan.c) takes the ring's records, the period
 follows the planned queue; mlip-feed smooths on the plan's controller's
 machine and refuses what the plan cannot run, as mlip-sim does."""
 
+import math
+import mmap
 import re
 import signal
+import struct
 import subprocess
 
 from conftest import TOOLPATHS, periods_on, record_checked, record_rows, status, tool, wait_for
@@ -41,6 +44,11 @@ def sim_trace(cfg, program, trace):
     return trace.read_text()
 
 
+def positions(trace):
+    """A trace's rows without their t."""
+    return [r.split(",", 1)[1] for r in trace.splitlines()[1:]]
+
+
 def test_path_plan_runs_as_mlip_sim(controller, tmp_path):
     """The setpoints mlip-rt sent (--record) are mlip-sim --config's, byte
     for byte and to the count (the plan's start, every period, the end at
@@ -67,8 +75,7 @@ def test_path_plan_runs_as_mlip_sim(controller, tmp_path):
         assert len(sim.splitlines()) > 1000
         # the positions to the byte, row by row (t: the record's counts the
         # deadlines, with a hole where this non-real-time host missed one)
-        pos = lambda text: [r.split(",", 1)[1] for r in text.splitlines()[1:]]
-        got, want = pos(rec.read_text()), pos(sim)
+        got, want = positions(rec.read_text()), positions(sim)
         assert len(got) == len(want) and got == want, (len(got), len(want))
 
 
@@ -263,3 +270,29 @@ def test_override_on_the_plan(controller, tmp_path):
     assert ctl(shm, "override", "100").returncode == 0
     assert wait_for(lambda: status(shm)["speed_mm_s"] > 1.2 * cap, 10), status(shm)
     ending(cfg, prog, rec, rt, f)
+
+
+def test_refused_plan_is_a_fault(controller, tmp_path):
+    """Records the plan's controller faults on (a NaN target, written
+    into the ring directly: mlip-feed never sends one): the planning thread
+    refuses the program, the controller goes to FAULT (path plan refused),
+    nothing moves, mlip-rt names the reason."""
+    shm, rt = controller(machine(tmp_path), "--strategy", "smooth")
+    with open("/dev/shm" + shm, "r+b") as fd:
+        mem = mmap.mmap(fd.fileno(), 0)
+        mask = struct.unpack_from("<I", mem, 16)[0]
+        recs = [
+            (1, 3, 0, 0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0),
+            (2, 4, 0, 0, math.nan, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0),
+            (3, 5, 1, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+        ]  # MOVE, MOVE, END
+        for r in recs:
+            struct.pack_into("<QIHH6d3d", mem, 1472 + 88 * ((r[0] - 1) & mask), *r)
+        struct.pack_into("<I", mem, 64, len(recs))  # head, after the records (x86: in order)
+        mem.close()
+    s = wait_for(lambda: (lambda s: s if s["state"] == "fault" else None)(status(shm)), 30)
+    assert s and s["reason"] == "path plan refused", status(shm)
+    assert all(v == 0.0 for v in s["position"].values()), s
+    rt.send_signal(signal.SIGTERM)
+    _, err = rt.communicate(timeout=10)
+    assert "the plan refused the program" in err and "faulted" in err, err
