@@ -102,7 +102,7 @@ $(BUILD)/mlip-feed: PART_OBJ := $(FEED_OBJ)
 $(BUILD)/mlip-feed: $(FEED_OBJ)
 $(BUILD)/mlip-ctl: PART_OBJ := $(CTL_OBJ) $(FEED_OBJ)
 $(BUILD)/mlip-ctl: $(CTL_OBJ) $(FEED_OBJ)
-RT_OBJ    := $(BUILD)/obj/tools/rtparts.o
+RT_OBJ    := $(BUILD)/obj/tools/rtparts.o $(BUILD)/obj/tools/rtplan.o
 $(BUILD)/mlip-rt: PART_OBJ := $(RT_OBJ)
 $(BUILD)/mlip-rt: $(RT_OBJ)
 

@@ -151,6 +151,26 @@ static void bus_send(struct mlip_period *p, const struct mlip_ctl_out *o)
 	p->send_ns = (int64_t)(mlip_now_ns() - t0);
 }
 
+/* JERK_PLAN = path: the thread's records in the status as a feeder reads
+ * them (blocks_consumed from the program's start on, exec_seq its END once
+ * ended), and the program the controller is done with (ended, stopped,
+ * dropped or refused at its start) back to the thread. */
+static void plan_status(struct mlip_period_plan *pp, const struct mlip_ctl *c, uint32_t prog,
+                        struct mlip_ring_status *s)
+{
+	int ours = prog != 0 && c->ext.last == prog; /* started (or refused) */
+	s->blocks_consumed = ours ? LD(&pp->taken) : LD(&pp->taken_base);
+	if (ours && c->ext.q == NULL) {
+		if (s->reason == MLIP_WHY_END) {
+			pp->end_shown = LD(&pp->end_seq); /* kept once the thread moves on */
+		}
+		ST(&pp->done, prog);
+	}
+	if (s->state == MLIP_STATE_IDLE && s->reason == MLIP_WHY_END) {
+		s->exec_seq = pp->end_shown;
+	}
+}
+
 int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 {
 	struct mlip_period *p = ctx;
@@ -169,8 +189,16 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 	}
 	in.period = t->cycle;
 	/* the records queued: the controller's to take; a segment whose indices
-	 * are more than a capacity apart is corrupt (it faults on it) */
-	if (mlip_ring_port_view(&p->rx, &in.recs, &in.recs_corrupt) == MLIP_OK) {
+	 * are more than a capacity apart is corrupt (it faults on it). With
+	 * the planning thread they are its own: the queue instead */
+	struct mlip_period_plan *pp = p->plan;
+	uint32_t prog = 0;
+	if (pp != NULL) {
+		prog = LD(&pp->prog);
+		in.plan = prog != 0 ? pp->q : NULL;
+		in.plan_prog = prog;
+		in.plan_fault = LD(&pp->fault) != 0;
+	} else if (mlip_ring_port_view(&p->rx, &in.recs, &in.recs_corrupt) == MLIP_OK) {
 		in.recs_corrupt = 0;
 	}
 	/* deadlines passed before this wake-up (the loop counts them in
@@ -187,7 +215,11 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 
 	mlip_ctl_period(&p->core, &in, o);
 
-	mlip_ring_port_pop_n(&p->rx, o->taken); /* their slots back to the feeder */
+	if (pp == NULL) {
+		mlip_ring_port_pop_n(&p->rx, o->taken); /* their slots back to the feeder */
+	} else {
+		plan_status(pp, &p->core, prog, &o->status);
+	}
 	if (have_cmd) {
 		mlip_ring_cmd_done(p->ring, cmd.seq, o->cmd_result);
 	}

@@ -215,6 +215,21 @@ struct mlip_bus_counts {
 	                               thread reads it to restart the controller) */
 };
 
+/* [TRAJ] JERK_PLAN = path (tools/rtplan.c): a planning thread owns the
+ * ring's records and fills the planned queue; the period passes the
+ * controller no record, only the queue (in->plan). Each word is written by
+ * one side, with release, and read with acquire. */
+struct mlip_period_plan {
+	struct mlip_planq *q; /* set before the loop */
+	uint32_t prog;        /* thread: the program whose queue has started (0: none) */
+	uint32_t fault;       /* thread: its plan was refused (in->plan_fault) */
+	uint32_t done;        /* period: the last program the controller dropped or ended */
+	uint64_t taken;       /* thread: records taken from the ring so far */
+	uint64_t taken_base;  /* thread: ... before the program prog */
+	uint64_t end_seq;     /* thread: the END's seq of program prog (0: not taken yet) */
+	uint64_t end_shown;   /* period only: the last ended program's, as status exec_seq */
+};
+
 struct mlip_period {
 	/* set at init (the controller inside is read through out, never directly) */
 	struct mlip_ctl core;
@@ -242,6 +257,9 @@ struct mlip_period {
 	struct mlip_rt_sample *rec;
 	uint32_t rec_cap, rec_head, rec_tail;
 	uint64_t rec_lost;
+	/* JERK_PLAN = path: set after init, before the loop (NULL: the records
+	 * are the controller's) */
+	struct mlip_period_plan *plan;
 };
 
 /* o: strategy, look-ahead, stall periods, [CAN] settings (NULL: none), the

@@ -12,6 +12,7 @@
 #include "mlip/machine/config.h"
 #include "offsetfile.h"
 #include "program.h"
+#include "simpath.h"
 
 static int program_next(void *ctx, struct mlip_block *b)
 {
@@ -22,8 +23,13 @@ static int program_next(void *ctx, struct mlip_block *b)
 /* Blocks from the stream's start: the program's, or smooth's over them. */
 static void stream_start(struct feed *f, const struct mlip_machine *m)
 {
-	static struct mlip_smooth sm; /* ~1 MB */
+	static struct mlip_smooth sm;  /* ~1 MB */
+	static struct mlip_machine pm; /* JERK_PLAN = path: the plan's controller's */
 	f->it = (struct mlip_block_iter){program_next, f};
+	if (m->path_plan) {
+		mlip_simpath_machine(m, &pm); /* smoothed as mlip-sim does for the plan */
+		m = &pm;
+	}
 	if (m->smooth) {
 		f->it = mlip_smooth_iter(&f->si, &sm, m, f->it);
 	}
@@ -89,6 +95,14 @@ int load(struct feed *f, int notes)
 		mlip_offsets_describe(m, &f->prog.offsets_start, offs, sizeof(offs));
 		say(": offsets: %s (%s)\n", offs,
 		    f->offsets ? f->offsets : "no --offsets: defaults");
+	}
+	/* the controller plans the path speed: what its plan cannot run yet is
+	 * refused before anything is sent, as mlip-sim refuses it */
+	double feed;
+	if (m->path_plan &&
+	    mlip_simpath_prescan(&f->prog, 0.0, &feed, prog_name, f->path,
+	                         "the controller's JERK_PLAN = path", stderr) != 0) {
+		return EXIT_FAIL;
 	}
 	f->n = f->prog.n;
 	f->read_seq = 0;

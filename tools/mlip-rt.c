@@ -608,6 +608,7 @@ struct app {
 	struct monitor mon;
 	struct mlip_ctl_opts co;
 	struct mlip_smooth_store *smooth; /* the smooth strategy's planner data, NULL otherwise */
+	struct mlip_rtplan plan;          /* JERK_PLAN = path: the planning thread */
 };
 
 /* The bus, opened once: with CiA 402 drives it receives what they send. */
@@ -714,13 +715,9 @@ static int set_up(const struct options *o, struct app *a)
 	if (mlip_config_load(o->config, &a->cfg, stderr) != 0) {
 		return 1;
 	}
-	if (a->cfg.jerk_plan == MLIP_JERK_PLAN_PATH) {
-		/* the path plan runs in mlip-sim; its planning thread and queue
-		 * (mlip/motion/planq.h) are not wired here yet: refused rather
-		 * than run with the mean (a motion the file did not ask for) */
-		fprintf(stderr,
-		        PROG ": %s:%u: JERK_PLAN = path is not supported by mlip-rt yet "
-		             "(mlip-sim runs it); use mean\n",
+	if (a->cfg.jerk_plan == MLIP_JERK_PLAN_PATH && a->strategy != MLIP_STRATEGY_SMOOTH) {
+		/* the planning thread (tools/rtplan.c) re-times smooth's path */
+		fprintf(stderr, PROG ": %s:%u: JERK_PLAN = path needs --strategy smooth\n",
 		        o->config, (unsigned)a->cfg.jerk_plan_line);
 		return 2;
 	}
@@ -783,6 +780,7 @@ static int set_up(const struct options *o, struct app *a)
 	}
 	/* published with the machine: feeders then send the smoothed path */
 	a->cfg.machine.smooth = a->strategy == MLIP_STRATEGY_SMOOTH;
+	a->cfg.machine.path_plan = a->cfg.jerk_plan == MLIP_JERK_PLAN_PATH;
 	if (mlip_shm_create_group(&a->shm, o->shm_name, (uint32_t)o->capacity, &a->cfg.machine,
 	                          o->shm_gid, info, sizeof(info)) != 0) {
 		fprintf(stderr, PROG ": %s\n", info);
@@ -873,7 +871,14 @@ static int run(const struct options *o, struct app *a)
 	pthread_attr_setstacksize(&attr, 64 * 1024); /* memory is locked: keep it small */
 	int mon_ok = pthread_create(&mon_th, &attr, monitor, &a->mon) == 0;
 	pthread_attr_destroy(&attr);
+	if (a->cfg.machine.path_plan) { /* the records are the planning thread's */
+		if (mlip_rtplan_start(&a->plan, &a->cfg, a->shm.ring) != 0) {
+			return -EAGAIN;
+		}
+		per.plan = &a->plan.pp;
+	}
 	int rc = mlip_rt_run(&ro, mlip_period_tick, NULL, &per, &rep);
+	mlip_rtplan_stop(&a->plan);
 	if (mon_ok) {
 		a->mon.done = 1;
 		pthread_join(mon_th, NULL);

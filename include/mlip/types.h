@@ -60,9 +60,13 @@ struct mlip_machine {
 	double max_rot_feed_deg_s;            /* cap for moves of rotary axes only */
 	double tolerance_mm;                  /* eps: contour tolerance at corners */
 	double period_s;                      /* T: interpolation period */
-	uint8_t smooth; /* the controller runs strategy `smooth`: a feeder sends
-	                   the program through the path filter (mlip/motion/smooth.h)
-	                   first; 0 in segments of older builds */
+	uint8_t smooth;    /* the controller runs strategy `smooth`: a feeder sends
+	                      the program through the path filter (mlip/motion/smooth.h)
+	                      first; 0 in segments of older builds */
+	uint8_t path_plan; /* the controller plans the path speed ([TRAJ] JERK_PLAN =
+	                      path, tools/rtplan.c): a feeder runs the plan's refusals
+	                      and smooths on the plan's controller's machine (no J, eps
+	                      less the band: mlip_simpath_machine); 0 in older segments */
 };
 
 /* What a block asks for. Only MOVE blocks reach the planner; the others are

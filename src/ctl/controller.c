@@ -295,6 +295,10 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	if (in->drives.fault.event != 0 && !c->drive_faulted) {
 		mlip_ct_drive_fault(c, out, &in->drives.fault);
 	}
+	if (in->plan_fault && !c->ext.refused) {
+		c->ext.refused = 1; /* a queue running: its braking run (follow.c), in FAULT */
+		mlip_ct_fault(c, out, reason(MLIP_WHY_PLAN_REFUSED, 0, 0));
+	}
 
 	mlip_ct_spindle_period(c, in, out);
 	mlip_mio_period(c, in); /* the probe's trip, before the records */

@@ -51,7 +51,8 @@ void mlip_ct_ext_override(struct mlip_ctl *c, double pct)
 /* A program of in->plan starts: at rest in IDLE, once per number, with the
  * drives enabled (a program waiting asks for them, as records do). A queue
  * that does not start at the machine's position is refused (counted and
- * reported as a refused program). 1: it runs. */
+ * reported as a refused program), one whose feeder began before a stop
+ * never starts (STOP_EARLY). 1: it runs. */
 int mlip_ct_ext_start(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct mlip_ctl_out *out)
 {
 	struct mlip_planq *q = in->plan;
@@ -63,7 +64,20 @@ int mlip_ct_ext_start(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 		c->power.want = 1;
 		return 0;
 	}
+	if (in->feeder_unread) {
+		return 0; /* whose program this is: known next period */
+	}
 	c->ext.last = in->plan_prog;
+	if (mlip_ring_stop_after(c->op.stop_seen, in->feeder_stop_base)) {
+		/* a stop came after its feeder began (before the queue was
+		 * published): it never starts, as a program of records */
+		c->counts.refused++;
+		if (c->why.why == MLIP_WHY_STOP_EARLY) {
+			c->why.why = MLIP_WHY_NONE; /* a second refusal is named too */
+		}
+		go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_STOP_EARLY, 0, 0));
+		return 0;
+	}
 	for (int k = 0; k < c->m.n_axes; k++) {
 		if (!(fabs(q->c.x[k] - c->pos[k]) <= 1e-9)) {
 			struct mlip_ctl_reason r = reason(MLIP_WHY_BAD_RECORD, 0, 0);

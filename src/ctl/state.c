@@ -70,7 +70,8 @@ const char *mlip_state_why_name(uint32_t why)
 	                                    "no probe input",
 	                                    "spindle to speed",
 	                                    "spindle fault",
-	                                    "probe not in contact at the start (G38.4/G38.5)"};
+	                                    "probe not in contact at the start (G38.4/G38.5)",
+	                                    "path plan refused"};
 
 	return NAME_OF(names, why);
 }

@@ -50,6 +50,7 @@ static uint32_t prog = 1;
 static int drives;
 static struct mlip_ctl_drive_fault fault_next;
 static int exit_req;
+static int plan_fault;       /* the planning thread refused the plan (sticky, as mlip-rt's) */
 static uint32_t missed_next; /* deadlines missed before the next period */
 static struct mlip_can_config can_cia402 = {"cia402", 1000000, 5000000, 0x080,
                                             0x200,    0x300,   0x400,   0x180};
@@ -261,6 +262,7 @@ static int32_t tick(uint32_t op, int32_t arg)
 	    .period = period++, .feeder_alive = 1, .plan = &q, .plan_prog = prog, .io = io_in};
 	in.cmd = op ? &cmd : NULL;
 	in.exit_request = exit_req;
+	in.plan_fault = plan_fault;
 	in.missed = missed_next;
 	missed_next = 0;
 	for (int k = 0; k < 2 && drives; k++) {
@@ -477,22 +479,38 @@ static void test_override(void **state)
 	assert_memory_equal(out.pos, f.last, sizeof(f.last));
 }
 
-/* A drive fault mid-move: FAULT (DRIVE) in that period, every axis on the
- * queue's braking run inside A and J, the program dropped at rest. */
+/* FAULT with reason why in this period: every axis on the queue's braking
+ * run inside A and J, the program dropped at rest, the point held. */
+static void faults_on_the_run(uint32_t why, const char *what)
+{
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
+	assert_int_equal(out.status.reason, why);
+	long k = brake_dropped();
+	assert_true(chk.max_j >= 0.5 * JERK && chk.max_a >= 0.3 * ACC);
+	double rest[2];
+	stays(100, MLIP_STATE_FAULT, rest);
+	print_message("%s: rest after %ld periods\n", what, k);
+}
+
+/* A drive fault mid-move (its node named). */
 static void test_drive_fault(void **state)
 {
 	(void)state;
 	until_speed(0.9 * V);
 	fault_next = (struct mlip_ctl_drive_fault){.event = MLIP_DRIVE_FAULT_BIT, .node = 2};
-	tick(0, 0);
-	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
-	assert_int_equal(out.status.reason, MLIP_WHY_DRIVE);
+	faults_on_the_run(MLIP_WHY_DRIVE, "drive fault");
 	assert_int_equal(out.status.reason_node, 2);
-	long k = brake_dropped();
-	assert_true(chk.max_j >= 0.5 * JERK && chk.max_a >= 0.3 * ACC);
-	double rest[2];
-	stays(100, MLIP_STATE_FAULT, rest);
-	print_message("drive fault: rest after %ld periods\n", k);
+}
+
+/* The planning thread refuses the plan mid-move (in->plan_fault, sticky). */
+static void test_plan_refused(void **state)
+{
+	(void)state;
+	until_speed(0.9 * V);
+	plan_fault = 1;
+	faults_on_the_run(MLIP_WHY_PLAN_REFUSED, "plan refused");
+	plan_fault = 0;
 }
 
 /* The E-stop with drives: quick stop in that very period, the program
@@ -582,6 +600,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_estop_drives, setup_io_drives),
 	    cmocka_unit_test_setup(test_exit, setup_drives),
 	    cmocka_unit_test_setup(test_stall, setup),
+	    cmocka_unit_test_setup(test_plan_refused, setup),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

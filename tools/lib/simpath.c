@@ -35,6 +35,15 @@ int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_p
 	return 0;
 }
 
+void mlip_simpath_machine(const struct mlip_machine *m, struct mlip_machine *cm)
+{
+	*cm = *m;
+	for (int k = 0; k < m->n_axes; k++) {
+		cm->axis[k].max_jerk = 0.0;
+	}
+	cm->tolerance_mm -= 0.1 * m->tolerance_mm; /* mlip_simpath_limits' band */
+}
+
 int mlip_simpath_prescan(struct mlip_program *p, double fixed, double *feed, const char *prog,
                          const char *file, const char *how, FILE *err)
 {

@@ -31,6 +31,10 @@ struct mlip_simpath {
 int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_path_limits *lim,
                         double *band_mm, const char **why);
 
+/* The plan's controller's machine: m without J, eps less the band (0.1
+ * eps), on which `smooth` runs (mlip-sim, the planning thread, a feeder). */
+void mlip_simpath_machine(const struct mlip_machine *m, struct mlip_machine *cm);
+
 /* Before anything moves: every block of prog is one the plan can run
  * (mlip_pathrun_refusal); prog is rewound after. fixed > 0 (mlip-sim
  * --feed) replaces every feed, rapids too; else the program's one feed is

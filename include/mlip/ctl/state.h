@@ -130,6 +130,10 @@ typedef enum {
 	                                when the move was to start (a probe error
 	                                as PROBE_AT_START; last, so the numbers of
 	                                the reasons before it stay) */
+	MLIP_WHY_PLAN_REFUSED,       /* [TRAJ] JERK_PLAN = path: the planning thread refused
+	                                the program (a piece its plan cannot certify, or its
+	                                controller left RUNNING): state FAULT, the queue's
+	                                braking run to rest */
 	MLIP_WHY_COUNT
 } mlip_state_why;
 
