@@ -198,9 +198,9 @@ def test_what_the_plan_cannot_run_is_refused(tmp_path, body, line, what):
 
 def test_config_key_refused_without_jerk(tmp_path):
     """JERK_PLAN = path on a machine without MAX_JERK on an axis: the file
-    is refused at the key's line, by mlip-sim and mlip-rt alike; mlip-rt,
-    which cannot run the plan yet, refuses a good one too (rather than run
-    the mean the file did not ask for)."""
+    is refused at the key's line, by mlip-sim and mlip-rt alike; mlip-rt
+    refuses a good one without --strategy smooth too (rather than run the
+    mean the file did not ask for)."""
     bad = tmp_path / "bad.ini"
     bad.write_text(MACHINE.format(plan="JERK_PLAN = path").replace("MAX_JERK = 100000\n[AXIS_Y]",
                                                                    "[AXIS_Y]"))
@@ -210,7 +210,7 @@ def test_config_key_refused_without_jerk(tmp_path):
     assert p.returncode != 0 and "bad.ini:5" in p.stderr and \
         "JERK_PLAN = path needs MAX_JERK on every axis; [AXIS_X] has none" in p.stderr, p.stderr
     for cfg, msg in [(bad, "[AXIS_X] has none"),
-                     (machine(tmp_path, "path"), "JERK_PLAN = path is not supported by mlip-rt")]:
+                     (machine(tmp_path, "path"), "JERK_PLAN = path needs --strategy smooth")]:
         p = subprocess.run([str(BUILD / "mlip-rt"), "--config", str(cfg), "--can", "none",
                             "--shm", f"/mlip-test-jp-{id(cfg)}"], capture_output=True, text=True,
                            timeout=30)
