@@ -438,6 +438,21 @@ class Rig:
             args += ["--stall-periods", "100000"]
         self.rt = Proc("rt", args + self.rt_args, w, start_timeout=timeout)
         self.rt.wait_for("ready on")
+        # "ready" comes before the loop's first period: a tool run at once
+        # on a slow guest would find a segment that never beat ("start
+        # mlip-rt"); the rig is ready once the controller has beaten
+        t_end = time.monotonic() + timeout
+        while True:
+            p = run_tool([self.s.tool("mlip-ctl"), "--shm", self.shm, "status", "--json"],
+                         check=False, timeout=60)
+            try:
+                if json.loads(p.stdout).get("heartbeat", 0) > 0:
+                    break
+            except ValueError:
+                pass
+            assert time.monotonic() < t_end and self.rt.p.poll() is None, (
+                f"mlip-rt never beat after 'ready on': {p.stdout}{p.stderr}")
+            time.sleep(0.05)
         self.t_ready = time.time()
 
     def abort(self) -> None:
