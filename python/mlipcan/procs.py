@@ -443,15 +443,19 @@ class Rig:
         # mlip-rt"); the rig is ready once the controller has beaten
         t_end = time.monotonic() + timeout
         while True:
-            p = run_tool([self.s.tool("mlip-ctl"), "--shm", self.shm, "status", "--json"],
-                         check=False, timeout=60)
+            p = run_tool(
+                [self.s.tool("mlip-ctl"), "--shm", self.shm, "status", "--json"],
+                check=False,
+                timeout=60,
+            )
             try:
                 if json.loads(p.stdout).get("heartbeat", 0) > 0:
                     break
             except ValueError:
                 pass
             assert time.monotonic() < t_end and self.rt.p.poll() is None, (
-                f"mlip-rt never beat after 'ready on': {p.stdout}{p.stderr}")
+                f"mlip-rt never beat after 'ready on': {p.stdout}{p.stderr}"
+            )
             time.sleep(0.05)
         self.t_ready = time.time()
 
