@@ -1,0 +1,193 @@
+"""mlip-rt with [TRAJ] JERK_PLAN = path on a real vcan0 (issue 21): the
+planning thread (tools/rtplan.c) plans the jerk-limited program, the period
+follows its queue (src/ctl/follow.c) and puts it on the bus as CiA 402
+frames; the listener (mlip-listen) decodes them.
+
+  - test_path_plan_exact: the bus carries `mlip-sim --config CFG --strategy
+    smooth`'s trace to the count at every SYNC of the motion, and that
+    trace keeps MAX_JERK in double precision and uses it;
+  - test_path_plan_hold_resume: mlip-ctl hold at speed brakes on the
+    queue's run to rest inside A and J (judged on mlip-rt's --record, the
+    setpoints in double precision, which the bus carries to the count),
+    the point is held, resume ends on the program's last point.
+
+Run: flock /work/wt/vm.lock tests/can/run-tests.sh tests/can/test_rtplan_vcan.py
+"""
+import math
+
+from conftest import S
+from mlipcan import compare, procs
+from mlipcan.config import setup_of
+from test_rt_vcan import bus_complete, exact_run, moving_span, physics, summary_line, wait_periods
+
+J = 100000.0  # mm/s^3, every axis
+A = 1000.0    # mm/s^2, mill-3axis.ini's MAX_ACCELERATION on every axis
+FEED = 6000   # mm/min: the program's one F (the plan's cap), 100 mm/s
+
+
+def machine(tmp_path):
+    """mill-3axis with MAX_JERK on every axis and the path plan (as
+    tests/py/test_planfeed.py's machine)."""
+    ini = (S.config_dir / "mill-3axis.ini").read_text()
+    for axis in "XYZ":
+        ini = ini.replace(f"[AXIS_{axis}]\n", f"[AXIS_{axis}]\nMAX_JERK = {J:.0f}\n")
+    assert ini.count("MAX_JERK") == 3 and "[TRAJ]\n" in ini
+    cfg = tmp_path / "mill-path.ini"
+    cfg.write_text(ini.replace("[TRAJ]\n", "[TRAJ]\nJERK_PLAN = path\n"))
+    return cfg
+
+
+def circle_program(tmp_path, turns=1, r=10.0, step_deg=2.0):
+    """One F, no G0 (the plan refuses a G0 or a second F without --feed): a
+    lead-in line, `turns` circles of radius r as G1 chords of step_deg
+    (0.35 mm at r = 10), a ramp down in Z, the line back to the origin."""
+    out = ["G21 G90", f"G1 F{FEED}", f"G1 X{r:.4f} Y0"]
+    n = int(round(360 * turns / step_deg))
+    for k in range(1, n + 1):
+        a = math.radians(k * step_deg)
+        out.append(f"G1 X{r * math.cos(a):.4f} Y{r * math.sin(a):.4f}")
+    out += ["G1 Z-1", "G1 X0 Y0 Z0"]
+    ngc = tmp_path / f"circle-{turns}.ngc"
+    ngc.write_text("\n".join(out) + "\n")
+    return ngc
+
+
+def sim_jerk_used(cfg, ngc, tmp_path):
+    """mlip-sim --config (JERK_PLAN = path) --strategy smooth: its trace rows;
+    the trace (double precision) within J and using at least half of it."""
+    rows, summ = compare.simulate(S, cfg, ngc, tmp_path, "--strategy", "smooth")
+    assert summ["jerk_limit"] == [J] * 3 and summ["violations"] == 0, summ
+    ratio = max(j / lim for j, lim in zip(summ["max_axis_jerk"], summ["jerk_limit"], strict=True))
+    assert 0.5 <= ratio <= 1 + 1e-6, summ["max_axis_jerk"]  # used, and kept
+    return rows, summ, ratio
+
+
+def test_path_plan_exact(vcan, tmp_path):
+    """One jerk-limited program end to end (test_rt_vcan's exact_run): the
+    bus = mlip-sim to the count, from the home position through every SYNC
+    of the motion to rest on the program's last point; mlip-check on the
+    decoded counts passes (the machine's A and J, the quantum's slack: 4 q /
+    T^2 on A, 8 q / T^3 on J, q = 1 count); every record executed
+    (exec_seq = blocks + 1); the trace it equals keeps J in double
+    precision and uses it."""
+    cfg = machine(tmp_path)
+    ngc = circle_program(tmp_path)
+    _, summ, jratio = sim_jerk_used(cfg, ngc, tmp_path)
+    exact_run(tmp_path, cfg, ngc, "cia402", strategy="smooth")
+    acc = max(a / A for a in summ["max_axis_accel"])
+    print(f"[{ngc.name}] mlip-sim: {summ['periods']} periods, max jerk/J {jratio:.4f}, "
+          f"accel/A {acc:.4f}")
+
+
+def rec_rows(path):
+    return compare.read_trace(path)[1]
+
+
+def diffs(rows, k0, k1, T):
+    """Max |a| / A and |j| / J over rows k0..k1 (setpoints, double), per axis
+    from second and third differences."""
+    n = len(rows[0]) - 1
+    amax = jmax = 0.0
+    for k in range(max(k0, 3), min(k1, len(rows) - 1) + 1):
+        for i in range(1, n + 1):
+            x = [rows[k - m][i] for m in range(4)]
+            a = (x[0] - 2 * x[1] + x[2]) / T**2
+            j = (x[0] - 3 * x[1] + 3 * x[2] - x[3]) / T**3
+            amax, jmax = max(amax, abs(a) / A), max(jmax, abs(j) / J)
+    return amax, jmax
+
+
+def max_decel(rows, k0, k1, T):
+    """The largest drop of the path speed (chord / T) between periods
+    k0..k1, mm/s^2."""
+    v = [math.dist(rows[k][1:], rows[k + 1][1:]) / T for k in range(k0, k1 + 1)]
+    return max((a - b) / T for a, b in zip(v, v[1:], strict=False))
+
+
+# The plan's braking run brakes toward -a_brake of its certifying policy:
+# 900 mm/s^2, or 300 on tight curves (tools/lib/simpath.c); a brake below
+# A_BRAKE_MIN did not brake as planned.
+A_BRAKE_MIN = 0.25 * A
+
+
+def test_path_plan_hold_resume(vcan, tmp_path):
+    """mlip-ctl hold at speed: the queue's braking run to rest inside A and J
+    (judged on --record, double precision, over the speed's falling tail
+    into the rest: per axis |a| <= A (1 + 1e-6), |j| <= J (1 + 1e-6); the
+    brake uses them: |j| >= 0.5 J, the path's deceleration within
+    [A_BRAKE_MIN, A (1 + 1e-6)], from above 20 mm/s),
+    the point held while HELD, resume to the program's last point; the bus
+    carries the record to the count; mlip-check on the whole record (A and J
+    of the machine, no quantum) and on the decoded counts passes."""
+    cfg = machine(tmp_path)
+    ngc = circle_program(tmp_path, turns=2)
+    rows, summ, _ = sim_jerk_used(cfg, ngc, tmp_path)
+    setup = setup_of(S, cfg)
+    T = setup.period_s
+    rec = tmp_path / "rt-record.csv"
+    m = {}
+
+    def actions(rig):
+        # at speed on the circle, past the lead-in's corner (|Y| > 0.5 mm);
+        # the plan runs it between ~42 and ~68 mm/s (mlip-sim)
+        m["fast"] = rig.wait_state("running", timeout=120, pred=lambda s: s["speed_mm_s"] > 60
+                                   and abs(s["position"]["Y"]) > 0.5)
+        rig.ctl("hold")
+        m["hold"] = rig.status()
+        m["held"] = rig.wait_state("held", timeout=60, pred=lambda s: s["speed_mm_s"] == 0.0)
+        m["resume"] = wait_periods(rig, 300, m["held"])
+        rig.ctl("resume")
+
+    with procs.Rig(S, cfg, "cia402", tmp_path,
+                   rt_args=("--strategy", "smooth", "--record", rec)) as rig:
+        rc, out, err = rig.feed(ngc, actions)
+        assert rc == 0, f"mlip-feed exited {rc}:\n{err}"
+        rig.wait_state("idle", timeout=120, pred=lambda s: s["program_end"])
+    r = rig.result
+    bus_complete(r, setup, "cia402")
+    can = r["counts"]
+    # the bus carries the record (the setpoints sent, double) to the count
+    rr = rec_rows(rec)
+    rc_counts = compare.trace_counts(rr, setup.cpu)
+    off, how = compare.align(can, rc_counts)
+    bad = compare.first_mismatch(can, rc_counts, off)
+    assert bad is None, f"bus != mlip-rt's record ({how}): {bad}"
+    assert rc_counts[-1] == compare.trace_counts(rows[-1:], setup.cpu)[0], \
+        "not at rest on the program's last point"
+    assert can[-1] == rc_counts[-1]
+    # the whole record: A, J (the machine's), the path, the end (mlip-check)
+    p, js = compare.mlip_check(S, cfg, ngc, rec, 0.0, tmp_path / "rec-check.json")
+    assert p.returncode == 0, f"mlip-check on mlip-rt's record:\n{p.stderr}"
+    quantum = max(1.0 / c for c in setup.cpu)
+    start, end = moving_span(can)
+    physics(rig, ngc, can[start:], quantum, tmp_path)
+    # the brake: the longest still run inside the motion is the hold; it
+    # began after the hold was sent and holds through the resume
+    run_len, at = compare.longest_still_run(can, start + 1, end)
+    h0, h1 = m["held"]["heartbeat"] - 1, m["resume"]["heartbeat"] - 1
+    assert at <= h0 and h1 < at + run_len, (at, run_len, h0, h1)
+    k_fast = m["fast"]["heartbeat"] - 1  # moving at > 60 mm/s before the hold
+    assert k_fast < at, (k_fast, at)
+    # the braking run, record rows b..e: the speed's falling tail into the
+    # record's first rest after k_fast (the status read after the hold may
+    # come after the rest on the guest); the bus's rest (counts) is near it
+    v = [math.dist(rr[k][1:], rr[k + 1][1:]) / T for k in range(len(rr) - 1)]
+    e = next(k for k in range(k_fast - off, len(v)) if v[k] == 0.0)
+    assert abs(e + off - at) <= 5, (e + off, at)
+    b = e
+    while b > 0 and v[b - 1] > v[b]:
+        b -= 1
+    assert v[b] > 20.0, (b, v[b])  # braked from speed, not a crawl
+    amax, jmax = diffs(rr, b, e + 3, T)
+    dec = max_decel(rr, b, e, T)
+    assert amax <= 1 + 1e-6 and jmax <= 1 + 1e-6, (amax, jmax)
+    assert jmax >= 0.5 and A_BRAKE_MIN <= dec <= A * (1 + 1e-6), (amax, jmax, dec)
+    k_hold = m["hold"]["heartbeat"] - 1
+    st = rig.final_status
+    assert st["state"] == "idle" and st["program_end"], st
+    summary_line("path plan hold", rig, r, f", bus = record ({len(rr)} rows) to the count, "
+                 f"{m['fast']['speed_mm_s']:.1f} mm/s at cycle {k_fast}, hold, status at "
+                 f"{k_hold}; brake cycles {b + off}..{at} from {v[b]:.2f} mm/s: per axis max "
+                 f"|a|/A {amax:.4f}, |j|/J {jmax:.4f}, path deceleration {dec / A:.4f} A; held "
+                 f"{run_len} cycles; whole record max jerk {js['max_axis_jerk']}, accel "
+                 f"{js['max_axis_accel']}")
