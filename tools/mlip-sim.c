@@ -846,9 +846,11 @@ static int scout(struct options *o, struct sim *s, uint64_t *rows)
 	if (rc == 0) {
 		rc = run(o, s);
 		*rows = s->rows;
-		mlip_program_close(&s->cprog);
-		mlip_program_close(&s->prog);
 	}
+	/* a refusal after the open too (the path plans' prescan): the next
+	 * scout clears s */
+	mlip_program_close(&s->cprog);
+	mlip_program_close(&s->prog);
 	return rc;
 }
 
