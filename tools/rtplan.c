@@ -97,7 +97,11 @@ static void refuse(struct mlip_rtplan *t)
 }
 
 /* The feeder gone (killed, or left without its END: a file that changed)
- * before the program's END: looked at every 50 ms while the ring is dry. */
+ * before the program's END: looked at every 50 ms while the ring is dry.
+ * Dead only: a late feeder (its process there, not scheduled for a while,
+ * as on a loaded host) sends the rest when it runs again; meanwhile the
+ * queue runs dry into its braking run, as the records' controller waits
+ * at rest for records (ring_dry, src/ctl/run.c). */
 static int feeder_gone(struct mlip_rtplan *t)
 {
 	struct timespec ts;
@@ -109,7 +113,7 @@ static int feeder_gone(struct mlip_rtplan *t)
 	t->looked_ns = now;
 	struct mlip_ring_feeder f;
 	return mlip_ring_feeder_read(t->ring, &f) == MLIP_OK &&
-	       mlip_peer_feeder(&f) != MLIP_PEER_ALIVE;
+	       mlip_peer_feeder(&f) == MLIP_PEER_DEAD;
 }
 
 /* One round of the plan: records offered, one unit of work. 1: busy. */
@@ -135,7 +139,9 @@ static int plan(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n
 		mlip_planfeed_offer(&M->pf, &end);
 		ST(&t->pp.end_seq, end.seq);
 	}
-	int r = t->queued_all ? 0 : mlip_planfeed_work(&M->pf);
+	/* also once the last entry is queued: a hold or a lower feed in the
+	 * queue's last periods asks for a plan from its rest (the resume) */
+	int r = mlip_planfeed_work(&M->pf);
 	if (r < 0) {
 		refuse(t);
 		t->phase = DEAD;
@@ -155,7 +161,7 @@ static int plan(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n
 		}
 		return 1;
 	}
-	return k > 0 || r != 0;
+	return k > 0 || r == 1; /* 2: the last entry queued, nothing to plan */
 }
 
 /* A stopped program's records up to its END (a record numbered 1 is the

@@ -10,7 +10,16 @@ import signal
 import struct
 import subprocess
 
-from conftest import TOOLPATHS, periods_on, record_checked, record_rows, status, tool, wait_for
+from conftest import (
+    TOOLPATHS,
+    frozen,
+    periods_on,
+    record_checked,
+    record_rows,
+    status,
+    tool,
+    wait_for,
+)
 from test_planfeed import SQUARE, machine, one_feed
 
 
@@ -296,3 +305,61 @@ def test_refused_plan_is_a_fault(controller, tmp_path):
     rt.send_signal(signal.SIGTERM)
     _, err = rt.communicate(timeout=10)
     assert "the plan refused the program" in err and "faulted" in err, err
+
+
+def test_late_feeder_is_not_gone(controller, tmp_path):
+    """A feeder that stops beating for a while before its END (SIGSTOP for
+    300 periods: a loaded host's scheduling, not an exit) is late, not
+    gone: the plan waits for its records (nothing moves meanwhile, no END
+    made up at the last record sent), and the program runs to its END once
+    the feeder beats again (it exits 0, the machine at rest on the last
+    step's point)."""
+    shm, f = throttled(controller, tmp_path, 400)  # 4 s of records
+    assert periods_on(shm, 100)
+    with frozen(f):
+        assert periods_on(shm, 300)  # 300 ms late: 3x the peers' timeout
+        s = status(shm)
+        assert s["state"] == "idle" and s["speed_mm_s"] == 0.0, s
+        assert all(v == 0.0 for v in s["position"].values()), s
+    assert f.wait(120) == 0, f.stderr.read()
+    s = status(shm)
+    assert s["state"] == "idle" and s["reason"] == "program end", s
+    assert s["position"]["X"] == 400.0 and s["position"]["Y"] == 0.0, s
+
+
+def test_hold_in_the_queues_last_periods(controller, tmp_path):
+    """A hold within the queue's last MLIP_PLANQ_LEN periods (the plan has
+    queued the program's last setpoint): the braking run to rest, and the
+    resume plans the rest from there (the thread still takes the queue's
+    request) to the program's end. At 5 mm/s the last 1 mm is 200 periods;
+    a hold sent later than that (a slow host) is tried again with the next
+    run of the program, 5 tries."""
+    cfg = machine(tmp_path)
+    prog = tmp_path / "back.ngc"
+    prog.write_text("G21 G90\nG1 F300\nG1 X10\nG1 X0\n")
+    for k in range(5):
+        rec = tmp_path / f"rt{k}.csv"
+        shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec)
+        f = subprocess.Popen(
+            [tool("mlip-feed"), "--shm", shm, "-q", str(prog)], stderr=subprocess.PIPE, text=True
+        )
+        assert wait_for(lambda: status(shm)["position"]["X"] > 9.0, 60), status(shm)
+        assert wait_for(lambda: status(shm)["position"]["X"] < 1.0, 60), status(shm)
+        assert ctl(shm, "hold").returncode == 0
+        s = wait_for(
+            lambda: (lambda s: s if s["state"] in ("held", "idle") and s["speed_mm_s"] == 0.0
+                     else None)(status(shm)),
+            60,
+        )
+        assert s, status(shm)
+        if s["state"] == "idle":  # the hold came after the end: again
+            assert f.wait(60) == 0, f.stderr.read()
+            rt.send_signal(signal.SIGTERM)
+            assert rt.wait(10) == 0
+            continue
+        assert 0.0 < s["position"]["X"] < 1.0, s
+        assert periods_on(shm, 100)["position"] == s["position"]
+        assert ctl(shm, "resume").returncode == 0
+        ending(cfg, prog, rec, rt, f)
+        return
+    raise AssertionError("no hold within the program's last 1 mm in 5 tries")

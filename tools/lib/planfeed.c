@@ -135,6 +135,7 @@ int mlip_planfeed_work(struct mlip_planfeed *pf)
 		int r = ctl_period(pf);
 		return r < 0 ? -1 : 1;
 	}
+	uint32_t head = pf->q->head; /* ours: the producer's index */
 	int r = mlip_planq_produce(pf->q, pf->pr);
 	if (r < 0) {
 		return refuse(pf, pf->pr->why);
@@ -142,6 +143,6 @@ int mlip_planfeed_work(struct mlip_planfeed *pf)
 	if (r == 3) {
 		return refuse(pf, "the plan asked for input it had"); /* a defect */
 	}
-	pf->planned += r == 1 || r == 2;
+	pf->planned += pf->q->head != head; /* 2 also after the last: nothing queued */
 	return r;
 }

@@ -70,7 +70,8 @@ void mlip_planfeed_offer(struct mlip_planfeed *pf, const struct mlip_ring_rec *r
 
 /* One unit of work: a controller period, a setpoint into the window, or a
  * planned period into the queue. 1 done, 0 blocked (it needs records, or
- * the queue is full), 2 the program's last setpoint is queued, -1 refused
+ * the queue is full), 2 the program's last setpoint is queued (again
+ * after it: a request, a resume from rest, is taken first), -1 refused
  * (pf->why: the controller left RUNNING, the plan refused a piece). */
 int mlip_planfeed_work(struct mlip_planfeed *pf);
 
