@@ -118,13 +118,33 @@ def test_path_plan_hold_resume(vcan, tmp_path):
     (judged on --record, double precision, over the speed's falling tail
     into the rest: per axis |a| <= A (1 + 1e-6), |j| <= J (1 + 1e-6); the
     brake uses them: |j| >= 0.5 J, the path's deceleration within
-    [A_BRAKE_MIN, A (1 + 1e-6)], from above 20 mm/s),
+    [A_BRAKE_MIN, A (1 + 1e-6)], from above V_BRAKE),
     the point held while HELD, resume to the program's last point; the bus
     carries the record to the count; mlip-check on the whole record (A and J
-    of the machine, no quantum) and on the decoded counts passes."""
+    of the machine, no quantum) and on the decoded counts passes. A run
+    whose hold met the machine below V_BRAKE (mlip-ctl is slow on the guest:
+    the hold lands ~0.2-0.7 s after the status that saw the speed, and a
+    planning thread starved there runs its queue dry, which brakes to rest
+    and starts again) proves nothing of the brake's use of A and J: its
+    limits are asserted, then the program is run again, 3 runs at most."""
     cfg = machine(tmp_path)
     ngc = circle_program(tmp_path, turns=2)
-    rows, summ, _ = sim_jerk_used(cfg, ngc, tmp_path)
+    rows, _, _ = sim_jerk_used(cfg, ngc, tmp_path)
+    for k in range(3):
+        sub = tmp_path / f"run{k}"
+        sub.mkdir()
+        if hold_resume_once(cfg, ngc, rows, sub):
+            return
+    raise AssertionError(f"every hold of {k + 1} runs met the machine below {V_BRAKE} mm/s")
+
+
+# A brake from below this (mm/s) does not show its use of A and J.
+V_BRAKE = 20.0
+
+
+def hold_resume_once(cfg, ngc, rows, tmp_path):
+    """One run of test_path_plan_hold_resume: True once every assertion
+    held, False when the brake began below V_BRAKE (its limits held)."""
     setup = setup_of(S, cfg)
     T = setup.period_s
     rec = tmp_path / "rt-record.csv"
@@ -173,18 +193,24 @@ def test_path_plan_hold_resume(vcan, tmp_path):
     k_fast = m["fast"]["heartbeat"] - 1  # moving at > V_FAST before the hold
     assert k_fast < at, (k_fast, at)
     # the braking run, record rows b..e: the speed's falling tail into the
-    # record's first rest after k_fast (the status read after the hold may
-    # come after the rest on the guest); the bus's rest (counts) is near it
+    # record's rest at the bus's held run (its counts round: within 5
+    # periods). Not the first rest after k_fast: a planning thread starved
+    # on a loaded guest runs the queue dry, which brakes to a rest too
+    # (inside A and J, judged by mlip-check on the whole record above)
     v = [math.dist(rr[k][1:], rr[k + 1][1:]) / T for k in range(len(rr) - 1)]
-    e = next(k for k in range(k_fast - off, len(v)) if v[k] == 0.0)
+    e = next(k for k in range(max(at - off - 5, 0), len(v)) if v[k] == 0.0)
     assert abs(e + off - at) <= 5, (e + off, at)
+    dry = sum(1 for k in range(1, e) if v[k] == 0.0 < v[k - 1])  # rests before the hold
     b = e
     while b > 0 and v[b - 1] > v[b]:
         b -= 1
-    assert v[b] > 20.0, (b, v[b])  # braked from speed, not a crawl
     amax, jmax = diffs(rr, b, e + 3, T)
     dec = max_decel(rr, b, e, T)
     assert amax <= 1 + 1e-6 and jmax <= 1 + 1e-6, (amax, jmax)
+    if v[b] <= V_BRAKE:  # braked from a crawl: again
+        print(f"[path plan hold] the brake began at {v[b]:.2f} mm/s (cycle {b + off}, "
+              f"{dry} rests on the path before it): run again")
+        return False
     assert jmax >= 0.5 and A_BRAKE_MIN <= dec <= A * (1 + 1e-6), (amax, jmax, dec)
     k_hold = m["hold"]["heartbeat"] - 1
     st = rig.final_status
@@ -194,4 +220,5 @@ def test_path_plan_hold_resume(vcan, tmp_path):
                  f"{k_hold}; brake cycles {b + off}..{at} from {v[b]:.2f} mm/s: per axis max "
                  f"|a|/A {amax:.4f}, |j|/J {jmax:.4f}, path deceleration {dec / A:.4f} A; held "
                  f"{run_len} cycles; whole record max jerk {js['max_axis_jerk']}, accel "
-                 f"{js['max_axis_accel']}")
+                 f"{js['max_axis_accel']}; rests on the path before the hold: {dry}")
+    return True

@@ -215,13 +215,15 @@ def test_corrupt_record_in_the_preread_never_moves(controller, tmp_path):
     refused before its first motion period never moves: every setpoint
     mlip-rt sent is where the machine stood. Record 4000 is made bad while
     mlip-rt is frozen before its pre-read reached it; the pre-read takes the
-    look-ahead's 4096 blocks before anything moves."""
+    look-ahead's 4096 blocks before anything moves. The feeder sends 1000
+    blocks/s (the pre-read waits for them): mlip-rt is frozen seconds before
+    its pre-read could reach record 4000, however late this host freezes it."""
     prog = zigzag(tmp_path)
     rec_csv = tmp_path / "rt.csv"
     shm, rt = controller(MILL, "--record", rec_csv)
     home = status(shm)["position"]
-    f = Proc([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE,
-             text=True)
+    f = Proc([tool("mlip-feed"), "--shm", shm, "--rate", "1000", prog],
+             stderr=subprocess.PIPE, text=True)
     ring = Ring(shm)
     assert wait_for(lambda: ring.u32(HEAD) > 0 or f.poll() is not None, 60, 0.001)
     with frozen(rt):
