@@ -163,6 +163,14 @@ void mlip_ct_progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
 	const struct mlip_planner *p = c->planner;
 	*seq = c->prog.exec.seq;
 	*line = c->prog.exec.line;
+	if (c->ext.q != NULL) {
+		/* following the planned queue: the record its state lies in */
+		if (c->ext.q->c.mark.seq > 0) {
+			*seq = c->ext.q->c.mark.seq;
+			*line = c->ext.q->c.mark.line;
+		}
+		return;
+	}
 	if (c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED) {
 		*seq = c->wait.at.seq;
 		*line = c->wait.at.line;
