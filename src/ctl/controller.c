@@ -305,7 +305,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	}
 	if (in->plan_fault && !c->ext.refused) {
 		c->ext.refused = 1; /* a queue running: its braking run (follow.c), in FAULT */
-		mlip_ct_fault(c, out, reason(MLIP_WHY_PLAN_REFUSED, 0, 0));
+		struct mlip_ctl_reason r = reason(MLIP_WHY_PLAN_REFUSED, 0, 0);
+		mlip_ct_progress(c, &r.seq, &r.line); /* the block it came in */
+		mlip_ct_fault(c, out, r);
 	}
 
 	mlip_ct_spindle_period(c, in, out);

@@ -166,7 +166,9 @@ void mlip_ct_ext_step(struct mlip_ctl *c, struct mlip_ctl_out *out)
 		/* a state the plan did not certify: a defect; the setpoint held */
 		memcpy(c->pos, prev, sizeof(prev));
 		c->ext.stopping = 1;
-		mlip_ct_fault(c, out, reason(MLIP_WHY_POSITION_RANGE, 0, 0));
+		struct mlip_ctl_reason r = reason(MLIP_WHY_POSITION_RANGE, 0, 0);
+		mlip_ct_progress(c, &r.seq, &r.line); /* the block it came in */
+		mlip_ct_fault(c, out, r);
 		mlip_ct_ext_drop(c);
 		return;
 	}

@@ -582,9 +582,13 @@ static void test_override(void **state)
  * run inside A and J, the program dropped at rest, the point held. */
 static void faults_on_the_run(uint32_t why, const char *what)
 {
+	uint64_t at = out.status.exec_seq;
 	tick(0, 0);
 	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
 	assert_int_equal(out.status.reason, why);
+	/* the block it came in (that period's, one on at most) */
+	assert_true(at >= 1 && out.status.reason_seq >= at && out.status.reason_seq <= at + 1);
+	assert_int_equal(out.status.reason_line, LINE(out.status.reason_seq));
 	long k = brake_dropped();
 	assert_true(chk.max_j >= 0.5 * JERK && chk.max_a >= 0.3 * ACC);
 	double rest[2];
