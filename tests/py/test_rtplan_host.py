@@ -366,7 +366,7 @@ def test_progress_follows_the_program(controller, tmp_path):
     assert on_its_side(line, angle(held)), (line, math.degrees(angle(held)))
     total = held["total_blocks"] - 1  # the records (smoothed pieces), END excluded
     assert 0 < held["exec_seq"] < total, held
-    assert periods_on(shm, 2500)  # a progress line of mlip-feed's (every 2 s) while held
+    assert periods_on(shm, 3000)  # a progress line of mlip-feed's (every 2 s) while held
     assert ctl(shm, "resume").returncode == 0
     last = wait_for(lambda: running(lambda s: s["exec_seq"] == total), 60)
     assert last and last["exec_line"] == n + 3, last  # the last block, 100 %
