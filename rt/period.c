@@ -153,8 +153,8 @@ static void bus_send(struct mlip_period *p, const struct mlip_ctl_out *o)
 
 /* JERK_PLAN = path: the thread's records in the status as a feeder reads
  * them (blocks_consumed from the program's start on, exec_seq its END once
- * ended: the queue's knots carry its blocks, not the END, follow.c), and the program the controller
- * is done with (ended, stopped, dropped or refused at its start) back to the thread. */
+ * ended), and the program the controller is done with (ended, stopped,
+ * dropped or refused at its start) back to the thread. */
 static void plan_status(struct mlip_period_plan *pp, const struct mlip_ctl *c, uint32_t prog,
                         struct mlip_ring_status *s)
 {

@@ -176,14 +176,18 @@ void mlip_ct_ext_step(struct mlip_ctl *c, struct mlip_ctl_out *out)
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD:
 		if (mode == MLIP_PLANQ_DONE) {
-			/* its last block done (the status shows the END's seq,
-			 * rt/period.c, which the queue does not carry) */
-			if (q->c.mark.seq > c->prog.exec.seq) {
-				c->prog.exec.seq = q->c.mark.seq;
-				c->prog.exec.line = q->c.mark.line;
+			/* the program done: its END (as a program of records),
+			 * else its last block */
+			struct mlip_ctl_mark end = {q->end_seq, q->end_line};
+			if (end.seq == 0) {
+				end = (struct mlip_ctl_mark){q->c.mark.seq, q->c.mark.line};
+			}
+			if (end.seq > c->prog.exec.seq) {
+				c->prog.exec = end;
 			}
 			mlip_ct_ext_drop(c);
-			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_END, 0, 0));
+			go(c, out, MLIP_STATE_IDLE,
+			   reason(MLIP_WHY_END, c->prog.exec.seq, c->prog.exec.line));
 		} else if (hold && rest &&
 		           (c->state == MLIP_STATE_RUNNING || c->why.why != held_why(c))) {
 			go(c, out, MLIP_STATE_HELD, reason(held_why(c), 0, 0));

@@ -461,14 +461,16 @@ static double u_now(void)
 
 /* The status names the block the position lies in: exec_seq never goes
  * back, the position within that block's arc (one input step either
- * side), its line; every block is named in turn, and the END leaves the
- * last block (mlip-rt shows the END's seq over it: rt/period.c). */
+ * side), its line; every block is named in turn, and the END is the
+ * END's record (the producer's end_seq), as a program of records'. */
 static void test_exec_follows_the_blocks(void **state)
 {
 	(void)state;
 	uint64_t last = 0;
 	int named = 0;
 	long k = 0;
+	q.end_seq = BLOCKS + 1; /* the producer's, before the last entry */
+	q.end_line = LINE(BLOCKS + 1);
 	tick(0, 0);
 	for (; out.status.state == MLIP_STATE_RUNNING && k < MAX_PERIODS; k++) {
 		uint64_t e = out.status.exec_seq;
@@ -494,8 +496,9 @@ static void test_exec_follows_the_blocks(void **state)
 	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_int_equal(out.status.reason, MLIP_WHY_END);
 	assert_int_equal(named, BLOCKS);
-	assert_int_equal(out.status.exec_seq, BLOCKS);
-	assert_int_equal(out.status.exec_line, LINE(BLOCKS));
+	assert_int_equal(out.status.exec_seq, BLOCKS + 1); /* the END's */
+	assert_int_equal(out.status.exec_line, LINE(BLOCKS + 1));
+	assert_int_equal(out.status.reason_seq, BLOCKS + 1);
 }
 
 /* A stop mid-program: while braking the status names the block the

@@ -64,6 +64,10 @@ void mlip_planfeed_offer(struct mlip_planfeed *pf, const struct mlip_ring_rec *r
 	if (pf->head == 0) {
 		pf->first_seq = r->seq;
 	}
+	if (r->type == MLIP_REC_END) {
+		pf->end_seq = r->seq;
+		pf->end_line = r->line;
+	}
 	pf->rec[pf->head++ & (MLIP_PLANFEED_CAP - 1u)] = *r;
 	pf->end_in |= r->type == MLIP_REC_END;
 }
@@ -143,6 +147,10 @@ int mlip_planfeed_work(struct mlip_planfeed *pf)
 					return refuse(pf, pf->pr->why);
 				}
 				pf->finished = 1;
+				/* the END, which no knot carries, for the follower at
+				 * the last entry (queued after this) */
+				pf->q->end_seq = pf->end_seq;
+				pf->q->end_line = pf->end_line;
 			}
 			return 1;
 		}

@@ -162,6 +162,10 @@ struct mlip_planq {
 	/* the program's first record (the producer's, before its first
 	 * entry): 1 its start, N > 1 a continuation after record N - 1 */
 	uint64_t first_seq;
+	/* its END record (written before the last entry is queued; 0: not
+	 * known), which no knot carries: the follower's at the last entry */
+	uint64_t end_seq;
+	uint32_t end_line;
 	/* knot g's record marks (the pathrun's tags) at g & mask: the
 	 * consumer reads two at a time, never as a curve */
 	struct mlip_pathrun_tag tag[MLIP_PLANQ_KNOTS];
