@@ -236,7 +236,8 @@ again:
 			        ": jog %s: refused: the controller got other axes for this jog "
 			        "(another client jogging at the same moment?): try again\n",
 			        dir);
-		} else if (st.state == MLIP_STATE_IDLE && st.held_by != 0) {
+		} else if (st.state == MLIP_STATE_IDLE &&
+		           mlip_state_hold_latched(st.state, st.held_by)) {
 			fprintf(stderr,
 			        PROG
 			        ": jog %s: refused: the controller is idle with a hold latched "
