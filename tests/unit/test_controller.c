@@ -2744,6 +2744,63 @@ static void test_home_sequence(void **st)
 	assert_true(out.pos[0] == 2.0);
 }
 
+/* A home is refused while a hold is latched at rest (as a jog is; Grbl
+ * refuses $H in Hold): the drives' homing motion would leave the path of
+ * the program the hold is kept for. It was accepted. And while a program
+ * is held on its path. A resume at rest releases the latch: then it homes. */
+static void test_home_refused_in_a_hold(void **st)
+{
+	(void)st;
+	htick(5);
+	assert_int_equal(hcmd(MLIP_CMD_HOLD, 0), MLIP_OK);
+	htick(5);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_true(mlip_state_hold_latched(status().state, status().held_by));
+	double x = out.pos[0], y = out.pos[1];
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_E_INVALID);
+	htick(50);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().held_by, MLIP_WHY_HOLD);
+	assert_true(out.pos[0] == x && out.pos[1] == y);
+	assert_int_equal(sdo_log_n, 0); /* no homing object written */
+	assert_int_equal(hcmd(MLIP_CMD_RESUME, 0), MLIP_OK);
+	htick(5);
+	assert_int_equal(status().held_by, 0);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_OK);
+	for (int n = 0; status().state == MLIP_STATE_HOMING && n < 5000; n++) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_HOMED);
+	assert_int_equal(status().homed, 3u);
+	/* a program held on its path: refused too, the homing kept */
+	int logged = sdo_log_n;
+	move(1, 50.0, 1.25);
+	end(2);
+	for (int n = 0; status().state != MLIP_STATE_RUNNING && n < 3000; n++) {
+		htick(1);
+	}
+	htick(100);
+	assert_int_equal(hcmd(MLIP_CMD_HOLD, 0), MLIP_OK);
+	for (int n = 0; status().state != MLIP_STATE_HELD && n < 3000; n++) {
+		htick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	x = out.pos[0];
+	assert_true(x > -2.5 && x < 50.0);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_E_INVALID);
+	htick(50);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	assert_true(out.pos[0] == x);
+	assert_int_equal(status().homed, 3u);
+	assert_int_equal(sdo_log_n, logged);
+	assert_int_equal(hcmd(MLIP_CMD_RESUME, 0), MLIP_OK);
+	for (int n = 0; status().reason != MLIP_WHY_END && n < 20000; n++) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(out.pos[0] == 50.0);
+}
+
 /* A homing object the drive refuses (SDO abort): a fault naming the node
  * and the object, every axis quick-stopped, the drive back in mode 8; a
  * reset, then nothing homed. */
@@ -3532,6 +3589,7 @@ int main(void)
 	    TD(test_jog_drives),
 	    TH(test_home_sequence),
 	    TH(test_home_sdo_refused),
+	    TH(test_home_refused_in_a_hold),
 	    TH(test_home_error_and_timeout),
 	    TH(test_home_lost),
 	    TH(test_home_lost_fault),
