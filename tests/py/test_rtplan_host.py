@@ -318,7 +318,7 @@ def test_refused_plan_is_a_fault(controller, tmp_path):
 def test_refused_plan_then_restart_runs_the_next(controller, tmp_path):
     """A refused plan is a fault on the path, as a bad record is: left the
     way every such fault is, by restarting mlip-rt (or a reset after an
-    E-stop: test_ctl_follow, tests/can; a reset alone leaves a quick stop
+    E-stop: test_ctl_follow, test_rtplan; a reset alone leaves a quick stop
     only, and is refused here), as mlip-ctl status says; a program sent
     meanwhile never moves. mlip-rt restarted on the same segment: the next
     program plans and runs to its end from where the machine stands, within
