@@ -124,7 +124,7 @@ static void test_refused_then_left_then_next(void **state)
 	const double xa[3] = {1.0, NAN, 50.0}, ya[3] = {0.0, 0.0, 0.0};
 	program(xa, ya, 3);
 	wait_u32(&t.pp.fault, 1);
-	wait_u64(&t.pp.taken, 4); /* its rest dropped (the records' slots back) */
+	wait_u64(&t.pp.taken, 4);             /* its rest dropped (the records' slots back) */
 	assert_int_equal(LD(&t.pp.prog), 0u); /* never published */
 	sleep_ms(20);
 	assert_int_equal(LD(&t.pp.fault), 1u);
@@ -139,7 +139,7 @@ static void test_refused_then_left_then_next(void **state)
 	run_queue(x, &xmax);
 	assert_true(x[0] == 2.0 && x[1] == 1.0);
 	assert_true(xmax <= 2.0 + 1e-9); /* a straight line: nothing beyond its end */
-	ST(&t.pp.done, 1u); /* the period: the controller ended it */
+	ST(&t.pp.done, 1u);              /* the period: the controller ended it */
 	wait_u32(&t.pp.prog, 0);
 	assert_int_equal(LD(&t.pp.fault), 1u);
 	/* the next refusal is a new count: the controller faults again */
