@@ -31,10 +31,10 @@
  * reversal; the mean must take such a stretch: the hand-over is not yet
  * in the product).
  *
- * Memory: one struct, MLIP_PATHRUN_CAP points (~238 KB at 6 axes),
+ * Memory: one struct, MLIP_PATHRUN_CAP points (232 KiB at 6 axes),
  * whatever the program's length. No allocation, no I/O. A period's work is
  * bounded by the plan's max_periods (pathplan.h); it is not for the 1 ms
- * thread itself (a planning thread ahead of it: not yet built).
+ * thread itself (mlip-rt runs it in its planning thread, tools/rtplan.c).
  */
 #ifndef MLIP_PATHRUN_H
 #define MLIP_PATHRUN_H

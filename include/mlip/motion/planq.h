@@ -1,7 +1,7 @@
 /*
  * mlip/motion/planq.h - the path-speed plan run ahead of the 1 ms period
  * (issue 21; the design: docs/algorithm.md "The planning thread and its
- * queue"). A prototype: not yet used by mlip-rt.
+ * queue"). mlip-rt's planning thread (tools/rtplan.c) fills it.
  *
  * The plan (mlip/motion/pathrun.h) costs ~1e6 instructions a planned
  * period: a planning thread (the producer) runs it ahead and fills a
@@ -53,7 +53,7 @@
  * so that any run of up to MLIP_PLANQ_KNOTS consecutive knots is one
  * contiguous struct mlip_path_curve (no copy, no wrap in the period).
  *
- * Memory: one struct, 914 KB at 6 axes (819 KB the mirrored knots),
+ * Memory: one struct, 892 KiB at 6 axes (819 KB the mirrored knots),
  * whatever the program's length. The consumer's step: a pop (O(1)) or
  * one braking step (a pick over the pieces a period crosses, as each
  * certification period; measured in docs/algorithm.md). No allocation,
