@@ -23,7 +23,7 @@
 #define LD(p)    __atomic_load_n((p), __ATOMIC_ACQUIRE)
 #define ST(p, v) __atomic_store_n((p), (v), __ATOMIC_RELEASE)
 
-/* the plan's controller and plan: large (4.4 MB), fixed, the thread's
+/* the plan's controller and plan: large (4.5 MB), fixed, the thread's
  * alone; allocated only with the key (locked with the rest) */
 static struct plan_mem {
 	struct mlip_planner planner;

@@ -163,6 +163,14 @@ void mlip_ct_progress(const struct mlip_ctl *c, uint64_t *seq, uint32_t *line)
 	const struct mlip_planner *p = c->planner;
 	*seq = c->prog.exec.seq;
 	*line = c->prog.exec.line;
+	if (c->ext.q != NULL) {
+		/* following the planned queue: the record its state lies in */
+		if (c->ext.q->c.mark.seq > 0) {
+			*seq = c->ext.q->c.mark.seq;
+			*line = c->ext.q->c.mark.line;
+		}
+		return;
+	}
 	if (c->state == MLIP_STATE_DWELLING || c->state == MLIP_STATE_PAUSED) {
 		*seq = c->wait.at.seq;
 		*line = c->wait.at.line;
@@ -297,7 +305,9 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	}
 	if (in->plan_fault && !c->ext.refused) {
 		c->ext.refused = 1; /* a queue running: its braking run (follow.c), in FAULT */
-		mlip_ct_fault(c, out, reason(MLIP_WHY_PLAN_REFUSED, 0, 0));
+		struct mlip_ctl_reason r = reason(MLIP_WHY_PLAN_REFUSED, 0, 0);
+		mlip_ct_progress(c, &r.seq, &r.line); /* the block it came in */
+		mlip_ct_fault(c, out, r);
 	}
 
 	mlip_ct_spindle_period(c, in, out);

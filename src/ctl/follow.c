@@ -78,6 +78,15 @@ int mlip_ct_ext_start(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 		go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_STOP_EARLY, 0, 0));
 		return 0;
 	}
+	if (q->first_seq > 1 && q->first_seq != c->prog.exec.seq + 1) {
+		/* neither a program's start nor the block after the last one
+		 * completed here (as a program of records, run.c) */
+		struct mlip_ctl_reason r = reason(MLIP_WHY_NONE, q->first_seq, 0);
+		r.value = (double)(c->prog.exec.seq + 1);
+		c->counts.refused++;
+		emit(c, out, MLIP_EV_REFUSED, c->state, &r);
+		return 0;
+	}
 	for (int k = 0; k < c->m.n_axes; k++) {
 		if (!(fabs(q->c.x[k] - c->pos[k]) <= 1e-9)) {
 			struct mlip_ctl_reason r = reason(MLIP_WHY_BAD_RECORD, 0, 0);
@@ -86,6 +95,9 @@ int mlip_ct_ext_start(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct m
 			emit(c, out, MLIP_EV_REFUSED, c->state, &r);
 			return 0;
 		}
+	}
+	if (q->first_seq <= 1) {
+		c->prog.exec = (struct mlip_ctl_mark){0, 0}; /* a new program */
 	}
 	c->ext.q = q;
 	c->ext.prog = in->plan_prog;
@@ -143,13 +155,20 @@ void mlip_ct_ext_step(struct mlip_ctl *c, struct mlip_ctl_out *out)
 	if (c->brake.on) {
 		mlip_ct_brake_step(c, prev, rest ? MLIP_RUN_IDLE : MLIP_RUN_MOVING);
 	}
+	if (q->c.mark.done_seq > c->prog.exec.seq) {
+		/* completed: its last record at rest once dropped */
+		c->prog.exec.seq = q->c.mark.done_seq;
+		c->prog.exec.line = q->c.mark.done_line;
+	}
 	int still = memcmp(prev, c->pos, sizeof(prev)) == 0;
 	c->power.still_periods = still ? c->power.still_periods + 1 : 0;
 	if (mode < 0) {
 		/* a state the plan did not certify: a defect; the setpoint held */
 		memcpy(c->pos, prev, sizeof(prev));
 		c->ext.stopping = 1;
-		mlip_ct_fault(c, out, reason(MLIP_WHY_POSITION_RANGE, 0, 0));
+		struct mlip_ctl_reason r = reason(MLIP_WHY_POSITION_RANGE, 0, 0);
+		mlip_ct_progress(c, &r.seq, &r.line); /* the block it came in */
+		mlip_ct_fault(c, out, r);
 		mlip_ct_ext_drop(c);
 		return;
 	}
@@ -157,8 +176,18 @@ void mlip_ct_ext_step(struct mlip_ctl *c, struct mlip_ctl_out *out)
 	case MLIP_STATE_RUNNING:
 	case MLIP_STATE_HELD:
 		if (mode == MLIP_PLANQ_DONE) {
+			/* the program done: its END (as a program of records),
+			 * else its last block */
+			struct mlip_ctl_mark end = {q->end_seq, q->end_line};
+			if (end.seq == 0) {
+				end = (struct mlip_ctl_mark){q->c.mark.seq, q->c.mark.line};
+			}
+			if (end.seq > c->prog.exec.seq) {
+				c->prog.exec = end;
+			}
 			mlip_ct_ext_drop(c);
-			go(c, out, MLIP_STATE_IDLE, reason(MLIP_WHY_END, 0, 0));
+			go(c, out, MLIP_STATE_IDLE,
+			   reason(MLIP_WHY_END, c->prog.exec.seq, c->prog.exec.line));
 		} else if (hold && rest &&
 		           (c->state == MLIP_STATE_RUNNING || c->why.why != held_why(c))) {
 			go(c, out, MLIP_STATE_HELD, reason(held_why(c), 0, 0));

@@ -119,6 +119,7 @@ static int compact(struct mlip_pathrun *pr)
 	memmove(pr->m, pr->m + i, row * (size_t)keep);
 	memmove(pr->b, pr->b + i, row * (size_t)keep);
 	memmove(pr->t3, pr->t3 + i, row * (size_t)keep);
+	memmove(pr->tag, pr->tag + i, sizeof(pr->tag[0]) * (size_t)keep);
 	pr->count = keep;
 	pr->fixed -= i;
 	pr->hint = 0;
@@ -140,6 +141,7 @@ int mlip_pathrun_push(struct mlip_pathrun *pr, const double *pos)
 		}
 	}
 	memcpy(pr->last_in, pos, sizeof(double) * (size_t)n);
+	pr->last_tag = pr->tag_in;
 	double h = chord(n, pr->p[pr->count - 1], pos);
 	if (h < MLIP_PATHRUN_MIN_STEP) {
 		return 0; /* at rest, or nearly: finish takes the last one */
@@ -150,6 +152,7 @@ int mlip_pathrun_push(struct mlip_pathrun *pr, const double *pos)
 	int i = pr->count++;
 	memcpy(pr->p[i], pos, sizeof(double) * (size_t)n);
 	pr->s[i] = pr->s[i - 1] + h;
+	pr->tag[i] = pr->last_tag;
 	pr->peak_count = pr->count > pr->peak_count ? pr->count : pr->peak_count;
 	int upto = pr->count - 1 - MLIP_PATHRUN_SETTLE;
 	return upto > pr->fixed ? settle(pr, upto) : 0;
@@ -170,11 +173,13 @@ int mlip_pathrun_finish(struct mlip_pathrun *pr)
 			if (h > 0.0) {
 				memcpy(pr->p[last], pr->last_in, sizeof(double) * (size_t)n);
 				pr->s[last] = pr->s[last - 1] + h;
+				pr->tag[last] = pr->last_tag;
 			}
 		} else if (pr->count < MLIP_PATHRUN_CAP || compact(pr)) {
 			last = pr->count++;
 			memcpy(pr->p[last], pr->last_in, sizeof(double) * (size_t)n);
 			pr->s[last] = pr->s[last - 1] + chord(n, pr->p[last - 1], pr->last_in);
+			pr->tag[last] = pr->last_tag;
 		}
 	}
 	return last > pr->fixed ? settle(pr, last) : 0;

@@ -34,6 +34,7 @@ static void put_knot(struct mlip_planq *q, const struct mlip_pathrun *pr, uint64
 	size_t n = sizeof(double) * (size_t)q->n;
 	uint64_t a = g & KMASK, b = a + MLIP_PLANQ_KNOTS;
 	if (!piece) {
+		q->tag[a] = pr->tag[i];
 		q->s[a] = q->s[b] = pr->s[i];
 		memcpy(q->p[a], pr->p[i], n);
 		memcpy(q->p[b], pr->p[i], n);
@@ -167,6 +168,23 @@ static void release_knots(struct mlip_planq *q)
 	}
 }
 
+/* The consumer's marks from its piece's knots (both published: piece + 1
+ * <= end; neither freed: the producer reuses a slot only KNOTS on). */
+static void mark(struct mlip_planq *q)
+{
+	const struct mlip_pathrun_tag *at = &q->tag[q->c.piece & KMASK];
+	const struct mlip_pathrun_tag *to = &q->tag[(q->c.piece + 1u) & KMASK];
+	struct mlip_pathrun_tag *m = &q->c.mark;
+	if (to->seq > m->seq) {
+		m->seq = to->seq;
+		m->line = to->line;
+	}
+	if (at->done_seq > m->done_seq) {
+		m->done_seq = at->done_seq;
+		m->done_line = at->done_line;
+	}
+}
+
 /* The entry continues the consumer's state: from it bit for bit, at the
  * next period (at rest any period: time does not matter there). */
 static int continues(const struct mlip_planq *q, const struct mlip_planq_entry *e)
@@ -203,6 +221,7 @@ static int pop(struct mlip_planq *q)
 		}
 		__atomic_store_n(&q->tail, ++tail, __ATOMIC_RELEASE);
 		if (mine) {
+			mark(q);
 			release_knots(q);
 			return 1;
 		}
@@ -281,6 +300,7 @@ static int brake(struct mlip_planq *q)
 	mlip_path_spline_eval_piece(&cv, i, q->c.st.s, q->c.x, &d);
 	q->c.piece = base + (uint64_t)i;
 	q->c.pidx++;
+	mark(q);
 	release_knots(q);
 	if (q->c.st.v == 0.0 && q->c.st.a == 0.0) {
 		request(q, 0); /* at rest: a plan from here */

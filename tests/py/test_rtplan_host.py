@@ -162,13 +162,8 @@ def ctl(shm, *a):
     return subprocess.run([tool("mlip-ctl"), "--shm", shm, *a], capture_output=True, text=True)
 
 
-def test_hold_mid_move(controller, tmp_path):
-    """A hold at speed: the queue's braking run to rest, the point held for
-    300 periods, resumed to the end; the record within every limit, J
-    included (mlip-check with the machine's MAX_JERK)."""
-    cfg, prog, rec, shm, rt, f = moving(
-        controller, tmp_path, "G21 G90\nG1 F6000\nG1 X300\nG1 X300 Y300\nG1 X0 Y0\n", 50
-    )
+def hold(shm):
+    """mlip-ctl hold: the status once held at rest."""
     assert ctl(shm, "hold").returncode == 0
     held = wait_for(
         lambda: (lambda s: s if s["state"] == "held" and s["speed_mm_s"] == 0.0 else None)(
@@ -177,6 +172,17 @@ def test_hold_mid_move(controller, tmp_path):
         60,
     )
     assert held, status(shm)
+    return held
+
+
+def test_hold_mid_move(controller, tmp_path):
+    """A hold at speed: the queue's braking run to rest, the point held for
+    300 periods, resumed to the end; the record within every limit, J
+    included (mlip-check with the machine's MAX_JERK)."""
+    cfg, prog, rec, shm, rt, f = moving(
+        controller, tmp_path, "G21 G90\nG1 F6000\nG1 X300\nG1 X300 Y300\nG1 X0 Y0\n", 50
+    )
+    held = hold(shm)
     later = periods_on(shm, 300)
     assert later and later["position"] == held["position"], later
     assert ctl(shm, "resume").returncode == 0
@@ -363,3 +369,116 @@ def test_hold_in_the_queues_last_periods(controller, tmp_path):
         ending(cfg, prog, rec, rt, f)
         return
     raise AssertionError("no hold within the program's last 1 mm in 5 tries")
+POLY_N, POLY_R = 72, 50.0  # sides, radius (mm): line k + 2 the side ending at k sides' angle
+POLY_SIDE = 2 * math.pi / POLY_N
+
+
+def polygon(tmp_path):
+    """A polygon through the origin (centre X POLY_R), then a last line of
+    1 s at F6000 (100 mm/s) to X-100."""
+    r, side = POLY_R, POLY_SIDE
+    body = "G21 G90\nG1 F6000\n" + "".join(
+        f"G1 X{r - r * math.cos(k * side):.4f} Y{r * math.sin(k * side):.4f}\n"
+        for k in range(1, POLY_N + 1)
+    ) + "G1 X-100 Y0\n"
+    prog = tmp_path / "polygon.ngc"
+    prog.write_text(body)
+    return prog
+
+
+def angle(s):
+    """The position's angle on the polygon's circle (0 .. 2 pi)."""
+    x, y = s["position"]["X"], s["position"]["Y"]
+    return math.atan2(y, POLY_R - x) % (2 * math.pi)
+
+
+def on_its_side(line, a):
+    """The angle a on line's side, within a fifth of a side either way
+    (the smoothing's corner blends, the attribution's one period)."""
+    lo, hi = (line - 3) * POLY_SIDE, (line - 2) * POLY_SIDE
+    return lo - 0.2 * POLY_SIDE <= a <= hi + 0.2 * POLY_SIDE
+
+
+def test_progress_follows_the_program(controller, tmp_path):
+    """The status names the block the queue's state lies in (its record
+    and source line), as with the controller's own planner: a hold in the
+    middle of a polygon (72 sides of 5 degrees, line k + 2 the side ending
+    at 5k degrees) reports the line whose side the held position lies on
+    (within a fifth of a side either way: the smoothing's corner blends
+    and the attribution's one period), mlip-feed says it (held, its
+    progress line), the resumed program goes on through every later block
+    without going back, the last one (100 %) runs, and the END is the
+    status's exec_seq as before."""
+    n = POLY_N
+    prog = polygon(tmp_path)  # its last line of 1 s: 100 % seen while it runs
+    shm, _ = controller(machine(tmp_path), "--strategy", "smooth")
+    log = (tmp_path / "feed.err").open("w")
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, str(prog)], stderr=log, text=True)
+    seen = []
+
+    def running(pred):
+        """The status while running (each one's block kept) once pred."""
+        s = status(shm) or {}
+        if s.get("state") == "running":
+            seen.append(s["exec_seq"])
+            return s if pred(s) else None
+        return None
+
+    assert wait_for(lambda: running(lambda s: angle(s) > 0.8 * math.pi), 60), status(shm)
+    held = hold(shm)
+    line = held["exec_line"]
+    assert 20 < line < n + 2, held  # in the middle of the program
+    assert on_its_side(line, angle(held)), (line, math.degrees(angle(held)))
+    total = held["total_blocks"] - 1  # the records (smoothed pieces), END excluded
+    assert 0 < held["exec_seq"] < total, held
+    assert periods_on(shm, 3000)  # a progress line of mlip-feed's (every 2 s) while held
+    assert ctl(shm, "resume").returncode == 0
+    last = wait_for(lambda: running(lambda s: s["exec_seq"] == total), 60)
+    assert last and last["exec_line"] == n + 3, last  # the last block, 100 %
+    assert f.wait(120) == 0
+    log.close()
+    err = (tmp_path / "feed.err").read_text()
+    assert f"held (feed hold) at line {line}:" in err, err
+    pct = [(int(m[0]), int(m[1]), int(m[2])) for m in
+           re.findall(r"(\d+)/\d+ blocks executed \((\d+) %\), \d+ queued, line (\d+)", err)]
+    assert any(p[0] == held["exec_seq"] and 0 < p[1] < 100 and p[2] == line for p in pct), err
+    assert [p[0] for p in pct] == sorted(p[0] for p in pct), pct
+    assert seen == sorted(seen) and len(set(seen)) > 20, seen[:50]
+    end = status(shm)
+    assert end["state"] == "idle" and end["exec_seq"] == total + 1, end
+
+
+def test_stop_names_the_block_to_resume(controller, tmp_path):
+    """mlip-feed interrupted mid-program (SIGTERM: a stop on the path): at
+    rest it names the block to resume from, whose line's side the machine
+    rests on (so continuing there skips no motion) and which the status's
+    last completed block precedes; --start-seq with any other block is
+    refused, with that one the program runs from there to its end."""
+    prog = polygon(tmp_path)
+    shm, _ = controller(machine(tmp_path), "--strategy", "smooth")
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    assert wait_for(lambda: (lambda s: s and s["state"] == "running" and
+                             angle(s) > 0.8 * math.pi)(status(shm)), 60), status(shm)
+    f.send_signal(signal.SIGTERM)
+    err = f.communicate(timeout=60)[1]
+    assert f.returncode == 143, err
+    m = re.search(r"stopped on the path at line (\d+) \(block (\d+) of (\d+)\); "
+                  r"resume with --start-seq (\d+)", err)
+    assert m, err
+    line, block, n, hint = (int(g) for g in m.groups())
+    s = status(shm)
+    assert s["state"] == "idle" and s["speed_mm_s"] == 0.0, s
+    assert hint == block == s["exec_seq"] + 1 and 1 < block < n, (err, s)
+    assert 20 < line < POLY_N + 2 and on_its_side(line, angle(s)), (line, math.degrees(angle(s)))
+    for wrong in (block - 1, block + 1):
+        p = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", "--start-seq", str(wrong),
+                            str(prog)], capture_output=True, text=True, timeout=60)
+        assert p.returncode == 1 and f"only --start-seq {block} continues it" in p.stderr, \
+            p.stderr
+    p = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", "--start-seq", str(block),
+                        str(prog)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    e = status(shm)
+    assert e["state"] == "idle" and e["exec_seq"] == n + 1, e
+    assert e["position"]["X"] == -100.0 and e["position"]["Y"] == 0.0, e

@@ -33,6 +33,13 @@
 #define PATH_TOL     1e-4
 /* a stop from V at 300 mm/s^2 with its jerk ramps takes well under this */
 #define STOP_PERIODS 600
+/* the program's blocks: BLOCKS of BLOCK_U of arc each, block b on line
+ * LINE(b); the input's step in u (V T / R) bounds how far a block's
+ * attribution may lag or lead the position */
+#define BLOCKS       8
+#define BLOCK_U      (U_END / BLOCKS)
+#define LINE(b)      (10u * (uint32_t)(b) + 3u)
+#define STEP_U       (1.01 * V * T / R)
 #define MAX_PERIODS  20000
 
 static struct mlip_machine mach;
@@ -108,6 +115,11 @@ static int unit(void)
 		f.t += T;
 		f.u = fmin(U_END, f.u + fmin(V, ACC * f.t) * T / R);
 		curve_at(f.u, f.in);
+		/* the record its motion belongs to (a block is BLOCK_U of arc)
+		 * and the last one completed, as the plan's controller tags it */
+		int b = (int)ceil(f.u / BLOCK_U);
+		pr.tag_in =
+		    (struct mlip_pathrun_tag){(uint64_t)b, (uint64_t)b - 1, LINE(b), LINE(b - 1)};
 		memcpy(f.last, f.in, sizeof(f.in));
 		f.pending = 1;
 		return 4;
@@ -440,6 +452,96 @@ static void test_stop(void **state)
 	print_message("stop: rest after %ld periods\n", k);
 }
 
+/* The position's arc on the circle (the path within PATH_TOL of it). */
+static double u_now(void)
+{
+	double u = atan2(out.pos[0], R - out.pos[1]);
+	return u < -1.0 ? u + 2.0 * M_PI : u; /* the arc goes past pi */
+}
+
+/* The status names the block the position lies in: exec_seq never goes
+ * back, the position within that block's arc (one input step either
+ * side), its line; every block is named in turn, and the END is the
+ * END's record (the producer's end_seq), as a program of records'. */
+static void test_exec_follows_the_blocks(void **state)
+{
+	(void)state;
+	uint64_t last = 0;
+	int named = 0;
+	long k = 0;
+	q.end_seq = BLOCKS + 1; /* the producer's, before the last entry */
+	q.end_line = LINE(BLOCKS + 1);
+	tick(0, 0);
+	for (; out.status.state == MLIP_STATE_RUNNING && k < MAX_PERIODS; k++) {
+		uint64_t e = out.status.exec_seq;
+		double u = u_now();
+		assert_true(e >= last);
+		named += e != last;
+		last = e;
+		if (e == 0) {
+			assert_true(u <= STEP_U); /* not yet in the first piece */
+		} else {
+			assert_true(e <= BLOCKS);
+			assert_int_equal(out.status.exec_line, LINE(e));
+			if (!(u >= (double)(e - 1) * BLOCK_U - STEP_U &&
+			      u <= e * BLOCK_U + STEP_U)) {
+				print_message("k %ld: u %.6f in block %llu?\n", k, u,
+				              (unsigned long long)e);
+			}
+			assert_true(u >= (double)(e - 1) * BLOCK_U - STEP_U);
+			assert_true(u <= (double)e * BLOCK_U + STEP_U);
+		}
+		tick(0, 0);
+	}
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	assert_int_equal(named, BLOCKS);
+	assert_int_equal(out.status.exec_seq, BLOCKS + 1); /* the END's */
+	assert_int_equal(out.status.exec_line, LINE(BLOCKS + 1));
+	assert_int_equal(out.status.reason_seq, BLOCKS + 1);
+}
+
+/* A stop mid-program: while braking the status names the block the
+ * position lies in; at rest the last block completed, which the position
+ * has passed (within an input step), the next one not (so restarting from
+ * it skips no motion). A queue continuing from any other record is
+ * refused (as a program of records); one continuing from the next passes
+ * that check (this one then fails on its start point, another check). */
+static void test_stop_names_the_block_to_resume(void **state)
+{
+	(void)state;
+	while (out.status.exec_seq < BLOCKS / 2) {
+		tick(0, 0);
+	}
+	tick(MLIP_CMD_STOP, 0);
+	uint64_t braking = out.status.exec_seq;
+	brake_to(MLIP_STATE_IDLE);
+	uint64_t done = out.status.exec_seq;
+	double u = u_now();
+	print_message("stop: in block %llu, at rest at u %.4f, done %llu\n",
+	              (unsigned long long)braking, u, (unsigned long long)done);
+	assert_true(done >= braking - 1 && done <= braking);
+	assert_true(done >= 1 && done < BLOCKS);
+	assert_int_equal(out.status.exec_line, LINE(done));
+	assert_true(u >= (double)done * BLOCK_U - STEP_U);
+	assert_true(u <= (double)(done + 1) * BLOCK_U + STEP_U);
+	for (int next = 0; next < 2; next++) {
+		feed_init();
+		q.first_seq = done + (next ? 1 : 3);
+		prog++;
+		long refused = ctl.counts.refused;
+		tick(0, 0);
+		assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+		assert_int_equal(ctl.counts.refused, refused + 1);
+		assert_int_equal(out.n_events, 1);
+		assert_int_equal(out.events[0].kind, MLIP_EV_REFUSED);
+		/* the wrong record named, or (the right one) the start point */
+		assert_int_equal(out.events[0].r.why, next ? MLIP_WHY_BAD_RECORD : MLIP_WHY_NONE);
+		assert_int_equal(out.events[0].r.seq, next ? 0 : done + 3);
+		assert_int_equal(out.status.exec_seq, done);
+	}
+}
+
 /* The E-stop input with a resume in the same period: the E-stop wins (the
  * resume refused), the braking run on the path (no drives to quick stop),
  * the program dropped at rest; the input released, still nothing moves. */
@@ -483,9 +585,13 @@ static void test_override(void **state)
  * run inside A and J, the program dropped at rest, the point held. */
 static void faults_on_the_run(uint32_t why, const char *what)
 {
+	uint64_t at = out.status.exec_seq;
 	tick(0, 0);
 	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
 	assert_int_equal(out.status.reason, why);
+	/* the block it came in (that period's, one on at most) */
+	assert_true(at >= 1 && out.status.reason_seq >= at && out.status.reason_seq <= at + 1);
+	assert_int_equal(out.status.reason_line, LINE(out.status.reason_seq));
 	long k = brake_dropped();
 	assert_true(chk.max_j >= 0.5 * JERK && chk.max_a >= 0.3 * ACC);
 	double rest[2];
@@ -601,6 +707,8 @@ int main(void)
 	    cmocka_unit_test_setup(test_exit, setup_drives),
 	    cmocka_unit_test_setup(test_stall, setup),
 	    cmocka_unit_test_setup(test_plan_refused, setup),
+	    cmocka_unit_test_setup(test_exec_follows_the_blocks, setup),
+	    cmocka_unit_test_setup(test_stop_names_the_block_to_resume, setup),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

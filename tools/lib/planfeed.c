@@ -55,6 +55,19 @@ uint32_t mlip_planfeed_room(const struct mlip_planfeed *pf)
 
 void mlip_planfeed_offer(struct mlip_planfeed *pf, const struct mlip_ring_rec *r)
 {
+	if (pf->head == 0 && r->seq > 1) {
+		/* a continuation (mlip-feed --start-seq): its controller takes
+		 * it as the block after the last one completed (the follower
+		 * checks that against its own, mlip_planq.first_seq) */
+		pf->ctl->prog.exec.seq = r->seq - 1;
+	}
+	if (pf->head == 0) {
+		pf->first_seq = r->seq;
+	}
+	if (r->type == MLIP_REC_END) {
+		pf->end_seq = r->seq;
+		pf->end_line = r->line;
+	}
 	pf->rec[pf->head++ & (MLIP_PLANFEED_CAP - 1u)] = *r;
 	pf->end_in |= r->type == MLIP_REC_END;
 }
@@ -96,7 +109,16 @@ static int ctl_period(struct mlip_planfeed *pf)
 			return refuse(pf, "the plan's limits are not positive");
 		}
 		mlip_planq_init(pf->q, pf->pr);
+		pf->q->first_seq = pf->first_seq;
 		__atomic_store_n(&pf->started, 1, __ATOMIC_RELEASE);
+	}
+	if (state == MLIP_STATE_RUNNING) {
+		/* the record this setpoint's motion belongs to, and the last
+		 * completed, carried with it as a knot (planq.h c.mark) */
+		struct mlip_pathrun_tag *t = &pf->pr->tag_in;
+		t->seq = out.status.exec_seq;
+		t->line = out.status.exec_line;
+		mlip_planner_done(pf->ctl->planner, &t->done_seq, &t->done_line);
 	}
 	if (state != MLIP_STATE_RUNNING && state != MLIP_STATE_IDLE) {
 		return refuse(pf, "the program left RUNNING (a pause, dwell or hold): the plan "
@@ -125,6 +147,10 @@ int mlip_planfeed_work(struct mlip_planfeed *pf)
 					return refuse(pf, pf->pr->why);
 				}
 				pf->finished = 1;
+				/* the END, which no knot carries, for the follower at
+				 * the last entry (queued after this) */
+				pf->q->end_seq = pf->end_seq;
+				pf->q->end_line = pf->end_line;
 			}
 			return 1;
 		}

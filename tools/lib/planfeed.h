@@ -46,6 +46,8 @@ struct mlip_planfeed {
 	int has_pending, finished;
 	int started; /* atomic: the queue is initialised (the consumer may step) */
 	double start[MLIP_MAX_AXES];
+	uint64_t first_seq, end_seq; /* the program's first record's, its END's */
+	uint32_t end_line;
 	const char *why; /* a refusal */
 	double why_t;    /* the controller's time there, s */
 	/* figures */

@@ -31,7 +31,7 @@
  * reversal; the mean must take such a stretch: the hand-over is not yet
  * in the product).
  *
- * Memory: one struct, MLIP_PATHRUN_CAP points (~210 KB at 6 axes),
+ * Memory: one struct, MLIP_PATHRUN_CAP points (~238 KB at 6 axes),
  * whatever the program's length. No allocation, no I/O. A period's work is
  * bounded by the plan's max_periods (pathplan.h); it is not for the 1 ms
  * thread itself (a planning thread ahead of it: not yet built).
@@ -52,6 +52,14 @@
  * x'' of the positions' rounding) */
 #define MLIP_PATHRUN_MIN_STEP 1e-6
 
+/* The caller's mark of an input point, carried with it as a knot and
+ * never read by the plan: a planned queue's records (mlip/motion/planq.h),
+ * the one being executed and the last completed when the point was made. */
+struct mlip_pathrun_tag {
+	uint64_t seq, done_seq;
+	uint32_t line, done_line;
+};
+
 struct mlip_pathrun {
 	struct mlip_path_limits lim;
 	double band_mm;   /* (P6): a fixed piece's bound on its chord distance */
@@ -65,8 +73,11 @@ struct mlip_pathrun {
 	double m[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
 	double b[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
 	double t3[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
-	double c[MLIP_PATHRUN_CAP];    /* the fit's scratch */
-	double last_in[MLIP_MAX_AXES]; /* the last input point (maybe skipped) */
+	double c[MLIP_PATHRUN_CAP];                    /* the fit's scratch */
+	double last_in[MLIP_MAX_AXES];                 /* the last input point (maybe skipped) */
+	struct mlip_pathrun_tag tag[MLIP_PATHRUN_CAP]; /* each point's */
+	struct mlip_pathrun_tag tag_in;                /* the caller's: the next input's */
+	struct mlip_pathrun_tag last_tag;              /* last_in's */
 	struct mlip_path_state st;
 	/* compaction keeps the pieces from min(st.s, keep_s) on (INFINITY
 	 * from init: st.s alone); a planned queue's producer holds it at

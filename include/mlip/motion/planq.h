@@ -53,7 +53,7 @@
  * so that any run of up to MLIP_PLANQ_KNOTS consecutive knots is one
  * contiguous struct mlip_path_curve (no copy, no wrap in the period).
  *
- * Memory: one struct, 855 KB at 6 axes (819 KB the mirrored knots),
+ * Memory: one struct, 914 KB at 6 axes (819 KB the mirrored knots),
  * whatever the program's length. The consumer's step: a pop (O(1)) or
  * one braking step (a pick over the pieces a period crosses, as each
  * certification period; measured in docs/algorithm.md). No allocation,
@@ -151,9 +151,24 @@ struct mlip_planq {
 		uint64_t sw_period;
 		uint32_t sw_head;
 		double x[MLIP_MAX_AXES];
+		/* where st lies: the record executing (seq, line: the mark of
+		 * its piece's far knot, the record whose motion made that piece)
+		 * and the last one completed (done_seq, done_line: its near
+		 * knot's); each never goes back (0: none yet) */
+		struct mlip_pathrun_tag mark;
 		long starved, brakes, periods; /* figures */
 	} c __attribute__((aligned(64)));
 	struct mlip_planq_entry e[MLIP_PLANQ_LEN];
+	/* the program's first record (the producer's, before its first
+	 * entry): 1 its start, N > 1 a continuation after record N - 1 */
+	uint64_t first_seq;
+	/* its END record (written before the last entry is queued; 0: not
+	 * known), which no knot carries: the follower's at the last entry */
+	uint64_t end_seq;
+	uint32_t end_line;
+	/* knot g's record marks (the pathrun's tags) at g & mask: the
+	 * consumer reads two at a time, never as a curve */
+	struct mlip_pathrun_tag tag[MLIP_PLANQ_KNOTS];
 	/* knots g at g & mask and (g & mask) + MLIP_PLANQ_KNOTS */
 	double s[2 * MLIP_PLANQ_KNOTS];
 	double p[2 * MLIP_PLANQ_KNOTS][MLIP_MAX_AXES];
