@@ -31,7 +31,8 @@
  * reversal; the mean must take such a stretch: the hand-over is not yet
  * in the product).
  *
- * Memory: one struct, MLIP_PATHRUN_CAP points (~238 KB at 6 axes),
+ * Memory: one struct, MLIP_PATHRUN_CAP points and the fairing's
+ * MLIP_PATHRUN_FAIR_CAP (~262 KiB at 6 axes),
  * whatever the program's length. No allocation, no I/O. A period's work is
  * bounded by the plan's max_periods (pathplan.h); it is not for the 1 ms
  * thread itself (a planning thread ahead of it: not yet built).
@@ -51,6 +52,10 @@
  * skipped (a setpoint at rest repeats; a piece of 1e-9 mm would make
  * x'' of the positions' rounding) */
 #define MLIP_PATHRUN_MIN_STEP 1e-6
+/* Input points the fairing (mlip_pathrun_fair) holds: its window of
+ * +-h mm is cut to what they span where the input is dense (a slow
+ * stretch: a corner, a start), so the memory stays fixed */
+#define MLIP_PATHRUN_FAIR_CAP 256
 
 /* The caller's mark of an input point, carried with it as a knot and
  * never read by the plan: a planned queue's records (mlip/motion/planq.h),
@@ -74,6 +79,7 @@ struct mlip_pathrun {
 	double b[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
 	double t3[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
 	double c[MLIP_PATHRUN_CAP];                    /* the fit's scratch */
+	double dev[MLIP_PATHRUN_CAP];                  /* each knot's move from its input point (F2) */
 	double last_in[MLIP_MAX_AXES];                 /* the last input point (maybe skipped) */
 	struct mlip_pathrun_tag tag[MLIP_PATHRUN_CAP]; /* each point's */
 	struct mlip_pathrun_tag tag_in;                /* the caller's: the next input's */
@@ -84,6 +90,19 @@ struct mlip_pathrun {
 	 * its consumer's oldest knot, whence it may restart the plan */
 	double keep_s;
 	long rested; /* periods at rest in a row */
+	/* the fairing (mlip_pathrun_fair; fair_h 0: off, the knots are the
+	 * input): a ring of input points, numbered fr_lo..fr_hi-1 from the
+	 * start, fr_s their chord length, fr_c the next knot's input point;
+	 * ended: no more input (finished once every knot is in the spline);
+	 * max_dev_mm: the largest knot's move (F2) */
+	double fair_h, fair_mm;
+	long fair_k;
+	double fr_s[MLIP_PATHRUN_FAIR_CAP];
+	double fr_p[MLIP_PATHRUN_FAIR_CAP][MLIP_MAX_AXES];
+	struct mlip_pathrun_tag fr_tag[MLIP_PATHRUN_FAIR_CAP]; /* each input point's mark */
+	long fr_lo, fr_hi, fr_c;
+	int ended;
+	double max_dev_mm;
 	/* figures */
 	long periods, work, dropped;
 	int peak_count;
@@ -100,6 +119,37 @@ struct mlip_pathrun {
  * start not finite. */
 int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *lim, double band_mm,
                       int max_periods, const double *start);
+
+/* Fair the input before the spline. A spline through points that ripple
+ * at the program's chord length has an x'' and x''' that ripple with them,
+ * and (P2)'s x''' v^3 then caps the speed far below the curve's own: a
+ * circle r 10 mm cut into 2 degree chords, smooth's setpoints within 0.4 um
+ * of a circle, the interpolating spline's curvature 0.069-0.129 /mm
+ * (0.1 true), the plan at 40-70 mm/s where 100 is allowed. Each knot is
+ * instead
+ *
+ *   (F1) the value at the input point c of the quadratic in s (chord
+ *        length) fitted per axis by least squares to the input points
+ *        within +-hc of it, weights (1 - u^2)^3 (u = (s - s_c) / hc) times
+ *        each point's share of the arc, hc = min(h_mm, the k-th input
+ *        point's distance either side, what the window holds either side);
+ *   (F2) moved from the input point by the fit's move d cut smoothly:
+ *        |d| / (1 + (|d| / fair_mm)^4)^(1/4) < fair_mm.
+ *
+ * The fit reproduces a quadratic (no pull to the centre of curvature) and
+ * the window is symmetric (a line stays a line). k input points (one a
+ * period) bound it where the motion is slow, at a corner, so it does not
+ * reach across the corner. Each knot's move is kept (dev) and (P6) allows
+ * a piece band_mm less the larger move of its two knots: the chord
+ * between two knots is within that move of the chord between their input
+ * points, so the spline stays within band_mm of the input's polyline. The
+ * first and last knots are the input's first and last points.
+ *
+ * After init, before the first push; without the call the knots are the
+ * input points. -1 when h_mm < 0, k < 0 or fair_mm not in (0, band_mm).
+ * Memory: MLIP_PATHRUN_FAIR_CAP input points; work per knot: the points
+ * in its window (at most that), times the axes. */
+int mlip_pathrun_fair(struct mlip_pathrun *pr, double h_mm, int k, double fair_mm);
 
 /* The next input setpoint: 0 taken, 1 the window is full (step first, then
  * push it again), -1 refused (pr->why). */
