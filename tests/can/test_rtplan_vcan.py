@@ -109,7 +109,7 @@ def max_decel(rows, k0, k1, T):
 # A_BRAKE_MIN did not brake as planned.
 A_BRAKE_MIN = 0.25 * A
 # The hold comes at speed: above this on the circle (mm/s), which the plan
-# runs at 42 mm/s and more.
+# runs at 80 mm/s and more.
 V_FAST = 35.0
 
 
@@ -152,8 +152,9 @@ def hold_resume_once(cfg, ngc, rows, tmp_path):
 
     def actions(rig):
         # at speed on the circle, past the lead-in's corner (|Y| > 0.5 mm);
-        # the plan runs it between ~42 and ~68 mm/s (mlip-sim): a status
-        # polled on a loaded guest may miss the peaks, never the circle
+        # the plan runs it at 80-100 mm/s (mlip-sim; 42-68 before the knots
+        # were faired): V_FAST well below, which a status polled on a
+        # loaded guest never misses on the circle
         m["fast"] = rig.wait_state("running", timeout=120, pred=lambda s: s["speed_mm_s"] > V_FAST
                                    and abs(s["position"]["Y"]) > 0.5)
         rig.ctl("hold")

@@ -32,7 +32,7 @@
  * in the product).
  *
  * Memory: one struct, MLIP_PATHRUN_CAP points and the fairing's
- * MLIP_PATHRUN_FAIR_CAP (~262 KiB at 6 axes),
+ * MLIP_PATHRUN_FAIR_CAP (260 KiB at 6 axes),
  * whatever the program's length. No allocation, no I/O. A period's work is
  * bounded by the plan's max_periods (pathplan.h); it is not for the 1 ms
  * thread itself (a planning thread ahead of it: not yet built).
@@ -78,9 +78,9 @@ struct mlip_pathrun {
 	double m[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
 	double b[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
 	double t3[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
-	double c[MLIP_PATHRUN_CAP];                    /* the fit's scratch */
-	double dev[MLIP_PATHRUN_CAP];                  /* each knot's move from its input point (F2) */
-	double last_in[MLIP_MAX_AXES];                 /* the last input point (maybe skipped) */
+	double c[MLIP_PATHRUN_CAP];    /* the fit's scratch */
+	double dev[MLIP_PATHRUN_CAP];  /* each knot's move from its input point (F2) */
+	double last_in[MLIP_MAX_AXES]; /* the last input point (maybe skipped) */
 	struct mlip_pathrun_tag tag[MLIP_PATHRUN_CAP]; /* each point's */
 	struct mlip_pathrun_tag tag_in;                /* the caller's: the next input's */
 	struct mlip_pathrun_tag last_tag;              /* last_in's */
