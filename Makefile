@@ -139,10 +139,11 @@ purity: $(BUILD)/libmlip.a $(PURE_BINS)
 # TSan's shadow memory must not be locked).
 tsan:
 	@$(MAKE) --no-print-directory BUILD=build-tsan OPT=-O1 SAN="-fsanitize=thread" \
-		build-tsan/tests/test_ring build-tsan/tests/test_planq build-tsan/mlip-latency \
-		build-tsan/bench_planfeed
+		build-tsan/tests/test_ring build-tsan/tests/test_planq build-tsan/tests/test_rtplan \
+		build-tsan/mlip-latency build-tsan/bench_planfeed
 	TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/tests/test_ring
 	TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/tests/test_planq
+	TSAN_OPTIONS="halt_on_error=1 exitcode=66" build-tsan/tests/test_rtplan
 	@sed -e 's/^\[TRAJ\]$$/[TRAJ]\nJERK_PLAN = path/' -e 's/^\(\[AXIS_.\]\)$$/\1\nMAX_JERK = 100000/' \
 		config/mill-3axis.ini > build-tsan/planfeed.ini
 	@printf 'G21 G90\nG1 F12000\nG1 X20\nG1 Y20\nG1 X0\nG1 Y0\n' > build-tsan/planfeed.ngc

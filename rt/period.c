@@ -169,6 +169,13 @@ static void plan_status(struct mlip_period_plan *pp, const struct mlip_ctl *c, u
 	if (s->state == MLIP_STATE_IDLE && s->reason == MLIP_WHY_END) {
 		s->exec_seq = pp->end_shown;
 	}
+	if (c->ext.refused != 0 && c->ext.q == NULL && s->state != MLIP_STATE_FAULT &&
+	    s->state != MLIP_STATE_ESTOP) {
+		/* the refusal applied (FAULT) and left since: the fault's way
+		 * out is the controller's (a reset after an E-stop, as for every
+		 * fault on the path), the thread follows it */
+		ST(&pp->fault_left, c->ext.refused);
+	}
 }
 
 int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
@@ -194,10 +201,11 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 	struct mlip_period_plan *pp = p->plan;
 	uint32_t prog = 0;
 	if (pp != NULL) {
+		/* the refusal first: the program it refused is published before it */
+		in.plan_fault = LD(&pp->fault);
 		prog = LD(&pp->prog);
 		in.plan = prog != 0 ? pp->q : NULL;
 		in.plan_prog = prog;
-		in.plan_fault = LD(&pp->fault) != 0;
 	} else if (mlip_ring_port_view(&p->rx, &in.recs, &in.recs_corrupt) == MLIP_OK) {
 		in.recs_corrupt = 0;
 	}

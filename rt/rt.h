@@ -222,8 +222,11 @@ struct mlip_bus_counts {
 struct mlip_period_plan {
 	struct mlip_planq *q; /* set before the loop */
 	uint32_t prog;        /* thread: the program whose queue has started (0: none) */
-	uint32_t fault;       /* thread: its plan was refused (in->plan_fault) */
+	uint32_t fault;       /* thread: the programs it refused so far (in->plan_fault) */
 	uint32_t done;        /* period: the last program the controller dropped or ended */
+	uint32_t fault_left;  /* period: the last refusal (fault's count) the controller
+	                         has left its FAULT for (an E-stop's reset), the queue
+	                         dropped: the thread takes programs again */
 	uint64_t taken;       /* thread: records taken from the ring so far */
 	uint64_t taken_base;  /* thread: ... before the program prog */
 	uint64_t end_seq;     /* thread: the END's seq of program prog (0: not taken yet) */

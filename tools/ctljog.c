@@ -236,7 +236,8 @@ again:
 			        ": jog %s: refused: the controller got other axes for this jog "
 			        "(another client jogging at the same moment?): try again\n",
 			        dir);
-		} else if (st.state == MLIP_STATE_IDLE && st.held_by != 0) {
+		} else if (st.state == MLIP_STATE_IDLE &&
+		           mlip_state_hold_latched(st.state, st.held_by)) {
 			fprintf(stderr,
 			        PROG
 			        ": jog %s: refused: the controller is idle with a hold latched "
@@ -324,11 +325,30 @@ int cmd_home(struct mlip_shm *s, const char *axes)
 		return EXIT_FAIL;
 	}
 	read_status(s->ring, &st);
+	if (result == MLIP_E_RANGE) {
+		fprintf(stderr,
+		        PROG ": home: refused: an axis without HOME_METHOD in the machine's "
+		             "configuration (or no CiA 402 drives)\n");
+		return EXIT_FAIL;
+	}
+	if (result != MLIP_OK && st.state == MLIP_STATE_IDLE &&
+	    mlip_state_hold_latched(st.state, st.held_by)) {
+		fprintf(stderr,
+		        PROG ": home: refused: the controller is idle with a hold latched (%s; "
+		             "Grbl's Hold:0): mlip-ctl resume releases it, moving nothing (or "
+		             "mlip-ctl stop), then home\n",
+		        mlip_state_why_name(st.held_by));
+		return EXIT_FAIL;
+	}
+	if (result != MLIP_OK && st.state == MLIP_STATE_IDLE) {
+		fprintf(stderr,
+		        PROG ": home: refused: the controller is idle with a program waiting in "
+		             "the ring (mlip-ctl stop drops it)\n");
+		return EXIT_FAIL;
+	}
 	if (result != MLIP_OK) {
-		fprintf(stderr, PROG ": home: refused: %s\n",
-		        result == MLIP_E_RANGE ? "an axis without HOME_METHOD in the machine's "
-		                                 "configuration (or no CiA 402 drives)"
-		                               : "the controller is not idle");
+		fprintf(stderr, PROG ": home: refused: the controller is %s (%s), not idle\n",
+		        mlip_ctl_state_name(st.state), mlip_state_why_name(st.reason));
 		return EXIT_FAIL;
 	}
 	/* the command's result comes before the status of its period: wait for

@@ -113,12 +113,26 @@ static const char *jog_text(const struct mlip_ring_status *st, const struct mlip
 	return buf;
 }
 
+/* Feed override 0 holds the path (held, or at rest: the next program
+ * starts held); a higher override ends it, a resume does not. */
+static int override_holds(const struct mlip_ring_status *st)
+{
+	int rest = st->state == MLIP_STATE_IDLE || st->state == MLIP_STATE_STARVED;
+	return mlip_state_held_by(st->held_by) == MLIP_WHY_OVERRIDE_ZERO &&
+	       (rest || (st->state == MLIP_STATE_HELD && st->reason == MLIP_WHY_OVERRIDE_ZERO));
+}
+
 /* A hold latched at rest (Grbl 1.1's Hold:0 from Idle): the next program
- * waits for a resume, which moves nothing by itself. "" when none. */
+ * waits for a resume, which moves nothing by itself; or override 0 at
+ * rest: it waits for a higher override. "" when none. */
 static const char *latched_text(const struct mlip_ring_status *st, char *buf, size_t len)
 {
 	uint32_t why = mlip_state_held_by(st->held_by);
 	const char *go = st->state == MLIP_STATE_IDLE ? "start" : "go on";
+	if (st->state != MLIP_STATE_HELD && override_holds(st)) {
+		snprintf(buf, len, " (feed override 0 %%: raise the override to %s)", go);
+		return buf;
+	}
 	if (!mlip_state_hold_latched(st->state, st->held_by)) {
 		return "";
 	}
@@ -390,6 +404,9 @@ int cmd_status(struct mlip_shm *s, int json)
 	if (st.state == MLIP_STATE_PAUSED ||
 	    (st.state == MLIP_STATE_HELD && st.reason != MLIP_WHY_OVERRIDE_ZERO)) {
 		printf("to continue mlip-ctl resume\n");
+	} else if (alive && override_holds(&st)) {
+		printf("to continue raise the feed override (mlip-ctl override PCT, 1..200); it "
+		       "is 0 %%: resume does not end it\n");
 	} else if (alive && mlip_state_hold_latched(st.state, st.held_by)) {
 		printf("to continue mlip-ctl resume (or cycle start) releases the hold, moving "
 		       "nothing; a program sent meanwhile waits held; stop clears it too\n");

@@ -137,6 +137,11 @@ void explain(struct feed *f)
 		close_line(f);
 		say(": held (feed hold) at line %u: mlip-ctl resume (or cycle start) continues\n",
 		    (unsigned)st->exec_line);
+	} else if (st->state == MLIP_STATE_HELD && st->reason == MLIP_WHY_OVERRIDE_ZERO) {
+		close_line(f);
+		say(": held at line %u: the feed override is 0 %%: raise it to continue "
+		    "(mlip-ctl override PCT); a resume does not end it\n",
+		    (unsigned)st->exec_line);
 	} else if (st->state == MLIP_STATE_HELD && st->reason == MLIP_WHY_STALL) {
 		close_line(f);
 		say(": stall: the controller missed %.0f periods; held at rest at the last "

@@ -155,7 +155,8 @@ static void report(const struct mlip_ring_status *a, const struct mlip_ring_stat
 		        ": a hold at rest while %s (%s): latched, the next program starts held "
 		        "until mlip-ctl resume (cycle start)\n",
 		        mlip_ctl_state_name(b->state), mlip_state_why_name(b->held_by));
-	} else if (la && b->held_by == 0 && b->state == a->state) {
+	} else if (la && !mlip_state_hold_latched(b->state, b->held_by) && b->state == a->state) {
+		/* (an override of 0 may still hold: mlip-ctl status says it) */
 		fprintf(stderr, PROG ": the hold latched at rest ended (resume, stop or E-stop)\n");
 	}
 }

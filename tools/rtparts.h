@@ -28,6 +28,7 @@ struct mlip_rtplan {
 	int phase;         /* waiting for a program, planning it, dropping its rest, refused */
 	int published, queued_all;
 	uint32_t prog;      /* programs published */
+	uint32_t faults;    /* programs refused (pp.fault) */
 	uint64_t taken;     /* records taken from the ring */
 	uint64_t last_seq;  /* the last record offered to the plan */
 	uint64_t looked_ns; /* the feeder's liveness last read */

@@ -7,8 +7,9 @@
  * the period (struct mlip_period_plan, rt/rt.h) once its first entry is
  * queued. Being late is safe: a dry queue is the period's braking run,
  * inside the limits. A refused plan is the controller's FAULT (reason
- * PLAN_REFUSED); once the controller is done with a program (its end, a
- * stop) the rest of its records is dropped and the plan starts afresh.
+ * PLAN_REFUSED; pp.fault counts them); once the controller is done with a
+ * program (its end, a stop, a refusal's FAULT left: pp.fault_left) the rest
+ * of its records is dropped and the plan starts afresh.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -93,7 +94,7 @@ static void refuse(struct mlip_rtplan *t)
 	        "mlip-rt: JERK_PLAN = path: the plan refused the program (t = %.3f s of "
 	        "its controller): %s\n",
 	        M->pf.why_t, M->pf.why ? M->pf.why : "?");
-	ST(&t->pp.fault, 1u);
+	ST(&t->pp.fault, ++t->faults);
 }
 
 /* The feeder gone (killed, or left without its END: a file that changed)
@@ -212,8 +213,18 @@ static void *thread(void *arg)
 		case DROP:
 			busy = drop(t, &v, n);
 			break;
-		default: /* refused: the controller is in FAULT until mlip-rt restarts */
-			if (n > 0 && apart == 0) {
+		default:
+			/* refused: what comes is dropped while the controller is in
+			 * FAULT; once it has left it (a reset after an E-stop, as for
+			 * every fault on the path) and dropped the queue, the rest of
+			 * the refused program goes too (up to its END; a record
+			 * numbered 1 starts the next, which plans). Read after the
+			 * view: a feeder that saw the controller idle sent after the
+			 * period stored fault_left, so its records are never taken here */
+			if (LD(&t->pp.fault_left) == t->faults) {
+				t->phase = DROP;
+				busy = 1;
+			} else if (n > 0 && apart == 0) {
 				take(t, n);
 			}
 			break;

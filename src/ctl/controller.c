@@ -303,8 +303,13 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	if (in->drives.fault.event != 0 && !c->drive_faulted) {
 		mlip_ct_drive_fault(c, out, &in->drives.fault);
 	}
-	if (in->plan_fault && !c->ext.refused) {
-		c->ext.refused = 1; /* a queue running: its braking run (follow.c), in FAULT */
+	if (in->plan_fault != c->ext.refused) {
+		/* a count, not a flag: a refusal after a fault left (an E-stop's
+		 * reset) faults again. A queue running: its braking run (follow.c) */
+		c->ext.refused = in->plan_fault;
+		if (c->ext.q == NULL) {
+			c->ext.last = in->plan_prog; /* published, not started: it never starts */
+		}
 		struct mlip_ctl_reason r = reason(MLIP_WHY_PLAN_REFUSED, 0, 0);
 		mlip_ct_progress(c, &r.seq, &r.line); /* the block it came in */
 		mlip_ct_fault(c, out, r);

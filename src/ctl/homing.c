@@ -167,7 +167,11 @@ int32_t mlip_ct_home_command(struct mlip_ctl *c, struct mlip_ctl_out *out, int32
 		return MLIP_E_RANGE; /* an axis without HOME_METHOD (or no drives) */
 	}
 	if (c->state != MLIP_STATE_IDLE || c->io.estop || c->home.on ||
-	    mlip_planner_queued(c->planner) > 0 || rx_count(c) > 0) {
+	    mlip_planner_queued(c->planner) > 0 || rx_count(c) > 0 ||
+	    mlip_planner_held(c->planner)) {
+		/* a hold latched at rest too, as a jog (Grbl refuses $H in Hold):
+		 * the drives' own motion would leave the held program's path;
+		 * a resume (moving nothing) or a stop releases it first */
 		return MLIP_E_INVALID;
 	}
 	c->home.on = 1;

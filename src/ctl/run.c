@@ -534,15 +534,16 @@ static uint32_t held_why(const struct mlip_ctl *c)
 	return MLIP_WHY_HOLD;
 }
 
-/* The hold in force (status held_by): what holds the path, 0 none. An
- * override of 0 is not a hold: it ends with a higher override. */
+/* What holds the path now (status held_by), 0 none: the planner's hold by
+ * its cause, else an override of 0, which holds it as well (at rest: the
+ * next program starts held) but ends with a higher override, never with a
+ * resume: the readers say which (mlip_state_hold_latched). */
 uint32_t mlip_ct_held_by(const struct mlip_ctl *c)
 {
-	if (!mlip_planner_held(c->planner)) {
-		return 0;
+	if (mlip_planner_held(c->planner)) {
+		return held_why(c);
 	}
-	uint32_t why = held_why(c);
-	return why == MLIP_WHY_OVERRIDE_ZERO ? MLIP_WHY_HOLD : why;
+	return mlip_planner_override_pct(c->planner) == 0.0 ? MLIP_WHY_OVERRIDE_ZERO : 0;
 }
 
 /* The planner's last completed block into exec_seq/line. At rest with

@@ -84,6 +84,7 @@ uint32_t mlip_state_held_by(uint32_t held_by)
 	case MLIP_WHY_BUS_TX:
 	case MLIP_WHY_BUS_ERROR:
 	case MLIP_WHY_SPINDLE_WAIT:
+	case MLIP_WHY_OVERRIDE_ZERO:
 		return held_by;
 	default:
 		return 0;
@@ -94,5 +95,5 @@ int mlip_state_hold_latched(uint32_t state, uint32_t held_by)
 {
 	uint32_t why = mlip_state_held_by(held_by);
 	return (state == MLIP_STATE_IDLE || state == MLIP_STATE_STARVED) && why != 0 &&
-	       why != MLIP_WHY_SPINDLE_WAIT;
+	       why != MLIP_WHY_SPINDLE_WAIT && why != MLIP_WHY_OVERRIDE_ZERO;
 }

@@ -442,3 +442,42 @@ def test_hold_latched_at_rest_is_said(controller, tmp_path):
     assert st["state"] == "idle" and st["position"]["X"] == 5.0, st
     err = stop(rt)
     assert "held (hold): at rest in block 1 (line 2); mlip-ctl resume continues" in err, err
+
+
+def test_override_zero_is_said(controller, tmp_path):
+    """Feed override 0 holds the path, and every reader says what ends it: a
+    higher override, not a resume. At rest mlip-ctl status says `idle (feed
+    override 0 %: raise the override to start)` (JSON held_by "override 0",
+    hold_latched false: no resume is awaited); a program sent then waits
+    held, unmoved, mlip-feed and mlip-ctl saying to raise the override; a
+    resume changes nothing; override 100 runs it to its end."""
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90 G94\nG1 X5 F600\nM2\n")
+    shm, rt = controller(PAPER)
+    assert wait_for(lambda: (status(shm) or {}).get("state") == "idle", 60)
+    assert ctl(shm, "override", "0").returncode == 0
+    st = wait_for(lambda: (lambda s: s if s["held_by"] else None)(status(shm)), 60)
+    assert st and st["state"] == "idle" and st["held_by"] == "override 0", status(shm)
+    assert st["hold_latched"] is False, st
+    text = ctl(shm, "status").stdout
+    assert ": idle (feed override 0 %: raise the override to start), alive" in text, text
+    assert ("to continue raise the feed override (mlip-ctl override PCT, 1..200); it is 0 %: "
+            "resume does not end it\n") in text, text
+    assert "hold latched" not in text, text
+    x0 = st["position"]
+    f = Proc([tool("mlip-feed"), "--shm", shm, prog], stderr=subprocess.PIPE, text=True)
+    held = wait_for(lambda: (lambda s: s if s["state"] == "held" else None)(status(shm)), 60)
+    assert held and held["reason"] == "override 0" and held["held_by"] == "override 0", held
+    assert wait_for(lambda: "the feed override is 0 %: raise it to continue" in f.said(), 60), \
+        f.said()
+    text = ctl(shm, "status").stdout
+    assert ": held, alive" in text and "to continue raise the feed override" in text, text
+    assert ctl(shm, "resume").returncode == 0
+    later = periods_on(shm, 200)
+    assert later and later["state"] == "held" and later["position"] == x0, later
+    assert f.poll() is None  # waiting, not failed
+    assert ctl(shm, "override", "100").returncode == 0
+    _, ferr = f.communicate(timeout=60)
+    assert f.returncode == 0, ferr
+    st = status(shm)
+    assert st["state"] == "idle" and st["held_by"] is None and st["position"]["X"] == 5.0, st

@@ -413,6 +413,40 @@ def test_hold_latched_at_rest(grbl):
     idle_at(g, [0, 0, 0])
 
 
+def test_override_zero_is_run_not_hold(grbl):
+    """mlip-ctl override 0 (Grbl's override bytes go no lower than 10 %)
+    holds a line on its path until a higher override; a resume does not end
+    it. Grbl 1.1 has no state for it, and Hold:0 is "ready to resume" (a
+    sender would offer cycle start, which would do nothing): `?` says Idle
+    at rest, and Run with FS 0, Ov 0 for a line it holds, never Hold; a
+    [MSG] says to raise the feed override; `~` changes nothing; 0x90 (feed
+    100 %) ends it and the line runs to its end."""
+    shm, rt, srv, port, _ = grbl()
+    g = connect(port)
+    ctl = lambda *a: subprocess.run([tool("mlip-ctl"), "--shm", shm, *a], capture_output=True,
+                                    text=True)
+    g.wait_state({"Idle"})
+    assert ctl("override", "0").returncode == 0
+    assert wait_for(lambda: status(shm)["held_by"] == "override 0", DEADLINE), status(shm)
+    s = g.wait_status(lambda s: "Ov" in s and s["Ov"][0] == 0)
+    assert s["state"] == "Idle", s
+    g.wait_line(lambda l: l.startswith("[MSG:feed override 0 %") and "raise" in l)
+    assert g.cmd("G1 X5 F3000")[0] == "ok"
+    assert wait_for(lambda: status(shm)["state"] == "held", DEADLINE), status(shm)
+    periods_pass(shm, 200)
+    s = g.status()
+    assert s["state"] == "Run" and s["MPos"][0] == 0 and s["FS"][0] == 0, s
+    g.send(b"~")
+    periods_pass(shm, 200)
+    s = g.status()
+    assert s["state"] == "Run" and s["MPos"][0] == 0, s
+    c = status(shm)
+    assert c["state"] == "held" and c["reason"] == "override 0", c
+    g.send(b"\x90")
+    idle_at(g, [5, 0, 0])
+    assert status(shm)["override_pct"] == 100
+
+
 def test_hold_between_lines_keeps_the_program_open(grbl):
     """A `!` at rest between a sender's lines (the controller starved, the
     program open: Run) holds it open however long the hold lasts: the quiet

@@ -11,12 +11,17 @@ import struct
 import subprocess
 
 from conftest import (
+    HEAD,
+    TAIL,
     TOOLPATHS,
+    Proc,
+    Ring,
     frozen,
     periods_on,
     record_checked,
     record_rows,
     status,
+    terminate,
     tool,
     wait_for,
 )
@@ -287,24 +292,28 @@ def test_override_on_the_plan(controller, tmp_path):
     ending(cfg, prog, rec, rt, f)
 
 
+def write_records(shm, xs):
+    """A program written into a fresh ring directly (mlip-feed never sends
+    a NaN): a MOVE to each X of xs at 10 mm/s, then END."""
+    recs = [(k + 1, k + 3, 0, 0, x, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0)
+            for k, x in enumerate(xs)]
+    recs.append((len(xs) + 1, len(xs) + 3, 1, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    with open("/dev/shm" + shm, "r+b") as fd:
+        mem = mmap.mmap(fd.fileno(), 0)
+        mask = struct.unpack_from("<I", mem, 16)[0]
+        for r in recs:
+            struct.pack_into("<QIHH6d3d", mem, 1472 + 88 * ((r[0] - 1) & mask), *r)
+        struct.pack_into("<I", mem, 64, len(recs))  # head, after the records (x86: in order)
+        mem.close()
+
+
 def test_refused_plan_is_a_fault(controller, tmp_path):
     """Records the plan's controller faults on (a NaN target, written
     into the ring directly: mlip-feed never sends one): the planning thread
     refuses the program, the controller goes to FAULT (path plan refused),
     nothing moves, mlip-rt names the reason."""
     shm, rt = controller(machine(tmp_path), "--strategy", "smooth")
-    with open("/dev/shm" + shm, "r+b") as fd:
-        mem = mmap.mmap(fd.fileno(), 0)
-        mask = struct.unpack_from("<I", mem, 16)[0]
-        recs = [
-            (1, 3, 0, 0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0),
-            (2, 4, 0, 0, math.nan, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0),
-            (3, 5, 1, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
-        ]  # MOVE, MOVE, END
-        for r in recs:
-            struct.pack_into("<QIHH6d3d", mem, 1472 + 88 * ((r[0] - 1) & mask), *r)
-        struct.pack_into("<I", mem, 64, len(recs))  # head, after the records (x86: in order)
-        mem.close()
+    write_records(shm, [1.0, math.nan])
     s = wait_for(lambda: (lambda s: s if s["state"] == "fault" else None)(status(shm)), 30)
     assert s and s["reason"] == "path plan refused", status(shm)
     assert all(v == 0.0 for v in s["position"].values()), s
@@ -482,3 +491,84 @@ def test_stop_names_the_block_to_resume(controller, tmp_path):
     e = status(shm)
     assert e["state"] == "idle" and e["exec_seq"] == n + 1, e
     assert e["position"]["X"] == -100.0 and e["position"]["Y"] == 0.0, e
+
+
+def test_refused_plan_then_restart_runs_the_next(controller, tmp_path):
+    """A refused plan is a fault on the path, as a bad record is: left the
+    way every such fault is, by restarting mlip-rt (or a reset after an
+    E-stop: test_ctl_follow, test_rtplan; a reset alone leaves a quick stop
+    only, and is refused here), as mlip-ctl status says; a program sent
+    meanwhile never moves. mlip-rt restarted on the same segment: the next
+    program plans and runs to its end from where the machine stands, within
+    A, J and the path; the refused program's records after its bad one (a
+    move to X 50) never run."""
+    cfg = machine(tmp_path)
+    shm, rt = controller(cfg, "--strategy", "smooth")
+    write_records(shm, [1.0, math.nan, 50.0])
+    s = wait_for(lambda: (lambda s: s if s["state"] == "fault" else None)(status(shm)), 30)
+    assert s and s["reason"] == "path plan refused", status(shm)
+    r = ctl(shm, "reset")
+    assert r.returncode != 0, r.stdout
+    st = ctl(shm, "status")
+    assert "to continue restart mlip-rt (the fault stays until then)" in st.stdout, st.stdout
+    sq = tmp_path / "square.ngc"
+    sq.write_text(SQUARE)
+    p = feed(shm, sq, timeout=60)
+    assert p.returncode != 0, p.stderr
+    s = status(shm)
+    assert s["state"] == "fault" and all(v == 0.0 for v in s["position"].values()), s
+    rt.send_signal(signal.SIGTERM)
+    _, err = rt.communicate(timeout=10)
+    assert "the plan refused the program" in err, err
+    rec = tmp_path / "rt.csv"
+    rt2 = Proc([tool("mlip-rt"), "--config", cfg, "--can", "none", "--shm", shm,
+                "--stall-periods", "100000", "--strategy", "smooth", "--record", rec],
+               stderr=subprocess.PIPE, text=True)
+    try:
+        s = wait_for(lambda: (lambda s: s if s and s["alive"] else None)(status(shm)), 60)
+        assert s and s["state"] == "idle", (s, rt2.said())
+        p = feed(shm, sq)
+        assert p.returncode == 0, p.stderr
+        s = status(shm)
+        assert s["state"] == "idle" and s["reason"] == "program end", s
+        assert s["position"]["X"] == 0.0 and s["position"]["Y"] == 0.0, s
+        assert rt2.poll() is None, rt2.said()
+    finally:
+        assert terminate(rt2) == 0, rt2.said()
+    rows = record_rows(rec)
+    # the square's corners blended within the path tolerance (0.01 mm)
+    assert len(rows) > 100 and max(r[1] for r in rows) <= 20.0 + 0.01, max(r[1] for r in rows)
+    record_checked(cfg, sq, rec)
+
+
+def test_corrupt_ring_on_the_plan_is_a_fault(controller, tmp_path):
+    """The ring's indices made more than a capacity apart while a program
+    runs on the plan (the planning thread owns the ring: its check, not the
+    period's): the thread refuses the program ("the ring is corrupt"), the
+    controller ends in FAULT at rest after the queue's braking run, never
+    further: the record stays on the program's first line, within A, J and
+    the path (mlip-check, a stop allowed); the feeder is told."""
+    cfg, prog, rec, shm, rt, f = moving(
+        controller, tmp_path, "G21 G90\nG1 F6000\nG1 X300\nG1 X300 Y300\nG1 X0 Y0\n", 50
+    )
+    ring = Ring(shm)
+    # the whole program taken (3 moves, END): nothing more will be written
+    assert wait_for(lambda: ring.u32(HEAD) == 4 and ring.count() == 0, 30), ring.u32(HEAD)
+    s0 = status(shm)
+    assert s0["state"] == "running" and s0["position"]["X"] < 250.0, s0
+    struct.pack_into("<I", ring.mem, HEAD, ring.u32(TAIL) + 2 * ring.cap)
+    s = wait_for(
+        lambda: (lambda s: s if s["state"] == "fault" and s["speed_mm_s"] == 0.0 else None)(
+            status(shm)
+        ),
+        30,
+    )
+    assert s and s["reason"] == "path plan refused", status(shm)
+    assert s0["position"]["X"] < s["position"]["X"] < 300.0 and s["position"]["Y"] == 0.0, s
+    later = periods_on(shm, 300)
+    assert later and later["state"] == "fault" and later["position"] == s["position"], later
+    assert f.wait(60) != 0
+    rt.send_signal(signal.SIGTERM)
+    _, err = rt.communicate(timeout=10)
+    assert "the plan refused the program" in err and "the ring is corrupt" in err, err
+    record_checked(cfg, prog, rec)

@@ -432,6 +432,57 @@ static void test_hold_latched_at_rest(void **st)
 	assert_true(out.pos[0] == 12.0);
 }
 
+/* Feed override 0 holds the path and is in the status as what holds it
+ * (held_by override 0), at rest too: the next program starts held, unmoved,
+ * until a higher override, never until a resume. It is not a latched hold
+ * (a resume does not end it; mlip-ctl status and mlip-grbl said "hold
+ * latched: resume" or bare idle). A hold latched with it is the hold until
+ * a resume, then the override again. */
+static void test_override_zero_holds_in_the_status(void **st)
+{
+	(void)st;
+	tick(5);
+	assert_int_equal(period_cmd(MLIP_CMD_OVERRIDE, 0, 0), MLIP_OK);
+	tick(5);
+	struct mlip_ring_status s = status();
+	assert_int_equal(s.state, MLIP_STATE_IDLE);
+	assert_int_equal(s.held_by, MLIP_WHY_OVERRIDE_ZERO);
+	assert_int_equal(mlip_state_held_by(s.held_by), MLIP_WHY_OVERRIDE_ZERO);
+	assert_false(mlip_state_hold_latched(s.state, s.held_by)); /* a resume does not end it */
+	/* a resume at rest changes nothing */
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	tick(5);
+	assert_int_equal(status().held_by, MLIP_WHY_OVERRIDE_ZERO);
+	/* the next program: held before its first move, said so all along */
+	move(1, 5.0, 0.0);
+	end(2);
+	until(MLIP_STATE_HELD, 3000);
+	assert_int_equal(status().reason, MLIP_WHY_OVERRIDE_ZERO);
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	for (int k = 0; k < 300; k++) {
+		tick(1);
+		assert_int_equal(status().state, MLIP_STATE_HELD);
+		assert_int_equal(status().held_by, MLIP_WHY_OVERRIDE_ZERO);
+		assert_true(out.pos[0] == 0.0);
+	}
+	/* a hold on top: the hold is what a resume ends, then the override */
+	assert_int_equal(period_cmd(MLIP_CMD_HOLD, 0, 0), MLIP_OK);
+	tick(2);
+	assert_int_equal(status().held_by, MLIP_WHY_HOLD);
+	assert_int_equal(status().reason, MLIP_WHY_HOLD);
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	tick(2);
+	assert_int_equal(status().held_by, MLIP_WHY_OVERRIDE_ZERO);
+	assert_int_equal(status().reason, MLIP_WHY_OVERRIDE_ZERO);
+	assert_true(out.pos[0] == 0.0);
+	/* a higher override ends it: the program runs to its end, nothing holds */
+	assert_int_equal(period_cmd(MLIP_CMD_OVERRIDE, 100, 0), MLIP_OK);
+	until(MLIP_STATE_IDLE, 5000);
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_int_equal(status().held_by, 0);
+	assert_true(out.pos[0] == 5.0);
+}
+
 /* A program stopped before its first block ends has completed nothing: the
  * status must not show the previous program's last block. */
 static void test_stop_before_first_block_completes(void **st)
@@ -2693,6 +2744,63 @@ static void test_home_sequence(void **st)
 	assert_true(out.pos[0] == 2.0);
 }
 
+/* A home is refused while a hold is latched at rest (as a jog is; Grbl
+ * refuses $H in Hold): the drives' homing motion would leave the path of
+ * the program the hold is kept for. It was accepted. And while a program
+ * is held on its path. A resume at rest releases the latch: then it homes. */
+static void test_home_refused_in_a_hold(void **st)
+{
+	(void)st;
+	htick(5);
+	assert_int_equal(hcmd(MLIP_CMD_HOLD, 0), MLIP_OK);
+	htick(5);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_true(mlip_state_hold_latched(status().state, status().held_by));
+	double x = out.pos[0], y = out.pos[1];
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_E_INVALID);
+	htick(50);
+	assert_int_equal(status().state, MLIP_STATE_IDLE);
+	assert_int_equal(status().held_by, MLIP_WHY_HOLD);
+	assert_true(out.pos[0] == x && out.pos[1] == y);
+	assert_int_equal(sdo_log_n, 0); /* no homing object written */
+	assert_int_equal(hcmd(MLIP_CMD_RESUME, 0), MLIP_OK);
+	htick(5);
+	assert_int_equal(status().held_by, 0);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_OK);
+	for (int n = 0; status().state == MLIP_STATE_HOMING && n < 5000; n++) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_HOMED);
+	assert_int_equal(status().homed, 3u);
+	/* a program held on its path: refused too, the homing kept */
+	int logged = sdo_log_n;
+	move(1, 50.0, 1.25);
+	end(2);
+	for (int n = 0; status().state != MLIP_STATE_RUNNING && n < 3000; n++) {
+		htick(1);
+	}
+	htick(100);
+	assert_int_equal(hcmd(MLIP_CMD_HOLD, 0), MLIP_OK);
+	for (int n = 0; status().state != MLIP_STATE_HELD && n < 3000; n++) {
+		htick(1);
+	}
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	x = out.pos[0];
+	assert_true(x > -2.5 && x < 50.0);
+	assert_int_equal(hcmd(MLIP_CMD_HOME, 0), MLIP_E_INVALID);
+	htick(50);
+	assert_int_equal(status().state, MLIP_STATE_HELD);
+	assert_true(out.pos[0] == x);
+	assert_int_equal(status().homed, 3u);
+	assert_int_equal(sdo_log_n, logged);
+	assert_int_equal(hcmd(MLIP_CMD_RESUME, 0), MLIP_OK);
+	for (int n = 0; status().reason != MLIP_WHY_END && n < 20000; n++) {
+		htick(1);
+	}
+	assert_int_equal(status().reason, MLIP_WHY_END);
+	assert_true(out.pos[0] == 50.0);
+}
+
 /* A homing object the drive refuses (SDO abort): a fault naming the node
  * and the object, every axis quick-stopped, the drive back in mode 8; a
  * reset, then nothing homed. */
@@ -3414,6 +3522,7 @@ int main(void)
 	    T(test_stop_distance_published),
 	    T(test_hold_at_rest_counts_no_stop),
 	    T(test_hold_latched_at_rest),
+	    T(test_override_zero_holds_in_the_status),
 	    T(test_stop_before_first_block_completes),
 	    T(test_override_zero_and_exit),
 	    T(test_stop_latched_for_the_program_about_to_start),
@@ -3480,6 +3589,7 @@ int main(void)
 	    TD(test_jog_drives),
 	    TH(test_home_sequence),
 	    TH(test_home_sdo_refused),
+	    TH(test_home_refused_in_a_hold),
 	    TH(test_home_error_and_timeout),
 	    TH(test_home_lost),
 	    TH(test_home_lost_fault),

@@ -57,7 +57,7 @@ static uint32_t prog = 1;
 static int drives;
 static struct mlip_ctl_drive_fault fault_next;
 static int exit_req;
-static int plan_fault;       /* the planning thread refused the plan (sticky, as mlip-rt's) */
+static uint32_t plan_fault;  /* the programs the planning thread refused (a count, as mlip-rt's) */
 static uint32_t missed_next; /* deadlines missed before the next period */
 static struct mlip_can_config can_cia402 = {"cia402", 1000000, 5000000, 0x080,
                                             0x200,    0x300,   0x400,   0x180};
@@ -218,6 +218,7 @@ static int setup_opts(const struct mlip_io_config *io)
 	                          .drive_state_periods = 50};
 	memset(&fault_next, 0, sizeof(fault_next));
 	missed_next = 0;
+	plan_fault = 0;
 	memset(&out, 0, sizeof(out));
 	exit_req = 0;
 	if (mlip_ctl_init(&ctl, &planner, &mach, &o) != MLIP_OK) {
@@ -609,7 +610,7 @@ static void test_drive_fault(void **state)
 	assert_int_equal(out.status.reason_node, 2);
 }
 
-/* The planning thread refuses the plan mid-move (in->plan_fault, sticky). */
+/* The planning thread refuses the plan mid-move (in->plan_fault counts). */
 static void test_plan_refused(void **state)
 {
 	(void)state;
@@ -617,6 +618,52 @@ static void test_plan_refused(void **state)
 	plan_fault = 1;
 	faults_on_the_run(MLIP_WHY_PLAN_REFUSED, "plan refused");
 	plan_fault = 0;
+}
+
+/* A refused plan is a fault on the path, left as every such fault is by a
+ * reset after an E-stop (a reset alone leaves a quick stop only). The
+ * refused program, published but not started, never starts after it (it
+ * did: its queue ran once the controller was idle); the next program runs
+ * to its end; a later refusal faults again (in->plan_fault was a flag seen
+ * once: the second went unheard). */
+static void test_plan_refused_left_by_a_reset(void **state)
+{
+	(void)state;
+	plan_fault = 1;
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
+	assert_int_equal(out.status.reason, MLIP_WHY_PLAN_REFUSED);
+	assert_null(ctl.ext.q);
+	assert_int_not_equal(tick(MLIP_CMD_RESET, 0), MLIP_OK);
+	io_in.active = BIT(MLIP_IN_ESTOP);
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_ESTOP);
+	io_in.active = 0;
+	tick(0, 0);
+	assert_int_equal(tick(MLIP_CMD_RESET, 0), MLIP_OK);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+	for (int i = 0; i < 200; i++) {
+		tick(0, 0);
+		assert_int_equal(out.status.state, MLIP_STATE_IDLE);
+		assert_true(out.pos[0] == 0.0 && out.pos[1] == 0.0);
+	}
+	assert_null(ctl.ext.q);
+	/* the next program (a new number, as the thread publishes it) */
+	prog++;
+	feed_init();
+	check_init();
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_RUNNING);
+	assert_int_equal(out.status.reason, MLIP_WHY_START);
+	until(MLIP_STATE_IDLE, MAX_PERIODS);
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	assert_memory_equal(out.pos, f.last, sizeof(f.last));
+	check_limits();
+	plan_fault = 2;
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
+	assert_int_equal(out.status.reason, MLIP_WHY_PLAN_REFUSED);
+	assert_memory_equal(out.pos, f.last, sizeof(f.last));
 }
 
 /* The E-stop with drives: quick stop in that very period, the program
@@ -709,6 +756,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_plan_refused, setup),
 	    cmocka_unit_test_setup(test_exec_follows_the_blocks, setup),
 	    cmocka_unit_test_setup(test_stop_names_the_block_to_resume, setup),
+	    cmocka_unit_test_setup(test_plan_refused_left_by_a_reset, setup_io_alone),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -126,9 +126,18 @@ void cmd_pump(void)
 		cmd_push(MLIP_CMD_SPINDLE_OVERRIDE, S.sp_post);
 		S.sp_post = -1;
 	}
-	int sp_queued = 0;
+	int sp_queued = 0, ov_queued = 0;
 	for (int i = 0; i < S.qn; i++) {
 		sp_queued |= S.q[i].op == MLIP_CMD_SPINDLE_OVERRIDE;
+		ov_queued |= S.q[i].op == MLIP_CMD_OVERRIDE;
+	}
+	if (S.cs_ok && !S.dead && !ov_queued && S.ov_post < 0 && S.cs.heartbeat >= S.ov_hb + 2 &&
+	    S.cs.override_pct <= 200 && (int)S.cs.override_pct != S.ov_feed) {
+		/* the controller's feed override (mlip-ctl override too): Ov shows
+		 * it and the next step starts from it (0: override_zero; 0x90 then
+		 * ends it) */
+		S.ov_feed = (int)S.cs.override_pct;
+		grbl_refresh_ovr(&S.refresh);
 	}
 	if (S.sp_bus && !sp_queued && S.sp_post < 0 && S.cs.heartbeat >= S.sp_hb + 2) {
 		/* the controller's value (mlip-ctl spindle-override too) is what
@@ -147,6 +156,8 @@ void cmd_pump(void)
 			S.hold_req = 0;
 		} else if (S.q[0].op == MLIP_CMD_SPINDLE_OVERRIDE) {
 			S.sp_hb = S.cs.heartbeat;
+		} else if (S.q[0].op == MLIP_CMD_OVERRIDE) {
+			S.ov_hb = S.cs.heartbeat;
 		}
 		memmove(S.q, S.q + 1, (size_t)(S.qn - 1) * sizeof(S.q[0]));
 		S.qn--;
@@ -195,7 +206,10 @@ int in_hold(void)
 	for (int i = 0; i < S.qn; i++) {
 		queued |= S.q[i].op == MLIP_CMD_HOLD;
 	}
-	return queued || S.hold_req || S.hold_idle || S.cs.state == MLIP_STATE_HELD || ctl_holds();
+	/* override 0 is Run (override_zero): Grbl ignores 0x9E outside Hold */
+	return queued || S.hold_req || S.hold_idle ||
+	       (S.cs.state == MLIP_STATE_HELD && S.cs.reason != MLIP_WHY_OVERRIDE_ZERO) ||
+	       ctl_holds();
 }
 
 void rt_cmd(void *ctx, grbl_rt c)

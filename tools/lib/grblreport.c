@@ -95,11 +95,24 @@ void poll_controller(void)
 /* The controller's hold in force (status held_by, whoever asked: `!`,
  * mlip-ctl hold, the hold input; a stall, the bus): at rest it is latched
  * for the next program (Grbl's Hold:0) and only a resume (~) ends it. The
- * spindle coming to speed after a resume is not one. */
+ * spindle coming to speed after a resume is not one, nor feed override 0
+ * (see override_zero). */
 int ctl_holds(void)
 {
 	uint32_t why = mlip_state_held_by(S.cs.held_by);
-	return why != 0 && why != MLIP_WHY_SPINDLE_WAIT;
+	return why != 0 && why != MLIP_WHY_SPINDLE_WAIT && why != MLIP_WHY_OVERRIDE_ZERO;
+}
+
+/* Feed override 0 (mlip-ctl override 0: Grbl's bytes go no lower than 10 %)
+ * holds the program on its path, and `~` does not end it. Grbl 1.1 has no
+ * state for it: Hold:0 is "Hold complete. Ready to resume." and `~`
+ * "resumes a feed hold" (interface.md, realtime_cmds.md), so a sender
+ * (CNCjs, UGS, bCNC) would offer cycle start, which would do nothing. It
+ * stays Run: the program's cycle, at the feed the override allows (FS:0),
+ * as Grbl's 10 % is a slow Run; a [MSG] says what ends it. */
+int override_zero(void)
+{
+	return mlip_state_held_by(S.cs.held_by) == MLIP_WHY_OVERRIDE_ZERO;
 }
 
 int at_rest_state(uint32_t s)
@@ -158,6 +171,9 @@ const char *grbl_state(void)
 	}
 	switch (c->state) {
 	case MLIP_STATE_HELD:
+		if (c->reason == MLIP_WHY_OVERRIDE_ZERO && !S.hold_req) {
+			return "Run"; /* override_zero: `~` would not end it */
+		}
 		return moving ? "Hold:1" : "Hold:0";
 	case MLIP_STATE_STOPPING:
 		return "Hold:1";
@@ -315,6 +331,13 @@ void follow_controller(void)
 	}
 	if (S.hold_idle && mlip_state_held_by(S.cs.held_by) == MLIP_WHY_HOLD) {
 		S.hold_idle = 0; /* so does a latched one: a resume by anyone ends it */
+	}
+	if (override_zero() != S.ov_zero_told && S.ctl) {
+		S.ov_zero_told = override_zero();
+		if (S.ov_zero_told) {
+			send_msg(S.ctl, "feed override 0 %% (mlip-ctl override): nothing moves; "
+			                "raise the feed override to go on (~ does not)");
+		}
 	}
 	if ((foreign || (!S.stop_ours && S.cs.state == MLIP_STATE_STOPPING)) &&
 	    (S.st.open || S.program_live || grbl_stream_staged(&S.st) > 0)) {

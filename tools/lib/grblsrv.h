@@ -105,7 +105,8 @@ struct srv {
 	int dead;
 	struct cmd q[CMDQ];
 	int qn;
-	int ov_post; /* an override value waits for the mailbox (-1: none) */
+	int ov_post;    /* an override value waits for the mailbox (-1: none) */
+	uint64_t ov_hb; /* the controller's period when the last one was posted */
 	/* the machine's I/O, as mlip-feed takes it from the controller */
 	struct mlip_gcode_io io;
 	struct mlip_tooltable table; /* --tools: M6, M61, G43 (as mlip-feed --tools) */
@@ -126,6 +127,7 @@ struct srv {
 	char acc_last[8];    /* A: last shown */
 	int ovs_last;        /* Ov's spindle value last shown */
 	uint32_t prev_state; /* the controller's state before its current one */
+	int ov_zero_told;    /* feed override 0 was told in a [MSG] (until it ends) */
 	/* a $H or $X waiting for the controller: Grbl answers it when done
 	 * and takes no line meanwhile */
 	uint32_t await_op;  /* MLIP_CMD_HOME, MLIP_CMD_RESET; 0: none */
@@ -153,6 +155,7 @@ void stop_post(void);
 void rt_cmd(void *ctx, grbl_rt c);
 int in_hold(void);
 int ctl_holds(void);
+int override_zero(void);
 int is_query(const char *t, size_t len);
 void process_lines(void);
 void poll_controller(void);

@@ -281,8 +281,9 @@ struct mlip_ctl_in {
 	 * taken from recs */
 	struct mlip_planq *plan;
 	uint32_t plan_prog;
-	int plan_fault; /* the planning thread refused the program: FAULT (reason
-	                   PLAN_REFUSED), once; a queue running brakes on its run */
+	uint32_t plan_fault; /* the programs the planning thread refused so far: a
+	                        new count is FAULT (reason PLAN_REFUSED), once; a
+	                        queue running brakes on its run */
 };
 
 /* The drives' power after the period (opts.drives; the sequencer's record). */
@@ -418,7 +419,7 @@ struct mlip_ctl {
 		uint32_t prog, last;  /* its number, the last one started */
 		double vmax;          /* its plan's cap at override 100 */
 		int stopping;         /* a stop (or fault): the braking run, then dropped */
-		int refused;          /* in->plan_fault seen */
+		uint32_t refused;     /* in->plan_fault as last applied */
 	} ext;
 	/* the drives' power (opts.drives) */
 	struct {

@@ -144,12 +144,14 @@ const char *mlip_state_why_name(uint32_t why);
 
 /* The status' held_by (mlip/ipc/ring.h) as a reader trusts it: the cause
  * when it is one that holds the path (hold, stall, CAN tx refused, CAN
- * error frames, the spindle coming to speed), else 0 (none, or a value no
- * controller of this layout writes). */
+ * error frames, the spindle coming to speed, feed override 0), else 0
+ * (none, or a value no controller of this layout writes; a reader built
+ * before override 0 was written there reads it as none). */
 uint32_t mlip_state_held_by(uint32_t held_by);
 /* A hold latched at rest: idle or starved with a hold in force (held_by,
- * as above), the spindle's wait excepted; the next records start held
- * until a resume (Grbl 1.1's Hold:0 from Idle). */
+ * as above) that a resume ends: not the spindle's wait, not override 0 (a
+ * higher override ends it); the next records start held until a resume
+ * (Grbl 1.1's Hold:0 from Idle). */
 int mlip_state_hold_latched(uint32_t state, uint32_t held_by);
 
 #endif

@@ -235,9 +235,11 @@ struct mlip_ring_status {
 	uint32_t spindle_node;           /* its node id */
 	/* layout version 12: the hold in force, whatever the state: the
 	 * mlip_state_why that holds the path (MLIP_WHY_HOLD an operator's hold,
-	 * MLIP_WHY_STALL, MLIP_WHY_BUS_TX, MLIP_WHY_BUS_ERROR; 0: none). At rest
-	 * without a program (idle, starved) it is latched, as Grbl 1.1's Hold:0:
-	 * the next records start held until a resume; a stop or an E-stop ends it */
+	 * MLIP_WHY_STALL, MLIP_WHY_BUS_TX, MLIP_WHY_BUS_ERROR, MLIP_WHY_SPINDLE_WAIT,
+	 * MLIP_WHY_OVERRIDE_ZERO; 0: none). At rest without a program (idle,
+	 * starved) a hold is latched, as Grbl 1.1's Hold:0: the next records
+	 * start held until a resume; a stop or an E-stop ends it. Override 0
+	 * holds them too, until a higher override (a resume does not end it) */
 	uint32_t held_by;
 	uint32_t spare12; /* 0 */
 };
