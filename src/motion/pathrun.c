@@ -105,8 +105,30 @@ static int settle(struct mlip_pathrun *pr, int upto)
 	return 0;
 }
 
+long mlip_pathrun_lag_knot(const struct mlip_pathrun *pr)
+{
+	if (pr->lag_n < MLIP_PATHRUN_LAG) {
+		return 0;
+	}
+	/* the oldest period held: lag_n - LAG + 1 (its slot, the next written) */
+	long k = pr->lag_piece[pr->lag_n % MLIP_PATHRUN_LAG] - MLIP_PATHRUN_BEHIND;
+	return k > 0 ? k : 0;
+}
+
+/* A planned period's piece (global) into the lag's history. */
+static void note_period(struct mlip_pathrun *pr)
+{
+	long piece = (long)pr->dropped + pr->hint;
+	pr->lag_max = piece > pr->lag_max ? piece : pr->lag_max;
+	pr->lag_piece[pr->lag_n % MLIP_PATHRUN_LAG] = pr->lag_max;
+	pr->lag_n++;
+}
+
 /* Drop the pieces the plan has passed when it is a quarter of the window
- * in: 1 when room was made. s stays global: the plan's state is unmoved. */
+ * in: 1 when room was made. s stays global: the plan's state is unmoved.
+ * What it keeps is a function of the plan's own periods (the lag's knot),
+ * never of a consumer's timing, so that every consumer sees the plan
+ * mlip-sim runs. */
 static int compact(struct mlip_pathrun *pr)
 {
 	struct mlip_path_curve cv;
@@ -114,6 +136,8 @@ static int compact(struct mlip_pathrun *pr)
 	/* keep_s: a planned queue's consumer may still brake there (planq.h) */
 	double from = pr->st.s < pr->keep_s ? pr->st.s : pr->keep_s;
 	int i = pr->fixed > 0 ? mlip_path_spline_piece(&cv, from, pr->hint) : 0;
+	long lag = mlip_pathrun_lag_knot(pr) - pr->dropped;
+	i = lag < i ? (lag > 0 ? (int)lag : 0) : i;
 	if (i < MLIP_PATHRUN_CAP / 4) {
 		return 0;
 	}
@@ -436,6 +460,7 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
 		memcpy(x, pr->p[pr->fixed], sizeof(double) * (size_t)pr->lim.n);
 		pr->st.s = end;
 		pr->periods++;
+		note_period(pr);
 		return 2;
 	}
 	int r = mlip_path_plan_period(&cv, &pr->lim, &st, end, pr->max_periods, &pr->work);
@@ -457,6 +482,7 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
 	struct mlip_path_point d;
 	pr->hint = mlip_path_spline_piece(&cv, st.s, pr->hint);
 	mlip_path_spline_eval_piece(&cv, pr->hint, st.s, x, &d);
+	note_period(pr);
 	return 1;
 }
 

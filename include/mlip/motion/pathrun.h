@@ -56,6 +56,14 @@
  * +-h mm is cut to what they span where the input is dense (a slow
  * stretch: a corner, a start), so the memory stays fixed */
 #define MLIP_PATHRUN_FAIR_CAP 256
+/* The compaction keeps the pieces of the plan's state MLIP_PATHRUN_LAG
+ * periods back (the largest piece up to it) less MLIP_PATHRUN_BEHIND knots:
+ * a planned queue's consumer is at most its length plus one periods behind
+ * its producer and reads that far back (planq.h), and the rule, the plan's
+ * own, runs the same in mlip-sim: the window at each period, so the plan,
+ * does not depend on the consumer's timing */
+#define MLIP_PATHRUN_LAG      264
+#define MLIP_PATHRUN_BEHIND   8
 
 /* The caller's mark of an input point, carried with it as a knot and
  * never read by the plan: a planned queue's records (mlip/motion/planq.h),
@@ -85,10 +93,15 @@ struct mlip_pathrun {
 	struct mlip_pathrun_tag tag_in;                /* the caller's: the next input's */
 	struct mlip_pathrun_tag last_tag;              /* last_in's */
 	struct mlip_path_state st;
-	/* compaction keeps the pieces from min(st.s, keep_s) on (INFINITY
-	 * from init: st.s alone); a planned queue's producer holds it at
-	 * its consumer's oldest knot, whence it may restart the plan */
+	/* compaction keeps the pieces from min(st.s, keep_s) on and from the
+	 * lag's knot (lag_piece: the largest piece after each of the last
+	 * MLIP_PATHRUN_LAG periods, lag_n periods so far). keep_s: INFINITY
+	 * from init; a planned queue's producer holds it at its consumer's
+	 * oldest knot (a safety bound: the lag's is never above it while the
+	 * consumer follows the plan, planq.c) */
 	double keep_s;
+	long lag_piece[MLIP_PATHRUN_LAG];
+	long lag_n, lag_max;
 	long rested; /* periods at rest in a row */
 	/* the fairing (mlip_pathrun_fair; fair_h 0: off, the knots are the
 	 * input): a ring of input points, numbered fr_lo..fr_hi-1 from the
@@ -174,6 +187,10 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x);
  * taken; else why (a phrase for "LINE: ..."). *feed: 0 before the first
  * move, then the program's one feed (mm/s). */
 const char *mlip_pathrun_refusal(const struct mlip_block *b, double *feed);
+
+/* The first knot (global) the compaction keeps by the lag's rule: 0 until
+ * MLIP_PATHRUN_LAG periods are planned. */
+long mlip_pathrun_lag_knot(const struct mlip_pathrun *pr);
 
 /* The fixed pieces as the plan reads them (count = fixed + 1 knots). */
 void mlip_pathrun_curve(const struct mlip_pathrun *pr, struct mlip_path_curve *cv);
