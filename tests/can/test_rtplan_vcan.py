@@ -69,11 +69,28 @@ def test_path_plan_exact(vcan, tmp_path):
     decoded counts passes (the machine's A and J, the quantum's slack: 4 q /
     T^2 on A, 8 q / T^3 on J, q = 1 count); every record executed
     (exec_seq = blocks + 1); the trace it equals keeps J in double
-    precision and uses it."""
+    precision and uses it. The claim holds while the planning thread keeps
+    ahead of the period: a run whose queue ran dry (mlip-rt says so; on the
+    emulated guest the thread, ~1e5 instructions a planned period, can fall
+    behind) braked there by design, so it is run again, 3 runs at most, and
+    a mismatch without a dry queue fails at once."""
     cfg = machine(tmp_path)
     ngc = circle_program(tmp_path)
     _, summ, jratio = sim_jerk_used(cfg, ngc, tmp_path)
-    exact_run(tmp_path, cfg, ngc, "cia402", strategy="smooth")
+    dry = []
+    for k in range(3):
+        sub = tmp_path / f"run{k}"
+        sub.mkdir()
+        try:
+            exact_run(sub, cfg, ngc, "cia402", strategy="smooth")
+            break
+        except AssertionError as e:
+            if "queue ran dry" not in str(e):
+                raise
+            dry.append(str(e))
+            print(f"[{ngc.name}] run {k}: {e}")
+    else:
+        raise AssertionError(f"the queue ran dry in every one of 3 runs: {dry}")
     acc = max(a / A for a in summ["max_axis_accel"])
     print(f"[{ngc.name}] mlip-sim: {summ['periods']} periods, max jerk/J {jratio:.4f}, "
           f"accel/A {acc:.4f}")
