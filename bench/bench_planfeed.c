@@ -7,6 +7,7 @@
  * mlip_planq_step a period.
  *
  *   build/bench_planfeed --config CFG [--trace OUT.csv] [--paced] FILE.ngc
+ *   build/bench_planfeed --config CFG [--trace OUT.csv] --lag N [--starve K] FILE.ngc
  *
  * Without --paced the period waits for each entry (the thread always keeps
  * up): the trace must equal `mlip-sim --config CFG --strategy smooth
@@ -18,6 +19,14 @@
  * periods and pushes before the entry included; the program's reading and
  * smoothing, mlip-feed's share in mlip-rt, not), the queue's low-water mark after
  * its first fill, brakes and starvings.
+ *
+ * --lag N: one thread, deterministic: before each period the producer
+ * fills the queue to N entries ahead (N > MLIP_PLANQ_LEN: a fill that
+ * wanders over 1..LEN); --starve K: not before the period K (the queue
+ * runs dry there: its braking run). The trace has every period from the
+ * first entry on: with no --starve it must equal mlip-sim's (the plan
+ * does not depend on the consumer's lag); a starving's trace is what the
+ * bus carries when mlip-rt's planning thread is late.
  */
 #include <errno.h>
 #include <math.h>
@@ -63,6 +72,39 @@ static double thread_cpu_us(void)
 	return (double)t.tv_sec * 1e6 + (double)t.tv_nsec / 1e3;
 }
 
+/* Records into the plan's FIFO while it has room (as mlip-feed numbers
+ * them: the smoothed blocks 1..n, then END): 0, -1 the program unread. */
+static int offer(struct mlip_block_iter *it, uint64_t *seq, int *in_done)
+{
+	while (!*in_done && mlip_planfeed_room(&pf) > 0) {
+		struct mlip_block b;
+		struct mlip_ring_rec rec;
+		int r = it->next(it->ctx, &b);
+		if (r < 0) {
+			return -1;
+		}
+		if (r > 0) {
+			mlip_ring_rec_from_block(&rec, &b, ++*seq);
+		} else {
+			mlip_ring_rec_end(&rec, ++*seq, prog.lines);
+			*in_done = 1;
+		}
+		mlip_planfeed_offer(&pf, &rec);
+	}
+	return 0;
+}
+
+/* The setpoints' trace (to tf, NULL: none) from the machine's home. */
+static void trace_open(struct mlip_trace *tr, FILE *tf)
+{
+	const struct mlip_machine *m = &cfg.machine;
+	double home[MLIP_MAX_AXES] = {0};
+	for (int k = 0; k < m->n_axes; k++) {
+		home[k] = m->axis[k].home;
+	}
+	mlip_trace_open(tr, tf, m, home);
+}
+
 /* The planning thread: records in (as mlip-feed numbers them: the smoothed
  * blocks 1..n, then END), work until the last entry is queued. */
 static void *producer(void *arg)
@@ -72,21 +114,9 @@ static void *producer(void *arg)
 	int in_done = 0;
 	double acc = 0.0; /* the work's CPU since the last planned period */
 	for (;;) {
-		while (!in_done && mlip_planfeed_room(&pf) > 0) {
-			struct mlip_block b;
-			struct mlip_ring_rec rec;
-			int r = it.next(it.ctx, &b);
-			if (r < 0) {
-				producer_rc = -2;
-				goto out;
-			}
-			if (r > 0) {
-				mlip_ring_rec_from_block(&rec, &b, ++seq);
-			} else {
-				mlip_ring_rec_end(&rec, ++seq, prog.lines);
-				in_done = 1;
-			}
-			mlip_planfeed_offer(&pf, &rec);
+		if (offer(&it, &seq, &in_done) != 0) {
+			producer_rc = -2;
+			goto out;
 		}
 		uint64_t before = pf.planned;
 		double w0 = thread_cpu_us();
@@ -129,11 +159,79 @@ static void sleep_until(struct timespec *t, long ns)
 	}
 }
 
+/* --lag N: one thread, deterministic: the producer fills the queue to N
+ * entries ahead of the period (N 0: one), then the period pops one. */
+static int lagged(struct mlip_block_iter *itp, int lag, long starve, const char *trace_path)
+{
+	struct mlip_block_iter it = *itp;
+	uint64_t seq = 0;
+	int in_done = 0, mode = MLIP_PLANQ_WAIT, pdone = 0;
+	const struct mlip_machine *m = &cfg.machine;
+	FILE *tf = trace_path ? fopen(trace_path, "w") : NULL;
+	struct mlip_trace tr;
+	double x[MLIP_MAX_AXES];
+	trace_open(&tr, tf);
+	long k = 0, brakes = 0;
+	int want = lag < 1 ? 1 : lag;
+	uint64_t rnd = 0x9e3779b97f4a7c15ull * (uint64_t)(lag + 1);
+	while (mode != MLIP_PLANQ_DONE) {
+		if (lag >
+		    MLIP_PLANQ_LEN) { /* a lag that wanders: 1..LEN, new every 1..64 periods */
+			rnd ^= rnd << 13;
+			rnd ^= rnd >> 7;
+			rnd ^= rnd << 17;
+			if ((rnd & 63u) == 0u) {
+				want = 1 + (int)((rnd >> 8) % MLIP_PLANQ_LEN);
+			}
+		}
+		while (!pdone && k != starve) {
+			if (pf.started && (int)(queue.head - queue.tail) >= want) {
+				break;
+			}
+			if (offer(&it, &seq, &in_done) != 0) {
+				return 1;
+			}
+			int r = mlip_planfeed_work(&pf);
+			if (r < 0) {
+				fprintf(stderr, "bench_planfeed: %s\n", pf.why);
+				return 1;
+			}
+			pdone = r == 2;
+			if (r == 0) {
+				break;
+			}
+		}
+		if (k == 0 && tr.have_pending == 0) {
+			memcpy(tr.pending, pf.start, sizeof(double) * (size_t)m->n_axes);
+			tr.have_pending = 1;
+		}
+		mode = mlip_planq_step(&queue, 0, x);
+		if (mode < 0) {
+			return 1;
+		}
+		brakes += mode == MLIP_PLANQ_BRAKE;
+		if (mode == MLIP_PLANQ_PLAN || mode == MLIP_PLANQ_DONE || k > 0) {
+			mlip_trace_sample_at(&tr, (uint64_t)++k,
+			                     mode == MLIP_PLANQ_DONE ? MLIP_STATE_IDLE
+			                                             : MLIP_STATE_RUNNING,
+			                     x, NULL);
+		}
+	}
+	if (tf != NULL) {
+		fclose(tf);
+	}
+	printf("{\"periods\": %ld, \"brakes\": %ld, \"lag\": %d, \"dropped\": %ld, "
+	       "\"peak_count\": %d, \"ctl_periods\": %llu}\n",
+	       k, brakes, lag, run.dropped, run.peak_count, (unsigned long long)pf.ctl_periods);
+	return 0;
+}
+
 int main(int argc, char **argv)
 {
 	struct mlip_cli_machine mo = {0};
 	const char *trace_path = NULL, *path = NULL;
-	int paced = 0;
+	int paced = 0, lag = -1;
+	long starve = -1;
 	for (int i = 1; i < argc; i++) {
 		if (strcmp(argv[i], "--config") == 0 && i + 1 < argc) {
 			mo.config = argv[++i];
@@ -141,6 +239,10 @@ int main(int argc, char **argv)
 			trace_path = argv[++i];
 		} else if (strcmp(argv[i], "--paced") == 0) {
 			paced = 1;
+		} else if (strcmp(argv[i], "--lag") == 0 && i + 1 < argc) {
+			lag = atoi(argv[++i]);
+		} else if (strcmp(argv[i], "--starve") == 0 && i + 1 < argc) {
+			starve = atol(argv[++i]);
 		} else if (path == NULL && argv[i][0] != '-') {
 			path = argv[i];
 		} else {
@@ -172,16 +274,16 @@ int main(int argc, char **argv)
 	struct mlip_block_iter it = {program_next, &prog};
 	it = mlip_smooth_iter(&si, &sm, mlip_planfeed_machine(&pf), it);
 	pthread_t th;
+	if (lag >= 0) {
+		return lagged(&it, lag, starve, trace_path);
+	}
 	if (pthread_create(&th, NULL, producer, &it) != 0) {
 		return 1;
 	}
 	FILE *tf = trace_path ? fopen(trace_path, "w") : NULL;
 	struct mlip_trace tr;
-	double home[MLIP_MAX_AXES] = {0}, x[MLIP_MAX_AXES];
-	for (int k = 0; k < m->n_axes; k++) {
-		home[k] = m->axis[k].home;
-	}
-	mlip_trace_open(&tr, tf, m, home);
+	double x[MLIP_MAX_AXES];
+	trace_open(&tr, tf);
 	/* wait for the plan's start (the controller's first motion) */
 	while (!__atomic_load_n(&pf.started, __ATOMIC_ACQUIRE) &&
 	       !__atomic_load_n(&producer_done, __ATOMIC_ACQUIRE)) {

@@ -384,7 +384,13 @@ static int set_up(struct options *o, struct sim *s)
 		for (int k = 0; k < m->n_axes && o->jerk_plan == JERK_PATH; k++) {
 			s->plan_m.axis[k].max_jerk = 0.0;
 		}
-		s->plan_m.tolerance_mm -= s->band_mm; /* the band: the spline's (P6) */
+		if (o->jerk_plan == JERK_PATH_MEAN) {
+			/* the mean's samples are not faired: the spline's (P6) band
+			 * alone (the fairing's band cost path-mean 1.9 % on the
+			 * pocket at 1e4, docs/benchmarks.md) */
+			s->band_mm = MLIP_SIMPATH_MEAN_BAND * m->tolerance_mm;
+		}
+		s->plan_m.tolerance_mm -= s->band_mm; /* the band: the spline's */
 		cm = &s->plan_m;
 	}
 	s->lookahead = o->lookahead       ? o->lookahead
@@ -521,8 +527,8 @@ static int path_period(const struct options *o, struct sim *s, uint32_t state, c
 	if (start != NULL) {
 		memcpy(s->trace.pending, start, sizeof(double) * (size_t)s->trace.n);
 		s->trace.have_pending = 1;
-		if (mlip_simpath_begin(&s->path, &s->plim, s->band_mm, &s->trace, &s->chk, start) !=
-		    0) {
+		if (mlip_simpath_begin(&s->path, &s->plim, s->band_mm, o->jerk_plan == JERK_PATH,
+		                       &s->trace, &s->chk, start) != 0) {
 			fprintf(s->err, PROG ": --jerk-plan path: the limits are not positive\n");
 			return -1;
 		}
@@ -741,12 +747,14 @@ static int write_summary(const struct options *o, const struct sim *s, int bad)
 	}
 	if (plans(o)) {
 		/* the streaming plan's window (points, of MLIP_PATHRUN_CAP), the
-		 * largest (P6) bound of its pieces, its braking-run periods */
+		 * largest (P6) bound of its pieces and knot's move (F2), its
+		 * braking-run periods */
 		const struct mlip_pathrun *pr = &s->path.run;
 		mlip_json_uint(&j, "path_window_peak", (uint64_t)pr->peak_count);
 		mlip_json_uint(&j, "path_window_bytes", sizeof(*pr));
 		mlip_json_number(&j, "path_max_sag_mm", "%.3g", pr->max_sag_mm);
 		mlip_json_number(&j, "path_band_mm", "%.3g", pr->band_mm);
+		mlip_json_number(&j, "path_max_fair_mm", "%.3g", pr->max_dev_mm);
 		mlip_json_uint(&j, "path_run_periods", (uint64_t)pr->work);
 	}
 	mlip_json_int(&j, "violations", bad);

@@ -156,6 +156,15 @@ static int plan(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n
 		ST(&t->pp.prog, ++t->prog);
 	}
 	if (t->published && LD(&t->pp.done) == t->prog) {
+		/* the period is done with the queue (pp.done stored after its
+		 * last step): its figures are still */
+		if (M->queue.c.starved > 0) {
+			fprintf(stderr,
+			        "mlip-rt: JERK_PLAN = path: program %u: the queue ran dry %ld "
+			        "time(s) (the planning thread was late): the period braked there, "
+			        "the motion is not mlip-sim's\n",
+			        (unsigned)t->prog, M->queue.c.starved);
+		}
 		t->phase = M->pf.end_in ? WAIT : DROP;
 		if (M->pf.end_in) {
 			reset(t);

@@ -146,6 +146,17 @@ int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr)
 	if (r < 0) {
 		return -1;
 	}
+	/* the pathrun's compaction keeps its own lag's knots (the plan
+	 * mlip-sim runs): never above the consumer's freed while it follows
+	 * the chain (it popped every entry up to p_tail - 1, at least
+	 * MLIP_PLANQ_LEN + 1 periods behind this one, and its freed was
+	 * stored before that tail); after it left, keep_s holds the
+	 * compaction instead (its own run, no mlip-sim twin) */
+	if ((uint64_t)mlip_pathrun_lag_knot(pr) > freed &&
+	    !__atomic_load_n(&q->left, __ATOMIC_ACQUIRE)) {
+		pr->why = "the plan's compaction would pass the consumer's knots (a defect)";
+		return -1;
+	}
 	e->st = pr->st;
 	e->end = end;
 	e->piece = (uint64_t)pr->dropped + (uint64_t)pr->hint;
@@ -185,6 +196,16 @@ static void mark(struct mlip_planq *q)
 	}
 }
 
+/* The consumer leaves its plan's chain (before its tail passes an entry it
+ * does not pop): once, the producer's compaction is then held by freed. */
+static void leave(struct mlip_planq *q)
+{
+	if (!q->c.left) {
+		q->c.left = 1;
+		__atomic_store_n(&q->left, 1u, __ATOMIC_RELEASE);
+	}
+}
+
 /* The entry continues the consumer's state: from it bit for bit, at the
  * next period (at rest any period: time does not matter there). */
 static int continues(const struct mlip_planq *q, const struct mlip_planq_entry *e)
@@ -219,10 +240,14 @@ static int pop(struct mlip_planq *q)
 			memcpy(q->c.x, e->x, sizeof(double) * (size_t)q->n);
 			q->c.mode = e->last ? MLIP_PLANQ_DONE : MLIP_PLANQ_PLAN;
 		}
-		__atomic_store_n(&q->tail, ++tail, __ATOMIC_RELEASE);
-		if (mine) {
+		if (mine) { /* freed before the tail: the producer's bound (produce) */
 			mark(q);
 			release_knots(q);
+		} else {
+			leave(q);
+		}
+		__atomic_store_n(&q->tail, ++tail, __ATOMIC_RELEASE);
+		if (mine) {
 			return 1;
 		}
 	}
@@ -239,6 +264,7 @@ static void request(struct mlip_planq *q, int lead)
 		q->c.to_ask = lead >= 0;
 		return;
 	}
+	leave(q);
 	if (lead >= 0) {
 		uint32_t head = __atomic_load_n(&q->head, __ATOMIC_ACQUIRE);
 		__atomic_store_n(&q->tail, head, __ATOMIC_RELEASE);
@@ -280,6 +306,7 @@ static int brake(struct mlip_planq *q)
 {
 	typedef const double(*row)[MLIP_MAX_AXES];
 	uint64_t base = q->freed, a = base & KMASK;
+	leave(q);
 	if (q->c.st.v == 0.0 && q->c.st.a == 0.0) {
 		request(q, 0); /* at rest already (the last request unread) */
 		q->c.mode = q->c.to_ask ? MLIP_PLANQ_BRAKE : MLIP_PLANQ_WAIT;

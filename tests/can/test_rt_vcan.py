@@ -124,7 +124,10 @@ def exact_run(tmp_path, config, ngc, profile, exec_listener=S.exec_listener, str
     assert off > 0, f"no idle cycle before the motion ({how})"
     assert all(c == home for c in can[:off]), "the bus moved before the trace's first row"
     bad = compare.first_mismatch(can, trc, off)
-    assert bad is None, f"bus != mlip-sim trace ({how}): {bad}"
+    # JERK_PLAN = path: a planning thread that fell behind the period (its
+    # queue ran dry) brakes, as it must; mlip-rt says so on stderr
+    dry = [ln for ln in r.get("rt_stderr", "").splitlines() if "queue ran dry" in ln]
+    assert bad is None, f"bus != mlip-sim trace ({how}): {bad}" + "".join(f"\n{d}" for d in dry)
     tail = can[off + len(trc):]
     assert len(tail) > 0 and all(c == trc[-1] for c in tail), \
         "the bus does not stay on the last point after the program"

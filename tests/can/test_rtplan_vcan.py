@@ -69,11 +69,28 @@ def test_path_plan_exact(vcan, tmp_path):
     decoded counts passes (the machine's A and J, the quantum's slack: 4 q /
     T^2 on A, 8 q / T^3 on J, q = 1 count); every record executed
     (exec_seq = blocks + 1); the trace it equals keeps J in double
-    precision and uses it."""
+    precision and uses it. The claim holds while the planning thread keeps
+    ahead of the period: a run whose queue ran dry (mlip-rt says so; on the
+    emulated guest the thread, ~1e5 instructions a planned period, can fall
+    behind) braked there by design, so it is run again, 3 runs at most, and
+    a mismatch without a dry queue fails at once."""
     cfg = machine(tmp_path)
     ngc = circle_program(tmp_path)
     _, summ, jratio = sim_jerk_used(cfg, ngc, tmp_path)
-    exact_run(tmp_path, cfg, ngc, "cia402", strategy="smooth")
+    dry = []
+    for k in range(3):
+        sub = tmp_path / f"run{k}"
+        sub.mkdir()
+        try:
+            exact_run(sub, cfg, ngc, "cia402", strategy="smooth")
+            break
+        except AssertionError as e:
+            if "queue ran dry" not in str(e):
+                raise
+            dry.append(str(e))
+            print(f"[{ngc.name}] run {k}: {e}")
+    else:
+        raise AssertionError(f"the queue ran dry in every one of 3 runs: {dry}")
     acc = max(a / A for a in summ["max_axis_accel"])
     print(f"[{ngc.name}] mlip-sim: {summ['periods']} periods, max jerk/J {jratio:.4f}, "
           f"accel/A {acc:.4f}")
@@ -109,7 +126,7 @@ def max_decel(rows, k0, k1, T):
 # A_BRAKE_MIN did not brake as planned.
 A_BRAKE_MIN = 0.25 * A
 # The hold comes at speed: above this on the circle (mm/s), which the plan
-# runs at 42 mm/s and more.
+# runs at 80 mm/s and more.
 V_FAST = 35.0
 
 
@@ -152,8 +169,9 @@ def hold_resume_once(cfg, ngc, rows, tmp_path):
 
     def actions(rig):
         # at speed on the circle, past the lead-in's corner (|Y| > 0.5 mm);
-        # the plan runs it between ~42 and ~68 mm/s (mlip-sim): a status
-        # polled on a loaded guest may miss the peaks, never the circle
+        # the plan runs it at 80-100 mm/s (mlip-sim; 42-68 before the knots
+        # were faired): V_FAST well below, which a status polled on a
+        # loaded guest never misses on the circle
         m["fast"] = rig.wait_state("running", timeout=120, pred=lambda s: s["speed_mm_s"] > V_FAST
                                    and abs(s["position"]["Y"]) > 0.5)
         rig.ctl("hold")

@@ -6,10 +6,11 @@ Every candidate is a deterministic function of the program and all share
 its start and end (rests): auto runs the mean counted, then path-mean and
 path each counted up to the fewest periods so far, and writes the one that
 ends soonest (the earlier of mean, path-mean, path on a tie). Asserted on a
-generated curve (tools/gen_curves.py lissajous, where path is the fastest),
-a sharp random zigzag (tools/gen_zigzag.py, where the mean is) and the first
-3,000 lines of the shared flower-spiral-2d.ngc (CAM output, where path-mean
-is) at J = 1e4 and 1e5, at the bench's settings (A 1000 mm/s^2, 200 mm/s,
+generated curve (tools/gen_curves.py lissajous, where path is the fastest
+at 1e4 and path-mean, by 0.4 %, at 1e5), a sharp random zigzag
+(tools/gen_zigzag.py, where the mean is) and the first 3,000 lines of the
+shared flower-spiral-2d.ngc (CAM output, where path is since its knots are
+faired) at J = 1e4 and 1e5, at the bench's settings (A 1000 mm/s^2, 200 mm/s,
 feed 200, eps 0.01 mm, T 1 ms):
 - auto's trace is the taken candidate's, byte for byte;
 - it takes no period more than any candidate (tolerance 0 periods), and
@@ -56,9 +57,9 @@ def check(prog, trace, jerk):
 
 
 @pytest.mark.parametrize("name,jerk,taken", [
-    ("curve", 1e4, "path"), ("curve", 1e5, "path"),
+    ("curve", 1e4, "path"), ("curve", 1e5, "path-mean"),
     ("zigzag", 1e4, "mean"), ("zigzag", 1e5, "mean"),
-    ("cam", 1e4, "path-mean"), ("cam", 1e5, "path-mean"),
+    ("cam", 1e4, "path"), ("cam", 1e5, "path"),
 ])
 def test_auto_never_slower_than_any_candidate(tmp_path, programs, name, jerk, taken):
     prog = programs[name]
@@ -91,17 +92,20 @@ def test_auto_never_slower_than_any_candidate(tmp_path, programs, name, jerk, ta
     assert check(prog, traces["path-mean"], jerk)["samples"] == periods["path-mean"] + 1
 
 
-@pytest.mark.parametrize("jerk", [1e4, 1e5])
-def test_path_mean_on_cam_output(tmp_path, programs, jerk):
-    """Where CAM output's sharp vertices make path crawl, the plan over the
-    mean's rounded corners is faster than both: measured 0.77x (1e4) and
-    0.80x (1e5) of the mean; asserted 0.65-0.90x of the mean, below path,
-    and no faster than smooth without J (a bound the plan cannot pass)."""
+@pytest.mark.parametrize("jerk,faired", [(1e4, 0.75), (1e5, 1.0)])
+def test_path_mean_on_cam_output(tmp_path, programs, jerk, faired):
+    """On CAM output the plan over the mean's rounded corners is faster than
+    the mean: measured 0.76x (1e4) and 0.80x (1e5); asserted 0.65-0.90x of
+    the mean. The plan over smooth's setpoints, its knots faired (pathrun.h
+    F1 F2), is faster still: measured 0.64x (1e4) and 0.988x (1e5) of
+    path-mean (unfaired it was 1.27x and 1.05x); asserted at most faired x
+    path-mean, and no faster than smooth without J (a bound no plan
+    passes)."""
     prog = programs["cam"]
     no_j = sim(prog)["total_time_s"]
     t = {p: sim(prog, "--jerk", str(jerk), "--jerk-plan", p)["total_time_s"] for p in ORDER}
     assert 0.65 * t["mean"] <= t["path-mean"] <= 0.90 * t["mean"], t
-    assert no_j <= t["path-mean"] < t["path"], (no_j, t)
+    assert no_j <= t["path"] <= faired * t["path-mean"], (no_j, t)
 
 
 def test_path_mean_needs_the_plan_settings(programs):

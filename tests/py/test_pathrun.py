@@ -13,6 +13,7 @@ targets against smooth without J (<= 1.5x at 1e4, <= 1.10x at 1e5; a jerk
 limit never makes it faster: >= 1x). Bad use is refused with a reason.
 """
 import json
+import math
 import re
 import subprocess
 import sys
@@ -56,9 +57,12 @@ def test_streaming_plan_on_a_generated_curve(tmp_path, lissajous, jerk, target):
     s = sim(prog, "--jerk", str(jerk), "--jerk-plan", "path", trace=trace)
     assert_jerk_physics(s)
     # the plan's own figures: a window of at most 1,024 points, and (P6)
-    # keeps every piece within the band (0.1 eps)
+    # with the fairing's moves (F2) keeps every piece within the band (0.2
+    # eps), each move within 0.6 of it
     assert 0 < s["path_window_peak"] <= 1024
-    assert 0 < s["path_max_sag_mm"] <= s["path_band_mm"] == pytest.approx(0.001)
+    assert s["path_band_mm"] == pytest.approx(0.002)
+    assert 0 < s["path_max_fair_mm"] < 0.6 * s["path_band_mm"]
+    assert 0 < s["path_max_sag_mm"] <= s["path_band_mm"]
     chk = subprocess.run([str(BUILD / "mlip-check"), "--accel", "1000", "--vmax", "200",
                           "--eps", "0.01", "--period", "0.001", "--jerk", str(jerk),
                           "--json", "-", str(prog), str(trace)], capture_output=True, text=True)
@@ -215,3 +219,56 @@ def test_config_key_refused_without_jerk(tmp_path):
                             "--shm", f"/mlip-test-jp-{id(cfg)}"], capture_output=True, text=True,
                            timeout=30)
         assert p.returncode != 0 and msg in p.stderr and f"{cfg.name}:5" in p.stderr, p.stderr
+
+
+def coarse_circle(path, r=10.0, step_deg=2.0, feed=6000):
+    """tests/can/test_rtplan_vcan.py's circle_program: a lead-in line, a
+    circle of radius r in G1 chords of step_deg (0.35 mm at r = 10), a ramp
+    down in Z, the line back to the origin; one F (100 mm/s)."""
+    out = ["G21 G90", f"G1 F{feed}", f"G1 X{r:.4f} Y0"]
+    for k in range(1, int(round(360 / step_deg)) + 1):
+        a = math.radians(k * step_deg)
+        out.append(f"G1 X{r * math.cos(a):.4f} Y{r * math.sin(a):.4f}")
+    out += ["G1 Z-1", "G1 X0 Y0 Z0"]
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("jerk,bound,slow", [(1e5, 1.40, 0.75), (1e4, 2.20, 0.50)])
+def test_fairing_on_a_coarse_circle(tmp_path, jerk, bound, slow):
+    """The plan's knots are faired (pathrun.h, F1 F2): a spline through
+    smooth's setpoints of a circle cut into 2 degree chords rippled in
+    curvature (0.069-0.129 /mm where the circle has 0.1) and the plan ran
+    40-70 mm/s where the circle allows 100 (v^2 / r = 1000 mm/s^2, v^3 / r^2
+    = 1e4 mm/s^3 < J). Measured (A 1000 mm/s^2, eps 0.01 mm, F 100 mm/s):
+    1.971 -> 1.340 s at 1e5, 3.978 -> 2.101 s at 1e4; smooth without J
+    1.179 s, a bound no jerk-limited plan passes. Asserted: the time within
+    [no J, bound] (bound 4-5 % above the measured, below the mean's 1.598 s
+    at 1e5 and 30 % below the unfaired 1e4), within every limit, and on the
+    arc from 186 to 300 degrees (y < -1 mm, x < 5 mm: 10 mm and more from
+    the corners) the speed within [slow, 1] of F (the plan's cap is 0.995
+    F; a sample's chord over T passes it by up to 5e-6 of it, the spline's
+    |x_t| a hair above 1 between faired knots):
+    measured 0.802-0.995 at 1e5 (unfaired 0.365-0.792), 0.575-0.787 at
+    1e4 (unfaired 0.133-0.375; there the window of 8 periods is 0.6 mm, less
+    of the ripple is faired)."""
+    prog = coarse_circle(tmp_path / "circle.ngc")
+    machine = ["--accel", "1000", "--vmax", "200", "--eps", "0.01", "--period", "0.001"]
+    base = [str(BUILD / "mlip-sim"), "-q", "--strategy", "smooth", *machine]
+    no_j = json.loads(subprocess.run(base + ["--summary", "-", str(prog)], capture_output=True,
+                                     text=True, check=True).stdout)["total_time_s"]
+    trace = tmp_path / "path.csv"
+    p = subprocess.run(base + ["--jerk", str(jerk), "--jerk-plan", "path", "--trace", str(trace),
+                               "--summary", "-", str(prog)],
+                       capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    s = json.loads(p.stdout)
+    assert_jerk_physics(s)
+    assert s["max_contour_error_mm"] <= 0.01 * (1 + 1e-9)
+    assert no_j <= s["total_time_s"] <= bound, (no_j, s["total_time_s"])
+    rows = [[float(x) for x in ln.split(",")] for ln in trace.read_text().splitlines()[1:]]
+    cap = 100.0
+    v = [math.dist(a[1:3], b[1:3]) / 0.001 for a, b in zip(rows, rows[1:], strict=False)
+         if max(a[2], b[2]) < -1.0 and max(a[1], b[1]) < 5.0 and a[3] == b[3] == 0.0]
+    assert len(v) > 100
+    assert slow * cap <= min(v) and max(v) <= cap * (1 + 1e-9), (min(v), max(v))

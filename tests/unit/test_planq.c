@@ -37,8 +37,23 @@
  * most, stays this close to the curve (its own error is ~h^4 |x''''|) */
 #define PATH_TOL 1e-4
 
+/* The lag's test (test_lag_independent) runs a long gentle curve at
+ * FAST_V instead: x = u, y = FAST_Y sin(u / FAST_L), z = 0 (mm), where the
+ * window's look-ahead is near a stop's length (from 995 mm/s at 900 mm/s^2,
+ * 550 mm; the window 1,024 points 1 mm apart) */
+#define FAST_V 1000.0
+#define FAST_Y 50.0
+#define FAST_L 500.0
+static int fast; /* the lag test's curve and speed */
+
 static void curve_at(double u, double *x)
 {
+	if (fast) {
+		x[0] = u;
+		x[1] = FAST_Y * sin(u / FAST_L);
+		x[2] = 0.0;
+		return;
+	}
 	x[0] = R * cos(u);
 	x[1] = R * sin(2.0 * u) / 2.0;
 	x[2] = H * u;
@@ -46,6 +61,10 @@ static void curve_at(double u, double *x)
 
 static double curve_speed(double u) /* |dx/du| */
 {
+	if (fast) {
+		double b = FAST_Y / FAST_L * cos(u / FAST_L);
+		return sqrt(1.0 + b * b);
+	}
 	double a = R * sin(u), b = R * cos(2.0 * u);
 	return sqrt(a * a + b * b + H * H);
 }
@@ -58,7 +77,7 @@ static void limits(struct mlip_path_limits *lim)
 		lim->accel[k] = 0.98 * ACC;
 		lim->jerk[k] = 0.95 * JERK;
 	}
-	lim->vmax = 0.995 * V;
+	lim->vmax = 0.995 * (fast ? FAST_V : V);
 	lim->a_brake[0] = 900.0;
 	lim->a_brake[1] = 300.0;
 	lim->n_brake = 2;
@@ -108,7 +127,7 @@ static int unit(struct feed *f)
 			return 4;
 		}
 		f->t += T;
-		double v = fmin(V, ACC * f->t);
+		double v = fmin(fast ? FAST_V : V, ACC * f->t);
 		f->u = fmin(f->u_end, f->u + v * T / curve_speed(f->u));
 		curve_at(f->u, f->in);
 		memcpy(f->last, f->in, sizeof(f->in));
@@ -464,24 +483,48 @@ static void test_thread(void **state)
 
 /* Deterministic: the consumer's setpoints, when the queue never runs dry
  * and nothing holds, are the plan's own (mlip_pathrun_step alone, as
- * mlip-sim --jerk-plan path runs it) bit for bit, whether the consumer
- * follows the producer closely or a whole queue behind: what the
- * compaction of the window keeps must not depend on the consumer. */
+ * mlip-sim --jerk-plan path runs it, tools/lib/simpath.c) bit for bit,
+ * whether the consumer follows the producer closely, a whole queue behind,
+ * at a lag that wanders, or pops in bursts: what the compaction of the
+ * window keeps is the plan's own (its state MLIP_PATHRUN_LAG periods
+ * back), never the consumer's. On the fast curve the window's look-ahead
+ * binds the plan (a compaction from the consumer's knot, as before,
+ * changed its setpoints with the lag). */
 #define LAG_MAX 20000
 static double lag_ref[LAG_MAX][3], lag_got[LAG_MAX][3];
 
-static long lag_run(int lag, double (*out)[3])
+enum { LAG_FIXED, LAG_WANDER, LAG_BURST };
+
+/* The queue's fill the producer keeps before the consumer's period k. */
+static int lag_fill(int how, int lag, long k, int ahead)
+{
+	static int want;
+	if (how == LAG_FIXED) {
+		return lag < 1 ? 1 : lag;
+	}
+	if (how == LAG_WANDER) {
+		if (k == 0 || uni(0.0, 1.0) < 1.0 / 32.0) {
+			want = (int)uni(1.0, MLIP_PLANQ_LEN + 0.999);
+		}
+		return want;
+	}
+	/* bursts: the producer fills the whole queue, then nothing while the
+	 * consumer pops lag entries (it never runs dry: lag < LEN) */
+	return ahead <= MLIP_PLANQ_LEN - lag ? MLIP_PLANQ_LEN : 0;
+}
+
+static long lag_run(int how, int lag, double (*out)[3])
 {
 	struct feed f;
-	feed_init(&f, 16.0);
+	feed_init(&f, 3000.0);
 	long n = 0;
 	int mode = MLIP_PLANQ_WAIT;
 	while (mode != MLIP_PLANQ_DONE && n < LAG_MAX && !f.fail) {
-		/* fill the queue to `lag` entries ahead of the consumer (the last
-		 * may come sooner) */
+		uint32_t ahead = __atomic_load_n(&q.head, __ATOMIC_ACQUIRE) - q.tail;
+		int want = lag_fill(how, lag, n, (int)ahead);
 		for (long i = 0; i < 1000000 && !f.fail; i++) {
-			uint32_t ahead = __atomic_load_n(&q.head, __ATOMIC_ACQUIRE) - q.tail;
-			if ((int)ahead >= lag || q.p_done) {
+			ahead = __atomic_load_n(&q.head, __ATOMIC_ACQUIRE) - q.tail;
+			if ((int)ahead >= want || q.p_done) {
 				break;
 			}
 			int r = unit(&f);
@@ -495,6 +538,7 @@ static long lag_run(int lag, double (*out)[3])
 	}
 	assert_int_equal(f.fail, 0);
 	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_int_equal(q.c.left, 0); /* it followed the chain: the bound held */
 	return n;
 }
 
@@ -502,7 +546,8 @@ static void test_lag_independent(void **state)
 {
 	(void)state;
 	struct feed f;
-	feed_init(&f, 16.0);
+	fast = 1;
+	feed_init(&f, 3000.0);
 	long n = 0;
 	for (long i = 0; n < LAG_MAX && !f.fail; i++) {
 		/* the reference: input until the window is full, then a period */
@@ -527,21 +572,41 @@ static void test_lag_independent(void **state)
 		}
 	}
 	assert_int_equal(f.fail, 0);
-	static const int lags[] = {1, 4, 16, 64, MLIP_PLANQ_LEN};
-	for (size_t li = 0; li < sizeof(lags) / sizeof(lags[0]); li++) {
-		int lag = lags[li];
-		long m = lag_run(lag, lag_got);
+	/* the window bound it: the plan compacted and its speed stayed below
+	 * the cap on the straight (a stop from the cap takes more than the
+	 * window's look-ahead less the lag's) */
+	double vmax = 0.0;
+	for (long k = 1; k < n; k++) {
+		double dx = lag_ref[k][0] - lag_ref[k - 1][0],
+		       dy = lag_ref[k][1] - lag_ref[k - 1][1];
+		vmax = fmax(vmax, sqrt(dx * dx + dy * dy) / T);
+	}
+	assert_true(pr.dropped >= 4 * MLIP_PATHRUN_CAP / 4);
+	assert_true(vmax > 0.3 * FAST_V && vmax < 0.99 * 0.995 * FAST_V);
+	static const struct {
+		int how, lag;
+	} runs[] = {{LAG_FIXED, 0},   {LAG_FIXED, 4},   {LAG_FIXED, 100},
+	            {LAG_FIXED, 255}, {LAG_FIXED, 256}, {LAG_WANDER, 0},
+	            {LAG_BURST, 50},  {LAG_BURST, 200}, {LAG_BURST, 255}};
+	for (size_t li = 0; li < sizeof(runs) / sizeof(runs[0]); li++) {
+		long m = lag_run(runs[li].how, runs[li].lag, lag_got);
 		long first = -1;
 		for (long k = 0; k < (m < n ? m : n) && first < 0; k++) {
 			if (memcmp(lag_ref[k], lag_got[k], sizeof(lag_ref[k])) != 0) {
 				first = k;
 			}
 		}
-		print_message("lag %d: %ld periods (alone %ld), first differing %ld\n", lag, m, n,
-		              first);
+		print_message("lag %d (%s): %ld periods (alone %ld, top speed %.1f mm/s), first "
+		              "differing %ld\n",
+		              runs[li].lag,
+		              runs[li].how == LAG_FIXED    ? "fixed"
+		              : runs[li].how == LAG_WANDER ? "wandering"
+		                                           : "bursts",
+		              m, n, vmax, first);
 		assert_int_equal(m, n);
 		assert_int_equal(first, -1);
 	}
+	fast = 0;
 }
 
 int main(void)

@@ -105,7 +105,8 @@ static int ctl_period(struct mlip_planfeed *pf)
 	}
 	if (start != NULL) {
 		memcpy(pf->start, start, sizeof(double) * (size_t)pf->cm.n_axes);
-		if (mlip_pathrun_init(pf->pr, &pf->lim, pf->band_mm, RUN_PERIODS, start) != 0) {
+		if (mlip_pathrun_init(pf->pr, &pf->lim, pf->band_mm, RUN_PERIODS, start) != 0 ||
+		    mlip_simpath_fair(pf->pr) != 0) {
 			return refuse(pf, "the plan's limits are not positive");
 		}
 		mlip_planq_init(pf->q, pf->pr);

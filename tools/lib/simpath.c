@@ -5,6 +5,24 @@
 
 #include "mlip/ctl/state.h"
 
+/* The plan's band (of eps): what the spline and its fairing may add to the
+ * controller's contour, which runs at eps less it. 0.2: at 0.1 the fairing
+ * and (P6) shared 1 um and the plan refused MB-2.3, the pocket and
+ * SheepTile ((P6) at a sharp corner). */
+#define BAND_SHARE 0.2
+/* The fairing (pathrun.h, F1 F2): +-3 mm at most, 8 input periods either
+ * side, each knot moved at most 0.6 of the band (the rest is (P6)'s).
+ * Measured on the first 4,000 lines of the shared CAM files (docs/benchmarks.md):
+ * 8 periods beat 6, 10, 12, 15 and 0.6 beat 0.4 */
+#define FAIR_H_MM  3.0
+#define FAIR_K     8
+#define FAIR_SHARE 0.6
+
+int mlip_simpath_fair(struct mlip_pathrun *pr)
+{
+	return mlip_pathrun_fair(pr, FAIR_H_MM, FAIR_K, FAIR_SHARE * pr->band_mm);
+}
+
 int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_path_limits *lim,
                         double *band_mm, const char **why)
 {
@@ -31,7 +49,7 @@ int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_p
 	lim->a_brake[1] = 300.0;
 	lim->n_brake = 2;
 	lim->period = m->period_s;
-	*band_mm = 0.1 * m->tolerance_mm;
+	*band_mm = BAND_SHARE * m->tolerance_mm;
 	return 0;
 }
 
@@ -41,7 +59,7 @@ void mlip_simpath_machine(const struct mlip_machine *m, struct mlip_machine *cm)
 	for (int k = 0; k < m->n_axes; k++) {
 		cm->axis[k].max_jerk = 0.0;
 	}
-	cm->tolerance_mm -= 0.1 * m->tolerance_mm; /* mlip_simpath_limits' band */
+	cm->tolerance_mm -= BAND_SHARE * m->tolerance_mm; /* mlip_simpath_limits' band */
 }
 
 int mlip_simpath_prescan(struct mlip_program *p, double fixed, double *feed, const char *prog,
@@ -73,14 +91,18 @@ int mlip_simpath_prescan(struct mlip_program *p, double fixed, double *feed, con
 #define SIM_RUN_PERIODS 3000
 
 int mlip_simpath_begin(struct mlip_simpath *sp, const struct mlip_path_limits *lim, double band_mm,
-                       struct mlip_trace *trace, struct mlip_check *chk, const double *start)
+                       int fair, struct mlip_trace *trace, struct mlip_check *chk,
+                       const double *start)
 {
 	sp->trace = trace;
 	sp->chk = chk;
 	sp->k = 0;
 	sp->started = 1;
 	sp->done = 0;
-	return mlip_pathrun_init(&sp->run, lim, band_mm, SIM_RUN_PERIODS, start);
+	if (mlip_pathrun_init(&sp->run, lim, band_mm, SIM_RUN_PERIODS, start) != 0) {
+		return -1;
+	}
+	return fair ? mlip_simpath_fair(&sp->run) : 0;
 }
 
 static void emit(struct mlip_simpath *sp, const double *x, int last)

@@ -26,14 +26,21 @@ struct mlip_simpath {
 /* The plan's margins on machine m (which has J): 0.98 A, 0.95 J, 0.995 of
  * the path speed cap min(vmax, feed (> 0), each axis's max_vel), the
  * policies 900 and 300 mm/s^2 (bench/pathspeed.py --c's);
- * the band 0.1 eps. -1 when an axis has no jerk limit (the plan needs J
- * on every axis), with the reason in *why. */
+ * the band 0.2 eps (the spline's (P6) and its fairing's moves). -1 when an axis has no jerk limit
+ * (the plan needs J on every axis), with the reason in *why. */
 int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_path_limits *lim,
                         double *band_mm, const char **why);
 
-/* The plan's controller's machine: m without J, eps less the band (0.1
+/* The plan's controller's machine: m without J, eps less the band (0.2
  * eps), on which `smooth` runs (mlip-sim, the planning thread, a feeder). */
 void mlip_simpath_machine(const struct mlip_machine *m, struct mlip_machine *cm);
+
+/* path-mean's band (of eps): the spline's (P6) alone */
+#define MLIP_SIMPATH_MEAN_BAND 0.1
+
+/* The plan's fairing of its input (mlip_pathrun_fair's F1 F2), on pr
+ * just initialised with the band of mlip_simpath_limits: 0, or -1. */
+int mlip_simpath_fair(struct mlip_pathrun *pr);
 
 /* Before anything moves: every block of prog is one the plan can run
  * (mlip_pathrun_refusal); prog is rewound after. fixed > 0 (mlip-sim
@@ -44,10 +51,12 @@ void mlip_simpath_machine(const struct mlip_machine *m, struct mlip_machine *cm)
 int mlip_simpath_prescan(struct mlip_program *p, double fixed, double *feed, const char *prog,
                          const char *file, const char *how, FILE *err);
 
-/* Begin: trace and chk opened by the caller (the trace's start: `start`).
- * -1 on bad limits. */
+/* Begin: trace and chk opened by the caller (the trace's start: `start`);
+ * fair: the input faired (mlip_simpath_fair: path; path-mean's mean is not,
+ * with the band MLIP_SIMPATH_MEAN_BAND eps). -1 on bad limits. */
 int mlip_simpath_begin(struct mlip_simpath *sp, const struct mlip_path_limits *lim, double band_mm,
-                       struct mlip_trace *trace, struct mlip_check *chk, const double *start);
+                       int fair, struct mlip_trace *trace, struct mlip_check *chk,
+                       const double *start);
 
 /* The controller's next setpoint (no J): periods planned as the window
  * fills, each written to the trace and the check. 0, or -1 (a message on

@@ -31,7 +31,8 @@
  * reversal; the mean must take such a stretch: the hand-over is not yet
  * in the product).
  *
- * Memory: one struct, MLIP_PATHRUN_CAP points (232 KiB at 6 axes),
+ * Memory: one struct, MLIP_PATHRUN_CAP points and the fairing's
+ * MLIP_PATHRUN_FAIR_CAP (260 KiB at 6 axes),
  * whatever the program's length. No allocation, no I/O. A period's work is
  * bounded by the plan's max_periods (pathplan.h); it is not for the 1 ms
  * thread itself (mlip-rt runs it in its planning thread, tools/rtplan.c).
@@ -51,6 +52,18 @@
  * skipped (a setpoint at rest repeats; a piece of 1e-9 mm would make
  * x'' of the positions' rounding) */
 #define MLIP_PATHRUN_MIN_STEP 1e-6
+/* Input points the fairing (mlip_pathrun_fair) holds: its window of
+ * +-h mm is cut to what they span where the input is dense (a slow
+ * stretch: a corner, a start), so the memory stays fixed */
+#define MLIP_PATHRUN_FAIR_CAP 256
+/* The compaction keeps the pieces of the plan's state MLIP_PATHRUN_LAG
+ * periods back (the largest piece up to it) less MLIP_PATHRUN_BEHIND knots:
+ * a planned queue's consumer is at most its length plus one periods behind
+ * its producer and reads that far back (planq.h), and the rule, the plan's
+ * own, runs the same in mlip-sim: the window at each period, so the plan,
+ * does not depend on the consumer's timing */
+#define MLIP_PATHRUN_LAG      264
+#define MLIP_PATHRUN_BEHIND   8
 
 /* The caller's mark of an input point, carried with it as a knot and
  * never read by the plan: a planned queue's records (mlip/motion/planq.h),
@@ -73,17 +86,36 @@ struct mlip_pathrun {
 	double m[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
 	double b[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
 	double t3[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
-	double c[MLIP_PATHRUN_CAP];                    /* the fit's scratch */
-	double last_in[MLIP_MAX_AXES];                 /* the last input point (maybe skipped) */
+	double c[MLIP_PATHRUN_CAP];    /* the fit's scratch */
+	double dev[MLIP_PATHRUN_CAP];  /* each knot's move from its input point (F2) */
+	double last_in[MLIP_MAX_AXES]; /* the last input point (maybe skipped) */
 	struct mlip_pathrun_tag tag[MLIP_PATHRUN_CAP]; /* each point's */
 	struct mlip_pathrun_tag tag_in;                /* the caller's: the next input's */
 	struct mlip_pathrun_tag last_tag;              /* last_in's */
 	struct mlip_path_state st;
-	/* compaction keeps the pieces from min(st.s, keep_s) on (INFINITY
-	 * from init: st.s alone); a planned queue's producer holds it at
-	 * its consumer's oldest knot, whence it may restart the plan */
+	/* compaction keeps the pieces from min(st.s, keep_s) on and from the
+	 * lag's knot (lag_piece: the largest piece after each of the last
+	 * MLIP_PATHRUN_LAG periods, lag_n periods so far). keep_s: INFINITY
+	 * from init; a planned queue's producer holds it at its consumer's
+	 * oldest knot (a safety bound: the lag's is never above it while the
+	 * consumer follows the plan, planq.c) */
 	double keep_s;
+	long lag_piece[MLIP_PATHRUN_LAG];
+	long lag_n, lag_max;
 	long rested; /* periods at rest in a row */
+	/* the fairing (mlip_pathrun_fair; fair_h 0: off, the knots are the
+	 * input): a ring of input points, numbered fr_lo..fr_hi-1 from the
+	 * start, fr_s their chord length, fr_c the next knot's input point;
+	 * ended: no more input (finished once every knot is in the spline);
+	 * max_dev_mm: the largest knot's move (F2) */
+	double fair_h, fair_mm;
+	long fair_k;
+	double fr_s[MLIP_PATHRUN_FAIR_CAP];
+	double fr_p[MLIP_PATHRUN_FAIR_CAP][MLIP_MAX_AXES];
+	struct mlip_pathrun_tag fr_tag[MLIP_PATHRUN_FAIR_CAP]; /* each input point's mark */
+	long fr_lo, fr_hi, fr_c;
+	int ended;
+	double max_dev_mm;
 	/* figures */
 	long periods, work, dropped;
 	int peak_count;
@@ -100,6 +132,37 @@ struct mlip_pathrun {
  * start not finite. */
 int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *lim, double band_mm,
                       int max_periods, const double *start);
+
+/* Fair the input before the spline. A spline through points that ripple
+ * at the program's chord length has an x'' and x''' that ripple with them,
+ * and (P2)'s x''' v^3 then caps the speed far below the curve's own: a
+ * circle r 10 mm cut into 2 degree chords, smooth's setpoints within 0.4 um
+ * of a circle, the interpolating spline's curvature 0.069-0.129 /mm
+ * (0.1 true), the plan at 40-70 mm/s where 100 is allowed. Each knot is
+ * instead
+ *
+ *   (F1) the value at the input point c of the quadratic in s (chord
+ *        length) fitted per axis by least squares to the input points
+ *        within +-hc of it, weights (1 - u^2)^3 (u = (s - s_c) / hc) times
+ *        each point's share of the arc, hc = min(h_mm, the k-th input
+ *        point's distance either side, what the window holds either side);
+ *   (F2) moved from the input point by the fit's move d cut smoothly:
+ *        |d| / (1 + (|d| / fair_mm)^4)^(1/4) < fair_mm.
+ *
+ * The fit reproduces a quadratic (no pull to the centre of curvature) and
+ * the window is symmetric (a line stays a line). k input points (one a
+ * period) bound it where the motion is slow, at a corner, so it does not
+ * reach across the corner. Each knot's move is kept (dev) and (P6) allows
+ * a piece band_mm less the larger move of its two knots: the chord
+ * between two knots is within that move of the chord between their input
+ * points, so the spline stays within band_mm of the input's polyline. The
+ * first and last knots are the input's first and last points.
+ *
+ * After init, before the first push; without the call the knots are the
+ * input points. -1 when h_mm < 0, k < 0 or fair_mm not in (0, band_mm).
+ * Memory: MLIP_PATHRUN_FAIR_CAP input points; work per knot: the points
+ * in its window (at most that), times the axes. */
+int mlip_pathrun_fair(struct mlip_pathrun *pr, double h_mm, int k, double fair_mm);
 
 /* The next input setpoint: 0 taken, 1 the window is full (step first, then
  * push it again), -1 refused (pr->why). */
@@ -124,6 +187,10 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x);
  * taken; else why (a phrase for "LINE: ..."). *feed: 0 before the first
  * move, then the program's one feed (mm/s). */
 const char *mlip_pathrun_refusal(const struct mlip_block *b, double *feed);
+
+/* The first knot (global) the compaction keeps by the lag's rule: 0 until
+ * MLIP_PATHRUN_LAG periods are planned. */
+long mlip_pathrun_lag_knot(const struct mlip_pathrun *pr);
 
 /* The fixed pieces as the plan reads them (count = fixed + 1 knots). */
 void mlip_pathrun_curve(const struct mlip_pathrun *pr, struct mlip_path_curve *cv);

@@ -77,8 +77,13 @@
  * planned period) with room. */
 #define MLIP_PLANQ_LEAD   16
 /* Knots kept behind the consumer's piece: a step whose speed crosses 0
- * reads pieces behind its start (pathplan.c range_at). */
-#define MLIP_PLANQ_BEHIND 8
+ * reads pieces behind its start (pathplan.c range_at). The pathrun's
+ * compaction keeps as many behind its state MLIP_PATHRUN_LAG periods back,
+ * at least this queue's length plus one (the consumer's largest lag: its
+ * state is the entry before its tail, and the producer queues only within
+ * MLIP_PLANQ_LEN of the tail). */
+#define MLIP_PLANQ_BEHIND MLIP_PATHRUN_BEHIND
+_Static_assert(MLIP_PATHRUN_LAG >= MLIP_PLANQ_LEN + 1, "the pathrun keeps the consumer's knots");
 
 struct mlip_planq_entry {
 	struct mlip_path_state st; /* at the period's end: certified (st.brake) */
@@ -118,7 +123,12 @@ struct mlip_planq {
 	/* consumer's line */
 	uint32_t tail __attribute__((aligned(64)));
 	uint64_t freed; /* knots below this are no longer read by the consumer */
-	uint64_t pidx;  /* its period's index (atomic, a hint for a switch) */
+	/* atomic: set (before the tail passes an entry it did not pop) once
+	 * the consumer has left its plan's chain (a braking step, a request):
+	 * from then on the plan is mlip-rt's own and the producer's
+	 * compaction may be held by `freed` (else that is a defect) */
+	uint32_t left;
+	uint64_t pidx; /* its period's index (atomic, a hint for a switch) */
 	/* the request: the consumer writes the fields, then want_gen with
 	 * release; the producer reads them after want_gen (acquire), then
 	 * stores ack (release): the consumer writes a new request only once
@@ -157,6 +167,7 @@ struct mlip_planq {
 		 * knot's); each never goes back (0: none yet) */
 		struct mlip_pathrun_tag mark;
 		long starved, brakes, periods; /* figures */
+		int left;                      /* its copy of `left` */
 	} c __attribute__((aligned(64)));
 	struct mlip_planq_entry e[MLIP_PLANQ_LEN];
 	/* the program's first record (the producer's, before its first
