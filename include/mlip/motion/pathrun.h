@@ -32,7 +32,7 @@
  * in the product).
  *
  * Memory: one struct, MLIP_PATHRUN_CAP points and the fairing's
- * MLIP_PATHRUN_FAIR_CAP (260 KiB at 6 axes),
+ * MLIP_PATHRUN_FAIR_CAP (262 KiB at 6 axes),
  * whatever the program's length. No allocation, no I/O. A period's work is
  * bounded by the plan's max_periods (pathplan.h); it is not for the 1 ms
  * thread itself (mlip-rt runs it in its planning thread, tools/rtplan.c).
