@@ -300,7 +300,16 @@ static int fair_drain(struct mlip_pathrun *pr)
 {
 	while (pr->fr_c < pr->fr_hi) {
 		long c = pr->fr_c;
-		double hc = fair_width(pr, c, pr->fr_hi - pr->fr_lo == MLIP_PATHRUN_FAIR_CAP);
+		/* a full ring forces the knot only when its input is dense
+		 * ahead (fair_push's case); with half of it or more behind the
+		 * knot waits and the next push drops the oldest point: forced
+		 * there, a knot with no point ahead got no window (hc 0), and
+		 * so did every later one (the ring stayed full, one point in
+		 * and one out): after 256 points within fair_h (a stretch at
+		 * 10 mm/s) the fairing was off for the rest of the program */
+		int forced = pr->fr_hi - pr->fr_lo == MLIP_PATHRUN_FAIR_CAP &&
+		             c - pr->fr_lo < MLIP_PATHRUN_FAIR_CAP / 2;
+		double hc = fair_width(pr, c, forced);
 		if (hc < 0.0) {
 			return 0; /* its window is not yet in */
 		}

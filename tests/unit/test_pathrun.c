@@ -304,15 +304,20 @@ static void test_rest_skipped(void **state)
  * with the chords. Point i in x; its count. */
 #define CR    10.0
 #define CSTEP 0.1
-static int polygon_at(int i, double *x)
+static void polygon_s(double s, double *x)
 {
-	double ch = 2.0 * CR * sin(M_PI / 180.0), s = CSTEP * i;
+	double ch = 2.0 * CR * sin(M_PI / 180.0);
 	int c = (int)(s / ch);
 	double u = s / ch - c, a0 = c * M_PI / 90.0, a1 = (c + 1) * M_PI / 90.0;
 	x[0] = CR * ((1.0 - u) * cos(a0) + u * cos(a1));
 	x[1] = CR * ((1.0 - u) * sin(a0) + u * sin(a1));
 	x[2] = 0.0;
-	return (int)(135.0 * ch / CSTEP); /* 3/4 of the 180 chords */
+}
+
+static int polygon_at(int i, double *x)
+{
+	polygon_s(CSTEP * i, x);
+	return (int)(135.0 * 2.0 * CR * sin(M_PI / 180.0) / CSTEP); /* 3/4 of the 180 chords */
 }
 
 /* The largest |curvature - 1/CR| at the knots between 60 and 200 degrees
@@ -369,6 +374,31 @@ static void test_fair_polygon(void **state)
 	assert_true(got[1] > 0.0 && got[1] < 0.06);
 }
 
+/* The polygon after a slow stretch (300 points 5 um apart: more than the
+ * fairing's ring of 256 within its 3 mm), then at 0.1 mm a period: the
+ * knots far past it are faired as on the polygon alone (ripple below
+ * 0.06 /mm; a full ring of points behind once forced every later knot
+ * with an empty window, the input itself: 0.49). */
+static void test_fair_after_a_slow_stretch(void **state)
+{
+	(void)state;
+	struct mlip_path_limits lim;
+	limits(&lim);
+	double x[3], s = 0.0, band = 2e-3;
+	int n = polygon_at(0, x);
+	assert_int_equal(mlip_pathrun_init(&pr, &lim, band, 3000, x), 0);
+	assert_int_equal(mlip_pathrun_fair(&pr, 3.0, 8, 0.6 * band), 0);
+	for (int i = 1; s < n * CSTEP; i++) {
+		s += i <= 300 ? 0.005 : CSTEP;
+		polygon_s(s, x);
+		assert_int_equal(mlip_pathrun_push(&pr, x), 0);
+	}
+	assert_int_equal(mlip_pathrun_finish(&pr), 0);
+	double r = ripple(&pr);
+	print_message("ripple after a slow stretch: %.3f /mm\n", r);
+	assert_true(r > 0.0 && r < 0.06);
+}
+
 /* A line sampled unevenly stays the line (the window is symmetric: the
  * fit of a linear input is itself), its knots' moves at the rounding. */
 static void test_fair_line(void **state)
@@ -398,9 +428,13 @@ static void test_fair_line(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_stream_helix),     cmocka_unit_test(test_joins),
-	    cmocka_unit_test(test_reversal_refused), cmocka_unit_test(test_rest_skipped),
-	    cmocka_unit_test(test_fair_polygon),     cmocka_unit_test(test_fair_line),
+	    cmocka_unit_test(test_stream_helix),
+	    cmocka_unit_test(test_joins),
+	    cmocka_unit_test(test_reversal_refused),
+	    cmocka_unit_test(test_rest_skipped),
+	    cmocka_unit_test(test_fair_polygon),
+	    cmocka_unit_test(test_fair_line),
+	    cmocka_unit_test(test_fair_after_a_slow_stretch),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
