@@ -61,12 +61,13 @@ static void usage(FILE *f)
 	    "                        (default), the moving mean of the setpoints; path,\n"
 	    "                        smooth's setpoints without it re-timed along a spline\n"
 	    "                        by the path-speed plan (mlip/motion/pathrun.h;\n"
-	    "                        --strategy smooth, no override; refused before\n"
+	    "                        --strategy smooth, no override; each block at its\n"
+	    "                        own F, a G0 at the machine's; refused before\n"
 	    "                        anything moves: events at rest (G4, M0, M1, M3..M9,\n"
-	    "                        M62..M65, G38), G61, and without --feed a G0 or a\n"
-	    "                        second F); path-mean, the mean's setpoints re-timed\n"
-	    "                        so; auto, whichever of the three ends the program\n"
-	    "                        soonest. Default: [TRAJ] JERK_PLAN (mean or path)\n"
+	    "                        M62..M65, G38) and G61); path-mean, the mean's\n"
+	    "                        setpoints re-timed so; auto, whichever of the three\n"
+	    "                        ends the program soonest. Default: [TRAJ] JERK_PLAN\n"
+	    "                        (mean or path)\n"
 	    "  --vmax MM_S           maximum feed v_m, mm/s (default 200 without --config)\n"
 	    "  --eps MM              contour tolerance (default 0.01 without --config)\n"
 	    "  --period S            interpolation period T (default 0.001)\n"
@@ -114,9 +115,9 @@ struct options {
 	                * (then [TRAJ] JERK_PLAN) */
 };
 
-/* The path plan re-times smooth's path under one speed cap (--feed, else
- * the program's one F); an override or a probe would change the motion it
- * does not see. */
+/* The path plan re-times smooth's path under each block's own feed (or
+ * --feed's); an override or a probe would change the motion it does not
+ * see. */
 static int path_runs(const struct options *o)
 {
 	return o->strategy == MLIP_STRATEGY_SMOOTH && o->override == 100.0 && o->storm_seed < 0 &&
@@ -533,6 +534,11 @@ static int path_period(const struct options *o, struct sim *s, uint32_t state, c
 			return -1;
 		}
 	}
+	if (state == MLIP_STATE_RUNNING && o->jerk_plan == JERK_PATH) {
+		mlip_simpath_tag(&s->path.run.tag_in, &planner); /* as the planning thread */
+	} else if (state == MLIP_STATE_RUNNING) {
+		mlip_simpath_tag_mean(&s->path, &planner);
+	}
 	if (state != MLIP_STATE_RUNNING && state != MLIP_STATE_IDLE) {
 		fprintf(s->err,
 		        PROG ": %s: --jerk-plan path: the program %s at t = %.3f s: the plan "
@@ -890,8 +896,8 @@ static int choose(struct options *o, struct sim *s)
 	}
 	s->auto_rows[JERK_MEAN] = best;
 	o->jerk_plan = JERK_MEAN;
-	/* without --feed the cap is the program's one F: a scout's prescan
-	 * refuses a program that has none */
+	/* each block under its own F (or --feed's): a scout's prescan refuses
+	 * what the plan cannot run */
 	int cand =
 	    path_runs(o) && mlip_simpath_limits(&sc.cfg.machine, o->feed, &lim, &band, &why) == 0;
 	for (int i = 0; i < 2; i++) {

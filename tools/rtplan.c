@@ -51,18 +51,17 @@ static void take(struct mlip_rtplan *t, uint32_t k)
 }
 
 /* A program's first records are queued: its plan from where the controller
- * stands, capped by its one F (the first move's feed; -1: wait for it). */
+ * stands, under the machine's cap and each block's own feed (its knots'
+ * cap, mlip_simpath_tag); it begins at the first move (or the END). */
 static int begin(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t n)
 {
-	double feed = -1.0;
-	for (uint32_t k = 0; k < n && feed < 0.0; k++) {
+	int moves = 0;
+	for (uint32_t k = 0; k < n && !moves; k++) {
 		const struct mlip_ring_rec *r = rec_at(v, k);
-		feed = r->type == MLIP_REC_MOVE  ? r->feed_mm_s
-		       : r->type == MLIP_REC_END ? 0.0
-		                                 : -1.0;
+		moves = r->type == MLIP_REC_MOVE || r->type == MLIP_REC_END;
 	}
 	struct mlip_ring_status st;
-	if (feed < 0.0 || mlip_ring_status_read(t->ring, &st) != MLIP_OK) {
+	if (!moves || mlip_ring_status_read(t->ring, &st) != MLIP_OK) {
 		return -1;
 	}
 	M->cfg = *t->cfg;
@@ -71,7 +70,7 @@ static int begin(struct mlip_rtplan *t, const struct mlip_rec_view *v, uint32_t 
 	}
 	uint32_t la = M->cfg.lookahead ? M->cfg.lookahead : MLIP_LOOKAHEAD; /* as mlip-sim */
 	const char *why = NULL;
-	if (mlip_planfeed_init(&M->pf, &M->cfg, feed, la, &M->ctl, &M->planner, &M->store, &M->run,
+	if (mlip_planfeed_init(&M->pf, &M->cfg, 0.0, la, &M->ctl, &M->planner, &M->store, &M->run,
 	                       &M->queue, &why) != 0) {
 		M->pf.why = why;
 	}

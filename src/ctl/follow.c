@@ -20,7 +20,8 @@
  * (the run certified with the state). The braking run is the queue's, so
  * the plan's limits hold through it; only the quick stop exceeds them.
  * The override scales the plan's cap (mlip_planq_feed), at most to it: the
- * program's F is the plan's cap. No allocation, no I/O, no lock.
+ * machine's and each block's own F (the knots' caps, pathplan.h Q5) scale
+ * with it. No allocation, no I/O, no lock.
  */
 #include "ctl.h"
 

@@ -406,13 +406,45 @@ int mlip_path_brake_step(const struct mlip_path_curve *sp, const struct mlip_pat
 	return 1;
 }
 
-/* Within the speed cap, (P1) (its interval's low end in *alo), a non-empty
- * (P2) interval, before the end. */
-static int inside(const struct mlip_path_limits *lim, const struct at *a, double end, double *alo)
+double mlip_path_piece_cap(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                           int i)
+{
+	double c = lim->vmax, r = lim->vfull > 0.0 ? lim->vmax / lim->vfull : 1.0;
+	if (sp->cap == NULL || sp->count < 2) {
+		return c;
+	}
+	i = i < 0 ? 0 : (i > sp->count - 2 ? sp->count - 2 : i);
+	for (int k = i; k <= i + 1; k++) { /* (Q5): the lower of its two knots' */
+		double f = sp->cap[k] * r;
+		c = sp->cap[k] > 0.0 && f < c ? f : c;
+	}
+	return c;
+}
+
+/* (Q5) the step from (v0 on piece p0) to the state a keeps both ends'
+ * speeds within the cap of every piece it touches. */
+static int capped(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim, double v0,
+                  int p0, const struct at *a)
+{
+	double v = v0 > a->st.v ? v0 : a->st.v;
+	int lo = p0 < a->piece ? p0 : a->piece, hi = p0 < a->piece ? a->piece : p0;
+	for (int i = lo; i <= hi; i++) {
+		if (!(v <= mlip_path_piece_cap(sp, lim, i))) {
+			return 0;
+		}
+	}
+	return 1;
+}
+
+/* Within the speed cap (Q5, at its piece), (P1) (its interval's low end in
+ * *alo), a non-empty (P2) interval, before the end. */
+static int inside(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                  const struct at *a, double end, double *alo)
 {
 	double hi;
 	struct mlip_path_state st = a->st;
-	if (!(st.v >= 0.0 && st.v <= lim->vmax && st.s <= end + 1e-9)) {
+	if (!(st.v >= 0.0 && st.v <= mlip_path_piece_cap(sp, lim, a->piece) &&
+	      st.s <= end + 1e-9)) {
 		return 0;
 	}
 	if (!mlip_path_accel_range(lim->n, &a->d, lim->accel, st.v, alo, &hi) ||
@@ -422,18 +454,23 @@ static int inside(const struct mlip_path_limits *lim, const struct at *a, double
 	return a->ok;
 }
 
+/* (Q4) the run from start; from (may be NULL): the state whose step led
+ * to it, checked as the run's (Q5). */
 static int certified_at(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
-                        const struct at *start, double end, int max_periods, long *work)
+                        const struct at *start, const struct at *from, double end, int max_periods,
+                        long *work)
 {
 	struct at buf[2];
 	const struct at *a = start;
+	double v0 = from ? from->st.v : 0.0; /* the last step's start */
+	int p0 = from ? from->piece : start->piece, caps = sp->cap != NULL;
 	for (int i = 0; i < max_periods; i++) {
 		if (work) {
 			(*work)++;
 		}
 		double alo, j;
 		struct mlip_path_state st = a->st;
-		if (!inside(lim, a, end, &alo)) {
+		if (!inside(sp, lim, a, end, &alo) || (caps && !capped(sp, lim, v0, p0, a))) {
 			return 0;
 		}
 		if (st.v == 0.0 && st.a == 0.0) {
@@ -443,6 +480,8 @@ static int certified_at(const struct mlip_path_curve *sp, const struct mlip_path
 		if (!brake_at(sp, lim, a, alo, &j, next)) {
 			return 0;
 		}
+		v0 = st.v;
+		p0 = a->piece;
 		a = next;
 	}
 	return 0;
@@ -453,7 +492,7 @@ int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path
 {
 	struct at a;
 	at_make(sp, lim, &a, st, 0);
-	return certified_at(sp, lim, &a, end, max_periods, work);
+	return certified_at(sp, lim, &a, NULL, end, max_periods, work);
 }
 
 /* The step of the jerk nearest jt from a (Q2) into *st when some policy
@@ -481,7 +520,7 @@ static int take(const struct mlip_path_curve *sp, const struct mlip_path_limits 
 	nb = nb > MLIP_PATH_BRAKES ? MLIP_PATH_BRAKES : nb;
 	for (int q = 0; q < nb; q++) {
 		nx.st.brake = q == 0 ? own : (q <= own ? q - 1 : q);
-		if (certified_at(sp, lim, &nx, end, max_periods, work)) {
+		if (certified_at(sp, lim, &nx, a, end, max_periods, work)) {
 			nx.st.share = i;
 			*st = nx.st;
 			return 1;

@@ -19,8 +19,8 @@ static double chord(int n, const double *a, const double *b)
 void mlip_pathrun_curve(const struct mlip_pathrun *pr, struct mlip_path_curve *cv)
 {
 	typedef const double(*row)[MLIP_MAX_AXES];
-	*cv = (struct mlip_path_curve){pr->lim.n,  pr->fixed + 1, pr->s,      (row)pr->p,
-	                               (row)pr->m, (row)pr->b,    (row)pr->t3};
+	*cv = (struct mlip_path_curve){pr->lim.n,  pr->fixed + 1, pr->s,       (row)pr->p,
+	                               (row)pr->m, (row)pr->b,    (row)pr->t3, pr->cap};
 }
 
 int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *lim, double band_mm,
@@ -38,6 +38,9 @@ int mlip_pathrun_init(struct mlip_pathrun *pr, const struct mlip_path_limits *li
 	}
 	memset(pr, 0, sizeof(*pr));
 	pr->lim = *lim;
+	if (!(pr->lim.vfull > 0.0)) {
+		pr->lim.vfull = lim->vmax; /* (Q5) a later cap (planq.h) scales the knots' */
+	}
 	pr->band_mm = band_mm;
 	pr->max_periods = max_periods;
 	memcpy(pr->p[0], start, sizeof(double) * (size_t)n);
@@ -150,6 +153,7 @@ static int compact(struct mlip_pathrun *pr)
 	memmove(pr->t3, pr->t3 + i, row * (size_t)keep);
 	memmove(pr->tag, pr->tag + i, sizeof(pr->tag[0]) * (size_t)keep);
 	memmove(pr->dev, pr->dev + i, sizeof(double) * (size_t)keep);
+	memmove(pr->cap, pr->cap + i, sizeof(double) * (size_t)keep);
 	pr->count = keep;
 	pr->fixed -= i;
 	pr->hint = 0;
@@ -175,6 +179,7 @@ static int append(struct mlip_pathrun *pr, const double *pos, double dev,
 	memcpy(pr->p[i], pos, sizeof(double) * (size_t)n);
 	pr->s[i] = pr->s[i - 1] + h;
 	pr->tag[i] = *tag;
+	pr->cap[i] = tag->cap;
 	pr->dev[i] = dev;
 	pr->max_dev_mm = fmax(pr->max_dev_mm, dev);
 	pr->peak_count = pr->count > pr->peak_count ? pr->count : pr->peak_count;
@@ -425,6 +430,7 @@ int mlip_pathrun_finish(struct mlip_pathrun *pr)
 				memcpy(pr->p[last], pr->last_in, sizeof(double) * (size_t)n);
 				pr->s[last] = pr->s[last - 1] + h;
 				pr->tag[last] = pr->last_tag;
+				pr->cap[last] = pr->last_tag.cap;
 				pr->dev[last] = 0.0;
 			}
 		} else if (pr->count < MLIP_PATHRUN_CAP || compact(pr)) {
@@ -432,6 +438,7 @@ int mlip_pathrun_finish(struct mlip_pathrun *pr)
 			memcpy(pr->p[last], pr->last_in, sizeof(double) * (size_t)n);
 			pr->s[last] = pr->s[last - 1] + chord(n, pr->p[last - 1], pr->last_in);
 			pr->tag[last] = pr->last_tag;
+			pr->cap[last] = pr->last_tag.cap;
 			pr->dev[last] = 0.0;
 		}
 	}
@@ -495,7 +502,7 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x)
 	return 1;
 }
 
-const char *mlip_pathrun_refusal(const struct mlip_block *b, double *feed)
+const char *mlip_pathrun_refusal(const struct mlip_block *b)
 {
 	static const char *const at_rest[] = {
 	    [MLIP_BLOCK_DWELL] = "a dwell (G4)",
@@ -515,16 +522,5 @@ const char *mlip_pathrun_refusal(const struct mlip_block *b, double *feed)
 	if (b->exact_stop) {
 		return "an exact stop (G61)";
 	}
-	if (feed == NULL) {
-		return NULL; /* the caller runs every move at its own feed */
-	}
-	if (b->rapid) {
-		return "a rapid (G0 runs at the machine's maximum feed; the plan runs one feed)";
-	}
-	if (*feed == 0.0) {
-		*feed = b->feed_mm_s;
-	} else if (b->feed_mm_s != *feed) {
-		return "a second feed (the plan runs the program's first F under one speed cap)";
-	}
-	return NULL;
+	return NULL; /* a feed or a rapid: its block's cap (Q5) */
 }

@@ -5,6 +5,7 @@
 #include "mlip/motion/pathspeed.h"
 
 #include <math.h>
+#include <stddef.h>
 
 /* The x with |p x + c| <= lim for every axis (p, c per axis): an
  * intersection of one interval per axis. 0 when empty. */
@@ -201,13 +202,13 @@ int mlip_path_fit(int n, const double pts[][MLIP_MAX_AXES], int count, double *s
 		}
 	}
 	typedef const double(*row)[MLIP_MAX_AXES];
-	*cv = (struct mlip_path_curve){n, count, s, (row)p, (row)m, (row)b, (row)t3};
+	*cv = (struct mlip_path_curve){n, count, s, (row)p, (row)m, (row)b, (row)t3, NULL};
 	return 0;
 }
 
 void mlip_path_spline_curve(const struct mlip_path_spline *sp, struct mlip_path_curve *cv)
 {
-	*cv = (struct mlip_path_curve){sp->n, sp->count, sp->s, sp->p, sp->m, sp->b, sp->t3};
+	*cv = (struct mlip_path_curve){sp->n, sp->count, sp->s, sp->p, sp->m, sp->b, sp->t3, NULL};
 }
 
 int mlip_path_spline_fit(struct mlip_path_spline *sp, int n, const double pts[][MLIP_MAX_AXES],

@@ -680,6 +680,20 @@ void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_
 	*line = p->head != p->tail ? s->line : 0;
 }
 
+double mlip_planner_cap(const struct mlip_planner *p)
+{
+	if (p->head == p->tail) {
+		return 0.0;
+	}
+	const struct mlip_seg *s = cseg_at(p, p->tail);
+	double v = mlip_dmin(s->vhard_mm_s, s->vfeed_mm_s);
+	if (p->in_corner && p->tail + 1u != p->head) {
+		s = cseg_at(p, p->tail + 1u);
+		v = mlip_dmin(v, mlip_dmin(s->vhard_mm_s, s->vfeed_mm_s));
+	}
+	return v;
+}
+
 uint64_t mlip_planner_motion_seq(const struct mlip_planner *p)
 {
 	if (p->head == p->tail) {

@@ -22,7 +22,7 @@ from test_rt_vcan import bus_complete, exact_run, moving_span, physics, summary_
 
 J = 100000.0  # mm/s^3, every axis
 A = 1000.0    # mm/s^2, mill-3axis.ini's MAX_ACCELERATION on every axis
-FEED = 6000   # mm/min: the program's one F (the plan's cap), 100 mm/s
+FEED = 6000   # mm/min: the program's one F (its blocks' cap), 100 mm/s
 
 
 def machine(tmp_path):
@@ -38,9 +38,9 @@ def machine(tmp_path):
 
 
 def circle_program(tmp_path, turns=1, r=10.0, step_deg=2.0):
-    """One F, no G0 (the plan refuses a G0 or a second F without --feed): a
-    lead-in line, `turns` circles of radius r as G1 chords of step_deg
-    (0.35 mm at r = 10), a ramp down in Z, the line back to the origin."""
+    """One F, no G0: a lead-in line, `turns` circles of radius r as G1
+    chords of step_deg (0.35 mm at r = 10), a ramp down in Z, the line back
+    to the origin."""
     out = ["G21 G90", f"G1 F{FEED}", f"G1 X{r:.4f} Y0"]
     n = int(round(360 * turns / step_deg))
     for k in range(1, n + 1):

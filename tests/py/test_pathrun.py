@@ -178,12 +178,12 @@ def test_config_key_is_the_option(tmp_path):
     ("G1 X20\nM0\nG1 Y20\n", 4, "a pause (M0/M60)"),
     ("G1 X20\nM1\nG1 Y20\n", 4, "an optional pause (M1)"),
     ("G1 X20\nG61\nG1 Y20\nG1 X0\n", 5, "an exact stop (G61)"),
-    ("G1 X20\nG0 Y20\n", 4, "a rapid (G0"),
-    ("G1 X20\nG1 Y20 F6000\n", 4, "a second feed"),
 ])
 def test_what_the_plan_cannot_run_is_refused(tmp_path, body, line, what):
     """Refused before anything moves (no trace row written), naming the
-    line and what asked for the plan: the key (file:line) or the option."""
+    line and what asked for the plan: the key (file:line) or the option.
+    A rapid and a second feed run (each block under its own cap:
+    test_pathfeeds.py), with the key and the option alike."""
     prog = tmp_path / "p.ngc"
     prog.write_text("G21 G90\nG1 F12000\n" + body)
     for cfg, extra, how in [("path", [], "m-path.ini:5: JERK_PLAN = path"),
@@ -198,6 +198,15 @@ def test_what_the_plan_cannot_run_is_refused(tmp_path, body, line, what):
     # the mean runs it
     p = run_sim("--config", machine(tmp_path, None), "--strategy", "smooth", prog)
     assert p.returncode == 0, p.stderr
+
+
+@pytest.mark.parametrize("body", ["G1 X20\nG0 Y20\n", "G1 X20\nG1 Y20 F6000\n"])
+def test_rapid_and_second_feed_run(tmp_path, body):
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90\nG1 F12000\n" + body)
+    for cfg, extra in [("path", []), (None, ["--jerk-plan", "path"])]:
+        p = run_sim("--config", machine(tmp_path, cfg), "--strategy", "smooth", *extra, prog)
+        assert p.returncode == 0, p.stderr
 
 
 def test_config_key_refused_without_jerk(tmp_path):

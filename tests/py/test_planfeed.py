@@ -17,6 +17,7 @@ import subprocess
 import pytest
 
 from conftest import BUILD, CONFIG, TOOLPATHS
+from test_pathfeeds import two_feeds
 
 SQUARE = "G21 G90\nG1 F12000\nG1 X20\nG1 Y20\nG1 X0\nG1 Y0\n"
 
@@ -31,8 +32,7 @@ def machine(tmp_path):
 
 
 def one_feed(src, n, dst, feed=6000):
-    """The first n lines of a CAM file, every G0 a G1 and one F (the plan
-    runs one feed: a G0 or a second F is refused)."""
+    """The first n lines of a CAM file, every G0 a G1 and one F."""
     lines = src.read_text().splitlines()[:n]
     out = [re.sub(r"F[0-9.]+", "", re.sub(r"\bG0\b", "G1", ln)) for ln in lines]
     dst.write_text("\n".join(out[:2] + [f"G1 F{feed}"] + out[2:]) + "\n")
@@ -58,6 +58,15 @@ def programs(tmp_path):
     mb = TOOLPATHS / "MB-2.3_test.nc"
     if mb.exists():
         yield cfg, one_feed(mb, 400, tmp_path / "mb23-400.ngc"), 100.0
+    if mb.exists():
+        # its own F words (2000, 1684, 1676 mm/min) and a G0 (94 mm at
+        # the machine's 200 mm/s): each block under its own cap
+        own = tmp_path / "mb23-own.ngc"
+        own.write_text("".join(mb.read_text().splitlines(keepends=True)[:400]))
+        yield cfg, own, 200.0
+    two = tmp_path / "two-feeds.ngc"
+    two_feeds(two)
+    yield cfg, two, 50.0
     fast = tmp_path / "fast.ngc"
     fast.write_text("G21 G90\nG1 F36000\nG1 X300\nG1 X300 Y300\nG1 X0 Y0\n")
     yield fast_machine(tmp_path), fast, 600.0
@@ -100,7 +109,8 @@ def test_queue_equals_mlip_sim(tmp_path):
 
 
 @pytest.mark.parametrize("body,line,what", [("G1 X20\nG4 P0.5\nG1 Y20\n", 4, "a dwell (G4)"),
-                                            ("G1 X20\nG0 Y20\n", 4, "a rapid (G0")])
+                                            ("G1 X20\nG61\nG1 Y20\n", 5,
+                                             "an exact stop (G61)")])
 def test_refused_before_the_thread(tmp_path, body, line, what):
     prog = tmp_path / "p.ngc"
     prog.write_text("G21 G90\nG1 F12000\n" + body)

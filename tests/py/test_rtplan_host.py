@@ -25,6 +25,7 @@ from conftest import (
     tool,
     wait_for,
 )
+from test_pathfeeds import two_feeds
 from test_planfeed import SQUARE, machine, one_feed
 
 
@@ -73,34 +74,41 @@ def test_path_plan_runs_as_mlip_sim(controller, tmp_path):
     progs[0].write_text(SQUARE)
     if (TOOLPATHS / "MB-2.3_test.nc").exists():
         progs.append(one_feed(TOOLPATHS / "MB-2.3_test.nc", 400, tmp_path / "mb.ngc"))
+    progs.append(tmp_path / "two-feeds.ngc")  # several F words: each block's own cap
+    two_feeds(progs[-1])
     for k, prog in enumerate(progs):
-        rec = tmp_path / f"rt{k}.csv"
-        shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec)
-        p = feed(shm, prog)
-        assert p.returncode == 0, p.stderr
-        s = status(shm)
-        assert s["state"] == "idle" and s["exec_seq"] == s["blocks_consumed"] > 1, s
-        p = feed(shm, progs[0])  # the thread starts afresh for the next program
-        assert p.returncode == 0, p.stderr
-        rt.send_signal(signal.SIGTERM)
-        _, err = rt.communicate(timeout=10)
-        assert rt.returncode == 0, err
         sim = sim_trace(cfg, prog, tmp_path / f"sim{k}.csv")
         assert len(sim.splitlines()) > 1000
-        # the positions to the byte, row by row (t: the record's counts the
-        # deadlines, with a hole where this non-real-time host missed one)
-        got, want = positions(rec.read_text()), positions(sim)
-        assert len(got) == len(want) and got == want, (len(got), len(want))
+        for attempt in range(3):  # again only when the queue ran dry (a loaded host)
+            rec = tmp_path / f"rt{k}-{attempt}.csv"
+            shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec)
+            p = feed(shm, prog)
+            assert p.returncode == 0, p.stderr
+            s = status(shm)
+            assert s["state"] == "idle" and s["exec_seq"] == s["blocks_consumed"] > 1, s
+            p = feed(shm, progs[0])  # the thread starts afresh for the next program
+            assert p.returncode == 0, p.stderr
+            rt.send_signal(signal.SIGTERM)
+            _, err = rt.communicate(timeout=10)
+            assert rt.returncode == 0, err
+            # the positions to the byte, row by row (t: the record's counts
+            # the deadlines, with a hole where this non-real-time host
+            # missed one)
+            got, want = positions(rec.read_text()), positions(sim)
+            if got == want or "queue ran dry" not in err:
+                break
+        assert len(got) == len(want) and got == want, (len(got), len(want), err[-3000:])
 
 
 def test_feed_refuses_what_the_plan_cannot_run(controller, tmp_path):
-    """A G0 and a second F: refused by mlip-feed at their lines, as mlip-sim
-    refuses them, before anything is sent."""
+    """A dwell and G61: refused by mlip-feed at their lines, as mlip-sim
+    refuses them, before anything is sent (a G0 and a second F run:
+    test_path_plan_runs_as_mlip_sim)."""
     cfg = machine(tmp_path)
     shm, _ = controller(cfg, "--strategy", "smooth")
     for body, line in (
-        ("G21 G90\nG1 F600 X1\nG0 X5\n", 3),
-        ("G21 G90\nG1 F600 X1\nG1 F900 X2\n", 3),
+        ("G21 G90\nG1 F600 X1\nG4 P0.5\nG1 X5\n", 3),
+        ("G21 G90\nG1 F600 X1\nG61\nG1 X2\n", 4),
     ):
         prog = tmp_path / "bad.ngc"
         prog.write_text(body)

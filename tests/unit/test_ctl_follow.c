@@ -118,8 +118,8 @@ static int unit(void)
 		/* the record its motion belongs to (a block is BLOCK_U of arc)
 		 * and the last one completed, as the plan's controller tags it */
 		int b = (int)ceil(f.u / BLOCK_U);
-		pr.tag_in =
-		    (struct mlip_pathrun_tag){(uint64_t)b, (uint64_t)b - 1, LINE(b), LINE(b - 1)};
+		pr.tag_in = (struct mlip_pathrun_tag){(uint64_t)b, (uint64_t)b - 1, LINE(b),
+		                                      LINE(b - 1), 0.0};
 		memcpy(f.last, f.in, sizeof(f.in));
 		f.pending = 1;
 		return 4;

@@ -7,7 +7,7 @@
  * and uses them (0.95 J planned is reached), its peak speed at least 0.8 of
  * the quasi-static speed (P3); the same along 80 mm of it in 0.05 mm pieces
  * (one spline in the caller's arrays, several pieces crossed a period);
- * with two braking policies, both used.
+ * with two braking policies, both used; under each block's own cap (Q5).
  */
 #include <math.h>
 #include <setjmp.h>
@@ -582,6 +582,96 @@ static void test_plan_from_rest_at_cusp(void **state)
 	assert_true(wa <= 1.0);
 }
 
+/* Each block's own feed (Q5): the fine helix's knots capped 50, 10, 40
+ * mm/s and none (vmax) in runs of 400, planned from rest to rest at 1e5:
+ * every state within its piece's cap, every step's ends within the cap of
+ * each piece it touches (so the lower cap ahead is braked for in time and a
+ * higher one taken only past the piece that joins them), each sample's
+ * chord a period within the lower cap of its ends' pieces (1e-3 over: a
+ * period's mean speed is within |j| T^2 / 12 of its ends', 8e-4 of 10
+ * mm/s at 0.95e5; measured 6.1e-4), each cap
+ * reached to 0.9 inside its run, J and A at every sample. An override's
+ * share (vfull) scales the knots' caps, not the machine's vmax. */
+static double lcap[LONG_N];
+
+static void test_plan_feed_caps(void **state)
+{
+	(void)state;
+	static const double run_cap[4] = {50.0, 10.0, 40.0, 0.0};
+	static double x[40000][MLIP_MAX_AXES];
+	static int piece[40000];
+	double L = sqrt(HR * HR + HC * HC), T = 1e-3, top[4] = {0};
+	for (int i = 0; i < LONG_N; i++) {
+		double th = i * 0.05 / L;
+		lp[i][0] = HR * cos(th);
+		lp[i][1] = HR * sin(th);
+		lp[i][2] = HC * th;
+		lcap[i] = run_cap[i / 400];
+	}
+	struct mlip_path_curve cv;
+	assert_int_equal(mlip_path_fit(3, (const double(*)[MLIP_MAX_AXES])lp, LONG_N, ls, lpp, lm,
+	                               lb, lt, lc, &cv),
+	                 0);
+	cv.cap = lcap;
+	struct mlip_path_limits lim;
+	limits(&lim, 1e5);
+	lim.a_brake[0] = 900.0;
+	lim.a_brake[1] = 300.0;
+	lim.n_brake = 2;
+	assert_true(mlip_path_piece_cap(&cv, &lim, 399) == 10.0); /* the joining piece: the lower */
+	assert_true(mlip_path_piece_cap(&cv, &lim, 1300) == lim.vmax);
+	double end = cv.s[LONG_N - 1], wj = 0.0, wa = 0.0, over = 0.0;
+	struct mlip_path_state st = {0.0, 0.0, 0.0, 0, 0};
+	struct mlip_path_point d;
+	long work = 0;
+	int n = 0;
+	at_s(&cv, 0.0, x[n], &d);
+	piece[n++] = 0;
+	while (n < 40000 && !(st.v == 0.0 && st.a == 0.0 && end - st.s <= 1e-8)) {
+		double v0 = st.v;
+		assert_true(mlip_path_plan_period(&cv, &lim, &st, end, 3000, &work) >= 0);
+		int p = mlip_path_spline_piece(&cv, st.s, piece[n - 1]), lo = piece[n - 1];
+		at_s(&cv, st.s, x[n], &d);
+		piece[n] = p;
+		double cap = INFINITY, chord = 0.0;
+		for (int i = lo < p ? lo : p; i <= (lo < p ? p : lo); i++) {
+			cap = fmin(cap, mlip_path_piece_cap(&cv, &lim, i));
+		}
+		assert_true(st.v <= mlip_path_piece_cap(&cv, &lim, p));
+		assert_true(fmax(v0, st.v) <= cap);
+		for (int k = 0; k < 3; k++) {
+			chord += (x[n][k] - x[n - 1][k]) * (x[n][k] - x[n - 1][k]);
+		}
+		over = fmax(over, sqrt(chord) / T / cap);
+		if (p % 400 > 0 && p % 400 < 399) {
+			top[p / 400] = fmax(top[p / 400], st.v);
+		}
+		n++;
+	}
+	assert_true(st.v == 0.0 && st.a == 0.0 && fabs(end - st.s) <= 1e-8);
+	for (int i = 3; i < n; i++) {
+		for (int k = 0; k < 3; k++) {
+			double j3 =
+			    (x[i][k] - 3.0 * x[i - 1][k] + 3.0 * x[i - 2][k] - x[i - 3][k]) /
+			    (T * T * T);
+			double a2 = (x[i][k] - 2.0 * x[i - 1][k] + x[i - 2][k]) / (T * T);
+			wj = fmax(wj, fabs(j3) / 1e5);
+			wa = fmax(wa, fabs(a2) / 1000.0);
+		}
+	}
+	print_message("caps 50, 10, 40, none: %d periods, tops %.2f %.2f %.2f %.2f, chord speed "
+	              "%.5f of the cap, jerk %.3f J, accel %.3f A\n",
+	              n, top[0], top[1], top[2], top[3], over, wj, wa);
+	assert_true(over <= 1.0 + 1e-3);
+	for (int r = 0; r < 3; r++) {
+		assert_true(top[r] >= 0.9 * run_cap[r]);
+	}
+	assert_true(wj <= 1.0 && wa <= 1.0);
+	lim.vfull = 2.0 * lim.vmax; /* an override of 50 %: the knots' caps halved */
+	assert_true(fabs(mlip_path_piece_cap(&cv, &lim, 100) - 25.0) < 1e-12);
+	assert_true(mlip_path_piece_cap(&cv, &lim, 1300) == lim.vmax);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -595,6 +685,7 @@ int main(void)
 	    cmocka_unit_test(test_plan_hook),
 	    cmocka_unit_test(test_plan_short_line),
 	    cmocka_unit_test(test_plan_from_rest_at_cusp),
+	    cmocka_unit_test(test_plan_feed_caps),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

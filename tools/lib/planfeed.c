@@ -120,6 +120,7 @@ static int ctl_period(struct mlip_planfeed *pf)
 		t->seq = out.status.exec_seq;
 		t->line = out.status.exec_line;
 		mlip_planner_done(pf->ctl->planner, &t->done_seq, &t->done_line);
+		mlip_simpath_tag(t, pf->ctl->planner); /* its cap: as mlip-sim's */
 	}
 	if (state != MLIP_STATE_RUNNING && state != MLIP_STATE_IDLE) {
 		return refuse(pf, "the program left RUNNING (a pause, dwell or hold): the plan "

@@ -54,8 +54,9 @@ struct mlip_planfeed {
 	uint64_t planned, ctl_periods;
 };
 
-/* m: the machine (with J on every axis); feed: the plan's speed cap (the
- * program's one F, mm/s: mlip_simpath_prescan); the controller and its
+/* m: the machine (with J on every axis); feed: the plan's speed cap
+ * beside the blocks' own (0: the machine's; each block's F is its knots'
+ * cap, mlip_simpath_tag, as mlip-sim's); the controller and its
  * planner, smooth store, the window and the queue: the caller's (large).
  * -1 with *why on a machine the plan cannot run. */
 int mlip_planfeed_init(struct mlip_planfeed *pf, const struct mlip_config *cfg, double feed,

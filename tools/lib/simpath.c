@@ -14,6 +14,8 @@
  * side, each knot moved at most 0.6 of the band (the rest is (P6)'s).
  * Measured on the first 4,000 lines of the shared CAM files (docs/benchmarks.md):
  * 8 periods beat 6, 10, 12, 15 and 0.6 beat 0.4 */
+/* The plan's share of each speed cap (the machine's, each block's) */
+#define CAP_SHARE  0.995
 #define FAIR_H_MM  3.0
 #define FAIR_K     8
 #define FAIR_SHARE 0.6
@@ -44,7 +46,7 @@ int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_p
 			cap = ax->max_vel; /* |x'| <= 1 by chord length: each axis within */
 		}
 	}
-	lim->vmax = 0.995 * cap;
+	lim->vmax = CAP_SHARE * cap;
 	lim->a_brake[0] = 900.0;
 	lim->a_brake[1] = 300.0;
 	lim->n_brake = 2;
@@ -62,6 +64,29 @@ void mlip_simpath_machine(const struct mlip_machine *m, struct mlip_machine *cm)
 	cm->tolerance_mm -= BAND_SHARE * m->tolerance_mm; /* mlip_simpath_limits' band */
 }
 
+void mlip_simpath_tag(struct mlip_pathrun_tag *t, const struct mlip_planner *pl)
+{
+	double c = mlip_planner_cap(pl);
+	if (c > 0.0) {
+		t->cap = CAP_SHARE * c; /* as the machine's in mlip_simpath_limits */
+	}
+}
+
+void mlip_simpath_tag_mean(struct mlip_simpath *sp, const struct mlip_planner *pl)
+{
+	struct mlip_pathrun_tag t = {0};
+	mlip_simpath_tag(&t, pl);
+	sp->caps[sp->ncaps++ % MLIP_JERK_MAX_TAPS] = t.cap;
+	double c = 0.0;
+	for (unsigned i = 0; i < MLIP_JERK_MAX_TAPS && i < sp->ncaps; i++) {
+		double x = sp->caps[i];
+		c = x > 0.0 && (c == 0.0 || x < c) ? x : c;
+	}
+	if (c > 0.0) {
+		sp->run.tag_in.cap = c;
+	}
+}
+
 int mlip_simpath_prescan(struct mlip_program *p, double fixed, double *feed, const char *prog,
                          const char *file, const char *how, FILE *err)
 {
@@ -70,7 +95,7 @@ int mlip_simpath_prescan(struct mlip_program *p, double fixed, double *feed, con
 	*feed = fixed > 0.0 ? fixed : 0.0;
 	mlip_program_rewind(p);
 	while ((r = mlip_program_next(p, &b)) > 0) {
-		const char *why = mlip_pathrun_refusal(&b, fixed > 0.0 ? NULL : feed);
+		const char *why = mlip_pathrun_refusal(&b);
 		if (why != NULL) {
 			fprintf(err, "%s: %s:%u: %s: the path plan cannot run it yet (%s)\n", prog,
 			        file, (unsigned)b.line, why, how);
@@ -99,6 +124,7 @@ int mlip_simpath_begin(struct mlip_simpath *sp, const struct mlip_path_limits *l
 	sp->k = 0;
 	sp->started = 1;
 	sp->done = 0;
+	sp->ncaps = 0;
 	if (mlip_pathrun_init(&sp->run, lim, band_mm, SIM_RUN_PERIODS, start) != 0) {
 		return -1;
 	}

@@ -13,6 +13,8 @@
 #include "check.h"
 #include "program.h"
 #include "mlip/motion/pathrun.h"
+#include "mlip/motion/jerk.h"
+#include "mlip/motion/planner.h"
 #include "trace.h"
 
 struct mlip_simpath {
@@ -21,13 +23,19 @@ struct mlip_simpath {
 	struct mlip_check *chk;
 	uint64_t k; /* output periods after t = 0 */
 	int started, done;
+	/* path-mean: the knot caps of the last MLIP_JERK_MAX_TAPS periods (the
+	 * mean's output averages the planner's positions over its window) */
+	double caps[MLIP_JERK_MAX_TAPS];
+	unsigned ncaps;
 };
 
 /* The plan's margins on machine m (which has J): 0.98 A, 0.95 J, 0.995 of
- * the path speed cap min(vmax, feed (> 0), each axis's max_vel), the
- * policies 900 and 300 mm/s^2 (bench/pathspeed.py --c's);
- * the band 0.2 eps (the spline's (P6) and its fairing's moves). -1 when an axis has no jerk limit
- * (the plan needs J on every axis), with the reason in *why. */
+ * the path speed cap min(vmax, feed (> 0: mlip-sim --feed), each axis's
+ * max_vel), the policies 900 and 300 mm/s^2 (bench/pathspeed.py --c's);
+ * the band 0.2 eps (the spline's (P6) and its fairing's moves). Each
+ * block's own feed is its knots' cap (mlip_simpath_tag). -1 when an axis
+ * has no jerk limit (the plan needs J on every axis), with the reason in
+ * *why. */
 int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_path_limits *lim,
                         double *band_mm, const char **why);
 
@@ -42,12 +50,23 @@ void mlip_simpath_machine(const struct mlip_machine *m, struct mlip_machine *cm)
  * just initialised with the band of mlip_simpath_limits: 0, or -1. */
 int mlip_simpath_fair(struct mlip_pathrun *pr);
 
+/* The plan's controller's planner pl after its period: the next input's
+ * knot cap, 0.995 of its blocks' (mlip_planner_cap: the block executing,
+ * and the next in a corner; kept while none is queued). mlip-sim and the
+ * planning thread tag each setpoint alike (the same plan). */
+void mlip_simpath_tag(struct mlip_pathrun_tag *t, const struct mlip_planner *pl);
+
+/* As mlip_simpath_tag, for path-mean: the lowest cap of the periods the
+ * mean's window can hold (its setpoint lies on their motion). */
+void mlip_simpath_tag_mean(struct mlip_simpath *sp, const struct mlip_planner *pl);
+
 /* Before anything moves: every block of prog is one the plan can run
- * (mlip_pathrun_refusal); prog is rewound after. fixed > 0 (mlip-sim
- * --feed) replaces every feed, rapids too; else the program's one feed is
- * the plan's, in *feed. how names what asked for the plan ("--jerk-plan
- * path", "CFG:LINE: JERK_PLAN = path"). 0, or -1 with a message on err:
- * "prog: file:line: WHAT: the path plan cannot run it yet (how)". */
+ * (mlip_pathrun_refusal); prog is rewound after. *feed: the plan's cap
+ * beside the blocks' own, fixed when > 0 (mlip-sim --feed, which replaces
+ * every feed, rapids too), else 0 (the machine's). how names what asked
+ * for the plan ("--jerk-plan path", "CFG:LINE: JERK_PLAN = path"). 0, or
+ * -1 with a message on err: "prog: file:line: WHAT: the path plan cannot
+ * run it yet (how)". */
 int mlip_simpath_prescan(struct mlip_program *p, double fixed, double *feed, const char *prog,
                          const char *file, const char *how, FILE *err);
 

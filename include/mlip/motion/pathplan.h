@@ -48,6 +48,21 @@
  * hard one for straight stretches and the end) certify more states than
  * any one of them.
  *
+ * The speed cap is a function of the path position (Q5): piece i's is
+ *
+ *     c_i = min(vmax, r f_i, r f_{i+1}),  r = vmax / vfull              (Q5)
+ *
+ * f the knots' caps (the curve's cap: the feed of the block each knot's
+ * point belongs to, 0 none; the piece that joins two blocks takes the
+ * lower), r the feed override's share (1 when vfull is 0). A run is
+ * inside it when each of its steps keeps the speed at both its ends within
+ * c_i of every piece i the step touches (within a step v is a parabola:
+ * its mean, what a setpoint shows, is within |j| T^2 / 12 of the ends'),
+ * the greedy's step checked as its run's first. So a lower cap ahead is
+ * braked for in time by construction, and a higher one is taken once the
+ * state is past the piece that joins them. Without caps (NULL, or every
+ * f_i at least vmax / r) this is the states' check v <= vmax alone.
+ *
  * Pure C, no allocation; a certification is at most max_periods policy
  * steps (the caller bounds the work; it runs outside the 1 ms period).
  */
@@ -64,6 +79,9 @@ struct mlip_path_limits {
 	double accel[MLIP_MAX_AXES]; /* planned per-axis limits (margins applied) */
 	double jerk[MLIP_MAX_AXES];
 	double vmax; /* the path speed's cap (the spline's parameter a second) */
+	/* (Q5) the cap at a 100 % feed override: the knots' caps scale by vmax
+	 * / vfull (0: not scaled) */
+	double vfull;
 	/* (Q3) the policies' decelerations, each > 0: a state is certified by
 	 * the run of any of the first n_brake (0 counts as 1) */
 	double a_brake[MLIP_PATH_BRAKES];
@@ -103,6 +121,10 @@ int mlip_path_brake(const struct mlip_path_curve *sp, const struct mlip_path_lim
  * leaves a planned queue (mlip/motion/planq.h). */
 int mlip_path_brake_step(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                          struct mlip_path_state *st, double *j);
+
+/* (Q5): piece i's speed cap. */
+double mlip_path_piece_cap(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                           int i);
 
 /* (Q4): 1 when st is certified by its policy's run (st.brake) within
  * max_periods policy steps, the path ending at `end`; *work (may be NULL)

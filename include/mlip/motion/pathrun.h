@@ -32,7 +32,7 @@
  * in the product).
  *
  * Memory: one struct, MLIP_PATHRUN_CAP points and the fairing's
- * MLIP_PATHRUN_FAIR_CAP (262 KiB at 6 axes),
+ * MLIP_PATHRUN_FAIR_CAP (281 KiB at 6 axes),
  * whatever the program's length. No allocation, no I/O. A period's work is
  * bounded by the plan's max_periods (pathplan.h); it is not for the 1 ms
  * thread itself (mlip-rt runs it in its planning thread, tools/rtplan.c).
@@ -65,12 +65,15 @@
 #define MLIP_PATHRUN_LAG      264
 #define MLIP_PATHRUN_BEHIND   8
 
-/* The caller's mark of an input point, carried with it as a knot and
- * never read by the plan: a planned queue's records (mlip/motion/planq.h),
- * the one being executed and the last completed when the point was made. */
+/* The caller's mark of an input point, carried with it as a knot: a
+ * planned queue's records (mlip/motion/planq.h), the one being executed
+ * and the last completed when the point was made (never read by the
+ * plan), and the speed cap of the block(s) it belongs to (the plan's
+ * knot cap, pathplan.h Q5; mm/s, 0: none). */
 struct mlip_pathrun_tag {
 	uint64_t seq, done_seq;
 	uint32_t line, done_line;
+	double cap;
 };
 
 struct mlip_pathrun {
@@ -88,6 +91,7 @@ struct mlip_pathrun {
 	double t3[MLIP_PATHRUN_CAP][MLIP_MAX_AXES];
 	double c[MLIP_PATHRUN_CAP];    /* the fit's scratch */
 	double dev[MLIP_PATHRUN_CAP];  /* each knot's move from its input point (F2) */
+	double cap[MLIP_PATHRUN_CAP];  /* each knot's speed cap (its tag's: Q5) */
 	double last_in[MLIP_MAX_AXES]; /* the last input point (maybe skipped) */
 	struct mlip_pathrun_tag tag[MLIP_PATHRUN_CAP]; /* each point's */
 	struct mlip_pathrun_tag tag_in;                /* the caller's: the next input's */
@@ -180,13 +184,12 @@ int mlip_pathrun_step(struct mlip_pathrun *pr, double *x);
 
 /* What the plan cannot run yet, asked of each block of a program before
  * anything moves (mlip-sim, mlip-feed with [TRAJ] JERK_PLAN = path): it
- * re-times one path from rest to rest under one speed cap, so an event
- * taken at rest (a dwell, M0/M1, spindle, tool, coolant, output, probe),
- * an exact stop (G61) and, unless the caller replaces every feed (feed
- * NULL: mlip-sim --feed), a rapid or a second feed are refused. NULL: b is
- * taken; else why (a phrase for "LINE: ..."). *feed: 0 before the first
- * move, then the program's one feed (mm/s). */
-const char *mlip_pathrun_refusal(const struct mlip_block *b, double *feed);
+ * re-times one path from rest to rest, so an event taken at rest (a dwell,
+ * M0/M1, spindle, tool, coolant, output, probe) and an exact stop (G61)
+ * are refused. Feeds and rapids run: each block under its own cap, the
+ * knots' (tag.cap, pathplan.h Q5). NULL: b is taken; else why (a phrase
+ * for "LINE: ..."). */
+const char *mlip_pathrun_refusal(const struct mlip_block *b);
 
 /* The first knot (global) the compaction keeps by the lag's rule: 0 until
  * MLIP_PATHRUN_LAG periods are planned. */

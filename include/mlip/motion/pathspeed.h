@@ -141,7 +141,9 @@ int mlip_path_spline_eval(const struct mlip_path_spline *sp, double s, int by_ar
 /* A piecewise cubic by chord length as the plan reads it: a view of a
  * fitted spline's arrays (count points, count - 1 pieces), whoever holds
  * them (a struct mlip_path_spline, or a caller's own arrays fitted by
- * mlip_path_fit). */
+ * mlip_path_fit). cap (NULL: none): each knot's speed cap, mm/s (0: none),
+ * the feed of the block its point belongs to; a piece's is the lower of
+ * its two knots' (mlip/motion/pathplan.h). */
 struct mlip_path_curve {
 	int n, count;
 	const double *s;
@@ -149,6 +151,7 @@ struct mlip_path_curve {
 	const double (*m)[MLIP_MAX_AXES];
 	const double (*b)[MLIP_MAX_AXES];
 	const double (*t3)[MLIP_MAX_AXES];
+	const double *cap;
 };
 
 /* The view of sp. */

@@ -320,6 +320,12 @@ int mlip_planner_moving(const struct mlip_planner *p);
 int mlip_planner_held(const struct mlip_planner *p);
 /* The block being executed (seq 0, line 0: none queued). */
 void mlip_planner_executing(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
+/* The speed cap (mm/s, at a 100 % override) of the blocks whose motion
+ * the last setpoint contains: min(v_m and the axes' limits, the feed; a
+ * rapid's is the machine's) of the one executing, and in a corner of the
+ * block after it too; 0 when none is queued. The path plan's knot cap
+ * (mlip/motion/pathrun.h tag.cap). */
+double mlip_planner_cap(const struct mlip_planner *p);
 /* The newest block whose motion the last setpoint contains: in a corner
  * the block after it (its motion has begun), else the one executing (0:
  * none queued). M62/M63 switch with it (issue 19). */

@@ -53,7 +53,7 @@
  * so that any run of up to MLIP_PLANQ_KNOTS consecutive knots is one
  * contiguous struct mlip_path_curve (no copy, no wrap in the period).
  *
- * Memory: one struct, 892 KiB at 6 axes (819 KB the mirrored knots),
+ * Memory: one struct, 909 KiB at 6 axes (819 KB the mirrored knots),
  * whatever the program's length. The consumer's step: a pop (O(1)) or
  * one braking step (a pick over the pieces a period crosses, as each
  * certification period; measured in docs/algorithm.md). No allocation,
@@ -200,7 +200,8 @@ void mlip_planq_init(struct mlip_planq *q, const struct mlip_pathrun *pr);
  * request first (a new plan from rest at its point). */
 int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr);
 
-/* The consumer: a new speed cap (the feed override's). A lower one acts
+/* The consumer: a new speed cap (the feed override's: vmax of the limits'
+ * vfull; the knots' caps scale with it, pathplan.h Q5). A lower one acts
  * in the next step (the braking run, then the plan at that cap); a higher
  * one from the queued state MLIP_PLANQ_LEAD periods on. -1 (ignored) when
  * not positive and finite (a zero feed is a hold). */
