@@ -228,7 +228,9 @@ struct mlip_period_plan {
 	                         has left its FAULT for (an E-stop's reset), the queue
 	                         dropped: the thread takes programs again */
 	uint64_t taken;       /* thread: records taken from the ring so far */
-	uint64_t taken_base;  /* thread: ... before the program prog */
+	uint64_t taken_base;  /* thread: ... before the program prog (a refused or
+	                         dropped program's at once: no program's to come;
+	                         the status's count while none runs) */
 	uint64_t end_seq;     /* thread: the END's seq of program prog (0: not taken yet) */
 	uint64_t end_shown;   /* period only: the last ended program's, as status exec_seq */
 };

@@ -45,8 +45,14 @@ static const struct mlip_ring_rec *rec_at(const struct mlip_rec_view *v, uint32_
 
 static void take(struct mlip_rtplan *t, uint32_t k)
 {
-	mlip_ring_port_pop_n(&t->rx, k);
 	t->taken += k;
+	if (t->phase == DEAD || t->phase == DROP) {
+		/* a refused or stopped program's records: no program to come, so
+		 * counted before their slots go back (a feeder that finds the
+		 * ring empty takes the status as its base) */
+		ST(&t->pp.taken_base, t->taken);
+	}
+	mlip_ring_port_pop_n(&t->rx, k);
 	ST(&t->pp.taken, t->taken);
 }
 
@@ -89,6 +95,12 @@ static void reset(struct mlip_rtplan *t)
 
 static void refuse(struct mlip_rtplan *t)
 {
+	/* its records taken so far count for the status at once: refused
+	 * before it was published (prog 0), the status shows taken_base, and
+	 * the next feeder reads it as its base (else the next program's first
+	 * record, kept by drop, moved it while that program waited to start,
+	 * and its feeder took itself for stopped) */
+	ST(&t->pp.taken_base, t->taken);
 	fprintf(stderr,
 	        "mlip-rt: JERK_PLAN = path: the plan refused the program (t = %.3f s of "
 	        "its controller): %s\n",

@@ -10,12 +10,17 @@ frames; the listener (mlip-listen) decodes them.
     queue's run to rest inside A and J (judged on mlip-rt's --record, the
     setpoints in double precision, which the bus carries to the count),
     the point is held, resume ends on the program's last point.
+  - test_refused_plan_left_by_estop_reset: a refused plan's FAULT left by
+    an E-stop and mlip-ctl reset (the I/O module's input); the next
+    program plans and runs to its end, the refused one never moves.
 
 Run: flock /work/wt/vm.lock tests/can/run-tests.sh tests/can/test_rtplan_vcan.py
 """
 import math
+import mmap
+import struct
 
-from conftest import S
+from conftest import IO, S, io_machine
 from mlipcan import compare, procs
 from mlipcan.config import setup_of
 from test_rt_vcan import bus_complete, exact_run, moving_span, physics, summary_line, wait_periods
@@ -240,3 +245,59 @@ def hold_resume_once(cfg, ngc, rows, tmp_path):
                  f"{run_len} cycles; whole record max jerk {js['max_axis_jerk']}, accel "
                  f"{js['max_axis_accel']}; rests on the path before the hold: {dry}")
     return True
+
+
+def test_refused_plan_left_by_estop_reset(io_sim, tmp_path):
+    """A program the plan refuses (a NaN target written into the ring, as
+    mlip-feed never sends; a move to X 50 after it) is FAULT, nothing
+    moves; reset alone is refused; the E-stop (the module's input), its
+    release and mlip-ctl reset leave it, as every fault on the path: the
+    next program (mlip-feed) then plans and runs to its end, mlip-feed
+    exits 0; the bus's targets stay on its line, never near X 50 (from the
+    start to X 5 Y 3, to the count). It exited 4 "stopped on the path":
+    the refused records were counted in the status only once the next
+    program's first record came, while that program waited for the drives
+    to enable (tools/rtplan.c, take and refuse)."""
+    cfg = io_machine(tmp_path, "")
+    ini = cfg.read_text()
+    for axis in "XYZ":
+        ini = ini.replace(f"[AXIS_{axis}]\n", f"[AXIS_{axis}]\nMAX_JERK = {J:.0f}\n")
+    cfg.write_text(ini.replace("[TRAJ]\n", "[TRAJ]\nJERK_PLAN = path\n"))
+    ngc = tmp_path / "next.ngc"
+    # one line: at the rig's 40 ms period the plan refuses corners (P6, as
+    # mlip-sim --config does), which would hide what is tested here
+    ngc.write_text("G21 G90\nG1 F1200\nG1 X5 Y3\n")
+    with procs.Rig(S, cfg, "cia402", tmp_path, priority=0,
+                   rt_args=["--drives", "--strategy", "smooth"]) as rig:
+        start = rig.wait_state("idle", timeout=120)["position"]
+        recs = [(1, 3, 0, 0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0),
+                (2, 4, 0, 0, math.nan, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0),
+                (3, 5, 0, 0, 50.0, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0),
+                (4, 6, 1, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)]  # MOVE x3, END
+        with open("/dev/shm" + rig.shm, "r+b") as fd:
+            mem = mmap.mmap(fd.fileno(), 0)
+            mask, base = struct.unpack_from("<I", mem, 16)[0], struct.unpack_from("<I", mem, 24)[0]
+            for r in recs:
+                struct.pack_into("<QIHH6d3d", mem, base + 88 * ((r[0] - 1) & mask), *r)
+            struct.pack_into("<I", mem, 64, len(recs))  # head, after the records
+            mem.close()
+        st = rig.wait_state("fault", timeout=120)
+        assert st["reason"] == "path plan refused" and st["position"] == start, st
+        assert rig.ctl("reset", check=False).returncode != 0
+        io_sim.inject(f"{IO}:input=1.0=0")  # the E-stop pressed
+        rig.wait_state("estop", timeout=60)
+        io_sim.inject(f"{IO}:input=1.0=1")
+        rig.wait_state("estop", timeout=60, pred=lambda s: s["inputs"]["estop"] is False)
+        rig.ctl("reset")
+        rc, out, err = rig.feed(ngc, timeout=300)
+        assert rc == 0, f"{err}\nstatus {rig.status()}\nmlip-rt:\n{rig.rt.stderr()}"
+        st = rig.wait_state("idle", timeout=120, pred=lambda s: s["reason"] == "program end")
+        assert abs(st["position"]["X"] - 5.0) < 1e-6 and abs(st["position"]["Y"] - 3.0) < 1e-6, st
+    # every SYNC's targets on the bus: between the start and the line's end
+    # (X 5 Y 3), both reached, to the count; never toward the refused X 50
+    cpu = setup_of(S, cfg).cpu
+    can = rig.result["counts"]
+    for k, end in ((0, 5.0), (1, 3.0)):
+        lo, hi = sorted((round(start["XY"[k]] * cpu[k]), round(end * cpu[k])))
+        got = (min(c[k] for c in can), max(c[k] for c in can))
+        assert got == (lo, hi), ("XY"[k], got, lo, hi)

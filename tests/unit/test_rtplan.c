@@ -126,15 +126,23 @@ static void test_refused_then_left_then_next(void **state)
 	wait_u32(&t.pp.fault, 1);
 	wait_u64(&t.pp.taken, 4);             /* its rest dropped (the records' slots back) */
 	assert_int_equal(LD(&t.pp.prog), 0u); /* never published */
+	/* no program the controller runs (prog 0): the status counts every
+	 * record taken (taken_base), the refused ones too: the next feeder's
+	 * base. Left at 0, the next program's first record moved it to 4 while
+	 * the program waited to start (drives enabling): that feeder saw IDLE
+	 * with records of its own taken, "stopped on the path" (exit 4) */
+	wait_u64(&t.pp.taken_base, 4);
 	sleep_ms(20);
 	assert_int_equal(LD(&t.pp.fault), 1u);
 	/* the controller has left its FAULT: the next program plans */
 	ST(&t.pp.fault_left, 1u);
+	sleep_ms(20);
+	assert_int_equal(LD(&t.pp.taken_base), 4u);
 	const double xb[1] = {2.0}, yb[1] = {1.0};
 	program(xb, yb, 1);
 	wait_u32(&t.pp.prog, 1);
 	wait_u64(&t.pp.end_seq, 2);
-	assert_int_equal(LD(&t.pp.taken_base), 4u);
+	assert_int_equal(LD(&t.pp.taken_base), 4u); /* published, not yet started: 4 */
 	double x[MLIP_MAX_AXES], xmax;
 	run_queue(x, &xmax);
 	assert_true(x[0] == 2.0 && x[1] == 1.0);
