@@ -297,6 +297,10 @@ int main(int argc, char **argv)
 	uint32_t low = MLIP_PLANQ_LEN, filled = 0;
 	int mode = MLIP_PLANQ_WAIT;
 	while (mode != MLIP_PLANQ_DONE && __atomic_load_n(&pf.started, __ATOMIC_ACQUIRE)) {
+		if (__atomic_load_n(&producer_done, __ATOMIC_ACQUIRE) && producer_rc < 0) {
+			break; /* refused after its start: no entry comes (the queue waited for
+			          ever) */
+		}
 		if (paced) {
 			sleep_until(&clk, period_ns);
 		} else {

@@ -11,6 +11,7 @@ compaction does not depend on the consumer. Paced by a 1 ms clock
 (SCHED_OTHER), the same unless the queue ran dry (then the period brakes:
 not seen on this host; the figures are printed)."""
 import json
+import math
 import re
 import subprocess
 
@@ -117,3 +118,26 @@ def test_refused_before_the_thread(tmp_path, body, line, what):
     p = subprocess.run([str(BUILD / "bench_planfeed"), "--config", str(machine(tmp_path)),
                         str(prog)], capture_output=True, text=True, timeout=60)
     assert p.returncode == 2 and f"p.ngc:{line}: {what}" in p.stderr, p.stderr
+
+
+def test_refused_after_the_start(tmp_path):
+    """A plan refused after its start (a 2 ms machine: the circle's knots
+    0.2 mm apart, a piece's sag and its knots' fairing moves 0.00206 mm
+    against the band's 0.002, P6) ends the bench with the refusal mlip-sim
+    gives (its period waited for an entry for ever before), and mlip-sim's
+    message states the bound the band is held to."""
+    cfg = tmp_path / "mill-path-2ms.ini"
+    cfg.write_text(machine(tmp_path).read_text().replace("PERIOD = 0.001", "PERIOD = 0.002"))
+    prog = tmp_path / "circle.ngc"
+    pts = [(10 * math.cos(math.radians(k * 2)), 10 * math.sin(math.radians(k * 2)))
+           for k in range(1, 181)]
+    prog.write_text("G21 G90\nG1 F6000\nG1 X10 Y0\n"
+                    + "".join(f"G1 X{x:.4f} Y{y:.4f}\n" for x, y in pts))
+    s = subprocess.run([str(BUILD / "mlip-sim"), "--config", str(cfg), "--strategy", "smooth",
+                        str(prog)], capture_output=True, text=True, timeout=120)
+    m = re.search(r"\(P6: its sag and its knots' fairing moves\) at [0-9.]+ mm of the path "
+                  r"\(([0-9.]+) mm, the band ([0-9.]+) mm\)", s.stderr)
+    assert s.returncode == 1 and m and float(m[1]) > float(m[2]), s.stderr
+    p = subprocess.run([str(BUILD / "bench_planfeed"), "--config", str(cfg), str(prog)],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 1 and "more than the band (P6" in p.stderr, p.stderr

@@ -125,7 +125,7 @@ struct mlip_pathrun {
 	int peak_count;
 	double max_sag_mm;
 	/* the refusal, for the caller's message: the piece's start (mm of
-	 * chord from the program's start) and its (P6) bound */
+	 * chord from the program's start) and its (P6) bound: sag plus fairing move */
 	const char *why;
 	double why_s, why_mm;
 	double why_v, why_a; /* the plan's state there (speed, acceleration) */
