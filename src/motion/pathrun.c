@@ -99,8 +99,9 @@ static int settle(struct mlip_pathrun *pr, int upto)
 		 * moves of the input's chord: the band less it is the spline's */
 		if (!(g + fmax(pr->dev[i], pr->dev[i + 1]) <= pr->band_mm)) {
 			pr->fixed = i; /* not taken */
-			pr->why = "a spline piece strays from its chord by more than the band (P6: "
-			          "its sag and its knots' fairing moves)";
+			pr->why =
+			    "a spline piece strays from its chord by more than the band (P6), "
+			    "its sag and its knots' fairing moves together";
 			pr->why_s = s[i];
 			pr->why_mm =
 			    g + fmax(pr->dev[i], pr->dev[i + 1]); /* what the band is held to */

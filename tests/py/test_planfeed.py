@@ -135,9 +135,9 @@ def test_refused_after_the_start(tmp_path):
                     + "".join(f"G1 X{x:.4f} Y{y:.4f}\n" for x, y in pts))
     s = subprocess.run([str(BUILD / "mlip-sim"), "--config", str(cfg), "--strategy", "smooth",
                         str(prog)], capture_output=True, text=True, timeout=120)
-    m = re.search(r"\(P6: its sag and its knots' fairing moves\) at [0-9.]+ mm of the path "
+    m = re.search(r"\(P6\), its sag and its knots' fairing moves together at [0-9.]+ mm of the path "
                   r"\(([0-9.]+) mm, the band ([0-9.]+) mm\)", s.stderr)
     assert s.returncode == 1 and m and float(m[1]) > float(m[2]), s.stderr
     p = subprocess.run([str(BUILD / "bench_planfeed"), "--config", str(cfg), str(prog)],
                        capture_output=True, text=True, timeout=120)
-    assert p.returncode == 1 and "more than the band (P6" in p.stderr, p.stderr
+    assert p.returncode == 1 and "more than the band (P6)" in p.stderr, p.stderr
