@@ -239,9 +239,7 @@ static int pop(struct mlip_planq *q)
 			q->c.pidx = e->period;
 			memcpy(q->c.x, e->x, sizeof(double) * (size_t)q->n);
 			q->c.mode = e->last ? MLIP_PLANQ_DONE : MLIP_PLANQ_PLAN;
-		}
-		if (mine) { /* freed before the tail: the producer's bound (produce) */
-			mark(q);
+			mark(q); /* freed before the tail: the producer's bound (produce) */
 			release_knots(q);
 		} else {
 			leave(q);
