@@ -209,10 +209,9 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 	} else if (mlip_ring_port_view(&p->rx, &in.recs, &in.recs_corrupt) == MLIP_OK) {
 		in.recs_corrupt = 0;
 	}
-	/* deadlines passed before this wake-up (the loop counts them in
-	 * t->overruns only after this period's work) */
-	int64_t late = t->latency_ns / p->period_ns;
-	in.missed = late > (int64_t)UINT32_MAX ? UINT32_MAX : (uint32_t)late;
+	/* deadlines passed unserved: a stall in the last period's work as in
+	 * the sleep before this one */
+	in.missed = t->missed > UINT32_MAX ? UINT32_MAX : (uint32_t)t->missed;
 	int have_cmd = mlip_ring_cmd_take(p->ring, &cmd) == MLIP_OK;
 	in.cmd = have_cmd ? &cmd : NULL;
 	in.stop_requests = mlip_ring_stop_count(p->ring);

@@ -149,6 +149,10 @@ struct mlip_rt_tick {
 	int64_t latency_ns;   /* actual wake - scheduled, >= 0 */
 	int64_t interval_ns;  /* actual wake - previous actual wake (0 first) */
 	uint64_t overruns;    /* periods missed or overrun so far */
+	/* deadlines passed unserved since the previous period's work began:
+	 * those the previous work overran and those this wake-up is late by
+	 * (a stall anywhere in the loop, in the work as in the sleep) */
+	uint64_t missed;
 };
 
 /* The period's work: return 0 to go on, non-zero to end the loop. */

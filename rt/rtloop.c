@@ -199,6 +199,7 @@ static void *loop_thread(void *arg)
 	prefault_stack();
 
 	uint64_t next = mlip_now_ns() + period, prev_wake = 0;
+	uint64_t carried = 0; /* deadlines the last work overran, not yet told */
 	while (!stop_flag) {
 		struct timespec ts = ns_ts(next);
 		int r;
@@ -210,6 +211,8 @@ static void *loop_thread(void *arg)
 		t.latency_ns = wake > next ? (int64_t)(wake - next) : 0;
 		t.interval_ns = prev_wake ? (int64_t)(wake - prev_wake) : 0;
 		prev_wake = wake;
+		uint64_t late = (uint64_t)t.latency_ns / period;
+		t.missed = carried + late;
 		int rc = l->fn(l->ctx, &t);
 		uint64_t end = mlip_now_ns();
 		if (l->after != NULL) {
@@ -221,11 +224,15 @@ static void *loop_thread(void *arg)
 		}
 		t.cycle++;
 		next += period;
-		/* missed deadlines are counted and skipped, not caught up */
+		/* missed deadlines are counted and skipped, not caught up; the
+		 * late ones were told in t.missed already, the rest are told next */
+		uint64_t skipped = 0;
 		while (next <= end) {
 			next += period;
-			t.overruns++;
+			skipped++;
 		}
+		t.overruns += skipped;
+		carried = skipped > late ? skipped - late : 0;
 	}
 	return NULL;
 }
