@@ -16,11 +16,11 @@
 
 #include "rt.h"
 
-#define PERIOD_NS 1000000LL
-#define STALL_NS 30000000LL /* 30 periods */
-#define STALL_WORK 5        /* the work of this cycle stalls */
-#define STALL_AFTER 12      /* the statistics call after this cycle stalls */
-#define LAST 20
+#define PERIOD_NS   1000000LL
+#define STALL_NS    30000000LL /* 30 periods */
+#define STALL_WORK  5          /* the work of this cycle stalls */
+#define STALL_AFTER 12         /* the statistics call after this cycle stalls */
+#define LAST        20
 
 struct rec {
 	uint64_t missed[LAST + 1];
