@@ -248,12 +248,7 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 		log_push(p, &o->events[i]);
 	}
 	if (p->rec != NULL) {
-		if (t->cycle == 0) {
-			p->first_deadline_ns = t->deadline_ns;
-		}
-		rec_push(p, o,
-		         (t->deadline_ns - p->first_deadline_ns) / (uint64_t)p->period_ns +
-		             in.missed);
+		rec_push(p, o, t->index);
 	}
 	return o->done;
 }

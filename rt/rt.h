@@ -153,6 +153,9 @@ struct mlip_rt_tick {
 	 * those the previous work overran and those this wake-up is late by
 	 * (a stall anywhere in the loop, in the work as in the sleep) */
 	uint64_t missed;
+	/* the last deadline passed at this wake-up, counted from the first:
+	 * the previous period's plus 1 plus missed (holes where missed) */
+	uint64_t index;
 };
 
 /* The period's work: return 0 to go on, non-zero to end the loop. */
@@ -248,7 +251,6 @@ struct mlip_period {
 	struct mlip_period_hooks hooks;  /* rx/before/after NULL: none */
 	uint32_t pid;                    /* published as status.reserved */
 	int64_t period_ns;
-	uint64_t first_deadline_ns;
 	/* the one input from outside the loop: SIGINT/SIGTERM/SIGHUP: a stop,
 	 * then the loop ends */
 	volatile sig_atomic_t exit_request;

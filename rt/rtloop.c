@@ -198,7 +198,7 @@ static void *loop_thread(void *arg)
 	memset(&t, 0, sizeof(t));
 	prefault_stack();
 
-	uint64_t next = mlip_now_ns() + period, prev_wake = 0;
+	uint64_t next = mlip_now_ns() + period, first = next, prev_wake = 0;
 	uint64_t carried = 0; /* deadlines the last work overran, not yet told */
 	while (!stop_flag) {
 		struct timespec ts = ns_ts(next);
@@ -213,6 +213,7 @@ static void *loop_thread(void *arg)
 		prev_wake = wake;
 		uint64_t late = (uint64_t)t.latency_ns / period;
 		t.missed = carried + late;
+		t.index = (next - first) / period + late;
 		int rc = l->fn(l->ctx, &t);
 		uint64_t end = mlip_now_ns();
 		if (l->after != NULL) {

@@ -3,7 +3,8 @@
  * passed unserved, wherever the stall was: in the period's work (the
  * deadlines it overran are told to the next period) or between the work and
  * the next wake-up (the wake-up's lateness). The sum told equals the loop's
- * overrun count plus the current lateness, every period, exactly.
+ * overrun count plus the current lateness, every period, exactly, and the
+ * deadline index steps by one plus what was missed.
  */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -24,6 +25,7 @@
 
 struct rec {
 	uint64_t missed[LAST + 1];
+	uint64_t index[LAST + 1];
 	uint64_t sum;
 	int bad_cycle; /* -1, or the first cycle whose sum was off */
 	uint64_t bad_sum, bad_expect;
@@ -40,6 +42,7 @@ static int work(void *ctx, const struct mlip_rt_tick *t)
 {
 	struct rec *r = ctx;
 	r->missed[t->cycle] = t->missed;
+	r->index[t->cycle] = t->index;
 	r->sum += t->missed;
 	/* every deadline skipped so far was told, and this wake-up's lateness */
 	uint64_t expect = t->overruns + (uint64_t)t->latency_ns / PERIOD_NS;
@@ -82,6 +85,12 @@ static void test_stalls_told_wherever_they_are(void **state)
 	 * 30 of it, and whatever a loaded machine adds: the sum above is exact) */
 	assert_true(r.missed[STALL_WORK + 1] >= 29);
 	assert_true(r.missed[STALL_AFTER + 1] >= 29);
+	/* the deadline indices: a hole of exactly what was missed, never a
+	 * step back (the record's periods, mlip-check's time axis) */
+	for (int c = 1; c <= LAST; c++) {
+		assert_int_equal(r.index[c], r.index[c - 1] + 1 + r.missed[c]);
+	}
+	assert_int_equal(r.index[0], r.missed[0]);
 }
 
 int main(void)
