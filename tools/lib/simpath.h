@@ -31,7 +31,8 @@ struct mlip_simpath {
 
 /* The plan's margins on machine m (which has J): 0.98 A, 0.95 J, 0.995 of
  * the path speed cap min(vmax, feed (> 0: mlip-sim --feed), each axis's
- * max_vel), the policies 900 and 300 mm/s^2 (bench/pathspeed.py --c's);
+ * max_vel), the policies 900, 300 and 600 mm/s^2 (bench/pathspeed.py --c's
+ * first two);
  * the band 0.2 eps (the spline's (P6) and its fairing's moves). Each
  * block's own feed is its knots' cap (mlip_simpath_tag). -1 when an axis
  * has no jerk limit (the plan needs J on every axis), with the reason in
