@@ -529,6 +529,23 @@ static int take(const struct mlip_path_curve *sp, const struct mlip_path_limits 
 	return 0;
 }
 
+/* The landing jerks land[q] (mlip_path_plan_period) above floor inside
+ * the (P2) interval and not yet tried: 1 when one's step is taken. */
+static int land_take(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                     const struct at *a, const double land[2], int tried[2], double floor, int i,
+                     struct mlip_path_state *st, double end, int max_periods, long *work)
+{
+	for (int q = 0; q < 2; q++) {
+		if (!tried[q] && land[q] > floor && land[q] > a->jl && land[q] < a->jh) {
+			tried[q] = 1;
+			if (take(sp, lim, a, land[q], i, st, end, max_periods, work) == 1) {
+				return 1;
+			}
+		}
+	}
+	return 0;
+}
+
 /* From rest the plan tries the jerk the start allows halved up to this many
  * times: near the end only a small move still stops before it, and each
  * such move (its run to rest certified) closes at least part of the gap,
@@ -560,11 +577,38 @@ int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_pa
 		}
 	} else if (a.ok) {
 		int i0 = st->share > 0 && st->share < 5 ? st->share - 1 : 0;
+		double T = lim->period, cap = mlip_path_piece_cap(sp, lim, a.piece);
+		/* Landing candidates, each tried just before the first of the
+		 * five below it: the jerk whose step and a next step of -a1/T
+		 * end at the cap (Q5) with a = 0 (v + 1.5 a T + j T^2 = cap), and
+		 * the jerk that zeroes a. The five alone missed both: a 5 mm
+		 * line at F100 cruised in a sawtooth of 0.84-0.99 of its cap
+		 * (3.262 -> 3.058 s at 1e5). No zero-a landing while braking
+		 * below J T^2 (one period's jerk's worth of speed): there a = 0
+		 * is a creep, not a cruise (MB-2.3 at 1e4 crept 1.8 s into a
+		 * corner at under 0.01 mm/s; NAN is never tried). */
+		int creep = st->a < 0.0 && st->v < a.jh * T * T;
+		double land[2] = {(cap - st->v - 1.5 * st->a * T) / (T * T),
+		                  creep ? NAN : -st->a / T};
+		int tried[2] = {0, 0};
 		for (int i = i0; i < 5; i++) {
-			int r = take(sp, lim, &a, a.jl + share[i] * (a.jh - a.jl), i, st, end,
-			             max_periods, work);
+			double jc = a.jl + share[i] * (a.jh - a.jl);
+			if (land_take(sp, lim, &a, land, tried, jc, i, st, end, max_periods,
+			              work)) {
+				return 1;
+			}
+			int r = take(sp, lim, &a, jc, i, st, end, max_periods, work);
+			if (r == 1) {
+				return 1;
+			}
+			/* no jerk near jc (Q2): the landings below it may still
+			 * have one, the second step of a landing above all (-a1/T
+			 * where jc's step would pass A). Braking instead, F100 at
+			 * 1e6 landed and braked by turns: 10.2 s (4.24 s without
+			 * the landings, 3.03 s with this). */
 			if (r != 0) {
-				if (r == 1) {
+				if (land_take(sp, lim, &a, land, tried, a.jl, i, st, end,
+				              max_periods, work)) {
 					return 1;
 				}
 				break;

@@ -281,3 +281,32 @@ def test_fairing_on_a_coarse_circle(tmp_path, jerk, bound, slow):
          if max(a[2], b[2]) < -1.0 and max(a[1], b[1]) < 5.0 and a[3] == b[3] == 0.0]
     assert len(v) > 100
     assert slow * cap <= min(v) and max(v) <= cap * (1 + 1e-9), (min(v), max(v))
+
+
+@pytest.mark.parametrize("jerk,measured", [(1e5, 3.058), (1e4, 3.063), (1e6, 3.034)])
+def test_slow_line_cruises_at_its_cap(tmp_path, jerk, measured):
+    """A 5 mm G1 at F100 (1.667 mm/s): the plan lands on its cap (0.995 F)
+    and holds it (pathplan.c's landing candidates). Its five jerks across
+    the (P2) interval missed the landing jerk: at 1e5 the cruise was a
+    sawtooth of 1.39-1.65 mm/s, J up and down every few periods, 3.262 s;
+    at 1e6 one of 1.108/1.267 mm/s a period, 4.244 s (10.2 s landing
+    without the landings after a failed candidate); 1e4 held 1.65775 mm/s,
+    0.99965 of the cap, 3.067 s. Asserted: between 0.5 and 4.5 mm the
+    speed within 1e-6 of the cap on both sides (measured exact to 3e-13),
+    and the time within [length / cap, 1.01 x measured]."""
+    prog = tmp_path / "line.ngc"
+    prog.write_text("G21 G90\nG1 F100 X5\n")
+    trace = tmp_path / "line.csv"
+    p = subprocess.run([str(BUILD / "mlip-sim"), "-q", "--strategy", "smooth", "--accel", "1000",
+                        "--vmax", "200", "--eps", "0.01", "--period", "0.001", "--jerk", str(jerk),
+                        "--jerk-plan", "path", "--trace", str(trace), "--summary", "-", str(prog)],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    s = json.loads(p.stdout)
+    assert_jerk_physics(s)
+    cap = 0.995 * 100.0 / 60.0
+    assert 5.0 / cap <= s["total_time_s"] <= 1.01 * measured, s["total_time_s"]
+    xs = [float(ln.split(",")[1]) for ln in trace.read_text().splitlines()[1:]]
+    v = [(b - a) / 0.001 for a, b in zip(xs, xs[1:], strict=False) if 0.5 < a < 4.5]
+    assert len(v) > 2000
+    assert cap * (1 - 1e-6) <= min(v) and max(v) <= cap * (1 + 1e-6), (min(v), max(v))

@@ -136,7 +136,12 @@ int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path
  * at rest): the largest
  * of five jerks across the start's (P2) interval, from one above the last
  * period's (st->share: the candidates above it mostly fail, and their runs
- * were most of the work), that is admissible (Q2)
+ * were most of the work), and two landing jerks between them (the one
+ * whose step and a next of -a1/T end at the piece's cap (Q5) with a = 0,
+ * and the one that zeroes a, unless braking below J T^2, where a = 0
+ * would creep: the five alone missed them, and the plan
+ * cruised below a cap in a sawtooth; tried too, before braking, below a
+ * candidate that has no admissible jerk), that is admissible (Q2)
  * and leads to a state certified by some policy (st's own tried first; the
  * new state keeps the one that certified it), else the step of st's own
  * policy (the rest of its certified run). 1 when it moved faster than
