@@ -529,14 +529,14 @@ static int take(const struct mlip_path_curve *sp, const struct mlip_path_limits 
 	return 0;
 }
 
-/* The landing jerks land[q] (mlip_path_plan_period) above floor inside
+/* The landing jerks land[q] (mlip_path_plan_period) above the given jerk inside
  * the (P2) interval and not yet tried: 1 when one's step is taken. */
 static int land_take(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
-                     const struct at *a, const double land[2], int tried[2], double floor, int i,
+                     const struct at *a, const double land[2], int tried[2], double above, int i,
                      struct mlip_path_state *st, double end, int max_periods, long *work)
 {
 	for (int q = 0; q < 2; q++) {
-		if (!tried[q] && land[q] > floor && land[q] > a->jl && land[q] < a->jh) {
+		if (!tried[q] && land[q] > above && land[q] > a->jl && land[q] < a->jh) {
 			tried[q] = 1;
 			if (take(sp, lim, a, land[q], i, st, end, max_periods, work) == 1) {
 				return 1;
