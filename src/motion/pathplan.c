@@ -496,8 +496,11 @@ int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path
 }
 
 /* The step of the jerk nearest jt from a (Q2) into *st when some policy
- * certifies its end (st's own first, then the others, Q4); the new state
- * keeps the policy and the candidate i. */
+ * certifies its end (Q4), tried in their order, the hardest first: the new
+ * state keeps the first that certifies it, so a hold from it brakes as hard
+ * as any policy can (st's own first let a gentle policy, once taken, carry
+ * on down a straight line at speed: a hold there braked at 0.1 A), and the
+ * candidate i. */
 static int take(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                 const struct at *a, double jt, int i, struct mlip_path_state *st, double end,
                 int max_periods, long *work)
@@ -516,10 +519,10 @@ static int take(const struct mlip_path_curve *sp, const struct mlip_path_limits 
 		 * halved jerk next moves. */
 		return -1;
 	}
-	int own = policy(lim, st->brake), nb = lim->n_brake < 1 ? 1 : lim->n_brake;
+	int nb = lim->n_brake < 1 ? 1 : lim->n_brake;
 	nb = nb > MLIP_PATH_BRAKES ? MLIP_PATH_BRAKES : nb;
 	for (int q = 0; q < nb; q++) {
-		nx.st.brake = q == 0 ? own : (q <= own ? q - 1 : q);
+		nx.st.brake = q;
 		if (certified_at(sp, lim, &nx, a, end, max_periods, work)) {
 			nx.st.share = i;
 			*st = nx.st;
@@ -558,6 +561,11 @@ static int land_take(const struct mlip_path_curve *sp, const struct mlip_path_li
  * helix 25 mm long at 1e5 stalled 1.6e-9 short (their runs' rounding). */
 #define END_REACHED 1e-8
 
+/* The cap landing's target below the cap (its share): far above the
+ * rounding of a step's speed (1e-16), far below what a cruise loses (1e-9
+ * of a 200 mm/s cap is 2e-7 mm/s). */
+#define LAND_BELOW 1e-9
+
 int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                           struct mlip_path_state *st, double end, int max_periods, long *work)
 {
@@ -588,7 +596,11 @@ int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_pa
 		 * is a creep, not a cruise (MB-2.3 at 1e4 crept 1.8 s into a
 		 * corner at under 0.01 mm/s; NAN is never tried). */
 		int creep = st->a < 0.0 && st->v < a.jh * T * T;
-		double land[2] = {(cap - st->v - 1.5 * st->a * T) / (T * T),
+		/* the cap landing aims LAND_BELOW under it: one exactly at it
+		 * lands an ulp above as often as not, is refused (Q5), and the
+		 * cruise became a sawtooth again (F100 at 1e5 with the limits at
+		 * 0.995: 0.98-0.995 of its cap) */
+		double land[2] = {(cap * (1.0 - LAND_BELOW) - st->v - 1.5 * st->a * T) / (T * T),
 		                  creep ? NAN : -st->a / T};
 		int tried[2] = {0, 0};
 		for (int i = i0; i < 5; i++) {

@@ -435,6 +435,42 @@ static void test_plan_helix_two_policies(void **state)
 	assert_int_equal(two, 3);
 }
 
+/* A state keeps the hardest policy whose run certifies it (the first of
+ * a_brake, hardest first), so a hold brakes as hard as the policies allow
+ * from there: on the helix with 900 and 300, every state the plan enters
+ * labelled 300 is one whose 900 run fails, and some are. Before, a state
+ * tried its predecessor's policy first and kept 300 where 900 would do
+ * (a hold on a straight stretch after a tight curve braked gently). */
+static void test_plan_keeps_the_hardest_policy(void **state)
+{
+	(void)state;
+	struct mlip_path_spline sp;
+	struct mlip_path_curve cv;
+	struct mlip_path_limits lim;
+	helix_spline(&sp, &cv, 0.4);
+	limits(&lim, 1e5);
+	lim.a_brake[0] = 900.0;
+	lim.a_brake[1] = 300.0;
+	lim.n_brake = 2;
+	double end = cv.s[cv.count - 1];
+	struct mlip_path_state st = {0.0, 0.0, 0.0, 0, 0};
+	long work = 0;
+	int gentle = 0, hard = 0;
+	for (int n = 0; n < 20000 && !(n > 0 && st.v == 0.0 && st.a == 0.0); n++) {
+		int r = mlip_path_plan_period(&cv, &lim, &st, end, 3000, &work);
+		assert_true(r >= 0);
+		if (r == 1 && st.brake == 1) { /* entered, labelled 300 */
+			struct mlip_path_state h = st;
+			h.brake = 0;
+			assert_false(mlip_path_certified(&cv, &lim, h, end, 3000, NULL));
+			gentle++;
+		}
+		hard += r == 1 && st.brake == 0;
+	}
+	print_message("states entered: %d by 900, %d by 300 only\n", hard, gentle);
+	assert_true(gentle > 0 && hard > 0);
+}
+
 /* A hook, as on tball-pocket's part of stations 5,316-5,340 (0.79 mm): a
  * line at slope -0.3 in pieces of 0.001-0.08 mm with a step of 0.0002 mm
  * across it after 0.62 mm. The spline's x''' there is so large that no
@@ -682,6 +718,7 @@ int main(void)
 	    cmocka_unit_test(test_plan_helix_1e5),
 	    cmocka_unit_test(test_plan_long_fine_helix),
 	    cmocka_unit_test(test_plan_helix_two_policies),
+	    cmocka_unit_test(test_plan_keeps_the_hardest_policy),
 	    cmocka_unit_test(test_plan_hook),
 	    cmocka_unit_test(test_plan_short_line),
 	    cmocka_unit_test(test_plan_from_rest_at_cusp),

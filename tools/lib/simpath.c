@@ -9,16 +9,29 @@
  * controller's contour, which runs at eps less it. 0.2: at 0.1 the fairing
  * and (P6) shared 1 um and the plan refused MB-2.3, the pocket and
  * SheepTile ((P6) at a sharp corner). */
-#define BAND_SHARE 0.2
+#define BAND_SHARE  0.2
 /* The fairing (pathrun.h, F1 F2): +-3 mm at most, 8 input periods either
  * side, each knot moved at most 0.6 of the band (the rest is (P6)'s).
  * Measured on the first 4,000 lines of the shared CAM files (docs/benchmarks.md):
  * 8 periods beat 6, 10, 12, 15 and 0.6 beat 0.4 */
+#define FAIR_H_MM   3.0
+#define FAIR_K      8
+#define FAIR_SHARE  0.6
 /* The plan's share of each speed cap (the machine's, each block's) */
-#define CAP_SHARE  0.995
-#define FAIR_H_MM  3.0
-#define FAIR_K     8
-#define FAIR_SHARE 0.6
+#define CAP_SHARE   0.995
+/* The plan's share of each axis's A and J. The setpoints keep the plan's
+ * limits to 1e-6 of them (its checks hold at every instant of a period,
+ * pathplan.h), so this is a margin for rounding, not for the method: 0.98
+ * A and 0.95 J (the design study's) cost the flower spiral 0.9 % at 1e5 */
+#define LIMIT_SHARE 0.995
+/* The braking policies (pathplan.h, Q3): path decelerations, shares of
+ * the largest axis's A ((P1) holds each to what the axes moving allow),
+ * the hardest first: a state keeps the first whose run certifies it (a
+ * hold brakes by it). Each certifies states the others do not (0.6: MB-2.3
+ * at 1e5 397.38 -> 395.05 s; 0.1, on tight curves, where 3 x'' v a takes
+ * the jerk budget: docs/benchmarks.md) */
+#define BRAKES      4
+static const double brake_share[BRAKES] = {0.9, 0.6, 0.3, 0.1};
 
 int mlip_simpath_fair(struct mlip_pathrun *pr)
 {
@@ -34,28 +47,25 @@ int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_p
 	if (feed > 0.0 && feed < cap) {
 		cap = feed;
 	}
+	double amax = 0.0;
 	for (int k = 0; k < m->n_axes; k++) {
 		const struct mlip_axis *ax = &m->axis[k];
 		if (!(ax->max_jerk > 0.0)) {
 			*why = "every axis needs a jerk limit (MAX_JERK, --jerk)";
 			return -1;
 		}
-		lim->accel[k] = 0.98 * ax->max_accel;
-		lim->jerk[k] = 0.95 * ax->max_jerk;
+		lim->accel[k] = LIMIT_SHARE * ax->max_accel;
+		lim->jerk[k] = LIMIT_SHARE * ax->max_jerk;
+		amax = ax->max_accel > amax ? ax->max_accel : amax;
 		if (ax->max_vel > 0.0 && ax->max_vel < cap) {
 			cap = ax->max_vel; /* |x'| <= 1 by chord length: each axis within */
 		}
 	}
 	lim->vmax = CAP_SHARE * cap;
-	/* 600 between them certifies states neither run does (pathplan.h, Q4:
-	 * any policy's run): MB-2.3 at 1e5 397.38 -> 395.05 s, the flower
-	 * spiral 259.92 -> 257.16 s, no file of make bench's jerk set slower
-	 * by more than 0.05 % (docs/benchmarks.md); a gentler one (100) gained
-	 * 4.7 % at 1e4 but a hold would brake that gently */
-	lim->a_brake[0] = 900.0;
-	lim->a_brake[1] = 300.0;
-	lim->a_brake[2] = 600.0;
-	lim->n_brake = 3;
+	for (int i = 0; i < BRAKES; i++) {
+		lim->a_brake[i] = brake_share[i] * amax;
+	}
+	lim->n_brake = BRAKES;
 	lim->period = m->period_s;
 	*band_mm = BAND_SHARE * m->tolerance_mm;
 	return 0;

@@ -82,8 +82,9 @@ struct mlip_path_limits {
 	/* (Q5) the cap at a 100 % feed override: the knots' caps scale by vmax
 	 * / vfull (0: not scaled) */
 	double vfull;
-	/* (Q3) the policies' decelerations, each > 0: a state is certified by
-	 * the run of any of the first n_brake (0 counts as 1) */
+	/* (Q3) the policies' decelerations, each > 0, the hardest first: a
+	 * state is certified by the run of any of the first n_brake (0 counts
+	 * as 1), and keeps the first whose run does (a hold brakes by it) */
 	double a_brake[MLIP_PATH_BRAKES];
 	int n_brake;
 	double v_crawl; /* not read: the runs end at rest (Q4) */
@@ -142,8 +143,8 @@ int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path
  * would creep: the five alone missed them, and the plan
  * cruised below a cap in a sawtooth; tried too, before braking, below a
  * candidate that has no admissible jerk), that is admissible (Q2)
- * and leads to a state certified by some policy (st's own tried first; the
- * new state keeps the one that certified it), else the step of st's own
+ * and leads to a state certified by some policy (tried in their order; the
+ * new state keeps the first that certified it), else the step of st's own
  * policy (the rest of its certified run). 1 when it moved faster than
  * braking, 0 when it braked, -1 when the policy had no jerk (st was not
  * certified). At rest the candidates are the start's largest jerk halved
