@@ -202,6 +202,41 @@ def test_hold_mid_move(controller, tmp_path):
     ending(cfg, prog, rec, rt, f)
 
 
+def test_hold_after_a_tight_curve_brakes_hard(controller, tmp_path):
+    """A hold on a straight line after a tight circle (r 1 mm, where only
+    the gentler braking policies certify the plan's states) brakes at the
+    hardest policy's 0.9 A (tools/lib/simpath.c): each state keeps the
+    hardest policy whose run certifies it. Before, a state tried its
+    predecessor's policy first and the straight kept the circle's gentle
+    one: a hold at 90 mm/s braked at 0.1-0.3 A, metres of travel at a real
+    feed. Asserted on the record's falling tail into the hold's rest: the
+    path's deceleration (chord speed) within [0.85 A, A (1 + 1e-6)], A and
+    J of every axis within (1 + 1e-6); mlip-check on the whole record."""
+    cfg, prog, rec, shm, rt, f = moving(
+        controller,
+        tmp_path,
+        "G21 G90\nG1 F6000\nG2 X0 Y0 I1 J0\nG1 X300\nG1 X0\n",
+        60,
+    )
+    s = status(shm)
+    assert s["position"]["X"] > 2.0, s  # past the circle (its x is 0..2 mm)
+    held = hold(shm)
+    assert 2.0 < held["position"]["X"] < 300.0, held
+    assert ctl(shm, "resume").returncode == 0
+    ending(cfg, prog, rec, rt, f)
+    rows, T, A = record_rows(rec), 0.001, 1000.0
+    v = [math.dist(a[1:], b[1:]) / T for a, b in zip(rows, rows[1:], strict=False)]
+    # the hold's rest: the first still period at the held point
+    hx = held["position"]["X"]
+    e = next(k for k in range(1, len(v)) if v[k] == 0.0 and abs(rows[k][1] - hx) < 1e-3)
+    b = e
+    while b > 0 and v[b - 1] > v[b]:
+        b -= 1
+    assert v[b] > 50.0, (b, v[b])  # braked from speed
+    dec = max((p - q) / T for p, q in zip(v[b:e], v[b + 1 : e + 1], strict=False))
+    assert 0.85 * A <= dec <= A * (1 + 1e-6), dec
+
+
 def test_stop_then_next_program(controller, tmp_path):
     """mlip-ctl stop mid-move: the queue's braking run to rest (the feeder
     told, 4), the rest of the program dropped by the planning thread; the
