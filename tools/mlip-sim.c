@@ -381,17 +381,18 @@ static int set_up(struct options *o, struct sim *s)
 			fprintf(s->err, PROG ": %s: %s\n", how, why);
 			return 2;
 		}
-		s->plan_m = *m; /* path: smooth without J; path-mean: with the mean */
-		for (int k = 0; k < m->n_axes && o->jerk_plan == JERK_PATH; k++) {
-			s->plan_m.axis[k].max_jerk = 0.0;
-		}
-		if (o->jerk_plan == JERK_PATH_MEAN) {
-			/* the mean's samples are not faired: the spline's (P6) band
-			 * alone (the fairing's band cost path-mean 1.9 % on the
-			 * pocket at 1e4, docs/benchmarks.md) */
+		if (o->jerk_plan == JERK_PATH) {
+			/* smooth without J at eps less the band, as mlip-feed and
+			 * the planning thread run it */
+			mlip_simpath_machine(m, &s->plan_m);
+		} else {
+			/* path-mean: the mean. Its samples are not faired: the
+			 * spline's (P6) band alone (the fairing's band cost
+			 * path-mean 1.9 % on the pocket at 1e4, docs/benchmarks.md) */
+			s->plan_m = *m;
 			s->band_mm = MLIP_SIMPATH_MEAN_BAND * m->tolerance_mm;
+			s->plan_m.tolerance_mm -= s->band_mm; /* the band: the spline's */
 		}
-		s->plan_m.tolerance_mm -= s->band_mm; /* the band: the spline's */
 		cm = &s->plan_m;
 	}
 	s->lookahead = o->lookahead       ? o->lookahead

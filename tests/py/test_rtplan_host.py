@@ -9,9 +9,11 @@ import re
 import signal
 import struct
 import subprocess
+import sys
 
 from conftest import (
     HEAD,
+    ROOT,
     TAIL,
     TOOLPATHS,
     Proc,
@@ -98,6 +100,34 @@ def test_path_plan_runs_as_mlip_sim(controller, tmp_path):
             if got == want or "queue ran dry" not in err:
                 break
         assert len(got) == len(want) and got == want, (len(got), len(want), err[-3000:])
+
+
+def test_path_plan_on_a_fast_machine_runs_as_mlip_sim(controller, tmp_path):
+    """A machine of A 5000 mm/s^2 (J 5e5): smooth runs for the plan at band
+    / T^2 (tools/lib/simpath.c), the same in mlip-feed, the planning thread
+    and mlip-sim: mlip-rt's setpoints are mlip-sim's byte for byte (the
+    spiral's centre, which the plan refused on such a machine before)."""
+    ini = machine(tmp_path).read_text().replace("MAX_JERK = 100000", "MAX_JERK = 500000")
+    cfg = tmp_path / "mill-path-5000.ini"
+    cfg.write_text(re.sub(r"MAX_ACCELERATION = [0-9.]+", "MAX_ACCELERATION = 5000", ini))
+    gen, prog = tmp_path / "spiral.ngc", tmp_path / "spiral-2k.ngc"
+    subprocess.run([sys.executable, str(ROOT / "tools" / "gen_curves.py"), "spiral", str(gen)],
+                   check=True, capture_output=True)
+    prog.write_text("".join(gen.read_text().splitlines(True)[:2004]))
+    sim = sim_trace(cfg, prog, tmp_path / "sim.csv")
+    assert len(sim.splitlines()) > 300
+    for attempt in range(3):  # again only when the queue ran dry (a loaded host)
+        rec = tmp_path / f"rt{attempt}.csv"
+        shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec)
+        p = feed(shm, prog)
+        assert p.returncode == 0, p.stderr
+        rt.send_signal(signal.SIGTERM)
+        _, err = rt.communicate(timeout=10)
+        assert rt.returncode == 0, err
+        got, want = positions(rec.read_text()), positions(sim)
+        if got == want or "queue ran dry" not in err:
+            break
+    assert len(got) == len(want) and got == want, (len(got), len(want), err[-3000:])
 
 
 def test_feed_refuses_what_the_plan_cannot_run(controller, tmp_path):

@@ -19,12 +19,10 @@ int mlip_planfeed_init(struct mlip_planfeed *pf, const struct mlip_config *cfg, 
 	if (mlip_simpath_limits(m, feed, &pf->lim, &pf->band_mm, why) != 0) {
 		return -1;
 	}
-	pf->cm = *m;
+	mlip_simpath_machine(m, &pf->cm); /* smooth's, as mlip-feed's and mlip-sim's */
 	for (int k = 0; k < m->n_axes; k++) {
-		pf->cm.axis[k].max_jerk = 0.0;
 		pf->start[k] = m->axis[k].home;
 	}
-	pf->cm.tolerance_mm -= pf->band_mm;
 	pf->cm.smooth = 1;
 	pf->ctl = ctl;
 	pf->pr = pr;

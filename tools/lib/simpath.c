@@ -74,10 +74,23 @@ int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_p
 void mlip_simpath_machine(const struct mlip_machine *m, struct mlip_machine *cm)
 {
 	*cm = *m;
+	double band = BAND_SHARE * m->tolerance_mm; /* mlip_simpath_limits' band */
+	/* smooth's setpoints are the spline's knots: at acceleration a (a
+	 * curve's v^2 / r) a period's chord sags a T^2 / 8 from the arc, and
+	 * the spline through them strays by more where the curvature steps.
+	 * Above band / T^2 (2000 mm/s^2 at eps 0.01, T 1 ms) it strayed past
+	 * the band (P6) and the plan refused every curve it was given (the
+	 * spiral at A 3000: 2.02 um, the band 2 um). The plan re-times the
+	 * curve at the machine's A: the input only gives the shape, and
+	 * smooth at a lower A gives it in denser knots. */
+	double cap = band / (m->period_s * m->period_s);
 	for (int k = 0; k < m->n_axes; k++) {
 		cm->axis[k].max_jerk = 0.0;
+		if (cm->axis[k].max_accel > cap) {
+			cm->axis[k].max_accel = cap;
+		}
 	}
-	cm->tolerance_mm -= BAND_SHARE * m->tolerance_mm; /* mlip_simpath_limits' band */
+	cm->tolerance_mm -= band;
 }
 
 void mlip_simpath_tag(struct mlip_pathrun_tag *t, const struct mlip_planner *pl)

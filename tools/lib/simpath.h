@@ -41,7 +41,9 @@ int mlip_simpath_limits(const struct mlip_machine *m, double feed, struct mlip_p
                         double *band_mm, const char **why);
 
 /* The plan's controller's machine: m without J, eps less the band (0.2
- * eps), on which `smooth` runs (mlip-sim, the planning thread, a feeder). */
+ * eps), each axis's A at most band / T^2 (denser knots where m is fast:
+ * simpath.c), on which `smooth` runs (mlip-sim, the planning thread, a
+ * feeder). */
 void mlip_simpath_machine(const struct mlip_machine *m, struct mlip_machine *cm);
 
 /* path-mean's band (of eps): the spline's (P6) alone */
