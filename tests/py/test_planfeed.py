@@ -121,18 +121,23 @@ def test_refused_before_the_thread(tmp_path, body, line, what):
 
 
 def test_refused_after_the_start(tmp_path):
-    """A plan refused after its start (a 2 ms machine: the circle's knots
-    0.2 mm apart, a piece's sag and its knots' fairing moves 0.00206 mm
-    against the band's 0.002, P6) ends the bench with the refusal mlip-sim
-    gives (its period waited for an entry for ever before), and mlip-sim's
-    message states the bound the band is held to."""
+    """A plan refused after its start (a 2 ms machine: a 10 mm line, then
+    a zigzag of 0.3 mm turning 150 degrees: at its first corner a piece's
+    sag and its knots' fairing moves reach 0.0024 mm against the band's
+    0.002, P6) ends the bench with the refusal
+    mlip-sim gives (its period waited for an entry for ever before), and
+    mlip-sim's message states the bound the band is held to. (A circle of
+    2 degree steps was refused so until smooth ran for the plan at band /
+    T^2, tools/lib/simpath.c.)"""
     cfg = tmp_path / "mill-path-2ms.ini"
     cfg.write_text(machine(tmp_path).read_text().replace("PERIOD = 0.001", "PERIOD = 0.002"))
-    prog = tmp_path / "circle.ngc"
-    pts = [(10 * math.cos(math.radians(k * 2)), 10 * math.sin(math.radians(k * 2)))
-           for k in range(1, 181)]
+    prog = tmp_path / "zigzag.ngc"
+    pts, ang = [(10.0, 0.0)], 0.0
+    for k in range(20):
+        ang += math.radians(150.0) * (1 if k % 2 == 0 else -1)
+        pts.append((pts[-1][0] + 0.3 * math.cos(ang), pts[-1][1] + 0.3 * math.sin(ang)))
     prog.write_text("G21 G90\nG1 F6000\nG1 X10 Y0\n"
-                    + "".join(f"G1 X{x:.4f} Y{y:.4f}\n" for x, y in pts))
+                    + "".join(f"G1 X{x:.4f} Y{y:.4f}\n" for x, y in pts[1:]))
     s = subprocess.run([str(BUILD / "mlip-sim"), "--config", str(cfg), "--strategy", "smooth",
                         str(prog)], capture_output=True, text=True, timeout=120)
     m = re.search(r"\(P6\), its sag and its knots' fairing moves together at [0-9.]+ mm of the path "
