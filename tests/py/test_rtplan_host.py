@@ -540,8 +540,14 @@ def test_stop_names_the_block_to_resume(controller, tmp_path):
     shm, _ = controller(machine(tmp_path), "--strategy", "smooth")
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", str(prog)],
                          stderr=subprocess.PIPE, text=True)
+    # the stop (5.5 mm at 0.9 A) then rests mid-side, 1-3 mm past vertex
+    # 30: a rest at a smoothed block's end (a vertex's rounding, 0.37 mm
+    # past it) is a known defect of the continuation, its first move a
+    # few micrometres long: the plan refuses it (P6; reproduced: 4 of 20
+    # stop points 0.37 mm past vertex 30; docs/algorithm.md, "Not yet")
     assert wait_for(lambda: (lambda s: s and s["state"] == "running" and
-                             angle(s) > 0.8 * math.pi)(status(shm)), 60), status(shm)
+                             angle(s) > 0.8 * math.pi + 0.5 * POLY_SIDE)(status(shm)), 60), \
+        status(shm)
     f.send_signal(signal.SIGTERM)
     err = f.communicate(timeout=60)[1]
     assert f.returncode == 143, err
