@@ -711,6 +711,22 @@ void mlip_planner_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *li
 	*line = p->done_line;
 }
 
+void mlip_planner_resume_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *line)
+{
+	*seq = p->done_seq;
+	*line = p->done_line;
+	if (p->taps > 1 || !p->in_corner || p->head - p->tail < 2) {
+		return;
+	}
+	/* in a corner: done with its block once nearer to the next segment,
+	 * as mlip_planner_rest_here decides for a rest there */
+	const struct mlip_seg *s = cseg_at(p, p->tail), *nx = cseg_at(p, p->tail + 1);
+	if (line_dist(p->n, p->pos, s->end, nx->e) <= line_dist(p->n, p->pos, s->end, s->e)) {
+		*seq = s->seq;
+		*line = s->line;
+	}
+}
+
 double mlip_planner_override_pct(const struct mlip_planner *p)
 {
 	return p->override * 100.0;

@@ -11,6 +11,8 @@ import struct
 import subprocess
 import sys
 
+import pytest
+
 from conftest import (
     HEAD,
     ROOT,
@@ -540,14 +542,8 @@ def test_stop_names_the_block_to_resume(controller, tmp_path):
     shm, _ = controller(machine(tmp_path), "--strategy", "smooth")
     f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", str(prog)],
                          stderr=subprocess.PIPE, text=True)
-    # the stop (5.5 mm at 0.9 A) then rests mid-side, 1-3 mm past vertex
-    # 30: a rest at a smoothed block's end (a vertex's rounding, 0.37 mm
-    # past it) is a known defect of the continuation, its first move a
-    # few micrometres long: the plan refuses it (P6; reproduced: 4 of 20
-    # stop points 0.37 mm past vertex 30; docs/algorithm.md, "Not yet")
     assert wait_for(lambda: (lambda s: s and s["state"] == "running" and
-                             angle(s) > 0.8 * math.pi + 0.5 * POLY_SIDE)(status(shm)), 60), \
-        status(shm)
+                             angle(s) > 0.8 * math.pi)(status(shm)), 60), status(shm)
     f.send_signal(signal.SIGTERM)
     err = f.communicate(timeout=60)[1]
     assert f.returncode == 143, err
@@ -569,6 +565,35 @@ def test_stop_names_the_block_to_resume(controller, tmp_path):
     assert p.returncode == 0, p.stderr
     e = status(shm)
     assert e["state"] == "idle" and e["exec_seq"] == n + 1, e
+    assert e["position"]["X"] == -100.0 and e["position"]["Y"] == 0.0, e
+
+
+@pytest.mark.parametrize("k", range(8))
+def test_continue_from_a_rest_in_a_corner(controller, tmp_path, k):
+    """mlip-feed stopped (SIGTERM) at 8 points around the polygon's vertex 30
+    (the stop, 5.5 mm at 0.9 A, asked from 142.0 to 144.0 degrees), then
+    continued with the block it names: each runs to the program's end.
+    A rest inside the corner's second half (0.37 mm past the vertex, where
+    smooth's blend ends) named the corner's own block, and the
+    continuation went back to the vertex: the plan refused that reversal
+    ((P6), a fault; 4 of 20 such stops). Now the plan's knots count a
+    corner's block done once nearer to the next segment
+    (mlip_planner_resume_done, the rule of a stall's rest)."""
+    prog = polygon(tmp_path)
+    shm, _ = controller(machine(tmp_path), "--strategy", "smooth")
+    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", str(prog)],
+                         stderr=subprocess.PIPE, text=True)
+    th = 2.478 + k * 0.005  # radians: 142.0 .. 144.0 degrees
+    assert wait_for(lambda: (lambda s: s and s["state"] == "running" and
+                             angle(s) > th)(status(shm)), 60), status(shm)
+    f.send_signal(signal.SIGTERM)
+    err = f.communicate(timeout=60)[1]
+    m = re.search(r"resume with --start-seq (\d+)", err)
+    assert f.returncode == 143 and m, err
+    p = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", "--start-seq", m[1], str(prog)],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    e = status(shm)
     assert e["position"]["X"] == -100.0 and e["position"]["Y"] == 0.0, e
 
 

@@ -117,7 +117,10 @@ static int ctl_period(struct mlip_planfeed *pf)
 		struct mlip_pathrun_tag *t = &pf->pr->tag_in;
 		t->seq = out.status.exec_seq;
 		t->line = out.status.exec_line;
-		mlip_planner_done(pf->ctl->planner, &t->done_seq, &t->done_line);
+		/* in a corner past its middle: its block done, so a stop that
+		 * rests there names the next (a continuation from the corner's
+		 * block went back 0.37 mm to its corner point: (P6) refused) */
+		mlip_planner_resume_done(pf->ctl->planner, &t->done_seq, &t->done_line);
 		mlip_simpath_tag(t, pf->ctl->planner); /* its cap: as mlip-sim's */
 	}
 	if (state != MLIP_STATE_RUNNING && state != MLIP_STATE_IDLE) {

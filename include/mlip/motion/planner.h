@@ -332,6 +332,11 @@ double mlip_planner_cap(const struct mlip_planner *p);
 uint64_t mlip_planner_motion_seq(const struct mlip_planner *p);
 /* The last block completed (or, pushed at rest, the block before it). */
 void mlip_planner_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
+/* The last block completed as a rest at the last setpoint would leave it
+ * (without the mean): in a corner, once the setpoint is nearer to the next
+ * segment, the corner's block (mlip_planner_rest_here's rule), so a
+ * continuation from there goes on, not back to the corner point. */
+void mlip_planner_resume_done(const struct mlip_planner *p, uint64_t *seq, uint32_t *line);
 /* Feed override in effect, percent. */
 double mlip_planner_override_pct(const struct mlip_planner *p);
 const struct mlip_planner_stats *mlip_planner_get_stats(const struct mlip_planner *p);
