@@ -499,8 +499,8 @@ int mlip_path_certified(const struct mlip_path_curve *sp, const struct mlip_path
  * certifies its end (Q4), tried in their order, the hardest first: the new
  * state keeps the first that certifies it, so a hold from it brakes as hard
  * as any policy can (st's own first let a gentle policy, once taken, carry
- * on down a straight line at speed: a hold there braked at 0.1 A), and the
- * candidate i. */
+ * on down a straight line at speed: a hold there braked at 0.3 A in mlip-rt
+ * after a 1 mm circle, test_rtplan_host), and the candidate i. */
 static int take(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
                 const struct at *a, double jt, int i, struct mlip_path_state *st, double end,
                 int max_periods, long *work)
