@@ -83,25 +83,36 @@ def test_path_plan_runs_as_mlip_sim(controller, tmp_path):
     for k, prog in enumerate(progs):
         sim = sim_trace(cfg, prog, tmp_path / f"sim{k}.csv")
         assert len(sim.splitlines()) > 1000
-        for attempt in range(3):  # again only when the queue ran dry (a loaded host)
-            rec = tmp_path / f"rt{k}-{attempt}.csv"
-            shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec)
-            p = feed(shm, prog)
-            assert p.returncode == 0, p.stderr
+
+        def more(shm):
             s = status(shm)
             assert s["state"] == "idle" and s["exec_seq"] == s["blocks_consumed"] > 1, s
             p = feed(shm, progs[0])  # the thread starts afresh for the next program
             assert p.returncode == 0, p.stderr
-            rt.send_signal(signal.SIGTERM)
-            _, err = rt.communicate(timeout=10)
-            assert rt.returncode == 0, err
-            # the positions to the byte, row by row (t: the record's counts
-            # the deadlines, with a hole where this non-real-time host
-            # missed one)
-            got, want = positions(rec.read_text()), positions(sim)
-            if got == want or "queue ran dry" not in err:
-                break
-        assert len(got) == len(want) and got == want, (len(got), len(want), err[-3000:])
+
+        runs_as_sim(controller, cfg, prog, sim, tmp_path / f"rt{k}", more)
+
+
+def runs_as_sim(controller, cfg, prog, sim, rec_base, more=None):
+    """mlip-rt's --record of prog is mlip-sim's trace sim, the positions to
+    the byte, row by row (t: the record's counts the deadlines, with a hole
+    where this non-real-time host missed one); run again, 3 runs at most,
+    only when the queue ran dry (a loaded host). more(shm): after the feed,
+    before mlip-rt stops."""
+    for attempt in range(3):
+        rec = rec_base.with_name(f"{rec_base.name}-{attempt}.csv")
+        shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec)
+        p = feed(shm, prog)
+        assert p.returncode == 0, p.stderr
+        if more is not None:
+            more(shm)
+        rt.send_signal(signal.SIGTERM)
+        _, err = rt.communicate(timeout=10)
+        assert rt.returncode == 0, err
+        got, want = positions(rec.read_text()), positions(sim)
+        if got == want or "queue ran dry" not in err:
+            break
+    assert len(got) == len(want) and got == want, (len(got), len(want), err[-3000:])
 
 
 def test_path_plan_on_a_fast_machine_runs_as_mlip_sim(controller, tmp_path):
@@ -118,18 +129,7 @@ def test_path_plan_on_a_fast_machine_runs_as_mlip_sim(controller, tmp_path):
     prog.write_text("".join(gen.read_text().splitlines(True)[:2004]))
     sim = sim_trace(cfg, prog, tmp_path / "sim.csv")
     assert len(sim.splitlines()) > 300
-    for attempt in range(3):  # again only when the queue ran dry (a loaded host)
-        rec = tmp_path / f"rt{attempt}.csv"
-        shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec)
-        p = feed(shm, prog)
-        assert p.returncode == 0, p.stderr
-        rt.send_signal(signal.SIGTERM)
-        _, err = rt.communicate(timeout=10)
-        assert rt.returncode == 0, err
-        got, want = positions(rec.read_text()), positions(sim)
-        if got == want or "queue ran dry" not in err:
-            break
-    assert len(got) == len(want) and got == want, (len(got), len(want), err[-3000:])
+    runs_as_sim(controller, cfg, prog, sim, tmp_path / "rt")
 
 
 def test_feed_refuses_what_the_plan_cannot_run(controller, tmp_path):

@@ -56,6 +56,14 @@ static void limits(struct mlip_path_limits *lim, double J)
 	lim->period = 1e-3;
 }
 
+/* Two braking policies, 900 and 300 mm/s^2, the hardest first (Q3, Q4) */
+static void two_policies(struct mlip_path_limits *lim)
+{
+	lim->a_brake[0] = 900.0;
+	lim->a_brake[1] = 300.0;
+	lim->n_brake = 2;
+}
+
 /* The worst |P2| / J (accel 0) or |P1| / A (accel 1) over the step of
  * jerk j from st, at 400 instants. */
 static double worst_of(const struct mlip_path_spline *sp, const struct mlip_path_limits *lim,
@@ -426,9 +434,7 @@ static void test_plan_helix_two_policies(void **state)
 	limits(&lim, 1e5);
 	int one = 0, two = 0;
 	int n1 = plan_curve_lim(&cv, 1e5, &lim, &one);
-	lim.a_brake[0] = 900.0;
-	lim.a_brake[1] = 300.0;
-	lim.n_brake = 2;
+	two_policies(&lim);
 	int n2 = plan_curve_lim(&cv, 1e5, &lim, &two);
 	print_message("periods: %d with 300 mm/s^2, %d with 900 and 300\n", n1, n2);
 	assert_int_equal(one, 1);
@@ -449,9 +455,7 @@ static void test_plan_keeps_the_hardest_policy(void **state)
 	struct mlip_path_limits lim;
 	helix_spline(&sp, &cv, 0.4);
 	limits(&lim, 1e5);
-	lim.a_brake[0] = 900.0;
-	lim.a_brake[1] = 300.0;
-	lim.n_brake = 2;
+	two_policies(&lim);
 	double end = cv.s[cv.count - 1];
 	struct mlip_path_state st = {0.0, 0.0, 0.0, 0, 0};
 	long work = 0;
@@ -504,9 +508,7 @@ static void plan_hook(double J)
 	    mlip_path_fit(3, (const double(*)[MLIP_MAX_AXES])pts, n, s, p, m, b, t3, c, &cv), 0);
 	struct mlip_path_limits lim;
 	limits(&lim, J);
-	lim.a_brake[0] = 900.0; /* the benchmark's policies */
-	lim.a_brake[1] = 300.0;
-	lim.n_brake = 2;
+	two_policies(&lim);
 	int policies = 0;
 	plan_curve_lim(&cv, J, &lim, &policies);
 }
@@ -533,9 +535,7 @@ static void test_plan_short_line(void **state)
 	struct mlip_path_limits lim;
 	limits(&lim, 1e5);
 	lim.n = 2;
-	lim.a_brake[0] = 900.0;
-	lim.a_brake[1] = 300.0;
-	lim.n_brake = 2;
+	two_policies(&lim);
 	int policies = 0;
 	plan_curve_lim(&cv, 1e5, &lim, &policies);
 }
@@ -604,9 +604,7 @@ static void test_plan_from_rest_at_cusp(void **state)
 	struct mlip_path_limits lim;
 	limits(&lim, 1e5);
 	lim.n = 2;
-	lim.a_brake[0] = 900.0; /* the benchmark's policies */
-	lim.a_brake[1] = 300.0;
-	lim.n_brake = 2;
+	two_policies(&lim);
 	double wj = 0.0, wa = 0.0;
 	for (int q = -40; q <= 40; q++) {
 		plan_from(&cv, &lim, s[9] + q * 0.01e-3, &wj, &wa);
@@ -651,9 +649,7 @@ static void test_plan_feed_caps(void **state)
 	cv.cap = lcap;
 	struct mlip_path_limits lim;
 	limits(&lim, 1e5);
-	lim.a_brake[0] = 900.0;
-	lim.a_brake[1] = 300.0;
-	lim.n_brake = 2;
+	two_policies(&lim);
 	assert_true(mlip_path_piece_cap(&cv, &lim, 399) == 10.0); /* the joining piece: the lower */
 	assert_true(mlip_path_piece_cap(&cv, &lim, 1300) == lim.vmax);
 	double end = cv.s[LONG_N - 1], wj = 0.0, wa = 0.0, over = 0.0;

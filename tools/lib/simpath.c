@@ -22,7 +22,7 @@
 /* The plan's share of each axis's A and J. The setpoints keep the plan's
  * limits to 1e-6 of them (its checks hold at every instant of a period,
  * pathplan.h), so this is a margin for rounding, not for the method: 0.98
- * A and 0.95 J (the design study's) cost the flower spiral 0.9 % at 1e5 */
+ * A and 0.95 J (the design study's) cost the flower spiral 0.95 % at 1e5 */
 #define LIMIT_SHARE 0.995
 /* The braking policies (pathplan.h, Q3): path decelerations, shares of
  * the largest axis's A ((P1) holds each to what the axes moving allow),
