@@ -38,6 +38,9 @@ int mlip_period_init(struct mlip_period *p, struct mlip_planner *pl, const struc
 		p->hooks = *hooks;
 	}
 	p->period_ns = (int64_t)(m->period_s * 1e9 + 0.5);
+	/* the controller's stall: so late, a period's frames are withheld */
+	p->late_ns = (uint64_t)(o->stall_periods ? o->stall_periods : MLIP_STALL_PERIODS_DEFAULT) *
+	             (uint64_t)p->period_ns;
 	p->pid = (uint32_t)getpid();
 	return 0;
 }
@@ -212,6 +215,7 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 	/* deadlines passed unserved: a stall in the last period's work as in
 	 * the sleep before this one */
 	in.missed = t->missed > UINT32_MAX ? UINT32_MAX : (uint32_t)t->missed;
+	in.unsent = p->unsent;
 	int have_cmd = mlip_ring_cmd_take(p->ring, &cmd) == MLIP_OK;
 	in.cmd = have_cmd ? &cmd : NULL;
 	in.stop_requests = mlip_ring_stop_count(p->ring);
@@ -231,7 +235,14 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 		mlip_ring_cmd_done(p->ring, cmd.seq, o->cmd_result);
 	}
 	p->send_ns = 0;
-	if (p->bus != NULL && o->n_frames > 0) {
+	/* a stall since this period began (SIGSTOP, a debugger) and these
+	 * setpoints are stale: sent now, the drives that stood still meanwhile
+	 * would step a period's travel at once. None go out; the controller
+	 * rests at the one before (in.unsent) */
+	int late = p->bus != NULL && o->n_frames > 0 && o->withhold_late &&
+	           p->bus->now_ns(p->bus->ctx) - now > p->late_ns;
+	p->unsent = late;
+	if (p->bus != NULL && o->n_frames > 0 && !late) {
 		bus_send(p, o);
 	}
 	if (p->hooks.after != NULL) {
@@ -247,7 +258,7 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 	for (uint32_t i = 0; i < o->n_events; i++) {
 		log_push(p, &o->events[i]);
 	}
-	if (p->rec != NULL) {
+	if (p->rec != NULL && !p->unsent) {
 		rec_push(p, o, t->index);
 	}
 	return o->done;

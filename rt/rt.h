@@ -251,6 +251,7 @@ struct mlip_period {
 	struct mlip_period_hooks hooks;  /* rx/before/after NULL: none */
 	uint32_t pid;                    /* published as status.reserved */
 	int64_t period_ns;
+	uint64_t late_ns; /* a period's work so long: its frames are withheld */
 	/* the one input from outside the loop: SIGINT/SIGTERM/SIGHUP: a stop,
 	 * then the loop ends */
 	volatile sig_atomic_t exit_request;
@@ -260,6 +261,7 @@ struct mlip_period {
 	uint64_t cycles;
 	struct mlip_bus_counts can;
 	int64_t send_ns;
+	int unsent; /* the last period's frames were withheld (late) */
 	/* event queue (SPSC: the loop produces, the monitor thread consumes) */
 	struct mlip_ctl_event log[MLIP_LOG_QUEUE];
 	uint32_t log_head, log_tail;

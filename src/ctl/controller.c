@@ -22,6 +22,8 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	for (int k = 0; k < m->n_axes; k++) {
 		c->pos[k] = c->prog.start[k] = m->axis[k].home;
 	}
+	memcpy(c->carried, c->pos, sizeof(c->carried));
+	memcpy(c->sent, c->pos, sizeof(c->sent));
 	if (mlip_planner_init(p, &c->m, o->strategy, o->lookahead, c->pos, o->smooth) != MLIP_OK) {
 		return MLIP_E_INVALID;
 	}
@@ -233,6 +235,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 
 	out->n_events = 0;
 	out->n_frames = 0;
+	out->withhold_late = 0;
 	c->power.want = 0; /* blocks_in says again whether a program waits */
 	out->cmd_result = MLIP_OK;
 	out->done = 0;
@@ -245,10 +248,16 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 		    in->recs_corrupt; /* a corrupted segment: nothing more is read from it */
 	}
 
+	if (!in->unsent) {
+		memcpy(c->sent, c->carried, sizeof(c->sent));
+	}
 	/* a stall: the drives stood at the last setpoint while the plan's clock
 	 * ran on. Never jump: that setpoint becomes a point of rest, and motion
-	 * continues from it only on the operator's resume. */
-	if (in->missed > c->stall_periods && moving(c) && c->ext.q != NULL) {
+	 * continues from it only on the operator's resume. Frames of the last
+	 * period withheld (a stall between its work and its send): the one
+	 * before is where they stand */
+	int stall = in->missed > c->stall_periods || in->unsent;
+	if (stall && moving(c) && c->ext.q != NULL) {
 		/* the queue's state cannot be made a rest: its braking run (a
 		 * stop, a fault or an E-stop's already is) */
 		if (c->state == MLIP_STATE_RUNNING || c->state == MLIP_STATE_HELD) {
@@ -257,8 +266,13 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 			r.value = (double)in->missed;
 			go(c, out, MLIP_STATE_HELD, r);
 		}
-	} else if (in->missed > c->stall_periods && moving(c)) {
-		mlip_planner_rest_here(p);
+	} else if (stall && moving(c)) {
+		if (in->unsent) {
+			mlip_planner_rest_back(p, c->sent);
+			memcpy(c->pos, c->sent, sizeof(c->pos));
+		} else {
+			mlip_planner_rest_here(p);
+		}
 		if (c->state == MLIP_STATE_FAULT || c->state == MLIP_STATE_STOPPING) {
 			mlip_planner_stop(p); /* a stop in progress ends here */
 		} else {
@@ -386,6 +400,11 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 			}
 		}
 		c->counts.frames_encoded += (uint64_t)out->n_frames;
+		/* the queue's state cannot go back a period (its braking run) */
+		out->withhold_late = c->ext.q == NULL;
+	}
+	if (!c->encode || out->n_frames > 0) {
+		memcpy(c->carried, c->pos, sizeof(c->carried)); /* what this period sends */
 	}
 	publish(c, out);
 	out->power.state = out->status.drive_power;

@@ -580,8 +580,11 @@ mlip_status mlip_planner_abort(struct mlip_planner *p, const double *pos)
 	return MLIP_OK;
 }
 
-void mlip_planner_rest_here(struct mlip_planner *p)
+/* At rest at `at` (the last setpoint the drives got), on from there. */
+static void rest_from(struct mlip_planner *p, const double *at)
 {
+	double here[MLIP_MAX_AXES];
+	memcpy(here, at, sizeof(double) * (size_t)p->n);
 	if (p->taps > 1) {
 		/* the last setpoint is the mean: within E_f of where the plan was
 		 * at the window's centre (J5, m odd), so the path goes on from
@@ -593,18 +596,18 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 		p->done_seq = mk->done_seq;
 		p->done_line = mk->done_line;
 		p->dwell = 0;
-		if (p->head == p->tail && !p->stopping &&
-		    memcmp(p->out, p->last_point, sizeof(double) * (size_t)p->n) != 0) {
-			/* the plan had reached its last point, the mean not yet:
-			 * the rest of the last block, a straight line of at most E_f
-			 * from the setpoint (the centre sample is that point) */
-			struct mlip_block b = {.rapid = 1, .seq = p->seq, .line = p->done_line};
-			memcpy(b.target, p->last_point, sizeof(double) * (size_t)p->n);
-			memcpy(p->last_point, p->out, sizeof(double) * (size_t)p->n);
-			append(p, &b);
-		}
-		memcpy(p->pos, p->out, sizeof(p->pos));
 	}
+	if (p->head == p->tail && !p->stopping &&
+	    memcmp(here, p->last_point, sizeof(double) * (size_t)p->n) != 0) {
+		/* the plan had reached its last point, the setpoint not yet (the
+		 * mean, or one period back): the rest of the last block, a
+		 * straight line from the setpoint */
+		struct mlip_block b = {.rapid = 1, .seq = p->seq, .line = p->done_line};
+		memcpy(b.target, p->last_point, sizeof(double) * (size_t)p->n);
+		memcpy(p->last_point, here, sizeof(double) * (size_t)p->n);
+		append(p, &b);
+	}
+	memcpy(p->pos, here, sizeof(double) * (size_t)p->n);
 	if (p->in_corner) {
 		/* in a corner: on to whichever of its two segments is nearer (the
 		 * distance to one segment is convex along a straight line); to the
@@ -661,6 +664,16 @@ void mlip_planner_rest_here(struct mlip_planner *p)
 	}
 	mlip_filter_reset(p);    /* at rest on the last setpoint */
 	mlip_planner_hold(p, 1); /* full backward pass from the new geometry */
+}
+
+void mlip_planner_rest_here(struct mlip_planner *p)
+{
+	rest_from(p, p->taps > 1 ? p->out : p->pos);
+}
+
+void mlip_planner_rest_back(struct mlip_planner *p, const double *at)
+{
+	rest_from(p, at);
 }
 
 int mlip_planner_moving(const struct mlip_planner *p)

@@ -138,6 +138,17 @@ async function main() {
     if (err) say({ event: 'error', msg: String(err) });
   });
   if (!await until(() => st.state === 'Idle', DEADLINE, 'connect')) return done(1);
+  // CNCjs passes on what the port says only once its open callback has
+  // joined this socket to the controller: the welcome mlip-grbl sends as the
+  // terminal opens (Grbl's after the reset a USB port's DTR gives) can come
+  // before. Then its reset button (ctrl-x) asks for it again, as a user does.
+  const welcome = () => st.lines.some((l) => l.startsWith('Grbl '));
+  if (!welcome()) {
+    say({ event: 'welcome_before_join' });
+    cmd('reset');
+    if (!await until(welcome, DEADLINE, 'the welcome after a reset')) return done(1);
+    if (!await until(() => st.state === 'Idle', DEADLINE, 'idle after the reset')) return done(1);
+  }
   say({ event: 'connected', state: st.state, mpos: st.mpos });
 
   if (JOG) {

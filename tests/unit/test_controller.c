@@ -110,6 +110,8 @@ static void run_period(struct mlip_ctl_in *in)
 	assert_int_equal(mlip_ring_port_pop_n(&rx, out.taken), MLIP_OK);
 }
 
+static int unsent_in; /* the next period's in.unsent (then 0 again) */
+
 /* One period with a command (op 0: none) after `missed` missed periods. */
 static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 {
@@ -131,6 +133,8 @@ static int32_t period_cmd(uint32_t op, int32_t arg, uint32_t missed)
 	in.sdo = sdo_res_in;
 	in.io = io_in;
 	in.spindle = sp_in;
+	in.unsent = unsent_in;
+	unsent_in = 0;
 	memset(&drv_fault, 0, sizeof(drv_fault));
 	run_period(&in);
 	for (uint32_t i = 0; i < out.n_events; i++) {
@@ -1268,6 +1272,21 @@ static void test_corrupt_head_is_a_fault(void **st)
 
 /* ---- stalls ------------------------------------------------------------- */
 
+/* Held at rest at x = at (y 0) on the line to (100, 0), then (100, 50):
+ * resumed, the first steps within A T^2 (a margin of 1e-9), on to the end. */
+static void resume_from_rest(double at)
+{
+	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
+	double x1 = out.pos[0];
+	tick(1);
+	double x2 = out.pos[0];
+	assert_true(x1 - at <= 1000.0 * 1e-6 * (1.0 + 1e-9));
+	assert_true(x2 - 2.0 * x1 + at <= 1000.0 * 1e-6 * (1.0 + 1e-9));
+	assert_true(x2 > x1);
+	until(MLIP_STATE_IDLE, 5000);
+	assert_true(out.pos[0] == 100.0 && out.pos[1] == 50.0);
+}
+
 /* Missed periods beyond the limit: the next setpoints repeat the last one
  * sent (no jump), state held with reason stall; resume moves from rest
  * within the acceleration limit. */
@@ -1295,16 +1314,33 @@ static void test_stall_holds_at_last_setpoint(void **st)
 	}
 	assert_int_equal(out.status.state, MLIP_STATE_HELD);
 	assert_true(status().speed_mm_s == 0.0);
-	/* resume: from rest, the first steps within A T^2 (a margin of 1e-9) */
-	assert_int_equal(period_cmd(MLIP_CMD_RESUME, 0, 0), MLIP_OK);
-	double x1 = out.pos[0];
+	resume_from_rest(before);
+}
+
+/* A stall between a period's work and its send (in.unsent: its setpoint
+ * never went out): held at the setpoint before, the last one sent, exactly,
+ * with reason stall; resume moves from rest within the acceleration limit
+ * (a margin of 1e-9) and ends on the program's last point. */
+static void test_stall_before_the_send(void **st)
+{
+	(void)st;
+	move(1, 100.0, 0.0);
+	move(2, 100.0, 50.0);
+	end(3);
+	tick(150);
+	double sent = out.pos[0];
+	tick(1);                               /* this period's setpoint is withheld */
+	assert_true(out.pos[0] > sent + 0.05); /* at speed: a step of > 50 mm/s */
+	unsent_in = 1;
 	tick(1);
-	double x2 = out.pos[0];
-	assert_true(x1 - before <= 1000.0 * 1e-6 * (1.0 + 1e-9));
-	assert_true(x2 - 2.0 * x1 + before <= 1000.0 * 1e-6 * (1.0 + 1e-9));
-	assert_true(x2 > x1);
-	until(MLIP_STATE_IDLE, 5000);
-	assert_true(out.pos[0] == 100.0 && out.pos[1] == 50.0);
+	assert_int_equal(out.status.state, MLIP_STATE_HELD);
+	assert_int_equal(status().reason, MLIP_WHY_STALL);
+	assert_true(out.pos[0] == sent && out.pos[1] == 0.0);
+	for (int i = 0; i < 100; i++) {
+		tick(1);
+		assert_true(out.pos[0] == sent && out.pos[1] == 0.0);
+	}
+	resume_from_rest(sent);
 }
 
 /* A stall inside a corner: rest there, then a straight line to the next
@@ -3558,6 +3594,7 @@ int main(void)
 	    T(test_bad_record_in_preread_never_moves),
 	    T(test_stall_holds_at_last_setpoint),
 	    T(test_stall_in_corner),
+	    T(test_stall_before_the_send),
 	    T(test_record_roundtrip),
 	    T(test_every_name),
 	    T(test_corrupt_sizes_ignored),

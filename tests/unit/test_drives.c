@@ -250,9 +250,18 @@ static struct mlip_can_frame module_out; /* the last RPDO to node 10 (the module
 static int n_module_out;
 static int n_module_reset, n_module_sdo; /* NMT reset communication / SDO requests to it */
 
+static int32_t wire[NP]; /* the last target each drive's RPDO carried on the bus */
+static uint64_t n_wire;  /* RPDOs to the drives put on the bus */
+
 static int port_send(void *ctx, const struct mlip_can_frame *f)
 {
 	(void)ctx;
+	for (int i = 0; i < NP; i++) {
+		if (f->id == 0x200u + (uint32_t)(i + 1) && f->len == 6) {
+			memcpy(&wire[i], f->data + 2, 4); /* little-endian host, as CANopen */
+			n_wire++;
+		}
+	}
 	if (f->id == 0x20Au) {
 		module_out = *f;
 		n_module_out++;
@@ -683,7 +692,7 @@ static int period(void)
 				p->state = P_SOD;
 			}
 		}
-		if (cycle > 0 && rpdo_of(i, &cw, &c)) {
+		if (cycle > 0 && !ctl.unsent && rpdo_of(i, &cw, &c)) {
 			peer_cw(p, cw);
 			if (p->state == P_OE) { /* a disabled drive follows no target */
 				p->pos = c + offset[i];
@@ -851,6 +860,19 @@ static void test_loop_heartbeat_and_emcy(void **state)
  * the same drive falling 1001 counts beyond is caught at once. */
 static int32_t sent[NP][2048];
 
+/* 40 mm along X at 100 mm/s from start, four blocks (records 1-4). */
+static void line_x(const double *start)
+{
+	for (uint64_t k = 1; k <= 4; k++) {
+		struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)k};
+		memcpy(b.target, start, sizeof(double) * NP);
+		b.target[0] = start[0] + 10.0 * (double)k;
+		struct mlip_ring_rec rec;
+		mlip_ring_rec_from_block(&rec, &b, k);
+		assert_int_equal(mlip_ring_push(ctl.ring, &rec), MLIP_OK);
+	}
+}
+
 static void period_late(int delay, int32_t behind_x)
 {
 	uint64_t c = cycle + 1;
@@ -882,15 +904,7 @@ static void test_loop_late_drive(void **state)
 	double start[NP];
 	(void)state;
 	loop_setup(start);
-	/* 40 mm along X at 100 mm/s from where X is */
-	for (uint64_t k = 1; k <= 4; k++) {
-		struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)k};
-		memcpy(b.target, start, sizeof(start));
-		b.target[0] = start[0] + 10.0 * (double)k;
-		struct mlip_ring_rec rec;
-		mlip_ring_rec_from_block(&rec, &b, k);
-		assert_int_equal(mlip_ring_push(ctl.ring, &rec), MLIP_OK);
-	}
+	line_x(start); /* from where X is */
 	int k;
 	for (k = 0; k < 1000; k++) {
 		period_late(20, 0);
@@ -904,14 +918,7 @@ static void test_loop_late_drive(void **state)
 	 * 1001 counts beyond the target MLIP_DRIVE_LAG periods before the SYNC */
 	setup(NULL);
 	loop_setup(start);
-	for (uint64_t n = 1; n <= 4; n++) {
-		struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .line = (uint32_t)n};
-		memcpy(b.target, start, sizeof(start));
-		b.target[0] = start[0] + 10.0 * (double)n;
-		struct mlip_ring_rec rec;
-		mlip_ring_rec_from_block(&rec, &b, n);
-		assert_int_equal(mlip_ring_push(ctl.ring, &rec), MLIP_OK);
-	}
+	line_x(start);
 	for (k = 0; k < 300; k++) {
 		period_late(20, 0);
 	}
@@ -1273,6 +1280,73 @@ static int32_t post(mlip_ring_cmd_op op)
 	period();
 	assert_int_equal(mlip_ring_cmd_result(ctl.ring, seq, &res), MLIP_OK);
 	return res;
+}
+
+/* A stall inside a period's work, after its start (in the drives' hook,
+ * before the controller) and before its send: 50 ms, beyond the stall's 3
+ * periods. Its setpoints, one period's motion on, never go out; from the
+ * next period on the RPDOs repeat the last target the bus carried, held
+ * with reason stall, and the motion goes on from there on resume. */
+static void (*drives_before)(void *ctx, uint64_t cycle, uint64_t now_ns, struct mlip_ctl_in *in);
+static uint64_t stall_ns;
+
+static void stalling_before(void *ctx, uint64_t c, uint64_t now, struct mlip_ctl_in *in)
+{
+	drives_before(ctx, c, now, in);
+	now_ns += stall_ns;
+	stall_ns = 0;
+}
+
+static void test_loop_stall_before_the_send(void **state)
+{
+	double start[NP];
+	(void)state;
+	loop_setup(start);
+	drives_before = ctl.hooks.before;
+	ctl.hooks.before = stalling_before;
+	line_x(start);
+	struct mlip_ring_rec end_rec = {.seq = 5, .type = MLIP_REC_END};
+	assert_int_equal(mlip_ring_push(ctl.ring, &end_rec), MLIP_OK);
+	for (int k = 0; k < 400; k++) {
+		assert_int_equal(period(), 0);
+	}
+	assert_int_equal(ctl.out.status.state, MLIP_STATE_RUNNING);
+	int32_t before = wire[0], y = wire[1];
+	uint64_t n = n_wire;
+	int32_t home0;
+	mlip_can_counts(start[0], 1000.0, &home0);
+	assert_true(before - home0 > 20000); /* on its way */
+	stall_ns = 50000000u;
+	period();
+	assert_true(ctl.unsent && n_wire == n); /* nothing went out */
+	int32_t computed;
+	mlip_can_counts(ctl.out.pos[0], 1000.0, &computed);
+	assert_true(computed - before >= 90 && computed - before <= 100); /* 90-100 mm/s on */
+	for (int k = 0; k < 100; k++) {
+		period();
+		assert_int_equal(ctl.out.status.state, MLIP_STATE_HELD);
+		assert_int_equal(ctl.out.status.reason, MLIP_WHY_STALL);
+		assert_true(n_wire == n + NP * (uint64_t)(k + 1) && wire[0] == before &&
+		            wire[1] == y);
+	}
+	if (__atomic_load_n(&ds.fault, __ATOMIC_ACQUIRE)) {
+		fail_msg("drive fault %d on drive %d (%d): %s", (int)ds.fault_reason,
+		         ds.fault_drive, (int)ds.fault_detail, why);
+	}
+	assert_int_equal(post(MLIP_CMD_RESUME), MLIP_OK);
+	/* from rest: the first two targets within A T^2 = 1 count (and a count's rounding) */
+	int32_t w1 = wire[0];
+	period();
+	int32_t w2 = wire[0];
+	assert_true(w1 - before >= 0 && w1 - before <= 2 && w2 - 2 * w1 + before <= 2);
+	for (int k = 0; k < 2000 && ctl.out.status.state != MLIP_STATE_IDLE; k++) {
+		period();
+	}
+	assert_int_equal(ctl.out.status.state, MLIP_STATE_IDLE);
+	int32_t end;
+	mlip_can_counts(start[0] + 40.0, 1000.0, &end);
+	assert_true(wire[0] == end && wire[1] == y);
+	free(mem);
 }
 
 /* The loop with the I/O module as node 10 (E-stop input bit 0, output
@@ -1737,6 +1811,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_loop_following_error, setup),
 	    cmocka_unit_test_setup(test_loop_heartbeat_and_emcy, setup),
 	    cmocka_unit_test_setup(test_loop_late_drive, setup),
+	    cmocka_unit_test_setup(test_loop_stall_before_the_send, setup),
 	    cmocka_unit_test_setup(test_loop_between_programs, setup),
 	    cmocka_unit_test_setup(test_loop_stop_disables, setup),
 	    cmocka_unit_test_setup(test_loop_enable_fails, setup),

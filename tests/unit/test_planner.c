@@ -1185,23 +1185,19 @@ static void test_jerk_every_part(void **state)
 	free(curve.pts);
 }
 
-/* A stall (the loop missed periods: the drives stood at the last setpoint,
- * which is the mean) is a point of rest, and the motion goes on from it
- * within every limit, the jerk's included, and within eps of the path: the
- * plan goes back to where it was at the window's centre, within E_f of the
- * setpoint (mlip_planner_rest_here). Stalls in lines, in corners, in a
- * smooth run and while the mean settles at the end; every strategy. */
-static void test_jerk_stall(void **state)
+/* Stalls every 61 periods on make_path(2, 1, 600) scaled 5x (0.25-2.5 mm
+ * steps: fast, a mean lags by a segment), every strategy, each checked for
+ * every limit (the jerk's when m has one) and eps: back 0, the loop missed
+ * periods (mlip_planner_rest_here); back 1, the period's setpoint was
+ * computed but never sent, the drives stand at the one before
+ * (mlip_planner_rest_back). */
+static void stall_runs(const struct mlip_machine *mach, int back)
 {
-	(void)state;
 	struct path p = make_path(2, 1, 600);
 	for (size_t i = 0; i < 2 * p.np; i++) {
-		p.pts[i] *= 5.0; /* 0.25-2.5 mm steps: fast, the mean lags by a segment */
+		p.pts[i] *= 5.0;
 	}
-	struct mlip_machine m = machine(2, 1000, 200, 0.01);
-	for (int k = 0; k < 2; k++) {
-		m.axis[k].max_jerk = 1e5;
-	}
+	struct mlip_machine m = *mach;
 	struct mlip_check_limits lim = {
 	    .n = 2, .vmax_mm_s = 200, .vmax_rot_deg_s = 360, .eps_mm = 0.01, .period_s = 0.001};
 	for (int k = 0; k < 2; k++) {
@@ -1218,6 +1214,7 @@ static void test_jerk_stall(void **state)
 		mlip_check_sample(&chk, p.pts);
 		size_t next = 1;
 		int stalls = 0, resume_at = -1;
+		double sent[2] = {p.pts[0], p.pts[1]};
 		for (int k = 0; k < 2000000; k++) {
 			for (int i = 0; i < 16 && next < p.np && mlip_planner_space(&P) > 0; i++) {
 				struct mlip_block b = {.feed_mm_s = 200, .tol_mm = 0.01};
@@ -1225,9 +1222,12 @@ static void test_jerk_stall(void **state)
 				assert_int_equal(mlip_planner_push(&P, &b), MLIP_OK);
 				next++;
 			}
-			if (k % 61 == 30 && mlip_planner_moving(&P)) {
+			int stall = k % 61 == 30 && mlip_planner_moving(&P);
+			if (stall && !back) {
 				mlip_planner_rest_here(&P); /* 3 periods missed */
 				mlip_check_gap(&chk, 4);
+			}
+			if (stall) {
 				stalls++;
 				resume_at = k + 5;
 			}
@@ -1236,7 +1236,19 @@ static void test_jerk_stall(void **state)
 			}
 			double x[2];
 			mlip_run_state rs = mlip_planner_step(&P, x);
+			if (stall && back) {
+				/* x never went out: the drives stand at `sent` */
+				mlip_planner_rest_back(&P, sent);
+				mlip_check_gap(&chk, 4);
+				continue;
+			}
+			if (stall || k == resume_at + 1 - 5) {
+				/* the first sample after the hole: where the drives stood */
+				assert_true(fabs(x[0] - sent[0]) <= 1e-12 &&
+				            fabs(x[1] - sent[1]) <= 1e-12);
+			}
 			mlip_check_sample(&chk, x);
+			memcpy(sent, x, sizeof(sent));
 			if (rs == MLIP_RUN_IDLE && next >= p.np && k > resume_at) {
 				break;
 			}
@@ -1244,12 +1256,40 @@ static void test_jerk_stall(void **state)
 		char msg[1024];
 		if (mlip_check_verdict(&chk, REL, mlip_check_rounding_floor(&chk), 0.0, 1e-9, msg,
 		                       sizeof(msg))) {
-			fail_msg("%s, %d stalls: %s", mlip_strategy_name((mlip_strategy)st), stalls,
-			         msg);
+			fail_msg("%s, %d stalls (back %d): %s",
+			         mlip_strategy_name((mlip_strategy)st), stalls, back, msg);
 		}
 		assert_true(stalls > 100);
 	}
 	free(p.pts);
+}
+
+/* A stall (the loop missed periods: the drives stood at the last setpoint,
+ * which is the mean) is a point of rest, and the motion goes on from it
+ * within every limit, the jerk's included, and within eps of the path: the
+ * plan goes back to where it was at the window's centre, within E_f of the
+ * setpoint (mlip_planner_rest_here). Stalls in lines, in corners, in a
+ * smooth run and while the mean settles at the end; every strategy. */
+static void test_jerk_stall(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine(2, 1000, 200, 0.01);
+	m.axis[0].max_jerk = m.axis[1].max_jerk = 1e5;
+	stall_runs(&m, 0);
+}
+
+/* A stall between a period's work and its send: the setpoint computed never
+ * went out, and the rest is the one before (mlip_planner_rest_back), in
+ * lines, in corners, leaving a corner and at the end; without a jerk limit
+ * and with one, every strategy: every limit and eps hold, and no sample
+ * steps from the last one sent. */
+static void test_stall_before_the_send(void **state)
+{
+	(void)state;
+	struct mlip_machine m = machine(2, 1000, 200, 0.01);
+	stall_runs(&m, 1);
+	m.axis[0].max_jerk = m.axis[1].max_jerk = 1e5;
+	stall_runs(&m, 1);
 }
 
 /* With shape choices the early-terminated passes leave the q a full pass
@@ -1628,6 +1668,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_jerk_plan, reset),
 	    cmocka_unit_test_setup(test_jerk_every_part, reset),
 	    cmocka_unit_test_setup(test_jerk_stall, reset),
+	    cmocka_unit_test_setup(test_stall_before_the_send, reset),
 	    cmocka_unit_test_setup(test_abort_drops_the_queue, reset),
 	    cmocka_unit_test_setup(test_push_full_and_bad_input, reset),
 	    cmocka_unit_test_setup(test_stop_within_a_period, reset),

@@ -254,6 +254,9 @@ struct mlip_ctl_spindle_out {
 struct mlip_ctl_in {
 	uint64_t period;                    /* 0, 1, 2, ... one per call */
 	uint32_t missed;                    /* deadlines the loop missed before this period */
+	int unsent;                         /* the last period's frames never went out: a stall
+	                                       between its work and its send (the drives stand
+	                                       at the setpoint before) */
 	struct mlip_rec_view recs;          /* the records it may take, oldest first (copied
 	                                       before they are checked; out->taken: popped) */
 	uint32_t recs_corrupt;              /* the queue's indices are this far apart, more than
@@ -308,6 +311,8 @@ struct mlip_ctl_out {
 	double pos[MLIP_MAX_AXES]; /* the setpoint of this period */
 	struct mlip_can_frame frames[MLIP_CAN_MAX_FRAMES];
 	int n_frames;                   /* 0: nothing to send (no encoder, or a fault) */
+	int withhold_late;              /* late frames may be withheld: the controller then
+	                                   rests one period back (in->unsent next period) */
 	int32_t cmd_result;             /* mlip_status for in->cmd */
 	struct mlip_ring_status status; /* all but heartbeat_ns, pid, CAN counters */
 	struct mlip_ctl_event events[MLIP_CTL_MAX_EVENTS];
@@ -445,6 +450,8 @@ struct mlip_ctl {
 	uint64_t period, overruns;
 	struct mlip_ctl_counts counts;
 	double pos[MLIP_MAX_AXES];
+	double carried[MLIP_MAX_AXES]; /* the setpoint the last period's frames carried */
+	double sent[MLIP_MAX_AXES];    /* the last setpoint that went out */
 	/* the inputs on the bus and the E-stop (issue 18) */
 	struct {
 		struct mlip_io_config cfg;      /* what is mapped where */

@@ -293,6 +293,14 @@ void mlip_planner_stop(struct mlip_planner *p);
  * mlip_planner_hold(p, 0). */
 void mlip_planner_rest_here(struct mlip_planner *p);
 
+/* As mlip_planner_rest_here, at `at`: the setpoint of one period before,
+ * the last the drives got when the stall came between a period's work and
+ * its send. From there the rest of the executing segment is a straight line
+ * to its end: `at` lies within A T^2 / 2 of that segment's line (the motion
+ * leaves a corner tangent to it, |a| <= A over the one period), so the line
+ * keeps that close to the path. */
+void mlip_planner_rest_back(struct mlip_planner *p, const double *at);
+
 /* Idle (nothing queued, not stopping): rest at pos[] instead, e.g. where
  * disabled drives were moved by hand; the next block starts there.
  * MLIP_E_INVALID when not idle or a coordinate is not finite. */
