@@ -532,6 +532,29 @@ static int take(const struct mlip_path_curve *sp, const struct mlip_path_limits 
 	return 0;
 }
 
+/* Above its cap (a lower feed's or a hold's, planq.h) the plan is its
+ * braking run: its next state nx (from a) takes the hardest policy whose
+ * run certifies it, so a run that began gently (on a tight curve the
+ * harder ones break a limit) brakes hard once they no longer do. The cap
+ * aside: it only chooses the plan's speed, and these states are above it
+ * (the pieces' feed caps alike: the run only slows). */
+static void harder(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
+                   const struct at *a, struct at *nx, double end, int max_periods, long *work)
+{
+	struct mlip_path_curve uncapped = *sp;
+	struct mlip_path_limits unlim = *lim;
+	uncapped.cap = NULL;
+	unlim.vmax = INFINITY;
+	struct at h = *nx;
+	for (int q = 0; q < nx->st.brake; q++) {
+		h.st.brake = q;
+		if (certified_at(&uncapped, &unlim, &h, a, end, max_periods, work)) {
+			nx->st.brake = q;
+			return;
+		}
+	}
+}
+
 /* The landing jerks land[q] (mlip_path_plan_period) above the given jerk inside
  * the (P2) interval and not yet tried: 1 when one's step is taken. */
 static int land_take(const struct mlip_path_curve *sp, const struct mlip_path_limits *lim,
@@ -630,6 +653,10 @@ int mlip_path_plan_period(const struct mlip_path_curve *sp, const struct mlip_pa
 	/* the braking run's first step: st's run was certified (Q4) */
 	if (!brake_at(sp, lim, &a, NAN, &j, &nx)) {
 		return -1;
+	}
+	if (a.ok && nx.st.v > 0.0 && nx.st.brake > 0 &&
+	    st->v > mlip_path_piece_cap(sp, lim, a.piece)) {
+		harder(sp, lim, &a, &nx, end, max_periods, work);
 	}
 	struct mlip_path_state n = nx.st;
 	if (n.v < 0.0) {

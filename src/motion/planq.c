@@ -252,14 +252,27 @@ static int pop(struct mlip_planq *q)
 	return 0;
 }
 
+/* The speed a hold's plan brakes to (planq.h). */
+static double hold_cap(const struct mlip_planq *q)
+{
+	return MLIP_PLANQ_HOLD_SHARE * q->lim.vmax;
+}
+
+/* Held, the consumer takes its hold's plan while above its cap. */
+static int hold_plan_on(const struct mlip_planq *q)
+{
+	return q->c.hold_gen != 0u && q->c.gen == q->c.hold_gen && q->c.st.v > hold_cap(q);
+}
+
 /* Ask for a plan from the consumer's state (lead: after that many steps
  * of its braking run; 0 at rest) at its cap, the queue flushed (what is in
  * it continues a plan the consumer left). Only once the last request was
  * read: else asked again next period (to_ask). */
-static void request(struct mlip_planq *q, int lead)
+static void request(struct mlip_planq *q, int lead, int hold)
 {
 	if (__atomic_load_n(&q->ack, __ATOMIC_ACQUIRE) != q->c.gen) {
 		q->c.to_ask = lead >= 0;
+		q->c.to_ask_hold = hold;
 		return;
 	}
 	leave(q);
@@ -272,6 +285,11 @@ static void request(struct mlip_planq *q, int lead)
 	}
 	q->c.gen++;
 	q->c.to_ask = 0;
+	q->c.to_ask_hold = 0;
+	q->c.hold_gen = hold ? q->c.gen : 0u;
+	/* the producer's cap, read after the request (before its next period) */
+	double cap = hold ? hold_cap(q) : q->c.vmax;
+	__atomic_store(&q->cap, &cap, __ATOMIC_RELAXED);
 	q->req_st = q->c.st;
 	q->req_period = lead < 0 ? q->c.pidx + MLIP_PLANQ_LEAD : q->c.pidx;
 	q->req_end = q->c.end;
@@ -306,7 +324,7 @@ static int brake(struct mlip_planq *q)
 	uint64_t base = q->freed, a = base & KMASK;
 	leave(q);
 	if (q->c.st.v == 0.0 && q->c.st.a == 0.0) {
-		request(q, 0); /* at rest already (the last request unread) */
+		request(q, 0, 0); /* at rest already (the last request unread) */
 		q->c.mode = q->c.to_ask ? MLIP_PLANQ_BRAKE : MLIP_PLANQ_WAIT;
 		return 0;
 	}
@@ -328,7 +346,7 @@ static int brake(struct mlip_planq *q)
 	mark(q);
 	release_knots(q);
 	if (q->c.st.v == 0.0 && q->c.st.a == 0.0) {
-		request(q, 0); /* at rest: a plan from here */
+		request(q, 0, 0); /* at rest: a plan from here */
 		q->c.mode = q->c.to_ask ? MLIP_PLANQ_BRAKE : MLIP_PLANQ_WAIT;
 	}
 	return 0;
@@ -346,15 +364,29 @@ int mlip_planq_feed(struct mlip_planq *q, double vmax)
 int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 {
 	int r = 0, lower = q->c.want_vmax < q->c.vmax;
+	int hold_edge = hold && !q->c.held;
+	q->c.held = hold != 0;
 	q->c.periods++;
 	if (q->c.want_vmax != q->c.vmax) { /* the producer's from its next period */
-		__atomic_store(&q->cap, &q->c.want_vmax, __ATOMIC_RELAXED);
-		if (!lower && q->c.mode == MLIP_PLANQ_PLAN) {
-			request(q, -1); /* higher: from the queued state LEAD on */
-		}
 		q->c.vmax = q->c.want_vmax;
+		if (q->c.hold_gen == 0u || q->c.gen != q->c.hold_gen) {
+			__atomic_store(&q->cap, &q->c.vmax, __ATOMIC_RELAXED);
+		}
+		if (!lower && !hold && q->c.mode == MLIP_PLANQ_PLAN) {
+			request(q, -1, 0); /* higher: from the queued state LEAD on */
+		}
+	}
+	/* on the hold's plan (its generation: until the next request) */
+	int on_hold_plan = q->c.hold_gen != 0u && q->c.gen == q->c.hold_gen;
+	if (!hold && on_hold_plan && q->c.mode == MLIP_PLANQ_PLAN) {
+		/* released on it: a plan at the cap from its state LEAD on (a
+		 * higher cap's switch); else its run to rest, a plan from there
+		 * (never its crawl at the hold's cap) */
+		request(q, -1, 0);
+		on_hold_plan = q->c.gen == q->c.hold_gen;
 	}
 	switch_over(q);
+	int plan_on = hold ? hold_plan_on(q) : !lower && !on_hold_plan;
 	switch (q->c.mode) {
 	case MLIP_PLANQ_WAIT:
 		if (!hold) {
@@ -362,17 +394,17 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 		}
 		break;
 	case MLIP_PLANQ_PLAN:
-		if (!hold && !lower && pop(q)) {
+		if (plan_on && pop(q)) {
 			break;
 		}
 		q->c.starved += !hold && !lower;
-		q->c.brakes++;
+		q->c.brakes += !(hold && on_hold_plan); /* its hold's plan ends: the same hold */
 		q->c.mode = MLIP_PLANQ_BRAKE;
 		r = brake(q);
 		break;
 	case MLIP_PLANQ_BRAKE:
-		/* a plan that continues the run (a lower feed's) takes over */
-		if (hold || lower || !pop(q)) {
+		/* a plan that continues the run (a lower feed's, a hold's) takes over */
+		if (!plan_on || !pop(q)) {
 			r = brake(q);
 		}
 		break;
@@ -380,11 +412,15 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 		break;
 	}
 	int waits = q->c.mode == MLIP_PLANQ_WAIT, brakes = q->c.mode == MLIP_PLANQ_BRAKE;
-	if (r == 0 && (waits || brakes) && (lower || q->c.to_ask)) {
-		/* a plan at the lower cap: from rest, or from the run's state
-		 * MLIP_PLANQ_LEAD periods on */
-		int rest = q->c.st.v == 0.0 && q->c.st.a == 0.0;
-		request(q, rest ? 0 : MLIP_PLANQ_LEAD);
+	int rest = q->c.st.v == 0.0 && q->c.st.a == 0.0;
+	/* a hold's plan only from a gentler policy's state (none is harder
+	 * than the first) */
+	int hold_ask = hold && brakes && !rest && q->c.st.v > hold_cap(q) && q->c.st.brake > 0 &&
+	               (hold_edge || q->c.to_ask_hold);
+	if (r == 0 && (waits || brakes) && (lower || q->c.to_ask || hold_ask)) {
+		/* a plan at the lower cap (a hold's: planq.h): from rest, or from
+		 * the run's state MLIP_PLANQ_LEAD periods on */
+		request(q, rest ? 0 : MLIP_PLANQ_LEAD, hold_ask);
 		if (rest && !q->c.to_ask) {
 			q->c.mode = MLIP_PLANQ_WAIT;
 		}

@@ -69,6 +69,8 @@ static double curve_speed(double u) /* |dx/du| */
 	return sqrt(a * a + b * b + H * H);
 }
 
+static double gentle; /* the second policy's braking when not 0 (test_hold_brakes_hard) */
+
 static void limits(struct mlip_path_limits *lim)
 {
 	*lim = (struct mlip_path_limits){0};
@@ -79,7 +81,7 @@ static void limits(struct mlip_path_limits *lim)
 	}
 	lim->vmax = 0.995 * (fast ? FAST_V : V);
 	lim->a_brake[0] = 900.0;
-	lim->a_brake[1] = 300.0;
+	lim->a_brake[1] = gentle > 0.0 ? gentle : 300.0;
 	lim->n_brake = 2;
 	lim->period = T;
 }
@@ -301,6 +303,93 @@ static void test_hold(void **state)
 	check_physics(&c);
 	assert_int_equal(q.c.starved, 0); /* only the holds braked */
 	assert_int_equal(q.c.brakes, holds);
+}
+
+/* Holds at random periods on a curve that binds the plan (its normal
+ * acceleration at V reaches 1.8 A), with a gentle second policy (100
+ * mm/s^2): a state only it certifies begins a hold at 0.1 A, and the hold's
+ * plan (planq.h) then brakes as hard as the states allow. Each hold is run
+ * twice from the same state: by the consumer's own run alone (a copy of
+ * the queue with no producer: the old hold) and with the hold's plan. The
+ * plan's stop is never later than the own run's (one period's rounding
+ * aside) and far sooner after the gentle policy; every limit and the path
+ * hold throughout. */
+static struct mlip_planq own;
+
+static void test_hold_brakes_hard(void **state)
+{
+	(void)state;
+	struct feed f;
+	struct check c, co;
+	gentle = 100.0;
+	feed_init(&f, 40.0);
+	check_init(&c);
+	double x[3];
+	int mode = MLIP_PLANQ_WAIT, holds = 0, gentle_holds = 0, faster = 0;
+	long hold_at = (long)uni(200.0, 400.0), worst_extra = -1000000;
+	double best = 1.0;
+	for (long k = 0; k < 400000 && mode != MLIP_PLANQ_DONE; k++) {
+		produce_some(&f);
+		assert_int_equal(f.fail, 0);
+		if (k == hold_at && mode == MLIP_PLANQ_PLAN && q.c.st.v > 10.0) {
+			/* the old hold: the own run from this state, alone */
+			own = q;
+			co = c;
+			long own_n = 0;
+			int m;
+			/* at rest: v and a 0 (its request from there stays unread) */
+			for (m = mode; own_n < 100000 && !(own.c.st.v == 0.0 && own.c.st.a == 0.0);
+			     own_n++) {
+				m = mlip_planq_step(&own, 1, x);
+				assert_true(m >= 0);
+				check_point(&co, x);
+			}
+			assert_true(own.c.st.v == 0.0 && own.c.st.a == 0.0);
+			int policy = q.c.st.brake;
+			long n = 0, popped = 0;
+			for (m = mode; n < 100000 && !(q.c.st.v == 0.0 && q.c.st.a == 0.0); n++) {
+				m = mlip_planq_step(&q, 1, x);
+				popped += m == MLIP_PLANQ_PLAN;
+				assert_true(m >= 0);
+				check_point(&c, x);
+				produce_some(&f);
+				assert_int_equal(f.fail, 0);
+			}
+			assert_true(q.c.st.v == 0.0 && q.c.st.a == 0.0);
+			/* the hold's plan is asked only from a gentler policy's state */
+			assert_true(policy == 1 ? popped > 0 : popped == 0);
+			holds++;
+			gentle_holds += policy == 1;
+			worst_extra = n - own_n > worst_extra ? n - own_n : worst_extra;
+			if (policy == 1) {
+				best = fmin(best, (double)n / (double)own_n);
+				faster += n < own_n / 2;
+			}
+			mode = mlip_planq_step(&q, 0, x); /* released */
+			check_point(&c, x);
+			k += n;
+			hold_at = k + (long)uni(100.0, 400.0);
+			continue;
+		}
+		mode = mlip_planq_step(&q, 0, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+		if (k >= hold_at && mode != MLIP_PLANQ_PLAN) {
+			hold_at = k + 1;
+		}
+	}
+	gentle = 0.0;
+	print_message("holds %d (%d from the gentle policy, %d of those in under half the own "
+	              "run's periods, the best %.2f of it); the plan's stop at most %ld periods "
+	              "after the own run's; J %.4f, A %.4f, off %.2e mm\n",
+	              holds, gentle_holds, faster, best, worst_extra, c.max_j / JERK, c.max_a / ACC,
+	              c.max_off);
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, f.last, sizeof(x));
+	check_physics(&c);
+	assert_true(holds >= 20);
+	assert_true(worst_extra <= 1);
+	assert_true(gentle_holds >= 3 && faster >= 1);
 }
 
 /* A lower feed at a random period: the braking run starts in that period
@@ -612,9 +701,10 @@ static void test_lag_independent(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_stalls),   cmocka_unit_test(test_hold),
-	    cmocka_unit_test(test_override), cmocka_unit_test(test_override_late),
-	    cmocka_unit_test(test_thread),   cmocka_unit_test(test_lag_independent),
+	    cmocka_unit_test(test_stalls),           cmocka_unit_test(test_hold),
+	    cmocka_unit_test(test_hold_brakes_hard), cmocka_unit_test(test_override),
+	    cmocka_unit_test(test_override_late),    cmocka_unit_test(test_thread),
+	    cmocka_unit_test(test_lag_independent),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -67,22 +67,26 @@
 #include "mlip/motion/pathrun.h"
 
 /* Planned periods queued (a power of two): 256 ms ahead at 1 ms. */
-#define MLIP_PLANQ_LEN    256
+#define MLIP_PLANQ_LEN        256
 /* Knots held (a power of two): the pathrun's window (1,024) plus the
  * queue's span (a knot a period at most where `smooth` feeds one point a
  * period) with room. */
-#define MLIP_PLANQ_KNOTS  2048
+#define MLIP_PLANQ_KNOTS      2048
 /* Periods between a lower feed and the state its new plan starts from:
  * the producer's latency (a request read before its next period, one
  * planned period) with room. */
-#define MLIP_PLANQ_LEAD   16
+#define MLIP_PLANQ_LEAD       16
+/* A hold's plan (mlip_planq_step): the speed it brakes to, a share of the
+ * plan's full cap. From there the state's own run stops in microns
+ * (1 mm/s at 200 mm/s: 5 um at 0.1 A). */
+#define MLIP_PLANQ_HOLD_SHARE 0.005
 /* Knots kept behind the consumer's piece: a step whose speed crosses 0
  * reads pieces behind its start (pathplan.c range_at). The pathrun's
  * compaction keeps as many behind its state MLIP_PATHRUN_LAG periods back,
  * at least this queue's length plus one (the consumer's largest lag: its
  * state is the entry before its tail, and the producer queues only within
  * MLIP_PLANQ_LEN of the tail). */
-#define MLIP_PLANQ_BEHIND MLIP_PATHRUN_BEHIND
+#define MLIP_PLANQ_BEHIND     MLIP_PATHRUN_BEHIND
 _Static_assert(MLIP_PATHRUN_LAG >= MLIP_PLANQ_LEN + 1, "the pathrun keeps the consumer's knots");
 
 struct mlip_planq_entry {
@@ -157,6 +161,9 @@ struct mlip_planq {
 		uint32_t gen;
 		double vmax, want_vmax; /* the cap planned, the cap asked */
 		int to_ask;             /* a plan is to be asked (the last unread) */
+		int to_ask_hold;        /* ... a hold's (at the hold's cap) */
+		int held;               /* the hold seen (its first period acted on) */
+		uint32_t hold_gen;      /* the hold's plan (0: none) */
 		int sw;                 /* a queued switch: 1 asked, 2 its reply read */
 		uint64_t sw_period;
 		uint32_t sw_head;
@@ -211,7 +218,16 @@ int mlip_planq_feed(struct mlip_planq *q, double vmax);
  * non-zero: leave the plan for the braking run now, stay at rest while it
  * holds. Returns the mode after the step. Pure apart from the queue: O(1)
  * in the plan, one braking step when braking. -1 when the braking policy
- * has no jerk (a state not certified: a defect; the setpoint held). */
+ * has no jerk (a state not certified: a defect; the setpoint held).
+ *
+ * A hold brakes by its state's policy at once, which on a tight curve may
+ * be the gentlest (0.1 A: the harder ones' runs break a limit there), and
+ * asks for a hold's plan: from the run's state MLIP_PLANQ_LEAD periods on,
+ * at MLIP_PLANQ_HOLD_SHARE of the cap. The producer's plan above its cap
+ * is that run, each state taking the hardest policy that certifies it
+ * (mlip_path_plan_period), so once past the curve it brakes hard; the
+ * consumer takes it where it continues its run, down to that speed, and
+ * from there brakes to rest on its own. */
 int mlip_planq_step(struct mlip_planq *q, int hold, double *x);
 
 #endif
