@@ -474,9 +474,12 @@ def test_hold_and_cycle_start(sim, tmp_path):
         assert st["held_by"] is None, st
         t0 = time.time()
         feed = rig.feeder(ngc)
-        # cruising on the long line: cycle start changes nothing
+        # cruising on the long line: cycle start changes nothing. At F6000
+        # itself: at 40 ms and 250 mm/s^2 the ramp's last period (its
+        # acceleration ends inside it) can run at 99.x mm/s, a step 0.02
+        # mm short of the cruise's, beyond the assertion's counts' rounding
         rig.wait_state("running", timeout=180,
-                       pred=lambda s: s["exec_line"] == 3 and s["speed_mm_s"] > 99.0)
+                       pred=lambda s: s["exec_line"] == 3 and s["speed_mm_s"] > 99.999)
         t_cs1 = time.time()
         st = button(3, True, "cycle start")
         assert st["state"] == "running", st
