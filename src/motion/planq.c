@@ -258,10 +258,10 @@ static double hold_cap(const struct mlip_planq *q)
 	return MLIP_PLANQ_HOLD_SHARE * q->lim.vmax;
 }
 
-/* Held, the consumer takes its hold's plan while above its cap. */
-static int hold_plan_on(const struct mlip_planq *q)
+/* The consumer's generation is its hold's plan (until the next request). */
+static int on_hold_plan(const struct mlip_planq *q)
 {
-	return q->c.hold_gen != 0u && q->c.gen == q->c.hold_gen && q->c.st.v > hold_cap(q);
+	return q->c.hold_gen != 0u && q->c.gen == q->c.hold_gen;
 }
 
 /* Ask for a plan from the consumer's state (lead: after that many steps
@@ -369,24 +369,23 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 	q->c.periods++;
 	if (q->c.want_vmax != q->c.vmax) { /* the producer's from its next period */
 		q->c.vmax = q->c.want_vmax;
-		if (q->c.hold_gen == 0u || q->c.gen != q->c.hold_gen) {
+		if (!on_hold_plan(q)) {
 			__atomic_store(&q->cap, &q->c.vmax, __ATOMIC_RELAXED);
 		}
 		if (!lower && !hold && q->c.mode == MLIP_PLANQ_PLAN) {
 			request(q, -1, 0); /* higher: from the queued state LEAD on */
 		}
 	}
-	/* on the hold's plan (its generation: until the next request) */
-	int on_hold_plan = q->c.hold_gen != 0u && q->c.gen == q->c.hold_gen;
-	if (!hold && on_hold_plan && q->c.mode == MLIP_PLANQ_PLAN) {
+	if (!hold && on_hold_plan(q) && q->c.mode == MLIP_PLANQ_PLAN) {
 		/* released on it: a plan at the cap from its state LEAD on (a
 		 * higher cap's switch); else its run to rest, a plan from there
 		 * (never its crawl at the hold's cap) */
 		request(q, -1, 0);
-		on_hold_plan = q->c.gen == q->c.hold_gen;
 	}
 	switch_over(q);
-	int plan_on = hold ? hold_plan_on(q) : !lower && !on_hold_plan;
+	int held_plan = on_hold_plan(q);
+	/* held: its hold's plan while above that plan's cap */
+	int plan_on = hold ? held_plan && q->c.st.v > hold_cap(q) : !lower && !held_plan;
 	switch (q->c.mode) {
 	case MLIP_PLANQ_WAIT:
 		if (!hold) {
@@ -398,7 +397,7 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 			break;
 		}
 		q->c.starved += !hold && !lower;
-		q->c.brakes += !(hold && on_hold_plan); /* its hold's plan ends: the same hold */
+		q->c.brakes += !(hold && held_plan); /* its hold's plan ends: the same hold */
 		q->c.mode = MLIP_PLANQ_BRAKE;
 		r = brake(q);
 		break;
