@@ -258,10 +258,13 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 	 * before is where they stand */
 	int stall = in->missed > c->stall_periods || in->unsent;
 	if (stall && moving(c) && c->ext.q != NULL) {
-		/* the queue's state cannot be made a rest: its braking run (a
-		 * stop, a fault or an E-stop's already is) */
+		/* the queue's state a rest at the last setpoint sent (frames
+		 * withheld: the state a period back); a stop, a fault or an
+		 * E-stop's run ends there (follow.c: dropped at rest) */
+		mlip_planq_rest(c->ext.q, in->unsent);
 		if (c->state == MLIP_STATE_RUNNING || c->state == MLIP_STATE_HELD) {
 			c->hold.stall = 1;
+			c->brake.on = 0;
 			struct mlip_ctl_reason r = reason(MLIP_WHY_STALL, 0, 0);
 			r.value = (double)in->missed;
 			go(c, out, MLIP_STATE_HELD, r);
@@ -400,8 +403,7 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 			}
 		}
 		c->counts.frames_encoded += (uint64_t)out->n_frames;
-		/* the queue's state cannot go back a period (its braking run) */
-		out->withhold_late = c->ext.q == NULL;
+		out->withhold_late = 1; /* either mode rests a period back (in->unsent) */
 	}
 	if (!c->encode || out->n_frames > 0) {
 		memcpy(c->carried, c->pos, sizeof(c->carried)); /* what this period sends */

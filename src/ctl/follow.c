@@ -10,6 +10,8 @@
  *   IDLE --in->plan, a new program number, drives enabled--> RUNNING (START)
  *   RUNNING --hold | override 0 | the bus, the queue's braking run at rest-->
  *     HELD --released--> RUNNING (RESUME), the plan asked again from rest
+ *   RUNNING --a stall--> HELD at once, at rest at the last setpoint sent
+ *     (mlip_planq_rest: the drives stood there)
  *   RUNNING|HELD --stop | exit--> STOPPING: the braking run, at rest IDLE
  *   RUNNING --the queue's last entry, at rest--> IDLE (END)
  *   a drive fault, or an E-stop without drives: the braking run (the

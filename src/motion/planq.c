@@ -24,6 +24,8 @@ void mlip_planq_init(struct mlip_planq *q, const struct mlip_pathrun *pr)
 	q->c.st = (struct mlip_path_state){pr->s[0], 0.0, 0.0, 0, 0};
 	q->c.vmax = q->c.want_vmax = q->cap = pr->lim.vmax;
 	memcpy(q->c.x, pr->p[0], sizeof(double) * (size_t)q->n);
+	q->c.prev_st = q->c.st;
+	memcpy(q->c.prev_x, q->c.x, sizeof(q->c.x));
 }
 
 /* Knot g (global) from pr's window into both its slots: s and p (its
@@ -352,6 +354,30 @@ static int brake(struct mlip_planq *q)
 	return 0;
 }
 
+void mlip_planq_rest(struct mlip_planq *q, int back)
+{
+	if (back) {
+		/* its piece's knots are kept (BEHIND of the piece after it), and
+		 * the producer's (MLIP_PATHRUN_LAG: the queue's length and 7) */
+		q->c.st = q->c.prev_st;
+		q->c.piece = q->c.prev_piece;
+		memcpy(q->c.x, q->c.prev_x, sizeof(q->c.x));
+		if (q->c.mode == MLIP_PLANQ_DONE) {
+			q->c.mode = MLIP_PLANQ_BRAKE; /* its last point withheld */
+		}
+	}
+	if (q->c.mode == MLIP_PLANQ_DONE || (q->c.st.v == 0.0 && q->c.st.a == 0.0)) {
+		return; /* at rest already */
+	}
+	/* what the drives did: no plan can undo it, the plan starts again
+	 * from it (time does not matter at rest) */
+	q->c.st.v = 0.0;
+	q->c.st.a = 0.0;
+	q->c.sw = 0; /* a queued switch continued the old state */
+	request(q, 0, 0);
+	q->c.mode = q->c.to_ask ? MLIP_PLANQ_BRAKE : MLIP_PLANQ_WAIT;
+}
+
 int mlip_planq_feed(struct mlip_planq *q, double vmax)
 {
 	if (!(vmax > 0.0) || !isfinite(vmax)) {
@@ -367,6 +393,9 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 	int hold_edge = hold && !q->c.held;
 	q->c.held = hold != 0;
 	q->c.periods++;
+	q->c.prev_st = q->c.st;
+	q->c.prev_piece = q->c.piece;
+	memcpy(q->c.prev_x, q->c.x, sizeof(q->c.x));
 	if (q->c.want_vmax != q->c.vmax) { /* the producer's from its next period */
 		q->c.vmax = q->c.want_vmax;
 		if (!on_hold_plan(q)) {

@@ -10,6 +10,7 @@ import signal
 import struct
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -415,6 +416,59 @@ def test_late_feeder_is_not_gone(controller, tmp_path):
     s = status(shm)
     assert s["state"] == "idle" and s["reason"] == "program end", s
     assert s["position"]["X"] == 400.0 and s["position"]["Y"] == 0.0, s
+
+
+def test_stall_rests_where_the_drives_stood(controller, tmp_path):
+    """mlip-rt stopped at speed on the plan (SIGSTOP for 1 s, --stall-periods
+    200): the drives stood at the last setpoint meanwhile. The record after
+    the gap repeats it (before: the queue's run went on from the plan's
+    state, a step of v T from rest), held (stall) for 300 periods, then
+    mlip-ctl resume moves on from rest there (the first step within A T^2)
+    to the program's end; mlip-check on the whole record, J included, the
+    gap a hole. A stall hold this host adds by itself before it is resumed."""
+    cfg = machine(tmp_path)
+    prog = tmp_path / "line.ngc"
+    prog.write_text("G21 G90\nG1 F6000\nG1 X300\nG1 X300 Y300\nG1 X0 Y0\n")
+    rec = tmp_path / "rt.csv"
+    shm, rt = controller(cfg, "--strategy", "smooth", "--record", rec, "--stall-periods", "200")
+    f = subprocess.Popen(
+        [tool("mlip-feed"), "--shm", shm, "-q", str(prog)], stderr=subprocess.PIPE, text=True
+    )
+
+    def resumed():
+        s = status(shm)
+        if s["state"] == "held" and s["reason"] == "stall":
+            ctl(shm, "resume")
+        return s
+
+    def stalled():
+        s = status(shm)
+        return s if s["state"] == "held" and s["reason"] == "stall" else None
+
+    held = None
+    for _ in range(3):
+        assert wait_for(lambda: (lambda s: s["state"] == "running" and s["speed_mm_s"] > 50)(
+            resumed()), 60), status(shm)
+        with frozen(rt):
+            time.sleep(1.0)  # the stall itself: 1000 periods the loop does not run
+        held = wait_for(stalled, 60)
+        assert held, status(shm)
+        if held["reason_value"] >= 900:
+            break  # this SIGSTOP's (not a stall of the host's just before it)
+        assert ctl(shm, "resume").returncode == 0
+    assert held["reason_value"] >= 900 and held["speed_mm_s"] == 0.0, held
+    later = periods_on(shm, 300)
+    assert later and later["state"] == "held" and later["position"] == held["position"], later
+    assert ctl(shm, "resume").returncode == 0
+    ending(cfg, prog, rec, rt, f)
+    rows, T, A = record_rows(rec), 0.001, 1000.0
+    gap, k = max((rows[i][0] - rows[i - 1][0], i) for i in range(2, len(rows))
+                 if rows[i - 1][1:] != rows[i - 2][1:])
+    assert gap > 0.8, gap
+    assert rows[k][1:] == rows[k - 1][1:] and rows[k + 1][1:] == rows[k][1:], rows[k - 2 : k + 2]
+    j = next(i for i in range(k, len(rows)) if rows[i][1:] != rows[k][1:])
+    step = max(abs(a - b) for a, b in zip(rows[j][1:], rows[j - 1][1:], strict=True))
+    assert j - k >= 300 and step <= A * T * T, (j - k, step)
 
 
 def test_hold_in_the_queues_last_periods(controller, tmp_path):

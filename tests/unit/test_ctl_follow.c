@@ -59,6 +59,7 @@ static struct mlip_ctl_drive_fault fault_next;
 static int exit_req;
 static uint32_t plan_fault;  /* the programs the planning thread refused (a count, as mlip-rt's) */
 static uint32_t missed_next; /* deadlines missed before the next period */
+static int unsent_next;      /* the last period's frames withheld (a late send) */
 static struct mlip_can_config can_cia402 = {"cia402", 1000000, 5000000, 0x080,
                                             0x200,    0x300,   0x400,   0x180};
 
@@ -218,6 +219,7 @@ static int setup_opts(const struct mlip_io_config *io)
 	                          .drive_state_periods = 50};
 	memset(&fault_next, 0, sizeof(fault_next));
 	missed_next = 0;
+	unsent_next = 0;
 	plan_fault = 0;
 	memset(&out, 0, sizeof(out));
 	exit_req = 0;
@@ -277,7 +279,9 @@ static int32_t tick(uint32_t op, int32_t arg)
 	in.exit_request = exit_req;
 	in.plan_fault = plan_fault;
 	in.missed = missed_next;
+	in.unsent = unsent_next;
 	missed_next = 0;
+	unsent_next = 0;
 	for (int k = 0; k < 2 && drives; k++) {
 		/* enabled (quick stop active in an E-stop), at the last setpoint */
 		in.drives.sw[k] = out.status.drive_power == MLIP_POWER_QUICK_STOP ? 0x0217 : 0x0237;
@@ -698,35 +702,83 @@ static void test_exit(void **state)
 	assert_int_equal(out.status.drive_power, MLIP_POWER_OFF);
 }
 
-/* A stall (more missed periods than allowed) mid-move: HELD (STALL) in
- * that period, the queue's braking run inside A and J to rest (the drives
- * stood meanwhile: the run continues the plan's state, see follow.c), held
- * until resumed; then the program ends on its last point. During a stop a
- * stall leaves the stop alone. */
+/* The drives stood at x (a stall): the samples from rest there. */
+static void check_rest_at(const double *x)
+{
+	for (int i = 0; i < 4; i++) {
+		memcpy(chk.x[i], x, sizeof(chk.x[0]));
+	}
+	check_reset();
+}
+
+/* A stall (more missed periods than allowed) mid-move, the drives standing
+ * at the last setpoint meanwhile: HELD (STALL) in that period, at that
+ * setpoint to the bit (never a step from where the drives stood), held
+ * until resumed; then from rest there inside A and J (its samples from
+ * rest), on the path, the program ends on its last point. Frames
+ * withheld (a stall after the period's work): at the setpoint before.
+ * A stall during a stop ends the stop where the drives stood. */
 static void test_stall(void **state)
 {
 	(void)state;
 	until_speed(0.9 * V);
+	double sent[2], held[2];
+	memcpy(sent, out.pos, sizeof(sent));
 	missed_next = 10;
 	tick(0, 0);
 	assert_int_equal(out.status.state, MLIP_STATE_HELD);
 	assert_int_equal(out.status.reason, MLIP_WHY_STALL);
-	check_reset();
-	for (long k = 0; k < STOP_PERIODS && out.status.speed_mm_s > 0.0; k++) {
-		tick(0, 0);
-	}
-	check_limits();
-	double held[2];
+	assert_memory_equal(out.pos, sent, sizeof(sent));
+	assert_true(out.status.speed_mm_s == 0.0);
+	check_rest_at(sent);
 	stays(100, MLIP_STATE_HELD, held);
+	assert_memory_equal(held, sent, sizeof(sent));
 	assert_int_equal(tick(MLIP_CMD_RESUME, 0), MLIP_OK);
 	until(MLIP_STATE_RUNNING, 50);
+	until_speed(0.9 * V); /* it moves on at the plan's speed again */
+	check_limits();
+	assert_true(chk.max_j >= 0.5 * JERK && chk.max_a >= 0.3 * ACC);
+	until(MLIP_STATE_IDLE, MAX_PERIODS);
+	check_limits();
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	assert_memory_equal(out.pos, f.last, sizeof(f.last));
+
+	/* a stall between a period's work and its send (its frames withheld):
+	 * the same, at the setpoint before it, the last the drives got */
+	assert_int_equal(setup(NULL), 0);
+	until_speed(0.9 * V);
+	memcpy(sent, out.pos, sizeof(sent));
+	tick(0, 0); /* its frames withheld */
+	assert_true(fabs(out.pos[0] - sent[0]) + fabs(out.pos[1] - sent[1]) > 0.5 * V * T);
+	unsent_next = 1;
+	tick(0, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_HELD);
+	assert_int_equal(out.status.reason, MLIP_WHY_STALL);
+	assert_memory_equal(out.pos, sent, sizeof(sent));
+	check_rest_at(sent);
+	stays(100, MLIP_STATE_HELD, held);
+	assert_int_equal(tick(MLIP_CMD_RESUME, 0), MLIP_OK);
+	until(MLIP_STATE_IDLE, MAX_PERIODS);
+	check_limits();
+	assert_true(chk.max_j >= 0.5 * JERK && chk.max_a >= 0.3 * ACC);
+	assert_int_equal(out.status.reason, MLIP_WHY_END);
+	assert_memory_equal(out.pos, f.last, sizeof(f.last));
+
+	/* a stall during a stop: IDLE (STOP) at the last setpoint */
+	assert_int_equal(setup(NULL), 0);
 	until_speed(0.9 * V);
 	tick(MLIP_CMD_STOP, 0);
+	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
+	for (int i = 0; i < 5; i++) {
+		tick(0, 0); /* braking */
+	}
+	memcpy(sent, out.pos, sizeof(sent));
 	missed_next = 10;
 	tick(0, 0);
-	assert_int_equal(out.status.state, MLIP_STATE_STOPPING);
-	until(MLIP_STATE_IDLE, STOP_PERIODS);
+	assert_int_equal(out.status.state, MLIP_STATE_IDLE);
 	assert_int_equal(out.status.reason, MLIP_WHY_STOP);
+	assert_memory_equal(out.pos, sent, sizeof(sent));
+	stays(100, MLIP_STATE_IDLE, held);
 }
 
 static int setup_io_drives(void **state)

@@ -168,6 +168,11 @@ struct mlip_planq {
 		uint64_t sw_period;
 		uint32_t sw_head;
 		double x[MLIP_MAX_AXES];
+		/* the state, setpoint and piece a period back (mlip_planq_rest:
+		 * its frames withheld, that setpoint is where the drives stand) */
+		struct mlip_path_state prev_st;
+		double prev_x[MLIP_MAX_AXES];
+		uint64_t prev_piece;
 		/* where st lies: the record executing (seq, line: the mark of
 		 * its piece's far knot, the record whose motion made that piece)
 		 * and the last one completed (done_seq, done_line: its near
@@ -213,6 +218,15 @@ int mlip_planq_produce(struct mlip_planq *q, struct mlip_pathrun *pr);
  * one from the queued state MLIP_PLANQ_LEAD periods on. -1 (ignored) when
  * not positive and finite (a zero feed is a hold). */
 int mlip_planq_feed(struct mlip_planq *q, double vmax);
+
+/* The consumer: a stall (the period missed, the drives stood at its last
+ * setpoint while the plan's clock ran). Its state becomes a rest there
+ * and a plan from it is asked, as at the end of a braking run: the next
+ * setpoints repeat the last one (never a step from where the drives
+ * stood), and motion continues from rest. back: the last step's frames
+ * were withheld (a stall between the period's work and its send), the
+ * rest is at the state a period before it. Nothing when at rest. */
+void mlip_planq_rest(struct mlip_planq *q, int back);
 
 /* The consumer (the period): this period's setpoint in x (n axes); hold
  * non-zero: leave the plan for the braking run now, stay at rest while it
