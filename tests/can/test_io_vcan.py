@@ -417,11 +417,11 @@ def hold_machine(tmp, home=None):
                       edit)
 
 
-def fresh_targets(sim, t0):
+def fresh_targets(sim, t0, rows=None):
     """[(sync, (x, y, z) counts)] for every SYNC after t0 at which all three
     drives applied a fresh target: one entry per controller period."""
     by = {}
-    for r in sim.sync_rows():
+    for r in sim.sync_rows() if rows is None else rows:
         if r["t"] >= t0 and r["node"] in (1, 2, 3) and r["target"] is not None and r["fresh"]:
             by.setdefault(r["sync"], {})[r["node"]] = r["target"]
     return [(s, (d[1], d[2], d[3])) for s, d in sorted(by.items()) if len(d) == 3]
@@ -474,12 +474,16 @@ def test_hold_and_cycle_start(sim, tmp_path):
         assert st["held_by"] is None, st
         t0 = time.time()
         feed = rig.feeder(ngc)
-        # cruising on the long line: cycle start changes nothing. At F6000
-        # itself: at 40 ms and 250 mm/s^2 the ramp's last period (its
-        # acceleration ends inside it) can run at 99.x mm/s, a step 0.02
-        # mm short of the cruise's, beyond the assertion's counts' rounding
-        rig.wait_state("running", timeout=180,
-                       pred=lambda s: s["exec_line"] == 3 and s["speed_mm_s"] > 99.999)
+        # cruising on the long line: cycle start changes nothing. Cruising
+        # on the bus: the status's speed is its period's end speed, 100 mm/s
+        # in the ramp's last period already, whose step (the acceleration
+        # ends inside it) can be 0.15 mm short of the cruise's
+        def cruise_on_bus(rows):
+            r = fresh_targets(sim, t0, rows)
+            return len(r) >= 2 and abs(math.dist(r[-1][1], r[-2][1]) / 1000.0 - 100.0 * T) <= 0.002
+
+        rig.wait_state("running", timeout=180, pred=lambda s: s["exec_line"] == 3)
+        assert cruise_on_bus(sim.wait_sync_rows(cruise_on_bus, timeout=180)), rig.status()
         t_cs1 = time.time()
         st = button(3, True, "cycle start")
         assert st["state"] == "running", st
