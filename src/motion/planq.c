@@ -356,18 +356,18 @@ static int brake(struct mlip_planq *q)
 
 void mlip_planq_rest(struct mlip_planq *q, int back)
 {
+	if (q->c.mode == MLIP_PLANQ_DONE) {
+		return; /* the program's end: the controller has left the queue */
+	}
 	if (back) {
 		/* its piece's knots are kept (BEHIND of the piece after it), and
 		 * the producer's (MLIP_PATHRUN_LAG: the queue's length and 7) */
 		q->c.st = q->c.prev_st;
 		q->c.piece = q->c.prev_piece;
 		memcpy(q->c.x, q->c.prev_x, sizeof(q->c.x));
-		if (q->c.mode == MLIP_PLANQ_DONE) {
-			q->c.mode = MLIP_PLANQ_BRAKE; /* its last point withheld */
-		}
 	}
-	if (q->c.mode == MLIP_PLANQ_DONE || (q->c.st.v == 0.0 && q->c.st.a == 0.0)) {
-		return; /* at rest already */
+	if (q->c.mode == MLIP_PLANQ_WAIT && q->c.st.v == 0.0 && q->c.st.a == 0.0) {
+		return; /* at rest, its plan asked already */
 	}
 	/* what the drives did: no plan can undo it, the plan starts again
 	 * from it (time does not matter at rest) */
