@@ -239,8 +239,8 @@ int mlip_period_tick(void *ctx, const struct mlip_rt_tick *t)
 	 * setpoints are stale: sent now, the drives that stood still meanwhile
 	 * would step a period's travel at once. None go out; the controller
 	 * rests at the one before (in.unsent) */
-	int late = p->bus != NULL && o->n_frames > 0 && o->withhold_late &&
-	           p->bus->now_ns(p->bus->ctx) - now > p->late_ns;
+	int late =
+	    p->bus != NULL && o->n_frames > 0 && p->bus->now_ns(p->bus->ctx) - now > p->late_ns;
 	p->unsent = late;
 	if (p->bus != NULL && o->n_frames > 0 && !late) {
 		bus_send(p, o);

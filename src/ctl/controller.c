@@ -235,7 +235,6 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 
 	out->n_events = 0;
 	out->n_frames = 0;
-	out->withhold_late = 0;
 	c->power.want = 0; /* blocks_in says again whether a program waits */
 	out->cmd_result = MLIP_OK;
 	out->done = 0;
@@ -403,7 +402,6 @@ void mlip_ctl_period(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct ml
 			}
 		}
 		c->counts.frames_encoded += (uint64_t)out->n_frames;
-		out->withhold_late = 1; /* either mode rests a period back (in->unsent) */
 	}
 	if (!c->encode || out->n_frames > 0) {
 		memcpy(c->carried, c->pos, sizeof(c->carried)); /* what this period sends */

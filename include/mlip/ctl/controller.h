@@ -310,9 +310,8 @@ struct mlip_ctl_out {
 	uint32_t taken;            /* records taken from the front of in->recs: pop them */
 	double pos[MLIP_MAX_AXES]; /* the setpoint of this period */
 	struct mlip_can_frame frames[MLIP_CAN_MAX_FRAMES];
-	int n_frames;                   /* 0: nothing to send (no encoder, or a fault) */
-	int withhold_late;              /* late frames may be withheld: the controller then
-	                                   rests one period back (in->unsent next period) */
+	int n_frames;                   /* 0: nothing to send (no encoder, or a fault); late:
+	                                   withheld, in->unsent next period */
 	int32_t cmd_result;             /* mlip_status for in->cmd */
 	struct mlip_ring_status status; /* all but heartbeat_ns, pid, CAN counters */
 	struct mlip_ctl_event events[MLIP_CTL_MAX_EVENTS];
