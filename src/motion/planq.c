@@ -445,7 +445,10 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 	 * than the first) */
 	int hold_ask = hold && brakes && !rest && q->c.st.v > hold_cap(q) && q->c.st.brake > 0 &&
 	               (hold_edge || q->c.to_ask_hold);
-	if (r == 0 && (waits || brakes) && (lower || q->c.to_ask || hold_ask)) {
+	/* held while moving, a lower cap is the resumed plan's (at rest brake()
+	 * asks at it): a plan for it now would replace the hold's */
+	int lower_ask = lower && !(hold && !rest);
+	if (r == 0 && (waits || brakes) && (lower_ask || q->c.to_ask || hold_ask)) {
 		/* a plan at the lower cap (a hold's: planq.h): from rest, or from
 		 * the run's state MLIP_PLANQ_LEAD periods on */
 		request(q, rest ? 0 : MLIP_PLANQ_LEAD, hold_ask);

@@ -392,6 +392,123 @@ static void test_hold_brakes_hard(void **state)
 	assert_true(gentle_holds >= 3 && faster >= 1);
 }
 
+/* A lower feed during a hold from a gentle policy's state, before the
+ * hold's plan is taken (LOWER_AT periods in; it is taken MLIP_PLANQ_LEAD
+ * on): the hold's run is the hold's alone, setpoint for setpoint, and the
+ * lower cap is the resumed plan's. Each of HF_TRIES states on the curve
+ * that only the gentle policy certifies is held twice from a copy of the
+ * queue, the plan and the input (all deterministic): without and with the
+ * lower feed. Before, the lower feed's plan replaced the hold's and the
+ * hold braked at the gentle policy to rest. Released, the plan runs at the
+ * lower cap (1000 periods, then the full cap again). */
+#define LOWER_AT 3
+#define HF_TRIES 4
+#define HF_MAX   20000
+static struct mlip_pathrun pr_copy;
+static struct mlip_planq q_copy;
+static double hf_x[2][HF_MAX][3];
+
+/* Held from here to rest (the copy's state), a lower feed `cap` LOWER_AT
+ * periods in when cap > 0: its setpoints in xs, how many; popped: periods
+ * the hold's plan gave. */
+static long held_run(struct feed *f, struct check *c, double cap, double (*xs)[3], long *popped)
+{
+	long n = 0;
+	*popped = 0;
+	for (; n < HF_MAX && !(n > 0 && q.c.st.v == 0.0 && q.c.st.a == 0.0); n++) {
+		if (cap > 0.0 && n == LOWER_AT) {
+			assert_int_equal(mlip_planq_feed(&q, cap), 0);
+		}
+		int m = mlip_planq_step(&q, 1, xs[n]);
+		assert_true(m >= 0);
+		*popped += m == MLIP_PLANQ_PLAN;
+		check_point(c, xs[n]);
+		produce_some(f);
+		assert_int_equal(f->fail, 0);
+	}
+	assert_true(n < HF_MAX);
+	return n;
+}
+
+static void test_hold_keeps_its_plan_under_a_lower_feed(void **state)
+{
+	(void)state;
+	struct feed f, f_copy;
+	struct check c, c_copy;
+	gentle = 100.0;
+	feed_init(&f, 40.0);
+	check_init(&c);
+	double x[3], cap = 0.5 * 0.995 * V, max_v = 0.0, max_sv = 0.0;
+	int mode = MLIP_PLANQ_WAIT, tries = 0;
+	long next = 200, faster = 0, lowered = -1;
+	for (long k = 0; k < 400000 && mode != MLIP_PLANQ_DONE; k++) {
+		produce_some(&f);
+		assert_int_equal(f.fail, 0);
+		if (tries < HF_TRIES && k >= next && mode == MLIP_PLANQ_PLAN && q.c.st.brake == 1 &&
+		    q.c.st.v > 10.0) {
+			pr_copy = pr;
+			q_copy = q;
+			f_copy = f;
+			c_copy = c;
+			long pa, pb, own_n = 0;
+			double v0 = q.c.st.v;
+			long na = held_run(&f, &c, 0.0, hf_x[0], &pa);
+			pr = pr_copy;
+			q = q_copy;
+			f = f_copy;
+			c = c_copy;
+			long nb = held_run(&f, &c, cap, hf_x[1], &pb);
+			assert_true(pa > 0); /* the hold's plan took over */
+			assert_int_equal(nb, na);
+			assert_memory_equal(hf_x[1], hf_x[0], sizeof(hf_x[0][0]) * (size_t)na);
+			/* the gentle policy's own run (a copy of the queue alone) is longer */
+			q_copy.c.held = 1;
+			for (; own_n < HF_MAX && !(q_copy.c.st.v == 0.0 && q_copy.c.st.a == 0.0);
+			     own_n++) {
+				assert_true(mlip_planq_step(&q_copy, 1, x) >= 0);
+			}
+			print_message(
+			    "hold at %ld (%.1f mm/s): %ld periods to rest, %ld of them the "
+			    "hold's plan; with the lower feed %ld (%ld); the gentle run %ld\n",
+			    k, v0, na, pa, nb, pb, own_n);
+			faster += na < own_n;
+			tries++;
+			mode = mlip_planq_step(&q, 0, x); /* released: at the lower cap */
+			check_point(&c, x);
+			next = k + 2000;
+			lowered = k + 1000;
+			continue;
+		}
+		if (k == lowered) { /* the full cap again: the next hold's state */
+			assert_int_equal(mlip_planq_feed(&q, 0.995 * V), 0);
+		}
+		double prev[3];
+		memcpy(prev, x, sizeof(prev));
+		mode = mlip_planq_step(&q, 0, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+		if (k < lowered) { /* the resumed plan, at the lower cap */
+			max_sv = fmax(max_sv, q.c.st.v);
+			max_v = fmax(max_v, sqrt((x[0] - prev[0]) * (x[0] - prev[0]) +
+			                         (x[1] - prev[1]) * (x[1] - prev[1]) +
+			                         (x[2] - prev[2]) * (x[2] - prev[2])) /
+			                        T);
+		}
+	}
+	gentle = 0.0;
+	print_message("%d holds, %ld sooner than the gentle policy's run; resumed at most "
+	              "%.4f mm/s on the plan, %.4f by the chord (cap %.4f)\n",
+	              tries, faster, max_sv, max_v, cap);
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, f.last, sizeof(x));
+	check_physics(&c);
+	assert_int_equal(tries, HF_TRIES);
+	assert_int_equal(faster, HF_TRIES);
+	/* the cap is on the plan's speed; the chord's within 1 % (as test_override) */
+	assert_true(max_sv <= cap * (1.0 + 1e-12));
+	assert_true(max_v <= 1.01 * cap && max_v >= 0.9 * cap);
+}
+
 /* A lower feed at a random period: the braking run starts in that period
  * and the plan at the new cap takes over MLIP_PLANQ_LEAD periods later,
  * continuing the run bit for bit (no stop); the speed then stays within
@@ -701,9 +818,13 @@ static void test_lag_independent(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-	    cmocka_unit_test(test_stalls),           cmocka_unit_test(test_hold),
-	    cmocka_unit_test(test_hold_brakes_hard), cmocka_unit_test(test_override),
-	    cmocka_unit_test(test_override_late),    cmocka_unit_test(test_thread),
+	    cmocka_unit_test(test_stalls),
+	    cmocka_unit_test(test_hold),
+	    cmocka_unit_test(test_hold_brakes_hard),
+	    cmocka_unit_test(test_hold_keeps_its_plan_under_a_lower_feed),
+	    cmocka_unit_test(test_override),
+	    cmocka_unit_test(test_override_late),
+	    cmocka_unit_test(test_thread),
 	    cmocka_unit_test(test_lag_independent),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

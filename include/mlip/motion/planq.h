@@ -241,7 +241,9 @@ void mlip_planq_rest(struct mlip_planq *q, int back);
  * is that run, each state taking the hardest policy that certifies it
  * (mlip_path_plan_period), so once past the curve it brakes hard; the
  * consumer takes it where it continues its run, down to that speed, and
- * from there brakes to rest on its own. */
+ * from there brakes to rest on its own. A lower feed while held and moving
+ * is the resumed plan's cap (asked at rest), never a plan that replaces the
+ * hold's. */
 int mlip_planq_step(struct mlip_planq *q, int hold, double *x);
 
 #endif
