@@ -164,8 +164,12 @@ static void plan_status(struct mlip_period_plan *pp, const struct mlip_ctl *c, u
 	int ours = prog != 0 && c->ext.last == prog; /* started (or refused) */
 	s->blocks_consumed = ours ? LD(&pp->taken) : LD(&pp->taken_base);
 	if (ours && c->ext.q == NULL) {
-		if (s->reason == MLIP_WHY_END) {
-			pp->end_shown = LD(&pp->end_seq); /* kept once the thread moves on */
+		/* kept once the thread moves on: it resets end_seq to 0 once it
+		 * sees done, which may fall between this period's load of prog
+		 * and this load (0 then is not this program's END) */
+		uint64_t e = LD(&pp->end_seq);
+		if (s->reason == MLIP_WHY_END && e != 0) {
+			pp->end_shown = e;
 		}
 		ST(&pp->done, prog);
 	}
