@@ -204,6 +204,11 @@ class IoModule(SimDevice):
 
     def _on_rpdo(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.sim.lock:
+            if not self.operational:
+                # CiA 301: PDOs only while operational. A frame delivered
+                # before a reboot or an NMT command left it, whose callback
+                # waited for the lock meanwhile, is not applied after
+                return
             n = self.sim.od_int(self.node, 0x1600, "B", 0)
             if len(data) < n:
                 return
