@@ -509,6 +509,103 @@ static void test_hold_keeps_its_plan_under_a_lower_feed(void **state)
 	assert_true(max_v <= 1.01 * cap && max_v >= 0.9 * cap);
 }
 
+/* Released on the hold's plan after a lower feed (the case above, the
+ * hold let go RELEASE_AT periods in, still moving): up to the release the
+ * setpoints are the hold's alone, bit for bit; the plan asked at the
+ * release (from the hold's state MLIP_PLANQ_LEAD on, at the lower cap)
+ * takes over without a rest, and runs at the lower cap; every sample
+ * within A and J, on the curve. */
+#define RELEASE_AT (LOWER_AT + MLIP_PLANQ_LEAD + 12)
+static void test_release_on_the_hold_plan_after_a_lower_feed(void **state)
+{
+	(void)state;
+	struct feed f, f_copy;
+	struct check c, c_copy;
+	gentle = 100.0;
+	feed_init(&f, 40.0);
+	check_init(&c);
+	double x[3], prev[3], cap = 0.5 * 0.995 * V, max_sv = 0.0, min_v = 1e9;
+	int mode = MLIP_PLANQ_WAIT, tries = 0;
+	long next = 200, lowered = -1, held_out = -1, settled = -1;
+	double worst_settle = 0.0;
+	for (long k = 0; k < 400000 && mode != MLIP_PLANQ_DONE; k++) {
+		produce_some(&f);
+		assert_int_equal(f.fail, 0);
+		if (tries < HF_TRIES && k >= next && mode == MLIP_PLANQ_PLAN && q.c.st.brake == 1 &&
+		    q.c.st.v > 10.0) {
+			pr_copy = pr;
+			q_copy = q;
+			f_copy = f;
+			c_copy = c;
+			long pa;
+			(void)held_run(&f, &c, 0.0, hf_x[0],
+			               &pa); /* the hold alone, for reference */
+			assert_true(pa > 0);
+			pr = pr_copy;
+			q = q_copy;
+			f = f_copy;
+			c = c_copy;
+			long n = 0, popped = 0;
+			for (; n < RELEASE_AT; n++) {
+				if (n == LOWER_AT) {
+					assert_int_equal(mlip_planq_feed(&q, cap), 0);
+				}
+				int m = mlip_planq_step(&q, 1, x);
+				assert_true(m >= 0);
+				popped += m == MLIP_PLANQ_PLAN;
+				check_point(&c, x);
+				assert_memory_equal(x, hf_x[0][n], sizeof(x));
+				produce_some(&f);
+				assert_int_equal(f.fail, 0);
+			}
+			/* on the hold's plan, not yet at its crawl */
+			assert_true(popped > 0 && mode >= 0);
+			assert_true(q.c.st.v > 1.0);
+			print_message("hold at %ld: released %d periods in at %.2f mm/s\n", k,
+			              RELEASE_AT, q.c.st.v);
+			tries++;
+			k += n;
+			held_out = k + 1; /* from here: no rest before the program's end */
+			settled = -1;
+			next = k + 2000;
+			lowered = k + 1000;
+			memcpy(prev, x, sizeof(prev));
+			continue;
+		}
+		if (k == lowered) { /* the full cap again: the next hold's state */
+			assert_int_equal(mlip_planq_feed(&q, 0.995 * V), 0);
+		}
+		mode = mlip_planq_step(&q, 0, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+		if (held_out >= 0 && k < lowered) {
+			/* released above the lower cap: down to it, then within it */
+			if (settled < 0 && q.c.st.v <= cap) {
+				settled = k;
+				worst_settle = fmax(worst_settle, (double)(k - held_out));
+			}
+			if (settled >= 0) {
+				max_sv = fmax(max_sv, q.c.st.v);
+			}
+			min_v = fmin(min_v, q.c.st.v);
+		}
+		memcpy(prev, x, sizeof(prev));
+	}
+	gentle = 0.0;
+	print_message("%d releases; after each, down to the lower cap in %.0f periods at most, "
+	              "then at most %.4f mm/s (cap %.4f); at least %.4f mm/s from the release to "
+	              "the full cap again\n",
+	              tries, worst_settle, max_sv, cap, min_v);
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, f.last, sizeof(x));
+	check_physics(&c);
+	assert_int_equal(tries, HF_TRIES);
+	/* 42 -> 29.85 mm/s at 0.25 A or more takes 49 periods, plus the lead */
+	assert_true(worst_settle > 0.0 && worst_settle <= 49 + 2 * MLIP_PLANQ_LEAD);
+	assert_true(max_sv <= cap * (1.0 + 1e-12));
+	assert_true(min_v > 1.0); /* it never came to rest: the released plan took over */
+}
+
 /* A lower feed at a random period: the braking run starts in that period
  * and the plan at the new cap takes over MLIP_PLANQ_LEAD periods later,
  * continuing the run bit for bit (no stop); the speed then stays within
@@ -822,6 +919,7 @@ int main(void)
 	    cmocka_unit_test(test_hold),
 	    cmocka_unit_test(test_hold_brakes_hard),
 	    cmocka_unit_test(test_hold_keeps_its_plan_under_a_lower_feed),
+	    cmocka_unit_test(test_release_on_the_hold_plan_after_a_lower_feed),
 	    cmocka_unit_test(test_override),
 	    cmocka_unit_test(test_override_late),
 	    cmocka_unit_test(test_thread),
