@@ -123,7 +123,7 @@ def main():
             rel = (lambda x, y: f"{x['total_time_s'] / y['total_time_s']:.3f}x"
                    if "error" not in x and "error" not in y else "-")
             print(f"| {name} | {js} | {base['total_time_s']:.3f} | {m['total_time_s']:.3f} |"
-                  f" {pt} | {pmt} | {a['total_time_s']:.3f} | {a['jerk_plan']} |"
+                  f" {pt} | {pmt} | {a['total_time_s']:.3f} | {'mpct' if a['strategy'] == 'mpct' else a['jerk_plan']} |"
                   f" {rel(a, m)} | {rel(pm, m)} | {rel(pm, p)} | {rel(a, base)} |"
                   f" {jr:.4f} | {ar:.4f} | {a['max_contour_error_mm']:.5f} | {pmr} |"
                   f" {', '.join(verdicts)} |", flush=True)

@@ -334,6 +334,8 @@ struct sim {
 	uint64_t budget; /* auto's plan scout: stop at this many rows (0: none) */
 	uint64_t auto_rows[JERK_AUTO];   /* auto: a candidate's rows, when the soonest so far */
 	const char *auto_why[JERK_AUTO]; /* auto: what became of each plan */
+	uint64_t auto_mpct_rows;         /* auto on smooth: mpct's, when the soonest */
+	const char *auto_mpct_why;       /* ... what became of it (NULL: not a candidate) */
 };
 
 static void close_trace(struct sim *s)
@@ -662,6 +664,9 @@ static int run(const struct options *o, struct sim *s)
 			}
 			mlip_check_sample(&s->chk, out.pos);
 			s->rows = s->trace.rows;
+			if (s->budget > 0 && s->rows >= s->budget) {
+				return OVER_BUDGET; /* --jerk-plan auto: mpct not sooner */
+			}
 		}
 		if (s->trace.ended || (s->probe_error && out.status.state == MLIP_STATE_IDLE)) {
 			return 0; /* a probe error before any motion (G38 first) ends it too */
@@ -749,6 +754,13 @@ static int write_summary(const struct options *o, const struct sim *s, int bad)
 			if (s->auto_rows[p] > 0) {
 				mlip_json_number(&j, key[p][1], "%.6f",
 				                 (double)s->auto_rows[p] * m->period_s);
+			}
+		}
+		if (s->auto_mpct_why != NULL) {
+			mlip_json_string(&j, "auto_mpct", s->auto_mpct_why);
+			if (s->auto_mpct_rows > 0) {
+				mlip_json_number(&j, "auto_mpct_s", "%.6f",
+				                 (double)s->auto_mpct_rows * m->period_s);
 			}
 		}
 	}
@@ -876,7 +888,10 @@ static int scout(struct options *o, struct sim *s, uint64_t *rows)
  * the likelier winner, so path's budget is the tighter); the one that ends
  * soonest (the earlier on a tie, the mean first) is run again, written and
  * checked. Never slower than the mean, in the memory of one run: no window
- * of setpoints is kept. */
+ * of setpoints is kept. On --strategy smooth, mpct (the program's own
+ * path, its mean) is the last candidate, counted up to the fewest rows so
+ * far: smooth is never slower than mpct by construction, with J or
+ * without. */
 static int choose(struct options *o, struct sim *s)
 {
 	static struct sim sc;
@@ -923,9 +938,33 @@ static int choose(struct options *o, struct sim *s)
 			o->jerk_plan = p;
 		}
 	}
+	if (o->strategy == MLIP_STRATEGY_SMOOTH) {
+		uint64_t rows = 0;
+		const char *before = plan_name[o->jerk_plan];
+		memset(&sc, 0, sizeof(sc));
+		sc.budget = best;
+		q.jerk_plan = JERK_MEAN;
+		q.strategy = MLIP_STRATEGY_MPCT;
+		q.strategy_name = "mpct";
+		quiet = quiet != NULL || !o->quiet ? quiet : fopen("/dev/null", "w");
+		sc.err = o->quiet ? quiet : stderr;
+		rc = scout(&q, &sc, &rows);
+		s->auto_mpct_why = rc == 0 && rows < best         ? "sooner"
+		                   : rc != 0 && rc != OVER_BUDGET ? "refused"
+		                   : strcmp(before, "mean") == 0  ? "not sooner than the mean"
+		                   : strcmp(before, "path") == 0  ? "not sooner than path"
+		                                                  : "not sooner than path-mean";
+		if (rc == 0 && rows < best) {
+			s->auto_mpct_rows = best = rows;
+			o->jerk_plan = JERK_MEAN;
+			o->strategy = MLIP_STRATEGY_MPCT;
+			o->strategy_name = "mpct";
+		}
+	}
 	if (!o->quiet) {
-		fprintf(stderr, PROG ": %s: --jerk-plan auto: %s (the mean %.3f s", o->path,
-		        plan_name[o->jerk_plan], (double)s->auto_rows[JERK_MEAN] * t);
+		fprintf(stderr, PROG ": %s: --jerk-plan auto: %s%s (the mean %.3f s", o->path,
+		        s->auto_mpct_rows > 0 ? "mpct's " : "", plan_name[o->jerk_plan],
+		        (double)s->auto_rows[JERK_MEAN] * t);
 		for (int p = JERK_PATH; p <= JERK_PATH_MEAN; p++) {
 			if (s->auto_rows[p] > 0) {
 				fprintf(stderr, ", %s %.3f s", plan_name[p],
@@ -933,6 +972,11 @@ static int choose(struct options *o, struct sim *s)
 			} else {
 				fprintf(stderr, ", %s %s", plan_name[p], s->auto_why[p]);
 			}
+		}
+		if (s->auto_mpct_rows > 0) {
+			fprintf(stderr, ", mpct %.3f s", (double)s->auto_mpct_rows * t);
+		} else if (s->auto_mpct_why != NULL) {
+			fprintf(stderr, ", mpct %s", s->auto_mpct_why);
 		}
 		fprintf(stderr, ")\n");
 	}
