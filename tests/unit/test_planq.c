@@ -606,6 +606,98 @@ static void test_release_on_the_hold_plan_after_a_lower_feed(void **state)
 	assert_true(min_v > 1.0); /* it never came to rest: the released plan took over */
 }
 
+/* A hold from a gentle policy's state while the producer is late by
+ * LATE[i] periods (it does nothing from the hold on for that long): the
+ * hold's plan comes late or never, and the hold still ends at rest within A
+ * and J, never later than the state's own run. A plan that comes in time
+ * gives the hold on time's setpoints bit for bit; one that comes after the
+ * run passed the state it was asked from is not taken: the hold is the own
+ * run, setpoint for setpoint. */
+static void test_hold_under_a_late_producer(void **state)
+{
+	(void)state;
+	static const long late[] = {2, MLIP_PLANQ_LEAD / 2, 2 * MLIP_PLANQ_LEAD, 1000};
+	enum { N_LATE = sizeof(late) / sizeof(late[0]) };
+	struct feed f, f_copy;
+	struct check c, c_copy;
+	gentle = 100.0;
+	feed_init(&f, 40.0);
+	check_init(&c);
+	double x[3];
+	int mode = MLIP_PLANQ_WAIT, tries = 0, same_on_time = 0, same_own = 0;
+	long next = 200;
+	for (long k = 0; k < 400000 && mode != MLIP_PLANQ_DONE; k++) {
+		produce_some(&f);
+		assert_int_equal(f.fail, 0);
+		if (tries < 3 && k >= next && mode == MLIP_PLANQ_PLAN && q.c.st.brake == 1 &&
+		    q.c.st.v > 10.0) {
+			pr_copy = pr;
+			q_copy = q;
+			f_copy = f;
+			c_copy = c;
+			long pa, own_n = 0;
+			long na = held_run(&f, &c, 0.0, hf_x[0], &pa); /* the producer on time */
+			assert_true(pa > 0);
+			own = q_copy; /* the state's own run, alone */
+			own.c.held = 1;
+			for (; own_n < HF_MAX && !(own.c.st.v == 0.0 && own.c.st.a == 0.0);
+			     own_n++) {
+				assert_true(mlip_planq_step(&own, 1, hf_x[1][own_n]) >= 0);
+			}
+			for (int i = 0; i < N_LATE; i++) {
+				pr = pr_copy;
+				q = q_copy;
+				f = f_copy;
+				c = c_copy;
+				long n = 0;
+				int differs_on_time = 0, differs_own = 0;
+				for (; n < HF_MAX && !(n > 0 && q.c.st.v == 0.0 && q.c.st.a == 0.0);
+				     n++) {
+					assert_true(mlip_planq_step(&q, 1, x) >= 0);
+					check_point(&c, x);
+					differs_on_time |=
+					    n >= na || memcmp(x, hf_x[0][n], sizeof(x)) != 0;
+					differs_own |=
+					    n >= own_n || memcmp(x, hf_x[1][n], sizeof(x)) != 0;
+					if (n >= late[i]) {
+						produce_some(&f);
+						assert_int_equal(f.fail, 0);
+					}
+				}
+				assert_true(n < HF_MAX);
+				differs_on_time |= n != na;
+				differs_own |= n != own_n;
+				print_message(
+				    "hold at %ld, the producer %ld periods late: %ld periods to "
+				    "rest (on time %ld, the own run %ld)%s\n",
+				    k, late[i], n, na, own_n,
+				    !differs_on_time ? ": the hold on time's"
+				    : !differs_own   ? ": the own run's"
+				                     : "");
+				assert_true(n <= own_n);
+				assert_true(!differs_on_time || !differs_own);
+				same_on_time += !differs_on_time;
+				same_own += !differs_own;
+			}
+			tries++;
+			mode = mlip_planq_step(&q, 0, x); /* released from the last: at rest */
+			check_point(&c, x);
+			next = k + 2000;
+			continue;
+		}
+		mode = mlip_planq_step(&q, 0, x);
+		assert_true(mode >= 0);
+		check_point(&c, x);
+	}
+	gentle = 0.0;
+	assert_int_equal(mode, MLIP_PLANQ_DONE);
+	assert_memory_equal(x, f.last, sizeof(x));
+	check_physics(&c);
+	assert_int_equal(tries, 3);
+	/* both ends are met: a plan in time, one too late */
+	assert_true(same_on_time >= 3 && same_own >= 3);
+}
+
 /* A lower feed at a random period: the braking run starts in that period
  * and the plan at the new cap takes over MLIP_PLANQ_LEAD periods later,
  * continuing the run bit for bit (no stop); the speed then stays within
@@ -920,6 +1012,7 @@ int main(void)
 	    cmocka_unit_test(test_hold_brakes_hard),
 	    cmocka_unit_test(test_hold_keeps_its_plan_under_a_lower_feed),
 	    cmocka_unit_test(test_release_on_the_hold_plan_after_a_lower_feed),
+	    cmocka_unit_test(test_hold_under_a_late_producer),
 	    cmocka_unit_test(test_override),
 	    cmocka_unit_test(test_override_late),
 	    cmocka_unit_test(test_thread),
