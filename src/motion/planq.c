@@ -266,6 +266,17 @@ static int on_hold_plan(const struct mlip_planq *q)
 	return q->c.hold_gen != 0u && q->c.gen == q->c.hold_gen;
 }
 
+/* The hold's plan read by the producer but its first period passed
+ * untaken (a producer late by more than its lead: its entries no longer
+ * continue the run): asked again from the run's state MLIP_PLANQ_LEAD on,
+ * else the hold would brake on its gentle run to rest. */
+static int hold_plan_late(const struct mlip_planq *q)
+{
+	return on_hold_plan(q) && q->c.sw == 0 && q->req_lead > 0 &&
+	       __atomic_load_n(&q->ack, __ATOMIC_ACQUIRE) == q->c.gen &&
+	       q->c.pidx > q->req_period + (uint64_t)q->req_lead;
+}
+
 /* Ask for a plan from the consumer's state (lead: after that many steps
  * of its braking run; 0 at rest) at its cap, the queue flushed (what is in
  * it continues a plan the consumer left). Only once the last request was
@@ -444,7 +455,7 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 	/* a hold's plan only from a gentler policy's state (none is harder
 	 * than the first) */
 	int hold_ask = hold && brakes && !rest && q->c.st.v > hold_cap(q) && q->c.st.brake > 0 &&
-	               (hold_edge || q->c.to_ask_hold);
+	               (hold_edge || q->c.to_ask_hold || hold_plan_late(q));
 	/* held while moving, a lower cap is the resumed plan's (at rest brake()
 	 * asks at it): a plan for it now would replace the hold's */
 	int lower_ask = lower && !(hold && !rest);

@@ -607,12 +607,15 @@ static void test_release_on_the_hold_plan_after_a_lower_feed(void **state)
 }
 
 /* A hold from a gentle policy's state while the producer is late by
- * LATE[i] periods (it does nothing from the hold on for that long): the
+ * late[i] periods (it does nothing from the hold on for that long): the
  * hold's plan comes late or never, and the hold still ends at rest within A
  * and J, never later than the state's own run. A plan that comes in time
- * gives the hold on time's setpoints bit for bit; one that comes after the
- * run passed the state it was asked from is not taken: the hold is the own
- * run, setpoint for setpoint. */
+ * (late < MLIP_PLANQ_LEAD) gives the hold on time's setpoints bit for bit;
+ * one that comes after the run passed the state it was asked from is not
+ * taken, and asked again from the run's state then: the own run's
+ * setpoints up to the producer's return at least, then the hold's plan,
+ * at rest sooner than the own run (before, the own run all the way); a
+ * producer back only after the own run ended leaves it the own run's. */
 static void test_hold_under_a_late_producer(void **state)
 {
 	(void)state;
@@ -624,7 +627,8 @@ static void test_hold_under_a_late_producer(void **state)
 	feed_init(&f, 40.0);
 	check_init(&c);
 	double x[3];
-	int mode = MLIP_PLANQ_WAIT, tries = 0, same_on_time = 0, same_own = 0;
+	int mode = MLIP_PLANQ_WAIT, tries = 0, same_on_time = 0, same_own = 0, sooner = 0;
+	long worst_late = 0, best_own = HF_MAX;
 	long next = 200;
 	for (long k = 0; k < 400000 && mode != MLIP_PLANQ_DONE; k++) {
 		produce_some(&f);
@@ -649,7 +653,7 @@ static void test_hold_under_a_late_producer(void **state)
 				q = q_copy;
 				f = f_copy;
 				c = c_copy;
-				long n = 0;
+				long n = 0, own_upto = -1; /* the own run's setpoints to here */
 				int differs_on_time = 0, differs_own = 0;
 				for (; n < HF_MAX && !(n > 0 && q.c.st.v == 0.0 && q.c.st.a == 0.0);
 				     n++) {
@@ -659,6 +663,7 @@ static void test_hold_under_a_late_producer(void **state)
 					    n >= na || memcmp(x, hf_x[0][n], sizeof(x)) != 0;
 					differs_own |=
 					    n >= own_n || memcmp(x, hf_x[1][n], sizeof(x)) != 0;
+					own_upto = differs_own ? own_upto : n;
 					if (n >= late[i]) {
 						produce_some(&f);
 						assert_int_equal(f.fail, 0);
@@ -675,9 +680,19 @@ static void test_hold_under_a_late_producer(void **state)
 				    : !differs_own   ? ": the own run's"
 				                     : "");
 				assert_true(n <= own_n);
-				assert_true(!differs_on_time || !differs_own);
-				same_on_time += !differs_on_time;
-				same_own += !differs_own;
+				if (late[i] < MLIP_PLANQ_LEAD) {
+					assert_false(differs_on_time);
+					same_on_time++;
+				} else if (late[i] >= own_n) {
+					assert_false(differs_own);
+					same_own++;
+				} else { /* asked again once the producer is back */
+					assert_true(own_upto >= late[i]);
+					assert_true(n >= na && n < own_n);
+					sooner++;
+					worst_late = n > worst_late ? n : worst_late;
+					best_own = own_n < best_own ? own_n : best_own;
+				}
 			}
 			tries++;
 			mode = mlip_planq_step(&q, 0, x); /* released from the last: at rest */
@@ -694,8 +709,11 @@ static void test_hold_under_a_late_producer(void **state)
 	assert_memory_equal(x, f.last, sizeof(x));
 	check_physics(&c);
 	assert_int_equal(tries, 3);
-	/* both ends are met: a plan in time, one too late */
-	assert_true(same_on_time >= 3 && same_own >= 3);
+	/* each case is met: a plan in time, one asked again, one too late */
+	print_message("late producer: %d holds on time's, %d asked again (at rest in %ld periods "
+	              "at most, the own run %ld at least), %d the own run's\n",
+	              same_on_time, sooner, worst_late, best_own, same_own);
+	assert_true(same_on_time == 6 && sooner == 3 && same_own == 3);
 }
 
 /* A lower feed at a random period: the braking run starts in that period
