@@ -896,7 +896,9 @@ static int choose(struct options *o, struct sim *s)
 {
 	static struct sim sc;
 	static FILE *quiet;
-	static const int order[] = {JERK_PATH_MEAN, JERK_PATH};
+	static const int order[] = {JERK_PATH_MEAN, JERK_PATH, JERK_MEAN};
+	static const char *const not_sooner[] = {"not sooner than the mean", "not sooner than path",
+	                                         "not sooner than path-mean"};
 	struct options q = *o;
 	q.trace_path = q.summary_path = NULL;
 	q.quiet = 1;
@@ -916,11 +918,12 @@ static int choose(struct options *o, struct sim *s)
 	 * what the plan cannot run */
 	int cand =
 	    path_runs(o) && mlip_simpath_limits(&sc.cfg.machine, o->feed, &lim, &band, &why) == 0;
-	for (int i = 0; i < 2; i++) {
-		int p = order[i];
+	for (int i = 0; i < 3; i++) {
+		int p = order[i], mpct = i == 2; /* the last: mpct's mean, on smooth */
 		uint64_t rows = 0;
-		s->auto_why[p] = "not a candidate (--strategy smooth, --feed, a jerk limit)";
-		if (!cand) {
+		const char **fate = mpct ? &s->auto_mpct_why : &s->auto_why[p];
+		*fate = mpct ? NULL : "not a candidate (--strategy smooth, --feed, a jerk limit)";
+		if (mpct ? o->strategy != MLIP_STRATEGY_SMOOTH : !cand) {
 			continue;
 		}
 		quiet = quiet != NULL || !o->quiet ? quiet : fopen("/dev/null", "w");
@@ -928,37 +931,17 @@ static int choose(struct options *o, struct sim *s)
 		sc.err = o->quiet ? quiet : stderr;
 		sc.budget = best;
 		q.jerk_plan = p;
+		q.strategy = mpct ? MLIP_STRATEGY_MPCT : q.strategy;
+		q.strategy_name = mpct ? "mpct" : q.strategy_name;
 		rc = scout(&q, &sc, &rows);
-		s->auto_why[p] = rc == 0 && rows < best         ? "sooner"
-		                 : rc != 0 && rc != OVER_BUDGET ? "refused"
-		                 : o->jerk_plan == JERK_MEAN    ? "not sooner than the mean"
-		                                                : "not sooner than path-mean";
+		*fate = rc == 0 && rows < best         ? "sooner"
+		        : rc != 0 && rc != OVER_BUDGET ? "refused"
+		                                       : not_sooner[o->jerk_plan];
 		if (rc == 0 && rows < best) {
-			s->auto_rows[p] = best = rows;
+			*(mpct ? &s->auto_mpct_rows : &s->auto_rows[p]) = best = rows;
 			o->jerk_plan = p;
-		}
-	}
-	if (o->strategy == MLIP_STRATEGY_SMOOTH) {
-		uint64_t rows = 0;
-		const char *before = plan_name[o->jerk_plan];
-		memset(&sc, 0, sizeof(sc));
-		sc.budget = best;
-		q.jerk_plan = JERK_MEAN;
-		q.strategy = MLIP_STRATEGY_MPCT;
-		q.strategy_name = "mpct";
-		quiet = quiet != NULL || !o->quiet ? quiet : fopen("/dev/null", "w");
-		sc.err = o->quiet ? quiet : stderr;
-		rc = scout(&q, &sc, &rows);
-		s->auto_mpct_why = rc == 0 && rows < best         ? "sooner"
-		                   : rc != 0 && rc != OVER_BUDGET ? "refused"
-		                   : strcmp(before, "mean") == 0  ? "not sooner than the mean"
-		                   : strcmp(before, "path") == 0  ? "not sooner than path"
-		                                                  : "not sooner than path-mean";
-		if (rc == 0 && rows < best) {
-			s->auto_mpct_rows = best = rows;
-			o->jerk_plan = JERK_MEAN;
-			o->strategy = MLIP_STRATEGY_MPCT;
-			o->strategy_name = "mpct";
+			o->strategy = q.strategy;
+			o->strategy_name = q.strategy_name;
 		}
 	}
 	if (!o->quiet) {
