@@ -239,6 +239,7 @@ static int pop(struct mlip_planq *q)
 			q->c.end = e->end;
 			q->c.piece = e->piece;
 			q->c.pidx = e->period;
+			q->c.took_gen = e->gen;
 			memcpy(q->c.x, e->x, sizeof(double) * (size_t)q->n);
 			q->c.mode = e->last ? MLIP_PLANQ_DONE : MLIP_PLANQ_PLAN;
 			mark(q); /* freed before the tail: the producer's bound (produce) */
@@ -266,13 +267,14 @@ static int on_hold_plan(const struct mlip_planq *q)
 	return q->c.hold_gen != 0u && q->c.gen == q->c.hold_gen;
 }
 
-/* The hold's plan read by the producer but its first period passed
- * untaken (a producer late by more than its lead: its entries no longer
+/* The plan asked from the run's state LEAD on (a hold's, a lower feed's)
+ * read by the producer but its first period passed with nothing of it
+ * taken (a producer late by more than its lead: its entries no longer
  * continue the run): asked again from the run's state MLIP_PLANQ_LEAD on,
- * else the hold would brake on its gentle run to rest. */
-static int hold_plan_late(const struct mlip_planq *q)
+ * else the run would brake on its gentle run to rest. */
+static int plan_late(const struct mlip_planq *q)
 {
-	return on_hold_plan(q) && q->c.sw == 0 && q->req_lead > 0 &&
+	return q->c.sw == 0 && q->req_lead > 0 && q->c.took_gen != q->c.gen &&
 	       __atomic_load_n(&q->ack, __ATOMIC_ACQUIRE) == q->c.gen &&
 	       q->c.pidx > q->req_period + (uint64_t)q->req_lead;
 }
@@ -455,11 +457,13 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 	/* a hold's plan only from a gentler policy's state (none is harder
 	 * than the first) */
 	int hold_ask = hold && brakes && !rest && q->c.st.v > hold_cap(q) && q->c.st.brake > 0 &&
-	               (hold_edge || q->c.to_ask_hold || hold_plan_late(q));
+	               (hold_edge || q->c.to_ask_hold || (on_hold_plan(q) && plan_late(q)));
+	/* a lower feed's plan late: asked again (a hold's is hold_ask's) */
+	int late_ask = !hold && brakes && !rest && !on_hold_plan(q) && plan_late(q);
 	/* held while moving, a lower cap is the resumed plan's (at rest brake()
 	 * asks at it): a plan for it now would replace the hold's */
 	int lower_ask = lower && !(hold && !rest);
-	if (r == 0 && (waits || brakes) && (lower_ask || q->c.to_ask || hold_ask)) {
+	if (r == 0 && (waits || brakes) && (lower_ask || q->c.to_ask || hold_ask || late_ask)) {
 		/* a plan at the lower cap (a hold's: planq.h): from rest, or from
 		 * the run's state MLIP_PLANQ_LEAD periods on */
 		request(q, rest ? 0 : MLIP_PLANQ_LEAD, hold_ask);

@@ -723,17 +723,24 @@ static void test_hold_under_a_late_producer(void **state)
  * MLIP_PLANQ_LEAD periods on, the plan at the new cap from there. When the producer stalls past the
  * whole run, the run ends at rest and the plan starts again from there, at the new cap. (A plan a
  * little late is still taken where it continues the run: while it brakes
- * on the same policy, its states are the run's.) */
+ * on the same policy, its states are the run's. One read after its first
+ * period passed is asked again from the run LEAD periods on: late by
+ * LATE_PERIODS, less than the run to rest, the run never rests.) */
+#define LATE_PERIODS 80 /* a producer late by more than the lead, less than the run to rest */
+
 static void run_override(int stall_after)
 {
 	struct feed f;
 	struct check c;
 	feed_init(&f, 16.0);
 	check_init(&c);
-	double x[3], prev[3], caps[2] = {0.7 * 0.995 * V, 0.4 * 0.995 * V};
+	/* late by LATE_PERIODS: a first cap close to the speed (the run to
+	 * rest from it is longer than the lateness) */
+	double x[3], prev[3],
+	    caps[2] = {(stall_after == 2 ? 0.9 : 0.7) * 0.995 * V, 0.4 * 0.995 * V};
 	int mode = MLIP_PLANQ_WAIT, n_cap = 0, rests = 0;
 	long at = (long)uni(300.0, 600.0), stall = 0, took = -1, settled = -1, raised = -1,
-	     faster = -1;
+	     faster = -1, late_took[2] = {-1, -1};
 	double cap = 0.995 * V, max_v_after = 0.0, max_v_raised = 0.0;
 	memcpy(prev, f.last, sizeof(prev));
 	curve_at(0.0, prev);
@@ -749,7 +756,9 @@ static void run_override(int stall_after)
 			assert_int_equal(mlip_planq_feed(&q, cap), 0);
 			assert_int_equal(mlip_planq_feed(&q, 0.0), -1); /* ignored */
 			assert_int_equal(mlip_planq_feed(&q, NAN), -1);
-			stall = stall_after ? STOP_PERIODS : 0;
+			stall = stall_after == 1   ? STOP_PERIODS
+			        : stall_after == 2 ? LATE_PERIODS
+			                           : 0;
 			took = -1;
 		}
 		int before = mode;
@@ -765,6 +774,12 @@ static void run_override(int stall_after)
 			took = k; /* the new plan continued the run */
 			if (!stall_after) {
 				assert_int_equal(took - at, MLIP_PLANQ_LEAD + 1);
+			}
+			if (stall_after == 2) {
+				/* asked again once read late, from LEAD on */
+				assert_in_range(took - at, LATE_PERIODS + MLIP_PLANQ_LEAD + 1,
+				                LATE_PERIODS + 2 * MLIP_PLANQ_LEAD);
+				late_took[n_cap - 1] = took - at;
 			}
 		}
 		if (k > at && took < 0 && mode == MLIP_PLANQ_WAIT) {
@@ -800,7 +815,8 @@ static void run_override(int stall_after)
 	assert_true(settled > 0);
 	assert_int_equal(q.c.starved, 0);
 	assert_int_equal(q.c.brakes, 2);
-	assert_int_equal(rests, stall_after ? 2 : 0); /* stopped only when late */
+	/* stopped only when late past the run to rest */
+	assert_int_equal(rests, stall_after == 1 ? 2 : 0);
 	/* the last cap kept (the chord's speed, the spline's parameter within
 	 * 1 % of the arc's) and reached */
 	assert_true(max_v_after <= 1.01 * caps[1]);
@@ -810,9 +826,12 @@ static void run_override(int stall_after)
 	/* from the queued state LEAD periods on, then the ramp */
 	assert_true(faster > MLIP_PLANQ_LEAD && faster <= MLIP_PLANQ_LEAD + 20);
 	print_message("override%s: speed after %.3f of the cap; raised: %.3f, above the cap after "
-	              "%ld periods\n",
-	              stall_after ? " (late)" : "", max_v_after / caps[1], max_v_raised / caps[1],
-	              faster);
+	              "%ld periods; plans taken %ld, %ld periods after the feed\n",
+	              stall_after == 1   ? " (late)"
+	              : stall_after == 2 ? " (a little late)"
+	                                 : "",
+	              max_v_after / caps[1], max_v_raised / caps[1], faster, late_took[0],
+	              late_took[1]);
 }
 
 static void test_override(void **state)
@@ -825,6 +844,7 @@ static void test_override_late(void **state)
 {
 	(void)state;
 	run_override(1);
+	run_override(2); /* late, asked again: no rest */
 }
 
 /* A producer thread beside the consumer (make tsan checks the queue's

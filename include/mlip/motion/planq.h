@@ -164,6 +164,7 @@ struct mlip_planq {
 		int to_ask_hold;        /* ... a hold's (at the hold's cap) */
 		int held;               /* the hold seen (its first period acted on) */
 		uint32_t hold_gen;      /* the hold's plan (0: none) */
+		uint32_t took_gen;      /* the plan of the last entry taken */
 		int sw;                 /* a queued switch: 1 asked, 2 its reply read */
 		uint64_t sw_period;
 		uint32_t sw_head;
