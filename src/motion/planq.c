@@ -402,7 +402,7 @@ int mlip_planq_feed(struct mlip_planq *q, double vmax)
 
 int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 {
-	int r = 0, lower = q->c.want_vmax < q->c.vmax;
+	int r = 0, lower = q->c.want_vmax < q->c.vmax, starved = 0;
 	int hold_edge = hold && !q->c.held;
 	q->c.held = hold != 0;
 	q->c.periods++;
@@ -438,7 +438,8 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 		if (plan_on && pop(q)) {
 			break;
 		}
-		q->c.starved += !hold && !lower;
+		starved = !hold && !lower;
+		q->c.starved += starved;
 		q->c.brakes += !(hold && held_plan); /* its hold's plan ends: the same hold */
 		q->c.mode = MLIP_PLANQ_BRAKE;
 		r = brake(q);
@@ -458,8 +459,11 @@ int mlip_planq_step(struct mlip_planq *q, int hold, double *x)
 	 * than the first) */
 	int hold_ask = hold && brakes && !rest && q->c.st.v > hold_cap(q) && q->c.st.brake > 0 &&
 	               (hold_edge || q->c.to_ask_hold || (on_hold_plan(q) && plan_late(q)));
-	/* a lower feed's plan late: asked again (a hold's is hold_ask's) */
-	int late_ask = !hold && brakes && !rest && !on_hold_plan(q) && plan_late(q);
+	/* the queue ran dry (the producer late, not its plan): a plan from the
+	 * run LEAD periods on, as for a lower feed, not the run to rest; one
+	 * late (a lower feed's, a starved run's) is asked again (a hold's is
+	 * hold_ask's) */
+	int late_ask = !hold && brakes && !rest && !on_hold_plan(q) && (starved || plan_late(q));
 	/* held while moving, a lower cap is the resumed plan's (at rest brake()
 	 * asks at it): a plan for it now would replace the hold's */
 	int lower_ask = lower && !(hold && !rest);

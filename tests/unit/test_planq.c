@@ -203,8 +203,11 @@ static void check_physics(const struct check *c)
 #define STOP_PERIODS 600
 
 /* The producer stalls at random (20..700 periods; the queue holds 256):
- * short stalls are absorbed, long ones brake to rest on the path and the
- * plan starts again from there; the end is the last point exactly. */
+ * short stalls are absorbed; a longer one runs the queue dry, the run
+ * brakes and asks for a plan from its state MLIP_PLANQ_LEAD periods on:
+ * back before the run's end, the plan takes the run up again (no rest);
+ * else the run rests on the path and the plan starts again from there.
+ * The end is the last point exactly. */
 static void test_stalls(void **state)
 {
 	(void)state;
@@ -213,8 +216,9 @@ static void test_stalls(void **state)
 	feed_init(&f, 16.0);
 	assert_int_equal(f.fail, 0);
 	check_init(&c);
-	long stall = 0, stalls = 0, braking = 0, max_braking = 0, rests = 0;
-	double x[3];
+	long stall = 0, stalls = 0, braking = 0, max_braking = 0, rests = 0, resumed = 0;
+	double x[3], prev_x[3], v_min = INFINITY, v_run = INFINITY;
+	curve_at(0.0, prev_x);
 	int mode = MLIP_PLANQ_WAIT;
 	for (long k = 0; k < 200000 && mode != MLIP_PLANQ_DONE; k++) {
 		if (stall > 0) {
@@ -230,22 +234,39 @@ static void test_stalls(void **state)
 		mode = mlip_planq_step(&q, 0, x);
 		assert_true(mode >= 0);
 		check_point(&c, x);
-		braking = mode == MLIP_PLANQ_BRAKE ? braking + 1 : 0;
-		max_braking = braking > max_braking ? braking : max_braking;
 		rests += prev == MLIP_PLANQ_BRAKE && mode == MLIP_PLANQ_WAIT;
+		double d = 0.0;
+		for (int a = 0; a < 3; a++) {
+			d += (x[a] - prev_x[a]) * (x[a] - prev_x[a]);
+		}
+		memcpy(prev_x, x, sizeof(x));
+		/* the braking run's length (at rest it may wait in BRAKE for a
+		 * stalled producer to read its request) */
+		braking = mode == MLIP_PLANQ_BRAKE && d > 0.0 ? braking + 1 : 0;
+		max_braking = braking > max_braking ? braking : max_braking;
+		v_run = mode == MLIP_PLANQ_BRAKE ? fmin(v_run, sqrt(d) / T) : v_run;
+		if (prev == MLIP_PLANQ_BRAKE && mode == MLIP_PLANQ_PLAN) {
+			resumed++; /* taken up again while moving */
+			assert_true(v_run > 0.0);
+			v_min = fmin(v_min, v_run);
+		}
+		v_run = mode == MLIP_PLANQ_BRAKE ? v_run : INFINITY;
 	}
 	assert_int_equal(mode, MLIP_PLANQ_DONE);
 	assert_memory_equal(x, f.last, sizeof(x)); /* at rest on the last point */
 	check_physics(&c);
-	/* the stalls starved it, not every one, and each starving ended at rest */
+	/* the stalls starved it, not every one; each starving ended at rest
+	 * or was taken up again, and both happened */
 	assert_true(q.c.starved >= 2);
 	assert_true(q.c.starved < stalls);
-	assert_int_equal(rests, q.c.brakes);
+	assert_int_equal(rests + resumed, q.c.brakes);
+	assert_true(rests >= 1 && resumed >= 1);
 	assert_true(max_braking > 10 && max_braking < STOP_PERIODS);
-	print_message("stalls %ld, starved %ld, longest run %ld, periods %ld, J %.4f, A %.4f, "
-	              "off %.2e mm\n",
-	              stalls, q.c.starved, max_braking, c.n, c.max_j / JERK, c.max_a / ACC,
-	              c.max_off);
+	print_message(
+	    "stalls %ld, starved %ld (%ld taken up again, slowest %.1f mm/s; %ld at rest), "
+	    "longest run %ld, periods %ld, J %.4f, A %.4f, off %.2e mm\n",
+	    stalls, q.c.starved, resumed, v_min, rests, max_braking, c.n, c.max_j / JERK,
+	    c.max_a / ACC, c.max_off);
 }
 
 /* A hold at random periods: the braking run starts in that very period (its

@@ -243,7 +243,10 @@ void mlip_planq_rest(struct mlip_planq *q, int back);
  * (mlip_path_plan_period), so once past the curve it brakes hard; the
  * consumer takes it where it continues its run, down to that speed, and
  * from there brakes to rest on its own. A hold's plan that comes after its
- * first period (a late producer) is asked again from the run's state then.
+ * first period (a late producer) is asked again from the run's state then,
+ * as is a lower feed's. A queue run dry (the producer late) brakes the
+ * same way and asks for a plan from the run's state MLIP_PLANQ_LEAD
+ * periods on: back in time, the producer takes the run up again.
  * A lower feed while held and moving is the resumed plan's cap (asked at
  * rest), never a plan that replaces the hold's. */
 int mlip_planq_step(struct mlip_planq *q, int hold, double *x);
