@@ -153,8 +153,8 @@ def test_path_plan_hold_resume(vcan, tmp_path):
     of the machine, no quantum) and on the decoded counts passes. A run
     whose hold met the machine below V_BRAKE (mlip-ctl is slow on the guest:
     the hold lands ~0.2-0.7 s after the status that saw the speed, and a
-    planning thread starved there runs its queue dry, which brakes to rest
-    and starts again) proves nothing of the brake's use of A and J: its
+    planning thread starved there runs its queue dry, which brakes until a
+    plan takes the run up again, or to rest) proves nothing of the brake's use of A and J: its
     limits are asserted, then the program is run again, 3 runs at most."""
     cfg = machine(tmp_path)
     ngc = circle_program(tmp_path, turns=2)
@@ -225,7 +225,7 @@ def hold_resume_once(cfg, ngc, rows, tmp_path):
     # the braking run, record rows b..e: the speed's falling tail into the
     # record's rest at the bus's held run (its counts round: within 5
     # periods). Not the first rest after k_fast: a planning thread starved
-    # on a loaded guest runs the queue dry, which brakes to a rest too
+    # on a loaded guest runs the queue dry, which may brake to a rest too
     # (inside A and J, judged by mlip-check on the whole record above)
     v = [math.dist(rr[k][1:], rr[k + 1][1:]) / T for k in range(len(rr) - 1)]
     e = next(k for k in range(max(at - off - 5, 0), len(v)) if v[k] == 0.0)
