@@ -16,6 +16,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <string.h>
 
 #include <cmocka.h>
@@ -636,11 +637,19 @@ static void test_release_on_the_hold_plan_after_a_lower_feed(void **state)
  * taken, and asked again from the run's state then: the own run's
  * setpoints up to the producer's return at least, then the hold's plan,
  * at rest sooner than the own run (before, the own run all the way); a
- * producer back only after the own run ended leaves it the own run's. */
+ * producer back only after the own run ended leaves it the own run's. A
+ * producer that stops STALL_LEN periods from STALL_AT on, once the hold's
+ * plan is taken, runs the queue dry on it: the run brakes by its state's
+ * policy, the plan's own there (it takes the hardest that certifies the
+ * state), and the plan's entries continue it once the producer is back:
+ * the on-time hold's setpoints. */
+#define STALL_AT  (MLIP_PLANQ_LEAD + 2)
+#define STALL_LEN 60
+
 static void test_hold_under_a_late_producer(void **state)
 {
 	(void)state;
-	static const long late[] = {2, MLIP_PLANQ_LEAD / 2, 2 * MLIP_PLANQ_LEAD, 1000};
+	static const long late[] = {2, MLIP_PLANQ_LEAD / 2, 2 * MLIP_PLANQ_LEAD, 1000, -1};
 	enum { N_LATE = sizeof(late) / sizeof(late[0]) };
 	struct feed f, f_copy;
 	struct check c, c_copy;
@@ -648,7 +657,8 @@ static void test_hold_under_a_late_producer(void **state)
 	feed_init(&f, 40.0);
 	check_init(&c);
 	double x[3];
-	int mode = MLIP_PLANQ_WAIT, tries = 0, same_on_time = 0, same_own = 0, sooner = 0;
+	int mode = MLIP_PLANQ_WAIT, tries = 0, same_on_time = 0, same_own = 0, sooner = 0,
+	    retaken = 0;
 	long worst_late = 0, best_own = HF_MAX;
 	long next = 200;
 	for (long k = 0; k < 400000 && mode != MLIP_PLANQ_DONE; k++) {
@@ -675,17 +685,22 @@ static void test_hold_under_a_late_producer(void **state)
 				f = f_copy;
 				c = c_copy;
 				long n = 0, own_upto = -1; /* the own run's setpoints to here */
-				int differs_on_time = 0, differs_own = 0;
+				int differs_on_time = 0, differs_own = 0, m = MLIP_PLANQ_PLAN,
+				    takes = 0;
 				for (; n < HF_MAX && !(n > 0 && q.c.st.v == 0.0 && q.c.st.a == 0.0);
 				     n++) {
-					assert_true(mlip_planq_step(&q, 1, x) >= 0);
+					int before = m;
+					m = mlip_planq_step(&q, 1, x);
+					assert_true(m >= 0);
+					takes += before == MLIP_PLANQ_BRAKE && m == MLIP_PLANQ_PLAN;
 					check_point(&c, x);
 					differs_on_time |=
 					    n >= na || memcmp(x, hf_x[0][n], sizeof(x)) != 0;
 					differs_own |=
 					    n >= own_n || memcmp(x, hf_x[1][n], sizeof(x)) != 0;
 					own_upto = differs_own ? own_upto : n;
-					if (n >= late[i]) {
+					if (late[i] < 0 ? n < STALL_AT || n >= STALL_AT + STALL_LEN
+					                : n >= late[i]) {
 						produce_some(&f);
 						assert_int_equal(f.fail, 0);
 					}
@@ -693,15 +708,27 @@ static void test_hold_under_a_late_producer(void **state)
 				assert_true(n < HF_MAX);
 				differs_on_time |= n != na;
 				differs_own |= n != own_n;
+				char how[64];
+				if (late[i] < 0) {
+					snprintf(how, sizeof(how), "stopped %d periods from %d on",
+					         STALL_LEN, STALL_AT);
+				} else {
+					snprintf(how, sizeof(how), "%ld periods late", late[i]);
+				}
 				print_message(
-				    "hold at %ld, the producer %ld periods late: %ld periods to "
-				    "rest (on time %ld, the own run %ld)%s\n",
-				    k, late[i], n, na, own_n,
+				    "hold at %ld, the producer %s: %ld periods to "
+				    "rest (on time %ld, the own run %ld), plans taken %d%s\n",
+				    k, how, n, na, own_n, takes,
 				    !differs_on_time ? ": the hold on time's"
 				    : !differs_own   ? ": the own run's"
 				                     : "");
 				assert_true(n <= own_n);
-				if (late[i] < MLIP_PLANQ_LEAD) {
+				if (late[i] < 0) {
+					/* the hold's plan, the queue dry on it, the plan again */
+					assert_false(differs_on_time);
+					assert_int_equal(takes, 2);
+					retaken++;
+				} else if (late[i] < MLIP_PLANQ_LEAD) {
 					assert_false(differs_on_time);
 					same_on_time++;
 				} else if (late[i] >= own_n) {
@@ -732,9 +759,11 @@ static void test_hold_under_a_late_producer(void **state)
 	assert_int_equal(tries, 3);
 	/* each case is met: a plan in time, one asked again, one too late */
 	print_message("late producer: %d holds on time's, %d asked again (at rest in %ld periods "
-	              "at most, the own run %ld at least), %d the own run's\n",
-	              same_on_time, sooner, worst_late, best_own, same_own);
+	              "at most, the own run %ld at least), %d the own run's; a stall on the "
+	              "hold's plan: taken up again %d times of 3\n",
+	              same_on_time, sooner, worst_late, best_own, same_own, retaken);
 	assert_true(same_on_time == 6 && sooner == 3 && same_own == 3);
+	assert_int_equal(retaken, 3);
 }
 
 /* A lower feed at a random period: the braking run starts in that period
