@@ -428,6 +428,31 @@ static void test_hold_brakes_hard(void **state)
 #define HF_MAX   20000
 static struct mlip_pathrun pr_copy;
 static struct mlip_planq q_copy;
+static struct feed f_copy;
+static struct check c_copy;
+
+/* The hold tests' point to try from: a gentle policy's state at speed. */
+static int gentle_at_speed(int mode)
+{
+	return mode == MLIP_PLANQ_PLAN && q.c.st.brake == 1 && q.c.st.v > 10.0;
+}
+
+/* The run (producer, queue, feed, checks) kept to try again from. */
+static void snap_save(const struct feed *f, const struct check *c)
+{
+	pr_copy = pr;
+	q_copy = q;
+	f_copy = *f;
+	c_copy = *c;
+}
+
+static void snap_restore(struct feed *f, struct check *c)
+{
+	pr = pr_copy;
+	q = q_copy;
+	*f = f_copy;
+	*c = c_copy;
+}
 static double hf_x[2][HF_MAX][3];
 
 /* Held from here to rest (the copy's state), a lower feed `cap` LOWER_AT
@@ -455,8 +480,8 @@ static long held_run(struct feed *f, struct check *c, double cap, double (*xs)[3
 static void test_hold_keeps_its_plan_under_a_lower_feed(void **state)
 {
 	(void)state;
-	struct feed f, f_copy;
-	struct check c, c_copy;
+	struct feed f;
+	struct check c;
 	gentle = 100.0;
 	feed_init(&f, 40.0);
 	check_init(&c);
@@ -466,19 +491,12 @@ static void test_hold_keeps_its_plan_under_a_lower_feed(void **state)
 	for (long k = 0; k < 400000 && mode != MLIP_PLANQ_DONE; k++) {
 		produce_some(&f);
 		assert_int_equal(f.fail, 0);
-		if (tries < HF_TRIES && k >= next && mode == MLIP_PLANQ_PLAN && q.c.st.brake == 1 &&
-		    q.c.st.v > 10.0) {
-			pr_copy = pr;
-			q_copy = q;
-			f_copy = f;
-			c_copy = c;
+		if (tries < HF_TRIES && k >= next && gentle_at_speed(mode)) {
+			snap_save(&f, &c);
 			long pa, pb, own_n = 0;
 			double v0 = q.c.st.v;
 			long na = held_run(&f, &c, 0.0, hf_x[0], &pa);
-			pr = pr_copy;
-			q = q_copy;
-			f = f_copy;
-			c = c_copy;
+			snap_restore(&f, &c);
 			long nb = held_run(&f, &c, cap, hf_x[1], &pb);
 			assert_true(pa > 0); /* the hold's plan took over */
 			assert_int_equal(nb, na);
@@ -541,8 +559,8 @@ static void test_hold_keeps_its_plan_under_a_lower_feed(void **state)
 static void test_release_on_the_hold_plan_after_a_lower_feed(void **state)
 {
 	(void)state;
-	struct feed f, f_copy;
-	struct check c, c_copy;
+	struct feed f;
+	struct check c;
 	gentle = 100.0;
 	feed_init(&f, 40.0);
 	check_init(&c);
@@ -553,20 +571,13 @@ static void test_release_on_the_hold_plan_after_a_lower_feed(void **state)
 	for (long k = 0; k < 400000 && mode != MLIP_PLANQ_DONE; k++) {
 		produce_some(&f);
 		assert_int_equal(f.fail, 0);
-		if (tries < HF_TRIES && k >= next && mode == MLIP_PLANQ_PLAN && q.c.st.brake == 1 &&
-		    q.c.st.v > 10.0) {
-			pr_copy = pr;
-			q_copy = q;
-			f_copy = f;
-			c_copy = c;
+		if (tries < HF_TRIES && k >= next && gentle_at_speed(mode)) {
+			snap_save(&f, &c);
 			long pa;
 			(void)held_run(&f, &c, 0.0, hf_x[0],
 			               &pa); /* the hold alone, for reference */
 			assert_true(pa > 0);
-			pr = pr_copy;
-			q = q_copy;
-			f = f_copy;
-			c = c_copy;
+			snap_restore(&f, &c);
 			long n = 0, popped = 0;
 			for (; n < RELEASE_AT; n++) {
 				if (n == LOWER_AT) {
@@ -651,8 +662,8 @@ static void test_hold_under_a_late_producer(void **state)
 	(void)state;
 	static const long late[] = {2, MLIP_PLANQ_LEAD / 2, 2 * MLIP_PLANQ_LEAD, 1000, -1};
 	enum { N_LATE = sizeof(late) / sizeof(late[0]) };
-	struct feed f, f_copy;
-	struct check c, c_copy;
+	struct feed f;
+	struct check c;
 	gentle = 100.0;
 	feed_init(&f, 40.0);
 	check_init(&c);
@@ -664,12 +675,8 @@ static void test_hold_under_a_late_producer(void **state)
 	for (long k = 0; k < 400000 && mode != MLIP_PLANQ_DONE; k++) {
 		produce_some(&f);
 		assert_int_equal(f.fail, 0);
-		if (tries < 3 && k >= next && mode == MLIP_PLANQ_PLAN && q.c.st.brake == 1 &&
-		    q.c.st.v > 10.0) {
-			pr_copy = pr;
-			q_copy = q;
-			f_copy = f;
-			c_copy = c;
+		if (tries < 3 && k >= next && gentle_at_speed(mode)) {
+			snap_save(&f, &c);
 			long pa, own_n = 0;
 			long na = held_run(&f, &c, 0.0, hf_x[0], &pa); /* the producer on time */
 			assert_true(pa > 0);
@@ -680,10 +687,7 @@ static void test_hold_under_a_late_producer(void **state)
 				assert_true(mlip_planq_step(&own, 1, hf_x[1][own_n]) >= 0);
 			}
 			for (int i = 0; i < N_LATE; i++) {
-				pr = pr_copy;
-				q = q_copy;
-				f = f_copy;
-				c = c_copy;
+				snap_restore(&f, &c);
 				long n = 0, own_upto = -1; /* the own run's setpoints to here */
 				int differs_on_time = 0, differs_own = 0, m = MLIP_PLANQ_PLAN,
 				    takes = 0;
