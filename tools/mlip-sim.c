@@ -656,18 +656,15 @@ static int run(const struct options *o, struct sim *s)
 			if (r <= 0) {
 				return -r;
 			}
-			if (s->budget > 0 && s->trace.rows >= s->budget) {
-				return OVER_BUDGET; /* --jerk-plan auto: not sooner than the mean */
-			}
 		} else if (mlip_trace_sample(&s->trace, out.status.state, out.pos, &start)) {
 			if (start != NULL) {
 				mlip_check_sample(&s->chk, start);
 			}
 			mlip_check_sample(&s->chk, out.pos);
 			s->rows = s->trace.rows;
-			if (s->budget > 0 && s->rows >= s->budget) {
-				return OVER_BUDGET; /* --jerk-plan auto: mpct not sooner */
-			}
+		}
+		if (s->budget > 0 && s->trace.rows >= s->budget) {
+			return OVER_BUDGET; /* --jerk-plan auto: not sooner than the best so far */
 		}
 		if (s->trace.ended || (s->probe_error && out.status.state == MLIP_STATE_IDLE)) {
 			return 0; /* a probe error before any motion (G38 first) ends it too */
