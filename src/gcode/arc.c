@@ -129,6 +129,9 @@ mlip_status mlip_gc_arc_setup(const struct mlip_gcode *g, const struct blk *b, i
 			sweep -= 2 * PI;
 		}
 	}
+	if (b->has_p) {
+		sweep += (round(b->p) - 1) * 2 * PI; /* P turns (check_turns): P - 1 more circles */
+	}
 	a->sweep = cw ? -sweep : sweep;
 	/* equal steps, each within the sagitta budget (header comment) */
 	rmax = fmax(a->r0, a->r1);

@@ -24,6 +24,7 @@
 
 #define MAX_WORDS   (MLIP_GCODE_MAX_LINE / 2 + 1) /* a word takes two bytes at least */
 #define MAX_CHORDS  1000000u
+#define MAX_TURNS   1000000u /* G2/G3 P: more is past MAX_CHORDS anyway */
 #define PI          3.14159265358979323846
 #define MM_PER_INCH 25.4
 #define GC_AXES     "XYZABC" /* axis words, in the order of struct blk's arrays */

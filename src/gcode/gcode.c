@@ -18,6 +18,7 @@
  * Pure: libm, <string.h> and <stdarg.h> only; messages formatted by the
  * core's formatter (mlip/text/format.h).
  */
+#include <math.h>
 #include <string.h>
 
 #include "gc.h"
@@ -124,6 +125,38 @@ static mlip_status check_unknown(const struct mlip_gcode *g, const struct blk *b
 	return MLIP_OK;
 }
 
+/* P without G4, G10, G64 or M64/M65 is an arc's number of turns (LinuxCNC:
+ * the programmed arc plus P - 1 full circles, P a whole number from 1);
+ * with one of them on an arc's line both would take it. */
+static mlip_status check_turns(const struct blk *b, const struct plan *pl, uint32_t line,
+                               struct mlip_gcode_error *e)
+{
+	int other = b->g4 || b->g10 || b->g64 || b->dout, arc = pl->moves && pl->motion >= 2;
+	if (!b->has_p || (other && !arc)) {
+		return MLIP_OK;
+	}
+	if (!arc) {
+		return mlip_gc_fail(e, line, b->p_col, MLIP_E_SYNTAX,
+		                    "P word without G2/G3, G4, G10, G64 or M64/M65");
+	}
+	if (other) {
+		return mlip_gc_fail(
+		    e, line, b->p_col, MLIP_E_SYNTAX,
+		    "P word with G%u and %s: both use P, put them on separate lines",
+		    (unsigned)pl->motion,
+		    b->g4    ? "G4"
+		    : b->g10 ? "G10"
+		    : b->g64 ? "G64"
+		             : "M64/M65");
+	}
+	if (!(fabs(b->p - round(b->p)) <= 0.001 && b->p >= 0.5 && b->p <= MAX_TURNS)) {
+		return mlip_gc_fail(e, line, b->p_col, MLIP_E_RANGE,
+		                    "G%u P%g: the number of turns is a whole number, 1..%u",
+		                    (unsigned)pl->motion, b->p, MAX_TURNS);
+	}
+	return MLIP_OK;
+}
+
 /* Words against the machine and the modal state. */
 static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
                               const struct lexed *lx, uint32_t line, struct plan *pl,
@@ -226,6 +259,10 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 		return mlip_gc_fail(e, line, b->g53_col, MLIP_E_SYNTAX, "G53 needs G0 or G1");
 	}
 	pl->moves = !pl->axis_use && (has_axes || arc_words);
+	st = check_turns(b, pl, line, e);
+	if (st != MLIP_OK) {
+		return st;
+	}
 	inverse = b->feedmode ? b->feedmode == 93 : g->inverse_time;
 	if (inverse && pl->moves && pl->motion >= 1 && !b->has_f) {
 		return mlip_gc_fail(

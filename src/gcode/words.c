@@ -460,11 +460,12 @@ static mlip_status classify_params(const struct blk *b, uint32_t line, struct ml
 {
 	int n = (b->g4 != 0) + (b->g10 != 0) + (b->g64 != 0) + (b->dout != 0);
 
-	if (b->has_p && n != 1) {
+	/* P alone may be an arc's number of turns: checked with the line's
+	 * motion (gcode.c) */
+	if (b->has_p && n > 1) {
 		return mlip_gc_fail(
 		    e, line, b->p_col, MLIP_E_SYNTAX,
-		    n ? "P word with two of G4, G10, G64, M64/M65: put them on separate lines"
-		      : "P word without G4, G10, G64 or M64/M65");
+		    "P word with two of G4, G10, G64, M64/M65: put them on separate lines");
 	}
 	if (b->dout && !b->has_p) {
 		return mlip_gc_fail(e, line, b->dout_col, MLIP_E_SYNTAX,

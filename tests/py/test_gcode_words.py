@@ -132,6 +132,33 @@ def test_g64_p_region_within_its_tolerance(tmp_path):
     assert json.loads(p3.stdout)["max_contour_error_mm"] <= 0.01 * (1 + 1e-9)
 
 
+def test_arc_p_turns(tmp_path):
+    """G2 with P3 (LinuxCNC): the programmed full circle plus two more, Z
+    linear in the angle over all three, judged from the trace: mlip-check
+    passes it against the program, and from the helix's first sample below
+    Z0 to its lowest the tool winds 6 pi clockwise around the centre (to
+    0.05 rad: the blended corners at its ends; P2 would be 4 pi), with Z
+    within eps of -3 * angle / (6 pi) away from them."""
+    prog, trace, _ = sim(tmp_path, "G0 X10 Y0 Z0\nG2 I-10 Z-3 P3 F3000\nG0 Z5\n")
+    assert check(prog, trace).returncode == 0
+    r = rows(trace)
+    i0 = next(i for i, row in enumerate(r) if row[3] < 0)
+    i1 = min(range(len(r)), key=lambda i: r[i][3])
+    turn, prev = 0.0, math.atan2(r[i0 - 1][2], r[i0 - 1][1])
+    for _, x, y, z in r[i0:i1 + 1]:
+        a = math.atan2(y, x)
+        turn += (a - prev + math.pi) % (2 * math.pi) - math.pi
+        prev = a
+        if 0.1 < -turn < 6 * math.pi - 0.1:
+            assert abs(z - 3 * turn / (6 * math.pi)) <= 0.01
+    assert abs(turn + 6 * math.pi) <= 0.05
+    bad = tmp_path / "e.ngc"
+    bad.write_text("G0 X10\nG2 I-10 P1.5 F3000\n")
+    e = run(["mlip-sim", "--config", MILL, bad], check=False)
+    assert e.returncode == 1
+    assert "e.ngc:2:9: error: G2 P1.5: the number of turns is a whole number" in e.stderr
+
+
 def test_g61_corners_at_rest(tmp_path):
     """G61: the tool stops exactly on every corner; G64 cuts them."""
     square = "G1 X10 F6000\nY10\nX0\nY0\n"

@@ -308,7 +308,7 @@ static void test_unsupported_codes(void **state)
 	check_err("G1 G2 X1 F10", 1, 4, "two motion codes on one line: G1 and G2");
 	check_err("G1 X1 F10 G0", 1, 11, "two motion codes on one line: G1 and G0");
 	check_err("G90 G91 G1 X1 F10", 1, 5, "G90 and G91 on one line: same modal group");
-	check_err("G1 X1 F10 P2", 1, 11, "P word without G4, G10, G64 or M64/M65");
+	check_err("G1 X1 F10 P2", 1, 11, "P word without G2/G3, G4, G10, G64 or M64/M65");
 	check_err("G53 G91 G0 X1", 1, 1, "G53 with G91");
 	check_err("G1 X1 F10\nG53 G2 X0 I-1", 2, 1, "G53 needs G0 or G1");
 }
@@ -903,7 +903,7 @@ static void test_full_circle_and_helix(void **state)
 {
 	struct mlip_machine m = machine("XYZA");
 	struct mlip_program_list p;
-	double s[4] = {10, 0, 0, 0};
+	double s[4] = {10, 0, 0, 0}, swept;
 	size_t k;
 
 	(void)state;
@@ -936,6 +936,33 @@ static void test_full_circle_and_helix(void **state)
 	}
 	assert_near(p.blocks[p.n - 1].target[2], 5, 0);
 	mlip_program_list_free(&p);
+
+	/* P turns (LinuxCNC): the programmed arc plus P - 1 full circles, the
+	 * helix axis linear in the whole angle; P within 0.001 of a whole number */
+	parse_ok("G1 X10 Y0 F600\nG3 X0 Y10 Z-5 I-10 J0 P3\n", &m, &p);
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, 1), 4.5 * M_PI, 1e-9);
+	for (k = 1, swept = 0; k < p.n; k++) { /* the angle swept so far */
+		double da = atan2(p.blocks[k].target[1], p.blocks[k].target[0]) -
+		            atan2(p.blocks[k - 1].target[1], p.blocks[k - 1].target[0]);
+		swept += da < -1e-12 ? da + 2 * M_PI : da;
+		assert_near(p.blocks[k].target[2], -5 * swept / (4.5 * M_PI), 1e-9);
+	}
+	assert_near(p.blocks[p.n - 1].target[1], 10, 0);
+	mlip_program_list_free(&p);
+	parse_ok("G1 X10 Y0 F600\nG2 I-10 P2.0004\n", &m, &p);
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -4 * M_PI, 1e-9);
+	mlip_program_list_free(&p);
+	parse_ok("G1 X10 Y0 F600\nG2 X-10 Y0 R10 P2\n", &m, &p); /* R: the short arc, once more */
+	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -3 * M_PI, 1e-9);
+	mlip_program_list_free(&p);
+	check_err("G1 X10 F600\nG2 I-10 P0", 2, 9, "G2 P0: the number of turns is a whole number");
+	check_err("G1 X10 F600\nG3 I-10 P1.5", 2, 9, "G3 P1.5: the number of turns");
+	check_err("G1 X10 F600\nG3 I-10 P-2", 2, 9, "G3 P-2: the number of turns");
+	check_err("G1 X10 F600\nG2 I-10 P2000000", 2, 9, "G2 P2000000: the number of turns");
+	check_err("G1 X10 F600\nG4 P1 G2 I-10", 2, 4, "P word with G2 and G4: both use P");
+	check_err("G1 X10 F600\nG64 P1 G2 I-10", 2, 5, "P word with G2 and G64: both use P");
+	check_err("G1 X10 F600\nG2 P2", 2, 4, "P word without G2/G3, G4"); /* no arc moves */
+	check_err("G1 X10 F600\nG2 I-10 P1000000", 2, 1, "arc too long: more than");
 
 	/* helical full circle in G91 (a thread-milling pass) */
 	parse_ok("G1 X10 Y0 F600\nG91 G2 Z-1 I-10\n", &m, &p);
