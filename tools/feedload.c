@@ -10,7 +10,9 @@
 #include "blockiter.h"
 #include "feedstate.h"
 #include "mlip/machine/config.h"
+#include "mlip/motion/planq.h"
 #include "offsetfile.h"
+#include "planfeed.h"
 #include "program.h"
 #include "simpath.h"
 
@@ -62,6 +64,112 @@ static const char *position_text(const struct mlip_machine *m, char *buf, size_t
 	return buf;
 }
 
+/* The plan's controller and plan for the check below: large (4.5 MB),
+ * fixed, touched only on a controller with JERK_PLAN = path */
+static struct plan_check {
+	struct mlip_planner planner;
+	struct mlip_smooth_store store;
+	struct mlip_ctl ctl;
+	struct mlip_pathrun run;
+	struct mlip_planq queue;
+	struct mlip_config cfg;
+	struct mlip_planfeed pf;
+} P;
+
+/*
+ * The controller plans the path speed (JERK_PLAN = path): its plan run here
+ * first, to the program's end, as its planning thread will run it (the same
+ * records from where the machine stands, the same code: planfeed.h, its
+ * queue drained as the period pops it), so that what the plan refuses (a
+ * spline piece past the band, (P6); a state it cannot certify) is refused
+ * before anything is sent, as mlip-sim refuses it. The plan is deterministic
+ * (mlip-rt's setpoints are mlip-sim's to the byte): without the check the
+ * refusal came mid-run, a fault on the path that cut the program short.
+ * A continuation (--start-seq) was checked as a whole program before.
+ * 0, or an exit code after saying why.
+ */
+static int plan_check(struct feed *f, const struct mlip_machine *m)
+{
+	P.cfg = (struct mlip_config){0};
+	P.cfg.machine = *m; /* HOME: where the program starts, as the thread's */
+	P.cfg.lookahead = m->plan_lookahead ? m->plan_lookahead : MLIP_LOOKAHEAD;
+	const char *why = NULL;
+	if (mlip_planfeed_init(&P.pf, &P.cfg, 0.0, P.cfg.lookahead, &P.ctl, &P.planner, &P.store,
+	                       &P.run, &P.queue, &why) != 0) {
+		say(": the controller's JERK_PLAN = path: %s: nothing was sent\n", why);
+		return EXIT_FAIL;
+	}
+	stream_start(f, m);
+	uint64_t seq = 0;
+	int in_done = 0, done = 0, r = 0, mode = MLIP_PLANQ_WAIT;
+	double x[MLIP_MAX_AXES];
+	while (mode != MLIP_PLANQ_DONE) {
+		while (!done && !(P.pf.started && P.queue.head - P.queue.tail >= MLIP_PLANQ_LEN)) {
+			while (!in_done && mlip_planfeed_room(&P.pf) > 0) {
+				struct mlip_block b;
+				struct mlip_ring_rec rec;
+				int k = f->it.next(f->it.ctx, &b);
+				if (k < 0) {
+					say(": %s: %s\n", f->path,
+					    f->prog.msg[0]
+					        ? f->prog.msg
+					        : "the smoothing filter refused a block");
+					return EXIT_FAIL;
+				}
+				if (k > 0) {
+					mlip_ring_rec_from_block(&rec, &b, ++seq);
+				} else {
+					mlip_ring_rec_end(&rec, ++seq, f->prog.lines);
+					in_done = 1;
+				}
+				mlip_planfeed_offer(&P.pf, &rec);
+			}
+			r = mlip_planfeed_work(&P.pf);
+			if (r < 0) {
+				const struct mlip_pathrun *pr = &P.run;
+				char at[160] = "";
+				if (pr->why != NULL && pr->why_mm > 0.0) {
+					snprintf(
+					    at, sizeof(at),
+					    " at %.6f mm of the path (%.6f mm, the band %.6f mm)",
+					    pr->why_s, pr->why_mm, pr->band_mm);
+				} else if (pr->why != NULL) {
+					snprintf(at, sizeof(at),
+					         " at %.6f mm of the path (speed %.6g, "
+					         "acceleration %.6g)",
+					         pr->why_s, pr->why_v, pr->why_a);
+				}
+				say(": %s: the controller's JERK_PLAN = path cannot run this "
+				    "program: %s%s; "
+				    "nothing was sent (mlip-sim --config refuses it too; [TRAJ] "
+				    "JERK_PLAN = "
+				    "mean runs it)\n",
+				    f->path, P.pf.why ? P.pf.why : "?", at);
+				return EXIT_FAIL;
+			}
+			done = r == 2;
+			if (r == 0) {
+				break;
+			}
+		}
+		if (!P.pf.started) {
+			if (done || r == 0) {
+				break; /* nothing to move (or nothing more to read) */
+			}
+			continue;
+		}
+		mode = mlip_planq_step(&P.queue, 0, x);
+		if (mode < 0) {
+			say(": %s: the controller's JERK_PLAN = path: its plan's queue failed "
+			    "(mode %d); nothing was sent\n",
+			    f->path, mode);
+			return EXIT_FAIL;
+		}
+	}
+	mlip_program_rewind(&f->prog);
+	return 0;
+}
+
 /*
  * Check the whole program (first pass) from the machine f->mp, whose HOME is
  * where the program starts: the controller's commanded position when it is
@@ -103,6 +211,9 @@ int load(struct feed *f, int notes)
 	    mlip_simpath_prescan(&f->prog, 0.0, &feed, prog_name, f->path,
 	                         "the controller's JERK_PLAN = path", stderr) != 0) {
 		return EXIT_FAIL;
+	}
+	if (m->path_plan && f->first_seq <= 1 && (rc = plan_check(f, m)) != 0) {
+		return rc;
 	}
 	f->n = f->prog.n;
 	f->read_seq = 0;

@@ -5,6 +5,7 @@ machine and refuses what the plan cannot run, as mlip-sim does."""
 
 import math
 import mmap
+import random
 import re
 import signal
 import struct
@@ -125,8 +126,11 @@ def test_path_plan_on_a_fast_machine_runs_as_mlip_sim(controller, tmp_path):
     cfg = tmp_path / "mill-path-5000.ini"
     cfg.write_text(re.sub(r"MAX_ACCELERATION = [0-9.]+", "MAX_ACCELERATION = 5000", ini))
     gen, prog = tmp_path / "spiral.ngc", tmp_path / "spiral-2k.ngc"
-    subprocess.run([sys.executable, str(ROOT / "tools" / "gen_curves.py"), "spiral", str(gen)],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [sys.executable, str(ROOT / "tools" / "gen_curves.py"), "spiral", str(gen)],
+        check=True,
+        capture_output=True,
+    )
     prog.write_text("".join(gen.read_text().splitlines(True)[:2004]))
     sim = sim_trace(cfg, prog, tmp_path / "sim.csv")
     assert len(sim.splitlines()) > 300
@@ -159,6 +163,79 @@ def test_feed_refuses_what_the_plan_cannot_run(controller, tmp_path):
             "(the controller's JERK_PLAN = path)"
         ) in p.stderr, p.stderr
         assert status(shm)["blocks_consumed"] == 0
+
+
+def textured(seed, lines):
+    """A program of random strokes and curves (the texture of a test's
+    storm of holds and feeds that found the refusal below mid-run): parts
+    of 20-200 strokes of 0.05-0.6 mm turning by up to 1.2 rad, or 200-1500
+    chords of 0.05 mm on curves of 0.5-10 mm radius, at F3000-12000; its
+    first `lines` lines."""
+    r = random.Random(seed)
+    out = ["G21 G90", "G1 F%d" % r.choice([3000, 6000, 12000])]
+    x = y = 0.0
+    for _ in range(r.randint(2, 4)):
+        if r.random() < 0.5:
+            h, rad, th = 0.05, r.uniform(0.5, 10), r.uniform(0, 6)
+            for i in range(r.randint(200, 1500)):
+                th += h / rad * (1 + 0.5 * math.sin(i * 0.05))
+                x, y = x + h * math.cos(th), y + h * math.sin(th)
+                out.append("G1 X%.4f Y%.4f" % (x, y))
+        else:
+            d = r.uniform(0, 6)
+            for _ in range(r.randint(20, 200)):
+                d += r.uniform(-1.2, 1.2)
+                s = r.uniform(0.05, 0.6)
+                x, y = x + s * math.cos(d), y + s * math.sin(d)
+                out.append("G1 X%.4f Y%.4f" % (x, y))
+    return "\n".join(out[:lines]) + "\n"
+
+
+def test_feed_refuses_what_the_plan_refuses(controller, tmp_path):
+    """A program whose spline strays past the band ((P6), found only by
+    running the plan): mlip-feed runs the plan first, as the planning thread
+    will, and refuses it with mlip-sim's reason and figures, nothing sent
+    (before: the machine ran it to line 300 of its 347, where the plan's
+    refusal was a fault on the path, the program cut short, mlip-rt to be
+    restarted); a
+    program the plan runs goes on after it, to its end at mlip-sim's last
+    setpoint."""
+    cfg = machine(tmp_path)
+    shm, rt = controller(cfg, "--strategy", "smooth")
+    prog = tmp_path / "textured.ngc"
+    prog.write_text(textured(98, 347))
+    sim = subprocess.run(
+        [tool("mlip-sim"), "-q", "--config", cfg, "--strategy", "smooth", prog],
+        capture_output=True,
+        text=True,
+    )
+    where = re.search(
+        r"\(P6\), .* at ([0-9.]+ mm of the path \([0-9.]+ mm, the band [0-9.]+ mm\))", sim.stderr
+    )
+    assert sim.returncode == 1 and where, sim.stderr
+    p = feed(shm, prog)
+    assert p.returncode == 1, p.stderr
+    assert (
+        "textured.ngc: the controller's JERK_PLAN = path cannot run this program: a spline "
+        "piece strays from its chord by more than the band (P6)" in p.stderr
+    ), p.stderr
+    assert f"at {where.group(1)}; nothing was sent" in p.stderr, (p.stderr, where.group(1))
+    s = status(shm)
+    assert s["state"] == "idle" and s["blocks_consumed"] == 0, s
+    assert all(v == 0.0 for v in s["position"].values()), s
+    good = tmp_path / "good.ngc"
+    good.write_text(textured(98, 300))
+    assert feed(shm, good).returncode == 0
+    s = status(shm)
+    assert s["state"] == "idle" and s["reason"] == "program end", s
+    end = record_rows(sim_trace_file(cfg, good, tmp_path / "good.csv"))[-1][1:3]
+    assert [s["position"]["X"], s["position"]["Y"]] == end, (s, end)
+    assert rt.poll() is None
+
+
+def sim_trace_file(cfg, program, trace):
+    sim_trace(cfg, program, trace)
+    return trace
 
 
 def test_path_plan_needs_smooth(tmp_path):
@@ -371,8 +448,9 @@ def test_override_on_the_plan(controller, tmp_path):
 def write_records(shm, xs):
     """A program written into a fresh ring directly (mlip-feed never sends
     a NaN): a MOVE to each X of xs at 10 mm/s, then END."""
-    recs = [(k + 1, k + 3, 0, 0, x, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0)
-            for k, x in enumerate(xs)]
+    recs = [
+        (k + 1, k + 3, 0, 0, x, 0.0, 0.0, 0.0, 0.0, 0.0, 10.0, 0.01, 0.0) for k, x in enumerate(xs)
+    ]
     recs.append((len(xs) + 1, len(xs) + 3, 1, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
     with open("/dev/shm" + shm, "r+b") as fd:
         mem = mmap.mmap(fd.fileno(), 0)
@@ -447,8 +525,9 @@ def test_stall_rests_where_the_drives_stood(controller, tmp_path):
 
     held = None
     for _ in range(3):
-        assert wait_for(lambda: (lambda s: s["state"] == "running" and s["speed_mm_s"] > 50)(
-            resumed()), 60), status(shm)
+        assert wait_for(
+            lambda: (lambda s: s["state"] == "running" and s["speed_mm_s"] > 50)(resumed()), 60
+        ), status(shm)
         with frozen(rt):
             time.sleep(1.0)  # the stall itself: 1000 periods the loop does not run
         held = wait_for(stalled, 60)
@@ -462,8 +541,11 @@ def test_stall_rests_where_the_drives_stood(controller, tmp_path):
     assert ctl(shm, "resume").returncode == 0
     ending(cfg, prog, rec, rt, f)
     rows, T, A = record_rows(rec), 0.001, 1000.0
-    gap, k = max((rows[i][0] - rows[i - 1][0], i) for i in range(2, len(rows))
-                 if rows[i - 1][1:] != rows[i - 2][1:])
+    gap, k = max(
+        (rows[i][0] - rows[i - 1][0], i)
+        for i in range(2, len(rows))
+        if rows[i - 1][1:] != rows[i - 2][1:]
+    )
     assert gap > 0.8, gap
     assert rows[k][1:] == rows[k - 1][1:] and rows[k + 1][1:] == rows[k][1:], rows[k - 2 : k + 2]
     j = next(i for i in range(k, len(rows)) if rows[i][1:] != rows[k][1:])
@@ -491,8 +573,9 @@ def test_hold_in_the_queues_last_periods(controller, tmp_path):
         assert wait_for(lambda: status(shm)["position"]["X"] < 1.0, 60), status(shm)
         assert ctl(shm, "hold").returncode == 0
         s = wait_for(
-            lambda: (lambda s: s if s["state"] in ("held", "idle") and s["speed_mm_s"] == 0.0
-                     else None)(status(shm)),
+            lambda: (
+                lambda s: s if s["state"] in ("held", "idle") and s["speed_mm_s"] == 0.0 else None
+            )(status(shm)),
             60,
         )
         assert s, status(shm)
@@ -507,6 +590,8 @@ def test_hold_in_the_queues_last_periods(controller, tmp_path):
         ending(cfg, prog, rec, rt, f)
         return
     raise AssertionError("no hold within the program's last 1 mm in 5 tries")
+
+
 POLY_N, POLY_R = 72, 50.0  # sides, radius (mm): line k + 2 the side ending at k sides' angle
 POLY_SIDE = 2 * math.pi / POLY_N
 
@@ -515,10 +600,14 @@ def polygon(tmp_path):
     """A polygon through the origin (centre X POLY_R), then a last line of
     1 s at F6000 (100 mm/s) to X-100."""
     r, side = POLY_R, POLY_SIDE
-    body = "G21 G90\nG1 F6000\n" + "".join(
-        f"G1 X{r - r * math.cos(k * side):.4f} Y{r * math.sin(k * side):.4f}\n"
-        for k in range(1, POLY_N + 1)
-    ) + "G1 X-100 Y0\n"
+    body = (
+        "G21 G90\nG1 F6000\n"
+        + "".join(
+            f"G1 X{r - r * math.cos(k * side):.4f} Y{r * math.sin(k * side):.4f}\n"
+            for k in range(1, POLY_N + 1)
+        )
+        + "G1 X-100 Y0\n"
+    )
     prog = tmp_path / "polygon.ngc"
     prog.write_text(body)
     return prog
@@ -577,8 +666,10 @@ def test_progress_follows_the_program(controller, tmp_path):
     log.close()
     err = (tmp_path / "feed.err").read_text()
     assert f"held (feed hold) at line {line}:" in err, err
-    pct = [(int(m[0]), int(m[1]), int(m[2])) for m in
-           re.findall(r"(\d+)/\d+ blocks executed \((\d+) %\), \d+ queued, line (\d+)", err)]
+    pct = [
+        (int(m[0]), int(m[1]), int(m[2]))
+        for m in re.findall(r"(\d+)/\d+ blocks executed \((\d+) %\), \d+ queued, line (\d+)", err)
+    ]
     assert any(p[0] == held["exec_seq"] and 0 < p[1] < 100 and p[2] == line for p in pct), err
     assert [p[0] for p in pct] == sorted(p[0] for p in pct), pct
     assert seen == sorted(seen) and len(set(seen)) > 20, seen[:50]
@@ -594,15 +685,21 @@ def test_stop_names_the_block_to_resume(controller, tmp_path):
     refused, with that one the program runs from there to its end."""
     prog = polygon(tmp_path)
     shm, _ = controller(machine(tmp_path), "--strategy", "smooth")
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", str(prog)],
-                         stderr=subprocess.PIPE, text=True)
-    assert wait_for(lambda: (lambda s: s and s["state"] == "running" and
-                             angle(s) > 0.8 * math.pi)(status(shm)), 60), status(shm)
+    f = subprocess.Popen(
+        [tool("mlip-feed"), "--shm", shm, "-q", str(prog)], stderr=subprocess.PIPE, text=True
+    )
+    assert wait_for(
+        lambda: (lambda s: s and s["state"] == "running" and angle(s) > 0.8 * math.pi)(status(shm)),
+        60,
+    ), status(shm)
     f.send_signal(signal.SIGTERM)
     err = f.communicate(timeout=60)[1]
     assert f.returncode == 143, err
-    m = re.search(r"stopped on the path at line (\d+) \(block (\d+) of (\d+)\); "
-                  r"resume with --start-seq (\d+)", err)
+    m = re.search(
+        r"stopped on the path at line (\d+) \(block (\d+) of (\d+)\); "
+        r"resume with --start-seq (\d+)",
+        err,
+    )
     assert m, err
     line, block, n, hint = (int(g) for g in m.groups())
     s = status(shm)
@@ -610,12 +707,19 @@ def test_stop_names_the_block_to_resume(controller, tmp_path):
     assert hint == block == s["exec_seq"] + 1 and 1 < block < n, (err, s)
     assert 20 < line < POLY_N + 2 and on_its_side(line, angle(s)), (line, math.degrees(angle(s)))
     for wrong in (block - 1, block + 1):
-        p = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", "--start-seq", str(wrong),
-                            str(prog)], capture_output=True, text=True, timeout=60)
-        assert p.returncode == 1 and f"only --start-seq {block} continues it" in p.stderr, \
-            p.stderr
-    p = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", "--start-seq", str(block),
-                        str(prog)], capture_output=True, text=True, timeout=120)
+        p = subprocess.run(
+            [tool("mlip-feed"), "--shm", shm, "-q", "--start-seq", str(wrong), str(prog)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert p.returncode == 1 and f"only --start-seq {block} continues it" in p.stderr, p.stderr
+    p = subprocess.run(
+        [tool("mlip-feed"), "--shm", shm, "-q", "--start-seq", str(block), str(prog)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 0, p.stderr
     e = status(shm)
     assert e["state"] == "idle" and e["exec_seq"] == n + 1, e
@@ -635,17 +739,23 @@ def test_continue_from_a_rest_in_a_corner(controller, tmp_path, k):
     (mlip_planner_resume_done, the rule of a stall's rest)."""
     prog = polygon(tmp_path)
     shm, _ = controller(machine(tmp_path), "--strategy", "smooth")
-    f = subprocess.Popen([tool("mlip-feed"), "--shm", shm, "-q", str(prog)],
-                         stderr=subprocess.PIPE, text=True)
+    f = subprocess.Popen(
+        [tool("mlip-feed"), "--shm", shm, "-q", str(prog)], stderr=subprocess.PIPE, text=True
+    )
     th = 2.478 + k * 0.005  # radians: 142.0 .. 144.0 degrees
-    assert wait_for(lambda: (lambda s: s and s["state"] == "running" and
-                             angle(s) > th)(status(shm)), 60), status(shm)
+    assert wait_for(
+        lambda: (lambda s: s and s["state"] == "running" and angle(s) > th)(status(shm)), 60
+    ), status(shm)
     f.send_signal(signal.SIGTERM)
     err = f.communicate(timeout=60)[1]
     m = re.search(r"resume with --start-seq (\d+)", err)
     assert f.returncode == 143 and m, err
-    p = subprocess.run([tool("mlip-feed"), "--shm", shm, "-q", "--start-seq", m[1], str(prog)],
-                       capture_output=True, text=True, timeout=120)
+    p = subprocess.run(
+        [tool("mlip-feed"), "--shm", shm, "-q", "--start-seq", m[1], str(prog)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 0, p.stderr
     e = status(shm)
     assert e["position"]["X"] == -100.0 and e["position"]["Y"] == 0.0, e
@@ -679,9 +789,25 @@ def test_refused_plan_then_restart_runs_the_next(controller, tmp_path):
     _, err = rt.communicate(timeout=10)
     assert "the plan refused the program" in err, err
     rec = tmp_path / "rt.csv"
-    rt2 = Proc([tool("mlip-rt"), "--config", cfg, "--can", "none", "--shm", shm,
-                "--stall-periods", "100000", "--strategy", "smooth", "--record", rec],
-               stderr=subprocess.PIPE, text=True)
+    rt2 = Proc(
+        [
+            tool("mlip-rt"),
+            "--config",
+            cfg,
+            "--can",
+            "none",
+            "--shm",
+            shm,
+            "--stall-periods",
+            "100000",
+            "--strategy",
+            "smooth",
+            "--record",
+            rec,
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         s = wait_for(lambda: (lambda s: s if s and s["alive"] else None)(status(shm)), 60)
         assert s and s["state"] == "idle", (s, rt2.said())
