@@ -102,9 +102,12 @@ struct blk {
 	int m6, m61;        /* M6, M61 on the line */
 	unsigned coolant_m; /* M7: MLIP_COOLANT_MIST, M8: MLIP_COOLANT_FLOOD */
 	int m9;
-	int g43;   /* 430 G43, 431 G43.1, 490 G49, 0 none */
-	int dout;  /* 64 M64, 65 M65 (output P on / off), 0 none */
-	int probe; /* 382..385 for G38.2..G38.5 (a motion: motion_col), 0 none */
+	int g43;     /* 430 G43, 431 G43.1, 490 G49, 0 none */
+	int dout;    /* 64 M64, 65 M65 (output P on / off), 0 none */
+	int probe;   /* 382..385 for G38.2..G38.5 (a motion: motion_col), 0 none */
+	int cycle;   /* 73, 81, 82, 83, 85, 89: a canned cycle (a motion: motion_col), 0 none */
+	int g80;     /* G80: the canned cycle cancelled */
+	int retract; /* 98 or 99 (G98/G99), 0 none */
 	uint32_t spindle_col, m6_col, m61_col, coolant_col, m9_col, g43_col, dout_col;
 	char io_notes[MAX_WORDS][8]; /* those words in order: notices without set_io */
 	int n_io_notes;
@@ -126,6 +129,7 @@ struct plan {
 	int g0_default; /* they move as G0: no motion mode yet (Grbl) */
 	int probe;      /* G38.2..G38.5 (382..385): a probe move (motion 1), 0 none */
 	uint32_t mcol;  /* column to blame for the motion: its G word, else the line */
+	int cycle;      /* the canned cycle this line runs (cycle.c), 0 none */
 };
 
 /* ---- modal.c ---- */
@@ -226,6 +230,18 @@ int mlip_gc_z_index(const struct mlip_machine *m);
 mlip_status mlip_gc_probe(struct mlip_gcode *g, const struct blk *b, const struct plan *pl,
                           struct emit_ctx *ec, const double *s, const double *t,
                           const uint32_t *col_of, uint32_t line, struct mlip_gcode_error *e);
+
+/* ---- cycle.c ---- */
+
+/* The words of a line that runs a canned cycle (pl->cycle), against the
+ * cycle and the sticky numbers (LinuxCNC's rules). */
+mlip_status mlip_gc_cycle_check(const struct mlip_gcode *g, const struct blk *b,
+                                const struct plan *pl, uint32_t line, struct mlip_gcode_error *e);
+/* Its moves and dwells: every point checked against the limits before any
+ * is emitted; the state (position, sticky numbers) after it. */
+mlip_status mlip_gc_cycle(struct mlip_gcode *g, const struct blk *b, const struct plan *pl,
+                          struct emit_ctx *ec, double scale, uint32_t line,
+                          struct mlip_gcode_error *e);
 
 /* ---- grblsys.c ---- */
 

@@ -181,14 +181,14 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 	pl->has_axes = has_axes;
 	pl->axis_use = b->home || b->g10 || b->g92 == 920 || b->g43 == 431;
 	pl->g0_default = 0;
-	if (pl->axis_use && b->motion >= 0 && has_axes) {
+	if (pl->axis_use && (b->motion >= 0 || b->cycle) && has_axes) {
 		return mlip_gc_fail(e, line, b->motion_col, MLIP_E_SYNTAX,
 		                    "%G and %G on one line: both use axis words",
 		                    b->home         ? b->home * 10
 		                    : b->g10        ? 100
 		                    : b->g43 == 431 ? 431
 		                                    : 920,
-		                    b->motion * 10);
+		                    b->cycle ? b->cycle * 10 : b->motion * 10);
 	}
 	if (b->g43 == 431 && (b->home || b->g10 || b->g92 == 920)) {
 		return mlip_gc_fail(e, line, b->g43_col, MLIP_E_SYNTAX,
@@ -229,6 +229,21 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 		                    "to move, or G38.%u again to probe again",
 		                    (unsigned)(g->probe_mode % 10), (unsigned)(g->probe_mode % 10));
 	}
+	/* a canned cycle: named on the line, or the one in effect on a line
+	 * with axis words and no other motion code (LinuxCNC) */
+	pl->cycle = b->cycle                                                             ? b->cycle
+	            : b->motion < 0 && !b->g80 && !b->probe && has_axes && !pl->axis_use ? g->cycle
+	                                                                                 : 0;
+	if (pl->cycle) {
+		pl->motion = -1;
+		pl->mcol = b->cycle ? b->motion_col : lx->first_col;
+		return mlip_gc_cycle_check(g, b, pl, line, e);
+	}
+	if (b->g80 && has_axes && !pl->axis_use) {
+		return mlip_gc_fail(e, line, first_ax, MLIP_E_SYNTAX,
+		                    "axis words with G80: it cancels the canned cycle and moves "
+		                    "nothing (LinuxCNC)");
+	}
 	arc_words = b->has_ijk[0] || b->has_ijk[1] || b->has_ijk[2] || (b->has_r && !b->g10);
 	if (arc_words && (pl->motion < 2 || pl->axis_use)) {
 		c = b->has_r ? b->r_col : 0;
@@ -239,6 +254,12 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 			}
 		}
 		return mlip_gc_fail(e, line, c, MLIP_E_SYNTAX, "%c word without an arc (G2/G3)", L);
+	}
+	if (has_axes && !pl->axis_use && pl->motion < 0 && g->cycle_off) {
+		return mlip_gc_fail(e, line, first_ax, MLIP_E_SYNTAX,
+		                    "axis words with no motion code after a canned cycle ended "
+		                    "(G80, or the end of its MDI line): write G0, G1 or the cycle "
+		                    "again");
 	}
 	if (has_axes && !pl->axis_use && pl->motion < 0) {
 		if (g->strict) {
@@ -259,6 +280,14 @@ static mlip_status check_line(const struct mlip_gcode *g, const struct blk *b,
 		return mlip_gc_fail(e, line, b->g53_col, MLIP_E_SYNTAX, "G53 needs G0 or G1");
 	}
 	pl->moves = !pl->axis_use && (has_axes || arc_words);
+	if (b->has_q && !b->g64 && !b->m61) {
+		return mlip_gc_fail(e, line, b->q_col, MLIP_E_SYNTAX,
+		                    "Q word without G64, G73, G83 or M61");
+	}
+	if (b->has_l && !b->g10) {
+		return mlip_gc_fail(e, line, b->l_col, MLIP_E_SYNTAX,
+		                    "L word without G10 or a canned cycle");
+	}
 	st = check_turns(b, pl, line, e);
 	if (st != MLIP_OK) {
 		return st;
@@ -300,7 +329,7 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 	struct mlip_gcode_error dummy;
 	struct lexed lx;
 	struct blk b;
-	struct plan pl = {-1, 0, 0, 0, 0, 0, 0};
+	struct plan pl = {-1, 0, 0, 0, 0, 0, 0, 0};
 	struct emit_ctx ec;
 	struct arc arc;
 	double start[MLIP_MAX_AXES], t[MLIP_MAX_AXES], scale, k;
@@ -429,6 +458,8 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 		st = mlip_gc_go_home(g, &b, &pl, &ec, t, col_of, lineno, err);
 	} else if (pl.probe) {
 		st = mlip_gc_probe(g, &b, &pl, &ec, start, t, col_of, lineno, err);
+	} else if (pl.cycle) {
+		st = mlip_gc_cycle(g, &b, &pl, &ec, scale, lineno, err);
 	} else if (pl.moves) {
 		st = pl.motion > 0 && !g->inverse_time
 		         ? mlip_gc_block_feed(g, &pl, start, t, lineno, &ec.feed_mm_s, err)
@@ -457,7 +488,7 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 			g->unknown = 0; /* every axis given absolutely (check_unknown) */
 		}
 	}
-	if (st == MLIP_OK && b.motion >= 0) {
+	if (st == MLIP_OK && (b.motion >= 0 || b.cycle)) {
 		g->probe_mode = 0;
 	}
 	if (st == MLIP_OK && mlip_gc_flush_dwell(g, &ec) != 0) {
@@ -494,6 +525,8 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 		g->ended = 1;
 		g->off.select = 0;
 		g->off.g92_on = 0;
+		g->cycle = 0; /* a canned cycle ends with its program */
+		g->cycle_off = 0;
 	}
 	return st;
 }

@@ -62,7 +62,9 @@ void mlip_gcode_modal_init(struct mlip_gcode_modal *md, const struct mlip_machin
 
 void mlip_gcode_get_modal(const struct mlip_gcode *g, struct mlip_gcode_modal *md)
 {
-	md->motion = g->motion;
+	/* a canned cycle's mode ends with its MDI line (its sticky numbers are
+	 * not kept): axis words alone after it are refused, as after G80 */
+	md->motion = g->cycle || g->cycle_off ? -2 : g->motion;
 	md->plane = g->plane;
 	md->absolute = g->absolute;
 	md->inches = g->inches;
@@ -82,7 +84,7 @@ mlip_status mlip_gcode_set_modal(struct mlip_gcode *g, const struct mlip_gcode_m
 	const struct mlip_machine *m = g->m;
 	double fmm = md->feed_word * (md->inches ? MM_PER_INCH : 1.0) / 60.0;
 
-	if (md->motion < -1 || md->motion > 3 || md->plane < 17 || md->plane > 19 ||
+	if (md->motion < -2 || md->motion > 3 || md->plane < 17 || md->plane > 19 ||
 	    (md->absolute != 0 && md->absolute != 1) || (md->inches != 0 && md->inches != 1) ||
 	    (md->inverse_time != 0 && md->inverse_time != 1) ||
 	    (md->exact_stop != 0 && md->exact_stop != 1)) {
@@ -105,7 +107,8 @@ mlip_status mlip_gcode_set_modal(struct mlip_gcode *g, const struct mlip_gcode_m
 	    !(fabs(md->tlo_mm) <= 1e6) || (md->tlo_mode == 490 && md->tlo_mm != 0.0)) {
 		return MLIP_E_RANGE;
 	}
-	g->motion = md->motion;
+	g->motion = md->motion < 0 ? -1 : md->motion;
+	g->cycle_off = md->motion == -2;
 	g->plane = md->plane;
 	g->absolute = md->absolute;
 	g->inches = md->inches;
@@ -261,6 +264,23 @@ void mlip_gc_commit_modal(struct mlip_gcode *g, const struct blk *b, const struc
 	}
 	if (b->motion >= 0) {
 		g->motion = b->motion;
+		g->cycle = 0; /* another motion code ends the canned cycle */
+		g->cycle_off = 0;
+	}
+	if (b->g80 && g->cycle) {
+		g->cycle = 0;
+		g->motion = -1; /* LinuxCNC: no motion mode after G80 */
+		g->cycle_off = 1;
+	} else if (b->g80) {
+		mlip_gc_notice(g, "G80", line); /* no cycle: no effect on motion */
+	}
+	if (pl->cycle) {
+		g->cycle = pl->cycle; /* its sticky numbers: mlip_gc_cycle */
+		g->motion = -1;
+		g->cycle_off = 0;
+	}
+	if (b->retract) {
+		g->retract_r = b->retract == 99;
 	}
 	if (pl->g0_default) {
 		g->motion = 0;

@@ -24,6 +24,9 @@ enum gkind {
 	GK_FEEDMODE, /* G93/G94 */
 	GK_TOOLLEN,  /* G43, G43.1, G49 */
 	GK_PROBE,    /* G38.2..G38.5 (io.c) */
+	GK_CYCLE,    /* G73, G81..G83, G85, G89 (cycle.c) */
+	GK_G80,      /* cancel the canned cycle */
+	GK_RETRACT,  /* G98/G99 */
 	GK_NOTICE,   /* accepted, no effect on motion */
 	GK_SILENT,   /* accepted, it is what mlip does anyway (G91.1) */
 	GK_UNSUP
@@ -43,6 +46,7 @@ enum {
 	GR_COORD,
 	GR_PATH,
 	GR_ARCDIST,
+	GR_RETRACT,
 	GR_N
 };
 
@@ -77,7 +81,12 @@ static const struct gdef gtab[] = {
     {640, 640, GK_PATH, GR_PATH, 0},
     {920, 923, GK_G92, GR_NONMODAL, 0},
     {930, 940, GK_FEEDMODE, GR_FEEDMODE, 0},
-    {800, 800, GK_NOTICE, GR_MOTION, 0},
+    {800, 800, GK_G80, GR_MOTION, 0},
+    {730, 730, GK_CYCLE, GR_MOTION, 0},
+    {810, 830, GK_CYCLE, GR_MOTION, 0},
+    {850, 850, GK_CYCLE, GR_MOTION, 0},
+    {890, 890, GK_CYCLE, GR_MOTION, 0},
+    {980, 990, GK_RETRACT, GR_RETRACT, 0},
     {900, 900, GK_DIST, GR_DIST, 0},
     {910, 910, GK_DIST, GR_DIST, 0},
     {911, 911, GK_SILENT, GR_ARCDIST, 0},
@@ -89,9 +98,8 @@ static const struct gdef gtab[] = {
     {410, 421, GK_UNSUP, 0, "cutter radius compensation"},
     {432, 432, GK_UNSUP, 0, "an additional tool length offset (G43.2)"},
     {520, 520, GK_UNSUP, 0, "local offsets (use G92 or G10 L2)"},
-    {730, 730, GK_UNSUP, 0, "canned cycles"},
-    {810, 890, GK_UNSUP, 0, "canned cycles"},
-    {980, 990, GK_UNSUP, 0, "canned cycles"},
+    {840, 840, GK_UNSUP, 0, "tapping cycle (the spindle reversed at the bottom)"},
+    {860, 880, GK_UNSUP, 0, "boring cycles that stop or orient the spindle"},
     {901, 901, GK_UNSUP, 0, "absolute arc centers"},
     {950, 950, GK_UNSUP, 0, "feed per revolution"},
     {960, 970, GK_UNSUP, 0, "constant surface speed"},
@@ -104,7 +112,9 @@ static const struct gdef *gfind(int code10)
 	for (k = 0; k < sizeof gtab / sizeof gtab[0]; k++) {
 		/* motion and plane ranges hold whole codes only */
 		if (code10 >= gtab[k].lo && code10 <= gtab[k].hi &&
-		    !((gtab[k].kind <= GK_UNITS || gtab[k].kind == GK_FEEDMODE) && code10 % 10)) {
+		    !((gtab[k].kind <= GK_UNITS || gtab[k].kind == GK_FEEDMODE ||
+		       gtab[k].kind == GK_CYCLE || gtab[k].kind == GK_RETRACT) &&
+		      code10 % 10)) {
 			return &gtab[k];
 		}
 	}
@@ -255,6 +265,17 @@ static mlip_status classify_g(const struct word *w, uint32_t line, struct blk *b
 		if (c == 490) {
 			note_io(b, 'G', c);
 		}
+		break;
+	case GK_CYCLE:
+		b->cycle = c / 10;
+		b->motion_col = w->col;
+		break;
+	case GK_G80:
+		b->g80 = 1;
+		b->motion_col = w->col;
+		break;
+	case GK_RETRACT:
+		b->retract = c / 10;
 		break;
 	case GK_PROBE:
 		b->probe = c;
@@ -477,9 +498,7 @@ static mlip_status classify_params(const struct blk *b, uint32_t line, struct ml
 		                    "M%u P%g: the output number is a whole number 0..%u",
 		                    (unsigned)b->dout, b->p, (unsigned)(MLIP_DOUT_MAX - 1));
 	}
-	if (b->has_q && !b->g64 && !b->m61) {
-		return mlip_gc_fail(e, line, b->q_col, MLIP_E_SYNTAX, "Q word without G64 or M61");
-	}
+	/* Q without G64 or M61, L without G10: a canned cycle's (gcode.c) */
 	if (b->has_q && b->g64 && b->m61) {
 		return mlip_gc_fail(e, line, b->q_col, MLIP_E_SYNTAX,
 		                    "Q word with both G64 and M61: put them on separate lines");
@@ -490,9 +509,6 @@ static mlip_status classify_params(const struct blk *b, uint32_t line, struct ml
 	}
 	if (b->has_h && b->g43 != 430) {
 		return mlip_gc_fail(e, line, b->h_col, MLIP_E_SYNTAX, "H word without G43");
-	}
-	if (b->has_l && !b->g10) {
-		return mlip_gc_fail(e, line, b->l_col, MLIP_E_SYNTAX, "L word without G10");
 	}
 	if (b->g4 && !b->has_p) {
 		return mlip_gc_fail(e, line, b->g4_col, MLIP_E_SYNTAX,

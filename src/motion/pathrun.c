@@ -523,7 +523,7 @@ const char *mlip_pathrun_refusal(const struct mlip_block *b)
 		           : "an event the plan does not know";
 	}
 	if (b->exact_stop) {
-		return "an exact stop (G61)";
+		return "an exact stop (G61 or a canned cycle)";
 	}
 	return NULL; /* a feed or a rapid: its block's cap (Q5) */
 }

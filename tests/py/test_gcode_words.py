@@ -159,6 +159,44 @@ def test_arc_p_turns(tmp_path):
     assert "e.ngc:2:9: error: G2 P1.5: the number of turns is a whole number" in e.stderr
 
 
+def test_canned_cycles_drill_a_plate(tmp_path):
+    """G81, G83 and G82 (LinuxCNC), judged from the trace: mlip-check passes
+    it against the program; below R (1 mm) the tool is only over a hole (it
+    never drags through the part); each hole reaches its bottom
+    exactly and no deeper; G83 pecks to -1, -3, -5, then -6 (Q2 from R1),
+    out to R between; G82 rests 0.25 s at its bottom (250 periods); G98
+    goes back to Z10, G99 to R."""
+    prog, trace, p = sim(tmp_path, "G21 G90 G17\nG0 X0 Y0 Z10\n"
+                         "G98 G81 X5 Y5 Z-2 R1 F300\nX10\n"
+                         "G99 G83 X15 Y5 Z-6 R1 Q2\nG82 X20 Y5 Z-3 R1 P0.25\nG80\nG0 Z10\n")
+    assert check(prog, trace).returncode == 0
+    r = rows(trace)
+    # below R only over a hole: a sample more than a period's step from rest
+    # (A T^2 / 2 = 5e-4 mm at 1000 mm/s^2, 1 ms: a move's end at rest falls
+    # between two samples) below R is within that of a hole's X Y
+    step = 1000 * 1e-6 / 2
+    holes = ((5, 5), (10, 5), (15, 5), (20, 5))
+    for row in r[next(k for k, row in enumerate(r) if row[3] >= 10) :]:  # from above the part
+        if row[3] < 1.0 - step:
+            assert min(math.hypot(row[1] - x, row[2] - y) for x, y in holes) <= step, row
+    for x, bottom in ((5, -2), (10, -2), (15, -6), (20, -3)):
+        z = [row[3] for row in r if abs(row[1] - x) < 1e-9 and abs(row[2] - 5) < 1e-9]
+        assert bottom - 1e-9 <= min(z) <= bottom + step, (x, min(z))
+    z15 = [row[3] for row in r if abs(row[1] - 15) < 1e-9 and abs(row[2] - 5) < 1e-9]
+    lows = [z15[k] for k in range(1, len(z15) - 1) if z15[k] < z15[k - 1] and z15[k] <= z15[k + 1]]
+    assert len(lows) == 4, lows
+    for low, depth in zip(lows, (-1, -3, -5, -6)):
+        assert depth - 1e-9 <= low <= depth + step, lows
+    at20 = [row for row in r if abs(row[1] - 20) < 1e-9 and abs(row[3] + 3) < 1e-9]
+    assert 250 <= len(at20) <= 252, len(at20)
+    # G98 after the first hole: back to 10 before X10; G99 from the G83 on: R
+    z10 = [row[3] for row in r if 5 < row[1] < 10]
+    assert z10 and min(z10) >= 10 - 1e-9, min(z10)
+    z17 = [row[3] for row in r if 15 < row[1] < 20]
+    assert z17 and max(z17) <= 1 + 1e-9 and min(z17) >= 1 - 1e-9, (min(z17), max(z17))
+    assert r[-1][1:] == [20.0, 5.0, 10.0]
+
+
 def test_g61_corners_at_rest(tmp_path):
     """G61: the tool stops exactly on every corner; G64 cuts them."""
     square = "G1 X10 F6000\nY10\nX0\nY0\n"

@@ -67,6 +67,26 @@ def test_mdi_moves_and_carries_modal_state(controller, tmp_path):
     assert 20.0 * 0.99 <= vmax <= 20.0 * (1 + 1e-6)  # the carried F, not G0's speed
 
 
+def test_mdi_canned_cycle(controller, tmp_path):
+    """A drilling cycle from MDI (G98 G81): the hole drilled and the tool
+    back where it began; the modal state file says MOTION G80 (the cycle's
+    mode ends with its MDI line, its sticky numbers are not kept), so a next
+    mdi of axis words alone is refused, naming why, and moves nothing; G0
+    moves again."""
+    off = offsets_file(tmp_path / "off.txt")
+    shm, _ = controller(MILL)
+    p = mdi(shm, off, "G0 Z5", "G98 G81 X3 Y4 Z-1 R1 F600")
+    assert p.returncode == 0, p.stderr
+    assert position(shm) == {"X": 3.0, "Y": 4.0, "Z": 5.0}
+    assert records(tmp_path / "off.txt.modal")["MOTION"] == "G80"
+    p = mdi(shm, off, "X6")
+    assert p.returncode != 0 and "after a canned cycle ended" in p.stderr, p.stderr
+    assert position(shm) == {"X": 3.0, "Y": 4.0, "Z": 5.0}
+    p = mdi(shm, off, "G0 X6")
+    assert p.returncode == 0, p.stderr
+    assert position(shm) == {"X": 6.0, "Y": 4.0, "Z": 5.0}
+
+
 def test_mdi_touch_off_then_program(controller, tmp_path):
     """G10 L20 from MDI: the offsets file holds it; a program then runs in the
     new work coordinates, judged on its recorded setpoints (the machine's)."""

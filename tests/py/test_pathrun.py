@@ -177,7 +177,7 @@ def test_config_key_is_the_option(tmp_path):
     ("G1 X20\nG4 P0.5\nG1 Y20\n", 4, "a dwell (G4)"),
     ("G1 X20\nM0\nG1 Y20\n", 4, "a pause (M0/M60)"),
     ("G1 X20\nM1\nG1 Y20\n", 4, "an optional pause (M1)"),
-    ("G1 X20\nG61\nG1 Y20\nG1 X0\n", 5, "an exact stop (G61)"),
+    ("G1 X20\nG61\nG1 Y20\nG1 X0\n", 5, "an exact stop (G61 or a canned cycle)"),
 ])
 def test_what_the_plan_cannot_run_is_refused(tmp_path, body, line, what):
     """Refused before anything moves (no trace row written), naming the

@@ -111,7 +111,7 @@ def test_queue_equals_mlip_sim(tmp_path):
 
 @pytest.mark.parametrize("body,line,what", [("G1 X20\nG4 P0.5\nG1 Y20\n", 4, "a dwell (G4)"),
                                             ("G1 X20\nG61\nG1 Y20\n", 5,
-                                             "an exact stop (G61)")])
+                                             "an exact stop (G61 or a canned cycle)")])
 def test_refused_before_the_thread(tmp_path, body, line, what):
     prog = tmp_path / "p.ngc"
     prog.write_text("G21 G90\nG1 F12000\n" + body)

@@ -273,7 +273,7 @@ static void test_unsupported_codes(void **state)
 	check_err("G38.2 Z-10 F10", 1, 1,
 	          "G38.2: probing needs the machine's config (--config) with a probe input "
 	          "([IO] PROBE)");
-	check_err("G81 X1 Y1 Z-1 R1 F10", 1, 1, "unsupported G code G81: canned cycles");
+	check_err("G84 X1 Y1 Z-1 R1 F10", 1, 1, "unsupported G code G84: tapping cycle");
 	check_err("G52 X1", 1, 1, "unsupported G code G52: local offsets (use G92 or G10 L2)");
 	check_err("G59.4", 1, 1, "unsupported G code G59.4");
 	check_err("G54.1 P2", 1, 1, "unsupported G code G54.1");
@@ -969,6 +969,155 @@ static void test_full_circle_and_helix(void **state)
 	assert_near(check_arc(&p, 1, s, 0, 1, 0, 0, 10, -1), -2 * M_PI, 1e-9);
 	assert_near(p.blocks[p.n - 1].target[2], -1, 0);
 	mlip_program_list_free(&p);
+}
+
+/* Block k of p: a move to (x, y, z), rapid or fed, ending at rest. */
+static void expect_move(const struct mlip_program_list *p, size_t k, double x, double y, double z,
+                        int rapid)
+{
+	if (k >= p->n || p->blocks[k].kind != MLIP_BLOCK_MOVE ||
+	    fabs(p->blocks[k].target[0] - x) > 1e-9 || fabs(p->blocks[k].target[1] - y) > 1e-9 ||
+	    fabs(p->blocks[k].target[2] - z) > 1e-9 || p->blocks[k].rapid != rapid ||
+	    !p->blocks[k].exact_stop) {
+		print_error("block %u: expected %s to %g %g %g at rest\n", (unsigned)k,
+		            rapid ? "a rapid" : "a feed", x, y, z);
+		if (k < p->n) {
+			print_error("  got kind %u %s to %g %g %g (exact %u)\n",
+			            (unsigned)p->blocks[k].kind,
+			            p->blocks[k].rapid ? "rapid" : "feed", p->blocks[k].target[0],
+			            p->blocks[k].target[1], p->blocks[k].target[2],
+			            (unsigned)p->blocks[k].exact_stop);
+		}
+		fail();
+	}
+}
+
+/* G81..G89 as LinuxCNC's documentation gives them: its examples' moves. */
+static void test_canned_cycles(void **state)
+{
+	struct mlip_machine m = machine("XYZ");
+	struct mlip_program_list p;
+
+	(void)state;
+	/* Example 1: from (1, 2, 3), G90 G98 G81 X4 Y5 Z1.5 R2.8 */
+	parse_ok("G0 X1 Y2 Z3\nG90 G98 G81 X4 Y5 Z1.5 R2.8 F60\n", &m, &p);
+	assert_int_equal(p.n, 5);
+	expect_move(&p, 1, 4, 5, 3, 1);
+	expect_move(&p, 2, 4, 5, 2.8, 1);
+	expect_move(&p, 3, 4, 5, 1.5, 0);
+	expect_move(&p, 4, 4, 5, 3, 1);
+	assert_near(p.blocks[3].feed_mm_s, 1.0, 1e-12);
+	mlip_program_list_free(&p);
+	/* Example 2: from (1, 2, 3), G91 G98 G81 X4 Y5 Z-0.6 R1.8 L3: up to 4.8
+	 * first, then three holes 4 5 apart, 0.6 deep from R */
+	parse_ok("G0 X1 Y2 Z3\nG91 G98 G81 X4 Y5 Z-0.6 R1.8 L3 F60\n", &m, &p);
+	assert_int_equal(p.n, 11);
+	expect_move(&p, 1, 1, 2, 4.8, 1);
+	for (int h = 0; h < 3; h++) {
+		expect_move(&p, 2 + 3 * (size_t)h, 5 + 4 * h, 7 + 5 * h, 4.8, 1);
+		expect_move(&p, 3 + 3 * (size_t)h, 5 + 4 * h, 7 + 5 * h, 4.2, 0);
+		expect_move(&p, 4 + 3 * (size_t)h, 5 + 4 * h, 7 + 5 * h, 4.8, 1);
+	}
+	mlip_program_list_free(&p);
+	/* G99 retracts to R; sticky R and Z on the next lines; G80 ends it */
+	parse_ok("G0 X0 Y0 Z10\nG99 G81 X1 Z-2 R1 F60\nX2\nY3 Z-4\nG80\nG0 Z10\n", &m, &p);
+	expect_move(&p, 1, 1, 0, 10, 1);
+	expect_move(&p, 2, 1, 0, 1, 1);
+	expect_move(&p, 3, 1, 0, -2, 0);
+	expect_move(&p, 4, 1, 0, 1, 1);
+	expect_move(&p, 5, 2, 0, 1, 1); /* at R: the clear height of G99 */
+	expect_move(&p, 6, 2, 0, -2, 0);
+	expect_move(&p, 7, 2, 0, 1, 1);
+	expect_move(&p, 8, 2, 3, 1, 1);
+	expect_move(&p, 9, 2, 3, -4, 0);
+	expect_move(&p, 10, 2, 3, 1, 1);
+	assert_near(p.blocks[11].target[2], 10, 0);
+	assert_int_equal(p.n, 12);
+	mlip_program_list_free(&p);
+	/* G82: the dwell at the bottom; G83: pecks of Q, out to R, back down to
+	 * 0.254 mm above the last depth; G73: 0.254 mm back only */
+	parse_ok("G0 X0 Y0 Z5\nG98 G82 X1 Z-1 R1 P0.5 F60\n", &m, &p);
+	expect_move(&p, 3, 1, 0, -1, 0);
+	assert_int_equal(p.blocks[4].kind, MLIP_BLOCK_DWELL);
+	assert_near(p.blocks[4].dwell_s, 0.5, 0);
+	expect_move(&p, 5, 1, 0, 5, 1);
+	mlip_program_list_free(&p);
+	parse_ok("G0 X0 Y0 Z5\nG98 G83 X1 Z-2.5 R1 Q1.5 F60\n", &m, &p);
+	expect_move(&p, 1, 1, 0, 5, 1);
+	expect_move(&p, 2, 1, 0, 1, 1);
+	expect_move(&p, 3, 1, 0, -0.5, 0);
+	expect_move(&p, 4, 1, 0, 1, 1);
+	expect_move(&p, 5, 1, 0, -0.5 + 0.254, 1);
+	expect_move(&p, 6, 1, 0, -2, 0);
+	expect_move(&p, 7, 1, 0, 1, 1);
+	expect_move(&p, 8, 1, 0, 0.254 - 2, 1);
+	expect_move(&p, 9, 1, 0, -2.5, 0);
+	expect_move(&p, 10, 1, 0, 5, 1);
+	assert_int_equal(p.n, 11);
+	mlip_program_list_free(&p);
+	parse_ok("G0 X0 Y0 Z5\nG99 G73 X1 Z-2.5 R1 Q1.5 F60\n", &m, &p);
+	expect_move(&p, 3, 1, 0, -0.5, 0);
+	expect_move(&p, 4, 1, 0, -0.5 + 0.254, 1);
+	expect_move(&p, 5, 1, 0, -2, 0);
+	expect_move(&p, 6, 1, 0, -2 + 0.254, 1);
+	expect_move(&p, 7, 1, 0, -2.5, 0);
+	expect_move(&p, 8, 1, 0, 1, 1);
+	assert_int_equal(p.n, 9);
+	mlip_program_list_free(&p);
+	/* G85: fed out to R, a rapid to the clear height; G89: the dwell, then
+	 * fed out to it */
+	parse_ok("G0 X0 Y0 Z5\nG98 G85 X1 Z-1 R1 F60\n", &m, &p);
+	expect_move(&p, 3, 1, 0, -1, 0);
+	expect_move(&p, 4, 1, 0, 1, 0);
+	expect_move(&p, 5, 1, 0, 5, 1);
+	mlip_program_list_free(&p);
+	parse_ok("G0 X0 Y0 Z5\nG98 G89 X1 Z-1 R1 P2 F60\n", &m, &p);
+	assert_int_equal(p.blocks[4].kind, MLIP_BLOCK_DWELL);
+	expect_move(&p, 5, 1, 0, 5, 0);
+	mlip_program_list_free(&p);
+	/* below R at the start: up to R first; inches; a work offset; G18 */
+	parse_ok("G0 X0 Y1 Z0\nG99 G81 X1 Z-1 R2 F60\n", &m, &p);
+	expect_move(&p, 1, 0, 1, 2, 1);
+	expect_move(&p, 2, 1, 1, 2, 1);
+	expect_move(&p, 3, 1, 1, -1, 0);
+	expect_move(&p, 4, 1, 1, 2, 1);
+	mlip_program_list_free(&p);
+	parse_ok("G10 L2 P1 X10 Z-1\nG0 X0 Y0 Z1\nG20 G99 G81 X1 Z-0.5 R0.1 F6\n", &m, &p);
+	expect_move(&p, 2, 10 + 25.4, 0, 25.4 * 0.1 - 1, 1);
+	expect_move(&p, 3, 10 + 25.4, 0, -25.4 * 0.5 - 1, 0);
+	assert_near(p.blocks[3].feed_mm_s, 6 * 25.4 / 60, 1e-12);
+	mlip_program_list_free(&p);
+	parse_ok("G0 X0 Y5 Z0\nG18 G98 G81 Z1 X2 Y-1 R3 F60\n", &m, &p);
+	expect_move(&p, 1, 2, 5, 1, 1); /* at Y5, above R3: in the plane first */
+	expect_move(&p, 2, 2, 3, 1, 1);
+	expect_move(&p, 3, 2, -1, 1, 0);
+	expect_move(&p, 4, 2, 5, 1, 1);
+	assert_int_equal(p.n, 5);
+	mlip_program_list_free(&p);
+
+	check_err("G0 Z5\nG81 X1 R1 F60", 2, 1, "G81 without Z: the depth of the hole");
+	check_err("G0 Z5\nG81 X1 Z-1 F60", 2, 1, "G81 without R");
+	check_err("G0 Z5\nG83 X1 Z-1 R1 F60", 2, 1, "G83 without Q: the depth of each peck");
+	check_err("G0 Z5\nG83 X1 Z-1 R1 Q0 F60", 2, 15, "G83 Q0: the peck depth must be positive");
+	check_err("G0 Z5\nG82 X1 Z-1 R1 F60", 2, 1, "G82 without P: the dwell at the bottom");
+	check_err("G0 Z5\nG81 X1 Z-1 R-2 F60", 2, 12, "R (-2) below the hole's bottom Z (-1)");
+	check_err("G0 Z5\nG81 X1 Z-1 R1 L0 F60", 2, 15, "G81 L0: the repeats are a whole number");
+	check_err("G0 Z5\nG81 X1 Z-1 R1 I2 F60", 2, 15, "I word in a canned cycle");
+	check_err("G0 Z5\nG81 R1 F60", 2, 1, "G81 without axis words");
+	check_err("G0 Z5\nG81 X1 Z-1 R1 Q1 F60", 2, 15, "Q word with G81 (no pecks)");
+	check_err("G0 Z5\nG81 X1 Z-1 R1 P1 F60", 2, 15, "P word with G81 (no dwell)");
+	check_err("G0 Z5\nG93 G81 X1 Z-1 R1 F60", 2, 5, "G81 with G93 inverse time");
+	check_err("G0 Z5\nG81 X1 Z-1 R1 F60\nG80 X2", 3, 5, "axis words with G80");
+	check_err("G0 Z5\nG81 X1 Z-1 R1 F60\nG80\nX2", 4, 1,
+	          "axis words with no motion code after a canned cycle ended");
+	check_err("G0 Z5\nG84 X1 Z-1 R1 F60", 2, 1, "unsupported G code G84: tapping cycle");
+	check_err("G0 Z5\nG86 X1 Z-1 R1 P1 F60", 2, 1, "unsupported G code G86: boring cycles");
+	check_err("G0 Z5\nG81 G1 X1 Z-1 R1 F60", 2, 5, "two motion codes on one line: G81 and G1");
+	check_err("G0 Z5\nG81 X1 Z-1 R1 F60 L2.5", 2, 19, "G81 L2.5");
+	check_err("G1 X1 F10 L2", 1, 11, "L word without G10 or a canned cycle");
+	check_err("G1 X1 F10 Q2", 1, 11, "Q word without G64, G73, G83 or M61");
+	check_err("G0 Z5\nG83 X1 Z-1000 R1 Q0.000001 F60", 2, 18, "more than 1000000 pecks");
+	check_err("G0 Z5\nG81 X1 Z-1200 R1 F60", 2, 8, "Z -1200.000 beyond soft limit");
 }
 
 static void test_r_arcs(void **state)
@@ -2010,6 +2159,24 @@ static void test_modal_carry(void **state)
 	assert_int_equal(mlip_gcode_set_modal(&g, &bad), MLIP_E_RANGE);
 	mlip_gcode_get_modal(&g, &back);
 	assert_memory_equal(&back, &md, sizeof md);
+	{
+		struct mlip_gcode_modal cyc;
+		/* a canned cycle's mode ends with its MDI line: the next refuses axis
+		 * words alone (motion -2), as after G80; G1 moves again */
+		mlip_gcode_init(&g, &m);
+		c.n = 0;
+		assert_int_equal(line(&g, "G0 Z5", 1, &c, &e), MLIP_OK);
+		assert_int_equal(line(&g, "G81 X1 Z-1 R1 F60", 2, &c, &e), MLIP_OK);
+		mlip_gcode_get_modal(&g, &cyc);
+		assert_int_equal(cyc.motion, -2);
+		mlip_gcode_init(&g, &m);
+		assert_int_equal(mlip_gcode_set_modal(&g, &cyc), MLIP_OK);
+		assert_int_equal(line(&g, "X2", 1, &c, &e), MLIP_E_SYNTAX);
+		assert_non_null(strstr(e.msg, "after a canned cycle ended"));
+		assert_int_equal(line(&g, "G1 X2", 2, &c, &e), MLIP_OK);
+		mlip_gcode_get_modal(&g, &cyc);
+		assert_int_equal(cyc.motion, 1);
+	}
 	/* through the program reader, as mlip-ctl mdi reads lines */
 	{
 		struct mlip_program prog;
@@ -2052,6 +2219,7 @@ int main(void)
 	    cmocka_unit_test(test_arc_g18_g19),
 	    cmocka_unit_test(test_arc_radius_tolerance),
 	    cmocka_unit_test(test_full_circle_and_helix),
+	    cmocka_unit_test(test_canned_cycles),
 	    cmocka_unit_test(test_r_arcs),
 	    cmocka_unit_test(test_arc_random),
 	    cmocka_unit_test(test_program_errors_and_print),

@@ -748,7 +748,8 @@ size_t grbl_gcode_state(char *buf, size_t len, const struct mlip_gcode *g, int p
 		buf[0] = '\0';
 	}
 	put(&o, "[GC:G");
-	puti(&o, g->motion < 0 ? 0 : g->motion);
+	/* G80: no motion mode after a canned cycle (Grbl's motion cancel) */
+	puti(&o, g->motion >= 0 ? g->motion : g->cycle || g->cycle_off ? 80 : 0);
 	put(&o, " ");
 	int sel = g->off.select;
 	put(&o, sel >= 0 && sel < MLIP_GCODE_N_COORD ? coord[sel] : "G54");

@@ -163,6 +163,8 @@ static void program_end_modes(struct grbl_stream *st)
 {
 	st->g.ended = 0;
 	st->g.motion = 1;
+	st->g.cycle = 0;
+	st->g.cycle_off = 0;
 	st->g.plane = 17;
 	st->g.absolute = 1;
 	st->g.inverse_time = 0;

@@ -21,7 +21,8 @@ static const char *const header[] = {
     "from a program's defaults (G17 G90 G21 G94 G64, no F).", NULL};
 
 /* The words a key takes, its value index in the order written. */
-static const char *const w_motion[] = {"none", "G0", "G1", "G2", "G3", NULL};
+/* MOTION: none, G0..G3, or G80: none after a canned cycle (motion -2) */
+static const char *const w_motion[] = {"none", "G0", "G1", "G2", "G3", "G80", NULL};
 static const char *const w_plane[] = {"G17", "G18", "G19", NULL};
 static const char *const w_dist[] = {"G91", "G90", NULL};
 static const char *const w_units[] = {"G21", "G20", NULL};
@@ -155,7 +156,7 @@ int mlip_modal_to_records(const struct mlip_gcode_modal *md, struct mlip_sf *sf)
 	char v[64], n[40];
 	int rc = 0;
 
-	rc |= mlip_sf_put(sf, "MOTION", w_motion[md->motion + 1]);
+	rc |= mlip_sf_put(sf, "MOTION", w_motion[md->motion == -2 ? 5 : md->motion + 1]);
 	rc |= mlip_sf_put(sf, "PLANE", w_plane[md->plane - 17]);
 	rc |= mlip_sf_put(sf, "DISTANCE", w_dist[md->absolute != 0]);
 	rc |= mlip_sf_put(sf, "UNITS", w_units[md->inches != 0]);
@@ -206,6 +207,7 @@ int mlip_modal_from_records(const struct mlip_sf *sf, const struct mlip_machine 
 	}
 	/* every record passed canon (mlip_sf_load): the words are known */
 	md->motion = word_index(w_motion, mlip_sf_get(sf, "MOTION")) - 1;
+	md->motion = md->motion == 4 ? -2 : md->motion; /* G80 */
 	md->plane = 17 + word_index(w_plane, mlip_sf_get(sf, "PLANE"));
 	md->absolute = word_index(w_dist, mlip_sf_get(sf, "DISTANCE"));
 	md->inches = word_index(w_units, mlip_sf_get(sf, "UNITS"));
@@ -300,8 +302,8 @@ void mlip_modal_file_free(struct mlip_modal_file *f)
 void mlip_modal_describe(const struct mlip_gcode_modal *md, char *buf, size_t len)
 {
 	char motion[16] = "", path[48] = "G61", f[48] = "", tlo[64] = "G49", n[40];
-	if (md->motion >= 0) {
-		snprintf(motion, sizeof(motion), "G%d ", md->motion);
+	if (md->motion >= 0 || md->motion == -2) {
+		snprintf(motion, sizeof(motion), "G%d ", md->motion >= 0 ? md->motion : 80);
 	}
 	if (!md->exact_stop) {
 		mlip_offsets_number(md->tol_mm, n, sizeof(n));

@@ -166,12 +166,17 @@ struct mlip_gcode {
 	                              for rotary-only moves) */
 	double initial_feed_word;  /* F used by feed moves before any F; <= 0:
 	                              none, such a move is an error */
-	int motion;                /* 0,1,2,3 or -1 before any */
-	int plane;                 /* 17, 18, 19 */
-	int absolute;              /* G90 = 1, G91 = 0 */
-	int inches;                /* G20 = 1 */
-	uint32_t blocks;           /* blocks emitted so far (events included) */
-	uint32_t moves;            /* of which moves */
+	int motion;                /* 0,1,2,3 or -1 before any (or in a canned cycle) */
+	int cycle;                 /* canned cycle in effect: 73, 81, 82, 83, 85, 89; 0 none */
+	int retract_r;             /* G99: a cycle retracts to R; 0: G98, to where it began */
+	double cyc_r, cyc_z, cyc_q, cyc_p; /* the cycle's sticky R, Z (its plane's normal
+	                                      axis), Q, P, as written */
+	int cycle_off;                     /* G80 ended a cycle, no motion code since */
+	int plane;                         /* 17, 18, 19 */
+	int absolute;                      /* G90 = 1, G91 = 0 */
+	int inches;                        /* G20 = 1 */
+	uint32_t blocks;                   /* blocks emitted so far (events included) */
+	uint32_t moves;                    /* of which moves */
 	struct mlip_gcode_offsets off;
 	int g53;          /* this line is in machine coordinates */
 	int exact_stop;   /* G61/G61.1 in effect */
@@ -215,7 +220,8 @@ struct mlip_gcode {
  * every run starts with them off, as a program does). Machine units where a
  * unit applies, except feed_word (as written, in the units of `inches`). */
 struct mlip_gcode_modal {
-	int motion;       /* G0..G3 as 0..3; -1: none yet */
+	int motion;       /* G0..G3 as 0..3; -1: none yet; -2: none after a canned
+	                     cycle (G80, or its MDI line ended): axis words alone refused */
 	int plane;        /* 17, 18, 19 */
 	int absolute;     /* G90 1, G91 0 */
 	int inches;       /* G20 1, G21 0 */
