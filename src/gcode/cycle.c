@@ -353,10 +353,7 @@ mlip_status mlip_gc_cycle(struct mlip_gcode *g, const struct blk *b, const struc
 	if (st != MLIP_OK) {
 		return st;
 	}
-	if (ec->dwell_pending && mlip_gc_flush_dwell(g, ec) != 0) {
-		return MLIP_E_FULL;
-	}
-	memcpy(g->cur, k.p, sizeof(g->cur));
+	memcpy(g->cur, k.p, sizeof(g->cur)); /* the line's dwell, if no move took it: its caller */
 	g->cyc_z = zw;
 	g->cyc_r = rw;
 	g->cyc_q = qw;
