@@ -95,13 +95,17 @@ $(RT_TOOLS) $(RT_TESTS): $(BUILD)/libmlip-rt.a
 # Parts of a tool in tools/ beside it (they use rt/, so not in tools/lib/,
 # which every binary and the fuzz targets may link): mlip-feed and mlip-ctl
 # (mdi) share the feeder, tools/feed*.c (feedstate.h); mlip-ctl's own parts
-# are tools/ctl*.c (ctltool.h); mlip-rt's tools/rtparts.c (rtparts.h).
+# are tools/ctl*.c (ctltool.h); mlip-rt's tools/rtparts.c (rtparts.h);
+# mlip-sim's options tools/simopts.c (simopts.h).
 FEED_OBJ  := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tools/feed*.c))
 CTL_OBJ   := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tools/ctl*.c))
 $(BUILD)/mlip-feed: PART_OBJ := $(FEED_OBJ)
 $(BUILD)/mlip-feed: $(FEED_OBJ)
 $(BUILD)/mlip-ctl: PART_OBJ := $(CTL_OBJ) $(FEED_OBJ)
 $(BUILD)/mlip-ctl: $(CTL_OBJ) $(FEED_OBJ)
+SIM_OBJ   := $(BUILD)/obj/tools/simopts.o
+$(BUILD)/mlip-sim: PART_OBJ := $(SIM_OBJ)
+$(BUILD)/mlip-sim: $(SIM_OBJ)
 RT_OBJ    := $(BUILD)/obj/tools/rtparts.o $(BUILD)/obj/tools/rtplan.o
 $(BUILD)/mlip-rt: PART_OBJ := $(RT_OBJ)
 $(BUILD)/mlip-rt: $(RT_OBJ)

@@ -14,6 +14,7 @@
 #include "offsetfile.h"
 #include "planfeed.h"
 #include "program.h"
+#include "simcount.h"
 #include "simpath.h"
 
 static int program_next(void *ctx, struct mlip_block *b)
@@ -32,7 +33,7 @@ static void stream_start(struct feed *f, const struct mlip_machine *m)
 		mlip_simpath_machine(m, &pm); /* smoothed as mlip-sim does for the plan */
 		m = &pm;
 	}
-	if (m->smooth) {
+	if (m->smooth && !f->mpct) {
 		f->it = mlip_smooth_iter(&f->si, &sm, m, f->it);
 	}
 }
@@ -215,10 +216,25 @@ int load(struct feed *f, int notes)
 	if (m->path_plan && f->first_seq <= 1 && (rc = plan_check(f, m)) != 0) {
 		return rc;
 	}
+	/* a smooth controller: mpct's corners when their run ends the program
+	 * sooner, as mlip-sim chooses (never slower than mpct). Counted from
+	 * where the program begins: a continuation chooses as it did */
+	f->mpct = 0;
+	if (m->smooth && !m->path_plan) {
+		struct mlip_corner_choice ch;
+		mlip_corner_choose(m, m->plan_lookahead, &f->prog, 0.0, &ch);
+		f->mpct = ch.mpct;
+		if (ch.mpct && !f->quiet) {
+			say(": %s: mpct's corners end it sooner (%.3f s; smooth's %.3f s): the "
+			    "controller runs it with them\n",
+			    f->path, (double)ch.mpct_rows * m->period_s,
+			    (double)ch.smooth_rows * m->period_s);
+		}
+	}
 	f->n = f->prog.n;
 	f->read_seq = 0;
 	stream_start(f, m);
-	if (m->smooth) {
+	if (m->smooth && !f->mpct) {
 		/* the controller runs `smooth`: send the path smoothed within the
 		 * tolerance, as mlip-sim does, so that the setpoints are the
 		 * simulator's. One pass counts the records (END is n + 1). */

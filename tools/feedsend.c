@@ -34,6 +34,7 @@ static void push_end(struct feed *f)
 		return; /* nothing sent yet: no port */
 	}
 	mlip_ring_rec_end(&rec, f->n + 1, f->end_line);
+	rec.flags |= f->mpct ? MLIP_REC_MPCT : 0u;
 	uint32_t got = 0;
 	mlip_ring_port_push_n(&f->tx, &rec, 1, &got);
 	if (got == 1) { /* full: the discard frees room */
@@ -182,6 +183,7 @@ static uint32_t fill(struct feed *f, struct mlip_ring_rec *recs, uint32_t max)
 		} else {
 			mlip_ring_rec_end(&recs[k], seq, f->end_line);
 		}
+		recs[k].flags |= f->mpct ? MLIP_REC_MPCT : 0u;
 	}
 	return k;
 }

@@ -68,6 +68,8 @@ struct feed {
 	uint64_t read_seq;           /* blocks taken from the stream so far */
 	uint32_t lines[LINE_WINDOW]; /* source line of seq, for seq % LINE_WINDOW */
 	struct mlip_block_iter it;   /* the program's blocks, or smooth's over them */
+	int mpct; /* a smooth controller runs it with mpct's corners (simcount.h):
+	             its blocks unsmoothed, every record MLIP_REC_MPCT */
 	struct mlip_smooth_iter si;
 	const char *offsets;                   /* --offsets FILE, or NULL */
 	struct mlip_offsets_file offsets_file; /* as loaded: the write-back's merge base */

@@ -782,7 +782,8 @@ static int set_up(const struct options *o, struct app *a)
 	/* published with the machine: feeders then send the smoothed path */
 	a->cfg.machine.smooth = a->strategy == MLIP_STRATEGY_SMOOTH;
 	a->cfg.machine.path_plan = a->cfg.jerk_plan == MLIP_JERK_PLAN_PATH;
-	a->cfg.machine.plan_lookahead = a->cfg.machine.path_plan ? a->cfg.lookahead : 0u;
+	a->cfg.machine.plan_lookahead =
+	    a->cfg.machine.path_plan || a->cfg.machine.smooth ? a->cfg.lookahead : 0u;
 	if (mlip_shm_create_group(&a->shm, o->shm_name, (uint32_t)o->capacity, &a->cfg.machine,
 	                          o->shm_gid, info, sizeof(info)) != 0) {
 		fprintf(stderr, PROG ": %s\n", info);

@@ -67,9 +67,10 @@ struct mlip_machine {
 	                      path, tools/rtplan.c): a feeder runs the plan's refusals
 	                      and smooths on the plan's controller's machine (no J, eps
 	                      less the band: mlip_simpath_machine); 0 in older segments */
-	/* with path_plan: the plan's controller's look-ahead ([TRAJ] LOOKAHEAD),
-	 * which a feeder's run of the plan takes too; 0: MLIP_LOOKAHEAD (older
-	 * segments) */
+	/* with path_plan or smooth: the (plan's) controller's look-ahead ([TRAJ]
+	 * LOOKAHEAD), which a feeder's run of the plan, or its count of smooth's
+	 * and mpct's runs (tools/lib/simcount.h), takes too; 0: MLIP_LOOKAHEAD
+	 * (older segments) */
 	uint32_t plan_lookahead;
 };
 

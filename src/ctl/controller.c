@@ -24,6 +24,7 @@ mlip_status mlip_ctl_init(struct mlip_ctl *c, struct mlip_planner *p, const stru
 	}
 	memcpy(c->carried, c->pos, sizeof(c->carried));
 	memcpy(c->sent, c->pos, sizeof(c->sent));
+	c->strategy = o->strategy;
 	if (mlip_planner_init(p, &c->m, o->strategy, o->lookahead, c->pos, o->smooth) != MLIP_OK) {
 		return MLIP_E_INVALID;
 	}

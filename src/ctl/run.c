@@ -182,7 +182,9 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 	struct mlip_ring_rec rec;
 	struct mlip_ctl_reason bad_why;
 	while (n < max && c->prog.end.seq == 0 && !c->prog.bad && rx_peek(c, &rec)) {
-		if (mlip_ctl_check_record(&c->m, &rec, c->prog.next_seq, &bad_why) != MLIP_OK) {
+		if (mlip_ctl_check_record(&c->m, &rec, c->prog.next_seq, &bad_why) != MLIP_OK ||
+		    (((rec.flags & MLIP_REC_MPCT) != 0) != c->prog.mpct &&
+		     bad(&bad_why, &rec, MLIP_FIELD_FLAGS, (double)rec.flags) != MLIP_OK)) {
 			bad_next = 1; /* the fault after the good blocks before it are in */
 			break;
 		}
@@ -230,6 +232,20 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 		mlip_ct_fault(c, out, bad_why);
 	}
 	return event_next;
+}
+
+/* A new program's corners: mpct's when its first record says so on a smooth
+ * controller (its feeder counted mpct's run sooner), else the controller's
+ * strategy. The flag anywhere else, or on another controller, is taken as
+ * not set: its record is bad (ingest). The planner is empty here (idle, or
+ * a starved program given up, at rest). */
+static void corners(struct mlip_ctl *c, const struct mlip_ring_rec *head)
+{
+	c->prog.mpct = (head->flags & MLIP_REC_MPCT) != 0 && c->strategy == MLIP_STRATEGY_SMOOTH;
+	mlip_strategy st = c->prog.mpct ? MLIP_STRATEGY_MPCT : c->strategy;
+	if (c->planner->strategy != st && mlip_planner_set_strategy(c->planner, st) != MLIP_OK) {
+		c->prog.mpct = !c->prog.mpct; /* not possible: its first record is refused */
+	}
 }
 
 /* The pre-read of a program (or a refill) is complete: move. */
@@ -455,6 +471,7 @@ void mlip_ct_blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 			c->prog.exec.line = 0;
 			c->prog.mdi = in->feeder_mdi;
 			memcpy(c->prog.start, c->pos, sizeof(c->prog.start));
+			corners(c, head);
 		}
 		c->prog.next_seq = head->seq;
 		c->prog.end.seq = 0;

@@ -49,6 +49,7 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 	p->strategy = st;
 	p->ops = &mlip_strategies[st];
 	p->sm = p->ops->needs_store ? store->seg : NULL;
+	p->sm_store = store != NULL ? store->seg : NULL;
 	struct mlip_jerk_plan jp;
 	mlip_jerk_plan(m, &jp);
 	p->taps = jp.taps;
@@ -71,6 +72,21 @@ mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine 
 	p->cap = cap;
 	p->override = 1.0;
 	mlip_filter_reset(p);
+	return MLIP_OK;
+}
+
+mlip_status mlip_planner_set_strategy(struct mlip_planner *p, mlip_strategy st)
+{
+	if ((unsigned)st >= MLIP_STRATEGY_COUNT ||
+	    (mlip_strategies[st].needs_store && p->sm_store == NULL) ||
+	    mlip_planner_queued(p) != 0 || mlip_planner_busy(p)) {
+		return MLIP_E_INVALID;
+	}
+	/* the strategies differ only in their entry and smooth's data, which
+	 * an empty ring does not hold */
+	p->strategy = st;
+	p->ops = &mlip_strategies[st];
+	p->sm = p->ops->needs_store ? p->sm_store : NULL;
 	return MLIP_OK;
 }
 

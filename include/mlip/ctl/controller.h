@@ -377,6 +377,8 @@ struct mlip_ctl {
 	int encode;
 	int drives; /* opts.drives */
 	uint32_t stall_periods;
+	mlip_strategy strategy; /* opts.strategy: a program's unless its records say
+	                           mpct (MLIP_REC_MPCT, on a smooth controller) */
 	/* the state and why */
 	uint32_t state; /* mlip_ctl_state */
 	struct mlip_ctl_reason why;
@@ -407,6 +409,8 @@ struct mlip_ctl {
 		int discard;                 /* dropping a stopped (or faulted) program's records */
 		int discard_waiting;         /* ... a waiting one's, its first record (seq 1) too */
 		int mdi;                     /* it is MDI lines (in->feeder_mdi at its start) */
+		int mpct;                    /* its records carry MLIP_REC_MPCT (its first
+		                                record's, at its start): mpct's corners */
 		double start[MLIP_MAX_AXES]; /* pos when its first record was taken */
 	} prog;
 	/* a dwell or a pause */

@@ -133,7 +133,13 @@ typedef enum {
 
 #define MLIP_REC_RAPID    0x1u /* MOVE, G0: runs at the machine's maximum feed */
 #define MLIP_REC_EXACT    0x2u /* MOVE, G61: the corner at its end is taken at rest */
-#define MLIP_REC_FLAGS    (MLIP_REC_RAPID | MLIP_REC_EXACT) /* any other bit: a bad record */
+/* Every record of a program a feeder runs with mpct's corners on a smooth
+ * controller (it counted mpct's run of the program sooner than smooth's:
+ * docs/algorithm.md "Smooth never slower than mpct"); the program's first
+ * record says it for the program, any other differing is a bad record, as
+ * is the flag on a controller not running smooth. */
+#define MLIP_REC_MPCT     0x4u
+#define MLIP_REC_FLAGS    (MLIP_REC_RAPID | MLIP_REC_EXACT | MLIP_REC_MPCT) /* other bits: bad */
 #define MLIP_REC_RPM_MAX  1e6          /* a larger spindle speed is not one: a bad record */
 #define MLIP_REC_TOOL_MAX 2147483647.0 /* tool numbers: whole, 0..this */
 
@@ -142,7 +148,7 @@ struct mlip_ring_rec {
 	uint64_t seq;                 /* 1, 2, 3, ... in program order (END included) */
 	uint32_t line;                /* source line, 1-based (0: none) */
 	uint16_t type;                /* mlip_rec_type */
-	uint16_t flags;               /* MLIP_REC_RAPID, MLIP_REC_EXACT */
+	uint16_t flags;               /* MLIP_REC_RAPID, MLIP_REC_EXACT, MLIP_REC_MPCT */
 	double target[MLIP_MAX_AXES]; /* MOVE: absolute, mm or deg, config axis order */
 	double feed_mm_s;             /* MOVE: programmed feed (ignored when RAPID) */
 	double tol_mm;                /* MOVE: contour budget at the end of the block */

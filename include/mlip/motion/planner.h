@@ -167,7 +167,8 @@ struct mlip_planner_stats {
 };
 
 struct mlip_planner {
-	/* configuration, fixed at init */
+	/* configuration, fixed at init (the strategy: or between programs,
+	 * mlip_planner_set_strategy) */
 	int n; /* axes */
 	mlip_strategy strategy;
 	double accel[MLIP_MAX_AXES]; /* A_k with MLIP_ACCEL_MARGIN applied */
@@ -176,6 +177,7 @@ struct mlip_planner {
 	double vmax_mm_s, vmax_rot_deg_s, eps_mm, period_s;
 	const struct mlip_strategy_ops *ops; /* the strategy's entry (mlip/motion/strategy.h) */
 	struct mlip_smooth_seg *sm;          /* smooth: its data, slot for slot with seg */
+	struct mlip_smooth_seg *sm_store;    /* the store given at init (NULL: none) */
 	/* look-ahead ring: segments [tail, head) are queued, seg[tail] is the
 	 * one being executed (its line or its end corner) */
 	uint32_t head, tail;              /* free-running; index & (cap-1) */
@@ -238,6 +240,13 @@ struct mlip_planner {
 mlip_status mlip_planner_init(struct mlip_planner *p, const struct mlip_machine *m,
                               mlip_strategy st, uint32_t cap, const double *start,
                               struct mlip_smooth_store *store);
+
+/* Another strategy for the next program (a smooth controller whose feeder
+ * counted mpct's run of a program sooner, docs/algorithm.md "Smooth never
+ * slower than mpct"): only with nothing queued, at rest, and a strategy
+ * that needs storage only when init was given it. MLIP_E_INVALID else
+ * (nothing changes). */
+mlip_status mlip_planner_set_strategy(struct mlip_planner *p, mlip_strategy st);
 
 /* Free slots for push. */
 uint32_t mlip_planner_space(const struct mlip_planner *p);
