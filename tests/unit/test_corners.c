@@ -178,8 +178,7 @@ static void test_planner_strategy_only_when_empty(void **state)
 	(void)state;
 	const double home[2] = {0.0, 0.0};
 	init(MLIP_STRATEGY_MPCT, home); /* no store: smooth cannot be set */
-	assert_int_equal(mlip_planner_set_strategy(&planner, MLIP_STRATEGY_SMOOTH),
-	                 MLIP_E_INVALID);
+	assert_int_equal(mlip_planner_set_strategy(&planner, MLIP_STRATEGY_SMOOTH), MLIP_E_INVALID);
 	assert_int_equal(mlip_planner_set_strategy(&planner, MLIP_STRATEGY_COUNT), MLIP_E_INVALID);
 	init(MLIP_STRATEGY_SMOOTH, home);
 	struct mlip_block b = {.feed_mm_s = 100.0, .tol_mm = 0.01, .seq = 1, .line = 1};
