@@ -109,7 +109,8 @@ def test_sim_exits_nonzero_on_its_own_violation(tmp_path):
     exe = tmp_path / "mlip-sim-fault"
     cc = ["cc", "-std=c99", "-D_POSIX_C_SOURCE=200809L", "-D_DEFAULT_SOURCE", "-O1",
           f"-I{ROOT / 'include'}", f"-I{ROOT / 'tools' / 'lib'}", "-DMLIP_SIM_FAULT_AT=500",
-          str(ROOT / "tools" / "mlip-sim.c"), str(ROOT / "tests" / "py" / "sim_fault.c"),
+          str(ROOT / "tools" / "mlip-sim.c"), str(ROOT / "tools" / "simopts.c"),
+          str(ROOT / "tests" / "py" / "sim_fault.c"),
           "-Wl,--wrap=mlip_trace_sample", str(BUILD / "libmlip-host.a"),
           str(BUILD / "libmlip.a"), "-lm", "-o", str(exe)]
     cc[1:1] = os.environ.get("MLIP_SAN", "").split()  # make asan/ubsan: the library's flags
