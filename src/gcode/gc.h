@@ -55,9 +55,21 @@ struct word {
 	double value;
 };
 
+/* A parameter setting "#n = value" or "#<name> = value" (expr.c): applied
+ * after every value on its line was read (LinuxCNC). */
+#define MAX_SETTINGS (MLIP_GCODE_MAX_LINE / 4 + 1) /* "#1=1" takes four bytes */
+struct gc_setting {
+	int num;                        /* 1..MLIP_GCODE_PARAMS, 0: named */
+	char name[MLIP_GCODE_NAME_LEN]; /* named: lower case, blanks removed */
+	double value;
+	uint32_t col;
+};
+
 struct lexed {
 	struct word w[MAX_WORDS];
 	int n;
+	struct gc_setting set[MAX_SETTINGS];
+	int n_set;
 	uint32_t first_col; /* first non-blank column, 0 for a blank line */
 	int percent;        /* the line is a '%' delimiter (alone, comments aside) */
 };
@@ -65,8 +77,26 @@ struct lexed {
 /* Fill *e and return st; fmt as mlip_tb_format (mlip/text/format.h). */
 mlip_status mlip_gc_fail(struct mlip_gcode_error *e, uint32_t line, uint32_t col, mlip_status st,
                          const char *fmt, ...);
-mlip_status mlip_gc_lex_line(const char *text, size_t len, uint32_t line, struct lexed *lx,
-                             struct mlip_gcode_error *e);
+/* g: the reader whose parameters the values read (NULL: none, a Grbl jog). */
+mlip_status mlip_gc_lex_line(struct mlip_gcode *g, const char *text, size_t len, uint32_t line,
+                             struct lexed *lx, struct mlip_gcode_error *e);
+
+/* ---- expr.c ---- */
+
+/* The number at t[j] into *v, *end past it (in_expr: a sign after it is an
+ * operator, not a malformed number). */
+mlip_status mlip_gc_number(const char *t, size_t n, size_t j, int in_expr, uint32_t line,
+                           double *v, size_t *end, struct mlip_gcode_error *e);
+/* A word's value at t[*pi]: a number, #parameter, [expression], unary
+ * function, signed; *pi past it. */
+mlip_status mlip_gc_real_value(struct mlip_gcode *g, const char *t, size_t n, size_t *pi,
+                               uint32_t line, double *v, struct mlip_gcode_error *e);
+/* A setting "#.. = value" at t[*pi] ('#') into lx->set. */
+mlip_status mlip_gc_setting(struct mlip_gcode *g, const char *t, size_t n, size_t *pi,
+                            uint32_t line, struct lexed *lx, struct mlip_gcode_error *e);
+/* The line's settings, in order (the last of one parameter wins). */
+mlip_status mlip_gc_apply_settings(struct mlip_gcode *g, const struct lexed *lx, uint32_t line,
+                                   struct mlip_gcode_error *e);
 
 /* ---- words.c ---- */
 

@@ -389,7 +389,11 @@ mlip_status mlip_gcode_line(struct mlip_gcode *g, const char *text, size_t len, 
 		return MLIP_OK;
 	}
 	g->broken_rule = 0;
-	st = mlip_gc_lex_line(text, len, lineno, &lx, err);
+	st = mlip_gc_lex_line(g, text, len, lineno, &lx, err);
+	if (st == MLIP_OK) {
+		/* every value of the line is read: its settings take effect */
+		st = mlip_gc_apply_settings(g, &lx, lineno, err);
+	}
 	if (st == MLIP_OK && lx.percent) {
 		/* LinuxCNC: a '%' before anything else opens the program; the
 		 * next one closes it, and what follows is not read */

@@ -21,7 +21,7 @@ static mlip_status jog_line(struct mlip_gcode *g, const char *t, size_t len, siz
 	mlip_status st;
 	int k, c, has_f = 0, g53 = 0, g91 = 0;
 
-	st = mlip_gc_lex_line(t + j, len - j, 0, &lx, e);
+	st = mlip_gc_lex_line(NULL, t + j, len - j, 0, &lx, e);
 	if (st != MLIP_OK) {
 		e->col += e->col ? (uint32_t)j : 0;
 		e->line = line;

@@ -62,51 +62,47 @@ static int is_nan_inf(const char *t, size_t n, size_t i, size_t *end)
 	return 0;
 }
 
-/* One word at t[*pi] (a letter); blanks may separate letter and number. */
-static mlip_status lex_word(const char *t, size_t n, size_t *pi, uint32_t line, struct word *w,
-                            struct mlip_gcode_error *e)
+/* A unary function (SIN[..]) begins at t[j]: letters, then '['. */
+static int function_next(const char *t, size_t n, size_t j)
 {
-	struct mlip_number num;
+	while (j < n && mlip_is_alpha(t[j])) {
+		j++;
+	}
+	while (j < n && mlip_is_blank(t[j])) {
+		j++;
+	}
+	return j < n && t[j] == '[';
+}
+
+/* One word at t[*pi] (a letter); blanks may separate letter and value: a
+ * number, or a parameter, expression or function (expr.c). */
+static mlip_status lex_word(struct mlip_gcode *g, const char *t, size_t n, size_t *pi,
+                            uint32_t line, struct word *w, struct mlip_gcode_error *e)
+{
 	size_t i = *pi, j, k;
-	int ndig;
 
 	w->letter = mlip_upper(t[i]);
 	w->col = (uint32_t)i + 1;
 	for (j = i + 1; j < n && mlip_is_blank(t[j]); j++) {
 	}
-	if (j < n && mlip_gc_starts_number(t[j])) {
-		k = mlip_number_lex(t, n, j, 0, &num);
-		ndig = num.ndig;
-		w->value = mlip_number_value(&num);
-		/* "1.2.3", "1e5", "--1", ".": the number runs on in number-like bytes */
-		if (ndig == 0 || (k < n && (t[k] == '.' || t[k] == '+' || t[k] == '-')) ||
-		    (k + 1 < n && (t[k] == 'e' || t[k] == 'E') &&
-		     (mlip_is_digit(t[k + 1]) || t[k + 1] == '+' || t[k + 1] == '-'))) {
-			while (k < n &&
-			       (mlip_gc_starts_number(t[k]) || t[k] == 'e' || t[k] == 'E')) {
-				k++;
-			}
-			return mlip_gc_fail(e, line, (uint32_t)j + 1, MLIP_E_SYNTAX,
-			                    "malformed number '%t'", t + j, k - j);
-		}
-		*pi = k;
-		return MLIP_OK;
+	if (j < n && mlip_gc_starts_number(t[j]) &&
+	    !((t[j] == '+' || t[j] == '-') && j + 1 < n && (t[j + 1] == '#' || t[j + 1] == '['))) {
+		return mlip_gc_number(t, n, j, 0, line, &w->value, pi, e);
 	}
 	if (j < n && is_nan_inf(t, n, j, &k)) {
 		return mlip_gc_fail(e, line, (uint32_t)j + 1, MLIP_E_SYNTAX,
 		                    "malformed number '%t'", t + j, k - j);
 	}
-	if (j < n && (t[j] == '#' || t[j] == '[')) {
-		return mlip_gc_fail(
-		    e, line, (uint32_t)j + 1, MLIP_E_UNSUPPORTED,
-		    "parameters and expressions (# [ ]) not supported: have the CAM "
-		    "write plain numbers");
+	if (j < n && (t[j] == '#' || t[j] == '[' || t[j] == '+' || t[j] == '-' ||
+	              (mlip_is_alpha(t[j]) && function_next(t, n, j)))) {
+		*pi = j;
+		return mlip_gc_real_value(g, t, n, pi, line, &w->value, e);
 	}
 	return mlip_gc_fail(e, line, w->col, MLIP_E_SYNTAX, "word %c has no number", w->letter);
 }
 
-mlip_status mlip_gc_lex_line(const char *text, size_t len, uint32_t line, struct lexed *lx,
-                             struct mlip_gcode_error *e)
+mlip_status mlip_gc_lex_line(struct mlip_gcode *g, const char *text, size_t len, uint32_t line,
+                             struct lexed *lx, struct mlip_gcode_error *e)
 {
 	const unsigned char *t = (const unsigned char *)text;
 	size_t i = 0, end, k;
@@ -114,6 +110,7 @@ mlip_status mlip_gc_lex_line(const char *text, size_t len, uint32_t line, struct
 	mlip_status st;
 
 	lx->n = 0;
+	lx->n_set = 0;
 	lx->first_col = 0;
 	lx->percent = 0;
 	if (line == 1 && len >= 3 && t[0] == 0xEF && t[1] == 0xBB && t[2] == 0xBF) {
@@ -169,7 +166,7 @@ mlip_status mlip_gc_lex_line(const char *text, size_t len, uint32_t line, struct
 			                    "non-ASCII byte %b outside a comment", c);
 		}
 		if (mlip_is_alpha(c)) {
-			st = lex_word(text, len, &i, line, &lx->w[lx->n], e);
+			st = lex_word(g, text, len, &i, line, &lx->w[lx->n], e);
 			if (st != MLIP_OK) {
 				return st;
 			}
@@ -183,10 +180,11 @@ mlip_status mlip_gc_lex_line(const char *text, size_t len, uint32_t line, struct
 			                    "number '%t' without a word letter", text + i, k - i);
 		}
 		if (c == '#') {
-			return mlip_gc_fail(
-			    e, line, col, MLIP_E_UNSUPPORTED,
-			    "parameters and expressions (# [ ]) not supported: have the CAM "
-			    "write plain numbers");
+			st = mlip_gc_setting(g, text, len, &i, line, lx, e);
+			if (st != MLIP_OK) {
+				return st;
+			}
+			continue;
 		}
 		return mlip_gc_fail(e, line, col, MLIP_E_SYNTAX, "unexpected character %b", c);
 	}

@@ -5,18 +5,52 @@
 #include "gc.h"
 #include "mlip/text/number.h"
 
+/* A unary function's name, then '[' (X SIN[30]), at t[j]. */
+static int function_at(const char *t, size_t n, size_t j)
+{
+	static const char *const names[] = {"ABS", "ACOS", "ASIN", "ATAN",  "COS",
+	                                    "EXP", "FIX",  "FUP",  "ROUND", "LN",
+	                                    "SIN", "SQRT", "TAN",  "EXISTS"};
+	size_t k = j, q;
+	while (k < n && mlip_is_alpha(t[k])) {
+		k++;
+	}
+	for (q = k; q < n && mlip_is_blank(t[q]); q++) {
+	}
+	if (q >= n || t[q] != '[') {
+		return 0;
+	}
+	for (size_t f = 0; f < sizeof names / sizeof names[0]; f++) {
+		size_t m = 0;
+		while (names[f][m] && j + m < k && mlip_upper(t[j + m]) == names[f][m]) {
+			m++;
+		}
+		if (!names[f][m] && j + m == k) {
+			return 1;
+		}
+	}
+	return 0;
+}
+
 /* Next word outside comments from *pi on: its letter (upper case), where its
- * number starts, and its line. A letter counts only when a number follows it
- * (after blanks), as for the lexer. */
+ * number starts, and its line. A letter counts only when a value follows it
+ * (after blanks: a number, #, [ or a function), as for the lexer. */
 static int next_word(const char *t, size_t n, size_t *pi, uint32_t *line, char *letter, size_t *num)
 {
 	size_t i = *pi, j;
+	int depth = 0; /* inside [ ]: functions and operators, no words */
 
 	while (i < n) {
 		char c = t[i];
 
 		if (c == '\n' || (c == '\r' && (i + 1 == n || t[i + 1] != '\n'))) {
 			(*line)++; /* LF, CRLF or a lone CR */
+			depth = 0;
+			i++;
+		} else if (c == '[' || c == ']') {
+			depth += c == '[' ? 1 : depth > 0 ? -1 : 0;
+			i++;
+		} else if (depth > 0 && c != '(' && c != ';') {
 			i++;
 		} else if (c == '(' || c == ';') {
 			while (i < n && t[i] != '\n' && t[i] != '\r' &&
@@ -24,11 +58,16 @@ static int next_word(const char *t, size_t n, size_t *pi, uint32_t *line, char *
 				i++;
 			}
 			i += i < n && t[i] == ')';
+		} else if (c == '#' && i + 1 < n && t[i + 1] == '<') {
+			while (i < n && t[i] != '>' && t[i] != '\n' && t[i] != '\r') {
+				i++; /* a named parameter's name */
+			}
 		} else if (mlip_is_alpha(c)) {
 			for (j = i + 1; j < n && mlip_is_blank(t[j]); j++) {
 			}
 			i++;
-			if (j < n && mlip_gc_starts_number(t[j])) {
+			if (j < n && (mlip_gc_starts_number(t[j]) || t[j] == '#' || t[j] == '[' ||
+			              function_at(t, n, j))) {
 				*letter = mlip_upper(c);
 				*num = j;
 				*pi = i;

@@ -197,6 +197,55 @@ def test_canned_cycles_drill_a_plate(tmp_path):
     assert r[-1][1:] == [20.0, 5.0, 10.0]
 
 
+def test_parameters_and_expressions_bolt_circle(tmp_path):
+    """A hand-written LinuxCNC bolt circle: named and numbered parameters,
+    expressions, SIN/COS in degrees, a setting read before it takes effect
+    on its line, a G55 origin read back through #5241. Judged from the
+    trace against Python's own arithmetic: the tool rests at each hole's
+    bottom (x, y within 1e-9 mm of R (cos, sin) of its angle), and never
+    below it; mlip-check passes the trace against the program."""
+    prog, trace, p = sim(tmp_path, """G21 G90 G17 G61 (exact stop: each hole to its bottom)
+G10 L2 P2 X30 Y40
+G55
+#<radius> = 12.5
+#<holes> = 6
+#<_depth> = -[1 + 0.5]
+#1 = 15 (start angle)
+#2 = [360 / #<holes>]
+G0 Z5
+G0 X[#<radius> * COS[#1]] Y[#<radius> * SIN[#1]]
+G1 Z#<_depth> F300
+G0 Z5
+#1 = [#1 + #2] G0 X[#<radius> * COS[#1]] Y[#<radius> * SIN[#1]]
+G0 X[#<radius> * COS[#1]] Y[#<radius> * SIN[#1]]
+G1 Z#<_depth>
+G0 Z5
+#1 = [#1 + #2]
+G0 X[#<radius> * COS[#1]] Y[#<radius> * SIN[#1]]
+G1 Z#<_depth>
+G0 Z5
+#5 = 7 G0 X#5 Y0 (#5 is 0 on this line: the setting comes after it)
+G1 Z-0.5
+G0 Z5
+G0 X[#5241 - 30] Y[ROUND[#5242 / 10] * 10 - 40]
+M2
+""")
+    assert check(prog, trace).returncode == 0
+    r = rows(trace)
+    step = 1000 * 1e-6 / 2  # a move's end at rest falls between two samples
+    # holes at 15, 75, 135 degrees (the setting on a moving line takes effect
+    # after it: that line moves to the old angle, the next to the new one)
+    holes = {(round(30 + 12.5 * math.cos(math.radians(a)), 6),
+              round(40 + 12.5 * math.sin(math.radians(a)), 6)): -1.5 for a in (15.0, 75.0, 135.0)}
+    holes[(30.0, 40.0)] = -0.5  # X#5 read before "#5 = 7" took effect: G55's X0
+    below = [row for row in r if row[3] < 0]
+    assert {(round(b[1], 6), round(b[2], 6)) for b in below} == set(holes)
+    for (x, y), depth in holes.items():
+        z = [row[3] for row in below if abs(row[1] - x) < 1e-6 and abs(row[2] - y) < 1e-6]
+        assert depth - 1e-9 <= min(z) <= depth + step, (x, y, min(z))
+    assert r[-1][1:] == [30.0, 40.0, 5.0]  # G55's origin, read back
+
+
 def test_g61_corners_at_rest(tmp_path):
     """G61: the tool stops exactly on every corner; G64 cuts them."""
     square = "G1 X10 F6000\nY10\nX0\nY0\n"

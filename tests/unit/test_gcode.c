@@ -179,9 +179,8 @@ static void test_malformed_numbers(void **state)
 	check_err("G F100", 1, 1, "word G has no number");
 	check_err("G1 X1 E5 F100", 1, 7, "unknown word letter E");
 	check_err("G1 U1 F100", 1, 4, "axis U not supported");
-	check_err("G1 X1 #1=2 F100", 1, 7, "parameters and expressions (# [ ]) not supported");
-	check_err("G1 X[1+2] F100", 1, 5, "parameters and expressions (# [ ]) not supported");
-	check_err("G1 X#1 F100", 1, 5, "parameters and expressions (# [ ]) not supported");
+	/* parameters and expressions: tests/unit/test_expr.c */
+	check_err("G1 X#<nope> F100", 1, 5, "named parameter #<nope> is not set");
 	check_err("O100 sub\nG1 X1 F100", 1, 1,
 	          "O-words (subroutines, loops, conditions) not "
 	          "supported: have the CAM expand them");

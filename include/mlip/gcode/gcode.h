@@ -156,6 +156,23 @@ void mlip_gcode_offsets_init(struct mlip_gcode_offsets *o, const struct mlip_mac
 /* "G54" .. "G59.3" for select 0..8 (static string). */
 const char *mlip_gcode_coord_name(int select);
 
+/* A program's parameters (LinuxCNC's: src/gcode/expr.c). Numbered #1..#5000
+ * are the program's; #5001..MLIP_GCODE_PARAM_MAX the machine's state (read
+ * only); named ones are set by the program (lower case, blanks removed). */
+#define MLIP_GCODE_PARAMS    5000
+#define MLIP_GCODE_PARAM_MAX 5602
+#define MLIP_GCODE_NAMED     128
+#define MLIP_GCODE_NAME_LEN  48
+struct mlip_gcode_params {
+	double num[MLIP_GCODE_PARAMS + 1];
+	uint8_t set[MLIP_GCODE_PARAMS + 1]; /* set by this program (or these MDI lines) */
+	uint32_t n_named;
+	struct {
+		char name[MLIP_GCODE_NAME_LEN];
+		double value;
+	} named[MLIP_GCODE_NAMED];
+};
+
 /* Modal state: fixed size, owned by the caller. Fields are private. */
 struct mlip_gcode {
 	const struct mlip_machine *m;
@@ -210,6 +227,7 @@ struct mlip_gcode {
 	int probe_mode;      /* the motion mode is a G38 (382..385): axis words alone are
 	                        refused */
 	uint32_t probe_line; /* the line of the last G38 */
+	struct mlip_gcode_params params; /* #1, #<name> (expr.c) */
 };
 
 /* The modal state one MDI command leaves for the next (LinuxCNC's
