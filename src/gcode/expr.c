@@ -97,6 +97,11 @@ mlip_status mlip_gc_number(const char *t, size_t n, size_t j, int in_expr, uint3
 	return MLIP_OK;
 }
 
+/* The unary functions, in the order function() switches on (EXISTS last). */
+const char *const mlip_gc_functions[MLIP_GC_N_FUNCTIONS] = {"ABS", "ACOS", "ASIN", "ATAN",  "COS",
+                                                            "EXP", "FIX",  "FUP",  "ROUND", "LN",
+                                                            "SIN", "SQRT", "TAN",  "EXISTS"};
+
 /* ---- the parameters --------------------------------------------------- */
 
 /* "#<P a R am >": lower case, blanks removed, into name; i past the '>'. */
@@ -540,17 +545,15 @@ static mlip_status bracket(struct px *p, double *v)
 
 static mlip_status function(struct px *p, double *v)
 {
-	static const char *const names[] = {"ABS", "ACOS", "ASIN", "ATAN",  "COS",
-	                                    "EXP", "FIX",  "FUP",  "ROUND", "LN",
-	                                    "SIN", "SQRT", "TAN",  "EXISTS"};
+	const char *const *names = mlip_gc_functions;
 	char w[16];
 	size_t at = p->i, k;
 	mlip_status st;
 	p->i += letters(p, p->i, w, sizeof w);
-	for (k = 0; k < sizeof names / sizeof names[0] && strcmp(w, names[k]) != 0; k++) {
+	for (k = 0; k < MLIP_GC_N_FUNCTIONS && strcmp(w, names[k]) != 0; k++) {
 	}
 	blanks(p);
-	if (k == sizeof names / sizeof names[0] || p->i >= p->n || p->t[p->i] != '[') {
+	if (k == MLIP_GC_N_FUNCTIONS || p->i >= p->n || p->t[p->i] != '[') {
 		return fail(p, at, MLIP_E_SYNTAX, "unknown function or word '%s'", w);
 	}
 	if (k == 13) { /* EXISTS[#<name>] */

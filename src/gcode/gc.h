@@ -83,6 +83,9 @@ mlip_status mlip_gc_lex_line(struct mlip_gcode *g, const char *text, size_t len,
 
 /* ---- expr.c ---- */
 
+#define MLIP_GC_N_FUNCTIONS 14
+extern const char *const mlip_gc_functions[MLIP_GC_N_FUNCTIONS]; /* "ABS" .. "EXISTS" */
+
 /* The number at t[j] into *v, *end past it (in_expr: a sign after it is an
  * operator, not a malformed number). */
 mlip_status mlip_gc_number(const char *t, size_t n, size_t j, int in_expr, uint32_t line,

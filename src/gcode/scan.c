@@ -8,9 +8,6 @@
 /* A unary function's name, then '[' (X SIN[30]), at t[j]. */
 static int function_at(const char *t, size_t n, size_t j)
 {
-	static const char *const names[] = {"ABS", "ACOS", "ASIN", "ATAN",  "COS",
-	                                    "EXP", "FIX",  "FUP",  "ROUND", "LN",
-	                                    "SIN", "SQRT", "TAN",  "EXISTS"};
 	size_t k = j, q;
 	while (k < n && mlip_is_alpha(t[k])) {
 		k++;
@@ -20,12 +17,13 @@ static int function_at(const char *t, size_t n, size_t j)
 	if (q >= n || t[q] != '[') {
 		return 0;
 	}
-	for (size_t f = 0; f < sizeof names / sizeof names[0]; f++) {
+	for (size_t f = 0; f < MLIP_GC_N_FUNCTIONS; f++) {
 		size_t m = 0;
-		while (names[f][m] && j + m < k && mlip_upper(t[j + m]) == names[f][m]) {
+		while (mlip_gc_functions[f][m] && j + m < k &&
+		       mlip_upper(t[j + m]) == mlip_gc_functions[f][m]) {
 			m++;
 		}
-		if (!names[f][m] && j + m == k) {
+		if (!mlip_gc_functions[f][m] && j + m == k) {
 			return 1;
 		}
 	}

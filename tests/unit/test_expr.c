@@ -223,6 +223,19 @@ static void test_errors(void **state)
 	assert_near(last.target[0], 2.0, 0);
 }
 
+/* The axes a program uses (mlip-sim without a config): words whose value
+ * is an expression count, letters of functions and operators do not. */
+static void test_scan_axes(void **state)
+{
+	static const char text[] = "G1 X[FIX[1.5] MOD 2] Y#1 F100\n"
+	                           "Z SIN[30] (A1)\n"
+	                           "#<b> = [ATAN[1]/[1] + ABS[-1] + EXP[0] XOR 1]\n";
+	char axes[8];
+	(void)state;
+	assert_int_equal(mlip_gcode_scan_axes(text, sizeof text - 1, axes), 3);
+	assert_string_equal(axes, "XYZ");
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -230,6 +243,7 @@ int main(void)
 	    cmocka_unit_test_setup(test_parameters, setup),
 	    cmocka_unit_test_setup(test_machine_parameters, setup),
 	    cmocka_unit_test_setup(test_errors, setup),
+	    cmocka_unit_test(test_scan_axes),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }
