@@ -62,6 +62,7 @@ void mlip_gcode_modal_init(struct mlip_gcode_modal *md, const struct mlip_machin
 
 void mlip_gcode_get_modal(const struct mlip_gcode *g, struct mlip_gcode_modal *md)
 {
+	memset(md, 0, sizeof *md); /* its padding too: a copy compares whole */
 	/* a canned cycle's mode ends with its MDI line (its sticky numbers are
 	 * not kept): axis words alone after it are refused, as after G80 */
 	md->motion = g->cycle || g->cycle_off ? -2 : g->motion;
