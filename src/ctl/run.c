@@ -173,6 +173,20 @@ void mlip_ct_fault(struct mlip_ctl *c, struct mlip_ctl_out *out, struct mlip_ctl
 	go(c, out, MLIP_STATE_FAULT, r);
 }
 
+/* The record expected next, checked, and its MLIP_REC_MPCT the program's
+ * (the corners its feeder chose, taken at its start: corners()). */
+static mlip_status record_ok(const struct mlip_ctl *c, const struct mlip_ring_rec *rec,
+                             struct mlip_ctl_reason *why)
+{
+	if (mlip_ctl_check_record(&c->m, rec, c->prog.next_seq, why) != MLIP_OK) {
+		return MLIP_E_RANGE;
+	}
+	if (((rec->flags & MLIP_REC_MPCT) != 0) != c->prog.mpct) {
+		return bad(why, rec, MLIP_FIELD_FLAGS, (double)rec->flags);
+	}
+	return MLIP_OK;
+}
+
 /* Take up to max records of the current program, stopping in front of an
  * event (it is taken at rest) and after END. Returns 1 when an event is next. */
 static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
@@ -182,9 +196,7 @@ static int ingest(struct mlip_ctl *c, struct mlip_ctl_out *out, uint32_t max)
 	struct mlip_ring_rec rec;
 	struct mlip_ctl_reason bad_why;
 	while (n < max && c->prog.end.seq == 0 && !c->prog.bad && rx_peek(c, &rec)) {
-		if (mlip_ctl_check_record(&c->m, &rec, c->prog.next_seq, &bad_why) != MLIP_OK ||
-		    (((rec.flags & MLIP_REC_MPCT) != 0) != c->prog.mpct &&
-		     bad(&bad_why, &rec, MLIP_FIELD_FLAGS, (double)rec.flags) != MLIP_OK)) {
+		if (record_ok(c, &rec, &bad_why) != MLIP_OK) {
 			bad_next = 1; /* the fault after the good blocks before it are in */
 			break;
 		}
@@ -497,7 +509,7 @@ void mlip_ct_blocks_in(struct mlip_ctl *c, const struct mlip_ctl_in *in, struct 
 			return; /* a probe move: what follows is taken once it ended */
 		}
 		if (mlip_planner_queued(c->planner) == 0 && have && is_event(head) &&
-		    mlip_ctl_check_record(&c->m, head, c->prog.next_seq, NULL) == MLIP_OK) {
+		    record_ok(c, head, NULL) == MLIP_OK) {
 			start_event(c, out, in, head);
 			return;
 		}
@@ -619,8 +631,7 @@ void mlip_ct_after_step(struct mlip_ctl *c, struct mlip_ctl_out *out, const stru
 					go(c, out, MLIP_STATE_RUNNING,
 					   reason(MLIP_WHY_RESUME, 0, 0));
 				}
-				if (still && mlip_ctl_check_record(&c->m, &next, c->prog.next_seq,
-				                                   NULL) == MLIP_OK) {
+				if (still && record_ok(c, &next, NULL) == MLIP_OK) {
 					/* at rest since the last period: this one is the
 					 * wait's first, so the wait counts from the arrival */
 					start_event(c, out, in, &next);

@@ -72,17 +72,30 @@ static void wave(double x0, uint16_t flags)
 
 /* The records run from idle back to idle (or a fault): the setpoints of
  * every period after the program left idle into r; the count. */
+/* A late feeder: records from index late_from on reach the controller in
+ * the run's period late_at (and a run ends once starved, with stop_starved:
+ * starved_at its period). */
+static uint32_t late_from = MOVES + 1, late_at;
+static int stop_starved, starved_at = -1;
+
 static int run(double (*r)[2], uint64_t *period)
 {
 	uint32_t tail = 0;
 	int n = 0, started = 0;
 	for (int i = 0; i < 10 * MAX_ROWS; i++) {
 		struct mlip_ctl_in in = {.period = (*period)++, .feeder_alive = 1};
+		uint32_t visible = (uint32_t)i >= late_at ? MOVES + 1 : late_from;
 		in.recs.span[0] = recs + tail;
-		in.recs.len[0] = MOVES + 1 - tail;
+		in.recs.len[0] = visible - tail;
 		mlip_ctl_period(&ctl, &in, &out);
 		tail += out.taken;
 		uint32_t s = out.status.state;
+		if (s == MLIP_STATE_STARVED && starved_at < 0) {
+			starved_at = i;
+			if (stop_starved) {
+				return n;
+			}
+		}
 		started |= s != MLIP_STATE_IDLE;
 		if (started && s != MLIP_STATE_PREREAD) {
 			assert_true(n < MAX_ROWS);
@@ -163,6 +176,40 @@ static void test_flag_where_it_does_not_belong(void **state)
 	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
 	assert_int_equal(out.status.reason_field, MLIP_FIELD_FLAGS);
 	assert_int_equal(out.status.reason_seq, 31);
+	/* ... an event that reaches the controller as it comes to rest before it
+	 * (a late feeder), taken at rest by its own path: a dwell here */
+	p = 0;
+	init(MLIP_STRATEGY_SMOOTH, home);
+	wave(0.0, MLIP_REC_MPCT);
+	recs[30].type = MLIP_REC_DWELL;
+	recs[30].dwell_s = 0.01;
+	recs[30].flags = 0;
+	late_from = 30; /* more than the look-ahead: it moves */
+	late_at = 1u << 30;
+	stop_starved = 1;
+	(void)run(rows[0], &p); /* the period it comes to rest after record 30 */
+	assert_true(starved_at > 0);
+	p = 0;
+	init(MLIP_STRATEGY_SMOOTH, home);
+	late_at = (uint32_t)starved_at;
+	stop_starved = 0;
+	(void)run(rows[0], &p);
+	late_from = MOVES + 1;
+	late_at = 0;
+	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
+	assert_int_equal(out.status.reason_field, MLIP_FIELD_FLAGS);
+	assert_int_equal(out.status.reason_seq, 31);
+	/* ... an event too, taken at rest by its own path (a dwell here) */
+	p = 0;
+	init(MLIP_STRATEGY_SMOOTH, home);
+	wave(0.0, MLIP_REC_MPCT);
+	recs[12].type = MLIP_REC_DWELL;
+	recs[12].dwell_s = 0.01;
+	recs[12].flags = 0;
+	(void)run(rows[0], &p);
+	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
+	assert_int_equal(out.status.reason_field, MLIP_FIELD_FLAGS);
+	assert_int_equal(out.status.reason_seq, 13);
 	p = 0;
 	init(MLIP_STRATEGY_SMOOTH, home);
 	wave(0.0, MLIP_REC_MPCT);
