@@ -35,8 +35,7 @@
 #include "simstorm.h"
 #include "trace.h"
 
-#define MAX_PERIODS 200000000ULL /* 55 h of machining at 1 ms: a runaway */
-#define OVER_BUDGET 99           /* run(): auto's plan scout took as long as the mean */
+#define OVER_BUDGET 99 /* run(): auto's plan scout took as long as the mean */
 
 static struct mlip_planner planner;           /* ~1.1 MB: static, like on the controller */
 static struct mlip_smooth_store smooth_store; /* ~1.5 MB, touched only by smooth */
@@ -454,7 +453,7 @@ static int run(const struct options *o, struct sim *s)
 			        (unsigned)out.status.reason_line);
 			return 1;
 		}
-		if (period > MAX_PERIODS) {
+		if (period > MLIP_SIM_MAX_PERIODS) {
 			fprintf(stderr, PROG ": no end after %llu periods: aborting\n",
 			        (unsigned long long)period);
 			return 3;

@@ -117,14 +117,14 @@ static mlip_status name_at(struct px *p, char *name)
 		if (c < 0x21 || c > 0x7e || c == '<' || c == '#' || c == '[' || c == ']' ||
 		    k + 1 >= MLIP_GCODE_NAME_LEN) {
 			return fail(
-			    p, at, MLIP_E_SYNTAX,
-			    "a named parameter is #<name>: printable, at most %s characters", "47");
+			    p, at, MLIP_E_SYNTAX, "%s",
+			    "a named parameter is #<name>: printable, at most 47 characters");
 		}
 		name[k++] = (char)(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
 	}
 	if (p->i >= p->n || k == 0) {
-		return fail(p, at, MLIP_E_SYNTAX, "a named parameter is #<name>%s",
-		            ": '>' missing");
+		return fail(p, at, MLIP_E_SYNTAX, "%s",
+		            "a named parameter is #<name>: '>' missing");
 	}
 	p->i++;
 	name[k] = '\0';

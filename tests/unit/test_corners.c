@@ -151,6 +151,15 @@ static void test_flagged_program_runs_mpct_then_smooth_again(void **state)
 	assert_true(same(rows[1], n_next, ref, n_smooth));
 }
 
+/* The run ended in a fault: bad record seq, its flags. */
+static void flags_fault_at(uint64_t seq)
+{
+	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
+	assert_int_equal(out.status.reason, MLIP_WHY_BAD_RECORD);
+	assert_int_equal(out.status.reason_field, MLIP_FIELD_FLAGS);
+	assert_int_equal(out.status.reason_seq, seq);
+}
+
 static void test_flag_where_it_does_not_belong(void **state)
 {
 	(void)state;
@@ -173,9 +182,7 @@ static void test_flag_where_it_does_not_belong(void **state)
 	wave(0.0, 0);
 	recs[30].flags |= MLIP_REC_MPCT;
 	(void)run(rows[0], &p);
-	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
-	assert_int_equal(out.status.reason_field, MLIP_FIELD_FLAGS);
-	assert_int_equal(out.status.reason_seq, 31);
+	flags_fault_at(31);
 	/* ... an event that reaches the controller as it comes to rest before it
 	 * (a late feeder), taken at rest by its own path: a dwell here */
 	p = 0;
@@ -196,9 +203,7 @@ static void test_flag_where_it_does_not_belong(void **state)
 	(void)run(rows[0], &p);
 	late_from = MOVES + 1;
 	late_at = 0;
-	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
-	assert_int_equal(out.status.reason_field, MLIP_FIELD_FLAGS);
-	assert_int_equal(out.status.reason_seq, 31);
+	flags_fault_at(31);
 	/* ... an event too, taken at rest by its own path (a dwell here) */
 	p = 0;
 	init(MLIP_STRATEGY_SMOOTH, home);
@@ -207,17 +212,13 @@ static void test_flag_where_it_does_not_belong(void **state)
 	recs[12].dwell_s = 0.01;
 	recs[12].flags = 0;
 	(void)run(rows[0], &p);
-	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
-	assert_int_equal(out.status.reason_field, MLIP_FIELD_FLAGS);
-	assert_int_equal(out.status.reason_seq, 13);
+	flags_fault_at(13);
 	p = 0;
 	init(MLIP_STRATEGY_SMOOTH, home);
 	wave(0.0, MLIP_REC_MPCT);
 	recs[5].flags &= (uint16_t)~MLIP_REC_MPCT;
 	(void)run(rows[0], &p);
-	assert_int_equal(out.status.state, MLIP_STATE_FAULT);
-	assert_int_equal(out.status.reason_field, MLIP_FIELD_FLAGS);
-	assert_int_equal(out.status.reason_seq, 6);
+	flags_fault_at(6);
 }
 
 static void test_planner_strategy_only_when_empty(void **state)

@@ -8,8 +8,6 @@
 #include "simfeed.h"
 #include "trace.h"
 
-#define MAX_PERIODS 200000000ULL /* mlip-sim's: 55 h at 1 ms, a runaway */
-
 static struct {
 	struct mlip_planner planner;           /* ~1.1 MB */
 	struct mlip_smooth_store smooth_store; /* ~1.5 MB, smooth only */
@@ -45,7 +43,7 @@ int mlip_simcount(const struct mlip_machine *m, uint32_t lookahead, struct mlip_
 	S.fdr = (struct feeder){.src = {.p = prog, .feed = feed}, .end_line = prog->lines};
 	source_init(&S.fdr.src, m, st == MLIP_STRATEGY_SMOOTH);
 	mlip_trace_open(&S.trace, NULL, m, home);
-	for (uint64_t period = 0; period <= MAX_PERIODS; period++) {
+	for (uint64_t period = 0; period <= MLIP_SIM_MAX_PERIODS; period++) {
 		struct mlip_ring_cmd cmd = {.seq = 2, .op = MLIP_CMD_RESUME};
 		struct mlip_ctl_in in = {.period = period, .feeder_alive = 1};
 		uint32_t was = S.q.head;

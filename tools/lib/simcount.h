@@ -21,6 +21,8 @@
 #include "mlip/motion/planner.h"
 #include "program.h"
 
+#define MLIP_SIM_MAX_PERIODS 200000000ULL /* 55 h of machining at 1 ms: a runaway */
+
 enum {
 	MLIP_SIMCOUNT_DONE = 0, /* ran to rest at its end: *rows */
 	MLIP_SIMCOUNT_OVER = 1, /* reached budget rows first (not sooner) */
